@@ -1,0 +1,36 @@
+"""gyrodenoise: gyro denoising with an online improved AR(n) model and a
+modified Sage-Husa adaptive Kalman filter (Sun et al., Sensors 2016), Allan
+variance analysis, a model-card gyro simulator, FMUs and a MAVLink bridge.
+
+Python API (numpy arrays in, numpy out)::
+
+    import gyrodenoise as gd
+    filtered = gd.denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3)
+    result = gd.allan(rate_deg_s, sample_rate_hz)
+    record = gd.simulate("models/paper_fog.toml", n_samples, seed=0)
+"""
+
+from .denoiser import Denoiser, denoise
+
+__version__ = "0.1.0"
+
+__all__ = ["Denoiser", "denoise", "allan", "simulate", "load_card", "__version__"]
+
+
+def allan(rate_deg_s, sample_rate_hz, **kw):
+    """Allan deviation and five-term fit; see :func:`gyrodenoise.allanvar.allan`."""
+    from .allanvar import allan as _allan
+    return _allan(rate_deg_s, sample_rate_hz, **kw)
+
+
+def simulate(card, n_samples, seed=0, true_rate_deg_s=None, restarts=None):
+    """Simulated gyro record; see :func:`gyrodenoise.simulator.simulate`."""
+    from .simulator import simulate as _simulate
+    return _simulate(card, n_samples, seed=seed, true_rate_deg_s=true_rate_deg_s,
+                     restarts=restarts)
+
+
+def load_card(path_or_name):
+    """Read a model card; see :func:`gyrodenoise.simulator.load_card`."""
+    from .simulator import load_card as _load
+    return _load(path_or_name)

@@ -1,0 +1,112 @@
+"""Batch loop over arrays: the kernels of :mod:`gyrodenoise.kernels`, compiled.
+
+The loop below is written once; with numba installed it is compiled by
+``numba.njit`` (the kernels it calls are ``register_jitable``), without numba
+it runs as plain Python over the same functions. Both give the same numbers
+(tested to 1e-12).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels as K
+
+try:
+    import numba
+except ImportError:  # pragma: no cover
+    numba = None
+
+
+def _run_py(p, s, z, restarts, out, diag):
+    """Filter ``z`` into ``out``; ``diag`` (n_samples x 4 or 0 rows) receives
+    [innovation, R_hat, converged, rls_error] per sample."""
+    want_diag = len(diag) > 0
+    for i in range(len(z)):
+        out[i] = K.step(p, s, z[i], restarts[i])
+        if want_diag:
+            diag[i, 0] = s[K.S_INNOV]
+            diag[i, 1] = s[K.S_R]
+            diag[i, 2] = s[K.S_CONV]
+            diag[i, 3] = s[K.S_RLS_ERR]
+
+
+def _run_theta_py(p, s, z, restarts, out, theta):
+    """As :func:`_run_py`, also recording [phi_1..phi_n, c] per sample."""
+    n = int(p[K.P_ORDER])
+    o = K.N_HEADER
+    for i in range(len(z)):
+        out[i] = K.step(p, s, z[i], restarts[i])
+        for j in range(n + 1):
+            theta[i, j] = s[o + j]
+
+
+if numba is not None:
+    _run_fast = numba.njit(cache=True, nogil=True)(_run_py)
+    _run_theta_fast = numba.njit(cache=True, nogil=True)(_run_theta_py)
+else:  # pragma: no cover
+    _run_fast = _run_py
+    _run_theta_fast = _run_theta_py
+
+
+def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
+        compiled=True):
+    """Filter an array of raw samples, continuing from state ``s``.
+
+    Parameters
+    ----------
+    p : sequence of float
+        Parameter buffer from :func:`gyrodenoise.kernels.make_params`.
+    s : sequence of float
+        State buffer (from :func:`gyrodenoise.kernels.init_state` or a previous
+        call); it is *not* modified: the final state is returned.
+    z : array_like
+        Raw rate samples, deg/s.
+    restarts : array_like of bool, optional
+        True where the gyro restarted (that sample is the first of a run).
+    diagnostics : bool
+        Also return an (n, 4) array [innovation, R_hat, converged, rls_error].
+    record_theta : bool
+        Also return an (n, order+1) array of [phi_1..phi_n, c] after each sample.
+    compiled : bool
+        Use the numba-compiled loop (False: the plain-Python loop, same code).
+
+    Returns
+    -------
+    out : ndarray
+        Filtered rate, deg/s.
+    state : ndarray
+        State after the last sample (pass it back in to continue).
+    extra : ndarray, optional
+        Diagnostics or theta history when asked for.
+    """
+    pa = np.asarray(p, dtype=np.float64)
+    sa = np.array(s, dtype=np.float64)
+    za = np.ascontiguousarray(z, dtype=np.float64)
+    if restarts is None:
+        ra = np.zeros(za.shape[0], dtype=np.bool_)
+    else:
+        ra = np.ascontiguousarray(restarts, dtype=np.bool_)
+        if ra.shape != za.shape:
+            raise ValueError("restarts must have the same length as the samples")
+    out = np.empty_like(za)
+    if record_theta:
+        theta = np.empty((za.shape[0], int(pa[K.P_ORDER]) + 1))
+        fn = _run_theta_fast if compiled else _run_theta_py
+        if compiled:
+            fn(pa, sa, za, ra, out, theta)
+        else:
+            sl = list(sa)
+            fn(list(pa), sl, za, ra, out, theta)
+            sa = np.asarray(sl)
+        return out, sa, theta
+    diag = np.empty((za.shape[0] if diagnostics else 0, 4))
+    if compiled:
+        _run_fast(pa, sa, za, ra, out, diag)
+    else:
+        sl = list(sa)
+        _run_py(list(pa), sl, za.tolist(), ra.tolist(), out, diag)
+        sa = np.asarray(sl)
+    if diagnostics:
+        return out, sa, diag
+    return out, sa

@@ -1,0 +1,129 @@
+"""The denoiser as a thin class over the kernels, and the batch function.
+
+:class:`Denoiser` keeps the parameter and state buffers of one gyro axis and
+offers both speeds: :meth:`Denoiser.step` (plain Python, one sample, used by the
+FMU and live links) and :meth:`Denoiser.process` (the compiled batch loop, used
+for arrays). They share the state, so a stream may mix them freely.
+"""
+
+from __future__ import annotations
+
+from . import kernels as K
+
+
+class Denoiser:
+    """Online improved-AR(n) identification + KF/SHAKF for one gyro axis.
+
+    Parameters are those of :func:`gyrodenoise.kernels.make_params`.
+
+    Examples
+    --------
+    >>> d = Denoiser(sample_rate_hz=200.0, method="shakf", ar_order=3)
+    >>> y = d.step(0.01, restart=False)
+    """
+
+    def __init__(self, sample_rate_hz=200.0, method="shakf", ar_order=3, **kw):
+        self.params = K.make_params(ar_order=ar_order, method=method,
+                                    sample_rate_hz=sample_rate_hz, **kw)
+        self.state = K.init_state(self.params)
+        self.sample_rate_hz = float(sample_rate_hz)
+
+    # -- per-sample path (no numpy needed)
+    def step(self, rate_deg_s, restart=False):
+        """Filter one sample (deg/s); ``restart`` marks a gyro restart."""
+        if not isinstance(self.state, list):
+            self.state = [float(v) for v in self.state]
+        return K.step(self.params, self.state, float(rate_deg_s), bool(restart))
+
+    def reset(self):
+        """Forget everything (as at construction)."""
+        self.state = K.init_state(self.params)
+
+    # -- batch path
+    def process(self, rate_deg_s, restarts=None, compiled=True):
+        """Filter an array, continuing the state; returns a numpy array."""
+        from . import batch
+        out, st = batch.run(self.params, self.state, rate_deg_s, restarts,
+                            compiled=compiled)
+        self.state = [float(v) for v in st]
+        return out
+
+    # -- readouts
+    @property
+    def order(self):
+        return int(self.params[K.P_ORDER])
+
+    @property
+    def phi(self):
+        """Current AR coefficients phi_1..phi_n (Eq. 4)."""
+        return K.phi(self.params, self.state)
+
+    @property
+    def c(self):
+        """Current constant term c of the improved AR model (Eq. 4), deg/s."""
+        return K.rls_c(self.params, self.state)
+
+    @property
+    def R_hat(self):
+        """Current measurement-noise variance estimate, (deg/s)^2."""
+        return float(self.state[K.S_R])
+
+    @property
+    def q_hat(self):
+        """Current process-noise variance estimate, (deg/s)^2."""
+        return float(self.state[K.S_Q])
+
+    @property
+    def innovation(self):
+        """Last innovation v_k = z_k - H X_pred, deg/s."""
+        return float(self.state[K.S_INNOV])
+
+    @property
+    def converged(self):
+        """True once the AR model has converged since the last restart."""
+        return self.state[K.S_CONV] == 1.0
+
+    @property
+    def n_divergence_resets(self):
+        """How many times the criterion of Eq. (32) restarted d_k."""
+        return int(self.state[K.S_NRESET])
+
+    def get_state(self):
+        """A copy of the full state (a list of floats) for save/restore."""
+        return [float(v) for v in self.state]
+
+    def set_state(self, state):
+        if len(state) != len(self.state):
+            raise ValueError(f"state has {len(state)} values, expected {len(self.state)}")
+        self.state = [float(v) for v in state]
+
+
+def denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3, restarts=None,
+            **kw):
+    """Denoise a gyro record with the online improved-AR(n) model + KF/SHAKF.
+
+    Parameters
+    ----------
+    rate_deg_s : array_like
+        Raw angular rate, deg/s.
+    sample_rate_hz : float
+        Sample rate, Hz.
+    method : {"shakf", "kf", "none", "sh_classic"}
+        "shakf" is the modified Sage-Husa AKF of the paper (Section 3.2.3).
+    ar_order : int
+        Order n of the improved AR(n) model (Eq. 4).
+    restarts : array_like of bool, optional
+        True where the gyro restarted (re-identifies the model there).
+    **kw
+        Further parameters of :func:`gyrodenoise.kernels.make_params`.
+
+    Returns
+    -------
+    ndarray
+        Filtered rate, deg/s (the raw sample during each warm-up).
+    """
+    from . import batch
+    p = K.make_params(ar_order=ar_order, method=method,
+                      sample_rate_hz=sample_rate_hz, **kw)
+    out, _ = batch.run(p, K.init_state(p), rate_deg_s, restarts)
+    return out

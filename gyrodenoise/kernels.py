@@ -1,0 +1,434 @@
+"""Per-sample numerical kernels: online AR(n) identification and the KF / SHAKF.
+
+One source, two speeds
+----------------------
+Every function here is plain scalar Python over two flat buffers of floats:
+
+* ``p`` -- the parameters (see :func:`make_params` and the ``P_*`` indices),
+* ``s`` -- the whole filter state (see :func:`init_state` and the ``S_*`` indices).
+
+The buffers may be Python lists (the per-sample path used by the FMU: no numpy,
+no numba needed, ~µs a step) or float64 numpy arrays (the batch path:
+:mod:`gyrodenoise.batch` compiles the very same functions with numba's
+``register_jitable`` / ``njit``). Functions mutate ``s`` in place and return the
+scalar output, like ``scipy.signal.lfilter`` returning ``zf``: the caller owns
+the state and may copy, save or restore it at any sample.
+
+Equations cited are those of Sun et al. (2016), "FOG Random Drift Signal
+Denoising Based on the Improved AR Model and Modified Sage-Husa Adaptive Kalman
+Filter", Sensors 16(7):1073 (``../shared/seed/fog-ar-shakf-paper.txt``).
+
+Choices the paper leaves open (documented in the README, "The method"):
+
+* RLS starts from theta = 0 and P = p0_rls * I (a large initial P); with
+  forgetting factor ``lam`` this is exactly the ridge-regularised batch least
+  squares solution (tested against it).
+* Eq. (10) is implemented with the sign slip corrected: P = (I - K Z) P / lam.
+* The process noise enters the first state only (B of Eq. 34), so the Q of the
+  Sage-Husa estimator, Eq. (26), is estimated as q * e1 e1^T; its (0,0) element
+  reduces to q + K0^2 (v^2 - S) and is clipped at 0, which keeps Q positive
+  semi-definite.
+* Warm-up: for ``warmup`` samples after each restart the AR model is still
+  converging; the output is then the raw sample itself (no filtering, nothing
+  invented) and the ``converged`` flag is 0. The filter runs internally all the
+  while, so there is no start-up transient when the output switches over.
+* Auto noise levels (``q0 = 0`` / ``r0 = 0``): the running variance s2 of the RLS
+  one-step prediction error (Eq. 11's correction term) is split half to process
+  noise, half to measurement noise: q = r = s2 / 2. The KF freezes these at the
+  end of the warm-up; the SHAKF starts its estimators from them.
+"""
+
+from __future__ import annotations
+
+try:  # the per-sample path must work without numba (the FMU does not ship it)
+    from numba.extending import register_jitable as _jitable
+except ImportError:  # pragma: no cover - exercised in the FMU tests
+    def _jitable(fn):
+        return fn
+
+# ---------------------------------------------------------------- parameters
+P_ORDER = 0      # AR order n (>= 1)
+P_METHOD = 1     # METHOD_* below
+P_LAM = 2        # RLS forgetting factor, 0 < lam <= 1
+P_B = 3          # Sage-Husa forgetting factor b, 0 < b < 1
+P_GAMMA = 4      # divergence criterion gamma >= 1, Eq. (32)
+P_Q0 = 5         # process noise variance (deg/s)^2; 0 = auto
+P_R0 = 6         # measurement noise variance (deg/s)^2; 0 = auto
+P_P0_RLS = 7     # initial RLS covariance (diagonal)
+P_P0_KF = 8      # initial filter covariance (diagonal), (deg/s)^2
+P_WARMUP = 9     # warm-up length in samples after each restart
+P_R_FLOOR = 10   # lower bound of R and of the auto noise levels, (deg/s)^2
+N_PARAMS = 11
+
+METHOD_NONE = 0.0      # identification only, output = raw
+METHOD_KF = 1.0        # conventional KF, fixed Q and R
+METHOD_SHAKF = 2.0     # modified Sage-Husa AKF (Section 3.2.3)
+METHOD_SH_CLASSIC = 3.0  # classic Sage-Husa, Eq. (22) and (26) unmodified
+METHODS = {"none": METHOD_NONE, "kf": METHOD_KF, "shakf": METHOD_SHAKF,
+           "sh_classic": METHOD_SH_CLASSIC}
+
+# --------------------------------------------------------------------- state
+S_K = 0          # samples seen since the last restart
+S_KD = 1         # Sage-Husa step counter k in d_k (reset by Eq. 32)
+S_R = 2          # R_hat, (deg/s)^2
+S_Q = 3          # q_hat, (deg/s)^2
+S_S2 = 4         # running variance of the RLS prediction error, (deg/s)^2
+S_NS2 = 5        # samples in S_S2
+S_CONV = 6       # 1.0 once the AR model has converged since the restart
+S_INNOV = 7      # last innovation v_k, deg/s
+S_SVAR = 8       # last innovation variance S_k = H P H' + R, (deg/s)^2
+S_NRESET = 9     # number of times Eq. (32) restarted d_k
+S_OUT = 10       # last output, deg/s
+S_RLS_ERR = 11   # last RLS prediction error, deg/s
+N_HEADER = 12
+
+
+@_jitable
+def layout(n):
+    """Offsets of (theta, P_rls, x, P, z_hist, w, total) for AR order ``n``."""
+    m = n + 1
+    o_theta = N_HEADER
+    o_prls = o_theta + m
+    o_x = o_prls + m * m
+    o_p = o_x + m
+    o_z = o_p + m * m
+    o_w = o_z + n
+    total = o_w + m
+    return o_theta, o_prls, o_x, o_p, o_z, o_w, total
+
+
+def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
+                b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
+                warmup_s=1.0, r_floor=1.0e-18):
+    """Build and check the parameter buffer (a list of floats).
+
+    Parameters
+    ----------
+    ar_order : int
+        Order n of the improved AR(n) model, Eq. (4). n >= 1.
+    method : {"shakf", "kf", "none", "sh_classic"}
+        Filter on the AR state model.
+    sample_rate_hz : float
+        Sample rate; only used to turn ``warmup_s`` into samples.
+    lam : float
+        RLS forgetting factor in (0, 1]; 1 is the paper's plain RLS.
+    b : float
+        Sage-Husa forgetting factor in (0, 1); d_k = (1-b)/(1-b^(k+1)).
+    gamma : float
+        Strictness of the convergence criterion, Eq. (32); gamma >= 1.
+    q0, r0 : float
+        Process / measurement noise variances in (deg/s)^2; 0 selects the
+        automatic level (half the AR prediction-error variance each).
+    p0_rls, p0_kf : float
+        Initial diagonal covariance of the RLS and of the filter (> 0).
+    warmup_s : float
+        Seconds after each restart during which the model is treated as not yet
+        converged and the raw sample is passed through (>= 0). At least
+        10 (n+1) samples are always used.
+    r_floor : float
+        Lower bound for R and for the automatic noise levels, (deg/s)^2.
+
+    Raises
+    ------
+    ValueError
+        With a one-line reason naming the parameter.
+    """
+    n = int(ar_order)
+    if n != ar_order or n < 1:
+        raise ValueError(f"ar_order must be an integer >= 1, got {ar_order!r}")
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
+    checks = [
+        ("sample_rate_hz", sample_rate_hz, sample_rate_hz > 0),
+        ("lam", lam, 0 < lam <= 1),
+        ("b", b, 0 < b < 1),
+        ("gamma", gamma, gamma >= 1),
+        ("q0", q0, q0 >= 0),
+        ("r0", r0, r0 >= 0),
+        ("p0_rls", p0_rls, p0_rls > 0),
+        ("p0_kf", p0_kf, p0_kf > 0),
+        ("warmup_s", warmup_s, warmup_s >= 0),
+        ("r_floor", r_floor, r_floor > 0),
+    ]
+    for name, value, ok in checks:
+        if not (ok and value == value and abs(value) != float("inf")):
+            raise ValueError(f"{name} out of range: {value!r}")
+    warmup = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
+    p = [0.0] * N_PARAMS
+    p[P_ORDER] = float(n)
+    p[P_METHOD] = METHODS[method]
+    p[P_LAM] = float(lam)
+    p[P_B] = float(b)
+    p[P_GAMMA] = float(gamma)
+    p[P_Q0] = float(q0)
+    p[P_R0] = float(r0)
+    p[P_P0_RLS] = float(p0_rls)
+    p[P_P0_KF] = float(p0_kf)
+    p[P_WARMUP] = warmup
+    p[P_R_FLOOR] = float(r_floor)
+    return p
+
+
+def init_state(p):
+    """A fresh state buffer (list of floats) for parameters ``p``."""
+    n = int(p[P_ORDER])
+    s = [0.0] * layout(n)[6]
+    restart(p, s)
+    return s
+
+
+@_jitable
+def restart(p, s):
+    """Re-initialise identification and filter (a gyro restart), in place."""
+    n = int(p[P_ORDER])
+    m = n + 1
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    for i in range(total):
+        s[i] = 0.0
+    for i in range(m):
+        s[o_prls + i * m + i] = p[P_P0_RLS]
+        s[o_p + i * m + i] = p[P_P0_KF]
+    s[S_R] = p[P_R0] if p[P_R0] > 0.0 else p[P_R_FLOOR]
+    s[S_Q] = p[P_Q0]
+
+
+@_jitable
+def rls_update(p, s, z):
+    """One RLS step of the improved AR(n) model, Eq. (8)-(11); returns e.
+
+    Regressor Z_(h+1) = [z_{k-1} ... z_{k-n} 1] (Eq. 8); the past samples are
+    kept in the state. Does nothing (returns 0) until n past samples exist.
+    """
+    n = int(p[P_ORDER])
+    m = n + 1
+    lam = p[P_LAM]
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    e = 0.0
+    if s[S_K] >= n:
+        # g = P h   (h = regressor, h[n] = 1)
+        for i in range(m):
+            acc = s[o_prls + i * m + n]
+            for j in range(n):
+                acc += s[o_prls + i * m + j] * s[o_z + j]
+            s[o_w + i] = acc
+        den = lam + s[o_w + n]
+        pred = s[o_theta + n]
+        for j in range(n):
+            den += s[o_z + j] * s[o_w + j]
+            pred += s[o_z + j] * s[o_theta + j]
+        e = z - pred
+        # Eq. (11): theta += K e, K = P h / (lam + h' P h)
+        for i in range(m):
+            s[o_theta + i] += s[o_w + i] / den * e
+        # Eq. (10), sign corrected: P = (P - g g' / den) / lam, kept symmetric
+        for i in range(m):
+            for j in range(i, m):
+                v = (s[o_prls + i * m + j] - s[o_w + i] * s[o_w + j] / den) / lam
+                s[o_prls + i * m + j] = v
+                s[o_prls + j * m + i] = v
+    # shift the regressor history: z_hist[0] = z_k
+    for j in range(n - 1, 0, -1):
+        s[o_z + j] = s[o_z + j - 1]
+    s[o_z] = z
+    return e
+
+
+@_jitable
+def kf_predict(p, s, q):
+    """Time update on the AR state model, Eq. (34); returns the prediction of z.
+
+    X = [z_k ... z_{k-n+1}, c], A = [[phi_1..phi_n, 1], [I 0 0], [0 .. 0 1]].
+    P_pred = A P A' + q e1 e1'. Done in O(m^2) using the companion structure.
+    """
+    n = int(p[P_ORDER])
+    m = n + 1
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    # state: x0 <- sum phi_i x_{i-1} + c ; shift
+    x0 = s[o_x + n]
+    for i in range(n):
+        x0 += s[o_theta + i] * s[o_x + i]
+    for i in range(n - 1, 0, -1):
+        s[o_x + i] = s[o_x + i - 1]
+    s[o_x] = x0
+    # w = first row of A P
+    for j in range(m):
+        acc = s[o_p + n * m + j]
+        for i in range(n):
+            acc += s[o_theta + i] * s[o_p + i * m + j]
+        s[o_w + j] = acc
+    # shift the (n-1)x(n-1) block and the c column down the diagonal
+    for i in range(n - 1, 0, -1):
+        for j in range(n - 1, 0, -1):
+            s[o_p + i * m + j] = s[o_p + (i - 1) * m + (j - 1)]
+        v = s[o_p + (i - 1) * m + n]
+        s[o_p + i * m + n] = v
+        s[o_p + n * m + i] = v
+    # first row / column: (A P A')[0, j] = w . A[j, :]
+    p00 = s[o_w + n] + q
+    for i in range(n):
+        p00 += s[o_theta + i] * s[o_w + i]
+    s[o_p] = p00
+    for j in range(1, n):
+        s[o_p + j] = s[o_w + j - 1]
+        s[o_p + j * m] = s[o_w + j - 1]
+    s[o_p + n] = s[o_w + n]
+    s[o_p + n * m] = s[o_w + n]
+    return x0
+
+
+@_jitable
+def kf_update(p, s, v, r):
+    """Measurement update with H = [1 0 ... 0], Eq. (35); returns S = HPH' + r.
+
+    K = P H' / S, x += K v, P = P - P H' H P / S (equal to the Joseph form for
+    this optimal gain; PD because S > P00 when r > 0).
+    """
+    n = int(p[P_ORDER])
+    m = n + 1
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    svar = s[o_p] + r
+    for i in range(m):
+        s[o_w + i] = s[o_p + i * m]          # u = P H'
+    for i in range(m):
+        s[o_x + i] += s[o_w + i] / svar * v
+    for i in range(m):
+        for j in range(i, m):
+            val = s[o_p + i * m + j] - s[o_w + i] * s[o_w + j] / svar
+            s[o_p + i * m + j] = val
+            s[o_p + j * m + i] = val
+    # keep the diagonal strictly positive (c becomes exactly known only at k=inf)
+    for i in range(m):
+        if s[o_p + i * m + i] < 1e-300:
+            s[o_p + i * m + i] = 1e-300
+    return svar
+
+
+@_jitable
+def sage_husa_d(b, k):
+    """Weight d_k = (1 - b) / (1 - b^(k+1)) of the Sage-Husa estimator."""
+    return (1.0 - b) / (1.0 - b ** (k + 1.0))
+
+
+@_jitable
+def step(p, s, z, is_restart):
+    """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
+
+    ``is_restart`` true re-initialises everything first (the gyro restarted and
+    ``z`` is its first sample).
+    """
+    if is_restart:
+        restart(p, s)
+    n = int(p[P_ORDER])
+    method = p[P_METHOD]
+    floor = p[P_R_FLOOR]
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    k = s[S_K]
+    m = n + 1
+
+    # -- online identification of the improved AR(n) model, Eq. (4), (8)-(11)
+    e = rls_update(p, s, z)
+    s[S_RLS_ERR] = e
+    if k >= 10.0 * m:  # skip RLS start-up errors in the noise level
+        s[S_NS2] += 1.0
+        s[S_S2] += (e * e - s[S_S2]) / s[S_NS2]
+
+    if k == 0.0:
+        # first sample after a restart: state = [z ... z, 0], nothing to filter
+        for i in range(n):
+            s[o_x + i] = z
+        s[o_x + n] = 0.0
+        s[S_K] = 1.0
+        s[S_OUT] = z
+        s[S_INNOV] = 0.0
+        return z
+
+    converged = k >= p[P_WARMUP]
+    auto = 0.5 * s[S_S2]
+    if auto < floor:
+        auto = floor
+    if not converged or s[S_CONV] == 0.0:
+        # warm-up: noise levels follow the AR prediction error (auto) or p
+        s[S_Q] = p[P_Q0] if p[P_Q0] > 0.0 else auto
+        s[S_R] = p[P_R0] if p[P_R0] > 0.0 else auto
+        if converged:
+            s[S_CONV] = 1.0
+            s[S_KD] = 0.0
+
+    q = s[S_Q]
+    xp = kf_predict(p, s, q)
+    v = z - xp                        # innovation, Eq. (16) with r = 0
+    p00 = s[o_p]
+    r = s[S_R]
+    if s[S_CONV] == 1.0 and (method == METHOD_SHAKF or method == METHOD_SH_CLASSIC):
+        b = p[P_B]
+        g = p[P_GAMMA]
+        if method == METHOD_SHAKF and v * v > g * g * (p00 + r):
+            # Eq. (32) violated: v'v > gamma^2 tr E[v v'], with E[v v'] =
+            # H P H' + R_{k-1} (Eq. 31): restart d_k from k = 0 (d_0 = 1)
+            s[S_KD] = 0.0
+            s[S_NRESET] += 1.0
+        else:
+            s[S_KD] += 1.0
+        d = sage_husa_d(b, s[S_KD])
+        if method == METHOD_SHAKF:
+            r = (1.0 - d) * r + d * v * v               # Eq. (33)
+        else:
+            r = (1.0 - d) * r + d * (v * v - p00)       # Eq. (22)
+        if r < floor:
+            r = floor
+        s[S_R] = r
+        svar = kf_update(p, s, v, r)
+        k0 = p00 / svar
+        # Eq. (26) restricted to Q = q e1 e1' (B of Eq. 34): q + K0^2 (v^2 - S)
+        q = q + d * k0 * k0 * (v * v - svar)
+        if q < 0.0:
+            q = 0.0
+        s[S_Q] = q
+    else:
+        svar = kf_update(p, s, v, r)
+
+    s[S_INNOV] = v
+    s[S_SVAR] = svar
+    s[S_K] = k + 1.0
+    out = z
+    if s[S_CONV] == 1.0 and method != METHOD_NONE:
+        out = s[o_x]
+    s[S_OUT] = out
+    return out
+
+
+# ------------------------------------------------------------------ readouts
+def phi(p, s):
+    """Current AR parameters [phi_1 ... phi_n] (list)."""
+    n = int(p[P_ORDER])
+    o = layout(n)[0]
+    return [float(s[o + i]) for i in range(n)]
+
+
+def rls_c(p, s):
+    """Current constant term c of the improved AR model, Eq. (4), deg/s."""
+    n = int(p[P_ORDER])
+    return float(s[layout(n)[0] + n])
+
+
+def filter_state(p, s):
+    """Filter state estimate [z_k ... z_{k-n+1}, c] (list)."""
+    n = int(p[P_ORDER])
+    o = layout(n)[2]
+    return [float(s[o + i]) for i in range(n + 1)]
+
+
+def filter_cov(p, s):
+    """Filter covariance P as a list of rows."""
+    n = int(p[P_ORDER])
+    m = n + 1
+    o = layout(n)[3]
+    return [[float(s[o + i * m + j]) for j in range(m)] for i in range(m)]
+
+
+def rls_cov(p, s):
+    """RLS covariance as a list of rows."""
+    n = int(p[P_ORDER])
+    m = n + 1
+    o = layout(n)[1]
+    return [[float(s[o + i * m + j]) for j in range(m)] for i in range(m)]
