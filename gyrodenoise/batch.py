@@ -41,7 +41,28 @@ def _run_theta_py(p, s, z, restarts, out, theta):
             theta[i, j] = s[o + j]
 
 
+def _invalidate_stale_cache():
+    """numba keys its on-disk cache on this file only, not on the kernels it
+    inlines; drop the cache when kernels.py changed since it was written."""
+    import hashlib
+    from pathlib import Path
+    here = Path(__file__).resolve().parent
+    digest = hashlib.sha256((here / "kernels.py").read_bytes()).hexdigest()
+    cache = here / "__pycache__"
+    stamp = cache / "batch.kernels.sha256"
+    try:
+        if stamp.exists() and stamp.read_text() == digest:
+            return
+        for f in cache.glob("batch.*.nb[ic]"):
+            f.unlink()
+        cache.mkdir(exist_ok=True)
+        stamp.write_text(digest)
+    except OSError:  # read-only install: numba then does not cache either
+        pass
+
+
 if numba is not None:
+    _invalidate_stale_cache()
     _run_fast = numba.njit(cache=True, nogil=True)(_run_py)
     _run_theta_fast = numba.njit(cache=True, nogil=True)(_run_theta_py)
 else:  # pragma: no cover

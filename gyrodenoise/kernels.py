@@ -304,6 +304,48 @@ def kf_update(p, s, v, r):
 
 
 @_jitable
+def start_filter(p, s):
+    """(Re)start the filter from the identified model at the end of warm-up.
+
+    X = [z_{k-1} ... z_{k-n}, c_rls] (the last n raw samples and the RLS
+    constant); P = diag(R, ..., R, r_floor) (see :func:`tie_c`).
+    """
+    n = int(p[P_ORDER])
+    m = n + 1
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    for i in range(m * m):
+        s[o_p + i] = 0.0
+    for i in range(n):
+        s[o_x + i] = s[o_z + i]
+        s[o_p + i * m + i] = s[S_R]
+    tie_c(p, s)
+
+
+@_jitable
+def tie_c(p, s):
+    """Set the filter's c state to the RLS estimate of c (Eq. 4).
+
+    The RLS identifies phi and c jointly; least squares with an intercept keeps
+    the model's mean c / (1 - sum phi) at the data mean even while phi and c
+    are still converging (they are nearly collinear when the mean is large).
+    Were c a free filter state with no process noise (A of Eq. 34 read
+    literally), its variance would collapse within seconds while phi still
+    moves, and the filter would lock onto a wrong mean (measured: at a
+    constant 5 deg/s the SHAKF settled at 0.77 deg/s). So c is a known input
+    of the state model: x_c = c_rls, with zero cross-covariance and a
+    negligible variance (r_floor) that keeps P positive definite.
+    """
+    n = int(p[P_ORDER])
+    m = n + 1
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    s[o_x + n] = s[o_theta + n]
+    for i in range(n):
+        s[o_p + i * m + n] = 0.0
+        s[o_p + n * m + i] = 0.0
+    s[o_p + n * m + n] = p[P_R_FLOOR]
+
+
+@_jitable
 def sage_husa_d(b, k):
     """Weight d_k = (1 - b) / (1 - b^(k+1)) of the Sage-Husa estimator."""
     return (1.0 - b) / (1.0 - b ** (k + 1.0))
@@ -325,6 +367,20 @@ def step(p, s, z, is_restart):
     k = s[S_K]
     m = n + 1
 
+    # -- end of warm-up: noise levels and a filter restarted from the model
+    converged = k >= p[P_WARMUP]
+    if s[S_CONV] == 0.0:
+        auto = 0.5 * s[S_S2]
+        if auto < floor:
+            auto = floor
+        # warm-up: noise levels follow the AR prediction error (auto) or p
+        s[S_Q] = p[P_Q0] if p[P_Q0] > 0.0 else auto
+        s[S_R] = p[P_R0] if p[P_R0] > 0.0 else auto
+        if converged:
+            s[S_CONV] = 1.0
+            s[S_KD] = 0.0
+            start_filter(p, s)
+
     # -- online identification of the improved AR(n) model, Eq. (4), (8)-(11)
     e = rls_update(p, s, z)
     s[S_RLS_ERR] = e
@@ -342,18 +398,7 @@ def step(p, s, z, is_restart):
         s[S_INNOV] = 0.0
         return z
 
-    converged = k >= p[P_WARMUP]
-    auto = 0.5 * s[S_S2]
-    if auto < floor:
-        auto = floor
-    if not converged or s[S_CONV] == 0.0:
-        # warm-up: noise levels follow the AR prediction error (auto) or p
-        s[S_Q] = p[P_Q0] if p[P_Q0] > 0.0 else auto
-        s[S_R] = p[P_R0] if p[P_R0] > 0.0 else auto
-        if converged:
-            s[S_CONV] = 1.0
-            s[S_KD] = 0.0
-
+    tie_c(p, s)
     q = s[S_Q]
     xp = kf_predict(p, s, q)
     v = z - xp                        # innovation, Eq. (16) with r = 0

@@ -1,0 +1,189 @@
+"""Reading and writing recordings (spec section 2) with the bad-input rules.
+
+Every problem is either a one-line :class:`~gyrodenoise.errors.InputError`
+naming the file, line and column, or a documented repair recorded in
+``Record.notes`` (the CLI prints the notes on stderr and in ``--json``):
+
+* a time gap longer than 1.5 median sample periods: no interpolation; the
+  sample after the gap is marked as a restart (the AR model and filter are
+  re-identified there) and the gap is reported;
+* columns other than time / rate / true_rate: ignored and reported.
+
+Errors: missing or unreadable file, empty file, header only, missing rate or
+time column, a value that is not a number, NaN or inf, a short (truncated)
+row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
+no time column and no sample rate.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .simulator import Record
+
+RATE_UNITS = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
+GAP_FACTOR = 1.5
+MIN_SAMPLES = 2
+
+
+def _open_text(path):
+    p = Path(path)
+    if not p.exists():
+        raise InputError("no such file", str(path))
+    if p.is_dir():
+        raise InputError("is a directory, expected a CSV file", str(path))
+    try:
+        raw = p.read_bytes()
+        if raw[:2] == b"\x1f\x8b":
+            raw = gzip.decompress(raw)
+        return raw.decode("utf-8-sig")
+    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+        raise InputError(f"cannot read: {exc}", str(path)) from None
+    except UnicodeDecodeError:
+        raise InputError("not a text CSV file (undecodable bytes)", str(path)) from None
+
+
+def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/s",
+                   sample_rate_hz=None, true_column="true_rate"):
+    """Read a recording CSV into a :class:`Record` (rates in deg/s).
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV (optionally gzip-compressed) with a header row.
+    rate_column, time_column, true_column : str
+        Column names; the time column is optional when ``sample_rate_hz`` is
+        given, ``true_column`` is optional.
+    rate_unit : {"deg/s", "deg/h", "rad/s"}
+        Unit of the rate and true-rate columns.
+    sample_rate_hz : float, optional
+        Sample rate when the file has no time column.
+    """
+    src = str(path)
+    if rate_unit not in RATE_UNITS:
+        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_UNITS)})", src)
+    if sample_rate_hz is not None and not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
+        raise InputError(f"sample rate must be a positive number, got {sample_rate_hz!r}", src)
+    text = _open_text(path)
+    if not text.strip():
+        raise InputError("empty file", src)
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = [h.strip() for h in next(reader)]
+    except (StopIteration, csv.Error) as exc:
+        raise InputError(f"line 1: cannot read the header ({exc})", src) from None
+    if rate_column not in header:
+        try:  # a header that is a row of numbers: no header at all
+            [float(h) for h in header]
+            raise InputError(f"line 1: no header row (expected column names such as "
+                             f"'{time_column},{rate_column}')", src)
+        except ValueError:
+            pass
+        raise InputError(f"line 1: no column '{rate_column}' (columns: {', '.join(header)}); "
+                         f"use --rate-column", src)
+    i_rate = header.index(rate_column)
+    i_time = header.index(time_column) if time_column in header else None
+    i_true = header.index(true_column) if true_column in header else None
+    if i_time is None and sample_rate_hz is None:
+        raise InputError(f"line 1: no column '{time_column}' and no --sample-rate given", src)
+    used = {i for i in (i_rate, i_time, i_true) if i is not None}
+    ignored = [h for j, h in enumerate(header) if j not in used]
+    cols = [i_rate] + ([i_time] if i_time is not None else []) + ([i_true] if i_true is not None else [])
+    names = {i_rate: rate_column, i_time: time_column, i_true: true_column}
+    need = max(cols) + 1
+    values = {c: [] for c in cols}
+    lineno = 1
+    try:
+        for row in reader:
+            lineno = reader.line_num
+            if not row or (len(row) == 1 and not row[0].strip()):
+                continue
+            if len(row) < need:
+                raise InputError(f"line {lineno}: {len(row)} fields, expected {len(header)} "
+                                 f"(truncated row?)", src)
+            for c in cols:
+                cell = row[c].strip()
+                try:
+                    v = float(cell)
+                except ValueError:
+                    raise InputError(f"line {lineno}: column {names[c]}: {cell!r} is not a number",
+                                     src) from None
+                if not math.isfinite(v):
+                    raise InputError(f"line {lineno}: column {names[c]} is {cell}", src)
+                values[c].append(v)
+    except csv.Error as exc:
+        raise InputError(f"line {lineno}: {exc}", src) from None
+    n = len(values[i_rate])
+    if n == 0:
+        raise InputError("header only, no data rows", src)
+    if n < MIN_SAMPLES:
+        raise InputError(f"only {n} data row(s); at least {MIN_SAMPLES} are needed", src)
+    scale = RATE_UNITS[rate_unit]
+    rate = np.asarray(values[i_rate]) * scale
+    true = np.asarray(values[i_true]) * scale if i_true is not None else None
+    notes = []
+    if ignored:
+        notes.append(f"ignored columns: {', '.join(ignored)}")
+    restarts = None
+    if i_time is not None:
+        t = np.asarray(values[i_time])
+        dt = np.diff(t)
+        bad = np.flatnonzero(dt <= 0)
+        if bad.size:
+            j = int(bad[0])
+            what = "repeated" if dt[j] == 0 else "decreasing"
+            # data line numbers: header is line 1, so sample i is on line i + 2
+            raise InputError(f"line {_line_of(text, j + 1)}: {what} time {t[j + 1]!r} "
+                             f"(previous {t[j]!r})", src)
+        med = float(np.median(dt))
+        fs = 1.0 / med
+        if sample_rate_hz is not None and abs(sample_rate_hz - fs) > 0.01 * fs:
+            raise InputError(f"--sample-rate {sample_rate_hz:g} Hz disagrees with the time column "
+                             f"({fs:g} Hz)", src)
+        gaps = np.flatnonzero(dt > GAP_FACTOR * med)
+        if gaps.size:
+            restarts = np.zeros(n, dtype=bool)
+            restarts[gaps + 1] = True
+            first = int(gaps[0])
+            notes.append(f"{gaps.size} time gap(s) longer than {GAP_FACTOR} sample periods "
+                         f"(first at t={t[first]:g} s, {dt[first]:g} s long): not interpolated; "
+                         f"the filter restarts after each gap")
+    else:
+        fs = float(sample_rate_hz)
+        t = np.arange(n) / fs
+    return Record(rate_deg_s=rate, sample_rate_hz=fs, time_s=t, true_rate_deg_s=true,
+                  restarts=restarts, source=src, notes=notes)
+
+
+def _line_of(text, sample_index):
+    """File line number of data sample ``sample_index`` (skipping blank lines)."""
+    line = 1
+    count = -1
+    for line, raw in enumerate(text.splitlines(), start=1):
+        if line == 1 or not raw.strip():
+            continue
+        count += 1
+        if count == sample_index:
+            return line
+    return line
+
+
+def write_recording(path, time_s, raw_deg_s, filtered_deg_s, true_rate_deg_s=None):
+    """Write ``time,raw,filtered[,true_rate]`` (deg/s) to a CSV file."""
+    cols = [np.asarray(time_s), np.asarray(raw_deg_s), np.asarray(filtered_deg_s)]
+    header = "time,raw,filtered"
+    if true_rate_deg_s is not None:
+        cols.append(np.asarray(true_rate_deg_s))
+        header += ",true_rate"
+    try:
+        np.savetxt(path, np.column_stack(cols), delimiter=",", header=header, comments="",
+                   fmt="%.10g")
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", str(path)) from None
