@@ -38,7 +38,8 @@ def build_parser():
             if exc.name and modname.startswith(exc.name):
                 continue  # that part is not there yet
             raise
-        mod.register_cli(sub)
+        if hasattr(mod, "register_cli"):
+            mod.register_cli(sub)
     return parser
 
 

@@ -1,0 +1,252 @@
+"""Subcommands demo, denoise, allan, compare: argument parsing and printing only."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+
+def _log(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _add_input_options(p):
+    p.add_argument("input", metavar="IN", help="recording CSV (columns time,rate[,true_rate]; .gz ok)")
+    p.add_argument("--rate-column", default="rate", help="rate column name (default: rate)")
+    p.add_argument("--time-column", default="time", help="time column name, s (default: time)")
+    p.add_argument("--rate-unit", default="deg/s", help="deg/s (default), deg/h or rad/s")
+    p.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
+                   help="sample rate when there is no time column")
+
+
+def _add_filter_options(p, method=True):
+    if method:
+        p.add_argument("--method", default="shakf", choices=["shakf", "kf", "none"],
+                       help="filter (default: shakf, the paper's modified Sage-Husa AKF)")
+    p.add_argument("--ar-order", type=int, default=3, help="order n of the improved AR(n) model (default 3)")
+    p.add_argument("--warmup-s", type=float, default=1.0,
+                   help="seconds after each restart with raw pass-through while the AR model converges")
+    p.add_argument("--b", type=float, default=0.99, help="Sage-Husa forgetting factor b, 0<b<1 (default 0.99)")
+    p.add_argument("--gamma", type=float, default=3.0, help="divergence criterion gamma >= 1 (Eq. 32, default 3)")
+    p.add_argument("--lam", type=float, default=1.0, help="RLS forgetting factor, 0<lam<=1 (default 1)")
+
+
+def _filter_kw(args):
+    return {"warmup_s": args.warmup_s, "b": args.b, "gamma": args.gamma, "lam": args.lam}
+
+
+def _read(args):
+    from .recording import read_recording
+    rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
+    for note in rec.notes:
+        _log(f"gyrodenoise: note: {args.input}: {note}")
+    return rec
+
+
+def _check_params(args, fs):
+    from . import kernels as K
+    try:
+        K.make_params(ar_order=args.ar_order, sample_rate_hz=fs, **_filter_kw(args))
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
+# ---------------------------------------------------------------- denoise
+def cmd_denoise(args):
+    from .denoiser import denoise
+    from .recording import write_recording
+    rec = _read(args)
+    _check_params(args, rec.sample_rate_hz)
+    out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method=args.method, ar_order=args.ar_order,
+                  restarts=rec.restarts, **_filter_kw(args))
+    write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
+    _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method})")
+    return 0
+
+
+# ------------------------------------------------------------------ allan
+def cmd_allan(args):
+    from .allanvar import allan
+    from .cli import emit_json
+    rec = _read(args)
+    if len(rec) < 5:
+        raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
+    res = allan(rec.rate_deg_s, rec.sample_rate_hz)
+    if args.json:
+        d = res.to_json()
+        d["source"] = args.input
+        d["notes"] = rec.notes
+        emit_json(d)
+    else:
+        print(format_terms_table({"record": res.terms}, {"record": res.bounds}))
+        print()
+        print(f"{'tau_s':>12} {'adev_deg_h':>14} {'err_deg_h':>12}")
+        for t, a, e in zip(res.tau_s, res.adev_deg_h, res.adev_err_deg_h):
+            print(f"{t:12.4g} {a:14.6g} {e:12.3g}")
+    return 0
+
+
+# ---------------------------------------------------------------- compare
+def cmd_compare(args):
+    from .cli import emit_json
+    from .experiments import compare
+    rec = _read(args)
+    _check_params(args, rec.sample_rate_hz)
+    if len(rec) < 100:
+        raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
+    res = compare(rec, ar_order=args.ar_order, **_filter_kw(args))
+    if args.json:
+        emit_json(public(res))
+    else:
+        print(format_compare(res))
+    return 0
+
+
+def public(d):
+    """Drop the private (array) entries of a result dict."""
+    return {k: v for k, v in d.items() if not k.startswith("_")}
+
+
+UNIT_LABEL = {"N": "deg/sqrt(h)", "B": "deg/h", "K": "deg/h^1.5", "R": "deg/h^2", "Q": "deg"}
+
+
+def format_terms_table(rows, bounds):
+    """Five-term table; '<' marks an upper bound (term not resolved)."""
+    names = list(rows)
+    lines = [f"{'term (unit)':<20}" + "".join(f"{n:>14}" for n in names)]
+    for t in ("N", "B", "K", "R", "Q"):
+        cells = []
+        for n in names:
+            v = rows[n][t]
+            mark = "<" if bounds[n].get(t) == "upper_bound" else " "
+            cells.append(f"{mark + format(v, '.4e'):>14}")
+        lines.append(f"{t + ' (' + UNIT_LABEL[t] + ')':<20}" + "".join(cells))
+    lines.append("('<' = upper bound: the record cannot resolve that term)")
+    return "\n".join(lines)
+
+
+def format_compare(res):
+    out = [f"Table 1 -- Allan terms of {res['source']} ({res['n_samples']} samples, "
+           f"{res['sample_rate_hz']:g} Hz; first {res['skipped_warmup_samples']} warm-up samples skipped)"]
+    out.append(format_terms_table(res["rows"], res["bounds"]))
+    out.append("")
+    out.append(f"{'ratio to raw':<20}" + "".join(f"{n:>14}" for n in ("ar_fit", "kf", "shakf")))
+    for t in ("N", "B", "K", "R", "Q"):
+        cells = "".join(f"{_fmt(res['ratio_to_raw'][n][t]):>14}" for n in ("ar_fit", "kf", "shakf"))
+        out.append(f"{t:<20}{cells}")
+    acc = res["ar_fit_accuracy"]
+    out.append("AR fit accuracy (1-|fit-raw|/raw): " +
+               ", ".join(f"{t} {_fmt(acc[t], pct=True)}" for t in ("N", "B", "K", "R", "Q")))
+    ar = res["ar_model"]
+    out.append(f"AR({ar['order']}) model: phi = [{', '.join(f'{v:.4f}' for v in ar['phi'])}], "
+               f"c = {ar['c_deg_s']:.4g} deg/s, sigma_a = {ar['sigma_a_deg_s']:.4g} deg/s")
+    out.append("std about the mean (the paper's 'MSE', Eq. 41), deg/s: " +
+               ", ".join(f"{k} {v:.4g}" for k, v in res["std_deg_s"].items()))
+    if "rmse_deg_s" in res:
+        out.append("RMSE against the true rate, deg/s: " +
+                   ", ".join(f"{k} {v:.4g}" for k, v in res["rmse_deg_s"].items()))
+    return "\n".join(out)
+
+
+def _fmt(v, pct=False):
+    if v is None:
+        return "n/a"
+    return f"{100 * v:.1f}%" if pct else f"{v:.3g}"
+
+
+def format_dynamic(dyn):
+    out = [f"Table 2 -- constant rotation, {dyn['duration_s']:g} s each ({dyn['card']})",
+           f"{'rate deg/s':>10} | {'std raw':>10} {'std KF':>10} {'std SHAKF':>10} | "
+           f"{'RMSE raw':>10} {'RMSE KF':>10} {'RMSE SHAKF':>10}"]
+    for r in dyn["rows"]:
+        s, e = r["std_deg_s"], r["rmse_deg_s"]
+        out.append(f"{r['rate_deg_s']:>10g} | {s['raw']:10.4g} {s['kf']:10.4g} {s['shakf']:10.4g} | "
+                   f"{e['raw']:10.4g} {e['kf']:10.4g} {e['shakf']:10.4g}")
+    st = dyn["step"]
+    rt = st["rise_time_90_s"]
+    out.append(f"Price paid -- a {st['step_deg_s']:g} deg/s rate step at mid-record: 90% rise time "
+               + ", ".join(f"{k} {('%.3g s' % v) if v is not None else 'never (within the record)'}"
+                           for k, v in rt.items())
+               + "; RMSE against truth " + ", ".join(f"{k} {v:.4g}" for k, v in st["rmse_deg_s"].items()))
+    out.append("(std = the paper's 'MSE' of Eq. 41, a standard deviation about the mean; it cannot see "
+               "a wrong mean or a lag, the RMSE can.)")
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------- demo
+def cmd_demo(args):
+    from .cli import emit_json
+    from .experiments import compare, dynamic_table
+    from .simulator import load_card, simulate
+    t0 = time.perf_counter()
+    card = load_card(args.model)
+    n = int(round(args.hours * 3600.0 * card.sample_rate_hz))
+    if n < 1000:
+        raise InputError(f"--hours {args.hours:g} gives only {n} samples; need at least 1000")
+    _log(f"gyrodenoise demo: simulating {args.hours:g} h of '{card.name}' at {card.sample_rate_hz:g} Hz "
+         f"(seed {args.seed})")
+    rec = simulate(card, n, seed=args.seed)
+    _log("gyrodenoise demo: static experiment (Table 1): KF and modified SHAKF, Allan fits")
+    res = compare(rec, ar_order=args.ar_order, seed=args.seed)
+    _log(f"gyrodenoise demo: dynamic experiment (Table 2): {args.dynamic_s:g} s at each rate")
+    dyn = dynamic_table(card, duration_s=args.dynamic_s, seed=args.seed, ar_order=args.ar_order)
+    figs = []
+    if not args.no_plots:
+        from . import plots
+        outdir = Path(args.out)
+        outdir.mkdir(parents=True, exist_ok=True)
+        figs = plots.demo_figures(card, rec, res, outdir, ar_order=args.ar_order, seed=args.seed)
+    elapsed = time.perf_counter() - t0
+    if args.json:
+        emit_json({"model": card.name, "hours": args.hours, "static": public(res), "dynamic": dyn,
+                   "figures": [str(f) for f in figs], "elapsed_s": elapsed})
+    else:
+        print(format_compare(res))
+        print()
+        print(format_dynamic(dyn))
+        if figs:
+            print()
+            print("Figures:")
+            for f in figs:
+                print(f"  {f}")
+        print(f"\n(done in {elapsed:.1f} s)")
+    return 0
+
+
+def register_cli(sub):
+    p = sub.add_parser("demo", help="simulate the default FOG, denoise with KF and SHAKF, print Tables 1-2, plot",
+                       description="The main job on the embedded default model card: simulate the paper's FOG, "
+                                   "denoise with KF and modified SHAKF, print the Allan table (Table 1) and the "
+                                   "dynamic table (Table 2), write PNG plots.")
+    p.add_argument("--model", default="paper_fog", help="model card path or embedded name (default paper_fog)")
+    p.add_argument("--hours", type=float, default=2.0, help="static record length, h (default 2, as the paper)")
+    p.add_argument("--dynamic-s", type=float, default=300.0, help="seconds per constant rate (default 300)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--ar-order", type=int, default=3)
+    p.add_argument("--out", default="demo_out", help="folder for the PNG plots (default demo_out)")
+    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("denoise", help="filter a recording to time,raw,filtered CSV")
+    _add_input_options(p)
+    p.add_argument("-o", "--output", required=True, metavar="OUT.csv")
+    _add_filter_options(p)
+    p.set_defaults(func=cmd_denoise)
+
+    p = sub.add_parser("allan", help="Allan deviation and five-term fit of a recording")
+    _add_input_options(p)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_allan)
+
+    p = sub.add_parser("compare", help="the paper's Table 1 for a recording (raw, AR fit, KF, SHAKF)")
+    _add_input_options(p)
+    _add_filter_options(p, method=False)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_compare)

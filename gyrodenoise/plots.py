@@ -1,0 +1,129 @@
+"""PNG figures (matplotlib, Agg): Allan curves, series with zoom, AR parameter
+convergence after a restart (paper Figs 4-5), residual PSD (Fig 2)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+COLORS = {"raw": "tab:blue", "ar_fit": "tab:gray", "kf": "tab:green", "shakf": "tab:red"}
+LABELS = {"raw": "raw", "ar_fit": "AR-fitted sequence", "kf": "KF", "shakf": "modified SHAKF"}
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def allan_figure(results, path, title=""):
+    """Allan deviation with 1-sigma bars and the fitted Eq. (40) per series."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    for name, r in results.items():
+        col = COLORS.get(name)
+        ax.errorbar(r.tau_s, r.adev_deg_h, yerr=r.adev_err_deg_h, fmt="o", ms=3, color=col,
+                    label=LABELS.get(name, name), alpha=0.8)
+        ax.loglog(r.tau_s, r.model_adev_deg_h(), "--", color=col, lw=1)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel("Allan deviation (deg/h)")
+    ax.set_title(title or "Allan deviation; dashed: five-term fit of Eq. (40)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def series_figure(time_s, series, path, zoom_s=2.0, truth=None):
+    """Raw vs filtered over the whole record and a zoom of ``zoom_s`` seconds."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 6.5))
+    step = max(1, len(time_s) // 20000)
+    for name, y in series.items():
+        a1.plot(time_s[::step] / 60.0, y[::step], lw=0.6, color=COLORS.get(name), label=LABELS.get(name, name))
+    a1.set_xlabel("time (min)")
+    a1.set_ylabel("rate (deg/s)")
+    a1.legend(loc="upper right")
+    a1.set_title("raw and filtered rate (decimated for display)")
+    mid = len(time_s) // 2
+    n = int(zoom_s / (time_s[1] - time_s[0]))
+    sl = slice(mid, mid + n)
+    for name, y in series.items():
+        a2.plot(time_s[sl], y[sl], lw=0.8, color=COLORS.get(name), label=LABELS.get(name, name))
+    if truth is not None:
+        a2.plot(time_s[sl], truth[sl], "k--", lw=1, label="true rate")
+    a2.set_xlabel("time (s)")
+    a2.set_ylabel("rate (deg/s)")
+    a2.set_title(f"zoom: {zoom_s:g} s at mid-record")
+    a2.legend(loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def convergence_figure(time_s, theta, path, warmup_s=None):
+    """phi_1..phi_n and c of the online RLS after a restart (paper Figs 4-5)."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    n = theta.shape[1] - 1
+    for j in range(n):
+        a1.plot(time_s, theta[:, j], lw=1, label=f"phi_{j + 1}")
+    a1.set_ylabel("AR parameter")
+    a1.legend()
+    a1.set_title("online RLS identification after a restart (paper Fig. 4)")
+    a2.plot(time_s, theta[:, n], color="k", lw=1)
+    a2.set_ylabel("c (deg/s)")
+    a2.set_xlabel("time since restart (s)")
+    a2.set_title("constant term c (paper Fig. 5)")
+    if warmup_s:
+        for a in (a1, a2):
+            a.axvline(warmup_s, color="gray", ls=":", lw=1)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def psd_figure(residual, sample_rate_hz, path):
+    """Welch PSD of the AR one-step prediction residual (paper Fig. 2)."""
+    from scipy.signal import welch
+    plt = _plt()
+    f, pxx = welch(residual, fs=sample_rate_hz, nperseg=min(len(residual), 8192))
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    ax.loglog(f[1:], pxx[1:] * 3600.0 ** 2, lw=0.8)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("PSD ((deg/h)^2/Hz)")
+    ax.set_title("PSD of the AR fitting residual (paper Fig. 2): not white")
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def demo_figures(card, rec, res, outdir, ar_order=3, seed=0):
+    """All demo figures into ``outdir``; returns their paths."""
+    from . import kernels as K
+    from .batch import run
+    outdir = Path(outdir)
+    figs = [allan_figure(res["_allan"], outdir / "allan.png",
+                         f"Allan deviation, {card.name} (dashed: fit of Eq. 40)")]
+    s = res["_series"]
+    figs.append(series_figure(rec.time_s, {k: s[k] for k in ("raw", "kf", "shakf")}, outdir / "series.png"))
+    fs = rec.sample_rate_hz
+    n = min(len(rec), int(60 * fs))
+    p = K.make_params(ar_order=ar_order, sample_rate_hz=fs)
+    _, _, theta = run(p, K.init_state(p), rec.rate_deg_s[:n], record_theta=True)
+    figs.append(convergence_figure(rec.time_s[:n], theta, outdir / "ar_convergence.png",
+                                   warmup_s=p[K.P_WARMUP] / fs))
+    _, _, diag = run(p, K.init_state(p), rec.rate_deg_s, diagnostics=True)
+    start = int(p[K.P_WARMUP])
+    figs.append(psd_figure(diag[start:, 3], fs, outdir / "residual_psd.png"))
+    return figs
