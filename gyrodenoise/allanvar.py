@@ -129,6 +129,9 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
         R deg/s^2, Q deg).
     kinds : dict
         Term -> "fit" or "upper_bound".
+    fitted_s : dict
+        The model refitted with the resolved terms only (0 for the others):
+        what :func:`model_adev` should draw.
     """
     from scipy.optimize import nnls
     t = np.asarray(tau_s, dtype=float)
@@ -138,7 +141,8 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
     t, a, e = t[ok], a[ok], e[ok]
     terms, kinds = {}, {}
     if t.size == 0:
-        return {k: 0.0 for k in TERM_NAMES}, {k: "upper_bound" for k in TERM_NAMES}
+        return ({k: 0.0 for k in TERM_NAMES}, {k: "upper_bound" for k in TERM_NAMES},
+                {k: 0.0 for k in TERM_NAMES})
     avar = a * a
     sig = np.maximum(2.0 * a * e, 1e-300)      # 1-sigma of avar
     A = basis(t)
@@ -148,23 +152,39 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
     coef, rnorm = nnls(Aw / scale, yw)
     coef = coef / scale
     chi2 = rnorm * rnorm
+    def chi2_without(drop):
+        keep = [i for i in range(A.shape[1]) if i not in drop]
+        _, rn = nnls(Aw[:, keep] / scale[keep], yw)
+        return rn * rn
+
+    # a term is resolved when dropping it worsens the fit by more than
+    # DCHI2_RESOLVED (neighbouring taus are correlated, hence the generous
+    # threshold)
+    gain = {j: (chi2_without({j}) - chi2 if coef[j] > 0 else 0.0) for j in range(A.shape[1])}
+    resolved = {j for j in gain if gain[j] > DCHI2_RESOLVED}
+    # terms that can stand in for each other (K and R, N and Q) may each look
+    # dispensable while the pair is not: keep the stronger one of such a group
+    while True:
+        rest = {j for j in gain if coef[j] > 0 and j not in resolved}
+        if not rest or chi2_without(rest) - chi2 <= DCHI2_RESOLVED:
+            break
+        resolved.add(max(rest, key=lambda j: gain[j]))
     for j, name in enumerate(_ORDER):
-        resolved = False
-        if coef[j] > 0:
-            keep = [i for i in range(A.shape[1]) if i != j]
-            _, rn = nnls(Aw[:, keep] / scale[keep], yw)
-            # the term is resolved when dropping it worsens the fit by more
-            # than DCHI2_RESOLVED (neighbouring taus are correlated, hence the
-            # generous threshold)
-            resolved = rn * rn - chi2 > DCHI2_RESOLVED
-        if resolved:
+        if j in resolved:
             terms[name] = math.sqrt(coef[j])
             kinds[name] = "fit"
         else:
             bound = np.min((avar + 2.0 * sig) / A[:, j])
             terms[name] = math.sqrt(bound)
             kinds[name] = "upper_bound"
-    return terms, kinds
+    # the model curve: refit with the resolved terms only
+    cols = [j for j, name in enumerate(_ORDER) if kinds[name] == "fit"]
+    fitted = {name: 0.0 for name in _ORDER}
+    if cols:
+        c2, _ = nnls(Aw[:, cols] / scale[cols], yw)
+        for j, cj in zip(cols, c2 / scale[cols]):
+            fitted[_ORDER[j]] = math.sqrt(cj)
+    return terms, kinds, fitted
 
 
 def model_adev(tau_s, terms_s):
@@ -181,6 +201,7 @@ class AllanResult:
     adev_err_deg_s: np.ndarray
     terms_s: dict
     bounds: dict
+    fitted_s: dict
     sample_rate_hz: float
     n_samples: int
     terms: dict = field(init=False)
@@ -198,7 +219,7 @@ class AllanResult:
 
     def model_adev_deg_h(self, tau_s=None):
         t = self.tau_s if tau_s is None else np.asarray(tau_s, dtype=float)
-        return model_adev(t, self.terms_s) * 3600.0
+        return model_adev(t, self.fitted_s) * 3600.0
 
     def to_json(self):
         return {"terms": {k: float(self.terms[k]) for k in TERM_NAMES},
@@ -237,6 +258,6 @@ def allan(rate_deg_s, sample_rate_hz, m=None, tau_s=None, per_decade=10):
     if m is None and tau_s is None:
         m = default_m(y.shape[0], per_decade)
     tau, ad, err, _ = adev(y, sample_rate_hz, m=m, tau_s=tau_s)
-    terms_s, kinds = fit_terms(tau, ad, err)
+    terms_s, kinds, fitted_s = fit_terms(tau, ad, err)
     return AllanResult(tau_s=tau, adev_deg_s=ad, adev_err_deg_s=err, terms_s=terms_s,
-                       bounds=kinds, sample_rate_hz=float(sample_rate_hz), n_samples=int(y.shape[0]))
+                       bounds=kinds, fitted_s=fitted_s, sample_rate_hz=float(sample_rate_hz), n_samples=int(y.shape[0]))

@@ -10,10 +10,10 @@ quantization Q       deg             white *angle* noise of std Q, differenced:
                                      rate_k = (w_k - w_{k-1}) / T  -> 3 Q^2/tau^2
 angle_random_walk N  deg/sqrt(h)     white rate noise, std N / sqrt(T) -> N^2/tau
 bias_instability B   deg/h           flicker (1/f) rate noise, one-sided PSD
-                                     B^2 / (2 pi f): a bank of first-order
+                                     B^2 / (pi f): a bank of first-order
                                      Gauss-Markov processes, 3 per decade from
                                      1e-5 Hz to Nyquist, each of variance
-                                     B^2 ln(10^(1/3)) / (2 pi); Allan plateau
+                                     B^2 ln(10^(1/3)) / pi; Allan plateau
                                      0.664 B (within the bank's ripple, ~2 %)
 rate_random_walk K   deg/h^1.5       rate random walk, increment std K sqrt(T)
                                      -> K^2 tau / 3
@@ -178,7 +178,7 @@ def _bank(card):
         n_dec = math.log10(f_hi / FLICKER_F_LO_HZ)
         n_poles = max(1, int(math.ceil(n_dec * FLICKER_POLES_PER_DECADE)))
         delta = math.log(f_hi / FLICKER_F_LO_HZ) / n_poles
-        var = B * B * delta / (2.0 * math.pi)
+        var = B * B * delta / math.pi
         for j in range(n_poles):
             fj = FLICKER_F_LO_HZ * math.exp((j + 0.5) * delta)
             aj = math.exp(-2.0 * math.pi * fj * T)

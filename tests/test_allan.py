@@ -1,0 +1,60 @@
+"""Allan deviation: golden reference, allantools, analytic fits."""
+import csv
+
+import allantools
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from gyrodenoise import allanvar as A
+from conftest import shared_file
+
+
+def test_golden_adis16405_imu1_gyro_x():
+    path = shared_file("static", "adis16405_imu1.csv.gz")
+    ref_path = shared_file("allan_reference", "avar_precomputed_curves.csv")
+    ref = {}
+    with open(ref_path) as f:
+        for row in csv.DictReader(f):
+            if row["sensor"].startswith("ADIS 16405") and row["channel"] == "Gyro. X":
+                ref[float(row["tau_s"])] = float(row["allan_deviation"])
+    from gyrodenoise.recording import read_recording
+    rec = read_recording(path, rate_column="gyro_x")
+    assert len(rec) == 1_000_000 and rec.sample_rate_hz == pytest.approx(100.0)
+    taus = np.array(sorted(ref))
+    tau, ad, _, _ = A.adev(rec.rate_deg_s, rec.sample_rate_hz, tau_s=taus)
+    np.testing.assert_allclose(tau, taus)
+    np.testing.assert_allclose(ad, [ref[t] for t in taus], rtol=1e-3)
+
+
+def test_matches_allantools():
+    x = np.random.default_rng(0).standard_normal(20000).cumsum() * 1e-3 + np.random.default_rng(1).standard_normal(20000)
+    tau, ad, _, _ = A.adev(x, 50.0, m=[1, 2, 3, 10, 77, 500, 4000])
+    ref = allantools.oadev(x, rate=50.0, data_type="freq", taus=tau)
+    np.testing.assert_allclose(tau, ref[0])
+    np.testing.assert_allclose(ad, ref[1], rtol=1e-9)
+
+
+def test_white_noise_fit_gives_n_and_leaves_the_rest_unresolved():
+    fs = 100.0
+    sd = 0.02                                       # deg/s
+    x = sd * np.random.default_rng(5).standard_normal(400_000)
+    r = gd.allan(x, fs)
+    n_true = sd / np.sqrt(fs) * 60.0                # deg/sqrt(h)
+    assert r.terms["N"] == pytest.approx(n_true, rel=0.01)
+    assert r.bounds["N"] == "fit"
+    for t in ("B", "K", "R", "Q"):
+        assert r.bounds[t] == "upper_bound", (t, r.terms)
+    js = r.to_json()
+    assert set(js["terms"]) == {"N", "B", "K", "R", "Q"}
+    assert js["units"]["N"] == "deg/sqrt(h)" and len(js["tau_s"]) == len(js["adev_deg_h"])
+
+
+def test_fit_recovers_synthetic_curve_exactly():
+    tau = np.logspace(-2, 3, 40)
+    terms_s = {"N": 1e-3, "B": 2e-4, "K": 3e-6, "R": 1e-7, "Q": 1e-5}   # each dominates somewhere
+    ad = A.model_adev(tau, terms_s)
+    got, kinds, fitted = A.fit_terms(tau, ad, ad * 1e-3)
+    for k, v in terms_s.items():
+        assert kinds[k] == "fit"
+        assert got[k] == pytest.approx(v, rel=1e-4)
