@@ -1,0 +1,275 @@
+"""FogDenoiser: the gyrodenoise filter as an FMI 2.0 co-simulation slave (pythonfmu).
+
+One communication step is one gyro sample: set ``raw_rate`` (and ``restart``),
+call fmi2DoStep, read ``filtered_rate`` and the AR model readouts.
+
+The numerical work is the per-sample plain-Python path of the gyrodenoise core
+(``gyrodenoise.kernels`` through ``gyrodenoise.denoiser.Denoiser``), bundled into
+the FMU's resources as the package ``gdcore`` and imported from there under a
+private module name, so the FMU neither needs nor picks up an installed
+gyrodenoise, numba or scipy. Build it with ``gyrodenoise fmu build``.
+"""
+
+import hashlib
+import importlib
+import importlib.util
+import math
+import os
+import sys
+
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Status
+
+#: phi_1 .. phi_MAX_ORDER outputs are declared; phi_k for k > ar_order reads 0.
+MAX_ORDER = 6
+#: relative tolerance between the step size and the sample period
+STEP_RTOL = 1e-6
+STATE_VERSION = 1
+
+#: Objects of instances that failed with an exception. pythonfmu answers an exception
+#: with fmi2Fatal and releases its references to the instance, its log queue and the
+#: class, and releases them again in fmi2FreeInstance / fmi2Reset; these extra
+#: references keep that from freeing live objects (a few bytes leaked per failure).
+_REFUSED = []
+
+
+def _load_core(resources):
+    """Import the gyrodenoise core bundled in ``resources/gdcore``.
+
+    The package gets a private name derived from its contents, so an installed
+    ``gyrodenoise`` (or another build of this FMU) in the same process is never
+    used instead, and identical copies are imported only once.
+    """
+    pkg_dir = os.path.join(resources, "gdcore")
+    digest = hashlib.sha1()
+    for name in sorted(os.listdir(pkg_dir)):
+        if name.endswith(".py"):
+            with open(os.path.join(pkg_dir, name), "rb") as fh:
+                digest.update(name.encode() + b"\0" + fh.read())
+    modname = "_gdcore_" + digest.hexdigest()[:16]
+    if modname not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            modname, os.path.join(pkg_dir, "__init__.py"),
+            submodule_search_locations=[pkg_dir])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[modname] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[modname]
+            raise
+    return (importlib.import_module(modname + ".kernels"),
+            importlib.import_module(modname + ".denoiser"))
+
+
+class FogDenoiser(Fmi2Slave):
+    """Online improved AR(n) model + modified Sage-Husa adaptive Kalman filter."""
+
+    author = "gyrodenoise"
+    description = ("Gyro denoiser (online improved AR(n) + KF / modified Sage-Husa AKF, "
+                   "Sun et al. 2016). One communication step = one sample.")
+    license = "MIT"
+    version = "0.1.0"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self._K, self._D = _load_core(self.resources)
+
+        # inputs
+        self.raw_rate = 0.0
+        self.restart = False
+        # parameters (defaults of gyrodenoise.kernels.make_params)
+        self.ar_order = 3
+        self.method = "shakf"
+        self.sample_period = 0.005
+        self.lam = 1.0
+        self.b = 0.99
+        self.gamma = 3.0
+        self.q0 = 0.0
+        self.r0 = 0.0
+        self.p0_rls = 1.0e4
+        self.p0_kf = 1.0
+        self.warmup_s = 1.0
+        self.r_floor = 1.0e-18
+        self.strict_step_size = False
+        # outputs
+        self.filtered_rate = 0.0
+
+        self._den = None          # the core's Denoiser, built at initialisation
+        self._theta0 = 0          # offset of phi_1 in the state buffer
+        self._n = 0
+        self._n_steps = 0         # samples processed
+        self._n_bad_steps = 0     # steps whose size disagreed with sample_period
+        self._failed = None       # reason why stepping is refused, if any
+
+        P, C, I = Fmi2Causality, Fmi2Variability, Fmi2Initial
+        par = dict(causality=P.parameter, variability=C.fixed)
+        self.register_variable(Real("raw_rate", causality=P.input, description="Raw angular rate of the gyro [deg/s]"))
+        self.register_variable(Boolean("restart", causality=P.input, variability=C.discrete,
+                                       description="True on the first sample after a gyro restart: the filter "
+                                                   "re-identifies the AR model from that sample on [1]"))
+        self.register_variable(Real("filtered_rate", causality=P.output, initial=I.exact,
+                                    description="Filtered angular rate; the raw sample during the warm-up after "
+                                                "each restart [deg/s]"))
+        for k in range(1, MAX_ORDER + 1):
+            self.register_variable(Real(
+                f"phi_{k}", causality=P.output, initial=I.exact, getter=self._phi_getter(k),
+                description=f"AR coefficient phi_{k} of the improved AR(n) model, Eq. (4) "
+                            f"(0 when k > ar_order) [1]"))
+        self.register_variable(Real("c", causality=P.output, initial=I.exact, getter=self._get_c,
+                                    description="Constant term c of the improved AR model, Eq. (4) [deg/s]"))
+        self.register_variable(Real("R_hat", causality=P.output, initial=I.exact, getter=self._state_getter("S_R"),
+                                    description="Estimated measurement-noise variance [(deg/s)^2]"))
+        self.register_variable(Real("Q_hat", causality=P.output, initial=I.exact, getter=self._state_getter("S_Q"),
+                                    description="Estimated process-noise variance [(deg/s)^2]"))
+        self.register_variable(Real("innovation", causality=P.output, initial=I.exact, getter=self._state_getter("S_INNOV"),
+                                    description="Last innovation v_k = z_k - H X_pred [deg/s]"))
+        self.register_variable(Boolean("converged", causality=P.output, initial=I.exact, variability=C.discrete,
+                                       getter=self._get_converged,
+                                       description="True once the AR model has converged since the last "
+                                                   "restart (the output is filtered from then on) [1]"))
+        self.register_variable(Integer("ar_order", **par, description=f"Order n of the AR model, 1..{MAX_ORDER} [1]"))
+        self.register_variable(String("method", **par, description="Filter: 'shakf' (modified Sage-Husa AKF), "
+                                                                   "'kf' (conventional KF) or 'none' [-]"))
+        self.register_variable(Real("sample_period", **par,
+                                    description="Sample period; every communication step must have this size [s]"))
+        self.register_variable(Real("lam", **par, description="RLS forgetting factor, 0 < lam <= 1 [1]"))
+        self.register_variable(Real("b", **par, description="Sage-Husa forgetting factor, 0 < b < 1 [1]"))
+        self.register_variable(Real("gamma", **par, description="Convergence-criterion strictness, Eq. (32), "
+                                                                 "gamma >= 1 [1]"))
+        self.register_variable(Real("q0", **par, description="Process-noise variance, 0 = automatic [(deg/s)^2]"))
+        self.register_variable(Real("r0", **par, description="Measurement-noise variance, 0 = automatic [(deg/s)^2]"))
+        self.register_variable(Real("p0_rls", **par, description="Initial RLS covariance (diagonal), > 0 [1]"))
+        self.register_variable(Real("p0_kf", **par, description="Initial filter covariance (diagonal), > 0 "
+                                                                 "[(deg/s)^2]"))
+        self.register_variable(Real("warmup_s", **par, description="Warm-up after each restart (raw passed "
+                                                                    "through), >= 0 [s]"))
+        self.register_variable(Real("r_floor", **par, description="Lower bound of R and of the automatic noise "
+                                                                   "levels, > 0 [(deg/s)^2]"))
+        self.register_variable(Boolean("strict_step_size", **par,
+                                       description="If true, a step whose size differs from sample_period is "
+                                                   "refused (fmi2Discard); if false it is processed and a "
+                                                   "warning is logged [1]"))
+
+    # ----------------------------------------------------------- readouts
+    def _phi_getter(self, k):
+        def get():
+            if self._den is None or k > self._n:
+                return 0.0
+            return self._den.state[self._theta0 + k - 1]
+        return get
+
+    def _get_c(self):
+        return 0.0 if self._den is None else self._den.state[self._theta0 + self._n]
+
+    def _state_getter(self, name):
+        idx = getattr(self._K, name)
+
+        def get():
+            return 0.0 if self._den is None else self._den.state[idx]
+        return get
+
+    def _get_converged(self):
+        return self._den is not None and self._den.converged
+
+    # ---------------------------------------------------------- lifecycle
+    def _make_denoiser(self):
+        """Build the core's Denoiser from the parameters; ValueError if invalid."""
+        order = self.ar_order
+        if not 1 <= order <= MAX_ORDER:
+            raise ValueError(f"ar_order must be in 1..{MAX_ORDER} (phi outputs declared), got {order}")
+        if not (self.sample_period > 0 and math.isfinite(self.sample_period)):
+            raise ValueError(f"sample_period must be a finite number > 0 s, got {self.sample_period!r}")
+        den = self._D.Denoiser(
+            sample_rate_hz=1.0 / self.sample_period, method=str(self.method).strip().lower(),
+            ar_order=order, lam=self.lam, b=self.b, gamma=self.gamma, q0=self.q0, r0=self.r0,
+            p0_rls=self.p0_rls, p0_kf=self.p0_kf, warmup_s=self.warmup_s, r_floor=self.r_floor)
+        self._den = den
+        self._n = order
+        self._theta0 = self._K.layout(order)[0]
+
+    def exit_initialization_mode(self):
+        try:
+            self._make_denoiser()
+        except ValueError as exc:
+            msg = f"FogDenoiser: invalid parameter: {exc}"
+            self._failed = msg
+            self.log(msg, Fmi2Status.error)
+            # pythonfmu turns the exception into fmi2Fatal from fmi2ExitInitializationMode
+            _REFUSED.append((self, self.log_queue, type(self)))
+            raise ValueError(msg) from None
+        self._failed = None
+
+    def do_step(self, current_time, step_size):
+        if self._den is None:
+            self.log(self._failed or "FogDenoiser: fmi2DoStep before initialisation", Fmi2Status.error)
+            return False
+        z = self.raw_rate
+        if abs(step_size - self.sample_period) > STEP_RTOL * self.sample_period:
+            self._n_bad_steps += 1
+            if self.strict_step_size:
+                self.log(f"FogDenoiser: step size {step_size!r} s at t={current_time!r} s differs from "
+                         f"sample_period {self.sample_period!r} s; step refused (strict_step_size)",
+                         Fmi2Status.error)
+                return False
+            if self._n_bad_steps == 1 or self._n_bad_steps % 100000 == 0:
+                self.log(f"FogDenoiser: step size {step_size!r} s at t={current_time!r} s differs from "
+                         f"sample_period {self.sample_period!r} s; one step = one sample, so the filter's "
+                         f"time base is wrong ({self._n_bad_steps} such step(s) so far)", Fmi2Status.warning)
+        if not math.isfinite(z):
+            self.log(f"FogDenoiser: raw_rate is {z!r} at t={current_time!r} s; sample refused, "
+                     f"filter state unchanged", Fmi2Status.error)
+            return False
+        den = self._den
+        saved = den.state[:]
+        try:
+            self.filtered_rate = den.step(z, self.restart)
+        except Exception as exc:  # keep the instance usable: restore the state
+            den.state = saved
+            self.log(f"FogDenoiser: step at t={current_time!r} s failed: {type(exc).__name__}: {exc}",
+                     Fmi2Status.error)
+            return False
+        self._n_steps += 1
+        return True
+
+    def terminate(self):
+        if self._n_bad_steps:
+            self.log(f"FogDenoiser: {self._n_bad_steps} of {self._n_steps} step(s) had a step size "
+                     f"different from sample_period {self.sample_period!r} s", Fmi2Status.warning)
+
+    # -------------------------------------------------------------- state
+    _PARAMS = ("ar_order", "method", "sample_period", "lam", "b", "gamma", "q0", "r0", "p0_rls",
+               "p0_kf", "warmup_s", "r_floor", "strict_step_size")
+
+    def _get_fmu_state(self):
+        """Everything needed to continue: parameters, inputs, output and the filter's arrays."""
+        return {
+            "version": STATE_VERSION,
+            "params": {name: getattr(self, name) for name in self._PARAMS},
+            "raw_rate": self.raw_rate, "restart": self.restart,
+            "filtered_rate": self.filtered_rate,
+            "filter": None if self._den is None else self._den.get_state(),
+            "n_steps": self._n_steps, "n_bad_steps": self._n_bad_steps,
+        }
+
+    def _set_fmu_state(self, state):
+        try:
+            if state.get("version") != STATE_VERSION:
+                raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
+            for name in self._PARAMS:
+                setattr(self, name, state["params"][name])
+            self.raw_rate = float(state["raw_rate"])
+            self.restart = bool(state["restart"])
+            self.filtered_rate = float(state["filtered_rate"])
+            self._n_steps = int(state["n_steps"])
+            self._n_bad_steps = int(state["n_bad_steps"])
+            if state["filter"] is None:
+                self._den = None
+            else:
+                self._make_denoiser()
+                self._den.set_state(state["filter"])
+            self._failed = None
+        except Exception as exc:  # pythonfmu ignores a return value here: refuse the next steps
+            self._den = None
+            self._failed = f"FogDenoiser: fmi2SetFMUstate failed: {type(exc).__name__}: {exc}"
+            self.log(self._failed, Fmi2Status.error)

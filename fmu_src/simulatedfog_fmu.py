@@ -1,0 +1,211 @@
+"""SimulatedFog: the gyrodenoise model-card gyro as an FMI 2.0 co-simulation slave (pythonfmu).
+
+One communication step is one sample: set ``true_rate`` (and ``restart``), call
+fmi2DoStep, read ``measured_rate``. The sensor errors come from the core's
+simulator (``gyrodenoise.simulator.SimStream``), bundled into the FMU's resources
+as the package ``gdcore``, so for the same card and seed the FMU and
+``gyrodenoise.simulate`` give the same numbers. Needs numpy on the host (scipy,
+numba and an installed gyrodenoise are not needed). Build it with
+``gyrodenoise fmu build``.
+"""
+
+import hashlib
+import importlib
+import importlib.util
+import math
+import os
+import sys
+
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Status
+
+DEFAULT_CARD = "paper_fog"
+#: relative tolerance between the step size and the card's sample period
+STEP_RTOL = 1e-6
+STATE_VERSION = 1
+
+#: Objects of instances that failed with an exception. pythonfmu answers an exception
+#: with fmi2Fatal and releases its references to the instance, its log queue and the
+#: class, and releases them again in fmi2FreeInstance / fmi2Reset; these extra
+#: references keep that from freeing live objects (a few bytes leaked per failure).
+_REFUSED = []
+
+
+def _load_core(resources):
+    """Import the gyrodenoise core bundled in ``resources/gdcore``.
+
+    The package gets a private name derived from its contents, so an installed
+    ``gyrodenoise`` (or another build of this FMU) in the same process is never
+    used instead, and identical copies are imported only once.
+    """
+    pkg_dir = os.path.join(resources, "gdcore")
+    digest = hashlib.sha1()
+    for name in sorted(os.listdir(pkg_dir)):
+        if name.endswith(".py"):
+            with open(os.path.join(pkg_dir, name), "rb") as fh:
+                digest.update(name.encode() + b"\0" + fh.read())
+    modname = "_gdcore_" + digest.hexdigest()[:16]
+    if modname not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            modname, os.path.join(pkg_dir, "__init__.py"),
+            submodule_search_locations=[pkg_dir])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[modname] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[modname]
+            raise
+    return importlib.import_module(modname + ".simulator")
+
+
+class SimulatedFog(Fmi2Slave):
+    """A gyro described by a model card: measured = true rate + simulated sensor errors."""
+
+    author = "gyrodenoise"
+    description = ("Simulated gyro from a gyrodenoise model card (TOML): measured_rate = true_rate + "
+                   "sensor errors. One communication step = one sample.")
+    license = "MIT"
+    version = "0.1.0"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self._S = _load_core(self.resources)
+
+        self.true_rate = 0.0
+        self.restart = False
+        self.card = DEFAULT_CARD
+        self.seed = 0
+        self.strict_step_size = False
+        self.measured_rate = 0.0
+        self.restarted = False
+
+        self._sim = None
+        self._period = None
+        self._n_steps = 0
+        self._n_bad_steps = 0
+        self._failed = None
+
+        P, C, I = Fmi2Causality, Fmi2Variability, Fmi2Initial
+        par = dict(causality=P.parameter, variability=C.fixed)
+        self.register_variable(Real("true_rate", causality=P.input, description="True angular rate [deg/s]"))
+        self.register_variable(Boolean("restart", causality=P.input, variability=C.discrete,
+                                       description="True on the first sample after a gyro restart (fresh "
+                                                   "turn-on bias draw, turn-on transient restarts) [1]"))
+        self.register_variable(Real("measured_rate", causality=P.output, initial=I.exact,
+                                    description="Measured angular rate: true_rate + sensor errors [deg/s]"))
+        self.register_variable(Boolean("restarted", causality=P.output, initial=I.exact, variability=C.discrete,
+                                       description="The restart input of the step that produced measured_rate; "
+                                                   "connect it to FogDenoiser.restart [1]"))
+        self.register_variable(String("card", **par,
+                                      description="Model card: its TOML text (gyrodenoise spec section 4; term "
+                                                  "units as there: deg, deg/sqrt(h), deg/h, deg/h^1.5, deg/h^2, "
+                                                  "s, Hz), or a card file path, or the name of a card bundled "
+                                                  "in the FMU ('paper_fog', the paper's FOG, default) [-]"))
+        self.register_variable(Integer("seed", **par, description="Seed of the noise generator (same seed, "
+                                                                   "same card: same numbers as "
+                                                                   "gyrodenoise.simulate) [1]"))
+        self.register_variable(Boolean("strict_step_size", **par,
+                                       description="If true, a step whose size differs from the card's sample "
+                                                   "period is refused (fmi2Discard); if false it is processed "
+                                                   "and a warning is logged [1]"))
+
+    # ---------------------------------------------------------- lifecycle
+    def _make_stream(self):
+        """Parse the card and build the core's SimStream; ValueError (InputError) if invalid."""
+        if isinstance(self.seed, bool) or int(self.seed) < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        text = str(self.card)
+        if "\n" in text or "[" in text:
+            card = self._S.parse_card(text, source="parameter card")
+        else:
+            card = self._S.load_card(text.strip())
+        self._sim = self._S.SimStream(card, seed=int(self.seed))
+        self._period = 1.0 / card.sample_rate_hz
+
+    def exit_initialization_mode(self):
+        try:
+            self._make_stream()
+        except ValueError as exc:
+            msg = f"SimulatedFog: invalid parameter: {exc}"
+            self._failed = msg
+            self.log(msg, Fmi2Status.error)
+            # pythonfmu turns the exception into fmi2Fatal from fmi2ExitInitializationMode
+            _REFUSED.append((self, self.log_queue, type(self)))
+            raise ValueError(msg) from None
+        self._failed = None
+
+    def do_step(self, current_time, step_size):
+        sim = self._sim
+        if sim is None:
+            self.log(self._failed or "SimulatedFog: fmi2DoStep before initialisation", Fmi2Status.error)
+            return False
+        period = self._period
+        if abs(step_size - period) > STEP_RTOL * period:
+            self._n_bad_steps += 1
+            if self.strict_step_size:
+                self.log(f"SimulatedFog: step size {step_size!r} s at t={current_time!r} s differs from the "
+                         f"card's sample period {period!r} s; step refused (strict_step_size)",
+                         Fmi2Status.error)
+                return False
+            if self._n_bad_steps == 1 or self._n_bad_steps % 100000 == 0:
+                self.log(f"SimulatedFog: step size {step_size!r} s at t={current_time!r} s differs from the "
+                         f"card's sample period {period!r} s; one step = one sample, so the simulated time "
+                         f"base is wrong ({self._n_bad_steps} such step(s) so far)", Fmi2Status.warning)
+        w = self.true_rate
+        if not math.isfinite(w):
+            self.log(f"SimulatedFog: true_rate is {w!r} at t={current_time!r} s; sample refused",
+                     Fmi2Status.error)
+            return False
+        restart = bool(self.restart)
+        try:
+            self.measured_rate = sim.step(w, restart)
+        except Exception as exc:
+            self.log(f"SimulatedFog: step at t={current_time!r} s failed: {type(exc).__name__}: {exc}",
+                     Fmi2Status.error)
+            return False
+        self.restarted = restart
+        self._n_steps += 1
+        return True
+
+    def terminate(self):
+        if self._n_bad_steps:
+            self.log(f"SimulatedFog: {self._n_bad_steps} of {self._n_steps} step(s) had a step size "
+                     f"different from the card's sample period {self._period!r} s", Fmi2Status.warning)
+
+    # -------------------------------------------------------------- state
+    _PARAMS = ("card", "seed", "strict_step_size")
+
+    def _get_fmu_state(self):
+        """Parameters, inputs, outputs and the simulator's generator state and buffers."""
+        return {
+            "version": STATE_VERSION,
+            "params": {name: getattr(self, name) for name in self._PARAMS},
+            "true_rate": self.true_rate, "restart": self.restart,
+            "measured_rate": self.measured_rate, "restarted": self.restarted,
+            "sim": None if self._sim is None else self._sim.get_state(),
+            "n_steps": self._n_steps, "n_bad_steps": self._n_bad_steps,
+        }
+
+    def _set_fmu_state(self, state):
+        try:
+            if state.get("version") != STATE_VERSION:
+                raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
+            for name in self._PARAMS:
+                setattr(self, name, state["params"][name])
+            self.true_rate = float(state["true_rate"])
+            self.restart = bool(state["restart"])
+            self.measured_rate = float(state["measured_rate"])
+            self.restarted = bool(state["restarted"])
+            self._n_steps = int(state["n_steps"])
+            self._n_bad_steps = int(state["n_bad_steps"])
+            if state["sim"] is None:
+                self._sim = None
+            else:
+                self._make_stream()
+                self._sim.set_state(state["sim"])
+            self._failed = None
+        except Exception as exc:  # pythonfmu ignores a return value here: refuse the next steps
+            self._sim = None
+            self._failed = f"SimulatedFog: fmi2SetFMUstate failed: {type(exc).__name__}: {exc}"
+            self.log(self._failed, Fmi2Status.error)
