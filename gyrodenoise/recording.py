@@ -80,12 +80,9 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
     except (StopIteration, csv.Error) as exc:
         raise InputError(f"line 1: cannot read the header ({exc})", src) from None
     if rate_column not in header:
-        try:  # a header that is a row of numbers: no header at all
-            [float(h) for h in header]
+        if all(_is_number(h) for h in header):   # a row of numbers: no header at all
             raise InputError(f"line 1: no header row (expected column names such as "
                              f"'{time_column},{rate_column}')", src)
-        except ValueError:
-            pass
         raise InputError(f"line 1: no column '{rate_column}' (columns: {', '.join(header)}); "
                          f"use --rate-column", src)
     i_rate = header.index(rate_column)
@@ -160,6 +157,14 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
         t = np.arange(n) / fs
     return Record(rate_deg_s=rate, sample_rate_hz=fs, time_s=t, true_rate_deg_s=true,
                   restarts=restarts, source=src, notes=notes)
+
+
+def _is_number(cell):
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def _line_of(text, sample_index):

@@ -1,0 +1,142 @@
+"""The command line: contracts of spec sections 1-3 and the bad-input rules."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from gyrodenoise.cli import main
+
+
+def run_cli(*args):
+    """Run the real console entry in a subprocess: (status, stdout, stderr)."""
+    p = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", *map(str, args)],
+                       capture_output=True, text=True, timeout=300)
+    return p.returncode, p.stdout, p.stderr
+
+
+@pytest.fixture(scope="module")
+def sim_csv(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rec")
+    rec = gd.simulate("paper_fog", 40_000, seed=5, true_rate_deg_s=2.0)
+    path = d / "sim.csv"
+    np.savetxt(path, np.column_stack([rec.time_s, rec.rate_deg_s, rec.true_rate_deg_s]),
+               delimiter=",", header="time,rate,true_rate", comments="", fmt="%.12g")
+    return path, rec
+
+
+def test_denoise_writes_time_raw_filtered_true(sim_csv, tmp_path):
+    path, rec = sim_csv
+    out = tmp_path / "out.csv"
+    assert main(["denoise", str(path), "-o", str(out), "--method", "shakf"]) == 0
+    with open(out) as f:
+        assert f.readline().strip() == "time,raw,filtered,true_rate"
+    data = np.loadtxt(out, delimiter=",", skiprows=1)
+    ref = gd.denoise(rec.rate_deg_s, 200.0, method="shakf")
+    np.testing.assert_allclose(data[:, 2], ref, rtol=1e-9)
+    np.testing.assert_allclose(data[:, 1], rec.rate_deg_s, rtol=1e-9)
+    # the filter reduces the error against the truth after the warm-up
+    err_raw = np.sqrt(np.mean((data[400:, 1] - 2.0) ** 2))
+    err_f = np.sqrt(np.mean((data[400:, 2] - 2.0) ** 2))
+    assert err_f < 0.2 * err_raw
+
+
+def test_allan_json_contract(sim_csv):
+    path, rec = sim_csv
+    code, out, err = run_cli("allan", path, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert set(d["terms"]) == {"N", "B", "K", "R", "Q"}
+    assert d["units"] == {"N": "deg/sqrt(h)", "B": "deg/h", "K": "deg/h^1.5", "R": "deg/h^2", "Q": "deg"}
+    assert len(d["tau_s"]) == len(d["adev_deg_h"]) == len(d["adev_err_deg_h"]) > 10
+    assert set(d["bounds"]) == {"N", "B", "K", "R", "Q"}
+    assert d["terms"]["N"] == pytest.approx(0.006, rel=0.1)
+
+
+def test_compare_json_contract(sim_csv):
+    path, _ = sim_csv
+    code, out, err = run_cli("compare", path, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert set(d["rows"]) == {"raw", "ar_fit", "kf", "shakf"}
+    assert set(d["rmse_deg_s"]) == {"raw", "kf", "shakf"}
+    assert d["rmse_deg_s"]["shakf"] < d["rmse_deg_s"]["kf"] < d["rmse_deg_s"]["raw"]
+    assert d["rows"]["shakf"]["N"] < d["rows"]["raw"]["N"]
+
+
+def test_demo_json_quick(tmp_path):
+    code, out, err = run_cli("demo", "--hours", "0.05", "--dynamic-s", "20", "--json", "--out", tmp_path)
+    assert code == 0, err
+    d = json.loads(out)
+    assert len(d["dynamic"]["rows"]) == 5
+    assert {"raw", "kf", "shakf"} <= set(d["static"]["rmse_deg_s"])
+    for f in d["figures"]:
+        assert (tmp_path / f.split("/")[-1]).stat().st_size > 10_000
+
+
+BAD = {
+    "empty.csv": ("", "empty file"),
+    "header.csv": ("time,rate\n", "header only"),
+    "noheader.csv": ("0.0,1.0\n0.01,1.1\n", "no header row"),
+    "nan.csv": ("time,rate\n0,1\n0.01,nan\n0.02,1\n", "line 3: column rate is nan"),
+    "inf.csv": ("time,rate\n0,1\n0.01,1\n0.02,-inf\n", "line 4: column rate is -inf"),
+    "text.csv": ("time,rate\n0,1\n0.01,abc\n", "line 3: column rate: 'abc' is not a number"),
+    "repeat.csv": ("time,rate\n0,1\n0.01,1\n0.01,1\n0.03,1\n", "line 4: repeated time"),
+    "decrease.csv": ("time,rate\n0,1\n0.02,1\n0.01,1\n", "line 4: decreasing time"),
+    "short.csv": ("time,rate,true_rate\n0,1,0\n0.01,1\n", "line 3: 2 fields"),
+    "one.csv": ("time,rate\n0,1\n", "only 1 data row"),
+    "col.csv": ("t,omega\n0,1\n0.01,1\n", "no column 'rate'"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_bad_recordings_get_one_line_and_exit_2(tmp_path, name):
+    text, needle = BAD[name]
+    path = tmp_path / name
+    path.write_text(text)
+    code, out, err = run_cli("denoise", path, "-o", tmp_path / "o.csv")
+    assert code == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert str(path) in lines[0] and needle in lines[0], lines[0]
+
+
+def test_missing_file_unknown_unit_and_bad_parameter(tmp_path):
+    code, _, err = run_cli("allan", tmp_path / "nope.csv")
+    assert code == 2 and "no such file" in err and len(err.strip().splitlines()) == 1
+    p = tmp_path / "ok.csv"
+    p.write_text("time,rate\n" + "".join(f"{i / 100},{np.sin(i)}\n" for i in range(300)))
+    code, _, err = run_cli("allan", p, "--rate-unit", "furlong/s")
+    assert code == 2 and "unknown rate unit" in err
+    code, _, err = run_cli("denoise", p, "-o", tmp_path / "o.csv", "--gamma", "0.5")
+    assert code == 2 and "gamma" in err and "Traceback" not in err
+
+
+def test_gap_is_reported_and_restarts_the_filter(tmp_path):
+    t = np.concatenate([np.arange(0, 5, 0.01), np.arange(10, 15, 0.01)])
+    z = 1.0 + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    p = tmp_path / "gap.csv"
+    np.savetxt(p, np.column_stack([t, z]), delimiter=",", header="time,rate", comments="")
+    code, out, err = run_cli("denoise", p, "-o", tmp_path / "o.csv")
+    assert code == 0 and "time gap" in err and "restarts" in err
+    data = np.loadtxt(tmp_path / "o.csv", delimiter=",", skiprows=1)
+    assert data.shape[0] == t.size                       # nothing dropped or invented
+    # after the gap the filter warms up again: raw passes through
+    np.testing.assert_array_equal(data[500:600, 2], data[500:600, 1])
+
+
+def test_rate_units_and_no_time_column(tmp_path):
+    z = np.full(500, 3600.0)  # deg/h
+    p = tmp_path / "degh.csv"
+    np.savetxt(p, z[:, None], delimiter=",", header="rate", comments="")
+    code, _, err = run_cli("denoise", p, "-o", tmp_path / "o.csv", "--rate-unit", "deg/h")
+    assert code == 2 and "no column 'time'" in err
+    code, _, err = run_cli("denoise", p, "-o", tmp_path / "o.csv", "--rate-unit", "deg/h",
+                           "--sample-rate", "100")
+    assert code == 0, err
+    data = np.loadtxt(tmp_path / "o.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(data[:, 1], 1.0)
+    np.testing.assert_allclose(data[-1, 0], 4.99)
