@@ -675,6 +675,7 @@ def _cmd_build(args):
 def _cmd_run(args):
     import json
     fmu_dir = Path(args.fmu_dir)
+    _resolve_card(args.card)          # a bad card is a user error before anything runs
     reasons = {n: stale_reason(fmu_dir / f"{n}.fmu") for n in FMUS}
     if any(reasons.values()):
         why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)

@@ -1,0 +1,457 @@
+"""FMUs: build, check, run in fmpy and libcosim, state, reset, error paths.
+
+The FMUs are built once per session into a temporary folder by the CLI in a
+subprocess. References are independent of the FMUs: the core's batch paths
+``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` (numba).
+"""
+
+import importlib.util
+import json
+import math
+import os
+import subprocess
+import sys
+import textwrap
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from gyrodenoise import fmu as F
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+
+FS = 200.0
+H = 1.0 / FS
+TOL = 1e-9
+
+
+@pytest.fixture(scope="session")
+def fmu_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fmus")
+    proc = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "fmu", "build", "--out", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    for name in F.FMUS:
+        assert (out / f"{name}.fmu").is_file()
+    return out
+
+
+def _inst(fmu_dir, name="FogDenoiser", instance="x"):
+    return F.FmuInstance(fmu_dir / f"{name}.fmu", instance)
+
+
+def _run_denoiser(inst, z, restarts=None, t0=0):
+    step = F._stepper(inst, "raw_rate", "restart", "filtered_rate")
+    rs = np.zeros(len(z), bool) if restarts is None else restarts
+    return np.array([step(float(z[k]), bool(rs[k]), (t0 + k) * H, H) for k in range(len(z))])
+
+
+def _raw(n, seed=3, rate=0.0, restarts=None):
+    return gd.simulate("paper_fog", n, seed=seed, true_rate_deg_s=rate, restarts=restarts).rate_deg_s
+
+
+# ------------------------------------------------------------------ checkers
+@pytest.mark.parametrize("name", list(F.FMUS))
+def test_fmpy_validate_finds_no_problem(fmu_dir, name):
+    from fmpy.validation import validate_fmu
+    assert validate_fmu(str(fmu_dir / f"{name}.fmu")) == []
+    proc = subprocess.run([str(Path(sys.executable).with_name("fmpy")), "validate",
+                           str(fmu_dir / f"{name}.fmu")], capture_output=True, text=True, timeout=120)
+    assert "No problems found" in proc.stdout, proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("name", list(F.FMUS))
+def test_fmutool_check_finds_no_problem(fmu_dir, name):
+    exe = Path(sys.executable).with_name("fmutool")
+    proc = subprocess.run([str(exe), "-input", str(fmu_dir / f"{name}.fmu"), "-check"],
+                          capture_output=True, text=True, timeout=120)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out
+    assert "No semantic error" in out and "compliant with FMI-2.0" in out, out
+    assert "ERROR" not in out.upper().replace("NO SEMANTIC ERROR", ""), out
+
+
+def test_model_description_interface(fmu_dir):
+    from fmpy import read_model_description
+    md = read_model_description(str(fmu_dir / "FogDenoiser.fmu"))
+    v = {x.name: x for x in md.modelVariables}
+    assert v["raw_rate"].causality == "input" and v["raw_rate"].type == "Real"
+    assert v["restart"].causality == "input" and v["restart"].type == "Boolean"
+    assert v["restart"].variability == "discrete"
+    for name in ["filtered_rate", "c", "R_hat", "innovation", "converged"] + [f"phi_{i}" for i in (1, 2, 3)]:
+        assert v[name].causality == "output", name
+    for name in ["ar_order", "method", "lam", "b", "gamma", "q0", "r0", "p0_rls", "p0_kf", "sample_period"]:
+        assert v[name].causality == "parameter", name
+    assert "[deg/s]" in v["raw_rate"].description and "[(deg/s)^2]" in v["R_hat"].description
+    assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+    md2 = read_model_description(str(fmu_dir / "SimulatedFog.fmu"))
+    v2 = {x.name: x for x in md2.modelVariables}
+    assert {"true_rate", "restart", "measured_rate", "card", "seed"} <= set(v2)
+    assert v2["seed"].causality == "parameter" and v2["card"].type == "String"
+
+
+def test_bundled_core_is_plain_path_only(fmu_dir):
+    with zipfile.ZipFile(fmu_dir / "FogDenoiser.fmu") as z:
+        names = set(z.namelist())
+    core = {n for n in names if n.startswith("resources/gdcore/") and n.endswith(".py")}
+    assert core == {f"resources/gdcore/{m}" for m in ("__init__.py", "kernels.py", "denoiser.py", "errors.py")}
+    assert F.stale_reason(fmu_dir / "FogDenoiser.fmu") is None
+
+
+# ---------------------------------------------------- runs from anywhere
+BLOCKED_HOST = textwrap.dedent("""
+    import json, sys
+    class Block:
+        def find_spec(self, name, path=None, target=None):
+            if name.split(".")[0] in ("gyrodenoise", "numba", "scipy"):
+                raise ImportError("blocked in this test: " + name)
+    sys.meta_path.insert(0, Block())
+    sys.path = [p for p in sys.path if "/work/main" not in p or "site-packages" in p]
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    out = {}
+    for name, inp, outp, params in [("SimulatedFog", "true_rate", "measured_rate", {}),
+                                    ("FogDenoiser", "raw_rate", "filtered_rate", {"sample_period": 0.005})]:
+        path = sys.argv[1] + "/" + name + ".fmu"
+        md = read_model_description(path)
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        s = FMU2Slave(guid=md.guid, unzipDirectory=extract(path), modelIdentifier=name, instanceName=name)
+        s.instantiate()
+        s.setupExperiment(startTime=0.0)
+        for k, v in params.items():
+            s.setReal([vr[k]], [v])
+        s.enterInitializationMode(); s.exitInitializationMode()
+        xs = out.get("SimulatedFog", [0.0] * 600)
+        ys = []
+        for i in range(600):
+            s.setReal([vr[inp]], [xs[i]])
+            s.doStep(i * 0.005, 0.005)
+            ys.append(s.getReal([vr[outp]])[0])
+        s.terminate(); s.freeInstance()
+        out[name] = ys
+    out["modules"] = sorted(m for m in sys.modules if m.split(".")[0] in ("gyrodenoise", "numba", "scipy"))
+    print(json.dumps(out))
+""")
+
+
+def test_fmus_run_from_any_directory_without_gyrodenoise_numba_scipy(fmu_dir, tmp_path):
+    script = tmp_path / "host.py"
+    script.write_text(BLOCKED_HOST)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    proc = subprocess.run([sys.executable, str(script), str(fmu_dir)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["modules"] == []
+    ref_meas = gd.simulate("paper_fog", 600, seed=0).rate_deg_s     # scipy path here, numpy path there
+    np.testing.assert_allclose(out["SimulatedFog"], ref_meas, rtol=0, atol=1e-12)
+    ref = gd.denoise(np.array(out["SimulatedFog"]), FS)
+    np.testing.assert_allclose(out["FogDenoiser"], ref, rtol=0, atol=TOL)
+
+
+# ------------------------------------------------------ validation runs
+@pytest.mark.parametrize("rate", [0.0, 10.0])
+def test_fmpy_two_fmu_run_equals_core_batch(fmu_dir, rate):
+    res = F.validation_run(fmu_dir, duration_s=40.0, rate_deg_s=rate, restart_at_s=20.0, seed=5,
+                           keep_arrays=True)
+    assert res["max_abs_diff_measured_vs_simulate_deg_s"] <= TOL
+    assert res["max_abs_diff_filtered_vs_denoise_deg_s"] <= TOL
+    assert res["allan_max_rel_diff"] <= 1e-6
+    assert res["fmu_errors"] == [] and res["converged_at_end"] and res["ok"]
+    for k, red in res["reduction_fmu"].items():
+        assert red == pytest.approx(res["reduction_batch"][k], rel=1e-6), k
+    # the restart in the middle was effective: without it the batch output differs
+    a = res["arrays"]
+    no_restart = gd.denoise(a["measured"], FS)
+    assert np.max(np.abs(no_restart - a["filtered"])) > 1e-6
+    # and the filter did its job on white noise (N reduced)
+    assert res["reduction_fmu"]["N"] > 2.0
+
+
+def test_cli_fmu_run_json(fmu_dir):
+    proc = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "fmu", "run", "--fmu-dir", str(fmu_dir),
+                           "--duration", "15", "--json"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.strip().splitlines()
+    assert len(lines) == 1
+    out = json.loads(lines[0])
+    assert out["ok"] is True and set(out["cases"]) == {"static", "constant_rate"}
+    assert out["cases"]["constant_rate"]["case"]["true_rate_deg_s"] == 10.0
+    for case in out["cases"].values():
+        assert case["max_abs_diff_filtered_vs_denoise_deg_s"] <= TOL
+        assert case["case"]["restart_at_s"] == 7.5
+
+
+def test_cli_fmu_run_missing_card_is_user_error(fmu_dir):
+    proc = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "fmu", "run", "--fmu-dir", str(fmu_dir),
+                           "--duration", "1", "--card", "/nonexistent/card.toml"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("gyrodenoise: error:") and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("ssp", [False, True])
+def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp):
+    ssp_path = tmp_path / "chain.ssp" if ssp else None
+    res = F.cosim_run(fmu_dir, duration_s=10.0, rate_deg_s=10.0, restart_at_s=5.0, seed=2, ssp=ssp_path,
+                      keep_arrays=True)
+    assert res["step_size_s"] == pytest.approx(H, rel=1e-9)
+    assert res["first_received_deg_s"] == 0.0
+    assert res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
+    assert res["max_abs_diff_measured_vs_simulate_deg_s"] <= TOL
+    assert res["max_abs_diff_filtered_vs_denoise_deg_s"] <= TOL
+    assert res["converged_at_end"] and res["ok"]
+    a = res["arrays"]
+    # the injected restart reached the denoiser (one step late, through fog.restarted)
+    rec_rs = np.concatenate(([False], a["restarts"][:-1]))
+    with_rs = gd.denoise(a["received"], FS, restarts=rec_rs)
+    without = gd.denoise(a["received"], FS)
+    assert np.max(np.abs(with_rs - a["filtered"])) <= TOL
+    assert np.max(np.abs(without - a["filtered"])) > 1e-6
+    if ssp:
+        with zipfile.ZipFile(ssp_path) as z:
+            assert {"SystemStructure.ssd", "resources/FogDenoiser.fmu",
+                    "resources/SimulatedFog.fmu"} <= set(z.namelist())
+
+
+# --------------------------------------------------------------- state
+def test_denoiser_state_roundtrip_and_serialize(fmu_dir):
+    z = _raw(1200, seed=7, rate=2.0)
+    a = _inst(fmu_dir, instance="a")
+    b = _inst(fmu_dir, instance="b")
+    try:
+        a.initialize(sample_period=H, ar_order=4)
+        b.initialize(sample_period=H)          # other order: the state carries the parameters
+        first = _run_denoiser(a, z[:600])
+        st = a.slave.getFMUstate()
+        blob = a.slave.serializeFMUstate(st)
+        cont = _run_denoiser(a, z[600:], t0=600)
+        phi_a = [a.get(f"phi_{i}") for i in range(1, 5)]
+        # back in time in the same instance
+        a.slave.setFMUstate(st)
+        again = _run_denoiser(a, z[600:], t0=600)
+        a.slave.freeFMUstate(st)
+        # into another instance through the serialized bytes
+        st_b = b.slave.deSerializeFMUstate(blob)
+        b.slave.setFMUstate(st_b)
+        b.slave.freeFMUstate(st_b)
+        other = _run_denoiser(b, z[600:], t0=600)
+        phi_b = [b.get(f"phi_{i}") for i in range(1, 5)]
+        assert b.get("ar_order") == 4
+    finally:
+        a.free()
+        b.free()
+    ref = gd.denoise(z, FS, ar_order=4)
+    np.testing.assert_allclose(np.concatenate([first, cont]), ref, rtol=0, atol=TOL)
+    np.testing.assert_array_equal(again, cont)
+    np.testing.assert_array_equal(other, cont)
+    assert phi_a == phi_b and phi_a[3] != 0.0
+
+
+def test_simulator_state_roundtrip(fmu_dir):
+    a = _inst(fmu_dir, "SimulatedFog", "fa")
+    b = _inst(fmu_dir, "SimulatedFog", "fb")
+    try:
+        a.initialize(seed=11)
+        b.initialize(seed=99)
+        step_a = F._stepper(a, "true_rate", "restart", "measured_rate")
+        step_b = F._stepper(b, "true_rate", "restart", "measured_rate")
+        first = [step_a(1.0, False, k * H, H) for k in range(5000)]   # crosses a noise block
+        st = a.slave.getFMUstate()
+        blob = a.slave.serializeFMUstate(st)
+        a.slave.freeFMUstate(st)
+        cont = [step_a(1.0, False, k * H, H) for k in range(5000, 5300)]
+        st_b = b.slave.deSerializeFMUstate(blob)
+        b.slave.setFMUstate(st_b)
+        b.slave.freeFMUstate(st_b)
+        other = [step_b(1.0, False, k * H, H) for k in range(5000, 5300)]
+    finally:
+        a.free()
+        b.free()
+    ref = gd.simulate("paper_fog", 5300, seed=11, true_rate_deg_s=1.0).rate_deg_s
+    np.testing.assert_allclose(first + cont, ref, rtol=0, atol=TOL)
+    assert other == cont
+
+
+def test_reset_gives_fresh_filter(fmu_dir):
+    z = _raw(800, seed=8)
+    a = _inst(fmu_dir)
+    try:
+        a.initialize(sample_period=H)
+        _run_denoiser(a, _raw(500, seed=9) + 0.3)
+        a.slave.reset()
+        assert a.get("converged") is False and a.get("phi_1") == 0.0
+        a.initialize(sample_period=H)
+        out = _run_denoiser(a, z)
+    finally:
+        a.free()
+    np.testing.assert_allclose(out, gd.denoise(z, FS), rtol=0, atol=TOL)
+
+
+def test_instances_are_independent(fmu_dir):
+    z1, z2 = _raw(700, seed=1), _raw(700, seed=2, rate=-3.0)
+    rs2 = np.zeros(700, bool)
+    rs2[350] = True
+    a, b = _inst(fmu_dir, instance="a"), _inst(fmu_dir, instance="b")
+    try:
+        a.initialize(sample_period=H, method="kf")
+        b.initialize(sample_period=H, method="shakf", ar_order=2)
+        sa = F._stepper(a, "raw_rate", "restart", "filtered_rate")
+        sb = F._stepper(b, "raw_rate", "restart", "filtered_rate")
+        o1, o2 = [], []
+        for k in range(700):               # interleaved in one process
+            o1.append(sa(z1[k], False, k * H, H))
+            o2.append(sb(z2[k], bool(rs2[k]), k * H, H))
+    finally:
+        a.free()
+        b.free()
+    np.testing.assert_allclose(o1, gd.denoise(z1, FS, method="kf"), rtol=0, atol=TOL)
+    np.testing.assert_allclose(o2, gd.denoise(z2, FS, ar_order=2, restarts=rs2), rtol=0, atol=TOL)
+
+
+# ---------------------------------------------------------- error paths
+@pytest.mark.parametrize("params, word", [
+    ({"ar_order": 0}, "ar_order"),
+    ({"ar_order": 7}, "ar_order"),
+    ({"b": 1.0}, "b out of range"),
+    ({"b": 0.0}, "b out of range"),
+    ({"gamma": 0.5}, "gamma"),
+    ({"p0_kf": -1.0}, "p0_kf"),
+    ({"q0": -1e-6}, "q0"),
+    ({"r0": -1.0}, "r0"),
+    ({"method": "wiener"}, "method"),
+    ({"sample_period": 0.0}, "sample_period"),
+])
+def test_invalid_parameters_refused_at_initialisation(fmu_dir, params, word):
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir)
+    a.slave.setupExperiment(startTime=0.0)
+    a.set(**params)
+    a.slave.enterInitializationMode()
+    with pytest.raises(FMICallException) as exc:
+        a.slave.exitInitializationMode()
+    assert exc.value.status >= 3
+    errs = [m for m in a.errors() if "invalid parameter" in m[2]]
+    assert errs and word in errs[0][2] and errs[0][0] == 3, a.messages
+    a.free(terminate=False)
+
+
+def test_invalid_card_refused(fmu_dir):
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir, "SimulatedFog")
+    a.slave.setupExperiment(startTime=0.0)
+    a.set(card="[sensor]\nsample_rate_hz = 200.0\n[terms]\nangle_random_walk = { N = -1.0 }\n")
+    a.slave.enterInitializationMode()
+    with pytest.raises(FMICallException):
+        a.slave.exitInitializationMode()
+    assert any("angle_random_walk.N" in m[2] for m in a.errors()), a.messages
+    a.free(terminate=False)
+
+
+def test_card_text_parameter(fmu_dir):
+    card = "[sensor]\nsample_rate_hz = 100.0\n[terms]\nangle_random_walk = { N = 0.01 }\n"
+    a = _inst(fmu_dir, "SimulatedFog")
+    try:
+        a.initialize(card=card, seed=4)
+        step = F._stepper(a, "true_rate", "restart", "measured_rate")
+        out = [step(0.5, False, k * 0.01, 0.01) for k in range(300)]
+        assert not a.messages
+    finally:
+        a.free()
+    ref = gd.simulate(gd.simulator.parse_card(card), 300, seed=4, true_rate_deg_s=0.5).rate_deg_s
+    np.testing.assert_allclose(out, ref, rtol=0, atol=TOL)
+
+
+def test_step_size_mismatch_is_reported(fmu_dir):
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir)
+    try:
+        a.initialize(sample_period=H)
+        a.set(raw_rate=0.1)
+        a.slave.doStep(0.0, 2 * H)
+        warn = [m for m in a.messages if m[0] == 1 and "step size" in m[2]]
+        assert warn and "0.01" in warn[0][2] and "0.005" in warn[0][2]
+    finally:
+        a.free()
+    b = _inst(fmu_dir)
+    try:
+        b.initialize(sample_period=H, strict_step_size=True)
+        b.slave.doStep(0.0, H)
+        with pytest.raises(FMICallException) as exc:
+            b.slave.doStep(H, 0.5 * H)
+        assert exc.value.status == 2      # fmi2Discard: pythonfmu's only non-fatal refusal
+        assert any("step refused" in m[2] for m in b.errors())
+    finally:
+        b.free()
+
+
+def test_nonfinite_input_refused_state_kept(fmu_dir):
+    from fmpy.fmi1 import FMICallException
+    z = _raw(400, seed=12)
+    a = _inst(fmu_dir)
+    try:
+        a.initialize(sample_period=H)
+        out1 = _run_denoiser(a, z[:200])
+        a.set(raw_rate=math.nan)
+        with pytest.raises(FMICallException):
+            a.slave.doStep(200 * H, H)
+        assert any("raw_rate is nan" in m[2] for m in a.errors())
+        out2 = _run_denoiser(a, z[200:], t0=200)
+    finally:
+        a.free()
+    np.testing.assert_allclose(np.concatenate([out1, out2]), gd.denoise(z, FS), rtol=0, atol=TOL)
+
+
+def test_bad_state_is_logged_and_refuses_steps(fmu_dir):
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir)
+    try:
+        a.initialize(sample_period=H)
+        st = a.slave.deSerializeFMUstate(json.dumps({"version": 99}).encode())
+        a.slave.setFMUstate(st)
+        a.slave.freeFMUstate(st)
+        assert any("fmi2SetFMUstate failed" in m[2] for m in a.errors())
+        with pytest.raises(FMICallException):
+            a.slave.doStep(0.0, H)
+    finally:
+        a.free()
+
+
+def _slave_class(fmu_dir, tmp_path):
+    """The FogDenoiser slave class from the built FMU's resources, in this process."""
+    from fmpy import extract
+    d = Path(extract(str(fmu_dir / "FogDenoiser.fmu"), unzipdir=str(tmp_path / "fd")))
+    sys.path.insert(0, str(d / "resources"))
+    try:
+        spec = importlib.util.spec_from_file_location("_test_fogdenoiser_slave",
+                                                      d / "resources" / "fogdenoiser_fmu.py")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+    finally:
+        sys.path.remove(str(d / "resources"))
+    return mod.FogDenoiser, str(d / "resources")
+
+
+def test_exception_in_step_is_logged_and_returned(fmu_dir, tmp_path):
+    cls, resources = _slave_class(fmu_dir, tmp_path)
+    s = cls(instance_name="t", resources=resources)
+    s.exit_initialization_mode()
+    s.raw_rate = 0.01
+    assert s.do_step(0.0, H) is True
+    before = s._den.get_state()
+
+    def boom(z, restart):
+        s._den.state[5] = 123.0      # partly mutated, then fails
+        raise ZeroDivisionError("float division by zero")
+    s._den.step = boom
+    assert s.do_step(H, H) is False
+    msgs = [(m.status, m.msg) for m in s.log_queue]
+    assert any(st == 3 and "ZeroDivisionError: float division by zero" in msg for st, msg in msgs), msgs
+    assert s._den.get_state() == before          # state restored
+    # the core was loaded from an FMU's copy (named by its contents), not from the installed package
+    assert s._D.__name__.startswith("_gdcore_")
+    assert s._D.__file__.endswith("/resources/gdcore/denoiser.py")
+    assert not Path(s._D.__file__).is_relative_to(Path(gd.__file__).parent)
