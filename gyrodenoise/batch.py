@@ -63,8 +63,8 @@ def _invalidate_stale_cache():
 
 if numba is not None:
     _invalidate_stale_cache()
-    _run_fast = numba.njit(cache=True, nogil=True)(_run_py)
-    _run_theta_fast = numba.njit(cache=True, nogil=True)(_run_theta_py)
+    _run_fast = numba.njit(cache=True, nogil=True, error_model="numpy")(_run_py)
+    _run_theta_fast = numba.njit(cache=True, nogil=True, error_model="numpy")(_run_theta_py)
 else:  # pragma: no cover
     _run_fast = _run_py
     _run_theta_fast = _run_theta_py

@@ -32,6 +32,9 @@ Choices the paper leaves open (documented in the README, "The method"):
   converging; the output is then the raw sample itself (no filtering, nothing
   invented) and the ``converged`` flag is 0. The filter runs internally all the
   while, so there is no start-up transient when the output switches over.
+* The filter's c state is tied to the RLS estimate of c at every sample (see
+  :func:`tie_c` for why: a free c state with no process noise locks onto a
+  wrong mean while phi is still converging).
 * Auto noise levels (``q0 = 0`` / ``r0 = 0``): the running variance s2 of the RLS
   one-step prediction error (Eq. 11's correction term) is split half to process
   noise, half to measurement noise: q = r = s2 / 2. The KF freezes these at the
@@ -80,7 +83,8 @@ S_SVAR = 8       # last innovation variance S_k = H P H' + R, (deg/s)^2
 S_NRESET = 9     # number of times Eq. (32) restarted d_k
 S_OUT = 10       # last output, deg/s
 S_RLS_ERR = 11   # last RLS prediction error, deg/s
-N_HEADER = 12
+S_BK = 12        # b^(k+1) for d_k, kept by multiplication (no pow per sample)
+N_HEADER = 13
 
 
 @_jitable
@@ -217,13 +221,16 @@ def rls_update(p, s, z):
             den += s[o_z + j] * s[o_w + j]
             pred += s[o_z + j] * s[o_theta + j]
         e = z - pred
+        inv_den = 1.0 / den
+        inv_lam = 1.0 / lam
         # Eq. (11): theta += K e, K = P h / (lam + h' P h)
         for i in range(m):
-            s[o_theta + i] += s[o_w + i] / den * e
+            s[o_theta + i] += s[o_w + i] * inv_den * e
         # Eq. (10), sign corrected: P = (P - g g' / den) / lam, kept symmetric
         for i in range(m):
+            gi = s[o_w + i] * inv_den
             for j in range(i, m):
-                v = (s[o_prls + i * m + j] - s[o_w + i] * s[o_w + j] / den) / lam
+                v = (s[o_prls + i * m + j] - gi * s[o_w + j]) * inv_lam
                 s[o_prls + i * m + j] = v
                 s[o_prls + j * m + i] = v
     # shift the regressor history: z_hist[0] = z_k
@@ -287,13 +294,15 @@ def kf_update(p, s, v, r):
     m = n + 1
     o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
     svar = s[o_p] + r
+    inv_s = 1.0 / svar
     for i in range(m):
         s[o_w + i] = s[o_p + i * m]          # u = P H'
     for i in range(m):
-        s[o_x + i] += s[o_w + i] / svar * v
+        s[o_x + i] += s[o_w + i] * inv_s * v
     for i in range(m):
+        ki = s[o_w + i] * inv_s
         for j in range(i, m):
-            val = s[o_p + i * m + j] - s[o_w + i] * s[o_w + j] / svar
+            val = s[o_p + i * m + j] - ki * s[o_w + j]
             s[o_p + i * m + j] = val
             s[o_p + j * m + i] = val
     # keep the diagonal strictly positive (c becomes exactly known only at k=inf)
@@ -346,12 +355,6 @@ def tie_c(p, s):
 
 
 @_jitable
-def sage_husa_d(b, k):
-    """Weight d_k = (1 - b) / (1 - b^(k+1)) of the Sage-Husa estimator."""
-    return (1.0 - b) / (1.0 - b ** (k + 1.0))
-
-
-@_jitable
 def step(p, s, z, is_restart):
     """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
 
@@ -379,6 +382,7 @@ def step(p, s, z, is_restart):
         if converged:
             s[S_CONV] = 1.0
             s[S_KD] = 0.0
+            s[S_BK] = p[P_B]
             start_filter(p, s)
 
     # -- online identification of the improved AR(n) model, Eq. (4), (8)-(11)
@@ -412,9 +416,13 @@ def step(p, s, z, is_restart):
             # H P H' + R_{k-1} (Eq. 31): restart d_k from k = 0 (d_0 = 1)
             s[S_KD] = 0.0
             s[S_NRESET] += 1.0
+            s[S_BK] = b
         else:
             s[S_KD] += 1.0
-        d = sage_husa_d(b, s[S_KD])
+            s[S_BK] *= b
+            if s[S_BK] < 1e-290:    # b^(k+1) has vanished: avoid denormals
+                s[S_BK] = 0.0
+        d = (1.0 - b) / (1.0 - s[S_BK])    # d_k = (1-b)/(1-b^(k+1))
         if method == METHOD_SHAKF:
             r = (1.0 - d) * r + d * v * v               # Eq. (33)
         else:

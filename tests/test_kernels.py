@@ -95,3 +95,16 @@ def test_bad_parameters_are_refused_with_a_reason(kw):
         K.make_params(**kw)
     assert "\n" not in str(exc.value)
     assert list(kw)[0] in str(exc.value)
+
+
+def test_sage_husa_weight_follows_the_closed_form():
+    """d_k kept by multiplication equals (1-b)/(1-b^(k+1)), resets included."""
+    z = 0.01 * np.random.default_rng(8).standard_normal(3000)
+    z[2000] = 50.0                             # violates Eq. (32): d restarts from k = 0
+    p = K.make_params(method="shakf", b=0.97)
+    s = K.init_state(p)
+    for v in z:
+        K.step(p, s, float(v), False)
+        if s[K.S_CONV] == 1.0:
+            assert s[K.S_BK] == pytest.approx(0.97 ** (s[K.S_KD] + 1), rel=1e-9, abs=1e-300)
+    assert s[K.S_NRESET] >= 1
