@@ -1,0 +1,162 @@
+"""Speed of the FMUs (a benchmark, not a test).
+
+Prints, in one run:
+  * steps/s of FogDenoiser.fmu in an fmpy ``FMU2Slave`` loop (set raw_rate and
+    restart, doStep, get the outputs), once through fmpy's wrappers and once with
+    the FMI functions called directly (what ``gyrodenoise fmu run`` does);
+  * the same loop on an empty pythonfmu FMU with the same interface (one Real and
+    one Boolean in, the same outputs, do_step does nothing): the floor of
+    pythonfmu + ctypes on this machine;
+  * the per-sample core alone (Denoiser.step, plain Python), no FMI;
+  * the 10-minute 200 Hz two-FMU validation run (SimulatedFog -> FogDenoiser).
+
+Target: >= 50 000 FogDenoiser steps/s; 10-min validation run <= 10 s.
+
+    .venv/bin/python benchmarks/bench_fmu.py [--steps N] [--fmu-dir DIR] [--skip-long]
+"""
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from gyrodenoise import fmu as F  # noqa: E402
+
+EMPTY_SLAVE = textwrap.dedent('''
+    from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
+
+    class EmptyFmu(Fmi2Slave):
+        """Same interface as FogDenoiser's inputs and main outputs; does nothing."""
+
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)
+            self.raw_rate = 0.0
+            self.restart = False
+            self.filtered_rate = 0.0
+            self.converged = False
+            P, C, I = Fmi2Causality, Fmi2Variability, Fmi2Initial
+            self.register_variable(Real("raw_rate", causality=P.input))
+            self.register_variable(Boolean("restart", causality=P.input, variability=C.discrete))
+            self.register_variable(Real("filtered_rate", causality=P.output, initial=I.exact))
+            for name in ("phi_1", "phi_2", "phi_3", "c", "R_hat", "innovation"):
+                setattr(self, name, 0.0)
+                self.register_variable(Real(name, causality=P.output, initial=I.exact))
+            self.register_variable(Boolean("converged", causality=P.output, initial=I.exact,
+                                           variability=C.discrete))
+
+        def do_step(self, current_time, step_size):
+            return True
+''')
+
+OUTPUTS = ["filtered_rate", "phi_1", "phi_2", "phi_3", "c", "R_hat", "innovation"]
+
+
+def build_empty(out_dir):
+    src = Path(out_dir) / "emptyfmu_bench.py"
+    src.write_text(EMPTY_SLAVE)
+    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(src), "-d", str(out_dir)],
+                   check=True, capture_output=True, cwd=out_dir)
+    return Path(out_dir) / "EmptyFmu.fmu"
+
+
+def loop_wrapped(inst, z, rs):
+    """fmpy's FMU2Slave methods, as a user would write it."""
+    s = inst.slave
+    vr_in, vr_rs = [inst.vr["raw_rate"]], [inst.vr["restart"]]
+    vr_out, vr_conv = [inst.vr[n] for n in OUTPUTS], [inst.vr["converged"]]
+    t0 = time.perf_counter()
+    for k in range(len(z)):
+        s.setReal(vr_in, [z[k]])
+        s.setBoolean(vr_rs, [rs[k]])
+        s.doStep(k * 0.005, 0.005)
+        s.getReal(vr_out)
+        s.getBoolean(vr_conv)
+    return len(z) / (time.perf_counter() - t0)
+
+
+def loop_direct(inst, z, rs):
+    """The FMI functions called directly with preallocated ctypes buffers."""
+    from fmpy.fmi2 import fmi2Boolean, fmi2Real, fmi2ValueReference
+    s = inst.slave
+    c = s.component
+    f = s._functions
+    set_real, set_bool, do_step = f["fmi2SetReal"], f["fmi2SetBoolean"], f["fmi2DoStep"]
+    get_real, get_bool = f["fmi2GetReal"], f["fmi2GetBoolean"]
+    vr_in = (fmi2ValueReference * 1)(inst.vr["raw_rate"])
+    vr_rs = (fmi2ValueReference * 1)(inst.vr["restart"])
+    vr_out = (fmi2ValueReference * len(OUTPUTS))(*[inst.vr[n] for n in OUTPUTS])
+    vr_conv = (fmi2ValueReference * 1)(inst.vr["converged"])
+    x, flag = (fmi2Real * 1)(), (fmi2Boolean * 1)()
+    y, conv = (fmi2Real * len(OUTPUTS))(), (fmi2Boolean * 1)()
+    nout = len(OUTPUTS)
+    t0 = time.perf_counter()
+    for k in range(len(z)):
+        x[0] = z[k]
+        flag[0] = rs[k]
+        if (set_real(c, vr_in, 1, x) | set_bool(c, vr_rs, 1, flag) | do_step(c, k * 0.005, 0.005, 1)
+                | get_real(c, vr_out, nout, y) | get_bool(c, vr_conv, 1, conv)) > 1:
+            raise RuntimeError(inst.messages)
+    return len(z) / (time.perf_counter() - t0)
+
+
+def best_of(fn, repeats=3):
+    return max(fn() for _ in range(repeats))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--steps", type=int, default=20000)
+    ap.add_argument("--fmu-dir", default=None, help="use FMUs built there (default: build afresh)")
+    ap.add_argument("--skip-long", action="store_true", help="skip the 10-minute validation run")
+    args = ap.parse_args(argv)
+    import gyrodenoise as gd
+
+    with tempfile.TemporaryDirectory() as tmp:
+        fmu_dir = Path(args.fmu_dir) if args.fmu_dir else Path(tmp) / "fmus"
+        if not args.fmu_dir:
+            F.build_all(fmu_dir)
+        empty = build_empty(tmp)
+        n = args.steps
+        z = gd.simulate("paper_fog", n, seed=0).rate_deg_s.tolist()
+        rs = [0] * n
+
+        print(f"FMU step loop, {n} steps, best of 3 (machine load matters: "
+              f"{open('/proc/loadavg').read().split()[0]} load avg)")
+        rows = []
+        for label, path, params in [("empty pythonfmu FMU (floor)", empty, {}),
+                                    ("FogDenoiser.fmu", fmu_dir / "FogDenoiser.fmu", {"sample_period": 0.005})]:
+            for mode, fn in (("fmpy wrappers", loop_wrapped), ("direct FMI calls", loop_direct)):
+                inst = F.FmuInstance(path, "bench")
+                inst.initialize(**params)
+                rate = best_of(lambda: fn(inst, z, rs))
+                inst.free()
+                rows.append((label, mode, rate))
+                print(f"  {label:28s} {mode:17s} {rate:10.0f} steps/s  {1e6 / rate:7.1f} us/step")
+        d = gd.Denoiser(200.0)
+        t0 = time.perf_counter()
+        for k in range(n):
+            d.step(z[k], False)
+        core = n / (time.perf_counter() - t0)
+        print(f"  {'core Denoiser.step (no FMI)':28s} {'plain Python':17s} {core:10.0f} steps/s  "
+              f"{1e6 / core:7.1f} us/step")
+        fd = dict(((r[0], r[1]), r[2]) for r in rows)[("FogDenoiser.fmu", "direct FMI calls")]
+        print(f"target >= 50000 FogDenoiser steps/s: {'met' if fd >= 50000 else 'NOT met'} ({fd:.0f})")
+
+        if not args.skip_long:
+            res = F.validation_run(fmu_dir, duration_s=600.0, rate_deg_s=10.0, restart_at_s=300.0)
+            print(f"10-min 200 Hz two-FMU validation run (fmpy, {res['case']['n_samples']} samples): "
+                  f"{res['elapsed_s']:.2f} s stepping, {res['two_fmu_steps_per_s']:.0f} two-FMU steps/s; "
+                  f"target <= 10 s: {'met' if res['elapsed_s'] <= 10 else 'NOT met'}; "
+                  f"max |FMU - core| = {res['max_abs_diff_filtered_vs_denoise_deg_s']:.3g} deg/s")
+
+
+if __name__ == "__main__":
+    main()
