@@ -1,0 +1,87 @@
+"""Benchmark of the MAVLink bridge: ``gyrodenoise mavlink log171.bin`` against a
+bare pymavlink read of every message of the same file, in the same run.
+
+Both are timed as fresh processes (interpreter start and imports included),
+alternately, ``--repeat`` times; the medians and their ratio are printed.
+Target: ratio <= 1.3.
+
+    .venv/bin/python benchmarks/bench_bridge.py [LOG] [--repeat 5]
+
+The bridge run does everything the command does by default: parse, detect
+restarts, denoise 3 streams x 3 axes, write the filtered log, 3 CSV files and
+3 PNG plots. Not a test: timings depend on the machine and its load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_LOG = REPO.parent / "shared" / "data" / "logs" / "log171.bin"
+
+BARE = """
+import sys
+from pymavlink import mavutil
+m = mavutil.mavlink_connection(sys.argv[1])
+n = 0
+while m.recv_msg() is not None:
+    n += 1
+print(n)
+"""
+
+
+def _gyrodenoise():
+    exe = Path(sys.executable).with_name("gyrodenoise")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "gyrodenoise.cli"]
+
+
+def timed(cmd, **kw):
+    t = time.perf_counter()
+    r = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    dt = time.perf_counter() - t
+    if r.returncode != 0:
+        raise SystemExit(f"failed ({r.returncode}): {' '.join(cmd)}\n{r.stderr}")
+    return dt, r.stdout
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("log", nargs="?", default=str(DEFAULT_LOG))
+    ap.add_argument("--repeat", type=int, default=5)
+    a = ap.parse_args(argv)
+    if not Path(a.log).is_file():
+        raise SystemExit(f"{a.log}: not found (the shared data folder is needed)")
+    bare_t, bridge_t = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        # one warm-up run of each (numba cache, OS file cache)
+        timed([sys.executable, "-c", BARE, a.log])
+        _, out = timed(_gyrodenoise() + ["mavlink", a.log, "-o", tmp, "--json"])
+        summary = json.loads(out)
+        for _ in range(a.repeat):
+            dt, n_msgs = timed([sys.executable, "-c", BARE, a.log])
+            bare_t.append(dt)
+            dt, _ = timed(_gyrodenoise() + ["mavlink", a.log, "-o", tmp, "--json"])
+            bridge_t.append(dt)
+    rep = summary["logs"][0]
+    b, g = statistics.median(bare_t), statistics.median(bridge_t)
+    print(f"log: {a.log} ({os.path.getsize(a.log)} bytes, {n_msgs.strip()} messages, "
+          f"{len(rep['streams'])} gyro streams, {sum(s['samples'] for s in rep['streams'])} samples)")
+    print(f"cores: {os.cpu_count()}, load average: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(f"bare pymavlink read of every message : median {b:.3f} s  "
+          f"(runs: {', '.join(f'{x:.2f}' for x in bare_t)})")
+    print(f"gyrodenoise mavlink (log+CSV+PNG)    : median {g:.3f} s  "
+          f"(runs: {', '.join(f'{x:.2f}' for x in bridge_t)})")
+    print(f"ratio: {g / b:.2f}x  (target <= 1.3x)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,411 @@
+"""One log end to end (read, find restarts, denoise, write), and many logs in a pool.
+
+Outputs of a log ``NAME.ext`` in the output folder:
+
+* ``NAME.filtered.ext`` -- the log with the gyro fields of the IMU messages
+  replaced by the filtered values (same messages, same order; only those
+  fields, and for MAVLink the CRC, differ);
+* ``NAME.STREAM.csv`` -- ``time,raw_x,filtered_x,raw_y,filtered_y,raw_z,filtered_z,restart``
+  per stream (deg/s; ``*_counts`` columns when the unit is unknown);
+* ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gyrodenoise.errors import InputError
+
+from . import dataflash
+from .streams import NOISE_METRIC, detect_restarts, noise_per_axis
+
+LOG_SUFFIXES = {".tlog": "tlog", ".mavlink": "tlog", ".bin": "dataflash", ".ulg": "ulog"}
+GYRO_LOOKED_FOR = {
+    "tlog": "RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3, HIGHRES_IMU",
+    "dataflash": "IMU, IMU2, IMU3 with GyrX/GyrY/GyrZ",
+    "ulog": "sensor_combined.gyro_rad, sensor_gyro",
+}
+
+
+def log_kind(path):
+    """'tlog', 'dataflash' or 'ulog' from the suffix, else from the first bytes."""
+    p = Path(path)
+    kind = LOG_SUFFIXES.get(p.suffix.lower())
+    if kind:
+        return kind
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(600)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if head[:2] == b"\xa3\x95":
+        return "dataflash"
+    if head[:7] == b"ULog\x01\x12\x35":
+        return "ulog"
+    from . import tlog
+    if tlog.looks_like_tlog(head):
+        return "tlog"
+    raise InputError(f"{path}: unknown file type (expected a MAVLink telemetry log .tlog, "
+                     f"an ArduPilot DataFlash log .bin or a PX4 log .ulg)")
+
+
+def safe_name(s):
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", s).strip("_")
+
+
+def joined_time(t, restarts):
+    """A monotonic time axis for plots: sessions laid end to end."""
+    t = np.asarray(t, dtype=np.float64)
+    if len(t) < 2:
+        return t - (t[0] if len(t) else 0)
+    dt = np.diff(t)
+    pos = dt[(dt > 0) & ~restarts[1:]]
+    period = float(np.median(pos)) if len(pos) else 1.0
+    step = np.where((dt > 0) & ~restarts[1:], dt, period)
+    return np.concatenate([[0.0], np.cumsum(step)])
+
+
+def write_csv(path, s, x_work, f_work, unit):
+    """``time,raw_x,filtered_x,raw_y,filtered_y,raw_z,filtered_z,restart``; time in s
+    (the log's boot time), values in deg/s (or ``*_<unit>`` columns when the unit
+    is unknown), 9 significant digits; restart is 1 on the first sample after a restart."""
+    suffix = "" if unit == "deg/s" else "_" + safe_name(unit)
+    cols = ["time"]
+    parts = [map("{:.6f}".format, np.asarray(s.time_s, dtype=np.float64).tolist())]
+    for k, a in enumerate(s.axes):
+        cols += [f"raw_{a}{suffix}", f"filtered_{a}{suffix}"]
+        parts += [map("{:.9g}".format, x_work[:, k].tolist()), map("{:.9g}".format, f_work[:, k].tolist())]
+    cols.append("restart")
+    parts.append(map(str, s.restarts.astype(np.int8).tolist()))
+    with open(path, "w", newline="") as fh:
+        fh.write(",".join(cols) + "\n")
+        if len(s.time_s):
+            fh.write("\n".join(map(",".join, zip(*parts))))
+            fh.write("\n")
+
+
+def _envelope(t, y, nbins=2000):
+    """Min/max per bin of a long line (what a raster plot shows anyway)."""
+    n = len(y)
+    if n <= 2 * nbins:
+        return t, y
+    edges = np.linspace(0, n, nbins + 1).astype(np.int64)[:-1]
+    lo = np.minimum.reduceat(y, edges)
+    hi = np.maximum.reduceat(y, edges)
+    return np.repeat(t[edges], 2), np.column_stack([lo, hi]).ravel()
+
+
+def plot_stream(path, title, t, x, f, restarts, unit, axes=("x", "y", "z")):
+    """PNG of raw and filtered per axis, restarts as dashed red lines."""
+    _draw(path, title, _plot_data(t, x, f, restarts), unit, axes)
+
+
+def _plot_data(t, x, f, restarts):
+    """What the plot needs: per axis the min/max envelopes, and the restart times."""
+    lines = [(_envelope(t, x[:, k]), _envelope(t, f[:, k])) for k in range(x.shape[1])]
+    return lines, t[restarts]
+
+
+def _draw(path, title, pdata, unit, axes):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axs = plt.subplots(len(axes), 1, figsize=(9, 6.5), sharex=True)
+    fig.subplots_adjust(left=0.1, right=0.98, top=0.94, bottom=0.08, hspace=0.12)
+    lines, rt = pdata
+    for k, ax in enumerate(np.atleast_1d(axs)):
+        ax.plot(*lines[k][0], lw=0.6, color="0.6", label="raw")
+        ax.plot(*lines[k][1], lw=0.9, color="C0", label="filtered")
+        if len(rt):
+            ax.vlines(rt, 0, 1, transform=ax.get_xaxis_transform(), colors="C3", lw=0.8,
+                      linestyles="--", label="restart")
+        ax.set_ylabel(f"{axes[k]} [{unit}]")
+        ax.grid(True, lw=0.3)
+    axs[0].legend(loc="upper right", fontsize=8, ncol=3)
+    axs[0].set_title(title, fontsize=10)
+    axs[-1].set_xlabel("time [s] (sessions joined end to end)")
+    fig.savefig(path, dpi=90, pil_kwargs={"compress_level": 1})
+    plt.close(fig)
+
+
+def _plot_loop(conn):
+    """Child process: import matplotlib while the parent filters, then plot jobs."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+    while True:
+        job = conn.recv()
+        if job is None:
+            break
+        try:
+            _draw(*job)
+            conn.send(None)
+        except Exception as exc:  # noqa: BLE001 - reported by the parent
+            conn.send(f"{job[0]}: plot failed: {type(exc).__name__}: {exc}")
+    conn.close()
+
+
+class Plotter:
+    """Plots inline, or in a forked helper process that overlaps the parent's work."""
+
+    def __init__(self, background=False):
+        self.proc = self.conn = self.thread = None
+        self.pending = 0
+        if background and sys.platform.startswith("linux"):
+            import multiprocessing as mp
+            ctx = mp.get_context("fork")
+            self.conn, child = ctx.Pipe()
+            self.proc = ctx.Process(target=_plot_loop, args=(child,), daemon=True)
+            self.proc.start()
+            child.close()
+            # a thread does the sending: a send blocks while the helper is still importing
+            import queue
+            import threading
+            self.queue = queue.Queue()
+            self.thread = threading.Thread(target=self._sender, daemon=True)
+            self.thread.start()
+
+    def _sender(self):
+        while True:
+            job = self.queue.get()
+            self.conn.send(job)
+            if job is None:
+                break
+
+    def plot(self, path, title, t, x, f, restarts, unit, axes):
+        job = (path, title, _plot_data(t, x, f, restarts), unit, axes)
+        if self.proc is None:
+            _draw(*job)
+        else:
+            self.queue.put(job)
+            self.pending += 1
+
+    def close(self):
+        """Wait for the helper; raise RuntimeError with its first failure."""
+        if self.proc is None:
+            return
+        errors = []
+        try:
+            for _ in range(self.pending):
+                r = self.conn.recv()
+                if r:
+                    errors.append(r)
+        finally:
+            self.queue.put(None)
+            self.thread.join(timeout=30)
+            self.proc.join(timeout=30)
+            if self.proc.is_alive():
+                self.proc.terminate()
+            self.proc = None
+        if errors:
+            raise RuntimeError(errors[0])
+
+
+def _filter_streams(streams, engine, gap_factor, sample_rate=None):
+    for s in streams:
+        detect_restarts(s, gap_factor)
+        rate = sample_rate or s.rate_hz or 1.0
+        x, back, unit = s.work_units()
+        f = np.empty_like(x)
+        for k in range(x.shape[1]):
+            f[:, k] = engine.filter(x[:, k], s.restarts, rate)
+        s.filtered = f * back
+        s._work = (x, f, unit, rate)
+
+
+def stream_report(s, csv_path=None, png_path=None):
+    x, f, unit, rate = s._work
+    nr = noise_per_axis(x, s.restarts)
+    nf = noise_per_axis(f, s.restarts)
+    noise = {}
+    for k, a in enumerate(s.axes):
+        ratio = (nf[k] / nr[k]) if (nr[k] and nf[k] is not None) else None
+        noise[a] = {"raw": nr[k], "filtered": nf[k], "ratio": ratio}
+    dur = float(np.sum(np.diff(joined_time(s.time_s, s.restarts)))) if s.n > 1 else 0.0
+    rep = {
+        "name": s.name, "message": s.message, "field_unit": s.unit,
+        "to_deg_s": s.to_deg_s, "unit_known": s.to_deg_s is not None,
+        "samples": int(s.n), "rate_hz": s.rate_hz, "filter_rate_hz": rate,
+        "duration_s": dur, "restarts": len(s.restart_events),
+        "repeated_timestamps": int(s.repeated_timestamps),
+        "all_zero": bool(s.n and not np.any(s.raw)),
+        "noise_unit": unit, "noise": noise,
+    }
+    if s.note:
+        rep["note"] = s.note
+    if csv_path:
+        rep["csv"] = str(csv_path)
+    if png_path:
+        rep["plot"] = str(png_path)
+    return rep
+
+
+def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, gap_factor=5.0,
+                plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
+                sample_rate=None, out_stem=None, log=None, background_plots=False):
+    """Process one log file; return its report (a JSON-able dict).
+
+    Raises InputError (one line naming the file) for a file that cannot be
+    used: unknown type, unreadable, or without a gyro stream.
+    ``background_plots`` draws the PNGs in a forked helper process (Linux),
+    which overlaps matplotlib's import and drawing with the filtering.
+    """
+    from .engines import make_engine
+    t0 = time.perf_counter()
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    kind = log_kind(path)
+    rep = {"file": str(path), "format": kind}
+    plotter = Plotter(background_plots) if plots else None
+    try:
+        ctx = {}
+        if kind == "dataflash":
+            ctx["data"], ctx["sc"], streams = dataflash.read(path)
+            sc = ctx["sc"]
+            rep.update(messages=sc.n_messages, unreadable_records=len(sc.bad_regions),
+                       unreadable_bytes=sc.bad_bytes, truncated=sc.truncated_bytes > 0,
+                       truncated_bytes=sc.truncated_bytes)
+        elif kind == "tlog":
+            from . import tlog
+            ctx["data"], ctx["fr"], streams = tlog.read(path, raw_imu_unit, raw_imu_scale)
+            fr = ctx["fr"]
+            rep.update(messages=int(fr.ok.sum()), unreadable_records=fr.n_unreadable,
+                       unreadable_bytes=int(fr.length[~fr.ok].sum()) + sum(e - s for s, e in fr.bad_regions),
+                       truncated=fr.truncated_bytes > 0, truncated_bytes=fr.truncated_bytes)
+        else:
+            from . import ulog
+            ctx["u"], streams, ctx["refs"] = ulog.read(path)
+            u = ctx["u"]
+            rep.update(messages=sum(len(d.data["timestamp"]) for d in u.data_list),
+                       unreadable_records=None,
+                       data_corruption=bool(getattr(u, "has_data_corruption", False)), truncated=None)
+        if not streams:
+            raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
+        eng = make_engine(engine, method, ar_order, fmu_path)
+        try:
+            _filter_streams(streams, eng, gap_factor, sample_rate)
+        finally:
+            eng.close()
+        rep.update(_write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv,
+                                  engine, method, ar_order, log, **ctx))
+    finally:
+        if plotter is not None:
+            plotter.close()
+    rep.update(engine=engine, method=method, ar_order=int(ar_order), gap_factor=gap_factor,
+               seconds=round(time.perf_counter() - t0, 3))
+    return rep
+
+
+def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine, method,
+                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None):
+    rep = {}
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = out_stem or path.stem
+    out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
+    for s in streams:
+        if plotter is not None:
+            x, f, unit, _ = s._work
+            s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
+            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {method}, AR({ar_order}))",
+                         joined_time(s.time_s, s.restarts), x, f, s.restarts, unit, s.axes)
+    if kind == "dataflash":
+        out_log.write_bytes(dataflash.patch(data, sc, streams))
+    elif kind == "tlog":
+        from . import tlog
+        rep["signatures_dropped"] = tlog.write_filtered(data, fr, streams, out_log)
+    else:
+        from . import ulog
+        ulog.write_filtered(u, streams, refs, out_log)
+    rep["output_log"] = str(out_log)
+
+    srep = []
+    restarts = []
+    for s in streams:
+        x, f, unit, _ = s._work
+        csv_path = png_path = None
+        if csv:
+            csv_path = out_dir / f"{stem}.{safe_name(s.name)}.csv"
+            write_csv(csv_path, s, x, f, unit)
+        if plotter is not None:
+            png_path = s._png
+        srep.append(stream_report(s, csv_path, png_path))
+        restarts += s.restart_events
+        if s.to_deg_s is None and log:
+            log(f"{path}: {s.name}: unit unknown, filtered in {s.unit} ({s.note})")
+    rep.update(streams=srep, restarts=restarts)
+    return rep
+
+
+# ------------------------------------------------------------------ many logs
+def expand_inputs(items):
+    """Files and folders -> (list of log files, list of ignored files)."""
+    files, ignored = [], []
+    for it in items:
+        p = Path(it)
+        if p.is_dir():
+            for q in sorted(p.rglob("*")):
+                if q.is_file():
+                    (files if q.suffix.lower() in LOG_SUFFIXES else ignored).append(q)
+        else:
+            files.append(p)
+    return files, ignored
+
+
+def _unique_stems(files):
+    seen = {}
+    stems = []
+    for f in files:
+        st = f.stem
+        k = seen.get(st, 0)
+        seen[st] = k + 1
+        stems.append(st if k == 0 else f"{st}-{k + 1}")
+    return stems
+
+
+def _worker(args):
+    path, out_dir, kw = args
+    try:
+        return {"ok": True, "report": process_log(path, out_dir, **kw)}
+    except InputError as exc:
+        return {"ok": False, "file": str(path), "error": str(exc)}
+    except Exception as exc:  # noqa: BLE001 - one bad log must not stop the others
+        return {"ok": False, "file": str(path), "error": f"{path}: {type(exc).__name__}: {exc}"}
+
+
+def process_many(items, out_dir, jobs=1, log=None, **kw):
+    """Process files and folders; one summary dict. A failing log is listed
+    under ``failed`` and does not stop the others."""
+    files, ignored = expand_inputs(items)
+    stems = _unique_stems(files)
+    tasks = [(f, out_dir, dict(kw, out_stem=st, log=None)) for f, st in zip(files, stems)]
+    t0 = time.perf_counter()
+    if jobs > 1 and len(tasks) > 1:
+        import concurrent.futures as cf
+        import multiprocessing as mp
+        ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
+        with cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx) as ex:
+            results = list(ex.map(_worker, tasks))
+    else:
+        results = [_worker(t) for t in tasks]
+    logs = [r["report"] for r in results if r["ok"]]
+    failed = [{"file": r["file"], "error": r["error"]} for r in results if not r["ok"]]
+    if log:
+        for r in logs:
+            for s in r["streams"]:
+                if not s["unit_known"]:
+                    log(f"{r['file']}: {s['name']}: unit unknown, filtered in {s['field_unit']}")
+    return {
+        "logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
+        "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed),
+        "jobs": int(jobs), "seconds": round(time.perf_counter() - t0, 3),
+        "noise_metric": NOISE_METRIC,
+    }

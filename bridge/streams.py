@@ -1,0 +1,168 @@
+"""Gyro streams in memory, restart detection and the noise figure.
+
+A :class:`GyroStream` is one gyro (one message type and instance of one
+vehicle) with its three axes. Readers fill ``time_s``, ``raw`` (in the unit of
+the log field) and ``to_deg_s`` (the factor to deg/s, or ``None`` when the log
+does not tell the unit); the processing step fills ``filtered``.
+
+Restarts are found by :class:`RestartDetector`, the same rules for files and
+live links, sample by sample:
+
+* ``boot_time_backwards``: the vehicle's boot time went backwards (a reboot,
+  or a new boot session in a concatenated log);
+* ``gap``: the time step is more than ``gap_factor`` times the recent sample
+  period (median of the last 16 positive steps; needs 3 of them first);
+* a repeated timestamp (step 0) is counted, not a restart.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+RAD_TO_DEG = 180.0 / math.pi
+MRAD_TO_DEG = RAD_TO_DEG / 1000.0
+
+#: DataFlash/MAVLink unit label -> factor to deg/s
+UNIT_TO_DEG_S = {"rad/s": RAD_TO_DEG, "mrad/s": MRAD_TO_DEG, "deg/s": 1.0}
+
+NOISE_METRIC = ("per axis: standard deviation of the first differences / sqrt(2), over "
+                "sample pairs inside one session (pairs across a restart excluded); equals the "
+                "white-noise standard deviation and is insensitive to slow motion; deg/s "
+                "(field units when the unit is unknown)")
+
+
+@dataclass
+class GyroStream:
+    """One gyro stream of a log."""
+    name: str                       # e.g. "IMU2", "IMU[1]", "RAW_IMU", "SCALED_IMU2@1.1"
+    message: str                    # message type in the log
+    unit: str                       # unit of the log field: rad/s, mrad/s, counts, ...
+    to_deg_s: float | None          # factor from the field unit to deg/s; None: unknown
+    time_s: np.ndarray              # boot time of each sample, s
+    raw: np.ndarray                 # (n, 3) raw values in the field unit
+    index: np.ndarray               # per sample: index of the record in its log (reader-defined)
+    note: str = ""
+    filtered: np.ndarray | None = None   # (n, 3) filtered values in the field unit
+    restarts: np.ndarray | None = None   # bool (n,), True at the first sample after a restart
+    restart_events: list = field(default_factory=list)
+    repeated_timestamps: int = 0
+    rate_hz: float | None = None
+    axes: tuple = ("x", "y", "z")
+
+    @property
+    def n(self):
+        return len(self.time_s)
+
+    def work_units(self):
+        """(raw values in the unit the filter works in, factor back, unit label)."""
+        if self.to_deg_s is None:
+            return self.raw.astype(np.float64), 1.0, self.unit
+        return self.raw.astype(np.float64) * self.to_deg_s, 1.0 / self.to_deg_s, "deg/s"
+
+
+class RestartDetector:
+    """Online restart detection on a stream's boot time (seconds)."""
+
+    HISTORY = 16
+    MIN_HISTORY = 3
+
+    def __init__(self, gap_factor=5.0):
+        if not gap_factor > 1.0:
+            raise ValueError(f"gap_factor must be > 1, got {gap_factor!r}")
+        self.gap_factor = float(gap_factor)
+        self.prev = None
+        self.dts = []
+        self.repeated = 0
+
+    def period(self):
+        k = len(self.dts)
+        if k < self.MIN_HISTORY:
+            return None
+        s = sorted(self.dts)
+        return s[k // 2] if k % 2 else 0.5 * (s[k // 2 - 1] + s[k // 2])
+
+    def update(self, t):
+        """Feed one timestamp; return None or the restart reason for this sample."""
+        prev, self.prev = self.prev, t
+        if prev is None:
+            return None
+        dt = t - prev
+        if dt < 0:
+            return "boot_time_backwards"
+        if dt == 0:
+            self.repeated += 1
+            return None
+        p = self.period()
+        self.dts.append(dt)
+        if len(self.dts) > self.HISTORY:
+            del self.dts[0]
+        if p is not None and dt > self.gap_factor * p:
+            return "gap"
+        return None
+
+
+def restart_flags(t, gap_factor=5.0):
+    """Vectorised :class:`RestartDetector` over a whole array of times (same
+    decisions, sample for sample). Returns (flags, reasons, repeated)."""
+    t = np.asarray(t, dtype=np.float64)
+    n = len(t)
+    flags = np.zeros(n, dtype=bool)
+    reasons = np.full(n, "", dtype=object)
+    if n < 2:
+        return flags, reasons, 0
+    dt = np.diff(t)
+    back = np.nonzero(dt < 0)[0] + 1
+    flags[back] = True
+    reasons[back] = "boot_time_backwards"
+    repeated = int(np.count_nonzero(dt == 0))
+    pos_idx = np.nonzero(dt > 0)[0]               # dt index of each positive step
+    pdt = dt[pos_idx]
+    H, M = RestartDetector.HISTORY, RestartDetector.MIN_HISTORY
+    m = len(pdt)
+    if m > M:
+        period = np.full(m, np.nan)
+        for j in range(M, min(H, m)):             # growing window at the start
+            period[j] = np.median(pdt[:j])
+        if m > H:
+            from numpy.lib.stride_tricks import sliding_window_view
+            period[H:] = np.median(sliding_window_view(pdt, H)[:m - H], axis=1)
+        gap = np.nonzero(pdt > gap_factor * period)[0]    # nan compares False
+        g = pos_idx[gap] + 1
+        flags[g] = True
+        reasons[g] = "gap"
+    return flags, reasons, repeated
+
+
+def detect_restarts(stream: GyroStream, gap_factor=5.0):
+    """Fill ``stream.restarts``, ``restart_events``, ``repeated_timestamps`` and
+    ``rate_hz`` (1 / median positive step within sessions)."""
+    t = stream.time_s
+    r, reasons, repeated = restart_flags(t, gap_factor)
+    stream.restarts = r
+    stream.restart_events = [
+        {"stream": stream.name, "sample": int(i), "time_s": float(t[i]),
+         "previous_time_s": float(t[i - 1]), "reason": reasons[i]} for i in np.nonzero(r)[0]]
+    stream.repeated_timestamps = repeated
+    dt = np.diff(t)
+    ok = (dt > 0) & ~r[1:]
+    stream.rate_hz = float(1.0 / np.median(dt[ok])) if ok.any() else None
+    return r
+
+
+def noise_per_axis(values, restarts):
+    """Noise figure of each column of ``values`` (see :data:`NOISE_METRIC`)."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim == 1:
+        v = v[:, None]
+    if len(v) < 3:
+        return [None] * v.shape[1]
+    keep = np.ones(len(v) - 1, dtype=bool)
+    if restarts is not None:
+        keep &= ~np.asarray(restarts, dtype=bool)[1:]
+    d = np.diff(v, axis=0)[keep]
+    if len(d) < 2:
+        return [None] * v.shape[1]
+    return [float(x) for x in d.std(axis=0, ddof=1) / math.sqrt(2.0)]
