@@ -94,6 +94,8 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
     mavutil.set_dialect("ardupilotmega")
     src = mavutil.mavlink_connection(source, robust_parsing=True)
     dst = mavutil.mavlink_connection(forward) if forward else None
+    if log:
+        log(f"listening on {source}, forwarding to {forward or '(nowhere)'}")
     streams = {}
     vehicles = {}
     n_in = n_out = n_bad = n_sig = 0

@@ -11,7 +11,7 @@ live links, sample by sample:
 * ``boot_time_backwards``: the vehicle's boot time went backwards (a reboot,
   or a new boot session in a concatenated log);
 * ``gap``: the time step is more than ``gap_factor`` times the recent sample
-  period (median of the last 16 positive steps; needs 3 of them first);
+  period (median of the last 16 positive steps; needs 2 of them first);
 * a repeated timestamp (step 0) is counted, not a restart.
 """
 
@@ -67,7 +67,7 @@ class RestartDetector:
     """Online restart detection on a stream's boot time (seconds)."""
 
     HISTORY = 16
-    MIN_HISTORY = 3
+    MIN_HISTORY = 2
 
     def __init__(self, gap_factor=5.0):
         if not gap_factor > 1.0:

@@ -1,0 +1,459 @@
+"""MAVLink bridge on real logs: parsing against pymavlink, restarts, filtered logs
+read back by pymavlink, unit handling, bad/truncated input, many logs.
+
+References are independent of the bridge: pymavlink's own reading of the raw
+fields, a whole-stream restart rule written here, and the core's batch
+denoiser (``gyrodenoise.denoise``) on those samples.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from gyrodenoise.errors import InputError
+
+from bridge import dataflash, tlog
+from bridge.process import process_log, process_many
+from bridge.streams import RestartDetector, noise_per_axis, restart_flags
+
+HERE = Path(__file__).resolve().parent
+DATA = HERE / "data"
+SHARED_LOGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "logs"
+R2D = 180.0 / math.pi
+
+
+def shared_log(name):
+    p = SHARED_LOGS / name
+    if not p.exists():
+        pytest.skip(f"third-party log not present: {p} (licence forbids copying it into the repo, "
+                    f"or too large)")
+    return p
+
+
+def gyrodenoise_cmd():
+    exe = Path(sys.executable).with_name("gyrodenoise")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "gyrodenoise.cli"]
+
+
+def run_cli(*args, timeout=120):
+    return subprocess.run(gyrodenoise_cmd() + ["mavlink", *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+# ------------------------------------------------------------ references
+def ref_restarts(t, factor=5.0):
+    """Independent rule: time backwards, or a step over factor x the median step of the
+    stream (the first step has nothing before it to be compared with, in a file as on a
+    live link: it is only judged on its sign)."""
+    dt = np.diff(np.asarray(t, dtype=float))
+    med = np.median(dt[dt > 0])
+    r = np.zeros(len(t), dtype=bool)
+    r[1:] = (dt < 0) | (dt > factor * med)
+    if len(t) > 1:
+        r[1] = dt[0] < 0
+    return r
+
+
+@functools.lru_cache(maxsize=8)
+def df_reference(path):
+    """pymavlink's DFReader: {stream: (time_s, gyro rad/s (n,3))} and all messages."""
+    from pymavlink import DFReader
+    r = DFReader.DFReader_binary(str(path))
+    streams, msgs = {}, []
+    while True:
+        m = r.recv_msg()
+        if m is None:
+            break
+        d = m.to_dict()
+        msgs.append(d)
+        t = m.get_type()
+        if t in ("IMU", "IMU2", "IMU3"):
+            name = f"{t}[{m.I}]" if "I" in m.get_fieldnames() else t
+            ts = m.TimeUS * 1e-6 if "TimeUS" in d else m.TimeMS * 1e-3
+            streams.setdefault(name, []).append((ts, m.GyrX, m.GyrY, m.GyrZ))
+    return {k: (np.array(v)[:, 0], np.array(v)[:, 1:]) for k, v in streams.items()}, msgs
+
+
+@functools.lru_cache(maxsize=8)
+def tlog_reference(path):
+    """pymavlink's reading of a tlog: gyro streams {type: (time_s, (n,3))}, all messages, BAD_DATA count."""
+    from pymavlink import mavutil
+    m = mavutil.mavlink_connection(str(path), robust_parsing=True)
+    streams, msgs, bad = {}, [], 0
+    while True:
+        msg = m.recv_match()
+        if msg is None:
+            break
+        t = msg.get_type()
+        if t == "BAD_DATA":
+            bad += 1
+            continue
+        msgs.append(msg.to_dict())
+        if t in tlog.GYRO_MESSAGES:
+            ts = msg.time_usec * 1e-6 if t in ("RAW_IMU", "HIGHRES_IMU") else msg.time_boot_ms * 1e-3
+            streams.setdefault(t, []).append((ts, msg.xgyro, msg.ygyro, msg.zgyro))
+    m.close()
+    return {k: (np.array(v)[:, 0], np.array(v)[:, 1:]) for k, v in streams.items()}, msgs, bad
+
+
+def ref_filter(raw_deg, rate, restarts, method="shakf", order=3):
+    return np.stack([gd.denoise(raw_deg[:, k], rate, method=method, ar_order=order, restarts=restarts)
+                     for k in range(raw_deg.shape[1])], axis=1)
+
+
+def by_name(rep):
+    return {s["name"]: s for s in rep["streams"]}
+
+
+# ------------------------------------------------------------ restart rule
+def test_vectorised_restart_rule_equals_online_detector():
+    rng = np.random.default_rng(1234)
+    for _ in range(300):
+        n = int(rng.integers(1, 400))
+        dt = rng.choice([0.02, 0.021, 0.019, 0.0, -3.0, 0.5, 0.09], size=n,
+                        p=[0.4, 0.3, 0.18, 0.04, 0.01, 0.04, 0.03])
+        t = np.cumsum(dt)
+        flags, reasons, repeated = restart_flags(t, 5.0)
+        det = RestartDetector(5.0)
+        online = [det.update(float(x)) for x in t]
+        assert [r or "" for r in online] == list(reasons)
+        assert flags.tolist() == [r is not None for r in online]
+        assert repeated == det.repeated
+
+
+def test_noise_figure_is_white_noise_sigma_and_ignores_restart_pairs():
+    rng = np.random.default_rng(7)
+    x = rng.normal(0, 0.3, size=(20000, 1)) + np.linspace(0, 5, 20000)[:, None]   # slow ramp
+    assert noise_per_axis(x, None)[0] == pytest.approx(0.3, rel=0.03)
+    y = x.copy()
+    y[10000:] += 1000.0                       # a jump at a restart must not count
+    r = np.zeros(20000, bool)
+    r[10000] = True
+    assert noise_per_axis(y, r)[0] == pytest.approx(noise_per_axis(x, r)[0], rel=1e-9)
+
+
+# ------------------------------------------------------------ DataFlash
+@pytest.mark.parametrize("name", ["ardusub_small.BIN", "plane_truncated_test.BIN"])
+def test_dataflash_parser_matches_pymavlink(name):
+    path = DATA / name
+    data, sc, streams = dataflash.read(path)
+    ref, msgs = df_reference(path)
+    assert sc.n_messages == len(msgs)
+    assert {s.name for s in streams} == set(ref)
+    for s in streams:
+        t, g = ref[s.name]
+        np.testing.assert_array_equal(s.raw, g)
+        np.testing.assert_allclose(s.time_s, t, rtol=0, atol=1e-9)
+
+
+def _check_filtered_df(path, out_log, rep):
+    """Every message of the filtered DataFlash log equals the original, except
+    the IMU gyro fields, which equal the batch denoiser on pymavlink's samples."""
+    ref, msgs = df_reference(path)
+    ref_out, msgs_out = df_reference(out_log)
+    assert len(msgs_out) == len(msgs)
+    streams = by_name(rep)
+    expected = {}
+    for name, (t, g) in ref.items():
+        s = streams[name]
+        r = ref_restarts(t)
+        assert s["restarts"] == int(r.sum())
+        rate = 1.0 / np.median(np.diff(t)[np.diff(t) > 0])
+        assert s["rate_hz"] == pytest.approx(rate, rel=1e-9)
+        f = ref_filter(g * R2D, rate, r) / R2D
+        expected[name] = f.astype(np.float32)
+        np.testing.assert_array_equal(ref_out[name][1], expected[name].astype(np.float64))
+        np.testing.assert_array_equal(ref_out[name][0], t)
+    gyro = {"GyrX", "GyrY", "GyrZ"}
+    for a, b in zip(msgs, msgs_out):
+        assert a["mavpackettype"] == b["mavpackettype"]
+        if a["mavpackettype"] in ("IMU", "IMU2", "IMU3"):
+            a = {k: v for k, v in a.items() if k not in gyro}
+            b = {k: v for k, v in b.items() if k not in gyro}
+        assert repr(a) == repr(b)          # repr: NaN fields compare equal
+
+
+def test_dataflash_filtered_log_read_back_by_pymavlink(tmp_path):
+    path = DATA / "ardusub_small.BIN"
+    rep = process_log(path, tmp_path, plots=False)
+    out = Path(rep["output_log"])
+    assert out.stat().st_size == path.stat().st_size
+    _check_filtered_df(path, out, rep)
+    # the filter did something on every axis (noise figure drops)
+    for ax in by_name(rep)["IMU[0]"]["noise"].values():
+        assert ax["filtered"] < ax["raw"]
+
+
+@pytest.mark.slow
+def test_log171_three_imus_gap_restart_and_readback(tmp_path):
+    path = shared_log("log171.bin")
+    r = run_cli(path, "-o", tmp_path, "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)             # exactly one JSON object on stdout
+    rep = summary["logs"][0]
+    assert [s["name"] for s in rep["streams"]] == ["IMU", "IMU2", "IMU3"]
+    for s in rep["streams"]:
+        assert s["samples"] == 11916
+        assert s["rate_hz"] == pytest.approx(50.0, rel=0.01)
+        assert s["restarts"] == 1
+        assert Path(s["csv"]).is_file() and Path(s["plot"]).stat().st_size > 10000
+    # the 2.0 s gap is the restart, in all three streams
+    assert {(e["reason"], round(e["time_s"] - e["previous_time_s"], 1)) for e in rep["restarts"]} == {("gap", 2.0)}
+    assert rep["unreadable_records"] == 0 and rep["truncated"] is False
+    _check_filtered_df(path, Path(rep["output_log"]), rep)
+    # CSV: raw column is pymavlink's value in deg/s; filtered equals the reference
+    ref, _ = df_reference(path)
+    t, g = ref["IMU2"]
+    csv = np.genfromtxt(Path(by_name(rep)["IMU2"]["csv"]), delimiter=",", names=True)
+    np.testing.assert_allclose(csv["raw_y"], g[:, 1] * R2D, rtol=1e-8, atol=1e-12)
+    f = ref_filter(g * R2D, by_name(rep)["IMU2"]["rate_hz"], ref_restarts(t))
+    np.testing.assert_allclose(csv["filtered_z"], f[:, 2], rtol=1e-8, atol=1e-9)
+    assert csv["restart"].sum() == 1
+
+
+def test_truncated_dataflash_processed_up_to_the_cut(tmp_path):
+    path = DATA / "plane_truncated_test.BIN"
+    rep = process_log(path, tmp_path, plots=False)
+    assert rep["truncated"] is True and rep["truncated_bytes"] == 24
+    assert {s["name"]: s["samples"] for s in rep["streams"]} == {"IMU": 45, "IMU2": 45}
+    _check_filtered_df(path, Path(rep["output_log"]), rep)
+    # the cut bytes are kept as they were
+    assert Path(rep["output_log"]).read_bytes()[-24:] == path.read_bytes()[-24:]
+
+
+# ------------------------------------------------------------ tlog
+@pytest.mark.parametrize("name,local", [("fs-batt.log.tlog", True), ("ardusub_bad_data.tlog", False),
+                                        ("sitl_copter_reboot.tlog", False), ("apm2_2013-10-13_18-31-24.tlog", False)])
+def test_tlog_framer_matches_pymavlink(name, local):
+    path = DATA / name if local else shared_log(name)
+    data, fr, streams = tlog.read(path)
+    ref, msgs, bad = tlog_reference(path)
+    for s in streams:
+        t, g = ref[s.message]
+        np.testing.assert_array_equal(s.raw, g)
+        np.testing.assert_allclose(s.time_s, t, rtol=0, atol=1e-9)
+    assert {s.message for s in streams} == set(ref)
+    if name == "ardusub_bad_data.tlog":
+        # records with a bad CRC: the bridge counts exactly those pymavlink reports
+        assert fr.n_unreadable == bad == 1967
+        assert int(fr.ok.sum()) == len(msgs)
+    elif name == "sitl_copter_reboot.tlog":
+        # pymavlink reports its resync bytes in 140 pieces; the bridge counts 10 skipped
+        # stretches, and recovers every message pymavlink reads
+        assert bad == 140 and len(fr.bad_regions) == 10
+        assert int(fr.ok.sum()) >= len(msgs)
+    else:
+        assert fr.n_unreadable == bad == 0
+        assert int(fr.ok.sum()) == len(msgs)
+
+
+def _check_filtered_tlog(path, out_log, rep, unit_mrad=True):
+    ref, msgs, bad = tlog_reference(path)
+    ref_out, msgs_out, bad_out = tlog_reference(out_log)
+    assert bad_out == bad                       # unreadable bytes copied unchanged
+    assert len(msgs_out) == len(msgs)
+    streams = by_name(rep)
+    expected = {}
+    for name, (t, g) in ref.items():
+        s = streams[name]
+        r = ref_restarts(t)
+        assert s["restarts"] == int(r.sum()), name
+        rate = s["rate_hz"]
+        assert rate == pytest.approx(1.0 / np.median(np.diff(t)[(np.diff(t) > 0) & ~r[1:]]), rel=1e-9)
+        k = R2D / 1000.0 if unit_mrad or name != "RAW_IMU" else 1.0
+        f = ref_filter(g * k, rate, r) / k
+        expected[name] = np.clip(np.rint(f), -32768, 32767)
+        got = ref_out[name][1]
+        # int16 rounding of the same float: at most an exact .5 tie may differ
+        assert np.abs(got - expected[name]).max() <= 1, name
+        assert np.mean(got != expected[name]) < 1e-3, name
+    gyro = set(tlog.GYRO_FIELDS)
+    for a, b in zip(msgs, msgs_out):
+        assert a["mavpackettype"] == b["mavpackettype"]
+        if a["mavpackettype"] in tlog.GYRO_MESSAGES:
+            a = {k: v for k, v in a.items() if k not in gyro}
+            b = {k: v for k, v in b.items() if k not in gyro}
+        assert repr(a) == repr(b)          # repr: NaN fields compare equal
+    return ref, expected
+
+
+@pytest.mark.slow
+def test_copter_tlog_three_boot_sessions(tmp_path):
+    path = shared_log("copter_20211202-132613.tlog")
+    rep = process_log(path, tmp_path, plots=False)
+    streams = by_name(rep)
+    assert set(streams) == {"RAW_IMU", "SCALED_IMU2"}
+    for name in streams:
+        back = [e for e in rep["restarts"] if e["stream"] == name and e["reason"] == "boot_time_backwards"]
+        assert len(back) == 2                  # three boot sessions
+        assert streams[name]["field_unit"] == "mrad/s" and streams[name]["unit_known"]
+    assert rep["unreadable_records"] == 2
+    _check_filtered_tlog(path, Path(rep["output_log"]), rep)
+
+
+def test_fs_batt_tlog_end_to_end_via_cli(tmp_path):
+    path = DATA / "fs-batt.log.tlog"
+    r = run_cli(path, "-o", tmp_path, "--json")
+    assert r.returncode == 0, r.stderr
+    rep = json.loads(r.stdout)["logs"][0]
+    s = by_name(rep)
+    assert s["RAW_IMU"]["samples"] == 27 and s["SCALED_IMU2"]["samples"] == 27
+    assert s["RAW_IMU"]["note"].startswith("RAW_IMU from ArduPilot")     # APM:Copter V3.4 string
+    # the 9.6 s gap restarts both streams
+    assert [round(e["time_s"] - e["previous_time_s"]) for e in rep["restarts"]] == [10, 10]
+    _check_filtered_tlog(path, Path(rep["output_log"]), rep)
+
+
+def test_sitl_reboot_and_bad_records(tmp_path):
+    path = shared_log("sitl_copter_reboot.tlog")
+    rep = process_log(path, tmp_path, plots=False, csv=False)
+    assert rep["unreadable_records"] == 10
+    ev = [e for e in rep["restarts"] if e["stream"] == "RAW_IMU"]
+    assert [e["reason"] for e in ev] == ["boot_time_backwards"]
+    assert ev[0]["previous_time_s"] > ev[0]["time_s"]
+    z = by_name(rep)["SCALED_IMU3"]
+    assert z["all_zero"] is True                     # SITL's third IMU is all zeros
+    _check_filtered_tlog(path, Path(rep["output_log"]), rep)
+
+
+def test_ardusub_bad_records_counted_and_kept(tmp_path):
+    path = shared_log("ardusub_bad_data.tlog")
+    rep = process_log(path, tmp_path, plots=False, csv=False)
+    assert rep["unreadable_records"] == 1967
+    assert by_name(rep)["RAW_IMU"]["samples"] == 627
+    _check_filtered_tlog(path, Path(rep["output_log"]), rep)
+
+
+@pytest.mark.parametrize("name", ["copter_20211202-133659.tlog", "copter_20211208-151424.tlog"])
+def test_truncated_tlogs_processed(tmp_path, name):
+    path = shared_log(name)
+    rep = process_log(path, tmp_path, plots=False, csv=False)
+    ref, msgs, bad = tlog_reference(path)
+    assert rep["messages"] == len(msgs)
+    assert by_name(rep)["RAW_IMU"]["samples"] == len(ref["RAW_IMU"][0])
+    _check_filtered_tlog(path, Path(rep["output_log"]), rep)
+
+
+def test_apm2_raw_counts_are_not_guessed(tmp_path):
+    path = shared_log("apm2_2013-10-13_18-31-24.tlog")
+    rep = process_log(path, tmp_path, plots=False)
+    s = by_name(rep)["RAW_IMU"]
+    assert s["field_unit"] == "counts" and s["unit_known"] is False and s["to_deg_s"] is None
+    assert "--raw-imu-scale" in s["note"] and s["noise_unit"] == "counts"
+    header = Path(s["csv"]).read_text().splitlines()[0]
+    assert "raw_x_counts" in header
+    _check_filtered_tlog(path, Path(rep["output_log"]), rep, unit_mrad=False)
+    rep2 = process_log(path, tmp_path / "scaled", plots=False, csv=False, raw_imu_scale=0.0610)
+    s2 = by_name(rep2)["RAW_IMU"]
+    assert s2["unit_known"] and s2["to_deg_s"] == 0.0610 and s2["noise_unit"] == "deg/s"
+
+
+def test_repack_round_trip_through_pymavlink():
+    """A re-packed MAVLink 1 and 2 packet decodes (CRC checked) to the new values."""
+    from pymavlink.dialects.v20 import ardupilotmega as mav2
+    from pymavlink.dialects.v10 import ardupilotmega as mav1
+    for dialect, force1 in ((mav2, False), (mav1, True)):
+        m = dialect.MAVLink(None, srcSystem=7, srcComponent=3)
+        m.seq = 42
+        pkt = dialect.MAVLink_raw_imu_message(123456, 1, 2, 3, 0, 0, 0, 0, 0, 0).pack(m, force_mavlink1=force1) \
+            if dialect is mav1 else dialect.MAVLink_raw_imu_message(123456, 1, 2, 3, 0, 0, 0, 0, 0, 0, 0, 0).pack(m)
+        new, dropped = tlog.repack(pkt, "RAW_IMU", [-5.4, 7.5, 32767.9])
+        assert not dropped
+        dec = mav2.MAVLink(None)
+        msg = dec.parse_char(new)
+        assert msg is not None and msg.get_type() == "RAW_IMU"
+        assert (msg.xgyro, msg.ygyro, msg.zgyro) == (-5, 8, 32767)
+        assert (msg.xacc, msg.yacc, msg.zacc, msg.time_usec) == (1, 2, 3, 123456)
+        assert (msg.get_srcSystem(), msg.get_srcComponent(), msg.get_seq()) == (7, 3, 42)
+
+
+# ------------------------------------------------------------ ULog
+def test_px4_ulog_dropouts_and_filtered_copy(tmp_path):
+    path = shared_log("px4_sample.ulg")
+    import pyulog
+    rep = process_log(path, tmp_path, plots=False)
+    s = by_name(rep)["sensor_combined"]
+    u = pyulog.ULog(str(path), ["sensor_combined"])
+    d = u.data_list[0].data
+    t = d["timestamp"] * 1e-6
+    g = np.stack([d[f"gyro_rad[{k}]"] for k in range(3)], axis=1).astype(float)
+    r = ref_restarts(t)
+    assert s["samples"] == len(t) and s["rate_hz"] == pytest.approx(250.0, rel=0.02)
+    assert s["restarts"] == int(r.sum()) >= 4
+    f = ref_filter(g * R2D, s["rate_hz"], r) / R2D
+    u2 = pyulog.ULog(rep["output_log"], ["sensor_combined"])
+    d2 = u2.data_list[0].data
+    got = np.stack([d2[f"gyro_rad[{k}]"] for k in range(3)], axis=1)
+    np.testing.assert_array_equal(got, f.astype(np.float32))
+    np.testing.assert_array_equal(d2["accelerometer_m_s2[2]"], d["accelerometer_m_s2[2]"])
+
+
+# ------------------------------------------------------------ bad input
+def test_no_gyro_stream_exits_2_with_one_line(tmp_path):
+    path = shared_log("plane_no_imu.bin")
+    r = run_cli(path, "-o", tmp_path)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr
+    assert lines[0].startswith("gyrodenoise: error: ") and "plane_no_imu.bin" in lines[0]
+    assert "no gyro stream" in lines[0]
+    assert r.stdout == ""
+
+
+def test_unknown_file_type_exits_2(tmp_path):
+    junk = tmp_path / "notes.dat"
+    junk.write_bytes(b"hello, this is not a flight log\n" * 40)
+    r = run_cli(junk, "-o", tmp_path / "o", "--json")
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.strip().splitlines() == [
+        f"gyrodenoise: error: {junk}: unknown file type (expected a MAVLink telemetry log .tlog, "
+        f"an ArduPilot DataFlash log .bin or a PX4 log .ulg)"]
+    with pytest.raises(InputError, match="not a DataFlash binary log"):
+        process_log(shutil.copy(junk, tmp_path / "fake.bin"), tmp_path / "o")
+
+
+def test_many_logs_in_parallel_one_summary(tmp_path):
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    shutil.copy(DATA / "fs-batt.log.tlog", folder)
+    shutil.copy(DATA / "plane_truncated_test.BIN", folder)
+    shutil.copy(DATA / "ardusub_small.BIN", folder)
+    (folder / "broken.bin").write_bytes(b"\x00" * 1000)           # fails
+    (folder / "notes.txt").write_text("ignored")
+    out = tmp_path / "out"
+    r = run_cli(folder, "-o", out, "--jobs", "2", "--json", "--no-plots")
+    assert r.returncode == 2                                    # one log failed
+    summary = json.loads(r.stdout)
+    assert summary["n_logs"] == 4 and summary["n_ok"] == 3 and summary["n_failed"] == 1
+    assert summary["failed"][0]["file"].endswith("broken.bin")
+    assert "broken.bin: not a DataFlash binary log" in summary["failed"][0]["error"]
+    assert summary["ignored_files"][0].endswith("notes.txt")
+    assert "broken.bin" in r.stderr and "Traceback" not in r.stderr
+    # each processed log equals a single-log run of the same file
+    for rep in summary["logs"]:
+        single = process_log(rep["file"], tmp_path / "single", plots=False)
+        assert Path(rep["output_log"]).read_bytes() == Path(single["output_log"]).read_bytes()
+        assert rep["streams"][0]["noise"] == single["streams"][0]["noise"]
+    assert json.loads((out / "summary.json").read_text())["n_ok"] == 3
+
+
+def test_each_axis_and_stream_has_its_own_denoiser(tmp_path):
+    """Filtering a stream alone or beside others gives the same values."""
+    data, sc, streams = dataflash.read(DATA / "plane_truncated_test.BIN")
+    rep = process_many([DATA / "plane_truncated_test.BIN"], tmp_path, plots=False, csv=False)
+    ref, _ = df_reference(DATA / "plane_truncated_test.BIN")
+    out, _ = df_reference(rep["logs"][0]["output_log"])
+    t, g = ref["IMU2"]
+    alone = np.stack([gd.denoise(g[:, k] * R2D, 1 / np.median(np.diff(t)), restarts=ref_restarts(t))
+                      for k in range(3)], axis=1)
+    np.testing.assert_array_equal(out["IMU2"][1], (alone / R2D).astype(np.float32))
