@@ -27,6 +27,14 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_LOG = REPO.parent / "shared" / "data" / "logs" / "log171.bin"
 
+FLOOR = """
+import numpy as np
+import gyrodenoise.cli as cli
+cli.build_parser()
+from gyrodenoise import denoise
+denoise(np.zeros(100), 50.0)
+"""
+
 BARE = """
 import sys
 from pymavlink import mavutil
@@ -59,7 +67,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if not Path(a.log).is_file():
         raise SystemExit(f"{a.log}: not found (the shared data folder is needed)")
-    bare_t, bridge_t = [], []
+    bare_t, bridge_t, noplot_t, floor_t = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         # one warm-up run of each (numba cache, OS file cache)
         timed([sys.executable, "-c", BARE, a.log])
@@ -70,6 +78,10 @@ def main(argv=None):
             bare_t.append(dt)
             dt, _ = timed(_gyrodenoise() + ["mavlink", a.log, "-o", tmp, "--json"])
             bridge_t.append(dt)
+            dt, _ = timed(_gyrodenoise() + ["mavlink", a.log, "-o", tmp, "--json", "--no-plots"])
+            noplot_t.append(dt)
+            dt, _ = timed([sys.executable, "-c", FLOOR])
+            floor_t.append(dt)
     rep = summary["logs"][0]
     b, g = statistics.median(bare_t), statistics.median(bridge_t)
     print(f"log: {a.log} ({os.path.getsize(a.log)} bytes, {n_msgs.strip()} messages, "
@@ -80,6 +92,10 @@ def main(argv=None):
     print(f"gyrodenoise mavlink (log+CSV+PNG)    : median {g:.3f} s  "
           f"(runs: {', '.join(f'{x:.2f}' for x in bridge_t)})")
     print(f"ratio: {g / b:.2f}x  (target <= 1.3x)")
+    npl, fl = statistics.median(noplot_t), statistics.median(floor_t)
+    print(f"  same with --no-plots                : median {npl:.3f} s  ratio {npl / b:.2f}x")
+    print(f"  floor: start + CLI imports + first numba call (cache load) + exit, no log: "
+          f"median {fl:.3f} s  ({fl / b:.2f}x of the bare read)")
     return 0
 
 

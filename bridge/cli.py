@@ -110,7 +110,7 @@ def run(args):
     if single:
         # one file: errors are the command's error (exit 2, one line)
         from .streams import NOISE_METRIC
-        rep = process_log(args.logs[0], args.out, log=_log, background_plots=True, **kw)
+        rep = process_log(args.logs[0], args.out, log=_log, background_plots=True, plot_helpers=1, **kw)
         summary = {"logs": [rep], "failed": [], "ignored_files": [], "n_logs": 1, "n_ok": 1,
                    "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC}
     else:

@@ -84,6 +84,17 @@ class _LiveStream:
         return s
 
 
+def _enlarge_receive_buffer(conn, size=4 << 20):
+    """Ask for a larger UDP receive buffer (bursts while the process is descheduled)."""
+    import socket
+    sock = getattr(conn, "port", None)
+    if isinstance(sock, socket.socket) and sock.type == socket.SOCK_DGRAM:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size)
+        except OSError:
+            pass
+
+
 def run_live(source, forward, *, duration=None, max_messages=None, method="shakf", ar_order=3,
              gap_factor=5.0, sample_rate=None, raw_imu_unit="auto", raw_imu_scale=None, log=None):
     """Bridge ``source`` to ``forward`` (pymavlink connection strings) until
@@ -93,6 +104,7 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
     from pymavlink import mavutil
     mavutil.set_dialect("ardupilotmega")
     src = mavutil.mavlink_connection(source, robust_parsing=True)
+    _enlarge_receive_buffer(src)
     dst = mavutil.mavlink_connection(forward) if forward else None
     if log:
         log(f"listening on {source}, forwarding to {forward or '(nowhere)'}")

@@ -155,55 +155,66 @@ def _plot_loop(conn):
 class Plotter:
     """Plots inline, or in a forked helper process that overlaps the parent's work."""
 
-    def __init__(self, background=False):
-        self.proc = self.conn = self.thread = None
-        self.pending = 0
+    def __init__(self, background=False, helpers=1):
+        self.procs, self.conns, self.threads, self.queues = [], [], [], []
+        self.pending = []
+        self.next = 0
         if background and sys.platform.startswith("linux"):
             import multiprocessing as mp
-            ctx = mp.get_context("fork")
-            self.conn, child = ctx.Pipe()
-            self.proc = ctx.Process(target=_plot_loop, args=(child,), daemon=True)
-            self.proc.start()
-            child.close()
-            # a thread does the sending: a send blocks while the helper is still importing
             import queue
             import threading
-            self.queue = queue.Queue()
-            self.thread = threading.Thread(target=self._sender, daemon=True)
-            self.thread.start()
+            ctx = mp.get_context("fork")
+            for _ in range(max(1, int(helpers))):
+                conn, child = ctx.Pipe()
+                proc = ctx.Process(target=_plot_loop, args=(child,), daemon=True)
+                proc.start()
+                child.close()
+                # a thread does the sending: a send blocks while the helper is still importing
+                q = queue.Queue()
+                th = threading.Thread(target=self._sender, args=(conn, q), daemon=True)
+                th.start()
+                self.procs.append(proc)
+                self.conns.append(conn)
+                self.queues.append(q)
+                self.threads.append(th)
+                self.pending.append(0)
 
-    def _sender(self):
+    @staticmethod
+    def _sender(conn, q):
         while True:
-            job = self.queue.get()
-            self.conn.send(job)
+            job = q.get()
+            conn.send(job)
             if job is None:
                 break
 
     def plot(self, path, title, t, x, f, restarts, unit, axes):
         job = (path, title, _plot_data(t, x, f, restarts), unit, axes)
-        if self.proc is None:
+        if not self.procs:
             _draw(*job)
         else:
-            self.queue.put(job)
-            self.pending += 1
+            i = self.next % len(self.procs)
+            self.next += 1
+            self.queues[i].put(job)
+            self.pending[i] += 1
 
     def close(self):
-        """Wait for the helper; raise RuntimeError with its first failure."""
-        if self.proc is None:
-            return
+        """Wait for the helpers; raise RuntimeError with the first failure."""
         errors = []
-        try:
-            for _ in range(self.pending):
-                r = self.conn.recv()
-                if r:
-                    errors.append(r)
-        finally:
-            self.queue.put(None)
-            self.thread.join(timeout=30)
-            self.proc.join(timeout=30)
-            if self.proc.is_alive():
-                self.proc.terminate()
-            self.proc = None
+        for proc, conn, q, th, n in zip(self.procs, self.conns, self.queues, self.threads, self.pending):
+            try:
+                for _ in range(n):
+                    r = conn.recv()
+                    if r:
+                        errors.append(r)
+            except EOFError:
+                errors.append("plot helper process ended unexpectedly")
+            finally:
+                q.put(None)
+                th.join(timeout=30)
+                proc.join(timeout=30)
+                if proc.is_alive():
+                    proc.terminate()
+        self.procs = []
         if errors:
             raise RuntimeError(errors[0])
 
@@ -249,7 +260,8 @@ def stream_report(s, csv_path=None, png_path=None):
 
 def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
-                sample_rate=None, out_stem=None, log=None, background_plots=False):
+                sample_rate=None, out_stem=None, log=None, background_plots=False,
+                plot_helpers=1):
     """Process one log file; return its report (a JSON-able dict).
 
     Raises InputError (one line naming the file) for a file that cannot be
@@ -264,7 +276,7 @@ def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, g
         raise InputError(f"{path}: no such file")
     kind = log_kind(path)
     rep = {"file": str(path), "format": kind}
-    plotter = Plotter(background_plots) if plots else None
+    plotter = Plotter(background_plots, helpers=plot_helpers) if plots else None
     try:
         ctx = {}
         if kind == "dataflash":
@@ -272,14 +284,17 @@ def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, g
             sc = ctx["sc"]
             rep.update(messages=sc.n_messages, unreadable_records=len(sc.bad_regions),
                        unreadable_bytes=sc.bad_bytes, truncated=sc.truncated_bytes > 0,
-                       truncated_bytes=sc.truncated_bytes)
+                       truncated_bytes=sc.truncated_bytes,
+                       truncation="message cut by the end of the file" if sc.truncated_bytes else None)
         elif kind == "tlog":
             from . import tlog
             ctx["data"], ctx["fr"], streams = tlog.read(path, raw_imu_unit, raw_imu_scale)
             fr = ctx["fr"]
             rep.update(messages=int(fr.ok.sum()), unreadable_records=fr.n_unreadable,
                        unreadable_bytes=int(fr.length[~fr.ok].sum()) + sum(e - s for s, e in fr.bad_regions),
-                       truncated=fr.truncated_bytes > 0, truncated_bytes=fr.truncated_bytes)
+                       truncated=fr.truncated_bytes > 0, truncated_bytes=fr.truncated_bytes,
+                       truncation=("zero-filled tail" if fr.zero_tail else
+                                   "record cut by the end of the file" if fr.truncated_bytes else None))
         else:
             from . import ulog
             ctx["u"], streams, ctx["refs"] = ulog.read(path)

@@ -173,6 +173,7 @@ class TlogFrames:
     v2: np.ndarray
     bad_regions: list = field(default_factory=list)   # (start, end) unframed bytes
     truncated_bytes: int = 0
+    zero_tail: bool = False    # the truncated tail is zero bytes (log cut at a block boundary)
 
     @property
     def n_unreadable(self):
@@ -221,6 +222,12 @@ def frame(data, path="<bytes>"):
     else:
         if pos < n:
             truncated = n - pos
+    zero_tail = False
+    if bad and bad[-1][1] >= n and not any(data[bad[-1][0]:n]):
+        # a log cut at a block boundary and zero-filled: truncated, not unreadable
+        a = bad.pop()[0]
+        truncated = n - a
+        zero_tail = True
     start = np.asarray(starts, dtype=np.int64)
     length = np.asarray(lens, dtype=np.int64)
     buf = np.frombuffer(data, dtype=np.uint8)
@@ -230,7 +237,7 @@ def frame(data, path="<bytes>"):
                      | (buf[np.minimum(start + 17, n - 1)].astype(np.int64) << 16),
                      buf[np.minimum(start + 13, n - 1)].astype(np.int64)) if len(start) else np.zeros(0, np.int64)
     ok = _check_crcs(buf, start, length, v2, msgid)
-    return TlogFrames(path, n, start, length, ok, msgid, v2, bad, truncated)
+    return TlogFrames(path, n, start, length, ok, msgid, v2, bad, truncated, zero_tail)
 
 
 def _check_crcs(buf, start, length, v2, msgid):
