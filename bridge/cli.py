@@ -53,6 +53,10 @@ def register_cli(subparsers):
     p.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
                    help="filter sample rate for every stream (default: measured per stream; it only "
                         "sets the warm-up length)")
+    p.add_argument("--warmup-s", type=float, default=None, metavar="S",
+                   help="warm-up after each restart, raw passed through (default: the core's, 1 s; "
+                        "at least 10(n+1) samples); short bursts such as the 2 kHz batch sampler "
+                        "(1024 samples) need less, e.g. 0.1")
     p.add_argument("--raw-imu-unit", default="auto", choices=["auto", "mrad/s", "rad/s", "counts"],
                    help="unit of RAW_IMU gyro fields (default auto: mrad/s when the log shows "
                         "ArduPilot, else counts with unknown scale)")
@@ -78,6 +82,8 @@ def _check(args):
         raise InputError(f"--gap-factor must be > 1, got {args.gap_factor}")
     if args.sample_rate is not None and not args.sample_rate > 0:
         raise InputError(f"--sample-rate must be > 0, got {args.sample_rate}")
+    if args.warmup_s is not None and not args.warmup_s >= 0:
+        raise InputError(f"--warmup-s must be >= 0, got {args.warmup_s}")
     if args.raw_imu_scale is not None and not args.raw_imu_scale > 0:
         raise InputError(f"--raw-imu-scale must be > 0, got {args.raw_imu_scale}")
     if args.duration is not None and not args.duration > 0:
@@ -105,7 +111,7 @@ def run(args):
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
-              fmu_path=args.fmu, sample_rate=args.sample_rate)
+              fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s)
     single = len(args.logs) == 1 and Path(args.logs[0]).is_file()
     if single:
         # one file: errors are the command's error (exit 2, one line)
@@ -121,10 +127,15 @@ def run(args):
     (Path(args.out) / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False))
     for f in summary["failed"]:
         print(f"gyrodenoise: error: {f['error']}", file=sys.stderr)
-    if args.json:
-        _emit(summary)
-    else:
-        _print_text(summary)
+    try:
+        if args.json:
+            _emit(summary)
+        else:
+            _print_text(summary)
+            sys.stdout.flush()
+    except BrokenPipeError:           # e.g. piped into `head`: the reader left, not an error of ours
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 2 if summary["failed"] else 0
 
 
@@ -161,7 +172,7 @@ def _run_live(args, conn):
     rep, streams = run_live(conn, args.forward, duration=args.duration, max_messages=args.count,
                             method=args.method, ar_order=args.ar_order, gap_factor=args.gap_factor,
                             sample_rate=args.sample_rate, raw_imu_unit=args.raw_imu_unit,
-                            raw_imu_scale=args.raw_imu_scale, log=_log)
+                            raw_imu_scale=args.raw_imu_scale, log=_log, warmup_s=args.warmup_s)
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:

@@ -13,6 +13,14 @@ Gyro streams: ``IMU``, ``IMU2``, ``IMU3`` (older logs, one type per IMU) and
 ``IMU`` with an instance field ``I`` (ArduPilot 4.x: one stream per instance).
 Fields ``GyrX``, ``GyrY``, ``GyrZ`` are rad/s (float). Time: ``TimeUS`` (us) or
 ``TimeMS`` (ms) since boot.
+
+Batch-sampler bursts: an ``ISBH`` header (``type`` 1 = gyro, ``instance``,
+``mul``, ``smp_cnt``, ``SampleUS`` of the first sample, ``smp_rate``) followed
+by ``ISBD`` messages with the same ``N`` (``seqno`` 0, 1, ...), each holding 32
+samples per axis in int16 arrays ``x``, ``y``, ``z``; rad/s = value / mul. One
+stream ``ISB.gyro[instance]`` per instance; sample k of a burst is at
+``SampleUS + k / smp_rate``. A burst whose ISBD messages are incomplete is
+used as far as it goes (the samples it has).
 """
 
 from __future__ import annotations
@@ -177,7 +185,60 @@ def gyro_streams(data, sc: DFScan):
                 name=name, message=f.name, unit="rad/s", to_deg_s=UNIT_TO_DEG_S["rad/s"],
                 time_s=tt[sel], raw=raw[sel], index=offs[sel],
                 note=f"DataFlash {f.name}.GyrX/GyrY/GyrZ (float, rad/s), time {tcol}"))
+    streams += batch_sampler_streams(data, sc)
     return streams
+
+
+def _type_id(sc, name):
+    for t, f in sc.formats.items():
+        if f.name == name and t in sc.offsets:
+            return t
+    return None
+
+
+def batch_sampler_streams(data, sc: DFScan):
+    """Gyro streams of the batch sampler (ISBH/ISBD), one per IMU instance."""
+    th, td = _type_id(sc, "ISBH"), _type_id(sc, "ISBD")
+    if th is None or td is None:
+        return []
+    fh, fd = sc.formats[th], sc.formats[td]
+    need_h = {"N", "type", "instance", "mul", "SampleUS", "smp_rate"}
+    need_d = {"N", "seqno", "x", "y", "z"}
+    if not need_h <= set(fh.columns) or not need_d <= set(fd.columns):
+        return []
+    h = decode(data, sc, th)
+    d = decode(data, sc, td)
+    d_offs = np.asarray(sc.offsets[td], dtype=np.int64)
+    per_inst = {}
+    for hi in np.nonzero(h["type"] == 1)[0]:
+        hdr = h[hi]
+        sel = np.nonzero(d["N"] == hdr["N"])[0]
+        if not len(sel) or hdr["mul"] == 0 or not hdr["smp_rate"] > 0:
+            continue
+        sel = sel[np.argsort(d["seqno"][sel], kind="stable")]
+        n = 32 * len(sel)
+        cnt = int(hdr["smp_cnt"]) if "smp_cnt" in fh.columns else n
+        n = min(n, cnt)
+        vals = np.stack([d[a][sel].reshape(-1)[:n] for a in ("x", "y", "z")], axis=1).astype(np.float64)
+        k = np.arange(n)
+        t = hdr["SampleUS"] * 1e-6 + k / float(hdr["smp_rate"])
+        # sample index -> (ISBD message offset) * 32 + position in its arrays
+        idx = d_offs[sel][k // 32] * 32 + (k % 32)
+        mul = np.full(n, float(hdr["mul"]))
+        per_inst.setdefault(int(hdr["instance"]), []).append((t, vals / mul[:, None], idx, mul))
+    out = []
+    for inst, bursts in sorted(per_inst.items()):
+        t = np.concatenate([b[0] for b in bursts])
+        raw = np.concatenate([b[1] for b in bursts])
+        idx = np.concatenate([b[2] for b in bursts])
+        mul = np.concatenate([b[3] for b in bursts])
+        s = GyroStream(name=f"ISB.gyro[{inst}]", message="ISBD", unit="rad/s",
+                       to_deg_s=UNIT_TO_DEG_S["rad/s"], time_s=t, raw=raw, index=idx,
+                       note=f"DataFlash batch sampler ISBH/ISBD, gyro instance {inst}: "
+                            f"{len(bursts)} bursts, int16 / mul = rad/s, time SampleUS + k/smp_rate")
+        s.extra["mul"] = mul
+        out.append(s)
+    return out
 
 
 def gyro_field_offsets(sc: DFScan, message):
@@ -196,6 +257,15 @@ def patch(data, sc: DFScan, streams):
     buf = np.frombuffer(out, dtype=np.uint8)
     for s in streams:
         if s.filtered is None or s.n == 0:
+            continue
+        if s.message == "ISBD":
+            dt = next(f for f in sc.formats.values() if f.name == "ISBD").dtype()
+            off = s.index // 32
+            pos = s.index % 32
+            counts = np.clip(np.rint(s.filtered * s.extra["mul"][:, None]), -32768, 32767).astype("<i2")
+            for k, a in enumerate(("x", "y", "z")):
+                at = off + dt.fields[a][1] + 2 * pos
+                buf[at[:, None] + np.arange(2)] = counts[:, k].copy().view(np.uint8).reshape(-1, 2)
             continue
         fo = gyro_field_offsets(sc, s.message)
         vals = np.ascontiguousarray(s.filtered, dtype="<f4")      # (n, 3)

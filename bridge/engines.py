@@ -23,13 +23,14 @@ ENGINES = ("native", "fmu")
 class NativeEngine:
     name = "native"
 
-    def __init__(self, method="shakf", ar_order=3):
+    def __init__(self, method="shakf", ar_order=3, warmup_s=None):
         self.method = method
         self.ar_order = int(ar_order)
+        self.kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
 
     def filter(self, x, restarts, rate_hz):
         from gyrodenoise.denoiser import Denoiser
-        d = Denoiser(sample_rate_hz=rate_hz, method=self.method, ar_order=self.ar_order)
+        d = Denoiser(sample_rate_hz=rate_hz, method=self.method, ar_order=self.ar_order, **self.kw)
         return np.asarray(d.process(np.ascontiguousarray(x, dtype=np.float64),
                                     None if restarts is None else np.asarray(restarts, dtype=bool)))
 
@@ -54,9 +55,10 @@ class FmuEngine:
 
     name = "fmu"
 
-    def __init__(self, method="shakf", ar_order=3, fmu_path=None):
+    def __init__(self, method="shakf", ar_order=3, fmu_path=None, warmup_s=None):
         self.method = method
         self.ar_order = int(ar_order)
+        self.warmup_s = warmup_s
         self.path = Path(fmu_path) if fmu_path else default_fmu_path()
         if not self.path.is_file():
             raise InputError(f"{self.path}: FogDenoiser FMU not found (build it with "
@@ -104,6 +106,8 @@ class FmuEngine:
             fmu.setupExperiment(startTime=0.0)
             self._set_param(fmu, "ar_order", self.ar_order)
             self._set_param(fmu, "method", self.method)
+            if self.warmup_s is not None and not self._set_param(fmu, "warmup_s", self.warmup_s):
+                raise InputError(f"{self.path}: FMU has no parameter 'warmup_s' (--warmup-s)")
             if not self._set_param(fmu, "sample_period", h):
                 self._set_param(fmu, "sample_rate_hz", rate_hz)
             fmu.enterInitializationMode()
@@ -128,9 +132,9 @@ class FmuEngine:
         shutil.rmtree(self._tmp, ignore_errors=True)
 
 
-def make_engine(name, method="shakf", ar_order=3, fmu_path=None):
+def make_engine(name, method="shakf", ar_order=3, fmu_path=None, warmup_s=None):
     if name == "native":
-        return NativeEngine(method, ar_order)
+        return NativeEngine(method, ar_order, warmup_s)
     if name == "fmu":
-        return FmuEngine(method, ar_order, fmu_path)
+        return FmuEngine(method, ar_order, fmu_path, warmup_s)
     raise InputError(f"--engine: unknown engine {name!r} (choose from {', '.join(ENGINES)})")

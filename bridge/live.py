@@ -36,7 +36,7 @@ class _LiveStream:
         self.events = []
         self.rate = None
 
-    def step(self, t, raw, sample_rate, method, ar_order):
+    def step(self, t, raw, sample_rate, method, ar_order, warmup_s=None):
         from gyrodenoise.denoiser import Denoiser
         reason = self.det.update(t)
         i = len(self.t)
@@ -55,7 +55,8 @@ class _LiveStream:
                     dt = t - self.t[0]
                     rate = 1.0 / dt if dt > 0 else 50.0
                 self.rate = rate
-                self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order)
+                kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
+                self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
                             for _ in range(3)]
                 for d, z0 in zip(self.den, self.x[0]):
                     d.step(z0, False)
@@ -96,7 +97,8 @@ def _enlarge_receive_buffer(conn, size=4 << 20):
 
 
 def run_live(source, forward, *, duration=None, max_messages=None, method="shakf", ar_order=3,
-             gap_factor=5.0, sample_rate=None, raw_imu_unit="auto", raw_imu_scale=None, log=None):
+             gap_factor=5.0, sample_rate=None, raw_imu_unit="auto", raw_imu_scale=None, log=None,
+             warmup_s=None):
     """Bridge ``source`` to ``forward`` (pymavlink connection strings) until
     ``duration`` seconds have passed or ``max_messages`` messages were
     forwarded (or Ctrl-C). Returns (report dict, list of GyroStream)."""
@@ -158,7 +160,8 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
                         st = streams[key] = _LiveStream(name, mtype, unit, to_deg, note, gap_factor)
                         st.tscale, st.tfield = tscale, tfield
                     vals = st.step(getattr(msg, st.tfield) * st.tscale,
-                                   [getattr(msg, g) for g in GYRO_FIELDS], sample_rate, method, ar_order)
+                                   [getattr(msg, g) for g in GYRO_FIELDS], sample_rate, method, ar_order,
+                                   warmup_s)
                     out, dropped = repack(bytes(out), mtype, vals)
                     n_sig += dropped
             if dst is not None and out:
@@ -180,6 +183,6 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
         "handling_us": {"mean": float(hs.mean()) if len(hs) else None,
                         "p99": float(np.percentile(hs, 99)) if len(hs) else None,
                         "max": float(hs.max()) if len(hs) else None},
-        "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor,
+        "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
     }
     return report, gs

@@ -29,7 +29,7 @@ from .streams import NOISE_METRIC, detect_restarts, noise_per_axis
 LOG_SUFFIXES = {".tlog": "tlog", ".mavlink": "tlog", ".bin": "dataflash", ".ulg": "ulog"}
 GYRO_LOOKED_FOR = {
     "tlog": "RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3, HIGHRES_IMU",
-    "dataflash": "IMU, IMU2, IMU3 with GyrX/GyrY/GyrZ",
+    "dataflash": "IMU, IMU2, IMU3 with GyrX/GyrY/GyrZ, ISBH/ISBD gyro bursts",
     "ulog": "sensor_combined.gyro_rad, sensor_gyro",
 }
 
@@ -261,7 +261,7 @@ def stream_report(s, csv_path=None, png_path=None):
 def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
-                plot_helpers=1):
+                plot_helpers=1, warmup_s=None):
     """Process one log file; return its report (a JSON-able dict).
 
     Raises InputError (one line naming the file) for a file that cannot be
@@ -304,7 +304,7 @@ def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, g
                        data_corruption=bool(getattr(u, "has_data_corruption", False)), truncated=None)
         if not streams:
             raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
-        eng = make_engine(engine, method, ar_order, fmu_path)
+        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s)
         try:
             _filter_streams(streams, eng, gap_factor, sample_rate)
         finally:
@@ -315,7 +315,7 @@ def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, g
         if plotter is not None:
             plotter.close()
     rep.update(engine=engine, method=method, ar_order=int(ar_order), gap_factor=gap_factor,
-               seconds=round(time.perf_counter() - t0, 3))
+               warmup_s=warmup_s, seconds=round(time.perf_counter() - t0, 3))
     return rep
 
 

@@ -51,6 +51,7 @@ class GyroStream:
     repeated_timestamps: int = 0
     rate_hz: float | None = None
     axes: tuple = ("x", "y", "z")
+    extra: dict = field(default_factory=dict)    # reader-specific data (e.g. ISBD multipliers)
 
     @property
     def n(self):
