@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import sys
@@ -107,22 +108,14 @@ def run(args):
     for x in args.logs:
         if not Path(x).exists():
             raise InputError(f"{x}: no such file or folder")
-    from .process import process_many, process_log
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s)
     single = len(args.logs) == 1 and Path(args.logs[0]).is_file()
-    if single:
-        # one file: errors are the command's error (exit 2, one line)
-        from .streams import NOISE_METRIC
-        rep = process_log(args.logs[0], args.out, log=_log, background_plots=True, plot_helpers=1, **kw)
-        summary = {"logs": [rep], "failed": [], "ignored_files": [], "n_logs": 1, "n_ok": 1,
-                   "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC}
-    else:
-        summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log, **kw)
-        if summary["n_logs"] == 0:
-            raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
+    # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
+    with contextlib.redirect_stdout(sys.stderr):
+        summary = _run_files(args, kw, single)
     Path(args.out).mkdir(parents=True, exist_ok=True)
     (Path(args.out) / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False))
     for f in summary["failed"]:
@@ -137,6 +130,20 @@ def run(args):
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 2 if summary["failed"] else 0
+
+
+def _run_files(args, kw, single):
+    from .process import process_many, process_log
+    if single:
+        # one file: errors are the command's error (exit 2, one line)
+        from .streams import NOISE_METRIC
+        rep = process_log(args.logs[0], args.out, log=_log, background_plots=True, plot_helpers=1, **kw)
+        return {"logs": [rep], "failed": [], "ignored_files": [], "n_logs": 1, "n_ok": 1,
+                "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC}
+    summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log, **kw)
+    if summary["n_logs"] == 0:
+        raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
+    return summary
 
 
 def _fmt(v, nd=4):
@@ -167,12 +174,21 @@ def _print_text(summary):
 
 
 def _run_live(args, conn):
+    with contextlib.redirect_stdout(sys.stderr):
+        rep, streams = _live(args, conn)
+    return _report_live(args, conn, rep, streams)
+
+
+def _live(args, conn):
     from .live import run_live
+    return run_live(conn, args.forward, duration=args.duration, max_messages=args.count,
+                    method=args.method, ar_order=args.ar_order, gap_factor=args.gap_factor,
+                    sample_rate=args.sample_rate, raw_imu_unit=args.raw_imu_unit,
+                    raw_imu_scale=args.raw_imu_scale, log=_log, warmup_s=args.warmup_s)
+
+
+def _report_live(args, conn, rep, streams):
     from .process import plot_stream, safe_name, stream_report, write_csv, joined_time
-    rep, streams = run_live(conn, args.forward, duration=args.duration, max_messages=args.count,
-                            method=args.method, ar_order=args.ar_order, gap_factor=args.gap_factor,
-                            sample_rate=args.sample_rate, raw_imu_unit=args.raw_imu_unit,
-                            raw_imu_scale=args.raw_imu_scale, log=_log, warmup_s=args.warmup_s)
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:

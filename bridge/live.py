@@ -105,9 +105,17 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
     os.environ.setdefault("MAVLINK20", "1")
     from pymavlink import mavutil
     mavutil.set_dialect("ardupilotmega")
-    src = mavutil.mavlink_connection(source, robust_parsing=True)
+    from gyrodenoise.errors import InputError
+    try:
+        src = mavutil.mavlink_connection(source, robust_parsing=True)
+    except Exception as exc:  # noqa: BLE001 - socket/serial errors of many kinds
+        raise InputError(f"{source}: cannot open the input link ({type(exc).__name__}: {exc})") from None
     _enlarge_receive_buffer(src)
-    dst = mavutil.mavlink_connection(forward) if forward else None
+    try:
+        dst = mavutil.mavlink_connection(forward) if forward else None
+    except Exception as exc:  # noqa: BLE001
+        src.close()
+        raise InputError(f"{forward}: cannot open the output link ({type(exc).__name__}: {exc})") from None
     if log:
         log(f"listening on {source}, forwarding to {forward or '(nowhere)'}")
     streams = {}

@@ -235,3 +235,14 @@ def test_live_replay_copter_reboot_filters_and_restarts(tmp_path):
         ev = [e for e in rep["restarts"] if e["stream"].startswith(name + "@")]
         assert [e["reason"] for e in ev] == ["boot_time_backwards"]
         assert ev[0]["previous_time_s"] > 190 and ev[0]["time_s"] < 40
+
+
+def test_live_link_that_cannot_open_exits_2(tmp_path):
+    port = free_port()                    # nothing listens there
+    r = subprocess.run(gyrodenoise_cmd() + ["mavlink", f"tcp:127.0.0.1:{port}", "--json", "--duration", "5",
+                                            "-o", str(tmp_path)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stdout == ""          # pymavlink's retry messages go to stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith(f"gyrodenoise: error: tcp:127.0.0.1:{port}: cannot open the input link")
+    assert "Traceback" not in r.stderr
