@@ -93,8 +93,19 @@ def _check(args):
         raise InputError(f"--count must be >= 1, got {args.count}")
 
 
+def _finite(obj):
+    """NaN/inf (e.g. a noise figure of an all-NaN axis) as null: strict JSON."""
+    if isinstance(obj, float):
+        return obj if obj == obj and obj not in (float("inf"), float("-inf")) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
 def _emit(obj):
-    sys.stdout.write(json.dumps(obj, allow_nan=False) + "\n")
+    sys.stdout.write(json.dumps(_finite(obj), allow_nan=False) + "\n")
     sys.stdout.flush()
 
 
@@ -117,7 +128,7 @@ def run(args):
     with contextlib.redirect_stdout(sys.stderr):
         summary = _run_files(args, kw, single)
     Path(args.out).mkdir(parents=True, exist_ok=True)
-    (Path(args.out) / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False))
+    (Path(args.out) / "summary.json").write_text(json.dumps(_finite(summary), indent=1, allow_nan=False))
     for f in summary["failed"]:
         print(f"gyrodenoise: error: {f['error']}", file=sys.stderr)
     try:

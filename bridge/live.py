@@ -18,6 +18,7 @@ at the first sample (the first sample of a warm-up is passed through raw).
 
 from __future__ import annotations
 
+import math
 import os
 import time
 
@@ -35,6 +36,8 @@ class _LiveStream:
         self.t, self.x, self.f, self.r = [], [], [], []
         self.events = []
         self.rate = None
+        self.non_finite = [0, 0, 0]
+        self.pending_restart = [False, False, False]
 
     def step(self, t, raw, sample_rate, method, ar_order, warmup_s=None):
         from gyrodenoise.denoiser import Denoiser
@@ -58,9 +61,20 @@ class _LiveStream:
                 kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
                 self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
                             for _ in range(3)]
-                for d, z0 in zip(self.den, self.x[0]):
-                    d.step(z0, False)
-            out = [d.step(zz, bool(reason)) for d, zz in zip(self.den, z)]
+                for j, (d, z0) in enumerate(zip(self.den, self.x[0])):
+                    if math.isfinite(z0):
+                        d.step(z0, False)
+                    else:
+                        self.non_finite[j] += 1
+            out = []
+            for j, (d, zz) in enumerate(zip(self.den, z)):
+                if math.isfinite(zz):
+                    out.append(d.step(zz, bool(reason) or self.pending_restart[j]))
+                    self.pending_restart[j] = False
+                else:                             # never fed to the filter; kept as it is
+                    self.non_finite[j] += 1
+                    self.pending_restart[j] = self.pending_restart[j] or bool(reason)
+                    out.append(zz)
         self.t.append(t)
         self.x.append(z)
         self.f.append(out)
@@ -82,6 +96,7 @@ class _LiveStream:
         f = np.asarray(self.f, dtype=np.float64).reshape(n, 3)
         s.filtered = f / (self.to_deg or 1.0)
         s._work = (x, f, "deg/s" if self.to_deg is not None else self.unit, self.rate or 0.0)
+        s.non_finite = list(self.non_finite)
         return s
 
 

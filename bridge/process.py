@@ -219,14 +219,33 @@ class Plotter:
             raise RuntimeError(errors[0])
 
 
+def _sub_restarts(restarts, keep):
+    """Restart flags of the kept samples: a restart on a dropped sample moves to the next kept one."""
+    idx = np.nonzero(keep)[0]
+    cr = np.concatenate([[0], np.cumsum(restarts, dtype=np.int64)])
+    prev = np.concatenate([[0], idx[:-1] + 1])
+    return (cr[idx + 1] - cr[prev]) > 0
+
+
 def _filter_streams(streams, engine, gap_factor, sample_rate=None):
+    """Restarts, then each axis of each stream through its own denoiser. Non-finite
+    samples (NaN/inf in float fields) are not fed to the filter (it would never
+    recover): they are kept as they are in the output and counted."""
     for s in streams:
         detect_restarts(s, gap_factor)
         rate = sample_rate or s.rate_hz or 1.0
         x, back, unit = s.work_units()
-        f = np.empty_like(x)
+        f = x.copy()
+        s.non_finite = [0] * x.shape[1]
         for k in range(x.shape[1]):
-            f[:, k] = engine.filter(x[:, k], s.restarts, rate)
+            fin = np.isfinite(x[:, k])
+            if fin.all():
+                f[:, k] = engine.filter(x[:, k], s.restarts, rate)
+            elif fin.any():
+                s.non_finite[k] = int((~fin).sum())
+                f[fin, k] = engine.filter(x[fin, k], _sub_restarts(s.restarts, fin), rate)
+            else:
+                s.non_finite[k] = len(fin)
         s.filtered = f * back
         s._work = (x, f, unit, rate)
 
@@ -246,6 +265,7 @@ def stream_report(s, csv_path=None, png_path=None):
         "samples": int(s.n), "rate_hz": s.rate_hz, "filter_rate_hz": rate,
         "duration_s": dur, "restarts": len(s.restart_events),
         "repeated_timestamps": int(s.repeated_timestamps),
+        "non_finite_samples": dict(zip(s.axes, getattr(s, "non_finite", [0] * len(s.axes)))),
         "all_zero": bool(s.n and not np.any(s.raw)),
         "noise_unit": unit, "noise": noise,
     }
@@ -398,7 +418,7 @@ def _worker(args):
 
 def process_many(items, out_dir, jobs=1, log=None, **kw):
     """Process files and folders; one summary dict. A failing log is listed
-    under ``failed`` and does not stop the others."""
+    under ``failed`` and does not stop the others (nor does a crashed worker)."""
     files, ignored = expand_inputs(items)
     stems = _unique_stems(files)
     tasks = [(f, out_dir, dict(kw, out_stem=st, log=None)) for f, st in zip(files, stems)]
@@ -407,8 +427,15 @@ def process_many(items, out_dir, jobs=1, log=None, **kw):
         import concurrent.futures as cf
         import multiprocessing as mp
         ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
+        results = []
         with cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx) as ex:
-            results = list(ex.map(_worker, tasks))
+            futures = [ex.submit(_worker, t) for t in tasks]
+            for t, fut in zip(tasks, futures):
+                try:
+                    results.append(fut.result())
+                except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by a crash
+                    results.append({"ok": False, "file": str(t[0]),
+                                    "error": f"{t[0]}: worker failed: {type(exc).__name__}: {exc}"})
     else:
         results = [_worker(t) for t in tasks]
     logs = [r["report"] for r in results if r["ok"]]

@@ -163,7 +163,9 @@ def noise_per_axis(values, restarts):
     keep = np.ones(len(v) - 1, dtype=bool)
     if restarts is not None:
         keep &= ~np.asarray(restarts, dtype=bool)[1:]
-    d = np.diff(v, axis=0)[keep]
-    if len(d) < 2:
-        return [None] * v.shape[1]
-    return [float(x) for x in d.std(axis=0, ddof=1) / math.sqrt(2.0)]
+    out = []
+    for k in range(v.shape[1]):
+        d = np.diff(v[:, k])[keep]
+        d = d[np.isfinite(d)]                  # pairs with a NaN/inf sample do not count
+        out.append(float(d.std(ddof=1) / math.sqrt(2.0)) if len(d) >= 2 else None)
+    return out

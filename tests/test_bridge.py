@@ -468,7 +468,7 @@ def test_each_axis_and_stream_has_its_own_denoiser(tmp_path):
 
 
 # ------------------------------------------------------------ message types absent from the real logs
-def _synthetic_tlog(path, autopilot, n=900, seed=5):
+def _synthetic_tlog(path, autopilot, n=900, seed=5, nan_at=()):
     """SYNTHETIC tlog (no real log has these): HIGHRES_IMU (rad/s), SCALED_IMU (mrad/s)
     and RAW_IMU at 100 Hz, a reboot at sample 300 (boot time back to 0.5 s), a 1 s gap at 600."""
     import struct
@@ -480,6 +480,8 @@ def _synthetic_tlog(path, autopilot, n=900, seed=5):
     t = np.arange(n) * 0.01 + 10.0
     t[300:] = t[300:] - t[300] + 0.5                              # reboot
     t[600:] += 1.0                                                # gap
+    for i, k in nan_at:
+        g[i, k] = np.nan
     out = bytearray()
     wall = 1_700_000_000_000_000
 
@@ -491,7 +493,7 @@ def _synthetic_tlog(path, autopilot, n=900, seed=5):
     for i in range(n):
         us = int(round(t[i] * 1e6))
         rec(mav.MAVLink_highres_imu_message(us, 0, 0, -9.8, *g[i], 0, 0, 0, 0, 0, 0, 20, 0x38, 0))
-        mr = np.rint(g[i] * 1000).astype(int)
+        mr = np.rint(np.nan_to_num(g[i]) * 1000).astype(int)
         rec(mav.MAVLink_scaled_imu_message(us // 1000, 0, 0, -1000, *mr, 0, 0, 0, 0))
         rec(mav.MAVLink_raw_imu_message(us, 0, 0, 0, *mr, 0, 0, 0, 0, 0))
     path.write_bytes(bytes(out))
@@ -572,3 +574,31 @@ def test_batch_sampler_bursts_parsed_filtered_and_written_back(tmp_path):
         expected = np.clip(np.rint(f * mul), -32768, 32767)
         assert np.abs(v2 - expected).max() <= 1 and np.mean(v2 != expected) < 1e-3
     assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.2
+
+
+def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):
+    """SYNTHETIC HIGHRES_IMU with NaN gyro values (one on x at 450, one on y at the
+    restart sample 600): kept as NaN, counted, and the filter runs on the other samples
+    (the restart moves to the next finite sample)."""
+    path = tmp_path / "nan.tlog"
+    t, g = _synthetic_tlog(path, autopilot=12, nan_at=[(450, 0), (600, 1)])
+    r = run_cli(path, "-o", tmp_path / "out", "--json", "--no-plots")
+    assert r.returncode == 0, r.stderr
+    rep = json.loads(r.stdout)["logs"][0]
+    s = by_name(rep)["HIGHRES_IMU"]
+    assert s["non_finite_samples"] == {"x": 1, "y": 1, "z": 0}
+    assert all(v["raw"] is not None and np.isfinite(v["raw"]) for v in s["noise"].values())
+    out, _, _ = tlog_reference(Path(rep["output_log"]))
+    raw = tlog_reference(path)[0]["HIGHRES_IMU"][1]               # float32 values as logged
+    got = out["HIGHRES_IMU"][1]
+    assert np.isnan(got[450, 0]) and np.isnan(got[600, 1]) and np.isfinite(got).sum() == got.size - 2
+    r_all = np.zeros(len(t), bool)
+    r_all[[300, 600]] = True
+    for k, bad in ((0, 450), (1, 600)):
+        keep = np.ones(len(t), bool)
+        keep[bad] = False
+        rk = r_all[keep].copy()
+        if bad == 600:
+            rk[600] = True                                        # sample 601, first after the restart
+        ref = gd.denoise(raw[keep, k] * R2D, 100.0, restarts=rk) / R2D
+        np.testing.assert_array_equal(got[keep, k], ref.astype(np.float32).astype(float))
