@@ -1,0 +1,203 @@
+"""Export the Allan noise terms in the conventions other tools read.
+
+Two targets, both continuous-time, SI, per axis:
+
+Kalibr ``imu.yaml`` (ethz-asl/kalibr wiki, "IMU Noise Model" and "YAML
+formats"):
+
+* ``gyroscope_noise_density`` [rad/s/sqrt(Hz)] -- the white rate noise
+  strength sigma_g, i.e. the angle random walk N in rad/sqrt(s)
+  (N [deg/sqrt(h)] * pi/180 / 60).
+* ``gyroscope_random_walk`` [rad/s^2/sqrt(Hz)] -- the strength of the white
+  noise driving the bias random walk, i.e. the rate random walk K in
+  rad/s^1.5 (K [deg/h^1.5] * pi/180 / 3600^1.5).
+* ``update_rate`` [Hz] and ``rostopic``. Kalibr turns the densities into
+  discrete sample sigmas with sqrt(update_rate); its wiki notes this assumes
+  an ideal anti-alias decimation -- a subsampled gyro does not obey it.
+* Kalibr's camera-IMU calibration also requires ``accelerometer_noise_density``
+  and ``accelerometer_random_walk``. A gyro record cannot give them, so they
+  are written as commented placeholders that the user must fill in (writing
+  ``null`` or a made-up number would be worse: the first fails obscurely, the
+  second silently).
+* Kalibr's model has no bias-instability (flicker) or quantization term; B and
+  Q are listed in comments only. The Allan terms describe the sensor under
+  lab conditions; the Kalibr wiki cautions that unmodelled effects
+  (vibration, temperature, mechanics) make real data noisier, and users
+  commonly inflate the values: ``inflate`` multiplies both densities
+  (default 1, no inflation), and the factor is written in the file.
+
+MATLAB ``gyroparams`` (Sensor Fusion and Tracking / Navigation Toolbox,
+``imuSensor``; MathWorks example "Inertial Sensor Noise Analysis Using Allan
+Variance", which builds ``gyroparams('NoiseDensity', N, 'RandomWalk', K,
+'BiasInstability', B)`` from the same fit):
+
+* ``NoiseDensity`` [(rad/s)/sqrt(Hz)] = N in rad/sqrt(s) (same as Kalibr's).
+* ``RandomWalk`` [(rad/s)*sqrt(Hz)] = K in rad/s^1.5 (MathWorks writes the
+  unit of the rate random walk this way; it is the same number as Kalibr's
+  ``gyroscope_random_walk``).
+* ``BiasInstability`` [rad/s] = the coefficient B of Eq. (40), *not* the Allan
+  floor 0.664 B: the MathWorks example divides the floor by
+  sqrt(2 ln2 / pi) = 0.664 before passing it. MATLAB simulates it as white
+  noise through the filter ``BiasInstabilityCoefficients`` (a first-order
+  low-pass by default), so its Allan plateau only approximates 0.664 B.
+
+The MATLAB output is a ``.m`` script (not JSON): it runs as is in MATLAB and
+leaves a ``gyroparams`` object named ``params`` in the workspace, and every
+value carries its unit and origin in a comment; the numbers are printed with
+17 significant digits so nothing is lost.
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime, timezone
+from pathlib import Path
+
+from .errors import InputError
+
+DEG = math.pi / 180.0
+
+
+def terms_to_si(terms):
+    """The five Allan terms (spec units) in SI, per second.
+
+    Parameters
+    ----------
+    terms : dict
+        N deg/sqrt(h), B deg/h, K deg/h^1.5, R deg/h^2, Q deg (spec section 3).
+
+    Returns
+    -------
+    dict
+        ``N_rad_sqrt_s`` (= rad/s/sqrt(Hz)), ``B_rad_s``, ``K_rad_s1_5``
+        (= rad/s^2/sqrt(Hz)), ``R_rad_s2``, ``Q_rad``.
+    """
+    return {
+        "N_rad_sqrt_s": float(terms["N"]) * DEG / 60.0,
+        "B_rad_s": float(terms["B"]) * DEG / 3600.0,
+        "K_rad_s1_5": float(terms["K"]) * DEG / 3600.0 ** 1.5,
+        "R_rad_s2": float(terms["R"]) * DEG / 3600.0 ** 2,
+        "Q_rad": float(terms["Q"]) * DEG,
+    }
+
+
+def _bound_note(bounds, name):
+    if bounds and bounds.get(name) == "upper_bound":
+        return "  # UPPER BOUND: the record cannot resolve this term"
+    return ""
+
+
+def kalibr_imu_yaml(terms, update_rate_hz, rostopic="/imu0", bounds=None, inflate=1.0, source=""):
+    """Text of a Kalibr ``imu.yaml`` for the gyro (accelerometer keys to fill in).
+
+    Parameters
+    ----------
+    terms : dict
+        Allan terms in spec units.
+    update_rate_hz : float
+        The IMU rate the densities refer to (the record's sample rate).
+    rostopic : str
+    bounds : dict, optional
+        Term -> "fit" / "upper_bound" (from :class:`AllanResult`).
+    inflate : float
+        Factor applied to both densities (>= 1 usual; 1 = the fitted values).
+    source : str
+        Where the terms came from (a comment).
+    """
+    if not (update_rate_hz > 0 and math.isfinite(update_rate_hz)):
+        raise ValueError(f"update_rate_hz must be > 0, got {update_rate_hz!r}")
+    if not (inflate > 0 and math.isfinite(inflate)):
+        raise ValueError(f"inflate must be > 0, got {inflate!r}")
+    si = terms_to_si(terms)
+    nd = si["N_rad_sqrt_s"] * inflate
+    rw = si["K_rad_s1_5"] * inflate
+    lines = [
+        "# Kalibr IMU noise parameters (continuous time), written by gyrodenoise",
+        f"# from the Allan fit of {source or 'a gyro record'} on {datetime.now(timezone.utc):%Y-%m-%d}.",
+        f"# Allan terms: N = {terms['N']:.6g} deg/sqrt(h), B = {terms['B']:.6g} deg/h, "
+        f"K = {terms['K']:.6g} deg/h^1.5, R = {terms['R']:.6g} deg/h^2, Q = {terms['Q']:.6g} deg",
+        "# Kalibr models white noise + bias random walk only: B (bias instability), R and Q are",
+        "# not representable and are left out.",
+        f"# Inflation factor applied to both gyro densities: {inflate:g}",
+        "#",
+        "# Accelerometers: not measured by this gyro record. Kalibr requires these two keys;",
+        "# fill them in from your accelerometer's Allan analysis or datasheet.",
+        "# accelerometer_noise_density: FILL_ME  # m/s^2/sqrt(Hz)",
+        "# accelerometer_random_walk:   FILL_ME  # m/s^3/sqrt(Hz)",
+        "",
+        "# Gyroscopes",
+        f"gyroscope_noise_density: {nd:.10g}  # rad/s/sqrt(Hz){_bound_note(bounds, 'N')}",
+        f"gyroscope_random_walk: {rw:.10g}  # rad/s^2/sqrt(Hz){_bound_note(bounds, 'K')}",
+        "",
+        f"rostopic: {rostopic}",
+        f"update_rate: {float(update_rate_hz)!r}  # Hz (a float, as Kalibr's examples write it)",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def matlab_gyroparams_script(terms, bounds=None, source=""):
+    """Text of a MATLAB ``.m`` script that builds ``params = gyroparams(...)``."""
+    si = terms_to_si(terms)
+    nb = lambda k: (" UPPER BOUND: not resolved by the record." if bounds and bounds.get(k) == "upper_bound"  # noqa: E731
+                    else "")
+    return "\n".join([
+        "% Gyroscope noise parameters for MATLAB's imuSensor, written by gyrodenoise",
+        f"% from the Allan fit of {source or 'a gyro record'} on {datetime.now(timezone.utc):%Y-%m-%d}.",
+        f"% Allan terms: N = {terms['N']:.6g} deg/sqrt(h), B = {terms['B']:.6g} deg/h, "
+        f"K = {terms['K']:.6g} deg/h^1.5, R = {terms['R']:.6g} deg/h^2, Q = {terms['Q']:.6g} deg",
+        "% BiasInstability is the coefficient B (Allan plateau / 0.664), as in the MathWorks",
+        "% example 'Inertial Sensor Noise Analysis Using Allan Variance'. R and Q have no",
+        "% gyroparams property and are not exported.",
+        "params = gyroparams( ...",
+        f"    'NoiseDensity', {si['N_rad_sqrt_s']:.17g}, ...    % (rad/s)/sqrt(Hz), angle random walk N.{nb('N')}",
+        f"    'BiasInstability', {si['B_rad_s']:.17g}, ... % rad/s, bias instability B.{nb('B')}",
+        f"    'RandomWalk', {si['K_rad_s1_5']:.17g});        % (rad/s)*sqrt(Hz), rate random walk K.{nb('K')}",
+        "",
+    ])
+
+
+# ------------------------------------------------------------- CLI helpers
+def add_export_options(parser):
+    """Add ``--kalibr-yaml``, ``--kalibr-rostopic``, ``--kalibr-inflate`` and
+    ``--matlab`` to an argparse parser (the ``allan`` subcommand)."""
+    g = parser.add_argument_group("export of the noise terms")
+    g.add_argument("--kalibr-yaml", metavar="PATH", default=None,
+                   help="also write a Kalibr imu.yaml (gyro densities; accelerometer keys left to fill in)")
+    g.add_argument("--kalibr-rostopic", default="/imu0", help="rostopic written to imu.yaml (default /imu0)")
+    g.add_argument("--kalibr-inflate", type=float, default=1.0, metavar="FACTOR",
+                   help="multiply both Kalibr densities by FACTOR (default 1: the fitted values)")
+    g.add_argument("--matlab", metavar="PATH.m", default=None,
+                   help="also write a MATLAB script building gyroparams (NoiseDensity, BiasInstability, RandomWalk)")
+
+
+def export_from_args(args, allan_result):
+    """Write the files asked for by :func:`add_export_options`; returns their paths.
+
+    Raises
+    ------
+    InputError
+        One line naming the option or path and what is wrong.
+    """
+    written = []
+    source = str(getattr(args, "input", "") or "")
+    terms, bounds = allan_result.terms, allan_result.bounds
+    if getattr(args, "kalibr_yaml", None):
+        f = args.kalibr_inflate
+        if not (f > 0 and math.isfinite(f)):
+            raise InputError(f"--kalibr-inflate must be a positive number, got {f!r}")
+        text = kalibr_imu_yaml(terms, allan_result.sample_rate_hz, rostopic=args.kalibr_rostopic,
+                               bounds=bounds, inflate=f, source=source)
+        written.append(_write(args.kalibr_yaml, text))
+    if getattr(args, "matlab", None):
+        written.append(_write(args.matlab, matlab_gyroparams_script(terms, bounds, source)))
+    return written
+
+
+def _write(path, text):
+    p = Path(path)
+    try:
+        p.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror or exc.__class__.__name__}", str(p)) from None
+    return str(p)
