@@ -11,10 +11,11 @@ Python API (numpy arrays in, numpy out)::
 """
 
 from .denoiser import Denoiser, denoise
+from .gapcore import gap
 
 __version__ = "0.1.0"
 
-__all__ = ["Denoiser", "denoise", "allan", "simulate", "load_card", "__version__"]
+__all__ = ["Denoiser", "denoise", "allan", "simulate", "load_card", "gap", "__version__"]
 
 
 def allan(rate_deg_s, sample_rate_hz, **kw):
