@@ -219,6 +219,11 @@ class Plotter:
             raise RuntimeError(errors[0])
 
 
+#: |sample| beyond this in work units (deg/s, or raw counts when the unit is unknown)
+#: is a corrupted record, not a reading (int16 counts stay below 32768)
+ABSURD_WORK = 1.0e6
+
+
 def _sub_restarts(restarts, keep):
     """Restart flags of the kept samples: a restart on a dropped sample moves to the next kept one."""
     idx = np.nonzero(keep)[0]
@@ -228,9 +233,11 @@ def _sub_restarts(restarts, keep):
 
 
 def _filter_streams(streams, engine, gap_factor, sample_rate=None):
-    """Restarts, then each axis of each stream through its own denoiser. Non-finite
-    samples (NaN/inf in float fields) are not fed to the filter (it would never
-    recover): they are kept as they are in the output and counted."""
+    """Restarts, then each axis of each stream through its own denoiser. Unusable
+    samples -- NaN/inf in float fields, or beyond :data:`ABSURD_WORK` in work
+    units (a corrupted record: DataFlash has no checksum, so a damaged record can
+    decode to 1e23 rad/s) -- are not fed to the filter (it would never recover):
+    they are kept as they are in the output and counted in ``non_finite``."""
     for s in streams:
         detect_restarts(s, gap_factor)
         rate = sample_rate or s.rate_hz or 1.0
@@ -238,7 +245,7 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
         f = x.copy()
         s.non_finite = [0] * x.shape[1]
         for k in range(x.shape[1]):
-            fin = np.isfinite(x[:, k])
+            fin = np.isfinite(x[:, k]) & (np.abs(x[:, k]) <= ABSURD_WORK)
             if fin.all():
                 f[:, k] = engine.filter(x[:, k], s.restarts, rate)
             elif fin.any():

@@ -91,6 +91,8 @@ class FogDenoiser(Fmi2Slave):
         self.p0_kf = 1.0
         self.warmup_s = 1.0
         self.r_floor = 1.0e-18
+        self.outlier_sigma = 5.0
+        self.outlier_run = 20
         self.strict_step_size = False
         # outputs
         self.filtered_rate = 0.0
@@ -146,6 +148,17 @@ class FogDenoiser(Fmi2Slave):
                                                                     "through), >= 0 [s]"))
         self.register_variable(Real("r_floor", **par, description="Lower bound of R and of the automatic noise "
                                                                    "levels, > 0 [(deg/s)^2]"))
+        self.register_variable(Real("outlier_sigma", **par,
+                                    description="Outlier gate: a sample with |innovation| > outlier_sigma "
+                                                "sqrt(S) is kept out of the filter; 0 = off (the paper's "
+                                                "filter), else >= 2 [1]"))
+        self.register_variable(Integer("outlier_run", **par,
+                                       description="Consecutive rejected samples after which the filter "
+                                                   "re-opens (restarts) on a real rate change, >= 1 [1]"))
+        self.register_variable(Integer("n_rejected", causality=P.output, initial=I.exact,
+                                       variability=C.discrete, getter=self._get_n_rejected,
+                                       description="Samples kept out of the filter by the outlier gate "
+                                                   "since initialisation [1]"))
         self.register_variable(Boolean("strict_step_size", **par,
                                        description="If true, a step whose size differs from sample_period is "
                                                    "refused (fmi2Discard); if false it is processed and a "
@@ -169,6 +182,9 @@ class FogDenoiser(Fmi2Slave):
             return 0.0 if self._den is None else self._den.state[idx]
         return get
 
+    def _get_n_rejected(self):
+        return 0 if self._den is None else self._den.n_rejected
+
     def _get_converged(self):
         return self._den is not None and self._den.converged
 
@@ -183,7 +199,8 @@ class FogDenoiser(Fmi2Slave):
         den = self._D.Denoiser(
             sample_rate_hz=1.0 / self.sample_period, method=str(self.method).strip().lower(),
             ar_order=order, lam=self.lam, b=self.b, gamma=self.gamma, q0=self.q0, r0=self.r0,
-            p0_rls=self.p0_rls, p0_kf=self.p0_kf, warmup_s=self.warmup_s, r_floor=self.r_floor)
+            p0_rls=self.p0_rls, p0_kf=self.p0_kf, warmup_s=self.warmup_s, r_floor=self.r_floor,
+            outlier_sigma=self.outlier_sigma, outlier_run=self.outlier_run)
         self._den = den
         self._n = order
         self._theta0 = self._K.layout(order)[0]
@@ -239,7 +256,7 @@ class FogDenoiser(Fmi2Slave):
 
     # -------------------------------------------------------------- state
     _PARAMS = ("ar_order", "method", "sample_period", "lam", "b", "gamma", "q0", "r0", "p0_rls",
-               "p0_kf", "warmup_s", "r_floor", "strict_step_size")
+               "p0_kf", "warmup_s", "r_floor", "outlier_sigma", "outlier_run", "strict_step_size")
 
     def _get_fmu_state(self):
         """Everything needed to continue: parameters, inputs, output and the filter's arrays."""

@@ -34,10 +34,18 @@ def _add_filter_options(p, method=True):
     p.add_argument("--b", type=float, default=0.99, help="Sage-Husa forgetting factor b, 0<b<1 (default 0.99)")
     p.add_argument("--gamma", type=float, default=3.0, help="divergence criterion gamma >= 1 (Eq. 32, default 3)")
     p.add_argument("--lam", type=float, default=1.0, help="RLS forgetting factor, 0<lam<=1 (default 1)")
+    p.add_argument("--outlier-sigma", type=float, default=5.0, metavar="K",
+                   help="outlier gate: after the warm-up a sample with |innovation| > K sqrt(S) is kept out "
+                        "of the filter and the output is the prediction; 0 = off (the paper's filter); "
+                        "K >= 2 (default 5, see docs/OUTLIERS.md)")
+    p.add_argument("--outlier-run", type=int, default=20, metavar="M",
+                   help="after M consecutive rejected samples the next one is taken as a real rate change "
+                        "and the filter restarts there (default 20)")
 
 
 def _filter_kw(args):
-    return {"warmup_s": args.warmup_s, "b": args.b, "gamma": args.gamma, "lam": args.lam}
+    return {"warmup_s": args.warmup_s, "b": args.b, "gamma": args.gamma, "lam": args.lam,
+            "outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
 
 
 def _read(args):
@@ -59,14 +67,19 @@ def _check_params(args, fs):
 
 # ---------------------------------------------------------------- denoise
 def cmd_denoise(args):
-    from .denoiser import denoise
+    from .denoiser import Denoiser
     from .recording import write_recording
+    _check_params(args, 1.0)          # bad options fail before the file is read
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
-    out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method=args.method, ar_order=args.ar_order,
-                  restarts=rec.restarts, **_filter_kw(args))
+    den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **_filter_kw(args))
+    out = den.process(rec.rate_deg_s, rec.restarts)
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
     _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method})")
+    if args.outlier_sigma > 0 and args.method != "none":
+        _log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
+             f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
+             f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")
     return 0
 
 
@@ -96,6 +109,7 @@ def cmd_allan(args):
 def cmd_compare(args):
     from .cli import emit_json
     from .experiments import compare
+    _check_params(args, 1.0)          # bad options fail before the file is read
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
     if len(rec) < 100:

@@ -88,6 +88,16 @@ class Denoiser:
         """How many times the criterion of Eq. (32) restarted d_k."""
         return int(self.state[K.S_NRESET])
 
+    @property
+    def n_rejected(self):
+        """Samples rejected by the outlier gate (``outlier_sigma`` > 0) so far."""
+        return int(self.state[K.S_NREJ])
+
+    @property
+    def n_reopened(self):
+        """Times a run of ``outlier_run`` rejections re-opened the filter."""
+        return int(self.state[K.S_NREOPEN])
+
     def get_state(self):
         """A copy of the full state (a list of floats) for save/restore."""
         return [float(v) for v in self.state]

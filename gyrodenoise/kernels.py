@@ -61,7 +61,9 @@ P_P0_RLS = 7     # initial RLS covariance (diagonal)
 P_P0_KF = 8      # initial filter covariance (diagonal), (deg/s)^2
 P_WARMUP = 9     # warm-up length in samples after each restart
 P_R_FLOOR = 10   # lower bound of R and of the auto noise levels, (deg/s)^2
-N_PARAMS = 11
+P_OUTLIER_SIGMA = 11  # innovation gate k: |v| > k sqrt(S) rejects a sample; 0 = off
+P_OUTLIER_RUN = 12    # consecutive rejections after which the filter re-opens (restart)
+N_PARAMS = 13
 
 METHOD_NONE = 0.0      # identification only, output = raw
 METHOD_KF = 1.0        # conventional KF, fixed Q and R
@@ -84,7 +86,10 @@ S_NRESET = 9     # number of times Eq. (32) restarted d_k
 S_OUT = 10       # last output, deg/s
 S_RLS_ERR = 11   # last RLS prediction error, deg/s
 S_BK = 12        # b^(k+1) for d_k, kept by multiplication (no pow per sample)
-N_HEADER = 13
+S_NREJ = 13      # samples rejected by the outlier gate (since init_state; kept by restarts)
+S_REJRUN = 14    # current run of consecutive rejections
+S_NREOPEN = 15   # times a run of rejections re-opened the filter (kept by restarts)
+N_HEADER = 16
 
 
 @_jitable
@@ -103,7 +108,7 @@ def layout(n):
 
 def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
                 b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
-                warmup_s=1.0, r_floor=1.0e-18):
+                warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20):
     """Build and check the parameter buffer (a list of floats).
 
     Parameters
@@ -131,6 +136,18 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
         10 (n+1) samples are always used.
     r_floor : float
         Lower bound for R and for the automatic noise levels, (deg/s)^2.
+    outlier_sigma : float
+        Innovation gate (not in the paper; see docs/OUTLIERS.md). After the
+        warm-up, a sample whose predicted innovation exceeds
+        ``outlier_sigma * sqrt(S)`` (S = H P_pred H' + R) is rejected: it is not
+        used by the RLS, the filter update or the R/Q estimators, and the output
+        is the filter's prediction. 0 switches the gate off (the paper's
+        filter); otherwise it must be >= 2. Default 5 (see docs/OUTLIERS.md).
+    outlier_run : int
+        With the gate on: after this many consecutive rejections the next
+        outlying sample is taken as a real rate change and the filter re-opens
+        (a restart at that sample: re-identification and warm-up). >= 1,
+        default 20 samples.
 
     Raises
     ------
@@ -153,10 +170,13 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
         ("p0_kf", p0_kf, p0_kf > 0),
         ("warmup_s", warmup_s, warmup_s >= 0),
         ("r_floor", r_floor, r_floor > 0),
+        ("outlier_sigma", outlier_sigma, outlier_sigma == 0 or outlier_sigma >= 2),
     ]
     for name, value, ok in checks:
         if not (ok and value == value and abs(value) != float("inf")):
             raise ValueError(f"{name} out of range: {value!r}")
+    if int(outlier_run) != outlier_run or outlier_run < 1:
+        raise ValueError(f"outlier_run must be an integer >= 1, got {outlier_run!r}")
     warmup = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
     p = [0.0] * N_PARAMS
     p[P_ORDER] = float(n)
@@ -170,6 +190,8 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
     p[P_P0_KF] = float(p0_kf)
     p[P_WARMUP] = warmup
     p[P_R_FLOOR] = float(r_floor)
+    p[P_OUTLIER_SIGMA] = float(outlier_sigma)
+    p[P_OUTLIER_RUN] = float(int(outlier_run))
     return p
 
 
@@ -183,12 +205,19 @@ def init_state(p):
 
 @_jitable
 def restart(p, s):
-    """Re-initialise identification and filter (a gyro restart), in place."""
+    """Re-initialise identification and filter (a gyro restart), in place.
+
+    The cumulative outlier counters S_NREJ and S_NREOPEN are kept.
+    """
     n = int(p[P_ORDER])
     m = n + 1
     o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    nrej = s[S_NREJ]
+    nreopen = s[S_NREOPEN]
     for i in range(total):
         s[i] = 0.0
+    s[S_NREJ] = nrej
+    s[S_NREOPEN] = nreopen
     for i in range(m):
         s[o_prls + i * m + i] = p[P_P0_RLS]
         s[o_p + i * m + i] = p[P_P0_KF]
@@ -355,6 +384,63 @@ def tie_c(p, s):
 
 
 @_jitable
+def gate(p, s, z):
+    """Innovation gate against single wild samples (not in the paper).
+
+    Predicts the innovation v = z - H X_pred and its variance
+    S = H P_pred H' + R with the model as it stands (before the RLS sees z).
+    If v^2 > k^2 S (k = outlier_sigma) the sample is rejected: the filter only
+    makes its time update (Eq. 34), the output is the prediction, the RLS
+    regressor history receives the prediction instead of z, and neither the RLS
+    nor the R/Q estimators (Eq. 33, 26) see the sample. Returns True then.
+
+    After ``outlier_run`` consecutive rejections the next outlying sample is
+    taken as a real rate change: the filter restarts at that sample (as for a
+    gyro restart) and False is returned so that :func:`step` processes it.
+    """
+    n = int(p[P_ORDER])
+    m = n + 1
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
+    tie_c(p, s)        # idempotent: step() ties c again after the RLS update
+    # prediction with the same operations as kf_predict
+    xp = s[o_x + n]
+    for i in range(n):
+        xp += s[o_theta + i] * s[o_x + i]
+    # (A P A')_00 + q with a = [phi_1..phi_n, 1]
+    p00 = 0.0
+    for i in range(m):
+        ai = s[o_theta + i] if i < n else 1.0
+        acc = 0.0
+        for j in range(m):
+            aj = s[o_theta + j] if j < n else 1.0
+            acc += aj * s[o_p + i * m + j]
+        p00 += ai * acc
+    svar = p00 + s[S_Q] + s[S_R]
+    v = z - xp
+    k = p[P_OUTLIER_SIGMA]
+    if not (v * v > k * k * svar):
+        s[S_REJRUN] = 0.0
+        return False
+    if s[S_REJRUN] >= p[P_OUTLIER_RUN]:
+        # a run of outlying samples: a real change of rate, not a wild sample
+        restart(p, s)
+        s[S_NREOPEN] += 1.0
+        return False
+    x0 = kf_predict(p, s, s[S_Q])
+    for j in range(n - 1, 0, -1):
+        s[o_z + j] = s[o_z + j - 1]
+    s[o_z] = x0
+    s[S_NREJ] += 1.0
+    s[S_REJRUN] += 1.0
+    s[S_INNOV] = v
+    s[S_SVAR] = svar
+    s[S_RLS_ERR] = 0.0
+    s[S_K] += 1.0
+    s[S_OUT] = x0
+    return True
+
+
+@_jitable
 def step(p, s, z, is_restart):
     """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
 
@@ -363,6 +449,9 @@ def step(p, s, z, is_restart):
     """
     if is_restart:
         restart(p, s)
+    elif p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE:
+        if gate(p, s, z):
+            return s[S_OUT]
     n = int(p[P_ORDER])
     method = p[P_METHOD]
     floor = p[P_R_FLOOR]

@@ -7,12 +7,23 @@ naming the file, line and column, or a documented repair recorded in
 * a time gap longer than 1.5 median sample periods: no interpolation; the
   sample after the gap is marked as a restart (the AR model and filter are
   re-identified there) and the gap is reported;
-* columns other than time / rate / true_rate: ignored and reported.
+* columns other than time / rate / true_rate: ignored and reported;
+* a constant rate: accepted (a valid, if dull, record: the filter passes it
+  through and the Allan terms are zero) and reported;
+* suspected saturation (a run of at least :data:`SAT_RUN` equal samples at the
+  rate column's maximum or minimum): kept as is and reported with the count and
+  the first time;
+* isolated spikes (a sample more than :data:`SPIKE_SIGMAS` robust standard
+  deviations of the sample-to-sample difference away from both neighbours, in
+  the same direction): kept as is and reported; the SHAKF's outlier gate
+  (``outlier_sigma``, docs/OUTLIERS.md) keeps them out of the filter.
 
 Errors: missing or unreadable file, empty file, header only, missing rate or
 time column, a value that is not a number, NaN or inf, a short (truncated)
 row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
-no time column and no sample rate.
+no time column and no sample rate, a rate beyond :data:`ABSURD_RATE_DEG_S`
+(after unit conversion; not a gyro reading).
+The corpus ``tests/corpus/`` holds one file per case (see its README).
 """
 
 from __future__ import annotations
@@ -31,6 +42,9 @@ from .simulator import Record
 RATE_UNITS = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
 GAP_FACTOR = 1.5
 MIN_SAMPLES = 2
+ABSURD_RATE_DEG_S = 1.0e6   # 2,800 rev/s: no gyro measures that
+SAT_RUN = 10                # equal samples at the column's max/min: suspected saturation
+SPIKE_SIGMAS = 8.0          # isolated spike: this many robust sigmas from both neighbours
 
 
 def _open_text(path):
@@ -83,6 +97,9 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
         if all(_is_number(h) for h in header):   # a row of numbers: no header at all
             raise InputError(f"line 1: no header row (expected column names such as "
                              f"'{time_column},{rate_column}')", src)
+        if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
+            raise InputError(f"line 1: fields are not separated by commas ({header[0]!r}); "
+                             f"a recording is a comma-separated CSV", src)
         raise InputError(f"line 1: no column '{rate_column}' (columns: {', '.join(header)}); "
                          f"use --rate-column", src)
     i_rate = header.index(rate_column)
@@ -125,9 +142,16 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
     scale = RATE_UNITS[rate_unit]
     rate = np.asarray(values[i_rate]) * scale
     true = np.asarray(values[i_true]) * scale if i_true is not None else None
+    big = np.flatnonzero(np.abs(rate) > ABSURD_RATE_DEG_S)
+    if big.size:
+        j = int(big[0])
+        raise InputError(f"line {_line_of(text, j)}: column {rate_column}: {values[i_rate][j]!r} "
+                         f"{rate_unit} is beyond {ABSURD_RATE_DEG_S:g} deg/s, not a gyro reading "
+                         f"(wrong --rate-unit?)", src)
     notes = []
     if ignored:
         notes.append(f"ignored columns: {', '.join(ignored)}")
+    notes.extend(_signal_notes(rate))
     restarts = None
     if i_time is not None:
         t = np.asarray(values[i_time])
@@ -137,8 +161,8 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
             j = int(bad[0])
             what = "repeated" if dt[j] == 0 else "decreasing"
             # data line numbers: header is line 1, so sample i is on line i + 2
-            raise InputError(f"line {_line_of(text, j + 1)}: {what} time {t[j + 1]!r} "
-                             f"(previous {t[j]!r})", src)
+            raise InputError(f"line {_line_of(text, j + 1)}: {what} time {float(t[j + 1]):.10g} "
+                             f"(previous {float(t[j]):.10g})", src)
         med = float(np.median(dt))
         fs = 1.0 / med
         if sample_rate_hz is not None and abs(sample_rate_hz - fs) > 0.01 * fs:
@@ -157,6 +181,45 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
         t = np.arange(n) / fs
     return Record(rate_deg_s=rate, sample_rate_hz=fs, time_s=t, true_rate_deg_s=true,
                   restarts=restarts, source=src, notes=notes)
+
+
+def _runs_at(x, value, min_len):
+    """(count of samples, first index) in runs of >= min_len samples equal to value."""
+    eq = np.concatenate([[False], x == value, [False]]).astype(np.int8)
+    d = np.diff(eq)
+    starts = np.flatnonzero(d == 1)
+    ends = np.flatnonzero(d == -1)
+    long_ = (ends - starts) >= min_len
+    if not long_.any():
+        return 0, -1
+    return int(np.sum((ends - starts)[long_])), int(starts[long_][0])
+
+
+def _signal_notes(rate):
+    """Reported (never repaired) properties of the rate column: constant,
+    suspected saturation, isolated spikes."""
+    notes = []
+    lo, hi = float(rate.min()), float(rate.max())
+    if lo == hi:
+        return [f"the rate is constant ({lo:g} deg/s): nothing to denoise; the filter passes it "
+                f"through (to 1e-6 relative) and the Allan terms are zero"]
+    for label, value in (("maximum", hi), ("minimum", lo)):
+        count, first = _runs_at(rate, value, SAT_RUN)
+        if count:
+            notes.append(f"suspected saturation: {count} samples in runs of >= {SAT_RUN} equal values at "
+                         f"the rate's {label} {value:g} deg/s (first at sample {first}); kept as is")
+    if rate.size >= 3:
+        d = np.diff(rate)
+        sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+        if sigma > 0:
+            lim = SPIKE_SIGMAS * sigma
+            a, b = rate[1:-1] - rate[:-2], rate[1:-1] - rate[2:]
+            spikes = np.flatnonzero(((a > lim) & (b > lim)) | ((a < -lim) & (b < -lim))) + 1
+            if spikes.size:
+                notes.append(f"{spikes.size} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
+                             f"(first at sample {int(spikes[0])}, {rate[spikes[0]]:g} deg/s); kept as is: "
+                             f"the SHAKF's outlier gate keeps single wild samples out of the filter")
+    return notes
 
 
 def _is_number(cell):

@@ -102,7 +102,8 @@ def parse_card(text, source="<card>"):
         raise InputError("missing [sensor] section", source)
     fs = sensor.get("sample_rate_hz")
     if isinstance(fs, bool) or not isinstance(fs, (int, float)) or not (0 < fs < ABSURD):
-        raise InputError(f"sensor.sample_rate_hz must be a positive number, got {fs!r}", source)
+        raise InputError(f"sensor.sample_rate_hz must be a positive number below {ABSURD:g} Hz, "
+                         f"got {fs!r}", source)
     name = str(sensor.get("name", Path(source).stem))
     raw_terms = data.get("terms", {})
     if not isinstance(raw_terms, dict):
@@ -130,7 +131,8 @@ def parse_card(text, source="<card>"):
                     raise InputError(f"{where}.{fname} is not a usable number: {fval!r}", source)
                 _, minimum, unit = TERM_FIELDS[tname][fname]
                 if minimum is not None and fval < minimum:
-                    raise InputError(f"{where}.{fname} must be >= {minimum:g} {unit}, got {fval!r}", source)
+                    bound = "> 0" if 0 < minimum < 1e-100 else f">= {minimum:g}"
+                    raise InputError(f"{where}.{fname} must be {bound} {unit}, got {fval!r}", source)
                 out[fname] = float(fval)
             for fname, (required, _, unit) in TERM_FIELDS[tname].items():
                 if required and fname not in out:

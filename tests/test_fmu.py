@@ -20,6 +20,7 @@ import pytest
 
 import gyrodenoise as gd
 from gyrodenoise import fmu as F
+from gyrodenoise.denoiser import Denoiser
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -323,7 +324,19 @@ def test_instances_are_independent(fmu_dir):
     ({"q0": -1e-6}, "q0"),
     ({"r0": -1.0}, "r0"),
     ({"method": "wiener"}, "method"),
+    ({"method": ""}, "method"),
     ({"sample_period": 0.0}, "sample_period"),
+    ({"sample_period": -0.005}, "sample_period"),
+    ({"sample_period": float("nan")}, "sample_period"),
+    ({"lam": 0.0}, "lam"),
+    ({"lam": 1.5}, "lam"),
+    ({"p0_rls": 0.0}, "p0_rls"),
+    ({"warmup_s": -1.0}, "warmup_s"),
+    ({"r_floor": 0.0}, "r_floor"),
+    ({"gamma": float("inf")}, "gamma"),
+    ({"outlier_sigma": 1.0}, "outlier_sigma"),
+    ({"outlier_sigma": -5.0}, "outlier_sigma"),
+    ({"outlier_run": 0}, "outlier_run"),
 ])
 def test_invalid_parameters_refused_at_initialisation(fmu_dir, params, word):
     from fmpy.fmi1 import FMICallException
@@ -349,6 +362,45 @@ def test_invalid_card_refused(fmu_dir):
         a.slave.exitInitializationMode()
     assert any("angle_random_walk.N" in m[2] for m in a.errors()), a.messages
     a.free(terminate=False)
+
+
+@pytest.mark.parametrize("card, word", [
+    ("[sensor]\nsample_rate_hz = 200.0\n[terms]\nflux_capacitor = { N = 1.0 }\n", "unknown term"),
+    ("[sensor]\nsample_rate_hz = 200.0\n[terms]\nbias_instability = { }\n", "missing the field B"),
+    ("[sensor]\nsample_rate_hz = 200.0\n[terms]\nangle_random_walk = { N = 1e12 }\n", "not a usable number"),
+    ("[sensor]\nsample_rate_hz = -5.0\n", "sample_rate_hz"),
+    ("[terms]\nangle_random_walk = { N = 0.1 }\n", "missing [sensor]"),
+    ("this is not toml = = \n", "not valid TOML"),
+])
+def test_bad_card_texts_refused_with_reason(fmu_dir, card, word):
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir, "SimulatedFog")
+    a.slave.setupExperiment(startTime=0.0)
+    a.set(card=card)
+    a.slave.enterInitializationMode()
+    with pytest.raises(FMICallException):
+        a.slave.exitInitializationMode()
+    assert any(word in m[2] for m in a.errors()), a.messages
+    a.free(terminate=False)
+
+
+def test_outlier_gate_in_the_fmu_equals_core_and_counts(fmu_dir):
+    z = _raw(3000, seed=6, rate=1.0)
+    z[1500] += 20.0                       # one wild sample after the warm-up
+    z[2200] -= 15.0
+    a = _inst(fmu_dir)
+    try:
+        a.initialize(sample_period=H, outlier_sigma=5.0, outlier_run=20)
+        got = _run_denoiser(a, z)
+        n_rej = a.get("n_rejected")
+        assert not a.errors()
+    finally:
+        a.free()
+    d = Denoiser(FS, outlier_sigma=5.0, outlier_run=20)
+    ref = d.process(z)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=TOL)
+    assert n_rej == d.n_rejected == 2
+    assert abs(got[1500] - 1.0) < 0.05 and abs(got[2200] - 1.0) < 0.05   # output = prediction
 
 
 def test_card_text_parameter(fmu_dir):
