@@ -26,8 +26,9 @@ Choices the paper leaves open (documented in the README, "The method"):
 * Eq. (10) is implemented with the sign slip corrected: P = (I - K Z) P / lam.
 * The process noise enters the first state only (B of Eq. 34), so the Q of the
   Sage-Husa estimator, Eq. (26), is estimated as q * e1 e1^T; its (0,0) element
-  reduces to q + K0^2 (v^2 - S) and is clipped at 0, which keeps Q positive
-  semi-definite.
+  reduces to q + K0^2 (v^2 - S) and is clipped at ``r_floor`` (> 0), which
+  keeps Q positive semi-definite and P positive definite (with q = 0 and phi = 0,
+  e.g. an all-zero record, x0 would be exactly c and P singular).
 * Warm-up: for ``warmup`` samples after each restart the AR model is still
   converging; the output is then the raw sample itself (no filtering, nothing
   invented) and the ``converged`` flag is 0. The filter runs internally all the
@@ -523,8 +524,8 @@ def step(p, s, z, is_restart):
         k0 = p00 / svar
         # Eq. (26) restricted to Q = q e1 e1' (B of Eq. 34): q + K0^2 (v^2 - S)
         q = q + d * k0 * k0 * (v * v - svar)
-        if q < 0.0:
-            q = 0.0
+        if q < floor:      # > 0: x0 never becomes exactly c + phi.x (P stays PD)
+            q = floor
         s[S_Q] = q
     else:
         svar = kf_update(p, s, v, r)
