@@ -45,8 +45,33 @@ except ImportError:  # pragma: no cover
     numba = None
 
 
+def _invalidate_stale_cache():
+    """numba keys its on-disk cache on this file only, not on the kernels that
+    :func:`_record_py` inlines: drop this module's cache when kernels.py changed
+    (the same guard as :mod:`gyrodenoise.batch`)."""
+    import hashlib
+    from pathlib import Path
+    here = Path(__file__).resolve().parent
+    digest = hashlib.sha256((here / "kernels.py").read_bytes()).hexdigest()
+    cache = here / "__pycache__"
+    stamp = cache / "reference_filters.kernels.sha256"
+    try:
+        if stamp.exists() and stamp.read_text() == digest:
+            return
+        for f in cache.glob("reference_filters.*.nb[ic]"):
+            f.unlink()
+        cache.mkdir(exist_ok=True)
+        stamp.write_text(digest)
+    except OSError:  # read-only install: numba then does not cache either
+        pass
+
+
 def _njit(fn):
     return numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
+
+
+if numba is not None:
+    _invalidate_stale_cache()
 
 
 # ------------------------------------------------------------ low-pass filters
@@ -325,7 +350,10 @@ def smooth_record(rate_deg_s, sample_rate_hz, ar_order=3, restarts=None, model=N
 
     The model (phi_k, c_k, q, r) is the one the project's conventional KF
     used in a causal run over the same record (:func:`record_ar_model`, method
-    "kf"); during each warm-up the raw sample is passed through, as the KF does.
+    "kf", with the kernels' outlier gate off unless ``outlier_sigma`` is given:
+    a gated sample changes the run in ways this state model does not
+    describe); during each warm-up the raw sample is passed through, as the
+    KF does.
 
     Returns
     -------
@@ -333,7 +361,8 @@ def smooth_record(rate_deg_s, sample_rate_hz, ar_order=3, restarts=None, model=N
         Smoothed rate, deg/s.
     """
     z = np.asarray(rate_deg_s, dtype=float)
-    m = model if model is not None else record_ar_model(z, sample_rate_hz, "kf", ar_order, restarts, **kw)
+    m = model if model is not None else record_ar_model(z, sample_rate_hz, "kf", ar_order, restarts,
+                                                        **{"outlier_sigma": 0.0, **kw})
     out = z.copy()
     n = int(ar_order)
     for a, b in _segments(z.shape[0], restarts):
@@ -448,9 +477,11 @@ def vbakf(z, phi, c, q_nom, r0, x0, p0, tau=3.0, rho=1.0 - math.exp(-4.0), n_ite
 
 def vbakf_record(rate_deg_s, sample_rate_hz, ar_order=3, restarts=None, model=None, **kw):
     """VB-AKF over a gyro record, on the KF's identified AR model (phi_k, c_k)
-    with the KF's q and r as the nominal values; raw pass-through in warm-up."""
+    with the KF's q and r as the nominal values (outlier gate off, as in
+    :func:`smooth_record`); raw pass-through in warm-up."""
     z = np.asarray(rate_deg_s, dtype=float)
-    m = model if model is not None else record_ar_model(z, sample_rate_hz, "kf", ar_order, restarts, **kw)
+    m = model if model is not None else record_ar_model(z, sample_rate_hz, "kf", ar_order, restarts,
+                                                        **{"outlier_sigma": 0.0, **kw})
     out = z.copy()
     n = int(ar_order)
     for a, b in _segments(z.shape[0], restarts):
