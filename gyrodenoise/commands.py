@@ -199,6 +199,11 @@ def cmd_demo(args):
     from .experiments import compare, dynamic_table
     from .simulator import load_card, simulate
     t0 = time.perf_counter()
+    from . import kernels as K
+    try:
+        K.make_params(outlier_sigma=args.outlier_sigma, outlier_run=args.outlier_run)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     card = load_card(args.model)
     n = int(round(args.hours * 3600.0 * card.sample_rate_hz))
     if n < 1000:
@@ -207,9 +212,10 @@ def cmd_demo(args):
          f"(seed {args.seed})")
     rec = simulate(card, n, seed=args.seed)
     _log("gyrodenoise demo: static experiment (Table 1): KF and modified SHAKF, Allan fits")
-    res = compare(rec, ar_order=args.ar_order, seed=args.seed)
+    gate = {"outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
+    res = compare(rec, ar_order=args.ar_order, seed=args.seed, **gate)
     _log(f"gyrodenoise demo: dynamic experiment (Table 2): {args.dynamic_s:g} s at each rate")
-    dyn = dynamic_table(card, duration_s=args.dynamic_s, seed=args.seed, ar_order=args.ar_order)
+    dyn = dynamic_table(card, duration_s=args.dynamic_s, seed=args.seed, ar_order=args.ar_order, **gate)
     figs = []
     if not args.no_plots:
         from . import plots
@@ -243,6 +249,11 @@ def register_cli(sub):
     p.add_argument("--dynamic-s", type=float, default=300.0, help="seconds per constant rate (default 300)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--ar-order", type=int, default=3)
+    p.add_argument("--outlier-sigma", type=float, default=5.0, metavar="K",
+                   help="outlier gate of the filters (default 5; 0 = off, the paper's filters exactly; "
+                        "see docs/OUTLIERS.md)")
+    p.add_argument("--outlier-run", type=int, default=20, metavar="M",
+                   help="consecutive rejections after which the filter re-opens (default 20)")
     p.add_argument("--out", default="demo_out", help="folder for the PNG plots (default demo_out)")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")

@@ -257,3 +257,11 @@ def test_truncated_and_corrupted_logs(tmp_path):
         if name == "flipped.bin":
             # damaged DataFlash records decode to absurd rates: counted, kept out of the filter
             assert sum(rep["streams"][0]["non_finite_samples"].values()) > 0
+
+
+def test_demo_refuses_bad_gate_options_before_simulating(capsys):
+    for opt, val in [("--outlier-sigma", "1.5"), ("--outlier-run", "0")]:
+        code = main(["demo", "--hours", "0.01", "--no-plots", opt, val])
+        out, err = capsys.readouterr()
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+        assert opt[2:].replace("-", "_") in err and "simulating" not in err
