@@ -199,3 +199,36 @@ def test_vbakf_with_loose_p_prior_underestimates_r():
     x, z = _ar1_case()
     _, r_hat = RF.vbakf(z, np.full((len(z), 1), 0.95), 0.0, 1.0, 1.0, np.zeros(1), np.eye(1), tau=3.0)
     assert np.mean(r_hat[len(z) // 2:]) < 0.75 * 4.0
+
+
+# ------------------------------------------- the benchmark's metric helpers
+def _report_module():
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "report.py"
+    spec = importlib.util.spec_from_file_location("gd_benchmark_report", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_report_sine_fit_and_bandwidth_against_analytic_filters():
+    rep = _report_module()
+    fs, f = 1000.0, 7.0
+    t = np.arange(5000) / fs
+    g, ph = rep._sine_fit(0.3 * np.sin(2 * np.pi * f * t - 0.4) + 2.0, t, f)
+    assert g == pytest.approx(0.3, rel=1e-12) and ph == pytest.approx(-0.4, abs=1e-12)
+    # bandwidth from sampled gains of the exact Butterworth response: on the
+    # report's grid the interpolation lands within 3 % of 30 Hz (on a coarse
+    # 1-2-5 grid it would read 27.8 Hz: hence the 15/30/40 Hz points)
+    b, a = RF.butter2_coefficients(fs, 30.0)
+    freqs = [1.0, 2.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0, 100.0]
+    gains = np.abs(signal.freqz(b, a, worN=freqs, fs=fs)[1])
+    bw, q = rep.bandwidth_hz(freqs, list(gains))
+    assert q == "=" and bw == pytest.approx(30.0, rel=0.03)
+    assert rep.bandwidth_hz(freqs, [0.5] * 10) == (1.0, "<")
+    assert rep.bandwidth_hz(freqs, [1.0] * 10) == (100.0, ">")
+    # and the LP's exact -3 dB point (18.86 Hz at 1 kHz) within 3 %
+    al = RF.lowpass1_alpha(fs, 20.0)
+    g_lp = np.abs(signal.freqz([al], [1, -(1 - al)], worN=freqs, fs=fs)[1])
+    assert rep.bandwidth_hz(freqs, list(g_lp))[0] == pytest.approx(RF.lowpass1_cutoff_3db_hz(fs, 20.0), rel=0.03)
