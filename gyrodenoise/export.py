@@ -81,9 +81,15 @@ def terms_to_si(terms):
     }
 
 
+def _yaml_float(x):
+    """10 significant digits, always written as a float (200.0, not 200)."""
+    t = f"{float(x):.10g}"
+    return t if any(ch in t for ch in ".en") else t + ".0"
+
+
 def _bound_note(bounds, name):
     if bounds and bounds.get(name) == "upper_bound":
-        return "  # UPPER BOUND: the record cannot resolve this term"
+        return "; UPPER BOUND: the record cannot resolve this term"
     return ""
 
 
@@ -130,7 +136,7 @@ def kalibr_imu_yaml(terms, update_rate_hz, rostopic="/imu0", bounds=None, inflat
         f"gyroscope_random_walk: {rw:.10g}  # rad/s^2/sqrt(Hz){_bound_note(bounds, 'K')}",
         "",
         f"rostopic: {rostopic}",
-        f"update_rate: {float(update_rate_hz)!r}  # Hz (a float, as Kalibr's examples write it)",
+        f"update_rate: {_yaml_float(update_rate_hz)}  # Hz",
         "",
     ]
     return "\n".join(lines)

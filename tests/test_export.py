@@ -47,7 +47,9 @@ def test_kalibr_yaml_keys_units_and_placeholders():
     assert "rad/s/sqrt(Hz)" in k["gyroscope_noise_density"][1]
     assert float(k["gyroscope_random_walk"][0]) == pytest.approx(2.42406841e-6, rel=1e-8)
     assert "rad/s^2/sqrt(Hz)" in k["gyroscope_random_walk"][1]
-    assert k["rostopic"][0] == "/imu0" and float(k["update_rate"][0]) == 200.0
+    assert k["rostopic"][0] == "/imu0" and k["update_rate"][0] == "200.0"
+    # a rate estimated from timestamps is written to 10 digits, still a float
+    assert _keys(export.kalibr_imu_yaml(TERMS, 200.0000000001819))["update_rate"][0] == "200.0"
     # accelerometer keys: present only as commented placeholders, never invented
     assert "# accelerometer_noise_density: FILL_ME" in text
     assert "accelerometer_noise_density" not in k
