@@ -259,6 +259,9 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
 
 def stream_report(s, csv_path=None, png_path=None):
     x, f, unit, rate = s._work
+    if np.any(np.abs(x) > ABSURD_WORK):      # corrupted samples stay out of the noise figures
+        bad = np.abs(x) > ABSURD_WORK
+        x, f = np.where(bad, np.nan, x), np.where(bad, np.nan, f)
     nr = noise_per_axis(x, s.restarts)
     nf = noise_per_axis(f, s.restarts)
     noise = {}
