@@ -430,25 +430,25 @@ class Candidate:
     gap: float = float("nan")
     score: float = float("nan")
     components: dict = None
+    extra: list = field(default_factory=list)   # (name, params, refit) changed along with this one
+
+    @property
+    def changes(self):
+        return [(self.name, self.params, self.refit)] + list(self.extra)
+
+    @property
+    def n_params(self):
+        return N_PARAMS[self.name] + sum(N_PARAMS[e[0]] for e in self.extra)
 
     def to_json(self):
         return {"name": self.name, "params": {k: float(v) for k, v in self.params.items()},
-                "refit": self.refit, "why": self.why, "gap": _f(self.gap), "score": _f(self.score),
+                "refit": self.refit, "why": self.why,
+                "with": [{"name": e[0], "params": e[1], "refit": e[2]} for e in self.extra], "gap": _f(self.gap), "score": _f(self.score),
                 "components": self.components}
 
 
 def _f(v):
     return None if v is None or not math.isfinite(v) else float(v)
-
-
-def _fit_shape(a_cols, ex, w, lower):
-    """Weighted LS of ex ~ c * a (scalar c >= lower); returns c and its z (c/se)."""
-    num = float(np.sum(w * a_cols * ex))
-    den = float(np.sum(w * a_cols * a_cols))
-    if den <= 0:
-        return 0.0, 0.0
-    c = max(num / den, lower)
-    return c, c * math.sqrt(den)
 
 
 def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
@@ -460,49 +460,80 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
     record minus the card's deterministic part. A term already in the card is
     re-fitted (its new value replaces the old one) rather than added twice.
     """
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import minimize_scalar, nnls
     fs, n = layout.fs, layout.n
     tau = layout.tau_s
     avar_m = np.exp(2 * (ref.mean["allan"] + z["allan"] * ref.sigma["allan"]))   # measured
     avar_s = np.exp(2 * ref.mean["allan"])
-    ex = avar_m - avar_s
     sig_avar = 2.0 * np.maximum(avar_m, avar_s) * ref.sigma["allan"]
     w = 1.0 / sig_avar ** 2
     cands = []
     allan_flag = np.any(np.abs(z["allan"]) > limit)
-    # --- Allan shapes
+    # --- Allan-shaped terms and Gauss-Markov: fitted JOINTLY with the card's existing
+    # Allan-shaped terms (re-fitted), by weighted NNLS on the measured Allan variance
+    # minus what the rest of the card contributes
     if allan_flag:
+        existing = {nm: (card.terms[nm][CARD_FIELD[nm][0]] / CARD_FIELD[nm][1]) ** 2
+                    for nm in ALLAN_SHAPES if nm in card.terms}
+        rest = np.maximum(avar_s - sum(v * SHAPE[nm](tau) for nm, v in existing.items()), 0.0)
+        target = avar_m - rest
+        sw = np.sqrt(w)
+
+        def joint(cols):
+            A = np.column_stack(cols) * sw[:, None]
+            scale = np.max(np.abs(A), axis=0)
+            scale[scale == 0] = 1.0
+            coef, rn = nnls(A / scale, target * sw)
+            coef = coef / scale
+            # z of each coefficient (unconstrained covariance at the solution)
+            try:
+                cov = np.linalg.inv(A.T @ A)
+                zc = coef / np.sqrt(np.maximum(np.diag(cov), 1e-300))
+            except np.linalg.LinAlgError:
+                zc = np.zeros_like(coef)
+            return coef, zc, rn * rn
+
+        def refits(names, coef):
+            out = []
+            for nm, c in zip(names, coef):
+                old = existing[nm]
+                if abs(math.sqrt(c) - math.sqrt(old)) > 0.02 * math.sqrt(old):
+                    fld, to_card = CARD_FIELD[nm]
+                    out.append((nm, {fld: math.sqrt(c) * to_card}, True))
+            return out
+
+        ex_names = list(existing)
+        ex_cols = [SHAPE[nm](tau) for nm in ex_names]
         for name in ALLAN_SHAPES:
             fld, to_card = CARD_FIELD[name]
-            old = card.terms.get(name)
-            old_s = (old[fld] / to_card) if old else 0.0
-            c, zc = _fit_shape(SHAPE[name](tau), ex, w, -old_s ** 2)
-            if abs(zc) < limit or (old is None and c <= 0):
+            if name in existing:
                 continue
-            new_s = math.sqrt(max(old_s ** 2 + c, 0.0))
-            cands.append(Candidate(name, {fld: new_s * to_card}, old is not None,
-                                   f"Allan excess ~ {name} shape (z={zc:.1f})"))
-        # --- Gauss-Markov bump: grid over the correlation time
-        best = None
-        for T in np.logspace(math.log10(3.0 / fs), math.log10(tau[-1]), 41):   # T >= 3 samples
-            a = gm_avar(tau, 1.0, T)
-            c, zc = _fit_shape(a, ex, w, 0.0)
-            chi2 = float(np.sum(w * (ex - c * a) ** 2))
-            if best is None or chi2 < best[0]:
-                best = (chi2, T, c, zc)
-        if best and best[2] > 0:     # refine the correlation time
-            def chi2_of(logT):
-                a = gm_avar(tau, 1.0, math.exp(logT))
-                c, _ = _fit_shape(a, ex, w, 0.0)
-                return float(np.sum(w * (ex - c * a) ** 2))
-            lt = math.log(best[1])
-            opt = minimize_scalar(chi2_of, bounds=(max(lt - 0.25, math.log(3.0 / fs)), lt + 0.25), method="bounded")
-            T = math.exp(float(opt.x))
-            c, zc = _fit_shape(gm_avar(tau, 1.0, T), ex, w, 0.0)
-            best = (float(opt.fun), T, c, zc)
-        if best and best[2] > 0 and best[3] > limit:
-            cands.append(Candidate("gauss_markov", {"sigma": math.sqrt(best[2]) * 3600.0, "tau": best[1]},
-                                   False, f"Allan bump, best correlation time {best[1]:.3g} s"))
+            coef, zc, _ = joint(ex_cols + [SHAPE[name](tau)])
+            if coef[-1] <= 0 or zc[-1] < limit:
+                continue
+            cands.append(Candidate(name, {fld: math.sqrt(coef[-1]) * to_card}, False,
+                                   f"Allan excess ~ {name} shape (z={zc[-1]:.1f})",
+                                   extra=refits(ex_names, coef[:-1])))
+        if ex_names:    # re-fit the existing Allan-shaped terms only
+            coef, zc, _ = joint(ex_cols)
+            ch = refits(ex_names, coef)
+            if ch:
+                cands.append(Candidate(ch[0][0], ch[0][1], True, "re-fit of the Allan-shaped terms",
+                                       extra=ch[1:]))
+        # --- Gauss-Markov bump: grid over the correlation time, then refined
+        lo_T = math.log(3.0 / fs)           # T >= 3 samples
+
+        def gm_chi2(logT):
+            return joint(ex_cols + [gm_avar(tau, 1.0, math.exp(logT))])[2]
+        grid = np.linspace(lo_T, math.log(tau[-1]), 41)
+        g0 = grid[int(np.argmin([gm_chi2(g) for g in grid]))]
+        opt = minimize_scalar(gm_chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
+        T = math.exp(float(opt.x))
+        coef, zc, _ = joint(ex_cols + [gm_avar(tau, 1.0, T)])
+        if coef[-1] > 0 and zc[-1] > limit:
+            cands.append(Candidate("gauss_markov", {"sigma": math.sqrt(coef[-1]) * 3600.0, "tau": T},
+                                   False, f"Allan bump, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
+                                   extra=refits(ex_names, coef[:-1])))
     r = np.asarray(y, float) - _deterministic_s(card, n, fs, restarts)
     t = np.arange(n) / fs
     # --- constant bias
@@ -589,7 +620,8 @@ class GapResult:
     measured: dict = None
 
     def to_json(self):
-        return {"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"]}
+        return {"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"],
+                                   "iteration": e["iteration"]}
                                   for e in self.effects_added],
                 "gap_before": float(self.gap_before), "gap_after": float(self.gap_after),
                 "gap_metric": GAP_METRIC,
@@ -666,26 +698,56 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
         card = card_at_rate(text, fs)
         cands = propose(y, layout, ref, z, card, restarts)
         for c in cands:
-            c.text = edit_card(text, c.name, c.params, c.refit, f"fitted to {Path(str(source)).name}")
+            c.text = text
+            for nm, pr, rf in c.changes:
+                c.text = edit_card(c.text, nm, pr, rf, f"fitted to {Path(str(source)).name}")
             try:
                 card_at_rate(c.text, fs)
             except InputError as exc:
                 c.why += f" (rejected: {exc})"
                 continue
             _, _, c.components, c.gap = _evaluate(sim.run(c.text, engine="native"), sig_m, layout)
-            c.score = c.gap * (1.0 + PENALTY_PER_PARAM * N_PARAMS[c.name])
+            c.score = c.gap * (1.0 + PENALTY_PER_PARAM * c.n_params)
         ok = [c for c in cands if math.isfinite(c.score)]
         it["candidates"] = [c.to_json() for c in cands]
         best = min(ok, key=lambda c: c.score) if ok else None
+        if best is not None and best.gap > MIN_IMPROVEMENT * g and len(ok) >= 2:
+            # no single effect shrinks the gap significantly: look one step ahead, pairs
+            # of the three best-scoring candidates (two effects that only together
+            # explain a signature, e.g. a bias and a ramp that offset each other's mean)
+            top = sorted(ok, key=lambda c: c.score)[:3]
+            pairs = []
+            for i, a in enumerate(top):
+                for b in top[i + 1:]:
+                    if a.name == b.name:
+                        continue
+                    pc = Candidate(a.name, a.params, a.refit, f"{a.why}; together with {b.name}",
+                                   extra=a.extra + b.changes)
+                    pc.text = a.text
+                    for nm, pr, rf in b.changes:
+                        pc.text = edit_card(pc.text, nm, pr, rf, f"fitted to {Path(str(source)).name}")
+                    try:
+                        card_at_rate(pc.text, fs)
+                    except InputError:
+                        continue
+                    _, _, pc.components, pc.gap = _evaluate(sim.run(pc.text, engine="native"), sig_m, layout)
+                    pc.score = pc.gap * (1.0 + PENALTY_PER_PARAM * pc.n_params)
+                    pairs.append(pc)
+            it["pairs"] = [c.to_json() for c in pairs]
+            bp = min(pairs, key=lambda c: c.score) if pairs else None
+            if bp is not None and bp.score < MIN_IMPROVEMENT * best.score:
+                best = bp
         if best is None or best.gap > MIN_IMPROVEMENT * g:
             it["stop"] = "no candidate shrinks the gap significantly"
             break
-        _log(f"gyrodenoise: {'re-fit' if best.refit else 'add'} {best.name} {best.params}: "
-             f"gap {g:.3g} -> {best.gap:.3g}", quiet)
+        _log(f"gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
+                                          for nm, pr, rf in best.changes)
+             + f": gap {g:.3g} -> {best.gap:.3g}", quiet)
         text = best.text
-        effects.append({"name": best.name, "params": {k: float(v) for k, v in best.params.items()},
-                        "refit": best.refit, "why": best.why})
-        it["chosen"] = best.name
+        for nm, pr, rf in best.changes:
+            effects.append({"name": nm, "params": {k: float(v) for k, v in pr.items()},
+                            "refit": rf, "why": best.why, "iteration": len(iterations) - 1})
+        it["chosen"] = [nm for nm, _, _ in best.changes]
         sims = sim.run(text)
         ref, z, comp, g = _evaluate(sims, sig_m, layout)
     return GapResult(effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
@@ -704,7 +766,8 @@ def format_report(res, source="MEASURED"):
            f"scatter threshold (1.5 x max leave-one-out gap of the simulations): {res.threshold:.3g}",
            ""]
     for i, it in enumerate(res.iterations):
-        label = "input card" if i == 0 else f"after {' + '.join(e['name'] for e in res.effects_added[:i])}"
+        label = "input card" if i == 0 else "after " + " + ".join(
+            e["name"] for e in res.effects_added if e.get("iteration", 0) < i)
         comp = ", ".join(f"{c} {it['components'][c]:.3g}" for c in COMPONENTS)
         out.append(f"[{i}] {label}: gap {it['card_gap']:.3g}  ({comp})")
         w = it["where"]
@@ -728,9 +791,13 @@ def format_report(res, source="MEASURED"):
             tried = ", ".join(f"{c['name']} {_short(c['params'])} -> {c['gap']:.3g}" for c in it["candidates"]
                               if c["gap"] is not None)
             out.append(f"    candidates (gap after): {tried}")
-        if it.get("chosen"):
-            e = res.effects_added[i]
-            out.append(f"    => {'re-fit' if e['refit'] else 'add'} {e['name']} {_short(e['params'])}")
+        if it.get("pairs"):
+            tried = ", ".join(f"{c['name']} + {' + '.join(w['name'] for w in c['with'])} -> {c['gap']:.3g}"
+                              for c in it["pairs"] if c["gap"] is not None)
+            out.append(f"    pairs (no single effect shrank the gap enough): {tried}")
+        for e in res.effects_added:
+            if e.get("iteration") == i:
+                out.append(f"    => {'re-fit' if e['refit'] else 'add'} {e['name']} {_short(e['params'])}")
         if it.get("stop"):
             out.append(f"    stop: {it['stop']}")
     out.append("")
@@ -764,7 +831,8 @@ def plot_gap(res, path, title=""):
         ref = it["_ref"]
         mu, sd = ref.mean["allan"], ref.sigma["allan"]
         col = "tab:red" if i == 0 else cmap(0.15 + 0.7 * i / max(n_it - 1, 1))
-        label = "input card" if i == 0 else "+ " + " + ".join(e["name"] for e in res.effects_added[:i])
+        label = "input card" if i == 0 else "+ " + " + ".join(
+            e["name"] for e in res.effects_added if e.get("iteration", 0) < i)
         ax.fill_between(tau, np.exp(mu - sd) * 3600, np.exp(mu + sd) * 3600, color=col, alpha=0.25)
         ax.loglog(tau, np.exp(mu) * 3600, "-", color=col, label=f"{label} (gap {it['card_gap']:.3g})")
     ax.set_xscale("log")
@@ -777,7 +845,7 @@ def plot_gap(res, path, title=""):
     if spectral:
         ax = axes[0, 1]
         f = lay.freq_hz
-        ax.loglog(f, sig["psd_bins"] * 3600.0 ** 2, color="k", lw=0.6, label="measured")
+        ax.loglog(f, sig["psd_bins"] * 3600.0 ** 2, color="k", lw=0.6, label="measured", zorder=3)
         for i in (0, n_it - 1):
             ref = res.iterations[i]["_ref"]
             col = "tab:red" if i == 0 else cmap(0.85)

@@ -84,7 +84,7 @@ HIDDEN = [
     ("rate_ramp", BASE, {"R": 20.0}, {"R": ("abs", 3.0)}),               # se ~1 deg/h^2
     ("constant_bias", BASE, {"value": 2.0}, {"value": ("abs", 0.45)}),  # se 0.14 deg/h
     ("turn_on_transient", BASE, {"amplitude": 10.0, "tau": 120.0},
-     {"amplitude": ("rel", 0.20), "tau": ("rel", 0.30)}),
+     {"amplitude": ("rel", 0.25), "tau": ("rel", 0.35)}),
     ("gauss_markov", BASE, {"sigma": 6.0, "tau": 2.0}, {"sigma": ("rel", 0.20), "tau": ("rel", 0.35)}),
     ("sinusoid", BASE, {"amplitude": 3.0, "frequency": 1.3},
      {"amplitude": ("rel", 0.10), "frequency": ("abs", 1e-3)}),
@@ -248,7 +248,7 @@ def test_fmu_engine_end_to_end_matches_native(tmp_path, fmu_dir):
     """The default engine (SimulatedFog.fmu through fmpy, seeds in parallel
     processes) names the same effect with the same numbers as the native one
     (the simulators are bit-identical; gaps equal to 1e-9)."""
-    y = _measured(BASE, [("sinusoid", {"amplitude": 8.0, "frequency": 3.3})], n=30000)
+    y = _measured(BASE, [("sinusoid", {"amplitude": 15.0, "frequency": 3.3})], n=30000)
     meas = tmp_path / "meas.csv"
     _write_csv(meas, y)
     card = tmp_path / "base.toml"
@@ -260,7 +260,8 @@ def test_fmu_engine_end_to_end_matches_native(tmp_path, fmu_dir):
                     "--seeds", 4, "--json", "--no-plot")
         assert proc.returncode == 0, proc.stderr
         res[engine] = json.loads(proc.stdout)
-    assert "SimulatedFog.fmu" in proc.stderr or True
+        if engine == "fmu":
+            assert "through SimulatedFog.fmu" in proc.stderr     # the FMU really ran
     f, n = res["fmu"], res["native"]
     assert f["engine"] == "fmu" and n["engine"] == "native"
     assert [e["name"] for e in f["effects_added"]] == [e["name"] for e in n["effects_added"]] == ["sinusoid"]
