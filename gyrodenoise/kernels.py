@@ -407,15 +407,15 @@ def gate(p, s, z):
     xp = s[o_x + n]
     for i in range(n):
         xp += s[o_theta + i] * s[o_x + i]
-    # (A P A')_00 + q with a = [phi_1..phi_n, 1]
-    p00 = 0.0
-    for i in range(m):
-        ai = s[o_theta + i] if i < n else 1.0
+    # (A P A')_00 + q with a = [phi_1..phi_n, 1]; after tie_c the c row and
+    # column of P are zero but for P[n][n]
+    p00 = s[o_p + n * m + n]
+    for i in range(n):
+        row = o_p + i * m
         acc = 0.0
-        for j in range(m):
-            aj = s[o_theta + j] if j < n else 1.0
-            acc += aj * s[o_p + i * m + j]
-        p00 += ai * acc
+        for j in range(n):
+            acc += s[o_theta + j] * s[row + j]
+        p00 += s[o_theta + i] * acc
     svar = p00 + s[S_Q] + s[S_R]
     v = z - xp
     k = p[P_OUTLIER_SIGMA]
