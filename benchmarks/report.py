@@ -437,9 +437,9 @@ def write_report(outdir, R, figs, args, elapsed):
       f"of the incremental response to a {STEP_DEG_S:g} deg/s step applied after "
       f"{R['dyn']['fog']['pre_s']:g} s at rest (\"> T\" = not reached within the T s recorded); "
       "*delay at 1 Hz* = phase delay of the incremental response to a 1 Hz sinusoid (- where its "
-      "gain is below 0.1); *-3 dB bandwidth* = where the sinusoid-sweep gain first falls below "
-      "1/sqrt(2), log-interpolated between sweep frequencies (\"<\"/\">\" = below/above the "
-      "sweep); *cost* = wall time per sample on the same FOG record in this run, compiled paths "
+      "gain is below 0.1); *-3 dB bandwidth* = where the gain of the faded-in sinusoid sweep first "
+      "falls below 1/sqrt(2), log-interpolated between sweep frequencies (\"<\"/\">\" = below/above "
+      "the sweep; the adaptive filters' gains depend on how the motion starts, see Dynamics); *cost* = wall time per sample on the same FOG record in this run, compiled paths "
       "after warm-up (RTS and VB-AKF include the KF run that identifies their model).\n")
     w("![noise vs bandwidth](tradeoff.png)\n")
 
