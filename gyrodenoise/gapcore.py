@@ -679,6 +679,9 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     sim = Simulator(y.shape[0], fs, seed_list, engine, restarts, fmu_dir, workers, quiet)
     sig_m = signature(y, layout)
     sims = sim.run(text)
+    if not np.any([np.std(s_) > 0 for s_ in sims]):
+        raise InputError("the card simulates a noise-free gyro (no stochastic term); the gap needs the "
+                         "simulations' scatter: add at least an angle_random_walk", card0.source)
     ref, z, comp, g = _evaluate(sims, sig_m, layout)
     loo = loo_gaps(ref)
     threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo)) if loo else 2.0

@@ -172,6 +172,12 @@ def test_edit_card_keeps_comments_and_order():
     assert new.index("constant_bias") < new.index("[[terms.sinusoid]]")
 
 
+def test_noise_free_card_is_an_input_error():
+    card = parse_card('[sensor]\nsample_rate_hz = 100.0\n[terms]\nconstant_bias = { value = 1.0 }\n')
+    with pytest.raises(InputError, match="noise-free"):
+        gd.gap(np.random.default_rng(0).standard_normal(5000), FS, card, engine="native")
+
+
 def test_too_short_record_is_an_input_error():
     with pytest.raises(InputError, match="at least"):
         gd.gap(np.zeros(100), FS, parse_card(BASE), engine="native")
