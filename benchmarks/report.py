@@ -763,7 +763,10 @@ def notes(R):
         "steady sinusoids after that re-identification; the step and ramp columns show the transient.",
         "- The adaptive filters' sweep gains depend on how the motion starts (compare the faded-in and the "
         "switched-on tables): their q, R and AR model are re-estimated from the motion itself, so a "
-        "single bandwidth number describes them less well than it describes the fixed low-pass filters.",
+        "single bandwidth number describes them less well than it describes the fixed low-pass filters. "
+        "The lowest sweep frequencies also have the longest segments (10 periods: 200 s at 0.05 Hz), long "
+        "enough for the Sage-Husa estimator to raise q again; there the SHAKF's gain near 1 measures that "
+        "re-adaptation after tens of seconds of persistent error, not a pass band.",
         "- Per-sample costs are wall times on 2 cores shared with other jobs; compare them within one run.",
     ])
 
