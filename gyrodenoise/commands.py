@@ -91,6 +91,9 @@ def cmd_allan(args):
     if len(rec) < 5:
         raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
     res = allan(rec.rate_deg_s, rec.sample_rate_hz)
+    from .export import export_from_args
+    for path in export_from_args(args, res):
+        _log(f"gyrodenoise: wrote {path}")
     if args.json:
         d = res.to_json()
         d["source"] = args.input
@@ -268,6 +271,8 @@ def register_cli(sub):
     p = sub.add_parser("allan", help="Allan deviation and five-term fit of a recording")
     _add_input_options(p)
     p.add_argument("--json", action="store_true")
+    from .export import add_export_options
+    add_export_options(p)
     p.set_defaults(func=cmd_allan)
 
     p = sub.add_parser("compare", help="the paper's Table 1 for a recording (raw, AR fit, KF, SHAKF)")

@@ -113,3 +113,30 @@ def test_export_bad_path_and_factor_are_one_line_errors(tmp_path):
     args = _parser().parse_args(["r.csv", "--kalibr-yaml", str(tmp_path / "i.yaml"), "--kalibr-inflate", "-2"])
     with pytest.raises(InputError, match="--kalibr-inflate"):
         export.export_from_args(args, res)
+
+
+def test_allan_command_writes_exports_and_keeps_json_clean(tmp_path):
+    """`gyrodenoise allan IN --json --kalibr-yaml --matlab`: files written, the
+    Kalibr density equals the JSON's N converted by hand, stdout one JSON object."""
+    import json
+    import subprocess
+    import sys
+    rec = gd.simulate("paper_fog", 200 * 300, seed=9)
+    src = tmp_path / "rec.csv"
+    np.savetxt(src, np.column_stack([rec.time_s, rec.rate_deg_s]), delimiter=",",
+               header="time,rate", comments="", fmt="%.12g")
+    y, m = tmp_path / "imu.yaml", tmp_path / "gyro.m"
+    p = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "allan", str(src), "--json",
+                        "--kalibr-yaml", str(y), "--matlab", str(m)],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    obj = json.loads(p.stdout)
+    n_deg_rth = obj["terms"]["N"]
+    assert float(_keys(y.read_text())["gyroscope_noise_density"][0]) == pytest.approx(
+        n_deg_rth * math.pi / 180.0 / 60.0, rel=1e-9)
+    assert "'NoiseDensity'" in m.read_text()
+    assert f"wrote {y}" in p.stderr
+    # a bad path: one line, exit 2
+    p = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "allan", str(src),
+                        "--matlab", str(tmp_path / "no" / "x.m")], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "x.m" in p.stderr
