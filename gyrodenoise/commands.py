@@ -191,6 +191,14 @@ def format_dynamic(dyn):
                + ", ".join(f"{k} {('%.3g s' % v) if v is not None else 'never (within the record)'}"
                            for k, v in rt.items())
                + "; RMSE against truth " + ", ".join(f"{k} {v:.4g}" for k, v in st["rmse_deg_s"].items()))
+    ng = st.get("no_gate")
+    if ng:
+        out.append("  the same step with the paper's filters (--outlier-sigma 0, no gate): 90% rise time "
+                   + ", ".join(f"{k} {('%.3g s' % v) if v is not None else 'never (within the record)'}"
+                               for k, v in ng["rise_time_90_s"].items())
+                   + "; RMSE " + ", ".join(f"{k} {v:.4g}" for k, v in ng["rmse_deg_s"].items()))
+        out.append("  (the default gate follows a step by re-opening the filter after 20 rejected samples:"
+                   " it rescues abrupt changes, not smooth motion -- docs/OUTLIERS.md)")
     out.append("(std = the paper's 'MSE' of Eq. 41, a standard deviation about the mean; it cannot see "
                "a wrong mean or a lag, the RMSE can.)")
     return "\n".join(out)

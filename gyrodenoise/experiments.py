@@ -157,4 +157,13 @@ def dynamic_table(card, rates_deg_s=(5.0, 15.0, 25.0, 35.0, 50.0), duration_s=60
         y = rec.rate_deg_s if m == "raw" else filter_record(rec.rate_deg_s, fs, m, ar_order, **kw)[0]
         step["rise_time_90_s"][m] = rise_time(y, t, t[n // 2], step_deg_s)
         step["rmse_deg_s"][m] = rmse(y[start:], truth[start:])
+    if p[K.P_OUTLIER_SIGMA] > 0.0:
+        # the same step through the paper's filters (no outlier gate): the gate's
+        # re-opening after a run of rejections is what follows the step, not the SHAKF
+        kw0 = dict(kw, outlier_sigma=0.0)
+        step["no_gate"] = {"rise_time_90_s": {}, "rmse_deg_s": {}}
+        for m in METHODS:
+            y = filter_record(rec.rate_deg_s, fs, m, ar_order, **kw0)[0]
+            step["no_gate"]["rise_time_90_s"][m] = rise_time(y, t, t[n // 2], step_deg_s)
+            step["no_gate"]["rmse_deg_s"][m] = rmse(y[start:], truth[start:])
     return {"card": card.name, "duration_s": float(duration_s), "rows": rows, "step": step}
