@@ -58,6 +58,11 @@ def register_cli(subparsers):
                    help="warm-up after each restart, raw passed through (default: the core's, 1 s; "
                         "at least 10(n+1) samples); short bursts such as the 2 kHz batch sampler "
                         "(1024 samples) need less, e.g. 0.1")
+    p.add_argument("--outlier-sigma", type=float, default=None, metavar="K",
+                   help="outlier gate: keep a sample with |innovation| > K sqrt(S) out of the filter "
+                        "(default: the core's, 5; 0 = off, the paper's filter)")
+    p.add_argument("--outlier-run", type=int, default=None, metavar="M",
+                   help="consecutive rejected samples after which the filter re-opens (default 20)")
     p.add_argument("--raw-imu-unit", default="auto", choices=["auto", "mrad/s", "rad/s", "counts"],
                    help="unit of RAW_IMU gyro fields (default auto: mrad/s when the log shows "
                         "ArduPilot, else counts with unknown scale)")
@@ -85,12 +90,27 @@ def _check(args):
         raise InputError(f"--sample-rate must be > 0, got {args.sample_rate}")
     if args.warmup_s is not None and not args.warmup_s >= 0:
         raise InputError(f"--warmup-s must be >= 0, got {args.warmup_s}")
+    try:
+        from gyrodenoise.kernels import make_params
+        make_params(ar_order=args.ar_order, sample_rate_hz=50.0, **_filter_kw(args))
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     if args.raw_imu_scale is not None and not args.raw_imu_scale > 0:
         raise InputError(f"--raw-imu-scale must be > 0, got {args.raw_imu_scale}")
     if args.duration is not None and not args.duration > 0:
         raise InputError(f"--duration must be > 0, got {args.duration}")
     if args.count is not None and args.count < 1:
         raise InputError(f"--count must be >= 1, got {args.count}")
+
+
+def _filter_kw(args):
+    """Core filter parameters given on the command line (None = the core's default)."""
+    kw = {}
+    if args.outlier_sigma is not None:
+        kw["outlier_sigma"] = float(args.outlier_sigma)
+    if args.outlier_run is not None:
+        kw["outlier_run"] = int(args.outlier_run)
+    return kw
 
 
 def _finite(obj):
@@ -122,7 +142,8 @@ def run(args):
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
-              fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s)
+              fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
+              filter_kw=_filter_kw(args))
     single = len(args.logs) == 1 and Path(args.logs[0]).is_file()
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
     with contextlib.redirect_stdout(sys.stderr):
@@ -195,7 +216,8 @@ def _live(args, conn):
     return run_live(conn, args.forward, duration=args.duration, max_messages=args.count,
                     method=args.method, ar_order=args.ar_order, gap_factor=args.gap_factor,
                     sample_rate=args.sample_rate, raw_imu_unit=args.raw_imu_unit,
-                    raw_imu_scale=args.raw_imu_scale, log=_log, warmup_s=args.warmup_s)
+                    raw_imu_scale=args.raw_imu_scale, log=_log, warmup_s=args.warmup_s,
+                    filter_kw=_filter_kw(args))
 
 
 def _report_live(args, conn, rep, streams):

@@ -23,10 +23,11 @@ ENGINES = ("native", "fmu")
 class NativeEngine:
     name = "native"
 
-    def __init__(self, method="shakf", ar_order=3, warmup_s=None):
+    def __init__(self, method="shakf", ar_order=3, warmup_s=None, filter_kw=None):
         self.method = method
         self.ar_order = int(ar_order)
         self.kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
+        self.kw.update(filter_kw or {})
 
     def filter(self, x, restarts, rate_hz):
         from gyrodenoise.denoiser import Denoiser
@@ -55,10 +56,11 @@ class FmuEngine:
 
     name = "fmu"
 
-    def __init__(self, method="shakf", ar_order=3, fmu_path=None, warmup_s=None):
+    def __init__(self, method="shakf", ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
         self.method = method
         self.ar_order = int(ar_order)
         self.warmup_s = warmup_s
+        self.filter_kw = dict(filter_kw or {})   # FMU parameter name -> value
         self.path = Path(fmu_path) if fmu_path else default_fmu_path()
         if not self.path.is_file():
             raise InputError(f"{self.path}: FogDenoiser FMU not found (build it with "
@@ -108,6 +110,10 @@ class FmuEngine:
             self._set_param(fmu, "method", self.method)
             if self.warmup_s is not None and not self._set_param(fmu, "warmup_s", self.warmup_s):
                 raise InputError(f"{self.path}: FMU has no parameter 'warmup_s' (--warmup-s)")
+            for name, value in self.filter_kw.items():
+                if not self._set_param(fmu, name, value):
+                    raise InputError(f"{self.path}: FMU has no parameter {name!r} "
+                                     f"(--{name.replace('_', '-')})")
             if not self._set_param(fmu, "sample_period", h):
                 self._set_param(fmu, "sample_rate_hz", rate_hz)
             fmu.enterInitializationMode()
@@ -132,9 +138,11 @@ class FmuEngine:
         shutil.rmtree(self._tmp, ignore_errors=True)
 
 
-def make_engine(name, method="shakf", ar_order=3, fmu_path=None, warmup_s=None):
+def make_engine(name, method="shakf", ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
+    """``filter_kw``: further core filter parameters (e.g. outlier_sigma, outlier_run),
+    passed to the Denoiser or set as FMU parameters of the same names."""
     if name == "native":
-        return NativeEngine(method, ar_order, warmup_s)
+        return NativeEngine(method, ar_order, warmup_s, filter_kw)
     if name == "fmu":
-        return FmuEngine(method, ar_order, fmu_path, warmup_s)
+        return FmuEngine(method, ar_order, fmu_path, warmup_s, filter_kw)
     raise InputError(f"--engine: unknown engine {name!r} (choose from {', '.join(ENGINES)})")

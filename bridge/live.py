@@ -39,7 +39,7 @@ class _LiveStream:
         self.non_finite = [0, 0, 0]
         self.pending_restart = [False, False, False]
 
-    def step(self, t, raw, sample_rate, method, ar_order, warmup_s=None):
+    def step(self, t, raw, sample_rate, method, ar_order, warmup_s=None, filter_kw=None):
         from gyrodenoise.denoiser import Denoiser
         reason = self.det.update(t)
         i = len(self.t)
@@ -59,6 +59,7 @@ class _LiveStream:
                     rate = 1.0 / dt if dt > 0 else 50.0
                 self.rate = rate
                 kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
+                kw.update(filter_kw or {})
                 self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
                             for _ in range(3)]
                 for j, (d, z0) in enumerate(zip(self.den, self.x[0])):
@@ -113,7 +114,7 @@ def _enlarge_receive_buffer(conn, size=4 << 20):
 
 def run_live(source, forward, *, duration=None, max_messages=None, method="shakf", ar_order=3,
              gap_factor=5.0, sample_rate=None, raw_imu_unit="auto", raw_imu_scale=None, log=None,
-             warmup_s=None):
+             warmup_s=None, filter_kw=None):
     """Bridge ``source`` to ``forward`` (pymavlink connection strings) until
     ``duration`` seconds have passed or ``max_messages`` messages were
     forwarded (or Ctrl-C). Returns (report dict, list of GyroStream)."""
@@ -184,7 +185,7 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
                         st.tscale, st.tfield = tscale, tfield
                     vals = st.step(getattr(msg, st.tfield) * st.tscale,
                                    [getattr(msg, g) for g in GYRO_FIELDS], sample_rate, method, ar_order,
-                                   warmup_s)
+                                   warmup_s, filter_kw)
                     out, dropped = repack(bytes(out), mtype, vals)
                     n_sig += dropped
             if dst is not None and out:
@@ -207,5 +208,6 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
                         "p99": float(np.percentile(hs, 99)) if len(hs) else None,
                         "max": float(hs.max()) if len(hs) else None},
         "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
+        "filter_options": dict(filter_kw or {}),
     }
     return report, gs

@@ -291,7 +291,7 @@ def stream_report(s, csv_path=None, png_path=None):
 def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
-                plot_helpers=1, warmup_s=None):
+                plot_helpers=1, warmup_s=None, filter_kw=None):
     """Process one log file; return its report (a JSON-able dict).
 
     Raises InputError (one line naming the file) for a file that cannot be
@@ -334,7 +334,7 @@ def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, g
                        data_corruption=bool(getattr(u, "has_data_corruption", False)), truncated=None)
         if not streams:
             raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
-        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s)
+        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw)
         try:
             _filter_streams(streams, eng, gap_factor, sample_rate)
         finally:
@@ -345,7 +345,8 @@ def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, g
         if plotter is not None:
             plotter.close()
     rep.update(engine=engine, method=method, ar_order=int(ar_order), gap_factor=gap_factor,
-               warmup_s=warmup_s, seconds=round(time.perf_counter() - t0, 3))
+               warmup_s=warmup_s, filter_options=dict(filter_kw or {}),
+               seconds=round(time.perf_counter() - t0, 3))
     return rep
 
 

@@ -98,3 +98,27 @@ def test_fmu_engine_cli_and_missing_fmu(fmu_path, tmp_path):
     assert r.stderr.strip().splitlines() == [
         f"gyrodenoise: error: {missing}: FogDenoiser FMU not found (build it with "
         f"'gyrodenoise fmu build', or pass --fmu PATH)"]
+
+
+@pytest.mark.parametrize("filter_kw", [{"outlier_sigma": 0.0}, {"outlier_sigma": 3.0, "outlier_run": 2}])
+def test_outlier_options_reach_both_engines(fmu_path, tmp_path, filter_kw):
+    """--outlier-sigma/--outlier-run: the native Denoiser and the FMU parameters of
+    the same names give the same filtered log, and the option changes the output."""
+    path = DATA / "ardusub_small.BIN"
+    nat = process_log(path, tmp_path / "n", plots=False, filter_kw=filter_kw)
+    fmu = process_log(path, tmp_path / "f", plots=False, engine="fmu", fmu_path=fmu_path,
+                      filter_kw=filter_kw)
+    default = process_log(path, tmp_path / "d", plots=False)
+    assert nat["filter_options"] == filter_kw
+    a = np.genfromtxt(nat["streams"][0]["csv"], delimiter=",", names=True)
+    b = np.genfromtxt(fmu["streams"][0]["csv"], delimiter=",", names=True)
+    c = np.genfromtxt(default["streams"][0]["csv"], delimiter=",", names=True)
+    for ax in "xyz":
+        np.testing.assert_allclose(b[f"filtered_{ax}"], a[f"filtered_{ax}"], rtol=1e-8, atol=1e-12)
+    assert any(not np.array_equal(a[f"filtered_{ax}"], c[f"filtered_{ax}"]) for ax in "xyz")
+
+
+def test_bad_outlier_option_is_one_line(tmp_path):
+    r = subprocess.run(gyrodenoise_cmd() + ["mavlink", str(DATA / "ardusub_small.BIN"), "-o", str(tmp_path),
+                                            "--outlier-sigma", "1"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "outlier_sigma" in r.stderr
