@@ -4,12 +4,19 @@ The loop below is written once; with numba installed it is compiled by
 ``numba.njit`` (the kernels it calls are ``register_jitable``), without numba
 it runs as plain Python over the same functions. Both give the same numbers
 (tested to 1e-12).
+
+The common case (compiled, no diagnostics, no theta history) is dispatched to
+:func:`gyrodenoise.fastkernels.run_local`, the same recursion with the state
+held in locals for the whole record (several times faster; bit-identical
+outputs and final state, tests/test_fastpath.py). ``fast=False`` forces the
+generic compiled loop (used by the tests and benchmarks/bench_core.py).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from . import fastkernels as F
 from . import kernels as K
 
 try:
@@ -43,7 +50,9 @@ def _run_theta_py(p, s, z, restarts, out, theta):
 
 def _invalidate_stale_cache():
     """numba keys its on-disk cache on this file only, not on the kernels it
-    inlines; drop the cache when kernels.py changed since it was written."""
+    inlines; drop the cache when kernels.py changed since it was written.
+    (fastkernels.py reads only constants from kernels.py; its cache is checked
+    against kernels.py too, below.)"""
     import hashlib
     from pathlib import Path
     here = Path(__file__).resolve().parent
@@ -53,8 +62,9 @@ def _invalidate_stale_cache():
     try:
         if stamp.exists() and stamp.read_text() == digest:
             return
-        for f in cache.glob("batch.*.nb[ic]"):
-            f.unlink()
+        for pattern in ("batch.*.nb[ic]", "fastkernels.*.nb[ic]"):
+            for f in cache.glob(pattern):
+                f.unlink()
         cache.mkdir(exist_ok=True)
         stamp.write_text(digest)
     except OSError:  # read-only install: numba then does not cache either
@@ -71,7 +81,7 @@ else:  # pragma: no cover
 
 
 def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
-        compiled=True):
+        compiled=True, fast=True):
     """Filter an array of raw samples, continuing from state ``s``.
 
     Parameters
@@ -91,6 +101,10 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
         Also return an (n, order+1) array of [phi_1..phi_n, c] after each sample.
     compiled : bool
         Use the numba-compiled loop (False: the plain-Python loop, same code).
+    fast : bool
+        With ``compiled`` and neither ``diagnostics`` nor ``record_theta``:
+        use the specialised loop of :mod:`gyrodenoise.fastkernels` (same
+        numbers). False forces the generic compiled loop.
 
     Returns
     -------
@@ -121,6 +135,9 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
             fn(list(pa), sl, za, ra, out, theta)
             sa = np.asarray(sl)
         return out, sa, theta
+    if compiled and fast and not diagnostics and F.run_local_fast is not None:
+        F.run_local_fast(pa, sa, za, ra, out, (0.0,) * (int(pa[K.P_ORDER]) + 1))
+        return out, sa
     diag = np.empty((za.shape[0] if diagnostics else 0, 4))
     if compiled:
         _run_fast(pa, sa, za, ra, out, diag)

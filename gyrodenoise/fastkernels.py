@@ -1,0 +1,380 @@
+"""The batch loop of :func:`gyrodenoise.kernels.step` with the state held in locals.
+
+:func:`gyrodenoise.batch.run` compiles the per-sample kernels of
+:mod:`gyrodenoise.kernels` as they are: every call re-reads the parameters,
+re-computes the buffer layout and loads/stores each state scalar through the
+flat buffer ``s``. Over a whole record that bookkeeping costs several times
+the arithmetic. :func:`run_local` is the same recursion written for a loop:
+the parameters and the header scalars of the state (counters, R_hat, q_hat,
+d_k's b^(k+1), ...) are local variables for the whole record, the vectors and
+matrices live in small private arrays whose size is a compile-time constant
+(numba specialises on the length of the ``shape`` tuple), and the state buffer
+is unpacked once before and written back once after the loop.
+
+Every floating-point operation is the one :func:`gyrodenoise.kernels.step`
+(and :func:`~gyrodenoise.kernels.gate`, ``rls_update``, ``kf_predict``,
+``kf_update``, ``start_filter``, ``tie_c``, ``restart``) performs, in the same
+order, with fastmath off, so the outputs and the final state are bit-for-bit
+those of the generic path (tests/test_fastpath.py checks every method, orders
+1..6, restarts, the outlier gate and its re-opening, split runs). Any change of
+the maths in kernels.py must be mirrored here; the tests fail otherwise.
+
+Equations are those of Sun et al. (2016), cited as in :mod:`gyrodenoise.kernels`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels as K
+
+try:
+    import numba
+except ImportError:  # pragma: no cover - batch.run then uses the generic path
+    numba = None
+
+#: Largest AR order with a specialised loop (higher orders use the generic path).
+MAX_ORDER = 8
+
+
+def run_local(p, s, z, restarts, out, shape):
+    """Filter ``z`` into ``out``, continuing from and updating ``s`` in place.
+
+    Parameters
+    ----------
+    p : ndarray of float64
+        Parameter buffer (:func:`gyrodenoise.kernels.make_params`).
+    s : ndarray of float64
+        State buffer; overwritten with the state after the last sample.
+    z : ndarray of float64
+        Raw rate samples, deg/s.
+    restarts : ndarray of bool
+        True where the gyro restarted.
+    out : ndarray of float64
+        Receives the filtered rate, deg/s.
+    shape : tuple of float
+        ``(0.0,) * (order + 1)``: its length fixes the AR order at compile time.
+    """
+    m = len(shape)
+    n = m - 1
+    mm = m * m
+    # -- parameters, once
+    lam = p[K.P_LAM]
+    b = p[K.P_B]
+    g = p[K.P_GAMMA]
+    q0 = p[K.P_Q0]
+    r0 = p[K.P_R0]
+    p0_rls = p[K.P_P0_RLS]
+    p0_kf = p[K.P_P0_KF]
+    warmup = p[K.P_WARMUP]
+    floor = p[K.P_R_FLOOR]
+    ksig = p[K.P_OUTLIER_SIGMA]
+    orun = p[K.P_OUTLIER_RUN]
+    method = p[K.P_METHOD]
+    gate_on = ksig > 0.0 and method != K.METHOD_NONE
+    adaptive = method == K.METHOD_SHAKF or method == K.METHOD_SH_CLASSIC
+    shakf = method == K.METHOD_SHAKF
+    filtering = method != K.METHOD_NONE
+    ten_m = 10.0 * m
+    kk2 = ksig * ksig
+    g2 = g * g
+    # -- state, unpacked once (offsets as kernels.layout)
+    o_theta = K.N_HEADER
+    o_prls = o_theta + m
+    o_x = o_prls + mm
+    o_p = o_x + m
+    o_z = o_p + mm
+    o_w = o_z + n
+    theta = np.empty(m)
+    prls = np.empty(mm)
+    x = np.empty(m)
+    P = np.empty(mm)
+    zh = np.empty(m)           # n used; one spare keeps the size a constant
+    w = np.empty(m)
+    for i in range(m):
+        theta[i] = s[o_theta + i]
+        x[i] = s[o_x + i]
+        w[i] = s[o_w + i]
+    for i in range(mm):
+        prls[i] = s[o_prls + i]
+        P[i] = s[o_p + i]
+    for i in range(n):
+        zh[i] = s[o_z + i]
+    zh[n] = 0.0
+    k = s[K.S_K]
+    kd = s[K.S_KD]
+    R = s[K.S_R]
+    Q = s[K.S_Q]
+    s2 = s[K.S_S2]
+    ns2 = s[K.S_NS2]
+    conv = s[K.S_CONV]
+    innov = s[K.S_INNOV]
+    svar_s = s[K.S_SVAR]
+    nreset = s[K.S_NRESET]
+    last = s[K.S_OUT]
+    rls_err = s[K.S_RLS_ERR]
+    bk = s[K.S_BK]
+    nrej = s[K.S_NREJ]
+    rejrun = s[K.S_REJRUN]
+    nreopen = s[K.S_NREOPEN]
+
+    for t in range(z.shape[0]):
+        zt = z[t]
+        rs = restarts[t]
+        if not rs and gate_on and conv == 1.0:
+            # ---- kernels.gate: tie_c, then the predicted innovation
+            x[n] = theta[n]
+            for i in range(n):
+                P[i * m + n] = 0.0
+                P[n * m + i] = 0.0
+            P[n * m + n] = floor
+            xp = x[n]
+            for i in range(n):
+                xp += theta[i] * x[i]
+            p00 = P[n * m + n]
+            for i in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += theta[j] * P[i * m + j]
+                p00 += theta[i] * acc
+            svg = p00 + Q + R
+            vg = zt - xp
+            if not (vg * vg > kk2 * svg):
+                rejrun = 0.0
+            elif rejrun >= orun:
+                rs = True          # a real change of rate: restart (below)
+                nreopen += 1.0
+            else:
+                x0 = _predict(theta, x, P, w, Q, n, m)
+                for j in range(n - 1, 0, -1):
+                    zh[j] = zh[j - 1]
+                zh[0] = x0
+                nrej += 1.0
+                rejrun += 1.0
+                innov = vg
+                svar_s = svg
+                rls_err = 0.0
+                k += 1.0
+                last = x0
+                out[t] = x0
+                continue
+        if rs:
+            # ---- kernels.restart (the outlier counters are kept)
+            for i in range(m):
+                theta[i] = 0.0
+                x[i] = 0.0
+                w[i] = 0.0
+                zh[i] = 0.0
+            for i in range(mm):
+                prls[i] = 0.0
+                P[i] = 0.0
+            for i in range(m):
+                prls[i * m + i] = p0_rls
+                P[i * m + i] = p0_kf
+            k = 0.0
+            kd = 0.0
+            R = r0 if r0 > 0.0 else floor
+            Q = q0
+            s2 = 0.0
+            ns2 = 0.0
+            conv = 0.0
+            innov = 0.0
+            svar_s = 0.0
+            nreset = 0.0
+            last = 0.0
+            rls_err = 0.0
+            bk = 0.0
+            rejrun = 0.0
+
+        # ---- end of warm-up: noise levels and a filter restarted from the model
+        if conv == 0.0:
+            auto = 0.5 * s2
+            if auto < floor:
+                auto = floor
+            Q = q0 if q0 > 0.0 else auto
+            R = r0 if r0 > 0.0 else auto
+            if k >= warmup:
+                conv = 1.0
+                kd = 0.0
+                bk = b
+                # kernels.start_filter (its tie_c is repeated below, idempotent)
+                for i in range(mm):
+                    P[i] = 0.0
+                for i in range(n):
+                    x[i] = zh[i]
+                    P[i * m + i] = R
+
+        # ---- kernels.rls_update, Eq. (8)-(11)
+        e = 0.0
+        if k >= n:
+            for i in range(m):
+                acc = prls[i * m + n]
+                for j in range(n):
+                    acc += prls[i * m + j] * zh[j]
+                w[i] = acc
+            den = lam + w[n]
+            pred = theta[n]
+            for j in range(n):
+                den += zh[j] * w[j]
+                pred += zh[j] * theta[j]
+            e = zt - pred
+            inv_den = 1.0 / den
+            inv_lam = 1.0 / lam
+            for i in range(m):
+                theta[i] += w[i] * inv_den * e                    # Eq. (11)
+            for i in range(m):
+                gi = w[i] * inv_den
+                for j in range(i, m):
+                    v = (prls[i * m + j] - gi * w[j]) * inv_lam   # Eq. (10)
+                    prls[i * m + j] = v
+                    prls[j * m + i] = v
+        for j in range(n - 1, 0, -1):
+            zh[j] = zh[j - 1]
+        zh[0] = zt
+        rls_err = e
+        if k >= ten_m:
+            ns2 += 1.0
+            s2 += (e * e - s2) / ns2
+
+        if k == 0.0:
+            for i in range(n):
+                x[i] = zt
+            x[n] = 0.0
+            k = 1.0
+            last = zt
+            innov = 0.0
+            out[t] = zt
+            continue
+
+        # ---- kernels.tie_c, kf_predict, Eq. (34)
+        x[n] = theta[n]
+        for i in range(n):
+            P[i * m + n] = 0.0
+            P[n * m + i] = 0.0
+        P[n * m + n] = floor
+        q = Q
+        xp = _predict(theta, x, P, w, q, n, m)
+        v = zt - xp                                # innovation, Eq. (16)
+        p00 = P[0]
+        r = R
+        if conv == 1.0 and adaptive:
+            if shakf and v * v > g2 * (p00 + r):
+                kd = 0.0                           # Eq. (32) violated
+                nreset += 1.0
+                bk = b
+            else:
+                kd += 1.0
+                bk *= b
+                if bk < 1e-290:
+                    bk = 0.0
+            d = (1.0 - b) / (1.0 - bk)
+            if shakf:
+                r = (1.0 - d) * r + d * v * v               # Eq. (33)
+            else:
+                r = (1.0 - d) * r + d * (v * v - p00)       # Eq. (22)
+            if r < floor:
+                r = floor
+            R = r
+            svar = _update(x, P, w, v, r, m)
+            k0 = p00 / svar
+            q = q + d * k0 * k0 * (v * v - svar)            # Eq. (26), Q = q e1 e1'
+            if q < floor:
+                q = floor
+            Q = q
+        else:
+            svar = _update(x, P, w, v, r, m)
+        innov = v
+        svar_s = svar
+        k = k + 1.0
+        o = zt
+        if conv == 1.0 and filtering:
+            o = x[0]
+        last = o
+        out[t] = o
+
+    # -- state, packed once
+    for i in range(m):
+        s[o_theta + i] = theta[i]
+        s[o_x + i] = x[i]
+        s[o_w + i] = w[i]
+    for i in range(mm):
+        s[o_prls + i] = prls[i]
+        s[o_p + i] = P[i]
+    for i in range(n):
+        s[o_z + i] = zh[i]
+    s[K.S_K] = k
+    s[K.S_KD] = kd
+    s[K.S_R] = R
+    s[K.S_Q] = Q
+    s[K.S_S2] = s2
+    s[K.S_NS2] = ns2
+    s[K.S_CONV] = conv
+    s[K.S_INNOV] = innov
+    s[K.S_SVAR] = svar_s
+    s[K.S_NRESET] = nreset
+    s[K.S_OUT] = last
+    s[K.S_RLS_ERR] = rls_err
+    s[K.S_BK] = bk
+    s[K.S_NREJ] = nrej
+    s[K.S_REJRUN] = rejrun
+    s[K.S_NREOPEN] = nreopen
+
+
+def _predict(theta, x, P, w, q, n, m):
+    """:func:`gyrodenoise.kernels.kf_predict` on the local arrays, Eq. (34)."""
+    x0 = x[n]
+    for i in range(n):
+        x0 += theta[i] * x[i]
+    for i in range(n - 1, 0, -1):
+        x[i] = x[i - 1]
+    x[0] = x0
+    for j in range(m):
+        acc = P[n * m + j]
+        for i in range(n):
+            acc += theta[i] * P[i * m + j]
+        w[j] = acc
+    for i in range(n - 1, 0, -1):
+        for j in range(n - 1, 0, -1):
+            P[i * m + j] = P[(i - 1) * m + (j - 1)]
+        v = P[(i - 1) * m + n]
+        P[i * m + n] = v
+        P[n * m + i] = v
+    p00 = w[n] + q
+    for i in range(n):
+        p00 += theta[i] * w[i]
+    P[0] = p00
+    for j in range(1, n):
+        P[j] = w[j - 1]
+        P[j * m] = w[j - 1]
+    P[n] = w[n]
+    P[n * m] = w[n]
+    return x0
+
+
+def _update(x, P, w, v, r, m):
+    """:func:`gyrodenoise.kernels.kf_update` on the local arrays, Eq. (35)."""
+    svar = P[0] + r
+    inv_s = 1.0 / svar
+    for i in range(m):
+        w[i] = P[i * m]
+    for i in range(m):
+        x[i] += w[i] * inv_s * v
+    for i in range(m):
+        ki = w[i] * inv_s
+        for j in range(i, m):
+            val = P[i * m + j] - ki * w[j]
+            P[i * m + j] = val
+            P[j * m + i] = val
+    for i in range(m):
+        if P[i * m + i] < 1e-300:
+            P[i * m + i] = 1e-300
+    return svar
+
+
+if numba is not None:
+    _jit = numba.njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+    _predict = _jit(_predict)
+    _update = _jit(_update)
+    run_local_fast = _jit(run_local)
+else:  # pragma: no cover
+    run_local_fast = None
