@@ -484,6 +484,10 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
     constant_bias, turn_on_transient and sinusoid by least squares on the
     record minus the card's deterministic part. A term already in the card is
     re-fitted (its new value replaces the old one) rather than added twice.
+    When that joint fit changes the card's own terms, the same new term is
+    also proposed fitted alone to the excess over the whole current card (its
+    terms held, Allan points where the record is below the card left out),
+    and re-simulation chooses between the two.
     """
     from scipy.optimize import minimize_scalar, nnls
     fs, n = layout.fs, layout.n
