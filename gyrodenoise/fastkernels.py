@@ -85,12 +85,12 @@ def run_local(p, s, z, restarts, out, shape):
     o_p = o_x + m
     o_z = o_p + mm
     o_w = o_z + n
-    theta = np.empty(m)
-    prls = np.empty(mm)
-    x = np.empty(m)
-    P = np.empty(mm)
-    zh = np.empty(m)           # n used; one spare keeps the size a constant
-    w = np.empty(m)
+    theta = _vector(shape)
+    prls = _matrix(shape)
+    x = _vector(shape)
+    P = _matrix(shape)
+    zh = _vector(shape)        # n used; the spare keeps one size for all vectors
+    w = _vector(shape)
     for i in range(m):
         theta[i] = s[o_theta + i]
         x[i] = s[o_x + i]
@@ -371,10 +371,56 @@ def _update(x, P, w, v, r, m):
     return svar
 
 
+def _vector(shape):
+    """Scratch vector of len(shape) floats (plain-Python fallback)."""
+    return np.empty(len(shape))
+
+
+def _matrix(shape):
+    """Scratch len(shape)^2 flat matrix (plain-Python fallback)."""
+    return np.empty(len(shape) ** 2)
+
+
 if numba is not None:
-    _jit = numba.njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
-    _predict = _jit(_predict)
-    _update = _jit(_update)
-    run_local_fast = _jit(run_local)
+    import llvmlite.ir as _ir
+    from numba.core import cgutils as _cgutils
+    from numba.core import types as _types
+    from numba.extending import intrinsic as _intrinsic
+
+    def _stack_buffer(square):
+        """Intrinsic: pointer to a fixed-size float64 array on the stack.
+
+        With the size a compile-time constant and every index a constant once
+        the loops over range(m) are unrolled, LLVM keeps the elements in
+        registers (SROA): the state is not re-read from memory every sample.
+        The arrays never leave :func:`run_local` (helpers are inlined).
+        """
+        @_intrinsic
+        def alloca(typingctx, shape):
+            size = len(shape) ** 2 if square else len(shape)
+
+            def codegen(context, builder, sig, args):
+                fty = context.get_value_type(_types.float64)
+                ptr = _cgutils.alloca_once(builder, _ir.ArrayType(fty, size))
+                return builder.bitcast(ptr, fty.as_pointer())
+            return _types.CPointer(_types.float64)(shape), codegen
+        return alloca
+
+    _alloca_vector = _stack_buffer(False)
+    _alloca_matrix = _stack_buffer(True)
+
+    @numba.njit(inline="always")
+    def _vector(shape):  # noqa: F811 - compiled replacement
+        return numba.carray(_alloca_vector(shape), (len(shape),))
+
+    @numba.njit(inline="always")
+    def _matrix(shape):  # noqa: F811 - compiled replacement
+        return numba.carray(_alloca_matrix(shape), (len(shape) ** 2,))
+
+    _inline = numba.njit(inline="always", error_model="numpy", boundscheck=False)
+    _predict = _inline(_predict)
+    _update = _inline(_update)
+    run_local_fast = numba.njit(cache=True, nogil=True, error_model="numpy",
+                                boundscheck=False)(run_local)
 else:  # pragma: no cover
     run_local_fast = None
