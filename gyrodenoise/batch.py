@@ -135,8 +135,10 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
             fn(list(pa), sl, za, ra, out, theta)
             sa = np.asarray(sl)
         return out, sa, theta
-    if compiled and fast and not diagnostics and F.run_local_fast is not None:
-        F.run_local_fast(pa, sa, za, ra, out, (0.0,) * (int(pa[K.P_ORDER]) + 1))
+    order = int(pa[K.P_ORDER])
+    if (compiled and fast and not diagnostics and F.run_local_fast is not None
+            and F.symmetric_state(sa, order)):
+        F.run_local_fast(pa, sa, za, ra, out, (0.0,) * (order + 1))
         return out, sa
     diag = np.empty((za.shape[0] if diagnostics else 0, 4))
     if compiled:

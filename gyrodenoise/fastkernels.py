@@ -78,7 +78,11 @@ def run_local(p, s, z, restarts, out, shape):
     ten_m = 10.0 * m
     kk2 = ksig * ksig
     g2 = g * g
-    # -- state, unpacked once (offsets as kernels.layout)
+    inv_lam = 1.0 / lam
+    scale_rls = lam != 1.0      # x * (1/1) == x exactly: skip the product
+    # -- state, unpacked once (offsets as kernels.layout). The covariances are
+    # symmetric in every state the kernels produce (run() checks it): read the
+    # upper triangle only, so that LLVM keeps one value per pair.
     o_theta = K.N_HEADER
     o_prls = o_theta + m
     o_x = o_prls + mm
@@ -94,13 +98,22 @@ def run_local(p, s, z, restarts, out, shape):
     for i in range(m):
         theta[i] = s[o_theta + i]
         x[i] = s[o_x + i]
-        w[i] = s[o_w + i]
-    for i in range(mm):
-        prls[i] = s[o_prls + i]
-        P[i] = s[o_p + i]
+        w[i] = 0.0
+        for j in range(i, m):
+            v = s[o_prls + i * m + j]
+            prls[i * m + j] = v
+            prls[j * m + i] = v
+            v = s[o_p + i * m + j]
+            P[i * m + j] = v
+            P[j * m + i] = v
     for i in range(n):
         zh[i] = s[o_z + i]
     zh[n] = 0.0
+    # Header scalars read by the recursion live in locals; those it only writes
+    # (innovation, S, output, RLS error) and the rare counters go straight to s.
+    # So do the values every sample overwrites before reading them (the filter's
+    # c entry x[n], the c row/column of P, the scratch vector w): stored where
+    # they are final, they are not carried from sample to sample in registers.
     k = s[K.S_K]
     kd = s[K.S_KD]
     R = s[K.S_R]
@@ -108,15 +121,8 @@ def run_local(p, s, z, restarts, out, shape):
     s2 = s[K.S_S2]
     ns2 = s[K.S_NS2]
     conv = s[K.S_CONV]
-    innov = s[K.S_INNOV]
-    svar_s = s[K.S_SVAR]
-    nreset = s[K.S_NRESET]
-    last = s[K.S_OUT]
-    rls_err = s[K.S_RLS_ERR]
     bk = s[K.S_BK]
-    nrej = s[K.S_NREJ]
     rejrun = s[K.S_REJRUN]
-    nreopen = s[K.S_NREOPEN]
 
     for t in range(z.shape[0]):
         zt = z[t]
@@ -143,19 +149,20 @@ def run_local(p, s, z, restarts, out, shape):
                 rejrun = 0.0
             elif rejrun >= orun:
                 rs = True          # a real change of rate: restart (below)
-                nreopen += 1.0
+                s[K.S_NREOPEN] += 1.0
             else:
                 x0 = _predict(theta, x, P, w, Q, n, m)
                 for j in range(n - 1, 0, -1):
                     zh[j] = zh[j - 1]
                 zh[0] = x0
-                nrej += 1.0
+                s[K.S_NREJ] += 1.0
                 rejrun += 1.0
-                innov = vg
-                svar_s = svg
-                rls_err = 0.0
+                s[K.S_INNOV] = vg
+                s[K.S_SVAR] = svg
+                s[K.S_RLS_ERR] = 0.0
                 k += 1.0
-                last = x0
+                s[K.S_OUT] = x0
+                _store_tail(s, x, P, w, o_x, o_p, o_w, n, m)
                 out[t] = x0
                 continue
         if rs:
@@ -178,13 +185,14 @@ def run_local(p, s, z, restarts, out, shape):
             s2 = 0.0
             ns2 = 0.0
             conv = 0.0
-            innov = 0.0
-            svar_s = 0.0
-            nreset = 0.0
-            last = 0.0
-            rls_err = 0.0
+            s[K.S_INNOV] = 0.0
+            s[K.S_SVAR] = 0.0
+            s[K.S_NRESET] = 0.0
+            s[K.S_OUT] = 0.0
+            s[K.S_RLS_ERR] = 0.0
             bk = 0.0
             rejrun = 0.0
+            _store_tail(s, x, P, w, o_x, o_p, o_w, n, m)
 
         # ---- end of warm-up: noise levels and a filter restarted from the model
         if conv == 0.0:
@@ -219,19 +227,20 @@ def run_local(p, s, z, restarts, out, shape):
                 pred += zh[j] * theta[j]
             e = zt - pred
             inv_den = 1.0 / den
-            inv_lam = 1.0 / lam
             for i in range(m):
                 theta[i] += w[i] * inv_den * e                    # Eq. (11)
             for i in range(m):
                 gi = w[i] * inv_den
                 for j in range(i, m):
-                    v = (prls[i * m + j] - gi * w[j]) * inv_lam   # Eq. (10)
+                    v = prls[i * m + j] - gi * w[j]               # Eq. (10)
+                    if scale_rls:
+                        v = v * inv_lam
                     prls[i * m + j] = v
                     prls[j * m + i] = v
         for j in range(n - 1, 0, -1):
             zh[j] = zh[j - 1]
         zh[0] = zt
-        rls_err = e
+        s[K.S_RLS_ERR] = e
         if k >= ten_m:
             ns2 += 1.0
             s2 += (e * e - s2) / ns2
@@ -240,9 +249,10 @@ def run_local(p, s, z, restarts, out, shape):
             for i in range(n):
                 x[i] = zt
             x[n] = 0.0
+            s[o_x + n] = 0.0
             k = 1.0
-            last = zt
-            innov = 0.0
+            s[K.S_OUT] = zt
+            s[K.S_INNOV] = 0.0
             out[t] = zt
             continue
 
@@ -260,7 +270,7 @@ def run_local(p, s, z, restarts, out, shape):
         if conv == 1.0 and adaptive:
             if shakf and v * v > g2 * (p00 + r):
                 kd = 0.0                           # Eq. (32) violated
-                nreset += 1.0
+                s[K.S_NRESET] += 1.0
                 bk = b
             else:
                 kd += 1.0
@@ -283,25 +293,27 @@ def run_local(p, s, z, restarts, out, shape):
             Q = q
         else:
             svar = _update(x, P, w, v, r, m)
-        innov = v
-        svar_s = svar
+        s[K.S_INNOV] = v
+        s[K.S_SVAR] = svar
         k = k + 1.0
         o = zt
         if conv == 1.0 and filtering:
             o = x[0]
-        last = o
+        s[K.S_OUT] = o
+        _store_tail(s, x, P, w, o_x, o_p, o_w, n, m)
         out[t] = o
 
-    # -- state, packed once
+    # -- the carried state, packed once
     for i in range(m):
         s[o_theta + i] = theta[i]
-        s[o_x + i] = x[i]
-        s[o_w + i] = w[i]
-    for i in range(mm):
-        s[o_prls + i] = prls[i]
-        s[o_p + i] = P[i]
+        for j in range(m):
+            s[o_prls + i * m + j] = prls[i * m + j]
     for i in range(n):
+        s[o_x + i] = x[i]
         s[o_z + i] = zh[i]
+        for j in range(n):
+            s[o_p + i * m + j] = P[i * m + j]
+        s[o_p + n * m + i] = s[o_p + i * m + n]   # c row = c column (symmetric)
     s[K.S_K] = k
     s[K.S_KD] = kd
     s[K.S_R] = R
@@ -309,15 +321,32 @@ def run_local(p, s, z, restarts, out, shape):
     s[K.S_S2] = s2
     s[K.S_NS2] = ns2
     s[K.S_CONV] = conv
-    s[K.S_INNOV] = innov
-    s[K.S_SVAR] = svar_s
-    s[K.S_NRESET] = nreset
-    s[K.S_OUT] = last
-    s[K.S_RLS_ERR] = rls_err
     s[K.S_BK] = bk
-    s[K.S_NREJ] = nrej
     s[K.S_REJRUN] = rejrun
-    s[K.S_NREOPEN] = nreopen
+
+
+def symmetric_state(s, order):
+    """True if both covariance matrices in state ``s`` are exactly symmetric
+    (always so in states made by the kernels; :func:`run_local` relies on it)."""
+    s = np.asarray(s)
+    o_theta, o_prls, o_x, o_p, o_z, o_w, total = K.layout(int(order))
+    m = int(order) + 1
+    if s.shape != (total,):
+        return False
+    for o in (o_prls, o_p):
+        a = s[o:o + m * m].reshape(m, m)
+        if not np.array_equal(a, a.T):
+            return False
+    return True
+
+
+def _store_tail(s, x, P, w, o_x, o_p, o_w, n, m):
+    """Store the entries every sample overwrites before reading them: x[n],
+    the c column of P (its row is mirrored after the loop) and w."""
+    s[o_x + n] = x[n]
+    for i in range(m):
+        s[o_p + i * m + n] = P[i * m + n]
+        s[o_w + i] = w[i]
 
 
 def _predict(theta, x, P, w, q, n, m):
@@ -420,6 +449,7 @@ if numba is not None:
     _inline = numba.njit(inline="always", error_model="numpy", boundscheck=False)
     _predict = _inline(_predict)
     _update = _inline(_update)
+    _store_tail = _inline(_store_tail)
     run_local_fast = numba.njit(cache=True, nogil=True, error_model="numpy",
                                 boundscheck=False)(run_local)
 else:  # pragma: no cover

@@ -145,3 +145,20 @@ def test_diagnostics_and_theta_still_use_the_generic_loop():
         same(st, sf)
     assert diag.shape == (z.size, 4) and theta.shape == (z.size, 4)
     same(theta[-1], np.asarray(sf[K.N_HEADER:K.N_HEADER + 4]))
+
+
+def test_asymmetric_state_falls_back_to_the_generic_loop():
+    """The fast loop reads the upper triangles of the covariances (every state
+    the kernels make is symmetric); a state that is not goes the generic way."""
+    from gyrodenoise import fastkernels as F
+    z, rs = eventful(seed=9)
+    p = K.make_params(method="shakf", warmup_s=0.4)
+    _, s = run(p, K.init_state(p), z[:1000])
+    assert F.symmetric_state(s, 3)
+    o_p = K.layout(3)[3]
+    s[o_p + 1] *= 1.0 + 1e-9                          # P[0][1] != P[1][0]
+    assert not F.symmetric_state(s, 3)
+    fast, sf = run(p, s, z[1000:], rs[1000:])
+    gen, sg = run(p, s, z[1000:], rs[1000:], fast=False)
+    same(fast, gen)
+    same(sf, sg)
