@@ -11,7 +11,6 @@ Python API (numpy arrays in, numpy out)::
 """
 
 from .denoiser import Denoiser, denoise
-from .gapcore import gap
 
 __version__ = "0.1.0"
 
@@ -29,6 +28,13 @@ def simulate(card, n_samples, seed=0, true_rate_deg_s=None, restarts=None):
     from .simulator import simulate as _simulate
     return _simulate(card, n_samples, seed=seed, true_rate_deg_s=true_rate_deg_s,
                      restarts=restarts)
+
+
+def gap(rate_deg_s, sample_rate_hz, card, **kw):
+    """Model-gap workflow; see :func:`gyrodenoise.gapcore.gap` (imported on use:
+    it pulls in scipy and matplotlib)."""
+    from .gapcore import gap as _gap
+    return _gap(rate_deg_s, sample_rate_hz, card, **kw)
 
 
 def load_card(path_or_name):

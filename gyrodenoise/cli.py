@@ -16,7 +16,8 @@ from .errors import InputError
 # modules that add subcommands: (module path, attribute)
 _SUBCOMMAND_MODULES = [
     "gyrodenoise.commands",   # demo, denoise, allan, compare
-    "gyrodenoise.gap",        # gap
+    "gyrodenoise.gap_cli",    # gap (not "gyrodenoise.gap": importing a submodule of that
+                              # name would replace the function gd.gap by the module)
     "bridge.cli",             # mavlink
     "gyrodenoise.fmu",        # fmu build / run
 ]

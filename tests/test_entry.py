@@ -36,3 +36,14 @@ def test_entry_keeps_error_status(tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and "missing.csv" in p.stderr
+
+
+def test_api_functions_survive_cli_imports():
+    """Building the CLI imports every subcommand module; none may shadow an API
+    function of the package (a submodule ``gyrodenoise.gap`` once replaced gd.gap)."""
+    from gyrodenoise.cli import build_parser
+    build_parser()
+    for name in gd.__all__:
+        if name != "__version__":
+            obj = getattr(gd, name)
+            assert callable(obj) and not isinstance(obj, type(gd)), name
