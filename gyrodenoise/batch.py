@@ -102,9 +102,11 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
     compiled : bool
         Use the numba-compiled loop (False: the plain-Python loop, same code).
     fast : bool
-        With ``compiled`` and neither ``diagnostics`` nor ``record_theta``:
-        use the specialised loop of :mod:`gyrodenoise.fastkernels` (same
-        numbers). False forces the generic compiled loop.
+        With ``compiled`` and neither ``diagnostics`` nor ``record_theta``
+        (and AR order <= ``fastkernels.MAX_ORDER``, symmetric covariances in
+        ``s`` as in every state the kernels make): use the specialised loop of
+        :mod:`gyrodenoise.fastkernels` (same numbers, several times faster).
+        False forces the generic compiled loop.
 
     Returns
     -------
@@ -137,7 +139,7 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
         return out, sa, theta
     order = int(pa[K.P_ORDER])
     if (compiled and fast and not diagnostics and F.run_local_fast is not None
-            and F.symmetric_state(sa, order)):
+            and order <= F.MAX_ORDER and F.symmetric_state(sa, order)):
         F.run_local_fast(pa, sa, za, ra, out, (0.0,) * (order + 1))
         return out, sa
     diag = np.empty((za.shape[0] if diagnostics else 0, 4))

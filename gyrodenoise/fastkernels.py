@@ -11,13 +11,25 @@ matrices live in small private arrays whose size is a compile-time constant
 (numba specialises on the length of the ``shape`` tuple), and the state buffer
 is unpacked once before and written back once after the loop.
 
+Values that every sample overwrites before it reads them (the last
+innovation, S, output and RLS error, the filter's c entry, the c row/column of
+P, the scratch vector) are stored into ``s`` where they are final instead of
+being carried from sample to sample, and the covariances are read as symmetric
+(every state the kernels make is; :func:`gyrodenoise.batch.run` checks it with
+:func:`symmetric_state` and otherwise uses the generic loop).
+
 Every floating-point operation is the one :func:`gyrodenoise.kernels.step`
 (and :func:`~gyrodenoise.kernels.gate`, ``rls_update``, ``kf_predict``,
 ``kf_update``, ``start_filter``, ``tie_c``, ``restart``) performs, in the same
-order, with fastmath off, so the outputs and the final state are bit-for-bit
-those of the generic path (tests/test_fastpath.py checks every method, orders
-1..6, restarts, the outlier gate and its re-opening, split runs). Any change of
-the maths in kernels.py must be mirrored here; the tests fail otherwise.
+order, with fastmath off (no reassociation, no FMA contraction), so the outputs
+and the final state are bit-for-bit those of the generic path. The one product
+left out, ``x * (1 / lam)`` when ``lam == 1``, is exact. tests/test_fastpath.py
+checks every method, orders 1..6, steps, wild samples with the gate on and
+off, re-opening, restarts, split runs. Any change of the maths in kernels.py
+must be mirrored here; those tests fail otherwise.
+
+Orders above :data:`MAX_ORDER` use the generic loop (compile time grows with
+the unrolled size; measured 4-7 s per order up to 8, cached on disk).
 
 Equations are those of Sun et al. (2016), cited as in :mod:`gyrodenoise.kernels`.
 """
@@ -33,7 +45,7 @@ try:
 except ImportError:  # pragma: no cover - batch.run then uses the generic path
     numba = None
 
-#: Largest AR order with a specialised loop (higher orders use the generic path).
+#: Largest AR order with a specialised loop (higher orders use the generic loop).
 MAX_ORDER = 8
 
 

@@ -162,3 +162,29 @@ def test_asymmetric_state_falls_back_to_the_generic_loop():
     gen, sg = run(p, s, z[1000:], rs[1000:], fast=False)
     same(fast, gen)
     same(sf, sg)
+
+
+def test_dispatch_goes_to_the_fast_loop_only_where_it_applies(monkeypatch):
+    """batch.run calls the fast loop for the common case, and not for orders
+    above MAX_ORDER, diagnostics, theta history, fast=False or compiled=False."""
+    from gyrodenoise import fastkernels as F
+    calls = []
+    real = F.run_local_fast
+
+    def spy(*args):
+        calls.append(len(args[-1]) - 1)
+        return real(*args)
+    monkeypatch.setattr(F, "run_local_fast", spy)
+    z, rs = eventful(seed=4)
+    z, rs = z[:1500], rs[:1500]
+    p = K.make_params(ar_order=3, method="shakf", warmup_s=0.4)
+    run(p, K.init_state(p), z, rs)
+    assert calls == [3]
+    run(p, K.init_state(p), z, rs, diagnostics=True)
+    run(p, K.init_state(p), z, rs, record_theta=True)
+    run(p, K.init_state(p), z, rs, fast=False)
+    run(p, K.init_state(p), z[:50], rs[:50], compiled=False)
+    assert calls == [3]
+    big = K.make_params(ar_order=F.MAX_ORDER + 1, method="shakf", warmup_s=0.4)
+    y, _ = run(big, K.init_state(big), z, rs)
+    assert calls == [3] and np.all(np.isfinite(y))
