@@ -48,21 +48,22 @@ def _run_theta_py(p, s, z, restarts, out, theta):
             theta[i, j] = s[o + j]
 
 
-def _invalidate_stale_cache():
-    """numba keys its on-disk cache on this file only, not on the kernels it
-    inlines; drop the cache when kernels.py changed since it was written.
-    (fastkernels.py reads only constants from kernels.py; its cache is checked
-    against kernels.py too, below.)"""
+def invalidate_stale_cache(owner, patterns):
+    """numba keys its on-disk cache on the file of the jitted function only,
+    not on the kernels it inlines: drop the cache files matching ``patterns``
+    (globs in this package's ``__pycache__``) when kernels.py changed since
+    ``owner``'s stamp was written. Used here (batch, fastkernels) and by
+    :mod:`gyrodenoise.reference_filters`."""
     import hashlib
     from pathlib import Path
     here = Path(__file__).resolve().parent
     digest = hashlib.sha256((here / "kernels.py").read_bytes()).hexdigest()
     cache = here / "__pycache__"
-    stamp = cache / "batch.kernels.sha256"
+    stamp = cache / f"{owner}.kernels.sha256"
     try:
         if stamp.exists() and stamp.read_text() == digest:
             return
-        for pattern in ("batch.*.nb[ic]", "fastkernels.*.nb[ic]"):
+        for pattern in patterns:
             for f in cache.glob(pattern):
                 f.unlink()
         cache.mkdir(exist_ok=True)
@@ -72,7 +73,8 @@ def _invalidate_stale_cache():
 
 
 if numba is not None:
-    _invalidate_stale_cache()
+    # (fastkernels.py reads only constants from kernels.py; its cache is checked too)
+    invalidate_stale_cache("batch", ("batch.*.nb[ic]", "fastkernels.*.nb[ic]"))
     _run_fast = numba.njit(cache=True, nogil=True, error_model="numpy")(_run_py)
     _run_theta_fast = numba.njit(cache=True, nogil=True, error_model="numpy")(_run_theta_py)
 else:  # pragma: no cover

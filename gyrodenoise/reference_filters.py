@@ -45,33 +45,14 @@ except ImportError:  # pragma: no cover
     numba = None
 
 
-def _invalidate_stale_cache():
-    """numba keys its on-disk cache on this file only, not on the kernels that
-    :func:`_record_py` inlines: drop this module's cache when kernels.py changed
-    (the same guard as :mod:`gyrodenoise.batch`)."""
-    import hashlib
-    from pathlib import Path
-    here = Path(__file__).resolve().parent
-    digest = hashlib.sha256((here / "kernels.py").read_bytes()).hexdigest()
-    cache = here / "__pycache__"
-    stamp = cache / "reference_filters.kernels.sha256"
-    try:
-        if stamp.exists() and stamp.read_text() == digest:
-            return
-        for f in cache.glob("reference_filters.*.nb[ic]"):
-            f.unlink()
-        cache.mkdir(exist_ok=True)
-        stamp.write_text(digest)
-    except OSError:  # read-only install: numba then does not cache either
-        pass
-
-
 def _njit(fn):
     return numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
 
 
 if numba is not None:
-    _invalidate_stale_cache()
+    # numba does not see kernels.py changes in what _record_py inlines
+    from .batch import invalidate_stale_cache
+    invalidate_stale_cache("reference_filters", ("reference_filters.*.nb[ic]",))
 
 
 # ------------------------------------------------------------ low-pass filters
