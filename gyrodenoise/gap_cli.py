@@ -28,7 +28,8 @@ def register_cli(subparsers):
                    help="simulator: SimulatedFog.fmu through fmpy (default) or the core simulator (fast)")
     p.add_argument("--fmu-dir", default=None, help="folder of SimulatedFog.fmu (default build/; built when missing "
                                                    "or stale)")
-    p.add_argument("--workers", type=int, default=None, help="processes for the FMU engine (default: cores)")
+    p.add_argument("--workers", type=int, default=None, help="processes for the FMU engine, a whole number >= 1 (default: one per seed, "
+                        "at most the number of cores); ignored by --engine native")
     p.add_argument("--max-effects", type=int, default=4, help="most effects to add (default 4)")
     p.add_argument("--plot", default=None, metavar="PNG", help="figure (default: NEW.gap.png next to --out)")
     p.add_argument("--no-plot", action="store_true", help="write no figure")
@@ -52,6 +53,9 @@ def cmd_gap(args):
     card = load_card(args.model)
     if args.seeds < 3:
         raise InputError(f"--seeds must be at least 3, got {args.seeds}")
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers must be at least 1 (omit it for one per seed up to the cores), "
+                         f"got {args.workers}")
     if args.max_effects < 0:
         raise InputError(f"--max-effects must be >= 0, got {args.max_effects}")
     _check_writable(args.out, "--out")
@@ -69,15 +73,16 @@ def cmd_gap(args):
     if res.effects_added:
         text = text.rstrip("\n") + f"\n# completed by gyrodenoise gap from {Path(args.input).name}: " + \
             ", ".join(e["name"] for e in res.effects_added) + f"; gap {res.gap_before:.3g} -> {res.gap_after:.3g}\n"
+    # everything that can fail first; NEW.toml is written last, only after a successful run
+    report = format_report(res, args.input)
+    d = res.to_json()
+    d.update({"out": str(args.out), "plot": plot, "source": str(args.input), "model": str(args.model)})
+    if plot:
+        plot_gap(res, plot, title=f"{Path(args.input).name} vs {Path(str(args.model)).name}")
     try:
         Path(args.out).write_text(text, encoding="utf-8")
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", args.out) from None
-    if plot:
-        plot_gap(res, plot, title=f"{Path(args.input).name} vs {Path(str(args.model)).name}")
-    report = format_report(res, args.input)
-    d = res.to_json()
-    d.update({"out": str(args.out), "plot": plot, "source": str(args.input), "model": str(args.model)})
     if args.json:
         print(report, file=sys.stderr)
         emit_json(d)

@@ -276,13 +276,31 @@ def _fmt_num(v):
 
 
 def card_at_rate(text, fs, source="<card>"):
-    """Parse a card's text, simulated at ``fs`` Hz (the record's rate)."""
+    """Parse a card's text as simulated at ``fs`` Hz (the record's rate).
+
+    The text is re-parsed through :func:`gyrodenoise.simulator.parse_card`
+    with ``sensor.sample_rate_hz`` set to ``fs``, so every rate-dependent
+    check (a sinusoid above the record's Nyquist frequency) applies at the
+    rate the card is actually simulated at; the error names ``source``.
+    """
     from dataclasses import replace
     from .simulator import parse_card
     card = parse_card(text, source)
-    if card.sample_rate_hz != fs:
-        card = replace(card, sample_rate_hz=float(fs))
-    return card
+    if card.sample_rate_hz == fs:
+        return card
+    try:
+        at = parse_card(text_at_rate(text, fs), source)
+    except InputError as exc:
+        raise InputError(f"{exc}, simulated at the record's rate {float(fs):g} Hz (the card says "
+                         f"{card.sample_rate_hz:g} Hz)") from None
+    if at.sample_rate_hz != float(fs):      # the rate is not on a line of its own: check by hand
+        for i, s_ in enumerate(card.term_list("sinusoid")):
+            if s_["frequency"] > fs / 2:
+                raise InputError(f"terms.sinusoid[{i}].frequency {s_['frequency']:g} Hz is above the "
+                                 f"record's Nyquist ({float(fs) / 2:g} Hz; the record is {float(fs):g} Hz, "
+                                 f"the card says {card.sample_rate_hz:g} Hz)", source)
+        at = replace(card, sample_rate_hz=float(fs))
+    return at
 
 
 def text_at_rate(text, fs):
@@ -292,42 +310,143 @@ def text_at_rate(text, fs):
     return new if n else text
 
 
-def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap"):
-    """Add a term to (or replace a re-fitted term in) the TEXT of a card.
+def _table_range(lines, i):
+    """(start, end) of the body of the table whose header is line ``i``."""
+    header = re.compile(r"^\s*\[")
+    end = next((j for j in range(i + 1, len(lines)) if header.match(lines[j])), len(lines))
+    return i + 1, end
 
-    Comments and order are kept. A non-repeatable term becomes an inline-table
-    line in ``[terms]`` (replacing its old line when ``refit``); a repeatable
-    one (gauss_markov, sinusoid) a new ``[[terms.name]]`` table at the end.
-    """
+
+def _last_content(lines, lo, hi, default):
+    return max([j for j in range(lo, hi) if lines[j].strip() and not lines[j].lstrip().startswith("#")],
+               default=default)
+
+
+def _edit_lines(lines, name, params, refit, note):
+    """The edit itself (see :func:`edit_card`); returns the new list of lines."""
     from .simulator import REPEATABLE
-    lines = text.splitlines()
     if name in REPEATABLE:
         block = ["", f"[[terms.{name}]]                    # {note}"]
         block += [f"{k} = {_fmt_num(v)}" for k, v in params.items()]
-        return "\n".join(lines).rstrip("\n") + "\n" + "\n".join(block) + "\n"
+        while lines and not lines[-1].strip():
+            lines = lines[:-1]
+        return lines + block
+    what = "re-fitted" if refit else "added"
+    # a sub-table [terms.name]: rewrite its keys in place
+    sub = next((i for i, ln in enumerate(lines)
+                if re.match(rf"^\s*\[\s*terms\s*\.\s*{re.escape(name)}\s*\]\s*(#.*)?$", ln)), None)
+    if sub is not None:
+        lo, hi = _table_range(lines, sub)
+        body, done = [], set()
+        for ln in lines[lo:hi]:
+            mo = re.match(r"^\s*([A-Za-z0-9_]+)\s*=", ln)
+            if mo and mo.group(1) in params:
+                body.append(f"{mo.group(1)} = {_fmt_num(params[mo.group(1)])}    # {what}, {note}")
+                done.add(mo.group(1))
+            elif mo:       # a field the new fit does not set: dropped, as with an inline table
+                body.append(f"# {ln.strip()}    # replaced, {note}")
+            else:
+                body.append(ln)
+        last = _last_content(body, 0, len(body), -1)
+        body[last + 1:last + 1] = [f"{k} = {_fmt_num(v)}    # {what}, {note}" for k, v in params.items()
+                                   if k not in done]
+        return lines[:lo] + body + lines[hi:]
     inline = f"{name} = {{ " + ", ".join(f"{k} = {_fmt_num(v)}" for k, v in params.items()) + " }"
-    inline += f"    # {'re-fitted' if refit else 'added'}, {note}"
+    inline += f"    # {what}, {note}"
     pat = re.compile(rf"^\s*{re.escape(name)}\s*=")
-    header = re.compile(r"^\s*\[")
-    # locate [terms]
-    start = next((i for i, ln in enumerate(lines) if re.match(r"^\s*\[terms\]\s*(#.*)?$", ln)), None)
+    start = next((i for i, ln in enumerate(lines) if re.match(r"^\s*\[\s*terms\s*\]\s*(#.*)?$", ln)), None)
     if start is not None:
-        end = next((i for i in range(start + 1, len(lines)) if header.match(lines[i])), len(lines))
-        for i in range(start + 1, end):
+        lo, hi = _table_range(lines, start)
+        for i in range(lo, hi):
             if pat.match(lines[i]):
-                lines[i] = inline
-                return "\n".join(lines) + "\n"
-        last = max([i for i in range(start, end) if lines[i].strip() and not lines[i].lstrip().startswith("#")],
-                   default=start)
-        lines.insert(last + 1, inline)
-        return "\n".join(lines) + "\n"
-    first_arr = next((i for i, ln in enumerate(lines) if re.match(r"^\s*\[\[terms\.", ln)), len(lines))
-    lines[first_arr:first_arr] = ["[terms]", inline, ""]
-    return "\n".join(lines) + "\n"
+                return lines[:i] + [inline] + lines[i + 1:]
+        last = _last_content(lines, lo, hi, start)
+        return lines[:last + 1] + [inline] + lines[last + 1:]
+    # no [terms] table: one before the first [terms.x] / [[terms.x]] table (or at the end)
+    first = next((i for i, ln in enumerate(lines) if re.match(r"^\s*\[\[?\s*terms\s*\.", ln)), len(lines))
+    return lines[:first] + ["[terms]", inline, ""] + lines[first:]
+
+
+def _holds(text, name, params, n_before):
+    """Does the card text parse as TOML with terms.name holding ``params`` (the last
+    instance, one more than ``n_before``, for a repeatable term)?"""
+    import tomllib
+    from .simulator import REPEATABLE
+    try:
+        t = tomllib.loads(text).get("terms", {}).get(name)
+    except tomllib.TOMLDecodeError:
+        return False
+    if name in REPEATABLE:
+        if not isinstance(t, list) or len(t) != n_before + 1:
+            return False
+        t = t[-1]
+    if not isinstance(t, dict) or set(t) != set(params):
+        return False
+    return all(math.isclose(float(t[k]), float(v), rel_tol=1e-5, abs_tol=1e-300) for k, v in params.items())
+
+
+def _n_instances(text, name):
+    import tomllib
+    try:
+        t = tomllib.loads(text).get("terms", {}).get(name)
+    except tomllib.TOMLDecodeError:
+        return 0
+    return 0 if t is None else len(t) if isinstance(t, list) else 1
+
+
+def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap", source="<card>"):
+    """Add a term to (or replace a re-fitted term in) the TEXT of a card.
+
+    Comments and order are kept. A non-repeatable term becomes an inline-table
+    line in ``[terms]`` (replacing its old line when ``refit``), or, when the
+    card writes it as a ``[terms.name]`` sub-table, that sub-table's fields are
+    rewritten in place (fields the new fit does not set are commented out). A
+    repeatable one (gauss_markov, sinusoid) becomes a new ``[[terms.name]]``
+    table at the end. The edited text is checked by parsing it back: the term
+    must then hold exactly ``params``; a layout this function cannot edit
+    (e.g. a term written as dotted keys ``name.N = ...`` or a repeatable term
+    written as an inline array) raises :class:`InputError` naming ``source``
+    and the term.
+    """
+    new = "\n".join(_edit_lines(text.splitlines(), name, params, refit, note)) + "\n"
+    if not _holds(new, name, params, _n_instances(text, name)):
+        raise InputError(f"cannot rewrite terms.{name} in the way this card writes it (supported: an "
+                         f"inline table `{name} = {{ ... }}` in [terms], a [terms.{name}] table, or "
+                         f"[[terms.{name}]] tables for gauss_markov/sinusoid); rewrite the card in one "
+                         f"of those forms", source)
+    return new
+
+
+# parameters that exercise edit_card on every term of the vocabulary (check_editable)
+_TRIAL = {"quantization": {"Q": 1e-4}, "angle_random_walk": {"N": 0.1}, "bias_instability": {"B": 0.1},
+          "rate_random_walk": {"K": 0.1}, "rate_ramp": {"R": 1.0}, "constant_bias": {"value": 1.0},
+          "turn_on_transient": {"amplitude": 1.0, "tau": 10.0}, "gauss_markov": {"sigma": 1.0, "tau": 1.0},
+          "sinusoid": {"amplitude": 1.0, "frequency": 1e-3, "phase_deg": 0.0}}
+
+
+def check_editable(card):
+    """Raise :class:`InputError` up front (naming the card and the term) when
+    :func:`edit_card` cannot add or re-fit some term of the vocabulary in the
+    way this card is written."""
+    from .simulator import parse_card
+    for name, params in _TRIAL.items():
+        new = edit_card(card.text, name, params, refit=name in card.terms, source=card.source)
+        parse_card(new, card.source)
 
 
 # ------------------------------------------------------------------ simulation
 def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
+    """Simulate one seed through SimulatedFog.fmu; returns the rates, or a one-line
+    error message (str) instead of raising: FMU exceptions need not unpickle in the
+    parent process, and a raise there would surface as a BrokenProcessPool."""
+    try:
+        return _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts)
+    except Exception as exc:        # noqa: BLE001 - returned as text to the parent
+        msg = " ".join(str(exc).split()) or "no message"
+        return f"{exc.__class__.__name__}: {msg}"
+
+
+def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
     """Simulate one seed through SimulatedFog.fmu with fmpy FMU2Slave (one step per sample)."""
     from .fmu import FmuInstance, _stepper
     fog = FmuInstance(fmu_path, f"fog{seed}")
@@ -365,9 +484,13 @@ class Simulator:
     """
 
     def __init__(self, n, fs, seeds, engine="native", restarts=None, fmu_dir=None, workers=None,
-                 quiet=False):
+                 quiet=False, source="<card>"):
         if engine not in ("native", "fmu"):
             raise InputError(f"unknown engine {engine!r} (use fmu or native)")
+        if workers is not None and (isinstance(workers, bool) or int(workers) != workers or workers < 1):
+            raise InputError(f"workers must be a whole number >= 1 (or None: one per seed up to the "
+                             f"cores), got {workers!r}")
+        self.source = source
         self.n, self.fs, self.seeds, self.engine = int(n), float(fs), list(seeds), engine
         self.restarts = None if restarts is None else np.asarray(restarts, dtype=bool)
         self.quiet = quiet
@@ -380,12 +503,13 @@ class Simulator:
         self.n_runs += len(self.seeds)
         if engine == "native":
             from .simulator import simulate
-            card = card_at_rate(text, self.fs)
+            card = card_at_rate(text, self.fs, self.source)
             return [simulate(card, self.n, seed=s, restarts=self.restarts).rate_deg_s for s in self.seeds]
         import multiprocessing as mp
         import os
         from concurrent.futures import ProcessPoolExecutor
-        card_at_rate(text, self.fs)          # check it first
+        from concurrent.futures.process import BrokenProcessPool
+        card_at_rate(text, self.fs, self.source)          # check it first
         ftext = text_at_rate(text, self.fs)
         workers = self.workers or min(len(self.seeds), os.cpu_count() or 1)
         rs = None if self.restarts is None else self.restarts.tolist()
@@ -396,9 +520,17 @@ class Simulator:
             futs = [ex.submit(_fmu_worker, str(self.fmu_path), ftext, s, self.n, self.fs, rs)
                     for s in self.seeds]
             out = []
-            for i, f in enumerate(futs):
-                out.append(f.result())
-                _log(f"gyrodenoise:   seed {self.seeds[i]} done", self.quiet)
+            try:
+                for i, f in enumerate(futs):
+                    r = f.result()
+                    if isinstance(r, str):
+                        raise InputError(f"{self.fmu_path.name} failed on seed {self.seeds[i]}: {r}",
+                                         self.source)
+                    out.append(r)
+                    _log(f"gyrodenoise:   seed {self.seeds[i]} done", self.quiet)
+            except BrokenProcessPool as exc:
+                raise InputError(f"an FMU worker process died on seed {self.seeds[len(out)]} "
+                                 f"({' '.join(str(exc).split())})", self.source) from None
         return out
 
 
@@ -685,20 +817,58 @@ class GapResult:
     engine: str
     component_threshold: dict
     seeds: list
+    limitations: list = field(default_factory=list)
     layout: Layout = None
     measured: dict = None
 
+    @property
+    def within_scatter(self):
+        """The final card is within the simulations' scatter (the stop test of the loop)."""
+        return bool(self.iterations[-1].get("within_scatter", False))
+
     def to_json(self):
-        return {"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"],
-                                   "iteration": e["iteration"]}
-                                  for e in self.effects_added],
-                "gap_before": float(self.gap_before), "gap_after": float(self.gap_after),
-                "gap_metric": GAP_METRIC,
-                "threshold": float(self.threshold), "component_threshold": self.component_threshold,
-                "engine": self.engine, "seeds": list(self.seeds),
-                "within_scatter": bool(self.gap_after <= self.threshold and all(
-                    self.iterations[-1]["components"][c] <= self.component_threshold[c] for c in COMPONENTS)),
-                "iterations": [{k: v for k, v in it.items() if not k.startswith("_")} for it in self.iterations]}
+        """Plain JSON (every float finite or null, see :func:`_finite`)."""
+        return _finite({"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"],
+                                           "iteration": e["iteration"]}
+                                          for e in self.effects_added],
+                        "gap_before": self.gap_before, "gap_after": self.gap_after,
+                        "gap_metric": GAP_METRIC,
+                        "threshold": self.threshold, "component_threshold": self.component_threshold,
+                        "engine": self.engine, "seeds": list(self.seeds),
+                        "within_scatter": self.within_scatter,
+                        "stop": self.iterations[-1].get("stop"),
+                        "limitations": list(self.limitations),
+                        "iterations": [{k: v for k, v in it.items() if not k.startswith("_")}
+                                       for it in self.iterations]})
+
+
+def _finite(obj):
+    """A copy of a JSON-able structure with every float through :func:`_f` (NaN/inf -> None)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (bool, str)) or obj is None:
+        return obj
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _f(float(obj))
+    if isinstance(obj, np.ndarray):
+        return _finite(obj.tolist())
+    return obj
+
+
+def _zeroed(changes):
+    """Fields that a set of changes would write as 0 (a noise term fitted to nothing)."""
+    out = []
+    for nm, pr, _ in changes:
+        fld = CARD_FIELD.get(nm, (None,))[0]
+        for k in ([fld] if fld else []) + (["sigma"] if nm == "gauss_markov" else []) + \
+                (["amplitude"] if nm == "sinusoid" else []):
+            if k in pr and not float(pr[k]) > 0:
+                out.append(f"{nm}.{k}")
+    return out
 
 
 def _points(z):
@@ -815,14 +985,19 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     if y.shape[0] < MIN_SAMPLES:
         raise InputError(f"only {y.shape[0]} samples; the gap workflow needs at least {MIN_SAMPLES} "
                          f"(Allan deviation over octaves and a Welch PSD)", source)
+    if not np.ptp(y) > 0:
+        raise InputError("the record is constant (zero variance): nothing to compare", source)
     fs = float(sample_rate_hz)
     card0 = load_card(card)
     text = card0.text
+    csrc = card0.source
+    card_at_rate(text, fs, csrc)        # the card as simulated at the record's rate (Nyquist)
+    check_editable(card0)               # every term of the vocabulary can be written into this card
     seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s) for s in seeds]
     if len(seed_list) < 3:
         raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
     layout = Layout.for_record(y.shape[0], fs)
-    sim = Simulator(y.shape[0], fs, seed_list, engine, restarts, fmu_dir, workers, quiet)
+    sim = Simulator(y.shape[0], fs, seed_list, engine, restarts, fmu_dir, workers, quiet, source=csrc)
     sig_m = signature(y, layout)
     sims = sim.run(text)
     if not np.any([np.std(s_) > 0 for s_ in sims]):
@@ -834,17 +1009,21 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) if loo else COMPONENT_FLOOR
                       for c in COMPONENTS}
     _log(f"gyrodenoise: gap of the input card {g:.3g} (threshold {threshold:.3g})", quiet)
+    if not math.isfinite(g):
+        raise InputError(f"the gap of the input card is not finite ({g}): the record's signatures "
+                         f"cannot be compared with the card's", source)
     gap_before = g
-    effects, iterations = [], []
+    effects, iterations, limitations = [], [], []
     while True:
         it = {"card_gap": g, "components": comp, "where": where_disagree(z, layout),
               "_ref": ref, "_z": z, "candidates": []}
         iterations.append(it)
         within = g <= threshold and all(comp[c] <= comp_threshold[c] for c in COMPONENTS)
+        it["within_scatter"] = bool(within)
         if within or len(effects) >= max_effects:
             it["stop"] = "within the simulations' scatter" if within else "max_effects reached"
             break
-        card = card_at_rate(text, fs)
+        card = card_at_rate(text, fs, csrc)
         cands = propose(y, layout, ref, z, card, restarts)
         det, off, wander = deterministic_offset(sig_m, ref, z)
         if det and any(c.name == "constant_bias" for c in cands):
@@ -855,21 +1034,34 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
                              f"block-mean wander ({wander * 3600:.3g} deg/h rms): deterministic, explained first")
             it["deterministic_first"] = True
         for c in cands:
+            zeroed = _zeroed(c.changes)
+            if zeroed:
+                msg = (f"the card is noisier than the record ({', '.join(zeroed)} would be set to 0); "
+                       f"gap only adds or re-fits terms: it cannot remove or reduce gauss_markov/"
+                       f"sinusoid terms, and writes no zeroed term as a fit")
+                c.why += f" (rejected: {msg})"
+                if msg not in limitations:
+                    limitations.append(msg)
+                continue
             c.text = text
             for nm, pr, rf in c.changes:
-                c.text = edit_card(c.text, nm, pr, rf, f"fitted to {Path(str(source)).name}")
+                c.text = edit_card(c.text, nm, pr, rf, f"fitted to {Path(str(source)).name}", csrc)
             try:
-                card_at_rate(c.text, fs)
+                card_at_rate(c.text, fs, csrc)
             except InputError as exc:
                 c.why += f" (rejected: {exc})"
                 continue
             cref, c.z, c.components, c.gap = _evaluate(sim.run(c.text, engine="native"), sig_m, layout)
             c.widen = widening(cref, ref, z)
+            if not math.isfinite(c.gap):
+                c.why += " (rejected: non-finite gap)"
+                c.z = None
         ok = [c for c in cands if c.z is not None]
         mask = explainable([z] + [c.z for c in ok])
         for c in ok:
             c.robust = robust_gap(c.z, mask)
             c.score = (c.robust + c.widen) * (1.0 + PENALTY_PER_PARAM * c.n_params)
+        ok = [c for c in ok if math.isfinite(c.score)]      # never accept a non-finite score
         it["candidates"] = [c.to_json() for c in cands]
         best = min(ok, key=lambda c: c.score) if ok else None
         rg = robust_gap(z, mask)
@@ -883,27 +1075,28 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
             pairs = []
             for i, a in enumerate(top):
                 for b in top[i + 1:]:
-                    if a.name == b.name:
+                    if a.name == b.name or _zeroed(b.changes):
                         continue
                     pc = Candidate(a.name, a.params, a.refit, f"{a.why}; together with {b.name}",
                                    extra=a.extra + b.changes)
                     pc.text = a.text
                     for nm, pr, rf in b.changes:
-                        pc.text = edit_card(pc.text, nm, pr, rf, f"fitted to {Path(str(source)).name}")
+                        pc.text = edit_card(pc.text, nm, pr, rf, f"fitted to {Path(str(source)).name}", csrc)
                     try:
-                        card_at_rate(pc.text, fs)
+                        card_at_rate(pc.text, fs, csrc)
                     except InputError:
                         continue
                     pref, pz, pc.components, pc.gap = _evaluate(sim.run(pc.text, engine="native"), sig_m, layout)
                     pc.robust = robust_gap(pz, mask)
                     pc.widen = widening(pref, ref, z)
                     pc.score = (pc.robust + pc.widen) * (1.0 + PENALTY_PER_PARAM * pc.n_params)
-                    pairs.append(pc)
+                    if math.isfinite(pc.score) and math.isfinite(pc.gap):
+                        pairs.append(pc)
             it["pairs"] = [c.to_json() for c in pairs]
             bp = min(pairs, key=lambda c: c.score) if pairs else None
             if bp is not None and bp.score < MIN_IMPROVEMENT * best.score:
                 best = bp
-        if best is None or best.score > MIN_IMPROVEMENT * rg:
+        if best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg):
             it["stop"] = "no candidate shrinks the gap significantly"
             break
         _log(f"gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
@@ -916,7 +1109,15 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
         it["chosen"] = [nm for nm, _, _ in best.changes]
         sims = sim.run(text)
         ref, z, comp, g = _evaluate(sims, sig_m, layout)
-    return GapResult(effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
+    last = iterations[-1]
+    if not last["within_scatter"] and any(s_ < 0 for s_ in last["where"]["allan_sign"]) \
+            and not any(s_ > 0 for s_ in last["where"]["allan_sign"]):
+        msg = ("the record's Allan deviation is below the card's wherever they disagree: the card is "
+               "noisier than the record; gap only adds or re-fits terms and cannot remove or reduce "
+               "gauss_markov/sinusoid terms")
+        if not any("noisier" in m_ for m_ in limitations):
+            limitations.append(msg)
+    return GapResult(limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
                      iterations=iterations, threshold=threshold, engine=engine, seeds=seed_list,
                      component_threshold=comp_threshold,
                      layout=layout, measured=sig_m)
@@ -969,10 +1170,20 @@ def format_report(res, source="MEASURED"):
                 out.append(f"    => {'re-fit' if e['refit'] else 'add'} {e['name']} {_short(e['params'])}")
         if it.get("stop"):
             out.append(f"    stop: {it['stop']}")
+    for m_ in res.limitations:
+        out.append(f"limitation: {m_}")
     out.append("")
-    out.append(f"gap {res.gap_before:.3g} -> {res.gap_after:.3g}; "
-               + ("nothing missing" if not res.effects_added else
-                  "added: " + ", ".join(f"{e['name']}{' (re-fit)' if e['refit'] else ''}" for e in res.effects_added)))
+    if res.effects_added:
+        verdict = "added (in the order found; the last entry of a term is its value in the card): " + \
+            ", ".join(f"{e['name']}{' (re-fit)' if e['refit'] else ''}" for e in res.effects_added)
+        if not res.within_scatter:
+            verdict += f"; still above the scatter threshold ({res.iterations[-1].get('stop')})"
+    elif res.within_scatter:
+        verdict = "nothing missing (within the simulations' scatter)"
+    else:
+        verdict = (f"nothing added: {res.iterations[-1].get('stop')}, but the gap is still above the "
+                   f"scatter threshold ({res.threshold:.3g}): the card does not explain the record")
+    out.append(f"gap {res.gap_before:.3g} -> {res.gap_after:.3g}; " + verdict)
     return "\n".join(out)
 
 
