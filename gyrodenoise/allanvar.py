@@ -110,13 +110,16 @@ def basis(tau_s):
 
 _ORDER = ("R", "K", "B", "N", "Q")   # column order of basis()
 DCHI2_RESOLVED = 25.0
+IRLS_ITERATIONS = 5
 
 
 def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
     """Weighted non-negative least-squares fit of Eq. (40) to an Allan curve.
 
     Each point's residual in Allan *variance* is weighted by the inverse of its
-    1-sigma error (2 adev err / adev relative). A term is "fit" when removing
+    1-sigma error, 2 x (relative adev error, from the cluster count) x the
+    *fitted* variance: iteratively reweighted from the measured variance, so
+    that a point which happens to come out low cannot claim a large weight. A term is "fit" when removing
     it from the fit raises chi^2 by more than ``DCHI2_RESOLVED``; otherwise
     the record cannot resolve it and its value is an upper bound: the largest
     coefficient whose contribution stays below the measured variance plus
@@ -144,14 +147,29 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
         return ({k: 0.0 for k in TERM_NAMES}, {k: "upper_bound" for k in TERM_NAMES},
                 {k: 0.0 for k in TERM_NAMES})
     avar = a * a
-    sig = np.maximum(2.0 * a * e, 1e-300)      # 1-sigma of avar
+    rel = e / a                                # relative 1-sigma of adev (cluster count only)
     A = basis(t)
-    Aw = A / sig[:, None]
-    yw = avar / sig
-    scale = np.max(np.abs(Aw), axis=0)        # column scaling for conditioning
-    coef, rnorm = nnls(Aw / scale, yw)
-    coef = coef / scale
-    chi2 = rnorm * rnorm
+
+    def solve(sig):
+        Aw = A / sig[:, None]
+        yw = avar / sig
+        scale = np.max(np.abs(Aw), axis=0)    # column scaling for conditioning
+        coef, rnorm = nnls(Aw / scale, yw)
+        return coef / scale, rnorm * rnorm, Aw, yw, scale
+
+    # 1-sigma of avar. Weighting by the *measured* variance (2 a^2 rel) lets a
+    # point that happens to come out low (last taus, few clusters) take a huge
+    # weight and drag the fit; so iterate with the variance of the fitted
+    # model (iteratively reweighted least squares), from the measured start.
+    sig = np.maximum(2.0 * avar * rel, 1e-300)
+    for _ in range(IRLS_ITERATIONS):
+        coef = solve(sig)[0]
+        model = A @ coef
+        sig_new = np.maximum(2.0 * np.maximum(model, 1e-300) * rel, 1e-300)
+        if np.allclose(sig_new, sig, rtol=1e-6, atol=0.0):
+            break
+        sig = sig_new
+    coef, chi2, Aw, yw, scale = solve(sig)
     def chi2_without(drop):
         keep = [i for i in range(A.shape[1]) if i not in drop]
         _, rn = nnls(Aw[:, keep] / scale[keep], yw)
