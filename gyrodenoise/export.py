@@ -50,12 +50,16 @@ value carries its unit and origin in a comment; the numbers are printed with
 from __future__ import annotations
 
 import math
+import re
 from datetime import datetime, timezone
 from pathlib import Path
 
 from .errors import InputError
 
 DEG = math.pi / 180.0
+# ROS graph resource names: letters, digits, '_', '/' separators, optional leading
+# '/' or '~' (no spaces, ':' or '#', which would also break the YAML line)
+_ROS_NAME = re.compile(r"[/~]?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*")
 
 
 def terms_to_si(terms):
@@ -189,6 +193,10 @@ def export_from_args(args, allan_result):
     source = str(getattr(args, "input", "") or "")
     terms, bounds = allan_result.terms, allan_result.bounds
     if getattr(args, "kalibr_yaml", None):
+        topic = args.kalibr_rostopic
+        if not _ROS_NAME.fullmatch(topic or ""):
+            raise InputError(f"--kalibr-rostopic {topic!r} is not a ROS topic name "
+                             "(letters, digits, '_' and '/', e.g. /imu0)")
         f = args.kalibr_inflate
         if not (f > 0 and math.isfinite(f)):
             raise InputError(f"--kalibr-inflate must be a positive number, got {f!r}")

@@ -161,21 +161,21 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
     if method not in METHODS:
         raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
     checks = [
-        ("sample_rate_hz", sample_rate_hz, sample_rate_hz > 0),
-        ("lam", lam, 0 < lam <= 1),
-        ("b", b, 0 < b < 1),
-        ("gamma", gamma, gamma >= 1),
-        ("q0", q0, q0 >= 0),
-        ("r0", r0, r0 >= 0),
-        ("p0_rls", p0_rls, p0_rls > 0),
-        ("p0_kf", p0_kf, p0_kf > 0),
-        ("warmup_s", warmup_s, warmup_s >= 0),
-        ("r_floor", r_floor, r_floor > 0),
-        ("outlier_sigma", outlier_sigma, outlier_sigma == 0 or outlier_sigma >= 2),
+        ("sample_rate_hz", sample_rate_hz, sample_rate_hz > 0, "> 0 Hz"),
+        ("lam", lam, 0 < lam <= 1, "0 < lam <= 1"),
+        ("b", b, 0 < b < 1, "0 < b < 1"),
+        ("gamma", gamma, gamma >= 1, ">= 1"),
+        ("q0", q0, q0 >= 0, ">= 0 (deg/s)^2, 0 = automatic"),
+        ("r0", r0, r0 >= 0, ">= 0 (deg/s)^2, 0 = automatic"),
+        ("p0_rls", p0_rls, p0_rls > 0, "> 0"),
+        ("p0_kf", p0_kf, p0_kf > 0, "> 0 (deg/s)^2"),
+        ("warmup_s", warmup_s, warmup_s >= 0, ">= 0 s"),
+        ("r_floor", r_floor, r_floor > 0, "> 0 (deg/s)^2"),
+        ("outlier_sigma", outlier_sigma, outlier_sigma == 0 or outlier_sigma >= 2, "0 (off) or >= 2"),
     ]
-    for name, value, ok in checks:
+    for name, value, ok, rule in checks:
         if not (ok and value == value and abs(value) != float("inf")):
-            raise ValueError(f"{name} out of range: {value!r}")
+            raise ValueError(f"{name} out of range: {value!r} (must be {rule})")
     if int(outlier_run) != outlier_run or outlier_run < 1:
         raise ValueError(f"outlier_run must be an integer >= 1, got {outlier_run!r}")
     warmup = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))

@@ -140,3 +140,20 @@ def test_allan_command_writes_exports_and_keeps_json_clean(tmp_path):
     p = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "allan", str(src),
                         "--matlab", str(tmp_path / "no" / "x.m")], capture_output=True, text=True, timeout=300)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "x.m" in p.stderr
+
+
+@pytest.mark.parametrize("topic", ["a: b # c", "imu 0", "", "/imu0/"])
+def test_bad_rostopic_is_a_one_line_error(tmp_path, topic):
+    res = gd.allan(gd.simulate("paper_fog", 5000, seed=8).rate_deg_s, 200.0)
+    args = _parser().parse_args(["r.csv", "--kalibr-yaml", str(tmp_path / "i.yaml"), "--kalibr-rostopic", topic])
+    with pytest.raises(InputError, match="--kalibr-rostopic"):
+        export.export_from_args(args, res)
+    assert not (tmp_path / "i.yaml").exists()
+
+
+def test_good_rostopics_are_written(tmp_path):
+    res = gd.allan(gd.simulate("paper_fog", 5000, seed=8).rate_deg_s, 200.0)
+    for topic in ("/imu0", "imu", "/vehicle/imu_raw", "~imu"):
+        args = _parser().parse_args(["r.csv", "--kalibr-yaml", str(tmp_path / "i.yaml"), "--kalibr-rostopic", topic])
+        export.export_from_args(args, res)
+        assert _keys((tmp_path / "i.yaml").read_text())["rostopic"][0] == topic
