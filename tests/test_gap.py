@@ -61,6 +61,28 @@ sample_rate_hz = 100.0
 quantization = { Q = 3.0e-4 }   # deg
 """
 
+CARD200 = """# a 200 Hz card with a line at 80 Hz (above the Nyquist frequency of a 100 Hz record)
+[sensor]
+name = "gap test 200 Hz"
+sample_rate_hz = 200.0
+
+[terms]
+angle_random_walk = { N = 0.5 }
+
+[[terms.sinusoid]]
+amplitude = 50.0
+frequency = 80.0
+"""
+
+SUB = """# the same white-noise card written with a sub-table
+[sensor]
+name = "gap test sub-table"
+sample_rate_hz = 100.0
+
+[terms.angle_random_walk]   # from the datasheet
+N = 0.5                     # deg/sqrt(h), too noisy
+"""
+
 
 def _measured(base, effects, n=N30, seed=MEAS_SEED):
     text = base
@@ -217,7 +239,9 @@ def test_cli_json_contract_and_new_card(tmp_path):
     assert "gap" in proc.stderr             # the text report goes to stderr with --json
 
 
-@pytest.mark.parametrize("case", ["missing_card", "bad_csv", "out_dir_missing", "too_short"])
+@pytest.mark.parametrize("case", ["missing_card", "bad_csv", "out_dir_missing", "too_short", "constant",
+                                  "card_line_above_record_nyquist", "workers_negative", "workers_zero",
+                                  "dotted_key_card"])
 def test_cli_bad_input_one_line_exit_2(tmp_path, case):
     meas = tmp_path / "meas.csv"
     _write_csv(meas, _measured(BASE, [], n=6000))
@@ -232,12 +256,160 @@ def test_cli_bad_input_one_line_exit_2(tmp_path, case):
         out = tmp_path / "no" / "such" / "new.toml"
     elif case == "too_short":
         _write_csv(meas, np.random.default_rng(5).standard_normal(500) * 0.01)
-    proc = _cli("gap", meas, "--model", card, "--out", out, "--engine", "native", "--json")
+    elif case == "constant":        # zero variance: log(0) PSD, inf gap before the fix
+        _write_csv(meas, np.full(8192, 0.01))
+    elif case == "card_line_above_record_nyquist":     # 80 Hz line: fine at 200 Hz, not at 100 Hz
+        card.write_text(CARD200)
+    elif case == "dotted_key_card":
+        card.write_text(BASE.replace("angle_random_walk = { N = 0.1 }", "angle_random_walk.N = 0.1"))
+    extra = []
+    if case.startswith("workers_"):
+        extra = ["--workers", -1 if case == "workers_negative" else 0]
+    proc = _cli("gap", meas, "--model", card, "--out", out, "--engine", "native", "--seeds", 3, "--no-plot",
+                "--json", *extra)
     assert proc.returncode == 2
     assert proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("gyrodenoise: error:"), proc.stderr
+    errors = [ln for ln in lines if ln.startswith("gyrodenoise: error:")]
+    # one error line, last; anything before it is a reader's "note:" (the constant record)
+    assert len(errors) == 1 and lines[-1] == errors[0], proc.stderr
+    assert all(ln.startswith("gyrodenoise: note:") for ln in lines[:-1]), proc.stderr
     assert "Traceback" not in proc.stderr
+    assert not out.exists()                 # nothing written
+    expect = {"constant": ["constant", "zero variance"],
+              "card_line_above_record_nyquist": [str(card), "terms.sinusoid", "80 Hz", "Nyquist (50 Hz)",
+                                                 "100 Hz"],
+              "workers_negative": ["--workers", "-1"], "workers_zero": ["--workers", "got 0"],
+              "dotted_key_card": [str(card), "terms.angle_random_walk"]}.get(case, [])
+    for word in expect:
+        assert word in errors[0], errors[0]
+
+
+
+# ------------------------------------------------------------------ review fixes
+N_SHORT = 8192
+
+
+def _white(std=0.01, n=N_SHORT, seed=7):
+    return np.random.default_rng(seed).standard_normal(n) * std
+
+
+def test_constant_record_is_an_input_error():
+    with pytest.raises(InputError, match="constant .zero variance.: nothing to compare"):
+        gd.gap(np.full(N_SHORT, 0.01), FS, parse_card(BASE), seeds=3, engine="native")
+
+
+def test_card_at_rate_checks_nyquist_at_the_record_rate():
+    from gyrodenoise.gapcore import card_at_rate
+    assert card_at_rate(CARD200, 200.0, "c200.toml").sample_rate_hz == 200.0
+    with pytest.raises(InputError, match=r"c200\.toml: terms\.sinusoid\[0\]\.frequency 80 Hz is above "
+                                         r"Nyquist \(50 Hz\).*record's rate 100 Hz"):
+        card_at_rate(CARD200, 100.0, "c200.toml")
+    # a line below the record's Nyquist: simulated at the record's rate
+    ok = card_at_rate(CARD200.replace("frequency = 80.0", "frequency = 20.0"), 100.0, "c200.toml")
+    assert ok.sample_rate_hz == 100.0 and ok.term_list("sinusoid")[0]["frequency"] == 20.0
+    with pytest.raises(InputError, match="c200.toml: .*terms.sinusoid"):
+        gd.gap(_white(), FS, parse_card(CARD200, "c200.toml"), seeds=3, engine="native")
+
+
+def test_fmu_worker_error_comes_back_as_one_input_error(tmp_path):
+    """A failing FMU (here: a file that is not an FMU) is reported as one InputError
+    naming the card, the FMU and the seed, not as a BrokenProcessPool traceback."""
+    from gyrodenoise.gapcore import Simulator, _fmu_worker
+    bogus = tmp_path / "SimulatedFog.fmu"
+    bogus.write_text("not a zip file")
+    msg = _fmu_worker(str(bogus), BASE, 1, 100, FS, None)
+    assert isinstance(msg, str) and "\n" not in msg
+    sim = Simulator(200, FS, [1, 2, 3], engine="native", workers=1, quiet=True, source="base.toml")
+    sim.engine, sim.fmu_path = "fmu", bogus
+    with pytest.raises(InputError, match=r"^base\.toml: SimulatedFog\.fmu failed on seed 1: ") as ei:
+        sim.run(BASE)
+    assert "\n" not in str(ei.value)
+    for bad in (0, -1, 1.5):
+        with pytest.raises(InputError, match="workers must be a whole number >= 1"):
+            Simulator(200, FS, [1, 2, 3], workers=bad)
+
+
+def test_edit_card_sub_table_round_trip_and_comments():
+    from gyrodenoise.gapcore import check_editable
+    card = parse_card(SUB, "sub.toml")
+    check_editable(card)                                # every vocabulary term can be written
+    new = edit_card(SUB, "angle_random_walk", {"N": 0.06}, refit=True, source="sub.toml")
+    c = parse_card(new, "sub.toml")
+    assert c.terms == {"angle_random_walk": {"N": 0.06}}
+    for line in SUB.splitlines():                       # comments and other lines kept
+        if not line.startswith("N ="):
+            assert line in new.splitlines()
+    new2 = edit_card(new, "quantization", {"Q": 1e-4}, source="sub.toml")
+    new2 = edit_card(new2, "gauss_markov", {"sigma": 2.0, "tau": 3.0}, source="sub.toml")
+    new2 = edit_card(new2, "angle_random_walk", {"N": 0.07}, refit=True, source="sub.toml")
+    c2 = parse_card(new2)
+    assert c2.terms["angle_random_walk"] == {"N": 0.07}
+    assert c2.terms["quantization"] == {"Q": 1e-4}
+    assert c2.term_list("gauss_markov") == [{"sigma": 2.0, "tau": 3.0}]
+    # layouts that cannot be rewritten are refused, naming the card and the term
+    dotted = BASE.replace("angle_random_walk = { N = 0.1 }", "angle_random_walk.N = 0.1")
+    with pytest.raises(InputError, match=r"^dotted\.toml: cannot rewrite terms\.angle_random_walk"):
+        gd.gap(_white(), FS, parse_card(dotted, "dotted.toml"), seeds=3, engine="native")
+    one_sin = BASE + "\n[terms.sinusoid]\namplitude = 1.0\nfrequency = 2.0\n"
+    with pytest.raises(InputError, match=r"^one\.toml: cannot rewrite terms\.sinusoid"):
+        check_editable(parse_card(one_sin, "one.toml"))
+
+
+def test_sub_table_card_refitted_twice_last_value_in_card():
+    """White noise of std 0.01 deg/s at 100 Hz (N = 0.06 deg/sqrt(h)) against a
+    sub-table card with N = 0.5: the white-noise level is re-fitted (listed once
+    per re-fit, in order) and the final card holds the LAST value."""
+    y = _white()
+    res = gd.gap(y, FS, parse_card(SUB, "sub.toml"), seeds=3, engine="native")
+    names = [e["name"] for e in res.effects_added]
+    assert names and set(names) == {"angle_random_walk"}, res.effects_added
+    final = parse_card(res.card_text)
+    assert final.terms["angle_random_walk"]["N"] == pytest.approx(res.effects_added[-1]["params"]["N"],
+                                                                   rel=1e-5)
+    n_true = 0.01 / math.sqrt(FS) * 60.0                 # deg/sqrt(h)
+    assert final.terms["angle_random_walk"]["N"] == pytest.approx(n_true, rel=0.10)
+    assert res.within_scatter and res.to_json()["within_scatter"]
+    from gyrodenoise.gapcore import format_report
+    assert "nothing missing" not in format_report(res)
+
+
+def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkeypatch):
+    """With every candidate's score NaN (widening patched to NaN), nothing is
+    accepted; the report says the gap is still above the threshold (not
+    "nothing missing"), the JSON is finite and says within_scatter false."""
+    import gyrodenoise.gapcore as G
+    card = parse_card(SUB)                 # N = 0.5: far noisier than the record
+    monkeypatch.setattr(G, "widening", lambda *a: float("nan"))
+    res = G.gap(_white(), FS, card, seeds=3, engine="native")
+    assert res.effects_added == [] and res.card_text == SUB
+    assert res.iterations[-1]["stop"] == "no candidate shrinks the gap significantly"
+    assert all(c["score"] is None for c in res.to_json()["iterations"][0]["candidates"])
+    rep = G.format_report(res)
+    assert "nothing missing" not in rep and "still above the scatter threshold" in rep
+    d = res.to_json()
+    assert d["within_scatter"] is False
+    json.dumps(d, allow_nan=False)
+    # the finite guard reaches nested floats (card_gap, components, robust_gap)
+    out = G._finite({"card_gap": float("inf"), "components": {"psd": float("nan"), "x": np.float64(2.0)},
+                     "robust_gap": [float("-inf"), 1]})
+    assert out == {"card_gap": None, "components": {"psd": None, "x": 2.0}, "robust_gap": [None, 1]}
+
+
+def test_zeroed_term_is_a_limitation_not_a_fit(monkeypatch):
+    """A candidate that would write N = 0 (card noisier than the record) is
+    rejected and reported as a limitation; the card is not changed."""
+    import gyrodenoise.gapcore as G
+    monkeypatch.setattr(G, "propose", lambda *a, **k: [G.Candidate("angle_random_walk", {"N": 0.0}, True,
+                                                                    "re-fit")])
+    res = G.gap(_white(), FS, parse_card(SUB), seeds=3, engine="native")
+    assert res.effects_added == [] and res.card_text == SUB
+    assert res.limitations and "noisier than the record" in res.limitations[0]
+    assert "angle_random_walk.N" in res.limitations[0]
+    assert "limitation: the card is noisier" in G.format_report(res)
+    assert res.to_json()["limitations"] == res.limitations
+    assert G._zeroed([("gauss_markov", {"sigma": 0.0, "tau": 1.0}, False),
+                      ("bias_instability", {"B": 0.2}, False)]) == ["gauss_markov.sigma"]
 
 
 # ------------------------------------------------------------------ through the FMU
