@@ -202,7 +202,8 @@ def _signal_notes(rate):
     lo, hi = float(rate.min()), float(rate.max())
     if lo == hi:
         return [f"the rate is constant ({lo:g} deg/s): nothing to denoise; the filter passes it "
-                f"through (to 1e-6 relative) and the Allan terms are zero"]
+                f"through (to 1e-6 relative); its Allan deviation is zero, so the fit reports only "
+                f"(tiny) upper bounds"]
     for label, value in (("maximum", hi), ("minimum", lo)):
         count, first = _runs_at(rate, value, SAT_RUN)
         if count:
