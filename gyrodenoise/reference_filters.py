@@ -341,22 +341,33 @@ def smooth_record(rate_deg_s, sample_rate_hz, ar_order=3, restarts=None, model=N
     ndarray
         Smoothed rate, deg/s.
     """
+    z, m, out = _kf_model(rate_deg_s, sample_rate_hz, ar_order, restarts, model, kw)
+    for w, b, x0, p0 in _filtered_runs(z, m, ar_order, restarts):
+        out[w:b] = ar_rts_smoother(z[w:b], m["phi"][w:b], m["c"][w:b], m["q"][w:b], m["r"][w:b], x0, p0)
+    return out
+
+
+def _kf_model(rate_deg_s, sample_rate_hz, ar_order, restarts, model, kw):
+    """(z, the KF run's recorded AR model, a copy of z for the output)."""
     z = np.asarray(rate_deg_s, dtype=float)
     m = model if model is not None else record_ar_model(z, sample_rate_hz, "kf", ar_order, restarts,
                                                         **{"outlier_sigma": 0.0, **kw})
-    out = z.copy()
+    return z, m, z.copy()
+
+
+def _filtered_runs(z, m, ar_order, restarts):
+    """Per run between restarts: (w, b, x0, p0) with w the first sample the KF
+    filtered (after its warm-up), b the end of the run, x0 = [z_{w-1} ... z_{w-n}]
+    (as kernels.start_filter) and p0 = r_w I."""
     n = int(ar_order)
     for a, b in _segments(z.shape[0], restarts):
         conv = np.flatnonzero(m["converged"][a:b])
         if conv.size == 0:
             continue
-        w = a + int(conv[0])           # first filtered sample of this run
+        w = a + int(conv[0])
         if w - n < a:
             continue
-        x0 = z[w - n:w][::-1].copy()   # [z_{w-1} ... z_{w-n}], as start_filter
-        p0 = np.eye(n) * m["r"][w]
-        out[w:b] = ar_rts_smoother(z[w:b], m["phi"][w:b], m["c"][w:b], m["q"][w:b], m["r"][w:b], x0, p0)
-    return out
+        yield w, b, z[w - n:w][::-1].copy(), np.eye(n) * m["r"][w]
 
 
 # -------------------------------------------------------------- VB-AKF
@@ -460,19 +471,7 @@ def vbakf_record(rate_deg_s, sample_rate_hz, ar_order=3, restarts=None, model=No
     """VB-AKF over a gyro record, on the KF's identified AR model (phi_k, c_k)
     with the KF's q and r as the nominal values (outlier gate off, as in
     :func:`smooth_record`); raw pass-through in warm-up."""
-    z = np.asarray(rate_deg_s, dtype=float)
-    m = model if model is not None else record_ar_model(z, sample_rate_hz, "kf", ar_order, restarts,
-                                                        **{"outlier_sigma": 0.0, **kw})
-    out = z.copy()
-    n = int(ar_order)
-    for a, b in _segments(z.shape[0], restarts):
-        conv = np.flatnonzero(m["converged"][a:b])
-        if conv.size == 0:
-            continue
-        w = a + int(conv[0])
-        if w - n < a:
-            continue
-        x0 = z[w - n:w][::-1].copy()
-        p0 = np.eye(n) * m["r"][w]
+    z, m, out = _kf_model(rate_deg_s, sample_rate_hz, ar_order, restarts, model, kw)
+    for w, b, x0, p0 in _filtered_runs(z, m, ar_order, restarts):
         out[w:b] = vbakf(z[w:b], m["phi"][w:b], m["c"][w:b], m["q"][w:b], m["r"][w], x0, p0)[0]
     return out
