@@ -47,7 +47,6 @@ def _check_writable(path, what):
 
 def cmd_gap(args):
     from .cli import emit_json
-    from .commands import _read
     from .gapcore import format_report, gap, plot_gap
     from .simulator import load_card
     card = load_card(args.model)
@@ -62,7 +61,14 @@ def cmd_gap(args):
     plot = None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
     if plot:
         _check_writable(plot, "--plot")
-    rec = _read(args)
+    from .recording import read_recording
+    rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
+    if len(rec) and rec.rate_deg_s.min() == rec.rate_deg_s.max():
+        # refused before the recording's notes are printed: one line, not a note and an error
+        raise InputError("the record is constant (zero variance): nothing to compare", args.input)
+    for note in rec.notes:
+        _log(f"gyrodenoise: note: {args.input}: {note}")
     if abs(card.sample_rate_hz - rec.sample_rate_hz) > 1e-6 * rec.sample_rate_hz:
         _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
              f"{rec.sample_rate_hz:g} Hz: simulating at the record's rate; {args.out} keeps the card's")
