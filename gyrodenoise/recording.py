@@ -151,7 +151,7 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
     notes = []
     if ignored:
         notes.append(f"ignored columns: {', '.join(ignored)}")
-    notes.extend(_signal_notes(rate))
+    notes.extend(_signal_notes(rate, lambda i: _line_of(text, i)))
     restarts = None
     if i_time is not None:
         t = np.asarray(values[i_time])
@@ -195,7 +195,7 @@ def _runs_at(x, value, min_len):
     return int(np.sum((ends - starts)[long_])), int(starts[long_][0])
 
 
-def _signal_notes(rate):
+def _signal_notes(rate, line_of=lambda i: i + 2):
     """Reported (never repaired) properties of the rate column: constant,
     suspected saturation, isolated spikes."""
     notes = []
@@ -208,7 +208,7 @@ def _signal_notes(rate):
         count, first = _runs_at(rate, value, SAT_RUN)
         if count:
             notes.append(f"suspected saturation: {count} samples in runs of >= {SAT_RUN} equal values at "
-                         f"the rate's {label} {value:g} deg/s (first at sample {first}); kept as is")
+                         f"the rate's {label} {value:g} deg/s (first at line {line_of(first)}, sample {first}); kept as is")
     if rate.size >= 3:
         d = np.diff(rate)
         sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))
@@ -218,7 +218,8 @@ def _signal_notes(rate):
             spikes = np.flatnonzero(((a > lim) & (b > lim)) | ((a < -lim) & (b < -lim))) + 1
             if spikes.size:
                 notes.append(f"{spikes.size} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
-                             f"(first at sample {int(spikes[0])}, {rate[spikes[0]]:g} deg/s); kept as is: "
+                             f"(first at line {line_of(int(spikes[0]))}, sample {int(spikes[0])}, {rate[spikes[0]]:g} deg/s); "
+                             f"kept as is: "
                              f"the SHAKF's outlier gate keeps single wild samples out of the filter")
     return notes
 

@@ -47,7 +47,7 @@ REPAIRED_RECORDINGS = {
     "jumping_time.csv": "1 time gap(s) longer than 1.5 sample periods (first at t=2.99 s, 7.01 s long)",
     "constant.csv": "the rate is constant (0.25 deg/s)",
     "saturated.csv": "suspected saturation: 60 samples in runs of >= 10 equal values at the rate's maximum 0.5",
-    "spike.csv": "1 isolated spike(s) of more than 8 robust sigmas (first at sample 300, -17 deg/s)",
+    "spike.csv": "1 isolated spike(s) of more than 8 robust sigmas (first at line 302, sample 300, -17 deg/s)",
     "extra_columns.csv": "ignored columns: temp_c",
 }
 
