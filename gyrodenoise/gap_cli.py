@@ -69,7 +69,9 @@ def cmd_gap(args):
         raise InputError("the record is constant (zero variance): nothing to compare", args.input)
     for note in rec.notes:
         _log(f"gyrodenoise: note: {args.input}: {note}")
+    from .gapcore import card_at_rate
     if abs(card.sample_rate_hz - rec.sample_rate_hz) > 1e-6 * rec.sample_rate_hz:
+        card_at_rate(card.text, rec.sample_rate_hz, card.source)   # refuse first (one line), then note
         _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
              f"{rec.sample_rate_hz:g} Hz: simulating at the record's rate; {args.out} keeps the card's")
     res = gap(rec.rate_deg_s, rec.sample_rate_hz, card, seeds=args.seeds, engine=args.engine,
