@@ -287,18 +287,26 @@ def _field(pay, lay: MsgLayout, name):
     return np.ascontiguousarray(pay[:, off:off + dt.itemsize]).view(dt).reshape(len(pay))
 
 
+def _select(buf, fr: TlogFrames, name):
+    """Good frames of message ``name``: (frame indices, layout, payload rows,
+    system ids), or None when the log has none."""
+    mid = getattr(_dialect(), "MAVLINK_MSG_ID_" + name)
+    sel = np.nonzero(fr.ok & (fr.msgid == mid))[0]
+    if not len(sel):
+        return None
+    lay = layout(name)
+    sysid = np.where(fr.v2[sel], buf[fr.start[sel] + 13], buf[fr.start[sel] + 11]).astype(np.int64)
+    return sel, lay, _payloads(buf, fr, sel, lay.size), sysid
+
+
 def _vehicle_info(data, buf, fr: TlogFrames):
     """Per system id: HEARTBEAT autopilot values and whether an ArduPilot version string was seen."""
     info = {}
-    mav = _dialect()
     for name in ("HEARTBEAT", "STATUSTEXT"):
-        mid = getattr(mav, "MAVLINK_MSG_ID_" + name)
-        sel = np.nonzero(fr.ok & (fr.msgid == mid))[0]
-        if not len(sel):
+        got = _select(buf, fr, name)
+        if got is None:
             continue
-        lay = layout(name)
-        pay = _payloads(buf, fr, sel, lay.size)
-        sysid = np.where(fr.v2[sel], buf[fr.start[sel] + 13], buf[fr.start[sel] + 11])
+        sel, lay, pay, sysid = got
         if name == "HEARTBEAT":
             ap = _field(pay, lay, "autopilot")
             for s, a in zip(sysid.tolist(), ap.tolist()):
@@ -315,19 +323,15 @@ def _vehicle_info(data, buf, fr: TlogFrames):
 def gyro_streams(data, fr: TlogFrames, raw_imu_unit="auto", raw_imu_scale=None):
     """The gyro streams of a framed tlog (one per message type, system,
     component and instance), in order of first appearance."""
-    mav = _dialect()
     buf = np.frombuffer(data, dtype=np.uint8)
     info = None
     found = []
     for name, (tfield, tscale, unit) in GYRO_MESSAGES.items():
-        mid = getattr(mav, "MAVLINK_MSG_ID_" + name)
-        sel = np.nonzero(fr.ok & (fr.msgid == mid))[0]
-        if not len(sel):
+        got = _select(buf, fr, name)
+        if got is None:
             continue
-        lay = layout(name)
-        pay = _payloads(buf, fr, sel, lay.size)
+        sel, lay, pay, sysid = got
         v2 = fr.v2[sel]
-        sysid = np.where(v2, buf[fr.start[sel] + 13], buf[fr.start[sel] + 11]).astype(np.int64)
         compid = np.where(v2, buf[fr.start[sel] + 14], buf[fr.start[sel] + 12]).astype(np.int64)
         inst = _field(pay, lay, "id").astype(np.int64) if "id" in lay.offsets else np.zeros(len(sel), np.int64)
         t = _field(pay, lay, tfield).astype(np.float64) * tscale
