@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from .streams import UNIT_TO_DEG_S, GyroStream, RestartDetector
+from .streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz
 from .tlog import AUTOPILOT_ARDUPILOT, GYRO_FIELDS, GYRO_MESSAGES, _AP_VERSION_RE, _raw_imu_unit, repack
 
 
@@ -90,9 +90,7 @@ class _LiveStream:
         s.restarts = np.asarray(self.r, dtype=bool)
         s.restart_events = self.events
         s.repeated_timestamps = self.det.repeated
-        tt = np.diff(s.time_s)
-        ok = (tt > 0) & ~s.restarts[1:]
-        s.rate_hz = float(1.0 / np.median(tt[ok])) if ok.any() else None
+        s.rate_hz = measured_rate_hz(s.time_s, s.restarts)
         x = np.asarray(self.x, dtype=np.float64).reshape(n, 3)
         f = np.asarray(self.f, dtype=np.float64).reshape(n, 3)
         s.filtered = f / (self.to_deg or 1.0)

@@ -147,10 +147,15 @@ def detect_restarts(stream: GyroStream, gap_factor=5.0):
         {"stream": stream.name, "sample": int(i), "time_s": float(t[i]),
          "previous_time_s": float(t[i - 1]), "reason": reasons[i]} for i in np.nonzero(r)[0]]
     stream.repeated_timestamps = repeated
-    dt = np.diff(t)
-    ok = (dt > 0) & ~r[1:]
-    stream.rate_hz = float(1.0 / np.median(dt[ok])) if ok.any() else None
+    stream.rate_hz = measured_rate_hz(t, r)
     return r
+
+
+def measured_rate_hz(time_s, restarts):
+    """Sample rate from the median positive time step within sessions (Hz), or None."""
+    dt = np.diff(np.asarray(time_s, dtype=np.float64))
+    ok = (dt > 0) & ~np.asarray(restarts, dtype=bool)[1:]
+    return float(1.0 / np.median(dt[ok])) if ok.any() else None
 
 
 def noise_per_axis(values, restarts):
