@@ -47,7 +47,7 @@ def _check_writable(path, what):
 
 def cmd_gap(args):
     from .cli import emit_json
-    from .gapcore import format_report, gap, plot_gap
+    from .gapcore import card_at_rate, check_record, format_report, gap, plot_gap
     from .simulator import load_card
     card = load_card(args.model)
     if args.seeds < 3:
@@ -64,12 +64,9 @@ def cmd_gap(args):
     from .recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
-    if len(rec) and rec.rate_deg_s.min() == rec.rate_deg_s.max():
-        # refused before the recording's notes are printed: one line, not a note and an error
-        raise InputError("the record is constant (zero variance): nothing to compare", args.input)
+    check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
     for note in rec.notes:
         _log(f"gyrodenoise: note: {args.input}: {note}")
-    from .gapcore import card_at_rate
     if abs(card.sample_rate_hz - rec.sample_rate_hz) > 1e-6 * rec.sample_rate_hz:
         card_at_rate(card.text, rec.sample_rate_hz, card.source)   # refuse first (one line), then note
         _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "

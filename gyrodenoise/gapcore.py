@@ -955,6 +955,20 @@ def _evaluate(sims, sig_m, layout):
     return ref, z, comp, gap_value(comp)
 
 
+def check_record(rate_deg_s, source="MEASURED"):
+    """The measured record as a float array, or InputError (one line) when the
+    workflow cannot use it: not 1-D finite, too short, or constant."""
+    y = np.asarray(rate_deg_s, dtype=float)
+    if y.ndim != 1 or not np.all(np.isfinite(y)):
+        raise InputError("the record must be a 1-D array of finite rates", source)
+    if y.shape[0] < MIN_SAMPLES:
+        raise InputError(f"only {y.shape[0]} samples; the gap workflow needs at least {MIN_SAMPLES} "
+                         f"(Allan deviation over octaves and a Welch PSD)", source)
+    if not np.ptp(y) > 0:
+        raise InputError("the record is constant (zero variance): nothing to compare", source)
+    return y
+
+
 def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=4,
         fmu_dir=None, workers=None, source="MEASURED", quiet=True):
     """Find what a model card misses to behave like a measured record.
@@ -979,14 +993,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     GapResult
     """
     from .simulator import load_card
-    y = np.asarray(rate_deg_s, dtype=float)
-    if y.ndim != 1 or not np.all(np.isfinite(y)):
-        raise InputError("the record must be a 1-D array of finite rates", source)
-    if y.shape[0] < MIN_SAMPLES:
-        raise InputError(f"only {y.shape[0]} samples; the gap workflow needs at least {MIN_SAMPLES} "
-                         f"(Allan deviation over octaves and a Welch PSD)", source)
-    if not np.ptp(y) > 0:
-        raise InputError("the record is constant (zero variance): nothing to compare", source)
+    y = check_record(rate_deg_s, source)
     fs = float(sample_rate_hz)
     card0 = load_card(card)
     text = card0.text
