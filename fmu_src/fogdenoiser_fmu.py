@@ -173,7 +173,7 @@ class FogDenoiser(Fmi2Slave):
         return get
 
     def _get_c(self):
-        return 0.0 if self._den is None else self._den.state[self._theta0 + self._n]
+        return 0.0 if self._den is None else self._K.rls_c(self._den.params, self._den.state)
 
     def _state_getter(self, name):
         idx = getattr(self._K, name)

@@ -44,8 +44,9 @@ def _run_theta_py(p, s, z, restarts, out, theta):
     o = K.N_HEADER
     for i in range(len(z)):
         out[i] = K.step(p, s, z[i], restarts[i])
-        for j in range(n + 1):
+        for j in range(n):
             theta[i, j] = s[o + j]
+        theta[i, n] = K.c_deg_s(p, s)
 
 
 def invalidate_stale_cache(owner, patterns):

@@ -136,181 +136,225 @@ def run_local(p, s, z, restarts, out, shape):
     bk = s[K.S_BK]
     rejrun = s[K.S_REJRUN]
 
+    zref = s[K.S_ZREF]
+    lo = s[K.S_LO]
+    hi = s[K.S_HI]
+    hold = s[K.S_HOLD]
+    m_p0 = m * p0_rls
+
     for t in range(z.shape[0]):
         zt = z[t]
         rs = restarts[t]
-        if not rs and gate_on and conv == 1.0:
-            # ---- kernels.gate: tie_c, then the predicted innovation
-            x[n] = theta[n]
-            for i in range(n):
-                P[i * m + n] = 0.0
-                P[n * m + i] = 0.0
-            P[n * m + n] = floor
-            xp = x[n]
-            for i in range(n):
-                xp += theta[i] * x[i]
-            p00 = P[n * m + n]
-            for i in range(n):
-                acc = 0.0
-                for j in range(n):
-                    acc += theta[j] * P[i * m + j]
-                p00 += theta[i] * acc
-            svg = p00 + Q + R
-            vg = zt - xp
-            if not (vg * vg > kk2 * svg):
+        while True:        # runs once; twice when the state must be healed
+            code = 0
+            xc = 0.0
+            if not rs and gate_on and conv == 1.0:
+                # ---- kernels.gate: tie_c, then the predicted innovation
+                x[n] = theta[n]
+                for i in range(n):
+                    P[i * m + n] = 0.0
+                    P[n * m + i] = 0.0
+                P[n * m + n] = floor
+                xp = x[n]
+                for i in range(n):
+                    xp += theta[i] * x[i]
+                p00 = P[n * m + n]
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += theta[j] * P[i * m + j]
+                    p00 += theta[i] * acc
+                svg = p00 + Q + R
+                vg = (zt - zref) - xp
+                if not (vg * vg > kk2 * svg):
+                    rejrun = 0.0
+                elif rejrun >= orun:
+                    rs = True          # a real change of rate: restart (below)
+                    s[K.S_NREOPEN] += 1.0
+                else:
+                    if rejrun == 0.0:
+                        hold = 0.0 if K.ar_stable(theta, 0, n, w, 0) else 1.0
+                    if hold == 0.0:
+                        x0 = _predict(theta, x, P, w, Q, n, m)
+                    else:
+                        x0 = x[0]
+                    for j in range(n - 1, 0, -1):
+                        zh[j] = zh[j - 1]
+                    zh[0] = x0
+                    s[K.S_NREJ] += 1.0
+                    rejrun += 1.0
+                    s[K.S_INNOV] = vg
+                    s[K.S_SVAR] = svg
+                    s[K.S_RLS_ERR] = 0.0
+                    k += 1.0
+                    code = 1
+                    xc = x0
+            if rs:
+                # ---- kernels.restart (the cumulative counters are kept)
+                for i in range(m):
+                    theta[i] = 0.0
+                    x[i] = 0.0
+                    w[i] = 0.0
+                    zh[i] = 0.0
+                for i in range(mm):
+                    prls[i] = 0.0
+                    P[i] = 0.0
+                for i in range(m):
+                    prls[i * m + i] = p0_rls
+                    P[i * m + i] = p0_kf
+                k = 0.0
+                kd = 0.0
+                R = r0 if r0 > 0.0 else floor
+                Q = q0
+                s2 = 0.0
+                ns2 = 0.0
+                conv = 0.0
+                s[K.S_INNOV] = 0.0
+                s[K.S_SVAR] = 0.0
+                s[K.S_NRESET] = 0.0
+                s[K.S_OUT] = 0.0
+                s[K.S_RLS_ERR] = 0.0
+                bk = 0.0
                 rejrun = 0.0
-            elif rejrun >= orun:
-                rs = True          # a real change of rate: restart (below)
-                s[K.S_NREOPEN] += 1.0
-            else:
-                x0 = _predict(theta, x, P, w, Q, n, m)
+                hold = 0.0
+            # ---- kernels.step: centring and envelope
+            if k == 0.0:
+                zref = zt
+                lo = zt
+                hi = zt
+            if zt < lo:
+                lo = zt
+            if zt > hi:
+                hi = zt
+            if code == 0:
+                zc = zt - zref
+                # ---- kernels.filter_step. End of warm-up: noise levels and a
+                # filter restarted from the model
+                if conv == 0.0:
+                    auto = 0.5 * s2
+                    if auto < floor:
+                        auto = floor
+                    Q = q0 if q0 > 0.0 else auto
+                    R = r0 if r0 > 0.0 else auto
+                    if k >= warmup:
+                        conv = 1.0
+                        kd = 0.0
+                        bk = b
+                        # kernels.start_filter (its tie_c is repeated below, idempotent)
+                        for i in range(mm):
+                            P[i] = 0.0
+                        for i in range(n):
+                            x[i] = zh[i]
+                            P[i * m + i] = R
+
+                # ---- kernels.rls_update, Eq. (8)-(11)
+                e = 0.0
+                if k >= n:
+                    den = _rls_gain(prls, zh, w, lam, n, m)
+                    if not (den >= lam):
+                        for i in range(mm):
+                            prls[i] = 0.0
+                        for i in range(m):
+                            prls[i * m + i] = p0_rls
+                        den = _rls_gain(prls, zh, w, lam, n, m)
+                    pred = theta[n]
+                    for j in range(n):
+                        pred += zh[j] * theta[j]
+                    e = zc - pred
+                    inv_den = 1.0 / den
+                    for i in range(m):
+                        theta[i] += w[i] * inv_den * e                    # Eq. (11)
+                    forget = scale_rls
+                    if scale_rls:
+                        tr = 0.0
+                        for i in range(m):
+                            tr += prls[i * m + i] - w[i] * inv_den * w[i]
+                        if tr * inv_lam > m_p0:
+                            forget = False                                # bounded
+                    for i in range(m):
+                        gi = w[i] * inv_den
+                        for j in range(i, m):
+                            v = prls[i * m + j] - gi * w[j]               # Eq. (10)
+                            if forget:
+                                v = v * inv_lam
+                            prls[i * m + j] = v
+                            prls[j * m + i] = v
                 for j in range(n - 1, 0, -1):
                     zh[j] = zh[j - 1]
-                zh[0] = x0
-                s[K.S_NREJ] += 1.0
-                rejrun += 1.0
-                s[K.S_INNOV] = vg
-                s[K.S_SVAR] = svg
-                s[K.S_RLS_ERR] = 0.0
-                k += 1.0
-                s[K.S_OUT] = x0
-                _store_tail(s, x, P, w, o_x, o_p, o_w, n, m)
-                out[t] = x0
-                continue
-        if rs:
-            # ---- kernels.restart (the outlier counters are kept)
-            for i in range(m):
-                theta[i] = 0.0
-                x[i] = 0.0
-                w[i] = 0.0
-                zh[i] = 0.0
-            for i in range(mm):
-                prls[i] = 0.0
-                P[i] = 0.0
-            for i in range(m):
-                prls[i * m + i] = p0_rls
-                P[i * m + i] = p0_kf
-            k = 0.0
-            kd = 0.0
-            R = r0 if r0 > 0.0 else floor
-            Q = q0
-            s2 = 0.0
-            ns2 = 0.0
-            conv = 0.0
-            s[K.S_INNOV] = 0.0
-            s[K.S_SVAR] = 0.0
-            s[K.S_NRESET] = 0.0
-            s[K.S_OUT] = 0.0
-            s[K.S_RLS_ERR] = 0.0
-            bk = 0.0
-            rejrun = 0.0
-            _store_tail(s, x, P, w, o_x, o_p, o_w, n, m)
+                zh[0] = zc
+                s[K.S_RLS_ERR] = e
+                if k >= ten_m:
+                    ns2 += 1.0
+                    s2 += (e * e - s2) / ns2
 
-        # ---- end of warm-up: noise levels and a filter restarted from the model
-        if conv == 0.0:
-            auto = 0.5 * s2
-            if auto < floor:
-                auto = floor
-            Q = q0 if q0 > 0.0 else auto
-            R = r0 if r0 > 0.0 else auto
-            if k >= warmup:
-                conv = 1.0
-                kd = 0.0
-                bk = b
-                # kernels.start_filter (its tie_c is repeated below, idempotent)
-                for i in range(mm):
-                    P[i] = 0.0
-                for i in range(n):
-                    x[i] = zh[i]
-                    P[i * m + i] = R
-
-        # ---- kernels.rls_update, Eq. (8)-(11)
-        e = 0.0
-        if k >= n:
-            for i in range(m):
-                acc = prls[i * m + n]
-                for j in range(n):
-                    acc += prls[i * m + j] * zh[j]
-                w[i] = acc
-            den = lam + w[n]
-            pred = theta[n]
-            for j in range(n):
-                den += zh[j] * w[j]
-                pred += zh[j] * theta[j]
-            e = zt - pred
-            inv_den = 1.0 / den
-            for i in range(m):
-                theta[i] += w[i] * inv_den * e                    # Eq. (11)
-            for i in range(m):
-                gi = w[i] * inv_den
-                for j in range(i, m):
-                    v = prls[i * m + j] - gi * w[j]               # Eq. (10)
-                    if scale_rls:
-                        v = v * inv_lam
-                    prls[i * m + j] = v
-                    prls[j * m + i] = v
-        for j in range(n - 1, 0, -1):
-            zh[j] = zh[j - 1]
-        zh[0] = zt
-        s[K.S_RLS_ERR] = e
-        if k >= ten_m:
-            ns2 += 1.0
-            s2 += (e * e - s2) / ns2
-
-        if k == 0.0:
-            for i in range(n):
-                x[i] = zt
-            x[n] = 0.0
-            s[o_x + n] = 0.0
-            k = 1.0
-            s[K.S_OUT] = zt
-            s[K.S_INNOV] = 0.0
-            out[t] = zt
-            continue
-
-        # ---- kernels.tie_c, kf_predict, Eq. (34)
-        x[n] = theta[n]
-        for i in range(n):
-            P[i * m + n] = 0.0
-            P[n * m + i] = 0.0
-        P[n * m + n] = floor
-        q = Q
-        xp = _predict(theta, x, P, w, q, n, m)
-        v = zt - xp                                # innovation, Eq. (16)
-        p00 = P[0]
-        r = R
-        if conv == 1.0 and adaptive:
-            if shakf and v * v > g2 * (p00 + r):
-                kd = 0.0                           # Eq. (32) violated
-                s[K.S_NRESET] += 1.0
-                bk = b
-            else:
-                kd += 1.0
-                bk *= b
-                if bk < 1e-290:
-                    bk = 0.0
-            d = (1.0 - b) / (1.0 - bk)
-            if shakf:
-                r = (1.0 - d) * r + d * v * v               # Eq. (33)
-            else:
-                r = (1.0 - d) * r + d * (v * v - p00)       # Eq. (22)
-            if r < floor:
-                r = floor
-            R = r
-            svar = _update(x, P, w, v, r, m)
-            k0 = p00 / svar
-            q = q + d * k0 * k0 * (v * v - svar)            # Eq. (26), Q = q e1 e1'
-            if q < floor:
-                q = floor
-            Q = q
+                if k == 0.0:
+                    for i in range(n):
+                        x[i] = zc
+                    x[n] = 0.0
+                    s[o_x + n] = 0.0
+                    k = 1.0
+                    s[K.S_INNOV] = 0.0
+                    xc = zc
+                else:
+                    # ---- kernels.tie_c, kf_predict, Eq. (34)
+                    x[n] = theta[n]
+                    for i in range(n):
+                        P[i * m + n] = 0.0
+                        P[n * m + i] = 0.0
+                    P[n * m + n] = floor
+                    q = Q
+                    xp = _predict(theta, x, P, w, q, n, m)
+                    v = zc - xp                                # innovation, Eq. (16)
+                    p00 = P[0]
+                    r = R
+                    if conv == 1.0 and adaptive:
+                        if shakf and v * v > g2 * (p00 + r):
+                            kd = 0.0                           # Eq. (32) violated
+                            s[K.S_NRESET] += 1.0
+                            bk = b
+                        else:
+                            kd += 1.0
+                            bk *= b
+                            if bk < 1e-290:
+                                bk = 0.0
+                        d = (1.0 - b) / (1.0 - bk)
+                        if shakf:
+                            r = (1.0 - d) * r + d * v * v               # Eq. (33)
+                        else:
+                            r = (1.0 - d) * r + d * (v * v - p00)       # Eq. (22)
+                        if r < floor:
+                            r = floor
+                        R = r
+                        svar = _update(x, P, w, v, r, m)
+                        k0 = p00 / svar
+                        q = q + d * k0 * k0 * (v * v - svar)            # Eq. (26), Q = q e1 e1'
+                        if q < floor:
+                            q = floor
+                        Q = q
+                    else:
+                        svar = _update(x, P, w, v, r, m)
+                    s[K.S_INNOV] = v
+                    s[K.S_SVAR] = svar
+                    k = k + 1.0
+                    xc = zc
+                    if conv == 1.0 and filtering:
+                        xc = x[0]
+            # ---- kernels._healthy: else restart and take zt as a first sample
+            if (_finite(x[0]) and _finite(s[K.S_SVAR]) and _finite(R) and _finite(Q)
+                    and _finite(s[K.S_RLS_ERR]) and _finite(s2)):
+                break
+            rs = True
+            s[K.S_NHEAL] += 1.0
+        if conv == 0.0 or not filtering:
+            o = zt
         else:
-            svar = _update(x, P, w, v, r, m)
-        s[K.S_INNOV] = v
-        s[K.S_SVAR] = svar
-        k = k + 1.0
-        o = zt
-        if conv == 1.0 and filtering:
-            o = x[0]
+            o = xc + zref
+            if o < lo:
+                o = lo
+                s[K.S_NCLAMP] += 1.0
+            elif o > hi:
+                o = hi
+                s[K.S_NCLAMP] += 1.0
         s[K.S_OUT] = o
         _store_tail(s, x, P, w, o_x, o_p, o_w, n, m)
         out[t] = o
@@ -335,6 +379,10 @@ def run_local(p, s, z, restarts, out, shape):
     s[K.S_CONV] = conv
     s[K.S_BK] = bk
     s[K.S_REJRUN] = rejrun
+    s[K.S_ZREF] = zref
+    s[K.S_LO] = lo
+    s[K.S_HI] = hi
+    s[K.S_HOLD] = hold
 
 
 def symmetric_state(s, order):
@@ -359,6 +407,23 @@ def _store_tail(s, x, P, w, o_x, o_p, o_w, n, m):
     for i in range(m):
         s[o_p + i * m + n] = P[i * m + n]
         s[o_w + i] = w[i]
+
+
+def _finite(v):
+    return v - v == 0.0
+
+
+def _rls_gain(prls, zh, w, lam, n, m):
+    """:func:`gyrodenoise.kernels._rls_gain` on the local arrays."""
+    for i in range(m):
+        acc = prls[i * m + n]
+        for j in range(n):
+            acc += prls[i * m + j] * zh[j]
+        w[i] = acc
+    den = lam + w[n]
+    for j in range(n):
+        den += zh[j] * w[j]
+    return den
 
 
 def _predict(theta, x, P, w, q, n, m):
@@ -462,6 +527,8 @@ if numba is not None:
     _predict = _inline(_predict)
     _update = _inline(_update)
     _store_tail = _inline(_store_tail)
+    _finite = _inline(_finite)
+    _rls_gain = _inline(_rls_gain)
     run_local_fast = numba.njit(cache=True, nogil=True, error_model="numpy",
                                 boundscheck=False)(run_local)
 else:  # pragma: no cover

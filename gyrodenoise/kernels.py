@@ -90,7 +90,13 @@ S_BK = 12        # b^(k+1) for d_k, kept by multiplication (no pow per sample)
 S_NREJ = 13      # samples rejected by the outlier gate (since init_state; kept by restarts)
 S_REJRUN = 14    # current run of consecutive rejections
 S_NREOPEN = 15   # times a run of rejections re-opened the filter (kept by restarts)
-N_HEADER = 16
+S_ZREF = 16      # centring reference: the first raw sample since the restart, deg/s
+S_LO = 17        # envelope: lowest centred input since the restart, deg/s
+S_HI = 18        # envelope: highest centred input since the restart, deg/s
+S_HOLD = 19      # 1.0 while a rejection run holds the output (AR model unstable)
+S_NCLAMP = 20    # outputs clamped into the input envelope (kept by restarts)
+S_NHEAL = 21     # restarts forced by a non-finite filter state (kept by restarts)
+N_HEADER = 22
 
 
 @_jitable
@@ -208,22 +214,41 @@ def init_state(p):
 def restart(p, s):
     """Re-initialise identification and filter (a gyro restart), in place.
 
-    The cumulative outlier counters S_NREJ and S_NREOPEN are kept.
+    The cumulative counters S_NREJ, S_NREOPEN, S_NCLAMP and S_NHEAL are kept.
     """
     n = int(p[P_ORDER])
     m = n + 1
     o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
     nrej = s[S_NREJ]
     nreopen = s[S_NREOPEN]
+    nclamp = s[S_NCLAMP]
+    nheal = s[S_NHEAL]
     for i in range(total):
         s[i] = 0.0
     s[S_NREJ] = nrej
     s[S_NREOPEN] = nreopen
+    s[S_NCLAMP] = nclamp
+    s[S_NHEAL] = nheal
     for i in range(m):
         s[o_prls + i * m + i] = p[P_P0_RLS]
         s[o_p + i * m + i] = p[P_P0_KF]
     s[S_R] = p[P_R0] if p[P_R0] > 0.0 else p[P_R_FLOOR]
     s[S_Q] = p[P_Q0]
+
+
+@_jitable
+def _rls_gain(p, s, o_prls, o_z, o_w, n, m):
+    """g = P h into the scratch vector w (h = regressor, h[n] = 1); returns
+    the denominator lam + h' P h of Eq. (9)-(11)."""
+    for i in range(m):
+        acc = s[o_prls + i * m + n]
+        for j in range(n):
+            acc += s[o_prls + i * m + j] * s[o_z + j]
+        s[o_w + i] = acc
+    den = p[P_LAM] + s[o_w + n]
+    for j in range(n):
+        den += s[o_z + j] * s[o_w + j]
+    return den
 
 
 @_jitable
@@ -239,28 +264,41 @@ def rls_update(p, s, z):
     o_theta, o_prls, o_x, o_p, o_z, o_w, total = layout(n)
     e = 0.0
     if s[S_K] >= n:
-        # g = P h   (h = regressor, h[n] = 1)
-        for i in range(m):
-            acc = s[o_prls + i * m + n]
-            for j in range(n):
-                acc += s[o_prls + i * m + j] * s[o_z + j]
-            s[o_w + i] = acc
-        den = lam + s[o_w + n]
+        den = _rls_gain(p, s, o_prls, o_z, o_w, n, m)
+        if not (den >= lam):
+            # h' P h < 0: rounding has cost P its positive definiteness along
+            # the regressor (a huge sample after a constant stretch): restart
+            # the covariance from its prior, keep the estimate, recompute
+            for i in range(m * m):
+                s[o_prls + i] = 0.0
+            for i in range(m):
+                s[o_prls + i * m + i] = p[P_P0_RLS]
+            den = _rls_gain(p, s, o_prls, o_z, o_w, n, m)
         pred = s[o_theta + n]
         for j in range(n):
-            den += s[o_z + j] * s[o_w + j]
             pred += s[o_z + j] * s[o_theta + j]
         e = z - pred
         inv_den = 1.0 / den
-        inv_lam = 1.0 / lam
         # Eq. (11): theta += K e, K = P h / (lam + h' P h)
         for i in range(m):
             s[o_theta + i] += s[o_w + i] * inv_den * e
-        # Eq. (10), sign corrected: P = (P - g g' / den) / lam, kept symmetric
+        # Eq. (10), sign corrected: P = (P - g g' / den) / lam, kept symmetric.
+        # Bounded forgetting: the division by lam inflates every direction,
+        # also those the regressors never excite (a constant or quantised
+        # record), where P would grow as lam^-k into overflow. It is skipped
+        # when it would lift the trace of P above its prior's, (n+1) p0_rls.
+        # With lam = 1 nothing changes (the paper's RLS).
+        scale = 1.0 / lam
+        if lam != 1.0:
+            tr = 0.0
+            for i in range(m):
+                tr += s[o_prls + i * m + i] - s[o_w + i] * inv_den * s[o_w + i]
+            if tr * scale > m * p[P_P0_RLS]:
+                scale = 1.0
         for i in range(m):
             gi = s[o_w + i] * inv_den
             for j in range(i, m):
-                v = (s[o_prls + i * m + j] - gi * s[o_w + j]) * inv_lam
+                v = (s[o_prls + i * m + j] - gi * s[o_w + j]) * scale
                 s[o_prls + i * m + j] = v
                 s[o_prls + j * m + i] = v
     # shift the regressor history: z_hist[0] = z_k
@@ -385,19 +423,58 @@ def tie_c(p, s):
 
 
 @_jitable
+def ar_stable(a, o_a, n, w, o_w):
+    """True if the AR(n) model with phi_i = a[o_a + i - 1] is stable.
+
+    Tests the polynomial 1 - phi_1 q^-1 - ... - phi_n q^-n (Eq. 4) with the
+    Schur-Cohn step-down recursion: stable (every root strictly inside the unit
+    circle) iff every reflection coefficient has |k| < 1. ``w[o_w:o_w + n]`` is
+    scratch. O(n^2); used once per run of rejected samples.
+    """
+    for i in range(n):
+        w[o_w + i] = -a[o_a + i]          # a_i of 1 + a_1 q^-1 + ... + a_n q^-n
+    for order in range(n, 0, -1):
+        kr = w[o_w + order - 1]
+        if not (kr * kr < 1.0):
+            return False
+        den = 1.0 - kr * kr
+        lo = 1
+        hi = order - 1
+        while lo < hi:                    # a_i <- (a_i - k a_{order-i}) / (1 - k^2)
+            al = w[o_w + lo - 1]
+            ah = w[o_w + hi - 1]
+            w[o_w + lo - 1] = (al - kr * ah) / den
+            w[o_w + hi - 1] = (ah - kr * al) / den
+            lo += 1
+            hi -= 1
+        if lo == hi:
+            al = w[o_w + lo - 1]
+            w[o_w + lo - 1] = (al - kr * al) / den
+    return True
+
+
+@_jitable
 def gate(p, s, z):
     """Innovation gate against single wild samples (not in the paper).
 
-    Predicts the innovation v = z - H X_pred and its variance
-    S = H P_pred H' + R with the model as it stands (before the RLS sees z).
-    If v^2 > k^2 S (k = outlier_sigma) the sample is rejected: the filter only
-    makes its time update (Eq. 34), the output is the prediction, the RLS
-    regressor history receives the prediction instead of z, and neither the RLS
-    nor the R/Q estimators (Eq. 33, 26) see the sample. Returns True then.
+    ``z`` is the centred sample (see :func:`step`). Predicts the innovation
+    v = z - H X_pred and its variance S = H P_pred H' + R with the model as it
+    stands (before the RLS sees z). If v^2 <= k^2 S (k = outlier_sigma) the
+    sample is accepted: returns 0.
+
+    Otherwise it is rejected (returns 1): the filter only makes its time update
+    (Eq. 34), the output is the prediction (left in ``s[S_OUT]``, centred), the
+    RLS regressor history receives the prediction instead of z, and neither the
+    RLS nor the R/Q estimators (Eq. 33, 26) see the sample. The prediction runs
+    the identified AR model forward, which is only safe for a stable model: at
+    the first rejection of a run the model is tested (:func:`ar_stable`) and,
+    if it is unstable, the run holds the last filtered value instead of
+    extrapolating (an unstable AR(n) grows exponentially: 1e15 deg/s within
+    20 samples on real logs).
 
     After ``outlier_run`` consecutive rejections the next outlying sample is
     taken as a real rate change: the filter restarts at that sample (as for a
-    gyro restart) and False is returned so that :func:`step` processes it.
+    gyro restart) and 2 is returned so that :func:`step` processes it.
     """
     n = int(p[P_ORDER])
     m = n + 1
@@ -421,13 +498,18 @@ def gate(p, s, z):
     k = p[P_OUTLIER_SIGMA]
     if not (v * v > k * k * svar):
         s[S_REJRUN] = 0.0
-        return False
+        return 0
     if s[S_REJRUN] >= p[P_OUTLIER_RUN]:
         # a run of outlying samples: a real change of rate, not a wild sample
         restart(p, s)
         s[S_NREOPEN] += 1.0
-        return False
-    x0 = kf_predict(p, s, s[S_Q])
+        return 2
+    if s[S_REJRUN] == 0.0:
+        s[S_HOLD] = 0.0 if ar_stable(s, o_theta, n, s, o_w) else 1.0
+    if s[S_HOLD] == 0.0:
+        x0 = kf_predict(p, s, s[S_Q])
+    else:
+        x0 = s[o_x]       # unstable model: hold, do not propagate the state
     for j in range(n - 1, 0, -1):
         s[o_z + j] = s[o_z + j - 1]
     s[o_z] = x0
@@ -438,21 +520,14 @@ def gate(p, s, z):
     s[S_RLS_ERR] = 0.0
     s[S_K] += 1.0
     s[S_OUT] = x0
-    return True
+    return 1
 
 
 @_jitable
-def step(p, s, z, is_restart):
-    """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
-
-    ``is_restart`` true re-initialises everything first (the gyro restarted and
-    ``z`` is its first sample).
-    """
-    if is_restart:
-        restart(p, s)
-    elif p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE:
-        if gate(p, s, z):
-            return s[S_OUT]
+def filter_step(p, s, z):
+    """Identification and filter for one accepted, centred sample ``z``;
+    returns the centred filter estimate (or ``z`` itself while warming up).
+    Called by :func:`step`, which owns restarts, the gate and the envelope."""
     n = int(p[P_ORDER])
     method = p[P_METHOD]
     floor = p[P_R_FLOOR]
@@ -540,6 +615,80 @@ def step(p, s, z, is_restart):
     return out
 
 
+@_jitable
+def _finite(v):
+    return v - v == 0.0
+
+
+@_jitable
+def _healthy(p, s):
+    """False if the filter state has left the finite numbers (an input so
+    large that its square overflows, with the gate off)."""
+    o_x = layout(int(p[P_ORDER]))[2]
+    return (_finite(s[o_x]) and _finite(s[S_SVAR]) and _finite(s[S_R])
+            and _finite(s[S_Q]) and _finite(s[S_RLS_ERR]) and _finite(s[S_S2]))
+
+
+@_jitable
+def step(p, s, z, is_restart):
+    """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
+
+    ``is_restart`` true re-initialises everything first (the gyro restarted and
+    ``z`` is its first sample).
+
+    Around the paper's filter (:func:`filter_step`) this keeps three
+    guarantees, for every method and parameter set:
+
+    * Centring: the RLS and the filter see z - z_ref, z_ref the first sample
+      since the restart, so a large offset (1e7 deg/s) costs no precision in
+      the regressors (Eq. 8) or the covariances. The model is the same (the
+      constant c of Eq. 4 absorbs the offset; :func:`rls_c` reads it back in
+      deg/s).
+    * Finite: if the filter state stops being finite (a lone 1e155 sample with
+      the gate off squares to inf), the filter restarts at that sample
+      (counted in S_NHEAL) and passes the raw sample through while it warms up.
+    * Envelope: the output never leaves [min, max] of the raw samples seen
+      since the restart (counted in S_NCLAMP when the filter had to be held
+      back: a denoiser does not invent motion).
+    """
+    code = 0
+    if is_restart:
+        restart(p, s)
+    elif p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE:
+        code = gate(p, s, z - s[S_ZREF])
+    if s[S_K] == 0.0:
+        s[S_ZREF] = z
+        s[S_LO] = z
+        s[S_HI] = z
+    if z < s[S_LO]:
+        s[S_LO] = z
+    if z > s[S_HI]:
+        s[S_HI] = z
+    if code == 1:
+        xc = s[S_OUT]
+    else:
+        xc = filter_step(p, s, z - s[S_ZREF])
+    if not _healthy(p, s):
+        restart(p, s)
+        s[S_NHEAL] += 1.0
+        s[S_ZREF] = z
+        s[S_LO] = z
+        s[S_HI] = z
+        xc = filter_step(p, s, 0.0)
+    if s[S_CONV] == 0.0 or p[P_METHOD] == METHOD_NONE:
+        out = z                      # warm-up / identification only: raw
+    else:
+        out = xc + s[S_ZREF]
+        if out < s[S_LO]:
+            out = s[S_LO]
+            s[S_NCLAMP] += 1.0
+        elif out > s[S_HI]:
+            out = s[S_HI]
+            s[S_NCLAMP] += 1.0
+    s[S_OUT] = out
+    return out
+
+
 # ------------------------------------------------------------------ readouts
 def phi(p, s):
     """Current AR parameters [phi_1 ... phi_n] (list)."""
@@ -548,17 +697,30 @@ def phi(p, s):
     return [float(s[o + i]) for i in range(n)]
 
 
+@_jitable
+def c_deg_s(p, s):
+    """Constant term c of the improved AR model, Eq. (4), deg/s, for the raw
+    (uncentred) samples: the state holds c for z - z_ref (see :func:`step`),
+    and z = sum phi_i z_{k-i} + c holds with c = c_ref + (1 - sum phi) z_ref."""
+    n = int(p[P_ORDER])
+    o = layout(n)[0]
+    one_minus = 1.0
+    for i in range(n):
+        one_minus -= s[o + i]
+    return s[o + n] + one_minus * s[S_ZREF]
+
+
 def rls_c(p, s):
     """Current constant term c of the improved AR model, Eq. (4), deg/s."""
-    n = int(p[P_ORDER])
-    return float(s[layout(n)[0] + n])
+    return float(c_deg_s(p, s))
 
 
 def filter_state(p, s):
-    """Filter state estimate [z_k ... z_{k-n+1}, c] (list)."""
+    """Filter state estimate [z_k ... z_{k-n+1}, c] (list), deg/s."""
     n = int(p[P_ORDER])
     o = layout(n)[2]
-    return [float(s[o + i]) for i in range(n + 1)]
+    return ([float(s[o + i] + s[S_ZREF]) for i in range(n)]
+            + [float(s[o + n] + (1.0 - sum(phi(p, s))) * s[S_ZREF])])
 
 
 def filter_cov(p, s):

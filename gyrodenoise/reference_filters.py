@@ -173,8 +173,9 @@ def _record_py(p, s, z, restarts, out, theta, q_used, r_used, conv):
         else:
             pre_q = s[K.S_Q]
         out[i] = K.step(p, s, z[i], restarts[i])
-        for j in range(n + 1):
+        for j in range(n):
             theta[i, j] = s[o + j]
+        theta[i, n] = K.c_deg_s(p, s)
         conv[i] = s[K.S_CONV]
         r_used[i] = s[K.S_R]
         if pre_q < 0.0:

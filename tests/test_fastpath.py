@@ -144,7 +144,7 @@ def test_diagnostics_and_theta_still_use_the_generic_loop():
         same(y, fast)
         same(st, sf)
     assert diag.shape == (z.size, 4) and theta.shape == (z.size, 4)
-    same(theta[-1], np.asarray(sf[K.N_HEADER:K.N_HEADER + 4]))
+    same(theta[-1], np.asarray(K.phi(p, sf) + [K.rls_c(p, sf)]))   # c in deg/s (uncentred)
 
 
 def test_asymmetric_state_falls_back_to_the_generic_loop():

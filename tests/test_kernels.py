@@ -218,3 +218,92 @@ def test_gate_on_real_imu4_outliers():
     assert np.all(np.isfinite(out))
     for i in idx:
         assert np.max(np.abs(out[i:i + 500] - ref[i:i + 500])) < 0.01
+
+
+# ---------------------------------------------- issue 11: the old reproducers
+@pytest.mark.parametrize("method", ["shakf", "kf", "sh_classic"])
+@pytest.mark.parametrize("offset", [1e6, 1e7, -1e7])
+def test_large_offsets_are_harmless(method, offset):
+    """The regression is centred (z - z_ref): 1e6/1e7 + noise filtered as well as
+    the same noise alone (was NaN: sh_classic from 1e6, every method from 1e7)."""
+    rng = np.random.default_rng(3)
+    noise = 0.01 * rng.standard_normal(6000)
+    y0 = gd_denoise(noise, method)
+    y1 = gd_denoise(offset + noise, method)
+    assert np.all(np.isfinite(y1))
+    # same filter up to the rounding of the offset (ulp(1e7) = 2e-9)
+    np.testing.assert_allclose(y1 - offset, y0, rtol=0, atol=1e-6)
+
+
+def gd_denoise(z, method, **kw):
+    from gyrodenoise import denoise
+    return denoise(z, 200.0, method=method, **kw)
+
+
+@pytest.mark.parametrize("lam,gate", [(0.99, 0.0), (0.99, 5.0), (0.999, 5.0)])
+def test_forgetting_on_constant_and_quantised_records_stays_bounded(lam, gate):
+    """lam < 1 wound the RLS covariance up in directions a constant record never
+    excites (P ~ lam^-k: NaN from sample ~21000 at lam = 0.99). The forgetting
+    is bounded by the prior's trace now."""
+    rng = np.random.default_rng(5)
+    for z in (np.full(30000, 0.01), np.round((0.2 + 0.01 * rng.standard_normal(30000)) / 0.01) * 0.01):
+        p = K.make_params(method="shakf", sample_rate_hz=200.0, lam=lam, outlier_sigma=gate)
+        out, s = run(p, K.init_state(p), z)
+        assert np.all(np.isfinite(out)) and np.all(np.isfinite(s))
+        assert np.all((out >= z.min()) & (out <= z.max()))
+        tr = np.trace(np.array(K.rls_cov(p, s)))
+        assert tr <= 4 * 1e4 * (1 + 1e-12)
+
+
+def test_lone_huge_sample_with_gate_off_heals():
+    """A single 1e155 sample with the gate off squared to inf and left the output
+    NaN for good; now the filter restarts at that sample (counted) and is back
+    to filtering after a warm-up."""
+    rng = np.random.default_rng(2)
+    z = 0.01 * rng.standard_normal(4000)
+    z[2000] = 1e155
+    p = K.make_params(method="shakf", sample_rate_hz=200.0, outlier_sigma=0.0)
+    out, s = run(p, K.init_state(p), z)
+    assert np.all(np.isfinite(out))
+    assert s[K.S_NHEAL] >= 1
+    assert s[K.S_CONV] == 1.0
+    assert np.std(out[-500:]) < 0.5 * np.std(z[-500:])      # filtering again
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 8])
+def test_ar_stability_test_matches_the_roots(n):
+    """ar_stable (Schur-Cohn step-down) against numpy's roots of z^n - phi_1 z^(n-1) - ... ."""
+    rng = np.random.default_rng(n)
+    w = [0.0] * n
+    for _ in range(400):
+        phi = rng.uniform(-2.0, 2.0, n) / np.arange(1, n + 1) ** rng.uniform(0, 1.5)
+        roots = np.roots(np.r_[1.0, -phi])
+        rmax = np.max(np.abs(roots))
+        if abs(rmax - 1.0) < 1e-9:
+            continue
+        assert K.ar_stable(list(phi), 0, n, w, 0) == (rmax < 1.0), (phi, rmax)
+
+
+def test_gate_holds_instead_of_extrapolating_an_unstable_model():
+    """The 1e15 deg/s blow-ups: rejected samples were replaced by the AR
+    prediction, which grows exponentially for an identified model with a root
+    outside the unit circle. With an unstable model the rejected run now holds
+    the last filtered value."""
+    rng = np.random.default_rng(0)
+    p = K.make_params(ar_order=2, method="shakf", sample_rate_hz=200.0, outlier_run=20)
+    s = K.init_state(p)
+    for v in 0.01 * rng.standard_normal(1000):
+        K.step(p, s, float(v), False)
+    o = K.layout(2)[0]
+    s[o], s[o + 1] = 2.2, -1.0                  # roots 1.63 and 0.61: explosive
+    last = s[K.S_OUT]
+    outs = [K.step(p, s, 50.0 + float(v), False) for v in 0.01 * rng.standard_normal(19)]
+    assert s[K.S_NREJ] == 19 and s[K.S_HOLD] == 1.0
+    np.testing.assert_allclose(outs, last, rtol=0, atol=1e-12)
+    # a stable model is still extrapolated (the paper-like prediction)
+    s2 = K.init_state(p)
+    for v in 0.01 * rng.standard_normal(1000):
+        K.step(p, s2, float(v), False)
+    for v in 50.0 + 0.01 * rng.standard_normal(5):
+        K.step(p, s2, float(v), False)
+    assert s2[K.S_HOLD] == 0.0 and s2[K.S_NREJ] == 5

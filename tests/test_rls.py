@@ -14,7 +14,16 @@ def rls_theta(z, order, lam=1.0, p0=1e4):
 
 
 def batch_ridge(z, order, lam=1.0, p0=1e4):
-    """Exact minimiser of sum lam^(N-k) e_k^2 + lam^N / p0 |theta|^2 (Eq. 5-7)."""
+    """Exact minimiser of sum lam^(N-k) e_k^2 + lam^N / p0 |theta|^2 (Eq. 5-7)
+    for the samples centred on the first one (as the kernels do), with c turned
+    back into deg/s of the raw samples: c = c_centred + (1 - sum phi) z_0."""
+    z0 = z[0]
+    th = _batch_ridge(np.asarray(z) - z0, order, lam, p0)
+    th[order] += (1.0 - th[:order].sum()) * z0
+    return th
+
+
+def _batch_ridge(z, order, lam, p0):
     n = len(z)
     rows = np.array([[z[k - j] for j in range(1, order + 1)] + [1.0] for k in range(order, n)])
     y = np.asarray(z[order:])
