@@ -142,6 +142,7 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False,
         return out, sa, theta
     order = int(pa[K.P_ORDER])
     if (compiled and fast and not diagnostics and F.run_local_fast is not None
+            and pa[K.P_METHOD] in F.METHODS
             and order <= F.MAX_ORDER and F.symmetric_state(sa, order)):
         F.run_local_fast(pa, sa, za, ra, out, (0.0,) * (order + 1))
         return out, sa

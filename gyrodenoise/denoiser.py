@@ -109,7 +109,7 @@ class Denoiser:
 
 
 def denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3, restarts=None,
-            **kw):
+            zero_phase=False, **kw):
     """Denoise a gyro record with the online improved-AR(n) model + KF/SHAKF.
 
     Parameters
@@ -118,12 +118,17 @@ def denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3, restarts=Non
         Raw angular rate, deg/s.
     sample_rate_hz : float
         Sample rate, Hz.
-    method : {"shakf", "kf", "none", "sh_classic"}
-        "shakf" is the modified Sage-Husa AKF of the paper (Section 3.2.3).
+    method : {"shakf", "kf", "none", "sh_classic", "lowpass"}
+        "shakf" is the modified Sage-Husa AKF of the paper (Section 3.2.3);
+        "lowpass" a causal Butterworth (``cutoff_hz``, ``order``).
     ar_order : int
         Order n of the improved AR(n) model (Eq. 4).
     restarts : array_like of bool, optional
         True where the gyro restarted (re-identifies the model there).
+    zero_phase : bool
+        ``method="lowpass"`` only, for offline records: filter forwards, then
+        backwards (squared magnitude response, no phase lag), each run of
+        samples between restarts on its own.
     **kw
         Further parameters of :func:`gyrodenoise.kernels.make_params`.
 
@@ -132,8 +137,16 @@ def denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3, restarts=Non
     ndarray
         Filtered rate, deg/s (the raw sample during each warm-up).
     """
+    import numpy as np
+
     from . import batch
     p = K.make_params(ar_order=ar_order, method=method,
                       sample_rate_hz=sample_rate_hz, **kw)
+    if zero_phase and method != "lowpass":
+        raise ValueError(f"zero_phase applies to method='lowpass' only, not {method!r}")
     out, _ = batch.run(p, K.init_state(p), rate_deg_s, restarts)
+    if zero_phase:
+        rs = np.zeros(out.shape, dtype=bool) if restarts is None else np.asarray(restarts, dtype=bool)
+        back, _ = batch.run(p, K.init_state(p), out[::-1], np.r_[rs[1:], False][::-1])
+        out = back[::-1].copy()
     return out

@@ -47,6 +47,8 @@ except ImportError:  # pragma: no cover - batch.run then uses the generic path
 
 #: Largest AR order with a specialised loop (higher orders use the generic loop).
 MAX_ORDER = 8
+#: Methods with a specialised loop (the others use the generic loop).
+METHODS = (K.METHOD_NONE, K.METHOD_KF, K.METHOD_SHAKF, K.METHOD_SH_CLASSIC)
 
 
 def run_local(p, s, z, restarts, out, shape):

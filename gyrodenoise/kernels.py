@@ -64,14 +64,19 @@ P_WARMUP = 9     # warm-up length in samples after each restart
 P_R_FLOOR = 10   # lower bound of R and of the auto noise levels, (deg/s)^2
 P_OUTLIER_SIGMA = 11  # innovation gate k: |v| > k sqrt(S) rejects a sample; 0 = off
 P_OUTLIER_RUN = 12    # consecutive rejections after which the filter re-opens (restart)
-N_PARAMS = 13
+P_LP_NSEC = 13   # lowpass: number of second-order sections (0 for the other methods)
+P_LP_CUTOFF = 14  # lowpass: -3 dB cutoff, Hz
+P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
+MAX_SOS = 4      # Butterworth orders 1..8
+N_PARAMS = P_SOS + 5 * MAX_SOS
 
 METHOD_NONE = 0.0      # identification only, output = raw
 METHOD_KF = 1.0        # conventional KF, fixed Q and R
 METHOD_SHAKF = 2.0     # modified Sage-Husa AKF (Section 3.2.3)
 METHOD_SH_CLASSIC = 3.0  # classic Sage-Husa, Eq. (22) and (26) unmodified
+METHOD_LOWPASS = 5.0     # causal Butterworth low-pass (not in the paper)
 METHODS = {"none": METHOD_NONE, "kf": METHOD_KF, "shakf": METHOD_SHAKF,
-           "sh_classic": METHOD_SH_CLASSIC}
+           "sh_classic": METHOD_SH_CLASSIC, "lowpass": METHOD_LOWPASS}
 
 # --------------------------------------------------------------------- state
 S_K = 0          # samples seen since the last restart
@@ -99,6 +104,9 @@ S_NHEAL = 21     # restarts forced by a non-finite filter state (kept by restart
 N_HEADER = 22
 
 
+N_EXT = 2 * MAX_SOS   # method-specific state after the AR layout (lowpass delays)
+
+
 @_jitable
 def layout(n):
     """Offsets of (theta, P_rls, x, P, z_hist, w, total) for AR order ``n``."""
@@ -109,13 +117,14 @@ def layout(n):
     o_p = o_x + m
     o_z = o_p + m * m
     o_w = o_z + n
-    total = o_w + m
+    total = o_w + m + N_EXT
     return o_theta, o_prls, o_x, o_p, o_z, o_w, total
 
 
 def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
                 b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
-                warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20):
+                warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20,
+                cutoff_hz=None, order=2):
     """Build and check the parameter buffer (a list of floats).
 
     Parameters
@@ -155,6 +164,12 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
         outlying sample is taken as a real rate change and the filter re-opens
         (a restart at that sample: re-identification and warm-up). >= 1,
         default 20 samples.
+    cutoff_hz : float or None
+        ``method="lowpass"``: -3 dB cutoff in Hz, 0 < cutoff_hz < sample_rate_hz / 2.
+        None: 20 Hz (ArduPilot's and PX4's usual gyro filter), at most a
+        quarter of the sample rate.
+    order : int
+        ``method="lowpass"``: Butterworth order, 1..8.
 
     Raises
     ------
@@ -185,6 +200,16 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
     if int(outlier_run) != outlier_run or outlier_run < 1:
         raise ValueError(f"outlier_run must be an integer >= 1, got {outlier_run!r}")
     warmup = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
+    sos = []
+    if method == "lowpass":
+        if cutoff_hz is None:
+            cutoff_hz = min(20.0, 0.25 * sample_rate_hz)
+        if not (0.0 < cutoff_hz < 0.5 * sample_rate_hz):
+            raise ValueError(f"cutoff_hz out of range: {cutoff_hz!r} (must be > 0 and below "
+                             f"half the sample rate, {0.5 * sample_rate_hz:g} Hz)")
+        if int(order) != order or not 1 <= order <= 2 * MAX_SOS:
+            raise ValueError(f"order must be an integer 1..{2 * MAX_SOS}, got {order!r}")
+        sos = butter_sos(int(order), float(cutoff_hz), float(sample_rate_hz))
     p = [0.0] * N_PARAMS
     p[P_ORDER] = float(n)
     p[P_METHOD] = METHODS[method]
@@ -199,7 +224,41 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
     p[P_R_FLOOR] = float(r_floor)
     p[P_OUTLIER_SIGMA] = float(outlier_sigma)
     p[P_OUTLIER_RUN] = float(int(outlier_run))
+    if sos:
+        p[P_LP_NSEC] = float(len(sos))
+        p[P_LP_CUTOFF] = float(cutoff_hz)
+        for i, sec in enumerate(sos):
+            for j in range(5):
+                p[P_SOS + 5 * i + j] = sec[j]
     return p
+
+
+def butter_sos(order, cutoff_hz, sample_rate_hz):
+    """Digital Butterworth low-pass as second-order sections [(b0, b1, b2, a1, a2)].
+
+    The analog prototype's poles exp(i pi (2k + N + 1) / (2N)), scaled to the
+    pre-warped cutoff 2 fs tan(pi fc / fs), mapped by the bilinear transform;
+    zeros at z = -1; each section has unit gain at DC. Same response as
+    ``scipy.signal.butter(order, cutoff_hz, fs=sample_rate_hz, output="sos")``
+    (tested), with no scipy needed (the FMU runs this).
+    """
+    import cmath
+    import math
+    fs2 = 2.0 * sample_rate_hz
+    wc = fs2 * math.tan(math.pi * cutoff_hz / sample_rate_hz)
+    sos = []
+    for k in range(order // 2):
+        sp = wc * cmath.exp(1j * math.pi * (2 * k + order + 1) / (2 * order))
+        zp = (fs2 + sp) / (fs2 - sp)
+        a1 = -2.0 * zp.real
+        a2 = abs(zp) ** 2
+        g = (1.0 + a1 + a2) / 4.0
+        sos.append((g, 2.0 * g, g, a1, a2))
+    if order % 2:
+        zp = (fs2 - wc) / (fs2 + wc)
+        g = (1.0 - zp) / 2.0
+        sos.append((g, g, 0.0, -zp, 0.0))
+    return sos
 
 
 def init_state(p):
@@ -616,6 +675,25 @@ def filter_step(p, s, z):
 
 
 @_jitable
+def lowpass_step(p, s, z):
+    """One sample of the Butterworth cascade (transposed direct form II, as
+    ``scipy.signal.sosfilt``) on the centred sample ``z``; the delays start at
+    0, which is the steady state for the first sample (centred to 0)."""
+    n = int(p[P_ORDER])
+    o = layout(n)[6] - N_EXT
+    y = z
+    for i in range(int(p[P_LP_NSEC])):
+        c = P_SOS + 5 * i
+        x = y
+        y = p[c] * x + s[o + 2 * i]
+        s[o + 2 * i] = p[c + 1] * x - p[c + 3] * y + s[o + 2 * i + 1]
+        s[o + 2 * i + 1] = p[c + 2] * x - p[c + 4] * y
+    s[S_K] += 1.0
+    s[S_CONV] = 1.0
+    return y
+
+
+@_jitable
 def _finite(v):
     return v - v == 0.0
 
@@ -652,9 +730,11 @@ def step(p, s, z, is_restart):
       back: a denoiser does not invent motion).
     """
     code = 0
+    lowpass = p[P_METHOD] == METHOD_LOWPASS
     if is_restart:
         restart(p, s)
-    elif p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE:
+    elif (p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE
+          and not lowpass):
         code = gate(p, s, z - s[S_ZREF])
     if s[S_K] == 0.0:
         s[S_ZREF] = z
@@ -666,15 +746,17 @@ def step(p, s, z, is_restart):
         s[S_HI] = z
     if code == 1:
         xc = s[S_OUT]
+    elif lowpass:
+        xc = lowpass_step(p, s, z - s[S_ZREF])
     else:
         xc = filter_step(p, s, z - s[S_ZREF])
-    if not _healthy(p, s):
+    if not (_healthy(p, s) and _finite(xc)):
         restart(p, s)
         s[S_NHEAL] += 1.0
         s[S_ZREF] = z
         s[S_LO] = z
         s[S_HI] = z
-        xc = filter_step(p, s, 0.0)
+        xc = lowpass_step(p, s, 0.0) if lowpass else filter_step(p, s, 0.0)
     if s[S_CONV] == 0.0 or p[P_METHOD] == METHOD_NONE:
         out = z                      # warm-up / identification only: raw
     else:
