@@ -26,8 +26,15 @@ def _add_input_options(p):
 
 def _add_filter_options(p, method=True):
     if method:
-        p.add_argument("--method", default="shakf", choices=["shakf", "kf", "none"],
-                       help="filter (default: shakf, the paper's modified Sage-Husa AKF)")
+        from .kernels import DEFAULT_METHOD, METHODS
+        p.add_argument("--method", default=DEFAULT_METHOD, choices=list(METHODS),
+                       help=f"filter (default: {DEFAULT_METHOD}); shakf is the paper's modified Sage-Husa AKF, "
+                            "lowpass a causal Butterworth (--cutoff-hz, --order)")
+        p.add_argument("--cutoff-hz", type=float, default=None, metavar="HZ",
+                       help="lowpass: -3 dB cutoff (default 20 Hz, at most a quarter of the sample rate)")
+        p.add_argument("--order", type=int, default=2, help="lowpass: Butterworth order 1..8 (default 2)")
+        p.add_argument("--zero-phase", action="store_true",
+                       help="lowpass, offline: filter forwards and backwards (no lag)")
     p.add_argument("--ar-order", type=int, default=3, help="order n of the improved AR(n) model (default 3)")
     p.add_argument("--warmup-s", type=float, default=1.0,
                    help="seconds after each restart with raw pass-through while the AR model converges")
@@ -44,8 +51,11 @@ def _add_filter_options(p, method=True):
 
 
 def _filter_kw(args):
-    return {"warmup_s": args.warmup_s, "b": args.b, "gamma": args.gamma, "lam": args.lam,
-            "outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
+    kw = {"warmup_s": args.warmup_s, "b": args.b, "gamma": args.gamma, "lam": args.lam,
+          "outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
+    if getattr(args, "method", None) == "lowpass":
+        kw.update(cutoff_hz=args.cutoff_hz, order=args.order)
+    return kw
 
 
 def _read(args):
@@ -60,7 +70,10 @@ def _read(args):
 def _check_params(args, fs):
     from . import kernels as K
     try:
-        K.make_params(ar_order=args.ar_order, sample_rate_hz=fs, **_filter_kw(args))
+        K.make_params(ar_order=args.ar_order, sample_rate_hz=fs, method=getattr(args, "method", "shakf"),
+                      **_filter_kw(args))
+        if getattr(args, "zero_phase", False) and args.method != "lowpass":
+            raise ValueError(f"--zero-phase applies to --method lowpass only, not {args.method}")
     except ValueError as exc:
         raise InputError(str(exc)) from None
 
@@ -69,14 +82,19 @@ def _check_params(args, fs):
 def cmd_denoise(args):
     from .denoiser import Denoiser
     from .recording import write_recording
-    _check_params(args, 1.0)          # bad options fail before the file is read
+    _check_params(args, 1e9 if args.method == "lowpass" else 1.0)   # bad options fail before the file is read
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
     den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **_filter_kw(args))
-    out = den.process(rec.rate_deg_s, rec.restarts)
+    if args.zero_phase:
+        from .denoiser import denoise
+        out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method="lowpass", ar_order=args.ar_order,
+                      restarts=rec.restarts, zero_phase=True, **_filter_kw(args))
+    else:
+        out = den.process(rec.rate_deg_s, rec.restarts)
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
     _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method})")
-    if args.outlier_sigma > 0 and args.method != "none":
+    if args.outlier_sigma > 0 and args.method not in ("none", "lowpass"):
         _log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
              f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
              f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")

@@ -77,6 +77,7 @@ METHOD_SH_CLASSIC = 3.0  # classic Sage-Husa, Eq. (22) and (26) unmodified
 METHOD_LOWPASS = 5.0     # causal Butterworth low-pass (not in the paper)
 METHODS = {"none": METHOD_NONE, "kf": METHOD_KF, "shakf": METHOD_SHAKF,
            "sh_classic": METHOD_SH_CLASSIC, "lowpass": METHOD_LOWPASS}
+DEFAULT_METHOD = "shakf"   # of gd.denoise, the CLI, the bridge and the FMU
 
 # --------------------------------------------------------------------- state
 S_K = 0          # samples seen since the last restart

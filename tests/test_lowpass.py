@@ -66,3 +66,27 @@ def test_bad_lowpass_parameters_are_refused(kw, word):
 def test_zero_phase_only_for_lowpass():
     with pytest.raises(ValueError, match="zero_phase"):
         gd.denoise(np.zeros(100), 100.0, method="kf", zero_phase=True)
+
+
+def test_cli_denoise_lowpass_and_its_errors(tmp_path):
+    import subprocess
+    import sys
+    t = np.arange(2000) / 200.0
+    z = np.sin(t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    rec = tmp_path / "rec.csv"
+    np.savetxt(rec, np.c_[t, z], delimiter=",", header="time,rate", comments="")
+    cli = [sys.executable, "-m", "gyrodenoise.cli", "denoise", str(rec)]
+    out = tmp_path / "out.csv"
+    r = subprocess.run(cli + ["-o", str(out), "--method", "lowpass", "--cutoff-hz", "10", "--zero-phase"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    got = np.loadtxt(out, delimiter=",", skiprows=1)[:, 2]
+    ref = gd.denoise(z, 200.0, method="lowpass", cutoff_hz=10.0, zero_phase=True)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)
+    for extra, word in ((["--method", "lowpass", "--cutoff-hz", "150"], "cutoff_hz"),
+                        (["--method", "kf", "--zero-phase"], "--zero-phase"),
+                        (["--method", "lowpass", "--order", "0"], "order")):
+        bad = tmp_path / "bad.csv"
+        r = subprocess.run(cli + ["-o", str(bad)] + extra, capture_output=True, text=True)
+        assert r.returncode == 2 and word in r.stderr and "Traceback" not in r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1 and not bad.exists()
