@@ -80,7 +80,7 @@ class FogDenoiser(Fmi2Slave):
         self.restart = False
         # parameters (defaults of gyrodenoise.kernels.make_params)
         self.ar_order = 3
-        self.method = "shakf"
+        self.method = "motion"
         self.sample_period = 0.005
         self.lam = 1.0
         self.b = 0.99
@@ -131,8 +131,11 @@ class FogDenoiser(Fmi2Slave):
                                        description="True once the AR model has converged since the last "
                                                    "restart (the output is filtered from then on) [1]"))
         self.register_variable(Integer("ar_order", **par, description=f"Order n of the AR model, 1..{MAX_ORDER} [1]"))
-        self.register_variable(String("method", **par, description="Filter: 'shakf' (modified Sage-Husa AKF), "
-                                                                   "'kf' (conventional KF) or 'none' [-]"))
+        self.register_variable(String("method", **par, description="Filter: 'motion' (default: follows "
+                                                                   "manoeuvres, averages at rest), 'shakf' "
+                                                                   "(modified Sage-Husa AKF, the paper), 'kf' "
+                                                                   "(conventional KF), 'sh_classic', 'lowpass' "
+                                                                   "(Butterworth, 20 Hz) or 'none' [-]"))
         self.register_variable(Real("sample_period", **par,
                                     description="Sample period; every communication step must have this size [s]"))
         self.register_variable(Real("lam", **par, description="RLS forgetting factor, 0 < lam <= 1 [1]"))

@@ -5,7 +5,8 @@ variance analysis, a model-card gyro simulator, FMUs and a MAVLink bridge.
 Python API (numpy arrays in, numpy out)::
 
     import gyrodenoise as gd
-    filtered = gd.denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3)
+    filtered = gd.denoise(rate_deg_s, sample_rate_hz)                  # method="motion"
+    paper = gd.denoise(rate_deg_s, sample_rate_hz, method="shakf", outlier_sigma=0)
     result = gd.allan(rate_deg_s, sample_rate_hz)
     record = gd.simulate("models/paper_fog.toml", n_samples, seed=0)
 """

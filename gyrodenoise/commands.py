@@ -94,7 +94,7 @@ def cmd_denoise(args):
         out = den.process(rec.rate_deg_s, rec.restarts)
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
     _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method})")
-    if args.outlier_sigma > 0 and args.method not in ("none", "lowpass"):
+    if args.outlier_sigma > 0 and args.method in ("shakf", "kf", "sh_classic"):
         _log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
              f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
              f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")

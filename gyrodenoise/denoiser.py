@@ -22,7 +22,7 @@ class Denoiser:
     >>> y = d.step(0.01, restart=False)
     """
 
-    def __init__(self, sample_rate_hz=200.0, method="shakf", ar_order=3, **kw):
+    def __init__(self, sample_rate_hz=200.0, method=K.DEFAULT_METHOD, ar_order=3, **kw):
         self.params = K.make_params(ar_order=ar_order, method=method,
                                     sample_rate_hz=sample_rate_hz, **kw)
         self.state = K.init_state(self.params)
@@ -108,7 +108,7 @@ class Denoiser:
         self.state = [float(v) for v in state]
 
 
-def denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3, restarts=None,
+def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, restarts=None,
             zero_phase=False, **kw):
     """Denoise a gyro record with the online improved-AR(n) model + KF/SHAKF.
 
@@ -118,9 +118,12 @@ def denoise(rate_deg_s, sample_rate_hz, method="shakf", ar_order=3, restarts=Non
         Raw angular rate, deg/s.
     sample_rate_hz : float
         Sample rate, Hz.
-    method : {"shakf", "kf", "none", "sh_classic", "lowpass"}
-        "shakf" is the modified Sage-Husa AKF of the paper (Section 3.2.3);
-        "lowpass" a causal Butterworth (``cutoff_hz``, ``order``).
+    method : {"motion", "shakf", "kf", "sh_classic", "lowpass", "none"}
+        "motion" (default) follows manoeuvres and averages at rest;
+        "shakf" is the modified Sage-Husa AKF of the paper (Section 3.2.3),
+        with ``outlier_sigma=0`` exactly the paper's filter; "lowpass" a
+        causal Butterworth (``cutoff_hz``, ``order``). See
+        :func:`gyrodenoise.kernels.make_params`.
     ar_order : int
         Order n of the improved AR(n) model (Eq. 4).
     restarts : array_like of bool, optional

@@ -21,6 +21,7 @@ import tempfile
 from pathlib import Path
 
 from .errors import InputError
+from .kernels import DEFAULT_METHOD
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 REPO_DIR = PACKAGE_DIR.parent
@@ -322,7 +323,7 @@ def compare_with_core(measured, filtered, true_rate, restarts, card, seed, metho
 
 
 def validation_run(fmu_dir="build", duration_s=600.0, rate_deg_s=0.0, restart_at_s=None,
-                   seed=0, card="paper_fog", method="shakf", ar_order=3, tol=1e-9,
+                   seed=0, card="paper_fog", method=DEFAULT_METHOD, ar_order=3, tol=1e-9,
                    keep_arrays=False, denoiser_kw=None):
     """SimulatedFog -> FogDenoiser through fmpy ``FMU2Slave``, one step per sample.
 
@@ -409,7 +410,7 @@ def _ssv_parameters(params, var_types):
     return "\n".join(rows)
 
 
-def system_parameters(card, seed=0, method="shakf", ar_order=3, rate_deg_s=0.0, denoiser_kw=None):
+def system_parameters(card, seed=0, method=DEFAULT_METHOD, ar_order=3, rate_deg_s=0.0, denoiser_kw=None):
     """Parameter values of the two-FMU system: {instance: {variable: value}}."""
     card_obj = _resolve_card(card)
     fs = card_obj.sample_rate_hz
@@ -419,7 +420,7 @@ def system_parameters(card, seed=0, method="shakf", ar_order=3, rate_deg_s=0.0, 
     }
 
 
-def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method="shakf", ar_order=3,
+def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_METHOD, ar_order=3,
               rate_deg_s=0.0, duration_s=600.0, denoiser_kw=None):
     """Write an SSP 1.0 archive of SimulatedFog -> FogDenoiser; return its path.
 
@@ -495,7 +496,7 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method="shakf", a
 
 
 def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=None, seed=0,
-              card="paper_fog", method="shakf", ar_order=3, ssp=None, tol=1e-9,
+              card="paper_fog", method=DEFAULT_METHOD, ar_order=3, ssp=None, tol=1e-9,
               keep_arrays=False, denoiser_kw=None):
     """The two-FMU system in libcosim (Open Simulation Platform) via libcosimpy.
 
@@ -655,7 +656,7 @@ def register_cli(subparsers):
                    help="time of the restart, s (default: the middle); negative: no restart")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--card", default="paper_fog", help="model card path or embedded name")
-    r.add_argument("--method", default="shakf", choices=["shakf", "kf", "none"])
+    r.add_argument("--method", default=DEFAULT_METHOD, choices=["motion", "shakf", "kf", "sh_classic", "lowpass", "none"])
     r.add_argument("--ar-order", type=int, default=3)
     r.add_argument("--master", default="fmpy", choices=["fmpy", "libcosim", "ssp"],
                    help="fmpy FMU2Slave loop (default), libcosim built from Python, or "

@@ -44,6 +44,8 @@ Choices the paper leaves open (documented in the README, "The method"):
 
 from __future__ import annotations
 
+import math
+
 try:  # the per-sample path must work without numba (the FMU does not ship it)
     from numba.extending import register_jitable as _jitable
 except ImportError:  # pragma: no cover - exercised in the FMU tests
@@ -68,16 +70,26 @@ P_LP_NSEC = 13   # lowpass: number of second-order sections (0 for the other met
 P_LP_CUTOFF = 14  # lowpass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
-N_PARAMS = P_SOS + 5 * MAX_SOS
+P_MO_RHO = P_SOS + 5 * MAX_SOS  # motion: Singer decay of the rate increment per sample
+P_MO_GAMMA = P_MO_RHO + 1       # motion: jump test strictness (Eq. 32 form)
+P_MO_GAIN = P_MO_RHO + 2        # motion: step of the log-q adaptation per sample
+P_MO_EPS = P_MO_RHO + 3         # motion: target lag-1 correlation of the normalised innovations
+P_MO_LQMIN = P_MO_RHO + 4       # motion: bounds of log(q / R)
+P_MO_LQMAX = P_MO_RHO + 5
+P_MO_BR = P_MO_RHO + 6          # motion: Sage-Husa forgetting factor of the noise level
+P_MO_LQ0 = P_MO_RHO + 7         # motion: log(q / R) after a restart (at rest, as the paper assumes)
+P_MO_CLIP = P_MO_RHO + 8        # motion: clip of the innovation-correlation term
+N_PARAMS = P_MO_RHO + 9
 
 METHOD_NONE = 0.0      # identification only, output = raw
 METHOD_KF = 1.0        # conventional KF, fixed Q and R
 METHOD_SHAKF = 2.0     # modified Sage-Husa AKF (Section 3.2.3)
 METHOD_SH_CLASSIC = 3.0  # classic Sage-Husa, Eq. (22) and (26) unmodified
+METHOD_MOTION = 4.0      # motion-aware: true rate + acceleration, adaptive (not in the paper)
 METHOD_LOWPASS = 5.0     # causal Butterworth low-pass (not in the paper)
-METHODS = {"none": METHOD_NONE, "kf": METHOD_KF, "shakf": METHOD_SHAKF,
-           "sh_classic": METHOD_SH_CLASSIC, "lowpass": METHOD_LOWPASS}
-DEFAULT_METHOD = "shakf"   # of gd.denoise, the CLI, the bridge and the FMU
+METHODS = {"motion": METHOD_MOTION, "shakf": METHOD_SHAKF, "kf": METHOD_KF,
+           "sh_classic": METHOD_SH_CLASSIC, "lowpass": METHOD_LOWPASS, "none": METHOD_NONE}
+DEFAULT_METHOD = "motion"   # of gd.denoise, the CLI, the bridge and the FMU
 
 # --------------------------------------------------------------------- state
 S_K = 0          # samples seen since the last restart
@@ -105,7 +117,23 @@ S_NHEAL = 21     # restarts forced by a non-finite filter state (kept by restart
 N_HEADER = 22
 
 
-N_EXT = 2 * MAX_SOS   # method-specific state after the AR layout (lowpass delays)
+N_EXT = 16   # method-specific state after the AR layout (lowpass delays, motion)
+# motion's state, at offset layout(n)[6] - N_EXT
+M_W = 0          # true-rate estimate omega (centred), deg/s
+M_A = 1          # rate increment per sample a, deg/s
+M_P00 = 2        # covariance of [omega, a], (deg/s)^2
+M_P01 = 3
+M_P11 = 4
+M_LQ = 5         # log(q / R): process-noise level relative to the white noise
+M_R = 6          # white-noise variance R of the sensor, (deg/s)^2
+M_MABS = 7       # mean |4th difference| (robust noise level), deg/s
+M_Z1 = 8         # last four centred samples
+M_Z2 = 9
+M_Z3 = 10
+M_Z4 = 11
+M_UPREV = 12     # last normalised innovation
+M_BK = 13        # b^(k+1) of d_k
+M_NJUMP = 14     # jumps followed (Eq. 32 violated) since the restart
 
 
 @_jitable
@@ -122,7 +150,7 @@ def layout(n):
     return o_theta, o_prls, o_x, o_p, o_z, o_w, total
 
 
-def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
+def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0,
                 b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
                 warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20,
                 cutoff_hz=None, order=2):
@@ -132,8 +160,10 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
     ----------
     ar_order : int
         Order n of the improved AR(n) model, Eq. (4). n >= 1.
-    method : {"shakf", "kf", "none", "sh_classic"}
-        Filter on the AR state model.
+    method : {"motion", "shakf", "kf", "sh_classic", "lowpass", "none"}
+        "motion" (default): follows the true rate (:func:`motion_step`);
+        "shakf", "kf", "sh_classic": filters on the AR state model (the paper);
+        "lowpass": Butterworth (``cutoff_hz``, ``order``); "none": output = input.
     sample_rate_hz : float
         Sample rate; only used to turn ``warmup_s`` into samples.
     lam : float
@@ -201,6 +231,8 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
     if int(outlier_run) != outlier_run or outlier_run < 1:
         raise ValueError(f"outlier_run must be an integer >= 1, got {outlier_run!r}")
     warmup = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
+    if method == "motion":
+        p_motion = motion_params(sample_rate_hz)
     sos = []
     if method == "lowpass":
         if cutoff_hz is None:
@@ -225,6 +257,9 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
     p[P_R_FLOOR] = float(r_floor)
     p[P_OUTLIER_SIGMA] = float(outlier_sigma)
     p[P_OUTLIER_RUN] = float(int(outlier_run))
+    if method == "motion":
+        for i, v in enumerate(p_motion):
+            p[P_MO_RHO + i] = v
     if sos:
         p[P_LP_NSEC] = float(len(sos))
         p[P_LP_CUTOFF] = float(cutoff_hz)
@@ -232,6 +267,26 @@ def make_params(ar_order=3, method="shakf", sample_rate_hz=200.0, lam=1.0,
             for j in range(5):
                 p[P_SOS + 5 * i + j] = sec[j]
     return p
+
+
+def motion_params(sample_rate_hz, tau_a_s=0.5, gamma=5.0, tau_g_s=0.1, eps=0.2,
+                  log_q_min=-32.236, log_q_max=13.816, r_tau_s=10.0, log_q0=-15.0, clip=100.0):
+    """The constants of ``method="motion"`` (:func:`motion_step`), one default
+    for every sensor: q and R are relative to the identified noise, times are
+    turned into samples here. Measured on FOG and MEMS cards and real flights
+    (benchmarks/motion.py); not meant to be tuned by a user.
+
+    tau_a_s: correlation time of the angular acceleration (Singer model);
+    gamma: strictness of the jump test (Eq. 32 form); tau_g_s: time constant
+    of the q adaptation; eps: target lag-1 correlation of the normalised
+    innovations; log_q_min/max: bounds of log(q/R) (1e-14 .. 1e6); r_tau_s:
+    memory of the Sage-Husa noise-level estimate; log_q0: log(q/R) after a
+    restart (the gyro at rest, as the paper assumes); clip: of the correlation
+    term."""
+    fs = float(sample_rate_hz)
+    import math
+    return [math.exp(-1.0 / (tau_a_s * fs)), float(gamma), 1.0 / (tau_g_s * fs), float(eps),
+            float(log_q_min), float(log_q_max), 1.0 - 1.0 / (r_tau_s * fs), float(log_q0), float(clip)]
 
 
 def butter_sos(order, cutoff_hz, sample_rate_hz):
@@ -695,6 +750,111 @@ def lowpass_step(p, s, z):
 
 
 @_jitable
+def motion_step(p, s, z):
+    """``method="motion"``: one centred sample ``z`` through a filter that keeps
+    the true rate and follows it (not in the paper; issue 12).
+
+    State [omega, a]: the true rate and its increment per sample, a Singer
+    (decaying constant-acceleration) model, z = omega + white noise of
+    variance R. Three adaptive parts, all per sample and O(1):
+
+    * R, the sensor's white-noise level, from the mean absolute 4th difference
+      of the samples (70 R for white noise; smooth motion adds ~T^4 times the 4th derivative,
+      negligible), Huber-clipped at 4x its mean and averaged with the
+      Sage-Husa weight d_k = (1-b)/(1-b^(k+1)) of Eq. (22)/(33);
+    * q (process noise, relative to R): its logarithm moves with the lag-1
+      correlation of the normalised innovations u_k u_(k-1): a filter that
+      lags gives positively correlated innovations and raises q, white ones
+      lower it (towards averaging at rest);
+    * the divergence test of Eq. (32), v^2 > gamma^2 S: a change the model
+      cannot explain (a step) opens the rate variance so the same sample is
+      followed.
+
+    While warming up (``P_WARMUP`` samples) the state follows z and the output
+    is raw (as for the other methods).
+    """
+    o = layout(int(p[P_ORDER]))[6] - N_EXT
+    k = s[S_K]
+    if k == 0.0:
+        s[o + M_Z1] = z
+        s[o + M_Z2] = z
+        s[o + M_Z3] = z
+        s[o + M_Z4] = z
+        s[o + M_BK] = 1.0
+        s[o + M_LQ] = p[P_MO_LQ0]
+    if k >= 4.0:
+        d4 = z - 4.0 * s[o + M_Z1] + 6.0 * s[o + M_Z2] - 4.0 * s[o + M_Z3] + s[o + M_Z4]
+        x = abs(d4)
+        if s[o + M_MABS] > 0.0 and x > 4.0 * s[o + M_MABS]:
+            x = 4.0 * s[o + M_MABS]
+        b = p[P_MO_BR]
+        s[o + M_BK] *= b
+        d = (1.0 - b) / (1.0 - s[o + M_BK])         # d_k, as in Eq. (33)
+        s[o + M_MABS] += d * (x - s[o + M_MABS])
+        sig = s[o + M_MABS] * 0.14980634836659743  # E|N(0, 70 R)| = sqrt(70 R 2/pi)
+        r = sig * sig
+        if r < p[P_R_FLOOR]:
+            r = p[P_R_FLOOR]
+        s[o + M_R] = r
+    s[o + M_Z4] = s[o + M_Z3]
+    s[o + M_Z3] = s[o + M_Z2]
+    s[o + M_Z2] = s[o + M_Z1]
+    s[o + M_Z1] = z
+    s[S_K] = k + 1.0
+    r = s[o + M_R]
+    if k < p[P_WARMUP]:
+        s[o + M_W] = z
+        s[o + M_A] = 0.0
+        s[o + M_P00] = r
+        s[o + M_P01] = 0.0
+        s[o + M_P11] = r
+        return z
+    s[S_CONV] = 1.0
+    rho = p[P_MO_RHO]
+    qn = math.exp(s[o + M_LQ]) * r
+    # time update: omega += a, a *= rho; white jerk of variance q
+    wp = s[o + M_W] + s[o + M_A]
+    ap = rho * s[o + M_A]
+    p00 = s[o + M_P00] + 2.0 * s[o + M_P01] + s[o + M_P11] + qn / 3.0
+    p01 = rho * (s[o + M_P01] + s[o + M_P11]) + 0.5 * qn
+    p11 = rho * rho * s[o + M_P11] + qn
+    v = z - wp
+    sv = p00 + r
+    g = p[P_MO_GAMMA]
+    if v * v > g * g * sv:
+        # Eq. (32) violated: open the rate variance, follow this sample
+        p00 += v * v - sv
+        sv = p00 + r
+        s[o + M_UPREV] = 0.0
+        s[o + M_NJUMP] += 1.0
+    else:
+        u = v / math.sqrt(sv)
+        c = u * s[o + M_UPREV]
+        cl = p[P_MO_CLIP]
+        if c > cl:
+            c = cl
+        elif c < -cl:
+            c = -cl
+        lq = s[o + M_LQ] + p[P_MO_GAIN] * (c - p[P_MO_EPS])
+        if lq < p[P_MO_LQMIN]:
+            lq = p[P_MO_LQMIN]
+        elif lq > p[P_MO_LQMAX]:
+            lq = p[P_MO_LQMAX]
+        s[o + M_LQ] = lq
+        s[o + M_UPREV] = u
+    k0 = p00 / sv
+    k1 = p01 / sv
+    s[o + M_W] = wp + k0 * v
+    s[o + M_A] = ap + k1 * v
+    s[o + M_P00] = p00 - k0 * p00
+    s[o + M_P01] = p01 - k0 * p01
+    s[o + M_P11] = p11 - k1 * p01
+    s[S_INNOV] = v
+    s[S_SVAR] = sv
+    return s[o + M_W]
+
+
+@_jitable
 def _finite(v):
     return v - v == 0.0
 
@@ -732,10 +892,11 @@ def step(p, s, z, is_restart):
     """
     code = 0
     lowpass = p[P_METHOD] == METHOD_LOWPASS
+    motion = p[P_METHOD] == METHOD_MOTION
     if is_restart:
         restart(p, s)
     elif (p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE
-          and not lowpass):
+          and not lowpass and not motion):
         code = gate(p, s, z - s[S_ZREF])
     if s[S_K] == 0.0:
         s[S_ZREF] = z
@@ -749,6 +910,8 @@ def step(p, s, z, is_restart):
         xc = s[S_OUT]
     elif lowpass:
         xc = lowpass_step(p, s, z - s[S_ZREF])
+    elif motion:
+        xc = motion_step(p, s, z - s[S_ZREF])
     else:
         xc = filter_step(p, s, z - s[S_ZREF])
     if not (_healthy(p, s) and _finite(xc)):
@@ -757,7 +920,12 @@ def step(p, s, z, is_restart):
         s[S_ZREF] = z
         s[S_LO] = z
         s[S_HI] = z
-        xc = lowpass_step(p, s, 0.0) if lowpass else filter_step(p, s, 0.0)
+        if lowpass:
+            xc = lowpass_step(p, s, 0.0)
+        elif motion:
+            xc = motion_step(p, s, 0.0)
+        else:
+            xc = filter_step(p, s, 0.0)
     if s[S_CONV] == 0.0 or p[P_METHOD] == METHOD_NONE:
         out = z                      # warm-up / identification only: raw
     else:

@@ -138,7 +138,7 @@ def test_constant_record_passes_through_and_allan_terms_are_zero(capsys):
 def test_spike_is_kept_in_raw_and_kept_out_of_the_filter(capsys, tmp_path):
     path = REC / "spike.csv"
     out_csv = tmp_path / "o.csv"
-    assert main(["denoise", str(path), "-o", str(out_csv)]) == 0
+    assert main(["denoise", str(path), "-o", str(out_csv), "--method", "shakf"]) == 0
     err = capsys.readouterr().err
     assert "outlier gate (k=5): 1 sample(s) kept out of the filter" in err
     got = np.loadtxt(out_csv, delimiter=",", skiprows=1)
@@ -146,7 +146,7 @@ def test_spike_is_kept_in_raw_and_kept_out_of_the_filter(capsys, tmp_path):
     assert abs(got[300, 2] - 1.0) < 0.02          # the prediction (true level 1.0, noise 0.01)
     assert np.max(np.abs(got[300:, 2] - 1.0)) < 0.02
     # with the gate off the spike enters the filter (the paper's filter)
-    assert main(["denoise", str(path), "-o", str(out_csv), "--outlier-sigma", "0"]) == 0
+    assert main(["denoise", str(path), "-o", str(out_csv), "--method", "shakf", "--outlier-sigma", "0"]) == 0
     capsys.readouterr()
     off = np.loadtxt(out_csv, delimiter=",", skiprows=1)
     assert np.max(np.abs(off[300:, 2] - 1.0)) > np.max(np.abs(got[300:, 2] - 1.0))

@@ -224,8 +224,8 @@ def test_denoiser_state_roundtrip_and_serialize(fmu_dir):
     a = _inst(fmu_dir, instance="a")
     b = _inst(fmu_dir, instance="b")
     try:
-        a.initialize(sample_period=H, ar_order=4)
-        b.initialize(sample_period=H)          # other order: the state carries the parameters
+        a.initialize(sample_period=H, ar_order=4, method="shakf")
+        b.initialize(sample_period=H)          # other order and method: the state carries the parameters
         first = _run_denoiser(a, z[:600])
         st = a.slave.getFMUstate()
         blob = a.slave.serializeFMUstate(st)
@@ -245,7 +245,7 @@ def test_denoiser_state_roundtrip_and_serialize(fmu_dir):
     finally:
         a.free()
         b.free()
-    ref = gd.denoise(z, FS, ar_order=4)
+    ref = gd.denoise(z, FS, ar_order=4, method="shakf")
     np.testing.assert_allclose(np.concatenate([first, cont]), ref, rtol=0, atol=TOL)
     np.testing.assert_array_equal(again, cont)
     np.testing.assert_array_equal(other, cont)
@@ -310,7 +310,7 @@ def test_instances_are_independent(fmu_dir):
         a.free()
         b.free()
     np.testing.assert_allclose(o1, gd.denoise(z1, FS, method="kf"), rtol=0, atol=TOL)
-    np.testing.assert_allclose(o2, gd.denoise(z2, FS, ar_order=2, restarts=rs2), rtol=0, atol=TOL)
+    np.testing.assert_allclose(o2, gd.denoise(z2, FS, method="shakf", ar_order=2, restarts=rs2), rtol=0, atol=TOL)
 
 
 # ---------------------------------------------------------- error paths
@@ -390,13 +390,13 @@ def test_outlier_gate_in_the_fmu_equals_core_and_counts(fmu_dir):
     z[2200] -= 15.0
     a = _inst(fmu_dir)
     try:
-        a.initialize(sample_period=H, outlier_sigma=5.0, outlier_run=20)
+        a.initialize(sample_period=H, method="shakf", outlier_sigma=5.0, outlier_run=20)
         got = _run_denoiser(a, z)
         n_rej = a.get("n_rejected")
         assert not a.errors()
     finally:
         a.free()
-    d = Denoiser(FS, outlier_sigma=5.0, outlier_run=20)
+    d = Denoiser(FS, method="shakf", outlier_sigma=5.0, outlier_run=20)
     ref = d.process(z)
     np.testing.assert_allclose(got, ref, rtol=0, atol=TOL)
     assert n_rej == d.n_rejected == 2

@@ -20,7 +20,7 @@ from gyrodenoise.recording import ABSURD_RATE_DEG_S
 SETTINGS = dict(derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
-METHODS = st.sampled_from(["shakf", "kf", "none", "sh_classic", "lowpass"])
+METHODS = st.sampled_from(["shakf", "kf", "none", "sh_classic", "lowpass", "motion"])
 ORDERS = st.integers(1, 6)
 GATES = st.sampled_from([0.0, 3.0, 5.0])
 FINITE = st.floats(-ABSURD_RATE_DEG_S, ABSURD_RATE_DEG_S, allow_nan=False, allow_infinity=False)
