@@ -171,9 +171,10 @@ def format_compare(res):
            f"{res['sample_rate_hz']:g} Hz; first {res['skipped_warmup_samples']} warm-up samples skipped)"]
     out.append(format_terms_table(res["rows"], res["bounds"]))
     out.append("")
-    out.append(f"{'ratio to raw':<20}" + "".join(f"{n:>14}" for n in ("ar_fit", "kf", "shakf")))
+    names = list(res["ratio_to_raw"])
+    out.append(f"{'ratio to raw':<20}" + "".join(f"{n:>14}" for n in names))
     for t in ("N", "B", "K", "R", "Q"):
-        cells = "".join(f"{_fmt(res['ratio_to_raw'][n][t]):>14}" for n in ("ar_fit", "kf", "shakf"))
+        cells = "".join(f"{_fmt(res['ratio_to_raw'][n][t]):>14}" for n in names)
         out.append(f"{t:<20}{cells}")
     acc = res["ar_fit_accuracy"]
     out.append("AR fit accuracy (1-|fit-raw|/raw): " +
@@ -196,13 +197,15 @@ def _fmt(v, pct=False):
 
 
 def format_dynamic(dyn):
+    names = list(dyn["rows"][0]["std_deg_s"])
+    label = {"raw": "raw", "kf": "KF", "shakf": "SHAKF", "motion": "motion"}
     out = [f"Table 2 -- constant rotation, {dyn['duration_s']:g} s each ({dyn['card']})",
-           f"{'rate deg/s':>10} | {'std raw':>10} {'std KF':>10} {'std SHAKF':>10} | "
-           f"{'RMSE raw':>10} {'RMSE KF':>10} {'RMSE SHAKF':>10}"]
+           f"{'rate deg/s':>10} | " + " ".join(f"{'std ' + label.get(n, n):>10}" for n in names) + " | "
+           + " ".join(f"{'RMSE ' + label.get(n, n):>11}" for n in names)]
     for r in dyn["rows"]:
         s, e = r["std_deg_s"], r["rmse_deg_s"]
-        out.append(f"{r['rate_deg_s']:>10g} | {s['raw']:10.4g} {s['kf']:10.4g} {s['shakf']:10.4g} | "
-                   f"{e['raw']:10.4g} {e['kf']:10.4g} {e['shakf']:10.4g}")
+        out.append(f"{r['rate_deg_s']:>10g} | " + " ".join(f"{s[n]:10.4g}" for n in names) + " | "
+                   + " ".join(f"{e[n]:11.4g}" for n in names))
     st = dyn["step"]
     rt = st["rise_time_90_s"]
     out.append(f"Price paid -- a {st['step_deg_s']:g} deg/s rate step at mid-record: 90% rise time "
@@ -240,7 +243,7 @@ def cmd_demo(args):
     _log(f"gyrodenoise demo: simulating {args.hours:g} h of '{card.name}' at {card.sample_rate_hz:g} Hz "
          f"(seed {args.seed})")
     rec = simulate(card, n, seed=args.seed)
-    _log("gyrodenoise demo: static experiment (Table 1): KF and modified SHAKF, Allan fits")
+    _log("gyrodenoise demo: static experiment (Table 1): KF, modified SHAKF and motion, Allan fits")
     gate = {"outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
     res = compare(rec, ar_order=args.ar_order, seed=args.seed, **gate)
     _log(f"gyrodenoise demo: dynamic experiment (Table 2): {args.dynamic_s:g} s at each rate")
@@ -269,10 +272,12 @@ def cmd_demo(args):
 
 
 def register_cli(sub):
-    p = sub.add_parser("demo", help="simulate the default FOG, denoise with KF and SHAKF, print Tables 1-2, plot",
+    p = sub.add_parser("demo", help="simulate the default FOG, denoise with KF, SHAKF and motion, print Tables 1-2, "
+                                    "plot",
                        description="The main job on the embedded default model card: simulate the paper's FOG, "
-                                   "denoise with KF and modified SHAKF, print the Allan table (Table 1) and the "
-                                   "dynamic table (Table 2), write PNG plots.")
+                                   "denoise with KF and modified SHAKF (the paper) and motion (the project's "
+                                   "default), print the Allan table (Table 1) and the dynamic table (Table 2), "
+                                   "write PNG plots.")
     p.add_argument("--model", default="paper_fog", help="model card path or embedded name (default paper_fog)")
     p.add_argument("--hours", type=float, default=2.0, help="static record length, h (default 2, as the paper)")
     p.add_argument("--dynamic-s", type=float, default=300.0, help="seconds per constant rate (default 300)")

@@ -79,7 +79,8 @@ P_MO_LQMAX = P_MO_RHO + 5
 P_MO_BR = P_MO_RHO + 6          # motion: Sage-Husa forgetting factor of the noise level
 P_MO_LQ0 = P_MO_RHO + 7         # motion: log(q / R) after a restart (at rest, as the paper assumes)
 P_MO_CLIP = P_MO_RHO + 8        # motion: clip of the innovation-correlation term
-N_PARAMS = P_MO_RHO + 9
+P_MO_BUMP = P_MO_RHO + 9        # motion: log-q rise at a jump, in units of the clip
+N_PARAMS = P_MO_RHO + 10
 
 METHOD_NONE = 0.0      # identification only, output = raw
 METHOD_KF = 1.0        # conventional KF, fixed Q and R
@@ -270,7 +271,8 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
 
 
 def motion_params(sample_rate_hz, tau_a_s=0.5, gamma=5.0, tau_g_s=0.1, eps=0.2,
-                  log_q_min=-32.236, log_q_max=13.816, r_tau_s=10.0, log_q0=-15.0, clip=100.0):
+                  log_q_min=-32.236, log_q_max=13.816, r_tau_s=10.0, log_q0=-15.0, clip=100.0,
+                  jump_bump=0.1):
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor: q and R are relative to the identified noise, times are
     turned into samples here. Measured on FOG and MEMS cards and real flights
@@ -282,11 +284,14 @@ def motion_params(sample_rate_hz, tau_a_s=0.5, gamma=5.0, tau_g_s=0.1, eps=0.2,
     innovations; log_q_min/max: bounds of log(q/R) (1e-14 .. 1e6); r_tau_s:
     memory of the Sage-Husa noise-level estimate; log_q0: log(q/R) after a
     restart (the gyro at rest, as the paper assumes); clip: of the correlation
-    term."""
+    term; jump_bump: log-q rise at a jump (as ``jump_bump * clip`` correlation
+    units): without it a profile that jumps at every sample (a 5 Hz sine on a
+    FOG) never raised q and ended up 1.1x worse than raw."""
     fs = float(sample_rate_hz)
     import math
     return [math.exp(-1.0 / (tau_a_s * fs)), float(gamma), 1.0 / (tau_g_s * fs), float(eps),
-            float(log_q_min), float(log_q_max), 1.0 - 1.0 / (r_tau_s * fs), float(log_q0), float(clip)]
+            float(log_q_min), float(log_q_max), 1.0 - 1.0 / (r_tau_s * fs), float(log_q0), float(clip),
+            float(jump_bump)]
 
 
 def butter_sos(order, cutoff_hz, sample_rate_hz):
@@ -768,7 +773,18 @@ def motion_step(p, s, z):
       lower it (towards averaging at rest);
     * the divergence test of Eq. (32), v^2 > gamma^2 S: a change the model
       cannot explain (a step) opens the rate variance so the same sample is
-      followed.
+      followed, and raises q (a run of such jumps is motion the model was too
+      stiff for).
+
+    Measured (benchmarks/motion.py, docs/motion/report.md): at rest it
+    averages like the SHAKF (FOG: better), it follows steps in the same
+    sample and smooth manoeuvres with no measurable lag. Tried and not kept
+    (issue 12): the paper's AR(n) error model identified by RLS at rest as
+    extra states (no gain on these sensors, whose error is near-white) and a
+    two-model IMM (no single manoeuvre q suits a FOG and a MEMS). A lone
+    spike is followed like a step (the output stays inside the envelope but
+    is not smoothed; use ``shakf``/``kf`` with the outlier gate for spiky
+    records).
 
     While warming up (``P_WARMUP`` samples) the state follows z and the output
     is raw (as for the other methods).
@@ -827,6 +843,12 @@ def motion_step(p, s, z):
         sv = p00 + r
         s[o + M_UPREV] = 0.0
         s[o + M_NJUMP] += 1.0
+        # ... and the model was too stiff for it: raise q as a fully
+        # correlated innovation pair would (a run of jumps means real motion)
+        lq = s[o + M_LQ] + p[P_MO_GAIN] * (p[P_MO_CLIP] * p[P_MO_BUMP] - p[P_MO_EPS])
+        if lq > p[P_MO_LQMAX]:
+            lq = p[P_MO_LQMAX]
+        s[o + M_LQ] = lq
     else:
         u = v / math.sqrt(sv)
         c = u * s[o + M_UPREV]

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-COLORS = {"raw": "tab:blue", "ar_fit": "tab:gray", "kf": "tab:green", "shakf": "tab:red"}
-LABELS = {"raw": "raw", "ar_fit": "AR-fitted sequence", "kf": "KF", "shakf": "modified SHAKF"}
+COLORS = {"raw": "tab:blue", "ar_fit": "tab:gray", "kf": "tab:green", "shakf": "tab:red", "motion": "tab:purple"}
+LABELS = {"raw": "raw", "ar_fit": "AR-fitted sequence", "kf": "KF", "shakf": "modified SHAKF", "motion": "motion"}
 
 
 def _plt():
@@ -116,7 +116,7 @@ def demo_figures(card, rec, res, outdir, ar_order=3, seed=0):
     figs = [allan_figure(res["_allan"], outdir / "allan.png",
                          f"Allan deviation, {card.name} (dashed: fit of Eq. 40)")]
     s = res["_series"]
-    figs.append(series_figure(rec.time_s, {k: s[k] for k in ("raw", "kf", "shakf")}, outdir / "series.png"))
+    figs.append(series_figure(rec.time_s, {k: s[k] for k in ("raw", "kf", "shakf", "motion")}, outdir / "series.png"))
     fs = rec.sample_rate_hz
     n = min(len(rec), int(60 * fs))
     p = K.make_params(ar_order=ar_order, sample_rate_hz=fs)
