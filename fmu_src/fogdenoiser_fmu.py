@@ -24,7 +24,7 @@ from pythonfmu.enums import Fmi2Status
 MAX_ORDER = 6
 #: relative tolerance between the step size and the sample period
 STEP_RTOL = 1e-6
-STATE_VERSION = 1
+STATE_VERSION = 2   # 2: centred kernels' state layout, motion and lowpass
 
 #: Objects of instances that failed with an exception. pythonfmu answers an exception
 #: with fmi2Fatal and releases its references to the instance, its log queue and the
@@ -93,6 +93,8 @@ class FogDenoiser(Fmi2Slave):
         self.r_floor = 1.0e-18
         self.outlier_sigma = 5.0
         self.outlier_run = 20
+        self.cutoff_hz = 0.0          # lowpass: 0 = default (20 Hz, at most fs/4)
+        self.lowpass_order = 2
         self.strict_step_size = False
         # outputs
         self.filtered_rate = 0.0
@@ -158,6 +160,11 @@ class FogDenoiser(Fmi2Slave):
         self.register_variable(Integer("outlier_run", **par,
                                        description="Consecutive rejected samples after which the filter "
                                                    "re-opens (restarts) on a real rate change, >= 1 [1]"))
+        self.register_variable(Real("cutoff_hz", **par,
+                                    description="method 'lowpass': -3 dB cutoff, below half the sample "
+                                                "rate; 0 = 20 Hz, at most a quarter of the sample rate [Hz]"))
+        self.register_variable(Integer("lowpass_order", **par,
+                                       description="method 'lowpass': Butterworth order, 1..8 [1]"))
         self.register_variable(Integer("n_rejected", causality=P.output, initial=I.exact,
                                        variability=C.discrete, getter=self._get_n_rejected,
                                        description="Samples kept out of the filter by the outlier gate "
@@ -203,7 +210,8 @@ class FogDenoiser(Fmi2Slave):
             sample_rate_hz=1.0 / self.sample_period, method=str(self.method).strip().lower(),
             ar_order=order, lam=self.lam, b=self.b, gamma=self.gamma, q0=self.q0, r0=self.r0,
             p0_rls=self.p0_rls, p0_kf=self.p0_kf, warmup_s=self.warmup_s, r_floor=self.r_floor,
-            outlier_sigma=self.outlier_sigma, outlier_run=self.outlier_run)
+            outlier_sigma=self.outlier_sigma, outlier_run=self.outlier_run,
+            cutoff_hz=self.cutoff_hz if self.cutoff_hz != 0.0 else None, order=self.lowpass_order)
         self._den = den
         self._n = order
         self._theta0 = self._K.layout(order)[0]
@@ -259,7 +267,8 @@ class FogDenoiser(Fmi2Slave):
 
     # -------------------------------------------------------------- state
     _PARAMS = ("ar_order", "method", "sample_period", "lam", "b", "gamma", "q0", "r0", "p0_rls",
-               "p0_kf", "warmup_s", "r_floor", "outlier_sigma", "outlier_run", "strict_step_size")
+               "p0_kf", "warmup_s", "r_floor", "outlier_sigma", "outlier_run", "cutoff_hz", "lowpass_order",
+               "strict_step_size")
 
     def _get_fmu_state(self):
         """Everything needed to continue: parameters, inputs, output and the filter's arrays."""

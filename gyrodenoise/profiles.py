@@ -35,7 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-DEFAULT_ULOG = "/work/shared/data/logs/px4_sample.ulg"
+#: The shared real PX4 log, beside the repository (``../shared/data/logs``; not
+#: copied into the repository: see ../shared/data/README.md).
+DEFAULT_ULOG = str(Path(__file__).resolve().parents[2] / "shared" / "data" / "logs" / "px4_sample.ulg")
 
 
 def _check(n, sample_rate_hz):

@@ -507,3 +507,20 @@ def test_exception_in_step_is_logged_and_returned(fmu_dir, tmp_path):
     assert s._D.__name__.startswith("_gdcore_")
     assert s._D.__file__.endswith("/resources/gdcore/denoiser.py")
     assert not Path(s._D.__file__).is_relative_to(Path(gd.__file__).parent)
+
+
+@pytest.mark.parametrize("params,kw", [({"method": "lowpass", "cutoff_hz": 10.0, "lowpass_order": 3},
+                                        {"method": "lowpass", "cutoff_hz": 10.0, "order": 3}),
+                                       ({}, {"method": "motion"})])
+def test_lowpass_and_motion_in_the_fmu_equal_the_core(fmu_dir, params, kw):
+    """The FMU's default method is motion (issue 12); lowpass takes cutoff_hz and lowpass_order."""
+    z = _raw(1500, seed=9, rate=3.0)
+    z[700:] += 5.0                        # a step
+    a = _inst(fmu_dir)
+    try:
+        a.initialize(sample_period=H, **params)
+        got = _run_denoiser(a, z)
+        assert not a.errors()
+    finally:
+        a.free()
+    np.testing.assert_allclose(got, gd.denoise(z, FS, **kw), rtol=0, atol=TOL)
