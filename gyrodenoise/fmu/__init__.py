@@ -1,0 +1,20 @@
+"""FMUs of the project, split by concern:
+
+* :mod:`.build` -- ``gyrodenoise fmu build`` (pythonfmu, bundled core);
+* :mod:`.host` -- one FMU instance through fmpy's ``FMU2Slave``;
+* :mod:`.validation` -- the fmpy-scripted SimulatedFog -> FogDenoiser run;
+* :mod:`.cosim` -- the SSP file and libcosimpy;
+* :mod:`.cli` -- the ``gyrodenoise fmu`` subcommands.
+
+The names below are re-exported so ``from gyrodenoise import fmu as F`` keeps working.
+"""
+
+from .build import CORE_INIT, FMU_SRC, FMUS, PACKAGE_DIR, REPO_DIR, build_all, build_fmu, stage_core, stale_reason
+from .cli import register_cli
+from .cosim import cosim_run, system_parameters, write_ssp
+from .host import FmuInstance, FmuStepError, _stepper
+from .validation import compare_with_core, validation_run
+
+__all__ = ["CORE_INIT", "FMU_SRC", "FMUS", "PACKAGE_DIR", "REPO_DIR", "build_all", "build_fmu", "stage_core",
+           "stale_reason", "register_cli", "cosim_run", "system_parameters", "write_ssp", "FmuInstance",
+           "FmuStepError", "_stepper", "compare_with_core", "validation_run"]

@@ -1,0 +1,125 @@
+"""Build the FMUs: ``gyrodenoise fmu build``.
+
+Packages ``fmu_src/fogdenoiser_fmu.py`` and ``fmu_src/simulatedfog_fmu.py`` with
+pythonfmu (in a subprocess) into ``FogDenoiser.fmu`` and ``SimulatedFog.fmu``.
+The FMUs carry a copy of the plain-Python part of the core (package ``gdcore``
+in their resources), so they run wherever Python is, from any directory,
+without this package installed.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from ..errors import InputError
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1]   # gyrodenoise/
+REPO_DIR = PACKAGE_DIR.parent
+FMU_SRC = REPO_DIR / "fmu_src"
+
+#: (model name, slave script, core modules bundled)
+FMUS = {
+    "FogDenoiser": ("fogdenoiser_fmu.py", ("kernels.py", "denoiser.py", "errors.py")),
+    "SimulatedFog": ("simulatedfog_fmu.py", ("errors.py", "simulator.py")),
+}
+
+CORE_INIT = '''"""Plain-Python part of the gyrodenoise core, bundled into an FMU.
+
+Copied from gyrodenoise {version} by ``gyrodenoise fmu build``; the FMU's slave imports
+it under a private name. Only the per-sample path is here (no numba, no scipy).
+"""
+__version__ = "{version}"
+'''
+
+
+def _fmu_src_dir(src_dir=None):
+    d = Path(src_dir) if src_dir is not None else FMU_SRC
+    if not d.is_dir():
+        raise InputError(f"{d}: FMU sources not found (fmu_src/ of the gyrodenoise source tree)")
+    return d
+
+
+def stage_core(dest, modules):
+    """Write the minimal core package ``gdcore`` into ``dest``; return its path."""
+    from .. import __version__
+    pkg = Path(dest) / "gdcore"
+    pkg.mkdir(parents=True, exist_ok=True)
+    (pkg / "__init__.py").write_text(CORE_INIT.format(version=__version__))
+    for name in modules:
+        src = PACKAGE_DIR / name
+        if not src.is_file():
+            raise InputError(f"{src}: core module missing, cannot bundle it into the FMU")
+        shutil.copy2(src, pkg / name)
+    if "simulator.py" in modules:   # the embedded model cards (load_card by name)
+        (pkg / "data").mkdir(exist_ok=True)
+        for card in sorted((PACKAGE_DIR / "data").glob("*.toml")):
+            shutil.copy2(card, pkg / "data" / card.name)
+    return pkg
+
+
+def build_fmu(name, out_dir="build", src_dir=None, python=None):
+    """Build one FMU (``name`` in :data:`FMUS`) into ``out_dir``; return its path.
+
+    pythonfmu runs in a subprocess so that it imports the staged copy of the
+    slave script, never the source tree or a module cached in this process.
+    """
+    if name not in FMUS:
+        raise InputError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
+    script, modules = FMUS[name]
+    src = _fmu_src_dir(src_dir) / script
+    if not src.is_file():
+        raise InputError(f"{src}: slave script not found")
+    out = Path(out_dir).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f"gd_fmu_{name}_") as tmp:
+        stage = Path(tmp) / "stage"
+        stage.mkdir()
+        shutil.copy2(src, stage / script)
+        pkg = stage_core(stage, modules)
+        cmd = [python or sys.executable, "-m", "pythonfmu", "build",
+               "-f", str(stage / script), "-d", str(out),
+               "--handle-state", "--serialize-state", str(pkg)]
+        env = dict(os.environ)
+        env.pop("PYTHONPATH", None)
+        proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"pythonfmu build of {name} failed ({proc.returncode}):\n"
+                               f"{proc.stdout}\n{proc.stderr}")
+    path = out / f"{name}.fmu"
+    if not path.is_file():
+        raise RuntimeError(f"pythonfmu did not write {path}")
+    return path
+
+
+def stale_reason(fmu_path, src_dir=None):
+    """Why the FMU at ``fmu_path`` no longer matches the source tree, or None.
+
+    Compares the bundled core modules and slave script with the current files.
+    """
+    import zipfile
+    name = Path(fmu_path).stem
+    if name not in FMUS:
+        return None
+    script, modules = FMUS[name]
+    if not Path(fmu_path).is_file():
+        return "missing"
+    wanted = {f"resources/gdcore/{m}": PACKAGE_DIR / m for m in modules}
+    src = _fmu_src_dir(src_dir) / script
+    if src.is_file():
+        wanted[f"resources/{script}"] = src
+    with zipfile.ZipFile(fmu_path) as z:
+        names = set(z.namelist())
+        for arc, local in wanted.items():
+            if arc not in names or z.read(arc) != local.read_bytes():
+                return f"{arc} differs from {local}"
+    return None
+
+
+def build_all(out_dir="build", src_dir=None, names=None):
+    """Build the FMUs (all by default); return {name: path}."""
+    return {n: build_fmu(n, out_dir, src_dir) for n in (names or FMUS)}

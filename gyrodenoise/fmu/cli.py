@@ -1,0 +1,118 @@
+"""``gyrodenoise fmu build`` and ``gyrodenoise fmu run``: thin CLI over the
+modules of this package."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+from ..kernels import DEFAULT_METHOD
+from .build import FMUS, build_all, stale_reason
+from .cosim import cosim_run
+from .validation import _resolve_card, validation_run
+
+
+def register_cli(subparsers):
+    """Add ``gyrodenoise fmu build`` and ``gyrodenoise fmu run``."""
+    p = subparsers.add_parser("fmu", help="build and check the FMUs (FMI 2.0 co-simulation)",
+                              description="Build FogDenoiser.fmu and SimulatedFog.fmu, and run the "
+                                          "two-FMU validation against the core.")
+    sub = p.add_subparsers(dest="fmu_command", metavar="ACTION")
+    b = sub.add_parser("build", help="build build/FogDenoiser.fmu and build/SimulatedFog.fmu",
+                       description="Package fmu_src/*.py with pythonfmu (in a subprocess) and the "
+                                   "plain-Python core into FMI 2.0 co-simulation FMUs.")
+    b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
+    b.set_defaults(func=_cmd_build)
+    r = sub.add_parser("run", help="SimulatedFog -> FogDenoiser validation run (fmpy or libcosim)",
+                       description="Run SimulatedFog -> FogDenoiser one sample per step and compare "
+                                   "with the core's batch output (1e-9) and Allan reduction. Without "
+                                   "--rate, runs a static and a constant-rate case, each with a "
+                                   "restart in the middle. Exit status 1 when a check fails.")
+    r.add_argument("--fmu-dir", default="build", metavar="DIR",
+                   help="folder of the FMUs (default: build/; built there when missing)")
+    r.add_argument("--duration", type=float, default=600.0, metavar="S",
+                   help="length of each case, s (default 600)")
+    r.add_argument("--rate", type=float, default=None, metavar="DEG_S",
+                   help="run one case at this constant true rate, deg/s")
+    r.add_argument("--constant-rate", type=float, default=10.0, metavar="DEG_S",
+                   help="true rate of the constant-rate case, deg/s (default 10)")
+    r.add_argument("--restart-at", type=float, default=None, metavar="S",
+                   help="time of the restart, s (default: the middle); negative: no restart")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--card", default="paper_fog", help="model card path or embedded name")
+    r.add_argument("--method", default=DEFAULT_METHOD, choices=["motion", "shakf", "kf", "sh_classic", "lowpass", "none"])
+    r.add_argument("--ar-order", type=int, default=3)
+    r.add_argument("--master", default="fmpy", choices=["fmpy", "libcosim", "ssp"],
+                   help="fmpy FMU2Slave loop (default), libcosim built from Python, or "
+                        "libcosim from an SSP file written next to the FMUs")
+    r.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    r.set_defaults(func=_cmd_run)
+    p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
+
+
+def _cmd_build(args):
+    paths = build_all(args.out)
+    for name, path in paths.items():
+        print(f"{name}: {path}")
+    return 0
+
+
+def _cmd_run(args):
+    fmu_dir = Path(args.fmu_dir)
+    _resolve_card(args.card)          # a bad card is a user error before anything runs
+    reasons = {n: stale_reason(fmu_dir / f"{n}.fmu") for n in FMUS}
+    if any(reasons.values()):
+        why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
+        print(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})", file=sys.stderr)
+        build_all(fmu_dir)
+    if args.duration <= 0:
+        raise InputError(f"--duration must be > 0 s, got {args.duration}")
+    if args.rate is not None:
+        cases = {"constant_rate": args.rate}
+    else:
+        cases = {"static": 0.0, "constant_rate": args.constant_rate}
+    if args.restart_at is None:
+        restart_at = args.duration / 2
+    else:
+        restart_at = None if args.restart_at < 0 else args.restart_at
+    results = {}
+    for case, rate in cases.items():
+        kw = dict(duration_s=args.duration, rate_deg_s=rate, restart_at_s=restart_at, seed=args.seed,
+                  card=args.card, method=args.method, ar_order=args.ar_order)
+        print(f"gyrodenoise: fmu run: {case} ({args.master})", file=sys.stderr)
+        if args.master == "fmpy":
+            results[case] = validation_run(fmu_dir, **kw)
+        else:
+            ssp = fmu_dir / "gyrodenoise_fog_chain.ssp" if args.master == "ssp" else None
+            results[case] = cosim_run(fmu_dir, ssp=ssp, **kw)
+    ok = all(r["ok"] for r in results.values())
+    if args.json:
+        from ..cli import emit_json
+        emit_json({"master": args.master, "cases": results, "ok": ok})
+    else:
+        print(_format_results(results))
+        print("ok" if ok else "FAILED: FMU output differs from the core", flush=True)
+    return 0 if ok else 1
+
+
+def _format_results(results):
+    lines = []
+    for case, r in results.items():
+        c = r["case"]
+        lines.append(f"== {case}: {c['duration_s']:g} s at {c['sample_rate_hz']:g} Hz, true rate "
+                     f"{c['true_rate_deg_s']:g} deg/s, restart at {c['restart_at_s']} s, "
+                     f"{c['method']} AR({c['ar_order']}), seed {c['seed']}")
+        lines.append(f"   {r['elapsed_s']:.2f} s, {r['two_fmu_steps_per_s']:.0f} two-FMU steps/s")
+        lines.append(f"   max |FMU measured - simulate|  = {r['max_abs_diff_measured_vs_simulate_deg_s']:.3g} deg/s")
+        lines.append(f"   max |FMU filtered - denoise|   = {r['max_abs_diff_filtered_vs_denoise_deg_s']:.3g} deg/s")
+        if "allan" in r:
+            a = r["allan"]
+            lines.append("   Allan term      raw        FMU filt   batch filt  reduction FMU / batch")
+            for k in ("N", "B", "K", "R", "Q"):
+                rf, rb = r["reduction_fmu"][k], r["reduction_batch"][k]
+                fmt = lambda v: "-" if v is None else f"{v:.3g}"  # noqa: E731
+                lines.append(f"   {k}  {a['raw'][k]:11.4g} {a['fmu_filtered'][k]:11.4g} "
+                             f"{a['batch_filtered'][k]:11.4g}   {fmt(rf)} / {fmt(rb)}")
+        lines.append(f"   {'ok' if r['ok'] else 'FAILED'}")
+    return "\n".join(lines)

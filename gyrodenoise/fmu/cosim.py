@@ -1,0 +1,249 @@
+"""The two-FMU system as an SSP file and through libcosimpy (Open Simulation
+Platform), checked against the core."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import InputError
+from ..kernels import DEFAULT_METHOD
+from .validation import _denoiser_params, _fmu_paths, _resolve_card, _restart_mask, compare_with_core
+
+
+def _xml_attr(value):
+    from xml.sax.saxutils import quoteattr
+    return quoteattr(str(value)).replace("\n", "&#10;").replace("\r", "&#13;").replace("\t", "&#9;")
+
+
+def _ssv_parameters(params, var_types):
+    rows = []
+    for name, value in params.items():
+        kind = var_types[name]
+        if kind == "Boolean":
+            v = "true" if value else "false"
+        elif kind == "Real":
+            v = repr(float(value))
+        elif kind == "Integer":
+            v = str(int(value))
+        else:
+            v = str(value)
+        rows.append(f'                  <ssv:Parameter name={_xml_attr(name)}>'
+                    f'<ssv:{kind} value={_xml_attr(v)}/></ssv:Parameter>')
+    return "\n".join(rows)
+
+
+def system_parameters(card, seed=0, method=DEFAULT_METHOD, ar_order=3, rate_deg_s=0.0, denoiser_kw=None):
+    """Parameter values of the two-FMU system: {instance: {variable: value}}."""
+    card_obj = _resolve_card(card)
+    fs = card_obj.sample_rate_hz
+    return card_obj, {
+        "fog": {"card": card_obj.text, "seed": int(seed), "true_rate": float(rate_deg_s)},
+        "denoiser": _denoiser_params(method, ar_order, fs, denoiser_kw),
+    }
+
+
+def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_METHOD, ar_order=3,
+              rate_deg_s=0.0, duration_s=600.0, denoiser_kw=None):
+    """Write an SSP 1.0 archive of SimulatedFog -> FogDenoiser; return its path.
+
+    The archive holds ``SystemStructure.ssd`` and both FMUs under ``resources/``;
+    the connections are ``fog.measured_rate -> denoiser.raw_rate`` and
+    ``fog.restarted -> denoiser.restart``; the parameters are bound inline;
+    the step size (the card's sample period) is given in the OSP annotation of
+    the default experiment (libcosim reads it) and is what any SSP master should use.
+    """
+    import zipfile
+    from fmpy import read_model_description
+    paths = _fmu_paths(fmu_dir)
+    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw)
+    h = 1.0 / card_obj.sample_rate_hz
+    comps = []
+    for inst, model in (("fog", "SimulatedFog"), ("denoiser", "FogDenoiser")):
+        md = read_model_description(str(paths[model]))
+        types = {v.name: v.type for v in md.modelVariables}
+        conns = "\n".join(
+            f'          <ssd:Connector name={_xml_attr(v.name)} kind="{v.causality}">'
+            f'<ssc:{v.type}/></ssd:Connector>'
+            for v in md.modelVariables if v.causality in ("input", "output", "parameter"))
+        comps.append(f'''      <ssd:Component name="{inst}" type="application/x-fmu-sharedlibrary" source="resources/{model}.fmu">
+        <ssd:Connectors>
+{conns}
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding>
+            <ssd:ParameterValues>
+              <ssv:ParameterSet version="1.0" name="{inst}_parameters">
+                <ssv:Parameters>
+{_ssv_parameters(params[inst], types)}
+                </ssv:Parameters>
+              </ssv:ParameterSet>
+            </ssd:ParameterValues>
+          </ssd:ParameterBinding>
+        </ssd:ParameterBindings>
+      </ssd:Component>''')
+    comps_xml = "\n".join(comps)
+    ssd = f'''<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="gyrodenoise_fmu_chain"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations">
+  <ssd:System name="fog_chain" description="SimulatedFog (model card {_xml_attr(card_obj.name)[1:-1]}, seed {int(seed)}) -> FogDenoiser; one step = one sample">
+    <ssd:Elements>
+{comps_xml}
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="fog" startConnector="measured_rate" endElement="denoiser" endConnector="raw_rate"/>
+      <ssd:Connection startElement="fog" startConnector="restarted" endElement="denoiser" endConnector="restart"/>
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0.0" stopTime="{float(duration_s)!r}">
+    <ssd:Annotations>
+      <ssc:Annotation type="com.opensimulationplatform">
+        <osp:Algorithm>
+          <osp:FixedStepAlgorithm baseStepSize="{h!r}"/>
+        </osp:Algorithm>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:DefaultExperiment>
+</ssd:SystemStructureDescription>
+'''
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("SystemStructure.ssd", ssd)
+        for model, p in paths.items():
+            z.write(p, f"resources/{model}.fmu")
+    return path
+
+
+def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=None, seed=0,
+              card="paper_fog", method=DEFAULT_METHOD, ar_order=3, ssp=None, tol=1e-9,
+              keep_arrays=False, denoiser_kw=None):
+    """The two-FMU system in libcosim (Open Simulation Platform) via libcosimpy.
+
+    ``ssp=None`` builds the system from Python (local slaves, connections,
+    initial values); ``ssp=PATH`` writes an SSP archive there (:func:`write_ssp`)
+    and loads the system from it. A restart is injected with an override
+    manipulator on ``fog.restart`` for one step.
+
+    libcosim's fixed-step master is of Jacobi type: FogDenoiser receives in step
+    k what SimulatedFog produced in step k-1 (and in step 0 SimulatedFog's
+    initial output, 0 deg/s). The check is therefore that the denoiser's
+    received samples are SimulatedFog's delayed by one step, that those equal
+    ``gyrodenoise.simulate``, and that the denoiser's output equals
+    ``gyrodenoise.denoise`` on the samples it received.
+    """
+    import time
+    import numpy as np
+    from libcosimpy.CosimEnums import CosimVariableType
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimManipulator import CosimManipulator
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    log_output_level(CosimLogLevel.WARNING)
+
+    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw)
+    fs = card_obj.sample_rate_hz
+    h_ns = int(round(1e9 / fs))
+    if abs(h_ns * 1e-9 * fs - 1.0) > 1e-9:
+        raise InputError(f"sample rate {fs} Hz is not a whole number of nanoseconds per sample "
+                         "(libcosim's time unit)")
+    n = int(round(duration_s * fs))
+    paths = _fmu_paths(fmu_dir)
+    from fmpy import read_model_description
+    vrs = {m: {v.name: (v.valueReference, v.type) for v in read_model_description(str(p)).modelVariables}
+           for m, p in paths.items()}
+    fvr, dvr = vrs["SimulatedFog"], vrs["FogDenoiser"]
+
+    if ssp is not None:
+        ssp_path = write_ssp(ssp, fmu_dir, card_obj, seed, method, ar_order, rate_deg_s, duration_s,
+                             denoiser_kw)
+        ex = CosimExecution.from_ssp_file(str(ssp_path))
+        fog = ex.slave_index_from_instance_name("fog")
+        den = ex.slave_index_from_instance_name("denoiser")
+    else:
+        ex = CosimExecution.from_step_size(h_ns)
+        fog = ex.add_local_slave(CosimLocalSlave(str(paths["SimulatedFog"]), "fog"))
+        den = ex.add_local_slave(CosimLocalSlave(str(paths["FogDenoiser"]), "denoiser"))
+        setters = {"Real": ex.real_initial_value, "Integer": ex.integer_initial_value,
+                   "Boolean": ex.boolean_initial_value, "String": ex.string_initial_value}
+        for idx, inst, table in ((fog, "fog", fvr), (den, "denoiser", dvr)):
+            for name, value in params[inst].items():
+                vr, kind = table[name]
+                setters[kind](idx, vr, value)
+        ex.connect_real_variables(fog, fvr["measured_rate"][0], den, dvr["raw_rate"][0])
+        ex.connect_boolean_variables(fog, fvr["restarted"][0], den, dvr["restart"][0])
+    if fog < 0 or den < 0:
+        raise RuntimeError("libcosim: the system has no instances 'fog' and 'denoiser'")
+
+    obs = CosimObserver.create_time_series(buffer_size=n + 16)
+    ex.add_observer(obs)
+    last = CosimObserver.create_last_value()
+    ex.add_observer(last)
+    for idx, vr in ((fog, fvr["measured_rate"][0]), (den, dvr["raw_rate"][0]),
+                    (den, dvr["filtered_rate"][0])):
+        obs.start_time_series(idx, vr, CosimVariableType.REAL)
+    man = CosimManipulator.create_override()
+    ex.add_manipulator(man)
+
+    restarts = _restart_mask(n, fs, restart_at_s)
+    t0 = time.perf_counter()
+    ok = True
+    if restart_at_s is None:
+        ok &= ex.step(n)
+    else:
+        k = int(np.flatnonzero(restarts)[0])
+        ok &= ex.step(k)
+        man.slave_boolean_values(fog, [fvr["restart"][0]], [True])
+        ok &= ex.step(1)
+        man.slave_boolean_values(fog, [fvr["restart"][0]], [False])
+        ok &= ex.step(n - k - 1)
+    elapsed = time.perf_counter() - t0
+    if not ok:
+        from libcosimpy.CosimExecution import get_last_error_message  # type: ignore[attr-defined]
+        raise RuntimeError(f"libcosim: stepping failed: {get_last_error_message()}")
+
+    def series(idx, vr):
+        times, _, values = obs.time_series_real_samples(idx, vr, from_step=1, sample_count=n)
+        return np.asarray(times, dtype=float) * 1e-9, np.asarray(values, dtype=float)
+
+    times, measured = series(fog, fvr["measured_rate"][0])
+    _, received = series(den, dvr["raw_rate"][0])
+    _, filtered = series(den, dvr["filtered_rate"][0])
+    converged = bool(last.last_boolean_values(den, [dvr["converged"][0]])[0])
+    ex.stop()
+    del ex
+    if not (len(measured) == len(received) == len(filtered) == n):
+        raise RuntimeError(f"libcosim observer returned {len(measured)}/{len(received)}/"
+                           f"{len(filtered)} samples, expected {n}")
+    truth = np.full(n, float(rate_deg_s))
+    # what the denoiser received: SimulatedFog's initial output, then its samples one step late
+    rec_restarts = np.concatenate(([False], restarts[:-1]))
+    res = {"case": {"master": "libcosim (SSP)" if ssp is not None else "libcosim (Python)",
+                    "duration_s": n / fs, "n_samples": n, "sample_rate_hz": fs,
+                    "true_rate_deg_s": float(rate_deg_s), "restart_at_s": restart_at_s,
+                    "seed": int(seed), "card": card_obj.name, "method": method,
+                    "ar_order": int(ar_order)},
+           "elapsed_s": elapsed, "two_fmu_steps_per_s": n / elapsed, "converged_at_end": converged,
+           "step_size_s": float(np.median(np.diff(times))) if n > 1 else None,
+           "first_received_deg_s": float(received[0]),
+           "max_abs_diff_received_vs_delayed_measured_deg_s":
+               float(np.max(np.abs(received[1:] - measured[:-1]))) if n > 1 else 0.0}
+    cmp_ = compare_with_core(measured, measured, truth, restarts, card_obj, seed, method, ar_order,
+                             denoiser_kw)
+    res["max_abs_diff_measured_vs_simulate_deg_s"] = cmp_["max_abs_diff_measured_vs_simulate_deg_s"]
+    import gyrodenoise as gd
+    ref = gd.denoise(received, fs, method=method, ar_order=ar_order, restarts=rec_restarts,
+                     **(denoiser_kw or {}))
+    res["max_abs_diff_filtered_vs_denoise_deg_s"] = float(np.max(np.abs(filtered - ref)))
+    res["tolerance_deg_s"] = tol
+    res["ok"] = bool(res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
+                     and abs(res["step_size_s"] * fs - 1.0) < 1e-9
+                     and res["max_abs_diff_measured_vs_simulate_deg_s"] <= tol
+                     and res["max_abs_diff_filtered_vs_denoise_deg_s"] <= tol)
+    if keep_arrays:
+        res["arrays"] = {"measured": measured, "received": received, "filtered": filtered,
+                         "time_s": times, "restarts": restarts}
+    return res
