@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 import gyrodenoise as gd
-from gyrodenoise.gapcore import edit_card
+from gyrodenoise.modelgap import edit_card
 from gyrodenoise.simulator import parse_card
 
 FS = 100.0

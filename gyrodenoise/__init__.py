@@ -32,9 +32,9 @@ def simulate(card, n_samples, seed=0, true_rate_deg_s=None, restarts=None):
 
 
 def gap(rate_deg_s, sample_rate_hz, card, **kw):
-    """Model-gap workflow; see :func:`gyrodenoise.gapcore.gap` (imported on use:
+    """Model-gap workflow; see :func:`gyrodenoise.modelgap.gap` (imported on use:
     it pulls in scipy and matplotlib)."""
-    from .gapcore import gap as _gap
+    from .modelgap import gap as _gap
     return _gap(rate_deg_s, sample_rate_hz, card, **kw)
 
 

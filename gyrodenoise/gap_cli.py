@@ -1,5 +1,5 @@
 """Subcommand ``gap``: the model-gap workflow (spec sections 1 and 4). Parsing and printing only;
-the work is in :mod:`gyrodenoise.gapcore`."""
+the work is in :mod:`gyrodenoise.modelgap`."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def _check_writable(path, what):
 
 def cmd_gap(args):
     from .cli import emit_json
-    from .gapcore import card_at_rate, check_record, format_report, gap, plot_gap
+    from .modelgap import card_at_rate, check_record, format_report, gap, plot_gap
     from .simulator import load_card
     card = load_card(args.model)
     if args.seeds < 3:

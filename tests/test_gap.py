@@ -33,7 +33,7 @@ import pytest
 
 import gyrodenoise as gd
 from gyrodenoise.errors import InputError
-from gyrodenoise.gapcore import COMPONENTS, edit_card, gm_avar
+from gyrodenoise.modelgap import COMPONENTS, edit_card, gm_avar
 from gyrodenoise.simulator import parse_card
 
 from conftest import shared_file
@@ -301,7 +301,7 @@ def test_constant_record_is_an_input_error():
 
 
 def test_card_at_rate_checks_nyquist_at_the_record_rate():
-    from gyrodenoise.gapcore import card_at_rate
+    from gyrodenoise.modelgap import card_at_rate
     assert card_at_rate(CARD200, 200.0, "c200.toml").sample_rate_hz == 200.0
     with pytest.raises(InputError, match=r"c200\.toml: terms\.sinusoid\[0\]\.frequency 80 Hz is above "
                                          r"Nyquist \(50 Hz\).*record's rate 100 Hz"):
@@ -316,7 +316,7 @@ def test_card_at_rate_checks_nyquist_at_the_record_rate():
 def test_fmu_worker_error_comes_back_as_one_input_error(tmp_path):
     """A failing FMU (here: a file that is not an FMU) is reported as one InputError
     naming the card, the FMU and the seed, not as a BrokenProcessPool traceback."""
-    from gyrodenoise.gapcore import Simulator, _fmu_worker
+    from gyrodenoise.modelgap.simulation import Simulator, _fmu_worker
     bogus = tmp_path / "SimulatedFog.fmu"
     bogus.write_text("not a zip file")
     msg = _fmu_worker(str(bogus), BASE, 1, 100, FS, None)
@@ -332,7 +332,7 @@ def test_fmu_worker_error_comes_back_as_one_input_error(tmp_path):
 
 
 def test_edit_card_sub_table_round_trip_and_comments():
-    from gyrodenoise.gapcore import check_editable
+    from gyrodenoise.modelgap import check_editable
     card = parse_card(SUB, "sub.toml")
     check_editable(card)                                # every vocabulary term can be written
     new = edit_card(SUB, "angle_random_walk", {"N": 0.06}, refit=True, source="sub.toml")
@@ -371,7 +371,7 @@ def test_sub_table_card_refitted_twice_last_value_in_card():
     n_true = 0.01 / math.sqrt(FS) * 60.0                 # deg/sqrt(h)
     assert final.terms["angle_random_walk"]["N"] == pytest.approx(n_true, rel=0.10)
     assert res.within_scatter and res.to_json()["within_scatter"]
-    from gyrodenoise.gapcore import format_report
+    from gyrodenoise.modelgap import format_report
     assert "nothing missing" not in format_report(res)
 
 
@@ -379,14 +379,15 @@ def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkey
     """With every candidate's score NaN (widening patched to NaN), nothing is
     accepted; the report says the gap is still above the threshold (not
     "nothing missing"), the JSON is finite and says within_scatter false."""
-    import gyrodenoise.gapcore as G
+    import gyrodenoise.modelgap.workflow as G
+    from gyrodenoise.modelgap import format_report
     card = parse_card(SUB)                 # N = 0.5: far noisier than the record
     monkeypatch.setattr(G, "widening", lambda *a: float("nan"))
     res = G.gap(_white(), FS, card, seeds=3, engine="native")
     assert res.effects_added == [] and res.card_text == SUB
     assert res.iterations[-1]["stop"] == "no candidate shrinks the gap significantly"
     assert all(c["score"] is None for c in res.to_json()["iterations"][0]["candidates"])
-    rep = G.format_report(res)
+    rep = format_report(res)
     assert "nothing missing" not in rep and "still above the scatter threshold" in rep
     d = res.to_json()
     assert d["within_scatter"] is False
@@ -400,14 +401,15 @@ def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkey
 def test_zeroed_term_is_a_limitation_not_a_fit(monkeypatch):
     """A candidate that would write N = 0 (card noisier than the record) is
     rejected and reported as a limitation; the card is not changed."""
-    import gyrodenoise.gapcore as G
+    import gyrodenoise.modelgap.workflow as G
+    from gyrodenoise.modelgap import format_report
     monkeypatch.setattr(G, "propose", lambda *a, **k: [G.Candidate("angle_random_walk", {"N": 0.0}, True,
                                                                     "re-fit")])
     res = G.gap(_white(), FS, parse_card(SUB), seeds=3, engine="native")
     assert res.effects_added == [] and res.card_text == SUB
     assert res.limitations and "noisier than the record" in res.limitations[0]
     assert "angle_random_walk.N" in res.limitations[0]
-    assert "limitation: the card is noisier" in G.format_report(res)
+    assert "limitation: the card is noisier" in format_report(res)
     assert res.to_json()["limitations"] == res.limitations
     assert G._zeroed([("gauss_markov", {"sigma": 0.0, "tau": 1.0}, False),
                       ("bias_instability", {"B": 0.2}, False)]) == ["gauss_markov.sigma"]
@@ -477,7 +479,7 @@ def test_real_adis16405_from_white_noise_card():
       the gap stays far above the scatter threshold; it must still shrink by
       at least half.
     """
-    from gyrodenoise.gapcore import SHAPE
+    from gyrodenoise.modelgap import SHAPE
     from gyrodenoise.recording import read_recording
     path = shared_file("static", "adis16405_imu1.csv.gz")
     rec = read_recording(path, rate_column="gyro_x")

@@ -1,0 +1,280 @@
+"""Candidate effects from the spec's vocabulary, each fitted to the record."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .settings import ALLAN_SHAPES, BI_FACTOR, CARD_FIELD, N_PARAMS
+
+
+# ------------------------------------------------------------------ candidates
+def gm_avar(tau, sigma, T):
+    """Allan variance of a first-order Gauss-Markov process (see module docstring)."""
+    x = np.asarray(tau, dtype=float) / T
+    small = x < 1e-3
+    full = 2.0 * sigma ** 2 * T / np.maximum(tau, 1e-300) * (
+        1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * np.maximum(x, 1e-300)))
+    approx = 2.0 * sigma ** 2 * np.asarray(tau, dtype=float) / (3.0 * T) * (1.0 - 0.75 * x)
+    return np.where(small, approx, full)
+
+
+SHAPE = {"quantization": lambda t: 3.0 / (t * t), "angle_random_walk": lambda t: 1.0 / t,
+         "bias_instability": lambda t: np.full_like(t, BI_FACTOR), "rate_random_walk": lambda t: t / 3.0}
+
+
+def _deterministic_s(card, n, fs, restarts):
+    """The card's deterministic rate (deg/s): bias, ramp, transient, sinusoids (no noise)."""
+    t = np.arange(n) / fs
+    cb = card.terms.get("constant_bias", {})
+    det = np.full(n, cb.get("value", 0.0) / 3600.0)
+    rr = card.terms.get("rate_ramp")
+    if rr:
+        det += rr["R"] / 3600.0 ** 2 * t
+    tt = card.terms.get("turn_on_transient")
+    if tt:
+        det += tt["amplitude"] / 3600.0 * np.exp(-_since_restart(n, fs, restarts) / tt["tau"])
+    for s in card.term_list("sinusoid"):
+        det += s["amplitude"] / 3600.0 * np.sin(2 * np.pi * s["frequency"] * t + math.radians(s.get("phase_deg", 0.0)))
+    return det
+
+
+def _since_restart(n, fs, restarts):
+    k = np.arange(n)
+    if restarts is None or not np.any(restarts):
+        return k / fs
+    last = np.maximum.accumulate(np.where(np.asarray(restarts, bool) & (k > 0), k, 0))
+    return (k - last) / fs
+
+
+@dataclass
+class Candidate:
+    name: str
+    params: dict              # card units
+    refit: bool
+    why: str
+    text: str = ""
+    gap: float = float("nan")
+    score: float = float("nan")
+    widen: float = float("nan")
+    robust: float = float("nan")
+    z: dict = None
+    components: dict = None
+    extra: list = field(default_factory=list)   # (name, params, refit) changed along with this one
+
+    @property
+    def changes(self):
+        return [(self.name, self.params, self.refit)] + list(self.extra)
+
+    @property
+    def n_params(self):
+        return N_PARAMS[self.name] + sum(N_PARAMS[e[0]] for e in self.extra)
+
+    def to_json(self):
+        return {"name": self.name, "params": {k: float(v) for k, v in self.params.items()},
+                "refit": self.refit, "why": self.why,
+                "with": [{"name": e[0], "params": e[1], "refit": e[2]} for e in self.extra], "gap": _f(self.gap), "robust_gap": _f(self.robust), "widen": _f(self.widen),
+                "score": _f(self.score),
+                "components": self.components}
+
+
+def _f(v):
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
+    """Candidate effects with parameters fitted to the record ``y`` (deg/s).
+
+    Allan-shaped terms (Q, N, B, K) and gauss_markov are fitted to the Allan
+    variance excess (measured minus mean simulated); rate_ramp,
+    constant_bias, turn_on_transient and sinusoid by least squares on the
+    record minus the card's deterministic part. A term already in the card is
+    re-fitted (its new value replaces the old one) rather than added twice.
+    When that joint fit changes the card's own terms, the same new term is
+    also proposed fitted alone to the excess over the whole current card (its
+    terms held, Allan points where the record is below the card left out),
+    and re-simulation chooses between the two.
+    """
+    from scipy.optimize import minimize_scalar, nnls
+    fs, n = layout.fs, layout.n
+    tau = layout.tau_s
+    avar_m = np.exp(2 * (ref.mean["allan"] + z["allan"] * ref.sigma["allan"]))   # measured
+    avar_s = np.exp(2 * ref.mean["allan"])
+    sig_avar = 2.0 * np.maximum(avar_m, avar_s) * ref.sigma["allan"]
+    w = 1.0 / sig_avar ** 2
+    cands = []
+    allan_flag = np.any(np.abs(z["allan"]) > limit)
+    # --- Allan-shaped terms and Gauss-Markov: fitted JOINTLY with the card's existing
+    # Allan-shaped terms (re-fitted), by weighted NNLS on the measured Allan variance
+    # minus what the rest of the card contributes
+    if allan_flag:
+        existing = {nm: (card.terms[nm][CARD_FIELD[nm][0]] / CARD_FIELD[nm][1]) ** 2
+                    for nm in ALLAN_SHAPES if nm in card.terms}
+        rest = np.maximum(avar_s - sum(v * SHAPE[nm](tau) for nm, v in existing.items()), 0.0)
+        target = avar_m - rest
+        sw = np.sqrt(w)
+
+        def joint(cols):
+            A = np.column_stack(cols) * sw[:, None]
+            scale = np.max(np.abs(A), axis=0)
+            scale[scale == 0] = 1.0
+            coef, rn = nnls(A / scale, target * sw)
+            coef = coef / scale
+            # z of each coefficient (unconstrained covariance at the solution)
+            try:
+                cov = np.linalg.inv(A.T @ A)
+                zc = coef / np.sqrt(np.maximum(np.diag(cov), 1e-300))
+            except np.linalg.LinAlgError:
+                zc = np.zeros_like(coef)
+            return coef, zc, rn * rn
+
+        def refits(names, coef):
+            out = []
+            for nm, c in zip(names, coef):
+                old = existing[nm]
+                if abs(math.sqrt(c) - math.sqrt(old)) > 0.02 * math.sqrt(old):
+                    fld, to_card = CARD_FIELD[nm]
+                    out.append((nm, {fld: math.sqrt(c) * to_card}, True))
+            return out
+
+        def held(col):
+            """Fit one new term to the excess over the WHOLE current card, its terms held.
+
+            The joint re-fit lets every Allan point pull on the card's terms, so
+            points that no term can explain (a sensor's internal low-pass filter
+            at short tau, with 0.1 % errors in a long record) drag a correct
+            white-noise line away; re-simulation then decides between the two
+            variants. Points where the record is BELOW the card (z < -limit)
+            are left out: adding a term only adds Allan variance, so no new
+            term can explain them."""
+            keep = z["allan"] >= -limit
+            a = (col * sw)[keep]
+            if not np.any(a > 0):
+                return 0.0, 0.0
+            c = float(np.dot(a, ((avar_m - avar_s) * sw)[keep]) / np.dot(a, a))
+            return c, c * math.sqrt(float(np.dot(a, a)))
+
+        ex_names = list(existing)
+        ex_cols = [SHAPE[nm](tau) for nm in ex_names]
+        for name in ALLAN_SHAPES:
+            fld, to_card = CARD_FIELD[name]
+            if name in existing:
+                continue
+            coef, zc, _ = joint(ex_cols + [SHAPE[name](tau)])
+            if coef[-1] <= 0 or zc[-1] < limit:
+                continue
+            ch = refits(ex_names, coef[:-1])
+            cands.append(Candidate(name, {fld: math.sqrt(coef[-1]) * to_card}, False,
+                                   f"Allan excess ~ {name} shape (z={zc[-1]:.1f})", extra=ch))
+            if ch:      # the same term with the card's own terms held (see held())
+                hc, hz = held(SHAPE[name](tau))
+                if hc > 0 and hz >= limit:
+                    cands.append(Candidate(name, {fld: math.sqrt(hc) * to_card}, False,
+                                           f"Allan excess ~ {name} shape, card's terms held (z={hz:.1f})"))
+        if ex_names:    # re-fit the existing Allan-shaped terms only
+            coef, zc, _ = joint(ex_cols)
+            ch = refits(ex_names, coef)
+            if ch:
+                cands.append(Candidate(ch[0][0], ch[0][1], True, "re-fit of the Allan-shaped terms",
+                                       extra=ch[1:]))
+        # --- Gauss-Markov bump: grid over the correlation time, then refined
+        lo_T = math.log(3.0 / fs)           # T >= 3 samples
+
+        def gm_chi2(logT):
+            return joint(ex_cols + [gm_avar(tau, 1.0, math.exp(logT))])[2]
+        grid = np.linspace(lo_T, math.log(tau[-1]), 41)
+        g0 = grid[int(np.argmin([gm_chi2(g) for g in grid]))]
+        opt = minimize_scalar(gm_chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
+        T = math.exp(float(opt.x))
+        coef, zc, _ = joint(ex_cols + [gm_avar(tau, 1.0, T)])
+        if coef[-1] > 0 and zc[-1] > limit:
+            ch = refits(ex_names, coef[:-1])
+            cands.append(Candidate("gauss_markov", {"sigma": math.sqrt(coef[-1]) * 3600.0, "tau": T},
+                                   False, f"Allan bump, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
+                                   extra=ch))
+        if ex_names:    # the bump on top of the card's terms held, its own correlation time
+            keep = z["allan"] >= -limit
+
+            def held_chi2(logT):
+                col = gm_avar(tau, 1.0, math.exp(logT))
+                hc, _ = held(col)
+                res = ((avar_m - avar_s - max(hc, 0.0) * col) * sw)[keep]
+                return float(np.dot(res, res))
+            g0 = grid[int(np.argmin([held_chi2(g) for g in grid]))]
+            opt = minimize_scalar(held_chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
+            Th = math.exp(float(opt.x))
+            hc, hz = held(gm_avar(tau, 1.0, Th))
+            same = (coef[-1] > 0 and zc[-1] > limit and not refits(ex_names, coef[:-1])
+                    and abs(math.log(Th / T)) < 0.05)
+            if hc > 0 and hz >= limit and not same:
+                cands.append(Candidate("gauss_markov", {"sigma": math.sqrt(hc) * 3600.0, "tau": Th}, False,
+                                       f"Allan bump at {Th:.3g} s, card's terms held (z={hz:.1f})"))
+    r = np.asarray(y, float) - _deterministic_s(card, n, fs, restarts)
+    t = np.arange(n) / fs
+    # --- constant bias
+    if abs(z["mean"][0]) > limit:
+        old = card.terms.get("constant_bias")
+        params = dict(old) if old else {}
+        params["value"] = (old["value"] if old else 0.0) + float(r.mean()) * 3600.0
+        cands.append(Candidate("constant_bias", params, old is not None,
+                               f"record mean off by z={z['mean'][0]:.1f}"))
+    trend_flag = np.any(np.abs(z["trend"]) > limit) or (allan_flag and z["allan"][-1] > limit)
+    if trend_flag:
+        # --- ramp
+        old = card.terms.get("rate_ramp")
+        slope = float(np.dot(r, t) / np.dot(t, t))     # through the origin: the card's ramp is R t
+        cands.append(Candidate("rate_ramp", {"R": (old["R"] if old else 0.0) + slope * 3600.0 ** 2},
+                               old is not None, "trend over the record (linear)"))
+        # --- turn-on transient on block means
+        nb = max(1, n // 2000)
+        m = n // nb
+        tb = _since_restart(n, fs, restarts)[:m * nb].reshape(m, nb)
+        rb = r[:m * nb].reshape(m, nb).mean(axis=1)
+
+        def sse(logtau, ret=False):
+            e = np.exp(-tb / math.exp(logtau)).mean(axis=1)
+            A = np.column_stack([np.ones(m), e])
+            coef, *_ = np.linalg.lstsq(A, rb, rcond=None)
+            res = float(np.sum((rb - A @ coef) ** 2))
+            return (res, coef) if ret else res
+        grid = np.linspace(math.log(max(2.0 / fs, 0.5)), math.log(n / fs), 40)
+        vals = [sse(g) for g in grid]
+        g0 = int(np.argmin(vals))
+        lo, hi = grid[max(g0 - 1, 0)], grid[min(g0 + 1, len(grid) - 1)]
+        opt = minimize_scalar(sse, bounds=(lo, hi), method="bounded") if hi > lo else None
+        lt = float(opt.x) if opt is not None else grid[g0]
+        _, coef = sse(lt, ret=True)
+        old = card.terms.get("turn_on_transient")
+        if abs(coef[1]) > 0 and lt < grid[-1] - 1e-6:
+            cands.append(Candidate("turn_on_transient",
+                                   {"amplitude": float(coef[1]) * 3600.0, "tau": math.exp(lt)},
+                                   old is not None, "decaying trend after start/restarts"))
+    # --- spectral line
+    zl = z["line"]
+    k = int(np.argmax(zl))
+    if zl[k] > limit and zl[k] ** 2 > 2.0 * math.log(len(zl)):
+        f = layout.freq_hz
+        df = f[1] - f[0]
+        # the record's own periodogram, zero-padded 4x, within +-1.5 Welch bins of the peak
+        nfft = 4 * (1 << int(math.ceil(math.log2(n))))
+        spec = np.abs(np.fft.rfft(r - r.mean(), nfft)) ** 2
+        ff = np.fft.rfftfreq(nfft, 1.0 / fs)
+        sel = np.flatnonzero((ff >= f[k] - 1.5 * df) & (ff <= f[k] + 1.5 * df))
+        j = int(sel[np.argmax(spec[sel])])
+        dff = ff[1] - ff[0]
+
+        def neg_power(fr):
+            ph = 2 * np.pi * fr * t
+            return -(np.dot(r, np.cos(ph)) ** 2 + np.dot(r, np.sin(ph)) ** 2)
+        opt = minimize_scalar(neg_power, bounds=(max(ff[j] - dff, 1e-9), min(ff[j] + dff, fs / 2)),
+                              method="bounded", options={"xatol": 1e-3 * dff})
+        fr = float(opt.x)
+        A = np.column_stack([np.sin(2 * np.pi * fr * t), np.cos(2 * np.pi * fr * t), np.ones(n)])
+        coef, *_ = np.linalg.lstsq(A, r, rcond=None)
+        amp = math.hypot(coef[0], coef[1])
+        phase = math.degrees(math.atan2(coef[1], coef[0]))
+        cands.append(Candidate("sinusoid", {"amplitude": amp * 3600.0, "frequency": fr, "phase_deg": phase},
+                               False, f"spectral line at {fr:.4g} Hz (z={zl[k]:.1f})"))
+    return cands

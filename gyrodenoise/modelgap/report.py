@@ -1,0 +1,125 @@
+"""The text report and the plot of a gap run."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .settings import COMPONENTS, GAP_METRIC, N_BLOCKS
+
+
+# ------------------------------------------------------------------ report and plot
+def format_report(res, source="MEASURED"):
+    """A short text report (a minute to read)."""
+    lay = res.layout
+    out = [f"gyrodenoise gap: {source} ({lay.n} samples, {lay.fs:g} Hz, {lay.n / lay.fs / 60:.1f} min), "
+           f"{len(res.seeds)} simulated seeds per card, engine {res.engine}",
+           f"gap metric: {GAP_METRIC}",
+           f"scatter threshold (1.5 x max leave-one-out gap of the simulations): {res.threshold:.3g}",
+           ""]
+    for i, it in enumerate(res.iterations):
+        label = "input card" if i == 0 else "after " + " + ".join(
+            e["name"] for e in res.effects_added if e.get("iteration", 0) < i)
+        comp = ", ".join(f"{c} {it['components'][c]:.3g}" for c in COMPONENTS)
+        out.append(f"[{i}] {label}: gap {it['card_gap']:.3g}  ({comp})")
+        w = it["where"]
+        bits = []
+        if w["allan_tau_s"]:
+            bits.append("Allan deviation at tau " + ", ".join(f"{a:.3g}-{b:.3g} s" for a, b in w["allan_tau_s"])
+                        + (" (measured above)" if all(s > 0 for s in w["allan_sign"]) else
+                           " (measured below)" if all(s < 0 for s in w["allan_sign"]) else ""))
+        if w["psd_lines"]:
+            bits.append("PSD line(s) at " + ", ".join(f"{d['frequency_hz']:.4g} Hz" for d in w["psd_lines"][:3]))
+        elif w["psd_bands_hz"]:
+            bits.append(f"PSD in {len(w['psd_bands_hz'])} band(s) {w['psd_bands_hz'][0][0]:.3g}-"
+                        f"{w['psd_bands_hz'][-1][1]:.3g} Hz")
+        if abs(w["mean_z"]) > 3:
+            bits.append(f"record mean (z = {w['mean_z']:.1f})")
+        if w["trend_blocks"]:
+            bits.append(f"block means {w['trend_blocks'][:6]}{'...' if len(w['trend_blocks']) > 6 else ''} "
+                        f"of {N_BLOCKS} (trend)")
+        out.append("    disagrees (|z| > 3): " + ("; ".join(bits) if bits else "nowhere"))
+        if it["candidates"]:
+            tried = ", ".join(f"{c['name']}{'+' + '+'.join(w['name'] for w in c['with']) if c['with'] else ''} "
+                              f"{_short(c['params'])} -> {c['gap']:.3g} [{c['score']:.3g}]"
+                              for c in it["candidates"] if c["gap"] is not None and c["score"] is not None)
+            if it.get("deterministic_first"):
+                out.append("    record mean offset >> block-mean wander: a deterministic bias, explained first")
+            out.append(f"    candidates (gap after [choice score; this card {it['robust_gap']:.3g}]): {tried}")
+        if it.get("pairs"):
+            tried = ", ".join(f"{c['name']} + {' + '.join(w['name'] for w in c['with'])} -> {c['gap']:.3g} "
+                              f"[{c['score']:.3g}]" for c in it["pairs"] if c["gap"] is not None)
+            out.append(f"    pairs (no single effect shrank the gap enough): {tried}")
+        for e in res.effects_added:
+            if e.get("iteration") == i:
+                out.append(f"    => {'re-fit' if e['refit'] else 'add'} {e['name']} {_short(e['params'])}")
+        if it.get("stop"):
+            out.append(f"    stop: {it['stop']}")
+    for m_ in res.limitations:
+        out.append(f"limitation: {m_}")
+    out.append("")
+    if res.effects_added:
+        verdict = "added (in the order found; the last entry of a term is its value in the card): " + \
+            ", ".join(f"{e['name']}{' (re-fit)' if e['refit'] else ''}" for e in res.effects_added)
+        if not res.within_scatter:
+            verdict += f"; still above the scatter threshold ({res.iterations[-1].get('stop')})"
+    elif res.within_scatter:
+        verdict = "nothing missing (within the simulations' scatter)"
+    else:
+        verdict = (f"nothing added: {res.iterations[-1].get('stop')}, but the gap is still above the "
+                   f"scatter threshold ({res.threshold:.3g}): the card does not explain the record")
+    out.append(f"gap {res.gap_before:.3g} -> {res.gap_after:.3g}; " + verdict)
+    return "\n".join(out)
+
+
+def _short(params):
+    return "{" + ", ".join(f"{k}={v:.4g}" for k, v in params.items()) + "}"
+
+
+def plot_gap(res, path, title=""):
+    """PNG: measured Allan deviation vs the simulated band (mean +- 1 sigma of one
+    simulation) for the input card and after each added effect; a PSD panel when a
+    sinusoid was added."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    lay, sig = res.layout, res.measured
+    spectral = any(e["name"] == "sinusoid" for e in res.effects_added)
+    fig, axes = plt.subplots(1, 2 if spectral else 1, figsize=(13 if spectral else 7.5, 5.5), squeeze=False)
+    ax = axes[0, 0]
+    tau = lay.tau_s
+    ad_m = np.exp(sig["allan"]) * 3600.0
+    ax.errorbar(tau, ad_m, yerr=ad_m * sig["allan_rel_err"], fmt="ko", ms=3, label="measured (1 sigma)", zorder=5)
+    cmap = plt.get_cmap("viridis")
+    n_it = len(res.iterations)
+    for i, it in enumerate(res.iterations):
+        ref = it["_ref"]
+        mu, sd = ref.mean["allan"], ref.sigma["allan"]
+        col = "tab:red" if i == 0 else cmap(0.15 + 0.7 * i / max(n_it - 1, 1))
+        label = "input card" if i == 0 else "+ " + " + ".join(
+            e["name"] for e in res.effects_added if e.get("iteration", 0) < i)
+        ax.fill_between(tau, np.exp(mu - sd) * 3600, np.exp(mu + sd) * 3600, color=col, alpha=0.25)
+        ax.loglog(tau, np.exp(mu) * 3600, "-", color=col, label=f"{label} (gap {it['card_gap']:.3g})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel("Allan deviation (deg/h)")
+    ax.set_title(title or "measured vs simulated (band: 1 sigma of one simulation)", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    if spectral:
+        ax = axes[0, 1]
+        f = lay.freq_hz
+        ax.loglog(f, sig["psd_bins"] * 3600.0 ** 2, color="k", lw=0.6, label="measured", zorder=3)
+        for i in (0, n_it - 1):
+            ref = res.iterations[i]["_ref"]
+            col = "tab:red" if i == 0 else cmap(0.85)
+            ax.loglog(f, ref.mean["psd_bins"] * 3600.0 ** 2, color=col, lw=1.0,
+                      label="input card (mean of seeds)" if i == 0 else "final card (mean of seeds)")
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("PSD ((deg/h)^2/Hz), Welch")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

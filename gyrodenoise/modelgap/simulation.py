@@ -1,0 +1,111 @@
+"""Simulating a card S times: through SimulatedFog.fmu (worker processes) or the core simulator."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .cards import card_at_rate, text_at_rate
+from .settings import _log
+
+
+# ------------------------------------------------------------------ simulation
+def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
+    """Simulate one seed through SimulatedFog.fmu; returns the rates, or a one-line
+    error message (str) instead of raising: FMU exceptions need not unpickle in the
+    parent process, and a raise there would surface as a BrokenProcessPool."""
+    try:
+        return _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts)
+    except Exception as exc:        # noqa: BLE001 - returned as text to the parent
+        msg = " ".join(str(exc).split()) or "no message"
+        return f"{exc.__class__.__name__}: {msg}"
+
+
+def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
+    """Simulate one seed through SimulatedFog.fmu with fmpy FMU2Slave (one step per sample)."""
+    from ..fmu import FmuInstance, _stepper
+    fog = FmuInstance(fmu_path, f"fog{seed}")
+    try:
+        fog.initialize(card=card_text, seed=int(seed))
+        step = _stepper(fog, "true_rate", "restart", "measured_rate")
+        h = 1.0 / fs
+        rs = [False] * n if restarts is None else [bool(v) for v in restarts]
+        out = np.empty(n)
+        for k in range(n):
+            out[k] = step(0.0, rs[k], k * h, h)
+    finally:
+        fog.free()
+    return out
+
+
+def fmu_path_for(fmu_dir=None, quiet=False):
+    """SimulatedFog.fmu in ``fmu_dir`` (default build/), built when missing or stale."""
+    from .. import fmu as F
+    d = Path(fmu_dir) if fmu_dir is not None else F.REPO_DIR / "build"
+    path = d / "SimulatedFog.fmu"
+    why = F.stale_reason(path)
+    if why is not None:
+        _log(f"gyrodenoise: note: building {path} ({why})", quiet)
+        F.build_fmu("SimulatedFog", d)
+    return path
+
+
+class Simulator:
+    """Simulate a card text S times at a record's rate and length.
+
+    ``engine="native"`` uses :func:`gyrodenoise.simulator.simulate`;
+    ``engine="fmu"`` steps SimulatedFog.fmu through fmpy in ``workers``
+    processes (one FMU instance per process).
+    """
+
+    def __init__(self, n, fs, seeds, engine="native", restarts=None, fmu_dir=None, workers=None,
+                 quiet=False, source="<card>"):
+        if engine not in ("native", "fmu"):
+            raise InputError(f"unknown engine {engine!r} (use fmu or native)")
+        if workers is not None and (isinstance(workers, bool) or int(workers) != workers or workers < 1):
+            raise InputError(f"workers must be a whole number >= 1 (or None: one per seed up to the "
+                             f"cores), got {workers!r}")
+        self.source = source
+        self.n, self.fs, self.seeds, self.engine = int(n), float(fs), list(seeds), engine
+        self.restarts = None if restarts is None else np.asarray(restarts, dtype=bool)
+        self.quiet = quiet
+        self.workers = workers
+        self.fmu_path = fmu_path_for(fmu_dir, quiet) if engine == "fmu" else None
+        self.n_runs = 0
+
+    def run(self, text, engine=None):
+        engine = engine or self.engine
+        self.n_runs += len(self.seeds)
+        if engine == "native":
+            from ..simulator import simulate
+            card = card_at_rate(text, self.fs, self.source)
+            return [simulate(card, self.n, seed=s, restarts=self.restarts).rate_deg_s for s in self.seeds]
+        import multiprocessing as mp
+        import os
+        from concurrent.futures import ProcessPoolExecutor
+        from concurrent.futures.process import BrokenProcessPool
+        card_at_rate(text, self.fs, self.source)          # check it first
+        ftext = text_at_rate(text, self.fs)
+        workers = self.workers or min(len(self.seeds), os.cpu_count() or 1)
+        rs = None if self.restarts is None else self.restarts.tolist()
+        _log(f"gyrodenoise: simulating {len(self.seeds)} seeds x {self.n} samples through "
+             f"{self.fmu_path.name} ({workers} processes)", self.quiet)
+        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                                 max_tasks_per_child=1) as ex:
+            futs = [ex.submit(_fmu_worker, str(self.fmu_path), ftext, s, self.n, self.fs, rs)
+                    for s in self.seeds]
+            out = []
+            try:
+                for i, f in enumerate(futs):
+                    r = f.result()
+                    if isinstance(r, str):
+                        raise InputError(f"{self.fmu_path.name} failed on seed {self.seeds[i]}: {r}",
+                                         self.source)
+                    out.append(r)
+                    _log(f"gyrodenoise:   seed {self.seeds[i]} done", self.quiet)
+            except BrokenProcessPool as exc:
+                raise InputError(f"an FMU worker process died on seed {self.seeds[len(out)]} "
+                                 f"({' '.join(str(exc).split())})", self.source) from None
+        return out

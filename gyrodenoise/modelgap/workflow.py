@@ -1,0 +1,364 @@
+"""The workflow: score candidates, choose, edit the card, repeat (:func:`gap`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .candidates import Candidate, _f, propose
+from .cards import card_at_rate, check_editable, edit_card
+from .metric import (
+    Layout,
+    Reference,
+    gap_components,
+    gap_value,
+    loo_gaps,
+    signature,
+    where_disagree,
+    zscores,
+)
+from .report import _short
+from .settings import (
+    CARD_FIELD,
+    COMPONENT_FLOOR,
+    COMPONENTS,
+    GAP_METRIC,
+    MIN_IMPROVEMENT,
+    MIN_SAMPLES,
+    OFFSET_RATIO,
+    PENALTY_PER_PARAM,
+    WIDEN_COMPONENTS,
+    Z2_CAP,
+    _log,
+)
+from .simulation import Simulator
+
+
+# ------------------------------------------------------------------ the workflow
+@dataclass
+class GapResult:
+    """Outcome of :func:`gap`."""
+    effects_added: list
+    gap_before: float
+    gap_after: float
+    card_text: str
+    iterations: list
+    threshold: float
+    engine: str
+    component_threshold: dict
+    seeds: list
+    limitations: list = field(default_factory=list)
+    layout: Layout = None
+    measured: dict = None
+
+    @property
+    def within_scatter(self):
+        """The final card is within the simulations' scatter (the stop test of the loop)."""
+        return bool(self.iterations[-1].get("within_scatter", False))
+
+    def to_json(self):
+        """Plain JSON (every float finite or null, see :func:`_finite`)."""
+        return _finite({"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"],
+                                           "iteration": e["iteration"]}
+                                          for e in self.effects_added],
+                        "gap_before": self.gap_before, "gap_after": self.gap_after,
+                        "gap_metric": GAP_METRIC,
+                        "threshold": self.threshold, "component_threshold": self.component_threshold,
+                        "engine": self.engine, "seeds": list(self.seeds),
+                        "within_scatter": self.within_scatter,
+                        "stop": self.iterations[-1].get("stop"),
+                        "limitations": list(self.limitations),
+                        "iterations": [{k: v for k, v in it.items() if not k.startswith("_")}
+                                       for it in self.iterations]})
+
+
+def _finite(obj):
+    """A copy of a JSON-able structure with every float through :func:`_f` (NaN/inf -> None)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (bool, str)) or obj is None:
+        return obj
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _f(float(obj))
+    if isinstance(obj, np.ndarray):
+        return _finite(obj.tolist())
+    return obj
+
+
+def _zeroed(changes):
+    """Fields that a set of changes would write as 0 (a noise term fitted to nothing)."""
+    out = []
+    for nm, pr, _ in changes:
+        fld = CARD_FIELD.get(nm, (None,))[0]
+        for k in ([fld] if fld else []) + (["sigma"] if nm == "gauss_markov" else []) + \
+                (["amplitude"] if nm == "sinusoid" else []):
+            if k in pr and not float(pr[k]) > 0:
+                out.append(f"{nm}.{k}")
+    return out
+
+
+def _points(z):
+    """Per-point contributions to the five gap components (component units)."""
+    nl = len(z["line"])
+    return {"allan": z["allan"] ** 2, "psd": z["psd"] ** 2,
+            "line": np.array([np.max(z["line"] ** 2) / (2.0 * math.log(max(nl, 3)))]),
+            "mean": z["mean"] ** 2, "trend": z["trend"] ** 2}
+
+
+def explainable(zs):
+    """Mask of the points that at least one of the z sets (the current card and
+    its candidates) brings within the cap ``|z| <= 5``."""
+    pts = [_points(z) for z in zs]
+    return {c: np.any([p[c] < Z2_CAP for p in pts], axis=0) for c in COMPONENTS}
+
+
+def robust_gap(z, mask=None):
+    """The gap used to CHOOSE candidates: every point's ``z^2`` capped at
+    :data:`Z2_CAP` (``|z| = 5``), and, given ``mask`` (:func:`explainable`), the
+    points that no candidate brings within the cap left out (they count 0).
+
+    A candidate is then judged by how many points it brings into agreement,
+    not by how it shifts a disagreement that no term of the vocabulary
+    removes (e.g. a sensor's internal low-pass filter at short tau, where a
+    1e6-sample record has Allan errors of 0.1 % and z of -100). The divisor
+    of each component stays its number of points, so the value stays
+    comparable between candidates of one iteration. When every disagreement
+    is explainable (the simulated hidden-effect cases) this is the gap with
+    a cap.
+    """
+    pts = _points(z)
+    comp = {}
+    for c in COMPONENTS:
+        v = np.minimum(pts[c], Z2_CAP)
+        if mask is not None:
+            v = np.where(mask[c], v, 0.0)
+        comp[c] = float(np.mean(v))
+    return gap_value(comp)
+
+
+def widening(ref_new, ref_old, z_old):
+    """Log-likelihood price of a wider simulated scatter that the record does not ask for.
+
+    ``-2 ln L`` of the measured signatures under a card is ``sum z^2 + sum
+    ln(2 pi sigma^2)``: the gap holds the ``z^2`` part only, so a candidate
+    that merely widens the simulations' scatter (e.g. a large random walk
+    whose wander covers a mean offset) lowers every ``z`` and looks better
+    than it is. Per point, the widening ``ln(sigma_new^2 / sigma_old^2)`` is
+    charged beyond what the record itself asks for, ``ln(max(z_old^2, 1))``
+    (a point off by 4 sigma justifies a scatter up to 4x wider; a point that
+    already agrees justifies none). Averaged like the gap: over the points of
+    each of ``allan``, ``psd``, ``mean`` and ``trend``, then over the five
+    components (``line``, a maximum, counts 0).
+    """
+    tot = 0.0
+    for c in WIDEN_COMPONENTS:
+        w = np.log(ref_new.sigma[c] ** 2 / ref_old.sigma[c] ** 2) - np.log(np.maximum(z_old[c] ** 2, 1.0))
+        tot += float(np.mean(np.maximum(w, 0.0)))
+    return tot / len(COMPONENTS)
+
+
+def deterministic_offset(sig_m, ref, z, limit=3.0):
+    """Is the record mean's disagreement a deterministic offset rather than a wander?
+
+    A slow random process (bias instability, random walk, Gauss-Markov) that
+    moves the record mean by ``d`` also moves the block means about one
+    another by a similar amount; a constant bias moves the mean and leaves the
+    block means alone. True when ``|z_mean| > limit`` and the offset of the
+    record mean from the simulations' mean is more than ``OFFSET_RATIO`` times
+    the rms of the measured block means about the record mean. Returns
+    ``(flag, offset_deg_s, wander_rms_deg_s)``.
+    """
+    off = float(sig_m["mean"][0] - ref.mean["mean"][0])
+    wander = float(np.sqrt(np.mean(sig_m["trend"] ** 2)))
+    flag = abs(z["mean"][0]) > limit and abs(off) > OFFSET_RATIO * wander
+    return bool(flag), off, wander
+
+
+def _evaluate(sims, sig_m, layout):
+    ref = Reference(layout, [signature(s, layout) for s in sims])
+    z = zscores(sig_m, ref)
+    comp = gap_components(z)
+    return ref, z, comp, gap_value(comp)
+
+
+def check_record(rate_deg_s, source="MEASURED"):
+    """The measured record as a float array, or InputError (one line) when the
+    workflow cannot use it: not 1-D finite, too short, or constant."""
+    y = np.asarray(rate_deg_s, dtype=float)
+    if y.ndim != 1 or not np.all(np.isfinite(y)):
+        raise InputError("the record must be a 1-D array of finite rates", source)
+    if y.shape[0] < MIN_SAMPLES:
+        raise InputError(f"only {y.shape[0]} samples; the gap workflow needs at least {MIN_SAMPLES} "
+                         f"(Allan deviation over octaves and a Welch PSD)", source)
+    if not np.ptp(y) > 0:
+        raise InputError("the record is constant (zero variance): nothing to compare", source)
+    return y
+
+
+def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=4,
+        fmu_dir=None, workers=None, source="MEASURED", quiet=True):
+    """Find what a model card misses to behave like a measured record.
+
+    Parameters
+    ----------
+    rate_deg_s : array_like
+        Measured rate (deg/s), fixed sample rate.
+    sample_rate_hz : float
+    card : ModelCard, path or card name
+    seeds : int or list of int
+        Simulated records per evaluation (int S: seeds 1..S).
+    engine : {"native", "fmu"}
+        Simulator for the reported gaps; candidates are screened with the
+        native engine (bit-identical to the FMU).
+    restarts : array_like of bool, optional
+    max_effects : int
+        Most effects added.
+
+    Returns
+    -------
+    GapResult
+    """
+    from ..simulator import load_card
+    y = check_record(rate_deg_s, source)
+    fs = float(sample_rate_hz)
+    card0 = load_card(card)
+    text = card0.text
+    csrc = card0.source
+    card_at_rate(text, fs, csrc)        # the card as simulated at the record's rate (Nyquist)
+    check_editable(card0)               # every term of the vocabulary can be written into this card
+    seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s) for s in seeds]
+    if len(seed_list) < 3:
+        raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
+    layout = Layout.for_record(y.shape[0], fs)
+    sim = Simulator(y.shape[0], fs, seed_list, engine, restarts, fmu_dir, workers, quiet, source=csrc)
+    sig_m = signature(y, layout)
+    sims = sim.run(text)
+    if not np.any([np.std(s_) > 0 for s_ in sims]):
+        raise InputError("the card simulates a noise-free gyro (no stochastic term); the gap needs the "
+                         "simulations' scatter: add at least an angle_random_walk", card0.source)
+    ref, z, comp, g = _evaluate(sims, sig_m, layout)
+    loo = loo_gaps(ref)
+    threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo)) if loo else 2.0
+    comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) if loo else COMPONENT_FLOOR
+                      for c in COMPONENTS}
+    _log(f"gyrodenoise: gap of the input card {g:.3g} (threshold {threshold:.3g})", quiet)
+    if not math.isfinite(g):
+        raise InputError(f"the gap of the input card is not finite ({g}): the record's signatures "
+                         f"cannot be compared with the card's", source)
+    gap_before = g
+    effects, iterations, limitations = [], [], []
+    while True:
+        it = {"card_gap": g, "components": comp, "where": where_disagree(z, layout),
+              "_ref": ref, "_z": z, "candidates": []}
+        iterations.append(it)
+        within = g <= threshold and all(comp[c] <= comp_threshold[c] for c in COMPONENTS)
+        it["within_scatter"] = bool(within)
+        if within or len(effects) >= max_effects:
+            it["stop"] = "within the simulations' scatter" if within else "max_effects reached"
+            break
+        card = card_at_rate(text, fs, csrc)
+        cands = propose(y, layout, ref, z, card, restarts)
+        det, off, wander = deterministic_offset(sig_m, ref, z)
+        if det and any(c.name == "constant_bias" for c in cands):
+            # deterministic signatures first: a mean offset far beyond the block-mean
+            # wander is a constant bias, not the wander of a slow random process
+            cands = [c for c in cands if c.name == "constant_bias"]
+            cands[0].why += (f"; offset {off * 3600:.4g} deg/h = {abs(off) / max(wander, 1e-300):.3g} x the "
+                             f"block-mean wander ({wander * 3600:.3g} deg/h rms): deterministic, explained first")
+            it["deterministic_first"] = True
+        for c in cands:
+            zeroed = _zeroed(c.changes)
+            if zeroed:
+                msg = (f"the card is noisier than the record ({', '.join(zeroed)} would be set to 0); "
+                       f"gap only adds or re-fits terms: it cannot remove or reduce gauss_markov/"
+                       f"sinusoid terms, and writes no zeroed term as a fit")
+                c.why += f" (rejected: {msg})"
+                if msg not in limitations:
+                    limitations.append(msg)
+                continue
+            c.text = text
+            for nm, pr, rf in c.changes:
+                c.text = edit_card(c.text, nm, pr, rf, f"fitted to {Path(str(source)).name}", csrc)
+            try:
+                card_at_rate(c.text, fs, csrc)
+            except InputError as exc:
+                c.why += f" (rejected: {exc})"
+                continue
+            cref, c.z, c.components, c.gap = _evaluate(sim.run(c.text, engine="native"), sig_m, layout)
+            c.widen = widening(cref, ref, z)
+            if not math.isfinite(c.gap):
+                c.why += " (rejected: non-finite gap)"
+                c.z = None
+        ok = [c for c in cands if c.z is not None]
+        mask = explainable([z] + [c.z for c in ok])
+        for c in ok:
+            c.robust = robust_gap(c.z, mask)
+            c.score = (c.robust + c.widen) * (1.0 + PENALTY_PER_PARAM * c.n_params)
+        ok = [c for c in ok if math.isfinite(c.score)]      # never accept a non-finite score
+        it["candidates"] = [c.to_json() for c in cands]
+        best = min(ok, key=lambda c: c.score) if ok else None
+        rg = robust_gap(z, mask)
+        it["unexplained_points"] = {c_: int(np.sum(~mask[c_])) for c_ in COMPONENTS}
+        it["robust_gap"] = rg
+        if best is not None and best.score > MIN_IMPROVEMENT * rg and len(ok) >= 2:
+            # no single effect shrinks the gap significantly: look one step ahead, pairs
+            # of the three best-scoring candidates (two effects that only together
+            # explain a signature, e.g. a bias and a ramp that offset each other's mean)
+            top = sorted(ok, key=lambda c: c.score)[:3]
+            pairs = []
+            for i, a in enumerate(top):
+                for b in top[i + 1:]:
+                    if a.name == b.name or _zeroed(b.changes):
+                        continue
+                    pc = Candidate(a.name, a.params, a.refit, f"{a.why}; together with {b.name}",
+                                   extra=a.extra + b.changes)
+                    pc.text = a.text
+                    for nm, pr, rf in b.changes:
+                        pc.text = edit_card(pc.text, nm, pr, rf, f"fitted to {Path(str(source)).name}", csrc)
+                    try:
+                        card_at_rate(pc.text, fs, csrc)
+                    except InputError:
+                        continue
+                    pref, pz, pc.components, pc.gap = _evaluate(sim.run(pc.text, engine="native"), sig_m, layout)
+                    pc.robust = robust_gap(pz, mask)
+                    pc.widen = widening(pref, ref, z)
+                    pc.score = (pc.robust + pc.widen) * (1.0 + PENALTY_PER_PARAM * pc.n_params)
+                    if math.isfinite(pc.score) and math.isfinite(pc.gap):
+                        pairs.append(pc)
+            it["pairs"] = [c.to_json() for c in pairs]
+            bp = min(pairs, key=lambda c: c.score) if pairs else None
+            if bp is not None and bp.score < MIN_IMPROVEMENT * best.score:
+                best = bp
+        if best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg):
+            it["stop"] = "no candidate shrinks the gap significantly"
+            break
+        _log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
+                                          for nm, pr, rf in best.changes)
+             + f": gap {g:.3g} -> {best.gap:.3g}", quiet)
+        text = best.text
+        for nm, pr, rf in best.changes:
+            effects.append({"name": nm, "params": {k: float(v) for k, v in pr.items()},
+                            "refit": rf, "why": best.why, "iteration": len(iterations) - 1})
+        it["chosen"] = [nm for nm, _, _ in best.changes]
+        sims = sim.run(text)
+        ref, z, comp, g = _evaluate(sims, sig_m, layout)
+    last = iterations[-1]
+    if not last["within_scatter"] and any(s_ < 0 for s_ in last["where"]["allan_sign"]) \
+            and not any(s_ > 0 for s_ in last["where"]["allan_sign"]):
+        msg = ("the record's Allan deviation is below the card's wherever they disagree: the card is "
+               "noisier than the record; gap only adds or re-fits terms and cannot remove or reduce "
+               "gauss_markov/sinusoid terms")
+        if not any("noisier" in m_ for m_ in limitations):
+            limitations.append(msg)
+    return GapResult(limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
+                     iterations=iterations, threshold=threshold, engine=engine, seeds=seed_list,
+                     component_threshold=comp_threshold,
+                     layout=layout, measured=sig_m)
