@@ -1,0 +1,307 @@
+/*
+ * _gdcoremodule.c -- gyrodenoise._gdcore, the CPython binding of gdcore.c.
+ *
+ * Buffers go through the buffer protocol (array.array('d'), numpy float64
+ * arrays, memoryviews...): no numpy C API, no copies. p must hold at least
+ * N_PARAMS float64, s exactly layout(order)[6] float64 (writable); anything
+ * else raises (TypeError for a wrong item type, ValueError for a wrong length
+ * or an out-of-range order) before the C kernels touch memory.
+ *
+ *   step(p, s, z, restart) -> float    one sample, s updated in place
+ *   run(p, s, z, restarts, out)        the batch loop, GIL released
+ *   restart(p, s)                      re-initialise s (counters kept)
+ *   layout_total(n) -> int             length of s for AR order n
+ *   CONSTANTS                          {name: value} of the P_/S_/M_ indices
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <string.h>
+
+#include "gdcore.h"
+
+/* float64 in native byte order */
+static int is_f64(const Py_buffer *b)
+{
+    const char *f = b->format;
+    if (b->itemsize != 8 || f == NULL)
+        return 0;
+    if (f[0] == '@' || f[0] == '=')
+        f++;
+#if PY_LITTLE_ENDIAN
+    else if (f[0] == '<')
+        f++;
+#else
+    else if (f[0] == '>' || f[0] == '!')
+        f++;
+#endif
+    return f[0] == 'd' && f[1] == '\0';
+}
+
+static int is_u8(const Py_buffer *b)
+{
+    const char *f = b->format;
+    if (b->itemsize != 1)
+        return 0;
+    if (f == NULL)
+        return 1; /* plain bytes */
+    if (f[0] == '@' || f[0] == '=' || f[0] == '<' || f[0] == '>' || f[0] == '!')
+        f++;
+    return (f[0] == '?' || f[0] == 'B' || f[0] == 'b') && f[1] == '\0';
+}
+
+/* Acquire a contiguous float64 buffer; on failure set an exception, return -1 */
+static int get_f64(PyObject *obj, Py_buffer *b, int writable, const char *name)
+{
+    if (PyObject_GetBuffer(obj, b, PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0) {
+        if (PyErr_ExceptionMatches(PyExc_TypeError) || PyErr_ExceptionMatches(PyExc_BufferError)) {
+            PyErr_Clear();
+            PyErr_Format(PyExc_TypeError,
+                         "%s must be a contiguous%s float64 buffer (array.array('d') or a "
+                         "numpy float64 array), got %.100s",
+                         name, writable ? " writable" : "", Py_TYPE(obj)->tp_name);
+        }
+        return -1;
+    }
+    if (!is_f64(b)) {
+        PyErr_Format(PyExc_TypeError, "%s must hold float64 items, got format '%s'", name,
+                     b->format ? b->format : "B");
+        PyBuffer_Release(b);
+        return -1;
+    }
+    return 0;
+}
+
+/* p and s, checked against each other; 0 on success (both held) */
+static int get_ps(PyObject *po, PyObject *so, Py_buffer *pb, Py_buffer *sb)
+{
+    const char *why;
+    if (get_f64(po, pb, 0, "p") < 0)
+        return -1;
+    if (get_f64(so, sb, 1, "s") < 0) {
+        PyBuffer_Release(pb);
+        return -1;
+    }
+    why = gd_check((const double *)pb->buf, (long)(pb->len / 8), (long)(sb->len / 8));
+    if (why != NULL) {
+        PyErr_SetString(PyExc_ValueError, why);
+        PyBuffer_Release(sb);
+        PyBuffer_Release(pb);
+        return -1;
+    }
+    return 0;
+}
+
+static int nargs_ok(const char *fn, Py_ssize_t nargs, Py_ssize_t want)
+{
+    if (nargs != want) {
+        PyErr_Format(PyExc_TypeError, "%s() takes exactly %zd arguments (%zd given)", fn, want,
+                     nargs);
+        return 0;
+    }
+    return 1;
+}
+
+PyDoc_STRVAR(step_doc,
+"step(p, s, z, restart) -> float\n\n"
+"One raw sample z through the filter (kernels.step): s (writable float64\n"
+"buffer) is updated in place; restart true re-initialises it first.");
+
+static PyObject *mod_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer pb, sb;
+    double z, out;
+    int restart;
+    (void)self;
+    if (!nargs_ok("step", nargs, 4))
+        return NULL;
+    if (PyFloat_CheckExact(args[2])) {
+        z = PyFloat_AS_DOUBLE(args[2]);
+    } else {
+        z = PyFloat_AsDouble(args[2]);
+        if (z == -1.0 && PyErr_Occurred())
+            return NULL;
+    }
+    if (args[3] == Py_False || args[3] == Py_None)
+        restart = 0;
+    else if (args[3] == Py_True)
+        restart = 1;
+    else if ((restart = PyObject_IsTrue(args[3])) < 0)
+        return NULL;
+    if (get_ps(args[0], args[1], &pb, &sb) < 0)
+        return NULL;
+    out = gd_step((const double *)pb.buf, (double *)sb.buf, z, restart);
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&pb);
+    return PyFloat_FromDouble(out);
+}
+
+PyDoc_STRVAR(run_doc,
+"run(p, s, z, restarts, out) -> None\n\n"
+"The batch loop (kernels.step over z): out[i] = step(p, s, z[i], restarts[i]).\n"
+"z and out are float64 buffers of one length, restarts a bool/uint8 buffer of\n"
+"that length or None; s is updated in place. Releases the GIL.");
+
+static PyObject *mod_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer pb, sb, zb, rb, ob;
+    const unsigned char *r = NULL;
+    int have_r = 0;
+    Py_ssize_t n;
+    (void)self;
+    if (!nargs_ok("run", nargs, 5))
+        return NULL;
+    if (get_ps(args[0], args[1], &pb, &sb) < 0)
+        return NULL;
+    if (get_f64(args[2], &zb, 0, "z") < 0)
+        goto fail_ps;
+    n = zb.len / 8;
+    if (args[3] != Py_None) {
+        if (PyObject_GetBuffer(args[3], &rb, PyBUF_FORMAT) < 0)
+            goto fail_z;
+        have_r = 1;
+        if (!is_u8(&rb)) {
+            PyErr_Format(PyExc_TypeError, "restarts must hold bool or uint8 items, got format '%s'",
+                         rb.format ? rb.format : "B");
+            goto fail_r;
+        }
+        if (rb.len != n) {
+            PyErr_Format(PyExc_ValueError, "restarts has %zd items, z has %zd", rb.len, n);
+            goto fail_r;
+        }
+        r = (const unsigned char *)rb.buf;
+    }
+    if (get_f64(args[4], &ob, 1, "out") < 0)
+        goto fail_r;
+    if (ob.len / 8 != n) {
+        PyErr_Format(PyExc_ValueError, "out has %zd items, z has %zd", ob.len / 8, n);
+        PyBuffer_Release(&ob);
+        goto fail_r;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    gd_run((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf, r,
+           (double *)ob.buf, (long)n);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&ob);
+    if (have_r)
+        PyBuffer_Release(&rb);
+    PyBuffer_Release(&zb);
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&pb);
+    Py_RETURN_NONE;
+fail_r:
+    if (have_r)
+        PyBuffer_Release(&rb);
+fail_z:
+    PyBuffer_Release(&zb);
+fail_ps:
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&pb);
+    return NULL;
+}
+
+PyDoc_STRVAR(restart_doc,
+"restart(p, s) -> None\n\n"
+"Re-initialise the state s in place (kernels.restart; cumulative counters kept).");
+
+static PyObject *mod_restart(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer pb, sb;
+    (void)self;
+    if (!nargs_ok("restart", nargs, 2))
+        return NULL;
+    if (get_ps(args[0], args[1], &pb, &sb) < 0)
+        return NULL;
+    gd_restart((const double *)pb.buf, (double *)sb.buf);
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&pb);
+    Py_RETURN_NONE;
+}
+
+PyDoc_STRVAR(layout_total_doc,
+"layout_total(n) -> int\n\nLength of the state buffer for AR order n (kernels.layout(n)[6]).");
+
+static PyObject *mod_layout_total(PyObject *self, PyObject *arg)
+{
+    long n = PyLong_AsLong(arg);
+    (void)self;
+    if (n == -1 && PyErr_Occurred())
+        return NULL;
+    if (n < 0 || n > GD_MAX_ORDER) {
+        PyErr_Format(PyExc_ValueError, "n must be in 0..%d, got %ld", GD_MAX_ORDER, n);
+        return NULL;
+    }
+    return PyLong_FromLong(gd_layout_total((int)n));
+}
+
+static PyMethodDef methods[] = {
+    {"step", (PyCFunction)(void (*)(void))mod_step, METH_FASTCALL, step_doc},
+    {"run", (PyCFunction)(void (*)(void))mod_run, METH_FASTCALL, run_doc},
+    {"restart", (PyCFunction)(void (*)(void))mod_restart, METH_FASTCALL, restart_doc},
+    {"layout_total", mod_layout_total, METH_O, layout_total_doc},
+    {NULL, NULL, 0, NULL},
+};
+
+#define C(name) {#name, (double)(name)}
+static const struct {
+    const char *name;
+    double value;
+} constants[] = {
+    C(P_ORDER), C(P_METHOD), C(P_LAM), C(P_B), C(P_GAMMA), C(P_Q0), C(P_R0), C(P_P0_RLS),
+    C(P_P0_KF), C(P_WARMUP), C(P_R_FLOOR), C(P_OUTLIER_SIGMA), C(P_OUTLIER_RUN), C(P_LP_NSEC),
+    C(P_LP_CUTOFF), C(P_SOS), C(MAX_SOS), C(P_MO_RHO), C(P_MO_GAMMA), C(P_MO_GAIN), C(P_MO_EPS),
+    C(P_MO_LQMIN), C(P_MO_LQMAX), C(P_MO_BR), C(P_MO_LQ0), C(P_MO_CLIP), C(P_MO_BUMP),
+    C(N_PARAMS), C(METHOD_NONE), C(METHOD_KF), C(METHOD_SHAKF), C(METHOD_SH_CLASSIC),
+    C(METHOD_MOTION), C(METHOD_LOWPASS), C(S_K), C(S_KD), C(S_R), C(S_Q), C(S_S2), C(S_NS2),
+    C(S_CONV), C(S_INNOV), C(S_SVAR), C(S_NRESET), C(S_OUT), C(S_RLS_ERR), C(S_BK), C(S_NREJ),
+    C(S_REJRUN), C(S_NREOPEN), C(S_ZREF), C(S_LO), C(S_HI), C(S_HOLD), C(S_NCLAMP),
+    C(S_NHEAL), C(N_HEADER), C(N_EXT), C(M_W), C(M_A), C(M_P00), C(M_P01), C(M_P11), C(M_LQ),
+    C(M_R), C(M_MABS), C(M_Z1), C(M_Z2), C(M_Z3), C(M_Z4), C(M_UPREV), C(M_BK), C(M_NJUMP),
+};
+#undef C
+
+static int exec_module(PyObject *m)
+{
+    size_t i;
+    PyObject *d = PyDict_New();
+    if (d == NULL)
+        return -1;
+    for (i = 0; i < sizeof constants / sizeof constants[0]; i++) {
+        double v = constants[i].value;
+        /* METHOD_* are floats in kernels.py, the indices ints */
+        PyObject *o = strncmp(constants[i].name, "METHOD_", 7) == 0 ? PyFloat_FromDouble(v)
+                                                                    : PyLong_FromDouble(v);
+        if (o == NULL || PyDict_SetItemString(d, constants[i].name, o) < 0) {
+            Py_XDECREF(o);
+            Py_DECREF(d);
+            return -1;
+        }
+        Py_DECREF(o);
+    }
+    if (PyModule_AddObject(m, "CONSTANTS", d) < 0) {
+        Py_DECREF(d);
+        return -1;
+    }
+    return 0;
+}
+
+static PyModuleDef_Slot slots[] = {
+    {Py_mod_exec, exec_module},
+    {0, NULL},
+};
+
+static struct PyModuleDef moduledef = {
+    PyModuleDef_HEAD_INIT,
+    "gyrodenoise._gdcore",
+    "The per-sample filter kernels of gyrodenoise.kernels, compiled from gyrodenoise/core/gdcore.c.",
+    0,
+    methods,
+    slots,
+    NULL,
+    NULL,
+    NULL,
+};
+
+PyMODINIT_FUNC PyInit__gdcore(void)
+{
+    return PyModuleDef_Init(&moduledef);
+}

@@ -1,0 +1,604 @@
+/*
+ * gdcore.c -- the per-sample filter kernels, translated from
+ * gyrodenoise/kernels.py (the executable specification; read the docstrings
+ * there for the equations and the reasons). Every function keeps the Python's
+ * operations and their order: a + b * c stays (a + (b * c)), d * v * v stays
+ * ((d * v) * v). Build with -O2 -ffp-contract=off, never -ffast-math.
+ */
+#include <math.h>
+#include <stddef.h>
+
+#include "gdcore.h"
+
+#define ORDER(p) ((int)(p)[P_ORDER])
+
+gd_layout_t gd_layout(int n)
+{
+    gd_layout_t L;
+    long m = (long)n + 1;
+    L.theta = N_HEADER;
+    L.prls = L.theta + m;
+    L.x = L.prls + m * m;
+    L.p = L.x + m;
+    L.z = L.p + m * m;
+    L.w = L.z + n;
+    L.total = L.w + m + N_EXT;
+    return L;
+}
+
+long gd_layout_total(int n)
+{
+    return gd_layout(n).total;
+}
+
+const char *gd_check(const double *p, long n_p, long n_s)
+{
+    double order, nsec;
+    if (n_p < N_PARAMS)
+        return "p is too short: fewer than N_PARAMS floats";
+    order = p[P_ORDER];
+    if (!(order >= 1.0 && order <= (double)GD_MAX_ORDER))
+        return "p[P_ORDER] must be >= 1 and <= 100000";
+    nsec = p[P_LP_NSEC];
+    if (!(nsec >= 0.0 && nsec < (double)(MAX_SOS + 1)))
+        return "p[P_LP_NSEC] must be in 0..MAX_SOS";
+    if (n_s != gd_layout_total(ORDER(p)))
+        return "s has the wrong length for the AR order p[P_ORDER]";
+    return NULL;
+}
+
+void gd_restart(const double *p, double *s)
+{
+    int n = ORDER(p);
+    long m = (long)n + 1;
+    gd_layout_t L = gd_layout(n);
+    double nrej = s[S_NREJ], nreopen = s[S_NREOPEN], nclamp = s[S_NCLAMP], nheal = s[S_NHEAL];
+    long i;
+    for (i = 0; i < L.total; i++)
+        s[i] = 0.0;
+    s[S_NREJ] = nrej;
+    s[S_NREOPEN] = nreopen;
+    s[S_NCLAMP] = nclamp;
+    s[S_NHEAL] = nheal;
+    for (i = 0; i < m; i++) {
+        s[L.prls + i * m + i] = p[P_P0_RLS];
+        s[L.p + i * m + i] = p[P_P0_KF];
+    }
+    s[S_R] = p[P_R0] > 0.0 ? p[P_R0] : p[P_R_FLOOR];
+    s[S_Q] = p[P_Q0];
+}
+
+/* g = P h into w (h = regressor, h[n] = 1); returns lam + h' P h */
+static double rls_gain(const double *p, double *s, long o_prls, long o_z, long o_w, int n, long m)
+{
+    long i, j;
+    double acc, den;
+    for (i = 0; i < m; i++) {
+        acc = s[o_prls + i * m + n];
+        for (j = 0; j < n; j++)
+            acc += s[o_prls + i * m + j] * s[o_z + j];
+        s[o_w + i] = acc;
+    }
+    den = p[P_LAM] + s[o_w + n];
+    for (j = 0; j < n; j++)
+        den += s[o_z + j] * s[o_w + j];
+    return den;
+}
+
+double gd_rls_update(const double *p, double *s, double z)
+{
+    int n = ORDER(p);
+    long m = (long)n + 1;
+    double lam = p[P_LAM];
+    gd_layout_t L = gd_layout(n);
+    double e = 0.0;
+    long i, j;
+    if (s[S_K] >= (double)n) {
+        double den = rls_gain(p, s, L.prls, L.z, L.w, n, m);
+        double pred, inv_den, scale;
+        if (!(den >= lam)) {
+            for (i = 0; i < m * m; i++)
+                s[L.prls + i] = 0.0;
+            for (i = 0; i < m; i++)
+                s[L.prls + i * m + i] = p[P_P0_RLS];
+            den = rls_gain(p, s, L.prls, L.z, L.w, n, m);
+        }
+        pred = s[L.theta + n];
+        for (j = 0; j < n; j++)
+            pred += s[L.z + j] * s[L.theta + j];
+        e = z - pred;
+        inv_den = 1.0 / den;
+        for (i = 0; i < m; i++)
+            s[L.theta + i] += s[L.w + i] * inv_den * e;
+        scale = 1.0 / lam;
+        if (lam != 1.0) {
+            double tr = 0.0;
+            for (i = 0; i < m; i++)
+                tr += s[L.prls + i * m + i] - s[L.w + i] * inv_den * s[L.w + i];
+            if (tr * scale > (double)m * p[P_P0_RLS])
+                scale = 1.0;
+        }
+        for (i = 0; i < m; i++) {
+            double gi = s[L.w + i] * inv_den;
+            for (j = i; j < m; j++) {
+                double v = (s[L.prls + i * m + j] - gi * s[L.w + j]) * scale;
+                s[L.prls + i * m + j] = v;
+                s[L.prls + j * m + i] = v;
+            }
+        }
+    }
+    for (j = n - 1; j > 0; j--)
+        s[L.z + j] = s[L.z + j - 1];
+    s[L.z] = z;
+    return e;
+}
+
+double gd_kf_predict(const double *p, double *s, double q)
+{
+    int n = ORDER(p);
+    long m = (long)n + 1;
+    gd_layout_t L = gd_layout(n);
+    long i, j;
+    double x0, acc, p00, v;
+    x0 = s[L.x + n];
+    for (i = 0; i < n; i++)
+        x0 += s[L.theta + i] * s[L.x + i];
+    for (i = n - 1; i > 0; i--)
+        s[L.x + i] = s[L.x + i - 1];
+    s[L.x] = x0;
+    for (j = 0; j < m; j++) {
+        acc = s[L.p + n * m + j];
+        for (i = 0; i < n; i++)
+            acc += s[L.theta + i] * s[L.p + i * m + j];
+        s[L.w + j] = acc;
+    }
+    for (i = n - 1; i > 0; i--) {
+        for (j = n - 1; j > 0; j--)
+            s[L.p + i * m + j] = s[L.p + (i - 1) * m + (j - 1)];
+        v = s[L.p + (i - 1) * m + n];
+        s[L.p + i * m + n] = v;
+        s[L.p + n * m + i] = v;
+    }
+    p00 = s[L.w + n] + q;
+    for (i = 0; i < n; i++)
+        p00 += s[L.theta + i] * s[L.w + i];
+    s[L.p] = p00;
+    for (j = 1; j < n; j++) {
+        s[L.p + j] = s[L.w + j - 1];
+        s[L.p + j * m] = s[L.w + j - 1];
+    }
+    s[L.p + n] = s[L.w + n];
+    s[L.p + n * m] = s[L.w + n];
+    return x0;
+}
+
+double gd_kf_update(const double *p, double *s, double v, double r)
+{
+    int n = ORDER(p);
+    long m = (long)n + 1;
+    gd_layout_t L = gd_layout(n);
+    long i, j;
+    double svar = s[L.p] + r;
+    double inv_s = 1.0 / svar;
+    for (i = 0; i < m; i++)
+        s[L.w + i] = s[L.p + i * m];
+    for (i = 0; i < m; i++)
+        s[L.x + i] += s[L.w + i] * inv_s * v;
+    for (i = 0; i < m; i++) {
+        double ki = s[L.w + i] * inv_s;
+        for (j = i; j < m; j++) {
+            double val = s[L.p + i * m + j] - ki * s[L.w + j];
+            s[L.p + i * m + j] = val;
+            s[L.p + j * m + i] = val;
+        }
+    }
+    for (i = 0; i < m; i++)
+        if (s[L.p + i * m + i] < 1e-300)
+            s[L.p + i * m + i] = 1e-300;
+    return svar;
+}
+
+void gd_start_filter(const double *p, double *s)
+{
+    int n = ORDER(p);
+    long m = (long)n + 1;
+    gd_layout_t L = gd_layout(n);
+    long i;
+    for (i = 0; i < m * m; i++)
+        s[L.p + i] = 0.0;
+    for (i = 0; i < n; i++) {
+        s[L.x + i] = s[L.z + i];
+        s[L.p + i * m + i] = s[S_R];
+    }
+    gd_tie_c(p, s);
+}
+
+void gd_tie_c(const double *p, double *s)
+{
+    int n = ORDER(p);
+    long m = (long)n + 1;
+    gd_layout_t L = gd_layout(n);
+    long i;
+    s[L.x + n] = s[L.theta + n];
+    for (i = 0; i < n; i++) {
+        s[L.p + i * m + n] = 0.0;
+        s[L.p + n * m + i] = 0.0;
+    }
+    s[L.p + n * m + n] = p[P_R_FLOOR];
+}
+
+/* a and w may be the same buffer (step passes s twice) */
+int gd_ar_stable(const double *a, long o_a, int n, double *w, long o_w)
+{
+    int i, order, lo, hi;
+    double kr, den, al, ah;
+    for (i = 0; i < n; i++)
+        w[o_w + i] = -a[o_a + i];
+    for (order = n; order > 0; order--) {
+        kr = w[o_w + order - 1];
+        if (!(kr * kr < 1.0))
+            return 0;
+        den = 1.0 - kr * kr;
+        lo = 1;
+        hi = order - 1;
+        while (lo < hi) {
+            al = w[o_w + lo - 1];
+            ah = w[o_w + hi - 1];
+            w[o_w + lo - 1] = (al - kr * ah) / den;
+            w[o_w + hi - 1] = (ah - kr * al) / den;
+            lo += 1;
+            hi -= 1;
+        }
+        if (lo == hi) {
+            al = w[o_w + lo - 1];
+            w[o_w + lo - 1] = (al - kr * al) / den;
+        }
+    }
+    return 1;
+}
+
+int gd_gate(const double *p, double *s, double z)
+{
+    int n = ORDER(p);
+    long m = (long)n + 1;
+    gd_layout_t L = gd_layout(n);
+    long i, j;
+    double xp, p00, acc, svar, v, k, x0;
+    gd_tie_c(p, s);
+    xp = s[L.x + n];
+    for (i = 0; i < n; i++)
+        xp += s[L.theta + i] * s[L.x + i];
+    p00 = s[L.p + n * m + n];
+    for (i = 0; i < n; i++) {
+        long row = L.p + i * m;
+        acc = 0.0;
+        for (j = 0; j < n; j++)
+            acc += s[L.theta + j] * s[row + j];
+        p00 += s[L.theta + i] * acc;
+    }
+    svar = p00 + s[S_Q] + s[S_R];
+    v = z - xp;
+    k = p[P_OUTLIER_SIGMA];
+    if (!(v * v > k * k * svar)) {
+        s[S_REJRUN] = 0.0;
+        return 0;
+    }
+    if (s[S_REJRUN] >= p[P_OUTLIER_RUN]) {
+        gd_restart(p, s);
+        s[S_NREOPEN] += 1.0;
+        return 2;
+    }
+    if (s[S_REJRUN] == 0.0)
+        s[S_HOLD] = gd_ar_stable(s, L.theta, n, s, L.w) ? 0.0 : 1.0;
+    if (s[S_HOLD] == 0.0)
+        x0 = gd_kf_predict(p, s, s[S_Q]);
+    else
+        x0 = s[L.x];
+    for (j = n - 1; j > 0; j--)
+        s[L.z + j] = s[L.z + j - 1];
+    s[L.z] = x0;
+    s[S_NREJ] += 1.0;
+    s[S_REJRUN] += 1.0;
+    s[S_INNOV] = v;
+    s[S_SVAR] = svar;
+    s[S_RLS_ERR] = 0.0;
+    s[S_K] += 1.0;
+    s[S_OUT] = x0;
+    return 1;
+}
+
+double gd_filter_step(const double *p, double *s, double z)
+{
+    int n = ORDER(p);
+    double method = p[P_METHOD];
+    double floor_ = p[P_R_FLOOR];
+    gd_layout_t L = gd_layout(n);
+    double k = s[S_K];
+    long m = (long)n + 1;
+    long i;
+    int converged;
+    double e, q, xp, v, p00, r, svar, out;
+
+    converged = k >= p[P_WARMUP];
+    if (s[S_CONV] == 0.0) {
+        double autolevel = 0.5 * s[S_S2];
+        if (autolevel < floor_)
+            autolevel = floor_;
+        s[S_Q] = p[P_Q0] > 0.0 ? p[P_Q0] : autolevel;
+        s[S_R] = p[P_R0] > 0.0 ? p[P_R0] : autolevel;
+        if (converged) {
+            s[S_CONV] = 1.0;
+            s[S_KD] = 0.0;
+            s[S_BK] = p[P_B];
+            gd_start_filter(p, s);
+        }
+    }
+
+    e = gd_rls_update(p, s, z);
+    s[S_RLS_ERR] = e;
+    if (k >= 10.0 * (double)m) {
+        s[S_NS2] += 1.0;
+        s[S_S2] += (e * e - s[S_S2]) / s[S_NS2];
+    }
+
+    if (k == 0.0) {
+        for (i = 0; i < n; i++)
+            s[L.x + i] = z;
+        s[L.x + n] = 0.0;
+        s[S_K] = 1.0;
+        s[S_OUT] = z;
+        s[S_INNOV] = 0.0;
+        return z;
+    }
+
+    gd_tie_c(p, s);
+    q = s[S_Q];
+    xp = gd_kf_predict(p, s, q);
+    v = z - xp;
+    p00 = s[L.p];
+    r = s[S_R];
+    if (s[S_CONV] == 1.0 && (method == METHOD_SHAKF || method == METHOD_SH_CLASSIC)) {
+        double b = p[P_B];
+        double g = p[P_GAMMA];
+        double d, k0;
+        if (method == METHOD_SHAKF && v * v > g * g * (p00 + r)) {
+            s[S_KD] = 0.0;
+            s[S_NRESET] += 1.0;
+            s[S_BK] = b;
+        } else {
+            s[S_KD] += 1.0;
+            s[S_BK] *= b;
+            if (s[S_BK] < 1e-290)
+                s[S_BK] = 0.0;
+        }
+        d = (1.0 - b) / (1.0 - s[S_BK]);
+        if (method == METHOD_SHAKF)
+            r = (1.0 - d) * r + d * v * v;
+        else
+            r = (1.0 - d) * r + d * (v * v - p00);
+        if (r < floor_)
+            r = floor_;
+        s[S_R] = r;
+        svar = gd_kf_update(p, s, v, r);
+        k0 = p00 / svar;
+        q = q + d * k0 * k0 * (v * v - svar);
+        if (q < floor_)
+            q = floor_;
+        s[S_Q] = q;
+    } else {
+        svar = gd_kf_update(p, s, v, r);
+    }
+
+    s[S_INNOV] = v;
+    s[S_SVAR] = svar;
+    s[S_K] = k + 1.0;
+    out = z;
+    if (s[S_CONV] == 1.0 && method != METHOD_NONE)
+        out = s[L.x];
+    s[S_OUT] = out;
+    return out;
+}
+
+double gd_lowpass_step(const double *p, double *s, double z)
+{
+    int n = ORDER(p);
+    long o = gd_layout_total(n) - N_EXT;
+    double y = z, x;
+    int i, nsec = (int)p[P_LP_NSEC];
+    for (i = 0; i < nsec; i++) {
+        int c = P_SOS + 5 * i;
+        x = y;
+        y = p[c] * x + s[o + 2 * i];
+        s[o + 2 * i] = p[c + 1] * x - p[c + 3] * y + s[o + 2 * i + 1];
+        s[o + 2 * i + 1] = p[c + 2] * x - p[c + 4] * y;
+    }
+    s[S_K] += 1.0;
+    s[S_CONV] = 1.0;
+    return y;
+}
+
+double gd_motion_step(const double *p, double *s, double z)
+{
+    long o = gd_layout_total(ORDER(p)) - N_EXT;
+    double k = s[S_K];
+    double r, rho, qn, wp, ap, p00, p01, p11, v, sv, g, lq, k0, k1;
+    if (k == 0.0) {
+        s[o + M_Z1] = z;
+        s[o + M_Z2] = z;
+        s[o + M_Z3] = z;
+        s[o + M_Z4] = z;
+        s[o + M_BK] = 1.0;
+        s[o + M_LQ] = p[P_MO_LQ0];
+    }
+    if (k >= 4.0) {
+        double d4 = z - 4.0 * s[o + M_Z1] + 6.0 * s[o + M_Z2] - 4.0 * s[o + M_Z3] + s[o + M_Z4];
+        double x = fabs(d4);
+        double b, d, sig;
+        if (s[o + M_MABS] > 0.0 && x > 4.0 * s[o + M_MABS])
+            x = 4.0 * s[o + M_MABS];
+        b = p[P_MO_BR];
+        s[o + M_BK] *= b;
+        d = (1.0 - b) / (1.0 - s[o + M_BK]);
+        s[o + M_MABS] += d * (x - s[o + M_MABS]);
+        sig = s[o + M_MABS] * 0.14980634836659743;
+        r = sig * sig;
+        if (r < p[P_R_FLOOR])
+            r = p[P_R_FLOOR];
+        s[o + M_R] = r;
+    }
+    s[o + M_Z4] = s[o + M_Z3];
+    s[o + M_Z3] = s[o + M_Z2];
+    s[o + M_Z2] = s[o + M_Z1];
+    s[o + M_Z1] = z;
+    s[S_K] = k + 1.0;
+    r = s[o + M_R];
+    if (k < p[P_WARMUP]) {
+        s[o + M_W] = z;
+        s[o + M_A] = 0.0;
+        s[o + M_P00] = r;
+        s[o + M_P01] = 0.0;
+        s[o + M_P11] = r;
+        return z;
+    }
+    s[S_CONV] = 1.0;
+    rho = p[P_MO_RHO];
+    qn = exp(s[o + M_LQ]) * r;
+    wp = s[o + M_W] + s[o + M_A];
+    ap = rho * s[o + M_A];
+    p00 = s[o + M_P00] + 2.0 * s[o + M_P01] + s[o + M_P11] + qn / 3.0;
+    p01 = rho * (s[o + M_P01] + s[o + M_P11]) + 0.5 * qn;
+    p11 = rho * rho * s[o + M_P11] + qn;
+    v = z - wp;
+    sv = p00 + r;
+    g = p[P_MO_GAMMA];
+    if (v * v > g * g * sv) {
+        p00 += v * v - sv;
+        sv = p00 + r;
+        s[o + M_UPREV] = 0.0;
+        s[o + M_NJUMP] += 1.0;
+        lq = s[o + M_LQ] + p[P_MO_GAIN] * (p[P_MO_CLIP] * p[P_MO_BUMP] - p[P_MO_EPS]);
+        if (lq > p[P_MO_LQMAX])
+            lq = p[P_MO_LQMAX];
+        s[o + M_LQ] = lq;
+    } else {
+        double u = v / sqrt(sv);
+        double c = u * s[o + M_UPREV];
+        double cl = p[P_MO_CLIP];
+        if (c > cl)
+            c = cl;
+        else if (c < -cl)
+            c = -cl;
+        lq = s[o + M_LQ] + p[P_MO_GAIN] * (c - p[P_MO_EPS]);
+        if (lq < p[P_MO_LQMIN])
+            lq = p[P_MO_LQMIN];
+        else if (lq > p[P_MO_LQMAX])
+            lq = p[P_MO_LQMAX];
+        s[o + M_LQ] = lq;
+        s[o + M_UPREV] = u;
+    }
+    k0 = p00 / sv;
+    k1 = p01 / sv;
+    s[o + M_W] = wp + k0 * v;
+    s[o + M_A] = ap + k1 * v;
+    s[o + M_P00] = p00 - k0 * p00;
+    s[o + M_P01] = p01 - k0 * p01;
+    s[o + M_P11] = p11 - k1 * p01;
+    s[S_INNOV] = v;
+    s[S_SVAR] = sv;
+    return s[o + M_W];
+}
+
+/* Python's v - v == 0.0: false for inf and nan. volatile-free: without
+ * -ffast-math the compiler may not fold v - v to 0. */
+static int finite_(double v)
+{
+    return v - v == 0.0;
+}
+
+static int healthy(const double *p, const double *s)
+{
+    long o_x = gd_layout(ORDER(p)).x;
+    return finite_(s[o_x]) && finite_(s[S_SVAR]) && finite_(s[S_R])
+        && finite_(s[S_Q]) && finite_(s[S_RLS_ERR]) && finite_(s[S_S2]);
+}
+
+double gd_c_deg_s(const double *p, const double *s)
+{
+    int n = ORDER(p);
+    long o = gd_layout(n).theta;
+    double one_minus = 1.0;
+    int i;
+    for (i = 0; i < n; i++)
+        one_minus -= s[o + i];
+    return s[o + n] + one_minus * s[S_ZREF];
+}
+
+double gd_step(const double *p, double *s, double z, int is_restart)
+{
+    int code = 0;
+    int lowpass = p[P_METHOD] == METHOD_LOWPASS;
+    int motion = p[P_METHOD] == METHOD_MOTION;
+    double xc, out;
+    if (is_restart)
+        gd_restart(p, s);
+    else if (p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0 && p[P_METHOD] != METHOD_NONE
+             && !lowpass && !motion)
+        code = gd_gate(p, s, z - s[S_ZREF]);
+    if (s[S_K] == 0.0) {
+        s[S_ZREF] = z;
+        s[S_LO] = z;
+        s[S_HI] = z;
+    }
+    if (z < s[S_LO])
+        s[S_LO] = z;
+    if (z > s[S_HI])
+        s[S_HI] = z;
+    if (code == 1)
+        xc = s[S_OUT];
+    else if (lowpass)
+        xc = gd_lowpass_step(p, s, z - s[S_ZREF]);
+    else if (motion)
+        xc = gd_motion_step(p, s, z - s[S_ZREF]);
+    else
+        xc = gd_filter_step(p, s, z - s[S_ZREF]);
+    if (!(healthy(p, s) && finite_(xc))) {
+        gd_restart(p, s);
+        s[S_NHEAL] += 1.0;
+        s[S_ZREF] = z;
+        s[S_LO] = z;
+        s[S_HI] = z;
+        if (lowpass)
+            xc = gd_lowpass_step(p, s, 0.0);
+        else if (motion)
+            xc = gd_motion_step(p, s, 0.0);
+        else
+            xc = gd_filter_step(p, s, 0.0);
+    }
+    if (s[S_CONV] == 0.0 || p[P_METHOD] == METHOD_NONE) {
+        out = z;
+    } else {
+        out = xc + s[S_ZREF];
+        if (out < s[S_LO]) {
+            out = s[S_LO];
+            s[S_NCLAMP] += 1.0;
+        } else if (out > s[S_HI]) {
+            out = s[S_HI];
+            s[S_NCLAMP] += 1.0;
+        }
+    }
+    s[S_OUT] = out;
+    return out;
+}
+
+void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
+            double *out, long n)
+{
+    long i;
+    if (restarts == NULL) {
+        for (i = 0; i < n; i++)
+            out[i] = gd_step(p, s, z[i], 0);
+    } else {
+        for (i = 0; i < n; i++)
+            out[i] = gd_step(p, s, z[i], restarts[i] != 0);
+    }
+}

@@ -1,0 +1,147 @@
+/*
+ * gdcore.h -- the per-sample filter kernels of gyrodenoise in portable C99.
+ *
+ * A line-by-line translation of gyrodenoise/kernels.py (the plain-Python
+ * executable specification): the same functions with a gd_ prefix, the same
+ * two flat buffers of doubles and the same floating-point operations in the
+ * same order, so that results agree with the Python to rounding (tested to
+ * 1e-12 by tests/test_ccore.py; in practice bit for bit).
+ *
+ *   p  parameters, at least GD_N_PARAMS doubles (built by kernels.make_params)
+ *   s  state, gd_layout_total(n) doubles (built by kernels.init_state)
+ *
+ * Compile with -ffp-contract=off and without -ffast-math: no fused
+ * multiply-add, no reassociation (the finiteness test v - v == 0.0 must stay).
+ * Depends on libm only (fabs, exp, sqrt).
+ *
+ * The buffers are not checked here: the caller guarantees p has GD_N_PARAMS
+ * doubles, s has gd_layout_total((int)p[P_ORDER]) doubles, and
+ * 0 <= p[P_LP_NSEC] <= GD_MAX_SOS (see gd_check, used by the Python binding).
+ */
+#ifndef GDCORE_H
+#define GDCORE_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- everything below mirrors gyrodenoise/kernels.py: keep them equal ---- */
+
+/* parameters p[] */
+#define P_ORDER 0           /* AR order n (>= 1) */
+#define P_METHOD 1          /* METHOD_* */
+#define P_LAM 2             /* RLS forgetting factor */
+#define P_B 3               /* Sage-Husa forgetting factor b */
+#define P_GAMMA 4           /* divergence criterion, Eq. (32) */
+#define P_Q0 5              /* process noise variance; 0 = auto */
+#define P_R0 6              /* measurement noise variance; 0 = auto */
+#define P_P0_RLS 7          /* initial RLS covariance (diagonal) */
+#define P_P0_KF 8           /* initial filter covariance (diagonal) */
+#define P_WARMUP 9          /* warm-up length in samples */
+#define P_R_FLOOR 10        /* lower bound of R and the auto noise levels */
+#define P_OUTLIER_SIGMA 11  /* innovation gate k; 0 = off */
+#define P_OUTLIER_RUN 12    /* rejections after which the filter re-opens */
+#define P_LP_NSEC 13        /* lowpass: number of second-order sections */
+#define P_LP_CUTOFF 14      /* lowpass: cutoff, Hz */
+#define P_SOS 15            /* lowpass: MAX_SOS x (b0, b1, b2, a1, a2) */
+#define MAX_SOS 4
+#define P_MO_RHO (P_SOS + 5 * MAX_SOS)
+#define P_MO_GAMMA (P_MO_RHO + 1)
+#define P_MO_GAIN (P_MO_RHO + 2)
+#define P_MO_EPS (P_MO_RHO + 3)
+#define P_MO_LQMIN (P_MO_RHO + 4)
+#define P_MO_LQMAX (P_MO_RHO + 5)
+#define P_MO_BR (P_MO_RHO + 6)
+#define P_MO_LQ0 (P_MO_RHO + 7)
+#define P_MO_CLIP (P_MO_RHO + 8)
+#define P_MO_BUMP (P_MO_RHO + 9)
+#define N_PARAMS (P_MO_RHO + 10)
+
+/* p[P_METHOD] values (doubles, compared with ==) */
+#define METHOD_NONE 0.0
+#define METHOD_KF 1.0
+#define METHOD_SHAKF 2.0
+#define METHOD_SH_CLASSIC 3.0
+#define METHOD_MOTION 4.0
+#define METHOD_LOWPASS 5.0
+
+/* state header s[] */
+#define S_K 0
+#define S_KD 1
+#define S_R 2
+#define S_Q 3
+#define S_S2 4
+#define S_NS2 5
+#define S_CONV 6
+#define S_INNOV 7
+#define S_SVAR 8
+#define S_NRESET 9
+#define S_OUT 10
+#define S_RLS_ERR 11
+#define S_BK 12
+#define S_NREJ 13
+#define S_REJRUN 14
+#define S_NREOPEN 15
+#define S_ZREF 16
+#define S_LO 17
+#define S_HI 18
+#define S_HOLD 19
+#define S_NCLAMP 20
+#define S_NHEAL 21
+#define N_HEADER 22
+
+/* method-specific block (lowpass delays, motion) at gd_layout_total(n) - N_EXT */
+#define N_EXT 16
+#define M_W 0
+#define M_A 1
+#define M_P00 2
+#define M_P01 3
+#define M_P11 4
+#define M_LQ 5
+#define M_R 6
+#define M_MABS 7
+#define M_Z1 8
+#define M_Z2 9
+#define M_Z3 10
+#define M_Z4 11
+#define M_UPREV 12
+#define M_BK 13
+#define M_NJUMP 14
+
+/* ---------------------------------------------------------------- layout */
+typedef struct {
+    long theta, prls, x, p, z, w, total;
+} gd_layout_t;
+
+/* offsets of (theta, P_rls, x, P, z_hist, w, total) for AR order n */
+gd_layout_t gd_layout(int n);
+long gd_layout_total(int n);
+
+/* 0 if p (n_p doubles) and s (n_s doubles) fit together, else a static
+ * one-line reason (the order must be an integer >= 1 and <= GD_MAX_ORDER). */
+#define GD_MAX_ORDER 100000
+const char *gd_check(const double *p, long n_p, long n_s);
+
+/* --------------------------------------------------------------- kernels */
+void gd_restart(const double *p, double *s);
+double gd_rls_update(const double *p, double *s, double z);
+double gd_kf_predict(const double *p, double *s, double q);
+double gd_kf_update(const double *p, double *s, double v, double r);
+void gd_start_filter(const double *p, double *s);
+void gd_tie_c(const double *p, double *s);
+int gd_ar_stable(const double *a, long o_a, int n, double *w, long o_w);
+int gd_gate(const double *p, double *s, double z);
+double gd_filter_step(const double *p, double *s, double z);
+double gd_lowpass_step(const double *p, double *s, double z);
+double gd_motion_step(const double *p, double *s, double z);
+double gd_c_deg_s(const double *p, const double *s);
+double gd_step(const double *p, double *s, double z, int is_restart);
+
+/* the batch loop: out[i] = gd_step(p, s, z[i], restarts[i]) (restarts may be NULL) */
+void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
+            double *out, long n);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* GDCORE_H */
