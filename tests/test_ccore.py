@@ -1,0 +1,337 @@
+"""The C core (gyrodenoise/core/gdcore.c, via gyrodenoise._gdcore) held to the
+plain-Python executable specification gyrodenoise/kernels.py.
+
+Every output and the final state must agree to 1e-12 relative (scaled by
+max(1, |z|max)) for every method, AR orders 1..6, the outlier gate on and off,
+lam 1 and < 1, on seeded random and hostile records (steps, lone samples up to
+1e300, offsets of 1e7, constant and quantised records, oscillating start-ups,
+restarts). In practice the two agree bit for bit: the C keeps the Python's
+operations and their order.
+"""
+
+from __future__ import annotations
+
+import array
+import math
+import random
+
+import numpy as np
+import pytest
+
+import gyrodenoise.kernels as K
+
+C = pytest.importorskip(
+    "gyrodenoise._gdcore",
+    reason="the C extension gyrodenoise._gdcore is not built "
+           "(python setup.py build_ext --inplace, or pip install .)")
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+RTOL = 1e-12
+FS = 50.0   # a short warm-up (10 (n+1) samples at least), so records stay short
+
+
+def params(method, n, sigma, lam, run=5):
+    return K.make_params(n, method, sample_rate_hz=FS, lam=lam, outlier_sigma=sigma,
+                         outlier_run=run)
+
+
+def py_run(p, z, restarts, s=None):
+    """The reference: K.step over Python lists."""
+    s = K.init_state(p) if s is None else list(s)
+    out = [K.step(p, s, float(zi), bool(ri)) for zi, ri in zip(z, restarts)]
+    return out, s
+
+
+def c_step_run(p, z, restarts, s=None):
+    pa = array.array("d", p)
+    sa = array.array("d", K.init_state(p) if s is None else s)
+    out = [C.step(pa, sa, float(zi), bool(ri)) for zi, ri in zip(z, restarts)]
+    return out, list(sa)
+
+
+def c_batch(p, z, restarts, s=None):
+    pa = np.asarray(p, dtype=np.float64)
+    sa = np.array(K.init_state(p) if s is None else s, dtype=np.float64)
+    za = np.asarray(z, dtype=np.float64)
+    out = np.empty_like(za)
+    C.run(pa, sa, za, np.asarray(restarts, dtype=np.bool_), out)
+    return out.tolist(), sa.tolist()
+
+
+def assert_close(a, b, scale, what):
+    assert len(a) == len(b)
+    for i, (x, y) in enumerate(zip(a, b)):
+        if x == y or (x != x and y != y):
+            continue
+        tol = RTOL * max(scale, abs(x))
+        assert abs(x - y) <= tol, f"{what}[{i}]: python {x!r} != C {y!r}"
+
+
+def check_against_python(p, z, restarts):
+    ref_out, ref_s = py_run(p, z, restarts)
+    out, s = c_step_run(p, z, restarts)
+    scale = max([1.0] + [abs(v) for v in z])
+    assert_close(ref_out, out, scale, "output")
+    assert_close(ref_s, s, scale, "state")
+    for v in out:
+        assert v - v == 0.0          # the kernels never output a non-finite number
+    return ref_out, ref_s
+
+
+# ----------------------------------------------------------------- records
+def hostile(kind, n, rng):
+    """A record of ``n`` samples and its restart flags."""
+    z = [0.0] * n
+    r = [False] * n
+    if kind == "gauss":
+        z = [rng.gauss(0.0, 1.0) for _ in range(n)]
+    elif kind == "ar":                       # a coloured record the AR model can identify
+        a = 0.0
+        for i in range(n):
+            a = 0.9 * a + rng.gauss(0.0, 0.1)
+            z[i] = 3.0 + a + rng.gauss(0.0, 0.02)
+    elif kind == "steps":
+        lvl = 0.0
+        for i in range(n):
+            if i % 97 == 60:
+                lvl = rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(0, 3)
+            z[i] = lvl + rng.gauss(0.0, 0.01)
+    elif kind == "spikes":                   # lone huge samples, up to 1e300
+        z = [rng.gauss(0.0, 0.1) for _ in range(n)]
+        for i in range(0, n, 53):
+            z[min(n - 1, i + 40)] = rng.choice([-1.0, 1.0]) * 10.0 ** rng.choice(
+                [3, 8, 20, 100, 155, 160, 200, 300])
+    elif kind == "offset":                   # 1e7 deg/s offset, tiny noise
+        z = [1e7 + rng.gauss(0.0, 1e-3) for _ in range(n)]
+    elif kind == "constant":
+        z = [2.5] * n
+    elif kind == "zeros":
+        z = [0.0] * n
+    elif kind == "quantised":
+        z = [round(rng.gauss(0.0, 0.6)) * 0.0625 for _ in range(n)]
+    elif kind == "oscillating":              # +-A alternating from the first sample
+        z = [(1.0 if i % 2 else -1.0) * 10.0 ** rng.uniform(-3, 4) for i in range(n)]
+    elif kind == "ramp":
+        z = [0.01 * i + rng.gauss(0.0, 0.05) for i in range(n)]
+    elif kind == "restarts":
+        z = [rng.gauss(5.0, 1.0) for _ in range(n)]
+        for i in range(0, n, 37):
+            r[i] = True
+    else:  # pragma: no cover
+        raise ValueError(kind)
+    return z, r
+
+
+KINDS = ("gauss", "ar", "steps", "spikes", "offset", "constant", "zeros", "quantised",
+         "oscillating", "ramp", "restarts")
+
+
+def mixed_record(seed, n_each=160):
+    """Every hostile kind in turn (a restart at some joins), one record."""
+    rng = random.Random(seed)
+    z, r = [], []
+    kinds = list(KINDS)
+    rng.shuffle(kinds)
+    for kind in kinds:
+        zk, rk = hostile(kind, n_each, rng)
+        if rng.random() < 0.5:
+            rk[0] = True
+        z += zk
+        r += rk
+    return z, r
+
+
+# ------------------------------------------------------------------- tests
+def test_constants_mirror_kernels():
+    for name, value in C.CONSTANTS.items():
+        assert getattr(K, name) == value and type(getattr(K, name)) is type(value), name
+    for name in dir(K):
+        if name.isupper() and name[:2] in ("P_", "S_", "M_") or name.startswith("METHOD_"):
+            assert name in C.CONSTANTS, f"{name} of kernels.py is missing from gdcore.h"
+    for n in range(0, 12):
+        assert C.layout_total(n) == K.layout(n)[6]
+
+
+@pytest.mark.parametrize("lam", [1.0, 0.98])
+@pytest.mark.parametrize("sigma", [0.0, 3.0, 5.0])
+@pytest.mark.parametrize("method", sorted(K.METHODS))
+def test_c_equals_python_every_method_order(method, sigma, lam):
+    for n in range(1, 7):
+        p = params(method, n, sigma, lam)
+        z, r = mixed_record(hash((method, sigma, lam, n)) & 0xFFFF, n_each=110)
+        check_against_python(p, z, r)
+
+
+@pytest.mark.parametrize("method", sorted(K.METHODS))
+def test_seeded_random_long(method):
+    """A long, plain record (converged filter, gate active, lam < 1)."""
+    rng = random.Random(7)
+    z, r = hostile("ar", 3000, rng)
+    for n, sigma, lam in ((1, 5.0, 1.0), (3, 3.0, 0.995), (6, 0.0, 0.99)):
+        check_against_python(params(method, n, sigma, lam), z, r)
+
+
+@pytest.mark.parametrize("method", sorted(K.METHODS))
+def test_restarts_heal_and_counters(method):
+    """Heals (1e155 squares to inf), re-openings and clamps happen and agree."""
+    rng = random.Random(3)
+    z = [rng.gauss(0.0, 1.0) for _ in range(900)]
+    for i in (150, 151, 400, 700):
+        z[i] = 1e155 * (-1) ** i
+    for i in range(500, 560):                # a run of outliers: the gate re-opens
+        z[i] += 300.0
+    r = [i in (300, 800) for i in range(900)]
+    ref_out, ref_s = check_against_python(params(method, 3, 0.0, 1.0), z, r)
+    if method != "lowpass":                  # linear: 1e155 stays finite there
+        assert ref_s[K.S_NHEAL] >= 1
+    check_against_python(params(method, 2, 5.0, 0.99, run=3), z, r)
+
+
+@pytest.mark.parametrize("method", sorted(K.METHODS))
+def test_split_runs_and_batch_equal_one_run(method):
+    p = params(method, 4, 5.0, 0.99)
+    z, r = mixed_record(11, n_each=90)
+    whole_out, whole_s = c_step_run(p, z, r)
+    batch_out, batch_s = c_batch(p, z, r)
+    assert batch_out == whole_out and batch_s == whole_s     # run == repeated step
+    # split anywhere, state carried over (through run and through step)
+    rng = random.Random(5)
+    cuts = sorted(rng.sample(range(1, len(z)), 6))
+    s, out = None, []
+    for a, b in zip([0] + cuts, cuts + [len(z)]):
+        o, s = c_batch(p, z[a:b], r[a:b], s)
+        out += o
+    assert out == whole_out and s == whole_s
+    s, out = None, []
+    for a, b in zip([0] + cuts, cuts + [len(z)]):
+        o, s = c_step_run(p, z[a:b], r[a:b], s)
+        out += o
+    assert out == whole_out and s == whole_s
+    ref_out, ref_s = py_run(p, z, r)
+    scale = max([1.0] + [abs(v) for v in z])
+    assert_close(ref_out, whole_out, scale, "output")
+    assert_close(ref_s, whole_s, scale, "state")
+
+
+def test_run_without_restarts_and_numpy_state():
+    p = params("shakf", 3, 5.0, 1.0)
+    z, _ = hostile("ar", 500, random.Random(2))
+    pa = np.asarray(p)
+    sa = np.asarray(K.init_state(p))
+    out = np.empty(len(z))
+    C.run(pa, sa, np.asarray(z), None, out)
+    ref_out, ref_s = py_run(p, z, [False] * len(z))
+    assert out.tolist() == ref_out and sa.tolist() == ref_s
+
+
+def test_restart_equals_python():
+    p = params("sh_classic", 5, 3.0, 0.99)
+    z, r = mixed_record(4, n_each=40)
+    _, s = py_run(p, z, r)
+    sc = array.array("d", s)
+    K.restart(p, s)
+    C.restart(array.array("d", p), sc)
+    assert list(sc) == s
+
+
+@settings(derandomize=True, deadline=None, database=None, max_examples=400)
+@given(method=st.sampled_from(sorted(K.METHODS)), n=st.integers(1, 6),
+       sigma=st.sampled_from([0.0, 2.0, 3.0, 5.0]), lam=st.sampled_from([1.0, 0.999, 0.95]),
+       run=st.integers(1, 30),
+       segments=st.lists(st.tuples(st.sampled_from(KINDS), st.integers(1, 120),
+                                   st.integers(0, 2 ** 16), st.booleans()),
+                         min_size=1, max_size=4),
+       scale=st.sampled_from([1e-9, 1e-3, 1.0, 1e3, 1e7]))
+def test_hypothesis_records(method, n, sigma, lam, run, segments, scale):
+    p = params(method, n, sigma, lam, run=run)
+    z, r = [], []
+    for kind, length, seed, restart in segments:
+        zk, rk = hostile(kind, length, random.Random(seed))
+        rk[0] = rk[0] or restart
+        z += [v * scale if abs(v) < 1e100 else v for v in zk]
+        r += rk
+    check_against_python(p, z, r)
+
+
+@settings(derandomize=True, deadline=None, database=None, max_examples=200)
+@given(z=st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=1,
+                  max_size=150),
+       method=st.sampled_from(sorted(K.METHODS)), n=st.integers(1, 4),
+       sigma=st.sampled_from([0.0, 5.0]))
+def test_hypothesis_any_finite_floats(z, method, n, sigma):
+    """Arbitrary finite doubles (up to 1.8e308, subnormals) sample by sample."""
+    check_against_python(params(method, n, sigma, 1.0), z, [False] * len(z))
+
+
+# -------------------------------------------------------- wrong buffers
+def _bufs(method="shakf", n=3):
+    p = params(method, n, 5.0, 1.0)
+    return p, array.array("d", p), array.array("d", K.init_state(p))
+
+
+def test_wrong_sizes_raise_value_error():
+    p, pa, sa = _bufs()
+    for bad_s in (sa[:-1], sa + array.array("d", [0.0]), array.array("d")):
+        with pytest.raises(ValueError, match="s has the wrong length"):
+            C.step(pa, bad_s, 1.0, False)
+        with pytest.raises(ValueError):
+            C.restart(pa, bad_s)
+        with pytest.raises(ValueError):
+            C.run(pa, bad_s, array.array("d", [1.0]), None, array.array("d", [0.0]))
+    with pytest.raises(ValueError, match="p is too short"):
+        C.step(pa[:-1], sa, 1.0, False)
+    with pytest.raises(ValueError, match="p is too short"):
+        C.step(array.array("d"), sa, 1.0, False)
+    # the order decides the length of s: a state of another order is refused
+    p5 = array.array("d", params("shakf", 5, 5.0, 1.0))
+    with pytest.raises(ValueError, match="wrong length"):
+        C.step(p5, sa, 1.0, False)
+    for order in (0.0, -1.0, float("nan"), float("inf"), 1e12):
+        bad = array.array("d", p)
+        bad[K.P_ORDER] = order
+        with pytest.raises(ValueError, match="P_ORDER"):
+            C.step(bad, sa, 1.0, False)
+    for nsec in (-1.0, 5.0, float("nan"), 1e9):
+        bad = array.array("d", p)
+        bad[K.P_LP_NSEC] = nsec
+        with pytest.raises(ValueError, match="P_LP_NSEC"):
+            C.step(bad, sa, 1.0, False)
+    z = array.array("d", [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="out has"):
+        C.run(pa, sa, z, None, array.array("d", [0.0] * 2))
+    with pytest.raises(ValueError, match="restarts has"):
+        C.run(pa, sa, z, bytes(4), array.array("d", [0.0] * 3))
+    assert list(sa) == K.init_state(p)       # nothing was touched
+
+
+def test_wrong_types_raise_type_error():
+    p, pa, sa = _bufs()
+    with pytest.raises(TypeError):
+        C.step(p, sa, 1.0, False)                          # a list is not a buffer
+    with pytest.raises(TypeError):
+        C.step(pa, list(sa), 1.0, False)
+    with pytest.raises(TypeError):
+        C.step(np.asarray(p, dtype=np.float32), sa, 1.0, False)
+    with pytest.raises(TypeError):
+        C.step(pa, memoryview(bytes(sa)).cast("d"), 1.0, False)   # read-only state
+    s2 = np.zeros(2 * len(sa))
+    with pytest.raises((TypeError, ValueError)):           # numpy: ValueError
+        C.step(pa, s2[::2], 1.0, False)                    # not contiguous
+    with pytest.raises(TypeError):
+        C.step(pa, sa, "1.0", False)
+    with pytest.raises(TypeError):
+        C.step(pa, sa, 1.0)
+    with pytest.raises(TypeError):
+        C.run(pa, sa, array.array("d", [1.0]), array.array("i", [0]), array.array("d", [0.0]))
+    assert list(sa) == K.init_state(p)
+
+
+def test_step_accepts_numpy_and_ints():
+    p, pa, sa = _bufs("motion", 2)
+    sn = np.asarray(K.init_state(p))
+    for i, zi in enumerate([1, 2.5, np.float64(3.0), 4]):
+        a = C.step(pa, sa, zi, i == 2)
+        b = C.step(np.asarray(p), sn, zi, np.bool_(i == 2))
+        assert a == b
+    assert list(sa) == sn.tolist()
