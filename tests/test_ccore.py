@@ -188,6 +188,28 @@ def test_restarts_heal_and_counters(method):
     check_against_python(params(method, 2, 5.0, 0.99, run=3), z, r)
 
 
+def test_rare_paths():
+    """Branches the records above do not reach with the default parameters."""
+    rng = random.Random(9)
+    white = [rng.gauss(0.0, 1.0) for _ in range(1500)]
+    # b^(k+1) underflows below 1e-290 (set to 0) after ~145 samples with b = 0.01
+    for method in ("shakf", "sh_classic"):
+        p = K.make_params(2, method, sample_rate_hz=FS, b=0.01, gamma=50.0)
+        _, s = check_against_python(p, white[:400], [False] * 400)
+        assert s[K.S_BK] == 0.0
+    # motion: the correlation clip and the lower bound of log q
+    p = params("motion", 1, 0.0, 1.0)
+    p[K.P_MO_CLIP] = 0.3
+    p[K.P_MO_LQMIN] = -16.0
+    z = white[:700] + [10.0 * v for v in white[700:]]
+    _, s = check_against_python(p, z, [False] * len(z))
+    # the centred sample itself overflows (z - z_ref = inf): every method heals
+    for method in sorted(K.METHODS):
+        z = [-1e308, 1e308, 1.0, 2.0] + white[:100] + [1.5e308, -1.5e308] + white[:50]
+        _, s = check_against_python(params(method, 2, 5.0, 1.0), z, [False] * len(z))
+        assert s[K.S_NHEAL] >= 1
+
+
 @pytest.mark.parametrize("method", sorted(K.METHODS))
 def test_split_runs_and_batch_equal_one_run(method):
     p = params(method, 4, 5.0, 0.99)
@@ -212,6 +234,20 @@ def test_split_runs_and_batch_equal_one_run(method):
     scale = max([1.0] + [abs(v) for v in z])
     assert_close(ref_out, whole_out, scale, "output")
     assert_close(ref_s, whole_s, scale, "state")
+
+
+@pytest.mark.parametrize("method", sorted(K.METHODS))
+def test_bit_identical(method):
+    """Stronger than 1e-12: the C keeps the Python's operations in their order,
+    so with IEEE doubles and no fused multiply-add (-ffp-contract=off) the
+    numbers are the same bits. A failure here (with the 1e-12 tests passing)
+    means an operation was reordered or the build flags changed."""
+    for n, sigma, lam in ((1, 3.0, 1.0), (3, 5.0, 0.99), (6, 0.0, 0.98)):
+        p = params(method, n, sigma, lam)
+        z, r = mixed_record(100 + n, n_each=150)
+        ref_out, ref_s = py_run(p, z, r)
+        out, s = c_step_run(p, z, r)
+        assert out == ref_out and s == ref_s
 
 
 def test_run_without_restarts_and_numpy_state():
