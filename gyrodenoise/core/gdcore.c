@@ -12,7 +12,17 @@
 
 #define ORDER(p) ((int)(p)[P_ORDER])
 
-gd_layout_t gd_layout(int n)
+/* The kernels are inlined into the batch loop, specialised there for the
+ * common AR orders (constant loop bounds); the arithmetic is unchanged. */
+#if defined(__GNUC__)
+#define KERNEL static inline __attribute__((always_inline))
+#else
+#define KERNEL static inline
+#endif
+
+KERNEL void tie_c_(const double *p, double *s);
+
+KERNEL gd_layout_t layout_(int n)
 {
     gd_layout_t L;
     long m = (long)n + 1;
@@ -26,9 +36,9 @@ gd_layout_t gd_layout(int n)
     return L;
 }
 
-long gd_layout_total(int n)
+KERNEL long layout_total_(int n)
 {
-    return gd_layout(n).total;
+    return layout_(n).total;
 }
 
 const char *gd_check(const double *p, long n_p, long n_s)
@@ -42,16 +52,16 @@ const char *gd_check(const double *p, long n_p, long n_s)
     nsec = p[P_LP_NSEC];
     if (!(nsec >= 0.0 && nsec < (double)(MAX_SOS + 1)))
         return "p[P_LP_NSEC] must be in 0..MAX_SOS";
-    if (n_s != gd_layout_total(ORDER(p)))
+    if (n_s != layout_total_(ORDER(p)))
         return "s has the wrong length for the AR order p[P_ORDER]";
     return NULL;
 }
 
-void gd_restart(const double *p, double *s)
+KERNEL void restart_(const double *p, double *s)
 {
     int n = ORDER(p);
     long m = (long)n + 1;
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     double nrej = s[S_NREJ], nreopen = s[S_NREOPEN], nclamp = s[S_NCLAMP], nheal = s[S_NHEAL];
     long i;
     for (i = 0; i < L.total; i++)
@@ -69,7 +79,7 @@ void gd_restart(const double *p, double *s)
 }
 
 /* g = P h into w (h = regressor, h[n] = 1); returns lam + h' P h */
-static double rls_gain(const double *p, double *s, long o_prls, long o_z, long o_w, int n, long m)
+KERNEL double rls_gain(const double *p, double *s, long o_prls, long o_z, long o_w, int n, long m)
 {
     long i, j;
     double acc, den;
@@ -85,12 +95,12 @@ static double rls_gain(const double *p, double *s, long o_prls, long o_z, long o
     return den;
 }
 
-double gd_rls_update(const double *p, double *s, double z)
+KERNEL double rls_update_(const double *p, double *s, double z)
 {
     int n = ORDER(p);
     long m = (long)n + 1;
     double lam = p[P_LAM];
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     double e = 0.0;
     long i, j;
     if (s[S_K] >= (double)n) {
@@ -133,11 +143,11 @@ double gd_rls_update(const double *p, double *s, double z)
     return e;
 }
 
-double gd_kf_predict(const double *p, double *s, double q)
+KERNEL double kf_predict_(const double *p, double *s, double q)
 {
     int n = ORDER(p);
     long m = (long)n + 1;
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     long i, j;
     double x0, acc, p00, v;
     x0 = s[L.x + n];
@@ -172,11 +182,11 @@ double gd_kf_predict(const double *p, double *s, double q)
     return x0;
 }
 
-double gd_kf_update(const double *p, double *s, double v, double r)
+KERNEL double kf_update_(const double *p, double *s, double v, double r)
 {
     int n = ORDER(p);
     long m = (long)n + 1;
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     long i, j;
     double svar = s[L.p] + r;
     double inv_s = 1.0 / svar;
@@ -198,11 +208,11 @@ double gd_kf_update(const double *p, double *s, double v, double r)
     return svar;
 }
 
-void gd_start_filter(const double *p, double *s)
+KERNEL void start_filter_(const double *p, double *s)
 {
     int n = ORDER(p);
     long m = (long)n + 1;
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     long i;
     for (i = 0; i < m * m; i++)
         s[L.p + i] = 0.0;
@@ -210,14 +220,14 @@ void gd_start_filter(const double *p, double *s)
         s[L.x + i] = s[L.z + i];
         s[L.p + i * m + i] = s[S_R];
     }
-    gd_tie_c(p, s);
+    tie_c_(p, s);
 }
 
-void gd_tie_c(const double *p, double *s)
+KERNEL void tie_c_(const double *p, double *s)
 {
     int n = ORDER(p);
     long m = (long)n + 1;
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     long i;
     s[L.x + n] = s[L.theta + n];
     for (i = 0; i < n; i++) {
@@ -228,7 +238,7 @@ void gd_tie_c(const double *p, double *s)
 }
 
 /* a and w may be the same buffer (step passes s twice) */
-int gd_ar_stable(const double *a, long o_a, int n, double *w, long o_w)
+KERNEL int ar_stable_(const double *a, long o_a, int n, double *w, long o_w)
 {
     int i, order, lo, hi;
     double kr, den, al, ah;
@@ -257,14 +267,14 @@ int gd_ar_stable(const double *a, long o_a, int n, double *w, long o_w)
     return 1;
 }
 
-int gd_gate(const double *p, double *s, double z)
+KERNEL int gate_(const double *p, double *s, double z)
 {
     int n = ORDER(p);
     long m = (long)n + 1;
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     long i, j;
     double xp, p00, acc, svar, v, k, x0;
-    gd_tie_c(p, s);
+    tie_c_(p, s);
     xp = s[L.x + n];
     for (i = 0; i < n; i++)
         xp += s[L.theta + i] * s[L.x + i];
@@ -284,14 +294,14 @@ int gd_gate(const double *p, double *s, double z)
         return 0;
     }
     if (s[S_REJRUN] >= p[P_OUTLIER_RUN]) {
-        gd_restart(p, s);
+        restart_(p, s);
         s[S_NREOPEN] += 1.0;
         return 2;
     }
     if (s[S_REJRUN] == 0.0)
-        s[S_HOLD] = gd_ar_stable(s, L.theta, n, s, L.w) ? 0.0 : 1.0;
+        s[S_HOLD] = ar_stable_(s, L.theta, n, s, L.w) ? 0.0 : 1.0;
     if (s[S_HOLD] == 0.0)
-        x0 = gd_kf_predict(p, s, s[S_Q]);
+        x0 = kf_predict_(p, s, s[S_Q]);
     else
         x0 = s[L.x];
     for (j = n - 1; j > 0; j--)
@@ -307,12 +317,12 @@ int gd_gate(const double *p, double *s, double z)
     return 1;
 }
 
-double gd_filter_step(const double *p, double *s, double z)
+KERNEL double filter_step_(const double *p, double *s, double z)
 {
     int n = ORDER(p);
     double method = p[P_METHOD];
     double floor_ = p[P_R_FLOOR];
-    gd_layout_t L = gd_layout(n);
+    gd_layout_t L = layout_(n);
     double k = s[S_K];
     long m = (long)n + 1;
     long i;
@@ -330,11 +340,11 @@ double gd_filter_step(const double *p, double *s, double z)
             s[S_CONV] = 1.0;
             s[S_KD] = 0.0;
             s[S_BK] = p[P_B];
-            gd_start_filter(p, s);
+            start_filter_(p, s);
         }
     }
 
-    e = gd_rls_update(p, s, z);
+    e = rls_update_(p, s, z);
     s[S_RLS_ERR] = e;
     if (k >= 10.0 * (double)m) {
         s[S_NS2] += 1.0;
@@ -351,9 +361,9 @@ double gd_filter_step(const double *p, double *s, double z)
         return z;
     }
 
-    gd_tie_c(p, s);
+    tie_c_(p, s);
     q = s[S_Q];
-    xp = gd_kf_predict(p, s, q);
+    xp = kf_predict_(p, s, q);
     v = z - xp;
     p00 = s[L.p];
     r = s[S_R];
@@ -379,14 +389,14 @@ double gd_filter_step(const double *p, double *s, double z)
         if (r < floor_)
             r = floor_;
         s[S_R] = r;
-        svar = gd_kf_update(p, s, v, r);
+        svar = kf_update_(p, s, v, r);
         k0 = p00 / svar;
         q = q + d * k0 * k0 * (v * v - svar);
         if (q < floor_)
             q = floor_;
         s[S_Q] = q;
     } else {
-        svar = gd_kf_update(p, s, v, r);
+        svar = kf_update_(p, s, v, r);
     }
 
     s[S_INNOV] = v;
@@ -399,10 +409,10 @@ double gd_filter_step(const double *p, double *s, double z)
     return out;
 }
 
-double gd_lowpass_step(const double *p, double *s, double z)
+KERNEL double lowpass_step_(const double *p, double *s, double z)
 {
     int n = ORDER(p);
-    long o = gd_layout_total(n) - N_EXT;
+    long o = layout_total_(n) - N_EXT;
     double y = z, x;
     int i, nsec = (int)p[P_LP_NSEC];
     for (i = 0; i < nsec; i++) {
@@ -417,9 +427,9 @@ double gd_lowpass_step(const double *p, double *s, double z)
     return y;
 }
 
-double gd_motion_step(const double *p, double *s, double z)
+KERNEL double motion_step_(const double *p, double *s, double z)
 {
-    long o = gd_layout_total(ORDER(p)) - N_EXT;
+    long o = layout_total_(ORDER(p)) - N_EXT;
     double k = s[S_K];
     double r, rho, qn, wp, ap, p00, p01, p11, v, sv, g, lq, k0, k1;
     if (k == 0.0) {
@@ -510,22 +520,22 @@ double gd_motion_step(const double *p, double *s, double z)
 
 /* Python's v - v == 0.0: false for inf and nan. volatile-free: without
  * -ffast-math the compiler may not fold v - v to 0. */
-static int finite_(double v)
+KERNEL int finite_(double v)
 {
     return v - v == 0.0;
 }
 
-static int healthy(const double *p, const double *s)
+KERNEL int healthy(const double *p, const double *s)
 {
-    long o_x = gd_layout(ORDER(p)).x;
+    long o_x = layout_(ORDER(p)).x;
     return finite_(s[o_x]) && finite_(s[S_SVAR]) && finite_(s[S_R])
         && finite_(s[S_Q]) && finite_(s[S_RLS_ERR]) && finite_(s[S_S2]);
 }
 
-double gd_c_deg_s(const double *p, const double *s)
+KERNEL double c_deg_s_(const double *p, const double *s)
 {
     int n = ORDER(p);
-    long o = gd_layout(n).theta;
+    long o = layout_(n).theta;
     double one_minus = 1.0;
     int i;
     for (i = 0; i < n; i++)
@@ -533,17 +543,17 @@ double gd_c_deg_s(const double *p, const double *s)
     return s[o + n] + one_minus * s[S_ZREF];
 }
 
-double gd_step(const double *p, double *s, double z, int is_restart)
+KERNEL double step_(const double *p, double *s, double z, int is_restart)
 {
     int code = 0;
     int lowpass = p[P_METHOD] == METHOD_LOWPASS;
     int motion = p[P_METHOD] == METHOD_MOTION;
     double xc, out;
     if (is_restart)
-        gd_restart(p, s);
+        restart_(p, s);
     else if (p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0 && p[P_METHOD] != METHOD_NONE
              && !lowpass && !motion)
-        code = gd_gate(p, s, z - s[S_ZREF]);
+        code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;
         s[S_LO] = z;
@@ -556,23 +566,23 @@ double gd_step(const double *p, double *s, double z, int is_restart)
     if (code == 1)
         xc = s[S_OUT];
     else if (lowpass)
-        xc = gd_lowpass_step(p, s, z - s[S_ZREF]);
+        xc = lowpass_step_(p, s, z - s[S_ZREF]);
     else if (motion)
-        xc = gd_motion_step(p, s, z - s[S_ZREF]);
+        xc = motion_step_(p, s, z - s[S_ZREF]);
     else
-        xc = gd_filter_step(p, s, z - s[S_ZREF]);
+        xc = filter_step_(p, s, z - s[S_ZREF]);
     if (!(healthy(p, s) && finite_(xc))) {
-        gd_restart(p, s);
+        restart_(p, s);
         s[S_NHEAL] += 1.0;
         s[S_ZREF] = z;
         s[S_LO] = z;
         s[S_HI] = z;
         if (lowpass)
-            xc = gd_lowpass_step(p, s, 0.0);
+            xc = lowpass_step_(p, s, 0.0);
         else if (motion)
-            xc = gd_motion_step(p, s, 0.0);
+            xc = motion_step_(p, s, 0.0);
         else
-            xc = gd_filter_step(p, s, 0.0);
+            xc = filter_step_(p, s, 0.0);
     }
     if (s[S_CONV] == 0.0 || p[P_METHOD] == METHOD_NONE) {
         out = z;
@@ -590,15 +600,71 @@ double gd_step(const double *p, double *s, double z, int is_restart)
     return out;
 }
 
+/* the batch loop for a p whose order is the constant `order` (p copied to a
+ * local array: the compiler then knows that s never aliases it) */
+KERNEL void run_order(const double *p0, double *s, const double *z,
+                      const unsigned char *restarts, double *out, long n, int order)
+{
+    double p[N_PARAMS];
+    long i;
+    for (i = 0; i < N_PARAMS; i++)
+        p[i] = p0[i];
+    p[P_ORDER] = (double)order;
+    if (restarts == NULL) {
+        for (i = 0; i < n; i++)
+            out[i] = step_(p, s, z[i], 0);
+    } else {
+        for (i = 0; i < n; i++)
+            out[i] = step_(p, s, z[i], restarts[i] != 0);
+    }
+}
+
+static void run_1(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 1); }
+static void run_2(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 2); }
+static void run_3(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 3); }
+static void run_4(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 4); }
+
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
             double *out, long n)
 {
     long i;
-    if (restarts == NULL) {
+    double order = p[P_ORDER];
+    if (order == 1.0)
+        run_1(p, s, z, restarts, out, n);
+    else if (order == 2.0)
+        run_2(p, s, z, restarts, out, n);
+    else if (order == 3.0)
+        run_3(p, s, z, restarts, out, n);
+    else if (order == 4.0)
+        run_4(p, s, z, restarts, out, n);
+    else if (restarts == NULL)
         for (i = 0; i < n; i++)
-            out[i] = gd_step(p, s, z[i], 0);
-    } else {
+            out[i] = step_(p, s, z[i], 0);
+    else
         for (i = 0; i < n; i++)
-            out[i] = gd_step(p, s, z[i], restarts[i] != 0);
-    }
+            out[i] = step_(p, s, z[i], restarts[i] != 0);
 }
+
+/* ------------------------------------------------------------------------
+ * The public names. The kernels above are static so that the compiler may
+ * inline them into step_ and gd_run (exported functions in a -fPIC shared
+ * object may be interposed, which forbids inlining them).
+ */
+gd_layout_t gd_layout(int n) { return layout_(n); }
+long gd_layout_total(int n) { return layout_total_(n); }
+void gd_restart(const double *p, double *s) { restart_(p, s); }
+double gd_rls_update(const double *p, double *s, double z) { return rls_update_(p, s, z); }
+double gd_kf_predict(const double *p, double *s, double q) { return kf_predict_(p, s, q); }
+double gd_kf_update(const double *p, double *s, double v, double r) { return kf_update_(p, s, v, r); }
+void gd_start_filter(const double *p, double *s) { start_filter_(p, s); }
+void gd_tie_c(const double *p, double *s) { tie_c_(p, s); }
+int gd_ar_stable(const double *a, long o_a, int n, double *w, long o_w)
+{
+    return ar_stable_(a, o_a, n, w, o_w);
+}
+int gd_gate(const double *p, double *s, double z) { return gate_(p, s, z); }
+double gd_filter_step(const double *p, double *s, double z) { return filter_step_(p, s, z); }
+double gd_lowpass_step(const double *p, double *s, double z) { return lowpass_step_(p, s, z); }
+double gd_motion_step(const double *p, double *s, double z) { return motion_step_(p, s, z); }
+double gd_c_deg_s(const double *p, const double *s) { return c_deg_s_(p, s); }
+double gd_step(const double *p, double *s, double z, int is_restart) { return step_(p, s, z, is_restart); }
