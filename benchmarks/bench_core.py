@@ -24,8 +24,9 @@ def best_of(fn, repeat=3):
 
 def main():
     import gyrodenoise as gd
-    from gyrodenoise import allanvar, kernels as K
-    from gyrodenoise.batch import run
+    from gyrodenoise import allanvar
+    from gyrodenoise.core import kernels as K
+    from gyrodenoise.core.batch import run
     rng = np.random.default_rng(0)
     n = 1_440_000                                     # 2 h at 200 Hz
     z = gd.simulate("paper_fog", n, seed=0).rate_deg_s

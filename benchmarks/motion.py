@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 import gyrodenoise as gd
-from gyrodenoise import kernels as K
+from gyrodenoise.core import kernels as K
 from gyrodenoise import reference_filters as RF
 from gyrodenoise.profiles import PROFILES
 

@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 
 import gyrodenoise as gd
-from gyrodenoise import kernels as K
+from gyrodenoise.core import kernels as K
 from gyrodenoise.allanvar import allan
-from gyrodenoise.batch import run
+from gyrodenoise.core.batch import run
 from gyrodenoise.experiments import rise_time
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "static"

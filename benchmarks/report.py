@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 import gyrodenoise as gd
-from gyrodenoise import kernels as K
+from gyrodenoise.core import kernels as K
 from gyrodenoise import reference_filters as RF
 from gyrodenoise.allanvar import TERM_NAMES
 from gyrodenoise.experiments import compare, filter_record, paper_std, rise_time, rmse

@@ -34,8 +34,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gyrodenoise import kernels as K  # noqa: E402
-from gyrodenoise.batch import run  # noqa: E402
+from gyrodenoise.core import kernels as K  # noqa: E402
+from gyrodenoise.core.batch import run  # noqa: E402
 from gyrodenoise.simulator import DEG_RTH, SimStream, load_card  # noqa: E402
 
 

@@ -91,7 +91,7 @@ def _check(args):
     if args.warmup_s is not None and not args.warmup_s >= 0:
         raise InputError(f"--warmup-s must be >= 0, got {args.warmup_s}")
     try:
-        from gyrodenoise.kernels import make_params
+        from gyrodenoise.core.kernels import make_params
         make_params(ar_order=args.ar_order, sample_rate_hz=50.0, **_filter_kw(args))
     except ValueError as exc:
         raise InputError(str(exc)) from None

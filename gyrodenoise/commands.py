@@ -26,7 +26,7 @@ def _add_input_options(p):
 
 def _add_filter_options(p, method=True):
     if method:
-        from .kernels import DEFAULT_METHOD, METHODS
+        from .core.kernels import DEFAULT_METHOD, METHODS
         p.add_argument("--method", default=DEFAULT_METHOD, choices=list(METHODS),
                        help=f"filter (default: {DEFAULT_METHOD}); shakf is the paper's modified Sage-Husa AKF, "
                             "lowpass a causal Butterworth (--cutoff-hz, --order)")
@@ -68,7 +68,7 @@ def _read(args):
 
 
 def _check_params(args, fs):
-    from . import kernels as K
+    from .core import kernels as K
     try:
         K.make_params(ar_order=args.ar_order, sample_rate_hz=fs, method=getattr(args, "method", "shakf"),
                       **_filter_kw(args))
@@ -231,7 +231,7 @@ def cmd_demo(args):
     from .experiments import compare, dynamic_table
     from .simulator import load_card, simulate
     t0 = time.perf_counter()
-    from . import kernels as K
+    from .core import kernels as K
     try:
         K.make_params(outlier_sigma=args.outlier_sigma, outlier_run=args.outlier_run)
     except ValueError as exc:

@@ -1,20 +1,42 @@
-"""The denoiser as a thin class over the kernels, and the batch function.
+"""The denoiser as a thin class over the core, and the batch function.
 
 :class:`Denoiser` keeps the parameter and state buffers of one gyro axis and
-offers both speeds: :meth:`Denoiser.step` (plain Python, one sample, used by the
-FMU and live links) and :meth:`Denoiser.process` (the compiled batch loop, used
-for arrays). They share the state, so a stream may mix them freely.
+offers both speeds: :meth:`Denoiser.step` (one sample, used by the FMU and
+live links) and :meth:`Denoiser.process` (the batch loop, for arrays). Both
+run the C core (``gyrodenoise/core/gdcore.c`` through the extension
+:mod:`gyrodenoise.core._gdcore`) when it is built, else the plain-Python
+kernels (:mod:`gyrodenoise.core.kernels`, the executable specification; same
+numbers). They share the state, so a stream may mix them freely.
 """
 
 from __future__ import annotations
 
-from . import kernels as K
+from array import array
+
+from .core import kernels as K
+
+try:
+    from .core import _gdcore as _C
+    _C_MISSING = ""
+except ImportError as exc:  # pragma: no cover - no compiler at install, or an FMU on another platform
+    _C = None
+    _C_MISSING = str(exc)
+
+
+def core_name():
+    """Which implementation runs the filter: ``"C"`` or ``"Python"``."""
+    return "C" if _C is not None else "Python"
+
+
+def core_fallback_reason():
+    """Why the C core could not be imported ("" when it runs)."""
+    return _C_MISSING
 
 
 class Denoiser:
-    """Online improved-AR(n) identification + KF/SHAKF for one gyro axis.
+    """Online improved-AR(n) identification + KF/SHAKF, or ``motion``, for one gyro axis.
 
-    Parameters are those of :func:`gyrodenoise.kernels.make_params`.
+    Parameters are those of :func:`gyrodenoise.core.kernels.make_params`.
 
     Examples
     --------
@@ -23,29 +45,33 @@ class Denoiser:
     """
 
     def __init__(self, sample_rate_hz=200.0, method=K.DEFAULT_METHOD, ar_order=3, **kw):
-        self.params = K.make_params(ar_order=ar_order, method=method,
-                                    sample_rate_hz=sample_rate_hz, **kw)
-        self.state = K.init_state(self.params)
+        params = K.make_params(ar_order=ar_order, method=method, sample_rate_hz=sample_rate_hz, **kw)
+        # float64 buffers the C core reads and writes in place (plain lists for
+        # the Python kernels); ``state`` indexes like a list either way
+        self.params = array("d", params) if _C is not None else params
+        self.state = self._buffer(K.init_state(params))
         self.sample_rate_hz = float(sample_rate_hz)
+        self._step = _C.step if _C is not None else K.step
 
-    # -- per-sample path (no numpy needed)
+    @staticmethod
+    def _buffer(values):
+        return array("d", values) if _C is not None else [float(v) for v in values]
+
+    # -- per-sample path
     def step(self, rate_deg_s, restart=False):
         """Filter one sample (deg/s); ``restart`` marks a gyro restart."""
-        if not isinstance(self.state, list):
-            self.state = [float(v) for v in self.state]
-        return K.step(self.params, self.state, float(rate_deg_s), bool(restart))
+        return self._step(self.params, self.state, float(rate_deg_s), bool(restart))
 
     def reset(self):
         """Forget everything (as at construction)."""
-        self.state = K.init_state(self.params)
+        self.state = self._buffer(K.init_state(list(self.params)))
 
     # -- batch path
     def process(self, rate_deg_s, restarts=None, compiled=True):
         """Filter an array, continuing the state; returns a numpy array."""
-        from . import batch
-        out, st = batch.run(self.params, self.state, rate_deg_s, restarts,
-                            compiled=compiled)
-        self.state = [float(v) for v in st]
+        from .core import batch
+        out, st = batch.run(self.params, self.state, rate_deg_s, restarts, compiled=compiled)
+        self.state = self._buffer(st.tolist())
         return out
 
     # -- readouts
@@ -105,7 +131,7 @@ class Denoiser:
     def set_state(self, state):
         if len(state) != len(self.state):
             raise ValueError(f"state has {len(state)} values, expected {len(self.state)}")
-        self.state = [float(v) for v in state]
+        self.state = self._buffer(state)
 
 
 def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, restarts=None,
@@ -142,7 +168,7 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
     """
     import numpy as np
 
-    from . import batch
+    from .core import batch
     p = K.make_params(ar_order=ar_order, method=method,
                       sample_rate_hz=sample_rate_hz, **kw)
     if zero_phase and method != "lowpass":

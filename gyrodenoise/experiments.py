@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels as K
+from .core import kernels as K
 from .allanvar import TERM_NAMES, allan
-from .batch import run as batch_run
+from .core.batch import run as batch_run
 from .simulator import load_card, simulate
 
 METHODS = ("kf", "shakf", "motion")   # the paper's two filters, and ours beside them

@@ -110,8 +110,8 @@ def psd_figure(residual, sample_rate_hz, path):
 
 def demo_figures(card, rec, res, outdir, ar_order=3, seed=0):
     """All demo figures into ``outdir``; returns their paths."""
-    from . import kernels as K
-    from .batch import run
+    from .core import kernels as K
+    from .core.batch import run
     outdir = Path(outdir)
     figs = [allan_figure(res["_allan"], outdir / "allan.png",
                          f"Allan deviation, {card.name} (dashed: fit of Eq. 40)")]

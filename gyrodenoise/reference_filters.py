@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from . import kernels as K
+from .core import kernels as K
 
 try:
     import numba
@@ -49,10 +49,6 @@ def _njit(fn):
     return numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
 
 
-if numba is not None:
-    # numba does not see kernels.py changes in what _record_py inlines
-    from .batch import invalidate_stale_cache
-    invalidate_stale_cache("reference_filters", ("reference_filters.*.nb[ic]",))
 
 
 # ------------------------------------------------------------ low-pass filters
@@ -160,9 +156,13 @@ def butter2(rate_deg_s, sample_rate_hz, cutoff_hz, zi=None):
 
 
 # ------------------------------------------------ the AR model a run used
-def _record_py(p, s, z, restarts, out, theta, q_used, r_used, conv):
-    """Run the kernels; record per sample [phi, c], the q of the time update,
-    the r of the measurement update, and the converged flag."""
+def _record(p, s, z, restarts, out, theta, q_used, r_used, conv):
+    """Run the core sample by sample; record per sample [phi, c], the q of the
+    time update, the r of the measurement update, and the converged flag."""
+    from .core.batch import C
+    step = C.step if C is not None else K.step
+    if C is None:
+        p, s = list(p), list(s)
     n = int(p[K.P_ORDER])
     o = K.N_HEADER
     for i in range(z.shape[0]):
@@ -172,7 +172,7 @@ def _record_py(p, s, z, restarts, out, theta, q_used, r_used, conv):
             pre_q = -1.0
         else:
             pre_q = s[K.S_Q]
-        out[i] = K.step(p, s, z[i], restarts[i])
+        out[i] = step(p, s, float(z[i]), bool(restarts[i]))
         for j in range(n):
             theta[i, j] = s[o + j]
         theta[i, n] = K.c_deg_s(p, s)
@@ -184,9 +184,6 @@ def _record_py(p, s, z, restarts, out, theta, q_used, r_used, conv):
             # q the step starts from, unchanged by the KF, adapted by SHAKF
             pre_q = s[K.S_Q] if p[K.P_METHOD] == K.METHOD_KF else -1.0
         q_used[i] = pre_q
-
-
-_record_fast = _njit(_record_py) if numba is not None else None
 
 
 def record_ar_model(rate_deg_s, sample_rate_hz, method="kf", ar_order=3, restarts=None, **kw):
@@ -221,7 +218,7 @@ def record_ar_model(rate_deg_s, sample_rate_hz, method="kf", ar_order=3, restart
     q = np.empty_like(z)
     r = np.empty_like(z)
     conv = np.empty_like(z)
-    (_record_fast or _record_py)(p, s, z, ra, out, theta, q, r, conv)
+    _record(p, s, z, ra, out, theta, q, r, conv)
     q[q < 0.0] = np.nan
     return {"out": out, "phi": theta[:, :n], "c": theta[:, n], "q": q, "r": r,
             "converged": conv == 1.0, "params": p}

@@ -1,4 +1,4 @@
-"""The C core (gyrodenoise/core/gdcore.c, via gyrodenoise._gdcore) held to the
+"""The C core (gyrodenoise/core/gdcore.c, via gyrodenoise.core._gdcore) held to the
 plain-Python executable specification gyrodenoise/kernels.py.
 
 Every output and the final state must agree to 1e-12 relative (scaled by
@@ -19,11 +19,11 @@ import zlib
 import numpy as np
 import pytest
 
-import gyrodenoise.kernels as K
+import gyrodenoise.core.kernels as K
 
 C = pytest.importorskip(
-    "gyrodenoise._gdcore",
-    reason="the C extension gyrodenoise._gdcore is not built "
+    "gyrodenoise.core._gdcore",
+    reason="the C extension gyrodenoise.core._gdcore is not built "
            "(python setup.py build_ext --inplace, or pip install .)")
 
 from hypothesis import given, settings, strategies as st  # noqa: E402

@@ -60,8 +60,8 @@ def test_compare_json_contract(sim_csv):
     code, out, err = run_cli("compare", path, "--json")
     assert code == 0, err
     d = json.loads(out)
-    assert set(d["rows"]) == {"raw", "ar_fit", "kf", "shakf"}
-    assert set(d["rmse_deg_s"]) == {"raw", "kf", "shakf"}
+    assert set(d["rows"]) == {"raw", "ar_fit", "kf", "shakf", "motion"}   # motion beside the paper's two
+    assert set(d["rmse_deg_s"]) == {"raw", "kf", "shakf", "motion"}
     assert d["rmse_deg_s"]["shakf"] < d["rmse_deg_s"]["kf"] < d["rmse_deg_s"]["raw"]
     assert d["rows"]["shakf"]["N"] < d["rows"]["raw"]["N"]
 

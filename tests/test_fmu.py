@@ -94,11 +94,15 @@ def test_model_description_interface(fmu_dir):
     assert v2["seed"].causality == "parameter" and v2["card"].type == "String"
 
 
-def test_bundled_core_is_plain_path_only(fmu_dir):
+def test_bundled_core_is_the_per_sample_path_only(fmu_dir):
+    """The FMU carries the plain-Python kernels and the C core of this build, nothing else."""
     with zipfile.ZipFile(fmu_dir / "FogDenoiser.fmu") as z:
         names = set(z.namelist())
     core = {n for n in names if n.startswith("resources/gdcore/") and n.endswith(".py")}
-    assert core == {f"resources/gdcore/{m}" for m in ("__init__.py", "kernels.py", "denoiser.py", "errors.py")}
+    assert core == {f"resources/gdcore/{m}" for m in ("__init__.py", "core/__init__.py", "core/kernels.py",
+                                                      "denoiser.py", "errors.py")}
+    binaries = {n for n in names if n.startswith("resources/gdcore/core/_gdcore")}
+    assert binaries == {f"resources/gdcore/core/{so.name}" for so in F.compiled_core_files()}
     assert F.stale_reason(fmu_dir / "FogDenoiser.fmu") is None
 
 
@@ -524,3 +528,30 @@ def test_lowpass_and_motion_in_the_fmu_equal_the_core(fmu_dir, params, kw):
     finally:
         a.free()
     np.testing.assert_allclose(got, gd.denoise(z, FS, **kw), rtol=0, atol=TOL)
+
+
+def test_fmu_runs_the_c_core_and_falls_back_with_a_message(fmu_dir, tmp_path):
+    """FogDenoiser runs the bundled C core (logged); the same FMU without a
+    binary that fits (here: removed, as on another platform) runs the
+    plain-Python kernels, says so in a warning, and gives the same numbers."""
+    z = _raw(800, seed=4, rate=2.0)
+    z[400:] += 3.0
+    ref = gd.denoise(z, FS)
+    stripped = tmp_path / "FogDenoiser.fmu"
+    with zipfile.ZipFile(fmu_dir / "FogDenoiser.fmu") as src, zipfile.ZipFile(stripped, "w") as dst:
+        for item in src.infolist():
+            if "/_gdcore" not in item.filename:
+                dst.writestr(item, src.read(item))
+    for path, core in ((fmu_dir / "FogDenoiser.fmu", "C"), (stripped, "Python")):
+        a = F.FmuInstance(path, "c")
+        try:
+            a.initialize(sample_period=H)
+            got = _run_denoiser(a, z)
+            text = " ".join(m[2] for m in a.messages)
+        finally:
+            a.free()
+        if core == "C":
+            assert "bundled C core" in text and "falling back" not in text
+        else:
+            assert "falling back to the plain-Python kernels" in text
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrodenoise import kernels as K
-from gyrodenoise.batch import run
+from gyrodenoise.core import kernels as K
+from gyrodenoise.core.batch import run
 
 LOGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "logs"
 FILES = sorted(LOGS.glob("*")) if LOGS.is_dir() else []

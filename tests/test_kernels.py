@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from gyrodenoise import kernels as K
-from gyrodenoise.batch import run
+from gyrodenoise.core import kernels as K
+from gyrodenoise.core.batch import run
 from gyrodenoise.denoiser import Denoiser
 
 

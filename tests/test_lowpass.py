@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from gyrodenoise import kernels as K
+from gyrodenoise.core import kernels as K
 
 
 @pytest.mark.parametrize("order", [1, 2, 3, 4, 8])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from gyrodenoise import kernels as K
+from gyrodenoise.core import kernels as K
 from gyrodenoise import reference_filters as RF
 from gyrodenoise.profiles import PROFILES
 

@@ -13,8 +13,8 @@ import numpy as np
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from gyrodenoise import kernels as K
-from gyrodenoise.batch import run
+from gyrodenoise.core import kernels as K
+from gyrodenoise.core.batch import run
 from gyrodenoise.recording import ABSURD_RATE_DEG_S
 
 SETTINGS = dict(derandomize=True, deadline=None, database=None,

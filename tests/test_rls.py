@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from gyrodenoise import kernels as K
+from gyrodenoise.core import kernels as K
 
 
 def rls_theta(z, order, lam=1.0, p0=1e4):

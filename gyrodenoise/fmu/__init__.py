@@ -9,12 +9,13 @@
 The names below are re-exported so ``from gyrodenoise import fmu as F`` keeps working.
 """
 
-from .build import CORE_INIT, FMU_SRC, FMUS, PACKAGE_DIR, REPO_DIR, build_all, build_fmu, stage_core, stale_reason
+from .build import (CORE_INIT, FMU_SRC, FMUS, PACKAGE_DIR, REPO_DIR, build_all, build_fmu, compiled_core_files,
+                    stage_core, stale_reason)
 from .cli import register_cli
 from .cosim import cosim_run, system_parameters, write_ssp
 from .host import FmuInstance, FmuStepError, _stepper
 from .validation import compare_with_core, validation_run
 
-__all__ = ["CORE_INIT", "FMU_SRC", "FMUS", "PACKAGE_DIR", "REPO_DIR", "build_all", "build_fmu", "stage_core",
+__all__ = ["compiled_core_files", "CORE_INIT", "FMU_SRC", "FMUS", "PACKAGE_DIR", "REPO_DIR", "build_all", "build_fmu", "stage_core",
            "stale_reason", "register_cli", "cosim_run", "system_parameters", "write_ssp", "FmuInstance",
            "FmuStepError", "_stepper", "compare_with_core", "validation_run"]

@@ -2,7 +2,9 @@
 
 Packages ``fmu_src/fogdenoiser_fmu.py`` and ``fmu_src/simulatedfog_fmu.py`` with
 pythonfmu (in a subprocess) into ``FogDenoiser.fmu`` and ``SimulatedFog.fmu``.
-The FMUs carry a copy of the plain-Python part of the core (package ``gdcore``
+The FMUs carry a copy of the core (package ``gdcore``: the plain-Python
+kernels, and FogDenoiser also the compiled C core ``core/_gdcore*.so`` of this
+build, used when the host's Python and platform fit it; package ``gdcore``
 in their resources), so they run wherever Python is, from any directory,
 without this package installed.
 """
@@ -24,9 +26,14 @@ FMU_SRC = REPO_DIR / "fmu_src"
 
 #: (model name, slave script, core modules bundled)
 FMUS = {
-    "FogDenoiser": ("fogdenoiser_fmu.py", ("kernels.py", "denoiser.py", "errors.py")),
+    "FogDenoiser": ("fogdenoiser_fmu.py", ("core/__init__.py", "core/kernels.py", "denoiser.py", "errors.py")),
     "SimulatedFog": ("simulatedfog_fmu.py", ("errors.py", "simulator.py")),
 }
+
+
+def compiled_core_files():
+    """The built C core extension(s) beside core/kernels.py (none if not built)."""
+    return sorted((PACKAGE_DIR / "core").glob("_gdcore*.so")) + sorted((PACKAGE_DIR / "core").glob("_gdcore*.pyd"))
 
 CORE_INIT = '''"""Plain-Python part of the gyrodenoise core, bundled into an FMU.
 
@@ -54,7 +61,11 @@ def stage_core(dest, modules):
         src = PACKAGE_DIR / name
         if not src.is_file():
             raise InputError(f"{src}: core module missing, cannot bundle it into the FMU")
+        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(src, pkg / name)
+    if "core/kernels.py" in modules:   # the C core, as built for this Python and platform
+        for so in compiled_core_files():
+            shutil.copy2(so, pkg / "core" / so.name)
     if "simulator.py" in modules:   # the embedded model cards (load_card by name)
         (pkg / "data").mkdir(exist_ok=True)
         for card in sorted((PACKAGE_DIR / "data").glob("*.toml")):
@@ -109,6 +120,8 @@ def stale_reason(fmu_path, src_dir=None):
     if not Path(fmu_path).is_file():
         return "missing"
     wanted = {f"resources/gdcore/{m}": PACKAGE_DIR / m for m in modules}
+    if "core/kernels.py" in modules:
+        wanted.update({f"resources/gdcore/core/{so.name}": so for so in compiled_core_files()})
     src = _fmu_src_dir(src_dir) / script
     if src.is_file():
         wanted[f"resources/{script}"] = src

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
-from ..kernels import DEFAULT_METHOD
+from ..core.kernels import DEFAULT_METHOD
 from .build import FMUS, build_all, stale_reason
 from .cosim import cosim_run
 from .validation import _resolve_card, validation_run

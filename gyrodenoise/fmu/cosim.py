@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputError
-from ..kernels import DEFAULT_METHOD
+from ..core.kernels import DEFAULT_METHOD
 from .validation import _denoiser_params, _fmu_paths, _resolve_card, _restart_mask, compare_with_core
 
 

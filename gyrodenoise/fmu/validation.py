@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputError
-from ..kernels import DEFAULT_METHOD
+from ..core.kernels import DEFAULT_METHOD
 from .build import FMUS
 from .host import FmuInstance, _stepper
 

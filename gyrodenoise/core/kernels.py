@@ -1,18 +1,22 @@
 """Per-sample numerical kernels: online AR(n) identification and the KF / SHAKF.
 
-One source, two speeds
-----------------------
+The executable specification of the core
+----------------------------------------
 Every function here is plain scalar Python over two flat buffers of floats:
 
 * ``p`` -- the parameters (see :func:`make_params` and the ``P_*`` indices),
 * ``s`` -- the whole filter state (see :func:`init_state` and the ``S_*`` indices).
 
-The buffers may be Python lists (the per-sample path used by the FMU: no numpy,
-no numba needed, ~µs a step) or float64 numpy arrays (the batch path:
-:mod:`gyrodenoise.batch` compiles the very same functions with numba's
-``register_jitable`` / ``njit``). Functions mutate ``s`` in place and return the
-scalar output, like ``scipy.signal.lfilter`` returning ``zf``: the caller owns
-the state and may copy, save or restore it at any sample.
+Functions mutate ``s`` in place and return the scalar output, like
+``scipy.signal.lfilter`` returning ``zf``: the caller owns the state and may
+copy, save or restore it at any sample. ``gdcore.c`` (beside this file) is the
+same functions in C99 over the same buffers, operation for operation; the
+extension :mod:`gyrodenoise.core._gdcore` runs it for :mod:`gyrodenoise.core.batch`,
+:class:`gyrodenoise.Denoiser` and the FMUs, and tests/test_ccore.py holds it to
+this file bit for bit. This file needs nothing but ``math``: it is also the
+fallback where the compiled core is not available (an FMU on a platform its
+bundled binary does not fit), ~20-50 us a sample. Change the maths here first,
+then mirror it in gdcore.c (the tests fail until both agree).
 
 Equations cited are those of Sun et al. (2016), "FOG Random Drift Signal
 Denoising Based on the Improved AR Model and Modified Sage-Husa Adaptive Kalman
@@ -45,12 +49,6 @@ Choices the paper leaves open (documented in the README, "The method"):
 from __future__ import annotations
 
 import math
-
-try:  # the per-sample path must work without numba (the FMU does not ship it)
-    from numba.extending import register_jitable as _jitable
-except ImportError:  # pragma: no cover - exercised in the FMU tests
-    def _jitable(fn):
-        return fn
 
 # ---------------------------------------------------------------- parameters
 P_ORDER = 0      # AR order n (>= 1)
@@ -137,7 +135,6 @@ M_BK = 13        # b^(k+1) of d_k
 M_NJUMP = 14     # jumps followed (Eq. 32 violated) since the restart
 
 
-@_jitable
 def layout(n):
     """Offsets of (theta, P_rls, x, P, z_hist, w, total) for AR order ``n``."""
     m = n + 1
@@ -330,7 +327,6 @@ def init_state(p):
     return s
 
 
-@_jitable
 def restart(p, s):
     """Re-initialise identification and filter (a gyro restart), in place.
 
@@ -356,7 +352,6 @@ def restart(p, s):
     s[S_Q] = p[P_Q0]
 
 
-@_jitable
 def _rls_gain(p, s, o_prls, o_z, o_w, n, m):
     """g = P h into the scratch vector w (h = regressor, h[n] = 1); returns
     the denominator lam + h' P h of Eq. (9)-(11)."""
@@ -371,7 +366,6 @@ def _rls_gain(p, s, o_prls, o_z, o_w, n, m):
     return den
 
 
-@_jitable
 def rls_update(p, s, z):
     """One RLS step of the improved AR(n) model, Eq. (8)-(11); returns e.
 
@@ -428,7 +422,6 @@ def rls_update(p, s, z):
     return e
 
 
-@_jitable
 def kf_predict(p, s, q):
     """Time update on the AR state model, Eq. (34); returns the prediction of z.
 
@@ -471,7 +464,6 @@ def kf_predict(p, s, q):
     return x0
 
 
-@_jitable
 def kf_update(p, s, v, r):
     """Measurement update with H = [1 0 ... 0], Eq. (35); returns S = HPH' + r.
 
@@ -500,7 +492,6 @@ def kf_update(p, s, v, r):
     return svar
 
 
-@_jitable
 def start_filter(p, s):
     """(Re)start the filter from the identified model at the end of warm-up.
 
@@ -518,7 +509,6 @@ def start_filter(p, s):
     tie_c(p, s)
 
 
-@_jitable
 def tie_c(p, s):
     """Set the filter's c state to the RLS estimate of c (Eq. 4).
 
@@ -542,7 +532,6 @@ def tie_c(p, s):
     s[o_p + n * m + n] = p[P_R_FLOOR]
 
 
-@_jitable
 def ar_stable(a, o_a, n, w, o_w):
     """True if the AR(n) model with phi_i = a[o_a + i - 1] is stable.
 
@@ -573,7 +562,6 @@ def ar_stable(a, o_a, n, w, o_w):
     return True
 
 
-@_jitable
 def gate(p, s, z):
     """Innovation gate against single wild samples (not in the paper).
 
@@ -643,7 +631,6 @@ def gate(p, s, z):
     return 1
 
 
-@_jitable
 def filter_step(p, s, z):
     """Identification and filter for one accepted, centred sample ``z``;
     returns the centred filter estimate (or ``z`` itself while warming up).
@@ -735,7 +722,6 @@ def filter_step(p, s, z):
     return out
 
 
-@_jitable
 def lowpass_step(p, s, z):
     """One sample of the Butterworth cascade (transposed direct form II, as
     ``scipy.signal.sosfilt``) on the centred sample ``z``; the delays start at
@@ -754,7 +740,6 @@ def lowpass_step(p, s, z):
     return y
 
 
-@_jitable
 def motion_step(p, s, z):
     """``method="motion"``: one centred sample ``z`` through a filter that keeps
     the true rate and follows it (not in the paper; issue 12).
@@ -876,12 +861,10 @@ def motion_step(p, s, z):
     return s[o + M_W]
 
 
-@_jitable
 def _finite(v):
     return v - v == 0.0
 
 
-@_jitable
 def _healthy(p, s):
     """False if the filter state has left the finite numbers (an input so
     large that its square overflows, with the gate off)."""
@@ -890,7 +873,6 @@ def _healthy(p, s):
             and _finite(s[S_Q]) and _finite(s[S_RLS_ERR]) and _finite(s[S_S2]))
 
 
-@_jitable
 def step(p, s, z, is_restart):
     """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
 
@@ -970,7 +952,6 @@ def phi(p, s):
     return [float(s[o + i]) for i in range(n)]
 
 
-@_jitable
 def c_deg_s(p, s):
     """Constant term c of the improved AR model, Eq. (4), deg/s, for the raw
     (uncentred) samples: the state holds c for z - z_ref (see :func:`step`),

@@ -1,0 +1,93 @@
+"""Batch loop over arrays: the compiled C core, or the plain-Python reference.
+
+The fast path is ``gd_run`` of ``gdcore.c`` through the extension
+:mod:`gyrodenoise.core._gdcore` (built by ``pip install``). ``compiled=False``
+runs :func:`gyrodenoise.core.kernels.step` in plain Python over the same
+buffers: the executable specification the C is tested against
+(tests/test_ccore.py: bit for bit). Diagnostics and theta histories need the
+state after every sample, so they step sample by sample (C when available).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels as K
+
+try:
+    from . import _gdcore as C
+except ImportError:  # pragma: no cover - a build without a C compiler
+    C = None
+
+
+def compiled_core():
+    """True if the C core is built and importable (else every path is plain Python)."""
+    return C is not None
+
+
+def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, compiled=True):
+    """Filter an array of raw samples, continuing from state ``s``.
+
+    Parameters
+    ----------
+    p : sequence of float
+        Parameter buffer from :func:`gyrodenoise.core.kernels.make_params`.
+    s : sequence of float
+        State buffer (from :func:`gyrodenoise.core.kernels.init_state` or a
+        previous call); it is *not* modified: the final state is returned.
+    z : array_like
+        Raw rate samples, deg/s.
+    restarts : array_like of bool, optional
+        True where the gyro restarted (that sample is the first of a run).
+    diagnostics : bool
+        Also return an (n, 4) array [innovation, R_hat, converged, rls_error].
+    record_theta : bool
+        Also return an (n, order+1) array of [phi_1..phi_n, c] after each
+        sample (c in deg/s of the raw samples, :func:`~gyrodenoise.core.kernels.c_deg_s`).
+    compiled : bool
+        Use the C core (False: the plain-Python kernels, same numbers).
+
+    Returns
+    -------
+    out : ndarray
+        Filtered rate, deg/s.
+    state : ndarray
+        State after the last sample (pass it back in to continue).
+    extra : ndarray, optional
+        Diagnostics or theta history when asked for.
+    """
+    pa = np.ascontiguousarray(p, dtype=np.float64)
+    sa = np.array(s, dtype=np.float64)
+    za = np.ascontiguousarray(z, dtype=np.float64)
+    if restarts is None:
+        ra = np.zeros(za.shape[0], dtype=np.uint8)
+    else:
+        ra = np.ascontiguousarray(restarts, dtype=bool).view(np.uint8)
+        if ra.shape != za.shape:
+            raise ValueError("restarts must have the same length as the samples")
+    out = np.empty_like(za)
+    use_c = compiled and C is not None
+    if not (diagnostics or record_theta):
+        if use_c:
+            C.run(pa, sa, za, ra, out)
+            return out, sa
+        sl = sa.tolist()
+        pl = pa.tolist()
+        for i, (v, r) in enumerate(zip(za.tolist(), ra.tolist())):
+            out[i] = K.step(pl, sl, v, bool(r))
+        return out, np.asarray(sl)
+    # sample by sample, reading the state after each one
+    st = sa if use_c else sa.tolist()
+    pp = pa if use_c else pa.tolist()
+    step = C.step if use_c else K.step
+    n = int(pa[K.P_ORDER])
+    extra = np.empty((za.shape[0], n + 1 if record_theta else 4))
+    for i, (v, r) in enumerate(zip(za.tolist(), ra.tolist())):
+        out[i] = step(pp, st, v, bool(r))
+        if record_theta:
+            for j in range(n):
+                extra[i, j] = st[K.N_HEADER + j]
+            extra[i, n] = K.c_deg_s(pp, st)
+        else:
+            extra[i] = (st[K.S_INNOV], st[K.S_R], st[K.S_CONV], st[K.S_RLS_ERR])
+    return out, np.asarray(st, dtype=np.float64), extra
