@@ -555,3 +555,26 @@ def test_fmu_runs_the_c_core_and_falls_back_with_a_message(fmu_dir, tmp_path):
         else:
             assert "falling back to the plain-Python kernels" in text
         np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
+
+
+def test_model_description_declares_units_default_experiment_and_bounds(fmu_dir):
+    """Spec section 5: every physical Real carries a unit declared in
+    UnitDefinitions, a DefaultExperiment gives the step size, bounded
+    parameters carry min/max (pythonfmu cannot: added after its build)."""
+    from fmpy import read_model_description
+    for name in F.FMUS:
+        md = read_model_description(str(fmu_dir / f"{name}.fmu"))
+        assert md.defaultExperiment is not None and float(md.defaultExperiment.stepSize) == pytest.approx(H)
+        units = {u.name: u for u in md.unitDefinitions}
+        assert "deg/s" in units
+        assert float(units["deg/s"].baseUnit.factor) == pytest.approx(np.pi / 180)
+        v = {x.name: x for x in md.modelVariables}
+        rates = ("raw_rate", "filtered_rate") if name == "FogDenoiser" else ("true_rate", "measured_rate")
+        for r in rates:
+            assert v[r].unit == "deg/s", (name, r)
+    md = read_model_description(str(fmu_dir / "FogDenoiser.fmu"))
+    v = {x.name: x for x in md.modelVariables}
+    assert v["R_hat"].unit == "deg2/s2" and v["sample_period"].unit == "s" and v["cutoff_hz"].unit == "Hz"
+    assert float(v["lam"].min) == 0.0 and float(v["lam"].max) == 1.0 and float(v["gamma"].min) == 1.0
+    assert int(v["ar_order"].min) == 1 and int(v["ar_order"].max) == 6
+    assert int(v["lowpass_order"].max) == 8

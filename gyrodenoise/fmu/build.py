@@ -104,7 +104,8 @@ def build_fmu(name, out_dir="build", src_dir=None, python=None):
     path = out / f"{name}.fmu"
     if not path.is_file():
         raise RuntimeError(f"pythonfmu did not write {path}")
-    return path
+    from .model_description import complete
+    return complete(path)      # units, DefaultExperiment, min/max (pythonfmu cannot declare them)
 
 
 def stale_reason(fmu_path, src_dir=None):
