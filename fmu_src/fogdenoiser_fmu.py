@@ -242,6 +242,12 @@ class FogDenoiser(Fmi2Slave):
             self.log(self._failed or "FogDenoiser: fmi2DoStep before initialisation", Fmi2Status.error)
             return False
         z = self.raw_rate
+        if not (step_size > 0.0 and math.isfinite(step_size)):
+            # FMI 2.0: the communication step size must be > 0 (NaN used to pass the
+            # size test below and be processed as a sample)
+            self.log(f"FogDenoiser: communication step size {step_size!r} s at t={current_time!r} s "
+                     f"is not a positive finite number; step refused", Fmi2Status.error)
+            return False
         if abs(step_size - self.sample_period) > STEP_RTOL * self.sample_period:
             self._n_bad_steps += 1
             if self.strict_step_size:

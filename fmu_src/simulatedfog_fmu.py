@@ -141,6 +141,12 @@ class SimulatedFog(Fmi2Slave):
             self.log(self._failed or "SimulatedFog: fmi2DoStep before initialisation", Fmi2Status.error)
             return False
         period = self._period
+        if not (step_size > 0.0 and math.isfinite(step_size)):
+            # FMI 2.0: the communication step size must be > 0 (NaN used to pass the
+            # size test below and be processed as a sample)
+            self.log(f"SimulatedFog: communication step size {step_size!r} s at t={current_time!r} s "
+                     f"is not a positive finite number; step refused", Fmi2Status.error)
+            return False
         if abs(step_size - period) > STEP_RTOL * period:
             self._n_bad_steps += 1
             if self.strict_step_size:

@@ -578,3 +578,26 @@ def test_model_description_declares_units_default_experiment_and_bounds(fmu_dir)
     assert float(v["lam"].min) == 0.0 and float(v["lam"].max) == 1.0 and float(v["gamma"].min) == 1.0
     assert int(v["ar_order"].min) == 1 and int(v["ar_order"].max) == 6
     assert int(v["lowpass_order"].max) == 8
+
+
+@pytest.mark.parametrize("name", list(F.FMUS))
+@pytest.mark.parametrize("bad_step", [0.0, -H, float("nan"), float("inf")])
+def test_non_positive_or_nan_step_size_is_refused(fmu_dir, name, bad_step):
+    """FMI 2.0 requires communicationStepSize > 0: refused with a logged reason
+    (fmi2Discard, pythonfmu's only non-fatal refusal), the state unchanged (a
+    NaN step used to pass the size check and be processed as a sample)."""
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir, name)
+    inp, out = ("raw_rate", "filtered_rate") if name == "FogDenoiser" else ("true_rate", "measured_rate")
+    try:
+        a.initialize(**({"sample_period": H} if name == "FogDenoiser" else {}))
+        a.set(**{inp: 1.0})
+        a.slave.doStep(0.0, H)
+        before = a.get(out)
+        with pytest.raises(FMICallException) as exc:
+            a.slave.doStep(H, bad_step)
+        assert exc.value.status == 2
+        assert any("not a positive finite number" in m[2] for m in a.errors())
+        assert a.get(out) == before
+    finally:
+        a.free()
