@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
+import os
 import re
 import sys
 from pathlib import Path
 
+from gyrodenoise.core.kernels import DEFAULT_METHOD, METHODS
 from gyrodenoise.errors import InputError
 
 LINK_RE = re.compile(r"^(udpin|udpout|udp|tcp|tcpin|udpbcast|serial|com\d*)[:]", re.IGNORECASE)
@@ -22,6 +25,22 @@ examples:
 The filtered log keeps every message and byte of the input except the gyro
 fields of the IMU messages, which hold the filtered values (and, for MAVLink,
 the packet CRC). Raw values stay in the input log and in the CSV files.
+
+Each stream's filtered output is checked: finite, inside the raw range of each
+session (restart to restart), and fitting the log's field type. A stream that
+fails is written RAW (unfiltered) into the filtered log, with one line on stderr.
+The summary gives, per axis, the noise figure (raw -> filtered) and beside it
+the 0-5 Hz motion the filter kept (correlation, amplitude %) and the lag it
+added; it warns when the filter removed most of the real motion. Streams
+sampled below 20 Hz (telemetry RAW_IMU at 1-4 Hz) are too slow to denoise and
+get a note instead of an improvement figure.
+
+exit status:
+  0  every log processed, every stream filtered
+  1  completed, but some stream was left raw (its filtered output failed the check)
+  2  bad usage or bad input (an option value, a path, a log that cannot be used):
+     one line on stderr naming the option or file; with --json one JSON object
+     on stdout with "error" in it
 """
 
 
@@ -45,62 +64,152 @@ def register_cli(subparsers):
                    help="native core (numba batch; default) or the FogDenoiser FMU through fmpy")
     p.add_argument("--fmu", default=None, metavar="PATH",
                    help="FogDenoiser.fmu for --engine fmu (default: build/FogDenoiser.fmu)")
-    p.add_argument("--jobs", type=int, default=1, metavar="N", help="logs processed in parallel (processes)")
-    p.add_argument("--method", default="shakf", choices=["shakf", "kf", "none", "sh_classic"],
-                   help="filter (default shakf: the modified Sage-Husa AKF)")
-    p.add_argument("--ar-order", type=int, default=3, metavar="N", help="AR model order (default 3)")
-    p.add_argument("--gap-factor", type=float, default=5.0, metavar="K",
+    p.add_argument("--jobs", type=_int, default=1, metavar="N", help="logs processed in parallel (processes)")
+    p.add_argument("--method", default=DEFAULT_METHOD, choices=list(METHODS),
+                   help=f"filter (default {DEFAULT_METHOD}: follows manoeuvres, averages at rest; "
+                        f"shakf: the paper's modified Sage-Husa AKF; kf; sh_classic; lowpass: "
+                        f"causal Butterworth at the core's default cutoff; none)")
+    p.add_argument("--ar-order", type=_int, default=3, metavar="N",
+                   help=f"AR model order, 1..{MAX_AR_ORDER} (default 3)")
+    p.add_argument("--gap-factor", type=_float, default=5.0, metavar="K",
                    help="a time step over K times the recent sample period is a restart (default 5)")
-    p.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
+    p.add_argument("--sample-rate", type=_float, default=None, metavar="HZ",
                    help="filter sample rate for every stream (default: measured per stream; it only "
                         "sets the warm-up length)")
-    p.add_argument("--warmup-s", type=float, default=None, metavar="S",
+    p.add_argument("--warmup-s", type=_float, default=None, metavar="S",
                    help="warm-up after each restart, raw passed through (default: the core's, 1 s; "
                         "at least 10(n+1) samples); short bursts such as the 2 kHz batch sampler "
                         "(1024 samples) need less, e.g. 0.1")
-    p.add_argument("--outlier-sigma", type=float, default=None, metavar="K",
+    p.add_argument("--outlier-sigma", type=_float, default=None, metavar="K",
                    help="outlier gate: keep a sample with |innovation| > K sqrt(S) out of the filter "
                         "(default: the core's, 5; 0 = off, the paper's filter)")
-    p.add_argument("--outlier-run", type=int, default=None, metavar="M",
+    p.add_argument("--outlier-run", type=_int, default=None, metavar="M",
                    help="consecutive rejected samples after which the filter re-opens (default 20)")
     p.add_argument("--raw-imu-unit", default="auto", choices=["auto", "mrad/s", "rad/s", "counts"],
                    help="unit of RAW_IMU gyro fields (default auto: mrad/s when the log shows "
                         "ArduPilot, else counts with unknown scale)")
-    p.add_argument("--raw-imu-scale", type=float, default=None, metavar="DEG_S_PER_COUNT",
+    p.add_argument("--raw-imu-scale", type=_float, default=None, metavar="DEG_S_PER_COUNT",
                    help="scale of RAW_IMU raw counts (old APM firmware)")
     p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
     p.add_argument("--no-csv", action="store_true", help="do not write CSV files")
     live = p.add_argument_group("live link (LOG is a connection string)")
     live.add_argument("--forward", default=None, metavar="CONN",
                       help="output connection, e.g. udpout:127.0.0.1:14551 (default: none, only report)")
-    live.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
-    live.add_argument("--count", type=int, default=None, metavar="N", help="stop after N messages")
+    live.add_argument("--duration", type=_float, default=None, metavar="S", help="stop after S seconds")
+    live.add_argument("--count", type=_int, default=None, metavar="N", help="stop after N messages")
     p.set_defaults(func=run)
+    _one_line_errors(p)
     return p
 
 
+def _int(text):
+    try:
+        return int(text)
+    except ValueError:
+        raise __import__("argparse").ArgumentTypeError(f"not an integer: {text!r}") from None
+
+
+def _float(text):
+    try:
+        return float(text)
+    except ValueError:
+        raise __import__("argparse").ArgumentTypeError(f"not a number: {text!r}") from None
+
+
+def _one_line_errors(p):
+    """argparse errors of this subcommand (unknown option, missing LOG, a value
+    that is not a number) as one line on stderr, exit 2, and with --json one
+    JSON object on stdout: argparse would print the whole usage first."""
+    seen = {}
+    parse = p.parse_known_args
+
+    def parse_known_args(args=None, namespace=None):
+        seen["json"] = args is not None and "--json" in list(args)
+        return parse(args, namespace)
+
+    def error(message):
+        msg = f"mavlink: {message}"
+        if seen.get("json"):
+            _emit({"error": msg, "exit_status": 2})
+        print(f"gyrodenoise: error: {msg} (see gyrodenoise mavlink --help)", file=sys.stderr)
+        sys.exit(2)
+
+    p.parse_known_args = parse_known_args
+    p.error = error
+
+
+#: --ar-order above this is refused: the RLS state grows as n^2 (n = 1e6 is a
+#: MemoryError), and orders above ~10 never helped on gyro data
+MAX_AR_ORDER = 64
+#: --warmup-s above this (s) is refused: longer than any log, and warmup_s x rate
+#: must stay a finite number of samples
+MAX_WARMUP_S = 1.0e6
+#: sample rate used to check the core's parameters when --sample-rate is not given
+#: (measured per stream; the fastest seen in logs is the 2 kHz batch sampler)
+_CHECK_RATE_HZ = 1.0e5
+
+
+def _finite_num(v):
+    return v is not None and math.isfinite(v)
+
+
 def _check(args):
+    """Every option value: one line naming the option (InputError, exit 2)."""
     if args.jobs < 1:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
-    if args.ar_order < 1:
-        raise InputError(f"--ar-order must be >= 1, got {args.ar_order}")
-    if not args.gap_factor > 1:
-        raise InputError(f"--gap-factor must be > 1, got {args.gap_factor}")
-    if args.sample_rate is not None and not args.sample_rate > 0:
-        raise InputError(f"--sample-rate must be > 0, got {args.sample_rate}")
-    if args.warmup_s is not None and not args.warmup_s >= 0:
-        raise InputError(f"--warmup-s must be >= 0, got {args.warmup_s}")
+    if not 1 <= args.ar_order <= MAX_AR_ORDER:
+        raise InputError(f"--ar-order must be 1..{MAX_AR_ORDER}, got {args.ar_order}")
+    if not (_finite_num(args.gap_factor) and args.gap_factor > 1):
+        raise InputError(f"--gap-factor must be a finite number > 1, got {args.gap_factor}")
+    if args.sample_rate is not None and not (_finite_num(args.sample_rate) and args.sample_rate > 0):
+        raise InputError(f"--sample-rate must be a finite number > 0 Hz, got {args.sample_rate}")
+    if args.warmup_s is not None and not (_finite_num(args.warmup_s) and 0 <= args.warmup_s <= MAX_WARMUP_S):
+        raise InputError(f"--warmup-s must be a number of seconds in [0, {MAX_WARMUP_S:g}], "
+                         f"got {args.warmup_s}")
+    if args.outlier_sigma is not None and not _finite_num(args.outlier_sigma):
+        raise InputError(f"--outlier-sigma must be 0 (off) or a finite number >= 2, got {args.outlier_sigma}")
+    if args.outlier_run is not None and args.outlier_run < 1:
+        raise InputError(f"--outlier-run must be >= 1, got {args.outlier_run}")
     try:
         from gyrodenoise.core.kernels import make_params
-        make_params(ar_order=args.ar_order, sample_rate_hz=50.0, **_filter_kw(args))
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-    if args.raw_imu_scale is not None and not args.raw_imu_scale > 0:
-        raise InputError(f"--raw-imu-scale must be > 0, got {args.raw_imu_scale}")
-    if args.duration is not None and not args.duration > 0:
-        raise InputError(f"--duration must be > 0, got {args.duration}")
+        kw = _filter_kw(args)
+        if args.warmup_s is not None:
+            kw["warmup_s"] = args.warmup_s
+        make_params(ar_order=args.ar_order, method=args.method,
+                    sample_rate_hz=args.sample_rate or _CHECK_RATE_HZ, **kw)
+    except (ValueError, OverflowError) as exc:
+        raise InputError(_option_named(str(exc))) from None
+    if args.raw_imu_scale is not None and not (_finite_num(args.raw_imu_scale) and args.raw_imu_scale > 0):
+        raise InputError(f"--raw-imu-scale must be a finite number > 0, got {args.raw_imu_scale}")
+    if args.duration is not None and not (_finite_num(args.duration) and args.duration > 0):
+        raise InputError(f"--duration must be a finite number > 0 s, got {args.duration}")
     if args.count is not None and args.count < 1:
         raise InputError(f"--count must be >= 1, got {args.count}")
+
+
+_PARAM_OPTION = {"warmup_s": "--warmup-s", "sample_rate_hz": "--sample-rate", "ar_order": "--ar-order",
+                 "outlier_sigma": "--outlier-sigma", "outlier_run": "--outlier-run", "method": "--method"}
+
+
+def _option_named(msg):
+    """The core's message about a parameter, naming the command-line option."""
+    for name, opt in _PARAM_OPTION.items():
+        if msg.startswith(name + " "):
+            return f"{opt}: {msg}"
+    return msg
+
+
+def _check_out(out):
+    """-o OUT must be a folder we can create/write: one line naming it otherwise."""
+    p = Path(out)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"-o {out}: exists and is not a folder")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"-o {out}: cannot create the output folder ({exc.strerror or exc})") from None
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise InputError(f"-o {out}: output folder is not writable")
 
 
 def _filter_kw(args):
@@ -130,15 +239,30 @@ def _emit(obj):
 
 
 def run(args):
+    """The command; returns the exit status (0 ok, 1 a stream left raw, 2 bad input).
+    A user error is an InputError (one line on stderr from the top-level CLI); with
+    --json one JSON object holding it is printed on stdout first."""
+    try:
+        return _run(args)
+    except InputError as exc:
+        if getattr(args, "json", False):
+            _emit({"error": str(exc), "exit_status": 2})
+        raise
+
+
+def _run(args):
     _check(args)
     links = [x for x in args.logs if LINK_RE.match(x) and not Path(x).exists()]
     if links:
         if len(args.logs) != 1:
             raise InputError(f"{links[0]}: a live connection must be the only LOG argument")
+        if not (args.no_csv and args.no_plots):
+            _check_out(args.out)
         return _run_live(args, links[0])
     for x in args.logs:
         if not Path(x).exists():
             raise InputError(f"{x}: no such file or folder")
+    _check_out(args.out)
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
@@ -148,8 +272,10 @@ def run(args):
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
     with contextlib.redirect_stdout(sys.stderr):
         summary = _run_files(args, kw, single)
-    Path(args.out).mkdir(parents=True, exist_ok=True)
-    (Path(args.out) / "summary.json").write_text(json.dumps(_finite(summary), indent=1, allow_nan=False))
+    try:
+        (Path(args.out) / "summary.json").write_text(json.dumps(_finite(summary), indent=1, allow_nan=False))
+    except OSError as exc:
+        raise InputError(f"-o {args.out}: cannot write summary.json ({exc.strerror or exc})") from None
     for f in summary["failed"]:
         print(f"gyrodenoise: error: {f['error']}", file=sys.stderr)
     try:
@@ -159,27 +285,57 @@ def run(args):
             _print_text(summary)
             sys.stdout.flush()
     except BrokenPipeError:           # e.g. piped into `head`: the reader left, not an error of ours
-        import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    return 2 if summary["failed"] else 0
+    return summary["exit_status"]
+
+
+def exit_status(summary):
+    """2 if a log failed (bad input), else 1 if a stream was left raw, else 0."""
+    return 2 if summary["failed"] else 1 if summary["streams_left_raw"] else 0
 
 
 def _run_files(args, kw, single):
-    from .process import process_many, process_log
+    from .process import MOTION_METRIC, process_many, process_log, streams_left_raw
     if single:
         # one file: errors are the command's error (exit 2, one line)
         from .streams import NOISE_METRIC
         rep = process_log(args.logs[0], args.out, log=_log, background_plots=True, plot_helpers=1, **kw)
-        return {"logs": [rep], "failed": [], "ignored_files": [], "n_logs": 1, "n_ok": 1,
-                "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC}
-    summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log, **kw)
-    if summary["n_logs"] == 0:
-        raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
+        summary = {"logs": [rep], "failed": [], "ignored_files": [], "n_logs": 1, "n_ok": 1,
+                   "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC,
+                   "motion_metric": MOTION_METRIC, "streams_left_raw": streams_left_raw([rep])}
+    else:
+        summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log, **kw)
+        if summary["n_logs"] == 0:
+            raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
+    summary["exit_status"] = exit_status(summary)
     return summary
 
 
 def _fmt(v, nd=4):
     return "-" if v is None else f"{v:.{nd}g}"
+
+
+def _pct(v):
+    return "-" if v is None else f"{100.0 * v:.0f} %"
+
+
+def _lag(v):
+    return "-" if v is None else f"{1000.0 * v:.0f} ms"
+
+
+def _axis_line(s, a):
+    nz = s["noise"][a]
+    line = f"      {a}: noise {_fmt(nz['raw'])} -> {_fmt(nz['filtered'])} {s['noise_unit']}"
+    if s.get("left_raw"):
+        return line + "  (stream left raw: see above)\n"
+    if s.get("too_slow_to_denoise"):
+        return line + "  (no improvement figure: too slow to denoise)\n"
+    line += f" (x{_fmt(nz['ratio'], 3)})"
+    m = (s.get("motion") or {}).get(a)
+    if m is not None:
+        line += (f"  0-{s['motion_band_hz']:g} Hz motion kept: corr {_fmt(m['corr'], 3)}, "
+                 f"amplitude {_pct(m['amplitude_ratio'])}; lag {_lag(m['lag_s'])}")
+    return line + "\n"
 
 
 def _print_text(summary):
@@ -189,20 +345,27 @@ def _print_text(summary):
         unread = r.get("unreadable_records")
         out.write(f"{r['file']} ({r['format']}): {r['messages']} messages, "
                   f"{'-' if unread is None else unread} unreadable records skipped{trunc}\n")
-        out.write(f"  filtered log: {r['output_log']}\n")
+        out.write(f"  filtered log: {r['output_log']}  (method {r['method']})\n")
         for s in r["streams"]:
             out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
                       f"{s['restarts']} restart(s)  unit {s['field_unit']}"
                       f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
-            for a, nz in s["noise"].items():
-                out.write(f"      {a}: noise {_fmt(nz['raw'])} -> {_fmt(nz['filtered'])} {s['noise_unit']}"
-                          f"  (x{_fmt(nz['ratio'], 3)})\n")
+            if s.get("left_raw"):
+                out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
+            if s.get("too_slow_to_denoise"):
+                out.write(f"    note: {s['slow_note']}\n")
+            for a in s["noise"]:
+                out.write(_axis_line(s, a))
+            for w in s.get("warnings", []):
+                out.write(f"    WARNING: {w}\n")
         for e in r["restarts"]:
             out.write(f"  restart: {e['stream']} sample {e['sample']} at t={e['time_s']:.3f} s "
                       f"(previous {e['previous_time_s']:.3f} s): {e['reason']}\n")
     for f in summary["failed"]:
         out.write(f"FAILED {f['file']}: {f['error']}\n")
-    out.write(f"{summary['n_ok']} of {summary['n_logs']} log(s) processed in {summary['seconds']} s\n")
+    n_raw = len(summary.get("streams_left_raw", []))
+    out.write(f"{summary['n_ok']} of {summary['n_logs']} log(s) processed in {summary['seconds']} s"
+              f"{f'; {n_raw} stream(s) left raw (exit status 1)' if n_raw else ''}\n")
 
 
 def _run_live(args, conn):

@@ -237,6 +237,7 @@ def batch_sampler_streams(data, sc: DFScan):
                        note=f"DataFlash batch sampler ISBH/ISBD, gyro instance {inst}: "
                             f"{len(bursts)} bursts, int16 / mul = rad/s, time SampleUS + k/smp_rate")
         s.extra["mul"] = mul
+        s.field_dtype, s.field_scale = "<i2", mul
         out.append(s)
     return out
 
@@ -262,7 +263,10 @@ def patch(data, sc: DFScan, streams):
             dt = next(f for f in sc.formats.values() if f.name == "ISBD").dtype()
             off = s.index // 32
             pos = s.index % 32
-            counts = np.clip(np.rint(s.filtered * s.extra["mul"][:, None]), -32768, 32767).astype("<i2")
+            counts = np.rint(s.filtered * s.extra["mul"][:, None])
+            if not np.all((counts >= -32768) & (counts <= 32767)):     # never clipped silently
+                raise ValueError(f"{s.name}: a value does not fit int16 (check field_misfit first)")
+            counts = counts.astype("<i2")
             for k, a in enumerate(("x", "y", "z")):
                 at = off + dt.fields[a][1] + 2 * pos
                 buf[at[:, None] + np.arange(2)] = counts[:, k].copy().view(np.uint8).reshape(-1, 2)

@@ -15,19 +15,35 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.errors import InputError
 
 ENGINES = ("native", "fmu")
 
 
+def warmup_samples(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
+    """Samples after each restart that the core passes through raw (its warm-up rule)."""
+    from gyrodenoise.core import kernels as K
+    kw = dict(filter_kw or {})
+    if warmup_s is not None:
+        kw["warmup_s"] = float(warmup_s)
+    p = K.make_params(ar_order=ar_order, method=method, sample_rate_hz=rate_hz, **kw)
+    return int(p[K.P_WARMUP])
+
+
 class NativeEngine:
     name = "native"
 
-    def __init__(self, method="shakf", ar_order=3, warmup_s=None, filter_kw=None):
+    def __init__(self, method=DEFAULT_METHOD, ar_order=3, warmup_s=None, filter_kw=None):
         self.method = method
         self.ar_order = int(ar_order)
+        self.warmup_s = warmup_s
+        self.filter_kw = dict(filter_kw or {})
         self.kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
         self.kw.update(filter_kw or {})
+
+    def warmup_samples(self, rate_hz):
+        return warmup_samples(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)
 
     def filter(self, x, restarts, rate_hz):
         from gyrodenoise.denoiser import Denoiser
@@ -56,7 +72,7 @@ class FmuEngine:
 
     name = "fmu"
 
-    def __init__(self, method="shakf", ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
+    def __init__(self, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
         self.method = method
         self.ar_order = int(ar_order)
         self.warmup_s = warmup_s
@@ -78,6 +94,9 @@ class FmuEngine:
             raise InputError(f"{self.path}: FMU does not support co-simulation")
         self._tmp = tempfile.mkdtemp(prefix="gd_fmu_")
         self.unzipdir = extract(str(self.path), unzipdir=self._tmp)
+
+    def warmup_samples(self, rate_hz):
+        return warmup_samples(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)
 
     def _set_param(self, fmu, name, value):
         v = self.vars.get(name)
@@ -138,7 +157,7 @@ class FmuEngine:
         shutil.rmtree(self._tmp, ignore_errors=True)
 
 
-def make_engine(name, method="shakf", ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
+def make_engine(name, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
     """``filter_kw``: further core filter parameters (e.g. outlier_sigma, outlier_run),
     passed to the Denoiser or set as FMU parameters of the same names."""
     if name == "native":

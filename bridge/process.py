@@ -24,7 +24,15 @@ import numpy as np
 from gyrodenoise.errors import InputError
 
 from . import dataflash
-from .streams import NOISE_METRIC, detect_restarts, noise_per_axis
+from gyrodenoise.core.kernels import DEFAULT_METHOD
+
+from .streams import NOISE_METRIC, detect_restarts, field_misfit, noise_per_axis
+
+MOTION_METRIC = ("per axis, over each session after the filter's warm-up: the 0-5 Hz content of "
+                 "raw and filtered (zero-phase Butterworth order 4, session mean removed); corr = "
+                 "their correlation, amplitude_ratio = std filtered / std raw, lag_s = delay of "
+                 "the filtered one at the peak of their cross-correlation (within 0.5 s); "
+                 "gyrodenoise.motion_metrics")
 
 LOG_SUFFIXES = {".tlog": "tlog", ".mavlink": "tlog", ".bin": "dataflash", ".ulg": "ulog"}
 GYRO_LOOKED_FOR = {
@@ -237,15 +245,20 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
     samples -- NaN/inf in float fields, or beyond :data:`ABSURD_WORK` in work
     units (a corrupted record: DataFlash has no checksum, so a damaged record can
     decode to 1e23 rad/s) -- are not fed to the filter (it would never recover):
-    they are kept as they are in the output and counted in ``non_finite``."""
+    they are kept as they are in the output and counted in ``non_finite``.
+
+    Then the safety net (:func:`check_filtered`): a stream whose filtered output
+    is not finite, leaves the raw range of a session, or does not fit the log's
+    field type is written RAW (``s.left_raw`` says why)."""
     for s in streams:
         detect_restarts(s, gap_factor)
         rate = sample_rate or s.rate_hz or 1.0
         x, back, unit = s.work_units()
         f = x.copy()
         s.non_finite = [0] * x.shape[1]
+        usable = np.isfinite(x) & (np.abs(x) <= ABSURD_WORK)
         for k in range(x.shape[1]):
-            fin = np.isfinite(x[:, k]) & (np.abs(x[:, k]) <= ABSURD_WORK)
+            fin = usable[:, k]
             if fin.all():
                 f[:, k] = engine.filter(x[:, k], s.restarts, rate)
             elif fin.any():
@@ -254,20 +267,69 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
             else:
                 s.non_finite[k] = len(fin)
         s.filtered = f * back
+        s.left_raw = check_filtered(s, x, f, usable)
+        if s.left_raw:
+            f = x.copy()
+            s.filtered = s.raw.astype(np.float64)          # the raw values, bit for bit
+        s.warmup_samples = engine.warmup_samples(rate)
         s._work = (x, f, unit, rate)
 
 
-def stream_report(s, csv_path=None, png_path=None):
+def check_filtered(s, x, f, usable):
+    """None, or one line saying why stream ``s`` must not be written filtered:
+    an axis whose output (work units ``f``) is not finite or leaves the raw
+    envelope of its session (:func:`gyrodenoise.motion_metrics.envelope_violation`,
+    over the samples fed to the filter), or a value that does not fit the log's
+    field type (:func:`bridge.streams.field_misfit`)."""
+    from gyrodenoise.motion_metrics import envelope_violation
+    problems = []
+    for k, a in enumerate(s.axes):
+        fin = usable[:, k]
+        if not fin.any():
+            continue
+        v = envelope_violation(x[fin, k], f[fin, k], _sub_restarts(s.restarts, fin))
+        if v is not None:
+            i = int(np.flatnonzero(fin)[v["sample"]])
+            problems.append(f"{a}: filtered value {v['value']:.6g} at sample {i} (t={s.time_s[i]:.3f} s) "
+                            f"{v['reason']} [{v['low']:.6g}, {v['high']:.6g}]")
+    if not problems:
+        bad = field_misfit(s, s.filtered) & usable
+        for k, a in enumerate(s.axes):
+            if bad[:, k].any():
+                i = int(np.flatnonzero(bad[:, k])[0])
+                problems.append(f"{a}: filtered value {s.filtered[i, k]:.6g} {s.unit} at sample {i} "
+                                f"does not fit the field type {np.dtype(s.field_dtype).name}")
+    return "; ".join(problems) or None
+
+
+def stream_report(s, csv_path=None, png_path=None, band_hz=None):
+    """The report of one stream: counts, noise figures and, beside them, how much
+    of the low-band motion the filter kept and the lag it added
+    (:mod:`gyrodenoise.motion_metrics`); a stream sampled too slowly to denoise
+    gets a note instead of an improvement figure."""
+    from gyrodenoise import motion_metrics as mm
+    band_hz = mm.LOWBAND_HZ if band_hz is None else band_hz
     x, f, unit, rate = s._work
-    if np.any(np.abs(x) > ABSURD_WORK):      # corrupted samples stay out of the noise figures
+    if np.any(np.abs(x) > ABSURD_WORK):      # corrupted samples stay out of the figures
         bad = np.abs(x) > ABSURD_WORK
         x, f = np.where(bad, np.nan, x), np.where(bad, np.nan, f)
     nr = noise_per_axis(x, s.restarts)
     nf = noise_per_axis(f, s.restarts)
-    noise = {}
+    slow = mm.too_slow_to_denoise(s.rate_hz, band_hz)
+    noise, motion, warnings = {}, {}, []
+    skip = int(getattr(s, "warmup_samples", 0) or 0)
     for k, a in enumerate(s.axes):
-        ratio = (nf[k] / nr[k]) if (nr[k] and nf[k] is not None) else None
+        ratio = (nf[k] / nr[k]) if (nr[k] and nf[k] is not None and not slow) else None
         noise[a] = {"raw": nr[k], "filtered": nf[k], "ratio": ratio}
+        if slow or getattr(s, "left_raw", None):
+            motion[a] = None
+            continue
+        kept = mm.lowband_kept(x[:, k], f[:, k], s.rate_hz, band_hz, s.restarts, skip)
+        kept["lag_s"] = mm.lag_s(x[:, k], f[:, k], s.rate_hz, band_hz, s.restarts, skip)
+        motion[a] = kept
+        why = mm.motion_loss(kept, nr[k], s.rate_hz, band_hz)
+        if why:
+            warnings.append(f"{s.name}.{a}: the filter removed most of the real motion: {why}")
     dur = float(np.sum(np.diff(joined_time(s.time_s, s.restarts)))) if s.n > 1 else 0.0
     rep = {
         "name": s.name, "message": s.message, "field_unit": s.unit,
@@ -278,7 +340,15 @@ def stream_report(s, csv_path=None, png_path=None):
         "non_finite_samples": dict(zip(s.axes, getattr(s, "non_finite", [0] * len(s.axes)))),
         "all_zero": bool(s.n and not np.any(s.raw)),
         "noise_unit": unit, "noise": noise,
+        "motion_band_hz": band_hz, "warmup_samples": skip, "motion": motion,
+        "too_slow_to_denoise": bool(slow),
+        "left_raw": getattr(s, "left_raw", None),
+        "warnings": warnings,
     }
+    if slow:
+        rep["slow_note"] = (f"sampled at {_hz(s.rate_hz)} Hz, below {mm.MIN_DENOISE_RATE_HZ:g} Hz: too "
+                            f"slowly to denoise (what a filter removes is motion as much as noise); "
+                            f"no improvement figure")
     if s.note:
         rep["note"] = s.note
     if csv_path:
@@ -288,7 +358,11 @@ def stream_report(s, csv_path=None, png_path=None):
     return rep
 
 
-def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, gap_factor=5.0,
+def _hz(v):
+    return "unknown" if v is None else f"{v:.3g}"
+
+
+def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
                 plot_helpers=1, warmup_s=None, filter_kw=None):
@@ -329,9 +403,12 @@ def process_log(path, out_dir, *, engine="native", method="shakf", ar_order=3, g
             from . import ulog
             ctx["u"], streams, ctx["refs"] = ulog.read(path)
             u = ctx["u"]
+            cut = ulog.truncated_bytes(path)
             rep.update(messages=sum(len(d.data["timestamp"]) for d in u.data_list),
                        unreadable_records=None,
-                       data_corruption=bool(getattr(u, "has_data_corruption", False)), truncated=None)
+                       data_corruption=bool(getattr(u, "file_corruption", False)),
+                       truncated=cut > 0, truncated_bytes=max(cut, 0),
+                       truncation="message cut by the end of the file" if cut > 0 else None)
         if not streams:
             raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
         eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw)
@@ -388,7 +465,19 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
         if s.to_deg_s is None and log:
             log(f"{path}: {s.name}: unit unknown, filtered in {s.unit} ({s.note})")
     rep.update(streams=srep, restarts=restarts)
+    if log:
+        log_problems(dict(rep, file=str(path)), log)
     return rep
+
+
+def log_problems(rep, log):
+    """One stderr line per stream left raw, and per motion-loss warning."""
+    for s in rep["streams"]:
+        if s.get("left_raw"):
+            log(f"{rep['file']}: {s['name']}: NOT FILTERED: {s['left_raw']}; the stream's samples "
+                f"are written RAW (unfiltered) into {rep.get('output_log')}")
+        for w in s.get("warnings", []):
+            log(f"{rep['file']}: warning: {w}")
 
 
 # ------------------------------------------------------------------ many logs
@@ -456,9 +545,17 @@ def process_many(items, out_dir, jobs=1, log=None, **kw):
             for s in r["streams"]:
                 if not s["unit_known"]:
                     log(f"{r['file']}: {s['name']}: unit unknown, filtered in {s['field_unit']}")
+            log_problems(r, log)
     return {
         "logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
         "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed),
         "jobs": int(jobs), "seconds": round(time.perf_counter() - t0, 3),
-        "noise_metric": NOISE_METRIC,
+        "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC,
+        "streams_left_raw": streams_left_raw(logs),
     }
+
+
+def streams_left_raw(logs):
+    """[{"file", "stream", "reason"}] of the streams written raw by the safety net."""
+    return [{"file": r["file"], "stream": s["name"], "reason": s["left_raw"]}
+            for r in logs for s in r["streams"] if s.get("left_raw")]

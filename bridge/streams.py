@@ -52,6 +52,10 @@ class GyroStream:
     rate_hz: float | None = None
     axes: tuple = ("x", "y", "z")
     extra: dict = field(default_factory=dict)    # reader-specific data (e.g. ISBD multipliers)
+    #: how the log stores a gyro value: numpy dtype of the field, and the factor from
+    #: the field unit to the stored number (a scalar, or per sample: ISBD ``mul``)
+    field_dtype: str = "<f4"
+    field_scale: object = 1.0
 
     @property
     def n(self):
@@ -62,6 +66,25 @@ class GyroStream:
         if self.to_deg_s is None:
             return self.raw.astype(np.float64), 1.0, self.unit
         return self.raw.astype(np.float64) * self.to_deg_s, 1.0 / self.to_deg_s, "deg/s"
+
+
+def field_misfit(stream, values):
+    """Samples (bool (n, 3)) whose ``values`` (field unit) cannot be stored in the
+    log's field as they are: beyond the integer type's range once rounded, or
+    not finite / overflowing in a float type. Never clipped silently: the caller
+    leaves such a stream raw and reports it."""
+    v = np.asarray(values, dtype=np.float64)
+    scale = np.asarray(stream.field_scale, dtype=np.float64)
+    if scale.ndim == 1:
+        scale = scale[:, None]
+    dt = np.dtype(stream.field_dtype)
+    with np.errstate(invalid="ignore", over="ignore"):
+        stored = v * scale
+        if dt.kind in "iu":
+            info = np.iinfo(dt)
+            r = np.rint(stored)
+            return ~((r >= info.min) & (r <= info.max))
+        return ~(np.abs(stored) <= np.finfo(dt).max)
 
 
 class RestartDetector:

@@ -350,7 +350,8 @@ def gyro_streams(data, fr: TlogFrames, raw_imu_unit="auto", raw_imu_scale=None):
                 to_deg = UNIT_TO_DEG_S[u]
             found.append((int(sel[s_sel][0]), name, s_id, c_id, i_id, GyroStream(
                 name=name + (f"[{i_id}]" if i_id else ""), message=name, unit=u, to_deg_s=to_deg,
-                time_s=t[s_sel], raw=raw[s_sel], index=sel[s_sel], note=note)))
+                time_s=t[s_sel], raw=raw[s_sel], index=sel[s_sel], note=note,
+                field_dtype=field_dtype(name))))
     found.sort(key=lambda x: x[0])
     systems = {(f[2], f[3]) for f in found}
     streams = []
@@ -359,6 +360,11 @@ def gyro_streams(data, fr: TlogFrames, raw_imu_unit="auto", raw_imu_scale=None):
             st.name += f"@{s_id}.{c_id}"
         streams.append(st)
     return streams
+
+
+def field_dtype(name):
+    """numpy dtype of the gyro fields of message ``name`` (int16 or float32)."""
+    return layout(name).offsets[GYRO_FIELDS[0]][1].str
 
 
 def _raw_imu_unit(info, any_v2, override, scale):
@@ -382,8 +388,10 @@ def _raw_imu_unit(info, any_v2, override, scale):
 # ---------------------------------------------------------------- re-packing
 def repack(pkt, name, values):
     """Packet ``pkt`` (bytes) of message ``name`` with its gyro fields set to
-    ``values`` (3 numbers in the field unit; int16 fields are rounded and
-    clipped). Returns (new packet bytes, signature_dropped)."""
+    ``values`` (3 numbers in the field unit; int16 fields are rounded). A value
+    that does not fit the field's type raises ValueError (never clipped: the
+    callers check :func:`bridge.streams.field_misfit` first and keep the raw
+    values). Returns (new packet bytes, signature_dropped)."""
     lay = layout(name)
     v2 = pkt[0] == MAGIC_V2
     hl = 10 if v2 else 6
@@ -394,7 +402,12 @@ def repack(pkt, name, values):
         off, dt = lay.offsets[g]
         if dt.kind == "i":
             info = np.iinfo(dt)
-            v = int(min(max(round(float(v)), info.min), info.max))
+            fv = float(v)
+            if not (abs(fv) < 2.0 ** 63 and info.min <= round(fv) <= info.max):
+                raise ValueError(f"{name}.{g}: {v!r} does not fit {dt.name}")
+            v = int(round(fv))
+        elif not abs(float(v)) <= np.finfo(dt).max and float(v) == float(v):
+            raise ValueError(f"{name}.{g}: {v!r} does not fit {dt.name}")
         full[off:off + dt.itemsize] = np.array(v, dtype=dt).tobytes()
     if v2:
         k = len(full)

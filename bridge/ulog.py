@@ -42,9 +42,29 @@ def read(path):
         streams.append(GyroStream(name=name, message=d.name, unit="rad/s",
                                   to_deg_s=UNIT_TO_DEG_S["rad/s"], time_s=t, raw=raw,
                                   index=np.arange(len(t)),
-                                  note=f"ULog {d.name}.{'/'.join(cols)} (rad/s), time timestamp"))
+                                  note=f"ULog {d.name}.{'/'.join(cols)} (rad/s), time timestamp",
+                                  field_dtype=np.asarray(d.data[cols[0]]).dtype.str))
         refs.append((d, cols))
     return u, streams, refs
+
+
+def truncated_bytes(path):
+    """Bytes of a message cut by the end of the file (0: the file ends on a message
+    boundary). Walks the message headers (uint16 size, uint8 type) after the
+    16-byte file header, as pyulog does; pyulog itself stops silently at a cut
+    message. -1 when the file is too short for a header."""
+    with open(path, "rb") as fh:
+        data = fh.read()
+    n = len(data)
+    if n < 16:
+        return -1
+    pos = 16
+    while pos + 3 <= n:
+        nxt = pos + 3 + (data[pos] | (data[pos + 1] << 8))
+        if nxt > n:
+            return n - pos
+        pos = nxt
+    return n - pos
 
 
 def write_filtered(u, streams, refs, path):

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
+from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.errors import InputError
 
 from bridge import dataflash, tlog
@@ -106,7 +107,8 @@ def tlog_reference(path):
     return {k: (np.array(v)[:, 0], np.array(v)[:, 1:]) for k, v in streams.items()}, msgs, bad
 
 
-def ref_filter(raw_deg, rate, restarts, method="shakf", order=3):
+def ref_filter(raw_deg, rate, restarts, method=None, order=3):
+    method = method or DEFAULT_METHOD          # the bridge's default is the core's
     return np.stack([gd.denoise(raw_deg[:, k], rate, method=method, ar_order=order, restarts=restarts)
                      for k in range(raw_deg.shape[1])], axis=1)
 
@@ -375,12 +377,15 @@ def test_repack_round_trip_through_pymavlink():
         m.seq = 42
         pkt = dialect.MAVLink_raw_imu_message(123456, 1, 2, 3, 0, 0, 0, 0, 0, 0).pack(m, force_mavlink1=force1) \
             if dialect is mav1 else dialect.MAVLink_raw_imu_message(123456, 1, 2, 3, 0, 0, 0, 0, 0, 0, 0, 0).pack(m)
-        new, dropped = tlog.repack(pkt, "RAW_IMU", [-5.4, 7.5, 32767.9])
+        new, dropped = tlog.repack(pkt, "RAW_IMU", [-5.4, 7.5, 32767.4])
         assert not dropped
         dec = mav2.MAVLink(None)
         msg = dec.parse_char(new)
         assert msg is not None and msg.get_type() == "RAW_IMU"
         assert (msg.xgyro, msg.ygyro, msg.zgyro) == (-5, 8, 32767)
+        for bad in (32767.9, -32768.6, float("nan"), float("inf"), 1e300):   # never clipped silently
+            with pytest.raises(ValueError, match="does not fit int16"):
+                tlog.repack(pkt, "RAW_IMU", [0.0, 0.0, bad])
         assert (msg.xacc, msg.yacc, msg.zacc, msg.time_usec) == (1, 2, 3, 123456)
         assert (msg.get_srcSystem(), msg.get_srcComponent(), msg.get_seq()) == (7, 3, 42)
 
@@ -422,10 +427,12 @@ def test_unknown_file_type_exits_2(tmp_path):
     junk = tmp_path / "notes.dat"
     junk.write_bytes(b"hello, this is not a flight log\n" * 40)
     r = run_cli(junk, "-o", tmp_path / "o", "--json")
-    assert r.returncode == 2 and r.stdout == ""
-    assert r.stderr.strip().splitlines() == [
-        f"gyrodenoise: error: {junk}: unknown file type (expected a MAVLink telemetry log .tlog, "
-        f"an ArduPilot DataFlash log .bin or a PX4 log .ulg)"]
+    msg = (f"{junk}: unknown file type (expected a MAVLink telemetry log .tlog, "
+           f"an ArduPilot DataFlash log .bin or a PX4 log .ulg)")
+    assert r.returncode == 2
+    assert json.loads(r.stdout) == {"error": msg, "exit_status": 2}     # --json: one object, the error
+    assert r.stdout.count("\n") == 1
+    assert r.stderr.strip().splitlines() == [f"gyrodenoise: error: {msg}"]
     with pytest.raises(InputError, match="not a DataFlash binary log"):
         process_log(shutil.copy(junk, tmp_path / "fake.bin"), tmp_path / "o")
 

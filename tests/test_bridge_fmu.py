@@ -105,10 +105,10 @@ def test_outlier_options_reach_both_engines(fmu_path, tmp_path, filter_kw):
     """--outlier-sigma/--outlier-run: the native Denoiser and the FMU parameters of
     the same names give the same filtered log, and the option changes the output."""
     path = DATA / "ardusub_small.BIN"
-    nat = process_log(path, tmp_path / "n", plots=False, filter_kw=filter_kw)
-    fmu = process_log(path, tmp_path / "f", plots=False, engine="fmu", fmu_path=fmu_path,
-                      filter_kw=filter_kw)
-    default = process_log(path, tmp_path / "d", plots=False)
+    kw = dict(plots=False, method="shakf")         # the gate acts on the AR-model filters
+    nat = process_log(path, tmp_path / "n", filter_kw=filter_kw, **kw)
+    fmu = process_log(path, tmp_path / "f", engine="fmu", fmu_path=fmu_path, filter_kw=filter_kw, **kw)
+    default = process_log(path, tmp_path / "d", **kw)
     assert nat["filter_options"] == filter_kw
     a = np.genfromtxt(nat["streams"][0]["csv"], delimiter=",", names=True)
     b = np.genfromtxt(fmu["streams"][0]["csv"], delimiter=",", names=True)
