@@ -7,6 +7,7 @@
  */
 #include <math.h>
 #include <stddef.h>
+#include <string.h>
 
 #include "gdcore.h"
 
@@ -600,44 +601,625 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart)
     return out;
 }
 
-/* the batch loop for a p whose order is the constant `order` (p copied to a
- * local array: the compiler then knows that s never aliases it) */
-KERNEL void run_order(const double *p0, double *s, const double *z,
-                      const unsigned char *restarts, double *out, long n, int order)
+/* ------------------------------------------------------------------------
+ * The batch loop of the AR methods (none, kf, shakf, sh_classic) for orders
+ * 1..LOC_MAX_ORDER with the state in locals: the same recursion as step_
+ * (restart_, gate_, filter_step_, rls_update_, kf_predict_, kf_update_,
+ * start_filter_, tie_c_, healthy), operation for operation and in the same
+ * order, but on the header scalars held in local variables and the vectors and
+ * matrices in fixed-size local arrays, unpacked from s once before the loop
+ * and packed back once after it. The order is a compile-time constant in each
+ * instance (loops fully unrolled, constant indices) and nothing the loop
+ * keeps can alias out[] or z[], so the compiler keeps the state in registers
+ * or the stack instead of reloading it through s every sample. The full
+ * matrices are kept (no symmetry assumed), so any state, even one not made by
+ * the kernels, gives exactly what step_ gives. The only products left out are
+ * the RLS covariance's x * 1.0 when it is not forgotten (exact).
+ * Change the maths in kernels.py and step_ above, then here: tests/test_ccore.py
+ * compares this loop bit for bit with kernels.py.
+ */
+#define LOC_MAX_ORDER 8
+
+/* The clamps on the loop-carried chains (R, q, the diagonal of P) are almost
+ * never taken: a well-predicted branch lets the value flow on at no cost,
+ * where GCC would otherwise if-convert them into maxsd / and-or selects that
+ * add their latency to every sample's dependency chain. The empty asm keeps
+ * the branch (no code, no effect on the arithmetic). */
+#if defined(__GNUC__)
+#define RARELY(c) __builtin_expect(!!(c), 0)
+#define KEEP_BRANCH() __asm__ volatile("")
+#else
+#define RARELY(c) (c)
+#define KEEP_BRANCH() ((void)0)
+#endif
+
+#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8
+#define UNROLL _Pragma("GCC unroll 16")
+#elif defined(__clang__)
+#define UNROLL _Pragma("clang loop unroll(full)")
+#else
+#define UNROLL
+#endif
+
+/* Reading the (i, j) entry of a local matrix: with sym (both covariances
+ * exactly symmetric, bit for bit, when unpacked; every kernel keeps them so)
+ * only the upper triangle is kept up to date and read, the lower one is
+ * mirrored when the state is packed. */
+#define SY(A, i, j) (A)[(sym && (i) > (j)) ? (j) * m + (i) : (i) * m + (j)]
+
+/* rls_gain on the local arrays: g = P h into w; returns lam + h' P h */
+KERNEL double loc_rls_gain(const double *prls, const double *zh, double *w, double lam,
+                           const int n, const int m, const int sym)
 {
-    double p[N_PARAMS];
-    long i;
-    for (i = 0; i < N_PARAMS; i++)
-        p[i] = p0[i];
-    p[P_ORDER] = (double)order;
-    if (restarts == NULL) {
-        for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], 0);
-    } else {
-        for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], restarts[i] != 0);
+    int i, j;
+    double acc, den;
+    UNROLL
+    for (i = 0; i < m; i++) {
+        acc = prls[i * m + n];
+        UNROLL
+        for (j = 0; j < n; j++)
+            acc += SY(prls, i, j) * zh[j];
+        w[i] = acc;
     }
+    den = lam + w[n];
+    UNROLL
+    for (j = 0; j < n; j++)
+        den += zh[j] * w[j];
+    return den;
 }
 
-static void run_1(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 1); }
-static void run_2(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 2); }
-static void run_3(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 3); }
-static void run_4(const double *p, double *s, const double *z, const unsigned char *r, double *o, long n) { run_order(p, s, z, r, o, n, 4); }
+/* tie_c_ on the local arrays */
+KERNEL void loc_tie_c(const double *th, double *x, double *P, double floor_, const int n,
+                      const int m, const int sym)
+{
+    int i;
+    x[n] = th[n];
+    UNROLL
+    for (i = 0; i < n; i++) {
+        P[i * m + n] = 0.0;
+        if (!sym)
+            P[n * m + i] = 0.0;
+    }
+    P[n * m + n] = floor_;
+}
+
+/* kf_predict_ on the local arrays */
+KERNEL double loc_predict(const double *th, double *x, double *P, double *w, double q,
+                          const int n, const int m, const int sym)
+{
+    int i, j;
+    double x0, acc, p00, v;
+    x0 = x[n];
+    UNROLL
+    for (i = 0; i < n; i++)
+        x0 += th[i] * x[i];
+    UNROLL
+    for (i = n - 1; i > 0; i--)
+        x[i] = x[i - 1];
+    x[0] = x0;
+    UNROLL
+    for (j = 0; j < m; j++) {
+        acc = SY(P, n, j);
+        UNROLL
+        for (i = 0; i < n; i++)
+            acc += th[i] * SY(P, i, j);
+        w[j] = acc;
+    }
+    UNROLL
+    for (i = n - 1; i > 0; i--) {
+        UNROLL
+        for (j = n - 1; j > 0; j--)
+            if (!sym || i <= j)
+                P[i * m + j] = SY(P, i - 1, j - 1);
+        v = P[(i - 1) * m + n];
+        P[i * m + n] = v;
+        if (!sym)
+            P[n * m + i] = v;
+    }
+    p00 = w[n] + q;
+    UNROLL
+    for (i = 0; i < n; i++)
+        p00 += th[i] * w[i];
+    P[0] = p00;
+    UNROLL
+    for (j = 1; j < n; j++) {
+        P[j] = w[j - 1];
+        if (!sym)
+            P[j * m] = w[j - 1];
+    }
+    P[n] = w[n];
+    if (!sym)
+        P[n * m] = w[n];
+    return x0;
+}
+
+/* kf_update_ on the local arrays. The c entries it updates (x[n], the c
+ * column of P and its clamp) are dead within a record: every next sample
+ * overwrites them (tie_c_ in gate_ and filter_step_, start_filter_, restart_)
+ * before anything reads them. They are computed, with the same operations,
+ * only when `full` (the last sample of the call: they are then the state left
+ * in s). Every other entry is computed independently of them, as in kf_update_. */
+KERNEL double loc_update(double *x, double *P, double *w, double v, double r, const int n,
+                         const int m, const int sym, const int full)
+{
+    int i, j;
+    double svar = P[0] + r;
+    double inv_s = 1.0 / svar;
+    UNROLL
+    for (i = 0; i < m; i++)
+        w[i] = SY(P, i, 0);
+    UNROLL
+    for (i = 0; i < n; i++)
+        x[i] += w[i] * inv_s * v;
+    UNROLL
+    for (i = 0; i < n; i++) {
+        double ki = w[i] * inv_s;
+        UNROLL
+        for (j = i; j < n; j++) {
+            double val = P[i * m + j] - ki * w[j];
+            P[i * m + j] = val;
+            if (!sym)
+                P[j * m + i] = val;
+        }
+    }
+    UNROLL
+    for (i = 0; i < n; i++)
+        if (RARELY(P[i * m + i] < 1e-300)) {
+            P[i * m + i] = 1e-300;
+            KEEP_BRANCH();
+        }
+    if (full) {
+        x[n] += w[n] * inv_s * v;
+        UNROLL
+        for (i = 0; i < m; i++) {
+            double ki = w[i] * inv_s;
+            double val = P[i * m + n] - ki * w[n];
+            P[i * m + n] = val;
+            if (!sym)
+                P[n * m + i] = val;
+        }
+        if (P[n * m + n] < 1e-300)
+            P[n * m + n] = 1e-300;
+    }
+    return svar;
+}
+
+/* restart_ on the locals (the cumulative counters nrej, nreopen, nclamp and
+ * nheal are kept; the method block of s is zeroed when the state is packed) */
+#define LOC_RESTART()                                          \
+    do {                                                       \
+        UNROLL                                                 \
+        for (i = 0; i < m; i++) {                              \
+            th[i] = 0.0;                                       \
+            x[i] = 0.0;                                        \
+            w[i] = 0.0;                                        \
+        }                                                      \
+        UNROLL                                                 \
+        for (i = 0; i < n; i++)                                \
+            zh[i] = 0.0;                                       \
+        UNROLL                                                 \
+        for (i = 0; i < m * m; i++) {                          \
+            prls[i] = 0.0;                                     \
+            P[i] = 0.0;                                        \
+        }                                                      \
+        UNROLL                                                 \
+        for (i = 0; i < m; i++) {                              \
+            prls[i * m + i] = p0_rls;                          \
+            P[i * m + i] = p0_kf;                              \
+        }                                                      \
+        k = kd = s2 = ns2 = conv = innov = svar_s = nreset = 0.0; \
+        out_s = rls_err = bk = rejrun = zref = lo = hi = hold = 0.0; \
+        R = r0 > 0.0 ? r0 : floor_;                            \
+        Q = q0;                                                \
+        restarted = 1;                                         \
+    } while (0)
+
+/* filter_step_ on the locals: zc centred sample, result into xc */
+#define LOC_FILTER_STEP(zc_expr)                                                  \
+    do {                                                                          \
+        double zc = (zc_expr);                                                    \
+        double kk = k;                                                            \
+        double e = 0.0;                                                           \
+        if (conv == 0.0) {                                                        \
+            double autolevel = 0.5 * s2;                                          \
+            if (autolevel < floor_)                                               \
+                autolevel = floor_;                                               \
+            Q = q0 > 0.0 ? q0 : autolevel;                                        \
+            R = r0 > 0.0 ? r0 : autolevel;                                        \
+            if (kk >= warmup) {                                                   \
+                conv = 1.0;                                                       \
+                kd = 0.0;                                                         \
+                bk = b;                                                           \
+                UNROLL                                                            \
+                for (i = 0; i < m * m; i++)                                       \
+                    P[i] = 0.0;                                                   \
+                UNROLL                                                            \
+                for (i = 0; i < n; i++) {                                         \
+                    x[i] = zh[i];                                                 \
+                    P[i * m + i] = R;                                             \
+                }                                                                 \
+                loc_tie_c(th, x, P, floor_, n, m, sym);                                \
+            }                                                                     \
+        }                                                                         \
+        /* rls_update_ */                                                         \
+        if (kk >= (double)n) {                                                    \
+            double den = loc_rls_gain(prls, zh, w, lam, n, m, sym);                    \
+            double pred, inv_den;                                                 \
+            int forget;                                                           \
+            if (!(den >= lam)) {                                                  \
+                UNROLL                                                            \
+                for (i = 0; i < m * m; i++)                                       \
+                    prls[i] = 0.0;                                                \
+                UNROLL                                                            \
+                for (i = 0; i < m; i++)                                           \
+                    prls[i * m + i] = p0_rls;                                     \
+                den = loc_rls_gain(prls, zh, w, lam, n, m, sym);                       \
+            }                                                                     \
+            pred = th[n];                                                         \
+            UNROLL                                                                \
+            for (j = 0; j < n; j++)                                               \
+                pred += zh[j] * th[j];                                            \
+            e = zc - pred;                                                        \
+            inv_den = 1.0 / den;                                                  \
+            UNROLL                                                                \
+            for (i = 0; i < m; i++)                                               \
+                th[i] += w[i] * inv_den * e;                                      \
+            forget = lam != 1.0;                                                  \
+            if (forget) {                                                         \
+                double tr = 0.0;                                                  \
+                UNROLL                                                            \
+                for (i = 0; i < m; i++)                                           \
+                    tr += prls[i * m + i] - w[i] * inv_den * w[i];                \
+                if (tr * inv_lam > m_p0)                                          \
+                    forget = 0;                                                   \
+            }                                                                     \
+            UNROLL                                                                \
+            for (i = 0; i < m; i++) {                                             \
+                double gi = w[i] * inv_den;                                       \
+                UNROLL                                                            \
+                for (j = i; j < m; j++) {                                         \
+                    double v_ = prls[i * m + j] - gi * w[j];                      \
+                    if (forget)                                                   \
+                        v_ = v_ * inv_lam;                                        \
+                    prls[i * m + j] = v_;                                         \
+                    if (!sym)                                                     \
+                        prls[j * m + i] = v_;                                     \
+                }                                                                 \
+            }                                                                     \
+        }                                                                         \
+        UNROLL                                                                    \
+        for (j = n - 1; j > 0; j--)                                               \
+            zh[j] = zh[j - 1];                                                    \
+        zh[0] = zc;                                                               \
+        rls_err = e;                                                              \
+        if (kk >= ten_m) {                                                        \
+            ns2 += 1.0;                                                           \
+            s2 += (e * e - s2) / ns2;                                             \
+        }                                                                         \
+        if (kk == 0.0) {                                                          \
+            UNROLL                                                                \
+            for (i = 0; i < n; i++)                                               \
+                x[i] = zc;                                                        \
+            x[n] = 0.0;                                                           \
+            k = 1.0;                                                              \
+            out_s = zc;                                                           \
+            innov = 0.0;                                                          \
+            xc = zc;                                                              \
+        } else {                                                                  \
+            double q, xp, v, p00, r, svar;                                        \
+            loc_tie_c(th, x, P, floor_, n, m, sym);                                    \
+            q = Q;                                                                \
+            xp = loc_predict(th, x, P, w, q, n, m, sym);                               \
+            v = zc - xp;                                                          \
+            p00 = P[0];                                                           \
+            r = R;                                                                \
+            if (conv == 1.0 && adaptive) {                                        \
+                double d, k0;                                                     \
+                if (shakf && v * v > g2 * (p00 + r)) {                            \
+                    kd = 0.0;                                                     \
+                    nreset += 1.0;                                                \
+                    bk = b;                                                       \
+                } else {                                                          \
+                    kd += 1.0;                                                    \
+                    bk *= b;                                                      \
+                    if (bk < 1e-290)                                              \
+                        bk = 0.0;                                                 \
+                }                                                                 \
+                d = (1.0 - b) / (1.0 - bk);                                       \
+                if (shakf)                                                        \
+                    r = (1.0 - d) * r + d * v * v;                                \
+                else                                                              \
+                    r = (1.0 - d) * r + d * (v * v - p00);                        \
+                if (RARELY(r < floor_)) {                                         \
+                    r = floor_;                                                   \
+                    KEEP_BRANCH();                                                \
+                }                                                                 \
+                R = r;                                                            \
+                svar = loc_update(x, P, w, v, r, n, m, sym, t == N - 1);                              \
+                k0 = p00 / svar;                                                  \
+                q = q + d * k0 * k0 * (v * v - svar);                             \
+                if (RARELY(q < floor_)) {                                         \
+                    q = floor_;                                                   \
+                    KEEP_BRANCH();                                                \
+                }                                                                 \
+                Q = q;                                                            \
+            } else {                                                              \
+                svar = loc_update(x, P, w, v, r, n, m, sym, t == N - 1);                              \
+            }                                                                     \
+            innov = v;                                                            \
+            svar_s = svar;                                                        \
+            k = kk + 1.0;                                                         \
+            xc = zc;                                                              \
+            if (conv == 1.0 && filtering)                                         \
+                xc = x[0];                                                        \
+            out_s = xc;                                                           \
+        }                                                                         \
+    } while (0)
+
+KERNEL void run_ar_(const double *p, double *s, const double *z,
+                    const unsigned char *restarts, double *out, long N, const int n,
+                    const double method,
+                    double *th, double *prls, double *x, double *P, double *zh, double *w)
+{
+    const int m = n + 1;
+    const gd_layout_t L = layout_(n);
+    /* parameters */
+    const int sym = 1;
+    const double lam = p[P_LAM], b = p[P_B], g = p[P_GAMMA];
+    const double q0 = p[P_Q0], r0 = p[P_R0], p0_rls = p[P_P0_RLS], p0_kf = p[P_P0_KF];
+    const double warmup = p[P_WARMUP], floor_ = p[P_R_FLOOR];
+    const double ksig = p[P_OUTLIER_SIGMA], orun = p[P_OUTLIER_RUN];
+    const int gate_on = ksig > 0.0 && method != METHOD_NONE;
+    const int adaptive = method == METHOD_SHAKF || method == METHOD_SH_CLASSIC;
+    const int shakf = method == METHOD_SHAKF;
+    const int filtering = method != METHOD_NONE;
+    const double kk2 = ksig * ksig, g2 = g * g, inv_lam = 1.0 / lam;
+    const double ten_m = 10.0 * (double)m, m_p0 = (double)m * p0_rls;
+    /* header */
+    double k = s[S_K], kd = s[S_KD], R = s[S_R], Q = s[S_Q], s2 = s[S_S2], ns2 = s[S_NS2];
+    double conv = s[S_CONV], innov = s[S_INNOV], svar_s = s[S_SVAR], nreset = s[S_NRESET];
+    double out_s = s[S_OUT], rls_err = s[S_RLS_ERR], bk = s[S_BK], nrej = s[S_NREJ];
+    double rejrun = s[S_REJRUN], nreopen = s[S_NREOPEN], zref = s[S_ZREF], lo = s[S_LO];
+    double hi = s[S_HI], hold = s[S_HOLD], nclamp = s[S_NCLAMP], nheal = s[S_NHEAL];
+    int restarted = 0;
+    long t;
+    int i, j;
+
+    UNROLL
+    for (i = 0; i < m; i++) {
+        th[i] = s[L.theta + i];
+        x[i] = s[L.x + i];
+        w[i] = s[L.w + i];
+    }
+    UNROLL
+    for (i = 0; i < m * m; i++) {
+        prls[i] = s[L.prls + i];
+        P[i] = s[L.p + i];
+    }
+    UNROLL
+    for (i = 0; i < n; i++)
+        zh[i] = s[L.z + i];
+
+    for (t = 0; t < N; t++) {
+        const double zt = z[t];
+        int rs = restarts != NULL && restarts[t];
+        int heal = 0;
+        double xc, o;
+        /* one pass; a second one (heal) when the state has left the finite
+         * numbers: restart and filter 0.0 as the first sample (step_) */
+        for (;;) {
+            int code = 0;
+            double zin;
+            if (!rs && !heal && gate_on && conv == 1.0) {
+                /* gate_ */
+                double zg = zt - zref;
+                double xp, p00, acc, svg, vg;
+                loc_tie_c(th, x, P, floor_, n, m, sym);
+                xp = x[n];
+                UNROLL
+                for (i = 0; i < n; i++)
+                    xp += th[i] * x[i];
+                p00 = P[n * m + n];
+                UNROLL
+                for (i = 0; i < n; i++) {
+                    acc = 0.0;
+                    UNROLL
+                    for (j = 0; j < n; j++)
+                        acc += th[j] * SY(P, i, j);
+                    p00 += th[i] * acc;
+                }
+                svg = p00 + Q + R;
+                vg = zg - xp;
+                if (!(vg * vg > kk2 * svg)) {
+                    rejrun = 0.0;
+                } else if (rejrun >= orun) {
+                    rs = 1;         /* restarted below, then filtered (code 2) */
+                    nreopen += 1.0;
+                } else {
+                    double x0;
+                    if (rejrun == 0.0) {
+                        /* on copies: th and w then keep constant indices only
+                         * (ar_stable_'s loops are not unrolled), so the compiler
+                         * holds them in registers */
+                        double ta[LOC_MAX_ORDER + 1], tw[LOC_MAX_ORDER + 1];
+                        UNROLL
+                        for (i = 0; i < m; i++) {
+                            ta[i] = th[i];
+                            tw[i] = w[i];
+                        }
+                        hold = ar_stable_(ta, 0, n, tw, 0) ? 0.0 : 1.0;
+                        UNROLL
+                        for (i = 0; i < m; i++)
+                            w[i] = tw[i];
+                    }
+                    if (hold == 0.0)
+                        x0 = loc_predict(th, x, P, w, Q, n, m, sym);
+                    else
+                        x0 = x[0];
+                    UNROLL
+                    for (j = n - 1; j > 0; j--)
+                        zh[j] = zh[j - 1];
+                    zh[0] = x0;
+                    nrej += 1.0;
+                    rejrun += 1.0;
+                    innov = vg;
+                    svar_s = svg;
+                    rls_err = 0.0;
+                    k += 1.0;
+                    out_s = x0;
+                    code = 1;
+                }
+            }
+            if (rs || heal)
+                LOC_RESTART();
+            if (heal) {
+                nheal += 1.0;
+                zref = zt;
+                lo = zt;
+                hi = zt;
+                zin = 0.0;
+            } else {
+                if (k == 0.0) {
+                    zref = zt;
+                    lo = zt;
+                    hi = zt;
+                }
+                if (zt < lo)
+                    lo = zt;
+                if (zt > hi)
+                    hi = zt;
+                zin = zt - zref;
+            }
+            if (code == 1)
+                xc = out_s;
+            else
+                LOC_FILTER_STEP(zin);
+            if (heal || (finite_(x[0]) && finite_(svar_s) && finite_(R) && finite_(Q)
+                         && finite_(rls_err) && finite_(s2) && finite_(xc)))
+                break;
+            heal = 1;
+        }
+        if (conv == 0.0 || !filtering) {
+            o = zt;
+        } else {
+            o = xc + zref;
+            if (o < lo) {
+                o = lo;
+                nclamp += 1.0;
+            } else if (o > hi) {
+                o = hi;
+                nclamp += 1.0;
+            }
+        }
+        out_s = o;
+        out[t] = o;
+    }
+
+    UNROLL
+    for (i = 0; i < m; i++) {
+        s[L.theta + i] = th[i];
+        s[L.x + i] = x[i];
+        s[L.w + i] = w[i];
+    }
+    UNROLL
+    for (i = 0; i < m; i++) {
+        UNROLL
+        for (j = 0; j < m; j++) {
+            s[L.prls + i * m + j] = SY(prls, i, j);
+            s[L.p + i * m + j] = SY(P, i, j);
+        }
+    }
+    UNROLL
+    for (i = 0; i < n; i++)
+        s[L.z + i] = zh[i];
+    if (restarted)
+        for (i = 0; i < N_EXT; i++)
+            s[L.total - N_EXT + i] = 0.0;
+    s[S_K] = k;
+    s[S_KD] = kd;
+    s[S_R] = R;
+    s[S_Q] = Q;
+    s[S_S2] = s2;
+    s[S_NS2] = ns2;
+    s[S_CONV] = conv;
+    s[S_INNOV] = innov;
+    s[S_SVAR] = svar_s;
+    s[S_NRESET] = nreset;
+    s[S_OUT] = out_s;
+    s[S_RLS_ERR] = rls_err;
+    s[S_BK] = bk;
+    s[S_NREJ] = nrej;
+    s[S_REJRUN] = rejrun;
+    s[S_NREOPEN] = nreopen;
+    s[S_ZREF] = zref;
+    s[S_LO] = lo;
+    s[S_HI] = hi;
+    s[S_HOLD] = hold;
+    s[S_NCLAMP] = nclamp;
+    s[S_NHEAL] = nheal;
+}
+
+/* both covariances of s bit-for-bit symmetric (the run with sym then gives
+ * the same results as the full one: every kernel keeps them symmetric) */
+static int symmetric_(const double *s, int n)
+{
+    gd_layout_t L = layout_(n);
+    long m = (long)n + 1, i, j;
+    for (i = 0; i < m; i++)
+        for (j = i + 1; j < m; j++)
+            if (memcmp(&s[L.prls + i * m + j], &s[L.prls + j * m + i], sizeof(double)) != 0
+                || memcmp(&s[L.p + i * m + j], &s[L.p + j * m + i], sizeof(double)) != 0)
+                return 0;
+    return 1;
+}
+
+/* one instance per order and method: the local arrays have their exact sizes */
+#define DEFINE_RUN_AR(N_, NAME_, METHOD_)                                              \
+    static void run_ar_##NAME_##_##N_(const double *p, double *s, const double *z,    \
+                                      const unsigned char *r, double *o, long n)      \
+    {                                                                                  \
+        double th[N_ + 1], prls[(N_ + 1) * (N_ + 1)], x[N_ + 1];                       \
+        double P[(N_ + 1) * (N_ + 1)], zh[N_], w[N_ + 1];                              \
+        run_ar_(p, s, z, r, o, n, N_, METHOD_, th, prls, x, P, zh, w);                 \
+    }
+#define DEFINE_RUN_AR_ORDERS(NAME_, METHOD_)                                           \
+    DEFINE_RUN_AR(1, NAME_, METHOD_)                                                   \
+    DEFINE_RUN_AR(2, NAME_, METHOD_)                                                   \
+    DEFINE_RUN_AR(3, NAME_, METHOD_)                                                   \
+    DEFINE_RUN_AR(4, NAME_, METHOD_)                                                   \
+    DEFINE_RUN_AR(5, NAME_, METHOD_)                                                   \
+    DEFINE_RUN_AR(6, NAME_, METHOD_)                                                   \
+    DEFINE_RUN_AR(7, NAME_, METHOD_)                                                   \
+    DEFINE_RUN_AR(8, NAME_, METHOD_)
+DEFINE_RUN_AR_ORDERS(none, METHOD_NONE)
+DEFINE_RUN_AR_ORDERS(kf, METHOD_KF)
+DEFINE_RUN_AR_ORDERS(shakf, METHOD_SHAKF)
+DEFINE_RUN_AR_ORDERS(classic, METHOD_SH_CLASSIC)
+
+typedef void (*run_fn)(const double *, double *, const double *, const unsigned char *,
+                       double *, long);
+#define RUN_AR_ROW(NAME_)                                                              \
+    { NULL, run_ar_##NAME_##_1, run_ar_##NAME_##_2, run_ar_##NAME_##_3,                \
+      run_ar_##NAME_##_4, run_ar_##NAME_##_5, run_ar_##NAME_##_6, run_ar_##NAME_##_7,  \
+      run_ar_##NAME_##_8 }
+/* indexed by (int)p[P_METHOD] (METHOD_NONE .. METHOD_SH_CLASSIC are 0..3) and order */
+static const run_fn run_ar_table[4][LOC_MAX_ORDER + 1] = {
+    RUN_AR_ROW(none), RUN_AR_ROW(kf), RUN_AR_ROW(shakf), RUN_AR_ROW(classic),
+};
 
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
             double *out, long n)
 {
     long i;
-    double order = p[P_ORDER];
-    if (order == 1.0)
-        run_1(p, s, z, restarts, out, n);
-    else if (order == 2.0)
-        run_2(p, s, z, restarts, out, n);
-    else if (order == 3.0)
-        run_3(p, s, z, restarts, out, n);
-    else if (order == 4.0)
-        run_4(p, s, z, restarts, out, n);
-    else if (restarts == NULL)
+    double order = p[P_ORDER], method = p[P_METHOD];
+    if ((method == METHOD_NONE || method == METHOD_KF || method == METHOD_SHAKF
+         || method == METHOD_SH_CLASSIC)
+        && order >= 1.0 && order <= (double)LOC_MAX_ORDER && order == (double)(int)order
+        && symmetric_(s, (int)order)) {
+        run_ar_table[(int)method][(int)order](p, s, z, restarts, out, n);
+        return;
+    }
+    if (restarts == NULL)
         for (i = 0; i < n; i++)
             out[i] = step_(p, s, z[i], 0);
     else
