@@ -606,32 +606,21 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart)
  * 1..LOC_MAX_ORDER with the state in locals: the same recursion as step_
  * (restart_, gate_, filter_step_, rls_update_, kf_predict_, kf_update_,
  * start_filter_, tie_c_, healthy), operation for operation and in the same
- * order, but on the header scalars held in local variables and the vectors and
- * matrices in fixed-size local arrays, unpacked from s once before the loop
- * and packed back once after it. The order is a compile-time constant in each
- * instance (loops fully unrolled, constant indices) and nothing the loop
- * keeps can alias out[] or z[], so the compiler keeps the state in registers
- * or the stack instead of reloading it through s every sample. The full
- * matrices are kept (no symmetry assumed), so any state, even one not made by
- * the kernels, gives exactly what step_ gives. The only products left out are
- * the RLS covariance's x * 1.0 when it is not forgotten (exact).
- * Change the maths in kernels.py and step_ above, then here: tests/test_ccore.py
- * compares this loop bit for bit with kernels.py.
+ * order, on the header scalars held in local variables and the vectors and
+ * covariances in fixed-size local arrays, unpacked from s once before the loop
+ * and packed back once after it. The order is a compile-time constant in
+ * each instance (loops fully unrolled, constant indices, so the compiler
+ * keeps the arrays in registers and stack slots), and nothing the loop keeps
+ * can alias out[] or z[].
+ *
+ * Work left out, none of it visible in any output or in the final state:
+ *   - the lower triangles of the covariances (see SY),
+ *   - the RLS covariance's v * 1.0 when it is not forgotten (exact),
+ *   - kf_update_'s c entries except on the last sample (see loc_update).
+ * Change the maths in kernels.py and step_ above, then here:
+ * tests/test_ccore.py compares this loop bit for bit with kernels.py.
  */
 #define LOC_MAX_ORDER 8
-
-/* The clamps on the loop-carried chains (R, q, the diagonal of P) are almost
- * never taken: a well-predicted branch lets the value flow on at no cost,
- * where GCC would otherwise if-convert them into maxsd / and-or selects that
- * add their latency to every sample's dependency chain. The empty asm keeps
- * the branch (no code, no effect on the arithmetic). */
-#if defined(__GNUC__)
-#define RARELY(c) __builtin_expect(!!(c), 0)
-#define KEEP_BRANCH() __asm__ volatile("")
-#else
-#define RARELY(c) (c)
-#define KEEP_BRANCH() ((void)0)
-#endif
 
 #if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8
 #define UNROLL _Pragma("GCC unroll 16")
@@ -641,15 +630,15 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart)
 #define UNROLL
 #endif
 
-/* Reading the (i, j) entry of a local matrix: with sym (both covariances
- * exactly symmetric, bit for bit, when unpacked; every kernel keeps them so)
- * only the upper triangle is kept up to date and read, the lower one is
- * mirrored when the state is packed. */
-#define SY(A, i, j) (A)[(sym && (i) > (j)) ? (j) * m + (i) : (i) * m + (j)]
+/* The (i, j) entry of a local covariance. Both are symmetric bit for bit in
+ * every state the kernels make and every kernel keeps them so (gd_run checks
+ * it before it uses this loop): only the upper triangle is kept up to date and
+ * read here, and the lower one is mirrored when the state is packed. */
+#define SY(A, i, j) (A)[(i) > (j) ? (j) * m + (i) : (i) * m + (j)]
 
 /* rls_gain on the local arrays: g = P h into w; returns lam + h' P h */
 KERNEL double loc_rls_gain(const double *prls, const double *zh, double *w, double lam,
-                           const int n, const int m, const int sym)
+                           const int n, const int m)
 {
     int i, j;
     double acc, den;
@@ -670,22 +659,20 @@ KERNEL double loc_rls_gain(const double *prls, const double *zh, double *w, doub
 
 /* tie_c_ on the local arrays */
 KERNEL void loc_tie_c(const double *th, double *x, double *P, double floor_, const int n,
-                      const int m, const int sym)
+                      const int m)
 {
     int i;
     x[n] = th[n];
     UNROLL
     for (i = 0; i < n; i++) {
         P[i * m + n] = 0.0;
-        if (!sym)
-            P[n * m + i] = 0.0;
     }
     P[n * m + n] = floor_;
 }
 
 /* kf_predict_ on the local arrays */
 KERNEL double loc_predict(const double *th, double *x, double *P, double *w, double q,
-                          const int n, const int m, const int sym)
+                          const int n, const int m)
 {
     int i, j;
     double x0, acc, p00, v;
@@ -709,12 +696,10 @@ KERNEL double loc_predict(const double *th, double *x, double *P, double *w, dou
     for (i = n - 1; i > 0; i--) {
         UNROLL
         for (j = n - 1; j > 0; j--)
-            if (!sym || i <= j)
+            if (i <= j)
                 P[i * m + j] = SY(P, i - 1, j - 1);
         v = P[(i - 1) * m + n];
         P[i * m + n] = v;
-        if (!sym)
-            P[n * m + i] = v;
     }
     p00 = w[n] + q;
     UNROLL
@@ -724,12 +709,8 @@ KERNEL double loc_predict(const double *th, double *x, double *P, double *w, dou
     UNROLL
     for (j = 1; j < n; j++) {
         P[j] = w[j - 1];
-        if (!sym)
-            P[j * m] = w[j - 1];
     }
     P[n] = w[n];
-    if (!sym)
-        P[n * m] = w[n];
     return x0;
 }
 
@@ -740,7 +721,7 @@ KERNEL double loc_predict(const double *th, double *x, double *P, double *w, dou
  * only when `full` (the last sample of the call: they are then the state left
  * in s). Every other entry is computed independently of them, as in kf_update_. */
 KERNEL double loc_update(double *x, double *P, double *w, double v, double r, const int n,
-                         const int m, const int sym, const int full)
+                         const int m, const int full)
 {
     int i, j;
     double svar = P[0] + r;
@@ -758,16 +739,12 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
         for (j = i; j < n; j++) {
             double val = P[i * m + j] - ki * w[j];
             P[i * m + j] = val;
-            if (!sym)
-                P[j * m + i] = val;
         }
     }
     UNROLL
     for (i = 0; i < n; i++)
-        if (RARELY(P[i * m + i] < 1e-300)) {
+        if (P[i * m + i] < 1e-300)
             P[i * m + i] = 1e-300;
-            KEEP_BRANCH();
-        }
     if (full) {
         x[n] += w[n] * inv_s * v;
         UNROLL
@@ -775,8 +752,6 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
             double ki = w[i] * inv_s;
             double val = P[i * m + n] - ki * w[n];
             P[i * m + n] = val;
-            if (!sym)
-                P[n * m + i] = val;
         }
         if (P[n * m + n] < 1e-300)
             P[n * m + n] = 1e-300;
@@ -838,12 +813,12 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
                     x[i] = zh[i];                                                 \
                     P[i * m + i] = R;                                             \
                 }                                                                 \
-                loc_tie_c(th, x, P, floor_, n, m, sym);                                \
+                loc_tie_c(th, x, P, floor_, n, m);                                \
             }                                                                     \
         }                                                                         \
         /* rls_update_ */                                                         \
         if (kk >= (double)n) {                                                    \
-            double den = loc_rls_gain(prls, zh, w, lam, n, m, sym);                    \
+            double den = loc_rls_gain(prls, zh, w, lam, n, m);                    \
             double pred, inv_den;                                                 \
             int forget;                                                           \
             if (!(den >= lam)) {                                                  \
@@ -853,7 +828,7 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
                 UNROLL                                                            \
                 for (i = 0; i < m; i++)                                           \
                     prls[i * m + i] = p0_rls;                                     \
-                den = loc_rls_gain(prls, zh, w, lam, n, m, sym);                       \
+                den = loc_rls_gain(prls, zh, w, lam, n, m);                       \
             }                                                                     \
             pred = th[n];                                                         \
             UNROLL                                                                \
@@ -882,8 +857,6 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
                     if (forget)                                                   \
                         v_ = v_ * inv_lam;                                        \
                     prls[i * m + j] = v_;                                         \
-                    if (!sym)                                                     \
-                        prls[j * m + i] = v_;                                     \
                 }                                                                 \
             }                                                                     \
         }                                                                         \
@@ -907,9 +880,9 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
             xc = zc;                                                              \
         } else {                                                                  \
             double q, xp, v, p00, r, svar;                                        \
-            loc_tie_c(th, x, P, floor_, n, m, sym);                                    \
+            loc_tie_c(th, x, P, floor_, n, m);                                    \
             q = Q;                                                                \
-            xp = loc_predict(th, x, P, w, q, n, m, sym);                               \
+            xp = loc_predict(th, x, P, w, q, n, m);                               \
             v = zc - xp;                                                          \
             p00 = P[0];                                                           \
             r = R;                                                                \
@@ -930,21 +903,17 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
                     r = (1.0 - d) * r + d * v * v;                                \
                 else                                                              \
                     r = (1.0 - d) * r + d * (v * v - p00);                        \
-                if (RARELY(r < floor_)) {                                         \
+                if (r < floor_)                                                   \
                     r = floor_;                                                   \
-                    KEEP_BRANCH();                                                \
-                }                                                                 \
                 R = r;                                                            \
-                svar = loc_update(x, P, w, v, r, n, m, sym, t == N - 1);                              \
+                svar = loc_update(x, P, w, v, r, n, m, t == N - 1);                              \
                 k0 = p00 / svar;                                                  \
                 q = q + d * k0 * k0 * (v * v - svar);                             \
-                if (RARELY(q < floor_)) {                                         \
+                if (q < floor_)                                                   \
                     q = floor_;                                                   \
-                    KEEP_BRANCH();                                                \
-                }                                                                 \
                 Q = q;                                                            \
             } else {                                                              \
-                svar = loc_update(x, P, w, v, r, n, m, sym, t == N - 1);                              \
+                svar = loc_update(x, P, w, v, r, n, m, t == N - 1);                              \
             }                                                                     \
             innov = v;                                                            \
             svar_s = svar;                                                        \
@@ -958,13 +927,12 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
 
 KERNEL void run_ar_(const double *p, double *s, const double *z,
                     const unsigned char *restarts, double *out, long N, const int n,
-                    const double method,
                     double *th, double *prls, double *x, double *P, double *zh, double *w)
 {
     const int m = n + 1;
     const gd_layout_t L = layout_(n);
     /* parameters */
-    const int sym = 1;
+    const double method = p[P_METHOD];
     const double lam = p[P_LAM], b = p[P_B], g = p[P_GAMMA];
     const double q0 = p[P_Q0], r0 = p[P_R0], p0_rls = p[P_P0_RLS], p0_kf = p[P_P0_KF];
     const double warmup = p[P_WARMUP], floor_ = p[P_R_FLOOR];
@@ -1014,7 +982,7 @@ KERNEL void run_ar_(const double *p, double *s, const double *z,
                 /* gate_ */
                 double zg = zt - zref;
                 double xp, p00, acc, svg, vg;
-                loc_tie_c(th, x, P, floor_, n, m, sym);
+                loc_tie_c(th, x, P, floor_, n, m);
                 xp = x[n];
                 UNROLL
                 for (i = 0; i < n; i++)
@@ -1053,7 +1021,7 @@ KERNEL void run_ar_(const double *p, double *s, const double *z,
                             w[i] = tw[i];
                     }
                     if (hold == 0.0)
-                        x0 = loc_predict(th, x, P, w, Q, n, m, sym);
+                        x0 = loc_predict(th, x, P, w, Q, n, m);
                     else
                         x0 = x[0];
                     UNROLL
@@ -1159,8 +1127,8 @@ KERNEL void run_ar_(const double *p, double *s, const double *z,
     s[S_NHEAL] = nheal;
 }
 
-/* both covariances of s bit-for-bit symmetric (the run with sym then gives
- * the same results as the full one: every kernel keeps them symmetric) */
+/* both covariances of s symmetric bit for bit (run_ar_ relies on it; a state
+ * that is not, never made by the kernels, takes the generic loop) */
 static int symmetric_(const double *s, int n)
 {
     gd_layout_t L = layout_(n);
@@ -1173,38 +1141,28 @@ static int symmetric_(const double *s, int n)
     return 1;
 }
 
-/* one instance per order and method: the local arrays have their exact sizes */
-#define DEFINE_RUN_AR(N_, NAME_, METHOD_)                                              \
-    static void run_ar_##NAME_##_##N_(const double *p, double *s, const double *z,    \
-                                      const unsigned char *r, double *o, long n)      \
+/* one instance per order: the local arrays have their exact sizes */
+#define DEFINE_RUN_AR(N_)                                                              \
+    static void run_ar_##N_(const double *p, double *s, const double *z,              \
+                            const unsigned char *r, double *o, long n)                \
     {                                                                                  \
         double th[N_ + 1], prls[(N_ + 1) * (N_ + 1)], x[N_ + 1];                       \
         double P[(N_ + 1) * (N_ + 1)], zh[N_], w[N_ + 1];                              \
-        run_ar_(p, s, z, r, o, n, N_, METHOD_, th, prls, x, P, zh, w);                 \
+        run_ar_(p, s, z, r, o, n, N_, th, prls, x, P, zh, w);                          \
     }
-#define DEFINE_RUN_AR_ORDERS(NAME_, METHOD_)                                           \
-    DEFINE_RUN_AR(1, NAME_, METHOD_)                                                   \
-    DEFINE_RUN_AR(2, NAME_, METHOD_)                                                   \
-    DEFINE_RUN_AR(3, NAME_, METHOD_)                                                   \
-    DEFINE_RUN_AR(4, NAME_, METHOD_)                                                   \
-    DEFINE_RUN_AR(5, NAME_, METHOD_)                                                   \
-    DEFINE_RUN_AR(6, NAME_, METHOD_)                                                   \
-    DEFINE_RUN_AR(7, NAME_, METHOD_)                                                   \
-    DEFINE_RUN_AR(8, NAME_, METHOD_)
-DEFINE_RUN_AR_ORDERS(none, METHOD_NONE)
-DEFINE_RUN_AR_ORDERS(kf, METHOD_KF)
-DEFINE_RUN_AR_ORDERS(shakf, METHOD_SHAKF)
-DEFINE_RUN_AR_ORDERS(classic, METHOD_SH_CLASSIC)
+DEFINE_RUN_AR(1)
+DEFINE_RUN_AR(2)
+DEFINE_RUN_AR(3)
+DEFINE_RUN_AR(4)
+DEFINE_RUN_AR(5)
+DEFINE_RUN_AR(6)
+DEFINE_RUN_AR(7)
+DEFINE_RUN_AR(8)
 
 typedef void (*run_fn)(const double *, double *, const double *, const unsigned char *,
                        double *, long);
-#define RUN_AR_ROW(NAME_)                                                              \
-    { NULL, run_ar_##NAME_##_1, run_ar_##NAME_##_2, run_ar_##NAME_##_3,                \
-      run_ar_##NAME_##_4, run_ar_##NAME_##_5, run_ar_##NAME_##_6, run_ar_##NAME_##_7,  \
-      run_ar_##NAME_##_8 }
-/* indexed by (int)p[P_METHOD] (METHOD_NONE .. METHOD_SH_CLASSIC are 0..3) and order */
-static const run_fn run_ar_table[4][LOC_MAX_ORDER + 1] = {
-    RUN_AR_ROW(none), RUN_AR_ROW(kf), RUN_AR_ROW(shakf), RUN_AR_ROW(classic),
+static const run_fn run_ar_table[LOC_MAX_ORDER + 1] = {
+    NULL, run_ar_1, run_ar_2, run_ar_3, run_ar_4, run_ar_5, run_ar_6, run_ar_7, run_ar_8,
 };
 
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
@@ -1216,7 +1174,7 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
          || method == METHOD_SH_CLASSIC)
         && order >= 1.0 && order <= (double)LOC_MAX_ORDER && order == (double)(int)order
         && symmetric_(s, (int)order)) {
-        run_ar_table[(int)method][(int)order](p, s, z, restarts, out, n);
+        run_ar_table[(int)order](p, s, z, restarts, out, n);
         return;
     }
     if (restarts == NULL)
