@@ -664,9 +664,8 @@ KERNEL void loc_tie_c(const double *th, double *x, double *P, double floor_, con
     int i;
     x[n] = th[n];
     UNROLL
-    for (i = 0; i < n; i++) {
+    for (i = 0; i < n; i++)
         P[i * m + n] = 0.0;
-    }
     P[n * m + n] = floor_;
 }
 
@@ -707,9 +706,8 @@ KERNEL double loc_predict(const double *th, double *x, double *P, double *w, dou
         p00 += th[i] * w[i];
     P[0] = p00;
     UNROLL
-    for (j = 1; j < n; j++) {
+    for (j = 1; j < n; j++)
         P[j] = w[j - 1];
-    }
     P[n] = w[n];
     return x0;
 }
@@ -736,10 +734,8 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
     for (i = 0; i < n; i++) {
         double ki = w[i] * inv_s;
         UNROLL
-        for (j = i; j < n; j++) {
-            double val = P[i * m + j] - ki * w[j];
-            P[i * m + j] = val;
-        }
+        for (j = i; j < n; j++)
+            P[i * m + j] = P[i * m + j] - ki * w[j];
     }
     UNROLL
     for (i = 0; i < n; i++)
@@ -750,8 +746,7 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
         UNROLL
         for (i = 0; i < m; i++) {
             double ki = w[i] * inv_s;
-            double val = P[i * m + n] - ki * w[n];
-            P[i * m + n] = val;
+            P[i * m + n] = P[i * m + n] - ki * w[n];
         }
         if (P[n * m + n] < 1e-300)
             P[n * m + n] = 1e-300;
@@ -906,14 +901,14 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
                 if (r < floor_)                                                   \
                     r = floor_;                                                   \
                 R = r;                                                            \
-                svar = loc_update(x, P, w, v, r, n, m, t == N - 1);                              \
+                svar = loc_update(x, P, w, v, r, n, m, t == N - 1);               \
                 k0 = p00 / svar;                                                  \
                 q = q + d * k0 * k0 * (v * v - svar);                             \
                 if (q < floor_)                                                   \
                     q = floor_;                                                   \
                 Q = q;                                                            \
             } else {                                                              \
-                svar = loc_update(x, P, w, v, r, n, m, t == N - 1);                              \
+                svar = loc_update(x, P, w, v, r, n, m, t == N - 1);               \
             }                                                                     \
             innov = v;                                                            \
             svar_s = svar;                                                        \
