@@ -125,7 +125,10 @@ def _one_line_errors(p):
 
     def parse_known_args(args=None, namespace=None):
         seen["json"] = args is not None and "--json" in list(args)
-        return parse(args, namespace)
+        ns, extras = parse(args, namespace)
+        if extras:                     # the top-level parser would print its usage too
+            error(f"unrecognized arguments: {' '.join(extras)}")
+        return ns, extras
 
     def error(message):
         msg = f"mavlink: {message}"
@@ -177,7 +180,10 @@ def _check(args):
             kw["warmup_s"] = args.warmup_s
         make_params(ar_order=args.ar_order, method=args.method,
                     sample_rate_hz=args.sample_rate or _CHECK_RATE_HZ, **kw)
-    except (ValueError, OverflowError) as exc:
+    except OverflowError as exc:
+        raise InputError(f"--warmup-s {args.warmup_s} x --sample-rate {args.sample_rate}: the warm-up is "
+                         f"not a finite number of samples ({exc})") from None
+    except ValueError as exc:
         raise InputError(_option_named(str(exc))) from None
     if args.raw_imu_scale is not None and not (_finite_num(args.raw_imu_scale) and args.raw_imu_scale > 0):
         raise InputError(f"--raw-imu-scale must be a finite number > 0, got {args.raw_imu_scale}")
@@ -384,14 +390,12 @@ def _live(args, conn):
 
 
 def _report_live(args, conn, rep, streams):
-    from .process import plot_stream, safe_name, stream_report, write_csv, joined_time
+    from .process import MOTION_METRIC, log_problems, plot_stream, safe_name, stream_report, write_csv, joined_time
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:
         x, f, unit, _ = s._work
         csv_path = png_path = None
-        if s.n and (not args.no_csv or not args.no_plots):
-            out.mkdir(parents=True, exist_ok=True)
         if s.n and not args.no_csv:
             csv_path = out / f"live.{safe_name(s.name)}.csv"
             write_csv(csv_path, s, x, f, unit)
@@ -405,6 +409,11 @@ def _report_live(args, conn, rep, streams):
     rep["restarts"] = restarts
     from .streams import NOISE_METRIC
     rep["noise_metric"] = NOISE_METRIC
+    rep["motion_metric"] = MOTION_METRIC
+    rep["streams_left_raw"] = [{"file": conn, "stream": s["name"], "reason": s["left_raw"]}
+                               for s in srep if s.get("left_raw")]
+    rep["exit_status"] = 1 if rep["streams_left_raw"] else 0
+    log_problems(dict(rep, file=conn, output_log=args.forward or "(nowhere)"), _log)
     if args.json:
         _emit(rep)
     else:
@@ -412,5 +421,15 @@ def _report_live(args, conn, rep, streams):
                          f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "
                          f"stopped by {rep['stopped_by']} after {rep['seconds']} s\n")
         for s in srep:
-            sys.stdout.write(f"  {s['name']}: {s['samples']} samples, {s['restarts']} restart(s)\n")
-    return 0
+            sys.stdout.write(f"  {s['name']}: {s['samples']} samples, {_fmt(s['rate_hz'])} Hz, "
+                             f"{s['restarts']} restart(s), unit {s['field_unit']}"
+                             f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
+            if s.get("left_raw"):
+                sys.stdout.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
+            if s.get("too_slow_to_denoise"):
+                sys.stdout.write(f"    note: {s['slow_note']}\n")
+            for a in s["noise"]:
+                sys.stdout.write(_axis_line(s, a))
+            for w in s.get("warnings", []):
+                sys.stdout.write(f"    WARNING: {w}\n")
+    return rep["exit_status"]

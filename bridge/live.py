@@ -24,78 +24,157 @@ import time
 
 import numpy as np
 
-from .streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz
-from .tlog import AUTOPILOT_ARDUPILOT, GYRO_FIELDS, GYRO_MESSAGES, _AP_VERSION_RE, _raw_imu_unit, repack
+from gyrodenoise.core.kernels import DEFAULT_METHOD
+
+from .streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
+from .tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repack
+
+
+#: a live RAW_IMU stream whose unit is still open (see :func:`bridge.tlog.decide_raw_imu_unit`)
+#: is decided with what is known after this many seconds of its own boot time
+UNIT_WAIT_S = 10.0
 
 
 class _LiveStream:
-    def __init__(self, name, message, unit, to_deg, note, gap_factor):
+    """One live gyro stream: restart detection, one denoiser per axis, and the
+    safety net sample by sample (finite, inside the raw range of the session,
+    fitting the field type; else the stream is forwarded raw from there on).
+
+    A RAW_IMU stream whose unit is not yet known (``to_deg`` is ``"pending"``)
+    is forwarded unfiltered until :func:`bridge.tlog.decide_raw_imu_unit`
+    decides it (the same rule as the file mode, on what the link showed so far;
+    final after :data:`UNIT_WAIT_S`); the denoisers start then."""
+
+    def __init__(self, name, message, unit, to_deg, note, gap_factor, field_dtype="<f4"):
         self.name, self.message, self.unit, self.to_deg, self.note = name, message, unit, to_deg, note
+        self.field_dtype = field_dtype
         self.det = RestartDetector(gap_factor)
         self.den = None
-        self.t, self.x, self.f, self.r = [], [], [], []
+        self.t, self.raw, self.fw, self.r = [], [], [], []
         self.events = []
         self.rate = None
+        self.warmup = 0
+        self.start = None          # index of the first sample with a known unit
         self.non_finite = [0, 0, 0]
         self.pending_restart = [False, False, False]
+        self.lo = [math.inf] * 3   # raw range of the session (work units), per axis
+        self.hi = [-math.inf] * 3
+        self.left_raw = None
+
+    @property
+    def pending(self):
+        return self.to_deg == "pending"
+
+    def decide(self, unit, to_deg, note):
+        self.unit, self.to_deg, self.note = unit, to_deg, note
 
     def step(self, t, raw, sample_rate, method, ar_order, warmup_s=None, filter_kw=None):
+        """One sample (field units) in; the values to forward (field units) out."""
         from gyrodenoise.denoiser import Denoiser
         reason = self.det.update(t)
         i = len(self.t)
         if reason:
             self.events.append({"stream": self.name, "sample": i, "time_s": t,
                                 "previous_time_s": self.t[-1], "reason": reason})
-        k = self.to_deg if self.to_deg is not None else 1.0
-        z = [float(v) * k for v in raw]
-        if i == 0:
-            out = z                                   # first sample of a warm-up: raw
-        else:
-            if self.den is None:
-                if sample_rate:
-                    rate = float(sample_rate)
-                else:
-                    dt = t - self.t[0]
-                    rate = 1.0 / dt if dt > 0 else 50.0
-                self.rate = rate
-                kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
-                kw.update(filter_kw or {})
-                self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
-                            for _ in range(3)]
-                for j, (d, z0) in enumerate(zip(self.den, self.x[0])):
-                    if math.isfinite(z0):
-                        d.step(z0, False)
-                    else:
-                        self.non_finite[j] += 1
-            out = []
-            for j, (d, zz) in enumerate(zip(self.den, z)):
-                if math.isfinite(zz):
-                    out.append(d.step(zz, bool(reason) or self.pending_restart[j]))
-                    self.pending_restart[j] = False
-                else:                             # never fed to the filter; kept as it is
-                    self.non_finite[j] += 1
-                    self.pending_restart[j] = self.pending_restart[j] or bool(reason)
-                    out.append(zz)
+        raw = [float(v) for v in raw]
         self.t.append(t)
-        self.x.append(z)
-        self.f.append(out)
+        self.raw.append(raw)
         self.r.append(bool(reason))
-        return [v / k for v in out]
+        if self.pending or self.left_raw:
+            self.fw.append(raw)
+            return raw
+        k = self.to_deg if self.to_deg is not None else 1.0
+        z = [v * k for v in raw]
+        if self.start is None:
+            self.start = i
+        if i == self.start:
+            self._envelope(z, True)
+            self.fw.append(raw)                          # first sample of a warm-up: raw
+            return raw
+        if self.den is None:
+            if sample_rate:
+                rate = float(sample_rate)
+            else:
+                dt = t - self.t[self.start]
+                rate = 1.0 / dt if dt > 0 else 50.0
+            self.rate = rate
+            kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
+            kw.update(filter_kw or {})
+            self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
+                        for _ in range(3)]
+            from gyrodenoise.core.kernels import P_WARMUP
+            self.warmup = int(self.den[0].params[P_WARMUP])
+            for j, (d, v0) in enumerate(zip(self.den, self.raw[self.start])):
+                if math.isfinite(v0 * k):
+                    d.step(v0 * k, False)
+                else:
+                    self.non_finite[j] += 1
+        self._envelope(z, bool(reason))
+        out = []
+        for j, (d, zz) in enumerate(zip(self.den, z)):
+            if math.isfinite(zz):
+                y = d.step(zz, bool(reason) or self.pending_restart[j])
+                self.pending_restart[j] = False
+                bad = self._check(j, y)
+                if bad:
+                    self._leave_raw(i, j, y, bad)
+                    self.fw.append(raw)
+                    return raw
+                out.append(y / k)
+            else:                                        # never fed to the filter; kept as it is
+                self.non_finite[j] += 1
+                self.pending_restart[j] = self.pending_restart[j] or bool(reason)
+                out.append(raw[j])
+        if misfit(np.asarray(out), self.field_dtype).any():
+            self._leave_raw(i, None, out, f"does not fit the field type {np.dtype(self.field_dtype).name}")
+            self.fw.append(raw)
+            return raw
+        self.fw.append(out)
+        return out
+
+    def _envelope(self, z, new_session):
+        for j, zz in enumerate(z):
+            if not math.isfinite(zz):
+                continue
+            if new_session or self.pending_restart[j] or zz < self.lo[j]:
+                self.lo[j] = zz if (new_session or self.pending_restart[j]) else min(self.lo[j], zz)
+            if new_session or self.pending_restart[j] or zz > self.hi[j]:
+                self.hi[j] = zz if (new_session or self.pending_restart[j]) else max(self.hi[j], zz)
+
+    def _check(self, j, y):
+        """None, or what is wrong with output ``y`` (work units) of axis ``j``."""
+        if not math.isfinite(y):
+            return "not finite"
+        m = 1e-9 * (1.0 + max(abs(self.lo[j]), abs(self.hi[j])))
+        if not self.lo[j] - m <= y <= self.hi[j] + m:
+            return f"outside the raw range since the last restart [{self.lo[j]:.6g}, {self.hi[j]:.6g}]"
+        return None
+
+    def _leave_raw(self, i, j, value, why):
+        ax = "xyz"[j] + ": " if j is not None else ""
+        self.left_raw = (f"{ax}filtered value {value if j is None else f'{value:.6g}'} at sample {i} "
+                         f"(t={self.t[i]:.3f} s) {why}; forwarded raw from that sample on")
 
     def as_stream(self):
         n = len(self.t)
-        s = GyroStream(name=self.name, message=self.message, unit=self.unit, to_deg_s=self.to_deg,
-                       time_s=np.asarray(self.t), raw=np.asarray(self.x).reshape(n, 3) / (self.to_deg or 1.0),
-                       index=np.arange(n), note=self.note)
+        k = self.to_deg if isinstance(self.to_deg, float) else 1.0
+        unit = self.unit if not self.pending else "counts"
+        s = GyroStream(name=self.name, message=self.message, unit=unit,
+                       to_deg_s=self.to_deg if isinstance(self.to_deg, float) else None,
+                       time_s=np.asarray(self.t), raw=np.asarray(self.raw, dtype=np.float64).reshape(n, 3),
+                       index=np.arange(n), note=self.note if not self.pending else
+                       "RAW_IMU unit never decided on this link (no HEARTBEAT of the sender): forwarded raw",
+                       field_dtype=self.field_dtype)
         s.restarts = np.asarray(self.r, dtype=bool)
         s.restart_events = self.events
         s.repeated_timestamps = self.det.repeated
         s.rate_hz = measured_rate_hz(s.time_s, s.restarts)
-        x = np.asarray(self.x, dtype=np.float64).reshape(n, 3)
-        f = np.asarray(self.f, dtype=np.float64).reshape(n, 3)
-        s.filtered = f / (self.to_deg or 1.0)
-        s._work = (x, f, "deg/s" if self.to_deg is not None else self.unit, self.rate or 0.0)
+        s.filtered = np.asarray(self.fw, dtype=np.float64).reshape(n, 3)
+        x, f = s.raw * k, s.filtered * k
+        s._work = (x, f, "deg/s" if s.to_deg_s is not None else unit, self.rate or 0.0)
         s.non_finite = list(self.non_finite)
+        s.left_raw = self.left_raw
+        s.warmup_samples = (self.start or 0) + self.warmup
         return s
 
 
@@ -110,7 +189,7 @@ def _enlarge_receive_buffer(conn, size=4 << 20):
             pass
 
 
-def run_live(source, forward, *, duration=None, max_messages=None, method="shakf", ar_order=3,
+def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAULT_METHOD, ar_order=3,
              gap_factor=5.0, sample_rate=None, raw_imu_unit="auto", raw_imu_scale=None, log=None,
              warmup_s=None, filter_kw=None):
     """Bridge ``source`` to ``forward`` (pymavlink connection strings) until
@@ -173,19 +252,27 @@ def run_live(source, forward, *, duration=None, max_messages=None, method="shakf
                     st = streams.get(key)
                     if st is None:
                         tfield, tscale, unit = GYRO_MESSAGES[mtype]
-                        if unit == "raw":
-                            v2 = bytes(out[:1]) == b"\xfd"
-                            unit, to_deg, note = _raw_imu_unit(vehicles.get(sysid), v2, raw_imu_unit, raw_imu_scale)
-                        else:
-                            to_deg, note = UNIT_TO_DEG_S[unit], ""
+                        to_deg, note = (UNIT_TO_DEG_S[unit], "") if unit != "raw" else ("pending", "")
                         name = f"{mtype}" + (f"[{inst}]" if inst else "") + f"@{key[0]}.{key[1]}"
-                        st = streams[key] = _LiveStream(name, mtype, unit, to_deg, note, gap_factor)
-                        st.tscale, st.tfield = tscale, tfield
-                    vals = st.step(getattr(msg, st.tfield) * st.tscale,
-                                   [getattr(msg, g) for g in GYRO_FIELDS], sample_rate, method, ar_order,
-                                   warmup_s, filter_kw)
-                    out, dropped = repack(bytes(out), mtype, vals)
-                    n_sig += dropped
+                        st = streams[key] = _LiveStream(name, mtype, unit, to_deg, note, gap_factor,
+                                                        field_dtype(mtype))
+                        st.tscale, st.tfield, st.any_v2, st.waited_s = tscale, tfield, False, 0.0
+                    t_s = getattr(msg, st.tfield) * st.tscale
+                    if st.pending:           # RAW_IMU: the file mode's rule on what the link showed so far
+                        st.any_v2 = st.any_v2 or bytes(out[:1]) == b"\xfd"
+                        if st.t and t_s > st.t[-1]:
+                            st.waited_s += t_s - st.t[-1]
+                        got = decide_raw_imu_unit(vehicles.get(sysid), st.any_v2, raw_imu_unit,
+                                                  raw_imu_scale, final=st.waited_s >= UNIT_WAIT_S)
+                        if got is not None:
+                            st.decide(*got)
+                            if log and got[1] is None:
+                                log(f"{st.name}: {got[2]}")
+                    vals = st.step(t_s, [getattr(msg, g) for g in GYRO_FIELDS], sample_rate, method,
+                                   ar_order, warmup_s, filter_kw)
+                    if vals is not st.raw[-1]:           # unchanged samples are forwarded byte for byte
+                        out, dropped = repack(bytes(out), mtype, vals)
+                        n_sig += dropped
             if dst is not None and out:
                 dst.write(out)
                 n_out += 1

@@ -71,20 +71,25 @@ class GyroStream:
 def field_misfit(stream, values):
     """Samples (bool (n, 3)) whose ``values`` (field unit) cannot be stored in the
     log's field as they are: beyond the integer type's range once rounded, or
-    not finite / overflowing in a float type. Never clipped silently: the caller
-    leaves such a stream raw and reports it."""
+    overflowing a float type (NaN in a float field is stored as NaN). Never
+    clipped silently: the caller leaves such a stream raw and reports it."""
+    return misfit(values, stream.field_dtype, stream.field_scale)
+
+
+def misfit(values, dtype, scale=1.0):
+    """:func:`field_misfit` for a dtype and a scale (scalar, or one per row)."""
     v = np.asarray(values, dtype=np.float64)
-    scale = np.asarray(stream.field_scale, dtype=np.float64)
-    if scale.ndim == 1:
+    scale = np.asarray(scale, dtype=np.float64)
+    if scale.ndim == 1 and v.ndim == 2:
         scale = scale[:, None]
-    dt = np.dtype(stream.field_dtype)
+    dt = np.dtype(dtype)
     with np.errstate(invalid="ignore", over="ignore"):
         stored = v * scale
         if dt.kind in "iu":
             info = np.iinfo(dt)
             r = np.rint(stored)
             return ~((r >= info.min) & (r <= info.max))
-        return ~(np.abs(stored) <= np.finfo(dt).max)
+        return np.isinf(stored) | (np.abs(stored) > np.finfo(dt).max)
 
 
 class RestartDetector:

@@ -344,8 +344,8 @@ def gyro_streams(data, fr: TlogFrames, raw_imu_unit="auto", raw_imu_scale=None):
             if unit == "raw":
                 if info is None:
                     info = _vehicle_info(data, buf, fr)
-                u, to_deg, note = _raw_imu_unit(info.get(s_id), bool(v2[s_sel].any()),
-                                                raw_imu_unit, raw_imu_scale)
+                u, to_deg, note = decide_raw_imu_unit(info.get(s_id), bool(v2[s_sel].any()),
+                                                      raw_imu_unit, raw_imu_scale)
             else:
                 to_deg = UNIT_TO_DEG_S[u]
             found.append((int(sel[s_sel][0]), name, s_id, c_id, i_id, GyroStream(
@@ -367,7 +367,18 @@ def field_dtype(name):
     return layout(name).offsets[GYRO_FIELDS[0]][1].str
 
 
-def _raw_imu_unit(info, any_v2, override, scale):
+def decide_raw_imu_unit(info, any_v2, override="auto", scale=None, final=True):
+    """The unit of a RAW_IMU stream: (unit, factor to deg/s or None, note) -- the
+    one rule of the file mode and of live links.
+
+    ``info``: what the log/link showed of the sender so far (``{"autopilots": set of
+    HEARTBEAT autopilot values, "ap_version": an ArduPilot version string seen}``
+    or None); ``any_v2``: a RAW_IMU packet of the stream was MAVLink 2. mrad/s
+    when the sender is ArduPilot (HEARTBEAT autopilot 3) and the packets are
+    MAVLink 2 or an ArduPilot version string was sent; else counts of unknown
+    scale. ``final=False`` (a live link, more may come): returns None while the
+    evidence is incomplete -- no HEARTBEAT of the sender yet, or an ArduPilot
+    MAVLink 1 sender whose version string has not arrived."""
     if scale is not None:
         return "counts", float(scale), f"RAW_IMU in counts, scale {scale} deg/s per count (given)"
     if override not in (None, "auto"):
@@ -379,10 +390,15 @@ def _raw_imu_unit(info, any_v2, override, scale):
         why = "MAVLink 2" if any_v2 else "an ArduPilot version string"
         return "mrad/s", UNIT_TO_DEG_S["mrad/s"], (
             f"RAW_IMU from ArduPilot (HEARTBEAT autopilot 3, {why}): mrad/s")
+    if not final and (info is None or is_ap):
+        return None
     return "counts", None, (
         "RAW_IMU unit unknown: the log does not show an ArduPilot firmware that sends mrad/s "
         "(old APM firmware sends raw sensor counts, whose scale depends on the sensor); filtered "
         "in counts; pass --raw-imu-unit mrad/s or --raw-imu-scale DEG_S_PER_COUNT")
+
+
+_raw_imu_unit = decide_raw_imu_unit     # the former private name
 
 
 # ---------------------------------------------------------------- re-packing

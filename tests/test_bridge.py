@@ -609,3 +609,171 @@ def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):
             rk[600] = True                                        # sample 601, first after the restart
         ref = gd.denoise(raw[keep, k] * R2D, 100.0, restarts=rk) / R2D
         np.testing.assert_array_equal(got[keep, k], ref.astype(np.float32).astype(float))
+
+
+# ------------------------------------------------------------ issue 11: fail loudly
+def test_garbage_filter_output_leaves_that_stream_raw_exit_1(tmp_path, monkeypatch):
+    """The safety net: a filter that returns garbage for one stream (IMU2 of the
+    ArduPlane log) gets that stream written RAW, bit for bit, with one stderr line
+    naming log, stream and axis; the other stream is filtered; exit status 1."""
+    from bridge import cli, engines
+    path = DATA / "plane_truncated_test.BIN"
+    real = engines.NativeEngine.filter
+    calls = {"n": 0}
+
+    def garbage_for_imu2(self, x, restarts, rate_hz):
+        calls["n"] += 1
+        out = real(self, x, restarts, rate_hz)
+        if 4 <= calls["n"] <= 6:             # the 3 axes of the 2nd stream (IMU2)
+            out = out.copy()
+            out[-1] = 1.9e12 if calls["n"] == 5 else np.nan
+        return out
+
+    monkeypatch.setattr(engines.NativeEngine, "filter", garbage_for_imu2)
+    from gyrodenoise.cli import main
+    import contextlib
+    import io
+    so, se = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
+        status = main(["mavlink", str(path), "-o", str(tmp_path), "--json", "--no-plots", "--warmup-s", "0.1"])
+    assert status == 1
+    summary = json.loads(so.getvalue())
+    assert summary["exit_status"] == 1
+    assert [(e["stream"], e["file"]) for e in summary["streams_left_raw"]] == [("IMU2", str(path))]
+    s = by_name(summary["logs"][0])
+    assert s["IMU"]["left_raw"] is None
+    why = s["IMU2"]["left_raw"]
+    assert why.startswith("x: filtered value nan") and "y: filtered value 1.9e+12" in why and "outside" in why
+    lines = [ln for ln in se.getvalue().splitlines() if "NOT FILTERED" in ln]
+    assert len(lines) == 1 and str(path) in lines[0] and "IMU2" in lines[0] and "RAW" in lines[0]
+    ref, _ = df_reference(path)
+    out, _ = df_reference(Path(summary["logs"][0]["output_log"]))
+    np.testing.assert_array_equal(out["IMU2"][1], ref["IMU2"][1])          # raw, bit for bit
+    assert not np.array_equal(out["IMU"][1], ref["IMU"][1])                 # the other one filtered
+    assert np.isfinite(out["IMU"][1]).all()
+    # the text summary says it too
+    so = io.StringIO()
+    calls["n"] = 0
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(io.StringIO()):
+        assert main(["mavlink", str(path), "-o", str(tmp_path / "t"), "--no-plots", "--warmup-s", "0.1"]) == 1
+    assert "NOT FILTERED, written raw" in so.getvalue() and "1 stream(s) left raw (exit status 1)" in so.getvalue()
+
+
+def test_filtered_value_that_does_not_fit_int16_is_never_clipped(tmp_path, monkeypatch):
+    """A filtered RAW_IMU value beyond int16 (sitl_vtol.tlog z was clipped at 32767)
+    leaves the stream raw and is reported -- checked on its own here: the envelope
+    check (which would catch it first) is switched off."""
+    from bridge import engines
+    from gyrodenoise import motion_metrics
+    path = DATA / "fs-batt.log.tlog"
+    real = engines.NativeEngine.filter
+
+    def z_beyond_int16(self, x, restarts, rate_hz):
+        out = real(self, x, restarts, rate_hz).copy()
+        out[-1] = 40.0 * R2D                              # 40000 mrad/s
+        return out
+
+    monkeypatch.setattr(engines.NativeEngine, "filter", z_beyond_int16)
+    monkeypatch.setattr(motion_metrics, "envelope_violation", lambda *a, **k: None)
+    rep = process_log(path, tmp_path, plots=False, csv=False)
+    for name in ("RAW_IMU", "SCALED_IMU2"):
+        assert "does not fit the field type int16" in by_name(rep)[name]["left_raw"]
+    out, _, _ = tlog_reference(Path(rep["output_log"]))
+    ref, _, _ = tlog_reference(path)
+    np.testing.assert_array_equal(out["RAW_IMU"][1], ref["RAW_IMU"][1])
+
+
+def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path):
+    """Issue 11 item 3: paths and option values; each gives one line naming the
+    option or path on stderr, exit 2, no traceback; with --json one object."""
+    log = DATA / "ardusub_small.BIN"
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    cases = [
+        (["-o", afile], "-o "), (["-o", "/proc/nope"], "-o /proc/nope"),
+        (["--warmup-s", "inf"], "--warmup-s"), (["--warmup-s", "1e308"], "--warmup-s"),
+        (["--warmup-s", "nan"], "--warmup-s"), (["--warmup-s", "-1"], "--warmup-s"),
+        (["--jobs", "0"], "--jobs"), (["--jobs", "abc"], "--jobs"),
+        (["--gap-factor", "inf"], "--gap-factor"), (["--gap-factor", "nan"], "--gap-factor"),
+        (["--sample-rate", "inf"], "--sample-rate"), (["--sample-rate", "-5"], "--sample-rate"),
+        (["--sample-rate", "1e308", "--warmup-s", "1e6"], "--warmup-s"),
+        (["--outlier-sigma", "nan"], "--outlier-sigma"), (["--outlier-sigma", "1"], "outlier_sigma"),
+        (["--outlier-run", "0"], "--outlier-run"), (["--ar-order", "0"], "--ar-order"),
+        (["--ar-order", "1000000"], "--ar-order"), (["--raw-imu-scale", "inf"], "--raw-imu-scale"),
+        (["--duration", "inf"], "--duration"), (["--count", "0"], "--count"),
+        (["--method", "magic"], "--method"), (["--no-such-option"], "--no-such-option"),
+    ]
+    for extra, named in cases:
+        for js in ([], ["--json"]):
+            r = run_cli(log, "-o", tmp_path / "o", *extra, *js, "--no-plots", "--no-csv") \
+                if extra[0] != "-o" else run_cli(log, *extra, *js, "--no-plots", "--no-csv")
+            what = f"{extra} {js}: {r.stderr!r}"
+            assert r.returncode == 2, what
+            assert "Traceback" not in r.stderr, what
+            lines = r.stderr.strip().splitlines()
+            assert len(lines) == 1 and lines[0].startswith("gyrodenoise: error: ") and named in lines[0], what
+            if js:
+                assert r.stdout.count("\n") == 1, what
+                obj = json.loads(r.stdout)
+                assert obj["exit_status"] == 2 and named in obj["error"], what
+            else:
+                assert r.stdout == "", what
+    # a failing single log with --json: one object with the error in it
+    r = run_cli(DATA / "plane_no_imu.bin" if (DATA / "plane_no_imu.bin").exists()
+                else shared_log("plane_no_imu.bin"), "-o", tmp_path / "o", "--json")
+    assert r.returncode == 2 and "no gyro stream" in json.loads(r.stdout)["error"]
+
+
+def test_truncated_ulog_is_reported(tmp_path):
+    """A .ulg cut in the middle of a message is reported as truncated (pyulog stops
+    there silently); the whole file is not."""
+    from bridge import ulog
+    src = shared_log("px4_sample.ulg")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(src.read_bytes()[:2_000_000])
+    assert ulog.truncated_bytes(src) == 0
+    rep = process_log(cut, tmp_path / "o", plots=False, csv=False)
+    assert rep["truncated"] is True and rep["truncated_bytes"] == ulog.truncated_bytes(cut) > 0
+    assert rep["truncation"] == "message cut by the end of the file"
+    r = run_cli(cut, "-o", tmp_path / "o2", "--no-plots", "--no-csv")
+    assert r.returncode == 0 and f"truncated ({rep['truncated_bytes']} bytes cut)" in r.stdout
+
+
+def test_summary_motion_kept_lag_and_slow_note(tmp_path):
+    """The summary's motion figures are gyrodenoise.motion_metrics over the CSV's raw and
+    filtered columns; a 2.4 Hz stream gets a note instead of an improvement figure; the
+    paper's filter on a real flight is warned about (it flattens the manoeuvres)."""
+    from gyrodenoise import motion_metrics as mm
+    rep = process_log(DATA / "ardusub_small.BIN", tmp_path, plots=False)
+    s = rep["streams"][0]
+    a = np.genfromtxt(s["csv"], delimiter=",", names=True)
+    r = a["restart"].astype(bool)
+    for ax in "xyz":
+        m = s["motion"][ax]
+        k = mm.lowband_kept(a[f"raw_{ax}"], a[f"filtered_{ax}"], s["rate_hz"], 5.0, r, s["warmup_samples"])
+        assert m["corr"] == pytest.approx(k["corr"], abs=1e-6)
+        assert m["amplitude_ratio"] == pytest.approx(k["amplitude_ratio"], abs=1e-6)
+        assert m["lag_s"] == pytest.approx(mm.lag_s(a[f"raw_{ax}"], a[f"filtered_{ax}"], s["rate_hz"], 5.0, r,
+                                                    s["warmup_samples"]), abs=1e-6)
+    slow = process_log(DATA / "fs-batt.log.tlog", tmp_path, plots=False, csv=False)
+    for st in slow["streams"]:
+        assert st["too_slow_to_denoise"] and "too slowly to denoise" in st["slow_note"]
+        assert all(v["ratio"] is None for v in st["noise"].values())
+        assert all(v is None for v in st["motion"].values())
+    r = run_cli(DATA / "fs-batt.log.tlog", "-o", tmp_path / "t", "--no-plots", "--no-csv")
+    assert "no improvement figure" in r.stdout and "(x" not in r.stdout
+
+
+def test_paper_filter_on_a_real_flight_is_warned(tmp_path):
+    path = shared_log("log171.bin")
+    r = run_cli(path, "-o", tmp_path, "--method", "shakf", "--no-plots", "--no-csv", "--json")
+    assert r.returncode == 0
+    rep = json.loads(r.stdout)["logs"][0]
+    imu = by_name(rep)["IMU"]
+    assert imu["motion"]["x"]["amplitude_ratio"] < 0.5 and imu["warnings"]
+    assert "removed most of the real motion" in r.stderr
+    r = run_cli(path, "-o", tmp_path, "--no-plots", "--no-csv", "--json")        # the default method
+    rep = json.loads(r.stdout)["logs"][0]
+    for s in rep["streams"]:
+        for m in s["motion"].values():
+            assert m["corr"] > 0.9 and m["amplitude_ratio"] > 0.8

@@ -204,6 +204,13 @@ def test_live_replay_fs_batt_forwards_everything(tmp_path):
     assert set(streams) == {"RAW_IMU", "SCALED_IMU2"}
     assert n_changed == 0                      # warm-up: the raw samples pass through
     assert rep["handling_us"]["p99"] < 20000
+    # RAW_IMU's unit: the file mode's rule (ArduPilot HEARTBEAT + version string, MAVLink 1),
+    # decided once the link has shown it, not "counts" because RAW_IMU came first
+    from bridge.process import process_log
+    file_units = {s["name"]: s["field_unit"] for s in process_log(DATA / "fs-batt.log.tlog", tmp_path / "f",
+                                                                  plots=False, csv=False)["streams"]}
+    live_units = {s["name"].split("@")[0]: s["field_unit"] for s in rep["streams"]}
+    assert live_units == file_units == {"RAW_IMU": "mrad/s", "SCALED_IMU2": "mrad/s"}
     # the CSV of the live run holds the same samples
     csv = np.genfromtxt(next(tmp_path.glob("live.RAW_IMU*.csv")), delimiter=",", names=True)
     assert len(csv) == 27
@@ -242,7 +249,49 @@ def test_live_link_that_cannot_open_exits_2(tmp_path):
     r = subprocess.run(gyrodenoise_cmd() + ["mavlink", f"tcp:127.0.0.1:{port}", "--json", "--duration", "5",
                                             "-o", str(tmp_path)],
                        capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2 and r.stdout == ""          # pymavlink's retry messages go to stderr
+    assert r.returncode == 2                             # pymavlink's retry messages go to stderr
+    assert r.stdout.count("\n") == 1                     # --json: exactly one object, the error in it
+    err = json.loads(r.stdout)
+    assert err["exit_status"] == 2 and err["error"].startswith(f"tcp:127.0.0.1:{port}: cannot open")
     last = r.stderr.strip().splitlines()[-1]
     assert last.startswith(f"gyrodenoise: error: tcp:127.0.0.1:{port}: cannot open the input link")
     assert "Traceback" not in r.stderr
+
+
+def test_live_unit_rule_is_the_file_rule():
+    """One function decides RAW_IMU's unit; on a live link it waits for the evidence."""
+    from bridge.tlog import decide_raw_imu_unit as d
+    ap_v1 = {"autopilots": {3}, "ap_version": False}
+    assert d(None, True, final=False) is None                      # no HEARTBEAT yet
+    assert d(ap_v1, False, final=False) is None                     # ArduPilot, MAVLink 1, no version yet
+    assert d(ap_v1, True, final=False)[0] == "mrad/s"
+    assert d(dict(ap_v1, ap_version=True), False, final=False)[0] == "mrad/s"
+    assert d({"autopilots": {12}, "ap_version": False}, True, final=False)[0] == "counts"   # PX4
+    assert d(ap_v1, False, final=True)[0] == "counts" and d(None, True)[0] == "counts"
+
+
+def test_live_safety_net_forwards_raw_from_the_bad_sample_on(monkeypatch):
+    """A filter output outside the session's raw range (here: a monkeypatched
+    Denoiser that returns 1e12 from its 50th call) is never forwarded: the stream
+    is forwarded raw from that sample on and the report says why."""
+    import gyrodenoise.denoiser as den
+    from bridge.live import _LiveStream
+
+    class Garbage(den.Denoiser):
+        calls = 0
+
+        def step(self, z, restart=False):
+            Garbage.calls += 1
+            y = super().step(z, restart)
+            return 1e12 if Garbage.calls > 150 else y
+
+    monkeypatch.setattr(den, "Denoiser", Garbage)
+    st = _LiveStream("SCALED_IMU2@1.1", "SCALED_IMU2", "mrad/s", R2D / 1000, "", 5.0, "<i2")
+    rng = np.random.default_rng(3)
+    raw = rng.integers(-50, 50, size=(100, 3))
+    sent = [st.step(0.02 * i, list(map(int, r)), 50.0, "kf", 3, warmup_s=0.0) for i, r in enumerate(raw)]
+    s = st.as_stream()
+    assert s.left_raw and "outside the raw range" in s.left_raw and "sample 50" in s.left_raw
+    got = np.array(sent, dtype=float)
+    np.testing.assert_array_equal(got[50:], raw[50:])
+    assert np.all(np.abs(got) <= 50)
