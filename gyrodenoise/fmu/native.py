@@ -1,0 +1,318 @@
+"""FogDenoiserNative.fmu: the denoiser as a native FMI 2.0 co-simulation FMU (issue 14).
+
+No Python and no libpython at run time: the binary is the project's C core
+(``gyrodenoise/core/gdcore.c``) plus a small FMI layer of our own
+(``fmu_src/native/fogdenoiser_native.c``), compiled here with gcc and linked
+against libm only. Same variables (names, types, causality, variability) and
+same outputs as the pythonfmu ``FogDenoiser.fmu``.
+
+:data:`VARIABLES` is the one table both files are generated from: the
+``modelDescription.xml`` and the C header ``fogdenoiser_native_vars.h`` (value
+references, start values, GUID, the variable table the C layer checks calls
+against), so XML and binary cannot drift.
+
+>>> from gyrodenoise.fmu.native import build_native_fmu
+>>> build_native_fmu("build")            # doctest: +SKIP
+PosixPath('build/FogDenoiserNative.fmu')
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import uuid
+import zipfile
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+from ..errors import InputError
+
+MODEL_NAME = "FogDenoiserNative"
+MAX_ORDER = 6                    # phi_1 .. phi_6 declared; phi_k for k > ar_order reads 0
+STEP_SIZE = 0.005                # DefaultExperiment stepSize, s (200 Hz)
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+NATIVE_SRC = PACKAGE_DIR.parent / "fmu_src" / "native"
+CORE_DIR = PACKAGE_DIR / "core"
+C_SOURCE = "fogdenoiser_native.c"
+VARS_HEADER = "fogdenoiser_native_vars.h"
+CFLAGS = ["-O2", "-ffp-contract=off", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden",
+          "-Wall", "-Wl,-z,defs"]
+
+DEG = math.pi / 180.0
+#: FMI unit name -> BaseUnit attributes (SI: rad, s)
+UNITS = {
+    "deg/s": {"rad": "1", "s": "-1", "factor": repr(DEG)},
+    "deg2/s2": {"rad": "2", "s": "-2", "factor": repr(DEG * DEG)},
+    "s": {"s": "1"},
+    "Hz": {"s": "-1"},
+}
+
+METHOD_DOC = ("Filter, one of: 'motion' (default: follows manoeuvres, averages at rest), 'shakf' "
+              "(modified Sage-Husa AKF, the paper), 'kf' (conventional KF), 'sh_classic' (classic "
+              "Sage-Husa), 'lowpass' (Butterworth, cutoff_hz and lowpass_order) or 'none' (output = "
+              "input); case and surrounding blanks ignored; any other value is refused at "
+              "fmi2ExitInitializationMode")
+
+
+def _var(name, type_, causality, description, start=None, unit=None, min=None, max=None,
+         variability=None):
+    return dict(name=name, type=type_, causality=causality, description=description, start=start,
+                unit=unit, min=min, max=max, variability=variability)
+
+
+def _par(name, type_, start, description, unit=None, min=None, max=None):
+    return _var(name, type_, "parameter", description, start=start, unit=unit, min=min, max=max,
+                variability="fixed")
+
+
+#: The variables, in value-reference order (valueReference = position).
+VARIABLES = (
+    [_var("raw_rate", "Real", "input", "Raw angular rate of the gyro", start=0.0, unit="deg/s"),
+     _var("restart", "Boolean", "input", "True on the first sample after a gyro restart: the "
+          "filter re-identifies the AR model from that sample on", start=False, variability="discrete"),
+     _var("filtered_rate", "Real", "output", "Filtered angular rate; the raw sample during the "
+          "warm-up after each restart", unit="deg/s")]
+    + [_var(f"phi_{k}", "Real", "output", f"AR coefficient phi_{k} of the improved AR(n) model, "
+            f"Eq. (4) (0 when {k} > ar_order)") for k in range(1, MAX_ORDER + 1)]
+    + [_var("c", "Real", "output", "Constant term c of the improved AR model, Eq. (4)", unit="deg/s"),
+       _var("R_hat", "Real", "output", "Estimated measurement-noise variance", unit="deg2/s2"),
+       _var("Q_hat", "Real", "output", "Estimated process-noise variance", unit="deg2/s2"),
+       _var("innovation", "Real", "output", "Last innovation v_k = z_k - H X_pred", unit="deg/s"),
+       _var("converged", "Boolean", "output", "True once the AR model has converged since the "
+            "last restart (the output is filtered from then on)", variability="discrete"),
+       _par("ar_order", "Integer", 3, f"Order n of the AR model, 1..{MAX_ORDER}", min=1, max=MAX_ORDER),
+       _par("method", "String", "motion", METHOD_DOC),
+       _par("sample_period", "Real", 0.005, "Sample period, > 0; every communication step must "
+            "have this size", unit="s", min=0.0),
+       _par("lam", "Real", 1.0, "RLS forgetting factor, 0 < lam <= 1", min=0.0, max=1.0),
+       _par("b", "Real", 0.99, "Sage-Husa forgetting factor, 0 < b < 1", min=0.0, max=1.0),
+       _par("gamma", "Real", 3.0, "Convergence-criterion strictness, Eq. (32), gamma >= 1", min=1.0),
+       _par("q0", "Real", 0.0, "Process-noise variance, 0 = automatic", unit="deg2/s2", min=0.0),
+       _par("r0", "Real", 0.0, "Measurement-noise variance, 0 = automatic", unit="deg2/s2", min=0.0),
+       _par("p0_rls", "Real", 1.0e4, "Initial RLS covariance (diagonal), > 0", min=0.0),
+       _par("p0_kf", "Real", 1.0, "Initial filter covariance (diagonal), > 0", unit="deg2/s2", min=0.0),
+       _par("warmup_s", "Real", 1.0, "Warm-up after each restart (raw passed through), >= 0; at "
+            "least 10 (ar_order + 1) samples", unit="s", min=0.0),
+       _par("r_floor", "Real", 1.0e-18, "Lower bound of R and of the automatic noise levels, > 0",
+            unit="deg2/s2", min=0.0),
+       _par("outlier_sigma", "Real", 5.0, "Outlier gate: a sample with |innovation| > "
+            "outlier_sigma sqrt(S) is kept out of the filter; 0 = off (the paper's filter), else >= 2",
+            min=0.0),
+       _par("outlier_run", "Integer", 20, "Consecutive rejected samples after which the filter "
+            "re-opens (restarts) on a real rate change, >= 1", min=1),
+       _par("cutoff_hz", "Real", 0.0, "method 'lowpass': -3 dB cutoff, below half the sample "
+            "rate; 0 = 20 Hz, at most a quarter of the sample rate", unit="Hz", min=0.0),
+       _par("lowpass_order", "Integer", 2, "method 'lowpass': Butterworth order, 1..8", min=1, max=8),
+       _var("n_rejected", "Integer", "output", "Samples kept out of the filter by the outlier gate "
+            "since initialisation", variability="discrete"),
+       _par("strict_step_size", "Boolean", False, "If true, a step whose size differs from "
+            "sample_period is refused (fmi2Discard); if false it is processed and a warning is logged")])
+
+LOG_CATEGORIES = [
+    ("logStatusWarning", "Messages with status fmi2Warning (needs logging on)."),
+    ("logStatusDiscard", "Messages with status fmi2Discard (needs logging on)."),
+    ("logStatusError", "Messages with status fmi2Error (always passed to the logger)."),
+    ("logStatusFatal", "Messages with status fmi2Fatal (always passed to the logger)."),
+    ("logAll", "All messages, information included (needs logging on)."),
+]
+
+
+def value_references():
+    """{variable name: value reference}."""
+    return {v["name"]: i for i, v in enumerate(VARIABLES)}
+
+
+def _fmt(value, type_):
+    if type_ == "Real":
+        return repr(float(value))
+    if type_ == "Boolean":
+        return "true" if value else "false"
+    return str(value)
+
+
+def model_description(guid):
+    """modelDescription.xml (text) for ``guid``."""
+    out = ['<?xml version="1.0" encoding="UTF-8"?>',
+           f'<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{guid}" '
+           'description="Gyro denoiser (online improved AR(n) + KF / modified Sage-Husa AKF, Sun et '
+           'al. 2016, or the motion filter), native C: no Python needed. One communication step = '
+           'one sample." author="gyrodenoise" version="0.1.0" license="MIT" '
+           'generationTool="gyrodenoise.fmu.native" variableNamingConvention="flat" '
+           'numberOfEventIndicators="0">',
+           f'  <CoSimulation modelIdentifier="{MODEL_NAME}" needsExecutionTool="false" '
+           'canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" '
+           'maxOutputDerivativeOrder="0" canRunAsynchronuously="false" '
+           'canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false" '
+           'canGetAndSetFMUstate="true" canSerializeFMUstate="true" '
+           'providesDirectionalDerivative="false">',
+           '    <SourceFiles>',
+           f'      <File name="{C_SOURCE}"/>',
+           '      <File name="gdcore.c"/>',
+           '    </SourceFiles>',
+           '  </CoSimulation>',
+           '  <UnitDefinitions>']
+    for unit, base in UNITS.items():
+        attrs = " ".join(f'{k}="{v}"' for k, v in base.items())
+        out += [f'    <Unit name="{unit}">', f'      <BaseUnit {attrs}/>', '    </Unit>']
+    out += ['  </UnitDefinitions>', '  <LogCategories>']
+    out += [f'    <Category name="{n}" description={quoteattr(d)}/>' for n, d in LOG_CATEGORIES]
+    out += ['  </LogCategories>',
+            f'  <DefaultExperiment startTime="0.0" stepSize="{STEP_SIZE!r}"/>',
+            '  <ModelVariables>']
+    for vr, v in enumerate(VARIABLES):
+        attrs = [f'name="{v["name"]}"', f'valueReference="{vr}"',
+                 f'description={quoteattr(v["description"])}', f'causality="{v["causality"]}"']
+        if v["variability"]:
+            attrs.append(f'variability="{v["variability"]}"')
+        if v["causality"] == "output":
+            attrs.append('initial="calculated"')
+        tattrs = []
+        if v["start"] is not None:
+            tattrs.append(f'start={quoteattr(_fmt(v["start"], v["type"]))}')
+        if v["unit"]:
+            tattrs.append(f'unit="{v["unit"]}"')
+        for key in ("min", "max"):
+            if v[key] is not None:
+                tattrs.append(f'{key}="{_fmt(v[key], v["type"])}"')
+        out += [f'    <ScalarVariable {" ".join(attrs)}>',
+                f'      <{v["type"]}{" " if tattrs else ""}{" ".join(tattrs)}/>',
+                '    </ScalarVariable>']
+    outputs = [vr + 1 for vr, v in enumerate(VARIABLES) if v["causality"] == "output"]
+    out += ['  </ModelVariables>', '  <ModelStructure>', '    <Outputs>']
+    out += [f'      <Unknown index="{i}"/>' for i in outputs]
+    out += ['    </Outputs>', '    <InitialUnknowns>']
+    out += [f'      <Unknown index="{i}"/>' for i in outputs]
+    out += ['    </InitialUnknowns>', '  </ModelStructure>', '</fmiModelDescription>', '']
+    return "\n".join(out)
+
+
+def _c_literal(value, type_):
+    if type_ == "Real":
+        return repr(float(value))
+    if type_ == "Boolean":
+        return "1" if value else "0"
+    if type_ == "String":
+        return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return str(int(value))
+
+
+def vars_header(guid):
+    """The C header with the GUID, value references, start values and the variable table."""
+    kinds = {"input": "K_INPUT", "output": "K_OUTPUT", "parameter": "K_PARAMETER"}
+    lines = ["/* generated by gyrodenoise/fmu/native.py from VARIABLES: do not edit */",
+             "#ifndef FOGDENOISER_NATIVE_VARS_H", "#define FOGDENOISER_NATIVE_VARS_H",
+             f'#define GD_MODEL_IDENTIFIER "{MODEL_NAME}"', f'#define GD_GUID "{guid}"',
+             f"#define GD_MAX_AR_ORDER {MAX_ORDER}", f"#define GD_N_VARS {len(VARIABLES)}"]
+    for vr, v in enumerate(VARIABLES):
+        lines.append(f"#define VR_{v['name']} {vr}u")
+        if v["start"] is not None:
+            lines.append(f"#define START_{v['name']} {_c_literal(v['start'], v['type'])}")
+    rows = ", ".join(f'{{"{v["name"]}", T_{v["type"].upper()}, {kinds[v["causality"]]}}}'
+                     for v in VARIABLES)
+    lines += [f"#define GD_VARIABLE_TABLE {{{rows}}}", "#endif", ""]
+    return "\n".join(lines)
+
+
+def _sources():
+    """{file name: bytes} of the C sources that go into the binary and the FMU."""
+    files = {C_SOURCE: NATIVE_SRC / C_SOURCE, "gdcore.c": CORE_DIR / "gdcore.c",
+             "gdcore.h": CORE_DIR / "gdcore.h"}
+    missing = [str(p) for p in files.values() if not p.is_file()]
+    if missing:
+        raise InputError(f"native FMU sources missing: {', '.join(missing)}")
+    return {name: path.read_bytes() for name, path in files.items()}
+
+
+def fmi_headers_dir():
+    """Directory of the FMI 2.0 C headers (shipped with fmpy)."""
+    try:
+        import fmpy
+    except ImportError as exc:  # pragma: no cover - fmpy is a dependency
+        raise InputError(f"fmpy is needed for the FMI 2.0 C headers: {exc}") from None
+    d = Path(fmpy.__file__).resolve().parent / "c-code"
+    if not (d / "fmi2Functions.h").is_file():
+        raise InputError(f"FMI 2.0 headers not found in {d}")
+    return d
+
+
+def _platform():
+    machine = platform.machine().lower()
+    bits64 = sys.maxsize > 2 ** 32
+    if sys.platform.startswith("linux") and bits64:
+        return "linux64", ".so"
+    if sys.platform == "darwin" and bits64:
+        return "darwin64", ".dylib"
+    raise InputError(f"native FMU: building on {sys.platform}/{machine} is not supported "
+                     "(linux64 and darwin64 are)")
+
+
+def build_native_fmu(out_dir="build"):
+    """Compile FogDenoiserNative and write ``out_dir/FogDenoiserNative.fmu``; returns its path.
+
+    Raises :class:`~gyrodenoise.errors.InputError` (one line) if gcc is missing
+    or the compilation fails.
+    """
+    cc = os.environ.get("GYRODENOISE_CC", "gcc")
+    gcc = shutil.which(cc)
+    if gcc is None:
+        raise InputError(f"{cc} not found on PATH: the native FMU {MODEL_NAME} is compiled at build "
+                         "time; install gcc (e.g. apt-get install gcc) or set GYRODENOISE_CC")
+    plat, ext = _platform()
+    sources = _sources()
+    digest = hashlib.sha256()
+    for name in sorted(sources):
+        digest.update(name.encode() + b"\0" + sources[name])
+    digest.update(model_description("").encode())
+    guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "gyrodenoise:" + MODEL_NAME + ":"
+                                + digest.hexdigest())) + "}"
+    sources[VARS_HEADER] = vars_header(guid).encode()
+    xml = model_description(guid)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / f"{MODEL_NAME}.fmu"
+    with tempfile.TemporaryDirectory(prefix="fognative_") as tmp:
+        tmp = Path(tmp)
+        src = tmp / "sources"
+        src.mkdir()
+        for name, data in sources.items():
+            (src / name).write_bytes(data)
+        binary = tmp / f"{MODEL_NAME}{ext}"
+        cmd = [gcc, *CFLAGS, f"-I{src}", f"-I{fmi_headers_dir()}", "-o", str(binary),
+               str(src / C_SOURCE), str(src / "gdcore.c"), "-lm"]
+        if plat == "darwin64":
+            cmd.remove("-Wl,-z,defs")
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise InputError(f"{cc} could not be run for {MODEL_NAME}: {exc}") from None
+        if proc.returncode != 0:
+            first = next((ln for ln in proc.stderr.splitlines() if "error" in ln), proc.stderr.strip()[:200])
+            raise InputError(f"compiling {MODEL_NAME} failed ({cc} exit {proc.returncode}): {first}")
+        part = target.with_name(target.name + ".part")
+        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr("modelDescription.xml", xml)
+            z.write(binary, f"binaries/{plat}/{MODEL_NAME}{ext}")
+            for name in sorted(sources):
+                z.writestr(f"sources/{name}", sources[name])
+        os.replace(part, target)
+    return target
+
+
+def main(argv=None):  # pragma: no cover - convenience: python -m gyrodenoise.fmu.native [out_dir]
+    args = sys.argv[1:] if argv is None else argv
+    try:
+        print(build_native_fmu(args[0] if args else "build"))
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
