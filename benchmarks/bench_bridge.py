@@ -94,7 +94,7 @@ def main(argv=None):
     print(f"ratio: {g / b:.2f}x  (target <= 1.3x)")
     npl, fl = statistics.median(noplot_t), statistics.median(floor_t)
     print(f"  same with --no-plots                : median {npl:.3f} s  ratio {npl / b:.2f}x")
-    print(f"  floor: start + CLI imports + first numba call (cache load) + exit, no log: "
+    print(f"  floor: start + CLI imports + exit, no log: "
           f"median {fl:.3f} s  ({fl / b:.2f}x of the bare read)")
     return 0
 

@@ -91,29 +91,33 @@ def _segments(n, restarts, finite, skip_samples, min_len):
     return out
 
 
-def _sos(sample_rate_hz, band_hz):
-    from scipy.signal import butter
+def _zero_phase(x, sample_rate_hz, band_hz):
+    """Zero-phase (forward-backward) Butterworth low-pass of order
+    LOWBAND_ORDER, by the core's ``lowpass`` method (no scipy.signal import,
+    which costs ~1 s of a bridge run; the core's cascade equals
+    ``scipy.signal.sosfilt(butter(...))``, tests/test_lowpass.py)."""
+    from .denoiser import denoise
     if not (sample_rate_hz > 0 and 0 < band_hz < 0.5 * sample_rate_hz):
         raise ValueError(f"band_hz must be > 0 and below half the sample rate "
                          f"({0.5 * sample_rate_hz:g} Hz), got {band_hz!r}")
-    return butter(LOWBAND_ORDER, band_hz, fs=sample_rate_hz, output="sos")
+    return denoise(x, sample_rate_hz, method="lowpass", cutoff_hz=band_hz, order=LOWBAND_ORDER,
+                   zero_phase=True)
 
 
 def _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_samples):
     """[(raw low band, filtered low band)] per kept segment, means removed."""
-    from scipy.signal import sosfiltfilt
     raw = np.asarray(raw, dtype=np.float64)
     filtered = np.asarray(filtered, dtype=np.float64)
     if raw.shape != filtered.shape or raw.ndim != 1:
         raise ValueError(f"raw and filtered must be 1-D of the same length, got {raw.shape} and "
                          f"{filtered.shape}")
-    sos = _sos(sample_rate_hz, band_hz)
+    _zero_phase(np.zeros(1), sample_rate_hz, band_hz)      # checks the band
     finite = np.isfinite(raw) & np.isfinite(filtered)
     out = []
     for a, b in _segments(len(raw), restarts, finite, skip_samples,
                           min_segment_samples(sample_rate_hz, band_hz)):
-        lr = sosfiltfilt(sos, raw[a:b] - raw[a:b].mean())
-        lf = sosfiltfilt(sos, filtered[a:b] - filtered[a:b].mean())
+        lr = _zero_phase(raw[a:b] - raw[a:b].mean(), sample_rate_hz, band_hz)
+        lf = _zero_phase(filtered[a:b] - filtered[a:b].mean(), sample_rate_hz, band_hz)
         out.append((lr - lr.mean(), lf - lf.mean()))
     return out
 
@@ -122,12 +126,11 @@ def lowband(x, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None):
     """The 0..``band_hz`` content of ``x``, each segment's mean removed; NaN on
     samples outside the measured segments (see the module's docstring)."""
     x = np.asarray(x, dtype=np.float64)
-    from scipy.signal import sosfiltfilt
-    sos = _sos(sample_rate_hz, band_hz)
+    _zero_phase(np.zeros(1), sample_rate_hz, band_hz)      # checks the band
     out = np.full(len(x), np.nan)
     for a, b in _segments(len(x), restarts, np.isfinite(x), 0,
                              min_segment_samples(sample_rate_hz, band_hz)):
-        y = sosfiltfilt(sos, x[a:b] - x[a:b].mean())
+        y = _zero_phase(x[a:b] - x[a:b].mean(), sample_rate_hz, band_hz)
         out[a:b] = y - y.mean()
     return out
 
