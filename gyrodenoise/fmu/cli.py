@@ -19,9 +19,12 @@ def register_cli(subparsers):
                               description="Build FogDenoiser.fmu and SimulatedFog.fmu, and run the "
                                           "two-FMU validation against the core.")
     sub = p.add_subparsers(dest="fmu_command", metavar="ACTION")
-    b = sub.add_parser("build", help="build build/FogDenoiser.fmu and build/SimulatedFog.fmu",
+    b = sub.add_parser("build", help="build FogDenoiser.fmu, SimulatedFog.fmu (pythonfmu) and "
+                                     "FogDenoiserNative.fmu (C, no Python needed)",
                        description="Package fmu_src/*.py with pythonfmu (in a subprocess) and the "
-                                   "plain-Python core into FMI 2.0 co-simulation FMUs.")
+                                   "core (plain-Python kernels + the C extension) into FMI 2.0 "
+                                   "co-simulation FMUs, and compile FogDenoiserNative.fmu from the C core "
+                                   "and its own FMI layer (fmu_src/native; needs gcc).")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
     b.set_defaults(func=_cmd_build)
     r = sub.add_parser("run", help="SimulatedFog -> FogDenoiser validation run (fmpy or libcosim)",
@@ -52,7 +55,9 @@ def register_cli(subparsers):
 
 
 def _cmd_build(args):
+    from .native import build_native_fmu
     paths = build_all(args.out)
+    paths["FogDenoiserNative"] = build_native_fmu(args.out)
     for name, path in paths.items():
         print(f"{name}: {path}")
     return 0
