@@ -61,10 +61,19 @@ def register_cli(subparsers):
                    help="output folder (default: out/mavlink)")
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
     p.add_argument("--engine", default="native", choices=["native", "fmu"],
-                   help="native core (numba batch; default) or the FogDenoiser FMU through fmpy")
+                   help="native core (the C core; default) or the FogDenoiser FMU through fmpy")
     p.add_argument("--fmu", default=None, metavar="PATH",
                    help="FogDenoiser.fmu for --engine fmu (default: build/FogDenoiser.fmu)")
     p.add_argument("--jobs", type=_int, default=1, metavar="N", help="logs processed in parallel (processes)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="run each log as one task on this Dask distributed scheduler (outputs identical to a "
+                        "serial run; needs pip install 'gyrodenoise[cluster]'); LOG and -o may then also be "
+                        "fsspec URLs (s3://, file://, memory://) readable by every worker")
+    prog = p.add_mutually_exclusive_group()
+    prog.add_argument("--progress", dest="progress", action="store_true", default=None,
+                      help="show logs done / failed / remaining and samples/s on stderr (default: when stderr "
+                           "is a terminal)")
+    prog.add_argument("--no-progress", dest="progress", action="store_false")
     p.add_argument("--method", default=DEFAULT_METHOD, choices=list(METHODS),
                    help=f"filter (default {DEFAULT_METHOD}: follows manoeuvres, averages at rest; "
                         f"shakf: the paper's modified Sage-Husa AKF; kf; sh_classic; lowpass: "
@@ -160,6 +169,14 @@ def _check(args):
     """Every option value: one line naming the option (InputError, exit 2)."""
     if args.jobs < 1:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
+    if args.scheduler is not None:
+        if not re.match(r"^(tcp|tls|inproc|ucx|ws|wss)://\S+$", args.scheduler):
+            raise InputError(f"--scheduler must be a Dask scheduler address such as tcp://HOST:PORT, "
+                             f"got {args.scheduler!r}")
+        if args.jobs != 1:
+            raise InputError("--jobs and --scheduler exclude each other (the cluster decides the parallelism)")
+        from .cluster import require_dask
+        require_dask("--scheduler")
     if not 1 <= args.ar_order <= MAX_AR_ORDER:
         raise InputError(f"--ar-order must be 1..{MAX_AR_ORDER}, got {args.ar_order}")
     if not (_finite_num(args.gap_factor) and args.gap_factor > 1):
@@ -265,23 +282,30 @@ def _run(args):
         if not (args.no_csv and args.no_plots):
             _check_out(args.out)
         return _run_live(args, links[0])
+    from .cluster import is_url
     for x in args.logs:
-        if not Path(x).exists():
+        if not is_url(x) and not Path(x).exists():
             raise InputError(f"{x}: no such file or folder")
-    _check_out(args.out)
+    if not is_url(args.out):
+        _check_out(args.out)
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
               filter_kw=_filter_kw(args))
-    single = len(args.logs) == 1 and Path(args.logs[0]).is_file()
+    single = (len(args.logs) == 1 and not is_url(args.logs[0]) and Path(args.logs[0]).is_file()
+              and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
     with contextlib.redirect_stdout(sys.stderr):
         summary = _run_files(args, kw, single)
     try:
-        (Path(args.out) / "summary.json").write_text(json.dumps(_finite(summary), indent=1, allow_nan=False))
+        _write_out(args.out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
+        if not single:
+            summary["fleet_report"] = _fleet_report(summary, args.out)
     except OSError as exc:
         raise InputError(f"-o {args.out}: cannot write summary.json ({exc.strerror or exc})") from None
+    if summary["failed"]:
+        print(f"gyrodenoise: {summary['n_failed']} of {summary['n_logs']} log(s) failed", file=sys.stderr)
     for f in summary["failed"]:
         print(f"gyrodenoise: error: {f['error']}", file=sys.stderr)
     try:
@@ -293,6 +317,35 @@ def _run(args):
     except BrokenPipeError:           # e.g. piped into `head`: the reader left, not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return summary["exit_status"]
+
+
+def _write_out(out, name, text):
+    """Write ``name`` into the output folder ``out`` (a local path or an fsspec URL)."""
+    from .cluster import is_url
+    if is_url(out):
+        import fsspec
+        with fsspec.open(str(out).rstrip("/") + "/" + name, "w") as fh:
+            fh.write(text)
+    else:
+        (Path(out) / name).write_text(text)
+
+
+def _fleet_report(summary, out):
+    """The fleet report (fleet.md, fleet.json, fleet.png) beside the outputs; returns its paths."""
+    import tempfile
+    from .cluster import is_url
+    from .fleet import write_fleet_report
+    if not is_url(out):
+        return [str(x) for x in write_fleet_report(summary, Path(out))]
+    with tempfile.TemporaryDirectory() as tmp:
+        import fsspec
+        paths = []
+        for f in write_fleet_report(summary, Path(tmp)):
+            dest = str(out).rstrip("/") + "/" + f.name
+            with fsspec.open(dest, "wb") as fh:
+                fh.write(f.read_bytes())
+            paths.append(dest)
+        return paths
 
 
 def exit_status(summary):
@@ -310,7 +363,9 @@ def _run_files(args, kw, single):
                    "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC,
                    "motion_metric": MOTION_METRIC, "streams_left_raw": streams_left_raw([rep])}
     else:
-        summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log, **kw)
+        progress = sys.stderr.isatty() if args.progress is None else args.progress
+        summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log, scheduler=args.scheduler,
+                               progress=progress, **kw)
         if summary["n_logs"] == 0:
             raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
     summary["exit_status"] = exit_status(summary)
@@ -372,6 +427,8 @@ def _print_text(summary):
     n_raw = len(summary.get("streams_left_raw", []))
     out.write(f"{summary['n_ok']} of {summary['n_logs']} log(s) processed in {summary['seconds']} s"
               f"{f'; {n_raw} stream(s) left raw (exit status 1)' if n_raw else ''}\n")
+    if summary.get("fleet_report"):
+        out.write(f"fleet report: {summary['fleet_report'][0]}\n")
 
 
 def _run_live(args, conn):

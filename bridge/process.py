@@ -499,7 +499,7 @@ def _unique_stems(files):
     seen = {}
     stems = []
     for f in files:
-        st = f.stem
+        st = Path(str(f).split("://", 1)[-1]).stem
         k = seen.get(st, 0)
         seen[st] = k + 1
         stems.append(st if k == 0 else f"{st}-{k + 1}")
@@ -516,28 +516,57 @@ def _worker(args):
         return {"ok": False, "file": str(path), "error": f"{path}: {type(exc).__name__}: {exc}"}
 
 
-def process_many(items, out_dir, jobs=1, log=None, **kw):
+def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=False, **kw):
     """Process files and folders; one summary dict. A failing log is listed
-    under ``failed`` and does not stop the others (nor does a crashed worker)."""
-    files, ignored = expand_inputs(items)
+    under ``failed`` and does not stop the others (nor does a crashed worker).
+
+    ``jobs`` > 1 runs a local process pool; ``scheduler`` (``tcp://HOST:PORT``
+    or a ``distributed.Client``) runs each log as one task on a Dask cluster
+    (:mod:`bridge.cluster`). Items and ``out_dir`` may be fsspec URLs.
+    ``progress`` shows logs done / failed / remaining and samples per second
+    on stderr. Outputs are byte-identical whichever way the logs are run.
+    """
+    from .cluster import Progress, expand_url_inputs, is_url, run_on_cluster, run_task
+    local = [it for it in items if not is_url(it)]
+    files, ignored = expand_inputs(local)
+    urls = [it for it in items if is_url(it)]
+    if urls:
+        found, missing = expand_url_inputs(urls)
+        files += found
+        ignored += missing
     stems = _unique_stems(files)
     tasks = [(f, out_dir, dict(kw, out_stem=st, log=None)) for f, st in zip(files, stems)]
     t0 = time.perf_counter()
-    if jobs > 1 and len(tasks) > 1:
-        import concurrent.futures as cf
-        import multiprocessing as mp
-        ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
-        results = []
-        with cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx) as ex:
-            futures = [ex.submit(_worker, t) for t in tasks]
-            for t, fut in zip(tasks, futures):
-                try:
-                    results.append(fut.result())
-                except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by a crash
-                    results.append({"ok": False, "file": str(t[0]),
-                                    "error": f"{t[0]}: worker failed: {type(exc).__name__}: {exc}"})
-    else:
-        results = [_worker(t) for t in tasks]
+    where = "Dask cluster" if scheduler is not None else f"{jobs} processes" if jobs > 1 else "local"
+    bar = Progress(len(tasks), where) if progress and tasks else None
+    try:
+        if scheduler is not None:
+            results = run_on_cluster(tasks, scheduler, bar)
+        elif jobs > 1 and len(tasks) > 1:
+            import concurrent.futures as cf
+            import multiprocessing as mp
+            ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
+            results = []
+            with cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx) as ex:
+                futures = [ex.submit(run_task, t) for t in tasks]
+                for t, fut in zip(tasks, futures):
+                    try:
+                        res = fut.result()
+                    except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by a crash
+                        res = {"ok": False, "file": str(t[0]),
+                               "error": f"{t[0]}: worker failed: {type(exc).__name__}: {exc}"}
+                    results.append(res)
+                    if bar:
+                        bar(res)
+        else:
+            results = []
+            for t in tasks:
+                results.append(run_task(t))
+                if bar:
+                    bar(results[-1])
+    finally:
+        if bar:
+            bar.close()
     logs = [r["report"] for r in results if r["ok"]]
     failed = [{"file": r["file"], "error": r["error"]} for r in results if not r["ok"]]
     if log:
@@ -549,7 +578,8 @@ def process_many(items, out_dir, jobs=1, log=None, **kw):
     return {
         "logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
         "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed),
-        "jobs": int(jobs), "seconds": round(time.perf_counter() - t0, 3),
+        "jobs": int(jobs), "scheduler": None if scheduler is None else str(scheduler),
+        "seconds": round(time.perf_counter() - t0, 3),
         "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC,
         "streams_left_raw": streams_left_raw(logs),
     }

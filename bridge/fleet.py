@@ -1,0 +1,153 @@
+"""The fleet report (issue 15): one table, one JSON and one plot for a batch of logs.
+
+Built from the summary of :func:`bridge.process.process_many` (local pool or
+Dask cluster alike): a row per log and gyro stream with its samples, rate,
+restarts, noise before/after, the low-band motion kept and the lag the filter
+added (when the bridge measured them), and a row per failed log with its
+reason. The plot shows each stream's white-noise density per log, so that an
+IMU that is noisier than its siblings stands out: the thing an operator opens.
+
+Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the standard
+deviation of first differences (deg/s); for white noise that is sqrt(2) sigma,
+and sigma / sqrt(fs / 2) is the one-sided density. It is a figure of the raw
+sensor, so it is meaningful at rest and inflated by motion; the table flags a
+stream whose density is more than 3 robust sigmas above the median of the
+same stream name across the fleet. Streams too slow to denoise (telemetry
+at 1-4 Hz: the noise figure there is motion) get no density and no flag.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+FLAG_SIGMAS = 3.0
+
+
+def noise_density(noise_deg_s, rate_hz):
+    """One-sided white-noise density, deg/s/sqrt(Hz), from the std of first
+    differences ``noise_deg_s`` at ``rate_hz``; None if either is missing."""
+    if noise_deg_s is None or not rate_hz or rate_hz <= 0:
+        return None
+    return float(noise_deg_s) / math.sqrt(2.0) / math.sqrt(rate_hz / 2.0)
+
+
+def _mean(values):
+    v = [x for x in values if x is not None and math.isfinite(x)]
+    return sum(v) / len(v) if v else None
+
+
+def fleet_rows(summary):
+    """Flat rows (dicts) for the fleet table: one per log and stream, one per failed log."""
+    rows = []
+    for log in summary.get("logs", []):
+        for s in log.get("streams", []):
+            noise = s.get("noise", {})
+            raw = _mean([a.get("raw") for a in noise.values()])
+            filt = _mean([a.get("filtered") for a in noise.values()])
+            unit_ok = s.get("noise_unit") == "deg/s"
+            kept = {a: m for a, m in (s.get("motion") or {}).items() if m is not None}
+            rows.append({
+                "log": Path(log["file"]).name, "file": log["file"], "stream": s["name"], "status": "ok",
+                "samples": s.get("samples"), "rate_hz": s.get("rate_hz"), "restarts": s.get("restarts"),
+                "noise_raw": raw, "noise_filtered": filt, "noise_unit": s.get("noise_unit"),
+                "noise_density_deg_s_rthz": (noise_density(raw, s.get("rate_hz"))
+                                             if unit_ok and not s.get("too_slow_to_denoise") else None),
+                "lowband_corr": _mean([a.get("corr") for a in kept.values()]) if kept else None,
+                "lowband_amplitude": _mean([a.get("amplitude_ratio") for a in kept.values()]) if kept else None,
+                "lag_s": _mean([a.get("lag_s") for a in kept.values()]) if kept else None,
+                "note": s.get("note", ""), "left_raw": s.get("left_raw"),
+                "warnings": list(s.get("warnings", [])),
+            })
+    for f in summary.get("failed", []):
+        rows.append({"log": Path(f["file"]).name, "file": f["file"], "stream": "", "status": "failed",
+                     "error": f["error"]})
+    _flag(rows)
+    return rows
+
+
+def _flag(rows):
+    """Mark streams whose noise density is far above their siblings' (same stream name)."""
+    by = {}
+    for r in rows:
+        if r.get("noise_density_deg_s_rthz") is not None:
+            by.setdefault(r["stream"], []).append(r)
+    for group in by.values():
+        vals = sorted(r["noise_density_deg_s_rthz"] for r in group)
+        med = vals[len(vals) // 2]
+        mad = sorted(abs(v - med) for v in vals)[len(vals) // 2] * 1.4826
+        for r in group:
+            v = r["noise_density_deg_s_rthz"]
+            r["flag"] = bool(len(vals) >= 3 and mad > 0 and (v - med) > FLAG_SIGMAS * mad)
+
+
+def _fmt(v, spec=".3g"):
+    return "" if v is None else format(v, spec)
+
+
+def format_table(rows):
+    """The fleet table as Markdown."""
+    head = ("| log | stream | status | samples | rate Hz | restarts | noise raw -> filtered | "
+            "density deg/s/rtHz | 0-5 Hz kept (corr, amp) | lag ms | flag / reason |")
+    out = [head, "|" + "---|" * 11]
+    for r in rows:
+        if r["status"] == "failed":
+            out.append(f"| {r['log']} | | FAILED | | | | | | | | {r['error']} |")
+            continue
+        kept = ("" if r["lowband_corr"] is None else
+                f"{r['lowband_corr']:.3f}, {100 * r['lowband_amplitude']:.0f} %")
+        lag = "" if r["lag_s"] is None else f"{1000 * r['lag_s']:.1f}"
+        flag = "; ".join(([("NOISY vs fleet")] if r.get("flag") else []) +
+                         ([f"left raw: {r['left_raw']}"] if r.get("left_raw") else []) + r.get("warnings", []))
+        out.append(f"| {r['log']} | {r['stream']} | ok | {r['samples']} | {_fmt(r['rate_hz'])} | {r['restarts']} | "
+                   f"{_fmt(r['noise_raw'])} -> {_fmt(r['noise_filtered'])} {r['noise_unit'] or ''} | "
+                   f"{_fmt(r['noise_density_deg_s_rthz'])} | {kept} | {lag} | {flag} |")
+    return "\n".join(out)
+
+
+def write_fleet_report(summary, out_dir):
+    """Write ``fleet.json``, ``fleet.md`` and ``fleet.png`` into ``out_dir``; return their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = fleet_rows(summary)
+    n_ok = sum(r["status"] == "ok" for r in rows)
+    head = (f"# Fleet report\n\n{summary.get('n_logs', 0)} logs: {summary.get('n_ok', 0)} processed, "
+            f"{summary.get('n_failed', 0)} failed; {n_ok} gyro streams; "
+            f"{sum(bool(r.get('flag')) for r in rows)} flagged as noisier than the fleet "
+            f"(> {FLAG_SIGMAS:g} robust sigmas above the median density of the same stream).\n\n"
+            f"![noise density per log and stream](fleet.png)\n\n")
+    (out / "fleet.md").write_text(head + format_table(rows) + "\n")
+    (out / "fleet.json").write_text(json.dumps({"rows": rows, "n_logs": summary.get("n_logs"),
+                                                "n_ok": summary.get("n_ok"), "n_failed": summary.get("n_failed"),
+                                                "flag_sigmas": FLAG_SIGMAS}, indent=1, allow_nan=False) + "\n")
+    _plot(rows, out / "fleet.png")
+    return [out / "fleet.md", out / "fleet.json", out / "fleet.png"]
+
+
+def _plot(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ok = [r for r in rows if r["status"] == "ok" and r["noise_density_deg_s_rthz"] is not None]
+    logs = sorted({r["log"] for r in rows})
+    xi = {name: i for i, name in enumerate(logs)}
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.45 * len(logs) + 3), 4.5))
+    for stream in sorted({r["stream"] for r in ok}):
+        pts = [r for r in ok if r["stream"] == stream]
+        ax.plot([xi[r["log"]] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o", label=stream)
+    flagged = [r for r in ok if r.get("flag")]
+    if flagged:
+        ax.plot([xi[r["log"]] for r in flagged], [r["noise_density_deg_s_rthz"] for r in flagged], "o",
+                ms=14, mfc="none", mec="red", label="noisier than the fleet")
+    for r in rows:
+        if r["status"] == "failed":
+            ax.axvline(xi[r["log"]], color="0.8", ls=":", lw=1)
+    ax.set_xticks(range(len(logs)), logs, rotation=60, ha="right", fontsize=7)
+    ax.set_yscale("log")
+    ax.set_ylabel("raw noise density, deg/s/sqrt(Hz)")
+    ax.set_title("Gyro noise per log and stream (dotted: log failed)")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

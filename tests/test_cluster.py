@@ -1,0 +1,96 @@
+"""Fleet scale (issue 15): logs as Dask tasks on a LocalCluster (127.0.0.1,
+2 workers), fsspec inputs/outputs, the fleet report, the option's errors.
+The reference is a serial run of the same logs: outputs must be byte-identical."""
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from bridge.cluster import run_task
+from bridge.process import process_many
+from gyrodenoise.cli import main
+
+DATA = Path(__file__).resolve().parent / "data"
+LOGS = [DATA / "ardusub_small.BIN", DATA / "fs-batt.log.tlog", DATA / "plane_truncated_test.BIN"]
+distributed = pytest.importorskip("distributed", reason="Dask distributed not installed (extra 'cluster')")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    from distributed import LocalCluster
+    c = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                     dashboard_address=None)
+    yield c
+    c.close()
+
+
+def _files(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(Path(folder).rglob("*"))
+            if p.is_file() and p.name not in ("summary.json",) and not p.name.startswith("fleet.")}
+
+
+def test_cluster_outputs_are_byte_identical_and_a_bad_log_fails_alone(cluster, tmp_path, capsys):
+    bad = tmp_path / "junk.bin"
+    bad.write_bytes(b"\xa3\x95 not a log at all")
+    logs = [str(p) for p in LOGS] + [str(bad)]
+    serial, dask = tmp_path / "serial", tmp_path / "dask"
+    assert main(["mavlink", *logs, "-o", str(serial), "--jobs", "1", "--no-plots"]) == 2
+    capsys.readouterr()
+    code = main(["mavlink", *logs, "-o", str(dask), "--scheduler", cluster.scheduler_address, "--no-plots",
+                 "--json"])
+    out, err = capsys.readouterr()
+    assert code == 2                                   # a log failed: bad input
+    d = json.loads(out)
+    assert d["n_logs"] == 4 and d["n_ok"] == 3 and d["n_failed"] == 1
+    assert d["failed"][0]["file"] == str(bad) and "junk.bin" in d["failed"][0]["error"]
+    assert "1 of 4 log(s) failed" in err
+    a, b = _files(serial), _files(dask)
+    assert a and a.keys() == b.keys()
+    for name in a:
+        assert a[name] == b[name], name
+    # the fleet report: one row per stream, the failure with its reason, a plot
+    fleet = json.loads((dask / "fleet.json").read_text())
+    assert {r["status"] for r in fleet["rows"]} == {"ok", "failed"}
+    assert any(r["status"] == "failed" and "junk.bin" in r["error"] for r in fleet["rows"])
+    assert (dask / "fleet.png").stat().st_size > 1000 and "| log | stream |" in (dask / "fleet.md").read_text()
+
+
+def test_memory_filesystem_in_and_out(tmp_path):
+    """fsspec URLs: logs read from and outputs written to memory:// (a threads
+    LocalCluster shares the process's memory filesystem)."""
+    import fsspec
+    from distributed import Client, LocalCluster
+    fs = fsspec.filesystem("memory")
+    for p in LOGS[:2]:
+        fs.pipe(f"/fleet/in/{p.name}", p.read_bytes())
+    with LocalCluster(n_workers=2, processes=False, dashboard_address=None) as lc, \
+            Client(lc) as client:
+        summary = process_many(["memory://fleet/in"], "memory://fleet/out", scheduler=client, plots=False)
+    assert summary["n_ok"] == 2 and summary["failed"] == []
+    local = tmp_path / "local"
+    for p in LOGS[:2]:
+        r = run_task((p, local, {"out_stem": p.stem, "plots": False, "log": None}))
+        assert r["ok"]
+    for f in sorted(local.rglob("*")):
+        if f.is_file():
+            assert fs.cat(f"/fleet/out/{f.relative_to(local).as_posix()}") == f.read_bytes(), f.name
+    assert all(r["output_log"].startswith("memory://fleet/out") for r in summary["logs"])
+
+
+@pytest.mark.parametrize("extra,word", [(["--scheduler", "localhost:8786"], "--scheduler"),
+                                        (["--scheduler", "tcp://127.0.0.1:1", "--jobs", "2"], "--jobs"),
+                                        (["--scheduler", "tcp://127.0.0.1:9"], "--scheduler")])
+def test_scheduler_errors_are_one_line(tmp_path, capsys, monkeypatch, extra, word):
+    import bridge.cluster
+    monkeypatch.setattr(bridge.cluster, "CONNECT_TIMEOUT_S", 2.0)
+    code = main(["mavlink", str(LOGS[0]), "-o", str(tmp_path / "o"), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and word in err[0] and "Traceback" not in err[0]
+
+
+def test_without_dask_the_option_says_what_to_install(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)        # import fails as when not installed
+    code = main(["mavlink", str(LOGS[0]), "-o", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:8786"])
+    err = capsys.readouterr().err
+    assert code == 2 and "pip install 'gyrodenoise[cluster]'" in err and len(err.strip().splitlines()) == 1
