@@ -240,7 +240,10 @@ def test_truncated_and_corrupted_logs(tmp_path):
         assert code == want, (name, err)
         assert "Traceback" not in err and "Warning" not in err, (name, err)
         if want == 2:
-            assert out == "" and len(err.strip().splitlines()) == 1, (name, err)
+            # --json always prints one object, with the error in it (issue 11)
+            assert json.loads(out) == {"error": err.strip().removeprefix("gyrodenoise: error: "),
+                                       "exit_status": 2}, (name, out)
+            assert len(err.strip().splitlines()) == 1, (name, err)
             assert str(path) in err and needle in err, (name, err)
             continue
         d = json.loads(out)

@@ -1,0 +1,90 @@
+"""Fleet throughput on a Dask cluster (issue 15): a benchmark, not a test.
+
+    python benchmarks/bench_cluster.py [--logs ../shared/data/logs] [--repeat 3]
+
+Prints, from one run on this machine:
+  * the shared logs (25) through ``process_many`` serially, on a 127.0.0.1
+    LocalCluster with 1 worker and with 2 workers (processes, 1 thread each):
+    throughput ratio 2 workers / 1 worker (target >= 1.6x on 2 cores);
+  * the cluster path's overhead for one log (log171.bin): a task on a
+    1-worker cluster against the same work in this process (target <= 10 %);
+  * what one log costs, to size a cluster: CPU-seconds and peak memory of a
+    ``gyrodenoise mavlink`` process per log (the largest of the shared logs).
+Plots are off (``--no-plots``) so that the figures are about the filtering.
+"""
+
+import argparse
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+
+def best_of(fn, repeat):
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t0)
+    return min(ts)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--logs", default=str(REPO.parent / "shared" / "data" / "logs"))
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args(argv)
+    from distributed import Client, LocalCluster
+
+    from bridge.cluster import run_task
+    from bridge.process import process_many
+    logs = Path(args.logs)
+    files = sorted(p for p in logs.iterdir() if p.suffix.lower() in (".bin", ".tlog", ".ulg"))
+    kw = dict(plots=False)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        process_many([str(f) for f in files], tmp / "warm", **kw)            # OS file cache, imports
+        t_serial = best_of(lambda: process_many([str(f) for f in files], tmp / "s", **kw), args.repeat)
+        times = {}
+        for n in (1, 2):
+            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                              dashboard_address=None) as lc, Client(lc) as client:
+                process_many([str(f) for f in files], tmp / f"w{n}", scheduler=client, **kw)   # warm the workers
+                times[n] = best_of(lambda: process_many([str(f) for f in files], tmp / f"c{n}",
+                                                        scheduler=client, **kw), args.repeat)
+                if n == 1:
+                    one = logs / "log171.bin"
+                    task = (one, tmp / "one_c", {"out_stem": "log171", "plots": False, "log": None})
+                    client.submit(run_task, task, pure=False).result()
+                    t_task = best_of(lambda: client.submit(run_task, task, pure=False).result(), 5)
+        local_task = (logs / "log171.bin", tmp / "one_l", {"out_stem": "log171", "plots": False, "log": None})
+        run_task(local_task)
+        t_local = best_of(lambda: run_task(local_task), 5)
+        # cost of one log as its own process (sizing)
+        big = max(files, key=lambda f: f.stat().st_size)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "mavlink", str(big), "-o", str(tmp / "big"),
+                        "--no-plots"], check=False, capture_output=True)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    print(f"{len(files)} logs ({sum(f.stat().st_size for f in files) / 1e6:.1f} MB), plots off, best of {args.repeat}:")
+    print(f"  serial, in this process        : {t_serial:6.2f} s")
+    print(f"  Dask LocalCluster, 1 worker    : {times[1]:6.2f} s")
+    print(f"  Dask LocalCluster, 2 workers   : {times[2]:6.2f} s   throughput 2 / 1 worker: "
+          f"{times[1] / times[2]:.2f}x (target >= 1.6x)")
+    print(f"one log (log171.bin): in this process {t_local * 1000:.0f} ms, as a task on a 1-worker cluster "
+          f"{t_task * 1000:.0f} ms: overhead {100 * (t_task / t_local - 1):+.0f} % (target <= 10 %)")
+    print(f"sizing: the largest log ({big.name}, {big.stat().st_size / 1e6:.1f} MB) as its own process: "
+          f"{cpu:.2f} CPU-s, {wall:.2f} s wall, peak RSS {after.ru_maxrss / 1024:.0f} MB "
+          f"(interpreter and imports included)")
+
+
+if __name__ == "__main__":
+    main()
