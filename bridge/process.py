@@ -438,7 +438,8 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
         if plotter is not None:
             x, f, unit, _ = s._work
             s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
-            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {method}, AR({ar_order}))",
+            label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label})",
                          joined_time(s.time_s, s.restarts), x, f, s.restarts, unit, s.axes)
     if kind == "dataflash":
         out_log.write_bytes(dataflash.patch(data, sc, streams))
