@@ -108,6 +108,9 @@ class FogDenoiser(Fmi2Slave):
         self._n_steps = 0         # samples processed
         self._n_bad_steps = 0     # steps whose size disagreed with sample_period
         self._failed = None       # reason why stepping is refused, if any
+        self._initialised = False  # fixed parameters are frozen from fmi2ExitInitializationMode on
+        self._terminated = False
+        self._pending_error = None  # a forbidden call since the last step: the next step is refused
 
         P, C, I = Fmi2Causality, Fmi2Variability, Fmi2Initial
         par = dict(causality=P.parameter, variability=C.fixed)
@@ -176,6 +179,35 @@ class FogDenoiser(Fmi2Slave):
                                        description="If true, a step whose size differs from sample_period is "
                                                    "refused (fmi2Discard); if false it is processed and a "
                                                    "warning is logged [1]"))
+        # FMI 2.0 forbids setting an output, and a fixed parameter after
+        # initialisation. pythonfmu would set them silently and cannot return
+        # fmi2Error from a setter: the write is refused with a logged error and
+        # the next fmi2DoStep is refused (fmi2Discard) with the reason.
+        for var in self.vars.values():
+            if var.causality == P.output:
+                var.setter = self._refusing_setter(var.name, "it is an output")
+            elif var.causality == P.parameter:
+                var.setter = self._fixed_setter(var.name, var.setter)
+
+    # ------------------------------------------------- forbidden writes
+    def _refuse(self, msg):
+        self.log(msg, Fmi2Status.error)
+        self._pending_error = msg
+
+    def _refusing_setter(self, name, why):
+        def refuse(value):
+            self._refuse(f"FogDenoiser: fmi2Set of {name!r} refused ({why}); value unchanged")
+        return refuse
+
+    def _fixed_setter(self, name, setter):
+        def set_fixed(value):
+            if self._initialised:
+                self._refuse(f"FogDenoiser: fmi2Set of fixed parameter {name!r} after initialisation "
+                             f"refused (fixed parameters change only before fmi2ExitInitializationMode; "
+                             f"fmi2Reset to change it); kept at {getattr(self, name)!r}")
+            else:
+                setter(value)
+        return set_fixed
 
     # ----------------------------------------------------------- readouts
     def _phi_getter(self, k):
@@ -230,6 +262,7 @@ class FogDenoiser(Fmi2Slave):
             _REFUSED.append((self, self.log_queue, type(self)))
             raise ValueError(msg) from None
         self._failed = None
+        self._initialised = True
         if self._D.core_name() == "C":
             self.log("FogDenoiser: filter runs on the bundled C core", Fmi2Status.ok)
         else:
@@ -238,6 +271,13 @@ class FogDenoiser(Fmi2Slave):
                      "(same numbers, ~100x slower per step)", Fmi2Status.warning)
 
     def do_step(self, current_time, step_size):
+        if self._terminated:
+            self.log("FogDenoiser: fmi2DoStep after fmi2Terminate refused", Fmi2Status.error)
+            return False
+        if self._pending_error is not None:
+            msg, self._pending_error = self._pending_error, None
+            self.log(f"{msg}; this step is refused", Fmi2Status.error)
+            return False
         if self._den is None:
             self.log(self._failed or "FogDenoiser: fmi2DoStep before initialisation", Fmi2Status.error)
             return False
@@ -276,6 +316,7 @@ class FogDenoiser(Fmi2Slave):
         return True
 
     def terminate(self):
+        self._terminated = True
         if self._n_bad_steps:
             self.log(f"FogDenoiser: {self._n_bad_steps} of {self._n_steps} step(s) had a step size "
                      f"different from sample_period {self.sample_period!r} s", Fmi2Status.warning)
@@ -313,6 +354,7 @@ class FogDenoiser(Fmi2Slave):
                 self._make_denoiser()
                 self._den.set_state(state["filter"])
             self._failed = None
+            self._initialised = self._den is not None
         except Exception as exc:  # pythonfmu ignores a return value here: refuse the next steps
             self._den = None
             self._failed = f"FogDenoiser: fmi2SetFMUstate failed: {type(exc).__name__}: {exc}"

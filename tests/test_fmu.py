@@ -601,3 +601,35 @@ def test_non_positive_or_nan_step_size_is_refused(fmu_dir, name, bad_step):
         assert a.get(out) == before
     finally:
         a.free()
+
+
+def test_forbidden_writes_and_step_after_terminate_are_refused_with_a_reason(fmu_dir):
+    """FMI 2.0 forbids setting an output, a fixed parameter after initialisation,
+    and fmi2DoStep after fmi2Terminate. pythonfmu cannot return fmi2Error from a
+    setter: the write is refused (value unchanged) with a logged error, and the
+    next step is refused (fmi2Discard) with the reason."""
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir)
+    try:
+        a.initialize(sample_period=H, method="shakf")
+        a.set(raw_rate=1.0)
+        a.slave.doStep(0.0, H)
+        out = a.get("filtered_rate")
+        a.set(filtered_rate=123.0)                       # an output
+        assert a.get("filtered_rate") == out
+        with pytest.raises(FMICallException) as exc:
+            a.slave.doStep(H, H)
+        assert exc.value.status == 2
+        assert any("'filtered_rate' refused (it is an output)" in m[2] for m in a.errors())
+        a.slave.doStep(H, H)                             # the refusal is reported once, then it steps
+        a.set(lam=0.5)                                   # a fixed parameter after initialisation
+        assert a.get("lam") == 1.0
+        with pytest.raises(FMICallException):
+            a.slave.doStep(2 * H, H)
+        assert any("fixed parameter 'lam' after initialisation refused" in m[2] for m in a.errors())
+        a.slave.terminate()
+        with pytest.raises(FMICallException):
+            a.slave.doStep(3 * H, H)
+        assert any("fmi2DoStep after fmi2Terminate refused" in m[2] for m in a.errors())
+    finally:
+        a.free()
