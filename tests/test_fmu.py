@@ -633,3 +633,20 @@ def test_forbidden_writes_and_step_after_terminate_are_refused_with_a_reason(fmu
         assert any("fmi2DoStep after fmi2Terminate refused" in m[2] for m in a.errors())
     finally:
         a.free()
+
+
+def test_the_ssp_runs_in_fmpy_simulate_ssp(fmu_dir, tmp_path):
+    """The same .ssp that libcosim runs (test above) loads and runs in fmpy's
+    simulate_ssp: the chain's free inputs are not listed as connectors (fmpy
+    needs every listed input connected). fmpy ignores ParameterBindings, so this
+    SSP is written with the FMUs' defaults (card paper_fog, seed 0, rate 0):
+    the denoiser's output equals gd.denoise of what the fog FMU produced."""
+    from fmpy.ssp.simulation import simulate_ssp
+    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir)
+    r = simulate_ssp(str(ssp), stop_time=1.0, step_size=H)
+    measured = np.asarray(r["fog.measured_rate"], dtype=float)
+    filtered = np.asarray(r["denoiser.filtered_rate"], dtype=float)
+    assert len(measured) > 150 and np.std(measured) > 0
+    # Jacobi master: the denoiser sees the fog's output of the previous step
+    ref = gd.denoise(measured[:-1], FS)
+    np.testing.assert_allclose(filtered[1:], ref, rtol=0, atol=1e-9)

@@ -61,10 +61,16 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
     for inst, model in (("fog", "SimulatedFog"), ("denoiser", "FogDenoiser")):
         md = read_model_description(str(paths[model]))
         types = {v.name: v.type for v in md.modelVariables}
+        # the chain's free inputs (fog.true_rate, fog.restart: set by the parameter
+        # binding / their start values) are not listed as connectors: fmpy's
+        # simulate_ssp requires every listed input to be connected, and libcosim
+        # refuses system-level connectors that would feed them
+        free = {"true_rate", "restart"} if inst == "fog" else set()
         conns = "\n".join(
             f'          <ssd:Connector name={_xml_attr(v.name)} kind="{v.causality}">'
             f'<ssc:{v.type}/></ssd:Connector>'
-            for v in md.modelVariables if v.causality in ("input", "output", "parameter"))
+            for v in md.modelVariables
+            if v.causality in ("input", "output", "parameter") and v.name not in free)
         comps.append(f'''      <ssd:Component name="{inst}" type="application/x-fmu-sharedlibrary" source="resources/{model}.fmu">
         <ssd:Connectors>
 {conns}
