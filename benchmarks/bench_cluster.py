@@ -25,6 +25,14 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 
+#: Worker settings docs/FLEET.md recommends for this workload (measured here): the
+#: statistical profiler samples every worker thread every 10 ms, and the nanny's
+#: MALLOC_TRIM_THRESHOLD_=65536 makes glibc return and re-fault the memory of the
+#: bridge's many medium-size arrays; together ~15 % of a log's time in a worker.
+WORKER_TUNING = {"distributed.worker.profile.enabled": False,
+                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
+
 def best_of(fn, repeat):
     ts = []
     for _ in range(repeat):
@@ -38,8 +46,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--logs", default=str(REPO.parent / "shared" / "data" / "logs"))
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--dask-defaults", action="store_true",
+                    help="keep Dask's worker defaults (statistical profiler on, MALLOC_TRIM_THRESHOLD_=65536); "
+                         "by default both are switched off as docs/FLEET.md recommends")
     args = ap.parse_args(argv)
+    import dask
     from distributed import Client, LocalCluster
+    if not args.dask_defaults:
+        dask.config.set(WORKER_TUNING)
 
     from bridge.cluster import run_task
     from bridge.process import process_many
@@ -74,7 +88,8 @@ def main(argv=None):
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    print(f"{len(files)} logs ({sum(f.stat().st_size for f in files) / 1e6:.1f} MB), plots off, best of {args.repeat}:")
+    print(f"{len(files)} logs ({sum(f.stat().st_size for f in files) / 1e6:.1f} MB), plots off, best of {args.repeat}, "
+          f"worker settings: {'Dask defaults' if args.dask_defaults else 'profiler off, malloc trim default'}:")
     print(f"  serial, in this process        : {t_serial:6.2f} s")
     print(f"  Dask LocalCluster, 1 worker    : {times[1]:6.2f} s")
     print(f"  Dask LocalCluster, 2 workers   : {times[2]:6.2f} s   throughput 2 / 1 worker: "
