@@ -4,7 +4,7 @@ One communication step is one gyro sample: set ``raw_rate`` (and ``restart``),
 call fmi2DoStep, read ``filtered_rate`` and the AR model readouts.
 
 The numerical work is the per-sample plain-Python path of the gyrodenoise core
-(``gyrodenoise.kernels`` through ``gyrodenoise.denoiser.Denoiser``), bundled into
+(``gyrodenoise.core.kernels`` through ``gyrodenoise.denoiser.Denoiser``), bundled into
 the FMU's resources as the package ``gdcore`` and imported from there under a
 private module name, so the FMU neither needs nor picks up an installed
 gyrodenoise, numba or scipy. Build it with ``gyrodenoise fmu build``.
@@ -81,7 +81,7 @@ class FogDenoiser(Fmi2Slave):
         # inputs
         self.raw_rate = 0.0
         self.restart = False
-        # parameters (defaults of gyrodenoise.kernels.make_params)
+        # parameters (defaults of gyrodenoise.core.kernels.make_params)
         self.ar_order = 3
         self.method = "motion"
         self.sample_period = 0.005

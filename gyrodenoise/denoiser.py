@@ -149,7 +149,7 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
         "shakf" is the modified Sage-Husa AKF of the paper (Section 3.2.3),
         with ``outlier_sigma=0`` exactly the paper's filter; "lowpass" a
         causal Butterworth (``cutoff_hz``, ``order``). See
-        :func:`gyrodenoise.kernels.make_params`.
+        :func:`gyrodenoise.core.kernels.make_params`.
     ar_order : int
         Order n of the improved AR(n) model (Eq. 4).
     restarts : array_like of bool, optional
@@ -159,7 +159,7 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
         backwards (squared magnitude response, no phase lag), each run of
         samples between restarts on its own.
     **kw
-        Further parameters of :func:`gyrodenoise.kernels.make_params`.
+        Further parameters of :func:`gyrodenoise.core.kernels.make_params`.
 
     Returns
     -------

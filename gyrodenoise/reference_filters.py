@@ -25,7 +25,7 @@ processed in chunks.
   for the scalar measurement here), fixed-point iterations per sample.
 
 State model shared by the last three (the kernels' Eq. 34 with c a known
-input, as :func:`gyrodenoise.kernels.tie_c` makes it)::
+input, as :func:`gyrodenoise.core.kernels.tie_c` makes it)::
 
     x_k = [z_k ... z_{k-n+1}],  x_k = A_k x_{k-1} + e1 (c_k + w_k),  w ~ N(0, q_k)
     z_k = x_k[0] + v_k,  v ~ N(0, r_k),  A_k = companion(phi_k).
@@ -197,7 +197,7 @@ def record_ar_model(rate_deg_s, sample_rate_hz, method="kf", ar_order=3, restart
     ar_order : int
     restarts : array_like of bool, optional
     **kw
-        Further :func:`gyrodenoise.kernels.make_params` parameters.
+        Further :func:`gyrodenoise.core.kernels.make_params` parameters.
 
     Returns
     -------

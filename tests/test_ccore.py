@@ -1,5 +1,5 @@
 """The C core (gyrodenoise/core/gdcore.c, via gyrodenoise.core._gdcore) held to the
-plain-Python executable specification gyrodenoise/kernels.py.
+plain-Python executable specification gyrodenoise/core/kernels.py.
 
 Every output and the final state must agree to 1e-12 relative (scaled by
 max(1, |z|max)) for every method, AR orders 1..6, the outlier gate on and off,

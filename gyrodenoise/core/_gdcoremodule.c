@@ -292,7 +292,7 @@ static PyModuleDef_Slot slots[] = {
 static struct PyModuleDef moduledef = {
     PyModuleDef_HEAD_INIT,
     "gyrodenoise._gdcore",
-    "The per-sample filter kernels of gyrodenoise.kernels, compiled from gyrodenoise/core/gdcore.c.",
+    "The per-sample filter kernels of gyrodenoise.core.kernels, compiled from gyrodenoise/core/gdcore.c.",
     0,
     methods,
     slots,

@@ -1,6 +1,6 @@
 /*
  * gdcore.c -- the per-sample filter kernels, translated from
- * gyrodenoise/kernels.py (the executable specification; read the docstrings
+ * gyrodenoise/core/kernels.py (the executable specification; read the docstrings
  * there for the equations and the reasons). Every function keeps the Python's
  * operations and their order: a + b * c stays (a + (b * c)), d * v * v stays
  * ((d * v) * v). Build with -O2 -ffp-contract=off, never -ffast-math.

@@ -1,7 +1,7 @@
 /*
  * gdcore.h -- the per-sample filter kernels of gyrodenoise in portable C99.
  *
- * A line-by-line translation of gyrodenoise/kernels.py (the plain-Python
+ * A line-by-line translation of gyrodenoise/core/kernels.py (the plain-Python
  * executable specification): the same functions with a gd_ prefix, the same
  * two flat buffers of doubles and the same floating-point operations in the
  * same order, so that results agree with the Python to rounding (tested to
@@ -25,7 +25,7 @@
 extern "C" {
 #endif
 
-/* ---- everything below mirrors gyrodenoise/kernels.py: keep them equal ---- */
+/* ---- everything below mirrors gyrodenoise/core/kernels.py: keep them equal ---- */
 
 /* parameters p[] */
 #define P_ORDER 0           /* AR order n (>= 1) */
