@@ -149,12 +149,6 @@ def flight_streams():
                 yield name, st.name, ax, x[:, k].copy(), st.restarts, st.rate_hz
 
 
-def lowband(x, fs, band_hz=5.0):
-    """Zero-phase 4th-order Butterworth 0-``band_hz`` content of ``x``."""
-    from scipy.signal import butter, sosfiltfilt
-    return sosfiltfilt(butter(4, band_hz, fs=fs, output="sos"), x)
-
-
 def moving_windows(low_deg_s, fs, window_s=2.0, threshold_deg_s=2.0):
     """True in the ``window_s`` windows whose 0-5 Hz content has a std above
     ``threshold_deg_s`` (the vehicle moves)."""
@@ -168,9 +162,10 @@ def moving_windows(low_deg_s, fs, window_s=2.0, threshold_deg_s=2.0):
 def real_flights(meths):
     """0-5 Hz correlation and amplitude kept (ratio of std's) on the shared real
     flights, per method, in the windows where the vehicle moves."""
+    from gyrodenoise.motion_metrics import lowband
     rows = []
     for name, st, ax, z, restarts, fs in flight_streams():
-        lz = lowband(z, fs)
+        lz = np.nan_to_num(lowband(z, fs, restarts=restarts))
         mask = moving_windows(lz, fs)
         if mask.sum() < 2 * fs:
             continue
@@ -178,7 +173,7 @@ def real_flights(meths):
             if m == "raw":
                 continue
             y = apply(m, z, fs) if m in ("lp20", "bw30") else gd.denoise(z, fs, method=m, restarts=restarts)
-            ly = lowband(y, fs)
+            ly = np.nan_to_num(lowband(y, fs, restarts=restarts))
             corr = float(np.corrcoef(lz[mask], ly[mask])[0, 1])
             amp = float(np.std(ly[mask]) / np.std(lz[mask]))
             high = float(np.std(y - ly) / np.std(z - lz))       # above 5 Hz, whole record
