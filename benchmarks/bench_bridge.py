@@ -69,7 +69,7 @@ def main(argv=None):
         raise SystemExit(f"{a.log}: not found (the shared data folder is needed)")
     bare_t, bridge_t, noplot_t, floor_t = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
-        # one warm-up run of each (numba cache, OS file cache)
+        # one warm-up run of each (OS file cache, imports)
         timed([sys.executable, "-c", BARE, a.log])
         _, out = timed(_gyrodenoise() + ["mavlink", a.log, "-o", tmp, "--json"])
         summary = json.loads(out)

@@ -506,8 +506,8 @@ def write_report(outdir, R, figs, args, elapsed):
     w("| method | ns/sample |\n|---|---|")
     for m, v in R["cost"].items():
         w(f"| {LABEL[m]} | {v:.0f} |")
-    w(f"\n{R['cfg']['cost_n']} FOG samples, best of {R['cfg']['cost_repeat']}. KF/SHAKF: the numba batch "
-      "loop of the kernels; LP and Butterworth: scipy.signal.lfilter (C); RTS and VB-AKF: numba loops "
+    w(f"\n{R['cfg']['cost_n']} FOG samples, best of {R['cfg']['cost_repeat']}. KF/SHAKF: the C core's batch "
+      "loop (gyrodenoise/core/gdcore.c); LP and Butterworth: scipy.signal.lfilter (C); RTS and VB-AKF: numba loops "
       "over small numpy matrices (they allocate per sample and could be made several times faster), "
       "plus the recorded KF run they use.\n")
 

@@ -1,4 +1,4 @@
-"""Denoising engines: the native core (numba batch) and the FogDenoiser FMU (fmpy).
+"""Denoising engines: the native core (the C core, batch) and the FogDenoiser FMU (fmpy).
 
 Both filter one axis of one stream, a 1-D array in deg/s (or counts when the
 unit is unknown), with the restart flags of the stream, and return the

@@ -69,7 +69,7 @@ def entry():
     """Console-script entry point: :func:`main`, then a fast exit.
 
     Everything the command writes is closed before :func:`main` returns; what
-    is left is interpreter teardown (matplotlib, numba, scipy module graphs),
+    is left is interpreter teardown (matplotlib, scipy module graphs),
     measured at ~0.3 s per run (benchmarks/bench_bridge.py). So flush the
     standard streams and leave with ``os._exit``. Tests call :func:`main`.
     """

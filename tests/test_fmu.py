@@ -2,7 +2,7 @@
 
 The FMUs are built once per session into a temporary folder by the CLI in a
 subprocess. References are independent of the FMUs: the core's batch paths
-``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` (numba).
+``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` (the C core).
 """
 
 import importlib.util
