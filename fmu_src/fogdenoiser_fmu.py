@@ -20,17 +20,23 @@ import sys
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
+# FMI rules and pythonfmu work-arounds shared by the project's slaves, bundled next
+# to this script (resources/ in the FMU; the staging folder at build time)
+_HERE = os.path.dirname(os.path.abspath(__file__))
+if _HERE not in sys.path:
+    sys.path.insert(0, _HERE)
+import gyrodenoise_pythonfmu_rules as _rules  # noqa: E402
+#: the objects the rules keep alive, referenced from this module too: pythonfmu keeps
+#: this module's dict to the end (see the bottom of the file), whereas the rules
+#: module is cleared with sys.modules at interpreter finalisation
+_REFUSED = _rules.REFUSED
+
 #: phi_1 .. phi_MAX_ORDER outputs are declared; phi_k for k > ar_order reads 0.
 MAX_ORDER = 6
 #: relative tolerance between the step size and the sample period
 STEP_RTOL = 1e-6
 STATE_VERSION = 2   # 2: centred kernels' state layout, motion and lowpass
 
-#: Objects of instances that failed with an exception. pythonfmu answers an exception
-#: with fmi2Fatal and releases its references to the instance, its log queue and the
-#: class, and releases them again in fmi2FreeInstance / fmi2Reset; these extra
-#: references keep that from freeing live objects (a few bytes leaked per failure).
-_REFUSED = []
 
 
 def _load_core(resources):
@@ -77,6 +83,7 @@ class FogDenoiser(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._K, self._D = _load_core(self.resources)
+        _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
 
         # inputs
         self.raw_rate = 0.0
@@ -179,35 +186,8 @@ class FogDenoiser(Fmi2Slave):
                                        description="If true, a step whose size differs from sample_period is "
                                                    "refused (fmi2Discard); if false it is processed and a "
                                                    "warning is logged [1]"))
-        # FMI 2.0 forbids setting an output, and a fixed parameter after
-        # initialisation. pythonfmu would set them silently and cannot return
-        # fmi2Error from a setter: the write is refused with a logged error and
-        # the next fmi2DoStep is refused (fmi2Discard) with the reason.
-        for var in self.vars.values():
-            if var.causality == P.output:
-                var.setter = self._refusing_setter(var.name, "it is an output")
-            elif var.causality == P.parameter:
-                var.setter = self._fixed_setter(var.name, var.setter)
-
-    # ------------------------------------------------- forbidden writes
-    def _refuse(self, msg):
-        self.log(msg, Fmi2Status.error)
-        self._pending_error = msg
-
-    def _refusing_setter(self, name, why):
-        def refuse(value):
-            self._refuse(f"FogDenoiser: fmi2Set of {name!r} refused ({why}); value unchanged")
-        return refuse
-
-    def _fixed_setter(self, name, setter):
-        def set_fixed(value):
-            if self._initialised:
-                self._refuse(f"FogDenoiser: fmi2Set of fixed parameter {name!r} after initialisation "
-                             f"refused (fixed parameters change only before fmi2ExitInitializationMode; "
-                             f"fmi2Reset to change it); kept at {getattr(self, name)!r}")
-            else:
-                setter(value)
-        return set_fixed
+        # FMI 2.0 forbids setting an output, and a fixed parameter after initialisation
+        _rules.install_write_rules(self, "FogDenoiser", P.output, P.parameter, Fmi2Status.error)
 
     # ----------------------------------------------------------- readouts
     def _phi_getter(self, k):
@@ -259,7 +239,7 @@ class FogDenoiser(Fmi2Slave):
             self._failed = msg
             self.log(msg, Fmi2Status.error)
             # pythonfmu turns the exception into fmi2Fatal from fmi2ExitInitializationMode
-            _REFUSED.append((self, self.log_queue, type(self)))
+            # (the guard keeps the instance's objects alive, see gyrodenoise_pythonfmu_rules)
             raise ValueError(msg) from None
         self._failed = None
         self._initialised = True
@@ -339,6 +319,8 @@ class FogDenoiser(Fmi2Slave):
 
     def _set_fmu_state(self, state):
         try:
+            if "corrupted" in state:
+                raise ValueError(state["corrupted"])
             if state.get("version") != STATE_VERSION:
                 raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
             for name in self._PARAMS:
@@ -359,3 +341,22 @@ class FogDenoiser(Fmi2Slave):
             self._den = None
             self._failed = f"FogDenoiser: fmi2SetFMUstate failed: {type(exc).__name__}: {exc}"
             self.log(self._failed, Fmi2Status.error)
+
+    @staticmethod
+    def _fmu_state_from_bytes(state):
+        # a corrupted state becomes a marker: fmi2SetFMUstate with it logs the reason
+        # and the next fmi2DoStep is refused (see gyrodenoise_pythonfmu_rules)
+        return _rules.state_from_bytes(Fmi2Slave._fmu_state_from_bytes, state)
+
+
+_rules.guard(FogDenoiser, "FogDenoiser", Fmi2Status.error)
+
+
+if locals() is not globals():
+    # pythonfmu's exporter (findClass in PySlaveInstance.cpp) executes this file a second
+    # time at every fmi2Instantiate, with the module's dict as globals and a new dict as
+    # locals, and then Py_DECREFs the module dict, which PyModule_GetDict lent it (a
+    # borrowed reference): one reference too many per instantiation, and a double free
+    # of the dict at interpreter finalisation. One reference is added back here for each
+    # such execution (the dict lives until the interpreter ends anyway).
+    globals().setdefault("_PYTHONFMU_MODULE_DICT_REFS", []).append(globals())

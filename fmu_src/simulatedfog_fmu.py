@@ -10,8 +10,6 @@ numba and an installed gyrodenoise are not needed). Build it with
 """
 
 import builtins
-import ctypes
-import functools
 import hashlib
 import importlib
 import importlib.util
@@ -22,18 +20,22 @@ import sys
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
+# FMI rules and pythonfmu work-arounds shared by the project's slaves, bundled next
+# to this script (resources/ in the FMU; the staging folder at build time)
+_HERE = os.path.dirname(os.path.abspath(__file__))
+if _HERE not in sys.path:
+    sys.path.insert(0, _HERE)
+import gyrodenoise_pythonfmu_rules as _rules  # noqa: E402
+#: the objects the rules keep alive, referenced from this module too: pythonfmu keeps
+#: this module's dict to the end (see the bottom of the file), whereas the rules
+#: module is cleared with sys.modules at interpreter finalisation
+_REFUSED = _rules.REFUSED
+
 DEFAULT_CARD = "paper_fog"
 #: relative tolerance between the step size and the card's sample period
 STEP_RTOL = 1e-6
 STATE_VERSION = 1
 
-#: Objects of instances that failed with an exception. pythonfmu answers an exception
-#: with fmi2Fatal and releases its references to the instance, its log queue and the
-#: class (PySlaveInstance::handle_py_exception -> cleanPyObject, pointers not cleared),
-#: and releases them again in fmi2FreeInstance / fmi2Reset; these extra references keep
-#: that from freeing live objects (a few bytes leaked per failure). Without them the
-#: next call on the instance after such an fmi2Fatal uses freed memory (a host crash).
-_REFUSED = []
 
 
 def _import_without_scipy(name, globals=None, locals=None, fromlist=(), level=0):
@@ -89,42 +91,6 @@ def _load_core(resources):
     return sys.modules[modname + ".simulator"]
 
 
-#: FMU libraries (path: handle) whose interpreter finalisation is hooked to exit().
-_EXIT_HOOKS = {}
-
-
-def _finalize_before_static_destructors(resources, model_identifier):
-    """Work around pythonfmu's exit crash (Linux).
-
-    pythonfmu's exporter keeps the interpreter in a static ``std::shared_ptr<PyState>``
-    (PySlaveInstance.cpp) whose destructor, run by exit() as a C++ static destructor,
-    finalises Python; its ``__attribute__((destructor)) onLibraryUnload`` then runs in
-    _dl_fini and assigns nullptr to that already destroyed shared_ptr, releasing its
-    freed control block once more (a write into freed heap memory: "free(): corrupted
-    unsorted chunks" or a segfault later in exit). Registering the library's exported
-    ``finalizePythonInterpreter`` with exit() from here makes it run first (exit
-    handlers run last-registered first): the interpreter is finalised as before, the
-    shared_ptr is left empty, and the two later calls have nothing to release. A
-    reference to the library is kept so that a host's dlclose cannot unmap the handler.
-    """
-    if not sys.platform.startswith("linux"):
-        return
-    path = os.path.realpath(os.path.join(resources, os.pardir, "binaries", "linux64",
-                                         model_identifier + ".so"))
-    if path in _EXIT_HOOKS:
-        return
-    try:   # only if this very library is loaded in this process (not at build time)
-        lib = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LOCAL)
-        hook = ctypes.cast(lib.finalizePythonInterpreter, ctypes.c_void_p)
-        cxa_atexit = ctypes.CDLL(None).__cxa_atexit
-    except (OSError, AttributeError):
-        return
-    cxa_atexit.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)
-    cxa_atexit.restype = ctypes.c_int
-    if cxa_atexit(hook, None, None) == 0:
-        _EXIT_HOOKS[path] = lib
-
-
 class SimulatedFog(Fmi2Slave):
     """A gyro described by a model card: measured = true rate + simulated sensor errors."""
 
@@ -137,7 +103,7 @@ class SimulatedFog(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self._S = _load_core(self.resources)
-        _finalize_before_static_destructors(self.resources, type(self).__name__)
+        _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
 
         self.true_rate = 0.0
         self.restart = False
@@ -183,48 +149,7 @@ class SimulatedFog(Fmi2Slave):
         # initialisation. pythonfmu would set them silently and cannot return
         # fmi2Error from a setter: the write is refused with a logged error and
         # the next fmi2DoStep is refused (fmi2Discard) with the reason.
-        for var in self.vars.values():
-            if var.causality == P.output:
-                var.setter = self._refusing_setter(var.name, "it is an output")
-            elif var.causality == P.parameter:
-                var.setter = self._fixed_setter(var.name, var.setter)
-
-    # ------------------------------------------------- forbidden writes
-    def _refuse(self, msg):
-        self.log(msg, Fmi2Status.error)
-        self._pending_error = msg
-
-    def _refusing_setter(self, name, why):
-        def refuse(value):
-            self._refuse(f"SimulatedFog: fmi2Set of {name!r} refused ({why}); value unchanged")
-        return refuse
-
-    def _fixed_setter(self, name, setter):
-        def set_fixed(value):
-            if self._initialised:
-                self._refuse(f"SimulatedFog: fmi2Set of fixed parameter {name!r} after initialisation "
-                             f"refused (fixed parameters change only before fmi2ExitInitializationMode; "
-                             f"fmi2Reset to change it); kept at {getattr(self, name)!r}")
-            elif setter is None:
-                setattr(self, name, value)
-            else:
-                setter(value)
-        return set_fixed
-
-    def _keep_alive(self):
-        """Called just before an exception reaches pythonfmu (see :data:`_REFUSED`)."""
-        _REFUSED.append((self, self.log_queue, type(self)))
-
-    def _check_refs(self, call, vrs):
-        """Unknown value references: a logged reason, then fmi2Fatal (pythonfmu's only
-        failure status for fmi2Get*/fmi2Set*), without the use-after-free."""
-        unknown = [vr for vr in vrs if vr not in self.vars]
-        if unknown:
-            msg = (f"SimulatedFog: {call}: unknown value reference(s) {unknown} "
-                   f"(this FMU has {sorted(self.vars)})")
-            self.log(msg, Fmi2Status.error)
-            self._keep_alive()
-            raise KeyError(msg)
+        _rules.install_write_rules(self, "SimulatedFog", P.output, P.parameter, Fmi2Status.error)
 
     # ---------------------------------------------------------- lifecycle
     def _make_stream(self):
@@ -346,44 +271,12 @@ class SimulatedFog(Fmi2Slave):
 
     @staticmethod
     def _fmu_state_from_bytes(state):
-        # pythonfmu calls this on the class: an exception here would be fmi2Fatal and
-        # release the calling instance's objects (see _REFUSED) though no instance is at
-        # hand to keep them alive. A corrupted state becomes a marker instead:
-        # fmi2SetFMUstate with it logs the reason and the next fmi2DoStep is refused.
-        try:
-            value = Fmi2Slave._fmu_state_from_bytes(state)
-            if not isinstance(value, dict):
-                raise ValueError(f"not a state object: {type(value).__name__}")
-            return value
-        except Exception as exc:
-            return {"corrupted": f"corrupted serialized FMU state ({type(exc).__name__}: {exc})"}
+        # a corrupted state becomes a marker: fmi2SetFMUstate with it logs the reason
+        # and the next fmi2DoStep is refused (see gyrodenoise_pythonfmu_rules)
+        return _rules.state_from_bytes(Fmi2Slave._fmu_state_from_bytes, state)
 
 
-def _guard(name, refs=None):
-    """Wrap the slave method ``name`` that pythonfmu calls: check value references
-    (argument 0) if ``refs`` names the FMI call, and keep the instance's objects
-    alive before any exception reaches pythonfmu (see :data:`_REFUSED`)."""
-    method = getattr(SimulatedFog, name)
-
-    @functools.wraps(method)
-    def guarded(self, *args):
-        if refs is not None:
-            self._check_refs(refs, args[0])
-        try:
-            return method(self, *args)
-        except BaseException:
-            self._keep_alive()
-            raise
-    setattr(SimulatedFog, name, guarded)
-
-
-for _kind in ("integer", "real", "boolean", "string"):
-    _guard(f"get_{_kind}", f"fmi2Get{_kind.capitalize()}")
-    _guard(f"set_{_kind}", f"fmi2Set{_kind.capitalize()}")
-for _name in ("setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step",
-              "terminate", "_get_fmu_state", "_set_fmu_state"):
-    _guard(_name)
-del _kind, _name
+_rules.guard(SimulatedFog, "SimulatedFog", Fmi2Status.error)
 
 
 if locals() is not globals():

@@ -280,24 +280,28 @@ import sys
 from gyrodenoise import fmu as F
 from fmpy.fmi1 import FMICallException
 a = F.FmuInstance(sys.argv[1], "x")
+inp, out = sys.argv[2], sys.argv[3]
 a.initialize()
 for _ in range(4):
     try:
         a.slave.getReal([99999])
     except FMICallException as exc:
         assert exc.status == 4
-a.set(true_rate=1.0)
+a.set(**{inp: 1.0})
 a.slave.doStep(0.0, 0.005)
-print(a.get("measured_rate"))
+print(a.get(out))
 a.free()
 print("ok")
 """
 
 
-def test_simulatedfog_usable_after_repeated_fatal(fmus):
+@pytest.mark.parametrize("name,inp,out", [("SimulatedFog", "true_rate", "measured_rate"),
+                                          ("FogDenoiser", "raw_rate", "filtered_rate")])
+def test_usable_after_repeated_fatal(fmus, name, inp, out):
     """pythonfmu releases the instance's objects at every fmi2Fatal (and again in
-    fmi2FreeInstance): the slave keeps them alive, so later calls do not crash."""
-    proc = subprocess.run([sys.executable, "-c", _AFTER_FATAL, str(fmus["_fmu"] / "SimulatedFog.fmu")],
+    fmi2FreeInstance): the slaves keep them alive (fmu_src/gyrodenoise_pythonfmu_rules.py),
+    so later calls and the process exit do not crash."""
+    proc = subprocess.run([sys.executable, "-c", _AFTER_FATAL, str(fmus["_fmu"] / f"{name}.fmu"), inp, out],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.split()[-1] == "ok"

@@ -31,6 +31,11 @@ FMUS = {
 }
 
 
+#: Shared by the pythonfmu slaves, bundled next to each slave script (FMI rules and
+#: pythonfmu work-arounds; fmu_src/gyrodenoise_pythonfmu_rules.py)
+SLAVE_HELPERS = ("gyrodenoise_pythonfmu_rules.py",)
+
+
 def compiled_core_files():
     """The built C core extension(s) beside core/kernels.py (none if not built)."""
     return sorted((PACKAGE_DIR / "core").glob("_gdcore*.so")) + sorted((PACKAGE_DIR / "core").glob("_gdcore*.pyd"))
@@ -91,10 +96,12 @@ def build_fmu(name, out_dir="build", src_dir=None, python=None):
         stage = Path(tmp) / "stage"
         stage.mkdir()
         shutil.copy2(src, stage / script)
+        for helper in SLAVE_HELPERS:
+            shutil.copy2(src.parent / helper, stage / helper)
         pkg = stage_core(stage, modules)
         cmd = [python or sys.executable, "-m", "pythonfmu", "build",
                "-f", str(stage / script), "-d", str(out),
-               "--handle-state", "--serialize-state", str(pkg)]
+               "--handle-state", "--serialize-state", str(pkg)] + [str(stage / h) for h in SLAVE_HELPERS]
         env = dict(os.environ)
         env.pop("PYTHONPATH", None)
         proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
@@ -126,6 +133,7 @@ def stale_reason(fmu_path, src_dir=None):
     src = _fmu_src_dir(src_dir) / script
     if src.is_file():
         wanted[f"resources/{script}"] = src
+        wanted.update({f"resources/{h}": src.parent / h for h in SLAVE_HELPERS})
     with zipfile.ZipFile(fmu_path) as z:
         names = set(z.namelist())
         for arc, local in wanted.items():

@@ -1,0 +1,147 @@
+"""FMI rules and pythonfmu 0.7.0 work-arounds shared by the project's pythonfmu slaves.
+
+``gyrodenoise fmu build`` bundles this file next to each slave script (the FMU's
+``resources/``); the slaves import it from there. Nothing here is maths.
+
+* :func:`install_write_rules`: FMI 2.0 forbids setting an output, and a fixed
+  parameter after initialisation. pythonfmu would set them silently and cannot
+  return fmi2Error from a setter: the write is refused with a logged error, the
+  value kept, and the slave refuses its next fmi2DoStep with the reason (the
+  slave checks ``_pending_error``).
+* :func:`guard`: pythonfmu answers an exception with fmi2Fatal and releases its
+  references to the instance, its log queue and the class
+  (``PySlaveInstance::handle_py_exception`` -> ``cleanPyObject``, pointers not
+  cleared), then releases them again in fmi2FreeInstance / fmi2Reset: the next
+  call after a fatal one used freed memory (a host crash). Every method pythonfmu
+  calls is wrapped so that the objects are kept alive (:data:`REFUSED`) before
+  any exception reaches it, and unknown value references get a logged reason.
+* :func:`finalize_before_static_destructors`: the exporter's exit crash (its static
+  interpreter state is released twice at process exit; Linux).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import os
+import sys
+
+#: Objects of instances that failed with an exception, kept alive on purpose (a
+#: few bytes leaked per failure) so that pythonfmu's second release frees nothing live.
+REFUSED = []
+
+#: FMU libraries (path: handle) whose interpreter finalisation is hooked to exit().
+_EXIT_HOOKS = {}
+
+
+def keep_alive(slave):
+    """Called just before an exception reaches pythonfmu (see :data:`REFUSED`)."""
+    REFUSED.append((slave, slave.log_queue, type(slave)))
+
+
+def install_write_rules(slave, label, output_causality, parameter_causality, error_status):
+    """Refuse writes to outputs, and to parameters once ``slave._initialised`` is
+    true, with a logged error; the slave's next step reports ``slave._pending_error``."""
+    def refuse(msg):
+        slave.log(msg, error_status)
+        slave._pending_error = msg
+
+    def refusing(name):
+        def setter(value):
+            refuse(f"{label}: fmi2Set of {name!r} refused (it is an output); value unchanged")
+        return setter
+
+    def fixed(name, original):
+        def setter(value):
+            if slave._initialised:
+                refuse(f"{label}: fmi2Set of fixed parameter {name!r} after initialisation refused "
+                       f"(fixed parameters change only before fmi2ExitInitializationMode; fmi2Reset to "
+                       f"change it); kept at {getattr(slave, name)!r}")
+            elif original is None:
+                setattr(slave, name, value)
+            else:
+                original(value)
+        return setter
+
+    for var in slave.vars.values():
+        if var.causality == output_causality:
+            var.setter = refusing(var.name)
+        elif var.causality == parameter_causality:
+            var.setter = fixed(var.name, var.setter)
+
+
+def guard(cls, label, error_status):
+    """Wrap the methods of slave class ``cls`` that pythonfmu calls (see the module)."""
+    def check_refs(self, call, vrs):
+        unknown = [vr for vr in vrs if vr not in self.vars]
+        if unknown:
+            msg = f"{label}: {call}: unknown value reference(s) {unknown} (this FMU has {sorted(self.vars)})"
+            self.log(msg, error_status)
+            keep_alive(self)
+            raise KeyError(msg)
+
+    def wrap(name, refs=None):
+        method = getattr(cls, name)
+
+        @functools.wraps(method)
+        def guarded(self, *args):
+            if refs is not None:
+                check_refs(self, refs, args[0])
+            try:
+                return method(self, *args)
+            except BaseException:
+                keep_alive(self)
+                raise
+        setattr(cls, name, guarded)
+
+    for kind in ("integer", "real", "boolean", "string"):
+        wrap(f"get_{kind}", f"fmi2Get{kind.capitalize()}")
+        wrap(f"set_{kind}", f"fmi2Set{kind.capitalize()}")
+    for name in ("setup_experiment", "enter_initialization_mode", "exit_initialization_mode", "do_step",
+                 "terminate", "_get_fmu_state", "_set_fmu_state"):
+        wrap(name)
+
+
+def state_from_bytes(base, state):
+    """``base(state)`` (pythonfmu's deserialiser), or a marker dict
+    ``{"corrupted": reason}`` instead of an exception: pythonfmu calls it on the
+    class, where an exception would be fmi2Fatal with no instance to keep alive."""
+    try:
+        value = base(state)
+        if not isinstance(value, dict):
+            raise ValueError(f"not a state object: {type(value).__name__}")
+        return value
+    except Exception as exc:  # noqa: BLE001 - any corruption becomes the marker
+        return {"corrupted": f"corrupted serialized FMU state ({type(exc).__name__}: {exc})"}
+
+
+def finalize_before_static_destructors(resources, model_identifier):
+    """Work around pythonfmu's exit crash (Linux).
+
+    pythonfmu's exporter keeps the interpreter in a static ``std::shared_ptr<PyState>``
+    (PySlaveInstance.cpp) whose destructor, run by exit() as a C++ static destructor,
+    finalises Python; its ``__attribute__((destructor)) onLibraryUnload`` then runs in
+    _dl_fini and assigns nullptr to that already destroyed shared_ptr, releasing its
+    freed control block once more (a write into freed heap memory: "free(): corrupted
+    unsorted chunks" or a segfault later in exit). Registering the library's exported
+    ``finalizePythonInterpreter`` with exit() from here makes it run first (exit
+    handlers run last-registered first): the interpreter is finalised as before, the
+    shared_ptr is left empty, and the two later calls have nothing to release. A
+    reference to the library is kept so that a host's dlclose cannot unmap the handler.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    path = os.path.realpath(os.path.join(resources, os.pardir, "binaries", "linux64",
+                                         model_identifier + ".so"))
+    if path in _EXIT_HOOKS:
+        return
+    try:   # only if this very library is loaded in this process (not at build time)
+        lib = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LOCAL)
+        hook = ctypes.cast(lib.finalizePythonInterpreter, ctypes.c_void_p)
+        cxa_atexit = ctypes.CDLL(None).__cxa_atexit
+    except (OSError, AttributeError):
+        return
+    cxa_atexit.argtypes = (ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p)
+    cxa_atexit.restype = ctypes.c_int
+    if cxa_atexit(hook, None, None) == 0:
+        _EXIT_HOOKS[path] = lib
