@@ -861,6 +861,15 @@ def motion_step(p, s, z):
     return s[o + M_W]
 
 
+def _method_step(p, s, zc):
+    """One centred sample through the method's own filter (see :func:`step`)."""
+    if p[P_METHOD] == METHOD_LOWPASS:
+        return lowpass_step(p, s, zc)
+    if p[P_METHOD] == METHOD_MOTION:
+        return motion_step(p, s, zc)
+    return filter_step(p, s, zc)
+
+
 def _finite(v):
     return v - v == 0.0
 
@@ -895,12 +904,10 @@ def step(p, s, z, is_restart):
       back: a denoiser does not invent motion).
     """
     code = 0
-    lowpass = p[P_METHOD] == METHOD_LOWPASS
-    motion = p[P_METHOD] == METHOD_MOTION
     if is_restart:
         restart(p, s)
     elif (p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE
-          and not lowpass and not motion):
+          and p[P_METHOD] != METHOD_LOWPASS and p[P_METHOD] != METHOD_MOTION):
         code = gate(p, s, z - s[S_ZREF])
     if s[S_K] == 0.0:
         s[S_ZREF] = z
@@ -912,24 +919,15 @@ def step(p, s, z, is_restart):
         s[S_HI] = z
     if code == 1:
         xc = s[S_OUT]
-    elif lowpass:
-        xc = lowpass_step(p, s, z - s[S_ZREF])
-    elif motion:
-        xc = motion_step(p, s, z - s[S_ZREF])
     else:
-        xc = filter_step(p, s, z - s[S_ZREF])
+        xc = _method_step(p, s, z - s[S_ZREF])
     if not (_healthy(p, s) and _finite(xc)):
         restart(p, s)
         s[S_NHEAL] += 1.0
         s[S_ZREF] = z
         s[S_LO] = z
         s[S_HI] = z
-        if lowpass:
-            xc = lowpass_step(p, s, 0.0)
-        elif motion:
-            xc = motion_step(p, s, 0.0)
-        else:
-            xc = filter_step(p, s, 0.0)
+        xc = _method_step(p, s, 0.0)
     if s[S_CONV] == 0.0 or p[P_METHOD] == METHOD_NONE:
         out = z                      # warm-up / identification only: raw
     else:
