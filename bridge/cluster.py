@@ -114,10 +114,30 @@ def _rename(obj, old, new):
     return obj
 
 
+def largest_first(tasks):
+    """Indices of ``tasks`` (see :func:`run_task`) by input size, largest first
+    (stable; a URL input, whose size would cost a request, counts as 0 bytes).
+
+    The order the logs are handed to the workers: a log's cost grows with its
+    size, and a large log started last keeps one worker busy after the others
+    have run out of work (on the 25 shared logs, px4_sample.ulg is 29 % of the
+    batch and comes 23rd by name)."""
+    def size(task):
+        path = task[0]
+        if is_url(path):
+            return 0
+        try:
+            return Path(path).stat().st_size
+        except OSError:
+            return 0
+    return sorted(range(len(tasks)), key=lambda i: -size(tasks[i]))
+
+
 def run_on_cluster(tasks, scheduler, progress=None):
     """Run ``tasks`` (see :func:`run_task`) on the Dask scheduler at
-    ``scheduler`` (``tcp://HOST:PORT``, or a ``distributed.Client``); results
-    in the order of ``tasks``. ``progress(result)`` is called as each ends."""
+    ``scheduler`` (``tcp://HOST:PORT``, or a ``distributed.Client``), largest
+    input first (:func:`largest_first`); results in the order of ``tasks``.
+    ``progress(result)`` is called as each ends."""
     require_dask()
     from distributed import Client, as_completed
     own = not hasattr(scheduler, "map")
@@ -128,8 +148,13 @@ def run_on_cluster(tasks, scheduler, progress=None):
         raise InputError(f"--scheduler {scheduler}: no scheduler answered within {CONNECT_TIMEOUT_S:g} s "
                          f"({type(exc).__name__})") from None
     try:
-        futures = client.map(run_task, tasks, pure=False)
-        order = {f.key: i for i, f in enumerate(futures)}
+        order = {}
+        futures = []
+        ranked = largest_first(tasks)
+        for rank, i in enumerate(ranked):         # a higher priority runs earlier
+            fut = client.submit(run_task, tasks[i], pure=False, priority=len(ranked) - rank)
+            order[fut.key] = i
+            futures.append(fut)
         results = [None] * len(tasks)
         for fut in as_completed(futures, loop=client.loop):
             i = order[fut.key]

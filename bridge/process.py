@@ -527,7 +527,7 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
     ``progress`` shows logs done / failed / remaining and samples per second
     on stderr. Outputs are byte-identical whichever way the logs are run.
     """
-    from .cluster import Progress, expand_url_inputs, is_url, run_on_cluster, run_task
+    from .cluster import Progress, expand_url_inputs, is_url, largest_first, run_on_cluster, run_task
     local = [it for it in items if not is_url(it)]
     files, ignored = expand_inputs(local)
     urls = [it for it in items if is_url(it)]
@@ -547,16 +547,17 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
             import concurrent.futures as cf
             import multiprocessing as mp
             ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
-            results = []
+            results = [None] * len(tasks)
             with cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx) as ex:
-                futures = [ex.submit(run_task, t) for t in tasks]
-                for t, fut in zip(tasks, futures):
+                futures = {ex.submit(run_task, tasks[i]): i for i in largest_first(tasks)}
+                for fut in cf.as_completed(futures):
+                    t = tasks[futures[fut]]
                     try:
                         res = fut.result()
                     except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by a crash
                         res = {"ok": False, "file": str(t[0]),
                                "error": f"{t[0]}: worker failed: {type(exc).__name__}: {exc}"}
-                    results.append(res)
+                    results[futures[fut]] = res
                     if bar:
                         bar(res)
         else:

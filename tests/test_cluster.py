@@ -94,3 +94,22 @@ def test_without_dask_the_option_says_what_to_install(tmp_path, capsys, monkeypa
     code = main(["mavlink", str(LOGS[0]), "-o", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:8786"])
     err = capsys.readouterr().err
     assert code == 2 and "pip install 'gyrodenoise[cluster]'" in err and len(err.strip().splitlines()) == 1
+
+
+def test_largest_input_first_and_results_in_input_order(tmp_path):
+    """Logs are handed out largest first (a big log started last keeps one worker
+    busy alone), yet every result comes back in the order of the inputs."""
+    from bridge.cluster import largest_first
+    sizes = {"a.bin": 10, "b.bin": 300, "c.bin": 20, "d.bin": 300}
+    for name, n in sizes.items():
+        (tmp_path / name).write_bytes(b"\0" * n)
+    tasks = [(tmp_path / name, tmp_path, {}) for name in sizes]
+    tasks.insert(1, ("memory://x/e.bin", tmp_path, {}))        # a URL's size is not asked for: 0
+    tasks.append((tmp_path / "missing.bin", tmp_path, {}))
+    order = [Path(str(tasks[i][0])).name for i in largest_first(tasks)]
+    assert order == ["b.bin", "d.bin", "c.bin", "a.bin", "e.bin", "missing.bin"]
+    # smallest log first in the inputs: the pool runs them in another order
+    logs = sorted(LOGS, key=lambda p: p.stat().st_size)
+    assert [p.stat().st_size for p in logs] != sorted((p.stat().st_size for p in logs), reverse=True)
+    summary = process_many([str(p) for p in logs], tmp_path / "out", jobs=2, plots=False)
+    assert [r["file"] for r in summary["logs"]] == [str(p) for p in logs]
