@@ -65,7 +65,7 @@ def bare_kf_loop():
     """Compile the bare KF with the C core's flags; return a callable(z) -> out."""
     d = Path(tempfile.mkdtemp(prefix="bare_kf_"))
     (d / "bare.c").write_text(BARE_KF_C)
-    subprocess.run(["gcc", "-O2", "-ffp-contract=off", "-std=c99", "-shared", "-fPIC", "-o",
+    subprocess.run(["gcc", "-O2", "-fschedule-insns", "-fsched-pressure", "-ffp-contract=off", "-std=c99", "-shared", "-fPIC", "-o",
                     str(d / "bare.so"), str(d / "bare.c")], check=True)
     lib = ctypes.CDLL(str(d / "bare.so"))
     dp = ctypes.POINTER(ctypes.c_double)

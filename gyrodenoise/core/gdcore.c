@@ -754,6 +754,30 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
     return svar;
 }
 
+/* The gate's rejection on the local arrays (rare: out of the hot loop, which
+ * then holds more of its state in registers): on the first sample of a
+ * rejection run, test the identified model (ar_stable_, *hold = 1 when it is
+ * unstable); then the prediction, or the last filtered value when holding,
+ * replaces the sample in the regression history. Returns that value. */
+static __attribute__((noinline, cold)) double loc_reject(const double *th, double *x, double *P,
+                                                          double *w, double *zh, double q,
+                                                          const int n, const int first, double *hold)
+{
+    const int m = n + 1;
+    double x0;
+    int j;
+    if (first)
+        *hold = ar_stable_(th, 0, n, w, 0) ? 0.0 : 1.0;
+    if (*hold == 0.0)
+        x0 = loc_predict(th, x, P, w, q, n, m);
+    else
+        x0 = x[0];
+    for (j = n - 1; j > 0; j--)
+        zh[j] = zh[j - 1];
+    zh[0] = x0;
+    return x0;
+}
+
 /* restart_ on the locals (the cumulative counters nrej, nreopen, nclamp and
  * nheal are kept; the method block of s is zeroed when the state is packed) */
 #define LOC_RESTART()                                          \
@@ -999,30 +1023,7 @@ KERNEL void run_ar_(const double *p, double *s, const double *z,
                     rs = 1;         /* restarted below, then filtered (code 2) */
                     nreopen += 1.0;
                 } else {
-                    double x0;
-                    if (rejrun == 0.0) {
-                        /* on copies: th and w then keep constant indices only
-                         * (ar_stable_'s loops are not unrolled), so the compiler
-                         * holds them in registers */
-                        double ta[LOC_MAX_ORDER + 1], tw[LOC_MAX_ORDER + 1];
-                        UNROLL
-                        for (i = 0; i < m; i++) {
-                            ta[i] = th[i];
-                            tw[i] = w[i];
-                        }
-                        hold = ar_stable_(ta, 0, n, tw, 0) ? 0.0 : 1.0;
-                        UNROLL
-                        for (i = 0; i < m; i++)
-                            w[i] = tw[i];
-                    }
-                    if (hold == 0.0)
-                        x0 = loc_predict(th, x, P, w, Q, n, m);
-                    else
-                        x0 = x[0];
-                    UNROLL
-                    for (j = n - 1; j > 0; j--)
-                        zh[j] = zh[j - 1];
-                    zh[0] = x0;
+                    double x0 = loc_reject(th, x, P, w, zh, Q, n, rejrun == 0.0, &hold);
                     nrej += 1.0;
                     rejrun += 1.0;
                     innov = vg;

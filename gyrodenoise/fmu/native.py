@@ -41,7 +41,7 @@ NATIVE_SRC = PACKAGE_DIR.parent / "fmu_src" / "native"
 CORE_DIR = PACKAGE_DIR / "core"
 C_SOURCE = "fogdenoiser_native.c"
 VARS_HEADER = "fogdenoiser_native_vars.h"
-CFLAGS = ["-O2", "-ffp-contract=off", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden",
+CFLAGS = ["-O2", "-fschedule-insns", "-fsched-pressure", "-ffp-contract=off", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden",
           "-Wall", "-Wl,-z,defs"]
 
 DEG = math.pi / 180.0

@@ -1,0 +1,79 @@
+"""Batch speed of this tree against an earlier commit, in the same run (issue 13:
+"no slower than today").
+
+    python benchmarks/bench_vs_commit.py REV [--repeat 2]
+
+Checks REV out into a temporary git worktree and times the batch loop
+(``run(p, init_state(p), z)`` on 2 h of the paper's FOG at 200 Hz, best of 5)
+for the gated SHAKF, the paper's SHAKF (no gate) and the KF, alternately in
+fresh processes of this interpreter: REV, then this tree, ``--repeat`` times.
+REV must have the batch loop as ``gyrodenoise.core.batch.run`` (the C core) or
+``gyrodenoise.batch.run`` (the numba loop before it, e.g. ``5848016~1``) and be
+built already if it needs compiling (a pure-Python/numba REV needs nothing).
+Prints ns/sample per method and the ratio this tree / REV. Not a test.
+"""
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+TIMING = r'''
+import sys, time, json
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+import gyrodenoise as gd
+try:
+    from gyrodenoise.core.batch import run
+    from gyrodenoise.core import kernels as K
+except ImportError:
+    from gyrodenoise.batch import run
+    from gyrodenoise import kernels as K
+z = np.ascontiguousarray(gd.simulate("paper_fog", 1_440_000, seed=0).rate_deg_s)
+res = {}
+for label, method, kw in (("shakf", "shakf", {}), ("shakf, no gate", "shakf", {"outlier_sigma": 0.0}),
+                          ("kf", "kf", {})):
+    p = K.make_params(method=method, sample_rate_hz=200.0, **kw)
+    run(p, K.init_state(p), z[:5000])                  # compile / warm
+    ts = []
+    for _ in range(5):
+        t = time.perf_counter()
+        run(p, K.init_state(p), z)
+        ts.append(time.perf_counter() - t)
+    res[label] = min(ts) / z.size * 1e9
+print(json.dumps(res))
+'''
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rev")
+    ap.add_argument("--repeat", type=int, default=2)
+    a = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="gd_rev_") as tmp:
+        old = Path(tmp) / "tree"
+        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(old), a.rev], check=True)
+        try:
+            best = {}
+            for _ in range(a.repeat):
+                for label, root in ((a.rev, old), ("this tree", REPO)):
+                    r = subprocess.run([sys.executable, "-c", TIMING, str(root)], capture_output=True, text=True)
+                    if r.returncode != 0:
+                        raise SystemExit(f"{label}: timing failed:\n{r.stderr[-2000:]}")
+                    for m, ns in json.loads(r.stdout).items():
+                        best.setdefault(label, {})[m] = min(ns, best.get(label, {}).get(m, ns))
+        finally:
+            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(old)], check=False)
+    print(f"batch loop, ns/sample (best of 5 x {a.repeat} alternate runs), 2 h of the paper's FOG at 200 Hz:")
+    for m in best["this tree"]:
+        t_old, t_new = best[a.rev][m], best["this tree"][m]
+        print(f"  {m:<15} {a.rev}: {t_old:6.1f}   this tree: {t_new:6.1f}   ratio {t_new / t_old:.2f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
