@@ -349,6 +349,7 @@ class FogDenoiser(Fmi2Slave):
         return _rules.state_from_bytes(Fmi2Slave._fmu_state_from_bytes, state)
 
 
+_rules.install_sequence_rules(FogDenoiser, "FogDenoiser", Fmi2Status.error)
 _rules.guard(FogDenoiser, "FogDenoiser", Fmi2Status.error)
 
 

@@ -8,6 +8,9 @@
   return fmi2Error from a setter: the write is refused with a logged error, the
   value kept, and the slave refuses its next fmi2DoStep with the reason (the
   slave checks ``_pending_error``).
+* :func:`install_sequence_rules`: fmi2EnterInitializationMode twice, or
+  fmi2ExitInitializationMode outside initialisation mode, is refused the same
+  way; :func:`install_write_rules` also refuses every write after fmi2Terminate.
 * :func:`guard`: pythonfmu answers an exception with fmi2Fatal and releases its
   references to the instance, its log queue and the class
   (``PySlaveInstance::handle_py_exception`` -> ``cleanPyObject``, pointers not
@@ -63,11 +66,61 @@ def install_write_rules(slave, label, output_causality, parameter_causality, err
                 original(value)
         return setter
 
+    def not_after_terminate(name, inner):
+        def setter(value):
+            if slave._terminated:
+                # no step follows fmi2Terminate (each is refused): the log is the answer
+                slave.log(f"{label}: fmi2Set of {name!r} after fmi2Terminate refused (only fmi2Get*, "
+                          f"fmi2Reset and fmi2FreeInstance are allowed then); value unchanged", error_status)
+            else:
+                inner(value)
+        return setter
+
     for var in slave.vars.values():
         if var.causality == output_causality:
             var.setter = refusing(var.name)
         elif var.causality == parameter_causality:
             var.setter = fixed(var.name, var.setter)
+        if var.setter is not None:
+            var.setter = not_after_terminate(var.name, var.setter)
+
+
+def install_sequence_rules(cls, label, error_status):
+    """The FMI 2.0 call sequence around initialisation, on slave class ``cls``:
+    fmi2EnterInitializationMode once after fmi2Instantiate (or fmi2Reset, which
+    makes a new slave object), fmi2ExitInitializationMode only in initialisation
+    mode. pythonfmu answers fmi2OK to any call that returns (and fmi2Fatal to an
+    exception): an out-of-sequence call does nothing, logs an error, and the next
+    fmi2DoStep is refused (fmi2Discard) with the reason. Uses the slave's
+    ``_initialised``, ``_terminated`` and ``_pending_error``; adds ``_in_init``."""
+    enter, leave = cls.enter_initialization_mode, cls.exit_initialization_mode
+
+    def refuse(self, msg):
+        self.log(msg, error_status)
+        self._pending_error = msg
+
+    @functools.wraps(enter)
+    def enter_initialization_mode(self):
+        why = ("after fmi2Terminate" if self._terminated else
+               "already in initialisation mode" if getattr(self, "_in_init", False) else
+               "the instance is already initialised" if self._initialised else None)
+        if why:
+            return refuse(self, f"{label}: fmi2EnterInitializationMode refused: {why} (it is allowed once, "
+                                f"after fmi2Instantiate or fmi2Reset)")
+        self._in_init = True
+        return enter(self)
+
+    @functools.wraps(leave)
+    def exit_initialization_mode(self):
+        if not getattr(self, "_in_init", False):
+            return refuse(self, f"{label}: fmi2ExitInitializationMode refused: not in initialisation mode "
+                                f"(call fmi2EnterInitializationMode first)")
+        result = leave(self)
+        self._in_init = False
+        return result
+
+    cls.enter_initialization_mode = enter_initialization_mode
+    cls.exit_initialization_mode = exit_initialization_mode
 
 
 def guard(cls, label, error_status):

@@ -276,6 +276,7 @@ class SimulatedFog(Fmi2Slave):
         return _rules.state_from_bytes(Fmi2Slave._fmu_state_from_bytes, state)
 
 
+_rules.install_sequence_rules(SimulatedFog, "SimulatedFog", Fmi2Status.error)
 _rules.guard(SimulatedFog, "SimulatedFog", Fmi2Status.error)
 
 

@@ -494,6 +494,7 @@ def _slave_class(fmu_dir, tmp_path):
 def test_exception_in_step_is_logged_and_returned(fmu_dir, tmp_path):
     cls, resources = _slave_class(fmu_dir, tmp_path)
     s = cls(instance_name="t", resources=resources)
+    s.enter_initialization_mode()
     s.exit_initialization_mode()
     s.raw_rate = 0.01
     assert s.do_step(0.0, H) is True
@@ -631,6 +632,45 @@ def test_forbidden_writes_and_step_after_terminate_are_refused_with_a_reason(fmu
         with pytest.raises(FMICallException):
             a.slave.doStep(3 * H, H)
         assert any("fmi2DoStep after fmi2Terminate refused" in m[2] for m in a.errors())
+    finally:
+        a.free()
+
+
+@pytest.mark.parametrize("name", ["FogDenoiser", "SimulatedFog"])
+def test_out_of_sequence_calls_and_writes_after_terminate_are_refused(fmu_dir, name):
+    """FMI 2.0 allows fmi2EnterInitializationMode once and fmi2ExitInitializationMode
+    only in initialisation mode, and no fmi2Set after fmi2Terminate. pythonfmu
+    answers fmi2OK to any call that does not raise: the call does nothing, an error
+    is logged, and the next step is refused (fmi2Discard) with the reason."""
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir, name)
+    try:
+        s = a.slave
+        s.setupExperiment(startTime=0.0)
+        s.exitInitializationMode()                        # before entering it
+        assert any("fmi2ExitInitializationMode refused: not in initialisation mode" in m[2]
+                   for m in a.errors())
+        s.enterInitializationMode()
+        s.enterInitializationMode()                       # twice
+        assert any("fmi2EnterInitializationMode refused: already in initialisation mode" in m[2]
+                   for m in a.errors())
+        s.exitInitializationMode()
+        with pytest.raises(FMICallException) as exc:      # the first refusal is reported at the step
+            s.doStep(0.0, H)
+        assert exc.value.status == 2
+        s.doStep(0.0, H)                                  # then it steps
+        s.enterInitializationMode()                       # after initialisation
+        with pytest.raises(FMICallException):
+            s.doStep(H, H)
+        assert any("already initialised" in m[2] for m in a.errors())
+        s.terminate()
+        var = "raw_rate" if name == "FogDenoiser" else "true_rate"
+        before = a.get(var)
+        a.set(**{var: 42.0})
+        assert a.get(var) == before
+        assert any(f"fmi2Set of '{var}' after fmi2Terminate refused" in m[2] for m in a.errors())
+        s.enterInitializationMode()
+        assert any("fmi2EnterInitializationMode refused: after fmi2Terminate" in m[2] for m in a.errors())
     finally:
         a.free()
 
