@@ -132,13 +132,16 @@ class FogDenoiser(Fmi2Slave):
             self.register_variable(Real(
                 f"phi_{k}", causality=P.output, initial=I.exact, getter=self._phi_getter(k),
                 description=f"AR coefficient phi_{k} of the improved AR(n) model, Eq. (4) "
-                            f"(0 when k > ar_order) [1]"))
+                            f"(0 when k > ar_order, and for the methods motion and lowpass) [1]"))
         self.register_variable(Real("c", causality=P.output, initial=I.exact, getter=self._get_c,
-                                    description="Constant term c of the improved AR model, Eq. (4) [deg/s]"))
+                                    description="Constant term c of the improved AR model, Eq. (4) (0 for the "
+                                                "methods motion and lowpass) [deg/s]"))
         self.register_variable(Real("R_hat", causality=P.output, initial=I.exact, getter=self._state_getter("S_R"),
-                                    description="Estimated measurement-noise variance [(deg/s)^2]"))
+                                    description="Estimated measurement-noise variance (motion: the sensor's "
+                                                "white-noise estimate) [(deg/s)^2]"))
         self.register_variable(Real("Q_hat", causality=P.output, initial=I.exact, getter=self._state_getter("S_Q"),
-                                    description="Estimated process-noise variance [(deg/s)^2]"))
+                                    description="Estimated process-noise variance (motion: of the rate increment "
+                                                "per sample) [(deg/s)^2]"))
         self.register_variable(Real("innovation", causality=P.output, initial=I.exact, getter=self._state_getter("S_INNOV"),
                                     description="Last innovation v_k = z_k - H X_pred [deg/s]"))
         self.register_variable(Boolean("converged", causality=P.output, initial=I.exact, variability=C.discrete,

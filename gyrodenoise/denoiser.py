@@ -86,17 +86,20 @@ class Denoiser:
 
     @property
     def c(self):
-        """Current constant term c of the improved AR model (Eq. 4), deg/s."""
+        """Current constant term c of the improved AR model (Eq. 4), deg/s (0.0
+        for motion and lowpass, which identify no AR model)."""
         return K.rls_c(self.params, self.state)
 
     @property
     def R_hat(self):
-        """Current measurement-noise variance estimate, (deg/s)^2."""
+        """Current measurement-noise variance estimate, (deg/s)^2 (motion: the
+        sensor's white-noise estimate from the 4th differences)."""
         return float(self.state[K.S_R])
 
     @property
     def q_hat(self):
-        """Current process-noise variance estimate, (deg/s)^2."""
+        """Current process-noise variance estimate, (deg/s)^2 (motion: the
+        variance q of the rate increment per sample)."""
         return float(self.state[K.S_Q])
 
     @property

@@ -126,3 +126,24 @@ def test_real_flight_keeps_the_low_band_motion(name):
             assert corr >= 0.95 and amp >= 0.85, (st.name, k, corr, amp)
             checked += 1
     assert checked >= 3
+
+
+def test_motion_reports_its_noise_estimates_and_no_ar_model():
+    """R_hat/q_hat (and the FMUs' R_hat/Q_hat outputs) are motion's own estimates:
+    R the white-noise variance of the sensor (known here: sigma 0.05 deg/s), q > 0;
+    c and phi are 0 for the methods that identify no AR model (were z_ref and 0)."""
+    rng = np.random.default_rng(7)
+    sigma = 0.05
+    z = 3.0 + sigma * rng.standard_normal(40_000)          # 200 s at 200 Hz, offset 3 deg/s
+    for method in ("motion", "lowpass"):
+        den = gd.Denoiser(sample_rate_hz=200.0, method=method)
+        for v in z:
+            den.step(float(v))
+        assert den.c == 0.0 and list(den.phi) == [0.0] * len(den.phi)
+        if method == "motion":
+            assert den.R_hat == pytest.approx(sigma ** 2, rel=0.10)
+            assert 0.0 < den.q_hat < den.R_hat and np.isfinite(den.q_hat)
+    den = gd.Denoiser(sample_rate_hz=200.0, method="shakf")    # the AR methods: unchanged meaning
+    for v in z[:5000]:
+        den.step(float(v))
+    assert den.c == pytest.approx(3.0 * (1.0 - sum(den.phi)), abs=0.05)

@@ -516,6 +516,8 @@ KERNEL double motion_step_(const double *p, double *s, double z)
     s[o + M_P11] = p11 - k1 * p01;
     s[S_INNOV] = v;
     s[S_SVAR] = sv;
+    s[S_R] = r;
+    s[S_Q] = qn;
     return s[o + M_W];
 }
 
@@ -539,6 +541,8 @@ KERNEL double c_deg_s_(const double *p, const double *s)
     long o = layout_(n).theta;
     double one_minus = 1.0;
     int i;
+    if (p[P_METHOD] == METHOD_MOTION || p[P_METHOD] == METHOD_LOWPASS)
+        return 0.0;                       /* no AR model identified */
     for (i = 0; i < n; i++)
         one_minus -= s[o + i];
     return s[o + n] + one_minus * s[S_ZREF];

@@ -93,8 +93,8 @@ DEFAULT_METHOD = "motion"   # of gd.denoise, the CLI, the bridge and the FMU
 # --------------------------------------------------------------------- state
 S_K = 0          # samples seen since the last restart
 S_KD = 1         # Sage-Husa step counter k in d_k (reset by Eq. 32)
-S_R = 2          # R_hat, (deg/s)^2
-S_Q = 3          # q_hat, (deg/s)^2
+S_R = 2          # R_hat, (deg/s)^2 (motion: its white-noise estimate)
+S_Q = 3          # q_hat, (deg/s)^2 (motion: the variance q of the rate increment per sample)
 S_S2 = 4         # running variance of the RLS prediction error, (deg/s)^2
 S_NS2 = 5        # samples in S_S2
 S_CONV = 6       # 1.0 once the AR model has converged since the restart
@@ -858,6 +858,8 @@ def motion_step(p, s, z):
     s[o + M_P11] = p11 - k1 * p01
     s[S_INNOV] = v
     s[S_SVAR] = sv
+    s[S_R] = r      # reported as the other methods report theirs (R_hat, Q_hat of the FMUs)
+    s[S_Q] = qn
     return s[o + M_W]
 
 
@@ -953,7 +955,10 @@ def phi(p, s):
 def c_deg_s(p, s):
     """Constant term c of the improved AR model, Eq. (4), deg/s, for the raw
     (uncentred) samples: the state holds c for z - z_ref (see :func:`step`),
-    and z = sum phi_i z_{k-i} + c holds with c = c_ref + (1 - sum phi) z_ref."""
+    and z = sum phi_i z_{k-i} + c holds with c = c_ref + (1 - sum phi) z_ref.
+    0.0 for the methods that identify no AR model (motion, lowpass)."""
+    if p[P_METHOD] == METHOD_MOTION or p[P_METHOD] == METHOD_LOWPASS:
+        return 0.0
     n = int(p[P_ORDER])
     o = layout(n)[0]
     one_minus = 1.0

@@ -79,10 +79,13 @@ VARIABLES = (
      _var("filtered_rate", "Real", "output", "Filtered angular rate; the raw sample during the "
           "warm-up after each restart", unit="deg/s")]
     + [_var(f"phi_{k}", "Real", "output", f"AR coefficient phi_{k} of the improved AR(n) model, "
-            f"Eq. (4) (0 when {k} > ar_order)") for k in range(1, MAX_ORDER + 1)]
-    + [_var("c", "Real", "output", "Constant term c of the improved AR model, Eq. (4)", unit="deg/s"),
-       _var("R_hat", "Real", "output", "Estimated measurement-noise variance", unit="deg2/s2"),
-       _var("Q_hat", "Real", "output", "Estimated process-noise variance", unit="deg2/s2"),
+            f"Eq. (4) (0 when {k} > ar_order, and for the methods motion and lowpass)") for k in range(1, MAX_ORDER + 1)]
+    + [_var("c", "Real", "output", "Constant term c of the improved AR model, Eq. (4) (0 for the methods motion "
+          "and lowpass)", unit="deg/s"),
+       _var("R_hat", "Real", "output", "Estimated measurement-noise variance (motion: the sensor's white-noise "
+          "estimate)", unit="deg2/s2"),
+       _var("Q_hat", "Real", "output", "Estimated process-noise variance (motion: of the rate increment per "
+          "sample)", unit="deg2/s2"),
        _var("innovation", "Real", "output", "Last innovation v_k = z_k - H X_pred", unit="deg/s"),
        _var("converged", "Boolean", "output", "True once the AR model has converged since the "
             "last restart (the output is filtered from then on)", variability="discrete"),
