@@ -3,8 +3,9 @@
 Built from the summary of :func:`bridge.process.process_many` (local pool or
 Dask cluster alike): a row per log and gyro stream with its samples, rate,
 restarts, noise before/after, the low-band motion kept and the lag the filter
-added (when the bridge measured them), and a row per failed log with its
-reason. The plot shows each stream's white-noise density per log, so that an
+added (when the bridge measured them; averaged over the axes whose low band
+holds motion above the noise, "at rest" when none does), and a row per failed
+log with its reason. The plot shows each stream's white-noise density per log, so that an
 IMU that is noisier than its siblings stands out: the thing an operator opens.
 
 Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the standard
@@ -47,7 +48,9 @@ def fleet_rows(summary):
             raw = _mean([a.get("raw") for a in noise.values()])
             filt = _mean([a.get("filtered") for a in noise.values()])
             unit_ok = s.get("noise_unit") == "deg/s"
-            kept = {a: m for a, m in (s.get("motion") or {}).items() if m is not None}
+            measured = {a: m for a, m in (s.get("motion") or {}).items() if m is not None}
+            # motion kept is averaged over the axes that move; at rest the low band is noise
+            kept = {a: m for a, m in measured.items() if m.get("motion_above_noise") is not False}
             rows.append({
                 "log": Path(log["file"]).name, "file": log["file"], "stream": s["name"], "status": "ok",
                 "samples": s.get("samples"), "rate_hz": s.get("rate_hz"), "restarts": s.get("restarts"),
@@ -57,6 +60,7 @@ def fleet_rows(summary):
                 "lowband_corr": _mean([a.get("corr") for a in kept.values()]) if kept else None,
                 "lowband_amplitude": _mean([a.get("amplitude_ratio") for a in kept.values()]) if kept else None,
                 "lag_s": _mean([a.get("lag_s") for a in kept.values()]) if kept else None,
+                "at_rest": bool(measured) and not kept,
                 "note": s.get("note", ""), "left_raw": s.get("left_raw"),
                 "warnings": list(s.get("warnings", [])),
             })
@@ -95,7 +99,8 @@ def format_table(rows):
         if r["status"] == "failed":
             out.append(f"| {r['log']} | | FAILED | | | | | | | | {r['error']} |")
             continue
-        kept = ("" if r["lowband_corr"] is None else
+        kept = ("at rest (no motion above the noise)" if r.get("at_rest") else
+                "" if r["lowband_corr"] is None else
                 f"{r['lowband_corr']:.3f}, {100 * r['lowband_amplitude']:.0f} %")
         lag = "" if r["lag_s"] is None else f"{1000 * r['lag_s']:.1f}"
         flag = "; ".join(([("NOISY vs fleet")] if r.get("flag") else []) +

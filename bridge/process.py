@@ -326,6 +326,7 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
             continue
         kept = mm.lowband_kept(x[:, k], f[:, k], s.rate_hz, band_hz, s.restarts, skip)
         kept["lag_s"] = mm.lag_s(x[:, k], f[:, k], s.rate_hz, band_hz, s.restarts, skip)
+        kept["motion_above_noise"] = mm.motion_above_noise(kept, nr[k], s.rate_hz, band_hz)
         motion[a] = kept
         why = mm.motion_loss(kept, nr[k], s.rate_hz, band_hz)
         if why:

@@ -17,6 +17,8 @@ numpy arrays; the values are in the unit of the input (any unit, the same for
   samples), searched within ``max_lag_s``.
 * :func:`envelope_violation` -- the first sample where a filtered record is not
   finite or leaves the range of the raw samples seen since the last restart.
+* :func:`motion_above_noise` -- whether the raw low band holds motion at all
+  (at rest it is noise, and "kept" figures measure noise removed).
 * :func:`motion_loss` -- the warning rule: most of the real motion removed.
 
 Segments: a record is cut at each restart (``restarts[i]`` True: sample i is the
@@ -209,6 +211,18 @@ def lowband_noise_std(white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     return float(white_noise_std) * math.sqrt(min(1.0, 2.0 * band_hz / sample_rate_hz))
 
 
+def motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
+    """True when the raw low band of ``kept`` (a :func:`lowband_kept` result) holds
+    motion clearly above the noise: std at least :data:`MOTION_TO_NOISE_MIN` x
+    :func:`lowband_noise_std` of the raw record's white-noise level
+    ``white_noise_std``; False at rest (the low band is then noise, and what a
+    filter removes from it is noise); None when it cannot be told."""
+    sr = kept.get("raw_lowband_std")
+    if not sr or white_noise_std is None or not math.isfinite(white_noise_std):
+        return None
+    return bool(sr >= MOTION_TO_NOISE_MIN * lowband_noise_std(white_noise_std, sample_rate_hz, band_hz))
+
+
 def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     """The warning rule: a short reason when the filter removed most of the real
     motion, else None.
@@ -219,10 +233,7 @@ def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     :data:`MOTION_TO_NOISE_MIN` x :func:`lowband_noise_std`); then the filter
     is said to remove most of it when the amplitude kept is below
     :data:`KEPT_AMPLITUDE_MIN` or the correlation below :data:`KEPT_CORR_MIN`."""
-    sr = kept.get("raw_lowband_std")
-    if not sr or white_noise_std is None or not math.isfinite(white_noise_std):
-        return None
-    if sr < MOTION_TO_NOISE_MIN * lowband_noise_std(white_noise_std, sample_rate_hz, band_hz):
+    if not motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz):
         return None
     amp, corr = kept.get("amplitude_ratio"), kept.get("corr")
     why = []

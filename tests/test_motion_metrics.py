@@ -127,3 +127,20 @@ def test_envelope_violation():
     assert mm.envelope_violation(xn, yn, r) is None
     big = np.full(5, 1e7)
     assert mm.envelope_violation(big, big * (1 + 1e-15)) is None   # round-off is inside the margin
+
+
+def test_motion_above_noise_tells_rest_from_motion():
+    """At rest the low band is noise (the 'kept' figures then measure noise removed);
+    a 1 Hz manoeuvre of 10x the noise's std is motion. Seeded; the rule's factor is
+    MOTION_TO_NOISE_MIN = 3 on the noise's low-band share."""
+    fs = 50.0
+    rng = np.random.default_rng(11)
+    t = np.arange(3000) / fs
+    noise = 0.1 * rng.standard_normal(t.size)
+    white = np.std(np.diff(noise)) / np.sqrt(2.0)
+    for x, expected in ((noise, False), (noise + 1.0 * np.sin(2 * np.pi * 1.0 * t), True)):
+        k = mm.lowband_kept(x, 0.3 * x, fs)                  # keeps 30 %: a loss if it moves
+        assert mm.motion_above_noise(k, white, fs) is expected
+        # the warning rule only speaks when there is motion
+        assert (mm.motion_loss(k, white, fs) is not None) is expected
+    assert mm.motion_above_noise({"raw_lowband_std": None}, white, fs) is None
