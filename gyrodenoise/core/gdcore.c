@@ -17,8 +17,10 @@
  * common AR orders (constant loop bounds); the arithmetic is unchanged. */
 #if defined(__GNUC__)
 #define KERNEL static inline __attribute__((always_inline))
+#define RARE static __attribute__((noinline, cold))   /* kept out of the hot loop */
 #else
 #define KERNEL static inline
+#define RARE static
 #endif
 
 KERNEL void tie_c_(const double *p, double *s);
@@ -763,9 +765,8 @@ KERNEL double loc_update(double *x, double *P, double *w, double v, double r, co
  * rejection run, test the identified model (ar_stable_, *hold = 1 when it is
  * unstable); then the prediction, or the last filtered value when holding,
  * replaces the sample in the regression history. Returns that value. */
-static __attribute__((noinline, cold)) double loc_reject(const double *th, double *x, double *P,
-                                                          double *w, double *zh, double q,
-                                                          const int n, const int first, double *hold)
+RARE double loc_reject(const double *th, double *x, double *P, double *w, double *zh, double q,
+                       const int n, const int first, double *hold)
 {
     const int m = n + 1;
     double x0;
