@@ -41,8 +41,8 @@ NATIVE_SRC = PACKAGE_DIR.parent / "fmu_src" / "native"
 CORE_DIR = PACKAGE_DIR / "core"
 C_SOURCE = "fogdenoiser_native.c"
 VARS_HEADER = "fogdenoiser_native_vars.h"
-CFLAGS = ["-O2", "-fschedule-insns", "-fsched-pressure", "-ffp-contract=off", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden",
-          "-Wall", "-Wl,-z,defs"]
+CFLAGS = ["-O2", "-fschedule-insns", "-fsched-pressure", "-ffp-contract=off", "-std=c99",   # as setup.py
+          "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wl,-z,defs"]
 
 DEG = math.pi / 180.0
 #: FMI unit name -> BaseUnit attributes (SI: rad, s)
