@@ -113,3 +113,24 @@ def test_largest_input_first_and_results_in_input_order(tmp_path):
     assert [p.stat().st_size for p in logs] != sorted((p.stat().st_size for p in logs), reverse=True)
     summary = process_many([str(p) for p in logs], tmp_path / "out", jobs=2, plots=False)
     assert [r["file"] for r in summary["logs"]] == [str(p) for p in logs]
+
+
+def test_file_urls_in_and_out_through_the_cli(cluster, tmp_path, capsys):
+    """file:// URLs (the local filesystem through fsspec) for the inputs, a folder
+    of logs among them, and for the output folder: the same bytes as local paths."""
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for p in LOGS[:2]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    serial, urls = tmp_path / "serial", tmp_path / "urls"
+    assert main(["mavlink", *[str(folder / p.name) for p in LOGS[:2]], str(LOGS[2]), "-o", str(serial),
+                 "--no-plots"]) == 0
+    capsys.readouterr()
+    code = main(["mavlink", folder.as_uri(), LOGS[2].as_uri(), "-o", urls.as_uri(),
+                 "--scheduler", cluster.scheduler_address, "--no-plots", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and out["n_ok"] == 3, out
+    a, b = _files(serial), _files(urls)
+    assert a and a.keys() == b.keys()
+    for name in a:
+        assert a[name] == b[name], name
