@@ -394,9 +394,10 @@ def _axis_line(s, a):
     line += f" (x{_fmt(nz['ratio'], 3)})"
     m = (s.get("motion") or {}).get(a)
     if m is not None and m.get("motion_above_noise") is False:
-        # at rest the low band is noise: what the filter removed there is noise
-        line += (f"  0-{s['motion_band_hz']:g} Hz: no motion above the noise (at rest; "
-                 f"{_pct(m['amplitude_ratio'])} of that noise kept)")
+        # the low band holds only noise (a vehicle at rest, or vibrating on the ground):
+        # what the filter removed there is noise, not motion
+        line += (f"  0-{s['motion_band_hz']:g} Hz: no motion above the noise "
+                 f"({_pct(m['amplitude_ratio'])} of that band kept)")
     elif m is not None:
         line += (f"  0-{s['motion_band_hz']:g} Hz motion kept: corr {_fmt(m['corr'], 3)}, "
                  f"amplitude {_pct(m['amplitude_ratio'])}; lag {_lag(m['lag_s'])}")

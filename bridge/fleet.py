@@ -4,7 +4,7 @@ Built from the summary of :func:`bridge.process.process_many` (local pool or
 Dask cluster alike): a row per log and gyro stream with its samples, rate,
 restarts, noise before/after, the low-band motion kept and the lag the filter
 added (when the bridge measured them; averaged over the axes whose low band
-holds motion above the noise, "at rest" when none does), and a row per failed
+holds motion above the noise, "no motion above the noise" when none does), and a row per failed
 log with its reason. The plot shows each stream's white-noise density per log, so that an
 IMU that is noisier than its siblings stands out: the thing an operator opens.
 
@@ -49,7 +49,7 @@ def fleet_rows(summary):
             filt = _mean([a.get("filtered") for a in noise.values()])
             unit_ok = s.get("noise_unit") == "deg/s"
             measured = {a: m for a, m in (s.get("motion") or {}).items() if m is not None}
-            # motion kept is averaged over the axes that move; at rest the low band is noise
+            # motion kept is averaged over the axes that move; elsewhere the low band is noise
             kept = {a: m for a, m in measured.items() if m.get("motion_above_noise") is not False}
             rows.append({
                 "log": Path(log["file"]).name, "file": log["file"], "stream": s["name"], "status": "ok",
@@ -60,7 +60,7 @@ def fleet_rows(summary):
                 "lowband_corr": _mean([a.get("corr") for a in kept.values()]) if kept else None,
                 "lowband_amplitude": _mean([a.get("amplitude_ratio") for a in kept.values()]) if kept else None,
                 "lag_s": _mean([a.get("lag_s") for a in kept.values()]) if kept else None,
-                "at_rest": bool(measured) and not kept,
+                "no_motion": bool(measured) and not kept,
                 "note": s.get("note", ""), "left_raw": s.get("left_raw"),
                 "warnings": list(s.get("warnings", [])),
             })
@@ -99,7 +99,7 @@ def format_table(rows):
         if r["status"] == "failed":
             out.append(f"| {r['log']} | | FAILED | | | | | | | | {r['error']} |")
             continue
-        kept = ("at rest (no motion above the noise)" if r.get("at_rest") else
+        kept = ("no motion above the noise" if r.get("no_motion") else
                 "" if r["lowband_corr"] is None else
                 f"{r['lowband_corr']:.3f}, {100 * r['lowband_amplitude']:.0f} %")
         lag = "" if r["lag_s"] is None else f"{1000 * r['lag_s']:.1f}"
