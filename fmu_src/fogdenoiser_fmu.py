@@ -265,6 +265,10 @@ class FogDenoiser(Fmi2Slave):
             self.log(self._failed or "FogDenoiser: fmi2DoStep before initialisation", Fmi2Status.error)
             return False
         z = self.raw_rate
+        if not math.isfinite(current_time):
+            self.log(f"FogDenoiser: currentCommunicationPoint {current_time!r} s is not finite; step refused",
+                     Fmi2Status.error)
+            return False
         if not (step_size > 0.0 and math.isfinite(step_size)):
             # FMI 2.0: the communication step size must be > 0 (NaN used to pass the
             # size test below and be processed as a sample)

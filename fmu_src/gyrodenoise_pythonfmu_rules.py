@@ -8,9 +8,9 @@
   return fmi2Error from a setter: the write is refused with a logged error, the
   value kept, and the slave refuses its next fmi2DoStep with the reason (the
   slave checks ``_pending_error``).
-* :func:`install_sequence_rules`: fmi2EnterInitializationMode twice, or
-  fmi2ExitInitializationMode outside initialisation mode, is refused the same
-  way; :func:`install_write_rules` also refuses every write after fmi2Terminate.
+* :func:`install_sequence_rules`: fmi2EnterInitializationMode twice,
+  fmi2ExitInitializationMode outside initialisation mode, fmi2SetupExperiment
+  after it, a second fmi2Terminate, are refused the same way; :func:`install_write_rules` also refuses every write after fmi2Terminate.
 * :func:`guard`: pythonfmu answers an exception with fmi2Fatal and releases its
   references to the instance, its log queue and the class
   (``PySlaveInstance::handle_py_exception`` -> ``cleanPyObject``, pointers not
@@ -87,13 +87,14 @@ def install_write_rules(slave, label, output_causality, parameter_causality, err
 
 def install_sequence_rules(cls, label, error_status):
     """The FMI 2.0 call sequence around initialisation, on slave class ``cls``:
-    fmi2EnterInitializationMode once after fmi2Instantiate (or fmi2Reset, which
-    makes a new slave object), fmi2ExitInitializationMode only in initialisation
-    mode. pythonfmu answers fmi2OK to any call that returns (and fmi2Fatal to an
+    fmi2SetupExperiment only before, fmi2EnterInitializationMode once after
+    fmi2Instantiate (or fmi2Reset, which makes a new slave object),
+    fmi2ExitInitializationMode only in initialisation mode, fmi2Terminate once. pythonfmu answers fmi2OK to any call that returns (and fmi2Fatal to an
     exception): an out-of-sequence call does nothing, logs an error, and the next
     fmi2DoStep is refused (fmi2Discard) with the reason. Uses the slave's
     ``_initialised``, ``_terminated`` and ``_pending_error``; adds ``_in_init``."""
     enter, leave = cls.enter_initialization_mode, cls.exit_initialization_mode
+    setup, term = cls.setup_experiment, cls.terminate
 
     def refuse(self, msg):
         self.log(msg, error_status)
@@ -119,8 +120,23 @@ def install_sequence_rules(cls, label, error_status):
         self._in_init = False
         return result
 
+    @functools.wraps(setup)
+    def setup_experiment(self, *args):
+        if self._terminated or getattr(self, "_in_init", False) or self._initialised:
+            return refuse(self, f"{label}: fmi2SetupExperiment refused: only allowed before "
+                                f"fmi2EnterInitializationMode")
+        return setup(self, *args)
+
+    @functools.wraps(term)
+    def terminate(self):
+        if self._terminated:   # nothing follows that a pending error could refuse
+            return self.log(f"{label}: fmi2Terminate refused: already terminated", error_status)
+        return term(self)
+
     cls.enter_initialization_mode = enter_initialization_mode
     cls.exit_initialization_mode = exit_initialization_mode
+    cls.setup_experiment = setup_experiment
+    cls.terminate = terminate
 
 
 def guard(cls, label, error_status):

@@ -638,8 +638,10 @@ def test_forbidden_writes_and_step_after_terminate_are_refused_with_a_reason(fmu
 
 @pytest.mark.parametrize("name", ["FogDenoiser", "SimulatedFog"])
 def test_out_of_sequence_calls_and_writes_after_terminate_are_refused(fmu_dir, name):
-    """FMI 2.0 allows fmi2EnterInitializationMode once and fmi2ExitInitializationMode
-    only in initialisation mode, and no fmi2Set after fmi2Terminate. pythonfmu
+    """FMI 2.0 allows fmi2SetupExperiment only before initialisation,
+    fmi2EnterInitializationMode once, fmi2ExitInitializationMode only in
+    initialisation mode, fmi2Terminate once, no fmi2Set after it, and a finite
+    communication point. pythonfmu
     answers fmi2OK to any call that does not raise: the call does nothing, an error
     is logged, and the next step is refused (fmi2Discard) with the reason."""
     from fmpy.fmi1 import FMICallException
@@ -663,7 +665,17 @@ def test_out_of_sequence_calls_and_writes_after_terminate_are_refused(fmu_dir, n
         with pytest.raises(FMICallException):
             s.doStep(H, H)
         assert any("already initialised" in m[2] for m in a.errors())
+        s.setupExperiment(startTime=0.0)                  # only before initialisation
+        with pytest.raises(FMICallException):
+            s.doStep(H, H)
+        assert any("fmi2SetupExperiment refused" in m[2] for m in a.errors())
+        with pytest.raises(FMICallException):             # a time that is not finite
+            s.doStep(float("nan"), H)
+        assert any("currentCommunicationPoint nan s is not finite" in m[2] for m in a.errors())
+        s.doStep(H, H)
         s.terminate()
+        s.terminate()                                     # twice
+        assert any("fmi2Terminate refused: already terminated" in m[2] for m in a.errors())
         var = "raw_rate" if name == "FogDenoiser" else "true_rate"
         before = a.get(var)
         a.set(**{var: 42.0})

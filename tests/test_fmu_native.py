@@ -449,11 +449,13 @@ def test_step_size_mismatch_warns_or_discards(built, md, vr):
     assert s.fmi2DoStep(s.component, 0.0, 0.01, 1) == FMI_WARNING
     assert any(st == FMI_WARNING and "differs from sample_period" in m for st, _, m in log.messages)
     s.freeInstance()
-    s = slave(built, md, logger=log, strict_step_size=True)
+    log = Logger()
+    s = slave(built, md, logger=log, strict_step_size=True)          # logging off: still explained
     s.exitInitializationMode()
     with pytest.raises(FMICallException) as exc:
         s.doStep(0.0, 0.01)
     assert exc.value.status == FMI_DISCARD
+    assert any(st == FMI_DISCARD and "step refused (strict_step_size)" in m for st, _, m in log.messages)
     s.terminate()               # allowed from stepFailed
     s.freeInstance()
 

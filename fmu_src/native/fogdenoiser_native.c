@@ -163,7 +163,7 @@ static void vlogmsg(const inst_t *c, fmi2Status st, const char *fmt, va_list ap)
     size_t i, j;
     int cat = cat_of(st);
     if (!c || !c->cb.logger) return;
-    if (st < fmi2Error) { /* fmi2Error / fmi2Fatal are always explained */
+    if (st < fmi2Discard) { /* a refusal (fmi2Discard, fmi2Error, fmi2Fatal) is always explained */
         if (!c->logging_on || !(c->cat_on[cat] || c->cat_on[CAT_ALL])) return;
     }
     vsnprintf(text, sizeof text, fmt, ap);
