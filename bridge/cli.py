@@ -418,6 +418,8 @@ def _print_text(summary):
                       f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
             if s.get("left_raw"):
                 out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
+            if s.get("all_zero"):
+                out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
             if s.get("too_slow_to_denoise"):
                 out.write(f"    note: {s['slow_note']}\n")
             for a in s["noise"]:
@@ -428,7 +430,9 @@ def _print_text(summary):
             out.write(f"  restart: {e['stream']} sample {e['sample']} at t={e['time_s']:.3f} s "
                       f"(previous {e['previous_time_s']:.3f} s): {e['reason']}\n")
     for f in summary["failed"]:
-        out.write(f"FAILED {f['file']}: {f['error']}\n")
+        # the error names its file already
+        err = f["error"] if f["error"].startswith(str(f["file"])) else f"{f['file']}: {f['error']}"
+        out.write(f"FAILED {err}\n")
     n_raw = len(summary.get("streams_left_raw", []))
     out.write(f"{summary['n_ok']} of {summary['n_logs']} log(s) processed in {summary['seconds']} s"
               f"{f'; {n_raw} stream(s) left raw (exit status 1)' if n_raw else ''}\n")

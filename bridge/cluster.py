@@ -133,36 +133,87 @@ def largest_first(tasks):
     return sorted(range(len(tasks)), key=lambda i: -size(tasks[i]))
 
 
+def connect(scheduler, timeout_s=None):
+    """A ``distributed.Client`` of the scheduler at ``scheduler`` (``tcp://HOST:PORT``),
+    or InputError with one line: nothing listening there (at once), no answer, or a
+    peer that does not complete Dask's handshake (a dashboard or other server port,
+    on which the client would otherwise wait for ever) within ``timeout_s``."""
+    import re
+    import socket
+    import threading
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    m = re.match(r"^tcp://\[?([^\]/]+?)\]?:(\d+)/?$", str(scheduler))
+    if m:
+        try:
+            socket.create_connection((m.group(1), int(m.group(2))), timeout=timeout_s).close()
+        except ConnectionRefusedError:
+            raise InputError(f"--scheduler {scheduler}: connection refused (no scheduler listens there)") from None
+        except socket.timeout:
+            raise InputError(f"--scheduler {scheduler}: no answer within {timeout_s:g} s") from None
+        except OSError as exc:
+            raise InputError(f"--scheduler {scheduler}: cannot connect ({exc.strerror or exc})") from None
+    from distributed import Client
+    box = {}
+
+    def make():
+        try:
+            box["client"] = Client(scheduler, set_as_default=False, timeout=timeout_s)
+        except BaseException as exc:  # noqa: BLE001 - any failure becomes the one line below
+            box["error"] = exc
+    th = threading.Thread(target=make, name="gyrodenoise-dask-connect", daemon=True)
+    th.start()
+    th.join(2.0 * timeout_s)
+    if th.is_alive():
+        raise InputError(f"--scheduler {scheduler}: the peer did not complete the Dask handshake within "
+                         f"{2.0 * timeout_s:g} s (is it a Dask scheduler's port? the dashboard's is not)")
+    if "error" in box:
+        exc = box["error"]
+        first = (str(exc).strip().splitlines() or [""])[0][:200]
+        raise InputError(f"--scheduler {scheduler}: no Dask scheduler answered ({type(exc).__name__}"
+                         f"{': ' + first if first else ''})") from None
+    return box["client"]
+
+
+def _absolute(path):
+    """A local path as an absolute one (workers resolve paths in their own
+    working directories); a URL as it is."""
+    return path if is_url(path) else str(Path(path).absolute())
+
+
 def run_on_cluster(tasks, scheduler, progress=None):
     """Run ``tasks`` (see :func:`run_task`) on the Dask scheduler at
     ``scheduler`` (``tcp://HOST:PORT``, or a ``distributed.Client``), largest
     input first (:func:`largest_first`); results in the order of ``tasks``.
-    ``progress(result)`` is called as each ends."""
+    ``progress(result)`` is called as each ends.
+
+    Local paths go to the workers absolute (a relative one would be read and
+    written in each worker's own working directory) and come back in the
+    caller's spelling, as in a serial run."""
     require_dask()
-    from distributed import Client, as_completed
+    from distributed import as_completed
     own = not hasattr(scheduler, "map")
-    try:
-        client = (Client(scheduler, set_as_default=False, timeout=CONNECT_TIMEOUT_S) if own
-                  else scheduler)
-    except OSError as exc:
-        raise InputError(f"--scheduler {scheduler}: no scheduler answered within {CONNECT_TIMEOUT_S:g} s "
-                         f"({type(exc).__name__})") from None
+    client = connect(scheduler) if own else scheduler
     try:
         order = {}
         futures = []
         ranked = largest_first(tasks)
         for rank, i in enumerate(ranked):         # a higher priority runs earlier
-            fut = client.submit(run_task, tasks[i], pure=False, priority=len(ranked) - rank)
+            path, out_dir, kw = tasks[i]
+            task = (_absolute(path), _absolute(out_dir), kw)
+            fut = client.submit(run_task, task, pure=False, priority=len(ranked) - rank)
             order[fut.key] = i
             futures.append(fut)
         results = [None] * len(tasks)
         for fut in as_completed(futures, loop=client.loop):
             i = order[fut.key]
+            path, out_dir, _ = tasks[i]
             try:
-                results[i] = fut.result()
+                res = fut.result()
+                res = _rename(_rename(res, _absolute(path), str(path)), _absolute(out_dir), str(out_dir))
             except Exception as exc:  # noqa: BLE001 - a worker died: that log fails, not the batch
-                results[i] = {"ok": False, "file": str(tasks[i][0]),
-                              "error": f"{tasks[i][0]}: task failed on the cluster: {type(exc).__name__}: {exc}"}
+                res = {"ok": False, "file": str(path),
+                       "error": f"{path}: task failed on the cluster: {type(exc).__name__}: {exc}"}
+            results[i] = res
             if progress:
                 progress(results[i])
         return results

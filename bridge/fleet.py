@@ -61,6 +61,7 @@ def fleet_rows(summary):
                 "lowband_amplitude": _mean([a.get("amplitude_ratio") for a in kept.values()]) if kept else None,
                 "lag_s": _mean([a.get("lag_s") for a in kept.values()]) if kept else None,
                 "no_motion": bool(measured) and not kept,
+                "all_zero": bool(s.get("all_zero")),
                 "note": s.get("note", ""), "left_raw": s.get("left_raw"),
                 "warnings": list(s.get("warnings", [])),
             })
@@ -84,6 +85,22 @@ def _flag(rows):
         for r in group:
             v = r["noise_density_deg_s_rthz"]
             r["flag"] = bool(len(vals) >= 3 and mad > 0 and (v - med) > FLAG_SIGMAS * mad)
+    # several IMUs of one log noisy together: the vehicle (vibration, motion) more
+    # likely than one sick sensor; one IMU noisy beside normal siblings: that IMU
+    per_log = {}
+    for r in rows:
+        if r["status"] == "ok" and r.get("noise_density_deg_s_rthz") is not None:
+            per_log.setdefault(r["log"], []).append(r)
+    for streams in per_log.values():
+        flagged = [r for r in streams if r.get("flag")]
+        if len(flagged) >= 2:
+            for r in flagged:
+                r["flag_why"] = (f"NOISY vs fleet, with {len(flagged) - 1} other IMU(s) of this log: "
+                                 f"vehicle vibration or motion more likely than a sick IMU")
+        elif flagged:
+            others = len(streams) - 1
+            flagged[0]["flag_why"] = ("NOISY vs fleet" + (f", its {others} sibling IMU(s) in this log normal: "
+                                                          f"this IMU" if others else ""))
 
 
 def _fmt(v, spec=".3g"):
@@ -103,12 +120,18 @@ def format_table(rows):
                 "" if r["lowband_corr"] is None else
                 f"{r['lowband_corr']:.3f}, {100 * r['lowband_amplitude']:.0f} %")
         lag = "" if r["lag_s"] is None else f"{1000 * r['lag_s']:.1f}"
-        flag = "; ".join(([("NOISY vs fleet")] if r.get("flag") else []) +
+        flag = "; ".join(([r.get("flag_why", "NOISY vs fleet")] if r.get("flag") else []) +
+                         (["ALL ZERO: no data (sensor absent or dead)"] if r.get("all_zero") else []) +
                          ([f"left raw: {r['left_raw']}"] if r.get("left_raw") else []) + r.get("warnings", []))
         out.append(f"| {r['log']} | {r['stream']} | ok | {r['samples']} | {_fmt(r['rate_hz'])} | {r['restarts']} | "
                    f"{_fmt(r['noise_raw'])} -> {_fmt(r['noise_filtered'])} {r['noise_unit'] or ''} | "
                    f"{_fmt(r['noise_density_deg_s_rthz'])} | {kept} | {lag} | {flag} |")
     return "\n".join(out)
+
+
+def _named(rows):
+    """': log stream, ...' for the header line (empty when there are none)."""
+    return (": " + ", ".join(f"{r['log']} {r['stream']}" for r in rows)) if rows else ""
 
 
 def write_fleet_report(summary, out_dir):
@@ -120,7 +143,10 @@ def write_fleet_report(summary, out_dir):
     head = (f"# Fleet report\n\n{summary.get('n_logs', 0)} logs: {summary.get('n_ok', 0)} processed, "
             f"{summary.get('n_failed', 0)} failed; {n_ok} gyro streams; "
             f"{sum(bool(r.get('flag')) for r in rows)} flagged as noisier than the fleet "
-            f"(> {FLAG_SIGMAS:g} robust sigmas above the median density of the same stream).\n\n"
+            f"(> {FLAG_SIGMAS:g} robust sigmas above the median density of the same stream)"
+            f"{_named([r for r in rows if r.get('flag')])}; "
+            f"{sum(bool(r.get('all_zero')) for r in rows)} with all samples zero"
+            f"{_named([r for r in rows if r.get('all_zero')])}.\n\n"
             f"![noise density per log and stream](fleet.png)\n\n")
     (out / "fleet.md").write_text(head + format_table(rows) + "\n")
     (out / "fleet.json").write_text(json.dumps({"rows": rows, "n_logs": summary.get("n_logs"),
@@ -152,7 +178,8 @@ def _plot(rows, path):
     ax.set_yscale("log")
     ax.set_ylabel("raw noise density, deg/s/sqrt(Hz)")
     ax.set_title("Gyro noise per log and stream (dotted: log failed)")
-    ax.legend(fontsize=7, ncol=2)
+    if ax.get_legend_handles_labels()[0]:          # nothing to label when every log failed
+        ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

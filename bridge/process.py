@@ -581,7 +581,8 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
     return {
         "logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
         "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed),
-        "jobs": int(jobs), "scheduler": None if scheduler is None else str(scheduler),
+        "jobs": None if scheduler is not None else int(jobs),     # the cluster decides its parallelism
+        "scheduler": None if scheduler is None else str(scheduler),
         "seconds": round(time.perf_counter() - t0, 3),
         "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC,
         "streams_left_raw": streams_left_raw(logs),

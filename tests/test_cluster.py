@@ -134,3 +134,56 @@ def test_file_urls_in_and_out_through_the_cli(cluster, tmp_path, capsys):
     assert a and a.keys() == b.keys()
     for name in a:
         assert a[name] == b[name], name
+
+
+@pytest.mark.parametrize("greeting", [None, b"\xff" * 64 + b"HTTP/1.1 400 Bad Request\r\n\r\n"])
+def test_a_port_that_is_not_a_scheduler_gives_one_line(tmp_path, capsys, monkeypatch, greeting):
+    """A dashboard or other server port: the Dask client would wait for its handshake
+    for ever (silent peer) or fail deep inside (garbage): one line, exit 2, in time."""
+    import socket
+    import threading
+    import bridge.cluster
+    monkeypatch.setattr(bridge.cluster, "CONNECT_TIMEOUT_S", 1.0)
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(4)
+    conns = []
+
+    def serve():
+        while True:
+            try:
+                c, _ = srv.accept()
+            except OSError:
+                return
+            conns.append(c)
+            if greeting:
+                c.sendall(greeting)
+    threading.Thread(target=serve, daemon=True).start()
+    try:
+        code = main(["mavlink", str(LOGS[0]), "-o", str(tmp_path / "o"), "--no-plots",
+                     "--scheduler", f"tcp://127.0.0.1:{srv.getsockname()[1]}"])
+    finally:
+        srv.close()
+        for c in conns:
+            c.close()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--scheduler" in err[0] and "Traceback" not in err[0], err
+
+
+def test_relative_paths_are_the_callers_not_the_workers(cluster, tmp_path, capsys, monkeypatch):
+    """Workers have their own working directory: relative inputs and -o are sent
+    absolute, and the summary speaks of them as the caller wrote them."""
+    monkeypatch.chdir(tmp_path)
+    for p in LOGS[:2]:
+        Path(p.name).write_bytes(p.read_bytes())
+    code = main(["mavlink", LOGS[0].name, LOGS[1].name, "-o", "out", "--scheduler", cluster.scheduler_address,
+                 "--no-plots", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and out["n_ok"] == 2
+    assert [r["file"] for r in out["logs"]] == [LOGS[0].name, LOGS[1].name]
+    for r in out["logs"]:
+        assert not Path(r["output_log"]).is_absolute() and (tmp_path / r["output_log"]).is_file()
+    serial = tmp_path / "serial"
+    assert main(["mavlink", LOGS[0].name, LOGS[1].name, "-o", str(serial), "--no-plots"]) == 0
+    a, b = _files(serial), _files(tmp_path / "out")
+    assert a and a == b
