@@ -161,23 +161,35 @@ def _plot(rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     ok = [r for r in rows if r["status"] == "ok" and r["noise_density_deg_s_rthz"] is not None]
-    logs = sorted({r["log"] for r in rows})
+    failed = sorted({r["log"] for r in rows if r["status"] == "failed"})
+    # logs with a density to show, and the failed ones; the others (telemetry too
+    # slow to denoise) are in the table only
+    logs = sorted({r["log"] for r in ok} | set(failed))
     xi = {name: i for i, name in enumerate(logs)}
-    fig, ax = plt.subplots(figsize=(max(6.0, 0.45 * len(logs) + 3), 4.5))
-    for stream in sorted({r["stream"] for r in ok}):
+    streams = sorted({r["stream"] for r in ok})
+    # side by side within a log, so that two IMUs with the same density both show
+    dx = {name: (k - (len(streams) - 1) / 2.0) * min(0.12, 0.6 / max(1, len(streams)))
+          for k, name in enumerate(streams)}
+    fig, ax = plt.subplots(figsize=(max(7.0, 0.45 * len(logs) + 3), 4.8))
+    for stream in streams:
         pts = [r for r in ok if r["stream"] == stream]
-        ax.plot([xi[r["log"]] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o", label=stream)
+        ax.plot([xi[r["log"]] + dx[stream] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o",
+                label=stream)
     flagged = [r for r in ok if r.get("flag")]
     if flagged:
-        ax.plot([xi[r["log"]] for r in flagged], [r["noise_density_deg_s_rthz"] for r in flagged], "o",
-                ms=14, mfc="none", mec="red", label="noisier than the fleet")
-    for r in rows:
-        if r["status"] == "failed":
-            ax.axvline(xi[r["log"]], color="0.8", ls=":", lw=1)
+        ax.plot([xi[r["log"]] + dx[r["stream"]] for r in flagged], [r["noise_density_deg_s_rthz"] for r in flagged],
+                "o", ms=14, mfc="none", mec="red", label="noisier than the fleet")
+    for name in failed:
+        ax.axvspan(xi[name] - 0.4, xi[name] + 0.4, color="0.85", lw=0)
     ax.set_xticks(range(len(logs)), logs, rotation=60, ha="right", fontsize=7)
+    for label in ax.get_xticklabels():
+        if label.get_text() in failed:
+            label.set_color("C3")
     ax.set_yscale("log")
     ax.set_ylabel("raw noise density, deg/s/sqrt(Hz)")
-    ax.set_title("Gyro noise per log and stream (dotted: log failed)")
+    ax.set_title(f"Gyro noise per log and stream\n(grey, red name: log failed; "
+                 f"{len({r['log'] for r in rows}) - len(logs)} log(s) with no stream to denoise: "
+                 f"in the table only)", fontsize=9)
     if ax.get_legend_handles_labels()[0]:          # nothing to label when every log failed
         ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
