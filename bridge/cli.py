@@ -282,10 +282,21 @@ def _run(args):
         if not (args.no_csv and args.no_plots):
             _check_out(args.out)
         return _run_live(args, links[0])
-    from .cluster import is_url
+    from .cluster import connect, is_url
     for x in args.logs:
         if not is_url(x) and not Path(x).exists():
             raise InputError(f"{x}: no such file or folder")
+    # the cluster answers before anything is written (no output folder for a wrong address)
+    client = None if args.scheduler is None else connect(args.scheduler)
+    try:
+        return _run_logs(args, client)
+    finally:
+        if client is not None:
+            client.close()
+
+
+def _run_logs(args, client):
+    from .cluster import is_url
     if not is_url(args.out):
         _check_out(args.out)
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
@@ -297,7 +308,7 @@ def _run(args):
               and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
     with contextlib.redirect_stdout(sys.stderr):
-        summary = _run_files(args, kw, single)
+        summary = _run_files(args, kw, single, client)
     try:
         _write_out(args.out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
         if not single:
@@ -353,7 +364,7 @@ def exit_status(summary):
     return 2 if summary["failed"] else 1 if summary["streams_left_raw"] else 0
 
 
-def _run_files(args, kw, single):
+def _run_files(args, kw, single, client=None):
     from .process import MOTION_METRIC, process_many, process_log, streams_left_raw
     if single:
         # one file: errors are the command's error (exit 2, one line)
@@ -364,8 +375,11 @@ def _run_files(args, kw, single):
                    "motion_metric": MOTION_METRIC, "streams_left_raw": streams_left_raw([rep])}
     else:
         progress = sys.stderr.isatty() if args.progress is None else args.progress
-        summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log, scheduler=args.scheduler,
+        summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log,
+                               scheduler=client if client is not None else args.scheduler,
                                progress=progress, **kw)
+        if args.scheduler is not None:
+            summary["scheduler"] = args.scheduler
         if summary["n_logs"] == 0:
             raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
     summary["exit_status"] = exit_status(summary)

@@ -187,3 +187,11 @@ def test_relative_paths_are_the_callers_not_the_workers(cluster, tmp_path, capsy
     assert main(["mavlink", LOGS[0].name, LOGS[1].name, "-o", str(serial), "--no-plots"]) == 0
     a, b = _files(serial), _files(tmp_path / "out")
     assert a and a == b
+
+
+def test_a_wrong_scheduler_writes_nothing(tmp_path, capsys):
+    """Bad input writes nothing: the scheduler is reached before the output folder is made."""
+    out = tmp_path / "never"
+    code = main(["mavlink", str(LOGS[0]), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9", "--json"])
+    assert code == 2 and not out.exists()
+    assert "connection refused" in json.loads(capsys.readouterr().out)["error"]
