@@ -49,14 +49,16 @@ def install_write_rules(slave, label, output_causality, parameter_causality, err
         slave.log(msg, error_status)
         slave._pending_error = msg
 
-    def refusing(name):
+    def rule(name, kind, original):
+        # one setter per variable (inputs are set every step: one call, no chain)
         def setter(value):
-            refuse(f"{label}: fmi2Set of {name!r} refused (it is an output); value unchanged")
-        return setter
-
-    def fixed(name, original):
-        def setter(value):
-            if slave._initialised:
+            if slave._terminated:
+                # no step follows fmi2Terminate (each is refused): the log is the answer
+                slave.log(f"{label}: fmi2Set of {name!r} after fmi2Terminate refused (only fmi2Get*, "
+                          f"fmi2Reset and fmi2FreeInstance are allowed then); value unchanged", error_status)
+            elif kind == "output":
+                refuse(f"{label}: fmi2Set of {name!r} refused (it is an output); value unchanged")
+            elif kind == "parameter" and slave._initialised:
                 refuse(f"{label}: fmi2Set of fixed parameter {name!r} after initialisation refused "
                        f"(fixed parameters change only before fmi2ExitInitializationMode; fmi2Reset to "
                        f"change it); kept at {getattr(slave, name)!r}")
@@ -66,23 +68,11 @@ def install_write_rules(slave, label, output_causality, parameter_causality, err
                 original(value)
         return setter
 
-    def not_after_terminate(name, inner):
-        def setter(value):
-            if slave._terminated:
-                # no step follows fmi2Terminate (each is refused): the log is the answer
-                slave.log(f"{label}: fmi2Set of {name!r} after fmi2Terminate refused (only fmi2Get*, "
-                          f"fmi2Reset and fmi2FreeInstance are allowed then); value unchanged", error_status)
-            else:
-                inner(value)
-        return setter
-
     for var in slave.vars.values():
-        if var.causality == output_causality:
-            var.setter = refusing(var.name)
-        elif var.causality == parameter_causality:
-            var.setter = fixed(var.name, var.setter)
-        if var.setter is not None:
-            var.setter = not_after_terminate(var.name, var.setter)
+        kind = ("output" if var.causality == output_causality else
+                "parameter" if var.causality == parameter_causality else None)
+        if kind is not None or var.setter is not None:
+            var.setter = rule(var.name, kind, var.setter)
 
 
 def install_sequence_rules(cls, label, error_status):
