@@ -253,7 +253,7 @@ def cmd_demo(args):
         from . import plots
         outdir = Path(args.out)
         outdir.mkdir(parents=True, exist_ok=True)
-        figs = plots.demo_figures(card, rec, res, outdir, ar_order=args.ar_order, seed=args.seed)
+        figs = plots.demo_figures(card, rec, res, outdir, ar_order=args.ar_order, seed=args.seed, **gate)
     elapsed = time.perf_counter() - t0
     if args.json:
         emit_json({"model": card.name, "hours": args.hours, "static": public(res), "dynamic": dyn,

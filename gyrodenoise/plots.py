@@ -18,6 +18,16 @@ def _plt():
     return plt
 
 
+def _save(plt, fig, path):
+    """Check that every panel shows data, then write the PNG; the figure is closed either way."""
+    try:
+        check_drawn(fig, Path(path).name)
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+    finally:
+        plt.close(fig)
+
+
 def allan_figure(results, path, title=""):
     """Allan deviation with 1-sigma bars and the fitted Eq. (40) per series."""
     plt = _plt()
@@ -34,9 +44,7 @@ def allan_figure(results, path, title=""):
     ax.set_title(title or "Allan deviation; dashed: five-term fit of Eq. (40)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, path)
     return path
 
 
@@ -62,9 +70,7 @@ def series_figure(time_s, series, path, zoom_s=2.0, truth=None):
     a2.set_ylabel("rate (deg/s)")
     a2.set_title(f"zoom: {zoom_s:g} s at mid-record")
     a2.legend(loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, path)
     return path
 
 
@@ -85,9 +91,7 @@ def convergence_figure(time_s, theta, path, warmup_s=None):
     if warmup_s:
         for a in (a1, a2):
             a.axvline(warmup_s, color="gray", ls=":", lw=1)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, path)
     return path
 
 
@@ -102,28 +106,55 @@ def psd_figure(residual, sample_rate_hz, path):
     ax.set_ylabel("PSD ((deg/h)^2/Hz)")
     ax.set_title("PSD of the AR fitting residual (paper Fig. 2): not white")
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(plt, fig, path)
     return path
 
 
-def demo_figures(card, rec, res, outdir, ar_order=3, seed=0):
-    """All demo figures into ``outdir``; returns their paths."""
-    from .core import kernels as K
-    from .core.batch import run
+def demo_figures(card, rec, res, outdir, ar_order=3, seed=0, **kw):
+    """All demo figures into ``outdir``; returns their paths.
+
+    The AR figures (Figs 2, 4, 5) show the paper's model, identified by the
+    modified SHAKF's RLS (:func:`gyrodenoise.experiments.ar_identification`), with
+    the same filter options ``kw`` as the tables. Every figure is checked before it
+    is written (:func:`check_drawn`): an empty figure is an error, not a PNG.
+    """
+    from .experiments import ar_identification
     outdir = Path(outdir)
     figs = [allan_figure(res["_allan"], outdir / "allan.png",
                          f"Allan deviation, {card.name} (dashed: fit of Eq. 40)")]
     s = res["_series"]
     figs.append(series_figure(rec.time_s, {k: s[k] for k in ("raw", "kf", "shakf", "motion")}, outdir / "series.png"))
     fs = rec.sample_rate_hz
-    n = min(len(rec), int(60 * fs))
-    p = K.make_params(ar_order=ar_order, sample_rate_hz=fs)
-    _, _, theta = run(p, K.init_state(p), rec.rate_deg_s[:n], record_theta=True)
-    figs.append(convergence_figure(rec.time_s[:n], theta, outdir / "ar_convergence.png",
-                                   warmup_s=p[K.P_WARMUP] / fs))
-    _, _, diag = run(p, K.init_state(p), rec.rate_deg_s, diagnostics=True)
-    start = int(p[K.P_WARMUP])
-    figs.append(psd_figure(diag[start:, 3], fs, outdir / "residual_psd.png"))
+    theta, residual_deg_s, warmup_s = ar_identification(rec.rate_deg_s, fs, ar_order, **kw)
+    figs.append(convergence_figure(rec.time_s[:theta.shape[0]], theta, outdir / "ar_convergence.png",
+                                   warmup_s=warmup_s))
+    figs.append(psd_figure(residual_deg_s, fs, outdir / "residual_psd.png"))
     return figs
+
+
+class EmptyFigureError(RuntimeError):
+    """A figure would show nothing (no finite, varying curve in some panel)."""
+
+
+def check_drawn(fig, name):
+    """Raise :class:`EmptyFigureError` unless every panel of ``fig`` shows data.
+
+    A panel shows data when at least one of its lines has two or more finite
+    points (positive ones on a logarithmic y axis) whose y values are not all
+    equal: a flat line at 0 (an AR model that was never identified) or a log
+    plot of zeros is empty.
+    """
+    for i, ax in enumerate(fig.axes):
+        log_y = ax.get_yscale() == "log"
+        shown = False
+        for line in ax.get_lines():
+            y = np.asarray(line.get_ydata(), dtype=float)
+            y = y[np.isfinite(y)]
+            if log_y:
+                y = y[y > 0]
+            if y.size >= 2 and np.ptp(y) > 0:
+                shown = True
+                break
+        if not shown:
+            title = ax.get_title() or f"panel {i + 1}"
+            raise EmptyFigureError(f"{name}: '{title}' shows no data (every curve empty, flat or non-positive)")
