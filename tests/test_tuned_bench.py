@@ -1,0 +1,201 @@
+"""The sceptic's benchmark (benchmarks/sceptic, issue 23): its simulator against
+analytic expectations, its tuned baselines against independent references, its
+metrics against known answers. Seeded; tolerances stated per test."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from sceptic import baselines as B  # noqa: E402
+from sceptic import bench, sim  # noqa: E402
+
+from gyrodenoise.allanvar import adev  # noqa: E402
+
+
+def _only(sensor_key, **kw):
+    """The sensor with every error term zero but those given."""
+    zero = dict(arw_deg_rt_h=0.0, bias_inst_deg_h=0.0, rrw_deg_h_rt_h=0.0, turn_on_deg_s=0.0,
+                temp_slope_deg_s_per_s=0.0, quant_rate_deg_s=0.0, quant_angle_deg=0.0)
+    zero.update(kw)
+    return dataclasses.replace(sim.SENSORS[sensor_key], **zero)
+
+
+def test_arw_allan_deviation_is_n_over_sqrt_tau():
+    # ARW N: Allan deviation N / sqrt(tau) (N in deg/s/sqrt(Hz) = N_deg_rt_h / 60); within 10 %
+    s = _only("tactical", arw_deg_rt_h=0.66)
+    fs = s.sample_rate_hz
+    z = sim.measure(s, np.zeros(int(300 * fs)), np.random.default_rng(1))
+    taus = np.array([0.01, 0.1, 1.0])
+    res = adev(z, fs, tau_s=taus)
+    got = res[1]
+    want = 0.66 / 60.0 / np.sqrt(taus)
+    assert np.all(np.abs(got / want - 1.0) < 0.10), (got, want)
+
+
+def test_rate_random_walk_allan_deviation_is_k_sqrt_tau_over_3():
+    # RRW K: Allan deviation K sqrt(tau / 3), K in deg/s/sqrt(s) = K_deg_h_rt_h / 3600 / 60; within 15 %
+    s = dataclasses.replace(_only("drone", rrw_deg_h_rt_h=10.0), sample_rate_hz=20.0)
+    b = sim.bias_terms(s, int(20000 * 20), np.random.default_rng(2))
+    taus = np.array([10.0, 30.0, 100.0])
+    res = adev(b, 20.0, tau_s=taus)
+    got = res[1]
+    want = 10.0 / 3600.0 / 60.0 * np.sqrt(taus / 3.0)
+    assert np.all(np.abs(got / want - 1.0) < 0.15), (got, want)
+
+
+def test_gauss_markov_std_and_correlation_time():
+    rng = np.random.default_rng(3)
+    x = sim.gauss_markov(400000, 10.0, 2.0, 5.0, rng)     # 40000 s, tau_c = 5 s = 50 samples
+    assert abs(x.std() / 2.0 - 1.0) < 0.05
+    r = np.corrcoef(x[:-50], x[50:])[0, 1]
+    assert abs(r - math.exp(-1.0)) < 0.03
+
+
+def test_fog_angle_quantisation_keeps_the_integral():
+    # the FOG counts angle increments: its integrated output never leaves the true angle by a quantum
+    s = _only("fog", quant_angle_deg=1.1e-4)
+    fs = s.sample_rate_hz
+    ref = 3.0 * np.sin(np.arange(20000) / fs)
+    z = sim.measure(s, ref, np.random.default_rng(4))
+    err = np.cumsum(z - ref) / fs
+    assert np.max(np.abs(err)) <= 1.1e-4 * (1 + 1e-9)
+    assert np.max(np.abs(z - ref)) > 0.01          # and it is quantised (rate steps of q fs = 0.022)
+
+
+def test_mems_rate_quantisation_and_total_noise_std():
+    s = sim.SENSORS["drone"]
+    z = sim.measure(s, np.zeros(200000), np.random.default_rng(5))
+    k = z / s.quant_rate_deg_s
+    assert np.allclose(k, np.round(k), atol=1e-9)
+    assert abs(z.std() / s.noise_std_deg_s - 1.0) < 0.02
+
+
+def test_static_drone_has_no_vibration_and_moving_has_it():
+    rest = sim.record("drone", "static_ramp", 0, 4.0)
+    assert np.all(rest.truth == 0.0)
+    fly = sim.record("drone", "trapezoid", 0, 4.0)
+    power = np.abs(np.fft.rfft(fly.truth)) ** 2
+    f = np.fft.rfftfreq(fly.truth.size, 1 / 400.0)
+    vib = power[(f > 75) & (f < 85)].sum()
+    assert vib > 100 * power[(f > 30) & (f < 60)].sum()
+    # 3 deg/s amplitude (+-30 % slow AM): mean power 4.5 (deg/s)^2 by Parseval, within 40 %
+    assert 0.6 < 2 * vib / fly.truth.size ** 2 / 4.5 < 1.4
+
+
+def test_records_are_seeded():
+    a = sim.record("tactical", "car", 7, 3.0)
+    b = sim.record("tactical", "car", 7, 3.0)
+    c = sim.record("tactical", "car", 8, 3.0)
+    assert np.array_equal(a.z, b.z) and not np.array_equal(a.z, c.z)
+
+
+# ------------------------------------------------------------------ baselines
+def _one_euro_py(z, fs, min_cutoff, beta, d_cutoff=1.0):
+    """Slow reference of the 1-euro filter (Casiez et al. 2012), written from the paper."""
+    def alpha(fc):
+        tau = 1.0 / (2 * math.pi * fc)
+        return 1.0 / (1.0 + tau * fs)
+    y = [z[0]]
+    dx = 0.0
+    for k in range(1, len(z)):
+        dx = dx + alpha(d_cutoff) * ((z[k] - z[k - 1]) * fs - dx)
+        y.append(y[-1] + alpha(min_cutoff + beta * abs(dx)) * (z[k] - y[-1]))
+    return np.array(y)
+
+
+def test_one_euro_matches_slow_reference_and_grid_scores():
+    rec = sim.record("drone", "car", 0, 3.0)
+    y = B.one_euro(rec.z, 400.0, 2.0, 0.01)
+    assert np.allclose(y, _one_euro_py(rec.z, 400.0, 2.0, 0.01), rtol=0, atol=1e-12)
+    params, score, out = B.tune("one_euro", rec.z, rec.ref, 400.0, 100, rec.z.size, quick=True)
+    assert np.allclose(out, _one_euro_py(rec.z, 400.0, params["min_cutoff_hz"], params["beta"]), atol=1e-12)
+    assert score == pytest.approx(bench.rmse(out, rec.ref, 100, rec.z.size), rel=1e-9)
+
+
+def test_cv_kalman_matches_filterpy():
+    filterpy = pytest.importorskip("filterpy.kalman")
+    fs, lam = 400.0, 1e-3
+    T = 1 / fs
+    rec = sim.record("drone", "pendulum", 0, 1.0)
+    kf = filterpy.KalmanFilter(dim_x=2, dim_z=1)
+    kf.x = np.array([rec.z[0], 0.0])
+    kf.F = np.array([[1, T], [0, 1]])
+    kf.H = np.array([[1.0, 0.0]])
+    kf.R = np.array([[1.0]])
+    q = lam ** 2 / T ** 4
+    kf.Q = q * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
+    kf.P = np.diag([1.0, 1.0 / T ** 2])
+    ref = [rec.z[0]]
+    for zk in rec.z[1:]:
+        kf.predict()
+        kf.update(zk)
+        ref.append(kf.x[0])
+    assert np.allclose(B.cv_kf(rec.z, fs, lam), ref, rtol=0, atol=1e-9)
+
+
+def test_tuned_baselines_beat_fixed_ones():
+    # seeded: a tactical MEMS on a car; the tuned Butterworth-2 and CV-KF are at
+    # least as good as fixed choices a user might copy (30 Hz, 20 Hz first order)
+    rec = sim.record("tactical", "car", 0, 8.0)
+    fs, lo, hi = 1000.0, 2000, rec.z.size
+    fixed30 = bench.rmse(B.butter(rec.z, fs, 2, 30.0), rec.ref, lo, hi)
+    fixed20 = bench.rmse(B.butter(rec.z, fs, 1, 20.0), rec.ref, lo, hi)
+    for fam in ("butter2", "cv_kf", "one_euro"):
+        _, s, _ = B.tune(fam, rec.z, rec.ref, fs, lo, hi, quick=True)
+        assert s <= min(fixed30, fixed20), fam
+    # the car's motion is slow: tuning finds far more than a fixed 30 Hz filter
+    _, s, _ = B.tune("butter2", rec.z, rec.ref, fs, lo, hi, quick=False)
+    assert s < 0.8 * fixed30
+
+
+def test_savgol_is_exact_on_a_quadratic_and_matches_scipy_inside():
+    from scipy.signal import savgol_filter
+    t = np.linspace(0, 1, 500)
+    x = 3 * t * t - t + 0.5
+    assert np.allclose(B.savgol(x, 51, 2)[25:-25], x[25:-25], atol=1e-9)
+    rng = np.random.default_rng(0)
+    z = rng.standard_normal(2000)
+    a = B.savgol(z, 41, 4)
+    b = savgol_filter(z, 41, 4, mode="interp")
+    assert np.allclose(a[40:-40], b[40:-40], atol=1e-9)
+
+
+# ------------------------------------------------------------------ metrics
+def test_lag_finds_a_known_delay():
+    rec = sim.record("tactical", "multirotor", 0, 6.0)
+    fs = 1000.0
+    y = np.r_[np.full(7, rec.ref[0]), rec.ref[:-7]]
+    assert bench.lag_s(y, rec.ref, fs, 2000, rec.z.size) * fs == pytest.approx(7.0, abs=0.3)
+    assert abs(bench.lag_s(rec.ref, rec.ref, fs, 2000, rec.z.size)) * fs < 0.05
+
+
+def test_sine_gain_of_a_scaled_sine():
+    fs = 200.0
+    t = np.arange(4000) / fs
+    y = 0.8 * np.sin(2 * np.pi * 3.0 * t + 1.0) + 5.0 + 0.1 * t
+    assert bench.sine_gain(y, 3.0, fs, 400, 4000, 1.0) == pytest.approx(0.8, rel=1e-9)
+
+
+def test_evaluate_api_and_goal_lines():
+    rows = bench.evaluate({"ident": lambda z, fs: z.copy()}, sensors=["fog"],
+                          profiles=["static_ramp", "car"], seeds=(0,), quick=True)
+    by = {(r["profile"], r["method"]): r for r in rows}
+    # the identity is raw: ratio to raw 1, angle error raw's
+    assert by[("car", "ident")]["ratio_raw"] == pytest.approx(1.0)
+    assert by[("car", "ident")]["angle_err_deg"] == pytest.approx(by[("car", "raw")]["angle_err_deg"])
+    # the best causal filter is never worse than any causal family, at rest far better than raw
+    for p in ("static_ramp", "car"):
+        assert all(by[(p, "best_causal")]["rmse"] <= by[(p, f)]["rmse"] * (1 + 1e-12) for f in B.CAUSAL)
+    assert by[("static_ramp", "raw")]["ratio_causal"] > 5
+    lines = bench.goal_lines(rows, [], ["ident"])
+    got = {g: ok for _, g, _, ok in lines}
+    assert got["never worse than raw (RMSE ratio to raw <= 1.00)"] == "PASS"
+    assert got["at rest (static with bias ramp) >= 5x below raw"] == "FAIL"
