@@ -16,7 +16,6 @@ Nothing here is timed; progress on stderr.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import math
 import sys
@@ -45,21 +44,10 @@ class UsageError(Exception):
 
 
 def load_method(spec):
-    """A gd.denoise method name, or FILE.py:FUNCTION."""
-    from gyrodenoise.core import kernels as K
-    if ":" in spec and spec.split(":", 1)[0].endswith(".py"):
-        path, func = spec.split(":", 1)
-        if not Path(path).is_file():
-            raise UsageError(f"--method {spec}: no file {path}")
-        mod_spec = importlib.util.spec_from_file_location(Path(path).stem, path)
-        mod = importlib.util.module_from_spec(mod_spec)
-        mod_spec.loader.exec_module(mod)
-        if not callable(getattr(mod, func, None)):
-            raise UsageError(f"--method {spec}: {path} has no function {func}")
-        return {f"{Path(path).stem}:{func}": getattr(mod, func)}
-    if spec not in K.METHODS:
-        raise UsageError(f"--method {spec}: not a gd.denoise method ({', '.join(K.METHODS)}) nor FILE.py:FUNCTION")
-    return bench.package_methods((spec,))
+    try:
+        return bench.load_method(spec)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def parse(argv):
