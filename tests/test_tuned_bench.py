@@ -141,6 +141,28 @@ def test_cv_kalman_matches_filterpy():
     assert np.allclose(B.cv_kf(rec.z, fs, lam), ref, rtol=0, atol=1e-9)
 
 
+def test_cv_rts_smoother_matches_filterpy():
+    filterpy = pytest.importorskip("filterpy.kalman")
+    fs, lam = 200.0, 1e-4
+    T = 1 / fs
+    rec = sim.record("fog", "pendulum", 0, 1.0)
+    kf = filterpy.KalmanFilter(dim_x=2, dim_z=1)
+    kf.x = np.array([rec.z[0], 0.0])
+    kf.F = np.array([[1, T], [0, 1]])
+    kf.H = np.array([[1.0, 0.0]])
+    kf.R = np.array([[1.0]])
+    kf.Q = lam ** 2 / T ** 4 * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
+    kf.P = np.diag([1.0, 1.0 / T ** 2])
+    xs, ps = [kf.x.copy()], [kf.P.copy()]
+    for zk in rec.z[1:]:
+        kf.predict()
+        kf.update(zk)
+        xs.append(kf.x.copy())
+        ps.append(kf.P.copy())
+    sm, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps))
+    assert np.allclose(B.cv_rts(rec.z, fs, lam), sm[:, 0], rtol=0, atol=1e-9)
+
+
 def test_tuned_baselines_beat_fixed_ones():
     # seeded: a tactical MEMS on a car; the tuned Butterworth-2 and CV-KF are at
     # least as good as fixed choices a user might copy (30 Hz, 20 Hz first order)

@@ -15,7 +15,9 @@ causal
     ``raw`` -- no filter (a user may choose none).
 non-causal (offline references)
     ``savgol`` -- Savitzky-Golay, polynomial order 2 or 4, over window lengths;
-    ``zp_butter`` -- zero-phase (forward-backward) Butterworth order 1-2 over the cutoffs.
+    ``zp_butter`` -- zero-phase (forward-backward) Butterworth order 1-2 over the cutoffs;
+    ``cv_rts`` -- the Rauch-Tung-Striebel smoother of the CV model over its tracking index;
+    ``raw``.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ def _njit(fn):
 
 
 CAUSAL = ("raw", "butter1", "butter2", "one_euro", "cv_kf")
-NONCAUSAL = ("raw", "savgol", "zp_butter")   # the identity is zero-phase too
+NONCAUSAL = ("raw", "savgol", "zp_butter", "cv_rts")   # the identity is zero-phase too
 
 
 def cutoff_grid_hz(fs, quick):
@@ -160,6 +162,100 @@ def _cv_kf_run(z, fs, lam, ref, lo, hi, y):
 
 
 @_njit
+def _cv_rts_run(z, fs, lam, ref, lo, hi, y):
+    """Rauch-Tung-Striebel smoother of the same CV model (offline reference):
+    the forward pass of :func:`_cv_kf_run` storing its moments, then backwards
+    x_s[k] = x_f[k] + C (x_s[k+1] - x_p[k+1]), C = P_f[k] F' P_p[k+1]^-1."""
+    n = z.size
+    T = 1.0 / fs
+    q = lam * lam / (T ** 4)
+    q11 = q * T ** 4 / 4.0
+    q12 = q * T ** 3 / 2.0
+    q22 = q * T * T
+    xf = np.empty((n, 2))
+    pf = np.empty((n, 3))
+    xp = np.empty((n, 2))
+    pp = np.empty((n, 3))
+    x0 = z[0]
+    x1 = 0.0
+    p11 = 1.0
+    p12 = 0.0
+    p22 = 1.0 / (T * T)
+    for k in range(n):
+        if k > 0:
+            x0 = x0 + T * x1
+            n11 = p11 + 2.0 * T * p12 + T * T * p22 + q11
+            n12 = p12 + T * p22 + q12
+            n22 = p22 + q22
+            p11, p12, p22 = n11, n12, n22
+        xp[k, 0] = x0
+        xp[k, 1] = x1
+        pp[k, 0] = p11
+        pp[k, 1] = p12
+        pp[k, 2] = p22
+        if k > 0:
+            s = p11 + 1.0
+            k0 = p11 / s
+            k1 = p12 / s
+            v = z[k] - x0
+            x0 += k0 * v
+            x1 += k1 * v
+            p22 = p22 - k1 * p12
+            p12 = (1.0 - k0) * p12
+            p11 = (1.0 - k0) * p11
+        xf[k, 0] = x0
+        xf[k, 1] = x1
+        pf[k, 0] = p11
+        pf[k, 1] = p12
+        pf[k, 2] = p22
+    s0 = xf[n - 1, 0]
+    s1 = xf[n - 1, 1]
+    acc = 0.0
+    for k in range(n - 1, -1, -1):
+        if k < n - 1:
+            # C = P_f F' inv(P_p[k+1]); F' = [[1, 0], [T, 1]]
+            a11 = pf[k, 0] + T * pf[k, 1]
+            a12 = pf[k, 1]
+            a21 = pf[k, 1] + T * pf[k, 2]
+            a22 = pf[k, 2]
+            b11 = pp[k + 1, 0]
+            b12 = pp[k + 1, 1]
+            b22 = pp[k + 1, 2]
+            det = b11 * b22 - b12 * b12
+            i11 = b22 / det
+            i12 = -b12 / det
+            i22 = b11 / det
+            c11 = a11 * i11 + a12 * i12
+            c12 = a11 * i12 + a12 * i22
+            c21 = a21 * i11 + a22 * i12
+            c22 = a21 * i12 + a22 * i22
+            d0 = s0 - xp[k + 1, 0]
+            d1 = s1 - xp[k + 1, 1]
+            s0 = xf[k, 0] + c11 * d0 + c12 * d1
+            s1 = xf[k, 1] + c21 * d0 + c22 * d1
+        if y.size:
+            y[k] = s0
+        if k >= lo and k < hi:
+            e = s0 - ref[k]
+            acc += e * e
+    return math.sqrt(acc / (hi - lo))
+
+
+@_njit
+def _cv_rts_grid(z, fs, lams, ref, lo, hi, out):
+    empty = np.empty(0)
+    for g in range(lams.size):
+        out[g] = _cv_rts_run(z, fs, lams[g], ref, lo, hi, empty)
+
+
+def cv_rts(z, fs, tracking_index):
+    y = np.empty_like(z)
+    z = np.ascontiguousarray(z, dtype=float)
+    _cv_rts_run(z, float(fs), float(tracking_index), z, 0, 1, y)
+    return y
+
+
+@_njit
 def _cv_kf_grid(z, fs, lams, ref, lo, hi, out):
     empty = np.empty(0)
     for g in range(lams.size):
@@ -218,6 +314,12 @@ def tune(family, z, ref, fs, lo, hi, quick=False):
         _cv_kf_grid(z, float(fs), lams, ref, lo, hi, out)
         g = int(np.argmin(out))
         return {"tracking_index": float(lams[g])}, float(out[g]), cv_kf(z, fs, lams[g])
+    if family == "cv_rts":
+        lams = tracking_grid(quick)
+        out = np.empty(lams.size)
+        _cv_rts_grid(z, float(fs), lams, ref, lo, hi, out)
+        g = int(np.argmin(out))
+        return {"tracking_index": float(lams[g])}, float(out[g]), cv_rts(z, fs, lams[g])
     if family == "savgol":
         best = (math.inf, None, None)
         for w, p in savgol_grid(fs, z.size, quick):
