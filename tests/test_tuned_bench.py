@@ -120,47 +120,37 @@ def test_one_euro_matches_slow_reference_and_grid_scores():
     assert score == pytest.approx(bench.rmse(out, rec.ref, 100, rec.z.size), rel=1e-9)
 
 
-def test_cv_kalman_matches_filterpy():
+def _filterpy_cv(z, fs, lam):
+    """The CV model run by filterpy (independent reference): the filter and its moments."""
     filterpy = pytest.importorskip("filterpy.kalman")
-    fs, lam = 400.0, 1e-3
     T = 1 / fs
-    rec = sim.record("drone", "pendulum", 0, 1.0)
     kf = filterpy.KalmanFilter(dim_x=2, dim_z=1)
-    kf.x = np.array([rec.z[0], 0.0])
-    kf.F = np.array([[1, T], [0, 1]])
-    kf.H = np.array([[1.0, 0.0]])
-    kf.R = np.array([[1.0]])
-    q = lam ** 2 / T ** 4
-    kf.Q = q * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
-    kf.P = np.diag([1.0, 1.0 / T ** 2])
-    ref = [rec.z[0]]
-    for zk in rec.z[1:]:
-        kf.predict()
-        kf.update(zk)
-        ref.append(kf.x[0])
-    assert np.allclose(B.cv_kf(rec.z, fs, lam), ref, rtol=0, atol=1e-9)
-
-
-def test_cv_rts_smoother_matches_filterpy():
-    filterpy = pytest.importorskip("filterpy.kalman")
-    fs, lam = 200.0, 1e-4
-    T = 1 / fs
-    rec = sim.record("fog", "pendulum", 0, 1.0)
-    kf = filterpy.KalmanFilter(dim_x=2, dim_z=1)
-    kf.x = np.array([rec.z[0], 0.0])
+    kf.x = np.array([z[0], 0.0])
     kf.F = np.array([[1, T], [0, 1]])
     kf.H = np.array([[1.0, 0.0]])
     kf.R = np.array([[1.0]])
     kf.Q = lam ** 2 / T ** 4 * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
     kf.P = np.diag([1.0, 1.0 / T ** 2])
     xs, ps = [kf.x.copy()], [kf.P.copy()]
-    for zk in rec.z[1:]:
+    for zk in z[1:]:
         kf.predict()
         kf.update(zk)
         xs.append(kf.x.copy())
         ps.append(kf.P.copy())
-    sm, _, _, _ = kf.rts_smoother(np.array(xs), np.array(ps))
-    assert np.allclose(B.cv_rts(rec.z, fs, lam), sm[:, 0], rtol=0, atol=1e-9)
+    return kf, np.array(xs), np.array(ps)
+
+
+def test_cv_kalman_matches_filterpy():
+    rec = sim.record("drone", "pendulum", 0, 1.0)
+    _, xs, _ = _filterpy_cv(rec.z, 400.0, 1e-3)
+    assert np.allclose(B.cv_kf(rec.z, 400.0, 1e-3), xs[:, 0], rtol=0, atol=1e-9)
+
+
+def test_cv_rts_smoother_matches_filterpy():
+    rec = sim.record("fog", "pendulum", 0, 1.0)
+    kf, xs, ps = _filterpy_cv(rec.z, 200.0, 1e-4)
+    sm, _, _, _ = kf.rts_smoother(xs, ps)
+    assert np.allclose(B.cv_rts(rec.z, 200.0, 1e-4), sm[:, 0], rtol=0, atol=1e-9)
 
 
 def test_tuned_baselines_beat_fixed_ones():
