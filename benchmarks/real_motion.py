@@ -111,9 +111,34 @@ def write_report(out, rows, notes, methods, elapsed_s, default="motion"):
             L.append(f"| {LABEL.get(c, c)} | {w:g} s | {gm:.3f} | {wr['ratio_raw']:.3f} ({wr['trial']}) |")
     L += ["", "## Goal of issue 23 item 5", ""]
     L += [f"* {line}" for line in goal_lines(rows, methods, default)]
+    L += ["", "![ratio to raw per trial](ratios.png)", ""]
     L += ["", "## Calibration (estimated on raw, shared by every method)", ""]
     L += [f"* {t}: " + "; ".join(notes[t]) for t in trials]
     (out / "report.md").write_text("\n".join(L) + "\n")
+
+
+def plot(out, rows, methods):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    trials = list(dict.fromkeys(r["trial"] for r in rows))
+    cols = list(methods) + ["butter_tuned"]
+    idx = {(r["trial"], r["window_s"], r["method"]): r["ratio_raw"] for r in rows}
+    fig, axes = plt.subplots(len(R.WINDOWS_S), 1, figsize=(12, 3.6 * len(R.WINDOWS_S)), sharex=True, squeeze=False)
+    w = 0.8 / len(cols)
+    for ax, win in zip(axes[:, 0], R.WINDOWS_S):
+        for j, c in enumerate(cols):
+            ax.bar(np.arange(len(trials)) + j * w, [idx.get((t, win, c), np.nan) for t in trials], w,
+                   label=LABEL.get(c, c))
+        ax.set_yscale("log")
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.axhline(1.02, color="g", lw=0.8, ls="--")
+        ax.set_ylabel(f"RMS error / raw's, {win:g} s")
+    axes[-1, 0].set_xticks(np.arange(len(trials)) + 0.4, trials, rotation=40, ha="right", fontsize=7)
+    axes[0, 0].legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(out / "ratios.png", dpi=90)
+    plt.close(fig)
 
 
 def goal_lines(rows, methods, default="motion"):
@@ -168,6 +193,7 @@ def main(argv=None):
     if a.out:
         a.out.mkdir(parents=True, exist_ok=True)
         write_report(a.out, rows, notes, methods, elapsed)
+        plot(a.out, rows, methods)
         (a.out / "results.json").write_text(json.dumps({"rows": rows, "notes": notes}, indent=1, default=float))
         print(f"wrote {a.out / 'report.md'}")
     return 0
