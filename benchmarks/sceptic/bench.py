@@ -1,0 +1,302 @@
+"""Scoring methods against the tuned baselines (issue 23, item 1).
+
+API (stable; the filter work calls it)::
+
+    from sceptic import bench
+    rows = bench.evaluate({"mine": fn}, sensors=None, profiles=None, seeds=(0, 1, 2), quick=False)
+    summary = bench.summarise(rows)            # geometric means per method and sensor
+    gains = bench.gain_table({"mine": fn}, quick=True)
+    lines = bench.goal_lines(rows, gains)      # [(method, goal, value, PASS/FAIL)]
+
+``fn(rate_deg_s: ndarray, sample_rate_hz: float) -> ndarray`` (same length).
+
+Per run (sensor x profile x seed) the tuned baselines of :mod:`sceptic.baselines`
+are tuned against the reference and every method is scored on the same
+evaluation window (after ``SKIP_S``):
+
+* ``rmse``: RMSE against the reference (true rate + slow sensor bias), deg/s;
+* ``ratio_causal``: rmse / the best tuned causal filter's (raw included);
+* ``ratio_noncausal``: rmse / the best tuned non-causal filter's;
+* ``ratio_raw``: rmse / raw's;
+* ``lag_ms``: delay of the output behind the reference (cross-correlation peak of
+  both low-passed below 10 Hz, parabolic refinement), moving profiles only;
+* ``angle_err_deg`` / ``angle_err_raw_deg``: |integral of (output - reference)|
+  over the window after ``SKIP_S`` (60 s in the full run).
+
+Ratios are geometric means over seeds; angle errors RMS over seeds; lag mean.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from . import baselines as B
+from . import sim
+
+SKIP_S = 2.0
+ANGLE_WINDOW_S = 60.0
+LAG_MAX_S = 0.5
+LAG_BAND_HZ = 10.0
+
+
+def durations(quick):
+    """Record length (s): 2 s warm-up + 60 s scored (full), 2 + 10 s (quick)."""
+    return SKIP_S + (10.0 if quick else ANGLE_WINDOW_S)
+
+
+def package_methods(names=("motion", "shakf", "kf", "lowpass", "none")):
+    """gd.denoise(rate, fs, method=name) for each name, as method functions."""
+    import gyrodenoise as gd
+
+    def make(name):
+        def fn(rate_deg_s, sample_rate_hz):
+            return gd.denoise(rate_deg_s, sample_rate_hz, method=name)
+        fn.__name__ = name
+        return fn
+    return {n: make(n) for n in names}
+
+
+def load_method(spec):
+    """{name: fn} for a gd.denoise method name or ``FILE.py:FUNCTION``; ValueError
+    (one line naming the option) when neither."""
+    import importlib.util
+    from pathlib import Path
+
+    from gyrodenoise.core import kernels as K
+    if ":" in spec and spec.split(":", 1)[0].endswith(".py"):
+        path, func = spec.split(":", 1)
+        if not Path(path).is_file():
+            raise ValueError(f"--method {spec}: no file {path}")
+        mod_spec = importlib.util.spec_from_file_location(Path(path).stem, path)
+        mod = importlib.util.module_from_spec(mod_spec)
+        mod_spec.loader.exec_module(mod)
+        if not callable(getattr(mod, func, None)):
+            raise ValueError(f"--method {spec}: {path} has no function {func}")
+        return {f"{Path(path).stem}:{func}": getattr(mod, func)}
+    if spec not in K.METHODS:
+        raise ValueError(f"--method {spec}: not a gd.denoise method ({', '.join(K.METHODS)}) nor FILE.py:FUNCTION")
+    return package_methods((spec,))
+
+
+def _as_methods(method_fn):
+    if callable(method_fn):
+        return {getattr(method_fn, "__name__", "method"): method_fn}
+    return dict(method_fn)
+
+
+# ------------------------------------------------------------------ metrics
+def rmse(y, ref, lo, hi):
+    d = np.asarray(y[lo:hi], dtype=float) - ref[lo:hi]
+    return math.sqrt(float(np.mean(d * d)))
+
+
+def lag_s(y, ref, fs, lo, hi, max_s=LAG_MAX_S, band_hz=LAG_BAND_HZ):
+    """Delay of y behind ref (s): the shift k (|k| <= max_s) maximising the
+    normalised correlation of ref[lo+m : hi-m] with y shifted by k (full overlap
+    at every k), both low-passed (zero phase, same filter) below ``band_hz``: the
+    lag on manoeuvres, not the ambiguous phase of a vibration tone. Parabolic
+    refinement around the peak. NaN when the correlation has no peak inside the
+    range (the edges within 1 % of the maximum)."""
+    from scipy.signal import butter, correlate, sosfiltfilt
+    sos = butter(4, min(band_hz, 0.4 * fs), fs=fs, output="sos")
+    a = sosfiltfilt(sos, np.asarray(ref[lo:hi], dtype=float))
+    b = sosfiltfilt(sos, np.asarray(y[lo:hi], dtype=float))
+    n = a.size
+    m = max(1, min(int(max_s * fs), (n - 3) // 4))
+    ac = a[m:n - m] - a[m:n - m].mean()
+    c = correlate(b, ac, mode="valid", method="fft")            # c[j]: shift k = j - m
+    csum = np.r_[0.0, np.cumsum(b)]
+    c2sum = np.r_[0.0, np.cumsum(b * b)]
+    L = ac.size
+    mean_b = (csum[L:] - csum[:-L]) / L
+    var_b = np.maximum((c2sum[L:] - c2sum[:-L]) / L - mean_b ** 2, 1e-300)
+    ncc = c / np.sqrt(var_b)                                    # the mean of b drops out (ac has none)
+    j = int(np.argmax(ncc))
+    if ncc[j] <= 0 or (ncc[j] - max(ncc[0], ncc[-1])) < 0.01 * ncc[j]:
+        return math.nan      # no peak within +-max_s (a record too short for its slow motion)
+    frac = 0.0
+    if 0 < j < ncc.size - 1:
+        den = ncc[j - 1] - 2 * ncc[j] + ncc[j + 1]
+        frac = 0.5 * (ncc[j - 1] - ncc[j + 1]) / den if den < 0 else 0.0
+    return (j - m + frac) / fs
+
+
+def angle_error_deg(y, ref, fs, lo, hi):
+    return abs(float(np.sum(np.asarray(y[lo:hi], dtype=float) - ref[lo:hi]))) / fs
+
+
+def _geomean(x):
+    x = np.asarray([v for v in x if np.isfinite(v) and v > 0], dtype=float)
+    return float(np.exp(np.mean(np.log(x)))) if x.size else math.nan
+
+
+# ------------------------------------------------------------------ one run
+def run_one(rec, methods, quick=False):
+    """Score ``methods`` and the tuned baselines on one record: {name: metrics}."""
+    fs = rec.sample_rate_hz
+    lo, hi = int(SKIP_S * fs), rec.z.size
+    outputs, params = {}, {}
+    for fam in dict.fromkeys(B.CAUSAL + B.NONCAUSAL):
+        params[fam], _, outputs[fam] = B.tune(fam, rec.z, rec.ref, fs, lo, hi, quick)
+    for name, fn in methods.items():
+        y = np.asarray(fn(rec.z.copy(), fs), dtype=float)
+        if y.shape != rec.z.shape:
+            raise ValueError(f"method {name!r} returned shape {y.shape}, expected {rec.z.shape}")
+        outputs[name] = y
+    scores = {k: rmse(y, rec.ref, lo, hi) for k, y in outputs.items()}
+    best_c = min(scores[f] for f in B.CAUSAL)
+    best_nc = min(scores[f] for f in B.NONCAUSAL)
+    moving = rec.profile in sim.MOVING
+    angle_raw = angle_error_deg(rec.z, rec.ref, fs, lo, hi)
+    out = {}
+    for k, y in outputs.items():
+        out[k] = {"rmse": scores[k], "ratio_causal": scores[k] / best_c,
+                  "ratio_noncausal": scores[k] / best_nc, "ratio_raw": scores[k] / scores["raw"],
+                  "lag_ms": 1e3 * lag_s(y, rec.ref, fs, lo, hi) if moving else math.nan,
+                  "angle_err_deg": angle_error_deg(y, rec.ref, fs, lo, hi),
+                  "angle_err_raw_deg": angle_raw, "params": params.get(k, {})}
+    out["best_causal"] = {"rmse": best_c, "ratio_causal": 1.0, "ratio_noncausal": best_c / best_nc,
+                          "ratio_raw": best_c / scores["raw"], "lag_ms": math.nan,
+                          "angle_err_deg": math.nan, "angle_err_raw_deg": angle_raw, "params": {}}
+    return out
+
+
+def evaluate(method_fn, sensors=None, profiles=None, seeds=(0, 1, 2), quick=False,
+             duration_s=None, progress=None):
+    """Rows (dicts) per sensor x profile x method: the metrics of the module doc,
+    aggregated over ``seeds``. ``method_fn``: a callable or {name: callable}."""
+    methods = _as_methods(method_fn)
+    sensors = list(sensors or sim.SENSORS)
+    profiles = list(profiles or sim.PROFILES)
+    dur = duration_s or durations(quick)
+    rows = []
+    for s in sensors:
+        for p in profiles:
+            t0 = time.perf_counter()
+            runs = [run_one(sim.record(s, p, seed, dur), methods, quick) for seed in seeds]
+            for name in runs[0]:
+                r = [run[name] for run in runs]
+                rows.append({
+                    "sensor": s, "profile": p, "method": name, "n_seeds": len(r),
+                    "rmse": float(np.sqrt(np.mean([x["rmse"] ** 2 for x in r]))),
+                    "ratio_causal": _geomean([x["ratio_causal"] for x in r]),
+                    "ratio_noncausal": _geomean([x["ratio_noncausal"] for x in r]),
+                    "ratio_raw": _geomean([x["ratio_raw"] for x in r]),
+                    "lag_ms": float(np.nanmean([x["lag_ms"] for x in r])) if any(
+                        np.isfinite(x["lag_ms"]) for x in r) else math.nan,
+                    "angle_err_deg": float(np.sqrt(np.mean([x["angle_err_deg"] ** 2 for x in r]))),
+                    "angle_err_raw_deg": float(np.sqrt(np.mean([x["angle_err_raw_deg"] ** 2 for x in r]))),
+                    "params": [x["params"] for x in r]})
+            if progress:
+                progress(f"{s:9s} {p:12s} {len(seeds)} seed(s) {time.perf_counter() - t0:5.1f} s")
+    return rows
+
+
+def summarise(rows):
+    """{method: {"overall": gm, "worst": (ratio, sensor, profile), sensor: gm, ...}}
+    of ratio_causal (and "<sensor>_noncausal" of ratio_noncausal)."""
+    out = {}
+    for m in dict.fromkeys(r["method"] for r in rows):
+        mr = [r for r in rows if r["method"] == m]
+        d = {"overall": _geomean([r["ratio_causal"] for r in mr]),
+             "overall_noncausal": _geomean([r["ratio_noncausal"] for r in mr])}
+        w = max(mr, key=lambda r: r["ratio_causal"])
+        d["worst"] = (w["ratio_causal"], w["sensor"], w["profile"])
+        for s in dict.fromkeys(r["sensor"] for r in mr):
+            sr = [r for r in mr if r["sensor"] == s]
+            d[s] = _geomean([r["ratio_causal"] for r in sr])
+            d[s + "_noncausal"] = _geomean([r["ratio_noncausal"] for r in sr])
+        out[m] = d
+    return out
+
+
+# ------------------------------------------------------------------ gain vs frequency
+GAIN_FRACS = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45)
+GAIN_LOW_HZ = (0.1, 1.0)
+GAIN_SNR = (3.0, 30.0)
+
+
+def sine_gain(y, f_hz, fs, lo, hi, amp):
+    """Amplitude of y at f_hz (least squares with a constant and a slope) / amp."""
+    t = np.arange(lo, hi) / fs
+    X = np.column_stack([np.sin(2 * np.pi * f_hz * t), np.cos(2 * np.pi * f_hz * t),
+                         np.ones_like(t), t - t.mean()])
+    c, *_ = np.linalg.lstsq(X, np.asarray(y[lo:hi], dtype=float), rcond=None)
+    return math.hypot(c[0], c[1]) / amp
+
+
+def gain_table(method_fn, sensors=None, quick=False, snrs=GAIN_SNR, seed=0, progress=None,
+               baselines=("best_causal",)):
+    """Rows {sensor, f_hz, f_frac, snr, amp, method, gain}: a pure sinusoid of
+    amplitude snr x the sensor's noise std (plus every sensor error) through each
+    method; the tuned baselines (tuned on that record) as ``best_causal``. The
+    gain is fitted on output - the simulated slow bias (a drifting bias is not
+    the sine's amplitude), over at least 5 periods."""
+    methods = _as_methods(method_fn)
+    rows = []
+    dur = 8.0 if quick else 20.0
+    for s in (sensors or sim.SENSORS):
+        sensor = sim.SENSORS[s]
+        fs = sensor.sample_rate_hz
+        lo = int(SKIP_S * fs)
+        freqs = [f for f in GAIN_LOW_HZ] + [r * fs for r in GAIN_FRACS]
+        for snr in snrs:
+            amp = snr * sensor.noise_std_deg_s
+            for i, f in enumerate(freqs):
+                n = int(max(dur, SKIP_S + 5.0 / f) * fs)    # at least 5 periods scored
+                t = np.arange(n) / fs
+                truth = amp * np.sin(2 * np.pi * f * t + 0.3)
+                rec = sim.record(s, f"sine{i}", seed, n / fs, truth=truth)
+                bias = rec.ref - rec.truth     # the slow sensor errors are not the sine's
+                outs = {k: fn(rec.z.copy(), fs) for k, fn in methods.items()}
+                outs["raw"] = rec.z
+                if "best_causal" in baselines:
+                    best = min((B.tune(fam, rec.z, rec.ref, fs, lo, n, True) for fam in B.CAUSAL),
+                               key=lambda x: x[1])
+                    outs["best_causal"] = best[2]
+                for k, y in outs.items():
+                    rows.append({"sensor": s, "f_hz": f, "f_frac": f / fs, "snr": snr, "amp": amp,
+                                 "method": k, "gain": sine_gain(y - bias, f, fs, lo, n, amp)})
+            if progress:
+                progress(f"gain {s:9s} snr {snr:g}")
+    return rows
+
+
+# ------------------------------------------------------------------ goals (issue 23 item 2)
+def goal_lines(rows, gains, methods=None):
+    """[(method, goal text, measured, 'PASS'|'FAIL')] for the measurable lines of item 2."""
+    methods = methods or [m for m in dict.fromkeys(r["method"] for r in rows)
+                          if m not in B.CAUSAL + B.NONCAUSAL + ("best_causal",)]
+    summ = summarise(rows)
+    out = []
+    for m in methods:
+        mr = [r for r in rows if r["method"] == m]
+        if not mr:
+            continue
+        gm = summ[m]["overall"]
+        out.append((m, "geometric mean <= 1.10x best tuned causal", f"{gm:.2f}x", gm <= 1.10))
+        w = summ[m]["worst"]
+        out.append((m, "no profile worse than 2x", f"worst {w[0]:.2f}x ({w[1]} {w[2]})", w[0] <= 2.0))
+        wr = max(mr, key=lambda r: r["ratio_raw"])
+        out.append((m, "never worse than raw (RMSE ratio to raw <= 1.00)",
+                    f"worst {wr['ratio_raw']:.3f} ({wr['sensor']} {wr['profile']})",
+                    wr["ratio_raw"] <= 1.0 + 5e-4))
+        mg = [g for g in gains if g["method"] == m and g["snr"] >= 3.0]
+        if mg:
+            wg = max(mg, key=lambda g: abs(g["gain"] - 1.0))
+            out.append((m, "gain within 5 % of 1, DC-0.45 fs, sinusoids >= 3 sigma",
+                        f"worst {wg['gain']:.3f} ({wg['sensor']}, {wg['f_hz']:.3g} Hz = {wg['f_frac']:.3f} fs, "
+                        f"{wg['snr']:g} sigma)", abs(wg["gain"] - 1.0) <= 0.05))
+        ar = [r["angle_err_deg"] / r["angle_err_raw_deg"] for r in mr if r["angle_err_raw_deg"] > 0]
+        wa = max(mr, key=lambda r: r["angle_err_deg"] / max(r["angle_err_raw_deg"], 1e-300))
+        out.append((m, "integrated angle error no worse than raw's (ratio <= 1.05, RMS over seeds)",
+                    f"worst {max(ar):.2f}x ({wa['sensor']} {wa['profile']})", max(ar) <= 1.05))
+        rest = [r for r in mr if r["profile"] == "static_ramp"]
+        if rest:
+            wr = min(rest, key=lambda r: 1.0 / r["ratio_raw"])
+            out.append((m, "at rest (static with bias ramp) >= 5x below raw",
+                        f"worst {1.0 / wr['ratio_raw']:.1f}x ({wr['sensor']})", 1.0 / wr["ratio_raw"] >= 5.0))
+    return [(m, g, v, "PASS" if ok else "FAIL") for m, g, v, ok in out]
