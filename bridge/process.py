@@ -326,7 +326,7 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
             else:
                 s.non_finite[k] = len(fin)
         s.filtered = f * back
-        s.left_raw = check_filtered(s, x, f, usable)
+        s.left_raw = check_filtered(s, x, f, usable, causal=not getattr(engine, "zero_phase", False))
         if s.left_raw:
             f = x.copy()
             s.filtered = s.raw.astype(np.float64)          # the raw values, bit for bit
@@ -350,11 +350,12 @@ def not_filtered_reason(s, method, warmup_samples, rate, sample_rate=None):
     return "the filter's output equals the raw input on every sample: the stream is written raw"
 
 
-def check_filtered(s, x, f, usable):
+def check_filtered(s, x, f, usable, causal=True):
     """None, or one line saying why stream ``s`` must not be written filtered:
     an axis whose output (work units ``f``) is not finite or leaves the raw
     envelope of its session (:func:`gyrodenoise.motion_metrics.envelope_violation`,
-    over the samples fed to the filter), or a value that does not fit the log's
+    over the samples fed to the filter; the whole session's range for a zero-phase
+    filter, ``causal=False``), or a value that does not fit the log's
     field type (:func:`bridge.streams.field_misfit`)."""
     from gyrodenoise.motion_metrics import envelope_violation
     problems = []
@@ -362,7 +363,7 @@ def check_filtered(s, x, f, usable):
         fin = usable[:, k]
         if not fin.any():
             continue
-        v = envelope_violation(x[fin, k], f[fin, k], _sub_restarts(s.restarts, fin))
+        v = envelope_violation(x[fin, k], f[fin, k], _sub_restarts(s.restarts, fin), causal=causal)
         if v is not None:
             i = int(np.flatnonzero(fin)[v["sample"]])
             problems.append(f"{a}: filtered value {v['value']:.6g} at sample {i} (t={s.time_s[i]:.3f} s) "
