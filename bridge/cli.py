@@ -472,10 +472,10 @@ def _axis_line(s, a):
     line = f"      {a}: noise {_fmt(nz['raw'])} -> {_fmt(nz['filtered'])} {s['noise_unit']}"
     if s.get("left_raw"):
         return line + "  (stream left raw: see above)\n"
-    if s.get("too_slow_to_denoise"):
-        return line + "  (written raw: too slow to denoise; no improvement figure)\n"
-    if s.get("not_filtered"):
-        return line + "  (not filtered: see above)\n"
+    if s.get("too_slow_to_denoise") or s.get("not_filtered"):
+        # written raw: no "raw -> filtered" that would read as a result
+        why = "too slow to denoise" if s.get("too_slow_to_denoise") else "not filtered: see above"
+        return f"      {a}: noise {_fmt(nz['raw'])} {s['noise_unit']}  (written raw: {why})\n"
     line += f" (x{_fmt(nz['ratio'], 3)})"
     m = (s.get("motion") or {}).get(a)
     if m is not None and m.get("motion_above_noise") is False:

@@ -222,11 +222,11 @@ def plot_title(rows):
     other = {r["log"] for r in rest} - slow
     why = []
     if slow:
-        why.append(f"{len(slow)} log(s) whose streams are all telemetry below 20 Hz (too slow to denoise, written raw)")
+        why.append(f"{len(slow)} log(s) with telemetry streams only, below 20 Hz (too slow to denoise, written raw)")
     if other:
         why.append(f"{len(other)} log(s) whose streams have no density (unit unknown, or not measurable)")
-    return ("Gyro noise per log and stream\n(grey, red name: log failed"
-            + "".join(f"; {w}" for w in why) + (": in the table only)" if why else ")"))
+    return ("Gyro noise per log and stream (grey, red name: log failed)"
+            + "".join(f";\n{w}" for w in why) + (":\nin the table only" if why else ""))
 
 
 def _plot(rows, path):
@@ -239,19 +239,22 @@ def _plot(rows, path):
     # slow to denoise) are in the table only
     logs = sorted({r["log"] for r in ok} | set(failed))
     xi = {name: i for i, name in enumerate(logs)}
-    streams = sorted({r["stream"] for r in ok})
+    # one colour per IMU as compared across the fleet (IMU and IMU[0] alike)
+    groups = sorted({r["compared_as"] for r in ok})
     # side by side within a log, so that two IMUs with the same density both show
-    dx = {name: (k - (len(streams) - 1) / 2.0) * min(0.12, 0.6 / max(1, len(streams)))
-          for k, name in enumerate(streams)}
-    fig, ax = plt.subplots(figsize=(max(7.0, 0.45 * len(logs) + 3), 4.8))
-    for stream in streams:
-        pts = [r for r in ok if r["stream"] == stream]
-        label = stream if compared_as(stream) == stream else f"{stream} (as {compared_as(stream)})"
-        ax.plot([xi[r["log"]] + dx[stream] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o",
+    dx = {name: (k - (len(groups) - 1) / 2.0) * min(0.12, 0.6 / max(1, len(groups)))
+          for k, name in enumerate(groups)}
+    fig, ax = plt.subplots(figsize=(max(7.0, 0.45 * len(logs) + 3), 5.2))
+    for g in groups:
+        pts = [r for r in ok if r["compared_as"] == g]
+        other = sorted({r["stream"] for r in pts} - {g})
+        label = g + (f" (also named {', '.join(other)})" if other else "")
+        ax.plot([xi[r["log"]] + dx[g] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o",
                 label=label)
     flagged = [r for r in ok if r.get("flag")]
     if flagged:
-        ax.plot([xi[r["log"]] + dx[r["stream"]] for r in flagged], [r["noise_density_deg_s_rthz"] for r in flagged],
+        ax.plot([xi[r["log"]] + dx[r["compared_as"]] for r in flagged],
+                [r["noise_density_deg_s_rthz"] for r in flagged],
                 "o", ms=14, mfc="none", mec="red", label="noisier than the fleet")
     for name in failed:
         ax.axvspan(xi[name] - 0.4, xi[name] + 0.4, color="0.85", lw=0)

@@ -134,9 +134,14 @@ def _plot_data(t, x, f, restarts):
     """What the plot needs: per axis the min/max envelopes, the restart times, their
     boot times (labels when the plot's time is not the boot time) and the x label."""
     pt, xlabel = plot_time(t, restarts)
-    lines = [(_envelope(pt, x[:, k]), _envelope(pt, f[:, k])) for k in range(x.shape[1])]
     labels = None if pt is t or np.array_equal(pt, t) else np.asarray(t, dtype=np.float64)[restarts]
-    return lines, pt[restarts], labels, xlabel
+    rt = pt[restarts]
+    cut = np.flatnonzero(restarts)          # no line drawn across a restart (a gap, a reboot)
+    if len(cut):
+        pt, x, f = (np.insert(pt, cut, np.nan), np.insert(x, cut, np.nan, axis=0),
+                    np.insert(f, cut, np.nan, axis=0))
+    lines = [(_envelope(pt, x[:, k]), _envelope(pt, f[:, k])) for k in range(x.shape[1])]
+    return lines, rt, labels, xlabel
 
 
 def _draw(path, title, pdata, unit, axes):
@@ -154,8 +159,8 @@ def _draw(path, title, pdata, unit, axes):
                       linestyles="--", label="restart")
         if k == 0 and rlabels is not None and len(rt) <= 20:
             for x0, tb in zip(rt, rlabels):
-                ax.text(x0, 0.98, f" t={tb:.1f} s", transform=ax.get_xaxis_transform(), fontsize=6,
-                        color="C3", va="top")
+                ax.text(x0, 0.02, f" t={tb:.1f} s", transform=ax.get_xaxis_transform(), fontsize=7,
+                        color="C3", va="bottom")
         ax.set_ylabel(f"{axes[k]} [{unit}]")
         ax.grid(True, lw=0.3)
     axs[0].legend(loc="upper right", fontsize=8, ncol=3)

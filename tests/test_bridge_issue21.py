@@ -85,7 +85,7 @@ def test_streams_never_filtered_say_why(tmp_path):
     assert status == 0
     assert out.count("NOT FILTERED: its one session is 45 samples, not longer than the filter's warm-up "
                      "of 50 samples") == 2
-    assert "corr -" not in out and "(not filtered: see above)" in out
+    assert "corr -" not in out and out.count("(written raw: not filtered: see above)") == 6 and "->" not in out
     rep = process.process_log(log, tmp_path / "b", plots=False, csv=False)
     assert all(s["not_filtered"] for s in rep["streams"])
     rep = process.process_log(log, tmp_path / "c", plots=False, csv=False, warmup_s=0.1)

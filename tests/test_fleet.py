@@ -133,4 +133,4 @@ def test_table_labels_rates_and_slow_rows(tmp_path):
     assert paths[2].read_bytes().endswith(b"IEND\xaeB`\x82")
     from bridge.fleet import plot_title
     title = plot_title(fleet_rows(_summary(logs)))
-    assert "1 log(s) whose streams are all telemetry below 20 Hz" in title and "no stream to denoise" not in title
+    assert "1 log(s) with telemetry streams only, below 20 Hz" in title and "no stream to denoise" not in title
