@@ -497,6 +497,14 @@ def _options_text(r):
     return f", Butterworth order {o.get('order', 2)}, {'zero phase' if o.get('zero_phase') else 'causal'}"
 
 
+def _filter_rate_text(s, summary):
+    """'  (filtered as 100 Hz: --sample-rate)' when the filter's rate is not the measured one."""
+    fr, r = s.get("filter_rate_hz"), s.get("rate_hz")
+    if fr is None or (r is not None and abs(fr - r) <= 1e-9 * r):
+        return ""
+    return f"  (filtered as {_fmt(fr)} Hz: --sample-rate)"
+
+
 def _print_text(summary):
     out = sys.stdout
     for r in summary["logs"]:
@@ -509,7 +517,8 @@ def _print_text(summary):
         for s in r["streams"]:
             out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
                       f"{s['restarts']} restart(s)  unit {s['field_unit']}"
-                      f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
+                      f"{'' if s['unit_known'] else ' (scale unknown)'}"
+                      f"{_filter_rate_text(s, summary)}\n")
             if s.get("left_raw"):
                 out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
             if s.get("all_zero"):

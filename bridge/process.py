@@ -26,7 +26,7 @@ from gyrodenoise.errors import InputError
 from . import dataflash
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 
-from .stopping import as_child, atomic_path, stop_processes
+from .stopping import as_child, atomic_path, signals_blocked, stop_processes
 from .streams import NOISE_METRIC, detect_restarts, field_misfit, noise_per_axis
 
 MOTION_METRIC = ("per axis, over each session after the filter's warm-up: the 0-5 Hz content of "
@@ -205,7 +205,8 @@ class Plotter:
             for _ in range(max(1, int(helpers))):
                 conn, child = ctx.Pipe()
                 proc = ctx.Process(target=_plot_loop, args=(child,), daemon=True)
-                proc.start()
+                with signals_blocked():           # until the helper ignores SIGINT itself
+                    proc.start()
                 child.close()
                 # a thread does the sending: a send blocks while the helper is still importing
                 q = queue.Queue()
@@ -658,7 +659,8 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
             # at once (the pool's own shutdown would wait for the logs under way)
             ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx, initializer=as_child)
             try:
-                futures = {ex.submit(run_task, tasks[i]): i for i in largest_first(tasks)}
+                with signals_blocked():           # the workers are forked by the first submit
+                    futures = {ex.submit(run_task, tasks[i]): i for i in largest_first(tasks)}
                 for fut in cf.as_completed(futures):
                     t = tasks[futures[fut]]
                     try:

@@ -8,6 +8,10 @@ and output files that are either complete or absent.
   (die at once; the parent's handler is inherited through fork), and on Linux
   ``PR_SET_PDEATHSIG`` = SIGTERM: the child is killed by the kernel when its
   parent dies, however it dies (even SIGKILL).
+* :func:`signals_blocked` -- around the fork of such children: SIGINT and SIGTERM
+  wait (pending) until the child has set itself up and the parent is past the
+  fork, so that a Ctrl-C at that very moment reaches neither with the parent's
+  handler in the child (a traceback) nor before the child ignores it.
 * :func:`stop_processes` -- what the parent does on an interrupt: SIGTERM to
   each child, a short wait, SIGKILL to any that is left.
 * :func:`atomic_path` -- every output file is written under a partial name
@@ -30,10 +34,30 @@ STOP_WAIT_S = 2.0
 PARTIAL_SUFFIX = ".partial"
 
 
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def signals_blocked():
+    """Block SIGINT and SIGTERM in the calling thread for the block (children forked
+    in it inherit the mask; :func:`as_child` unblocks it in them); signals that
+    arrive meanwhile are delivered when the block ends."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def as_child():
     """Signal set-up of a forked child process (see the module's docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if hasattr(signal, "pthread_sigmask"):       # forked inside signals_blocked()
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
     if sys.platform.startswith("linux"):
         try:
             import ctypes

@@ -164,3 +164,11 @@ def test_count_with_a_log_file_is_refused(tmp_path):
     assert status == 2 and out == "" and not (tmp_path / "o").exists()
     assert err.strip() == ("gyrodenoise: error: --count applies to a live link (udpin:, tcp:, ...) only, "
                            "not to log files")
+
+
+def test_summary_says_the_rate_given_by_sample_rate(tmp_path):
+    """--sample-rate was reported as the measured "25 Hz" only; the text says the
+    filter's rate when it is another."""
+    status, out, _ = _main(DATA / "ardusub_small.BIN", "-o", tmp_path, "--sample-rate", "100", "--no-plots",
+                           "--no-csv")
+    assert status == 0 and "25 Hz  0 restart(s)  unit rad/s  (filtered as 100 Hz: --sample-rate)" in out
