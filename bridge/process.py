@@ -240,22 +240,26 @@ class Plotter:
             self.pending[i] += 1
 
     def close(self):
-        """Wait for the helpers; raise RuntimeError with the first failure."""
+        """Wait for the helpers; raise RuntimeError with the first failure. An
+        interrupt while waiting stops them at once (:meth:`abort`)."""
         errors = []
-        for proc, conn, q, th, n in zip(self.procs, self.conns, self.queues, self.threads, self.pending):
-            try:
-                for _ in range(n):
-                    r = conn.recv()
-                    if r:
-                        errors.append(r)
-            except EOFError:
-                errors.append("plot helper process ended unexpectedly")
-            finally:
+        try:
+            for proc, conn, q, th, n in zip(self.procs, self.conns, self.queues, self.threads, self.pending):
+                try:
+                    for _ in range(n):
+                        r = conn.recv()
+                        if r:
+                            errors.append(r)
+                except EOFError:
+                    errors.append("plot helper process ended unexpectedly")
                 q.put(None)
                 th.join(timeout=30)
                 proc.join(timeout=30)
                 if proc.is_alive():
                     proc.terminate()
+        except BaseException:
+            self.abort()
+            raise
         self.procs = []
         if errors:
             raise RuntimeError(errors[0])
