@@ -6,6 +6,13 @@ alternately, ``--repeat`` times; the medians and their ratio are printed.
 Target (issue 13): ratio <= 1.1.
 
     .venv/bin/python benchmarks/bench_bridge.py [LOG] [--repeat 5]
+    .venv/bin/python benchmarks/bench_bridge.py [LOG] --against REV [--repeat 7]
+
+``--against REV`` instead times ``gyrodenoise mavlink LOG`` (with and without
+plots) of this tree and of the commit REV, alternately, in fresh processes of
+this interpreter: REV is checked out into a temporary git worktree and given
+this tree's compiled C core (the comparison is of the Python around it; REV
+must have the same C core), and the medians and their ratio are printed.
 
 The bridge run does everything the command does by default: parse, detect
 restarts, denoise 3 streams x 3 axes, write the filtered log, 3 CSV files and
@@ -60,13 +67,50 @@ def timed(cmd, **kw):
     return dt, r.stdout
 
 
+RUN_TREE = ("import sys; sys.path.insert(0, sys.argv.pop(1)); sys.argv[0] = 'gyrodenoise'; "
+            "from gyrodenoise.cli import entry; entry()")
+
+
+def against(log, rev, repeat):
+    """This tree against commit ``rev``, alternately (see the module's docstring)."""
+    import shutil
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp) / "rev"
+        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(base), rev], check=True)
+        try:
+            for so in REPO.joinpath("gyrodenoise").rglob("*.so"):
+                shutil.copy2(so, base / so.relative_to(REPO))
+            trees = {rev: base, "this tree": REPO}
+            for extra in ([], ["--no-plots"]):
+                times = {k: [] for k in trees}
+                for i in range(repeat + 1):                      # the first round warms up
+                    for name, root in trees.items():
+                        dt, _ = timed([sys.executable, "-c", RUN_TREE, str(root), "mavlink", log,
+                                       "-o", str(Path(tmp) / f"out{len(name)}"), "--json", *extra])
+                        if i:
+                            times[name].append(dt)
+                med = {k: statistics.median(v) for k, v in times.items()}
+                for k, v in times.items():
+                    print(f"{k:>12} {' '.join(extra) or '(log+CSV+PNG)':>14}: median {med[k]:.3f} s  "
+                          f"(runs: {', '.join(f'{x:.2f}' for x in v)})")
+                print(f"  ratio this tree / {rev}: {med['this tree'] / med[rev]:.3f}")
+        finally:
+            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(base)], check=False)
+    print(f"cores: {os.cpu_count()}, load average: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("log", nargs="?", default=str(DEFAULT_LOG))
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--against", default=None, metavar="REV",
+                    help="time this tree against commit REV instead (see the module's docstring)")
     a = ap.parse_args(argv)
     if not Path(a.log).is_file():
         raise SystemExit(f"{a.log}: not found (the shared data folder is needed)")
+    if a.against:
+        return against(a.log, a.against, a.repeat)
     bare_t, bridge_t, noplot_t, floor_t = [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         # one warm-up run of each (OS file cache, imports)

@@ -32,8 +32,12 @@ fails is written RAW (unfiltered) into the filtered log, with one line on stderr
 The summary gives, per axis, the noise figure (raw -> filtered) and beside it
 the 0-5 Hz motion the filter kept (correlation, amplitude %) and the lag it
 added; it warns when the filter removed most of the real motion. Streams
-sampled below 20 Hz (telemetry RAW_IMU at 1-4 Hz) are too slow to denoise and
-get a note instead of an improvement figure.
+sampled below 20 Hz (telemetry RAW_IMU at 1-4 Hz) are too slow to denoise: they
+are written raw (unfiltered, bit for bit) with a note instead of an improvement
+figure. A stream the filter never changed (every session shorter than its
+warm-up, e.g. the 2 kHz batch sampler's 1024-sample bursts) says why.
+With --method lowpass the summary gives each stream's cutoff (default
+min(20 Hz, rate / 4): 12.5 Hz on a 50 Hz log).
 
 exit status:
   0  every log processed, every stream filtered
@@ -41,6 +45,9 @@ exit status:
   2  bad usage or bad input (an option value, a path, a log that cannot be used):
      one line on stderr naming the option or file; with --json one JSON object
      on stdout with "error" in it
+  130 interrupted (SIGINT, Ctrl-C), 143 terminated (SIGTERM): one line on stderr,
+     every worker and plot process stopped, no partial output file (files are
+     written under a temporary name and renamed when complete)
 """
 
 
@@ -78,13 +85,21 @@ def register_cli(subparsers):
                    help=f"filter (default {DEFAULT_METHOD}: follows manoeuvres, averages at rest; "
                         f"shakf: the paper's modified Sage-Husa AKF; kf; sh_classic; lowpass: "
                         f"causal Butterworth at the core's default cutoff; none)")
+    p.add_argument("--cutoff-hz", type=_float, default=None, metavar="HZ",
+                   help="--method lowpass: -3 dB cutoff (default min(20 Hz, a quarter of each stream's "
+                        "sample rate); the summary gives the one applied per stream)")
+    p.add_argument("--order", type=_int, default=None, metavar="N",
+                   help="--method lowpass: Butterworth order 1..8 (default 2)")
+    p.add_argument("--zero-phase", action="store_true",
+                   help="--method lowpass: filter forwards then backwards, each session on its own (no "
+                        "lag, squared magnitude; offline files only, not --engine fmu or a live link)")
     p.add_argument("--ar-order", type=_int, default=3, metavar="N",
                    help=f"AR model order, 1..{MAX_AR_ORDER} (default 3)")
     p.add_argument("--gap-factor", type=_float, default=5.0, metavar="K",
                    help="a time step over K times the recent sample period is a restart (default 5)")
     p.add_argument("--sample-rate", type=_float, default=None, metavar="HZ",
-                   help="filter sample rate for every stream (default: measured per stream; it only "
-                        "sets the warm-up length)")
+                   help=f"filter sample rate for every stream, 0 < HZ <= {MAX_SAMPLE_RATE_HZ:g} (default: "
+                        f"measured per stream; it sets the warm-up length and the low-pass design)")
     p.add_argument("--warmup-s", type=_float, default=None, metavar="S",
                    help="warm-up after each restart, raw passed through (default: the core's, 1 s; "
                         "at least 10(n+1) samples); short bursts such as the 2 kHz batch sampler "
@@ -104,8 +119,10 @@ def register_cli(subparsers):
     live = p.add_argument_group("live link (LOG is a connection string)")
     live.add_argument("--forward", default=None, metavar="CONN",
                       help="output connection, e.g. udpout:127.0.0.1:14551 (default: none, only report)")
-    live.add_argument("--duration", type=_float, default=None, metavar="S", help="stop after S seconds")
-    live.add_argument("--count", type=_int, default=None, metavar="N", help="stop after N messages")
+    live.add_argument("--duration", type=_float, default=None, metavar="S",
+                      help="stop after S seconds (live link only; refused with log files)")
+    live.add_argument("--count", type=_int, default=None, metavar="N",
+                      help="stop after N messages (live link only; refused with log files)")
     p.set_defaults(func=run)
     _one_line_errors(p)
     return p
@@ -156,9 +173,12 @@ MAX_AR_ORDER = 64
 #: --warmup-s above this (s) is refused: longer than any log, and warmup_s x rate
 #: must stay a finite number of samples
 MAX_WARMUP_S = 1.0e6
+#: --sample-rate above this (Hz) is refused: no gyro is sampled faster (the fastest
+#: in logs is the 2 kHz batch sampler), and the warm-up of 1 s would be 1e5 samples
+MAX_SAMPLE_RATE_HZ = 1.0e5
 #: sample rate used to check the core's parameters when --sample-rate is not given
 #: (measured per stream; the fastest seen in logs is the 2 kHz batch sampler)
-_CHECK_RATE_HZ = 1.0e5
+_CHECK_RATE_HZ = MAX_SAMPLE_RATE_HZ
 
 
 def _finite_num(v):
@@ -181,8 +201,16 @@ def _check(args):
         raise InputError(f"--ar-order must be 1..{MAX_AR_ORDER}, got {args.ar_order}")
     if not (_finite_num(args.gap_factor) and args.gap_factor > 1):
         raise InputError(f"--gap-factor must be a finite number > 1, got {args.gap_factor}")
-    if args.sample_rate is not None and not (_finite_num(args.sample_rate) and args.sample_rate > 0):
-        raise InputError(f"--sample-rate must be a finite number > 0 Hz, got {args.sample_rate}")
+    if args.sample_rate is not None and not (_finite_num(args.sample_rate) and
+                                             0 < args.sample_rate <= MAX_SAMPLE_RATE_HZ):
+        raise InputError(f"--sample-rate must be a number of Hz in (0, {MAX_SAMPLE_RATE_HZ:g}], "
+                         f"got {args.sample_rate:g}")
+    lp = [opt for opt, v in (("--cutoff-hz", args.cutoff_hz), ("--order", args.order),
+                             ("--zero-phase", args.zero_phase or None)) if v is not None]
+    if lp and args.method != "lowpass":
+        raise InputError(f"{lp[0]} applies to --method lowpass only, not {args.method}")
+    if args.cutoff_hz is not None and not (_finite_num(args.cutoff_hz) and args.cutoff_hz > 0):
+        raise InputError(f"--cutoff-hz must be a finite number > 0 Hz, got {args.cutoff_hz}")
     if args.warmup_s is not None and not (_finite_num(args.warmup_s) and 0 <= args.warmup_s <= MAX_WARMUP_S):
         raise InputError(f"--warmup-s must be a number of seconds in [0, {MAX_WARMUP_S:g}], "
                          f"got {args.warmup_s}")
@@ -197,6 +225,8 @@ def _check(args):
             kw["warmup_s"] = args.warmup_s
         make_params(ar_order=args.ar_order, method=args.method,
                     sample_rate_hz=args.sample_rate or _CHECK_RATE_HZ, **kw)
+        # the cutoff is checked against each stream's rate when it is filtered
+        # (a stream too slow for it is written raw, with the reason)
     except OverflowError as exc:
         raise InputError(f"--warmup-s {args.warmup_s} x --sample-rate {args.sample_rate}: the warm-up is "
                          f"not a finite number of samples ({exc})") from None
@@ -211,7 +241,8 @@ def _check(args):
 
 
 _PARAM_OPTION = {"warmup_s": "--warmup-s", "sample_rate_hz": "--sample-rate", "ar_order": "--ar-order",
-                 "outlier_sigma": "--outlier-sigma", "outlier_run": "--outlier-run", "method": "--method"}
+                 "outlier_sigma": "--outlier-sigma", "outlier_run": "--outlier-run", "method": "--method",
+                 "cutoff_hz": "--cutoff-hz", "order": "--order"}
 
 
 def _option_named(msg):
@@ -222,22 +253,47 @@ def _option_named(msg):
     return msg
 
 
-def _check_out(out):
-    """-o OUT must be a folder we can create/write: one line naming it otherwise."""
+def _check_out(out, created=None):
+    """-o OUT must be a folder we can create/write: one line naming it otherwise.
+    The folders it creates are appended to ``created`` (outermost first), so that
+    a run that fails removes them again (:func:`_clean_up`)."""
     p = Path(out)
     if p.exists() and not p.is_dir():
         raise InputError(f"-o {out}: exists and is not a folder")
+    new = [q for q in [p, *p.parents] if not q.exists()][::-1]
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"-o {out}: cannot create the output folder ({exc.strerror or exc})") from None
+    finally:
+        if created is not None:
+            created += [q for q in new if q.is_dir()]
     if not os.access(p, os.W_OK | os.X_OK):
         raise InputError(f"-o {out}: output folder is not writable")
+
+
+def _clean_up(out, created):
+    """After a failed or interrupted run: the partial files in ``out``
+    (:mod:`bridge.stopping`), then the folders this run created, if empty."""
+    from .cluster import is_url
+    from .stopping import remove_partials
+    if out is None or is_url(out):
+        return
+    remove_partials(out)
+    for q in reversed(created):
+        try:
+            q.rmdir()           # only an empty folder
+        except OSError:
+            break
 
 
 def _filter_kw(args):
     """Core filter parameters given on the command line (None = the core's default)."""
     kw = {}
+    if getattr(args, "cutoff_hz", None) is not None:
+        kw["cutoff_hz"] = float(args.cutoff_hz)
+    if getattr(args, "order", None) is not None:
+        kw["order"] = int(args.order)
     if args.outlier_sigma is not None:
         kw["outlier_sigma"] = float(args.outlier_sigma)
     if args.outlier_run is not None:
@@ -265,23 +321,34 @@ def run(args):
     """The command; returns the exit status (0 ok, 1 a stream left raw, 2 bad input).
     A user error is an InputError (one line on stderr from the top-level CLI); with
     --json one JSON object holding it is printed on stdout first."""
+    created = []
     try:
-        return _run(args)
+        return _run(args, created)
     except InputError as exc:
+        _clean_up(args.out, created)
         if getattr(args, "json", False):
             _emit({"error": str(exc), "exit_status": 2})
         raise
+    except BaseException:           # an interrupt (SIGINT/SIGTERM) or a crash: no partial file, no empty folder
+        _clean_up(args.out, created)
+        raise
 
 
-def _run(args):
+def _run(args, created):
     _check(args)
     links = [x for x in args.logs if LINK_RE.match(x) and not Path(x).exists()]
     if links:
         if len(args.logs) != 1:
             raise InputError(f"{links[0]}: a live connection must be the only LOG argument")
+        if args.zero_phase:
+            raise InputError("--zero-phase: a live link is filtered as it comes (causal); "
+                             "zero phase needs the whole record")
         if not (args.no_csv and args.no_plots):
-            _check_out(args.out)
+            _check_out(args.out, created)
         return _run_live(args, links[0])
+    for opt, v in (("--count", args.count), ("--duration", args.duration), ("--forward", args.forward)):
+        if v is not None:
+            raise InputError(f"{opt} applies to a live link (udpin:, tcp:, ...) only, not to log files")
     from .cluster import connect, is_url
     for x in args.logs:
         if not is_url(x) and not Path(x).exists():
@@ -289,21 +356,21 @@ def _run(args):
     # the cluster answers before anything is written (no output folder for a wrong address)
     client = None if args.scheduler is None else connect(args.scheduler)
     try:
-        return _run_logs(args, client)
+        return _run_logs(args, client, created)
     finally:
         if client is not None:
             client.close()
 
 
-def _run_logs(args, client):
+def _run_logs(args, client, created):
     from .cluster import is_url
     if not is_url(args.out):
-        _check_out(args.out)
+        _check_out(args.out, created)
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
-              filter_kw=_filter_kw(args))
+              filter_kw=_filter_kw(args), zero_phase=args.zero_phase)
     single = (len(args.logs) == 1 and not is_url(args.logs[0]) and Path(args.logs[0]).is_file()
               and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
@@ -333,12 +400,14 @@ def _run_logs(args, client):
 def _write_out(out, name, text):
     """Write ``name`` into the output folder ``out`` (a local path or an fsspec URL)."""
     from .cluster import is_url
+    from .stopping import atomic_path
     if is_url(out):
         import fsspec
         with fsspec.open(str(out).rstrip("/") + "/" + name, "w") as fh:
             fh.write(text)
     else:
-        (Path(out) / name).write_text(text)
+        with atomic_path(Path(out) / name) as tmp:
+            tmp.write_text(text)
 
 
 def _fleet_report(summary, out):
@@ -403,8 +472,10 @@ def _axis_line(s, a):
     line = f"      {a}: noise {_fmt(nz['raw'])} -> {_fmt(nz['filtered'])} {s['noise_unit']}"
     if s.get("left_raw"):
         return line + "  (stream left raw: see above)\n"
-    if s.get("too_slow_to_denoise"):
-        return line + "  (no improvement figure: too slow to denoise)\n"
+    if s.get("too_slow_to_denoise") or s.get("not_filtered"):
+        # written raw: no "raw -> filtered" that would read as a result
+        why = "too slow to denoise" if s.get("too_slow_to_denoise") else "not filtered: see above"
+        return f"      {a}: noise {_fmt(nz['raw'])} {s['noise_unit']}  (written raw: {why})\n"
     line += f" (x{_fmt(nz['ratio'], 3)})"
     m = (s.get("motion") or {}).get(a)
     if m is not None and m.get("motion_above_noise") is False:
@@ -418,24 +489,47 @@ def _axis_line(s, a):
     return line + "\n"
 
 
+def _options_text(r):
+    """', Butterworth order 2, zero phase' for the low-pass; '' for the other methods."""
+    o = r.get("filter_options") or {}
+    if r.get("method") != "lowpass":
+        return ""
+    return f", Butterworth order {o.get('order', 2)}, {'zero phase' if o.get('zero_phase') else 'causal'}"
+
+
+def _filter_rate_text(s, summary):
+    """'  (filtered as 100 Hz: --sample-rate)' when the filter's rate is not the measured one."""
+    fr, r = s.get("filter_rate_hz"), s.get("rate_hz")
+    if fr is None or (r is not None and abs(fr - r) <= 1e-9 * r):
+        return ""
+    return f"  (filtered as {_fmt(fr)} Hz: --sample-rate)"
+
+
 def _print_text(summary):
     out = sys.stdout
     for r in summary["logs"]:
         trunc = f", truncated ({r['truncated_bytes']} bytes cut)" if r.get("truncated") else ""
         unread = r.get("unreadable_records")
-        out.write(f"{r['file']} ({r['format']}): {r['messages']} messages, "
-                  f"{'-' if unread is None else unread} unreadable records skipped{trunc}\n")
-        out.write(f"  filtered log: {r['output_log']}  (method {r['method']})\n")
+        # pyulog does not count what it skips: no figure rather than a dash
+        unread = "" if unread is None else f", {unread} unreadable records skipped"
+        out.write(f"{r['file']} ({r['format']}): {r['messages']} messages{unread}{trunc}\n")
+        out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)})\n")
         for s in r["streams"]:
             out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
                       f"{s['restarts']} restart(s)  unit {s['field_unit']}"
-                      f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
+                      f"{'' if s['unit_known'] else ' (scale unknown)'}"
+                      f"{_filter_rate_text(s, summary)}\n")
             if s.get("left_raw"):
                 out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
             if s.get("all_zero"):
                 out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
             if s.get("too_slow_to_denoise"):
                 out.write(f"    note: {s['slow_note']}\n")
+            if s.get("not_filtered"):
+                out.write(f"    NOT FILTERED: {s['not_filtered']}\n")
+            if s.get("cutoff_hz"):
+                out.write(f"    low-pass cutoff {s['cutoff_hz']:.4g} Hz at {_fmt(s['filter_rate_hz'])} Hz"
+                          f"{'' if r['filter_options'].get('cutoff_hz') else ' (the default: min(20 Hz, rate / 4))'}\n")
             for a in s["noise"]:
                 out.write(_axis_line(s, a))
             for w in s.get("warnings", []):
@@ -470,7 +564,7 @@ def _live(args, conn):
 
 
 def _report_live(args, conn, rep, streams):
-    from .process import MOTION_METRIC, log_problems, plot_stream, safe_name, stream_report, write_csv, joined_time
+    from .process import MOTION_METRIC, log_problems, plot_stream, safe_name, stream_report, write_csv
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:
@@ -481,7 +575,7 @@ def _report_live(args, conn, rep, streams):
             write_csv(csv_path, s, x, f, unit)
         if s.n and not args.no_plots:
             png_path = out / f"live.{safe_name(s.name)}.png"
-            plot_stream(png_path, f"{conn}: {s.name}", joined_time(s.time_s, s.restarts), x, f,
+            plot_stream(png_path, f"{conn}: {s.name}", s.time_s, x, f,
                         s.restarts, unit, s.axes)
         srep.append(stream_report(s, csv_path, png_path))
         restarts += s.restart_events

@@ -21,35 +21,69 @@ from gyrodenoise.errors import InputError
 ENGINES = ("native", "fmu")
 
 
-def warmup_samples(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
-    """Samples after each restart that the core passes through raw (its warm-up rule)."""
+def _params(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
     from gyrodenoise.core import kernels as K
     kw = dict(filter_kw or {})
     if warmup_s is not None:
         kw["warmup_s"] = float(warmup_s)
-    p = K.make_params(ar_order=ar_order, method=method, sample_rate_hz=rate_hz, **kw)
-    return int(p[K.P_WARMUP])
+    return K.make_params(ar_order=ar_order, method=method, sample_rate_hz=rate_hz, **kw)
 
 
-class NativeEngine:
-    name = "native"
+def warmup_samples(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
+    """Samples after each restart that the core passes through raw (its warm-up rule)."""
+    from gyrodenoise.core import kernels as K
+    try:
+        return int(_params(method, ar_order, rate_hz, warmup_s, filter_kw)[K.P_WARMUP])
+    except ValueError:          # e.g. a cutoff this rate cannot take: the warm-up without it
+        kw = {k: v for k, v in (filter_kw or {}).items() if k not in ("cutoff_hz", "order")}
+        return int(_params(method, ar_order, rate_hz, warmup_s, kw)[K.P_WARMUP])
 
-    def __init__(self, method=DEFAULT_METHOD, ar_order=3, warmup_s=None, filter_kw=None):
-        self.method = method
-        self.ar_order = int(ar_order)
-        self.warmup_s = warmup_s
-        self.filter_kw = dict(filter_kw or {})
-        self.kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
-        self.kw.update(filter_kw or {})
+
+class _Settings:
+    """What both engines tell of their filter at a sample rate."""
 
     def warmup_samples(self, rate_hz):
         return warmup_samples(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)
 
+    def check_rate(self, rate_hz):
+        """ValueError (one line, the core's) when the filter cannot run at ``rate_hz``
+        (a --cutoff-hz not below half of it)."""
+        _params(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)
+
+    def cutoff_hz(self, rate_hz):
+        """The low-pass's effective -3 dB cutoff at ``rate_hz`` (the default is
+        min(20 Hz, rate / 4)); None for the other methods or a rate it cannot take."""
+        from gyrodenoise.core import kernels as K
+        if self.method != "lowpass":
+            return None
+        try:
+            return float(_params(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)[K.P_LP_CUTOFF])
+        except ValueError:
+            return None
+
+
+class NativeEngine(_Settings):
+    name = "native"
+
+    def __init__(self, method=DEFAULT_METHOD, ar_order=3, warmup_s=None, filter_kw=None, zero_phase=False):
+        self.method = method
+        self.ar_order = int(ar_order)
+        self.warmup_s = warmup_s
+        self.filter_kw = dict(filter_kw or {})
+        self.zero_phase = bool(zero_phase)
+        self.kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
+        self.kw.update(filter_kw or {})
+
     def filter(self, x, restarts, rate_hz):
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        restarts = None if restarts is None else np.asarray(restarts, dtype=bool)
+        if self.zero_phase:           # forwards then backwards, per session (offline files only)
+            from gyrodenoise.denoiser import denoise
+            return np.asarray(denoise(x, rate_hz, method=self.method, ar_order=self.ar_order,
+                                      restarts=restarts, zero_phase=True, **self.kw))
         from gyrodenoise.denoiser import Denoiser
         d = Denoiser(sample_rate_hz=rate_hz, method=self.method, ar_order=self.ar_order, **self.kw)
-        return np.asarray(d.process(np.ascontiguousarray(x, dtype=np.float64),
-                                    None if restarts is None else np.asarray(restarts, dtype=bool)))
+        return np.asarray(d.process(x, restarts))
 
     def close(self):
         pass
@@ -66,13 +100,20 @@ def default_fmu_path():
     return Path("build") / "FogDenoiser.fmu"
 
 
-class FmuEngine:
+class FmuEngine(_Settings):
     """The FogDenoiser FMU driven by fmpy's ``FMU2Slave``, one communication
     step per sample (step size = the sample period the FMU is given)."""
 
     name = "fmu"
 
-    def __init__(self, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
+    #: core parameter name -> FMU parameter name, where they differ
+    FMU_NAMES = {"order": "lowpass_order"}
+
+    def __init__(self, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None,
+                 zero_phase=False):
+        if zero_phase:
+            raise InputError("--zero-phase: the FMU filters causally, one sample per step; "
+                             "use --engine native for a zero-phase low-pass")
         self.method = method
         self.ar_order = int(ar_order)
         self.warmup_s = warmup_s
@@ -94,9 +135,6 @@ class FmuEngine:
             raise InputError(f"{self.path}: FMU does not support co-simulation")
         self._tmp = tempfile.mkdtemp(prefix="gd_fmu_")
         self.unzipdir = extract(str(self.path), unzipdir=self._tmp)
-
-    def warmup_samples(self, rate_hz):
-        return warmup_samples(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)
 
     def _set_param(self, fmu, name, value):
         v = self.vars.get(name)
@@ -130,7 +168,7 @@ class FmuEngine:
             if self.warmup_s is not None and not self._set_param(fmu, "warmup_s", self.warmup_s):
                 raise InputError(f"{self.path}: FMU has no parameter 'warmup_s' (--warmup-s)")
             for name, value in self.filter_kw.items():
-                if not self._set_param(fmu, name, value):
+                if not self._set_param(fmu, self.FMU_NAMES.get(name, name), value):
                     raise InputError(f"{self.path}: FMU has no parameter {name!r} "
                                      f"(--{name.replace('_', '-')})")
             if not self._set_param(fmu, "sample_period", h):
@@ -157,11 +195,14 @@ class FmuEngine:
         shutil.rmtree(self._tmp, ignore_errors=True)
 
 
-def make_engine(name, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None):
-    """``filter_kw``: further core filter parameters (e.g. outlier_sigma, outlier_run),
-    passed to the Denoiser or set as FMU parameters of the same names."""
+def make_engine(name, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None,
+                zero_phase=False):
+    """``filter_kw``: further core filter parameters (e.g. outlier_sigma, outlier_run,
+    cutoff_hz, order), passed to the Denoiser or set as FMU parameters of the same
+    names (``order``: ``lowpass_order``). ``zero_phase``: the native low-pass
+    forwards and backwards (offline files)."""
     if name == "native":
-        return NativeEngine(method, ar_order, warmup_s, filter_kw)
+        return NativeEngine(method, ar_order, warmup_s, filter_kw, zero_phase)
     if name == "fmu":
-        return FmuEngine(method, ar_order, fmu_path, warmup_s, filter_kw)
+        return FmuEngine(method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase)
     raise InputError(f"--engine: unknown engine {name!r} (choose from {', '.join(ENGINES)})")

@@ -9,29 +9,47 @@ log with its reason. The plot shows each stream's white-noise density per log, s
 IMU that is noisier than its siblings stands out: the thing an operator opens.
 
 Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the standard
-deviation of first differences (deg/s); for white noise that is sqrt(2) sigma,
-and sigma / sqrt(fs / 2) is the one-sided density. It is a figure of the raw
-sensor, so it is meaningful at rest and inflated by motion; the table flags a
-stream whose density is more than 3 robust sigmas above the median of the
-same stream name across the fleet. Streams too slow to denoise (telemetry
-at 1-4 Hz: the noise figure there is motion) get no density and no flag.
+deviation of first differences / sqrt(2) (deg/s), which for white noise is its
+standard deviation sigma, and sigma / sqrt(fs / 2) is the one-sided density
+(tests/test_fleet.py checks it against Welch's estimate). The table gives the
+mean over the stream's axes (x, y, z) of the per-axis figures. It is a figure
+of the raw sensor, so it is meaningful at rest and inflated by motion and
+vibration; the table flags a stream whose density is more than 3 robust sigmas
+above the median of the same IMU across the fleet, where DataFlash's older
+names are the same IMUs as the newer ones (``IMU`` = ``IMU[0]``, ``IMU2`` =
+``IMU[1]``, ``IMU3`` = ``IMU[2]``: :func:`compared_as`), and gives each
+density's ratio to that median. Streams too slow to denoise (telemetry at 1-4
+Hz: the noise figure there is mostly motion, and they are written raw) get no
+density and no flag, and a note that says so.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 FLAG_SIGMAS = 3.0
+#: what the noise columns are: the mean of the per-axis figures
+NOISE_COLUMN = "mean of the x, y, z figures"
 
 
 def noise_density(noise_deg_s, rate_hz):
-    """One-sided white-noise density, deg/s/sqrt(Hz), from the std of first
-    differences ``noise_deg_s`` at ``rate_hz``; None if either is missing."""
+    """One-sided white-noise density, deg/s/sqrt(Hz), from the bridge's noise
+    figure ``noise_deg_s`` (std of first differences / sqrt 2 = the white noise's
+    sigma) at ``rate_hz``: sigma / sqrt(rate_hz / 2); None if either is missing."""
     if noise_deg_s is None or not rate_hz or rate_hz <= 0:
         return None
-    return float(noise_deg_s) / math.sqrt(2.0) / math.sqrt(rate_hz / 2.0)
+    return float(noise_deg_s) / math.sqrt(rate_hz / 2.0)
+
+
+def compared_as(stream):
+    """The name a stream is compared under across logs: DataFlash's one-type-per-IMU
+    names as the instance names of newer logs (IMU -> IMU[0], IMU2 -> IMU[1],
+    IMU3 -> IMU[2]); any other name as it is."""
+    m = re.fullmatch(r"IMU([23]?)", stream)
+    return f"IMU[{int(m.group(1) or 1) - 1}]" if m else stream
 
 
 def _mean(values):
@@ -53,8 +71,12 @@ def fleet_rows(summary):
             kept = {a: m for a, m in measured.items() if m.get("motion_above_noise") is not False}
             rows.append({
                 "log": Path(log["file"]).name, "file": log["file"], "stream": s["name"], "status": "ok",
+                "compared_as": compared_as(s["name"]),
                 "samples": s.get("samples"), "rate_hz": s.get("rate_hz"), "restarts": s.get("restarts"),
                 "noise_raw": raw, "noise_filtered": filt, "noise_unit": s.get("noise_unit"),
+                "noise_of": NOISE_COLUMN,
+                "too_slow_to_denoise": bool(s.get("too_slow_to_denoise")),
+                "not_filtered": s.get("not_filtered"),
                 "noise_density_deg_s_rthz": (noise_density(raw, s.get("rate_hz"))
                                              if unit_ok and not s.get("too_slow_to_denoise") else None),
                 "lowband_corr": _mean([a.get("corr") for a in kept.values()]) if kept else None,
@@ -73,17 +95,20 @@ def fleet_rows(summary):
 
 
 def _flag(rows):
-    """Mark streams whose noise density is far above their siblings' (same stream name)."""
+    """Mark streams whose noise density is far above the fleet's for the same IMU
+    (:func:`compared_as`); give each density's ratio to that median."""
     by = {}
     for r in rows:
         if r.get("noise_density_deg_s_rthz") is not None:
-            by.setdefault(r["stream"], []).append(r)
+            by.setdefault(r["compared_as"], []).append(r)
     for group in by.values():
         vals = sorted(r["noise_density_deg_s_rthz"] for r in group)
         med = vals[len(vals) // 2]
         mad = sorted(abs(v - med) for v in vals)[len(vals) // 2] * 1.4826
         for r in group:
             v = r["noise_density_deg_s_rthz"]
+            r["density_vs_fleet_median"] = v / med if len(vals) >= 3 and med > 0 else None
+            r["fleet_size"] = len(vals)
             r["flag"] = bool(len(vals) >= 3 and mad > 0 and (v - med) > FLAG_SIGMAS * mad)
     # several IMUs of one log noisy together: the vehicle (vibration, motion) more
     # likely than one sick sensor; one IMU noisy beside normal siblings: that IMU
@@ -107,25 +132,49 @@ def _fmt(v, spec=".3g"):
     return "" if v is None else format(v, spec)
 
 
+def _rate(v):
+    """A sample rate as people write it: 2002, 50, 24.99, 2.38 (never 2e+03)."""
+    return "" if v is None else f"{v:.0f}" if v >= 100 else f"{v:.4g}"
+
+
+def _noise(r):
+    if r.get("too_slow_to_denoise") or r.get("not_filtered") or r.get("left_raw"):
+        return f"{_fmt(r['noise_raw'])} {r['noise_unit'] or ''} (written raw)"
+    return f"{_fmt(r['noise_raw'])} -> {_fmt(r['noise_filtered'])} {r['noise_unit'] or ''}"
+
+
+def _notes(r):
+    notes = ([r.get("flag_why", "NOISY vs fleet")] if r.get("flag") else [])
+    if r.get("all_zero"):
+        notes.append("ALL ZERO: no data (sensor absent or dead)")
+    if r.get("too_slow_to_denoise"):
+        notes.append(f"too slow to denoise ({_rate(r['rate_hz'])} Hz < 20 Hz): written raw; its noise "
+                     f"figure is mostly motion, not sensor noise")
+    if r.get("not_filtered"):
+        notes.append(f"not filtered: {r['not_filtered']}")
+    if r.get("left_raw"):
+        notes.append(f"left raw: {r['left_raw']}")
+    return "; ".join(notes + r.get("warnings", []))
+
+
 def format_table(rows):
     """The fleet table as Markdown."""
-    head = ("| log | stream | status | samples | rate Hz | restarts | noise raw -> filtered | "
-            "density deg/s/rtHz | 0-5 Hz kept (corr, amp) | lag ms | flag / reason |")
-    out = [head, "|" + "---|" * 11]
+    head = (f"| log | stream | status | samples | rate Hz | restarts | noise raw -> filtered ({NOISE_COLUMN}) | "
+            f"density deg/s/rtHz ({NOISE_COLUMN}) | x fleet median | 0-5 Hz kept (corr, amp) | lag ms | "
+            f"flag / reason |")
+    out = [head, "|" + "---|" * 12]
     for r in rows:
         if r["status"] == "failed":
-            out.append(f"| {r['log']} | | FAILED | | | | | | | | {r['error']} |")
+            out.append(f"| {r['log']} | | FAILED | | | | | | | | | {r['error']} |")
             continue
         kept = ("no motion above the noise" if r.get("no_motion") else
                 "" if r["lowband_corr"] is None else
                 f"{r['lowband_corr']:.3f}, {100 * r['lowband_amplitude']:.0f} %")
         lag = "" if r["lag_s"] is None else f"{1000 * r['lag_s']:.1f}"
-        flag = "; ".join(([r.get("flag_why", "NOISY vs fleet")] if r.get("flag") else []) +
-                         (["ALL ZERO: no data (sensor absent or dead)"] if r.get("all_zero") else []) +
-                         ([f"left raw: {r['left_raw']}"] if r.get("left_raw") else []) + r.get("warnings", []))
-        out.append(f"| {r['log']} | {r['stream']} | ok | {r['samples']} | {_fmt(r['rate_hz'])} | {r['restarts']} | "
-                   f"{_fmt(r['noise_raw'])} -> {_fmt(r['noise_filtered'])} {r['noise_unit'] or ''} | "
-                   f"{_fmt(r['noise_density_deg_s_rthz'])} | {kept} | {lag} | {flag} |")
+        vs = r.get("density_vs_fleet_median")
+        vs = "" if vs is None else f"{vs:.2g}x of {r['fleet_size']} {r['compared_as']}"
+        out.append(f"| {r['log']} | {r['stream']} | ok | {r['samples']} | {_rate(r['rate_hz'])} | {r['restarts']} | "
+                   f"{_noise(r)} | {_fmt(r['noise_density_deg_s_rthz'])} | {vs} | {kept} | {lag} | {_notes(r)} |")
     return "\n".join(out)
 
 
@@ -143,17 +192,41 @@ def write_fleet_report(summary, out_dir):
     head = (f"# Fleet report\n\n{summary.get('n_logs', 0)} logs: {summary.get('n_ok', 0)} processed, "
             f"{summary.get('n_failed', 0)} failed; {n_ok} gyro streams; "
             f"{sum(bool(r.get('flag')) for r in rows)} flagged as noisier than the fleet "
-            f"(> {FLAG_SIGMAS:g} robust sigmas above the median density of the same stream)"
+            f"(> {FLAG_SIGMAS:g} robust sigmas above the median density of the same IMU across the fleet; "
+            f"IMU, IMU2, IMU3 compared as IMU[0], IMU[1], IMU[2])"
             f"{_named([r for r in rows if r.get('flag')])}; "
             f"{sum(bool(r.get('all_zero')) for r in rows)} with all samples zero"
-            f"{_named([r for r in rows if r.get('all_zero')])}.\n\n"
+            f"{_named([r for r in rows if r.get('all_zero')])}; "
+            f"{sum(bool(r.get('too_slow_to_denoise')) for r in rows)} too slow to denoise (telemetry below "
+            f"20 Hz: written raw, their noise figure is mostly motion).\n\n"
+            f"Noise and density columns: {NOISE_COLUMN} (noise: std of first differences / sqrt 2, "
+            f"= the white-noise sigma; density: sigma / sqrt(rate / 2)).\n\n"
             f"![noise density per log and stream](fleet.png)\n\n")
-    (out / "fleet.md").write_text(head + format_table(rows) + "\n")
-    (out / "fleet.json").write_text(json.dumps({"rows": rows, "n_logs": summary.get("n_logs"),
-                                                "n_ok": summary.get("n_ok"), "n_failed": summary.get("n_failed"),
-                                                "flag_sigmas": FLAG_SIGMAS}, indent=1, allow_nan=False) + "\n")
+    from .stopping import atomic_path
+    with atomic_path(out / "fleet.md") as tmp:
+        tmp.write_text(head + format_table(rows) + "\n")
+    with atomic_path(out / "fleet.json") as tmp:
+        tmp.write_text(json.dumps({"rows": rows, "n_logs": summary.get("n_logs"),
+                                   "n_ok": summary.get("n_ok"), "n_failed": summary.get("n_failed"),
+                                   "flag_sigmas": FLAG_SIGMAS, "noise_of": NOISE_COLUMN},
+                                  indent=1, allow_nan=False) + "\n")
     _plot(rows, out / "fleet.png")
     return [out / "fleet.md", out / "fleet.json", out / "fleet.png"]
+
+
+def plot_title(rows):
+    """fleet.png's title: what is plotted, and why some logs are in the table only."""
+    shown = {r["log"] for r in rows if r["status"] == "failed" or r.get("noise_density_deg_s_rthz") is not None}
+    rest = [r for r in rows if r["log"] not in shown]
+    slow = {r["log"] for r in rest} - {r["log"] for r in rest if not r.get("too_slow_to_denoise")}
+    other = {r["log"] for r in rest} - slow
+    why = []
+    if slow:
+        why.append(f"{len(slow)} log(s) with telemetry streams only, below 20 Hz (too slow to denoise, written raw)")
+    if other:
+        why.append(f"{len(other)} log(s) whose streams have no density (unit unknown, or not measurable)")
+    return ("Gyro noise per log and stream (grey, red name: log failed)"
+            + "".join(f";\n{w}" for w in why) + (":\nin the table only" if why else ""))
 
 
 def _plot(rows, path):
@@ -166,18 +239,22 @@ def _plot(rows, path):
     # slow to denoise) are in the table only
     logs = sorted({r["log"] for r in ok} | set(failed))
     xi = {name: i for i, name in enumerate(logs)}
-    streams = sorted({r["stream"] for r in ok})
+    # one colour per IMU as compared across the fleet (IMU and IMU[0] alike)
+    groups = sorted({r["compared_as"] for r in ok})
     # side by side within a log, so that two IMUs with the same density both show
-    dx = {name: (k - (len(streams) - 1) / 2.0) * min(0.12, 0.6 / max(1, len(streams)))
-          for k, name in enumerate(streams)}
-    fig, ax = plt.subplots(figsize=(max(7.0, 0.45 * len(logs) + 3), 4.8))
-    for stream in streams:
-        pts = [r for r in ok if r["stream"] == stream]
-        ax.plot([xi[r["log"]] + dx[stream] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o",
-                label=stream)
+    dx = {name: (k - (len(groups) - 1) / 2.0) * min(0.12, 0.6 / max(1, len(groups)))
+          for k, name in enumerate(groups)}
+    fig, ax = plt.subplots(figsize=(max(7.0, 0.45 * len(logs) + 3), 5.2))
+    for g in groups:
+        pts = [r for r in ok if r["compared_as"] == g]
+        other = sorted({r["stream"] for r in pts} - {g})
+        label = g + (f" (also named {', '.join(other)})" if other else "")
+        ax.plot([xi[r["log"]] + dx[g] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o",
+                label=label)
     flagged = [r for r in ok if r.get("flag")]
     if flagged:
-        ax.plot([xi[r["log"]] + dx[r["stream"]] for r in flagged], [r["noise_density_deg_s_rthz"] for r in flagged],
+        ax.plot([xi[r["log"]] + dx[r["compared_as"]] for r in flagged],
+                [r["noise_density_deg_s_rthz"] for r in flagged],
                 "o", ms=14, mfc="none", mec="red", label="noisier than the fleet")
     for name in failed:
         ax.axvspan(xi[name] - 0.4, xi[name] + 0.4, color="0.85", lw=0)
@@ -186,12 +263,12 @@ def _plot(rows, path):
         if label.get_text() in failed:
             label.set_color("C3")
     ax.set_yscale("log")
-    ax.set_ylabel("raw noise density, deg/s/sqrt(Hz)")
-    ax.set_title(f"Gyro noise per log and stream\n(grey, red name: log failed; "
-                 f"{len({r['log'] for r in rows}) - len(logs)} log(s) with no stream to denoise: "
-                 f"in the table only)", fontsize=9)
+    ax.set_ylabel(f"raw noise density, deg/s/sqrt(Hz)\n({NOISE_COLUMN})")
+    ax.set_title(plot_title(rows), fontsize=9)
     if ax.get_legend_handles_labels()[0]:          # nothing to label when every log failed
         ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    from .stopping import atomic_path
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)

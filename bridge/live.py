@@ -14,6 +14,12 @@ sample rate (which only sets the warm-up length) is ``sample_rate`` when given,
 else the rate of the first two samples; the denoiser is created at the second
 sample and fed the first one then: this gives the same output as creating it
 at the first sample (the first sample of a warm-up is passed through raw).
+
+A stream sampled too slowly to denoise
+(:func:`gyrodenoise.motion_metrics.too_slow_to_denoise`, telemetry at 1-4 Hz) is
+forwarded raw, as in the file mode: the rate is measured over its first
+:data:`RATE_SAMPLES` steps (inside the filter's warm-up, at least 10 (n+1)
+samples, so nothing filtered has been forwarded before the decision).
 """
 
 from __future__ import annotations
@@ -33,6 +39,8 @@ from .tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_uni
 #: a live RAW_IMU stream whose unit is still open (see :func:`bridge.tlog.decide_raw_imu_unit`)
 #: is decided with what is known after this many seconds of its own boot time
 UNIT_WAIT_S = 10.0
+#: a live stream's rate is judged (too slow to denoise or not) after this many time steps
+RATE_SAMPLES = 8
 
 
 class _LiveStream:
@@ -56,6 +64,7 @@ class _LiveStream:
         self.warmup = 0
         self.start = None          # index of the first sample with a known unit
         self.non_finite = [0, 0, 0]
+        self.slow = None           # too slow to denoise: None until RATE_SAMPLES steps were seen
         self.pending_restart = [False, False, False]
         self.lo = [math.inf] * 3   # raw range of the session (work units), per axis
         self.hi = [-math.inf] * 3
@@ -80,7 +89,10 @@ class _LiveStream:
         self.t.append(t)
         self.raw.append(raw)
         self.r.append(bool(reason))
-        if self.pending or self.left_raw:
+        if self.slow is None and len(self.t) > RATE_SAMPLES:
+            from gyrodenoise.motion_metrics import too_slow_to_denoise
+            self.slow = too_slow_to_denoise(measured_rate_hz(self.t, self.r))
+        if self.pending or self.left_raw or self.slow:
             self.fw.append(raw)
             return raw
         k = self.to_deg if self.to_deg is not None else 1.0
@@ -120,7 +132,7 @@ class _LiveStream:
                     self._leave_raw(i, j, y, bad)
                     self.fw.append(raw)
                     return raw
-                out.append(y / k)
+                out.append(raw[j] if y == zz else y / k)      # passed through (warm-up): bit for bit
             else:                                        # never fed to the filter; kept as it is
                 self.non_finite[j] += 1
                 self.pending_restart[j] = self.pending_restart[j] or bool(reason)

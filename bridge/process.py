@@ -26,6 +26,7 @@ from gyrodenoise.errors import InputError
 from . import dataflash
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 
+from .stopping import as_child, atomic_path, signals_blocked, stop_processes
 from .streams import NOISE_METRIC, detect_restarts, field_misfit, noise_per_axis
 
 MOTION_METRIC = ("per axis, over each session after the filter's warm-up: the 0-5 Hz content of "
@@ -92,7 +93,7 @@ def write_csv(path, s, x_work, f_work, unit):
         parts += [map("{:.9g}".format, x_work[:, k].tolist()), map("{:.9g}".format, f_work[:, k].tolist())]
     cols.append("restart")
     parts.append(map(str, s.restarts.astype(np.int8).tolist()))
-    with open(path, "w", newline="") as fh:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
         fh.write(",".join(cols) + "\n")
         if len(s.time_s):
             fh.write("\n".join(map(",".join, zip(*parts))))
@@ -110,15 +111,37 @@ def _envelope(t, y, nbins=2000):
     return np.repeat(t[edges], 2), np.column_stack([lo, hi]).ravel()
 
 
+def plot_time(time_s, restarts):
+    """(time axis of a stream's plot, x-axis label). The log's boot time, as in the
+    summary and the CSV (gaps shown as gaps), when it never goes backwards; else
+    (a reboot, a concatenated log) the sessions laid end to end from the first
+    sample's boot time (:func:`joined_time`), each restart line labelled with its
+    boot time."""
+    t = np.asarray(time_s, dtype=np.float64)
+    if len(t) < 2 or np.all(np.diff(t) >= 0):
+        return t, "boot time [s] (as in the summary and the CSV)"
+    return (t[0] + joined_time(t, restarts),
+            "time [s]: sessions joined end to end (boot time went backwards); restarts labelled with boot time")
+
+
 def plot_stream(path, title, t, x, f, restarts, unit, axes=("x", "y", "z")):
-    """PNG of raw and filtered per axis, restarts as dashed red lines."""
+    """PNG of raw and filtered per axis (``t``: the samples' boot times, s),
+    restarts as dashed red lines."""
     _draw(path, title, _plot_data(t, x, f, restarts), unit, axes)
 
 
 def _plot_data(t, x, f, restarts):
-    """What the plot needs: per axis the min/max envelopes, and the restart times."""
-    lines = [(_envelope(t, x[:, k]), _envelope(t, f[:, k])) for k in range(x.shape[1])]
-    return lines, t[restarts]
+    """What the plot needs: per axis the min/max envelopes, the restart times, their
+    boot times (labels when the plot's time is not the boot time) and the x label."""
+    pt, xlabel = plot_time(t, restarts)
+    labels = None if pt is t or np.array_equal(pt, t) else np.asarray(t, dtype=np.float64)[restarts]
+    rt = pt[restarts]
+    cut = np.flatnonzero(restarts)          # no line drawn across a restart (a gap, a reboot)
+    if len(cut):
+        pt, x, f = (np.insert(pt, cut, np.nan), np.insert(x, cut, np.nan, axis=0),
+                    np.insert(f, cut, np.nan, axis=0))
+    lines = [(_envelope(pt, x[:, k]), _envelope(pt, f[:, k])) for k in range(x.shape[1])]
+    return lines, rt, labels, xlabel
 
 
 def _draw(path, title, pdata, unit, axes):
@@ -127,24 +150,31 @@ def _draw(path, title, pdata, unit, axes):
     import matplotlib.pyplot as plt
     fig, axs = plt.subplots(len(axes), 1, figsize=(9, 6.5), sharex=True)
     fig.subplots_adjust(left=0.1, right=0.98, top=0.94, bottom=0.08, hspace=0.12)
-    lines, rt = pdata
+    lines, rt, rlabels, xlabel = pdata
     for k, ax in enumerate(np.atleast_1d(axs)):
         ax.plot(*lines[k][0], lw=0.6, color="0.6", label="raw")
         ax.plot(*lines[k][1], lw=0.9, color="C0", label="filtered")
         if len(rt):
             ax.vlines(rt, 0, 1, transform=ax.get_xaxis_transform(), colors="C3", lw=0.8,
                       linestyles="--", label="restart")
+        if k == 0 and rlabels is not None and len(rt) <= 20:
+            for x0, tb in zip(rt, rlabels):
+                ax.text(x0, 0.02, f" t={tb:.1f} s", transform=ax.get_xaxis_transform(), fontsize=7,
+                        color="C3", va="bottom")
         ax.set_ylabel(f"{axes[k]} [{unit}]")
         ax.grid(True, lw=0.3)
     axs[0].legend(loc="upper right", fontsize=8, ncol=3)
     axs[0].set_title(title, fontsize=10)
-    axs[-1].set_xlabel("time [s] (sessions joined end to end)")
-    fig.savefig(path, dpi=90, pil_kwargs={"compress_level": 1})
+    axs[-1].set_xlabel(xlabel)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=90, pil_kwargs={"compress_level": 1})
     plt.close(fig)
 
 
 def _plot_loop(conn):
-    """Child process: import matplotlib while the parent filters, then plot jobs."""
+    """Child process: import matplotlib while the parent filters, then plot jobs.
+    Ends with its parent (:func:`bridge.stopping.as_child`)."""
+    as_child()
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot  # noqa: F401
@@ -175,7 +205,8 @@ class Plotter:
             for _ in range(max(1, int(helpers))):
                 conn, child = ctx.Pipe()
                 proc = ctx.Process(target=_plot_loop, args=(child,), daemon=True)
-                proc.start()
+                with signals_blocked():           # until the helper ignores SIGINT itself
+                    proc.start()
                 child.close()
                 # a thread does the sending: a send blocks while the helper is still importing
                 q = queue.Queue()
@@ -191,7 +222,10 @@ class Plotter:
     def _sender(conn, q):
         while True:
             job = q.get()
-            conn.send(job)
+            try:
+                conn.send(job)
+            except (OSError, ValueError):      # the helper was stopped (an interrupt): nothing to send to
+                break
             if job is None:
                 break
 
@@ -206,25 +240,39 @@ class Plotter:
             self.pending[i] += 1
 
     def close(self):
-        """Wait for the helpers; raise RuntimeError with the first failure."""
+        """Wait for the helpers; raise RuntimeError with the first failure. An
+        interrupt while waiting stops them at once (:meth:`abort`)."""
         errors = []
-        for proc, conn, q, th, n in zip(self.procs, self.conns, self.queues, self.threads, self.pending):
-            try:
-                for _ in range(n):
-                    r = conn.recv()
-                    if r:
-                        errors.append(r)
-            except EOFError:
-                errors.append("plot helper process ended unexpectedly")
-            finally:
+        try:
+            for proc, conn, q, th, n in zip(self.procs, self.conns, self.queues, self.threads, self.pending):
+                try:
+                    for _ in range(n):
+                        r = conn.recv()
+                        if r:
+                            errors.append(r)
+                except EOFError:
+                    errors.append("plot helper process ended unexpectedly")
                 q.put(None)
                 th.join(timeout=30)
                 proc.join(timeout=30)
                 if proc.is_alive():
                     proc.terminate()
+        except BaseException:
+            self.abort()
+            raise
         self.procs = []
         if errors:
             raise RuntimeError(errors[0])
+
+    def abort(self):
+        """Stop the helpers at once (the run was interrupted or failed): no waiting
+        for plots; their partial files are deleted by the caller."""
+        stop_processes(self.procs)
+        for q in self.queues:
+            q.put(None)
+        for conn in self.conns:
+            conn.close()
+        self.procs = []
 
 
 #: |sample| beyond this in work units (deg/s, or raw counts when the unit is unknown)
@@ -249,14 +297,35 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
 
     Then the safety net (:func:`check_filtered`): a stream whose filtered output
     is not finite, leaves the raw range of a session, or does not fit the log's
-    field type is written RAW (``s.left_raw`` says why)."""
+    field type is written RAW (``s.left_raw`` says why).
+
+    A stream sampled too slowly to denoise
+    (:func:`gyrodenoise.motion_metrics.too_slow_to_denoise`) is not filtered: it
+    goes out raw, bit for bit. A stream the filter never changed gets the reason
+    in ``s.not_filtered`` (:func:`not_filtered_reason`)."""
+    from gyrodenoise.motion_metrics import too_slow_to_denoise
     for s in streams:
         detect_restarts(s, gap_factor)
         rate = sample_rate or s.rate_hz or 1.0
         x, back, unit = s.work_units()
         f = x.copy()
         s.non_finite = [0] * x.shape[1]
+        s.not_filtered = None
+        s.warmup_samples = engine.warmup_samples(rate)
+        s.cutoff_hz = engine.cutoff_hz(rate) if hasattr(engine, "cutoff_hz") else None
+        s._work = (x, f, unit, rate)
         usable = np.isfinite(x) & (np.abs(x) <= ABSURD_WORK)
+        if too_slow_to_denoise(s.rate_hz):
+            s.filtered = s.raw.astype(np.float64)          # out raw, bit for bit
+            s.left_raw = None
+            continue
+        try:
+            engine.check_rate(rate)
+        except ValueError as exc:               # e.g. --cutoff-hz not below this stream's Nyquist
+            s.filtered = s.raw.astype(np.float64)
+            s.left_raw = None
+            s.not_filtered = f"the filter cannot run at {rate:g} Hz: {exc}; written raw"
+            continue
         for k in range(x.shape[1]):
             fin = usable[:, k]
             if fin.all():
@@ -267,19 +336,36 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
             else:
                 s.non_finite[k] = len(fin)
         s.filtered = f * back
-        s.left_raw = check_filtered(s, x, f, usable)
+        s.left_raw = check_filtered(s, x, f, usable, causal=not getattr(engine, "zero_phase", False))
         if s.left_raw:
             f = x.copy()
             s.filtered = s.raw.astype(np.float64)          # the raw values, bit for bit
-        s.warmup_samples = engine.warmup_samples(rate)
+        elif usable.any() and np.array_equal(f[usable], x[usable]):
+            s.not_filtered = not_filtered_reason(s, engine.method, s.warmup_samples, rate, sample_rate)
+            s.filtered = s.raw.astype(np.float64)
         s._work = (x, f, unit, rate)
 
 
-def check_filtered(s, x, f, usable):
+def not_filtered_reason(s, method, warmup_samples, rate, sample_rate=None):
+    """Why the filter's output of stream ``s`` equals its input on every sample."""
+    if method == "none":
+        return "--method none: output = input"
+    starts = np.flatnonzero(np.r_[True, np.asarray(s.restarts, dtype=bool)[1:]])
+    longest = int(np.max(np.diff(np.r_[starts, s.n])))
+    if method != "lowpass" and longest <= warmup_samples:
+        sessions = "its one session is" if len(starts) == 1 else f"each of its {len(starts)} sessions is at most"
+        return (f"{sessions} {longest} samples, not longer than the filter's warm-up of {warmup_samples} samples "
+                f"at {rate:.4g} Hz{' (--sample-rate)' if sample_rate else ''}, during which the raw samples "
+                f"pass through: the stream is written raw (a shorter --warmup-s, e.g. 0.1, filters it)")
+    return "the filter's output equals the raw input on every sample: the stream is written raw"
+
+
+def check_filtered(s, x, f, usable, causal=True):
     """None, or one line saying why stream ``s`` must not be written filtered:
     an axis whose output (work units ``f``) is not finite or leaves the raw
     envelope of its session (:func:`gyrodenoise.motion_metrics.envelope_violation`,
-    over the samples fed to the filter), or a value that does not fit the log's
+    over the samples fed to the filter; the whole session's range for a zero-phase
+    filter, ``causal=False``), or a value that does not fit the log's
     field type (:func:`bridge.streams.field_misfit`)."""
     from gyrodenoise.motion_metrics import envelope_violation
     problems = []
@@ -287,7 +373,7 @@ def check_filtered(s, x, f, usable):
         fin = usable[:, k]
         if not fin.any():
             continue
-        v = envelope_violation(x[fin, k], f[fin, k], _sub_restarts(s.restarts, fin))
+        v = envelope_violation(x[fin, k], f[fin, k], _sub_restarts(s.restarts, fin), causal=causal)
         if v is not None:
             i = int(np.flatnonzero(fin)[v["sample"]])
             problems.append(f"{a}: filtered value {v['value']:.6g} at sample {i} (t={s.time_s[i]:.3f} s) "
@@ -316,12 +402,13 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
     nr = noise_per_axis(x, s.restarts)
     nf = noise_per_axis(f, s.restarts)
     slow = mm.too_slow_to_denoise(s.rate_hz, band_hz)
+    unfiltered = getattr(s, "not_filtered", None)
     noise, motion, warnings = {}, {}, []
     skip = int(getattr(s, "warmup_samples", 0) or 0)
     for k, a in enumerate(s.axes):
-        ratio = (nf[k] / nr[k]) if (nr[k] and nf[k] is not None and not slow) else None
+        ratio = (nf[k] / nr[k]) if (nr[k] and nf[k] is not None and not slow and not unfiltered) else None
         noise[a] = {"raw": nr[k], "filtered": nf[k], "ratio": ratio}
-        if slow or getattr(s, "left_raw", None):
+        if slow or unfiltered or getattr(s, "left_raw", None):
             motion[a] = None
             continue
         kept = mm.lowband_kept(x[:, k], f[:, k], s.rate_hz, band_hz, s.restarts, skip)
@@ -344,12 +431,14 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
         "motion_band_hz": band_hz, "warmup_samples": skip, "motion": motion,
         "too_slow_to_denoise": bool(slow),
         "left_raw": getattr(s, "left_raw", None),
+        "not_filtered": unfiltered,
+        "cutoff_hz": getattr(s, "cutoff_hz", None),
         "warnings": warnings,
     }
     if slow:
         rep["slow_note"] = (f"sampled at {_hz(s.rate_hz)} Hz, below {mm.MIN_DENOISE_RATE_HZ:g} Hz: too "
-                            f"slowly to denoise (what a filter removes is motion as much as noise); "
-                            f"no improvement figure")
+                            f"slowly to denoise (what a filter removes is motion as much as noise): "
+                            f"written raw (unfiltered), no improvement figure")
     if s.note:
         rep["note"] = s.note
     if csv_path:
@@ -366,7 +455,7 @@ def _hz(v):
 def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
-                plot_helpers=1, warmup_s=None, filter_kw=None):
+                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False):
     """Process one log file; return its report (a JSON-able dict).
 
     Raises InputError (one line naming the file) for a file that cannot be
@@ -382,6 +471,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     kind = log_kind(path)
     rep = {"file": str(path), "format": kind}
     plotter = Plotter(background_plots, helpers=plot_helpers) if plots else None
+    done = False
     try:
         ctx = {}
         if kind == "dataflash":
@@ -412,18 +502,25 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                        truncation="message cut by the end of the file" if cut > 0 else None)
         if not streams:
             raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
-        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw)
+        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase)
         try:
             _filter_streams(streams, eng, gap_factor, sample_rate)
         finally:
             eng.close()
         rep.update(_write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv,
                                   engine, method, ar_order, log, **ctx))
+        done = True
     finally:
         if plotter is not None:
-            plotter.close()
+            # an interrupt or a failure: stop the helpers now, without waiting for their plots
+            plotter.close() if done else plotter.abort()
+    options = dict(filter_kw or {})
+    if method == "lowpass":
+        options.setdefault("cutoff_hz", None)          # None: the default, min(20 Hz, rate / 4)
+        options.setdefault("order", 2)
+        options["zero_phase"] = bool(zero_phase)
     rep.update(engine=engine, method=method, ar_order=int(ar_order), gap_factor=gap_factor,
-               warmup_s=warmup_s, filter_options=dict(filter_kw or {}),
+               warmup_s=warmup_s, filter_options=options,
                seconds=round(time.perf_counter() - t0, 3))
     return rep
 
@@ -440,16 +537,19 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
             x, f, unit, _ = s._work
             s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
             label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
-            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label})",
-                         joined_time(s.time_s, s.restarts), x, f, s.restarts, unit, s.axes)
-    if kind == "dataflash":
-        out_log.write_bytes(dataflash.patch(data, sc, streams))
-    elif kind == "tlog":
-        from . import tlog
-        rep["signatures_dropped"] = tlog.write_filtered(data, fr, streams, out_log)
-    else:
-        from . import ulog
-        ulog.write_filtered(u, streams, refs, out_log)
+            if getattr(s, "cutoff_hz", None):
+                label += f" {s.cutoff_hz:.4g} Hz"
+            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label}{_plot_note(s)})",
+                         s.time_s, x, f, s.restarts, unit, s.axes)
+    with atomic_path(out_log) as tmp:
+        if kind == "dataflash":
+            tmp.write_bytes(dataflash.patch(data, sc, streams))
+        elif kind == "tlog":
+            from . import tlog
+            rep["signatures_dropped"] = tlog.write_filtered(data, fr, streams, tmp)
+        else:
+            from . import ulog
+            ulog.write_filtered(u, streams, refs, tmp)
     rep["output_log"] = str(out_log)
 
     srep = []
@@ -470,6 +570,16 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
     if log:
         log_problems(dict(rep, file=str(path)), log)
     return rep
+
+
+def _plot_note(s):
+    """What a plot's title says of a stream written unfiltered."""
+    from gyrodenoise.motion_metrics import too_slow_to_denoise
+    if too_slow_to_denoise(s.rate_hz):
+        return "; too slow to denoise: written raw"
+    if getattr(s, "not_filtered", None) or getattr(s, "left_raw", None):
+        return "; NOT FILTERED: written raw"
+    return ""
 
 
 def log_problems(rep, log):
@@ -549,8 +659,12 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
             import multiprocessing as mp
             ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
             results = [None] * len(tasks)
-            with cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx) as ex:
-                futures = {ex.submit(run_task, tasks[i]): i for i in largest_first(tasks)}
+            # the workers end with this process, and on an interrupt they are stopped
+            # at once (the pool's own shutdown would wait for the logs under way)
+            ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx, initializer=as_child)
+            try:
+                with signals_blocked():           # the workers are forked by the first submit
+                    futures = {ex.submit(run_task, tasks[i]): i for i in largest_first(tasks)}
                 for fut in cf.as_completed(futures):
                     t = tasks[futures[fut]]
                     try:
@@ -561,6 +675,11 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
                     results[futures[fut]] = res
                     if bar:
                         bar(res)
+            except BaseException:
+                stop_processes(list((getattr(ex, "_processes", None) or {}).values()))
+                ex.shutdown(wait=False, cancel_futures=True)
+                raise
+            ex.shutdown(wait=True)
         else:
             results = []
             for t in tasks:

@@ -8,10 +8,11 @@ an exit status). No maths here.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 
-from .errors import InputError
+from .errors import InputError, Terminated
 
 # modules that add subcommands: (module path, attribute)
 _SUBCOMMAND_MODULES = [
@@ -56,13 +57,47 @@ def main(argv=None):
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _interrupts_as_exceptions():
+            return int(args.func(args) or 0)
     except InputError as exc:
         print(f"gyrodenoise: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("gyrodenoise: interrupted", file=sys.stderr)
+        print("gyrodenoise: interrupted (SIGINT), stopped", file=sys.stderr)
         return 130
+    except Terminated:
+        print("gyrodenoise: terminated (SIGTERM), stopped", file=sys.stderr)
+        return 143
+
+
+@contextlib.contextmanager
+def _interrupts_as_exceptions():
+    """SIGINT raises KeyboardInterrupt and SIGTERM :class:`Terminated` in the main
+    thread, once: the first one starts the clean-up (``finally`` blocks stop the
+    child processes and delete partial files), further ones while it runs are
+    ignored (a second Ctrl-C would break the clean-up with a traceback), and
+    stay so until the exit. Without a signal the previous handlers are restored
+    on the way out. Exit status 130 / 143 (spec)."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    fired = []
+
+    def handler(signum, frame):
+        if fired:
+            return
+        fired.append(signum)
+        raise KeyboardInterrupt if signum == signal.SIGINT else Terminated()
+
+    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        if not fired:
+            for sig, h in old.items():
+                signal.signal(sig, h)
 
 
 def entry():

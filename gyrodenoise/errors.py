@@ -12,3 +12,8 @@ class InputError(ValueError):
         if source is not None:
             message = f"{source}: {message}"
         super().__init__(message)
+
+
+class Terminated(BaseException):
+    """Raised in the main thread by the CLI's SIGTERM handler (exit status 143), as
+    KeyboardInterrupt is by SIGINT (130): ``finally`` blocks run, children are stopped."""

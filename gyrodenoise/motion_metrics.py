@@ -246,10 +246,12 @@ def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     return "; ".join(why) or None
 
 
-def envelope_violation(raw, filtered, restarts=None, rel_margin=1e-9):
+def envelope_violation(raw, filtered, restarts=None, rel_margin=1e-9, causal=True):
     """The first sample where ``filtered`` is not finite, or outside [lo - m, hi + m],
     lo/hi the least/greatest finite raw sample since the last restart (up to and
-    including that sample), m = ``rel_margin`` x (1 + max(|lo|, |hi|)).
+    including that sample; ``causal=False``: of the whole session, for a
+    zero-phase filter, whose output depends on later samples too),
+    m = ``rel_margin`` x (1 + max(|lo|, |hi|)).
 
     Samples whose raw value is not finite are not checked (a filter does not see
     them). Returns None, or a dict ``{"sample", "value", "low", "high", "reason"}``
@@ -271,6 +273,8 @@ def envelope_violation(raw, filtered, restarts=None, rel_margin=1e-9):
         seg = raw[a:b]
         lo[a:b] = np.fmin.accumulate(np.where(fin[a:b], seg, np.inf))
         hi[a:b] = np.fmax.accumulate(np.where(fin[a:b], seg, -np.inf))
+        if not causal and b > a:
+            lo[a:b], hi[a:b] = lo[b - 1], hi[b - 1]
     with np.errstate(invalid="ignore", over="ignore"):
         m = rel_margin * (1.0 + np.maximum(np.abs(lo), np.abs(hi)))
         bad_nf = fin & ~np.isfinite(filtered)
@@ -280,4 +284,5 @@ def envelope_violation(raw, filtered, restarts=None, rel_margin=1e-9):
         return None
     i = int(bad[0])
     return {"sample": i, "value": float(filtered[i]), "low": float(lo[i]), "high": float(hi[i]),
-            "reason": "not finite" if bad_nf[i] else "outside the raw range since the last restart"}
+            "reason": "not finite" if bad_nf[i] else
+            "outside the raw range since the last restart" if causal else "outside the raw range of its session"}

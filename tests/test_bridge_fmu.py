@@ -122,3 +122,21 @@ def test_bad_outlier_option_is_one_line(tmp_path):
     r = subprocess.run(gyrodenoise_cmd() + ["mavlink", str(DATA / "ardusub_small.BIN"), "-o", str(tmp_path),
                                             "--outlier-sigma", "1"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "outlier_sigma" in r.stderr
+
+
+def test_lowpass_options_reach_both_engines(fmu_path, tmp_path):
+    """--cutoff-hz / --order (issue 21 item 4): the native Denoiser and the FMU
+    (parameters cutoff_hz, lowpass_order) give the same filtered values, which are not
+    the default low-pass's, and both report the cutoff applied."""
+    path = DATA / "ardusub_small.BIN"
+    fk = {"cutoff_hz": 3.0, "order": 4}
+    nat = process_log(path, tmp_path / "n", plots=False, method="lowpass", filter_kw=fk)
+    fmu = process_log(path, tmp_path / "f", plots=False, method="lowpass", engine="fmu", fmu_path=fmu_path,
+                      filter_kw=fk)
+    default = process_log(path, tmp_path / "d", plots=False, method="lowpass")
+    assert nat["streams"][0]["cutoff_hz"] == fmu["streams"][0]["cutoff_hz"] == 3.0
+    assert default["streams"][0]["cutoff_hz"] == pytest.approx(6.25, abs=0.01)
+    a, b, c = (np.genfromtxt(r["streams"][0]["csv"], delimiter=",", names=True) for r in (nat, fmu, default))
+    for ax in "xyz":
+        np.testing.assert_allclose(b[f"filtered_{ax}"], a[f"filtered_{ax}"], rtol=1e-8, atol=1e-12)
+        assert not np.array_equal(a[f"filtered_{ax}"], c[f"filtered_{ax}"])

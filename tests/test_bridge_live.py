@@ -187,6 +187,11 @@ def check_forwarded(sent, received, rep, sample_rate):
         r = ref_restarts(t)
         assert reported[name]["restarts"] == int(r.sum()), name
         k = R2D / 1000.0                           # mrad/s (ArduPilot, MAVLink 2 / version string)
+        if reported[name]["too_slow_to_denoise"]:
+            # telemetry below 20 Hz: forwarded raw, as in the file mode (issue 21 item 5)
+            assert reported[name]["rate_hz"] < 20.0
+            np.testing.assert_array_equal(got, raw, err_msg=name)
+            continue
         ref = np.stack([gd.denoise(raw[:, j] * k, sample_rate, restarts=r) for j in range(3)], axis=1) / k
         expected = np.clip(np.rint(ref), -32768, 32767)
         assert np.abs(got - expected).max() <= 1, name      # .5 ties only
@@ -225,11 +230,12 @@ def test_live_tcp_link(tmp_path):
 
 
 @pytest.mark.slow
-def test_live_replay_copter_reboot_filters_and_restarts(tmp_path):
+def test_live_replay_copter_reboot_forwards_slow_streams_raw_and_restarts(tmp_path):
     """Real ArduCopter 4.1 tlog with three boot sessions: the first 6000 messages carry
-    about 250 RAW_IMU / SCALED_IMU2 samples, past the warm-up and across the first
-    reboot; the forwarded gyro values are the core's batch denoiser on the same samples
-    with the same restarts."""
+    about 250 RAW_IMU / SCALED_IMU2 samples at 2 Hz, past the warm-up and across the
+    first reboot. Too slow to denoise: forwarded raw, bit for bit, as the file mode
+    writes them (issue 21 item 5; they were filtered, 100+ values changed); the
+    restarts are found."""
     path = SHARED_LOGS / "copter_20211208-151717.tlog"
     if not path.exists():
         pytest.skip(f"third-party log not present: {path} (GPL-3: not copied into the repo)")
@@ -237,7 +243,7 @@ def test_live_replay_copter_reboot_filters_and_restarts(tmp_path):
     received, rep, _ = replay(sent, 2.0, tmp_path)
     streams, n_changed = check_forwarded(sent, received, rep, 2.0)
     assert set(streams) == {"RAW_IMU", "SCALED_IMU2"}
-    assert n_changed > 100                        # the filter did change values
+    assert n_changed == 0 and all(s["too_slow_to_denoise"] for s in rep["streams"])
     for name in streams:
         ev = [e for e in rep["restarts"] if e["stream"].startswith(name + "@")]
         assert [e["reason"] for e in ev] == ["boot_time_backwards"]
@@ -295,3 +301,28 @@ def test_live_safety_net_forwards_raw_from_the_bad_sample_on(monkeypatch):
     got = np.array(sent, dtype=float)
     np.testing.assert_array_equal(got[50:], raw[50:])
     assert np.all(np.abs(got) <= 50)
+
+
+def _scaled_imu2_packets(n=600, rate_hz=50.0, seed=21):
+    """A 50 Hz SCALED_IMU2 stream (mrad/s, int16) of known content: a 0.5 Hz
+    manoeuvre of 350 mrad/s plus white noise of 30 mrad/s, seeded; a 2 s gap
+    (a restart) after 400 samples."""
+    from pymavlink.dialects.v20 import ardupilotmega as mav
+    rng = np.random.default_rng(seed)
+    enc = mav.MAVLink(None, srcSystem=1, srcComponent=1)
+    t = np.arange(n) / rate_hz
+    t[400:] += 2.0
+    g = 350.0 * np.sin(2 * np.pi * 0.5 * t)[:, None] + rng.normal(0.0, 30.0, (n, 3))
+    g = np.rint(g).astype(int)
+    return [enc.scaled_imu2_encode(int(round(1000 * ti)), 0, 0, 1000, *map(int, gi), 0, 0, 0, 0).pack(enc)
+            for ti, gi in zip(t, g)]
+
+
+def test_live_replay_of_a_fast_stream_is_the_batch_denoiser(tmp_path):
+    """A stream fast enough to denoise (50 Hz) is filtered live, sample by sample, and
+    what comes back equals the core's batch denoiser on the same samples and restarts."""
+    sent = _scaled_imu2_packets()
+    received, rep, _ = replay(sent, 50.0, tmp_path)
+    streams, n_changed = check_forwarded(sent, received, rep, 50.0)
+    assert set(streams) == {"SCALED_IMU2"} and rep["streams"][0]["restarts"] == 1
+    assert not rep["streams"][0]["too_slow_to_denoise"] and n_changed > 500
