@@ -42,10 +42,9 @@ pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not ins
 
 # ----------------------------------------------------------------- fixtures
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    out = tmp_path_factory.mktemp("native")
-    fmu = native.build_native_fmu(out)
-    unz = out / "unzipped"
+def built(native_build, tmp_path_factory):
+    fmu = native_build[0] / "FogDenoiserNative.fmu"
+    unz = tmp_path_factory.mktemp("native") / "unzipped"
     with zipfile.ZipFile(fmu) as z:
         z.extractall(unz)
     return fmu, unz
