@@ -709,3 +709,29 @@ def test_fmpy_source_rebuild_with_libm_equals_gd_denoise(built, host, tmp_path, 
         assert proc.returncode == 0, proc.stderr
         out = np.array([float(x) for x in proc.stdout.split()])
         np.testing.assert_allclose(out, gd.denoise(z, FS, method=method, restarts=rs), rtol=0, atol=1e-12)
+
+
+def test_readme_vendor_table_maps_every_parameter_to_gd_denoise(md):
+    """The README's FMU <-> gd.denoise table names every parameter and input, and the
+    argument names it gives are accepted by gd.denoise."""
+    import re
+    text = (HERE.parent / "README.md").read_text()
+    section = text.split("**Parameters and `gd.denoise`.**", 1)[1].split("\n\n", 2)[1]
+    rows = [ln for ln in section.splitlines() if ln.startswith("| `")]
+    fmu_names = {n for ln in rows for n in re.findall(r"`([a-z_0-9]+)`", ln.split("|")[1])}
+    want = {v.name for v in md.modelVariables if v.causality in ("parameter", "input")}
+    assert want <= fmu_names, want - fmu_names
+    z, _ = record(n=50)
+    args = {}
+    for ln in rows:
+        fmu_col, py_col = ln.split("|")[1], ln.split("|")[2]
+        if "the same names" in py_col:
+            args.update({n: None for n in re.findall(r"`([a-z_0-9]+)`", fmu_col)})
+        elif py_col.strip().startswith("`") and "[k]" not in py_col:
+            args[re.findall(r"`([a-z_0-9]+)", py_col)[0]] = None
+    assert {"sample_rate_hz", "method", "ar_order", "cutoff_hz", "order", "lam", "outlier_run"} <= set(args)
+    by = {v.name: v for v in md.modelVariables}
+    kw = {k: (float if by[k].type == "Real" else int)(by[k].start) for k in args
+          if k in by and by[k].type in ("Real", "Integer")}
+    kw.update(method="lowpass", order=2, cutoff_hz=None)
+    gd.denoise(z, FS, **kw)          # every argument name the table gives is gd.denoise's
