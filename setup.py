@@ -3,8 +3,8 @@ from setuptools import setup, Extension
 setup(ext_modules=[
     Extension(
         "gyrodenoise.core._gdcore",
-        sources=["gyrodenoise/core/gdcore.c", "gyrodenoise/core/_gdcoremodule.c"],
-        depends=["gyrodenoise/core/gdcore.h"],
+        sources=["gyrodenoise/core/gdcore.c", "gyrodenoise/core/gdsim.c", "gyrodenoise/core/_gdcoremodule.c"],
+        depends=["gyrodenoise/core/gdcore.h", "gyrodenoise/core/gdsim.h"],
         # -ffp-contract=off: no fused multiply-add, so the C core equals the plain-Python
         # kernels bit for bit (tests/test_ccore.py). -fschedule-insns -fsched-pressure:
         # register-pressure-aware scheduling before allocation, measured with
