@@ -26,23 +26,9 @@ rate_random_walk  = { K = 0.1 }
 rate_ramp         = { R = 0.5 }
 constant_bias     = { value = 10.0, repeatability = 3.0 }
 turn_on_transient = { amplitude = 1.0, tau = 30.0 }
-[[terms.gauss_markov]]
-sigma = 0.2
-tau = 3.0
-[[terms.gauss_markov]]
-sigma = 0.0
-tau = 1.0
-[[terms.gauss_markov]]
-sigma = 0.7
-tau = 0.5
-[[terms.sinusoid]]
-amplitude = 0.5
-frequency = 1.3
-[[terms.sinusoid]]
-amplitude = 2.0
-frequency = 0.05
-phase_deg = 30.0
-"""
+""" + "".join(f"[[terms.gauss_markov]]\nsigma = {s}\ntau = {t}\n" for s, t in ((0.2, 3.0), (0.0, 1.0), (0.7, 0.5))) \
+    + "".join(f"[[terms.sinusoid]]\namplitude = {a}\nfrequency = {f}\nphase_deg = {ph}\n"
+              for a, f, ph in ((0.5, 1.3, 0.0), (2.0, 0.05, 30.0)))
 
 
 def c_buffers(card, seed):

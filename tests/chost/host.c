@@ -54,6 +54,7 @@
 #include <time.h>
 
 #include "fmi2Functions.h"
+#include "monotonic.h"
 
 #define MAX_VARS 512
 #define MAX_SET 64
@@ -280,18 +281,6 @@ static fmi2Component start(void) {
     return c;
 }
 
-static double now(void) {
-#ifdef _WIN32
-    LARGE_INTEGER f, c;
-    QueryPerformanceFrequency(&f);
-    QueryPerformanceCounter(&c);
-    return (double)c.QuadPart / (double)f.QuadPart;
-#else
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-#endif
-}
 
 /* ------------------------------------------------------------------ run */
 static int run(int bench) {

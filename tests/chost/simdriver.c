@@ -22,19 +22,8 @@
 #include <time.h>
 
 #include "gdsim.h"
+#include "monotonic.h"
 
-static double now(void) {
-#ifdef _WIN32
-    LARGE_INTEGER f, c;
-    QueryPerformanceFrequency(&f);
-    QueryPerformanceCounter(&c);
-    return (double)c.QuadPart / (double)f.QuadPart;
-#else
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-#endif
-}
 
 int main(int argc, char **argv) {
     enum { M = GD_SIM_MAX_REPEAT, LEN = 12 + 5 * GD_SIM_MAX_REPEAT };
