@@ -198,11 +198,12 @@ def test_cli_fmu_run_missing_card_is_user_error(fmu_dir):
     assert proc.stderr.startswith("gyrodenoise: error:") and "Traceback" not in proc.stderr
 
 
+@pytest.mark.parametrize("denoiser", ["FogDenoiserNative", "FogDenoiser"])
 @pytest.mark.parametrize("ssp", [False, True])
-def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp):
+def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp, denoiser):
     ssp_path = tmp_path / "chain.ssp" if ssp else None
     res = F.cosim_run(fmu_dir, duration_s=10.0, rate_deg_s=10.0, restart_at_s=5.0, seed=2, ssp=ssp_path,
-                      keep_arrays=True)
+                      keep_arrays=True, denoiser=denoiser)
     assert res["step_size_s"] == pytest.approx(H, rel=1e-9)
     assert res["first_received_deg_s"] == 0.0
     assert res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
@@ -218,8 +219,8 @@ def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp):
     assert np.max(np.abs(without - a["filtered"])) > 1e-6
     if ssp:
         with zipfile.ZipFile(ssp_path) as z:
-            assert {"SystemStructure.ssd", "resources/FogDenoiser.fmu",
-                    "resources/SimulatedFog.fmu"} <= set(z.namelist())
+            assert {"SystemStructure.ssd", f"resources/{denoiser}.fmu",
+                    "resources/SimulatedFog.fmu"} == set(z.namelist())
 
 
 # --------------------------------------------------------------- state
@@ -776,3 +777,15 @@ def test_simulatedfog_second_use_in_a_process(fmu_dir, tmp_path):
     proc = subprocess.run([sys.executable, "-c", SECOND_USE, str(fmu_dir / "SimulatedFog.fmu"), str(ssp)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and proc.stdout.startswith("ok"), proc.stdout + proc.stderr[-2000:]
+
+
+def test_ssp_writer_targets_the_native_denoiser_by_default(fmu_dir, tmp_path):
+    """Issue 22: the SSP writer could only target the pythonfmu denoiser."""
+    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir)
+    with zipfile.ZipFile(ssp) as z:
+        ssd = z.read("SystemStructure.ssd").decode()
+        assert "resources/FogDenoiserNative.fmu" in z.namelist()
+    assert 'source="resources/FogDenoiserNative.fmu"' in ssd and "FogDenoiser.fmu" not in ssd
+    from gyrodenoise.errors import InputError
+    with pytest.raises(InputError, match="denoiser must be one of"):
+        F.write_ssp(tmp_path / "x.ssp", fmu_dir=fmu_dir, denoiser="Wiener")
