@@ -3,8 +3,8 @@ from setuptools import setup, Extension
 setup(ext_modules=[
     Extension(
         "gyrodenoise.core._gdcore",
-        sources=["gyrodenoise/core/gdcore.c", "gyrodenoise/core/_gdcoremodule.c"],
-        depends=["gyrodenoise/core/gdcore.h"],
+        sources=["gyrodenoise/core/gdcore.c", "gyrodenoise/core/gdsim.c", "gyrodenoise/core/_gdcoremodule.c"],
+        depends=["gyrodenoise/core/gdcore.h", "gyrodenoise/core/gdsim.h"],
         # -ffp-contract=off: no fused multiply-add, so the C core equals the plain-Python
         # kernels bit for bit (tests/test_ccore.py). -fschedule-insns -fsched-pressure:
         # register-pressure-aware scheduling before allocation, measured with
@@ -12,5 +12,9 @@ setup(ext_modules=[
         # 29.2 -> 28.0, the others unchanged, outputs identical (clang ignores both, warning).
         extra_compile_args=["-O2", "-fschedule-insns", "-fsched-pressure", "-ffp-contract=off", "-std=c99"],
         libraries=["m"],
+        # optional: where there is no C compiler (most Windows and macOS desktops) the
+        # package installs without it and runs the plain-Python kernels (same numbers,
+        # slower; gyrodenoise/core/batch.py says so in one warning line)
+        optional=True,
     ),
 ])

@@ -149,11 +149,16 @@ class FogDenoiser(Fmi2Slave):
                                        description="True once the AR model has converged since the last "
                                                    "restart (the output is filtered from then on) [1]"))
         self.register_variable(Integer("ar_order", **par, description=f"Order n of the AR model, 1..{MAX_ORDER} [1]"))
-        self.register_variable(String("method", **par, description="Filter: 'motion' (default: follows "
-                                                                   "manoeuvres, averages at rest), 'shakf' "
-                                                                   "(modified Sage-Husa AKF, the paper), 'kf' "
-                                                                   "(conventional KF), 'sh_classic', 'lowpass' "
-                                                                   "(Butterworth, 20 Hz) or 'none' [-]"))
+        self.register_variable(String("method", **par, description="Filter, one of: 'motion' (default: "
+                                                                   "follows manoeuvres, averages at rest), "
+                                                                   "'shakf' (modified Sage-Husa AKF, the "
+                                                                   "paper), 'kf' (conventional KF), "
+                                                                   "'sh_classic' (classic Sage-Husa), "
+                                                                   "'lowpass' (Butterworth, cutoff_hz and "
+                                                                   "lowpass_order) or 'none' (output = "
+                                                                   "input); case and surrounding blanks "
+                                                                   "ignored; any other value is refused at "
+                                                                   "fmi2ExitInitializationMode [-]"))
         self.register_variable(Real("sample_period", **par,
                                     description="Sample period; every communication step must have this size [s]"))
         self.register_variable(Real("lam", **par, description="RLS forgetting factor, 0 < lam <= 1 [1]"))
@@ -224,6 +229,13 @@ class FogDenoiser(Fmi2Slave):
             raise ValueError(f"ar_order must be in 1..{MAX_ORDER} (phi outputs declared), got {order}")
         if not (self.sample_period > 0 and math.isfinite(self.sample_period)):
             raise ValueError(f"sample_period must be a finite number > 0 s, got {self.sample_period!r}")
+        # the lowpass parameters are checked against their declared bounds whatever the method
+        if not (self.cutoff_hz >= 0.0 and math.isfinite(self.cutoff_hz)):
+            raise ValueError(f"cutoff_hz out of range: {self.cutoff_hz!r} (must be a finite number >= 0 "
+                             "Hz, 0 = default; checked whatever the method)")
+        if not 1 <= self.lowpass_order <= 8:
+            raise ValueError(f"lowpass_order must be an integer 1..8, got {self.lowpass_order} (checked "
+                             "whatever the method)")
         den = self._D.Denoiser(
             sample_rate_hz=1.0 / self.sample_period, method=str(self.method).strip().lower(),
             ar_order=order, lam=self.lam, b=self.b, gamma=self.gamma, q0=self.q0, r0=self.r0,

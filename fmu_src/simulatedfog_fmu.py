@@ -160,9 +160,23 @@ class SimulatedFog(Fmi2Slave):
         if "\n" in text or "[" in text:
             card = self._S.parse_card(text, source="parameter card")
         else:
-            card = self._S.load_card(text.strip())
+            card = self._S.load_card(self._card_path(text.strip()))
         self._sim = self._S.SimStream(card, seed=int(self.seed))
         self._period = 1.0 / card.sample_rate_hz
+
+    def _card_path(self, name):
+        """A card file path, or a bundled card's name resolved in *this* instance's resources.
+
+        The bundled core is imported once per process (same contents, same module), so its
+        ``models_dir()`` is the folder of the first unzipped copy, which the host may have
+        deleted since: a second use in the process then found no card (issue 22).
+        """
+        if os.path.exists(name):
+            return name
+        base = os.path.basename(name)
+        bundled = os.path.join(self.resources, "gdcore", "data",
+                               base if base.endswith(".toml") else base + ".toml")
+        return bundled if os.path.isfile(bundled) else name
 
     def exit_initialization_mode(self):
         try:

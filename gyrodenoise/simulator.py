@@ -406,6 +406,8 @@ def simulate(card, n_samples, seed=0, true_rate_deg_s=None, restarts=None):
     truth = np.zeros(n) if true_rate_deg_s is None else np.broadcast_to(
         np.asarray(true_rate_deg_s, dtype=float), (n,)).copy()
     rs = None if restarts is None else np.asarray(restarts, dtype=bool)
+    if rs is not None and rs.shape != (n,):
+        raise InputError(f"restarts must be one bool per sample ({n}), got shape {rs.shape}")
     y = stream.run(n, truth, rs)
     return Record(rate_deg_s=y, sample_rate_hz=card.sample_rate_hz, true_rate_deg_s=truth,
                   restarts=rs, source=f"simulated:{card.name}:seed={seed}")

@@ -198,11 +198,12 @@ def test_cli_fmu_run_missing_card_is_user_error(fmu_dir):
     assert proc.stderr.startswith("gyrodenoise: error:") and "Traceback" not in proc.stderr
 
 
+@pytest.mark.parametrize("denoiser", ["FogDenoiserNative", "FogDenoiser"])
 @pytest.mark.parametrize("ssp", [False, True])
-def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp):
+def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp, denoiser):
     ssp_path = tmp_path / "chain.ssp" if ssp else None
     res = F.cosim_run(fmu_dir, duration_s=10.0, rate_deg_s=10.0, restart_at_s=5.0, seed=2, ssp=ssp_path,
-                      keep_arrays=True)
+                      keep_arrays=True, denoiser=denoiser)
     assert res["step_size_s"] == pytest.approx(H, rel=1e-9)
     assert res["first_received_deg_s"] == 0.0
     assert res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
@@ -218,8 +219,8 @@ def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp):
     assert np.max(np.abs(without - a["filtered"])) > 1e-6
     if ssp:
         with zipfile.ZipFile(ssp_path) as z:
-            assert {"SystemStructure.ssd", "resources/FogDenoiser.fmu",
-                    "resources/SimulatedFog.fmu"} <= set(z.namelist())
+            assert {"SystemStructure.ssd", f"resources/{denoiser}.fmu",
+                    "resources/SimulatedFog.fmu"} == set(z.namelist())
 
 
 # --------------------------------------------------------------- state
@@ -576,7 +577,11 @@ def test_model_description_declares_units_default_experiment_and_bounds(fmu_dir)
     md = read_model_description(str(fmu_dir / "FogDenoiser.fmu"))
     v = {x.name: x for x in md.modelVariables}
     assert v["R_hat"].unit == "deg2/s2" and v["sample_period"].unit == "s" and v["cutoff_hz"].unit == "Hz"
-    assert float(v["lam"].min) == 0.0 and float(v["lam"].max) == 1.0 and float(v["gamma"].min) == 1.0
+    assert float(v["lam"].max) == 1.0 and float(v["gamma"].min) == 1.0
+    # FMI min is inclusive: parameters that must be > 0 declare a positive min (issue 22: min="0.0")
+    for p in ("sample_period", "lam", "b", "p0_rls", "p0_kf", "r_floor"):
+        assert 0.0 < float(v[p].min) <= sys.float_info.min, (p, v[p].min)
+    assert float(v["b"].max) < 1.0 and float(v["q0"].min) == 0.0 and float(v["cutoff_hz"].min) == 0.0
     assert int(v["ar_order"].min) == 1 and int(v["ar_order"].max) == 6
     assert int(v["lowpass_order"].max) == 8
 
@@ -702,3 +707,85 @@ def test_the_ssp_runs_in_fmpy_simulate_ssp(fmu_dir, tmp_path):
     # Jacobi master: the denoiser sees the fog's output of the previous step
     ref = gd.denoise(measured[:-1], FS)
     np.testing.assert_allclose(filtered[1:], ref, rtol=0, atol=1e-9)
+
+
+def test_method_description_names_every_method_and_no_fixed_cutoff(fmu_dir):
+    """Issue 22: FogDenoiser's ``method`` description said "lowpass (Butterworth, 20 Hz)" (the
+    cutoff is a parameter) and did not describe sh_classic; it now says what the native one says."""
+    from fmpy import read_model_description
+    from gyrodenoise.core.kernels import METHODS
+    for name in ("FogDenoiser", "FogDenoiserNative"):
+        md = read_model_description(str(fmu_dir / f"{name}.fmu"))
+        desc = {v.name: v.description for v in md.modelVariables}["method"]
+        assert "20 Hz" not in desc and "cutoff_hz" in desc and "refused" in desc, (name, desc)
+        for m in METHODS:
+            assert f"'{m}'" in desc, (name, m)
+
+
+@pytest.mark.parametrize("cutoff", [float("nan"), float("inf"), -1.0])
+def test_bad_cutoff_refused_whatever_the_method(fmu_dir, cutoff):
+    """Issue 22: cutoff_hz NaN/inf/-1 (declared min 0) was accepted when the method was not lowpass."""
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir)
+    a.slave.setupExperiment(startTime=0.0)
+    a.set(method="shakf", cutoff_hz=cutoff)
+    a.slave.enterInitializationMode()
+    with pytest.raises(FMICallException):
+        a.slave.exitInitializationMode()
+    assert any("cutoff_hz out of range" in m[2] for m in a.errors()), a.messages
+    a.free(terminate=False)
+
+
+SECOND_USE = """
+import shutil, sys, tempfile
+from pathlib import Path
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.ssp.simulation import simulate_ssp
+fmu, ssp = sys.argv[1], sys.argv[2]
+md = read_model_description(fmu)
+vr = {v.name: v.valueReference for v in md.modelVariables}
+outs = []
+for k in range(2):          # unzip, run, free, delete the folder; again in the same process
+    d = extract(fmu, tempfile.mkdtemp())
+    s = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier="SimulatedFog", instanceName=f"f{k}")
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.exitInitializationMode()
+    out = []
+    for i in range(50):
+        s.setReal([vr["true_rate"]], [1.0])
+        s.doStep(i * 0.005, 0.005)
+        out.append(s.getReal([vr["measured_rate"]])[0])
+    s.terminate()
+    s.freeInstance()
+    shutil.rmtree(d)
+    outs.append(out)
+assert outs[0] == outs[1], "second use differs"
+runs = [simulate_ssp(ssp, stop_time=0.2, step_size=0.005) for _ in range(2)]
+assert list(runs[0]["fog.measured_rate"]) == list(runs[1]["fog.measured_rate"]), "second SSP run differs"
+print("ok", outs[1][:2])
+"""
+
+
+def test_simulatedfog_second_use_in_a_process(fmu_dir, tmp_path):
+    """Issue 22: a second SimulatedFog instance in a process, after the first unzip folder was
+    deleted, failed at fmi2ExitInitializationMode ("paper_fog: no such model card"), and so did
+    a second fmpy simulate_ssp. Run in a fresh process (the first use must be in it)."""
+    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir)
+    proc = subprocess.run([sys.executable, "-c", SECOND_USE, str(fmu_dir / "SimulatedFog.fmu"), str(ssp)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and proc.stdout.startswith("ok"), proc.stdout + proc.stderr[-2000:]
+
+
+def test_ssp_writer_targets_the_native_denoiser_by_default(fmu_dir, tmp_path):
+    """Issue 22: the SSP writer could only target the pythonfmu denoiser."""
+    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir)
+    with zipfile.ZipFile(ssp) as z:
+        ssd = z.read("SystemStructure.ssd").decode()
+        assert "resources/FogDenoiserNative.fmu" in z.namelist()
+    assert 'source="resources/FogDenoiserNative.fmu"' in ssd and "FogDenoiser.fmu" not in ssd
+    from gyrodenoise.errors import InputError
+    with pytest.raises(InputError, match="denoiser must be one of"):
+        F.write_ssp(tmp_path / "x.ssp", fmu_dir=fmu_dir, denoiser="Wiener")

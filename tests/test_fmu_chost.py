@@ -116,7 +116,7 @@ def test_simulatedfog_from_c_equals_simulate(fmus, host):
     proc = _run(host, fmus["SimulatedFog"], "run", *SIM_ARGS, "--set", "seed=7", stdin=_lines(w, rs))
     assert proc.returncode == 0, proc.stderr[-2000:]
     out = np.array([float(v) for v in proc.stdout.split()])
-    ref = gd.simulate("paper_fog", len(w), seed=7, true_rate_deg_s=w, restarts=np.flatnonzero(rs)).rate_deg_s
+    ref = gd.simulate("paper_fog", len(w), seed=7, true_rate_deg_s=w, restarts=rs).rate_deg_s
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-9)
 
 

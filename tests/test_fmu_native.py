@@ -8,6 +8,7 @@ fmi2Error and a logged reason, legal resource URIs, clean exits.
 """
 import ctypes
 import math
+import os
 import shutil
 import subprocess
 import sys
@@ -41,10 +42,9 @@ pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not ins
 
 # ----------------------------------------------------------------- fixtures
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    out = tmp_path_factory.mktemp("native")
-    fmu = native.build_native_fmu(out)
-    unz = out / "unzipped"
+def built(native_build, tmp_path_factory):
+    fmu = native_build[0] / "FogDenoiserNative.fmu"
+    unz = tmp_path_factory.mktemp("native") / "unzipped"
     with zipfile.ZipFile(fmu) as z:
         z.extractall(unz)
     return fmu, unz
@@ -63,8 +63,9 @@ def vr(md):
 @pytest.fixture(scope="module")
 def host(built, tmp_path_factory):
     exe = tmp_path_factory.mktemp("chost") / "host"
+    # no -lm: the FMU binary must bring its own math library (it is NEEDED by the .so)
     subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", f"-I{native.fmi_headers_dir()}",
-                    str(HERE / "chost" / "host.c"), "-o", str(exe), "-ldl", "-lm"],
+                    str(HERE / "chost" / "host.c"), "-o", str(exe), "-ldl"],
                    check=True, capture_output=True, text=True)
     return exe
 
@@ -441,6 +442,61 @@ def test_invalid_parameter_refused_at_exit_initialization(built, md, params, rea
     s.freeInstance()
 
 
+@pytest.mark.parametrize("method", ["motion", "shakf", "none"])
+@pytest.mark.parametrize("cutoff", [math.nan, math.inf, -1.0])
+def test_bad_cutoff_refused_whatever_the_method(built, md, method, cutoff):
+    """Issue 22: cutoff_hz NaN, inf or -1 (declared min 0) passed when the method was not lowpass."""
+    log = Logger()
+    s = slave(built, md, logger=log, method=method, cutoff_hz=cutoff)
+    msg = expect_error(log, s.exitInitializationMode)
+    assert "invalid parameter" in msg and "cutoff_hz out of range" in msg
+    s.freeInstance()
+    s = slave(built, md, logger=log, method=method, lowpass_order=9)
+    assert "lowpass_order must be an integer 1..8" in expect_error(log, s.exitInitializationMode)
+    s.freeInstance()
+
+
+def test_strictly_positive_parameters_declare_a_positive_min(md):
+    """Issue 22: min="0.0" was declared on parameters that must be > 0 (FMI min is inclusive)."""
+    by = {v.name: v for v in md.modelVariables}
+    for name in ("sample_period", "lam", "b", "p0_rls", "p0_kf", "r_floor"):
+        lo = float(by[name].min)
+        assert 0.0 < lo <= sys.float_info.min, (name, by[name].min)
+    assert float(by["b"].max) < 1.0 and float(by["lam"].max) == 1.0
+    for name in ("q0", "r0", "warmup_s", "cutoff_hz", "outlier_sigma"):   # these may be 0
+        assert float(by[name].min) == 0.0, name
+
+
+def test_free_instance_frees_the_states_the_host_did_not_free(built, md, vr):
+    """Issue 22: fmi2FreeInstance left the FMU states the host had not freed (FMI 2.0: it frees
+    everything the instance allocated). Counted through the host's memory callbacks."""
+    live = {}
+
+    def alloc(n, size):
+        ptr = fmpy.calloc(n, size)
+        live[ptr] = n * size
+        return ptr
+
+    def free(ptr):
+        live.pop(ptr, None)
+        fmpy.free(ptr)
+
+    log = Logger()
+    log.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(alloc)
+    log.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    s = slave(built, md, logger=log, method="shakf")
+    s.exitInitializationMode()
+    run(s, vr, *record(n=100))
+    kept = [s.getFMUstate(), s.getFMUstate()]
+    blob = s.serializeFMUstate(kept[0])
+    kept.append(s.deSerializeFMUstate(blob))
+    s.freeFMUstate(kept[1])
+    assert live, "the instance allocated nothing through the callbacks"
+    s.terminate()
+    s.freeInstance()
+    assert live == {}, f"{len(live)} blocks ({sum(live.values())} bytes) not freed by fmi2FreeInstance"
+
+
 def test_step_size_mismatch_warns_or_discards(built, md, vr):
     log = Logger()
     s = slave(built, md, logger=log, logging_on=True)
@@ -463,11 +519,14 @@ def test_step_size_mismatch_warns_or_discards(built, md, vr):
 def test_logging_honours_logging_on_and_categories(built, md, vr):
     log = Logger()
     s = slave(built, md, logger=log, logging_on=False)
-    s.exitInitializationMode()
-    assert s.fmi2DoStep(s.component, 0.0, 0.01, 1) == FMI_WARNING               # a warning: not logged
+    s.exitInitializationMode()                              # information: not logged (logging off)
     assert log.messages == []
+    # a warning status is explained even with logging off (issue 22: it came with no message)
+    assert s.fmi2DoStep(s.component, 0.0, 0.01, 1) == FMI_WARNING
+    assert [(st, c) for st, c, _ in log.messages] == [(FMI_WARNING, "logStatusWarning")]
+    assert "differs from sample_period" in log.messages[-1][2]
     expect_error(log, s.setReal, [vr["c"]], [0.0])          # an error is always explained
-    assert [c for _, c, _ in log.messages] == ["logStatusError"]
+    assert [c for _, c, _ in log.messages] == ["logStatusWarning", "logStatusError"]
     s.freeInstance()
     log = Logger()
     s = slave(built, md, logger=log, logging_on=False)
@@ -478,6 +537,21 @@ def test_logging_honours_logging_on_and_categories(built, md, vr):
     s.setDebugLogging(True, [])                             # no category: all of them
     s.terminate()
     assert log.messages[-1][1] == "logAll" and "step(s) had a size" in log.messages[-1][2]
+    s.freeInstance()
+
+
+def test_unknown_log_category_is_a_warning_with_its_reason(built, md):
+    """Issue 22: fmi2SetDebugLogging with an unknown category returned fmi2Warning and, with
+    logging off, logged nothing."""
+    log = Logger()
+    s = slave(built, md, logger=log, logging_on=False)
+    for logging_on in (0, 1):
+        cats = (ctypes.c_char_p * 2)(b"logStatusWarning", b"noSuchCategory")
+        assert s.fmi2SetDebugLogging(s.component, logging_on, 2, cats) == FMI_WARNING
+        status, cat, msg = log.messages[-1]
+        assert (status, cat) == (FMI_WARNING, "logStatusWarning")
+        assert "unknown log category" in msg and "'noSuchCategory'" in msg
+    assert len(log.messages) == 2
     s.freeInstance()
 
 
@@ -555,3 +629,109 @@ def test_instantiate_refuses_wrong_guid_and_model_exchange(built, md):
     lib.fmi2DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
     assert lib.fmi2DoStep(None, 0.0, 0.005, 1) == FMI_ERROR
     lib.fmi2FreeInstance(None)
+
+
+# ------------------------------------------- a source rebuild by fmpy (cmake)
+def _exported(so):
+    nm = shutil.which("nm")
+    if nm is None:
+        pytest.skip("nm (binutils) not installed")
+    out = subprocess.run([nm, "-D", "--defined-only", str(so)], capture_output=True, text=True,
+                         check=True).stdout
+    return {line.split()[-1] for line in out.splitlines() if line.strip()}
+
+
+def _needed(so):
+    readelf = shutil.which("readelf")
+    if readelf is None:
+        pytest.skip("readelf (binutils) not installed")
+    dyn = subprocess.run([readelf, "-d", str(so)], capture_output=True, text=True, check=True).stdout
+    return {line.split("[")[1].split("]")[0] for line in dyn.splitlines() if "(NEEDED)" in line}
+
+
+#: the cmake options the README and the fmi2Instantiate message give for a rebuild with libm
+REBUILD_WITH_LIBM = {"CMAKE_C_STANDARD_LIBRARIES:STRING": "-lm", "CMAKE_C_FLAGS:STRING": "-DGD_LIBM_LINKED"}
+
+
+def _fmpy_rebuild(built, tmp_path, monkeypatch, cmake_options=None):
+    """The FMU's sources rebuilt by fmpy's build_platform_binary (its own CMakeLists: no flags,
+    no libraries of ours); returns the unzipped folder with the new binaries/linux64."""
+    from fmpy.build import build_platform_binary
+    cmake = shutil.which("cmake") or str(Path(sys.executable).parent / "cmake")
+    if not Path(cmake).exists():
+        pytest.skip("cmake not installed (pip install cmake)")
+    monkeypatch.setenv("PATH", str(Path(cmake).parent) + os.pathsep + os.environ.get("PATH", ""))
+    unz = tmp_path / "unzipped"
+    shutil.copytree(built[1], unz)
+    shutil.rmtree(unz / "binaries")
+    (tmp_path / "cmake_build").mkdir()
+    build_platform_binary(unz, tmp_path / "cmake_build", cmake_options=cmake_options)
+    assert (unz / "binaries" / "linux64" / "FogDenoiserNative.so").is_file()
+    return unz
+
+
+def test_fmpy_source_rebuild_exports_fmi2_only_and_explains_a_missing_libm(built, host, tmp_path,
+                                                                            monkeypatch):
+    """Issue 22: a rebuild with fmpy's build_platform_binary exported 17 internal gd_* symbols
+    and, not linked with libm, failed to load in a host without libm (undefined pow). The one
+    listed source file hides the core; libm calls are weak there, so the binary loads and
+    fmi2Instantiate refuses with the reason where the process has no libm."""
+    unz = _fmpy_rebuild(built, tmp_path, monkeypatch)
+    so = unz / "binaries" / "linux64" / "FogDenoiserNative.so"
+    exported = _exported(so)
+    assert exported and all(n.startswith("fmi2") for n in exported), sorted(exported)
+    assert "libm.so.6" not in _needed(so)
+    z, rs = record(n=200)
+    proc = host_run(host, unz, z, rs)             # the host has no libm either
+    assert proc.returncode != 0
+    assert "built without -lm" in proc.stderr and "fmi2Instantiate" in proc.stderr, proc.stderr
+    # where the process has libm (Python, most tools), the same binary works
+    lib = ctypes.CDLL(str(so))
+    lib.fmi2Instantiate.restype = ctypes.c_void_p
+    md = read_model_description(str(unz))
+    log = Logger()
+    comp = lib.fmi2Instantiate(b"x", 1, md.guid.encode(), None, ctypes.byref(log.callbacks), 0, 0)
+    assert comp and not log.errors()
+    lib.fmi2FreeInstance.argtypes = [ctypes.c_void_p]
+    lib.fmi2FreeInstance(comp)
+
+
+def test_fmpy_source_rebuild_with_libm_equals_gd_denoise(built, host, tmp_path, monkeypatch):
+    """The rebuild with the one option the README gives (link libm) runs in a host with no
+    libm of its own and equals gd.denoise."""
+    unz = _fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM)
+    so = unz / "binaries" / "linux64" / "FogDenoiserNative.so"
+    assert "libm.so.6" in _needed(so)
+    assert all(n.startswith("fmi2") for n in _exported(so))
+    z, rs = record()
+    for method in ("motion", "lowpass"):
+        proc = host_run(host, unz, z, rs, "--set", f"method={method}")
+        assert proc.returncode == 0, proc.stderr
+        out = np.array([float(x) for x in proc.stdout.split()])
+        np.testing.assert_allclose(out, gd.denoise(z, FS, method=method, restarts=rs), rtol=0, atol=1e-12)
+
+
+def test_readme_vendor_table_maps_every_parameter_to_gd_denoise(md):
+    """The README's FMU <-> gd.denoise table names every parameter and input, and the
+    argument names it gives are accepted by gd.denoise."""
+    import re
+    text = (HERE.parent / "README.md").read_text()
+    section = text.split("**Parameters and `gd.denoise`.**", 1)[1].split("\n\n", 2)[1]
+    rows = [ln for ln in section.splitlines() if ln.startswith("| `")]
+    fmu_names = {n for ln in rows for n in re.findall(r"`([a-z_0-9]+)`", ln.split("|")[1])}
+    want = {v.name for v in md.modelVariables if v.causality in ("parameter", "input")}
+    assert want <= fmu_names, want - fmu_names
+    z, _ = record(n=50)
+    args = {}
+    for ln in rows:
+        fmu_col, py_col = ln.split("|")[1], ln.split("|")[2]
+        if "the same names" in py_col:
+            args.update({n: None for n in re.findall(r"`([a-z_0-9]+)`", fmu_col)})
+        elif py_col.strip().startswith("`") and "[k]" not in py_col:
+            args[re.findall(r"`([a-z_0-9]+)", py_col)[0]] = None
+    assert {"sample_rate_hz", "method", "ar_order", "cutoff_hz", "order", "lam", "outlier_run"} <= set(args)
+    by = {v.name: v for v in md.modelVariables}
+    kw = {k: (float if by[k].type == "Real" else int)(by[k].start) for k in args
+          if k in by and by[k].type in ("Real", "Integer")}
+    kw.update(method="lowpass", order=2, cutoff_hz=None)
+    gd.denoise(z, FS, **kw)          # every argument name the table gives is gd.denoise's

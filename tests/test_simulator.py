@@ -108,3 +108,11 @@ def test_bad_cards_get_one_line(text, needle):
         parse_card(text, "card.toml")
     msg = str(exc.value)
     assert needle in msg and msg.startswith("card.toml: ") and "\n" not in msg
+
+
+def test_restarts_must_be_one_bool_per_sample():
+    """restarts given as indices ([3, 7]) used to be read as booleans for the first samples."""
+    import gyrodenoise as gd
+    from gyrodenoise.errors import InputError
+    with pytest.raises(InputError, match="one bool per sample"):
+        gd.simulate("paper_fog", 10, restarts=[3, 7])

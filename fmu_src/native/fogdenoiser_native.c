@@ -18,18 +18,21 @@
  *   - FMU state get/set/free/serialize/deserialize (a versioned, checksummed
  *     byte image of the parameters and the filter's state buffer).
  *
- * Logging: messages that explain an fmi2Error / fmi2Fatal return are always
- * passed to the logger (they are not debug output); warnings and information
- * only when logging is on and their category ("logStatusWarning",
- * "logStatusDiscard", "logStatusError", "logStatusFatal", "logAll") is enabled
- * (all of them when fmi2SetDebugLogging was given no category).
+ * Logging: a message that explains a return status other than fmi2OK
+ * (fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal) is always passed to the
+ * logger (it is not debug output; repeated step-size warnings are rate-limited);
+ * information only when logging is on and its category ("logAll", or the
+ * status categories "logStatusWarning", "logStatusDiscard", "logStatusError",
+ * "logStatusFatal") is enabled (all of them when fmi2SetDebugLogging was given
+ * no category).
  *
  * The value references, the GUID and the start values come from
  * fogdenoiser_native_vars.h, generated with modelDescription.xml from one table
  * (gyrodenoise/fmu/native.py), so the two cannot drift.
  *
  * Compile: gcc -O2 -ffp-contract=off -std=c99 -fPIC -shared -fvisibility=hidden
- *          fogdenoiser_native.c gdcore.c -lm   (no -ffast-math: see gdcore.h)
+ *          -DGD_LIBM_LINKED fogdenoiser_native_all.c -lm   (no -ffast-math: see gdcore.h;
+ *          fogdenoiser_native_all.c includes this file and gdcore.c)
  */
 #include <float.h>
 #include <limits.h>
@@ -107,6 +110,8 @@ typedef struct {
     double p[N_PARAMS];
 } dyn_t;
 
+typedef struct fmustate_s fmustate_t;
+
 typedef struct {
     uint32_t magic;
     fmi2CallbackFunctions cb;
@@ -116,13 +121,20 @@ typedef struct {
     int cat_on[N_CATS];
     dyn_t d;
     double *s;
+    fmustate_t *states; /* the FMU states this instance allocated and the host has not freed */
 } inst_t;
 
-typedef struct {
+/* an FMU state: linked into its instance's list, so that fmi2FreeInstance frees the
+ * states the host did not free (FMI 2.0: fmi2FreeInstance frees all it allocated) */
+struct fmustate_s {
     uint32_t magic;
     dyn_t d;
     double *s;
-} fmustate_t;
+    void *owner; /* the inst_t that allocated it */
+    fmustate_t *prev, *next;
+};
+
+static void free_state(fmustate_t *f);
 
 /* ------------------------------------------------------------------ memory */
 static void *mem_alloc(const inst_t *c, size_t n, size_t size) {
@@ -163,9 +175,9 @@ static void vlogmsg(const inst_t *c, fmi2Status st, const char *fmt, va_list ap)
     size_t i, j;
     int cat = cat_of(st);
     if (!c || !c->cb.logger) return;
-    if (st < fmi2Discard) { /* a refusal (fmi2Discard, fmi2Error, fmi2Fatal) is always explained */
+    if (st == fmi2OK) { /* information: only when logging is on and its category enabled */
         if (!c->logging_on || !(c->cat_on[cat] || c->cat_on[CAT_ALL])) return;
-    }
+    } /* a message explaining a status other than fmi2OK (a warning or a refusal) always goes out */
     vsnprintf(text, sizeof text, fmt, ap);
     /* the logger treats the message as a printf format: escape '%' */
     for (i = 0, j = 0; text[i] && j + 2 < sizeof escaped; i++) {
@@ -269,6 +281,10 @@ static void set_defaults(dyn_t *d) {
 static int py_space(int ch) { return ch == ' ' || (ch >= 0x09 && ch <= 0x0d) || (ch >= 0x1c && ch <= 0x1f); }
 
 static double (*volatile libm_pow)(double, double) = pow; /* Python's float ** calls pow() */
+/* cmath.exp calls sin() and cos(): called through pointers so that gcc does not fuse them into
+ * the GNU sincos() (not in every libm; a weak reference in fogdenoiser_native_all.c) */
+static double (*volatile libm_sin)(double) = sin;
+static double (*volatile libm_cos)(double) = cos;
 
 static int fmt_err(char *err, size_t n, const char *fmt, ...) {
     va_list ap;
@@ -311,8 +327,8 @@ static int butter_sos(int order, double cutoff_hz, double fs, double *p) {
         py_c_quot(0.0 * (double)(2 * k + order + 1) - pi * 0.0, pi * (double)(2 * k + order + 1),
                   (double)(2 * order), 0.0, &ang_r, &ang_i);
         /* cmath.exp */
-        cr = exp(ang_r) * cos(ang_i);
-        ci = exp(ang_r) * sin(ang_i);
+        cr = exp(ang_r) * libm_cos(ang_i);
+        ci = exp(ang_r) * libm_sin(ang_i);
         /* wc * (cr, ci) */
         sr = wc * cr - 0.0 * ci;
         si = wc * ci + 0.0 * cr;
@@ -394,6 +410,14 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
                            checks[i].value, checks[i].rule);
     if (u->outlier_run < 1)
         return fmt_err(err, nerr, "outlier_run must be an integer >= 1, got %d", (int)u->outlier_run);
+    /* the lowpass parameters are checked against their declared bounds whatever the method
+     * (a NaN, inf or negative cutoff_hz used to pass when the method was not lowpass) */
+    if (!(u->cutoff_hz >= 0.0 && isfinite(u->cutoff_hz)))
+        return fmt_err(err, nerr, "cutoff_hz out of range: %.17g (must be a finite number >= 0 Hz, "
+                       "0 = default; checked whatever the method)", u->cutoff_hz);
+    if (u->lowpass_order < 1 || u->lowpass_order > 2 * MAX_SOS)
+        return fmt_err(err, nerr, "lowpass_order must be an integer 1..%d, got %d (checked whatever "
+                       "the method)", 2 * MAX_SOS, (int)u->lowpass_order);
     /* max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1)); round = half to even */
     wr = u->warmup_s * fs;
     if (!isfinite(wr))
@@ -453,6 +477,7 @@ fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t
                                const fmi2String categories[]) {
     size_t i;
     int k, on[N_CATS] = {0}, unknown = 0;
+    const char *first_unknown = NULL;
     BEGIN("fmi2SetDebugLogging", MASK_SET_DEBUG_LOGGING);
     if (nCategories > 0 && !categories)
         return fail(c, "fmi2SetDebugLogging: categories is NULL with nCategories = %lu",
@@ -461,14 +486,14 @@ fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t
         int found = 0;
         for (k = 0; k < N_CATS; k++)
             if (categories[i] && strcmp(categories[i], cat_names[k]) == 0) on[k] = found = 1;
-        if (!found) unknown++;
+        if (!found && !unknown++) first_unknown = categories[i] ? categories[i] : "(NULL)";
     }
     c->logging_on = loggingOn ? 1 : 0;
     for (k = 0; k < N_CATS; k++) c->cat_on[k] = nCategories == 0 ? 1 : on[k];
     if (unknown) {
-        logmsg(c, fmi2Warning, "fmi2SetDebugLogging: %d unknown log categor%s ignored (known: "
-               "logStatusWarning, logStatusDiscard, logStatusError, logStatusFatal, logAll)",
-               unknown, unknown == 1 ? "y" : "ies");
+        logmsg(c, fmi2Warning, "fmi2SetDebugLogging: %d unknown log categor%s ignored, the first "
+               "'%.100s' (known: logStatusWarning, logStatusDiscard, logStatusError, logStatusFatal, "
+               "logAll)", unknown, unknown == 1 ? "y" : "ies", first_unknown);
         return fmi2Warning;
     }
     return fmi2OK;
@@ -490,6 +515,16 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         logmsg(&tmp, fmi2Error, "fmi2Instantiate: allocateMemory and freeMemory must both be given");
         return NULL;
     }
+#ifdef GD_LIBM_MISSING /* a source build without -lm (see fogdenoiser_native_all.c) */
+    if (GD_LIBM_MISSING()) {
+        logmsg(&tmp, fmi2Error, "fmi2Instantiate: %s: the math library is not loaded in this process "
+               "(%s() missing): this binary was built without -lm; rebuild it with -lm -DGD_LIBM_LINKED "
+               "(fmpy: build_platform_binary(..., cmake_options={'CMAKE_C_STANDARD_LIBRARIES:STRING': "
+               "'-lm', 'CMAKE_C_FLAGS:STRING': '-DGD_LIBM_LINKED'})) or use the binary shipped in the "
+               "FMU", GD_MODEL_IDENTIFIER, GD_LIBM_MISSING());
+        return NULL;
+    }
+#endif
     if (!instanceName || !instanceName[0]) {
         logmsg(&tmp, fmi2Error, "fmi2Instantiate: instanceName must be a non-empty string");
         return NULL;
@@ -541,6 +576,7 @@ void fmi2FreeInstance(fmi2Component comp) {
     inst_t *c = inst_of(comp);
     if (!c) return;
     drop_filter(c);
+    while (c->states) free_state(c->states); /* states the host did not free */
     c->magic = 0;
     mem_free(c, c->name);
     mem_free(c, c->resource_uri);
@@ -814,8 +850,15 @@ static fmustate_t *state_of(fmi2FMUstate st) {
     return (f && f->magic == FMUSTATE_MAGIC) ? f : NULL;
 }
 
-static void free_state(inst_t *c, fmustate_t *f) {
+/* unlink f from the list of the instance that allocated it, free it with that
+ * instance's memory callbacks */
+static void free_state(fmustate_t *f) {
+    inst_t *c;
     if (!f) return;
+    c = (inst_t *)f->owner;
+    if (f->prev) f->prev->next = f->next;
+    else if (c->states == f) c->states = f->next;
+    if (f->next) f->next->prev = f->prev;
     f->magic = 0;
     mem_free(c, f->s);
     mem_free(c, f);
@@ -837,6 +880,11 @@ static fmustate_t *new_state(inst_t *c, const dyn_t *d, const double *s) {
         memcpy(f->s, s, (size_t)d->ns * sizeof(double));
     }
     f->magic = FMUSTATE_MAGIC;
+    f->owner = c;
+    f->prev = NULL;
+    f->next = c->states;
+    if (c->states) c->states->prev = f;
+    c->states = f;
     return f;
 }
 
@@ -854,7 +902,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate) {
     }
     f = new_state(c, &c->d, c->s);
     if (!f) return fail(c, "fmi2GetFMUstate: out of memory");
-    free_state(c, old);
+    free_state(old);
     *FMUstate = f;
     return fmi2OK;
 }
@@ -882,7 +930,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate) {
     if (!FMUstate || !*FMUstate) return fmi2OK; /* nothing to free */
     f = state_of(*FMUstate);
     if (!f) return fail(c, "fmi2FreeFMUstate: not a state of this FMU");
-    free_state(c, f);
+    free_state(f);
     *FMUstate = NULL;
     return fmi2OK;
 }

@@ -12,12 +12,19 @@
  *   restart(p, s)                      re-initialise s (counters kept)
  *   layout_total(n) -> int             length of s for AR order n
  *   CONSTANTS                          {name: value} of the P_/S_/M_ indices
+ * and the simulated gyro of gdsim.c (gyrodenoise.simulate):
+ *   sim_n_params(card) -> int          length of p for a card vector (simkernels.card_vector)
+ *   sim_params(card, seed, p)          fill p
+ *   sim_n_state(p) -> int              length of s
+ *   sim_reset(p, s)                    s at the start
+ *   sim_run(p, s, truth, restarts, out) out[i] = one measured sample; GIL released
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <string.h>
 
 #include "gdcore.h"
+#include "gdsim.h"
 
 /* float64 in native byte order */
 static int is_f64(const Py_buffer *b)
@@ -233,11 +240,209 @@ static PyObject *mod_layout_total(PyObject *self, PyObject *arg)
     return PyLong_FromLong(gd_layout_total((int)n));
 }
 
+/* ---------------------------------------------------------- simulated gyro */
+#define SIM_CARD_LEN (12 + 5 * GD_SIM_MAX_REPEAT)
+
+/* a card vector (simkernels.card_vector) into c; -1 with an exception if malformed */
+static int get_card(PyObject *obj, gd_card_t *c)
+{
+    Py_buffer b;
+    const double *v;
+    int i, M = GD_SIM_MAX_REPEAT;
+    if (get_f64(obj, &b, 0, "card") < 0)
+        return -1;
+    v = (const double *)b.buf;
+    if (b.len / 8 != SIM_CARD_LEN || !(v[0] > 0) || !(v[10] >= 0 && v[10] <= M && v[10] == (int)v[10])
+        || !(v[11] >= 0 && v[11] <= M && v[11] == (int)v[11])) {
+        PyErr_Format(PyExc_ValueError, "card must be a card vector of %d float64 "
+                     "(simkernels.card_vector)", SIM_CARD_LEN);
+        PyBuffer_Release(&b);
+        return -1;
+    }
+    memset(c, 0, sizeof *c);
+    c->sample_rate_hz = v[0];
+    c->Q = v[1];
+    c->N = v[2];
+    c->B = v[3];
+    c->K = v[4];
+    c->R = v[5];
+    c->bias = v[6];
+    c->bias_rep = v[7];
+    c->tr_amp = v[8];
+    c->tr_tau = v[9];
+    c->n_gm = (int)v[10];
+    c->n_sin = (int)v[11];
+    for (i = 0; i < M; i++) {
+        c->gm_sigma[i] = v[12 + i];
+        c->gm_tau[i] = v[12 + M + i];
+        c->sin_amp[i] = v[12 + 2 * M + i];
+        c->sin_f[i] = v[12 + 3 * M + i];
+        c->sin_phase_deg[i] = v[12 + 4 * M + i];
+    }
+    PyBuffer_Release(&b);
+    return 0;
+}
+
+/* p and s of the simulator, checked against each other (s may be NULL) */
+static int get_sim_ps(PyObject *po, PyObject *so, Py_buffer *pb, Py_buffer *sb)
+{
+    const double *p;
+    double nb, ns;
+    if (get_f64(po, pb, 0, "p") < 0)
+        return -1;
+    p = (const double *)pb->buf;
+    nb = pb->len / 8 >= PS_BANK ? p[PS_NBANK] : -1;
+    ns = pb->len / 8 >= PS_BANK ? p[PS_NSIN] : -1;
+    if (!(nb >= 0 && nb <= 1000 && nb == (long)nb && ns >= 0 && ns <= GD_SIM_MAX_REPEAT && ns == (long)ns)
+        || pb->len / 8 < PS_BANK + 3 * (long)nb + 3 * (long)ns) {
+        PyErr_SetString(PyExc_ValueError, "p is not a simulator parameter buffer (sim_params)");
+        PyBuffer_Release(pb);
+        return -1;
+    }
+    if (so == NULL)
+        return 0;
+    if (get_f64(so, sb, 1, "s") < 0) {
+        PyBuffer_Release(pb);
+        return -1;
+    }
+    if (sb->len / 8 != gd_sim_n_state(p)) {
+        PyErr_Format(PyExc_ValueError, "s has %zd items, the simulator needs %d", sb->len / 8,
+                     gd_sim_n_state(p));
+        PyBuffer_Release(sb);
+        PyBuffer_Release(pb);
+        return -1;
+    }
+    return 0;
+}
+
+static PyObject *mod_sim_n_params(PyObject *self, PyObject *arg)
+{
+    gd_card_t c;
+    (void)self;
+    if (get_card(arg, &c) < 0)
+        return NULL;
+    return PyLong_FromLong(gd_sim_n_params(&c));
+}
+
+static PyObject *mod_sim_params(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    gd_card_t c;
+    Py_buffer pb;
+    double seed;
+    (void)self;
+    if (!nargs_ok("sim_params", nargs, 3) || get_card(args[0], &c) < 0)
+        return NULL;
+    seed = PyFloat_AsDouble(args[1]);
+    if (seed == -1.0 && PyErr_Occurred())
+        return NULL;
+    if (!(seed >= 0 && seed < 9007199254740992.0 && seed == (double)(long long)seed)) {
+        PyErr_Format(PyExc_ValueError, "seed must be an integer in 0..2**53-1, got %g", seed);
+        return NULL;
+    }
+    if (get_f64(args[2], &pb, 1, "p") < 0)
+        return NULL;
+    if (pb.len / 8 != gd_sim_n_params(&c)) {
+        PyErr_Format(PyExc_ValueError, "p has %zd items, the card needs %d", pb.len / 8,
+                     gd_sim_n_params(&c));
+        PyBuffer_Release(&pb);
+        return NULL;
+    }
+    gd_sim_params(&c, seed, (double *)pb.buf);
+    PyBuffer_Release(&pb);
+    Py_RETURN_NONE;
+}
+
+static PyObject *mod_sim_n_state(PyObject *self, PyObject *arg)
+{
+    Py_buffer pb;
+    long n;
+    (void)self;
+    if (get_sim_ps(arg, NULL, &pb, NULL) < 0)
+        return NULL;
+    n = gd_sim_n_state((const double *)pb.buf);
+    PyBuffer_Release(&pb);
+    return PyLong_FromLong(n);
+}
+
+static PyObject *mod_sim_reset(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer pb, sb;
+    (void)self;
+    if (!nargs_ok("sim_reset", nargs, 2) || get_sim_ps(args[0], args[1], &pb, &sb) < 0)
+        return NULL;
+    gd_sim_reset((const double *)pb.buf, (double *)sb.buf);
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&pb);
+    Py_RETURN_NONE;
+}
+
+static PyObject *mod_sim_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer pb, sb, tb, rb, ob;
+    int have_t = 0, have_r = 0;
+    const double *t = NULL;
+    const unsigned char *r = NULL;
+    Py_ssize_t n;
+    PyObject *ret = NULL;
+    (void)self;
+    if (!nargs_ok("sim_run", nargs, 5) || get_sim_ps(args[0], args[1], &pb, &sb) < 0)
+        return NULL;
+    if (get_f64(args[4], &ob, 1, "out") < 0)
+        goto done_ps;
+    n = ob.len / 8;
+    if (args[2] != Py_None) {
+        if (get_f64(args[2], &tb, 0, "truth") < 0)
+            goto done_o;
+        have_t = 1;
+        if (tb.len / 8 != n) {
+            PyErr_Format(PyExc_ValueError, "truth has %zd items, out has %zd", tb.len / 8, n);
+            goto done_t;
+        }
+        t = (const double *)tb.buf;
+    }
+    if (args[3] != Py_None) {
+        if (PyObject_GetBuffer(args[3], &rb, PyBUF_FORMAT) < 0)
+            goto done_t;
+        have_r = 1;
+        if (!is_u8(&rb) || rb.len != n) {
+            PyErr_Format(PyExc_ValueError, "restarts must be %zd bool/uint8 items", n);
+            goto done_r;
+        }
+        r = (const unsigned char *)rb.buf;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    gd_sim_run((const double *)pb.buf, (double *)sb.buf, (long)n, t, r, (double *)ob.buf);
+    Py_END_ALLOW_THREADS
+    ret = Py_None;
+    Py_INCREF(ret);
+done_r:
+    if (have_r)
+        PyBuffer_Release(&rb);
+done_t:
+    if (have_t)
+        PyBuffer_Release(&tb);
+done_o:
+    PyBuffer_Release(&ob);
+done_ps:
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&pb);
+    return ret;
+}
+
 static PyMethodDef methods[] = {
     {"step", (PyCFunction)(void (*)(void))mod_step, METH_FASTCALL, step_doc},
     {"run", (PyCFunction)(void (*)(void))mod_run, METH_FASTCALL, run_doc},
     {"restart", (PyCFunction)(void (*)(void))mod_restart, METH_FASTCALL, restart_doc},
     {"layout_total", mod_layout_total, METH_O, layout_total_doc},
+    {"sim_n_params", mod_sim_n_params, METH_O, "sim_n_params(card) -> int (gdsim.c)"},
+    {"sim_params", (PyCFunction)(void (*)(void))mod_sim_params, METH_FASTCALL,
+     "sim_params(card, seed, p): fill p from a card vector and a seed (gdsim.c)"},
+    {"sim_n_state", mod_sim_n_state, METH_O, "sim_n_state(p) -> int (gdsim.c)"},
+    {"sim_reset", (PyCFunction)(void (*)(void))mod_sim_reset, METH_FASTCALL,
+     "sim_reset(p, s): the simulator state at the start (gdsim.c)"},
+    {"sim_run", (PyCFunction)(void (*)(void))mod_sim_run, METH_FASTCALL,
+     "sim_run(p, s, truth, restarts, out): measured samples into out, s updated (gdsim.c); "
+     "truth float64 or None, restarts bool/uint8 or None"},
     {NULL, NULL, 0, NULL},
 };
 

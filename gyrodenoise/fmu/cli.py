@@ -24,8 +24,13 @@ def register_cli(subparsers):
                        description="Package fmu_src/*.py with pythonfmu (in a subprocess) and the "
                                    "core (plain-Python kernels + the C extension) into FMI 2.0 "
                                    "co-simulation FMUs, and compile FogDenoiserNative.fmu from the C core "
-                                   "and its own FMI layer (fmu_src/native; needs gcc).")
+                                   "and its own FMI layer (fmu_src/native) for linux64 (glibc 2.17), win64 "
+                                   "and darwin64 (zig from the ziglang package; mingw-w64 for win64).")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
+    b.add_argument("--platforms", default=None, metavar="LIST",
+                   help="native FMU platforms, comma-separated, each required (linux64, win64, "
+                        "darwin64); default: every platform a compiler is found for (zig from the "
+                        "ziglang package: all three), the others skipped with the reason")
     b.set_defaults(func=_cmd_build)
     r = sub.add_parser("run", help="SimulatedFog -> FogDenoiser validation run (fmpy or libcosim)",
                        description="Run SimulatedFog -> FogDenoiser one sample per step and compare "
@@ -48,18 +53,30 @@ def register_cli(subparsers):
     r.add_argument("--ar-order", type=int, default=3)
     r.add_argument("--master", default="fmpy", choices=["fmpy", "libcosim", "ssp"],
                    help="fmpy FMU2Slave loop (default), libcosim built from Python, or "
-                        "libcosim from an SSP file written next to the FMUs")
+                        "libcosim from an SSP file written next to the FMUs (libcosim and the SSP "
+                        "run FogDenoiserNative.fmu)")
     r.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     r.set_defaults(func=_cmd_run)
     p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
 
 
 def _cmd_build(args):
-    from .native import build_native_fmu
+    from .native import PLATFORMS, build_native_fmu
+    platforms = None
+    if args.platforms is not None:
+        platforms = [p.strip() for p in args.platforms.split(",") if p.strip()]
+        bad = [p for p in platforms if p not in PLATFORMS]
+        if bad or not platforms:
+            raise InputError(f"--platforms: unknown platform {', '.join(bad) or '(none given)'}; "
+                             f"known: {', '.join(PLATFORMS)}")
+    report = {}
+    native = build_native_fmu(args.out, platforms=platforms, report=report)   # compilers first: fails fast
     paths = build_all(args.out)
-    paths["FogDenoiserNative"] = build_native_fmu(args.out)
+    paths["FogDenoiserNative"] = native
     for name, path in paths.items():
         print(f"{name}: {path}")
+    for plat, what in report.items():
+        print(f"gyrodenoise: native {plat}: {what}", file=sys.stderr)
     return 0
 
 
@@ -71,6 +88,10 @@ def _cmd_run(args):
         why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
         print(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})", file=sys.stderr)
         build_all(fmu_dir)
+    if args.master != "fmpy" and not (fmu_dir / "FogDenoiserNative.fmu").is_file():
+        from .native import build_native_fmu     # the chain's denoiser in libcosim and the SSP
+        print(f"gyrodenoise: building FogDenoiserNative.fmu in {fmu_dir}/", file=sys.stderr)
+        build_native_fmu(fmu_dir)
     if args.duration <= 0:
         raise InputError(f"--duration must be > 0 s, got {args.duration}")
     if args.rate is not None:

@@ -42,9 +42,29 @@ def system_parameters(card, seed=0, method=DEFAULT_METHOD, ar_order=3, rate_deg_
     }
 
 
+#: the denoiser FMUs an SSP or a libcosim run may use (same variables and outputs)
+DENOISERS = ("FogDenoiserNative", "FogDenoiser")
+
+
+def _chain_paths(fmu_dir, denoiser):
+    """{"SimulatedFog": path, "denoiser": path} of the chain's two FMUs."""
+    if denoiser not in DENOISERS:
+        raise InputError(f"denoiser must be one of {', '.join(DENOISERS)}, got {denoiser!r}")
+    paths = _fmu_paths(fmu_dir)
+    if denoiser == "FogDenoiser":
+        return {"SimulatedFog": paths["SimulatedFog"], "denoiser": paths["FogDenoiser"]}
+    native = Path(fmu_dir) / f"{denoiser}.fmu"
+    if not native.is_file():
+        raise InputError(f"{native}: not found (run 'gyrodenoise fmu build --out {fmu_dir}')")
+    return {"SimulatedFog": paths["SimulatedFog"], "denoiser": native}
+
+
 def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_METHOD, ar_order=3,
-              rate_deg_s=0.0, duration_s=600.0, denoiser_kw=None):
-    """Write an SSP 1.0 archive of SimulatedFog -> FogDenoiser; return its path.
+              rate_deg_s=0.0, duration_s=600.0, denoiser_kw=None, denoiser="FogDenoiserNative"):
+    """Write an SSP 1.0 archive of SimulatedFog -> the denoiser; return its path.
+
+    ``denoiser``: ``"FogDenoiserNative"`` (default: the native FMU, no Python in the
+    denoiser) or ``"FogDenoiser"`` (pythonfmu); same variables, same outputs.
 
     The archive holds ``SystemStructure.ssd`` and both FMUs under ``resources/``;
     the connections are ``fog.measured_rate -> denoiser.raw_rate`` and
@@ -54,11 +74,12 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
     """
     import zipfile
     from fmpy import read_model_description
-    paths = _fmu_paths(fmu_dir)
+    chain = _chain_paths(fmu_dir, denoiser)
+    paths = {"SimulatedFog": chain["SimulatedFog"], denoiser: chain["denoiser"]}
     card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw)
     h = 1.0 / card_obj.sample_rate_hz
     comps = []
-    for inst, model in (("fog", "SimulatedFog"), ("denoiser", "FogDenoiser")):
+    for inst, model in (("fog", "SimulatedFog"), ("denoiser", denoiser)):
         md = read_model_description(str(paths[model]))
         types = {v.name: v.type for v in md.modelVariables}
         # the chain's free inputs (fog.true_rate, fog.restart: set by the parameter
@@ -94,7 +115,7 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
     xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
     xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
     xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations">
-  <ssd:System name="fog_chain" description="SimulatedFog (model card {_xml_attr(card_obj.name)[1:-1]}, seed {int(seed)}) -> FogDenoiser; one step = one sample">
+  <ssd:System name="fog_chain" description="SimulatedFog (model card {_xml_attr(card_obj.name)[1:-1]}, seed {int(seed)}) -> {denoiser}; one step = one sample">
     <ssd:Elements>
 {comps_xml}
     </ssd:Elements>
@@ -125,7 +146,7 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
 
 def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=None, seed=0,
               card="paper_fog", method=DEFAULT_METHOD, ar_order=3, ssp=None, tol=1e-9,
-              keep_arrays=False, denoiser_kw=None):
+              keep_arrays=False, denoiser_kw=None, denoiser="FogDenoiserNative"):
     """The two-FMU system in libcosim (Open Simulation Platform) via libcosimpy.
 
     ``ssp=None`` builds the system from Python (local slaves, connections,
@@ -157,22 +178,22 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
         raise InputError(f"sample rate {fs} Hz is not a whole number of nanoseconds per sample "
                          "(libcosim's time unit)")
     n = int(round(duration_s * fs))
-    paths = _fmu_paths(fmu_dir)
+    paths = _chain_paths(fmu_dir, denoiser)
     from fmpy import read_model_description
     vrs = {m: {v.name: (v.valueReference, v.type) for v in read_model_description(str(p)).modelVariables}
            for m, p in paths.items()}
-    fvr, dvr = vrs["SimulatedFog"], vrs["FogDenoiser"]
+    fvr, dvr = vrs["SimulatedFog"], vrs["denoiser"]
 
     if ssp is not None:
         ssp_path = write_ssp(ssp, fmu_dir, card_obj, seed, method, ar_order, rate_deg_s, duration_s,
-                             denoiser_kw)
+                             denoiser_kw, denoiser)
         ex = CosimExecution.from_ssp_file(str(ssp_path))
         fog = ex.slave_index_from_instance_name("fog")
         den = ex.slave_index_from_instance_name("denoiser")
     else:
         ex = CosimExecution.from_step_size(h_ns)
         fog = ex.add_local_slave(CosimLocalSlave(str(paths["SimulatedFog"]), "fog"))
-        den = ex.add_local_slave(CosimLocalSlave(str(paths["FogDenoiser"]), "denoiser"))
+        den = ex.add_local_slave(CosimLocalSlave(str(paths["denoiser"]), "denoiser"))
         setters = {"Real": ex.real_initial_value, "Integer": ex.integer_initial_value,
                    "Boolean": ex.boolean_initial_value, "String": ex.string_initial_value}
         for idx, inst, table in ((fog, "fog", fvr), (den, "denoiser", dvr)):

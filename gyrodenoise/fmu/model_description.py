@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import re
 import shutil
+import sys
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
@@ -27,12 +28,18 @@ UNITS = {
     "Hz": ("Hz", {"s": "-1"}),
 }
 
+#: FMI 2.0 ``min``/``max`` are inclusive: a parameter that must be > 0 declares the smallest
+#: positive normal double (sys.float_info.min), one that must be < 1 the largest double below 1
+POSITIVE_MIN = sys.float_info.min
+BELOW_ONE = 1.0 - sys.float_info.epsilon / 2.0
+
 #: per FMU: default communication step size (s) and {parameter: (min, max)}
 SPECS = {
     "FogDenoiser": (0.005, {
-        "ar_order": (1, 6), "sample_period": (0.0, None), "lam": (0.0, 1.0), "b": (0.0, 1.0),
-        "gamma": (1.0, None), "q0": (0.0, None), "r0": (0.0, None), "p0_rls": (0.0, None),
-        "p0_kf": (0.0, None), "warmup_s": (0.0, None), "r_floor": (0.0, None),
+        "ar_order": (1, 6), "sample_period": (POSITIVE_MIN, None), "lam": (POSITIVE_MIN, 1.0),
+        "b": (POSITIVE_MIN, BELOW_ONE), "gamma": (1.0, None), "q0": (0.0, None), "r0": (0.0, None),
+        "p0_rls": (POSITIVE_MIN, None), "p0_kf": (POSITIVE_MIN, None), "warmup_s": (0.0, None),
+        "r_floor": (POSITIVE_MIN, None),
         "outlier_sigma": (0.0, None), "outlier_run": (1, None), "cutoff_hz": (0.0, None),
         "lowpass_order": (1, 8)}),
     "SimulatedFog": (0.005, {"seed": (0, None)}),

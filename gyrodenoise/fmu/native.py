@@ -32,6 +32,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from ..errors import InputError
+from .model_description import BELOW_ONE, POSITIVE_MIN
 
 MODEL_NAME = "FogDenoiserNative"
 MAX_ORDER = 6                    # phi_1 .. phi_6 declared; phi_k for k > ar_order reads 0
@@ -40,9 +41,8 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1]
 NATIVE_SRC = PACKAGE_DIR.parent / "fmu_src" / "native"
 CORE_DIR = PACKAGE_DIR / "core"
 C_SOURCE = "fogdenoiser_native.c"
+UNITY_SOURCE = "fogdenoiser_native_all.c"   # includes C_SOURCE and gdcore.c: the one file compiled
 VARS_HEADER = "fogdenoiser_native_vars.h"
-CFLAGS = ["-O2", "-fschedule-insns", "-fsched-pressure", "-ffp-contract=off", "-std=c99",   # as setup.py
-          "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wl,-z,defs"]
 
 DEG = math.pi / 180.0
 #: FMI unit name -> BaseUnit attributes (SI: rad, s)
@@ -92,25 +92,26 @@ VARIABLES = (
        _par("ar_order", "Integer", 3, f"Order n of the AR model, 1..{MAX_ORDER}", min=1, max=MAX_ORDER),
        _par("method", "String", "motion", METHOD_DOC),
        _par("sample_period", "Real", 0.005, "Sample period, > 0; every communication step must "
-            "have this size", unit="s", min=0.0),
-       _par("lam", "Real", 1.0, "RLS forgetting factor, 0 < lam <= 1", min=0.0, max=1.0),
-       _par("b", "Real", 0.99, "Sage-Husa forgetting factor, 0 < b < 1", min=0.0, max=1.0),
+            "have this size", unit="s", min=POSITIVE_MIN),
+       _par("lam", "Real", 1.0, "RLS forgetting factor, 0 < lam <= 1", min=POSITIVE_MIN, max=1.0),
+       _par("b", "Real", 0.99, "Sage-Husa forgetting factor, 0 < b < 1", min=POSITIVE_MIN, max=BELOW_ONE),
        _par("gamma", "Real", 3.0, "Convergence-criterion strictness, Eq. (32), gamma >= 1", min=1.0),
        _par("q0", "Real", 0.0, "Process-noise variance, 0 = automatic", unit="deg2/s2", min=0.0),
        _par("r0", "Real", 0.0, "Measurement-noise variance, 0 = automatic", unit="deg2/s2", min=0.0),
-       _par("p0_rls", "Real", 1.0e4, "Initial RLS covariance (diagonal), > 0", min=0.0),
-       _par("p0_kf", "Real", 1.0, "Initial filter covariance (diagonal), > 0", unit="deg2/s2", min=0.0),
+       _par("p0_rls", "Real", 1.0e4, "Initial RLS covariance (diagonal), > 0", min=POSITIVE_MIN),
+       _par("p0_kf", "Real", 1.0, "Initial filter covariance (diagonal), > 0", unit="deg2/s2", min=POSITIVE_MIN),
        _par("warmup_s", "Real", 1.0, "Warm-up after each restart (raw passed through), >= 0; at "
             "least 10 (ar_order + 1) samples", unit="s", min=0.0),
        _par("r_floor", "Real", 1.0e-18, "Lower bound of R and of the automatic noise levels, > 0",
-            unit="deg2/s2", min=0.0),
+            unit="deg2/s2", min=POSITIVE_MIN),
        _par("outlier_sigma", "Real", 5.0, "Outlier gate: a sample with |innovation| > "
             "outlier_sigma sqrt(S) is kept out of the filter; 0 = off (the paper's filter), else >= 2",
             min=0.0),
        _par("outlier_run", "Integer", 20, "Consecutive rejected samples after which the filter "
             "re-opens (restarts) on a real rate change, >= 1", min=1),
        _par("cutoff_hz", "Real", 0.0, "method 'lowpass': -3 dB cutoff, below half the sample "
-            "rate; 0 = 20 Hz, at most a quarter of the sample rate", unit="Hz", min=0.0),
+            "rate; 0 = 20 Hz, at most a quarter of the sample rate; checked (finite, >= 0) whatever the "
+            "method", unit="Hz", min=0.0),
        _par("lowpass_order", "Integer", 2, "method 'lowpass': Butterworth order, 1..8", min=1, max=8),
        _var("n_rejected", "Integer", "output", "Samples kept out of the filter by the outlier gate "
             "since initialisation", variability="discrete"),
@@ -155,8 +156,7 @@ def model_description(guid):
            'canGetAndSetFMUstate="true" canSerializeFMUstate="true" '
            'providesDirectionalDerivative="false">',
            '    <SourceFiles>',
-           f'      <File name="{C_SOURCE}"/>',
-           '      <File name="gdcore.c"/>',
+           f'      <File name="{UNITY_SOURCE}"/>',
            '    </SourceFiles>',
            '  </CoSimulation>',
            '  <UnitDefinitions>']
@@ -224,8 +224,8 @@ def vars_header(guid):
 
 def _sources():
     """{file name: bytes} of the C sources that go into the binary and the FMU."""
-    files = {C_SOURCE: NATIVE_SRC / C_SOURCE, "gdcore.c": CORE_DIR / "gdcore.c",
-             "gdcore.h": CORE_DIR / "gdcore.h"}
+    files = {C_SOURCE: NATIVE_SRC / C_SOURCE, UNITY_SOURCE: NATIVE_SRC / UNITY_SOURCE,
+             "gdcore.c": CORE_DIR / "gdcore.c", "gdcore.h": CORE_DIR / "gdcore.h"}
     missing = [str(p) for p in files.values() if not p.is_file()]
     if missing:
         raise InputError(f"native FMU sources missing: {', '.join(missing)}")
@@ -244,29 +244,125 @@ def fmi_headers_dir():
     return d
 
 
-def _platform():
-    machine = platform.machine().lower()
+# ------------------------------------------------------------ platforms
+#: FMI 2.0 platform folder -> (binary extension, zig target, other cross compilers tried first)
+#: linux64 targets glibc 2.17 (RHEL/CentOS 7, Ubuntu 14.04 and later); darwin64 is x86_64
+#: macOS (runs on Apple silicon under Rosetta 2), minimum version DARWIN_MIN.
+DARWIN_MIN = "10.13"
+PLATFORMS = {
+    "linux64": (".so", "x86_64-linux-gnu.2.17", ()),
+    "win64": (".dll", "x86_64-windows-gnu", ("x86_64-w64-mingw32-gcc",)),
+    "darwin64": (".dylib", f"x86_64-macos.{DARWIN_MIN}", ()),
+}
+COMMON_FLAGS = ["-O2", "-ffp-contract=off", "-std=c99", "-shared", "-fvisibility=hidden", "-Wall",
+                "-g0", "-DGD_LIBM_LINKED"]
+PLATFORM_FLAGS = {
+    "linux64": ["-fPIC", "-Wl,-z,defs", "-s"],
+    "win64": ["-s"],
+    "darwin64": ["-Wl,-undefined,error"],
+}
+GCC_ONLY_FLAGS = ["-fschedule-insns", "-fsched-pressure"]   # as setup.py (clang ignores them)
+
+
+def host_platform():
+    """The FMI 2.0 platform folder of this machine, or None if it is not one we build for."""
     bits64 = sys.maxsize > 2 ** 32
-    if sys.platform.startswith("linux") and bits64:
-        return "linux64", ".so"
-    if sys.platform == "darwin" and bits64:
-        return "darwin64", ".dylib"
-    raise InputError(f"native FMU: building on {sys.platform}/{machine} is not supported "
-                     "(linux64 and darwin64 are)")
+    machine = platform.machine().lower()
+    if not bits64 or machine not in ("x86_64", "amd64"):
+        return None
+    if sys.platform.startswith("linux"):
+        return "linux64"
+    if sys.platform == "win32":
+        return "win64"
+    if sys.platform == "darwin":
+        return "darwin64"
+    return None
 
 
-def build_native_fmu(out_dir="build"):
+def zig_command():
+    """The command prefix that runs ``zig`` (the ``ziglang`` PyPI package, or zig on PATH), or None."""
+    import importlib.util
+    if importlib.util.find_spec("ziglang") is not None:
+        return [sys.executable, "-m", "ziglang"]
+    z = shutil.which("zig")
+    return [z] if z else None
+
+
+def compiler_for(plat):
+    """(command prefix, description) of the C compiler used for ``plat``; InputError if none.
+
+    linux64: zig's ``cc`` for glibc 2.17 (the ``ziglang`` package: ``pip install ziglang``);
+    without it, when building on Linux, the system gcc, whose binary then needs the build
+    machine's glibc. ``GYRODENOISE_CC`` names the compiler for this machine's platform.
+    win64: mingw-w64 gcc if installed, else zig. darwin64: zig.
+    """
+    if plat not in PLATFORMS:
+        raise InputError(f"unknown FMU platform {plat!r}; known: {', '.join(PLATFORMS)}")
+    _ext, target, others = PLATFORMS[plat]
+    cc_env = os.environ.get("GYRODENOISE_CC")
+    if plat == host_platform() and cc_env:
+        exe = shutil.which(cc_env)
+        if exe is None:
+            raise InputError(f"GYRODENOISE_CC={cc_env}: not found on PATH (the native FMUs are "
+                             "compiled at build time)")
+        return [exe], f"{cc_env} (GYRODENOISE_CC)"
+    for name in others:
+        exe = shutil.which(name)
+        if exe:
+            return [exe], name
+    zig = zig_command()
+    if zig is not None:
+        return zig + ["cc", "-target", target], f"zig cc -target {target}"
+    if plat == "linux64" and host_platform() == "linux64" and shutil.which("gcc"):
+        return [shutil.which("gcc")], "gcc (no zig: the binary needs this machine's glibc, not 2.17)"
+    hint = {"win64": "pip install ziglang, or apt-get install mingw-w64",
+            "darwin64": "pip install ziglang"}.get(plat, "pip install ziglang, or install gcc")
+    raise InputError(f"no C compiler for {plat}: {hint} (the native FMUs are compiled at build time)")
+
+
+def _compile(plat, cc, src_dir, out):
+    """Compile the unity source for ``plat`` into ``out``; InputError (one line) on failure."""
+    is_gcc = "-target" not in cc and Path(cc[0]).name.endswith("gcc")
+    flags = list(COMMON_FLAGS) + PLATFORM_FLAGS[plat]
+    if is_gcc:
+        flags += GCC_ONLY_FLAGS + (["-static-libgcc"] if plat == "win64" else [])
+    cmd = [*cc, *flags, f"-I{src_dir}", f"-I{fmi_headers_dir()}", "-o", str(out),
+           str(src_dir / UNITY_SOURCE), "-lm"]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=out.parent)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise InputError(f"{cc[0]} could not be run for {MODEL_NAME} ({plat}): {exc}") from None
+    if proc.returncode != 0:
+        first = next((ln for ln in proc.stderr.splitlines() if "error" in ln), proc.stderr.strip()[:200])
+        raise InputError(f"compiling {MODEL_NAME} for {plat} failed (exit {proc.returncode}): {first}")
+
+
+def build_native_fmu(out_dir="build", platforms=None, report=None):
     """Compile FogDenoiserNative and write ``out_dir/FogDenoiserNative.fmu``; returns its path.
 
-    Raises :class:`~gyrodenoise.errors.InputError` (one line) if gcc is missing
-    or the compilation fails.
+    ``platforms``: the FMI 2.0 platform folders to put binaries in (see :data:`PLATFORMS`); a
+    missing compiler is then an error. None: every platform a compiler is found for, this
+    machine's at least (the others are skipped, with the reason in ``report``). ``report`` (a
+    dict), if given, receives {platform: compiler used, or "skipped: reason"}.
+
+    Raises :class:`~gyrodenoise.errors.InputError` (one line) if a needed compiler is missing
+    or a compilation fails.
     """
-    cc = os.environ.get("GYRODENOISE_CC", "gcc")
-    gcc = shutil.which(cc)
-    if gcc is None:
-        raise InputError(f"{cc} not found on PATH: the native FMU {MODEL_NAME} is compiled at build "
-                         "time; install gcc (e.g. apt-get install gcc) or set GYRODENOISE_CC")
-    plat, ext = _platform()
+    report = {} if report is None else report
+    wanted = list(platforms) if platforms is not None else list(PLATFORMS)
+    required = set(wanted) if platforms is not None else {host_platform()}
+    if not wanted:
+        raise InputError("no FMU platform requested")
+    compilers = {}
+    for plat in wanted:
+        try:
+            compilers[plat] = compiler_for(plat)
+        except InputError as exc:
+            if plat in required:
+                raise
+            report[plat] = f"skipped: {exc}"
+    if not compilers:
+        raise InputError("no C compiler found for any FMU platform (pip install ziglang)")
     sources = _sources()
     digest = hashlib.sha256()
     for name in sorted(sources):
@@ -285,22 +381,18 @@ def build_native_fmu(out_dir="build"):
         src.mkdir()
         for name, data in sources.items():
             (src / name).write_bytes(data)
-        binary = tmp / f"{MODEL_NAME}{ext}"
-        cmd = [gcc, *CFLAGS, f"-I{src}", f"-I{fmi_headers_dir()}", "-o", str(binary),
-               str(src / C_SOURCE), str(src / "gdcore.c"), "-lm"]
-        if plat == "darwin64":
-            cmd.remove("-Wl,-z,defs")
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise InputError(f"{cc} could not be run for {MODEL_NAME}: {exc}") from None
-        if proc.returncode != 0:
-            first = next((ln for ln in proc.stderr.splitlines() if "error" in ln), proc.stderr.strip()[:200])
-            raise InputError(f"compiling {MODEL_NAME} failed ({cc} exit {proc.returncode}): {first}")
+        binaries = {}
+        for plat, (cc, what) in compilers.items():
+            (tmp / plat).mkdir()
+            binary = tmp / plat / f"{MODEL_NAME}{PLATFORMS[plat][0]}"
+            _compile(plat, cc, src, binary)
+            binaries[plat] = binary
+            report[plat] = what
         part = target.with_name(target.name + ".part")
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("modelDescription.xml", xml)
-            z.write(binary, f"binaries/{plat}/{MODEL_NAME}{ext}")
+            for plat, binary in binaries.items():
+                z.write(binary, f"binaries/{plat}/{binary.name}")
             for name in sorted(sources):
                 z.writestr(f"sources/{name}", sources[name])
         os.replace(part, target)

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Install what the cross-platform FMU tests need (tests/test_fmu_platforms.py; issue 22):
+#   ziglang   C compiler for linux64 (glibc 2.17), win64 and darwin64 (also a test extra)
+#   mingw-w64 faster win64 compiler (Debian package)
+#   wine      runs the win64 FMU and the C host cross-compiled for Windows (Debian package)
+#   cmake     fmpy's build_platform_binary (source rebuild test; pip package)
+# Each test skips with the reason when its tool is absent. Run as root (apt-get);
+# PYTHON defaults to .venv/bin/python. About 2 minutes on a fresh Debian machine.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PYTHON="${PYTHON:-.venv/bin/python}"
+"$PYTHON" -m pip install -q ziglang cmake
+if command -v apt-get >/dev/null; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -q
+    apt-get install -y -q mingw-w64 wine
+else
+    echo "install_fmu_test_tools: no apt-get here: install mingw-w64 and wine with this system's tools" >&2
+fi

@@ -1,0 +1,199 @@
+"""The simulated gyro in C (gyrodenoise/core/gdsim.c) and its plain-Python
+specification (gyrodenoise/core/simkernels.py): equal bit for bit on every card
+term; each term as the card says; the generator against published values and the
+normal law; sample by sample and batch the same numbers (issue 22, item 2).
+
+Not yet wired into gd.simulate (see the README): these tests drive the model
+through the extension's buffers."""
+import math
+
+import numpy as np
+import pytest
+
+from gyrodenoise.core import simkernels as SK
+from gyrodenoise.simulator import parse_card
+
+C = pytest.importorskip("gyrodenoise.core._gdcore")
+
+EVERY_TERM = """
+[sensor]
+sample_rate_hz = 100.0
+[terms]
+quantization      = { Q = 2.0e-5 }
+angle_random_walk = { N = 0.005 }
+bias_instability  = { B = 0.05 }
+rate_random_walk  = { K = 0.1 }
+rate_ramp         = { R = 0.5 }
+constant_bias     = { value = 10.0, repeatability = 3.0 }
+turn_on_transient = { amplitude = 1.0, tau = 30.0 }
+""" + "".join(f"[[terms.gauss_markov]]\nsigma = {s}\ntau = {t}\n" for s, t in ((0.2, 3.0), (0.0, 1.0), (0.7, 0.5))) \
+    + "".join(f"[[terms.sinusoid]]\namplitude = {a}\nfrequency = {f}\nphase_deg = {ph}\n"
+              for a, f, ph in ((0.5, 1.3, 0.0), (2.0, 0.05, 30.0)))
+
+
+def c_buffers(card, seed):
+    v = np.array(SK.card_vector(card))
+    p = np.zeros(C.sim_n_params(v))
+    C.sim_params(v, float(seed), p)
+    s = np.zeros(C.sim_n_state(p))
+    C.sim_reset(p, s)
+    return p, s
+
+
+def c_simulate(card, n, seed, truth=None, restarts=None):
+    p, s = c_buffers(card, seed)
+    out = np.zeros(n)
+    C.sim_run(p, s, None if truth is None else np.ascontiguousarray(truth, dtype=float),
+              None if restarts is None else np.ascontiguousarray(restarts, dtype=bool), out)
+    return out
+
+
+@pytest.mark.parametrize("text", [EVERY_TERM, "[sensor]\nsample_rate_hz = 200.0\n"], ids=["every term", "no term"])
+@pytest.mark.parametrize("seed", [0, 12345, 2 ** 53 - 1])
+def test_c_equals_the_python_specification_bit_for_bit(text, seed):
+    card = parse_card(text)
+    p, s = c_buffers(card, seed)
+    pp = SK.params(SK.card_vector(card), seed)
+    sp = SK.reset(pp)
+    assert list(p) == pp and list(s) == sp
+    n = 1500
+    rng = np.random.default_rng(1)
+    truth = np.cumsum(rng.standard_normal(n)) * 0.01
+    rs = np.zeros(n, dtype=bool)
+    rs[[0, 400, 401, 1200]] = True
+    out = np.zeros(n)
+    C.sim_run(p, s, truth, rs, out)
+    ref = SK.run(pp, sp, n, truth, rs)
+    assert np.array_equal(out, ref)
+    assert list(s) == sp
+
+
+def test_every_term_is_simulated():
+    """Each term moves the output the way the card says (noise-free terms exactly)."""
+    base = "[sensor]\nsample_rate_hz = 10.0\n[terms]\n"
+    n = 600
+    t = np.arange(n) / 10.0
+
+    def sim(terms, restarts=None):
+        return c_simulate(parse_card(base + terms), n, 3, restarts=restarts)
+
+    np.testing.assert_allclose(sim("rate_ramp = { R = 3600.0 }"), (3600.0 / 3600.0 ** 2) * t, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(sim("constant_bias = { value = 36.0 }"), 0.01, rtol=0, atol=1e-15)
+    y = sim("turn_on_transient = { amplitude = 3600.0, tau = 20.0 }", restarts=t == 30.0)
+    k = np.arange(n) - np.where(t >= 30.0, 300, 0)
+    np.testing.assert_allclose(y, np.exp(-k / 10.0 / 20.0), rtol=1e-14, atol=0)
+    y = sim("[[terms.sinusoid]]\namplitude = 3600.0\nfrequency = 0.5\nphase_deg = 90.0")
+    np.testing.assert_allclose(y, np.cos(2 * np.pi * 0.5 * t), rtol=0, atol=1e-13)
+    # the bias repeatability: a fresh draw at a restart, the same bias otherwise
+    y = sim("constant_bias = { value = 0.0, repeatability = 3600.0 }", restarts=t == 30.0)
+    assert len(set(y[:300])) == 1 and len(set(y[300:])) == 1 and y[0] != y[300]
+    # stochastic terms: the white ones at their variance (N and Q), the others not zero
+    y = c_simulate(parse_card(base + "angle_random_walk = { N = 60.0 }"), 40000, 1)
+    assert np.var(y) == pytest.approx(1.0 * 10.0, rel=0.03)          # (N deg/sqrt(s))^2 / T
+    for term in ("bias_instability = { B = 1.0 }", "rate_random_walk = { K = 1.0 }",
+                 "quantization = { Q = 1e-3 }", "[[terms.gauss_markov]]\nsigma = 1.0\ntau = 2.0"):
+        assert np.std(sim(term)) > 0, term
+
+
+def test_splitmix64_and_xoshiro_against_published_values():
+    # splitmix64 from state 0 (Vigna's reference splitmix64.c)
+    x, a = SK._splitmix64(0)
+    x, b = SK._splitmix64(x)
+    assert (a, b) == (0xE220A8397B1DCDAF, 0x6E789E6AA1B965F4)
+    # xoshiro256** from state {1, 2, 3, 4} (reference xoshiro256starstar.c): 11520, 0, 1509978240
+    w = [1, 2, 3, 4]
+    assert [SK._next_u64(w) for _ in range(3)] == [11520, 0, 1509978240]
+
+
+def test_normal_deviates_follow_the_normal_law():
+    from scipy import stats
+    s = [0.0] * 8
+    SK._seed_stream(99, 0, s, 0)
+    w = SK._load(s, 0)
+    z = np.array([SK._normal(w) for _ in range(20000)])
+    assert stats.kstest(z, "norm").pvalue > 1e-3
+    assert abs(z.mean()) < 4 / math.sqrt(len(z)) and abs(z.var() - 1) < 0.05
+
+
+def test_sample_by_sample_equals_batch_and_seeds_reproduce():
+    card = parse_card(EVERY_TERM)
+    n = 700
+    rs = np.zeros(n, dtype=bool)
+    rs[333] = True
+    truth = np.linspace(-1, 1, n)
+    batch = c_simulate(card, n, 5, truth, rs)
+    p, s = c_buffers(card, 5)
+    one = np.zeros(1)
+    steps = []
+    for i in range(n):
+        C.sim_run(p, s, truth[i:i + 1].copy(), rs[i:i + 1].copy(), one)
+        steps.append(one[0])
+    assert np.array_equal(steps, batch)
+    assert np.array_equal(c_simulate(card, n, 5, truth, rs), batch)
+    assert not np.array_equal(c_simulate(card, n, 6, truth, rs), batch)
+
+
+def test_malformed_buffers_are_refused():
+    card = parse_card(EVERY_TERM)
+    p, s = c_buffers(card, 1)
+    with pytest.raises(ValueError):
+        C.sim_reset(p, np.zeros(len(s) + 1))
+    with pytest.raises(ValueError):
+        C.sim_params(np.zeros(5), 1.0, p)
+    with pytest.raises(ValueError):
+        C.sim_params(np.array(SK.card_vector(card)), -1.0, p)
+    with pytest.raises(ValueError):
+        C.sim_run(p, s, np.zeros(3), None, np.zeros(4))
+
+
+# ------------------------------------------------ the same numbers from plain C
+HERE = __import__("pathlib").Path(__file__).resolve().parent
+CORE = HERE.parent / "gyrodenoise" / "core"
+
+
+def _compile_driver(cc, exe, tmp):
+    import subprocess
+    proc = subprocess.run([*cc, "-std=c99", "-O2", "-ffp-contract=off", f"-I{CORE}", "-o", str(exe),
+                           str(HERE / "chost" / "simdriver.c"), str(CORE / "gdsim.c"), "-lm"],
+                          capture_output=True, text=True, timeout=300, cwd=tmp)
+    assert proc.returncode == 0, proc.stderr
+
+
+@pytest.mark.parametrize("plat", ["linux64", "win64"])
+def test_plain_c_on_each_platform_equals_the_specification(plat, tmp_path):
+    """gdsim.c compiled by itself (linux64: gcc; win64: the FMU's Windows compiler, run under
+    wine) gives the plain-Python specification's numbers: the generator and the model are
+    portable (equal bit for bit here; 1e-12 relative is the contract)."""
+    import os
+    import shutil
+    import subprocess
+    from gyrodenoise.fmu import native
+    card = parse_card(EVERY_TERM)
+    n, seed = 2000, 77
+    if plat == "linux64":
+        if shutil.which("gcc") is None:
+            pytest.skip("gcc not installed")
+        exe, cmd, env = tmp_path / "simdriver", [], None
+        _compile_driver(["gcc"], exe, tmp_path)
+    else:
+        wine = shutil.which("wine") or shutil.which("wine64")
+        if wine is None:
+            pytest.skip("wine not installed (scripts/install_fmu_test_tools.sh)")
+        try:
+            cc, _ = native.compiler_for("win64")
+        except native.InputError as exc:
+            pytest.skip(f"no Windows C compiler: {exc}")
+        exe, cmd, env = tmp_path / "simdriver.exe", [wine], dict(os.environ, WINEDEBUG="-all")
+        _compile_driver(cc, exe, tmp_path)
+    vec = " ".join(repr(x) for x in SK.card_vector(card))
+    proc = subprocess.run([*cmd, str(exe), str(seed), str(n)], input=vec, capture_output=True, text=True,
+                          env=env, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    got = np.array([float(x) for x in proc.stdout.split()])
+    pp = SK.params(SK.card_vector(card), seed)
+    rs = np.zeros(n, dtype=bool)
+    rs[n // 2] = True
+    ref = np.array(SK.run(pp, SK.reset(pp), n, None, rs))
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)
+    print(f"\ngdsim.c on {plat}: max |C - Python| = {np.max(np.abs(got - ref)):.3g} deg/s "
+          f"({int(np.sum(got != ref))} of {n} samples not bit-identical)")
