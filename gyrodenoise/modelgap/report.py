@@ -72,6 +72,8 @@ def format_report(res, source="MEASURED"):
 
 
 def _short(params):
+    if params is None:
+        return "(removed)"
     return "{" + ", ".join(f"{k}={v:.4g}" for k, v in params.items()) + "}"
 
 
