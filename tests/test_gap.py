@@ -406,21 +406,63 @@ def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkey
     assert out == {"card_gap": None, "components": {"psd": None, "x": 2.0}, "robust_gap": [None, 1]}
 
 
-def test_zeroed_term_is_a_limitation_not_a_fit(monkeypatch):
-    """A candidate that would write N = 0 (card noisier than the record) is
-    rejected and reported as a limitation; the card is not changed."""
+def test_zeroed_term_is_not_written_as_a_fit(monkeypatch):
+    """A candidate that would WRITE N = 0 is rejected (a term fitted to nothing is
+    removed, never written as 0: see the re-fit tests below)."""
     import gyrodenoise.modelgap.workflow as G
-    from gyrodenoise.modelgap import format_report
-    monkeypatch.setattr(G, "propose", lambda *a, **k: [G.Candidate("angle_random_walk", {"N": 0.0}, True,
-                                                                    "re-fit")])
-    res = G.gap(_white(), FS, parse_card(SUB), seeds=3, engine="native")
-    assert res.effects_added == [] and res.card_text == SUB
-    assert res.limitations and "noisier than the record" in res.limitations[0]
-    assert "angle_random_walk.N" in res.limitations[0]
-    assert "limitation: the card is noisier" in format_report(res)
-    assert res.to_json()["limitations"] == res.limitations
     assert G._zeroed([("gauss_markov", {"sigma": 0.0, "tau": 1.0}, False),
                       ("bias_instability", {"B": 0.2}, False)]) == ["gauss_markov.sigma"]
+    assert G._zeroed([("bias_instability", None, True)]) == []
+
+
+def test_card_noisier_than_the_record_is_refitted_down():
+    """The card says N = 0.5 deg/sqrt(h), the record is white noise of N = 0.06:
+    the joint re-fit brings N down to the record's (within 5 %, ~3 standard errors
+    on 40,000 samples) and the card ends within the simulations' scatter."""
+    n_true = 0.06                                         # deg/sqrt(h): std 0.01 deg/s at 100 Hz
+    y = _white(std=n_true / 60.0 * math.sqrt(FS), n=40000)
+    res = gd.gap(y, FS, parse_card(SUB), seeds=4, engine="native", stop_bands=None)
+    final = parse_card(res.card_text)
+    assert final.terms["angle_random_walk"]["N"] == pytest.approx(n_true, rel=0.05)
+    assert any(e["name"] == "angle_random_walk" and e["refit"] for e in res.effects_added)
+    assert res.within_scatter, res.iterations[-1]["components"]
+
+
+def test_refit_removes_a_term_the_record_does_not_have():
+    """A datasheet card with a large rate random walk on a white-noise record:
+    the re-fit removes the walk (comment left in the card) rather than writing K = 0."""
+    card = BASE.replace("angle_random_walk = { N = 0.1 }", "angle_random_walk = { N = 0.1 }\n"
+                        "rate_random_walk = { K = 200.0 }   # deg/h^1.5, datasheet")
+    y = _white(std=0.1 / 60.0 * math.sqrt(FS), n=40000)
+    res = gd.gap(y, FS, parse_card(card), seeds=4, engine="native", stop_bands=None)
+    final = parse_card(res.card_text)
+    assert final.terms.get("rate_random_walk", {"K": 0.0})["K"] < 50.0, res.card_text   # down >= 4x
+    assert final.terms["angle_random_walk"]["N"] == pytest.approx(0.1, rel=0.05)
+    assert res.within_scatter
+
+
+def test_spectral_refit_writes_a_zero_coefficient_as_a_removal(monkeypatch):
+    """The joint re-fit's terms at zero become removals (params None) and the card
+    keeps the old line as a comment."""
+    import gyrodenoise.modelgap.spectral as S
+    from gyrodenoise.modelgap.candidates import spectral_refit
+    from gyrodenoise.modelgap.cards import edit_card
+    from gyrodenoise.modelgap.metric import Layout, Reference, signature
+    card = parse_card(BASE + "rate_random_walk = { K = 200.0 }\n")
+    y = _white(std=0.01, n=8192)
+    lay = Layout.for_record(len(y), FS)
+    sig = signature(y, lay)
+    ref = Reference(lay, [signature(_white(std=0.01, n=8192, seed=s), lay) for s in (1, 2, 3)])
+    monkeypatch.setattr(S, "fit_terms", lambda *a, **k: ({"quantization": 0.0, "angle_random_walk": 1e-8,
+                                                           "bias_instability": 0.0, "rate_random_walk": 0.0,
+                                                           "gauss_markov": []}, None, None))
+    c = spectral_refit(sig, lay, ref, card)
+    ch = {nm: pr for nm, pr, _ in c.changes}
+    assert ch["rate_random_walk"] is None and ch["angle_random_walk"]["N"] == pytest.approx(6e-3)
+    new = card.text
+    for nm, pr, rf in c.changes:
+        new = edit_card(new, nm, pr, rf, "test")
+    assert "rate_random_walk" not in parse_card(new).terms and "# rate_random_walk = { K = 200.0 }" in new
 
 
 # ------------------------------------------------------------------ through the FMU

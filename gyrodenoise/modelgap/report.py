@@ -54,6 +54,8 @@ def format_report(res, source="MEASURED"):
                 out.append(f"    => {'re-fit' if e['refit'] else 'add'} {e['name']} {_short(e['params'])}")
         if it.get("stop"):
             out.append(f"    stop: {it['stop']}")
+    for m_ in res.named:
+        out.append(f"named: {m_}")
     for m_ in res.limitations:
         out.append(f"limitation: {m_}")
     out.append("")

@@ -233,8 +233,65 @@ def check_record(rate_deg_s, source="MEASURED"):
     return y
 
 
+TOP_FROM = 0.3      # an internal low-pass filter is looked for above 0.3 fs
+
+
+def _top_disagreement(res):
+    """Lower edge (Hz) of the sensor's internal low-pass filter when what still
+    disagrees sits at the top of the band: the run of Welch bands ending at Nyquist
+    with |z| > 3 (from at least TOP_FROM * fs), or the one-sample Allan point; else None."""
+    it = res.iterations[-1]
+    z, lay = it["_z"], res.layout
+    zp = np.abs(z["psd"])
+    k = len(zp)
+    while k > 0 and zp[k - 1] > 3.0:
+        k -= 1
+    if k == len(zp) and not abs(z["allan"][0]) > 3.0:
+        return None
+    lo = lay.freq_hz[lay.band_edges[k]] if k < len(zp) else lay.fs / 2.0
+    return float(min(max(lo, TOP_FROM * lay.fs), 0.4 * lay.fs))
+
+
 def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=4,
         fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None):
+    """Find what a model card misses to behave like a measured record (see :func:`_gap_once`).
+
+    With ``stop_bands="auto"``, when the card cannot be brought within the scatter
+    and what still disagrees sits at the top of the band (:func:`_top_disagreement`:
+    the sensor's internal low-pass filter, which no term of the vocabulary
+    represents), the workflow goes on from the card reached, with that top band
+    taken out of the comparison as well (named in ``named``); ``gap_before`` stays
+    the first pass's and the iterations of both passes are kept."""
+    kw = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
+              workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
+    res = _gap_once(rate_deg_s, sample_rate_hz, card, stop_bands=stop_bands, **kw)
+    if res.within_scatter or stop_bands != "auto":
+        return res
+    lo = _top_disagreement(res)
+    if lo is None:
+        return res
+    from ..simulator import parse_card
+    _log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
+         f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet)
+    card1 = parse_card(res.card_text, getattr(card, "source", "<card>"))
+    bands = [(a, b) for a, b, _ in res.stop_bands] + [(lo, float(sample_rate_hz) / 2.0)]
+    kw["max_effects"] = max(max_effects - len({e["iteration"] for e in res.effects_added}), 1)
+    res2 = _gap_once(rate_deg_s, sample_rate_hz, card1, stop_bands=bands, **kw)
+    n0 = len(res.iterations)
+    for e in res2.effects_added:
+        e["iteration"] += n0
+    res2.effects_added = res.effects_added + res2.effects_added
+    res2.iterations = res.iterations + res2.iterations
+    res2.gap_before = res.gap_before
+    res2.stop_bands = list(res.stop_bands) + [(lo, float(sample_rate_hz) / 2.0, -1.0)]
+    from .effects import name_effects
+    res2.named = name_effects(check_record(rate_deg_s, source), float(sample_rate_hz),
+                              parse_card(res2.card_text), res2.stop_bands, latitude_deg)
+    return res2
+
+
+def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=4,
+              fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None):
     """Find what a model card misses to behave like a measured record.
 
     Parameters
@@ -432,7 +489,9 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
                "gauss_markov/sinusoid terms")
         if not any("noisier" in m_ for m_ in limitations):
             limitations.append(msg)
-    return GapResult(limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
+    from .effects import name_effects
+    named = name_effects(y, fs, card_at_rate(text, fs, csrc), bumps, latitude_deg)
+    return GapResult(named=named, limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
                      iterations=iterations, threshold=threshold, engine=engine, seeds=seed_list,
                      component_threshold=comp_threshold,
                      layout=layout, measured=sig_m, stop_bands=bumps)
