@@ -38,6 +38,9 @@ def register_cli(subparsers):
     p.add_argument("--stop-band", action="append", default=None, metavar="LO:HI",
                    help="take LO-HI Hz out of the comparison (repeatable; default: spectral bumps found "
                         "automatically); 'none' for no band-stop")
+    p.add_argument("--outliers", action="store_true",
+                   help="replace isolated wild samples (> 10 robust sigmas off the running median, at most 1 %% "
+                        "of the record) before the comparison, and name them")
     p.add_argument("--model", required=True, metavar="CARD.toml", help="model card (path or embedded name)")
     p.add_argument("--out", required=True, metavar="NEW.toml", help="completed card to write")
     p.add_argument("--seeds", type=int, default=6, help="simulated records per card (default 6, at least 3)")
@@ -124,12 +127,9 @@ def _cmd_allan(args, card):
     verdict = ("the simulated curve (mean of %d seeds) is inside the published bounds at every tau" % args.seeds
                if not out_tau else
                f"outside the published bounds at tau {', '.join(f'{t:g}' for t in out_tau)} s")
-    text = text.rstrip("
-") + (f"
-# noise terms fitted by gyrodenoise gap --allan to {Path(args.allan).name} "
+    text = text.rstrip("\n") + (f"\n# noise terms fitted by gyrodenoise gap --allan to {Path(args.allan).name} "
                                 f"({curve.label}, ADEV in {curve.unit}, {curve.n_samples} samples at "
-                                f"{curve.sample_rate_hz:g} Hz); {verdict}
-")
+                                f"{curve.sample_rate_hz:g} Hz); {verdict}\n")
     lines = [f"gyrodenoise gap --allan: {args.allan} ({curve.label}; {len(curve.tau_s)} taus "
              f"{curve.tau_s[0]:g}-{curve.tau_s[-1]:g} s; ADEV in {curve.unit}, converted to deg/s)",
              "tau_s      published_deg_h   bounds_deg_h            fit_deg_h   simulated_deg_h  inside"]
@@ -181,7 +181,7 @@ def cmd_gap(args):
     res = gap(rate, fs, card, seeds=args.seeds, engine=args.engine,
               restarts=restarts, max_effects=args.max_effects, fmu_dir=args.fmu_dir,
               workers=args.workers, source=args.input, quiet=False, stop_bands=bands,
-              latitude_deg=args.latitude)
+              latitude_deg=args.latitude, outliers=args.outliers)
     text = res.card_text
     if res.effects_added:
         text = text.rstrip("\n") + f"\n# completed by gyrodenoise gap from {Path(args.input).name}: " + \

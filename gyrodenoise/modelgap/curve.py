@@ -28,6 +28,7 @@ LO_COLS = ("adev_lci", "adev_lo", "lower")
 HI_COLS = ("adev_uci", "adev_hi", "upper")
 UNIT_TO_DEG_S = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
 Z95 = 1.959964
+FIT_ROBUST = 10             # Huber re-weightings of the fit (spectral.fit_terms)
 
 
 @dataclass
@@ -156,7 +157,10 @@ def fit_curve(curve):
 
     Weights: the 1-sigma of the Allan variance from the bounds (half the
     95 % interval / 1.96; the upper bound alone where the lower is absent),
-    else 5 % of the ADEV. Returns (terms, model ADEV at the curve's tau in deg/s)."""
+    else 5 % of the ADEV; Huber re-weighted (FIT_ROBUST passes), so that the
+    shortest taus of a long record (bounds of +-0.1 %, shaped by the sensor's
+    internal filter, which no term represents) do not pull every term off the rest
+    of the curve. Returns (terms, model ADEV at the curve's tau in deg/s)."""
     from .spectral import fit_terms
     m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1)
     half = np.where(np.isfinite(curve.lo_deg_s), (curve.hi_deg_s - curve.lo_deg_s) / 2.0,
@@ -164,7 +168,7 @@ def fit_curve(curve):
     sd_ad = np.where(np.isfinite(half) & (half > 0), half / Z95, 0.05 * curve.adev_deg_s)
     avar = curve.adev_deg_s ** 2
     terms, model_avar, _ = fit_terms(_CurveLayout(m, curve.sample_rate_hz, curve.n_samples), (), avar,
-                                     2.0 * curve.adev_deg_s * sd_ad, None, None)
+                                     2.0 * curve.adev_deg_s * sd_ad, None, None, robust=FIT_ROBUST)
     return terms, np.sqrt(model_avar)
 
 

@@ -185,6 +185,7 @@ def find_bumps(y, fs, ratio=4.0, span=5.0, per_decade=20):
 # ------------------------------------------------------------------ the joint fit
 ALLAN_TERMS = ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk")
 GM_PER_DECADE = 6
+HUBER_C = 1.5
 
 
 def gm_grid(layout):
@@ -209,11 +210,12 @@ def stochastic_specs(card):
     return specs, np.array(coef)
 
 
-def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0):
+def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0):
     """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
     the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
     Gauss-Markov processes (:func:`gm_grid`), each through the stop mask.
 
+    ``robust``: that many Huber re-weightings (see the code).
     Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
     to its s-based coefficient (0 = not needed) and ``"gauss_markov"`` to a list
     of ``(sigma_deg_s, tau_s)``."""
@@ -230,7 +232,14 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
         b = np.concatenate([b, (psd_target / sd_p)[clear]])
     scale = np.max(np.abs(A), axis=0)
     scale[scale == 0] = 1.0
-    c, _ = nnls(A / scale, b, maxiter=50 * A.shape[1])
+    w = np.ones(len(b))
+    for _ in range(1 + int(robust)):
+        # robust > 0: iteratively reweighted (Huber, c = HUBER_C sigma): a point that no
+        # combination of the terms reaches (a sensor's internal filter at the shortest
+        # taus) is down-weighted instead of pulling every term off the others
+        c, _ = nnls(A / scale * w[:, None], b * w, maxiter=50 * A.shape[1])
+        r = np.abs(A / scale @ c - b)
+        w = np.where(r > HUBER_C, np.sqrt(HUBER_C / np.maximum(r, 1e-300)), 1.0)
     c = c / scale
     terms = {nm: float(c[i]) for i, nm in enumerate(ALLAN_TERMS)}
     terms["gauss_markov"] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))
