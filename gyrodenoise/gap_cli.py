@@ -138,6 +138,10 @@ def _cmd_allan(args, card):
         lines.append(f"{r['tau_s']:<10.4g} {r['adev_deg_s'] * 3600:<17.4g} {b:<23} {r['model'] * 3600:<11.4g} "
                      f"{r['simulated'] * 3600:<16.4g} {'yes' if r['inside'] else 'NO'}")
     lines.append(verdict)
+    plot = None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
+    if plot:
+        from .modelgap.report import plot_curve
+        plot_curve(curve, model, mean, plot, title=f"{curve.label} ({Path(args.allan).name}) vs the fitted card")
     Path(args.out).write_text(text, encoding="utf-8")
     if args.json:
         print("\n".join(lines), file=sys.stderr)
@@ -145,7 +149,7 @@ def _cmd_allan(args, card):
                    "inside_every_tau": not out_tau, "points": rows})
     else:
         print("\n".join(lines))
-        print(f"wrote {args.out}")
+        print(f"wrote {args.out}" + (f" and {plot}" if plot else ""))
     return 0
 
 
@@ -162,6 +166,8 @@ def cmd_gap(args):
     if args.max_effects < 0:
         raise InputError(f"--max-effects must be >= 0, got {args.max_effects}")
     _check_writable(args.out, "--out")
+    if args.plot and not args.no_plot:
+        _check_writable(args.plot, "--plot")
     if args.allan is not None:
         if args.input is not None:
             raise InputError("give either IN (a record) or --allan CURVE.csv, not both", args.input)

@@ -515,21 +515,17 @@ def test_real_adis16405_from_white_noise_card():
     * first a constant bias equal to the record mean: the mean (1446 deg/h) is
       45x the rms wander of the 16 block means (32 deg/h), a deterministic
       offset, not the wander of a random process;
-    * no rate random walk: the measured Allan deviation is flat then FALLS
-      beyond ~300 s (no +1/2 slope); a walk big enough to cover the offset or
-      the long-tau excess only widens the simulations' scatter;
-    * one bias-wander term (bias_instability, or a gauss_markov with a
-      correlation time >= 10 s) whose analytic Allan deviation, added to the
-      card's white noise, is within 20 % of the measured one at every octave
-      tau from 40 s to 1000 s (the measured 1-sigma error there is 4-15 %);
-    * afterwards every Allan point at tau >= 1 s is within 3 sigma of the
-      simulations, and what still disagrees is the sensor's internal
-      low-pass filter: Allan points below 1 s with the record BELOW the card,
-      PSD bands above 1 Hz only. No term of the vocabulary represents it, so
-      the gap stays far above the scatter threshold; it must still shrink by
-      at least half.
+    * no rate random walk in the final card: the measured Allan deviation is
+      flat then FALLS beyond ~300 s (no +1/2 slope);
+    * the sensor's internal low-pass filter is recognised (what disagrees sits at
+      the top of the band) and that band, from at least 0.3 fs up, is taken out of
+      the comparison for record and simulations alike, and named;
+    * the card's gap then ends below the scatter threshold, and its exact Allan
+      deviation (every term, spectral.allan_columns) is within 20 % of the
+      measured one at every octave tau from 40 s to 1000 s (the measured 1-sigma
+      error there is 4-15 %).
     """
-    from gyrodenoise.modelgap import SHAPE
+    from gyrodenoise.modelgap.spectral import allan_columns, stochastic_specs
     from gyrodenoise.recording import read_recording
     path = shared_file("static", "adis16405_imu1.csv.gz")
     rec = read_recording(path, rate_column="gyro_x")
@@ -541,31 +537,16 @@ def test_real_adis16405_from_white_noise_card():
     names = [e["name"] for e in res.effects_added]
     assert names[0] == "constant_bias" and res.iterations[0].get("deterministic_first")
     assert abs(res.effects_added[0]["params"]["value"] - y.mean() * 3600.0) < 1e-3
-    assert "rate_random_walk" not in names
-    wander = [e for e in res.effects_added if e["name"] == "bias_instability"
-              or (e["name"] == "gauss_markov" and e["params"]["tau"] >= 10.0)]
-    assert len(wander) == 1, res.effects_added
     final = parse_card(res.card_text)
-    assert set(names) <= set(final.terms)
-    # analytic Allan deviation of the final card's stochastic terms vs the measured one
+    assert "rate_random_walk" not in final.terms
+    # the gap within the scatter threshold (the per-component test, within_scatter, can
+    # fail on the PSD component with 4 seeds: docs/GAP.md)
+    assert res.gap_after <= res.threshold, (res.gap_after, res.threshold, res.iterations[-1]["components"])
+    top = [(lo, hi) for lo, hi, peak in res.stop_bands if peak < 0]
+    assert top and top[0][0] >= 30.0 and top[0][1] == 50.0, res.stop_bands
+    assert any("internal low-pass filter" in s_ for s_ in res.named)
     tau_m = np.append(2 ** np.arange(12, 17), 100000)      # 41, 82, 164, 328, 655 and 1000 s
     meas = gd.allan(y, rec.sample_rate_hz, m=tau_m)
-    tau = meas.tau_s
-    avar = np.zeros_like(tau)
-    for nm, (fld, to_card) in {"quantization": ("Q", 1.0), "angle_random_walk": ("N", 60.0),
-                               "bias_instability": ("B", 3600.0),
-                               "rate_random_walk": ("K", 3600.0 ** 1.5)}.items():
-        if nm in final.terms:
-            avar += (final.terms[nm][fld] / to_card) ** 2 * SHAPE[nm](tau)
-    for gm in final.term_list("gauss_markov"):
-        avar += gm_avar(tau, gm["sigma"] / 3600.0, gm["tau"])
-    np.testing.assert_allclose(np.sqrt(avar), meas.adev_deg_s, rtol=0.20)
-    # what remains: the internal low-pass filter only
-    last = res.iterations[-1]
-    z, lay = last["_z"], res.layout
-    assert np.all(np.abs(z["allan"][lay.tau_s >= 1.0]) <= 3.0), z["allan"]
-    assert np.all(z["allan"][np.abs(z["allan"]) > 3.0] < 0)
-    assert all(lo >= 1.0 for lo, _, _ in last["where"]["psd_bands_hz"]), last["where"]["psd_bands_hz"]
-    assert res.gap_after <= 0.5 * res.gap_before
-    assert res.gap_after > res.threshold          # the low-pass filter is not in the vocabulary
-    assert set(res.iterations[0]["components"]) == set(COMPONENTS)
+    specs, coef = stochastic_specs(final)
+    model = np.sqrt(allan_columns(specs, tau_m, rec.sample_rate_hz) @ coef)
+    np.testing.assert_allclose(model, meas.adev_deg_s, rtol=0.20)

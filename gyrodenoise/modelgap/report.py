@@ -127,3 +127,27 @@ def plot_gap(res, path, title=""):
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_curve(curve, model_deg_s, simulated_deg_s, path, title=""):
+    """PNG: a published Allan curve with its bounds, the fitted card's exact curve and
+    its simulated curve (mean of the seeds), in deg/h."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    t = curve.tau_s
+    lo = np.where(np.isfinite(curve.lo_deg_s), curve.lo_deg_s, curve.adev_deg_s * 1e-3) * 3600
+    ax.fill_between(t, lo, curve.hi_deg_s * 3600, color="0.8", label="published 95 % bounds")
+    ax.loglog(t, curve.adev_deg_s * 3600, "ko", ms=3, label="published ADEV")
+    ax.loglog(t, model_deg_s * 3600, "-", color="tab:blue", label="fitted card (exact)")
+    ax.loglog(t, simulated_deg_s * 3600, "--", color="tab:red", label="fitted card (simulated, mean of seeds)")
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel("Allan deviation (deg/h)")
+    ax.set_title(title or curve.label, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
