@@ -3,6 +3,7 @@ the work is in :mod:`gyrodenoise.modelgap`."""
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from pathlib import Path
@@ -127,6 +128,12 @@ def _cmd_allan(args, card):
     verdict = ("the simulated curve (mean of %d seeds) is inside the published bounds at every tau" % args.seeds
                if not out_tau else
                f"outside the published bounds at tau {', '.join(f'{t:g}' for t in out_tau)} s")
+    fast = [(s_, t_) for s_, t_ in terms["gauss_markov"] if t_ < 2.0 / curve.sample_rate_hz]
+    if fast:    # Gauss-Markov terms shorter than 2 samples act as (slightly coloured) white noise
+        n_eq = math.sqrt(terms["angle_random_walk"] + sum(2.0 * s_ * s_ * t_ for s_, t_ in fast)) * 60.0
+        text = text.rstrip("\n") + (f"\n# white noise: the Gauss-Markov terms with tau < 2 samples act as white "
+                                    f"noise (the fit used their slight colour at the shortest taus); with N they "
+                                    f"make an angle random walk of {n_eq:.4g} deg/sqrt(h)\n")
     text = text.rstrip("\n") + (f"\n# noise terms fitted by gyrodenoise gap --allan to {Path(args.allan).name} "
                                 f"({curve.label}, ADEV in {curve.unit}, {curve.n_samples} samples at "
                                 f"{curve.sample_rate_hz:g} Hz); {verdict}\n")

@@ -99,15 +99,19 @@ def plot_gap(res, path, title=""):
         ref = it["_ref"]
         mu, sd = ref.mean["allan"], ref.sigma["allan"]
         col = "tab:red" if i == 0 else cmap(0.15 + 0.7 * i / max(n_it - 1, 1))
-        label = "input card" if i == 0 else "+ " + " + ".join(
-            e["name"] for e in res.effects_added if e.get("iteration", 0) < i)
+        added = [e["name"] for e in res.effects_added if e.get("iteration", 0) < i]
+        label = "input card" if i == 0 else (f"+ {len(added)} changes" if len(added) > 3 else
+                                             "+ " + " + ".join(added))
         ax.fill_between(tau, np.exp(mu - sd) * 3600, np.exp(mu + sd) * 3600, color=col, alpha=0.25)
         ax.loglog(tau, np.exp(mu) * 3600, "-", color=col, label=f"{label} (gap {it['card_gap']:.3g})")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("averaging time tau (s)")
     ax.set_ylabel("Allan deviation (deg/h)")
-    ax.set_title(title or "measured vs simulated (band: 1 sigma of one simulation)", fontsize=10)
+    if res.stop_bands:
+        title = (title + "\n" if title else "") + "record and simulations through the band-stop " + ", ".join(
+            f"{lo:.3g}-{hi:.3g} Hz" for lo, hi, *_ in res.stop_bands)
+    ax.set_title(title or "measured vs simulated (band: 1 sigma of one simulation)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     if spectral:
