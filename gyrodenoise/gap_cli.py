@@ -51,7 +51,8 @@ def register_cli(subparsers):
                                                    "or stale)")
     p.add_argument("--workers", type=int, default=None, help="processes for the FMU engine, a whole number >= 1 (default: one per seed, "
                         "at most the number of cores); ignored by --engine native")
-    p.add_argument("--max-effects", type=int, default=4, help="most effects to add (default 4)")
+    p.add_argument("--max-effects", type=int, default=6, help="most steps that add or re-fit effects (default 6; "
+                                                                "a joint re-fit of all noise terms is one step)")
     p.add_argument("--plot", default=None, metavar="PNG", help="figure (default: NEW.gap.png next to --out)")
     p.add_argument("--no-plot", action="store_true", help="write no figure")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")

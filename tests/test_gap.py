@@ -550,3 +550,4 @@ def test_real_adis16405_from_white_noise_card():
     specs, coef = stochastic_specs(final)
     model = np.sqrt(allan_columns(specs, tau_m, rec.sample_rate_hz) @ coef)
     np.testing.assert_allclose(model, meas.adev_deg_s, rtol=0.20)
+    assert set(res.iterations[0]["components"]) == set(COMPONENTS)

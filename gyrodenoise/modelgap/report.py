@@ -106,14 +106,10 @@ def plot_gap(res, path, title=""):
         ax.loglog(tau, np.exp(mu) * 3600, "-", color=col, label=f"{label} (gap {it['card_gap']:.3g})")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("averaging time tau (s)")
-    ax.set_ylabel("Allan deviation (deg/h)")
     if res.stop_bands:
         title = (title + "\n" if title else "") + "record and simulations through the band-stop " + ", ".join(
             f"{lo:.3g}-{hi:.3g} Hz" for lo, hi, *_ in res.stop_bands)
-    ax.set_title(title or "measured vs simulated (band: 1 sigma of one simulation)", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    _allan_axes(ax, title or "measured vs simulated (band: 1 sigma of one simulation)")
     if spectral:
         ax = axes[0, 1]
         f = lay.freq_hz
@@ -127,6 +123,19 @@ def plot_gap(res, path, title=""):
         ax.set_ylabel("PSD ((deg/h)^2/Hz), Welch")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _allan_axes(ax, title):
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel("Allan deviation (deg/h)")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def _save(fig, path):
+    import matplotlib.pyplot as plt
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -146,12 +155,5 @@ def plot_curve(curve, model_deg_s, simulated_deg_s, path, title=""):
     ax.loglog(t, curve.adev_deg_s * 3600, "ko", ms=3, label="published ADEV")
     ax.loglog(t, model_deg_s * 3600, "-", color="tab:blue", label="fitted card (exact)")
     ax.loglog(t, simulated_deg_s * 3600, "--", color="tab:red", label="fitted card (simulated, mean of seeds)")
-    ax.set_xlabel("averaging time tau (s)")
-    ax.set_ylabel("Allan deviation (deg/h)")
-    ax.set_title(title or curve.label, fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    _allan_axes(ax, title or curve.label)
+    return _save(fig, path)

@@ -250,33 +250,3 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
                              if c[i] > 0]
     return terms, A_a @ c, None if A_p is None else A_p @ c
 
-
-ROLLOFF_RATIO = 1.3      # record below the fitted terms by this factor ...
-ROLLOFF_FROM = 0.2       # ... in contiguous bands up to Nyquist, starting above 0.2 fs
-
-
-def find_rolloff(layout, sig_m, bands=()):
-    """The sensor's internal low-pass filter: the lower edge (Hz) of the run of
-    Welch bands, ending at Nyquist and starting above ``ROLLOFF_FROM * fs``, where
-    the record's PSD is below that of the noise terms fitted to it (Q, N and
-    Gauss-Markov processes cannot roll off like a digital filter) by more than
-    ``ROLLOFF_RATIO``; None when there is none. Two passes: the fit is repeated
-    with the run left out."""
-    from .metric import _floors
-    fl = _floors(sig_m, layout)
-    e = layout.band_edges
-    f = layout.freq_hz
-    psd_m = np.array([sig_m["psd_bins"][e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
-    lo_hz = None
-    for _ in range(2):
-        use = list(bands) + ([(lo_hz, layout.fs / 2.0)] if lo_hz else [])
-        _, _, model = fit_terms(layout, use, sig_m["avar"], 2.0 * sig_m["avar"] * fl["allan"], psd_m,
-                                psd_m * fl["psd"])
-        low = psd_m * ROLLOFF_RATIO < model
-        k = len(low)
-        while k > 0 and low[k - 1]:
-            k -= 1
-        if k == len(low) or f[e[k]] < ROLLOFF_FROM * layout.fs:
-            return lo_hz
-        lo_hz = float(f[e[k]])
-    return lo_hz

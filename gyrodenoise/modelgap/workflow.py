@@ -234,13 +234,14 @@ def check_record(rate_deg_s, source="MEASURED"):
 
 
 FALLBACK_GAIN = 0.5  # the joint re-fit is accepted when it at least halves the plain gap
-TOP_FROM = 0.3      # an internal low-pass filter is looked for above 0.3 fs
+TOP_FROM = 0.3      # the band given to an internal low-pass filter: 0.3 fs to Nyquist
 
 
 def _top_disagreement(res):
-    """Lower edge (Hz) of the sensor's internal low-pass filter when what still
-    disagrees sits at the top of the band: the run of Welch bands ending at Nyquist
-    with |z| > 3 (from at least TOP_FROM * fs), or the one-sample Allan point; else None."""
+    """Lower edge (Hz) of the band given to the sensor's internal low-pass filter,
+    TOP_FROM * fs, when what still disagrees sits at the top of the band: a run of
+    Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point; else
+    None. (A fixed edge: where the run starts moves with the seeds' scatter.)"""
     it = res.iterations[-1]
     z, lay = it["_z"], res.layout
     zp = np.abs(z["psd"])
@@ -249,11 +250,10 @@ def _top_disagreement(res):
         k -= 1
     if k == len(zp) and not abs(z["allan"][0]) > 3.0:
         return None
-    lo = lay.freq_hz[lay.band_edges[k]] if k < len(zp) else lay.fs / 2.0
-    return float(min(max(lo, TOP_FROM * lay.fs), 0.4 * lay.fs))
+    return float(TOP_FROM * lay.fs)
 
 
-def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=4,
+def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
         fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None,
         outliers=False):
     """Find what a model card misses to behave like a measured record (see :func:`_gap_once`).
@@ -304,7 +304,7 @@ def _with_outliers(res, n_out, n):
     return res
 
 
-def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=4,
+def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
               fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None):
     """Find what a model card misses to behave like a measured record.
 
