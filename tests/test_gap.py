@@ -441,6 +441,22 @@ def test_refit_removes_a_term_the_record_does_not_have():
     assert res.within_scatter
 
 
+def test_a_term_the_record_does_not_have_goes_to_zero():
+    """A datasheet quantization Q = 1e-3 deg on a record of white noise only: its
+    Allan signature (3 Q^2 / tau^2, 10x the white noise at tau = 10 ms) is absent, so
+    Q is re-fitted down to zero and removed (or at least 10x down) and the card ends
+    within the scatter. (Before issue 20 the zero was rejected as "the card is
+    noisier than the record" and the card kept Q.)"""
+    card = BASE.replace("angle_random_walk = { N = 0.1 }", "angle_random_walk = { N = 0.1 }\n"
+                        "quantization = { Q = 1.0e-3 }   # deg, datasheet")
+    y = _white(std=0.1 / 60.0 * math.sqrt(FS), n=40000)
+    res = gd.gap(y, FS, parse_card(card), seeds=4, engine="native", stop_bands=None)
+    final = parse_card(res.card_text)
+    assert final.terms.get("quantization", {"Q": 0.0})["Q"] < 1.0e-4, res.card_text
+    assert not res.limitations, res.limitations
+    assert res.within_scatter
+
+
 def test_spectral_refit_writes_a_zero_coefficient_as_a_removal(monkeypatch):
     """The joint re-fit's terms at zero become removals (params None) and the card
     keeps the old line as a comment."""

@@ -127,7 +127,7 @@ def band_columns(specs, layout, bands=()):
     return cols, clear
 
 
-def find_bumps(y, fs, ratio=4.0, span=5.0, per_decade=20):
+def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
     """Spectral bumps of a record: bands whose PSD stands more than ``ratio`` times
     above the lowest PSD on BOTH sides within a factor ``span`` in frequency (a
     monotone spectrum - white, 1/f, f^2 - never does) and spanning at least
