@@ -29,10 +29,9 @@ import math
 
 import numpy as np
 
-# s-based field value -> card units, per Allan-shaped term (same as settings.CARD_FIELD)
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
-N_TAIL = 1500
-MIN_BUMP_BINS = 16    # a bump spans at least this many Welch bins (narrower: a spectral line)         # log-spaced points above, where sin^4 averages to 3/8
+N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
+MIN_BUMP_BINS = 16    # a bump spans at least this many Welch bins (narrower: a spectral line)
 
 
 def psd_two_sided(name, f, fs, tau_s=None):

@@ -386,7 +386,8 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
         iterations.append(it)
         within = g <= threshold and all(comp[c] <= comp_threshold[c] for c in COMPONENTS)
         it["within_scatter"] = bool(within)
-        if within or len({e["iteration"] for e in effects if e["iteration"] > 0 or not e["why"].startswith("initial")}) >= max_effects:
+        steps = {e["iteration"] for e in effects if e["iteration"] > 0 or not e["why"].startswith("initial")}
+        if within or len(steps) >= max_effects:
             it["stop"] = "within the simulations' scatter" if within else "max_effects reached"
             break
         card = card_at_rate(text, fs, csrc)
