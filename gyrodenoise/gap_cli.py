@@ -89,11 +89,11 @@ def _read_input(args):
     if str(args.input).lower().endswith(".imu"):
         from .psins import read_psins
         log = read_psins(args.input)
-        col = "gyro_z" if args.rate_column == "rate" else args.rate_column
+        rate = log.axis("gyro_z" if args.rate_column == "rate" else args.rate_column)   # refuse first
         if args.latitude is None:
             args.latitude = log.latitude_deg
             _log(f"gyrodenoise: note: {args.input}: latitude {log.latitude_deg:g} deg from the log's header")
-        return log.axis(col), log.sample_rate_hz, None
+        return rate, log.sample_rate_hz, None
     from .recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
