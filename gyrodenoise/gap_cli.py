@@ -3,6 +3,7 @@ the work is in :mod:`gyrodenoise.modelgap`."""
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from pathlib import Path
@@ -21,6 +22,26 @@ def register_cli(subparsers):
         description="Simulate CARD like MEASURED (same rate and length, several seeds), compare Allan "
                     "deviation, PSD, mean and trend, name and fit the missing effects, write NEW.toml.")
     _add_input_options(p)
+    for a in p._actions:       # IN is optional with --allan (a published curve is the measurement)
+        if a.dest == "input":
+            a.nargs = "?"
+            a.help = "recording CSV (columns time,rate; .gz ok) or a PSINS .imu log; omit with --allan"
+    p.add_argument("--allan", default=None, metavar="CURVE.csv",
+                   help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
+                        "measurement instead of IN; see docs/GAP.md")
+    p.add_argument("--allan-unit", default="deg/s", help="unit of the curve's ADEV: deg/s (default), deg/h, rad/s")
+    p.add_argument("--sensor", default=None, help="--allan: the rows of this sensor (file with a sensor column)")
+    p.add_argument("--channel", default=None, help="--allan: the rows of this channel")
+    p.add_argument("--n-samples", type=int, default=None, help="--allan: length of the published record "
+                                                                "(when the file has no n_samples column)")
+    p.add_argument("--latitude", type=float, default=None, metavar="DEG",
+                   help="where the record was taken: a fitted bias is compared with the Earth's rotation")
+    p.add_argument("--stop-band", action="append", default=None, metavar="LO:HI",
+                   help="take LO-HI Hz out of the comparison (repeatable; default: spectral bumps found "
+                        "automatically); 'none' for no band-stop")
+    p.add_argument("--outliers", action="store_true",
+                   help="replace isolated wild samples (> 10 robust sigmas off the running median, at most 1 %% "
+                        "of the record) before the comparison, and name them")
     p.add_argument("--model", required=True, metavar="CARD.toml", help="model card (path or embedded name)")
     p.add_argument("--out", required=True, metavar="NEW.toml", help="completed card to write")
     p.add_argument("--seeds", type=int, default=6, help="simulated records per card (default 6, at least 3)")
@@ -30,7 +51,8 @@ def register_cli(subparsers):
                                                    "or stale)")
     p.add_argument("--workers", type=int, default=None, help="processes for the FMU engine, a whole number >= 1 (default: one per seed, "
                         "at most the number of cores); ignored by --engine native")
-    p.add_argument("--max-effects", type=int, default=4, help="most effects to add (default 4)")
+    p.add_argument("--max-effects", type=int, default=6, help="most steps that add or re-fit effects (default 6; "
+                                                                "a joint re-fit of all noise terms is one step)")
     p.add_argument("--plot", default=None, metavar="PNG", help="figure (default: NEW.gap.png next to --out)")
     p.add_argument("--no-plot", action="store_true", help="write no figure")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -43,6 +65,100 @@ def _check_writable(path, what):
         raise InputError(f"{what} is a directory", str(path))
     if not d.is_dir() or not os.access(d, os.W_OK):
         raise InputError(f"cannot write {what}: folder {d} does not exist or is not writable", str(path))
+
+
+def _stop_bands(values):
+    if values is None:
+        return "auto"
+    if values == ["none"]:
+        return None
+    out = []
+    for v in values:
+        try:
+            lo, hi = (float(x) for x in v.split(":"))
+        except ValueError:
+            raise InputError(f"--stop-band {v!r}: expected LO:HI in Hz (e.g. 1.5:3.5) or none") from None
+        if not 0 <= lo < hi:
+            raise InputError(f"--stop-band {v!r}: need 0 <= LO < HI")
+        out.append((lo, hi))
+    return out
+
+
+def _read_input(args):
+    """The record: a PSINS .imu log (--rate-column gyro_x/y/z) or a recording CSV."""
+    if str(args.input).lower().endswith(".imu"):
+        from .psins import read_psins
+        log = read_psins(args.input)
+        rate = log.axis("gyro_z" if args.rate_column == "rate" else args.rate_column)   # refuse first
+        if args.latitude is None:
+            args.latitude = log.latitude_deg
+            _log(f"gyrodenoise: note: {args.input}: latitude {log.latitude_deg:g} deg from the log's header")
+        return rate, log.sample_rate_hz, None
+    from .recording import read_recording
+    rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
+    check_record = __import__("gyrodenoise.modelgap", fromlist=["check_record"]).check_record
+    check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
+    for note in rec.notes:
+        _log(f"gyrodenoise: note: {args.input}: {note}")
+    return rec.rate_deg_s, rec.sample_rate_hz, rec.restarts
+
+
+def _cmd_allan(args, card):
+    """gap --allan CURVE.csv: fit the card's noise terms to a published Allan curve, check by simulation."""
+    import numpy as np
+
+    from .cli import emit_json
+    from .modelgap.curve import card_from_terms, fit_curve, inside, read_allan_curve, simulated_curve
+    curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit, args.sample_rate,
+                             args.n_samples)
+    for note in curve.notes:
+        _log(f"gyrodenoise: note: {args.allan}: {note}")
+    terms, model = fit_curve(curve)
+    text = card_from_terms(card.text, terms, f"fitted to {Path(args.allan).name} ({curve.label})", card.source)
+    from .modelgap.cards import text_at_rate
+    text = text_at_rate(text, curve.sample_rate_hz)
+    _log(f"gyrodenoise: simulating {args.seeds} records of {curve.n_samples} samples at {curve.sample_rate_hz:g} Hz")
+    mean, runs = simulated_curve(text, curve, range(1, args.seeds + 1), card.source)
+    ok = inside(curve, mean)
+    rows = [{"tau_s": float(t), "adev_deg_s": float(a), "lo": None if not np.isfinite(lo) else float(lo),
+             "hi": None if not np.isfinite(hi) else float(hi), "model": float(m_), "simulated": float(s_),
+             "inside": bool(k)} for t, a, lo, hi, m_, s_, k in
+            zip(curve.tau_s, curve.adev_deg_s, curve.lo_deg_s, curve.hi_deg_s, model, mean, ok)]
+    out_tau = [r["tau_s"] for r in rows if not r["inside"]]
+    verdict = ("the simulated curve (mean of %d seeds) is inside the published bounds at every tau" % args.seeds
+               if not out_tau else
+               f"outside the published bounds at tau {', '.join(f'{t:g}' for t in out_tau)} s")
+    fast = [(s_, t_) for s_, t_ in terms["gauss_markov"] if t_ < 2.0 / curve.sample_rate_hz]
+    if fast:    # Gauss-Markov terms shorter than 2 samples act as (slightly coloured) white noise
+        n_eq = math.sqrt(terms["angle_random_walk"] + sum(2.0 * s_ * s_ * t_ for s_, t_ in fast)) * 60.0
+        text = text.rstrip("\n") + (f"\n# white noise: the Gauss-Markov terms with tau < 2 samples act as white "
+                                    f"noise (the fit used their slight colour at the shortest taus); with N they "
+                                    f"make an angle random walk of {n_eq:.4g} deg/sqrt(h)\n")
+    text = text.rstrip("\n") + (f"\n# noise terms fitted by gyrodenoise gap --allan to {Path(args.allan).name} "
+                                f"({curve.label}, ADEV in {curve.unit}, {curve.n_samples} samples at "
+                                f"{curve.sample_rate_hz:g} Hz); {verdict}\n")
+    lines = [f"gyrodenoise gap --allan: {args.allan} ({curve.label}; {len(curve.tau_s)} taus "
+             f"{curve.tau_s[0]:g}-{curve.tau_s[-1]:g} s; ADEV in {curve.unit}, converted to deg/s)",
+             "tau_s      published_deg_h   bounds_deg_h            fit_deg_h   simulated_deg_h  inside"]
+    for r in rows:
+        b = (f"{r['lo'] * 3600 if r['lo'] else float('nan'):.4g}-{r['hi'] * 3600 if r['hi'] else float('nan'):.4g}")
+        lines.append(f"{r['tau_s']:<10.4g} {r['adev_deg_s'] * 3600:<17.4g} {b:<23} {r['model'] * 3600:<11.4g} "
+                     f"{r['simulated'] * 3600:<16.4g} {'yes' if r['inside'] else 'NO'}")
+    lines.append(verdict)
+    plot = None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
+    if plot:
+        from .modelgap.report import plot_curve
+        plot_curve(curve, model, mean, plot, title=f"{curve.label} ({Path(args.allan).name}) vs the fitted card")
+    Path(args.out).write_text(text, encoding="utf-8")
+    if args.json:
+        print("\n".join(lines), file=sys.stderr)
+        emit_json({"allan": str(args.allan), "label": curve.label, "unit": curve.unit, "out": str(args.out),
+                   "inside_every_tau": not out_tau, "points": rows})
+    else:
+        print("\n".join(lines))
+        print(f"wrote {args.out}" + (f" and {plot}" if plot else ""))
+    return 0
 
 
 def cmd_gap(args):
@@ -58,22 +174,28 @@ def cmd_gap(args):
     if args.max_effects < 0:
         raise InputError(f"--max-effects must be >= 0, got {args.max_effects}")
     _check_writable(args.out, "--out")
+    if args.plot and not args.no_plot:
+        _check_writable(args.plot, "--plot")
+    if args.allan is not None:
+        if args.input is not None:
+            raise InputError("give either IN (a record) or --allan CURVE.csv, not both", args.input)
+        return _cmd_allan(args, card)
+    if args.input is None:
+        raise InputError("no measurement: give IN (a record) or --allan CURVE.csv")
     plot = None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
     if plot:
         _check_writable(plot, "--plot")
-    from .recording import read_recording
-    rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
-                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
-    check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
-    for note in rec.notes:
-        _log(f"gyrodenoise: note: {args.input}: {note}")
-    if abs(card.sample_rate_hz - rec.sample_rate_hz) > 1e-6 * rec.sample_rate_hz:
-        card_at_rate(card.text, rec.sample_rate_hz, card.source)   # refuse first (one line), then note
+    bands = _stop_bands(args.stop_band)
+    rate, fs, restarts = _read_input(args)
+    check_record(rate, args.input)
+    if abs(card.sample_rate_hz - fs) > 1e-6 * fs:
+        card_at_rate(card.text, fs, card.source)   # refuse first (one line), then note
         _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
-             f"{rec.sample_rate_hz:g} Hz: simulating at the record's rate; {args.out} keeps the card's")
-    res = gap(rec.rate_deg_s, rec.sample_rate_hz, card, seeds=args.seeds, engine=args.engine,
-              restarts=rec.restarts, max_effects=args.max_effects, fmu_dir=args.fmu_dir,
-              workers=args.workers, source=args.input, quiet=False)
+             f"{fs:g} Hz: simulating at the record's rate; {args.out} keeps the card's")
+    res = gap(rate, fs, card, seeds=args.seeds, engine=args.engine,
+              restarts=restarts, max_effects=args.max_effects, fmu_dir=args.fmu_dir,
+              workers=args.workers, source=args.input, quiet=False, stop_bands=bands,
+              latitude_deg=args.latitude, outliers=args.outliers)
     text = res.card_text
     if res.effects_added:
         text = text.rstrip("\n") + f"\n# completed by gyrodenoise gap from {Path(args.input).name}: " + \

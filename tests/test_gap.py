@@ -194,10 +194,18 @@ def test_edit_card_keeps_comments_and_order():
     assert new.index("constant_bias") < new.index("[[terms.sinusoid]]")
 
 
-def test_noise_free_card_is_an_input_error():
-    card = parse_card('[sensor]\nsample_rate_hz = 100.0\n[terms]\nconstant_bias = { value = 1.0 }\n')
-    with pytest.raises(InputError, match="noise-free"):
-        gd.gap(np.random.default_rng(0).standard_normal(5000), FS, card, engine="native")
+def test_card_without_noise_terms_starts_from_a_fit_to_the_record():
+    """An empty card (only a bias) starts from the noise terms fitted to the record:
+    white noise of known N is found (N within 5 %, about 3 standard errors of the
+    Allan/PSD estimate on 40,000 samples) and the gap ends within the scatter."""
+    n_true = 0.5                                          # deg/sqrt(h)
+    y = np.random.default_rng(0).standard_normal(40000) * n_true / 60.0 * math.sqrt(FS)
+    card = parse_card('[sensor]\nsample_rate_hz = 100.0\n[terms]\nconstant_bias = { value = 0.0 }\n')
+    res = gd.gap(y, FS, card, engine="native", seeds=4, stop_bands=None)
+    fitted = parse_card(res.card_text).terms
+    assert fitted["angle_random_walk"]["N"] == pytest.approx(n_true, rel=0.05)
+    assert res.effects_added[0]["why"].startswith("initial fit")
+    assert res.within_scatter, res.iterations[-1]["components"]
 
 
 def test_too_short_record_is_an_input_error():
@@ -398,21 +406,79 @@ def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkey
     assert out == {"card_gap": None, "components": {"psd": None, "x": 2.0}, "robust_gap": [None, 1]}
 
 
-def test_zeroed_term_is_a_limitation_not_a_fit(monkeypatch):
-    """A candidate that would write N = 0 (card noisier than the record) is
-    rejected and reported as a limitation; the card is not changed."""
+def test_zeroed_term_is_not_written_as_a_fit(monkeypatch):
+    """A candidate that would WRITE N = 0 is rejected (a term fitted to nothing is
+    removed, never written as 0: see the re-fit tests below)."""
     import gyrodenoise.modelgap.workflow as G
-    from gyrodenoise.modelgap import format_report
-    monkeypatch.setattr(G, "propose", lambda *a, **k: [G.Candidate("angle_random_walk", {"N": 0.0}, True,
-                                                                    "re-fit")])
-    res = G.gap(_white(), FS, parse_card(SUB), seeds=3, engine="native")
-    assert res.effects_added == [] and res.card_text == SUB
-    assert res.limitations and "noisier than the record" in res.limitations[0]
-    assert "angle_random_walk.N" in res.limitations[0]
-    assert "limitation: the card is noisier" in format_report(res)
-    assert res.to_json()["limitations"] == res.limitations
     assert G._zeroed([("gauss_markov", {"sigma": 0.0, "tau": 1.0}, False),
                       ("bias_instability", {"B": 0.2}, False)]) == ["gauss_markov.sigma"]
+    assert G._zeroed([("bias_instability", None, True)]) == []
+
+
+def test_card_noisier_than_the_record_is_refitted_down():
+    """The card says N = 0.5 deg/sqrt(h), the record is white noise of N = 0.06:
+    the joint re-fit brings N down to the record's (within 5 %, ~3 standard errors
+    on 40,000 samples) and the card ends within the simulations' scatter."""
+    n_true = 0.06                                         # deg/sqrt(h): std 0.01 deg/s at 100 Hz
+    y = _white(std=n_true / 60.0 * math.sqrt(FS), n=40000)
+    res = gd.gap(y, FS, parse_card(SUB), seeds=4, engine="native", stop_bands=None)
+    final = parse_card(res.card_text)
+    assert final.terms["angle_random_walk"]["N"] == pytest.approx(n_true, rel=0.05)
+    assert any(e["name"] == "angle_random_walk" and e["refit"] for e in res.effects_added)
+    assert res.within_scatter, res.iterations[-1]["components"]
+
+
+def test_refit_removes_a_term_the_record_does_not_have():
+    """A datasheet card with a large rate random walk on a white-noise record:
+    the re-fit removes the walk (comment left in the card) rather than writing K = 0."""
+    card = BASE.replace("angle_random_walk = { N = 0.1 }", "angle_random_walk = { N = 0.1 }\n"
+                        "rate_random_walk = { K = 200.0 }   # deg/h^1.5, datasheet")
+    y = _white(std=0.1 / 60.0 * math.sqrt(FS), n=40000)
+    res = gd.gap(y, FS, parse_card(card), seeds=4, engine="native", stop_bands=None)
+    final = parse_card(res.card_text)
+    assert final.terms.get("rate_random_walk", {"K": 0.0})["K"] < 50.0, res.card_text   # down >= 4x
+    assert final.terms["angle_random_walk"]["N"] == pytest.approx(0.1, rel=0.05)
+    assert res.within_scatter
+
+
+def test_a_term_the_record_does_not_have_goes_to_zero():
+    """A datasheet quantization Q = 1e-3 deg on a record of white noise only: its
+    Allan signature (3 Q^2 / tau^2, 10x the white noise at tau = 10 ms) is absent, so
+    Q is re-fitted down to zero and removed (or at least 10x down) and the card ends
+    within the scatter. (Before issue 20 the zero was rejected as "the card is
+    noisier than the record" and the card kept Q.)"""
+    card = BASE.replace("angle_random_walk = { N = 0.1 }", "angle_random_walk = { N = 0.1 }\n"
+                        "quantization = { Q = 1.0e-3 }   # deg, datasheet")
+    y = _white(std=0.1 / 60.0 * math.sqrt(FS), n=40000)
+    res = gd.gap(y, FS, parse_card(card), seeds=4, engine="native", stop_bands=None)
+    final = parse_card(res.card_text)
+    assert final.terms.get("quantization", {"Q": 0.0})["Q"] < 1.0e-4, res.card_text
+    assert not res.limitations, res.limitations
+    assert res.within_scatter
+
+
+def test_spectral_refit_writes_a_zero_coefficient_as_a_removal(monkeypatch):
+    """The joint re-fit's terms at zero become removals (params None) and the card
+    keeps the old line as a comment."""
+    import gyrodenoise.modelgap.spectral as S
+    from gyrodenoise.modelgap.candidates import spectral_refit
+    from gyrodenoise.modelgap.cards import edit_card
+    from gyrodenoise.modelgap.metric import Layout, Reference, signature
+    card = parse_card(BASE + "rate_random_walk = { K = 200.0 }\n")
+    y = _white(std=0.01, n=8192)
+    lay = Layout.for_record(len(y), FS)
+    sig = signature(y, lay)
+    ref = Reference(lay, [signature(_white(std=0.01, n=8192, seed=s), lay) for s in (1, 2, 3)])
+    monkeypatch.setattr(S, "fit_terms", lambda *a, **k: ({"quantization": 0.0, "angle_random_walk": 1e-8,
+                                                           "bias_instability": 0.0, "rate_random_walk": 0.0,
+                                                           "gauss_markov": []}, None, None))
+    c = spectral_refit(sig, lay, ref, card)
+    ch = {nm: pr for nm, pr, _ in c.changes}
+    assert ch["rate_random_walk"] is None and ch["angle_random_walk"]["N"] == pytest.approx(6e-3)
+    new = card.text
+    for nm, pr, rf in c.changes:
+        new = edit_card(new, nm, pr, rf, "test")
+    assert "rate_random_walk" not in parse_card(new).terms and "# rate_random_walk = { K = 200.0 }" in new
 
 
 # ------------------------------------------------------------------ through the FMU
@@ -465,21 +531,17 @@ def test_real_adis16405_from_white_noise_card():
     * first a constant bias equal to the record mean: the mean (1446 deg/h) is
       45x the rms wander of the 16 block means (32 deg/h), a deterministic
       offset, not the wander of a random process;
-    * no rate random walk: the measured Allan deviation is flat then FALLS
-      beyond ~300 s (no +1/2 slope); a walk big enough to cover the offset or
-      the long-tau excess only widens the simulations' scatter;
-    * one bias-wander term (bias_instability, or a gauss_markov with a
-      correlation time >= 10 s) whose analytic Allan deviation, added to the
-      card's white noise, is within 20 % of the measured one at every octave
-      tau from 40 s to 1000 s (the measured 1-sigma error there is 4-15 %);
-    * afterwards every Allan point at tau >= 1 s is within 3 sigma of the
-      simulations, and what still disagrees is the sensor's internal
-      low-pass filter: Allan points below 1 s with the record BELOW the card,
-      PSD bands above 1 Hz only. No term of the vocabulary represents it, so
-      the gap stays far above the scatter threshold; it must still shrink by
-      at least half.
+    * no rate random walk in the final card: the measured Allan deviation is
+      flat then FALLS beyond ~300 s (no +1/2 slope);
+    * the sensor's internal low-pass filter is recognised (what disagrees sits at
+      the top of the band) and that band, from at least 0.3 fs up, is taken out of
+      the comparison for record and simulations alike, and named;
+    * the card's gap then ends below the scatter threshold, and its exact Allan
+      deviation (every term, spectral.allan_columns) is within 3 sigma of the
+      measured one (IEEE 952 C.1 error, 4.5 % at 41 s to 24 % at 1000 s) at every
+      octave tau from 40 s to 1000 s.
     """
-    from gyrodenoise.modelgap import SHAPE
+    from gyrodenoise.modelgap.spectral import allan_columns, stochastic_specs
     from gyrodenoise.recording import read_recording
     path = shared_file("static", "adis16405_imu1.csv.gz")
     rec = read_recording(path, rate_column="gyro_x")
@@ -491,31 +553,18 @@ def test_real_adis16405_from_white_noise_card():
     names = [e["name"] for e in res.effects_added]
     assert names[0] == "constant_bias" and res.iterations[0].get("deterministic_first")
     assert abs(res.effects_added[0]["params"]["value"] - y.mean() * 3600.0) < 1e-3
-    assert "rate_random_walk" not in names
-    wander = [e for e in res.effects_added if e["name"] == "bias_instability"
-              or (e["name"] == "gauss_markov" and e["params"]["tau"] >= 10.0)]
-    assert len(wander) == 1, res.effects_added
     final = parse_card(res.card_text)
-    assert set(names) <= set(final.terms)
-    # analytic Allan deviation of the final card's stochastic terms vs the measured one
+    assert "rate_random_walk" not in final.terms
+    # the gap within the scatter threshold (the per-component test, within_scatter, can
+    # fail on the PSD component with 4 seeds: docs/GAP.md)
+    assert res.gap_after <= res.threshold, (res.gap_after, res.threshold, res.iterations[-1]["components"])
+    top = [(lo, hi) for lo, hi, peak in res.stop_bands if peak < 0]
+    assert top and top[0] == pytest.approx((30.0, 50.0), rel=1e-6), res.stop_bands
+    assert any("internal low-pass filter" in s_ for s_ in res.named)
     tau_m = np.append(2 ** np.arange(12, 17), 100000)      # 41, 82, 164, 328, 655 and 1000 s
     meas = gd.allan(y, rec.sample_rate_hz, m=tau_m)
-    tau = meas.tau_s
-    avar = np.zeros_like(tau)
-    for nm, (fld, to_card) in {"quantization": ("Q", 1.0), "angle_random_walk": ("N", 60.0),
-                               "bias_instability": ("B", 3600.0),
-                               "rate_random_walk": ("K", 3600.0 ** 1.5)}.items():
-        if nm in final.terms:
-            avar += (final.terms[nm][fld] / to_card) ** 2 * SHAPE[nm](tau)
-    for gm in final.term_list("gauss_markov"):
-        avar += gm_avar(tau, gm["sigma"] / 3600.0, gm["tau"])
-    np.testing.assert_allclose(np.sqrt(avar), meas.adev_deg_s, rtol=0.20)
-    # what remains: the internal low-pass filter only
-    last = res.iterations[-1]
-    z, lay = last["_z"], res.layout
-    assert np.all(np.abs(z["allan"][lay.tau_s >= 1.0]) <= 3.0), z["allan"]
-    assert np.all(z["allan"][np.abs(z["allan"]) > 3.0] < 0)
-    assert all(lo >= 1.0 for lo, _, _ in last["where"]["psd_bands_hz"]), last["where"]["psd_bands_hz"]
-    assert res.gap_after <= 0.5 * res.gap_before
-    assert res.gap_after > res.threshold          # the low-pass filter is not in the vocabulary
+    specs, coef = stochastic_specs(final)
+    model = np.sqrt(allan_columns(specs, tau_m, rec.sample_rate_hz) @ coef)
+    sigma = meas.adev_deg_s / np.sqrt(2.0 * (len(y) / tau_m - 1.0))     # IEEE 952 C.1
+    assert np.all(np.abs(model - meas.adev_deg_s) <= 3.0 * sigma), (model, meas.adev_deg_s, sigma)
     assert set(res.iterations[0]["components"]) == set(COMPONENTS)

@@ -77,9 +77,9 @@ from .metric import Layout, Reference, gap_components, gap_value, signature, zsc
 from .report import format_report, plot_gap
 from .settings import COMPONENTS, GAP_METRIC
 from .simulation import Simulator, fmu_path_for
-from .workflow import GapResult, check_record, gap, robust_gap, widening
+from .workflow import GapResult, check_record, gap, heldout_gap, robust_gap, widening
 
 __all__ = ["SHAPE", "Candidate", "gm_avar", "propose", "card_at_rate", "check_editable", "edit_card",
            "text_at_rate", "Layout", "Reference", "gap_components", "gap_value", "signature", "zscores",
            "format_report", "plot_gap", "COMPONENTS", "GAP_METRIC", "Simulator", "fmu_path_for", "GapResult",
-           "check_record", "gap", "robust_gap", "widening"]
+           "check_record", "gap", "heldout_gap", "robust_gap", "widening"]

@@ -70,14 +70,20 @@ class Candidate:
 
     @property
     def n_params(self):
-        return N_PARAMS[self.name] + sum(N_PARAMS[e[0]] for e in self.extra)
+        """Parameters written (a removal writes none)."""
+        return sum(N_PARAMS[nm] for nm, pr, _ in self.changes if pr is not None)
 
     def to_json(self):
-        return {"name": self.name, "params": {k: float(v) for k, v in self.params.items()},
+        return {"name": self.name, "params": _params_json(self.params),
                 "refit": self.refit, "why": self.why,
-                "with": [{"name": e[0], "params": e[1], "refit": e[2]} for e in self.extra], "gap": _f(self.gap), "robust_gap": _f(self.robust), "widen": _f(self.widen),
+                "with": [{"name": e[0], "params": _params_json(e[1]), "refit": e[2]} for e in self.extra], "gap": _f(self.gap), "robust_gap": _f(self.robust), "widen": _f(self.widen),
                 "score": _f(self.score),
                 "components": self.components}
+
+
+def _params_json(params):
+    """Plain floats, or None for a term removed from the card."""
+    return None if params is None else {k: float(v) for k, v in params.items()}
 
 
 def _f(v):
@@ -136,7 +142,8 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
                 old = existing[nm]
                 if abs(math.sqrt(c) - math.sqrt(old)) > 0.02 * math.sqrt(old):
                     fld, to_card = CARD_FIELD[nm]
-                    out.append((nm, {fld: math.sqrt(c) * to_card}, True))
+                    # a term re-fitted to zero is removed from the card
+                    out.append((nm, {fld: math.sqrt(c) * to_card} if c > 0 else None, True))
             return out
 
         def held(col):
@@ -278,3 +285,49 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
         cands.append(Candidate("sinusoid", {"amplitude": amp * 3600.0, "frequency": fr, "phase_deg": phase},
                                False, f"spectral line at {fr:.4g} Hz (z={zl[k]:.1f})"))
     return cands
+
+
+def spectral_refit(sig_m, layout, ref, card, bands=(), why=""):
+    """One candidate that re-fits ALL the card's noise terms at once (up, down or to
+    zero = removed): Q, N, B, K and the Gauss-Markov terms, by
+    :func:`.spectral.fit_terms` on the measured Allan variance and Welch-band PSD
+    minus what the card's other terms (sinusoids, ramp, transient, bias) add in
+    the simulations. None when nothing would change."""
+    from .spectral import ALLAN_TERMS, allan_columns, band_columns, fit_terms, stochastic_specs
+    specs, coef = stochastic_specs(card)
+    e = layout.band_edges
+    band_mean = lambda p: np.array([p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])  # noqa: E731
+    psd_m = band_mean(sig_m["psd_bins"])
+    psd_s = band_mean(ref.mean["psd_bins"])
+    if specs:
+        own_a = allan_columns(specs, layout.m, layout.fs, bands) @ coef
+        own_p = band_columns(specs, layout, bands)[0] @ coef
+    else:
+        own_a, own_p = 0.0, 0.0
+    rest_a = np.maximum(ref.mean["avar"] - own_a, 0.0)
+    rest_p = np.maximum(psd_s - own_p, 0.0)
+    terms, _, _ = fit_terms(layout, bands, sig_m["avar"] - rest_a, 2.0 * sig_m["avar"] * ref.sigma["allan"],
+                            psd_m - rest_p, psd_m * ref.sigma["psd"])
+    changes = []
+    for nm in ALLAN_TERMS:
+        fld, to_card = CARD_FIELD[nm]
+        new = math.sqrt(terms[nm]) * to_card
+        old = card.terms.get(nm, {}).get(fld)
+        if old is None and new > 0:
+            changes.append((nm, {fld: new}, False))
+        elif old is not None and new == 0:
+            changes.append((nm, None, True))
+        elif old is not None and abs(new - old) > 0.02 * old:
+            changes.append((nm, {fld: new}, True))
+    old_gm = sorted((g["sigma"], g["tau"]) for g in card.term_list("gauss_markov"))
+    new_gm = sorted((s * 3600.0, t) for s, t in terms["gauss_markov"])
+    if len(old_gm) != len(new_gm) or any(abs(a[0] - b[0]) > 0.02 * a[0] or abs(a[1] - b[1]) > 0.02 * a[1]
+                                         for a, b in zip(old_gm, new_gm)):
+        if old_gm:
+            changes.append(("gauss_markov", None, True))
+        changes += [("gauss_markov", {"sigma": s, "tau": t}, False) for s, t in new_gm]
+    if not changes:
+        return None
+    (nm, pr, rf), rest = changes[0], changes[1:]
+    return Candidate(nm, pr, rf, why or "joint re-fit of every noise term (Q, N, B, K, Gauss-Markov) to the "
+                     "Allan variance and the PSD; terms may go up, down or to zero (removed)", extra=rest)

@@ -61,9 +61,35 @@ def _last_content(lines, lo, hi, default):
                default=default)
 
 
+def _remove_lines(lines, name, note):
+    """Comment out every instance of terms.name: its inline line in [terms], its
+    [terms.name] table or its [[terms.name]] tables with their bodies."""
+    out, i = [], 0
+    table = re.compile(rf"^\s*\[\[?\s*terms\s*\.\s*{re.escape(name)}\s*\]\]?\s*(#.*)?$")
+    inline = re.compile(rf"^\s*{re.escape(name)}\s*=")
+    in_terms = False
+    while i < len(lines):
+        ln = lines[i]
+        if table.match(ln):
+            lo, hi = _table_range(lines, i)
+            out += [f"# {ln.strip()}    # removed, {note}"] + [f"# {b.strip()}" if b.strip() else b
+                                                                for b in lines[lo:hi]]
+            i = hi
+            continue
+        if re.match(r"^\s*\[", ln):
+            in_terms = bool(re.match(r"^\s*\[\s*terms\s*\]\s*(#.*)?$", ln))
+        elif in_terms and inline.match(ln):
+            ln = f"# {ln.strip()}    # removed, {note}"
+        out.append(ln)
+        i += 1
+    return out
+
+
 def _edit_lines(lines, name, params, refit, note):
     """The edit itself (see :func:`edit_card`); returns the new list of lines."""
     from ..simulator import REPEATABLE
+    if params is None:
+        return _remove_lines(lines, name, note)
     if name in REPEATABLE:
         block = ["", f"[[terms.{name}]]                    # {note}"]
         block += [f"{k} = {_fmt_num(v)}" for k, v in params.items()]
@@ -116,6 +142,8 @@ def _holds(text, name, params, n_before):
         t = tomllib.loads(text).get("terms", {}).get(name)
     except tomllib.TOMLDecodeError:
         return False
+    if params is None:
+        return t is None
     if name in REPEATABLE:
         if not isinstance(t, list) or len(t) != n_before + 1:
             return False
@@ -135,7 +163,8 @@ def _n_instances(text, name):
 
 
 def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap", source="<card>"):
-    """Add a term to (or replace a re-fitted term in) the TEXT of a card.
+    """Add a term to (or replace a re-fitted term in, or with ``params=None`` remove
+    every instance of a term from) the TEXT of a card.
 
     Comments and order are kept. A non-repeatable term becomes an inline-table
     line in ``[terms]`` (replacing its old line when ``refit``), or, when the

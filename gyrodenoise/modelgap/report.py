@@ -54,6 +54,8 @@ def format_report(res, source="MEASURED"):
                 out.append(f"    => {'re-fit' if e['refit'] else 'add'} {e['name']} {_short(e['params'])}")
         if it.get("stop"):
             out.append(f"    stop: {it['stop']}")
+    for m_ in res.named:
+        out.append(f"named: {m_}")
     for m_ in res.limitations:
         out.append(f"limitation: {m_}")
     out.append("")
@@ -72,6 +74,8 @@ def format_report(res, source="MEASURED"):
 
 
 def _short(params):
+    if params is None:
+        return "(removed)"
     return "{" + ", ".join(f"{k}={v:.4g}" for k, v in params.items()) + "}"
 
 
@@ -95,17 +99,17 @@ def plot_gap(res, path, title=""):
         ref = it["_ref"]
         mu, sd = ref.mean["allan"], ref.sigma["allan"]
         col = "tab:red" if i == 0 else cmap(0.15 + 0.7 * i / max(n_it - 1, 1))
-        label = "input card" if i == 0 else "+ " + " + ".join(
-            e["name"] for e in res.effects_added if e.get("iteration", 0) < i)
+        added = [e["name"] for e in res.effects_added if e.get("iteration", 0) < i]
+        label = "input card" if i == 0 else (f"+ {len(added)} changes" if len(added) > 3 else
+                                             "+ " + " + ".join(added))
         ax.fill_between(tau, np.exp(mu - sd) * 3600, np.exp(mu + sd) * 3600, color=col, alpha=0.25)
         ax.loglog(tau, np.exp(mu) * 3600, "-", color=col, label=f"{label} (gap {it['card_gap']:.3g})")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("averaging time tau (s)")
-    ax.set_ylabel("Allan deviation (deg/h)")
-    ax.set_title(title or "measured vs simulated (band: 1 sigma of one simulation)", fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    if res.stop_bands:
+        title = (title + "\n" if title else "") + "record and simulations through the band-stop " + ", ".join(
+            f"{lo:.3g}-{hi:.3g} Hz" for lo, hi, *_ in res.stop_bands)
+    _allan_axes(ax, title or "measured vs simulated (band: 1 sigma of one simulation)")
     if spectral:
         ax = axes[0, 1]
         f = lay.freq_hz
@@ -119,7 +123,37 @@ def plot_gap(res, path, title=""):
         ax.set_ylabel("PSD ((deg/h)^2/Hz), Welch")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _allan_axes(ax, title):
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel("Allan deviation (deg/h)")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def _save(fig, path):
+    import matplotlib.pyplot as plt
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_curve(curve, model_deg_s, simulated_deg_s, path, title=""):
+    """PNG: a published Allan curve with its bounds, the fitted card's exact curve and
+    its simulated curve (mean of the seeds), in deg/h."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    t = curve.tau_s
+    lo = np.where(np.isfinite(curve.lo_deg_s), curve.lo_deg_s, curve.adev_deg_s * 1e-3) * 3600
+    ax.fill_between(t, lo, curve.hi_deg_s * 3600, color="0.8", label="published 95 % bounds")
+    ax.loglog(t, curve.adev_deg_s * 3600, "ko", ms=3, label="published ADEV")
+    ax.loglog(t, model_deg_s * 3600, "-", color="tab:blue", label="fitted card (exact)")
+    ax.loglog(t, simulated_deg_s * 3600, "--", color="tab:red", label="fitted card (simulated, mean of seeds)")
+    _allan_axes(ax, title or curve.label)
+    return _save(fig, path)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .candidates import Candidate, _f, propose
+from .candidates import Candidate, _f, propose, spectral_refit
 from .cards import card_at_rate, check_editable, edit_card
 from .metric import (
     Layout,
@@ -36,6 +36,7 @@ from .settings import (
     _log,
 )
 from .simulation import Simulator
+from .spectral import band_stop, find_bumps
 
 
 # ------------------------------------------------------------------ the workflow
@@ -54,6 +55,8 @@ class GapResult:
     limitations: list = field(default_factory=list)
     layout: Layout = None
     measured: dict = None
+    stop_bands: list = field(default_factory=list)     # [(lo_hz, hi_hz, peak ratio or nan)]
+    named: list = field(default_factory=list)          # physical effects named from the evidence
 
     @property
     def within_scatter(self):
@@ -72,6 +75,8 @@ class GapResult:
                         "within_scatter": self.within_scatter,
                         "stop": self.iterations[-1].get("stop"),
                         "limitations": list(self.limitations),
+                        "stop_bands_hz": [[lo, hi] for lo, hi, _ in self.stop_bands],
+                        "named_effects": list(self.named),
                         "iterations": [{k: v for k, v in it.items() if not k.startswith("_")}
                                        for it in self.iterations]})
 
@@ -97,6 +102,8 @@ def _zeroed(changes):
     """Fields that a set of changes would write as 0 (a noise term fitted to nothing)."""
     out = []
     for nm, pr, _ in changes:
+        if pr is None:          # a removal: the term goes, nothing is written as 0
+            continue
         fld = CARD_FIELD.get(nm, (None,))[0]
         for k in ([fld] if fld else []) + (["sigma"] if nm == "gauss_markov" else []) + \
                 (["amplitude"] if nm == "sinusoid" else []):
@@ -182,11 +189,34 @@ def deterministic_offset(sig_m, ref, z, limit=3.0):
     return bool(flag), off, wander
 
 
-def _evaluate(sims, sig_m, layout):
-    ref = Reference(layout, [signature(s, layout) for s in sims])
+def _evaluate(sims, sig_m, layout, bands=()):
+    ref = Reference(layout, [signature(band_stop(s, layout.fs, bands), layout) for s in sims])
     z = zscores(sig_m, ref)
     comp = gap_components(z)
     return ref, z, comp, gap_value(comp)
+
+
+def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
+    """Write the noise terms fitted to the record alone into a card that has none
+    (the analytic 1-sigma of one record as the weights); appends to ``effects``."""
+    from .metric import _floors
+    from .spectral import fit_terms
+    fl = _floors(sig_m, layout)
+    e = layout.band_edges
+    psd_m = np.array([sig_m["psd_bins"][e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
+    terms, _, _ = fit_terms(layout, bands, sig_m["avar"], 2.0 * sig_m["avar"] * fl["allan"], psd_m,
+                            psd_m * fl["psd"])
+    note = f"initial fit to {Path(str(source)).name}"
+    changes = [(nm, {CARD_FIELD[nm][0]: float(np.sqrt(v)) * CARD_FIELD[nm][1]}) for nm, v in terms.items()
+               if nm in CARD_FIELD and v > 0]
+    changes += [("gauss_markov", {"sigma": s_ * 3600.0, "tau": t_}) for s_, t_ in terms["gauss_markov"]]
+    if not changes:
+        raise InputError("the card has no noise term and none could be fitted to the record", csrc)
+    for nm, pr in changes:
+        text = edit_card(text, nm, pr, nm in card.terms, note, csrc)
+        effects.append({"name": nm, "params": pr, "refit": nm in card.terms,
+                        "why": "initial fit (the card had no noise term)", "iteration": 0})
+    return text
 
 
 def check_record(rate_deg_s, source="MEASURED"):
@@ -203,8 +233,79 @@ def check_record(rate_deg_s, source="MEASURED"):
     return y
 
 
-def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=4,
-        fmu_dir=None, workers=None, source="MEASURED", quiet=True):
+FALLBACK_GAIN = 0.5  # the joint re-fit is accepted when it at least halves the plain gap
+TOP_FROM = 0.3      # the band given to an internal low-pass filter: 0.3 fs to Nyquist
+
+
+def _top_disagreement(res):
+    """Lower edge (Hz) of the band given to the sensor's internal low-pass filter,
+    TOP_FROM * fs, when what still disagrees sits at the top of the band: a run of
+    Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point; else
+    None. (A fixed edge: where the run starts moves with the seeds' scatter.)"""
+    it = res.iterations[-1]
+    z, lay = it["_z"], res.layout
+    zp = np.abs(z["psd"])
+    k = len(zp)
+    while k > 0 and zp[k - 1] > 3.0:
+        k -= 1
+    if k == len(zp) and not abs(z["allan"][0]) > 3.0:
+        return None
+    return float(TOP_FROM * lay.fs)
+
+
+def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
+        fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None,
+        outliers=False):
+    """Find what a model card misses to behave like a measured record (see :func:`_gap_once`).
+
+    With ``stop_bands="auto"``, when the card cannot be brought within the scatter
+    and what still disagrees sits at the top of the band (:func:`_top_disagreement`:
+    the sensor's internal low-pass filter, which no term of the vocabulary
+    represents), the workflow goes on from the card reached, with that top band
+    taken out of the comparison as well (named in ``named``); ``gap_before`` stays
+    the first pass's and the iterations of both passes are kept."""
+    n_out = 0
+    if outliers:
+        from .effects import screen_outliers
+        rate_deg_s, idx = screen_outliers(check_record(rate_deg_s, source))
+        n_out = len(idx)
+        _log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet)
+    kw = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
+              workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
+    res = _gap_once(rate_deg_s, sample_rate_hz, card, stop_bands=stop_bands, **kw)
+    lo = None if res.within_scatter or stop_bands != "auto" else _top_disagreement(res)
+    if lo is None:
+        return _with_outliers(res, n_out, len(rate_deg_s))
+    from ..simulator import parse_card
+    _log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
+         f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet)
+    card1 = parse_card(res.card_text, getattr(card, "source", "<card>"))
+    bands = [(a, b) for a, b, _ in res.stop_bands] + [(lo, float(sample_rate_hz) / 2.0)]
+    kw["max_effects"] = max(max_effects - len({e["iteration"] for e in res.effects_added}), 1)
+    res2 = _gap_once(rate_deg_s, sample_rate_hz, card1, stop_bands=bands, **kw)
+    n0 = len(res.iterations)
+    for e in res2.effects_added:
+        e["iteration"] += n0
+    res2.effects_added = res.effects_added + res2.effects_added
+    res2.iterations = res.iterations + res2.iterations
+    res2.gap_before = res.gap_before
+    res2.stop_bands = list(res.stop_bands) + [(lo, float(sample_rate_hz) / 2.0, -1.0)]
+    from .effects import name_effects
+    res2.named = name_effects(check_record(rate_deg_s, source), float(sample_rate_hz),
+                              parse_card(res2.card_text), res2.stop_bands, latitude_deg)
+    return _with_outliers(res2, n_out, len(rate_deg_s))
+
+
+def _with_outliers(res, n_out, n):
+    if n_out:
+        res.named.insert(0, f"outliers: {n_out} isolated wild samples ({100.0 * n_out / n:.2g} % of the record, "
+                            f"> 10 robust sigmas off the running median) replaced before the comparison; no term "
+                            f"of the card makes them")
+    return res
+
+
+def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
+              fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None):
     """Find what a model card misses to behave like a measured record.
 
     Parameters
@@ -220,7 +321,14 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
         native engine (bit-identical to the FMU).
     restarts : array_like of bool, optional
     max_effects : int
-        Most effects added.
+        Most effects added (a joint re-fit of the noise terms counts as one).
+    stop_bands : "auto", list of (lo_hz, hi_hz) or None
+        Spectral bumps (base vibration, dither) taken out of the comparison by
+        one band-stop applied alike to the record and to every simulation;
+        "auto": :func:`.spectral.find_bumps`; None or []: none.
+    latitude_deg : float, optional
+        Where the record was taken: a fitted constant bias is compared with the
+        Earth's rotation there (:func:`.effects.name_effects`).
 
     Returns
     -------
@@ -239,12 +347,30 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
         raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
     layout = Layout.for_record(y.shape[0], fs)
     sim = Simulator(y.shape[0], fs, seed_list, engine, restarts, fmu_dir, workers, quiet, source=csrc)
-    sig_m = signature(y, layout)
+    if isinstance(stop_bands, str):
+        if stop_bands != "auto":
+            raise InputError(f"stop_bands must be 'auto', None or a list of (lo_hz, hi_hz), got {stop_bands!r}")
+        bumps = find_bumps(y, fs)
+    else:
+        bumps = [(float(lo), float(hi), float("nan")) for lo, hi in (stop_bands or ())]
+    for lo, hi, _ in bumps:
+        if not 0 <= lo < hi:
+            raise InputError(f"stop band {lo:g}-{hi:g} Hz: need 0 <= low < high")
+    bands = [(lo, hi) for lo, hi, _ in bumps]
+    if bands:
+        _log("gyrodenoise: spectral bump(s) taken out of the comparison (band-stop on the record and on "
+             "every simulation alike): " + ", ".join(f"{lo:.3g}-{hi:.3g} Hz" for lo, hi in bands), quiet)
+    sig_m = signature(band_stop(y, fs, bands), layout)
+    effects, iterations, limitations = [], [], []
     sims = sim.run(text)
     if not np.any([np.std(s_) > 0 for s_ in sims]):
-        raise InputError("the card simulates a noise-free gyro (no stochastic term); the gap needs the "
-                         "simulations' scatter: add at least an angle_random_walk", card0.source)
-    ref, z, comp, g = _evaluate(sims, sig_m, layout)
+        # an empty (or deterministic-only) card: start from the noise terms fitted to the
+        # record alone, with the analytic scatter of one record as the weights
+        text = _initial_fit(text, sig_m, layout, bands, card_at_rate(text, fs, csrc), csrc, source, effects)
+        _log("gyrodenoise: the card has no noise term: started from " + ", ".join(
+            f"{e['name']} {_short(e['params'])}" for e in effects), quiet)
+        sims = sim.run(text)
+    ref, z, comp, g = _evaluate(sims, sig_m, layout, bands)
     loo = loo_gaps(ref)
     threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo)) if loo else 2.0
     comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) if loo else COMPONENT_FLOOR
@@ -254,18 +380,23 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
         raise InputError(f"the gap of the input card is not finite ({g}): the record's signatures "
                          f"cannot be compared with the card's", source)
     gap_before = g
-    effects, iterations, limitations = [], [], []
     while True:
         it = {"card_gap": g, "components": comp, "where": where_disagree(z, layout),
               "_ref": ref, "_z": z, "candidates": []}
         iterations.append(it)
         within = g <= threshold and all(comp[c] <= comp_threshold[c] for c in COMPONENTS)
         it["within_scatter"] = bool(within)
-        if within or len(effects) >= max_effects:
+        steps = {e["iteration"] for e in effects if e["iteration"] > 0 or not e["why"].startswith("initial")}
+        if within or len(steps) >= max_effects:
             it["stop"] = "within the simulations' scatter" if within else "max_effects reached"
             break
         card = card_at_rate(text, fs, csrc)
         cands = propose(y, layout, ref, z, card, restarts)
+        if np.any(np.abs(z["allan"]) > 3.0) or np.any(np.abs(z["psd"]) > 3.0):
+            sr = spectral_refit(sig_m, layout, ref, card, bands)
+            if sr is not None:      # the fallback: tried when no single effect (or pair) will do
+                sr.fallback = True
+                cands.append(sr)
         det, off, wander = deterministic_offset(sig_m, ref, z)
         if det and any(c.name == "constant_bias" for c in cands):
             # deterministic signatures first: a mean offset far beyond the block-mean
@@ -292,7 +423,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
             except InputError as exc:
                 c.why += f" (rejected: {exc})"
                 continue
-            cref, c.z, c.components, c.gap = _evaluate(sim.run(c.text, engine="native"), sig_m, layout)
+            cref, c.z, c.components, c.gap = _evaluate(sim.run(c.text, engine="native"), sig_m, layout, bands)
             c.widen = widening(cref, ref, z)
             if not math.isfinite(c.gap):
                 c.why += " (rejected: non-finite gap)"
@@ -304,6 +435,8 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
             c.score = (c.robust + c.widen) * (1.0 + PENALTY_PER_PARAM * c.n_params)
         ok = [c for c in ok if math.isfinite(c.score)]      # never accept a non-finite score
         it["candidates"] = [c.to_json() for c in cands]
+        fallback = [c for c in ok if getattr(c, "fallback", False)]
+        ok = [c for c in ok if not getattr(c, "fallback", False)]
         best = min(ok, key=lambda c: c.score) if ok else None
         rg = robust_gap(z, mask)
         it["unexplained_points"] = {c_: int(np.sum(~mask[c_])) for c_ in COMPONENTS}
@@ -327,7 +460,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
                         card_at_rate(pc.text, fs, csrc)
                     except InputError:
                         continue
-                    pref, pz, pc.components, pc.gap = _evaluate(sim.run(pc.text, engine="native"), sig_m, layout)
+                    pref, pz, pc.components, pc.gap = _evaluate(sim.run(pc.text, engine="native"), sig_m, layout, bands)
                     pc.robust = robust_gap(pz, mask)
                     pc.widen = widening(pref, ref, z)
                     pc.score = (pc.robust + pc.widen) * (1.0 + PENALTY_PER_PARAM * pc.n_params)
@@ -337,7 +470,26 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
             bp = min(pairs, key=lambda c: c.score) if pairs else None
             if bp is not None and bp.score < MIN_IMPROVEMENT * best.score:
                 best = bp
+        if fallback and (best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg)):
+            fb = fallback[0]
+            if best is None or fb.score < best.score or fb.gap <= 0.25 * min(g, best.gap):
+                best = fb
+            ok = ok + fallback
+            if fb.gap <= FALLBACK_GAIN * g and fb.robust + fb.widen <= rg and best is fb:
+                # the joint re-fit halves the plain gap and is no worse capped: accepted
+                # although its many parameters cost it the penalised score
+                fb.why += f" (accepted: plain gap {g:.3g} -> {fb.gap:.3g}, capped no worse)"
+                fb.score = min(fb.score, MIN_IMPROVEMENT * rg)
         if best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg):
+            # every capped point stays capped (|z| > 5 everywhere, e.g. a card far from a long
+            # real record): the capped score cannot see progress; accept the candidate that
+            # shrinks the plain gap most, by at least 4x, when it is no worse capped
+            big = [c for c in ok if math.isfinite(c.gap) and c.gap <= 0.25 * g
+                   and c.robust + c.widen <= rg]
+            if big:
+                best = min(big, key=lambda c: c.gap)
+                best.why += f" (accepted on the plain gap: {g:.3g} -> {best.gap:.3g}; the capped score saturates)"
+        if best is None or not (math.isfinite(rg) and (best.score <= MIN_IMPROVEMENT * rg or best.gap <= 0.25 * g)):
             it["stop"] = "no candidate shrinks the gap significantly"
             break
         _log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
@@ -345,11 +497,11 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
              + f": gap {g:.3g} -> {best.gap:.3g}", quiet)
         text = best.text
         for nm, pr, rf in best.changes:
-            effects.append({"name": nm, "params": {k: float(v) for k, v in pr.items()},
+            effects.append({"name": nm, "params": None if pr is None else {k: float(v) for k, v in pr.items()},
                             "refit": rf, "why": best.why, "iteration": len(iterations) - 1})
         it["chosen"] = [nm for nm, _, _ in best.changes]
         sims = sim.run(text)
-        ref, z, comp, g = _evaluate(sims, sig_m, layout)
+        ref, z, comp, g = _evaluate(sims, sig_m, layout, bands)
     last = iterations[-1]
     if not last["within_scatter"] and any(s_ < 0 for s_ in last["where"]["allan_sign"]) \
             and not any(s_ > 0 for s_ in last["where"]["allan_sign"]):
@@ -358,7 +510,34 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
                "gauss_markov/sinusoid terms")
         if not any("noisier" in m_ for m_ in limitations):
             limitations.append(msg)
-    return GapResult(limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
+    from .effects import name_effects
+    named = name_effects(y, fs, card_at_rate(text, fs, csrc), bumps, latitude_deg)
+    return GapResult(named=named, limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
                      iterations=iterations, threshold=threshold, engine=engine, seeds=seed_list,
                      component_threshold=comp_threshold,
-                     layout=layout, measured=sig_m)
+                     layout=layout, measured=sig_m, stop_bands=bumps)
+
+
+def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, refit_bias=True,
+                source="HELD-OUT", outliers=False):
+    """The gap of an already fitted card on ANOTHER record of the same sensor (nothing added).
+
+    With ``refit_bias`` the card's constant bias is first set to this record's mean:
+    a turn-on bias differs from run to run (its spread is the term's
+    ``repeatability``), the card's noise is what is checked. The same stop bands
+    as in the fit. Returns the :class:`GapResult` of that single evaluation
+    (``within_scatter``, ``gap_after``, ``threshold``)."""
+    from ..simulator import parse_card
+    y = check_record(rate_deg_s, source)
+    if outliers:
+        from .effects import screen_outliers
+        y = screen_outliers(y)[0]
+    text = card_text
+    if refit_bias:
+        card = parse_card(text, "<fitted card>")
+        params = dict(card.terms.get("constant_bias", {}))
+        params["value"] = float(np.mean(y)) * 3600.0
+        text = edit_card(text, "constant_bias", params, "constant_bias" in card.terms,
+                         f"this record's mean ({Path(str(source)).name})")
+    return _gap_once(y, sample_rate_hz, parse_card(text, "<fitted card>"), seeds=seeds, max_effects=0,
+                     source=source, stop_bands=[(lo, hi) for lo, hi, *_ in stop_bands or ()])

@@ -1,0 +1,49 @@
+"""Fit a card on ADIS16405 imu1, then check it on the five other records (docs/GAP.md, held-out table).
+
+The card is fitted from an empty card on imu1 (``gyrodenoise.gap``, native engine, 4 seeds,
+``--outliers``); on each of imu2..imu6 the fitted card is evaluated once, nothing added, its
+constant bias set to that record's mean (:func:`gyrodenoise.modelgap.heldout_gap`), with the
+stop bands of the fit. Printed: gap, scatter threshold, within_scatter and the components.
+
+Run: .venv/bin/python benchmarks/gap_heldout.py [N_SAMPLES] [AXIS]   (default 1000000 gyro_x;
+about 2 minutes on an idle 2-core box)
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+STATIC = Path(__file__).resolve().parents[2] / "shared" / "data" / "static"
+EMPTY = "[sensor]\nname = \"empty\"\nsample_rate_hz = 100.0\n"
+
+
+def main(n="1000000", axis="gyro_x"):
+    n = int(n)
+    if not (STATIC / "adis16405_imu1.csv.gz").exists():
+        print(f"skipped: {STATIC} not present")
+        return 0
+    import gyrodenoise as gd
+    from gyrodenoise.modelgap import heldout_gap
+    from gyrodenoise.recording import read_recording
+    from gyrodenoise.simulator import parse_card
+
+    def rec(i):
+        return read_recording(STATIC / f"adis16405_imu{i}.csv.gz", rate_column=axis).rate_deg_s[:n]
+    t = time.perf_counter()
+    res = gd.gap(rec(1), 100.0, parse_card(EMPTY), seeds=4, outliers=True)
+    print(f"fit on imu1: gap {res.gap_before:.4g} -> {res.gap_after:.4g}, threshold {res.threshold:.3g}, "
+          f"within {res.within_scatter}, stop bands {[(round(a, 3), round(b, 3)) for a, b, _ in res.stop_bands]}"
+          f" ({time.perf_counter() - t:.1f} s)")
+    for i in range(2, 7):
+        t = time.perf_counter()
+        h = heldout_gap(rec(i), 100.0, res.card_text, res.stop_bands, seeds=4, outliers=True, source=f"imu{i}")
+        comp = {k: round(v, 2) for k, v in h.iterations[-1]["components"].items()}
+        print(f"imu{i}: gap {h.gap_after:.4g}, threshold {h.threshold:.3g}, within {h.within_scatter}, {comp} "
+              f"({time.perf_counter() - t:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(*sys.argv[1:]))

@@ -1,0 +1,213 @@
+"""A published Allan-deviation curve as the measurement (``gyrodenoise gap --allan CURVE.csv``).
+
+The curve (tau, ADEV and, optionally, the lower and upper bounds of its confidence
+interval) replaces the record: the card's noise terms (Q, N, B, K and a dictionary
+of Gauss-Markov processes, :func:`.spectral.fit_terms`) are fitted to the Allan
+variance with weights from the bounds, written into the card, and the card is then
+checked by simulation: the mean simulated Allan deviation of ``S`` records of the
+published length and rate must lie inside the published bounds at every tau.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .settings import CARD_FIELD
+
+# accepted column names (first match wins)
+TAU_COLS = ("tau_s", "tau")
+ADEV_COLS = ("allan_deviation", "adev")
+LO_COLS = ("adev_lci", "adev_lo", "lower")
+HI_COLS = ("adev_uci", "adev_hi", "upper")
+UNIT_TO_DEG_S = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
+Z95 = 1.959964
+FIT_ROBUST = 10             # Huber re-weightings of the fit (spectral.fit_terms)
+
+
+@dataclass
+class AllanCurve:
+    """A published curve in deg/s (bounds: NaN where absent or not positive)."""
+    tau_s: np.ndarray
+    adev_deg_s: np.ndarray
+    lo_deg_s: np.ndarray
+    hi_deg_s: np.ndarray
+    sample_rate_hz: float
+    n_samples: int
+    label: str
+    unit: str
+    notes: list = field(default_factory=list)
+
+
+def _pick(header, names):
+    return next((header.index(n) for n in names if n in header), None)
+
+
+def read_allan_curve(path, sensor=None, channel=None, unit="deg/s", sample_rate_hz=None, n_samples=None):
+    """Read CURVE.csv (see the module docstring): one line, exit 2 on anything wrong.
+
+    Columns: ``tau_s`` (or ``tau``), ``allan_deviation`` (or ``adev``); optional
+    ``adev_lci``/``adev_uci`` (95 % bounds), ``sensor``, ``channel`` (then
+    ``sensor``/``channel`` choose the rows; required when the file holds more
+    than one curve), ``freq_hz`` and ``n_samples`` (else ``sample_rate_hz`` and
+    ``n_samples`` must be given). ``unit`` is the unit of the ADEV columns.
+    """
+    src = str(path)
+    if unit not in UNIT_TO_DEG_S:
+        raise InputError(f"--allan-unit {unit!r} is not one of {', '.join(UNIT_TO_DEG_S)}", src)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the Allan curve: {getattr(exc, 'strerror', None) or exc.__class__.__name__}",
+                         src) from None
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise InputError("empty Allan curve file", src)
+    header = [h.strip() for h in rows[0]]
+    i_tau, i_ad = _pick(header, TAU_COLS), _pick(header, ADEV_COLS)
+    if i_tau is None or i_ad is None:
+        raise InputError(f"line 1: need columns tau_s and allan_deviation (or tau, adev); got "
+                         f"{', '.join(header) or 'nothing'}", src)
+    i_lo, i_hi = _pick(header, LO_COLS), _pick(header, HI_COLS)
+    i_s, i_c = _pick(header, ("sensor",)), _pick(header, ("channel",))
+    i_f, i_n = _pick(header, ("freq_hz",)), _pick(header, ("n_samples",))
+    body = [(k + 2, r) for k, r in enumerate(rows[1:]) if r and any(c.strip() for c in r)]
+    for lineno, r in body:
+        if len(r) != len(header):
+            raise InputError(f"line {lineno}: {len(r)} fields, the header has {len(header)}", src)
+    for col, want, what in ((i_s, sensor, "sensor"), (i_c, channel, "channel")):
+        if col is None:
+            if want is not None:
+                raise InputError(f"--{what} given but the file has no '{what}' column", src)
+            continue
+        found = sorted({r[col].strip() for _, r in body})
+        if want is None and len(found) > 1:
+            raise InputError(f"the file holds several curves: choose one with --{what} "
+                             f"({', '.join(found)})", src)
+        if want is not None and want not in found:
+            raise InputError(f"no {what} {want!r} (the file has: {', '.join(found)})", src)
+        body = [(ln, r) for ln, r in body if want is None or r[col].strip() == want]
+    if len(body) < 3:
+        raise InputError(f"only {len(body)} curve points; need at least 3", src)
+
+    def num(lineno, r, i, name):
+        try:
+            v = float(r[i])
+        except ValueError:
+            raise InputError(f"line {lineno}: {name} {r[i].strip()!r} is not a number", src) from None
+        if not math.isfinite(v):
+            raise InputError(f"line {lineno}: {name} is not finite", src)
+        return v
+
+    tau = np.array([num(ln, r, i_tau, header[i_tau]) for ln, r in body])
+    ad = np.array([num(ln, r, i_ad, header[i_ad]) for ln, r in body])
+    for (ln, _), t_, a_ in zip(body, tau, ad):
+        if not t_ > 0:
+            raise InputError(f"line {ln}: tau must be positive, got {t_:g}", src)
+        if not a_ > 0:
+            raise InputError(f"line {ln}: the Allan deviation must be positive, got {a_:g}", src)
+    if np.any(np.diff(tau) <= 0):
+        k = int(np.flatnonzero(np.diff(tau) <= 0)[0]) + 1
+        raise InputError(f"line {body[k][0]}: tau must increase from row to row", src)
+    nan = np.full(len(tau), np.nan)
+    lo = np.array([num(ln, r, i_lo, header[i_lo]) for ln, r in body]) if i_lo is not None else nan
+    hi = np.array([num(ln, r, i_hi, header[i_hi]) for ln, r in body]) if i_hi is not None else nan
+    bad = np.flatnonzero((hi < ad) | (lo > ad))
+    if len(bad):
+        raise InputError(f"line {body[bad[0]][0]}: the bounds do not enclose the Allan deviation", src)
+    notes = []
+    if np.any(lo <= 0):
+        notes.append(f"{int(np.sum(lo <= 0))} lower bound(s) <= 0 (long tau): no lower bound there")
+    lo = np.where(lo > 0, lo, np.nan)
+    if i_f is not None:
+        fs = num(body[0][0], body[0][1], i_f, "freq_hz")
+    elif sample_rate_hz is not None:
+        fs = float(sample_rate_hz)
+    else:
+        raise InputError("no freq_hz column: give --sample-rate", src)
+    if i_n is not None:
+        n = int(num(body[0][0], body[0][1], i_n, "n_samples"))
+    elif n_samples is not None:
+        n = int(n_samples)
+    else:
+        raise InputError("no n_samples column: give --n-samples (the length of the published record)", src)
+    if not fs > 0:
+        raise InputError(f"the sample rate must be positive, got {fs:g}", src)
+    if n < 2 * tau[-1] * fs:
+        raise InputError(f"n_samples {n} is too short for tau {tau[-1]:g} s at {fs:g} Hz", src)
+    k = UNIT_TO_DEG_S[unit]
+    label = " ".join(x for x in (sensor, channel) if x) or Path(src).name
+    return AllanCurve(tau * 1.0, ad * k, lo * k, hi * k, fs, n, label, unit, notes)
+
+
+class _CurveLayout:
+    """What :func:`.spectral.fit_terms` needs of a layout when there is no PSD."""
+    def __init__(self, m, fs, n):
+        self.m, self.fs, self.n = np.asarray(m, np.int64), float(fs), int(n)
+
+
+def fit_curve(curve):
+    """Fit Q, N, B, K and Gauss-Markov terms to the curve's Allan variance.
+
+    Weights: the 1-sigma of the Allan variance from the bounds (half the
+    95 % interval / 1.96; the upper bound alone where the lower is absent),
+    else 5 % of the ADEV; Huber re-weighted (FIT_ROBUST passes), so that the
+    shortest taus of a long record (bounds of +-0.1 %, shaped by the sensor's
+    internal filter, which no term represents) do not pull every term off the rest
+    of the curve. Returns (terms, model ADEV at the curve's tau in deg/s)."""
+    from .spectral import fit_terms
+    m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1)
+    half = np.where(np.isfinite(curve.lo_deg_s), (curve.hi_deg_s - curve.lo_deg_s) / 2.0,
+                    curve.hi_deg_s - curve.adev_deg_s)
+    sd_ad = np.where(np.isfinite(half) & (half > 0), half / Z95, 0.05 * curve.adev_deg_s)
+    avar = curve.adev_deg_s ** 2
+    terms, model_avar, _ = fit_terms(_CurveLayout(m, curve.sample_rate_hz, curve.n_samples), (), avar,
+                                     2.0 * curve.adev_deg_s * sd_ad, None, None, robust=FIT_ROBUST)
+    return terms, np.sqrt(model_avar)
+
+
+def card_from_terms(text, terms, note, source="<card>"):
+    """The card text with its noise terms replaced by ``terms`` (from :func:`fit_curve`)."""
+    from ..simulator import parse_card
+    from .cards import edit_card
+    card = parse_card(text, source)
+    for nm in ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk"):
+        fld, to_card = CARD_FIELD[nm]
+        if terms[nm] > 0:
+            text = edit_card(text, nm, {fld: math.sqrt(terms[nm]) * to_card}, nm in card.terms, note, source)
+        elif nm in card.terms:
+            text = edit_card(text, nm, None, True, note, source)
+    if card.term_list("gauss_markov"):
+        text = edit_card(text, "gauss_markov", None, True, note, source)
+    for s, t in terms["gauss_markov"]:
+        text = edit_card(text, "gauss_markov", {"sigma": s * 3600.0, "tau": float(t)}, False, note, source)
+    return text
+
+
+def simulated_curve(text, curve, seeds, source="<card>"):
+    """Mean (over ``seeds``) and each seed's ADEV (deg/s) at the curve's tau of the
+    card simulated at the curve's rate and length."""
+    from ..allanvar import adev
+    from ..simulator import simulate
+    from .cards import card_at_rate
+    card = card_at_rate(text, curve.sample_rate_hz, source)
+    m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1).astype(np.int64)
+    runs = []
+    for s in seeds:
+        y = simulate(card, curve.n_samples, seed=int(s)).rate_deg_s
+        runs.append(adev(y, curve.sample_rate_hz, m=m)[1])
+    runs = np.array(runs)
+    return runs.mean(axis=0), runs
+
+
+def inside(curve, ad):
+    """Per tau: is ``ad`` inside the published bounds (an absent bound does not bind)?"""
+    lo_ok = ~np.isfinite(curve.lo_deg_s) | (ad >= curve.lo_deg_s)
+    hi_ok = ~np.isfinite(curve.hi_deg_s) | (ad <= curve.hi_deg_s)
+    return lo_ok & hi_ok

@@ -1,0 +1,251 @@
+"""Exact spectra of the card's stochastic terms as simulated, their Allan variances, a
+band-stop shared by the record and its simulations, and the joint spectral fit.
+
+Two-sided PSDs of the discrete processes the simulator draws (sample period ``T``,
+``f`` in ``[-fs/2, fs/2]``; variance = integral of ``S``), s-based coefficients
+(``Q`` deg, ``N`` deg/sqrt(s), ``B`` deg/s, ``K`` deg/s^1.5, GM ``sigma`` deg/s):
+
+* angle random walk (white rate, variance ``N^2 / T``): ``S = N^2``;
+* quantization (white angle of std ``Q``, differenced / ``T``): ``S = 4 Q^2 sin^2(pi f T) / T``;
+* rate random walk (increments of std ``K sqrt(T)``): ``S = K^2 T^2 / (4 sin^2(pi f T))``;
+* first-order Gauss-Markov (``a = exp(-T / tau)``, stationary std ``sigma``):
+  ``S = sigma^2 (1 - a^2) T / (1 - 2 a cos(2 pi f T) + a^2)``;
+* bias instability: the simulator's bank of Gauss-Markov poles (:func:`gyrodenoise.simulator._bank`
+  with ``B = 1``), summed.
+
+The overlapping Allan variance at cluster size ``m`` of a process with PSD ``S`` is
+(difference of two consecutive ``m``-sample means, halved)::
+
+    avar(m) = integral_0^{fs/2} S(f) * 4 sin^4(pi f m T) / (m^2 sin^2(pi f T)) df
+
+which gives ``N^2/tau``, ``3 Q^2/tau^2`` (for ``m >= 2``), ``K^2 tau/3`` and the flicker
+plateau ``0.664 B`` of Eq. (40) in the paper at large ``m``, and is exact at small ``m``
+and through a band-stop (the PSD times the stop mask), where Eq. (40) is not.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
+N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
+MIN_BUMP_BINS = 16    # a bump spans at least this many Welch bins (narrower: a spectral line)
+
+
+def psd_two_sided(name, f, fs, tau_s=None):
+    """Two-sided PSD of one term with unit s-based coefficient (see module docstring)."""
+    T = 1.0 / fs
+    s2 = np.maximum(np.sin(np.pi * f * T) ** 2, 1e-300)
+    if name == "angle_random_walk":
+        return np.ones_like(f)
+    if name == "quantization":
+        return 4.0 * s2 / T
+    if name == "rate_random_walk":
+        return T * T / (4.0 * s2)
+    if name == "gauss_markov":
+        a = math.exp(-T / tau_s)
+        return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a)
+    if name == "bias_instability":
+        from ..simulator import _bank, parse_card
+        card = parse_card(f"[sensor]\nname='unit'\nsample_rate_hz={fs!r}\n[terms]\n"
+                          f"bias_instability = {{ B = 3600.0 }}\n")
+        a_, _, sd = _bank(card)
+        out = np.zeros_like(f)
+        c = np.cos(2.0 * np.pi * f * T)
+        for aj, sj in zip(a_, sd):
+            out += sj * sj * (1.0 - aj * aj) * T / (1.0 - 2.0 * aj * c + aj * aj)
+        return out
+    raise ValueError(name)
+
+
+def stop_mask(f, bands):
+    """1 outside, 0 inside the stop bands [(lo, hi), ...] (Hz)."""
+    m = np.ones_like(f)
+    for lo, hi in bands or ():
+        m[(np.abs(f) >= lo) & (np.abs(f) <= hi)] = 0.0
+    return m
+
+
+def band_stop(y, fs, bands):
+    """The record with the stop bands removed (FFT bins zeroed, the mean removed
+    first and kept; zero-padded to a fast FFT length).
+
+    Applied alike to the measured record and to every simulation of the card,
+    so the comparison stays like for like (the signatures of both are taken
+    through the same linear filter)."""
+    if not bands:
+        return np.asarray(y, float)
+    from scipy import fft as sfft
+    y = np.asarray(y, float)
+    n = y.shape[0]
+    nfft = sfft.next_fast_len(n, real=True)     # 184,718 = 2 x 92,359 (a prime): 100x slower unpadded
+    mu = float(y.mean())
+    X = sfft.rfft(y - mu, nfft)
+    X *= stop_mask(sfft.rfftfreq(nfft, 1.0 / fs), bands)
+    return sfft.irfft(X, nfft)[:n] + mu
+
+
+def allan_columns(specs, m, fs, bands=()):
+    """Allan variance at cluster sizes ``m`` of each term in ``specs`` (list of
+    (name, tau_s or None)) with unit coefficient, through the stop mask."""
+    T = 1.0 / fs
+    out = np.zeros((len(m), len(specs)))
+    for i, mi in enumerate(np.asarray(m, float)):
+        f_lin_hi = min(fs / 2.0, 40.0 / (mi * T))
+        f1 = np.linspace(0.0, f_lin_hi, N_LIN + 1)[1:]
+        f1 = np.concatenate([np.logspace(math.log10(f1[0]) - 6, math.log10(f1[0]), 200, endpoint=False), f1])
+        h1 = 4.0 * np.sin(np.pi * f1 * mi * T) ** 4 / (mi * mi * np.maximum(np.sin(np.pi * f1 * T) ** 2, 1e-300))
+        parts = [(f1, h1)]
+        if f_lin_hi < fs / 2.0:
+            f2 = np.logspace(math.log10(f_lin_hi), math.log10(fs / 2.0), N_TAIL)
+            h2 = 1.5 / (mi * mi * np.sin(np.pi * f2 * T) ** 2)
+            parts.append((f2, h2))
+        for j, (name, tc) in enumerate(specs):
+            acc = 0.0
+            for ff, hh in parts:
+                acc += np.trapezoid(psd_two_sided(name, ff, fs, tc) * stop_mask(ff, bands) * hh, ff)
+            out[i, j] = acc
+    return out
+
+
+def band_columns(specs, layout, bands=()):
+    """One-sided Welch-band PSD (mean over each band's bins) of each term with unit
+    coefficient, through the stop mask; and a mask of the bands clear of the stop
+    bands (two Welch bins of margin for the Hann window's leakage)."""
+    f = layout.freq_hz
+    e = layout.band_edges
+    df = layout.fs / layout.nperseg
+    keep_bin = stop_mask(f, [(lo - 2 * df, hi + 2 * df) for lo, hi in bands or ()]) > 0
+    cols = np.zeros((len(e) - 1, len(specs)))
+    for j, (name, tc) in enumerate(specs):
+        p = 2.0 * psd_two_sided(name, f, layout.fs, tc)
+        cols[:, j] = [p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)]
+    clear = np.array([bool(np.all(keep_bin[e[i]:e[i + 1]])) for i in range(len(e) - 1)])
+    return cols, clear
+
+
+def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
+    """Spectral bumps of a record: bands whose PSD stands more than ``ratio`` times
+    above the lowest PSD on BOTH sides within a factor ``span`` in frequency (a
+    monotone spectrum - white, 1/f, f^2 - never does) and spanning at least
+    :data:`MIN_BUMP_BINS` Welch bins (a narrower one is a line, for a sinusoid). Returns [(lo_hz, hi_hz,
+    peak_ratio)], each widened by one band on either side."""
+    from scipy.signal import welch
+
+    from .metric import welch_nperseg
+    y = np.asarray(y, float)
+    nper = welch_nperseg(y.shape[0])
+    f, p = welch(y, fs=fs, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
+    f, p = f[1:], p[1:]
+    edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
+                        int(math.ceil(math.log10(f[-1] / f[0]) * per_decade)) + 1)
+    idx = np.searchsorted(f, edges)
+    bands = [(edges[i], edges[i + 1], p[idx[i]:idx[i + 1]].mean()) for i in range(len(edges) - 1)
+             if idx[i + 1] > idx[i]]
+    fc = np.array([math.sqrt(a * b) for a, b, _ in bands])
+    pv = np.array([v for _, _, v in bands])
+    flag = np.zeros(len(bands), bool)
+    side = np.zeros(len(bands))
+    for i in range(len(bands)):
+        left = pv[(fc >= fc[i] / span) & (fc < fc[i])]
+        right = pv[(fc > fc[i]) & (fc <= fc[i] * span)]
+        if len(left) and len(right):
+            side[i] = max(left.min(), right.min())
+            flag[i] = pv[i] > ratio * side[i]
+    out = []
+    i = 0
+    while i < len(bands):
+        if flag[i]:
+            j = i
+            while j + 1 < len(bands) and flag[j + 1]:
+                j += 1
+            # widen while the PSD stays above twice its floor on the far side
+            while i > 0:
+                left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
+                if not len(left) or pv[i - 1] <= 2.0 * left.min():
+                    break
+                i -= 1
+            while j + 1 < len(bands):
+                right = pv[(fc > fc[j + 1]) & (fc <= fc[j + 1] * span)]
+                if not len(right) or pv[j + 1] <= 2.0 * right.min():
+                    break
+                j += 1
+            lo = bands[max(i - 1, 0)][0]
+            hi = min(bands[min(j + 1, len(bands) - 1)][1], fs / 2.0)
+            if np.count_nonzero((f >= lo) & (f <= hi)) < MIN_BUMP_BINS:
+                i = j + 1      # a narrow line: a sinusoid's business, not a band to take out
+                continue
+            peak = float(np.max(pv[i:j + 1] / np.maximum(side[i:j + 1], 1e-300)))
+            out.append((float(lo), float(hi), peak))
+            i = j + 1
+        else:
+            i += 1
+    return out
+
+
+# ------------------------------------------------------------------ the joint fit
+ALLAN_TERMS = ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk")
+GM_PER_DECADE = 6
+HUBER_C = 1.5
+
+
+def gm_grid(layout):
+    """Correlation times of the Gauss-Markov dictionary: 3 per decade, 2 samples .. record / 3."""
+    lo, hi = math.log10(0.5 / layout.fs), math.log10(layout.n / layout.fs / 3.0)
+    return list(10.0 ** np.arange(lo, hi + 1e-9, 1.0 / GM_PER_DECADE))
+
+
+def stochastic_specs(card):
+    """(specs, s-based squared coefficients) of a card's stochastic terms (dictionary form)."""
+    from .settings import CARD_FIELD
+    specs, coef = [], []
+    for nm in ALLAN_TERMS:
+        t = card.terms.get(nm)
+        if t:
+            fld, to_card = CARD_FIELD[nm]
+            specs.append((nm, None))
+            coef.append((t[fld] / to_card) ** 2)
+    for g in card.term_list("gauss_markov"):
+        specs.append(("gauss_markov", g["tau"]))
+        coef.append((g["sigma"] / 3600.0) ** 2)
+    return specs, np.array(coef)
+
+
+def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0):
+    """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
+    the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
+    Gauss-Markov processes (:func:`gm_grid`), each through the stop mask.
+
+    ``robust``: that many Huber re-weightings (see the code).
+    Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
+    to its s-based coefficient (0 = not needed) and ``"gauss_markov"`` to a list
+    of ``(sigma_deg_s, tau_s)``."""
+    from scipy.optimize import nnls
+    specs = [(nm, None) for nm in ALLAN_TERMS] + [("gauss_markov", t) for t in gm_grid(layout)]
+    A_a = allan_columns(specs, layout.m, layout.fs, bands)
+    sd_a = np.maximum(avar_sd, rel_floor * np.abs(avar_target))
+    A, b = A_a / sd_a[:, None], avar_target / sd_a
+    A_p = None
+    if psd_target is not None:      # no PSD for a published Allan curve
+        A_p, clear = band_columns(specs, layout, bands)
+        sd_p = np.maximum(psd_sd, rel_floor * np.abs(psd_target))
+        A = np.vstack([A, (A_p / sd_p[:, None])[clear]])
+        b = np.concatenate([b, (psd_target / sd_p)[clear]])
+    scale = np.max(np.abs(A), axis=0)
+    scale[scale == 0] = 1.0
+    w = np.ones(len(b))
+    for _ in range(1 + int(robust)):
+        # robust > 0: iteratively reweighted (Huber, c = HUBER_C sigma): a point that no
+        # combination of the terms reaches (a sensor's internal filter at the shortest
+        # taus) is down-weighted instead of pulling every term off the others
+        c, _ = nnls(A / scale * w[:, None], b * w, maxiter=50 * A.shape[1])
+        r = np.abs(A / scale @ c - b)
+        w = np.where(r > HUBER_C, np.sqrt(HUBER_C / np.maximum(r, 1e-300)), 1.0)
+    c = c / scale
+    terms = {nm: float(c[i]) for i, nm in enumerate(ALLAN_TERMS)}
+    terms["gauss_markov"] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))
+                             if c[i] > 0]
+    return terms, A_a @ c, None if A_p is None else A_p @ c
+

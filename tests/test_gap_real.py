@@ -1,0 +1,266 @@
+"""The model-gap workflow on real records and on published Allan curves (issue 20).
+
+Real data is read from ../shared/data (skipped with the reason when absent); the
+slices and seed counts keep each test to seconds. Known-truth checks (synthetic
+curves, the PSINS reader's arithmetic, the exact Allan variance of each term)
+need no shared data.
+"""
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from gyrodenoise.errors import InputError
+from gyrodenoise.modelgap import heldout_gap
+from gyrodenoise.modelgap.candidates import SHAPE, gm_avar
+from gyrodenoise.modelgap.spectral import allan_columns, band_stop, find_bumps
+from gyrodenoise.simulator import parse_card
+
+from conftest import REPO, shared_file
+
+EMPTY = "[sensor]\nname = \"empty\"\nsample_rate_hz = 100.0\n"
+CURVES = ("allan_reference", "avar_precomputed_curves.csv")
+
+
+def _cli(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "gyrodenoise.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+# ------------------------------------------------------------------ exact Allan variance of the terms
+def test_allan_columns_match_eq40_and_the_gauss_markov_formula():
+    """The PSD-integral Allan variance of each term equals Eq. (40) / the GM formula
+    (IEEE 952 Annex C) where those are exact: Q and N at every m >= 1 (1e-3), K and
+    GM once tau >> the sample period (2.5e-3 from m = 16: the discrete walk adds 1/(2 m^2)), the flicker plateau 0.664 B
+    within the simulator bank's ripple (3 %)."""
+    fs = 100.0
+    m = 2 ** np.arange(0, 14)
+    tau = m / fs
+    specs = [("quantization", None), ("angle_random_walk", None), ("rate_random_walk", None),
+             ("gauss_markov", 2.0), ("bias_instability", None)]
+    C = allan_columns(specs, m, fs)
+    np.testing.assert_allclose(C[:, 0], SHAPE["quantization"](tau), rtol=1e-3)
+    np.testing.assert_allclose(C[:, 1], SHAPE["angle_random_walk"](tau), rtol=1e-3)
+    np.testing.assert_allclose(C[4:, 2], SHAPE["rate_random_walk"](tau[4:]), rtol=2.5e-3)
+    np.testing.assert_allclose(C[4:, 3], gm_avar(tau[4:], 1.0, 2.0), rtol=2.5e-3)
+    plateau = C[6:11, 4]          # 0.64-10 s: well inside the bank's 1e-5 .. 50 Hz
+    np.testing.assert_allclose(plateau, SHAPE["bias_instability"](tau[6:11]), rtol=0.03)
+
+
+def test_band_stop_removes_a_vibration_band_and_find_bumps_sees_it():
+    """White noise plus a narrow-band random motion at 2-3 Hz (band-limited white):
+    find_bumps reports a band covering 2-3 Hz and nothing else; band_stop leaves the
+    PSD outside the band untouched (1e-9) and empties it inside."""
+    rng = np.random.default_rng(3)
+    fs, n = 100.0, 2 ** 17
+    y = rng.standard_normal(n)
+    v = rng.standard_normal(n)
+    V = np.fft.rfft(v)
+    f = np.fft.rfftfreq(n, 1 / fs)
+    V[(f < 2.0) | (f > 3.0)] = 0
+    y = y + 8.0 * np.fft.irfft(V, n)
+    bumps = find_bumps(y, fs)
+    assert len(bumps) == 1 and bumps[0][0] <= 2.0 and bumps[0][1] >= 3.0 and bumps[0][1] < 5.0, bumps
+    z = band_stop(y, fs, [(bumps[0][0], bumps[0][1])])
+    Y, Z = np.fft.rfft(y), np.fft.rfft(z)
+    out = (f < bumps[0][0]) | (f > bumps[0][1])
+    np.testing.assert_allclose(Z[out], Y[out], rtol=1e-9, atol=1e-9)
+    assert np.all(np.abs(Z[~out]) < 1e-9)
+
+
+# ------------------------------------------------------------------ PSINS reader
+def test_psins_reader_arithmetic_and_header(tmp_path):
+    """rate = pulses * scale (arcsec) / interval: 3 pulses of 0.1 arcsec in 10 ms is
+    30 arcsec/s = 0.008333 deg/s; the latitude comes from line 2."""
+    from gyrodenoise.psins import read_psins
+    p = tmp_path / "t.imu"
+    p.write_text("% comment\n0 0 -90 0 0 0\n34.5 108.9 380 0 10 9.78\n0.1 0.1 0.2 125 125 125\n"
+                 "1 -2 3 0 0 80\n0 0 0 0 0 80\n")
+    log = read_psins(p)
+    assert log.sample_rate_hz == 100.0 and log.latitude_deg == 34.5
+    np.testing.assert_allclose(log.rate_deg_s[0], [0.1 / 36, -0.2 / 36, 0.6 / 36], rtol=1e-12)
+    with pytest.raises(InputError, match="no column 'gyro_w'"):
+        log.axis("gyro_w")
+    bad = tmp_path / "bad.imu"
+    bad.write_text("0 0 0 0 0 0\n34 108 380 0 -10 9.78\n0.1 0.1 0.1 1 1 1\n1 2 3 4 5 6\n")
+    with pytest.raises(InputError, match="sampling interval"):
+        read_psins(bad)
+
+
+# ------------------------------------------------------------------ the ring-laser gyro
+def test_rlg_z_slice_from_an_empty_card_names_earth_rate_quantum_and_vibration():
+    """psins_lasergyro.imu z axis, first 60,000 samples (10 min), from an EMPTY card:
+    the constant bias is the Earth's rotation at the log's latitude (8.46 deg/h on a
+    vertical axis; the bias within 0.5 deg/h of it), the record's quantum is
+    0.1 arcsec, the base vibration band covering 2-3 Hz is taken out, and the gap
+    (after the initial fit) shrinks at least 10x. Convergence below the threshold
+    is NOT asserted: it does not hold on this record (docs/GAP.md)."""
+    from gyrodenoise.modelgap.effects import EARTH_RATE_DEG_H
+    from gyrodenoise.psins import read_psins
+    log = read_psins(shared_file("static", "psins_lasergyro.imu"))
+    y = log.axis("gyro_z")[:60000]
+    res = gd.gap(y, log.sample_rate_hz, parse_card(EMPTY), seeds=3, latitude_deg=log.latitude_deg)
+    card = parse_card(res.card_text)
+    vertical = EARTH_RATE_DEG_H * math.sin(math.radians(log.latitude_deg))
+    assert abs(card.terms["constant_bias"]["value"] - vertical) < 0.5
+    named = " | ".join(res.named)
+    assert "Earth's rotation at latitude 34.25" in named
+    assert "(0.1 arcsec) per sample" in named
+    assert any(lo <= 2.0 and hi >= 3.0 and peak > 0 for lo, hi, peak in res.stop_bands), res.stop_bands
+    assert res.gap_after <= 0.1 * res.gap_before, (res.gap_before, res.gap_after)
+
+
+def test_cli_reads_a_psins_log_axis(tmp_path):
+    """gap on the .imu log directly: --rate-column picks the axis, the latitude is
+    taken from the header and the Earth's rotation is named (JSON named_effects)."""
+    import json
+    path = shared_file("static", "psins_lasergyro.imu")
+    card = tmp_path / "empty.toml"
+    card.write_text(EMPTY)
+    out = tmp_path / "z.toml"
+    proc = _cli("gap", path, "--rate-column", "gyro_z", "--model", card, "--out", out, "--engine", "native",
+                "--seeds", "3", "--max-effects", "1", "--no-plot", "--json")
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(proc.stdout)
+    assert any("Earth's rotation" in s for s in d["named_effects"]), d["named_effects"]
+    assert "latitude 34.246 deg from the log's header" in proc.stderr
+    parse_card(out.read_text())
+
+
+# ------------------------------------------------------------------ ADIS16405: fit on one, check the others
+def test_adis_fit_on_imu1_explains_held_out_imu3_better_than_the_datasheet_card():
+    """gyro_x, 200,000-sample slices (33 min): the card fitted on imu1 (from an empty
+    card) is checked on imu3 (nothing added, its own bias): its held-out gap is at
+    least 20x below that of the white-noise datasheet card (N = 2.5 deg/sqrt(h),
+    bias likewise set to imu3's mean). It is NOT within imu3's scatter threshold on
+    this slice; the full-length numbers are in docs/GAP.md."""
+    from gyrodenoise.recording import read_recording
+
+    def rec(i):
+        return read_recording(shared_file("static", f"adis16405_imu{i}.csv.gz"),
+                              rate_column="gyro_x").rate_deg_s[:200000]
+    res = gd.gap(rec(1), 100.0, parse_card(EMPTY), seeds=3, max_effects=2)
+    y3 = rec(3)
+    fitted = heldout_gap(y3, 100.0, res.card_text, res.stop_bands, seeds=3, source="imu3")
+    sheet = heldout_gap(y3, 100.0, EMPTY + "[terms]\nangle_random_walk = { N = 2.5 }\n", res.stop_bands,
+                        seeds=3, source="imu3")
+    assert fitted.gap_after * 20 < sheet.gap_after, (fitted.gap_after, sheet.gap_after)
+
+
+def test_xsens_with_outliers_converges_and_names_them():
+    """XSens MTi-G gyro x (rad/s), first 100,000 samples, --outliers from an empty
+    card: between 0.1 % and 1 % of the samples are named outliers (the data's
+    README: about 0.4 %) and the card ends within the simulations' scatter."""
+    from gyrodenoise.recording import read_recording
+    y = read_recording(shared_file("static", "xsens_mtig_contaminated.csv.gz"), rate_column="gyro_x",
+                       rate_unit="rad/s").rate_deg_s[:100000]
+    res = gd.gap(y, 100.0, parse_card(EMPTY), seeds=3, outliers=True)
+    out = [s for s in res.named if s.startswith("outliers:")]
+    assert out, res.named
+    frac = float(out[0].split("(")[1].split(" %")[0])
+    assert 0.1 <= frac <= 1.0
+    assert res.within_scatter, res.iterations[-1]["components"]
+
+
+# ------------------------------------------------------------------ published Allan curves
+def _write_curve(path, tau, adev, lo=None, hi=None, extra=""):
+    rows = ["tau_s,allan_deviation" + (",adev_lci,adev_uci" if lo is not None else "") + extra]
+    for i in range(len(tau)):
+        r = ",".join(repr(float(v[i])) for v in ([tau, adev] + ([lo, hi] if lo is not None else [])))
+        rows.append(r)
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_allan_curve_of_known_terms_is_fitted_back(tmp_path):
+    """A curve made from the exact Allan variance of N = 0.05 deg/sqrt(h) and
+    K = 2 deg/h^1.5 (100 Hz, 200,000 samples), 95 % bounds of such an estimate: the fit gives N and K
+    back within 3 % (it may split white noise between N and a very short
+    Gauss-Markov; their sum is checked) and the simulated curve (mean of 3 seeds)
+    is inside the bounds at every tau."""
+    from gyrodenoise.modelgap.curve import card_from_terms, fit_curve, inside, read_allan_curve, simulated_curve
+    fs, n = 100.0, 200000
+    m = 2 ** np.arange(0, 13)
+    tau = m / fs
+    N, K = 0.05 / 60.0, 2.0 / 3600.0 ** 1.5
+    C = allan_columns([("angle_random_walk", None), ("rate_random_walk", None)], m, fs)
+    ad = np.sqrt(C @ np.array([N * N, K * K]))
+    half = 1.96 / np.sqrt(2.0 * (n / m - 1.0))        # 95 % bounds of the estimate (IEEE 952 C.1)
+    p = tmp_path / "c.csv"
+    _write_curve(p, tau, ad * 3600, ad * 3600 * (1 - half), ad * 3600 * (1 + half))
+    curve = read_allan_curve(p, unit="deg/h", sample_rate_hz=fs, n_samples=n)
+    terms, model = fit_curve(curve)
+    white = terms["angle_random_walk"] + sum(s * s * 2 * t for s, t in terms["gauss_markov"] if t < 0.05)
+    assert math.sqrt(white) == pytest.approx(N, rel=0.03)
+    assert math.sqrt(terms["rate_random_walk"]) == pytest.approx(K, rel=0.03)
+    text = card_from_terms(EMPTY, terms, "test")
+    mean, _ = simulated_curve(text, curve, [1, 2, 3])
+    assert inside(curve, mean).all(), (mean / curve.adev_deg_s)
+
+
+@pytest.mark.parametrize("card,sensor,unit", [("imar_fog", "IMAR", "rad/s"), ("kvh1750", "KVH 1750 IMU", "deg/s"),
+                                              ("ln200", "LN200", "rad/s")])
+def test_shipped_card_against_its_published_curve(card, sensor, unit):
+    """The exact Allan deviation of the shipped card (every term, through
+    allan_columns) is inside the published 95 % bounds at every tau the card's
+    closing comment does not list as outside, and outside at those it lists
+    (the comment states the simulated check of `gap --allan`, which this
+    re-derives without simulation)."""
+    import re
+
+    from gyrodenoise.modelgap.curve import inside, read_allan_curve
+    from gyrodenoise.modelgap.spectral import stochastic_specs
+    c = parse_card((REPO / "models" / f"{card}.toml").read_text())
+    curve = read_allan_curve(shared_file(*CURVES), sensor, "Gyro. X", unit)
+    specs, coef = stochastic_specs(c)
+    m = np.round(curve.tau_s * curve.sample_rate_hz).astype(np.int64)
+    model = np.sqrt(allan_columns(specs, m, curve.sample_rate_hz) @ coef)
+    ok = inside(curve, model)
+    mo = re.search(r"outside the published bounds at tau ([0-9., ]+) s", c.text)
+    listed = [float(t) for t in mo.group(1).split(",")] if mo else []
+    if not listed:
+        assert "inside the published bounds at every tau" in c.text
+    outside = [float(t) for t in curve.tau_s[~ok]]
+    assert set(outside) <= set(listed) | set(), (outside, listed)
+    assert len(listed) <= 3 + (len(curve.tau_s) // 2 if card == "ln200" else 0)
+
+
+@pytest.mark.parametrize("content,msg", [
+    ("tau_s,foo\n1,2\n", "need columns tau_s and allan_deviation"),
+    ("tau_s,allan_deviation\n-1,2\n2,1\n3,1\n", "line 2: tau must be positive"),
+    ("tau_s,allan_deviation\n1,2\n2,x\n3,1\n", "line 3: allan_deviation 'x' is not a number"),
+    ("tau_s,allan_deviation\n1,2\n1,1\n3,1\n", "line 3: tau must increase"),
+    ("tau_s,allan_deviation,adev_lci,adev_uci\n1,2,2.5,3\n2,1,0.9,1.1\n3,1,0.9,1.1\n",
+     "line 2: the bounds do not enclose"),
+    ("", "empty Allan curve file"),
+])
+def test_bad_allan_curve_is_one_line_exit_2_nothing_written(tmp_path, content, msg):
+    p = tmp_path / "bad.csv"
+    p.write_text(content)
+    out = tmp_path / "new.toml"
+    proc = _cli("gap", "--allan", p, "--sample-rate", "100", "--n-samples", "100000", "--model", "paper_fog",
+                "--out", out)
+    assert proc.returncode == 2, proc.stderr
+    assert msg in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and not out.exists()
+
+
+def test_allan_curve_needs_a_choice_among_several_curves(tmp_path):
+    p = tmp_path / "two.csv"
+    p.write_text("sensor,channel,tau_s,allan_deviation\nA,x,1,2\nA,x,2,1\nA,x,4,0.5\nB,x,1,2\nB,x,2,1\nB,x,4,0.5\n")
+    proc = _cli("gap", "--allan", p, "--sample-rate", "100", "--n-samples", "10000", "--model", "paper_fog",
+                "--out", tmp_path / "n.toml")
+    assert proc.returncode == 2 and "choose one with --sensor (A, B)" in proc.stderr, proc.stderr
+    proc = _cli("gap", "--allan", p, "--sensor", "C", "--sample-rate", "100", "--n-samples", "10000",
+                "--model", "paper_fog", "--out", tmp_path / "n.toml")
+    assert proc.returncode == 2 and "no sensor 'C' (the file has: A, B)" in proc.stderr, proc.stderr
+
+
+def test_allan_and_a_record_together_is_an_input_error(tmp_path):
+    p = tmp_path / "c.csv"
+    p.write_text("tau_s,allan_deviation\n1,2\n2,1\n4,0.5\n")
+    proc = _cli("gap", tmp_path / "r.csv", "--allan", p, "--model", "paper_fog", "--out", tmp_path / "n.toml")
+    assert proc.returncode == 2 and "either IN" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
