@@ -419,6 +419,7 @@ def _axis_line(s, a):
 
 
 def _print_text(summary):
+    from .spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
         trunc = f", truncated ({r['truncated_bytes']} bytes cut)" if r.get("truncated") else ""
@@ -438,6 +439,8 @@ def _print_text(summary):
                 out.write(f"    note: {s['slow_note']}\n")
             for a in s["noise"]:
                 out.write(_axis_line(s, a))
+            for line in summary_lines(s.get("spectrum")):
+                out.write(f"      {line}\n")
             for w in s.get("warnings", []):
                 out.write(f"    WARNING: {w}\n")
         for e in r["restarts"]:

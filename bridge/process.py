@@ -7,7 +7,10 @@ Outputs of a log ``NAME.ext`` in the output folder:
   fields, and for MAVLink the CRC, differ);
 * ``NAME.STREAM.csv`` -- ``time,raw_x,filtered_x,raw_y,filtered_y,raw_z,filtered_z,restart``
   per stream (deg/s; ``*_counts`` columns when the unit is unknown);
-* ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked.
+* ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked;
+* ``NAME.STREAM.spectrum.png`` -- raw and filtered PSD per axis, vibration
+  peaks named, the filter's gain and lag, a spectrogram for a long record
+  (:mod:`bridge.spectra`).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from gyrodenoise.errors import InputError
 from . import dataflash
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 
+from .spectra import SPECTRUM_METRIC
 from .streams import NOISE_METRIC, detect_restarts, field_misfit, noise_per_axis
 
 MOTION_METRIC = ("per axis, over each session after the filter's warm-up: the 0-5 Hz content of "
@@ -121,7 +125,12 @@ def _plot_data(t, x, f, restarts):
     return lines, t[restarts]
 
 
-def _draw(path, title, pdata, unit, axes):
+def _draw(path, title, pdata, unit, axes, spectrum=None):
+    if spectrum is not None:                     # (path, title, plot data) of bridge.spectra
+        from .spectra import draw_spectrum
+        draw_spectrum(*spectrum)
+    if pdata is None:
+        return
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -195,15 +204,18 @@ class Plotter:
             if job is None:
                 break
 
-    def plot(self, path, title, t, x, f, restarts, unit, axes):
-        job = (path, title, _plot_data(t, x, f, restarts), unit, axes)
-        if not self.procs:
-            _draw(*job)
-        else:
-            i = self.next % len(self.procs)
-            self.next += 1
-            self.queues[i].put(job)
-            self.pending[i] += 1
+    def plot(self, path, title, t, x, f, restarts, unit, axes, spectrum=None):
+        jobs = [(path, title, _plot_data(t, x, f, restarts), unit, axes)]
+        if spectrum is not None:                # a job of its own: helpers draw it beside the other
+            jobs.append((spectrum[0], None, None, None, None, spectrum))
+        for job in jobs:
+            if not self.procs:
+                _draw(*job)
+            else:
+                i = self.next % len(self.procs)
+                self.next += 1
+                self.queues[i].put(job)
+                self.pending[i] += 1
 
     def close(self):
         """Wait for the helpers; raise RuntimeError with the first failure."""
@@ -418,7 +430,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
         finally:
             eng.close()
         rep.update(_write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv,
-                                  engine, method, ar_order, log, **ctx))
+                                  engine, method, ar_order, log, filter_kw=filter_kw, **ctx))
     finally:
         if plotter is not None:
             plotter.close()
@@ -429,19 +441,27 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
 
 
 def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine, method,
-                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None):
+                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None, filter_kw=None):
+    from .spectra import stream_spectrum
     rep = {}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = out_stem or path.stem
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
+    label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
     for s in streams:
+        x, f, unit, rate = s._work
+        jt = joined_time(s.time_s, s.restarts)
+        s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
+                                                 getattr(s, "warmup_samples", 0), jt)
         if plotter is not None:
-            x, f, unit, _ = s._work
             s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
-            label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+            spec_job = None
+            if spec_plot is not None:
+                s._spectrum_png = out_dir / f"{stem}.{safe_name(s.name)}.spectrum.png"
+                spec_job = (s._spectrum_png, f"{path.name}: {s.name} spectrum ({engine} {label})", spec_plot)
             plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label})",
-                         joined_time(s.time_s, s.restarts), x, f, s.restarts, unit, s.axes)
+                         jt, x, f, s.restarts, unit, s.axes, spec_job)
     if kind == "dataflash":
         out_log.write_bytes(dataflash.patch(data, sc, streams))
     elif kind == "tlog":
@@ -463,6 +483,9 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
         if plotter is not None:
             png_path = s._png
         srep.append(stream_report(s, csv_path, png_path))
+        srep[-1]["spectrum"] = s._spectrum
+        if getattr(s, "_spectrum_png", None) is not None:
+            srep[-1]["spectrum_plot"] = str(s._spectrum_png)
         restarts += s.restart_events
         if s.to_deg_s is None and log:
             log(f"{path}: {s.name}: unit unknown, filtered in {s.unit} ({s.note})")
@@ -584,7 +607,7 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
         "jobs": None if scheduler is not None else int(jobs),     # the cluster decides its parallelism
         "scheduler": None if scheduler is None else str(scheduler),
         "seconds": round(time.perf_counter() - t0, 3),
-        "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC,
+        "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC, "spectrum_metric": SPECTRUM_METRIC,
         "streams_left_raw": streams_left_raw(logs),
     }
 

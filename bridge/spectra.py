@@ -1,0 +1,301 @@
+"""The spectrum view of a gyro stream: what goes into the report and the PNG.
+
+The maths is :mod:`gyrodenoise.spectrum`; this module picks its settings for a
+stream, names what it found (peaks, harmonics, the filter's response) in the
+report, and draws ``NAME.STREAM.spectrum.png`` (in the plot helper process).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gyrodenoise import spectrum as sp
+
+#: below this frequency the content is the vehicle's motion (the bridge's motion
+#: band, :data:`gyrodenoise.motion_metrics.LOWBAND_HZ`), not vibration
+MIN_PEAK_FREQ_HZ = 5.0
+#: a peak must also stand this far above the floor (power ratio; 2 = 3 dB):
+#: with thousands of segments the statistical threshold alone tends to 1
+MIN_PEAK_RATIO = 2.0
+#: peaks listed per axis (the strongest)
+MAX_PEAKS = 6
+#: peaks named on the plot per axis (the strongest; the others are marked only)
+LABELLED_PEAKS = 3
+#: a stream spanning at least this many seconds gets a spectrogram
+SPECTROGRAM_MIN_SPAN_S = 60.0
+
+SPECTRUM_METRIC = (
+    "per stream and axis: Welch PSD (Hann, half-overlapping segments within sessions, segment mean "
+    "removed, one-sided, unit**2/Hz); peaks = local maxima >= {f:g} Hz above a running-median "
+    "noise floor by max(3 dB, the chi-square threshold for a {fa:g} false-alarm probability per "
+    "spectrum); amplitude_rms = sqrt of the excess power over the floor within 3 bins (a tone of "
+    "amplitude A gives A/sqrt(2)); harmonic_of_hz: the lower peak it is n x (n = 2..5, within "
+    "max((n+1)/4 bins, 1 %)); filter_gain / phase_delay_s: the filter's response measured from the "
+    "raw->filtered cross-spectrum (H1 = S_xf/S_xx, after each session's warm-up); "
+    "gyrodenoise.spectrum").format(f=MIN_PEAK_FREQ_HZ, fa=sp.FALSE_ALARM)
+
+
+def _computed_sos(method, rate_hz, filter_kw):
+    """The low-pass's sections when the method is the core's Butterworth, else None."""
+    if method != "lowpass":
+        return None
+    from gyrodenoise.core import kernels as K
+    p = K.make_params(method=method, sample_rate_hz=rate_hz, **dict(filter_kw or {}))
+    nsec = int(p[K.P_LP_NSEC])
+    return [tuple(p[K.P_SOS + 5 * i + j] for j in range(5)) for i in range(nsec)]
+
+
+def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=None, skip_samples=0,
+                    time_axis_s=None):
+    """(report dict, plot data or None) of the spectrum of one stream.
+
+    ``x``/``f``: raw/filtered (n, 3) in ``unit``; ``s``: the GyroStream
+    (restarts, rate_hz, time_s); ``skip_samples``: the filter's warm-up after
+    each restart, left out of the measured response; ``time_axis_s``: the
+    plot's time of each sample (spectrogram columns)."""
+    rate = s.rate_hz
+    if rate is None or s.n < 64:
+        return {"available": False, "reason": "too few samples for a spectrum"}, None
+    from gyrodenoise.motion_metrics import too_slow_to_denoise
+    if too_slow_to_denoise(rate):
+        return {"available": False, "reason": f"sampled at {rate:.3g} Hz: no vibration band "
+                                               f"above the {MIN_PEAK_FREQ_HZ:g} Hz motion band"}, None
+    usable = np.isfinite(x).all(axis=1) & np.isfinite(f).all(axis=1) & (np.abs(x) <= 1e6).all(axis=1)
+    runs_all = sp.sessions(s.n, s.restarts, 0, usable)
+    nper = sp.choose_nperseg([b - a for a, b in runs_all], rate)
+    if nper is None:
+        return {"available": False, "reason": "no session long enough for a spectrum (32 samples)"}, None
+    starts = sp.segments(runs_all, nper)
+    runs_h = sp.sessions(s.n, s.restarts, skip_samples, usable)
+    starts_h = sp.segments(runs_h, nper)
+    freq = sp.freq_hz(nper, rate)
+    df = float(freq[1])
+    scale = sp.density_scale(nper, rate)
+    filtered_is_raw = bool(getattr(s, "left_raw", None)) or np.array_equal(x[usable], f[usable])
+    sos = _computed_sos(method, filter_rate_hz, filter_kw)
+    h_calc = None if sos is None else sp.sos_response(sos, freq, rate)
+    rep = {"available": True, "rate_hz": rate, "nperseg": int(nper), "resolution_hz": df,
+           "segments": int(len(starts)), "response_segments": int(len(starts_h)), "unit": unit,
+           "min_peak_freq_hz": MIN_PEAK_FREQ_HZ, "false_alarm": sp.FALSE_ALARM,
+           "response": "computed and measured" if sos is not None else "measured",
+           "peaks": {}, "filter": {}}
+    pd = {"freq_hz": freq, "unit": unit, "axes": s.axes, "raw": [], "filtered": [], "floor": [],
+          "gain": [], "coherence": [], "delay_s": [], "peaks": [], "computed_gain": None,
+          "computed_delay_s": None, "spectrogram": None, "filtered_is_raw": filtered_is_raw}
+    if h_calc is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ph = np.unwrap(np.angle(h_calc))
+            pd["computed_gain"] = np.abs(h_calc)
+            pd["computed_delay_s"] = np.where(freq > 0, -ph / (2 * np.pi * np.where(freq > 0, freq, 1)), np.nan)
+    power_sum = None
+    for k, a in enumerate(s.axes):
+        X = sp.segment_spectra(x[:, k], starts, nper)
+        pxx = np.abs(X) ** 2 * scale
+        psd_x = pxx.mean(axis=0)
+        psd_f = (np.abs(sp.segment_spectra(f[:, k], starts, nper)) ** 2 * scale).mean(axis=0)
+        floor = sp.noise_floor(psd_x, len(starts))
+        floor_f = sp.noise_floor(psd_f, len(starts))
+        power_sum = pxx if power_sum is None else power_sum + pxx
+        if len(starts_h) and not filtered_is_raw:
+            Xh = X if len(starts_h) == len(starts) and np.array_equal(starts_h, starts) else \
+                sp.segment_spectra(x[:, k], starts_h, nper)
+            h, coh, delay = sp.cross_response(Xh, sp.segment_spectra(f[:, k], starts_h, nper))
+            gain, delay_s = np.abs(h), delay / rate
+        else:
+            gain = coh = delay_s = None
+        peaks = sp.group_harmonics(
+            sp.find_peaks(freq, psd_x, len(starts), floor=floor, min_freq_hz=MIN_PEAK_FREQ_HZ,
+                          min_ratio=MIN_PEAK_RATIO, max_peaks=MAX_PEAKS), df)
+        out = []
+        for q in peaks:
+            b = q["bin"]
+            lo, hi = max(0, b - sp.PEAK_HALF_WIDTH_BINS), b + sp.PEAK_HALF_WIDTH_BINS + 1
+            f_amp = float(np.sqrt(np.sum(np.maximum(psd_f[lo:hi] - floor_f[lo:hi], 0.0)) * df))
+            out.append({
+                "freq_hz": q["freq_hz"],
+                "amplitude_rms": q["amplitude_rms"],
+                "amplitude_deg_s_rms": q["amplitude_rms"] if unit == "deg/s" else None,
+                "above_floor_db": q["ratio_db"],
+                "harmonic_of_hz": q["harmonic_of_hz"], "harmonic_n": q["harmonic_n"],
+                "harmonics_hz": q["harmonics_hz"],
+                "filtered_amplitude_rms": f_amp,
+                "filter_gain": None if gain is None else float(gain[b]),
+                "phase_delay_s": None if delay_s is None else float(delay_s[b]),
+            })
+        rep["peaks"][a] = out
+        rep["filter"][a] = _response_summary(freq, gain, coh, delay_s, h_calc, filtered_is_raw,
+                                             len(starts_h))
+        for key, val in (("raw", psd_x), ("filtered", psd_f), ("floor", floor), ("gain", gain),
+                         ("coherence", coh), ("delay_s", delay_s), ("peaks", out)):
+            pd[key].append(val)
+    rep["dominant_peak"] = dominant_peak(rep["peaks"])
+    span = float(s.time_s[-1] - s.time_s[0]) if s.n > 1 else 0.0
+    if span >= SPECTROGRAM_MIN_SPAN_S and len(starts) >= 20:
+        centre, dens = sp.spectrogram(power_sum, starts, nper)
+        # the log's time when it runs forwards (a batch sampler's bursts spread over the
+        # flight), else the plot's sessions laid end to end
+        t = s.time_s if time_axis_s is None or np.all(np.diff(s.time_s) >= 0) else time_axis_s
+        cidx = np.clip(np.rint(centre).astype(np.int64), 0, s.n - 1)
+        pd["spectrogram"] = (np.asarray(t, dtype=np.float64)[cidx], dens)
+        rep["spectrogram_columns"] = int(len(centre))
+    return rep, pd
+
+
+def _response_summary(freq, gain, coh, delay_s, h_calc, filtered_is_raw, n_seg):
+    """Per axis: where the measured gain first falls below -3 dB, and the lag there."""
+    if filtered_is_raw:
+        return {"measured": False, "reason": "the output is the raw record (filter not applied)"}
+    if gain is None:
+        return {"measured": False, "reason": "no segment after the filter's warm-up"}
+    ok = (freq > 0) & np.isfinite(gain)
+    below = np.flatnonzero(ok & (gain < 1.0 / np.sqrt(2.0)))
+    out = {"measured": True, "segments": int(n_seg),
+           "minus3db_hz": float(freq[below[0]]) if len(below) else None,
+           "phase_delay_s_at_minus3db": float(delay_s[below[0]]) if len(below) else None,
+           "mean_coherence": float(np.nanmean(coh[ok])) if ok.any() else None}
+    if h_calc is not None:
+        cb = np.flatnonzero((freq > 0) & (np.abs(h_calc) < 1.0 / np.sqrt(2.0)))
+        out["computed_minus3db_hz"] = float(freq[cb[0]]) if len(cb) else None
+    return out
+
+
+def dominant_peak(peaks_by_axis):
+    """The strongest peak over the axes: dict with ``axis`` added, or None."""
+    best = None
+    for a, peaks in peaks_by_axis.items():
+        for q in peaks:
+            if best is None or q["amplitude_rms"] > best["amplitude_rms"]:
+                best = dict(q, axis=a)
+    return best
+
+
+def describe_peak(q, unit="deg/s"):
+    """'83 Hz, 0.9 deg/s rms, harmonics 166, 249 Hz' (one peak of the report)."""
+    text = f"{q['freq_hz']:.3g} Hz, {q['amplitude_rms']:.2g} {unit} rms"
+    if q.get("harmonics_hz"):
+        text += ", harmonics " + ", ".join(f"{h:.3g}" for h in q["harmonics_hz"]) + " Hz"
+    if q.get("harmonic_of_hz"):
+        text += f" ({q['harmonic_n']} x {q['harmonic_of_hz']:.3g} Hz)"
+    return text
+
+
+def summary_lines(spec):
+    """Text lines of the spectrum of one stream's report (for the text summary)."""
+    if not spec:
+        return []
+    if not spec.get("available"):
+        return [f"spectrum: none ({spec.get('reason')})"]
+    unit = spec.get("unit", "deg/s")
+    lines = []
+    for a, peaks in spec["peaks"].items():
+        main = [q for q in peaks if q.get("harmonic_of_hz") is None][:3]
+        if not main:
+            lines.append(f"{a}: no vibration peak above the noise floor (>= {spec['min_peak_freq_hz']:g} Hz)")
+            continue
+        parts = []
+        for q in main:
+            g = q.get("filter_gain")
+            parts.append(describe_peak(q, unit) + ("" if g is None else f", filter gain {g:.2f}"))
+        lines.append(f"{a}: vibration " + "; ".join(parts))
+    return lines
+
+
+# ------------------------------------------------------------------ drawing
+def draw_spectrum(path, title, pd):
+    """The spectrum PNG: raw (solid) and filtered (dashed) PSD of the axes with
+    the noise floor and the peaks named; then the filter's response, gain |H|
+    and lag (phase delay) overlaid, per axis (measured) and computed for the
+    low-pass; then, for a long record, the spectrogram of the raw record."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
+    axes = pd["axes"]
+    sgram = pd["spectrogram"] is not None
+    ratios = [3.2, 1.6] + ([2.0] if sgram else [])
+    fig, axs = plt.subplots(len(ratios), 1, figsize=(9, 2.2 * len(ratios) + 1.0),
+                            gridspec_kw={"height_ratios": ratios})
+    fig.subplots_adjust(left=0.09, right=0.91, top=0.94, bottom=0.07, hspace=0.38)
+    fr = pd["freq_hz"]
+    sel = fr > 0
+    unit = pd["unit"]
+    ax = axs[0]
+    for k, a in enumerate(axes):
+        ax.plot(fr[sel], pd["raw"][k][sel], lw=0.8, color=f"C{k}", label=f"{a} raw")
+        if not pd["filtered_is_raw"]:
+            ax.plot(fr[sel], pd["filtered"][k][sel], lw=0.8, ls="--", color=f"C{k}", alpha=0.7,
+                    label=f"{a} filtered")
+        ax.plot(fr[sel], pd["floor"][k][sel], lw=0.5, ls=":", color=f"C{k}")
+        named = sorted(pd["peaks"][k], key=lambda q: -q["amplitude_rms"])[:LABELLED_PEAKS]
+        for q in pd["peaks"][k]:
+            b = int(np.argmin(np.abs(fr - q["freq_hz"])))
+            y = pd["raw"][k][b]
+            harm = q["harmonic_of_hz"] is not None
+            ax.plot(q["freq_hz"], y, "v", color=f"C{k}", ms=6 if not harm else 4, mec="k", mew=0.5)
+            if q not in named:
+                continue
+            ax.annotate(f"{a} {q['freq_hz']:.3g} Hz {q['amplitude_rms']:.2g}" +
+                        (f" ({q['harmonic_n']}x)" if harm else ""),
+                        (q["freq_hz"], y), textcoords="offset points", xytext=(3, 3), fontsize=6.5,
+                        color=f"C{k}")
+    ax.set_yscale("log")
+    ax.yaxis.set_major_locator(LogLocator(numticks=6))
+    ax.yaxis.set_minor_locator(NullLocator())
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))   # no mathtext: cheaper
+    ax.set_ylabel(f"PSD [({unit})²/Hz]", fontsize=8)
+    ax.grid(True, lw=0.3)
+    ax.set_xlim(0, fr[-1])
+    ax.tick_params(labelsize=7)
+    note = " (filtered = raw)" if pd["filtered_is_raw"] else ""
+    ax.legend(loc="upper right", fontsize=7, ncol=len(axes),
+              title=f"dotted: noise floor; triangles: peaks (3 strongest per axis named, rms {unit}){note}", title_fontsize=7)
+    ax.set_title(title, fontsize=9)
+    _draw_response(axs[1], fr, sel, pd)
+    if sgram:
+        t, dens = pd["spectrogram"]
+        sg = axs[2]
+        with np.errstate(divide="ignore"):
+            db = 10.0 * np.log10(np.where(dens > 0, dens, np.nan))
+        lo, hi = np.nanpercentile(db, [5, 99.5]) if np.isfinite(db).any() else (0, 1)
+        sg.imshow(db.T, origin="lower", aspect="auto", cmap="viridis", vmin=lo, vmax=hi,
+                  extent=(t[0], t[-1] if t[-1] > t[0] else t[0] + 1, 0, fr[-1]), interpolation="nearest")
+        sg.set_ylabel("frequency [Hz]", fontsize=8)
+        sg.set_xlabel(f"time [s]; spectrogram of the raw record, sum of the axes, "
+                      f"{lo:.0f} (dark) to {hi:.0f} (yellow) dB ({unit})²/Hz", fontsize=8)
+        sg.tick_params(labelsize=7)
+    fig.savefig(path, dpi=90, pil_kwargs={"compress_level": 1})
+    plt.close(fig)
+
+
+def _draw_response(ax, fr, sel, pd):
+    """Gain |H| (left) and lag in ms (right) of the filter, on one panel."""
+    drawn = False
+    for k, a in enumerate(pd["axes"]):
+        g = pd["gain"][k]
+        if g is not None:
+            ax.plot(fr[sel], g[sel], lw=0.8, color=f"C{k}", label=f"|H| {a}")
+            drawn = True
+    if pd["computed_gain"] is not None:
+        ax.plot(fr[sel], pd["computed_gain"][sel], lw=1.2, ls="--", color="k", label="|H| computed")
+        drawn = True
+    ax.set_ylim(0, 1.3)
+    ax.set_xlim(0, fr[-1])
+    ax.set_ylabel("filter gain |H|\n(lines)", fontsize=8)
+    ax.set_xlabel("frequency [Hz]", fontsize=8)
+    ax.grid(True, lw=0.3)
+    ax.tick_params(labelsize=7)
+    if not drawn:
+        ax.text(0.5, 0.5, "filter response not measured (output = raw, or no sample after the warm-up)",
+                transform=ax.transAxes, ha="center", va="center", fontsize=8)
+        return
+    tw = ax.twinx()
+    for k, a in enumerate(pd["axes"]):
+        d, g, c = pd["delay_s"][k], pd["gain"][k], pd["coherence"][k]
+        if d is not None:
+            show = sel & (g > 0.1) & (c > 0.5)        # elsewhere the phase means little
+            tw.plot(fr[show], 1000.0 * d[show], ".", ms=2.5, color=f"C{k}")
+    if pd["computed_delay_s"] is not None:
+        tw.plot(fr[sel], 1000.0 * pd["computed_delay_s"][sel], ":", lw=1.2, color="k")
+    tw.set_ylabel("lag [ms] (dots)", fontsize=8)
+    tw.tick_params(labelsize=7)
+    ax.legend(loc="lower left", fontsize=7, ncol=4)
