@@ -4,8 +4,9 @@ Built from the summary of :func:`bridge.process.process_many` (local pool or
 Dask cluster alike): a row per log and gyro stream with its samples, rate,
 restarts, noise before/after, the low-band motion kept and the lag the filter
 added (when the bridge measured them; averaged over the axes whose low band
-holds motion above the noise, "no motion above the noise" when none does), and a row per failed
-log with its reason. The plot shows each stream's white-noise density per log, so that an
+holds motion above the noise, "no motion above the noise" when none does), its dominant
+vibration peak (:func:`vibration_peak`), and a row per failed log with its reason; then each
+log's dominant vibration peak (:func:`dominant_peaks_by_log`). The plot shows each stream's white-noise density per log, so that an
 IMU that is noisier than its siblings stands out: the thing an operator opens.
 
 Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the standard
@@ -64,12 +65,50 @@ def fleet_rows(summary):
                 "all_zero": bool(s.get("all_zero")),
                 "note": s.get("note", ""), "left_raw": s.get("left_raw"),
                 "warnings": list(s.get("warnings", [])),
+                "vibration_peak": vibration_peak(s),
             })
     for f in summary.get("failed", []):
         rows.append({"log": Path(f["file"]).name, "file": f["file"], "stream": "", "status": "failed",
                      "error": f["error"]})
     _flag(rows)
     return rows
+
+
+def vibration_peak(stream_report):
+    """The stream's dominant vibration peak (the strongest over its axes, from
+    :mod:`bridge.spectra`) as {axis, freq_hz, amplitude_rms, unit, harmonics_hz},
+    or None (no spectrum, or no peak above the noise floor)."""
+    spec = stream_report.get("spectrum") or {}
+    q = spec.get("dominant_peak")
+    if not q:
+        return None
+    return {"axis": q["axis"], "freq_hz": q["freq_hz"], "amplitude_rms": q["amplitude_rms"],
+            "unit": spec.get("unit"), "harmonics_hz": list(q.get("harmonics_hz") or [])}
+
+
+def _peak_text(p):
+    if not p:
+        return ""
+    text = f"{p['axis']} {p['freq_hz']:.3g} Hz, {p['amplitude_rms']:.2g} {p['unit']} rms"
+    if p["harmonics_hz"]:
+        text += ", harmonics " + ", ".join(f"{h:.3g}" for h in p["harmonics_hz"]) + " Hz"
+    return text
+
+
+def dominant_peaks_by_log(rows):
+    """Markdown lines: each log's dominant vibration peak (the strongest over its
+    streams whose amplitudes are in deg/s), naming the stream."""
+    best = {}
+    for r in rows:
+        p = r.get("vibration_peak")
+        if r["status"] != "ok" or not p or p["unit"] != "deg/s":
+            continue
+        if r["log"] not in best or p["amplitude_rms"] > best[r["log"]][1]["amplitude_rms"]:
+            best[r["log"]] = (r["stream"], p)
+    logs = sorted({r["log"] for r in rows if r["status"] == "ok"})
+    return [f"- {name}: " + (f"{best[name][0]} {_peak_text(best[name][1])}" if name in best else
+                             "no vibration peak above the noise floor (or no spectrum: streams too slow)")
+            for name in logs]
 
 
 def _flag(rows):
@@ -110,11 +149,11 @@ def _fmt(v, spec=".3g"):
 def format_table(rows):
     """The fleet table as Markdown."""
     head = ("| log | stream | status | samples | rate Hz | restarts | noise raw -> filtered | "
-            "density deg/s/rtHz | 0-5 Hz kept (corr, amp) | lag ms | flag / reason |")
-    out = [head, "|" + "---|" * 11]
+            "density deg/s/rtHz | 0-5 Hz kept (corr, amp) | lag ms | dominant vibration peak | flag / reason |")
+    out = [head, "|" + "---|" * 12]
     for r in rows:
         if r["status"] == "failed":
-            out.append(f"| {r['log']} | | FAILED | | | | | | | | {r['error']} |")
+            out.append(f"| {r['log']} | | FAILED | | | | | | | | | {r['error']} |")
             continue
         kept = ("no motion above the noise" if r.get("no_motion") else
                 "" if r["lowband_corr"] is None else
@@ -125,7 +164,8 @@ def format_table(rows):
                          ([f"left raw: {r['left_raw']}"] if r.get("left_raw") else []) + r.get("warnings", []))
         out.append(f"| {r['log']} | {r['stream']} | ok | {r['samples']} | {_fmt(r['rate_hz'])} | {r['restarts']} | "
                    f"{_fmt(r['noise_raw'])} -> {_fmt(r['noise_filtered'])} {r['noise_unit'] or ''} | "
-                   f"{_fmt(r['noise_density_deg_s_rthz'])} | {kept} | {lag} | {flag} |")
+                   f"{_fmt(r['noise_density_deg_s_rthz'])} | {kept} | {lag} | "
+                   f"{_peak_text(r.get('vibration_peak'))} | {flag} |")
     return "\n".join(out)
 
 
@@ -148,7 +188,9 @@ def write_fleet_report(summary, out_dir):
             f"{sum(bool(r.get('all_zero')) for r in rows)} with all samples zero"
             f"{_named([r for r in rows if r.get('all_zero')])}.\n\n"
             f"![noise density per log and stream](fleet.png)\n\n")
-    (out / "fleet.md").write_text(head + format_table(rows) + "\n")
+    peaks = ("\n\n## Dominant vibration peak per log\n\n(the strongest spectral peak above the noise "
+             "floor over the log's streams and axes; bridge.spectra)\n\n" + "\n".join(dominant_peaks_by_log(rows)))
+    (out / "fleet.md").write_text(head + format_table(rows) + peaks + "\n")
     (out / "fleet.json").write_text(json.dumps({"rows": rows, "n_logs": summary.get("n_logs"),
                                                 "n_ok": summary.get("n_ok"), "n_failed": summary.get("n_failed"),
                                                 "flag_sigmas": FLAG_SIGMAS}, indent=1, allow_nan=False) + "\n")

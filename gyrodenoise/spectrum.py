@@ -164,7 +164,8 @@ def cross_response(X, F):
     """Measured response of the filter raw -> filtered from their segment spectra
     ``X``, ``F`` (same segments): H1 = S_xf / S_xx (complex, per bin),
     coherence |S_xf|**2 / (S_xx S_ff) and the phase delay -unwrap(arg H) / (2 pi f)
-    in samples (multiply by the sample period for seconds; NaN at DC)."""
+    in samples (multiply by the sample period for seconds; NaN in bins 0 and 1,
+    which each segment's mean removal empties)."""
     sxx = np.mean(np.abs(X) ** 2, axis=0)
     sff = np.mean(np.abs(F) ** 2, axis=0)
     sxf = np.mean(np.conj(X) * F, axis=0)
@@ -174,7 +175,7 @@ def cross_response(X, F):
         nbin = 2 * (len(sxx) - 1)
         omega = 2.0 * np.pi * np.arange(len(sxx)) / nbin     # rad/sample
         phase = np.unwrap(np.nan_to_num(np.angle(h)))
-        delay = np.where(omega > 0, -phase / omega, np.nan)
+        delay = np.where(np.arange(len(sxx)) >= 2, -phase / np.where(omega > 0, omega, 1.0), np.nan)
     return h, coh, delay
 
 
