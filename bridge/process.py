@@ -8,8 +8,8 @@ Outputs of a log ``NAME.ext`` in the output folder:
 * ``NAME.STREAM.csv`` -- ``time,raw_x,filtered_x,raw_y,filtered_y,raw_z,filtered_z,restart``
   per stream (deg/s; ``*_counts`` columns when the unit is unknown);
 * ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked;
-* ``NAME.STREAM.spectrum.png`` -- raw and filtered PSD per axis, vibration
-  peaks named, the filter's gain and lag, a spectrogram for a long record
+* ``NAME.spectrum.png`` -- per stream raw and filtered PSD per axis, vibration
+  peaks named; the filter's gain and lag; a spectrogram for a long record
   (:mod:`bridge.spectra`).
 """
 
@@ -126,9 +126,9 @@ def _plot_data(t, x, f, restarts):
 
 
 def _draw(path, title, pdata, unit, axes, spectrum=None):
-    if spectrum is not None:                     # (path, title, plot data) of bridge.spectra
-        from .spectra import draw_spectrum
-        draw_spectrum(*spectrum)
+    if spectrum is not None:                     # (path, title, [(stream, plot data)]) of bridge.spectra
+        from .spectra import draw_log_spectrum
+        draw_log_spectrum(*spectrum)
     if pdata is None:
         return
     import matplotlib
@@ -205,17 +205,17 @@ class Plotter:
                 break
 
     def plot(self, path, title, t, x, f, restarts, unit, axes, spectrum=None):
-        jobs = [(path, title, _plot_data(t, x, f, restarts), unit, axes)]
-        if spectrum is not None:                # a job of its own: helpers draw it beside the other
-            jobs.append((spectrum[0], None, None, None, None, spectrum))
-        for job in jobs:
-            if not self.procs:
-                _draw(*job)
-            else:
-                i = self.next % len(self.procs)
-                self.next += 1
-                self.queues[i].put(job)
-                self.pending[i] += 1
+        """The PNG of one stream; ``spectrum``: (path, title, [(stream, plot data)]),
+        the spectrum PNG of a log (:func:`bridge.spectra.draw_log_spectrum`) instead."""
+        job = ((spectrum[0], None, None, None, None, spectrum) if spectrum is not None else
+               (path, title, _plot_data(t, x, f, restarts), unit, axes))
+        if not self.procs:
+            _draw(*job)
+        else:
+            i = self.next % len(self.procs)
+            self.next += 1
+            self.queues[i].put(job)
+            self.pending[i] += 1
 
     def close(self):
         """Wait for the helpers; raise RuntimeError with the first failure."""
@@ -449,19 +449,23 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
     stem = out_stem or path.stem
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
     label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+    spec_items = []
+    spec_png = out_dir / f"{stem}.spectrum.png"
     for s in streams:
         x, f, unit, rate = s._work
         jt = joined_time(s.time_s, s.restarts)
         s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
                                                  getattr(s, "warmup_samples", 0), jt)
+        if spec_plot is not None:
+            spec_items.append((s.name, spec_plot))
+            s._spectrum_png = spec_png if plotter is not None else None
         if plotter is not None:
             s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
-            spec_job = None
-            if spec_plot is not None:
-                s._spectrum_png = out_dir / f"{stem}.{safe_name(s.name)}.spectrum.png"
-                spec_job = (s._spectrum_png, f"{path.name}: {s.name} spectrum ({engine} {label})", spec_plot)
             plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label})",
-                         jt, x, f, s.restarts, unit, s.axes, spec_job)
+                         jt, x, f, s.restarts, unit, s.axes)
+    if plotter is not None and spec_items:
+        plotter.plot(None, None, None, None, None, None, None, None,
+                     spectrum=(spec_png, f"{path.name}: spectrum ({engine} {label})", spec_items))
     if kind == "dataflash":
         out_log.write_bytes(dataflash.patch(data, sc, streams))
     elif kind == "tlog":

@@ -2,7 +2,8 @@
 
 The maths is :mod:`gyrodenoise.spectrum`; this module picks its settings for a
 stream, names what it found (peaks, harmonics, the filter's response) in the
-report, and draws ``NAME.STREAM.spectrum.png`` (in the plot helper process).
+report, and draws ``NAME.spectrum.png``, one figure per log (in the plot helper
+process).
 """
 
 from __future__ import annotations
@@ -205,125 +206,145 @@ def summary_lines(spec):
 
 
 # ------------------------------------------------------------------ drawing
-def draw_spectrum(path, title, pd):
-    """The spectrum PNG: raw (solid) and filtered (dashed) PSD of the axes with
-    the noise floor and the peaks named; then the filter's response, gain |H|
-    per axis (measured; computed too for the low-pass) with its lag; then, for a
-    long record, the spectrogram of the raw record."""
+#: colours of the axes x, y, z (matplotlib's first three)
+AXIS_COLOURS = ("blue", "orange", "green")
+
+
+def draw_log_spectrum(path, title, items):
+    """The spectrum PNG of one log: per stream (``items``: [(name, plot data of
+    :func:`stream_spectrum`)]) its raw (solid) and filtered (dashed) PSD per axis
+    with the noise floor and the peaks named; then the filter's response: gain
+    |H| per stream (measured, the median over the axes; dashed: computed for the
+    low-pass) with its lag; then the spectrogram of the raw record of the
+    fastest stream spanning 30 s or more. One figure per log, not per stream: a
+    matplotlib axes costs the plot helper ~0.03 s of CPU wherever it is, and the
+    helper is the bridge's critical path (docs/BRIDGE.md, Speed)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
-    axes = pd["axes"]
-    sgram = pd["spectrogram"] is not None
-    ratios = [3.2, 1.8] + ([2.0] if sgram else [])
-    fig, axs = plt.subplots(len(ratios), 1, figsize=(9, 2.2 * len(ratios) + 1.0),
+    sg_item = max((it for it in items if it[1]["spectrogram"] is not None),
+                  key=lambda it: it[1]["freq_hz"][-1], default=None)
+    ratios = [2.6] * len(items) + [1.7] + ([2.0] if sg_item else [])
+    fig, axs = plt.subplots(len(ratios), 1, figsize=(9, 1.95 * len(ratios) + 0.9),
                             gridspec_kw={"height_ratios": ratios})
-    fig.subplots_adjust(left=0.09, right=0.91, top=0.94, bottom=0.07, hspace=0.38)
+    fig.subplots_adjust(left=0.09, right=0.97, top=1.0 - 0.45 / fig.get_figheight(), bottom=0.06,
+                        hspace=0.45)
+    for ax, (name, pd) in zip(axs, items):
+        _draw_psd(ax, name, pd)
+    axs[0].set_title(title, fontsize=9)
+    _draw_response(axs[len(items)], items)
+    if sg_item:
+        _draw_spectrogram(axs[-1], *sg_item)
+    fig.savefig(path, dpi=90, pil_kwargs={"compress_level": 1})
+    plt.close(fig)
+
+
+def _draw_psd(ax, name, pd):
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
     fr = pd["freq_hz"]
     sel = fr > 0
     unit = pd["unit"]
-    ax = axs[0]
     listing = []
-    for k, a in enumerate(axes):
-        ax.plot(fr[sel], pd["raw"][k][sel], lw=0.8, color=f"C{k}", label=f"{a} raw")
+    for k, a in enumerate(pd["axes"]):
+        ax.plot(fr[sel], pd["raw"][k][sel], lw=0.8, color=f"C{k}")
         if not pd["filtered_is_raw"]:
-            ax.plot(fr[sel], pd["filtered"][k][sel], lw=0.8, ls="--", color=f"C{k}", alpha=0.7,
-                    label=f"{a} filtered")
+            ax.plot(fr[sel], pd["filtered"][k][sel], lw=0.8, ls="--", color=f"C{k}", alpha=0.7)
         ax.plot(fr[sel], pd["floor"][k][sel], lw=0.5, ls=":", color=f"C{k}")
-        named = sorted(pd["peaks"][k], key=lambda q: -q["amplitude_rms"])[:LABELLED_PEAKS]
         for q in pd["peaks"][k]:
             b = int(np.argmin(np.abs(fr - q["freq_hz"])))
-            harm = q["harmonic_of_hz"] is not None
-            ax.plot(q["freq_hz"], pd["raw"][k][b], "v", color=f"C{k}", ms=6 if not harm else 4,
-                    mec="k", mew=0.5)
+            ax.plot(q["freq_hz"], pd["raw"][k][b], "v", color=f"C{k}",
+                    ms=4 if q["harmonic_of_hz"] else 6, mec="k", mew=0.5)
+        named = sorted(pd["peaks"][k], key=lambda q: -q["amplitude_rms"])[:LABELLED_PEAKS]
         listing.append(f"{a}: " + ("; ".join(
             f"{q['freq_hz']:.4g} Hz {q['amplitude_rms']:.2g}" + (f" ({q['harmonic_n']}x)" if q["harmonic_of_hz"] else "")
             for q in sorted(named, key=lambda q: q["freq_hz"])) or "no peak"))
-    colours = ", ".join(f"{a} {c}" for a, c in zip(axes, ("blue", "orange", "green")))
-    head = f"{colours}; " + ("raw (filtered = raw)" if pd["filtered_is_raw"] else "solid raw, dashed filtered")
+    colours = ", ".join(f"{a} {c}" for a, c in zip(pd["axes"], AXIS_COLOURS))
+    lines = "raw (filtered = raw)" if pd["filtered_is_raw"] else "solid raw, dashed filtered"
     # one text box instead of legends: fewer artists, a cheaper figure
-    ax.text(0.01, 0.03, f"{head}, dotted noise floor\n"
-            f"peaks (strongest {LABELLED_PEAKS} per axis; rms {unit}; "
-            f">= {MIN_PEAK_FREQ_HZ:g} Hz, >= {10 * np.log10(MIN_PEAK_RATIO):.0f} dB above the floor)\n" +
-            "\n".join(listing), transform=ax.transAxes, fontsize=7, va="bottom", ha="left",
+    ax.text(0.01, 0.03, f"{name}: {colours}; {lines}, dotted noise floor\n"
+            f"peaks (strongest {LABELLED_PEAKS} per axis; rms {unit}; >= {MIN_PEAK_FREQ_HZ:g} Hz, "
+            f">= {10 * np.log10(MIN_PEAK_RATIO):.0f} dB above the floor)\n" + "\n".join(listing),
+            transform=ax.transAxes, fontsize=7, va="bottom", ha="left",
             bbox={"boxstyle": "round", "fc": "white", "ec": "0.7", "alpha": 0.85})
     ax.set_yscale("log")
     shown = np.concatenate([v[sel] for v in pd["raw"] + pd["filtered"]])
     shown = shown[np.isfinite(shown) & (shown > 0)]
     if len(shown):                        # room at the bottom for the list of peaks
         lo, hi = float(shown.min()), float(shown.max())
-        ax.set_ylim(lo / (hi / lo) ** 0.4, hi * 2.0)
-    ax.yaxis.set_major_locator(LogLocator(numticks=6))
+        ax.set_ylim(lo / (hi / lo) ** 0.45, hi * 2.0)
+    ax.yaxis.set_major_locator(LogLocator(numticks=5))
     ax.yaxis.set_minor_locator(NullLocator())
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))   # no mathtext: cheaper
-    ax.set_ylabel(f"PSD [({unit})²/Hz]", fontsize=8)
+    ax.set_ylabel(f"{name}\nPSD [({unit})²/Hz]", fontsize=8)
     ax.grid(True, lw=0.3)
     ax.set_xlim(0, fr[-1])
     ax.tick_params(labelsize=7)
-    ax.set_title(title, fontsize=9)
-    _draw_response(axs[1], fr, sel, pd)
-    if sgram:
-        t, dens = pd["spectrogram"]
-        sg = axs[2]
-        with np.errstate(divide="ignore"):
-            db = 10.0 * np.log10(np.where(dens > 0, dens, np.nan))
-        lo, hi = np.nanpercentile(db, [5, 99.5]) if np.isfinite(db).any() else (0, 1)
-        sg.imshow(db.T, origin="lower", aspect="auto", cmap="viridis", vmin=lo, vmax=hi,
-                  extent=(t[0], t[-1] if t[-1] > t[0] else t[0] + 1, 0, fr[-1]), interpolation="nearest")
-        sg.set_ylabel("frequency [Hz]", fontsize=8)
-        sg.set_xlabel(f"time [s]; spectrogram of the raw record, sum of the axes, "
-                      f"{lo:.0f} (dark) to {hi:.0f} (yellow) dB ({unit})²/Hz", fontsize=8)
-        sg.tick_params(labelsize=7)
-    fig.savefig(path, dpi=90, pil_kwargs={"compress_level": 1})
-    plt.close(fig)
 
 
-def _draw_response(ax, fr, sel, pd):
-    """Gain |H| of the filter per axis (measured; dashed: computed), and its lag
-    (phase delay) at a few frequencies as text: a second y axis for a lag curve
-    costs the plot helper a fifth of the figure's time."""
-    drawn = False
-    for k, a in enumerate(pd["axes"]):
-        g = pd["gain"][k]
-        if g is not None:
-            ax.plot(fr[sel], g[sel], lw=0.8, color=f"C{k}")
+def _draw_response(ax, items):
+    """Per stream the filter's measured gain |H| (median over the axes; dashed:
+    computed), and its lag (phase delay, median over the axes) at a few
+    frequencies as text: a second y axis for a lag curve would cost the plot
+    helper a fifth of a figure's time."""
+    from matplotlib.ticker import FuncFormatter
+    drawn, rows, f_max, f_min = False, [], 0.0, np.inf
+    for j, (name, pd) in enumerate(items):
+        fr = pd["freq_hz"]
+        sel = fr > 0
+        f_max = max(f_max, fr[-1])
+        f_min = min(f_min, fr[1])
+        gains = [g for g in pd["gain"] if g is not None]
+        colour = f"C{3 + j % 7}"
+        if gains:
+            g = np.median(np.vstack(gains), axis=0)
+            ax.plot(fr[sel], g[sel], lw=1.0, color=colour)
             drawn = True
-    if pd["computed_gain"] is not None:
-        ax.plot(fr[sel], pd["computed_gain"][sel], lw=1.2, ls="--", color="k")
-        drawn = True
-    ax.set_ylim(0, 1.3)
-    ax.set_xlim(0, fr[-1])
-    ax.set_ylabel("filter gain |H|", fontsize=8)
-    ax.set_xlabel("frequency [Hz]", fontsize=8)
-    ax.grid(True, lw=0.3)
-    ax.tick_params(labelsize=7)
-    if not drawn:
-        ax.text(0.5, 0.5, "filter response not measured (output = raw, or no sample after the warm-up)",
-                transform=ax.transAxes, ha="center", va="center", fontsize=8)
-        return
-    marks = [f for f in (1.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0) if f < 0.8 * fr[-1]][-4:]
-    rows = []
-    for k, a in enumerate(pd["axes"]):
-        d, g, c = pd["delay_s"][k], pd["gain"][k], pd["coherence"][k]
-        if d is None:
+        if pd["computed_gain"] is not None:
+            ax.plot(fr[sel], pd["computed_gain"][sel], lw=1.2, ls="--", color="k")
+        if not gains:
+            rows.append(f"{name}: not measured (output = raw, or no sample after the warm-up)")
             continue
+        marks = [f for f in (1.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0) if f < 0.8 * fr[-1]][-3:]
         vals = []
         for f in marks:
             b = int(np.argmin(np.abs(fr - f)))
-            ok = np.isfinite(d[b]) and g[b] > 0.1 and c[b] > 0.5      # elsewhere the phase means little
-            vals.append(f"{1000.0 * d[b]:.3g}" if ok else "-")
-        rows.append(f"{a} " + " / ".join(vals))
-    if pd["computed_delay_s"] is not None:
-        rows.append("computed " + " / ".join(
-            f"{1000.0 * pd['computed_delay_s'][int(np.argmin(np.abs(fr - f)))]:.3g}" for f in marks))
-    right = fr > 0.6 * fr[-1]
-    gains = [g[right] for g in pd["gain"] if g is not None]
-    if pd["computed_gain"] is not None:
-        gains.append(np.abs(pd["computed_gain"][right]))
-    high = bool(np.nanmean(np.concatenate(gains)) > 0.5) if gains else True
-    # the box goes where the gain curves are not: below them where they stay high
-    ax.text(0.99, 0.04 if high else 0.96, "lag (phase delay), ms at " + " / ".join(f"{f:g}" for f in marks) + " Hz:\n" +
-            "\n".join(rows) + ("\ndashed: computed |H|" if pd["computed_gain"] is not None else ""),
-            transform=ax.transAxes, ha="right", va="bottom" if high else "top", fontsize=7,
+            ok = [1000.0 * d[b] for d, gk, c in zip(pd["delay_s"], pd["gain"], pd["coherence"])
+                  if d is not None and np.isfinite(d[b]) and gk[b] > 0.1 and c[b] > 0.5]
+            calc = "" if pd["computed_delay_s"] is None else f" ({1000.0 * pd['computed_delay_s'][b]:.3g})"
+            vals.append(f"{np.median(ok):.2g}{calc}" if ok else "-")
+        rows.append(f"{name} ({colour_name(j)}): lag at " + " / ".join(f"{f:g}" for f in marks) +
+                    " Hz: " + " / ".join(vals) + " ms")
+    ax.set_ylim(0, 1.3)
+    ax.set_xscale("log")                  # streams of 25 Hz and 2 kHz on one axis
+    ax.set_xlim(f_min if np.isfinite(f_min) else 0.1, f_max or 1.0)
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))   # no mathtext: cheaper
+    ax.set_ylabel("filter gain |H|", fontsize=8)
+    ax.set_xlabel("frequency [Hz] (log)", fontsize=8)
+    ax.grid(True, lw=0.3)
+    ax.tick_params(labelsize=7)
+    note = "measured, median over the axes" + ("; dashed: computed, lag computed in ()" if any(
+        pd["computed_gain"] is not None for _, pd in items) else "")
+    # low-passing filters: on a log frequency axis the bottom left is where no gain curve goes
+    ax.text(0.01, 0.04, f"filter response ({note})\n" + "\n".join(rows),
+            transform=ax.transAxes, ha="left", va="bottom", fontsize=7,
             bbox={"boxstyle": "round", "fc": "white", "ec": "0.7", "alpha": 0.85})
+    return drawn
+
+
+def colour_name(j):
+    """Name of matplotlib's colour C(3 + j) (the streams' lines of the response panel)."""
+    return ("red", "purple", "brown", "pink", "grey", "olive", "cyan")[j % 7]
+
+
+def _draw_spectrogram(ax, name, pd):
+    t, dens = pd["spectrogram"]
+    fr = pd["freq_hz"]
+    with np.errstate(divide="ignore"):
+        db = 10.0 * np.log10(np.where(dens > 0, dens, np.nan))
+    lo, hi = np.nanpercentile(db, [5, 99.5]) if np.isfinite(db).any() else (0, 1)
+    ax.imshow(db.T, origin="lower", aspect="auto", cmap="viridis", vmin=lo, vmax=hi,
+              extent=(t[0], t[-1] if t[-1] > t[0] else t[0] + 1, 0, fr[-1]), interpolation="nearest")
+    ax.set_ylabel(f"{name}\nfrequency [Hz]", fontsize=8)
+    ax.set_xlabel(f"time [s]; spectrogram of {name} raw, axes summed, {lo:.0f} (dark) to {hi:.0f} "
+                  f"(yellow) dB ({pd['unit']})²/Hz", fontsize=8)
+    ax.tick_params(labelsize=7)
