@@ -454,8 +454,9 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
     for s in streams:
         x, f, unit, rate = s._work
         jt = joined_time(s.time_s, s.restarts)
+        usable = (np.isfinite(x) & np.isfinite(f) & (np.abs(x) <= ABSURD_WORK)).all(axis=1)
         s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
-                                                 getattr(s, "warmup_samples", 0), jt)
+                                                 getattr(s, "warmup_samples", 0), jt, usable)
         if spec_plot is not None:
             spec_items.append((s.name, spec_plot))
             s._spectrum_png = spec_png if plotter is not None else None

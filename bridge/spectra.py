@@ -49,13 +49,15 @@ def _computed_sos(method, rate_hz, filter_kw):
 
 
 def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=None, skip_samples=0,
-                    time_axis_s=None):
-    """(report dict, plot data or None) of the spectrum of one stream.
+                    time_axis_s=None, usable=None):
+    """(report dict, plot data or None) of the spectrum of one stream
+    (:func:`gyrodenoise.spectrum.analyse`).
 
     ``x``/``f``: raw/filtered (n, 3) in ``unit``; ``s``: the GyroStream
-    (restarts, rate_hz, time_s); ``skip_samples``: the filter's warm-up after
-    each restart, left out of the measured response; ``time_axis_s``: the
-    plot's time of each sample (spectrogram columns)."""
+    (restarts, rate_hz, time_s, left_raw); ``skip_samples``: the filter's
+    warm-up after each restart, left out of the measured response;
+    ``time_axis_s``: the plot's time of each sample (spectrogram columns) when
+    the log's time does not run forwards; ``usable``: samples to use (bool)."""
     rate = s.rate_hz
     if rate is None or s.n < 64:
         return {"available": False, "reason": "too few samples for a spectrum"}, None
@@ -63,79 +65,36 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
     if too_slow_to_denoise(rate):
         return {"available": False, "reason": f"sampled at {rate:.3g} Hz: no vibration band "
                                                f"above the {MIN_PEAK_FREQ_HZ:g} Hz motion band"}, None
-    usable = np.isfinite(x).all(axis=1) & np.isfinite(f).all(axis=1) & (np.abs(x) <= 1e6).all(axis=1)
-    runs_all = sp.sessions(s.n, s.restarts, 0, usable)
-    nper = sp.choose_nperseg([b - a for a, b in runs_all], rate)
-    if nper is None:
-        return {"available": False, "reason": "no session long enough for a spectrum (32 samples)"}, None
-    starts = sp.segments(runs_all, nper)
-    runs_h = sp.sessions(s.n, s.restarts, skip_samples, usable)
-    starts_h = sp.segments(runs_h, nper)
-    freq = sp.freq_hz(nper, rate)
-    df = float(freq[1])
-    scale = sp.density_scale(nper, rate)
-    filtered_is_raw = bool(getattr(s, "left_raw", None)) or np.array_equal(x[usable], f[usable])
     sos = _computed_sos(method, filter_rate_hz, filter_kw)
-    h_calc = None if sos is None else sp.sos_response(sos, freq, rate)
-    rep = {"available": True, "rate_hz": rate, "nperseg": int(nper), "resolution_hz": df,
-           "segments": int(len(starts)), "response_segments": int(len(starts_h)), "unit": unit,
-           "min_peak_freq_hz": MIN_PEAK_FREQ_HZ, "min_peak_db": round(10 * np.log10(MIN_PEAK_RATIO), 2),
-           "false_alarm": sp.FALSE_ALARM,
-           "response": "computed and measured" if sos is not None else "measured",
-           "peaks": {}, "filter": {}}
-    pd = {"freq_hz": freq, "unit": unit, "axes": s.axes, "raw": [], "filtered": [], "floor": [],
-          "gain": [], "coherence": [], "delay_s": [], "peaks": [], "computed_gain": None,
-          "computed_delay_s": None, "spectrogram": None, "filtered_is_raw": filtered_is_raw}
-    if h_calc is not None:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ph = np.unwrap(np.angle(h_calc))
-            pd["computed_gain"] = np.abs(h_calc)
-            pd["computed_delay_s"] = np.where(freq > 0, -ph / (2 * np.pi * np.where(freq > 0, freq, 1)), np.nan)
-    power_sum = None
+    an = sp.analyse(x, f, rate, s.restarts, skip_samples, usable, min_freq_hz=MIN_PEAK_FREQ_HZ,
+                    min_ratio=MIN_PEAK_RATIO, max_peaks=MAX_PEAKS, sos=sos)
+    if an is None:
+        return {"available": False, "reason": "no session long enough for a spectrum (32 samples)"}, None
+    freq = an["freq_hz"]
+    rep = {"available": True, "rate_hz": rate, "nperseg": int(an["nperseg"]), "resolution_hz": float(freq[1]),
+           "segments": int(len(an["starts"])), "response_segments": int(an["response_segments"]),
+           "unit": unit, "min_peak_freq_hz": MIN_PEAK_FREQ_HZ,
+           "min_peak_db": round(10 * np.log10(MIN_PEAK_RATIO), 2), "false_alarm": sp.FALSE_ALARM,
+           "response": "computed and measured" if sos is not None else "measured", "peaks": {}, "filter": {}}
     for k, a in enumerate(s.axes):
-        X = sp.segment_spectra(x[:, k], starts, nper)
-        pxx = np.abs(X) ** 2 * scale
-        psd_x = pxx.mean(axis=0)
-        psd_f = (np.abs(sp.segment_spectra(f[:, k], starts, nper)) ** 2 * scale).mean(axis=0)
-        floor = sp.noise_floor(psd_x, len(starts))
-        floor_f = sp.noise_floor(psd_f, len(starts))
-        power_sum = pxx if power_sum is None else power_sum + pxx
-        if len(starts_h) and not filtered_is_raw:
-            Xh = X if len(starts_h) == len(starts) and np.array_equal(starts_h, starts) else \
-                sp.segment_spectra(x[:, k], starts_h, nper)
-            h, coh, delay = sp.cross_response(Xh, sp.segment_spectra(f[:, k], starts_h, nper))
-            gain, delay_s = np.abs(h), delay / rate
-        else:
-            gain = coh = delay_s = None
-        peaks = sp.group_harmonics(
-            sp.find_peaks(freq, psd_x, len(starts), floor=floor, min_freq_hz=MIN_PEAK_FREQ_HZ,
-                          min_ratio=MIN_PEAK_RATIO, max_peaks=MAX_PEAKS), df)
-        out = []
-        for q in peaks:
-            b = q["bin"]
-            lo, hi = max(0, b - sp.PEAK_HALF_WIDTH_BINS), b + sp.PEAK_HALF_WIDTH_BINS + 1
-            f_amp = float(np.sqrt(np.sum(np.maximum(psd_f[lo:hi] - floor_f[lo:hi], 0.0)) * df))
-            out.append({
-                "freq_hz": q["freq_hz"],
-                "amplitude_rms": q["amplitude_rms"],
-                "amplitude_deg_s_rms": q["amplitude_rms"] if unit == "deg/s" else None,
-                "above_floor_db": q["ratio_db"],
-                "harmonic_of_hz": q["harmonic_of_hz"], "harmonic_n": q["harmonic_n"],
-                "harmonics_hz": q["harmonics_hz"],
-                "filtered_amplitude_rms": f_amp,
-                "filter_gain": None if gain is None else float(gain[b]),
-                "phase_delay_s": None if delay_s is None else float(delay_s[b]),
-            })
-        rep["peaks"][a] = out
-        rep["filter"][a] = _response_summary(freq, gain, coh, delay_s, h_calc, filtered_is_raw,
-                                             len(starts_h))
-        for key, val in (("raw", psd_x), ("filtered", psd_f), ("floor", floor), ("gain", gain),
-                         ("coherence", coh), ("delay_s", delay_s), ("peaks", out)):
-            pd[key].append(val)
+        rep["peaks"][a] = [{
+            "freq_hz": q["freq_hz"], "amplitude_rms": q["amplitude_rms"],
+            "amplitude_deg_s_rms": q["amplitude_rms"] if unit == "deg/s" else None,
+            "above_floor_db": q["ratio_db"], "harmonic_of_hz": q["harmonic_of_hz"],
+            "harmonic_n": q["harmonic_n"], "harmonics_hz": q["harmonics_hz"],
+            "filtered_amplitude_rms": q["filtered_amplitude_rms"],
+            "filter_gain": q["filter_gain"], "phase_delay_s": q["phase_delay_s"],
+        } for q in an["peaks"][k]]
+        rep["filter"][a] = _response_summary(an, k)
     rep["dominant_peak"] = dominant_peak(rep["peaks"])
+    pd = {"freq_hz": freq, "unit": unit, "axes": s.axes, "raw": an["psd_raw"], "filtered": an["psd_filtered"],
+          "floor": an["floor_raw"], "gain": an["gain"], "coherence": an["coherence"], "delay_s": an["delay_s"],
+          "peaks": [rep["peaks"][a] for a in s.axes], "computed_gain": an["computed_gain"],
+          "computed_delay_s": an["computed_delay_s"], "spectrogram": None,
+          "filtered_is_raw": an["filtered_is_raw"]}
     span = float(s.time_s[-1] - s.time_s[0]) if s.n > 1 else 0.0
-    if span >= SPECTROGRAM_MIN_SPAN_S and len(starts) >= 20:
-        centre, dens = sp.spectrogram(power_sum, starts, nper)
+    if span >= SPECTROGRAM_MIN_SPAN_S and len(an["starts"]) >= 20:
+        centre, dens = sp.spectrogram(an["power_raw_sum"], an["starts"], an["nperseg"])
         # the log's time when it runs forwards (a batch sampler's bursts spread over the
         # flight), else the plot's sessions laid end to end
         t = s.time_s if time_axis_s is None or np.all(np.diff(s.time_s) >= 0) else time_axis_s
@@ -145,21 +104,23 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
     return rep, pd
 
 
-def _response_summary(freq, gain, coh, delay_s, h_calc, filtered_is_raw, n_seg):
+def _response_summary(an, k):
     """Per axis: where the measured gain first falls below -3 dB, and the lag there."""
-    if filtered_is_raw:
+    if an["filtered_is_raw"]:
         return {"measured": False, "reason": "the output is the raw record (filter not applied)"}
+    gain = an["gain"][k]
     if gain is None:
         return {"measured": False, "reason": "no segment after the filter's warm-up"}
-    ok = (freq > 0) & np.isfinite(gain)
-    below = np.flatnonzero(ok & (gain < 1.0 / np.sqrt(2.0)))
-    out = {"measured": True, "segments": int(n_seg),
-           "minus3db_hz": float(freq[below[0]]) if len(below) else None,
-           "phase_delay_s_at_minus3db": float(delay_s[below[0]]) if len(below) else None,
-           "mean_coherence": float(np.nanmean(coh[ok])) if ok.any() else None}
-    if h_calc is not None:
-        cb = np.flatnonzero((freq > 0) & (np.abs(h_calc) < 1.0 / np.sqrt(2.0)))
-        out["computed_minus3db_hz"] = float(freq[cb[0]]) if len(cb) else None
+    freq, coh = an["freq_hz"], an["coherence"][k]
+    b = sp.minus3db_bin(freq, gain)
+    ok = (freq > 0) & np.isfinite(coh)
+    out = {"measured": True, "segments": int(an["response_segments"]),
+           "minus3db_hz": None if b is None else float(freq[b]),
+           "phase_delay_s_at_minus3db": None if b is None else float(an["delay_s"][k][b]),
+           "mean_coherence": float(np.mean(coh[ok])) if ok.any() else None}
+    if an["computed_gain"] is not None:
+        bc = sp.minus3db_bin(freq, an["computed_gain"])
+        out["computed_minus3db_hz"] = None if bc is None else float(freq[bc])
     return out
 
 
@@ -190,18 +151,21 @@ def summary_lines(spec):
     if not spec.get("available"):
         return [f"spectrum: none ({spec.get('reason')})"]
     unit = spec.get("unit", "deg/s")
-    lines = []
+    lines, quiet = [], []
     for a, peaks in spec["peaks"].items():
-        main = [q for q in peaks if q.get("harmonic_of_hz") is None][:3]
+        main = sorted([q for q in peaks if q.get("harmonic_of_hz") is None],
+                      key=lambda q: -q["amplitude_rms"])[:3]          # the 3 strongest, by frequency
         if not main:
-            lines.append(f"{a}: no vibration peak (none >= {spec['min_peak_freq_hz']:g} Hz stands "
-                         f"{spec['min_peak_db']:g} dB above the noise floor)")
+            quiet.append(a)
             continue
         parts = []
-        for q in main:
+        for q in sorted(main, key=lambda q: q["freq_hz"]):
             g = q.get("filter_gain")
             parts.append(describe_peak(q, unit) + ("" if g is None else f", filter gain {g:.2f}"))
         lines.append(f"{a}: vibration " + "; ".join(parts))
+    if quiet:
+        lines.append(f"{', '.join(quiet)}: no vibration peak (none >= {spec['min_peak_freq_hz']:g} Hz "
+                     f"stands {spec['min_peak_db']:g} dB above the noise floor)")
     return lines
 
 

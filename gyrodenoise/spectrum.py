@@ -17,6 +17,7 @@ s, frequencies in Hz.
   linear description of an adaptive filter, the exact one of a linear filter.
 * :func:`sos_response` -- the computed response of second-order sections
   (the core's Butterworth low-pass).
+* :func:`analyse` -- all of it for a raw/filtered record pair, per axis.
 * :func:`noise_floor` -- running median of the PSD, corrected for the bias of
   the median of a chi-square variable: robust to the peaks themselves.
 * :func:`find_peaks` -- local maxima above the floor by a threshold set from
@@ -172,11 +173,19 @@ def cross_response(X, F):
     with np.errstate(divide="ignore", invalid="ignore"):
         h = np.where(sxx > 0, sxf / sxx, np.nan)
         coh = np.where((sxx > 0) & (sff > 0), np.abs(sxf) ** 2 / (sxx * sff), np.nan)
-        nbin = 2 * (len(sxx) - 1)
-        omega = 2.0 * np.pi * np.arange(len(sxx)) / nbin     # rad/sample
-        phase = np.unwrap(np.nan_to_num(np.angle(h)))
-        delay = np.where(np.arange(len(sxx)) >= 2, -phase / np.where(omega > 0, omega, 1.0), np.nan)
+    delay = phase_delay_samples(h)
+    delay[:2] = np.nan
     return h, coh, delay
+
+
+def phase_delay_samples(h):
+    """-unwrap(arg H) / omega of a response ``h`` on the bins of an rfft
+    (omega = pi k / (n_bins - 1) rad/sample), in samples; NaN at DC."""
+    h = np.asarray(h)
+    omega = np.pi * np.arange(len(h)) / max(1, len(h) - 1)
+    phase = np.unwrap(np.nan_to_num(np.angle(h)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(omega > 0, -phase / np.where(omega > 0, omega, 1.0), np.nan)
 
 
 def sos_response(sos, freq_hz, sample_rate_hz):
@@ -302,8 +311,7 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
             kept.append(k)
     peaks = []
     for k in kept[:max_peaks]:
-        lo, hi = max(0, k - half_width_bins), min(nb, k + half_width_bins + 1)
-        excess = float(np.sum(np.maximum(p[lo:hi] - floor[lo:hi], 0.0)) * df)
+        excess = excess_power(p, floor, k, df, half_width_bins)
         fk = f[k]
         if 0 < k < nb - 1 and p[k - 1] > 0 and p[k + 1] > 0:
             a, b, c = np.log(p[k - 1]), np.log(p[k]), np.log(p[k + 1])
@@ -313,6 +321,93 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
         peaks.append({"freq_hz": float(fk), "bin": k, "amplitude_rms": math.sqrt(excess),
                       "ratio_db": float(10.0 * math.log10(ratio[k]))})
     return peaks
+
+
+def excess_power(psd, floor, k, resolution_hz, half_width_bins=PEAK_HALF_WIDTH_BINS):
+    """Power (unit**2) of ``psd`` above ``floor`` within ``half_width_bins`` of bin ``k``:
+    the square of a peak's rms amplitude."""
+    lo, hi = max(0, k - half_width_bins), min(len(psd), k + half_width_bins + 1)
+    return float(np.sum(np.maximum(np.asarray(psd)[lo:hi] - np.asarray(floor)[lo:hi], 0.0)) * resolution_hz)
+
+
+def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable=None,
+            min_freq_hz=0.0, min_ratio=2.0, max_peaks=8, false_alarm=FALSE_ALARM, sos=None):
+    """The spectrum view of a raw/filtered record pair (``(n, m)`` arrays, one
+    column per axis), or None when no session holds a segment.
+
+    Welch segments (:func:`choose_nperseg`) over the usable samples (``usable``:
+    bool per sample, default all finite) within sessions; the filter's response
+    over those after each session's first ``skip_samples``. Returns a dict:
+    ``nperseg``, ``freq_hz``, ``starts`` (segment starts), ``response_segments``,
+    ``psd_raw``/``psd_filtered``/``floor_raw``/``floor_filtered`` (lists per
+    column), ``power_raw_sum`` (per-segment density summed over the columns: the
+    spectrogram's input), ``gain``/``coherence``/``delay_s`` (lists per column;
+    None when no segment follows the warm-up or the output equals the input),
+    ``peaks`` (per column, :func:`find_peaks` then :func:`group_harmonics`, each
+    with ``filtered_amplitude_rms`` at the same bins, ``filter_gain`` and
+    ``phase_delay_s`` there), ``filtered_is_raw``, and with ``sos`` (second-order
+    sections of a linear filter) ``computed_gain`` and ``computed_delay_s``."""
+    x = np.asarray(raw, dtype=np.float64)
+    y = np.asarray(filtered, dtype=np.float64)
+    if x.ndim == 1:
+        x, y = x[:, None], y[:, None]
+    n = len(x)
+    if usable is None:
+        usable = np.isfinite(x).all(axis=1) & np.isfinite(y).all(axis=1)
+    runs = sessions(n, restarts, 0, usable)
+    nper = choose_nperseg([b - a for a, b in runs], sample_rate_hz)
+    if nper is None:
+        return None
+    starts = segments(runs, nper)
+    starts_h = segments(sessions(n, restarts, skip_samples, usable), nper)
+    freq = freq_hz(nper, sample_rate_hz)
+    df = float(freq[1])
+    scale = density_scale(nper, sample_rate_hz)
+    same = bool(np.array_equal(x[usable], y[usable]))
+    out = {"nperseg": nper, "freq_hz": freq, "starts": starts, "response_segments": len(starts_h),
+           "filtered_is_raw": same, "computed_gain": None, "computed_delay_s": None}
+    for key in ("psd_raw", "psd_filtered", "floor_raw", "floor_filtered", "gain", "coherence",
+                "delay_s", "peaks"):
+        out[key] = []
+    if sos is not None:
+        h_calc = sos_response(sos, freq, sample_rate_hz)
+        out["computed_gain"] = np.abs(h_calc)
+        out["computed_delay_s"] = phase_delay_samples(h_calc) / sample_rate_hz
+    power_sum = 0.0
+    for k in range(x.shape[1]):
+        X = segment_spectra(x[:, k], starts, nper)
+        pxx = np.abs(X) ** 2 * scale
+        psd_x = pxx.mean(axis=0)
+        psd_y = (np.abs(segment_spectra(y[:, k], starts, nper)) ** 2 * scale).mean(axis=0)
+        floor_x, floor_y = noise_floor(psd_x, len(starts)), noise_floor(psd_y, len(starts))
+        power_sum = power_sum + pxx
+        gain = coh = delay_s = None
+        if len(starts_h) and not same:
+            Xh = X if np.array_equal(starts_h, starts) else segment_spectra(x[:, k], starts_h, nper)
+            h, coh, delay = cross_response(Xh, segment_spectra(y[:, k], starts_h, nper))
+            gain, delay_s = np.abs(h), delay / sample_rate_hz
+        peaks = group_harmonics(find_peaks(freq, psd_x, len(starts), floor=floor_x, min_freq_hz=min_freq_hz,
+                                           false_alarm=false_alarm, min_ratio=min_ratio,
+                                           max_peaks=max_peaks), df)
+        for q in peaks:
+            b = q["bin"]
+            q["filtered_amplitude_rms"] = math.sqrt(excess_power(psd_y, floor_y, b, df))
+            q["filter_gain"] = None if gain is None else float(gain[b])
+            q["phase_delay_s"] = None if delay_s is None else float(delay_s[b])
+        for key, val in (("psd_raw", psd_x), ("psd_filtered", psd_y), ("floor_raw", floor_x),
+                         ("floor_filtered", floor_y), ("gain", gain), ("coherence", coh),
+                         ("delay_s", delay_s), ("peaks", peaks)):
+            out[key].append(val)
+    out["power_raw_sum"] = power_sum
+    return out
+
+
+def minus3db_bin(freq_hz, gain):
+    """The first bin (above 0 Hz) where ``gain`` is below 1/sqrt(2), or None."""
+    f = np.asarray(freq_hz)
+    g = np.asarray(gain, dtype=np.float64)
+    below = np.flatnonzero((f > 0) & np.isfinite(g) & (g < 1.0 / math.sqrt(2.0)))
+    return int(below[0]) if len(below) else None
 
 
 def group_harmonics(peaks, resolution_hz, max_harmonic=5, rel_tol=0.01):

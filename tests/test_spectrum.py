@@ -188,6 +188,12 @@ def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
     fx = spec["filter"]["x"]
     assert fx["measured"] and abs(fx["minus3db_hz"] - fx["computed_minus3db_hz"]) <= df
     assert abs(fx["computed_minus3db_hz"] - 60.0) <= df
+    # the text summary names the line and its harmonic, and says when an axis has none
+    from bridge.spectra import summary_lines
+    lines = summary_lines(spec)
+    assert lines[0].startswith(f"x: vibration {px[0]['freq_hz']:.3g} Hz, 0.71 deg/s rms, harmonics "
+                               f"{px[1]['freq_hz']:.3g} Hz, filter gain ")
+    assert lines[1:] == ["y, z: no vibration peak (none >= 5 Hz stands 6.02 dB above the noise floor)"]
     png = tmp_path / "out" / "tones.spectrum.png"
     assert s["spectrum_plot"] == str(png)
     _assert_png_drawn(png)
