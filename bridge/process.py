@@ -204,11 +204,14 @@ class Plotter:
             if job is None:
                 break
 
-    def plot(self, path, title, t, x, f, restarts, unit, axes, spectrum=None):
-        """The PNG of one stream; ``spectrum``: (path, title, [(stream, plot data)]),
-        the spectrum PNG of a log (:func:`bridge.spectra.draw_log_spectrum`) instead."""
-        job = ((spectrum[0], None, None, None, None, spectrum) if spectrum is not None else
-               (path, title, _plot_data(t, x, f, restarts), unit, axes))
+    def plot(self, path, title, t, x, f, restarts, unit, axes):
+        self._submit((path, title, _plot_data(t, x, f, restarts), unit, axes))
+
+    def plot_spectrum(self, path, title, items):
+        """The spectrum PNG of a log: [(stream name, plot data)] (:mod:`bridge.spectra`)."""
+        self._submit((path, None, None, None, None, (path, title, items)))
+
+    def _submit(self, job):
         if not self.procs:
             _draw(*job)
         else:
@@ -454,19 +457,18 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
     for s in streams:
         x, f, unit, rate = s._work
         jt = joined_time(s.time_s, s.restarts)
+        if plotter is not None:                  # queued first: the helper draws while we go on
+            s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
+            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label})",
+                         jt, x, f, s.restarts, unit, s.axes)
         usable = (np.isfinite(x) & np.isfinite(f) & (np.abs(x) <= ABSURD_WORK)).all(axis=1)
         s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
                                                  getattr(s, "warmup_samples", 0), jt, usable)
         if spec_plot is not None:
             spec_items.append((s.name, spec_plot))
             s._spectrum_png = spec_png if plotter is not None else None
-        if plotter is not None:
-            s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
-            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label})",
-                         jt, x, f, s.restarts, unit, s.axes)
     if plotter is not None and spec_items:
-        plotter.plot(None, None, None, None, None, None, None, None,
-                     spectrum=(spec_png, f"{path.name}: spectrum ({engine} {label})", spec_items))
+        plotter.plot_spectrum(spec_png, f"{path.name}: spectrum ({engine} {label})", spec_items)
     if kind == "dataflash":
         out_log.write_bytes(dataflash.patch(data, sc, streams))
     elif kind == "tlog":
