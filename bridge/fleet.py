@@ -83,13 +83,16 @@ def vibration_peak(stream_report):
     if not q:
         return None
     return {"axis": q["axis"], "freq_hz": q["freq_hz"], "amplitude_rms": q["amplitude_rms"],
-            "unit": spec.get("unit"), "harmonics_hz": list(q.get("harmonics_hz") or [])}
+            "unit": spec.get("unit"), "harmonics_hz": list(q.get("harmonics_hz") or []),
+            "present_in_segments": q.get("present_in_segments")}
 
 
 def _peak_text(p):
     if not p:
         return ""
     text = f"{p['axis']} {p['freq_hz']:.3g} Hz, {p['amplitude_rms']:.2g} {p['unit']} rms"
+    if p.get("present_in_segments") is not None:
+        text += f" (in {100 * p['present_in_segments']:.0f} % of segments)"
     if p["harmonics_hz"]:
         text += ", harmonics " + ", ".join(f"{h:.3g}" for h in p["harmonics_hz"]) + " Hz"
     return text

@@ -191,8 +191,9 @@ def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
     # the text summary names the line and its harmonic, and says when an axis has none
     from bridge.spectra import summary_lines
     lines = summary_lines(spec)
-    assert lines[0].startswith(f"x: vibration {px[0]['freq_hz']:.3g} Hz, 0.71 deg/s rms, harmonics "
-                               f"{px[1]['freq_hz']:.3g} Hz, filter gain ")
+    assert px[0]["present_in_segments"] == 1.0 and px[1]["present_in_segments"] == 1.0   # all along
+    assert lines[0].startswith(f"x: vibration {px[0]['freq_hz']:.3g} Hz, 0.71 deg/s rms (in 100 % of "
+                               f"segments), harmonics {px[1]['freq_hz']:.3g} Hz, filter gain ")
     assert lines[1:] == ["y, z: no vibration peak (none >= 5 Hz stands 6.02 dB above the noise floor)"]
     png = tmp_path / "out" / "tones.spectrum.png"
     assert s["spectrum_plot"] == str(png)
@@ -207,7 +208,7 @@ def _assert_png_drawn(path, min_height=300):
     assert float(img[..., :3].std()) > 0.05             # not a blank canvas
 
 
-PEAK_FIELDS = {"freq_hz", "amplitude_rms", "amplitude_deg_s_rms", "harmonic_of_hz", "harmonic_n",
+PEAK_FIELDS = {"freq_hz", "amplitude_rms", "amplitude_deg_s_rms", "harmonic_of_hz", "harmonic_n", "present_in_segments",
                "harmonics_hz", "filter_gain", "phase_delay_s", "filtered_amplitude_rms"}
 
 
@@ -282,3 +283,31 @@ def test_fleet_report_lists_each_logs_dominant_vibration_peak(tmp_path):
             if dp:
                 assert row["vibration_peak"]["freq_hz"] == dp["freq_hz"]
     assert sum("no vibration peak" not in x for x in section.splitlines() if x.startswith("- ")) >= 1
+
+
+def test_presence_tells_a_line_all_along_from_one_loud_burst():
+    """20 sessions of 1024 samples (a batch sampler's bursts) at 2 kHz: a 300 Hz
+    line in every session, a 120 Hz one only in the last (20x louder, so that
+    Welch's mean shows both as peaks): the line is present in >= 90 % of the
+    segments, the burst in no more than its own share (3 segments of 57) + 1 %."""
+    fs, n_burst, n_sess = 2000.0, 1024, 20
+    rng = np.random.default_rng(21)
+    t = np.arange(n_burst * n_sess) / fs
+    x = rng.normal(0, 0.05, len(t)) + 0.05 * np.sin(2 * np.pi * 300.0 * t)
+    last = slice((n_sess - 1) * n_burst, None)
+    x[last] += 1.0 * np.sin(2 * np.pi * 120.0 * t[last])
+    restarts = np.arange(len(t)) % n_burst == 0
+    an = sp.analyse(x, x, fs, restarts, min_freq_hz=5.0, min_ratio=4.0)
+    peaks = {round(q["freq_hz"] / 10) * 10: q for q in an["peaks"][0]}
+    assert set(peaks) == {120, 300}
+    n_seg = len(an["starts"])
+    assert peaks[300]["present_in_segments"] >= 0.9
+    assert peaks[120]["present_in_segments"] <= 3 / n_seg + 0.01
+    # white noise alone: a bin group exceeds twice the floor in ~9.5 % of the segments (3 seeds: 9.3-9.5 %)
+    y = rng.normal(size=(200 * 512))
+    nper = 512
+    starts = sp.segments([(0, len(y))], nper)
+    seg = np.abs(sp.segment_spectra(y, starts, nper)) ** 2 * sp.density_scale(nper, fs)
+    floor = sp.noise_floor(seg.mean(axis=0), len(starts))
+    share = np.mean([sp.presence(seg, floor, k) for k in range(10, 250, 7)])
+    assert 0.07 <= share <= 0.12
