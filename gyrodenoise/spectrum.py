@@ -18,12 +18,14 @@ s, frequencies in Hz.
 * :func:`sos_response` -- the computed response of second-order sections
   (the core's Butterworth low-pass).
 * :func:`analyse` -- all of it for a raw/filtered record pair, per axis.
-* :func:`noise_floor` -- running median of the PSD, corrected for the bias of
-  the median of a chi-square variable: robust to the peaks themselves.
-* :func:`find_peaks` -- local maxima above the floor by a threshold set from
-  the estimate's chi-square distribution for a chosen false-alarm probability
-  per spectrum (:func:`peak_threshold`), and at least ``min_ratio``; amplitude
-  = rms of the excess over the floor across the window's main lobe.
+* :func:`noise_floor` -- running median of the PSD over a width proportional
+  to the frequency (5..31 bins), corrected for the bias of the median of a
+  chi-square variable: robust to the peaks themselves, following a steep slope.
+* :func:`find_peaks` -- local maxima above the floor by a threshold set for a
+  chosen false-alarm probability per spectrum (:func:`peak_threshold`: a Welch
+  bin over its median floor treated as F-distributed), and at least
+  ``min_ratio``; amplitude = rms of the excess over the floor across the
+  window's main lobe.
 * :func:`presence` -- in what share of the segments a peak is there: a line
   all along, or one loud burst that dominates Welch's mean.
 * :func:`group_harmonics` -- a peak within tolerance of n x a lower peak
@@ -55,8 +57,10 @@ FALSE_ALARM = 0.01
 #: either side relative to the bin index (:func:`floor_window_bins`)
 FLOOR_WINDOW_BINS = 31
 FLOOR_REL_WIDTH = 0.5
-#: variance inflation of a sum of neighbouring Hann-window bins (their powers
-#: correlate: 1 + 2 x 0.25**2 ... of the adjacent-bin amplitude coherence 0.5)
+#: variance inflation of a median of neighbouring Hann-window bins (their powers
+#: correlate: 1 + 2 x 0.25**2 = 1.125 from the nearest neighbours' amplitude
+#: coherence 0.5, rounded up to 1.2 for the others): an approximation; the
+#: false-alarm rate it gives is measured in tests/test_spectrum.py
 HANN_BIN_CORR_FACTOR = 1.2
 
 
