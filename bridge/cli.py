@@ -506,6 +506,7 @@ def _filter_rate_text(s, summary):
 
 
 def _print_text(summary):
+    from .spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
         trunc = f", truncated ({r['truncated_bytes']} bytes cut)" if r.get("truncated") else ""
@@ -532,6 +533,8 @@ def _print_text(summary):
                           f"{'' if r['filter_options'].get('cutoff_hz') else ' (the default: min(20 Hz, rate / 4))'}\n")
             for a in s["noise"]:
                 out.write(_axis_line(s, a))
+            for line in summary_lines(s.get("spectrum")):
+                out.write(f"      {line}\n")
             for w in s.get("warnings", []):
                 out.write(f"    WARNING: {w}\n")
         for e in r["restarts"]:
