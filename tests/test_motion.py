@@ -147,3 +147,88 @@ def test_motion_reports_its_noise_estimates_and_no_ar_model():
     for v in z[:5000]:
         den.step(float(v))
     assert den.c == pytest.approx(3.0 * (1.0 - sum(den.phi)), abs=0.05)
+
+
+def _sine_gain(y, f_hz, fs, lo):
+    t = np.arange(y.size) / fs
+    X = np.column_stack([np.sin(2 * np.pi * f_hz * t), np.cos(2 * np.pi * f_hz * t), np.ones_like(t)])[lo:]
+    c = np.linalg.lstsq(X, y[lo:], rcond=None)[0]
+    return float(np.hypot(c[0], c[1]))
+
+
+@pytest.mark.parametrize("snr, fracs", [(10.0, (0.01, 0.05, 0.15, 0.25, 0.35, 0.45)),
+                                        (3.0, (0.01, 0.05, 0.15, 0.25))])
+def test_gain_of_a_sinusoid_within_5_percent(snr, fracs):
+    """Issue 23: a sinusoid standing snr sigma above white noise (1 kHz, sigma
+    0.35 deg/s, seeded) keeps its amplitude within 5 %, up to 0.45 fs at 10
+    sigma (the old 4th-difference noise level erased everything above fs/4).
+    At 3 sigma it holds to 0.25 fs only (0.88 at 0.35 fs, ~0 at 0.45 fs: a
+    constant-velocity model cannot tell such a tone from noise; see the README)."""
+    fs, sig, n = 1000.0, 0.35, 8000
+    rng = np.random.default_rng(11)
+    t = np.arange(n) / fs
+    for frac in fracs:
+        x = snr * sig * np.sin(2 * np.pi * frac * fs * t + 0.3)
+        y = gd.denoise(x + sig * rng.standard_normal(n), fs)
+        g = _sine_gain(y, frac * fs, fs, 2000) / (snr * sig)
+        assert abs(g - 1.0) <= 0.05, (frac, g)
+
+
+def test_a_lone_spike_is_not_held():
+    """Hand-made record: 1 deg/s at rest (sigma 0.05, 200 Hz, seeded), one
+    sample +25 deg/s. The output at the spike moves at most to it, the next
+    samples are back at the rate (within 5 sigma) -- nothing held."""
+    rng = np.random.default_rng(3)
+    fs, n, sig, i = 200.0, 4000, 0.05, 3000
+    z = 1.0 + sig * rng.standard_normal(n)
+    z[i] += 25.0
+    y = gd.denoise(z, fs)
+    assert abs(y[i] - y[i - 1]) <= abs(z[i] - y[i - 1]) + 1e-9
+    assert np.max(np.abs(y[i + 1:i + 6] - 1.0)) < 5.0 * sig, y[i - 1:i + 6]
+    # and the output stays inside the input's envelope (issue 12)
+    assert y.max() <= z.max() and y.min() >= z.min()
+
+
+def _log171_spikes():
+    """(stream, axis, z, y, i, height) for every lone spike of log171.bin: a sample
+    > 10 deg/s off the mean of its neighbours, which agree."""
+    from tests.conftest import shared_file
+    path = shared_file("logs", "log171.bin")
+    from bridge import dataflash
+    from bridge.streams import detect_restarts
+    for st in dataflash.read(path)[2]:
+        detect_restarts(st)
+        x, _, _ = st.work_units()
+        for k in range(3):
+            z = x[:, k]
+            y = gd.denoise(z, st.rate_hz, restarts=st.restarts)
+            dev = np.abs(z[1:-1] - 0.5 * (z[:-2] + z[2:]))
+            idx = np.where((dev > 10.0) & (np.abs(z[:-2] - z[2:]) < 0.3 * dev))[0] + 1
+            for i in idx[idx + 4 < z.size]:
+                yield st, k, z, y, int(i), float(dev[i - 1])
+
+
+def test_log171_a_spike_moves_the_output_at_most_by_itself():
+    """log171.bin (50 Hz, real flight; the issue: raw -3.3, output 11.1 after a
+    25.8 deg/s spike): at every lone spike the output moves at most to the
+    spike (+5 % of its height: the slope of the most likely filter may carry
+    it a hair beyond; measured up to 1.2 %)."""
+    n = 0
+    for st, k, z, y, i, h in _log171_spikes():
+        assert abs(y[i] - y[i - 1]) <= abs(z[i] - y[i - 1]) + 0.05 * h, (st.name, k, i)
+        n += 1
+    assert n >= 10
+
+
+@pytest.mark.xfail(strict=True, reason="known (issue 23): in calm phases the bank restarts its slow filters "
+                   "from the one that followed the spike; after 3 samples up to 60 % of the spike remains "
+                   "(95th percentile 15 %), after 10 samples up to 46 % (95th percentile 5 %)")
+def test_log171_a_spike_is_gone_within_3_samples():
+    """Against the same record with the spike replaced by the mean of its
+    neighbours (the counterfactual): 3 samples on, the outputs agree within
+    10 % of the spike height."""
+    for st, k, z, y, i, h in _log171_spikes():
+        zc = z.copy()
+        zc[i] = 0.5 * (z[i - 1] + z[i + 1])
+        yc = gd.denoise(zc, st.rate_hz, restarts=st.restarts)
+        assert abs(y[i + 3] - yc[i + 3]) <= 0.1 * h, (st.name, k, i)
