@@ -439,12 +439,13 @@ void gd_motion_params(double *p, double fs)
     const double lmin = -10.0, lmax = 2.0;
     int i;
     p[P_MO_NF] = (double)nf;
-    p[P_MO_FADE] = exp(-1.0 / (1.0 * fs));
+    p[P_MO_FADE] = exp(-1.0 / (3.0 * fs));
     p[P_MO_BR] = 1.0 - 1.0 / (10.0 * fs);
     p[P_MO_RESET] = 20.0;
     p[P_MO_NLAG] = 6.0;
     p[P_MO_HUBER] = 4.0;
-    p[P_MO_KAPPA] = 1.0 / (3.0 * fs);
+    p[P_MO_KAPPA] = 1.0 / (30.0 * fs);
+    p[P_MO_CLIP2] = 4.0 * 4.0;
     for (i = 0; i < 3 * MO_MAX_NF; i++)
         p[P_MO_G + i] = 0.0;
     for (i = 0; i < nf; i++) {
@@ -459,13 +460,41 @@ void gd_motion_params(double *p, double fs)
     }
 }
 
+/* kernels.exp_neg: exp(x) for x <= 0 (0 below -30), same operations */
+KERNEL double exp_neg_(double x)
+{
+    double u, e;
+    if (x < -30.0)
+        return 0.0;
+    u = x * 0.0078125;
+    e = 1.0 + u * (1.0 + u * (0.5 + u * (0.16666666666666666 + u * (0.041666666666666664
+        + u * (0.008333333333333333 + u * 0.001388888888888889)))));
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    return e;
+}
+
+/* kernels.log1m_small: -log(1 - g), series to g^8 for g <= 0.125 */
+KERNEL double log1m_small_(double g)
+{
+    if (g > 0.125)
+        return -log(1.0 - g);
+    return g * (1.0 + g * (0.5 + g * (0.3333333333333333 + g * (0.25 + g * (0.2 + g * (0.16666666666666666
+        + g * (0.14285714285714285 + g * 0.125)))))));
+}
+
 /* method="motion": the bank of constant-velocity Kalman filters weighted by
  * their faded likelihoods, the noise level from 4th differences at several
  * lags, restarts from the best filter, angle feedback (see kernels.py). */
-KERNEL double motion_step_(const double *p, double *s, double z)
+KERNEL double motion_step_(const double *restrict p, double *restrict s, double z)
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
-    double k = s[S_K], r, nw, gm0, gm1, lgm, fade, inv_r, lmax, num, den, y, thr, out;
+    double k = s[S_K], r, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
     int pos, i, j, best, c;
     long q, qb;
@@ -519,10 +548,11 @@ KERNEL double motion_step_(const double *p, double *s, double z)
     r = s[o + M_R];
     if (k < p[P_WARMUP] || r == 0.0) {
         for (i = 0; i < nf; i++) {
-            q = o + M_BANK + 3 * i;
+            q = o + M_BANK + 4 * i;
             s[q] = z;
             s[q + 1] = 0.0;
             s[q + 2] = 0.0;
+            s[q + 3] = 0.0;
         }
         return z;
     }
@@ -533,13 +563,14 @@ KERNEL double motion_step_(const double *p, double *s, double z)
     gm1 = 6.0 / (nw * (nw + 1.0));
     lgm = 0.0;
     if (gm0 < 1.0)
-        lgm = -log(1.0 - gm0);
+        lgm = log1m_small_(gm0);
     fade = p[P_MO_FADE];
     inv_r = 1.0 / r;
+    clip2 = p[P_MO_CLIP2];
     lmax = 0.0;
     best = 0;
     for (i = 0; i < nf; i++) {
-        double g0, g1, ls, wp, v, lk;
+        double g0, g1, ls, wp, v, lk, u2;
         c = P_MO_G + 3 * i;
         g0 = p[c];
         g1 = p[c + 1];
@@ -550,12 +581,15 @@ KERNEL double motion_step_(const double *p, double *s, double z)
             if (gm1 > g1)
                 g1 = gm1;
         }
-        q = o + M_BANK + 3 * i;
+        q = o + M_BANK + 4 * i;
         wp = s[q] + s[q + 1];
         v = z - wp;
+        u2 = v * v * (1.0 - g0) * inv_r;
+        lk = fade * s[q + 2] - 0.5 * (u2 + ls);
+        if (u2 > clip2 && i < nf - 1)
+            v = v * sqrt(clip2 / u2);
         s[q] = wp + g0 * v;
         s[q + 1] = s[q + 1] + g1 * v;
-        lk = fade * s[q + 2] - 0.5 * (v * v * (1.0 - g0) * inv_r + ls);
         s[q + 2] = lk;
         if (i == 0 || lk > lmax) {
             lmax = lk;
@@ -566,20 +600,25 @@ KERNEL double motion_step_(const double *p, double *s, double z)
     den = 0.0;
     for (i = 0; i < nf; i++) {
         double e;
-        q = o + M_BANK + 3 * i;
-        e = exp(s[q + 2] - lmax);
+        q = o + M_BANK + 4 * i;
+        e = exp_neg_(s[q + 2] - lmax);
         num += e * s[q];
         den += e;
     }
     y = num / den;
     thr = p[P_MO_RESET];
-    qb = o + M_BANK + 3 * best;
+    qb = o + M_BANK + 4 * best;
     for (i = 0; i < nf; i++) {
-        q = o + M_BANK + 3 * i;
+        q = o + M_BANK + 4 * i;
         if (s[q + 2] - lmax < -thr) {
-            s[q] = s[qb];
-            s[q + 1] = s[qb + 1];
+            if (s[q + 3] == 1.0) {
+                s[q] = s[qb];
+                s[q + 1] = s[qb + 1];
+            }
             s[q + 2] = lmax - thr;
+            s[q + 3] = 1.0;
+        } else {
+            s[q + 3] = 0.0;
         }
     }
     out = y + p[P_MO_KAPPA] * s[o + M_ANG];

@@ -52,7 +52,8 @@ extern "C" {
 #define P_MO_NLAG (P_MO_NF + 4)         /* motion: lags of the 4th differences */
 #define P_MO_HUBER (P_MO_NF + 5)        /* motion: clip of |4th difference| */
 #define P_MO_KAPPA (P_MO_NF + 6)        /* motion: angle feedback gain */
-#define P_MO_G (P_MO_NF + 7)            /* motion: (alpha, beta, log S/R) per filter */
+#define P_MO_CLIP2 (P_MO_NF + 7)        /* motion: Huber clip of the innovation, sigma^2 */
+#define P_MO_G (P_MO_NF + 8)            /* motion: (alpha, beta, log S/R) per filter */
 #define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
 #define N_PARAMS (P_MO_G + 3 * MO_MAX_NF)
@@ -100,7 +101,7 @@ extern "C" {
 #define M_MABS 6
 #define M_HIST (M_MABS + MO_MAX_NLAG)
 #define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1)
-#define N_EXT (M_BANK + 3 * MO_MAX_NF)
+#define N_EXT (M_BANK + 4 * MO_MAX_NF)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {

@@ -75,7 +75,8 @@ P_MO_RESET = P_MO_NF + 3         # motion: log-likelihood gap below the best at 
 P_MO_NLAG = P_MO_NF + 4          # motion: lags 1..NLAG of the 4th-difference noise estimates
 P_MO_HUBER = P_MO_NF + 5         # motion: Huber clip of |4th difference|, in units of its mean
 P_MO_KAPPA = P_MO_NF + 6         # motion: gain of the angle feedback per sample (0 = off)
-P_MO_G = P_MO_NF + 7             # motion: per filter (steady-state gain on rate, on slope, log S/R)
+P_MO_CLIP2 = P_MO_NF + 7         # motion: Huber clip of the innovation in the state updates, (sigmas)^2
+P_MO_G = P_MO_NF + 8             # motion: per filter (steady-state gain on rate, on slope, log S/R)
 MO_MAX_NF = 16
 MO_MAX_NLAG = 8
 N_PARAMS = P_MO_G + 3 * MO_MAX_NF
@@ -126,8 +127,8 @@ M_NW = 4         # samples filtered since the warm-up ended
 M_BEST = 5       # index of the most likely filter at the last sample
 M_MABS = 6       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
 M_HIST = M_MABS + MO_MAX_NLAG              # ring of the last 4 NLAG + 1 centred samples
-M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # per filter: rate, slope per sample, log-likelihood
-N_EXT = M_BANK + 3 * MO_MAX_NF
+M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # per filter: rate, slope per sample, log-likelihood, 1.0 if below the floor at the last sample
+N_EXT = M_BANK + 4 * MO_MAX_NF
 
 
 def layout(n):
@@ -276,7 +277,8 @@ def cv_gains(tracking_index):
 
 
 def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
-                  tau_l_s=1.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=3.0):
+                  tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
+                  clip_sigma=4.0):
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
@@ -289,12 +291,15 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     memory of the noise-level estimate; reset: log-likelihood gap below the
     best at which a filter restarts from the best (as an IMM mixes); n_lag:
     lags of the 4th-difference noise estimates; huber: their clip; tau_angle_s:
-    time constant of the angle feedback (0 = off)."""
+    time constant of the angle feedback (0 = off); clip_sigma: each filter
+    but the fastest updates its state with its innovation clipped at this many sigma (a lone
+    spike moves the filters that did not follow it by a negligible amount)."""
     fs = float(sample_rate_hz)
     if not 1 <= n_filters <= MO_MAX_NF or not 1 <= n_lag <= MO_MAX_NLAG:
         raise ValueError("motion: n_filters must be 1..%d and n_lag 1..%d" % (MO_MAX_NF, MO_MAX_NLAG))
     p = [float(n_filters), math.exp(-1.0 / (tau_l_s * fs)), 1.0 - 1.0 / (r_tau_s * fs), float(reset),
-         float(n_lag), float(huber), 1.0 / (tau_angle_s * fs) if tau_angle_s > 0 else 0.0]
+         float(n_lag), float(huber), 1.0 / (tau_angle_s * fs) if tau_angle_s > 0 else 0.0,
+         float(clip_sigma) * float(clip_sigma)]
     gains = [0.0] * (3 * MO_MAX_NF)
     for i in range(n_filters):
         e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
@@ -751,6 +756,32 @@ def lowpass_step(p, s, z):
     return y
 
 
+def exp_neg(x):
+    """exp(x) for x <= 0, relative error < 2e-6 (0.0 below -30): the Taylor
+    polynomial of degree 6 at x / 128, squared 7 times. The weights of the
+    motion bank need no more, and gdcore.c repeats these operations, so C and
+    Python agree bit for bit without depending on libm's exp (and it is 3x
+    cheaper)."""
+    if x < -30.0:
+        return 0.0
+    u = x * 0.0078125
+    e = 1.0 + u * (1.0 + u * (0.5 + u * (0.16666666666666666 + u * (0.041666666666666664
+        + u * (0.008333333333333333 + u * 0.001388888888888889)))))
+    for _ in range(7):
+        e = e * e
+    return e
+
+
+def log1m_small(g):
+    """-log(1 - g) for 0 <= g <= 0.125 by its series to g^8 (error < 1e-9
+    relative), with math.log above: the log-likelihood penalty of the
+    growing-memory gain, one per sample (gdcore.c repeats these operations)."""
+    if g > 0.125:
+        return -math.log(1.0 - g)
+    return g * (1.0 + g * (0.5 + g * (0.3333333333333333 + g * (0.25 + g * (0.2 + g * (0.16666666666666666
+        + g * (0.14285714285714285 + g * 0.125)))))))
+
+
 def motion_step(p, s, z):
     """``method="motion"``: one centred sample ``z`` through a bank of
     constant-velocity Kalman filters weighted by their likelihoods (not in the
@@ -777,11 +808,18 @@ def motion_step(p, s, z):
       slowest filters average from the first sample instead of waiting for
       their Riccati equation).
     * Log-likelihood of each filter, faded: L = f L - (v^2 / S + log S/R) / 2,
-      S = R / (1 - g0). The output is the likelihood-weighted mean of the
-      rates (weights exp(L - L_max)).
-    * A filter whose L falls ``reset`` below the best restarts from the best
-      filter's state (the mixing of an IMM): after a manoeuvre the slow
-      filters resume averaging where the motion ended, not where they lagged.
+      S = R / (1 - g0). The state update uses the innovation clipped at
+      ``clip`` sigma (Huber), except in the fastest filter: a filter does not
+      chase a jump, it loses likelihood and is restarted from the one that
+      followed it (below). The output is the likelihood-weighted mean of the
+      rates (weights exp(L - L_max), by :func:`exp_neg`).
+    * A filter whose L falls ``reset`` below the best is held there (L
+      floored), and if it was already there at the last sample it restarts
+      from the best filter's state (the mixing of an IMM): after a manoeuvre
+      the slow filters resume averaging where the motion ended, not where
+      they lagged. Waiting one sample keeps a lone spike from being copied
+      into every filter: the filters that ignored it win again at the next
+      sample.
     * Angle feedback: the output is corrected by kappa times the integral of
       (input - output), so over a record the output integrates to the same
       angle as the input (a lagging filter otherwise loses lag x rate change).
@@ -844,10 +882,11 @@ def motion_step(p, s, z):
     nf = int(p[P_MO_NF])
     if k < p[P_WARMUP] or r == 0.0:
         for i in range(nf):
-            q = o + M_BANK + 3 * i
+            q = o + M_BANK + 4 * i
             s[q] = z
             s[q + 1] = 0.0
             s[q + 2] = 0.0
+            s[q + 3] = 0.0
         return z
     s[S_CONV] = 1.0
     nw = s[o + M_NW] + 1.0
@@ -857,9 +896,10 @@ def motion_step(p, s, z):
     gm1 = 6.0 / (nw * (nw + 1.0))
     lgm = 0.0
     if gm0 < 1.0:
-        lgm = -math.log(1.0 - gm0)
+        lgm = log1m_small(gm0)
     fade = p[P_MO_FADE]
     inv_r = 1.0 / r
+    clip2 = p[P_MO_CLIP2]
     lmax = 0.0
     best = 0
     for i in range(nf):
@@ -872,12 +912,15 @@ def motion_step(p, s, z):
             ls = lgm
             if gm1 > g1:
                 g1 = gm1
-        q = o + M_BANK + 3 * i
+        q = o + M_BANK + 4 * i
         wp = s[q] + s[q + 1]
         v = z - wp
+        u2 = v * v * (1.0 - g0) * inv_r                 # v^2 / S
+        lk = fade * s[q + 2] - 0.5 * (u2 + ls)
+        if u2 > clip2 and i < nf - 1:
+            v = v * math.sqrt(clip2 / u2)                # Huber: the update sees at most clip sigma
         s[q] = wp + g0 * v
         s[q + 1] = s[q + 1] + g1 * v
-        lk = fade * s[q + 2] - 0.5 * (v * v * (1.0 - g0) * inv_r + ls)
         s[q + 2] = lk
         if i == 0 or lk > lmax:
             lmax = lk
@@ -885,19 +928,23 @@ def motion_step(p, s, z):
     num = 0.0
     den = 0.0
     for i in range(nf):
-        q = o + M_BANK + 3 * i
-        e = math.exp(s[q + 2] - lmax)
+        q = o + M_BANK + 4 * i
+        e = exp_neg(s[q + 2] - lmax)
         num += e * s[q]
         den += e
     y = num / den
     thr = p[P_MO_RESET]
-    qb = o + M_BANK + 3 * best
+    qb = o + M_BANK + 4 * best
     for i in range(nf):
-        q = o + M_BANK + 3 * i
+        q = o + M_BANK + 4 * i
         if s[q + 2] - lmax < -thr:
-            s[q] = s[qb]
-            s[q + 1] = s[qb + 1]
+            if s[q + 3] == 1.0:
+                s[q] = s[qb]
+                s[q + 1] = s[qb + 1]
             s[q + 2] = lmax - thr
+            s[q + 3] = 1.0
+        else:
+            s[q + 3] = 0.0
     out = y + p[P_MO_KAPPA] * s[o + M_ANG]
     s[o + M_ANG] += z - out
     c = P_MO_G + 3 * best
