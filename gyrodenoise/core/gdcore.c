@@ -460,15 +460,15 @@ void gd_motion_params(double *p, double fs)
     }
 }
 
-/* kernels.exp_neg: exp(x) for x <= 0 (0 below -30), same operations */
+/* kernels.exp_neg: exp(x) for -30 <= x <= 0 (0 below), same operations: 8 squarings */
 KERNEL double exp_neg_(double x)
 {
     double u, e;
     if (x < -30.0)
         return 0.0;
-    u = x * 0.0078125;
-    e = 1.0 + u * (1.0 + u * (0.5 + u * (0.16666666666666666 + u * (0.041666666666666664
-        + u * (0.008333333333333333 + u * 0.001388888888888889)))));
+    u = x * 0.00390625;
+    e = 1.0 + u * (1.0 + u * 0.5);
+    e = e * e;
     e = e * e;
     e = e * e;
     e = e * e;
@@ -598,19 +598,13 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     }
     num = 0.0;
     den = 0.0;
-    for (i = 0; i < nf; i++) {
-        double e;
-        q = o + M_BANK + 4 * i;
-        e = exp_neg_(s[q + 2] - lmax);
-        num += e * s[q];
-        den += e;
-    }
-    y = num / den;
     thr = p[P_MO_RESET];
     qb = o + M_BANK + 4 * best;
     for (i = 0; i < nf; i++) {
+        double x;
         q = o + M_BANK + 4 * i;
-        if (s[q + 2] - lmax < -thr) {
+        x = s[q + 2] - lmax;
+        if (x < -thr) {
             if (s[q + 3] == 1.0) {
                 s[q] = s[qb];
                 s[q + 1] = s[qb + 1];
@@ -618,9 +612,13 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             s[q + 2] = lmax - thr;
             s[q + 3] = 1.0;
         } else {
+            double e = exp_neg_(x);
+            num += e * s[q];
+            den += e;
             s[q + 3] = 0.0;
         }
     }
+    y = num / den;
     out = y + p[P_MO_KAPPA] * s[o + M_ANG];
     s[o + M_ANG] += z - out;
     c = P_MO_G + 3 * best;
