@@ -91,3 +91,43 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, compil
         else:
             extra[i] = (st[K.S_INNOV], st[K.S_R], st[K.S_CONV], st[K.S_RLS_ERR])
     return out, np.asarray(st, dtype=np.float64), extra
+
+
+def run_offline(p, z, restarts=None, *, compiled=True):
+    """Whole-record (non-causal) filtering with ``method="motion"``: no lag.
+
+    Each run of samples between restarts is filtered forwards and, from a
+    fresh state, backwards in time (the same causal core on the reversed
+    samples); the output is the mean of the two, which cancels the lag of
+    each (a forward filter lags, the backward one leads by as much). Where one
+    of the two is still in its warm-up (the raw sample, the first
+    ``P_WARMUP`` samples of its direction) the other is used alone. Measured
+    against tuned filters in benchmarks/tuned.py (issue 23, item 3). The
+    output stays inside [min, max] of the raw samples of its run.
+
+    Returns the filtered rate (deg/s), an ndarray like ``z``.
+    """
+    if p[K.P_METHOD] != K.METHOD_MOTION:
+        raise ValueError("offline filtering is defined for method='motion' only")
+    za = np.ascontiguousarray(z, dtype=np.float64)
+    n = za.shape[0]
+    starts = [0]
+    if restarts is not None:
+        ra = np.asarray(restarts, dtype=bool)
+        if ra.shape != za.shape:
+            raise ValueError("restarts must have the same length as the samples")
+        starts += [int(i) for i in np.flatnonzero(ra) if i > 0]
+    bounds = starts + [n]
+    out = np.empty_like(za)
+    warm = int(p[K.P_WARMUP])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        seg = za[a:b]
+        fwd, _ = run(p, K.init_state(p), seg, compiled=compiled)
+        bwd, _ = run(p, K.init_state(p), seg[::-1].copy(), compiled=compiled)
+        bwd = bwd[::-1]
+        y = 0.5 * (fwd + bwd)
+        m = min(warm, seg.shape[0])
+        y[:m] = bwd[:m]                       # the forward pass is warming up there
+        y[seg.shape[0] - m:] = fwd[seg.shape[0] - m:]   # and the backward one here
+        out[a:b] = y
+    return out
