@@ -42,6 +42,10 @@ SENSORS = {"FOG": ("paper_fog", 200.0, 5.0), "MEMS": ("icm20602", 1000.0, 20.0)}
 LONG = ("at_rest", "constant")            # long enough for averaging to matter
 SKIP_S = 2.0
 SPECIALISTS = ["raw", "lp20", "bw30", "kf", "shakf"]
+SUPERSEDED = ("> **Fixed specialists only (issue 23).** The ratios below are against *fixed* filters "
+              "(a 20 Hz first-order low-pass, a 30 Hz Butterworth, kf, shakf), not against filters tuned per "
+              "run: for that, see docs/tuned/report.md (`python benchmarks/tuned.py`) and, on real motion, "
+              "docs/real_motion/report.md.")
 LABEL = {"raw": "raw", "lp20": "1st-order LP 20 Hz", "bw30": "Butterworth-2 30 Hz",
          "kf": "kf (AR(3), gated)", "shakf": "shakf (paper + gate)", "motion": "motion"}
 
@@ -233,6 +237,7 @@ def geomean(v):
 
 def report(R, bw, real, meths, profiles, args, elapsed):
     L = ["# Motion benchmark: RMSE against the true rate, ratio to the best specialist", "",
+         SUPERSEDED, "",
          f"Command: `python benchmarks/motion.py{' --quick' if args.quick else ''} --seed {args.seed}`"
          f" ({elapsed:.0f} s). Specialists: {', '.join(SPECIALISTS)}; ratio 1.0 = the best of them.", ""]
     for sensor in SENSORS:

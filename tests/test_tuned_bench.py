@@ -120,25 +120,37 @@ def test_one_euro_matches_slow_reference_and_grid_scores():
     assert score == pytest.approx(bench.rmse(out, rec.ref, 100, rec.z.size), rel=1e-9)
 
 
-def test_cv_kalman_matches_filterpy():
+def _filterpy_cv(z, fs, lam):
+    """The CV model run by filterpy (independent reference): the filter and its moments."""
     filterpy = pytest.importorskip("filterpy.kalman")
-    fs, lam = 400.0, 1e-3
     T = 1 / fs
-    rec = sim.record("drone", "pendulum", 0, 1.0)
     kf = filterpy.KalmanFilter(dim_x=2, dim_z=1)
-    kf.x = np.array([rec.z[0], 0.0])
+    kf.x = np.array([z[0], 0.0])
     kf.F = np.array([[1, T], [0, 1]])
     kf.H = np.array([[1.0, 0.0]])
     kf.R = np.array([[1.0]])
-    q = lam ** 2 / T ** 4
-    kf.Q = q * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
+    kf.Q = lam ** 2 / T ** 4 * np.array([[T ** 4 / 4, T ** 3 / 2], [T ** 3 / 2, T ** 2]])
     kf.P = np.diag([1.0, 1.0 / T ** 2])
-    ref = [rec.z[0]]
-    for zk in rec.z[1:]:
+    xs, ps = [kf.x.copy()], [kf.P.copy()]
+    for zk in z[1:]:
         kf.predict()
         kf.update(zk)
-        ref.append(kf.x[0])
-    assert np.allclose(B.cv_kf(rec.z, fs, lam), ref, rtol=0, atol=1e-9)
+        xs.append(kf.x.copy())
+        ps.append(kf.P.copy())
+    return kf, np.array(xs), np.array(ps)
+
+
+def test_cv_kalman_matches_filterpy():
+    rec = sim.record("drone", "pendulum", 0, 1.0)
+    _, xs, _ = _filterpy_cv(rec.z, 400.0, 1e-3)
+    assert np.allclose(B.cv_kf(rec.z, 400.0, 1e-3), xs[:, 0], rtol=0, atol=1e-9)
+
+
+def test_cv_rts_smoother_matches_filterpy():
+    rec = sim.record("fog", "pendulum", 0, 1.0)
+    kf, xs, ps = _filterpy_cv(rec.z, 200.0, 1e-4)
+    sm, _, _, _ = kf.rts_smoother(xs, ps)
+    assert np.allclose(B.cv_rts(rec.z, 200.0, 1e-4), sm[:, 0], rtol=0, atol=1e-9)
 
 
 def test_tuned_baselines_beat_fixed_ones():
@@ -199,3 +211,77 @@ def test_evaluate_api_and_goal_lines():
     got = {g: ok for _, g, _, ok in lines}
     assert got["never worse than raw (RMSE ratio to raw <= 1.00)"] == "PASS"
     assert got["at rest (static with bias ramp) >= 5x below raw"] == "FAIL"
+
+
+# ------------------------------------------------------------------ real motion (item 5)
+from sceptic import realmotion as RM  # noqa: E402
+
+from conftest import shared_file  # noqa: E402
+
+
+def test_window_integration_against_scipy_rotations():
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(6)
+    fs = 100.0
+    rate = rng.normal(0, 200.0, (300, 3))             # deg/s, large: the composition order matters
+    q = RM.integrate_windows(rate, fs, np.array([0, 50]), np.array([300, 120]))
+    for i, (a, b) in enumerate(((0, 300), (50, 120))):
+        r = Rotation.identity()
+        for w in rate[a:b]:
+            r = r * Rotation.from_rotvec(np.radians(w) / fs)     # body frame: right-multiply
+        xyzw = r.as_quat()
+        ref = np.r_[xyzw[3], xyzw[:3]]
+        assert RM.qangle_deg(RM.qmul(RM.qconj(q[i]), ref)) < 1e-9
+    # a constant rate about one axis: angle = rate x time
+    one = RM.integrate_windows(np.tile([0.0, 0.0, 30.0], (100, 1)), fs, [0], [100])
+    assert RM.qangle_deg(one)[0] == pytest.approx(30.0, rel=1e-12)
+
+
+def test_slerp_against_scipy():
+    from scipy.spatial.transform import Rotation, Slerp
+    rots = Rotation.from_rotvec([[0.1, 0.2, -0.3], [0.5, -0.4, 0.9]])
+    s = Slerp([0.0, 1.0], rots)(0.3).as_quat()
+    a, b = (np.r_[x[3], x[:3]] for x in rots.as_quat())
+    got = RM.qslerp(a[None], b[None], np.array([0.3]))[0]
+    assert RM.qangle_deg(RM.qmul(RM.qconj(got), np.r_[s[3], s[:3]])) < 1e-9
+
+
+def _broad(name="02_undisturbed_slow_rotation_B"):
+    pytest.importorskip("h5py")
+    return RM.load_broad(shared_file("motion", "broad", f"{name}.hdf5"))
+
+
+def test_broad_raw_error_small_and_delayed_copy_caught():
+    tr = RM.calibrate(_broad())
+    # the data README: gyro 1 sample behind the differentiated reference; we find 2.35 samples (8 ms)
+    assert tr.offset in (1, 2, 3) and abs(tr.frac) <= 0.5
+    raw = tr.rate_deg_s
+    e01 = RM.rms(RM.window_errors_deg(tr, raw, 0.1))
+    e1 = RM.rms(RM.window_errors_deg(tr, raw, 1.0))
+    assert e01 < 0.25 and e1 < 0.45           # measured 0.194 and 0.348 deg
+    # a copy delayed by 3 samples (10.5 ms) is 3x worse over both windows (measured 3.2x, 3.8x)
+    late = np.vstack([np.repeat(raw[:1], 3, 0), raw[:-3]])
+    assert RM.rms(RM.window_errors_deg(tr, late, 0.1)) > 2.5 * e01
+    assert RM.rms(RM.window_errors_deg(tr, late, 1.0)) > 2.5 * e1
+    # and calibrating on the delayed copy finds the 3 extra samples
+    tr2 = _broad()
+    tr2.rate_deg_s = late
+    RM.calibrate(tr2)
+    assert tr2.offset + tr2.frac == pytest.approx(tr.offset + tr.frac + 3, abs=0.06)
+
+
+def test_psins_mounting_estimate_matches_the_mat_file():
+    import scipy.io as sio
+    shared_file("motion", "psins_car", "transfer_align_mems_imu_100Hz.csv")
+    tr = RM.calibrate(RM.load_psins_car(shared_file("motion", "psins_car")))
+    mu0 = sio.loadmat(shared_file("motion", "psins_car", "transfer_align_fog_mems.mat"))["mu0"].ravel()
+    # the estimated mounting angle against the .mat's misalignment (0.31 deg): within 0.05 deg
+    assert RM.qangle_deg(tr.mounting) == pytest.approx(np.degrees(np.linalg.norm(mu0)), abs=0.05)
+    assert abs(tr.offset) <= 5
+    assert RM.rms(RM.window_errors_deg(tr, tr.rate_deg_s, 1.0)) < 0.03      # measured 0.012 deg
+
+
+def test_quadrotor_offset_in_the_documented_range():
+    tr = RM.calibrate(RM.load_quadrotor(shared_file("motion", "quadrotor_4imu", "path_4"), 1))
+    lag_s = (tr.offset + tr.frac) / tr.sample_rate_hz
+    assert 0.04 <= lag_s <= 0.45            # README: 0.06-0.42 s; measured 0.063 s

@@ -15,7 +15,9 @@ causal
     ``raw`` -- no filter (a user may choose none).
 non-causal (offline references)
     ``savgol`` -- Savitzky-Golay, polynomial order 2 or 4, over window lengths;
-    ``zp_butter`` -- zero-phase (forward-backward) Butterworth order 1-2 over the cutoffs.
+    ``zp_butter`` -- zero-phase (forward-backward) Butterworth order 1-2 over the cutoffs;
+    ``cv_rts`` -- the Rauch-Tung-Striebel smoother of the CV model over its tracking index;
+    ``raw``.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ def _njit(fn):
 
 
 CAUSAL = ("raw", "butter1", "butter2", "one_euro", "cv_kf")
-NONCAUSAL = ("raw", "savgol", "zp_butter")   # the identity is zero-phase too
+NONCAUSAL = ("raw", "savgol", "zp_butter", "cv_rts")   # the identity is zero-phase too
 
 
 def cutoff_grid_hz(fs, quick):
@@ -75,26 +77,6 @@ def butter(z, fs, order, cutoff_hz, zero_phase=False):
 
 # ------------------------------------------------------------------ 1-euro
 @_njit
-def _one_euro_grid(z, ref, fs, mins, betas, d_cutoff, lo, hi, out):
-    te = 1.0 / fs
-    ad = 1.0 / (1.0 + 1.0 / (2.0 * math.pi * d_cutoff * te))
-    for g in range(mins.size):
-        x = z[0]
-        dx = 0.0
-        acc = 0.0
-        for k in range(z.size):
-            if k > 0:
-                dx += ad * ((z[k] - z[k - 1]) * fs - dx)
-                fc = mins[g] + betas[g] * abs(dx)
-                a = 1.0 / (1.0 + 1.0 / (2.0 * math.pi * fc * te))
-                x += a * (z[k] - x)
-            if k >= lo and k < hi:
-                e = x - ref[k]
-                acc += e * e
-        out[g] = math.sqrt(acc / (hi - lo))
-
-
-@_njit
 def _one_euro(z, fs, min_cutoff, beta, d_cutoff, y):
     te = 1.0 / fs
     ad = 1.0 / (1.0 + 1.0 / (2.0 * math.pi * d_cutoff * te))
@@ -109,6 +91,23 @@ def _one_euro(z, fs, min_cutoff, beta, d_cutoff, y):
         y[k] = x
 
 
+@_njit
+def _rmse(y, ref, lo, hi):
+    acc = 0.0
+    for k in range(lo, hi):
+        e = y[k] - ref[k]
+        acc += e * e
+    return math.sqrt(acc / (hi - lo))
+
+
+@_njit
+def _one_euro_grid(z, ref, fs, mins, betas, d_cutoff, lo, hi, out):
+    y = np.empty(z.size)
+    for g in range(mins.size):
+        _one_euro(z, fs, mins[g], betas[g], d_cutoff, y)
+        out[g] = _rmse(y, ref, lo, hi)
+
+
 def one_euro(z, fs, min_cutoff_hz, beta, d_cutoff_hz=1.0):
     y = np.empty_like(z)
     _one_euro(np.ascontiguousarray(z, dtype=float), float(fs), float(min_cutoff_hz), float(beta),
@@ -116,12 +115,13 @@ def one_euro(z, fs, min_cutoff_hz, beta, d_cutoff_hz=1.0):
     return y
 
 
-# ------------------------------------------------------------------ constant-velocity KF
+# ------------------------------------------------------------------ constant-velocity KF and its smoother
 @_njit
-def _cv_kf_run(z, fs, lam, ref, lo, hi, y):
+def _cv_forward(z, fs, lam, xf, pf, xp, pp):
     """CV Kalman filter, R = 1 (only the ratio q/R matters), q = lam^2 / T^4 (Kalata's
     tracking index lam = sigma_w T^2 / sigma_v), discrete white-noise acceleration:
-    Q = q [[T^4/4, T^3/2], [T^3/2, T^2]]. Writes y if y.size, returns the RMSE on [lo, hi)."""
+    Q = q [[T^4/4, T^3/2], [T^3/2, T^2]]. Stores the filtered (xf, pf) and predicted
+    (xp, pp) moments; covariances as (p11, p12, p22)."""
     T = 1.0 / fs
     q = lam * lam / (T ** 4)
     q11 = q * T ** 4 / 4.0
@@ -132,7 +132,6 @@ def _cv_kf_run(z, fs, lam, ref, lo, hi, y):
     p11 = 1.0
     p12 = 0.0
     p22 = 1.0 / (T * T)
-    acc = 0.0
     for k in range(z.size):
         if k > 0:
             # predict
@@ -141,6 +140,12 @@ def _cv_kf_run(z, fs, lam, ref, lo, hi, y):
             n12 = p12 + T * p22 + q12
             n22 = p22 + q22
             p11, p12, p22 = n11, n12, n22
+        xp[k, 0] = x0
+        xp[k, 1] = x1
+        pp[k, 0] = p11
+        pp[k, 1] = p12
+        pp[k, 2] = p22
+        if k > 0:
             # update, R = 1
             s = p11 + 1.0
             k0 = p11 / s
@@ -151,26 +156,73 @@ def _cv_kf_run(z, fs, lam, ref, lo, hi, y):
             p22 = p22 - k1 * p12
             p12 = (1.0 - k0) * p12
             p11 = (1.0 - k0) * p11
-        if y.size:
-            y[k] = x0
-        if k >= lo and k < hi:
-            e = x0 - ref[k]
-            acc += e * e
-    return math.sqrt(acc / (hi - lo))
+        xf[k, 0] = x0
+        xf[k, 1] = x1
+        pf[k, 0] = p11
+        pf[k, 1] = p12
+        pf[k, 2] = p22
 
 
 @_njit
-def _cv_kf_grid(z, fs, lams, ref, lo, hi, out):
-    empty = np.empty(0)
+def _cv_run(z, fs, lam, smooth, y, xf, pf, xp, pp):
+    """Filtered (smooth False) or Rauch-Tung-Striebel smoothed rate into y: the
+    forward pass, then backwards x_s[k] = x_f[k] + C (x_s[k+1] - x_p[k+1]),
+    C = P_f[k] F' P_p[k+1]^-1."""
+    _cv_forward(z, fs, lam, xf, pf, xp, pp)
+    n = z.size
+    if not smooth:
+        for k in range(n):
+            y[k] = xf[k, 0]
+        return
+    T = 1.0 / fs
+    s0 = xf[n - 1, 0]
+    s1 = xf[n - 1, 1]
+    y[n - 1] = s0
+    for k in range(n - 2, -1, -1):
+        # P_f F' with F' = [[1, 0], [T, 1]]
+        a11 = pf[k, 0] + T * pf[k, 1]
+        a12 = pf[k, 1]
+        a21 = pf[k, 1] + T * pf[k, 2]
+        a22 = pf[k, 2]
+        det = pp[k + 1, 0] * pp[k + 1, 2] - pp[k + 1, 1] * pp[k + 1, 1]
+        i11 = pp[k + 1, 2] / det
+        i12 = -pp[k + 1, 1] / det
+        i22 = pp[k + 1, 0] / det
+        d0 = s0 - xp[k + 1, 0]
+        d1 = s1 - xp[k + 1, 1]
+        s0 = xf[k, 0] + (a11 * i11 + a12 * i12) * d0 + (a11 * i12 + a12 * i22) * d1
+        s1 = xf[k, 1] + (a21 * i11 + a22 * i12) * d0 + (a21 * i12 + a22 * i22) * d1
+        y[k] = s0
+
+
+@_njit
+def _cv_grid(z, fs, lams, smooth, ref, lo, hi, out):
+    n = z.size
+    y = np.empty(n)
+    xf, xp = np.empty((n, 2)), np.empty((n, 2))
+    pf, pp = np.empty((n, 3)), np.empty((n, 3))
     for g in range(lams.size):
-        out[g] = _cv_kf_run(z, fs, lams[g], ref, lo, hi, empty)
+        _cv_run(z, fs, lams[g], smooth, y, xf, pf, xp, pp)
+        out[g] = _rmse(y, ref, lo, hi)
+
+
+def _cv(z, fs, tracking_index, smooth):
+    z = np.ascontiguousarray(z, dtype=float)
+    n = z.size
+    y = np.empty(n)
+    _cv_run(z, float(fs), float(tracking_index), smooth, y, np.empty((n, 2)), np.empty((n, 3)),
+            np.empty((n, 2)), np.empty((n, 3)))
+    return y
 
 
 def cv_kf(z, fs, tracking_index):
-    y = np.empty_like(z)
-    z = np.ascontiguousarray(z, dtype=float)
-    _cv_kf_run(z, float(fs), float(tracking_index), z, 0, 1, y)
-    return y
+    """Constant-velocity Kalman filter (causal)."""
+    return _cv(z, fs, tracking_index, False)
+
+
+def cv_rts(z, fs, tracking_index):
+    """Rauch-Tung-Striebel smoother of the same model (offline)."""
+    return _cv(z, fs, tracking_index, True)
 
 
 # ------------------------------------------------------------------ Savitzky-Golay
@@ -212,12 +264,12 @@ def tune(family, z, ref, fs, lo, hi, quick=False):
         g = int(np.argmin(out))
         y = one_euro(z, fs, mins[g], betas[g])
         return {"min_cutoff_hz": float(mins[g]), "beta": float(betas[g])}, float(out[g]), y
-    if family == "cv_kf":
+    if family in ("cv_kf", "cv_rts"):
         lams = tracking_grid(quick)
         out = np.empty(lams.size)
-        _cv_kf_grid(z, float(fs), lams, ref, lo, hi, out)
+        _cv_grid(z, float(fs), lams, family == "cv_rts", ref, lo, hi, out)
         g = int(np.argmin(out))
-        return {"tracking_index": float(lams[g])}, float(out[g]), cv_kf(z, fs, lams[g])
+        return {"tracking_index": float(lams[g])}, float(out[g]), _cv(z, fs, lams[g], family == "cv_rts")
     if family == "savgol":
         best = (math.inf, None, None)
         for w, p in savgol_grid(fs, z.size, quick):

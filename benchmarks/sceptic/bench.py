@@ -59,6 +59,28 @@ def package_methods(names=("motion", "shakf", "kf", "lowpass", "none")):
     return {n: make(n) for n in names}
 
 
+def load_method(spec):
+    """{name: fn} for a gd.denoise method name or ``FILE.py:FUNCTION``; ValueError
+    (one line naming the option) when neither."""
+    import importlib.util
+    from pathlib import Path
+
+    from gyrodenoise.core import kernels as K
+    if ":" in spec and spec.split(":", 1)[0].endswith(".py"):
+        path, func = spec.split(":", 1)
+        if not Path(path).is_file():
+            raise ValueError(f"--method {spec}: no file {path}")
+        mod_spec = importlib.util.spec_from_file_location(Path(path).stem, path)
+        mod = importlib.util.module_from_spec(mod_spec)
+        mod_spec.loader.exec_module(mod)
+        if not callable(getattr(mod, func, None)):
+            raise ValueError(f"--method {spec}: {path} has no function {func}")
+        return {f"{Path(path).stem}:{func}": getattr(mod, func)}
+    if spec not in K.METHODS:
+        raise ValueError(f"--method {spec}: not a gd.denoise method ({', '.join(K.METHODS)}) nor FILE.py:FUNCTION")
+    return package_methods((spec,))
+
+
 def _as_methods(method_fn):
     if callable(method_fn):
         return {getattr(method_fn, "__name__", "method"): method_fn}

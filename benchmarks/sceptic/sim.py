@@ -81,7 +81,7 @@ SENSORS = {
     "drone": Sensor("drone", "drone MEMS 400 Hz (ICM-20602 class, 80 Hz frame vibration)", 400.0,
                     arw_deg_rt_h=0.24, bias_inst_deg_h=10.0, bias_corr_s=30.0,
                     rrw_deg_h_rt_h=10.0, turn_on_deg_s=1.0,
-                    temp_slope_deg_s_per_s=0.1 / 60.0, temp_tau_s=300.0,
+                    temp_slope_deg_s_per_s=0.03 / 60.0, temp_tau_s=300.0,
                     quant_rate_deg_s=1.0 / 16.4, vibration_deg_s=3.0, vibration_hz=80.0),
 }
 
