@@ -497,6 +497,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     double k = s[S_K], r, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
     int pos, i, j, best, c;
+    double wts[MO_MAX_NF];
     long q, qb;
     if (k == 0.0) {
         s[o + M_BK] = 1.0;
@@ -616,9 +617,27 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             num += e * s[q];
             den += e;
             s[q + 3] = 0.0;
+            wts[i] = e;
         }
     }
     y = num / den;
+    {
+        double var = 0.0;
+        for (i = 0; i < nf; i++) {
+            q = o + M_BANK + 4 * i;
+            if (s[q + 3] == 0.0) {
+                double g0 = p[P_MO_G + 3 * i], dw;
+                if (gm0 > g0)
+                    g0 = gm0;
+                dw = s[q] - y;
+                var += wts[i] * (g0 * r + dw * dw);
+            }
+        }
+        var = var / den;
+        if (!(var - var == 0.0))
+            var = 1.7976931348623157e308;
+        s[o + M_PVAR] = var;
+    }
     out = y + p[P_MO_KAPPA] * s[o + M_ANG];
     s[o + M_ANG] += z - out;
     c = P_MO_G + 3 * best;

@@ -98,7 +98,8 @@ extern "C" {
 #define M_ANG 3
 #define M_NW 4
 #define M_BEST 5
-#define M_MABS 6
+#define M_PVAR 6
+#define M_MABS 7
 #define M_HIST (M_MABS + MO_MAX_NLAG)
 #define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1)
 #define N_EXT (M_BANK + 4 * MO_MAX_NF)

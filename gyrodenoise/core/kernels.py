@@ -125,7 +125,8 @@ M_HPOS = 2       # position of the newest sample in the ring M_HIST
 M_ANG = 3        # angle feedback: integral of (input - output) since the restart, deg/s x samples
 M_NW = 4         # samples filtered since the warm-up ended
 M_BEST = 5       # index of the most likely filter at the last sample
-M_MABS = 6       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
+M_PVAR = 6       # variance of the output (the weighted mixture of the filters), (deg/s)^2
+M_MABS = 7       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
 M_HIST = M_MABS + MO_MAX_NLAG              # ring of the last 4 NLAG + 1 centred samples
 M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # per filter: rate, slope per sample, log-likelihood, 1.0 if below the floor at the last sample
 N_EXT = M_BANK + 4 * MO_MAX_NF
@@ -926,6 +927,7 @@ def motion_step(p, s, z):
             best = i
     num = 0.0
     den = 0.0
+    wts = [0.0] * nf
     thr = p[P_MO_RESET]
     qb = o + M_BANK + 4 * best
     for i in range(nf):
@@ -944,7 +946,23 @@ def motion_step(p, s, z):
             num += e * s[q]
             den += e
             s[q + 3] = 0.0
+            wts[i] = e
     y = num / den
+    # variance of the mixture: sum of w (g0 R + (rate - y)^2) / sum of w, the
+    # posterior variance of a Kalman filter's rate being g0 R
+    var = 0.0
+    for i in range(nf):
+        q = o + M_BANK + 4 * i
+        if s[q + 3] == 0.0:
+            g0 = p[P_MO_G + 3 * i]
+            if gm0 > g0:
+                g0 = gm0
+            dw = s[q] - y
+            var += wts[i] * (g0 * r + dw * dw)
+    var = var / den
+    if not var - var == 0.0:
+        var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
+    s[o + M_PVAR] = var
     out = y + p[P_MO_KAPPA] * s[o + M_ANG]
     s[o + M_ANG] += z - out
     c = P_MO_G + 3 * best
