@@ -126,6 +126,8 @@ def run_offline(p, z, restarts=None, *, compiled=True):
         starts += [int(i) for i in np.flatnonzero(ra) if i > 0]
     bounds = starts + [n]
     out = np.empty_like(za)
+    p = list(p)
+    p[K.P_MO_VAR] = 1.0          # keep the output variance (not computed by the causal filter)
     warm = int(p[K.P_WARMUP])
     for a, b in zip(bounds[:-1], bounds[1:]):
         seg = za[a:b]

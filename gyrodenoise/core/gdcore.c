@@ -446,6 +446,7 @@ void gd_motion_params(double *p, double fs)
     p[P_MO_HUBER] = 4.0;
     p[P_MO_KAPPA] = 1.0 / (30.0 * fs);
     p[P_MO_CLIP2] = 4.0 * 4.0;
+    p[P_MO_VAR] = 0.0;
     for (i = 0; i < 3 * MO_MAX_NF; i++)
         p[P_MO_G + i] = 0.0;
     for (i = 0; i < nf; i++) {
@@ -621,7 +622,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         }
     }
     y = num / den;
-    {
+    if (p[P_MO_VAR] != 0.0) {
         double var = 0.0;
         for (i = 0; i < nf; i++) {
             q = o + M_BANK + 4 * i;

@@ -53,7 +53,8 @@ extern "C" {
 #define P_MO_HUBER (P_MO_NF + 5)        /* motion: clip of |4th difference| */
 #define P_MO_KAPPA (P_MO_NF + 6)        /* motion: angle feedback gain */
 #define P_MO_CLIP2 (P_MO_NF + 7)        /* motion: Huber clip of the innovation, sigma^2 */
-#define P_MO_G (P_MO_NF + 8)            /* motion: (alpha, beta, log S/R) per filter */
+#define P_MO_VAR (P_MO_NF + 8)         /* motion: 1 = keep the output variance M_PVAR */
+#define P_MO_G (P_MO_NF + 9)            /* motion: (alpha, beta, log S/R) per filter */
 #define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
 #define N_PARAMS (P_MO_G + 3 * MO_MAX_NF)

@@ -76,7 +76,8 @@ P_MO_NLAG = P_MO_NF + 4          # motion: lags 1..NLAG of the 4th-difference no
 P_MO_HUBER = P_MO_NF + 5         # motion: Huber clip of |4th difference|, in units of its mean
 P_MO_KAPPA = P_MO_NF + 6         # motion: gain of the angle feedback per sample (0 = off)
 P_MO_CLIP2 = P_MO_NF + 7         # motion: Huber clip of the innovation in the state updates, (sigmas)^2
-P_MO_G = P_MO_NF + 8             # motion: per filter (steady-state gain on rate, on slope, log S/R)
+P_MO_VAR = P_MO_NF + 8           # motion: 1.0 = also keep the output variance M_PVAR (batch.run_offline), 0.0 = not
+P_MO_G = P_MO_NF + 9             # motion: per filter (steady-state gain on rate, on slope, log S/R)
 MO_MAX_NF = 16
 MO_MAX_NLAG = 8
 N_PARAMS = P_MO_G + 3 * MO_MAX_NF
@@ -300,7 +301,7 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
         raise ValueError("motion: n_filters must be 1..%d and n_lag 1..%d" % (MO_MAX_NF, MO_MAX_NLAG))
     p = [float(n_filters), math.exp(-1.0 / (tau_l_s * fs)), 1.0 - 1.0 / (r_tau_s * fs), float(reset),
          float(n_lag), float(huber), 1.0 / (tau_angle_s * fs) if tau_angle_s > 0 else 0.0,
-         float(clip_sigma) * float(clip_sigma)]
+         float(clip_sigma) * float(clip_sigma), 0.0]
     gains = [0.0] * (3 * MO_MAX_NF)
     for i in range(n_filters):
         e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
@@ -950,19 +951,20 @@ def motion_step(p, s, z):
     y = num / den
     # variance of the mixture: sum of w (g0 R + (rate - y)^2) / sum of w, the
     # posterior variance of a Kalman filter's rate being g0 R
-    var = 0.0
-    for i in range(nf):
-        q = o + M_BANK + 4 * i
-        if s[q + 3] == 0.0:
-            g0 = p[P_MO_G + 3 * i]
-            if gm0 > g0:
-                g0 = gm0
-            dw = s[q] - y
-            var += wts[i] * (g0 * r + dw * dw)
-    var = var / den
-    if not var - var == 0.0:
-        var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
-    s[o + M_PVAR] = var
+    if p[P_MO_VAR] != 0.0:
+        var = 0.0
+        for i in range(nf):
+            q = o + M_BANK + 4 * i
+            if s[q + 3] == 0.0:
+                g0 = p[P_MO_G + 3 * i]
+                if gm0 > g0:
+                    g0 = gm0
+                dw = s[q] - y
+                var += wts[i] * (g0 * r + dw * dw)
+        var = var / den
+        if not var - var == 0.0:
+            var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
+        s[o + M_PVAR] = var
     out = y + p[P_MO_KAPPA] * s[o + M_ANG]
     s[o + M_ANG] += z - out
     c = P_MO_G + 3 * best
