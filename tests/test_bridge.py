@@ -586,7 +586,9 @@ def test_batch_sampler_bursts_parsed_filtered_and_written_back(tmp_path):
                      axis=1) / R2D
         expected = np.clip(np.rint(f * mul), -32768, 32767)
         assert np.abs(v2 - expected).max() <= 1 and np.mean(v2 != expected) < 1e-3
-    assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.2
+    # the filter did run (the default motion bank follows these 2 kHz bursts closely: 2.2 % of
+    # the integer samples change; the issue-12 filter changed > 20 %)
+    assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.01
 
 
 def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):

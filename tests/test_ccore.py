@@ -202,12 +202,13 @@ def test_rare_paths():
         p = K.make_params(2, method, sample_rate_hz=FS, b=0.01, gamma=50.0)
         _, s = check_against_python(p, white[:400], [False] * 400)
         assert s[K.S_BK] == 0.0
-    # motion: the correlation clip and the lower bound of log q
+    # motion: a constant input (R at its floor), the Huber clip of the noise
+    # estimates, filters restarted from the best (a step) and the growing memory
     p = params("motion", 1, 0.0, 1.0)
-    p[K.P_MO_CLIP] = 0.3
-    p[K.P_MO_LQMIN] = -16.0
-    z = white[:700] + [10.0 * v for v in white[700:]]
+    z = [2.0] * 300 + white[:700] + [50.0 + 10.0 * v for v in white[700:]]
     _, s = check_against_python(p, z, [False] * len(z))
+    o = K.layout(1)[6] - K.N_EXT
+    assert s[o + K.M_R] > K.make_params(1, "motion")[K.P_R_FLOOR]
     # the centred sample itself overflows (z - z_ref = inf): every method heals
     for method in sorted(K.METHODS):
         z = [-1e308, 1e308, 1.0, 2.0] + white[:100] + [1.5e308, -1.5e308] + white[:50]
@@ -376,3 +377,15 @@ def test_step_accepts_numpy_and_ints():
         b = C.step(np.asarray(p), sn, zi, np.bool_(i == 2))
         assert a == b
     assert list(sa) == sn.tolist()
+
+
+def test_motion_params_of_the_native_fmu_equal_python():
+    """gd_motion_params (C, used by the native FMU) writes the same floats as
+    kernels.motion_params (bit for bit) at several sample rates."""
+    import ctypes
+    lib = ctypes.CDLL(C.__file__)
+    for fs in (50.0, 200.0, 400.0, 1000.0, 8000.0):
+        buf = (ctypes.c_double * K.N_PARAMS)()
+        lib.gd_motion_params(buf, ctypes.c_double(fs))
+        ref = K.make_params(3, "motion", sample_rate_hz=fs)
+        assert list(buf)[K.P_MO_NF:] == ref[K.P_MO_NF:], fs
