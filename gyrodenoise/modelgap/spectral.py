@@ -32,6 +32,10 @@ import numpy as np
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
 N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
 MIN_BUMP_BINS = 16    # a bump spans at least this many Welch bins (narrower: a spectral line)
+WIDEN = 2.0           # a bump is widened while its PSD stays above WIDEN x its far-side floor
+MIN_LINE_BINS = 6     # a line wandering in frequency spans at least this many Welch bins
+LINE_RATIO = 3.0      # ... standing LINE_RATIO x above the PSD's running median
+LINE_WINDOW_HZ = 2.0  # ... taken over this many Hz
 
 
 def psd_two_sided(name, f, fs, tau_s=None):
@@ -139,6 +143,7 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
     nper = welch_nperseg(y.shape[0])
     f, p = welch(y, fs=fs, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
     f, p = f[1:], p[1:]
+    lines, p = wandering_lines(f, p)
     edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
                         int(math.ceil(math.log10(f[-1] / f[0]) * per_decade)) + 1)
     idx = np.searchsorted(f, edges)
@@ -164,12 +169,12 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
             # widen while the PSD stays above twice its floor on the far side
             while i > 0:
                 left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
-                if not len(left) or pv[i - 1] <= 2.0 * left.min():
+                if not len(left) or pv[i - 1] <= WIDEN * left.min():
                     break
                 i -= 1
             while j + 1 < len(bands):
                 right = pv[(fc > fc[j + 1]) & (fc <= fc[j + 1] * span)]
-                if not len(right) or pv[j + 1] <= 2.0 * right.min():
+                if not len(right) or pv[j + 1] <= WIDEN * right.min():
                     break
                 j += 1
             lo = bands[max(i - 1, 0)][0]
@@ -178,11 +183,46 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
                 i = j + 1      # a narrow line: a sinusoid's business, not a band to take out
                 continue
             peak = float(np.max(pv[i:j + 1] / np.maximum(side[i:j + 1], 1e-300)))
+            # base motion down to DC: when every band below the bump stays above
+            # WIDEN x the floor on the bump's upper side (the sensor's own level),
+            # nothing below the bump is the sensor's (its terms give a PSD that is
+            # flat, falling, or rising like f^2 from far below that floor)
+            up = pv[(fc > hi) & (fc <= hi * span)]
+            below = pv[fc < lo]
+            if len(up) and len(below) and below.min() > WIDEN * up.min():
+                lo = float(f[0])
             out.append((float(lo), float(hi), peak))
             i = j + 1
         else:
             i += 1
-    return out
+    return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
+
+
+def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
+    """Lines too wide for one sinusoid: runs spanning at least :data:`MIN_LINE_BINS`
+    Welch bins (gaps of up to 3 bins bridged) that stand more than ``ratio`` times
+    above the running median of the PSD over ``window_hz``. A sinusoid stays within
+    the Hann main lobe (4 bins; about 3 above 3x for a line 15x its floor); a line
+    whose frequency wanders (a ring-laser gyro's dither, aliased; a motor whose
+    speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
+    segments a noise bin 3x above the median is ~13 standard deviations off.
+    Returns ([(lo_hz, hi_hz, peak_ratio)] widened by 2 bins on either side, the
+    PSD with those bins replaced by the running median)."""
+    from scipy.ndimage import median_filter
+    df = float(f[1] - f[0])
+    w = max(int(round(window_hz / df)) | 1, 8 * MIN_LINE_BINS + 1)
+    floor = median_filter(p, size=w, mode="nearest")
+    idx = np.flatnonzero(p > ratio * floor)
+    out, clean = [], p.copy()
+    if not len(idx):
+        return out, clean
+    for r in np.split(idx, np.flatnonzero(np.diff(idx) > 4) + 1):
+        if r[-1] - r[0] + 1 < MIN_LINE_BINS:
+            continue
+        a, b = max(r[0] - 2, 0), min(r[-1] + 2, len(f) - 1)
+        out.append((float(f[a]), float(f[b]), float(np.max(p[r] / floor[r]))))
+        clean[a:b + 1] = floor[a:b + 1]
+    return out, clean
 
 
 # ------------------------------------------------------------------ the joint fit
