@@ -268,6 +268,49 @@ def test_allan_curve_of_known_terms_is_fitted_back(tmp_path):
     assert inside(curve, mean).all(), (mean / curve.adev_deg_s)
 
 
+def test_line_allan_columns_match_a_sampled_sinusoid():
+    """The Allan variance of a sampled sinusoid (amplitude 2, 23.3 Hz, 1 kHz, 200,000
+    samples, phase 0.3 rad; computed by gyrodenoise.allanvar.adev) equals amplitude^2 x
+    line_allan_columns at m = 1..128 to 1e-4 (the record holds 4660 whole-ish cycles)."""
+    from gyrodenoise.allanvar import adev
+    from gyrodenoise.modelgap.spectral import line_allan_columns
+    fs, n, f0, amp = 1000.0, 200000, 23.3, 2.0
+    y = amp * np.sin(2 * np.pi * f0 * np.arange(n) / fs + 0.3)
+    m = 2 ** np.arange(0, 8)
+    ad = adev(y, fs, m=m)[1]
+    np.testing.assert_allclose(ad ** 2, amp ** 2 * line_allan_columns([f0], m, fs)[:, 0], rtol=1e-4)
+
+
+def test_allan_curve_with_a_line_gets_one_sinusoid(tmp_path):
+    """A curve made from the exact Allan variance of N = 0.003 deg/sqrt(h) and a 3 deg/h
+    line at 157 Hz (1 kHz, 1e6 samples: the KVH 1750 case), 95 % bounds of such an
+    estimate: the fit without lines (MAX_LINES = 0) is outside the bounds somewhere, the
+    fit with them adds ONE sinusoid and its exact curve is inside at every tau."""
+    from gyrodenoise.modelgap import curve as cv
+    from gyrodenoise.modelgap.spectral import card_allan_variance, line_allan_columns
+    fs, n = 1000.0, 1000000
+    m = 2 ** np.arange(1, 18)
+    tau = m / fs
+    N, A = 0.003 / 60.0, 3.0 / 3600.0
+    av = allan_columns([("angle_random_walk", None)], m, fs)[:, 0] * N * N + A * A * line_allan_columns([157.0], m, fs)[:, 0]
+    ad = np.sqrt(av)
+    half = 1.96 / np.sqrt(2.0 * (n / m - 1.0))
+    p = tmp_path / "c.csv"
+    _write_curve(p, tau, ad * 3600, ad * 3600 * (1 - half), ad * 3600 * (1 + half))
+    curve = cv.read_allan_curve(p, unit="deg/h", sample_rate_hz=fs, n_samples=n)
+    terms, model = cv.fit_curve(curve)
+    assert len(terms["sinusoid"]) == 1, terms["sinusoid"]
+    card = parse_card(cv.card_from_terms(EMPTY.replace("100.0", "1000.0"), terms, "test"))
+    assert cv.inside(curve, np.sqrt(card_allan_variance(card, m, fs))).all()
+    old = cv.MAX_LINES
+    try:
+        cv.MAX_LINES = 0
+        terms0, model0 = cv.fit_curve(curve)
+    finally:
+        cv.MAX_LINES = old
+    assert not terms0["sinusoid"] and not cv.inside(curve, model0).all()
+
+
 @pytest.mark.parametrize("card,sensor,unit", [("imar_fog", "IMAR", "rad/s"), ("kvh1750", "KVH 1750 IMU", "deg/s"),
                                               ("ln200", "LN200", "rad/s")])
 def test_shipped_card_against_its_published_curve(card, sensor, unit):
@@ -279,12 +322,11 @@ def test_shipped_card_against_its_published_curve(card, sensor, unit):
     import re
 
     from gyrodenoise.modelgap.curve import inside, read_allan_curve
-    from gyrodenoise.modelgap.spectral import stochastic_specs
+    from gyrodenoise.modelgap.spectral import card_allan_variance
     c = parse_card((REPO / "models" / f"{card}.toml").read_text())
     curve = read_allan_curve(shared_file(*CURVES), sensor, "Gyro. X", unit)
-    specs, coef = stochastic_specs(c)
     m = np.round(curve.tau_s * curve.sample_rate_hz).astype(np.int64)
-    model = np.sqrt(allan_columns(specs, m, curve.sample_rate_hz) @ coef)
+    model = np.sqrt(card_allan_variance(c, m, curve.sample_rate_hz))
     ok = inside(curve, model)
     mo = re.search(r"outside the published bounds at tau ([0-9., ]+) s", c.text)
     listed = [float(t) for t in mo.group(1).split(",")] if mo else []
