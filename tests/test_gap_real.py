@@ -268,6 +268,31 @@ def test_allan_curve_of_known_terms_is_fitted_back(tmp_path):
     assert inside(curve, mean).all(), (mean / curve.adev_deg_s)
 
 
+def test_angle_gauss_markov_and_output_lowpass_columns_against_simulation():
+    """Two exact columns the card does not use yet (evidence for a simulator term,
+    benchmarks/allan_proposed_terms.py), checked against numpy simulations (seeded,
+    400,000 samples at 100 Hz, 6 % at m = 1..256, the Allan estimate's own error there
+    being <= 2 %): a Gauss-Markov ANGLE (std 1e-4 deg, tau 0.05 s) differenced / T,
+    and white rate noise through the first-order low-pass y_k = a y_(k-1) + (1 - a) x_k
+    at 10 Hz (scipy.signal.lfilter)."""
+    from scipy.signal import lfilter
+
+    from gyrodenoise.allanvar import adev
+    rng = np.random.default_rng(5)
+    fs, n, sig, tc = 100.0, 400000, 1e-4, 0.05
+    m = 2 ** np.arange(0, 9)
+    a = math.exp(-1.0 / (fs * tc))
+    th = lfilter([sig * math.sqrt(1 - a * a)], [1.0, -a], rng.standard_normal(n + 1))
+    y = np.diff(th) * fs
+    exact = allan_columns([("angle_gauss_markov", tc)], m, fs)[:, 0] * sig * sig
+    np.testing.assert_allclose(adev(y, fs, m=m)[1] ** 2, exact, rtol=0.06)
+    w = rng.standard_normal(n)
+    al = math.exp(-2.0 * math.pi * 10.0 / fs)
+    yl = lfilter([1.0 - al], [1.0, -al], w)
+    exact = allan_columns([("angle_random_walk", None)], m, fs, (), 10.0)[:, 0] / fs   # white of variance 1
+    np.testing.assert_allclose(adev(yl, fs, m=m)[1] ** 2, exact, rtol=0.06)
+
+
 def test_line_allan_columns_match_a_sampled_sinusoid():
     """The Allan variance of a sampled sinusoid (amplitude 2, 23.3 Hz, 1 kHz, 200,000
     samples, phase 0.3 rad; computed by gyrodenoise.allanvar.adev) equals amplitude^2 x
