@@ -35,6 +35,7 @@ MIN_BUMP_BINS = 16    # a bump spans at least this many Welch bins (narrower: a 
 WIDEN = 2.0           # a bump is widened while its PSD stays above WIDEN x its far-side floor
 MIN_LINE_BINS = 6     # a line wandering in frequency spans at least this many Welch bins
 LINE_RATIO = 3.0      # ... standing LINE_RATIO x above the PSD's running median
+LINE_BRIDGE_BINS = 8  # ... its runs joined across gaps of up to this many bins
 LINE_WINDOW_HZ = 2.0  # ... taken over this many Hz
 
 
@@ -215,7 +216,7 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
 
 def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     """Lines too wide for one sinusoid: runs spanning at least :data:`MIN_LINE_BINS`
-    Welch bins (gaps of up to 3 bins bridged) that stand more than ``ratio`` times
+    Welch bins (gaps of up to LINE_BRIDGE_BINS bins bridged) that stand more than ``ratio`` times
     above the running median of the PSD over ``window_hz``. A sinusoid stays within
     the Hann main lobe (4 bins; about 3 above 3x for a line 15x its floor); a line
     whose frequency wanders (a ring-laser gyro's dither, aliased; a motor whose
@@ -231,7 +232,7 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     out, clean = [], p.copy()
     if not len(idx):
         return out, clean
-    for r in np.split(idx, np.flatnonzero(np.diff(idx) > 4) + 1):
+    for r in np.split(idx, np.flatnonzero(np.diff(idx) > LINE_BRIDGE_BINS + 1) + 1):
         if r[-1] - r[0] + 1 < MIN_LINE_BINS:
             continue
         a, b = max(r[0] - 2, 0), min(r[-1] + 2, len(f) - 1)
