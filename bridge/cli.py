@@ -471,7 +471,8 @@ def _pct(v):
 
 
 def _lag(v):
-    return "-" if v is None else f"{1000.0 * v:.0f} ms"
+    # round() to an int: a lag of -0.2 ms reads "0 ms", not "-0 ms" (the offline form's lags)
+    return "-" if v is None else f"{round(1000.0 * v)} ms"
 
 
 def _axis_line(s, a):

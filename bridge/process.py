@@ -532,7 +532,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
         finally:
             eng.close()
         rep.update(_write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv,
-                                  engine, method, ar_order, log, filter_kw=filter_kw, **ctx))
+                                  engine, method, ar_order, log, filter_kw=filter_kw, form=rep["form"], **ctx))
         done = True
     finally:
         if plotter is not None:
@@ -562,7 +562,7 @@ def filter_form(eng, engine):
 
 
 def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine, method,
-                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None, filter_kw=None):
+                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None, filter_kw=None, form=None):
     from .spectra import stream_spectrum
     rep = {}
     out_dir = Path(out_dir)
@@ -570,6 +570,8 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
     stem = out_stem or path.stem
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
     label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+    if form == "offline":                       # the plots name the form, as the summary does
+        label += ", offline"
     spec_items = []
     spec_png = out_dir / f"{stem}.spectrum.png"
     for s in streams:

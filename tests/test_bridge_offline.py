@@ -89,6 +89,7 @@ def test_file_mode_offline_by_default_causal_on_request(tmp_path, causal):
     status, text, _ = _main(path, "-o", tmp_path / "t", "--no-plots", "--no-csv", *opts)
     assert status == 0
     assert ("method motion; causal:" if causal else "method motion; offline: whole record") in text
+    assert " lag -0 ms" not in text                 # a lag of -0.2 ms reads 0 ms
 
 
 def test_offline_output_stays_inside_each_sessions_raw_range(tmp_path):
