@@ -351,7 +351,7 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
             else:
                 s.non_finite[k] = len(fin)
         s.filtered = f * back
-        s.left_raw = check_filtered(s, x, f, usable, causal=not getattr(engine, "zero_phase", False))
+        s.left_raw = check_filtered(s, x, f, usable, causal=getattr(engine, "causal", True))
         if s.left_raw:
             f = x.copy()
             s.filtered = s.raw.astype(np.float64)          # the raw values, bit for bit
@@ -470,8 +470,15 @@ def _hz(v):
 def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
-                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False):
+                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False, causal=False):
     """Process one log file; return its report (a JSON-able dict).
+
+    The form of the filter (``rep["form"]``): a whole log is filtered offline by
+    default where the engine and method have an offline form (the native engine
+    with ``method="motion"``: forwards and backwards per session, no lag;
+    ``zero_phase`` for the low-pass); ``causal=True`` gives the causal filter
+    (``Denoiser``, as a live link, ``Denoiser.step`` and the FMUs run it). The FMU
+    engine is always causal.
 
     Raises InputError (one line naming the file) for a file that cannot be
     used: unknown type, unreadable, or without a gyro stream.
@@ -517,13 +524,15 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                        truncation="message cut by the end of the file" if cut > 0 else None)
         if not streams:
             raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
-        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase)
+        offline = engine == "native" and method == "motion" and not causal
+        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase, offline)
+        rep.update(filter_form(eng, engine))
         try:
             _filter_streams(streams, eng, gap_factor, sample_rate)
         finally:
             eng.close()
         rep.update(_write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv,
-                                  engine, method, ar_order, log, filter_kw=filter_kw, **ctx))
+                                  engine, method, ar_order, log, filter_kw=filter_kw, form=rep["form"], **ctx))
         done = True
     finally:
         if plotter is not None:
@@ -540,8 +549,20 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     return rep
 
 
+def filter_form(eng, engine):
+    """{"form": "offline" | "causal", "form_note": what it means} of an engine."""
+    if not eng.causal:
+        how = ("forwards then backwards, each session on its own (zero phase)" if getattr(eng, "zero_phase", False)
+               else "forward and backward runs blended, each session on its own (no lag)")
+        return {"form": "offline", "form_note": f"whole record: {how}"}
+    if engine == "fmu":
+        return {"form": "causal", "form_note": "the FMU filters one sample per step (causal only)"}
+    return {"form": "causal", "form_note": "each output from the samples up to it (as live links, "
+                                           "Denoiser.step and the FMUs)"}
+
+
 def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine, method,
-                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None, filter_kw=None):
+                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None, filter_kw=None, form=None):
     from .spectra import stream_spectrum
     rep = {}
     out_dir = Path(out_dir)
@@ -549,6 +570,8 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
     stem = out_stem or path.stem
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
     label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+    if form == "offline":                       # the plots name the form, as the summary does
+        label += ", offline"
     spec_items = []
     spec_png = out_dir / f"{stem}.spectrum.png"
     for s in streams:

@@ -256,6 +256,34 @@ def test_bit_identical(method):
         assert out == ref_out and s == ref_s
 
 
+@pytest.mark.parametrize("method", ["motion", "shakf"])
+def test_traced_run_equals_python_sample_by_sample(method):
+    """C.run(..., trace_index, trace) (gd_run_trace, the offline form's forward and
+    backward runs of batch.run_offline): every output, every traced state value
+    (the motion bank's output variance M_PVAR, kept when P_MO_VAR is set) and the
+    final state bit for bit equal to the plain-Python kernels stepped one sample
+    at a time; with and without restarts."""
+    p = K.make_params(3, method, sample_rate_hz=FS)
+    p[K.P_MO_VAR] = 1.0
+    ti = K.layout(3)[6] - K.N_EXT + K.M_PVAR if method == "motion" else K.S_R
+    z, r = mixed_record(7, n_each=150)
+    for rs in (r, [False] * len(z)):
+        s = K.init_state(p)
+        ref_out, ref_tr = [], []
+        for zi, ri in zip(z, rs):
+            ref_out.append(K.step(p, s, zi, ri))
+            ref_tr.append(s[ti])
+        sa = np.array(K.init_state(p))
+        out, tr = np.empty(len(z)), np.empty(len(z))
+        C.run(np.asarray(p), sa, np.asarray(z), np.asarray(rs, dtype=np.bool_), out, ti, tr)
+        assert out.tolist() == ref_out and tr.tolist() == ref_tr and sa.tolist() == s
+        assert len(set(ref_tr)) > 10                  # the traced value moves (not a constant)
+    with pytest.raises(ValueError, match="trace_index"):
+        C.run(np.asarray(p), sa, np.asarray(z), None, out, len(sa), tr)
+    with pytest.raises(ValueError, match="trace has"):
+        C.run(np.asarray(p), sa, np.asarray(z), None, out, ti, np.empty(3))
+
+
 def test_run_without_restarts_and_numpy_state():
     p = params("shakf", 3, 5.0, 1.0)
     z, _ = hostile("ar", 500, random.Random(2))

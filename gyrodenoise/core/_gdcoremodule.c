@@ -143,20 +143,27 @@ static PyObject *mod_step(PyObject *self, PyObject *const *args, Py_ssize_t narg
 }
 
 PyDoc_STRVAR(run_doc,
-"run(p, s, z, restarts, out) -> None\n\n"
+"run(p, s, z, restarts, out[, trace_index, trace]) -> None\n\n"
 "The batch loop (kernels.step over z): out[i] = step(p, s, z[i], restarts[i]).\n"
 "z and out are float64 buffers of one length, restarts a bool/uint8 buffer of\n"
-"that length or None; s is updated in place. Releases the GIL.");
+"that length or None; s is updated in place. With trace_index and trace (a\n"
+"float64 buffer of that length): trace[i] = s[trace_index] after sample i.\n"
+"Releases the GIL.");
 
 static PyObject *mod_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    Py_buffer pb, sb, zb, rb, ob;
+    Py_buffer pb, sb, zb, rb, ob, tb;
     const unsigned char *r = NULL;
     int have_r = 0;
-    Py_ssize_t n;
+    Py_ssize_t n, ti = -1;
     (void)self;
-    if (!nargs_ok("run", nargs, 5))
+    if (nargs != 7 && !nargs_ok("run", nargs, 5))
         return NULL;
+    if (nargs == 7) {
+        ti = PyLong_AsSsize_t(args[5]);
+        if (ti == -1 && PyErr_Occurred())
+            return NULL;
+    }
     if (get_ps(args[0], args[1], &pb, &sb) < 0)
         return NULL;
     if (get_f64(args[2], &zb, 0, "z") < 0)
@@ -184,10 +191,34 @@ static PyObject *mod_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs
         PyBuffer_Release(&ob);
         goto fail_r;
     }
-    Py_BEGIN_ALLOW_THREADS
-    gd_run((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf, r,
-           (double *)ob.buf, (long)n);
-    Py_END_ALLOW_THREADS
+    if (nargs == 7) {
+        if (ti < 0 || ti >= sb.len / 8) {
+            PyErr_Format(PyExc_ValueError, "trace_index %zd is outside the state (%zd values)", ti,
+                         sb.len / 8);
+            PyBuffer_Release(&ob);
+            goto fail_r;
+        }
+        if (get_f64(args[6], &tb, 1, "trace") < 0) {
+            PyBuffer_Release(&ob);
+            goto fail_r;
+        }
+        if (tb.len / 8 != n) {
+            PyErr_Format(PyExc_ValueError, "trace has %zd items, z has %zd", tb.len / 8, n);
+            PyBuffer_Release(&tb);
+            PyBuffer_Release(&ob);
+            goto fail_r;
+        }
+        Py_BEGIN_ALLOW_THREADS
+        gd_run_trace((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf, r,
+                     (double *)ob.buf, (long)n, (long)ti, (double *)tb.buf);
+        Py_END_ALLOW_THREADS
+        PyBuffer_Release(&tb);
+    } else {
+        Py_BEGIN_ALLOW_THREADS
+        gd_run((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf, r,
+               (double *)ob.buf, (long)n);
+        Py_END_ALLOW_THREADS
+    }
     PyBuffer_Release(&ob);
     if (have_r)
         PyBuffer_Release(&rb);

@@ -79,6 +79,10 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, trace_
             raise ValueError("restarts must have the same length as the samples")
     out = np.empty_like(za)
     use_c = compiled and C is not None
+    if use_c and trace_index is not None and not (diagnostics or record_theta):
+        trace = np.empty_like(za)           # the C loop records it (gd_run_trace)
+        C.run(pa, sa, za, ra, out, int(trace_index), trace)
+        return out, sa, trace
     if not (diagnostics or record_theta or trace_index is not None):
         if use_c:
             C.run(pa, sa, za, ra, out)

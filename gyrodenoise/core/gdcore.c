@@ -1314,6 +1314,19 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
             out[i] = step_(p, s, z[i], restarts[i] != 0);
 }
 
+/* gd_run that also records s[trace_index] after each sample into trace[i]
+ * (e.g. the output variance of the motion bank for the offline form,
+ * batch.run_offline); the same step_ as gd_run's generic loop. */
+void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
+                  double *out, long n, long trace_index, double *trace)
+{
+    long i;
+    for (i = 0; i < n; i++) {
+        out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0);
+        trace[i] = s[trace_index];
+    }
+}
+
 /* ------------------------------------------------------------------------
  * The public names. The kernels above are static so that the compiler may
  * inline them into step_ and gd_run (exported functions in a -fPIC shared

@@ -139,6 +139,9 @@ double gd_step(const double *p, double *s, double z, int is_restart);
 /* the batch loop: out[i] = gd_step(p, s, z[i], restarts[i]) (restarts may be NULL) */
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
             double *out, long n);
+/* gd_run, also trace[i] = s[trace_index] after sample i (0 <= trace_index < state length) */
+void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
+                  double *out, long n, long trace_index, double *trace);
 
 #ifdef __cplusplus
 }
