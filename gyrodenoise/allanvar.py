@@ -239,6 +239,20 @@ class AllanResult:
         t = self.tau_s if tau_s is None else np.asarray(tau_s, dtype=float)
         return model_adev(t, self.fitted_s) * 3600.0
 
+    def fit_misfit(self):
+        """Largest factor between the Eq. (40) fit and the measured Allan deviation
+        over the well-measured taus (1.0 = the fit passes through every point). A filter's output
+        is not a sum of Eq. (40) noises: a large factor says its terms are a fit to a
+        curve of another shape, not the properties of a sensor."""
+        adev = self.adev_deg_s
+        model = model_adev(self.tau_s, self.fitted_s)
+        # only the taus the record measures well (1-sigma error under 10 %): the last
+        # few taus of any record scatter by tens of per cent
+        ok = (adev > 0) & (model > 0) & (self.adev_err_deg_s < 0.1 * adev)
+        if not ok.any():
+            return None
+        return float(np.exp(np.max(np.abs(np.log(model[ok] / adev[ok])))))
+
     def to_json(self):
         return {"terms": {k: float(self.terms[k]) for k in TERM_NAMES},
                 "units": dict(UNITS),

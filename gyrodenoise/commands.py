@@ -173,6 +173,9 @@ def format_terms_table(rows, bounds):
     return "\n".join(lines)
 
 
+POOR_FIT = 2.0     # fit_misfit_factor above which Table 1 flags a series' Eq. (40) fit
+
+
 def format_compare(res):
     out = [f"Table 1 -- Allan terms of {res['source']} ({res['n_samples']} samples, "
            f"{res['sample_rate_hz']:g} Hz; first {res['skipped_warmup_samples']} warm-up samples skipped)"]
@@ -183,6 +186,15 @@ def format_compare(res):
     for t in ("N", "B", "K", "R", "Q"):
         cells = "".join(f"{_fmt(res['ratio_to_raw'][n][t]):>14}" for n in names)
         out.append(f"{t:<20}{cells}")
+    poor = {k: v for k, v in res.get("fit_misfit_factor", {}).items() if v is not None and v > POOR_FIT}
+    if poor:
+        out.append("Eq. (40) fit misses its own Allan points by up to " +
+                   ", ".join(f"{v:.2g}x ({k})" for k, v in poor.items()) +
+                   ": a filtered output is not a sum of Eq. (40) noises; read those terms as a fit of "
+                   "the curve's shape, not as a sensor's (see the Allan figure)")
+    if "motion" in names:
+        out.append(f"motion: the {res.get('motion_form', 'causal')} filter (the form Denoiser.step, the FMUs "
+                   "and live links run; `denoise` on a file defaults to the offline form)")
     acc = res["ar_fit_accuracy"]
     out.append("AR fit accuracy (1-|fit-raw|/raw): " +
                ", ".join(f"{t} {_fmt(acc[t], pct=True)}" for t in ("N", "B", "K", "R", "Q")))

@@ -131,6 +131,8 @@ def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
         "ar_model": {"order": ar_order, "phi": K.phi(p, st), "c_deg_s": K.rls_c(p, st),
                      "sigma_a_deg_s": float(np.sqrt(max(st[K.S_S2], 0.0)))},
         "std_deg_s": {k: paper_std(series[k][start:]) for k in ("raw",) + METHODS},
+        "fit_misfit_factor": {k: r.fit_misfit() for k, r in results.items()},
+        "motion_form": "causal",    # the per-sample filter (Denoiser.step, FMUs, live links)
         "notes": list(record.notes),
     }
     if record.true_rate_deg_s is not None:
