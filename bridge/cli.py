@@ -40,7 +40,9 @@ With --method lowpass the summary gives each stream's cutoff (default
 min(20 Hz, rate / 4): 12.5 Hz on a 50 Hz log).
 
 exit status:
-  0  every log processed, every stream filtered
+  0  every log processed; every stream filtered and checked, or written raw for
+     the reason its summary line states (too slow to denoise, no session longer
+     than the warm-up, a --cutoff-hz it cannot take)
   1  completed, but some stream was left raw (its filtered output failed the check)
   2  bad usage or bad input (an option value, a path, a log that cannot be used):
      one line on stderr naming the option or file; with --json one JSON object
