@@ -570,8 +570,8 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
     stem = out_stem or path.stem
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
     label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
-    if form == "offline":                       # the plots name the form, as the summary does
-        label += ", offline"
+    if form:                                    # the plots name the form, as the summary does
+        label += f", {form}"
     spec_items = []
     spec_png = out_dir / f"{stem}.spectrum.png"
     for s in streams:
