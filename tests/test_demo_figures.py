@@ -107,3 +107,13 @@ def test_fit_misfit_of_white_noise_is_near_one():
     rng = np.random.default_rng(3)
     r = gd.allan(0.01 * rng.standard_normal(200_000), FS_HZ)
     assert 1.0 <= r.fit_misfit() < 1.3
+
+
+def test_octave_band_spread_tells_white_from_coloured():
+    from scipy.signal import lfilter, welch
+    rng = np.random.default_rng(4)
+    w = rng.standard_normal(400_000)
+    f, p = welch(w, fs=FS_HZ, nperseg=8192)
+    assert plots.octave_band_spread(f, p) < 1.3                    # white: flat within the scatter
+    f, p = welch(lfilter([1.0], [1.0, -0.9], w), fs=FS_HZ, nperseg=8192)
+    assert plots.octave_band_spread(f, p) > 50                     # AR(1) 0.9: ~360x from DC to Nyquist
