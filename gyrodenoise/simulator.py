@@ -222,6 +222,11 @@ class SimStream:
             self.s = [0.0] * SK.n_state(self.p)
         self.reset()
 
+    @property
+    def compiled(self):
+        """True if this stream runs gdsim.c (else the plain-Python twin, same numbers)."""
+        return self._C is not None
+
     def reset(self):
         """Back to the start (seeded generators, stationary bank, first bias draw)."""
         if self._C is not None:
