@@ -19,7 +19,8 @@ Prints, per generator:
    simulations run with the same generator as the record;
 6. the same on ``--set-records`` records (seeds 1001..) for six sets of five
    simulation seeds (1-5, 11-15, ... 51-55: the workflow's own seeds are 1-5): how
-   much the outcome depends on which five simulations form the reference.
+   much the outcome depends on which five simulations form the reference;
+7. with ``--amplitudes``: how often the C's workflow finds other sinusoid amplitudes.
 """
 
 from __future__ import annotations
@@ -132,7 +133,7 @@ def sine_fit(sim, n_seeds, n=180_000):
     return np.mean(amp), np.std(amp), np.mean(ph), np.std(ph)
 
 
-def gap_runs(sim, gap_seeds, effect, sim_seeds=5):
+def gap_runs(sim, gap_seeds, effect, sim_seeds=5, params=None):
     sys.path.insert(0, str(ROOT / "tests"))
     import test_gap as TG
     import gyrodenoise as gd
@@ -141,8 +142,8 @@ def gap_runs(sim, gap_seeds, effect, sim_seeds=5):
     try:
         rows = []
         for k in range(gap_seeds):
-            name, base, params, _ = [h for h in TG.HIDDEN if h[0] == effect][0]
-            y = TG._measured(base, [(name, params)], seed=1001 + k)
+            name, base, hidden, _ = [h for h in TG.HIDDEN if h[0] == effect][0]
+            y = TG._measured(base, [(name, params or hidden)], seed=1001 + k)
             res = gd.gap(y, TG.FS, SIM.parse_card(base), seeds=sim_seeds, engine="native", quiet=True)
             rows.append((1001 + k, res.gap_before, res.threshold,
                          [e["name"] for e in res.effects_added] == [effect]))
@@ -157,6 +158,9 @@ def main(argv=None):
     ap.add_argument("--gap-seeds", type=int, default=16)
     ap.add_argument("--old-rev", default=OLD_REV)
     ap.add_argument("--set-records", type=int, default=6)
+    ap.add_argument("--amplitudes", default="",
+                    help="7. hidden sinusoid amplitudes (deg/h, comma-separated) to try at 1.3 Hz, C only, "
+                         "on --gap-seeds records with simulation seeds 1-5")
     ap.add_argument("--gap-effects", default="sinusoid,rate_random_walk",
                     help="hidden effects of tests/test_gap.py to run the workflow on")
     a = ap.parse_args(argv)
@@ -183,7 +187,7 @@ def main(argv=None):
         am, asd, pm, psd = sine_fit(f, a.seeds)
         print(f"4. {k:12s} 1.3 Hz line (card 3 deg/h, phase 0): amplitude {am:.3f} +- {asd:.3f} deg/h, "
               f"phase {pm:+.2f} +- {psd:.2f} deg over {a.seeds} seeds")
-    for effect in (a.gap_effects.split(",") if a.gap_seeds else []):
+    for effect in ([e for e in a.gap_effects.split(",") if e] if a.gap_seeds else []):
         for k, f in gens.items():
             rows = gap_runs(f, a.gap_seeds, effect)
             g = np.array([r[1] for r in rows])
@@ -198,6 +202,11 @@ def main(argv=None):
             print(f"6. {k:12s} hidden sinusoid, simulation seeds {start}-{start + 4}: gap_before mean "
                   f"{np.mean([r[1] for r in rows]):.2f}, threshold {rows[0][2]:.2f}, found alone "
                   f"{sum(r[3] for r in rows)}/{len(rows)}", flush=True)
+
+    for amp in [float(x) for x in a.amplitudes.split(",") if x]:
+        rows = gap_runs(gens["gdsim.c"], a.gap_seeds, "sinusoid", 5, {"amplitude": amp, "frequency": 1.3})
+        print(f"7. gdsim.c      hidden sinusoid {amp:g} deg/h at 1.3 Hz, records 1001-{1000 + a.gap_seeds}: "
+              f"found alone {sum(r[3] for r in rows)}/{len(rows)}", flush=True)
 
 
 if __name__ == "__main__":
