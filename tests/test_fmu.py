@@ -21,6 +21,7 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise import fmu as F
 from gyrodenoise.denoiser import Denoiser
+from gyrodenoise.simulator import parse_card
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -420,7 +421,7 @@ def test_card_text_parameter(fmu_dir):
         assert "runs on the bundled C core (gdsim.c)" in a.messages[0][2]
     finally:
         a.free()
-    ref = gd.simulate(gd.simulator.parse_card(card), 300, seed=4, true_rate_deg_s=0.5).rate_deg_s
+    ref = gd.simulate(parse_card(card), 300, seed=4, true_rate_deg_s=0.5).rate_deg_s
     np.testing.assert_allclose(out, ref, rtol=0, atol=TOL)
 
 
