@@ -139,7 +139,8 @@ class SimulatedFog(Fmi2Slave):
             self.log("SimulatedFog: sensor model runs on the bundled C core (gdsim.c)", Fmi2Status.ok)
         else:
             self.log("SimulatedFog: the bundled C core does not load on this platform; the sensor model "
-                     "runs on its plain-Python twin (same numbers, ~100x slower per sample)", Fmi2Status.ok)
+                     "runs on its plain-Python twin (same numbers, ~160x slower per sample on paper_fog)",
+                     Fmi2Status.ok)
 
     def do_step(self, current_time, step_size):
         if self._terminated:

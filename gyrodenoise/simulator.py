@@ -192,9 +192,9 @@ class SimStream:
 
     An adapter over the one sensor model, ``gyrodenoise/core/gdsim.c`` (the
     compiled extension), or its plain-Python specification
-    ``gyrodenoise/core/simkernels.py`` (bit for bit the same numbers, ~100x
-    slower) where the extension is not built. Parameters and state are the
-    model's flat float buffers (``gdsim.h``).
+    ``gyrodenoise/core/simkernels.py`` (bit for bit the same numbers, ~160x
+    slower per sample on paper_fog) where the extension is not built.
+    Parameters and state are the model's flat float buffers (``gdsim.h``).
 
     Parameters
     ----------
