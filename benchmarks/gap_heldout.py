@@ -3,7 +3,9 @@
 The card is fitted from an empty card on imu1 (``gyrodenoise.gap``, native engine, 4 seeds,
 ``--outliers``); on each of imu2..imu6 the fitted card is evaluated once, nothing added, its
 constant bias set to that record's mean (:func:`gyrodenoise.modelgap.heldout_gap`), with the
-stop bands of the fit. Printed: gap, scatter threshold, within_scatter and the components.
+stop bands of the fit. Printed: gap, scatter threshold, within_scatter and the components,
+and the record's Allan deviation at tau 0.01, 1 and 100 s divided by imu1's (with the
+estimate's own 1-sigma relative error: how far the noise LEVEL differs between runs).
 
 Run: .venv/bin/python benchmarks/gap_heldout.py [N_SAMPLES] [AXIS]   (default 1000000 gyro_x;
 about 2 minutes on an idle 2-core box)
@@ -36,12 +38,24 @@ def main(n="1000000", axis="gyro_x"):
     print(f"fit on imu1: gap {res.gap_before:.4g} -> {res.gap_after:.4g}, threshold {res.threshold:.3g}, "
           f"within {res.within_scatter}, stop bands {[(round(a, 3), round(b, 3)) for a, b, _ in res.stop_bands]}"
           f" ({time.perf_counter() - t:.1f} s)")
+    import numpy as np
+
+    from gyrodenoise.allanvar import adev
+    m_lvl = np.array([1, 100, 10000])        # tau 0.01, 1, 100 s
+
+    def level(y):
+        _, ad, err, _ = adev(y, 100.0, m=m_lvl)
+        return ad, err / ad
+    ad1, _ = level(rec(1))
     for i in range(2, 7):
         t = time.perf_counter()
-        h = heldout_gap(rec(i), 100.0, res.card_text, res.stop_bands, seeds=4, outliers=True, source=f"imu{i}")
+        y = rec(i)
+        h = heldout_gap(y, 100.0, res.card_text, res.stop_bands, seeds=4, outliers=True, source=f"imu{i}")
         comp = {k: round(v, 2) for k, v in h.iterations[-1]["components"].items()}
+        ad, rel = level(y)
+        lv = ", ".join(f"{r:.4f} +- {e:.4f}" for r, e in zip(ad / ad1, rel))
         print(f"imu{i}: gap {h.gap_after:.4g}, threshold {h.threshold:.3g}, within {h.within_scatter}, {comp} "
-              f"({time.perf_counter() - t:.1f} s)")
+              f"({time.perf_counter() - t:.1f} s); ADEV / imu1's at tau 0.01, 1, 100 s: {lv}")
     return 0
 
 

@@ -93,6 +93,10 @@ def register_cli(subparsers):
     p.add_argument("--zero-phase", action="store_true",
                    help="--method lowpass: filter forwards then backwards, each session on its own (no "
                         "lag, squared magnitude; offline files only, not --engine fmu or a live link)")
+    p.add_argument("--causal", action="store_true",
+                   help="--method motion on log files: the causal filter (as a live link, Denoiser.step and "
+                        "the FMUs run it); default on files: offline, the forward and backward runs blended "
+                        "per session (no lag). A live link and --engine fmu are always causal")
     p.add_argument("--ar-order", type=_int, default=3, metavar="N",
                    help=f"AR model order, 1..{MAX_AR_ORDER} (default 3)")
     p.add_argument("--gap-factor", type=_float, default=5.0, metavar="K",
@@ -209,6 +213,9 @@ def _check(args):
                              ("--zero-phase", args.zero_phase or None)) if v is not None]
     if lp and args.method != "lowpass":
         raise InputError(f"{lp[0]} applies to --method lowpass only, not {args.method}")
+    if args.causal and args.method != "motion":
+        raise InputError(f"--causal applies to --method motion only, not {args.method} "
+                         f"(the other methods are causal unless --zero-phase)")
     if args.cutoff_hz is not None and not (_finite_num(args.cutoff_hz) and args.cutoff_hz > 0):
         raise InputError(f"--cutoff-hz must be a finite number > 0 Hz, got {args.cutoff_hz}")
     if args.warmup_s is not None and not (_finite_num(args.warmup_s) and 0 <= args.warmup_s <= MAX_WARMUP_S):
@@ -370,7 +377,7 @@ def _run_logs(args, client, created):
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
-              filter_kw=_filter_kw(args), zero_phase=args.zero_phase)
+              filter_kw=_filter_kw(args), zero_phase=args.zero_phase, causal=args.causal)
     single = (len(args.logs) == 1 and not is_url(args.logs[0]) and Path(args.logs[0]).is_file()
               and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
@@ -464,7 +471,8 @@ def _pct(v):
 
 
 def _lag(v):
-    return "-" if v is None else f"{1000.0 * v:.0f} ms"
+    # round() to an int: a lag of -0.2 ms reads "0 ms", not "-0 ms" (the offline form's lags)
+    return "-" if v is None else f"{round(1000.0 * v)} ms"
 
 
 def _axis_line(s, a):
@@ -497,6 +505,11 @@ def _options_text(r):
     return f", Butterworth order {o.get('order', 2)}, {'zero phase' if o.get('zero_phase') else 'causal'}"
 
 
+def _form_text(r):
+    """'offline: whole record: ...' or 'causal: ...' (the report's form and its note)."""
+    return f"{r.get('form', 'causal')}: {r['form_note']}" if r.get("form_note") else r.get("form", "causal")
+
+
 def _filter_rate_text(s, summary):
     """'  (filtered as 100 Hz: --sample-rate)' when the filter's rate is not the measured one."""
     fr, r = s.get("filter_rate_hz"), s.get("rate_hz")
@@ -506,6 +519,7 @@ def _filter_rate_text(s, summary):
 
 
 def _print_text(summary):
+    from .spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
         trunc = f", truncated ({r['truncated_bytes']} bytes cut)" if r.get("truncated") else ""
@@ -513,7 +527,8 @@ def _print_text(summary):
         # pyulog does not count what it skips: no figure rather than a dash
         unread = "" if unread is None else f", {unread} unreadable records skipped"
         out.write(f"{r['file']} ({r['format']}): {r['messages']} messages{unread}{trunc}\n")
-        out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)})\n")
+        out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
+                  f"{_form_text(r)})\n")
         for s in r["streams"]:
             out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
                       f"{s['restarts']} restart(s)  unit {s['field_unit']}"
@@ -532,6 +547,8 @@ def _print_text(summary):
                           f"{'' if r['filter_options'].get('cutoff_hz') else ' (the default: min(20 Hz, rate / 4))'}\n")
             for a in s["noise"]:
                 out.write(_axis_line(s, a))
+            for line in summary_lines(s.get("spectrum")):
+                out.write(f"      {line}\n")
             for w in s.get("warnings", []):
                 out.write(f"    WARNING: {w}\n")
         for e in r["restarts"]:
@@ -593,7 +610,8 @@ def _report_live(args, conn, rep, streams):
     else:
         sys.stdout.write(f"{conn} -> {args.forward or '(nowhere)'}: {rep['messages_in']} messages in, "
                          f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "
-                         f"stopped by {rep['stopped_by']} after {rep['seconds']} s\n")
+                         f"stopped by {rep['stopped_by']} after {rep['seconds']} s; "
+                         f"method {rep['method']}, causal\n")
         for s in srep:
             sys.stdout.write(f"  {s['name']}: {s['samples']} samples, {_fmt(s['rate_hz'])} Hz, "
                              f"{s['restarts']} restart(s), unit {s['field_unit']}"

@@ -63,24 +63,36 @@ class _Settings:
 
 
 class NativeEngine(_Settings):
+    """The core through :class:`gyrodenoise.denoiser.Denoiser` (causal), or for a whole
+    record (files) its offline forms: ``zero_phase`` (the low-pass forwards then
+    backwards) and ``offline`` (``method="motion"``: the forward and backward runs of
+    the bank blended, :func:`gyrodenoise.core.batch.run_offline`), each session on its own."""
+
     name = "native"
 
-    def __init__(self, method=DEFAULT_METHOD, ar_order=3, warmup_s=None, filter_kw=None, zero_phase=False):
+    def __init__(self, method=DEFAULT_METHOD, ar_order=3, warmup_s=None, filter_kw=None, zero_phase=False,
+                 offline=False):
+        if offline and method != "motion":
+            raise InputError(f"the offline form is defined for --method motion only, not {method}")
         self.method = method
         self.ar_order = int(ar_order)
         self.warmup_s = warmup_s
         self.filter_kw = dict(filter_kw or {})
         self.zero_phase = bool(zero_phase)
+        self.offline = bool(offline)
+        #: False when an output sample depends on later samples of its session
+        self.causal = not (self.zero_phase or self.offline)
         self.kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
         self.kw.update(filter_kw or {})
 
     def filter(self, x, restarts, rate_hz):
         x = np.ascontiguousarray(x, dtype=np.float64)
         restarts = None if restarts is None else np.asarray(restarts, dtype=bool)
-        if self.zero_phase:           # forwards then backwards, per session (offline files only)
+        if not self.causal:           # forwards and backwards, per session (offline files only)
             from gyrodenoise.denoiser import denoise
             return np.asarray(denoise(x, rate_hz, method=self.method, ar_order=self.ar_order,
-                                      restarts=restarts, zero_phase=True, **self.kw))
+                                      restarts=restarts, zero_phase=self.zero_phase, offline=self.offline,
+                                      **self.kw))
         from gyrodenoise.denoiser import Denoiser
         d = Denoiser(sample_rate_hz=rate_hz, method=self.method, ar_order=self.ar_order, **self.kw)
         return np.asarray(d.process(x, restarts))
@@ -105,6 +117,8 @@ class FmuEngine(_Settings):
     step per sample (step size = the sample period the FMU is given)."""
 
     name = "fmu"
+    #: the FMU steps one sample at a time: always the causal filter
+    causal = True
 
     #: core parameter name -> FMU parameter name, where they differ
     FMU_NAMES = {"order": "lowpass_order"}
@@ -196,13 +210,14 @@ class FmuEngine(_Settings):
 
 
 def make_engine(name, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None,
-                zero_phase=False):
+                zero_phase=False, offline=False):
     """``filter_kw``: further core filter parameters (e.g. outlier_sigma, outlier_run,
     cutoff_hz, order), passed to the Denoiser or set as FMU parameters of the same
     names (``order``: ``lowpass_order``). ``zero_phase``: the native low-pass
-    forwards and backwards (offline files)."""
+    forwards and backwards (offline files). ``offline``: the native motion filter's
+    offline form (files); the FMU engine ignores it: it is causal (``engine.causal``)."""
     if name == "native":
-        return NativeEngine(method, ar_order, warmup_s, filter_kw, zero_phase)
+        return NativeEngine(method, ar_order, warmup_s, filter_kw, zero_phase, offline)
     if name == "fmu":
         return FmuEngine(method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase)
     raise InputError(f"--engine: unknown engine {name!r} (choose from {', '.join(ENGINES)})")

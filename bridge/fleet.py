@@ -4,8 +4,9 @@ Built from the summary of :func:`bridge.process.process_many` (local pool or
 Dask cluster alike): a row per log and gyro stream with its samples, rate,
 restarts, noise before/after, the low-band motion kept and the lag the filter
 added (when the bridge measured them; averaged over the axes whose low band
-holds motion above the noise, "no motion above the noise" when none does), and a row per failed
-log with its reason. The plot shows each stream's white-noise density per log, so that an
+holds motion above the noise, "no motion above the noise" when none does), its dominant
+vibration peak (:func:`vibration_peak`), and a row per failed log with its reason; then each
+log's dominant vibration peak (:func:`dominant_peaks_by_log`). The plot shows each stream's white-noise density per log, so that an
 IMU that is noisier than its siblings stands out: the thing an operator opens.
 
 Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the standard
@@ -86,12 +87,53 @@ def fleet_rows(summary):
                 "all_zero": bool(s.get("all_zero")),
                 "note": s.get("note", ""), "left_raw": s.get("left_raw"),
                 "warnings": list(s.get("warnings", [])),
+                "vibration_peak": vibration_peak(s),
             })
     for f in summary.get("failed", []):
         rows.append({"log": Path(f["file"]).name, "file": f["file"], "stream": "", "status": "failed",
                      "error": f["error"]})
     _flag(rows)
     return rows
+
+
+def vibration_peak(stream_report):
+    """The stream's dominant vibration peak (the strongest over its axes, from
+    :mod:`bridge.spectra`) as {axis, freq_hz, amplitude_rms, unit, harmonics_hz},
+    or None (no spectrum, or no peak above the noise floor)."""
+    spec = stream_report.get("spectrum") or {}
+    q = spec.get("dominant_peak")
+    if not q:
+        return None
+    return {"axis": q["axis"], "freq_hz": q["freq_hz"], "amplitude_rms": q["amplitude_rms"],
+            "unit": spec.get("unit"), "harmonics_hz": list(q.get("harmonics_hz") or []),
+            "present_in_segments": q.get("present_in_segments")}
+
+
+def _peak_text(p):
+    if not p:
+        return ""
+    text = f"{p['axis']} {p['freq_hz']:.3g} Hz, {p['amplitude_rms']:.2g} {p['unit']} rms"
+    if p.get("present_in_segments") is not None:
+        text += f" (in {100 * p['present_in_segments']:.0f} % of segments)"
+    if p["harmonics_hz"]:
+        text += ", harmonics " + ", ".join(f"{h:.3g}" for h in p["harmonics_hz"]) + " Hz"
+    return text
+
+
+def dominant_peaks_by_log(rows):
+    """Markdown lines: each log's dominant vibration peak (the strongest over its
+    streams whose amplitudes are in deg/s), naming the stream."""
+    best = {}
+    for r in rows:
+        p = r.get("vibration_peak")
+        if r["status"] != "ok" or not p or p["unit"] != "deg/s":
+            continue
+        if r["log"] not in best or p["amplitude_rms"] > best[r["log"]][1]["amplitude_rms"]:
+            best[r["log"]] = (r["stream"], p)
+    logs = sorted({r["log"] for r in rows if r["status"] == "ok"})
+    return [f"- {name}: " + (f"{best[name][0]} {_peak_text(best[name][1])}" if name in best else
+                             "no vibration peak above the noise floor (or no spectrum: streams too slow)")
+            for name in logs]
 
 
 def _flag(rows):
@@ -161,8 +203,8 @@ def format_table(rows):
     """The fleet table as Markdown."""
     head = (f"| log | stream | status | samples | rate Hz | restarts | noise raw -> filtered ({NOISE_COLUMN}) | "
             f"density deg/s/rtHz ({NOISE_COLUMN}) | x fleet median | 0-5 Hz kept (corr, amp) | lag ms | "
-            f"flag / reason |")
-    out = [head, "|" + "---|" * 12]
+            f"dominant vibration peak | flag / reason |")
+    out = [head, "|" + "---|" * 13]
     for r in rows:
         if r["status"] == "failed":
             out.append(f"| {r['log']} | | FAILED | | | | | | | | | {r['error']} |")
@@ -174,7 +216,8 @@ def format_table(rows):
         vs = r.get("density_vs_fleet_median")
         vs = "" if vs is None else f"{vs:.2g}x of {r['fleet_size']} {r['compared_as']}"
         out.append(f"| {r['log']} | {r['stream']} | ok | {r['samples']} | {_rate(r['rate_hz'])} | {r['restarts']} | "
-                   f"{_noise(r)} | {_fmt(r['noise_density_deg_s_rthz'])} | {vs} | {kept} | {lag} | {_notes(r)} |")
+                   f"{_noise(r)} | {_fmt(r['noise_density_deg_s_rthz'])} | {vs} | {kept} | {lag} | "
+                   f"{_peak_text(r.get('vibration_peak'))} | {_notes(r)} |")
     return "\n".join(out)
 
 
@@ -202,9 +245,11 @@ def write_fleet_report(summary, out_dir):
             f"Noise and density columns: {NOISE_COLUMN} (noise: std of first differences / sqrt 2, "
             f"= the white-noise sigma; density: sigma / sqrt(rate / 2)).\n\n"
             f"![noise density per log and stream](fleet.png)\n\n")
+    peaks = ("\n\n## Dominant vibration peak per log\n\n(the strongest spectral peak above the noise "
+             "floor over the log's streams and axes; bridge.spectra)\n\n" + "\n".join(dominant_peaks_by_log(rows)))
     from .stopping import atomic_path
     with atomic_path(out / "fleet.md") as tmp:
-        tmp.write_text(head + format_table(rows) + "\n")
+        tmp.write_text(head + format_table(rows) + peaks + "\n")
     with atomic_path(out / "fleet.json") as tmp:
         tmp.write_text(json.dumps({"rows": rows, "n_logs": summary.get("n_logs"),
                                    "n_ok": summary.get("n_ok"), "n_failed": summary.get("n_failed"),

@@ -306,5 +306,6 @@ def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAUL
                         "max": float(hs.max()) if len(hs) else None},
         "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
         "filter_options": dict(filter_kw or {}),
+        "form": "causal", "form_note": "a live link is filtered as it comes, one sample at a time",
     }
     return report, gs

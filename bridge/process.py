@@ -7,7 +7,10 @@ Outputs of a log ``NAME.ext`` in the output folder:
   fields, and for MAVLink the CRC, differ);
 * ``NAME.STREAM.csv`` -- ``time,raw_x,filtered_x,raw_y,filtered_y,raw_z,filtered_z,restart``
   per stream (deg/s; ``*_counts`` columns when the unit is unknown);
-* ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked.
+* ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked;
+* ``NAME.spectrum.png`` -- per stream raw and filtered PSD per axis, vibration
+  peaks named; the filter's gain and lag; a spectrogram for a long record
+  (:mod:`bridge.spectra`).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from . import dataflash
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 
 from .stopping import as_child, atomic_path, signals_blocked, stop_processes
+from .spectra import SPECTRUM_METRIC
 from .streams import NOISE_METRIC, detect_restarts, field_misfit, noise_per_axis
 
 MOTION_METRIC = ("per axis, over each session after the filter's warm-up: the 0-5 Hz content of "
@@ -144,7 +148,12 @@ def _plot_data(t, x, f, restarts):
     return lines, rt, labels, xlabel
 
 
-def _draw(path, title, pdata, unit, axes):
+def _draw(path, title, pdata, unit, axes, spectrum=None):
+    if spectrum is not None:                     # (path, title, [(stream, plot data)]) of bridge.spectra
+        from .spectra import draw_log_spectrum
+        draw_log_spectrum(*spectrum)
+    if pdata is None:
+        return
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -230,7 +239,13 @@ class Plotter:
                 break
 
     def plot(self, path, title, t, x, f, restarts, unit, axes):
-        job = (path, title, _plot_data(t, x, f, restarts), unit, axes)
+        self._submit((path, title, _plot_data(t, x, f, restarts), unit, axes))
+
+    def plot_spectrum(self, path, title, items):
+        """The spectrum PNG of a log: [(stream name, plot data)] (:mod:`bridge.spectra`)."""
+        self._submit((path, None, None, None, None, (path, title, items)))
+
+    def _submit(self, job):
         if not self.procs:
             _draw(*job)
         else:
@@ -336,7 +351,7 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
             else:
                 s.non_finite[k] = len(fin)
         s.filtered = f * back
-        s.left_raw = check_filtered(s, x, f, usable, causal=not getattr(engine, "zero_phase", False))
+        s.left_raw = check_filtered(s, x, f, usable, causal=getattr(engine, "causal", True))
         if s.left_raw:
             f = x.copy()
             s.filtered = s.raw.astype(np.float64)          # the raw values, bit for bit
@@ -455,8 +470,15 @@ def _hz(v):
 def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
-                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False):
+                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False, causal=False):
     """Process one log file; return its report (a JSON-able dict).
+
+    The form of the filter (``rep["form"]``): a whole log is filtered offline by
+    default where the engine and method have an offline form (the native engine
+    with ``method="motion"``: forwards and backwards per session, no lag;
+    ``zero_phase`` for the low-pass); ``causal=True`` gives the causal filter
+    (``Denoiser``, as a live link, ``Denoiser.step`` and the FMUs run it). The FMU
+    engine is always causal.
 
     Raises InputError (one line naming the file) for a file that cannot be
     used: unknown type, unreadable, or without a gyro stream.
@@ -502,13 +524,15 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                        truncation="message cut by the end of the file" if cut > 0 else None)
         if not streams:
             raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
-        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase)
+        offline = engine == "native" and method == "motion" and not causal
+        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase, offline)
+        rep.update(filter_form(eng, engine))
         try:
             _filter_streams(streams, eng, gap_factor, sample_rate)
         finally:
             eng.close()
         rep.update(_write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv,
-                                  engine, method, ar_order, log, **ctx))
+                                  engine, method, ar_order, log, filter_kw=filter_kw, form=rep["form"], **ctx))
         done = True
     finally:
         if plotter is not None:
@@ -525,22 +549,49 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     return rep
 
 
+def filter_form(eng, engine):
+    """{"form": "offline" | "causal", "form_note": what it means} of an engine."""
+    if not eng.causal:
+        how = ("forwards then backwards, each session on its own (zero phase)" if getattr(eng, "zero_phase", False)
+               else "forward and backward runs blended, each session on its own (no lag)")
+        return {"form": "offline", "form_note": f"whole record: {how}"}
+    if engine == "fmu":
+        return {"form": "causal", "form_note": "the FMU filters one sample per step (causal only)"}
+    return {"form": "causal", "form_note": "each output from the samples up to it (as live links, "
+                                           "Denoiser.step and the FMUs)"}
+
+
 def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine, method,
-                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None):
+                   ar_order, log, data=None, sc=None, fr=None, u=None, refs=None, filter_kw=None, form=None):
+    from .spectra import stream_spectrum
     rep = {}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = out_stem or path.stem
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
+    label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+    if form == "offline":                       # the plots name the form, as the summary does
+        label += ", offline"
+    spec_items = []
+    spec_png = out_dir / f"{stem}.spectrum.png"
     for s in streams:
-        if plotter is not None:
-            x, f, unit, _ = s._work
+        x, f, unit, rate = s._work
+        jt = joined_time(s.time_s, s.restarts)
+        if plotter is not None:                  # queued first: the helper draws while we go on
             s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
-            label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+            plot_label = label
             if getattr(s, "cutoff_hz", None):
-                label += f" {s.cutoff_hz:.4g} Hz"
-            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {label}{_plot_note(s)})",
+                plot_label += f" {s.cutoff_hz:.4g} Hz"
+            plotter.plot(s._png, f"{path.name}: {s.name} ({engine} {plot_label}{_plot_note(s)})",
                          s.time_s, x, f, s.restarts, unit, s.axes)
+        usable = (np.isfinite(x) & np.isfinite(f) & (np.abs(x) <= ABSURD_WORK)).all(axis=1)
+        s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
+                                                 getattr(s, "warmup_samples", 0), jt, usable)
+        if spec_plot is not None:
+            spec_items.append((s.name, spec_plot))
+            s._spectrum_png = spec_png if plotter is not None else None
+    if plotter is not None and spec_items:
+        plotter.plot_spectrum(spec_png, f"{path.name}: spectrum ({engine} {label})", spec_items)
     with atomic_path(out_log) as tmp:
         if kind == "dataflash":
             tmp.write_bytes(dataflash.patch(data, sc, streams))
@@ -563,6 +614,9 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
         if plotter is not None:
             png_path = s._png
         srep.append(stream_report(s, csv_path, png_path))
+        srep[-1]["spectrum"] = s._spectrum
+        if getattr(s, "_spectrum_png", None) is not None:
+            srep[-1]["spectrum_plot"] = str(s._spectrum_png)
         restarts += s.restart_events
         if s.to_deg_s is None and log:
             log(f"{path}: {s.name}: unit unknown, filtered in {s.unit} ({s.note})")
@@ -703,7 +757,7 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
         "jobs": None if scheduler is not None else int(jobs),     # the cluster decides its parallelism
         "scheduler": None if scheduler is None else str(scheduler),
         "seconds": round(time.perf_counter() - t0, 3),
-        "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC,
+        "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC, "spectrum_metric": SPECTRUM_METRIC,
         "streams_left_raw": streams_left_raw(logs),
     }
 

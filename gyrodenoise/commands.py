@@ -35,6 +35,9 @@ def _add_filter_options(p, method=True):
         p.add_argument("--order", type=int, default=2, help="lowpass: Butterworth order 1..8 (default 2)")
         p.add_argument("--zero-phase", action="store_true",
                        help="lowpass, offline: filter forwards and backwards (no lag)")
+        p.add_argument("--causal", action="store_true",
+                       help="motion: the causal filter (as live, Denoiser.step and the FMUs run it); "
+                            "default on a file: offline, the forward and backward runs blended (no lag)")
     p.add_argument("--ar-order", type=int, default=3, help="order n of the improved AR(n) model (default 3)")
     p.add_argument("--warmup-s", type=float, default=1.0,
                    help="seconds after each restart with raw pass-through while the AR model converges")
@@ -74,6 +77,8 @@ def _check_params(args, fs):
                       **_filter_kw(args))
         if getattr(args, "zero_phase", False) and args.method != "lowpass":
             raise ValueError(f"--zero-phase applies to --method lowpass only, not {args.method}")
+        if getattr(args, "causal", False) and args.method != "motion":
+            raise ValueError(f"--causal applies to --method motion only, not {args.method}")
     except ValueError as exc:
         raise InputError(str(exc)) from None
 
@@ -86,14 +91,16 @@ def cmd_denoise(args):
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
     den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **_filter_kw(args))
-    if args.zero_phase:
+    offline = args.method == "motion" and not args.causal
+    if args.zero_phase or offline:
         from .denoiser import denoise
-        out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method="lowpass", ar_order=args.ar_order,
-                      restarts=rec.restarts, zero_phase=True, **_filter_kw(args))
+        out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method=args.method, ar_order=args.ar_order,
+                      restarts=rec.restarts, zero_phase=args.zero_phase, offline=offline, **_filter_kw(args))
     else:
         out = den.process(rec.rate_deg_s, rec.restarts)
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
-    _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method})")
+    mode = "offline (forward + backward, no lag)" if offline or args.zero_phase else "causal"
+    _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, {mode})")
     if args.outlier_sigma > 0 and args.method in ("shakf", "kf", "sh_classic"):
         _log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
              f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "

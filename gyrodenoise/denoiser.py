@@ -138,7 +138,7 @@ class Denoiser:
 
 
 def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, restarts=None,
-            zero_phase=False, **kw):
+            zero_phase=False, offline=False, **kw):
     """Denoise a gyro record with the online improved-AR(n) model + KF/SHAKF.
 
     Parameters
@@ -161,6 +161,10 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
         ``method="lowpass"`` only, for offline records: filter forwards, then
         backwards (squared magnitude response, no phase lag), each run of
         samples between restarts on its own.
+    offline : bool
+        ``method="motion"`` only, for whole records: the forward and backward
+        runs of the same filter blended (no lag; :func:`gyrodenoise.core.batch.run_offline`).
+        ``Denoiser.step``, the FMUs and live links stay causal.
     **kw
         Further parameters of :func:`gyrodenoise.core.kernels.make_params`.
 
@@ -176,6 +180,10 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
                       sample_rate_hz=sample_rate_hz, **kw)
     if zero_phase and method != "lowpass":
         raise ValueError(f"zero_phase applies to method='lowpass' only, not {method!r}")
+    if offline and method != "motion":
+        raise ValueError(f"offline applies to method='motion' only, not {method!r}")
+    if offline:
+        return batch.run_offline(p, rate_deg_s, restarts)
     out, _ = batch.run(p, K.init_state(p), rate_deg_s, restarts)
     if zero_phase:
         rs = np.zeros(out.shape, dtype=bool) if restarts is None else np.asarray(restarts, dtype=bool)

@@ -107,10 +107,13 @@ def tlog_reference(path):
     return {k: (np.array(v)[:, 0], np.array(v)[:, 1:]) for k, v in streams.items()}, msgs, bad
 
 
-def ref_filter(raw_deg, rate, restarts, method=None, order=3):
+def ref_filter(raw_deg, rate, restarts, method=None, order=3, causal=False):
+    """What the bridge's file mode gives: the core's default method, in its offline
+    form on a whole log (``motion``), or the causal filter (``causal=True``, --causal)."""
     method = method or DEFAULT_METHOD          # the bridge's default is the core's
-    return np.stack([gd.denoise(raw_deg[:, k], rate, method=method, ar_order=order, restarts=restarts)
-                     for k in range(raw_deg.shape[1])], axis=1)
+    offline = method == "motion" and not causal
+    return np.stack([gd.denoise(raw_deg[:, k], rate, method=method, ar_order=order, restarts=restarts,
+                                offline=offline) for k in range(raw_deg.shape[1])], axis=1)
 
 
 def by_name(rep):
@@ -475,8 +478,8 @@ def test_each_axis_and_stream_has_its_own_denoiser(tmp_path):
     ref, _ = df_reference(DATA / "plane_truncated_test.BIN")
     out, _ = df_reference(rep["logs"][0]["output_log"])
     t, g = ref["IMU2"]
-    alone = np.stack([gd.denoise(g[:, k] * R2D, 1 / np.median(np.diff(t)), restarts=ref_restarts(t))
-                      for k in range(3)], axis=1)
+    alone = np.stack([gd.denoise(g[:, k] * R2D, 1 / np.median(np.diff(t)), restarts=ref_restarts(t),
+                                 offline=True) for k in range(3)], axis=1)
     np.testing.assert_array_equal(out["IMU2"][1], (alone / R2D).astype(np.float32))
 
 
@@ -582,11 +585,13 @@ def test_batch_sampler_bursts_parsed_filtered_and_written_back(tmp_path):
     for (t, v, mul), (t2, v2, mul2) in zip(ref, got):
         assert mul2 == mul
         np.testing.assert_array_equal(t2, t)
-        f = np.stack([gd.denoise(v[:, k] / mul * R2D, rate, restarts=None, warmup_s=0.1) for k in range(3)],
-                     axis=1) / R2D
+        f = np.stack([gd.denoise(v[:, k] / mul * R2D, rate, restarts=None, warmup_s=0.1, offline=True)
+                      for k in range(3)], axis=1) / R2D
         expected = np.clip(np.rint(f * mul), -32768, 32767)
         assert np.abs(v2 - expected).max() <= 1 and np.mean(v2 != expected) < 1e-3
-    assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.2
+    # the filter did run (the default motion bank follows these 2 kHz bursts closely: 2.2 % of
+    # the integer samples change; the issue-12 filter changed > 20 %)
+    assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.01
 
 
 def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):
@@ -613,7 +618,7 @@ def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):
         rk = r_all[keep].copy()
         if bad == 600:
             rk[600] = True                                        # sample 601, first after the restart
-        ref = gd.denoise(raw[keep, k] * R2D, 100.0, restarts=rk) / R2D
+        ref = gd.denoise(raw[keep, k] * R2D, 100.0, restarts=rk, offline=True) / R2D
         np.testing.assert_array_equal(got[keep, k], ref.astype(np.float32).astype(float))
 
 

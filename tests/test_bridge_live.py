@@ -65,9 +65,10 @@ def decode(pkts):
     return out
 
 
-def replay(packets, sample_rate, out_dir, timeout=90.0, transport="udp"):
+def replay(packets, sample_rate, out_dir, timeout=90.0, transport="udp", extra=()):
     """Run the bridge, send ``packets`` to it over UDP (bridge listens: ``udpin:``) or
-    TCP (the test listens, the bridge connects: ``tcp:``), collect what it forwards."""
+    TCP (the test listens, the bridge connects: ``tcp:``), collect what it forwards.
+    ``extra``: further command-line options."""
     in_port, out_port = free_port(), None
     server = None
     if transport == "tcp":
@@ -84,7 +85,7 @@ def replay(packets, sample_rate, out_dir, timeout=90.0, transport="udp"):
     cmd = gyrodenoise_cmd() + [
         "mavlink", f"{'tcp' if transport == 'tcp' else 'udpin'}:127.0.0.1:{in_port}", "--forward", f"udpout:127.0.0.1:{out_port}",
         "--count", str(len(packets)), "--duration", str(timeout), "--sample-rate", str(sample_rate),
-        "--json", "-o", str(out_dir), "--no-plots"]
+        "--json", "-o", str(out_dir), "--no-plots", *extra]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     ready = threading.Event()
     err_lines = []
@@ -222,11 +223,14 @@ def test_live_replay_fs_batt_forwards_everything(tmp_path):
 
 
 def test_live_tcp_link(tmp_path):
-    """The same over a TCP link (``tcp:`` connection string, the bridge connects)."""
+    """The same over a TCP link (``tcp:`` connection string, the bridge connects).
+    --causal is accepted on a live link (it is what a live link does anyway) and
+    the report names the form."""
     sent = tlog_packets(DATA / "fs-batt.log.tlog")
-    received, rep, _ = replay(sent, 2.4, tmp_path, transport="tcp")
+    received, rep, _ = replay(sent, 2.4, tmp_path, transport="tcp", extra=("--causal",))
     check_forwarded(sent, received, rep, 2.4)
     assert rep["input"].startswith("tcp:")
+    assert rep["form"] == "causal" and rep["method"] == "motion"
 
 
 @pytest.mark.slow

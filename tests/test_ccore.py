@@ -202,12 +202,13 @@ def test_rare_paths():
         p = K.make_params(2, method, sample_rate_hz=FS, b=0.01, gamma=50.0)
         _, s = check_against_python(p, white[:400], [False] * 400)
         assert s[K.S_BK] == 0.0
-    # motion: the correlation clip and the lower bound of log q
+    # motion: a constant input (R at its floor), the Huber clip of the noise
+    # estimates, filters restarted from the best (a step) and the growing memory
     p = params("motion", 1, 0.0, 1.0)
-    p[K.P_MO_CLIP] = 0.3
-    p[K.P_MO_LQMIN] = -16.0
-    z = white[:700] + [10.0 * v for v in white[700:]]
+    z = [2.0] * 300 + white[:700] + [50.0 + 10.0 * v for v in white[700:]]
     _, s = check_against_python(p, z, [False] * len(z))
+    o = K.layout(1)[6] - K.N_EXT
+    assert s[o + K.M_R] > K.make_params(1, "motion")[K.P_R_FLOOR]
     # the centred sample itself overflows (z - z_ref = inf): every method heals
     for method in sorted(K.METHODS):
         z = [-1e308, 1e308, 1.0, 2.0] + white[:100] + [1.5e308, -1.5e308] + white[:50]
@@ -253,6 +254,34 @@ def test_bit_identical(method):
         ref_out, ref_s = py_run(p, z, r)
         out, s = c_step_run(p, z, r)
         assert out == ref_out and s == ref_s
+
+
+@pytest.mark.parametrize("method", ["motion", "shakf"])
+def test_traced_run_equals_python_sample_by_sample(method):
+    """C.run(..., trace_index, trace) (gd_run_trace, the offline form's forward and
+    backward runs of batch.run_offline): every output, every traced state value
+    (the motion bank's output variance M_PVAR, kept when P_MO_VAR is set) and the
+    final state bit for bit equal to the plain-Python kernels stepped one sample
+    at a time; with and without restarts."""
+    p = K.make_params(3, method, sample_rate_hz=FS)
+    p[K.P_MO_VAR] = 1.0
+    ti = K.layout(3)[6] - K.N_EXT + K.M_PVAR if method == "motion" else K.S_R
+    z, r = mixed_record(7, n_each=150)
+    for rs in (r, [False] * len(z)):
+        s = K.init_state(p)
+        ref_out, ref_tr = [], []
+        for zi, ri in zip(z, rs):
+            ref_out.append(K.step(p, s, zi, ri))
+            ref_tr.append(s[ti])
+        sa = np.array(K.init_state(p))
+        out, tr = np.empty(len(z)), np.empty(len(z))
+        C.run(np.asarray(p), sa, np.asarray(z), np.asarray(rs, dtype=np.bool_), out, ti, tr)
+        assert out.tolist() == ref_out and tr.tolist() == ref_tr and sa.tolist() == s
+        assert len(set(ref_tr)) > 10                  # the traced value moves (not a constant)
+    with pytest.raises(ValueError, match="trace_index"):
+        C.run(np.asarray(p), sa, np.asarray(z), None, out, len(sa), tr)
+    with pytest.raises(ValueError, match="trace has"):
+        C.run(np.asarray(p), sa, np.asarray(z), None, out, ti, np.empty(3))
 
 
 def test_run_without_restarts_and_numpy_state():
@@ -376,3 +405,15 @@ def test_step_accepts_numpy_and_ints():
         b = C.step(np.asarray(p), sn, zi, np.bool_(i == 2))
         assert a == b
     assert list(sa) == sn.tolist()
+
+
+def test_motion_params_of_the_native_fmu_equal_python():
+    """gd_motion_params (C, used by the native FMU) writes the same floats as
+    kernels.motion_params (bit for bit) at several sample rates."""
+    import ctypes
+    lib = ctypes.CDLL(C.__file__)
+    for fs in (50.0, 200.0, 400.0, 1000.0, 8000.0):
+        buf = (ctypes.c_double * K.N_PARAMS)()
+        lib.gd_motion_params(buf, ctypes.c_double(fs))
+        ref = K.make_params(3, "motion", sample_rate_hz=fs)
+        assert list(buf)[K.P_MO_NF:] == ref[K.P_MO_NF:], fs

@@ -120,12 +120,22 @@ def test_gap_is_reported_and_restarts_the_filter(tmp_path):
     z = 1.0 + 0.01 * np.random.default_rng(0).standard_normal(t.size)
     p = tmp_path / "gap.csv"
     np.savetxt(p, np.column_stack([t, z]), delimiter=",", header="time,rate", comments="")
-    code, out, err = run_cli("denoise", p, "-o", tmp_path / "o.csv")
-    assert code == 0 and "time gap" in err and "restarts" in err
+    code, out, err = run_cli("denoise", p, "-o", tmp_path / "o.csv", "--causal")
+    assert code == 0 and "time gap" in err and "restarts" in err and "causal" in err
     data = np.loadtxt(tmp_path / "o.csv", delimiter=",", skiprows=1)
     assert data.shape[0] == t.size                       # nothing dropped or invented
     # after the gap the filter warms up again: raw passes through
     np.testing.assert_array_equal(data[500:600, 2], data[500:600, 1])
+    # the default on a file: offline (forward + backward), each side of the gap on its own
+    code, out, err = run_cli("denoise", p, "-o", tmp_path / "off.csv")
+    assert code == 0 and "offline" in err
+    off = np.loadtxt(tmp_path / "off.csv", delimiter=",", skiprows=1)
+    import gyrodenoise as gd
+    np.testing.assert_allclose(off[:500, 2], gd.denoise(off[:500, 1], 100.0, offline=True), rtol=0, atol=2e-6)
+    np.testing.assert_allclose(off[500:, 2], gd.denoise(off[500:, 1], 100.0, offline=True), rtol=0, atol=2e-6)
+    assert np.std(off[500:600, 2] - 1.0) < 0.5 * np.std(off[500:600, 1] - 1.0)   # no raw warm-up left
+    code, _, err = run_cli("denoise", p, "-o", tmp_path / "x.csv", "--method", "kf", "--causal")
+    assert code == 2 and "--causal" in err and not (tmp_path / "x.csv").exists()
 
 
 def test_rate_units_and_no_time_column(tmp_path):

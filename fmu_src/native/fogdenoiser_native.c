@@ -453,17 +453,7 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     p[P_OUTLIER_SIGMA] = u->outlier_sigma;
     p[P_OUTLIER_RUN] = (double)u->outlier_run;
     if (methods[im].value == METHOD_MOTION) {
-        /* kernels.motion_params(fs) with its defaults */
-        p[P_MO_RHO] = exp(-1.0 / (0.5 * fs));
-        p[P_MO_GAMMA] = 5.0;
-        p[P_MO_GAIN] = 1.0 / (0.1 * fs);
-        p[P_MO_EPS] = 0.2;
-        p[P_MO_LQMIN] = -32.236;
-        p[P_MO_LQMAX] = 13.816;
-        p[P_MO_BR] = 1.0 - 1.0 / (10.0 * fs);
-        p[P_MO_LQ0] = -15.0;
-        p[P_MO_CLIP] = 100.0;
-        p[P_MO_BUMP] = 0.1;
+        gd_motion_params(p, fs);     /* kernels.motion_params(fs) with its defaults */
     }
     return 0;
 }

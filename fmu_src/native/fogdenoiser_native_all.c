@@ -37,12 +37,14 @@
 #pragma weak hypot
 #pragma weak pow
 #pragma weak nearbyint
+#pragma weak log
 /* the first libm function this process does not provide, or NULL */
 static const char *gd_libm_missing(void) {
-    const char *names[] = {"exp", "sqrt", "sin", "cos", "tan", "hypot", "pow", "nearbyint"};
+    const char *names[] = {"exp", "sqrt", "sin", "cos", "tan", "hypot", "pow", "nearbyint",
+                           "log"};
     const void *addr[] = {(const void *)&exp, (const void *)&sqrt, (const void *)&sin,
                           (const void *)&cos, (const void *)&tan, (const void *)&hypot,
-                          (const void *)&pow, (const void *)&nearbyint};
+                          (const void *)&pow, (const void *)&nearbyint, (const void *)&log};
     size_t i;
     for (i = 0; i < sizeof names / sizeof names[0]; i++)
         if (!addr[i]) return names[i];

@@ -143,20 +143,27 @@ static PyObject *mod_step(PyObject *self, PyObject *const *args, Py_ssize_t narg
 }
 
 PyDoc_STRVAR(run_doc,
-"run(p, s, z, restarts, out) -> None\n\n"
+"run(p, s, z, restarts, out[, trace_index, trace]) -> None\n\n"
 "The batch loop (kernels.step over z): out[i] = step(p, s, z[i], restarts[i]).\n"
 "z and out are float64 buffers of one length, restarts a bool/uint8 buffer of\n"
-"that length or None; s is updated in place. Releases the GIL.");
+"that length or None; s is updated in place. With trace_index and trace (a\n"
+"float64 buffer of that length): trace[i] = s[trace_index] after sample i.\n"
+"Releases the GIL.");
 
 static PyObject *mod_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    Py_buffer pb, sb, zb, rb, ob;
+    Py_buffer pb, sb, zb, rb, ob, tb;
     const unsigned char *r = NULL;
     int have_r = 0;
-    Py_ssize_t n;
+    Py_ssize_t n, ti = -1;
     (void)self;
-    if (!nargs_ok("run", nargs, 5))
+    if (nargs != 7 && !nargs_ok("run", nargs, 5))
         return NULL;
+    if (nargs == 7) {
+        ti = PyLong_AsSsize_t(args[5]);
+        if (ti == -1 && PyErr_Occurred())
+            return NULL;
+    }
     if (get_ps(args[0], args[1], &pb, &sb) < 0)
         return NULL;
     if (get_f64(args[2], &zb, 0, "z") < 0)
@@ -184,10 +191,34 @@ static PyObject *mod_run(PyObject *self, PyObject *const *args, Py_ssize_t nargs
         PyBuffer_Release(&ob);
         goto fail_r;
     }
-    Py_BEGIN_ALLOW_THREADS
-    gd_run((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf, r,
-           (double *)ob.buf, (long)n);
-    Py_END_ALLOW_THREADS
+    if (nargs == 7) {
+        if (ti < 0 || ti >= sb.len / 8) {
+            PyErr_Format(PyExc_ValueError, "trace_index %zd is outside the state (%zd values)", ti,
+                         sb.len / 8);
+            PyBuffer_Release(&ob);
+            goto fail_r;
+        }
+        if (get_f64(args[6], &tb, 1, "trace") < 0) {
+            PyBuffer_Release(&ob);
+            goto fail_r;
+        }
+        if (tb.len / 8 != n) {
+            PyErr_Format(PyExc_ValueError, "trace has %zd items, z has %zd", tb.len / 8, n);
+            PyBuffer_Release(&tb);
+            PyBuffer_Release(&ob);
+            goto fail_r;
+        }
+        Py_BEGIN_ALLOW_THREADS
+        gd_run_trace((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf, r,
+                     (double *)ob.buf, (long)n, (long)ti, (double *)tb.buf);
+        Py_END_ALLOW_THREADS
+        PyBuffer_Release(&tb);
+    } else {
+        Py_BEGIN_ALLOW_THREADS
+        gd_run((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf, r,
+               (double *)ob.buf, (long)n);
+        Py_END_ALLOW_THREADS
+    }
     PyBuffer_Release(&ob);
     if (have_r)
         PyBuffer_Release(&rb);
@@ -453,14 +484,14 @@ static const struct {
 } constants[] = {
     C(P_ORDER), C(P_METHOD), C(P_LAM), C(P_B), C(P_GAMMA), C(P_Q0), C(P_R0), C(P_P0_RLS),
     C(P_P0_KF), C(P_WARMUP), C(P_R_FLOOR), C(P_OUTLIER_SIGMA), C(P_OUTLIER_RUN), C(P_LP_NSEC),
-    C(P_LP_CUTOFF), C(P_SOS), C(MAX_SOS), C(P_MO_RHO), C(P_MO_GAMMA), C(P_MO_GAIN), C(P_MO_EPS),
-    C(P_MO_LQMIN), C(P_MO_LQMAX), C(P_MO_BR), C(P_MO_LQ0), C(P_MO_CLIP), C(P_MO_BUMP),
+    C(P_LP_CUTOFF), C(P_SOS), C(MAX_SOS), C(P_MO_NF), C(P_MO_FADE), C(P_MO_BR), C(P_MO_RESET),
+    C(P_MO_NLAG), C(P_MO_HUBER), C(P_MO_KAPPA), C(P_MO_CLIP2), C(P_MO_VAR), C(P_MO_G), C(MO_MAX_NF), C(MO_MAX_NLAG),
     C(N_PARAMS), C(METHOD_NONE), C(METHOD_KF), C(METHOD_SHAKF), C(METHOD_SH_CLASSIC),
     C(METHOD_MOTION), C(METHOD_LOWPASS), C(S_K), C(S_KD), C(S_R), C(S_Q), C(S_S2), C(S_NS2),
     C(S_CONV), C(S_INNOV), C(S_SVAR), C(S_NRESET), C(S_OUT), C(S_RLS_ERR), C(S_BK), C(S_NREJ),
     C(S_REJRUN), C(S_NREOPEN), C(S_ZREF), C(S_LO), C(S_HI), C(S_HOLD), C(S_NCLAMP),
-    C(S_NHEAL), C(N_HEADER), C(N_EXT), C(M_W), C(M_A), C(M_P00), C(M_P01), C(M_P11), C(M_LQ),
-    C(M_R), C(M_MABS), C(M_Z1), C(M_Z2), C(M_Z3), C(M_Z4), C(M_UPREV), C(M_BK), C(M_NJUMP),
+    C(S_NHEAL), C(N_HEADER), C(N_EXT), C(M_R), C(M_BK), C(M_HPOS), C(M_ANG), C(M_NW), C(M_BEST), C(M_PVAR),
+    C(M_MABS), C(M_HIST), C(M_BANK),
 };
 #undef C
 

@@ -34,7 +34,7 @@ def compiled_core():
     return C is not None
 
 
-def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, compiled=True):
+def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, trace_index=None, compiled=True):
     """Filter an array of raw samples, continuing from state ``s``.
 
     Parameters
@@ -53,6 +53,9 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, compil
     record_theta : bool
         Also return an (n, order+1) array of [phi_1..phi_n, c] after each
         sample (c in deg/s of the raw samples, :func:`~gyrodenoise.core.kernels.c_deg_s`).
+    trace_index : int, optional
+        Also return s[trace_index] after each sample (an (n,) array), e.g.
+        the output variance of ``method="motion"`` for :func:`run_offline`.
     compiled : bool
         Use the C core (False: the plain-Python kernels, same numbers).
 
@@ -76,7 +79,11 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, compil
             raise ValueError("restarts must have the same length as the samples")
     out = np.empty_like(za)
     use_c = compiled and C is not None
-    if not (diagnostics or record_theta):
+    if use_c and trace_index is not None and not (diagnostics or record_theta):
+        trace = np.empty_like(za)           # the C loop records it (gd_run_trace)
+        C.run(pa, sa, za, ra, out, int(trace_index), trace)
+        return out, sa, trace
+    if not (diagnostics or record_theta or trace_index is not None):
         if use_c:
             C.run(pa, sa, za, ra, out)
             return out, sa
@@ -90,13 +97,63 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, compil
     pp = pa if use_c else pa.tolist()
     step = C.step if use_c else K.step
     n = int(pa[K.P_ORDER])
-    extra = np.empty((za.shape[0], n + 1 if record_theta else 4))
+    extra = np.empty((za.shape[0], n + 1 if record_theta else 4) if trace_index is None else za.shape[0])
     for i, (v, r) in enumerate(zip(za.tolist(), ra.tolist())):
         out[i] = step(pp, st, v, bool(r))
-        if record_theta:
+        if trace_index is not None:
+            extra[i] = st[trace_index]
+        elif record_theta:
             for j in range(n):
                 extra[i, j] = st[K.N_HEADER + j]
             extra[i, n] = K.c_deg_s(pp, st)
         else:
             extra[i] = (st[K.S_INNOV], st[K.S_R], st[K.S_CONV], st[K.S_RLS_ERR])
     return out, np.asarray(st, dtype=np.float64), extra
+
+
+def run_offline(p, z, restarts=None, *, compiled=True):
+    """Whole-record (non-causal) filtering with ``method="motion"``: no lag.
+
+    Each run of samples between restarts is filtered forwards and, from a
+    fresh state, backwards in time (the same causal core on the reversed
+    samples); the output is the mean of the two, which cancels the lag of
+    each (a forward filter lags, the backward one leads by as much), weighted
+    by the inverse of their variances (the filter's own, ``M_PVAR``: the
+    two-filter smoother's combination). Where one of the two is still in its
+    warm-up (the raw sample, the first ``P_WARMUP`` samples of its
+    direction) the other is used alone. Measured
+    against tuned filters in benchmarks/tuned.py (issue 23, item 3). The
+    output stays inside [min, max] of the raw samples of its run.
+
+    Returns the filtered rate (deg/s), an ndarray like ``z``.
+    """
+    if p[K.P_METHOD] != K.METHOD_MOTION:
+        raise ValueError("offline filtering is defined for method='motion' only")
+    za = np.ascontiguousarray(z, dtype=np.float64)
+    n = za.shape[0]
+    starts = [0]
+    if restarts is not None:
+        ra = np.asarray(restarts, dtype=bool)
+        if ra.shape != za.shape:
+            raise ValueError("restarts must have the same length as the samples")
+        starts += [int(i) for i in np.flatnonzero(ra) if i > 0]
+    bounds = starts + [n]
+    out = np.empty_like(za)
+    p = list(p)
+    p[K.P_MO_VAR] = 1.0          # keep the output variance (not computed by the causal filter)
+    warm = int(p[K.P_WARMUP])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        seg = za[a:b]
+        o = K.layout(int(p[K.P_ORDER]))[6] - K.N_EXT + K.M_PVAR
+        fwd, _, vf = run(p, K.init_state(p), seg, trace_index=o, compiled=compiled)
+        bwd, _, vb = run(p, K.init_state(p), seg[::-1].copy(), trace_index=o, compiled=compiled)
+        bwd, vb = bwd[::-1], vb[::-1]
+        den = vf + vb
+        ok = den > 0.0
+        y = 0.5 * (fwd + bwd)
+        y[ok] = (vb[ok] * fwd[ok] + vf[ok] * bwd[ok]) / den[ok]
+        m = min(warm, seg.shape[0])
+        y[:m] = bwd[:m]                       # the forward pass is warming up there
+        y[seg.shape[0] - m:] = fwd[seg.shape[0] - m:]   # and the backward one here
+        out[a:b] = y
+    return out

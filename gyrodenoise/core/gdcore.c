@@ -430,97 +430,224 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
     return y;
 }
 
-KERNEL double motion_step_(const double *p, double *s, double z)
+/* kernels.motion_params(fs) with its defaults, written into p[P_MO_NF ...]
+ * (the native FMU builds its parameters here; tests/test_ccore.py holds it
+ * to the Python bit for bit). */
+void gd_motion_params(double *p, double fs)
+{
+    const int nf = 13;
+    const double lmin = -10.0, lmax = 2.0;
+    int i;
+    p[P_MO_NF] = (double)nf;
+    p[P_MO_FADE] = exp(-1.0 / (3.0 * fs));
+    p[P_MO_BR] = 1.0 - 1.0 / (10.0 * fs);
+    p[P_MO_RESET] = 20.0;
+    p[P_MO_NLAG] = 6.0;
+    p[P_MO_HUBER] = 4.0;
+    p[P_MO_KAPPA] = 1.0 / (30.0 * fs);
+    p[P_MO_CLIP2] = 4.0 * 4.0;
+    p[P_MO_VAR] = 0.0;
+    for (i = 0; i < 3 * MO_MAX_NF; i++)
+        p[P_MO_G + i] = 0.0;
+    for (i = 0; i < nf; i++) {
+        double e = lmin + (lmax - lmin) * i / (double)(nf - 1);
+        double lam = pow(10.0, e);
+        double r = sqrt(lam * lam + 8.0 * lam);
+        double alpha = -(lam * lam + 8.0 * lam - (lam + 4.0) * r) / 8.0;
+        double beta = (lam * lam + 4.0 * lam - lam * r) / 4.0;
+        p[P_MO_G + 3 * i] = alpha;
+        p[P_MO_G + 3 * i + 1] = beta;
+        p[P_MO_G + 3 * i + 2] = -log(1.0 - alpha);
+    }
+}
+
+/* kernels.exp_neg: exp(x) for -30 <= x <= 0 (0 below), same operations: 8 squarings */
+KERNEL double exp_neg_(double x)
+{
+    double u, e;
+    if (x < -30.0)
+        return 0.0;
+    u = x * 0.00390625;
+    e = 1.0 + u * (1.0 + u * 0.5);
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    e = e * e;
+    return e;
+}
+
+/* kernels.log1m_small: -log(1 - g), series to g^8 for g <= 0.125 */
+KERNEL double log1m_small_(double g)
+{
+    if (g > 0.125)
+        return -log(1.0 - g);
+    return g * (1.0 + g * (0.5 + g * (0.3333333333333333 + g * (0.25 + g * (0.2 + g * (0.16666666666666666
+        + g * (0.14285714285714285 + g * 0.125)))))));
+}
+
+/* method="motion": the bank of constant-velocity Kalman filters weighted by
+ * their faded likelihoods, the noise level from 4th differences at several
+ * lags, restarts from the best filter, angle feedback (see kernels.py). */
+KERNEL double motion_step_(const double *restrict p, double *restrict s, double z)
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
-    double k = s[S_K];
-    double r, rho, qn, wp, ap, p00, p01, p11, v, sv, g, lq, k0, k1;
+    double k = s[S_K], r, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
+    int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
+    int pos, i, j, best, c;
+    double wts[MO_MAX_NF];
+    long q, qb;
     if (k == 0.0) {
-        s[o + M_Z1] = z;
-        s[o + M_Z2] = z;
-        s[o + M_Z3] = z;
-        s[o + M_Z4] = z;
         s[o + M_BK] = 1.0;
-        s[o + M_LQ] = p[P_MO_LQ0];
+        pos = 0;
+    } else {
+        pos = (int)s[o + M_HPOS] + 1;
+        if (pos >= nh)
+            pos = 0;
     }
-    if (k >= 4.0) {
-        double d4 = z - 4.0 * s[o + M_Z1] + 6.0 * s[o + M_Z2] - 4.0 * s[o + M_Z3] + s[o + M_Z4];
-        double x = fabs(d4);
-        double b, d, sig;
-        if (s[o + M_MABS] > 0.0 && x > 4.0 * s[o + M_MABS])
-            x = 4.0 * s[o + M_MABS];
-        b = p[P_MO_BR];
+    s[o + M_HPOS] = (double)pos;
+    s[o + M_HIST + pos] = z;
+    if (k >= 4.0 * nlag) {
+        double b = p[P_MO_BR], d, hub = p[P_MO_HUBER], least = 0.0, sig;
+        int clip;
         s[o + M_BK] *= b;
         d = (1.0 - b) / (1.0 - s[o + M_BK]);
-        s[o + M_MABS] += d * (x - s[o + M_MABS]);
-        sig = s[o + M_MABS] * 0.14980634836659743;
+        clip = d < 0.03125;
+        for (j = 1; j <= nlag; j++) {
+            int i1 = pos - j, i2 = pos - 2 * j, i3 = pos - 3 * j, i4 = pos - 4 * j;
+            double d4, x, m;
+            if (i1 < 0)
+                i1 += nh;
+            if (i2 < 0)
+                i2 += nh;
+            if (i3 < 0)
+                i3 += nh;
+            if (i4 < 0)
+                i4 += nh;
+            d4 = z - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
+                 - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4];
+            x = fabs(d4);
+            m = s[o + M_MABS + j - 1];
+            if (clip && x > hub * m)
+                x = hub * m;
+            m += d * (x - m);
+            s[o + M_MABS + j - 1] = m;
+            if (j == 1 || m < least)
+                least = m;
+        }
+        if (least == 0.0)
+            s[o + M_BK] = 1.0;
+        sig = least * 0.14980634836659743;
         r = sig * sig;
         if (r < p[P_R_FLOOR])
             r = p[P_R_FLOOR];
         s[o + M_R] = r;
     }
-    s[o + M_Z4] = s[o + M_Z3];
-    s[o + M_Z3] = s[o + M_Z2];
-    s[o + M_Z2] = s[o + M_Z1];
-    s[o + M_Z1] = z;
     s[S_K] = k + 1.0;
     r = s[o + M_R];
-    if (k < p[P_WARMUP]) {
-        s[o + M_W] = z;
-        s[o + M_A] = 0.0;
-        s[o + M_P00] = r;
-        s[o + M_P01] = 0.0;
-        s[o + M_P11] = r;
+    if (k < p[P_WARMUP] || r == 0.0) {
+        for (i = 0; i < nf; i++) {
+            q = o + M_BANK + 4 * i;
+            s[q] = z;
+            s[q + 1] = 0.0;
+            s[q + 2] = 0.0;
+            s[q + 3] = 0.0;
+        }
         return z;
     }
     s[S_CONV] = 1.0;
-    rho = p[P_MO_RHO];
-    qn = exp(s[o + M_LQ]) * r;
-    wp = s[o + M_W] + s[o + M_A];
-    ap = rho * s[o + M_A];
-    p00 = s[o + M_P00] + 2.0 * s[o + M_P01] + s[o + M_P11] + qn / 3.0;
-    p01 = rho * (s[o + M_P01] + s[o + M_P11]) + 0.5 * qn;
-    p11 = rho * rho * s[o + M_P11] + qn;
-    v = z - wp;
-    sv = p00 + r;
-    g = p[P_MO_GAMMA];
-    if (v * v > g * g * sv) {
-        p00 += v * v - sv;
-        sv = p00 + r;
-        s[o + M_UPREV] = 0.0;
-        s[o + M_NJUMP] += 1.0;
-        lq = s[o + M_LQ] + p[P_MO_GAIN] * (p[P_MO_CLIP] * p[P_MO_BUMP] - p[P_MO_EPS]);
-        if (lq > p[P_MO_LQMAX])
-            lq = p[P_MO_LQMAX];
-        s[o + M_LQ] = lq;
-    } else {
-        double u = v / sqrt(sv);
-        double c = u * s[o + M_UPREV];
-        double cl = p[P_MO_CLIP];
-        if (c > cl)
-            c = cl;
-        else if (c < -cl)
-            c = -cl;
-        lq = s[o + M_LQ] + p[P_MO_GAIN] * (c - p[P_MO_EPS]);
-        if (lq < p[P_MO_LQMIN])
-            lq = p[P_MO_LQMIN];
-        else if (lq > p[P_MO_LQMAX])
-            lq = p[P_MO_LQMAX];
-        s[o + M_LQ] = lq;
-        s[o + M_UPREV] = u;
+    nw = s[o + M_NW] + 1.0;
+    s[o + M_NW] = nw;
+    gm0 = 2.0 * (2.0 * nw - 1.0) / (nw * (nw + 1.0));
+    gm1 = 6.0 / (nw * (nw + 1.0));
+    lgm = 0.0;
+    if (gm0 < 1.0)
+        lgm = log1m_small_(gm0);
+    fade = p[P_MO_FADE];
+    inv_r = 1.0 / r;
+    clip2 = p[P_MO_CLIP2];
+    lmax = 0.0;
+    best = 0;
+    for (i = 0; i < nf; i++) {
+        double g0, g1, ls, wp, v, lk, u2;
+        c = P_MO_G + 3 * i;
+        g0 = p[c];
+        g1 = p[c + 1];
+        ls = p[c + 2];
+        if (gm0 > g0) {
+            g0 = gm0;
+            ls = lgm;
+            if (gm1 > g1)
+                g1 = gm1;
+        }
+        q = o + M_BANK + 4 * i;
+        wp = s[q] + s[q + 1];
+        v = z - wp;
+        u2 = v * v * (1.0 - g0) * inv_r;
+        lk = fade * s[q + 2] - 0.5 * (u2 + ls);
+        if (u2 > clip2 && i < nf - 1)
+            v = v * sqrt(clip2 / u2);
+        s[q] = wp + g0 * v;
+        s[q + 1] = s[q + 1] + g1 * v;
+        s[q + 2] = lk;
+        if (i == 0 || lk > lmax) {
+            lmax = lk;
+            best = i;
+        }
     }
-    k0 = p00 / sv;
-    k1 = p01 / sv;
-    s[o + M_W] = wp + k0 * v;
-    s[o + M_A] = ap + k1 * v;
-    s[o + M_P00] = p00 - k0 * p00;
-    s[o + M_P01] = p01 - k0 * p01;
-    s[o + M_P11] = p11 - k1 * p01;
-    s[S_INNOV] = v;
-    s[S_SVAR] = sv;
+    num = 0.0;
+    den = 0.0;
+    thr = p[P_MO_RESET];
+    qb = o + M_BANK + 4 * best;
+    for (i = 0; i < nf; i++) {
+        double x;
+        q = o + M_BANK + 4 * i;
+        x = s[q + 2] - lmax;
+        if (x < -thr) {
+            if (s[q + 3] == 1.0) {
+                s[q] = s[qb];
+                s[q + 1] = s[qb + 1];
+            }
+            s[q + 2] = lmax - thr;
+            s[q + 3] = 1.0;
+        } else {
+            double e = exp_neg_(x);
+            num += e * s[q];
+            den += e;
+            s[q + 3] = 0.0;
+            wts[i] = e;
+        }
+    }
+    y = num / den;
+    if (p[P_MO_VAR] != 0.0) {
+        double var = 0.0;
+        for (i = 0; i < nf; i++) {
+            q = o + M_BANK + 4 * i;
+            if (s[q + 3] == 0.0) {
+                double g0 = p[P_MO_G + 3 * i], dw;
+                if (gm0 > g0)
+                    g0 = gm0;
+                dw = s[q] - y;
+                var += wts[i] * (g0 * r + dw * dw);
+            }
+        }
+        var = var / den;
+        if (!(var - var == 0.0))
+            var = 1.7976931348623157e308;
+        s[o + M_PVAR] = var;
+    }
+    out = y + p[P_MO_KAPPA] * s[o + M_ANG];
+    s[o + M_ANG] += z - out;
+    c = P_MO_G + 3 * best;
+    s[o + M_BEST] = (double)best;
+    s[S_INNOV] = z - out;
+    s[S_SVAR] = r / (1.0 - p[c]);
     s[S_R] = r;
-    s[S_Q] = qn;
-    return s[o + M_W];
+    s[S_Q] = p[c + 1] * p[c + 1] / (1.0 - p[c]) * r;
+    return out;
 }
 
 /* Python's v - v == 0.0: false for inf and nan. volatile-free: without
@@ -536,6 +663,7 @@ KERNEL int healthy(const double *p, const double *s)
     return finite_(s[o_x]) && finite_(s[S_SVAR]) && finite_(s[S_R])
         && finite_(s[S_Q]) && finite_(s[S_RLS_ERR]) && finite_(s[S_S2]);
 }
+
 
 KERNEL double c_deg_s_(const double *p, const double *s)
 {
@@ -1184,6 +1312,19 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
     else
         for (i = 0; i < n; i++)
             out[i] = step_(p, s, z[i], restarts[i] != 0);
+}
+
+/* gd_run that also records s[trace_index] after each sample into trace[i]
+ * (e.g. the output variance of the motion bank for the offline form,
+ * batch.run_offline); the same step_ as gd_run's generic loop. */
+void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
+                  double *out, long n, long trace_index, double *trace)
+{
+    long i;
+    for (i = 0; i < n; i++) {
+        out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0);
+        trace[i] = s[trace_index];
+    }
 }
 
 /* ------------------------------------------------------------------------

@@ -45,17 +45,19 @@ extern "C" {
 #define P_LP_CUTOFF 14      /* lowpass: cutoff, Hz */
 #define P_SOS 15            /* lowpass: MAX_SOS x (b0, b1, b2, a1, a2) */
 #define MAX_SOS 4
-#define P_MO_RHO (P_SOS + 5 * MAX_SOS)
-#define P_MO_GAMMA (P_MO_RHO + 1)
-#define P_MO_GAIN (P_MO_RHO + 2)
-#define P_MO_EPS (P_MO_RHO + 3)
-#define P_MO_LQMIN (P_MO_RHO + 4)
-#define P_MO_LQMAX (P_MO_RHO + 5)
-#define P_MO_BR (P_MO_RHO + 6)
-#define P_MO_LQ0 (P_MO_RHO + 7)
-#define P_MO_CLIP (P_MO_RHO + 8)
-#define P_MO_BUMP (P_MO_RHO + 9)
-#define N_PARAMS (P_MO_RHO + 10)
+#define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: filters in the bank */
+#define P_MO_FADE (P_MO_NF + 1)         /* motion: fading of the log-likelihoods */
+#define P_MO_BR (P_MO_NF + 2)           /* motion: forgetting of the noise level */
+#define P_MO_RESET (P_MO_NF + 3)        /* motion: restart gap of the log-likelihood */
+#define P_MO_NLAG (P_MO_NF + 4)         /* motion: lags of the 4th differences */
+#define P_MO_HUBER (P_MO_NF + 5)        /* motion: clip of |4th difference| */
+#define P_MO_KAPPA (P_MO_NF + 6)        /* motion: angle feedback gain */
+#define P_MO_CLIP2 (P_MO_NF + 7)        /* motion: Huber clip of the innovation, sigma^2 */
+#define P_MO_VAR (P_MO_NF + 8)         /* motion: 1 = keep the output variance M_PVAR */
+#define P_MO_G (P_MO_NF + 9)            /* motion: (alpha, beta, log S/R) per filter */
+#define MO_MAX_NF 16
+#define MO_MAX_NLAG 8
+#define N_PARAMS (P_MO_G + 3 * MO_MAX_NF)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -91,22 +93,17 @@ extern "C" {
 #define N_HEADER 22
 
 /* method-specific block (lowpass delays, motion) at gd_layout_total(n) - N_EXT */
-#define N_EXT 16
-#define M_W 0
-#define M_A 1
-#define M_P00 2
-#define M_P01 3
-#define M_P11 4
-#define M_LQ 5
-#define M_R 6
+#define M_R 0
+#define M_BK 1
+#define M_HPOS 2
+#define M_ANG 3
+#define M_NW 4
+#define M_BEST 5
+#define M_PVAR 6
 #define M_MABS 7
-#define M_Z1 8
-#define M_Z2 9
-#define M_Z3 10
-#define M_Z4 11
-#define M_UPREV 12
-#define M_BK 13
-#define M_NJUMP 14
+#define M_HIST (M_MABS + MO_MAX_NLAG)
+#define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1)
+#define N_EXT (M_BANK + 4 * MO_MAX_NF)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {
@@ -134,12 +131,17 @@ int gd_gate(const double *p, double *s, double z);
 double gd_filter_step(const double *p, double *s, double z);
 double gd_lowpass_step(const double *p, double *s, double z);
 double gd_motion_step(const double *p, double *s, double z);
+/* kernels.motion_params(fs) with its defaults into p[P_MO_NF ...] (the native FMU) */
+void gd_motion_params(double *p, double fs);
 double gd_c_deg_s(const double *p, const double *s);
 double gd_step(const double *p, double *s, double z, int is_restart);
 
 /* the batch loop: out[i] = gd_step(p, s, z[i], restarts[i]) (restarts may be NULL) */
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
             double *out, long n);
+/* gd_run, also trace[i] = s[trace_index] after sample i (0 <= trace_index < state length) */
+void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
+                  double *out, long n, long trace_index, double *trace);
 
 #ifdef __cplusplus
 }

@@ -68,17 +68,19 @@ P_LP_NSEC = 13   # lowpass: number of second-order sections (0 for the other met
 P_LP_CUTOFF = 14  # lowpass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
-P_MO_RHO = P_SOS + 5 * MAX_SOS  # motion: Singer decay of the rate increment per sample
-P_MO_GAMMA = P_MO_RHO + 1       # motion: jump test strictness (Eq. 32 form)
-P_MO_GAIN = P_MO_RHO + 2        # motion: step of the log-q adaptation per sample
-P_MO_EPS = P_MO_RHO + 3         # motion: target lag-1 correlation of the normalised innovations
-P_MO_LQMIN = P_MO_RHO + 4       # motion: bounds of log(q / R)
-P_MO_LQMAX = P_MO_RHO + 5
-P_MO_BR = P_MO_RHO + 6          # motion: Sage-Husa forgetting factor of the noise level
-P_MO_LQ0 = P_MO_RHO + 7         # motion: log(q / R) after a restart (at rest, as the paper assumes)
-P_MO_CLIP = P_MO_RHO + 8        # motion: clip of the innovation-correlation term
-P_MO_BUMP = P_MO_RHO + 9        # motion: log-q rise at a jump, in units of the clip
-N_PARAMS = P_MO_RHO + 10
+P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity filters in the bank (<= MO_MAX_NF)
+P_MO_FADE = P_MO_NF + 1          # motion: fading factor of the filters' log-likelihoods per sample
+P_MO_BR = P_MO_NF + 2            # motion: forgetting factor of the noise-level estimate (Sage-Husa b)
+P_MO_RESET = P_MO_NF + 3         # motion: log-likelihood gap below the best at which a filter is re-started from it
+P_MO_NLAG = P_MO_NF + 4          # motion: lags 1..NLAG of the 4th-difference noise estimates
+P_MO_HUBER = P_MO_NF + 5         # motion: Huber clip of |4th difference|, in units of its mean
+P_MO_KAPPA = P_MO_NF + 6         # motion: gain of the angle feedback per sample (0 = off)
+P_MO_CLIP2 = P_MO_NF + 7         # motion: Huber clip of the innovation in the state updates, (sigmas)^2
+P_MO_VAR = P_MO_NF + 8           # motion: 1.0 = also keep the output variance M_PVAR (batch.run_offline), 0.0 = not
+P_MO_G = P_MO_NF + 9             # motion: per filter (steady-state gain on rate, on slope, log S/R)
+MO_MAX_NF = 16
+MO_MAX_NLAG = 8
+N_PARAMS = P_MO_G + 3 * MO_MAX_NF
 
 METHOD_NONE = 0.0      # identification only, output = raw
 METHOD_KF = 1.0        # conventional KF, fixed Q and R
@@ -116,23 +118,19 @@ S_NHEAL = 21     # restarts forced by a non-finite filter state (kept by restart
 N_HEADER = 22
 
 
-N_EXT = 16   # method-specific state after the AR layout (lowpass delays, motion)
-# motion's state, at offset layout(n)[6] - N_EXT
-M_W = 0          # true-rate estimate omega (centred), deg/s
-M_A = 1          # rate increment per sample a, deg/s
-M_P00 = 2        # covariance of [omega, a], (deg/s)^2
-M_P01 = 3
-M_P11 = 4
-M_LQ = 5         # log(q / R): process-noise level relative to the white noise
-M_R = 6          # white-noise variance R of the sensor, (deg/s)^2
-M_MABS = 7       # mean |4th difference| (robust noise level), deg/s
-M_Z1 = 8         # last four centred samples
-M_Z2 = 9
-M_Z3 = 10
-M_Z4 = 11
-M_UPREV = 12     # last normalised innovation
-M_BK = 13        # b^(k+1) of d_k
-M_NJUMP = 14     # jumps followed (Eq. 32 violated) since the restart
+# method-specific state after the AR layout (lowpass delays, motion), N_EXT floats;
+# motion's, at offset layout(n)[6] - N_EXT:
+M_R = 0          # white-noise variance R of the sensor (the smallest lag estimate), (deg/s)^2
+M_BK = 1         # b^(k+1) of d_k, Eq. (33)
+M_HPOS = 2       # position of the newest sample in the ring M_HIST
+M_ANG = 3        # angle feedback: integral of (input - output) since the restart, deg/s x samples
+M_NW = 4         # samples filtered since the warm-up ended
+M_BEST = 5       # index of the most likely filter at the last sample
+M_PVAR = 6       # variance of the output (the weighted mixture of the filters), (deg/s)^2
+M_MABS = 7       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
+M_HIST = M_MABS + MO_MAX_NLAG              # ring of the last 4 NLAG + 1 centred samples
+M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # per filter: rate, slope per sample, log-likelihood, 1.0 if below the floor at the last sample
+N_EXT = M_BANK + 4 * MO_MAX_NF
 
 
 def layout(n):
@@ -257,7 +255,7 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     p[P_OUTLIER_RUN] = float(int(outlier_run))
     if method == "motion":
         for i, v in enumerate(p_motion):
-            p[P_MO_RHO + i] = v
+            p[P_MO_NF + i] = v
     if sos:
         p[P_LP_NSEC] = float(len(sos))
         p[P_LP_CUTOFF] = float(cutoff_hz)
@@ -267,28 +265,48 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     return p
 
 
-def motion_params(sample_rate_hz, tau_a_s=0.5, gamma=5.0, tau_g_s=0.1, eps=0.2,
-                  log_q_min=-32.236, log_q_max=13.816, r_tau_s=10.0, log_q0=-15.0, clip=100.0,
-                  jump_bump=0.1):
-    """The constants of ``method="motion"`` (:func:`motion_step`), one default
-    for every sensor: q and R are relative to the identified noise, times are
-    turned into samples here. Measured on FOG and MEMS cards and real flights
-    (benchmarks/motion.py); not meant to be tuned by a user.
+def cv_gains(tracking_index):
+    """Steady-state gains (alpha on the rate, beta on its change per sample) of
+    the constant-velocity Kalman filter with white-noise acceleration of
+    tracking index lam = sigma_w T^2 / sigma_v (Kalata 1984, "The tracking
+    index", closed form), and log(S / R) = -log(1 - alpha), S its innovation
+    variance. lam^2 = beta^2 / (1 - alpha)."""
+    lam = float(tracking_index)
+    r = math.sqrt(lam * lam + 8.0 * lam)
+    alpha = -(lam * lam + 8.0 * lam - (lam + 4.0) * r) / 8.0
+    beta = (lam * lam + 4.0 * lam - lam * r) / 4.0
+    return alpha, beta, -math.log(1.0 - alpha)
 
-    tau_a_s: correlation time of the angular acceleration (Singer model);
-    gamma: strictness of the jump test (Eq. 32 form); tau_g_s: time constant
-    of the q adaptation; eps: target lag-1 correlation of the normalised
-    innovations; log_q_min/max: bounds of log(q/R) (1e-14 .. 1e6); r_tau_s:
-    memory of the Sage-Husa noise-level estimate; log_q0: log(q/R) after a
-    restart (the gyro at rest, as the paper assumes); clip: of the correlation
-    term; jump_bump: log-q rise at a jump (as ``jump_bump * clip`` correlation
-    units): without it a profile that jumps at every sample (a 5 Hz sine on a
-    FOG) never raised q and ended up 1.1x worse than raw."""
+
+def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
+                  tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
+                  clip_sigma=4.0):
+    """The constants of ``method="motion"`` (:func:`motion_step`), one default
+    for every sensor (they are relative to the noise level the filter reads
+    from the data; times are turned into samples here). Measured against
+    filters tuned per record on the truth (benchmarks/tuned.py, issue 23); not
+    meant to be tuned by a user.
+
+    n_filters constant-velocity Kalman filters, tracking indices log-spaced
+    from 10^log10_lambda_min (averages a whole record) to 10^log10_lambda_max
+    (follows every sample); tau_l_s: memory of their log-likelihoods; r_tau_s:
+    memory of the noise-level estimate; reset: log-likelihood gap below the
+    best at which a filter restarts from the best (as an IMM mixes); n_lag:
+    lags of the 4th-difference noise estimates; huber: their clip; tau_angle_s:
+    time constant of the angle feedback (0 = off); clip_sigma: each filter
+    but the fastest updates its state with its innovation clipped at this many sigma (a lone
+    spike moves the filters that did not follow it by a negligible amount)."""
     fs = float(sample_rate_hz)
-    import math
-    return [math.exp(-1.0 / (tau_a_s * fs)), float(gamma), 1.0 / (tau_g_s * fs), float(eps),
-            float(log_q_min), float(log_q_max), 1.0 - 1.0 / (r_tau_s * fs), float(log_q0), float(clip),
-            float(jump_bump)]
+    if not 1 <= n_filters <= MO_MAX_NF or not 1 <= n_lag <= MO_MAX_NLAG:
+        raise ValueError("motion: n_filters must be 1..%d and n_lag 1..%d" % (MO_MAX_NF, MO_MAX_NLAG))
+    p = [float(n_filters), math.exp(-1.0 / (tau_l_s * fs)), 1.0 - 1.0 / (r_tau_s * fs), float(reset),
+         float(n_lag), float(huber), 1.0 / (tau_angle_s * fs) if tau_angle_s > 0 else 0.0,
+         float(clip_sigma) * float(clip_sigma), 0.0]
+    gains = [0.0] * (3 * MO_MAX_NF)
+    for i in range(n_filters):
+        e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
+        gains[3 * i:3 * i + 3] = cv_gains(10.0 ** e)
+    return p + gains
 
 
 def butter_sos(order, cutoff_hz, sample_rate_hz):
@@ -740,127 +758,222 @@ def lowpass_step(p, s, z):
     return y
 
 
+def exp_neg(x):
+    """exp(x) for -30 <= x <= 0 (0.0 below): the Taylor polynomial of degree 2
+    at x / 256, squared 8 times; relative error < 3e-6 for x >= -1, < 2 % at
+    -20 (weights below 2e-9 there). The weights of the motion bank need no
+    more, and gdcore.c repeats these operations, so C and Python agree bit
+    for bit without depending on libm's exp (and it is several times cheaper)."""
+    if x < -30.0:
+        return 0.0
+    u = x * 0.00390625
+    e = 1.0 + u * (1.0 + u * 0.5)
+    for _ in range(8):
+        e = e * e
+    return e
+
+
+def log1m_small(g):
+    """-log(1 - g) for 0 <= g <= 0.125 by its series to g^8 (error < 1e-9
+    relative), with math.log above: the log-likelihood penalty of the
+    growing-memory gain, one per sample (gdcore.c repeats these operations)."""
+    if g > 0.125:
+        return -math.log(1.0 - g)
+    return g * (1.0 + g * (0.5 + g * (0.3333333333333333 + g * (0.25 + g * (0.2 + g * (0.16666666666666666
+        + g * (0.14285714285714285 + g * 0.125)))))))
+
+
 def motion_step(p, s, z):
-    """``method="motion"``: one centred sample ``z`` through a filter that keeps
-    the true rate and follows it (not in the paper; issue 12).
+    """``method="motion"``: one centred sample ``z`` through a bank of
+    constant-velocity Kalman filters weighted by their likelihoods (not in the
+    paper; issues 12 and 23).
 
-    State [omega, a]: the true rate and its increment per sample, a Singer
-    (decaying constant-acceleration) model, z = omega + white noise of
-    variance R. Three adaptive parts, all per sample and O(1):
+    Model of every filter: state [omega, a], the true rate and its change per
+    sample; omega += a, a += white noise (white-noise acceleration), z = omega +
+    white noise of variance R. The filters differ only in their tracking index
+    lam (q = lam^2 R): from one that averages the whole record to one that
+    follows every sample. Per sample, all O(1):
 
-    * R, the sensor's white-noise level, from the mean absolute 4th difference
-      of the samples (70 R for white noise; smooth motion adds ~T^4 times the 4th derivative,
-      negligible), Huber-clipped at 4x its mean and averaged with the
-      Sage-Husa weight d_k = (1-b)/(1-b^(k+1)) of Eq. (22)/(33);
-    * q (process noise, relative to R): its logarithm moves with the lag-1
-      correlation of the normalised innovations u_k u_(k-1): a filter that
-      lags gives positively correlated innovations and raises q, white ones
-      lower it (towards averaging at rest);
-    * the divergence test of Eq. (32), v^2 > gamma^2 S: a change the model
-      cannot explain (a step) opens the rate variance so the same sample is
-      followed, and raises q (a run of such jumps is motion the model was too
-      stiff for).
+    * R, the sensor's white-noise level: the mean |4th difference| of the
+      samples at lags 1..NLAG (70 R for white noise: E|d4| = sqrt(70 R 2/pi)),
+      each Huber-clipped at ``huber`` x its mean and averaged with the
+      Sage-Husa weight d_k = (1-b)/(1-b^(k+1)) of Eq. (22)/(33); R is the
+      smallest of them. Motion only adds to a 4th difference, and a lag-L
+      difference is blind to the frequencies m fs / L, so the smallest reads
+      the noise under slow manoeuvres and under a vibration tone that the
+      lag-1 difference takes for noise (issue 23: everything above fs/4 was
+      erased).
+    * Each filter runs at its steady-state gains (:func:`cv_gains`), or at the
+      gains of the least-squares line through all the samples since the
+      warm-up when these are larger (its start-up: a growing memory, so the
+      slowest filters average from the first sample instead of waiting for
+      their Riccati equation).
+    * Log-likelihood of each filter, faded: L = f L - (v^2 / S + log S/R) / 2,
+      S = R / (1 - g0). The state update uses the innovation clipped at
+      ``clip`` sigma (Huber), except in the fastest filter: a filter does not
+      chase a jump, it loses likelihood and is restarted from the one that
+      followed it (below). The output is the likelihood-weighted mean of the
+      rates (weights exp(L - L_max), by :func:`exp_neg`).
+    * A filter whose L falls ``reset`` below the best is held there (L
+      floored), and if it was already there at the last sample it restarts
+      from the best filter's state (the mixing of an IMM): after a manoeuvre
+      the slow filters resume averaging where the motion ended, not where
+      they lagged. Waiting one sample keeps a lone spike from being copied
+      into every filter: the filters that ignored it win again at the next
+      sample.
+    * Angle feedback: the output is corrected by kappa times the integral of
+      (input - output), so over a record the output integrates to the same
+      angle as the input (a lagging filter otherwise loses lag x rate change).
 
-    Measured (benchmarks/motion.py, docs/motion/report.md): at rest it
-    averages like the SHAKF (FOG: better), it follows steps in the same
-    sample and smooth manoeuvres with no measurable lag. Tried and not kept
-    (issue 12): the paper's AR(n) error model identified by RLS at rest as
-    extra states (no gain on these sensors, whose error is near-white) and a
-    two-model IMM (no single manoeuvre q suits a FOG and a MEMS). A lone
-    spike is followed like a step (the output stays inside the envelope but
-    is not smoothed; use ``shakf``/``kf`` with the outlier gate for spiky
-    records).
-
-    While warming up (``P_WARMUP`` samples) the state follows z and the output
-    is raw (as for the other methods).
+    While warming up (``P_WARMUP`` samples, and until the noise level is read)
+    the filters sit on z and the output is raw (as for the other methods).
     """
     o = layout(int(p[P_ORDER]))[6] - N_EXT
     k = s[S_K]
+    nlag = int(p[P_MO_NLAG])
+    nh = 4 * nlag + 1
     if k == 0.0:
-        s[o + M_Z1] = z
-        s[o + M_Z2] = z
-        s[o + M_Z3] = z
-        s[o + M_Z4] = z
         s[o + M_BK] = 1.0
-        s[o + M_LQ] = p[P_MO_LQ0]
-    if k >= 4.0:
-        d4 = z - 4.0 * s[o + M_Z1] + 6.0 * s[o + M_Z2] - 4.0 * s[o + M_Z3] + s[o + M_Z4]
-        x = abs(d4)
-        if s[o + M_MABS] > 0.0 and x > 4.0 * s[o + M_MABS]:
-            x = 4.0 * s[o + M_MABS]
+        pos = 0
+    else:
+        pos = int(s[o + M_HPOS]) + 1
+        if pos >= nh:
+            pos = 0
+    s[o + M_HPOS] = float(pos)
+    s[o + M_HIST + pos] = z
+    if k >= 4.0 * nlag:
         b = p[P_MO_BR]
         s[o + M_BK] *= b
         d = (1.0 - b) / (1.0 - s[o + M_BK])         # d_k, as in Eq. (33)
-        s[o + M_MABS] += d * (x - s[o + M_MABS])
-        sig = s[o + M_MABS] * 0.14980634836659743  # E|N(0, 70 R)| = sqrt(70 R 2/pi)
+        hub = p[P_MO_HUBER]
+        clip = d < 0.03125                           # no clip while the mean forms (32 samples)
+        least = 0.0
+        for j in range(1, nlag + 1):
+            i1 = pos - j
+            if i1 < 0:
+                i1 += nh
+            i2 = pos - 2 * j
+            if i2 < 0:
+                i2 += nh
+            i3 = pos - 3 * j
+            if i3 < 0:
+                i3 += nh
+            i4 = pos - 4 * j
+            if i4 < 0:
+                i4 += nh
+            d4 = (z - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
+                  - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4])
+            x = abs(d4)
+            m = s[o + M_MABS + j - 1]
+            if clip and x > hub * m:
+                x = hub * m
+            m += d * (x - m)
+            s[o + M_MABS + j - 1] = m
+            if j == 1 or m < least:
+                least = m
+        if least == 0.0:
+            s[o + M_BK] = 1.0      # a constant input so far: the means start with the first change
+        sig = least * 0.14980634836659743            # E|N(0, 70 R)| = sqrt(70 R 2/pi)
         r = sig * sig
         if r < p[P_R_FLOOR]:
             r = p[P_R_FLOOR]
         s[o + M_R] = r
-    s[o + M_Z4] = s[o + M_Z3]
-    s[o + M_Z3] = s[o + M_Z2]
-    s[o + M_Z2] = s[o + M_Z1]
-    s[o + M_Z1] = z
     s[S_K] = k + 1.0
     r = s[o + M_R]
-    if k < p[P_WARMUP]:
-        s[o + M_W] = z
-        s[o + M_A] = 0.0
-        s[o + M_P00] = r
-        s[o + M_P01] = 0.0
-        s[o + M_P11] = r
+    nf = int(p[P_MO_NF])
+    if k < p[P_WARMUP] or r == 0.0:
+        for i in range(nf):
+            q = o + M_BANK + 4 * i
+            s[q] = z
+            s[q + 1] = 0.0
+            s[q + 2] = 0.0
+            s[q + 3] = 0.0
         return z
     s[S_CONV] = 1.0
-    rho = p[P_MO_RHO]
-    qn = math.exp(s[o + M_LQ]) * r
-    # time update: omega += a, a *= rho; white jerk of variance q
-    wp = s[o + M_W] + s[o + M_A]
-    ap = rho * s[o + M_A]
-    p00 = s[o + M_P00] + 2.0 * s[o + M_P01] + s[o + M_P11] + qn / 3.0
-    p01 = rho * (s[o + M_P01] + s[o + M_P11]) + 0.5 * qn
-    p11 = rho * rho * s[o + M_P11] + qn
-    v = z - wp
-    sv = p00 + r
-    g = p[P_MO_GAMMA]
-    if v * v > g * g * sv:
-        # Eq. (32) violated: open the rate variance, follow this sample
-        p00 += v * v - sv
-        sv = p00 + r
-        s[o + M_UPREV] = 0.0
-        s[o + M_NJUMP] += 1.0
-        # ... and the model was too stiff for it: raise q as a fully
-        # correlated innovation pair would (a run of jumps means real motion)
-        lq = s[o + M_LQ] + p[P_MO_GAIN] * (p[P_MO_CLIP] * p[P_MO_BUMP] - p[P_MO_EPS])
-        if lq > p[P_MO_LQMAX]:
-            lq = p[P_MO_LQMAX]
-        s[o + M_LQ] = lq
-    else:
-        u = v / math.sqrt(sv)
-        c = u * s[o + M_UPREV]
-        cl = p[P_MO_CLIP]
-        if c > cl:
-            c = cl
-        elif c < -cl:
-            c = -cl
-        lq = s[o + M_LQ] + p[P_MO_GAIN] * (c - p[P_MO_EPS])
-        if lq < p[P_MO_LQMIN]:
-            lq = p[P_MO_LQMIN]
-        elif lq > p[P_MO_LQMAX]:
-            lq = p[P_MO_LQMAX]
-        s[o + M_LQ] = lq
-        s[o + M_UPREV] = u
-    k0 = p00 / sv
-    k1 = p01 / sv
-    s[o + M_W] = wp + k0 * v
-    s[o + M_A] = ap + k1 * v
-    s[o + M_P00] = p00 - k0 * p00
-    s[o + M_P01] = p01 - k0 * p01
-    s[o + M_P11] = p11 - k1 * p01
-    s[S_INNOV] = v
-    s[S_SVAR] = sv
+    nw = s[o + M_NW] + 1.0
+    s[o + M_NW] = nw
+    # gains of the least-squares line through the nw samples so far
+    gm0 = 2.0 * (2.0 * nw - 1.0) / (nw * (nw + 1.0))
+    gm1 = 6.0 / (nw * (nw + 1.0))
+    lgm = 0.0
+    if gm0 < 1.0:
+        lgm = log1m_small(gm0)
+    fade = p[P_MO_FADE]
+    inv_r = 1.0 / r
+    clip2 = p[P_MO_CLIP2]
+    lmax = 0.0
+    best = 0
+    for i in range(nf):
+        c = P_MO_G + 3 * i
+        g0 = p[c]
+        g1 = p[c + 1]
+        ls = p[c + 2]
+        if gm0 > g0:
+            g0 = gm0
+            ls = lgm
+            if gm1 > g1:
+                g1 = gm1
+        q = o + M_BANK + 4 * i
+        wp = s[q] + s[q + 1]
+        v = z - wp
+        u2 = v * v * (1.0 - g0) * inv_r                 # v^2 / S
+        lk = fade * s[q + 2] - 0.5 * (u2 + ls)
+        if u2 > clip2 and i < nf - 1:
+            v = v * math.sqrt(clip2 / u2)                # Huber: the update sees at most clip sigma
+        s[q] = wp + g0 * v
+        s[q + 1] = s[q + 1] + g1 * v
+        s[q + 2] = lk
+        if i == 0 or lk > lmax:
+            lmax = lk
+            best = i
+    num = 0.0
+    den = 0.0
+    wts = [0.0] * nf
+    thr = p[P_MO_RESET]
+    qb = o + M_BANK + 4 * best
+    for i in range(nf):
+        q = o + M_BANK + 4 * i
+        x = s[q + 2] - lmax
+        if x < -thr:
+            # weight below exp(-thr): left out of the mean; held at the floor,
+            # restarted from the best at the second sample there
+            if s[q + 3] == 1.0:
+                s[q] = s[qb]
+                s[q + 1] = s[qb + 1]
+            s[q + 2] = lmax - thr
+            s[q + 3] = 1.0
+        else:
+            e = exp_neg(x)
+            num += e * s[q]
+            den += e
+            s[q + 3] = 0.0
+            wts[i] = e
+    y = num / den
+    # variance of the mixture: sum of w (g0 R + (rate - y)^2) / sum of w, the
+    # posterior variance of a Kalman filter's rate being g0 R
+    if p[P_MO_VAR] != 0.0:
+        var = 0.0
+        for i in range(nf):
+            q = o + M_BANK + 4 * i
+            if s[q + 3] == 0.0:
+                g0 = p[P_MO_G + 3 * i]
+                if gm0 > g0:
+                    g0 = gm0
+                dw = s[q] - y
+                var += wts[i] * (g0 * r + dw * dw)
+        var = var / den
+        if not var - var == 0.0:
+            var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
+        s[o + M_PVAR] = var
+    out = y + p[P_MO_KAPPA] * s[o + M_ANG]
+    s[o + M_ANG] += z - out
+    c = P_MO_G + 3 * best
+    s[o + M_BEST] = float(best)
+    s[S_INNOV] = z - out
+    s[S_SVAR] = r / (1.0 - p[c])
     s[S_R] = r      # reported as the other methods report theirs (R_hat, Q_hat of the FMUs)
-    s[S_Q] = qn
-    return s[o + M_W]
+    s[S_Q] = p[c + 1] * p[c + 1] / (1.0 - p[c]) * r     # q = lam^2 R of the most likely filter
+    return out
 
 
 def _method_step(p, s, zc):

@@ -29,6 +29,7 @@ HI_COLS = ("adev_uci", "adev_hi", "upper")
 UNIT_TO_DEG_S = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
 Z95 = 1.959964
 FIT_ROBUST = 10             # Huber re-weightings of the fit (spectral.fit_terms)
+MAX_LINES = 2               # sinusoids the fit may add, only if they bring it inside the bounds at every tau
 
 
 @dataclass
@@ -160,7 +161,10 @@ def fit_curve(curve):
     else 5 % of the ADEV; Huber re-weighted (FIT_ROBUST passes), so that the
     shortest taus of a long record (bounds of +-0.1 %, shaped by the sensor's
     internal filter, which no term represents) do not pull every term off the rest
-    of the curve. Returns (terms, model ADEV at the curve's tau in deg/s)."""
+    of the curve. When the fit is not inside the bounds at every tau, up to
+    MAX_LINES sinusoids are tried (:func:`.spectral.fit_terms`, ``max_lines``) and kept
+    only if they bring it inside everywhere (the KVH 1750 curve: one line).
+    Returns (terms, model ADEV at the curve's tau in deg/s)."""
     from .spectral import fit_terms
     m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1)
     half = np.where(np.isfinite(curve.lo_deg_s), (curve.hi_deg_s - curve.lo_deg_s) / 2.0,
@@ -168,7 +172,9 @@ def fit_curve(curve):
     sd_ad = np.where(np.isfinite(half) & (half > 0), half / Z95, 0.05 * curve.adev_deg_s)
     avar = curve.adev_deg_s ** 2
     terms, model_avar, _ = fit_terms(_CurveLayout(m, curve.sample_rate_hz, curve.n_samples), (), avar,
-                                     2.0 * curve.adev_deg_s * sd_ad, None, None, robust=FIT_ROBUST)
+                                     2.0 * curve.adev_deg_s * sd_ad, None, None, robust=FIT_ROBUST,
+                                     max_lines=MAX_LINES,
+                                     inside_fn=lambda av: bool(np.all(inside(curve, np.sqrt(np.maximum(av, 0.0))))))
     return terms, np.sqrt(model_avar)
 
 
@@ -187,6 +193,8 @@ def card_from_terms(text, terms, note, source="<card>"):
         text = edit_card(text, "gauss_markov", None, True, note, source)
     for s, t in terms["gauss_markov"]:
         text = edit_card(text, "gauss_markov", {"sigma": s * 3600.0, "tau": float(t)}, False, note, source)
+    for a, f in terms.get("sinusoid", ()):
+        text = edit_card(text, "sinusoid", {"amplitude": a * 3600.0, "frequency": float(f)}, False, note, source)
     return text
 
 

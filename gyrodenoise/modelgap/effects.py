@@ -57,6 +57,15 @@ def name_effects(y, fs, card, bumps=(), latitude_deg=None):
                        f"sensor's internal low-pass filter; {lo:.3g}-{hi:.3g} Hz {alike}")
         elif not peak > 0:
             out.append(f"stop band {lo:.3g}-{hi:.3g} Hz (given): {alike}")
+        elif hi < 1.1 * lo:
+            out.append(f"line wandering in frequency {lo:.4g}-{hi:.4g} Hz ({peak:.3g} x the PSD's running median; "
+                       f"too wide for one sinusoid): a dither / aliased line or a machine whose speed drifts, "
+                       f"not the sensor's noise; {alike}")
+        elif lo <= fs / 64.0:
+            out.append(f"base motion {lo:.3g}-{hi:.3g} Hz ({peak:.3g} x the PSD on both sides of its peak, and "
+                       f"everything below it more than 2 x the sensor's level above it): the angular motion of "
+                       f"the base, not the sensor's noise; {alike}. The sensor's slow terms (bias instability, "
+                       f"rate random walk) are hidden under it: the card's long-tau terms are not measured here")
         else:
             what = "dither / aliased line" if lo > 0.4 * fs else "base vibration (a random narrow-band motion)"
             out.append(f"spectral bump {lo:.3g}-{hi:.3g} Hz ({peak:.3g} x the PSD on both sides): {what}, not "

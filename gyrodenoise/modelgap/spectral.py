@@ -32,6 +32,11 @@ import numpy as np
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
 N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
 MIN_BUMP_BINS = 16    # a bump spans at least this many Welch bins (narrower: a spectral line)
+WIDEN = 2.0           # a bump is widened while its PSD stays above WIDEN x its far-side floor
+MIN_LINE_BINS = 6     # a line wandering in frequency spans at least this many Welch bins
+LINE_RATIO = 3.0      # ... standing LINE_RATIO x above the PSD's running median
+LINE_BRIDGE_BINS = 8  # ... its runs joined across gaps of up to this many bins
+LINE_WINDOW_HZ = 2.0  # ... taken over this many Hz
 
 
 def psd_two_sided(name, f, fs, tau_s=None):
@@ -47,6 +52,9 @@ def psd_two_sided(name, f, fs, tau_s=None):
     if name == "gauss_markov":
         a = math.exp(-T / tau_s)
         return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a)
+    if name == "angle_gauss_markov":     # a first-order GM ANGLE (std 1, tau_s), differenced / T
+        a = math.exp(-T / tau_s)
+        return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a) * 4.0 * s2 / (T * T)
     if name == "bias_instability":
         from ..simulator import _bank, parse_card
         card = parse_card(f"[sensor]\nname='unit'\nsample_rate_hz={fs!r}\n[terms]\n"
@@ -87,9 +95,20 @@ def band_stop(y, fs, bands):
     return sfft.irfft(X, nfft)[:n] + mu
 
 
-def allan_columns(specs, m, fs, bands=()):
+def lowpass_gain(f, fs, cutoff_hz=None):
+    """Power gain ``|H|^2`` of a first-order discrete low-pass on the sensor's output,
+    ``y_k = a y_(k-1) + (1 - a) x_k`` with ``a = exp(-2 pi cutoff_hz / fs)``:
+    ``(1 - a)^2 / (1 - 2 a cos(2 pi f / fs) + a^2)`` (1 at f = 0); 1 when ``cutoff_hz`` is None."""
+    if cutoff_hz is None:
+        return np.ones_like(f)
+    a = math.exp(-2.0 * math.pi * cutoff_hz / fs)
+    return (1.0 - a) ** 2 / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f / fs) + a * a)
+
+
+def allan_columns(specs, m, fs, bands=(), lowpass_hz=None):
     """Allan variance at cluster sizes ``m`` of each term in ``specs`` (list of
-    (name, tau_s or None)) with unit coefficient, through the stop mask."""
+    (name, tau_s or None)) with unit coefficient, through the stop mask (and the
+    output low-pass :func:`lowpass_gain` when ``lowpass_hz`` is given)."""
     T = 1.0 / fs
     out = np.zeros((len(m), len(specs)))
     for i, mi in enumerate(np.asarray(m, float)):
@@ -105,12 +124,13 @@ def allan_columns(specs, m, fs, bands=()):
         for j, (name, tc) in enumerate(specs):
             acc = 0.0
             for ff, hh in parts:
-                acc += np.trapezoid(psd_two_sided(name, ff, fs, tc) * stop_mask(ff, bands) * hh, ff)
+                acc += np.trapezoid(psd_two_sided(name, ff, fs, tc) * stop_mask(ff, bands) * hh
+                                    * lowpass_gain(ff, fs, lowpass_hz), ff)
             out[i, j] = acc
     return out
 
 
-def band_columns(specs, layout, bands=()):
+def band_columns(specs, layout, bands=(), lowpass_hz=None):
     """One-sided Welch-band PSD (mean over each band's bins) of each term with unit
     coefficient, through the stop mask; and a mask of the bands clear of the stop
     bands (two Welch bins of margin for the Hann window's leakage)."""
@@ -120,7 +140,7 @@ def band_columns(specs, layout, bands=()):
     keep_bin = stop_mask(f, [(lo - 2 * df, hi + 2 * df) for lo, hi in bands or ()]) > 0
     cols = np.zeros((len(e) - 1, len(specs)))
     for j, (name, tc) in enumerate(specs):
-        p = 2.0 * psd_two_sided(name, f, layout.fs, tc)
+        p = 2.0 * psd_two_sided(name, f, layout.fs, tc) * lowpass_gain(f, layout.fs, lowpass_hz)
         cols[:, j] = [p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)]
     clear = np.array([bool(np.all(keep_bin[e[i]:e[i + 1]])) for i in range(len(e) - 1)])
     return cols, clear
@@ -139,6 +159,7 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
     nper = welch_nperseg(y.shape[0])
     f, p = welch(y, fs=fs, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
     f, p = f[1:], p[1:]
+    lines, p = wandering_lines(f, p)
     edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
                         int(math.ceil(math.log10(f[-1] / f[0]) * per_decade)) + 1)
     idx = np.searchsorted(f, edges)
@@ -164,12 +185,12 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
             # widen while the PSD stays above twice its floor on the far side
             while i > 0:
                 left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
-                if not len(left) or pv[i - 1] <= 2.0 * left.min():
+                if not len(left) or pv[i - 1] <= WIDEN * left.min():
                     break
                 i -= 1
             while j + 1 < len(bands):
                 right = pv[(fc > fc[j + 1]) & (fc <= fc[j + 1] * span)]
-                if not len(right) or pv[j + 1] <= 2.0 * right.min():
+                if not len(right) or pv[j + 1] <= WIDEN * right.min():
                     break
                 j += 1
             lo = bands[max(i - 1, 0)][0]
@@ -178,17 +199,53 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
                 i = j + 1      # a narrow line: a sinusoid's business, not a band to take out
                 continue
             peak = float(np.max(pv[i:j + 1] / np.maximum(side[i:j + 1], 1e-300)))
+            # base motion down to DC: when every band below the bump stays above
+            # WIDEN x the floor on the bump's upper side (the sensor's own level),
+            # nothing below the bump is the sensor's (its terms give a PSD that is
+            # flat, falling, or rising like f^2 from far below that floor)
+            up = pv[(fc > hi) & (fc <= hi * span)]
+            below = pv[fc < lo]
+            if len(up) and len(below) and below.min() > WIDEN * up.min():
+                lo = float(f[0])
             out.append((float(lo), float(hi), peak))
             i = j + 1
         else:
             i += 1
-    return out
+    return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
+
+
+def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
+    """Lines too wide for one sinusoid: runs spanning at least :data:`MIN_LINE_BINS`
+    Welch bins (gaps of up to LINE_BRIDGE_BINS bins bridged) that stand more than ``ratio`` times
+    above the running median of the PSD over ``window_hz``. A sinusoid stays within
+    the Hann main lobe (4 bins; about 3 above 3x for a line 15x its floor); a line
+    whose frequency wanders (a ring-laser gyro's dither, aliased; a motor whose
+    speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
+    segments a noise bin 3x above the median is ~13 standard deviations off.
+    Returns ([(lo_hz, hi_hz, peak_ratio)] widened by 2 bins on either side, the
+    PSD with those bins replaced by the running median)."""
+    from scipy.ndimage import median_filter
+    df = float(f[1] - f[0])
+    w = max(int(round(window_hz / df)) | 1, 8 * MIN_LINE_BINS + 1)
+    floor = median_filter(p, size=w, mode="nearest")
+    idx = np.flatnonzero(p > ratio * floor)
+    out, clean = [], p.copy()
+    if not len(idx):
+        return out, clean
+    for r in np.split(idx, np.flatnonzero(np.diff(idx) > LINE_BRIDGE_BINS + 1) + 1):
+        if r[-1] - r[0] + 1 < MIN_LINE_BINS:
+            continue
+        a, b = max(r[0] - 2, 0), min(r[-1] + 2, len(f) - 1)
+        out.append((float(f[a]), float(f[b]), float(np.max(p[r] / floor[r]))))
+        clean[a:b + 1] = floor[a:b + 1]
+    return out, clean
 
 
 # ------------------------------------------------------------------ the joint fit
 ALLAN_TERMS = ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk")
 GM_PER_DECADE = 6
 HUBER_C = 1.5
+LINE_GRID_POINTS = 400     # line frequencies tried in an Allan-curve fit (log-spaced, line_grid)
 
 
 def gm_grid(layout):
@@ -213,39 +270,107 @@ def stochastic_specs(card):
     return specs, np.array(coef)
 
 
-def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0):
-    """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
-    the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
-    Gauss-Markov processes (:func:`gm_grid`), each through the stop mask.
+def card_allan_variance(card, m, fs):
+    """Exact Allan variance (deg/s)^2 at cluster sizes ``m`` of a card's stochastic terms
+    and sinusoids as the simulator draws them at ``fs`` (deterministic ramp, bias and
+    transient left out: the published curves are of records without them)."""
+    specs, coef = stochastic_specs(card)
+    av = allan_columns(specs, m, fs) @ coef if specs else np.zeros(len(m))
+    for s in card.term_list("sinusoid"):
+        av = av + (s["amplitude"] / 3600.0) ** 2 * line_allan_columns([s["frequency"]], m, fs)[:, 0]
+    return av
 
-    ``robust``: that many Huber re-weightings (see the code).
-    Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
-    to its s-based coefficient (0 = not needed) and ``"gauss_markov"`` to a list
-    of ``(sigma_deg_s, tau_s)``."""
+
+def line_allan_columns(freq_hz, m, fs):
+    """Allan variance at cluster sizes ``m`` of a sampled sinusoid of unit amplitude at
+    each of ``freq_hz``: ``(1/4) * 4 sin^4(pi f m T) / (m^2 sin^2(pi f T))`` (the Allan
+    filter at the line; its variance 1/2 split over +-f)."""
+    T = 1.0 / fs
+    m = np.asarray(m, float)[:, None]
+    f = np.asarray(freq_hz, float)[None, :]
+    return np.sin(np.pi * f * m * T) ** 4 / (m * m * np.sin(np.pi * f * T) ** 2)
+
+
+def line_grid(fs, m):
+    """Candidate line frequencies for an Allan-curve fit: LINE_GRID_POINTS log-spaced
+    from a tenth of the inverse of the longest cluster to 0.45 fs."""
+    return np.geomspace(0.1 * fs / float(np.max(m)), 0.45 * fs, LINE_GRID_POINTS)
+
+
+def _nnls_huber(A, b, robust):
+    """Non-negative least squares of ``A x = b`` (columns scaled), ``robust`` Huber
+    re-weightings: a point that no combination of the columns reaches (a sensor's
+    internal filter at the shortest taus) is down-weighted instead of pulling every
+    term off the others. Returns (x, chi2 of the last, unweighted residual)."""
     from scipy.optimize import nnls
-    specs = [(nm, None) for nm in ALLAN_TERMS] + [("gauss_markov", t) for t in gm_grid(layout)]
-    A_a = allan_columns(specs, layout.m, layout.fs, bands)
-    sd_a = np.maximum(avar_sd, rel_floor * np.abs(avar_target))
-    A, b = A_a / sd_a[:, None], avar_target / sd_a
-    A_p = None
-    if psd_target is not None:      # no PSD for a published Allan curve
-        A_p, clear = band_columns(specs, layout, bands)
-        sd_p = np.maximum(psd_sd, rel_floor * np.abs(psd_target))
-        A = np.vstack([A, (A_p / sd_p[:, None])[clear]])
-        b = np.concatenate([b, (psd_target / sd_p)[clear]])
     scale = np.max(np.abs(A), axis=0)
     scale[scale == 0] = 1.0
     w = np.ones(len(b))
     for _ in range(1 + int(robust)):
-        # robust > 0: iteratively reweighted (Huber, c = HUBER_C sigma): a point that no
-        # combination of the terms reaches (a sensor's internal filter at the shortest
-        # taus) is down-weighted instead of pulling every term off the others
         c, _ = nnls(A / scale * w[:, None], b * w, maxiter=50 * A.shape[1])
         r = np.abs(A / scale @ c - b)
         w = np.where(r > HUBER_C, np.sqrt(HUBER_C / np.maximum(r, 1e-300)), 1.0)
-    c = c / scale
+    return c / scale, float(r @ r)
+
+
+def _pick_lines(A, b, sd, m, fs, max_lines, inside_fn):
+    """Greedy choice of up to ``max_lines`` spectral lines (frequencies of :func:`line_grid`) for an Allan-curve fit: each step adds the line that lowers
+    the plain chi^2 most. The lines are kept only when, with them, the model is
+    inside the published bounds at every tau (``inside_fn(model_avar)``) and it was
+    not before: a line is not spent on a curve it does not then explain."""
+    grid = line_grid(fs, m)
+    L = line_allan_columns(grid, m, fs) / sd[:, None]      # weighted like A (rows / 1-sigma)
+    x0, _ = _nnls_huber(A, b, 0)
+    if inside_fn(A @ x0):
+        return []
+    chosen = []
+    for _ in range(max_lines):
+        best = min(((_nnls_huber(np.hstack([A, L[:, chosen + [j]]]), b, 0)[1], j) for j in range(len(grid))
+                    if j not in chosen), default=None)
+        if best is None:
+            break
+        chosen.append(best[1])
+        A1 = np.hstack([A, L[:, chosen]])
+        if inside_fn(A1 @ _nnls_huber(A1, b, 0)[0]):
+            return [float(grid[j]) for j in chosen]
+    return []
+
+
+def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0, lowpass_hz=None,
+              max_lines=0, inside_fn=None):
+    """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
+    the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
+    Gauss-Markov processes (:func:`gm_grid`), each through the stop mask.
+
+    ``robust``: that many Huber re-weightings (:func:`_nnls_huber`).
+    ``max_lines`` (Allan curve only, ``psd_target`` None): up to that many sinusoids
+    (:func:`_pick_lines`), kept only when they bring the model inside the bounds
+    (``inside_fn(model_avar) -> bool``) at every point.
+    Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
+    to its s-based coefficient (0 = not needed), ``"gauss_markov"`` to a list
+    of ``(sigma_deg_s, tau_s)`` and ``"sinusoid"`` to ``(amplitude_deg_s, frequency_hz)``."""
+    specs = [(nm, None) for nm in ALLAN_TERMS] + [("gauss_markov", t) for t in gm_grid(layout)]
+    A_a = allan_columns(specs, layout.m, layout.fs, bands, lowpass_hz)
+    sd_a = np.maximum(avar_sd, rel_floor * np.abs(avar_target))
+    A, b = A_a / sd_a[:, None], avar_target / sd_a
+    A_p = None
+    f_lines = []
+    if psd_target is not None:      # no PSD for a published Allan curve
+        if max_lines:
+            raise ValueError("fit_terms: max_lines is for an Allan curve (psd_target None)")
+        A_p, clear = band_columns(specs, layout, bands, lowpass_hz)
+        sd_p = np.maximum(psd_sd, rel_floor * np.abs(psd_target))
+        A = np.vstack([A, (A_p / sd_p[:, None])[clear]])
+        b = np.concatenate([b, (psd_target / sd_p)[clear]])
+    elif max_lines:
+        f_lines = _pick_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside_fn(av * sd_a))
+        if f_lines:
+            A_l = line_allan_columns(f_lines, layout.m, layout.fs)
+            A_a, A = np.hstack([A_a, A_l]), np.hstack([A, A_l / sd_a[:, None]])
+    c, _ = _nnls_huber(A, b, robust)
     terms = {nm: float(c[i]) for i, nm in enumerate(ALLAN_TERMS)}
     terms["gauss_markov"] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))
                              if c[i] > 0]
+    terms["sinusoid"] = [(math.sqrt(c[len(specs) + k]), f) for k, f in enumerate(f_lines) if c[len(specs) + k] > 0]
     return terms, A_a @ c, None if A_p is None else A_p @ c
 
