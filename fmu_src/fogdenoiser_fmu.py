@@ -10,9 +10,6 @@ private module name, so the FMU neither needs nor picks up an installed
 gyrodenoise, numba or scipy. Build it with ``gyrodenoise fmu build``.
 """
 
-import hashlib
-import importlib
-import importlib.util
 import math
 import os
 import sys
@@ -39,38 +36,6 @@ STATE_VERSION = 2   # 2: centred kernels' state layout, motion and lowpass
 
 
 
-def _load_core(resources):
-    """Import the gyrodenoise core bundled in ``resources/gdcore``.
-
-    The package gets a private name derived from its contents, so an installed
-    ``gyrodenoise`` (or another build of this FMU) in the same process is never
-    used instead, and identical copies are imported only once.
-    """
-    pkg_dir = os.path.join(resources, "gdcore")
-    digest = hashlib.sha1()
-    for root, dirs, files in os.walk(pkg_dir):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-        for name in sorted(files):
-            if name.endswith((".py", ".so", ".pyd")):
-                path = os.path.join(root, name)
-                with open(path, "rb") as fh:
-                    digest.update(os.path.relpath(path, pkg_dir).encode() + b"\0" + fh.read())
-    modname = "_gdcore_" + digest.hexdigest()[:16]
-    if modname not in sys.modules:
-        spec = importlib.util.spec_from_file_location(
-            modname, os.path.join(pkg_dir, "__init__.py"),
-            submodule_search_locations=[pkg_dir])
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[modname] = module
-        try:
-            spec.loader.exec_module(module)
-        except BaseException:
-            del sys.modules[modname]
-            raise
-    return (importlib.import_module(modname + ".core.kernels"),
-            importlib.import_module(modname + ".denoiser"))
-
-
 class FogDenoiser(Fmi2Slave):
     """Online improved AR(n) model + modified Sage-Husa adaptive Kalman filter."""
 
@@ -82,7 +47,7 @@ class FogDenoiser(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._K, self._D = _load_core(self.resources)
+        self._K, self._D = _rules.load_core(self.resources, "core.kernels", "denoiser")
         _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
 
         # inputs

@@ -20,12 +20,17 @@
   any exception reaches it, and unknown value references get a logged reason.
 * :func:`finalize_before_static_destructors`: the exporter's exit crash (its static
   interpreter state is released twice at process exit; Linux).
+* :func:`load_core`: imports the gyrodenoise core bundled in ``resources/gdcore``
+  under a private name.
 """
 
 from __future__ import annotations
 
 import ctypes
 import functools
+import hashlib
+import importlib
+import importlib.util
 import os
 import sys
 
@@ -35,6 +40,38 @@ REFUSED = []
 
 #: FMU libraries (path: handle) whose interpreter finalisation is hooked to exit().
 _EXIT_HOOKS = {}
+
+
+def load_core(resources, *modules):
+    """Import the gyrodenoise core bundled in ``resources/gdcore``; its ``modules``.
+
+    The package gets a private name derived from its contents (the built C core
+    extension included), so an installed ``gyrodenoise`` (or another build of an
+    FMU) in the same process is never used instead, and identical copies are
+    imported only once.
+    """
+    pkg_dir = os.path.join(resources, "gdcore")
+    digest = hashlib.sha1()
+    for root, dirs, files in os.walk(pkg_dir):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(files):
+            if name.endswith((".py", ".so", ".pyd")):
+                path = os.path.join(root, name)
+                with open(path, "rb") as fh:
+                    digest.update(os.path.relpath(path, pkg_dir).encode() + b"\0" + fh.read())
+    modname = "_gdcore_" + digest.hexdigest()[:16]
+    if modname not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            modname, os.path.join(pkg_dir, "__init__.py"),
+            submodule_search_locations=[pkg_dir])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[modname] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[modname]
+            raise
+    return tuple(importlib.import_module(modname + "." + m) for m in modules)
 
 
 def keep_alive(slave):

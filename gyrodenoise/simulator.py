@@ -28,10 +28,12 @@ sinusoid             deg/h, Hz       amplitude sin(2 pi f t + phase_deg)
 Time t counts from the start of the record; restarts reset only the turn-on
 bias draw and the transient clock (the stochastic processes run on).
 
-Streaming and batch give the same numbers: the noise is generated in fixed
-blocks of :data:`BLOCK` samples from one seeded generator, whether one sample
-(:class:`SimStream`, used by SimulatedFog.fmu) or a whole record
-(:func:`simulate`) is asked for.
+The model itself is ``gyrodenoise/core/gdsim.c`` (its plain-Python twin
+``core/simkernels.py`` where the extension is not built): this module parses
+cards and adapts. One seeded generator (xoshiro256**, see ``gdsim.h``) draws
+the noise sample by sample, so streaming (:class:`SimStream`, used by
+SimulatedFog.fmu) and batch (:func:`simulate`) give the same numbers, and so do
+SimulatedFogNative.fmu and any C host of ``gdsim.c``.
 """
 
 from __future__ import annotations
@@ -43,11 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .core import simkernels as SK
 from .errors import InputError
-
-BLOCK = 4096
-FLICKER_F_LO_HZ = 1.0e-5
-FLICKER_POLES_PER_DECADE = 3
 
 DEG_H = 1.0 / 3600.0             # deg/h -> deg/s
 DEG_RTH = 1.0 / 60.0             # deg/sqrt(h) -> deg/sqrt(s)
@@ -169,196 +168,101 @@ def load_card(path_or_name):
 
 
 # ----------------------------------------------------------------- the model
-def _bank(card):
-    """AR(1) bank [a_j], [g_j], [stationary std_j] in deg/s for one sample period."""
-    T = 1.0 / card.sample_rate_hz
-    a, g, sd = [], [], []
-    bi = card.terms.get("bias_instability")
-    if bi and bi["B"] > 0:
-        B = bi["B"] * DEG_H
-        f_hi = 0.5 * card.sample_rate_hz
-        n_dec = math.log10(f_hi / FLICKER_F_LO_HZ)
-        n_poles = max(1, int(math.ceil(n_dec * FLICKER_POLES_PER_DECADE)))
-        delta = math.log(f_hi / FLICKER_F_LO_HZ) / n_poles
-        var = B * B * delta / math.pi
-        for j in range(n_poles):
-            fj = FLICKER_F_LO_HZ * math.exp((j + 0.5) * delta)
-            aj = math.exp(-2.0 * math.pi * fj * T)
-            a.append(aj)
-            g.append(math.sqrt(var * (1.0 - aj * aj)))
-            sd.append(math.sqrt(var))
-    for gm in card.term_list("gauss_markov"):
-        if gm["sigma"] > 0:
-            aj = math.exp(-T / gm["tau"])
-            s = gm["sigma"] * DEG_H
-            a.append(aj)
-            g.append(s * math.sqrt(1.0 - aj * aj))
-            sd.append(s)
-    rrw = card.terms.get("rate_random_walk")
-    if rrw and rrw["K"] > 0:
-        a.append(1.0)
-        g.append(rrw["K"] * DEG_H15 * math.sqrt(T))
-        sd.append(0.0)
-    return np.array(a), np.array(g), np.array(sd)
-
-
-def _ar1_bank(a, u, x0):
-    """x_k = a * x_{k-1} + u_k per column; returns (x, last row)."""
+def _core():
+    """The compiled sensor model (gdsim.c through the extension), or None."""
     try:
-        from scipy.signal import lfilter
-    except ImportError:  # plain numpy: same two operations per sample
-        x = np.empty_like(u)
-        prev = x0.copy()
-        for k in range(u.shape[0]):
-            prev = a * prev + u[k]
-            x[k] = prev
-        return x, prev
-    x = np.empty_like(u)
-    for j in range(u.shape[1]):
-        x[:, j] = lfilter([1.0], [1.0, -a[j]], u[:, j], zi=[a[j] * x0[j]])[0]
-    return x, x[-1].copy()
+        from .core import _gdcore
+    except ImportError:
+        return None
+    return _gdcore if hasattr(_gdcore, "sim_run") else None
+
+
+def _bank(card):
+    """AR(1) bank [a_j], [g_j], [stationary std_j] in deg/s for one sample period:
+    flicker poles, Gauss-Markov terms, rate random walk (the model's parameters,
+    ``simkernels.params``)."""
+    p = SK.params(SK.card_vector(load_card(card)), 0)
+    nb = int(p[SK.PS_NBANK])
+    bank = np.array(p[SK.PS_BANK:SK.PS_BANK + 3 * nb], dtype=float).reshape(nb, 3)
+    return bank[:, 0].copy(), bank[:, 1].copy(), bank[:, 2].copy()
 
 
 class SimStream:
     """A simulated gyro, sample by sample or block by block (same numbers).
 
+    An adapter over the one sensor model, ``gyrodenoise/core/gdsim.c`` (the
+    compiled extension), or its plain-Python specification
+    ``gyrodenoise/core/simkernels.py`` (bit for bit the same numbers, ~160x
+    slower per sample on paper_fog) where the extension is not built.
+    Parameters and state are the model's flat float buffers (``gdsim.h``).
+
     Parameters
     ----------
     card : ModelCard or path
-    seed : int
+    seed : int, 0 <= seed < 2**53
     """
 
     def __init__(self, card, seed=0):
         self.card = load_card(card)
+        if isinstance(seed, bool) or int(seed) != seed or not 0 <= int(seed) < 2 ** 53:
+            raise InputError(f"seed must be a whole number from 0 to 2**53 - 1, got {seed!r}")
         self.seed = int(seed)
-        self.T = 1.0 / self.card.sample_rate_hz
-        self.a, self.g, self.sd = _bank(self.card)
-        q = self.card.terms.get("quantization")
-        self.Q = q["Q"] if q else 0.0
-        arw = self.card.terms.get("angle_random_walk")
-        self.arw_sd = (arw["N"] * DEG_RTH / math.sqrt(self.T)) if arw else 0.0
-        cb = self.card.terms.get("constant_bias", {})
-        self.bias0 = cb.get("value", 0.0) * DEG_H
-        self.bias_rep = cb.get("repeatability", 0.0) * DEG_H
-        tt = self.card.terms.get("turn_on_transient")
-        self.tr_amp = tt["amplitude"] * DEG_H if tt else 0.0
-        self.tr_tau = tt["tau"] if tt else 1.0
-        rr = self.card.terms.get("rate_ramp")
-        self.ramp = rr["R"] * DEG_H2 if rr else 0.0
-        self.sines = [(s["amplitude"] * DEG_H, s["frequency"], math.radians(s.get("phase_deg", 0.0)))
-                      for s in self.card.term_list("sinusoid")]
-        self.n_ch = 2 + len(self.a)   # [quant angle, arw, bank...]
+        try:
+            v = SK.card_vector(self.card)
+        except ValueError as exc:
+            raise InputError(str(exc), self.card.source) from None
+        self._C = _core()
+        if self._C is not None:
+            v = np.array(v)
+            self.p = np.zeros(self._C.sim_n_params(v))
+            self._C.sim_params(v, float(self.seed), self.p)
+            self.s = np.zeros(self._C.sim_n_state(self.p))
+        else:
+            self.p = SK.params(v, self.seed)
+            self.s = [0.0] * SK.n_state(self.p)
         self.reset()
 
+    @property
+    def compiled(self):
+        """True if this stream runs gdsim.c (else the plain-Python twin, same numbers)."""
+        return self._C is not None
+
     def reset(self):
-        ss = np.random.SeedSequence(self.seed)
-        noise_seq, restart_seq = ss.spawn(2)
-        self.rng = np.random.Generator(np.random.PCG64(noise_seq))
-        self.rng_restart = np.random.Generator(np.random.PCG64(restart_seq))
-        # stationary start of the bank (random walks start at 0)
-        self.x = self.sd * self.rng.standard_normal(len(self.a))
-        self.w_prev = self.Q * self.rng.standard_normal()
-        self.block = np.empty(0)
-        self.pos = 0
-        self.k = 0                 # samples since start
-        self.k_restart = 0         # samples since last restart
-        self.bias = self._draw_bias()
-
-    def _draw_bias(self):
-        return self.bias0 + self.bias_rep * self.rng_restart.standard_normal() if self.bias_rep else self.bias0
-
-    def _next_block(self):
-        w = self.rng.standard_normal((BLOCK, self.n_ch))
-        out = self.arw_sd * w[:, 1]
-        if self.Q > 0:
-            ang = self.Q * w[:, 0]
-            prev = np.concatenate(([self.w_prev], ang[:-1]))
-            out = out + (ang - prev) / self.T
-            self.w_prev = float(ang[-1])
-        if len(self.a):
-            u = self.g * w[:, 2:]
-            xb, self.x = _ar1_bank(self.a, u, self.x)
-            out = out + xb.sum(axis=1)
-        self.block = out
-        self.pos = 0
-
-    def _deterministic(self, t, t_restart):
-        v = self.bias + self.ramp * t
-        if self.tr_amp:
-            v += self.tr_amp * math.exp(-t_restart / self.tr_tau)
-        for amp, f, ph in self.sines:
-            v += amp * math.sin(2.0 * math.pi * f * t + ph)
-        return v
+        """Back to the start (seeded generators, stationary bank, first bias draw)."""
+        if self._C is not None:
+            self._C.sim_reset(self.p, self.s)
+        else:
+            SK.reset(self.p, self.s)
 
     def step(self, true_rate_deg_s=0.0, restart=False):
         """One measured sample (deg/s) for the true rate (deg/s)."""
-        if restart and self.k > 0:
-            self.k_restart = 0
-            self.bias = self._draw_bias()
-        if self.pos >= self.block.shape[0]:
-            self._next_block()
-        noise = float(self.block[self.pos])
-        self.pos += 1
-        y = true_rate_deg_s + noise + self._deterministic(self.k * self.T, self.k_restart * self.T)
-        self.k += 1
-        self.k_restart += 1
-        return y
+        if self._C is None:
+            return SK.step(self.p, self.s, float(true_rate_deg_s), bool(restart))
+        out = np.empty(1)
+        self._C.sim_run(self.p, self.s, np.array([float(true_rate_deg_s)]), np.array([bool(restart)]), out)
+        return float(out[0])
 
     def run(self, n_samples, true_rate_deg_s=None, restarts=None):
         """``n_samples`` measured samples (deg/s) at once, continuing the stream."""
         n = int(n_samples)
-        noise = np.empty(n)
-        i = 0
-        while i < n:
-            if self.pos >= self.block.shape[0]:
-                self._next_block()
-            take = min(n - i, self.block.shape[0] - self.pos)
-            noise[i:i + take] = self.block[self.pos:self.pos + take]
-            self.pos += take
-            i += take
-        k = self.k + np.arange(n)
-        t = k * self.T
-        rs = np.zeros(n, dtype=bool) if restarts is None else np.asarray(restarts, dtype=bool)
-        # samples since last restart, and the bias in force, per sample
-        k_restart = np.empty(n)
-        bias = np.empty(n)
-        kr, b = self.k_restart, self.bias
-        prev = 0
-        for s0 in list(np.flatnonzero(rs)) + [n]:
-            seg = s0 - prev
-            k_restart[prev:s0] = kr + np.arange(seg)
-            bias[prev:s0] = b
-            kr += seg
-            if s0 < n and self.k + s0 > 0:
-                kr = 0
-                b = self._draw_bias()
-            prev = s0
-        self.k_restart, self.bias = kr, b
-        det = bias + self.ramp * t
-        if self.tr_amp:
-            det = det + self.tr_amp * np.exp(-(k_restart * self.T) / self.tr_tau)
-        for amp, f, ph in self.sines:
-            det = det + amp * np.sin(2.0 * np.pi * f * t + ph)
-        y = noise + det
-        if true_rate_deg_s is not None:
-            y = y + np.broadcast_to(np.asarray(true_rate_deg_s, dtype=float), (n,))
-        self.k += n
-        return y
+        truth = None if true_rate_deg_s is None else np.ascontiguousarray(
+            np.broadcast_to(np.asarray(true_rate_deg_s, dtype=float), (n,)))
+        rs = None if restarts is None else np.ascontiguousarray(restarts, dtype=bool)
+        if self._C is None:
+            return np.array(SK.run(self.p, self.s, n, truth, rs), dtype=float)
+        out = np.empty(n)
+        self._C.sim_run(self.p, self.s, truth, rs, out)
+        return out
 
-    # -- state save / restore (for FMU state and tests)
+    # -- state save / restore (for FMU state and tests): the state buffer, as floats
     def get_state(self):
-        return {"rng": self.rng.bit_generator.state, "rng_restart": self.rng_restart.bit_generator.state,
-                "x": self.x.tolist(), "w_prev": self.w_prev, "block": self.block.tolist(),
-                "pos": self.pos, "k": self.k, "k_restart": self.k_restart, "bias": self.bias}
+        return [float(x) for x in self.s]
 
     def set_state(self, st):
-        self.rng.bit_generator.state = st["rng"]
-        self.rng_restart.bit_generator.state = st["rng_restart"]
-        self.x = np.array(st["x"], dtype=float)
-        self.w_prev = float(st["w_prev"])
-        self.block = np.array(st["block"], dtype=float)
-        self.pos, self.k, self.k_restart = int(st["pos"]), int(st["k"]), int(st["k_restart"])
-        self.bias = float(st["bias"])
+        if len(st) != len(self.s):
+            raise ValueError(f"simulator state has {len(st)} values, this card needs {len(self.s)}")
+        for i, x in enumerate(st):
+            self.s[i] = float(x)
 
 
 @dataclass

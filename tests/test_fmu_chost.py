@@ -26,6 +26,7 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise import fmu as F
 from gyrodenoise.fmu import native
+from gyrodenoise.simulator import SimStream
 
 HERE = Path(__file__).resolve().parent
 H = 0.005
@@ -316,4 +317,7 @@ def test_state_json_roundtrip_unchanged(fmus):
         a.slave.freeFMUstate(st)
     finally:
         a.free()
-    assert json.loads(bytes(blob))["version"] == 1
+    d = json.loads(bytes(blob))
+    # version 2: the simulator's state is gdsim.c's state buffer (version 1 held numpy's generators)
+    assert d["version"] == 2
+    assert d["sim"] == SimStream("paper_fog", seed=2).get_state()   # as initialised, no step yet

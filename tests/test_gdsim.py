@@ -2,14 +2,15 @@
 specification (gyrodenoise/core/simkernels.py): equal bit for bit on every card
 term; each term as the card says; the generator against published values and the
 normal law; sample by sample and batch the same numbers (issue 22, item 2).
-
-Not yet wired into gd.simulate (see the README): these tests drive the model
-through the extension's buffers."""
+gd.simulate and SimStream are adapters over it (the C, or the Python twin where
+the extension is not built): the same numbers."""
 import math
 
 import numpy as np
 import pytest
 
+import gyrodenoise as gd
+import gyrodenoise.simulator as SIM
 from gyrodenoise.core import simkernels as SK
 from gyrodenoise.simulator import parse_card
 
@@ -197,3 +198,35 @@ def test_plain_c_on_each_platform_equals_the_specification(plat, tmp_path):
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)
     print(f"\ngdsim.c on {plat}: max |C - Python| = {np.max(np.abs(got - ref)):.3g} deg/s "
           f"({int(np.sum(got != ref))} of {n} samples not bit-identical)")
+
+
+def test_gd_simulate_is_the_c_model_and_the_fallback_gives_the_same_numbers(monkeypatch):
+    """gd.simulate runs gdsim.c; without the extension SimStream runs the Python twin:
+    both equal the model's buffers driven directly, bit for bit, with truth and restarts;
+    the stream's state round-trips."""
+    card = parse_card(EVERY_TERM)
+    n = 600
+    truth = np.linspace(-3.0, 3.0, n)
+    rs = np.zeros(n, dtype=bool)
+    rs[[0, 250, 400]] = True
+    want = c_simulate(card, n, 77, truth, rs)
+    rec = gd.simulate(card, n, seed=77, true_rate_deg_s=truth, restarts=rs)
+    assert np.array_equal(rec.rate_deg_s, want)
+    st = SIM.SimStream(card, seed=77)
+    head = st.run(300, truth[:300], rs[:300])
+    saved = st.get_state()
+    tail = st.run(300, truth[300:], rs[300:])
+    st.set_state(saved)
+    assert np.array_equal(np.concatenate([head, tail]), want)
+    assert np.array_equal(st.run(300, truth[300:], rs[300:]), tail)
+    monkeypatch.setattr(SIM, "_core", lambda: None)
+    py = SIM.SimStream(card, seed=77)
+    assert py._C is None
+    assert np.array_equal(py.run(n, truth, rs), want)
+
+
+@pytest.mark.parametrize("seed", [-1, 2 ** 53, 1.5, True])
+def test_bad_seed_is_an_input_error(seed):
+    from gyrodenoise.errors import InputError
+    with pytest.raises(InputError, match="seed must be a whole number"):
+        gd.simulate("paper_fog", 10, seed=seed)

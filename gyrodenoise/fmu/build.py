@@ -27,7 +27,8 @@ FMU_SRC = REPO_DIR / "fmu_src"
 #: (model name, slave script, core modules bundled)
 FMUS = {
     "FogDenoiser": ("fogdenoiser_fmu.py", ("core/__init__.py", "core/kernels.py", "denoiser.py", "errors.py")),
-    "SimulatedFog": ("simulatedfog_fmu.py", ("errors.py", "simulator.py")),
+    "SimulatedFog": ("simulatedfog_fmu.py", ("core/__init__.py", "core/simkernels.py", "errors.py",
+                                             "simulator.py")),
 }
 
 
@@ -68,7 +69,7 @@ def stage_core(dest, modules):
             raise InputError(f"{src}: core module missing, cannot bundle it into the FMU")
         (pkg / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(src, pkg / name)
-    if "core/kernels.py" in modules:   # the C core, as built for this Python and platform
+    if "core/__init__.py" in modules:   # the C core, as built for this Python and platform
         for so in compiled_core_files():
             shutil.copy2(so, pkg / "core" / so.name)
     if "simulator.py" in modules:   # the embedded model cards (load_card by name)
@@ -128,7 +129,7 @@ def stale_reason(fmu_path, src_dir=None):
     if not Path(fmu_path).is_file():
         return "missing"
     wanted = {f"resources/gdcore/{m}": PACKAGE_DIR / m for m in modules}
-    if "core/kernels.py" in modules:
+    if "core/__init__.py" in modules:
         wanted.update({f"resources/gdcore/core/{so.name}": so for so in compiled_core_files()})
     src = _fmu_src_dir(src_dir) / script
     if src.is_file():
