@@ -12,7 +12,9 @@ Target (issue 13): ratio <= 1.1.
 plots) of this tree and of the commit REV, alternately, in fresh processes of
 this interpreter: REV is checked out into a temporary git worktree and given
 this tree's compiled C core (the comparison is of the Python around it; REV
-must have the same C core), and the medians and their ratio are printed.
+must have the same C core); printed: the median wall time (and its ratio to a bare
+pymavlink read, timed in the same rounds), the median CPU time of the process and
+its children, and the ratio of the two trees.
 
 The bridge run does everything the command does by default: parse, detect
 restarts, denoise 3 streams x 3 axes, write the filtered log, 3 CSV files and
@@ -24,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -31,7 +34,8 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from _rev import REPO, checkout
+
 DEFAULT_LOG = REPO.parent / "shared" / "data" / "logs" / "log171.bin"
 
 FLOOR = """
@@ -59,12 +63,23 @@ def _gyrodenoise():
 
 
 def timed(cmd, **kw):
+    """(wall s, stdout) of one fresh process."""
+    dt, _, out = timed_cpu(cmd, **kw)
+    return dt, out
+
+
+def timed_cpu(cmd, **kw):
+    """(wall s, CPU s, stdout) of one fresh process; CPU = user + system of it and its
+    children (the plot helper's drawing included), which a loaded machine disturbs
+    less than the wall time."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     r = subprocess.run(cmd, capture_output=True, text=True, **kw)
     dt = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         raise SystemExit(f"failed ({r.returncode}): {' '.join(cmd)}\n{r.stderr}")
-    return dt, r.stdout
+    return dt, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), r.stdout
 
 
 RUN_TREE = ("import sys; sys.path.insert(0, sys.argv.pop(1)); sys.argv[0] = 'gyrodenoise'; "
@@ -73,29 +88,27 @@ RUN_TREE = ("import sys; sys.path.insert(0, sys.argv.pop(1)); sys.argv[0] = 'gyr
 
 def against(log, rev, repeat):
     """This tree against commit ``rev``, alternately (see the module's docstring)."""
-    import shutil
-    with tempfile.TemporaryDirectory() as tmp:
-        base = Path(tmp) / "rev"
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(base), rev], check=True)
-        try:
-            for so in REPO.joinpath("gyrodenoise").rglob("*.so"):
-                shutil.copy2(so, base / so.relative_to(REPO))
-            trees = {rev: base, "this tree": REPO}
-            for extra in ([], ["--no-plots"]):
-                times = {k: [] for k in trees}
-                for i in range(repeat + 1):                      # the first round warms up
-                    for name, root in trees.items():
-                        dt, _ = timed([sys.executable, "-c", RUN_TREE, str(root), "mavlink", log,
-                                       "-o", str(Path(tmp) / f"out{len(name)}"), "--json", *extra])
-                        if i:
-                            times[name].append(dt)
-                med = {k: statistics.median(v) for k, v in times.items()}
-                for k, v in times.items():
-                    print(f"{k:>12} {' '.join(extra) or '(log+CSV+PNG)':>14}: median {med[k]:.3f} s  "
-                          f"(runs: {', '.join(f'{x:.2f}' for x in v)})")
-                print(f"  ratio this tree / {rev}: {med['this tree'] / med[rev]:.3f}")
-        finally:
-            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(base)], check=False)
+    with tempfile.TemporaryDirectory() as tmp, checkout(rev, with_this_core=True) as base:
+        trees = {rev: base, "this tree": REPO}
+        bare = []
+        for extra in ([], ["--no-plots"]):
+            runs = {k: [] for k in trees}
+            for i in range(repeat + 1):                      # the first round warms up
+                if not extra:
+                    wall, _, _ = timed_cpu([sys.executable, "-c", BARE, log])
+                    bare += [wall] if i else []
+                for name, root in trees.items():
+                    wall, cpu, _ = timed_cpu([sys.executable, "-c", RUN_TREE, str(root), "mavlink", log,
+                                              "-o", str(Path(tmp) / f"out{len(name)}"), "--json", *extra])
+                    if i:
+                        runs[name].append((wall, cpu))
+            med = {k: statistics.median(w for w, _ in v) for k, v in runs.items()}
+            for k, v in runs.items():
+                print(f"{k:>12} {' '.join(extra) or '(log+CSV+PNG)':>14}: wall median {med[k]:.3f} s "
+                      f"({med[k] / statistics.median(bare):.2f}x the bare read), CPU median "
+                      f"{statistics.median(c for _, c in v):.3f} s  (walls: {', '.join(f'{w:.2f}' for w, _ in v)})")
+            print(f"  ratio this tree / {rev}: {med['this tree'] / med[rev]:.3f}")
+    print(f"bare pymavlink read: median {statistics.median(bare):.3f} s")
     print(f"cores: {os.cpu_count()}, load average: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

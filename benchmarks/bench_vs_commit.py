@@ -17,10 +17,9 @@ import argparse
 import json
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from _rev import REPO, checkout
 
 TIMING = r'''
 import sys, time, json
@@ -54,20 +53,15 @@ def main(argv=None):
     ap.add_argument("rev")
     ap.add_argument("--repeat", type=int, default=2)
     a = ap.parse_args(argv)
-    with tempfile.TemporaryDirectory(prefix="gd_rev_") as tmp:
-        old = Path(tmp) / "tree"
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", "-q", str(old), a.rev], check=True)
-        try:
-            best = {}
-            for _ in range(a.repeat):
-                for label, root in ((a.rev, old), ("this tree", REPO)):
-                    r = subprocess.run([sys.executable, "-c", TIMING, str(root)], capture_output=True, text=True)
-                    if r.returncode != 0:
-                        raise SystemExit(f"{label}: timing failed:\n{r.stderr[-2000:]}")
-                    for m, ns in json.loads(r.stdout).items():
-                        best.setdefault(label, {})[m] = min(ns, best.get(label, {}).get(m, ns))
-        finally:
-            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(old)], check=False)
+    with checkout(a.rev) as old:
+        best = {}
+        for _ in range(a.repeat):
+            for label, root in ((a.rev, old), ("this tree", REPO)):
+                r = subprocess.run([sys.executable, "-c", TIMING, str(root)], capture_output=True, text=True)
+                if r.returncode != 0:
+                    raise SystemExit(f"{label}: timing failed:\n{r.stderr[-2000:]}")
+                for m, ns in json.loads(r.stdout).items():
+                    best.setdefault(label, {})[m] = min(ns, best.get(label, {}).get(m, ns))
     print(f"batch loop, ns/sample (best of 5 x {a.repeat} alternate runs), 2 h of the paper's FOG at 200 Hz:")
     for m in best["this tree"]:
         t_old, t_new = best[a.rev][m], best["this tree"][m]
