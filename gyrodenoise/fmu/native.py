@@ -60,6 +60,36 @@ METHOD_DOC = ("Filter, one of: 'motion' (default: follows manoeuvres, averages a
               "fmi2ExitInitializationMode")
 
 
+class NativeModel:
+    """What makes one native FMU: its name, variables, C sources and resources.
+
+    ``build_native_fmu`` compiles any of them with the same compilers and flags; the
+    FMI layer (``fmu_src/native/gdfmi.c``) is shared, the model file gives the hooks.
+    """
+
+    def __init__(self, name, description, variables, step_size, c_source, unity, core_files,
+                 units, header_lines=(), resources=None):
+        self.name = name
+        self.description = description
+        self.variables = variables
+        self.step_size = step_size
+        self.c_source = c_source
+        self.unity = unity
+        self.vars_header = c_source.replace(".c", "_vars.h")
+        self.core_files = core_files
+        self.units = units
+        self.header_lines = tuple(header_lines)
+        self.resources = resources        # None or a function () -> {path in resources/: bytes}
+
+    def value_references(self):
+        return {v["name"]: i for i, v in enumerate(self.variables)}
+
+
+DENOISER_DESCRIPTION = ("Gyro denoiser (online improved AR(n) + KF / modified Sage-Husa AKF, Sun et "
+                        "al. 2016, or the motion filter), native C: no Python needed. One communication "
+                        "step = one sample.")
+
+
 def _var(name, type_, causality, description, start=None, unit=None, min=None, max=None,
          variability=None):
     return dict(name=name, type=type_, causality=causality, description=description, start=start,
@@ -127,9 +157,15 @@ LOG_CATEGORIES = [
 ]
 
 
+#: FogDenoiserNative: the denoiser's hooks (fogdenoiser_native.c) over the core gdcore.c
+DENOISER = NativeModel(MODEL_NAME, DENOISER_DESCRIPTION, VARIABLES, STEP_SIZE, C_SOURCE, UNITY_SOURCE,
+                       (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h"), UNITS,
+                       header_lines=(f"#define GD_MAX_AR_ORDER {MAX_ORDER}",))
+
+
 def value_references():
-    """{variable name: value reference}."""
-    return {v["name"]: i for i, v in enumerate(VARIABLES)}
+    """{variable name: value reference} of FogDenoiserNative."""
+    return DENOISER.value_references()
 
 
 def _fmt(value, type_):
@@ -140,41 +176,40 @@ def _fmt(value, type_):
     return str(value)
 
 
-def model_description(guid):
-    """modelDescription.xml (text) for ``guid``."""
+def model_description(guid, spec=None):
+    """modelDescription.xml (text) for ``guid`` (of FogDenoiserNative unless ``spec`` is given)."""
+    spec = DENOISER if spec is None else spec
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
-           f'<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{guid}" '
-           'description="Gyro denoiser (online improved AR(n) + KF / modified Sage-Husa AKF, Sun et '
-           'al. 2016, or the motion filter), native C: no Python needed. One communication step = '
-           'one sample." author="gyrodenoise" version="0.1.0" license="MIT" '
+           f'<fmiModelDescription fmiVersion="2.0" modelName="{spec.name}" guid="{guid}" '
+           f'description={quoteattr(spec.description)} author="gyrodenoise" version="0.1.0" license="MIT" '
            'generationTool="gyrodenoise.fmu.native" variableNamingConvention="flat" '
            'numberOfEventIndicators="0">',
-           f'  <CoSimulation modelIdentifier="{MODEL_NAME}" needsExecutionTool="false" '
+           f'  <CoSimulation modelIdentifier="{spec.name}" needsExecutionTool="false" '
            'canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" '
            'maxOutputDerivativeOrder="0" canRunAsynchronuously="false" '
            'canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false" '
            'canGetAndSetFMUstate="true" canSerializeFMUstate="true" '
            'providesDirectionalDerivative="false">',
            '    <SourceFiles>',
-           f'      <File name="{UNITY_SOURCE}"/>',
+           f'      <File name="{spec.unity}"/>',
            '    </SourceFiles>',
            '  </CoSimulation>',
            '  <UnitDefinitions>']
-    for unit, base in UNITS.items():
+    for unit, base in spec.units.items():
         attrs = " ".join(f'{k}="{v}"' for k, v in base.items())
         out += [f'    <Unit name="{unit}">', f'      <BaseUnit {attrs}/>', '    </Unit>']
     out += ['  </UnitDefinitions>', '  <LogCategories>']
     out += [f'    <Category name="{n}" description={quoteattr(d)}/>' for n, d in LOG_CATEGORIES]
     out += ['  </LogCategories>',
-            f'  <DefaultExperiment startTime="0.0" stepSize="{STEP_SIZE!r}"/>',
+            f'  <DefaultExperiment startTime="0.0" stepSize="{spec.step_size!r}"/>',
             '  <ModelVariables>']
-    for vr, v in enumerate(VARIABLES):
+    for vr, v in enumerate(spec.variables):
         attrs = [f'name="{v["name"]}"', f'valueReference="{vr}"',
                  f'description={quoteattr(v["description"])}', f'causality="{v["causality"]}"']
         if v["variability"]:
             attrs.append(f'variability="{v["variability"]}"')
         if v["causality"] == "output":
-            attrs.append('initial="calculated"')
+            attrs.append(f'initial="{v.get("initial") or "calculated"}"')
         tattrs = []
         if v["start"] is not None:
             tattrs.append(f'start={quoteattr(_fmt(v["start"], v["type"]))}')
@@ -186,12 +221,17 @@ def model_description(guid):
         out += [f'    <ScalarVariable {" ".join(attrs)}>',
                 f'      <{v["type"]}{" " if tattrs else ""}{" ".join(tattrs)}/>',
                 '    </ScalarVariable>']
-    outputs = [vr + 1 for vr, v in enumerate(VARIABLES) if v["causality"] == "output"]
+    outputs = [vr + 1 for vr, v in enumerate(spec.variables) if v["causality"] == "output"]
+    calculated = [vr + 1 for vr, v in enumerate(spec.variables)
+                  if v["causality"] == "output" and (v.get("initial") or "calculated") != "exact"]
     out += ['  </ModelVariables>', '  <ModelStructure>', '    <Outputs>']
     out += [f'      <Unknown index="{i}"/>' for i in outputs]
-    out += ['    </Outputs>', '    <InitialUnknowns>']
-    out += [f'      <Unknown index="{i}"/>' for i in outputs]
-    out += ['    </InitialUnknowns>', '  </ModelStructure>', '</fmiModelDescription>', '']
+    out += ['    </Outputs>']
+    if calculated:
+        out += ['    <InitialUnknowns>']
+        out += [f'      <Unknown index="{i}"/>' for i in calculated]
+        out += ['    </InitialUnknowns>']
+    out += ['  </ModelStructure>', '</fmiModelDescription>', '']
     return "\n".join(out)
 
 
@@ -205,27 +245,34 @@ def _c_literal(value, type_):
     return str(int(value))
 
 
-def vars_header(guid):
+def vars_header(guid, spec=None):
     """The C header with the GUID, value references, start values and the variable table."""
+    spec = DENOISER if spec is None else spec
+    guard = spec.vars_header.upper().replace(".", "_")
+    lines = [f"/* generated by gyrodenoise/fmu/native.py from the variable table: do not edit */",
+             f"#ifndef {guard}", f"#define {guard}",
+             f'#define GD_MODEL_IDENTIFIER "{spec.name}"', f'#define GD_GUID "{guid}"',
+             *spec.header_lines, f"#define GD_N_VARS {len(spec.variables)}"]
     kinds = {"input": "K_INPUT", "output": "K_OUTPUT", "parameter": "K_PARAMETER"}
-    lines = ["/* generated by gyrodenoise/fmu/native.py from VARIABLES: do not edit */",
-             "#ifndef FOGDENOISER_NATIVE_VARS_H", "#define FOGDENOISER_NATIVE_VARS_H",
-             f'#define GD_MODEL_IDENTIFIER "{MODEL_NAME}"', f'#define GD_GUID "{guid}"',
-             f"#define GD_MAX_AR_ORDER {MAX_ORDER}", f"#define GD_N_VARS {len(VARIABLES)}"]
-    for vr, v in enumerate(VARIABLES):
+    for vr, v in enumerate(spec.variables):
         lines.append(f"#define VR_{v['name']} {vr}u")
         if v["start"] is not None:
             lines.append(f"#define START_{v['name']} {_c_literal(v['start'], v['type'])}")
     rows = ", ".join(f'{{"{v["name"]}", T_{v["type"].upper()}, {kinds[v["causality"]]}}}'
-                     for v in VARIABLES)
+                     for v in spec.variables)
     lines += [f"#define GD_VARIABLE_TABLE {{{rows}}}", "#endif", ""]
     return "\n".join(lines)
 
 
-def _sources():
+#: the shared FMI layer, in every native FMU
+LAYER_FILES = ("gdfmi.c", "gdfmi.h", "gdfmi_libm.h")
+
+
+def _sources(spec=None):
     """{file name: bytes} of the C sources that go into the binary and the FMU."""
-    files = {C_SOURCE: NATIVE_SRC / C_SOURCE, UNITY_SOURCE: NATIVE_SRC / UNITY_SOURCE,
-             "gdcore.c": CORE_DIR / "gdcore.c", "gdcore.h": CORE_DIR / "gdcore.h"}
+    spec = DENOISER if spec is None else spec
+    files = {name: NATIVE_SRC / name for name in (spec.c_source, spec.unity, *LAYER_FILES)}
+    files.update({p.name: p for p in spec.core_files})
     missing = [str(p) for p in files.values() if not p.is_file()]
     if missing:
         raise InputError(f"native FMU sources missing: {', '.join(missing)}")
@@ -320,25 +367,27 @@ def compiler_for(plat):
     raise InputError(f"no C compiler for {plat}: {hint} (the native FMUs are compiled at build time)")
 
 
-def _compile(plat, cc, src_dir, out):
+def _compile(plat, cc, src_dir, out, spec=None):
     """Compile the unity source for ``plat`` into ``out``; InputError (one line) on failure."""
+    spec = DENOISER if spec is None else spec
     is_gcc = "-target" not in cc and Path(cc[0]).name.endswith("gcc")
     flags = list(COMMON_FLAGS) + PLATFORM_FLAGS[plat]
     if is_gcc:
         flags += GCC_ONLY_FLAGS + (["-static-libgcc"] if plat == "win64" else [])
     cmd = [*cc, *flags, f"-I{src_dir}", f"-I{fmi_headers_dir()}", "-o", str(out),
-           str(src_dir / UNITY_SOURCE), "-lm"]
+           str(src_dir / spec.unity), "-lm"]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=out.parent)
     except (OSError, subprocess.TimeoutExpired) as exc:
-        raise InputError(f"{cc[0]} could not be run for {MODEL_NAME} ({plat}): {exc}") from None
+        raise InputError(f"{cc[0]} could not be run for {spec.name} ({plat}): {exc}") from None
     if proc.returncode != 0:
         first = next((ln for ln in proc.stderr.splitlines() if "error" in ln), proc.stderr.strip()[:200])
-        raise InputError(f"compiling {MODEL_NAME} for {plat} failed (exit {proc.returncode}): {first}")
+        raise InputError(f"compiling {spec.name} for {plat} failed (exit {proc.returncode}): {first}")
 
 
-def build_native_fmu(out_dir="build", platforms=None, report=None):
-    """Compile FogDenoiserNative and write ``out_dir/FogDenoiserNative.fmu``; returns its path.
+def build_native_fmu(out_dir="build", platforms=None, report=None, spec=None):
+    """Compile a native FMU (FogDenoiserNative unless ``spec`` says otherwise: see
+    :data:`NATIVE_MODELS`) and write ``out_dir/<name>.fmu``; returns its path.
 
     ``platforms``: the FMI 2.0 platform folders to put binaries in (see :data:`PLATFORMS`); a
     missing compiler is then an error. None: every platform a compiler is found for, this
@@ -348,6 +397,7 @@ def build_native_fmu(out_dir="build", platforms=None, report=None):
     Raises :class:`~gyrodenoise.errors.InputError` (one line) if a needed compiler is missing
     or a compilation fails.
     """
+    spec = DENOISER if spec is None else spec
     report = {} if report is None else report
     wanted = list(platforms) if platforms is not None else list(PLATFORMS)
     required = set(wanted) if platforms is not None else {host_platform()}
@@ -363,18 +413,21 @@ def build_native_fmu(out_dir="build", platforms=None, report=None):
             report[plat] = f"skipped: {exc}"
     if not compilers:
         raise InputError("no C compiler found for any FMU platform (pip install ziglang)")
-    sources = _sources()
+    sources = _sources(spec)
+    resources = spec.resources() if spec.resources else {}
     digest = hashlib.sha256()
     for name in sorted(sources):
         digest.update(name.encode() + b"\0" + sources[name])
-    digest.update(model_description("").encode())
-    guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "gyrodenoise:" + MODEL_NAME + ":"
+    for name in sorted(resources):
+        digest.update(b"resources/" + name.encode() + b"\0" + resources[name])
+    digest.update(model_description("", spec).encode())
+    guid = "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "gyrodenoise:" + spec.name + ":"
                                 + digest.hexdigest())) + "}"
-    sources[VARS_HEADER] = vars_header(guid).encode()
-    xml = model_description(guid)
+    sources[spec.vars_header] = vars_header(guid, spec).encode()
+    xml = model_description(guid, spec)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    target = out_dir / f"{MODEL_NAME}.fmu"
+    target = out_dir / f"{spec.name}.fmu"
     with tempfile.TemporaryDirectory(prefix="fognative_") as tmp:
         tmp = Path(tmp)
         src = tmp / "sources"
@@ -384,8 +437,8 @@ def build_native_fmu(out_dir="build", platforms=None, report=None):
         binaries = {}
         for plat, (cc, what) in compilers.items():
             (tmp / plat).mkdir()
-            binary = tmp / plat / f"{MODEL_NAME}{PLATFORMS[plat][0]}"
-            _compile(plat, cc, src, binary)
+            binary = tmp / plat / f"{spec.name}{PLATFORMS[plat][0]}"
+            _compile(plat, cc, src, binary, spec)
             binaries[plat] = binary
             report[plat] = what
         part = target.with_name(target.name + ".part")
@@ -395,14 +448,25 @@ def build_native_fmu(out_dir="build", platforms=None, report=None):
                 z.write(binary, f"binaries/{plat}/{binary.name}")
             for name in sorted(sources):
                 z.writestr(f"sources/{name}", sources[name])
+            for name in sorted(resources):
+                z.writestr(f"resources/{name}", resources[name])
         os.replace(part, target)
     return target
+
+
+def build_native_fmus(out_dir="build", platforms=None, report=None):
+    """Build every native FMU (:data:`NATIVE_MODELS`) into ``out_dir``; returns {name: path}.
+    ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers serve all)."""
+    from .simnative import SIMULATED_FOG_NATIVE
+    return {spec.name: build_native_fmu(out_dir, platforms, report, spec)
+            for spec in (DENOISER, SIMULATED_FOG_NATIVE)}
 
 
 def main(argv=None):  # pragma: no cover - convenience: python -m gyrodenoise.fmu.native [out_dir]
     args = sys.argv[1:] if argv is None else argv
     try:
-        print(build_native_fmu(args[0] if args else "build"))
+        for path in build_native_fmus(args[0] if args else "build").values():
+            print(path)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
