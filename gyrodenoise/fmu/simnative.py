@@ -1,0 +1,118 @@
+"""SimulatedFogNative.fmu: the model-card gyro as a native FMI 2.0 co-simulation FMU.
+
+No Python and no libpython at run time: the binary is the project's sensor model
+(``gyrodenoise/core/gdsim.c``, the C that ``gyrodenoise.simulate`` and the pythonfmu
+``SimulatedFog.fmu`` run) behind the shared FMI layer (``fmu_src/native/gdfmi.c``) and
+its hooks (``fmu_src/native/simulatedfog_native.c``). Same variables (names, types,
+causality, variability, units, start values) as ``SimulatedFog.fmu``; same card and
+seed: same numbers as ``gyrodenoise.simulate``.
+
+The card. TOML is parsed here in Python, so the FMU reads a *compiled* card: the card
+vector (``simkernels.card_vector``, card units) one field a line, each value as the hex
+digits of its IEEE 754 bits (exact on every platform) with the decimal value beside it.
+:func:`compile_card` writes it; the build bundles every card of ``gyrodenoise/data``
+as ``resources/cards/NAME.gdcard`` (the FMU's ``card`` parameter takes the name, a
+compiled card file's path, or the compiled text).
+
+>>> from gyrodenoise.fmu.simnative import compile_card
+>>> compile_card("paper_fog").splitlines()[0]
+'gdcard 1 92'
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+from ..core import simkernels as SK
+from ..errors import InputError
+from .native import CORE_DIR, PACKAGE_DIR, UNITS, NativeModel, _par, _var
+
+MODEL_NAME = "SimulatedFogNative"
+CARD_FORMAT = 1
+R = SK.MAX_REPEAT
+#: names of the card vector's fields (simkernels.card_vector), in its order
+CARD_FIELDS = (("sample_rate_hz", "Q", "N", "B", "K", "R", "bias", "bias_rep", "tr_amp", "tr_tau", "n_gm",
+                "n_sin")
+               + tuple(f"{col}_{i + 1}" for col in ("gm_sigma", "gm_tau", "sin_amp", "sin_f", "sin_phase_deg")
+                       for i in range(R)))
+
+
+def _check_layout():
+    if len(CARD_FIELDS) != SK.CARD_LEN:
+        raise InputError(f"the card vector has {SK.CARD_LEN} fields, {MODEL_NAME} knows {len(CARD_FIELDS)}: "
+                         "update gyrodenoise/fmu/simnative.py CARD_FIELDS and simulatedfog_native.c")
+
+
+def compile_card(card):
+    """The compiled card (text) of ``card`` (a ModelCard, a card path or a bundled name)."""
+    from ..simulator import load_card
+    from .. import __version__
+    _check_layout()
+    card = load_card(card)
+    try:
+        v = SK.card_vector(card)
+    except ValueError as exc:
+        raise InputError(str(exc), card.source) from None
+    what = " ".join(f"{card.name} ({Path(card.source).name})".split())   # one line
+    lines = [f"gdcard {CARD_FORMAT} {len(v)}",
+             f"# {what}, compiled by gyrodenoise {__version__} for {MODEL_NAME}:",
+             "# the card vector (simkernels.card_vector, card units): field, IEEE 754 bits, value"]
+    for name, x in zip(CARD_FIELDS, v):
+        bits = struct.unpack("<Q", struct.pack("<d", float(x)))[0]
+        lines.append(f"{name} 0x{bits:016x} {float(x)!r}")
+    return "\n".join(lines) + "\n"
+
+
+def bundled_cards():
+    """{name: path} of the cards bundled in the FMU (the package's model cards)."""
+    return {p.stem: p for p in sorted((PACKAGE_DIR / "data").glob("*.toml"))}
+
+
+def _resources():
+    return {f"cards/{name}.gdcard": compile_card(path).encode() for name, path in bundled_cards().items()}
+
+
+VARIABLES = [
+    _var("true_rate", "Real", "input", "True angular rate", start=0.0, unit="deg/s"),
+    _var("restart", "Boolean", "input", "True on the first sample after a gyro restart (fresh turn-on "
+         "bias draw, turn-on transient restarts)", start=False, variability="discrete"),
+    dict(_var("measured_rate", "Real", "output", "Measured angular rate: true_rate + sensor errors",
+              start=0.0, unit="deg/s"), initial="exact"),
+    dict(_var("restarted", "Boolean", "output", "The restart input of the step that produced "
+              "measured_rate; connect it to the denoiser's restart", start=False, variability="discrete"),
+         initial="exact"),
+    _par("card", "String", "paper_fog", "Model card: the name of a card bundled in the FMU "
+         "(resources/cards: paper_fog, the paper's FOG, default), a compiled card file's path, or a "
+         "compiled card's text ('gdcard 1 ...': gyrodenoise fmu card CARD.toml; a TOML card is "
+         "refused at fmi2ExitInitializationMode with this reason)"),
+    _par("seed", "Integer", 0, "Seed of the noise generator (same seed, same card: same numbers as "
+         "gyrodenoise.simulate)", min=0),
+    _par("strict_step_size", "Boolean", False, "If true, a step whose size differs from the card's sample "
+         "period is refused (fmi2Discard); if false it is processed and a warning is logged"),
+]
+
+
+def _header_lines():
+    _check_layout()
+    names = ", ".join(f'"{n}"' for n in CARD_FIELDS)
+    return (f"#define GD_CARD_LEN {len(CARD_FIELDS)}",
+            f"#define GD_CARD_FIELDS {{{names}}}",
+            f'#define GD_BUNDLED_CARDS "{", ".join(bundled_cards())}"')
+
+
+SIMULATED_FOG_NATIVE = NativeModel(
+    MODEL_NAME,
+    "Simulated gyro from a gyrodenoise model card (compiled, see the card parameter): measured_rate = "
+    "true_rate + sensor errors, the sensor model gdsim.c (same numbers as gyrodenoise.simulate), native C: "
+    "no Python needed. One communication step = one sample.",
+    VARIABLES, 0.005, "simulatedfog_native.c", "simulatedfog_native_all.c",
+    (CORE_DIR / "gdsim.c", CORE_DIR / "gdsim.h"), {"deg/s": UNITS["deg/s"]},
+    header_lines=_header_lines, resources=_resources)
+
+
+def build_simulated_fog_native(out_dir="build", platforms=None, report=None):
+    """Compile SimulatedFogNative and write ``out_dir/SimulatedFogNative.fmu``; returns its path
+    (arguments as :func:`gyrodenoise.fmu.native.build_native_fmu`)."""
+    from .native import build_native_fmu
+    return build_native_fmu(out_dir, platforms, report, SIMULATED_FOG_NATIVE)
