@@ -17,14 +17,15 @@ def shared_file(*parts):
 
 @pytest.fixture(scope="session")
 def native_build(tmp_path_factory):
-    """The native FMUs, compiled once per session for every platform a compiler is found for
-    (gyrodenoise.fmu.native.build_native_fmu); (folder, {platform: compiler or skip reason})."""
+    """The native FMUs (FogDenoiserNative, SimulatedFogNative), compiled once per session for every
+    platform a compiler is found for (gyrodenoise.fmu.native.build_native_fmus); (folder,
+    {platform: compiler or skip reason})."""
     from gyrodenoise.errors import InputError
     from gyrodenoise.fmu import native
     out = tmp_path_factory.mktemp("native_fmus")
     report = {}
     try:
-        native.build_native_fmu(out, report=report)
+        native.build_native_fmus(out, report=report)
     except InputError as exc:
         pytest.skip(f"native FMU not buildable here: {exc}")
     return out, report

@@ -19,19 +19,27 @@ def register_cli(subparsers):
                               description="Build FogDenoiser.fmu and SimulatedFog.fmu, and run the "
                                           "two-FMU validation against the core.")
     sub = p.add_subparsers(dest="fmu_command", metavar="ACTION")
-    b = sub.add_parser("build", help="build FogDenoiser.fmu, SimulatedFog.fmu (pythonfmu) and "
-                                     "FogDenoiserNative.fmu (C, no Python needed)",
+    b = sub.add_parser("build", help="build FogDenoiser.fmu, SimulatedFog.fmu (pythonfmu), "
+                                     "FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python needed)",
                        description="Package fmu_src/*.py with pythonfmu (in a subprocess) and the "
                                    "core (plain-Python kernels + the C extension) into FMI 2.0 "
-                                   "co-simulation FMUs, and compile FogDenoiserNative.fmu from the C core "
-                                   "and its own FMI layer (fmu_src/native) for linux64 (glibc 2.17), win64 "
-                                   "and darwin64 (zig from the ziglang package; mingw-w64 for win64).")
+                                   "co-simulation FMUs, and compile FogDenoiserNative.fmu and "
+                                   "SimulatedFogNative.fmu from the C cores and their FMI layer (fmu_src/native) "
+                                   "for linux64 (glibc 2.17), win64 and darwin64 (zig from the ziglang package; "
+                                   "mingw-w64 for win64).")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
     b.add_argument("--platforms", default=None, metavar="LIST",
                    help="native FMU platforms, comma-separated, each required (linux64, win64, "
                         "darwin64); default: every platform a compiler is found for (zig from the "
                         "ziglang package: all three), the others skipped with the reason")
     b.set_defaults(func=_cmd_build)
+    c = sub.add_parser("card", help="compile a model card for SimulatedFogNative.fmu",
+                       description="Compile a model card (TOML path or embedded name) into the form "
+                                   "SimulatedFogNative.fmu reads (its card parameter takes the compiled "
+                                   "text or the file's path): the card vector, each value as its IEEE 754 bits.")
+    c.add_argument("card", help="model card path or embedded name (e.g. paper_fog)")
+    c.add_argument("--out", default=None, metavar="FILE", help="write the compiled card there (default: stdout)")
+    c.set_defaults(func=_cmd_card)
     r = sub.add_parser("run", help="SimulatedFog -> FogDenoiser validation run (fmpy or libcosim)",
                        description="Run SimulatedFog -> FogDenoiser one sample per step and compare "
                                    "with the core's batch output (1e-9) and Allan reduction. Without "
@@ -61,7 +69,7 @@ def register_cli(subparsers):
 
 
 def _cmd_build(args):
-    from .native import PLATFORMS, build_native_fmu
+    from .native import PLATFORMS, build_native_fmus
     platforms = None
     if args.platforms is not None:
         platforms = [p.strip() for p in args.platforms.split(",") if p.strip()]
@@ -70,13 +78,30 @@ def _cmd_build(args):
             raise InputError(f"--platforms: unknown platform {', '.join(bad) or '(none given)'}; "
                              f"known: {', '.join(PLATFORMS)}")
     report = {}
-    native = build_native_fmu(args.out, platforms=platforms, report=report)   # compilers first: fails fast
+    native = build_native_fmus(args.out, platforms=platforms, report=report)   # compilers first: fails fast
     paths = build_all(args.out)
-    paths["FogDenoiserNative"] = native
+    paths.update(native)
     for name, path in paths.items():
         print(f"{name}: {path}")
     for plat, what in report.items():
         print(f"gyrodenoise: native {plat}: {what}", file=sys.stderr)
+    return 0
+
+
+def _cmd_card(args):
+    from .simnative import compile_card
+    text = compile_card(args.card)          # a bad card: InputError (one line, exit 2), nothing written
+    if args.out is None:
+        sys.stdout.write(text)
+        return 0
+    out = Path(args.out)
+    if out.is_dir():
+        raise InputError(f"--out {out}: is a folder, expected a file name")
+    try:
+        out.write_text(text)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write: {exc.strerror}") from None
+    print(f"SimulatedFogNative card: {out}", file=sys.stderr)
     return 0
 
 

@@ -1,0 +1,519 @@
+"""SimulatedFogNative.fmu (issue 22, item 2): the sensor model gdsim.c as a native FMI 2.0 FMU.
+
+Built once per session with the other native FMU (conftest ``native_build``: linux64, and
+win64 / darwin64 where a cross compiler is found). Checked against independent
+references: ``gyrodenoise.simulate`` (numpy over the compiled core, itself tested equal to
+the plain-Python specification simkernels.py), bit for bit, for every card term, through
+fmpy's FMU2Slave, a plain C host (tests/chost/host.c) and, for win64, the same host
+cross-compiled and run under wine; the variables against the pythonfmu SimulatedFog.fmu;
+fmpy validate; the binaries' imports and exports; the calls FMI 2.0 forbids (refused with
+fmi2Error and a logged reason, by the FMI layer it shares with FogDenoiserNative).
+"""
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from gyrodenoise.errors import InputError
+from gyrodenoise.fmu import native, simnative
+from gyrodenoise.simulator import load_card, parse_card
+
+fmpy = pytest.importorskip("fmpy")
+from fmpy import read_model_description  # noqa: E402
+from fmpy.fmi1 import FMICallException  # noqa: E402
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,  # noqa: E402
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import binfmt  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+FMI_WARNING, FMI_DISCARD, FMI_ERROR = 1, 2, 3
+
+#: a card with every term the simulator supports (each non-zero)
+EVERY_TERM = """
+[sensor]
+name = "every term"
+sample_rate_hz = 250.0
+[terms]
+quantization      = { Q = 2.0e-5 }
+angle_random_walk = { N = 0.01 }
+bias_instability  = { B = 0.05 }
+rate_random_walk  = { K = 0.2 }
+rate_ramp         = { R = -3.0 }
+constant_bias     = { value = 1.5, repeatability = 0.7 }
+turn_on_transient = { amplitude = 20.0, tau = 3.0 }
+[[terms.gauss_markov]]
+sigma = 0.3
+tau = 0.5
+[[terms.gauss_markov]]
+sigma = 0.1
+tau = 40.0
+[[terms.sinusoid]]
+amplitude = 4.0
+frequency = 12.5
+phase_deg = 30.0
+[[terms.sinusoid]]
+amplitude = 1.0
+frequency = 0.2
+"""
+
+
+@pytest.fixture(scope="module")
+def built(native_build, tmp_path_factory):
+    fmu = native_build[0] / "SimulatedFogNative.fmu"
+    if not fmu.is_file():
+        pytest.skip("SimulatedFogNative.fmu not built")
+    unz = tmp_path_factory.mktemp("simnative") / "unzipped"
+    with zipfile.ZipFile(fmu) as z:
+        z.extractall(unz)
+    return fmu, unz, native_build[1]
+
+
+@pytest.fixture(scope="module")
+def md(built):
+    return read_model_description(str(built[0]))
+
+
+@pytest.fixture(scope="module")
+def vr(md):
+    return {v.name: v.valueReference for v in md.modelVariables}
+
+
+@pytest.fixture(scope="module")
+def every_term_card(tmp_path_factory):
+    """(ModelCard, path of its TOML, compiled text) of EVERY_TERM."""
+    path = tmp_path_factory.mktemp("cards") / "every_term.toml"
+    path.write_text(EVERY_TERM)
+    return load_card(path), path, simnative.compile_card(path)
+
+
+@pytest.fixture(scope="module")
+def host(tmp_path_factory):
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc not installed")
+    exe = tmp_path_factory.mktemp("chost") / "host"
+    subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", f"-I{native.fmi_headers_dir()}",
+                    str(HERE / "chost" / "host.c"), "-o", str(exe), "-ldl"],
+                   check=True, capture_output=True, text=True)
+    return exe
+
+
+class Logger:
+    """fmpy callbacks that keep the log messages (status, category, text)."""
+
+    def __init__(self):
+        self.messages = []
+        self.callbacks = fmi2CallbackFunctions()
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+
+    def _log(self, env, name, status, category, message):
+        self.messages.append((status, category.decode(), message.decode()))
+
+    def errors(self):
+        return [m for s, c, m in self.messages if s >= FMI_ERROR]
+
+
+def slave(built, md, logger=None, unz=None, **params):
+    """An instance in initialisation mode with ``params`` set."""
+    s = FMU2Slave(guid=md.guid, unzipDirectory=str(unz or built[1]),
+                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName="simnative")
+    s.instantiate(callbacks=logger.callbacks if logger else None, loggingOn=False)
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    types = {v.name: (v.type, v.valueReference) for v in md.modelVariables}
+    for name, value in params.items():
+        t, ref = types[name]
+        {"Real": s.setReal, "Integer": s.setInteger, "Boolean": s.setBoolean,
+         "String": s.setString}[t]([ref], [value])
+    return s
+
+
+def inputs(n, fs, seed=11):
+    """A true rate (steps, a sine, noise-free) and two restarts."""
+    t = np.arange(n) / fs
+    truth = 5.0 * np.sin(2 * np.pi * 0.3 * t) + 2.0 * (t > 1.0)
+    rs = np.zeros(n, dtype=bool)
+    rs[[n // 3, 2 * n // 3]] = True
+    return truth, rs
+
+
+def run(s, vr, truth, rs, fs, t0=0.0):
+    out, restarted = np.empty(len(truth)), np.empty(len(truth), dtype=bool)
+    for i in range(len(truth)):
+        s.setReal([vr["true_rate"]], [float(truth[i])])
+        s.setBoolean([vr["restart"]], [bool(rs[i])])
+        s.doStep(t0 + i / fs, 1.0 / fs)
+        out[i] = s.getReal([vr["measured_rate"]])[0]
+        restarted[i] = s.getBoolean([vr["restarted"]])[0]
+    return out, restarted
+
+
+def expect_error(logger, call, *args):
+    before = len(logger.errors())
+    with pytest.raises(FMICallException) as exc:
+        call(*args)
+    assert exc.value.status == FMI_ERROR
+    assert len(logger.errors()) > before, "no reason logged"
+    return logger.errors()[-1]
+
+
+# ------------------------------------------------------------- the FMU file
+def test_fmpy_validate_clean(built):
+    from fmpy.validation import validate_fmu
+    assert validate_fmu(str(built[0])) == []
+
+
+def test_same_variables_as_pythonfmu_simulatedfog(md, tmp_path):
+    """Names, types, causality, variability, initial, units and start values of SimulatedFog.fmu."""
+    from gyrodenoise.fmu.build import build_fmu
+    ref = read_model_description(str(build_fmu("SimulatedFog", tmp_path)))
+
+    def sig(m):
+        return {v.name: (v.type, v.causality, v.variability, v.initial, v.unit,
+                         None if v.start is None else str(v.start).lower().replace("0.0", "0"))
+                for v in m.modelVariables}
+    assert sig(md) == sig(ref)
+    assert float(md.defaultExperiment.stepSize) == float(ref.defaultExperiment.stepSize)
+
+
+def test_contents_bundled_cards_and_no_python(built, md):
+    fmu, unz, _ = built
+    names = set(zipfile.ZipFile(fmu).namelist())
+    assert {"binaries/linux64/SimulatedFogNative.so", "sources/simulatedfog_native_all.c", "sources/gdsim.c",
+            "sources/gdfmi.c", "sources/simulatedfog_native_vars.h"} <= names
+    for name in simnative.bundled_cards():
+        assert f"resources/cards/{name}.gdcard" in names
+        assert zipfile.ZipFile(fmu).read(f"resources/cards/{name}.gdcard").decode() == \
+            simnative.compile_card(name)
+    cs = md.coSimulation
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and not cs.needsExecutionTool
+    so = unz / "binaries" / "linux64" / "SimulatedFogNative.so"
+    assert b"libpython" not in so.read_bytes().lower() and b"Py_Initialize" not in so.read_bytes()
+    header = (unz / "sources" / "simulatedfog_native_vars.h").read_text()
+    assert f'#define GD_GUID "{md.guid}"' in header
+    assert f"#define GD_CARD_LEN {len(simnative.CARD_FIELDS)}" in header
+
+
+def test_compiled_card_is_the_card_vector_bit_for_bit(every_term_card):
+    """The compiled text holds each card-vector value exactly (IEEE 754 bits) and its decimal."""
+    from gyrodenoise.core import simkernels as SK
+    card, _, text = every_term_card
+    lines = [ln for ln in text.splitlines() if ln and not ln.startswith("#")]
+    assert lines[0] == f"gdcard 1 {SK.CARD_LEN}"
+    v = SK.card_vector(card)
+    for (name, bits, dec), x, want in zip((ln.split() for ln in lines[1:]), v, simnative.CARD_FIELDS):
+        assert name == want
+        assert np.float64(x).view(np.uint64) == int(bits, 16) and float(dec) == x
+    assert len(lines) == 1 + len(v)
+
+
+# ------------------------------------------------------------- the numbers
+@pytest.mark.parametrize("card_name,seed", [("paper_fog", 0), ("imar_fog", 7), ("kvh1750", 123456789)])
+def test_bundled_cards_equal_gd_simulate_bit_for_bit(built, md, vr, card_name, seed):
+    fs = load_card(card_name).sample_rate_hz
+    truth, rs = inputs(2000, fs)
+    s = slave(built, md, card=card_name, seed=seed)
+    s.exitInitializationMode()
+    out, restarted = run(s, vr, truth, rs, fs)
+    s.terminate()
+    s.freeInstance()
+    ref = gd.simulate(card_name, len(truth), seed=seed, true_rate_deg_s=truth, restarts=rs).rate_deg_s
+    assert np.array_equal(out, ref), np.max(np.abs(out - ref))
+    assert np.array_equal(restarted, rs)
+
+
+def test_every_card_term_equals_gd_simulate_bit_for_bit(built, md, vr, every_term_card, tmp_path):
+    """The compiled text as the card parameter, and a compiled card file's path."""
+    card, _, text = every_term_card
+    fs = card.sample_rate_hz
+    truth, rs = inputs(3000, fs)
+    ref = gd.simulate(card, len(truth), seed=42, true_rate_deg_s=truth, restarts=rs).rate_deg_s
+    compiled = tmp_path / "every term.gdcard"
+    compiled.write_text(text)
+    for given in (text, str(compiled)):
+        s = slave(built, md, card=given, seed=42)
+        s.exitInitializationMode()
+        out, _ = run(s, vr, truth, rs, fs)
+        s.terminate()
+        s.freeInstance()
+        assert np.array_equal(out, ref), np.max(np.abs(out - ref))
+
+
+def test_state_round_trip_and_serialized_into_another_instance(built, md, vr, every_term_card):
+    card, _, text = every_term_card
+    fs = card.sample_rate_hz
+    truth, rs = inputs(600, fs)
+    ref = gd.simulate(card, 600, seed=5, true_rate_deg_s=truth, restarts=rs).rate_deg_s
+    s = slave(built, md, card=text, seed=5)
+    s.exitInitializationMode()
+    head, _ = run(s, vr, truth[:300], rs[:300], fs)
+    st = s.getFMUstate()
+    blob = s.serializeFMUstate(st)
+    tail_a, _ = run(s, vr, truth[300:], rs[300:], fs, t0=300 / fs)
+    s.setFMUstate(st)
+    tail_b, _ = run(s, vr, truth[300:], rs[300:], fs, t0=300 / fs)
+    other = slave(built, md)                     # another instance, default card: the state carries the card
+    other.exitInitializationMode()
+    other.setFMUstate(other.deSerializeFMUstate(blob))
+    tail_c, _ = run(other, vr, truth[300:], rs[300:], fs, t0=300 / fs)
+    assert np.array_equal(np.concatenate([head, tail_a]), ref)
+    assert np.array_equal(tail_a, tail_b) and np.array_equal(tail_a, tail_c)
+    s.freeFMUstate(st)
+    for inst in (s, other):
+        inst.terminate()
+        inst.freeInstance()
+
+
+def test_corrupted_or_foreign_serialized_state_is_an_error(built, md, vr, native_build):
+    log = Logger()
+    s = slave(built, md, logger=log)
+    s.exitInitializationMode()
+    run(s, vr, *inputs(20, 200.0), 200.0)
+    st = s.getFMUstate()
+    blob = bytearray(s.serializeFMUstate(st))
+    s.freeFMUstate(st)
+    flipped = bytes(blob[:60]) + bytes([blob[60] ^ 0x5A]) + bytes(blob[61:])
+    for bad, why in ((blob[:-9], "truncated"), (flipped, "checksum"),
+                     (b"GDNATIVE" + bytes(blob[8:]), "not a serialized SimulatedFogNative state")):
+        r = expect_error(log, s.deSerializeFMUstate, bytes(bad))
+        assert "fmi2DeSerializeFMUstate" in r and why in r, r
+        s.reset()
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+    s.terminate()
+    s.freeInstance()
+
+
+# ----------------------------------------------------------- the card rules
+@pytest.mark.parametrize("card,reason", [
+    ("no_such_card", "no such bundled card"),
+    ("[sensor]\nsample_rate_hz = 200.0\n", "TOML text cannot be read"),
+    ("gdcard 1 3\nsample_rate_hz 0x4069000000000000\n", "compile the card again"),
+    ("gdcard 1 92\nsample_rate_hz 0x40690000000000zz\n", "is not a hex digit"),
+    ("gdcard 1 92\nQ 0x4069000000000000\n", "field sample_rate_hz expected"),
+])
+def test_bad_card_refused_at_exit_initialization_with_the_reason(built, md, card, reason):
+    log = Logger()
+    s = slave(built, md, logger=log, card=card)
+    assert reason in expect_error(log, s.exitInitializationMode)
+    s.freeInstance()
+
+
+def test_unusable_card_values_and_seed_refused(built, md, every_term_card):
+    _, _, text = every_term_card
+    zero_fs = text.replace("sample_rate_hz 0x406f400000000000", "sample_rate_hz 0x0000000000000000")
+    assert zero_fs != text
+    nan_q = text.replace("\nQ 0x", "\nQ 0x7ff8000000000000 was 0x")
+    for card, seed, reason in ((zero_fs, 0, "sample_rate_hz must be > 0"),
+                               (nan_q, 0, "Q is not a usable number"),
+                               ("paper_fog", -1, "seed must be an integer >= 0")):
+        log = Logger()
+        s = slave(built, md, logger=log, card=card, seed=seed)
+        assert reason in expect_error(log, s.exitInitializationMode)
+        s.freeInstance()
+
+
+def test_second_use_in_a_process_after_the_first_unzip_folder_is_gone(built, md, vr, tmp_path):
+    """SimulatedFog.fmu's issue-22 defect, checked on the native one: each instance reads
+    the bundled card from its own resources."""
+    ref = gd.simulate("paper_fog", 200, seed=3).rate_deg_s
+    for k in range(2):
+        unz = tmp_path / f"copy{k}"
+        shutil.copytree(built[1], unz)
+        s = slave(built, md, unz=unz, seed=3)
+        s.exitInitializationMode()
+        out, _ = run(s, vr, np.zeros(200), np.zeros(200, dtype=bool), 200.0)
+        s.terminate()
+        s.freeInstance()
+        shutil.rmtree(unz)
+        assert np.array_equal(out, ref)
+
+
+def test_step_size_rules_and_nan_input(built, md, vr):
+    log = Logger()
+    s = slave(built, md, logger=log)
+    s.exitInitializationMode()
+    assert s.fmi2DoStep(s.component, 0.0, 0.01, 1) == FMI_WARNING
+    assert any(st == FMI_WARNING and "differs from the card's sample period" in m for st, _, m in log.messages)
+    s.setReal([vr["true_rate"]], [float("nan")])
+    assert "true_rate is nan" in expect_error(log, s.doStep, 0.01, 0.005)
+    s.freeInstance()
+    log = Logger()
+    s = slave(built, md, logger=log, strict_step_size=True)
+    s.exitInitializationMode()
+    with pytest.raises(FMICallException) as exc:
+        s.doStep(0.0, 0.01)
+    assert exc.value.status == FMI_DISCARD
+    assert any(st == FMI_DISCARD and "step refused (strict_step_size)" in m for st, _, m in log.messages)
+    s.terminate()
+    s.freeInstance()
+
+
+def test_free_instance_frees_everything_it_allocated(built, md, vr):
+    live = {}
+
+    def alloc(n, size):
+        ptr = fmpy.calloc(n, size)
+        live[ptr] = n * size
+        return ptr
+
+    def free(ptr):
+        live.pop(ptr, None)
+        fmpy.free(ptr)
+
+    log = Logger()
+    log.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(alloc)
+    log.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    s = slave(built, md, logger=log, card="imar_fog")
+    s.exitInitializationMode()
+    run(s, vr, *inputs(50, 400.0), 400.0)
+    kept = [s.getFMUstate(), s.getFMUstate()]
+    kept.append(s.deSerializeFMUstate(s.serializeFMUstate(kept[0])))
+    assert live
+    s.terminate()
+    s.freeInstance()
+    assert live == {}, f"{len(live)} blocks not freed by fmi2FreeInstance"
+
+
+# ------------------------------------------------------------------ C host
+def host_cmd(host, unz, mode, *args):
+    return [*host, str(unz), mode, "--in", "true_rate", "--restart", "restart", "--out", "measured_rate",
+            *args]
+
+
+def host_data(truth, rs):
+    return "".join(f"{float(v)!r} {int(r)}\n" for v, r in zip(truth, rs))
+
+
+def test_c_host_equals_gd_simulate(built, host, every_term_card):
+    card, _, text = every_term_card
+    truth, rs = inputs(2500, card.sample_rate_hz)
+    for given, seed, c in ((text, 9, card), ("paper_fog", 2, "paper_fog")):
+        fs = load_card(c).sample_rate_hz
+        proc = subprocess.run(host_cmd([str(host)], built[1], "run", "--set", f"card={given}",
+                                       "--set", f"seed={seed}", "--step", repr(1.0 / fs)),
+                              input=host_data(truth, rs), capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        out = np.array([float(x) for x in proc.stdout.split()])
+        ref = gd.simulate(c, len(truth), seed=seed, true_rate_deg_s=truth, restarts=rs).rate_deg_s
+        assert np.array_equal(out, ref), np.max(np.abs(out - ref))
+
+
+FORBIDDEN_ARGS = ["--set", "seed=4", "--set", "card=imar_fog", "--set", "strict_step_size=true",
+                  "--bad", "card=no_such_card", "--bad", "seed=-3", "--bad", "card=[sensor]",
+                  "--step", "0.0025"]
+
+
+def test_c_host_forbidden_calls(built, host):
+    proc = subprocess.run(host_cmd([str(host)], built[1], "forbidden", *FORBIDDEN_ARGS),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "FAIL" not in proc.stdout and "0 failed" in proc.stdout
+    assert proc.stdout.count("PASS setting fixed parameter") == 3
+    assert proc.stdout.count("PASS fmi2ExitInitializationMode with") == 3
+
+
+# ------------------------------------------------------------- platforms
+def binary(built, plat):
+    path = built[1] / "binaries" / plat / f"SimulatedFogNative{native.PLATFORMS[plat][0]}"
+    if not path.is_file():
+        pytest.skip(f"no {plat} binary built: {built[2].get(plat, 'not attempted')} "
+                    "(scripts/install_fmu_test_tools.sh)")
+    return path
+
+
+def test_linux64_glibc_2_17_libc_libm_only_fmi2_exports(built):
+    so = binary(built, "linux64")
+    if not built[2].get("linux64", "").startswith("zig"):
+        pytest.skip(f"linux64 built with {built[2].get('linux64')}: the glibc 2.17 baseline needs zig")
+    versions = binfmt.elf_glibc_versions(so)
+    assert versions and max(versions) <= (2, 17), versions
+    readelf = shutil.which("readelf")
+    if readelf:
+        dyn = subprocess.run([readelf, "-d", str(so)], capture_output=True, text=True, check=True).stdout
+        assert {ln.split("[")[1].split("]")[0] for ln in dyn.splitlines() if "(NEEDED)" in ln} == \
+            {"libc.so.6", "libm.so.6"}
+        syms = subprocess.run([readelf, "--dyn-syms", "-W", str(so)], capture_output=True, text=True,
+                              check=True).stdout
+        exported = {ln.split()[7].split("@")[0] for ln in syms.splitlines()
+                    if len(ln.split()) >= 8 and ln.split()[4] == "GLOBAL" and ln.split()[6] != "UND"}
+        assert exported and all(n.startswith("fmi2") for n in exported), sorted(exported)
+
+
+def test_win64_dll_and_darwin64_dylib_exports(built):
+    dll = binary(built, "win64")
+    info = binfmt.pe_info(dll)
+    assert info["machine"] == 0x8664 and info["is_dll"]
+    assert "fmi2DoStep" in info["exports"] and all(n.startswith("fmi2") for n in info["exports"])
+    system = {"kernel32.dll", "msvcrt.dll", "ucrtbase.dll"}
+    assert all(d.lower() in system or d.lower().startswith("api-ms-win-crt-") for d in info["imports"])
+    dylib = binary(built, "darwin64")
+    mach = binfmt.macho_info(dylib)     # darwin64 cannot run here (no macOS): the file is checked
+    assert mach["cputype"] == binfmt.CPU_TYPE_X86_64 and mach["filetype"] == binfmt.MH_DYLIB
+    exports = set(mach["exports"]) - {"_mh_dylib_header", "__dso_handle"}
+    assert "fmi2DoStep" in exports and all(n.startswith("fmi2") for n in exports), sorted(exports)
+    assert mach["dylibs"] == ["/usr/lib/libSystem.B.dylib"], mach["dylibs"]
+
+
+@pytest.fixture(scope="module")
+def wine_host(built, tmp_path_factory):
+    binary(built, "win64")
+    wine = shutil.which("wine") or shutil.which("wine64")
+    if wine is None:
+        pytest.skip("wine not installed (scripts/install_fmu_test_tools.sh)")
+    try:
+        cc, _ = native.compiler_for("win64")
+    except InputError as exc:
+        pytest.skip(f"no Windows C compiler: {exc}")
+    exe = tmp_path_factory.mktemp("winhost") / "host.exe"
+    proc = subprocess.run([*cc, "-std=c99", "-O2", f"-I{native.fmi_headers_dir()}",
+                           str(HERE / "chost" / "host.c"), "-o", str(exe)],
+                          capture_output=True, text=True, timeout=300, cwd=exe.parent)
+    assert proc.returncode == 0, proc.stderr
+    return [wine, str(exe)], dict(os.environ, WINEDEBUG="-all")
+
+
+def test_win64_under_wine_equals_gd_simulate(built, wine_host, every_term_card):
+    cmd, env = wine_host
+    card, _, text = every_term_card
+    truth, rs = inputs(1500, card.sample_rate_hz)
+    unz = "Z:" + str(built[1])
+    for given, seed, c in ((text, 9, card), ("kvh1750", 77, "kvh1750")):
+        fs = load_card(c).sample_rate_hz
+        proc = subprocess.run(host_cmd(cmd, unz, "run", "--set", f"card={given}", "--set", f"seed={seed}",
+                                       "--step", repr(1.0 / fs)),
+                              input=host_data(truth, rs), capture_output=True, text=True, env=env, timeout=180)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        out = np.array([float(x) for x in proc.stdout.split()])
+        ref = gd.simulate(c, len(truth), seed=seed, true_rate_deg_s=truth, restarts=rs).rate_deg_s
+        # libm's log/sin/exp differ between glibc and msvcrt in the last bit at most
+        np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
+    proc = subprocess.run(host_cmd(cmd, unz, "forbidden", *FORBIDDEN_ARGS), capture_output=True, text=True,
+                          env=env, timeout=180)
+    assert proc.returncode == 0 and "0 failed" in proc.stdout, proc.stdout + proc.stderr
+
+
+# ------------------------------------------------------------------- CLI
+def test_cli_card_compiles_and_refuses_a_bad_card(tmp_path, every_term_card):
+    from gyrodenoise.cli import main
+    _, path, text = every_term_card
+    out = tmp_path / "c.gdcard"
+    assert main(["fmu", "card", str(path), "--out", str(out)]) == 0
+    assert out.read_text() == text
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[sensor]\nsample_rate_hz = -1\n")
+    out2 = tmp_path / "bad.gdcard"
+    assert main(["fmu", "card", str(bad), "--out", str(out2)]) == 2
+    assert not out2.exists()
+    with pytest.raises(Exception):
+        parse_card(bad.read_text())
