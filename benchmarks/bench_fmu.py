@@ -8,10 +8,13 @@ Prints, in one run:
     one Boolean in, the same outputs, do_step does nothing): the floor of
     pythonfmu + ctypes on this machine;
   * the per-sample core alone (Denoiser.step, the C core), no FMI;
+  * from a plain C host (tests/chost/host.c): the empty FMU, FogDenoiser.fmu,
+    FogDenoiserNative.fmu, SimulatedFog.fmu and SimulatedFogNative.fmu (paper_fog);
   * the 10-minute 200 Hz two-FMU validation run (SimulatedFog -> FogDenoiser).
 
 Targets: FogDenoiser >= 0.7x the steps/s of the empty FMU in the same run (issue 13),
->= 50 000 steps/s; 10-min validation run <= 10 s.
+>= 50 000 steps/s; 10-min validation run <= 10 s; each native FMU >= 10x the steps/s of the
+empty pythonfmu FMU from the C host (issues 14 and 22).
 
     .venv/bin/python benchmarks/bench_fmu.py [--steps N] [--fmu-dir DIR] [--skip-long]
 """
@@ -68,9 +71,10 @@ def build_empty(out_dir):
     return Path(out_dir) / "EmptyFmu.fmu"
 
 
-def c_host_steps_per_s(fmu, tmp, n, params=()):
+def c_host_steps_per_s(fmu, tmp, n, params=(), signals=("raw_rate", "restart", "filtered_rate"), step=0.005):
     """Steps/s of ``fmu`` driven by the project's plain C host (tests/chost/host.c:
-    dlopen + the FMI 2.0 C API), libpython preloaded for pythonfmu FMUs."""
+    dlopen + the FMI 2.0 C API), libpython preloaded for pythonfmu FMUs; ``signals``:
+    the Real input, the Boolean input and the Real output of each step."""
     import sysconfig
     import zipfile
 
@@ -86,8 +90,8 @@ def c_host_steps_per_s(fmu, tmp, n, params=()):
     env = dict(__import__("os").environ)
     libpy = Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("LDLIBRARY")
     env["LD_PRELOAD"] = str(libpy)
-    cmd = [str(host), str(unz), "bench", "--in", "raw_rate", "--out", "filtered_rate", "--n", str(n),
-           "--step", "0.005"]
+    cmd = [str(host), str(unz), "bench", "--in", signals[0], "--restart", signals[1], "--out", signals[2],
+           "--n", str(n), "--step", repr(step)]
     for kv in params:
         cmd += ["--set", kv]
     best = 0.0
@@ -184,17 +188,25 @@ def main(argv=None):
             print(f"FogDenoiser / empty FMU, {mode}: {ratio:.2f}x (target >= 0.7x): "
                   f"{'met' if ratio >= 0.7 else 'NOT met'}")
         print(f"target >= 50000 FogDenoiser steps/s: {'met' if fd >= 50000 else 'NOT met'} ({fd:.0f})")
-        from gyrodenoise.fmu.native import build_native_fmu
-        nat = build_native_fmu(tmp)
+        from gyrodenoise.fmu.native import build_native_fmus
+        nats = build_native_fmus(tmp)
+        nat = nats["FogDenoiserNative"]
+        sensor = ("true_rate", "restart", "measured_rate")
         c_empty = c_host_steps_per_s(empty, tmp, n)
         c_fd = c_host_steps_per_s(fmu_dir / "FogDenoiser.fmu", tmp, n, ["sample_period=0.005"])
         c_nat = c_host_steps_per_s(nat, tmp, 20 * n)
+        c_sf = c_host_steps_per_s(fmu_dir / "SimulatedFog.fmu", tmp, n, signals=sensor)
+        c_sfn = c_host_steps_per_s(nats["SimulatedFogNative"], tmp, 20 * n, signals=sensor)
         print(f"plain C host (tests/chost/host.c; libpython preloaded for pythonfmu):")
         print(f"  empty pythonfmu FMU (floor)  {c_empty:10.0f} steps/s")
         print(f"  FogDenoiser.fmu              {c_fd:10.0f} steps/s = {c_fd / c_empty:.2f}x the empty FMU "
               f"(target >= 0.7x): {'met' if c_fd / c_empty >= 0.7 else 'NOT met'}")
         print(f"  FogDenoiserNative.fmu        {c_nat:10.0f} steps/s = {c_nat / c_empty:.0f}x the empty pythonfmu "
               f"FMU (target >= 10x): {'met' if c_nat / c_empty >= 10 else 'NOT met'}")
+        print(f"  SimulatedFog.fmu (paper_fog) {c_sf:10.0f} steps/s = {c_sf / c_empty:.2f}x the empty FMU")
+        print(f"  SimulatedFogNative.fmu       {c_sfn:10.0f} steps/s = {c_sfn / c_empty:.0f}x the empty pythonfmu "
+              f"FMU (target >= 10x): {'met' if c_sfn / c_empty >= 10 else 'NOT met'} (paper_fog; "
+              f"{c_sfn / c_sf:.0f}x SimulatedFog.fmu)")
 
         if not args.skip_long:
             res = F.validation_run(fmu_dir, duration_s=600.0, rate_deg_s=10.0, restart_at_s=300.0)

@@ -199,12 +199,14 @@ def test_cli_fmu_run_missing_card_is_user_error(fmu_dir):
     assert proc.stderr.startswith("gyrodenoise: error:") and "Traceback" not in proc.stderr
 
 
-@pytest.mark.parametrize("denoiser", ["FogDenoiserNative", "FogDenoiser"])
+@pytest.mark.parametrize("sensor,denoiser", [("SimulatedFogNative", "FogDenoiserNative"),
+                                             ("SimulatedFog", "FogDenoiserNative"), ("SimulatedFog", "FogDenoiser")])
 @pytest.mark.parametrize("ssp", [False, True])
-def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp, denoiser):
+def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp, sensor, denoiser):
+    """The first pair (the default) has no Python in the chain (issue 22)."""
     ssp_path = tmp_path / "chain.ssp" if ssp else None
     res = F.cosim_run(fmu_dir, duration_s=10.0, rate_deg_s=10.0, restart_at_s=5.0, seed=2, ssp=ssp_path,
-                      keep_arrays=True, denoiser=denoiser)
+                      keep_arrays=True, denoiser=denoiser, sensor=sensor)
     assert res["step_size_s"] == pytest.approx(H, rel=1e-9)
     assert res["first_received_deg_s"] == 0.0
     assert res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
@@ -221,7 +223,7 @@ def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp, denoiser):
     if ssp:
         with zipfile.ZipFile(ssp_path) as z:
             assert {"SystemStructure.ssd", f"resources/{denoiser}.fmu",
-                    "resources/SimulatedFog.fmu"} == set(z.namelist())
+                    f"resources/{sensor}.fmu"} == set(z.namelist())
 
 
 # --------------------------------------------------------------- state
@@ -695,14 +697,15 @@ def test_out_of_sequence_calls_and_writes_after_terminate_are_refused(fmu_dir, n
         a.free()
 
 
-def test_the_ssp_runs_in_fmpy_simulate_ssp(fmu_dir, tmp_path):
+@pytest.mark.parametrize("sensor", ["SimulatedFogNative", "SimulatedFog"])
+def test_the_ssp_runs_in_fmpy_simulate_ssp(fmu_dir, tmp_path, sensor):
     """The same .ssp that libcosim runs (test above) loads and runs in fmpy's
     simulate_ssp: the chain's free inputs are not listed as connectors (fmpy
     needs every listed input connected). fmpy ignores ParameterBindings, so this
     SSP is written with the FMUs' defaults (card paper_fog, seed 0, rate 0):
     the denoiser's output equals gd.denoise of what the fog FMU produced."""
     from fmpy.ssp.simulation import simulate_ssp
-    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir)
+    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir, sensor=sensor)
     r = simulate_ssp(str(ssp), stop_time=1.0, step_size=H)
     measured = np.asarray(r["fog.measured_rate"], dtype=float)
     filtered = np.asarray(r["denoiser.filtered_rate"], dtype=float)
@@ -710,6 +713,8 @@ def test_the_ssp_runs_in_fmpy_simulate_ssp(fmu_dir, tmp_path):
     # Jacobi master: the denoiser sees the fog's output of the previous step
     ref = gd.denoise(measured[:-1], FS)
     np.testing.assert_allclose(filtered[1:], ref, rtol=0, atol=1e-9)
+    # the fog's own output (fmpy records it after each step) is the library's, bit for bit
+    assert np.array_equal(measured, gd.simulate("paper_fog", len(measured), seed=0).rate_deg_s)
 
 
 def test_method_description_names_every_method_and_no_fixed_cutoff(fmu_dir):
@@ -776,19 +781,28 @@ def test_simulatedfog_second_use_in_a_process(fmu_dir, tmp_path):
     """Issue 22: a second SimulatedFog instance in a process, after the first unzip folder was
     deleted, failed at fmi2ExitInitializationMode ("paper_fog: no such model card"), and so did
     a second fmpy simulate_ssp. Run in a fresh process (the first use must be in it)."""
-    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir)
+    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir, sensor="SimulatedFog")
     proc = subprocess.run([sys.executable, "-c", SECOND_USE, str(fmu_dir / "SimulatedFog.fmu"), str(ssp)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and proc.stdout.startswith("ok"), proc.stdout + proc.stderr[-2000:]
 
 
-def test_ssp_writer_targets_the_native_denoiser_by_default(fmu_dir, tmp_path):
-    """Issue 22: the SSP writer could only target the pythonfmu denoiser."""
-    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir)
+def test_ssp_writer_targets_the_native_fmus_by_default(fmu_dir, tmp_path):
+    """Issue 22: the SSP writer could only target the pythonfmu FMUs; its default chain is now
+    SimulatedFogNative -> FogDenoiserNative (no Python), the card bound as its compiled text."""
+    from gyrodenoise.fmu.simnative import compile_card
+    ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir, card="imar_fog")
     with zipfile.ZipFile(ssp) as z:
         ssd = z.read("SystemStructure.ssd").decode()
-        assert "resources/FogDenoiserNative.fmu" in z.namelist()
+        assert {"resources/FogDenoiserNative.fmu", "resources/SimulatedFogNative.fmu"} <= set(z.namelist())
     assert 'source="resources/FogDenoiserNative.fmu"' in ssd and "FogDenoiser.fmu" not in ssd
+    assert 'source="resources/SimulatedFogNative.fmu"' in ssd and "SimulatedFog.fmu" not in ssd
+    import xml.etree.ElementTree as ET
+    values = {p.get("name"): p[0].get("value") for p in ET.fromstring(ssd).iter(
+        "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}Parameter")}
+    assert values["card"] == compile_card("imar_fog")
     from gyrodenoise.errors import InputError
     with pytest.raises(InputError, match="denoiser must be one of"):
         F.write_ssp(tmp_path / "x.ssp", fmu_dir=fmu_dir, denoiser="Wiener")
+    with pytest.raises(InputError, match="sensor must be one of"):
+        F.write_ssp(tmp_path / "x.ssp", fmu_dir=fmu_dir, sensor="Gyro")

@@ -62,7 +62,7 @@ def register_cli(subparsers):
     r.add_argument("--master", default="fmpy", choices=["fmpy", "libcosim", "ssp"],
                    help="fmpy FMU2Slave loop (default), libcosim built from Python, or "
                         "libcosim from an SSP file written next to the FMUs (libcosim and the SSP "
-                        "run FogDenoiserNative.fmu)")
+                        "run SimulatedFogNative.fmu -> FogDenoiserNative.fmu: no Python in the chain)")
     r.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     r.set_defaults(func=_cmd_run)
     p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
@@ -113,10 +113,11 @@ def _cmd_run(args):
         why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
         print(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})", file=sys.stderr)
         build_all(fmu_dir)
-    if args.master != "fmpy" and not (fmu_dir / "FogDenoiserNative.fmu").is_file():
-        from .native import build_native_fmu     # the chain's denoiser in libcosim and the SSP
-        print(f"gyrodenoise: building FogDenoiserNative.fmu in {fmu_dir}/", file=sys.stderr)
-        build_native_fmu(fmu_dir)
+    native = ("FogDenoiserNative.fmu", "SimulatedFogNative.fmu")
+    if args.master != "fmpy" and not all((fmu_dir / n).is_file() for n in native):
+        from .native import build_native_fmus     # the chain in libcosim and the SSP: the native FMUs
+        print(f"gyrodenoise: building {' and '.join(native)} in {fmu_dir}/", file=sys.stderr)
+        build_native_fmus(fmu_dir)
     if args.duration <= 0:
         raise InputError(f"--duration must be > 0 s, got {args.duration}")
     if args.rate is not None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..core.kernels import DEFAULT_METHOD
-from .validation import _denoiser_params, _fmu_paths, _resolve_card, _restart_mask, compare_with_core
+from .validation import _denoiser_params, _resolve_card, _restart_mask, compare_with_core
 
 
 def _xml_attr(value):
@@ -32,39 +32,53 @@ def _ssv_parameters(params, var_types):
     return "\n".join(rows)
 
 
-def system_parameters(card, seed=0, method=DEFAULT_METHOD, ar_order=3, rate_deg_s=0.0, denoiser_kw=None):
-    """Parameter values of the two-FMU system: {instance: {variable: value}}."""
+def system_parameters(card, seed=0, method=DEFAULT_METHOD, ar_order=3, rate_deg_s=0.0, denoiser_kw=None,
+                      sensor="SimulatedFogNative"):
+    """Parameter values of the two-FMU system: {instance: {variable: value}}.
+
+    The fog's ``card``: the card's TOML text for SimulatedFog, its compiled text
+    (:func:`gyrodenoise.fmu.simnative.compile_card`) for SimulatedFogNative."""
     card_obj = _resolve_card(card)
     fs = card_obj.sample_rate_hz
+    if sensor == "SimulatedFogNative":
+        from .simnative import compile_card
+        card_value = compile_card(card_obj)
+    else:
+        card_value = card_obj.text
     return card_obj, {
-        "fog": {"card": card_obj.text, "seed": int(seed), "true_rate": float(rate_deg_s)},
+        "fog": {"card": card_value, "seed": int(seed), "true_rate": float(rate_deg_s)},
         "denoiser": _denoiser_params(method, ar_order, fs, denoiser_kw),
     }
 
 
-#: the denoiser FMUs an SSP or a libcosim run may use (same variables and outputs)
+#: the denoiser and sensor FMUs an SSP or a libcosim run may use (same variables and outputs);
+#: the first of each, the native ones, by default: a chain with no Python in it
 DENOISERS = ("FogDenoiserNative", "FogDenoiser")
+SENSORS = ("SimulatedFogNative", "SimulatedFog")
 
 
-def _chain_paths(fmu_dir, denoiser):
-    """{"SimulatedFog": path, "denoiser": path} of the chain's two FMUs."""
+def _chain_paths(fmu_dir, denoiser, sensor="SimulatedFogNative"):
+    """{"sensor": path, "denoiser": path} of the chain's two FMUs."""
     if denoiser not in DENOISERS:
         raise InputError(f"denoiser must be one of {', '.join(DENOISERS)}, got {denoiser!r}")
-    paths = _fmu_paths(fmu_dir)
-    if denoiser == "FogDenoiser":
-        return {"SimulatedFog": paths["SimulatedFog"], "denoiser": paths["FogDenoiser"]}
-    native = Path(fmu_dir) / f"{denoiser}.fmu"
-    if not native.is_file():
-        raise InputError(f"{native}: not found (run 'gyrodenoise fmu build --out {fmu_dir}')")
-    return {"SimulatedFog": paths["SimulatedFog"], "denoiser": native}
+    if sensor not in SENSORS:
+        raise InputError(f"sensor must be one of {', '.join(SENSORS)}, got {sensor!r}")
+    paths = {}
+    for role, name in (("sensor", sensor), ("denoiser", denoiser)):
+        paths[role] = Path(fmu_dir) / f"{name}.fmu"
+        if not paths[role].is_file():
+            raise InputError(f"{paths[role]}: not found (run 'gyrodenoise fmu build --out {fmu_dir}')")
+    return paths
 
 
 def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_METHOD, ar_order=3,
-              rate_deg_s=0.0, duration_s=600.0, denoiser_kw=None, denoiser="FogDenoiserNative"):
-    """Write an SSP 1.0 archive of SimulatedFog -> the denoiser; return its path.
+              rate_deg_s=0.0, duration_s=600.0, denoiser_kw=None, denoiser="FogDenoiserNative",
+              sensor="SimulatedFogNative"):
+    """Write an SSP 1.0 archive of the simulated gyro -> the denoiser; return its path.
 
-    ``denoiser``: ``"FogDenoiserNative"`` (default: the native FMU, no Python in the
-    denoiser) or ``"FogDenoiser"`` (pythonfmu); same variables, same outputs.
+    ``sensor``: ``"SimulatedFogNative"`` (default) or ``"SimulatedFog"`` (pythonfmu);
+    ``denoiser``: ``"FogDenoiserNative"`` (default) or ``"FogDenoiser"`` (pythonfmu); each
+    pair has the same variables and outputs. The default chain has no Python in it.
 
     The archive holds ``SystemStructure.ssd`` and both FMUs under ``resources/``;
     the connections are ``fog.measured_rate -> denoiser.raw_rate`` and
@@ -74,12 +88,12 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
     """
     import zipfile
     from fmpy import read_model_description
-    chain = _chain_paths(fmu_dir, denoiser)
-    paths = {"SimulatedFog": chain["SimulatedFog"], denoiser: chain["denoiser"]}
-    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw)
+    chain = _chain_paths(fmu_dir, denoiser, sensor)
+    paths = {sensor: chain["sensor"], denoiser: chain["denoiser"]}
+    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw, sensor)
     h = 1.0 / card_obj.sample_rate_hz
     comps = []
-    for inst, model in (("fog", "SimulatedFog"), ("denoiser", denoiser)):
+    for inst, model in (("fog", sensor), ("denoiser", denoiser)):
         md = read_model_description(str(paths[model]))
         types = {v.name: v.type for v in md.modelVariables}
         # the chain's free inputs (fog.true_rate, fog.restart: set by the parameter
@@ -115,7 +129,7 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
     xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
     xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
     xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations">
-  <ssd:System name="fog_chain" description="SimulatedFog (model card {_xml_attr(card_obj.name)[1:-1]}, seed {int(seed)}) -> {denoiser}; one step = one sample">
+  <ssd:System name="fog_chain" description="{sensor} (model card {_xml_attr(card_obj.name)[1:-1]}, seed {int(seed)}) -> {denoiser}; one step = one sample">
     <ssd:Elements>
 {comps_xml}
     </ssd:Elements>
@@ -146,7 +160,7 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
 
 def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=None, seed=0,
               card="paper_fog", method=DEFAULT_METHOD, ar_order=3, ssp=None, tol=1e-9,
-              keep_arrays=False, denoiser_kw=None, denoiser="FogDenoiserNative"):
+              keep_arrays=False, denoiser_kw=None, denoiser="FogDenoiserNative", sensor="SimulatedFogNative"):
     """The two-FMU system in libcosim (Open Simulation Platform) via libcosimpy.
 
     ``ssp=None`` builds the system from Python (local slaves, connections,
@@ -155,9 +169,9 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
     manipulator on ``fog.restart`` for one step.
 
     libcosim's fixed-step master is of Jacobi type: FogDenoiser receives in step
-    k what SimulatedFog produced in step k-1 (and in step 0 SimulatedFog's
+    k what the sensor FMU produced in step k-1 (and in step 0 its
     initial output, 0 deg/s). The check is therefore that the denoiser's
-    received samples are SimulatedFog's delayed by one step, that those equal
+    received samples are the sensor's delayed by one step, that those equal
     ``gyrodenoise.simulate``, and that the denoiser's output equals
     ``gyrodenoise.denoise`` on the samples it received.
     """
@@ -171,28 +185,28 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     log_output_level(CosimLogLevel.WARNING)
 
-    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw)
+    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw, sensor)
     fs = card_obj.sample_rate_hz
     h_ns = int(round(1e9 / fs))
     if abs(h_ns * 1e-9 * fs - 1.0) > 1e-9:
         raise InputError(f"sample rate {fs} Hz is not a whole number of nanoseconds per sample "
                          "(libcosim's time unit)")
     n = int(round(duration_s * fs))
-    paths = _chain_paths(fmu_dir, denoiser)
+    paths = _chain_paths(fmu_dir, denoiser, sensor)
     from fmpy import read_model_description
     vrs = {m: {v.name: (v.valueReference, v.type) for v in read_model_description(str(p)).modelVariables}
            for m, p in paths.items()}
-    fvr, dvr = vrs["SimulatedFog"], vrs["denoiser"]
+    fvr, dvr = vrs["sensor"], vrs["denoiser"]
 
     if ssp is not None:
         ssp_path = write_ssp(ssp, fmu_dir, card_obj, seed, method, ar_order, rate_deg_s, duration_s,
-                             denoiser_kw, denoiser)
+                             denoiser_kw, denoiser, sensor)
         ex = CosimExecution.from_ssp_file(str(ssp_path))
         fog = ex.slave_index_from_instance_name("fog")
         den = ex.slave_index_from_instance_name("denoiser")
     else:
         ex = CosimExecution.from_step_size(h_ns)
-        fog = ex.add_local_slave(CosimLocalSlave(str(paths["SimulatedFog"]), "fog"))
+        fog = ex.add_local_slave(CosimLocalSlave(str(paths["sensor"]), "fog"))
         den = ex.add_local_slave(CosimLocalSlave(str(paths["denoiser"]), "denoiser"))
         setters = {"Real": ex.real_initial_value, "Integer": ex.integer_initial_value,
                    "Boolean": ex.boolean_initial_value, "String": ex.string_initial_value}
@@ -246,13 +260,13 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
         raise RuntimeError(f"libcosim observer returned {len(measured)}/{len(received)}/"
                            f"{len(filtered)} samples, expected {n}")
     truth = np.full(n, float(rate_deg_s))
-    # what the denoiser received: SimulatedFog's initial output, then its samples one step late
+    # what the denoiser received: the sensor's initial output, then its samples one step late
     rec_restarts = np.concatenate(([False], restarts[:-1]))
     res = {"case": {"master": "libcosim (SSP)" if ssp is not None else "libcosim (Python)",
                     "duration_s": n / fs, "n_samples": n, "sample_rate_hz": fs,
                     "true_rate_deg_s": float(rate_deg_s), "restart_at_s": restart_at_s,
                     "seed": int(seed), "card": card_obj.name, "method": method,
-                    "ar_order": int(ar_order)},
+                    "ar_order": int(ar_order), "sensor": sensor, "denoiser": denoiser},
            "elapsed_s": elapsed, "two_fmu_steps_per_s": n / elapsed, "converged_at_end": converged,
            "step_size_s": float(np.median(np.diff(times))) if n > 1 else None,
            "first_received_deg_s": float(received[0]),
