@@ -36,7 +36,7 @@ def fmu_dir(tmp_path_factory):
     proc = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "fmu", "build", "--out", str(out)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    for name in list(F.FMUS) + ["FogDenoiserNative"]:
+    for name in list(F.FMUS) + ["FogDenoiserNative", "SimulatedFogNative"]:
         assert (out / f"{name}.fmu").is_file()
     return out
 

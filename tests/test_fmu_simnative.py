@@ -294,6 +294,31 @@ def test_corrupted_or_foreign_serialized_state_is_an_error(built, md, vr, native
     s.freeInstance()
 
 
+def _fnv1a(data):
+    h = 1469598103934665603
+    for b in data:
+        h = ((h ^ b) * 1099511628211) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def test_consistent_checksum_but_inconsistent_state_is_refused(built, md, vr):
+    """A block whose checksum is right but whose seed no longer matches its generator
+    parameters (an edited or mis-built state) is refused by the model's own check."""
+    import struct
+    log = Logger()
+    s = slave(built, md, logger=log, seed=8)
+    s.exitInitializationMode()
+    st = s.getFMUstate()
+    blob = bytearray(s.serializeFMUstate(st))
+    s.freeFMUstate(st)
+    at = 32 + 6 * 8 + 2 * 4          # header, core fields, restart, restarted: then the seed (int32)
+    assert struct.unpack_from("<i", blob, at)[0] == 8
+    struct.pack_into("<i", blob, at, 9)
+    struct.pack_into("<Q", blob, len(blob) - 8, _fnv1a(bytes(blob[:-8])))
+    assert "sensor buffers do not match the card" in expect_error(log, s.deSerializeFMUstate, bytes(blob))
+    s.freeInstance()
+
+
 # ----------------------------------------------------------- the card rules
 @pytest.mark.parametrize("card,reason", [
     ("no_such_card", "no such bundled card"),

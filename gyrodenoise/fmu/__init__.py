@@ -3,6 +3,7 @@
 * :mod:`.build` -- ``gyrodenoise fmu build`` (pythonfmu, bundled core);
 * :mod:`.host` -- one FMU instance through fmpy's ``FMU2Slave``;
 * :mod:`.validation` -- the fmpy-scripted SimulatedFog -> FogDenoiser run;
+* :mod:`.native`, :mod:`.simnative` -- FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python);
 * :mod:`.cosim` -- the SSP file and libcosimpy;
 * :mod:`.cli` -- the ``gyrodenoise fmu`` subcommands.
 

@@ -1,10 +1,13 @@
 """FogDenoiserNative.fmu: the denoiser as a native FMI 2.0 co-simulation FMU (issue 14).
 
 No Python and no libpython at run time: the binary is the project's C core
-(``gyrodenoise/core/gdcore.c``) plus a small FMI layer of our own
-(``fmu_src/native/fogdenoiser_native.c``), compiled here with gcc and linked
-against libm only. Same variables (names, types, causality, variability) and
-same outputs as the pythonfmu ``FogDenoiser.fmu``.
+(``gyrodenoise/core/gdcore.c``), the FMI layer shared by the native FMUs
+(``fmu_src/native/gdfmi.c``) and the denoiser's hooks
+(``fmu_src/native/fogdenoiser_native.c``), compiled here and linked against libm
+only. Same variables (names, types, causality, variability) and same outputs as
+the pythonfmu ``FogDenoiser.fmu``. :class:`NativeModel` describes one native FMU;
+:func:`build_native_fmu` builds any of them (SimulatedFogNative:
+:mod:`gyrodenoise.fmu.simnative`), :func:`build_native_fmus` both.
 
 :data:`VARIABLES` is the one table both files are generated from: the
 ``modelDescription.xml`` and the C header ``fogdenoiser_native_vars.h`` (value
