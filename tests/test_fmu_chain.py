@@ -10,6 +10,7 @@ import io
 import os
 import shutil
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -17,9 +18,12 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from gyrodenoise.errors import InputError
 from gyrodenoise.fmu import native
 from gyrodenoise.simulator import load_card
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_fmu_native import _needed  # noqa: E402
+from test_fmu_simnative import windows_program  # noqa: E402
 
 pytest.importorskip("fmpy")     # the FMI 2.0 C headers
 
@@ -98,16 +102,11 @@ def test_c_chain_equals_simulate_then_denoise(unz, chain, card, seed, method):
 
 def test_c_chain_process_has_no_python(unz, chain):
     """The chain program and both FMU binaries link libc / libm / libdl only."""
-    readelf = shutil.which("readelf")
-    if readelf is None:
-        pytest.skip("readelf not installed")
     dirs, _ = unz
     files = [Path(chain[0])] + [dirs[n] / "binaries" / "linux64" / f"{n}.so"
                                  for n in ("SimulatedFogNative", "FogDenoiserNative")]
     for f in files:
-        dyn = subprocess.run([readelf, "-d", str(f)], capture_output=True, text=True, check=True).stdout
-        needed = {ln.split("[")[1].split("]")[0] for ln in dyn.splitlines() if "(NEEDED)" in ln}
-        assert needed <= {"libc.so.6", "libm.so.6", "libdl.so.2"}, (f.name, needed)
+        assert _needed(f) <= {"libc.so.6", "libm.so.6", "libdl.so.2"}, f.name
 
 
 def test_c_chain_steps_per_second(unz, chain):
@@ -127,19 +126,7 @@ def wine_chain(unz, tmp_path_factory):
     for name in ("SimulatedFogNative", "FogDenoiserNative"):
         if not (dirs[name] / "binaries" / "win64" / f"{name}.dll").is_file():
             pytest.skip(f"no win64 binary of {name}: {report.get('win64', 'not attempted')}")
-    wine = shutil.which("wine") or shutil.which("wine64")
-    if wine is None:
-        pytest.skip("wine not installed (scripts/install_fmu_test_tools.sh)")
-    try:
-        cc, _ = native.compiler_for("win64")
-    except InputError as exc:
-        pytest.skip(f"no Windows C compiler: {exc}")
-    exe = tmp_path_factory.mktemp("winchain") / "chain.exe"
-    proc = subprocess.run([*cc, "-std=c99", "-O2", f"-I{native.fmi_headers_dir()}",
-                           str(HERE / "chost" / "chain.c"), "-o", str(exe)],
-                          capture_output=True, text=True, timeout=300, cwd=exe.parent)
-    assert proc.returncode == 0, proc.stderr
-    return [wine, str(exe)], dict(os.environ, WINEDEBUG="-all")
+    return windows_program(HERE / "chost" / "chain.c", tmp_path_factory.mktemp("winchain"))
 
 
 def test_win64_chain_under_wine_equals_simulate_then_denoise(unz, wine_chain):

@@ -27,43 +27,15 @@ from gyrodenoise.simulator import load_card, parse_card
 fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,  # noqa: E402
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import binfmt  # noqa: E402
+# the FMI layer's test helpers, and the fixtures md and vr (over this module's `built`)
+from test_fmu_native import Logger, _exported, _needed, expect_error, md, vr  # noqa: E402,F401
 
 HERE = Path(__file__).resolve().parent
 FMI_WARNING, FMI_DISCARD, FMI_ERROR = 1, 2, 3
-
-#: a card with every term the simulator supports (each non-zero)
-EVERY_TERM = """
-[sensor]
-name = "every term"
-sample_rate_hz = 250.0
-[terms]
-quantization      = { Q = 2.0e-5 }
-angle_random_walk = { N = 0.01 }
-bias_instability  = { B = 0.05 }
-rate_random_walk  = { K = 0.2 }
-rate_ramp         = { R = -3.0 }
-constant_bias     = { value = 1.5, repeatability = 0.7 }
-turn_on_transient = { amplitude = 20.0, tau = 3.0 }
-[[terms.gauss_markov]]
-sigma = 0.3
-tau = 0.5
-[[terms.gauss_markov]]
-sigma = 0.1
-tau = 40.0
-[[terms.sinusoid]]
-amplitude = 4.0
-frequency = 12.5
-phase_deg = 30.0
-[[terms.sinusoid]]
-amplitude = 1.0
-frequency = 0.2
-"""
-
 
 @pytest.fixture(scope="module")
 def built(native_build, tmp_path_factory):
@@ -77,20 +49,9 @@ def built(native_build, tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def md(built):
-    return read_model_description(str(built[0]))
-
-
-@pytest.fixture(scope="module")
-def vr(md):
-    return {v.name: v.valueReference for v in md.modelVariables}
-
-
-@pytest.fixture(scope="module")
-def every_term_card(tmp_path_factory):
-    """(ModelCard, path of its TOML, compiled text) of EVERY_TERM."""
-    path = tmp_path_factory.mktemp("cards") / "every_term.toml"
-    path.write_text(EVERY_TERM)
+def every_term_card():
+    """(ModelCard, path of its TOML, compiled text) of the card with every term (tests/data)."""
+    path = HERE / "data" / "every_term.toml"
     return load_card(path), path, simnative.compile_card(path)
 
 
@@ -105,21 +66,23 @@ def host(tmp_path_factory):
     return exe
 
 
-class Logger:
-    """fmpy callbacks that keep the log messages (status, category, text)."""
+class CountingLogger(Logger):
+    """A Logger whose memory callbacks keep the blocks alive: {pointer: bytes}."""
 
     def __init__(self):
-        self.messages = []
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
+        super().__init__()
+        self.live = {}
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(self._calloc)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(self._free)
 
-    def _log(self, env, name, status, category, message):
-        self.messages.append((status, category.decode(), message.decode()))
+    def _calloc(self, n, size):
+        ptr = fmpy.calloc(n, size)
+        self.live[ptr] = n * size
+        return ptr
 
-    def errors(self):
-        return [m for s, c, m in self.messages if s >= FMI_ERROR]
+    def _free(self, ptr):
+        self.live.pop(ptr, None)
+        fmpy.free(ptr)
 
 
 def slave(built, md, logger=None, unz=None, **params):
@@ -157,19 +120,20 @@ def run(s, vr, truth, rs, fs, t0=0.0):
     return out, restarted
 
 
-def expect_error(logger, call, *args):
-    before = len(logger.errors())
-    with pytest.raises(FMICallException) as exc:
-        call(*args)
-    assert exc.value.status == FMI_ERROR
-    assert len(logger.errors()) > before, "no reason logged"
-    return logger.errors()[-1]
-
-
 # ------------------------------------------------------------- the FMU file
 def test_fmpy_validate_clean(built):
     from fmpy.validation import validate_fmu
     assert validate_fmu(str(built[0])) == []
+
+
+def test_fmutool_check_clean(built):
+    """FMU Manipulation Toolbox's conformity and semantic checks."""
+    exe = Path(sys.executable).parent / "fmutool"
+    if not exe.exists():
+        pytest.skip("fmutool not installed")
+    out = subprocess.run([str(exe), "-input", str(built[0]), "-check"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and "ERROR" not in out.stdout + out.stderr, out.stdout + out.stderr
+    assert "compliant with FMI-2.0" in out.stdout + out.stderr and "No semantic error" in out.stdout + out.stderr
 
 
 def test_same_variables_as_pythonfmu_simulatedfog(md, tmp_path):
@@ -201,6 +165,19 @@ def test_contents_bundled_cards_and_no_python(built, md):
     header = (unz / "sources" / "simulatedfog_native_vars.h").read_text()
     assert f'#define GD_GUID "{md.guid}"' in header
     assert f"#define GD_CARD_LEN {len(simnative.CARD_FIELDS)}" in header
+
+
+def test_a_stale_native_fmu_is_detected(built, tmp_path):
+    """gyrodenoise fmu run rebuilds the native FMUs of its libcosim/SSP chain when their
+    sources or bundled cards differ from the tree."""
+    assert native.native_stale_reason(built[0], simnative.SIMULATED_FOG_NATIVE) is None
+    old = tmp_path / "old.fmu"
+    with zipfile.ZipFile(built[0]) as src, zipfile.ZipFile(old, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            dst.writestr(item, data + b"/* older */\n" if item.filename == "sources/gdsim.c" else data)
+    assert "sources/gdsim.c" in native.native_stale_reason(old, simnative.SIMULATED_FOG_NATIVE)
+    assert native.native_stale_reason(tmp_path / "none.fmu", simnative.SIMULATED_FOG_NATIVE) == "missing"
 
 
 def test_compiled_card_is_the_card_vector_bit_for_bit(every_term_card):
@@ -336,7 +313,8 @@ def test_bad_card_refused_at_exit_initialization_with_the_reason(built, md, card
 
 def test_unusable_card_values_and_seed_refused(built, md, every_term_card):
     _, _, text = every_term_card
-    zero_fs = text.replace("sample_rate_hz 0x406f400000000000", "sample_rate_hz 0x0000000000000000")
+    fs_bits = f"0x{int(np.float64(100.0).view(np.uint64)):016x}"
+    zero_fs = text.replace(f"sample_rate_hz {fs_bits}", "sample_rate_hz 0x0000000000000000")
     assert zero_fs != text
     nan_q = text.replace("\nQ 0x", "\nQ 0x7ff8000000000000 was 0x")
     for card, seed, reason in ((zero_fs, 0, "sample_rate_hz must be > 0"),
@@ -385,29 +363,16 @@ def test_step_size_rules_and_nan_input(built, md, vr):
 
 
 def test_free_instance_frees_everything_it_allocated(built, md, vr):
-    live = {}
-
-    def alloc(n, size):
-        ptr = fmpy.calloc(n, size)
-        live[ptr] = n * size
-        return ptr
-
-    def free(ptr):
-        live.pop(ptr, None)
-        fmpy.free(ptr)
-
-    log = Logger()
-    log.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(alloc)
-    log.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    log = CountingLogger()
     s = slave(built, md, logger=log, card="imar_fog")
     s.exitInitializationMode()
     run(s, vr, *inputs(50, 400.0), 400.0)
     kept = [s.getFMUstate(), s.getFMUstate()]
     kept.append(s.deSerializeFMUstate(s.serializeFMUstate(kept[0])))
-    assert live
+    assert log.live
     s.terminate()
     s.freeInstance()
-    assert live == {}, f"{len(live)} blocks not freed by fmi2FreeInstance"
+    assert log.live == {}, f"{len(log.live)} blocks not freed by fmi2FreeInstance"
 
 
 # ------------------------------------------------------------------ C host
@@ -463,16 +428,9 @@ def test_linux64_glibc_2_17_libc_libm_only_fmi2_exports(built):
         pytest.skip(f"linux64 built with {built[2].get('linux64')}: the glibc 2.17 baseline needs zig")
     versions = binfmt.elf_glibc_versions(so)
     assert versions and max(versions) <= (2, 17), versions
-    readelf = shutil.which("readelf")
-    if readelf:
-        dyn = subprocess.run([readelf, "-d", str(so)], capture_output=True, text=True, check=True).stdout
-        assert {ln.split("[")[1].split("]")[0] for ln in dyn.splitlines() if "(NEEDED)" in ln} == \
-            {"libc.so.6", "libm.so.6"}
-        syms = subprocess.run([readelf, "--dyn-syms", "-W", str(so)], capture_output=True, text=True,
-                              check=True).stdout
-        exported = {ln.split()[7].split("@")[0] for ln in syms.splitlines()
-                    if len(ln.split()) >= 8 and ln.split()[4] == "GLOBAL" and ln.split()[6] != "UND"}
-        assert exported and all(n.startswith("fmi2") for n in exported), sorted(exported)
+    assert _needed(so) == {"libc.so.6", "libm.so.6"}
+    exported = _exported(so)
+    assert exported and all(n.startswith("fmi2") for n in exported), sorted(exported)
 
 
 def test_win64_dll_and_darwin64_dylib_exports(built):
@@ -490,9 +448,9 @@ def test_win64_dll_and_darwin64_dylib_exports(built):
     assert mach["dylibs"] == ["/usr/lib/libSystem.B.dylib"], mach["dylibs"]
 
 
-@pytest.fixture(scope="module")
-def wine_host(built, tmp_path_factory):
-    binary(built, "win64")
+def windows_program(source, out_dir):
+    """(wine command, environment) of the C program ``source`` (tests/chost) cross-compiled
+    for win64; skips with the reason when wine or a Windows C compiler is absent."""
     wine = shutil.which("wine") or shutil.which("wine64")
     if wine is None:
         pytest.skip("wine not installed (scripts/install_fmu_test_tools.sh)")
@@ -500,12 +458,17 @@ def wine_host(built, tmp_path_factory):
         cc, _ = native.compiler_for("win64")
     except InputError as exc:
         pytest.skip(f"no Windows C compiler: {exc}")
-    exe = tmp_path_factory.mktemp("winhost") / "host.exe"
-    proc = subprocess.run([*cc, "-std=c99", "-O2", f"-I{native.fmi_headers_dir()}",
-                           str(HERE / "chost" / "host.c"), "-o", str(exe)],
+    exe = Path(out_dir) / (Path(source).stem + ".exe")
+    proc = subprocess.run([*cc, "-std=c99", "-O2", f"-I{native.fmi_headers_dir()}", str(source), "-o", str(exe)],
                           capture_output=True, text=True, timeout=300, cwd=exe.parent)
     assert proc.returncode == 0, proc.stderr
     return [wine, str(exe)], dict(os.environ, WINEDEBUG="-all")
+
+
+@pytest.fixture(scope="module")
+def wine_host(built, tmp_path_factory):
+    binary(built, "win64")
+    return windows_program(HERE / "chost" / "host.c", tmp_path_factory.mktemp("winhost"))
 
 
 def test_win64_under_wine_equals_gd_simulate(built, wine_host, every_term_card):

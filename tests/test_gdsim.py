@@ -16,20 +16,8 @@ from gyrodenoise.simulator import parse_card
 
 C = pytest.importorskip("gyrodenoise.core._gdcore")
 
-EVERY_TERM = """
-[sensor]
-sample_rate_hz = 100.0
-[terms]
-quantization      = { Q = 2.0e-5 }
-angle_random_walk = { N = 0.005 }
-bias_instability  = { B = 0.05 }
-rate_random_walk  = { K = 0.1 }
-rate_ramp         = { R = 0.5 }
-constant_bias     = { value = 10.0, repeatability = 3.0 }
-turn_on_transient = { amplitude = 1.0, tau = 30.0 }
-""" + "".join(f"[[terms.gauss_markov]]\nsigma = {s}\ntau = {t}\n" for s, t in ((0.2, 3.0), (0.0, 1.0), (0.7, 0.5))) \
-    + "".join(f"[[terms.sinusoid]]\namplitude = {a}\nfrequency = {f}\nphase_deg = {ph}\n"
-              for a, f, ph in ((0.5, 1.3, 0.0), (2.0, 0.05, 30.0)))
+#: a card with every term (shared with tests/test_fmu_simnative.py)
+EVERY_TERM = (__import__("pathlib").Path(__file__).resolve().parent / "data" / "every_term.toml").read_text()
 
 
 def c_buffers(card, seed):

@@ -856,45 +856,42 @@ fmi2Status fmi2CancelStep(fmi2Component comp) {
     return gdfmi_fail(c, "fmi2CancelStep: no asynchronous step to cancel (fmi2DoStep never returns fmi2Pending)");
 }
 
+/* a status kind this FMU does not provide: fmi2Discard, the reason logged */
+static fmi2Status no_status(const gdfmi_inst_t *c, const char *fn, int kind, const char *why) {
+    gdfmi_log(c, fmi2Discard, "%s: status kind %d not available%s", fn, kind, why);
+    return fmi2Discard;
+}
+
 fmi2Status fmi2GetStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Status *value) {
     BEGIN("fmi2GetStatus", MASK_STATUS);
     (void)value;
-    gdfmi_log(c, fmi2Discard, "fmi2GetStatus: status kind %d not available (no asynchronous steps)", (int)s);
-    return fmi2Discard;
+    return no_status(c, "fmi2GetStatus", (int)s, " (no asynchronous steps)");
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Real *value) {
     BEGIN("fmi2GetRealStatus", MASK_STATUS);
-    if (s == fmi2LastSuccessfulTime && value) {
-        *value = c->k.time;
-        return fmi2OK;
-    }
-    gdfmi_log(c, fmi2Discard, "fmi2GetRealStatus: status kind %d not available", (int)s);
-    return fmi2Discard;
+    if (s != fmi2LastSuccessfulTime || !value) return no_status(c, "fmi2GetRealStatus", (int)s, "");
+    *value = c->k.time;
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Integer *value) {
     BEGIN("fmi2GetIntegerStatus", MASK_STATUS);
     (void)value;
-    gdfmi_log(c, fmi2Discard, "fmi2GetIntegerStatus: status kind %d not available", (int)s);
-    return fmi2Discard;
+    return no_status(c, "fmi2GetIntegerStatus", (int)s, "");
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean *value) {
     BEGIN("fmi2GetBooleanStatus", MASK_STATUS);
-    if (s == fmi2Terminated && value) {
-        *value = fmi2False; /* the slave never asks to end the simulation */
-        return fmi2OK;
-    }
-    gdfmi_log(c, fmi2Discard, "fmi2GetBooleanStatus: status kind %d not available", (int)s);
-    return fmi2Discard;
+    if (s != fmi2Terminated || !value) return no_status(c, "fmi2GetBooleanStatus", (int)s, "");
+    *value = fmi2False; /* the slave never asks to end the simulation */
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component comp, const fmi2StatusKind s, fmi2String *value) {
     BEGIN("fmi2GetStringStatus", MASK_STATUS);
     (void)value;
-    gdfmi_log(c, fmi2Discard, "fmi2GetStringStatus: status kind %d not available", (int)s);
-    return fmi2Discard;
+    return no_status(c, "fmi2GetStringStatus", (int)s, "");
 }
 
 #undef GDM

@@ -113,11 +113,15 @@ def _cmd_run(args):
         why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
         print(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})", file=sys.stderr)
         build_all(fmu_dir)
-    native = ("FogDenoiserNative.fmu", "SimulatedFogNative.fmu")
-    if args.master != "fmpy" and not all((fmu_dir / n).is_file() for n in native):
-        from .native import build_native_fmus     # the chain in libcosim and the SSP: the native FMUs
-        print(f"gyrodenoise: building {' and '.join(native)} in {fmu_dir}/", file=sys.stderr)
-        build_native_fmus(fmu_dir)
+    if args.master != "fmpy":       # the chain in libcosim and the SSP: the native FMUs
+        from .native import DENOISER, build_native_fmus, native_stale_reason
+        from .simnative import SIMULATED_FOG_NATIVE
+        why = {spec.name: native_stale_reason(fmu_dir / f"{spec.name}.fmu", spec)
+               for spec in (DENOISER, SIMULATED_FOG_NATIVE)}
+        if any(why.values()):
+            print(f"gyrodenoise: (re)building the native FMUs in {fmu_dir}/ ("
+                  + "; ".join(f"{n}: {r}" for n, r in why.items() if r) + ")", file=sys.stderr)
+            build_native_fmus(fmu_dir)
     if args.duration <= 0:
         raise InputError(f"--duration must be > 0 s, got {args.duration}")
     if args.rate is not None:

@@ -458,6 +458,23 @@ def build_native_fmu(out_dir="build", platforms=None, report=None, spec=None):
     return target
 
 
+def native_stale_reason(fmu_path, spec=None):
+    """Why the native FMU at ``fmu_path`` no longer matches the source tree (its sources/ and
+    resources/ against the current files), or None."""
+    spec = DENOISER if spec is None else spec
+    if not Path(fmu_path).is_file():
+        return "missing"
+    wanted = {f"sources/{n}": data for n, data in _sources(spec).items()}
+    if spec.resources:
+        wanted.update({f"resources/{n}": data for n, data in spec.resources().items()})
+    with zipfile.ZipFile(fmu_path) as z:
+        names = set(z.namelist())
+        for arc, data in wanted.items():
+            if arc not in names or z.read(arc) != data:
+                return f"{arc} differs from the source tree"
+    return None
+
+
 def build_native_fmus(out_dir="build", platforms=None, report=None):
     """Build every native FMU (:data:`NATIVE_MODELS`) into ``out_dir``; returns {name: path}.
     ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers serve all)."""
