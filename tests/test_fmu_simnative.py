@@ -32,7 +32,8 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFre
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import binfmt  # noqa: E402
 # the FMI layer's test helpers, and the fixtures md and vr (over this module's `built`)
-from test_fmu_native import Logger, _exported, _needed, expect_error, md, vr  # noqa: E402,F401
+from test_fmu_native import (REBUILD_WITH_LIBM, Logger, _exported, _fmpy_rebuild, _needed,  # noqa: E402,F401
+                             expect_error, md, vr)
 
 HERE = Path(__file__).resolve().parent
 FMI_WARNING, FMI_DISCARD, FMI_ERROR = 1, 2, 3
@@ -397,6 +398,27 @@ def test_c_host_equals_gd_simulate(built, host, every_term_card):
         out = np.array([float(x) for x in proc.stdout.split()])
         ref = gd.simulate(c, len(truth), seed=seed, true_rate_deg_s=truth, restarts=rs).rate_deg_s
         assert np.array_equal(out, ref), np.max(np.abs(out - ref))
+
+
+@pytest.mark.parametrize("with_libm", [True, False], ids=["with libm", "without libm"])
+def test_fmpy_source_rebuild(built, host, tmp_path, monkeypatch, with_libm):
+    """The one listed source file, rebuilt by fmpy's build_platform_binary (no flags of ours):
+    fmi2* exports only; with libm linked (the README's option) it equals gd.simulate from a
+    host without libm; without, that host gets fmi2Instantiate's refusal with the reason."""
+    unz = _fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM if with_libm else None)
+    so = unz / "binaries" / "linux64" / "SimulatedFogNative.so"
+    assert all(n.startswith("fmi2") for n in _exported(so))
+    assert ("libm.so.6" in _needed(so)) == with_libm
+    truth, rs = inputs(1000, 100.0)
+    proc = subprocess.run(host_cmd([str(host)], unz, "run", "--set", "card=paper_fog", "--set", "seed=6"),
+                          input=host_data(truth, rs), capture_output=True, text=True, timeout=60)
+    if with_libm:
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        out = np.array([float(x) for x in proc.stdout.split()])
+        assert np.array_equal(out, gd.simulate("paper_fog", 1000, seed=6, true_rate_deg_s=truth,
+                                               restarts=rs).rate_deg_s)
+    else:
+        assert proc.returncode != 0 and "built without -lm" in proc.stderr, proc.stderr[-2000:]
 
 
 FORBIDDEN_ARGS = ["--set", "seed=4", "--set", "card=imar_fog", "--set", "strict_step_size=true",
