@@ -16,7 +16,8 @@ Targets: FogDenoiser >= 0.7x the steps/s of the empty FMU in the same run (issue
 >= 50 000 steps/s; 10-min validation run <= 10 s; each native FMU >= 10x the steps/s of the
 empty pythonfmu FMU from the C host (issues 14 and 22).
 
-    .venv/bin/python benchmarks/bench_fmu.py [--steps N] [--fmu-dir DIR] [--skip-long]
+    .venv/bin/python benchmarks/bench_fmu.py [--steps N] [--fmu-dir DIR] [--skip-long] [--wine]
+    .venv/bin/python benchmarks/bench_fmu.py --native-only [--wine]   # the native FMUs by platform
 """
 
 import argparse
@@ -101,6 +102,63 @@ def c_host_steps_per_s(fmu, tmp, n, params=(), signals=("raw_rate", "restart", "
     return best
 
 
+def _steps_per_s(cmd, env=None, repeats=3):
+    """Best steps/s printed (last number) by a C host command over ``repeats`` runs."""
+    best = 0.0
+    for _ in range(repeats):
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+        if proc.returncode != 0:
+            raise RuntimeError(f"{cmd[0]} failed: {proc.stderr[-500:]}")
+        best = max(best, float(proc.stdout.split()[-1]))
+    return best
+
+
+def native_platforms(nats, tmp, n, wine=False):
+    """Steps/s of the native FMUs from the C hosts (tests/chost/host.c, chain.c): linux64, and
+    with ``wine`` the win64 binaries driven by the same hosts cross-compiled for Windows,
+    alternately in the same run (darwin64 cannot run here)."""
+    import os
+    import shutil
+    import zipfile
+
+    from gyrodenoise.fmu import native
+    tmp = Path(tmp)
+    unz = {}
+    for name, fmu in nats.items():
+        unz[name] = tmp / ("plat_" + name)
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(unz[name])
+    hdr = f"-I{native.fmi_headers_dir()}"
+    platforms = {"linux64": ([], None, lambda d: str(d))}
+    for prog in ("host", "chain"):
+        subprocess.run(["gcc", "-std=c99", "-O2", hdr, "-o", str(tmp / prog), str(REPO / "tests" / "chost" / f"{prog}.c"),
+                        "-ldl"], check=True)
+    if wine:
+        exe = shutil.which("wine") or shutil.which("wine64")
+        cc, _ = native.compiler_for("win64")
+        for prog in ("host", "chain"):
+            subprocess.run([*cc, "-std=c99", "-O2", hdr, "-o", str(tmp / f"{prog}.exe"),
+                            str(REPO / "tests" / "chost" / f"{prog}.c")], check=True, cwd=tmp)
+        platforms["win64 (wine)"] = ([exe], dict(os.environ, WINEDEBUG="-all"), lambda d: "Z:" + str(d))
+    rows = {}
+    for _ in range(2):          # alternate the platforms: the machine's load drifts
+        for plat, (pre, env, path) in platforms.items():
+            ext = ".exe" if pre else ""
+            host, chain = pre + [str(tmp / f"host{ext}")], pre + [str(tmp / f"chain{ext}")]
+            fd, sf = path(unz["FogDenoiserNative"]), path(unz["SimulatedFogNative"])
+            runs = {"FogDenoiserNative": host + [fd, "bench", "--n", str(100 * n)],
+                    "SimulatedFogNative (paper_fog)": host + [sf, "bench", "--in", "true_rate", "--out",
+                                                              "measured_rate", "--n", str(20 * n)],
+                    "chain SimulatedFogNative -> FogDenoiserNative": chain + [sf, fd, "--bench", str(20 * n)]}
+            for what, cmd in runs.items():
+                rate = _steps_per_s(cmd, env, repeats=2)
+                rows[(what, plat)] = max(rows.get((what, plat), 0.0), rate)
+    print(f"native FMUs from the C hosts, by platform (load avg {open('/proc/loadavg').read().split()[0]}):")
+    for what in dict.fromkeys(w for w, _ in rows):
+        cells = "  ".join(f"{plat} {rows[(what, plat)]:11.0f}" for plat in platforms)
+        print(f"  {what:46s} {cells}  steps/s")
+
+
 def loop_wrapped(inst, z, rs):
     """fmpy's FMU2Slave methods, as a user would write it."""
     s = inst.slave
@@ -150,8 +208,18 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=20000)
     ap.add_argument("--fmu-dir", default=None, help="use FMUs built there (default: build afresh)")
     ap.add_argument("--skip-long", action="store_true", help="skip the 10-minute validation run")
+    ap.add_argument("--native-only", action="store_true",
+                    help="only the native FMUs from the C hosts, by platform")
+    ap.add_argument("--wine", action="store_true",
+                    help="also the win64 binaries under wine (needs wine and a Windows C compiler)")
     args = ap.parse_args(argv)
     import gyrodenoise as gd
+
+    if args.native_only:
+        from gyrodenoise.fmu.native import build_native_fmus
+        with tempfile.TemporaryDirectory() as tmp:
+            native_platforms(build_native_fmus(tmp), tmp, args.steps, wine=args.wine)
+        return
 
     with tempfile.TemporaryDirectory() as tmp:
         fmu_dir = Path(args.fmu_dir) if args.fmu_dir else Path(tmp) / "fmus"
@@ -207,6 +275,7 @@ def main(argv=None):
         print(f"  SimulatedFogNative.fmu       {c_sfn:10.0f} steps/s = {c_sfn / c_empty:.0f}x the empty pythonfmu "
               f"FMU (target >= 10x): {'met' if c_sfn / c_empty >= 10 else 'NOT met'} (paper_fog; "
               f"{c_sfn / c_sf:.0f}x SimulatedFog.fmu)")
+        native_platforms(nats, tmp, n, wine=args.wine)
 
         if not args.skip_long:
             res = F.validation_run(fmu_dir, duration_s=600.0, rate_deg_s=10.0, restart_at_s=300.0)
