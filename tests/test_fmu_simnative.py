@@ -210,12 +210,14 @@ def test_bundled_cards_equal_gd_simulate_bit_for_bit(built, md, vr, card_name, s
 
 
 def test_every_card_term_equals_gd_simulate_bit_for_bit(built, md, vr, every_term_card, tmp_path):
-    """The compiled text as the card parameter, and a compiled card file's path."""
+    """The compiled text as the card parameter, and a compiled card file's path (the card of
+    tests/data/every_term.toml: every term, one Gauss-Markov term with sigma 0)."""
     card, _, text = every_term_card
     fs = card.sample_rate_hz
     truth, rs = inputs(3000, fs)
     ref = gd.simulate(card, len(truth), seed=42, true_rate_deg_s=truth, restarts=rs).rate_deg_s
-    compiled = tmp_path / "every term.gdcard"
+    compiled = tmp_path / "run=3 [x]" / "every term.gdcard"     # '=' and '[' in a path: still a path
+    compiled.parent.mkdir()
     compiled.write_text(text)
     for given in (text, str(compiled)):
         s = slave(built, md, card=given, seed=42)

@@ -223,8 +223,15 @@ static int looks_like_toml(const char *a, const char *e) {
     return 0;
 }
 
+static int toml_refused(char *err, size_t nerr) {
+    return gdfmi_fmt_err(err, nerr, "card: TOML text cannot be read by %s (no Python at run time): compile it "
+                         "with 'gyrodenoise fmu card CARD.toml' and give the compiled text or file, or a bundled "
+                         "card name (%s)", GD_MODEL_IDENTIFIER, GD_BUNDLED_CARDS);
+}
+
 /* The card parameter into v, as SimulatedFog.fmu reads it: text (several lines), a file
- * path, or the name of a bundled card (resources/cards/NAME.gdcard). 0, or -1 + reason. */
+ * path, or the name of a bundled card (resources/cards/NAME.gdcard); several lines or a line
+ * that is not a file and looks like TOML ('[' or '='): TOML, refused. 0, or -1 + reason. */
 static int resolve_card(const gdfmi_inst_t *c, const char *card, double *v, char *err, size_t nerr) {
     const char *a, *e;
     char name[512], rel[600], path[4600], why[600];
@@ -236,10 +243,7 @@ static int resolve_card(const gdfmi_inst_t *c, const char *card, double *v, char
     len = (size_t)(e - a);
     if (len >= 6 && strncmp(a, "gdcard", 6) == 0) return parse_compiled(a, "card text", v, err, nerr);
     if (len == 0) return gdfmi_fmt_err(err, nerr, "card is empty (bundled cards: %s)", GD_BUNDLED_CARDS);
-    if (memchr(a, '\n', len) != NULL || looks_like_toml(a, e))
-        return gdfmi_fmt_err(err, nerr, "card: TOML text cannot be read by %s (no Python at run time): "
-                             "compile it with 'gyrodenoise fmu card CARD.toml' and give the compiled text or "
-                             "file, or a bundled card name (%s)", GD_MODEL_IDENTIFIER, GD_BUNDLED_CARDS);
+    if (memchr(a, '\n', len) != NULL) return toml_refused(err, nerr);
     if (len >= sizeof name) return gdfmi_fmt_err(err, nerr, "card: a name or path of %lu characters is too "
                                                  "long", (unsigned long)len);
     memcpy(name, a, len);
@@ -254,6 +258,7 @@ static int resolve_card(const gdfmi_inst_t *c, const char *card, double *v, char
         gdfmi_free(c, text);
         return rc;
     }
+    if (looks_like_toml(a, e)) return toml_refused(err, nerr); /* one line of TOML, not a file */
     { /* a bundled card: its name, or a file name whose stem is one */
         const char *base = name, *s;
         size_t blen;

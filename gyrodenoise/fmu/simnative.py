@@ -39,9 +39,10 @@ CARD_FIELDS = (("sample_rate_hz", "Q", "N", "B", "K", "R", "bias", "bias_rep", "
 
 
 def _check_layout():
-    if len(CARD_FIELDS) != SK.CARD_LEN:
-        raise InputError(f"the card vector has {SK.CARD_LEN} fields, {MODEL_NAME} knows {len(CARD_FIELDS)}: "
-                         "update gyrodenoise/fmu/simnative.py CARD_FIELDS and simulatedfog_native.c")
+    if len(CARD_FIELDS) != SK.CARD_LEN:    # a programming error, not the user's: loud, not a skip
+        raise RuntimeError(f"the card vector has {SK.CARD_LEN} fields, {MODEL_NAME} knows {len(CARD_FIELDS)}: "
+                           "update gyrodenoise/fmu/simnative.py CARD_FIELDS and simulatedfog_native.c "
+                           "(card_from_vector, check_vector)")
 
 
 def compile_card(card):
