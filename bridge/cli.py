@@ -419,6 +419,18 @@ def _write_out(out, name, text):
             tmp.write_text(text)
 
 
+def _interrupted(out, summary):
+    """On an interrupt of a run over several logs: summary.json (written whole, under
+    a partial name first) says which logs completed and which did not; returns the
+    note for the stop line."""
+    try:
+        _write_out(out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
+    except OSError as exc:
+        return f"summary.json not written ({exc.strerror or exc})"
+    return (f"{out}/summary.json lists the {len(summary['completed'])} completed and "
+            f"{len(summary['unfinished'])} unfinished log(s)")
+
+
 def _fleet_report(summary, out):
     """The fleet report (fleet.md, fleet.json, fleet.png) beside the outputs; returns its paths."""
     import tempfile
@@ -455,11 +467,17 @@ def _run_files(args, kw, single, client=None):
         progress = sys.stderr.isatty() if args.progress is None else args.progress
         summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log,
                                scheduler=client if client is not None else args.scheduler,
-                               progress=progress, **kw)
+                               progress=progress, on_interrupt=lambda sm: _interrupted(args.out, sm), **kw)
         if args.scheduler is not None:
             summary["scheduler"] = args.scheduler
         if summary["n_logs"] == 0:
             raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
+        if not summary["n_ok"] and all(f.get("option") == "--cutoff-hz" for f in summary["failed"]):
+            # the option, not the logs: one line, nothing written (as for one log)
+            fastest = max(r for f in summary["failed"] for r in f.get("rates_hz") or [0.0])
+            raise InputError(f"--cutoff-hz {args.cutoff_hz:g} is at or above the Nyquist frequency of every "
+                             f"gyro stream of the {summary['n_logs']} log(s) (the fastest sampled at "
+                             f"{fastest:.4g} Hz: Nyquist {fastest / 2:.4g} Hz); nothing to filter")
     summary["exit_status"] = exit_status(summary)
     return summary
 
@@ -477,16 +495,35 @@ def _lag(v):
     return "-" if v is None else f"{round(1000.0 * v)} ms"
 
 
+def _first_diff_note(nz):
+    """'; first differences 1.731: mostly motion' when the first-difference figure is
+    well above the white-noise estimate (or the estimate is missing); else ''."""
+    fd, wn = nz.get("first_diff_raw"), nz.get("raw")
+    if fd is None:
+        return ""
+    if wn is None:
+        return f"; {_FEW_FOR_NOISE}; first differences {_fmt(fd)}"
+    if fd > FIRST_DIFF_NOTE_FACTOR * wn:
+        return f"; first differences {_fmt(fd)}: motion/vibration"
+    return ""
+
+
+#: the summary names the first-difference figure when it is this many times the
+#: white-noise estimate (what motion and vibration add to it)
+FIRST_DIFF_NOTE_FACTOR = 2.0
+_FEW_FOR_NOISE = "no session long enough for the noise estimate"
+
+
 def _axis_line(s, a):
     nz = s["noise"][a]
     line = f"      {a}: noise {_fmt(nz['raw'])} -> {_fmt(nz['filtered'])} {s['noise_unit']}"
     if s.get("left_raw"):
-        return line + "  (stream left raw: see above)\n"
+        return line + f"{_first_diff_note(nz)}  (stream left raw: see above)\n"
     if s.get("too_slow_to_denoise") or s.get("not_filtered"):
         # written raw: no "raw -> filtered" that would read as a result
         why = "too slow to denoise" if s.get("too_slow_to_denoise") else "not filtered: see above"
-        return f"      {a}: noise {_fmt(nz['raw'])} {s['noise_unit']}  (written raw: {why})\n"
-    line += f" (x{_fmt(nz['ratio'], 3)})"
+        return f"      {a}: noise {_fmt(nz['raw'])} {s['noise_unit']}{_first_diff_note(nz)}  (written raw: {why})\n"
+    line += f" (x{_fmt(nz['ratio'], 3)}{_first_diff_note(nz)})"
     m = (s.get("motion") or {}).get(a)
     if m is not None and m.get("motion_above_noise") is False:
         # the low band holds only noise (a vehicle at rest, or vibrating on the ground):
