@@ -101,11 +101,43 @@ def cmd_denoise(args):
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
     mode = "offline (forward + backward, no lag)" if offline or args.zero_phase else "causal"
     _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, {mode})")
+    if rec.true_rate_deg_s is not None:
+        _log(f"gyrodenoise: {rmse_line(rec.rate_deg_s, out, rec.true_rate_deg_s)}")
     if args.outlier_sigma > 0 and args.method in ("shakf", "kf", "sh_classic"):
         _log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
              f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
              f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")
     return 0
+
+
+def rmse_line(raw, filtered, truth):
+    """'RMSE against true_rate over N samples: raw X, filtered Y deg/s (xR)' over the
+    samples where all three are finite (the RMSE of :mod:`gyrodenoise.experiments`)."""
+    from .experiments import rmse
+    raw, filtered, truth = (np.asarray(v, dtype=np.float64) for v in (raw, filtered, truth))
+    ok = np.isfinite(raw) & np.isfinite(filtered) & np.isfinite(truth)
+    if not ok.any():
+        return "RMSE against true_rate: no sample where raw, filtered and true_rate are all finite"
+    r, f = rmse(raw[ok], truth[ok]), rmse(filtered[ok], truth[ok])
+    ratio = f" (x{f / r:.3g})" if r > 0 else ""
+    return f"RMSE against true_rate over {int(ok.sum())} samples: raw {r:.4g}, filtered {f:.4g} deg/s{ratio}"
+
+
+def true_rate_motion(rec):
+    """None when the record has no true_rate or a constant one; else
+    {"std", "min", "max"} of its true rate (deg/s): the record moves."""
+    if rec.true_rate_deg_s is None:
+        return None
+    tr = np.asarray(rec.true_rate_deg_s, dtype=np.float64)
+    tr = tr[np.isfinite(tr)]
+    if not tr.size or np.ptp(tr) == 0.0:
+        return None
+    return {"std": float(tr.std()), "min": float(tr.min()), "max": float(tr.max())}
+
+
+#: what ``allan`` analyses when the recording has a true_rate column
+ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a true_rate column; the "
+                  "vehicle's motion would otherwise enter the terms, K and R above all)")
 
 
 # ------------------------------------------------------------------ allan
@@ -115,7 +147,11 @@ def cmd_allan(args):
     rec = _read(args)
     if len(rec) < 5:
         raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
-    res = allan(rec.rate_deg_s, rec.sample_rate_hz)
+    series, analysed = rec.rate_deg_s, "rate"
+    if rec.true_rate_deg_s is not None:
+        series = np.asarray(rec.rate_deg_s, dtype=np.float64) - np.asarray(rec.true_rate_deg_s, dtype=np.float64)
+        analysed = ALLAN_OF_ERROR
+    res = allan(series, rec.sample_rate_hz)
     from .export import export_from_args
     for path in export_from_args(args, res):
         _log(f"gyrodenoise: wrote {path}")
@@ -123,8 +159,11 @@ def cmd_allan(args):
         d = res.to_json()
         d["source"] = args.input
         d["notes"] = rec.notes
+        d["analysed"] = analysed
+        d["true_rate_motion_deg_s"] = true_rate_motion(rec)
         emit_json(d)
     else:
+        print(f"analysed: {analysed}")
         print(format_terms_table({"record": res.terms}, {"record": res.bounds}))
         print()
         print(f"{'tau_s':>12} {'adev_deg_h':>14} {'err_deg_h':>12}")
@@ -143,11 +182,23 @@ def cmd_compare(args):
     if len(rec) < 100:
         raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
     res = compare(rec, ar_order=args.ar_order, **_filter_kw(args))
+    moving = true_rate_motion(rec)
+    if moving:
+        res["true_rate_motion_deg_s"] = moving
+        res.setdefault("warnings", []).append(moving_warning(moving))
     if args.json:
         emit_json(public(res))
     else:
         print(format_compare(res))
     return 0
+
+
+def moving_warning(moving):
+    """The warning of ``compare`` on a record whose true rate moves."""
+    return (f"the record moves (true_rate {moving['min']:.4g} to {moving['max']:.4g} deg/s, std "
+            f"{moving['std']:.4g}): every row's Allan terms include that motion (K and R above all are the "
+            f"motion's, not the sensor's); read the RMSE against the true rate; `gyrodenoise allan` "
+            f"analyses rate - true_rate")
 
 
 def public(d):
@@ -206,6 +257,8 @@ def format_compare(res):
     if "rmse_deg_s" in res:
         out.append("RMSE against the true rate, deg/s: " +
                    ", ".join(f"{k} {v:.4g}" for k, v in res["rmse_deg_s"].items()))
+    for w in res.get("warnings", []):
+        out.append(f"WARNING: {w}")
     return "\n".join(out)
 
 
