@@ -558,10 +558,12 @@ def _filter_rate_text(s, summary):
 
 
 def _print_text(summary):
+    from .process import saturation_note
     from .spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
-        trunc = f", truncated ({r['truncated_bytes']} bytes cut)" if r.get("truncated") else ""
+        nb = r.get("truncated_bytes")
+        trunc = f", truncated ({nb} byte{'' if nb == 1 else 's'} cut)" if r.get("truncated") else ""
         unread = r.get("unreadable_records")
         # pyulog does not count what it skips: no figure rather than a dash
         unread = "" if unread is None else f", {unread} unreadable records skipped"
@@ -577,6 +579,8 @@ def _print_text(summary):
                 out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
             if s.get("all_zero"):
                 out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
+            if s.get("saturation"):
+                out.write(f"    note: {saturation_note(s['saturation'])}\n")
             if s.get("too_slow_to_denoise"):
                 out.write(f"    note: {s['slow_note']}\n")
             if s.get("not_filtered"):

@@ -455,6 +455,7 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
         "not_filtered": unfiltered,
         "cutoff_hz": getattr(s, "cutoff_hz", None),
         "warnings": warnings,
+        "saturation": saturation(s, x, unit),
     }
     if slow:
         rep["slow_note"] = (f"sampled at {_hz(s.rate_hz)} Hz, below {mm.MIN_DENOISE_RATE_HZ:g} Hz: too "
@@ -467,6 +468,49 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
     if png_path:
         rep["plot"] = str(png_path)
     return rep
+
+
+#: full scales (deg/s) of the gyros in autopilot logs: ArduPilot and PX4 set their IMUs
+#: to +-2000 deg/s (a few newer ones to +-4000); a field in raw int16 counts ends at 32767
+SATURATION_FULL_SCALES_DEG_S = (2000.0, 4000.0)
+INT16_FULL_SCALE = 32767.0
+#: a sample at or beyond this share of a full scale counts as at the full scale (a
+#: calibrated reading sits a few % off the ADC's end: log171's IMU peaks at 2022.7)
+SATURATION_FRACTION = 0.97
+SATURATION_RULE = (f"|rate| >= {100 * SATURATION_FRACTION:g} % of a gyro full scale: "
+                   f"{', '.join(f'{v:g}' for v in SATURATION_FULL_SCALES_DEG_S)} deg/s (the ranges "
+                   f"ArduPilot and PX4 set), or {INT16_FULL_SCALE:g} in raw int16 counts when the unit "
+                   f"is unknown; the largest full scale reached is named")
+
+
+def saturation(s, x, unit):
+    """None, or what says stream ``s`` (work values ``x``, (n, 3) in ``unit``) sits at
+    a plausible full scale (:data:`SATURATION_RULE`): there the sensor clipped,
+    the true rate may have been larger and no filter can restore it."""
+    scales = SATURATION_FULL_SCALES_DEG_S if unit == "deg/s" else (
+        (INT16_FULL_SCALE,) if np.dtype(s.field_dtype).kind in "iu" and s.to_deg_s is None else ())
+    with np.errstate(invalid="ignore"):
+        a = np.where(np.isfinite(x) & (np.abs(x) <= ABSURD_WORK), np.abs(x), 0.0)
+    reached = [fs for fs in scales if a.max(initial=0.0) >= SATURATION_FRACTION * fs]
+    if not reached:
+        return None
+    fs = reached[-1]
+    hit = a >= SATURATION_FRACTION * fs
+    i = int(np.flatnonzero(hit.any(axis=1))[0])
+    k, j = np.unravel_index(int(np.argmax(a)), a.shape)[::-1]
+    return {"full_scale": fs, "unit": unit, "threshold": SATURATION_FRACTION * fs,
+            "samples": {ax: int(hit[:, m].sum()) for m, ax in enumerate(s.axes)},
+            "first_time_s": float(s.time_s[i]), "peak": float(x[j, k]), "peak_axis": s.axes[k],
+            "peak_time_s": float(s.time_s[j]), "rule": SATURATION_RULE}
+
+
+def saturation_note(sat):
+    """One line of the summary for a :func:`saturation` result."""
+    n = ", ".join(f"{a} {v}" for a, v in sat["samples"].items() if v)
+    return (f"at the gyro's full scale: {n} sample(s) at or beyond {SATURATION_FRACTION * 100:g} % of "
+            f"+-{sat['full_scale']:g} {sat['unit']} (first at t={sat['first_time_s']:.2f} s; peak "
+            f"{sat['peak']:.5g} on {sat['peak_axis']} at t={sat['peak_time_s']:.2f} s): likely saturated, the "
+            f"true rate may have been larger there and no filter restores it")
 
 
 def _hz(v):

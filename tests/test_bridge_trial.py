@@ -250,3 +250,61 @@ def test_denoise_with_true_rate_prints_rmse_raw_and_filtered(tmp_path):
     assert int(m.group(1)) == len(a)
     assert float(m.group(2)) == pytest.approx(np.sqrt(np.mean((a["raw"] - a["true_rate"]) ** 2)), rel=1e-3)
     assert float(m.group(3)) == pytest.approx(np.sqrt(np.mean((a["filtered"] - a["true_rate"]) ** 2)), rel=1e-3)
+
+
+# ------------------------------------------------------------ 5: saturation at the gyro's full scale
+def _sat_report(peak_deg_s):
+    rng = np.random.default_rng(3)
+    x = rng.normal(0.0, 0.5, (3000, 3))
+    x[1500:1503, 1] = [peak_deg_s * 0.6, peak_deg_s, peak_deg_s * 0.7]
+    return _stream_report(x, 50.0)
+
+
+def test_saturation_note_at_the_2000_deg_s_full_scale():
+    """A burst to 2010 deg/s (above 97 % of +-2000): the stream says which axis, how
+    many samples, the peak and when; a burst to 1500 says nothing."""
+    sat = _sat_report(2010.0)["saturation"]
+    assert sat["full_scale"] == 2000.0 and sat["samples"] == {"x": 0, "y": 1, "z": 0}
+    assert sat["peak"] == pytest.approx(2010.0) and sat["peak_axis"] == "y"
+    assert sat["peak_time_s"] == pytest.approx(1501 / 50.0)
+    assert _sat_report(1500.0)["saturation"] is None
+    assert _sat_report(3950.0)["saturation"]["full_scale"] == 4000.0
+
+
+def test_saturation_of_log171_at_the_crash(tmp_path):
+    """log171.bin: the three IMUs' y axes reach 2022.7, 2366.5 and 1977.9 deg/s at
+    t = 239.16 s (the crash); the summary notes it for each, and no other stream of the
+    shared logs is flagged (checked by hand on all 25: none)."""
+    path = shared_log("log171.bin")
+    st, out, _ = _main(path, "-o", tmp_path, "--no-plots", "--no-csv")
+    assert st == 0
+    lines = [x for x in out.splitlines() if "at the gyro's full scale" in x]
+    assert len(lines) == 3 and all("+-2000 deg/s" in x and "t=239.16 s" in x for x in lines)
+    assert "peak 2022.7 on y" in lines[0]
+
+
+# ------------------------------------------------------------ 6: wordings
+def test_one_byte_cut_is_singular(tmp_path):
+    path = shared_log("copter_00061-2021-11-21_18-03-38.bin")
+    st, out, _ = _main(path, "-o", tmp_path, "--no-plots", "--no-csv")
+    assert st == 0 and "truncated (1 byte cut)" in out and "(1 bytes cut)" not in out
+
+
+def _row(log, stream, density):
+    return {"log": log, "stream": stream, "status": "ok", "compared_as": stream, "noise_unit": "deg/s",
+            "noise_density_deg_s_rthz": density, "too_slow_to_denoise": density is None}
+
+
+def test_fleet_median_cell_says_why_it_is_empty():
+    """A stream with no peer (the only ISB.gyro[0] of the fleet), one with a single
+    peer, and one with no density: the "x fleet median" cell says why (it was blank)."""
+    from bridge.fleet import _flag, vs_fleet_text
+    rows = [_row("a.bin", "IMU[0]", 0.01), _row("b.bin", "IMU[0]", 0.011), _row("c.bin", "IMU[0]", 0.012),
+            _row("a.bin", "ISB.gyro[0]", 0.001), _row("a.bin", "IMU[1]", 0.02), _row("b.bin", "IMU[1]", 0.02),
+            _row("a.tlog", "RAW_IMU", None)]
+    _flag(rows)
+    cells = [vs_fleet_text(r) for r in rows]
+    assert cells[0] == "0.91x of 3 IMU[0]"
+    assert cells[3] == "no peer: the only ISB.gyro[0] with a density in the fleet"
+    assert cells[4] == "only 2 IMU[1] with a density in the fleet (a median needs 3)"
+    assert cells[6] == "no density: too slow to denoise"
