@@ -663,6 +663,9 @@ def _report_live(args, conn, rep, streams):
                 sys.stdout.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
             if s.get("too_slow_to_denoise"):
                 sys.stdout.write(f"    note: {s['slow_note']}\n")
+            if s.get("saturation"):
+                from .process import saturation_note
+                sys.stdout.write(f"    note: {saturation_note(s['saturation'])}\n")
             for a in s["noise"]:
                 sys.stdout.write(_axis_line(s, a))
             for w in s.get("warnings", []):
