@@ -313,8 +313,8 @@ def run_rigid(args, methods, seeds, sensors, profiles):
              "filter is scored against is the true rate **without the frame vibration** (the 80 Hz tone of "
              "the drone sensor and the multirotor's 80-200 Hz tones) plus the slow bias, and every baseline "
              "is tuned per run against that reference. `motion@F` is `gd.denoise(z, fs, max_motion_hz=F)` "
-             "(causal: a 2nd-order Butterworth at F before the bank, the bank's noise level read from the "
-             "raw samples), `motion_offline@F` the same with `offline=True`. The issue's goal (item 4): "
+             "(causal: a 4th-order Butterworth flat to F, -3 dB at 2F, before the bank; the bank's noise "
+             "level read from the raw samples), `motion_offline@F` the same with `offline=True`. The issue's goal (item 4): "
              f"<= {bench.RIGID_GOAL:.2f}x the best tuned low-pass (Butterworth order 1 or 2, cutoff tuned per "
              "run on the truth), geometric mean over the profiles.", "",
              "## RMSE / best tuned low-pass", "",

@@ -162,8 +162,9 @@ class FogDenoiser(Fmi2Slave):
                                                    "warning is logged [1]"))
         self.register_variable(Real("max_motion_hz", **par,
                                     description="method 'motion', rigid-body option: the band of interest; "
-                                                "content above it counts as error and is removed (a "
-                                                "2nd-order Butterworth there before the bank); 0 = off, "
+                                                "content above it counts as error (a 4th-order "
+                                                "Butterworth before the bank, flat to it, -3 dB at twice "
+                                                "it, at most 0.45 / sample_period); 0 = off, "
                                                 "else below half the sample rate; checked (finite, >= 0, "
                                                 "below half the sample rate) whatever the method [Hz]"))
         # FMI 2.0 forbids setting an output, and a fixed parameter after initialisation

@@ -40,8 +40,8 @@ def _add_filter_options(p, method=True):
                             "default on a file: offline, the forward and backward runs blended (no lag)")
         p.add_argument("--max-motion-hz", type=float, default=None, metavar="HZ",
                        help="motion, rigid-body option for frames that vibrate (drones): the band of interest; "
-                            "content above it counts as error and is removed (a 2nd-order Butterworth at HZ "
-                            "before the filter bank); 0 < HZ < half the sample rate (default, 0: off)")
+                            "content above it counts as error (a 4th-order Butterworth before the filter bank, flat to HZ, "
+                            "-3 dB at 2 HZ, -24 dB at 4 HZ); 0 < HZ < half the sample rate (default, 0: off)")
     p.add_argument("--ar-order", type=int, default=3, help="order n of the improved AR(n) model (default 3)")
     p.add_argument("--warmup-s", type=float, default=1.0,
                    help="seconds after each restart with raw pass-through while the AR model converges")

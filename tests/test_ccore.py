@@ -427,14 +427,14 @@ def test_rigid_option_c_equals_python_bit_for_bit(n, sigma, lam):
     steps and spikes; hostile records (spikes up to 1e300, a 1e7 offset, constant, alternating)
     within 1e-12."""
     p = K.make_params(n, "motion", sample_rate_hz=FS, lam=lam, outlier_sigma=sigma, max_motion_hz=8.0)
-    assert p[K.P_LP_NSEC] == 1.0 and p[K.P_LP_CUTOFF] == 8.0
+    assert p[K.P_LP_NSEC] == K.MAX_MOTION_ORDER / 2 and p[K.P_LP_CUTOFF] == 16.0
     z, r = mixed_record(300 + n, n_each=150)
     ref_out, ref_s = py_run(p, z, r)
     for run in (c_step_run, c_batch):
         out, s = run(p, z, r)
         assert out == ref_out and s == ref_s, run.__name__
     lpd = K.layout(n)[6] - K.N_EXT + K.M_LPD
-    assert any(v != 0.0 for v in ref_s[lpd:lpd + 2])       # the low-pass's delays are in the state
+    assert all(v != 0.0 for v in ref_s[lpd:lpd + K.MAX_MOTION_ORDER])   # the low-pass's delays are in the state
     p[K.P_MO_VAR] = 1.0
     ti = K.layout(n)[6] - K.N_EXT + K.M_PVAR
     s = K.init_state(p)

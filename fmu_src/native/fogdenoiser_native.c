@@ -461,8 +461,10 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     if (methods[im].value == METHOD_MOTION) {
         gd_motion_params(p, fs);     /* kernels.motion_params(fs) with its defaults */
         if (u->max_motion_hz > 0.0) {  /* the rigid-body low-pass ahead of the bank */
-            p[P_LP_NSEC] = (double)butter_sos(MAX_MOTION_ORDER, u->max_motion_hz, fs, p);
-            p[P_LP_CUTOFF] = u->max_motion_hz;
+            double fc = MAX_MOTION_CUTOFF * u->max_motion_hz, cap = MAX_MOTION_FS_CAP * fs;
+            if (fc > cap) fc = cap;    /* kernels.rigid_cutoff_hz */
+            p[P_LP_NSEC] = (double)butter_sos(MAX_MOTION_ORDER, fc, fs, p);
+            p[P_LP_CUTOFF] = fc;
         }
     }
     return 0;

@@ -42,10 +42,12 @@ extern "C" {
 #define P_OUTLIER_SIGMA 11  /* innovation gate k; 0 = off */
 #define P_OUTLIER_RUN 12    /* rejections after which the filter re-opens */
 #define P_LP_NSEC 13        /* lowpass, motion's rigid-body low-pass: second-order sections */
-#define P_LP_CUTOFF 14      /* lowpass: cutoff, Hz (motion: max_motion_hz) */
+#define P_LP_CUTOFF 14      /* lowpass, motion's rigid-body low-pass: -3 dB cutoff, Hz */
 #define P_SOS 15            /* lowpass: MAX_SOS x (b0, b1, b2, a1, a2) */
 #define MAX_SOS 4
-#define MAX_MOTION_ORDER 2  /* motion's rigid-body low-pass at max_motion_hz: Butterworth order */
+#define MAX_MOTION_ORDER 4  /* motion's rigid-body low-pass (max_motion_hz): Butterworth order, */
+#define MAX_MOTION_CUTOFF 2.0  /* -3 dB at this many times max_motion_hz, */
+#define MAX_MOTION_FS_CAP 0.45 /* at most this fraction of the sample rate (kernels.rigid_cutoff_hz) */
 #define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: filters in the bank */
 #define P_MO_FADE (P_MO_NF + 1)         /* motion: fading of the log-likelihoods */
 #define P_MO_BR (P_MO_NF + 2)           /* motion: forgetting of the noise level */

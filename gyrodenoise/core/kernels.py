@@ -65,7 +65,7 @@ P_R_FLOOR = 10   # lower bound of R and of the auto noise levels, (deg/s)^2
 P_OUTLIER_SIGMA = 11  # innovation gate k: |v| > k sqrt(S) rejects a sample; 0 = off
 P_OUTLIER_RUN = 12    # consecutive rejections after which the filter re-opens (restart)
 P_LP_NSEC = 13   # lowpass, and motion's rigid-body low-pass: number of second-order sections (0 = none)
-P_LP_CUTOFF = 14  # lowpass: -3 dB cutoff, Hz (motion: max_motion_hz)
+P_LP_CUTOFF = 14  # lowpass, and motion's rigid-body low-pass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
 P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity filters in the bank (<= MO_MAX_NF)
@@ -82,7 +82,9 @@ MO_MAX_NF = 16
 MO_MAX_NLAG = 8
 N_PARAMS = P_MO_G + 3 * MO_MAX_NF
 
-MAX_MOTION_ORDER = 2   # motion's rigid-body low-pass at max_motion_hz: Butterworth of this order
+MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
+MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
+MAX_MOTION_FS_CAP = 0.45  # at most this fraction of the sample rate
 
 METHOD_NONE = 0.0      # identification only, output = raw
 METHOD_KF = 1.0        # conventional KF, fixed Q and R
@@ -203,11 +205,12 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     max_motion_hz : float
         ``method="motion"``, the rigid-body option (issue 23 item 4): the band of
         interest, 0 < max_motion_hz < sample_rate_hz / 2; content above it (a
-        frame's vibration) counts as error and is removed by a Butterworth
-        low-pass of order ``MAX_MOTION_ORDER`` with its -3 dB point there,
-        ahead of the bank (see :func:`motion_step`). 0 (default) = off: the
-        filter is then exactly the one without the option. Refused (> 0) with
-        the other methods.
+        frame's vibration) counts as error. A Butterworth low-pass ahead of the
+        bank (see :func:`motion_step`, :func:`rigid_cutoff_hz`): order 4, -3 dB
+        at 2 x max_motion_hz (at most 0.45 x the sample rate), so gain >= 0.996
+        up to max_motion_hz, 0.71 at 2x, 0.062 (-24 dB) at 4x, 0.004 at 8x.
+        0 (default) = off: the filter is then exactly the one without the
+        option. Refused (> 0) with the other methods.
 
     Raises
     ------
@@ -246,8 +249,8 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
         raise ValueError(f"max_motion_hz applies to method 'motion' only, got method {method!r}")
     sos = []
     if max_motion_hz > 0:
-        cutoff_hz = max_motion_hz
-        sos = butter_sos(MAX_MOTION_ORDER, float(max_motion_hz), float(sample_rate_hz))
+        cutoff_hz = rigid_cutoff_hz(float(max_motion_hz), float(sample_rate_hz))
+        sos = butter_sos(MAX_MOTION_ORDER, cutoff_hz, float(sample_rate_hz))
     if method == "lowpass":
         if cutoff_hz is None:
             cutoff_hz = min(20.0, 0.25 * sample_rate_hz)
@@ -281,6 +284,15 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
             for j in range(5):
                 p[P_SOS + 5 * i + j] = sec[j]
     return p
+
+
+def rigid_cutoff_hz(max_motion_hz, sample_rate_hz):
+    """-3 dB point of the rigid-body low-pass for a stated band ``max_motion_hz``:
+    MAX_MOTION_CUTOFF x max_motion_hz, at most MAX_MOTION_FS_CAP x the sample rate
+    (the native FMU repeats these operations)."""
+    fc = MAX_MOTION_CUTOFF * max_motion_hz
+    cap = MAX_MOTION_FS_CAP * sample_rate_hz
+    return cap if fc > cap else fc
 
 
 def cv_gains(tracking_index):
@@ -854,7 +866,8 @@ def motion_step(p, s, z):
 
     Rigid-body option (``max_motion_hz``, p[P_LP_NSEC] > 0; issue 23 item 4):
     the stated band of interest. The sample first passes a Butterworth
-    low-pass at max_motion_hz (:func:`sos_cascade`, delays at M_LPD), and the
+    low-pass flat to max_motion_hz (order 4, -3 dB at twice it:
+    :func:`rigid_cutoff_hz`, :func:`sos_cascade`, delays at M_LPD), and the
     bank, its warm-up output and the angle feedback work on that; the noise
     level R is still read from the raw samples (the sensor's own white noise:
     the bank then takes the vibration the low-pass lets through as motion
