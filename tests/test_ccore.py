@@ -449,3 +449,9 @@ def test_rigid_option_c_equals_python_bit_for_bit(n, sigma, lam):
     for kind in ("spikes", "offset", "constant", "oscillating", "quantised", "restarts"):
         zh, rh = hostile(kind, 400, random.Random(n))
         check_against_python(p, zh, rh)
+    # the offline form's bank: no low-pass, a given noise level (P_MO_RFIX)
+    p[K.P_LP_NSEC] = 0.0
+    p[K.P_MO_RFIX] = 0.0123
+    ref_out, ref_s = py_run(p, z, r)
+    assert c_step_run(p, z, r) == (ref_out, ref_s) and c_batch(p, z, r) == (ref_out, ref_s)
+    assert ref_s[K.layout(n)[6] - K.N_EXT + K.M_R] == 0.0123

@@ -104,6 +104,55 @@ def test_a_tone_above_the_band_is_removed(f_hz):
     assert sine_gain(gd.denoise(z, FS), f_hz, lo) / amp > 0.9
 
 
+def sine_phase(y, f_hz, lo):
+    """Phase (rad) of y at f_hz over y[lo:], as sine_gain fits it."""
+    t = np.arange(lo, y.size) / FS
+    X = np.column_stack([np.sin(2 * np.pi * f_hz * t), np.cos(2 * np.pi * f_hz * t),
+                         np.ones_like(t), t - t.mean()])
+    c, *_ = np.linalg.lstsq(X, y[lo:], rcond=None)
+    return math.atan2(c[1], c[0])
+
+
+@pytest.mark.parametrize("f_hz", [2.0, 10.0, 20.0, CUT_HZ, 60.0, 80.0, 120.0, 180.0])
+def test_offline_form_gain_is_the_zero_phase_low_pass(f_hz):
+    """offline=True (the default of `gyrodenoise denoise` on files): the low-pass runs
+    zero-phase, so a 10 deg/s sinusoid comes out with gain |H|^2 (analytic: >= 0.99 up to
+    max_motion_hz, 0.5 at twice it, 0.0004 at 4x; +-3 % and +0.01 for the noise in the fit)
+    and no phase shift (< 1 degree) inside the band, where the causal form lags. The blend
+    of a forward and a backward pass each low-passed inside would give |H| cos(phase):
+    0.30 at max_motion_hz (the first design; this test failed on it)."""
+    amp = 10.0
+    z = sine_record(f_hz, amp, seed=5)
+    lo = int(2 * FS)
+    y = gd.denoise(z, FS, max_motion_hz=CUT_HZ, offline=True)
+    g = sine_gain(y, f_hz, lo) / amp
+    h2 = butterworth_gain(f_hz) ** 2
+    assert 0.97 * h2 - 0.01 <= g <= 1.03 * h2 + 0.01, (g, h2)
+    if f_hz <= CUT_HZ:
+        assert abs(g - 1.0) <= 0.05
+        shift = sine_phase(y, f_hz, lo) - sine_phase(z, f_hz, lo)
+        assert abs(math.degrees(shift)) < 1.0, math.degrees(shift)
+        causal = gd.denoise(z, FS, max_motion_hz=CUT_HZ)
+        assert math.degrees(sine_phase(z, f_hz, lo) - sine_phase(causal, f_hz, lo)) > 2.0
+
+
+def test_offline_form_c_equals_python_and_restarts():
+    """The offline form with the option: the C core and the plain-Python kernels give the
+    same bits (batch.run_offline, compiled or not), each run between restarts on its own
+    (the second session's output does not depend on the first's samples)."""
+    z, rs = golden_record()
+    p = K.make_params(method="motion", sample_rate_hz=FS, max_motion_hz=CUT_HZ)
+    a = batch.run_offline(p, z, rs)
+    b = batch.run_offline(p, z, rs, compiled=False)
+    assert a.tolist() == b.tolist()
+    assert a.tolist() == gd.denoise(z, FS, restarts=rs, offline=True, max_motion_hz=CUT_HZ).tolist()
+    k = int(np.flatnonzero(rs)[0])
+    z2 = z.copy()
+    z2[:k] += 50.0                              # another first session
+    c = batch.run_offline(p, z2, rs)
+    assert c[k:].tolist() == a[k:].tolist()
+
+
 def test_the_option_follows_a_step_and_rest_is_averaged():
     """The bank still works behind the low-pass: at rest the output is far below raw's noise
     (>= 5x), and a 20 deg/s step is reached within 50 ms (the 60 Hz 4th-order Butterworth's

@@ -556,6 +556,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         r = sig * sig;
         if (r < p[P_R_FLOOR])
             r = p[P_R_FLOOR];
+        if (p[P_MO_RFIX] > 0.0)
+            r = p[P_MO_RFIX];
         s[o + M_R] = r;
     }
     s[S_K] = k + 1.0;

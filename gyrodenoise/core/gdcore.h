@@ -60,7 +60,8 @@ extern "C" {
 #define P_MO_G (P_MO_NF + 9)            /* motion: (alpha, beta, log S/R) per filter */
 #define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
-#define N_PARAMS (P_MO_G + 3 * MO_MAX_NF)
+#define P_MO_RFIX (P_MO_G + 3 * MO_MAX_NF) /* motion: > 0 = R to use instead of the estimate */
+#define N_PARAMS (P_MO_RFIX + 1)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0

@@ -80,7 +80,9 @@ P_MO_VAR = P_MO_NF + 8           # motion: 1.0 = also keep the output variance M
 P_MO_G = P_MO_NF + 9             # motion: per filter (steady-state gain on rate, on slope, log S/R)
 MO_MAX_NF = 16
 MO_MAX_NLAG = 8
-N_PARAMS = P_MO_G + 3 * MO_MAX_NF
+P_MO_RFIX = P_MO_G + 3 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
+                                     # the estimate (batch.run_offline with max_motion_hz only; 0 = estimate)
+N_PARAMS = P_MO_RFIX + 1
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -928,6 +930,8 @@ def motion_step(p, s, z):
         r = sig * sig
         if r < p[P_R_FLOOR]:
             r = p[P_R_FLOOR]
+        if p[P_MO_RFIX] > 0.0:
+            r = p[P_MO_RFIX]       # read from the raw record beforehand (batch.run_offline, max_motion_hz)
         s[o + M_R] = r
     s[S_K] = k + 1.0
     r = s[o + M_R]
