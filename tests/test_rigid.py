@@ -46,13 +46,18 @@ def golden_record():
     return z, rs
 
 
-def sine_gain(y, f_hz, lo):
-    """Amplitude of y at f_hz over y[lo:] (least squares with a constant and a slope)."""
+def _sine_fit(y, f_hz, lo):
+    """Least-squares (sin, cos) coefficients of y[lo:] at f_hz, with a constant and a slope."""
     t = np.arange(lo, y.size) / FS
     X = np.column_stack([np.sin(2 * np.pi * f_hz * t), np.cos(2 * np.pi * f_hz * t),
                          np.ones_like(t), t - t.mean()])
     c, *_ = np.linalg.lstsq(X, y[lo:], rcond=None)
-    return math.hypot(c[0], c[1])
+    return c[0], c[1]
+
+
+def sine_gain(y, f_hz, lo):
+    """Amplitude of y at f_hz over y[lo:]."""
+    return math.hypot(*_sine_fit(y, f_hz, lo))
 
 
 def butterworth_gain(f_hz, cutoff_hz=None, order=4):
@@ -105,12 +110,9 @@ def test_a_tone_above_the_band_is_removed(f_hz):
 
 
 def sine_phase(y, f_hz, lo):
-    """Phase (rad) of y at f_hz over y[lo:], as sine_gain fits it."""
-    t = np.arange(lo, y.size) / FS
-    X = np.column_stack([np.sin(2 * np.pi * f_hz * t), np.cos(2 * np.pi * f_hz * t),
-                         np.ones_like(t), t - t.mean()])
-    c, *_ = np.linalg.lstsq(X, y[lo:], rcond=None)
-    return math.atan2(c[1], c[0])
+    """Phase (rad) of y at f_hz over y[lo:]."""
+    a, b = _sine_fit(y, f_hz, lo)
+    return math.atan2(b, a)
 
 
 @pytest.mark.parametrize("f_hz", [2.0, 10.0, 20.0, CUT_HZ, 60.0, 80.0, 120.0, 180.0])
