@@ -99,6 +99,11 @@ def register_cli(subparsers):
                    help="--method motion on log files: the causal filter (as a live link, Denoiser.step and "
                         "the FMUs run it); default on files: offline, the forward and backward runs blended "
                         "per session (no lag). A live link and --engine fmu are always causal")
+    p.add_argument("--max-motion-hz", type=_float, default=None, metavar="HZ",
+                   help="--method motion, rigid-body option for frames that vibrate (drones): the band of "
+                        "interest; content above it counts as error (a 4th-order Butterworth before the filter "
+                        "bank, flat to HZ, -3 dB at 2 HZ, -24 dB at 4 HZ); 0 = off (default); a stream whose "
+                        "Nyquist is not above HZ is written raw, with the reason")
     p.add_argument("--ar-order", type=_int, default=3, metavar="N",
                    help=f"AR model order, 1..{MAX_AR_ORDER} (default 3)")
     p.add_argument("--gap-factor", type=_float, default=5.0, metavar="K",
@@ -218,6 +223,10 @@ def _check(args):
     if args.causal and args.method != "motion":
         raise InputError(f"--causal applies to --method motion only, not {args.method} "
                          f"(the other methods are causal unless --zero-phase)")
+    if args.max_motion_hz is not None and args.method != "motion":
+        raise InputError(f"--max-motion-hz applies to --method motion only, not {args.method}")
+    if args.max_motion_hz is not None and not (_finite_num(args.max_motion_hz) and args.max_motion_hz >= 0):
+        raise InputError(f"--max-motion-hz must be a finite number >= 0 Hz (0 = off), got {args.max_motion_hz}")
     if args.cutoff_hz is not None and not (_finite_num(args.cutoff_hz) and args.cutoff_hz > 0):
         raise InputError(f"--cutoff-hz must be a finite number > 0 Hz, got {args.cutoff_hz}")
     if args.warmup_s is not None and not (_finite_num(args.warmup_s) and 0 <= args.warmup_s <= MAX_WARMUP_S):
@@ -251,7 +260,7 @@ def _check(args):
 
 _PARAM_OPTION = {"warmup_s": "--warmup-s", "sample_rate_hz": "--sample-rate", "ar_order": "--ar-order",
                  "outlier_sigma": "--outlier-sigma", "outlier_run": "--outlier-run", "method": "--method",
-                 "cutoff_hz": "--cutoff-hz", "order": "--order"}
+                 "cutoff_hz": "--cutoff-hz", "order": "--order", "max_motion_hz": "--max-motion-hz"}
 
 
 def _option_named(msg):
@@ -303,6 +312,8 @@ def _filter_kw(args):
         kw["cutoff_hz"] = float(args.cutoff_hz)
     if getattr(args, "order", None) is not None:
         kw["order"] = int(args.order)
+    if getattr(args, "max_motion_hz", None):          # 0 = off: the default filter
+        kw["max_motion_hz"] = float(args.max_motion_hz)
     if args.outlier_sigma is not None:
         kw["outlier_sigma"] = float(args.outlier_sigma)
     if args.outlier_run is not None:

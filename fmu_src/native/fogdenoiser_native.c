@@ -83,7 +83,7 @@ static const char *const cat_names[N_CATS] = {
 
 #define INSTANCE_MAGIC 0x46444e49u /* "FDNI" */
 #define FMUSTATE_MAGIC 0x46444e53u /* "FDNS" */
-#define SERIAL_VERSION 1u
+#define SERIAL_VERSION 2u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays */
 #define METHOD_LEN 64  /* method string buffer, terminating NUL included */
 #define STEP_RTOL 1e-6 /* tolerated relative mismatch of step size and sample_period */
 
@@ -91,7 +91,7 @@ static const char *const cat_names[N_CATS] = {
 typedef struct {
     int32_t ar_order, outlier_run, lowpass_order, strict_step_size;
     double sample_period, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s, r_floor,
-        outlier_sigma, cutoff_hz;
+        outlier_sigma, cutoff_hz, max_motion_hz;
     char method[METHOD_LEN];
 } user_t;
 
@@ -270,6 +270,7 @@ static void set_defaults(dyn_t *d) {
     u->r_floor = START_r_floor;
     u->outlier_sigma = START_outlier_sigma;
     u->cutoff_hz = START_cutoff_hz;
+    u->max_motion_hz = START_max_motion_hz;
     strcpy(u->method, START_method);
     d->raw_rate = START_raw_rate;
     d->restart = START_restart;
@@ -418,6 +419,11 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     if (u->lowpass_order < 1 || u->lowpass_order > 2 * MAX_SOS)
         return fmt_err(err, nerr, "lowpass_order must be an integer 1..%d, got %d (checked whatever "
                        "the method)", 2 * MAX_SOS, (int)u->lowpass_order);
+    /* the rigid-body option: 0 = off, else below the Nyquist frequency (checked whatever the
+     * method; applied with motion only, as kernels.make_params) */
+    if (!(u->max_motion_hz >= 0.0 && u->max_motion_hz < 0.5 * fs))
+        return fmt_err(err, nerr, "max_motion_hz out of range: %.17g (must be 0 (off) or > 0 and below "
+                       "half the sample rate, %g Hz; checked whatever the method)", u->max_motion_hz, 0.5 * fs);
     /* max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1)); round = half to even */
     wr = u->warmup_s * fs;
     if (!isfinite(wr))
@@ -454,6 +460,12 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     p[P_OUTLIER_RUN] = (double)u->outlier_run;
     if (methods[im].value == METHOD_MOTION) {
         gd_motion_params(p, fs);     /* kernels.motion_params(fs) with its defaults */
+        if (u->max_motion_hz > 0.0) {  /* the rigid-body low-pass ahead of the bank */
+            double fc = MAX_MOTION_CUTOFF * u->max_motion_hz, cap = MAX_MOTION_FS_CAP * fs;
+            if (fc > cap) fc = cap;    /* kernels.rigid_cutoff_hz */
+            p[P_LP_NSEC] = (double)butter_sos(MAX_MOTION_ORDER, fc, fs, p);
+            p[P_LP_CUTOFF] = fc;
+        }
     }
     return 0;
 }
@@ -703,6 +715,7 @@ static double get_real(const inst_t *c, fmi2ValueReference vr) {
     case VR_r_floor: return u->r_floor;
     case VR_outlier_sigma: return u->outlier_sigma;
     case VR_cutoff_hz: return u->cutoff_hz;
+    case VR_max_motion_hz: return u->max_motion_hz;
     default: return 0.0;
     }
 }
@@ -723,6 +736,7 @@ static double *real_param(inst_t *c, fmi2ValueReference vr) {
     case VR_r_floor: return &u->r_floor;
     case VR_outlier_sigma: return &u->outlier_sigma;
     case VR_cutoff_hz: return &u->cutoff_hz;
+    case VR_max_motion_hz: return &u->max_motion_hz;
     default: return NULL;
     }
 }
@@ -929,7 +943,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate) {
  *   "GDNATIVE" | u32 version | u32 byte-order mark 0x01020304 | u64 total size |
  *   u64 N_PARAMS | dyn_t fields one by one | s[ns] | u64 FNV-1a of all bytes before */
 #define SER_HEADER (8 + 4 + 4 + 8 + 8)
-#define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 12 + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
+#define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 13 + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
 
 static size_t serial_size(int64_t ns) { return SER_HEADER + SER_DYN + 8 * (size_t)ns + 8; }
 
@@ -963,12 +977,12 @@ static void xfer_dyn(cursor_t *cu, dyn_t *d, void (*io)(cursor_t *, void *, size
     int32_t *u32[] = {&d->u.ar_order, &d->u.outlier_run, &d->u.lowpass_order, &d->u.strict_step_size};
     double *f64[] = {&d->u.sample_period, &d->u.lam, &d->u.b, &d->u.gamma, &d->u.q0, &d->u.r0,
                      &d->u.p0_rls, &d->u.p0_kf, &d->u.warmup_s, &d->u.r_floor, &d->u.outlier_sigma,
-                     &d->u.cutoff_hz};
+                     &d->u.cutoff_hz, &d->u.max_motion_hz};
     size_t k;
     for (k = 0; k < 4; k++) { int64_t v = *i32[k]; io(cu, &v, 8); *i32[k] = (int32_t)v; }
     for (k = 0; k < 4; k++) io(cu, u32[k], 4);
     io(cu, d->u.method, METHOD_LEN);
-    for (k = 0; k < 12; k++) io(cu, f64[k], 8);
+    for (k = 0; k < 13; k++) io(cu, f64[k], 8);
     io(cu, &d->raw_rate, 8);
     io(cu, &d->time, 8);
     io(cu, &d->filtered_rate, 8);
