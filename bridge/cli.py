@@ -99,6 +99,11 @@ def register_cli(subparsers):
                    help="--method motion on log files: the causal filter (as a live link, Denoiser.step and "
                         "the FMUs run it); default on files: offline, the forward and backward runs blended "
                         "per session (no lag). A live link and --engine fmu are always causal")
+    p.add_argument("--max-motion-hz", type=_float, default=None, metavar="HZ",
+                   help="--method motion, rigid-body option for frames that vibrate (drones): the band of "
+                        "interest; content above it counts as error (a 4th-order Butterworth before the filter "
+                        "bank, flat to HZ, -3 dB at 2 HZ, -24 dB at 4 HZ); 0 = off (default); a stream whose "
+                        "Nyquist is not above HZ is written raw, with the reason")
     p.add_argument("--ar-order", type=_int, default=3, metavar="N",
                    help=f"AR model order, 1..{MAX_AR_ORDER} (default 3)")
     p.add_argument("--gap-factor", type=_float, default=5.0, metavar="K",
@@ -218,6 +223,10 @@ def _check(args):
     if args.causal and args.method != "motion":
         raise InputError(f"--causal applies to --method motion only, not {args.method} "
                          f"(the other methods are causal unless --zero-phase)")
+    if args.max_motion_hz is not None and args.method != "motion":
+        raise InputError(f"--max-motion-hz applies to --method motion only, not {args.method}")
+    if args.max_motion_hz is not None and not (_finite_num(args.max_motion_hz) and args.max_motion_hz >= 0):
+        raise InputError(f"--max-motion-hz must be a finite number >= 0 Hz (0 = off), got {args.max_motion_hz}")
     if args.cutoff_hz is not None and not (_finite_num(args.cutoff_hz) and args.cutoff_hz > 0):
         raise InputError(f"--cutoff-hz must be a finite number > 0 Hz, got {args.cutoff_hz}")
     if args.warmup_s is not None and not (_finite_num(args.warmup_s) and 0 <= args.warmup_s <= MAX_WARMUP_S):
@@ -251,7 +260,7 @@ def _check(args):
 
 _PARAM_OPTION = {"warmup_s": "--warmup-s", "sample_rate_hz": "--sample-rate", "ar_order": "--ar-order",
                  "outlier_sigma": "--outlier-sigma", "outlier_run": "--outlier-run", "method": "--method",
-                 "cutoff_hz": "--cutoff-hz", "order": "--order"}
+                 "cutoff_hz": "--cutoff-hz", "order": "--order", "max_motion_hz": "--max-motion-hz"}
 
 
 def _option_named(msg):
@@ -303,6 +312,8 @@ def _filter_kw(args):
         kw["cutoff_hz"] = float(args.cutoff_hz)
     if getattr(args, "order", None) is not None:
         kw["order"] = int(args.order)
+    if getattr(args, "max_motion_hz", None):          # 0 = off: the default filter
+        kw["max_motion_hz"] = float(args.max_motion_hz)
     if args.outlier_sigma is not None:
         kw["outlier_sigma"] = float(args.outlier_sigma)
     if args.outlier_run is not None:
@@ -419,6 +430,18 @@ def _write_out(out, name, text):
             tmp.write_text(text)
 
 
+def _interrupted(out, summary):
+    """On an interrupt of a run over several logs: summary.json (written whole, under
+    a partial name first) says which logs completed and which did not; returns the
+    note for the stop line."""
+    try:
+        _write_out(out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
+    except OSError as exc:
+        return f"summary.json not written ({exc.strerror or exc})"
+    return (f"{out}/summary.json lists the {len(summary['completed'])} completed and "
+            f"{len(summary['unfinished'])} unfinished log(s)")
+
+
 def _fleet_report(summary, out):
     """The fleet report (fleet.md, fleet.json, fleet.png) beside the outputs; returns its paths."""
     import tempfile
@@ -455,11 +478,17 @@ def _run_files(args, kw, single, client=None):
         progress = sys.stderr.isatty() if args.progress is None else args.progress
         summary = process_many(args.logs, args.out, jobs=args.jobs, log=_log,
                                scheduler=client if client is not None else args.scheduler,
-                               progress=progress, **kw)
+                               progress=progress, on_interrupt=lambda sm: _interrupted(args.out, sm), **kw)
         if args.scheduler is not None:
             summary["scheduler"] = args.scheduler
         if summary["n_logs"] == 0:
             raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
+        if not summary["n_ok"] and all(f.get("option") == "--cutoff-hz" for f in summary["failed"]):
+            # the option, not the logs: one line, nothing written (as for one log)
+            fastest = max(r for f in summary["failed"] for r in f.get("rates_hz") or [0.0])
+            raise InputError(f"--cutoff-hz {args.cutoff_hz:g} is at or above the Nyquist frequency of every "
+                             f"gyro stream of the {summary['n_logs']} log(s) (the fastest sampled at "
+                             f"{fastest:.4g} Hz: Nyquist {fastest / 2:.4g} Hz); nothing to filter")
     summary["exit_status"] = exit_status(summary)
     return summary
 
@@ -477,16 +506,35 @@ def _lag(v):
     return "-" if v is None else f"{round(1000.0 * v)} ms"
 
 
+def _first_diff_note(nz):
+    """'; first differences 1.731: mostly motion' when the first-difference figure is
+    well above the white-noise estimate (or the estimate is missing); else ''."""
+    fd, wn = nz.get("first_diff_raw"), nz.get("raw")
+    if fd is None:
+        return ""
+    if wn is None:
+        return f"; {_FEW_FOR_NOISE}; first differences {_fmt(fd)}"
+    if fd > FIRST_DIFF_NOTE_FACTOR * wn:
+        return f"; first differences {_fmt(fd)}: motion/vibration"
+    return ""
+
+
+#: the summary names the first-difference figure when it is this many times the
+#: white-noise estimate (what motion and vibration add to it)
+FIRST_DIFF_NOTE_FACTOR = 2.0
+_FEW_FOR_NOISE = "no session long enough for the noise estimate"
+
+
 def _axis_line(s, a):
     nz = s["noise"][a]
     line = f"      {a}: noise {_fmt(nz['raw'])} -> {_fmt(nz['filtered'])} {s['noise_unit']}"
     if s.get("left_raw"):
-        return line + "  (stream left raw: see above)\n"
+        return line + f"{_first_diff_note(nz)}  (stream left raw: see above)\n"
     if s.get("too_slow_to_denoise") or s.get("not_filtered"):
         # written raw: no "raw -> filtered" that would read as a result
         why = "too slow to denoise" if s.get("too_slow_to_denoise") else "not filtered: see above"
-        return f"      {a}: noise {_fmt(nz['raw'])} {s['noise_unit']}  (written raw: {why})\n"
-    line += f" (x{_fmt(nz['ratio'], 3)})"
+        return f"      {a}: noise {_fmt(nz['raw'])} {s['noise_unit']}{_first_diff_note(nz)}  (written raw: {why})\n"
+    line += f" (x{_fmt(nz['ratio'], 3)}{_first_diff_note(nz)})"
     m = (s.get("motion") or {}).get(a)
     if m is not None and m.get("motion_above_noise") is False:
         # the low band holds only noise (a vehicle at rest, or vibrating on the ground):
@@ -521,10 +569,12 @@ def _filter_rate_text(s, summary):
 
 
 def _print_text(summary):
+    from .process import saturation_note
     from .spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
-        trunc = f", truncated ({r['truncated_bytes']} bytes cut)" if r.get("truncated") else ""
+        nb = r.get("truncated_bytes")
+        trunc = f", truncated ({nb} byte{'' if nb == 1 else 's'} cut)" if r.get("truncated") else ""
         unread = r.get("unreadable_records")
         # pyulog does not count what it skips: no figure rather than a dash
         unread = "" if unread is None else f", {unread} unreadable records skipped"
@@ -540,6 +590,8 @@ def _print_text(summary):
                 out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
             if s.get("all_zero"):
                 out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
+            if s.get("saturation"):
+                out.write(f"    note: {saturation_note(s['saturation'])}\n")
             if s.get("too_slow_to_denoise"):
                 out.write(f"    note: {s['slow_note']}\n")
             if s.get("not_filtered"):
@@ -622,6 +674,9 @@ def _report_live(args, conn, rep, streams):
                 sys.stdout.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
             if s.get("too_slow_to_denoise"):
                 sys.stdout.write(f"    note: {s['slow_note']}\n")
+            if s.get("saturation"):
+                from .process import saturation_note
+                sys.stdout.write(f"    note: {saturation_note(s['saturation'])}\n")
             for a in s["noise"]:
                 sys.stdout.write(_axis_line(s, a))
             for w in s.get("warnings", []):

@@ -180,11 +180,12 @@ def _absolute(path):
     return path if is_url(path) else str(Path(path).absolute())
 
 
-def run_on_cluster(tasks, scheduler, progress=None):
+def run_on_cluster(tasks, scheduler, progress=None, into=None):
     """Run ``tasks`` (see :func:`run_task`) on the Dask scheduler at
     ``scheduler`` (``tcp://HOST:PORT``, or a ``distributed.Client``), largest
     input first (:func:`largest_first`); results in the order of ``tasks``.
-    ``progress(result)`` is called as each ends.
+    ``progress(result)`` is called as each ends; ``into``: a list of
+    len(tasks) to fill as the results come (what an interrupt leaves is read there).
 
     Local paths go to the workers absolute (a relative one would be read and
     written in each worker's own working directory) and come back in the
@@ -203,7 +204,7 @@ def run_on_cluster(tasks, scheduler, progress=None):
             fut = client.submit(run_task, task, pure=False, priority=len(ranked) - rank)
             order[fut.key] = i
             futures.append(fut)
-        results = [None] * len(tasks)
+        results = [None] * len(tasks) if into is None else into
         for fut in as_completed(futures, loop=client.loop):
             i = order[fut.key]
             path, out_dir, _ = tasks[i]

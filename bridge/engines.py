@@ -35,7 +35,7 @@ def warmup_samples(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
     try:
         return int(_params(method, ar_order, rate_hz, warmup_s, filter_kw)[K.P_WARMUP])
     except ValueError:          # e.g. a cutoff this rate cannot take: the warm-up without it
-        kw = {k: v for k, v in (filter_kw or {}).items() if k not in ("cutoff_hz", "order")}
+        kw = {k: v for k, v in (filter_kw or {}).items() if k not in ("cutoff_hz", "order", "max_motion_hz")}
         return int(_params(method, ar_order, rate_hz, warmup_s, kw)[K.P_WARMUP])
 
 

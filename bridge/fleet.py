@@ -9,19 +9,20 @@ vibration peak (:func:`vibration_peak`), and a row per failed log with its reaso
 log's dominant vibration peak (:func:`dominant_peaks_by_log`). The plot shows each stream's white-noise density per log, so that an
 IMU that is noisier than its siblings stands out: the thing an operator opens.
 
-Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the standard
-deviation of first differences / sqrt(2) (deg/s), which for white noise is its
-standard deviation sigma, and sigma / sqrt(fs / 2) is the one-sided density
-(tests/test_fleet.py checks it against Welch's estimate). The table gives the
-mean over the stream's axes (x, y, z) of the per-axis figures. It is a figure
-of the raw sensor, so it is meaningful at rest and inflated by motion and
-vibration; the table flags a stream whose density is more than 3 robust sigmas
+Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the sensor's
+white-noise sigma (deg/s; :func:`gyrodenoise.motion_metrics.white_noise_std`,
+the core's 4th-difference estimate, which slow motion does not lift), and
+sigma / sqrt(fs / 2) is the one-sided density (tests/test_fleet.py and
+tests/test_bridge_trial.py check it against Welch's estimate). The table gives
+the mean over the stream's axes (x, y, z) of the per-axis figures. Vibration
+near the Nyquist frequency still lifts it; the table flags a stream whose density is more than 3 robust sigmas
 above the median of the same IMU across the fleet, where DataFlash's older
 names are the same IMUs as the newer ones (``IMU`` = ``IMU[0]``, ``IMU2`` =
 ``IMU[1]``, ``IMU3`` = ``IMU[2]``: :func:`compared_as`), and gives each
-density's ratio to that median. Streams too slow to denoise (telemetry at 1-4
-Hz: the noise figure there is mostly motion, and they are written raw) get no
-density and no flag, and a note that says so.
+density's ratio to that median, or why there is none (no peer: fewer than 3
+of that IMU with a density; no density). Streams too slow to denoise (telemetry at 1-4
+Hz: whatever a filter removes there is motion as much as noise, and they are
+written raw) get no density and no flag, and a note that says so.
 """
 
 from __future__ import annotations
@@ -37,9 +38,9 @@ NOISE_COLUMN = "mean of the x, y, z figures"
 
 
 def noise_density(noise_deg_s, rate_hz):
-    """One-sided white-noise density, deg/s/sqrt(Hz), from the bridge's noise
-    figure ``noise_deg_s`` (std of first differences / sqrt 2 = the white noise's
-    sigma) at ``rate_hz``: sigma / sqrt(rate_hz / 2); None if either is missing."""
+    """One-sided white-noise density, deg/s/sqrt(Hz), from the white noise's
+    sigma ``noise_deg_s`` (the bridge's noise figure) at ``rate_hz``:
+    sigma / sqrt(rate_hz / 2); None if either is missing."""
     if noise_deg_s is None or not rate_hz or rate_hz <= 0:
         return None
     return float(noise_deg_s) / math.sqrt(rate_hz / 2.0)
@@ -88,6 +89,7 @@ def fleet_rows(summary):
                 "note": s.get("note", ""), "left_raw": s.get("left_raw"),
                 "warnings": list(s.get("warnings", [])),
                 "vibration_peak": vibration_peak(s),
+                "saturation": s.get("saturation"),
             })
     for f in summary.get("failed", []):
         rows.append({"log": Path(f["file"]).name, "file": f["file"], "stream": "", "status": "failed",
@@ -152,6 +154,18 @@ def _flag(rows):
             r["density_vs_fleet_median"] = v / med if len(vals) >= 3 and med > 0 else None
             r["fleet_size"] = len(vals)
             r["flag"] = bool(len(vals) >= 3 and mad > 0 and (v - med) > FLAG_SIGMAS * mad)
+            if len(vals) < 3:
+                r["vs_fleet_note"] = (f"no peer: the only {r['compared_as']} with a density in the fleet"
+                                      if len(vals) == 1 else
+                                      f"only {len(vals)} {r['compared_as']} with a density in the fleet "
+                                      f"(a median needs 3)")
+            elif not med > 0:
+                r["vs_fleet_note"] = f"the fleet median of {r['compared_as']} is 0"
+    for r in rows:
+        if r["status"] == "ok" and r.get("noise_density_deg_s_rthz") is None:
+            r["vs_fleet_note"] = ("no density: " + ("too slow to denoise" if r.get("too_slow_to_denoise") else
+                                                    "unit unknown" if r.get("noise_unit") != "deg/s" else
+                                                    "no noise figure (too few samples)"))
     # several IMUs of one log noisy together: the vehicle (vibration, motion) more
     # likely than one sick sensor; one IMU noisy beside normal siblings: that IMU
     per_log = {}
@@ -189,9 +203,14 @@ def _notes(r):
     notes = ([r.get("flag_why", "NOISY vs fleet")] if r.get("flag") else [])
     if r.get("all_zero"):
         notes.append("ALL ZERO: no data (sensor absent or dead)")
+    sat = r.get("saturation")
+    if sat:
+        notes.append(f"AT FULL SCALE: {sum(sat['samples'].values())} sample(s) at >= "
+                     f"{100 * sat['threshold'] / sat['full_scale']:.0f} % of +-{sat['full_scale']:g} {sat['unit']} "
+                     f"(peak {sat['peak']:.5g}): likely saturated")
     if r.get("too_slow_to_denoise"):
         notes.append(f"too slow to denoise ({_rate(r['rate_hz'])} Hz < 20 Hz): written raw; its noise "
-                     f"figure is mostly motion, not sensor noise")
+                     f"figure may be mostly motion (motion reaches its Nyquist frequency)")
     if r.get("not_filtered"):
         notes.append(f"not filtered: {r['not_filtered']}")
     if r.get("left_raw"):
@@ -213,12 +232,19 @@ def format_table(rows):
                 "" if r["lowband_corr"] is None else
                 f"{r['lowband_corr']:.3f}, {100 * r['lowband_amplitude']:.0f} %")
         lag = "" if r["lag_s"] is None else f"{1000 * r['lag_s']:.1f}"
-        vs = r.get("density_vs_fleet_median")
-        vs = "" if vs is None else f"{vs:.2g}x of {r['fleet_size']} {r['compared_as']}"
+        vs = vs_fleet_text(r)
         out.append(f"| {r['log']} | {r['stream']} | ok | {r['samples']} | {_rate(r['rate_hz'])} | {r['restarts']} | "
                    f"{_noise(r)} | {_fmt(r['noise_density_deg_s_rthz'])} | {vs} | {kept} | {lag} | "
                    f"{_peak_text(r.get('vibration_peak'))} | {_notes(r)} |")
     return "\n".join(out)
+
+
+def vs_fleet_text(r):
+    """The "x fleet median" cell: the ratio, or why there is none."""
+    vs = r.get("density_vs_fleet_median")
+    if vs is not None:
+        return f"{vs:.2g}x of {r['fleet_size']} {r['compared_as']}"
+    return r.get("vs_fleet_note") or ""
 
 
 def _named(rows):
@@ -241,9 +267,10 @@ def write_fleet_report(summary, out_dir):
             f"{sum(bool(r.get('all_zero')) for r in rows)} with all samples zero"
             f"{_named([r for r in rows if r.get('all_zero')])}; "
             f"{sum(bool(r.get('too_slow_to_denoise')) for r in rows)} too slow to denoise (telemetry below "
-            f"20 Hz: written raw, their noise figure is mostly motion).\n\n"
-            f"Noise and density columns: {NOISE_COLUMN} (noise: std of first differences / sqrt 2, "
-            f"= the white-noise sigma; density: sigma / sqrt(rate / 2)).\n\n"
+            f"20 Hz: written raw, no density).\n\n"
+            f"Noise and density columns: {NOISE_COLUMN} (noise: the white-noise sigma, the core's "
+            f"4th-difference estimate, which slow motion does not lift; filtered: the same estimate on the "
+            f"output; density: sigma / sqrt(rate / 2)).\n\n"
             f"![noise density per log and stream](fleet.png)\n\n")
     peaks = ("\n\n## Dominant vibration peak per log\n\n(the strongest spectral peak above the noise "
              "floor over the log's streams and axes; bridge.spectra)\n\n" + "\n".join(dominant_peaks_by_log(rows)))

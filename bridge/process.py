@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.errors import InputError
+from gyrodenoise.errors import InputError, Terminated
 
 from . import dataflash
 from gyrodenoise.core.kernels import DEFAULT_METHOD
@@ -340,6 +340,7 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
             s.filtered = s.raw.astype(np.float64)
             s.left_raw = None
             s.not_filtered = f"the filter cannot run at {rate:g} Hz: {exc}; written raw"
+            s.rate_refused = rate
             continue
         for k in range(x.shape[1]):
             fin = usable[:, k]
@@ -414,15 +415,20 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
     if np.any(np.abs(x) > ABSURD_WORK):      # corrupted samples stay out of the figures
         bad = np.abs(x) > ABSURD_WORK
         x, f = np.where(bad, np.nan, x), np.where(bad, np.nan, f)
-    nr = noise_per_axis(x, s.restarts)
-    nf = noise_per_axis(f, s.restarts)
+    dr = noise_per_axis(x, s.restarts)       # first differences: noise + motion + vibration
+    df = noise_per_axis(f, s.restarts)
+    nr = [mm.white_noise_std(x[:, k], rate, s.restarts) for k in range(x.shape[1])]
     slow = mm.too_slow_to_denoise(s.rate_hz, band_hz)
     unfiltered = getattr(s, "not_filtered", None)
+    written_raw = slow or unfiltered or getattr(s, "left_raw", None)
+    # an output written raw has the raw figures (no second run of the estimator)
+    nf = nr if written_raw else [mm.white_noise_std(f[:, k], rate, s.restarts) for k in range(x.shape[1])]
     noise, motion, warnings = {}, {}, []
     skip = int(getattr(s, "warmup_samples", 0) or 0)
     for k, a in enumerate(s.axes):
         ratio = (nf[k] / nr[k]) if (nr[k] and nf[k] is not None and not slow and not unfiltered) else None
-        noise[a] = {"raw": nr[k], "filtered": nf[k], "ratio": ratio}
+        noise[a] = {"raw": nr[k], "filtered": nf[k], "ratio": ratio,
+                    "first_diff_raw": dr[k], "first_diff_filtered": df[k]}
         if slow or unfiltered or getattr(s, "left_raw", None):
             motion[a] = None
             continue
@@ -449,6 +455,7 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
         "not_filtered": unfiltered,
         "cutoff_hz": getattr(s, "cutoff_hz", None),
         "warnings": warnings,
+        "saturation": saturation(s, x, unit),
     }
     if slow:
         rep["slow_note"] = (f"sampled at {_hz(s.rate_hz)} Hz, below {mm.MIN_DENOISE_RATE_HZ:g} Hz: too "
@@ -461,6 +468,49 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None):
     if png_path:
         rep["plot"] = str(png_path)
     return rep
+
+
+#: full scales (deg/s) of the gyros in autopilot logs: ArduPilot and PX4 set their IMUs
+#: to +-2000 deg/s (a few newer ones to +-4000); a field in raw int16 counts ends at 32767
+SATURATION_FULL_SCALES_DEG_S = (2000.0, 4000.0)
+INT16_FULL_SCALE = 32767.0
+#: a sample at or beyond this share of a full scale counts as at the full scale (a
+#: calibrated reading sits a few % off the ADC's end: log171's IMU peaks at 2022.7)
+SATURATION_FRACTION = 0.97
+SATURATION_RULE = (f"|rate| >= {100 * SATURATION_FRACTION:g} % of a gyro full scale: "
+                   f"{', '.join(f'{v:g}' for v in SATURATION_FULL_SCALES_DEG_S)} deg/s (the ranges "
+                   f"ArduPilot and PX4 set), or {INT16_FULL_SCALE:g} in raw int16 counts when the unit "
+                   f"is unknown; the largest full scale reached is named")
+
+
+def saturation(s, x, unit):
+    """None, or what says stream ``s`` (work values ``x``, (n, 3) in ``unit``) sits at
+    a plausible full scale (:data:`SATURATION_RULE`): there the sensor clipped,
+    the true rate may have been larger and no filter can restore it."""
+    scales = SATURATION_FULL_SCALES_DEG_S if unit == "deg/s" else (
+        (INT16_FULL_SCALE,) if np.dtype(s.field_dtype).kind in "iu" and s.to_deg_s is None else ())
+    with np.errstate(invalid="ignore"):
+        a = np.where(np.isfinite(x) & (np.abs(x) <= ABSURD_WORK), np.abs(x), 0.0)
+    reached = [fs for fs in scales if a.max(initial=0.0) >= SATURATION_FRACTION * fs]
+    if not reached:
+        return None
+    fs = reached[-1]
+    hit = a >= SATURATION_FRACTION * fs
+    i = int(np.flatnonzero(hit.any(axis=1))[0])
+    k, j = np.unravel_index(int(np.argmax(a)), a.shape)[::-1]
+    return {"full_scale": fs, "unit": unit, "threshold": SATURATION_FRACTION * fs,
+            "samples": {ax: int(hit[:, m].sum()) for m, ax in enumerate(s.axes)},
+            "first_time_s": float(s.time_s[i]), "peak": float(x[j, k]), "peak_axis": s.axes[k],
+            "peak_time_s": float(s.time_s[j]), "rule": SATURATION_RULE}
+
+
+def saturation_note(sat):
+    """One line of the summary for a :func:`saturation` result."""
+    n = ", ".join(f"{a} {v}" for a, v in sat["samples"].items() if v)
+    return (f"at the gyro's full scale: {n} sample(s) at or beyond {SATURATION_FRACTION * 100:g} % of "
+            f"+-{sat['full_scale']:g} {sat['unit']} (first at t={sat['first_time_s']:.2f} s; peak "
+            f"{sat['peak']:.5g} on {sat['peak_axis']} at t={sat['peak_time_s']:.2f} s): likely saturated, the "
+            f"true rate may have been larger there and no filter restores it")
 
 
 def _hz(v):
@@ -531,6 +581,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
             _filter_streams(streams, eng, gap_factor, sample_rate)
         finally:
             eng.close()
+        _check_some_stream_filterable(path, streams, filter_kw)
         rep.update(_write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv,
                                   engine, method, ar_order, log, filter_kw=filter_kw, form=rep["form"], **ctx))
         done = True
@@ -547,6 +598,28 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                warmup_s=warmup_s, filter_options=options,
                seconds=round(time.perf_counter() - t0, 3))
     return rep
+
+
+def _check_some_stream_filterable(path, streams, filter_kw):
+    """InputError (one line, nothing written) when a --cutoff-hz was given and every
+    stream that would be filtered (not too slow to denoise) refused it: at or above
+    its Nyquist frequency. A log where some stream takes it goes on: the others
+    are written raw, each with its reason."""
+    cutoff = (filter_kw or {}).get("cutoff_hz")
+    tried = [s for s in streams if not _too_slow(s.rate_hz)]      # the slow ones never reach the filter
+    if cutoff is None or not tried or not all(getattr(s, "rate_refused", None) is not None for s in tried):
+        return
+    rates = sorted({s.rate_refused for s in tried})
+    exc = InputError(f"{path}: --cutoff-hz {cutoff:g} is at or above the Nyquist frequency of every gyro "
+                     f"stream (sampled at {', '.join(f'{r:.4g}' for r in rates)} Hz: Nyquist "
+                     f"{', '.join(f'{r / 2:.4g}' for r in rates)} Hz); nothing to filter")
+    exc.option, exc.rates_hz = "--cutoff-hz", rates
+    raise exc
+
+
+def _too_slow(rate_hz):
+    from gyrodenoise.motion_metrics import too_slow_to_denoise
+    return too_slow_to_denoise(rate_hz)
 
 
 def filter_form(eng, engine):
@@ -677,12 +750,16 @@ def _worker(args):
     try:
         return {"ok": True, "report": process_log(path, out_dir, **kw)}
     except InputError as exc:
-        return {"ok": False, "file": str(path), "error": str(exc)}
+        res = {"ok": False, "file": str(path), "error": str(exc)}
+        if getattr(exc, "option", None):            # the option the log refused (e.g. --cutoff-hz)
+            res["option"] = exc.option
+            res["rates_hz"] = list(getattr(exc, "rates_hz", []))
+        return res
     except Exception as exc:  # noqa: BLE001 - one bad log must not stop the others
         return {"ok": False, "file": str(path), "error": f"{path}: {type(exc).__name__}: {exc}"}
 
 
-def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=False, **kw):
+def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=False, on_interrupt=None, **kw):
     """Process files and folders; one summary dict. A failing log is listed
     under ``failed`` and does not stop the others (nor does a crashed worker).
 
@@ -691,6 +768,12 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
     (:mod:`bridge.cluster`). Items and ``out_dir`` may be fsspec URLs.
     ``progress`` shows logs done / failed / remaining and samples per second
     on stderr. Outputs are byte-identical whichever way the logs are run.
+
+    Interrupted (KeyboardInterrupt, :class:`gyrodenoise.errors.Terminated`): the
+    workers are stopped, then ``on_interrupt(summary)`` is called with the
+    summary of the logs that completed (:func:`interrupted_summary`: which logs
+    completed, which did not) before the interrupt goes on up; a text it
+    returns is set as the exception's ``stop_note`` (the CLI's stop line).
     """
     from .cluster import Progress, expand_url_inputs, is_url, largest_first, run_on_cluster, run_task
     local = [it for it in items if not is_url(it)]
@@ -705,14 +788,14 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
     t0 = time.perf_counter()
     where = "Dask cluster" if scheduler is not None else f"{jobs} processes" if jobs > 1 else "local"
     bar = Progress(len(tasks), where) if progress and tasks else None
+    results = [None] * len(tasks)           # filled as the logs end (read by an interrupt)
     try:
         if scheduler is not None:
-            results = run_on_cluster(tasks, scheduler, bar)
+            run_on_cluster(tasks, scheduler, bar, into=results)
         elif jobs > 1 and len(tasks) > 1:
             import concurrent.futures as cf
             import multiprocessing as mp
             ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
-            results = [None] * len(tasks)
             # the workers end with this process, and on an interrupt they are stopped
             # at once (the pool's own shutdown would wait for the logs under way)
             ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx, initializer=as_child)
@@ -735,16 +818,22 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
                 raise
             ex.shutdown(wait=True)
         else:
-            results = []
-            for t in tasks:
-                results.append(run_task(t))
+            for i, t in enumerate(tasks):
+                results[i] = run_task(t)
                 if bar:
-                    bar(results[-1])
+                    bar(results[i])
+    except (KeyboardInterrupt, Terminated) as exc:
+        if on_interrupt is not None:
+            note = on_interrupt(interrupted_summary(files, stems, results, ignored, exc,
+                                                    time.perf_counter() - t0, jobs, scheduler))
+            if note:
+                exc.stop_note = note            # the CLI's one line says it
+        raise
     finally:
         if bar:
             bar.close()
     logs = [r["report"] for r in results if r["ok"]]
-    failed = [{"file": r["file"], "error": r["error"]} for r in results if not r["ok"]]
+    failed = [{k: r[k] for k in ("file", "error", "option", "rates_hz") if k in r} for r in results if not r["ok"]]
     if log:
         for r in logs:
             for s in r["streams"]:
@@ -757,6 +846,33 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
         "jobs": None if scheduler is not None else int(jobs),     # the cluster decides its parallelism
         "scheduler": None if scheduler is None else str(scheduler),
         "seconds": round(time.perf_counter() - t0, 3),
+        "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC, "spectrum_metric": SPECTRUM_METRIC,
+        "streams_left_raw": streams_left_raw(logs),
+    }
+
+
+def interrupted_summary(files, stems, results, ignored, exc, seconds, jobs=1, scheduler=None):
+    """The summary of an interrupted run: the completed logs' reports (``logs``,
+    ``failed``) as in a full summary, ``"interrupted": true``, the signal, and
+    ``completed`` / ``unfinished`` (file and output stem): an unfinished log's
+    outputs (``STEM.*``) may be absent or only some of them present, each file
+    whole (written under a partial name, renamed when complete)."""
+    done = [r for r in results if r is not None]
+    logs = [r["report"] for r in done if r["ok"]]
+    failed = [{"file": r["file"], "error": r["error"]} for r in done if not r["ok"]]
+    sig = "SIGINT" if isinstance(exc, KeyboardInterrupt) else "SIGTERM"
+    return {
+        "interrupted": True, "signal": sig, "exit_status": 130 if sig == "SIGINT" else 143,
+        "completed": [str(f) for f, r in zip(files, results) if r is not None],
+        "unfinished": [{"file": str(f), "out_stem": st,
+                        "note": f"not completed: its outputs {st}.* in this folder, if any, are not all there"}
+                       for f, st, r in zip(files, stems, results) if r is None],
+        "logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
+        "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed),
+        "n_unfinished": sum(r is None for r in results),
+        "jobs": None if scheduler is not None else int(jobs),
+        "scheduler": None if scheduler is None else str(scheduler),
+        "seconds": round(seconds, 3),
         "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC, "spectrum_metric": SPECTRUM_METRIC,
         "streams_left_raw": streams_left_raw(logs),
     }

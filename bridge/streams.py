@@ -28,9 +28,15 @@ MRAD_TO_DEG = RAD_TO_DEG / 1000.0
 #: DataFlash/MAVLink unit label -> factor to deg/s
 UNIT_TO_DEG_S = {"rad/s": RAD_TO_DEG, "mrad/s": MRAD_TO_DEG, "deg/s": 1.0}
 
-NOISE_METRIC = ("per axis: standard deviation of the first differences / sqrt(2), over "
-                "sample pairs inside one session (pairs across a restart excluded); equals the "
-                "white-noise standard deviation and is insensitive to slow motion; deg/s "
+NOISE_METRIC = ("per axis: raw = the sensor's white-noise standard deviation, the core's own estimate "
+                "(gyrodenoise.motion_metrics.white_noise_std: the motion filter's noise level, the smallest "
+                "over lags 1..6 of the mean |4th difference|, median over the record, each session on its "
+                "own): slow motion does not lift it (a 4th difference cancels any cubic); it reads 2-6 % "
+                "low on white noise; filtered = the same estimate on the output: the sample-to-sample "
+                "scatter left, which a smoothing filter removes first (not the noise left inside the "
+                "motion band: read it with the motion kept and the lag); ratio = filtered / raw; "
+                "first_diff_raw/first_diff_filtered = std of first differences / sqrt(2) within sessions: "
+                "noise plus motion plus vibration (mostly motion on a moving 25-50 Hz stream); deg/s "
                 "(field units when the unit is unknown)")
 
 
@@ -187,7 +193,9 @@ def measured_rate_hz(time_s, restarts):
 
 
 def noise_per_axis(values, restarts):
-    """Noise figure of each column of ``values`` (see :data:`NOISE_METRIC`)."""
+    """Std of first differences / sqrt(2) of each column of ``values``, pairs
+    inside one session (``first_diff_*`` of :data:`NOISE_METRIC`): the white
+    noise's sigma on a still record, lifted by motion and vibration."""
     v = np.asarray(values, dtype=np.float64)
     if v.ndim == 1:
         v = v[:, None]

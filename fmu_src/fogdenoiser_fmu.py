@@ -32,7 +32,7 @@ _REFUSED = _rules.REFUSED
 MAX_ORDER = 6
 #: relative tolerance between the step size and the sample period
 STEP_RTOL = 1e-6
-STATE_VERSION = 2   # 2: centred kernels' state layout, motion and lowpass
+STATE_VERSION = 3   # 3: max_motion_hz and the core state's rigid-body low-pass delays (2: centred layout)
 
 
 
@@ -71,6 +71,7 @@ class FogDenoiser(Fmi2Slave):
         self.cutoff_hz = 0.0          # lowpass: 0 = default (20 Hz, at most fs/4)
         self.lowpass_order = 2
         self.strict_step_size = False
+        self.max_motion_hz = 0.0      # motion: rigid-body option, 0 = off
         # outputs
         self.filtered_rate = 0.0
 
@@ -159,6 +160,13 @@ class FogDenoiser(Fmi2Slave):
                                        description="If true, a step whose size differs from sample_period is "
                                                    "refused (fmi2Discard); if false it is processed and a "
                                                    "warning is logged [1]"))
+        self.register_variable(Real("max_motion_hz", **par,
+                                    description="method 'motion', rigid-body option: the band of interest; "
+                                                "content above it counts as error (a 4th-order "
+                                                "Butterworth before the bank, flat to it, -3 dB at twice "
+                                                "it, at most 0.45 / sample_period); 0 = off, "
+                                                "else below half the sample rate; checked (finite, >= 0, "
+                                                "below half the sample rate) whatever the method [Hz]"))
         # FMI 2.0 forbids setting an output, and a fixed parameter after initialisation
         _rules.install_write_rules(self, "FogDenoiser", P.output, P.parameter, Fmi2Status.error)
 
@@ -201,12 +209,18 @@ class FogDenoiser(Fmi2Slave):
         if not 1 <= self.lowpass_order <= 8:
             raise ValueError(f"lowpass_order must be an integer 1..8, got {self.lowpass_order} (checked "
                              "whatever the method)")
+        fs = 1.0 / self.sample_period
+        if not 0.0 <= self.max_motion_hz < 0.5 * fs:
+            raise ValueError(f"max_motion_hz out of range: {self.max_motion_hz!r} (must be 0 (off) or > 0 "
+                             f"and below half the sample rate, {0.5 * fs:g} Hz; checked whatever the method)")
+        method = str(self.method).strip().lower()
+        rigid = {"max_motion_hz": float(self.max_motion_hz)} if method == "motion" else {}
         den = self._D.Denoiser(
-            sample_rate_hz=1.0 / self.sample_period, method=str(self.method).strip().lower(),
+            sample_rate_hz=fs, method=method,
             ar_order=order, lam=self.lam, b=self.b, gamma=self.gamma, q0=self.q0, r0=self.r0,
             p0_rls=self.p0_rls, p0_kf=self.p0_kf, warmup_s=self.warmup_s, r_floor=self.r_floor,
             outlier_sigma=self.outlier_sigma, outlier_run=self.outlier_run,
-            cutoff_hz=self.cutoff_hz if self.cutoff_hz != 0.0 else None, order=self.lowpass_order)
+            cutoff_hz=self.cutoff_hz if self.cutoff_hz != 0.0 else None, order=self.lowpass_order, **rigid)
         self._den = den
         self._n = order
         self._theta0 = self._K.layout(order)[0]
@@ -288,7 +302,7 @@ class FogDenoiser(Fmi2Slave):
     # -------------------------------------------------------------- state
     _PARAMS = ("ar_order", "method", "sample_period", "lam", "b", "gamma", "q0", "r0", "p0_rls",
                "p0_kf", "warmup_s", "r_floor", "outlier_sigma", "outlier_run", "cutoff_hz", "lowpass_order",
-               "strict_step_size")
+               "strict_step_size", "max_motion_hz")
 
     def _get_fmu_state(self):
         """Everything needed to continue: parameters, inputs, output and the filter's arrays."""

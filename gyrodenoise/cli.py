@@ -62,12 +62,18 @@ def main(argv=None):
     except InputError as exc:
         print(f"gyrodenoise: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("gyrodenoise: interrupted (SIGINT), stopped", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print(f"gyrodenoise: interrupted (SIGINT), stopped{_stop_note(exc)}", file=sys.stderr)
         return 130
-    except Terminated:
-        print("gyrodenoise: terminated (SIGTERM), stopped", file=sys.stderr)
+    except Terminated as exc:
+        print(f"gyrodenoise: terminated (SIGTERM), stopped{_stop_note(exc)}", file=sys.stderr)
         return 143
+
+
+def _stop_note(exc):
+    """'; <what was kept>' when the command said so on the exception (``stop_note``)."""
+    note = getattr(exc, "stop_note", None)
+    return f"; {note}" if note else ""
 
 
 @contextlib.contextmanager

@@ -38,6 +38,10 @@ def _add_filter_options(p, method=True):
         p.add_argument("--causal", action="store_true",
                        help="motion: the causal filter (as live, Denoiser.step and the FMUs run it); "
                             "default on a file: offline, the forward and backward runs blended (no lag)")
+        p.add_argument("--max-motion-hz", type=float, default=None, metavar="HZ",
+                       help="motion, rigid-body option for frames that vibrate (drones): the band of interest; "
+                            "content above it counts as error (a 4th-order Butterworth before the filter bank, flat to HZ, "
+                            "-3 dB at 2 HZ, -24 dB at 4 HZ); 0 < HZ < half the sample rate (default, 0: off)")
     p.add_argument("--ar-order", type=int, default=3, help="order n of the improved AR(n) model (default 3)")
     p.add_argument("--warmup-s", type=float, default=1.0,
                    help="seconds after each restart with raw pass-through while the AR model converges")
@@ -58,6 +62,8 @@ def _filter_kw(args):
           "outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
     if getattr(args, "method", None) == "lowpass":
         kw.update(cutoff_hz=args.cutoff_hz, order=args.order)
+    if getattr(args, "max_motion_hz", None) is not None and args.method == "motion":
+        kw.update(max_motion_hz=args.max_motion_hz)
     return kw
 
 
@@ -73,6 +79,13 @@ def _read(args):
 def _check_params(args, fs):
     from .core import kernels as K
     try:
+        mhz = getattr(args, "max_motion_hz", None)
+        if mhz is not None and args.method != "motion":
+            raise ValueError(f"--max-motion-hz applies to --method motion only, not {args.method}")
+        if mhz is not None and not 0.0 <= mhz < float("inf"):
+            raise ValueError(f"--max-motion-hz must be a finite number of Hz >= 0 (0 = off), got {mhz!r}")
+        if mhz is not None and not mhz < 0.5 * fs:
+            raise ValueError(f"--max-motion-hz {mhz:g} Hz is not below half the sample rate ({0.5 * fs:g} Hz)")
         K.make_params(ar_order=args.ar_order, sample_rate_hz=fs, method=getattr(args, "method", "shakf"),
                       **_filter_kw(args))
         if getattr(args, "zero_phase", False) and args.method != "lowpass":
@@ -87,7 +100,8 @@ def _check_params(args, fs):
 def cmd_denoise(args):
     from .denoiser import Denoiser
     from .recording import write_recording
-    _check_params(args, 1e9 if args.method == "lowpass" else 1.0)   # bad options fail before the file is read
+    _check_params(args, 1e9 if args.method == "lowpass" or args.max_motion_hz is not None
+                  else 1.0)   # bad options fail before the file is read
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
     den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **_filter_kw(args))
@@ -100,12 +114,46 @@ def cmd_denoise(args):
         out = den.process(rec.rate_deg_s, rec.restarts)
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
     mode = "offline (forward + backward, no lag)" if offline or args.zero_phase else "causal"
+    if args.max_motion_hz:
+        mode += f", rigid body: content above {args.max_motion_hz:g} Hz removed (--max-motion-hz)"
     _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, {mode})")
+    if rec.true_rate_deg_s is not None:
+        _log(f"gyrodenoise: {rmse_line(rec.rate_deg_s, out, rec.true_rate_deg_s)}")
     if args.outlier_sigma > 0 and args.method in ("shakf", "kf", "sh_classic"):
         _log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
              f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
              f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")
     return 0
+
+
+def rmse_line(raw, filtered, truth):
+    """'RMSE against true_rate over N samples: raw X, filtered Y deg/s (xR)' over the
+    samples where all three are finite (the RMSE of :mod:`gyrodenoise.experiments`)."""
+    from .experiments import rmse
+    raw, filtered, truth = (np.asarray(v, dtype=np.float64) for v in (raw, filtered, truth))
+    ok = np.isfinite(raw) & np.isfinite(filtered) & np.isfinite(truth)
+    if not ok.any():
+        return "RMSE against true_rate: no sample where raw, filtered and true_rate are all finite"
+    r, f = rmse(raw[ok], truth[ok]), rmse(filtered[ok], truth[ok])
+    ratio = f" (x{f / r:.3g})" if r > 0 else ""
+    return f"RMSE against true_rate over {int(ok.sum())} samples: raw {r:.4g}, filtered {f:.4g} deg/s{ratio}"
+
+
+def true_rate_motion(rec):
+    """None when the record has no true_rate or a constant one; else
+    {"std", "min", "max"} of its true rate (deg/s): the record moves."""
+    if rec.true_rate_deg_s is None:
+        return None
+    tr = np.asarray(rec.true_rate_deg_s, dtype=np.float64)
+    tr = tr[np.isfinite(tr)]
+    if not tr.size or np.ptp(tr) == 0.0:
+        return None
+    return {"std": float(tr.std()), "min": float(tr.min()), "max": float(tr.max())}
+
+
+#: what ``allan`` analyses when the recording has a true_rate column
+ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a true_rate column; the "
+                  "vehicle's motion would otherwise enter the terms, K and R above all)")
 
 
 # ------------------------------------------------------------------ allan
@@ -115,7 +163,11 @@ def cmd_allan(args):
     rec = _read(args)
     if len(rec) < 5:
         raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
-    res = allan(rec.rate_deg_s, rec.sample_rate_hz)
+    series, analysed = rec.rate_deg_s, "rate"
+    if rec.true_rate_deg_s is not None:
+        series = np.asarray(rec.rate_deg_s, dtype=np.float64) - np.asarray(rec.true_rate_deg_s, dtype=np.float64)
+        analysed = ALLAN_OF_ERROR
+    res = allan(series, rec.sample_rate_hz)
     from .export import export_from_args
     for path in export_from_args(args, res):
         _log(f"gyrodenoise: wrote {path}")
@@ -123,8 +175,11 @@ def cmd_allan(args):
         d = res.to_json()
         d["source"] = args.input
         d["notes"] = rec.notes
+        d["analysed"] = analysed
+        d["true_rate_motion_deg_s"] = true_rate_motion(rec)
         emit_json(d)
     else:
+        print(f"analysed: {analysed}")
         print(format_terms_table({"record": res.terms}, {"record": res.bounds}))
         print()
         print(f"{'tau_s':>12} {'adev_deg_h':>14} {'err_deg_h':>12}")
@@ -143,11 +198,23 @@ def cmd_compare(args):
     if len(rec) < 100:
         raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
     res = compare(rec, ar_order=args.ar_order, **_filter_kw(args))
+    moving = true_rate_motion(rec)
+    if moving:
+        res["true_rate_motion_deg_s"] = moving
+        res.setdefault("warnings", []).append(moving_warning(moving))
     if args.json:
         emit_json(public(res))
     else:
         print(format_compare(res))
     return 0
+
+
+def moving_warning(moving):
+    """The warning of ``compare`` on a record whose true rate moves."""
+    return (f"the record moves (true_rate {moving['min']:.4g} to {moving['max']:.4g} deg/s, std "
+            f"{moving['std']:.4g}): every row's Allan terms include that motion (K and R above all are the "
+            f"motion's, not the sensor's); read the RMSE against the true rate; `gyrodenoise allan` "
+            f"analyses rate - true_rate")
 
 
 def public(d):
@@ -206,6 +273,8 @@ def format_compare(res):
     if "rmse_deg_s" in res:
         out.append("RMSE against the true rate, deg/s: " +
                    ", ".join(f"{k} {v:.4g}" for k, v in res["rmse_deg_s"].items()))
+    for w in res.get("warnings", []):
+        out.append(f"WARNING: {w}")
     return "\n".join(out)
 
 

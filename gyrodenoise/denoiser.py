@@ -166,7 +166,10 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
         runs of the same filter blended (no lag; :func:`gyrodenoise.core.batch.run_offline`).
         ``Denoiser.step``, the FMUs and live links stay causal.
     **kw
-        Further parameters of :func:`gyrodenoise.core.kernels.make_params`.
+        Further parameters of :func:`gyrodenoise.core.kernels.make_params`, e.g.
+        ``max_motion_hz`` (``method="motion"``, the rigid-body option for frames
+        that vibrate: content above that band counts as error; offline, its
+        low-pass runs zero-phase).
 
     Returns
     -------

@@ -20,6 +20,9 @@ numpy arrays; the values are in the unit of the input (any unit, the same for
 * :func:`motion_above_noise` -- whether the raw low band holds motion at all
   (at rest it is noise, and "kept" figures measure noise removed).
 * :func:`motion_loss` -- the warning rule: most of the real motion removed.
+* :func:`white_noise_std` -- the record's white-noise level that motion does not
+  lift: the core's own estimate (the motion filter's 4th differences at several
+  lags), the level the two functions above compare the low band with.
 
 Segments: a record is cut at each restart (``restarts[i]`` True: sample i is the
 first of a new session) and at every non-finite sample of either record; the
@@ -201,6 +204,48 @@ def lag_s(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip
     den = y0 - 2.0 * y1 + y2
     frac = 0.5 * (y0 - y2) / den if den < 0 else 0.0
     return float((j - max_k + frac) / sample_rate_hz)
+
+
+def white_noise_std(x, sample_rate_hz, restarts=None):
+    """The white-noise standard deviation of a record (its unit), an estimate
+    that slow motion does not lift, or None (no finite run longer than
+    :func:`noise_ready_samples`).
+
+    It is the core's own estimate, not a second implementation: the record runs
+    through ``method="motion"`` (:func:`gyrodenoise.core.kernels.motion_step`),
+    whose noise level R is the smallest over lags L = 1..6 of the running mean
+    |4th difference| at lag L (Huber-clipped, 10 s memory) x sqrt(pi / 140).
+    A 4th difference cancels any cubic over its 4 L samples, so motion below a
+    few Hz adds (2 sin(pi f L / fs))^8 of its power: at 25 Hz, 1 Hz motion
+    reaches it at 2e-5 of its power, where the first difference keeps 0.06.
+    Returned: sqrt of the median of R over the samples where it has formed
+    (each finite run of each session, after its first :func:`noise_ready_samples`).
+    On white noise it reads 2-6 % low (the smallest of six running means; 6 %
+    at 25 Hz, 2 % at 250 Hz, tests/test_motion_metrics.py); motion near the
+    Nyquist frequency and vibration are not removed. 0.0 for a constant record."""
+    from .core import batch, kernels as K
+    x = np.asarray(x, dtype=np.float64)
+    fs = float(sample_rate_hz) if sample_rate_hz and sample_rate_hz > 0 else 1.0
+    p = K.make_params(1, "motion", fs, warmup_s=0.0)
+    p[K.P_MO_NF] = 1.0          # R comes before the bank and does not depend on it: one filter is enough
+    at = K.layout(1)[6] - K.N_EXT + K.M_R
+    ready = noise_ready_samples()
+    s0 = K.init_state(p)                 # batch.run does not modify it: each run starts fresh
+    vals = []
+    for a, b in _segments(len(x), restarts, np.isfinite(x), 0, ready + 1):
+        _, _, trace = batch.run(p, s0, x[a:b], None, trace_index=at)
+        vals.append(trace[ready:])
+    if not vals:
+        return None
+    r = float(np.median(np.concatenate(vals)))
+    return 0.0 if r <= p[K.P_R_FLOOR] else math.sqrt(r)
+
+
+def noise_ready_samples():
+    """Samples of a run before :func:`white_noise_std` reads the core's estimate:
+    the 4th difference at the largest lag (4 x 6) and 32 samples of its mean."""
+    from .core import kernels as K
+    return 4 * int(K.motion_params(1.0)[K.P_MO_NLAG - K.P_MO_NF]) + 32
 
 
 def lowband_noise_std(white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):

@@ -538,8 +538,12 @@ def test_highres_and_scaled_imu_units_and_restarts_synthetic(tmp_path):
     assert np.abs(out["SCALED_IMU"][1] - np.rint(fs)).max() <= 1
     # the reported noise figures are those of the reference arrays
     from bridge.streams import noise_per_axis as npa
-    assert s["HIGHRES_IMU"]["noise"]["y"]["filtered"] == pytest.approx(npa(f * R2D, r)[1], rel=1e-6)
-    assert s["HIGHRES_IMU"]["noise"]["y"]["raw"] == pytest.approx(npa(ref["HIGHRES_IMU"][1] * R2D, r)[1], rel=1e-9)
+    from gyrodenoise.motion_metrics import white_noise_std as wns
+    ny = s["HIGHRES_IMU"]["noise"]["y"]
+    assert ny["first_diff_filtered"] == pytest.approx(npa(f * R2D, r)[1], rel=1e-6)
+    assert ny["first_diff_raw"] == pytest.approx(npa(ref["HIGHRES_IMU"][1] * R2D, r)[1], rel=1e-9)
+    assert ny["filtered"] == pytest.approx(wns(f[:, 1] * R2D, s["HIGHRES_IMU"]["filter_rate_hz"], r), rel=1e-6)
+    assert ny["raw"] == pytest.approx(wns(ref["HIGHRES_IMU"][1][:, 1] * R2D, s["HIGHRES_IMU"]["filter_rate_hz"], r), rel=1e-9)
     # the same log from ArduPilot: RAW_IMU is mrad/s (MAVLink 2 + autopilot 3)
     _synthetic_tlog(path, autopilot=3)
     rep3 = process_log(path, tmp_path / "out3", plots=False, csv=False)

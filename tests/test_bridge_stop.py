@@ -105,6 +105,13 @@ def test_jobs_2_run_stops_whole_tree(tmp_path, sig, to_group, status):
         os.killpg(proc.pid, signal.SIGKILL)
         raise
     _stop_and_check(proc, sig, to_group, status, out)
+    # the user trial after issue 21: the run says which logs completed (summary.json, whole)
+    import json
+    sm = json.loads((out / "summary.json").read_text())
+    n_logs = sum(1 for p in SHARED_LOGS.rglob("*") if p.suffix.lower() in (".tlog", ".bin", ".ulg", ".mavlink"))
+    assert sm["interrupted"] is True and sm["exit_status"] == status
+    assert len(sm["completed"]) + len(sm["unfinished"]) == sm["n_logs"] == n_logs
+    assert len(sm["logs"]) + len(sm["failed"]) == len(sm["completed"])
 
 
 @pytest.mark.parametrize("sig, to_group, status", [(signal.SIGINT, True, 130), (signal.SIGTERM, False, 143)],

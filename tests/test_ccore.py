@@ -417,3 +417,41 @@ def test_motion_params_of_the_native_fmu_equal_python():
         lib.gd_motion_params(buf, ctypes.c_double(fs))
         ref = K.make_params(3, "motion", sample_rate_hz=fs)
         assert list(buf)[K.P_MO_NF:] == ref[K.P_MO_NF:], fs
+
+
+@pytest.mark.parametrize("n,sigma,lam", [(1, 3.0, 1.0), (3, 5.0, 0.99)])
+def test_rigid_option_c_equals_python_bit_for_bit(n, sigma, lam):
+    """max_motion_hz (issue 23 item 4: a Butterworth ahead of the motion bank, its delays in
+    the state): the C step, the C batch and the traced run (the offline form's passes) equal
+    the plain-Python kernels bit for bit, outputs and states, on a record with restarts,
+    steps and spikes; hostile records (spikes up to 1e300, a 1e7 offset, constant, alternating)
+    within 1e-12."""
+    p = K.make_params(n, "motion", sample_rate_hz=FS, lam=lam, outlier_sigma=sigma, max_motion_hz=8.0)
+    assert p[K.P_LP_NSEC] == K.MAX_MOTION_ORDER / 2 and p[K.P_LP_CUTOFF] == 16.0
+    z, r = mixed_record(300 + n, n_each=150)
+    ref_out, ref_s = py_run(p, z, r)
+    for run in (c_step_run, c_batch):
+        out, s = run(p, z, r)
+        assert out == ref_out and s == ref_s, run.__name__
+    lpd = K.layout(n)[6] - K.N_EXT + K.M_LPD
+    assert all(v != 0.0 for v in ref_s[lpd:lpd + K.MAX_MOTION_ORDER])   # the low-pass's delays are in the state
+    p[K.P_MO_VAR] = 1.0
+    ti = K.layout(n)[6] - K.N_EXT + K.M_PVAR
+    s = K.init_state(p)
+    ref_tr = []
+    ref_out = []
+    for zi, ri in zip(z, r):
+        ref_out.append(K.step(p, s, zi, ri))
+        ref_tr.append(s[ti])
+    sa, out, tr = np.array(K.init_state(p)), np.empty(len(z)), np.empty(len(z))
+    C.run(np.asarray(p), sa, np.asarray(z), np.asarray(r, dtype=np.bool_), out, ti, tr)
+    assert out.tolist() == ref_out and tr.tolist() == ref_tr and sa.tolist() == s
+    for kind in ("spikes", "offset", "constant", "oscillating", "quantised", "restarts"):
+        zh, rh = hostile(kind, 400, random.Random(n))
+        check_against_python(p, zh, rh)
+    # the offline form's bank: no low-pass, a given noise level (P_MO_RFIX)
+    p[K.P_LP_NSEC] = 0.0
+    p[K.P_MO_RFIX] = 0.0123
+    ref_out, ref_s = py_run(p, z, r)
+    assert c_step_run(p, z, r) == (ref_out, ref_s) and c_batch(p, z, r) == (ref_out, ref_s)
+    assert ref_s[K.layout(n)[6] - K.N_EXT + K.M_R] == 0.0123

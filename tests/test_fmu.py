@@ -522,11 +522,14 @@ def test_exception_in_step_is_logged_and_returned(fmu_dir, tmp_path):
 
 @pytest.mark.parametrize("params,kw", [({"method": "lowpass", "cutoff_hz": 10.0, "lowpass_order": 3},
                                         {"method": "lowpass", "cutoff_hz": 10.0, "order": 3}),
-                                       ({}, {"method": "motion"})])
+                                       ({}, {"method": "motion"}),
+                                       ({"max_motion_hz": 20.0}, {"method": "motion", "max_motion_hz": 20.0})])
 def test_lowpass_and_motion_in_the_fmu_equal_the_core(fmu_dir, params, kw):
-    """The FMU's default method is motion (issue 12); lowpass takes cutoff_hz and lowpass_order."""
+    """The FMU's default method is motion (issue 12); lowpass takes cutoff_hz and lowpass_order;
+    motion takes max_motion_hz (issue 23 item 4: a 60 Hz tone, 'vibration', rides on the record)."""
     z = _raw(1500, seed=9, rate=3.0)
     z[700:] += 5.0                        # a step
+    z += 2.0 * np.sin(2 * np.pi * 60.0 * np.arange(z.size) / FS)
     a = _inst(fmu_dir)
     try:
         a.initialize(sample_period=H, **params)
@@ -741,6 +744,22 @@ def test_bad_cutoff_refused_whatever_the_method(fmu_dir, cutoff):
     with pytest.raises(FMICallException):
         a.slave.exitInitializationMode()
     assert any("cutoff_hz out of range" in m[2] for m in a.errors()), a.messages
+    a.free(terminate=False)
+
+
+@pytest.mark.parametrize("method", ["motion", "shakf"])
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -1.0, 100.0, 250.0])
+def test_bad_max_motion_hz_refused_whatever_the_method(fmu_dir, method, bad):
+    """Issue 23 item 4: max_motion_hz (declared min 0) NaN, inf, negative or not below half
+    the sample rate (100 Hz here) is refused at initialisation with the reason logged."""
+    from fmpy.fmi1 import FMICallException
+    a = _inst(fmu_dir)
+    a.slave.setupExperiment(startTime=0.0)
+    a.set(method=method, max_motion_hz=bad, sample_period=H)
+    a.slave.enterInitializationMode()
+    with pytest.raises(FMICallException):
+        a.slave.exitInitializationMode()
+    assert any("max_motion_hz out of range" in m[2] for m in a.errors()), a.messages
     a.free(terminate=False)
 
 

@@ -220,16 +220,24 @@ def test_build_without_gcc_is_one_line_input_error(monkeypatch, tmp_path):
 
 # ------------------------------------------------------ outputs via fmpy
 CASES = [("motion", {}), ("shakf", {}), ("kf", {}),
-         ("lowpass", {"cutoff_hz": 10.0, "lowpass_order": 3})]
+         ("lowpass", {"cutoff_hz": 10.0, "lowpass_order": 3}),
+         ("motion", {"max_motion_hz": 20.0})]      # issue 23 item 4: the rigid-body option
 
 
-@pytest.mark.parametrize("method,extra", CASES, ids=[c[0] for c in CASES])
+def _core_kw(extra):
+    """gd.denoise's arguments for the FMU parameters ``extra``."""
+    return {("order" if k == "lowpass_order" else k): v for k, v in extra.items()}
+
+
+@pytest.mark.parametrize("method,extra", CASES, ids=[c[0] + "".join("-" + k for k in c[1]) for c in CASES])
 def test_outputs_equal_gd_denoise(built, md, vr, method, extra):
     z, rs = record()
+    if "max_motion_hz" in extra:        # a 60 Hz 'frame vibration' for the option to remove
+        z = z + 2.0 * np.sin(2 * np.pi * 60.0 * np.arange(z.size) / FS)
     s = slave(built, md, method=method, **extra)
     s.exitInitializationMode()
     out = run(s, vr, z, rs)
-    kw = {"cutoff_hz": extra["cutoff_hz"], "order": extra["lowpass_order"]} if extra else {}
+    kw = _core_kw(extra)
     ref = gd.denoise(z, FS, method=method, restarts=rs, **kw)
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
     # the readouts equal the Python Denoiser's after the same samples
@@ -425,6 +433,11 @@ BAD_PARAMS = [
     ({"outlier_run": 0}, "outlier_run"), ({"q0": -1.0}, "q0"), ({"warmup_s": math.inf}, "warmup_s"),
     ({"method": "lowpass", "cutoff_hz": 100.0}, "cutoff_hz"),
     ({"method": "lowpass", "lowpass_order": 9}, "order must be an integer 1..8"),
+    ({"max_motion_hz": math.nan}, "max_motion_hz out of range"),
+    ({"max_motion_hz": math.inf}, "max_motion_hz out of range"),
+    ({"max_motion_hz": -1.0}, "max_motion_hz out of range"),
+    ({"max_motion_hz": 100.0}, "max_motion_hz out of range"),      # = half the sample rate
+    ({"method": "shakf", "max_motion_hz": -1.0}, "max_motion_hz out of range"),   # whatever the method
 ]
 
 
@@ -565,14 +578,14 @@ def host_run(host, unz, z, rs, *args, uri=None):
     return proc
 
 
-@pytest.mark.parametrize("method,extra", CASES[:2] + CASES[3:], ids=["motion", "shakf", "lowpass"])
+@pytest.mark.parametrize("method,extra", CASES[:2] + CASES[3:], ids=["motion", "shakf", "lowpass", "motion-rigid"])
 def test_c_host_equals_gd_denoise(built, host, method, extra):
     z, rs = record()
     args = ["--set", f"method={method}"] + [a for k, v in extra.items() for a in ("--set", f"{k}={v!r}")]
     proc = host_run(host, built[1], z, rs, *args)
     assert proc.returncode == 0, proc.stderr
     out = np.array([float(x) for x in proc.stdout.split()])
-    kw = {"cutoff_hz": extra["cutoff_hz"], "order": extra["lowpass_order"]} if extra else {}
+    kw = _core_kw(extra)
     np.testing.assert_allclose(out, gd.denoise(z, FS, method=method, restarts=rs, **kw), rtol=0, atol=1e-12)
 
 

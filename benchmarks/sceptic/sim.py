@@ -194,10 +194,11 @@ def car(n, fs, rng):
     return out + _band_noise(n, fs, rng, 8.0, min(20.0, 0.45 * fs), 0.3)
 
 
-def multirotor(n, fs, rng):
+def multirotor(n, fs, rng, parts=None):
     """Multirotor: rate commands every 0.3-1.5 s (up to +-90 deg/s) through a 4 Hz,
     zeta 0.7 rate loop, turbulence (0-5 Hz, 5 deg/s RMS) and frame vibration
-    80-200 Hz (motor tone near 90 Hz + harmonic; tones above 0.45 fs dropped)."""
+    80-200 Hz (motor tone near 90 Hz + harmonic; tones above 0.45 fs dropped).
+    ``parts`` (a dict), when given, receives the frame vibration as "vibration"."""
     cmd = np.zeros(n)
     i = 0
     while i < n:
@@ -206,7 +207,10 @@ def multirotor(n, fs, rng):
         i += dur
     out = _second_order(cmd, fs, 4.0, 0.7) + _band_noise(n, fs, rng, 0.0, 5.0, 5.0)
     f0 = min(rng.uniform(80.0, 100.0), 0.45 * fs - 5.0)  # below the FOG's 90 Hz limit
-    return out + _vibration(n, fs, rng, [(f0, 2.0, 1.5), (2 * f0, 1.0, 3.0), (130.0, 0.7, 5.0)])
+    vib = _vibration(n, fs, rng, [(f0, 2.0, 1.5), (2 * f0, 1.0, 3.0), (130.0, 0.7, 5.0)])
+    if parts is not None:
+        parts["vibration"] = vib
+    return out + vib
 
 
 def ship(n, fs, rng):
@@ -255,6 +259,7 @@ PROFILES = {"trapezoid": trapezoid, "car": car, "multirotor": multirotor, "ship"
             "pendulum": pendulum, "static_ramp": static, "chirp": chirp}
 MOVING = tuple(p for p in PROFILES if p != "static_ramp")
 RAMP_GAIN = {"static_ramp": 5.0}
+WITH_PARTS = ("multirotor",)   # profiles that hand their frame vibration back (``parts``)
 
 
 @dataclass
@@ -265,6 +270,7 @@ class Record:
     z: np.ndarray       # gyro output, deg/s
     truth: np.ndarray   # true rate, deg/s
     ref: np.ndarray     # truth + slow sensor errors, deg/s (what a filter should output)
+    vibration: np.ndarray = None   # the frame vibration inside truth, deg/s (zeros if none)
 
     @property
     def sample_rate_hz(self):
@@ -279,11 +285,17 @@ def record(sensor_key, profile, seed, duration_s, truth=None):
     # one stream per (sensor, profile, seed): independent of evaluation order
     key = [seed, list(SENSORS).index(sensor_key), zlib.crc32(profile.encode())]
     rng = np.random.default_rng(key)
+    vib = np.zeros(n)
     if truth is None:
-        truth = PROFILES[profile](n, fs, rng)
+        parts = {}
+        truth = (PROFILES[profile](n, fs, rng, parts) if profile in WITH_PARTS
+                 else PROFILES[profile](n, fs, rng))
+        vib = parts.get("vibration", vib)
         if sensor.vibration_deg_s > 0 and profile in MOVING:   # at rest the motors are off
-            truth = truth + _tone(n, fs, rng, sensor.vibration_hz, sensor.vibration_deg_s, 1.0, am=0.3)
+            tone = _tone(n, fs, rng, sensor.vibration_hz, sensor.vibration_deg_s, 1.0, am=0.3)
+            truth = truth + tone
+            vib = vib + tone
     truth = np.asarray(truth, dtype=float)
     ref = truth + bias_terms(sensor, n, rng, RAMP_GAIN.get(profile, 1.0))
     z = measure(sensor, ref, rng)
-    return Record(sensor, profile, seed, z, truth, ref)
+    return Record(sensor, profile, seed, z, truth, ref, vib)

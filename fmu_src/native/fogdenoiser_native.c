@@ -14,7 +14,7 @@
  *     output equals gd.denoise (tests/test_fmu_native.py);
  *   - the variables (get/set), one step, and the fields of the serialized FMU
  *     state (a versioned, checksummed byte image of the parameters and the
- *     filter's state buffer, format 1: unchanged by the split into layer + hooks).
+ *     filter's state buffer, format 2: unchanged by the split into layer + hooks).
  *
  * The value references, the GUID and the start values come from
  * fogdenoiser_native_vars.h, generated with modelDescription.xml from one table
@@ -28,14 +28,14 @@
 #include "gdcore.h"
 #include "fogdenoiser_native_vars.h"
 
-#define SERIAL_VERSION 1u
+#define SERIAL_VERSION 2u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays */
 #define METHOD_LEN 64  /* method string buffer, terminating NUL included */
 
 /* the fixed parameters, as set through the FMI */
 typedef struct {
     int32_t ar_order, outlier_run, lowpass_order, strict_step_size;
     double sample_period, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s, r_floor,
-        outlier_sigma, cutoff_hz;
+        outlier_sigma, cutoff_hz, max_motion_hz;
     char method[METHOD_LEN];
 } user_t;
 
@@ -70,6 +70,7 @@ static void dn_defaults(void *mv) {
     u->r_floor = START_r_floor;
     u->outlier_sigma = START_outlier_sigma;
     u->cutoff_hz = START_cutoff_hz;
+    u->max_motion_hz = START_max_motion_hz;
     strcpy(u->method, START_method);
     d->raw_rate = START_raw_rate;
     d->restart = START_restart;
@@ -205,6 +206,11 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     if (u->lowpass_order < 1 || u->lowpass_order > 2 * MAX_SOS)
         return gdfmi_fmt_err(err, nerr, "lowpass_order must be an integer 1..%d, got %d (checked whatever "
                        "the method)", 2 * MAX_SOS, (int)u->lowpass_order);
+    /* the rigid-body option: 0 = off, else below the Nyquist frequency (checked whatever the
+     * method; applied with motion only, as kernels.make_params) */
+    if (!(u->max_motion_hz >= 0.0 && u->max_motion_hz < 0.5 * fs))
+        return gdfmi_fmt_err(err, nerr, "max_motion_hz out of range: %.17g (must be 0 (off) or > 0 and below "
+                       "half the sample rate, %g Hz; checked whatever the method)", u->max_motion_hz, 0.5 * fs);
     /* max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1)); round = half to even */
     wr = u->warmup_s * fs;
     if (!isfinite(wr))
@@ -241,6 +247,12 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     p[P_OUTLIER_RUN] = (double)u->outlier_run;
     if (methods[im].value == METHOD_MOTION) {
         gd_motion_params(p, fs);     /* kernels.motion_params(fs) with its defaults */
+        if (u->max_motion_hz > 0.0) {  /* the rigid-body low-pass ahead of the bank */
+            double fc = MAX_MOTION_CUTOFF * u->max_motion_hz, cap = MAX_MOTION_FS_CAP * fs;
+            if (fc > cap) fc = cap;    /* kernels.rigid_cutoff_hz */
+            p[P_LP_NSEC] = (double)butter_sos(MAX_MOTION_ORDER, fc, fs, p);
+            p[P_LP_CUTOFF] = fc;
+        }
     }
     return 0;
 }
@@ -300,6 +312,7 @@ static double dn_get_real(const gdfmi_inst_t *c, fmi2ValueReference vr) {
     case VR_r_floor: return u->r_floor;
     case VR_outlier_sigma: return u->outlier_sigma;
     case VR_cutoff_hz: return u->cutoff_hz;
+    case VR_max_motion_hz: return u->max_motion_hz;
     default: return 0.0;
     }
 }
@@ -321,6 +334,7 @@ static double *dn_real_ref(void *m, fmi2ValueReference vr) {
     case VR_r_floor: return &u->r_floor;
     case VR_outlier_sigma: return &u->outlier_sigma;
     case VR_cutoff_hz: return &u->cutoff_hz;
+    case VR_max_motion_hz: return &u->max_motion_hz;
     default: return NULL;
     }
 }
@@ -361,8 +375,8 @@ static char *dn_string_ref(void *m, fmi2ValueReference vr, size_t *capacity) {
     return ((dn_t *)m)->u.method;
 }
 
-/* serialized fields, format 1 (the order of the FMU before the layer was shared) */
-#define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 12 + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
+/* serialized fields, format 2 (the order of the FMU before the layer was shared) */
+#define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 13 + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
 
 static void dn_xfer(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io) {
     dn_t *d = (dn_t *)m;
@@ -371,12 +385,12 @@ static void dn_xfer(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io)
     int32_t *u32[] = {&d->u.ar_order, &d->u.outlier_run, &d->u.lowpass_order, &d->u.strict_step_size};
     double *f64[] = {&d->u.sample_period, &d->u.lam, &d->u.b, &d->u.gamma, &d->u.q0, &d->u.r0,
                      &d->u.p0_rls, &d->u.p0_kf, &d->u.warmup_s, &d->u.r_floor, &d->u.outlier_sigma,
-                     &d->u.cutoff_hz};
+                     &d->u.cutoff_hz, &d->u.max_motion_hz};
     size_t j;
     for (j = 0; j < 4; j++) { int64_t v = *i32[j]; io(cu, &v, 8); *i32[j] = (int32_t)v; }
     for (j = 0; j < 4; j++) io(cu, u32[j], 4);
     io(cu, d->u.method, METHOD_LEN);
-    for (j = 0; j < 12; j++) io(cu, f64[j], 8);
+    for (j = 0; j < 13; j++) io(cu, f64[j], 8);
     io(cu, &d->raw_rate, 8);
     io(cu, &k->time, 8);
     io(cu, &d->filtered_rate, 8);

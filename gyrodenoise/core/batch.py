@@ -111,6 +111,27 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, trace_
     return out, np.asarray(st, dtype=np.float64), extra
 
 
+def _rigid_offline(p, seg, o_ext, compiled):
+    """The offline form with ``max_motion_hz`` (issue 23 item 4), one run of samples: the
+    blend of a forward and a backward pass each low-passed inside would keep the low-pass's
+    phase (gain |H| cos(phase): 0.3 at max_motion_hz), so the rigid-body low-pass is run
+    zero-phase first (the core's low-pass forwards, then backwards: |H|^2, 0.992 at
+    max_motion_hz) and the bank blends on that, without a low-pass of its own and with the
+    sensor's white-noise level read from the raw samples by the causal filter (the median
+    of its estimate over the run: the low-passed samples no longer show it).
+    Returns (low-passed samples, parameters of the bank)."""
+    _, _, r_trace = run(p, K.init_state(p), seg, trace_index=o_ext + K.M_R, compiled=compiled)
+    pos = r_trace[r_trace > 0.0]
+    plp = list(p)
+    plp[K.P_METHOD] = K.METHOD_LOWPASS
+    fwd, _ = run(plp, K.init_state(plp), seg, compiled=compiled)
+    y, _ = run(plp, K.init_state(plp), fwd[::-1].copy(), compiled=compiled)
+    pb = list(p)
+    pb[K.P_LP_NSEC] = 0.0
+    pb[K.P_MO_RFIX] = float(np.median(pos)) if pos.size else 0.0
+    return y[::-1].copy(), pb
+
+
 def run_offline(p, z, restarts=None, *, compiled=True):
     """Whole-record (non-causal) filtering with ``method="motion"``: no lag.
 
@@ -142,11 +163,16 @@ def run_offline(p, z, restarts=None, *, compiled=True):
     p = list(p)
     p[K.P_MO_VAR] = 1.0          # keep the output variance (not computed by the causal filter)
     warm = int(p[K.P_WARMUP])
+    rigid = p[K.P_LP_NSEC] > 0.0
+    o_ext = K.layout(int(p[K.P_ORDER]))[6] - K.N_EXT
     for a, b in zip(bounds[:-1], bounds[1:]):
         seg = za[a:b]
-        o = K.layout(int(p[K.P_ORDER]))[6] - K.N_EXT + K.M_PVAR
-        fwd, _, vf = run(p, K.init_state(p), seg, trace_index=o, compiled=compiled)
-        bwd, _, vb = run(p, K.init_state(p), seg[::-1].copy(), trace_index=o, compiled=compiled)
+        pb = p
+        if rigid:
+            seg, pb = _rigid_offline(p, seg, o_ext, compiled)
+        o = o_ext + K.M_PVAR
+        fwd, _, vf = run(pb, K.init_state(pb), seg, trace_index=o, compiled=compiled)
+        bwd, _, vb = run(pb, K.init_state(pb), seg[::-1].copy(), trace_index=o, compiled=compiled)
         bwd, vb = bwd[::-1], vb[::-1]
         den = vf + vb
         ok = den > 0.0

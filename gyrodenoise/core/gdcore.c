@@ -412,10 +412,9 @@ KERNEL double filter_step_(const double *p, double *s, double z)
     return out;
 }
 
-KERNEL double lowpass_step_(const double *p, double *s, double z)
+/* kernels.sos_cascade: the Butterworth cascade of p[P_SOS ...], delays at s[o ...] */
+KERNEL double sos_cascade_(const double *p, double *s, long o, double z)
 {
-    int n = ORDER(p);
-    long o = layout_total_(n) - N_EXT;
     double y = z, x;
     int i, nsec = (int)p[P_LP_NSEC];
     for (i = 0; i < nsec; i++) {
@@ -425,6 +424,12 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
         s[o + 2 * i] = p[c + 1] * x - p[c + 3] * y + s[o + 2 * i + 1];
         s[o + 2 * i + 1] = p[c + 2] * x - p[c + 4] * y;
     }
+    return y;
+}
+
+KERNEL double lowpass_step_(const double *p, double *s, double z)
+{
+    double y = sos_cascade_(p, s, layout_total_(ORDER(p)) - N_EXT, z);
     s[S_K] += 1.0;
     s[S_CONV] = 1.0;
     return y;
@@ -491,15 +496,22 @@ KERNEL double log1m_small_(double g)
 
 /* method="motion": the bank of constant-velocity Kalman filters weighted by
  * their faded likelihoods, the noise level from 4th differences at several
- * lags, restarts from the best filter, angle feedback (see kernels.py). */
+ * lags, restarts from the best filter, angle feedback; with max_motion_hz
+ * (p[P_LP_NSEC] > 0) the bank works on the low-passed sample, the noise level
+ * on the raw one (see kernels.py). */
 KERNEL double motion_step_(const double *restrict p, double *restrict s, double z)
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
-    double k = s[S_K], r, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
+    double zr = z, k, r, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
     int pos, i, j, best, c;
     double wts[MO_MAX_NF];
     long q, qb;
+    if (p[P_LP_NSEC] > 0.0) {
+        z = sos_cascade_(p, s, o + M_LPD, z);
+        s[S_CONV] = 1.0;
+    }
+    k = s[S_K];
     if (k == 0.0) {
         s[o + M_BK] = 1.0;
         pos = 0;
@@ -509,7 +521,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             pos = 0;
     }
     s[o + M_HPOS] = (double)pos;
-    s[o + M_HIST + pos] = z;
+    s[o + M_HIST + pos] = zr;
     if (k >= 4.0 * nlag) {
         double b = p[P_MO_BR], d, hub = p[P_MO_HUBER], least = 0.0, sig;
         int clip;
@@ -527,7 +539,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
                 i3 += nh;
             if (i4 < 0)
                 i4 += nh;
-            d4 = z - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
+            d4 = zr - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
                  - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4];
             x = fabs(d4);
             m = s[o + M_MABS + j - 1];
@@ -544,6 +556,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         r = sig * sig;
         if (r < p[P_R_FLOOR])
             r = p[P_R_FLOOR];
+        if (p[P_MO_RFIX] > 0.0)
+            r = p[P_MO_RFIX];
         s[o + M_R] = r;
     }
     s[S_K] = k + 1.0;

@@ -41,10 +41,13 @@ extern "C" {
 #define P_R_FLOOR 10        /* lower bound of R and the auto noise levels */
 #define P_OUTLIER_SIGMA 11  /* innovation gate k; 0 = off */
 #define P_OUTLIER_RUN 12    /* rejections after which the filter re-opens */
-#define P_LP_NSEC 13        /* lowpass: number of second-order sections */
-#define P_LP_CUTOFF 14      /* lowpass: cutoff, Hz */
+#define P_LP_NSEC 13        /* lowpass, motion's rigid-body low-pass: second-order sections */
+#define P_LP_CUTOFF 14      /* lowpass, motion's rigid-body low-pass: -3 dB cutoff, Hz */
 #define P_SOS 15            /* lowpass: MAX_SOS x (b0, b1, b2, a1, a2) */
 #define MAX_SOS 4
+#define MAX_MOTION_ORDER 4  /* motion's rigid-body low-pass (max_motion_hz): Butterworth order, */
+#define MAX_MOTION_CUTOFF 2.0  /* -3 dB at this many times max_motion_hz, */
+#define MAX_MOTION_FS_CAP 0.45 /* at most this fraction of the sample rate (kernels.rigid_cutoff_hz) */
 #define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: filters in the bank */
 #define P_MO_FADE (P_MO_NF + 1)         /* motion: fading of the log-likelihoods */
 #define P_MO_BR (P_MO_NF + 2)           /* motion: forgetting of the noise level */
@@ -57,7 +60,8 @@ extern "C" {
 #define P_MO_G (P_MO_NF + 9)            /* motion: (alpha, beta, log S/R) per filter */
 #define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
-#define N_PARAMS (P_MO_G + 3 * MO_MAX_NF)
+#define P_MO_RFIX (P_MO_G + 3 * MO_MAX_NF) /* motion: > 0 = R to use instead of the estimate */
+#define N_PARAMS (P_MO_RFIX + 1)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -103,7 +107,8 @@ extern "C" {
 #define M_MABS 7
 #define M_HIST (M_MABS + MO_MAX_NLAG)
 #define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1)
-#define N_EXT (M_BANK + 4 * MO_MAX_NF)
+#define M_LPD (M_BANK + 4 * MO_MAX_NF)  /* max_motion_hz: delays of the rigid-body low-pass */
+#define N_EXT (M_LPD + 2 * MAX_SOS)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {

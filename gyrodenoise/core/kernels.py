@@ -64,8 +64,8 @@ P_WARMUP = 9     # warm-up length in samples after each restart
 P_R_FLOOR = 10   # lower bound of R and of the auto noise levels, (deg/s)^2
 P_OUTLIER_SIGMA = 11  # innovation gate k: |v| > k sqrt(S) rejects a sample; 0 = off
 P_OUTLIER_RUN = 12    # consecutive rejections after which the filter re-opens (restart)
-P_LP_NSEC = 13   # lowpass: number of second-order sections (0 for the other methods)
-P_LP_CUTOFF = 14  # lowpass: -3 dB cutoff, Hz
+P_LP_NSEC = 13   # lowpass, and motion's rigid-body low-pass: number of second-order sections (0 = none)
+P_LP_CUTOFF = 14  # lowpass, and motion's rigid-body low-pass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
 P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity filters in the bank (<= MO_MAX_NF)
@@ -80,7 +80,13 @@ P_MO_VAR = P_MO_NF + 8           # motion: 1.0 = also keep the output variance M
 P_MO_G = P_MO_NF + 9             # motion: per filter (steady-state gain on rate, on slope, log S/R)
 MO_MAX_NF = 16
 MO_MAX_NLAG = 8
-N_PARAMS = P_MO_G + 3 * MO_MAX_NF
+P_MO_RFIX = P_MO_G + 3 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
+                                     # the estimate (batch.run_offline with max_motion_hz only; 0 = estimate)
+N_PARAMS = P_MO_RFIX + 1
+
+MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
+MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
+MAX_MOTION_FS_CAP = 0.45  # at most this fraction of the sample rate
 
 METHOD_NONE = 0.0      # identification only, output = raw
 METHOD_KF = 1.0        # conventional KF, fixed Q and R
@@ -130,7 +136,8 @@ M_PVAR = 6       # variance of the output (the weighted mixture of the filters),
 M_MABS = 7       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
 M_HIST = M_MABS + MO_MAX_NLAG              # ring of the last 4 NLAG + 1 centred samples
 M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # per filter: rate, slope per sample, log-likelihood, 1.0 if below the floor at the last sample
-N_EXT = M_BANK + 4 * MO_MAX_NF
+M_LPD = M_BANK + 4 * MO_MAX_NF             # max_motion_hz: delays of the rigid-body low-pass, 2 per section
+N_EXT = M_LPD + 2 * MAX_SOS
 
 
 def layout(n):
@@ -149,7 +156,7 @@ def layout(n):
 def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0,
                 b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
                 warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20,
-                cutoff_hz=None, order=2):
+                cutoff_hz=None, order=2, max_motion_hz=0.0):
     """Build and check the parameter buffer (a list of floats).
 
     Parameters
@@ -197,6 +204,15 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
         quarter of the sample rate.
     order : int
         ``method="lowpass"``: Butterworth order, 1..8.
+    max_motion_hz : float
+        ``method="motion"``, the rigid-body option (issue 23 item 4): the band of
+        interest, 0 < max_motion_hz < sample_rate_hz / 2; content above it (a
+        frame's vibration) counts as error. A Butterworth low-pass ahead of the
+        bank (see :func:`motion_step`, :func:`rigid_cutoff_hz`): order 4, -3 dB
+        at 2 x max_motion_hz (at most 0.45 x the sample rate), so gain >= 0.996
+        up to max_motion_hz, 0.71 at 2x, 0.062 (-24 dB) at 4x, 0.004 at 8x.
+        0 (default) = off: the filter is then exactly the one without the
+        option. Refused (> 0) with the other methods.
 
     Raises
     ------
@@ -220,6 +236,8 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
         ("warmup_s", warmup_s, warmup_s >= 0, ">= 0 s"),
         ("r_floor", r_floor, r_floor > 0, "> 0 (deg/s)^2"),
         ("outlier_sigma", outlier_sigma, outlier_sigma == 0 or outlier_sigma >= 2, "0 (off) or >= 2"),
+        ("max_motion_hz", max_motion_hz, 0 <= max_motion_hz < 0.5 * sample_rate_hz,
+         f"0 (off) or > 0 and below half the sample rate, {0.5 * sample_rate_hz:g} Hz"),
     ]
     for name, value, ok, rule in checks:
         if not (ok and value == value and abs(value) != float("inf")):
@@ -229,7 +247,12 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     warmup = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
     if method == "motion":
         p_motion = motion_params(sample_rate_hz)
+    elif max_motion_hz > 0:
+        raise ValueError(f"max_motion_hz applies to method 'motion' only, got method {method!r}")
     sos = []
+    if max_motion_hz > 0:
+        cutoff_hz = rigid_cutoff_hz(float(max_motion_hz), float(sample_rate_hz))
+        sos = butter_sos(MAX_MOTION_ORDER, cutoff_hz, float(sample_rate_hz))
     if method == "lowpass":
         if cutoff_hz is None:
             cutoff_hz = min(20.0, 0.25 * sample_rate_hz)
@@ -263,6 +286,15 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
             for j in range(5):
                 p[P_SOS + 5 * i + j] = sec[j]
     return p
+
+
+def rigid_cutoff_hz(max_motion_hz, sample_rate_hz):
+    """-3 dB point of the rigid-body low-pass for a stated band ``max_motion_hz``:
+    MAX_MOTION_CUTOFF x max_motion_hz, at most MAX_MOTION_FS_CAP x the sample rate
+    (the native FMU repeats these operations)."""
+    fc = MAX_MOTION_CUTOFF * max_motion_hz
+    cap = MAX_MOTION_FS_CAP * sample_rate_hz
+    return cap if fc > cap else fc
 
 
 def cv_gains(tracking_index):
@@ -740,12 +772,10 @@ def filter_step(p, s, z):
     return out
 
 
-def lowpass_step(p, s, z):
-    """One sample of the Butterworth cascade (transposed direct form II, as
-    ``scipy.signal.sosfilt``) on the centred sample ``z``; the delays start at
-    0, which is the steady state for the first sample (centred to 0)."""
-    n = int(p[P_ORDER])
-    o = layout(n)[6] - N_EXT
+def sos_cascade(p, s, o, z):
+    """One sample ``z`` through the Butterworth cascade of p[P_SOS ...]
+    (transposed direct form II, as ``scipy.signal.sosfilt``), its delays at
+    s[o], s[o + 1] (first section), ...; returns the output."""
     y = z
     for i in range(int(p[P_LP_NSEC])):
         c = P_SOS + 5 * i
@@ -753,6 +783,14 @@ def lowpass_step(p, s, z):
         y = p[c] * x + s[o + 2 * i]
         s[o + 2 * i] = p[c + 1] * x - p[c + 3] * y + s[o + 2 * i + 1]
         s[o + 2 * i + 1] = p[c + 2] * x - p[c + 4] * y
+    return y
+
+
+def lowpass_step(p, s, z):
+    """One sample of the Butterworth cascade (:func:`sos_cascade`) on the
+    centred sample ``z``; the delays start at 0, which is the steady state for
+    the first sample (centred to 0)."""
+    y = sos_cascade(p, s, layout(int(p[P_ORDER]))[6] - N_EXT, z)
     s[S_K] += 1.0
     s[S_CONV] = 1.0
     return y
@@ -827,8 +865,23 @@ def motion_step(p, s, z):
 
     While warming up (``P_WARMUP`` samples, and until the noise level is read)
     the filters sit on z and the output is raw (as for the other methods).
+
+    Rigid-body option (``max_motion_hz``, p[P_LP_NSEC] > 0; issue 23 item 4):
+    the stated band of interest. The sample first passes a Butterworth
+    low-pass flat to max_motion_hz (order 4, -3 dB at twice it:
+    :func:`rigid_cutoff_hz`, :func:`sos_cascade`, delays at M_LPD), and the
+    bank, its warm-up output and the angle feedback work on that; the noise
+    level R is still read from the raw samples (the sensor's own white noise:
+    the bank then takes the vibration the low-pass lets through as motion
+    where it stands above that noise). The output is the low-passed sample
+    from the first sample on (the low-pass needs no warm-up). Off (0 sections):
+    no operation changes.
     """
     o = layout(int(p[P_ORDER]))[6] - N_EXT
+    zr = z                     # raw (centred) sample: the noise level is read from it
+    if p[P_LP_NSEC] > 0.0:
+        z = sos_cascade(p, s, o + M_LPD, z)
+        s[S_CONV] = 1.0
     k = s[S_K]
     nlag = int(p[P_MO_NLAG])
     nh = 4 * nlag + 1
@@ -840,7 +893,7 @@ def motion_step(p, s, z):
         if pos >= nh:
             pos = 0
     s[o + M_HPOS] = float(pos)
-    s[o + M_HIST + pos] = z
+    s[o + M_HIST + pos] = zr
     if k >= 4.0 * nlag:
         b = p[P_MO_BR]
         s[o + M_BK] *= b
@@ -861,7 +914,7 @@ def motion_step(p, s, z):
             i4 = pos - 4 * j
             if i4 < 0:
                 i4 += nh
-            d4 = (z - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
+            d4 = (zr - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
                   - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4])
             x = abs(d4)
             m = s[o + M_MABS + j - 1]
@@ -877,6 +930,8 @@ def motion_step(p, s, z):
         r = sig * sig
         if r < p[P_R_FLOOR]:
             r = p[P_R_FLOOR]
+        if p[P_MO_RFIX] > 0.0:
+            r = p[P_MO_RFIX]       # read from the raw record beforehand (batch.run_offline, max_motion_hz)
         s[o + M_R] = r
     s[S_K] = k + 1.0
     r = s[o + M_R]

@@ -41,7 +41,7 @@ SPECS = {
         "p0_rls": (POSITIVE_MIN, None), "p0_kf": (POSITIVE_MIN, None), "warmup_s": (0.0, None),
         "r_floor": (POSITIVE_MIN, None),
         "outlier_sigma": (0.0, None), "outlier_run": (1, None), "cutoff_hz": (0.0, None),
-        "lowpass_order": (1, 8)}),
+        "lowpass_order": (1, 8), "max_motion_hz": (0.0, None)}),
     "SimulatedFog": (0.005, {"seed": (0, None)}),
 }
 

@@ -149,7 +149,11 @@ VARIABLES = (
        _var("n_rejected", "Integer", "output", "Samples kept out of the filter by the outlier gate "
             "since initialisation", variability="discrete"),
        _par("strict_step_size", "Boolean", False, "If true, a step whose size differs from "
-            "sample_period is refused (fmi2Discard); if false it is processed and a warning is logged")])
+            "sample_period is refused (fmi2Discard); if false it is processed and a warning is logged"),
+       _par("max_motion_hz", "Real", 0.0, "method 'motion', rigid-body option: the band of interest; "
+            "content above it counts as error (a 4th-order Butterworth before the bank, flat to it, -3 dB "
+            "at twice it, at most 0.45 / sample_period); 0 = off, else below half the sample rate; checked (finite, >= 0, below half the "
+            "sample rate) whatever the method", unit="Hz", min=0.0)])
 
 LOG_CATEGORIES = [
     ("logStatusWarning", "Messages with status fmi2Warning (needs logging on)."),
