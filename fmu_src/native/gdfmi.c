@@ -444,72 +444,37 @@ static int check_settable(gdfmi_inst_t *c, const char *fn, const fmi2ValueRefere
     return 1;
 }
 
-fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    size_t i;
-    BEGIN("fmi2GetReal", MASK_GET);
-    if (!check_vrs(c, "fmi2GetReal", vr, nvr, value, T_REAL)) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = GDM->get_real(c, vr[i]);
-    return fmi2OK;
-}
+/* fmi2Get<Type>: the state allows it, every vr names a variable of the type, then the
+ * model's getter for each (a String stays valid until the next call) */
+#define GDFMI_GETTER(fn, ctype, type, hook)                                                      \
+    fmi2Status fn(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, ctype value[]) { \
+        size_t i;                                                                                \
+        BEGIN(#fn, MASK_GET);                                                                    \
+        if (!check_vrs(c, #fn, vr, nvr, value, type)) return fmi2Error;                          \
+        for (i = 0; i < nvr; i++) value[i] = GDM->hook(c, vr[i]);                                \
+        return fmi2OK;                                                                           \
+    }
+GDFMI_GETTER(fmi2GetReal, fmi2Real, T_REAL, get_real)
+GDFMI_GETTER(fmi2GetInteger, fmi2Integer, T_INTEGER, get_integer)
+GDFMI_GETTER(fmi2GetBoolean, fmi2Boolean, T_BOOLEAN, get_boolean)
+GDFMI_GETTER(fmi2GetString, fmi2String, T_STRING, get_string)
+#undef GDFMI_GETTER
 
-fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Integer value[]) {
-    size_t i;
-    BEGIN("fmi2GetInteger", MASK_GET);
-    if (!check_vrs(c, "fmi2GetInteger", vr, nvr, value, T_INTEGER)) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = GDM->get_integer(c, vr[i]);
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Boolean value[]) {
-    size_t i;
-    BEGIN("fmi2GetBoolean", MASK_GET);
-    if (!check_vrs(c, "fmi2GetBoolean", vr, nvr, value, T_BOOLEAN)) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = GDM->get_boolean(c, vr[i]);
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                         fmi2String value[]) {
-    size_t i;
-    BEGIN("fmi2GetString", MASK_GET);
-    if (!check_vrs(c, "fmi2GetString", vr, nvr, value, T_STRING)) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = GDM->get_string(c, vr[i]); /* valid until the next call */
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                       const fmi2Real value[]) {
-    size_t i;
-    BEGIN("fmi2SetReal", MASK_SET);
-    if (!check_vrs(c, "fmi2SetReal", vr, nvr, value, T_REAL) || !check_settable(c, "fmi2SetReal", vr, nvr))
-        return fmi2Error;
-    for (i = 0; i < nvr; i++) *GDM->real_ref(c->m, vr[i]) = value[i];
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Integer value[]) {
-    size_t i;
-    BEGIN("fmi2SetInteger", MASK_SET);
-    if (!check_vrs(c, "fmi2SetInteger", vr, nvr, value, T_INTEGER) ||
-        !check_settable(c, "fmi2SetInteger", vr, nvr))
-        return fmi2Error;
-    for (i = 0; i < nvr; i++) *GDM->int_ref(c->m, vr[i]) = value[i];
-    return fmi2OK;
-}
-
-fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Boolean value[]) {
-    size_t i;
-    BEGIN("fmi2SetBoolean", MASK_SET);
-    if (!check_vrs(c, "fmi2SetBoolean", vr, nvr, value, T_BOOLEAN) ||
-        !check_settable(c, "fmi2SetBoolean", vr, nvr))
-        return fmi2Error;
-    for (i = 0; i < nvr; i++) *GDM->int_ref(c->m, vr[i]) = value[i] ? 1 : 0;
-    return fmi2OK;
-}
+/* fmi2Set<Type> of Real, Integer, Boolean: the state allows it, every vr names a settable
+ * variable of the type (inputs; fixed parameters before initialisation ends), then `store` */
+#define GDFMI_SETTER(fn, ctype, type, store)                                                           \
+    fmi2Status fn(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const ctype value[]) { \
+        size_t i;                                                                                      \
+        BEGIN(#fn, MASK_SET);                                                                          \
+        if (!check_vrs(c, #fn, vr, nvr, value, type) || !check_settable(c, #fn, vr, nvr))             \
+            return fmi2Error;                                                                          \
+        for (i = 0; i < nvr; i++) store;                                                               \
+        return fmi2OK;                                                                                 \
+    }
+GDFMI_SETTER(fmi2SetReal, fmi2Real, T_REAL, *GDM->real_ref(c->m, vr[i]) = value[i])
+GDFMI_SETTER(fmi2SetInteger, fmi2Integer, T_INTEGER, *GDM->int_ref(c->m, vr[i]) = value[i])
+GDFMI_SETTER(fmi2SetBoolean, fmi2Boolean, T_BOOLEAN, *GDM->int_ref(c->m, vr[i]) = value[i] ? 1 : 0)
+#undef GDFMI_SETTER
 
 fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
                          const fmi2String value[]) {
