@@ -68,6 +68,20 @@ def psd_two_sided(name, f, fs, tau_s=None):
     raise ValueError(name)
 
 
+def angle_gm_avar(m, fs, tau_s, sigma=1.0):
+    """Closed-form overlapping Allan variance at cluster sizes ``m`` of the simulator's
+    angle Gauss-Markov term (angle std ``sigma``, correlation time ``tau_s``, rate =
+    angle differenced / T): the m-sample mean rate is ``(th_(k+m) - th_k) / (m T)``, the
+    angle's autocovariance ``sigma^2 a^|j|`` with ``a = exp(-T / tau_s)``, so
+    ``avar(m) = sigma^2 (3 - 4 a^m + a^(2m)) / (m T)^2``; ``3 sigma^2 / tau^2`` (quantization
+    with Q = sigma) once ``m T >> tau_s``. An independent check of
+    ``allan_columns([("angle_gauss_markov", tau_s)])``."""
+    T = 1.0 / fs
+    m = np.asarray(m, float)
+    am = np.exp(-m * T / tau_s)
+    return sigma * sigma * (3.0 - 4.0 * am + am * am) / (m * T) ** 2
+
+
 def stop_mask(f, bands):
     """1 outside, 0 inside the stop bands [(lo, hi), ...] (Hz)."""
     m = np.ones_like(f)
