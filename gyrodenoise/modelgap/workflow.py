@@ -105,7 +105,7 @@ def _zeroed(changes):
         if pr is None:          # a removal: the term goes, nothing is written as 0
             continue
         fld = CARD_FIELD.get(nm, (None,))[0]
-        for k in ([fld] if fld else []) + (["sigma"] if nm == "gauss_markov" else []) + \
+        for k in ([fld] if fld else []) + (["sigma"] if nm in ("gauss_markov", "angle_gauss_markov") else []) + \
                 (["amplitude"] if nm == "sinusoid" else []):
             if k in pr and not float(pr[k]) > 0:
                 out.append(f"{nm}.{k}")
@@ -393,10 +393,11 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
         card = card_at_rate(text, fs, csrc)
         cands = propose(y, layout, ref, z, card, restarts)
         if np.any(np.abs(z["allan"]) > 3.0) or np.any(np.abs(z["psd"]) > 3.0):
-            sr = spectral_refit(sig_m, layout, ref, card, bands)
-            if sr is not None:      # the fallback: tried when no single effect (or pair) will do
-                sr.fallback = True
-                cands.append(sr)
+            for agm in (False, True):   # the fallback: tried when no single effect (or pair) will do
+                sr = spectral_refit(sig_m, layout, ref, card, bands, angle_gm=agm)
+                if sr is not None:
+                    sr.fallback = True
+                    cands.append(sr)
         det, off, wander = deterministic_offset(sig_m, ref, z)
         if det and any(c.name == "constant_bias" for c in cands):
             # deterministic signatures first: a mean offset far beyond the block-mean
@@ -471,7 +472,7 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
             if bp is not None and bp.score < MIN_IMPROVEMENT * best.score:
                 best = bp
         if fallback and (best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg)):
-            fb = fallback[0]
+            fb = min(fallback, key=lambda c: c.score)     # the joint re-fit, with or without angle GM terms
             if best is None or fb.score < best.score or fb.gap <= 0.25 * min(g, best.gap):
                 best = fb
             ok = ok + fallback
