@@ -369,7 +369,24 @@ def test_shipped_card_against_its_published_curve(card, sensor, unit):
         assert "inside the published bounds at every tau" in c.text
     outside = [float(t) for t in curve.tau_s[~ok]]
     assert set(outside) <= set(listed) | set(), (outside, listed)
-    assert len(listed) <= 3 + (len(curve.tau_s) // 2 if card == "ln200" else 0)
+    # all three cards: inside at every tau (the LN-200 since the angle Gauss-Markov term; it was
+    # outside at 9 of 22 taus before)
+    assert not listed and not outside, (listed, outside)
+
+
+def test_ln200_curve_needs_the_angle_gauss_markov_terms(monkeypatch):
+    """The LN-200 curve (22 taus, bounds of 0.07-0.2 % at 5-40 ms): fit_curve's exact model
+    is inside the 95 % bounds at every tau with angle Gauss-Markov terms (and one line), and
+    outside somewhere when the dictionary of those terms is emptied (the fit of the
+    previous cards: outside at 9 taus)."""
+    from gyrodenoise.modelgap import curve as cv
+    from gyrodenoise.modelgap import spectral as sp
+    curve = cv.read_allan_curve(shared_file(*CURVES), "LN200", "Gyro. X", "rad/s")
+    terms, model = cv.fit_curve(curve)
+    assert terms["angle_gauss_markov"] and cv.inside(curve, model).all()
+    monkeypatch.setattr(sp, "agm_grid", lambda layout: [])
+    terms0, model0 = cv.fit_curve(curve)
+    assert not terms0.get("angle_gauss_markov") and np.sum(~cv.inside(curve, model0)) >= 3
 
 
 @pytest.mark.parametrize("content,msg", [
