@@ -98,6 +98,46 @@ def test_wandering_line_is_stopped_and_a_pure_sinusoid_is_not():
     assert np.max(clean[near13]) > 10 * med
 
 
+def test_wandering_line_band_covers_its_weaker_skirt(monkeypatch):
+    """The line of the test above plus a weaker lobe wandering by +-0.02 Hz about 31.2 Hz
+    (1.5-2.4x the PSD's median: below the 3x of a run, above SKIRT_RATIO = 1.5): the stopped
+    band covers the lobe (to >= 31.22 Hz) and stays narrower than 0.7 Hz; with the skirt
+    rule switched off (SKIRT_RATIO huge) it stops short of the lobe. The RLG y axis has
+    such a skirt at 9.9-11.1 Hz (test below)."""
+    from scipy.signal import welch
+
+    from gyrodenoise.modelgap import spectral as sp
+    rng = np.random.default_rng(7)
+    fs, n = 100.0, 2 ** 17
+    t = np.arange(n) / fs
+    main = 2 * np.pi * np.cumsum(31.0 + 0.08 * np.sin(2 * np.pi * t / 90.0)) / fs
+    lobe = 2 * np.pi * np.cumsum(31.2 + 0.02 * np.sin(2 * np.pi * t / 70.0)) / fs
+    y = rng.standard_normal(n) + 0.6 * np.sin(main) + 0.06 * np.sin(lobe)
+    f, p = welch(y, fs=fs, nperseg=4096, noverlap=2048)
+    lines, _ = sp.wandering_lines(f[1:], p[1:])
+    assert len(lines) == 1 and lines[0][0] <= 30.95 and 31.22 <= lines[0][1] and lines[0][1] - lines[0][0] < 0.7, lines
+    monkeypatch.setattr(sp, "SKIRT_RATIO", 1e9)
+    lines0, _ = sp.wandering_lines(f[1:], p[1:])
+    assert len(lines0) == 1 and lines0[0][1] < 31.17, lines0      # the lobe peaks at 31.20 Hz
+
+
+def test_rlg_y_wandering_line_skirt_is_stopped():
+    """psins_lasergyro.imu y axis: the weak line wandering at 10.5-10.84 Hz leaves lobes
+    from ~10 to ~11 Hz (1.5-2.1x the running median; its skirt, which kept the axis far
+    from converging); the stopped band covers 10.0-11.0 Hz and is at most 1.5 Hz wide."""
+    from scipy.signal import welch
+
+    from gyrodenoise.modelgap.metric import welch_nperseg
+    from gyrodenoise.modelgap.spectral import wandering_lines
+    from gyrodenoise.psins import read_psins
+    log = read_psins(shared_file("static", "psins_lasergyro.imu"))
+    y = log.axis("gyro_y")
+    nper = welch_nperseg(len(y))
+    f, p = welch(y, fs=log.sample_rate_hz, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
+    lines, _ = wandering_lines(f[1:], p[1:])
+    assert any(lo <= 10.0 and hi >= 11.0 and hi - lo <= 1.5 for lo, hi, _ in lines), lines
+
+
 def test_base_motion_band_reaches_down_when_nothing_below_is_the_sensors():
     """White noise (the sensor) plus a base motion whose PSD rises like f from 0 to a
     peak at 3 Hz and ends at 5 Hz, 30-300x the white level below it: the bump found

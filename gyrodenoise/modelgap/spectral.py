@@ -39,6 +39,9 @@ MIN_LINE_BINS = 6     # a line wandering in frequency spans at least this many W
 LINE_RATIO = 3.0      # ... standing LINE_RATIO x above the PSD's running median
 LINE_BRIDGE_BINS = 8  # ... its runs joined across gaps of up to this many bins
 LINE_WINDOW_HZ = 2.0  # ... taken over this many Hz
+SKIRT_RATIO = 1.5     # ... and widened over its skirt: bins above SKIRT_RATIO x the running median,
+                      # within LINE_BRIDGE_BINS of the band (~4 standard errors of a Welch bin over
+                      # ~80 segments: a noise bin is there about once in 1e5)
 
 
 def psd_two_sided(name, f, fs, tau_s=None):
@@ -238,6 +241,9 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     whose frequency wanders (a ring-laser gyro's dither, aliased; a motor whose
     speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
     segments a noise bin 3x above the median is ~13 standard deviations off.
+    Each run is then widened over its skirt: while a bin within LINE_BRIDGE_BINS of
+    its edge stands above SKIRT_RATIO x the median (a line wandering over a band
+    leaves weaker lobes beside its strongest run: the RLG y axis at 10.0-11.0 Hz).
     Returns ([(lo_hz, hi_hz, peak_ratio)] widened by 2 bins on either side, the
     PSD with those bins replaced by the running median)."""
     from scipy.ndimage import median_filter
@@ -248,10 +254,22 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     out, clean = [], p.copy()
     if not len(idx):
         return out, clean
+    skirt = p > SKIRT_RATIO * floor
     for r in np.split(idx, np.flatnonzero(np.diff(idx) > LINE_BRIDGE_BINS + 1) + 1):
         if r[-1] - r[0] + 1 < MIN_LINE_BINS:
             continue
-        a, b = max(r[0] - 2, 0), min(r[-1] + 2, len(f) - 1)
+        lo, hi = int(r[0]), int(r[-1])
+        while True:     # the skirt
+            near = np.flatnonzero(skirt[max(lo - LINE_BRIDGE_BINS - 1, 0):lo])
+            if not len(near):
+                break
+            lo = max(lo - LINE_BRIDGE_BINS - 1, 0) + int(near[0])
+        while True:
+            near = np.flatnonzero(skirt[hi + 1:hi + LINE_BRIDGE_BINS + 2])
+            if not len(near):
+                break
+            hi = hi + 1 + int(near[-1])
+        a, b = max(lo - 2, 0), min(hi + 2, len(f) - 1)
         out.append((float(f[a]), float(f[b]), float(np.max(p[r] / floor[r]))))
         clean[a:b + 1] = floor[a:b + 1]
     return out, clean
