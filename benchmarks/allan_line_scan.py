@@ -7,7 +7,11 @@ each frequency of ``modelgap.spectral.line_grid``; printed: the best frequencies
 and the number of taus whose exact model is inside the bounds. Quoted in docs/GAP.md and in
 the header of models/kvh1750.toml (the frequency is not unique).
 
-Run: .venv/bin/python benchmarks/allan_line_scan.py ["KVH 1750 IMU" deg/s]
+With a third argument ``agm`` the dictionary holds the angle Gauss-Markov terms too
+(``spectral.agm_grid``, as ``gap --allan`` uses when the fit without them is outside).
+
+Run: .venv/bin/python benchmarks/allan_line_scan.py ["KVH 1750 IMU" deg/s [agm]]
+     .venv/bin/python benchmarks/allan_line_scan.py LN200 rad/s agm
 """
 
 from __future__ import annotations
@@ -20,15 +24,18 @@ import numpy as np
 CURVES = Path(__file__).resolve().parents[2] / "shared" / "data" / "allan_reference" / "avar_precomputed_curves.csv"
 
 
-def main(sensor="KVH 1750 IMU", unit="deg/s"):
+def main(sensor="KVH 1750 IMU", unit="deg/s", dictionary=""):
     from gyrodenoise.modelgap import spectral as sp
     from gyrodenoise.modelgap.curve import Z95, _CurveLayout, inside, read_allan_curve
     c = read_allan_curve(CURVES, sensor=sensor, channel="Gyro. X", unit=unit)
     m = np.maximum(np.round(c.tau_s * c.sample_rate_hz), 1)
     lay = _CurveLayout(m, c.sample_rate_hz, c.n_samples)
-    sd = 2.0 * c.adev_deg_s * (c.hi_deg_s - c.lo_deg_s) / 2.0 / Z95
+    half = np.where(np.isfinite(c.lo_deg_s), (c.hi_deg_s - c.lo_deg_s) / 2.0, c.hi_deg_s - c.adev_deg_s)
+    sd = 2.0 * c.adev_deg_s * half / Z95        # as curve.fit_curve (the upper bound alone where no lower)
     b = c.adev_deg_s ** 2 / sd
     specs = [(nm, None) for nm in sp.ALLAN_TERMS] + [("gauss_markov", t) for t in sp.gm_grid(lay)]
+    if dictionary == "agm":
+        specs += [("angle_gauss_markov", t) for t in sp.agm_grid(lay)]
     A = sp.allan_columns(specs, lay.m, lay.fs) / sd[:, None]
     x, chi0 = sp._nnls_huber(A, b, 0)
     print(f"{sensor}: {len(b)} taus; no line: chi2 {chi0:.1f}, inside at {int(inside(c, np.sqrt(A @ x * sd)).sum())}")
@@ -42,9 +49,13 @@ def main(sensor="KVH 1750 IMU", unit="deg/s"):
     rows.sort()
     for chi, f, k, a in rows[:10]:
         print(f"  line at {f:8.2f} Hz, {a:.3g} deg/h: chi2 {chi:.1f}, inside at {k}")
-    good = [f for chi, f, k, a in rows if k == len(b)]
+    good = sorted(f for chi, f, k, a in rows if k == len(b))
     print(f"  one line puts the exact model inside at every tau for {len(good)} of {len(grid)} frequencies"
           + (f", {min(good):.1f}-{max(good):.1f} Hz" if good else ""))
+    if good:        # the runs of adjacent grid frequencies that do
+        idx = np.searchsorted(grid, good)
+        runs = np.split(np.asarray(good), np.flatnonzero(np.diff(idx) > 1) + 1)
+        print("  in " + ", ".join(f"{r[0]:.1f}-{r[-1]:.1f} Hz" for r in runs))
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/gap_edge.py hidden [--meas 8]   # tests/test_gap.py hidden RRW, 3 and 4 deg/h sinusoid
     .venv/bin/python benchmarks/gap_edge.py adis  [--sets 5]    # test_real_adis16405_from_white_noise_card
-    .venv/bin/python benchmarks/gap_edge.py rlg   [--sets 4]    # test_rlg_x_converges_from_an_empty_card...
+    .venv/bin/python benchmarks/gap_edge.py rlg   [--sets 4] [--axis x|y|z]   # test_rlg_x_converges... (z: test_rlg_z...)
 
 hidden: for measurement seeds 1001.. the workflow's outcome (effects added, fitted
 parameters, gap_after / threshold), simulation seeds 1-5 as in the test.
@@ -67,18 +67,20 @@ def adis(n_sets, first=0):
               f"terms {final.terms}", flush=True)
 
 
-def rlg(n_sets, first=0):
+def rlg(n_sets, first=0, axis="x"):
     from conftest import shared_file
     from gyrodenoise.psins import read_psins
     from test_gap_real import EMPTY
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     for k in range(first, first + n_sets):
         seeds = list(range(10 * k + 1, 10 * k + 7))
-        res = gd.gap(log.axis("gyro_x"), log.sample_rate_hz, parse_card(EMPTY), seeds=seeds,
+        res = gd.gap(log.axis(f"gyro_{axis}"), log.sample_rate_hz, parse_card(EMPTY), seeds=seeds,
                      latitude_deg=log.latitude_deg)
-        comp = res.iterations[-1]["components"]
-        print(f"RLG x seeds {seeds}: within_scatter {res.within_scatter}; gap {res.gap_after:.2f} "
-              f"(threshold {res.threshold:.2f}); components {comp}", flush=True)
+        comp = {c: round(v, 2) for c, v in res.iterations[-1]["components"].items()}
+        card = parse_card(res.card_text)
+        agm = [(round(g["sigma"], 8), round(g["tau"], 5)) for g in card.term_list("angle_gauss_markov")]
+        print(f"RLG {axis} seeds {seeds}: within_scatter {res.within_scatter}; gap {res.gap_after:.2f} "
+              f"(threshold {res.threshold:.2f}); components {comp}; angle GM (sigma deg, tau s) {agm}", flush=True)
 
 
 def main():
@@ -87,13 +89,14 @@ def main():
     ap.add_argument("--meas", type=int, default=8)
     ap.add_argument("--sets", type=int, default=5)
     ap.add_argument("--first-set", type=int, default=0, help="sets k = first..first+sets-1 use seeds 10k+1..")
+    ap.add_argument("--axis", choices=["x", "y", "z"], default="x", help="rlg: the axis (gyro_x, gyro_y, gyro_z)")
     a = ap.parse_args()
     if a.what == "hidden":
         hidden(a.meas)
     elif a.what == "adis":
         adis(a.sets, a.first_set)
     else:
-        rlg(a.sets, a.first_set)
+        rlg(a.sets, a.first_set, a.axis)
 
 
 if __name__ == "__main__":

@@ -7,8 +7,12 @@ stop bands of the fit. Printed: gap, scatter threshold, within_scatter and the c
 and the record's Allan deviation at tau 0.01, 1 and 100 s divided by imu1's (with the
 estimate's own 1-sigma relative error: how far the noise LEVEL differs between runs).
 
-Run: .venv/bin/python benchmarks/gap_heldout.py [N_SAMPLES] [AXIS]   (default 1000000 gyro_x;
-about 2 minutes on an idle 2-core box)
+With ``--refit-white`` each record is also checked with the card's white-noise level
+re-fitted to it, every other term held (``heldout_gap(refit_white=True)``: an option, one
+parameter fitted to the held-out record; the factor is printed).
+
+Run: .venv/bin/python benchmarks/gap_heldout.py [N_SAMPLES] [AXIS] [--refit-white]   (default
+1000000 gyro_x; about 2 minutes on an idle 2-core box, twice that with --refit-white)
 """
 
 from __future__ import annotations
@@ -21,8 +25,10 @@ STATIC = Path(__file__).resolve().parents[2] / "shared" / "data" / "static"
 EMPTY = "[sensor]\nname = \"empty\"\nsample_rate_hz = 100.0\n"
 
 
-def main(n="1000000", axis="gyro_x"):
-    n = int(n)
+def main(*argv):
+    white = "--refit-white" in argv
+    argv = [a for a in argv if a != "--refit-white"]
+    n, axis = int(argv[0]) if argv else 1000000, argv[1] if len(argv) > 1 else "gyro_x"
     if not (STATIC / "adis16405_imu1.csv.gz").exists():
         print(f"skipped: {STATIC} not present")
         return 0
@@ -55,7 +61,13 @@ def main(n="1000000", axis="gyro_x"):
         ad, rel = level(y)
         lv = ", ".join(f"{r:.4f} +- {e:.4f}" for r, e in zip(ad / ad1, rel))
         print(f"imu{i}: gap {h.gap_after:.4g}, threshold {h.threshold:.3g}, within {h.within_scatter}, {comp} "
-              f"({time.perf_counter() - t:.1f} s); ADEV / imu1's at tau 0.01, 1, 100 s: {lv}")
+              f"({time.perf_counter() - t:.1f} s); ADEV / imu1's at tau 0.01, 1, 100 s: {lv}", flush=True)
+        if white:
+            h = heldout_gap(y, 100.0, res.card_text, res.stop_bands, seeds=4, outliers=True, source=f"imu{i}",
+                            refit_white=True)
+            comp = {k: round(v, 2) for k, v in h.iterations[-1]["components"].items()}
+            print(f"      white-noise level re-fitted (x{h.white_factor:.4f}): gap {h.gap_after:.4g}, threshold "
+                  f"{h.threshold:.3g}, within {h.within_scatter}, {comp}", flush=True)
     return 0
 
 

@@ -135,6 +135,14 @@ def _cmd_allan(args, card):
         text = text.rstrip("\n") + (f"\n# white noise: the Gauss-Markov terms with tau < 2 samples act as white "
                                     f"noise (the fit used their slight colour at the shortest taus); with N they "
                                     f"make an angle random walk of {n_eq:.4g} deg/sqrt(h)\n")
+    if terms.get("angle_gauss_markov"):     # white rate noise below their tau, white angle noise above
+        from .modelgap.spectral import card_allan_variance
+        from .simulator import parse_card
+        ad1 = math.sqrt(card_allan_variance(parse_card(text), [round(curve.sample_rate_hz)], curve.sample_rate_hz)[0])
+        text = text.rstrip("\n") + (f"\n# the angle Gauss-Markov terms act as white rate noise below their tau "
+                                    f"(N^2 = 2 sigma^2 / tau) and as white angle noise above; the whole card's "
+                                    f"ADEV at 1 s is {ad1 * 3600:.4g} deg/h, read as an angle random walk "
+                                    f"{ad1 * 60:.4g} deg/sqrt(h)\n")
     text = text.rstrip("\n") + (f"\n# noise terms fitted by gyrodenoise gap --allan to {Path(args.allan).name} "
                                 f"({curve.label}, ADEV in {curve.unit}, {curve.n_samples} samples at "
                                 f"{curve.sample_rate_hz:g} Hz); {verdict}\n")

@@ -23,6 +23,12 @@ constant_bias        deg/h           value (+ repeatability * N(0,1) drawn
 turn_on_transient    deg/h, s        amplitude exp(-t_since_restart / tau)
 gauss_markov         deg/h, s        first-order GM, stationary std sigma
 sinusoid             deg/h, Hz       amplitude sin(2 pi f t + phase_deg)
+angle_gauss_markov   deg, s          first-order GM ANGLE th_k = a th_(k-1) +
+                                     sigma sqrt(1 - a^2) v_k, a = exp(-T/tau),
+                                     differenced: rate_k += (th_k - th_(k-1))/T
+                                     (white angle noise with a correlation
+                                     time; tau -> 0 is quantization Q = sigma;
+                                     its normals from a generator of its own)
 ===================  ==============  =========================================
 
 Time t counts from the start of the record; restarts reset only the turn-on
@@ -65,8 +71,9 @@ TERM_FIELDS = {
     "gauss_markov": {"sigma": (True, 0.0, "deg/h"), "tau": (True, 1e-300, "s")},
     "sinusoid": {"amplitude": (True, None, "deg/h"), "frequency": (True, 0.0, "Hz"),
                  "phase_deg": (False, None, "deg")},
+    "angle_gauss_markov": {"sigma": (True, 0.0, "deg"), "tau": (True, 1e-300, "s")},
 }
-REPEATABLE = ("gauss_markov", "sinusoid")
+REPEATABLE = ("gauss_markov", "sinusoid", "angle_gauss_markov")
 ABSURD = 1.0e9   # any card value beyond this is refused as absurd
 
 

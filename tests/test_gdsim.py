@@ -19,6 +19,10 @@ C = pytest.importorskip("gyrodenoise.core._gdcore")
 #: a card with every term (shared with tests/test_fmu_simnative.py)
 EVERY_TERM = (__import__("pathlib").Path(__file__).resolve().parent / "data" / "every_term.toml").read_text()
 
+# the angle Gauss-Markov term (issue 20): two instances (one with sigma 0: not drawn) on top of every other term
+EVERY_TERM_AGM = EVERY_TERM + "".join(f"[[terms.angle_gauss_markov]]\nsigma = {s}\ntau = {t}\n"
+                                      for s, t in ((3.0e-5, 0.04), (0.0, 1.0), (1.0e-4, 2.5)))
+
 
 def c_buffers(card, seed):
     v = np.array(SK.card_vector(card))
@@ -37,7 +41,8 @@ def c_simulate(card, n, seed, truth=None, restarts=None):
     return out
 
 
-@pytest.mark.parametrize("text", [EVERY_TERM, "[sensor]\nsample_rate_hz = 200.0\n"], ids=["every term", "no term"])
+@pytest.mark.parametrize("text", [EVERY_TERM, EVERY_TERM_AGM, "[sensor]\nsample_rate_hz = 200.0\n"],
+                         ids=["every term", "every term + angle GM", "no term"])
 @pytest.mark.parametrize("seed", [0, 12345, 2 ** 53 - 1])
 def test_c_equals_the_python_specification_bit_for_bit(text, seed):
     card = parse_card(text)
@@ -157,7 +162,7 @@ def test_plain_c_on_each_platform_equals_the_specification(plat, tmp_path):
     import shutil
     import subprocess
     from gyrodenoise.fmu import native
-    card = parse_card(EVERY_TERM)
+    card = parse_card(EVERY_TERM_AGM)
     n, seed = 2000, 77
     if plat == "linux64":
         if shutil.which("gcc") is None:
@@ -218,3 +223,76 @@ def test_bad_seed_is_an_input_error(seed):
     from gyrodenoise.errors import InputError
     with pytest.raises(InputError, match="seed must be a whole number"):
         gd.simulate("paper_fog", 10, seed=seed)
+
+
+# ------------------------------------------------ the angle Gauss-Markov term (issue 20)
+# sha256 of gd.simulate(paper_fog, 3000, seed=7, restarts at 0, 1000, 2000).rate_deg_s.tobytes(), computed with
+# main's plain-Python twin (commit da1c420, before the angle Gauss-Markov term existed): an old card's seeds keep
+# their realisations bit for bit.
+PAPER_FOG_SEED7_SHA256 = "efcba9abb1b48658"
+
+
+def test_a_card_without_the_new_term_draws_the_numbers_it_drew_before():
+    import hashlib
+    rs = np.isin(np.arange(3000), [0, 1000, 2000])
+    y = gd.simulate("paper_fog", 3000, seed=7, restarts=rs).rate_deg_s
+    assert hashlib.sha256(y.tobytes()).hexdigest()[:16] == PAPER_FOG_SEED7_SHA256
+    # the older 92-number card vector (no angle Gauss-Markov block) is still taken, same buffers
+    card = parse_card(EVERY_TERM)
+    v = np.array(SK.card_vector(card))
+    p_new, _ = c_buffers(card, 3)
+    p_old = np.zeros(C.sim_n_params(v[:SK.AGM_AT]))
+    C.sim_params(v[:SK.AGM_AT], 3.0, p_old)
+    assert np.array_equal(p_new, p_old) and SK.params(list(v[:SK.AGM_AT]), 3) == list(p_new)
+
+
+def test_angle_gauss_markov_has_its_own_stream():
+    """Adding the term leaves every other term's realisation as it was: the card with it
+    minus the card without it is the term alone (same seed), to rounding."""
+    agm = "".join(f"[[terms.angle_gauss_markov]]\nsigma = {s}\ntau = {t}\n" for s, t in ((3.0e-5, 0.04), (1.0e-4, 2.5)))
+    n, seed = 5000, 11
+    both = c_simulate(parse_card(EVERY_TERM + agm), n, seed)
+    rest = c_simulate(parse_card(EVERY_TERM), n, seed)
+    alone = c_simulate(parse_card("[sensor]\nsample_rate_hz = 100.0\n" + agm), n, seed)
+    assert np.std(alone) > 0
+    np.testing.assert_allclose(both - rest, alone, rtol=0, atol=1e-12 * np.max(np.abs(both)))
+
+
+@pytest.mark.parametrize("tau_s", [0.005, 0.2, 5.0])
+def test_angle_gauss_markov_allan_variance_against_the_closed_form(tau_s):
+    """Simulated Allan variance of the term (4 seeds x 2e5 samples at 100 Hz) against the
+    closed form sigma^2 (3 - 4 a^m + a^2m) / (m T)^2 (spectral.angle_gm_avar), at octave
+    cluster sizes 1 .. 2^11 (>= 97 clusters): within 4 standard errors of the mean of the
+    4 estimates, the error of one estimate taken as sqrt(2 / (N/m - 1)) relative (IEEE 952
+    C.1, conservative for a process whose Allan variance is white-like beyond tau_s) - and
+    not a white angle (quantization Q = sigma) curve where the correlation time matters."""
+    from gyrodenoise.allanvar import adev
+    from gyrodenoise.modelgap.spectral import allan_columns, angle_gm_avar
+    fs, n, sigma = 100.0, 200_000, 2.0e-3
+    card = parse_card(f"[sensor]\nsample_rate_hz = {fs}\n[[terms.angle_gauss_markov]]\nsigma = {sigma}\n"
+                      f"tau = {tau_s}\n")
+    m = 2 ** np.arange(0, 12)
+    est = np.array([adev(c_simulate(card, n, seed), fs, m=m)[1] ** 2 for seed in (1, 2, 3, 4)])
+    want = angle_gm_avar(m, fs, tau_s, sigma)
+    rel_se = np.sqrt(2.0 / (n / m - 1.0)) / 2.0          # of the mean of 4
+    z = (est.mean(axis=0) / want - 1.0) / rel_se
+    assert np.all(np.abs(z) < 4.0), z
+    # the gap workflow's exact column (numerical integral of the PSD) is the same curve
+    np.testing.assert_allclose(allan_columns([("angle_gauss_markov", tau_s)], m, fs)[:, 0] * sigma ** 2, want,
+                               rtol=1e-4)
+    if tau_s >= 0.2:    # at m T ~ tau_s the correlation shows: far from the white-angle value 3 sigma^2/(mT)^2
+        k = int(np.argmin(np.abs(m / fs - tau_s)))
+        assert est.mean(axis=0)[k] < 0.8 * 3.0 * sigma ** 2 / (m[k] / fs) ** 2
+
+
+def test_angle_gauss_markov_bad_values_are_one_line():
+    from gyrodenoise.errors import InputError
+    base = "[sensor]\nsample_rate_hz = 100.0\n[[terms.angle_gauss_markov]]\n"
+    for body, msg in (("sigma = -1.0\ntau = 1.0\n", "angle_gauss_markov\\[0\\].sigma must be >= 0 deg"),
+                      ("sigma = 1.0\ntau = 0.0\n", "angle_gauss_markov\\[0\\].tau must be > 0 s"),
+                      ("sigma = 1.0\n", "missing the field tau"),
+                      ("sigma = 1.0\ntau = 'x'\n", "tau must be a number"),
+                      ("sigma = 1.0\ntau = 1.0\nQ = 2.0\n", "unknown field")):
+        with pytest.raises(InputError, match=msg) as ei:
+            parse_card(base + body, "c.toml")
+        assert "\n" not in str(ei.value) and "c.toml" in str(ei.value)

@@ -272,7 +272,8 @@ static PyObject *mod_layout_total(PyObject *self, PyObject *arg)
 }
 
 /* ---------------------------------------------------------- simulated gyro */
-#define SIM_CARD_LEN (12 + 5 * GD_SIM_MAX_REPEAT)
+#define SIM_CARD_LEN_V1 (12 + 5 * GD_SIM_MAX_REPEAT)             /* before the angle Gauss-Markov term */
+#define SIM_CARD_LEN (SIM_CARD_LEN_V1 + 1 + 2 * GD_SIM_MAX_REPEAT)  /* + n_agm, agm_sigma, agm_tau */
 
 /* a card vector (simkernels.card_vector) into c; -1 with an exception if malformed */
 static int get_card(PyObject *obj, gd_card_t *c)
@@ -283,10 +284,10 @@ static int get_card(PyObject *obj, gd_card_t *c)
     if (get_f64(obj, &b, 0, "card") < 0)
         return -1;
     v = (const double *)b.buf;
-    if (b.len / 8 != SIM_CARD_LEN || !(v[0] > 0) || !(v[10] >= 0 && v[10] <= M && v[10] == (int)v[10])
+    if ((b.len / 8 != SIM_CARD_LEN && b.len / 8 != SIM_CARD_LEN_V1) || !(v[0] > 0) || !(v[10] >= 0 && v[10] <= M && v[10] == (int)v[10])
         || !(v[11] >= 0 && v[11] <= M && v[11] == (int)v[11])) {
-        PyErr_Format(PyExc_ValueError, "card must be a card vector of %d float64 "
-                     "(simkernels.card_vector)", SIM_CARD_LEN);
+        PyErr_Format(PyExc_ValueError, "card must be a card vector of %d (or %d) float64 "
+                     "(simkernels.card_vector)", SIM_CARD_LEN, SIM_CARD_LEN_V1);
         PyBuffer_Release(&b);
         return -1;
     }
@@ -310,6 +311,19 @@ static int get_card(PyObject *obj, gd_card_t *c)
         c->sin_f[i] = v[12 + 3 * M + i];
         c->sin_phase_deg[i] = v[12 + 4 * M + i];
     }
+    if (b.len / 8 == SIM_CARD_LEN) {
+        const double *a = v + SIM_CARD_LEN_V1;
+        if (!(a[0] >= 0 && a[0] <= M && a[0] == (int)a[0])) {
+            PyErr_SetString(PyExc_ValueError, "card vector: n_agm must be a whole number in 0..16");
+            PyBuffer_Release(&b);
+            return -1;
+        }
+        c->n_agm = (int)a[0];
+        for (i = 0; i < M; i++) {
+            c->agm_sigma[i] = a[1 + i];
+            c->agm_tau[i] = a[1 + M + i];
+        }
+    }
     PyBuffer_Release(&b);
     return 0;
 }
@@ -318,14 +332,21 @@ static int get_card(PyObject *obj, gd_card_t *c)
 static int get_sim_ps(PyObject *po, PyObject *so, Py_buffer *pb, Py_buffer *sb)
 {
     const double *p;
-    double nb, ns;
+    double nb, ns, na;
     if (get_f64(po, pb, 0, "p") < 0)
         return -1;
     p = (const double *)pb->buf;
     nb = pb->len / 8 >= PS_BANK ? p[PS_NBANK] : -1;
     ns = pb->len / 8 >= PS_BANK ? p[PS_NSIN] : -1;
     if (!(nb >= 0 && nb <= 1000 && nb == (long)nb && ns >= 0 && ns <= GD_SIM_MAX_REPEAT && ns == (long)ns)
-        || pb->len / 8 < PS_BANK + 3 * (long)nb + 3 * (long)ns) {
+        || pb->len / 8 < PS_BANK + 3 * (long)nb + 3 * (long)ns + 1) {
+        PyErr_SetString(PyExc_ValueError, "p is not a simulator parameter buffer (sim_params)");
+        PyBuffer_Release(pb);
+        return -1;
+    }
+    na = p[PS_BANK + 3 * (long)nb + 3 * (long)ns];   /* angle Gauss-Markov count, its terms follow */
+    if (!(na >= 0 && na <= GD_SIM_MAX_REPEAT && na == (long)na)
+        || pb->len / 8 < PS_BANK + 3 * (long)nb + 3 * (long)ns + 1 + 3 * (long)na) {
         PyErr_SetString(PyExc_ValueError, "p is not a simulator parameter buffer (sim_params)");
         PyBuffer_Release(pb);
         return -1;

@@ -61,9 +61,10 @@ static double normal(uint64_t w[4]) {
     return u * sqrt(-2.0 * log(q) / q);
 }
 
-/* generator `stream` (0: noise, 1: turn-on bias) of `seed`, into 8 halves */
+/* generator `stream` (0: noise, 1: turn-on bias, 2: angle Gauss-Markov) of `seed`, into 8 halves */
 static void seed_stream(double seed, int stream, double *h) {
-    uint64_t x = (uint64_t)seed ^ (stream ? 0x5851F42D4C957F2DULL : 0ULL), w[4];
+    static const uint64_t key[3] = {0ULL, 0x5851F42D4C957F2DULL, 0xD1B54A32D192ED03ULL};
+    uint64_t x = (uint64_t)seed ^ key[stream], w[4];
     int i;
     for (i = 0; i < 4; i++) w[i] = splitmix64(&x);
     store(w, h);
@@ -87,9 +88,24 @@ int gd_sim_n_bank(const gd_card_t *c) {
     return n;
 }
 
-int gd_sim_n_params(const gd_card_t *c) { return PS_BANK + 3 * gd_sim_n_bank(c) + 3 * c->n_sin; }
+static int n_agm(const gd_card_t *c) {
+    int i, n = 0;
+    for (i = 0; i < c->n_agm; i++)
+        if (c->agm_sigma[i] > 0) n++;
+    return n;
+}
 
-int gd_sim_n_state(const double *p) { return SS_X + (int)p[PS_NBANK]; }
+int gd_sim_n_params(const gd_card_t *c) {
+    return PS_BANK + 3 * gd_sim_n_bank(c) + 3 * c->n_sin + 1 + 3 * n_agm(c);
+}
+
+/* index in p of the angle Gauss-Markov count (its terms follow) */
+static int agm_at(const double *p) { return PS_BANK + 3 * (int)p[PS_NBANK] + 3 * (int)p[PS_NSIN]; }
+
+int gd_sim_n_state(const double *p) {
+    int na = (int)p[agm_at(p)];
+    return SS_X + (int)p[PS_NBANK] + (na > 0 ? 8 + na : 0);
+}
 
 /* simulator._bank and SimStream.__init__ of the Python model, in the same operations */
 void gd_sim_params(const gd_card_t *c, double seed, double *p) {
@@ -142,6 +158,17 @@ void gd_sim_params(const gd_card_t *c, double seed, double *p) {
         b[3 * nb + 3 * i + 1] = c->sin_f[i];
         b[3 * nb + 3 * i + 2] = c->sin_phase_deg[i] * (PI / 180.0); /* math.radians */
     }
+    b += 3 * nb + 3 * c->n_sin;
+    b[0] = (double)n_agm(c);
+    for (i = 0, j = 0; i < c->n_agm; i++) { /* angle Gauss-Markov: b = exp(-T / tau), angles in deg */
+        if (c->agm_sigma[i] > 0) {
+            double aj = exp(-T / c->agm_tau[i]), s = c->agm_sigma[i];
+            b[1 + 3 * j] = aj;
+            b[1 + 3 * j + 1] = s * sqrt(1.0 - aj * aj);
+            b[1 + 3 * j + 2] = s;
+            j++;
+        }
+    }
 }
 
 /* -------------------------------------------------------------------- model */
@@ -168,6 +195,17 @@ void gd_sim_reset(const double *p, double *s) {
     s[SS_K] = 0.0;
     s[SS_KR] = 0.0;
     s[SS_BIAS] = draw_bias(p, s);
+    {   /* angle Gauss-Markov: its own generator, stationary start */
+        const double *ag = p + agm_at(p);
+        int na = (int)ag[0];
+        double *sa = s + SS_X + nb;
+        if (na > 0) {
+            seed_stream(seed, 2, sa);
+            load(sa, w);
+            for (j = 0; j < na; j++) sa[8 + j] = ag[1 + 3 * j + 2] * normal(w);
+            store(w, sa);
+        }
+    }
 }
 
 double gd_sim_step(const double *p, double *s, double true_rate_deg_s, int restart) {
@@ -197,6 +235,22 @@ double gd_sim_step(const double *p, double *s, double true_rate_deg_s, int resta
         noise = noise + sum;
     }
     store(w, s + SS_RNG);
+    {   /* angle Gauss-Markov, differenced / T */
+        const double *ag = bank + 3 * nb + 3 * ns;
+        int na = (int)ag[0];
+        double *sa = s + SS_X + nb;
+        if (na > 0) {
+            double sum = 0.0;
+            load(sa, w);
+            for (j = 0; j < na; j++) {
+                double th = ag[1 + 3 * j] * sa[8 + j] + ag[1 + 3 * j + 1] * normal(w);
+                sum = sum + (th - sa[8 + j]) / T;
+                sa[8 + j] = th;
+            }
+            store(w, sa);
+            noise = noise + sum;
+        }
+    }
     t = s[SS_K] * T;
     tr = s[SS_KR] * T;
     det = s[SS_BIAS] + p[PS_RAMP] * t;

@@ -10,12 +10,16 @@
  * Conventions of gyrodenoise/simulator.py (IEEE Std 952-1997, Annex C), per sample
  * k with T = 1 / sample_rate_hz, t = k T, t_r = T (samples since the last restart):
  *   y_k = true_k + noise_k + det_k
- *   noise_k = N_arw w1 + (Q w0_k - Q w0_{k-1}) / T + sum_j x_j,k
+ *   noise_k = N_arw w1 + (Q w0_k - Q w0_{k-1}) / T + sum_j x_j,k + sum_i (th_i,k - th_i,k-1) / T
  *   x_j,k = a_j x_j,k-1 + g_j w_(2+j)      (flicker bank, Gauss-Markov, rate random walk)
+ *   th_i,k = b_i th_i,k-1 + sigma_i sqrt(1 - b_i^2) v_i,k, b_i = exp(-T / tau_i)
+ *                                          (angle Gauss-Markov: a correlated ANGLE noise, differenced)
  *   det_k = bias + R t + A exp(-t_r / tau) + sum_i amp_i sin(2 pi f_i t + phase_i)
- * with w ~ N(0, 1) drawn in this order each sample from one generator, and the
+ * with w ~ N(0, 1) drawn in this order each sample from one generator, the
  * turn-on bias repeatability drawn from a second one (at the start and at each
- * restart).
+ * restart), and the angle Gauss-Markov normals v from a third (so a card
+ * without that term draws exactly the numbers it drew before the term existed,
+ * and adding the term leaves the other terms' realisations unchanged).
  *
  * Generator: xoshiro256** (Blackman and Vigna 2018), seeded by splitmix64 from
  * (seed, stream); normal deviates by Marsaglia's polar method (one per pair of
@@ -51,6 +55,8 @@ typedef struct {
     double gm_sigma[GD_SIM_MAX_REPEAT], gm_tau[GD_SIM_MAX_REPEAT];          /* deg/h, s */
     int n_sin;
     double sin_amp[GD_SIM_MAX_REPEAT], sin_f[GD_SIM_MAX_REPEAT], sin_phase_deg[GD_SIM_MAX_REPEAT];
+    int n_agm;                       /* angle Gauss-Markov terms (added last: a zeroed struct has none) */
+    double agm_sigma[GD_SIM_MAX_REPEAT], agm_tau[GD_SIM_MAX_REPEAT];        /* deg, s */
 } gd_card_t;
 
 /* parameters p[] */
@@ -66,7 +72,8 @@ typedef struct {
 #define PS_RAMP 9        /* deg/s^2 */
 #define PS_SEED_HI 10    /* seed, two 32-bit halves */
 #define PS_SEED_LO 11
-#define PS_BANK 12       /* n_bank x (a, g, stationary std), then n_sin x (amp deg/s, f Hz, phase rad) */
+#define PS_BANK 12       /* n_bank x (a, g, stationary std), then n_sin x (amp deg/s, f Hz, phase rad),
+                            then n_agm, then n_agm x (b, sigma sqrt(1 - b^2), sigma) in deg */
 
 /* state s[] */
 #define SS_RNG 0         /* noise generator: 4 words x 2 halves */
@@ -75,7 +82,8 @@ typedef struct {
 #define SS_K 17          /* samples since the start */
 #define SS_KR 18         /* samples since the last restart */
 #define SS_BIAS 19       /* bias in force, deg/s */
-#define SS_X 20          /* bank states, deg/s */
+#define SS_X 20          /* bank states, deg/s; then, only when n_agm > 0, the angle Gauss-Markov
+                            generator (8 halves) and the n_agm angles, deg */
 
 /* the flicker bank: poles from 1e-5 Hz to Nyquist, 3 per decade */
 #define GD_SIM_FLICKER_F_LO_HZ 1.0e-5

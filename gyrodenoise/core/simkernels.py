@@ -9,7 +9,8 @@ this where the extension is not built.
 The card vector (:func:`card_vector`) carries a model card's numbers in the
 card's units into both: ``[sample_rate_hz, Q, N, B, K, R, bias, bias_rep, tr_amp,
 tr_tau, n_gm, n_sin, gm_sigma x16, gm_tau x16, sin_amp x16, sin_f x16,
-sin_phase_deg x16]``.
+sin_phase_deg x16, n_agm, agm_sigma x16, agm_tau x16]`` (the angle Gauss-Markov
+block last; the extension also takes the older 92-number vector without it).
 """
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ from __future__ import annotations
 import math
 
 MAX_REPEAT = 16
-CARD_LEN = 12 + 5 * MAX_REPEAT
+CARD_LEN = 12 + 5 * MAX_REPEAT + 1 + 2 * MAX_REPEAT
+AGM_AT = 12 + 5 * MAX_REPEAT          # card vector: n_agm, agm_sigma x16 (deg), agm_tau x16 (s)
+STREAM_KEY = (0, 0x5851F42D4C957F2D, 0xD1B54A32D192ED03)   # noise, turn-on bias, angle Gauss-Markov
 FLICKER_F_LO_HZ = 1.0e-5
 FLICKER_POLES_PER_DECADE = 3
 
@@ -37,8 +40,10 @@ def card_vector(card):
         return float(t[term][field]) if term in t else default
 
     gms, sins = card.term_list("gauss_markov"), card.term_list("sinusoid")
-    if len(gms) > MAX_REPEAT or len(sins) > MAX_REPEAT:
-        raise ValueError(f"at most {MAX_REPEAT} gauss_markov and {MAX_REPEAT} sinusoid terms")
+    agms = card.term_list("angle_gauss_markov")
+    if len(gms) > MAX_REPEAT or len(sins) > MAX_REPEAT or len(agms) > MAX_REPEAT:
+        raise ValueError(f"at most {MAX_REPEAT} gauss_markov, {MAX_REPEAT} sinusoid and {MAX_REPEAT} "
+                         f"angle_gauss_markov terms")
     v = [float(card.sample_rate_hz), val("quantization", "Q"), val("angle_random_walk", "N"),
          val("bias_instability", "B"), val("rate_random_walk", "K"), val("rate_ramp", "R"),
          val("constant_bias", "value"), float(t.get("constant_bias", {}).get("repeatability", 0.0)),
@@ -47,6 +52,9 @@ def card_vector(card):
     cols = ([g["sigma"] for g in gms], [g["tau"] for g in gms], [s["amplitude"] for s in sins],
             [s["frequency"] for s in sins], [s.get("phase_deg", 0.0) for s in sins])
     for col in cols:
+        v += [float(x) for x in col] + [0.0] * (MAX_REPEAT - len(col))
+    v.append(float(len(agms)))
+    for col in ([g["sigma"] for g in agms], [g["tau"] for g in agms]):
         v += [float(x) for x in col] + [0.0] * (MAX_REPEAT - len(col))
     return v
 
@@ -102,7 +110,7 @@ def _normal(w):
 
 
 def _seed_stream(seed, stream, s, at):
-    x = int(seed) ^ (0x5851F42D4C957F2D if stream else 0)
+    x = int(seed) ^ STREAM_KEY[stream]
     w = []
     for _ in range(4):
         x, out = _splitmix64(x)
@@ -123,12 +131,24 @@ def n_bank(v):
     return _n_flicker(v) + sum(1 for i in range(n_gm) if v[12 + i] > 0) + (1 if v[4] > 0 else 0)
 
 
+def _n_agm(v):
+    if len(v) <= AGM_AT:        # a card vector from before the angle Gauss-Markov term
+        return 0
+    return sum(1 for i in range(int(v[AGM_AT])) if v[AGM_AT + 1 + i] > 0)
+
+
 def n_params(v):
-    return PS_BANK + 3 * n_bank(v) + 3 * int(v[11])
+    return PS_BANK + 3 * n_bank(v) + 3 * int(v[11]) + 1 + 3 * _n_agm(v)
+
+
+def _agm_at(p):
+    """Index in p of the angle Gauss-Markov count (its terms follow)."""
+    return PS_BANK + 3 * int(p[PS_NBANK]) + 3 * int(p[PS_NSIN])
 
 
 def n_state(p):
-    return SS_X + int(p[PS_NBANK])
+    na = int(p[_agm_at(p)])
+    return SS_X + int(p[PS_NBANK]) + (8 + na if na > 0 else 0)
 
 
 def params(v, seed):
@@ -164,6 +184,12 @@ def params(v, seed):
     for i in range(n_sin):
         p += [v[base + i] * deg_h, v[base + MAX_REPEAT + i],
               v[base + 2 * MAX_REPEAT + i] * (math.pi / 180.0)]
+    p.append(float(_n_agm(v)))
+    for i in range(int(v[AGM_AT]) if len(v) > AGM_AT else 0):    # angle Gauss-Markov, angles in deg
+        sigma, tau = v[AGM_AT + 1 + i], v[AGM_AT + 1 + MAX_REPEAT + i]
+        if sigma > 0:
+            aj = math.exp(-T / tau)
+            p += [aj, sigma * math.sqrt(1.0 - aj * aj), sigma]
     return p
 
 
@@ -192,6 +218,14 @@ def reset(p, s=None):
     s[SS_K] = 0.0
     s[SS_KR] = 0.0
     s[SS_BIAS] = _draw_bias(p, s)
+    ag, sa = _agm_at(p), SS_X + int(p[PS_NBANK])
+    na = int(p[ag])
+    if na > 0:      # angle Gauss-Markov: its own generator, stationary start
+        _seed_stream(seed, 2, s, sa)
+        w = _load(s, sa)
+        for j in range(na):
+            s[sa + 8 + j] = p[ag + 1 + 3 * j + 2] * _normal(w)
+        _store(w, s, sa)
     return s
 
 
@@ -218,6 +252,18 @@ def step(p, s, true_rate_deg_s=0.0, restart=False):
             total = total + s[SS_X + j]
         noise = noise + total
     _store(w, s, SS_RNG)
+    ag, sa = PS_BANK + 3 * nb + 3 * ns, SS_X + nb
+    na = int(p[ag])
+    if na > 0:      # angle Gauss-Markov, differenced / T
+        total = 0.0
+        w = _load(s, sa)
+        for j in range(na):
+            b = ag + 1 + 3 * j
+            th = p[b] * s[sa + 8 + j] + p[b + 1] * _normal(w)
+            total = total + (th - s[sa + 8 + j]) / T
+            s[sa + 8 + j] = th
+        _store(w, s, sa)
+        noise = noise + total
     t = s[SS_K] * T
     tr = s[SS_KR] * T
     det = s[SS_BIAS] + p[PS_RAMP] * t

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .settings import ALLAN_SHAPES, BI_FACTOR, CARD_FIELD, N_PARAMS
+from .spectral import AGM_TAU_MAX_S, angle_gm_avar
 
 
 # ------------------------------------------------------------------ candidates
@@ -186,38 +187,58 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
             if ch:
                 cands.append(Candidate(ch[0][0], ch[0][1], True, "re-fit of the Allan-shaped terms",
                                        extra=ch[1:]))
-        # --- Gauss-Markov bump: grid over the correlation time, then refined
-        lo_T = math.log(3.0 / fs)           # T >= 3 samples
+        keep = z["allan"] >= -limit
 
-        def gm_chi2(logT):
-            return joint(ex_cols + [gm_avar(tau, 1.0, math.exp(logT))])[2]
-        grid = np.linspace(lo_T, math.log(tau[-1]), 41)
-        g0 = grid[int(np.argmin([gm_chi2(g) for g in grid]))]
-        opt = minimize_scalar(gm_chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
-        T = math.exp(float(opt.x))
-        coef, zc, _ = joint(ex_cols + [gm_avar(tau, 1.0, T)])
-        if coef[-1] > 0 and zc[-1] > limit:
-            ch = refits(ex_names, coef[:-1])
-            cands.append(Candidate("gauss_markov", {"sigma": math.sqrt(coef[-1]) * 3600.0, "tau": T},
-                                   False, f"Allan bump, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
-                                   extra=ch))
-        if ex_names:    # the bump on top of the card's terms held, its own correlation time
-            keep = z["allan"] >= -limit
+        def held_res(col):
+            hc, _ = held(col)
+            res = ((avar_m - avar_s - max(hc, 0.0) * col) * sw)[keep]
+            return float(np.dot(res, res))
 
-            def held_chi2(logT):
-                col = gm_avar(tau, 1.0, math.exp(logT))
-                hc, _ = held(col)
-                res = ((avar_m - avar_s - max(hc, 0.0) * col) * sw)[keep]
-                return float(np.dot(res, res))
-            g0 = grid[int(np.argmin([held_chi2(g) for g in grid]))]
-            opt = minimize_scalar(held_chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
-            Th = math.exp(float(opt.x))
-            hc, hz = held(gm_avar(tau, 1.0, Th))
-            same = (coef[-1] > 0 and zc[-1] > limit and not refits(ex_names, coef[:-1])
-                    and abs(math.log(Th / T)) < 0.05)
-            if hc > 0 and hz >= limit and not same:
-                cands.append(Candidate("gauss_markov", {"sigma": math.sqrt(hc) * 3600.0, "tau": Th}, False,
-                                       f"Allan bump at {Th:.3g} s, card's terms held (z={hz:.1f})"))
+        def correlated(kind, col_of, lo_T, hi_T, to_card, what, rivals=()):
+            """A term with a correlation time (sigma, tau): tau by a 41-point grid (log),
+            then a bounded refinement; jointly with the card's Allan-shaped terms, and
+            (when the card has some) with them held. With ``rivals`` (Allan shapes of
+            the same number of parameters that the term tends to at its limits), it is
+            proposed only when it fits the Allan variance better than they do by
+            ``limit^2`` in chi^2 (its correlation time is resolved)."""
+            def chi2(logT):
+                return joint(ex_cols + [col_of(math.exp(logT))])[2]
+            rival = joint(ex_cols + list(rivals))[2] if rivals else math.inf
+            rival_held = min((held_res(c) for c in rivals), default=math.inf)
+            grid = np.linspace(lo_T, hi_T, 41)
+            g0 = grid[int(np.argmin([chi2(g) for g in grid]))]
+            opt = minimize_scalar(chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
+            T = math.exp(float(opt.x))
+            coef, zc, c2 = joint(ex_cols + [col_of(T)])
+            if rivals and not c2 < rival - limit ** 2:
+                zc = np.zeros_like(zc)      # not resolved: no better than its limits
+            if coef[-1] > 0 and zc[-1] > limit:
+                ch = refits(ex_names, coef[:-1])
+                cands.append(Candidate(kind, {"sigma": math.sqrt(coef[-1]) * to_card, "tau": T},
+                                       False, f"{what}, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
+                                       extra=ch))
+            if ex_names:    # the term on top of the card's terms held, its own correlation time
+                def held_chi2(logT):
+                    return held_res(col_of(math.exp(logT)))
+                g0 = grid[int(np.argmin([held_chi2(g) for g in grid]))]
+                opt = minimize_scalar(held_chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
+                Th = math.exp(float(opt.x))
+                hc, hz = held(col_of(Th))
+                same = (coef[-1] > 0 and zc[-1] > limit and not refits(ex_names, coef[:-1])
+                        and abs(math.log(Th / T)) < 0.05)
+                resolved = not rivals or held_chi2(math.log(Th)) < rival_held - limit ** 2
+                if hc > 0 and hz >= limit and not same and resolved:
+                    cands.append(Candidate(kind, {"sigma": math.sqrt(hc) * to_card, "tau": Th}, False,
+                                           f"{what} at {Th:.3g} s, card's terms held (z={hz:.1f})"))
+        # --- Gauss-Markov bump (T >= 3 samples)
+        correlated("gauss_markov", lambda T: gm_avar(tau, 1.0, T), math.log(3.0 / fs), math.log(tau[-1]),
+                   3600.0, "Allan bump")
+        # --- angle Gauss-Markov: white angle noise with a correlation time (an Allan slope
+        # between -1/2 (white rate, tau >> T) and -1 (white angle)); exact for the sampled term
+        correlated("angle_gauss_markov", lambda T: angle_gm_avar(layout.m, fs, T), math.log(0.3 / fs),
+                   math.log(min(AGM_TAU_MAX_S, tau[-1])), 1.0,
+                   "Allan slope between white rate and white angle noise",
+                   rivals=(SHAPE["angle_random_walk"](tau), SHAPE["quantization"](tau)))
     r = np.asarray(y, float) - _deterministic_s(card, n, fs, restarts)
     t = np.arange(n) / fs
     # --- constant bias
@@ -287,9 +308,10 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
     return cands
 
 
-def spectral_refit(sig_m, layout, ref, card, bands=(), why=""):
+def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
     """One candidate that re-fits ALL the card's noise terms at once (up, down or to
-    zero = removed): Q, N, B, K and the Gauss-Markov terms, by
+    zero = removed): Q, N, B, K and the Gauss-Markov terms (with ``angle_gm``, also
+    a dictionary of angle Gauss-Markov terms), by
     :func:`.spectral.fit_terms` on the measured Allan variance and Welch-band PSD
     minus what the card's other terms (sinusoids, ramp, transient, bias) add in
     the simulations. None when nothing would change."""
@@ -307,7 +329,9 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why=""):
     rest_a = np.maximum(ref.mean["avar"] - own_a, 0.0)
     rest_p = np.maximum(psd_s - own_p, 0.0)
     terms, _, _ = fit_terms(layout, bands, sig_m["avar"] - rest_a, 2.0 * sig_m["avar"] * ref.sigma["allan"],
-                            psd_m - rest_p, psd_m * ref.sigma["psd"])
+                            psd_m - rest_p, psd_m * ref.sigma["psd"], angle_gm=angle_gm)
+    if angle_gm and not terms.get("angle_gauss_markov"):
+        return None         # the same as the plain re-fit
     changes = []
     for nm in ALLAN_TERMS:
         fld, to_card = CARD_FIELD[nm]
@@ -319,15 +343,17 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why=""):
             changes.append((nm, None, True))
         elif old is not None and abs(new - old) > 0.02 * old:
             changes.append((nm, {fld: new}, True))
-    old_gm = sorted((g["sigma"], g["tau"]) for g in card.term_list("gauss_markov"))
-    new_gm = sorted((s * 3600.0, t) for s, t in terms["gauss_markov"])
-    if len(old_gm) != len(new_gm) or any(abs(a[0] - b[0]) > 0.02 * a[0] or abs(a[1] - b[1]) > 0.02 * a[1]
-                                         for a, b in zip(old_gm, new_gm)):
-        if old_gm:
-            changes.append(("gauss_markov", None, True))
-        changes += [("gauss_markov", {"sigma": s, "tau": t}, False) for s, t in new_gm]
+    for kind, to_card in (("gauss_markov", 3600.0), ("angle_gauss_markov", 1.0)):
+        old_gm = sorted((g["sigma"], g["tau"]) for g in card.term_list(kind))
+        new_gm = sorted((s * to_card, t) for s, t in terms.get(kind, ()))
+        if len(old_gm) != len(new_gm) or any(abs(a[0] - b[0]) > 0.02 * a[0] or abs(a[1] - b[1]) > 0.02 * a[1]
+                                             for a, b in zip(old_gm, new_gm)):
+            if old_gm:
+                changes.append((kind, None, True))
+            changes += [(kind, {"sigma": s, "tau": t}, False) for s, t in new_gm]
     if not changes:
         return None
     (nm, pr, rf), rest = changes[0], changes[1:]
-    return Candidate(nm, pr, rf, why or "joint re-fit of every noise term (Q, N, B, K, Gauss-Markov) to the "
+    return Candidate(nm, pr, rf, why or "joint re-fit of every noise term (Q, N, B, K, Gauss-Markov"
+                     + (", angle Gauss-Markov" if angle_gm else "") + ") to the "
                      "Allan variance and the PSD; terms may go up, down or to zero (removed)", extra=rest)

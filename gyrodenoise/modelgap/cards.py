@@ -170,7 +170,7 @@ def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap",
     line in ``[terms]`` (replacing its old line when ``refit``), or, when the
     card writes it as a ``[terms.name]`` sub-table, that sub-table's fields are
     rewritten in place (fields the new fit does not set are commented out). A
-    repeatable one (gauss_markov, sinusoid) becomes a new ``[[terms.name]]``
+    repeatable one (gauss_markov, sinusoid, angle_gauss_markov) becomes a new ``[[terms.name]]``
     table at the end. The edited text is checked by parsing it back: the term
     must then hold exactly ``params``; a layout this function cannot edit
     (e.g. a term written as dotted keys ``name.N = ...`` or a repeatable term
@@ -181,7 +181,7 @@ def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap",
     if not _holds(new, name, params, _n_instances(text, name)):
         raise InputError(f"cannot rewrite terms.{name} in the way this card writes it (supported: an "
                          f"inline table `{name} = {{ ... }}` in [terms], a [terms.{name}] table, or "
-                         f"[[terms.{name}]] tables for gauss_markov/sinusoid); rewrite the card in one "
+                         f"[[terms.{name}]] tables for gauss_markov/sinusoid/angle_gauss_markov); rewrite the card in one "
                          f"of those forms", source)
     return new
 
@@ -190,7 +190,8 @@ def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap",
 _TRIAL = {"quantization": {"Q": 1e-4}, "angle_random_walk": {"N": 0.1}, "bias_instability": {"B": 0.1},
           "rate_random_walk": {"K": 0.1}, "rate_ramp": {"R": 1.0}, "constant_bias": {"value": 1.0},
           "turn_on_transient": {"amplitude": 1.0, "tau": 10.0}, "gauss_markov": {"sigma": 1.0, "tau": 1.0},
-          "sinusoid": {"amplitude": 1.0, "frequency": 1e-3, "phase_deg": 0.0}}
+          "sinusoid": {"amplitude": 1.0, "frequency": 1e-3, "phase_deg": 0.0},
+          "angle_gauss_markov": {"sigma": 1e-4, "tau": 0.1}}
 
 
 def check_editable(card):

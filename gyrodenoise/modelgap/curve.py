@@ -163,7 +163,11 @@ def fit_curve(curve):
     internal filter, which no term represents) do not pull every term off the rest
     of the curve. When the fit is not inside the bounds at every tau, up to
     MAX_LINES sinusoids are tried (:func:`.spectral.fit_terms`, ``max_lines``) and kept
-    only if they bring it inside everywhere (the KVH 1750 curve: one line).
+    only if they bring it inside everywhere (the KVH 1750 curve: one line). When it is
+    still outside somewhere, the fit is made again with a dictionary of angle
+    Gauss-Markov terms added (white angle noise with a correlation time,
+    :func:`.spectral.agm_grid`) and kept when it is inside at more taus (the LN-200
+    curve, whose ADEV falls slightly faster than white noise from 0.16 to 2.6 s).
     Returns (terms, model ADEV at the curve's tau in deg/s)."""
     from .spectral import fit_terms
     m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1)
@@ -171,11 +175,20 @@ def fit_curve(curve):
                     curve.hi_deg_s - curve.adev_deg_s)
     sd_ad = np.where(np.isfinite(half) & (half > 0), half / Z95, 0.05 * curve.adev_deg_s)
     avar = curve.adev_deg_s ** 2
-    terms, model_avar, _ = fit_terms(_CurveLayout(m, curve.sample_rate_hz, curve.n_samples), (), avar,
-                                     2.0 * curve.adev_deg_s * sd_ad, None, None, robust=FIT_ROBUST,
-                                     max_lines=MAX_LINES,
-                                     inside_fn=lambda av: bool(np.all(inside(curve, np.sqrt(np.maximum(av, 0.0))))))
-    return terms, np.sqrt(model_avar)
+
+    def fit(angle_gm):
+        t, mav, _ = fit_terms(_CurveLayout(m, curve.sample_rate_hz, curve.n_samples), (), avar,
+                              2.0 * curve.adev_deg_s * sd_ad, None, None, robust=FIT_ROBUST, max_lines=MAX_LINES,
+                              inside_fn=lambda av: bool(np.all(inside(curve, np.sqrt(np.maximum(av, 0.0))))),
+                              angle_gm=angle_gm)
+        ad = np.sqrt(np.maximum(mav, 0.0))
+        return t, ad, int(np.sum(~inside(curve, ad)))
+    terms, model, n_out = fit(False)
+    if n_out:
+        terms_a, model_a, n_out_a = fit(True)
+        if n_out_a < n_out:
+            terms, model = terms_a, model_a
+    return terms, model
 
 
 def card_from_terms(text, terms, note, source="<card>"):
@@ -189,10 +202,11 @@ def card_from_terms(text, terms, note, source="<card>"):
             text = edit_card(text, nm, {fld: math.sqrt(terms[nm]) * to_card}, nm in card.terms, note, source)
         elif nm in card.terms:
             text = edit_card(text, nm, None, True, note, source)
-    if card.term_list("gauss_markov"):
-        text = edit_card(text, "gauss_markov", None, True, note, source)
-    for s, t in terms["gauss_markov"]:
-        text = edit_card(text, "gauss_markov", {"sigma": s * 3600.0, "tau": float(t)}, False, note, source)
+    for kind, to_card in (("gauss_markov", 3600.0), ("angle_gauss_markov", 1.0)):
+        if card.term_list(kind):
+            text = edit_card(text, kind, None, True, note, source)
+        for s, t in terms.get(kind, ()):
+            text = edit_card(text, kind, {"sigma": s * to_card, "tau": float(t)}, False, note, source)
     for a, f in terms.get("sinusoid", ()):
         text = edit_card(text, "sinusoid", {"amplitude": a * 3600.0, "frequency": float(f)}, False, note, source)
     return text

@@ -57,7 +57,7 @@ def name_effects(y, fs, card, bumps=(), latitude_deg=None):
                        f"sensor's internal low-pass filter; {lo:.3g}-{hi:.3g} Hz {alike}")
         elif not peak > 0:
             out.append(f"stop band {lo:.3g}-{hi:.3g} Hz (given): {alike}")
-        elif hi < 1.1 * lo:
+        elif hi < 1.15 * lo:     # (a wandering line with its skirt: RLG y 9.91-11.1 Hz)
             out.append(f"line wandering in frequency {lo:.4g}-{hi:.4g} Hz ({peak:.3g} x the PSD's running median; "
                        f"too wide for one sinusoid): a dither / aliased line or a machine whose speed drifts, "
                        f"not the sensor's noise; {alike}")

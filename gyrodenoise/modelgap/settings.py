@@ -20,7 +20,7 @@ COMPONENT_FLOOR = 3.0         # a component above max(3, 1.5 x its leave-one-out
 # parameters per candidate (for the penalty)
 N_PARAMS = {"quantization": 1, "angle_random_walk": 1, "bias_instability": 1, "rate_random_walk": 1,
             "rate_ramp": 1, "constant_bias": 1, "turn_on_transient": 2, "gauss_markov": 2,
-            "sinusoid": 3}
+            "sinusoid": 3, "angle_gauss_markov": 2}
 PENALTY_PER_PARAM = 0.05      # score = gap * (1 + PENALTY_PER_PARAM * n_params)
 MIN_IMPROVEMENT = 0.8         # accept a candidate only when it brings the gap below 0.8x
 Z2_CAP = 25.0                 # selection: each point's z^2 counts at most 25 (|z| = 5)

@@ -11,7 +11,9 @@ Two-sided PSDs of the discrete processes the simulator draws (sample period ``T`
 * first-order Gauss-Markov (``a = exp(-T / tau)``, stationary std ``sigma``):
   ``S = sigma^2 (1 - a^2) T / (1 - 2 a cos(2 pi f T) + a^2)``;
 * bias instability: the simulator's bank of Gauss-Markov poles (:func:`gyrodenoise.simulator._bank`
-  with ``B = 1``), summed.
+  with ``B = 1``), summed;
+* angle Gauss-Markov (a first-order GM ANGLE of std ``sigma`` deg, differenced / ``T``): the
+  Gauss-Markov PSD above with ``sigma`` in deg, times ``4 sin^2(pi f T) / T^2``.
 
 The overlapping Allan variance at cluster size ``m`` of a process with PSD ``S`` is
 (difference of two consecutive ``m``-sample means, halved)::
@@ -37,6 +39,9 @@ MIN_LINE_BINS = 6     # a line wandering in frequency spans at least this many W
 LINE_RATIO = 3.0      # ... standing LINE_RATIO x above the PSD's running median
 LINE_BRIDGE_BINS = 8  # ... its runs joined across gaps of up to this many bins
 LINE_WINDOW_HZ = 2.0  # ... taken over this many Hz
+SKIRT_RATIO = 1.5     # ... and widened over its skirt: bins above SKIRT_RATIO x the running median,
+                      # within LINE_BRIDGE_BINS of the band (~4 standard errors of a Welch bin over
+                      # ~80 segments: a noise bin is there about once in 1e5)
 
 
 def psd_two_sided(name, f, fs, tau_s=None):
@@ -66,6 +71,20 @@ def psd_two_sided(name, f, fs, tau_s=None):
             out += sj * sj * (1.0 - aj * aj) * T / (1.0 - 2.0 * aj * c + aj * aj)
         return out
     raise ValueError(name)
+
+
+def angle_gm_avar(m, fs, tau_s, sigma=1.0):
+    """Closed-form overlapping Allan variance at cluster sizes ``m`` of the simulator's
+    angle Gauss-Markov term (angle std ``sigma``, correlation time ``tau_s``, rate =
+    angle differenced / T): the m-sample mean rate is ``(th_(k+m) - th_k) / (m T)``, the
+    angle's autocovariance ``sigma^2 a^|j|`` with ``a = exp(-T / tau_s)``, so
+    ``avar(m) = sigma^2 (3 - 4 a^m + a^(2m)) / (m T)^2``; ``3 sigma^2 / tau^2`` (quantization
+    with Q = sigma) once ``m T >> tau_s``. An independent check of
+    ``allan_columns([("angle_gauss_markov", tau_s)])``."""
+    T = 1.0 / fs
+    m = np.asarray(m, float)
+    am = np.exp(-m * T / tau_s)
+    return sigma * sigma * (3.0 - 4.0 * am + am * am) / (m * T) ** 2
 
 
 def stop_mask(f, bands):
@@ -222,6 +241,9 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     whose frequency wanders (a ring-laser gyro's dither, aliased; a motor whose
     speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
     segments a noise bin 3x above the median is ~13 standard deviations off.
+    Each run is then widened over its skirt: while a bin within LINE_BRIDGE_BINS of
+    its edge stands above SKIRT_RATIO x the median (a line wandering over a band
+    leaves weaker lobes beside its strongest run: the RLG y axis at 10.0-11.0 Hz).
     Returns ([(lo_hz, hi_hz, peak_ratio)] widened by 2 bins on either side, the
     PSD with those bins replaced by the running median)."""
     from scipy.ndimage import median_filter
@@ -232,10 +254,22 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     out, clean = [], p.copy()
     if not len(idx):
         return out, clean
+    skirt = p > SKIRT_RATIO * floor
     for r in np.split(idx, np.flatnonzero(np.diff(idx) > LINE_BRIDGE_BINS + 1) + 1):
         if r[-1] - r[0] + 1 < MIN_LINE_BINS:
             continue
-        a, b = max(r[0] - 2, 0), min(r[-1] + 2, len(f) - 1)
+        lo, hi = int(r[0]), int(r[-1])
+        while True:     # the skirt
+            near = np.flatnonzero(skirt[max(lo - LINE_BRIDGE_BINS - 1, 0):lo])
+            if not len(near):
+                break
+            lo = max(lo - LINE_BRIDGE_BINS - 1, 0) + int(near[0])
+        while True:
+            near = np.flatnonzero(skirt[hi + 1:hi + LINE_BRIDGE_BINS + 2])
+            if not len(near):
+                break
+            hi = hi + 1 + int(near[-1])
+        a, b = max(lo - 2, 0), min(hi + 2, len(f) - 1)
         out.append((float(f[a]), float(f[b]), float(np.max(p[r] / floor[r]))))
         clean[a:b + 1] = floor[a:b + 1]
     return out, clean
@@ -248,9 +282,22 @@ HUBER_C = 1.5
 LINE_GRID_POINTS = 400     # line frequencies tried in an Allan-curve fit (log-spaced, line_grid)
 
 
+AGM_TAU_MAX_S = 10.0       # the angle Gauss-Markov dictionary's longest correlation time
+
+
 def gm_grid(layout):
     """Correlation times of the Gauss-Markov dictionary: 3 per decade, 2 samples .. record / 3."""
     lo, hi = math.log10(0.5 / layout.fs), math.log10(layout.n / layout.fs / 3.0)
+    return list(10.0 ** np.arange(lo, hi + 1e-9, 1.0 / GM_PER_DECADE))
+
+
+def agm_grid(layout):
+    """Correlation times of the angle Gauss-Markov dictionary: GM_PER_DECADE per decade from
+    half a sample to AGM_TAU_MAX_S (at most a tenth of the record). Shorter than half a
+    sample the term is white angle noise (quantization); much longer, it is white rate noise
+    (N^2 = 2 sigma^2 / tau) below tau: both already in the dictionary."""
+    lo = math.log10(0.5 / layout.fs)
+    hi = math.log10(max(min(AGM_TAU_MAX_S, layout.n / layout.fs / 10.0), 1.0 / layout.fs))
     return list(10.0 ** np.arange(lo, hi + 1e-9, 1.0 / GM_PER_DECADE))
 
 
@@ -267,6 +314,9 @@ def stochastic_specs(card):
     for g in card.term_list("gauss_markov"):
         specs.append(("gauss_markov", g["tau"]))
         coef.append((g["sigma"] / 3600.0) ** 2)
+    for g in card.term_list("angle_gauss_markov"):      # sigma in deg: s-based already
+        specs.append(("angle_gauss_markov", g["tau"]))
+        coef.append(g["sigma"] ** 2)
     return specs, np.array(coef)
 
 
@@ -337,10 +387,11 @@ def _pick_lines(A, b, sd, m, fs, max_lines, inside_fn):
 
 
 def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0, lowpass_hz=None,
-              max_lines=0, inside_fn=None):
+              max_lines=0, inside_fn=None, angle_gm=False):
     """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
     the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
-    Gauss-Markov processes (:func:`gm_grid`), each through the stop mask.
+    Gauss-Markov processes (:func:`gm_grid`), each through the stop mask; with
+    ``angle_gm`` also a dictionary of angle Gauss-Markov terms (:func:`agm_grid`).
 
     ``robust``: that many Huber re-weightings (:func:`_nnls_huber`).
     ``max_lines`` (Allan curve only, ``psd_target`` None): up to that many sinusoids
@@ -348,8 +399,11 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
     (``inside_fn(model_avar) -> bool``) at every point.
     Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
     to its s-based coefficient (0 = not needed), ``"gauss_markov"`` to a list
-    of ``(sigma_deg_s, tau_s)`` and ``"sinusoid"`` to ``(amplitude_deg_s, frequency_hz)``."""
+    of ``(sigma_deg_s, tau_s)``, ``"angle_gauss_markov"`` to a list of ``(sigma_deg, tau_s)``
+    and ``"sinusoid"`` to ``(amplitude_deg_s, frequency_hz)``."""
     specs = [(nm, None) for nm in ALLAN_TERMS] + [("gauss_markov", t) for t in gm_grid(layout)]
+    if angle_gm:
+        specs += [("angle_gauss_markov", t) for t in agm_grid(layout)]
     A_a = allan_columns(specs, layout.m, layout.fs, bands, lowpass_hz)
     sd_a = np.maximum(avar_sd, rel_floor * np.abs(avar_target))
     A, b = A_a / sd_a[:, None], avar_target / sd_a
@@ -369,8 +423,9 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
             A_a, A = np.hstack([A_a, A_l]), np.hstack([A, A_l / sd_a[:, None]])
     c, _ = _nnls_huber(A, b, robust)
     terms = {nm: float(c[i]) for i, nm in enumerate(ALLAN_TERMS)}
-    terms["gauss_markov"] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))
-                             if c[i] > 0]
+    for kind in ("gauss_markov", "angle_gauss_markov"):
+        terms[kind] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))
+                       if c[i] > 0 and specs[i][0] == kind]
     terms["sinusoid"] = [(math.sqrt(c[len(specs) + k]), f) for k, f in enumerate(f_lines) if c[len(specs) + k] > 0]
     return terms, A_a @ c, None if A_p is None else A_p @ c
 

@@ -3,7 +3,7 @@
  * (tests/test_gdsim.py: the same numbers on linux64 and on win64 under wine as the
  * plain-Python specification; the steps/s of the model).
  *
- *   simdriver SEED N [bench] < card_vector     card vector: the 92 numbers of
+ *   simdriver SEED N [bench] < card_vector     card vector: the 125 numbers of
  *                                              simkernels.card_vector, whitespace-separated
  * prints N samples (%.17g, true rate 0, a restart at sample N/2), or with "bench"
  * the samples per second of N steps.
@@ -26,7 +26,7 @@
 
 
 int main(int argc, char **argv) {
-    enum { M = GD_SIM_MAX_REPEAT, LEN = 12 + 5 * GD_SIM_MAX_REPEAT };
+    enum { M = GD_SIM_MAX_REPEAT, LEN = 12 + 5 * GD_SIM_MAX_REPEAT + 1 + 2 * GD_SIM_MAX_REPEAT };
     double v[LEN], *p, *s, seed, t0, y = 0.0;
     gd_card_t c;
     long n, i;
@@ -50,6 +50,10 @@ int main(int argc, char **argv) {
     for (k = 0; k < M; k++) {
         c.gm_sigma[k] = v[12 + k]; c.gm_tau[k] = v[12 + M + k]; c.sin_amp[k] = v[12 + 2 * M + k];
         c.sin_f[k] = v[12 + 3 * M + k]; c.sin_phase_deg[k] = v[12 + 4 * M + k];
+    }
+    c.n_agm = (int)v[12 + 5 * M];
+    for (k = 0; k < M; k++) {
+        c.agm_sigma[k] = v[13 + 5 * M + k]; c.agm_tau[k] = v[13 + 6 * M + k];
     }
     p = calloc((size_t)gd_sim_n_params(&c), sizeof *p);
     gd_sim_params(&c, seed, p);
