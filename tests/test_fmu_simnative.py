@@ -22,6 +22,7 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise.errors import InputError
 from gyrodenoise.fmu import native, simnative
+from gyrodenoise.core import simkernels as SK
 from gyrodenoise.simulator import load_card, parse_card
 
 fmpy = pytest.importorskip("fmpy")
@@ -50,9 +51,13 @@ def built(native_build, tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def every_term_card():
-    """(ModelCard, path of its TOML, compiled text) of the card with every term (tests/data)."""
-    path = HERE / "data" / "every_term.toml"
+def every_term_card(tmp_path_factory):
+    """(ModelCard, path of its TOML, compiled text) of the card with every term (tests/data)
+    plus two angle Gauss-Markov terms (one with sigma 0: not drawn)."""
+    path = tmp_path_factory.mktemp("cards") / "every_term_agm.toml"
+    path.write_text((HERE / "data" / "every_term.toml").read_text()
+                    + "[[terms.angle_gauss_markov]]\nsigma = 5.0e-5\ntau = 0.3\n"
+                    + "[[terms.angle_gauss_markov]]\nsigma = 0.0\ntau = 1.0\n")
     return load_card(path), path, simnative.compile_card(path)
 
 
@@ -183,7 +188,6 @@ def test_a_stale_native_fmu_is_detected(built, tmp_path):
 
 def test_compiled_card_is_the_card_vector_bit_for_bit(every_term_card):
     """The compiled text holds each card-vector value exactly (IEEE 754 bits) and its decimal."""
-    from gyrodenoise.core import simkernels as SK
     card, _, text = every_term_card
     lines = [ln for ln in text.splitlines() if ln and not ln.startswith("#")]
     assert lines[0] == f"gdcard 1 {SK.CARD_LEN}"
@@ -304,8 +308,9 @@ def test_consistent_checksum_but_inconsistent_state_is_refused(built, md, vr):
     ("no_such_card", "no such bundled card"),
     ("[sensor]\nsample_rate_hz = 200.0\n", "TOML text cannot be read"),
     ("gdcard 1 3\nsample_rate_hz 0x4069000000000000\n", "compile the card again"),
-    ("gdcard 1 92\nsample_rate_hz 0x40690000000000zz\n", "is not a hex digit"),
-    ("gdcard 1 92\nQ 0x4069000000000000\n", "field sample_rate_hz expected"),
+    (f"gdcard 1 {SK.CARD_LEN}\nsample_rate_hz 0x40690000000000zz\n", "is not a hex digit"),
+    (f"gdcard 1 {SK.CARD_LEN}\nQ 0x4069000000000000\n", "field sample_rate_hz expected"),
+    ("gdcard 1 92\nsample_rate_hz 0x4069000000000000\n", "compile the card again"),   # before angle GM
 ])
 def test_bad_card_refused_at_exit_initialization_with_the_reason(built, md, card, reason):
     log = Logger()

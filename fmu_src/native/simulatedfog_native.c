@@ -16,7 +16,7 @@
  * each value as the 16 hex digits of its IEEE 754 bits (exact on every platform,
  * whatever the C library's strtod), then the decimal value as a comment:
  *
- *     gdcard 1 92
+ *     gdcard 1 125
  *     sample_rate_hz 0x4069000000000000 200.0
  *     Q 0x3ee84107b8a9d2b8 1.1565e-05
  *     ...
@@ -81,19 +81,23 @@ static void card_from_vector(const double *v, gd_card_t *c) {
     c->tr_tau = v[9];
     c->n_gm = (int)v[10];
     c->n_sin = (int)v[11];
+    c->n_agm = (int)v[12 + 5 * R];
     for (i = 0; i < R; i++) {
         c->gm_sigma[i] = v[12 + i];
         c->gm_tau[i] = v[12 + R + i];
         c->sin_amp[i] = v[12 + 2 * R + i];
         c->sin_f[i] = v[12 + 3 * R + i];
         c->sin_phase_deg[i] = v[12 + 4 * R + i];
+        c->agm_sigma[i] = v[13 + 5 * R + i];
+        c->agm_tau[i] = v[13 + 6 * R + i];
     }
 }
 
 /* the checks of simulator.parse_card that the numbers themselves carry */
 static int check_vector(const double *v, char *err, size_t nerr) {
     const double absurd = 1.0e9;
-    int i, R = GD_SIM_MAX_REPEAT, n_gm, n_sin;
+    int i, R = GD_SIM_MAX_REPEAT, n_gm, n_sin, n_agm;
+    const double *agm = v + 12 + 5 * R; /* n_agm, agm_sigma x R (deg), agm_tau x R (s) */
     for (i = 0; i < GD_CARD_LEN; i++)
         if (!isfinite(v[i]) || fabs(v[i]) > absurd)
             return gdfmi_fmt_err(err, nerr, "card field %s is not a usable number: %.17g", card_fields[i], v[i]);
@@ -109,8 +113,15 @@ static int check_vector(const double *v, char *err, size_t nerr) {
     if (!(v[10] >= 0 && v[10] <= R && v[10] == floor(v[10])) || !(v[11] >= 0 && v[11] <= R && v[11] == floor(v[11])))
         return gdfmi_fmt_err(err, nerr, "card fields n_gm and n_sin must be whole numbers 0..%d, got %g and %g",
                              R, v[10], v[11]);
+    if (!(agm[0] >= 0 && agm[0] <= R && agm[0] == floor(agm[0])))
+        return gdfmi_fmt_err(err, nerr, "card field n_agm must be a whole number 0..%d, got %g", R, agm[0]);
     n_gm = (int)v[10];
     n_sin = (int)v[11];
+    n_agm = (int)agm[0];
+    for (i = 0; i < n_agm; i++)
+        if (agm[1 + i] < 0 || !(agm[1 + R + i] > 0))
+            return gdfmi_fmt_err(err, nerr, "card angle_gauss_markov %d: sigma must be >= 0 deg and tau > 0 s, "
+                                 "got %g, %g", i + 1, agm[1 + i], agm[1 + R + i]);
     for (i = 0; i < n_gm; i++)
         if (v[12 + i] < 0 || !(v[12 + R + i] > 0))
             return gdfmi_fmt_err(err, nerr, "card gauss_markov %d: sigma must be >= 0 and tau > 0 s, got %g, %g",

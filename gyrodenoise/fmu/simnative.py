@@ -16,7 +16,7 @@ compiled card file's path, or the compiled text).
 
 >>> from gyrodenoise.fmu.simnative import compile_card
 >>> compile_card("paper_fog").splitlines()[0]
-'gdcard 1 92'
+'gdcard 1 125'
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ R = SK.MAX_REPEAT
 CARD_FIELDS = (("sample_rate_hz", "Q", "N", "B", "K", "R", "bias", "bias_rep", "tr_amp", "tr_tau", "n_gm",
                 "n_sin")
                + tuple(f"{col}_{i + 1}" for col in ("gm_sigma", "gm_tau", "sin_amp", "sin_f", "sin_phase_deg")
-                       for i in range(R)))
+                       for i in range(R))
+               + ("n_agm",) + tuple(f"{col}_{i + 1}" for col in ("agm_sigma", "agm_tau") for i in range(R)))
 
 
 def _check_layout():
