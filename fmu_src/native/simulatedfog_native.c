@@ -65,34 +65,6 @@ static void sf_defaults(void *mv) {
 }
 
 /* ------------------------------------------------------------------ the card */
-/* v (card vector) into c: the layout of simkernels.card_vector */
-static void card_from_vector(const double *v, gd_card_t *c) {
-    int i, R = GD_SIM_MAX_REPEAT;
-    memset(c, 0, sizeof *c);
-    c->sample_rate_hz = v[0];
-    c->Q = v[1];
-    c->N = v[2];
-    c->B = v[3];
-    c->K = v[4];
-    c->R = v[5];
-    c->bias = v[6];
-    c->bias_rep = v[7];
-    c->tr_amp = v[8];
-    c->tr_tau = v[9];
-    c->n_gm = (int)v[10];
-    c->n_sin = (int)v[11];
-    c->n_agm = (int)v[12 + 5 * R];
-    for (i = 0; i < R; i++) {
-        c->gm_sigma[i] = v[12 + i];
-        c->gm_tau[i] = v[12 + R + i];
-        c->sin_amp[i] = v[12 + 2 * R + i];
-        c->sin_f[i] = v[12 + 3 * R + i];
-        c->sin_phase_deg[i] = v[12 + 4 * R + i];
-        c->agm_sigma[i] = v[13 + 5 * R + i];
-        c->agm_tau[i] = v[13 + 6 * R + i];
-    }
-}
-
 /* the checks of simulator.parse_card that the numbers themselves carry */
 static int check_vector(const double *v, char *err, size_t nerr) {
     const double absurd = 1.0e9;
@@ -299,7 +271,7 @@ static long sf_build(gdfmi_inst_t *c, char *err, size_t nerr) {
     long n_state;
     if (d->seed < 0) return gdfmi_fmt_err(err, nerr, "seed must be an integer >= 0, got %d", (int)d->seed);
     if (resolve_card(c, d->card, d->v, err, nerr) != 0) return -1;
-    card_from_vector(d->v, &card);
+    gd_sim_card_from_vector(d->v, GD_CARD_LEN, &card);
     d->np = gd_sim_n_params(&card);
     p = (double *)gdfmi_alloc(c, (size_t)d->np, sizeof(double));
     if (!p) return gdfmi_fmt_err(err, nerr, "out of memory");
@@ -312,7 +284,7 @@ static long sf_build(gdfmi_inst_t *c, char *err, size_t nerr) {
 static void sf_start(gdfmi_inst_t *c) {
     sf_t *d = (sf_t *)c->m;
     gd_card_t card;
-    card_from_vector(d->v, &card);
+    gd_sim_card_from_vector(d->v, GD_CARD_LEN, &card);
     gd_sim_params(&card, (double)d->seed, c->s);
     gd_sim_reset(c->s, c->s + d->np);
     d->measured_rate = START_measured_rate;
@@ -410,7 +382,7 @@ static int sf_check_state(const gdfmi_inst_t *c, const gdfmi_core_t *k, const vo
     if (!k->have_model) return 0;
     if (check_vector(d->v, why, sizeof why) != 0)
         return gdfmi_fmt_err(err, nerr, "invalid card in the state: %s", why);
-    card_from_vector(d->v, &card);
+    gd_sim_card_from_vector(d->v, GD_CARD_LEN, &card);
     if (d->np != gd_sim_n_params(&card))
         return gdfmi_fmt_err(err, nerr, "sensor buffers do not match the card (corrupted state)");
     p = (double *)gdfmi_alloc(c, (size_t)d->np, sizeof(double));

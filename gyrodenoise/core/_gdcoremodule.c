@@ -272,15 +272,15 @@ static PyObject *mod_layout_total(PyObject *self, PyObject *arg)
 }
 
 /* ---------------------------------------------------------- simulated gyro */
-#define SIM_CARD_LEN_V1 (12 + 5 * GD_SIM_MAX_REPEAT)             /* before the angle Gauss-Markov term */
-#define SIM_CARD_LEN (SIM_CARD_LEN_V1 + 1 + 2 * GD_SIM_MAX_REPEAT)  /* + n_agm, agm_sigma, agm_tau */
+#define SIM_CARD_LEN_V1 GD_SIM_CARD_LEN_V1 /* before the angle Gauss-Markov term */
+#define SIM_CARD_LEN GD_SIM_CARD_LEN       /* + n_agm, agm_sigma, agm_tau */
 
 /* a card vector (simkernels.card_vector) into c; -1 with an exception if malformed */
 static int get_card(PyObject *obj, gd_card_t *c)
 {
     Py_buffer b;
     const double *v;
-    int i, M = GD_SIM_MAX_REPEAT;
+    int M = GD_SIM_MAX_REPEAT;
     if (get_f64(obj, &b, 0, "card") < 0)
         return -1;
     v = (const double *)b.buf;
@@ -291,26 +291,6 @@ static int get_card(PyObject *obj, gd_card_t *c)
         PyBuffer_Release(&b);
         return -1;
     }
-    memset(c, 0, sizeof *c);
-    c->sample_rate_hz = v[0];
-    c->Q = v[1];
-    c->N = v[2];
-    c->B = v[3];
-    c->K = v[4];
-    c->R = v[5];
-    c->bias = v[6];
-    c->bias_rep = v[7];
-    c->tr_amp = v[8];
-    c->tr_tau = v[9];
-    c->n_gm = (int)v[10];
-    c->n_sin = (int)v[11];
-    for (i = 0; i < M; i++) {
-        c->gm_sigma[i] = v[12 + i];
-        c->gm_tau[i] = v[12 + M + i];
-        c->sin_amp[i] = v[12 + 2 * M + i];
-        c->sin_f[i] = v[12 + 3 * M + i];
-        c->sin_phase_deg[i] = v[12 + 4 * M + i];
-    }
     if (b.len / 8 == SIM_CARD_LEN) {
         const double *a = v + SIM_CARD_LEN_V1;
         if (!(a[0] >= 0 && a[0] <= M && a[0] == (int)a[0])) {
@@ -318,12 +298,8 @@ static int get_card(PyObject *obj, gd_card_t *c)
             PyBuffer_Release(&b);
             return -1;
         }
-        c->n_agm = (int)a[0];
-        for (i = 0; i < M; i++) {
-            c->agm_sigma[i] = a[1 + i];
-            c->agm_tau[i] = a[1 + M + i];
-        }
     }
+    gd_sim_card_from_vector(v, (int)(b.len / 8), c);
     PyBuffer_Release(&b);
     return 0;
 }

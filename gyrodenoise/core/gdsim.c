@@ -7,6 +7,7 @@
  */
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "gdsim.h"
 
@@ -78,6 +79,38 @@ static int n_flicker(const gd_card_t *c) {
     n_dec = log10(0.5 * c->sample_rate_hz / GD_SIM_FLICKER_F_LO_HZ);
     n = (int)ceil(n_dec * GD_SIM_FLICKER_POLES_PER_DECADE);
     return n < 1 ? 1 : n;
+}
+
+void gd_sim_card_from_vector(const double *v, int n, gd_card_t *c)
+{
+    int i, M = GD_SIM_MAX_REPEAT;
+    memset(c, 0, sizeof *c);
+    c->sample_rate_hz = v[0];
+    c->Q = v[1];
+    c->N = v[2];
+    c->B = v[3];
+    c->K = v[4];
+    c->R = v[5];
+    c->bias = v[6];
+    c->bias_rep = v[7];
+    c->tr_amp = v[8];
+    c->tr_tau = v[9];
+    c->n_gm = (int)v[10];
+    c->n_sin = (int)v[11];
+    for (i = 0; i < M; i++) {
+        c->gm_sigma[i] = v[12 + i];
+        c->gm_tau[i] = v[12 + M + i];
+        c->sin_amp[i] = v[12 + 2 * M + i];
+        c->sin_f[i] = v[12 + 3 * M + i];
+        c->sin_phase_deg[i] = v[12 + 4 * M + i];
+    }
+    if (n < GD_SIM_CARD_LEN)
+        return;
+    c->n_agm = (int)v[GD_SIM_CARD_LEN_V1];
+    for (i = 0; i < M; i++) {
+        c->agm_sigma[i] = v[GD_SIM_CARD_LEN_V1 + 1 + i];
+        c->agm_tau[i] = v[GD_SIM_CARD_LEN_V1 + 1 + M + i];
+    }
 }
 
 int gd_sim_n_bank(const gd_card_t *c) {

@@ -89,6 +89,14 @@ typedef struct {
 #define GD_SIM_FLICKER_F_LO_HZ 1.0e-5
 #define GD_SIM_FLICKER_POLES_PER_DECADE 3
 
+/* the card vector (simkernels.card_vector): GD_SIM_CARD_LEN doubles, or GD_SIM_CARD_LEN_V1
+ * (written before the angle Gauss-Markov term: no such term) */
+#define GD_SIM_CARD_LEN_V1 (12 + 5 * GD_SIM_MAX_REPEAT)
+#define GD_SIM_CARD_LEN (GD_SIM_CARD_LEN_V1 + 1 + 2 * GD_SIM_MAX_REPEAT)
+/* v (n doubles, n = GD_SIM_CARD_LEN or GD_SIM_CARD_LEN_V1) into *card; the counts are cast,
+ * not checked: the caller validates the vector first */
+void gd_sim_card_from_vector(const double *v, int n, gd_card_t *card);
+
 int gd_sim_n_bank(const gd_card_t *card);
 int gd_sim_n_params(const gd_card_t *card);
 int gd_sim_n_state(const double *p);

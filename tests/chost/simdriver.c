@@ -26,7 +26,7 @@
 
 
 int main(int argc, char **argv) {
-    enum { M = GD_SIM_MAX_REPEAT, LEN = 12 + 5 * GD_SIM_MAX_REPEAT + 1 + 2 * GD_SIM_MAX_REPEAT };
+    enum { LEN = GD_SIM_CARD_LEN };
     double v[LEN], *p, *s, seed, t0, y = 0.0;
     gd_card_t c;
     long n, i;
@@ -43,18 +43,7 @@ int main(int argc, char **argv) {
             fprintf(stderr, "simdriver: card vector item %d missing\n", k);
             return 2;
         }
-    memset(&c, 0, sizeof c);
-    c.sample_rate_hz = v[0]; c.Q = v[1]; c.N = v[2]; c.B = v[3]; c.K = v[4]; c.R = v[5];
-    c.bias = v[6]; c.bias_rep = v[7]; c.tr_amp = v[8]; c.tr_tau = v[9];
-    c.n_gm = (int)v[10]; c.n_sin = (int)v[11];
-    for (k = 0; k < M; k++) {
-        c.gm_sigma[k] = v[12 + k]; c.gm_tau[k] = v[12 + M + k]; c.sin_amp[k] = v[12 + 2 * M + k];
-        c.sin_f[k] = v[12 + 3 * M + k]; c.sin_phase_deg[k] = v[12 + 4 * M + k];
-    }
-    c.n_agm = (int)v[12 + 5 * M];
-    for (k = 0; k < M; k++) {
-        c.agm_sigma[k] = v[13 + 5 * M + k]; c.agm_tau[k] = v[13 + 6 * M + k];
-    }
+    gd_sim_card_from_vector(v, LEN, &c);
     p = calloc((size_t)gd_sim_n_params(&c), sizeof *p);
     gd_sim_params(&c, seed, p);
     s = calloc((size_t)gd_sim_n_state(p), sizeof *s);
