@@ -496,7 +496,7 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
 {
     const double *cs = p + P_MO_COS;
     double x, low[MO_SPEC_RANK], xb, bb, d, m;
-    int n, j, nl, i;
+    int n, j, nl, i, mi, dm;
     if (k == 0.0) {
         s[o + M_SPOS] = 0.0;
         s[o + M_SR] = 0.0;
@@ -511,11 +511,13 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
     }
     n = (int)s[o + M_SPOS];
     x = (0.5 - 0.5 * cs[n]) * z;
+    mi = (MO_SPEC_K0 * n) & (MO_SPEC_N - 1);
+    dm = (2 * n) & (MO_SPEC_N - 1);
     for (j = 0; j < MO_SPEC_NB; j++) {
-        int mi = ((MO_SPEC_K0 + 2 * j) * n) % MO_SPEC_N;
-        int ms = (mi + 3 * MO_SPEC_N / 4) % MO_SPEC_N;
+        int ms = (mi + 3 * MO_SPEC_N / 4) & (MO_SPEC_N - 1);
         s[o + M_SACC + 2 * j] += x * cs[mi];
         s[o + M_SACC + 2 * j + 1] += x * cs[ms];
+        mi = (mi + dm) & (MO_SPEC_N - 1);
     }
     n += 1;
     if (n < MO_SPEC_N) {

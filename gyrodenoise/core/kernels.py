@@ -889,11 +889,14 @@ def spectral_floor(p, s, o, z, k):
     n = int(s[o + M_SPOS])
     c = P_MO_COS
     x = (0.5 - 0.5 * p[c + n]) * z
+    mask = n_blk - 1                               # MO_SPEC_N is a power of 2: & mask == % MO_SPEC_N
+    m = (MO_SPEC_K0 * n) & mask
+    dm = (2 * n) & mask
     for j in range(MO_SPEC_NB):
-        m = ((MO_SPEC_K0 + 2 * j) * n) % n_blk
-        ms = (m + 3 * n_blk // 4) % n_blk          # sin(t) = cos(t - pi/2)
+        ms = (m + 3 * n_blk // 4) & mask            # sin(t) = cos(t - pi/2)
         s[o + M_SACC + 2 * j] += x * p[c + m]
         s[o + M_SACC + 2 * j + 1] += x * p[c + ms]
+        m = (m + dm) & mask                         # bin K0 + 2 (j + 1): phase (K0 + 2 j + 2) n
     n += 1
     if n < n_blk:
         s[o + M_SPOS] = float(n)
