@@ -495,15 +495,13 @@ void gd_spectral_params(double *p, double b, double ratio)
 KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long o, double z, double k)
 {
     const double *cs = p + P_MO_COS;
-    double x, low[MO_SPEC_RANK], xb, bb, d, m;
+    double x, low[MO_SPEC_RANK], re[MO_SPEC_NB], im[MO_SPEC_NB], xb, bb, d, m;
     int n, j, nl, i, mi, dm;
     if (k == 0.0) {
         s[o + M_SPOS] = 0.0;
         s[o + M_SR] = 0.0;
         s[o + M_SBK] = 1.0;
         s[o + M_SBAD] = 0.0;
-        for (j = 0; j < 2 * MO_SPEC_NB; j++)
-            s[o + M_SACC + j] = 0.0;
     }
     if (!(fabs(z) < MO_SPEC_ZMAX)) {
         z = 0.0;
@@ -511,26 +509,33 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
     }
     n = (int)s[o + M_SPOS];
     x = (0.5 - 0.5 * cs[n]) * z;
-    mi = (MO_SPEC_K0 * n) & (MO_SPEC_N - 1);
-    dm = (2 * n) & (MO_SPEC_N - 1);
-    for (j = 0; j < MO_SPEC_NB; j++) {
-        int ms = (mi + 3 * MO_SPEC_N / 4) & (MO_SPEC_N - 1);
-        s[o + M_SACC + 2 * j] += x * cs[mi];
-        s[o + M_SACC + 2 * j + 1] += x * cs[ms];
-        mi = (mi + dm) & (MO_SPEC_N - 1);
-    }
+    if (n < MO_SPEC_N / 2)
+        s[o + M_SFOLD + n] = x;
+    else
+        s[o + M_SFOLD + n - MO_SPEC_N / 2] += x;
     n += 1;
     if (n < MO_SPEC_N) {
         s[o + M_SPOS] = (double)n;
         return s[o + M_SR];
     }
     s[o + M_SPOS] = 0.0;
+    for (j = 0; j < MO_SPEC_NB; j++) {
+        re[j] = 0.0;
+        im[j] = 0.0;
+    }
+    for (n = 0; n < MO_SPEC_N / 2; n++) {
+        double y = s[o + M_SFOLD + n];
+        mi = (MO_SPEC_K0 * n) & (MO_SPEC_N - 1);
+        dm = (2 * n) & (MO_SPEC_N - 1);
+        for (j = 0; j < MO_SPEC_NB; j++) {
+            re[j] += y * cs[mi];
+            im[j] += y * cs[(mi + 3 * MO_SPEC_N / 4) & (MO_SPEC_N - 1)];
+            mi = (mi + dm) & (MO_SPEC_N - 1);
+        }
+    }
     nl = 0;
     for (j = 0; j < MO_SPEC_NB; j++) {
-        double re = s[o + M_SACC + 2 * j], im = s[o + M_SACC + 2 * j + 1], pw;
-        s[o + M_SACC + 2 * j] = 0.0;
-        s[o + M_SACC + 2 * j + 1] = 0.0;
-        pw = re * re + im * im;
+        double pw = re[j] * re[j] + im[j] * im[j];
         if (nl < MO_SPEC_RANK) {
             i = nl;
             nl++;

@@ -121,8 +121,8 @@ extern "C" {
 #define M_SR (M_SPOS + 1)            /* spectral floor: smoothed R (0 = no block yet) */
 #define M_SBK (M_SPOS + 2)           /* spectral floor: b^(blocks+1) */
 #define M_SBAD (M_SPOS + 3)          /* spectral floor: 1 if the block holds a sample beyond MO_SPEC_ZMAX */
-#define M_SACC (M_SPOS + 4)          /* spectral floor: (re, im) of the bins */
-#define N_EXT (M_SACC + 2 * MO_SPEC_NB)
+#define M_SFOLD (M_SPOS + 4)         /* spectral floor: the windowed block folded in two (N/2) */
+#define N_EXT (M_SFOLD + MO_SPEC_N / 2)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {

@@ -150,8 +150,8 @@ M_SPOS = M_LPD + 2 * MAX_SOS   # spectral floor: position of the next sample in 
 M_SR = M_SPOS + 1              # spectral floor: its smoothed white-noise variance, (deg/s)^2 (0 = no block yet)
 M_SBK = M_SPOS + 2             # spectral floor: b^(blocks+1) of its d_k
 M_SBAD = M_SPOS + 3            # spectral floor: 1.0 if the block holds a sample beyond MO_SPEC_ZMAX (it is skipped)
-M_SACC = M_SPOS + 4            # spectral floor: (re, im) of the MO_SPEC_NB bins, accumulated over the block
-N_EXT = M_SACC + 2 * MO_SPEC_NB
+M_SFOLD = M_SPOS + 4           # spectral floor: the windowed block folded in two, x[n] + x[n + N/2] (N/2 floats)
+N_EXT = M_SFOLD + MO_SPEC_N // 2
 
 
 def layout(n):
@@ -867,8 +867,10 @@ def spectral_floor(p, s, o, z, k):
     Every MO_SPEC_N samples: the Hann-windowed DFT of the block at the
     MO_SPEC_NB bins MO_SPEC_K0, MO_SPEC_K0 + 2, ... (0.25-0.5 fs, above the
     motion of every profile; every other bin: the Hann window correlates
-    neighbours), accumulated sample by sample (O(MO_SPEC_NB) per sample, no
-    block buffer); the MO_SPEC_RANK-th smallest |X|^2 of them times p[P_MO_SPEC]
+    neighbours); all those bins are even, so the windowed block is folded in
+    two as it comes (x[n] + x[n + N/2]) and the DFT runs over N/2 samples at
+    the block's end (MO_SPEC_NB x N/2 multiply-adds per block: O(1) per
+    sample amortised); the MO_SPEC_RANK-th smallest |X|^2 of them times p[P_MO_SPEC]
     (:func:`spectral_params`: chi-square order-statistic bias and the window's
     sum of squares) is the block's estimate: a few tones occupy a few bins and
     cannot move a low quantile. The blocks are averaged with the Sage-Husa
@@ -876,41 +878,44 @@ def spectral_floor(p, s, o, z, k):
     p[P_MO_HUBER] x the mean once 4 blocks are in; a block holding a sample
     beyond MO_SPEC_ZMAX (or not finite) is left out (no overflow in the state)."""
     n_blk = MO_SPEC_N
+    half = n_blk // 2
     if k == 0.0:
         s[o + M_SPOS] = 0.0
         s[o + M_SR] = 0.0
         s[o + M_SBK] = 1.0
         s[o + M_SBAD] = 0.0
-        for j in range(2 * MO_SPEC_NB):
-            s[o + M_SACC + j] = 0.0
     if not abs(z) < MO_SPEC_ZMAX:
         z = 0.0
         s[o + M_SBAD] = 1.0
     n = int(s[o + M_SPOS])
     c = P_MO_COS
     x = (0.5 - 0.5 * p[c + n]) * z
-    mask = n_blk - 1                               # MO_SPEC_N is a power of 2: & mask == % MO_SPEC_N
-    m = (MO_SPEC_K0 * n) & mask
-    dm = (2 * n) & mask
-    for j in range(MO_SPEC_NB):
-        ms = (m + 3 * n_blk // 4) & mask            # sin(t) = cos(t - pi/2)
-        s[o + M_SACC + 2 * j] += x * p[c + m]
-        s[o + M_SACC + 2 * j + 1] += x * p[c + ms]
-        m = (m + dm) & mask                         # bin K0 + 2 (j + 1): phase (K0 + 2 j + 2) n
+    if n < half:
+        s[o + M_SFOLD + n] = x
+    else:
+        s[o + M_SFOLD + n - half] += x      # even bins: x[n] and x[n + N/2] share every twiddle
     n += 1
     if n < n_blk:
         s[o + M_SPOS] = float(n)
         return s[o + M_SR]
     s[o + M_SPOS] = 0.0
+    # the DFT of the folded block at the bins K0, K0 + 2, ...
+    re = [0.0] * MO_SPEC_NB
+    im = [0.0] * MO_SPEC_NB
+    mask = n_blk - 1                               # MO_SPEC_N is a power of 2: & mask == % MO_SPEC_N
+    for n in range(half):
+        y = s[o + M_SFOLD + n]
+        m = (MO_SPEC_K0 * n) & mask
+        dm = (2 * n) & mask
+        for j in range(MO_SPEC_NB):
+            re[j] += y * p[c + m]
+            im[j] += y * p[c + ((m + 3 * n_blk // 4) & mask)]   # sin(t) = cos(t - pi/2)
+            m = (m + dm) & mask                     # bin K0 + 2 (j + 1): phase (K0 + 2 j + 2) n
     # the MO_SPEC_RANK smallest |X|^2, ascending (insertion)
     low = [0.0] * MO_SPEC_RANK
     nl = 0
     for j in range(MO_SPEC_NB):
-        re = s[o + M_SACC + 2 * j]
-        im = s[o + M_SACC + 2 * j + 1]
-        s[o + M_SACC + 2 * j] = 0.0
-        s[o + M_SACC + 2 * j + 1] = 0.0
-        pw = re * re + im * im
+        pw = re[j] * re[j] + im[j] * im[j]
         if nl < MO_SPEC_RANK:
             i = nl
             nl += 1
