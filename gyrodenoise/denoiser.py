@@ -93,7 +93,8 @@ class Denoiser:
     @property
     def R_hat(self):
         """Current measurement-noise variance estimate, (deg/s)^2 (motion: the
-        sensor's white-noise estimate from the 4th differences)."""
+        sensor's white-noise estimate from the 4th differences, or the spectral
+        noise floor where that is more than 1.5x lower: kernels.motion_step)."""
         return float(self.state[K.S_R])
 
     @property

@@ -22,7 +22,8 @@ numpy arrays; the values are in the unit of the input (any unit, the same for
 * :func:`motion_loss` -- the warning rule: most of the real motion removed.
 * :func:`white_noise_std` -- the record's white-noise level that motion does not
   lift: the core's own estimate (the motion filter's 4th differences at several
-  lags), the level the two functions above compare the low band with.
+  lags, or its spectral noise floor where lower), the level the two functions above
+  compare the low band with.
 
 Segments: a record is cut at each restart (``restarts[i]`` True: sample i is the
 first of a new session) and at every non-finite sample of either record; the
@@ -214,7 +215,10 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     It is the core's own estimate, not a second implementation: the record runs
     through ``method="motion"`` (:func:`gyrodenoise.core.kernels.motion_step`),
     whose noise level R is the smallest over lags L = 1..6 of the running mean
-    |4th difference| at lag L (Huber-clipped, 10 s memory) x sqrt(pi / 140).
+    |4th difference| at lag L (Huber-clipped, 10 s memory) x sqrt(pi / 140), or
+    the spectral noise floor (:func:`gyrodenoise.core.kernels.spectral_floor`,
+    a low quantile of the spectrum's upper quarter, which tones do not lift)
+    where that is more than 1.5x lower.
     A 4th difference cancels any cubic over its 4 L samples, so motion below a
     few Hz adds (2 sin(pi f L / fs))^8 of its power: at 25 Hz, 1 Hz motion
     reaches it at 2e-5 of its power, where the first difference keeps 0.06.

@@ -464,6 +464,108 @@ void gd_motion_params(double *p, double fs)
         p[P_MO_G + 3 * i + 1] = beta;
         p[P_MO_G + 3 * i + 2] = -log(1.0 - alpha);
     }
+    p[P_MO_RFIX] = 0.0;
+    gd_spectral_params(p, p[P_MO_BR], 1.5);
+}
+
+/* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] */
+void gd_spectral_params(double *p, double b, double ratio)
+{
+    double c = 0.0, bb = 1.0;
+    int i;
+    for (i = 0; i < MO_SPEC_RANK; i++)
+        c += 1.0 / (double)(MO_SPEC_NB - i);
+    for (i = 0; i < MO_SPEC_N; i++)
+        bb *= b;
+    for (i = 0; i < MO_SPEC_N; i++)
+        p[P_MO_COS + i] = cos(2.0 * 3.141592653589793 * (double)i / (double)MO_SPEC_N);
+    p[P_MO_SBB] = bb;
+    if (ratio < 0.0) {
+        p[P_MO_SPEC] = 0.0;
+        p[P_MO_SRATIO] = 0.0;
+    } else {
+        p[P_MO_SPEC] = 1.0 / (c * (0.375 * MO_SPEC_N));
+        p[P_MO_SRATIO] = ratio;
+    }
+}
+
+/* kernels.spectral_floor: the white-noise variance from a low quantile of the
+ * Hann-windowed spectrum's upper bins, blocks of MO_SPEC_N samples, accumulated
+ * sample by sample; 0.0 before the first block (see kernels.py) */
+KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long o, double z, double k)
+{
+    const double *cs = p + P_MO_COS;
+    double x, low[MO_SPEC_RANK], re[MO_SPEC_NB], im[MO_SPEC_NB], xb, bb, d, m;
+    int n, j, nl, i, mi, dm;
+    if (k == 0.0) {
+        s[o + M_SPOS] = 0.0;
+        s[o + M_SR] = 0.0;
+        s[o + M_SBK] = 1.0;
+        s[o + M_SBAD] = 0.0;
+    }
+    if (!(fabs(z) < MO_SPEC_ZMAX)) {
+        z = 0.0;
+        s[o + M_SBAD] = 1.0;
+    }
+    n = (int)s[o + M_SPOS];
+    x = (0.5 - 0.5 * cs[n]) * z;
+    if (n < MO_SPEC_N / 2)
+        s[o + M_SFOLD + n] = x;
+    else
+        s[o + M_SFOLD + n - MO_SPEC_N / 2] += x;
+    n += 1;
+    if (n < MO_SPEC_N) {
+        s[o + M_SPOS] = (double)n;
+        return s[o + M_SR];
+    }
+    s[o + M_SPOS] = 0.0;
+    for (j = 0; j < MO_SPEC_NB; j++) {
+        re[j] = 0.0;
+        im[j] = 0.0;
+    }
+    for (n = 0; n < MO_SPEC_N / 2; n++) {
+        double y = s[o + M_SFOLD + n];
+        mi = (MO_SPEC_K0 * n) & (MO_SPEC_N - 1);
+        dm = (2 * n) & (MO_SPEC_N - 1);
+        for (j = 0; j < MO_SPEC_NB; j++) {
+            re[j] += y * cs[mi];
+            im[j] += y * cs[(mi + 3 * MO_SPEC_N / 4) & (MO_SPEC_N - 1)];
+            mi = (mi + dm) & (MO_SPEC_N - 1);
+        }
+    }
+    nl = 0;
+    for (j = 0; j < MO_SPEC_NB; j++) {
+        double pw = re[j] * re[j] + im[j] * im[j];
+        if (nl < MO_SPEC_RANK) {
+            i = nl;
+            nl++;
+        } else if (pw < low[MO_SPEC_RANK - 1]) {
+            i = MO_SPEC_RANK - 1;
+        } else {
+            continue;
+        }
+        while (i > 0 && low[i - 1] > pw) {
+            low[i] = low[i - 1];
+            i--;
+        }
+        low[i] = pw;
+    }
+    if (s[o + M_SBAD] != 0.0) {
+        s[o + M_SBAD] = 0.0;
+        return s[o + M_SR];
+    }
+    xb = low[MO_SPEC_RANK - 1] * p[P_MO_SPEC];
+    bb = p[P_MO_SBB];
+    s[o + M_SBK] *= bb;
+    d = (1.0 - bb) / (1.0 - s[o + M_SBK]);
+    m = s[o + M_SR];
+    if (d < 0.25 && xb > p[P_MO_HUBER] * m)
+        xb = p[P_MO_HUBER] * m;
+    m += d * (xb - m);
+    if (m == 0.0)
+        s[o + M_SBK] = 1.0;
+    s[o + M_SR] = m;
+    return m;
 }
 
 /* kernels.exp_neg: exp(x) for -30 <= x <= 0 (0 below), same operations: 8 squarings */
@@ -502,7 +604,7 @@ KERNEL double log1m_small_(double g)
 KERNEL double motion_step_(const double *restrict p, double *restrict s, double z)
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
-    double zr = z, k, r, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
+    double zr = z, k, r, rs, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
     int pos, i, j, best, c;
     double wts[MO_MAX_NF];
@@ -522,6 +624,9 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     }
     s[o + M_HPOS] = (double)pos;
     s[o + M_HIST + pos] = zr;
+    rs = 0.0;
+    if (p[P_MO_SPEC] > 0.0)
+        rs = spectral_floor_(p, s, o, zr, k);
     if (k >= 4.0 * nlag) {
         double b = p[P_MO_BR], d, hub = p[P_MO_HUBER], least = 0.0, sig;
         int clip;
@@ -554,6 +659,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             s[o + M_BK] = 1.0;
         sig = least * 0.14980634836659743;
         r = sig * sig;
+        if (rs > 0.0 && rs * p[P_MO_SRATIO] < r)
+            r = rs;
         if (r < p[P_R_FLOOR])
             r = p[P_R_FLOOR];
         if (p[P_MO_RFIX] > 0.0)

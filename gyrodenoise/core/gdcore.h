@@ -61,7 +61,16 @@ extern "C" {
 #define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
 #define P_MO_RFIX (P_MO_G + 3 * MO_MAX_NF) /* motion: > 0 = R to use instead of the estimate */
-#define N_PARAMS (P_MO_RFIX + 1)
+#define P_MO_SPEC (P_MO_RFIX + 1)  /* motion: spectral noise floor scale 1 / (c sum w^2), 0 = off */
+#define P_MO_SBB (P_MO_RFIX + 2)   /* motion: its forgetting per block */
+#define P_MO_SRATIO (P_MO_RFIX + 3) /* motion: the spectral estimate rs replaces the lag one r where rs x this < r */
+#define P_MO_COS (P_MO_RFIX + 4)   /* motion: cos(2 pi m / MO_SPEC_N), m = 0..MO_SPEC_N-1 */
+#define MO_SPEC_N 128              /* spectral floor: block length */
+#define MO_SPEC_K0 32              /* its first bin */
+#define MO_SPEC_NB 16              /* its bins, every other one */
+#define MO_SPEC_RANK 4             /* the rank of |X|^2 read */
+#define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped */
+#define N_PARAMS (P_MO_COS + MO_SPEC_N)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -108,7 +117,12 @@ extern "C" {
 #define M_HIST (M_MABS + MO_MAX_NLAG)
 #define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1)
 #define M_LPD (M_BANK + 4 * MO_MAX_NF)  /* max_motion_hz: delays of the rigid-body low-pass */
-#define N_EXT (M_LPD + 2 * MAX_SOS)
+#define M_SPOS (M_LPD + 2 * MAX_SOS) /* spectral floor: position in the block */
+#define M_SR (M_SPOS + 1)            /* spectral floor: smoothed R (0 = no block yet) */
+#define M_SBK (M_SPOS + 2)           /* spectral floor: b^(blocks+1) */
+#define M_SBAD (M_SPOS + 3)          /* spectral floor: 1 if the block holds a sample beyond MO_SPEC_ZMAX */
+#define M_SFOLD (M_SPOS + 4)         /* spectral floor: the windowed block folded in two (N/2) */
+#define N_EXT (M_SFOLD + MO_SPEC_N / 2)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {
@@ -138,6 +152,8 @@ double gd_lowpass_step(const double *p, double *s, double z);
 double gd_motion_step(const double *p, double *s, double z);
 /* kernels.motion_params(fs) with its defaults into p[P_MO_NF ...] (the native FMU) */
 void gd_motion_params(double *p, double fs);
+/* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] (ratio < 0: off) */
+void gd_spectral_params(double *p, double b, double ratio);
 double gd_c_deg_s(const double *p, const double *s);
 double gd_step(const double *p, double *s, double z, int is_restart);
 

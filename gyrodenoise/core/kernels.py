@@ -82,7 +82,16 @@ MO_MAX_NF = 16
 MO_MAX_NLAG = 8
 P_MO_RFIX = P_MO_G + 3 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
                                      # the estimate (batch.run_offline with max_motion_hz only; 0 = estimate)
-N_PARAMS = P_MO_RFIX + 1
+P_MO_SPEC = P_MO_RFIX + 1   # motion: spectral noise floor (:func:`spectral_floor`): 1 / (c sum w^2), 0 = off
+P_MO_SBB = P_MO_RFIX + 2    # motion: its forgetting factor per block (P_MO_BR ^ MO_SPEC_N)
+P_MO_SRATIO = P_MO_RFIX + 3  # motion: the spectral estimate rs replaces the lag one r where rs x this < r
+P_MO_COS = P_MO_RFIX + 4    # motion: cos(2 pi m / MO_SPEC_N), m = 0..MO_SPEC_N-1 (window and DFT twiddles)
+MO_SPEC_N = 128     # spectral floor: block length, samples (Hann-windowed DFT per block)
+MO_SPEC_K0 = 32     # its first bin (MO_SPEC_N / 4: 0.25 fs) ...
+MO_SPEC_NB = 16     # ... and MO_SPEC_NB bins, every other one (nearly uncorrelated under the Hann window)
+MO_SPEC_RANK = 4    # the periodogram's MO_SPEC_RANK-th smallest of those bins is read (a low quantile)
+MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow)
+N_PARAMS = P_MO_COS + MO_SPEC_N
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -137,7 +146,12 @@ M_MABS = 7       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
 M_HIST = M_MABS + MO_MAX_NLAG              # ring of the last 4 NLAG + 1 centred samples
 M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # per filter: rate, slope per sample, log-likelihood, 1.0 if below the floor at the last sample
 M_LPD = M_BANK + 4 * MO_MAX_NF             # max_motion_hz: delays of the rigid-body low-pass, 2 per section
-N_EXT = M_LPD + 2 * MAX_SOS
+M_SPOS = M_LPD + 2 * MAX_SOS   # spectral floor: position of the next sample in the block
+M_SR = M_SPOS + 1              # spectral floor: its smoothed white-noise variance, (deg/s)^2 (0 = no block yet)
+M_SBK = M_SPOS + 2             # spectral floor: b^(blocks+1) of its d_k
+M_SBAD = M_SPOS + 3            # spectral floor: 1.0 if the block holds a sample beyond MO_SPEC_ZMAX (it is skipped)
+M_SFOLD = M_SPOS + 4           # spectral floor: the windowed block folded in two, x[n] + x[n + N/2] (N/2 floats)
+N_EXT = M_SFOLD + MO_SPEC_N // 2
 
 
 def layout(n):
@@ -312,7 +326,7 @@ def cv_gains(tracking_index):
 
 def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
                   tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
-                  clip_sigma=4.0):
+                  clip_sigma=4.0, spectral=1.5):
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
@@ -327,7 +341,8 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     lags of the 4th-difference noise estimates; huber: their clip; tau_angle_s:
     time constant of the angle feedback (0 = off); clip_sigma: each filter
     but the fastest updates its state with its innovation clipped at this many sigma (a lone
-    spike moves the filters that did not follow it by a negligible amount)."""
+    spike moves the filters that did not follow it by a negligible amount);
+    spectral: the ratio of the spectral noise floor (:func:`spectral_params`; negative = off)."""
     fs = float(sample_rate_hz)
     if not 1 <= n_filters <= MO_MAX_NF or not 1 <= n_lag <= MO_MAX_NLAG:
         raise ValueError("motion: n_filters must be 1..%d and n_lag 1..%d" % (MO_MAX_NF, MO_MAX_NLAG))
@@ -338,7 +353,29 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     for i in range(n_filters):
         e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
         gains[3 * i:3 * i + 3] = cv_gains(10.0 ** e)
-    return p + gains
+    return p + gains + [0.0] + spectral_params(p[2], spectral)
+
+
+def spectral_params(b, ratio=1.0):
+    """Parameters of :func:`spectral_floor` (p[P_MO_SPEC ...]) for the per-sample
+    forgetting factor ``b`` of the noise level; the spectral estimate replaces
+    the lag estimate where it is below it by more than ``ratio`` (1.0: R is the
+    smaller of the two; 0.0: the spectral one alone; negative: off).
+
+    Scale: for white noise of variance R each bin's |X|^2 is R sum(w^2) times an
+    exponential variable of mean 1 (chi-square, 2 degrees of freedom), and the
+    j-th smallest of M independent ones has the mean sum_{i<j} 1 / (M - i)
+    (Renyi); sum(w^2) = 3 N / 8 for the periodic Hann window."""
+    c = 0.0
+    for i in range(MO_SPEC_RANK):
+        c += 1.0 / (MO_SPEC_NB - i)
+    bb = 1.0
+    for _ in range(MO_SPEC_N):
+        bb *= b
+    cos_tab = [math.cos(2.0 * math.pi * m / MO_SPEC_N) for m in range(MO_SPEC_N)]
+    if ratio < 0.0:
+        return [0.0, bb, 0.0] + cos_tab
+    return [1.0 / (c * (0.375 * MO_SPEC_N)), bb, float(ratio)] + cos_tab
 
 
 def butter_sos(order, cutoff_hz, sample_rate_hz):
@@ -821,6 +858,92 @@ def log1m_small(g):
         + g * (0.14285714285714285 + g * 0.125)))))))
 
 
+def spectral_floor(p, s, o, z, k):
+    """The sensor's white-noise variance R read from the spectrum (issue 23):
+    a floor that vibration tones do not lift. Returns the current estimate,
+    (deg/s)^2, 0.0 before the first block. ``o``: offset of motion's state,
+    ``z``: the raw centred sample, ``k``: samples since the restart.
+
+    Every MO_SPEC_N samples: the Hann-windowed DFT of the block at the
+    MO_SPEC_NB bins MO_SPEC_K0, MO_SPEC_K0 + 2, ... (0.25-0.5 fs, above the
+    motion of every profile; every other bin: the Hann window correlates
+    neighbours); all those bins are even, so the windowed block is folded in
+    two as it comes (x[n] + x[n + N/2]) and the DFT runs over N/2 samples at
+    the block's end (MO_SPEC_NB x N/2 multiply-adds per block: O(1) per
+    sample amortised); the MO_SPEC_RANK-th smallest |X|^2 of them times p[P_MO_SPEC]
+    (:func:`spectral_params`: chi-square order-statistic bias and the window's
+    sum of squares) is the block's estimate: a few tones occupy a few bins and
+    cannot move a low quantile. The blocks are averaged with the Sage-Husa
+    weight d_k of Eq. (33) (forgetting p[P_MO_SBB] per block), each clipped at
+    p[P_MO_HUBER] x the mean once 4 blocks are in; a block holding a sample
+    beyond MO_SPEC_ZMAX (or not finite) is left out (no overflow in the state)."""
+    n_blk = MO_SPEC_N
+    half = n_blk // 2
+    if k == 0.0:
+        s[o + M_SPOS] = 0.0
+        s[o + M_SR] = 0.0
+        s[o + M_SBK] = 1.0
+        s[o + M_SBAD] = 0.0
+    if not abs(z) < MO_SPEC_ZMAX:
+        z = 0.0
+        s[o + M_SBAD] = 1.0
+    n = int(s[o + M_SPOS])
+    c = P_MO_COS
+    x = (0.5 - 0.5 * p[c + n]) * z
+    if n < half:
+        s[o + M_SFOLD + n] = x
+    else:
+        s[o + M_SFOLD + n - half] += x      # even bins: x[n] and x[n + N/2] share every twiddle
+    n += 1
+    if n < n_blk:
+        s[o + M_SPOS] = float(n)
+        return s[o + M_SR]
+    s[o + M_SPOS] = 0.0
+    # the DFT of the folded block at the bins K0, K0 + 2, ...
+    re = [0.0] * MO_SPEC_NB
+    im = [0.0] * MO_SPEC_NB
+    mask = n_blk - 1                               # MO_SPEC_N is a power of 2: & mask == % MO_SPEC_N
+    for n in range(half):
+        y = s[o + M_SFOLD + n]
+        m = (MO_SPEC_K0 * n) & mask
+        dm = (2 * n) & mask
+        for j in range(MO_SPEC_NB):
+            re[j] += y * p[c + m]
+            im[j] += y * p[c + ((m + 3 * n_blk // 4) & mask)]   # sin(t) = cos(t - pi/2)
+            m = (m + dm) & mask                     # bin K0 + 2 (j + 1): phase (K0 + 2 j + 2) n
+    # the MO_SPEC_RANK smallest |X|^2, ascending (insertion)
+    low = [0.0] * MO_SPEC_RANK
+    nl = 0
+    for j in range(MO_SPEC_NB):
+        pw = re[j] * re[j] + im[j] * im[j]
+        if nl < MO_SPEC_RANK:
+            i = nl
+            nl += 1
+        elif pw < low[MO_SPEC_RANK - 1]:
+            i = MO_SPEC_RANK - 1
+        else:
+            continue
+        while i > 0 and low[i - 1] > pw:
+            low[i] = low[i - 1]
+            i -= 1
+        low[i] = pw
+    if s[o + M_SBAD] != 0.0:
+        s[o + M_SBAD] = 0.0
+        return s[o + M_SR]
+    xb = low[MO_SPEC_RANK - 1] * p[P_MO_SPEC]
+    bb = p[P_MO_SBB]
+    s[o + M_SBK] *= bb
+    d = (1.0 - bb) / (1.0 - s[o + M_SBK])
+    m = s[o + M_SR]
+    if d < 0.25 and xb > p[P_MO_HUBER] * m:
+        xb = p[P_MO_HUBER] * m
+    m += d * (xb - m)
+    if m == 0.0:
+        s[o + M_SBK] = 1.0     # a constant input so far: the mean starts with the first change
+    s[o + M_SR] = m
+    return m
+
+
 def motion_step(p, s, z):
     """``method="motion"``: one centred sample ``z`` through a bank of
     constant-velocity Kalman filters weighted by their likelihoods (not in the
@@ -840,7 +963,10 @@ def motion_step(p, s, z):
       difference is blind to the frequencies m fs / L, so the smallest reads
       the noise under slow manoeuvres and under a vibration tone that the
       lag-1 difference takes for noise (issue 23: everything above fs/4 was
-      erased).
+      erased). Where the spectral floor is on (p[P_MO_SPEC] > 0,
+      :func:`spectral_floor`), the spectral estimate replaces it where it is
+      below it by more than p[P_MO_SRATIO] (1: R is the smaller of the two): several tones lift every lag's estimate
+      (the drone multirotor: 35-80x), not a low quantile of the spectrum.
     * Each filter runs at its steady-state gains (:func:`cv_gains`), or at the
       gains of the least-squares line through all the samples since the
       warm-up when these are larger (its start-up: a growing memory, so the
@@ -894,6 +1020,9 @@ def motion_step(p, s, z):
             pos = 0
     s[o + M_HPOS] = float(pos)
     s[o + M_HIST + pos] = zr
+    rs = 0.0
+    if p[P_MO_SPEC] > 0.0:
+        rs = spectral_floor(p, s, o, zr, k)
     if k >= 4.0 * nlag:
         b = p[P_MO_BR]
         s[o + M_BK] *= b
@@ -928,6 +1057,8 @@ def motion_step(p, s, z):
             s[o + M_BK] = 1.0      # a constant input so far: the means start with the first change
         sig = least * 0.14980634836659743            # E|N(0, 70 R)| = sqrt(70 R 2/pi)
         r = sig * sig
+        if rs > 0.0 and rs * p[P_MO_SRATIO] < r:
+            r = rs                 # the spectral floor: vibration tones do not lift it
         if r < p[P_R_FLOOR]:
             r = p[P_R_FLOOR]
         if p[P_MO_RFIX] > 0.0:
