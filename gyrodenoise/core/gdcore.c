@@ -1392,6 +1392,27 @@ static const run_fn run_ar_table[LOC_MAX_ORDER + 1] = {
     NULL, run_ar_1, run_ar_2, run_ar_3, run_ar_4, run_ar_5, run_ar_6, run_ar_7, run_ar_8,
 };
 
+/* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
+ * from the first sample to the last; trace (or NULL) gets s[trace_index]
+ * after each sample, which must not be in the bank */
+KERNEL void run_motion_(const double *p, double *s, const double *z, const unsigned char *restarts,
+                        double *out, long n, long trace_index, double *trace)
+{
+    mo_bank_t bk;
+    long i;
+    mo_load_(p, s, &bk);
+    if (restarts == NULL && trace == NULL)      /* gd_run's common case, its own loop */
+        for (i = 0; i < n; i++)
+            out[i] = step_(p, s, z[i], 0, &bk);
+    else
+        for (i = 0; i < n; i++) {
+            out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, &bk);
+            if (trace)
+                trace[i] = s[trace_index];
+        }
+    mo_save_(p, s, &bk);
+}
+
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
             double *out, long n)
 {
@@ -1405,15 +1426,7 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
         return;
     }
     if (method == METHOD_MOTION) {
-        mo_bank_t bk;
-        mo_load_(p, s, &bk);
-        if (restarts == NULL)
-            for (i = 0; i < n; i++)
-                out[i] = step_(p, s, z[i], 0, &bk);
-        else
-            for (i = 0; i < n; i++)
-                out[i] = step_(p, s, z[i], restarts[i] != 0, &bk);
-        mo_save_(p, s, &bk);
+        run_motion_(p, s, z, restarts, out, n, 0, NULL);
         return;
     }
     if (restarts == NULL)
@@ -1426,11 +1439,16 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
 
 /* gd_run that also records s[trace_index] after each sample into trace[i]
  * (e.g. the output variance of the motion bank for the offline form,
- * batch.run_offline); the same step_ as gd_run's generic loop. */
+ * batch.run_offline); the same step_ as gd_run's loops (for motion with the
+ * bank outside s, unless the traced value is one of the bank's). */
 void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
                   double *out, long n, long trace_index, double *trace)
 {
-    long i;
+    long i, bank = layout_total_(ORDER(p)) - N_EXT + M_BANK;
+    if (p[P_METHOD] == METHOD_MOTION && (trace_index < bank || trace_index >= bank + 4 * MO_MAX_NF)) {
+        run_motion_(p, s, z, restarts, out, n, trace_index, trace);
+        return;
+    }
     for (i = 0; i < n; i++) {
         out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, NULL);
         trace[i] = s[trace_index];
