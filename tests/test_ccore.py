@@ -367,6 +367,19 @@ def test_wrong_sizes_raise_value_error():
         bad[K.P_LP_NSEC] = nsec
         with pytest.raises(ValueError, match="P_LP_NSEC"):
             C.step(bad, sa, 1.0, False)
+    # motion: the bank's and the history's sizes (the batch loop holds them in fixed arrays)
+    pm, pma, sma = _bufs("motion")
+    for field, values in ((K.P_MO_NF, (0.0, 17.0, 2.5, float("nan"))),
+                          (K.P_MO_NLAG, (0.0, 9.0, 1e9, 6.5, float("nan")))):
+        for v in values:
+            bad = array.array("d", pm)
+            bad[field] = v
+            name = "P_MO_NF" if field == K.P_MO_NF else "P_MO_NLAG"
+            with pytest.raises(ValueError, match=name):
+                C.step(bad, sma, 1.0, False)
+            with pytest.raises(ValueError, match=name):
+                C.run(bad, sma, array.array("d", [1.0] * 50), None, array.array("d", [0.0] * 50))
+    assert list(sma) == K.init_state(pm)
     z = array.array("d", [1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="out has"):
         C.run(pa, sa, z, None, array.array("d", [0.0] * 2))

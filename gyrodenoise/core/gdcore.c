@@ -57,6 +57,13 @@ const char *gd_check(const double *p, long n_p, long n_s)
         return "p[P_LP_NSEC] must be in 0..MAX_SOS";
     if (n_s != layout_total_(ORDER(p)))
         return "s has the wrong length for the AR order p[P_ORDER]";
+    if (p[P_METHOD] == METHOD_MOTION) {   /* the bank's and the history's sizes in s and in mo_bank_t */
+        double nf = p[P_MO_NF], nlag = p[P_MO_NLAG];
+        if (!(nf >= 1.0 && nf <= (double)MO_MAX_NF && nf == (double)(int)nf))
+            return "p[P_MO_NF] must be a whole number in 1..MO_MAX_NF";
+        if (!(nlag >= 1.0 && nlag <= (double)MO_MAX_NLAG && nlag == (double)(int)nlag))
+            return "p[P_MO_NLAG] must be a whole number in 1..MO_MAX_NLAG";
+    }
     return NULL;
 }
 
