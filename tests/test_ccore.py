@@ -367,6 +367,19 @@ def test_wrong_sizes_raise_value_error():
         bad[K.P_LP_NSEC] = nsec
         with pytest.raises(ValueError, match="P_LP_NSEC"):
             C.step(bad, sa, 1.0, False)
+    # motion: the bank's and the history's sizes (the batch loop holds them in fixed arrays)
+    pm, pma, sma = _bufs("motion")
+    for field, values in ((K.P_MO_NF, (0.0, 17.0, 2.5, float("nan"))),
+                          (K.P_MO_NLAG, (0.0, 9.0, 1e9, 6.5, float("nan")))):
+        for v in values:
+            bad = array.array("d", pm)
+            bad[field] = v
+            name = "P_MO_NF" if field == K.P_MO_NF else "P_MO_NLAG"
+            with pytest.raises(ValueError, match=name):
+                C.step(bad, sma, 1.0, False)
+            with pytest.raises(ValueError, match=name):
+                C.run(bad, sma, array.array("d", [1.0] * 50), None, array.array("d", [0.0] * 50))
+    assert list(sma) == K.init_state(pm)
     z = array.array("d", [1.0, 2.0, 3.0])
     with pytest.raises(ValueError, match="out has"):
         C.run(pa, sa, z, None, array.array("d", [0.0] * 2))
@@ -455,3 +468,51 @@ def test_rigid_option_c_equals_python_bit_for_bit(n, sigma, lam):
     ref_out, ref_s = py_run(p, z, r)
     assert c_step_run(p, z, r) == (ref_out, ref_s) and c_batch(p, z, r) == (ref_out, ref_s)
     assert ref_s[K.layout(n)[6] - K.N_EXT + K.M_R] == 0.0123
+
+
+@pytest.mark.parametrize("card,fs", [("paper_fog", 200.0), ("icm20602", 400.0), ("kvh1750", 1000.0)])
+def test_motion_batch_bank_equals_python_on_sensor_records(card, fs):
+    """gd_run's motion loop keeps the bank outside the state (one array per value, the
+    history twice over; issue 23, cost): outputs and final state bit for bit equal to the
+    plain-Python kernels and to the per-sample C step, on simulated sensor records (past the
+    warm-up and the growing memory, through a step, a fast sinusoid near fs/4, a lone spike,
+    restarts, a NaN sample that heals), whole and split at arbitrary points."""
+    import gyrodenoise as gd
+    n = int(6 * fs)                                       # 6 s; warm-up 1 s after each restart
+    z = gd.simulate(card, n, seed=5).rate_deg_s.copy()
+    t = np.arange(n) / fs
+    z += 20.0 * (t > 2.5) + 3.0 * np.sin(2 * np.pi * 0.24 * fs * t) * (t > 4.5)
+    i_spike, i_nan = int(3.3 * fs), int(3.6 * fs)
+    z[i_spike] += 400.0
+    z[i_nan] = float("nan")
+    r = [False] * n
+    r[int(1.2 * fs)] = True
+    p = K.make_params(3, "motion", sample_rate_hz=fs)
+    ref_out, ref_s = py_run(p, z.tolist(), r)
+    assert ref_out[i_nan] != ref_out[i_nan]             # a NaN in is a NaN out (then it heals)
+
+    def same(a, b):                                       # bit for bit, a NaN equal to a NaN
+        return np.array_equal(np.asarray(a[0]), np.asarray(b[0]), equal_nan=True) and a[1] == b[1]
+    assert same(c_batch(p, z, r), (ref_out, ref_s))
+    assert same(c_step_run(p, z.tolist(), r), (ref_out, ref_s))
+    assert ref_s[K.S_NHEAL] >= 1
+    tail = slice(n - int(fs), n)                          # the bank runs again in the last second
+    assert np.mean(np.asarray(ref_out)[tail] != z[tail]) > 0.9
+    s, got = None, []
+    cuts = [0, 1, 99, int(1.2 * fs) + 1, i_nan, i_nan + 1, n]
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        o_, s = c_batch(p, z[a:b], r[a:b], s)
+        got += o_
+    assert same((got, s), (ref_out, ref_s))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_motion_batch_equals_step_on_hostile_records(kind):
+    """The motion batch loop (bank outside the state) on every hostile kind (spikes up to
+    1e300, a 1e7 offset, constant, alternating, restarts...): equal to the per-sample C step
+    bit for bit, outputs and state, with and without the output variance (P_MO_VAR)."""
+    z, r = hostile(kind, 700, random.Random(23))
+    for var in (0.0, 1.0):
+        p = params("motion", 2, 0.0, 1.0)
+        p[K.P_MO_VAR] = var
+        assert c_batch(p, z, r) == c_step_run(p, z, r)
