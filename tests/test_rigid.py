@@ -295,6 +295,16 @@ def test_bridge_refuses_bad_values(tmp_path, args, named):
     assert out == "" and not (tmp_path / "o").exists()
 
 
+def test_bridge_text_summary_names_the_option(tmp_path):
+    """The text summary (not only the JSON) says that --max-motion-hz was applied: the
+    "filtered log:" line said only "(method motion; ...)"."""
+    status, out, err = _cli("mavlink", HERE / "data" / "ardusub_small.BIN", "-o", tmp_path / "a",
+                            "--max-motion-hz", "5", "--no-plots", "--no-csv")
+    assert status == 0, err
+    line = [ln for ln in out.splitlines() if "filtered log:" in ln]
+    assert line and "rigid body: --max-motion-hz 5 " in line[0], out
+
+
 def test_bridge_applies_the_option_and_says_so(tmp_path):
     """The option reaches the filter (the CSV equals gd.denoise with it, causal form) and
     the JSON's filter_options names it; above a stream's Nyquist the stream is written raw
