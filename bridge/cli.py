@@ -548,8 +548,12 @@ def _axis_line(s, a):
 
 
 def _options_text(r):
-    """', Butterworth order 2, zero phase' for the low-pass; '' for the other methods."""
+    """', Butterworth order 2, zero phase' for the low-pass; ', rigid body: --max-motion-hz 20'
+    for motion with that option; '' otherwise."""
     o = r.get("filter_options") or {}
+    if r.get("method") == "motion" and o.get("max_motion_hz"):
+        return (f", rigid body: --max-motion-hz {o['max_motion_hz']:g} (a 4th-order low-pass flat to it, "
+                f"-3 dB at twice it or 0.45 x each stream's rate, whichever is lower)")
     if r.get("method") != "lowpass":
         return ""
     return f", Butterworth order {o.get('order', 2)}, {'zero phase' if o.get('zero_phase') else 'causal'}"

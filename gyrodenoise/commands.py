@@ -115,7 +115,13 @@ def cmd_denoise(args):
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
     mode = "offline (forward + backward, no lag)" if offline or args.zero_phase else "causal"
     if args.max_motion_hz:
-        mode += f", rigid body: content above {args.max_motion_hz:g} Hz removed (--max-motion-hz)"
+        from .core.kernels import rigid_cutoff_hz
+        fc = rigid_cutoff_hz(float(args.max_motion_hz), rec.sample_rate_hz)
+        capped = fc < 2.0 * args.max_motion_hz
+        mode += (f", rigid body (--max-motion-hz {args.max_motion_hz:g}): a 4th-order low-pass flat to "
+                 f"{args.max_motion_hz:g} Hz, -3 dB at {fc:.3g} Hz"
+                 + (f" (at most 0.45 x the sample rate; twice the band would be {2.0 * args.max_motion_hz:g} Hz)"
+                    if capped else "") + ", before the filter bank")
     _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, {mode})")
     if rec.true_rate_deg_s is not None:
         _log(f"gyrodenoise: {rmse_line(rec.rate_deg_s, out, rec.true_rate_deg_s)}")

@@ -219,8 +219,8 @@ def _signal_notes(rate, line_of=lambda i: i + 2):
             if spikes.size:
                 notes.append(f"{spikes.size} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
                              f"(first at line {line_of(int(spikes[0]))}, sample {int(spikes[0])}, {rate[spikes[0]]:g} deg/s); "
-                             f"kept as is: "
-                             f"the SHAKF's outlier gate keeps single wild samples out of the filter")
+                             f"kept as is in the input; with --method shakf, kf or sh_classic the "
+                             f"outlier gate (--outlier-sigma) keeps single wild samples out of the filter")
     return notes
 
 

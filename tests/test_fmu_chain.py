@@ -100,6 +100,26 @@ def test_c_chain_equals_simulate_then_denoise(unz, chain, card, seed, method):
     check(table, card, seed, method, truth, rs, fs)
 
 
+def test_c_chain_runs_the_readme_command_with_relative_folders(unz, chain):
+    """The README's command, `./chain SimulatedFogNative/ FogDenoiserNative/ --fog card=imar_fog ...`,
+    run from the folder that holds the unzipped FMUs: relative folders and a bundled card. (The
+    resource URI was built as file://SimulatedFogNative//resources, whose host part is the folder's
+    name: the sensor refused the bundled card, exit status 100.)"""
+    dirs, _ = unz
+    card, seed, method = "imar_fog", 21, "shakf"
+    fs = load_card(card).sample_rate_hz
+    truth, rs = inputs(2000, fs)
+    data = "".join(f"{float(w)!r} {int(r)}\n" for w, r in zip(truth, rs))
+    proc = subprocess.run([*chain, "SimulatedFogNative/", "FogDenoiserNative/", "--fog", f"card={card}",
+                           "--fog", f"seed={seed}", "--den", f"method={method}",
+                           "--den", f"sample_period={1.0 / fs!r}", "--step", repr(1.0 / fs)],
+                          input=data, capture_output=True, text=True, timeout=120,
+                          cwd=dirs["SimulatedFogNative"].parent)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    table = np.loadtxt(io.StringIO(proc.stdout), delimiter=",", skiprows=1)
+    check(table, card, seed, method, truth, rs, fs)
+
+
 def test_c_chain_process_has_no_python(unz, chain):
     """The chain program and both FMU binaries link libc / libm / libdl only."""
     dirs, _ = unz

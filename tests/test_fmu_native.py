@@ -314,6 +314,22 @@ def test_state_get_set_and_serialize_round_trip(built, md, vr):
         inst.freeInstance()
 
 
+def test_serialized_state_size_is_the_one_the_readme_states(built, md, vr):
+    """README, "State": "(N bytes at order 3; ...)" is what fmi2SerializeFMUstate gives at order 3
+    (the README said 1336 while the block had grown to 2560 bytes)."""
+    import re
+    text = (HERE.parent / "README.md").read_text(encoding="utf-8")
+    found = re.search(r"FogDenoiserNative \((\d+) bytes at order 3", text)
+    assert found, "README no longer states the state size at order 3"
+    s = slave(built, md, ar_order=3)
+    s.exitInitializationMode()
+    state = s.getFMUstate()
+    assert len(s.serializeFMUstate(state)) == int(found.group(1))
+    s.freeFMUstate(state)
+    s.terminate()
+    s.freeInstance()
+
+
 def test_corrupted_serialized_state_is_an_error(built, md, vr):
     log = Logger()
     s = slave(built, md, logger=log)

@@ -198,6 +198,32 @@ def test_compiled_card_is_the_card_vector_bit_for_bit(every_term_card):
     assert len(lines) == 1 + len(v)
 
 
+def test_a_card_with_a_long_name_compiles_to_a_text_the_fmu_takes(built, md, vr, every_term_card, tmp_path):
+    """A card named with 5000 characters compiled to 9384 characters: the FMU refused it
+    ("card is 9384 characters long, at most 8191 allowed") and `fmu run --master ssp` aborted
+    inside libcosim. The name in the comment is now shortened; the FMU takes the text and gives
+    gd.simulate's numbers."""
+    import re
+    c_src = (HERE.parent / "fmu_src" / "native" / "simulatedfog_native.c").read_text()
+    text_max = int(re.search(r"#define CARD_LEN (\d+)", c_src).group(1)) - 1    # the terminating NUL
+    _, path, _ = every_term_card
+    long_path = tmp_path / "long_name.toml"
+    assert "\nname =" not in path.read_text()
+    long_path.write_text(path.read_text().replace("[sensor]\n", "[sensor]\nname = \"" + "x" * 5000 + "\"\n", 1))
+    assert len(load_card(long_path).name) == 5000
+    text = simnative.compile_card(long_path)
+    assert len(text) <= text_max and getattr(simnative, "CARD_TEXT_MAX", text_max) == text_max
+    fs = load_card(long_path).sample_rate_hz
+    truth, rs = inputs(500, fs)
+    s = slave(built, md, card=text, seed=3)
+    s.exitInitializationMode()
+    out, _ = run(s, vr, truth, rs, fs)
+    s.terminate()
+    s.freeInstance()
+    ref = gd.simulate(long_path, len(truth), seed=3, true_rate_deg_s=truth, restarts=rs).rate_deg_s
+    assert np.array_equal(out, ref)
+
+
 # ------------------------------------------------------------- the numbers
 @pytest.mark.parametrize("card_name,seed", [("paper_fog", 0), ("imar_fog", 7), ("kvh1750", 123456789)])
 def test_bundled_cards_equal_gd_simulate_bit_for_bit(built, md, vr, card_name, seed):

@@ -422,6 +422,29 @@ def test_sub_table_card_refitted_twice_last_value_in_card():
     assert "nothing missing" not in format_report(res)
 
 
+def test_report_says_why_not_within_when_the_gap_is_below_the_threshold():
+    """A card whose gap is below the scatter threshold but with a component above its own
+    threshold is not within the scatter; the report says that, with both numbers, not "still
+    above the scatter threshold" (the RLG x axis: gap 1.71 against 3.04 was reported as "still
+    above"). One Allan point reads "tau 0.01 s", not "0.01-0.01 s"."""
+    import copy
+    from gyrodenoise.modelgap import format_report
+    res = copy.deepcopy(gd.gap(_white(), FS, parse_card(SUB), seeds=3, engine="native"))
+    last = res.iterations[-1]
+    last["within_scatter"] = False
+    res.gap_after = 2.0 * res.threshold
+    assert "still above the scatter threshold" in format_report(res)
+    last["components"] = {c: 0.5 * res.component_threshold[c] for c in last["components"]}
+    last["components"]["psd"] = 2.0 * res.component_threshold["psd"]
+    res.gap_after = 0.5 * res.threshold
+    last["where"]["allan_tau_s"] = [(0.01, 0.01), (0.04, 0.08)]
+    rep = format_report(res)
+    assert "still above the scatter threshold" not in rep
+    assert f"the gap is below the scatter threshold ({res.gap_after:.3g} <= {res.threshold:.3g})" in rep
+    assert f"psd {last['components']['psd']:.3g} > {res.component_threshold['psd']:.3g}" in rep
+    assert "Allan deviation at tau 0.01 s, 0.04-0.08 s" in rep
+
+
 def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkeypatch):
     """With every candidate's score NaN (widening patched to NaN), nothing is
     accepted; the report says the gap is still above the threshold (not

@@ -239,11 +239,29 @@ def test_cli_applies_the_option(vib_csv, tmp_path):
     path, z = vib_csv
     out = tmp_path / "o.csv"
     status, _, err = _cli("denoise", path, "-o", out, "--max-motion-hz", CUT_HZ, "--causal")
-    assert status == 0 and "content above 30 Hz removed" in err
+    assert status == 0 and "a 4th-order low-pass flat to 30 Hz, -3 dB at 60 Hz, before the filter bank" in err
     a = np.genfromtxt(out, delimiter=",", names=True)
     ref = gd.denoise(z, FS, max_motion_hz=CUT_HZ)
     col = [n for n in a.dtype.names if n not in ("time", "raw", "rate")][0]
     np.testing.assert_allclose(a[col], ref, rtol=1e-9, atol=1e-9)
+
+
+def test_cli_says_where_the_low_pass_really_cuts_and_blames_no_absent_filter(tmp_path):
+    """At 50 Hz (log171.bin's rate) --max-motion-hz 20 cannot put the -3 dB point at 40 Hz: it is
+    capped at 0.45 x 50 = 22.5 Hz, and the message says so (it said "content above 20 Hz removed").
+    A spike note under method motion does not credit it to "the SHAKF's outlier gate"."""
+    fs = 50.0
+    z = np.random.default_rng(5).standard_normal(3000) * 0.1
+    z[1500] = 40.0
+    path = tmp_path / "drone.csv"
+    np.savetxt(path, np.column_stack([np.arange(z.size) / fs, z]), delimiter=",", header="time,rate",
+               comments="", fmt="%.17g")
+    status, _, err = _cli("denoise", path, "-o", tmp_path / "o.csv", "--max-motion-hz", 20)
+    assert status == 0, err
+    assert K.rigid_cutoff_hz(20.0, fs) == pytest.approx(22.5)
+    assert "flat to 20 Hz, -3 dB at 22.5 Hz (at most 0.45 x the sample rate" in err
+    assert "content above 20 Hz removed" not in err
+    assert "isolated spike" in err and "SHAKF's outlier gate" not in err
 
 
 @pytest.mark.parametrize("args,named", [
@@ -275,6 +293,16 @@ def test_bridge_refuses_bad_values(tmp_path, args, named):
     lines = err.strip().splitlines()
     assert status == 2 and len(lines) == 1 and named in lines[0], err
     assert out == "" and not (tmp_path / "o").exists()
+
+
+def test_bridge_text_summary_names_the_option(tmp_path):
+    """The text summary (not only the JSON) says that --max-motion-hz was applied: the
+    "filtered log:" line said only "(method motion; ...)"."""
+    status, out, err = _cli("mavlink", HERE / "data" / "ardusub_small.BIN", "-o", tmp_path / "a",
+                            "--max-motion-hz", "5", "--no-plots", "--no-csv")
+    assert status == 0, err
+    line = [ln for ln in out.splitlines() if "filtered log:" in ln]
+    assert line and "rigid body: --max-motion-hz 5 " in line[0], out
 
 
 def test_bridge_applies_the_option_and_says_so(tmp_path):

@@ -61,6 +61,30 @@ def test_gauss_markov_and_sinusoid():
     np.testing.assert_allclose(rec.rate_deg_s, np.sin(2 * np.pi * 2.0 * t), atol=1e-12)
 
 
+def test_angle_gauss_markov_reads_as_the_readme_says():
+    """README, "Model cards": an angle Gauss-Markov term (sigma deg, tau s) is an angle error that
+    stays within +-sigma (std sigma) instead of walking away; averaged over much less than tau it
+    is white rate noise with N = sigma sqrt(2 / tau) (deg/sqrt(s)), over much more than tau it is
+    white angle noise with Q = sigma; the rate's PSD rises like f^2 below 1 / (2 pi tau) and is
+    flat above it, at 2 sigma^2 / tau. Checked on one seeded simulation against those limits (the
+    exact curve, spectral.angle_gm_avar, is checked in test_gap)."""
+    from scipy.signal import welch
+    sigma, tau_c, fs, n = 0.01, 1.0, 100.0, 400_000
+    rec = gd.simulate(card(f"[[terms.angle_gauss_markov]]\nsigma = {sigma}\ntau = {tau_c}\n", fs), n, seed=3)
+    angle = np.cumsum(rec.rate_deg_s) / fs
+    assert np.std(angle) == pytest.approx(sigma, rel=0.05)
+    tau, ad, err, _ = A.adev(rec.rate_deg_s, fs, m=[1, 2, 5, 10])             # 0.01-0.1 s << tau
+    np.testing.assert_allclose(ad, sigma * math.sqrt(2.0 / tau_c) / np.sqrt(tau), rtol=0.02)
+    tau, ad, err, _ = A.adev(rec.rate_deg_s, fs, m=[2000, 4000, 8000])       # 20-80 s >> tau
+    np.testing.assert_allclose(ad, math.sqrt(3.0) * sigma / tau, rtol=0.15)
+    f, p = welch(rec.rate_deg_s, fs=fs, nperseg=8192)                         # one-sided, (deg/s)^2/Hz
+    flat = (f > 5.0) & (f < 20.0)       # >> 1 / (2 pi tau) = 0.16 Hz, well below Nyquist
+    assert np.mean(p[flat]) / 2.0 == pytest.approx(2.0 * sigma ** 2 / tau_c, rel=0.1)
+    f, p = welch(rec.rate_deg_s, fs=fs, nperseg=65536)
+    low = (f > 0.01) & (f < 0.04)       # << 0.16 Hz: rises like f^2
+    assert np.mean(p[low] / f[low] ** 2) / 2.0 == pytest.approx(2.0 * sigma ** 2 * tau_c * (2 * np.pi) ** 2, rel=0.3)
+
+
 def test_stream_equals_batch_with_true_rate_and_restarts():
     c = gd.load_card("paper_fog")
     c = parse_card(c.text + "turn_on_transient = { amplitude = 1.0, tau = 3.0 }\n", "t")

@@ -46,6 +46,12 @@ def _check_layout():
                            "(card_from_vector, check_vector)")
 
 
+#: the card parameter's text, at most (fmu_src/native/simulatedfog_native.c: CARD_LEN - 1)
+CARD_TEXT_MAX = 8191
+#: the card's name and file in the compiled card's comment line, at most (characters)
+CARD_COMMENT_MAX = 200
+
+
 def compile_card(card):
     """The compiled card (text) of ``card`` (a ModelCard, a card path or a bundled name)."""
     from ..simulator import load_card
@@ -57,13 +63,19 @@ def compile_card(card):
     except ValueError as exc:
         raise InputError(str(exc), card.source) from None
     what = " ".join(f"{card.name} ({Path(card.source).name})".split())   # one line
+    if len(what) > CARD_COMMENT_MAX:        # a long card name would push the text past the
+        what = what[:CARD_COMMENT_MAX - 3] + "..."   # FMU's card buffer (CARD_TEXT_MAX)
     lines = [f"gdcard {CARD_FORMAT} {len(v)}",
              f"# {what}, compiled by gyrodenoise {__version__} for {MODEL_NAME}:",
              "# the card vector (simkernels.card_vector, card units): field, IEEE 754 bits, value"]
     for name, x in zip(CARD_FIELDS, v):
         bits = struct.unpack("<Q", struct.pack("<d", float(x)))[0]
         lines.append(f"{name} 0x{bits:016x} {float(x)!r}")
-    return "\n".join(lines) + "\n"
+    text = "\n".join(lines) + "\n"
+    if len(text) > CARD_TEXT_MAX:           # cannot happen with CARD_COMMENT_MAX (worst case ~7,300)
+        raise InputError(f"the compiled card is {len(text)} characters long, the FMU takes at most "
+                         f"{CARD_TEXT_MAX}", card.source)
+    return text
 
 
 def bundled_cards():

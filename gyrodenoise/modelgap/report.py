@@ -24,7 +24,7 @@ def format_report(res, source="MEASURED"):
         w = it["where"]
         bits = []
         if w["allan_tau_s"]:
-            bits.append("Allan deviation at tau " + ", ".join(f"{a:.3g}-{b:.3g} s" for a, b in w["allan_tau_s"])
+            bits.append("Allan deviation at tau " + ", ".join(_tau_range(a, b) for a, b in w["allan_tau_s"])
                         + (" (measured above)" if all(s > 0 for s in w["allan_sign"]) else
                            " (measured below)" if all(s < 0 for s in w["allan_sign"]) else ""))
         if w["psd_lines"]:
@@ -63,14 +63,31 @@ def format_report(res, source="MEASURED"):
         verdict = "added (in the order found; the last entry of a term is its value in the card): " + \
             ", ".join(f"{e['name']}{' (re-fit)' if e['refit'] else ''}" for e in res.effects_added)
         if not res.within_scatter:
-            verdict += f"; still above the scatter threshold ({res.iterations[-1].get('stop')})"
+            verdict += f"; {_not_within(res)} ({res.iterations[-1].get('stop')})"
     elif res.within_scatter:
         verdict = "nothing missing (within the simulations' scatter)"
     else:
-        verdict = (f"nothing added: {res.iterations[-1].get('stop')}, but the gap is still above the "
-                   f"scatter threshold ({res.threshold:.3g}): the card does not explain the record")
+        verdict = (f"nothing added: {res.iterations[-1].get('stop')}, but {_not_within(res)}: "
+                   f"the card does not explain the record")
     out.append(f"gap {res.gap_before:.3g} -> {res.gap_after:.3g}; " + verdict)
     return "\n".join(out)
+
+
+def _tau_range(a, b):
+    """'0.01 s' for one Allan point, '0.04-0.08 s' for a run of them."""
+    return f"{a:.3g} s" if f"{a:.3g}" == f"{b:.3g}" else f"{a:.3g}-{b:.3g} s"
+
+
+def _not_within(res):
+    """Why the final card is not within the scatter: the gap above the threshold, or (the gap
+    below it) the components above their own thresholds, named with both numbers."""
+    if not res.gap_after <= res.threshold:
+        return f"still above the scatter threshold {res.threshold:.3g}"
+    comp = res.iterations[-1].get("components", {})
+    over = [f"{c} {comp[c]:.3g} > {res.component_threshold[c]:.3g}" for c in COMPONENTS
+            if c in comp and c in res.component_threshold and not comp[c] <= res.component_threshold[c]]
+    return (f"the gap is below the scatter threshold ({res.gap_after:.3g} <= {res.threshold:.3g}) but not "
+            f"within the scatter: component(s) above their own threshold ({', '.join(over) or 'none'})")
 
 
 def _short(params):

@@ -411,8 +411,8 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
             zeroed = _zeroed(c.changes)
             if zeroed:
                 msg = (f"the card is noisier than the record ({', '.join(zeroed)} would be set to 0); "
-                       f"gap only adds or re-fits terms: it cannot remove or reduce gauss_markov/"
-                       f"sinusoid terms, and writes no zeroed term as a fit")
+                       f"gap writes no term fitted to 0 (removing a term is a candidate of its own, "
+                       f"listed as '(removed)')")
                 c.why += f" (rejected: {msg})"
                 if msg not in limitations:
                     limitations.append(msg)
@@ -508,8 +508,8 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
     if not last["within_scatter"] and any(s_ < 0 for s_ in last["where"]["allan_sign"]) \
             and not any(s_ > 0 for s_ in last["where"]["allan_sign"]):
         msg = ("the record's Allan deviation is below the card's wherever they disagree: the card is "
-               "noisier than the record; gap only adds or re-fits terms and cannot remove or reduce "
-               "gauss_markov/sinusoid terms")
+               "noisier than the record there; no re-fit of its terms (down, or to nothing: the "
+               "'(removed)' candidates) shrank the gap enough to be accepted")
         if not any("noisier" in m_ for m_ in limitations):
             limitations.append(msg)
     from .effects import name_effects

@@ -45,7 +45,7 @@ static link_t open_link(const char *dir, const char **sets, int n, const char *i
     link_t l;
     int i;
     n_vars = 0;
-    snprintf(default_uri, sizeof default_uri, "file://%s/resources", dir);
+    set_default_uri(dir);
     read_model_description(dir);
     load(dir);
     n_set = 0;

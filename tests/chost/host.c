@@ -37,6 +37,7 @@
 #define BINARY_EXT ".dll"
 #else
 #define _POSIX_C_SOURCE 200809L
+#define _XOPEN_SOURCE 700      /* realpath */
 #include <dlfcn.h>
 #ifdef __APPLE__
 #define PLATFORM_DIR "darwin64"
@@ -186,6 +187,19 @@ static int n_set, n_out, n_bad, opt_log;
 static double opt_step = 0.005;
 static long opt_n = 1000000;
 static char default_uri[4200];
+
+/* default_uri = file://<absolute dir>/resources: a relative DIR ("SimulatedFogNative/", as the
+ * README's example has it) would otherwise give "file://SimulatedFogNative//resources", a URI
+ * whose host part is the folder's name, and the FMU could not find its resources */
+static void set_default_uri(const char *dir) {
+#ifdef _WIN32
+    snprintf(default_uri, sizeof default_uri, "file://%s/resources", dir);   /* the tests pass Z:/... */
+#else
+    char *resolved = dir[0] == '/' ? NULL : realpath(dir, NULL);
+    snprintf(default_uri, sizeof default_uri, "file://%s/resources", resolved ? resolved : dir);
+    free(resolved);
+#endif
+}
 
 #ifdef _WIN32
 typedef HMODULE lib_t;
@@ -477,7 +491,7 @@ int main(int argc, char **argv) {
         else die("unknown option %s", a);
         i++;
     }
-    snprintf(default_uri, sizeof default_uri, "file://%s/resources", dir);
+    set_default_uri(dir);
     read_model_description(dir);
     load(dir);
     if (strcmp(mode, "run") == 0) return run(0);
