@@ -29,7 +29,9 @@ def register_cli(subparsers):
     p.add_argument("--allan", default=None, metavar="CURVE.csv",
                    help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
                         "measurement instead of IN; see docs/GAP.md")
-    p.add_argument("--allan-unit", default="deg/s", help="unit of the curve's ADEV: deg/s (default), deg/h, rad/s")
+    p.add_argument("--allan-unit", default=None,
+                   help="unit of the curve's ADEV columns: deg/s, deg/h or rad/s (required with --allan: "
+                        "a curve file carries no unit)")
     p.add_argument("--sensor", default=None, help="--allan: the rows of this sensor (file with a sensor column)")
     p.add_argument("--channel", default=None, help="--allan: the rows of this channel")
     p.add_argument("--n-samples", type=int, default=None, help="--allan: length of the published record "
@@ -110,8 +112,11 @@ def _cmd_allan(args, card):
 
     from .cli import emit_json
     from .modelgap.curve import card_from_terms, fit_curve, inside, read_allan_curve, simulated_curve
-    curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit, args.sample_rate,
+    curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit or "deg/s", args.sample_rate,
                              args.n_samples)
+    if args.allan_unit is None:  # the file read well; its numbers mean nothing without their unit
+        raise InputError("the curve's ADEV columns carry no unit: give --allan-unit deg/s, deg/h or rad/s "
+                         "(a rad/s curve read as deg/s would be 57x too small)", args.allan)
     for note in curve.notes:
         _log(f"gyrodenoise: note: {args.allan}: {note}")
     terms, model = fit_curve(curve)
@@ -147,7 +152,8 @@ def _cmd_allan(args, card):
                                 f"({curve.label}, ADEV in {curve.unit}, {curve.n_samples} samples at "
                                 f"{curve.sample_rate_hz:g} Hz); {verdict}\n")
     lines = [f"gyrodenoise gap --allan: {args.allan} ({curve.label}; {len(curve.tau_s)} taus "
-             f"{curve.tau_s[0]:g}-{curve.tau_s[-1]:g} s; ADEV in {curve.unit}, converted to deg/s)",
+             f"{curve.tau_s[0]:g}-{curve.tau_s[-1]:g} s; ADEV in {curve.unit}"
+             f"{'' if curve.unit == 'deg/s' else ', converted to deg/s'})",
              "tau_s      published_deg_h   bounds_deg_h            fit_deg_h   simulated_deg_h  inside"]
     for r in rows:
         b = (f"{r['lo'] * 3600 if r['lo'] else float('nan'):.4g}-{r['hi'] * 3600 if r['hi'] else float('nan'):.4g}")

@@ -486,3 +486,15 @@ def test_allan_and_a_record_together_is_an_input_error(tmp_path):
     p.write_text("tau_s,allan_deviation\n1,2\n2,1\n4,0.5\n")
     proc = _cli("gap", tmp_path / "r.csv", "--allan", p, "--model", "paper_fog", "--out", tmp_path / "n.toml")
     assert proc.returncode == 2 and "either IN" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_allan_curve_without_its_unit_is_one_line_exit_2_nothing_written(tmp_path):
+    """A curve file carries no unit: guessing deg/s read the rad/s curves (iMAR, LN-200) 57x too small."""
+    p = tmp_path / "c.csv"
+    p.write_text("tau_s,allan_deviation\n1,2e-5\n2,1.4e-5\n4,1e-5\n8,7e-6\n")
+    out = tmp_path / "n.toml"
+    proc = _cli("gap", "--allan", p, "--sample-rate", "100", "--n-samples", "100000", "--model", "paper_fog",
+                "--out", out)
+    assert proc.returncode == 2, proc.stderr
+    assert "--allan-unit" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and not out.exists()
