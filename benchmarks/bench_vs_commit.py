@@ -8,8 +8,10 @@ Checks REV out into a temporary git worktree and times the batch loop
 for the gated SHAKF, the paper's SHAKF (no gate) and the KF, alternately in
 fresh processes of this interpreter: REV, then this tree, ``--repeat`` times.
 REV must have the batch loop as ``gyrodenoise.core.batch.run`` (the C core) or
-``gyrodenoise.batch.run`` (the numba loop before it, e.g. ``5848016~1``) and be
-built already if it needs compiling (a pure-Python/numba REV needs nothing).
+``gyrodenoise.batch.run`` (the numba loop before it, e.g. ``5848016~1``); ``--build``
+compiles REV's C core in the checkout first (``pip wheel``, the same flags as an
+install; without it a REV with a C core runs its plain-Python kernels). A method REV
+does not have (e.g. motion before issue 12) fails the run.
 Prints ns/sample per method and the ratio this tree / REV. Not a test.
 """
 
@@ -35,7 +37,7 @@ except ImportError:
 z = np.ascontiguousarray(gd.simulate("paper_fog", 1_440_000, seed=0).rate_deg_s)
 res = {}
 for label, method, kw in (("shakf", "shakf", {}), ("shakf, no gate", "shakf", {"outlier_sigma": 0.0}),
-                          ("kf", "kf", {})):
+                          ("kf", "kf", {}), ("motion", "motion", {})):
     p = K.make_params(method=method, sample_rate_hz=200.0, **kw)
     run(p, K.init_state(p), z[:5000])                  # compile / warm
     ts = []
@@ -48,12 +50,28 @@ print(json.dumps(res))
 '''
 
 
+def _build(root):
+    """Compile the C core of the checkout at ``root`` as an install would, extensions put beside the sources."""
+    import tempfile
+    import zipfile
+    with tempfile.TemporaryDirectory(prefix="gd_wheel_") as wheels:
+        subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", wheels, str(root)], check=True)
+        for whl in Path(wheels).glob("*.whl"):
+            with zipfile.ZipFile(whl) as zf:
+                for name in zf.namelist():
+                    if name.endswith((".so", ".pyd")):
+                        zf.extract(name, root)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("rev")
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--build", action="store_true", help="compile REV's C core in the checkout first")
     a = ap.parse_args(argv)
     with checkout(a.rev) as old:
+        if a.build:
+            _build(old)
         best = {}
         for _ in range(a.repeat):
             for label, root in ((a.rev, old), ("this tree", REPO)):
