@@ -20,8 +20,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from _data import SHARED_DATA
 
-CURVES = Path(__file__).resolve().parents[2] / "shared" / "data" / "allan_reference" / "avar_precomputed_curves.csv"
+CURVES = SHARED_DATA / "allan_reference" / "avar_precomputed_curves.csv"
 
 
 def main():

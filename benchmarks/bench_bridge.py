@@ -34,9 +34,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from _data import SHARED_DATA
 from _rev import REPO, checkout
 
-DEFAULT_LOG = REPO.parent / "shared" / "data" / "logs" / "log171.bin"
+DEFAULT_LOG = SHARED_DATA / "logs" / "log171.bin"
 
 FLOOR = """
 import numpy as np

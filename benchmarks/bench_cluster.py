@@ -20,6 +20,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from _data import SHARED_DATA
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -44,7 +45,7 @@ def best_of(fn, repeat):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--logs", default=str(REPO.parent / "shared" / "data" / "logs"))
+    ap.add_argument("--logs", default=str(SHARED_DATA / "logs"))
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--dask-defaults", action="store_true",
                     help="keep Dask's worker defaults (statistical profiler on, MALLOC_TRIM_THRESHOLD_=65536); "

@@ -20,8 +20,9 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
+from _data import SHARED_DATA
 
-STATIC = Path(__file__).resolve().parents[2] / "shared" / "data" / "static"
+STATIC = SHARED_DATA / "static"
 EMPTY = "[sensor]\nname = \"empty\"\nsample_rate_hz = 100.0\n"
 
 

@@ -15,9 +15,10 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
+from _data import SHARED_DATA
 
 TARGET_S = 20.0
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "static" / "psins_lasergyro.imu"
+DATA = SHARED_DATA / "static" / "psins_lasergyro.imu"
 EMPTY = "[sensor]\nname = \"empty\"\nsample_rate_hz = 100.0\n"
 
 

@@ -35,9 +35,10 @@ import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
 from gyrodenoise import reference_filters as RF
 from gyrodenoise.profiles import PROFILES
+from _data import SHARED_DATA
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_LOGS = REPO.parent / "shared" / "data" / "logs"
+SHARED_LOGS = SHARED_DATA / "logs"
 SENSORS = {"FOG": ("paper_fog", 200.0, 5.0), "MEMS": ("icm20602", 1000.0, 20.0)}
 LONG = ("at_rest", "constant")            # long enough for averaging to matter
 SKIP_S = 2.0

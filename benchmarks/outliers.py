@@ -31,8 +31,9 @@ from gyrodenoise.core import kernels as K
 from gyrodenoise.allanvar import allan
 from gyrodenoise.core.batch import run
 from gyrodenoise.experiments import rise_time
+from _data import SHARED_DATA
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "static"
+DATA = SHARED_DATA / "static"
 SIGMAS = (0.0, 4.0, 5.0, 6.0)
 
 

@@ -19,8 +19,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from _data import SHARED_DATA
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "static" / "psins_lasergyro.imu"
+DATA = SHARED_DATA / "static" / "psins_lasergyro.imu"
 LINES_HZ = ((22.8, 23.3), (47.8, 48.4), (35.5, 36.1), (10.4, 11.0))
 
 

@@ -1,14 +1,16 @@
 """Shared test helpers: where the third-party data lives, and skipping without it."""
+import os
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_DATA = REPO.parent / "shared" / "data"
+# ../shared/data beside the repository, or the folder named by GYRODENOISE_SHARED_DATA
+SHARED_DATA = Path(os.environ.get("GYRODENOISE_SHARED_DATA") or REPO.parent / "shared" / "data")
 
 
 def shared_file(*parts):
-    """Path of a file in ../shared/data, or skip the test with a reason."""
+    """Path of a file in the shared data (SHARED_DATA), or skip the test with a reason."""
     p = SHARED_DATA.joinpath(*parts)
     if not p.exists():
         pytest.skip(f"third-party data not present: {p} (licence forbids copying it into the repo)")

@@ -26,10 +26,11 @@ from gyrodenoise.errors import InputError
 from bridge import dataflash, tlog
 from bridge.process import process_log, process_many
 from bridge.streams import RestartDetector, noise_per_axis, restart_flags
+from conftest import SHARED_DATA
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
-SHARED_LOGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "logs"
+SHARED_LOGS = SHARED_DATA / "logs"
 R2D = 180.0 / math.pi
 
 

@@ -20,10 +20,11 @@ from bridge import dataflash
 from bridge.engines import FmuEngine, NativeEngine
 from bridge.process import process_log
 from bridge.streams import detect_restarts
+from conftest import SHARED_DATA
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
-SHARED_LOGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "logs"
+SHARED_LOGS = SHARED_DATA / "logs"
 
 
 def gyrodenoise_cmd():

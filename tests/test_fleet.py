@@ -8,8 +8,9 @@ import pytest
 
 from bridge.fleet import fleet_rows, format_table, noise_density, write_fleet_report
 from bridge.streams import noise_per_axis
+from conftest import SHARED_DATA
 
-SHARED_LOGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "logs"
+SHARED_LOGS = SHARED_DATA / "logs"
 
 FS = 25.0
 

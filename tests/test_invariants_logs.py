@@ -9,8 +9,9 @@ import pytest
 
 from gyrodenoise.core import kernels as K
 from gyrodenoise.core.batch import run
+from conftest import SHARED_DATA
 
-LOGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "logs"
+LOGS = SHARED_DATA / "logs"
 FILES = sorted(LOGS.glob("*")) if LOGS.is_dir() else []
 
 

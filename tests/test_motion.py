@@ -11,10 +11,11 @@ import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
 from gyrodenoise import reference_filters as RF
 from gyrodenoise.profiles import PROFILES
+from conftest import SHARED_DATA
 
 SENSORS = {"fog": ("paper_fog", 200.0, 5.0), "mems": ("icm20602", 1000.0, 20.0)}
 SKIP_S = 2.0
-LOGS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "logs"
+LOGS = SHARED_DATA / "logs"
 
 
 def record(profile, sensor, seconds, seed=1):

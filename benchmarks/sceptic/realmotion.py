@@ -36,13 +36,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from _data import SHARED_DATA  # benchmarks/ is on sys.path
 
 try:
     import numba
 except ImportError:  # pragma: no cover
     numba = None
 
-MOTION_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "motion"
+MOTION_DIR = SHARED_DATA / "motion"
 WINDOWS_S = (0.1, 1.0)
 
 
