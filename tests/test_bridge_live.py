@@ -161,7 +161,7 @@ def ref_restarts(t, factor=5.0):
     return r
 
 
-def check_forwarded(sent, received, rep, sample_rate):
+def check_forwarded(sent, received, rep, sample_rate, **denoise_kw):
     assert len(received) == len(sent), f"{len(received)} of {len(sent)} packets came back"
     assert rep["messages_in"] == rep["messages_forwarded"] == len(sent)
     assert rep["stopped_by"] == "count" and rep["unreadable_records"] == 0
@@ -194,7 +194,8 @@ def check_forwarded(sent, received, rep, sample_rate):
             assert reported[name]["rate_hz"] < 20.0
             np.testing.assert_array_equal(got, raw, err_msg=name)
             continue
-        ref = np.stack([gd.denoise(raw[:, j] * k, sample_rate, restarts=r) for j in range(3)], axis=1) / k
+        ref = np.stack([gd.denoise(raw[:, j] * k, sample_rate, restarts=r, **denoise_kw) for j in range(3)],
+                       axis=1) / k
         expected = np.clip(np.rint(ref), -32768, 32767)
         assert np.abs(got - expected).max() <= 1, name      # .5 ties only
         assert np.mean(got != expected) < 1e-3, name
@@ -331,3 +332,16 @@ def test_live_replay_of_a_fast_stream_is_the_batch_denoiser(tmp_path):
     streams, n_changed = check_forwarded(sent, received, rep, 50.0)
     assert set(streams) == {"SCALED_IMU2"} and rep["streams"][0]["restarts"] == 1
     assert not rep["streams"][0]["too_slow_to_denoise"] and n_changed > 500
+
+
+def test_live_replay_with_max_motion_hz_is_the_batch_denoiser_with_it(tmp_path):
+    """--max-motion-hz on a live link (issue 23 item 4): the 50 Hz stream filtered sample by
+    sample with the rigid-body low-pass equals gd.denoise(..., max_motion_hz=10) on the same
+    samples and restarts, and differs from the default (the option is really applied)."""
+    sent = _scaled_imu2_packets()
+    received, rep, _ = replay(sent, 50.0, tmp_path, extra=("--max-motion-hz", "10"))
+    streams, n_changed = check_forwarded(sent, received, rep, 50.0, max_motion_hz=10.0)
+    assert set(streams) == {"SCALED_IMU2"} and n_changed > 500
+    default, _, _ = replay(sent, 50.0, tmp_path / "default")
+    got, base = decode(received), decode(default)
+    assert sum(a.xgyro != b.xgyro for a, b in zip(got, base) if a.get_type() == "SCALED_IMU2") > 100
