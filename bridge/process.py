@@ -833,7 +833,7 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
         if bar:
             bar.close()
     logs = [r["report"] for r in results if r["ok"]]
-    failed = [{k: r[k] for k in ("file", "error", "option", "rates_hz") if k in r} for r in results if not r["ok"]]
+    failed = _failed_entries(results)
     if log:
         for r in logs:
             for s in r["streams"]:
@@ -851,6 +851,11 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
     }
 
 
+def _failed_entries(results):
+    """The ``failed`` list of a summary: file, error and, when a log refused an option, which."""
+    return [{k: r[k] for k in ("file", "error", "option", "rates_hz") if k in r} for r in results if not r["ok"]]
+
+
 def interrupted_summary(files, stems, results, ignored, exc, seconds, jobs=1, scheduler=None):
     """The summary of an interrupted run: the completed logs' reports (``logs``,
     ``failed``) as in a full summary, ``"interrupted": true``, the signal, and
@@ -859,7 +864,7 @@ def interrupted_summary(files, stems, results, ignored, exc, seconds, jobs=1, sc
     whole (written under a partial name, renamed when complete)."""
     done = [r for r in results if r is not None]
     logs = [r["report"] for r in done if r["ok"]]
-    failed = [{"file": r["file"], "error": r["error"]} for r in done if not r["ok"]]
+    failed = _failed_entries(done)
     sig = "SIGINT" if isinstance(exc, KeyboardInterrupt) else "SIGTERM"
     return {
         "interrupted": True, "signal": sig, "exit_status": 130 if sig == "SIGINT" else 143,

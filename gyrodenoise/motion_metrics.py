@@ -232,7 +232,7 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     fs = float(sample_rate_hz) if sample_rate_hz and sample_rate_hz > 0 else 1.0
     p = K.make_params(1, "motion", fs, warmup_s=0.0)
     p[K.P_MO_NF] = 1.0          # R comes before the bank and does not depend on it: one filter is enough
-    at = K.layout(1)[6] - K.N_EXT + K.M_R
+    at = K.ext_offset(p) + K.M_R
     ready = noise_ready_samples()
     s0 = K.init_state(p)                 # batch.run does not modify it: each run starts fresh
     vals = []

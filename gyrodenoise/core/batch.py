@@ -164,7 +164,7 @@ def run_offline(p, z, restarts=None, *, compiled=True):
     p[K.P_MO_VAR] = 1.0          # keep the output variance (not computed by the causal filter)
     warm = int(p[K.P_WARMUP])
     rigid = p[K.P_LP_NSEC] > 0.0
-    o_ext = K.layout(int(p[K.P_ORDER]))[6] - K.N_EXT
+    o_ext = K.ext_offset(p)
     for a, b in zip(bounds[:-1], bounds[1:]):
         seg = za[a:b]
         pb = p

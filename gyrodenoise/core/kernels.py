@@ -167,6 +167,12 @@ def layout(n):
     return o_theta, o_prls, o_x, o_p, o_z, o_w, total
 
 
+
+def ext_offset(p):
+    """Offset in the state of the method-specific block (lowpass delays, motion's
+    bank and noise estimates: the ``M_*`` offsets count from it), for params ``p``."""
+    return layout(int(p[P_ORDER]))[6] - N_EXT
+
 def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0,
                 b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
                 warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20,
@@ -827,7 +833,7 @@ def lowpass_step(p, s, z):
     """One sample of the Butterworth cascade (:func:`sos_cascade`) on the
     centred sample ``z``; the delays start at 0, which is the steady state for
     the first sample (centred to 0)."""
-    y = sos_cascade(p, s, layout(int(p[P_ORDER]))[6] - N_EXT, z)
+    y = sos_cascade(p, s, ext_offset(p), z)
     s[S_K] += 1.0
     s[S_CONV] = 1.0
     return y
@@ -1003,7 +1009,7 @@ def motion_step(p, s, z):
     from the first sample on (the low-pass needs no warm-up). Off (0 sections):
     no operation changes.
     """
-    o = layout(int(p[P_ORDER]))[6] - N_EXT
+    o = ext_offset(p)
     zr = z                     # raw (centred) sample: the noise level is read from it
     if p[P_LP_NSEC] > 0.0:
         z = sos_cascade(p, s, o + M_LPD, z)
