@@ -42,8 +42,8 @@ CARD_FIELDS = (("sample_rate_hz", "Q", "N", "B", "K", "R", "bias", "bias_rep", "
 def _check_layout():
     if len(CARD_FIELDS) != SK.CARD_LEN:    # a programming error, not the user's: loud, not a skip
         raise RuntimeError(f"the card vector has {SK.CARD_LEN} fields, {MODEL_NAME} knows {len(CARD_FIELDS)}: "
-                           "update gyrodenoise/fmu/simnative.py CARD_FIELDS and simulatedfog_native.c "
-                           "(card_from_vector, check_vector)")
+                           "update gyrodenoise/fmu/simnative.py CARD_FIELDS, gdsim.c (gd_sim_card_from_vector) "
+                           "and simulatedfog_native.c (check_vector)")
 
 
 #: the card parameter's text, at most (fmu_src/native/simulatedfog_native.c: CARD_LEN - 1)
