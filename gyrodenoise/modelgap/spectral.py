@@ -42,6 +42,9 @@ LINE_WINDOW_HZ = 2.0  # ... taken over this many Hz
 SKIRT_RATIO = 1.5     # ... and widened over its skirt: bins above SKIRT_RATIO x the running median,
                       # within LINE_BRIDGE_BINS of the band (~4 standard errors of a Welch bin over
                       # ~80 segments: a noise bin is there about once in 1e5)
+TAIL_BINS = 16        # a bump's upper tail is tested in chunks of this many Welch bins ...
+TAIL_SE = 3.0         # ... taken out while a chunk stands more than TAIL_SE standard errors above
+TAIL_FIT = (1.5, 2.5)  # ... the sensor's level fitted over TAIL_FIT x the bump's upper edge
 
 
 def psd_two_sided(name, f, fs, tau_s=None):
@@ -226,11 +229,43 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
             below = pv[fc < lo]
             if len(up) and len(below) and below.min() > WIDEN * up.min():
                 lo = float(f[0])
+            hi = bump_tail_end(f, p, hi, fs, y.shape[0], nper)
             out.append((float(lo), float(hi), peak))
             i = j + 1
         else:
             i += 1
     return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
+
+
+def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
+    """Upper edge (Hz) of a bump with its tail: the base motion falls steeply above the
+    band that :func:`find_bumps` widened (2x its far-side floor), but a tail of 10-50 %
+    over the sensor's level is left, and the comparison resolves the PSD to ~1 %
+    (the RLG's y axis: 1.2-3x from 10 to 15 Hz). The sensor's level is fitted over
+    :data:`TAIL_FIT` x ``hi_hz`` by non-negative least squares (relative weights) on the
+    shapes its terms take there - white rate ``1``, white angle ``sin^2(pi f T)``, a
+    fall like ``1 / sin^2(pi f T)`` (random walk, Gauss-Markov above its corner) - and
+    extrapolated down; the edge moves up over each chunk of :data:`TAIL_BINS` Welch bins
+    whose mean stands more than :data:`TAIL_SE` standard errors of a chunk
+    (``1 / sqrt(1.8 K TAIL_BINS)``, ``K`` Welch segments) above it, and stops at the
+    first chunk that does not (or at the fitted span). Unchanged when the fitted span
+    does not fit below the top Welch bin. ``p``: the PSD with the wandering lines
+    replaced by their running median."""
+    from scipy.optimize import nnls
+    k0, k_fit0, k_fit1 = np.searchsorted(f, [hi_hz, TAIL_FIT[0] * hi_hz, TAIL_FIT[1] * hi_hz])
+    if k_fit1 - k_fit0 < 2 * TAIL_BINS or TAIL_FIT[1] * hi_hz > f[-1]:
+        return float(hi_hz)
+    sn = np.sin(np.pi * f / fs) ** 2
+    shapes = np.column_stack([np.ones_like(f), sn, 1.0 / np.maximum(sn, 1e-300)])
+    fit = slice(k_fit0, k_fit1)
+    c, _ = nnls(shapes[fit] / p[fit, None], np.ones(k_fit1 - k_fit0))
+    level = shapes @ c
+    n_seg = max((n - nperseg) // (nperseg // 2) + 1, 1)
+    limit = 1.0 + TAIL_SE / math.sqrt(1.8 * n_seg * TAIL_BINS)
+    k = k0
+    while k + TAIL_BINS <= k_fit0 and p[k:k + TAIL_BINS].mean() > limit * level[k:k + TAIL_BINS].mean():
+        k += TAIL_BINS
+    return float(f[k - 1]) if k > k0 else float(hi_hz)
 
 
 def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):

@@ -491,7 +491,20 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
             if big:
                 best = min(big, key=lambda c: c.gap)
                 best.why += f" (accepted on the plain gap: {g:.3g} -> {best.gap:.3g}; the capped score saturates)"
-        if best is None or not (math.isfinite(rg) and (best.score <= MIN_IMPROVEMENT * rg or best.gap <= 0.25 * g)):
+        accepted = best is not None and math.isfinite(rg) and (best.score <= MIN_IMPROVEMENT * rg
+                                                                or best.gap <= 0.25 * g)
+        if not accepted:
+            # the loop's own stop test: a candidate that brings the card within the scatter
+            # (its gap and every component below their thresholds), no worse capped with
+            # the widening charged, is accepted although its score gains less than the rule asks
+            inside = [c for c in {id(c): c for c in ok + fallback}.values()
+                      if c.gap <= threshold and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
+                      and c.robust + c.widen <= rg]
+            if inside:
+                best = min(inside, key=lambda c: c.score)
+                best.why += f" (accepted: within the scatter, gap {g:.3g} -> {best.gap:.3g}, capped no worse)"
+                accepted = True
+        if not accepted:
             it["stop"] = "no candidate shrinks the gap significantly"
             break
         _log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
