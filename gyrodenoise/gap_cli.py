@@ -86,6 +86,22 @@ def _stop_bands(values):
     return out
 
 
+def _at_fitted_rate(text, fs, card_hz, model):
+    """The completed card stating the rate its terms were fitted at (the record's, ``fs``): a
+    term fitted at one rate simulates differently at another (an angle Gauss-Markov tau of
+    half a sample, white noise per sample). InputError (one line) when the card's rate
+    cannot be rewritten (``sample_rate_hz`` not on a line of its own)."""
+    from .modelgap.cards import text_at_rate
+    from .simulator import parse_card
+    new = text_at_rate(text, fs)
+    if parse_card(new, str(model)).sample_rate_hz != float(fs):
+        raise InputError(f"sensor.sample_rate_hz {card_hz:g} Hz: the terms were fitted at the record's "
+                         f"{fs:g} Hz and the rate cannot be rewritten (put sample_rate_hz on a line of "
+                         f"its own, or give a card at {fs:g} Hz)", str(model))
+    return new.rstrip("\n") + (f"\n# sample_rate_hz: {fs:g} Hz, the record's: the terms were fitted at it "
+                               f"(the input card said {card_hz:g} Hz)\n")
+
+
 def _read_input(args):
     """The record: a PSINS .imu log (--rate-column gyro_x/y/z) or a recording CSV."""
     if str(args.input).lower().endswith(".imu"):
@@ -204,13 +220,17 @@ def cmd_gap(args):
     check_record(rate, args.input)
     if abs(card.sample_rate_hz - fs) > 1e-6 * fs:
         card_at_rate(card.text, fs, card.source)   # refuse first (one line), then note
+        _at_fitted_rate(card.text, fs, card.sample_rate_hz, args.model)
         _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
-             f"{fs:g} Hz: simulating at the record's rate; {args.out} keeps the card's")
+             f"{fs:g} Hz: simulating at the record's rate; {args.out} states the record's rate when a "
+             f"term is fitted (the terms are fitted at it), else keeps the card's")
     res = gap(rate, fs, card, seeds=args.seeds, engine=args.engine,
               restarts=restarts, max_effects=args.max_effects, fmu_dir=args.fmu_dir,
               workers=args.workers, source=args.input, quiet=False, stop_bands=bands,
               latitude_deg=args.latitude, outliers=args.outliers)
     text = res.card_text
+    if res.effects_added and abs(card.sample_rate_hz - fs) > 1e-6 * fs:
+        text = _at_fitted_rate(text, fs, card.sample_rate_hz, args.model)
     if res.effects_added:
         text = text.rstrip("\n") + f"\n# completed by gyrodenoise gap from {Path(args.input).name}: " + \
             ", ".join(e["name"] for e in res.effects_added) + f"; gap {res.gap_before:.3g} -> {res.gap_after:.3g}\n"

@@ -286,6 +286,32 @@ def test_cli_json_contract_and_new_card(tmp_path):
     assert "gap" in proc.stderr             # the text report goes to stderr with --json
 
 
+def test_cli_card_written_at_the_rate_its_terms_were_fitted(tmp_path):
+    """A 200 Hz card on a 100 Hz record: the terms are fitted at 100 Hz (a white-noise
+    level per sample, an angle Gauss-Markov tau of half a sample simulate differently at
+    another rate), so the completed card states 100 Hz and says why; a card whose rate
+    cannot be rewritten (inline [sensor] table) is refused before anything is written."""
+    y = _measured(BASE, [("sinusoid", {"amplitude": 8.0, "frequency": 2.2})], n=30000)
+    meas = tmp_path / "meas.csv"
+    _write_csv(meas, y)
+    card = tmp_path / "c200.toml"
+    card.write_text(BASE.replace("sample_rate_hz = 100.0", "sample_rate_hz = 200.0"))
+    out = tmp_path / "new.toml"
+    proc = _cli("gap", meas, "--model", card, "--out", out, "--engine", "native", "--seeds", 3, "--no-plot")
+    assert proc.returncode == 0, proc.stderr
+    new = parse_card(out.read_text())
+    assert new.term_list("sinusoid") and new.sample_rate_hz == pytest.approx(100.0, rel=1e-9), out.read_text()
+    assert "the terms were fitted at it (the input card said 200 Hz)" in out.read_text()
+    inline = tmp_path / "inline.toml"
+    inline.write_text('sensor = { name = "inline", sample_rate_hz = 200.0 }\n[terms]\n'
+                      'angle_random_walk = { N = 0.1 }\n')
+    out2 = tmp_path / "new2.toml"
+    proc = _cli("gap", meas, "--model", inline, "--out", out2, "--engine", "native", "--seeds", 3, "--no-plot")
+    assert proc.returncode == 2 and not out2.exists(), proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and "inline.toml" in err[0] and "cannot be rewritten" in err[0], proc.stderr
+
+
 @pytest.mark.parametrize("case", ["missing_card", "bad_csv", "out_dir_missing", "too_short", "constant",
                                   "card_line_above_record_nyquist", "workers_negative", "dotted_key_card"])
 def test_cli_bad_input_one_line_exit_2(tmp_path, case):
