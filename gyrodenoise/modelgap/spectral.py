@@ -243,12 +243,14 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     over the sensor's level is left, and the comparison resolves the PSD to ~1 %
     (the RLG's y axis: 1.2-3x from 10 to 15 Hz). The sensor's level is fitted over
     :data:`TAIL_FIT` x ``hi_hz`` by non-negative least squares (relative weights) on the
-    shapes its terms take there - white rate ``1``, white angle ``sin^2(pi f T)``, a
-    fall like ``1 / sin^2(pi f T)`` (random walk, Gauss-Markov above its corner) - and
-    extrapolated down; the edge moves up over each chunk of :data:`TAIL_BINS` Welch bins
-    whose mean stands more than :data:`TAIL_SE` standard errors of a chunk
-    (``1 / sqrt(1.8 K TAIL_BINS)``, ``K`` Welch segments) above it, and stops at the
-    first chunk that does not (or at the fitted span). Unchanged when the fitted span
+    shapes the sensor's terms take above a few Hz - white rate ``1``, white angle
+    ``sin^2(pi f T)`` - and extrapolated down (a third shape falling like ``1 / sin^2(pi f
+    T)`` is not separable from these over the span and extrapolated the noise of the fit:
+    in seeded trials it stopped the edge with half the tail left). The edge moves up over
+    each chunk of :data:`TAIL_BINS` Welch bins whose mean stands more than
+    :data:`TAIL_SE` standard errors of a chunk (``1 / sqrt(1.8 K TAIL_BINS)``, ``K``
+    Welch segments) above it, and stops at the first two chunks in a row that do not
+    (or at the fitted span). Unchanged when the fitted span
     does not fit below the top Welch bin. ``p``: the PSD with the wandering lines
     replaced by their running median."""
     from scipy.optimize import nnls
@@ -256,15 +258,22 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     if k_fit1 - k_fit0 < 2 * TAIL_BINS or TAIL_FIT[1] * hi_hz > f[-1]:
         return float(hi_hz)
     sn = np.sin(np.pi * f / fs) ** 2
-    shapes = np.column_stack([np.ones_like(f), sn, 1.0 / np.maximum(sn, 1e-300)])
+    shapes = np.column_stack([np.ones_like(f), sn])
     fit = slice(k_fit0, k_fit1)
     c, _ = nnls(shapes[fit] / p[fit, None], np.ones(k_fit1 - k_fit0))
     level = shapes @ c
     n_seg = max((n - nperseg) // (nperseg // 2) + 1, 1)
     limit = 1.0 + TAIL_SE / math.sqrt(1.8 * n_seg * TAIL_BINS)
+    def above(k_):
+        return k_ + TAIL_BINS <= k_fit0 and p[k_:k_ + TAIL_BINS].mean() > limit * level[k_:k_ + TAIL_BINS].mean()
     k = k0
-    while k + TAIL_BINS <= k_fit0 and p[k:k + TAIL_BINS].mean() > limit * level[k:k + TAIL_BINS].mean():
-        k += TAIL_BINS
+    while True:
+        if above(k):
+            k += TAIL_BINS
+        elif above(k + TAIL_BINS):      # one chunk below the limit by chance is bridged
+            k += 2 * TAIL_BINS
+        else:
+            break
     return float(f[k - 1]) if k > k0 else float(hi_hz)
 
 

@@ -243,15 +243,14 @@ def _top_disagreement(res):
     TOP_FROM * fs, when what still disagrees sits at the top of the band: a run of
     Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point; else
     None. (A fixed edge: where the run starts moves with the seeds' scatter.)"""
-    it = res.iterations[-1]
-    z, lay = it["_z"], res.layout
-    zp = np.abs(z["psd"])
-    k = len(zp)
-    while k > 0 and zp[k - 1] > 3.0:
-        k -= 1
-    if k == len(zp) and not abs(z["allan"][0]) > 3.0:
+    if not _top_disagrees(res.iterations[-1]["_z"]):
         return None
-    return float(TOP_FROM * lay.fs)
+    return float(TOP_FROM * res.layout.fs)
+
+
+def _top_disagrees(z):
+    """A run of Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point."""
+    return abs(z["psd"][-1]) > 3.0 or abs(z["allan"][0]) > 3.0
 
 
 def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
@@ -493,10 +492,12 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
                 best.why += f" (accepted on the plain gap: {g:.3g} -> {best.gap:.3g}; the capped score saturates)"
         accepted = best is not None and math.isfinite(rg) and (best.score <= MIN_IMPROVEMENT * rg
                                                                 or best.gap <= 0.25 * g)
-        if not accepted:
+        if not accepted and (stop_bands != "auto" or not _top_disagrees(z)):
             # the loop's own stop test: a candidate that brings the card within the scatter
             # (its gap and every component below their thresholds), no worse capped with
-            # the widening charged, is accepted although its score gains less than the rule asks
+            # the widening charged, is accepted although its score gains less than the rule
+            # asks. Not while the top of the band still disagrees in the first pass: that
+            # band is taken out next (gap()), and the card is judged without it
             inside = [c for c in {id(c): c for c in ok + fallback}.values()
                       if c.gap <= threshold and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
                       and c.robust + c.widen <= rg]
