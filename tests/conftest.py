@@ -1,5 +1,7 @@
 """Shared test helpers: where the third-party data lives, and skipping without it."""
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -17,11 +19,38 @@ def shared_file(*parts):
     return p
 
 
+NATIVE_REPORT_PREFIX = "gyrodenoise: native "      # the stderr lines of `fmu build` (fmu/cli.py _cmd_build)
+
+
 @pytest.fixture(scope="session")
-def native_build(tmp_path_factory):
-    """The native FMUs (FogDenoiserNative, SimulatedFogNative), compiled once per session for every
-    platform a compiler is found for (gyrodenoise.fmu.native.build_native_fmus); (folder,
-    {platform: compiler or skip reason})."""
+def fmu_build(tmp_path_factory):
+    """`gyrodenoise fmu build --out DIR` run once per session in a subprocess: the pythonfmu
+    FMUs (FogDenoiser, SimulatedFog) and the native ones (FogDenoiserNative, SimulatedFogNative,
+    every platform a compiler is found for); (folder, CompletedProcess). Each user checks the
+    exit status its own way (tests/test_fmu.py asserts it, tests/test_bridge_fmu.py skips).
+    One build serves every test that needs a built FMU: it is the suite's costliest setup
+    (~35 s, three native platforms x two models) and was run three times."""
+    out = tmp_path_factory.mktemp("fmus")
+    proc = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "fmu", "build", "--out", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    return out, proc
+
+
+@pytest.fixture(scope="session")
+def native_build(fmu_build, tmp_path_factory):
+    """The native FMUs (FogDenoiserNative, SimulatedFogNative) for every platform a compiler is
+    found for; (folder, {platform: compiler or skip reason}). Taken from the session's
+    `fmu build` (its stderr report is build_native_fmus' report, one line a platform); if that
+    build failed, built alone here (gyrodenoise.fmu.native.build_native_fmus), or skipped."""
+    out, proc = fmu_build
+    if proc.returncode == 0:
+        report = {}
+        for line in proc.stderr.splitlines():
+            if line.startswith(NATIVE_REPORT_PREFIX):
+                plat, _, what = line[len(NATIVE_REPORT_PREFIX):].partition(": ")
+                report[plat] = what
+        if report and all((out / f"{n}.fmu").is_file() for n in ("FogDenoiserNative", "SimulatedFogNative")):
+            return out, report
     from gyrodenoise.errors import InputError
     from gyrodenoise.fmu import native
     out = tmp_path_factory.mktemp("native_fmus")
