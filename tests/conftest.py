@@ -1,9 +1,10 @@
 """Shared test helpers: where the third-party data lives, and skipping without it; the
-session's FMU build; running a program under wine."""
+session's FMU build; running a program under wine; the CLI in this process."""
 import os
 import subprocess
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import pytest
@@ -76,3 +77,26 @@ def run_wine(cmd, input=None, env=None, timeout=180):
         out.seek(0)
         err.seek(0)
         return subprocess.CompletedProcess(proc.args, proc.returncode, out.read(), err.read())
+
+
+#: the warnings a Python process prints with its default filters (all but these categories)
+SILENT_BY_DEFAULT = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
+
+
+def main_in_process(capfd, *args):
+    """``gyrodenoise ARGS`` run by gyrodenoise.cli.main in this process: (exit status,
+    stdout, stderr). Read at the file descriptors (capfd: C-level writes too); a warning that
+    a process of its own would print (default filters) is a line of stderr; an exception is
+    a traceback and fails the caller."""
+    from gyrodenoise.cli import main
+    capfd.readouterr()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as exc:           # argparse errors leave with sys.exit(2)
+            status = exc.code
+    out, err = capfd.readouterr()
+    err += "".join(f"{w.category.__name__}: {w.message}\n" for w in caught
+                   if not issubclass(w.category, SILENT_BY_DEFAULT))
+    return status, out, err

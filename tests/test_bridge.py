@@ -14,7 +14,6 @@ import math
 import shutil
 import subprocess
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +26,7 @@ from gyrodenoise.errors import InputError
 from bridge import dataflash, tlog
 from bridge.process import process_log, process_many
 from bridge.streams import RestartDetector, noise_per_axis, restart_flags
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, main_in_process
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
@@ -702,29 +701,6 @@ def test_filtered_value_that_does_not_fit_int16_is_never_clipped(tmp_path, monke
     np.testing.assert_array_equal(out["RAW_IMU"][1], ref["RAW_IMU"][1])
 
 
-#: the warnings a Python process prints with its default filters (all but these categories)
-SILENT_BY_DEFAULT = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
-
-
-def main_in_process(capfd, *args):
-    """``gyrodenoise mavlink ARGS`` run by gyrodenoise.cli.main in this process: (exit status,
-    stdout, stderr). Read at the file descriptors (capfd: C-level writes too); a warning that
-    a process of its own would print (default filters) is a line of stderr; an exception is
-    a traceback and fails the caller."""
-    from gyrodenoise.cli import main
-    capfd.readouterr()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            status = main(["mavlink", *map(str, args)])
-        except SystemExit as exc:           # argparse errors leave with sys.exit(2)
-            status = exc.code
-    out, err = capfd.readouterr()
-    err += "".join(f"{w.category.__name__}: {w.message}\n" for w in caught
-                   if not issubclass(w.category, SILENT_BY_DEFAULT))
-    return status, out, err
-
-
 def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd):
     """Issue 11 item 3: paths and option values; each gives one line naming the
     option or path on stderr, exit 2, no traceback; with --json one object.
@@ -761,7 +737,7 @@ def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd
         for js in ([], ["--json"]):
             args = ([log, "-o", tmp_path / "o"] if extra[0] != "-o" else [log]) + [*extra, *js, "--no-plots",
                                                                                    "--no-csv"]
-            runs = [main_in_process(capfd, *args)]
+            runs = [main_in_process(capfd, "mavlink", *args)]
             if i in in_a_process:
                 r = run_cli(*args)
                 runs.append((r.returncode, r.stdout, r.stderr))
