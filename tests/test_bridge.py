@@ -26,7 +26,7 @@ from gyrodenoise.errors import InputError
 from bridge import dataflash, tlog
 from bridge.process import process_log, process_many
 from bridge.streams import RestartDetector, noise_per_axis, restart_flags
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, main_in_process
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
@@ -701,9 +701,13 @@ def test_filtered_value_that_does_not_fit_int16_is_never_clipped(tmp_path, monke
     np.testing.assert_array_equal(out["RAW_IMU"][1], ref["RAW_IMU"][1])
 
 
-def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path):
+def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd):
     """Issue 11 item 3: paths and option values; each gives one line naming the
-    option or path on stderr, exit 2, no traceback; with --json one object."""
+    option or path on stderr, exit 2, no traceback; with --json one object.
+    The 66 runs go through gyrodenoise.cli.main in this process (main_in_process); three
+    kinds (a path, an option value, an argparse error) also as the installed command in a
+    process of its own (run_cli: the console entry, interpreter start and exit). 66 processes
+    took 9.5 s of the suite."""
     log = DATA / "ardusub_small.BIN"
     afile = tmp_path / "afile"
     afile.write_text("x")
@@ -728,21 +732,27 @@ def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path):
         (["--duration", "inf"], "--duration"), (["--count", "0"], "--count"),
         (["--method", "magic"], "--method"), (["--no-such-option"], "--no-such-option"),
     ]
-    for extra, named in cases:
+    in_a_process = {0, 4, len(cases) - 1}       # -o a file, --warmup-s nan, an unknown option
+    for i, (extra, named) in enumerate(cases):
         for js in ([], ["--json"]):
-            r = run_cli(log, "-o", tmp_path / "o", *extra, *js, "--no-plots", "--no-csv") \
-                if extra[0] != "-o" else run_cli(log, *extra, *js, "--no-plots", "--no-csv")
-            what = f"{extra} {js}: {r.stderr!r}"
-            assert r.returncode == 2, what
-            assert "Traceback" not in r.stderr, what
-            lines = r.stderr.strip().splitlines()
-            assert len(lines) == 1 and lines[0].startswith("gyrodenoise: error: ") and named in lines[0], what
-            if js:
-                assert r.stdout.count("\n") == 1, what
-                obj = json.loads(r.stdout)
-                assert obj["exit_status"] == 2 and named in obj["error"], what
-            else:
-                assert r.stdout == "", what
+            args = ([log, "-o", tmp_path / "o"] if extra[0] != "-o" else [log]) + [*extra, *js, "--no-plots",
+                                                                                   "--no-csv"]
+            runs = [main_in_process(capfd, "mavlink", *args)]
+            if i in in_a_process:
+                r = run_cli(*args)
+                runs.append((r.returncode, r.stdout, r.stderr))
+            for status, stdout, stderr in runs:
+                what = f"{extra} {js}: {stderr!r}"
+                assert status == 2, what
+                assert "Traceback" not in stderr, what
+                lines = stderr.strip().splitlines()
+                assert len(lines) == 1 and lines[0].startswith("gyrodenoise: error: ") and named in lines[0], what
+                if js:
+                    assert stdout.count("\n") == 1, what
+                    obj = json.loads(stdout)
+                    assert obj["exit_status"] == 2 and named in obj["error"], what
+                else:
+                    assert stdout == "", what
     # a failing single log with --json: one object with the error in it
     r = run_cli(DATA / "plane_no_imu.bin" if (DATA / "plane_no_imu.bin").exists()
                 else shared_log("plane_no_imu.bin"), "-o", tmp_path / "o", "--json")

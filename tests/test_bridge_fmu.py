@@ -1,8 +1,8 @@
 """The FMU engine of the bridge (FogDenoiser.fmu through fmpy's FMU2Slave) gives
 the same output as the native engine on real logs.
 
-The FMU is built for the test with ``gyrodenoise fmu build --out <tmp>``; the
-tests skip, saying why, when it cannot be built here.
+The FMU is built with ``gyrodenoise fmu build --out <tmp>`` (conftest ``fmu_build``, once
+per session); the tests skip, saying why, when it cannot be built here.
 """
 
 from __future__ import annotations
@@ -33,13 +33,8 @@ def gyrodenoise_cmd():
 
 
 @pytest.fixture(scope="module")
-def fmu_path(tmp_path_factory):
-    out = tmp_path_factory.mktemp("fmu")
-    try:
-        r = subprocess.run(gyrodenoise_cmd() + ["fmu", "build", "--out", str(out)],
-                           capture_output=True, text=True, timeout=300)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        pytest.skip(f"FogDenoiser.fmu cannot be built yet: {exc}")
+def fmu_path(fmu_build):
+    out, r = fmu_build              # conftest: `gyrodenoise fmu build --out DIR`, once per session
     fmu = out / "FogDenoiser.fmu"
     if r.returncode != 0 or not fmu.is_file():
         why = (r.stderr.strip().splitlines() or ["no FogDenoiser.fmu produced"])[-1]

@@ -31,10 +31,8 @@ TOL = 1e-9
 
 
 @pytest.fixture(scope="session")
-def fmu_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("fmus")
-    proc = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "fmu", "build", "--out", str(out)],
-                          capture_output=True, text=True, timeout=300)
+def fmu_dir(fmu_build):
+    out, proc = fmu_build           # conftest: `gyrodenoise fmu build --out DIR`, once per session
     assert proc.returncode == 0, proc.stderr
     for name in list(F.FMUS) + ["FogDenoiserNative", "SimulatedFogNative"]:
         assert (out / f"{name}.fmu").is_file()

@@ -22,6 +22,7 @@ from gyrodenoise.fmu import native
 from gyrodenoise.simulator import load_card
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from conftest import run_wine  # noqa: E402
 from test_fmu_native import _needed  # noqa: E402
 from test_fmu_simnative import windows_program  # noqa: E402
 
@@ -67,10 +68,10 @@ def inputs(n, fs):
 
 def run_chain(cmd, fog, den, card, seed, method, truth, rs, fs, env=None, timeout=120):
     data = "".join(f"{float(w)!r} {int(r)}\n" for w, r in zip(truth, rs))
-    proc = subprocess.run([*cmd, str(fog), str(den), "--fog", f"card={card}", "--fog", f"seed={seed}",
-                           "--den", f"method={method}", "--den", f"sample_period={1.0 / fs!r}",
-                           "--step", repr(1.0 / fs)],
-                          input=data, capture_output=True, text=True, env=env, timeout=timeout)
+    proc = run_wine([*cmd, str(fog), str(den), "--fog", f"card={card}", "--fog", f"seed={seed}",
+                     "--den", f"method={method}", "--den", f"sample_period={1.0 / fs!r}",
+                     "--step", repr(1.0 / fs)],
+                    input=data, env=env, timeout=timeout)      # files, not pipes (linux64 too)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.startswith("t_s,true_rate,restart,measured_rate,filtered_rate\n")
     return np.loadtxt(io.StringIO(proc.stdout), delimiter=",", skiprows=1)

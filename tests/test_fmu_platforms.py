@@ -32,6 +32,7 @@ from gyrodenoise.fmu import native
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import binfmt  # noqa: E402
+from conftest import run_wine  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 FS = 200.0
@@ -122,8 +123,7 @@ def wine_host(unz, native_build, tmp_path_factory):
 
 def wine_run(wine_host, unz, *args, data=None, timeout=180):
     cmd, env = wine_host
-    return subprocess.run([*cmd, "Z:" + str(unz), *args], input=data, capture_output=True, text=True,
-                          env=env, timeout=timeout)
+    return run_wine([*cmd, "Z:" + str(unz), *args], input=data, env=env, timeout=timeout)
 
 
 CASES = [("motion", {}), ("shakf", {}), ("kf", {}), ("lowpass", {"cutoff_hz": 7.5, "lowpass_order": 5})]

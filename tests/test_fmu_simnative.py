@@ -32,6 +32,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFre
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import binfmt  # noqa: E402
+from conftest import run_wine  # noqa: E402
 # the FMI layer's test helpers, and the fixtures md and vr (over this module's `built`)
 from test_fmu_native import (REBUILD_WITH_LIBM, Logger, _exported, _fmpy_rebuild, _needed,  # noqa: E402,F401
                              expect_error, md, vr)
@@ -533,16 +534,15 @@ def test_win64_under_wine_equals_gd_simulate(built, wine_host, every_term_card):
     unz = "Z:" + str(built[1])
     for given, seed, c in ((text, 9, card), ("kvh1750", 77, "kvh1750")):
         fs = load_card(c).sample_rate_hz
-        proc = subprocess.run(host_cmd(cmd, unz, "run", "--set", f"card={given}", "--set", f"seed={seed}",
-                                       "--step", repr(1.0 / fs)),
-                              input=host_data(truth, rs), capture_output=True, text=True, env=env, timeout=180)
+        proc = run_wine(host_cmd(cmd, unz, "run", "--set", f"card={given}", "--set", f"seed={seed}",
+                                 "--step", repr(1.0 / fs)),
+                        input=host_data(truth, rs), env=env, timeout=180)
         assert proc.returncode == 0, proc.stderr[-2000:]
         out = np.array([float(x) for x in proc.stdout.split()])
         ref = gd.simulate(c, len(truth), seed=seed, true_rate_deg_s=truth, restarts=rs).rate_deg_s
         # libm's log/sin/exp differ between glibc and msvcrt in the last bit at most
         np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
-    proc = subprocess.run(host_cmd(cmd, unz, "forbidden", *FORBIDDEN_ARGS), capture_output=True, text=True,
-                          env=env, timeout=180)
+    proc = run_wine(host_cmd(cmd, unz, "forbidden", *FORBIDDEN_ARGS), env=env, timeout=180)
     assert proc.returncode == 0 and "0 failed" in proc.stdout, proc.stdout + proc.stderr
 
 

@@ -13,6 +13,7 @@ import gyrodenoise as gd
 import gyrodenoise.simulator as SIM
 from gyrodenoise.core import simkernels as SK
 from gyrodenoise.simulator import parse_card
+from conftest import run_wine
 
 C = pytest.importorskip("gyrodenoise.core._gdcore")
 
@@ -180,8 +181,7 @@ def test_plain_c_on_each_platform_equals_the_specification(plat, tmp_path):
         exe, cmd, env = tmp_path / "simdriver.exe", [wine], dict(os.environ, WINEDEBUG="-all")
         _compile_driver(cc, exe, tmp_path)
     vec = " ".join(repr(x) for x in SK.card_vector(card))
-    proc = subprocess.run([*cmd, str(exe), str(seed), str(n)], input=vec, capture_output=True, text=True,
-                          env=env, timeout=180)
+    proc = run_wine([*cmd, str(exe), str(seed), str(n)], input=vec, env=env, timeout=180)   # files, not pipes (linux64 too)
     assert proc.returncode == 0, proc.stderr
     got = np.array([float(x) for x in proc.stdout.split()])
     pp = SK.params(SK.card_vector(card), seed)
