@@ -27,6 +27,7 @@ import numpy as np
 from .cards import card_at_rate, edit_card
 
 SPREAD_STREAM = 952          # first word of the spread draws' seed (IEEE Std 952): numpy default_rng([952, seed])
+DOMINANT_SHARE = 0.8         # a term's spread is estimated where it makes more than 80 % of the card's signature
 TRAIN_SEED_OFFSET = 2 ** 40  # the bootstrap's simulated training records: seeds 2^40 + seed
 # term -> the field that carries its magnitude (what ``spread`` scales)
 SPREAD_FIELDS = {"quantization": "Q", "angle_random_walk": "N", "bias_instability": "B",
@@ -98,17 +99,41 @@ class MagnitudeFit:
         self.A_a = allan_columns(self.specs, layout.m, layout.fs, self.bands)
         self.A_p, self.clear = band_columns(self.specs, layout, self.bands)
 
-    def coefficients(self, sig):
-        """Squared magnitudes fitted to one record's signature (``metric.signature``)."""
+    def _weighted(self, sig):
+        """(A, b): the columns and the record's Allan variance and clear Welch bands, each row
+        divided by the analytic 1-sigma of one record."""
         from .metric import _floors
-        from .spectral import _nnls_huber
         fl = _floors(sig, self.layout)
         e = self.layout.band_edges
         psd = np.array([sig["psd_bins"][e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
         sd_a, sd_p = 2.0 * sig["avar"] * fl["allan"], psd * fl["psd"]
         A = np.vstack([self.A_a / sd_a[:, None], (self.A_p / sd_p[:, None])[self.clear]])
         b = np.concatenate([sig["avar"] / sd_a, (psd / sd_p)[self.clear]])
-        return _nnls_huber(A, b, 0)[0]
+        return A, b
+
+    def coefficients(self, sig):
+        """Squared magnitudes fitted jointly to one record's signature (``metric.signature``)."""
+        from .spectral import _nnls_huber
+        return _nnls_huber(*self._weighted(sig), 0)[0]
+
+    def dominant(self):
+        """Mask (rows of :meth:`_weighted` x terms): the points where a term makes more than
+        DOMINANT_SHARE of the card's own Allan variance or band PSD."""
+        A = np.vstack([self.A_a, self.A_p[self.clear]]) * self.coef
+        return A > DOMINANT_SHARE * np.maximum(A.sum(axis=1, keepdims=True), 1e-300)
+
+    def one_at_a_time(self, sig):
+        """Each term's squared magnitude re-fitted ALONE to one record, on the points where
+        it dominates the card (:meth:`dominant`), every other term held at the card's value
+        (weighted least squares of one coefficient, >= 0). Well conditioned where the joint
+        fit is not (a dictionary card's terms trade off against each other). A term that
+        dominates nowhere keeps the card's value (its spread cannot be told from the data)."""
+        A, b = self._weighted(sig)
+        r = b - A @ self.coef
+        Am = np.where(self.dominant(), A, 0.0)
+        den = np.sum(Am * Am, axis=0)
+        step = np.where(den > 0, (Am.T @ r) / np.where(den > 0, den, 1.0), 0.0)
+        return np.maximum(self.coef + step, 0.0)
 
 
 def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
@@ -142,12 +167,18 @@ def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
     return texts, np.array(factors)
 
 
-def estimate_spread(records, fs, text, bands=(), source="<card>"):
+def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<card>"):
     """Relative 1-sigma spread of each noise term's magnitude between ``records`` (training
-    records: never the record to be checked): the magnitudes re-fitted on each record
-    (:class:`MagnitudeFit`), ``std(a, ddof=1) / mean(a)`` of the amplitudes ``a = sqrt(c)``.
-    Returns ``(spread, amplitudes)`` (amplitudes: rows records, columns :func:`noise_terms`;
-    s-based: deg/s, deg/sqrt(s)... as in :func:`.spectral.stochastic_specs`)."""
+    records: never the record to be checked), net of the estimator's own error.
+
+    Each term's amplitude ``a = sqrt(c)`` is re-fitted on each record alone, where it
+    dominates the card, the other terms held (:meth:`MagnitudeFit.one_at_a_time`), over the records' common length ``n``;
+    ``between = std(a / a_card, ddof=1)``. The same estimator on simulations of the card
+    itself (``seeds``, length ``n``) gives its own error ``est``; the spread is
+    ``sqrt(max(between^2 - est^2, 0))`` (method of moments: what the records differ by
+    beyond what one record's estimate scatters). Returns ``(spread, between, est, factors)``
+    (factors: ``a / a_card``, rows records, columns :func:`noise_terms`)."""
+    from ..simulator import simulate
     from .metric import Layout, signature
     from .spectral import band_stop
     if len(records) < 2:
@@ -156,11 +187,15 @@ def estimate_spread(records, fs, text, bands=(), source="<card>"):
     n = min(len(r) for r in records)
     layout = Layout.for_record(n, fs)
     fit = MagnitudeFit(card, layout, bands)
-    amp = np.array([np.sqrt(fit.coefficients(signature(band_stop(np.asarray(r[:n], float), fs, bands), layout)))
-                    for r in records])
-    mean = amp.mean(axis=0)
-    spread = np.where(mean > 0, amp.std(axis=0, ddof=1) / np.where(mean > 0, mean, 1.0), 0.0)
-    return spread, amp
+    c0 = np.where(fit.coef > 0, fit.coef, 1.0)
+
+    def factors(ys):
+        return np.array([np.sqrt(fit.one_at_a_time(signature(band_stop(np.asarray(y[:n], float), fs, bands),
+                                                             layout)) / c0) for y in ys])
+    f_rec = factors(records)
+    f_sim = factors(simulate(card, n, seed=TRAIN_SEED_OFFSET + int(s)).rate_deg_s for s in seeds)
+    between, est = f_rec.std(axis=0, ddof=1), f_sim.std(axis=0, ddof=1)
+    return np.sqrt(np.maximum(between ** 2 - est ** 2, 0.0)), between, est, f_rec
 
 
 def spread_text(text, spread, source="<card>", note="spread between the training records"):
