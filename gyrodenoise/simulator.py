@@ -31,6 +31,12 @@ angle_gauss_markov   deg, s          first-order GM ANGLE th_k = a th_(k-1) +
                                      its normals from a generator of its own)
 ===================  ==============  =========================================
 
+Every noise term with a magnitude (Q, N, B, K, gauss_markov and angle_gauss_markov
+sigma) may carry ``spread``: the relative 1-sigma of that magnitude between units or runs.
+It is not simulated here (nor by the C core or the FMUs: they simulate the card's
+values, one unit); the gap workflow's reference draws one unit per simulated record
+(``modelgap.population.draw_unit``).
+
 Time t counts from the start of the record; restarts reset only the turn-on
 bias draw and the transient clock (the stochastic processes run on).
 
