@@ -18,9 +18,11 @@ the spread) are checked (a) with the card's estimation error only (``card_error=
 n_train = imu1's length), (b) with the spread only, (c) with both. With ``--loo`` each of
 imu2..imu6 is checked (both ingredients) against the spread estimated on the other five records.
 ``--first-seed=K``, ``--pop-seeds=S``: the population checks use seeds K..K+S-1 (default 1, 8).
+``--groups``: the spread estimated per group of terms (``groups_by_tau``: the white-noise terms
+alone, the other Gauss-Markov terms split at tau 10 s), each group drawn as one (``spread_group``).
 
 Run: .venv/bin/python benchmarks/gap_heldout.py [N_SAMPLES] [AXIS] [--refit-white] [--population] [--loo]
-[--first-seed=K] [--pop-seeds=S]
+[--first-seed=K] [--pop-seeds=S] [--groups]
 (default 1000000 gyro_x; about 1 minute on an idle 2-core box, about 1 more with --population)
 """
 
@@ -37,8 +39,9 @@ EMPTY = "[sensor]\nname = \"empty\"\nsample_rate_hz = 100.0\n"
 
 def main(*argv):
     white, popu, loo = "--refit-white" in argv, "--population" in argv, "--loo" in argv
+    grouped = "--groups" in argv
     opt = {k: int(a.split("=", 1)[1]) for a in argv for k in ("--first-seed", "--pop-seeds") if a.startswith(k + "=")}
-    argv = [a for a in argv if a not in ("--refit-white", "--population", "--loo") and not a.startswith("--")]
+    argv = [a for a in argv if not a.startswith("--")]
     n, axis = int(argv[0]) if argv else 1000000, argv[1] if len(argv) > 1 else "gyro_x"
     if not (STATIC / "adis16405_imu1.csv.gz").exists():
         print(f"skipped: {STATIC} not present")
@@ -80,7 +83,7 @@ def main(*argv):
             print(f"      white-noise level re-fitted (x{h.white_factor:.4f}): gap {h.gap_after:.4g}, threshold "
                   f"{h.threshold:.3g}, within {h.within_scatter}, {comp}", flush=True)
     if popu or loo:
-        population(res, rec, n, popu, loo, opt.get("--first-seed", 1), opt.get("--pop-seeds", 8))
+        population(res, rec, n, popu, loo, opt.get("--first-seed", 1), opt.get("--pop-seeds", 8), grouped)
     return 0
 
 
@@ -89,7 +92,7 @@ def _line(tag, h):
     return f"{tag}: gap {h.gap_after:.4g}, threshold {h.threshold:.3g}, within {h.within_scatter}, {comp}"
 
 
-def population(res, rec, n, popu, loo, first_seed=1, n_seeds=8):
+def population(res, rec, n, popu, loo, first_seed=1, n_seeds=8, grouped=False):
     """The held-out check with the card's estimation error and the spread of its terms
     (seeds first_seed .. first_seed + n_seeds - 1)."""
     seeds = list(range(first_seed, first_seed + n_seeds))
@@ -97,11 +100,14 @@ def population(res, rec, n, popu, loo, first_seed=1, n_seeds=8):
 
     from gyrodenoise.modelgap import heldout_gap
     from gyrodenoise.modelgap.effects import screen_outliers
-    from gyrodenoise.modelgap.population import estimate_spread, noise_terms, spread_text
+    from gyrodenoise.modelgap.population import estimate_spread, groups_by_tau, noise_terms, spread_text
     from gyrodenoise.simulator import parse_card
     bands = [(lo, hi) for lo, hi, _ in res.stop_bands]
     ys = {i: rec(i) for i in range(1, 7)}
     clean = {i: screen_outliers(y)[0] for i, y in ys.items()}
+    groups = groups_by_tau(parse_card(res.card_text), 100.0) if grouped else None
+    if grouped:
+        print(f"spread groups (noise_terms indices; tau split at 10 s): {groups}")
     names = [f"{nm}{'' if i is None else f'[{i}]'}" + (f"(tau {p['tau']:.3g} s)" if "tau" in p else "")
              for nm, i, p in noise_terms(parse_card(res.card_text))]
 
@@ -113,11 +119,12 @@ def population(res, rec, n, popu, loo, first_seed=1, n_seeds=8):
         return h
     if popu:
         t = time.perf_counter()
-        spread, between, est, _ = estimate_spread([clean[i] for i in (1, 2, 3)], 100.0, res.card_text, bands)
+        spread, between, est, _ = estimate_spread([clean[i] for i in (1, 2, 3)], 100.0, res.card_text, bands,
+                                                  groups=groups)
         print(f"spread from the training records imu1..imu3 ({time.perf_counter() - t:.1f} s): " + ", ".join(
             f"{nm} {s_:.4g} (between {b:.4g}, own error {e:.4g})" for nm, s_, b, e in zip(names, spread, between, est)
             if b > 0))
-        wide = spread_text(res.card_text, spread)
+        wide = spread_text(res.card_text, spread, groups=groups)
         for i in (4, 5, 6):
             h = check(i, res.card_text, "card error only", card_error=True, n_train=n)
             if i == 4:
@@ -128,9 +135,9 @@ def population(res, rec, n, popu, loo, first_seed=1, n_seeds=8):
     if loo:
         for i in range(2, 7):
             others = [clean[j] for j in range(1, 7) if j != i]
-            spread, *_ = estimate_spread(others, 100.0, res.card_text, bands)
+            spread, *_ = estimate_spread(others, 100.0, res.card_text, bands, groups=groups)
             sp = ", ".join(f"{nm} {s_:.3g}" for nm, s_ in zip(names, spread) if s_ > 0) or "none"
-            check(i, spread_text(res.card_text, spread), f"leave-one-out spread [{sp}] + card error",
+            check(i, spread_text(res.card_text, spread, groups=groups), f"leave-one-out spread [{sp}] + card error",
                   card_error=True, n_train=n)
     return 0
 

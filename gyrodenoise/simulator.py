@@ -69,19 +69,20 @@ DEG_H2 = 1.0 / 3600.0 ** 2       # deg/h^2 -> deg/s^2
 # simulated record by the gap workflow's reference (modelgap.population.draw_unit); simulate() and
 # the FMUs simulate the card's value (one unit)
 SPREAD = (False, 0.0, "(relative 1-sigma)")
+SPREAD_GROUP = (False, 0.0, "(terms with the same group number share one draw; 0: none)")
 # term -> {field: (required, minimum, unit)}
 TERM_FIELDS = {
-    "quantization": {"Q": (True, 0.0, "deg"), "spread": SPREAD},
-    "angle_random_walk": {"N": (True, 0.0, "deg/sqrt(h)"), "spread": SPREAD},
-    "bias_instability": {"B": (True, 0.0, "deg/h"), "spread": SPREAD},
-    "rate_random_walk": {"K": (True, 0.0, "deg/h^1.5"), "spread": SPREAD},
+    "quantization": {"Q": (True, 0.0, "deg"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
+    "angle_random_walk": {"N": (True, 0.0, "deg/sqrt(h)"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
+    "bias_instability": {"B": (True, 0.0, "deg/h"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
+    "rate_random_walk": {"K": (True, 0.0, "deg/h^1.5"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
     "rate_ramp": {"R": (True, None, "deg/h^2")},
     "constant_bias": {"value": (True, None, "deg/h"), "repeatability": (False, 0.0, "deg/h")},
     "turn_on_transient": {"amplitude": (True, None, "deg/h"), "tau": (True, 1e-300, "s")},
-    "gauss_markov": {"sigma": (True, 0.0, "deg/h"), "tau": (True, 1e-300, "s"), "spread": SPREAD},
+    "gauss_markov": {"sigma": (True, 0.0, "deg/h"), "tau": (True, 1e-300, "s"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
     "sinusoid": {"amplitude": (True, None, "deg/h"), "frequency": (True, 0.0, "Hz"),
                  "phase_deg": (False, None, "deg")},
-    "angle_gauss_markov": {"sigma": (True, 0.0, "deg"), "tau": (True, 1e-300, "s"), "spread": SPREAD},
+    "angle_gauss_markov": {"sigma": (True, 0.0, "deg"), "tau": (True, 1e-300, "s"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
 }
 REPEATABLE = ("gauss_markov", "sinusoid", "angle_gauss_markov")
 ABSURD = 1.0e9   # any card value beyond this is refused as absurd

@@ -46,19 +46,22 @@ def noise_terms(card):
     return out
 
 
-def with_magnitudes(text, card, factors, spreads=None, note="drawn unit"):
+def with_magnitudes(text, card, factors, spreads=None, note="drawn unit", groups=None):
     """The card text with each noise term's magnitude multiplied by ``factors[i]`` (order of
     :func:`noise_terms`) and its ``spread`` set to ``spreads[i]`` (None: the field dropped,
-    a value <= 0 too). Every other term and field is kept."""
+    a value <= 0 too) and, given ``groups`` ({index: group id}), its ``spread_group``.
+    Every other term and field is kept."""
     terms = noise_terms(card)
     spreads = [None] * len(terms) if spreads is None else list(spreads)
     rep = {}
-    for (nm, idx, p), f, s in zip(terms, factors, spreads):
+    for i, ((nm, idx, p), f, s) in enumerate(zip(terms, factors, spreads)):
         fld = SPREAD_FIELDS[nm]
         new = {k: v for k, v in p.items() if k != "spread"}
         new[fld] = p[fld] * float(f)
         if s is not None and s > 0:
             new["spread"] = float(s)
+        if groups and i in groups:
+            new["spread_group"] = float(groups[i])
         if idx is None:
             text = edit_card(text, nm, new, True, note)
         else:
@@ -73,7 +76,9 @@ def with_magnitudes(text, card, factors, spreads=None, note="drawn unit"):
 def draw_unit(text, seed, source="<card>"):
     """The card text of one simulated unit: each noise term's magnitude times
     ``exp(spread * z)``, ``z ~ N(0, 1)`` drawn in the order of :func:`noise_terms` (one draw
-    per term, spread or not) from ``numpy.random.default_rng([SPREAD_STREAM, seed])``.
+    per term, spread or not) from ``numpy.random.default_rng([SPREAD_STREAM, seed])``; terms
+    with the same ``spread_group`` (> 0) all take the draw of the first of them (their
+    magnitudes move together: a group of terms that only together make a part of the signature).
     A card with no ``spread`` field is returned unchanged (its realisations stay bit for bit)."""
     if "spread" not in text:
         return text
@@ -84,6 +89,11 @@ def draw_unit(text, seed, source="<card>"):
     if not np.any(sp > 0):
         return text
     z = np.random.default_rng([SPREAD_STREAM, int(seed)]).standard_normal(len(terms))
+    first = {}
+    for i, (_, _, p) in enumerate(terms):     # a spread_group shares the draw of its first term
+        g = p.get("spread_group", 0.0)
+        if g > 0:
+            z[i] = z[first.setdefault(g, i)]
     return with_magnitudes(text, card, np.exp(sp * z), None, f"unit drawn for seed {int(seed)}")
 
 
@@ -116,24 +126,26 @@ class MagnitudeFit:
         from .spectral import _nnls_huber
         return _nnls_huber(*self._weighted(sig), 0)[0]
 
-    def dominant(self):
-        """Mask (rows of :meth:`_weighted` x terms): the points where a term makes more than
-        DOMINANT_SHARE of the card's own Allan variance or band PSD."""
-        A = np.vstack([self.A_a, self.A_p[self.clear]]) * self.coef
-        return A > DOMINANT_SHARE * np.maximum(A.sum(axis=1, keepdims=True), 1e-300)
-
-    def one_at_a_time(self, sig):
-        """Each term's squared magnitude re-fitted ALONE to one record, on the points where
-        it dominates the card (:meth:`dominant`), every other term held at the card's value
-        (weighted least squares of one coefficient, >= 0). Well conditioned where the joint
-        fit is not (a dictionary card's terms trade off against each other). A term that
-        dominates nowhere keeps the card's value (its spread cannot be told from the data)."""
+    def group_factors(self, sig, groups):
+        """Each GROUP of terms (lists of term indices, :func:`noise_terms` order) re-fitted alone
+        to one record by one common factor on its squared magnitudes, on the points where the
+        group makes more than DOMINANT_SHARE of the card's own Allan variance or band PSD, every
+        other term held at the card's value (weighted least squares of one number, >= 0).
+        Well conditioned where the joint fit is not (a dictionary card's terms trade off
+        against each other). A group that dominates nowhere keeps factor 1 (its spread cannot
+        be told from the data). Returns the squared-magnitude factor of each group."""
         A, b = self._weighted(sig)
         r = b - A @ self.coef
-        Am = np.where(self.dominant(), A, 0.0)
-        den = np.sum(Am * Am, axis=0)
-        step = np.where(den > 0, (Am.T @ r) / np.where(den > 0, den, 1.0), 0.0)
-        return np.maximum(self.coef + step, 0.0)
+        cols = np.vstack([self.A_a, self.A_p[self.clear]])
+        tot = cols @ self.coef
+        out = []
+        for g in groups:
+            d = A[:, g] @ self.coef[g]
+            part = cols[:, g] @ self.coef[g]
+            dm = np.where(part > DOMINANT_SHARE * np.maximum(tot, 1e-300), d, 0.0)
+            den = float(dm @ dm)
+            out.append(max(1.0 + float(dm @ r) / den, 0.0) if den > 0 else 1.0)
+        return np.array(out)
 
 
 def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
@@ -167,17 +179,21 @@ def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
     return texts, np.array(factors)
 
 
-def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<card>"):
+def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<card>", groups=None):
     """Relative 1-sigma spread of each noise term's magnitude between ``records`` (training
     records: never the record to be checked), net of the estimator's own error.
 
     Each term's amplitude ``a = sqrt(c)`` is re-fitted on each record alone, where it
-    dominates the card, the other terms held (:meth:`MagnitudeFit.one_at_a_time`), over the records' common length ``n``;
+    dominates the card, the other terms held (:meth:`MagnitudeFit.group_factors`; with
+    ``groups``, lists of term indices, one common factor per group, the group's spread
+    given to each of its terms: write them with one ``spread_group``), over the records'
+    common length ``n``;
     ``between = std(a / a_card, ddof=1)``. The same estimator on simulations of the card
     itself (``seeds``, length ``n``) gives its own error ``est``; the spread is
     ``sqrt(max(between^2 - est^2, 0))`` (method of moments: what the records differ by
     beyond what one record's estimate scatters). Returns ``(spread, between, est, factors)``
-    (factors: ``a / a_card``, rows records, columns :func:`noise_terms`)."""
+    (factors: ``a / a_card``, rows records, columns :func:`noise_terms`; terms in no group
+    get 0 and factor 1)."""
     from ..simulator import simulate
     from .metric import Layout, signature
     from .spectral import band_stop
@@ -187,22 +203,45 @@ def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<ca
     n = min(len(r) for r in records)
     layout = Layout.for_record(n, fs)
     fit = MagnitudeFit(card, layout, bands)
-    c0 = np.where(fit.coef > 0, fit.coef, 1.0)
+    groups = [[i] for i in range(len(fit.coef))] if groups is None else [list(g) for g in groups]
+    member = np.zeros((len(groups), len(fit.coef)))
+    for k, g in enumerate(groups):
+        member[k, g] = 1.0
 
     def factors(ys):
-        return np.array([np.sqrt(fit.one_at_a_time(signature(band_stop(np.asarray(y[:n], float), fs, bands),
-                                                             layout)) / c0) for y in ys])
+        return np.array([np.sqrt(fit.group_factors(signature(band_stop(np.asarray(y[:n], float), fs, bands),
+                                                             layout), groups)) @ member
+                         + (1.0 - member.sum(axis=0)) for y in ys])
     f_rec = factors(records)
     f_sim = factors(simulate(card, n, seed=TRAIN_SEED_OFFSET + int(s)).rate_deg_s for s in seeds)
     between, est = f_rec.std(axis=0, ddof=1), f_sim.std(axis=0, ddof=1)
     return np.sqrt(np.maximum(between ** 2 - est ** 2, 0.0)), between, est, f_rec
 
 
-def spread_text(text, spread, source="<card>", note="spread between the training records"):
-    """The card text with each noise term's ``spread`` set (order of :func:`noise_terms`)."""
+def spread_text(text, spread, source="<card>", note="spread between the training records", groups=None):
+    """The card text with each noise term's ``spread`` set (order of :func:`noise_terms`) and,
+    for each of ``groups`` with more than one term, ``spread_group = k`` (k = 1, 2, ...)."""
     from ..simulator import parse_card
     card = parse_card(text, source)
-    return with_magnitudes(text, card, np.ones(len(spread)), [float(s) for s in spread], note)
+    gid = {}
+    for k, g in enumerate(groups or ()):
+        if len(g) > 1:
+            gid.update({i: k + 1 for i in g})
+    return with_magnitudes(text, card, np.ones(len(spread)), [float(s) for s in spread], note, gid)
+
+
+def groups_by_tau(card, fs, edges_s=(10.0,)):
+    """Groups of the card's noise terms (lists of indices, :func:`noise_terms` order) for
+    :func:`estimate_spread`: the terms that act as white noise (Gauss-Markov tau < 2 samples),
+    N, Q, B and K each alone; the other Gauss-Markov and angle Gauss-Markov terms by their
+    correlation time, split at ``edges_s``."""
+    groups = {}
+    for i, (nm, _, p) in enumerate(noise_terms(card)):
+        if "tau" not in p or (nm == "gauss_markov" and p["tau"] < 2.0 / fs):
+            groups[("alone", i)] = [i]
+        else:
+            groups.setdefault(("tau", int(np.searchsorted(np.asarray(edges_s, float), p["tau"]))), []).append(i)
+    return list(groups.values())
 
 
 def relative_error(factors):
