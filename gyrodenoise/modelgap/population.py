@@ -17,7 +17,9 @@ simulations' own scatter:
 The magnitudes are re-fitted by weighted non-negative least squares of the Allan variance
 (octave taus) and the Welch-band PSD on the card's OWN terms (their correlation times held),
 on the exact columns of :mod:`.spectral`, with the analytic 1-sigma of one record as the
-weights (:func:`refit_coefficients`).
+weights (:class:`MagnitudeFit`). A term's spread is estimated where it (or its
+``spread_group``) makes most of the card's signature (:func:`estimate_spread`), from
+training records that never include the record to be checked.
 """
 
 from __future__ import annotations
