@@ -31,6 +31,12 @@ angle_gauss_markov   deg, s          first-order GM ANGLE th_k = a th_(k-1) +
                                      its normals from a generator of its own)
 ===================  ==============  =========================================
 
+Every noise term with a magnitude (Q, N, B, K, gauss_markov and angle_gauss_markov
+sigma) may carry ``spread``: the relative 1-sigma of that magnitude between units or runs.
+It is not simulated here (nor by the C core or the FMUs: they simulate the card's
+values, one unit); the gap workflow's reference draws one unit per simulated record
+(``modelgap.population.draw_unit``).
+
 Time t counts from the start of the record; restarts reset only the turn-on
 bias draw and the transient clock (the stochastic processes run on).
 
@@ -59,19 +65,24 @@ DEG_RTH = 1.0 / 60.0             # deg/sqrt(h) -> deg/sqrt(s)
 DEG_H15 = 1.0 / 3600.0 ** 1.5    # deg/h^1.5 -> deg/s^1.5
 DEG_H2 = 1.0 / 3600.0 ** 2       # deg/h^2 -> deg/s^2
 
+# optional on a noise term: the relative 1-sigma of its magnitude between units/runs, drawn per
+# simulated record by the gap workflow's reference (modelgap.population.draw_unit); simulate() and
+# the FMUs simulate the card's value (one unit)
+SPREAD = (False, 0.0, "(relative 1-sigma)")
+SPREAD_GROUP = (False, 0.0, "(terms with the same group number share one draw; 0: none)")
 # term -> {field: (required, minimum, unit)}
 TERM_FIELDS = {
-    "quantization": {"Q": (True, 0.0, "deg")},
-    "angle_random_walk": {"N": (True, 0.0, "deg/sqrt(h)")},
-    "bias_instability": {"B": (True, 0.0, "deg/h")},
-    "rate_random_walk": {"K": (True, 0.0, "deg/h^1.5")},
+    "quantization": {"Q": (True, 0.0, "deg"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
+    "angle_random_walk": {"N": (True, 0.0, "deg/sqrt(h)"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
+    "bias_instability": {"B": (True, 0.0, "deg/h"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
+    "rate_random_walk": {"K": (True, 0.0, "deg/h^1.5"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
     "rate_ramp": {"R": (True, None, "deg/h^2")},
     "constant_bias": {"value": (True, None, "deg/h"), "repeatability": (False, 0.0, "deg/h")},
     "turn_on_transient": {"amplitude": (True, None, "deg/h"), "tau": (True, 1e-300, "s")},
-    "gauss_markov": {"sigma": (True, 0.0, "deg/h"), "tau": (True, 1e-300, "s")},
+    "gauss_markov": {"sigma": (True, 0.0, "deg/h"), "tau": (True, 1e-300, "s"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
     "sinusoid": {"amplitude": (True, None, "deg/h"), "frequency": (True, 0.0, "Hz"),
                  "phase_deg": (False, None, "deg")},
-    "angle_gauss_markov": {"sigma": (True, 0.0, "deg"), "tau": (True, 1e-300, "s")},
+    "angle_gauss_markov": {"sigma": (True, 0.0, "deg"), "tau": (True, 1e-300, "s"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
 }
 REPEATABLE = ("gauss_markov", "sinusoid", "angle_gauss_markov")
 ABSURD = 1.0e9   # any card value beyond this is refused as absurd

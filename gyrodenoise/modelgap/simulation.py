@@ -8,6 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from .cards import card_at_rate, text_at_rate
+from .population import draw_unit
 from .settings import _log
 
 
@@ -57,7 +58,9 @@ class Simulator:
 
     ``engine="native"`` uses :func:`gyrodenoise.simulator.simulate`;
     ``engine="fmu"`` steps SimulatedFog.fmu through fmpy in ``workers``
-    processes (one FMU instance per process).
+    processes (one FMU instance per process). A card whose noise terms carry a
+    ``spread`` is simulated as one drawn unit per seed (:func:`.population.draw_unit`);
+    a card without one, as written (bit for bit).
     """
 
     def __init__(self, n, fs, seeds, engine="native", restarts=None, fmu_dir=None, workers=None,
@@ -80,22 +83,22 @@ class Simulator:
         self.n_runs += len(self.seeds)
         if engine == "native":
             from ..simulator import simulate
-            card = card_at_rate(text, self.fs, self.source)
-            return [simulate(card, self.n, seed=s, restarts=self.restarts).rate_deg_s for s in self.seeds]
+            return [simulate(card_at_rate(draw_unit(text, s, self.source), self.fs, self.source), self.n, seed=s,
+                             restarts=self.restarts).rate_deg_s for s in self.seeds]
         import multiprocessing as mp
         import os
         from concurrent.futures import ProcessPoolExecutor
         from concurrent.futures.process import BrokenProcessPool
         card_at_rate(text, self.fs, self.source)          # check it first
-        ftext = text_at_rate(text, self.fs)
+        ftexts = [text_at_rate(draw_unit(text, s, self.source), self.fs) for s in self.seeds]
         workers = self.workers or min(len(self.seeds), os.cpu_count() or 1)
         rs = None if self.restarts is None else self.restarts.tolist()
         _log(f"gyrodenoise: simulating {len(self.seeds)} seeds x {self.n} samples through "
              f"{self.fmu_path.name} ({workers} processes)", self.quiet)
         with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
                                  max_tasks_per_child=1) as ex:
-            futs = [ex.submit(_fmu_worker, str(self.fmu_path), ftext, s, self.n, self.fs, rs)
-                    for s in self.seeds]
+            futs = [ex.submit(_fmu_worker, str(self.fmu_path), ft, s, self.n, self.fs, rs)
+                    for ft, s in zip(ftexts, self.seeds)]
             out = []
             try:
                 for i, f in enumerate(futs):

@@ -58,6 +58,7 @@ class GapResult:
     stop_bands: list = field(default_factory=list)     # [(lo_hz, hi_hz, peak ratio or nan)]
     named: list = field(default_factory=list)          # physical effects named from the evidence
     white_factor: float = None     # heldout_gap(refit_white=True): the white-noise level's factor
+    card_error: list = None        # heldout_gap(card_error=True): bootstrap relative 1-sigma per noise term
 
     @property
     def within_scatter(self):
@@ -571,8 +572,38 @@ def _scale_white(text, card, s, fs, note):
     return text
 
 
+def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
+    """One evaluation of record ``y`` (no fitting) against a reference whose simulation ``j``
+    is card ``j`` of :func:`.population.bootstrap_cards` (the card re-estimated on a simulated
+    training record of ``n_train`` samples) simulated with seed ``j``: a prediction interval."""
+    from .effects import name_effects
+    from .population import bootstrap_cards, relative_error
+    layout = Layout.for_record(y.shape[0], fs)
+    texts, factors = bootstrap_cards(text, fs, n_train, seed_list, bands, "<fitted card>")
+    sims = [Simulator(y.shape[0], fs, [s_], source="<fitted card>").run(t_)[0] for t_, s_ in zip(texts, seed_list)]
+    sig_m = signature(band_stop(y, fs, bands), layout)
+    ref, z, comp, g = _evaluate(sims, sig_m, layout, bands)
+    loo = loo_gaps(ref)
+    threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo))
+    comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) for c in COMPONENTS}
+    within = g <= threshold and all(comp[c] <= comp_threshold[c] for c in COMPONENTS)
+    it = {"card_gap": g, "components": comp, "where": where_disagree(z, layout), "_ref": ref, "_z": z,
+          "candidates": [], "within_scatter": bool(within),
+          "stop": "within the simulations' scatter" if within else "max_effects reached"}
+    bumps = [(lo, hi, float("nan")) for lo, hi in bands]
+    res = GapResult(effects_added=[], gap_before=g, gap_after=g, card_text=text, iterations=[it],
+                    threshold=threshold, engine="native", component_threshold=comp_threshold, seeds=seed_list,
+                    layout=layout, measured=sig_m, stop_bands=bumps,
+                    named=name_effects(y, fs, card_at_rate(text, fs, "<fitted card>"), bumps, None))
+    res.card_error = [float(v) for v in relative_error(factors)]
+    res.named.insert(0, f"held out against the card's prediction interval: each of the {len(seed_list)} "
+                        f"simulations from the card re-estimated on a simulated training record of {int(n_train)} "
+                        f"samples (parametric bootstrap of the card's own estimation error)")
+    return res
+
+
 def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, refit_bias=True,
-                source="HELD-OUT", outliers=False, refit_white=False):
+                source="HELD-OUT", outliers=False, refit_white=False, card_error=False, n_train=None):
     """The gap of an already fitted card on ANOTHER record of the same sensor (nothing added).
 
     With ``refit_bias`` the card's constant bias is first set to this record's mean:
@@ -588,7 +619,18 @@ def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, r
     correlated terms, filter, bands - on a run whose white-noise level differs (a
     sensor's ARW varies from run to run and unit to unit, like its turn-on bias); it
     is a weaker check than the plain held-out gap, with one more parameter fitted to
-    the held-out record."""
+    the held-out record.
+
+    ``card_error`` (an option, NOT the default): the reference is a prediction interval
+    that includes the card's own estimation error (:func:`_heldout_population`): simulation
+    ``j`` comes from the card re-estimated on a simulated training record of ``n_train``
+    samples (default: as long as this record; give the length of the record the card was
+    fitted on). Nothing is fitted to the held-out record (but its bias, as above).
+
+    The card's ``spread`` fields (relative 1-sigma of a term's magnitude between units,
+    :mod:`.population`), when it has them, are drawn per simulation in every case: the
+    reference is then the population of units, not one unit. The default held-out check
+    (no option) is the plain one: the card as written, S seeded simulations."""
     from ..simulator import parse_card
     y = check_record(rate_deg_s, source)
     if outliers:
@@ -608,8 +650,15 @@ def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, r
         factor = white_level_factor(y, float(sample_rate_hz), card, bands)
         text = _scale_white(text, card, factor, float(sample_rate_hz),
                             f"white-noise level re-fitted to {Path(str(source)).name} (x{factor:.4g})")
-    res = _gap_once(y, sample_rate_hz, parse_card(text, "<fitted card>"), seeds=seeds, max_effects=0,
-                    source=source, stop_bands=bands)
+    if card_error:
+        seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s_) for s_ in seeds]
+        if len(seed_list) < 3:
+            raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
+        res = _heldout_population(y, float(sample_rate_hz), text, bands, seed_list,
+                                  len(y) if n_train is None else int(n_train), source)
+    else:
+        res = _gap_once(y, sample_rate_hz, parse_card(text, "<fitted card>"), seeds=seeds, max_effects=0,
+                        source=source, stop_bands=bands)
     if factor is not None:
         res.named.insert(0, f"held out with the white-noise level re-fitted (an option, one parameter fitted to "
                             f"this record): the card's white noise x {factor:.4g}")
