@@ -24,9 +24,27 @@ _SUBCOMMAND_MODULES = [
 ]
 
 
+class OneLineErrorParser(argparse.ArgumentParser):
+    """argparse with the contract's error form: one line on stderr naming the command
+    and what was wrong, exit 2 (argparse prints the whole usage block first). Unknown
+    options are reported by the (sub)command that was given them, not by the top level.
+    Subcommand parsers inherit the class (``add_subparsers`` uses the parent's type)."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        ns, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return ns, extras
+
+    def error(self, message):
+        hint = f" (see {self.prog} --help)" if self.prog != "gyrodenoise" else " (see gyrodenoise --help)"
+        print(f"{self.prog}: error: {message}{hint}", file=sys.stderr)
+        sys.exit(2)
+
+
 def build_parser():
     import importlib
-    parser = argparse.ArgumentParser(
+    parser = OneLineErrorParser(
         prog="gyrodenoise",
         description="Gyro denoising: online improved AR(n) model + modified Sage-Husa AKF, "
                     "Allan variance, simulated gyros, FMUs and a MAVLink bridge.")

@@ -173,3 +173,27 @@ def test_dynamic_table_reports_the_step_with_and_without_the_gate():
     assert st["no_gate"]["rmse_deg_s"]["shakf"] > 10 * st["rmse_deg_s"]["shakf"]
     # the conventional KF follows the step within a few samples without the gate
     assert st["no_gate"]["rise_time_90_s"]["kf"] <= 0.05
+
+
+@pytest.mark.parametrize("args, names", [
+    (("gap", "x.csv", "--model", "m.toml", "--out", "o.toml", "--seeds", "x"), ("gyrodenoise gap", "--seeds")),
+    (("gap", "x.csv", "--model", "m.toml", "--out", "o.toml", "--engine", "fmi"), ("gyrodenoise gap", "--engine")),
+    (("gap", "--rate-colunm", "a", "x.csv", "--model", "m.toml", "--out", "o.toml"),
+     ("gyrodenoise gap", "--rate-colunm")),
+    (("denoise", "x.csv", "--ar-order", "q", "-o", "y.csv"), ("gyrodenoise denoise", "--ar-order")),
+    (("denoise", "x.csv"), ("gyrodenoise denoise", "-o/--output")),
+    (("fmu", "build", "--bogus"), ("gyrodenoise fmu build", "--bogus")),
+    (("bogus",), ("gyrodenoise", "bogus")),
+])
+def test_option_errors_are_one_line_naming_the_command_and_option(tmp_path, capfd, monkeypatch, args, names):
+    """A bad option value, a missing or unknown option: one line on stderr naming the
+    (sub)command and the option, exit 2, nothing on stdout (argparse printed its whole
+    usage block first, and the top-level usage for a subcommand's unknown option)."""
+    monkeypatch.chdir(tmp_path)
+    status, out, err = main_in_process(capfd, *args)
+    assert status == 2
+    assert out == ""
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"{names[0]}: error:") and names[1] in lines[0], lines[0]
+    assert list(tmp_path.iterdir()) == []
