@@ -26,6 +26,8 @@ def register_cli(subparsers):
         if a.dest == "input":
             a.nargs = "?"
             a.help = "recording CSV (columns time,rate; .gz ok) or a PSINS .imu log; omit with --allan"
+        if a.dest == "rate_unit":   # None: not given, said in a note (a rad/s record read as deg/s fits 57x off)
+            a.default = None
     p.add_argument("--allan", default=None, metavar="CURVE.csv",
                    help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
                         "measurement instead of IN; see docs/GAP.md")
@@ -114,7 +116,7 @@ def _read_input(args):
         return rate, log.sample_rate_hz, None
     from .recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
-                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
+                         rate_unit=args.rate_unit or "deg/s", sample_rate_hz=args.sample_rate)
     check_record = __import__("gyrodenoise.modelgap", fromlist=["check_record"]).check_record
     check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
     for note in rec.notes:
@@ -224,6 +226,9 @@ def cmd_gap(args):
         _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
              f"{fs:g} Hz: simulating at the record's rate; {args.out} states the record's rate when a "
              f"term is fitted (the terms are fitted at it), else keeps the card's")
+    if args.rate_unit is None and not str(args.input).lower().endswith(".imu"):   # after every refusal
+        _log(f"gyrodenoise: note: {args.input}: column {args.rate_column!r} read as deg/s (the default; "
+             f"--rate-unit deg/h or rad/s if the record is in another unit: the fitted card scales with it)")
     res = gap(rate, fs, card, seeds=args.seeds, engine=args.engine,
               restarts=restarts, max_effects=args.max_effects, fmu_dir=args.fmu_dir,
               workers=args.workers, source=args.input, quiet=False, stop_bands=bands,

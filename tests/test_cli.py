@@ -197,3 +197,31 @@ def test_option_errors_are_one_line_naming_the_command_and_option(tmp_path, capf
     assert len(lines) == 1, err
     assert lines[0].startswith(f"{names[0]}: error:") and names[1] in lines[0], lines[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_gap_says_which_rate_unit_it_assumed(tmp_path, capfd):
+    """gap on a record without --rate-unit says it read the column as deg/s (a rad/s
+    record read silently as deg/s fitted a card 57x too small: a user's trial); with
+    --rate-unit given, no such note, and the unit scales the fitted white noise."""
+    rng = np.random.default_rng(20)
+    t = np.arange(4096) / 100.0
+    path = tmp_path / "rec.csv"
+    np.savetxt(path, np.column_stack([t, 1e-3 * rng.standard_normal(t.size)]), delimiter=",",
+               header="time,gyro_x", comments="")
+    cards = {}
+    for unit in (None, "rad/s"):
+        out = tmp_path / f"{unit or 'none'}.toml".replace("/", "_")
+        args = ["gap", path, "--rate-column", "gyro_x", "--model", "paper_fog", "--out", out,
+                "--engine", "native", "--seeds", "3", "--no-plot", "--max-effects", "1"]
+        if unit:
+            args += ["--rate-unit", unit]
+        status, _, err = main_in_process(capfd, *args)
+        assert status == 0, err
+        said = [ln for ln in err.splitlines() if "read as deg/s (the default" in ln]
+        assert len(said) == (1 if unit is None else 0), err
+        if unit is None:
+            assert "'gyro_x'" in said[0] and str(path) in said[0]
+        cards[unit] = gd.simulator.parse_card(out.read_text(), str(out))
+    n_deg = cards[None].terms["angle_random_walk"]["N"]
+    n_rad = cards["rad/s"].terms["angle_random_walk"]["N"]
+    assert n_rad / n_deg == pytest.approx(180.0 / np.pi, rel=0.2)
