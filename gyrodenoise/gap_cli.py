@@ -116,7 +116,9 @@ def _read_input(args):
         return rate, log.sample_rate_hz, None
     from .recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
-                         rate_unit=args.rate_unit or "deg/s", sample_rate_hz=args.sample_rate)
+                         rate_unit=args.rate_unit or "deg/s", sample_rate_hz=args.sample_rate,
+                         spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
+                                      "off the running median (another test: its count may differ)")
     check_record = __import__("gyrodenoise.modelgap", fromlist=["check_record"]).check_record
     check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
     for note in rec.notes:

@@ -64,8 +64,13 @@ def _open_text(path):
         raise InputError("not a text CSV file (undecodable bytes)", str(path)) from None
 
 
+#: what a spike note advises (the filters' outlier gate); a command with another remedy passes its own
+SPIKE_ADVICE = ("with --method shakf, kf or sh_classic the outlier gate (--outlier-sigma) keeps single "
+                "wild samples out of the filter")
+
+
 def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/s",
-                   sample_rate_hz=None, true_column="true_rate"):
+                   sample_rate_hz=None, true_column="true_rate", spike_advice=SPIKE_ADVICE):
     """Read a recording CSV into a :class:`Record` (rates in deg/s).
 
     Parameters
@@ -79,6 +84,8 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
         Unit of the rate and true-rate columns.
     sample_rate_hz : float, optional
         Sample rate when the file has no time column.
+    spike_advice : str
+        The remedy a spike note names (default: the filters' outlier gate).
     """
     src = str(path)
     if rate_unit not in RATE_UNITS:
@@ -151,7 +158,7 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
     notes = []
     if ignored:
         notes.append(f"ignored columns: {', '.join(ignored)}")
-    notes.extend(_signal_notes(rate, lambda i: _line_of(text, i)))
+    notes.extend(_signal_notes(rate, lambda i: _line_of(text, i), spike_advice))
     restarts = None
     if i_time is not None:
         t = np.asarray(values[i_time])
@@ -195,7 +202,7 @@ def _runs_at(x, value, min_len):
     return int(np.sum((ends - starts)[long_])), int(starts[long_][0])
 
 
-def _signal_notes(rate, line_of=lambda i: i + 2):
+def _signal_notes(rate, line_of=lambda i: i + 2, spike_advice=SPIKE_ADVICE):
     """Reported (never repaired) properties of the rate column: constant,
     suspected saturation, isolated spikes."""
     notes = []
@@ -219,8 +226,7 @@ def _signal_notes(rate, line_of=lambda i: i + 2):
             if spikes.size:
                 notes.append(f"{spikes.size} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
                              f"(first at line {line_of(int(spikes[0]))}, sample {int(spikes[0])}, {rate[spikes[0]]:g} deg/s); "
-                             f"kept as is in the input; with --method shakf, kf or sh_classic the "
-                             f"outlier gate (--outlier-sigma) keeps single wild samples out of the filter")
+                             f"kept as is in the input; {spike_advice}")
     return notes
 
 

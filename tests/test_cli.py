@@ -225,3 +225,24 @@ def test_gap_says_which_rate_unit_it_assumed(tmp_path, capfd):
     n_deg = cards[None].terms["angle_random_walk"]["N"]
     n_rad = cards["rad/s"].terms["angle_random_walk"]["N"]
     assert n_rad / n_deg == pytest.approx(180.0 / np.pi, rel=0.2)
+
+
+def test_gap_spike_note_names_gaps_own_remedy(tmp_path, capfd):
+    """A record with a wild sample: gap's note names gap's remedy (--outliers), not the
+    filters' options (--method shakf / --outlier-sigma are not gap options: a user's trial);
+    denoise keeps naming the outlier gate."""
+    rng = np.random.default_rng(21)
+    t = np.arange(4096) / 100.0
+    rate = 1e-2 * rng.standard_normal(t.size)
+    rate[1000] = 5.0
+    path = tmp_path / "rec.csv"
+    np.savetxt(path, np.column_stack([t, rate]), delimiter=",", header="time,rate", comments="")
+    status, _, err = main_in_process(capfd, "gap", path, "--model", "paper_fog", "--out", tmp_path / "o.toml",
+                                     "--engine", "native", "--seeds", "3", "--no-plot", "--max-effects", "1")
+    assert status == 0, err
+    spike = [ln for ln in err.splitlines() if "isolated spike" in ln]
+    assert len(spike) == 1 and "--outliers" in spike[0] and "--outlier-sigma" not in spike[0], err
+    status, _, err = main_in_process(capfd, "denoise", path, "-o", tmp_path / "f.csv", "--method", "shakf")
+    assert status == 0, err
+    spike = [ln for ln in err.splitlines() if "isolated spike" in ln]
+    assert len(spike) == 1 and "--outlier-sigma" in spike[0], err
