@@ -198,6 +198,7 @@ def _cmd_allan(args, card):
 def cmd_gap(args):
     from .cli import emit_json
     from .modelgap import card_at_rate, check_record, format_report, gap, plot_gap
+    from .modelgap.report import describe_edits
     from .simulator import load_card
     card = load_card(args.model)
     if args.seeds < 3:
@@ -240,7 +241,7 @@ def cmd_gap(args):
         text = _at_fitted_rate(text, fs, card.sample_rate_hz, args.model)
     if res.effects_added:
         text = text.rstrip("\n") + f"\n# completed by gyrodenoise gap from {Path(args.input).name}: " + \
-            ", ".join(e["name"] for e in res.effects_added) + f"; gap {res.gap_before:.3g} -> {res.gap_after:.3g}\n"
+            describe_edits(res.effects_added) + f"; gap {res.gap_before:.3g} -> {res.gap_after:.3g}\n"
     # everything that can fail first; NEW.toml is written last, only after a successful run
     report = format_report(res, args.input)
     d = res.to_json()

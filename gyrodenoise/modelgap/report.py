@@ -17,8 +17,9 @@ def format_report(res, source="MEASURED"):
            f"scatter threshold (1.5 x max leave-one-out gap of the simulations): {res.threshold:.3g}",
            ""]
     for i, it in enumerate(res.iterations):
-        label = "input card" if i == 0 else "after " + " + ".join(
-            e["name"] for e in res.effects_added if e.get("iteration", 0) < i)
+        step = [e for e in res.effects_added if e.get("iteration", 0) == i - 1]
+        label = ("input card" if i == 0 else "after " + describe_edits(step) if step else
+                 "the same card compared again (the comparison's stop bands changed: see the notes)")
         comp = ", ".join(f"{c} {it['components'][c]:.3g}" for c in COMPONENTS)
         out.append(f"[{i}] {label}: gap {it['card_gap']:.3g}  ({comp})")
         w = it["where"]
@@ -88,6 +89,17 @@ def _not_within(res):
             if c in comp and c in res.component_threshold and not comp[c] <= res.component_threshold[c]]
     return (f"the gap is below the scatter threshold ({res.gap_after:.3g} <= {res.threshold:.3g}) but not "
             f"within the scatter: component(s) above their own threshold ({', '.join(over) or 'none'})")
+
+
+def describe_edits(effects):
+    """'added A, B; re-fitted C; removed D' for entries of ``GapResult.effects_added`` (a
+    term whose re-fit is zero is removed; a name is listed once per kind of edit)."""
+    kinds = {"added": [], "re-fitted": [], "removed": []}
+    for e in effects:
+        kind = "removed" if e.get("params") is None else "re-fitted" if e.get("refit") else "added"
+        if e["name"] not in kinds[kind]:
+            kinds[kind].append(e["name"])
+    return "; ".join(f"{k} {', '.join(v)}" for k, v in kinds.items() if v) or "nothing"
 
 
 def _short(params):
