@@ -247,6 +247,79 @@ def test_card_without_noise_terms_starts_from_a_fit_to_the_record():
     assert res.within_scatter, res.iterations[-1]["components"]
 
 
+WHITE_SEEDS = (1, 2, 3, 4)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 20: the initial fit keeps a small quantization / short "
+                   "Gauss-Markov / rate random walk beside the white noise; the rule that fixes it "
+                   "(workflow.initial_terms with INITIAL_DCHI2) drops RLG x to 3/4 seed sets within, "
+                   "so it is not wired in yet (docs/GAP.md, Initial fit)")
+@pytest.mark.parametrize("fs", [100.0, 1000.0])
+@pytest.mark.parametrize("n", [20000, 60000])
+def test_white_noise_from_an_empty_card_is_angle_random_walk_alone(fs, n):
+    """Issue 20 ("name physical effects where the evidence says so"): from an EMPTY
+    card, a record of pure white rate noise (N = 0.5 deg/sqrt(h), numpy's seeded
+    generator, independent of the simulator) comes out as angle_random_walk alone:
+    no quantization, Gauss-Markov, rate random walk or any other term, at 100 Hz and
+    1 kHz, 20,000 and 60,000 samples, four record seeds. N within 3 % of the truth
+    (the standard error of N from n white samples is 1 / sqrt(2 n) = 0.5 % at 20,000;
+    the Allan/PSD fit is less efficient than the sample variance, and 3 % is ~4 of
+    its standard errors). The last seed's record carries a 40 deg/h mean (~19 standard
+    errors N / sqrt(T) at 20,000 samples and 100 Hz; more elsewhere): the constant bias is named, within
+    3 standard errors; on the zero-mean records it may appear only within 4."""
+    n_true = 0.5                                                  # deg/sqrt(h)
+    se_bias_deg_h = n_true / math.sqrt(n / fs / 3600.0)           # N / sqrt(T), deg/h
+    empty = parse_card(f"[sensor]\nsample_rate_hz = {fs}\n[terms]\n")
+    for seed in WHITE_SEEDS:
+        bias_deg_h = 40.0 if seed == WHITE_SEEDS[-1] else 0.0
+        y = (np.random.default_rng(seed).standard_normal(n) * n_true / 60.0 * math.sqrt(fs)
+             + bias_deg_h / 3600.0)
+        res = gd.gap(y, fs, empty, engine="native", seeds=4)
+        terms = parse_card(res.card_text).terms
+        what = f"seed {seed}: {res.effects_added}"
+        assert set(terms) - {"constant_bias"} == {"angle_random_walk"}, what
+        assert terms["angle_random_walk"]["N"] == pytest.approx(n_true, rel=0.03), what
+        if bias_deg_h:
+            assert "constant_bias" in terms, what
+            assert abs(terms["constant_bias"]["value"] - bias_deg_h) < 3.0 * se_bias_deg_h, what
+        elif "constant_bias" in terms:
+            assert abs(terms["constant_bias"]["value"]) < 4.0 * se_bias_deg_h, what
+        assert res.within_scatter, what
+
+
+
+@pytest.mark.parametrize("fs", [100.0, 1000.0])
+def test_initial_fit_rule_names_white_noise_alone_and_keeps_a_real_quantization(fs):
+    """The rule of issue 20 on the initial fit's own terms (workflow.initial_terms with
+    INITIAL_DCHI2 and the Welch-band weights of welch_band_rel_sd): on white records
+    (numpy seeds 1-8, 20,000 samples, N = 0.5 deg/sqrt(h)) angle_random_walk alone, N
+    within 3 % (its standard error ~0.5 %); on the same N plus a quantization the record
+    has (the core simulator, seeds 1-8, 4 Q^2 / T = 0.3 N^2) Q is named, within 25 %.
+    Without the rule (min_dchi2 = 0, the workflow's fit now) the white records get other
+    terms: checked below, so the test fails if the rule stops biting."""
+    from gyrodenoise.modelgap.metric import Layout, signature
+    from gyrodenoise.modelgap.workflow import INITIAL_DCHI2, initial_terms, welch_band_rel_sd
+    n, n_true = 20000, 0.5
+    layout = Layout.for_record(n, fs)
+    rel = welch_band_rel_sd(layout)
+    q_true = math.sqrt(0.3 * (n_true / 60.0) ** 2 / fs / 4.0)      # deg
+    card_q = parse_card(f"[sensor]\nsample_rate_hz = {fs}\n[terms]\nangle_random_walk = {{ N = {n_true} }}\n"
+                        f"quantization = {{ Q = {q_true} }}\n")
+    plain_extra = 0
+    for seed in range(1, 9):
+        sig = signature(np.random.default_rng(seed).standard_normal(n) * n_true / 60.0 * math.sqrt(fs), layout)
+        t = initial_terms(sig, layout, (), min_dchi2=INITIAL_DCHI2, psd_rel_sd=rel)
+        named = {k for k, v in t.items() if (v if isinstance(v, list) else v > 0)}
+        assert named == {"angle_random_walk"}, (seed, t)
+        assert math.sqrt(t["angle_random_walk"]) * 60.0 == pytest.approx(n_true, rel=0.03), (seed, t)
+        t0 = initial_terms(sig, layout, ())
+        plain_extra += any(t0[k] for k in ("quantization", "bias_instability", "rate_random_walk", "gauss_markov"))
+        tq = initial_terms(signature(gd.simulate(card_q, n, seed=seed).rate_deg_s, layout), layout, (),
+                           min_dchi2=INITIAL_DCHI2, psd_rel_sd=rel)
+        assert math.sqrt(tq["quantization"]) == pytest.approx(q_true, rel=0.25), (seed, tq)
+    assert plain_extra >= 4, plain_extra     # the defect the rule removes
+
+
 def test_too_short_record_is_an_input_error():
     with pytest.raises(InputError, match="at least"):
         gd.gap(np.zeros(100), FS, parse_card(BASE), engine="native")

@@ -407,6 +407,39 @@ def _nnls_huber(A, b, robust):
     return c / scale, float(r @ r)
 
 
+def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
+    """Backward elimination: while some column with a non-zero coefficient raises the
+    chi^2 by less than ``min_dchi2`` when it is left out (the others re-fitted), one of
+    those is left out: the one with the most parameters (``n_params`` per column: a
+    Gauss-Markov term's correlation time is one more; a Gauss-Markov much shorter than a
+    sample is white noise, and it goes before the angle random walk it mimics), and
+    among those the one that raises the chi^2 least. Only the terms of the full fit take
+    part, and a term once at zero stays out (none enters in another's place). A term enters a fit only when the
+    data ask for it: the NNLS optimum of a rich dictionary otherwise keeps small terms
+    that follow one record's scatter (a white-noise record fitted with a short
+    Gauss-Markov or a small quantization beside its white rate noise). Plain (not
+    robust) chi^2: the rows' weights must be the data's true 1-sigma. Returns the
+    coefficients."""
+    off = c <= 0        # a term out of the fit stays out: the fit only shrinks
+    while True:
+        best = None
+        for j in np.flatnonzero(~off):
+            keep = ~off
+            keep[j] = False
+            cj = np.zeros_like(c)
+            if np.any(keep):
+                cj[keep], chi2_j = _nnls_huber(A[:, keep], b, 0)
+            else:       # no term left: the residual is the data
+                chi2_j = float(b @ b)
+            key = (-n_params[j], chi2_j)
+            if chi2_j - chi2 < min_dchi2 and (best is None or key < best[0]):
+                best = (key, j, chi2_j, cj)
+        if best is None:
+            return c
+        c, chi2 = best[3], best[2]
+        off |= c <= 0
+
+
 def _pick_lines(A, b, sd, m, fs, max_lines, inside_fn):
     """Greedy choice of up to ``max_lines`` spectral lines (frequencies of :func:`line_grid`) for an Allan-curve fit: each step adds the line that lowers
     the plain chi^2 most. The lines are kept only when, with them, the model is
@@ -431,7 +464,7 @@ def _pick_lines(A, b, sd, m, fs, max_lines, inside_fn):
 
 
 def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0, lowpass_hz=None,
-              max_lines=0, inside_fn=None, angle_gm=False):
+              max_lines=0, inside_fn=None, angle_gm=False, min_dchi2=0.0):
     """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
     the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
     Gauss-Markov processes (:func:`gm_grid`), each through the stop mask; with
@@ -441,6 +474,8 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
     ``max_lines`` (Allan curve only, ``psd_target`` None): up to that many sinusoids
     (:func:`_pick_lines`), kept only when they bring the model inside the bounds
     (``inside_fn(model_avar) -> bool``) at every point.
+    ``min_dchi2`` > 0: a term stays only when leaving it out (the others re-fitted)
+    raises the plain chi^2 by at least that much (:func:`_drop_unneeded`).
     Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
     to its s-based coefficient (0 = not needed), ``"gauss_markov"`` to a list
     of ``(sigma_deg_s, tau_s)``, ``"angle_gauss_markov"`` to a list of ``(sigma_deg, tau_s)``
@@ -465,7 +500,12 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
         if f_lines:
             A_l = line_allan_columns(f_lines, layout.m, layout.fs)
             A_a, A = np.hstack([A_a, A_l]), np.hstack([A, A_l / sd_a[:, None]])
-    c, _ = _nnls_huber(A, b, robust)
+    c, chi2 = _nnls_huber(A, b, robust)
+    if min_dchi2 > 0:
+        if robust:
+            raise ValueError("fit_terms: min_dchi2 compares plain chi^2 (robust=0)")
+        n_par = np.array([1 if tc is None else 2 for _, tc in specs] + [2] * (A.shape[1] - len(specs)))
+        c = _drop_unneeded(A, b, c, chi2, min_dchi2, n_par)
     terms = {nm: float(c[i]) for i, nm in enumerate(ALLAN_TERMS)}
     for kind in ("gauss_markov", "angle_gauss_markov"):
         terms[kind] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))

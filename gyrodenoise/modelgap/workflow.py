@@ -198,16 +198,49 @@ def _evaluate(sims, sig_m, layout, bands=()):
     return ref, z, comp, gap_value(comp)
 
 
-def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
-    """Write the noise terms fitted to the record alone into a card that has none
-    (the analytic 1-sigma of one record as the weights); appends to ``effects``."""
+# The price a term of the initial fit would pay to stay (issue 20, NOT yet used by _initial_fit):
+# leaving it out must cost more than 3^2 in chi^2 (the angle Gauss-Markov candidate's rule against
+# its simpler rivals), counted twice: the fit's rows are two views of the same record (its Allan
+# variance and its PSD: a high-frequency excess shows in the shortest taus and the top bands alike).
+# benchmarks/gap_white.py: 3^2 alone kept another term on 2/40 white records, 2 x 3^2 on 0/40.
+INITIAL_DCHI2 = 2 * 3.0 ** 2
+
+
+def welch_band_rel_sd(layout):
+    """Relative 1-sigma of the mean of each Welch band's bins for a smooth spectrum
+    (Hann window, 50 % overlap, ``K`` segments): one bin ``sqrt(1.056 / K)`` (adjacent
+    segments' periodograms correlated 0.028, counted twice), and the bins of a band
+    correlated 0.444 with their neighbours and 0.028 with the next ones (``|W(k)|^2 /
+    |W(0)|^2`` of the squared Hann window). ``metric._floors``' ``1 / sqrt(1.8 K nbins)``
+    is 1.4x (one bin) to 1.9x (wide bands) below this and below the scatter of seeded
+    white records (``benchmarks/gap_white.py --scatter``)."""
+    nb = np.diff(layout.band_edges).astype(float)
+    corr = 1.0 + (2.0 * 0.444 * np.maximum(nb - 1.0, 0.0) + 2.0 * 0.028 * np.maximum(nb - 2.0, 0.0)) / nb
+    return np.sqrt(1.056 * corr / (layout.n_segments * nb))
+
+
+def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
+    """The noise terms fitted to the record's signatures alone (:func:`.spectral.fit_terms`;
+    weights: the analytic 1-sigma of one record's Allan variance and, unless
+    ``psd_rel_sd`` is given, ``metric._floors``' for its Welch bands). With ``min_dchi2``
+    > 0 a term is kept only when leaving it out (the others re-fitted) raises the fit's
+    chi^2 by more than that: with ``INITIAL_DCHI2`` and ``welch_band_rel_sd(layout)`` a
+    white-noise record comes out as angle random walk alone (issue 20's rule; the
+    workflow does not use it yet: docs/GAP.md, "Initial fit")."""
     from .metric import _floors
     from .spectral import fit_terms
     fl = _floors(sig_m, layout)
     e = layout.band_edges
     psd_m = np.array([sig_m["psd_bins"][e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
-    terms, _, _ = fit_terms(layout, bands, sig_m["avar"], 2.0 * sig_m["avar"] * fl["allan"], psd_m,
-                            psd_m * fl["psd"])
+    rel = fl["psd"] if psd_rel_sd is None else psd_rel_sd
+    return fit_terms(layout, bands, sig_m["avar"], 2.0 * sig_m["avar"] * fl["allan"], psd_m,
+                     psd_m * rel, min_dchi2=min_dchi2)[0]
+
+
+def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
+    """Write the noise terms fitted to the record alone (:func:`initial_terms`) into a
+    card that has none; appends to ``effects``."""
+    terms = initial_terms(sig_m, layout, bands)
     note = f"initial fit to {Path(str(source)).name}"
     changes = [(nm, {CARD_FIELD[nm][0]: float(np.sqrt(v)) * CARD_FIELD[nm][1]}) for nm, v in terms.items()
                if nm in CARD_FIELD and v > 0]
