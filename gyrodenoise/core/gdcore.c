@@ -885,20 +885,23 @@ KERNEL double c_deg_s_(const double *p, const double *s)
     return s[o + n] + one_minus * s[S_ZREF];
 }
 
-/* one sample of any method; bk: the motion bank outside s (gd_run's batch
- * loop) or NULL (the bank in s) */
+/* one sample of any method; bk: the motion bank outside s (run_motion_, only
+ * for method motion) or NULL (the bank in s). With bk the method is known to
+ * be motion: the copies inlined into run_motion_'s loops then hold motion's
+ * code only (the compile time of this file: the other methods' kernels were
+ * inlined there too, never run). */
 KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_bank_t *bk)
 {
     int code = 0;
-    int lowpass = p[P_METHOD] == METHOD_LOWPASS;
-    int motion = p[P_METHOD] == METHOD_MOTION;
+    int lowpass = !bk && p[P_METHOD] == METHOD_LOWPASS;
+    int motion = bk || p[P_METHOD] == METHOD_MOTION;
     double xc, out;
     if (is_restart) {
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0 && p[P_METHOD] != METHOD_NONE
-             && !lowpass && !motion)
+    } else if (!lowpass && !motion && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
+             && p[P_METHOD] != METHOD_NONE)
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;
@@ -932,7 +935,7 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         else
             xc = filter_step_(p, s, 0.0);
     }
-    if (s[S_CONV] == 0.0 || p[P_METHOD] == METHOD_NONE) {
+    if (s[S_CONV] == 0.0 || (!motion && p[P_METHOD] == METHOD_NONE)) {
         out = z;
     } else {
         out = xc + s[S_ZREF];
@@ -1507,10 +1510,25 @@ static const run_fn run_ar_table[LOC_MAX_ORDER + 1] = {
     NULL, run_ar_1, run_ar_2, run_ar_3, run_ar_4, run_ar_5, run_ar_6, run_ar_7, run_ar_8,
 };
 
+/* step_ with the bank in s, compiled once: gd_step and the loops of gd_run and
+ * gd_run_trace for the methods without a loop of their own call it (one call
+ * per sample; inlined into each of them, it was a quarter of the compile time) */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static double step_s_(const double *p, double *s, double z, int is_restart)
+{
+    return step_(p, s, z, is_restart, NULL);
+}
+
 /* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
  * from the first sample to the last; trace (or NULL) gets s[trace_index]
- * after each sample, which must not be in the bank */
-KERNEL void run_motion_(const double *p, double *s, const double *z, const unsigned char *restarts,
+ * after each sample, which must not be in the bank. Called once per run, not
+ * inlined: its two loops are compiled once, not once in each caller. */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static void run_motion_(const double *p, double *s, const double *z, const unsigned char *restarts,
                         double *out, long n, long trace_index, double *trace)
 {
     mo_bank_t bk;
@@ -1546,10 +1564,10 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
     }
     if (restarts == NULL)
         for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], 0, NULL);
+            out[i] = step_s_(p, s, z[i], 0);
     else
         for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], restarts[i] != 0, NULL);
+            out[i] = step_s_(p, s, z[i], restarts[i] != 0);
 }
 
 /* gd_run that also records s[trace_index] after each sample into trace[i]
@@ -1565,7 +1583,7 @@ void gd_run_trace(const double *p, double *s, const double *z, const unsigned ch
         return;
     }
     for (i = 0; i < n; i++) {
-        out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, NULL);
+        out[i] = step_s_(p, s, z[i], restarts != NULL && restarts[i] != 0);
         trace[i] = s[trace_index];
     }
 }
@@ -1592,4 +1610,4 @@ double gd_filter_step(const double *p, double *s, double z) { return filter_step
 double gd_lowpass_step(const double *p, double *s, double z) { return lowpass_step_(p, s, z); }
 double gd_motion_step(const double *p, double *s, double z) { return motion_step_(p, s, z, NULL); }
 double gd_c_deg_s(const double *p, const double *s) { return c_deg_s_(p, s); }
-double gd_step(const double *p, double *s, double z, int is_restart) { return step_(p, s, z, is_restart, NULL); }
+double gd_step(const double *p, double *s, double z, int is_restart) { return step_s_(p, s, z, is_restart); }
