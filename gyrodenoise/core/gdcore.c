@@ -886,10 +886,9 @@ KERNEL double c_deg_s_(const double *p, const double *s)
 }
 
 /* one sample of any method; bk: the motion bank outside s (run_motion_, only
- * for method motion) or NULL (the bank in s). With bk the method is known to
- * be motion: the copies inlined into run_motion_'s loops then hold motion's
- * code only (the compile time of this file: the other methods' kernels were
- * inlined there too, never run). */
+ * for method motion) or NULL (the bank in s). With bk the method is motion, so
+ * the copies inlined into run_motion_'s loops hold motion's code only: the
+ * other methods' kernels, never run there, were a third of the compile time. */
 KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_bank_t *bk)
 {
     int code = 0;
@@ -900,8 +899,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (!lowpass && !motion && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
-             && p[P_METHOD] != METHOD_NONE)
+    } else if (p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0 && p[P_METHOD] != METHOD_NONE
+             && !lowpass && !motion)
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;
@@ -1510,15 +1509,23 @@ static const run_fn run_ar_table[LOC_MAX_ORDER + 1] = {
     NULL, run_ar_1, run_ar_2, run_ar_3, run_ar_4, run_ar_5, run_ar_6, run_ar_7, run_ar_8,
 };
 
-/* step_ with the bank in s, compiled once: gd_step and the loops of gd_run and
- * gd_run_trace for the methods without a loop of their own call it (one call
- * per sample; inlined into each of them, it was a quarter of the compile time) */
+/* the loop of gd_run and gd_run_trace for the methods and states without a loop
+ * of their own (lowpass, AR orders above LOC_MAX_ORDER): step_ with the bank in
+ * s; trace (or NULL) gets s[trace_index] after each sample. Called once per
+ * run, not inlined: step_ is compiled into this one loop instead of three
+ * (gd_run's two, gd_run_trace's; a quarter of the compile time). */
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
-static double step_s_(const double *p, double *s, double z, int is_restart)
+static void run_steps_(const double *p, double *s, const double *z, const unsigned char *restarts,
+                       double *out, long n, long trace_index, double *trace)
 {
-    return step_(p, s, z, is_restart, NULL);
+    long i;
+    for (i = 0; i < n; i++) {
+        out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, NULL);
+        if (trace)
+            trace[i] = s[trace_index];
+    }
 }
 
 /* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
@@ -1549,7 +1556,6 @@ static void run_motion_(const double *p, double *s, const double *z, const unsig
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
             double *out, long n)
 {
-    long i;
     double order = p[P_ORDER], method = p[P_METHOD];
     if ((method == METHOD_NONE || method == METHOD_KF || method == METHOD_SHAKF
          || method == METHOD_SH_CLASSIC)
@@ -1562,12 +1568,7 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
         run_motion_(p, s, z, restarts, out, n, 0, NULL);
         return;
     }
-    if (restarts == NULL)
-        for (i = 0; i < n; i++)
-            out[i] = step_s_(p, s, z[i], 0);
-    else
-        for (i = 0; i < n; i++)
-            out[i] = step_s_(p, s, z[i], restarts[i] != 0);
+    run_steps_(p, s, z, restarts, out, n, 0, NULL);
 }
 
 /* gd_run that also records s[trace_index] after each sample into trace[i]
@@ -1577,15 +1578,12 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
 void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
                   double *out, long n, long trace_index, double *trace)
 {
-    long i, bank = layout_total_(ORDER(p)) - N_EXT + M_BANK;
+    long bank = layout_total_(ORDER(p)) - N_EXT + M_BANK;
     if (p[P_METHOD] == METHOD_MOTION && (trace_index < bank || trace_index >= bank + 4 * MO_MAX_NF)) {
         run_motion_(p, s, z, restarts, out, n, trace_index, trace);
         return;
     }
-    for (i = 0; i < n; i++) {
-        out[i] = step_s_(p, s, z[i], restarts != NULL && restarts[i] != 0);
-        trace[i] = s[trace_index];
-    }
+    run_steps_(p, s, z, restarts, out, n, trace_index, trace);
 }
 
 /* ------------------------------------------------------------------------
@@ -1610,4 +1608,4 @@ double gd_filter_step(const double *p, double *s, double z) { return filter_step
 double gd_lowpass_step(const double *p, double *s, double z) { return lowpass_step_(p, s, z); }
 double gd_motion_step(const double *p, double *s, double z) { return motion_step_(p, s, z, NULL); }
 double gd_c_deg_s(const double *p, const double *s) { return c_deg_s_(p, s); }
-double gd_step(const double *p, double *s, double z, int is_restart) { return step_s_(p, s, z, is_restart); }
+double gd_step(const double *p, double *s, double z, int is_restart) { return step_(p, s, z, is_restart, NULL); }
