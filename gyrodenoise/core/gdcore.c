@@ -899,8 +899,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0 && p[P_METHOD] != METHOD_NONE
-             && !lowpass && !motion)
+    } else if (!lowpass && !motion && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
+             && p[P_METHOD] != METHOD_NONE)     /* the flags first: no loads for lowpass */
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;
@@ -1509,29 +1509,42 @@ static const run_fn run_ar_table[LOC_MAX_ORDER + 1] = {
     NULL, run_ar_1, run_ar_2, run_ar_3, run_ar_4, run_ar_5, run_ar_6, run_ar_7, run_ar_8,
 };
 
-/* the loop of gd_run and gd_run_trace for the methods and states without a loop
- * of their own (lowpass, AR orders above LOC_MAX_ORDER): step_ with the bank in
- * s; trace (or NULL) gets s[trace_index] after each sample. Called once per
- * run, not inlined: step_ is compiled into this one loop instead of three
- * (gd_run's two, gd_run_trace's; a quarter of the compile time). */
+/* step_ from the first sample to the last, restarted where restarts[i] (or
+ * never: NULL); trace (or NULL) gets s[trace_index] after each sample; bk: as
+ * step_. Inlined into run_steps_ and run_motion_ only. */
+KERNEL void steps_(const double *p, double *s, const double *z, const unsigned char *restarts,
+                   double *out, long n, long trace_index, double *trace, mo_bank_t *bk)
+{
+    long i;
+    if (restarts == NULL && trace == NULL)      /* gd_run's common case, its own loop */
+        for (i = 0; i < n; i++)
+            out[i] = step_(p, s, z[i], 0, bk);
+    else
+        for (i = 0; i < n; i++) {
+            out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, bk);
+            if (trace)
+                trace[i] = s[trace_index];
+        }
+}
+
+/* The two batch loops below are called once per run and not inlined: step_ is
+ * compiled into their loops only, not again into each of gd_run's and
+ * gd_run_trace's (it was, with every method's kernels in each copy: ~2/3 of
+ * this file's compile time). */
+
+/* gd_run's and gd_run_trace's loop for the methods and states without a loop of
+ * their own (lowpass, AR orders above LOC_MAX_ORDER): the bank in s */
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
 static void run_steps_(const double *p, double *s, const double *z, const unsigned char *restarts,
                        double *out, long n, long trace_index, double *trace)
 {
-    long i;
-    for (i = 0; i < n; i++) {
-        out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, NULL);
-        if (trace)
-            trace[i] = s[trace_index];
-    }
+    steps_(p, s, z, restarts, out, n, trace_index, trace, NULL);
 }
 
 /* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
- * from the first sample to the last; trace (or NULL) gets s[trace_index]
- * after each sample, which must not be in the bank. Called once per run, not
- * inlined: its two loops are compiled once, not once in each caller. */
+ * from the first sample to the last; s[trace_index] must not be in the bank */
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
@@ -1539,17 +1552,8 @@ static void run_motion_(const double *p, double *s, const double *z, const unsig
                         double *out, long n, long trace_index, double *trace)
 {
     mo_bank_t bk;
-    long i;
     mo_load_(p, s, &bk);
-    if (restarts == NULL && trace == NULL)      /* gd_run's common case, its own loop */
-        for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], 0, &bk);
-    else
-        for (i = 0; i < n; i++) {
-            out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, &bk);
-            if (trace)
-                trace[i] = s[trace_index];
-        }
+    steps_(p, s, z, restarts, out, n, trace_index, trace, &bk);
     mo_save_(p, s, &bk);
 }
 
