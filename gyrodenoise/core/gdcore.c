@@ -885,20 +885,22 @@ KERNEL double c_deg_s_(const double *p, const double *s)
     return s[o + n] + one_minus * s[S_ZREF];
 }
 
-/* one sample of any method; bk: the motion bank outside s (gd_run's batch
- * loop) or NULL (the bank in s) */
+/* one sample of any method; bk: the motion bank outside s (run_motion_, only
+ * for method motion) or NULL (the bank in s). With bk the method is motion, so
+ * the copies inlined into run_motion_'s loops hold motion's code only: the
+ * other methods' kernels, never run there, were a third of the compile time. */
 KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_bank_t *bk)
 {
     int code = 0;
-    int lowpass = p[P_METHOD] == METHOD_LOWPASS;
-    int motion = p[P_METHOD] == METHOD_MOTION;
+    int lowpass = !bk && p[P_METHOD] == METHOD_LOWPASS;
+    int motion = bk || p[P_METHOD] == METHOD_MOTION;
     double xc, out;
     if (is_restart) {
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0 && p[P_METHOD] != METHOD_NONE
-             && !lowpass && !motion)
+    } else if (!lowpass && !motion && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
+             && p[P_METHOD] != METHOD_NONE)     /* the flags first: no loads for lowpass */
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;
@@ -932,7 +934,7 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         else
             xc = filter_step_(p, s, 0.0);
     }
-    if (s[S_CONV] == 0.0 || p[P_METHOD] == METHOD_NONE) {
+    if (s[S_CONV] == 0.0 || (!motion && p[P_METHOD] == METHOD_NONE)) {
         out = z;
     } else {
         out = xc + s[S_ZREF];
@@ -1507,31 +1509,57 @@ static const run_fn run_ar_table[LOC_MAX_ORDER + 1] = {
     NULL, run_ar_1, run_ar_2, run_ar_3, run_ar_4, run_ar_5, run_ar_6, run_ar_7, run_ar_8,
 };
 
-/* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
- * from the first sample to the last; trace (or NULL) gets s[trace_index]
- * after each sample, which must not be in the bank */
-KERNEL void run_motion_(const double *p, double *s, const double *z, const unsigned char *restarts,
-                        double *out, long n, long trace_index, double *trace)
+/* step_ from the first sample to the last, restarted where restarts[i] (or
+ * never: NULL); trace (or NULL) gets s[trace_index] after each sample; bk: as
+ * step_. Inlined into run_steps_ and run_motion_ only. */
+KERNEL void steps_(const double *p, double *s, const double *z, const unsigned char *restarts,
+                   double *out, long n, long trace_index, double *trace, mo_bank_t *bk)
 {
-    mo_bank_t bk;
     long i;
-    mo_load_(p, s, &bk);
     if (restarts == NULL && trace == NULL)      /* gd_run's common case, its own loop */
         for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], 0, &bk);
+            out[i] = step_(p, s, z[i], 0, bk);
     else
         for (i = 0; i < n; i++) {
-            out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, &bk);
+            out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, bk);
             if (trace)
                 trace[i] = s[trace_index];
         }
+}
+
+/* The two batch loops below are called once per run and not inlined: step_ is
+ * compiled into their loops only, not again into each of gd_run's and
+ * gd_run_trace's (it was, with every method's kernels in each copy: ~2/3 of
+ * this file's compile time). */
+
+/* gd_run's and gd_run_trace's loop for the methods and states without a loop of
+ * their own (lowpass, AR orders above LOC_MAX_ORDER): the bank in s */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static void run_steps_(const double *p, double *s, const double *z, const unsigned char *restarts,
+                       double *out, long n, long trace_index, double *trace)
+{
+    steps_(p, s, z, restarts, out, n, trace_index, trace, NULL);
+}
+
+/* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
+ * from the first sample to the last; s[trace_index] must not be in the bank */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+static void run_motion_(const double *p, double *s, const double *z, const unsigned char *restarts,
+                        double *out, long n, long trace_index, double *trace)
+{
+    mo_bank_t bk;
+    mo_load_(p, s, &bk);
+    steps_(p, s, z, restarts, out, n, trace_index, trace, &bk);
     mo_save_(p, s, &bk);
 }
 
 void gd_run(const double *p, double *s, const double *z, const unsigned char *restarts,
             double *out, long n)
 {
-    long i;
     double order = p[P_ORDER], method = p[P_METHOD];
     if ((method == METHOD_NONE || method == METHOD_KF || method == METHOD_SHAKF
          || method == METHOD_SH_CLASSIC)
@@ -1544,12 +1572,7 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
         run_motion_(p, s, z, restarts, out, n, 0, NULL);
         return;
     }
-    if (restarts == NULL)
-        for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], 0, NULL);
-    else
-        for (i = 0; i < n; i++)
-            out[i] = step_(p, s, z[i], restarts[i] != 0, NULL);
+    run_steps_(p, s, z, restarts, out, n, 0, NULL);
 }
 
 /* gd_run that also records s[trace_index] after each sample into trace[i]
@@ -1559,15 +1582,12 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
 void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
                   double *out, long n, long trace_index, double *trace)
 {
-    long i, bank = layout_total_(ORDER(p)) - N_EXT + M_BANK;
+    long bank = layout_total_(ORDER(p)) - N_EXT + M_BANK;
     if (p[P_METHOD] == METHOD_MOTION && (trace_index < bank || trace_index >= bank + 4 * MO_MAX_NF)) {
         run_motion_(p, s, z, restarts, out, n, trace_index, trace);
         return;
     }
-    for (i = 0; i < n; i++) {
-        out[i] = step_(p, s, z[i], restarts != NULL && restarts[i] != 0, NULL);
-        trace[i] = s[trace_index];
-    }
+    run_steps_(p, s, z, restarts, out, n, trace_index, trace);
 }
 
 /* ------------------------------------------------------------------------
