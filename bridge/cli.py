@@ -155,17 +155,14 @@ def _float(text):
 
 def _one_line_errors(p):
     """argparse errors of this subcommand (unknown option, missing LOG, a value
-    that is not a number) as one line on stderr, exit 2, and with --json one
-    JSON object on stdout: argparse would print the whole usage first."""
+    that is not a number) as one line on stderr, exit 2 (as every command's, see
+    cli.OneLineErrorParser), and with --json also one JSON object on stdout."""
     seen = {}
-    parse = p.parse_known_args
+    parse = p.parse_known_args      # cli.OneLineErrorParser's: unknown options reach error() below
 
     def parse_known_args(args=None, namespace=None):
         seen["json"] = args is not None and "--json" in list(args)
-        ns, extras = parse(args, namespace)
-        if extras:                     # the top-level parser would print its usage too
-            error(f"unrecognized arguments: {' '.join(extras)}")
-        return ns, extras
+        return parse(args, namespace)
 
     def error(message):
         msg = f"mavlink: {message}"
