@@ -582,7 +582,7 @@ def white_level_factor(y, fs, card, bands=()):
     if not specs:
         return 1.0
     cols = allan_columns(specs, layout.m, fs, bands)
-    white = np.array([nm == "angle_random_walk" or (nm == "gauss_markov" and tc < 2.0 / fs) for nm, tc in specs])
+    white = np.array([_acts_as_white(nm, tc, fs) for nm, tc in specs])
     a_w, a_rest = cols[:, white] @ coef[white], cols[:, ~white] @ coef[~white]
     w = 1.0 / (2.0 * sig["avar"] * _floors(sig, layout)["allan"]) ** 2
     if not np.any(a_w > 0):
@@ -591,18 +591,17 @@ def white_level_factor(y, fs, card, bands=()):
     return math.sqrt(max(s2, 0.0))
 
 
+def _acts_as_white(name, tau_s, fs):
+    """N, and a Gauss-Markov term shorter than 2 samples: the terms that act as white noise."""
+    return name == "angle_random_walk" or (name == "gauss_markov" and tau_s < 2.0 / fs)
+
+
 def _scale_white(text, card, s, fs, note):
     """The card text with its white noise (see :func:`white_level_factor`) scaled by ``s``."""
-    nt = card.terms.get("angle_random_walk")
-    if nt:
-        text = edit_card(text, "angle_random_walk", {"N": nt["N"] * s}, True, note)
-    gms = card.term_list("gauss_markov")
-    if any(g["tau"] < 2.0 / fs for g in gms):
-        text = edit_card(text, "gauss_markov", None, True, note)
-        for g in gms:
-            text = edit_card(text, "gauss_markov", {"sigma": g["sigma"] * (s if g["tau"] < 2.0 / fs else 1.0),
-                                                     "tau": g["tau"]}, False, note)
-    return text
+    from .population import noise_terms, with_magnitudes
+    terms = noise_terms(card)
+    factors = [s if _acts_as_white(nm, p.get("tau", 0.0), fs) else 1.0 for nm, _, p in terms]
+    return with_magnitudes(text, card, factors, [p.get("spread") for _, _, p in terms], note)
 
 
 def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
