@@ -17,7 +17,6 @@ Run: .venv/bin/python benchmarks/allan_line_scan.py ["KVH 1750 IMU" deg/s [agm]]
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 from _data import SHARED_DATA

@@ -17,7 +17,6 @@ Run: .venv/bin/python benchmarks/allan_proposed_terms.py
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 from _data import SHARED_DATA

@@ -86,7 +86,7 @@ class Trivial:
 
 def main():
     import gyrodenoise as gd
-    from gyrodenoise import allanvar
+    from gyrodenoise.analysis import allan as allanvar
     from gyrodenoise.core import kernels as K
     from gyrodenoise.core.batch import compiled_core, run
     if not compiled_core():

@@ -28,7 +28,6 @@ import textwrap
 import time
 from pathlib import Path
 
-import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -265,7 +264,7 @@ def main(argv=None):
         c_nat = c_host_steps_per_s(nat, tmp, 20 * n)
         c_sf = c_host_steps_per_s(fmu_dir / "SimulatedFog.fmu", tmp, n, signals=sensor)
         c_sfn = c_host_steps_per_s(nats["SimulatedFogNative"], tmp, 20 * n, signals=sensor)
-        print(f"plain C host (tests/chost/host.c; libpython preloaded for pythonfmu):")
+        print("plain C host (tests/chost/host.c; libpython preloaded for pythonfmu):")
         print(f"  empty pythonfmu FMU (floor)  {c_empty:10.0f} steps/s")
         print(f"  FogDenoiser.fmu              {c_fd:10.0f} steps/s = {c_fd / c_empty:.2f}x the empty FMU "
               f"(target >= 0.7x): {'met' if c_fd / c_empty >= 0.7 else 'NOT met'}")

@@ -46,7 +46,7 @@ CASES = [
 def main(records=5):
     print(f"{records} records of 30 min at 100 Hz per effect, base card ARW N = 0.1 deg/sqrt(h) "
           f"(Q = 3e-4 deg for the ARW case), 5 simulated seeds")
-    print(f"| effect | truth | named alone | median / worst error | gap before -> after (median) | s/run |")
+    print("| effect | truth | named alone | median / worst error | gap before -> after (median) | s/run |")
     print("|---|---|---|---|---|---|")
     for name, base, truth in CASES:
         ok, errs, gb, ga, dt, other = 0, {k: [] for k in truth}, [], [], [], []

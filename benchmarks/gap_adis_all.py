@@ -28,7 +28,7 @@ def main(*argv):
         print(f"skipped: {STATIC} not present")
         return 0
     import gyrodenoise as gd
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     from gyrodenoise.simulator import parse_card
     for i in range(1, 7):
         t = time.perf_counter()

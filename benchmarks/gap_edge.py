@@ -13,7 +13,6 @@ adis / rlg: the real record is fixed, the workflow's own simulation seeds are va
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -47,7 +46,7 @@ def hidden(n_meas):
 def adis(n_sets, first=0):
     from conftest import shared_file
     from gyrodenoise.modelgap.spectral import allan_columns, stochastic_specs
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     rec = read_recording(shared_file("static", "adis16405_imu1.csv.gz"), rate_column="gyro_x")
     y = rec.rate_deg_s
     card = parse_card("# white noise only\n[sensor]\nname = \"ADIS white\"\nsample_rate_hz = 100.0\n\n"
@@ -69,7 +68,7 @@ def adis(n_sets, first=0):
 
 def rlg(n_sets, first=0, axis="x"):
     from conftest import shared_file
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     from test_gap_real import EMPTY
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     for k in range(first, first + n_sets):

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 from _data import SHARED_DATA
 
 STATIC = SHARED_DATA / "static"
@@ -48,7 +47,7 @@ def main(*argv):
         return 0
     import gyrodenoise as gd
     from gyrodenoise.modelgap import heldout_gap
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     from gyrodenoise.simulator import parse_card
 
     def rec(i):
@@ -60,7 +59,7 @@ def main(*argv):
           f" ({time.perf_counter() - t:.1f} s)")
     import numpy as np
 
-    from gyrodenoise.allanvar import adev
+    from gyrodenoise.analysis.allan import adev
     m_lvl = np.array([1, 100, 10000])        # tau 0.01, 1, 100 s
 
     def level(y):
@@ -96,7 +95,6 @@ def population(res, rec, n, popu, loo, first_seed=1, n_seeds=8, grouped=False):
     """The held-out check with the card's estimation error and the spread of its terms
     (seeds first_seed .. first_seed + n_seeds - 1)."""
     seeds = list(range(first_seed, first_seed + n_seeds))
-    import numpy as np
 
     from gyrodenoise.modelgap import heldout_gap
     from gyrodenoise.modelgap.effects import screen_outliers

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 from _data import SHARED_DATA
 
 TARGET_S = 20.0
@@ -29,7 +28,7 @@ def main(axis="gyro_z"):
     from gyrodenoise.modelgap import gap
     from gyrodenoise.modelgap.metric import Layout, Reference, signature
     from gyrodenoise.modelgap.simulation import Simulator
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     from gyrodenoise.simulator import parse_card
     w0, c0 = time.perf_counter(), time.process_time()
     log = read_psins(DATA)

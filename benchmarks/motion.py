@@ -4,7 +4,7 @@
 
 For the paper's FOG (models/paper_fog.toml, 200 Hz, manoeuvres of 5 deg/s RMS)
 and an ICM-20602-like MEMS (models/icm20602.toml, 1 kHz, 20 deg/s RMS), every
-profile of :mod:`gyrodenoise.profiles` is simulated with known truth and run
+profile of :mod:`benchmarks.profiles` is simulated with known truth and run
 through every method. Printed and written to ``report.md``:
 
 * RMSE against the true rate (after the first 2 s), and each method's ratio to
@@ -33,8 +33,8 @@ import numpy as np
 
 import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
-from gyrodenoise import reference_filters as RF
-from gyrodenoise.profiles import PROFILES
+from benchmarks import reference_filters as RF
+from benchmarks.profiles import PROFILES
 from _data import SHARED_DATA
 
 REPO = Path(__file__).resolve().parents[1]
@@ -137,8 +137,8 @@ def _sine(n, fs, f, rms):
 def flight_streams():
     """(log, stream, axis, raw deg/s, restarts, rate Hz) of the shared real
     flights' gyro streams at >= 20 Hz, read by the bridge's readers."""
-    from bridge import dataflash, ulog
-    from bridge.streams import detect_restarts
+    from gyrodenoise.mavlink import dataflash, ulog
+    from gyrodenoise.mavlink.streams import detect_restarts
     for name, reader in (("log171.bin", lambda p: dataflash.read(p)[2]),
                          ("px4_sample.ulg", lambda p: ulog.read(p)[1])):
         path = SHARED_LOGS / name
@@ -167,7 +167,7 @@ def moving_windows(low_deg_s, fs, window_s=2.0, threshold_deg_s=2.0):
 def real_flights(meths):
     """0-5 Hz correlation and amplitude kept (ratio of std's) on the shared real
     flights, per method, in the windows where the vehicle moves."""
-    from gyrodenoise.motion_metrics import lowband
+    from gyrodenoise.analysis.motion_metrics import lowband
     rows = []
     for name, st, ax, z, restarts, fs in flight_streams():
         lz = np.nan_to_num(lowband(z, fs, restarts=restarts))

@@ -22,15 +22,14 @@ Numbers are measured here, in this process; docs/OUTLIERS.md quotes them.
 """
 import argparse
 import sys
-from pathlib import Path
 
 import numpy as np
 
 import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
-from gyrodenoise.allanvar import allan
+from gyrodenoise.analysis.allan import allan
 from gyrodenoise.core.batch import run
-from gyrodenoise.experiments import rise_time
+from gyrodenoise.analysis.experiments import rise_time
 from _data import SHARED_DATA
 
 DATA = SHARED_DATA / "static"
@@ -108,7 +107,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="first 200k samples of each real record")
     args = ap.parse_args(argv)
     n = 200_000 if args.quick else None
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     for fname, col, unit in [("adis16405_imu4.csv.gz", "gyro_x", "deg/s"),
                              ("adis16405_imu4.csv.gz", "gyro_y", "deg/s"),
                              ("xsens_mtig_contaminated.csv.gz", "gyro_x", "rad/s")]:

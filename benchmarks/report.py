@@ -12,7 +12,7 @@ Methods: raw; the project's conventional KF, modified SHAKF (the paper) and
 classic Sage-Husa (Eq. 22/26 unmodified) on the online improved AR(3) model;
 ArduPilot's first-order low-pass at 20 Hz; PX4's 2nd-order Butterworth at
 30 Hz; an offline RTS smoother and the VB-AKF of Huang et al. (2018), both on
-the AR model identified by the KF run (gyrodenoise.reference_filters).
+the AR model identified by the KF run (benchmarks.reference_filters).
 
 Dynamic metrics use the *incremental response*: the output for (noise + true
 motion) minus the output for the same noise alone. For the linear filters this
@@ -34,9 +34,9 @@ import numpy as np
 
 import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
-from gyrodenoise import reference_filters as RF
-from gyrodenoise.allanvar import TERM_NAMES
-from gyrodenoise.experiments import compare, filter_record, paper_std, rise_time, rmse
+from benchmarks import reference_filters as RF
+from gyrodenoise.analysis.allan import TERM_NAMES
+from gyrodenoise.analysis.experiments import compare, filter_record, paper_std, rise_time, rmse
 from gyrodenoise.simulator import load_card, simulate
 
 METHODS = ["raw", "kf", "shakf", "sh_classic", "shakf_gate", "lp20", "bw30", "rts", "vbakf"]
@@ -426,9 +426,9 @@ def write_report(outdir, R, figs, args, elapsed):
       "improved AR(3) model; **ArduPilot's first-order low-pass at 20 Hz** (alpha = dt/(dt+RC)); "
       "**PX4's 2nd-order Butterworth at 30 Hz** (LowPassFilter2p, bilinear with pre-warping); and, "
       "beyond the paper, an **offline RTS smoother** and the **VB-AKF of Huang et al. (2018)**, both "
-      "on the AR(3) model identified by the KF run (`gyrodenoise/reference_filters.py`). Filtering "
+      "on the AR(3) model identified by the KF run (`benchmarks/reference_filters.py`). Filtering "
       "starts at a gyro restart at t = 0; the AR filters pass the raw sample through during their "
-      f"1 s warm-up, which every statistic below skips.\n")
+      "1 s warm-up, which every statistic below skips.\n")
     for key in CARDS:
         w(f"## Headline: {CARD_LABEL[key]}\n")
         w(headline(R, key) + "\n")
@@ -461,12 +461,12 @@ def write_report(outdir, R, figs, args, elapsed):
     for m in ("ar_fit", "kf", "shakf"):
         w(f"| paper {m} / raw | " + " | ".join(_g(PAPER_TABLE1[m][t] / PAPER_TABLE1['raw'][t])
                                                for t in TERM_NAMES) + " |")
-    w(f"| ours ar_fit / raw | " + " | ".join(_g(cmp["ratio_to_raw"]["ar_fit"][t]) for t in TERM_NAMES) + " |")
+    w("| ours ar_fit / raw | " + " | ".join(_g(cmp["ratio_to_raw"]["ar_fit"][t]) for t in TERM_NAMES) + " |")
     w("\nAR-fit accuracy (1 - |fit - raw| / raw, the paper's \"fitting accuracy\", claimed >= 93.2 %): "
       + ", ".join(f"{t} {_g(100 * v, '.1f') if v is not None else '-'} %" for t, v in cmp["ar_fit_accuracy"].items())
       + f"; identified AR(3): phi = {', '.join(_g(v, '.4f') for v in cmp['ar_model']['phi'])}, "
       f"c = {_g(cmp['ar_model']['c_deg_s'])} deg/s.\n")
-    w(f"![Allan FOG](allan_fog.png)\n")
+    w("![Allan FOG](allan_fog.png)\n")
     w(f"### The same for the MEMS gyro ({mems['n'] / mems['fs']:g} s at {mems['fs']:g} Hz)\n")
     w(terms_table(mems) + "\n")
     w("![Allan MEMS](allan_mems.png)\n")

@@ -16,7 +16,6 @@ Run: .venv/bin/python benchmarks/rlg_sensor_band.py
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 from _data import SHARED_DATA
@@ -49,7 +48,7 @@ def fit_agm(f, p, fs, tau_s):
 def main():
     from scipy.signal import welch
 
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     log = read_psins(DATA)
     fs = log.sample_rate_hz
     for name in ("gyro_x", "gyro_y", "gyro_z"):

@@ -39,7 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import gyrodenoise.simulator as SIM  # noqa: E402
-from gyrodenoise.allanvar import adev  # noqa: E402
+from gyrodenoise.analysis.allan import adev  # noqa: E402
 from gyrodenoise.core import simkernels as SK  # noqa: E402
 from gyrodenoise.core import _gdcore as C  # noqa: E402
 

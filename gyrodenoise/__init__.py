@@ -11,7 +11,7 @@ Python API (numpy arrays in, numpy out)::
     record = gd.simulate("models/paper_fog.toml", n_samples, seed=0)
 """
 
-from .denoiser import Denoiser, denoise
+from gyrodenoise.denoiser import Denoiser, denoise
 
 __version__ = "0.1.0"
 
@@ -19,14 +19,14 @@ __all__ = ["Denoiser", "denoise", "allan", "simulate", "load_card", "gap", "__ve
 
 
 def allan(rate_deg_s, sample_rate_hz, **kw):
-    """Allan deviation and five-term fit; see :func:`gyrodenoise.allanvar.allan`."""
-    from .allanvar import allan as _allan
+    """Allan deviation and five-term fit; see :func:`gyrodenoise.analysis.allan.allan`."""
+    from gyrodenoise.analysis.allan import allan as _allan
     return _allan(rate_deg_s, sample_rate_hz, **kw)
 
 
 def simulate(card, n_samples, seed=0, true_rate_deg_s=None, restarts=None):
     """Simulated gyro record; see :func:`gyrodenoise.simulator.simulate`."""
-    from .simulator import simulate as _simulate
+    from gyrodenoise.simulator import simulate as _simulate
     return _simulate(card, n_samples, seed=seed, true_rate_deg_s=true_rate_deg_s,
                      restarts=restarts)
 
@@ -34,11 +34,11 @@ def simulate(card, n_samples, seed=0, true_rate_deg_s=None, restarts=None):
 def gap(rate_deg_s, sample_rate_hz, card, **kw):
     """Model-gap workflow; see :func:`gyrodenoise.modelgap.gap` (imported on use:
     it pulls in scipy and matplotlib)."""
-    from .modelgap import gap as _gap
+    from gyrodenoise.modelgap import gap as _gap
     return _gap(rate_deg_s, sample_rate_hz, card, **kw)
 
 
 def load_card(path_or_name):
     """Read a model card; see :func:`gyrodenoise.simulator.load_card`."""
-    from .simulator import load_card as _load
+    from gyrodenoise.simulator import load_card as _load
     return _load(path_or_name)

@@ -84,7 +84,7 @@ SILENT_BY_DEFAULT = (DeprecationWarning, PendingDeprecationWarning, ImportWarnin
 
 
 def main_in_process(capfd, *args):
-    """``gyrodenoise ARGS`` run by gyrodenoise.cli.main in this process: (exit status,
+    """``gyrodenoise ARGS`` run by gyrodenoise.cli in this process: (exit status,
     stdout, stderr). Read at the file descriptors (capfd: C-level writes too); a warning that
     a process of its own would print (default filters) is a line of stderr; an exception is
     a traceback and fails the caller."""

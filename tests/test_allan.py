@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from gyrodenoise import allanvar as A
+from gyrodenoise.analysis import allan as A
 from conftest import shared_file
 
 
@@ -18,7 +18,7 @@ def test_golden_adis16405_imu1_gyro_x():
         for row in csv.DictReader(f):
             if row["sensor"].startswith("ADIS 16405") and row["channel"] == "Gyro. X":
                 ref[float(row["tau_s"])] = float(row["allan_deviation"])
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     rec = read_recording(path, rate_column="gyro_x")
     assert len(rec) == 1_000_000 and rec.sample_rate_hz == pytest.approx(100.0)
     taus = np.array(sorted(ref))

@@ -23,9 +23,9 @@ import gyrodenoise as gd
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.errors import InputError
 
-from bridge import dataflash, tlog
-from bridge.process import process_log, process_many
-from bridge.streams import RestartDetector, noise_per_axis, restart_flags
+from gyrodenoise.mavlink import dataflash, tlog
+from gyrodenoise.mavlink.process import process_log, process_many
+from gyrodenoise.mavlink.streams import RestartDetector, noise_per_axis, restart_flags
 from conftest import SHARED_DATA, main_in_process
 
 HERE = Path(__file__).resolve().parent
@@ -538,8 +538,8 @@ def test_highres_and_scaled_imu_units_and_restarts_synthetic(tmp_path):
     fs = ref_filter(ref["SCALED_IMU"][1] * R2D / 1000, 100.0, r) / (R2D / 1000)
     assert np.abs(out["SCALED_IMU"][1] - np.rint(fs)).max() <= 1
     # the reported noise figures are those of the reference arrays
-    from bridge.streams import noise_per_axis as npa
-    from gyrodenoise.motion_metrics import white_noise_std as wns
+    from gyrodenoise.mavlink.streams import noise_per_axis as npa
+    from gyrodenoise.analysis.motion_metrics import white_noise_std as wns
     ny = s["HIGHRES_IMU"]["noise"]["y"]
     assert ny["first_diff_filtered"] == pytest.approx(npa(f * R2D, r)[1], rel=1e-6)
     assert ny["first_diff_raw"] == pytest.approx(npa(ref["HIGHRES_IMU"][1] * R2D, r)[1], rel=1e-9)
@@ -632,7 +632,7 @@ def test_garbage_filter_output_leaves_that_stream_raw_exit_1(tmp_path, monkeypat
     """The safety net: a filter that returns garbage for one stream (IMU2 of the
     ArduPlane log) gets that stream written RAW, bit for bit, with one stderr line
     naming log, stream and axis; the other stream is filtered; exit status 1."""
-    from bridge import cli, engines
+    from gyrodenoise.mavlink import engines
     path = DATA / "plane_truncated_test.BIN"
     real = engines.NativeEngine.filter
     calls = {"n": 0}
@@ -679,8 +679,8 @@ def test_filtered_value_that_does_not_fit_int16_is_never_clipped(tmp_path, monke
     """A filtered RAW_IMU value beyond int16 (sitl_vtol.tlog z was clipped at 32767)
     leaves the stream raw and is reported -- checked on its own here: the envelope
     check (which would catch it first) is switched off."""
-    from bridge import engines
-    from gyrodenoise import motion_metrics
+    from gyrodenoise.mavlink import engines
+    from gyrodenoise.analysis import motion_metrics
     path = DATA / "fs-batt.log.tlog"
     real = engines.NativeEngine.filter
 
@@ -704,7 +704,7 @@ def test_filtered_value_that_does_not_fit_int16_is_never_clipped(tmp_path, monke
 def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd):
     """Issue 11 item 3: paths and option values; each gives one line naming the
     option or path on stderr, exit 2, no traceback; with --json one object.
-    The 66 runs go through gyrodenoise.cli.main in this process (main_in_process); three
+    The 66 runs go through gyrodenoise.cli in this process (main_in_process); three
     kinds (a path, an option value, an argparse error) also as the installed command in a
     process of its own (run_cli: the console entry, interpreter start and exit). 66 processes
     took 9.5 s of the suite."""
@@ -762,7 +762,7 @@ def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd
 def test_truncated_ulog_is_reported(tmp_path):
     """A .ulg cut in the middle of a message is reported as truncated (pyulog stops
     there silently); the whole file is not."""
-    from bridge import ulog
+    from gyrodenoise.mavlink import ulog
     src = shared_log("px4_sample.ulg")
     cut = tmp_path / "cut.ulg"
     cut.write_bytes(src.read_bytes()[:2_000_000])
@@ -775,10 +775,10 @@ def test_truncated_ulog_is_reported(tmp_path):
 
 
 def test_summary_motion_kept_lag_and_slow_note(tmp_path):
-    """The summary's motion figures are gyrodenoise.motion_metrics over the CSV's raw and
+    """The summary's motion figures are gyrodenoise.analysis.motion_metrics over the CSV's raw and
     filtered columns; a 2.4 Hz stream gets a note instead of an improvement figure; the
     paper's filter on a real flight is warned about (it flattens the manoeuvres)."""
-    from gyrodenoise import motion_metrics as mm
+    from gyrodenoise.analysis import motion_metrics as mm
     rep = process_log(DATA / "ardusub_small.BIN", tmp_path, plots=False)
     s = rep["streams"][0]
     a = np.genfromtxt(s["csv"], delimiter=",", names=True)

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bridge import dataflash
-from bridge.engines import FmuEngine, NativeEngine
-from bridge.process import process_log
-from bridge.streams import detect_restarts
+from gyrodenoise.mavlink import dataflash
+from gyrodenoise.mavlink.engines import FmuEngine, NativeEngine
+from gyrodenoise.mavlink.process import process_log
+from gyrodenoise.mavlink.streams import detect_restarts
 from conftest import SHARED_DATA
 
 HERE = Path(__file__).resolve().parent

@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from bridge import process
+from gyrodenoise.mavlink import process
 from test_bridge import DATA, by_name, shared_log
 
 
@@ -141,7 +141,7 @@ def test_plot_time_is_the_summary_time(tmp_path, monkeypatch):
     restart = next(e for e in rep["restarts"] if e["stream"] == "IMU")
     assert rt.tolist() == [pytest.approx(restart["time_s"], abs=1e-6)]
     assert "boot time" in xlabel and labels is None
-    from bridge import dataflash            # the x axis starts at the first sample's boot time
+    from gyrodenoise.mavlink import dataflash            # the x axis starts at the first sample's boot time
     _, _, streams = dataflash.read(shared_log("log171.bin"))
     assert lines[0][0][0][0] == pytest.approx(streams[0].time_s[0])
 

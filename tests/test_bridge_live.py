@@ -214,7 +214,7 @@ def test_live_replay_fs_batt_forwards_everything(tmp_path):
     assert rep["handling_us"]["p99"] < 20000
     # RAW_IMU's unit: the file mode's rule (ArduPilot HEARTBEAT + version string, MAVLink 1),
     # decided once the link has shown it, not "counts" because RAW_IMU came first
-    from bridge.process import process_log
+    from gyrodenoise.mavlink.process import process_log
     file_units = {s["name"]: s["field_unit"] for s in process_log(DATA / "fs-batt.log.tlog", tmp_path / "f",
                                                                   plots=False, csv=False)["streams"]}
     live_units = {s["name"].split("@")[0]: s["field_unit"] for s in rep["streams"]}
@@ -272,7 +272,7 @@ def test_live_link_that_cannot_open_exits_2(tmp_path):
 
 def test_live_unit_rule_is_the_file_rule():
     """One function decides RAW_IMU's unit; on a live link it waits for the evidence."""
-    from bridge.tlog import decide_raw_imu_unit as d
+    from gyrodenoise.mavlink.tlog import decide_raw_imu_unit as d
     ap_v1 = {"autopilots": {3}, "ap_version": False}
     assert d(None, True, final=False) is None                      # no HEARTBEAT yet
     assert d(ap_v1, False, final=False) is None                     # ArduPilot, MAVLink 1, no version yet
@@ -287,7 +287,7 @@ def test_live_safety_net_forwards_raw_from_the_bad_sample_on(monkeypatch):
     Denoiser that returns 1e12 from its 50th call) is never forwarded: the stream
     is forwarded raw from that sample on and the report says why."""
     import gyrodenoise.denoiser as den
-    from bridge.live import _LiveStream
+    from gyrodenoise.mavlink.live import _LiveStream
 
     class Garbage(den.Denoiser):
         calls = 0

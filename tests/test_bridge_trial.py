@@ -7,15 +7,14 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import math
 
 import numpy as np
 import pytest
 
-from bridge import process
-from bridge.streams import GyroStream
-from gyrodenoise import motion_metrics as mm
-from test_bridge import DATA, SHARED_LOGS, by_name, shared_log
+from gyrodenoise.mavlink import process
+from gyrodenoise.mavlink.streams import GyroStream
+from gyrodenoise.analysis import motion_metrics as mm
+from test_bridge import DATA, by_name, shared_log
 
 
 def _main(*args):
@@ -29,7 +28,7 @@ def _main(*args):
 
 def _stream_report(x_deg_s, fs, name="IMU[0]"):
     """A (n, 3) deg/s record through the bridge's filter and report, as a log stream."""
-    from bridge.engines import make_engine
+    from gyrodenoise.mavlink.engines import make_engine
     n = len(x_deg_s)
     s = GyroStream(name, "IMU", "deg/s", 1.0, np.arange(n) / fs, np.asarray(x_deg_s, dtype=np.float64),
                    np.arange(n))
@@ -100,7 +99,7 @@ def test_density_of_the_reported_noise_equals_welch_on_a_still_log(tmp_path):
     """The fleet's density comes from the reported figure: on the disarmed copter log
     it stays within 15 % of Welch's estimate above 2 Hz (independent reference)."""
     from scipy.signal import welch
-    from bridge.fleet import noise_density
+    from gyrodenoise.mavlink.fleet import noise_density
     path = shared_log("copter_2021-12-08_15-42-00.bin")
     rep = process.process_log(path, tmp_path, plots=False, csv=True)
     s = by_name(rep)["IMU[0]"]
@@ -118,7 +117,7 @@ def test_interrupted_fleet_run_writes_which_logs_completed(tmp_path, monkeypatch
     process): summary.json, written whole, says interrupted, lists the two logs that
     completed (with their reports) and the one that did not; the stop line names it."""
     import shutil
-    from bridge import cluster
+    from gyrodenoise.mavlink import cluster
     from gyrodenoise.errors import Terminated
     err = Terminated if exc == "Terminated" else exc
     logs = tmp_path / "logs"
@@ -185,7 +184,7 @@ def _cli(*args):
 def _moving_csv(path, n=12_000, fs=100.0, true_rate=True):
     """paper_fog (seeded) under +-70 deg/s of smooth motion, and the same sensor at rest."""
     import gyrodenoise as gd
-    from gyrodenoise import profiles
+    from benchmarks import profiles
     tr = profiles.smooth(n, fs, seed=3)
     rec = gd.simulate("paper_fog", n, seed=5, true_rate_deg_s=tr)
     still = gd.simulate("paper_fog", n, seed=5)
@@ -199,7 +198,7 @@ def test_allan_of_a_moving_record_analyses_rate_minus_true_rate(tmp_path):
     """With true_rate present allan analyses the sensor's error and says so: its N and
     K equal those of the same sensor simulated at rest (same seed; independent
     reference) within 1e-6, where the measured rate alone gives K ~ 1e6 deg/h^1.5."""
-    from gyrodenoise.allanvar import allan
+    from gyrodenoise.analysis.allan import allan
     path = tmp_path / "moving.csv"
     _, still = _moving_csv(path)
     st, out, _ = _cli("allan", path, "--json")
@@ -298,7 +297,7 @@ def _row(log, stream, density):
 def test_fleet_median_cell_says_why_it_is_empty():
     """A stream with no peer (the only ISB.gyro[0] of the fleet), one with a single
     peer, and one with no density: the "x fleet median" cell says why (it was blank)."""
-    from bridge.fleet import _flag, vs_fleet_text
+    from gyrodenoise.mavlink.fleet import _flag, vs_fleet_text
     rows = [_row("a.bin", "IMU[0]", 0.01), _row("b.bin", "IMU[0]", 0.011), _row("c.bin", "IMU[0]", 0.012),
             _row("a.bin", "ISB.gyro[0]", 0.001), _row("a.bin", "IMU[1]", 0.02), _row("b.bin", "IMU[1]", 0.02),
             _row("a.tlog", "RAW_IMU", None)]

@@ -12,7 +12,6 @@ operations and their order.
 from __future__ import annotations
 
 import array
-import math
 import random
 import zlib
 

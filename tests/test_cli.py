@@ -164,7 +164,7 @@ def test_dynamic_table_reports_the_step_with_and_without_the_gate():
     """Demo's 'price paid': with the default outlier gate a 10 deg/s step is
     followed within 0.2 s (20 rejected samples at 200 Hz, then a re-open);
     the paper's SHAKF without the gate has not reached 90 % after 10 s."""
-    from gyrodenoise.experiments import dynamic_table
+    from gyrodenoise.analysis.experiments import dynamic_table
     dyn = dynamic_table("paper_fog", rates_deg_s=(5.0,), duration_s=60.0, seed=3)
     st = dyn["step"]
     assert st["rise_time_90_s"]["shakf"] is not None and st["rise_time_90_s"]["shakf"] <= 0.2

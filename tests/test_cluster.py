@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from bridge.cluster import run_task
-from bridge.process import process_many
+from gyrodenoise.mavlink.cluster import run_task
+from gyrodenoise.mavlink.process import process_many
 from gyrodenoise.cli import main
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -82,8 +82,8 @@ def test_memory_filesystem_in_and_out(tmp_path):
                                         (["--scheduler", "tcp://127.0.0.1:1", "--jobs", "2"], "--jobs"),
                                         (["--scheduler", "tcp://127.0.0.1:9"], "--scheduler")])
 def test_scheduler_errors_are_one_line(tmp_path, capsys, monkeypatch, extra, word):
-    import bridge.cluster
-    monkeypatch.setattr(bridge.cluster, "CONNECT_TIMEOUT_S", 2.0)
+    import gyrodenoise.mavlink.cluster
+    monkeypatch.setattr(gyrodenoise.mavlink.cluster, "CONNECT_TIMEOUT_S", 2.0)
     code = main(["mavlink", str(LOGS[0]), "-o", str(tmp_path / "o"), *extra])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and word in err[0] and "Traceback" not in err[0]
@@ -99,7 +99,7 @@ def test_without_dask_the_option_says_what_to_install(tmp_path, capsys, monkeypa
 def test_largest_input_first_and_results_in_input_order(tmp_path):
     """Logs are handed out largest first (a big log started last keeps one worker
     busy alone), yet every result comes back in the order of the inputs."""
-    from bridge.cluster import largest_first
+    from gyrodenoise.mavlink.cluster import largest_first
     sizes = {"a.bin": 10, "b.bin": 300, "c.bin": 20, "d.bin": 300}
     for name, n in sizes.items():
         (tmp_path / name).write_bytes(b"\0" * n)
@@ -142,8 +142,8 @@ def test_a_port_that_is_not_a_scheduler_gives_one_line(tmp_path, capsys, monkeyp
     for ever (silent peer) or fail deep inside (garbage): one line, exit 2, in time."""
     import socket
     import threading
-    import bridge.cluster
-    monkeypatch.setattr(bridge.cluster, "CONNECT_TIMEOUT_S", 1.0)
+    import gyrodenoise.mavlink.cluster
+    monkeypatch.setattr(gyrodenoise.mavlink.cluster, "CONNECT_TIMEOUT_S", 1.0)
     srv = socket.socket()
     srv.bind(("127.0.0.1", 0))
     srv.listen(4)

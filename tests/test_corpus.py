@@ -1,7 +1,6 @@
 """The bad-input corpus (tests/corpus/, listed in its README): every case gets a
 one-line error with exit status 2 and no traceback, or a documented, reported
 repair with exit status 0 and nothing dropped or invented."""
-import gzip
 import random
 import subprocess
 import sys

@@ -17,7 +17,7 @@ import gyrodenoise as gd  # noqa: E402
 from gyrodenoise import plots  # noqa: E402
 from gyrodenoise.core import kernels as K  # noqa: E402
 from gyrodenoise.core.batch import run  # noqa: E402
-from gyrodenoise.experiments import ar_identification, compare  # noqa: E402
+from gyrodenoise.analysis.experiments import ar_identification, compare  # noqa: E402
 from gyrodenoise.simulator import load_card  # noqa: E402
 
 FS_HZ = 200.0
@@ -92,7 +92,7 @@ def test_table1_flags_a_fit_that_misses_its_own_points():
     motion bank's 0.1-100 s hump read as rate random walk: 4.2x on this 30 min record,
     10x on the demo's 2 h); Table 1 says so for the series where it does and for no
     series where the fit holds."""
-    from gyrodenoise.commands import POOR_FIT, format_compare
+    from gyrodenoise.cli.commands import POOR_FIT, format_compare
     res = compare(gd.simulate("paper_fog", 360_000, seed=0), ar_order=3, seed=0)
     mis = res["fit_misfit_factor"]
     assert mis["raw"] < 1.5 and mis["ar_fit"] < 1.5        # sums of Eq. (40) noises: the fit holds

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from gyrodenoise import export
+from gyrodenoise.io import export
 from gyrodenoise.errors import InputError
 
 # a known case, in the spec's units

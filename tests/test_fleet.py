@@ -1,13 +1,12 @@
-"""The fleet report's judgements (bridge/fleet.py) on hand-made summaries whose
+"""The fleet report's judgements (gyrodenoise/mavlink/fleet.py) on hand-made summaries whose
 answer is known: which stream is flagged, and what the flag says."""
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from bridge.fleet import fleet_rows, format_table, noise_density, write_fleet_report
-from bridge.streams import noise_per_axis
+from gyrodenoise.mavlink.fleet import fleet_rows, format_table, noise_density, write_fleet_report
+from gyrodenoise.mavlink.streams import noise_per_axis
 from conftest import SHARED_DATA
 
 SHARED_LOGS = SHARED_DATA / "logs"
@@ -86,8 +85,8 @@ def test_density_equals_welch_on_white_noise():
 def test_density_of_a_real_static_log_equals_welch():
     """The disarmed copter log of the issue (IMU[0]: 0.00463 printed, Welch
     0.0058-0.0066): the fleet's density per axis within 15 % of Welch's above 2 Hz."""
-    from bridge import dataflash
-    from bridge.streams import detect_restarts
+    from gyrodenoise.mavlink import dataflash
+    from gyrodenoise.mavlink.streams import detect_restarts
     path = SHARED_LOGS / "copter_2021-12-08_15-42-00.bin"
     if not path.exists():
         pytest.skip(f"third-party log not present: {path}")
@@ -133,6 +132,6 @@ def test_table_labels_rates_and_slow_rows(tmp_path):
     assert "7.4 deg/s (written raw)" in line and "->" not in line
     assert "too slow to denoise (1 Hz < 20 Hz): written raw" in line
     assert paths[2].read_bytes().endswith(b"IEND\xaeB`\x82")
-    from bridge.fleet import plot_title
+    from gyrodenoise.mavlink.fleet import plot_title
     title = plot_title(fleet_rows(_summary(logs)))
     assert "1 log(s) with telemetry streams only, below 20 Hz" in title and "no stream to denoise" not in title

@@ -172,7 +172,7 @@ def test_clean_exits(fmus, host, name):
     """SimulatedFog crashed at exit in 1 of 5 to 13 of 13 runs (pythonfmu's static
     shared_ptr released again by its library destructor; scipy's _uarray in
     Py_FinalizeEx; the module dict's borrowed reference released at every
-    instantiation): worked around in fmu_src/simulatedfog_fmu.py."""
+    instantiation): worked around in gyrodenoise/fmu/sources/simulatedfog_fmu.py."""
     args = SIM_ARGS if name == "SimulatedFog" else ()
     stdin = "".join(f"{0.01 * k!r} 0\n" for k in range(300))
     codes = [_run(host, fmus[name], "run", *args, stdin=stdin).returncode for _ in range(N_EXITS)]
@@ -300,7 +300,7 @@ print("ok")
                                           ("FogDenoiser", "raw_rate", "filtered_rate")])
 def test_usable_after_repeated_fatal(fmus, name, inp, out):
     """pythonfmu releases the instance's objects at every fmi2Fatal (and again in
-    fmi2FreeInstance): the slaves keep them alive (fmu_src/gyrodenoise_pythonfmu_rules.py),
+    fmi2FreeInstance): the slaves keep them alive (gyrodenoise/fmu/sources/gyrodenoise_pythonfmu_rules.py),
     so later calls and the process exit do not crash."""
     proc = subprocess.run([sys.executable, "-c", _AFTER_FATAL, str(fmus["_fmu"] / f"{name}.fmu"), inp, out],
                           capture_output=True, text=True, timeout=120)

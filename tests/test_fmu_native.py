@@ -13,7 +13,6 @@ import shutil
 import subprocess
 import sys
 import time
-import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
@@ -26,7 +25,7 @@ from gyrodenoise.errors import InputError
 from gyrodenoise.fmu import native
 
 fmpy = pytest.importorskip("fmpy")
-from fmpy import extract, read_model_description  # noqa: E402
+from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,  # noqa: E402
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)

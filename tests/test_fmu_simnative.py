@@ -205,7 +205,7 @@ def test_a_card_with_a_long_name_compiles_to_a_text_the_fmu_takes(built, md, vr,
     inside libcosim. The name in the comment is now shortened; the FMU takes the text and gives
     gd.simulate's numbers."""
     import re
-    c_src = (HERE.parent / "fmu_src" / "native" / "simulatedfog_native.c").read_text()
+    c_src = (HERE.parent / "gyrodenoise" / "fmu" / "sources" / "native" / "simulatedfog_native.c").read_text()
     text_max = int(re.search(r"#define CARD_LEN (\d+)", c_src).group(1)) - 1    # the terminating NUL
     _, path, _ = every_term_card
     long_path = tmp_path / "long_name.toml"

@@ -720,7 +720,7 @@ def test_real_adis16405_from_white_noise_card():
     the same picture, inside the combined tolerance.
     """
     from gyrodenoise.modelgap.spectral import allan_columns, stochastic_specs
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     path = shared_file("static", "adis16405_imu1.csv.gz")
     rec = read_recording(path, rate_column="gyro_x")
     y = rec.rate_deg_s

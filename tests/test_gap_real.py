@@ -129,7 +129,7 @@ def test_rlg_y_wandering_line_skirt_is_stopped():
 
     from gyrodenoise.modelgap.metric import welch_nperseg
     from gyrodenoise.modelgap.spectral import wandering_lines
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     y = log.axis("gyro_y")
     nper = welch_nperseg(len(y))
@@ -199,7 +199,7 @@ def test_base_band_takes_its_tail_out_down_to_a_few_percent(monkeypatch):
 def test_psins_reader_arithmetic_and_header(tmp_path):
     """rate = pulses * scale (arcsec) / interval: 3 pulses of 0.1 arcsec in 10 ms is
     30 arcsec/s = 0.008333 deg/s; the latitude comes from line 2."""
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     p = tmp_path / "t.imu"
     p.write_text("% comment\n0 0 -90 0 0 0\n34.5 108.9 380 0 10 9.78\n0.1 0.1 0.2 125 125 125\n"
                  "1 -2 3 0 0 80\n0 0 0 0 0 80\n")
@@ -223,7 +223,7 @@ def test_rlg_z_slice_from_an_empty_card_names_earth_rate_quantum_and_vibration()
     (after the initial fit) shrinks at least 10x. Convergence below the threshold
     is NOT asserted: it does not hold on this record (docs/GAP.md)."""
     from gyrodenoise.modelgap.effects import EARTH_RATE_DEG_H
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     y = log.axis("gyro_z")[:60000]
     res = gd.gap(y, log.sample_rate_hz, parse_card(EMPTY), seeds=3, latitude_deg=log.latitude_deg)
@@ -252,7 +252,7 @@ def test_rlg_x_converges_from_an_empty_card_with_base_motion_and_dither_lines_ou
     (``.venv/bin/python benchmarks/gap_edge.py rlg --sets 4 --axis x``, seed sets 1-6,
     11-16, 21-26, 31-36): within_scatter in 4/4 (docs/GAP.md)."""
     from gyrodenoise.modelgap.effects import EARTH_RATE_DEG_H
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     res = gd.gap(log.axis("gyro_x"), log.sample_rate_hz, parse_card(EMPTY), seeds=6,
                  latitude_deg=log.latitude_deg)
@@ -280,7 +280,7 @@ def test_rlg_y_converges_from_an_empty_card_with_the_base_motions_tail_out():
     passing the loop's own stop test (its capped score gains less than the 0.8x rule asks).
     Evidence (``.venv/bin/python benchmarks/gap_edge.py rlg --sets 4 --axis y``): within in
     4/4 seed sets (docs/GAP.md)."""
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     res = gd.gap(log.axis("gyro_y"), log.sample_rate_hz, parse_card(EMPTY), seeds=6,
                  latitude_deg=log.latitude_deg)
@@ -303,7 +303,7 @@ def test_rlg_z_converges_with_the_angle_gauss_markov_term():
     1-6, 11-16, 21-26, 31-36: within_scatter 4/4, gap 0.67-0.91 (thresholds 3.61-4.80),
     PSD component 1.17-2.33, angle GM taus 5 and 7.3 ms each time. The same on main
     without the term: within_scatter 1/4, gap 2.32-2.93, PSD component 6.39-8.84."""
-    from gyrodenoise.psins import read_psins
+    from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     res = gd.gap(log.axis("gyro_z"), log.sample_rate_hz, parse_card(EMPTY), seeds=6,
                  latitude_deg=log.latitude_deg)
@@ -338,7 +338,7 @@ def test_adis_fit_on_imu1_explains_held_out_imu3_better_than_the_datasheet_card(
     least 20x below that of the white-noise datasheet card (N = 2.5 deg/sqrt(h),
     bias likewise set to imu3's mean). It is NOT within imu3's scatter threshold on
     this slice; the full-length numbers are in docs/GAP.md."""
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
 
     def rec(i):
         return read_recording(shared_file("static", f"adis16405_imu{i}.csv.gz"),
@@ -355,7 +355,7 @@ def test_xsens_with_outliers_converges_and_names_them():
     """XSens MTi-G gyro x (rad/s), first 100,000 samples, --outliers from an empty
     card: between 0.1 % and 1 % of the samples are named outliers (the data's
     README: about 0.4 %) and the card ends within the simulations' scatter."""
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     y = read_recording(shared_file("static", "xsens_mtig_contaminated.csv.gz"), rate_column="gyro_x",
                        rate_unit="rad/s").rate_deg_s[:100000]
     res = gd.gap(y, 100.0, parse_card(EMPTY), seeds=3, outliers=True)
@@ -410,7 +410,7 @@ def test_angle_gauss_markov_and_output_lowpass_columns_against_simulation():
     at 10 Hz (scipy.signal.lfilter)."""
     from scipy.signal import lfilter
 
-    from gyrodenoise.allanvar import adev
+    from gyrodenoise.analysis.allan import adev
     rng = np.random.default_rng(5)
     fs, n, sig, tc = 100.0, 400000, 1e-4, 0.05
     m = 2 ** np.arange(0, 9)
@@ -428,9 +428,9 @@ def test_angle_gauss_markov_and_output_lowpass_columns_against_simulation():
 
 def test_line_allan_columns_match_a_sampled_sinusoid():
     """The Allan variance of a sampled sinusoid (amplitude 2, 23.3 Hz, 1 kHz, 200,000
-    samples, phase 0.3 rad; computed by gyrodenoise.allanvar.adev) equals amplitude^2 x
+    samples, phase 0.3 rad; computed by gyrodenoise.analysis.allan.adev) equals amplitude^2 x
     line_allan_columns at m = 1..128 to 1e-4 (the record holds 4660 whole-ish cycles)."""
-    from gyrodenoise.allanvar import adev
+    from gyrodenoise.analysis.allan import adev
     from gyrodenoise.modelgap.spectral import line_allan_columns
     fs, n, f0, amp = 1000.0, 200000, 23.3, 2.0
     y = amp * np.sin(2 * np.pi * f0 * np.arange(n) / fs + 0.3)

@@ -161,7 +161,6 @@ def test_plain_c_on_each_platform_equals_the_specification(plat, tmp_path):
     portable (equal bit for bit here; 1e-12 relative is the contract)."""
     import os
     import shutil
-    import subprocess
     from gyrodenoise.fmu import native
     card = parse_card(EVERY_TERM_AGM)
     n, seed = 2000, 77
@@ -266,7 +265,7 @@ def test_angle_gauss_markov_allan_variance_against_the_closed_form(tau_s):
     4 estimates, the error of one estimate taken as sqrt(2 / (N/m - 1)) relative (IEEE 952
     C.1, conservative for a process whose Allan variance is white-like beyond tau_s) - and
     not a white angle (quantization Q = sigma) curve where the correlation time matters."""
-    from gyrodenoise.allanvar import adev
+    from gyrodenoise.analysis.allan import adev
     from gyrodenoise.modelgap.spectral import allan_columns, angle_gm_avar
     fs, n, sigma = 100.0, 200_000, 2.0e-3
     card = parse_card(f"[sensor]\nsample_rate_hz = {fs}\n[[terms.angle_gauss_markov]]\nsigma = {sigma}\n"

@@ -2,7 +2,6 @@
 the paper's filters, through the bridge's readers, the output of every stream
 axis is finite and inside the raw range of each session (restart to restart).
 Skips with a reason without ../shared/data (licences forbid copying the logs)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +15,7 @@ FILES = sorted(LOGS.glob("*")) if LOGS.is_dir() else []
 
 
 def read_streams(path):
-    from bridge import dataflash, tlog, ulog
+    from gyrodenoise.mavlink import dataflash, tlog, ulog
     from gyrodenoise.errors import InputError
     try:
         if path.suffix.lower() == ".bin":
@@ -44,7 +43,7 @@ def session_range(z, restarts):
 @pytest.mark.skipif(not FILES, reason="../shared/data/logs absent (third-party logs are not in the repository)")
 @pytest.mark.parametrize("path", FILES, ids=[p.name for p in FILES])
 def test_every_shared_log_stays_finite_and_inside_its_range(path):
-    from bridge.streams import detect_restarts
+    from gyrodenoise.mavlink.streams import detect_restarts
     for st in read_streams(path):
         detect_restarts(st)
         x, _, _ = st.work_units()

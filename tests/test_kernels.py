@@ -150,7 +150,7 @@ def test_gate_reopens_on_a_real_step_and_shortens_the_lag():
     restarts there, so the output reaches 90 % within outlier_run samples + 1 (the
     warm-up then passes the raw sample), where the ungated SHAKF needs > 100 s."""
     import gyrodenoise as gd
-    from gyrodenoise.experiments import rise_time
+    from gyrodenoise.analysis.experiments import rise_time
     fs, n = 200.0, 120_000
     truth = np.zeros(n)
     truth[n // 2:] = 10.0
@@ -201,7 +201,7 @@ def test_gate_on_real_imu4_outliers():
     output on the record with the outliers replaced by the median of their
     neighbours (measured 0.0034 deg/s; ungated 0.0091 deg/s, docs/OUTLIERS.md)."""
     from conftest import shared_file
-    from gyrodenoise.recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     rec = read_recording(shared_file("static", "adis16405_imu4.csv.gz"), rate_column="gyro_x")
     z = rec.rate_deg_s[:20_000]                       # the first three outliers
     med = np.median(z)

@@ -2,15 +2,14 @@
 properties, not timing. References: the true rate of the simulation and the
 specialists (raw, 1st-order LP 20 Hz, Butterworth-2 30 Hz, kf, shakf) run on
 the same record."""
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
-from gyrodenoise import reference_filters as RF
-from gyrodenoise.profiles import PROFILES
+from benchmarks import reference_filters as RF
+from benchmarks.profiles import PROFILES
 from conftest import SHARED_DATA
 
 SENSORS = {"fog": ("paper_fog", 200.0, 5.0), "mems": ("icm20602", 1000.0, 20.0)}
@@ -94,7 +93,7 @@ def _lowband(x, fs, band_hz=5.0):
 
 
 def _streams(name):
-    from bridge import dataflash, ulog
+    from gyrodenoise.mavlink import dataflash, ulog
     return dataflash.read(LOGS / name)[2] if name.endswith(".bin") else ulog.read(LOGS / name)[1]
 
 
@@ -106,7 +105,7 @@ def test_real_flight_keeps_the_low_band_motion(name):
     and keeps >= 85 % of its amplitude (the issue-12 goal)."""
     if not (LOGS / name).is_file():
         pytest.skip(f"../shared/data/logs/{name} absent")
-    from bridge.streams import detect_restarts
+    from gyrodenoise.mavlink.streams import detect_restarts
     checked = 0
     for st in _streams(name):
         detect_restarts(st)
@@ -199,8 +198,8 @@ def _log171_spikes():
     of the 50 Hz-aliased vibration)."""
     from tests.conftest import shared_file
     path = shared_file("logs", "log171.bin")
-    from bridge import dataflash
-    from bridge.streams import detect_restarts
+    from gyrodenoise.mavlink import dataflash
+    from gyrodenoise.mavlink.streams import detect_restarts
     for st in dataflash.read(path)[2]:
         detect_restarts(st)
         x, _, _ = st.work_units()
@@ -254,8 +253,8 @@ def test_log171_the_issue_spike_is_not_held():
     to the noise level read there and is partly averaged in)."""
     from tests.conftest import shared_file
     path = shared_file("logs", "log171.bin")
-    from bridge import dataflash
-    from bridge.streams import detect_restarts
+    from gyrodenoise.mavlink import dataflash
+    from gyrodenoise.mavlink.streams import detect_restarts
     st = dataflash.read(path)[2][0]
     detect_restarts(st)
     z = st.work_units()[0][:, 0]

@@ -1,4 +1,4 @@
-"""gyrodenoise.motion_metrics against analytic cases (seeded records)."""
+"""gyrodenoise.analysis.motion_metrics against analytic cases (seeded records)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from gyrodenoise import motion_metrics as mm
+from gyrodenoise.analysis import motion_metrics as mm
 
 FS = 200.0
 

@@ -3,7 +3,7 @@
 Every test is derandomized (the same examples on every run, CI-reproducible),
 has no deadline and a bounded number of examples so that the file stays well
 under a minute. Inputs are finite and within the readers' plausibility bound
-(|rate| <= 1e6 deg/s, gyrodenoise.recording.ABSURD_RATE_DEG_S): beyond that
+(|rate| <= 1e6 deg/s, gyrodenoise.io.recording.ABSURD_RATE_DEG_S): beyond that
 the squares in the RLS and the filter may overflow, and the readers refuse
 such values (tests/corpus).
 """
@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from gyrodenoise.core import kernels as K
 from gyrodenoise.core.batch import run
-from gyrodenoise.recording import ABSURD_RATE_DEG_S
+from gyrodenoise.io.recording import ABSURD_RATE_DEG_S
 
 SETTINGS = dict(derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -9,7 +9,7 @@ import pytest
 from scipy import signal
 
 import gyrodenoise as gd
-from gyrodenoise import reference_filters as RF
+from benchmarks import reference_filters as RF
 
 
 def _gain_db(b, a, f_hz, fs):

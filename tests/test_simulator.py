@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from gyrodenoise import allanvar as A
+from gyrodenoise.analysis import allan as A
 from gyrodenoise.errors import InputError
 from gyrodenoise.simulator import SimStream, parse_card
 

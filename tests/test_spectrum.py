@@ -1,4 +1,4 @@
-"""The spectrum view (issue 21): gyrodenoise.spectrum against independent
+"""The spectrum view (issue 21): gyrodenoise.analysis.spectrum against independent
 references (scipy.signal, known injected tones, white noise), and the bridge's
 spectrum outputs on a synthetic log with known tones and on real logs."""
 
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrodenoise import spectrum as sp
+from gyrodenoise.analysis import spectrum as sp
 from tests.conftest import shared_file
 
 # the seeded record with known tones: (frequency Hz, amplitude deg/s), white noise 1 deg/s at 1 kHz
@@ -163,7 +163,7 @@ def _highres_tlog(path, fs=400.0, n=8000, seed=5):
 
 
 def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
-    from bridge.process import process_log
+    from gyrodenoise.mavlink.process import process_log
     path = tmp_path / "tones.tlog"
     _highres_tlog(path)
     rep = process_log(path, tmp_path / "out", method="lowpass", filter_kw={"cutoff_hz": 60.0}, csv=False)
@@ -180,7 +180,7 @@ def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
     assert spec["peaks"]["y"] == [] and spec["peaks"]["z"] == []
     assert spec["dominant_peak"]["axis"] == "x" and spec["dominant_peak"]["freq_hz"] == px[0]["freq_hz"]
     # the filter's gain at the line: measured from the records = the Butterworth's |H| there
-    from bridge.spectra import _computed_sos
+    from gyrodenoise.mavlink.spectra import _computed_sos
     sos = _computed_sos("lowpass", 400.0, {"cutoff_hz": 60.0})
     for q in px:
         h = abs(sp.sos_response(sos, [q["freq_hz"]], 400.0)[0])
@@ -189,7 +189,7 @@ def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
     assert fx["measured"] and abs(fx["minus3db_hz"] - fx["computed_minus3db_hz"]) <= df
     assert abs(fx["computed_minus3db_hz"] - 60.0) <= df
     # the text summary names the line and its harmonic, and says when an axis has none
-    from bridge.spectra import summary_lines
+    from gyrodenoise.mavlink.spectra import summary_lines
     lines = summary_lines(spec)
     assert px[0]["present_in_segments"] == 1.0 and px[1]["present_in_segments"] == 1.0   # all along
     assert lines[0].startswith(f"x: vibration {px[0]['freq_hz']:.3g} Hz, 0.71 deg/s rms (in 100 % of "
@@ -216,7 +216,7 @@ def test_log171_spectrum_fields_in_the_json_and_png(tmp_path):
     """log171 (50 Hz): a spectrum, a spectrogram (4 min) and the filter's measured
     response per stream; its broadband vibration has no peak 6 dB above the floor,
     and each listed peak (if the method changes that) carries every field."""
-    from bridge.process import process_log
+    from gyrodenoise.mavlink.process import process_log
     log = shared_file("logs", "log171.bin")
     rep = process_log(log, tmp_path, csv=False)
     json.dumps(rep, allow_nan=False)
@@ -238,7 +238,7 @@ def test_log171_spectrum_fields_in_the_json_and_png(tmp_path):
 def test_batch_sampler_bursts_spectrum_up_to_1khz(tmp_path):
     """copter_00061: the ISB bursts at ~2 kHz get a spectrum to ~1 kHz from
     segments inside the 1024-sample bursts; the 25 Hz IMU streams one to 12.5 Hz."""
-    from bridge.process import process_log
+    from gyrodenoise.mavlink.process import process_log
     log = shared_file("logs", "copter_00061-2021-11-21_18-03-38.bin")
     rep = process_log(log, tmp_path, csv=False, plots=False)
     s = {x["name"]: x["spectrum"] for x in rep["streams"]}
@@ -258,8 +258,8 @@ def test_batch_sampler_bursts_spectrum_up_to_1khz(tmp_path):
 def test_fleet_report_lists_each_logs_dominant_vibration_peak(tmp_path):
     """The fleet table has each stream's dominant peak, and fleet.md each log's:
     the strongest over the log's streams and axes of the summary's JSON."""
-    from bridge.fleet import write_fleet_report
-    from bridge.process import process_many
+    from gyrodenoise.mavlink.fleet import write_fleet_report
+    from gyrodenoise.mavlink.process import process_many
     logs = [shared_file("logs", "log171.bin"), shared_file("logs", "copter_00061-2021-11-21_18-03-38.bin")]
     summary = process_many([str(p) for p in logs], tmp_path / "out", plots=False, csv=False)
     md, js, _ = write_fleet_report(summary, tmp_path / "out")

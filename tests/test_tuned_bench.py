@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from sceptic import baselines as B  # noqa: E402
 from sceptic import bench, sim  # noqa: E402
 
-from gyrodenoise.allanvar import adev  # noqa: E402
+from gyrodenoise.analysis.allan import adev  # noqa: E402
 
 
 def _only(sensor_key, **kw):

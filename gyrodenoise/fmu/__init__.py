@@ -5,18 +5,19 @@
 * :mod:`.validation` -- the fmpy-scripted SimulatedFog -> FogDenoiser run;
 * :mod:`.native`, :mod:`.simnative` -- FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python);
 * :mod:`.cosim` -- the SSP file and libcosimpy;
-* :mod:`.cli` -- the ``gyrodenoise fmu`` subcommands.
+* ``sources/`` -- the FMUs' own sources (pythonfmu slaves, the native C FMI layer).
+
+The ``gyrodenoise fmu`` subcommands live in :mod:`gyrodenoise.cli.fmu`.
 
 The names below are re-exported so ``from gyrodenoise import fmu as F`` keeps working.
 """
 
-from .build import (CORE_INIT, FMU_SRC, FMUS, PACKAGE_DIR, REPO_DIR, build_all, build_fmu, compiled_core_files,
+from gyrodenoise.fmu.build import (CORE_INIT, FMU_SRC, FMUS, PACKAGE_DIR, REPO_DIR, build_all, build_fmu, compiled_core_files,
                     stage_core, stale_reason)
-from .cli import register_cli
-from .cosim import cosim_run, system_parameters, write_ssp
-from .host import FmuInstance, FmuStepError, _stepper
-from .validation import compare_with_core, validation_run
+from gyrodenoise.fmu.cosim import cosim_run, system_parameters, write_ssp
+from gyrodenoise.fmu.host import FmuInstance, FmuStepError, _stepper
+from gyrodenoise.fmu.validation import compare_with_core, validation_run
 
 __all__ = ["compiled_core_files", "CORE_INIT", "FMU_SRC", "FMUS", "PACKAGE_DIR", "REPO_DIR", "build_all", "build_fmu", "stage_core",
-           "stale_reason", "register_cli", "cosim_run", "system_parameters", "write_ssp", "FmuInstance",
+           "stale_reason", "cosim_run", "system_parameters", "write_ssp", "FmuInstance",
            "FmuStepError", "_stepper", "compare_with_core", "validation_run"]

@@ -1,6 +1,6 @@
 """Build the FMUs: ``gyrodenoise fmu build``.
 
-Packages ``fmu_src/fogdenoiser_fmu.py`` and ``fmu_src/simulatedfog_fmu.py`` with
+Packages ``gyrodenoise/fmu/sources/fogdenoiser_fmu.py`` and ``gyrodenoise/fmu/sources/simulatedfog_fmu.py`` with
 pythonfmu (in a subprocess) into ``FogDenoiser.fmu`` and ``SimulatedFog.fmu``.
 The FMUs carry a copy of the core (package ``gdcore``: the plain-Python
 kernels, and FogDenoiser also the compiled C core ``core/_gdcore*.so`` of this
@@ -18,11 +18,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ..errors import InputError
+from gyrodenoise.errors import InputError
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]   # gyrodenoise/
 REPO_DIR = PACKAGE_DIR.parent
-FMU_SRC = REPO_DIR / "fmu_src"
+FMU_SRC = Path(__file__).resolve().parent / "sources"
 
 #: (model name, slave script, core modules bundled)
 FMUS = {
@@ -33,7 +33,7 @@ FMUS = {
 
 
 #: Shared by the pythonfmu slaves, bundled next to each slave script (FMI rules and
-#: pythonfmu work-arounds; fmu_src/gyrodenoise_pythonfmu_rules.py)
+#: pythonfmu work-arounds; gyrodenoise/fmu/sources/gyrodenoise_pythonfmu_rules.py)
 SLAVE_HELPERS = ("gyrodenoise_pythonfmu_rules.py",)
 
 
@@ -53,13 +53,13 @@ __version__ = "{version}"
 def _fmu_src_dir(src_dir=None):
     d = Path(src_dir) if src_dir is not None else FMU_SRC
     if not d.is_dir():
-        raise InputError(f"{d}: FMU sources not found (fmu_src/ of the gyrodenoise source tree)")
+        raise InputError(f"{d}: FMU sources not found (gyrodenoise/fmu/sources/ of the package)")
     return d
 
 
 def stage_core(dest, modules):
     """Write the minimal core package ``gdcore`` into ``dest``; return its path."""
-    from .. import __version__
+    from gyrodenoise import __version__
     pkg = Path(dest) / "gdcore"
     pkg.mkdir(parents=True, exist_ok=True)
     (pkg / "__init__.py").write_text(CORE_INIT.format(version=__version__))
@@ -112,7 +112,7 @@ def build_fmu(name, out_dir="build", src_dir=None, python=None):
     path = out / f"{name}.fmu"
     if not path.is_file():
         raise RuntimeError(f"pythonfmu did not write {path}")
-    from .model_description import complete
+    from gyrodenoise.fmu.model_description import complete
     return complete(path)      # units, DefaultExperiment, min/max (pythonfmu cannot declare them)
 
 

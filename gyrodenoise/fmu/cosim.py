@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
-from ..core.kernels import DEFAULT_METHOD
-from .validation import _denoiser_params, _resolve_card, _restart_mask, compare_with_core
+from gyrodenoise.errors import InputError
+from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.fmu.validation import _denoiser_params, _resolve_card, _restart_mask, compare_with_core
 
 
 def _xml_attr(value):
@@ -41,7 +41,7 @@ def system_parameters(card, seed=0, method=DEFAULT_METHOD, ar_order=3, rate_deg_
     card_obj = _resolve_card(card)
     fs = card_obj.sample_rate_hz
     if sensor == "SimulatedFogNative":
-        from .simnative import compile_card
+        from gyrodenoise.fmu.simnative import compile_card
         card_value = compile_card(card_obj)
     else:
         card_value = card_obj.text

@@ -2,8 +2,8 @@
 
 No Python and no libpython at run time: the binary is the project's sensor model
 (``gyrodenoise/core/gdsim.c``, the C that ``gyrodenoise.simulate`` and the pythonfmu
-``SimulatedFog.fmu`` run) behind the shared FMI layer (``fmu_src/native/gdfmi.c``) and
-its hooks (``fmu_src/native/simulatedfog_native.c``). Same variables (names, types,
+``SimulatedFog.fmu`` run) behind the shared FMI layer (``gyrodenoise/fmu/sources/native/gdfmi.c``) and
+its hooks (``gyrodenoise/fmu/sources/native/simulatedfog_native.c``). Same variables (names, types,
 causality, variability, units, start values) as ``SimulatedFog.fmu``; same card and
 seed: same numbers as ``gyrodenoise.simulate``.
 
@@ -24,9 +24,9 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
-from ..core import simkernels as SK
-from ..errors import InputError
-from .native import CORE_DIR, PACKAGE_DIR, UNITS, NativeModel, _par, _var
+from gyrodenoise.core import simkernels as SK
+from gyrodenoise.errors import InputError
+from gyrodenoise.fmu.native import CORE_DIR, PACKAGE_DIR, UNITS, NativeModel, _par, _var
 
 MODEL_NAME = "SimulatedFogNative"
 CARD_FORMAT = 1
@@ -46,7 +46,7 @@ def _check_layout():
                            "and simulatedfog_native.c (check_vector)")
 
 
-#: the card parameter's text, at most (fmu_src/native/simulatedfog_native.c: CARD_LEN - 1)
+#: the card parameter's text, at most (gyrodenoise/fmu/sources/native/simulatedfog_native.c: CARD_LEN - 1)
 CARD_TEXT_MAX = 8191
 #: the card's name and file in the compiled card's comment line, at most (characters)
 CARD_COMMENT_MAX = 200
@@ -54,8 +54,8 @@ CARD_COMMENT_MAX = 200
 
 def compile_card(card):
     """The compiled card (text) of ``card`` (a ModelCard, a card path or a bundled name)."""
-    from ..simulator import load_card
-    from .. import __version__
+    from gyrodenoise.simulator import load_card
+    from gyrodenoise import __version__
     _check_layout()
     card = load_card(card)
     try:
@@ -128,5 +128,5 @@ SIMULATED_FOG_NATIVE = NativeModel(
 def build_simulated_fog_native(out_dir="build", platforms=None, report=None):
     """Compile SimulatedFogNative and write ``out_dir/SimulatedFogNative.fmu``; returns its path
     (arguments as :func:`gyrodenoise.fmu.native.build_native_fmu`)."""
-    from .native import build_native_fmu
+    from gyrodenoise.fmu.native import build_native_fmu
     return build_native_fmu(out_dir, platforms, report, SIMULATED_FOG_NATIVE)

@@ -7,14 +7,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
-from ..core.kernels import DEFAULT_METHOD
-from .build import FMUS
-from .host import FmuInstance, _stepper
+from gyrodenoise.errors import InputError
+from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.fmu.build import FMUS
+from gyrodenoise.fmu.host import FmuInstance, _stepper
 
 
 def _resolve_card(card):
-    from ..simulator import load_card
+    from gyrodenoise.simulator import load_card
     return load_card(card)
 
 

@@ -71,13 +71,13 @@ which tends to ``2 sigma^2 tau / (3 T)`` for ``tau << T`` and to ``2 sigma^2 T /
 for ``tau >> T`` and peaks near ``tau = 1.89 T``.
 """
 
-from .candidates import SHAPE, Candidate, gm_avar, propose
-from .cards import card_at_rate, check_editable, edit_card, text_at_rate
-from .metric import Layout, Reference, gap_components, gap_value, signature, zscores
-from .report import format_report, plot_gap
-from .settings import COMPONENTS, GAP_METRIC
-from .simulation import Simulator, fmu_path_for
-from .workflow import GapResult, check_record, gap, heldout_gap, robust_gap, widening
+from gyrodenoise.modelgap.candidates import SHAPE, Candidate, gm_avar, propose
+from gyrodenoise.modelgap.cards import card_at_rate, check_editable, edit_card, text_at_rate
+from gyrodenoise.modelgap.metric import Layout, Reference, gap_components, gap_value, signature, zscores
+from gyrodenoise.modelgap.report import format_report, plot_gap
+from gyrodenoise.modelgap.settings import COMPONENTS, GAP_METRIC
+from gyrodenoise.modelgap.simulation import Simulator, fmu_path_for
+from gyrodenoise.modelgap.workflow import GapResult, check_record, gap, heldout_gap, robust_gap, widening
 
 __all__ = ["SHAPE", "Candidate", "gm_avar", "propose", "card_at_rate", "check_editable", "edit_card",
            "text_at_rate", "Layout", "Reference", "gap_components", "gap_value", "signature", "zscores",

@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .settings import ALLAN_SHAPES, BI_FACTOR, CARD_FIELD, N_PARAMS
-from .spectral import AGM_TAU_MAX_S, angle_gm_avar
+from gyrodenoise.modelgap.settings import ALLAN_SHAPES, BI_FACTOR, CARD_FIELD, N_PARAMS
+from gyrodenoise.modelgap.spectral import AGM_TAU_MAX_S, angle_gm_avar
 
 
 # ------------------------------------------------------------------ candidates
@@ -315,7 +315,7 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
     :func:`.spectral.fit_terms` on the measured Allan variance and Welch-band PSD
     minus what the card's other terms (sinusoids, ramp, transient, bias) add in
     the simulations. None when nothing would change."""
-    from .spectral import ALLAN_TERMS, allan_columns, band_columns, fit_terms, stochastic_specs
+    from gyrodenoise.modelgap.spectral import ALLAN_TERMS, allan_columns, band_columns, fit_terms, stochastic_specs
     specs, coef = stochastic_specs(card)
     e = layout.band_edges
     band_mean = lambda p: np.array([p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])  # noqa: E731

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import re
 
-from ..errors import InputError
+from gyrodenoise.errors import InputError
 
 
 # ------------------------------------------------------------------ cards as text
@@ -23,7 +23,7 @@ def card_at_rate(text, fs, source="<card>"):
     """
     from dataclasses import replace
 
-    from ..simulator import parse_card
+    from gyrodenoise.simulator import parse_card
     card = parse_card(text, source)
     if card.sample_rate_hz == fs:
         return card
@@ -87,7 +87,7 @@ def _remove_lines(lines, name, note):
 
 def _edit_lines(lines, name, params, refit, note):
     """The edit itself (see :func:`edit_card`); returns the new list of lines."""
-    from ..simulator import REPEATABLE
+    from gyrodenoise.simulator import REPEATABLE
     if params is None:
         return _remove_lines(lines, name, note)
     if name in REPEATABLE:
@@ -137,7 +137,7 @@ def _holds(text, name, params, n_before):
     instance, one more than ``n_before``, for a repeatable term)?"""
     import tomllib
 
-    from ..simulator import REPEATABLE
+    from gyrodenoise.simulator import REPEATABLE
     try:
         t = tomllib.loads(text).get("terms", {}).get(name)
     except tomllib.TOMLDecodeError:
@@ -198,7 +198,7 @@ def check_editable(card):
     """Raise :class:`InputError` up front (naming the card and the term) when
     :func:`edit_card` cannot add or re-fit some term of the vocabulary in the
     way this card is written."""
-    from ..simulator import parse_card
+    from gyrodenoise.simulator import parse_card
     for name, params in _TRIAL.items():
         new = edit_card(card.text, name, params, refit=name in card.terms, source=card.source)
         parse_card(new, card.source)

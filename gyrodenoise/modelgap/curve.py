@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .settings import CARD_FIELD
+from gyrodenoise.errors import InputError
+from gyrodenoise.modelgap.settings import CARD_FIELD
 
 # accepted column names (first match wins)
 TAU_COLS = ("tau_s", "tau")
@@ -169,7 +169,7 @@ def fit_curve(curve):
     :func:`.spectral.agm_grid`) and kept when it is inside at more taus (the LN-200
     curve, whose ADEV falls slightly faster than white noise from 0.16 to 2.6 s).
     Returns (terms, model ADEV at the curve's tau in deg/s)."""
-    from .spectral import fit_terms
+    from gyrodenoise.modelgap.spectral import fit_terms
     m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1)
     half = np.where(np.isfinite(curve.lo_deg_s), (curve.hi_deg_s - curve.lo_deg_s) / 2.0,
                     curve.hi_deg_s - curve.adev_deg_s)
@@ -193,8 +193,8 @@ def fit_curve(curve):
 
 def card_from_terms(text, terms, note, source="<card>"):
     """The card text with its noise terms replaced by ``terms`` (from :func:`fit_curve`)."""
-    from ..simulator import parse_card
-    from .cards import edit_card
+    from gyrodenoise.simulator import parse_card
+    from gyrodenoise.modelgap.cards import edit_card
     card = parse_card(text, source)
     for nm in ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk"):
         fld, to_card = CARD_FIELD[nm]
@@ -215,9 +215,9 @@ def card_from_terms(text, terms, note, source="<card>"):
 def simulated_curve(text, curve, seeds, source="<card>"):
     """Mean (over ``seeds``) and each seed's ADEV (deg/s) at the curve's tau of the
     card simulated at the curve's rate and length."""
-    from ..allanvar import adev
-    from ..simulator import simulate
-    from .cards import card_at_rate
+    from gyrodenoise.analysis.allan import adev
+    from gyrodenoise.simulator import simulate
+    from gyrodenoise.modelgap.cards import card_at_rate
     card = card_at_rate(text, curve.sample_rate_hz, source)
     m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1).astype(np.int64)
     runs = []

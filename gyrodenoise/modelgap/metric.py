@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .settings import (
+from gyrodenoise.modelgap.settings import (
     BANDS_PER_DECADE,
     COMPONENT_FLOOR,
     COMPONENTS,
@@ -61,7 +61,7 @@ def signature(y, layout):
     """The five signatures of a record (see the module docstring)."""
     from scipy.signal import welch
 
-    from ..allanvar import adev
+    from gyrodenoise.analysis.allan import adev
     y = np.asarray(y, dtype=float)
     tau, ad, err, _ = adev(y, layout.fs, m=layout.m)
     _, p = welch(y, fs=layout.fs, nperseg=layout.nperseg, noverlap=layout.nperseg // 2,

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cards import card_at_rate, edit_card
+from gyrodenoise.modelgap.cards import card_at_rate, edit_card
 
 SPREAD_STREAM = 952          # first word of the spread draws' seed (IEEE Std 952): numpy default_rng([952, seed])
 DOMINANT_SHARE = 0.8         # a term's spread is estimated where it makes more than 80 % of the card's signature
@@ -84,7 +84,7 @@ def draw_unit(text, seed, source="<card>"):
     A card with no ``spread`` field is returned unchanged (its realisations stay bit for bit)."""
     if "spread" not in text:
         return text
-    from ..simulator import parse_card
+    from gyrodenoise.simulator import parse_card
     card = parse_card(text, source)
     terms = noise_terms(card)
     sp = np.array([p.get("spread", 0.0) for _, _, p in terms])
@@ -105,7 +105,7 @@ class MagnitudeFit:
     :func:`.spectral.stochastic_specs`. The columns are computed once per card and layout."""
 
     def __init__(self, card, layout, bands=()):
-        from .spectral import allan_columns, band_columns, stochastic_specs
+        from gyrodenoise.modelgap.spectral import allan_columns, band_columns, stochastic_specs
         self.layout, self.bands = layout, list(bands)
         self.specs, self.coef = stochastic_specs(card)
         self.A_a = allan_columns(self.specs, layout.m, layout.fs, self.bands)
@@ -114,7 +114,7 @@ class MagnitudeFit:
     def _weighted(self, sig):
         """(A, b): the columns and the record's Allan variance and clear Welch bands, each row
         divided by the analytic 1-sigma of one record."""
-        from .metric import _floors
+        from gyrodenoise.modelgap.metric import _floors
         fl = _floors(sig, self.layout)
         e = self.layout.band_edges
         psd = np.array([sig["psd_bins"][e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
@@ -125,7 +125,7 @@ class MagnitudeFit:
 
     def coefficients(self, sig):
         """Squared magnitudes fitted jointly to one record's signature (``metric.signature``)."""
-        from .spectral import _nnls_huber
+        from gyrodenoise.modelgap.spectral import _nnls_huber
         return _nnls_huber(*self._weighted(sig), 0)[0]
 
     def group_factors(self, sig, groups):
@@ -161,9 +161,9 @@ def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
     than the signatures they add up to). Returns ``(texts, factors)``: the per-seed card texts
     (the card's ``spread`` kept) and the amplitude factors ``sqrt(c_j / c)`` (rows: seeds;
     columns: :func:`noise_terms`; a term the card has at 0 stays 0)."""
-    from ..simulator import simulate
-    from .metric import Layout, signature
-    from .spectral import band_stop
+    from gyrodenoise.simulator import simulate
+    from gyrodenoise.modelgap.metric import Layout, signature
+    from gyrodenoise.modelgap.spectral import band_stop
     card = card_at_rate(text, fs, source)
     layout = Layout.for_record(int(n_train), fs)
     fit = MagnitudeFit(card, layout, bands)
@@ -196,9 +196,9 @@ def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<ca
     beyond what one record's estimate scatters). Returns ``(spread, between, est, factors)``
     (factors: ``a / a_card``, rows records, columns :func:`noise_terms`; terms in no group
     get 0 and factor 1)."""
-    from ..simulator import simulate
-    from .metric import Layout, signature
-    from .spectral import band_stop
+    from gyrodenoise.simulator import simulate
+    from gyrodenoise.modelgap.metric import Layout, signature
+    from gyrodenoise.modelgap.spectral import band_stop
     if len(records) < 2:
         raise ValueError("estimate_spread needs at least two training records")
     card = card_at_rate(text, fs, source)
@@ -223,7 +223,7 @@ def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<ca
 def spread_text(text, spread, source="<card>", note="spread between the training records", groups=None):
     """The card text with each noise term's ``spread`` set (order of :func:`noise_terms`) and,
     for each of ``groups`` with more than one term, ``spread_group = k`` (k = 1, 2, ...)."""
-    from ..simulator import parse_card
+    from gyrodenoise.simulator import parse_card
     card = parse_card(text, source)
     gid = {}
     for k, g in enumerate(groups or ()):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .settings import COMPONENTS, GAP_METRIC, N_BLOCKS
+from gyrodenoise.modelgap.settings import COMPONENTS, GAP_METRIC, N_BLOCKS
 
 
 # ------------------------------------------------------------------ report and plot

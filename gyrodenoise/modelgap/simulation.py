@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .cards import card_at_rate, text_at_rate
-from .population import draw_unit
-from .settings import _log
+from gyrodenoise.errors import InputError
+from gyrodenoise.modelgap.cards import card_at_rate, text_at_rate
+from gyrodenoise.modelgap.population import draw_unit
+from gyrodenoise.modelgap.settings import _log
 
 
 # ------------------------------------------------------------------ simulation
@@ -26,7 +26,7 @@ def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
 
 def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
     """Simulate one seed through SimulatedFog.fmu with fmpy FMU2Slave (one step per sample)."""
-    from ..fmu import FmuInstance, _stepper
+    from gyrodenoise.fmu import FmuInstance, _stepper
     fog = FmuInstance(fmu_path, f"fog{seed}")
     try:
         fog.initialize(card=card_text, seed=int(seed))
@@ -43,7 +43,7 @@ def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
 
 def fmu_path_for(fmu_dir=None, quiet=False):
     """SimulatedFog.fmu in ``fmu_dir`` (default build/), built when missing or stale."""
-    from .. import fmu as F
+    from gyrodenoise import fmu as F
     d = Path(fmu_dir) if fmu_dir is not None else F.REPO_DIR / "build"
     path = d / "SimulatedFog.fmu"
     why = F.stale_reason(path)
@@ -82,7 +82,7 @@ class Simulator:
         engine = engine or self.engine
         self.n_runs += len(self.seeds)
         if engine == "native":
-            from ..simulator import simulate
+            from gyrodenoise.simulator import simulate
             return [simulate(card_at_rate(draw_unit(text, s, self.source), self.fs, self.source), self.n, seed=s,
                              restarts=self.restarts).rate_deg_s for s in self.seeds]
         import multiprocessing as mp

@@ -64,7 +64,7 @@ def psd_two_sided(name, f, fs, tau_s=None):
         a = math.exp(-T / tau_s)
         return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a) * 4.0 * s2 / (T * T)
     if name == "bias_instability":
-        from ..simulator import _bank, parse_card
+        from gyrodenoise.simulator import _bank, parse_card
         card = parse_card(f"[sensor]\nname='unit'\nsample_rate_hz={fs!r}\n[terms]\n"
                           f"bias_instability = {{ B = 3600.0 }}\n")
         a_, _, sd = _bank(card)
@@ -176,7 +176,7 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
     peak_ratio)], each widened by one band on either side."""
     from scipy.signal import welch
 
-    from .metric import welch_nperseg
+    from gyrodenoise.modelgap.metric import welch_nperseg
     y = np.asarray(y, float)
     nper = welch_nperseg(y.shape[0])
     f, p = welch(y, fs=fs, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
@@ -347,7 +347,7 @@ def agm_grid(layout):
 
 def stochastic_specs(card):
     """(specs, s-based squared coefficients) of a card's stochastic terms (dictionary form)."""
-    from .settings import CARD_FIELD
+    from gyrodenoise.modelgap.settings import CARD_FIELD
     specs, coef = [], []
     for nm in ALLAN_TERMS:
         t = card.terms.get(nm)

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .candidates import Candidate, _f, propose, spectral_refit
-from .cards import card_at_rate, check_editable, edit_card
-from .metric import (
+from gyrodenoise.errors import InputError
+from gyrodenoise.modelgap.candidates import Candidate, _f, propose, spectral_refit
+from gyrodenoise.modelgap.cards import card_at_rate, check_editable, edit_card
+from gyrodenoise.modelgap.metric import (
     Layout,
     Reference,
     gap_components,
@@ -21,8 +21,8 @@ from .metric import (
     where_disagree,
     zscores,
 )
-from .report import _short
-from .settings import (
+from gyrodenoise.modelgap.report import _short
+from gyrodenoise.modelgap.settings import (
     CARD_FIELD,
     COMPONENT_FLOOR,
     COMPONENTS,
@@ -35,8 +35,8 @@ from .settings import (
     Z2_CAP,
     _log,
 )
-from .simulation import Simulator
-from .spectral import band_stop, find_bumps
+from gyrodenoise.modelgap.simulation import Simulator
+from gyrodenoise.modelgap.spectral import band_stop, find_bumps
 
 
 # ------------------------------------------------------------------ the workflow
@@ -227,8 +227,8 @@ def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
     chi^2 by more than that: with ``INITIAL_DCHI2`` and ``welch_band_rel_sd(layout)`` a
     white-noise record comes out as angle random walk alone (issue 20's rule; the
     workflow does not use it yet: docs/GAP.md, "Initial fit")."""
-    from .metric import _floors
-    from .spectral import fit_terms
+    from gyrodenoise.modelgap.metric import _floors
+    from gyrodenoise.modelgap.spectral import fit_terms
     fl = _floors(sig_m, layout)
     e = layout.band_edges
     psd_m = np.array([sig_m["psd_bins"][e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
@@ -300,7 +300,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     the first pass's and the iterations of both passes are kept."""
     n_out = 0
     if outliers:
-        from .effects import screen_outliers
+        from gyrodenoise.modelgap.effects import screen_outliers
         rate_deg_s, idx = screen_outliers(check_record(rate_deg_s, source))
         n_out = len(idx)
         _log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet)
@@ -310,7 +310,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     lo = None if res.within_scatter or stop_bands != "auto" else _top_disagreement(res)
     if lo is None:
         return _with_outliers(res, n_out, len(rate_deg_s))
-    from ..simulator import parse_card
+    from gyrodenoise.simulator import parse_card
     _log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
          f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet)
     card1 = parse_card(res.card_text, getattr(card, "source", "<card>"))
@@ -324,7 +324,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     res2.iterations = res.iterations + res2.iterations
     res2.gap_before = res.gap_before
     res2.stop_bands = list(res.stop_bands) + [(lo, float(sample_rate_hz) / 2.0, -1.0)]
-    from .effects import name_effects
+    from gyrodenoise.modelgap.effects import name_effects
     res2.named = name_effects(check_record(rate_deg_s, source), float(sample_rate_hz),
                               parse_card(res2.card_text), res2.stop_bands, latitude_deg)
     return _with_outliers(res2, n_out, len(rate_deg_s))
@@ -368,7 +368,7 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
     -------
     GapResult
     """
-    from ..simulator import load_card
+    from gyrodenoise.simulator import load_card
     y = check_record(rate_deg_s, source)
     fs = float(sample_rate_hz)
     card0 = load_card(card)
@@ -560,7 +560,7 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
                "'(removed)' candidates) shrank the gap enough to be accepted")
         if not any("noisier" in m_ for m_ in limitations):
             limitations.append(msg)
-    from .effects import name_effects
+    from gyrodenoise.modelgap.effects import name_effects
     named = name_effects(y, fs, card_at_rate(text, fs, csrc), bumps, latitude_deg)
     return GapResult(named=named, limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
                      iterations=iterations, threshold=threshold, engine=engine, seeds=seed_list,
@@ -574,8 +574,8 @@ def white_level_factor(y, fs, card, bands=()):
     every other term held: weighted least squares (``s^2 >= 0``) of the record's Allan
     variance at the octave taus, through the stop bands, on the exact columns of
     :mod:`.spectral`, with the analytic 1-sigma of one record as the weights."""
-    from .metric import _floors
-    from .spectral import allan_columns, stochastic_specs
+    from gyrodenoise.modelgap.metric import _floors
+    from gyrodenoise.modelgap.spectral import allan_columns, stochastic_specs
     layout = Layout.for_record(len(y), fs)
     sig = signature(band_stop(y, fs, bands), layout)
     specs, coef = stochastic_specs(card)
@@ -598,7 +598,7 @@ def _acts_as_white(name, tau_s, fs):
 
 def _scale_white(text, card, s, fs, note):
     """The card text with its white noise (see :func:`white_level_factor`) scaled by ``s``."""
-    from .population import noise_terms, with_magnitudes
+    from gyrodenoise.modelgap.population import noise_terms, with_magnitudes
     terms = noise_terms(card)
     factors = [s if _acts_as_white(nm, p.get("tau", 0.0), fs) else 1.0 for nm, _, p in terms]
     return with_magnitudes(text, card, factors, [p.get("spread") for _, _, p in terms], note)
@@ -608,8 +608,8 @@ def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
     """One evaluation of record ``y`` (no fitting) against a reference whose simulation ``j``
     is card ``j`` of :func:`.population.bootstrap_cards` (the card re-estimated on a simulated
     training record of ``n_train`` samples) simulated with seed ``j``: a prediction interval."""
-    from .effects import name_effects
-    from .population import bootstrap_cards, relative_error
+    from gyrodenoise.modelgap.effects import name_effects
+    from gyrodenoise.modelgap.population import bootstrap_cards, relative_error
     layout = Layout.for_record(y.shape[0], fs)
     texts, factors = bootstrap_cards(text, fs, n_train, seed_list, bands, "<fitted card>")
     sims = [Simulator(y.shape[0], fs, [s_], source="<fitted card>").run(t_)[0] for t_, s_ in zip(texts, seed_list)]
@@ -663,10 +663,10 @@ def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, r
     :mod:`.population`), when it has them, are drawn per simulation in every case: the
     reference is then the population of units, not one unit. The default held-out check
     (no option) is the plain one: the card as written, S seeded simulations."""
-    from ..simulator import parse_card
+    from gyrodenoise.simulator import parse_card
     y = check_record(rate_deg_s, source)
     if outliers:
-        from .effects import screen_outliers
+        from gyrodenoise.modelgap.effects import screen_outliers
         y = screen_outliers(y)[0]
     text = card_text
     if refit_bias:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from gyrodenoise.errors import InputError
 
 AXES = ("gyro_x", "gyro_y", "gyro_z")
 

@@ -29,7 +29,7 @@ MRAD_TO_DEG = RAD_TO_DEG / 1000.0
 UNIT_TO_DEG_S = {"rad/s": RAD_TO_DEG, "mrad/s": MRAD_TO_DEG, "deg/s": 1.0}
 
 NOISE_METRIC = ("per axis: raw = the sensor's white-noise standard deviation, the core's own estimate "
-                "(gyrodenoise.motion_metrics.white_noise_std: the motion filter's noise level, the smallest "
+                "(gyrodenoise.analysis.motion_metrics.white_noise_std: the motion filter's noise level, the smallest "
                 "over lags 1..6 of the mean |4th difference|, median over the record, each session on its "
                 "own): slow motion does not lift it (a 4th difference cancels any cubic); it reads 2-6 % "
                 "low on white noise; filtered = the same estimate on the output: the sample-to-sample "

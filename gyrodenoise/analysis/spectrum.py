@@ -39,6 +39,8 @@ from statistics import NormalDist
 
 import numpy as np
 
+from gyrodenoise.core.sessions import sessions
+
 #: correlation of Hann windows overlapping by half (Harris 1978, table 1):
 #: the Welch estimate's equivalent degrees of freedom use it
 HANN_OVERLAP_CORR = 0.167
@@ -87,26 +89,6 @@ def choose_nperseg(session_lengths, sample_rate_hz, resolution_hz=0.5, min_segme
 def _count(lengths, n):
     step = n // 2
     return sum((m - n) // step + 1 for m in lengths if m >= n)
-
-
-def sessions(n, restarts=None, skip_samples=0, finite=None):
-    """[(start, stop)] of the usable runs of a record of ``n`` samples: cut at
-    each restart (``restarts[i]`` True: sample i starts a session) and at every
-    sample where ``finite`` is False; the first ``skip_samples`` of each
-    session left out."""
-    starts = [0] + ([] if restarts is None else [int(i) for i in np.flatnonzero(restarts) if i > 0])
-    bounds = starts + [n]
-    runs = []
-    bad = None if finite is None else ~np.asarray(finite, dtype=bool)
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        a = min(b, a + int(skip_samples))
-        if bad is None or not bad[a:b].any():
-            runs.append((a, b))
-            continue
-        cut = np.flatnonzero(bad[a:b]) + a
-        edges = [a - 1] + cut.tolist() + [b]
-        runs += [(lo + 1, hi) for lo, hi in zip(edges[:-1], edges[1:]) if hi > lo + 1]
-    return [(a, b) for a, b in runs if b > a]
 
 
 def segments(runs, nperseg):

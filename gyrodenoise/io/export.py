@@ -54,7 +54,7 @@ import re
 from datetime import datetime, timezone
 from pathlib import Path
 
-from .errors import InputError
+from gyrodenoise.errors import InputError
 
 DEG = math.pi / 180.0
 # ROS graph resource names: letters, digits, '_', '/' separators, optional leading

@@ -39,7 +39,7 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
-from .streams import UNIT_TO_DEG_S, GyroStream
+from gyrodenoise.mavlink.streams import UNIT_TO_DEG_S, GyroStream
 
 MAGIC_V1, MAGIC_V2 = 0xFE, 0xFD
 SIGNATURE_LEN = 13
@@ -406,7 +406,7 @@ def repack(pkt, name, values):
     """Packet ``pkt`` (bytes) of message ``name`` with its gyro fields set to
     ``values`` (3 numbers in the field unit; int16 fields are rounded). A value
     that does not fit the field's type raises ValueError (never clipped: the
-    callers check :func:`bridge.streams.field_misfit` first and keep the raw
+    callers check :func:`gyrodenoise.mavlink.streams.field_misfit` first and keep the raw
     values). Returns (new packet bytes, signature_dropped)."""
     lay = layout(name)
     v2 = pkt[0] == MAGIC_V2

@@ -12,15 +12,14 @@ import contextlib
 import json
 import sys
 
-from .errors import InputError, Terminated
+from gyrodenoise.errors import InputError, Terminated
 
 # modules that add subcommands: (module path, attribute)
 _SUBCOMMAND_MODULES = [
-    "gyrodenoise.commands",   # demo, denoise, allan, compare
-    "gyrodenoise.gap_cli",    # gap (not "gyrodenoise.gap": importing a submodule of that
-                              # name would replace the function gd.gap by the module)
-    "bridge.cli",             # mavlink
-    "gyrodenoise.fmu",        # fmu build / run
+    "gyrodenoise.cli.commands",   # demo, denoise, allan, compare
+    "gyrodenoise.cli.gap",        # gap
+    "gyrodenoise.cli.mavlink",    # mavlink
+    "gyrodenoise.cli.fmu",        # fmu build / run / ...
 ]
 
 
@@ -48,7 +47,7 @@ def build_parser():
         prog="gyrodenoise",
         description="Gyro denoising: online improved AR(n) model + modified Sage-Husa AKF, "
                     "Allan variance, simulated gyros, FMUs and a MAVLink bridge.")
-    from . import __version__
+    from gyrodenoise import __version__
     parser.add_argument("--version", action="version", version=f"gyrodenoise {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for modname in _SUBCOMMAND_MODULES:

@@ -44,7 +44,7 @@ def expand_url_inputs(items):
     """fsspec URLs to files: a file URL stays, a folder URL gives the logs in
     it, a glob URL its matches. Returns (urls, unmatched items)."""
     import fsspec
-    from .process import log_kind
+    from gyrodenoise.mavlink.process import log_kind
     out, missing = [], []
     for item in items:
         fs, _, paths = fsspec.get_fs_token_paths(item)
@@ -72,7 +72,7 @@ def _is_log_name(path, log_kind):
 def run_task(task):
     """Run one log task ``(path, out_dir, kw)`` where paths may be fsspec URLs;
     returns the worker's result dict (paths in it are the URLs)."""
-    from .process import _worker
+    from gyrodenoise.mavlink.process import _worker
     path, out_dir, kw = task
     if not (is_url(path) or is_url(out_dir)):
         return _worker(task)

@@ -6,11 +6,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..errors import InputError
-from ..core.kernels import DEFAULT_METHOD
-from .build import FMUS, build_all, stale_reason
-from .cosim import cosim_run
-from .validation import _resolve_card, validation_run
+from gyrodenoise.errors import InputError
+from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.fmu.build import FMUS, build_all, stale_reason
+from gyrodenoise.fmu.cosim import cosim_run
+from gyrodenoise.fmu.validation import _resolve_card, validation_run
 
 
 def register_cli(subparsers):
@@ -21,10 +21,10 @@ def register_cli(subparsers):
     sub = p.add_subparsers(dest="fmu_command", metavar="ACTION")
     b = sub.add_parser("build", help="build FogDenoiser.fmu, SimulatedFog.fmu (pythonfmu), "
                                      "FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python needed)",
-                       description="Package fmu_src/*.py with pythonfmu (in a subprocess) and the "
+                       description="Package gyrodenoise/fmu/sources/*.py with pythonfmu (in a subprocess) and the "
                                    "core (plain-Python kernels + the C extension) into FMI 2.0 "
                                    "co-simulation FMUs, and compile FogDenoiserNative.fmu and "
-                                   "SimulatedFogNative.fmu from the C cores and their FMI layer (fmu_src/native) "
+                                   "SimulatedFogNative.fmu from the C cores and their FMI layer (gyrodenoise/fmu/sources/native) "
                                    "for linux64 (glibc 2.17), win64 and darwin64 (zig from the ziglang package; "
                                    "mingw-w64 for win64).")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
@@ -69,7 +69,7 @@ def register_cli(subparsers):
 
 
 def _cmd_build(args):
-    from .native import PLATFORMS, build_native_fmus
+    from gyrodenoise.fmu.native import PLATFORMS, build_native_fmus
     platforms = None
     if args.platforms is not None:
         platforms = [p.strip() for p in args.platforms.split(",") if p.strip()]
@@ -89,7 +89,7 @@ def _cmd_build(args):
 
 
 def _cmd_card(args):
-    from .simnative import compile_card
+    from gyrodenoise.fmu.simnative import compile_card
     text = compile_card(args.card)          # a bad card: InputError (one line, exit 2), nothing written
     if args.out is None:
         sys.stdout.write(text)
@@ -114,8 +114,8 @@ def _cmd_run(args):
         print(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})", file=sys.stderr)
         build_all(fmu_dir)
     if args.master != "fmpy":       # the chain in libcosim and the SSP: the native FMUs
-        from .native import DENOISER, build_native_fmus, native_stale_reason
-        from .simnative import SIMULATED_FOG_NATIVE
+        from gyrodenoise.fmu.native import DENOISER, build_native_fmus, native_stale_reason
+        from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
         why = {spec.name: native_stale_reason(fmu_dir / f"{spec.name}.fmu", spec)
                for spec in (DENOISER, SIMULATED_FOG_NATIVE)}
         if any(why.values()):
@@ -144,7 +144,7 @@ def _cmd_run(args):
             results[case] = cosim_run(fmu_dir, ssp=ssp, **kw)
     ok = all(r["ok"] for r in results.values())
     if args.json:
-        from ..cli import emit_json
+        from gyrodenoise.cli.program import emit_json
         emit_json({"master": args.master, "cases": results, "ok": ok})
     else:
         print(_format_results(results))

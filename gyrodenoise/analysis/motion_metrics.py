@@ -38,6 +38,8 @@ import math
 
 import numpy as np
 
+from gyrodenoise.core.sessions import sessions
+
 #: default upper edge of the "real motion" band, Hz: vehicle manoeuvres (attitude
 #: changes, turns) are below a few Hz; vibration and sensor noise are above
 LOWBAND_HZ = 5.0
@@ -77,24 +79,8 @@ def min_segment_samples(sample_rate_hz, band_hz=LOWBAND_HZ):
 
 
 def _segments(n, restarts, finite, skip_samples, min_len):
-    """[(start, stop)] of the finite runs inside sessions, each session's first
-    ``skip_samples`` left out."""
-    starts = np.zeros(n, dtype=bool)
-    if n:
-        starts[0] = True
-    if restarts is not None:
-        starts |= np.asarray(restarts, dtype=bool)
-    sess = np.flatnonzero(starts).tolist() + [n]
-    out = []
-    for a, b in zip(sess[:-1], sess[1:]):
-        a = min(b, a + int(skip_samples))
-        fin = finite[a:b]
-        edges = np.flatnonzero(np.diff(np.r_[0, fin.astype(np.int8), 0]))
-        for s0, s1 in zip(edges[::2], edges[1::2]):
-            s0, s1 = a + int(s0), a + int(s1)
-            if s1 - s0 >= min_len:
-                out.append((s0, s1))
-    return out
+    """[(start, stop)] of the finite runs inside sessions (:func:`gyrodenoise.core.sessions.sessions`)."""
+    return sessions(n, restarts, skip_samples=skip_samples, finite=finite, min_len=min_len)
 
 
 def _zero_phase(x, sample_rate_hz, band_hz):
@@ -102,7 +88,7 @@ def _zero_phase(x, sample_rate_hz, band_hz):
     LOWBAND_ORDER, by the core's ``lowpass`` method (no scipy.signal import,
     which costs ~1 s of a bridge run; the core's cascade equals
     ``scipy.signal.sosfilt(butter(...))``, tests/test_lowpass.py)."""
-    from .denoiser import denoise
+    from gyrodenoise.denoiser import denoise
     if not (sample_rate_hz > 0 and 0 < band_hz < 0.5 * sample_rate_hz):
         raise ValueError(f"band_hz must be > 0 and below half the sample rate "
                          f"({0.5 * sample_rate_hz:g} Hz), got {band_hz!r}")
@@ -227,7 +213,7 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     On white noise it reads 2-6 % low (the smallest of six running means; 6 %
     at 25 Hz, 2 % at 250 Hz, tests/test_motion_metrics.py); motion near the
     Nyquist frequency and vibration are not removed. 0.0 for a constant record."""
-    from .core import batch, kernels as K
+    from gyrodenoise.core import batch, kernels as K
     x = np.asarray(x, dtype=np.float64)
     fs = float(sample_rate_hz) if sample_rate_hz and sample_rate_hz > 0 else 1.0
     p = K.make_params(1, "motion", fs, warmup_s=0.0)
@@ -248,7 +234,7 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
 def noise_ready_samples():
     """Samples of a run before :func:`white_noise_std` reads the core's estimate:
     the 4th difference at the largest lag (4 x 6) and 32 samples of its mean."""
-    from .core import kernels as K
+    from gyrodenoise.core import kernels as K
     return 4 * int(K.motion_params(1.0)[K.P_MO_NLAG - K.P_MO_NF]) + 32
 
 

@@ -8,7 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-from .errors import InputError
+from gyrodenoise.errors import InputError
 
 
 def _log(msg):
@@ -16,7 +16,7 @@ def _log(msg):
 
 
 def register_cli(subparsers):
-    from .commands import _add_input_options
+    from gyrodenoise.cli.commands import _add_input_options
     p = subparsers.add_parser(
         "gap", help="what a model card misses to behave like a measured record; writes the completed card",
         description="Simulate CARD like MEASURED (same rate and length, several seeds), compare Allan "
@@ -93,8 +93,8 @@ def _at_fitted_rate(text, fs, card_hz, model):
     term fitted at one rate simulates differently at another (an angle Gauss-Markov tau of
     half a sample, white noise per sample). InputError (one line) when the card's rate
     cannot be rewritten (``sample_rate_hz`` not on a line of its own)."""
-    from .modelgap.cards import text_at_rate
-    from .simulator import parse_card
+    from gyrodenoise.modelgap.cards import text_at_rate
+    from gyrodenoise.simulator import parse_card
     new = text_at_rate(text, fs)
     if parse_card(new, str(model)).sample_rate_hz != float(fs):
         raise InputError(f"sensor.sample_rate_hz {card_hz:g} Hz: the terms were fitted at the record's "
@@ -107,14 +107,14 @@ def _at_fitted_rate(text, fs, card_hz, model):
 def _read_input(args):
     """The record: a PSINS .imu log (--rate-column gyro_x/y/z) or a recording CSV."""
     if str(args.input).lower().endswith(".imu"):
-        from .psins import read_psins
+        from gyrodenoise.io.psins import read_psins
         log = read_psins(args.input)
         rate = log.axis("gyro_z" if args.rate_column == "rate" else args.rate_column)   # refuse first
         if args.latitude is None:
             args.latitude = log.latitude_deg
             _log(f"gyrodenoise: note: {args.input}: latitude {log.latitude_deg:g} deg from the log's header")
         return rate, log.sample_rate_hz, None
-    from .recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit or "deg/s", sample_rate_hz=args.sample_rate,
                          spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
@@ -130,8 +130,8 @@ def _cmd_allan(args, card):
     """gap --allan CURVE.csv: fit the card's noise terms to a published Allan curve, check by simulation."""
     import numpy as np
 
-    from .cli import emit_json
-    from .modelgap.curve import card_from_terms, fit_curve, inside, read_allan_curve, simulated_curve
+    from gyrodenoise.cli.program import emit_json
+    from gyrodenoise.modelgap.curve import card_from_terms, fit_curve, inside, read_allan_curve, simulated_curve
     curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit or "deg/s", args.sample_rate,
                              args.n_samples)
     if args.allan_unit is None:  # the file read well; its numbers mean nothing without their unit
@@ -141,7 +141,7 @@ def _cmd_allan(args, card):
         _log(f"gyrodenoise: note: {args.allan}: {note}")
     terms, model = fit_curve(curve)
     text = card_from_terms(card.text, terms, f"fitted to {Path(args.allan).name} ({curve.label})", card.source)
-    from .modelgap.cards import text_at_rate
+    from gyrodenoise.modelgap.cards import text_at_rate
     text = text_at_rate(text, curve.sample_rate_hz)
     _log(f"gyrodenoise: simulating {args.seeds} records of {curve.n_samples} samples at {curve.sample_rate_hz:g} Hz")
     mean, runs = simulated_curve(text, curve, range(1, args.seeds + 1), card.source)
@@ -161,8 +161,8 @@ def _cmd_allan(args, card):
                                     f"noise (the fit used their slight colour at the shortest taus); with N they "
                                     f"make an angle random walk of {n_eq:.4g} deg/sqrt(h)\n")
     if terms.get("angle_gauss_markov"):     # white rate noise below their tau, white angle noise above
-        from .modelgap.spectral import card_allan_variance
-        from .simulator import parse_card
+        from gyrodenoise.modelgap.spectral import card_allan_variance
+        from gyrodenoise.simulator import parse_card
         ad1 = math.sqrt(card_allan_variance(parse_card(text), [round(curve.sample_rate_hz)], curve.sample_rate_hz)[0])
         text = text.rstrip("\n") + (f"\n# the angle Gauss-Markov terms act as white rate noise below their tau "
                                     f"(N^2 = 2 sigma^2 / tau) and as white angle noise above; the whole card's "
@@ -182,7 +182,7 @@ def _cmd_allan(args, card):
     lines.append(verdict)
     plot = None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
     if plot:
-        from .modelgap.report import plot_curve
+        from gyrodenoise.modelgap.report import plot_curve
         plot_curve(curve, model, mean, plot, title=f"{curve.label} ({Path(args.allan).name}) vs the fitted card")
     Path(args.out).write_text(text, encoding="utf-8")
     if args.json:
@@ -196,10 +196,10 @@ def _cmd_allan(args, card):
 
 
 def cmd_gap(args):
-    from .cli import emit_json
-    from .modelgap import card_at_rate, check_record, format_report, gap, plot_gap
-    from .modelgap.report import describe_edits
-    from .simulator import load_card
+    from gyrodenoise.cli.program import emit_json
+    from gyrodenoise.modelgap import card_at_rate, check_record, format_report, gap, plot_gap
+    from gyrodenoise.modelgap.report import describe_edits
+    from gyrodenoise.simulator import load_card
     card = load_card(args.model)
     if args.seeds < 3:
         raise InputError(f"--seeds must be at least 3, got {args.seeds}")

@@ -203,7 +203,7 @@ def _check(args):
                              f"got {args.scheduler!r}")
         if args.jobs != 1:
             raise InputError("--jobs and --scheduler exclude each other (the cluster decides the parallelism)")
-        from .cluster import require_dask
+        from gyrodenoise.mavlink.cluster import require_dask
         require_dask("--scheduler")
     if not 1 <= args.ar_order <= MAX_AR_ORDER:
         raise InputError(f"--ar-order must be 1..{MAX_AR_ORDER}, got {args.ar_order}")
@@ -289,9 +289,9 @@ def _check_out(out, created=None):
 
 def _clean_up(out, created):
     """After a failed or interrupted run: the partial files in ``out``
-    (:mod:`bridge.stopping`), then the folders this run created, if empty."""
-    from .cluster import is_url
-    from .stopping import remove_partials
+    (:mod:`gyrodenoise.mavlink.stopping`), then the folders this run created, if empty."""
+    from gyrodenoise.mavlink.cluster import is_url
+    from gyrodenoise.mavlink.stopping import remove_partials
     if out is None or is_url(out):
         return
     remove_partials(out)
@@ -366,7 +366,7 @@ def _run(args, created):
     for opt, v in (("--count", args.count), ("--duration", args.duration), ("--forward", args.forward)):
         if v is not None:
             raise InputError(f"{opt} applies to a live link (udpin:, tcp:, ...) only, not to log files")
-    from .cluster import connect, is_url
+    from gyrodenoise.mavlink.cluster import connect, is_url
     for x in args.logs:
         if not is_url(x) and not Path(x).exists():
             raise InputError(f"{x}: no such file or folder")
@@ -380,7 +380,7 @@ def _run(args, created):
 
 
 def _run_logs(args, client, created):
-    from .cluster import is_url
+    from gyrodenoise.mavlink.cluster import is_url
     if not is_url(args.out):
         _check_out(args.out, created)
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
@@ -416,8 +416,8 @@ def _run_logs(args, client, created):
 
 def _write_out(out, name, text):
     """Write ``name`` into the output folder ``out`` (a local path or an fsspec URL)."""
-    from .cluster import is_url
-    from .stopping import atomic_path
+    from gyrodenoise.mavlink.cluster import is_url
+    from gyrodenoise.mavlink.stopping import atomic_path
     if is_url(out):
         import fsspec
         with fsspec.open(str(out).rstrip("/") + "/" + name, "w") as fh:
@@ -442,8 +442,8 @@ def _interrupted(out, summary):
 def _fleet_report(summary, out):
     """The fleet report (fleet.md, fleet.json, fleet.png) beside the outputs; returns its paths."""
     import tempfile
-    from .cluster import is_url
-    from .fleet import write_fleet_report
+    from gyrodenoise.mavlink.cluster import is_url
+    from gyrodenoise.mavlink.fleet import write_fleet_report
     if not is_url(out):
         return [str(x) for x in write_fleet_report(summary, Path(out))]
     with tempfile.TemporaryDirectory() as tmp:
@@ -463,10 +463,10 @@ def exit_status(summary):
 
 
 def _run_files(args, kw, single, client=None):
-    from .process import MOTION_METRIC, process_many, process_log, streams_left_raw
+    from gyrodenoise.mavlink.process import MOTION_METRIC, process_many, process_log, streams_left_raw
     if single:
         # one file: errors are the command's error (exit 2, one line)
-        from .streams import NOISE_METRIC
+        from gyrodenoise.mavlink.streams import NOISE_METRIC
         rep = process_log(args.logs[0], args.out, log=_log, background_plots=True, plot_helpers=1, **kw)
         summary = {"logs": [rep], "failed": [], "ignored_files": [], "n_logs": 1, "n_ok": 1,
                    "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC,
@@ -570,8 +570,8 @@ def _filter_rate_text(s, summary):
 
 
 def _print_text(summary):
-    from .process import saturation_note
-    from .spectra import summary_lines
+    from gyrodenoise.mavlink.process import saturation_note
+    from gyrodenoise.mavlink.spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
         nb = r.get("truncated_bytes")
@@ -627,7 +627,7 @@ def _run_live(args, conn):
 
 
 def _live(args, conn):
-    from .live import run_live
+    from gyrodenoise.mavlink.live import run_live
     return run_live(conn, args.forward, duration=args.duration, max_messages=args.count,
                     method=args.method, ar_order=args.ar_order, gap_factor=args.gap_factor,
                     sample_rate=args.sample_rate, raw_imu_unit=args.raw_imu_unit,
@@ -636,7 +636,7 @@ def _live(args, conn):
 
 
 def _report_live(args, conn, rep, streams):
-    from .process import MOTION_METRIC, log_problems, plot_stream, safe_name, stream_report, write_csv
+    from gyrodenoise.mavlink.process import MOTION_METRIC, log_problems, plot_stream, safe_name, stream_report, write_csv
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:
@@ -653,7 +653,7 @@ def _report_live(args, conn, rep, streams):
         restarts += s.restart_events
     rep["streams"] = srep
     rep["restarts"] = restarts
-    from .streams import NOISE_METRIC
+    from gyrodenoise.mavlink.streams import NOISE_METRIC
     rep["noise_metric"] = NOISE_METRIC
     rep["motion_metric"] = MOTION_METRIC
     rep["streams_left_raw"] = [{"file": conn, "stream": s["name"], "reason": s["left_raw"]}
@@ -676,7 +676,7 @@ def _report_live(args, conn, rep, streams):
             if s.get("too_slow_to_denoise"):
                 sys.stdout.write(f"    note: {s['slow_note']}\n")
             if s.get("saturation"):
-                from .process import saturation_note
+                from gyrodenoise.mavlink.process import saturation_note
                 sys.stdout.write(f"    note: {saturation_note(s['saturation'])}\n")
             for a in s["noise"]:
                 sys.stdout.write(_axis_line(s, a))

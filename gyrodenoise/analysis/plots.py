@@ -131,11 +131,11 @@ def demo_figures(card, rec, res, outdir, ar_order=3, seed=0, **kw):
     """All demo figures into ``outdir``; returns their paths.
 
     The AR figures (Figs 2, 4, 5) show the paper's model, identified by the
-    modified SHAKF's RLS (:func:`gyrodenoise.experiments.ar_identification`), with
+    modified SHAKF's RLS (:func:`gyrodenoise.analysis.experiments.ar_identification`), with
     the same filter options ``kw`` as the tables. Every figure is checked before it
     is written (:func:`check_drawn`): an empty figure is an error, not a PNG.
     """
-    from .experiments import ar_identification
+    from gyrodenoise.analysis.experiments import ar_identification
     outdir = Path(outdir)
     figs = [allan_figure(res["_allan"], outdir / "allan.png",
                          f"Allan deviation, {card.name} (dashed: fit of Eq. 40)")]

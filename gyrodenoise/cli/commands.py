@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from gyrodenoise.errors import InputError
 
 
 def _log(msg):
@@ -26,7 +26,7 @@ def _add_input_options(p):
 
 def _add_filter_options(p, method=True):
     if method:
-        from .core.kernels import DEFAULT_METHOD, METHODS
+        from gyrodenoise.core.kernels import DEFAULT_METHOD, METHODS
         p.add_argument("--method", default=DEFAULT_METHOD, choices=list(METHODS),
                        help=f"filter (default: {DEFAULT_METHOD}); shakf is the paper's modified Sage-Husa AKF, "
                             "lowpass a causal Butterworth (--cutoff-hz, --order)")
@@ -68,7 +68,7 @@ def _filter_kw(args):
 
 
 def _read(args):
-    from .recording import read_recording
+    from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
     for note in rec.notes:
@@ -77,7 +77,7 @@ def _read(args):
 
 
 def _check_params(args, fs):
-    from .core import kernels as K
+    from gyrodenoise.core import kernels as K
     try:
         mhz = getattr(args, "max_motion_hz", None)
         if mhz is not None and args.method != "motion":
@@ -98,8 +98,8 @@ def _check_params(args, fs):
 
 # ---------------------------------------------------------------- denoise
 def cmd_denoise(args):
-    from .denoiser import Denoiser
-    from .recording import write_recording
+    from gyrodenoise.denoiser import Denoiser
+    from gyrodenoise.io.recording import write_recording
     _check_params(args, 1e9 if args.method == "lowpass" or args.max_motion_hz is not None
                   else 1.0)   # bad options fail before the file is read
     rec = _read(args)
@@ -107,7 +107,7 @@ def cmd_denoise(args):
     den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **_filter_kw(args))
     offline = args.method == "motion" and not args.causal
     if args.zero_phase or offline:
-        from .denoiser import denoise
+        from gyrodenoise.denoiser import denoise
         out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method=args.method, ar_order=args.ar_order,
                       restarts=rec.restarts, zero_phase=args.zero_phase, offline=offline, **_filter_kw(args))
     else:
@@ -115,7 +115,7 @@ def cmd_denoise(args):
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
     mode = "offline (forward + backward, no lag)" if offline or args.zero_phase else "causal"
     if args.max_motion_hz:
-        from .core.kernels import rigid_cutoff_hz
+        from gyrodenoise.core.kernels import rigid_cutoff_hz
         fc = rigid_cutoff_hz(float(args.max_motion_hz), rec.sample_rate_hz)
         capped = fc < 2.0 * args.max_motion_hz
         mode += (f", rigid body (--max-motion-hz {args.max_motion_hz:g}): a 4th-order low-pass flat to "
@@ -134,8 +134,8 @@ def cmd_denoise(args):
 
 def rmse_line(raw, filtered, truth):
     """'RMSE against true_rate over N samples: raw X, filtered Y deg/s (xR)' over the
-    samples where all three are finite (the RMSE of :mod:`gyrodenoise.experiments`)."""
-    from .experiments import rmse
+    samples where all three are finite (the RMSE of :mod:`gyrodenoise.analysis.experiments`)."""
+    from gyrodenoise.analysis.experiments import rmse
     raw, filtered, truth = (np.asarray(v, dtype=np.float64) for v in (raw, filtered, truth))
     ok = np.isfinite(raw) & np.isfinite(filtered) & np.isfinite(truth)
     if not ok.any():
@@ -164,8 +164,8 @@ ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a tru
 
 # ------------------------------------------------------------------ allan
 def cmd_allan(args):
-    from .allanvar import allan
-    from .cli import emit_json
+    from gyrodenoise.analysis.allan import allan
+    from gyrodenoise.cli.program import emit_json
     rec = _read(args)
     if len(rec) < 5:
         raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
@@ -174,7 +174,7 @@ def cmd_allan(args):
         series = np.asarray(rec.rate_deg_s, dtype=np.float64) - np.asarray(rec.true_rate_deg_s, dtype=np.float64)
         analysed = ALLAN_OF_ERROR
     res = allan(series, rec.sample_rate_hz)
-    from .export import export_from_args
+    from gyrodenoise.io.export import export_from_args
     for path in export_from_args(args, res):
         _log(f"gyrodenoise: wrote {path}")
     if args.json:
@@ -196,8 +196,8 @@ def cmd_allan(args):
 
 # ---------------------------------------------------------------- compare
 def cmd_compare(args):
-    from .cli import emit_json
-    from .experiments import compare
+    from gyrodenoise.cli.program import emit_json
+    from gyrodenoise.analysis.experiments import compare
     _check_params(args, 1.0)          # bad options fail before the file is read
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
@@ -321,11 +321,11 @@ def format_dynamic(dyn):
 
 # ------------------------------------------------------------------- demo
 def cmd_demo(args):
-    from .cli import emit_json
-    from .experiments import compare, dynamic_table
-    from .simulator import load_card, simulate
+    from gyrodenoise.cli.program import emit_json
+    from gyrodenoise.analysis.experiments import compare, dynamic_table
+    from gyrodenoise.simulator import load_card, simulate
     t0 = time.perf_counter()
-    from .core import kernels as K
+    from gyrodenoise.core import kernels as K
     try:
         K.make_params(outlier_sigma=args.outlier_sigma, outlier_run=args.outlier_run)
     except ValueError as exc:
@@ -344,7 +344,7 @@ def cmd_demo(args):
     dyn = dynamic_table(card, duration_s=args.dynamic_s, seed=args.seed, ar_order=args.ar_order, **gate)
     figs = []
     if not args.no_plots:
-        from . import plots
+        from gyrodenoise.analysis import plots
         outdir = Path(args.out)
         outdir.mkdir(parents=True, exist_ok=True)
         figs = plots.demo_figures(card, rec, res, outdir, ar_order=args.ar_order, seed=args.seed, **gate)
@@ -396,7 +396,7 @@ def register_cli(sub):
     p = sub.add_parser("allan", help="Allan deviation and five-term fit of a recording")
     _add_input_options(p)
     p.add_argument("--json", action="store_true")
-    from .export import add_export_options
+    from gyrodenoise.io.export import add_export_options
     add_export_options(p)
     p.set_defaults(func=cmd_allan)
 

@@ -1,6 +1,6 @@
 """The fleet report (issue 15): one table, one JSON and one plot for a batch of logs.
 
-Built from the summary of :func:`bridge.process.process_many` (local pool or
+Built from the summary of :func:`gyrodenoise.mavlink.process.process_many` (local pool or
 Dask cluster alike): a row per log and gyro stream with its samples, rate,
 restarts, noise before/after, the low-band motion kept and the lag the filter
 added (when the bridge measured them; averaged over the axes whose low band
@@ -10,7 +10,7 @@ log's dominant vibration peak (:func:`dominant_peaks_by_log`). The plot shows ea
 IMU that is noisier than its siblings stands out: the thing an operator opens.
 
 Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the sensor's
-white-noise sigma (deg/s; :func:`gyrodenoise.motion_metrics.white_noise_std`,
+white-noise sigma (deg/s; :func:`gyrodenoise.analysis.motion_metrics.white_noise_std`,
 the core's 4th-difference estimate, which slow motion does not lift), and
 sigma / sqrt(fs / 2) is the one-sided density (tests/test_fleet.py and
 tests/test_bridge_trial.py check it against Welch's estimate). The table gives
@@ -100,7 +100,7 @@ def fleet_rows(summary):
 
 def vibration_peak(stream_report):
     """The stream's dominant vibration peak (the strongest over its axes, from
-    :mod:`bridge.spectra`) as {axis, freq_hz, amplitude_rms, unit, harmonics_hz},
+    :mod:`gyrodenoise.mavlink.spectra`) as {axis, freq_hz, amplitude_rms, unit, harmonics_hz},
     or None (no spectrum, or no peak above the noise floor)."""
     spec = stream_report.get("spectrum") or {}
     q = spec.get("dominant_peak")
@@ -273,8 +273,8 @@ def write_fleet_report(summary, out_dir):
             f"output; density: sigma / sqrt(rate / 2)).\n\n"
             f"![noise density per log and stream](fleet.png)\n\n")
     peaks = ("\n\n## Dominant vibration peak per log\n\n(the strongest spectral peak above the noise "
-             "floor over the log's streams and axes; bridge.spectra)\n\n" + "\n".join(dominant_peaks_by_log(rows)))
-    from .stopping import atomic_path
+             "floor over the log's streams and axes; gyrodenoise.mavlink.spectra)\n\n" + "\n".join(dominant_peaks_by_log(rows)))
+    from gyrodenoise.mavlink.stopping import atomic_path
     with atomic_path(out / "fleet.md") as tmp:
         tmp.write_text(head + format_table(rows) + peaks + "\n")
     with atomic_path(out / "fleet.json") as tmp:
@@ -340,7 +340,7 @@ def _plot(rows, path):
     if ax.get_legend_handles_labels()[0]:          # nothing to label when every log failed
         ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
-    from .stopping import atomic_path
+    from gyrodenoise.mavlink.stopping import atomic_path
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)

@@ -37,7 +37,9 @@ import math
 
 import numpy as np
 
-from .core import kernels as K
+from gyrodenoise.core.sessions import sessions
+
+from gyrodenoise.core import kernels as K
 
 try:
     import numba
@@ -159,7 +161,7 @@ def butter2(rate_deg_s, sample_rate_hz, cutoff_hz, zi=None):
 def _record(p, s, z, restarts, out, theta, q_used, r_used, conv):
     """Run the core sample by sample; record per sample [phi, c], the q of the
     time update, the r of the measurement update, and the converged flag."""
-    from .core.batch import C
+    from gyrodenoise.core.batch import C
     step = C.step if C is not None else K.step
     if C is None:
         p, s = list(p), list(s)
@@ -318,10 +320,7 @@ def ar_rts_smoother(z, phi, c, q, r, x0, p0, return_filtered=False):
 
 def _segments(n_samples, restarts):
     """[start, stop) of each run between restarts."""
-    if restarts is None:
-        return [(0, n_samples)]
-    idx = [0] + [int(i) for i in np.flatnonzero(np.asarray(restarts, dtype=bool)) if i > 0] + [n_samples]
-    return [(a, b) for a, b in zip(idx[:-1], idx[1:]) if b > a]
+    return sessions(n_samples, restarts)
 
 
 def smooth_record(rate_deg_s, sample_rate_hz, ar_order=3, restarts=None, model=None, **kw):

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core import kernels as K
-from .allanvar import TERM_NAMES, allan
-from .core.batch import run as batch_run
-from .simulator import load_card, simulate
+from gyrodenoise.core import kernels as K
+from gyrodenoise.analysis.allan import TERM_NAMES, allan
+from gyrodenoise.core.batch import run as batch_run
+from gyrodenoise.simulator import load_card, simulate
 
 METHODS = ("kf", "shakf", "motion")   # the paper's two filters, and ours beside them
 PAPER_METHODS = ("kf", "shakf")

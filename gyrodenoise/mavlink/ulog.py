@@ -12,7 +12,7 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
-from .streams import UNIT_TO_DEG_S, GyroStream
+from gyrodenoise.mavlink.streams import UNIT_TO_DEG_S, GyroStream
 
 TOPICS = {
     "sensor_combined": ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"),

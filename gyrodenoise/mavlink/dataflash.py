@@ -32,7 +32,7 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
-from .streams import UNIT_TO_DEG_S, GyroStream
+from gyrodenoise.mavlink.streams import UNIT_TO_DEG_S, GyroStream
 
 HEAD1, HEAD2, FMT_TYPE, FMT_LEN = 0xA3, 0x95, 0x80, 89
 

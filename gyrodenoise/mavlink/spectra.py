@@ -1,6 +1,6 @@
 """The spectrum view of a gyro stream: what goes into the report and the PNG.
 
-The maths is :mod:`gyrodenoise.spectrum`; this module picks its settings for a
+The maths is :mod:`gyrodenoise.analysis.spectrum`; this module picks its settings for a
 stream, names what it found (peaks, harmonics, the filter's response) in the
 report, and draws ``NAME.spectrum.png``, one figure per log (in the plot helper
 process).
@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from gyrodenoise import spectrum as sp
+from gyrodenoise.analysis import spectrum as sp
 
-from .stopping import atomic_path
+from gyrodenoise.mavlink.stopping import atomic_path
 
 #: below this frequency the content is the vehicle's motion (the bridge's motion
-#: band, :data:`gyrodenoise.motion_metrics.LOWBAND_HZ`), not vibration
+#: band, :data:`gyrodenoise.analysis.motion_metrics.LOWBAND_HZ`), not vibration
 MIN_PEAK_FREQ_HZ = 5.0
 #: a peak must also stand this far above the floor (power ratio; 4 = 6 dB): with
 #: hundreds of segments the statistical threshold alone tends to 1 (1.3 = 1.1 dB at
@@ -38,7 +38,7 @@ SPECTRUM_METRIC = (
     "max((n+1)/4 bins, 1 %)); present_in_segments: share of the segments whose power there is 2x the "
     "floor's (noise alone ~10 %); filter_gain / phase_delay_s: the filter's response measured from the "
     "raw->filtered cross-spectrum (H1 = S_xf/S_xx, after each session's warm-up); "
-    "gyrodenoise.spectrum").format(f=MIN_PEAK_FREQ_HZ, fa=sp.FALSE_ALARM)
+    "gyrodenoise.analysis.spectrum").format(f=MIN_PEAK_FREQ_HZ, fa=sp.FALSE_ALARM)
 
 
 def _computed_sos(method, rate_hz, filter_kw):
@@ -54,7 +54,7 @@ def _computed_sos(method, rate_hz, filter_kw):
 def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=None, skip_samples=0,
                     time_axis_s=None, usable=None):
     """(report dict, plot data or None) of the spectrum of one stream
-    (:func:`gyrodenoise.spectrum.analyse`).
+    (:func:`gyrodenoise.analysis.spectrum.analyse`).
 
     ``x``/``f``: raw/filtered (n, 3) in ``unit``; ``s``: the GyroStream
     (restarts, rate_hz, time_s, left_raw); ``skip_samples``: the filter's
@@ -64,7 +64,7 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
     rate = s.rate_hz
     if rate is None or s.n < 64:
         return {"available": False, "reason": "too few samples for a spectrum"}, None
-    from gyrodenoise.motion_metrics import too_slow_to_denoise
+    from gyrodenoise.analysis.motion_metrics import too_slow_to_denoise
     if too_slow_to_denoise(rate):
         return {"available": False, "reason": f"sampled at {rate:.3g} Hz: no vibration band "
                                                f"above the {MIN_PEAK_FREQ_HZ:g} Hz motion band"}, None

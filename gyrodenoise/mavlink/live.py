@@ -9,14 +9,14 @@ BAD_DATA) are forwarded unchanged too, and counted.
 
 Each stream (message type, system, component, instance) and axis has its own
 :class:`gyrodenoise.Denoiser`, stepped once per sample with the restart flag of
-:class:`bridge.streams.RestartDetector` (same rules as for files). The filter's
+:class:`gyrodenoise.mavlink.streams.RestartDetector` (same rules as for files). The filter's
 sample rate (which only sets the warm-up length) is ``sample_rate`` when given,
 else the rate of the first two samples; the denoiser is created at the second
 sample and fed the first one then: this gives the same output as creating it
 at the first sample (the first sample of a warm-up is passed through raw).
 
 A stream sampled too slowly to denoise
-(:func:`gyrodenoise.motion_metrics.too_slow_to_denoise`, telemetry at 1-4 Hz) is
+(:func:`gyrodenoise.analysis.motion_metrics.too_slow_to_denoise`, telemetry at 1-4 Hz) is
 forwarded raw, as in the file mode: the rate is measured over its first
 :data:`RATE_SAMPLES` steps (inside the filter's warm-up, at least 10 (n+1)
 samples, so nothing filtered has been forwarded before the decision).
@@ -32,11 +32,11 @@ import numpy as np
 
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 
-from .streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
-from .tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repack
+from gyrodenoise.mavlink.streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
+from gyrodenoise.mavlink.tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repack
 
 
-#: a live RAW_IMU stream whose unit is still open (see :func:`bridge.tlog.decide_raw_imu_unit`)
+#: a live RAW_IMU stream whose unit is still open (see :func:`gyrodenoise.mavlink.tlog.decide_raw_imu_unit`)
 #: is decided with what is known after this many seconds of its own boot time
 UNIT_WAIT_S = 10.0
 #: a live stream's rate is judged (too slow to denoise or not) after this many time steps
@@ -49,7 +49,7 @@ class _LiveStream:
     fitting the field type; else the stream is forwarded raw from there on).
 
     A RAW_IMU stream whose unit is not yet known (``to_deg`` is ``"pending"``)
-    is forwarded unfiltered until :func:`bridge.tlog.decide_raw_imu_unit`
+    is forwarded unfiltered until :func:`gyrodenoise.mavlink.tlog.decide_raw_imu_unit`
     decides it (the same rule as the file mode, on what the link showed so far;
     final after :data:`UNIT_WAIT_S`); the denoisers start then."""
 
@@ -90,7 +90,7 @@ class _LiveStream:
         self.raw.append(raw)
         self.r.append(bool(reason))
         if self.slow is None and len(self.t) > RATE_SAMPLES:
-            from gyrodenoise.motion_metrics import too_slow_to_denoise
+            from gyrodenoise.analysis.motion_metrics import too_slow_to_denoise
             self.slow = too_slow_to_denoise(measured_rate_hz(self.t, self.r))
         if self.pending or self.left_raw or self.slow:
             self.fw.append(raw)

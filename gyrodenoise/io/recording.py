@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .simulator import Record
+from gyrodenoise.errors import InputError
+from gyrodenoise.simulator import Record
 
 RATE_UNITS = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
 GAP_FACTOR = 1.5

@@ -10,13 +10,11 @@ Outputs of a log ``NAME.ext`` in the output folder:
 * ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked;
 * ``NAME.spectrum.png`` -- per stream raw and filtered PSD per axis, vibration
   peaks named; the filter's gain and lag; a spectrogram for a long record
-  (:mod:`bridge.spectra`).
+  (:mod:`gyrodenoise.mavlink.spectra`).
 """
 
 from __future__ import annotations
 
-import math
-import os
 import re
 import sys
 import time
@@ -26,18 +24,18 @@ import numpy as np
 
 from gyrodenoise.errors import InputError, Terminated
 
-from . import dataflash
+from gyrodenoise.mavlink import dataflash
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 
-from .stopping import as_child, atomic_path, signals_blocked, stop_processes
-from .spectra import SPECTRUM_METRIC
-from .streams import NOISE_METRIC, detect_restarts, field_misfit, noise_per_axis
+from gyrodenoise.mavlink.stopping import as_child, atomic_path, signals_blocked, stop_processes
+from gyrodenoise.mavlink.spectra import SPECTRUM_METRIC
+from gyrodenoise.mavlink.streams import NOISE_METRIC, detect_restarts, field_misfit, noise_per_axis
 
 MOTION_METRIC = ("per axis, over each session after the filter's warm-up: the 0-5 Hz content of "
                  "raw and filtered (zero-phase Butterworth order 4, session mean removed); corr = "
                  "their correlation, amplitude_ratio = std filtered / std raw, lag_s = delay of "
                  "the filtered one at the peak of their cross-correlation (within 0.5 s); "
-                 "gyrodenoise.motion_metrics")
+                 "gyrodenoise.analysis.motion_metrics")
 
 LOG_SUFFIXES = {".tlog": "tlog", ".mavlink": "tlog", ".bin": "dataflash", ".ulg": "ulog"}
 GYRO_LOOKED_FOR = {
@@ -62,7 +60,7 @@ def log_kind(path):
         return "dataflash"
     if head[:7] == b"ULog\x01\x12\x35":
         return "ulog"
-    from . import tlog
+    from gyrodenoise.mavlink import tlog
     if tlog.looks_like_tlog(head):
         return "tlog"
     raise InputError(f"{path}: unknown file type (expected a MAVLink telemetry log .tlog, "
@@ -149,8 +147,8 @@ def _plot_data(t, x, f, restarts):
 
 
 def _draw(path, title, pdata, unit, axes, spectrum=None):
-    if spectrum is not None:                     # (path, title, [(stream, plot data)]) of bridge.spectra
-        from .spectra import draw_log_spectrum
+    if spectrum is not None:                     # (path, title, [(stream, plot data)]) of gyrodenoise.mavlink.spectra
+        from gyrodenoise.mavlink.spectra import draw_log_spectrum
         draw_log_spectrum(*spectrum)
     if pdata is None:
         return
@@ -182,7 +180,7 @@ def _draw(path, title, pdata, unit, axes, spectrum=None):
 
 def _plot_loop(conn):
     """Child process: import matplotlib while the parent filters, then plot jobs.
-    Ends with its parent (:func:`bridge.stopping.as_child`)."""
+    Ends with its parent (:func:`gyrodenoise.mavlink.stopping.as_child`)."""
     as_child()
     import matplotlib
     matplotlib.use("Agg")
@@ -242,7 +240,7 @@ class Plotter:
         self._submit((path, title, _plot_data(t, x, f, restarts), unit, axes))
 
     def plot_spectrum(self, path, title, items):
-        """The spectrum PNG of a log: [(stream name, plot data)] (:mod:`bridge.spectra`)."""
+        """The spectrum PNG of a log: [(stream name, plot data)] (:mod:`gyrodenoise.mavlink.spectra`)."""
         self._submit((path, None, None, None, None, (path, title, items)))
 
     def _submit(self, job):
@@ -315,10 +313,10 @@ def _filter_streams(streams, engine, gap_factor, sample_rate=None):
     field type is written RAW (``s.left_raw`` says why).
 
     A stream sampled too slowly to denoise
-    (:func:`gyrodenoise.motion_metrics.too_slow_to_denoise`) is not filtered: it
+    (:func:`gyrodenoise.analysis.motion_metrics.too_slow_to_denoise`) is not filtered: it
     goes out raw, bit for bit. A stream the filter never changed gets the reason
     in ``s.not_filtered`` (:func:`not_filtered_reason`)."""
-    from gyrodenoise.motion_metrics import too_slow_to_denoise
+    from gyrodenoise.analysis.motion_metrics import too_slow_to_denoise
     for s in streams:
         detect_restarts(s, gap_factor)
         rate = sample_rate or s.rate_hz or 1.0
@@ -379,11 +377,11 @@ def not_filtered_reason(s, method, warmup_samples, rate, sample_rate=None):
 def check_filtered(s, x, f, usable, causal=True):
     """None, or one line saying why stream ``s`` must not be written filtered:
     an axis whose output (work units ``f``) is not finite or leaves the raw
-    envelope of its session (:func:`gyrodenoise.motion_metrics.envelope_violation`,
+    envelope of its session (:func:`gyrodenoise.analysis.motion_metrics.envelope_violation`,
     over the samples fed to the filter; the whole session's range for a zero-phase
     filter, ``causal=False``), or a value that does not fit the log's
-    field type (:func:`bridge.streams.field_misfit`)."""
-    from gyrodenoise.motion_metrics import envelope_violation
+    field type (:func:`gyrodenoise.mavlink.streams.field_misfit`)."""
+    from gyrodenoise.analysis.motion_metrics import envelope_violation
     problems = []
     for k, a in enumerate(s.axes):
         fin = usable[:, k]
@@ -407,9 +405,9 @@ def check_filtered(s, x, f, usable, causal=True):
 def stream_report(s, csv_path=None, png_path=None, band_hz=None):
     """The report of one stream: counts, noise figures and, beside them, how much
     of the low-band motion the filter kept and the lag it added
-    (:mod:`gyrodenoise.motion_metrics`); a stream sampled too slowly to denoise
+    (:mod:`gyrodenoise.analysis.motion_metrics`); a stream sampled too slowly to denoise
     gets a note instead of an improvement figure."""
-    from gyrodenoise import motion_metrics as mm
+    from gyrodenoise.analysis import motion_metrics as mm
     band_hz = mm.LOWBAND_HZ if band_hz is None else band_hz
     x, f, unit, rate = s._work
     if np.any(np.abs(x) > ABSURD_WORK):      # corrupted samples stay out of the figures
@@ -535,7 +533,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     ``background_plots`` draws the PNGs in a forked helper process (Linux),
     which overlaps matplotlib's import and drawing with the filtering.
     """
-    from .engines import make_engine
+    from gyrodenoise.mavlink.engines import make_engine
     t0 = time.perf_counter()
     path = Path(path)
     if not path.is_file():
@@ -554,7 +552,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                        truncated_bytes=sc.truncated_bytes,
                        truncation="message cut by the end of the file" if sc.truncated_bytes else None)
         elif kind == "tlog":
-            from . import tlog
+            from gyrodenoise.mavlink import tlog
             ctx["data"], ctx["fr"], streams = tlog.read(path, raw_imu_unit, raw_imu_scale)
             fr = ctx["fr"]
             rep.update(messages=int(fr.ok.sum()), unreadable_records=fr.n_unreadable,
@@ -563,7 +561,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                        truncation=("zero-filled tail" if fr.zero_tail else
                                    "record cut by the end of the file" if fr.truncated_bytes else None))
         else:
-            from . import ulog
+            from gyrodenoise.mavlink import ulog
             ctx["u"], streams, ctx["refs"] = ulog.read(path)
             u = ctx["u"]
             cut = ulog.truncated_bytes(path)
@@ -618,7 +616,7 @@ def _check_some_stream_filterable(path, streams, filter_kw):
 
 
 def _too_slow(rate_hz):
-    from gyrodenoise.motion_metrics import too_slow_to_denoise
+    from gyrodenoise.analysis.motion_metrics import too_slow_to_denoise
     return too_slow_to_denoise(rate_hz)
 
 
@@ -636,7 +634,7 @@ def filter_form(eng, engine):
 
 def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine, method,
                    ar_order, log, data=None, sc=None, fr=None, u=None, refs=None, filter_kw=None, form=None):
-    from .spectra import stream_spectrum
+    from gyrodenoise.mavlink.spectra import stream_spectrum
     rep = {}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -669,10 +667,10 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
         if kind == "dataflash":
             tmp.write_bytes(dataflash.patch(data, sc, streams))
         elif kind == "tlog":
-            from . import tlog
+            from gyrodenoise.mavlink import tlog
             rep["signatures_dropped"] = tlog.write_filtered(data, fr, streams, tmp)
         else:
-            from . import ulog
+            from gyrodenoise.mavlink import ulog
             ulog.write_filtered(u, streams, refs, tmp)
     rep["output_log"] = str(out_log)
 
@@ -701,7 +699,7 @@ def _write_outputs(path, kind, out_dir, out_stem, streams, plotter, csv, engine,
 
 def _plot_note(s):
     """What a plot's title says of a stream written unfiltered."""
-    from gyrodenoise.motion_metrics import too_slow_to_denoise
+    from gyrodenoise.analysis.motion_metrics import too_slow_to_denoise
     if too_slow_to_denoise(s.rate_hz):
         return "; too slow to denoise: written raw"
     if getattr(s, "not_filtered", None) or getattr(s, "left_raw", None):
@@ -765,7 +763,7 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
 
     ``jobs`` > 1 runs a local process pool; ``scheduler`` (``tcp://HOST:PORT``
     or a ``distributed.Client``) runs each log as one task on a Dask cluster
-    (:mod:`bridge.cluster`). Items and ``out_dir`` may be fsspec URLs.
+    (:mod:`gyrodenoise.mavlink.cluster`). Items and ``out_dir`` may be fsspec URLs.
     ``progress`` shows logs done / failed / remaining and samples per second
     on stderr. Outputs are byte-identical whichever way the logs are run.
 
@@ -775,7 +773,7 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
     completed, which did not) before the interrupt goes on up; a text it
     returns is set as the exception's ``stop_note`` (the CLI's stop line).
     """
-    from .cluster import Progress, expand_url_inputs, is_url, largest_first, run_on_cluster, run_task
+    from gyrodenoise.mavlink.cluster import Progress, expand_url_inputs, is_url, largest_first, run_on_cluster, run_task
     local = [it for it in items if not is_url(it)]
     files, ignored = expand_inputs(local)
     urls = [it for it in items if is_url(it)]

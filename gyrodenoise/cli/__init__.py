@@ -1,0 +1,14 @@
+"""The ``gyrodenoise`` command line: one thin layer over the library.
+
+* :mod:`gyrodenoise.cli.program` -- the top-level parser, the one-line error form, exit statuses;
+* :mod:`gyrodenoise.cli.commands` -- ``demo``, ``denoise``, ``allan``, ``compare``;
+* :mod:`gyrodenoise.cli.gap` -- ``gap``;
+* :mod:`gyrodenoise.cli.fmu` -- ``fmu build`` / ``fmu run`` / ...;
+* :mod:`gyrodenoise.cli.mavlink` -- ``mavlink``.
+
+Nothing below the CLI imports it.
+"""
+
+from gyrodenoise.cli.program import OneLineErrorParser, build_parser, emit_json, entry, main
+
+__all__ = ["OneLineErrorParser", "build_parser", "emit_json", "entry", "main"]
