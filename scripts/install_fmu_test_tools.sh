@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Install what the cross-platform FMU tests need (tests/test_fmu_platforms.py; issue 22):
+# Install what the cross-platform FMU tests need (the FMU platform tests under tests/):
 #   ziglang   C compiler for linux64 (glibc 2.17), win64 and darwin64 (also a test extra)
 #   mingw-w64 faster win64 compiler (Debian package)
 #   wine      runs the win64 FMU and the C host cross-compiled for Windows (Debian package)
