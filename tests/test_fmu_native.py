@@ -314,12 +314,12 @@ def test_state_get_set_and_serialize_round_trip(built, md, vr):
 
 
 def test_serialized_state_size_is_the_one_the_readme_states(built, md, vr):
-    """README, "State": "(N bytes at order 3; ...)" is what fmi2SerializeFMUstate gives at order 3
-    (the README said 1336 while the block had grown to 2560 bytes)."""
+    """docs/cosim/native.md, "FMU state": "(N bytes at order 3)" is what fmi2SerializeFMUstate
+    gives at order 3."""
     import re
-    text = (HERE.parent / "README.md").read_text(encoding="utf-8")
+    text = (HERE.parent / "docs" / "cosim" / "native.md").read_text(encoding="utf-8")
     found = re.search(r"FogDenoiserNative \((\d+) bytes at order 3", text)
-    assert found, "README no longer states the state size at order 3"
+    assert found, "docs/cosim/native.md no longer states the state size at order 3"
     s = slave(built, md, ar_order=3)
     s.exitInitializationMode()
     state = s.getFMUstate()
@@ -740,11 +740,11 @@ def test_fmpy_source_rebuild_with_libm_equals_gd_denoise(built, host, tmp_path, 
 
 
 def test_readme_vendor_table_maps_every_parameter_to_gd_denoise(md):
-    """The README's FMU <-> gd.denoise table names every parameter and input, and the
-    argument names it gives are accepted by gd.denoise."""
+    """The FMU <-> gd.denoise table of docs/cosim/native.md names every parameter and input,
+    and the argument names it gives are accepted by gd.denoise."""
     import re
-    text = (HERE.parent / "README.md").read_text()
-    section = text.split("**Parameters and `gd.denoise`.**", 1)[1].split("\n\n", 2)[1]
+    text = (HERE.parent / "docs" / "cosim" / "native.md").read_text()
+    section = text.split("## Parameters and `gd.denoise`", 1)[1].split("\n\n", 3)[2]
     rows = [ln for ln in section.splitlines() if ln.startswith("| `")]
     fmu_names = {n for ln in rows for n in re.findall(r"`([a-z_0-9]+)`", ln.split("|")[1])}
     want = {v.name for v in md.modelVariables if v.causality in ("parameter", "input")}
