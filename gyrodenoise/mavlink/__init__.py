@@ -5,10 +5,11 @@ Reads autopilot logs (telemetry ``.tlog``, ArduPilot DataFlash ``.bin``, PX4
 with its own :class:`gyrodenoise.Denoiser`, and writes a filtered copy of the
 log in which only the gyro fields of the IMU messages differ.
 
-Modules, by concern; imports go one way, down this list's dependencies:
-``dispatch`` -> ``cluster`` -> ``pipeline`` -> (``formats``, ``filtering``, ``report``,
-``plotting``, ``spectra``, ``engines``) -> (``checks``, ``output``) -> ``streams`` and the
-format readers; nothing below imports anything above it.
+Modules, by concern. Imports go one way: a module imports only modules after it
+in the chain ``process`` (the re-export), ``dispatch``, ``cluster``, ``pipeline``,
+(``formats``, ``filtering``, ``report``, ``plotting``), (``spectra``, ``engines``,
+``checks``, ``output``), (``dataflash``, ``tlog``, ``ulog``), (``streams``,
+``stopping``); ``live`` and ``fleet`` stand beside it.
 
 Reading and writing logs:
 
