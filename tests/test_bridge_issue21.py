@@ -126,8 +126,9 @@ def test_a_failed_run_leaves_no_output_folder(tmp_path, case):
 
 # ------------------------------------------------------------ item 8
 def _captured_plots(monkeypatch):
+    from gyrodenoise.mavlink import plotting
     got = {}
-    monkeypatch.setattr(process, "_draw", lambda path, title, pdata, unit, axes, spectrum=None:
+    monkeypatch.setattr(plotting, "_draw", lambda path, title, pdata, unit, axes, spectrum=None:
                         got.__setitem__(path.name, pdata))
     return got
 

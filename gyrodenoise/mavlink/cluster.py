@@ -1,11 +1,12 @@
-"""Many logs on a Dask distributed cluster, and progress for long runs (issue 15).
+"""Many logs on a Dask distributed cluster, and progress for long runs.
 
-Each log is one task: :func:`run_task` runs the bridge's own per-log worker
-(the same code as a serial run, so outputs are byte-identical), on whichever
-worker Dask picks. Inputs and outputs may be local paths on a shared
-filesystem or fsspec URLs (``s3://bucket/logs/x.bin``, ``file:///data/x.bin``,
-``memory://...``): a URL input is copied to a temporary local file on the
-worker, a URL output folder receives the worker's files once the log is done.
+Each log is one task: :func:`run_task` runs the bridge's own per-log task
+(:func:`gyrodenoise.mavlink.pipeline.process_log_task`, the same code as a serial
+run, so outputs are byte-identical), on whichever worker Dask picks. Inputs and
+outputs may be local paths on a shared filesystem or fsspec URLs
+(``s3://bucket/logs/x.bin``, ``file:///data/x.bin``, ``memory://...``): a URL
+input is copied to a temporary local file on the worker, a URL output folder
+receives the worker's files once the log is done.
 A failing log fails its own task with its one-line reason, never the batch.
 
 Dask is an optional extra (``pip install 'gyrodenoise[cluster]'``); without
@@ -20,6 +21,8 @@ import time
 from pathlib import Path
 
 from gyrodenoise.errors import InputError
+from gyrodenoise.mavlink.formats import log_kind
+from gyrodenoise.mavlink.pipeline import process_log_task
 
 
 #: seconds to wait for the scheduler to answer before the run is refused
@@ -44,7 +47,6 @@ def expand_url_inputs(items):
     """fsspec URLs to files: a file URL stays, a folder URL gives the logs in
     it, a glob URL its matches. Returns (urls, unmatched items)."""
     import fsspec
-    from gyrodenoise.mavlink.process import log_kind
     out, missing = [], []
     for item in items:
         fs, _, paths = fsspec.get_fs_token_paths(item)
@@ -52,7 +54,7 @@ def expand_url_inputs(items):
         found = []
         for p in paths:
             if fs.isdir(p):
-                found += [q for q in sorted(fs.find(p)) if _is_log_name(q, log_kind)]
+                found += [q for q in sorted(fs.find(p)) if _is_log_name(q)]
             elif fs.exists(p):
                 found.append(p)
         if not found:
@@ -61,7 +63,7 @@ def expand_url_inputs(items):
     return out, missing
 
 
-def _is_log_name(path, log_kind):
+def _is_log_name(path):
     try:
         log_kind(Path(path))
         return True
@@ -71,11 +73,10 @@ def _is_log_name(path, log_kind):
 
 def run_task(task):
     """Run one log task ``(path, out_dir, kw)`` where paths may be fsspec URLs;
-    returns the worker's result dict (paths in it are the URLs)."""
-    from gyrodenoise.mavlink.process import _worker
+    returns the task's result dict (paths in it are the URLs)."""
     path, out_dir, kw = task
     if not (is_url(path) or is_url(out_dir)):
-        return _worker(task)
+        return process_log_task(task)
     import fsspec
     with tempfile.TemporaryDirectory(prefix="gd_task_") as tmp:
         tmp = Path(tmp)
@@ -89,7 +90,7 @@ def run_task(task):
             except (OSError, ValueError) as exc:
                 return {"ok": False, "file": str(path), "error": f"{path}: cannot read ({exc})"}
         local_out = tmp / "out" if is_url(out_dir) else Path(out_dir)
-        res = _worker((local_in, local_out, kw))
+        res = process_log_task((local_in, local_out, kw))
         res = _rename(res, str(local_in), str(path))
         if is_url(out_dir) and res["ok"]:
             fs, _, (root,) = fsspec.get_fs_token_paths(str(out_dir))

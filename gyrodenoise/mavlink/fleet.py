@@ -1,6 +1,6 @@
-"""The fleet report (issue 15): one table, one JSON and one plot for a batch of logs.
+"""The fleet report: one table, one JSON and one plot for a batch of logs.
 
-Built from the summary of :func:`gyrodenoise.mavlink.process.process_many` (local pool or
+Built from the summary of :func:`gyrodenoise.mavlink.dispatch.process_many` (local pool or
 Dask cluster alike): a row per log and gyro stream with its samples, rate,
 restarts, noise before/after, the low-band motion kept and the lag the filter
 added (when the bridge measured them; averaged over the axes whose low band
@@ -12,8 +12,8 @@ IMU that is noisier than its siblings stands out: the thing an operator opens.
 Noise density, deg/s/sqrt(Hz): the bridge's noise figure is the sensor's
 white-noise sigma (deg/s; :func:`gyrodenoise.analysis.motion_metrics.white_noise_std`,
 the core's 4th-difference estimate, which slow motion does not lift), and
-sigma / sqrt(fs / 2) is the one-sided density (tests/test_fleet.py and
-tests/test_bridge_trial.py check it against Welch's estimate). The table gives
+sigma / sqrt(fs / 2) is the one-sided density (the tests check it against
+Welch's estimate on real logs). The table gives
 the mean over the stream's axes (x, y, z) of the per-axis figures. Vibration
 near the Nyquist frequency still lifts it; the table flags a stream whose density is more than 3 robust sigmas
 above the median of the same IMU across the fleet, where DataFlash's older

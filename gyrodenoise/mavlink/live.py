@@ -31,6 +31,7 @@ import time
 import numpy as np
 
 from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.errors import InputError
 
 from gyrodenoise.mavlink.streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
 from gyrodenoise.mavlink.tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repack
@@ -53,9 +54,13 @@ class _LiveStream:
     decides it (the same rule as the file mode, on what the link showed so far;
     final after :data:`UNIT_WAIT_S`); the denoisers start then."""
 
-    def __init__(self, name, message, unit, to_deg, note, gap_factor, field_dtype="<f4"):
+    def __init__(self, name, message, unit, to_deg, note, gap_factor, field_dtype="<f4", *,
+                 time_field=None, time_scale=1.0):
         self.name, self.message, self.unit, self.to_deg, self.note = name, message, unit, to_deg, note
         self.field_dtype = field_dtype
+        self.time_field, self.time_scale = time_field, time_scale     # the message's boot-time field, to s
+        self.any_v2 = False        # a MAVLink 2 frame seen (what decides a RAW_IMU unit)
+        self.waited_s = 0.0        # boot time seen while the unit is pending
         self.det = RestartDetector(gap_factor)
         self.den = None
         self.t, self.raw, self.fw, self.r = [], [], [], []
@@ -79,7 +84,6 @@ class _LiveStream:
 
     def step(self, t, raw, sample_rate, method, ar_order, warmup_s=None, filter_kw=None):
         """One sample (field units) in; the values to forward (field units) out."""
-        from gyrodenoise.denoiser import Denoiser
         reason = self.det.update(t)
         i = len(self.t)
         if reason:
@@ -104,23 +108,7 @@ class _LiveStream:
             self.fw.append(raw)                          # first sample of a warm-up: raw
             return raw
         if self.den is None:
-            if sample_rate:
-                rate = float(sample_rate)
-            else:
-                dt = t - self.t[self.start]
-                rate = 1.0 / dt if dt > 0 else 50.0
-            self.rate = rate
-            kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
-            kw.update(filter_kw or {})
-            self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
-                        for _ in range(3)]
-            from gyrodenoise.core.kernels import P_WARMUP
-            self.warmup = int(self.den[0].params[P_WARMUP])
-            for j, (d, v0) in enumerate(zip(self.den, self.raw[self.start])):
-                if math.isfinite(v0 * k):
-                    d.step(v0 * k, False)
-                else:
-                    self.non_finite[j] += 1
+            self._start_denoisers(t, k, sample_rate, method, ar_order, warmup_s, filter_kw)
         self._envelope(z, bool(reason))
         out = []
         for j, (d, zz) in enumerate(zip(self.den, z)):
@@ -143,6 +131,28 @@ class _LiveStream:
             return raw
         self.fw.append(out)
         return out
+
+    def _start_denoisers(self, t, k, sample_rate, method, ar_order, warmup_s, filter_kw):
+        """One denoiser per axis at the second sample of known unit (rate: ``sample_rate``,
+        else from the first two samples), fed the first one (``k``: to work units)."""
+        from gyrodenoise.core.kernels import P_WARMUP
+        from gyrodenoise.denoiser import Denoiser
+        if sample_rate:
+            rate = float(sample_rate)
+        else:
+            dt = t - self.t[self.start]
+            rate = 1.0 / dt if dt > 0 else 50.0
+        self.rate = rate
+        kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
+        kw.update(filter_kw or {})
+        self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
+                    for _ in range(3)]
+        self.warmup = int(self.den[0].params[P_WARMUP])
+        for j, (d, v0) in enumerate(zip(self.den, self.raw[self.start])):
+            if math.isfinite(v0 * k):
+                d.step(v0 * k, False)
+            else:
+                self.non_finite[j] += 1
 
     def _envelope(self, z, new_session):
         for j, zz in enumerate(z):
@@ -207,10 +217,38 @@ def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAUL
     """Bridge ``source`` to ``forward`` (pymavlink connection strings) until
     ``duration`` seconds have passed or ``max_messages`` messages were
     forwarded (or Ctrl-C). Returns (report dict, list of GyroStream)."""
+    src, dst = _open_links(source, forward)
+    if log:
+        log(f"listening on {source}, forwarding to {forward or '(nowhere)'}")
+    bridge = _LiveBridge(method=method, ar_order=ar_order, gap_factor=gap_factor, sample_rate=sample_rate,
+                         warmup_s=warmup_s, filter_kw=filter_kw, raw_imu_unit=raw_imu_unit,
+                         raw_imu_scale=raw_imu_scale, log=log)
+    t_start = time.monotonic()
+    try:
+        stopped_by = _forward_until_stopped(src, dst, bridge, t_start + duration if duration else None,
+                                            max_messages)
+    finally:
+        src.close()
+        if dst is not None:
+            dst.close()
+    report = {
+        "mode": "live", "input": source, "forward": forward, "stopped_by": stopped_by,
+        "seconds": round(time.monotonic() - t_start, 3), "messages_in": bridge.n_in,
+        "messages_forwarded": bridge.n_out, "unreadable_records": bridge.n_bad,
+        "signatures_dropped": bridge.n_sig, "handling_us": _handling_us(bridge.handle_ns),
+        "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
+        "filter_options": dict(filter_kw or {}),
+        "form": "causal", "form_note": "a live link is filtered as it comes, one sample at a time",
+    }
+    return report, [st.as_stream() for st in bridge.streams.values()]
+
+
+def _open_links(source, forward):
+    """(input connection, output connection or None), MAVLink 2 with the ArduPilot
+    dialect; InputError with one line when one cannot be opened."""
     os.environ.setdefault("MAVLINK20", "1")
     from pymavlink import mavutil
     mavutil.set_dialect("ardupilotmega")
-    from gyrodenoise.errors import InputError
     try:
         src = mavutil.mavlink_connection(source, robust_parsing=True)
     except Exception as exc:  # noqa: BLE001 - socket/serial errors of many kinds
@@ -221,91 +259,113 @@ def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAUL
     except Exception as exc:  # noqa: BLE001
         src.close()
         raise InputError(f"{forward}: cannot open the output link ({type(exc).__name__}: {exc})") from None
-    if log:
-        log(f"listening on {source}, forwarding to {forward or '(nowhere)'}")
-    streams = {}
-    vehicles = {}
-    n_in = n_out = n_bad = n_sig = 0
-    handle_ns = []
-    t_start = time.monotonic()
-    deadline = t_start + duration if duration else None
-    stopped_by = "interrupt"
+    return src, dst
+
+
+def _forward_until_stopped(src, dst, bridge, deadline, max_messages):
+    """Receive, handle and forward messages one at a time; return what stopped it:
+    ``"count"`` (``max_messages`` received), ``"duration"`` (``deadline``, a
+    :func:`time.monotonic` time, passed) or ``"interrupt"`` (Ctrl-C)."""
     try:
         while True:
-            if max_messages is not None and n_in >= max_messages:
-                stopped_by = "count"
-                break
+            if max_messages is not None and bridge.n_in >= max_messages:
+                return "count"
             timeout = 0.2
             if deadline is not None:
                 timeout = deadline - time.monotonic()
                 if timeout <= 0:
-                    stopped_by = "duration"
-                    break
+                    return "duration"
                 timeout = min(timeout, 0.2)
             msg = src.recv_match(blocking=True, timeout=timeout)
             if msg is None:
                 continue
             h0 = time.perf_counter_ns()
-            n_in += 1
-            mtype = msg.get_type()
-            if mtype == "BAD_DATA":
-                n_bad += 1
-                out = bytes(msg.data) if getattr(msg, "data", None) is not None else b""
-            else:
-                out = msg.get_msgbuf()
-                sysid = msg.get_srcSystem()
-                if mtype == "HEARTBEAT":
-                    vehicles.setdefault(sysid, {"autopilots": set(), "ap_version": False})["autopilots"].add(msg.autopilot)
-                elif mtype == "STATUSTEXT" and _AP_VERSION_RE.search(msg.text or ""):
-                    vehicles.setdefault(sysid, {"autopilots": set(), "ap_version": False})["ap_version"] = True
-                elif mtype in GYRO_MESSAGES:
-                    inst = msg.id if "id" in msg.get_fieldnames() else 0
-                    key = (sysid, msg.get_srcComponent(), mtype, inst)
-                    st = streams.get(key)
-                    if st is None:
-                        tfield, tscale, unit = GYRO_MESSAGES[mtype]
-                        to_deg, note = (UNIT_TO_DEG_S[unit], "") if unit != "raw" else ("pending", "")
-                        name = f"{mtype}" + (f"[{inst}]" if inst else "") + f"@{key[0]}.{key[1]}"
-                        st = streams[key] = _LiveStream(name, mtype, unit, to_deg, note, gap_factor,
-                                                        field_dtype(mtype))
-                        st.tscale, st.tfield, st.any_v2, st.waited_s = tscale, tfield, False, 0.0
-                    t_s = getattr(msg, st.tfield) * st.tscale
-                    if st.pending:           # RAW_IMU: the file mode's rule on what the link showed so far
-                        st.any_v2 = st.any_v2 or bytes(out[:1]) == b"\xfd"
-                        if st.t and t_s > st.t[-1]:
-                            st.waited_s += t_s - st.t[-1]
-                        got = decide_raw_imu_unit(vehicles.get(sysid), st.any_v2, raw_imu_unit,
-                                                  raw_imu_scale, final=st.waited_s >= UNIT_WAIT_S)
-                        if got is not None:
-                            st.decide(*got)
-                            if log and got[1] is None:
-                                log(f"{st.name}: {got[2]}")
-                    vals = st.step(t_s, [getattr(msg, g) for g in GYRO_FIELDS], sample_rate, method,
-                                   ar_order, warmup_s, filter_kw)
-                    if vals is not st.raw[-1]:           # unchanged samples are forwarded byte for byte
-                        out, dropped = repack(bytes(out), mtype, vals)
-                        n_sig += dropped
+            out = bridge.handle(msg)
             if dst is not None and out:
                 dst.write(out)
-                n_out += 1
-            handle_ns.append(time.perf_counter_ns() - h0)
+                bridge.n_out += 1
+            bridge.handle_ns.append(time.perf_counter_ns() - h0)
     except KeyboardInterrupt:
-        stopped_by = "interrupt"
-    finally:
-        src.close()
-        if dst is not None:
-            dst.close()
+        return "interrupt"
+
+
+def _handling_us(handle_ns):
+    """Mean, 99th percentile and largest handling time of a message, microseconds."""
     hs = np.asarray(handle_ns, dtype=np.float64) / 1000.0
-    gs = [st.as_stream() for st in streams.values()]
-    report = {
-        "mode": "live", "input": source, "forward": forward, "stopped_by": stopped_by,
-        "seconds": round(time.monotonic() - t_start, 3), "messages_in": n_in,
-        "messages_forwarded": n_out, "unreadable_records": n_bad, "signatures_dropped": n_sig,
-        "handling_us": {"mean": float(hs.mean()) if len(hs) else None,
-                        "p99": float(np.percentile(hs, 99)) if len(hs) else None,
-                        "max": float(hs.max()) if len(hs) else None},
-        "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
-        "filter_options": dict(filter_kw or {}),
-        "form": "causal", "form_note": "a live link is filtered as it comes, one sample at a time",
-    }
-    return report, gs
+    return {"mean": float(hs.mean()) if len(hs) else None,
+            "p99": float(np.percentile(hs, 99)) if len(hs) else None,
+            "max": float(hs.max()) if len(hs) else None}
+
+
+class _LiveBridge:
+    """What a live link has seen so far: its gyro streams, its vehicles (what
+    decides a RAW_IMU unit) and the message counts; :meth:`handle` turns one
+    received message into the bytes to forward."""
+
+    def __init__(self, *, method, ar_order, gap_factor, sample_rate, warmup_s, filter_kw,
+                 raw_imu_unit, raw_imu_scale, log):
+        self.method, self.ar_order, self.gap_factor = method, ar_order, gap_factor
+        self.sample_rate, self.warmup_s, self.filter_kw = sample_rate, warmup_s, filter_kw
+        self.raw_imu_unit, self.raw_imu_scale, self.log = raw_imu_unit, raw_imu_scale, log
+        self.streams = {}          # (system, component, message type, instance) -> _LiveStream
+        self.vehicles = {}         # system id -> {"autopilots": set, "ap_version": bool}
+        self.n_in = self.n_out = self.n_bad = self.n_sig = 0
+        self.handle_ns = []
+
+    def handle(self, msg):
+        """The bytes to forward for one received message: a gyro message re-packed
+        with the filtered values, any other as it came (unreadable bytes too)."""
+        self.n_in += 1
+        mtype = msg.get_type()
+        if mtype == "BAD_DATA":
+            self.n_bad += 1
+            return bytes(msg.data) if getattr(msg, "data", None) is not None else b""
+        out = msg.get_msgbuf()
+        sysid = msg.get_srcSystem()
+        if mtype == "HEARTBEAT":
+            self._vehicle(sysid)["autopilots"].add(msg.autopilot)
+        elif mtype == "STATUSTEXT" and _AP_VERSION_RE.search(msg.text or ""):
+            self._vehicle(sysid)["ap_version"] = True
+        elif mtype in GYRO_MESSAGES:
+            out = self._filter_gyro(msg, mtype, sysid, out)
+        return out
+
+    def _vehicle(self, sysid):
+        return self.vehicles.setdefault(sysid, {"autopilots": set(), "ap_version": False})
+
+    def _filter_gyro(self, msg, mtype, sysid, out):
+        st = self._stream(msg, mtype, sysid)
+        t_s = getattr(msg, st.time_field) * st.time_scale
+        if st.pending:
+            self._decide_unit(st, out, t_s, sysid)
+        vals = st.step(t_s, [getattr(msg, g) for g in GYRO_FIELDS], self.sample_rate, self.method,
+                       self.ar_order, self.warmup_s, self.filter_kw)
+        if vals is not st.raw[-1]:           # unchanged samples are forwarded byte for byte
+            out, dropped = repack(bytes(out), mtype, vals)
+            self.n_sig += dropped
+        return out
+
+    def _stream(self, msg, mtype, sysid):
+        """The stream of a gyro message, created at its first message."""
+        inst = msg.id if "id" in msg.get_fieldnames() else 0
+        key = (sysid, msg.get_srcComponent(), mtype, inst)
+        st = self.streams.get(key)
+        if st is None:
+            tfield, tscale, unit = GYRO_MESSAGES[mtype]
+            to_deg, note = (UNIT_TO_DEG_S[unit], "") if unit != "raw" else ("pending", "")
+            name = f"{mtype}" + (f"[{inst}]" if inst else "") + f"@{key[0]}.{key[1]}"
+            st = self.streams[key] = _LiveStream(name, mtype, unit, to_deg, note, self.gap_factor,
+                                                 field_dtype(mtype), time_field=tfield, time_scale=tscale)
+        return st
+
+    def _decide_unit(self, st, out, t_s, sysid):
+        """A RAW_IMU stream's unit by the file mode's rule on what the link showed so far."""
+        st.any_v2 = st.any_v2 or bytes(out[:1]) == b"\xfd"
+        if st.t and t_s > st.t[-1]:
+            st.waited_s += t_s - st.t[-1]
+        got = decide_raw_imu_unit(self.vehicles.get(sysid), st.any_v2, self.raw_imu_unit,
+                                  self.raw_imu_scale, final=st.waited_s >= UNIT_WAIT_S)
+        if got is not None:
+            st.decide(*got)
+            if self.log and got[1] is None:
+                self.log(f"{st.name}: {got[2]}")

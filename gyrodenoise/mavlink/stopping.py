@@ -1,4 +1,4 @@
-"""Stopping cleanly (issue 21 item 2): child processes that end with their parent,
+"""Stopping cleanly: child processes that end with their parent,
 and output files that are either complete or absent.
 
 * :func:`as_child` -- called first in every child process the bridge forks (the

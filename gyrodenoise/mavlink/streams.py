@@ -210,3 +210,13 @@ def noise_per_axis(values, restarts):
         d = d[np.isfinite(d)]                  # pairs with a NaN/inf sample do not count
         out.append(float(d.std(ddof=1) / math.sqrt(2.0)) if len(d) >= 2 else None)
     return out
+
+
+def kept_restarts(restarts, keep):
+    """Restart flags of the samples kept by the bool mask ``keep``: a restart on a
+    dropped sample moves to the next kept one (a filter fed only the kept samples
+    starts over there)."""
+    idx = np.nonzero(keep)[0]
+    cr = np.concatenate([[0], np.cumsum(restarts, dtype=np.int64)])
+    prev = np.concatenate([[0], idx[:-1] + 1])
+    return (cr[idx + 1] - cr[prev]) > 0

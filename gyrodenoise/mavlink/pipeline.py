@@ -1,0 +1,167 @@
+"""One log end to end: read, find restarts, denoise, write.
+
+Outputs of a log ``NAME.ext`` in the output folder:
+
+* ``NAME.filtered.ext`` -- the log with the gyro fields of the IMU messages
+  replaced by the filtered values (same messages, same order; only those
+  fields, and for MAVLink the CRC, differ);
+* ``NAME.STREAM.csv`` -- ``time,raw_x,filtered_x,raw_y,filtered_y,raw_z,filtered_z,restart``
+  per stream (deg/s; ``*_counts`` columns when the unit is unknown);
+* ``NAME.STREAM.png`` -- raw and filtered per axis, restarts marked;
+* ``NAME.spectrum.png`` -- per stream raw and filtered PSD per axis, vibration
+  peaks named; the filter's gain and lag; a spectrogram for a long record
+  (:mod:`gyrodenoise.mavlink.spectra`).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.errors import InputError
+from gyrodenoise.mavlink.checks import usable_samples
+from gyrodenoise.mavlink.engines import make_engine
+from gyrodenoise.mavlink.filtering import check_some_stream_filterable, filter_form, filter_options, filter_streams
+from gyrodenoise.mavlink.formats import log_kind, read_log, write_filtered_log
+from gyrodenoise.mavlink.output import joined_time, safe_name, write_csv
+from gyrodenoise.mavlink.plotting import Plotter, title_note
+from gyrodenoise.mavlink.report import log_problems, stream_report
+from gyrodenoise.mavlink.spectra import stream_spectrum
+from gyrodenoise.mavlink.stopping import atomic_path
+
+
+def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_order=3, gap_factor=5.0,
+                plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
+                sample_rate=None, out_stem=None, log=None, background_plots=False,
+                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False, causal=False):
+    """Process one log file; return its report (a JSON-able dict).
+
+    The form of the filter (``rep["form"]``): a whole log is filtered offline by
+    default where the engine and method have an offline form (the native engine
+    with ``method="motion"``: forwards and backwards per session, no lag;
+    ``zero_phase`` for the low-pass); ``causal=True`` gives the causal filter
+    (``Denoiser``, as a live link, ``Denoiser.step`` and the FMUs run it). The FMU
+    engine is always causal.
+
+    Raises InputError (one line naming the file) for a file that cannot be
+    used: unknown type, unreadable, or without a gyro stream.
+    ``background_plots`` draws the PNGs in a forked helper process (Linux),
+    which overlaps matplotlib's import and drawing with the filtering.
+    """
+    t0 = time.perf_counter()
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    kind = log_kind(path)
+    rep = {"file": str(path), "format": kind}
+    plotter = Plotter(background_plots, helpers=plot_helpers) if plots else None
+    done = False
+    try:
+        streams, source, facts = read_log(path, kind, raw_imu_unit, raw_imu_scale)
+        rep.update(facts)
+        offline = engine == "native" and method == "motion" and not causal
+        eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase, offline)
+        rep.update(filter_form(eng, engine))
+        try:
+            filter_streams(streams, eng, gap_factor, sample_rate)
+        finally:
+            eng.close()
+        check_some_stream_filterable(path, streams, filter_kw)
+        what = f"{engine} {_method_label(method, ar_order, rep['form'])}"
+        rep.update(_write_outputs(path, kind, source, streams, Path(out_dir), out_stem or path.stem,
+                                  plotter, csv, what, method, filter_kw, log))
+        done = True
+    finally:
+        if plotter is not None:
+            # an interrupt or a failure: stop the helpers now, without waiting for their plots
+            plotter.close() if done else plotter.abort()
+    rep.update(engine=engine, method=method, ar_order=int(ar_order), gap_factor=gap_factor,
+               warmup_s=warmup_s, filter_options=filter_options(method, filter_kw, zero_phase),
+               seconds=round(time.perf_counter() - t0, 3))
+    return rep
+
+
+def _method_label(method, ar_order, form):
+    """The filter as the plots' titles name it, with its form (as the summary does)."""
+    label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
+    return f"{label}, {form}" if form else label
+
+
+def _write_outputs(path, kind, source, streams, out_dir, stem, plotter, csv, what, method, filter_kw, log):
+    """Every output file of a filtered log (plots queued first: a helper draws them
+    while the rest is written); the report's fields on them."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw)
+    out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
+    with atomic_path(out_log) as tmp:
+        rep = write_filtered_log(kind, source, streams, tmp)
+    rep["output_log"] = str(out_log)
+    srep, restarts = _stream_reports(path, streams, out_dir, stem, csv, plotter, log)
+    rep.update(streams=srep, restarts=restarts)
+    if log:
+        log_problems(dict(rep, file=str(path)), log)
+    return rep
+
+
+def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw):
+    """Queue each stream's plot, compute its spectrum (``s._spectrum``) and queue the
+    log's spectrum figure; ``s._png`` / ``s._spectrum_png``: where the plots go."""
+    spec_items = []
+    spec_png = out_dir / f"{stem}.spectrum.png"
+    for s in streams:
+        x, f, unit, rate = s._work
+        if plotter is not None:                  # queued first: the helper draws while we go on
+            s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
+            cutoff = f" {s.cutoff_hz:.4g} Hz" if getattr(s, "cutoff_hz", None) else ""
+            plotter.plot(s._png, f"{path.name}: {s.name} ({what}{cutoff}{title_note(s)})",
+                         s.time_s, x, f, s.restarts, unit, s.axes)
+        usable = (usable_samples(x) & np.isfinite(f)).all(axis=1)
+        s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
+                                                 getattr(s, "warmup_samples", 0),
+                                                 joined_time(s.time_s, s.restarts), usable)
+        if spec_plot is not None:
+            spec_items.append((s.name, spec_plot))
+            s._spectrum_png = spec_png if plotter is not None else None
+    if plotter is not None and spec_items:
+        plotter.plot_spectrum(spec_png, f"{path.name}: spectrum ({what})", spec_items)
+
+
+def _stream_reports(path, streams, out_dir, stem, csv, plotter, log):
+    """(the stream reports, the restart events of all streams); writes the CSVs."""
+    srep, restarts = [], []
+    for s in streams:
+        x, f, unit, _ = s._work
+        csv_path = png_path = None
+        if csv:
+            csv_path = out_dir / f"{stem}.{safe_name(s.name)}.csv"
+            write_csv(csv_path, s, x, f, unit)
+        if plotter is not None:
+            png_path = s._png
+        srep.append(stream_report(s, csv_path, png_path))
+        srep[-1]["spectrum"] = s._spectrum
+        if getattr(s, "_spectrum_png", None) is not None:
+            srep[-1]["spectrum_plot"] = str(s._spectrum_png)
+        restarts += s.restart_events
+        if s.to_deg_s is None and log:
+            log(f"{path}: {s.name}: unit unknown, filtered in {s.unit} ({s.note})")
+    return srep, restarts
+
+
+def process_log_task(task):
+    """Run one log task ``(path, out_dir, process_log keywords)``: ``{"ok": True,
+    "report": ...}``, or ``{"ok": False, "file", "error"}`` with the one-line reason
+    (and the option a log refused, with its rates): one bad log never stops a batch."""
+    path, out_dir, kw = task
+    try:
+        return {"ok": True, "report": process_log(path, out_dir, **kw)}
+    except InputError as exc:
+        res = {"ok": False, "file": str(path), "error": str(exc)}
+        if getattr(exc, "option", None):            # the option the log refused (e.g. --cutoff-hz)
+            res["option"] = exc.option
+            res["rates_hz"] = list(getattr(exc, "rates_hz", []))
+        return res
+    except Exception as exc:  # noqa: BLE001 - one bad log must not stop the others
+        return {"ok": False, "file": str(path), "error": f"{path}: {type(exc).__name__}: {exc}"}
