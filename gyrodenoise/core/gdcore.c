@@ -613,9 +613,9 @@ KERNEL double log1m_small_(double g)
  * and the scalars; mo_load_ / mo_save_ move the bank between s and here.
  * Same operations in the same order as on s, so the same bits. The weights'
  * exp_neg_sq_ runs over all MO_MAX_NF lanes in one branch-free loop, which
- * the compiler runs two lanes at a time. Issue 23, measured on bench_core's
- * record: 1627 -> 1546 instructions per sample (cachegrind), 130 -> 117
- * ns/sample (both builds in one process; the bare KF 19.2 ns). */
+ * the compiler runs two lanes at a time: against the bank updated in s, 1627 ->
+ * 1546 instructions per sample (cachegrind) and 130 -> 117 ns/sample on the
+ * core benchmark's record (both builds in one process; the bare KF 19.2 ns). */
 typedef struct {
     double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF];
     double g0[MO_MAX_NF], g1[MO_MAX_NF], ls[MO_MAX_NF];
