@@ -4,7 +4,7 @@ The fast path is ``gd_run`` of ``gdcore.c`` through the extension
 :mod:`gyrodenoise.core._gdcore` (built by ``pip install``). ``compiled=False``
 runs :func:`gyrodenoise.core.kernels.step` in plain Python over the same
 buffers: the executable specification the C is tested against
-(tests/test_ccore.py: bit for bit). Diagnostics and theta histories need the
+(bit for bit). Diagnostics and theta histories need the
 state after every sample, so they step sample by sample (C when available).
 """
 
@@ -143,7 +143,8 @@ def run_offline(p, z, restarts=None, *, compiled=True):
     two-filter smoother's combination). Where one of the two is still in its
     warm-up (the raw sample, the first ``P_WARMUP`` samples of its
     direction) the other is used alone. Measured against filters tuned on the
-    truth in docs/reports/tuned/report.md. The output stays inside [min, max] of the raw samples of its run.
+    truth in docs/reports/tuned/report.md. The output stays inside [min, max]
+    of the raw samples of its run.
 
     Returns the filtered rate (deg/s), an ndarray like ``z``.
     """

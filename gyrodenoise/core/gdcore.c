@@ -443,8 +443,8 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
 }
 
 /* kernels.motion_params(fs) with its defaults, written into p[P_MO_NF ...]
- * (the native FMU builds its parameters here; tests/test_ccore.py holds it
- * to the Python bit for bit). */
+ * (the native FMU builds its parameters here; the tests hold it to the
+ * Python bit for bit). */
 void gd_motion_params(double *p, double fs)
 {
     const int nf = 13;
@@ -966,8 +966,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
  *   - the lower triangles of the covariances (see SY),
  *   - the RLS covariance's v * 1.0 when it is not forgotten (exact),
  *   - kf_update_'s c entries except on the last sample (see loc_update).
- * Change the maths in kernels.py and step_ above, then here:
- * tests/test_ccore.py compares this loop bit for bit with kernels.py.
+ * Change the maths in kernels.py and step_ above, then here: the tests
+ * compare this loop bit for bit with kernels.py.
  */
 #define LOC_MAX_ORDER 8
 
@@ -1529,8 +1529,8 @@ KERNEL void steps_(const double *p, double *s, const double *z, const unsigned c
 
 /* The two batch loops below are called once per run and not inlined: step_ is
  * compiled into their loops only, not again into each of gd_run's and
- * gd_run_trace's (it was, with every method's kernels in each copy: ~2/3 of
- * this file's compile time). */
+ * gd_run_trace's (inlined there, every method's kernels would be compiled
+ * once per copy: ~2/3 of this file's compile time). */
 
 /* gd_run's and gd_run_trace's loop for the methods and states without a loop of
  * their own (lowpass, AR orders above LOC_MAX_ORDER): the bank in s */

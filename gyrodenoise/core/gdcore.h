@@ -5,7 +5,7 @@
  * executable specification): the same functions with a gd_ prefix, the same
  * two flat buffers of doubles and the same floating-point operations in the
  * same order, so that results agree with the Python to rounding (tested to
- * 1e-12 by tests/test_ccore.py; in practice bit for bit).
+ * 1e-12; in practice bit for bit).
  *
  *   p  parameters, at least GD_N_PARAMS doubles (built by kernels.make_params)
  *   s  state, gd_layout_total(n) doubles (built by kernels.init_state)

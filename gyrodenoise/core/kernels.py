@@ -12,8 +12,8 @@ Functions mutate ``s`` in place and return the scalar output, like
 copy, save or restore it at any sample. ``gdcore.c`` (beside this file) is the
 same functions in C99 over the same buffers, operation for operation; the
 extension :mod:`gyrodenoise.core._gdcore` runs it for :mod:`gyrodenoise.core.batch`,
-:class:`gyrodenoise.Denoiser` and the FMUs, and tests/test_ccore.py holds it to
-this file bit for bit. This file needs nothing but ``math``: it is also the
+:class:`gyrodenoise.Denoiser` and the FMUs, and the tests hold it to this file
+bit for bit. This file needs nothing but ``math``: it is also the
 fallback where the compiled core is not available (an FMU on a platform its
 bundled binary does not fit), ~20-50 us a sample. Change the maths here first,
 then mirror it in gdcore.c (the tests fail until both agree).

@@ -23,7 +23,7 @@ time column, a value that is not a number, NaN or inf, a short (truncated)
 row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
 no time column and no sample rate, a rate beyond :data:`ABSURD_RATE_DEG_S`
 (after unit conversion; not a gyro reading).
-The corpus ``tests/corpus/`` holds one file per case (see its README).
+The test suite's corpus of bad recordings holds one file per case.
 """
 
 from __future__ import annotations
