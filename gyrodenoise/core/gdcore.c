@@ -742,10 +742,15 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             d4 = zr - 4.0 * hist[i1] + 6.0 * hist[i2] - 4.0 * hist[i3] + hist[i4];
             x = fabs(d4);
             m = s[o + M_MABS + j - 1];
-            if (clip && x > hub * m)
-                x = hub * m;
-            m += d * (x - m);
-            s[o + M_MABS + j - 1] = m;
+            /* a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)
+               is left out, so the mean stays below it and sig * sig below cannot
+               overflow into an infinite R */
+            if (x < MO_SPEC_ZMAX) {
+                if (clip && x > hub * m)
+                    x = hub * m;
+                m += d * (x - m);
+                s[o + M_MABS + j - 1] = m;
+            }
             if (j == 1 || m < least)
                 least = m;
         }

@@ -90,7 +90,8 @@ MO_SPEC_N = 128     # spectral floor: block length, samples (Hann-windowed DFT p
 MO_SPEC_K0 = 32     # its first bin (MO_SPEC_N / 4: 0.25 fs) ...
 MO_SPEC_NB = 16     # ... and MO_SPEC_NB bins, every other one (nearly uncorrelated under the Hann window)
 MO_SPEC_RANK = 4    # the periodogram's MO_SPEC_RANK-th smallest of those bins is read (a low quantile)
-MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow)
+MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow);
+                         # so is a 4th difference beyond it in the lag noise estimates (M_MABS)
 N_PARAMS = P_MO_COS + MO_SPEC_N
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
@@ -1073,10 +1074,14 @@ def motion_step(p, s, z):
                   - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4])
             x = abs(d4)
             m = s[o + M_MABS + j - 1]
-            if clip and x > hub * m:
-                x = hub * m
-            m += d * (x - m)
-            s[o + M_MABS + j - 1] = m
+            # a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)
+            # is left out, so the mean stays below it and sig * sig below cannot
+            # overflow into an infinite R
+            if x < MO_SPEC_ZMAX:
+                if clip and x > hub * m:
+                    x = hub * m
+                m += d * (x - m)
+                s[o + M_MABS + j - 1] = m
             if j == 1 or m < least:
                 least = m
         if least == 0.0:
