@@ -1,4 +1,4 @@
-"""Model cards (``models/*.toml``) and the simulated gyro.
+"""Model cards (TOML, spec section 4) and the simulated gyro.
 
 Conventions (IEEE Std 952-1997, Annex C; rates in deg/s inside, card units as
 in the spec, section 4):
@@ -168,7 +168,8 @@ def models_dir():
 
 
 def load_card(path_or_name):
-    """Read a card from a path, or by name from the embedded ``models/``."""
+    """Read a card from a path, or by name from the cards embedded in the package
+    (:func:`models_dir`: ``paper_fog``, ``ln200``, ...)."""
     if isinstance(path_or_name, ModelCard):
         return path_or_name
     path = Path(path_or_name)

@@ -10,6 +10,7 @@ such values (tests/corpus).
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -238,6 +239,31 @@ def test_output_is_finite_and_inside_the_input_envelope(sig, method, order, gate
     assert np.all(np.isfinite(out)) and np.all(np.isfinite(s))
     bad = np.flatnonzero((out < lo) | (out > hi))
     assert bad.size == 0, (bad[:5], out[bad[:5]], lo[bad[:5]], hi[bad[:5]])
+
+
+@pytest.mark.parametrize("first", [-1e211, 1e211, 1e300])
+def test_huge_first_sample_keeps_the_motion_noise_level_finite(first):
+    """A plain case that the envelope property found: a huge first sample, then
+    ordinary noise, gate off. The 4th differences that hold it are ~1e211 and
+    their mean, squared into motion's white-noise variance M_R, overflowed to
+    inf during the warm-up (the state ended non-finite at orders 5 and 6).
+    Every method and order, compiled and plain: finite state, output inside
+    the envelope."""
+    z = np.random.default_rng(11).standard_normal(60)
+    z[0] = first
+    rs = np.zeros(z.size, dtype=bool)
+    lo, hi = envelope(z, rs)
+    for method in sorted(K.METHODS):
+        for order in range(1, 7):
+            p = K.make_params(ar_order=order, method=method, sample_rate_hz=100.0, warmup_s=0.1,
+                              outlier_sigma=0.0, outlier_run=5, lam=1.0)
+            for compiled in (True, False):
+                with np.errstate(all="ignore"):
+                    out, s = run(p, K.init_state(p), z, rs, compiled=compiled)
+                where = (method, order, compiled)
+                assert np.all(np.isfinite(out)), where
+                assert np.all(np.isfinite(s)), (where, np.flatnonzero(~np.isfinite(s)))
+                assert np.all((out >= lo) & (out <= hi)), where
 
 
 @settings(max_examples=40, **SETTINGS)

@@ -3,10 +3,9 @@
 Why not call allantools for the curve: on 1e6 samples at 100 taus
 ``allantools.oadev`` takes 0.54 s on our CI machine (five array passes and
 temporaries per tau); the same estimator as a single compiled pass per tau
-takes a fraction of that (``benchmarks/bench_core.py`` prints both). The tests
-check this module against allantools (1e-9) and against the published ADIS16405
-curve in ``../shared/data/allan_reference`` (1e-3), so allantools remains our
-reference implementation.
+takes a fraction of that (the core benchmark prints both). The tests check
+this module against allantools (1e-9) and against a published ADIS16405 curve
+(1e-3), so allantools remains our reference implementation.
 
 Units: rates in deg/s in, tau in s; terms out in the spec's units
 (N deg/sqrt(h), B deg/h, K deg/h^1.5, R deg/h^2, Q deg).
@@ -136,73 +135,101 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
         The model refitted with the resolved terms only (0 for the others):
         what :func:`model_adev` should draw.
     """
-    from scipy.optimize import nnls
     t = np.asarray(tau_s, dtype=float)
     a = np.asarray(adev_deg_s, dtype=float)
     e = np.asarray(adev_err_deg_s, dtype=float)
     ok = np.isfinite(a) & (a > 0) & np.isfinite(e)
     t, a, e = t[ok], a[ok], e[ok]
-    terms, kinds = {}, {}
     if t.size == 0:
         return ({k: 0.0 for k in TERM_NAMES}, {k: "upper_bound" for k in TERM_NAMES},
                 {k: 0.0 for k in TERM_NAMES})
     avar = a * a
     rel = e / a                                # relative 1-sigma of adev (cluster count only)
     A = basis(t)
-
-    def solve(sig):
-        Aw = A / sig[:, None]
-        yw = avar / sig
-        scale = np.max(np.abs(Aw), axis=0)    # column scaling for conditioning
-        coef, rnorm = nnls(Aw / scale, yw)
-        return coef / scale, rnorm * rnorm, Aw, yw, scale
-
-    # 1-sigma of avar. Weighting by the *measured* variance (2 a^2 rel) lets a
-    # point that happens to come out low (last taus, few clusters) take a huge
-    # weight and drag the fit; so iterate with the variance of the fitted
-    # model (iteratively reweighted least squares), from the measured start.
-    sig = np.maximum(2.0 * avar * rel, 1e-300)
-    for _ in range(IRLS_ITERATIONS):
-        coef = solve(sig)[0]
-        model = A @ coef
-        sig_new = np.maximum(2.0 * np.maximum(model, 1e-300) * rel, 1e-300)
-        if np.allclose(sig_new, sig, rtol=1e-6, atol=0.0):
-            break
-        sig = sig_new
-    coef, chi2, Aw, yw, scale = solve(sig)
-    def chi2_without(drop):
-        keep = [i for i in range(A.shape[1]) if i not in drop]
-        _, rn = nnls(Aw[:, keep] / scale[keep], yw)
-        return rn * rn
-
-    # a term is resolved when dropping it worsens the fit by more than
-    # DCHI2_RESOLVED (neighbouring taus are correlated, hence the generous
-    # threshold)
-    gain = {j: (chi2_without({j}) - chi2 if coef[j] > 0 else 0.0) for j in range(A.shape[1])}
-    resolved = {j for j in gain if gain[j] > DCHI2_RESOLVED}
-    # terms that can stand in for each other (K and R, N and Q) may each look
-    # dispensable while the pair is not: keep the stronger one of such a group
-    while True:
-        rest = {j for j in gain if coef[j] > 0 and j not in resolved}
-        if not rest or chi2_without(rest) - chi2 <= DCHI2_RESOLVED:
-            break
-        resolved.add(max(rest, key=lambda j: gain[j]))
+    sig = _irls_sigma(A, avar, rel)
+    fit = _WeightedFit(A, avar, sig)
+    resolved = _resolved_columns(fit)
+    terms, kinds = {}, {}
     for j, name in enumerate(_ORDER):
         if j in resolved:
-            terms[name] = math.sqrt(coef[j])
+            terms[name] = math.sqrt(fit.coef[j])
             kinds[name] = "fit"
         else:
             bound = np.min((avar + 2.0 * sig) / A[:, j])
             terms[name] = math.sqrt(bound)
             kinds[name] = "upper_bound"
-    # the model curve: refit with the resolved terms only
+    return terms, kinds, _refit_resolved(fit, kinds)
+
+
+class _WeightedFit:
+    """Non-negative least squares of ``avar`` on the columns of ``A`` with 1-sigma
+    errors ``sig``: the weighted system (``Aw``, ``yw``), its column scaling (for
+    conditioning), the coefficients and chi^2."""
+
+    def __init__(self, A, avar, sig):
+        from scipy.optimize import nnls
+        self.Aw = A / sig[:, None]
+        self.yw = avar / sig
+        self.scale = np.max(np.abs(self.Aw), axis=0)
+        coef, rnorm = nnls(self.Aw / self.scale, self.yw)
+        self.coef = coef / self.scale
+        self.chi2 = rnorm * rnorm
+
+    def coef_of(self, cols):
+        """Coefficients of the fit on the columns ``cols`` only, and its chi^2."""
+        from scipy.optimize import nnls
+        c, rn = nnls(self.Aw[:, cols] / self.scale[cols], self.yw)
+        return c / self.scale[cols], rn * rn
+
+    def chi2_without(self, drop):
+        """chi^2 of the fit with the columns ``drop`` left out."""
+        keep = [i for i in range(self.Aw.shape[1]) if i not in drop]
+        return self.coef_of(keep)[1]
+
+
+def _irls_sigma(A, avar, rel):
+    """1-sigma of each Allan variance point, 2 x ``rel`` x the variance, for the fit.
+
+    Weighting by the *measured* variance (2 a^2 rel) lets a point that happens to
+    come out low (last taus, few clusters) take a huge weight and drag the fit; so
+    iterate with the variance of the fitted model (iteratively reweighted least
+    squares), from the measured start, at most IRLS_ITERATIONS times."""
+    sig = np.maximum(2.0 * avar * rel, 1e-300)
+    for _ in range(IRLS_ITERATIONS):
+        coef = _WeightedFit(A, avar, sig).coef
+        model = A @ coef
+        sig_next = np.maximum(2.0 * np.maximum(model, 1e-300) * rel, 1e-300)
+        if np.allclose(sig_next, sig, rtol=1e-6, atol=0.0):
+            break
+        sig = sig_next
+    return sig
+
+
+def _resolved_columns(fit):
+    """Columns of the basis the record resolves: those whose removal raises chi^2 by
+    more than DCHI2_RESOLVED (neighbouring taus are correlated, hence the generous
+    threshold). Terms that can stand in for each other (K and R, N and Q) may each
+    look dispensable while the pair is not: the stronger one of such a group is kept."""
+    n_cols = fit.Aw.shape[1]
+    gain = {j: (fit.chi2_without({j}) - fit.chi2 if fit.coef[j] > 0 else 0.0) for j in range(n_cols)}
+    resolved = {j for j in gain if gain[j] > DCHI2_RESOLVED}
+    while True:
+        rest = {j for j in gain if fit.coef[j] > 0 and j not in resolved}
+        if not rest or fit.chi2_without(rest) - fit.chi2 <= DCHI2_RESOLVED:
+            break
+        resolved.add(max(rest, key=lambda j: gain[j]))
+    return resolved
+
+
+def _refit_resolved(fit, kinds):
+    """The model curve: the terms refitted with the resolved ones only (0 for the others)."""
     cols = [j for j, name in enumerate(_ORDER) if kinds[name] == "fit"]
     fitted = {name: 0.0 for name in _ORDER}
     if cols:
-        c2, _ = nnls(Aw[:, cols] / scale[cols], yw)
-        for j, cj in zip(cols, c2 / scale[cols]):
+        coef, _ = fit.coef_of(cols)
+        for j, cj in zip(cols, coef):
             fitted[_ORDER[j]] = math.sqrt(cj)
-    return terms, kinds, fitted
+    return fitted
 
 
 def model_adev(tau_s, terms_s):

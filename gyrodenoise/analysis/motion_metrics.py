@@ -87,7 +87,7 @@ def _zero_phase(x, sample_rate_hz, band_hz):
     """Zero-phase (forward-backward) Butterworth low-pass of order
     LOWBAND_ORDER, by the core's ``lowpass`` method (no scipy.signal import,
     which costs ~1 s of a bridge run; the core's cascade equals
-    ``scipy.signal.sosfilt(butter(...))``, tests/test_lowpass.py)."""
+    ``scipy.signal.sosfilt(butter(...))``, tested)."""
     from gyrodenoise.denoiser import denoise
     if not (sample_rate_hz > 0 and 0 < band_hz < 0.5 * sample_rate_hz):
         raise ValueError(f"band_hz must be > 0 and below half the sample rate "
@@ -211,7 +211,7 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     Returned: sqrt of the median of R over the samples where it has formed
     (each finite run of each session, after its first :func:`noise_ready_samples`).
     On white noise it reads 2-6 % low (the smallest of six running means; 6 %
-    at 25 Hz, 2 % at 250 Hz, tests/test_motion_metrics.py); motion near the
+    at 25 Hz, 2 % at 250 Hz, tested); motion near the
     Nyquist frequency and vibration are not removed. 0.0 for a constant record."""
     from gyrodenoise.core import batch, kernels as K
     x = np.asarray(x, dtype=np.float64)

@@ -4,7 +4,7 @@ The fast path is ``gd_run`` of ``gdcore.c`` through the extension
 :mod:`gyrodenoise.core._gdcore` (built by ``pip install``). ``compiled=False``
 runs :func:`gyrodenoise.core.kernels.step` in plain Python over the same
 buffers: the executable specification the C is tested against
-(tests/test_ccore.py: bit for bit). Diagnostics and theta histories need the
+(bit for bit). Diagnostics and theta histories need the
 state after every sample, so they step sample by sample (C when available).
 """
 
@@ -112,7 +112,7 @@ def run(p, s, z, restarts=None, *, diagnostics=False, record_theta=False, trace_
 
 
 def _rigid_offline(p, seg, o_ext, compiled):
-    """The offline form with ``max_motion_hz`` (issue 23 item 4), one run of samples: the
+    """The offline form with ``max_motion_hz``, one run of samples: the
     blend of a forward and a backward pass each low-passed inside would keep the low-pass's
     phase (gain |H| cos(phase): 0.3 at max_motion_hz), so the rigid-body low-pass is run
     zero-phase first (the core's low-pass forwards, then backwards: |H|^2, 0.992 at
@@ -142,9 +142,9 @@ def run_offline(p, z, restarts=None, *, compiled=True):
     by the inverse of their variances (the filter's own, ``M_PVAR``: the
     two-filter smoother's combination). Where one of the two is still in its
     warm-up (the raw sample, the first ``P_WARMUP`` samples of its
-    direction) the other is used alone. Measured
-    against tuned filters in benchmarks/tuned.py (issue 23, item 3). The
-    output stays inside [min, max] of the raw samples of its run.
+    direction) the other is used alone. Measured against filters tuned on the
+    truth in docs/reports/tuned/report.md. The output stays inside [min, max]
+    of the raw samples of its run.
 
     Returns the filtered rate (deg/s), an ndarray like ``z``.
     """

@@ -443,8 +443,8 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
 }
 
 /* kernels.motion_params(fs) with its defaults, written into p[P_MO_NF ...]
- * (the native FMU builds its parameters here; tests/test_ccore.py holds it
- * to the Python bit for bit). */
+ * (the native FMU builds its parameters here; the tests hold it to the
+ * Python bit for bit). */
 void gd_motion_params(double *p, double fs)
 {
     const int nf = 13;
@@ -613,9 +613,9 @@ KERNEL double log1m_small_(double g)
  * and the scalars; mo_load_ / mo_save_ move the bank between s and here.
  * Same operations in the same order as on s, so the same bits. The weights'
  * exp_neg_sq_ runs over all MO_MAX_NF lanes in one branch-free loop, which
- * the compiler runs two lanes at a time. Issue 23, measured on bench_core's
- * record: 1627 -> 1546 instructions per sample (cachegrind), 130 -> 117
- * ns/sample (both builds in one process; the bare KF 19.2 ns). */
+ * the compiler runs two lanes at a time: against the bank updated in s, 1627 ->
+ * 1546 instructions per sample (cachegrind) and 130 -> 117 ns/sample on the
+ * core benchmark's record (both builds in one process; the bare KF 19.2 ns). */
 typedef struct {
     double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF];
     double g0[MO_MAX_NF], g1[MO_MAX_NF], ls[MO_MAX_NF];
@@ -742,10 +742,15 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             d4 = zr - 4.0 * hist[i1] + 6.0 * hist[i2] - 4.0 * hist[i3] + hist[i4];
             x = fabs(d4);
             m = s[o + M_MABS + j - 1];
-            if (clip && x > hub * m)
-                x = hub * m;
-            m += d * (x - m);
-            s[o + M_MABS + j - 1] = m;
+            /* a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)
+               is left out, so the mean stays below it and sig * sig below cannot
+               overflow into an infinite R */
+            if (x < MO_SPEC_ZMAX) {
+                if (clip && x > hub * m)
+                    x = hub * m;
+                m += d * (x - m);
+                s[o + M_MABS + j - 1] = m;
+            }
             if (j == 1 || m < least)
                 least = m;
         }
@@ -966,8 +971,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
  *   - the lower triangles of the covariances (see SY),
  *   - the RLS covariance's v * 1.0 when it is not forgotten (exact),
  *   - kf_update_'s c entries except on the last sample (see loc_update).
- * Change the maths in kernels.py and step_ above, then here:
- * tests/test_ccore.py compares this loop bit for bit with kernels.py.
+ * Change the maths in kernels.py and step_ above, then here: the tests
+ * compare this loop bit for bit with kernels.py.
  */
 #define LOC_MAX_ORDER 8
 
@@ -1529,8 +1534,8 @@ KERNEL void steps_(const double *p, double *s, const double *z, const unsigned c
 
 /* The two batch loops below are called once per run and not inlined: step_ is
  * compiled into their loops only, not again into each of gd_run's and
- * gd_run_trace's (it was, with every method's kernels in each copy: ~2/3 of
- * this file's compile time). */
+ * gd_run_trace's (inlined there, every method's kernels would be compiled
+ * once per copy: ~2/3 of this file's compile time). */
 
 /* gd_run's and gd_run_trace's loop for the methods and states without a loop of
  * their own (lowpass, AR orders above LOC_MAX_ORDER): the bank in s */

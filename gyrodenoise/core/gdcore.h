@@ -5,7 +5,7 @@
  * executable specification): the same functions with a gd_ prefix, the same
  * two flat buffers of doubles and the same floating-point operations in the
  * same order, so that results agree with the Python to rounding (tested to
- * 1e-12 by tests/test_ccore.py; in practice bit for bit).
+ * 1e-12; in practice bit for bit).
  *
  *   p  parameters, at least GD_N_PARAMS doubles (built by kernels.make_params)
  *   s  state, gd_layout_total(n) doubles (built by kernels.init_state)
@@ -69,7 +69,8 @@ extern "C" {
 #define MO_SPEC_K0 32              /* its first bin */
 #define MO_SPEC_NB 16              /* its bins, every other one */
 #define MO_SPEC_RANK 4             /* the rank of |X|^2 read */
-#define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped */
+#define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped;
+                                     so is a 4th difference beyond it in the lag noise estimates (M_MABS) */
 #define N_PARAMS (P_MO_COS + MO_SPEC_N)
 
 /* p[P_METHOD] values (doubles, compared with ==) */

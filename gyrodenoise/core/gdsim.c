@@ -1,7 +1,7 @@
 /*
  * gdsim.c -- the simulated gyro of a model card (see gdsim.h for the model, the
  * generator and the buffers). gyrodenoise/core/simkernels.py is the same code in
- * plain Python, operation for operation (tests/test_gdsim.py: equal).
+ * plain Python, operation for operation (tested equal).
  *
  * Compile with -ffp-contract=off and without -ffast-math (as gdcore.c).
  */

@@ -12,15 +12,15 @@ Functions mutate ``s`` in place and return the scalar output, like
 copy, save or restore it at any sample. ``gdcore.c`` (beside this file) is the
 same functions in C99 over the same buffers, operation for operation; the
 extension :mod:`gyrodenoise.core._gdcore` runs it for :mod:`gyrodenoise.core.batch`,
-:class:`gyrodenoise.Denoiser` and the FMUs, and tests/test_ccore.py holds it to
-this file bit for bit. This file needs nothing but ``math``: it is also the
+:class:`gyrodenoise.Denoiser` and the FMUs, and the tests hold it to this file
+bit for bit. This file needs nothing but ``math``: it is also the
 fallback where the compiled core is not available (an FMU on a platform its
 bundled binary does not fit), ~20-50 us a sample. Change the maths here first,
 then mirror it in gdcore.c (the tests fail until both agree).
 
 Equations cited are those of Sun et al. (2016), "FOG Random Drift Signal
 Denoising Based on the Improved AR Model and Modified Sage-Husa Adaptive Kalman
-Filter", Sensors 16(7):1073 (``../shared/seed/fog-ar-shakf-paper.txt``).
+Filter", Sensors 16(7):1073, doi:10.3390/s16071073.
 
 Choices the paper leaves open (documented in the README, "The method"):
 
@@ -90,7 +90,8 @@ MO_SPEC_N = 128     # spectral floor: block length, samples (Hann-windowed DFT p
 MO_SPEC_K0 = 32     # its first bin (MO_SPEC_N / 4: 0.25 fs) ...
 MO_SPEC_NB = 16     # ... and MO_SPEC_NB bins, every other one (nearly uncorrelated under the Hann window)
 MO_SPEC_RANK = 4    # the periodogram's MO_SPEC_RANK-th smallest of those bins is read (a low quantile)
-MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow)
+MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow);
+                         # so is a 4th difference beyond it in the lag noise estimates (M_MABS)
 N_PARAMS = P_MO_COS + MO_SPEC_N
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
@@ -207,17 +208,13 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     r_floor : float
         Lower bound for R and for the automatic noise levels, (deg/s)^2.
     outlier_sigma : float
-        Innovation gate (not in the paper; see docs/OUTLIERS.md). After the
-        warm-up, a sample whose predicted innovation exceeds
-        ``outlier_sigma * sqrt(S)`` (S = H P_pred H' + R) is rejected: it is not
-        used by the RLS, the filter update or the R/Q estimators, and the output
-        is the filter's prediction. 0 switches the gate off (the paper's
-        filter); otherwise it must be >= 2. Default 5 (see docs/OUTLIERS.md).
+        Innovation gate (not in the paper; docs/OUTLIERS.md, :func:`gate`): after
+        the warm-up a sample with |v| > outlier_sigma sqrt(S) is rejected (kept out
+        of the RLS, the filter and the R/Q estimators; the output is the filter's
+        prediction). 0 = off (the paper's filter); otherwise >= 2.
     outlier_run : int
-        With the gate on: after this many consecutive rejections the next
-        outlying sample is taken as a real rate change and the filter re-opens
-        (a restart at that sample: re-identification and warm-up). >= 1,
-        default 20 samples.
+        With the gate on: after this many consecutive rejections the filter
+        re-opens at the next outlying sample (a restart there). >= 1.
     cutoff_hz : float or None
         ``method="lowpass"``: -3 dB cutoff in Hz, 0 < cutoff_hz < sample_rate_hz / 2.
         None: 20 Hz (ArduPilot's and PX4's usual gyro filter), at most a
@@ -225,23 +222,65 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     order : int
         ``method="lowpass"``: Butterworth order, 1..8.
     max_motion_hz : float
-        ``method="motion"``, the rigid-body option (issue 23 item 4): the band of
-        interest, 0 < max_motion_hz < sample_rate_hz / 2; content above it (a
-        frame's vibration) counts as error. A Butterworth low-pass ahead of the
-        bank (see :func:`motion_step`, :func:`rigid_cutoff_hz`): order 4, -3 dB
-        at 2 x max_motion_hz (at most 0.45 x the sample rate), so gain >= 0.996
-        up to max_motion_hz, 0.71 at 2x, 0.062 (-24 dB) at 4x, 0.004 at 8x.
-        0 (default) = off: the filter is then exactly the one without the
-        option. Refused (> 0) with the other methods.
+        ``method="motion"``, the rigid-body option: the band of interest,
+        0 < max_motion_hz < sample_rate_hz / 2; content above it (a frame's
+        vibration) counts as error and a Butterworth low-pass ahead of the bank
+        removes it (:func:`rigid_cutoff_hz`: gain >= 0.996 up to max_motion_hz,
+        0.062 at 4x). 0 (default) = off. Refused (> 0) with the other methods.
 
     Raises
     ------
     ValueError
         With a one-line reason naming the parameter.
     """
+    n = _checked_order(ar_order)
+    _check_params(method, sample_rate_hz, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s,
+                  r_floor, outlier_sigma, outlier_run, max_motion_hz)
+    cutoff_hz, sos = _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz)
+    p = [0.0] * N_PARAMS
+    p[P_ORDER] = float(n)
+    p[P_METHOD] = METHODS[method]
+    p[P_LAM] = float(lam)
+    p[P_B] = float(b)
+    p[P_GAMMA] = float(gamma)
+    p[P_Q0] = float(q0)
+    p[P_R0] = float(r0)
+    p[P_P0_RLS] = float(p0_rls)
+    p[P_P0_KF] = float(p0_kf)
+    p[P_WARMUP] = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
+    p[P_R_FLOOR] = float(r_floor)
+    p[P_OUTLIER_SIGMA] = float(outlier_sigma)
+    p[P_OUTLIER_RUN] = float(int(outlier_run))
+    if method == "motion":
+        for i, v in enumerate(motion_params(sample_rate_hz)):
+            p[P_MO_NF + i] = v
+    _write_sections(p, cutoff_hz, sos)
+    return p
+
+
+def _write_sections(p, cutoff_hz, sos):
+    """Put the low-pass's second-order sections ``sos`` (none: nothing) into ``p``."""
+    if not sos:
+        return
+    p[P_LP_NSEC] = float(len(sos))
+    p[P_LP_CUTOFF] = float(cutoff_hz)
+    for i, sec in enumerate(sos):
+        for j in range(5):
+            p[P_SOS + 5 * i + j] = sec[j]
+
+
+def _checked_order(ar_order):
+    """The AR order as an int, or ValueError when it is not an integer >= 1."""
     n = int(ar_order)
     if n != ar_order or n < 1:
         raise ValueError(f"ar_order must be an integer >= 1, got {ar_order!r}")
+    return n
+
+
+def _check_params(method, sample_rate_hz, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s,
+                  r_floor, outlier_sigma, outlier_run, max_motion_hz):
+    """ValueError naming the first of :func:`make_params`'s scalar parameters out of
+    range (each must also be finite)."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
     checks = [
@@ -264,54 +303,36 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
             raise ValueError(f"{name} out of range: {value!r} (must be {rule})")
     if int(outlier_run) != outlier_run or outlier_run < 1:
         raise ValueError(f"outlier_run must be an integer >= 1, got {outlier_run!r}")
-    warmup = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
-    if method == "motion":
-        p_motion = motion_params(sample_rate_hz)
-    elif max_motion_hz > 0:
+
+
+def _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz):
+    """(cutoff_hz, second-order sections) of the Butterworth low-pass the method runs:
+    the rigid-body low-pass of ``motion`` with ``max_motion_hz`` > 0, the ``lowpass``
+    method's filter, or (cutoff_hz, []) for none. ValueError for a cutoff or order out of
+    range, or ``max_motion_hz`` with a method other than ``motion``."""
+    if method != "motion" and max_motion_hz > 0:
         raise ValueError(f"max_motion_hz applies to method 'motion' only, got method {method!r}")
-    sos = []
     if max_motion_hz > 0:
         cutoff_hz = rigid_cutoff_hz(float(max_motion_hz), float(sample_rate_hz))
-        sos = butter_sos(MAX_MOTION_ORDER, cutoff_hz, float(sample_rate_hz))
-    if method == "lowpass":
-        if cutoff_hz is None:
-            cutoff_hz = min(20.0, 0.25 * sample_rate_hz)
-        if not (0.0 < cutoff_hz < 0.5 * sample_rate_hz):
-            raise ValueError(f"cutoff_hz out of range: {cutoff_hz!r} (must be > 0 and below "
-                             f"half the sample rate, {0.5 * sample_rate_hz:g} Hz)")
-        if int(order) != order or not 1 <= order <= 2 * MAX_SOS:
-            raise ValueError(f"order must be an integer 1..{2 * MAX_SOS}, got {order!r}")
-        sos = butter_sos(int(order), float(cutoff_hz), float(sample_rate_hz))
-    p = [0.0] * N_PARAMS
-    p[P_ORDER] = float(n)
-    p[P_METHOD] = METHODS[method]
-    p[P_LAM] = float(lam)
-    p[P_B] = float(b)
-    p[P_GAMMA] = float(gamma)
-    p[P_Q0] = float(q0)
-    p[P_R0] = float(r0)
-    p[P_P0_RLS] = float(p0_rls)
-    p[P_P0_KF] = float(p0_kf)
-    p[P_WARMUP] = warmup
-    p[P_R_FLOOR] = float(r_floor)
-    p[P_OUTLIER_SIGMA] = float(outlier_sigma)
-    p[P_OUTLIER_RUN] = float(int(outlier_run))
-    if method == "motion":
-        for i, v in enumerate(p_motion):
-            p[P_MO_NF + i] = v
-    if sos:
-        p[P_LP_NSEC] = float(len(sos))
-        p[P_LP_CUTOFF] = float(cutoff_hz)
-        for i, sec in enumerate(sos):
-            for j in range(5):
-                p[P_SOS + 5 * i + j] = sec[j]
-    return p
+        return cutoff_hz, butter_sos(MAX_MOTION_ORDER, cutoff_hz, float(sample_rate_hz))
+    if method != "lowpass":
+        return cutoff_hz, []
+    if cutoff_hz is None:
+        cutoff_hz = min(20.0, 0.25 * sample_rate_hz)
+    if not (0.0 < cutoff_hz < 0.5 * sample_rate_hz):
+        raise ValueError(f"cutoff_hz out of range: {cutoff_hz!r} (must be > 0 and below "
+                         f"half the sample rate, {0.5 * sample_rate_hz:g} Hz)")
+    if int(order) != order or not 1 <= order <= 2 * MAX_SOS:
+        raise ValueError(f"order must be an integer 1..{2 * MAX_SOS}, got {order!r}")
+    return cutoff_hz, butter_sos(int(order), float(cutoff_hz), float(sample_rate_hz))
 
 
 def rigid_cutoff_hz(max_motion_hz, sample_rate_hz):
     """-3 dB point of the rigid-body low-pass for a stated band ``max_motion_hz``:
     MAX_MOTION_CUTOFF x max_motion_hz, at most MAX_MOTION_FS_CAP x the sample rate
-    (the native FMU repeats these operations)."""
+    (the native FMU repeats these operations). With the Butterworth of order
+    MAX_MOTION_ORDER the gain is >= 0.996 up to max_motion_hz, 0.71 at 2x, 0.062
+    (-24 dB) at 4x, 0.004 at 8x."""
     fc = MAX_MOTION_CUTOFF * max_motion_hz
     cap = MAX_MOTION_FS_CAP * sample_rate_hz
     return cap if fc > cap else fc
@@ -336,7 +357,7 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
-    filters tuned per record on the truth (benchmarks/tuned.py, issue 23); not
+    filters tuned per record on the truth (docs/reports/tuned/report.md); not
     meant to be tuned by a user.
 
     n_filters constant-velocity Kalman filters, tracking indices log-spaced
@@ -865,7 +886,7 @@ def log1m_small(g):
 
 
 def spectral_floor(p, s, o, z, k):
-    """The sensor's white-noise variance R read from the spectrum (issue 23):
+    """The sensor's white-noise variance R read from the spectrum:
     a floor that vibration tones do not lift. Returns the current estimate,
     (deg/s)^2, 0.0 before the first block. ``o``: offset of motion's state,
     ``z``: the raw centred sample, ``k``: samples since the restart.
@@ -953,7 +974,7 @@ def spectral_floor(p, s, o, z, k):
 def motion_step(p, s, z):
     """``method="motion"``: one centred sample ``z`` through a bank of
     constant-velocity Kalman filters weighted by their likelihoods (not in the
-    paper; issues 12 and 23).
+    paper).
 
     Model of every filter: state [omega, a], the true rate and its change per
     sample; omega += a, a += white noise (white-noise acceleration), z = omega +
@@ -968,8 +989,8 @@ def motion_step(p, s, z):
       smallest of them. Motion only adds to a 4th difference, and a lag-L
       difference is blind to the frequencies m fs / L, so the smallest reads
       the noise under slow manoeuvres and under a vibration tone that the
-      lag-1 difference takes for noise (issue 23: everything above fs/4 was
-      erased). Where the spectral floor is on (p[P_MO_SPEC] > 0,
+      lag-1 difference takes for noise (and would erase everything above
+      fs/4 with it). Where the spectral floor is on (p[P_MO_SPEC] > 0,
       :func:`spectral_floor`), the spectral estimate replaces it where it is
       below it by more than p[P_MO_SRATIO] (1: R is the smaller of the two): several tones lift every lag's estimate
       (the drone multirotor: 35-80x), not a low quantile of the spectrum.
@@ -998,7 +1019,7 @@ def motion_step(p, s, z):
     While warming up (``P_WARMUP`` samples, and until the noise level is read)
     the filters sit on z and the output is raw (as for the other methods).
 
-    Rigid-body option (``max_motion_hz``, p[P_LP_NSEC] > 0; issue 23 item 4):
+    Rigid-body option (``max_motion_hz``, p[P_LP_NSEC] > 0):
     the stated band of interest. The sample first passes a Butterworth
     low-pass flat to max_motion_hz (order 4, -3 dB at twice it:
     :func:`rigid_cutoff_hz`, :func:`sos_cascade`, delays at M_LPD), and the
@@ -1053,10 +1074,14 @@ def motion_step(p, s, z):
                   - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4])
             x = abs(d4)
             m = s[o + M_MABS + j - 1]
-            if clip and x > hub * m:
-                x = hub * m
-            m += d * (x - m)
-            s[o + M_MABS + j - 1] = m
+            # a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)
+            # is left out, so the mean stays below it and sig * sig below cannot
+            # overflow into an infinite R
+            if x < MO_SPEC_ZMAX:
+                if clip and x > hub * m:
+                    x = hub * m
+                m += d * (x - m)
+                s[o + M_MABS + j - 1] = m
             if j == 1 or m < least:
                 least = m
         if least == 0.0:

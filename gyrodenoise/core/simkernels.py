@@ -2,7 +2,7 @@
 
 The same functions as ``gyrodenoise/core/gdsim.c`` (model, generator, buffers: see
 ``gdsim.h``), operation for operation, over the same flat float buffers, so that
-the C and this give the same numbers (tests/test_gdsim.py). gyrodenoise.simulate
+the C and this give the same numbers (tested). gyrodenoise.simulate
 runs the C (through the extension ``gyrodenoise.core._gdcore``) and falls back to
 this where the extension is not built.
 

@@ -23,7 +23,7 @@ time column, a value that is not a number, NaN or inf, a short (truncated)
 row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
 no time column and no sample rate, a rate beyond :data:`ABSURD_RATE_DEG_S`
 (after unit conversion; not a gyro reading).
-The corpus ``tests/corpus/`` holds one file per case (see its README).
+The test suite's corpus of bad recordings holds one file per case.
 """
 
 from __future__ import annotations
@@ -88,36 +88,76 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
         The remedy a spike note names (default: the filters' outlier gate).
     """
     src = str(path)
-    if rate_unit not in RATE_UNITS:
-        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_UNITS)})", src)
-    if sample_rate_hz is not None and not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
-        raise InputError(f"sample rate must be a positive number, got {sample_rate_hz!r}", src)
+    _check_arguments(rate_unit, sample_rate_hz, src)
     text = _open_text(path)
     if not text.strip():
         raise InputError("empty file", src)
     reader = csv.reader(io.StringIO(text))
-    try:
-        header = [h.strip() for h in next(reader)]
-    except (StopIteration, csv.Error) as exc:
-        raise InputError(f"line 1: cannot read the header ({exc})", src) from None
-    if rate_column not in header:
-        if all(_is_number(h) for h in header):   # a row of numbers: no header at all
-            raise InputError(f"line 1: no header row (expected column names such as "
-                             f"'{time_column},{rate_column}')", src)
-        if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
-            raise InputError(f"line 1: fields are not separated by commas ({header[0]!r}); "
-                             f"a recording is a comma-separated CSV", src)
-        raise InputError(f"line 1: no column '{rate_column}' (columns: {', '.join(header)}); "
-                         f"use --rate-column", src)
+    header = _read_header(reader, rate_column, time_column, src)
     i_rate = header.index(rate_column)
     i_time = header.index(time_column) if time_column in header else None
     i_true = header.index(true_column) if true_column in header else None
     if i_time is None and sample_rate_hz is None:
         raise InputError(f"line 1: no column '{time_column}' and no --sample-rate given", src)
-    used = {i for i in (i_rate, i_time, i_true) if i is not None}
-    ignored = [h for j, h in enumerate(header) if j not in used]
-    cols = [i_rate] + ([i_time] if i_time is not None else []) + ([i_true] if i_true is not None else [])
     names = {i_rate: rate_column, i_time: time_column, i_true: true_column}
+    cols = [i_rate] + ([i_time] if i_time is not None else []) + ([i_true] if i_true is not None else [])
+    values = _read_values(reader, header, cols, names, src)
+    n = len(values[i_rate])
+    if n == 0:
+        raise InputError("header only, no data rows", src)
+    if n < MIN_SAMPLES:
+        raise InputError(f"only {n} data row(s); at least {MIN_SAMPLES} are needed", src)
+    scale = RATE_UNITS[rate_unit]
+    rate = np.asarray(values[i_rate]) * scale
+    true = np.asarray(values[i_true]) * scale if i_true is not None else None
+    _check_rate_magnitude(rate, values[i_rate], text, rate_column, rate_unit, src)
+    notes = []
+    ignored = [h for j, h in enumerate(header) if j not in (i_rate, i_time, i_true)]
+    if ignored:
+        notes.append(f"ignored columns: {', '.join(ignored)}")
+    notes.extend(_signal_notes(rate, lambda i: _line_of(text, i), spike_advice))
+    if i_time is None:
+        fs = float(sample_rate_hz)
+        t = np.arange(n) / fs
+        restarts = None
+    else:
+        t = np.asarray(values[i_time])
+        fs, restarts, gap_notes = _time_axis(t, n, sample_rate_hz, text, src)
+        notes.extend(gap_notes)
+    return Record(rate_deg_s=rate, sample_rate_hz=fs, time_s=t, true_rate_deg_s=true,
+                  restarts=restarts, source=src, notes=notes)
+
+
+def _check_arguments(rate_unit, sample_rate_hz, src):
+    """InputError for a rate unit or a stated sample rate the reader cannot use."""
+    if rate_unit not in RATE_UNITS:
+        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_UNITS)})", src)
+    if sample_rate_hz is not None and not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
+        raise InputError(f"sample rate must be a positive number, got {sample_rate_hz!r}", src)
+
+
+def _read_header(reader, rate_column, time_column, src):
+    """The header row's column names; InputError when it cannot be read or has no rate
+    column (saying why: no header at all, another field separator, another name)."""
+    try:
+        header = [h.strip() for h in next(reader)]
+    except (StopIteration, csv.Error) as exc:
+        raise InputError(f"line 1: cannot read the header ({exc})", src) from None
+    if rate_column in header:
+        return header
+    if all(_is_number(h) for h in header):   # a row of numbers: no header at all
+        raise InputError(f"line 1: no header row (expected column names such as "
+                         f"'{time_column},{rate_column}')", src)
+    if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
+        raise InputError(f"line 1: fields are not separated by commas ({header[0]!r}); "
+                         f"a recording is a comma-separated CSV", src)
+    raise InputError(f"line 1: no column '{rate_column}' (columns: {', '.join(header)}); "
+                     f"use --rate-column", src)
+
+
+def _read_values(reader, header, cols, names, src):
+    """{column index: list of floats} of the columns ``cols`` over the data rows (blank
+    lines skipped); InputError at the first short row, non-number, NaN or inf."""
     need = max(cols) + 1
     values = {c: [] for c in cols}
     lineno = 1
@@ -141,53 +181,46 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
                 values[c].append(v)
     except csv.Error as exc:
         raise InputError(f"line {lineno}: {exc}", src) from None
-    n = len(values[i_rate])
-    if n == 0:
-        raise InputError("header only, no data rows", src)
-    if n < MIN_SAMPLES:
-        raise InputError(f"only {n} data row(s); at least {MIN_SAMPLES} are needed", src)
-    scale = RATE_UNITS[rate_unit]
-    rate = np.asarray(values[i_rate]) * scale
-    true = np.asarray(values[i_true]) * scale if i_true is not None else None
+    return values
+
+
+def _check_rate_magnitude(rate, cells, text, rate_column, rate_unit, src):
+    """InputError at the first rate beyond ABSURD_RATE_DEG_S (deg/s, after the unit)."""
     big = np.flatnonzero(np.abs(rate) > ABSURD_RATE_DEG_S)
     if big.size:
         j = int(big[0])
-        raise InputError(f"line {_line_of(text, j)}: column {rate_column}: {values[i_rate][j]!r} "
+        raise InputError(f"line {_line_of(text, j)}: column {rate_column}: {cells[j]!r} "
                          f"{rate_unit} is beyond {ABSURD_RATE_DEG_S:g} deg/s, not a gyro reading "
                          f"(wrong --rate-unit?)", src)
-    notes = []
-    if ignored:
-        notes.append(f"ignored columns: {', '.join(ignored)}")
-    notes.extend(_signal_notes(rate, lambda i: _line_of(text, i), spike_advice))
-    restarts = None
-    if i_time is not None:
-        t = np.asarray(values[i_time])
-        dt = np.diff(t)
-        bad = np.flatnonzero(dt <= 0)
-        if bad.size:
-            j = int(bad[0])
-            what = "repeated" if dt[j] == 0 else "decreasing"
-            # data line numbers: header is line 1, so sample i is on line i + 2
-            raise InputError(f"line {_line_of(text, j + 1)}: {what} time {float(t[j + 1]):.10g} "
-                             f"(previous {float(t[j]):.10g})", src)
-        med = float(np.median(dt))
-        fs = 1.0 / med
-        if sample_rate_hz is not None and abs(sample_rate_hz - fs) > 0.01 * fs:
-            raise InputError(f"--sample-rate {sample_rate_hz:g} Hz disagrees with the time column "
-                             f"({fs:g} Hz)", src)
-        gaps = np.flatnonzero(dt > GAP_FACTOR * med)
-        if gaps.size:
-            restarts = np.zeros(n, dtype=bool)
-            restarts[gaps + 1] = True
-            first = int(gaps[0])
-            notes.append(f"{gaps.size} time gap(s) longer than {GAP_FACTOR} sample periods "
-                         f"(first at t={t[first]:g} s, {dt[first]:g} s long): not interpolated; "
-                         f"the filter restarts after each gap")
-    else:
-        fs = float(sample_rate_hz)
-        t = np.arange(n) / fs
-    return Record(rate_deg_s=rate, sample_rate_hz=fs, time_s=t, true_rate_deg_s=true,
-                  restarts=restarts, source=src, notes=notes)
+
+
+def _time_axis(t, n, sample_rate_hz, text, src):
+    """(sample rate, restarts or None, notes) of a time column ``t`` of a record of ``n``
+    samples: the rate from the median
+    period; a restart after each gap longer than GAP_FACTOR periods (reported, not
+    interpolated). InputError for a repeated or decreasing time, or a stated sample rate
+    that disagrees with the column by more than 1 %."""
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        j = int(bad[0])
+        what = "repeated" if dt[j] == 0 else "decreasing"
+        raise InputError(f"line {_line_of(text, j + 1)}: {what} time {float(t[j + 1]):.10g} "
+                         f"(previous {float(t[j]):.10g})", src)
+    med = float(np.median(dt))
+    fs = 1.0 / med
+    if sample_rate_hz is not None and abs(sample_rate_hz - fs) > 0.01 * fs:
+        raise InputError(f"--sample-rate {sample_rate_hz:g} Hz disagrees with the time column "
+                         f"({fs:g} Hz)", src)
+    gaps = np.flatnonzero(dt > GAP_FACTOR * med)
+    if not gaps.size:
+        return fs, None, []
+    restarts = np.zeros(n, dtype=bool)
+    restarts[gaps + 1] = True
+    first = int(gaps[0])
+    return fs, restarts, [f"{gaps.size} time gap(s) longer than {GAP_FACTOR} sample periods "
+                          f"(first at t={t[first]:g} s, {dt[first]:g} s long): not interpolated; "
+                          f"the filter restarts after each gap"]
 
 
 def _runs_at(x, value, min_len):
