@@ -5,8 +5,8 @@ Both are timed as fresh processes (interpreter start and imports included),
 alternately, ``--repeat`` times; the medians and their ratio are printed.
 Target: ratio <= 1.1.
 
-    .venv/bin/python benchmarks/bench_bridge.py [LOG] [--repeat 5]
-    .venv/bin/python benchmarks/bench_bridge.py [LOG] --against REV [--repeat 7]
+    python benchmarks/bench_bridge.py [LOG] [--repeat 5]
+    python benchmarks/bench_bridge.py [LOG] --against REV [--repeat 7]
 
 ``--against REV`` instead times ``gyrodenoise mavlink LOG`` (with and without
 plots) of this tree and of the commit REV, alternately, in fresh processes of
