@@ -1,4 +1,4 @@
-"""Fleet throughput on a Dask cluster (issue 15): a benchmark, not a test.
+"""Fleet throughput on a Dask cluster: a benchmark, not a test.
 
     python benchmarks/bench_cluster.py [--logs ../shared/data/logs] [--repeat 3]
 
@@ -20,10 +20,10 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from _data import SHARED_DATA
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
+
+from benchmarks._data import SHARED_DATA
 
 
 #: Worker settings docs/FLEET.md recommends for this workload (measured here): the

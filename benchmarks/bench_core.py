@@ -1,4 +1,4 @@
-"""Core speed benchmark (issues 2 and 13): prints ratios measured in this one process.
+"""Core speed benchmark: prints ratios measured in this one process.
 
     python benchmarks/bench_core.py
 
@@ -10,16 +10,20 @@
    same signature, and the plain-Python kernels (the executable specification);
 3. Allan deviation + five-term fit of 1e6 samples at >= 100 taus, vs allantools.oadev.
 
-Targets (issue 13): batch <= 3.5x the bare KF loop (motion, issue 23: <= 4x) and >= 500x filterpy;
-Denoiser.step <= 10x a trivial method call.
+Targets: batch <= 3.5x the bare KF loop (motion: <= 4x); Denoiser.step <= 10x a trivial
+method call; Allan deviation + fit of 1e6 samples <= 0.5 s. The ratio to filterpy is printed
+without a target: it moves with filterpy's own speed more than with ours.
 """
 import ctypes
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
 
 BARE_KF_C = r"""
 /* A bare scalar 3-state KF (random walk rate, AR(1) error, bias), fixed Q and R:
@@ -86,7 +90,7 @@ class Trivial:
 
 def main():
     import gyrodenoise as gd
-    from gyrodenoise.analysis import allan as allanvar
+    from gyrodenoise.analysis import allan
     from gyrodenoise.core import kernels as K
     from gyrodenoise.core.batch import compiled_core, run
     if not compiled_core():
@@ -104,7 +108,7 @@ def main():
         t = best_of(lambda: run(p, K.init_state(p), z), 5) / n
         label = method + (" (paper, no gate)" if kw else "")
         t_method[label] = t
-        target = "<= 4x, issue 23" if method == "motion" else "<= 3.5x"
+        target = "<= 4x" if method == "motion" else "<= 3.5x"
         print(f"C core batch, {label:<28} {t * 1e9:6.1f} ns/sample = {t / t_bare:4.2f}x the bare KF "
               f"(target {target})")
 
@@ -125,7 +129,7 @@ def main():
             kf.update(v)
     t_fp = best_of(filterpy_loop) / mf
     print(f"filterpy KalmanFilter (same 4-state model):  {t_fp * 1e6:6.2f} us/sample; "
-          f"ratio to the C SHAKF {t_fp / t_method['shakf']:.0f}x (target >= 500x)")
+          f"ratio to the C SHAKF {t_fp / t_method['shakf']:.0f}x")
 
     # per sample
     m = 200_000
@@ -148,9 +152,9 @@ def main():
 
     rng = np.random.default_rng(0)
     x = rng.standard_normal(1_000_000)
-    allanvar.allan(x[:2000], 100.0)                   # compile
-    ms = allanvar.default_m(x.size, per_decade=20)
-    t_ours = best_of(lambda: allanvar.allan(x, 100.0, m=ms))
+    allan.allan(x[:2000], 100.0)                      # compile
+    ms = allan.default_m(x.size, per_decade=20)
+    t_ours = best_of(lambda: allan.allan(x, 100.0, m=ms))
     import allantools
     t_at = best_of(lambda: allantools.oadev(x, rate=100.0, data_type="freq", taus=ms / 100.0), 1)
     print(f"Allan deviation + 5-term fit, 1e6 samples, {ms.size} taus: {t_ours:.3f} s (target <= 0.5 s)")

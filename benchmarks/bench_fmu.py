@@ -12,12 +12,12 @@ Prints, in one run:
     FogDenoiserNative.fmu, SimulatedFog.fmu and SimulatedFogNative.fmu (paper_fog);
   * the 10-minute 200 Hz two-FMU validation run (SimulatedFog -> FogDenoiser).
 
-Targets: FogDenoiser >= 0.7x the steps/s of the empty FMU in the same run (issue 13),
+Targets: FogDenoiser >= 0.7x the steps/s of the empty FMU in the same run,
 >= 50 000 steps/s; 10-min validation run <= 10 s; each native FMU >= 10x the steps/s of the
-empty pythonfmu FMU from the C host (issues 14 and 22).
+empty pythonfmu FMU from the C host.
 
-    .venv/bin/python benchmarks/bench_fmu.py [--steps N] [--fmu-dir DIR] [--skip-long] [--wine]
-    .venv/bin/python benchmarks/bench_fmu.py --native-only [--wine]   # the native FMUs by platform
+    python benchmarks/bench_fmu.py [--steps N] [--fmu-dir DIR] [--skip-long] [--wine]
+    python benchmarks/bench_fmu.py --native-only [--wine]   # the native FMUs by platform
 """
 
 import argparse
@@ -29,10 +29,10 @@ import time
 from pathlib import Path
 
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
 
-from gyrodenoise import fmu as F  # noqa: E402
+from benchmarks._data import REPO
+from gyrodenoise import fmu as F
 
 EMPTY_SLAVE = textwrap.dedent('''
     from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real

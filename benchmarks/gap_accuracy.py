@@ -6,15 +6,18 @@ For each effect of the vocabulary, simulate RECORDS "measured" records (30 min a
 often the right effect is named alone, the median and worst relative error of
 each fitted parameter, and the median gap before/after.
 
-Run: .venv/bin/python benchmarks/gap_accuracy.py [RECORDS]
+Run: python benchmarks/gap_accuracy.py [RECORDS]
 """
 
 from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
 
 import gyrodenoise as gd
 from gyrodenoise.modelgap import edit_card

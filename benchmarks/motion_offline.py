@@ -1,4 +1,4 @@
-"""``method="motion"`` offline (issue 23, item 3) as a method for benchmarks/tuned.py:
+"""``method="motion"`` offline as a method for benchmarks/tuned.py:
 
     python benchmarks/tuned.py --method benchmarks/motion_offline.py:offline
 """

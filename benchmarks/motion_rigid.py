@@ -1,4 +1,4 @@
-"""``method="motion"`` with the rigid-body option (issue 23, item 4) as methods for
+"""``method="motion"`` with the rigid-body option (``max_motion_hz``) as methods for
 benchmarks/tuned.py and benchmarks/real_motion.py:
 
     python benchmarks/real_motion.py --only path --method benchmarks/motion_rigid.py:band20 \\

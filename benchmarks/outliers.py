@@ -1,4 +1,4 @@
-"""What a user gets from the SHAKF on records with wild samples (issue 7).
+"""What a user gets from the SHAKF on records with wild samples.
 
     python benchmarks/outliers.py [--quick]
 
@@ -22,15 +22,18 @@ Numbers are measured here, in this process; docs/OUTLIERS.md quotes them.
 """
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
+
 import gyrodenoise as gd
-from gyrodenoise.core import kernels as K
+from benchmarks._data import SHARED_DATA
 from gyrodenoise.analysis.allan import allan
-from gyrodenoise.core.batch import run
 from gyrodenoise.analysis.experiments import rise_time
-from _data import SHARED_DATA
+from gyrodenoise.core import kernels as K
+from gyrodenoise.core.batch import run
 
 DATA = SHARED_DATA / "static"
 SIGMAS = (0.0, 4.0, 5.0, 6.0)

@@ -1,4 +1,4 @@
-"""Seeded ground-truth rate profiles for the motion benchmark (issue 12).
+"""Seeded ground-truth rate profiles: true angular rates to simulate a moving gyro with.
 
 Every profile is a plain function returning the *true* angular rate in deg/s
 for ``n`` samples at ``sample_rate_hz``; feed it to
@@ -35,9 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
-#: The shared real PX4 log, beside the repository (``../shared/data/logs``; not
-#: copied into the repository: see ../shared/data/README.md).
-DEFAULT_ULOG = str(Path(__file__).resolve().parents[2] / "shared" / "data" / "logs" / "px4_sample.ulg")
+from benchmarks._data import SHARED_DATA
+
+#: The shared real PX4 log (``../shared/data/logs``; not copied into the repository:
+#: see ../shared/data/README.md).
+DEFAULT_ULOG = str(SHARED_DATA / "logs" / "px4_sample.ulg")
 
 
 def _check(n, sample_rate_hz):
@@ -142,22 +144,24 @@ def rest_manoeuvre_rest(n, sample_rate_hz, seed=0, rms_deg_s=20.0, bandwidth_hz=
 
 
 def load_ulog_gyro_deg_s(path=DEFAULT_ULOG):
-    """(time_s, rate_deg_s[N, 3]) of ``sensor_combined.gyro_rad`` in a PX4 ULog.
+    """(time_s from the first sample, rate_deg_s[N, 3]) of ``sensor_combined.gyro_rad`` in a
+    PX4 ULog, read by the package's reader (:func:`gyrodenoise.mavlink.ulog.read`).
 
-    Raises FileNotFoundError if the file is absent and ImportError (with the
-    package name) if pyulog is not installed."""
+    The log stores whole microseconds and float32 rad/s: the time is taken in whole
+    microseconds from the first sample and the rate converted in the log's own precision.
+    Raises FileNotFoundError if the file is absent, ValueError if it has no
+    ``sensor_combined`` gyro, and gyrodenoise's InputError if it cannot be read."""
+    from gyrodenoise.mavlink import ulog
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"flight_like needs the PX4 log {p} (sensor_combined.gyro_rad); "
                                 f"not found")
-    try:
-        from pyulog import ULog
-    except ImportError as exc:  # pragma: no cover
-        raise ImportError("flight_like needs the 'pyulog' package to read the ULog") from exc
-    d = ULog(str(p), ["sensor_combined"]).get_dataset("sensor_combined").data
-    t = (d["timestamp"] - d["timestamp"][0]) * 1e-6
-    g = np.column_stack([d[f"gyro_rad[{i}]"] for i in range(3)])
-    return t, np.degrees(g)
+    _, streams, _ = ulog.read(p)
+    gyro = next((s for s in streams if s.message == "sensor_combined"), None)
+    if gyro is None:
+        raise ValueError(f"{p}: no sensor_combined.gyro_rad in the log")
+    time_us = np.rint(gyro.time_s * 1e6)
+    return (time_us - time_us[0]) * 1e-6, np.degrees(gyro.raw.astype(gyro.field_dtype))
 
 
 def flight_like(n, sample_rate_hz, seed=0, path=DEFAULT_ULOG, axis=0, smooth_hz=10.0,

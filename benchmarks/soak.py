@@ -1,7 +1,7 @@
-"""Soak test (issue 7): a long run of the batch SHAKF and of the FogDenoiser FMU.
+"""Soak test: a long run of the batch SHAKF and of the FogDenoiser FMU.
 
-    .venv/bin/python benchmarks/soak.py                  # 24 h batch + 1 h FMU at 200 Hz
-    .venv/bin/python benchmarks/soak.py --hours 1 --fmu-hours 0.05   # quick look
+    python benchmarks/soak.py                  # 24 h batch + 1 h FMU at 200 Hz
+    python benchmarks/soak.py --hours 1 --fmu-hours 0.05   # quick look
 
 Not part of the test run. The simulated paper_fog gyro (at a constant true rate)
 is generated in chunks with :class:`gyrodenoise.simulator.SimStream` (so the
@@ -31,12 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
 
-from gyrodenoise.core import kernels as K  # noqa: E402
-from gyrodenoise.core.batch import run  # noqa: E402
-from gyrodenoise.simulator import DEG_RTH, SimStream, load_card  # noqa: E402
+from gyrodenoise.core import kernels as K
+from gyrodenoise.core.batch import run
+from gyrodenoise.simulator import DEG_RTH, SimStream, load_card
 
 
 def rss_mb():

@@ -1,4 +1,4 @@
-"""The sceptic's benchmark (benchmarks/sceptic, issue 23): its simulator against
+"""The motion benchmark (benchmarks/motion_bench): its simulator against
 analytic expectations, its tuned baselines against independent references, its
 metrics against known answers. Seeded; tolerances stated per test."""
 
@@ -6,18 +6,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from benchmarks.motion_bench import baselines as B
+from benchmarks.motion_bench import bench, sim
 
-from sceptic import baselines as B  # noqa: E402
-from sceptic import bench, sim  # noqa: E402
-
-from gyrodenoise.analysis.allan import adev  # noqa: E402
+from gyrodenoise.analysis.allan import adev
 
 
 def _only(sensor_key, **kw):
@@ -214,7 +210,7 @@ def test_evaluate_api_and_goal_lines():
 
 
 # ------------------------------------------------------------------ real motion (item 5)
-from sceptic import realmotion as RM  # noqa: E402
+from benchmarks.motion_bench import realmotion as RM  # noqa: E402
 
 from conftest import shared_file  # noqa: E402
 

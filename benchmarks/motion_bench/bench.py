@@ -1,8 +1,8 @@
-"""Scoring methods against the tuned baselines (issue 23, item 1).
+"""Scoring methods against the tuned baselines.
 
 API (stable; the filter work calls it)::
 
-    from sceptic import bench
+    from benchmarks.motion_bench import bench
     rows = bench.evaluate({"mine": fn}, sensors=None, profiles=None, seeds=(0, 1, 2), quick=False)
     summary = bench.summarise(rows)            # geometric means per method and sensor
     gains = bench.gain_table({"mine": fn}, quick=True)
@@ -10,7 +10,7 @@ API (stable; the filter work calls it)::
 
 ``fn(rate_deg_s: ndarray, sample_rate_hz: float) -> ndarray`` (same length).
 
-Per run (sensor x profile x seed) the tuned baselines of :mod:`sceptic.baselines`
+Per run (sensor x profile x seed) the tuned baselines of :mod:`benchmarks.motion_bench.baselines`
 are tuned against the reference and every method is scored on the same
 evaluation window (after ``SKIP_S``):
 
@@ -25,7 +25,7 @@ evaluation window (after ``SKIP_S``):
 
 Ratios are geometric means over seeds; angle errors RMS over seeds; lag mean.
 
-``rigid=True`` (issue 23 item 4, "vibration counted as error"): the reference is
+``rigid=True`` ("vibration counted as error"): the reference is
 the true rate *without the frame vibration* plus the slow bias (a user who states
 a band of interest counts the vibration as error), the baselines are tuned against
 that, and every row also carries ``ratio_lowpass``: rmse / the best tuned
@@ -39,8 +39,8 @@ import time
 
 import numpy as np
 
-from . import baselines as B
-from . import sim
+from benchmarks.motion_bench import baselines as B
+from benchmarks.motion_bench import sim
 
 SKIP_S = 2.0
 ANGLE_WINDOW_S = 60.0
@@ -66,7 +66,7 @@ def package_methods(names=("motion", "shakf", "kf", "lowpass", "none")):
 
 
 def rigid_methods(max_motion_hz=(20.0,), offline=True):
-    """``motion`` with the rigid-body option at each stated band (issue 23 item 4), causal
+    """``motion`` with the rigid-body option at each stated band, causal
     (``motion@<hz>``) and, with ``offline``, its offline form (``motion_offline@<hz>``)."""
     import gyrodenoise as gd
 
@@ -301,12 +301,12 @@ def gain_table(method_fn, sensors=None, quick=False, snrs=GAIN_SNR, seed=0, prog
     return rows
 
 
-# ------------------------------------------------------------------ goal of issue 23 item 4
+# ------------------------------------------------------------------ goal: vibration counted as error
 RIGID_GOAL = 1.25
 
 
 def rigid_goal_lines(rows, methods):
-    """[(method, goal text, measured, 'PASS'|'FAIL')]: item 4, vibration counted as error:
+    """[(method, goal text, measured, 'PASS'|'FAIL')]: vibration counted as error:
     geometric mean over the rows (sensor x profile) of rmse / the best tuned low-pass (causal
     Butterworth 1-2; for an offline method, whose name says so, the tuned zero-phase one)."""
     out = []
@@ -324,9 +324,9 @@ def rigid_goal_lines(rows, methods):
     return out
 
 
-# ------------------------------------------------------------------ goals (issue 23 item 2)
+# ------------------------------------------------------------------ goals against the tuned baselines
 def goal_lines(rows, gains, methods=None):
-    """[(method, goal text, measured, 'PASS'|'FAIL')] for the measurable lines of item 2."""
+    """[(method, goal text, measured, 'PASS'|'FAIL')] for the measurable goals against the tuned baselines."""
     methods = methods or [m for m in dict.fromkeys(r["method"] for r in rows)
                           if m not in B.CAUSAL + B.NONCAUSAL + ("best_causal",)]
     summ = summarise(rows)

@@ -1,4 +1,4 @@
-"""Real moving gyros against a motion reference (issue 23, item 5).
+"""Real moving gyros against a motion reference.
 
 No per-sample true rate exists on real data: each method's output is
 integrated into orientation over windows (0.1 s and 1 s) and compared with the
@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from _data import SHARED_DATA  # benchmarks/ is on sys.path
+from benchmarks._data import SHARED_DATA
 
 try:
     import numba

@@ -1,4 +1,4 @@
-"""An independent gyro simulator for the sceptic's benchmark (issue 23).
+"""An independent gyro simulator for the motion benchmark.
 
 Written directly with numpy (it does not use :mod:`gyrodenoise.simulator` or
 the model cards), seeded by ``numpy.random.default_rng(seed)``.

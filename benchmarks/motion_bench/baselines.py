@@ -38,7 +38,7 @@ def _njit(fn):
 
 CAUSAL = ("raw", "butter1", "butter2", "one_euro", "cv_kf")
 NONCAUSAL = ("raw", "savgol", "zp_butter", "cv_rts")   # the identity is zero-phase too
-LOWPASS = ("butter1", "butter2")                        # "the best tuned low-pass" (issue 23 item 4)
+LOWPASS = ("butter1", "butter2")                        # "the best tuned low-pass" (rigid-body goal)
 
 
 def cutoff_grid_hz(fs, quick):
