@@ -8,26 +8,21 @@ import os
 import sys
 from pathlib import Path
 
+from gyrodenoise.cli.options import add_recording_options
+from gyrodenoise.cli.program import emit_json
+from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
 
 
-def _log(msg):
-    print(msg, file=sys.stderr, flush=True)
-
-
 def register_cli(subparsers):
-    from gyrodenoise.cli.commands import _add_input_options
     p = subparsers.add_parser(
         "gap", help="what a model card misses to behave like a measured record; writes the completed card",
         description="Simulate CARD like MEASURED (same rate and length, several seeds), compare Allan "
                     "deviation, PSD, mean and trend, name and fit the missing effects, write NEW.toml.")
-    _add_input_options(p)
-    for a in p._actions:       # IN is optional with --allan (a published curve is the measurement)
-        if a.dest == "input":
-            a.nargs = "?"
-            a.help = "recording CSV (columns time,rate; .gz ok) or a PSINS .imu log; omit with --allan"
-        if a.dest == "rate_unit":   # None: not given, said in a note (a rad/s record read as deg/s fits 57x off)
-            a.default = None
+    # IN is optional with --allan (a published curve is the measurement); the rate unit not
+    # given is said in a note (a rad/s record read as deg/s fits 57x off)
+    add_recording_options(p, input_optional=True, rate_unit_default=None,
+                          input_help="recording CSV (columns time,rate; .gz ok) or a PSINS .imu log; omit with --allan")
     p.add_argument("--allan", default=None, metavar="CURVE.csv",
                    help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
                         "measurement instead of IN; see docs/GAP.md")
@@ -108,21 +103,21 @@ def _read_input(args):
     """The record: a PSINS .imu log (--rate-column gyro_x/y/z) or a recording CSV."""
     if str(args.input).lower().endswith(".imu"):
         from gyrodenoise.io.psins import read_psins
-        log = read_psins(args.input)
-        rate = log.axis("gyro_z" if args.rate_column == "rate" else args.rate_column)   # refuse first
+        imu = read_psins(args.input)
+        rate = imu.axis("gyro_z" if args.rate_column == "rate" else args.rate_column)   # refuse first
         if args.latitude is None:
-            args.latitude = log.latitude_deg
-            _log(f"gyrodenoise: note: {args.input}: latitude {log.latitude_deg:g} deg from the log's header")
-        return rate, log.sample_rate_hz, None
+            args.latitude = imu.latitude_deg
+            log(f"gyrodenoise: note: {args.input}: latitude {imu.latitude_deg:g} deg from the log's header")
+        return rate, imu.sample_rate_hz, None
     from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit or "deg/s", sample_rate_hz=args.sample_rate,
                          spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
                                       "off the running median (another test: its count may differ)")
-    check_record = __import__("gyrodenoise.modelgap", fromlist=["check_record"]).check_record
+    from gyrodenoise.modelgap import check_record
     check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
     for note in rec.notes:
-        _log(f"gyrodenoise: note: {args.input}: {note}")
+        log(f"gyrodenoise: note: {args.input}: {note}")
     return rec.rate_deg_s, rec.sample_rate_hz, rec.restarts
 
 
@@ -130,7 +125,6 @@ def _cmd_allan(args, card):
     """gap --allan CURVE.csv: fit the card's noise terms to a published Allan curve, check by simulation."""
     import numpy as np
 
-    from gyrodenoise.cli.program import emit_json
     from gyrodenoise.modelgap.curve import card_from_terms, fit_curve, inside, read_allan_curve, simulated_curve
     curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit or "deg/s", args.sample_rate,
                              args.n_samples)
@@ -138,12 +132,12 @@ def _cmd_allan(args, card):
         raise InputError("the curve's ADEV columns carry no unit: give --allan-unit deg/s, deg/h or rad/s "
                          "(a rad/s curve read as deg/s would be 57x too small)", args.allan)
     for note in curve.notes:
-        _log(f"gyrodenoise: note: {args.allan}: {note}")
+        log(f"gyrodenoise: note: {args.allan}: {note}")
     terms, model = fit_curve(curve)
     text = card_from_terms(card.text, terms, f"fitted to {Path(args.allan).name} ({curve.label})", card.source)
     from gyrodenoise.modelgap.cards import text_at_rate
     text = text_at_rate(text, curve.sample_rate_hz)
-    _log(f"gyrodenoise: simulating {args.seeds} records of {curve.n_samples} samples at {curve.sample_rate_hz:g} Hz")
+    log(f"gyrodenoise: simulating {args.seeds} records of {curve.n_samples} samples at {curve.sample_rate_hz:g} Hz")
     mean, runs = simulated_curve(text, curve, range(1, args.seeds + 1), card.source)
     ok = inside(curve, mean)
     rows = [{"tau_s": float(t), "adev_deg_s": float(a), "lo": None if not np.isfinite(lo) else float(lo),
@@ -196,7 +190,6 @@ def _cmd_allan(args, card):
 
 
 def cmd_gap(args):
-    from gyrodenoise.cli.program import emit_json
     from gyrodenoise.modelgap import card_at_rate, check_record, format_report, gap, plot_gap
     from gyrodenoise.modelgap.report import describe_edits
     from gyrodenoise.simulator import load_card
@@ -226,11 +219,11 @@ def cmd_gap(args):
     if abs(card.sample_rate_hz - fs) > 1e-6 * fs:
         card_at_rate(card.text, fs, card.source)   # refuse first (one line), then note
         _at_fitted_rate(card.text, fs, card.sample_rate_hz, args.model)
-        _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
+        log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
              f"{fs:g} Hz: simulating at the record's rate; {args.out} states the record's rate when a "
              f"term is fitted (the terms are fitted at it), else keeps the card's")
     if args.rate_unit is None and not str(args.input).lower().endswith(".imu"):   # after every refusal
-        _log(f"gyrodenoise: note: {args.input}: column {args.rate_column!r} read as deg/s (the default; "
+        log(f"gyrodenoise: note: {args.input}: column {args.rate_column!r} read as deg/s (the default; "
              f"--rate-unit deg/h or rad/s if the record is in another unit: the fitted card scales with it)")
     res = gap(rate, fs, card, seeds=args.seeds, engine=args.engine,
               restarts=restarts, max_effects=args.max_effects, fmu_dir=args.fmu_dir,
