@@ -121,34 +121,11 @@ def _cmd_card(args):
 def _cmd_run(args):
     fmu_dir = Path(args.fmu_dir)
     _resolve_card(args.card)          # a bad card is a user error before anything runs
-    reasons = {n: stale_reason(fmu_dir / f"{n}.fmu") for n in FMUS}
-    if any(reasons.values()):
-        why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
-        log(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})")
-        build_all(fmu_dir)
-    if args.master != "fmpy":       # the chain in libcosim and the SSP: the native FMUs
-        from gyrodenoise.fmu.native import DENOISER, build_native_fmus, native_stale_reason
-        from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
-        why = {spec.name: native_stale_reason(fmu_dir / f"{spec.name}.fmu", spec)
-               for spec in (DENOISER, SIMULATED_FOG_NATIVE)}
-        if any(why.values()):
-            log(f"gyrodenoise: (re)building the native FMUs in {fmu_dir}/ ("
-                + "; ".join(f"{n}: {r}" for n, r in why.items() if r) + ")")
-            build_native_fmus(fmu_dir)
+    _rebuild_stale(fmu_dir, native=args.master != "fmpy")
     if args.duration <= 0:
         raise InputError(f"--duration must be > 0 s, got {args.duration}")
-    if args.rate is not None:
-        cases = {"constant_rate": args.rate}
-    else:
-        cases = {"static": 0.0, "constant_rate": args.constant_rate}
-    if args.restart_at is None:
-        restart_at = args.duration / 2
-    else:
-        restart_at = None if args.restart_at < 0 else args.restart_at
     results = {}
-    for case, rate in cases.items():
-        kw = dict(duration_s=args.duration, rate_deg_s=rate, restart_at_s=restart_at, seed=args.seed,
-                  card=args.card, method=args.method, ar_order=args.ar_order)
+    for case, kw in _cases(args).items():
         log(f"gyrodenoise: fmu run: {case} ({args.master})")
         if args.master == "fmpy":
             results[case] = validation_run(fmu_dir, **kw)
@@ -162,6 +139,40 @@ def _cmd_run(args):
         print(_format_results(results))
         print("ok" if ok else "FAILED: FMU output differs from the core", flush=True)
     return 0 if ok else 1
+
+
+def _rebuild_stale(fmu_dir, native):
+    """(Re)build the FMUs in ``fmu_dir`` that are missing or stale, saying why; ``native``: also
+    the native FMUs (the chain libcosim and the SSP run)."""
+    reasons = {n: stale_reason(fmu_dir / f"{n}.fmu") for n in FMUS}
+    if any(reasons.values()):
+        why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
+        log(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})")
+        build_all(fmu_dir)
+    if native:
+        from gyrodenoise.fmu.native import DENOISER, build_native_fmus, native_stale_reason
+        from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
+        why = {spec.name: native_stale_reason(fmu_dir / f"{spec.name}.fmu", spec)
+               for spec in (DENOISER, SIMULATED_FOG_NATIVE)}
+        if any(why.values()):
+            log(f"gyrodenoise: (re)building the native FMUs in {fmu_dir}/ ("
+                + "; ".join(f"{n}: {r}" for n, r in why.items() if r) + ")")
+            build_native_fmus(fmu_dir)
+
+
+def _cases(args):
+    """case name -> the validation run's keywords: one case at --rate, else static and constant rate."""
+    if args.rate is not None:
+        rates = {"constant_rate": args.rate}
+    else:
+        rates = {"static": 0.0, "constant_rate": args.constant_rate}
+    if args.restart_at is None:
+        restart_at = args.duration / 2
+    else:
+        restart_at = None if args.restart_at < 0 else args.restart_at
+    return {case: dict(duration_s=args.duration, rate_deg_s=rate, restart_at_s=restart_at, seed=args.seed,
+                       card=args.card, method=args.method, ar_order=args.ar_order)
+            for case, rate in rates.items()}
 
 
 def _format_results(results):

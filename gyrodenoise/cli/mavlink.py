@@ -238,14 +238,14 @@ def _check_out(out, created=None):
     p = Path(out)
     if p.exists() and not p.is_dir():
         raise InputError(f"-o {out}: exists and is not a folder")
-    new = [q for q in [p, *p.parents] if not q.exists()][::-1]
+    missing = [q for q in [p, *p.parents] if not q.exists()][::-1]
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"-o {out}: cannot create the output folder ({exc.strerror or exc})") from None
     finally:
         if created is not None:
-            created += [q for q in new if q.is_dir()]
+            created += [q for q in missing if q.is_dir()]
     if not os.access(p, os.W_OK | os.X_OK):
         raise InputError(f"-o {out}: output folder is not writable")
 
@@ -518,45 +518,9 @@ def _filter_rate_text(s, summary):
 
 
 def _print_text(summary):
-    from gyrodenoise.mavlink.process import saturation_note
-    from gyrodenoise.mavlink.spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
-        nb = r.get("truncated_bytes")
-        trunc = f", truncated ({nb} byte{'' if nb == 1 else 's'} cut)" if r.get("truncated") else ""
-        unread = r.get("unreadable_records")
-        # pyulog does not count what it skips: no figure rather than a dash
-        unread = "" if unread is None else f", {unread} unreadable records skipped"
-        out.write(f"{r['file']} ({r['format']}): {r['messages']} messages{unread}{trunc}\n")
-        out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
-                  f"{_form_text(r)})\n")
-        for s in r["streams"]:
-            out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
-                      f"{s['restarts']} restart(s)  unit {s['field_unit']}"
-                      f"{'' if s['unit_known'] else ' (scale unknown)'}"
-                      f"{_filter_rate_text(s, summary)}\n")
-            if s.get("left_raw"):
-                out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
-            if s.get("all_zero"):
-                out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
-            if s.get("saturation"):
-                out.write(f"    note: {saturation_note(s['saturation'])}\n")
-            if s.get("too_slow_to_denoise"):
-                out.write(f"    note: {s['slow_note']}\n")
-            if s.get("not_filtered"):
-                out.write(f"    NOT FILTERED: {s['not_filtered']}\n")
-            if s.get("cutoff_hz"):
-                out.write(f"    low-pass cutoff {s['cutoff_hz']:.4g} Hz at {_fmt(s['filter_rate_hz'])} Hz"
-                          f"{'' if r['filter_options'].get('cutoff_hz') else ' (the default: min(20 Hz, rate / 4))'}\n")
-            for a in s["noise"]:
-                out.write(_axis_line(s, a))
-            for line in summary_lines(s.get("spectrum")):
-                out.write(f"      {line}\n")
-            for w in s.get("warnings", []):
-                out.write(f"    WARNING: {w}\n")
-        for e in r["restarts"]:
-            out.write(f"  restart: {e['stream']} sample {e['sample']} at t={e['time_s']:.3f} s "
-                      f"(previous {e['previous_time_s']:.3f} s): {e['reason']}\n")
+        _print_log(out, r, summary)
     for f in summary["failed"]:
         # the error names its file already
         err = f["error"] if f["error"].startswith(str(f["file"])) else f"{f['file']}: {f['error']}"
@@ -566,6 +530,52 @@ def _print_text(summary):
               f"{f'; {n_raw} stream(s) left raw (exit status 1)' if n_raw else ''}\n")
     if summary.get("fleet_report"):
         out.write(f"fleet report: {summary['fleet_report'][0]}\n")
+
+
+def _print_log(out, r, summary):
+    """One log's lines of the text summary: the log, its streams, its restarts."""
+    nb = r.get("truncated_bytes")
+    trunc = f", truncated ({nb} byte{'' if nb == 1 else 's'} cut)" if r.get("truncated") else ""
+    unread = r.get("unreadable_records")
+    # pyulog does not count what it skips: no figure rather than a dash
+    unread = "" if unread is None else f", {unread} unreadable records skipped"
+    out.write(f"{r['file']} ({r['format']}): {r['messages']} messages{unread}{trunc}\n")
+    out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
+              f"{_form_text(r)})\n")
+    for s in r["streams"]:
+        _print_stream(out, s, r, summary)
+    for e in r["restarts"]:
+        out.write(f"  restart: {e['stream']} sample {e['sample']} at t={e['time_s']:.3f} s "
+                  f"(previous {e['previous_time_s']:.3f} s): {e['reason']}\n")
+
+
+def _print_stream(out, s, r, summary):
+    """One stream's lines of the text summary of log ``r``."""
+    from gyrodenoise.mavlink.process import saturation_note
+    from gyrodenoise.mavlink.spectra import summary_lines
+    out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
+              f"{s['restarts']} restart(s)  unit {s['field_unit']}"
+              f"{'' if s['unit_known'] else ' (scale unknown)'}"
+              f"{_filter_rate_text(s, summary)}\n")
+    if s.get("left_raw"):
+        out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
+    if s.get("all_zero"):
+        out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
+    if s.get("saturation"):
+        out.write(f"    note: {saturation_note(s['saturation'])}\n")
+    if s.get("too_slow_to_denoise"):
+        out.write(f"    note: {s['slow_note']}\n")
+    if s.get("not_filtered"):
+        out.write(f"    NOT FILTERED: {s['not_filtered']}\n")
+    if s.get("cutoff_hz"):
+        out.write(f"    low-pass cutoff {s['cutoff_hz']:.4g} Hz at {_fmt(s['filter_rate_hz'])} Hz"
+                  f"{'' if r['filter_options'].get('cutoff_hz') else ' (the default: min(20 Hz, rate / 4))'}\n")
+    for a in s["noise"]:
+        out.write(_axis_line(s, a))
+    for line in summary_lines(s.get("spectrum")):
+        out.write(f"      {line}\n")
+    for w in s.get("warnings", []):
+        out.write(f"    WARNING: {w}\n")
 
 
 def _run_live(args, conn):
@@ -584,7 +594,21 @@ def _live(args, conn):
 
 
 def _report_live(args, conn, rep, streams):
-    from gyrodenoise.mavlink.process import MOTION_METRIC, log_problems, plot_stream, safe_name, stream_report, write_csv
+    _complete_live_report(args, conn, rep, streams)
+    from gyrodenoise.mavlink.process import log_problems
+    log_problems(dict(rep, file=conn, output_log=args.forward or "(nowhere)"), _log)
+    if args.json:
+        emit_json(_finite(rep))
+    else:
+        _print_live(args, conn, rep)
+    return rep["exit_status"]
+
+
+def _complete_live_report(args, conn, rep, streams):
+    """The link's report completed with its streams (their CSV and PNG written unless
+    --no-csv / --no-plots), restarts, metrics, the streams left raw and the exit status."""
+    from gyrodenoise.mavlink.process import MOTION_METRIC, plot_stream, safe_name, stream_report, write_csv
+    from gyrodenoise.mavlink.streams import NOISE_METRIC
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:
@@ -601,33 +625,32 @@ def _report_live(args, conn, rep, streams):
         restarts += s.restart_events
     rep["streams"] = srep
     rep["restarts"] = restarts
-    from gyrodenoise.mavlink.streams import NOISE_METRIC
     rep["noise_metric"] = NOISE_METRIC
     rep["motion_metric"] = MOTION_METRIC
     rep["streams_left_raw"] = [{"file": conn, "stream": s["name"], "reason": s["left_raw"]}
                                for s in srep if s.get("left_raw")]
     rep["exit_status"] = 1 if rep["streams_left_raw"] else 0
-    log_problems(dict(rep, file=conn, output_log=args.forward or "(nowhere)"), _log)
-    if args.json:
-        emit_json(_finite(rep))
-    else:
-        sys.stdout.write(f"{conn} -> {args.forward or '(nowhere)'}: {rep['messages_in']} messages in, "
-                         f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "
-                         f"stopped by {rep['stopped_by']} after {rep['seconds']} s; "
-                         f"method {rep['method']}, causal\n")
-        for s in srep:
-            sys.stdout.write(f"  {s['name']}: {s['samples']} samples, {_fmt(s['rate_hz'])} Hz, "
-                             f"{s['restarts']} restart(s), unit {s['field_unit']}"
-                             f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
-            if s.get("left_raw"):
-                sys.stdout.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
-            if s.get("too_slow_to_denoise"):
-                sys.stdout.write(f"    note: {s['slow_note']}\n")
-            if s.get("saturation"):
-                from gyrodenoise.mavlink.process import saturation_note
-                sys.stdout.write(f"    note: {saturation_note(s['saturation'])}\n")
-            for a in s["noise"]:
-                sys.stdout.write(_axis_line(s, a))
-            for w in s.get("warnings", []):
-                sys.stdout.write(f"    WARNING: {w}\n")
-    return rep["exit_status"]
+
+
+def _print_live(args, conn, rep):
+    """The text summary of a live link."""
+    from gyrodenoise.mavlink.process import saturation_note
+    out = sys.stdout
+    out.write(f"{conn} -> {args.forward or '(nowhere)'}: {rep['messages_in']} messages in, "
+              f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "
+              f"stopped by {rep['stopped_by']} after {rep['seconds']} s; "
+              f"method {rep['method']}, causal\n")
+    for s in rep["streams"]:
+        out.write(f"  {s['name']}: {s['samples']} samples, {_fmt(s['rate_hz'])} Hz, "
+                  f"{s['restarts']} restart(s), unit {s['field_unit']}"
+                  f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
+        if s.get("left_raw"):
+            out.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
+        if s.get("too_slow_to_denoise"):
+            out.write(f"    note: {s['slow_note']}\n")
+        if s.get("saturation"):
+            out.write(f"    note: {saturation_note(s['saturation'])}\n")
+        for a in s["noise"]:
+            out.write(_axis_line(s, a))
+        for w in s.get("warnings", []):
+            out.write(f"    WARNING: {w}\n")
