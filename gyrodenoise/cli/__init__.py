@@ -1,6 +1,7 @@
 """The ``gyrodenoise`` command line: one thin layer over the library.
 
 * :mod:`gyrodenoise.cli.program` -- the top-level parser, the one-line error form, exit statuses;
+* :mod:`gyrodenoise.cli.options` -- the options several commands share, with the core's defaults;
 * :mod:`gyrodenoise.cli.commands` -- ``demo``, ``denoise``, ``allan``, ``compare``;
 * :mod:`gyrodenoise.cli.gap` -- ``gap``;
 * :mod:`gyrodenoise.cli.fmu` -- ``fmu build`` / ``fmu run`` / ...;

@@ -2,69 +2,16 @@
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from gyrodenoise.cli.options import (MODEL_OPTIONS, add_filter_options, add_recording_options, check_core_params,
+                                     check_method_options, core_default, filter_kw)
+from gyrodenoise.cli.program import emit_json
+from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
-
-
-def _log(msg):
-    print(msg, file=sys.stderr, flush=True)
-
-
-def _add_input_options(p):
-    p.add_argument("input", metavar="IN", help="recording CSV (columns time,rate[,true_rate]; .gz ok)")
-    p.add_argument("--rate-column", default="rate", help="rate column name (default: rate)")
-    p.add_argument("--time-column", default="time", help="time column name, s (default: time)")
-    p.add_argument("--rate-unit", default="deg/s", help="deg/s (default), deg/h or rad/s")
-    p.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
-                   help="sample rate when there is no time column")
-
-
-def _add_filter_options(p, method=True):
-    if method:
-        from gyrodenoise.core.kernels import DEFAULT_METHOD, METHODS
-        p.add_argument("--method", default=DEFAULT_METHOD, choices=list(METHODS),
-                       help=f"filter (default: {DEFAULT_METHOD}); shakf is the paper's modified Sage-Husa AKF, "
-                            "lowpass a causal Butterworth (--cutoff-hz, --order)")
-        p.add_argument("--cutoff-hz", type=float, default=None, metavar="HZ",
-                       help="lowpass: -3 dB cutoff (default 20 Hz, at most a quarter of the sample rate)")
-        p.add_argument("--order", type=int, default=2, help="lowpass: Butterworth order 1..8 (default 2)")
-        p.add_argument("--zero-phase", action="store_true",
-                       help="lowpass, offline: filter forwards and backwards (no lag)")
-        p.add_argument("--causal", action="store_true",
-                       help="motion: the causal filter (as live, Denoiser.step and the FMUs run it); "
-                            "default on a file: offline, the forward and backward runs blended (no lag)")
-        p.add_argument("--max-motion-hz", type=float, default=None, metavar="HZ",
-                       help="motion, rigid-body option for frames that vibrate (drones): the band of interest; "
-                            "content above it counts as error (a 4th-order Butterworth before the filter bank, flat to HZ, "
-                            "-3 dB at 2 HZ, -24 dB at 4 HZ); 0 < HZ < half the sample rate (default, 0: off)")
-    p.add_argument("--ar-order", type=int, default=3, help="order n of the improved AR(n) model (default 3)")
-    p.add_argument("--warmup-s", type=float, default=1.0,
-                   help="seconds after each restart with raw pass-through while the AR model converges")
-    p.add_argument("--b", type=float, default=0.99, help="Sage-Husa forgetting factor b, 0<b<1 (default 0.99)")
-    p.add_argument("--gamma", type=float, default=3.0, help="divergence criterion gamma >= 1 (Eq. 32, default 3)")
-    p.add_argument("--lam", type=float, default=1.0, help="RLS forgetting factor, 0<lam<=1 (default 1)")
-    p.add_argument("--outlier-sigma", type=float, default=5.0, metavar="K",
-                   help="outlier gate: after the warm-up a sample with |innovation| > K sqrt(S) is kept out "
-                        "of the filter and the output is the prediction; 0 = off (the paper's filter); "
-                        "K >= 2 (default 5, see docs/OUTLIERS.md)")
-    p.add_argument("--outlier-run", type=int, default=20, metavar="M",
-                   help="after M consecutive rejected samples the next one is taken as a real rate change "
-                        "and the filter restarts there (default 20)")
-
-
-def _filter_kw(args):
-    kw = {"warmup_s": args.warmup_s, "b": args.b, "gamma": args.gamma, "lam": args.lam,
-          "outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
-    if getattr(args, "method", None) == "lowpass":
-        kw.update(cutoff_hz=args.cutoff_hz, order=args.order)
-    if getattr(args, "max_motion_hz", None) is not None and args.method == "motion":
-        kw.update(max_motion_hz=args.max_motion_hz)
-    return kw
 
 
 def _read(args):
@@ -72,28 +19,21 @@ def _read(args):
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
     for note in rec.notes:
-        _log(f"gyrodenoise: note: {args.input}: {note}")
+        log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
 
 
 def _check_params(args, fs):
-    from gyrodenoise.core import kernels as K
-    try:
-        mhz = getattr(args, "max_motion_hz", None)
-        if mhz is not None and args.method != "motion":
-            raise ValueError(f"--max-motion-hz applies to --method motion only, not {args.method}")
-        if mhz is not None and not 0.0 <= mhz < float("inf"):
-            raise ValueError(f"--max-motion-hz must be a finite number of Hz >= 0 (0 = off), got {mhz!r}")
-        if mhz is not None and not mhz < 0.5 * fs:
-            raise ValueError(f"--max-motion-hz {mhz:g} Hz is not below half the sample rate ({0.5 * fs:g} Hz)")
-        K.make_params(ar_order=args.ar_order, sample_rate_hz=fs, method=getattr(args, "method", "shakf"),
-                      **_filter_kw(args))
-        if getattr(args, "zero_phase", False) and args.method != "lowpass":
-            raise ValueError(f"--zero-phase applies to --method lowpass only, not {args.method}")
-        if getattr(args, "causal", False) and args.method != "motion":
-            raise ValueError(f"--causal applies to --method motion only, not {args.method}")
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
+    """The filter options of ``denoise`` / ``compare`` at sample rate ``fs``: one line (InputError)."""
+    check_method_options(args, ("--max-motion-hz",))
+    mhz = getattr(args, "max_motion_hz", None)
+    if mhz is not None and not 0.0 <= mhz < float("inf"):
+        raise InputError(f"--max-motion-hz must be a finite number of Hz >= 0 (0 = off), got {mhz!r}")
+    if mhz is not None and not mhz < 0.5 * fs:
+        raise InputError(f"--max-motion-hz {mhz:g} Hz is not below half the sample rate ({0.5 * fs:g} Hz)")
+    check_core_params(ar_order=args.ar_order, sample_rate_hz=fs, method=getattr(args, "method", "shakf"),
+                      **filter_kw(args))
+    check_method_options(args, ("--zero-phase", "--causal"))
 
 
 # ---------------------------------------------------------------- denoise
@@ -104,32 +44,38 @@ def cmd_denoise(args):
                   else 1.0)   # bad options fail before the file is read
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
-    den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **_filter_kw(args))
+    den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **filter_kw(args))
     offline = args.method == "motion" and not args.causal
     if args.zero_phase or offline:
         from gyrodenoise.denoiser import denoise
         out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method=args.method, ar_order=args.ar_order,
-                      restarts=rec.restarts, zero_phase=args.zero_phase, offline=offline, **_filter_kw(args))
+                      restarts=rec.restarts, zero_phase=args.zero_phase, offline=offline, **filter_kw(args))
     else:
         out = den.process(rec.rate_deg_s, rec.restarts)
     write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
+    log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, "
+        f"{_form_text(args, offline, rec.sample_rate_hz)})")
+    if rec.true_rate_deg_s is not None:
+        log(f"gyrodenoise: {rmse_line(rec.rate_deg_s, out, rec.true_rate_deg_s)}")
+    if args.outlier_sigma > 0 and args.method in ("shakf", "kf", "sh_classic"):
+        log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
+            f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
+            f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")
+    return 0
+
+
+def _form_text(args, offline, sample_rate_hz):
+    """'causal' or 'offline (...)', and the rigid-body low-pass applied with --max-motion-hz."""
     mode = "offline (forward + backward, no lag)" if offline or args.zero_phase else "causal"
     if args.max_motion_hz:
         from gyrodenoise.core.kernels import rigid_cutoff_hz
-        fc = rigid_cutoff_hz(float(args.max_motion_hz), rec.sample_rate_hz)
+        fc = rigid_cutoff_hz(float(args.max_motion_hz), sample_rate_hz)
         capped = fc < 2.0 * args.max_motion_hz
         mode += (f", rigid body (--max-motion-hz {args.max_motion_hz:g}): a 4th-order low-pass flat to "
                  f"{args.max_motion_hz:g} Hz, -3 dB at {fc:.3g} Hz"
                  + (f" (at most 0.45 x the sample rate; twice the band would be {2.0 * args.max_motion_hz:g} Hz)"
                     if capped else "") + ", before the filter bank")
-    _log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, {mode})")
-    if rec.true_rate_deg_s is not None:
-        _log(f"gyrodenoise: {rmse_line(rec.rate_deg_s, out, rec.true_rate_deg_s)}")
-    if args.outlier_sigma > 0 and args.method in ("shakf", "kf", "sh_classic"):
-        _log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
-             f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
-             f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")
-    return 0
+    return mode
 
 
 def rmse_line(raw, filtered, truth):
@@ -165,7 +111,6 @@ ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a tru
 # ------------------------------------------------------------------ allan
 def cmd_allan(args):
     from gyrodenoise.analysis.allan import allan
-    from gyrodenoise.cli.program import emit_json
     rec = _read(args)
     if len(rec) < 5:
         raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
@@ -176,7 +121,7 @@ def cmd_allan(args):
     res = allan(series, rec.sample_rate_hz)
     from gyrodenoise.io.export import export_from_args
     for path in export_from_args(args, res):
-        _log(f"gyrodenoise: wrote {path}")
+        log(f"gyrodenoise: wrote {path}")
     if args.json:
         d = res.to_json()
         d["source"] = args.input
@@ -196,14 +141,13 @@ def cmd_allan(args):
 
 # ---------------------------------------------------------------- compare
 def cmd_compare(args):
-    from gyrodenoise.cli.program import emit_json
     from gyrodenoise.analysis.experiments import compare
     _check_params(args, 1.0)          # bad options fail before the file is read
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
     if len(rec) < 100:
         raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
-    res = compare(rec, ar_order=args.ar_order, **_filter_kw(args))
+    res = compare(rec, ar_order=args.ar_order, **filter_kw(args))
     moving = true_rate_motion(rec)
     if moving:
         res["true_rate_motion_deg_s"] = moving
@@ -312,7 +256,8 @@ def format_dynamic(dyn):
                    + ", ".join(f"{k} {('%.3g s' % v) if v is not None else 'never (within the record)'}"
                                for k, v in ng["rise_time_90_s"].items())
                    + "; RMSE " + ", ".join(f"{k} {v:.4g}" for k, v in ng["rmse_deg_s"].items()))
-        out.append("  (the default gate follows a step by re-opening the filter after 20 rejected samples:"
+        out.append(f"  (the default gate follows a step by re-opening the filter after "
+                   f"{core_default('outlier_run')} rejected samples:"
                    " it rescues abrupt changes, not smooth motion -- docs/OUTLIERS.md)")
     out.append("(std = the paper's 'MSE' of Eq. 41, a standard deviation about the mean; it cannot see "
                "a wrong mean or a lag, the RMSE can.)")
@@ -321,33 +266,17 @@ def format_dynamic(dyn):
 
 # ------------------------------------------------------------------- demo
 def cmd_demo(args):
-    from gyrodenoise.cli.program import emit_json
-    from gyrodenoise.analysis.experiments import compare, dynamic_table
-    from gyrodenoise.simulator import load_card, simulate
     t0 = time.perf_counter()
-    from gyrodenoise.core import kernels as K
-    try:
-        K.make_params(outlier_sigma=args.outlier_sigma, outlier_run=args.outlier_run)
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
-    card = load_card(args.model)
-    n = int(round(args.hours * 3600.0 * card.sample_rate_hz))
-    if n < 1000:
-        raise InputError(f"--hours {args.hours:g} gives only {n} samples; need at least 1000")
-    _log(f"gyrodenoise demo: simulating {args.hours:g} h of '{card.name}' at {card.sample_rate_hz:g} Hz "
-         f"(seed {args.seed})")
-    rec = simulate(card, n, seed=args.seed)
-    _log("gyrodenoise demo: static experiment (Table 1): KF, modified SHAKF and motion, Allan fits")
-    gate = {"outlier_sigma": args.outlier_sigma, "outlier_run": args.outlier_run}
-    res = compare(rec, ar_order=args.ar_order, seed=args.seed, **gate)
-    _log(f"gyrodenoise demo: dynamic experiment (Table 2): {args.dynamic_s:g} s at each rate")
-    dyn = dynamic_table(card, duration_s=args.dynamic_s, seed=args.seed, ar_order=args.ar_order, **gate)
+    check_core_params(**filter_kw(args))
+    card, rec = _demo_record(args)
+    res, dyn = _demo_tables(args, card, rec)
     figs = []
     if not args.no_plots:
         from gyrodenoise.analysis import plots
         outdir = Path(args.out)
         outdir.mkdir(parents=True, exist_ok=True)
-        figs = plots.demo_figures(card, rec, res, outdir, ar_order=args.ar_order, seed=args.seed, **gate)
+        figs = plots.demo_figures(card, rec, res, outdir, ar_order=args.ar_order, seed=args.seed,
+                                  **filter_kw(args))
     elapsed = time.perf_counter() - t0
     if args.json:
         emit_json({"model": card.name, "hours": args.hours, "static": public(res), "dynamic": dyn,
@@ -365,7 +294,53 @@ def cmd_demo(args):
     return 0
 
 
+def _demo_record(args):
+    """The model card and its simulated static record of ``--hours``."""
+    from gyrodenoise.simulator import load_card, simulate
+    card = load_card(args.model)
+    n = int(round(args.hours * 3600.0 * card.sample_rate_hz))
+    if n < 1000:
+        raise InputError(f"--hours {args.hours:g} gives only {n} samples; need at least 1000")
+    log(f"gyrodenoise demo: simulating {args.hours:g} h of '{card.name}' at {card.sample_rate_hz:g} Hz "
+        f"(seed {args.seed})")
+    return card, simulate(card, n, seed=args.seed)
+
+
+def _demo_tables(args, card, rec):
+    """Table 1 (the static record) and Table 2 (constant rates and a step)."""
+    from gyrodenoise.analysis.experiments import compare, dynamic_table
+    log("gyrodenoise demo: static experiment (Table 1): KF, modified SHAKF and motion, Allan fits")
+    res = compare(rec, ar_order=args.ar_order, seed=args.seed, **filter_kw(args))
+    log(f"gyrodenoise demo: dynamic experiment (Table 2): {args.dynamic_s:g} s at each rate")
+    dyn = dynamic_table(card, duration_s=args.dynamic_s, seed=args.seed, ar_order=args.ar_order,
+                        **filter_kw(args))
+    return res, dyn
+
+
+# ------------------------------------------------------------------ parsers
 def register_cli(sub):
+    _register_demo(sub)
+    p = sub.add_parser("denoise", help="filter a recording to time,raw,filtered CSV")
+    add_recording_options(p)
+    p.add_argument("-o", "--output", required=True, metavar="OUT.csv")
+    add_filter_options(p)
+    p.set_defaults(func=cmd_denoise)
+
+    p = sub.add_parser("allan", help="Allan deviation and five-term fit of a recording")
+    add_recording_options(p)
+    p.add_argument("--json", action="store_true")
+    from gyrodenoise.io.export import add_export_options
+    add_export_options(p)
+    p.set_defaults(func=cmd_allan)
+
+    p = sub.add_parser("compare", help="the paper's Table 1 for a recording (raw, AR fit, KF, SHAKF)")
+    add_recording_options(p)
+    add_filter_options(p, MODEL_OPTIONS)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_compare)
+
+
+def _register_demo(sub):
     p = sub.add_parser("demo", help="simulate the default FOG, denoise with KF, SHAKF and motion, print Tables 1-2, "
                                     "plot",
                        description="The main job on the embedded default model card: simulate the paper's FOG, "
@@ -376,32 +351,13 @@ def register_cli(sub):
     p.add_argument("--hours", type=float, default=2.0, help="static record length, h (default 2, as the paper)")
     p.add_argument("--dynamic-s", type=float, default=300.0, help="seconds per constant rate (default 300)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--ar-order", type=int, default=3)
-    p.add_argument("--outlier-sigma", type=float, default=5.0, metavar="K",
-                   help="outlier gate of the filters (default 5; 0 = off, the paper's filters exactly; "
-                        "see docs/OUTLIERS.md)")
-    p.add_argument("--outlier-run", type=int, default=20, metavar="M",
-                   help="consecutive rejections after which the filter re-opens (default 20)")
+    add_filter_options(p, ("--ar-order", "--outlier-sigma", "--outlier-run"), help={
+        "--ar-order": None,
+        "--outlier-sigma": f"outlier gate of the filters (default {core_default('outlier_sigma'):g}; 0 = off, "
+                           "the paper's filters exactly; see docs/OUTLIERS.md)",
+        "--outlier-run": f"consecutive rejections after which the filter re-opens "
+                         f"(default {core_default('outlier_run')})"})
     p.add_argument("--out", default="demo_out", help="folder for the PNG plots (default demo_out)")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=cmd_demo)
-
-    p = sub.add_parser("denoise", help="filter a recording to time,raw,filtered CSV")
-    _add_input_options(p)
-    p.add_argument("-o", "--output", required=True, metavar="OUT.csv")
-    _add_filter_options(p)
-    p.set_defaults(func=cmd_denoise)
-
-    p = sub.add_parser("allan", help="Allan deviation and five-term fit of a recording")
-    _add_input_options(p)
-    p.add_argument("--json", action="store_true")
-    from gyrodenoise.io.export import add_export_options
-    add_export_options(p)
-    p.set_defaults(func=cmd_allan)
-
-    p = sub.add_parser("compare", help="the paper's Table 1 for a recording (raw, AR fit, KF, SHAKF)")
-    _add_input_options(p)
-    _add_filter_options(p, method=False)
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cmd_compare)

@@ -6,8 +6,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from gyrodenoise.cli.options import add_filter_options
+from gyrodenoise.cli.program import emit_json
+from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
-from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.fmu.build import FMUS, build_all, stale_reason
 from gyrodenoise.fmu.cosim import cosim_run
 from gyrodenoise.fmu.validation import _resolve_card, validation_run
@@ -19,6 +21,13 @@ def register_cli(subparsers):
                               description="Build FogDenoiser.fmu and SimulatedFog.fmu, and run the "
                                           "two-FMU validation against the core.")
     sub = p.add_subparsers(dest="fmu_command", metavar="ACTION")
+    _register_build(sub)
+    _register_card(sub)
+    _register_run(sub)
+    p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
+
+
+def _register_build(sub):
     b = sub.add_parser("build", help="build FogDenoiser.fmu, SimulatedFog.fmu (pythonfmu), "
                                      "FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python needed)",
                        description="Package gyrodenoise/fmu/sources/*.py with pythonfmu (in a subprocess) and the "
@@ -33,6 +42,9 @@ def register_cli(subparsers):
                         "darwin64); default: every platform a compiler is found for (zig from the "
                         "ziglang package: all three), the others skipped with the reason")
     b.set_defaults(func=_cmd_build)
+
+
+def _register_card(sub):
     c = sub.add_parser("card", help="compile a model card for SimulatedFogNative.fmu",
                        description="Compile a model card (TOML path or embedded name) into the form "
                                    "SimulatedFogNative.fmu reads (its card parameter takes the compiled "
@@ -40,6 +52,9 @@ def register_cli(subparsers):
     c.add_argument("card", help="model card path or embedded name (e.g. paper_fog)")
     c.add_argument("--out", default=None, metavar="FILE", help="write the compiled card there (default: stdout)")
     c.set_defaults(func=_cmd_card)
+
+
+def _register_run(sub):
     r = sub.add_parser("run", help="SimulatedFog -> FogDenoiser validation run (fmpy or libcosim)",
                        description="Run SimulatedFog -> FogDenoiser one sample per step and compare "
                                    "with the core's batch output (1e-9) and Allan reduction. Without "
@@ -57,15 +72,13 @@ def register_cli(subparsers):
                    help="time of the restart, s (default: the middle); negative: no restart")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--card", default="paper_fog", help="model card path or embedded name")
-    r.add_argument("--method", default=DEFAULT_METHOD, choices=["motion", "shakf", "kf", "sh_classic", "lowpass", "none"])
-    r.add_argument("--ar-order", type=int, default=3)
+    add_filter_options(r, ("--method", "--ar-order"), help={"--method": None, "--ar-order": None})
     r.add_argument("--master", default="fmpy", choices=["fmpy", "libcosim", "ssp"],
                    help="fmpy FMU2Slave loop (default), libcosim built from Python, or "
                         "libcosim from an SSP file written next to the FMUs (libcosim and the SSP "
                         "run SimulatedFogNative.fmu -> FogDenoiserNative.fmu: no Python in the chain)")
     r.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     r.set_defaults(func=_cmd_run)
-    p.set_defaults(func=lambda args: (p.print_help(sys.stderr), 2)[1])
 
 
 def _cmd_build(args):
@@ -84,7 +97,7 @@ def _cmd_build(args):
     for name, path in paths.items():
         print(f"{name}: {path}")
     for plat, what in report.items():
-        print(f"gyrodenoise: native {plat}: {what}", file=sys.stderr)
+        log(f"gyrodenoise: native {plat}: {what}")
     return 0
 
 
@@ -101,42 +114,19 @@ def _cmd_card(args):
         out.write_text(text)
     except OSError as exc:
         raise InputError(f"--out {out}: cannot write: {exc.strerror}") from None
-    print(f"SimulatedFogNative card: {out}", file=sys.stderr)
+    log(f"SimulatedFogNative card: {out}")
     return 0
 
 
 def _cmd_run(args):
     fmu_dir = Path(args.fmu_dir)
     _resolve_card(args.card)          # a bad card is a user error before anything runs
-    reasons = {n: stale_reason(fmu_dir / f"{n}.fmu") for n in FMUS}
-    if any(reasons.values()):
-        why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
-        print(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})", file=sys.stderr)
-        build_all(fmu_dir)
-    if args.master != "fmpy":       # the chain in libcosim and the SSP: the native FMUs
-        from gyrodenoise.fmu.native import DENOISER, build_native_fmus, native_stale_reason
-        from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
-        why = {spec.name: native_stale_reason(fmu_dir / f"{spec.name}.fmu", spec)
-               for spec in (DENOISER, SIMULATED_FOG_NATIVE)}
-        if any(why.values()):
-            print(f"gyrodenoise: (re)building the native FMUs in {fmu_dir}/ ("
-                  + "; ".join(f"{n}: {r}" for n, r in why.items() if r) + ")", file=sys.stderr)
-            build_native_fmus(fmu_dir)
+    _rebuild_stale(fmu_dir, native=args.master != "fmpy")
     if args.duration <= 0:
         raise InputError(f"--duration must be > 0 s, got {args.duration}")
-    if args.rate is not None:
-        cases = {"constant_rate": args.rate}
-    else:
-        cases = {"static": 0.0, "constant_rate": args.constant_rate}
-    if args.restart_at is None:
-        restart_at = args.duration / 2
-    else:
-        restart_at = None if args.restart_at < 0 else args.restart_at
     results = {}
-    for case, rate in cases.items():
-        kw = dict(duration_s=args.duration, rate_deg_s=rate, restart_at_s=restart_at, seed=args.seed,
-                  card=args.card, method=args.method, ar_order=args.ar_order)
-        print(f"gyrodenoise: fmu run: {case} ({args.master})", file=sys.stderr)
+    for case, kw in _cases(args).items():
+        log(f"gyrodenoise: fmu run: {case} ({args.master})")
         if args.master == "fmpy":
             results[case] = validation_run(fmu_dir, **kw)
         else:
@@ -144,12 +134,45 @@ def _cmd_run(args):
             results[case] = cosim_run(fmu_dir, ssp=ssp, **kw)
     ok = all(r["ok"] for r in results.values())
     if args.json:
-        from gyrodenoise.cli.program import emit_json
         emit_json({"master": args.master, "cases": results, "ok": ok})
     else:
         print(_format_results(results))
         print("ok" if ok else "FAILED: FMU output differs from the core", flush=True)
     return 0 if ok else 1
+
+
+def _rebuild_stale(fmu_dir, native):
+    """(Re)build the FMUs in ``fmu_dir`` that are missing or stale, saying why; ``native``: also
+    the native FMUs (the chain libcosim and the SSP run)."""
+    reasons = {n: stale_reason(fmu_dir / f"{n}.fmu") for n in FMUS}
+    if any(reasons.values()):
+        why = "; ".join(f"{n}: {r}" for n, r in reasons.items() if r)
+        log(f"gyrodenoise: (re)building the FMUs in {fmu_dir}/ ({why})")
+        build_all(fmu_dir)
+    if native:
+        from gyrodenoise.fmu.native import DENOISER, build_native_fmus, native_stale_reason
+        from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
+        why = {spec.name: native_stale_reason(fmu_dir / f"{spec.name}.fmu", spec)
+               for spec in (DENOISER, SIMULATED_FOG_NATIVE)}
+        if any(why.values()):
+            log(f"gyrodenoise: (re)building the native FMUs in {fmu_dir}/ ("
+                + "; ".join(f"{n}: {r}" for n, r in why.items() if r) + ")")
+            build_native_fmus(fmu_dir)
+
+
+def _cases(args):
+    """case name -> the validation run's keywords: one case at --rate, else static and constant rate."""
+    if args.rate is not None:
+        rates = {"constant_rate": args.rate}
+    else:
+        rates = {"static": 0.0, "constant_rate": args.constant_rate}
+    if args.restart_at is None:
+        restart_at = args.duration / 2
+    else:
+        restart_at = None if args.restart_at < 0 else args.restart_at
+    return {case: dict(duration_s=args.duration, rate_deg_s=rate, restart_at_s=restart_at, seed=args.seed,
+                       card=args.card, method=args.method, ar_order=args.ar_order)
+            for case, rate in rates.items()}
 
 
 def _format_results(results):

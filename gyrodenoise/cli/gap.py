@@ -8,26 +8,21 @@ import os
 import sys
 from pathlib import Path
 
+from gyrodenoise.cli.options import add_recording_options
+from gyrodenoise.cli.program import emit_json
+from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
 
 
-def _log(msg):
-    print(msg, file=sys.stderr, flush=True)
-
-
 def register_cli(subparsers):
-    from gyrodenoise.cli.commands import _add_input_options
     p = subparsers.add_parser(
         "gap", help="what a model card misses to behave like a measured record; writes the completed card",
         description="Simulate CARD like MEASURED (same rate and length, several seeds), compare Allan "
                     "deviation, PSD, mean and trend, name and fit the missing effects, write NEW.toml.")
-    _add_input_options(p)
-    for a in p._actions:       # IN is optional with --allan (a published curve is the measurement)
-        if a.dest == "input":
-            a.nargs = "?"
-            a.help = "recording CSV (columns time,rate; .gz ok) or a PSINS .imu log; omit with --allan"
-        if a.dest == "rate_unit":   # None: not given, said in a note (a rad/s record read as deg/s fits 57x off)
-            a.default = None
+    # IN is optional with --allan (a published curve is the measurement); the rate unit not
+    # given is said in a note (a rad/s record read as deg/s fits 57x off)
+    add_recording_options(p, input_optional=True, rate_unit_default=None,
+                          input_help="recording CSV (columns time,rate; .gz ok) or a PSINS .imu log; omit with --allan")
     p.add_argument("--allan", default=None, metavar="CURVE.csv",
                    help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
                         "measurement instead of IN; see docs/GAP.md")
@@ -95,65 +90,92 @@ def _at_fitted_rate(text, fs, card_hz, model):
     cannot be rewritten (``sample_rate_hz`` not on a line of its own)."""
     from gyrodenoise.modelgap.cards import text_at_rate
     from gyrodenoise.simulator import parse_card
-    new = text_at_rate(text, fs)
-    if parse_card(new, str(model)).sample_rate_hz != float(fs):
+    at_rate = text_at_rate(text, fs)
+    if parse_card(at_rate, str(model)).sample_rate_hz != float(fs):
         raise InputError(f"sensor.sample_rate_hz {card_hz:g} Hz: the terms were fitted at the record's "
                          f"{fs:g} Hz and the rate cannot be rewritten (put sample_rate_hz on a line of "
                          f"its own, or give a card at {fs:g} Hz)", str(model))
-    return new.rstrip("\n") + (f"\n# sample_rate_hz: {fs:g} Hz, the record's: the terms were fitted at it "
-                               f"(the input card said {card_hz:g} Hz)\n")
+    return at_rate.rstrip("\n") + (f"\n# sample_rate_hz: {fs:g} Hz, the record's: the terms were fitted at it "
+                                   f"(the input card said {card_hz:g} Hz)\n")
 
 
 def _read_input(args):
     """The record: a PSINS .imu log (--rate-column gyro_x/y/z) or a recording CSV."""
     if str(args.input).lower().endswith(".imu"):
         from gyrodenoise.io.psins import read_psins
-        log = read_psins(args.input)
-        rate = log.axis("gyro_z" if args.rate_column == "rate" else args.rate_column)   # refuse first
+        imu = read_psins(args.input)
+        rate = imu.axis("gyro_z" if args.rate_column == "rate" else args.rate_column)   # refuse first
         if args.latitude is None:
-            args.latitude = log.latitude_deg
-            _log(f"gyrodenoise: note: {args.input}: latitude {log.latitude_deg:g} deg from the log's header")
-        return rate, log.sample_rate_hz, None
+            args.latitude = imu.latitude_deg
+            log(f"gyrodenoise: note: {args.input}: latitude {imu.latitude_deg:g} deg from the log's header")
+        return rate, imu.sample_rate_hz, None
     from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit or "deg/s", sample_rate_hz=args.sample_rate,
                          spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
                                       "off the running median (another test: its count may differ)")
-    check_record = __import__("gyrodenoise.modelgap", fromlist=["check_record"]).check_record
+    from gyrodenoise.modelgap import check_record
     check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
     for note in rec.notes:
-        _log(f"gyrodenoise: note: {args.input}: {note}")
+        log(f"gyrodenoise: note: {args.input}: {note}")
     return rec.rate_deg_s, rec.sample_rate_hz, rec.restarts
 
 
 def _cmd_allan(args, card):
     """gap --allan CURVE.csv: fit the card's noise terms to a published Allan curve, check by simulation."""
-    import numpy as np
+    from gyrodenoise.modelgap.cards import text_at_rate
+    from gyrodenoise.modelgap.curve import card_from_terms, fit_curve, simulated_curve
+    curve = _read_curve(args)
+    terms, model = fit_curve(curve)
+    text = card_from_terms(card.text, terms, f"fitted to {Path(args.allan).name} ({curve.label})", card.source)
+    text = text_at_rate(text, curve.sample_rate_hz)
+    log(f"gyrodenoise: simulating {args.seeds} records of {curve.n_samples} samples at {curve.sample_rate_hz:g} Hz")
+    mean, _runs = simulated_curve(text, curve, range(1, args.seeds + 1), card.source)
+    rows = _curve_rows(curve, model, mean)
+    out_tau = [r["tau_s"] for r in rows if not r["inside"]]
+    verdict = ("the simulated curve (mean of %d seeds) is inside the published bounds at every tau" % args.seeds
+               if not out_tau else
+               f"outside the published bounds at tau {', '.join(f'{t:g}' for t in out_tau)} s")
+    text = _white_noise_notes(text, terms, curve)
+    text = text.rstrip("\n") + (f"\n# noise terms fitted by gyrodenoise gap --allan to {Path(args.allan).name} "
+                                f"({curve.label}, ADEV in {curve.unit}, {curve.n_samples} samples at "
+                                f"{curve.sample_rate_hz:g} Hz); {verdict}\n")
+    plot = _plot_path(args)
+    if plot:
+        from gyrodenoise.modelgap.report import plot_curve
+        plot_curve(curve, model, mean, plot, title=f"{curve.label} ({Path(args.allan).name}) vs the fitted card")
+    return _write_card(args, text, "\n".join(_curve_table(args, curve, rows) + [verdict]), plot,
+                       {"allan": str(args.allan), "label": curve.label, "unit": curve.unit, "out": str(args.out),
+                        "inside_every_tau": not out_tau, "points": rows})
 
-    from gyrodenoise.cli.program import emit_json
-    from gyrodenoise.modelgap.curve import card_from_terms, fit_curve, inside, read_allan_curve, simulated_curve
+
+def _read_curve(args):
+    """The published Allan curve of --allan, in deg/s; InputError when --allan-unit is missing."""
+    from gyrodenoise.modelgap.curve import read_allan_curve
     curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit or "deg/s", args.sample_rate,
                              args.n_samples)
     if args.allan_unit is None:  # the file read well; its numbers mean nothing without their unit
         raise InputError("the curve's ADEV columns carry no unit: give --allan-unit deg/s, deg/h or rad/s "
                          "(a rad/s curve read as deg/s would be 57x too small)", args.allan)
     for note in curve.notes:
-        _log(f"gyrodenoise: note: {args.allan}: {note}")
-    terms, model = fit_curve(curve)
-    text = card_from_terms(card.text, terms, f"fitted to {Path(args.allan).name} ({curve.label})", card.source)
-    from gyrodenoise.modelgap.cards import text_at_rate
-    text = text_at_rate(text, curve.sample_rate_hz)
-    _log(f"gyrodenoise: simulating {args.seeds} records of {curve.n_samples} samples at {curve.sample_rate_hz:g} Hz")
-    mean, runs = simulated_curve(text, curve, range(1, args.seeds + 1), card.source)
+        log(f"gyrodenoise: note: {args.allan}: {note}")
+    return curve
+
+
+def _curve_rows(curve, model, mean):
+    """Per tau: the published ADEV and bounds (None where open), the fit, the simulated mean, inside?"""
+    import numpy as np
+
+    from gyrodenoise.modelgap.curve import inside
     ok = inside(curve, mean)
-    rows = [{"tau_s": float(t), "adev_deg_s": float(a), "lo": None if not np.isfinite(lo) else float(lo),
+    return [{"tau_s": float(t), "adev_deg_s": float(a), "lo": None if not np.isfinite(lo) else float(lo),
              "hi": None if not np.isfinite(hi) else float(hi), "model": float(m_), "simulated": float(s_),
              "inside": bool(k)} for t, a, lo, hi, m_, s_, k in
             zip(curve.tau_s, curve.adev_deg_s, curve.lo_deg_s, curve.hi_deg_s, model, mean, ok)]
-    out_tau = [r["tau_s"] for r in rows if not r["inside"]]
-    verdict = ("the simulated curve (mean of %d seeds) is inside the published bounds at every tau" % args.seeds
-               if not out_tau else
-               f"outside the published bounds at tau {', '.join(f'{t:g}' for t in out_tau)} s")
+
+
+def _white_noise_notes(text, terms, curve):
+    """The card's comments on the fitted terms that act as white noise at the curve's rate."""
     fast = [(s_, t_) for s_, t_ in terms["gauss_markov"] if t_ < 2.0 / curve.sample_rate_hz]
     if fast:    # Gauss-Markov terms shorter than 2 samples act as (slightly coloured) white noise
         n_eq = math.sqrt(terms["angle_random_walk"] + sum(2.0 * s_ * s_ * t_ for s_, t_ in fast)) * 60.0
@@ -168,9 +190,11 @@ def _cmd_allan(args, card):
                                     f"(N^2 = 2 sigma^2 / tau) and as white angle noise above; the whole card's "
                                     f"ADEV at 1 s is {ad1 * 3600:.4g} deg/h, read as an angle random walk "
                                     f"{ad1 * 60:.4g} deg/sqrt(h)\n")
-    text = text.rstrip("\n") + (f"\n# noise terms fitted by gyrodenoise gap --allan to {Path(args.allan).name} "
-                                f"({curve.label}, ADEV in {curve.unit}, {curve.n_samples} samples at "
-                                f"{curve.sample_rate_hz:g} Hz); {verdict}\n")
+    return text
+
+
+def _curve_table(args, curve, rows):
+    """The lines of the published / fitted / simulated table, in deg/h."""
     lines = [f"gyrodenoise gap --allan: {args.allan} ({curve.label}; {len(curve.tau_s)} taus "
              f"{curve.tau_s[0]:g}-{curve.tau_s[-1]:g} s; ADEV in {curve.unit}"
              f"{'' if curve.unit == 'deg/s' else ', converted to deg/s'})",
@@ -179,28 +203,32 @@ def _cmd_allan(args, card):
         b = (f"{r['lo'] * 3600 if r['lo'] else float('nan'):.4g}-{r['hi'] * 3600 if r['hi'] else float('nan'):.4g}")
         lines.append(f"{r['tau_s']:<10.4g} {r['adev_deg_s'] * 3600:<17.4g} {b:<23} {r['model'] * 3600:<11.4g} "
                      f"{r['simulated'] * 3600:<16.4g} {'yes' if r['inside'] else 'NO'}")
-    lines.append(verdict)
-    plot = None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
-    if plot:
-        from gyrodenoise.modelgap.report import plot_curve
-        plot_curve(curve, model, mean, plot, title=f"{curve.label} ({Path(args.allan).name}) vs the fitted card")
-    Path(args.out).write_text(text, encoding="utf-8")
+    return lines
+
+
+def _plot_path(args):
+    """The figure to write: --plot, else NEW.gap.png beside --out; None with --no-plot."""
+    return None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
+
+
+def _write_card(args, text, report, plot, obj):
+    """Write the completed card (last: only after a successful run), then the report: on stdout,
+    or with --json on stderr and ``obj`` as the one JSON object on stdout."""
+    try:
+        Path(args.out).write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", args.out) from None
     if args.json:
-        print("\n".join(lines), file=sys.stderr)
-        emit_json({"allan": str(args.allan), "label": curve.label, "unit": curve.unit, "out": str(args.out),
-                   "inside_every_tau": not out_tau, "points": rows})
+        print(report, file=sys.stderr)
+        emit_json(obj)
     else:
-        print("\n".join(lines))
+        print(report)
         print(f"wrote {args.out}" + (f" and {plot}" if plot else ""))
     return 0
 
 
-def cmd_gap(args):
-    from gyrodenoise.cli.program import emit_json
-    from gyrodenoise.modelgap import card_at_rate, check_record, format_report, gap, plot_gap
-    from gyrodenoise.modelgap.report import describe_edits
-    from gyrodenoise.simulator import load_card
-    card = load_card(args.model)
+def _check_options(args):
+    """--seeds, --workers, --max-effects, and that --out and --plot can be written."""
     if args.seeds < 3:
         raise InputError(f"--seeds must be at least 3, got {args.seeds}")
     if args.workers is not None and args.workers < 1:
@@ -211,51 +239,66 @@ def cmd_gap(args):
     _check_writable(args.out, "--out")
     if args.plot and not args.no_plot:
         _check_writable(args.plot, "--plot")
+
+
+def cmd_gap(args):
+    from gyrodenoise.simulator import load_card
+    card = load_card(args.model)
+    _check_options(args)
     if args.allan is not None:
         if args.input is not None:
             raise InputError("give either IN (a record) or --allan CURVE.csv, not both", args.input)
         return _cmd_allan(args, card)
     if args.input is None:
         raise InputError("no measurement: give IN (a record) or --allan CURVE.csv")
-    plot = None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
+    return _cmd_record(args, card)
+
+
+def _cmd_record(args, card):
+    """gap IN: simulate the card like the record, name and fit what it misses, write the completed card."""
+    from gyrodenoise.modelgap import check_record, format_report, gap, plot_gap
+    plot = _plot_path(args)
     if plot:
         _check_writable(plot, "--plot")
     bands = _stop_bands(args.stop_band)
     rate, fs, restarts = _read_input(args)
     check_record(rate, args.input)
-    if abs(card.sample_rate_hz - fs) > 1e-6 * fs:
-        card_at_rate(card.text, fs, card.source)   # refuse first (one line), then note
-        _at_fitted_rate(card.text, fs, card.sample_rate_hz, args.model)
-        _log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
-             f"{fs:g} Hz: simulating at the record's rate; {args.out} states the record's rate when a "
-             f"term is fitted (the terms are fitted at it), else keeps the card's")
-    if args.rate_unit is None and not str(args.input).lower().endswith(".imu"):   # after every refusal
-        _log(f"gyrodenoise: note: {args.input}: column {args.rate_column!r} read as deg/s (the default; "
-             f"--rate-unit deg/h or rad/s if the record is in another unit: the fitted card scales with it)")
+    _rate_notes(args, card, fs)
     res = gap(rate, fs, card, seeds=args.seeds, engine=args.engine,
               restarts=restarts, max_effects=args.max_effects, fmu_dir=args.fmu_dir,
               workers=args.workers, source=args.input, quiet=False, stop_bands=bands,
               latitude_deg=args.latitude, outliers=args.outliers)
-    text = res.card_text
-    if res.effects_added and abs(card.sample_rate_hz - fs) > 1e-6 * fs:
-        text = _at_fitted_rate(text, fs, card.sample_rate_hz, args.model)
-    if res.effects_added:
-        text = text.rstrip("\n") + f"\n# completed by gyrodenoise gap from {Path(args.input).name}: " + \
-            describe_edits(res.effects_added) + f"; gap {res.gap_before:.3g} -> {res.gap_after:.3g}\n"
+    text = _completed_text(args, card, fs, res)
     # everything that can fail first; NEW.toml is written last, only after a successful run
     report = format_report(res, args.input)
     d = res.to_json()
     d.update({"out": str(args.out), "plot": plot, "source": str(args.input), "model": str(args.model)})
     if plot:
         plot_gap(res, plot, title=f"{Path(args.input).name} vs {Path(str(args.model)).name}")
-    try:
-        Path(args.out).write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror}", args.out) from None
-    if args.json:
-        print(report, file=sys.stderr)
-        emit_json(d)
-    else:
-        print(report)
-        print(f"wrote {args.out}" + (f" and {plot}" if plot else ""))
-    return 0
+    return _write_card(args, text, report, plot, d)
+
+
+def _rate_notes(args, card, fs):
+    """Notes (after every refusal) on a card at another rate than the record, and on a unit not given."""
+    from gyrodenoise.modelgap import card_at_rate
+    if abs(card.sample_rate_hz - fs) > 1e-6 * fs:
+        card_at_rate(card.text, fs, card.source)   # refuse first (one line), then note
+        _at_fitted_rate(card.text, fs, card.sample_rate_hz, args.model)
+        log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
+            f"{fs:g} Hz: simulating at the record's rate; {args.out} states the record's rate when a "
+            f"term is fitted (the terms are fitted at it), else keeps the card's")
+    if args.rate_unit is None and not str(args.input).lower().endswith(".imu"):   # after every refusal
+        log(f"gyrodenoise: note: {args.input}: column {args.rate_column!r} read as deg/s (the default; "
+            f"--rate-unit deg/h or rad/s if the record is in another unit: the fitted card scales with it)")
+
+
+def _completed_text(args, card, fs, res):
+    """The completed card: at the record's rate when a term was fitted, with a comment on the edits."""
+    from gyrodenoise.modelgap.report import describe_edits
+    text = res.card_text
+    if res.effects_added and abs(card.sample_rate_hz - fs) > 1e-6 * fs:
+        text = _at_fitted_rate(text, fs, card.sample_rate_hz, args.model)
+    if res.effects_added:
+        text = text.rstrip("\n") + f"\n# completed by gyrodenoise gap from {Path(args.input).name}: " + \
+            describe_edits(res.effects_added) + f"; gap {res.gap_before:.3g} -> {res.gap_after:.3g}\n"
+    return text

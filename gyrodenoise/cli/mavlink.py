@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import math
@@ -10,7 +11,11 @@ import re
 import sys
 from pathlib import Path
 
-from gyrodenoise.core.kernels import DEFAULT_METHOD, METHODS
+from gyrodenoise.cli.options import (add_filter_options, check_core_params, check_method_options, core_default,
+                                     filter_kw, integer, number)
+from gyrodenoise.cli.program import emit_json
+from gyrodenoise.console import log
+from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.errors import InputError
 
 LINK_RE = re.compile(r"^(udpin|udpout|udp|tcp|tcpin|udpbcast|serial|com\d*)[:]", re.IGNORECASE)
@@ -54,7 +59,7 @@ exit status:
 
 
 def _log(msg):
-    print(f"gyrodenoise mavlink: {msg}", file=sys.stderr)
+    log(msg, prefix="gyrodenoise mavlink: ")
 
 
 def register_cli(subparsers):
@@ -62,7 +67,39 @@ def register_cli(subparsers):
         "mavlink", help="denoise the gyro streams of MAVLink/DataFlash/ULog logs or a live link",
         description="Denoise every gyro stream of autopilot logs (.tlog, DataFlash .bin, PX4 .ulg) "
                     "or of a live MAVLink link, each axis with its own denoiser.",
-        epilog=EPILOG, formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter, json_errors=True)
+    _add_run_options(p)
+    # per stream, the tuning options not given take the core's defaults at the stream's rate
+    form = dict(help=_filter_option_help(), metavar={"--order": "N", "--ar-order": "N", "--warmup-s": "S"},
+                strict_numbers=True, unset=("--order", "--warmup-s", "--outlier-sigma", "--outlier-run"))
+    add_filter_options(p, ("--method", "--cutoff-hz", "--order", "--zero-phase", "--causal", "--max-motion-hz",
+                           "--ar-order"), **form)
+    p.add_argument("--gap-factor", type=number, default=5.0, metavar="K",
+                   help="a time step over K times the recent sample period is a restart (default 5)")
+    p.add_argument("--sample-rate", type=number, default=None, metavar="HZ",
+                   help=f"filter sample rate for every stream, 0 < HZ <= {MAX_SAMPLE_RATE_HZ:g} (default: "
+                        f"measured per stream; it sets the warm-up length and the low-pass design)")
+    add_filter_options(p, ("--warmup-s", "--outlier-sigma", "--outlier-run"), **form)
+    p.add_argument("--raw-imu-unit", default="auto", choices=["auto", "mrad/s", "rad/s", "counts"],
+                   help="unit of RAW_IMU gyro fields (default auto: mrad/s when the log shows "
+                        "ArduPilot, else counts with unknown scale)")
+    p.add_argument("--raw-imu-scale", type=number, default=None, metavar="DEG_S_PER_COUNT",
+                   help="scale of RAW_IMU raw counts (old APM firmware)")
+    p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
+    p.add_argument("--no-csv", action="store_true", help="do not write CSV files")
+    live = p.add_argument_group("live link (LOG is a connection string)")
+    live.add_argument("--forward", default=None, metavar="CONN",
+                      help="output connection, e.g. udpout:127.0.0.1:14551 (default: none, only report)")
+    live.add_argument("--duration", type=number, default=None, metavar="S",
+                      help="stop after S seconds (live link only; refused with log files)")
+    live.add_argument("--count", type=integer, default=None, metavar="N",
+                      help="stop after N messages (live link only; refused with log files)")
+    p.set_defaults(func=run)
+    return p
+
+
+def _add_run_options(p):
+    """LOG, the output and how the logs are run (parallel, on a cluster, progress)."""
     p.add_argument("logs", nargs="+", metavar="LOG",
                    help="log files, folders (every .tlog/.bin/.ulg inside), or one pymavlink "
                         "connection string (udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT)")
@@ -73,7 +110,7 @@ def register_cli(subparsers):
                    help="native core (the C core; default) or the FogDenoiser FMU through fmpy")
     p.add_argument("--fmu", default=None, metavar="PATH",
                    help="FogDenoiser.fmu for --engine fmu (default: build/FogDenoiser.fmu)")
-    p.add_argument("--jobs", type=_int, default=1, metavar="N", help="logs processed in parallel (processes)")
+    p.add_argument("--jobs", type=integer, default=1, metavar="N", help="logs processed in parallel (processes)")
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="run each log as one task on this Dask distributed scheduler (outputs identical to a "
                         "serial run; needs pip install 'gyrodenoise[cluster]'); LOG and -o may then also be "
@@ -83,96 +120,38 @@ def register_cli(subparsers):
                       help="show logs done / failed / remaining and samples/s on stderr (default: when stderr "
                            "is a terminal)")
     prog.add_argument("--no-progress", dest="progress", action="store_false")
-    p.add_argument("--method", default=DEFAULT_METHOD, choices=list(METHODS),
-                   help=f"filter (default {DEFAULT_METHOD}: follows manoeuvres, averages at rest; "
-                        f"shakf: the paper's modified Sage-Husa AKF; kf; sh_classic; lowpass: "
-                        f"causal Butterworth at the core's default cutoff; none)")
-    p.add_argument("--cutoff-hz", type=_float, default=None, metavar="HZ",
-                   help="--method lowpass: -3 dB cutoff (default min(20 Hz, a quarter of each stream's "
-                        "sample rate); the summary gives the one applied per stream)")
-    p.add_argument("--order", type=_int, default=None, metavar="N",
-                   help="--method lowpass: Butterworth order 1..8 (default 2)")
-    p.add_argument("--zero-phase", action="store_true",
-                   help="--method lowpass: filter forwards then backwards, each session on its own (no "
-                        "lag, squared magnitude; offline files only, not --engine fmu or a live link)")
-    p.add_argument("--causal", action="store_true",
-                   help="--method motion on log files: the causal filter (as a live link, Denoiser.step and "
-                        "the FMUs run it); default on files: offline, the forward and backward runs blended "
-                        "per session (no lag). A live link and --engine fmu are always causal")
-    p.add_argument("--max-motion-hz", type=_float, default=None, metavar="HZ",
-                   help="--method motion, rigid-body option for frames that vibrate (drones): the band of "
-                        "interest; content above it counts as error (a 4th-order Butterworth before the filter "
-                        "bank, flat to HZ, -3 dB at 2 HZ, -24 dB at 4 HZ); 0 = off (default); a stream whose "
-                        "Nyquist is not above HZ is written raw, with the reason")
-    p.add_argument("--ar-order", type=_int, default=3, metavar="N",
-                   help=f"AR model order, 1..{MAX_AR_ORDER} (default 3)")
-    p.add_argument("--gap-factor", type=_float, default=5.0, metavar="K",
-                   help="a time step over K times the recent sample period is a restart (default 5)")
-    p.add_argument("--sample-rate", type=_float, default=None, metavar="HZ",
-                   help=f"filter sample rate for every stream, 0 < HZ <= {MAX_SAMPLE_RATE_HZ:g} (default: "
-                        f"measured per stream; it sets the warm-up length and the low-pass design)")
-    p.add_argument("--warmup-s", type=_float, default=None, metavar="S",
-                   help="warm-up after each restart, raw passed through (default: the core's, 1 s; "
-                        "at least 10(n+1) samples); short bursts such as the 2 kHz batch sampler "
-                        "(1024 samples) need less, e.g. 0.1")
-    p.add_argument("--outlier-sigma", type=_float, default=None, metavar="K",
-                   help="outlier gate: keep a sample with |innovation| > K sqrt(S) out of the filter "
-                        "(default: the core's, 5; 0 = off, the paper's filter)")
-    p.add_argument("--outlier-run", type=_int, default=None, metavar="M",
-                   help="consecutive rejected samples after which the filter re-opens (default 20)")
-    p.add_argument("--raw-imu-unit", default="auto", choices=["auto", "mrad/s", "rad/s", "counts"],
-                   help="unit of RAW_IMU gyro fields (default auto: mrad/s when the log shows "
-                        "ArduPilot, else counts with unknown scale)")
-    p.add_argument("--raw-imu-scale", type=_float, default=None, metavar="DEG_S_PER_COUNT",
-                   help="scale of RAW_IMU raw counts (old APM firmware)")
-    p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
-    p.add_argument("--no-csv", action="store_true", help="do not write CSV files")
-    live = p.add_argument_group("live link (LOG is a connection string)")
-    live.add_argument("--forward", default=None, metavar="CONN",
-                      help="output connection, e.g. udpout:127.0.0.1:14551 (default: none, only report)")
-    live.add_argument("--duration", type=_float, default=None, metavar="S",
-                      help="stop after S seconds (live link only; refused with log files)")
-    live.add_argument("--count", type=_int, default=None, metavar="N",
-                      help="stop after N messages (live link only; refused with log files)")
-    p.set_defaults(func=run)
-    _one_line_errors(p)
-    return p
 
 
-def _int(text):
-    try:
-        return int(text)
-    except ValueError:
-        raise __import__("argparse").ArgumentTypeError(f"not an integer: {text!r}") from None
-
-
-def _float(text):
-    try:
-        return float(text)
-    except ValueError:
-        raise __import__("argparse").ArgumentTypeError(f"not a number: {text!r}") from None
-
-
-def _one_line_errors(p):
-    """argparse errors of this subcommand (unknown option, missing LOG, a value
-    that is not a number) as one line on stderr, exit 2 (as every command's, see
-    cli.OneLineErrorParser), and with --json also one JSON object on stdout."""
-    seen = {}
-    parse = p.parse_known_args      # cli.OneLineErrorParser's: unknown options reach error() below
-
-    def parse_known_args(args=None, namespace=None):
-        seen["json"] = args is not None and "--json" in list(args)
-        return parse(args, namespace)
-
-    def error(message):
-        msg = f"mavlink: {message}"
-        if seen.get("json"):
-            _emit({"error": msg, "exit_status": 2})
-        print(f"gyrodenoise: error: {msg} (see gyrodenoise mavlink --help)", file=sys.stderr)
-        sys.exit(2)
-
-    p.parse_known_args = parse_known_args
-    p.error = error
+def _filter_option_help():
+    """The bridge's wording of the filter options: each stream is filtered at its own rate,
+    a live link as it comes."""
+    return {
+        "--method": f"filter (default {DEFAULT_METHOD}: follows manoeuvres, averages at rest; "
+                    f"shakf: the paper's modified Sage-Husa AKF; kf; sh_classic; lowpass: "
+                    f"causal Butterworth at the core's default cutoff; none)",
+        "--cutoff-hz": "--method lowpass: -3 dB cutoff (default min(20 Hz, a quarter of each stream's "
+                       "sample rate); the summary gives the one applied per stream)",
+        "--order": f"--method lowpass: Butterworth order 1..8 (default {core_default('order')})",
+        "--zero-phase": "--method lowpass: filter forwards then backwards, each session on its own (no "
+                        "lag, squared magnitude; offline files only, not --engine fmu or a live link)",
+        "--causal": "--method motion on log files: the causal filter (as a live link, Denoiser.step and "
+                    "the FMUs run it); default on files: offline, the forward and backward runs blended "
+                    "per session (no lag). A live link and --engine fmu are always causal",
+        "--max-motion-hz": "--method motion, rigid-body option for frames that vibrate (drones): the band of "
+                           "interest; content above it counts as error (a 4th-order Butterworth before the "
+                           "filter bank, flat to HZ, -3 dB at 2 HZ, -24 dB at 4 HZ); "
+                           f"{core_default('max_motion_hz'):g} = off (default); a stream whose "
+                           "Nyquist is not above HZ is written raw, with the reason",
+        "--ar-order": f"AR model order, 1..{MAX_AR_ORDER} (default {core_default('ar_order')})",
+        "--warmup-s": f"warm-up after each restart, raw passed through (default: the core's, "
+                      f"{core_default('warmup_s'):g} s; at least 10(n+1) samples); short bursts such as the "
+                      "2 kHz batch sampler (1024 samples) need less, e.g. 0.1",
+        "--outlier-sigma": "outlier gate: keep a sample with |innovation| > K sqrt(S) out of the filter "
+                           f"(default: the core's, {core_default('outlier_sigma'):g}; 0 = off, the paper's "
+                           "filter)",
+        "--outlier-run": "consecutive rejected samples after which the filter re-opens "
+                         f"(default {core_default('outlier_run')})",
+    }
 
 
 #: --ar-order above this is refused: the RLS state grows as n^2 (n = 1e6 is a
@@ -195,6 +174,18 @@ def _finite_num(v):
 
 def _check(args):
     """Every option value: one line naming the option (InputError, exit 2)."""
+    _check_run_options(args)
+    _check_filter_options(args)
+    if args.raw_imu_scale is not None and not (_finite_num(args.raw_imu_scale) and args.raw_imu_scale > 0):
+        raise InputError(f"--raw-imu-scale must be a finite number > 0, got {args.raw_imu_scale}")
+    if args.duration is not None and not (_finite_num(args.duration) and args.duration > 0):
+        raise InputError(f"--duration must be a finite number > 0 s, got {args.duration}")
+    if args.count is not None and args.count < 1:
+        raise InputError(f"--count must be >= 1, got {args.count}")
+
+
+def _check_run_options(args):
+    """--jobs and --scheduler."""
     if args.jobs < 1:
         raise InputError(f"--jobs must be >= 1, got {args.jobs}")
     if args.scheduler is not None:
@@ -205,6 +196,10 @@ def _check(args):
             raise InputError("--jobs and --scheduler exclude each other (the cluster decides the parallelism)")
         from gyrodenoise.mavlink.cluster import require_dask
         require_dask("--scheduler")
+
+
+def _check_filter_options(args):
+    """The filter options, --gap-factor and --sample-rate: the bridge's bounds, then the core's checks."""
     if not 1 <= args.ar_order <= MAX_AR_ORDER:
         raise InputError(f"--ar-order must be 1..{MAX_AR_ORDER}, got {args.ar_order}")
     if not (_finite_num(args.gap_factor) and args.gap_factor > 1):
@@ -213,15 +208,8 @@ def _check(args):
                                              0 < args.sample_rate <= MAX_SAMPLE_RATE_HZ):
         raise InputError(f"--sample-rate must be a number of Hz in (0, {MAX_SAMPLE_RATE_HZ:g}], "
                          f"got {args.sample_rate:g}")
-    lp = [opt for opt, v in (("--cutoff-hz", args.cutoff_hz), ("--order", args.order),
-                             ("--zero-phase", args.zero_phase or None)) if v is not None]
-    if lp and args.method != "lowpass":
-        raise InputError(f"{lp[0]} applies to --method lowpass only, not {args.method}")
-    if args.causal and args.method != "motion":
-        raise InputError(f"--causal applies to --method motion only, not {args.method} "
-                         f"(the other methods are causal unless --zero-phase)")
-    if args.max_motion_hz is not None and args.method != "motion":
-        raise InputError(f"--max-motion-hz applies to --method motion only, not {args.method}")
+    check_method_options(args, ("--cutoff-hz", "--order", "--zero-phase", "--causal", "--max-motion-hz"),
+                         notes={"--causal": " (the other methods are causal unless --zero-phase)"})
     if args.max_motion_hz is not None and not (_finite_num(args.max_motion_hz) and args.max_motion_hz >= 0):
         raise InputError(f"--max-motion-hz must be a finite number >= 0 Hz (0 = off), got {args.max_motion_hz}")
     if args.cutoff_hz is not None and not (_finite_num(args.cutoff_hz) and args.cutoff_hz > 0):
@@ -234,38 +222,13 @@ def _check(args):
     if args.outlier_run is not None and args.outlier_run < 1:
         raise InputError(f"--outlier-run must be >= 1, got {args.outlier_run}")
     try:
-        from gyrodenoise.core.kernels import make_params
-        kw = _filter_kw(args)
-        if args.warmup_s is not None:
-            kw["warmup_s"] = args.warmup_s
-        make_params(ar_order=args.ar_order, method=args.method,
-                    sample_rate_hz=args.sample_rate or _CHECK_RATE_HZ, **kw)
         # the cutoff is checked against each stream's rate when it is filtered
         # (a stream too slow for it is written raw, with the reason)
+        check_core_params(ar_order=args.ar_order, method=args.method,
+                          sample_rate_hz=args.sample_rate or _CHECK_RATE_HZ, name_options=True, **filter_kw(args))
     except OverflowError as exc:
         raise InputError(f"--warmup-s {args.warmup_s} x --sample-rate {args.sample_rate}: the warm-up is "
                          f"not a finite number of samples ({exc})") from None
-    except ValueError as exc:
-        raise InputError(_option_named(str(exc))) from None
-    if args.raw_imu_scale is not None and not (_finite_num(args.raw_imu_scale) and args.raw_imu_scale > 0):
-        raise InputError(f"--raw-imu-scale must be a finite number > 0, got {args.raw_imu_scale}")
-    if args.duration is not None and not (_finite_num(args.duration) and args.duration > 0):
-        raise InputError(f"--duration must be a finite number > 0 s, got {args.duration}")
-    if args.count is not None and args.count < 1:
-        raise InputError(f"--count must be >= 1, got {args.count}")
-
-
-_PARAM_OPTION = {"warmup_s": "--warmup-s", "sample_rate_hz": "--sample-rate", "ar_order": "--ar-order",
-                 "outlier_sigma": "--outlier-sigma", "outlier_run": "--outlier-run", "method": "--method",
-                 "cutoff_hz": "--cutoff-hz", "order": "--order", "max_motion_hz": "--max-motion-hz"}
-
-
-def _option_named(msg):
-    """The core's message about a parameter, naming the command-line option."""
-    for name, opt in _PARAM_OPTION.items():
-        if msg.startswith(name + " "):
-            return f"{opt}: {msg}"
-    return msg
 
 
 def _check_out(out, created=None):
@@ -275,14 +238,14 @@ def _check_out(out, created=None):
     p = Path(out)
     if p.exists() and not p.is_dir():
         raise InputError(f"-o {out}: exists and is not a folder")
-    new = [q for q in [p, *p.parents] if not q.exists()][::-1]
+    missing = [q for q in [p, *p.parents] if not q.exists()][::-1]
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"-o {out}: cannot create the output folder ({exc.strerror or exc})") from None
     finally:
         if created is not None:
-            created += [q for q in new if q.is_dir()]
+            created += [q for q in missing if q.is_dir()]
     if not os.access(p, os.W_OK | os.X_OK):
         raise InputError(f"-o {out}: output folder is not writable")
 
@@ -303,19 +266,9 @@ def _clean_up(out, created):
 
 
 def _filter_kw(args):
-    """Core filter parameters given on the command line (None = the core's default)."""
-    kw = {}
-    if getattr(args, "cutoff_hz", None) is not None:
-        kw["cutoff_hz"] = float(args.cutoff_hz)
-    if getattr(args, "order", None) is not None:
-        kw["order"] = int(args.order)
-    if getattr(args, "max_motion_hz", None):          # 0 = off: the default filter
-        kw["max_motion_hz"] = float(args.max_motion_hz)
-    if args.outlier_sigma is not None:
-        kw["outlier_sigma"] = float(args.outlier_sigma)
-    if args.outlier_run is not None:
-        kw["outlier_run"] = int(args.outlier_run)
-    return kw
+    """The core filter parameters given on the command line (None = the core's default),
+    the warm-up apart: the bridge passes it on its own (``warmup_s=``)."""
+    return {k: v for k, v in filter_kw(args).items() if k != "warmup_s"}
 
 
 def _finite(obj):
@@ -329,11 +282,6 @@ def _finite(obj):
     return obj
 
 
-def _emit(obj):
-    sys.stdout.write(json.dumps(_finite(obj), allow_nan=False) + "\n")
-    sys.stdout.flush()
-
-
 def run(args):
     """The command; returns the exit status (0 ok, 1 a stream left raw, 2 bad input).
     A user error is an InputError (one line on stderr from the top-level CLI); with
@@ -344,7 +292,7 @@ def run(args):
     except InputError as exc:
         _clean_up(args.out, created)
         if getattr(args, "json", False):
-            _emit({"error": str(exc), "exit_status": 2})
+            emit_json(_finite({"error": str(exc), "exit_status": 2}))
         raise
     except BaseException:           # an interrupt (SIGINT/SIGTERM) or a crash: no partial file, no empty folder
         _clean_up(args.out, created)
@@ -400,12 +348,12 @@ def _run_logs(args, client, created):
     except OSError as exc:
         raise InputError(f"-o {args.out}: cannot write summary.json ({exc.strerror or exc})") from None
     if summary["failed"]:
-        print(f"gyrodenoise: {summary['n_failed']} of {summary['n_logs']} log(s) failed", file=sys.stderr)
+        log(f"gyrodenoise: {summary['n_failed']} of {summary['n_logs']} log(s) failed")
     for f in summary["failed"]:
-        print(f"gyrodenoise: error: {f['error']}", file=sys.stderr)
+        log(f"gyrodenoise: error: {f['error']}")
     try:
         if args.json:
-            _emit(summary)
+            emit_json(_finite(summary))
         else:
             _print_text(summary)
             sys.stdout.flush()
@@ -570,45 +518,9 @@ def _filter_rate_text(s, summary):
 
 
 def _print_text(summary):
-    from gyrodenoise.mavlink.process import saturation_note
-    from gyrodenoise.mavlink.spectra import summary_lines
     out = sys.stdout
     for r in summary["logs"]:
-        nb = r.get("truncated_bytes")
-        trunc = f", truncated ({nb} byte{'' if nb == 1 else 's'} cut)" if r.get("truncated") else ""
-        unread = r.get("unreadable_records")
-        # pyulog does not count what it skips: no figure rather than a dash
-        unread = "" if unread is None else f", {unread} unreadable records skipped"
-        out.write(f"{r['file']} ({r['format']}): {r['messages']} messages{unread}{trunc}\n")
-        out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
-                  f"{_form_text(r)})\n")
-        for s in r["streams"]:
-            out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
-                      f"{s['restarts']} restart(s)  unit {s['field_unit']}"
-                      f"{'' if s['unit_known'] else ' (scale unknown)'}"
-                      f"{_filter_rate_text(s, summary)}\n")
-            if s.get("left_raw"):
-                out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
-            if s.get("all_zero"):
-                out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
-            if s.get("saturation"):
-                out.write(f"    note: {saturation_note(s['saturation'])}\n")
-            if s.get("too_slow_to_denoise"):
-                out.write(f"    note: {s['slow_note']}\n")
-            if s.get("not_filtered"):
-                out.write(f"    NOT FILTERED: {s['not_filtered']}\n")
-            if s.get("cutoff_hz"):
-                out.write(f"    low-pass cutoff {s['cutoff_hz']:.4g} Hz at {_fmt(s['filter_rate_hz'])} Hz"
-                          f"{'' if r['filter_options'].get('cutoff_hz') else ' (the default: min(20 Hz, rate / 4))'}\n")
-            for a in s["noise"]:
-                out.write(_axis_line(s, a))
-            for line in summary_lines(s.get("spectrum")):
-                out.write(f"      {line}\n")
-            for w in s.get("warnings", []):
-                out.write(f"    WARNING: {w}\n")
-        for e in r["restarts"]:
-            out.write(f"  restart: {e['stream']} sample {e['sample']} at t={e['time_s']:.3f} s "
-                      f"(previous {e['previous_time_s']:.3f} s): {e['reason']}\n")
+        _print_log(out, r, summary)
     for f in summary["failed"]:
         # the error names its file already
         err = f["error"] if f["error"].startswith(str(f["file"])) else f"{f['file']}: {f['error']}"
@@ -618,6 +530,52 @@ def _print_text(summary):
               f"{f'; {n_raw} stream(s) left raw (exit status 1)' if n_raw else ''}\n")
     if summary.get("fleet_report"):
         out.write(f"fleet report: {summary['fleet_report'][0]}\n")
+
+
+def _print_log(out, r, summary):
+    """One log's lines of the text summary: the log, its streams, its restarts."""
+    nb = r.get("truncated_bytes")
+    trunc = f", truncated ({nb} byte{'' if nb == 1 else 's'} cut)" if r.get("truncated") else ""
+    unread = r.get("unreadable_records")
+    # pyulog does not count what it skips: no figure rather than a dash
+    unread = "" if unread is None else f", {unread} unreadable records skipped"
+    out.write(f"{r['file']} ({r['format']}): {r['messages']} messages{unread}{trunc}\n")
+    out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
+              f"{_form_text(r)})\n")
+    for s in r["streams"]:
+        _print_stream(out, s, r, summary)
+    for e in r["restarts"]:
+        out.write(f"  restart: {e['stream']} sample {e['sample']} at t={e['time_s']:.3f} s "
+                  f"(previous {e['previous_time_s']:.3f} s): {e['reason']}\n")
+
+
+def _print_stream(out, s, r, summary):
+    """One stream's lines of the text summary of log ``r``."""
+    from gyrodenoise.mavlink.process import saturation_note
+    from gyrodenoise.mavlink.spectra import summary_lines
+    out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
+              f"{s['restarts']} restart(s)  unit {s['field_unit']}"
+              f"{'' if s['unit_known'] else ' (scale unknown)'}"
+              f"{_filter_rate_text(s, summary)}\n")
+    if s.get("left_raw"):
+        out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
+    if s.get("all_zero"):
+        out.write("    note: every sample is zero: no data (sensor absent or dead)\n")
+    if s.get("saturation"):
+        out.write(f"    note: {saturation_note(s['saturation'])}\n")
+    if s.get("too_slow_to_denoise"):
+        out.write(f"    note: {s['slow_note']}\n")
+    if s.get("not_filtered"):
+        out.write(f"    NOT FILTERED: {s['not_filtered']}\n")
+    if s.get("cutoff_hz"):
+        out.write(f"    low-pass cutoff {s['cutoff_hz']:.4g} Hz at {_fmt(s['filter_rate_hz'])} Hz"
+                  f"{'' if r['filter_options'].get('cutoff_hz') else ' (the default: min(20 Hz, rate / 4))'}\n")
+    for a in s["noise"]:
+        out.write(_axis_line(s, a))
+    for line in summary_lines(s.get("spectrum")):
+        out.write(f"      {line}\n")
+    for w in s.get("warnings", []):
+        out.write(f"    WARNING: {w}\n")
 
 
 def _run_live(args, conn):
@@ -636,7 +594,21 @@ def _live(args, conn):
 
 
 def _report_live(args, conn, rep, streams):
-    from gyrodenoise.mavlink.process import MOTION_METRIC, log_problems, plot_stream, safe_name, stream_report, write_csv
+    _complete_live_report(args, conn, rep, streams)
+    from gyrodenoise.mavlink.process import log_problems
+    log_problems(dict(rep, file=conn, output_log=args.forward or "(nowhere)"), _log)
+    if args.json:
+        emit_json(_finite(rep))
+    else:
+        _print_live(args, conn, rep)
+    return rep["exit_status"]
+
+
+def _complete_live_report(args, conn, rep, streams):
+    """The link's report completed with its streams (their CSV and PNG written unless
+    --no-csv / --no-plots), restarts, metrics, the streams left raw and the exit status."""
+    from gyrodenoise.mavlink.process import MOTION_METRIC, plot_stream, safe_name, stream_report, write_csv
+    from gyrodenoise.mavlink.streams import NOISE_METRIC
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:
@@ -653,33 +625,32 @@ def _report_live(args, conn, rep, streams):
         restarts += s.restart_events
     rep["streams"] = srep
     rep["restarts"] = restarts
-    from gyrodenoise.mavlink.streams import NOISE_METRIC
     rep["noise_metric"] = NOISE_METRIC
     rep["motion_metric"] = MOTION_METRIC
     rep["streams_left_raw"] = [{"file": conn, "stream": s["name"], "reason": s["left_raw"]}
                                for s in srep if s.get("left_raw")]
     rep["exit_status"] = 1 if rep["streams_left_raw"] else 0
-    log_problems(dict(rep, file=conn, output_log=args.forward or "(nowhere)"), _log)
-    if args.json:
-        _emit(rep)
-    else:
-        sys.stdout.write(f"{conn} -> {args.forward or '(nowhere)'}: {rep['messages_in']} messages in, "
-                         f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "
-                         f"stopped by {rep['stopped_by']} after {rep['seconds']} s; "
-                         f"method {rep['method']}, causal\n")
-        for s in srep:
-            sys.stdout.write(f"  {s['name']}: {s['samples']} samples, {_fmt(s['rate_hz'])} Hz, "
-                             f"{s['restarts']} restart(s), unit {s['field_unit']}"
-                             f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
-            if s.get("left_raw"):
-                sys.stdout.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
-            if s.get("too_slow_to_denoise"):
-                sys.stdout.write(f"    note: {s['slow_note']}\n")
-            if s.get("saturation"):
-                from gyrodenoise.mavlink.process import saturation_note
-                sys.stdout.write(f"    note: {saturation_note(s['saturation'])}\n")
-            for a in s["noise"]:
-                sys.stdout.write(_axis_line(s, a))
-            for w in s.get("warnings", []):
-                sys.stdout.write(f"    WARNING: {w}\n")
-    return rep["exit_status"]
+
+
+def _print_live(args, conn, rep):
+    """The text summary of a live link."""
+    from gyrodenoise.mavlink.process import saturation_note
+    out = sys.stdout
+    out.write(f"{conn} -> {args.forward or '(nowhere)'}: {rep['messages_in']} messages in, "
+              f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "
+              f"stopped by {rep['stopped_by']} after {rep['seconds']} s; "
+              f"method {rep['method']}, causal\n")
+    for s in rep["streams"]:
+        out.write(f"  {s['name']}: {s['samples']} samples, {_fmt(s['rate_hz'])} Hz, "
+                  f"{s['restarts']} restart(s), unit {s['field_unit']}"
+                  f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
+        if s.get("left_raw"):
+            out.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
+        if s.get("too_slow_to_denoise"):
+            out.write(f"    note: {s['slow_note']}\n")
+        if s.get("saturation"):
+            out.write(f"    note: {saturation_note(s['saturation'])}\n")
+        for a in s["noise"]:
+            out.write(_axis_line(s, a))
+        for w in s.get("warnings", []):
+            out.write(f"    WARNING: {w}\n")

@@ -27,17 +27,33 @@ class OneLineErrorParser(argparse.ArgumentParser):
     """argparse with the contract's error form: one line on stderr naming the command
     and what was wrong, exit 2 (argparse prints the whole usage block first). Unknown
     options are reported by the (sub)command that was given them, not by the top level.
-    Subcommand parsers inherit the class (``add_subparsers`` uses the parent's type)."""
+    Subcommand parsers inherit the class (``add_subparsers`` uses the parent's type).
+
+    ``json_errors=True`` (``add_parser(..., json_errors=True)``), for a command with
+    ``--json``: its usage errors take the form of its input errors,
+    ``gyrodenoise: error: NAME: message``, and when ``--json`` was given one JSON object
+    ``{"error": ..., "exit_status": 2}`` is printed on stdout too."""
+
+    def __init__(self, *args, json_errors=False, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.json_errors = json_errors
+        self._json_requested = False
 
     def parse_known_args(self, args=None, namespace=None):
+        self._json_requested = self.json_errors and args is not None and "--json" in list(args)
         ns, extras = super().parse_known_args(args, namespace)
         if extras:
             self.error(f"unrecognized arguments: {' '.join(extras)}")
         return ns, extras
 
     def error(self, message):
-        hint = f" (see {self.prog} --help)" if self.prog != "gyrodenoise" else " (see gyrodenoise --help)"
-        print(f"{self.prog}: error: {message}{hint}", file=sys.stderr)
+        if self.json_errors:
+            message = f"{self.prog.removeprefix('gyrodenoise ')}: {message}"
+            if self._json_requested:
+                emit_json({"error": message, "exit_status": 2})
+            print(f"gyrodenoise: error: {message} (see {self.prog} --help)", file=sys.stderr)
+        else:
+            print(f"{self.prog}: error: {message} (see {self.prog} --help)", file=sys.stderr)
         sys.exit(2)
 
 
@@ -63,8 +79,9 @@ def build_parser():
 
 
 def emit_json(obj):
-    """Print exactly one JSON object on stdout."""
+    """Print exactly one JSON object on stdout (strict JSON: no NaN or inf), flushed."""
     sys.stdout.write(json.dumps(obj, indent=None, allow_nan=False) + "\n")
+    sys.stdout.flush()
 
 
 def main(argv=None):
