@@ -31,6 +31,8 @@ import math
 
 import numpy as np
 
+from gyrodenoise.analysis.spectrum import nperseg_for_length, running_median, segment_count, welch_psd
+
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
 N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
 MIN_BUMP_BINS = 16    # a bump spans at least this many Welch bins (narrower: a spectral line)
@@ -168,20 +170,57 @@ def band_columns(specs, layout, bands=(), lowpass_hz=None):
     return cols, clear
 
 
-def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
-    """Spectral bumps of a record: bands whose PSD stands more than ``ratio`` times
-    above the lowest PSD on BOTH sides within a factor ``span`` in frequency (a
-    monotone spectrum - white, 1/f, f^2 - never does) and spanning at least
-    :data:`MIN_BUMP_BINS` Welch bins (a narrower one is a line, for a sinusoid). Returns [(lo_hz, hi_hz,
-    peak_ratio)], each widened by one band on either side."""
-    from scipy.signal import welch
+def record_psd(y, fs):
+    """The record's one-sided Welch PSD above DC, with the segments of the gap
+    signatures (:func:`gyrodenoise.analysis.spectrum.nperseg_for_length`): (freq_hz,
+    psd, nperseg)."""
+    nper = nperseg_for_length(len(y))
+    f, p, _ = welch_psd(y, fs, nper)
+    return f[1:], p[1:], nper
 
-    from gyrodenoise.modelgap.metric import welch_nperseg
+
+def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
+    """The bands to take out of the comparison: broad spectral bumps and lines
+    wandering in frequency (:func:`wandering_lines`), [(lo_hz, hi_hz, peak_ratio)].
+
+    A bump is a band whose PSD, averaged in log-spaced bands (``per_decade``),
+    stands more than ``ratio`` times above the lowest band PSD on BOTH sides within
+    a factor ``span`` in frequency (a monotone spectrum - white, 1/f, f^2 - never
+    does; :func:`_bump_flags`) and spans at least :data:`MIN_BUMP_BINS` Welch bins
+    (a narrower one is a line, for a sinusoid). Each is widened over its flanks
+    (:func:`_widen_run`), reaches down to DC when nothing below it is the sensor's,
+    and up over its tail (:func:`bump_tail_end`). A wandering line inside a bump
+    is not listed again.
+
+    This answers "how far does a broad excess extend?", not "is there a line at
+    f?": its test is a ratio of band means to the band floor on both sides, not a
+    per-bin test against a local floor (:func:`gyrodenoise.analysis.spectrum.find_peaks`,
+    which would report a bump as a row of peaks and not give its extent)."""
     y = np.asarray(y, float)
-    nper = welch_nperseg(y.shape[0])
-    f, p = welch(y, fs=fs, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
-    f, p = f[1:], p[1:]
+    f, p, nper = record_psd(y, fs)
     lines, p = wandering_lines(f, p)
+    edges, fc, pv = _log_bands(f, p, per_decade)
+    flag, side = _bump_flags(fc, pv, ratio, span)
+    out = []
+    i = 0
+    while i < len(fc):
+        if not flag[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(fc) and flag[j + 1]:
+            j += 1
+        i, j = _widen_run(i, j, fc, pv, span)
+        bump = _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span)
+        if bump is not None:
+            out.append(bump)
+        i = j + 1
+    return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
+
+
+def _log_bands(f, p, per_decade):
+    """Log-spaced bands (``per_decade``) over the Welch bins ``f``: (edges of the bands
+    holding at least one bin [(lo_hz, hi_hz)], their centres (geometric), their mean PSD)."""
     edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
                         int(math.ceil(math.log10(f[-1] / f[0]) * per_decade)) + 1)
     idx = np.searchsorted(f, edges)
@@ -189,52 +228,58 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
              if idx[i + 1] > idx[i]]
     fc = np.array([math.sqrt(a * b) for a, b, _ in bands])
     pv = np.array([v for _, _, v in bands])
-    flag = np.zeros(len(bands), bool)
-    side = np.zeros(len(bands))
-    for i in range(len(bands)):
+    return [(a, b) for a, b, _ in bands], fc, pv
+
+
+def _bump_flags(fc, pv, ratio, span):
+    """Per band: does it stand more than ``ratio`` above the lowest band on both sides
+    within a factor ``span``; and that side floor (the larger of the two minima)."""
+    flag = np.zeros(len(fc), bool)
+    side = np.zeros(len(fc))
+    for i in range(len(fc)):
         left = pv[(fc >= fc[i] / span) & (fc < fc[i])]
         right = pv[(fc > fc[i]) & (fc <= fc[i] * span)]
         if len(left) and len(right):
             side[i] = max(left.min(), right.min())
             flag[i] = pv[i] > ratio * side[i]
-    out = []
-    i = 0
-    while i < len(bands):
-        if flag[i]:
-            j = i
-            while j + 1 < len(bands) and flag[j + 1]:
-                j += 1
-            # widen while the PSD stays above twice its floor on the far side
-            while i > 0:
-                left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
-                if not len(left) or pv[i - 1] <= WIDEN * left.min():
-                    break
-                i -= 1
-            while j + 1 < len(bands):
-                right = pv[(fc > fc[j + 1]) & (fc <= fc[j + 1] * span)]
-                if not len(right) or pv[j + 1] <= WIDEN * right.min():
-                    break
-                j += 1
-            lo = bands[max(i - 1, 0)][0]
-            hi = min(bands[min(j + 1, len(bands) - 1)][1], fs / 2.0)
-            if np.count_nonzero((f >= lo) & (f <= hi)) < MIN_BUMP_BINS:
-                i = j + 1      # a narrow line: a sinusoid's business, not a band to take out
-                continue
-            peak = float(np.max(pv[i:j + 1] / np.maximum(side[i:j + 1], 1e-300)))
-            # base motion down to DC: when every band below the bump stays above
-            # WIDEN x the floor on the bump's upper side (the sensor's own level),
-            # nothing below the bump is the sensor's (its terms give a PSD that is
-            # flat, falling, or rising like f^2 from far below that floor)
-            up = pv[(fc > hi) & (fc <= hi * span)]
-            below = pv[fc < lo]
-            if len(up) and len(below) and below.min() > WIDEN * up.min():
-                lo = float(f[0])
-            hi = bump_tail_end(f, p, hi, fs, y.shape[0], nper)
-            out.append((float(lo), float(hi), peak))
-            i = j + 1
-        else:
-            i += 1
-    return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
+    return flag, side
+
+
+def _widen_run(i, j, fc, pv, span):
+    """Bands ``i..j`` of a bump widened while the PSD stays above :data:`WIDEN` x the
+    lowest band on the far side (within ``span``)."""
+    while i > 0:
+        left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
+        if not len(left) or pv[i - 1] <= WIDEN * left.min():
+            break
+        i -= 1
+    while j + 1 < len(fc):
+        right = pv[(fc > fc[j + 1]) & (fc <= fc[j + 1] * span)]
+        if not len(right) or pv[j + 1] <= WIDEN * right.min():
+            break
+        j += 1
+    return i, j
+
+
+def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
+    """The bump (lo_hz, hi_hz, peak_ratio) of the bands ``i..j`` (flagged, then widened),
+    or None when it spans fewer than :data:`MIN_BUMP_BINS` Welch bins (a narrow line: a
+    sinusoid's business, not a band to take out)."""
+    lo = edges[max(i - 1, 0)][0]
+    hi = min(edges[min(j + 1, len(edges) - 1)][1], fs / 2.0)
+    if np.count_nonzero((f >= lo) & (f <= hi)) < MIN_BUMP_BINS:
+        return None
+    peak = float(np.max(pv[i:j + 1] / np.maximum(side[i:j + 1], 1e-300)))
+    # base motion down to DC: when every band below the bump stays above
+    # WIDEN x the floor on the bump's upper side (the sensor's own level),
+    # nothing below the bump is the sensor's (its terms give a PSD that is
+    # flat, falling, or rising like f^2 from far below that floor)
+    up = pv[(fc > hi) & (fc <= hi * span)]
+    below = pv[fc < lo]
+    if len(up) and len(below) and below.min() > WIDEN * up.min():
+        lo = float(f[0])
+    hi = bump_tail_end(f, p, hi, fs, y.shape[0], nper)
+    return float(lo), float(hi), peak
 
 
 def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
@@ -262,7 +307,7 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     fit = slice(k_fit0, k_fit1)
     c, _ = nnls(shapes[fit] / p[fit, None], np.ones(k_fit1 - k_fit0))
     level = shapes @ c
-    n_seg = max((n - nperseg) // (nperseg // 2) + 1, 1)
+    n_seg = max(segment_count([n], nperseg), 1)
     limit = 1.0 + TAIL_SE / math.sqrt(1.8 * n_seg * TAIL_BINS)
     def above(k_):
         return k_ + TAIL_BINS <= k_fit0 and p[k_:k_ + TAIL_BINS].mean() > limit * level[k_:k_ + TAIL_BINS].mean()
@@ -290,10 +335,9 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     leaves weaker lobes beside its strongest run: the RLG y axis at 10.0-11.0 Hz).
     Returns ([(lo_hz, hi_hz, peak_ratio)] widened by 2 bins on either side, the
     PSD with those bins replaced by the running median)."""
-    from scipy.ndimage import median_filter
     df = float(f[1] - f[0])
     w = max(int(round(window_hz / df)) | 1, 8 * MIN_LINE_BINS + 1)
-    floor = median_filter(p, size=w, mode="nearest")
+    floor = running_median(p, w, ends="nearest")
     idx = np.flatnonzero(p > ratio * floor)
     out, clean = [], p.copy()
     if not len(idx):
