@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap.candidates import Candidate, _f, propose, spectral_refit
 from gyrodenoise.modelgap.cards import card_at_rate, check_editable, edit_card
@@ -33,7 +34,6 @@ from gyrodenoise.modelgap.settings import (
     PENALTY_PER_PARAM,
     WIDEN_COMPONENTS,
     Z2_CAP,
-    _log,
 )
 from gyrodenoise.modelgap.simulation import Simulator
 from gyrodenoise.modelgap.spectral import band_stop, find_bumps
@@ -119,7 +119,7 @@ def _points(z):
     nl = len(z["line"])
     return {"allan": z["allan"] ** 2, "psd": z["psd"] ** 2,
             "line": np.array([np.max(z["line"] ** 2) / (2.0 * math.log(max(nl, 3)))]),
-            "mean": z["mean"] ** 2, "trend": z["trend"] ** 2}
+           "mean": z["mean"] ** 2, "trend": z["trend"] ** 2}
 
 
 def explainable(zs):
@@ -303,7 +303,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
         from gyrodenoise.modelgap.effects import screen_outliers
         rate_deg_s, idx = screen_outliers(check_record(rate_deg_s, source))
         n_out = len(idx)
-        _log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet)
+        log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet=quiet)
     kw = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
               workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
     res = _gap_once(rate_deg_s, sample_rate_hz, card, stop_bands=stop_bands, **kw)
@@ -311,8 +311,8 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     if lo is None:
         return _with_outliers(res, n_out, len(rate_deg_s))
     from gyrodenoise.simulator import parse_card
-    _log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
-         f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet)
+    log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
+        f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet=quiet)
     card1 = parse_card(res.card_text, getattr(card, "source", "<card>"))
     bands = [(a, b) for a, b, _ in res.stop_bands] + [(lo, float(sample_rate_hz) / 2.0)]
     kw["max_effects"] = max(max_effects - len({e["iteration"] for e in res.effects_added}), 1)
@@ -392,8 +392,8 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
             raise InputError(f"stop band {lo:g}-{hi:g} Hz: need 0 <= low < high")
     bands = [(lo, hi) for lo, hi, _ in bumps]
     if bands:
-        _log("gyrodenoise: spectral bump(s) taken out of the comparison (band-stop on the record and on "
-             "every simulation alike): " + ", ".join(f"{lo:.3g}-{hi:.3g} Hz" for lo, hi in bands), quiet)
+        log("gyrodenoise: spectral bump(s) taken out of the comparison (band-stop on the record and on "
+            "every simulation alike): " + ", ".join(f"{lo:.3g}-{hi:.3g} Hz" for lo, hi in bands), quiet=quiet)
     sig_m = signature(band_stop(y, fs, bands), layout)
     effects, iterations, limitations = [], [], []
     sims = sim.run(text)
@@ -401,15 +401,15 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
         # an empty (or deterministic-only) card: start from the noise terms fitted to the
         # record alone, with the analytic scatter of one record as the weights
         text = _initial_fit(text, sig_m, layout, bands, card_at_rate(text, fs, csrc), csrc, source, effects)
-        _log("gyrodenoise: the card has no noise term: started from " + ", ".join(
-            f"{e['name']} {_short(e['params'])}" for e in effects), quiet)
+        log("gyrodenoise: the card has no noise term: started from " + ", ".join(
+            f"{e['name']} {_short(e['params'])}" for e in effects), quiet=quiet)
         sims = sim.run(text)
     ref, z, comp, g = _evaluate(sims, sig_m, layout, bands)
     loo = loo_gaps(ref)
     threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo)) if loo else 2.0
     comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) if loo else COMPONENT_FLOOR
                       for c in COMPONENTS}
-    _log(f"gyrodenoise: gap of the input card {g:.3g} (threshold {threshold:.3g})", quiet)
+    log(f"gyrodenoise: gap of the input card {g:.3g} (threshold {threshold:.3g})", quiet=quiet)
     if not math.isfinite(g):
         raise InputError(f"the gap of the input card is not finite ({g}): the record's signatures "
                          f"cannot be compared with the card's", source)
@@ -542,9 +542,9 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
         if not accepted:
             it["stop"] = "no candidate shrinks the gap significantly"
             break
-        _log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
-                                          for nm, pr, rf in best.changes)
-             + f": gap {g:.3g} -> {best.gap:.3g}", quiet)
+        log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
+                                         for nm, pr, rf in best.changes)
+            + f": gap {g:.3g} -> {best.gap:.3g}", quiet=quiet)
         text = best.text
         for nm, pr, rf in best.changes:
             effects.append({"name": nm, "params": None if pr is None else {k: float(v) for k, v in pr.items()},
