@@ -317,7 +317,13 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
     ``half_width_bins`` the higher is kept. Each is a dict: ``freq_hz`` (log-
     parabolic interpolation over 3 bins), ``bin``, ``amplitude_rms`` (square
     root of the excess power over the floor within ``half_width_bins``: the rms
-    of a tone, sqrt(2) below its amplitude), ``ratio_db`` (peak over floor)."""
+    of a tone, sqrt(2) below its amplitude), ``ratio_db`` (peak over floor).
+
+    The statistic: the ratio of a Welch bin to the floor, F-distributed for noise
+    alone, against its (1 - false_alarm / n_bins) quantile. It answers "is there a
+    narrow line at f above the local floor?"; a line wandering wider than the
+    window's main lobe and its extent, or a broad bump's extent, are other questions
+    (:mod:`gyrodenoise.modelgap.spectral`)."""
     f = np.asarray(freq_hz, dtype=np.float64)
     p = np.asarray(psd, dtype=np.float64)
     nb = len(p)

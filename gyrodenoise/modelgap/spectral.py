@@ -1,5 +1,30 @@
-"""Exact spectra of the card's stochastic terms as simulated, their Allan variances, a
-band-stop shared by the record and its simulations, and the joint spectral fit.
+"""Exact spectra of the card's stochastic terms as simulated, their Allan variances, the
+bands taken out of the comparison (:func:`find_bumps`: broad bumps and lines wandering in
+frequency) with the band-stop shared by the record and its simulations, and the joint
+spectral fit.
+
+Three questions about spectral lines are answered here and in
+:mod:`gyrodenoise.analysis.spectrum`, each with its own statistic:
+
+* is there a narrow line at f above the local floor? --
+  :func:`gyrodenoise.analysis.spectrum.find_peaks` (a local maximum whose ratio to the
+  bias-corrected running median passes an F-test at a false-alarm rate per spectrum);
+* is there a line too wide for one sinusoid, and over which bins? -- :func:`wandering_lines`
+  (runs of at least :data:`MIN_LINE_BINS` bins standing :data:`LINE_RATIO` x above the
+  plain running median of the same :func:`gyrodenoise.analysis.spectrum.running_median`,
+  widened over their skirt): a sinusoid, which the card's ``sinusoid`` term gives, must NOT
+  be reported, and a wandering line must be reported with its extent, which a per-bin test
+  does not give;
+* how far does a broad excess extend? -- :func:`find_bumps` (band means against the lowest
+  band on both sides, then :func:`bump_tail_end`).
+
+A narrow line the card lacks is found by comparison with the card's simulations instead
+(the ``line`` signature's z, :func:`gyrodenoise.modelgap.candidates.propose`), and the
+lines of a published Allan curve, which has no spectrum, by the Allan chi^2
+(:func:`_pick_allan_lines`). The F-test of ``find_peaks`` is not used for wandering lines:
+at the gap's ~80 Welch segments its threshold (about 1.7 x the floor for a Bonferroni
+bound over 8192 bins) would accept runs that the fixed 3 x (about 13 standard errors)
+rejects, and move the stop bands that the tests on real records pin.
 
 Two-sided PSDs of the discrete processes the simulator draws (sample period ``T``,
 ``f`` in ``[-fs/2, fs/2]``; variance = integral of ``S``), s-based coefficients
@@ -291,7 +316,7 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     shapes the sensor's terms take above a few Hz - white rate ``1``, white angle
     ``sin^2(pi f T)`` - and extrapolated down (a third shape falling like ``1 / sin^2(pi f
     T)`` is not separable from these over the span and extrapolated the noise of the fit:
-    in seeded trials it stopped the edge with half the tail left). The edge moves up over
+    on seeded records it stops the edge with half the tail left). The edge moves up over
     each chunk of :data:`TAIL_BINS` Welch bins whose mean stands more than
     :data:`TAIL_SE` standard errors of a chunk (``1 / sqrt(1.8 K TAIL_BINS)``, ``K``
     Welch segments) above it, and stops at the first two chunks in a row that do not
@@ -329,7 +354,9 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     the Hann main lobe (4 bins; about 3 above 3x for a line 15x its floor); a line
     whose frequency wanders (a ring-laser gyro's dither, aliased; a motor whose
     speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
-    segments a noise bin 3x above the median is ~13 standard deviations off.
+    segments a noise bin 3x above the median is ~13 standard deviations off (a fixed
+    ratio to the plain running median, not the F-test of
+    :func:`gyrodenoise.analysis.spectrum.find_peaks`: see the module docstring).
     Each run is then widened over its skirt: while a bin within LINE_BRIDGE_BINS of
     its edge stands above SKIRT_RATIO x the median (a line wandering over a band
     leaves weaker lobes beside its strongest run: the RLG y axis at 10.0-11.0 Hz).
@@ -484,11 +511,13 @@ def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
         off |= c <= 0
 
 
-def _pick_lines(A, b, sd, m, fs, max_lines, inside_fn):
-    """Greedy choice of up to ``max_lines`` spectral lines (frequencies of :func:`line_grid`) for an Allan-curve fit: each step adds the line that lowers
-    the plain chi^2 most. The lines are kept only when, with them, the model is
-    inside the published bounds at every tau (``inside_fn(model_avar)``) and it was
-    not before: a line is not spent on a curve it does not then explain."""
+def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
+    """Greedy choice of up to ``max_lines`` sinusoids (frequencies of :func:`line_grid`)
+    for an Allan-curve fit: each step adds the line that lowers the plain chi^2 most.
+    The lines are kept only when, with them, the model is inside the published bounds
+    at every tau (``inside_fn(model_avar)``) and it is not without them: a line is not spent
+    on a curve it does not then explain. A published Allan curve has no spectrum, so
+    this is a model choice on the Allan variance, not a spectral line detector."""
     grid = line_grid(fs, m)
     L = line_allan_columns(grid, m, fs) / sd[:, None]      # weighted like A (rows / 1-sigma)
     x0, _ = _nnls_huber(A, b, 0)
@@ -516,7 +545,7 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
 
     ``robust``: that many Huber re-weightings (:func:`_nnls_huber`).
     ``max_lines`` (Allan curve only, ``psd_target`` None): up to that many sinusoids
-    (:func:`_pick_lines`), kept only when they bring the model inside the bounds
+    (:func:`_pick_allan_lines`), kept only when they bring the model inside the bounds
     (``inside_fn(model_avar) -> bool``) at every point.
     ``min_dchi2`` > 0: a term stays only when leaving it out (the others re-fitted)
     raises the plain chi^2 by at least that much (:func:`_drop_unneeded`).
@@ -540,7 +569,7 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
         A = np.vstack([A, (A_p / sd_p[:, None])[clear]])
         b = np.concatenate([b, (psd_target / sd_p)[clear]])
     elif max_lines:
-        f_lines = _pick_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside_fn(av * sd_a))
+        f_lines = _pick_allan_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside_fn(av * sd_a))
         if f_lines:
             A_l = line_allan_columns(f_lines, layout.m, layout.fs)
             A_a, A = np.hstack([A_a, A_l]), np.hstack([A, A_l / sd_a[:, None]])

@@ -198,11 +198,12 @@ def _evaluate(sims, sig_m, layout, bands=()):
     return ref, z, comp, gap_value(comp)
 
 
-# The price a term of the initial fit would pay to stay (issue 20, NOT yet used by _initial_fit):
-# leaving it out must cost more than 3^2 in chi^2 (the angle Gauss-Markov candidate's rule against
-# its simpler rivals), counted twice: the fit's rows are two views of the same record (its Allan
-# variance and its PSD: a high-frequency excess shows in the shortest taus and the top bands alike).
-# benchmarks/gap_white.py: 3^2 alone kept another term on 2/40 white records, 2 x 3^2 on 0/40.
+# The price a term of the initial fit pays to stay when initial_terms is given it (_initial_fit,
+# which the workflow uses, does not ask for it): leaving the term out must cost more than 3^2 in
+# chi^2 (the angle Gauss-Markov candidate's rule against its simpler rivals), counted twice: the
+# fit's rows are two views of the same record (its Allan variance and its PSD: a high-frequency
+# excess shows in the shortest taus and the top bands alike). On 40 seeded white records, 3^2
+# alone keeps another term on 2, 2 x 3^2 on none.
 INITIAL_DCHI2 = 2 * 3.0 ** 2
 
 
@@ -213,7 +214,7 @@ def welch_band_rel_sd(layout):
     correlated 0.444 with their neighbours and 0.028 with the next ones (``|W(k)|^2 /
     |W(0)|^2`` of the squared Hann window). ``metric._floors``' ``1 / sqrt(1.8 K nbins)``
     is 1.4x (one bin) to 1.9x (wide bands) below this and below the scatter of seeded
-    white records (``benchmarks/gap_white.py --scatter``)."""
+    white records."""
     nb = np.diff(layout.band_edges).astype(float)
     corr = 1.0 + (2.0 * 0.444 * np.maximum(nb - 1.0, 0.0) + 2.0 * 0.028 * np.maximum(nb - 2.0, 0.0)) / nb
     return np.sqrt(1.056 * corr / (layout.n_segments * nb))
@@ -225,8 +226,8 @@ def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
     ``psd_rel_sd`` is given, ``metric._floors``' for its Welch bands). With ``min_dchi2``
     > 0 a term is kept only when leaving it out (the others re-fitted) raises the fit's
     chi^2 by more than that: with ``INITIAL_DCHI2`` and ``welch_band_rel_sd(layout)`` a
-    white-noise record comes out as angle random walk alone (issue 20's rule; the
-    workflow does not use it yet: docs/GAP.md, "Initial fit")."""
+    white-noise record comes out as angle random walk alone (the workflow's
+    :func:`_initial_fit` does not apply this rule: docs/GAP.md, "Initial fit")."""
     from gyrodenoise.modelgap.metric import _floors
     from gyrodenoise.modelgap.spectral import fit_terms
     fl = _floors(sig_m, layout)
