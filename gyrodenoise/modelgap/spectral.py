@@ -22,32 +22,10 @@ A narrow line the card lacks is found by comparison with the card's simulations 
 (the ``line`` signature's z, :func:`gyrodenoise.modelgap.candidates.propose`), and the
 lines of a published Allan curve, which has no spectrum, by the Allan chi^2
 (:func:`_pick_allan_lines`). The F-test of ``find_peaks`` is not used for wandering lines:
-at the gap's ~80 Welch segments its threshold (about 1.7 x the floor for a Bonferroni
-bound over 8192 bins) would accept runs that the fixed 3 x (about 13 standard errors)
-rejects, and move the stop bands that the tests on real records pin.
-
-Two-sided PSDs of the discrete processes the simulator draws (sample period ``T``,
-``f`` in ``[-fs/2, fs/2]``; variance = integral of ``S``), s-based coefficients
-(``Q`` deg, ``N`` deg/sqrt(s), ``B`` deg/s, ``K`` deg/s^1.5, GM ``sigma`` deg/s):
-
-* angle random walk (white rate, variance ``N^2 / T``): ``S = N^2``;
-* quantization (white angle of std ``Q``, differenced / ``T``): ``S = 4 Q^2 sin^2(pi f T) / T``;
-* rate random walk (increments of std ``K sqrt(T)``): ``S = K^2 T^2 / (4 sin^2(pi f T))``;
-* first-order Gauss-Markov (``a = exp(-T / tau)``, stationary std ``sigma``):
-  ``S = sigma^2 (1 - a^2) T / (1 - 2 a cos(2 pi f T) + a^2)``;
-* bias instability: the simulator's bank of Gauss-Markov poles (:func:`gyrodenoise.simulator._bank`
-  with ``B = 1``), summed;
-* angle Gauss-Markov (a first-order GM ANGLE of std ``sigma`` deg, differenced / ``T``): the
-  Gauss-Markov PSD above with ``sigma`` in deg, times ``4 sin^2(pi f T) / T^2``.
-
-The overlapping Allan variance at cluster size ``m`` of a process with PSD ``S`` is
-(difference of two consecutive ``m``-sample means, halved)::
-
-    avar(m) = integral_0^{fs/2} S(f) * 4 sin^4(pi f m T) / (m^2 sin^2(pi f T)) df
-
-which gives ``N^2/tau``, ``3 Q^2/tau^2`` (for ``m >= 2``), ``K^2 tau/3`` and the flicker
-plateau ``0.664 B`` of Eq. (40) in the paper at large ``m``, and is exact at small ``m``
-and through a band-stop (the PSD times the stop mask), where Eq. (40) is not.
+its threshold at the gap's segment count (about 1.6 x the floor for the ring-laser gyro record
+psins_lasergyro.imu: 89 segments, a Bonferroni bound over 2048 bins) accepts runs that
+the fixed 3 x rejects: on that record's x and y axes it adds two and three stop bands
+(0.02-0.66, 1.5-2.3, 26.8-27.0, 39.1-39.4 Hz) and would move the results the tests pin.
 """
 
 from __future__ import annotations
