@@ -127,12 +127,12 @@ def test_rlg_y_wandering_line_skirt_is_stopped():
     from converging); the stopped band covers 10.0-11.0 Hz and is at most 1.5 Hz wide."""
     from scipy.signal import welch
 
-    from gyrodenoise.modelgap.metric import welch_nperseg
+    from gyrodenoise.analysis.spectrum import nperseg_for_length
     from gyrodenoise.modelgap.spectral import wandering_lines
     from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     y = log.axis("gyro_y")
-    nper = welch_nperseg(len(y))
+    nper = nperseg_for_length(len(y))
     f, p = welch(y, fs=log.sample_rate_hz, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
     lines, _ = wandering_lines(f[1:], p[1:])
     assert any(lo <= 10.0 and hi >= 11.0 and hi - lo <= 1.5 for lo, hi, _ in lines), lines

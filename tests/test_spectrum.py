@@ -43,6 +43,40 @@ def test_welch_equals_scipy_and_keeps_the_variance():
     assert np.sum(p) * f[1] == pytest.approx(np.var(x), rel=0.01)
 
 
+def test_welch_at_the_gap_segment_length_equals_scipy_to_1e12():
+    """spectrum.welch_psd with the model-gap segment rule (nperseg_for_length: long
+    segments, a record that is not a whole number of half segments) against
+    scipy.signal.welch (Hann, half overlap, each segment's mean removed, density): the
+    independent reference the gap signatures were first computed with."""
+    from scipy import signal
+    rng = np.random.default_rng(20)
+    for n, fs in ((180_000, 100.0), (2 ** 17 + 333, 1000.0), (5000, 400.0)):
+        x = 3.0 + rng.standard_normal(n) + 0.5 * np.sin(2 * np.pi * 12.3 * np.arange(n) / fs)
+        nper = sp.nperseg_for_length(n)
+        assert nper == 2 ** min(14, max(6, math.floor(math.log2(max(n / 32.0, 64)))))
+        f, p, k = sp.welch_psd(x, fs, nper)
+        f_ref, p_ref = signal.welch(x, fs, window="hann", nperseg=nper, noverlap=nper // 2,
+                                    detrend="constant", scaling="density")
+        np.testing.assert_allclose(f, f_ref, rtol=1e-15)
+        np.testing.assert_allclose(p, p_ref, rtol=1e-12, atol=0)
+        assert k == sp.segment_count([n], nper) == (n - nper) // (nper // 2) + 1
+
+
+def test_running_median_is_scipys_median_filter():
+    """The one running median of spectrum.py: with ends="nearest" it is exactly
+    scipy.ndimage.median_filter(mode="nearest") (a median of an odd count is one of
+    the values); with ends="reflect" and a width per bin it is the noise floor's."""
+    from scipy.ndimage import median_filter
+    rng = np.random.default_rng(4)
+    p = rng.chisquare(4, 3000)
+    for w in (5, 49, 331):
+        np.testing.assert_array_equal(sp.running_median(p, w, ends="nearest"),
+                                      median_filter(p, size=w, mode="nearest"))
+    np.testing.assert_array_equal(sp.running_median(p, 7), median_filter(p, size=7, mode="mirror"))
+    with pytest.raises(ValueError):
+        sp.running_median(p, 4)
+
+
 def test_segments_stay_within_sessions_and_skip_the_warmup():
     n, nper = 5000, 256
     restarts = np.zeros(n, bool)

@@ -8,16 +8,23 @@ s, frequencies in Hz.
 * :func:`segments` -- where the Welch segments go: within sessions (a record
   is cut at each restart and at every non-finite sample), after each session's
   first ``skip_samples`` (a filter's warm-up), half-overlapping.
+* :func:`choose_nperseg` (a target resolution, the bridge's views) and
+  :func:`nperseg_for_length` (a number of segments, the model-gap signatures) --
+  two rules for the segment length; :func:`segment_count` -- how many segments fit.
 * :func:`segment_spectra` / :func:`welch_psd` -- one-sided density, Hann
   window, each segment's mean removed: ``sum(psd) * df`` is the variance
-  (Parseval). The mean over the segments is Welch's estimate; the segments
-  themselves, in time order, are the spectrogram (:func:`spectrogram`).
+  (Parseval); equal to ``scipy.signal.welch(window="hann", noverlap=nperseg // 2,
+  detrend="constant")`` to rounding (tests/test_spectrum.py). The mean over the
+  segments is Welch's estimate; the segments themselves, in time order, are the
+  spectrogram (:func:`spectrogram`).
 * :func:`cross_response` -- the filter's response measured from the raw and
   filtered records (H1 = S_xf / S_xx, coherence, phase delay); it is the best
   linear description of an adaptive filter, the exact one of a linear filter.
 * :func:`sos_response` -- the computed response of second-order sections
   (the core's Butterworth low-pass).
 * :func:`analyse` -- all of it for a raw/filtered record pair, per axis.
+* :func:`running_median` -- the local level of a spectrum (exact, a width per
+  bin or one for all, ends reflected or repeated).
 * :func:`noise_floor` -- running median of the PSD over a width proportional
   to the frequency (5..31 bins), corrected for the bias of the median of a
   chi-square variable: robust to the peaks themselves, following a steep slope.
@@ -89,6 +96,23 @@ def choose_nperseg(session_lengths, sample_rate_hz, resolution_hz=0.5, min_segme
 def _count(lengths, n):
     step = n // 2
     return sum((m - n) // step + 1 for m in lengths if m >= n)
+
+
+def segment_count(session_lengths, nperseg):
+    """Number of half-overlapping segments of ``nperseg`` samples that sessions of
+    ``session_lengths`` samples hold (a session shorter than a segment holds none)."""
+    return _count([int(n) for n in session_lengths], int(nperseg))
+
+
+def nperseg_for_length(n_samples, min_segments=32, min_nperseg=64, max_nperseg=16384):
+    """Segment length for one session of ``n_samples``: the largest power of two
+    that gives at least ``min_segments`` segments without overlap
+    (``n_samples / min_segments``), within ``min_nperseg .. max_nperseg`` (powers
+    of two). Half-overlapping, that is about twice ``min_segments`` segments: the
+    resolution of a long record is traded for a Welch estimate whose bins scatter
+    by about 1/sqrt(1.8 x 2 x ``min_segments``) (the model-gap signatures)."""
+    lo, hi = int(math.log2(min_nperseg)), int(math.log2(max_nperseg))
+    return int(2 ** min(hi, max(lo, math.floor(math.log2(max(n_samples / float(min_segments), min_nperseg))))))
 
 
 def segments(runs, nperseg):
@@ -214,17 +238,22 @@ def floor_window_bins(n_bins, window_bins=FLOOR_WINDOW_BINS, rel_width=FLOOR_REL
     return np.clip(w, 5, max(5, int(window_bins) | 1))
 
 
-def noise_floor(psd, n_segments, window_bins=FLOOR_WINDOW_BINS):
-    """Robust floor of a Welch PSD: a running median (widths of
-    :func:`floor_window_bins`, ends reflected), divided by the median of
-    chi2(dof)/dof so that it estimates the mean density where there is no peak."""
+def running_median(psd, width_bins, ends="reflect"):
+    """Running median of ``psd`` over an odd number of bins centred on each bin:
+    ``width_bins`` a scalar, or one width per bin. Beyond the ends the PSD is
+    reflected about its first and last bins (``ends="reflect"``) or its end values
+    repeated (``ends="nearest"``, as ``scipy.ndimage.median_filter(mode="nearest")``).
+    The median of an odd number of values is one of them: the result is exact.
+
+    The local level of a spectrum that a line or a bump stands above: robust to the
+    line itself as long as it covers less than half the window."""
     psd = np.asarray(psd, dtype=np.float64)
     n = len(psd)
-    if n < 7:
-        return psd.copy()
-    widths = floor_window_bins(n, min(window_bins, 2 * (n // 2) - 1))
+    widths = np.broadcast_to(np.asarray(width_bins, dtype=np.int64), (n,))
+    if np.any(widths % 2 == 0):
+        raise ValueError("running_median: the widths must be odd")
     h_max = int(widths.max()) // 2
-    pad = np.concatenate([psd[h_max:0:-1], psd, psd[-2:-h_max - 2:-1]])
+    pad = np.pad(psd, h_max, mode={"reflect": "reflect", "nearest": "edge"}[ends])
     from numpy.lib.stride_tricks import sliding_window_view
     med = np.empty(n)
     for w in np.unique(widths):
@@ -232,6 +261,18 @@ def noise_floor(psd, n_segments, window_bins=FLOOR_WINDOW_BINS):
         ks = np.flatnonzero(widths == w)
         win = sliding_window_view(pad[h_max - h:len(pad) - (h_max - h)], int(w))
         med[ks] = np.median(win[ks], axis=1)
+    return med
+
+
+def noise_floor(psd, n_segments, window_bins=FLOOR_WINDOW_BINS):
+    """Robust floor of a Welch PSD: a running median (:func:`running_median`, widths
+    of :func:`floor_window_bins`, ends reflected), divided by the median of
+    chi2(dof)/dof so that it estimates the mean density where there is no peak."""
+    psd = np.asarray(psd, dtype=np.float64)
+    n = len(psd)
+    if n < 7:
+        return psd.copy()
+    med = running_median(psd, floor_window_bins(n, min(window_bins, 2 * (n // 2) - 1)))
     return med / chi2_quantile_per_dof(0.5, welch_dof(n_segments))
 
 
@@ -276,7 +317,13 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
     ``half_width_bins`` the higher is kept. Each is a dict: ``freq_hz`` (log-
     parabolic interpolation over 3 bins), ``bin``, ``amplitude_rms`` (square
     root of the excess power over the floor within ``half_width_bins``: the rms
-    of a tone, sqrt(2) below its amplitude), ``ratio_db`` (peak over floor)."""
+    of a tone, sqrt(2) below its amplitude), ``ratio_db`` (peak over floor).
+
+    The statistic: the ratio of a Welch bin to the floor, F-distributed for noise
+    alone, against its (1 - false_alarm / n_bins) quantile. It answers "is there a
+    narrow line at f above the local floor?"; a line wandering wider than the
+    window's main lobe and its extent, or a broad bump's extent, are other questions
+    (:mod:`gyrodenoise.modelgap.spectral`)."""
     f = np.asarray(freq_hz, dtype=np.float64)
     p = np.asarray(psd, dtype=np.float64)
     nb = len(p)

@@ -55,9 +55,9 @@ per parameter. A candidate is accepted when its score is below 0.8 times the
 current card's capped gap. Before any stochastic candidate, a record mean far
 off the card's (``|z| > 3`` and more than 5 times the rms wander of the block
 means, :func:`deterministic_offset`) is explained by a constant bias. Why: on a
-long real record (docs/GAP.md, ADIS16405) the plain gap rewarded a large rate
-random walk, whose wider scatter shrank the z of a deterministic mean offset,
-and was dominated by short-tau points (a sensor's internal low-pass filter)
+long real record (an ADIS16405, docs/GAP.md) the plain gap rewards a large rate
+random walk, whose wider scatter shrinks the z of a deterministic mean offset,
+and is dominated by short-tau points (a sensor's internal low-pass filter)
 that no term can fix.
 
 Analytic Allan variances used to fit candidates (avar adds for independent

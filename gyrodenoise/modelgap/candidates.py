@@ -99,213 +99,276 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
     constant_bias, turn_on_transient and sinusoid by least squares on the
     record minus the card's deterministic part. A term already in the card is
     re-fitted (its new value replaces the old one) rather than added twice.
-    When that joint fit changes the card's own terms, the same new term is
+    When that joint fit changes the card's own terms, the same term is
     also proposed fitted alone to the excess over the whole current card (its
     terms held, Allan points where the record is below the card left out),
     and re-simulation chooses between the two.
     """
-    from scipy.optimize import minimize_scalar, nnls
     fs, n = layout.fs, layout.n
-    tau = layout.tau_s
-    avar_m = np.exp(2 * (ref.mean["allan"] + z["allan"] * ref.sigma["allan"]))   # measured
-    avar_s = np.exp(2 * ref.mean["allan"])
-    sig_avar = 2.0 * np.maximum(avar_m, avar_s) * ref.sigma["allan"]
-    w = 1.0 / sig_avar ** 2
     cands = []
     allan_flag = np.any(np.abs(z["allan"]) > limit)
-    # --- Allan-shaped terms and Gauss-Markov: fitted JOINTLY with the card's existing
-    # Allan-shaped terms (re-fitted), by weighted NNLS on the measured Allan variance
-    # minus what the rest of the card contributes
     if allan_flag:
-        existing = {nm: (card.terms[nm][CARD_FIELD[nm][0]] / CARD_FIELD[nm][1]) ** 2
-                    for nm in ALLAN_SHAPES if nm in card.terms}
-        rest = np.maximum(avar_s - sum(v * SHAPE[nm](tau) for nm, v in existing.items()), 0.0)
-        target = avar_m - rest
-        sw = np.sqrt(w)
-
-        def joint(cols):
-            A = np.column_stack(cols) * sw[:, None]
-            scale = np.max(np.abs(A), axis=0)
-            scale[scale == 0] = 1.0
-            coef, rn = nnls(A / scale, target * sw)
-            coef = coef / scale
-            # z of each coefficient (unconstrained covariance at the solution)
-            try:
-                cov = np.linalg.inv(A.T @ A)
-                zc = coef / np.sqrt(np.maximum(np.diag(cov), 1e-300))
-            except np.linalg.LinAlgError:
-                zc = np.zeros_like(coef)
-            return coef, zc, rn * rn
-
-        def refits(names, coef):
-            out = []
-            for nm, c in zip(names, coef):
-                old = existing[nm]
-                if abs(math.sqrt(c) - math.sqrt(old)) > 0.02 * math.sqrt(old):
-                    fld, to_card = CARD_FIELD[nm]
-                    # a term re-fitted to zero is removed from the card
-                    out.append((nm, {fld: math.sqrt(c) * to_card} if c > 0 else None, True))
-            return out
-
-        def held(col):
-            """Fit one new term to the excess over the WHOLE current card, its terms held.
-
-            The joint re-fit lets every Allan point pull on the card's terms, so
-            points that no term can explain (a sensor's internal low-pass filter
-            at short tau, with 0.1 % errors in a long record) drag a correct
-            white-noise line away; re-simulation then decides between the two
-            variants. Points where the record is BELOW the card (z < -limit)
-            are left out: adding a term only adds Allan variance, so no new
-            term can explain them."""
-            keep = z["allan"] >= -limit
-            a = (col * sw)[keep]
-            if not np.any(a > 0):
-                return 0.0, 0.0
-            c = float(np.dot(a, ((avar_m - avar_s) * sw)[keep]) / np.dot(a, a))
-            return c, c * math.sqrt(float(np.dot(a, a)))
-
-        ex_names = list(existing)
-        ex_cols = [SHAPE[nm](tau) for nm in ex_names]
-        for name in ALLAN_SHAPES:
-            fld, to_card = CARD_FIELD[name]
-            if name in existing:
-                continue
-            coef, zc, _ = joint(ex_cols + [SHAPE[name](tau)])
-            if coef[-1] <= 0 or zc[-1] < limit:
-                continue
-            ch = refits(ex_names, coef[:-1])
-            cands.append(Candidate(name, {fld: math.sqrt(coef[-1]) * to_card}, False,
-                                   f"Allan excess ~ {name} shape (z={zc[-1]:.1f})", extra=ch))
-            if ch:      # the same term with the card's own terms held (see held())
-                hc, hz = held(SHAPE[name](tau))
-                if hc > 0 and hz >= limit:
-                    cands.append(Candidate(name, {fld: math.sqrt(hc) * to_card}, False,
-                                           f"Allan excess ~ {name} shape, card's terms held (z={hz:.1f})"))
-        if ex_names:    # re-fit the existing Allan-shaped terms only
-            coef, zc, _ = joint(ex_cols)
-            ch = refits(ex_names, coef)
-            if ch:
-                cands.append(Candidate(ch[0][0], ch[0][1], True, "re-fit of the Allan-shaped terms",
-                                       extra=ch[1:]))
-        keep = z["allan"] >= -limit
-
-        def held_res(col):
-            hc, _ = held(col)
-            res = ((avar_m - avar_s - max(hc, 0.0) * col) * sw)[keep]
-            return float(np.dot(res, res))
-
-        def correlated(kind, col_of, lo_T, hi_T, to_card, what, rivals=()):
-            """A term with a correlation time (sigma, tau): tau by a 41-point grid (log),
-            then a bounded refinement; jointly with the card's Allan-shaped terms, and
-            (when the card has some) with them held. With ``rivals`` (Allan shapes of
-            the same number of parameters that the term tends to at its limits), it is
-            proposed only when it fits the Allan variance better than they do by
-            ``limit^2`` in chi^2 (its correlation time is resolved)."""
-            def chi2(logT):
-                return joint(ex_cols + [col_of(math.exp(logT))])[2]
-            rival = joint(ex_cols + list(rivals))[2] if rivals else math.inf
-            rival_held = min((held_res(c) for c in rivals), default=math.inf)
-            grid = np.linspace(lo_T, hi_T, 41)
-            g0 = grid[int(np.argmin([chi2(g) for g in grid]))]
-            opt = minimize_scalar(chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
-            T = math.exp(float(opt.x))
-            coef, zc, c2 = joint(ex_cols + [col_of(T)])
-            if rivals and not c2 < rival - limit ** 2:
-                zc = np.zeros_like(zc)      # not resolved: no better than its limits
-            if coef[-1] > 0 and zc[-1] > limit:
-                ch = refits(ex_names, coef[:-1])
-                cands.append(Candidate(kind, {"sigma": math.sqrt(coef[-1]) * to_card, "tau": T},
-                                       False, f"{what}, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
-                                       extra=ch))
-            if ex_names:    # the term on top of the card's terms held, its own correlation time
-                def held_chi2(logT):
-                    return held_res(col_of(math.exp(logT)))
-                g0 = grid[int(np.argmin([held_chi2(g) for g in grid]))]
-                opt = minimize_scalar(held_chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
-                Th = math.exp(float(opt.x))
-                hc, hz = held(col_of(Th))
-                same = (coef[-1] > 0 and zc[-1] > limit and not refits(ex_names, coef[:-1])
-                        and abs(math.log(Th / T)) < 0.05)
-                resolved = not rivals or held_chi2(math.log(Th)) < rival_held - limit ** 2
-                if hc > 0 and hz >= limit and not same and resolved:
-                    cands.append(Candidate(kind, {"sigma": math.sqrt(hc) * to_card, "tau": Th}, False,
-                                           f"{what} at {Th:.3g} s, card's terms held (z={hz:.1f})"))
+        ax = _AllanExcess.of(layout, ref, z, card, limit)
+        cands += _allan_shape_candidates(ax)
         # --- Gauss-Markov bump (T >= 3 samples)
-        correlated("gauss_markov", lambda T: gm_avar(tau, 1.0, T), math.log(3.0 / fs), math.log(tau[-1]),
-                   3600.0, "Allan bump")
+        cands += _correlated_candidates(ax, "gauss_markov", lambda T: gm_avar(ax.tau, 1.0, T), math.log(3.0 / fs),
+                                        math.log(ax.tau[-1]), 3600.0, "Allan bump")
         # --- angle Gauss-Markov: white angle noise with a correlation time (an Allan slope
         # between -1/2 (white rate, tau >> T) and -1 (white angle)); exact for the sampled term
-        correlated("angle_gauss_markov", lambda T: angle_gm_avar(layout.m, fs, T), math.log(0.3 / fs),
-                   math.log(min(AGM_TAU_MAX_S, tau[-1])), 1.0,
-                   "Allan slope between white rate and white angle noise",
-                   rivals=(SHAPE["angle_random_walk"](tau), SHAPE["quantization"](tau)))
+        cands += _correlated_candidates(ax, "angle_gauss_markov", lambda T: angle_gm_avar(layout.m, fs, T),
+                                        math.log(0.3 / fs), math.log(min(AGM_TAU_MAX_S, ax.tau[-1])), 1.0,
+                                        "Allan slope between white rate and white angle noise",
+                                        rivals=(SHAPE["angle_random_walk"](ax.tau), SHAPE["quantization"](ax.tau)))
     r = np.asarray(y, float) - _deterministic_s(card, n, fs, restarts)
     t = np.arange(n) / fs
-    # --- constant bias
     if abs(z["mean"][0]) > limit:
-        old = card.terms.get("constant_bias")
-        params = dict(old) if old else {}
-        params["value"] = (old["value"] if old else 0.0) + float(r.mean()) * 3600.0
-        cands.append(Candidate("constant_bias", params, old is not None,
-                               f"record mean off by z={z['mean'][0]:.1f}"))
-    trend_flag = np.any(np.abs(z["trend"]) > limit) or (allan_flag and z["allan"][-1] > limit)
-    if trend_flag:
-        # --- ramp
-        old = card.terms.get("rate_ramp")
-        slope = float(np.dot(r, t) / np.dot(t, t))     # through the origin: the card's ramp is R t
-        cands.append(Candidate("rate_ramp", {"R": (old["R"] if old else 0.0) + slope * 3600.0 ** 2},
-                               old is not None, "trend over the record (linear)"))
-        # --- turn-on transient on block means
-        nb = max(1, n // 2000)
-        m = n // nb
-        tb = _since_restart(n, fs, restarts)[:m * nb].reshape(m, nb)
-        rb = r[:m * nb].reshape(m, nb).mean(axis=1)
-
-        def sse(logtau, ret=False):
-            e = np.exp(-tb / math.exp(logtau)).mean(axis=1)
-            A = np.column_stack([np.ones(m), e])
-            coef, *_ = np.linalg.lstsq(A, rb, rcond=None)
-            res = float(np.sum((rb - A @ coef) ** 2))
-            return (res, coef) if ret else res
-        grid = np.linspace(math.log(max(2.0 / fs, 0.5)), math.log(n / fs), 40)
-        vals = [sse(g) for g in grid]
-        g0 = int(np.argmin(vals))
-        lo, hi = grid[max(g0 - 1, 0)], grid[min(g0 + 1, len(grid) - 1)]
-        opt = minimize_scalar(sse, bounds=(lo, hi), method="bounded") if hi > lo else None
-        lt = float(opt.x) if opt is not None else grid[g0]
-        _, coef = sse(lt, ret=True)
-        old = card.terms.get("turn_on_transient")
-        if abs(coef[1]) > 0 and lt < grid[-1] - 1e-6:
-            cands.append(Candidate("turn_on_transient",
-                                   {"amplitude": float(coef[1]) * 3600.0, "tau": math.exp(lt)},
-                                   old is not None, "decaying trend after start/restarts"))
-    # --- spectral line
+        cands.append(_bias_candidate(card, r, z))
+    if np.any(np.abs(z["trend"]) > limit) or (allan_flag and z["allan"][-1] > limit):
+        cands.append(_ramp_candidate(card, r, t))
+        cands += _transient_candidates(card, r, fs, restarts)
     zl = z["line"]
     k = int(np.argmax(zl))
     if zl[k] > limit and zl[k] ** 2 > 2.0 * math.log(len(zl)):
-        f = layout.freq_hz
-        df = f[1] - f[0]
-        # the record's own periodogram, zero-padded 4x, within +-1.5 Welch bins of the peak
-        nfft = 4 * (1 << int(math.ceil(math.log2(n))))
-        spec = np.abs(np.fft.rfft(r - r.mean(), nfft)) ** 2
-        ff = np.fft.rfftfreq(nfft, 1.0 / fs)
-        sel = np.flatnonzero((ff >= f[k] - 1.5 * df) & (ff <= f[k] + 1.5 * df))
-        j = int(sel[np.argmax(spec[sel])])
-        dff = ff[1] - ff[0]
-
-        def neg_power(fr):
-            ph = 2 * np.pi * fr * t
-            return -(np.dot(r, np.cos(ph)) ** 2 + np.dot(r, np.sin(ph)) ** 2)
-        opt = minimize_scalar(neg_power, bounds=(max(ff[j] - dff, 1e-9), min(ff[j] + dff, fs / 2)),
-                              method="bounded", options={"xatol": 1e-3 * dff})
-        fr = float(opt.x)
-        A = np.column_stack([np.sin(2 * np.pi * fr * t), np.cos(2 * np.pi * fr * t), np.ones(n)])
-        coef, *_ = np.linalg.lstsq(A, r, rcond=None)
-        amp = math.hypot(coef[0], coef[1])
-        phase = math.degrees(math.atan2(coef[1], coef[0]))
-        cands.append(Candidate("sinusoid", {"amplitude": amp * 3600.0, "frequency": fr, "phase_deg": phase},
-                               False, f"spectral line at {fr:.4g} Hz (z={zl[k]:.1f})"))
+        cands.append(_sinusoid_candidate(r, t, layout, k, zl[k]))
     return cands
+
+
+@dataclass
+class _AllanExcess:
+    """The Allan variance the record has beyond the card, and the weighted fits on it.
+
+    ``avar_m``: the measured Allan variance, ``avar_s``: the simulations' mean, weights
+    ``sw`` = 1 / (1-sigma of the larger), ``existing``: the card's Allan-shaped terms
+    (s-based squared coefficients), ``target``: the measured variance minus what the
+    rest of the card contributes (what the card's Allan-shaped terms and a new term
+    share), ``keep``: the points not below the card by more than ``limit`` sigmas."""
+    tau: np.ndarray
+    avar_m: np.ndarray
+    avar_s: np.ndarray
+    sw: np.ndarray
+    target: np.ndarray
+    existing: dict
+    keep: np.ndarray
+    limit: float
+
+    @classmethod
+    def of(cls, layout, ref, z, card, limit):
+        tau = layout.tau_s
+        avar_m = np.exp(2 * (ref.mean["allan"] + z["allan"] * ref.sigma["allan"]))   # measured
+        avar_s = np.exp(2 * ref.mean["allan"])
+        sig_avar = 2.0 * np.maximum(avar_m, avar_s) * ref.sigma["allan"]
+        w = 1.0 / sig_avar ** 2
+        existing = {nm: (card.terms[nm][CARD_FIELD[nm][0]] / CARD_FIELD[nm][1]) ** 2
+                    for nm in ALLAN_SHAPES if nm in card.terms}
+        rest = np.maximum(avar_s - sum(v * SHAPE[nm](tau) for nm, v in existing.items()), 0.0)
+        return cls(tau, avar_m, avar_s, np.sqrt(w), avar_m - rest, existing, z["allan"] >= -limit, limit)
+
+    @property
+    def ex_names(self):
+        return list(self.existing)
+
+    @property
+    def ex_cols(self):
+        return [SHAPE[nm](self.tau) for nm in self.existing]
+
+    def joint(self, cols):
+        """Weighted NNLS of the target on ``cols`` (the card's Allan-shaped terms re-fitted
+        with the others): (coefficients, z of each (unconstrained covariance at the
+        solution), chi^2)."""
+        from scipy.optimize import nnls
+        A = np.column_stack(cols) * self.sw[:, None]
+        scale = np.max(np.abs(A), axis=0)
+        scale[scale == 0] = 1.0
+        coef, rn = nnls(A / scale, self.target * self.sw)
+        coef = coef / scale
+        try:
+            cov = np.linalg.inv(A.T @ A)
+            zc = coef / np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        except np.linalg.LinAlgError:
+            zc = np.zeros_like(coef)
+        return coef, zc, rn * rn
+
+    def refits(self, coef):
+        """Changes [(name, params or None, True)] of the card's Allan-shaped terms whose
+        re-fitted coefficient moves by more than 2 % (a term re-fitted to zero is removed)."""
+        out = []
+        for nm, c in zip(self.ex_names, coef):
+            old = self.existing[nm]
+            if abs(math.sqrt(c) - math.sqrt(old)) > 0.02 * math.sqrt(old):
+                fld, to_card = CARD_FIELD[nm]
+                out.append((nm, {fld: math.sqrt(c) * to_card} if c > 0 else None, True))
+        return out
+
+    def held(self, col):
+        """Fit one term to the excess over the WHOLE current card, its terms held:
+        (coefficient, its z).
+
+        The joint re-fit lets every Allan point pull on the card's terms, so
+        points that no term can explain (a sensor's internal low-pass filter
+        at short tau, with 0.1 % errors in a long record) drag a correct
+        white-noise line away; re-simulation then decides between the two
+        variants. Points where the record is BELOW the card (z < -limit)
+        are left out: adding a term only adds Allan variance, so no added
+        term can explain them."""
+        a = (col * self.sw)[self.keep]
+        if not np.any(a > 0):
+            return 0.0, 0.0
+        c = float(np.dot(a, ((self.avar_m - self.avar_s) * self.sw)[self.keep]) / np.dot(a, a))
+        return c, c * math.sqrt(float(np.dot(a, a)))
+
+    def held_chi2(self, col):
+        """chi^2 of :meth:`held` (the points it uses)."""
+        hc, _ = self.held(col)
+        res = ((self.avar_m - self.avar_s - max(hc, 0.0) * col) * self.sw)[self.keep]
+        return float(np.dot(res, res))
+
+
+def _allan_shape_candidates(ax):
+    """Each Allan-shaped term the card lacks, fitted jointly with the card's own (and, when
+    that changes them, with them held), and a re-fit of the card's own alone."""
+    out = []
+    ex_names, ex_cols = ax.ex_names, ax.ex_cols
+    for name in ALLAN_SHAPES:
+        fld, to_card = CARD_FIELD[name]
+        if name in ax.existing:
+            continue
+        coef, zc, _ = ax.joint(ex_cols + [SHAPE[name](ax.tau)])
+        if coef[-1] <= 0 or zc[-1] < ax.limit:
+            continue
+        ch = ax.refits(coef[:-1])
+        out.append(Candidate(name, {fld: math.sqrt(coef[-1]) * to_card}, False,
+                             f"Allan excess ~ {name} shape (z={zc[-1]:.1f})", extra=ch))
+        if ch:      # the same term with the card's own terms held (see _AllanExcess.held)
+            hc, hz = ax.held(SHAPE[name](ax.tau))
+            if hc > 0 and hz >= ax.limit:
+                out.append(Candidate(name, {fld: math.sqrt(hc) * to_card}, False,
+                                     f"Allan excess ~ {name} shape, card's terms held (z={hz:.1f})"))
+    if ex_names:    # re-fit the existing Allan-shaped terms only
+        coef, zc, _ = ax.joint(ex_cols)
+        ch = ax.refits(coef)
+        if ch:
+            out.append(Candidate(ch[0][0], ch[0][1], True, "re-fit of the Allan-shaped terms", extra=ch[1:]))
+    return out
+
+
+def _best_log_tau(chi2, lo_T, hi_T):
+    """The log correlation time minimising ``chi2(log T)``: a 41-point grid over
+    ``lo_T .. hi_T``, then a bounded refinement within +-0.25 of the grid's best."""
+    from scipy.optimize import minimize_scalar
+    grid = np.linspace(lo_T, hi_T, 41)
+    g0 = grid[int(np.argmin([chi2(g) for g in grid]))]
+    opt = minimize_scalar(chi2, bounds=(max(g0 - 0.25, lo_T), g0 + 0.25), method="bounded")
+    return float(opt.x)
+
+
+def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=()):
+    """A term with a correlation time (sigma, tau): tau by :func:`_best_log_tau`, jointly
+    with the card's Allan-shaped terms, and (when the card has some) with them held. With
+    ``rivals`` (Allan shapes of the same number of parameters that the term tends to at its
+    limits), it is proposed only when it fits the Allan variance better than they do by
+    ``limit^2`` in chi^2 (its correlation time is resolved)."""
+    out = []
+    ex_names, ex_cols, limit = ax.ex_names, ax.ex_cols, ax.limit
+    rival = ax.joint(ex_cols + list(rivals))[2] if rivals else math.inf
+    rival_held = min((ax.held_chi2(c) for c in rivals), default=math.inf)
+    T = math.exp(_best_log_tau(lambda logT: ax.joint(ex_cols + [col_of(math.exp(logT))])[2], lo_T, hi_T))
+    coef, zc, c2 = ax.joint(ex_cols + [col_of(T)])
+    if rivals and not c2 < rival - limit ** 2:
+        zc = np.zeros_like(zc)      # not resolved: no better than its limits
+    if coef[-1] > 0 and zc[-1] > limit:
+        out.append(Candidate(kind, {"sigma": math.sqrt(coef[-1]) * to_card, "tau": T}, False,
+                             f"{what}, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
+                             extra=ax.refits(coef[:-1])))
+    if ex_names:    # the term on top of the card's terms held, its own correlation time
+        def held_chi2(logT):
+            return ax.held_chi2(col_of(math.exp(logT)))
+        Th = math.exp(_best_log_tau(held_chi2, lo_T, hi_T))
+        hc, hz = ax.held(col_of(Th))
+        same = (coef[-1] > 0 and zc[-1] > limit and not ax.refits(coef[:-1])
+                and abs(math.log(Th / T)) < 0.05)
+        resolved = not rivals or held_chi2(math.log(Th)) < rival_held - limit ** 2
+        if hc > 0 and hz >= limit and not same and resolved:
+            out.append(Candidate(kind, {"sigma": math.sqrt(hc) * to_card, "tau": Th}, False,
+                                 f"{what} at {Th:.3g} s, card's terms held (z={hz:.1f})"))
+    return out
+
+
+def _bias_candidate(card, r, z):
+    """The constant bias that takes the mean of ``r`` (record minus the card's deterministic part)."""
+    old = card.terms.get("constant_bias")
+    params = dict(old) if old else {}
+    params["value"] = (old["value"] if old else 0.0) + float(r.mean()) * 3600.0
+    return Candidate("constant_bias", params, old is not None, f"record mean off by z={z['mean'][0]:.1f}")
+
+
+def _ramp_candidate(card, r, t):
+    """The rate ramp fitted to ``r`` through the origin (the card's ramp is R t)."""
+    old = card.terms.get("rate_ramp")
+    slope = float(np.dot(r, t) / np.dot(t, t))
+    return Candidate("rate_ramp", {"R": (old["R"] if old else 0.0) + slope * 3600.0 ** 2},
+                     old is not None, "trend over the record (linear)")
+
+
+def _transient_candidates(card, r, fs, restarts):
+    """The turn-on transient (amplitude, tau) fitted to block means of ``r`` (about 2000
+    samples each) after start and restarts: least squares of a constant and the decay
+    for each tau of a 40-point log grid, then a bounded refinement; none when the best
+    tau is the grid's longest."""
+    from scipy.optimize import minimize_scalar
+    n = len(r)
+    nb = max(1, n // 2000)
+    m = n // nb
+    tb = _since_restart(n, fs, restarts)[:m * nb].reshape(m, nb)
+    rb = r[:m * nb].reshape(m, nb).mean(axis=1)
+
+    def sse(logtau, ret=False):
+        e = np.exp(-tb / math.exp(logtau)).mean(axis=1)
+        A = np.column_stack([np.ones(m), e])
+        coef, *_ = np.linalg.lstsq(A, rb, rcond=None)
+        res = float(np.sum((rb - A @ coef) ** 2))
+        return (res, coef) if ret else res
+    grid = np.linspace(math.log(max(2.0 / fs, 0.5)), math.log(n / fs), 40)
+    vals = [sse(g) for g in grid]
+    g0 = int(np.argmin(vals))
+    lo, hi = grid[max(g0 - 1, 0)], grid[min(g0 + 1, len(grid) - 1)]
+    opt = minimize_scalar(sse, bounds=(lo, hi), method="bounded") if hi > lo else None
+    lt = float(opt.x) if opt is not None else grid[g0]
+    _, coef = sse(lt, ret=True)
+    old = card.terms.get("turn_on_transient")
+    if abs(coef[1]) > 0 and lt < grid[-1] - 1e-6:
+        return [Candidate("turn_on_transient", {"amplitude": float(coef[1]) * 3600.0, "tau": math.exp(lt)},
+                          old is not None, "decaying trend after start/restarts")]
+    return []
+
+
+def _sinusoid_candidate(r, t, layout, k, z_line):
+    """The sinusoid at the Welch bin ``k`` where the record's PSD stands out of the
+    simulations' (z ``z_line``): the frequency of the peak of the record's own periodogram
+    (zero-padded 4x) within +-1.5 Welch bins, refined by maximising the power of ``r`` at
+    it; amplitude and phase by least squares."""
+    from scipy.optimize import minimize_scalar
+    fs, n = layout.fs, len(r)
+    f = layout.freq_hz
+    df = f[1] - f[0]
+    nfft = 4 * (1 << int(math.ceil(math.log2(n))))
+    spec = np.abs(np.fft.rfft(r - r.mean(), nfft)) ** 2
+    ff = np.fft.rfftfreq(nfft, 1.0 / fs)
+    sel = np.flatnonzero((ff >= f[k] - 1.5 * df) & (ff <= f[k] + 1.5 * df))
+    j = int(sel[np.argmax(spec[sel])])
+    dff = ff[1] - ff[0]
+
+    def neg_power(fr):
+        ph = 2 * np.pi * fr * t
+        return -(np.dot(r, np.cos(ph)) ** 2 + np.dot(r, np.sin(ph)) ** 2)
+    opt = minimize_scalar(neg_power, bounds=(max(ff[j] - dff, 1e-9), min(ff[j] + dff, fs / 2)),
+                          method="bounded", options={"xatol": 1e-3 * dff})
+    fr = float(opt.x)
+    A = np.column_stack([np.sin(2 * np.pi * fr * t), np.cos(2 * np.pi * fr * t), np.ones(n)])
+    coef, *_ = np.linalg.lstsq(A, r, rcond=None)
+    amp = math.hypot(coef[0], coef[1])
+    phase = math.degrees(math.atan2(coef[1], coef[0]))
+    return Candidate("sinusoid", {"amplitude": amp * 3600.0, "frequency": fr, "phase_deg": phase},
+                     False, f"spectral line at {fr:.4g} Hz (z={z_line:.1f})")
 
 
 def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):

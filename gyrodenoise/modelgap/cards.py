@@ -187,7 +187,7 @@ def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap",
 
 
 # parameters that exercise edit_card on every term of the vocabulary (check_editable)
-_TRIAL = {"quantization": {"Q": 1e-4}, "angle_random_walk": {"N": 0.1}, "bias_instability": {"B": 0.1},
+_PROBE_PARAMS = {"quantization": {"Q": 1e-4}, "angle_random_walk": {"N": 0.1}, "bias_instability": {"B": 0.1},
           "rate_random_walk": {"K": 0.1}, "rate_ramp": {"R": 1.0}, "constant_bias": {"value": 1.0},
           "turn_on_transient": {"amplitude": 1.0, "tau": 10.0}, "gauss_markov": {"sigma": 1.0, "tau": 1.0},
           "sinusoid": {"amplitude": 1.0, "frequency": 1e-3, "phase_deg": 0.0},
@@ -199,6 +199,6 @@ def check_editable(card):
     :func:`edit_card` cannot add or re-fit some term of the vocabulary in the
     way this card is written."""
     from gyrodenoise.simulator import parse_card
-    for name, params in _TRIAL.items():
+    for name, params in _PROBE_PARAMS.items():
         new = edit_card(card.text, name, params, refit=name in card.terms, source=card.source)
         parse_card(new, card.source)

@@ -62,6 +62,22 @@ def read_allan_curve(path, sensor=None, channel=None, unit="deg/s", sample_rate_
     src = str(path)
     if unit not in UNIT_TO_DEG_S:
         raise InputError(f"--allan-unit {unit!r} is not one of {', '.join(UNIT_TO_DEG_S)}", src)
+    header, body = _read_rows(path, src)
+    col = _columns(header)
+    body = _select_curve(body, col, sensor, channel, src)
+    tau, ad, lo, hi, notes = _curve_values(body, header, col, src)
+    fs, n = _rate_and_length(body, col, sample_rate_hz, n_samples, src)
+    if not fs > 0:
+        raise InputError(f"the sample rate must be positive, got {fs:g}", src)
+    if n < 2 * tau[-1] * fs:
+        raise InputError(f"n_samples {n} is too short for tau {tau[-1]:g} s at {fs:g} Hz", src)
+    k = UNIT_TO_DEG_S[unit]
+    label = " ".join(x for x in (sensor, channel) if x) or Path(src).name
+    return AllanCurve(tau * 1.0, ad * k, lo * k, hi * k, fs, n, label, unit, notes)
+
+
+def _read_rows(path, src):
+    """(header, [(line number, fields)] of the non-blank rows, each as wide as the header)."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -71,43 +87,64 @@ def read_allan_curve(path, sensor=None, channel=None, unit="deg/s", sample_rate_
     if not rows:
         raise InputError("empty Allan curve file", src)
     header = [h.strip() for h in rows[0]]
-    i_tau, i_ad = _pick(header, TAU_COLS), _pick(header, ADEV_COLS)
-    if i_tau is None or i_ad is None:
+    if _pick(header, TAU_COLS) is None or _pick(header, ADEV_COLS) is None:
         raise InputError(f"line 1: need columns tau_s and allan_deviation (or tau, adev); got "
                          f"{', '.join(header) or 'nothing'}", src)
-    i_lo, i_hi = _pick(header, LO_COLS), _pick(header, HI_COLS)
-    i_s, i_c = _pick(header, ("sensor",)), _pick(header, ("channel",))
-    i_f, i_n = _pick(header, ("freq_hz",)), _pick(header, ("n_samples",))
     body = [(k + 2, r) for k, r in enumerate(rows[1:]) if r and any(c.strip() for c in r)]
     for lineno, r in body:
         if len(r) != len(header):
             raise InputError(f"line {lineno}: {len(r)} fields, the header has {len(header)}", src)
-    for col, want, what in ((i_s, sensor, "sensor"), (i_c, channel, "channel")):
-        if col is None:
+    return header, body
+
+
+def _columns(header):
+    """Index of each column the reader knows (None when absent)."""
+    return {"tau": _pick(header, TAU_COLS), "adev": _pick(header, ADEV_COLS), "lo": _pick(header, LO_COLS),
+            "hi": _pick(header, HI_COLS), "sensor": _pick(header, ("sensor",)),
+            "channel": _pick(header, ("channel",)), "freq_hz": _pick(header, ("freq_hz",)),
+            "n_samples": _pick(header, ("n_samples",))}
+
+
+def _select_curve(body, col, sensor, channel, src):
+    """The rows of the chosen sensor and channel (required when the file holds several);
+    at least 3."""
+    for what, want in (("sensor", sensor), ("channel", channel)):
+        i = col[what]
+        if i is None:
             if want is not None:
                 raise InputError(f"--{what} given but the file has no '{what}' column", src)
             continue
-        found = sorted({r[col].strip() for _, r in body})
+        found = sorted({r[i].strip() for _, r in body})
         if want is None and len(found) > 1:
             raise InputError(f"the file holds several curves: choose one with --{what} "
                              f"({', '.join(found)})", src)
         if want is not None and want not in found:
             raise InputError(f"no {what} {want!r} (the file has: {', '.join(found)})", src)
-        body = [(ln, r) for ln, r in body if want is None or r[col].strip() == want]
+        body = [(ln, r) for ln, r in body if want is None or r[i].strip() == want]
     if len(body) < 3:
         raise InputError(f"only {len(body)} curve points; need at least 3", src)
+    return body
 
-    def num(lineno, r, i, name):
-        try:
-            v = float(r[i])
-        except ValueError:
-            raise InputError(f"line {lineno}: {name} {r[i].strip()!r} is not a number", src) from None
-        if not math.isfinite(v):
-            raise InputError(f"line {lineno}: {name} is not finite", src)
-        return v
 
-    tau = np.array([num(ln, r, i_tau, header[i_tau]) for ln, r in body])
-    ad = np.array([num(ln, r, i_ad, header[i_ad]) for ln, r in body])
+def _number(lineno, r, i, name, src):
+    """Field ``i`` of row ``r`` as a finite float, or InputError naming the line."""
+    try:
+        v = float(r[i])
+    except ValueError:
+        raise InputError(f"line {lineno}: {name} {r[i].strip()!r} is not a number", src) from None
+    if not math.isfinite(v):
+        raise InputError(f"line {lineno}: {name} is not finite", src)
+    return v
+
+
+def _curve_values(body, header, col, src):
+    """(tau, adev, lower, upper, notes) in the file's unit, checked: tau positive and
+    increasing, adev positive, the bounds enclosing it (NaN where a bound is absent or
+    not positive, with a note)."""
+    def column(key):
+        i = col[key]
+        return np.array([_number(ln, r, i, header[i], src) for ln, r in body])
+    tau, ad = column("tau"), column("adev")
     for (ln, _), t_, a_ in zip(body, tau, ad):
         if not t_ > 0:
             raise InputError(f"line {ln}: tau must be positive, got {t_:g}", src)
@@ -117,34 +154,33 @@ def read_allan_curve(path, sensor=None, channel=None, unit="deg/s", sample_rate_
         k = int(np.flatnonzero(np.diff(tau) <= 0)[0]) + 1
         raise InputError(f"line {body[k][0]}: tau must increase from row to row", src)
     nan = np.full(len(tau), np.nan)
-    lo = np.array([num(ln, r, i_lo, header[i_lo]) for ln, r in body]) if i_lo is not None else nan
-    hi = np.array([num(ln, r, i_hi, header[i_hi]) for ln, r in body]) if i_hi is not None else nan
+    lo = column("lo") if col["lo"] is not None else nan
+    hi = column("hi") if col["hi"] is not None else nan
     bad = np.flatnonzero((hi < ad) | (lo > ad))
     if len(bad):
         raise InputError(f"line {body[bad[0]][0]}: the bounds do not enclose the Allan deviation", src)
     notes = []
     if np.any(lo <= 0):
         notes.append(f"{int(np.sum(lo <= 0))} lower bound(s) <= 0 (long tau): no lower bound there")
-    lo = np.where(lo > 0, lo, np.nan)
-    if i_f is not None:
-        fs = num(body[0][0], body[0][1], i_f, "freq_hz")
+    return tau, ad, np.where(lo > 0, lo, np.nan), hi, notes
+
+
+def _rate_and_length(body, col, sample_rate_hz, n_samples, src):
+    """(sample rate, record length) from the file's first row, else from the arguments."""
+    ln, r = body[0]
+    if col["freq_hz"] is not None:
+        fs = _number(ln, r, col["freq_hz"], "freq_hz", src)
     elif sample_rate_hz is not None:
         fs = float(sample_rate_hz)
     else:
         raise InputError("no freq_hz column: give --sample-rate", src)
-    if i_n is not None:
-        n = int(num(body[0][0], body[0][1], i_n, "n_samples"))
+    if col["n_samples"] is not None:
+        n = int(_number(ln, r, col["n_samples"], "n_samples", src))
     elif n_samples is not None:
         n = int(n_samples)
     else:
         raise InputError("no n_samples column: give --n-samples (the length of the published record)", src)
-    if not fs > 0:
-        raise InputError(f"the sample rate must be positive, got {fs:g}", src)
-    if n < 2 * tau[-1] * fs:
-        raise InputError(f"n_samples {n} is too short for tau {tau[-1]:g} s at {fs:g} Hz", src)
-    k = UNIT_TO_DEG_S[unit]
-    label = " ".join(x for x in (sensor, channel) if x) or Path(src).name
-    return AllanCurve(tau * 1.0, ad * k, lo * k, hi * k, fs, n, label, unit, notes)
+    return fs, n
 
 
 class _CurveLayout:

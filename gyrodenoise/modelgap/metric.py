@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gyrodenoise.analysis.spectrum import nperseg_for_length, segment_count, welch_psd
 from gyrodenoise.modelgap.settings import (
     BANDS_PER_DECADE,
     COMPONENT_FLOOR,
@@ -17,11 +18,6 @@ from gyrodenoise.modelgap.settings import (
 
 
 # ------------------------------------------------------------------ signatures
-def welch_nperseg(n):
-    """Welch segment length: a power of two giving at least ~32 segments, <= 2^14."""
-    return int(2 ** min(14, max(6, math.floor(math.log2(max(n / 32.0, 64))))))
-
-
 @dataclass
 class Layout:
     """Where the signatures are evaluated (shared by the record and its simulations)."""
@@ -35,7 +31,7 @@ class Layout:
     def for_record(cls, n, fs):
         m_max = n // MIN_CLUSTERS
         m = 2 ** np.arange(0, int(math.floor(math.log2(max(m_max, 1)))) + 1)
-        nper = welch_nperseg(n)
+        nper = nperseg_for_length(n)
         n_bins = nper // 2          # bins 1..nper/2 (DC dropped)
         f = np.arange(1, n_bins + 1) * fs / nper
         edges_f = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
@@ -54,19 +50,15 @@ class Layout:
 
     @property
     def n_segments(self):
-        return max(1, (self.n - self.nperseg) // (self.nperseg // 2) + 1)
+        return max(1, segment_count([self.n], self.nperseg))
 
 
 def signature(y, layout):
     """The five signatures of a record (see the module docstring)."""
-    from scipy.signal import welch
-
     from gyrodenoise.analysis.allan import adev
     y = np.asarray(y, dtype=float)
     tau, ad, err, _ = adev(y, layout.fs, m=layout.m)
-    _, p = welch(y, fs=layout.fs, nperseg=layout.nperseg, noverlap=layout.nperseg // 2,
-                 window="hann", detrend="constant", scaling="density")
-    p = p[1:layout.nperseg // 2 + 1]
+    p = welch_psd(y, layout.fs, layout.nperseg)[1][1:layout.nperseg // 2 + 1]
     e = layout.band_edges
     band = np.array([p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
     nb = layout.n // N_BLOCKS

@@ -1,9 +1,8 @@
-"""Constants of the model-gap workflow (metric, scoring, card fields) and its log line."""
+"""Constants of the model-gap workflow (metric, scoring, card fields)."""
 
 from __future__ import annotations
 
 import math
-import sys
 
 GAP_METRIC = ("gap = average of 5 components, each ~1 when the card explains the record: "
               "mean z^2 over octave-spaced Allan deviations (log), mean z^2 over log-spaced Welch PSD "
@@ -32,8 +31,3 @@ CARD_FIELD = {"quantization": ("Q", 1.0), "angle_random_walk": ("N", 60.0),
               "bias_instability": ("B", 3600.0), "rate_random_walk": ("K", 3600.0 ** 1.5),
               "rate_ramp": ("R", 3600.0 ** 2)}
 BI_FACTOR = 2.0 * math.log(2.0) / math.pi
-
-
-def _log(msg, quiet=False):
-    if not quiet:
-        print(msg, file=sys.stderr, flush=True)

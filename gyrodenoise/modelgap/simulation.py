@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap.cards import card_at_rate, text_at_rate
 from gyrodenoise.modelgap.population import draw_unit
-from gyrodenoise.modelgap.settings import _log
 
 
 # ------------------------------------------------------------------ simulation
@@ -48,7 +48,7 @@ def fmu_path_for(fmu_dir=None, quiet=False):
     path = d / "SimulatedFog.fmu"
     why = F.stale_reason(path)
     if why is not None:
-        _log(f"gyrodenoise: note: building {path} ({why})", quiet)
+        log(f"gyrodenoise: note: building {path} ({why})", quiet=quiet)
         F.build_fmu("SimulatedFog", d)
     return path
 
@@ -75,7 +75,7 @@ class Simulator:
         self.restarts = None if restarts is None else np.asarray(restarts, dtype=bool)
         self.quiet = quiet
         self.workers = workers
-        self.fmu_path = fmu_path_for(fmu_dir, quiet) if engine == "fmu" else None
+        self.fmu_path = fmu_path_for(fmu_dir, quiet=quiet) if engine == "fmu" else None
         self.n_runs = 0
 
     def run(self, text, engine=None):
@@ -93,8 +93,8 @@ class Simulator:
         ftexts = [text_at_rate(draw_unit(text, s, self.source), self.fs) for s in self.seeds]
         workers = self.workers or min(len(self.seeds), os.cpu_count() or 1)
         rs = None if self.restarts is None else self.restarts.tolist()
-        _log(f"gyrodenoise: simulating {len(self.seeds)} seeds x {self.n} samples through "
-             f"{self.fmu_path.name} ({workers} processes)", self.quiet)
+        log(f"gyrodenoise: simulating {len(self.seeds)} seeds x {self.n} samples through "
+            f"{self.fmu_path.name} ({workers} processes)", quiet=self.quiet)
         with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
                                  max_tasks_per_child=1) as ex:
             futs = [ex.submit(_fmu_worker, str(self.fmu_path), ft, s, self.n, self.fs, rs)
@@ -107,7 +107,7 @@ class Simulator:
                         raise InputError(f"{self.fmu_path.name} failed on seed {self.seeds[i]}: {r}",
                                          self.source)
                     out.append(r)
-                    _log(f"gyrodenoise:   seed {self.seeds[i]} done", self.quiet)
+                    log(f"gyrodenoise:   seed {self.seeds[i]} done", quiet=self.quiet)
             except BrokenProcessPool as exc:
                 raise InputError(f"an FMU worker process died on seed {self.seeds[len(out)]} "
                                  f"({' '.join(str(exc).split())})", self.source) from None

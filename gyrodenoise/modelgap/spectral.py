@@ -1,28 +1,31 @@
-"""Exact spectra of the card's stochastic terms as simulated, their Allan variances, a
-band-stop shared by the record and its simulations, and the joint spectral fit.
+"""Exact spectra of the card's stochastic terms as simulated, their Allan variances, the
+bands taken out of the comparison (:func:`find_bumps`: broad bumps and lines wandering in
+frequency) with the band-stop shared by the record and its simulations, and the joint
+spectral fit.
 
-Two-sided PSDs of the discrete processes the simulator draws (sample period ``T``,
-``f`` in ``[-fs/2, fs/2]``; variance = integral of ``S``), s-based coefficients
-(``Q`` deg, ``N`` deg/sqrt(s), ``B`` deg/s, ``K`` deg/s^1.5, GM ``sigma`` deg/s):
+Three questions about spectral lines are answered here and in
+:mod:`gyrodenoise.analysis.spectrum`, each with its own statistic:
 
-* angle random walk (white rate, variance ``N^2 / T``): ``S = N^2``;
-* quantization (white angle of std ``Q``, differenced / ``T``): ``S = 4 Q^2 sin^2(pi f T) / T``;
-* rate random walk (increments of std ``K sqrt(T)``): ``S = K^2 T^2 / (4 sin^2(pi f T))``;
-* first-order Gauss-Markov (``a = exp(-T / tau)``, stationary std ``sigma``):
-  ``S = sigma^2 (1 - a^2) T / (1 - 2 a cos(2 pi f T) + a^2)``;
-* bias instability: the simulator's bank of Gauss-Markov poles (:func:`gyrodenoise.simulator._bank`
-  with ``B = 1``), summed;
-* angle Gauss-Markov (a first-order GM ANGLE of std ``sigma`` deg, differenced / ``T``): the
-  Gauss-Markov PSD above with ``sigma`` in deg, times ``4 sin^2(pi f T) / T^2``.
+* is there a narrow line at f above the local floor? --
+  :func:`gyrodenoise.analysis.spectrum.find_peaks` (a local maximum whose ratio to the
+  bias-corrected running median passes an F-test at a false-alarm rate per spectrum);
+* is there a line too wide for one sinusoid, and over which bins? -- :func:`wandering_lines`
+  (runs of at least :data:`MIN_LINE_BINS` bins standing :data:`LINE_RATIO` x above the
+  plain running median of the same :func:`gyrodenoise.analysis.spectrum.running_median`,
+  widened over their skirt): a sinusoid, which the card's ``sinusoid`` term gives, must NOT
+  be reported, and a wandering line must be reported with its extent, which a per-bin test
+  does not give;
+* how far does a broad excess extend? -- :func:`find_bumps` (band means against the lowest
+  band on both sides, then :func:`bump_tail_end`).
 
-The overlapping Allan variance at cluster size ``m`` of a process with PSD ``S`` is
-(difference of two consecutive ``m``-sample means, halved)::
-
-    avar(m) = integral_0^{fs/2} S(f) * 4 sin^4(pi f m T) / (m^2 sin^2(pi f T)) df
-
-which gives ``N^2/tau``, ``3 Q^2/tau^2`` (for ``m >= 2``), ``K^2 tau/3`` and the flicker
-plateau ``0.664 B`` of Eq. (40) in the paper at large ``m``, and is exact at small ``m``
-and through a band-stop (the PSD times the stop mask), where Eq. (40) is not.
+A narrow line the card lacks is found by comparison with the card's simulations instead
+(the ``line`` signature's z, :func:`gyrodenoise.modelgap.candidates.propose`), and the
+lines of a published Allan curve, which has no spectrum, by the Allan chi^2
+(:func:`_pick_allan_lines`). The F-test of ``find_peaks`` is not used for wandering lines:
+its threshold at the gap's segment count (about 1.6 x the floor for the ring-laser gyro record
+psins_lasergyro.imu: 89 segments, a Bonferroni bound over 2048 bins) accepts runs that
+the fixed 3 x rejects: on that record's x and y axes it adds two and three stop bands
+(0.02-0.66, 1.5-2.3, 26.8-27.0, 39.1-39.4 Hz) and would move the results the tests pin.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from gyrodenoise.analysis.spectrum import nperseg_for_length, running_median, segment_count, welch_psd
 
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
 N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
@@ -168,20 +173,57 @@ def band_columns(specs, layout, bands=(), lowpass_hz=None):
     return cols, clear
 
 
-def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
-    """Spectral bumps of a record: bands whose PSD stands more than ``ratio`` times
-    above the lowest PSD on BOTH sides within a factor ``span`` in frequency (a
-    monotone spectrum - white, 1/f, f^2 - never does) and spanning at least
-    :data:`MIN_BUMP_BINS` Welch bins (a narrower one is a line, for a sinusoid). Returns [(lo_hz, hi_hz,
-    peak_ratio)], each widened by one band on either side."""
-    from scipy.signal import welch
+def record_psd(y, fs):
+    """The record's one-sided Welch PSD above DC, with the segments of the gap
+    signatures (:func:`gyrodenoise.analysis.spectrum.nperseg_for_length`): (freq_hz,
+    psd, nperseg)."""
+    nper = nperseg_for_length(len(y))
+    f, p, _ = welch_psd(y, fs, nper)
+    return f[1:], p[1:], nper
 
-    from gyrodenoise.modelgap.metric import welch_nperseg
+
+def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
+    """The bands to take out of the comparison: broad spectral bumps and lines
+    wandering in frequency (:func:`wandering_lines`), [(lo_hz, hi_hz, peak_ratio)].
+
+    A bump is a band whose PSD, averaged in log-spaced bands (``per_decade``),
+    stands more than ``ratio`` times above the lowest band PSD on BOTH sides within
+    a factor ``span`` in frequency (a monotone spectrum - white, 1/f, f^2 - never
+    does; :func:`_bump_flags`) and spans at least :data:`MIN_BUMP_BINS` Welch bins
+    (a narrower one is a line, for a sinusoid). Each is widened over its flanks
+    (:func:`_widen_run`), reaches down to DC when nothing below it is the sensor's,
+    and up over its tail (:func:`bump_tail_end`). A wandering line inside a bump
+    is not listed again.
+
+    This answers "how far does a broad excess extend?", not "is there a line at
+    f?": its test is a ratio of band means to the band floor on both sides, not a
+    per-bin test against a local floor (:func:`gyrodenoise.analysis.spectrum.find_peaks`,
+    which would report a bump as a row of peaks and not give its extent)."""
     y = np.asarray(y, float)
-    nper = welch_nperseg(y.shape[0])
-    f, p = welch(y, fs=fs, nperseg=nper, noverlap=nper // 2, window="hann", detrend="constant")
-    f, p = f[1:], p[1:]
+    f, p, nper = record_psd(y, fs)
     lines, p = wandering_lines(f, p)
+    edges, fc, pv = _log_bands(f, p, per_decade)
+    flag, side = _bump_flags(fc, pv, ratio, span)
+    out = []
+    i = 0
+    while i < len(fc):
+        if not flag[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(fc) and flag[j + 1]:
+            j += 1
+        i, j = _widen_run(i, j, fc, pv, span)
+        bump = _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span)
+        if bump is not None:
+            out.append(bump)
+        i = j + 1
+    return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
+
+
+def _log_bands(f, p, per_decade):
+    """Log-spaced bands (``per_decade``) over the Welch bins ``f``: (edges of the bands
+    holding at least one bin [(lo_hz, hi_hz)], their centres (geometric), their mean PSD)."""
     edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
                         int(math.ceil(math.log10(f[-1] / f[0]) * per_decade)) + 1)
     idx = np.searchsorted(f, edges)
@@ -189,52 +231,58 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
              if idx[i + 1] > idx[i]]
     fc = np.array([math.sqrt(a * b) for a, b, _ in bands])
     pv = np.array([v for _, _, v in bands])
-    flag = np.zeros(len(bands), bool)
-    side = np.zeros(len(bands))
-    for i in range(len(bands)):
+    return [(a, b) for a, b, _ in bands], fc, pv
+
+
+def _bump_flags(fc, pv, ratio, span):
+    """Per band: does it stand more than ``ratio`` above the lowest band on both sides
+    within a factor ``span``; and that side floor (the larger of the two minima)."""
+    flag = np.zeros(len(fc), bool)
+    side = np.zeros(len(fc))
+    for i in range(len(fc)):
         left = pv[(fc >= fc[i] / span) & (fc < fc[i])]
         right = pv[(fc > fc[i]) & (fc <= fc[i] * span)]
         if len(left) and len(right):
             side[i] = max(left.min(), right.min())
             flag[i] = pv[i] > ratio * side[i]
-    out = []
-    i = 0
-    while i < len(bands):
-        if flag[i]:
-            j = i
-            while j + 1 < len(bands) and flag[j + 1]:
-                j += 1
-            # widen while the PSD stays above twice its floor on the far side
-            while i > 0:
-                left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
-                if not len(left) or pv[i - 1] <= WIDEN * left.min():
-                    break
-                i -= 1
-            while j + 1 < len(bands):
-                right = pv[(fc > fc[j + 1]) & (fc <= fc[j + 1] * span)]
-                if not len(right) or pv[j + 1] <= WIDEN * right.min():
-                    break
-                j += 1
-            lo = bands[max(i - 1, 0)][0]
-            hi = min(bands[min(j + 1, len(bands) - 1)][1], fs / 2.0)
-            if np.count_nonzero((f >= lo) & (f <= hi)) < MIN_BUMP_BINS:
-                i = j + 1      # a narrow line: a sinusoid's business, not a band to take out
-                continue
-            peak = float(np.max(pv[i:j + 1] / np.maximum(side[i:j + 1], 1e-300)))
-            # base motion down to DC: when every band below the bump stays above
-            # WIDEN x the floor on the bump's upper side (the sensor's own level),
-            # nothing below the bump is the sensor's (its terms give a PSD that is
-            # flat, falling, or rising like f^2 from far below that floor)
-            up = pv[(fc > hi) & (fc <= hi * span)]
-            below = pv[fc < lo]
-            if len(up) and len(below) and below.min() > WIDEN * up.min():
-                lo = float(f[0])
-            hi = bump_tail_end(f, p, hi, fs, y.shape[0], nper)
-            out.append((float(lo), float(hi), peak))
-            i = j + 1
-        else:
-            i += 1
-    return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
+    return flag, side
+
+
+def _widen_run(i, j, fc, pv, span):
+    """Bands ``i..j`` of a bump widened while the PSD stays above :data:`WIDEN` x the
+    lowest band on the far side (within ``span``)."""
+    while i > 0:
+        left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
+        if not len(left) or pv[i - 1] <= WIDEN * left.min():
+            break
+        i -= 1
+    while j + 1 < len(fc):
+        right = pv[(fc > fc[j + 1]) & (fc <= fc[j + 1] * span)]
+        if not len(right) or pv[j + 1] <= WIDEN * right.min():
+            break
+        j += 1
+    return i, j
+
+
+def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
+    """The bump (lo_hz, hi_hz, peak_ratio) of the bands ``i..j`` (flagged, then widened),
+    or None when it spans fewer than :data:`MIN_BUMP_BINS` Welch bins (a narrow line: a
+    sinusoid's business, not a band to take out)."""
+    lo = edges[max(i - 1, 0)][0]
+    hi = min(edges[min(j + 1, len(edges) - 1)][1], fs / 2.0)
+    if np.count_nonzero((f >= lo) & (f <= hi)) < MIN_BUMP_BINS:
+        return None
+    peak = float(np.max(pv[i:j + 1] / np.maximum(side[i:j + 1], 1e-300)))
+    # base motion down to DC: when every band below the bump stays above
+    # WIDEN x the floor on the bump's upper side (the sensor's own level),
+    # nothing below the bump is the sensor's (its terms give a PSD that is
+    # flat, falling, or rising like f^2 from far below that floor)
+    up = pv[(fc > hi) & (fc <= hi * span)]
+    below = pv[fc < lo]
+    if len(up) and len(below) and below.min() > WIDEN * up.min():
+        lo = float(f[0])
+    hi = bump_tail_end(f, p, hi, fs, y.shape[0], nper)
+    return float(lo), float(hi), peak
 
 
 def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
@@ -246,7 +294,7 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     shapes the sensor's terms take above a few Hz - white rate ``1``, white angle
     ``sin^2(pi f T)`` - and extrapolated down (a third shape falling like ``1 / sin^2(pi f
     T)`` is not separable from these over the span and extrapolated the noise of the fit:
-    in seeded trials it stopped the edge with half the tail left). The edge moves up over
+    on seeded records it stops the edge with half the tail left). The edge moves up over
     each chunk of :data:`TAIL_BINS` Welch bins whose mean stands more than
     :data:`TAIL_SE` standard errors of a chunk (``1 / sqrt(1.8 K TAIL_BINS)``, ``K``
     Welch segments) above it, and stops at the first two chunks in a row that do not
@@ -262,7 +310,7 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     fit = slice(k_fit0, k_fit1)
     c, _ = nnls(shapes[fit] / p[fit, None], np.ones(k_fit1 - k_fit0))
     level = shapes @ c
-    n_seg = max((n - nperseg) // (nperseg // 2) + 1, 1)
+    n_seg = max(segment_count([n], nperseg), 1)
     limit = 1.0 + TAIL_SE / math.sqrt(1.8 * n_seg * TAIL_BINS)
     def above(k_):
         return k_ + TAIL_BINS <= k_fit0 and p[k_:k_ + TAIL_BINS].mean() > limit * level[k_:k_ + TAIL_BINS].mean()
@@ -284,16 +332,17 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     the Hann main lobe (4 bins; about 3 above 3x for a line 15x its floor); a line
     whose frequency wanders (a ring-laser gyro's dither, aliased; a motor whose
     speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
-    segments a noise bin 3x above the median is ~13 standard deviations off.
+    segments a noise bin 3x above the median is ~13 standard deviations off (a fixed
+    ratio to the plain running median, not the F-test of
+    :func:`gyrodenoise.analysis.spectrum.find_peaks`: see the module docstring).
     Each run is then widened over its skirt: while a bin within LINE_BRIDGE_BINS of
     its edge stands above SKIRT_RATIO x the median (a line wandering over a band
     leaves weaker lobes beside its strongest run: the RLG y axis at 10.0-11.0 Hz).
     Returns ([(lo_hz, hi_hz, peak_ratio)] widened by 2 bins on either side, the
     PSD with those bins replaced by the running median)."""
-    from scipy.ndimage import median_filter
     df = float(f[1] - f[0])
     w = max(int(round(window_hz / df)) | 1, 8 * MIN_LINE_BINS + 1)
-    floor = median_filter(p, size=w, mode="nearest")
+    floor = running_median(p, w, ends="nearest")
     idx = np.flatnonzero(p > ratio * floor)
     out, clean = [], p.copy()
     if not len(idx):
@@ -440,11 +489,13 @@ def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
         off |= c <= 0
 
 
-def _pick_lines(A, b, sd, m, fs, max_lines, inside_fn):
-    """Greedy choice of up to ``max_lines`` spectral lines (frequencies of :func:`line_grid`) for an Allan-curve fit: each step adds the line that lowers
-    the plain chi^2 most. The lines are kept only when, with them, the model is
-    inside the published bounds at every tau (``inside_fn(model_avar)``) and it was
-    not before: a line is not spent on a curve it does not then explain."""
+def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
+    """Greedy choice of up to ``max_lines`` sinusoids (frequencies of :func:`line_grid`)
+    for an Allan-curve fit: each step adds the line that lowers the plain chi^2 most.
+    The lines are kept only when, with them, the model is inside the published bounds
+    at every tau (``inside_fn(model_avar)``) and it is not without them: a line is not spent
+    on a curve it does not then explain. A published Allan curve has no spectrum, so
+    this is a model choice on the Allan variance, not a spectral line detector."""
     grid = line_grid(fs, m)
     L = line_allan_columns(grid, m, fs) / sd[:, None]      # weighted like A (rows / 1-sigma)
     x0, _ = _nnls_huber(A, b, 0)
@@ -472,7 +523,7 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
 
     ``robust``: that many Huber re-weightings (:func:`_nnls_huber`).
     ``max_lines`` (Allan curve only, ``psd_target`` None): up to that many sinusoids
-    (:func:`_pick_lines`), kept only when they bring the model inside the bounds
+    (:func:`_pick_allan_lines`), kept only when they bring the model inside the bounds
     (``inside_fn(model_avar) -> bool``) at every point.
     ``min_dchi2`` > 0: a term stays only when leaving it out (the others re-fitted)
     raises the plain chi^2 by at least that much (:func:`_drop_unneeded`).
@@ -496,7 +547,7 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
         A = np.vstack([A, (A_p / sd_p[:, None])[clear]])
         b = np.concatenate([b, (psd_target / sd_p)[clear]])
     elif max_lines:
-        f_lines = _pick_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside_fn(av * sd_a))
+        f_lines = _pick_allan_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside_fn(av * sd_a))
         if f_lines:
             A_l = line_allan_columns(f_lines, layout.m, layout.fs)
             A_a, A = np.hstack([A_a, A_l]), np.hstack([A, A_l / sd_a[:, None]])

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap.candidates import Candidate, _f, propose, spectral_refit
 from gyrodenoise.modelgap.cards import card_at_rate, check_editable, edit_card
@@ -33,7 +34,6 @@ from gyrodenoise.modelgap.settings import (
     PENALTY_PER_PARAM,
     WIDEN_COMPONENTS,
     Z2_CAP,
-    _log,
 )
 from gyrodenoise.modelgap.simulation import Simulator
 from gyrodenoise.modelgap.spectral import band_stop, find_bumps
@@ -119,7 +119,7 @@ def _points(z):
     nl = len(z["line"])
     return {"allan": z["allan"] ** 2, "psd": z["psd"] ** 2,
             "line": np.array([np.max(z["line"] ** 2) / (2.0 * math.log(max(nl, 3)))]),
-            "mean": z["mean"] ** 2, "trend": z["trend"] ** 2}
+           "mean": z["mean"] ** 2, "trend": z["trend"] ** 2}
 
 
 def explainable(zs):
@@ -198,11 +198,12 @@ def _evaluate(sims, sig_m, layout, bands=()):
     return ref, z, comp, gap_value(comp)
 
 
-# The price a term of the initial fit would pay to stay (issue 20, NOT yet used by _initial_fit):
-# leaving it out must cost more than 3^2 in chi^2 (the angle Gauss-Markov candidate's rule against
-# its simpler rivals), counted twice: the fit's rows are two views of the same record (its Allan
-# variance and its PSD: a high-frequency excess shows in the shortest taus and the top bands alike).
-# benchmarks/gap_white.py: 3^2 alone kept another term on 2/40 white records, 2 x 3^2 on 0/40.
+# The price a term of the initial fit pays to stay when initial_terms is given it (_initial_fit,
+# which the workflow uses, does not ask for it): leaving the term out must cost more than 3^2 in
+# chi^2 (the angle Gauss-Markov candidate's rule against its simpler rivals), counted twice: the
+# fit's rows are two views of the same record (its Allan variance and its PSD: a high-frequency
+# excess shows in the shortest taus and the top bands alike). On 40 seeded white records, 3^2
+# alone keeps another term on 2, 2 x 3^2 on none.
 INITIAL_DCHI2 = 2 * 3.0 ** 2
 
 
@@ -213,7 +214,7 @@ def welch_band_rel_sd(layout):
     correlated 0.444 with their neighbours and 0.028 with the next ones (``|W(k)|^2 /
     |W(0)|^2`` of the squared Hann window). ``metric._floors``' ``1 / sqrt(1.8 K nbins)``
     is 1.4x (one bin) to 1.9x (wide bands) below this and below the scatter of seeded
-    white records (``benchmarks/gap_white.py --scatter``)."""
+    white records."""
     nb = np.diff(layout.band_edges).astype(float)
     corr = 1.0 + (2.0 * 0.444 * np.maximum(nb - 1.0, 0.0) + 2.0 * 0.028 * np.maximum(nb - 2.0, 0.0)) / nb
     return np.sqrt(1.056 * corr / (layout.n_segments * nb))
@@ -225,8 +226,8 @@ def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
     ``psd_rel_sd`` is given, ``metric._floors``' for its Welch bands). With ``min_dchi2``
     > 0 a term is kept only when leaving it out (the others re-fitted) raises the fit's
     chi^2 by more than that: with ``INITIAL_DCHI2`` and ``welch_band_rel_sd(layout)`` a
-    white-noise record comes out as angle random walk alone (issue 20's rule; the
-    workflow does not use it yet: docs/GAP.md, "Initial fit")."""
+    white-noise record comes out as angle random walk alone (the workflow's
+    :func:`_initial_fit` does not apply this rule: docs/GAP.md, "Initial fit")."""
     from gyrodenoise.modelgap.metric import _floors
     from gyrodenoise.modelgap.spectral import fit_terms
     fl = _floors(sig_m, layout)
@@ -303,7 +304,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
         from gyrodenoise.modelgap.effects import screen_outliers
         rate_deg_s, idx = screen_outliers(check_record(rate_deg_s, source))
         n_out = len(idx)
-        _log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet)
+        log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet=quiet)
     kw = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
               workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
     res = _gap_once(rate_deg_s, sample_rate_hz, card, stop_bands=stop_bands, **kw)
@@ -311,8 +312,8 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     if lo is None:
         return _with_outliers(res, n_out, len(rate_deg_s))
     from gyrodenoise.simulator import parse_card
-    _log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
-         f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet)
+    log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
+        f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet=quiet)
     card1 = parse_card(res.card_text, getattr(card, "source", "<card>"))
     bands = [(a, b) for a, b, _ in res.stop_bands] + [(lo, float(sample_rate_hz) / 2.0)]
     kw["max_effects"] = max(max_effects - len({e["iteration"] for e in res.effects_added}), 1)
@@ -336,6 +337,104 @@ def _with_outliers(res, n_out, n):
                             f"> 10 robust sigmas off the running median) replaced before the comparison; no term "
                             f"of the card makes them")
     return res
+
+
+@dataclass
+class _Pass:
+    """What one pass of the workflow (:func:`_gap_once`) holds fixed: the record and
+    its signatures, the simulator, the stop bands, and where the card came from."""
+    y: np.ndarray
+    fs: float
+    layout: Layout
+    sim: Simulator
+    sig_m: dict
+    bands: list
+    restarts: object
+    source: object
+    csrc: str
+    stop_bands: object      # as given: "auto" or a list
+    quiet: bool
+
+    def evaluate(self, text, engine=None):
+        """(reference, z, components, gap) of the card ``text`` simulated (``engine``: the
+        simulator's own unless given)."""
+        sims = self.sim.run(text) if engine is None else self.sim.run(text, engine=engine)
+        return _evaluate(sims, self.sig_m, self.layout, self.bands)
+
+    def edited(self, text, changes):
+        """``text`` with ``changes`` [(name, params, refit)] written in, each with its note."""
+        for nm, pr, rf in changes:
+            text = edit_card(text, nm, pr, rf, f"fitted to {Path(str(self.source)).name}", self.csrc)
+        return text
+
+
+def _seed_list(seeds):
+    """Seeds 1..S for an int S, else the given seeds; InputError below 3."""
+    seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s) for s in seeds]
+    if len(seed_list) < 3:
+        raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
+    return seed_list
+
+
+def _resolve_stop_bands(y, fs, stop_bands):
+    """The bands taken out of the comparison, [(lo_hz, hi_hz, peak ratio or NaN when
+    given)]: :func:`.spectral.find_bumps` for ``"auto"``; InputError for a bad band."""
+    if isinstance(stop_bands, str):
+        if stop_bands != "auto":
+            raise InputError(f"stop_bands must be 'auto', None or a list of (lo_hz, hi_hz), got {stop_bands!r}")
+        bumps = find_bumps(y, fs)
+    else:
+        bumps = [(float(lo), float(hi), float("nan")) for lo, hi in (stop_bands or ())]
+    for lo, hi, _ in bumps:
+        if not 0 <= lo < hi:
+            raise InputError(f"stop band {lo:g}-{hi:g} Hz: need 0 <= low < high")
+    return bumps
+
+
+def _thresholds(ref):
+    """(gap threshold, per-component thresholds) from the simulations' leave-one-out gaps:
+    1.5 x their largest, at least 1.5 for the gap and COMPONENT_FLOOR for a component."""
+    loo = loo_gaps(ref)
+    threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo)) if loo else 2.0
+    comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) if loo else COMPONENT_FLOOR
+                      for c in COMPONENTS}
+    return threshold, comp_threshold
+
+
+def _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir, workers, source, quiet,
+                stop_bands):
+    """Check the inputs and set up one pass: (:class:`_Pass`, card text, stop bands, seeds)."""
+    from gyrodenoise.simulator import load_card
+    y = check_record(rate_deg_s, source)
+    fs = float(sample_rate_hz)
+    card0 = load_card(card)
+    card_at_rate(card0.text, fs, card0.source)      # the card as simulated at the record's rate (Nyquist)
+    check_editable(card0)               # every term of the vocabulary can be written into this card
+    seed_list = _seed_list(seeds)
+    layout = Layout.for_record(y.shape[0], fs)
+    sim = Simulator(y.shape[0], fs, seed_list, engine, restarts, fmu_dir, workers, quiet, source=card0.source)
+    bumps = _resolve_stop_bands(y, fs, stop_bands)
+    bands = [(lo, hi) for lo, hi, _ in bumps]
+    if bands:
+        log("gyrodenoise: spectral bump(s) taken out of the comparison (band-stop on the record and on "
+            "every simulation alike): " + ", ".join(f"{lo:.3g}-{hi:.3g} Hz" for lo, hi in bands), quiet=quiet)
+    sig_m = signature(band_stop(y, fs, bands), layout)
+    ctx = _Pass(y, fs, layout, sim, sig_m, bands, restarts, source, card0.source, stop_bands, quiet)
+    return ctx, card0.text, bumps, seed_list
+
+
+def _first_card(ctx, text, effects):
+    """The card the loop starts from and its simulations: an empty (or deterministic-only)
+    card starts from the noise terms fitted to the record alone, with the analytic scatter
+    of one record as the weights (:func:`_initial_fit`; appends to ``effects``)."""
+    sims = ctx.sim.run(text)
+    if not np.any([np.std(s_) > 0 for s_ in sims]):
+        text = _initial_fit(text, ctx.sig_m, ctx.layout, ctx.bands, card_at_rate(text, ctx.fs, ctx.csrc), ctx.csrc,
+                            ctx.source, effects)
+        log("gyrodenoise: the card has no noise term: started from " + ", ".join(
+            f"{e['name']} {_short(e['params'])}" for e in effects), quiet=ctx.quiet)
+        sims = ctx.sim.run(text)
+    return text, sims
 
 
 def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
@@ -368,54 +467,19 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
     -------
     GapResult
     """
-    from gyrodenoise.simulator import load_card
-    y = check_record(rate_deg_s, source)
-    fs = float(sample_rate_hz)
-    card0 = load_card(card)
-    text = card0.text
-    csrc = card0.source
-    card_at_rate(text, fs, csrc)        # the card as simulated at the record's rate (Nyquist)
-    check_editable(card0)               # every term of the vocabulary can be written into this card
-    seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s) for s in seeds]
-    if len(seed_list) < 3:
-        raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
-    layout = Layout.for_record(y.shape[0], fs)
-    sim = Simulator(y.shape[0], fs, seed_list, engine, restarts, fmu_dir, workers, quiet, source=csrc)
-    if isinstance(stop_bands, str):
-        if stop_bands != "auto":
-            raise InputError(f"stop_bands must be 'auto', None or a list of (lo_hz, hi_hz), got {stop_bands!r}")
-        bumps = find_bumps(y, fs)
-    else:
-        bumps = [(float(lo), float(hi), float("nan")) for lo, hi in (stop_bands or ())]
-    for lo, hi, _ in bumps:
-        if not 0 <= lo < hi:
-            raise InputError(f"stop band {lo:g}-{hi:g} Hz: need 0 <= low < high")
-    bands = [(lo, hi) for lo, hi, _ in bumps]
-    if bands:
-        _log("gyrodenoise: spectral bump(s) taken out of the comparison (band-stop on the record and on "
-             "every simulation alike): " + ", ".join(f"{lo:.3g}-{hi:.3g} Hz" for lo, hi in bands), quiet)
-    sig_m = signature(band_stop(y, fs, bands), layout)
+    ctx, text, bumps, seed_list = _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir,
+                                              workers, source, quiet, stop_bands)
     effects, iterations, limitations = [], [], []
-    sims = sim.run(text)
-    if not np.any([np.std(s_) > 0 for s_ in sims]):
-        # an empty (or deterministic-only) card: start from the noise terms fitted to the
-        # record alone, with the analytic scatter of one record as the weights
-        text = _initial_fit(text, sig_m, layout, bands, card_at_rate(text, fs, csrc), csrc, source, effects)
-        _log("gyrodenoise: the card has no noise term: started from " + ", ".join(
-            f"{e['name']} {_short(e['params'])}" for e in effects), quiet)
-        sims = sim.run(text)
-    ref, z, comp, g = _evaluate(sims, sig_m, layout, bands)
-    loo = loo_gaps(ref)
-    threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo)) if loo else 2.0
-    comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) if loo else COMPONENT_FLOOR
-                      for c in COMPONENTS}
-    _log(f"gyrodenoise: gap of the input card {g:.3g} (threshold {threshold:.3g})", quiet)
+    text, sims = _first_card(ctx, text, effects)
+    ref, z, comp, g = _evaluate(sims, ctx.sig_m, ctx.layout, ctx.bands)
+    threshold, comp_threshold = _thresholds(ref)
+    log(f"gyrodenoise: gap of the input card {g:.3g} (threshold {threshold:.3g})", quiet=quiet)
     if not math.isfinite(g):
         raise InputError(f"the gap of the input card is not finite ({g}): the record's signatures "
                          f"cannot be compared with the card's", source)
     gap_before = g
     while True:
-        it = {"card_gap": g, "components": comp, "where": where_disagree(z, layout),
+        it = {"card_gap": g, "components": comp, "where": where_disagree(z, ctx.layout),
               "_ref": ref, "_z": z, "candidates": []}
         iterations.append(it)
         within = g <= threshold and all(comp[c] <= comp_threshold[c] for c in COMPONENTS)
@@ -424,135 +488,36 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
         if within or len(steps) >= max_effects:
             it["stop"] = "within the simulations' scatter" if within else "max_effects reached"
             break
-        card = card_at_rate(text, fs, csrc)
-        cands = propose(y, layout, ref, z, card, restarts)
-        if np.any(np.abs(z["allan"]) > 3.0) or np.any(np.abs(z["psd"]) > 3.0):
-            for agm in (False, True):   # the fallback: tried when no single effect (or pair) will do
-                sr = spectral_refit(sig_m, layout, ref, card, bands, angle_gm=agm)
-                if sr is not None:
-                    sr.fallback = True
-                    cands.append(sr)
-        det, off, wander = deterministic_offset(sig_m, ref, z)
-        if det and any(c.name == "constant_bias" for c in cands):
-            # deterministic signatures first: a mean offset far beyond the block-mean
-            # wander is a constant bias, not the wander of a slow random process
-            cands = [c for c in cands if c.name == "constant_bias"]
-            cands[0].why += (f"; offset {off * 3600:.4g} deg/h = {abs(off) / max(wander, 1e-300):.3g} x the "
-                             f"block-mean wander ({wander * 3600:.3g} deg/h rms): deterministic, explained first")
-            it["deterministic_first"] = True
-        for c in cands:
-            zeroed = _zeroed(c.changes)
-            if zeroed:
-                msg = (f"the card is noisier than the record ({', '.join(zeroed)} would be set to 0); "
-                       f"gap writes no term fitted to 0 (removing a term is a candidate of its own, "
-                       f"listed as '(removed)')")
-                c.why += f" (rejected: {msg})"
-                if msg not in limitations:
-                    limitations.append(msg)
-                continue
-            c.text = text
-            for nm, pr, rf in c.changes:
-                c.text = edit_card(c.text, nm, pr, rf, f"fitted to {Path(str(source)).name}", csrc)
-            try:
-                card_at_rate(c.text, fs, csrc)
-            except InputError as exc:
-                c.why += f" (rejected: {exc})"
-                continue
-            cref, c.z, c.components, c.gap = _evaluate(sim.run(c.text, engine="native"), sig_m, layout, bands)
-            c.widen = widening(cref, ref, z)
-            if not math.isfinite(c.gap):
-                c.why += " (rejected: non-finite gap)"
-                c.z = None
-        ok = [c for c in cands if c.z is not None]
-        mask = explainable([z] + [c.z for c in ok])
-        for c in ok:
-            c.robust = robust_gap(c.z, mask)
-            c.score = (c.robust + c.widen) * (1.0 + PENALTY_PER_PARAM * c.n_params)
-        ok = [c for c in ok if math.isfinite(c.score)]      # never accept a non-finite score
-        it["candidates"] = [c.to_json() for c in cands]
-        fallback = [c for c in ok if getattr(c, "fallback", False)]
-        ok = [c for c in ok if not getattr(c, "fallback", False)]
-        best = min(ok, key=lambda c: c.score) if ok else None
-        rg = robust_gap(z, mask)
-        it["unexplained_points"] = {c_: int(np.sum(~mask[c_])) for c_ in COMPONENTS}
-        it["robust_gap"] = rg
-        if best is not None and best.score > MIN_IMPROVEMENT * rg and len(ok) >= 2:
-            # no single effect shrinks the gap significantly: look one step ahead, pairs
-            # of the three best-scoring candidates (two effects that only together
-            # explain a signature, e.g. a bias and a ramp that offset each other's mean)
-            top = sorted(ok, key=lambda c: c.score)[:3]
-            pairs = []
-            for i, a in enumerate(top):
-                for b in top[i + 1:]:
-                    if a.name == b.name or _zeroed(b.changes):
-                        continue
-                    pc = Candidate(a.name, a.params, a.refit, f"{a.why}; together with {b.name}",
-                                   extra=a.extra + b.changes)
-                    pc.text = a.text
-                    for nm, pr, rf in b.changes:
-                        pc.text = edit_card(pc.text, nm, pr, rf, f"fitted to {Path(str(source)).name}", csrc)
-                    try:
-                        card_at_rate(pc.text, fs, csrc)
-                    except InputError:
-                        continue
-                    pref, pz, pc.components, pc.gap = _evaluate(sim.run(pc.text, engine="native"), sig_m, layout, bands)
-                    pc.robust = robust_gap(pz, mask)
-                    pc.widen = widening(pref, ref, z)
-                    pc.score = (pc.robust + pc.widen) * (1.0 + PENALTY_PER_PARAM * pc.n_params)
-                    if math.isfinite(pc.score) and math.isfinite(pc.gap):
-                        pairs.append(pc)
-            it["pairs"] = [c.to_json() for c in pairs]
-            bp = min(pairs, key=lambda c: c.score) if pairs else None
-            if bp is not None and bp.score < MIN_IMPROVEMENT * best.score:
-                best = bp
-        if fallback and (best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg)):
-            fb = min(fallback, key=lambda c: c.score)     # the joint re-fit, with or without angle GM terms
-            if best is None or fb.score < best.score or fb.gap <= 0.25 * min(g, best.gap):
-                best = fb
-            ok = ok + fallback
-            if fb.gap <= FALLBACK_GAIN * g and fb.robust + fb.widen <= rg and best is fb:
-                # the joint re-fit halves the plain gap and is no worse capped: accepted
-                # although its many parameters cost it the penalised score
-                fb.why += f" (accepted: plain gap {g:.3g} -> {fb.gap:.3g}, capped no worse)"
-                fb.score = min(fb.score, MIN_IMPROVEMENT * rg)
-        if best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg):
-            # every capped point stays capped (|z| > 5 everywhere, e.g. a card far from a long
-            # real record): the capped score cannot see progress; accept the candidate that
-            # shrinks the plain gap most, by at least 4x, when it is no worse capped
-            big = [c for c in ok if math.isfinite(c.gap) and c.gap <= 0.25 * g
-                   and c.robust + c.widen <= rg]
-            if big:
-                best = min(big, key=lambda c: c.gap)
-                best.why += f" (accepted on the plain gap: {g:.3g} -> {best.gap:.3g}; the capped score saturates)"
-        accepted = best is not None and math.isfinite(rg) and (best.score <= MIN_IMPROVEMENT * rg
-                                                                or best.gap <= 0.25 * g)
-        if not accepted and (stop_bands != "auto" or not _top_disagrees(z)):
-            # the loop's own stop test: a candidate that brings the card within the scatter
-            # (its gap and every component below their thresholds), no worse capped with
-            # the widening charged, is accepted although its score gains less than the rule
-            # asks. Not while the top of the band still disagrees in the first pass: that
-            # band is taken out next (gap()), and the card is judged without it
-            inside = [c for c in {id(c): c for c in ok + fallback}.values()
-                      if c.gap <= threshold and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
-                      and c.robust + c.widen <= rg]
-            if inside:
-                best = min(inside, key=lambda c: c.score)
-                best.why += f" (accepted: within the scatter, gap {g:.3g} -> {best.gap:.3g}, capped no worse)"
-                accepted = True
-        if not accepted:
+        best = _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold)
+        if best is None:
             it["stop"] = "no candidate shrinks the gap significantly"
             break
-        _log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
-                                          for nm, pr, rf in best.changes)
-             + f": gap {g:.3g} -> {best.gap:.3g}", quiet)
-        text = best.text
-        for nm, pr, rf in best.changes:
-            effects.append({"name": nm, "params": None if pr is None else {k: float(v) for k, v in pr.items()},
-                            "refit": rf, "why": best.why, "iteration": len(iterations) - 1})
-        it["chosen"] = [nm for nm, _, _ in best.changes]
-        sims = sim.run(text)
-        ref, z, comp, g = _evaluate(sims, sig_m, layout, bands)
-    last = iterations[-1]
+        text = _take(best, g, it, len(iterations) - 1, effects, quiet)
+        ref, z, comp, g = ctx.evaluate(text)
+    _note_card_noisier(iterations[-1], limitations)
+    from gyrodenoise.modelgap.effects import name_effects
+    named = name_effects(ctx.y, ctx.fs, card_at_rate(text, ctx.fs, ctx.csrc), bumps, latitude_deg)
+    return GapResult(named=named, limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g,
+                     card_text=text, iterations=iterations, threshold=threshold, engine=engine, seeds=seed_list,
+                     component_threshold=comp_threshold, layout=ctx.layout, measured=ctx.sig_m, stop_bands=bumps)
+
+
+def _take(best, g, it, iteration, effects, quiet):
+    """Accept candidate ``best`` in iteration ``it`` (number ``iteration``): log it, list
+    its changes in ``effects`` and ``it["chosen"]``; returns the card text with it."""
+    log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
+                                     for nm, pr, rf in best.changes)
+        + f": gap {g:.3g} -> {best.gap:.3g}", quiet=quiet)
+    for nm, pr, rf in best.changes:
+        effects.append({"name": nm, "params": None if pr is None else {k: float(v) for k, v in pr.items()},
+                        "refit": rf, "why": best.why, "iteration": iteration})
+    it["chosen"] = [nm for nm, _, _ in best.changes]
+    return best.text
+
+
+def _note_card_noisier(last, limitations):
+    """Add the limitation "the card is noisier than the record" when the last iteration
+    is not within the scatter and every Allan disagreement is the record below the card."""
     if not last["within_scatter"] and any(s_ < 0 for s_ in last["where"]["allan_sign"]) \
             and not any(s_ > 0 for s_ in last["where"]["allan_sign"]):
         msg = ("the record's Allan deviation is below the card's wherever they disagree: the card is "
@@ -560,12 +525,174 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
                "'(removed)' candidates) shrank the gap enough to be accepted")
         if not any("noisier" in m_ for m_ in limitations):
             limitations.append(msg)
-    from gyrodenoise.modelgap.effects import name_effects
-    named = name_effects(y, fs, card_at_rate(text, fs, csrc), bumps, latitude_deg)
-    return GapResult(named=named, limitations=limitations, effects_added=effects, gap_before=gap_before, gap_after=g, card_text=text,
-                     iterations=iterations, threshold=threshold, engine=engine, seeds=seed_list,
-                     component_threshold=comp_threshold,
-                     layout=layout, measured=sig_m, stop_bands=bumps)
+
+
+# ------------------------------------------------------------------ one iteration: choose a candidate
+def _score(c):
+    """A candidate's score: capped gap plus the widening, times 1 + PENALTY_PER_PARAM per parameter."""
+    return (c.robust + c.widen) * (1.0 + PENALTY_PER_PARAM * c.n_params)
+
+
+def _candidates(ctx, card, ref, z, it):
+    """The candidates of one iteration: :func:`.candidates.propose`, the joint re-fits
+    (:func:`.candidates.spectral_refit`, plain and with angle Gauss-Markov terms: the
+    fallback, marked ``fallback``) when the Allan or PSD signatures disagree, and only
+    the constant bias when the record mean is off deterministically
+    (:func:`deterministic_offset`)."""
+    cands = propose(ctx.y, ctx.layout, ref, z, card, ctx.restarts)
+    if np.any(np.abs(z["allan"]) > 3.0) or np.any(np.abs(z["psd"]) > 3.0):
+        for agm in (False, True):   # the fallback: tried when no single effect (or pair) will do
+            sr = spectral_refit(ctx.sig_m, ctx.layout, ref, card, ctx.bands, angle_gm=agm)
+            if sr is not None:
+                sr.fallback = True
+                cands.append(sr)
+    det, off, wander = deterministic_offset(ctx.sig_m, ref, z)
+    if det and any(c.name == "constant_bias" for c in cands):
+        # deterministic signatures first: a mean offset far beyond the block-mean
+        # wander is a constant bias, not the wander of a slow random process
+        cands = [c for c in cands if c.name == "constant_bias"]
+        cands[0].why += (f"; offset {off * 3600:.4g} deg/h = {abs(off) / max(wander, 1e-300):.3g} x the "
+                         f"block-mean wander ({wander * 3600:.3g} deg/h rms): deterministic, explained first")
+        it["deterministic_first"] = True
+    return cands
+
+
+def _simulate_candidate(ctx, c, text, ref, z, limitations):
+    """Write candidate ``c`` into the card ``text`` and evaluate it by re-simulation (native
+    engine): sets ``c.text``, ``c.z``, ``c.components``, ``c.gap``, ``c.widen``; a candidate
+    that would write a term as 0, that the card cannot hold at the record's rate or whose gap
+    is not finite is rejected (``c.z`` None, the reason in ``c.why``)."""
+    zeroed = _zeroed(c.changes)
+    if zeroed:
+        msg = (f"the card is noisier than the record ({', '.join(zeroed)} would be set to 0); "
+               f"gap writes no term fitted to 0 (removing a term is a candidate of its own, "
+               f"listed as '(removed)')")
+        c.why += f" (rejected: {msg})"
+        if msg not in limitations:
+            limitations.append(msg)
+        return
+    c.text = ctx.edited(text, c.changes)
+    try:
+        card_at_rate(c.text, ctx.fs, ctx.csrc)
+    except InputError as exc:
+        c.why += f" (rejected: {exc})"
+        return
+    cref, c.z, c.components, c.gap = ctx.evaluate(c.text, engine="native")
+    c.widen = widening(cref, ref, z)
+    if not math.isfinite(c.gap):
+        c.why += " (rejected: non-finite gap)"
+        c.z = None
+
+
+def _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold):
+    """The candidate accepted in this iteration, or None: every candidate simulated and
+    scored (:func:`robust_gap` over the points some candidate explains, plus
+    :func:`widening`, penalised per parameter), then the acceptance rules in turn:
+    a score below MIN_IMPROVEMENT x the card's, a pair of candidates
+    (:func:`_best_pair`), the joint re-fit (:func:`_with_fallback`), a 4x smaller plain
+    gap (:func:`_on_plain_gap`), and the card brought within the scatter
+    (:func:`_within_scatter`). Records the candidates in ``it``."""
+    cands = _candidates(ctx, card_at_rate(text, ctx.fs, ctx.csrc), ref, z, it)
+    for c in cands:
+        _simulate_candidate(ctx, c, text, ref, z, limitations)
+    ok = [c for c in cands if c.z is not None]
+    mask = explainable([z] + [c.z for c in ok])
+    for c in ok:
+        c.robust = robust_gap(c.z, mask)
+        c.score = _score(c)
+    ok = [c for c in ok if math.isfinite(c.score)]      # never accept a non-finite score
+    it["candidates"] = [c.to_json() for c in cands]
+    fallback = [c for c in ok if getattr(c, "fallback", False)]
+    ok = [c for c in ok if not getattr(c, "fallback", False)]
+    best = min(ok, key=lambda c: c.score) if ok else None
+    rg = robust_gap(z, mask)
+    it["unexplained_points"] = {c_: int(np.sum(~mask[c_])) for c_ in COMPONENTS}
+    it["robust_gap"] = rg
+    if best is not None and best.score > MIN_IMPROVEMENT * rg and len(ok) >= 2:
+        best = _best_pair(ctx, ok, best, ref, z, mask, it)
+    best, ok = _with_fallback(fallback, best, ok, g, rg)
+    best = _on_plain_gap(ok, best, g, rg)
+    accepted = best is not None and math.isfinite(rg) and (best.score <= MIN_IMPROVEMENT * rg
+                                                            or best.gap <= 0.25 * g)
+    if not accepted and (ctx.stop_bands != "auto" or not _top_disagrees(z)):
+        best, accepted = _within_scatter(ok + fallback, best, g, rg, threshold, comp_threshold)
+    return best if accepted else None
+
+
+def _best_pair(ctx, ok, best, ref, z, mask, it):
+    """No single effect shrinks the gap significantly: look one step ahead, pairs of the
+    three best-scoring candidates (two effects that only together explain a signature,
+    e.g. a bias and a ramp that offset each other's mean). The best pair replaces
+    ``best`` when its score is below MIN_IMPROVEMENT x ``best``'s; recorded in ``it``."""
+    top = sorted(ok, key=lambda c: c.score)[:3]
+    pairs = []
+    for i, a in enumerate(top):
+        for b in top[i + 1:]:
+            if a.name == b.name or _zeroed(b.changes):
+                continue
+            pc = Candidate(a.name, a.params, a.refit, f"{a.why}; together with {b.name}",
+                           extra=a.extra + b.changes)
+            pc.text = ctx.edited(a.text, b.changes)
+            try:
+                card_at_rate(pc.text, ctx.fs, ctx.csrc)
+            except InputError:
+                continue
+            pref, pz, pc.components, pc.gap = ctx.evaluate(pc.text, engine="native")
+            pc.robust = robust_gap(pz, mask)
+            pc.widen = widening(pref, ref, z)
+            pc.score = _score(pc)
+            if math.isfinite(pc.score) and math.isfinite(pc.gap):
+                pairs.append(pc)
+    it["pairs"] = [c.to_json() for c in pairs]
+    bp = min(pairs, key=lambda c: c.score) if pairs else None
+    return bp if bp is not None and bp.score < MIN_IMPROVEMENT * best.score else best
+
+
+def _with_fallback(fallback, best, ok, g, rg):
+    """The joint re-fit (with or without angle Gauss-Markov terms) when no candidate is
+    accepted on its score: it replaces ``best`` when it scores better or brings the
+    plain gap to a quarter, and it is accepted when it halves the plain gap
+    (FALLBACK_GAIN) and is no worse capped, although its many parameters cost it the
+    penalised score. Returns (best, ok with the fallback candidates when considered)."""
+    if fallback and (best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg)):
+        fb = min(fallback, key=lambda c: c.score)
+        if best is None or fb.score < best.score or fb.gap <= 0.25 * min(g, best.gap):
+            best = fb
+        ok = ok + fallback
+        if fb.gap <= FALLBACK_GAIN * g and fb.robust + fb.widen <= rg and best is fb:
+            fb.why += f" (accepted: plain gap {g:.3g} -> {fb.gap:.3g}, capped no worse)"
+            fb.score = min(fb.score, MIN_IMPROVEMENT * rg)
+    return best, ok
+
+
+def _on_plain_gap(ok, best, g, rg):
+    """Every capped point stays capped (|z| > 5 everywhere, e.g. a card far from a long
+    real record): the capped score cannot see progress; the candidate that shrinks the
+    plain gap most, by at least 4x, is taken when it is no worse capped."""
+    if best is None or not (math.isfinite(rg) and best.score <= MIN_IMPROVEMENT * rg):
+        big = [c for c in ok if math.isfinite(c.gap) and c.gap <= 0.25 * g
+               and c.robust + c.widen <= rg]
+        if big:
+            best = min(big, key=lambda c: c.gap)
+            best.why += f" (accepted on the plain gap: {g:.3g} -> {best.gap:.3g}; the capped score saturates)"
+    return best
+
+
+def _within_scatter(cands, best, g, rg, threshold, comp_threshold):
+    """The loop's own stop test: a candidate that brings the card within the scatter (its
+    gap and every component below their thresholds), no worse capped with the widening
+    charged, is accepted although its score gains less than the rule asks. Not applied
+    while the top of the band still disagrees in the first pass (:func:`_choose`): that
+    band is taken out next (:func:`gap`), and the card is judged without it. Returns
+    (best, accepted)."""
+    inside = [c for c in {id(c): c for c in cands}.values()
+              if c.gap <= threshold and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
+              and c.robust + c.widen <= rg]
+    if not inside:
+        return best, False
+    best = min(inside, key=lambda c: c.score)
+    best.why += f" (accepted: within the scatter, gap {g:.3g} -> {best.gap:.3g}, capped no worse)"
+    return best, True
 
 
 def white_level_factor(y, fs, card, bands=()):
@@ -615,9 +742,7 @@ def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
     sims = [Simulator(y.shape[0], fs, [s_], source="<fitted card>").run(t_)[0] for t_, s_ in zip(texts, seed_list)]
     sig_m = signature(band_stop(y, fs, bands), layout)
     ref, z, comp, g = _evaluate(sims, sig_m, layout, bands)
-    loo = loo_gaps(ref)
-    threshold = max(1.5, 1.5 * max(g_ for g_, _ in loo))
-    comp_threshold = {c: max(COMPONENT_FLOOR, 1.5 * max(cc[c] for _, cc in loo)) for c in COMPONENTS}
+    threshold, comp_threshold = _thresholds(ref)
     within = g <= threshold and all(comp[c] <= comp_threshold[c] for c in COMPONENTS)
     it = {"card_gap": g, "components": comp, "where": where_disagree(z, layout), "_ref": ref, "_z": z,
           "candidates": [], "within_scatter": bool(within),
@@ -683,10 +808,7 @@ def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, r
         text = _scale_white(text, card, factor, float(sample_rate_hz),
                             f"white-noise level re-fitted to {Path(str(source)).name} (x{factor:.4g})")
     if card_error:
-        seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s_) for s_ in seeds]
-        if len(seed_list) < 3:
-            raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
-        res = _heldout_population(y, float(sample_rate_hz), text, bands, seed_list,
+        res = _heldout_population(y, float(sample_rate_hz), text, bands, _seed_list(seeds),
                                   len(y) if n_train is None else int(n_train), source)
     else:
         res = _gap_once(y, sample_rate_hz, parse_card(text, "<fitted card>"), seeds=seeds, max_effects=0,
