@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's
 from benchmarks._data import SHARED_DATA
 
 
-#: Worker settings docs/FLEET.md recommends for this workload (measured here): the
+#: Worker settings docs/logs/fleet.md recommends for this workload (measured here): the
 #: statistical profiler samples every worker thread every 10 ms, and the nanny's
 #: MALLOC_TRIM_THRESHOLD_=65536 makes glibc return and re-fault the memory of the
 #: bridge's many medium-size arrays; together ~15 % of a log's time in a worker.
@@ -49,7 +49,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--dask-defaults", action="store_true",
                     help="keep Dask's worker defaults (statistical profiler on, MALLOC_TRIM_THRESHOLD_=65536); "
-                         "by default both are switched off as docs/FLEET.md recommends")
+                         "by default both are switched off as docs/logs/fleet.md recommends")
     args = ap.parse_args(argv)
     import dask
     from distributed import Client, LocalCluster

@@ -1,4 +1,4 @@
-"""Per-effect accuracy of the gap workflow (docs/GAP.md table).
+"""Per-effect accuracy of the gap workflow (docs/bench/gap.md table).
 
 For each effect of the vocabulary, simulate RECORDS "measured" records (30 min at
 100 Hz, seeds 2001..) from the white-noise base card plus the hidden effect, run

@@ -18,7 +18,7 @@ each by the median of its 11 neighbours. Reported per setting:
 * for the simulated record, RMSE against the known truth;
 * the 90 % rise time of a 10 deg/s step (paper_fog, 200 Hz), the price paid.
 
-Numbers are measured here, in this process; docs/OUTLIERS.md quotes them.
+Numbers are measured here, in this process; docs/bench/outliers-soak.md quotes them.
 """
 import argparse
 import sys

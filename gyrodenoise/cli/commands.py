@@ -258,7 +258,7 @@ def format_dynamic(dyn):
                    + "; RMSE " + ", ".join(f"{k} {v:.4g}" for k, v in ng["rmse_deg_s"].items()))
         out.append(f"  (the default gate follows a step by re-opening the filter after "
                    f"{core_default('outlier_run')} rejected samples:"
-                   " it rescues abrupt changes, not smooth motion -- docs/OUTLIERS.md)")
+                   " it rescues abrupt changes, not smooth motion -- docs/bench/outliers-soak.md)")
     out.append("(std = the paper's 'MSE' of Eq. 41, a standard deviation about the mean; it cannot see "
                "a wrong mean or a lag, the RMSE can.)")
     return "\n".join(out)
@@ -354,7 +354,7 @@ def _register_demo(sub):
     add_filter_options(p, ("--ar-order", "--outlier-sigma", "--outlier-run"), help={
         "--ar-order": None,
         "--outlier-sigma": f"outlier gate of the filters (default {core_default('outlier_sigma'):g}; 0 = off, "
-                           "the paper's filters exactly; see docs/OUTLIERS.md)",
+                           "the paper's filters exactly; see docs/bench/outliers-soak.md)",
         "--outlier-run": f"consecutive rejections after which the filter re-opens "
                          f"(default {core_default('outlier_run')})"})
     p.add_argument("--out", default="demo_out", help="folder for the PNG plots (default demo_out)")

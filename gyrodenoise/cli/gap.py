@@ -25,7 +25,7 @@ def register_cli(subparsers):
                           input_help="recording CSV (columns time,rate; .gz ok) or a PSINS .imu log; omit with --allan")
     p.add_argument("--allan", default=None, metavar="CURVE.csv",
                    help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
-                        "measurement instead of IN; see docs/GAP.md")
+                        "measurement instead of IN; see docs/bench/gap.md")
     p.add_argument("--allan-unit", default=None,
                    help="unit of the curve's ADEV columns: deg/s, deg/h or rad/s (required with --allan: "
                         "a curve file carries no unit)")

@@ -99,7 +99,7 @@ def _help_texts():
         "--lam": f"RLS forgetting factor, 0<lam<=1 (default {d['lam']:g})",
         "--outlier-sigma": "outlier gate: after the warm-up a sample with |innovation| > K sqrt(S) is kept out "
                            "of the filter and the output is the prediction; 0 = off (the paper's filter); "
-                           f"K >= 2 (default {d['outlier_sigma']:g}, see docs/OUTLIERS.md)",
+                           f"K >= 2 (default {d['outlier_sigma']:g}, see docs/bench/outliers-soak.md)",
         "--outlier-run": "after M consecutive rejected samples the next one is taken as a real rate change "
                          f"and the filter restarts there (default {d['outlier_run']})",
     }

@@ -22,7 +22,7 @@ Equations cited are those of Sun et al. (2016), "FOG Random Drift Signal
 Denoising Based on the Improved AR Model and Modified Sage-Husa Adaptive Kalman
 Filter", Sensors 16(7):1073, doi:10.3390/s16071073.
 
-Choices the paper leaves open (documented in the README, "The method"):
+Choices the paper leaves open (documented in docs/method/paper.md):
 
 * RLS starts from theta = 0 and P = p0_rls * I (a large initial P); with
   forgetting factor ``lam`` this is exactly the ridge-regularised batch least
@@ -208,7 +208,7 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     r_floor : float
         Lower bound for R and for the automatic noise levels, (deg/s)^2.
     outlier_sigma : float
-        Innovation gate (not in the paper; docs/OUTLIERS.md, :func:`gate`): after
+        Innovation gate (not in the paper; docs/bench/outliers-soak.md, :func:`gate`): after
         the warm-up a sample with |v| > outlier_sigma sqrt(S) is rejected (kept out
         of the RLS, the filter and the R/Q estimators; the output is the filter's
         prediction). 0 = off (the paper's filter); otherwise >= 2.

@@ -16,7 +16,7 @@ naming the file, line and column, or a documented repair recorded in
 * isolated spikes (a sample more than :data:`SPIKE_SIGMAS` robust standard
   deviations of the sample-to-sample difference away from both neighbours, in
   the same direction): kept as is and reported; the SHAKF's outlier gate
-  (``outlier_sigma``, docs/OUTLIERS.md) keeps them out of the filter.
+  (``outlier_sigma``, docs/bench/outliers-soak.md) keeps them out of the filter.
 
 Errors: missing or unreadable file, empty file, header only, missing rate or
 time column, a value that is not a number, NaN or inf, a short (truncated)

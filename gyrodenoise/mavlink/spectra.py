@@ -189,7 +189,7 @@ def draw_log_spectrum(path, title, items):
     low-pass) with its lag; then the spectrogram of the raw record of the
     fastest stream spanning 30 s or more. One figure per log, not per stream: a
     matplotlib axes costs the plot helper ~0.03 s of CPU wherever it is, and the
-    helper is the bridge's critical path (docs/BRIDGE.md, Speed)."""
+    helper is the bridge's critical path (docs/logs/mavlink.md, Speed)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -55,7 +55,7 @@ per parameter. A candidate is accepted when its score is below 0.8 times the
 current card's capped gap. Before any stochastic candidate, a record mean far
 off the card's (``|z| > 3`` and more than 5 times the rms wander of the block
 means, :func:`deterministic_offset`) is explained by a constant bias. Why: on a
-long real record (an ADIS16405, docs/GAP.md) the plain gap rewards a large rate
+long real record (an ADIS16405, docs/bench/gap.md) the plain gap rewards a large rate
 random walk, whose wider scatter shrinks the z of a deterministic mean offset,
 and is dominated by short-tau points (a sensor's internal low-pass filter)
 that no term can fix.

@@ -24,7 +24,7 @@ def record_quantum(y):
 
 
 def name_effects(y, fs, card, bumps=(), latitude_deg=None):
-    """Plain sentences naming what the evidence says (see docs/GAP.md)."""
+    """Plain sentences naming what the evidence says (see docs/bench/gap.md)."""
     out = []
     n = len(y)
     b = card.terms.get("constant_bias", {}).get("value")

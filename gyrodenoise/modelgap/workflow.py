@@ -227,7 +227,7 @@ def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
     > 0 a term is kept only when leaving it out (the others re-fitted) raises the fit's
     chi^2 by more than that: with ``INITIAL_DCHI2`` and ``welch_band_rel_sd(layout)`` a
     white-noise record comes out as angle random walk alone (the workflow's
-    :func:`_initial_fit` does not apply this rule: docs/GAP.md, "Initial fit")."""
+    :func:`_initial_fit` does not apply this rule: docs/bench/gap.md, "Initial fit")."""
     from gyrodenoise.modelgap.metric import _floors
     from gyrodenoise.modelgap.spectral import fit_terms
     fl = _floors(sig_m, layout)
