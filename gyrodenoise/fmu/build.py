@@ -2,11 +2,12 @@
 
 Packages ``gyrodenoise/fmu/sources/fogdenoiser_fmu.py`` and ``gyrodenoise/fmu/sources/simulatedfog_fmu.py`` with
 pythonfmu (in a subprocess) into ``FogDenoiser.fmu`` and ``SimulatedFog.fmu``.
-The FMUs carry a copy of the core (package ``gdcore``: the plain-Python
-kernels, and FogDenoiser also the compiled C core ``core/_gdcore*.so`` of this
-build, used when the host's Python and platform fit it; package ``gdcore``
-in their resources), so they run wherever Python is, from any directory,
-without this package installed.
+The FMUs carry a copy of the core (package ``gdcore`` in their resources: the
+plain-Python kernels, the compiled C core ``core/_gdcore*.so`` of this build, used
+when the host's Python and platform fit it, and the variable declaration
+``fmu/variables.py``), so they run wherever Python is, from any directory,
+without this package installed. Everything is read from the package itself
+(an installed copy builds its FMUs); only the output folder is the caller's.
 """
 
 from __future__ import annotations
@@ -21,14 +22,15 @@ from pathlib import Path
 from gyrodenoise.errors import InputError
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]   # gyrodenoise/
-REPO_DIR = PACKAGE_DIR.parent
 FMU_SRC = Path(__file__).resolve().parent / "sources"
 
-#: (model name, slave script, core modules bundled)
+#: model name -> (slave script, modules of the package bundled as ``gdcore``, paths relative to
+#: PACKAGE_DIR); the variable declaration ``fmu/variables.py`` is bundled with each
 FMUS = {
-    "FogDenoiser": ("fogdenoiser_fmu.py", ("core/__init__.py", "core/kernels.py", "denoiser.py", "errors.py")),
+    "FogDenoiser": ("fogdenoiser_fmu.py", ("core/__init__.py", "core/kernels.py", "denoiser.py", "errors.py",
+                                           "fmu/variables.py")),
     "SimulatedFog": ("simulatedfog_fmu.py", ("core/__init__.py", "core/simkernels.py", "errors.py",
-                                             "simulator.py")),
+                                             "simulator.py", "fmu/variables.py")),
 }
 
 
@@ -117,9 +119,9 @@ def build_fmu(name, out_dir="build", src_dir=None, python=None):
 
 
 def stale_reason(fmu_path, src_dir=None):
-    """Why the FMU at ``fmu_path`` no longer matches the source tree, or None.
+    """Why the FMU at ``fmu_path`` no longer matches the package's sources, or None.
 
-    Compares the bundled core modules and slave script with the current files.
+    Compares the bundled core modules and slave script with the package's files.
     """
     import zipfile
     name = Path(fmu_path).stem

@@ -71,6 +71,70 @@ def _chain_paths(fmu_dir, denoiser, sensor="SimulatedFogNative"):
     return paths
 
 
+def _ssp_component(inst, model, path, params):
+    """The ``ssd:Component`` of instance ``inst`` (FMU ``model`` at ``path``), its parameters bound."""
+    from fmpy import read_model_description
+    md = read_model_description(str(path))
+    types = {v.name: v.type for v in md.modelVariables}
+    # the chain's free inputs (fog.true_rate, fog.restart: set by the parameter
+    # binding / their start values) are not listed as connectors: fmpy's
+    # simulate_ssp requires every listed input to be connected, and libcosim
+    # refuses system-level connectors that would feed them
+    free = {"true_rate", "restart"} if inst == "fog" else set()
+    conns = "\n".join(
+        f'          <ssd:Connector name={_xml_attr(v.name)} kind="{v.causality}">'
+        f'<ssc:{v.type}/></ssd:Connector>'
+        for v in md.modelVariables
+        if v.causality in ("input", "output", "parameter") and v.name not in free)
+    return f'''      <ssd:Component name="{inst}" type="application/x-fmu-sharedlibrary" source="resources/{model}.fmu">
+        <ssd:Connectors>
+{conns}
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding>
+            <ssd:ParameterValues>
+              <ssv:ParameterSet version="1.0" name="{inst}_parameters">
+                <ssv:Parameters>
+{_ssv_parameters(params, types)}
+                </ssv:Parameters>
+              </ssv:ParameterSet>
+            </ssd:ParameterValues>
+          </ssd:ParameterBinding>
+        </ssd:ParameterBindings>
+      </ssd:Component>'''
+
+
+def _system_structure(components, sensor, denoiser, card_name, seed, duration_s, step_s):
+    """SystemStructure.ssd (text): the components, their two connections and the default experiment."""
+    elements = "\n".join(components)
+    return f'''<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="gyrodenoise_fmu_chain"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations">
+  <ssd:System name="fog_chain" description="{sensor} (model card {_xml_attr(card_name)[1:-1]}, seed {int(seed)}) -> {denoiser}; one step = one sample">
+    <ssd:Elements>
+{elements}
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="fog" startConnector="measured_rate" endElement="denoiser" endConnector="raw_rate"/>
+      <ssd:Connection startElement="fog" startConnector="restarted" endElement="denoiser" endConnector="restart"/>
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0.0" stopTime="{float(duration_s)!r}">
+    <ssd:Annotations>
+      <ssc:Annotation type="com.opensimulationplatform">
+        <osp:Algorithm>
+          <osp:FixedStepAlgorithm baseStepSize="{step_s!r}"/>
+        </osp:Algorithm>
+      </ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:DefaultExperiment>
+</ssd:SystemStructureDescription>
+'''
+
+
 def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_METHOD, ar_order=3,
               rate_deg_s=0.0, duration_s=600.0, denoiser_kw=None, denoiser="FogDenoiserNative",
               sensor="SimulatedFogNative"):
@@ -87,68 +151,13 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
     the default experiment (libcosim reads it) and is what any SSP master should use.
     """
     import zipfile
-    from fmpy import read_model_description
     chain = _chain_paths(fmu_dir, denoiser, sensor)
     paths = {sensor: chain["sensor"], denoiser: chain["denoiser"]}
     card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw, sensor)
-    h = 1.0 / card_obj.sample_rate_hz
-    comps = []
-    for inst, model in (("fog", sensor), ("denoiser", denoiser)):
-        md = read_model_description(str(paths[model]))
-        types = {v.name: v.type for v in md.modelVariables}
-        # the chain's free inputs (fog.true_rate, fog.restart: set by the parameter
-        # binding / their start values) are not listed as connectors: fmpy's
-        # simulate_ssp requires every listed input to be connected, and libcosim
-        # refuses system-level connectors that would feed them
-        free = {"true_rate", "restart"} if inst == "fog" else set()
-        conns = "\n".join(
-            f'          <ssd:Connector name={_xml_attr(v.name)} kind="{v.causality}">'
-            f'<ssc:{v.type}/></ssd:Connector>'
-            for v in md.modelVariables
-            if v.causality in ("input", "output", "parameter") and v.name not in free)
-        comps.append(f'''      <ssd:Component name="{inst}" type="application/x-fmu-sharedlibrary" source="resources/{model}.fmu">
-        <ssd:Connectors>
-{conns}
-        </ssd:Connectors>
-        <ssd:ParameterBindings>
-          <ssd:ParameterBinding>
-            <ssd:ParameterValues>
-              <ssv:ParameterSet version="1.0" name="{inst}_parameters">
-                <ssv:Parameters>
-{_ssv_parameters(params[inst], types)}
-                </ssv:Parameters>
-              </ssv:ParameterSet>
-            </ssd:ParameterValues>
-          </ssd:ParameterBinding>
-        </ssd:ParameterBindings>
-      </ssd:Component>''')
-    comps_xml = "\n".join(comps)
-    ssd = f'''<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription version="1.0" name="gyrodenoise_fmu_chain"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
-    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-    xmlns:osp="http://opensimulationplatform.com/SSP/OSPAnnotations">
-  <ssd:System name="fog_chain" description="{sensor} (model card {_xml_attr(card_obj.name)[1:-1]}, seed {int(seed)}) -> {denoiser}; one step = one sample">
-    <ssd:Elements>
-{comps_xml}
-    </ssd:Elements>
-    <ssd:Connections>
-      <ssd:Connection startElement="fog" startConnector="measured_rate" endElement="denoiser" endConnector="raw_rate"/>
-      <ssd:Connection startElement="fog" startConnector="restarted" endElement="denoiser" endConnector="restart"/>
-    </ssd:Connections>
-  </ssd:System>
-  <ssd:DefaultExperiment startTime="0.0" stopTime="{float(duration_s)!r}">
-    <ssd:Annotations>
-      <ssc:Annotation type="com.opensimulationplatform">
-        <osp:Algorithm>
-          <osp:FixedStepAlgorithm baseStepSize="{h!r}"/>
-        </osp:Algorithm>
-      </ssc:Annotation>
-    </ssd:Annotations>
-  </ssd:DefaultExperiment>
-</ssd:SystemStructureDescription>
-'''
+    components = [_ssp_component(inst, model, paths[model], params[inst])
+                  for inst, model in (("fog", sensor), ("denoiser", denoiser))]
+    ssd = _system_structure(components, sensor, denoiser, card_obj.name, seed, duration_s,
+                            1.0 / card_obj.sample_rate_hz)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
@@ -158,49 +167,22 @@ def write_ssp(path, fmu_dir="build", card="paper_fog", seed=0, method=DEFAULT_ME
     return path
 
 
-def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=None, seed=0,
-              card="paper_fog", method=DEFAULT_METHOD, ar_order=3, ssp=None, tol=1e-9,
-              keep_arrays=False, denoiser_kw=None, denoiser="FogDenoiserNative", sensor="SimulatedFogNative"):
-    """The two-FMU system in libcosim (Open Simulation Platform) via libcosimpy.
-
-    ``ssp=None`` builds the system from Python (local slaves, connections,
-    initial values); ``ssp=PATH`` writes an SSP archive there (:func:`write_ssp`)
-    and loads the system from it. A restart is injected with an override
-    manipulator on ``fog.restart`` for one step.
-
-    libcosim's fixed-step master is of Jacobi type: FogDenoiser receives in step
-    k what the sensor FMU produced in step k-1 (and in step 0 its
-    initial output, 0 deg/s). The check is therefore that the denoiser's
-    received samples are the sensor's delayed by one step, that those equal
-    ``gyrodenoise.simulate``, and that the denoiser's output equals
-    ``gyrodenoise.denoise`` on the samples it received.
-    """
-    import time
-    import numpy as np
-    from libcosimpy.CosimEnums import CosimVariableType
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimManipulator import CosimManipulator
-    from libcosimpy.CosimObserver import CosimObserver
-    from libcosimpy.CosimSlave import CosimLocalSlave
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    log_output_level(CosimLogLevel.WARNING)
-
-    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw, sensor)
-    fs = card_obj.sample_rate_hz
+def _step_nanoseconds(fs):
+    """The sample period in ns (libcosim's time unit); InputError if not a whole number."""
     h_ns = int(round(1e9 / fs))
     if abs(h_ns * 1e-9 * fs - 1.0) > 1e-9:
         raise InputError(f"sample rate {fs} Hz is not a whole number of nanoseconds per sample "
                          "(libcosim's time unit)")
-    n = int(round(duration_s * fs))
-    paths = _chain_paths(fmu_dir, denoiser, sensor)
-    from fmpy import read_model_description
-    vrs = {m: {v.name: (v.valueReference, v.type) for v in read_model_description(str(p)).modelVariables}
-           for m, p in paths.items()}
-    fvr, dvr = vrs["sensor"], vrs["denoiser"]
+    return h_ns
 
-    if ssp is not None:
-        ssp_path = write_ssp(ssp, fmu_dir, card_obj, seed, method, ar_order, rate_deg_s, duration_s,
-                             denoiser_kw, denoiser, sensor)
+
+def _libcosim_system(paths, params, vrs, h_ns, ssp_path=None):
+    """The two-FMU system in libcosim, from the SSP at ``ssp_path`` or built from Python
+    (local slaves, initial values, connections); (execution, fog index, denoiser index)."""
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimSlave import CosimLocalSlave
+    fvr, dvr = vrs["sensor"], vrs["denoiser"]
+    if ssp_path is not None:
         ex = CosimExecution.from_ssp_file(str(ssp_path))
         fog = ex.slave_index_from_instance_name("fog")
         den = ex.slave_index_from_instance_name("denoiser")
@@ -218,7 +200,19 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
         ex.connect_boolean_variables(fog, fvr["restarted"][0], den, dvr["restart"][0])
     if fog < 0 or den < 0:
         raise RuntimeError("libcosim: the system has no instances 'fog' and 'denoiser'")
+    return ex, fog, den
 
+
+def _libcosim_steps(ex, fog, den, vrs, n, restarts):
+    """Run ``n`` steps, a restart injected on ``fog.restart`` for the one step where
+    ``restarts`` is set (an override manipulator); (measured, received, filtered, times,
+    converged at the end, elapsed s)."""
+    import time
+    import numpy as np
+    from libcosimpy.CosimEnums import CosimVariableType
+    from libcosimpy.CosimManipulator import CosimManipulator
+    from libcosimpy.CosimObserver import CosimObserver
+    fvr, dvr = vrs["sensor"], vrs["denoiser"]
     obs = CosimObserver.create_time_series(buffer_size=n + 16)
     ex.add_observer(obs)
     last = CosimObserver.create_last_value()
@@ -229,10 +223,9 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
     man = CosimManipulator.create_override()
     ex.add_manipulator(man)
 
-    restarts = _restart_mask(n, fs, restart_at_s)
     t0 = time.perf_counter()
     ok = True
-    if restart_at_s is None:
+    if not restarts.any():
         ok &= ex.step(n)
     else:
         k = int(np.flatnonzero(restarts)[0])
@@ -254,14 +247,50 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
     _, received = series(den, dvr["raw_rate"][0])
     _, filtered = series(den, dvr["filtered_rate"][0])
     converged = bool(last.last_boolean_values(den, [dvr["converged"][0]])[0])
-    ex.stop()
-    del ex
     if not (len(measured) == len(received) == len(filtered) == n):
         raise RuntimeError(f"libcosim observer returned {len(measured)}/{len(received)}/"
                            f"{len(filtered)} samples, expected {n}")
-    truth = np.full(n, float(rate_deg_s))
-    # what the denoiser received: the sensor's initial output, then its samples one step late
-    rec_restarts = np.concatenate(([False], restarts[:-1]))
+    return measured, received, filtered, times, converged, elapsed
+
+
+def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=None, seed=0,
+              card="paper_fog", method=DEFAULT_METHOD, ar_order=3, ssp=None, tol=1e-9,
+              keep_arrays=False, denoiser_kw=None, denoiser="FogDenoiserNative", sensor="SimulatedFogNative"):
+    """The two-FMU system in libcosim (Open Simulation Platform) via libcosimpy.
+
+    ``ssp=None`` builds the system from Python (local slaves, connections,
+    initial values); ``ssp=PATH`` writes an SSP archive there (:func:`write_ssp`)
+    and loads the system from it. A restart is injected with an override
+    manipulator on ``fog.restart`` for one step.
+
+    libcosim's fixed-step master is of Jacobi type: FogDenoiser receives in step
+    k what the sensor FMU produced in step k-1 (and in step 0 its
+    initial output, 0 deg/s). The check is therefore that the denoiser's
+    received samples are the sensor's delayed by one step, that those equal
+    ``gyrodenoise.simulate``, and that the denoiser's output equals
+    ``gyrodenoise.denoise`` on the samples it received.
+    """
+    import numpy as np
+    from fmpy import read_model_description
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    log_output_level(CosimLogLevel.WARNING)
+
+    card_obj, params = system_parameters(card, seed, method, ar_order, rate_deg_s, denoiser_kw, sensor)
+    fs = card_obj.sample_rate_hz
+    h_ns = _step_nanoseconds(fs)
+    n = int(round(duration_s * fs))
+    paths = _chain_paths(fmu_dir, denoiser, sensor)
+    vrs = {m: {v.name: (v.valueReference, v.type) for v in read_model_description(str(p)).modelVariables}
+           for m, p in paths.items()}
+    ssp_path = None
+    if ssp is not None:
+        ssp_path = write_ssp(ssp, fmu_dir, card_obj, seed, method, ar_order, rate_deg_s, duration_s,
+                             denoiser_kw, denoiser, sensor)
+    ex, fog, den = _libcosim_system(paths, params, vrs, h_ns, ssp_path)
+    restarts = _restart_mask(n, fs, restart_at_s)
+    measured, received, filtered, times, converged, elapsed = _libcosim_steps(ex, fog, den, vrs, n, restarts)
+    ex.stop()
+    del ex
     res = {"case": {"master": "libcosim (SSP)" if ssp is not None else "libcosim (Python)",
                     "duration_s": n / fs, "n_samples": n, "sample_rate_hz": fs,
                     "true_rate_deg_s": float(rate_deg_s), "restart_at_s": restart_at_s,
@@ -272,19 +301,33 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
            "first_received_deg_s": float(received[0]),
            "max_abs_diff_received_vs_delayed_measured_deg_s":
                float(np.max(np.abs(received[1:] - measured[:-1]))) if n > 1 else 0.0}
-    cmp_ = compare_with_core(measured, measured, truth, restarts, card_obj, seed, method, ar_order,
-                             denoiser_kw)
-    res["max_abs_diff_measured_vs_simulate_deg_s"] = cmp_["max_abs_diff_measured_vs_simulate_deg_s"]
-    import gyrodenoise as gd
-    ref = gd.denoise(received, fs, method=method, ar_order=ar_order, restarts=rec_restarts,
-                     **(denoiser_kw or {}))
-    res["max_abs_diff_filtered_vs_denoise_deg_s"] = float(np.max(np.abs(filtered - ref)))
-    res["tolerance_deg_s"] = tol
-    res["ok"] = bool(res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
-                     and abs(res["step_size_s"] * fs - 1.0) < 1e-9
-                     and res["max_abs_diff_measured_vs_simulate_deg_s"] <= tol
-                     and res["max_abs_diff_filtered_vs_denoise_deg_s"] <= tol)
+    res.update(_check_against_core(measured, received, filtered, restarts, rate_deg_s, card_obj, seed, method,
+                                   ar_order, denoiser_kw, tol, res))
     if keep_arrays:
         res["arrays"] = {"measured": measured, "received": received, "filtered": filtered,
                          "time_s": times, "restarts": restarts}
     return res
+
+
+def _check_against_core(measured, received, filtered, restarts, rate_deg_s, card_obj, seed, method, ar_order,
+                        denoiser_kw, tol, res):
+    """The comparisons with ``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` and the verdict
+    (``res`` holds the run's step size and delay check)."""
+    import numpy as np
+    import gyrodenoise as gd
+    n, fs = len(measured), card_obj.sample_rate_hz
+    truth = np.full(n, float(rate_deg_s))
+    # what the denoiser received: the sensor's initial output, then its samples one step late
+    rec_restarts = np.concatenate(([False], restarts[:-1]))
+    cmp_ = compare_with_core(measured, measured, truth, restarts, card_obj, seed, method, ar_order,
+                             denoiser_kw)
+    ref = gd.denoise(received, fs, method=method, ar_order=ar_order, restarts=rec_restarts,
+                     **(denoiser_kw or {}))
+    out = {"max_abs_diff_measured_vs_simulate_deg_s": cmp_["max_abs_diff_measured_vs_simulate_deg_s"],
+           "max_abs_diff_filtered_vs_denoise_deg_s": float(np.max(np.abs(filtered - ref))),
+           "tolerance_deg_s": tol}
+    out["ok"] = bool(res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
+                     and abs(res["step_size_s"] * fs - 1.0) < 1e-9
+                     and out["max_abs_diff_measured_vs_simulate_deg_s"] <= tol
+                     and out["max_abs_diff_filtered_vs_denoise_deg_s"] <= tol)
+    return out

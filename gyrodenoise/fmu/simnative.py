@@ -4,7 +4,8 @@ No Python and no libpython at run time: the binary is the project's sensor model
 (``gyrodenoise/core/gdsim.c``, the C that ``gyrodenoise.simulate`` and the pythonfmu
 ``SimulatedFog.fmu`` run) behind the shared FMI layer (``gyrodenoise/fmu/sources/native/gdfmi.c``) and
 its hooks (``gyrodenoise/fmu/sources/native/simulatedfog_native.c``). Same variables (names, types,
-causality, variability, units, start values) as ``SimulatedFog.fmu``; same card and
+causality, variability, units, start values) as ``SimulatedFog.fmu``, declared in
+:data:`gyrodenoise.fmu.variables.SIMULATED_FOG_NATIVE`; same card and
 seed: same numbers as ``gyrodenoise.simulate``.
 
 The card. TOML is parsed here in Python, so the FMU reads a *compiled* card: the card
@@ -26,7 +27,8 @@ from pathlib import Path
 
 from gyrodenoise.core import simkernels as SK
 from gyrodenoise.errors import InputError
-from gyrodenoise.fmu.native import CORE_DIR, PACKAGE_DIR, UNITS, NativeModel, _par, _var
+from gyrodenoise.fmu.nativemodel import CORE_DIR, PACKAGE_DIR, NativeModel
+from gyrodenoise.fmu.variables import DEFAULT_STEP_SIZE_S, SIMULATED_FOG_NATIVE as VARIABLES, UNITS
 
 MODEL_NAME = "SimulatedFogNative"
 CARD_FORMAT = 1
@@ -87,26 +89,6 @@ def _resources():
     return {f"cards/{name}.gdcard": compile_card(path).encode() for name, path in bundled_cards().items()}
 
 
-VARIABLES = [
-    _var("true_rate", "Real", "input", "True angular rate", start=0.0, unit="deg/s"),
-    _var("restart", "Boolean", "input", "True on the first sample after a gyro restart (fresh turn-on "
-         "bias draw, turn-on transient restarts)", start=False, variability="discrete"),
-    dict(_var("measured_rate", "Real", "output", "Measured angular rate: true_rate + sensor errors",
-              start=0.0, unit="deg/s"), initial="exact"),
-    dict(_var("restarted", "Boolean", "output", "The restart input of the step that produced "
-              "measured_rate; connect it to the denoiser's restart", start=False, variability="discrete"),
-         initial="exact"),
-    _par("card", "String", "paper_fog", "Model card: the name of a card bundled in the FMU "
-         "(resources/cards: paper_fog, the paper's FOG, default), a compiled card file's path, or a "
-         "compiled card's text ('gdcard 1 ...': gyrodenoise fmu card CARD.toml; a TOML card is "
-         "refused at fmi2ExitInitializationMode with this reason)"),
-    _par("seed", "Integer", 0, "Seed of the noise generator (same seed, same card: same numbers as "
-         "gyrodenoise.simulate)", min=0),
-    _par("strict_step_size", "Boolean", False, "If true, a step whose size differs from the card's sample "
-         "period is refused (fmi2Discard); if false it is processed and a warning is logged"),
-]
-
-
 def _header_lines():
     _check_layout()
     names = ", ".join(f'"{n}"' for n in CARD_FIELDS)
@@ -120,13 +102,7 @@ SIMULATED_FOG_NATIVE = NativeModel(
     "Simulated gyro from a gyrodenoise model card (compiled, see the card parameter): measured_rate = "
     "true_rate + sensor errors, the sensor model gdsim.c (same numbers as gyrodenoise.simulate), native C: "
     "no Python needed. One communication step = one sample.",
-    VARIABLES, 0.005, "simulatedfog_native.c", "simulatedfog_native_all.c",
+    VARIABLES, DEFAULT_STEP_SIZE_S, "simulatedfog_native.c", "simulatedfog_native_all.c",
     (CORE_DIR / "gdsim.c", CORE_DIR / "gdsim.h"), {"deg/s": UNITS["deg/s"]},
     header_lines=_header_lines, resources=_resources)
 
-
-def build_simulated_fog_native(out_dir="build", platforms=None, report=None):
-    """Compile SimulatedFogNative and write ``out_dir/SimulatedFogNative.fmu``; returns its path
-    (arguments as :func:`gyrodenoise.fmu.native.build_native_fmu`)."""
-    from gyrodenoise.fmu.native import build_native_fmu
-    return build_native_fmu(out_dir, platforms, report, SIMULATED_FOG_NATIVE)

@@ -14,7 +14,7 @@ import math
 import os
 import sys
 
-from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu import Fmi2Causality, Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
 # FMI rules and pythonfmu work-arounds shared by the project's slaves, bundled next
@@ -28,11 +28,11 @@ import gyrodenoise_pythonfmu_rules as _rules  # noqa: E402
 #: module is cleared with sys.modules at interpreter finalisation
 _REFUSED = _rules.REFUSED
 
-#: phi_1 .. phi_MAX_ORDER outputs are declared; phi_k for k > ar_order reads 0.
-MAX_ORDER = 6
 #: relative tolerance between the step size and the sample period
 STEP_RTOL = 1e-6
-STATE_VERSION = 3   # 3: max_motion_hz and the core state's rigid-body low-pass delays (2: centred layout)
+#: format of the FMU state: parameters (max_motion_hz included), inputs, output and the core's
+#: state (with the rigid-body low-pass delays); a state of another version is refused
+STATE_VERSION = 3
 
 
 
@@ -47,33 +47,8 @@ class FogDenoiser(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._K, self._D = _rules.load_core(self.resources, "core.kernels", "denoiser")
+        self._K, self._D, variables = _rules.load_core(self.resources, "core.kernels", "denoiser", "fmu.variables")
         _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
-
-        # inputs
-        self.raw_rate = 0.0
-        self.restart = False
-        # parameters (defaults of gyrodenoise.core.kernels.make_params)
-        self.ar_order = 3
-        self.method = "motion"
-        self.sample_period = 0.005
-        self.lam = 1.0
-        self.b = 0.99
-        self.gamma = 3.0
-        self.q0 = 0.0
-        self.r0 = 0.0
-        self.p0_rls = 1.0e4
-        self.p0_kf = 1.0
-        self.warmup_s = 1.0
-        self.r_floor = 1.0e-18
-        self.outlier_sigma = 5.0
-        self.outlier_run = 20
-        self.cutoff_hz = 0.0          # lowpass: 0 = default (20 Hz, at most fs/4)
-        self.lowpass_order = 2
-        self.strict_step_size = False
-        self.max_motion_hz = 0.0      # motion: rigid-body option, 0 = off
-        # outputs
-        self.filtered_rate = 0.0
 
         self._den = None          # the core's Denoiser, built at initialisation
         self._theta0 = 0          # offset of phi_1 in the state buffer
@@ -85,90 +60,17 @@ class FogDenoiser(Fmi2Slave):
         self._terminated = False
         self._pending_error = None  # a forbidden call since the last step: the next step is refused
 
-        P, C, I = Fmi2Causality, Fmi2Variability, Fmi2Initial
-        par = dict(causality=P.parameter, variability=C.fixed)
-        self.register_variable(Real("raw_rate", causality=P.input, description="Raw angular rate of the gyro [deg/s]"))
-        self.register_variable(Boolean("restart", causality=P.input, variability=C.discrete,
-                                       description="True on the first sample after a gyro restart: the filter "
-                                                   "re-identifies the AR model from that sample on [1]"))
-        self.register_variable(Real("filtered_rate", causality=P.output, initial=I.exact,
-                                    description="Filtered angular rate; the raw sample during the warm-up after "
-                                                "each restart [deg/s]"))
-        for k in range(1, MAX_ORDER + 1):
-            self.register_variable(Real(
-                f"phi_{k}", causality=P.output, initial=I.exact, getter=self._phi_getter(k),
-                description=f"AR coefficient phi_{k} of the improved AR(n) model, Eq. (4) "
-                            f"(0 when k > ar_order, and for the methods motion and lowpass) [1]"))
-        self.register_variable(Real("c", causality=P.output, initial=I.exact, getter=self._get_c,
-                                    description="Constant term c of the improved AR model, Eq. (4) (0 for the "
-                                                "methods motion and lowpass) [deg/s]"))
-        self.register_variable(Real("R_hat", causality=P.output, initial=I.exact, getter=self._state_getter("S_R"),
-                                    description="Estimated measurement-noise variance (motion: the sensor's "
-                                                "white-noise estimate) [(deg/s)^2]"))
-        self.register_variable(Real("Q_hat", causality=P.output, initial=I.exact, getter=self._state_getter("S_Q"),
-                                    description="Estimated process-noise variance (motion: of the rate increment "
-                                                "per sample) [(deg/s)^2]"))
-        self.register_variable(Real("innovation", causality=P.output, initial=I.exact, getter=self._state_getter("S_INNOV"),
-                                    description="Last innovation v_k = z_k - H X_pred [deg/s]"))
-        self.register_variable(Boolean("converged", causality=P.output, initial=I.exact, variability=C.discrete,
-                                       getter=self._get_converged,
-                                       description="True once the AR model has converged since the last "
-                                                   "restart (the output is filtered from then on) [1]"))
-        self.register_variable(Integer("ar_order", **par, description=f"Order n of the AR model, 1..{MAX_ORDER} [1]"))
-        self.register_variable(String("method", **par, description="Filter, one of: 'motion' (default: "
-                                                                   "follows manoeuvres, averages at rest), "
-                                                                   "'shakf' (modified Sage-Husa AKF, the "
-                                                                   "paper), 'kf' (conventional KF), "
-                                                                   "'sh_classic' (classic Sage-Husa), "
-                                                                   "'lowpass' (Butterworth, cutoff_hz and "
-                                                                   "lowpass_order) or 'none' (output = "
-                                                                   "input); case and surrounding blanks "
-                                                                   "ignored; any other value is refused at "
-                                                                   "fmi2ExitInitializationMode [-]"))
-        self.register_variable(Real("sample_period", **par,
-                                    description="Sample period; every communication step must have this size [s]"))
-        self.register_variable(Real("lam", **par, description="RLS forgetting factor, 0 < lam <= 1 [1]"))
-        self.register_variable(Real("b", **par, description="Sage-Husa forgetting factor, 0 < b < 1 [1]"))
-        self.register_variable(Real("gamma", **par, description="Convergence-criterion strictness, Eq. (32), "
-                                                                 "gamma >= 1 [1]"))
-        self.register_variable(Real("q0", **par, description="Process-noise variance, 0 = automatic [(deg/s)^2]"))
-        self.register_variable(Real("r0", **par, description="Measurement-noise variance, 0 = automatic [(deg/s)^2]"))
-        self.register_variable(Real("p0_rls", **par, description="Initial RLS covariance (diagonal), > 0 [1]"))
-        self.register_variable(Real("p0_kf", **par, description="Initial filter covariance (diagonal), > 0 "
-                                                                 "[(deg/s)^2]"))
-        self.register_variable(Real("warmup_s", **par, description="Warm-up after each restart (raw passed "
-                                                                    "through), >= 0 [s]"))
-        self.register_variable(Real("r_floor", **par, description="Lower bound of R and of the automatic noise "
-                                                                   "levels, > 0 [(deg/s)^2]"))
-        self.register_variable(Real("outlier_sigma", **par,
-                                    description="Outlier gate: a sample with |innovation| > outlier_sigma "
-                                                "sqrt(S) is kept out of the filter; 0 = off (the paper's "
-                                                "filter), else >= 2 [1]"))
-        self.register_variable(Integer("outlier_run", **par,
-                                       description="Consecutive rejected samples after which the filter "
-                                                   "re-opens (restarts) on a real rate change, >= 1 [1]"))
-        self.register_variable(Real("cutoff_hz", **par,
-                                    description="method 'lowpass': -3 dB cutoff, below half the sample "
-                                                "rate; 0 = 20 Hz, at most a quarter of the sample rate [Hz]"))
-        self.register_variable(Integer("lowpass_order", **par,
-                                       description="method 'lowpass': Butterworth order, 1..8 [1]"))
-        self.register_variable(Integer("n_rejected", causality=P.output, initial=I.exact,
-                                       variability=C.discrete, getter=self._get_n_rejected,
-                                       description="Samples kept out of the filter by the outlier gate "
-                                                   "since initialisation [1]"))
-        self.register_variable(Boolean("strict_step_size", **par,
-                                       description="If true, a step whose size differs from sample_period is "
-                                                   "refused (fmi2Discard); if false it is processed and a "
-                                                   "warning is logged [1]"))
-        self.register_variable(Real("max_motion_hz", **par,
-                                    description="method 'motion', rigid-body option: the band of interest; "
-                                                "content above it counts as error (a 4th-order "
-                                                "Butterworth before the bank, flat to it, -3 dB at twice "
-                                                "it, at most 0.45 / sample_period); 0 = off, "
-                                                "else below half the sample rate; checked (finite, >= 0, "
-                                                "below half the sample rate) whatever the method [Hz]"))
+        # the variables (inputs, parameters at their defaults, outputs) as declared in
+        # gyrodenoise/fmu/variables.py; the readouts of the filter's state have getters
+        getters = {f"phi_{k}": self._phi_getter(k) for k in range(1, variables.MAX_AR_ORDER + 1)}
+        getters.update(c=self._get_c, R_hat=self._state_getter("S_R"), Q_hat=self._state_getter("S_Q"),
+                       innovation=self._state_getter("S_INNOV"), converged=self._get_converged,
+                       n_rejected=self._get_n_rejected)
+        self._max_order = variables.MAX_AR_ORDER   # phi_1 .. phi_max declared; phi_k, k > ar_order, reads 0
+        self._parameter_names = _rules.register_declared(self, variables, variables.FOG_DENOISER, getters)
         # FMI 2.0 forbids setting an output, and a fixed parameter after initialisation
-        _rules.install_write_rules(self, "FogDenoiser", P.output, P.parameter, Fmi2Status.error)
+        _rules.install_write_rules(self, "FogDenoiser", Fmi2Causality.output, Fmi2Causality.parameter,
+                                   Fmi2Status.error)
 
     # ----------------------------------------------------------- readouts
     def _phi_getter(self, k):
@@ -198,8 +100,8 @@ class FogDenoiser(Fmi2Slave):
     def _make_denoiser(self):
         """Build the core's Denoiser from the parameters; ValueError if invalid."""
         order = self.ar_order
-        if not 1 <= order <= MAX_ORDER:
-            raise ValueError(f"ar_order must be in 1..{MAX_ORDER} (phi outputs declared), got {order}")
+        if not 1 <= order <= self._max_order:
+            raise ValueError(f"ar_order must be in 1..{self._max_order} (phi outputs declared), got {order}")
         if not (self.sample_period > 0 and math.isfinite(self.sample_period)):
             raise ValueError(f"sample_period must be a finite number > 0 s, got {self.sample_period!r}")
         # the lowpass parameters are checked against their declared bounds whatever the method
@@ -261,7 +163,7 @@ class FogDenoiser(Fmi2Slave):
                      Fmi2Status.error)
             return False
         if not (step_size > 0.0 and math.isfinite(step_size)):
-            # FMI 2.0: the communication step size must be > 0 (NaN used to pass the
+            # FMI 2.0: the communication step size must be > 0 (and a NaN would pass the
             # size test below and be processed as a sample)
             self.log(f"FogDenoiser: communication step size {step_size!r} s at t={current_time!r} s "
                      f"is not a positive finite number; step refused", Fmi2Status.error)
@@ -300,15 +202,11 @@ class FogDenoiser(Fmi2Slave):
                      f"different from sample_period {self.sample_period!r} s", Fmi2Status.warning)
 
     # -------------------------------------------------------------- state
-    _PARAMS = ("ar_order", "method", "sample_period", "lam", "b", "gamma", "q0", "r0", "p0_rls",
-               "p0_kf", "warmup_s", "r_floor", "outlier_sigma", "outlier_run", "cutoff_hz", "lowpass_order",
-               "strict_step_size", "max_motion_hz")
-
     def _get_fmu_state(self):
         """Everything needed to continue: parameters, inputs, output and the filter's arrays."""
         return {
             "version": STATE_VERSION,
-            "params": {name: getattr(self, name) for name in self._PARAMS},
+            "params": {name: getattr(self, name) for name in self._parameter_names},
             "raw_rate": self.raw_rate, "restart": self.restart,
             "filtered_rate": self.filtered_rate,
             "filter": None if self._den is None else self._den.get_state(),
@@ -321,7 +219,7 @@ class FogDenoiser(Fmi2Slave):
                 raise ValueError(state["corrupted"])
             if state.get("version") != STATE_VERSION:
                 raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
-            for name in self._PARAMS:
+            for name in self._parameter_names:
                 setattr(self, name, state["params"][name])
             self.raw_rate = float(state["raw_rate"])
             self.restart = bool(state["restart"])

@@ -22,6 +22,8 @@
   interpreter state is released twice at process exit; Linux).
 * :func:`load_core`: imports the gyrodenoise core bundled in ``resources/gdcore``
   under a private name.
+* :func:`register_declared`: registers a slave's variables from their declaration
+  (``gyrodenoise/fmu/variables.py``, bundled in ``resources/gdcore/fmu``).
 """
 
 from __future__ import annotations
@@ -72,6 +74,33 @@ def load_core(resources, *modules):
             del sys.modules[modname]
             raise
     return tuple(importlib.import_module(modname + "." + m) for m in modules)
+
+
+def register_declared(slave, variables, declared, getters=None):
+    """Give ``slave`` the variables ``declared`` (a tuple of ``variables.Variable``, in
+    value-reference order; ``variables`` is the bundled declaration module) and return the
+    names of its parameters.
+
+    Inputs and parameters start at their declared start values, outputs without a getter
+    (``getters``: {name: function () -> value}) at the value they declare in a pythonfmu
+    FMU; pythonfmu writes each attribute's value as the variable's start.
+    """
+    from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Variability, Integer, Real, String
+    kinds = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
+    getters = getters or {}
+    for v in declared:
+        if v.name not in getters:
+            setattr(slave, v.name, variables.start_value(v, pythonfmu=True))
+    for v in declared:
+        kw = {"causality": Fmi2Causality[v.causality], "description": variables.pythonfmu_description(v)}
+        if v.variability is not None:
+            kw["variability"] = Fmi2Variability[v.variability]
+        if v.causality == "output":
+            kw["initial"] = Fmi2Initial[variables.initial(v, pythonfmu=True)]
+        if v.name in getters:
+            kw["getter"] = getters[v.name]
+        slave.register_variable(kinds[v.type](v.name, **kw))
+    return tuple(v.name for v in declared if v.causality == "parameter")
 
 
 def keep_alive(slave):

@@ -15,7 +15,7 @@ import math
 import os
 import sys
 
-from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu import Fmi2Causality, Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
 # FMI rules and pythonfmu work-arounds shared by the project's slaves, bundled next
@@ -29,10 +29,11 @@ import gyrodenoise_pythonfmu_rules as _rules  # noqa: E402
 #: module is cleared with sys.modules at interpreter finalisation
 _REFUSED = _rules.REFUSED
 
-DEFAULT_CARD = "paper_fog"
 #: relative tolerance between the step size and the card's sample period
 STEP_RTOL = 1e-6
-STATE_VERSION = 2   # 2: the state buffer of gdsim.c (1: numpy generator states)
+#: format of the FMU state: parameters, inputs, outputs and the state buffer of gdsim.c; a
+#: state of another version is refused
+STATE_VERSION = 2
 
 
 
@@ -47,16 +48,8 @@ class SimulatedFog(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        (self._S,) = _rules.load_core(self.resources, "simulator")
+        self._S, variables = _rules.load_core(self.resources, "simulator", "fmu.variables")
         _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
-
-        self.true_rate = 0.0
-        self.restart = False
-        self.card = DEFAULT_CARD
-        self.seed = 0
-        self.strict_step_size = False
-        self.measured_rate = 0.0
-        self.restarted = False
 
         self._sim = None
         self._period = None
@@ -67,34 +60,15 @@ class SimulatedFog(Fmi2Slave):
         self._terminated = False
         self._pending_error = None  # a forbidden call since the last step: the next step is refused
 
-        P, C, I = Fmi2Causality, Fmi2Variability, Fmi2Initial
-        par = dict(causality=P.parameter, variability=C.fixed)
-        self.register_variable(Real("true_rate", causality=P.input, description="True angular rate [deg/s]"))
-        self.register_variable(Boolean("restart", causality=P.input, variability=C.discrete,
-                                       description="True on the first sample after a gyro restart (fresh "
-                                                   "turn-on bias draw, turn-on transient restarts) [1]"))
-        self.register_variable(Real("measured_rate", causality=P.output, initial=I.exact,
-                                    description="Measured angular rate: true_rate + sensor errors [deg/s]"))
-        self.register_variable(Boolean("restarted", causality=P.output, initial=I.exact, variability=C.discrete,
-                                       description="The restart input of the step that produced measured_rate; "
-                                                   "connect it to FogDenoiser.restart [1]"))
-        self.register_variable(String("card", **par,
-                                      description="Model card: its TOML text (gyrodenoise spec section 4; term "
-                                                  "units as there: deg, deg/sqrt(h), deg/h, deg/h^1.5, deg/h^2, "
-                                                  "s, Hz), or a card file path, or the name of a card bundled "
-                                                  "in the FMU ('paper_fog', the paper's FOG, default) [-]"))
-        self.register_variable(Integer("seed", **par, description="Seed of the noise generator (same seed, "
-                                                                   "same card: same numbers as "
-                                                                   "gyrodenoise.simulate) [1]"))
-        self.register_variable(Boolean("strict_step_size", **par,
-                                       description="If true, a step whose size differs from the card's sample "
-                                                   "period is refused (fmi2Discard); if false it is processed "
-                                                   "and a warning is logged [1]"))
+        # the variables (inputs, parameters at their defaults, outputs) as declared in
+        # gyrodenoise/fmu/variables.py
+        self._parameter_names = _rules.register_declared(self, variables, variables.SIMULATED_FOG)
         # FMI 2.0 forbids setting an output, and a fixed parameter after
         # initialisation. pythonfmu would set them silently and cannot return
         # fmi2Error from a setter: the write is refused with a logged error and
         # the next fmi2DoStep is refused (fmi2Discard) with the reason.
-        _rules.install_write_rules(self, "SimulatedFog", P.output, P.parameter, Fmi2Status.error)
+        _rules.install_write_rules(self, "SimulatedFog", Fmi2Causality.output, Fmi2Causality.parameter,
+                                   Fmi2Status.error)
 
     # ---------------------------------------------------------- lifecycle
     def _make_stream(self):
@@ -114,7 +88,7 @@ class SimulatedFog(Fmi2Slave):
 
         The bundled core is imported once per process (same contents, same module), so its
         ``models_dir()`` is the folder of the first unzipped copy, which the host may have
-        deleted since: a second use in the process then found no card (issue 22).
+        deleted since: a bundled card is looked up in this instance's own resources.
         """
         if os.path.exists(name):
             return name
@@ -160,7 +134,7 @@ class SimulatedFog(Fmi2Slave):
                      Fmi2Status.error)
             return False
         if not (step_size > 0.0 and math.isfinite(step_size)):
-            # FMI 2.0: the communication step size must be > 0 (NaN used to pass the
+            # FMI 2.0: the communication step size must be > 0 (and a NaN would pass the
             # size test below and be processed as a sample)
             self.log(f"SimulatedFog: communication step size {step_size!r} s at t={current_time!r} s "
                      f"is not a positive finite number; step refused", Fmi2Status.error)
@@ -199,13 +173,11 @@ class SimulatedFog(Fmi2Slave):
                      f"different from the card's sample period {self._period!r} s", Fmi2Status.warning)
 
     # -------------------------------------------------------------- state
-    _PARAMS = ("card", "seed", "strict_step_size")
-
     def _get_fmu_state(self):
         """Parameters, inputs, outputs and the simulator's generator state and buffers."""
         return {
             "version": STATE_VERSION,
-            "params": {name: getattr(self, name) for name in self._PARAMS},
+            "params": {name: getattr(self, name) for name in self._parameter_names},
             "true_rate": self.true_rate, "restart": self.restart,
             "measured_rate": self.measured_rate, "restarted": self.restarted,
             "sim": None if self._sim is None else self._sim.get_state(),
@@ -218,7 +190,7 @@ class SimulatedFog(Fmi2Slave):
                 raise ValueError(state["corrupted"])
             if state.get("version") != STATE_VERSION:
                 raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
-            for name in self._PARAMS:
+            for name in self._parameter_names:
                 setattr(self, name, state["params"][name])
             self.true_rate = float(state["true_rate"])
             self.restart = bool(state["restart"])

@@ -199,7 +199,7 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     if (u->outlier_run < 1)
         return gdfmi_fmt_err(err, nerr, "outlier_run must be an integer >= 1, got %d", (int)u->outlier_run);
     /* the lowpass parameters are checked against their declared bounds whatever the method
-     * (a NaN, inf or negative cutoff_hz used to pass when the method was not lowpass) */
+     * (a NaN, inf or negative cutoff_hz is refused even when the method is not lowpass) */
     if (!(u->cutoff_hz >= 0.0 && isfinite(u->cutoff_hz)))
         return gdfmi_fmt_err(err, nerr, "cutoff_hz out of range: %.17g (must be a finite number >= 0 Hz, "
                        "0 = default; checked whatever the method)", u->cutoff_hz);
@@ -375,7 +375,8 @@ static char *dn_string_ref(void *m, fmi2ValueReference vr, size_t *capacity) {
     return ((dn_t *)m)->u.method;
 }
 
-/* serialized fields, format 2 (the order of the FMU before the layer was shared) */
+/* serialized fields, format 2: the flags (8-byte integers), the integer parameters, the method
+ * string, the real parameters, then the run's values and the core's state, in the order of dn_xfer */
 #define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 13 + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
 
 static void dn_xfer(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io) {

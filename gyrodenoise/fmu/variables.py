@@ -1,0 +1,237 @@
+"""The FMUs' variables, declared once per model.
+
+Each model's variables are a tuple of :class:`Variable`, in value-reference order
+(value reference = position). Both kinds of FMU are built from these tuples:
+
+* the pythonfmu slaves (``sources/fogdenoiser_fmu.py``, ``sources/simulatedfog_fmu.py``)
+  register their variables from them, and :mod:`gyrodenoise.fmu.model_description`
+  adds the units and bounds pythonfmu cannot declare;
+* the native FMUs' ``modelDescription.xml`` and C header are generated from them
+  (:mod:`gyrodenoise.fmu.nativespec`, :mod:`gyrodenoise.fmu.native`).
+
+How the two kinds differ, by rule rather than by a second declaration: a pythonfmu
+slave declares every output ``initial="exact"`` with its value before the first step
+(0 or false) as start, and appends the unit to each description in brackets
+(``[deg/s]``, ``[1]`` for a number without unit, ``[-]`` for a string); a native FMU
+declares an output ``initial="exact"`` with its ``start`` where the declaration gives
+one, else ``initial="calculated"``.
+
+This module imports nothing from gyrodenoise: ``gyrodenoise fmu build`` bundles it
+into the pythonfmu FMUs (``resources/gdcore/fmu/variables.py``).
+
+>>> from gyrodenoise.fmu.variables import FOG_DENOISER
+>>> [v.name for v in FOG_DENOISER][:3]
+['raw_rate', 'restart', 'filtered_rate']
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import NamedTuple
+
+#: phi_1 .. phi_MAX_AR_ORDER are declared; phi_k for k > ar_order reads 0
+MAX_AR_ORDER = 6
+#: DefaultExperiment stepSize of every FMU, s (200 Hz: the default sample_period and paper_fog's rate)
+DEFAULT_STEP_SIZE_S = 0.005
+
+#: FMI 2.0 ``min``/``max`` are inclusive: a parameter that must be > 0 declares the smallest
+#: positive normal double (sys.float_info.min), one that must be < 1 the largest double below 1
+POSITIVE_MIN = sys.float_info.min
+BELOW_ONE = 1.0 - sys.float_info.epsilon / 2.0
+
+DEG = math.pi / 180.0
+#: FMI unit name -> BaseUnit attributes (SI: rad, s), in UnitDefinitions order
+UNITS = {
+    "deg/s": {"rad": "1", "s": "-1", "factor": repr(DEG)},
+    "deg2/s2": {"rad": "2", "s": "-2", "factor": repr(DEG * DEG)},
+    "s": {"s": "1"},
+    "Hz": {"s": "-1"},
+}
+#: FMI unit name -> how a pythonfmu slave writes it at the end of a description
+UNIT_LABELS = {"deg/s": "deg/s", "deg2/s2": "(deg/s)^2", "s": "s", "Hz": "Hz"}
+
+
+class Variable(NamedTuple):
+    """One FMI 2.0 scalar variable."""
+
+    name: str
+    type: str                     # "Real", "Integer", "Boolean" or "String"
+    causality: str                # "input", "output" or "parameter"
+    description: str
+    variability: str | None = None   # None: the FMI default (continuous for Real)
+    start: object = None
+    unit: str | None = None       # a key of UNITS
+    min: float | int | None = None
+    max: float | int | None = None
+
+
+def _input(name, type_, description, start, unit=None):
+    return Variable(name, type_, "input", description, "discrete" if type_ == "Boolean" else None, start, unit)
+
+
+def _output(name, type_, description, unit=None, start=None):
+    variability = None if type_ == "Real" else "discrete"
+    return Variable(name, type_, "output", description, variability, start, unit)
+
+
+def _parameter(name, type_, start, description, unit=None, min=None, max=None):
+    return Variable(name, type_, "parameter", description, "fixed", start, unit, min, max)
+
+
+METHOD_DOC = ("Filter, one of: 'motion' (default: follows manoeuvres, averages at rest), 'shakf' "
+              "(modified Sage-Husa AKF, the paper), 'kf' (conventional KF), 'sh_classic' (classic "
+              "Sage-Husa), 'lowpass' (Butterworth, cutoff_hz and lowpass_order) or 'none' (output = "
+              "input); case and surrounding blanks ignored; any other value is refused at "
+              "fmi2ExitInitializationMode")
+
+#: FogDenoiser.fmu and FogDenoiserNative.fmu (defaults of gyrodenoise.core.kernels.make_params)
+FOG_DENOISER = (
+    _input("raw_rate", "Real", "Raw angular rate of the gyro", 0.0, "deg/s"),
+    _input("restart", "Boolean", "True on the first sample after a gyro restart: the filter re-identifies "
+           "the AR model from that sample on", False),
+    _output("filtered_rate", "Real", "Filtered angular rate; the raw sample during the warm-up after each "
+            "restart", "deg/s"),
+    *(_output(f"phi_{k}", "Real", f"AR coefficient phi_{k} of the improved AR(n) model, Eq. (4) (0 when {k} > "
+              "ar_order, and for the methods motion and lowpass)") for k in range(1, MAX_AR_ORDER + 1)),
+    _output("c", "Real", "Constant term c of the improved AR model, Eq. (4) (0 for the methods motion and "
+            "lowpass)", "deg/s"),
+    _output("R_hat", "Real", "Estimated measurement-noise variance (motion: the sensor's white-noise "
+            "estimate)", "deg2/s2"),
+    _output("Q_hat", "Real", "Estimated process-noise variance (motion: of the rate increment per sample)",
+            "deg2/s2"),
+    _output("innovation", "Real", "Last innovation v_k = z_k - H X_pred", "deg/s"),
+    _output("converged", "Boolean", "True once the AR model has converged since the last restart (the "
+            "output is filtered from then on)"),
+    _parameter("ar_order", "Integer", 3, f"Order n of the AR model, 1..{MAX_AR_ORDER}", min=1, max=MAX_AR_ORDER),
+    _parameter("method", "String", "motion", METHOD_DOC),
+    _parameter("sample_period", "Real", 0.005, "Sample period, > 0; every communication step must have this "
+               "size", "s", min=POSITIVE_MIN),
+    _parameter("lam", "Real", 1.0, "RLS forgetting factor, 0 < lam <= 1", min=POSITIVE_MIN, max=1.0),
+    _parameter("b", "Real", 0.99, "Sage-Husa forgetting factor, 0 < b < 1", min=POSITIVE_MIN, max=BELOW_ONE),
+    _parameter("gamma", "Real", 3.0, "Convergence-criterion strictness, Eq. (32), gamma >= 1", min=1.0),
+    _parameter("q0", "Real", 0.0, "Process-noise variance, 0 = automatic", "deg2/s2", min=0.0),
+    _parameter("r0", "Real", 0.0, "Measurement-noise variance, 0 = automatic", "deg2/s2", min=0.0),
+    _parameter("p0_rls", "Real", 1.0e4, "Initial RLS covariance (diagonal), > 0", min=POSITIVE_MIN),
+    _parameter("p0_kf", "Real", 1.0, "Initial filter covariance (diagonal), > 0", "deg2/s2", min=POSITIVE_MIN),
+    _parameter("warmup_s", "Real", 1.0, "Warm-up after each restart (raw passed through), >= 0; at least "
+               "10 (ar_order + 1) samples", "s", min=0.0),
+    _parameter("r_floor", "Real", 1.0e-18, "Lower bound of R and of the automatic noise levels, > 0",
+               "deg2/s2", min=POSITIVE_MIN),
+    _parameter("outlier_sigma", "Real", 5.0, "Outlier gate: a sample with |innovation| > outlier_sigma "
+               "sqrt(S) is kept out of the filter; 0 = off (the paper's filter), else >= 2", min=0.0),
+    _parameter("outlier_run", "Integer", 20, "Consecutive rejected samples after which the filter re-opens "
+               "(restarts) on a real rate change, >= 1", min=1),
+    _parameter("cutoff_hz", "Real", 0.0, "method 'lowpass': -3 dB cutoff, below half the sample rate; 0 = "
+               "20 Hz, at most a quarter of the sample rate; checked (finite, >= 0) whatever the method",
+               "Hz", min=0.0),
+    _parameter("lowpass_order", "Integer", 2, "method 'lowpass': Butterworth order, 1..8", min=1, max=8),
+    _output("n_rejected", "Integer", "Samples kept out of the filter by the outlier gate since "
+            "initialisation"),
+    _parameter("strict_step_size", "Boolean", False, "If true, a step whose size differs from sample_period "
+               "is refused (fmi2Discard); if false it is processed and a warning is logged"),
+    _parameter("max_motion_hz", "Real", 0.0, "method 'motion', rigid-body option: the band of interest; "
+               "content above it counts as error (a 4th-order Butterworth before the bank, flat to it, -3 dB "
+               "at twice it, at most 0.45 / sample_period); 0 = off, else below half the sample rate; "
+               "checked (finite, >= 0, below half the sample rate) whatever the method", "Hz", min=0.0),
+)
+
+#: SimulatedFog.fmu (pythonfmu): the card parameter takes a TOML card
+SIMULATED_FOG = (
+    _input("true_rate", "Real", "True angular rate", 0.0, "deg/s"),
+    _input("restart", "Boolean", "True on the first sample after a gyro restart (fresh turn-on bias draw, "
+           "turn-on transient restarts)", False),
+    _output("measured_rate", "Real", "Measured angular rate: true_rate + sensor errors", "deg/s", start=0.0),
+    _output("restarted", "Boolean", "The restart input of the step that produced measured_rate; connect it "
+            "to the denoiser's restart", start=False),
+    _parameter("card", "String", "paper_fog", "Model card: its TOML text (gyrodenoise spec section 4; term "
+               "units as there: deg, deg/sqrt(h), deg/h, deg/h^1.5, deg/h^2, s, Hz), or a card file path, or "
+               "the name of a card bundled in the FMU ('paper_fog', the paper's FOG, default)"),
+    _parameter("seed", "Integer", 0, "Seed of the noise generator (same seed, same card: same numbers as "
+               "gyrodenoise.simulate)", min=0),
+    _parameter("strict_step_size", "Boolean", False, "If true, a step whose size differs from the card's "
+               "sample period is refused (fmi2Discard); if false it is processed and a warning is logged"),
+)
+
+#: SimulatedFogNative.fmu: SimulatedFog's variables; its card parameter takes a compiled card
+SIMULATED_FOG_NATIVE = tuple(
+    v._replace(description="Model card: the name of a card bundled in the FMU (resources/cards: paper_fog, "
+                           "the paper's FOG, default), a compiled card file's path, or a compiled card's "
+                           "text ('gdcard 1 ...': gyrodenoise fmu card CARD.toml; a TOML card is refused at "
+                           "fmi2ExitInitializationMode with this reason)") if v.name == "card" else v
+    for v in SIMULATED_FOG)
+
+#: FMU model name -> its variables
+MODELS = {
+    "FogDenoiser": FOG_DENOISER,
+    "FogDenoiserNative": FOG_DENOISER,
+    "SimulatedFog": SIMULATED_FOG,
+    "SimulatedFogNative": SIMULATED_FOG_NATIVE,
+}
+#: the FMUs built by pythonfmu (the others are native)
+PYTHONFMU_MODELS = ("FogDenoiser", "SimulatedFog")
+
+_ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
+
+
+def start_value(v, pythonfmu):
+    """The start value ``v`` declares in the FMU kind (pythonfmu or native), or None."""
+    if pythonfmu and v.causality == "output" and v.start is None:
+        return _ZERO[v.type]
+    return v.start
+
+
+def initial(v, pythonfmu):
+    """The ``initial`` attribute of output ``v`` in the FMU kind, or None for a non-output."""
+    if v.causality != "output":
+        return None
+    return "exact" if start_value(v, pythonfmu) is not None else "calculated"
+
+
+def pythonfmu_description(v):
+    """The description a pythonfmu slave gives ``v``: with its unit in brackets."""
+    label = UNIT_LABELS[v.unit] if v.unit else ("-" if v.type == "String" else "1")
+    return f"{v.description} [{label}]"
+
+
+def format_value(value, type_):
+    """``value`` as written in a modelDescription.xml attribute of a variable of ``type_``."""
+    if type_ == "Real":
+        return repr(float(value))
+    if type_ == "Boolean":
+        return "true" if value else "false"
+    return str(value)
+
+
+# ------------------------------------------------------------ Markdown
+_COLUMNS = ("name", "causality", "type", "unit", "start", "min", "max", "description")
+
+
+def _cell(text):
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _table(model):
+    pythonfmu = model in PYTHONFMU_MODELS
+    lines = ["| " + " | ".join(_COLUMNS) + " |", "|" + "---|" * len(_COLUMNS)]
+    for v in MODELS[model]:
+        start = start_value(v, pythonfmu)
+        cells = (f"`{v.name}`", v.causality, v.type, v.unit or "",
+                 "" if start is None else f"`{format_value(start, v.type)}`",
+                 "" if v.min is None else format_value(v.min, v.type),
+                 "" if v.max is None else format_value(v.max, v.type), v.description)
+        lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
+    return lines
+
+
+def markdown_tables():
+    """Markdown tables of the FMUs' variables, one per FMU (FMUs with identical tables share one),
+    with the columns name, causality, type, unit, start, min, max and description.
+    Value reference = row number - 1."""
+    groups = {}
+    for model in MODELS:
+        groups.setdefault("\n".join(_table(model)), []).append(model)
+    out = []
+    for table, models in groups.items():
+        out += ["### " + " and ".join(f"{m}.fmu" for m in models), "", table, ""]
+    return "\n".join(out)
