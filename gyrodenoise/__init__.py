@@ -11,9 +11,8 @@ Python API (numpy arrays in, numpy out)::
     record = gd.simulate("models/paper_fog.toml", n_samples, seed=0)
 """
 
+from gyrodenoise._version import __version__
 from gyrodenoise.denoiser import Denoiser, denoise
-
-__version__ = "0.1.0"
 
 __all__ = ["Denoiser", "denoise", "allan", "simulate", "load_card", "gap", "__version__"]
 

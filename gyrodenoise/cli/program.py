@@ -145,7 +145,7 @@ def entry():
 
     Everything the command writes is closed before :func:`main` returns; what
     is left is interpreter teardown (matplotlib, scipy module graphs),
-    measured at ~0.3 s per run (benchmarks/bench_bridge.py). So flush the
+    measured at ~0.3 s per run by the bridge benchmark. So flush the
     standard streams and leave with ``os._exit``. Tests call :func:`main`.
     """
     import os

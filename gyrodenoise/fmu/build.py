@@ -52,7 +52,7 @@ __version__ = "{version}"
 '''
 
 
-def _fmu_src_dir(src_dir=None):
+def _sources_dir(src_dir=None):
     d = Path(src_dir) if src_dir is not None else FMU_SRC
     if not d.is_dir():
         raise InputError(f"{d}: FMU sources not found (gyrodenoise/fmu/sources/ of the package)")
@@ -61,7 +61,7 @@ def _fmu_src_dir(src_dir=None):
 
 def stage_core(dest, modules):
     """Write the minimal core package ``gdcore`` into ``dest``; return its path."""
-    from gyrodenoise import __version__
+    from gyrodenoise._version import __version__
     pkg = Path(dest) / "gdcore"
     pkg.mkdir(parents=True, exist_ok=True)
     (pkg / "__init__.py").write_text(CORE_INIT.format(version=__version__))
@@ -90,7 +90,7 @@ def build_fmu(name, out_dir="build", src_dir=None, python=None):
     if name not in FMUS:
         raise InputError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
     script, modules = FMUS[name]
-    src = _fmu_src_dir(src_dir) / script
+    src = _sources_dir(src_dir) / script
     if not src.is_file():
         raise InputError(f"{src}: slave script not found")
     out = Path(out_dir).resolve()
@@ -133,7 +133,7 @@ def stale_reason(fmu_path, src_dir=None):
     wanted = {f"resources/gdcore/{m}": PACKAGE_DIR / m for m in modules}
     if "core/__init__.py" in modules:
         wanted.update({f"resources/gdcore/core/{so.name}": so for so in compiled_core_files()})
-    src = _fmu_src_dir(src_dir) / script
+    src = _sources_dir(src_dir) / script
     if src.is_file():
         wanted[f"resources/{script}"] = src
         wanted.update({f"resources/{h}": src.parent / h for h in SLAVE_HELPERS})

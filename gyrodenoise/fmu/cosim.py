@@ -314,14 +314,14 @@ def _check_against_core(measured, received, filtered, restarts, rate_deg_s, card
     """The comparisons with ``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` and the verdict
     (``res`` holds the run's step size and delay check)."""
     import numpy as np
-    import gyrodenoise as gd
+    from gyrodenoise.denoiser import denoise
     n, fs = len(measured), card_obj.sample_rate_hz
     truth = np.full(n, float(rate_deg_s))
     # what the denoiser received: the sensor's initial output, then its samples one step late
     rec_restarts = np.concatenate(([False], restarts[:-1]))
     cmp_ = compare_with_core(measured, measured, truth, restarts, card_obj, seed, method, ar_order,
                              denoiser_kw)
-    ref = gd.denoise(received, fs, method=method, ar_order=ar_order, restarts=rec_restarts,
+    ref = denoise(received, fs, method=method, ar_order=ar_order, restarts=rec_restarts,
                      **(denoiser_kw or {}))
     out = {"max_abs_diff_measured_vs_simulate_deg_s": cmp_["max_abs_diff_measured_vs_simulate_deg_s"],
            "max_abs_diff_filtered_vs_denoise_deg_s": float(np.max(np.abs(filtered - ref))),

@@ -57,7 +57,7 @@ CARD_COMMENT_MAX = 200
 def compile_card(card):
     """The compiled card (text) of ``card`` (a ModelCard, a card path or a bundled name)."""
     from gyrodenoise.simulator import load_card
-    from gyrodenoise import __version__
+    from gyrodenoise._version import __version__
     _check_layout()
     card = load_card(card)
     try:

@@ -51,17 +51,19 @@ def compare_with_core(measured, filtered, true_rate, restarts, card, seed, metho
     Returns the differences and the Allan terms of raw, FMU-filtered and
     batch-filtered records with their reduction ratios."""
     import numpy as np
-    import gyrodenoise as gd
+    from gyrodenoise.analysis.allan import allan
+    from gyrodenoise.denoiser import denoise
+    from gyrodenoise.simulator import simulate
     fs = card.sample_rate_hz
     n = len(measured)
-    rec = gd.simulate(card, n, seed=seed, true_rate_deg_s=true_rate, restarts=restarts)
-    ref = gd.denoise(measured, fs, method=method, ar_order=ar_order, restarts=restarts,
+    rec = simulate(card, n, seed=seed, true_rate_deg_s=true_rate, restarts=restarts)
+    ref = denoise(measured, fs, method=method, ar_order=ar_order, restarts=restarts,
                      **(denoiser_kw or {}))
     d_meas = float(np.max(np.abs(np.asarray(measured) - rec.rate_deg_s)))
     d_filt = float(np.max(np.abs(np.asarray(filtered) - ref)))
-    a_raw = gd.allan(np.asarray(measured), fs).terms
-    a_fmu = gd.allan(np.asarray(filtered), fs).terms
-    a_ref = gd.allan(ref, fs).terms
+    a_raw = allan(np.asarray(measured), fs).terms
+    a_fmu = allan(np.asarray(filtered), fs).terms
+    a_ref = allan(ref, fs).terms
 
     def ratios(a, b):
         return {k: (a[k] / b[k] if b[k] > 0 else None) for k in a}

@@ -44,7 +44,7 @@ def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
 def fmu_path_for(fmu_dir=None, quiet=False):
     """SimulatedFog.fmu in ``fmu_dir`` (default build/), built when missing or stale."""
     from gyrodenoise import fmu as F
-    d = Path(fmu_dir) if fmu_dir is not None else F.REPO_DIR / "build"
+    d = Path(fmu_dir) if fmu_dir is not None else Path("build")
     path = d / "SimulatedFog.fmu"
     why = F.stale_reason(path)
     if why is not None:
