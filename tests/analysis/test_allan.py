@@ -7,7 +7,7 @@ import pytest
 
 import gyrodenoise as gd
 from gyrodenoise.analysis import allan as A
-from conftest import shared_file
+from tests.helpers import shared_file
 
 
 def test_golden_adis16405_imu1_gyro_x():

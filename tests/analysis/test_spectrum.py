@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from gyrodenoise.analysis import spectrum as sp
-from tests.conftest import shared_file
+from tests.helpers import shared_file
 
 # the seeded record with known tones: (frequency Hz, amplitude deg/s), white noise 1 deg/s at 1 kHz
 FS_HZ = 1000.0

@@ -10,6 +10,7 @@ from scipy import signal
 
 import gyrodenoise as gd
 from benchmarks import reference_filters as RF
+from tests.helpers import REPO
 
 
 def _gain_db(b, a, f_hz, fs):
@@ -204,8 +205,7 @@ def test_vbakf_with_loose_p_prior_underestimates_r():
 # ------------------------------------------- the benchmark's metric helpers
 def _report_module():
     import importlib.util
-    from pathlib import Path
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "report.py"
+    path = REPO / "benchmarks" / "report.py"
     spec = importlib.util.spec_from_file_location("gd_benchmark_report", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)

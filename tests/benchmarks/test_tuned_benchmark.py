@@ -7,12 +7,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from tests.helpers import REPO  # noqa: E402
+
+sys.path.insert(0, str(REPO / "benchmarks"))
 
 from sceptic import baselines as B  # noqa: E402
 from sceptic import bench, sim  # noqa: E402
@@ -216,7 +217,7 @@ def test_evaluate_api_and_goal_lines():
 # ------------------------------------------------------------------ real motion (item 5)
 from sceptic import realmotion as RM  # noqa: E402
 
-from conftest import shared_file  # noqa: E402
+from tests.helpers import shared_file  # noqa: E402
 
 
 def test_window_integration_against_scipy_rotations():

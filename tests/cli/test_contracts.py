@@ -8,7 +8,7 @@ import pytest
 
 import gyrodenoise as gd
 from gyrodenoise.cli import main
-from conftest import main_in_process
+from tests.helpers import main_in_process
 
 
 def run_cli(*args):

@@ -8,7 +8,7 @@ import pytest
 
 from gyrodenoise.core import kernels as K
 from gyrodenoise.core.batch import run
-from conftest import SHARED_DATA
+from tests.helpers import SHARED_DATA
 
 LOGS = SHARED_DATA / "logs"
 FILES = sorted(LOGS.glob("*")) if LOGS.is_dir() else []

@@ -10,7 +10,7 @@ import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
 from benchmarks import reference_filters as RF
 from benchmarks.profiles import PROFILES
-from conftest import SHARED_DATA
+from tests.helpers import SHARED_DATA
 
 SENSORS = {"fog": ("paper_fog", 200.0, 5.0), "mems": ("icm20602", 1000.0, 20.0)}
 SKIP_S = 2.0
@@ -196,7 +196,7 @@ def _log171_spikes():
     > 10 deg/s off the mean of its neighbours, which agree, after 5 calm
     samples (within 30 % of the height of the last one; a spike, not a swing
     of the 50 Hz-aliased vibration)."""
-    from tests.conftest import shared_file
+    from tests.helpers import shared_file
     path = shared_file("logs", "log171.bin")
     from gyrodenoise.mavlink import dataflash
     from gyrodenoise.mavlink.streams import detect_restarts
@@ -251,7 +251,7 @@ def test_log171_the_issue_spike_is_not_held():
     sample and 10 % four samples on (measured: 22 %, 16 %, 11 %, 7 %; in this
     stretch the rate swings by 15 deg/s a sample, so the spike is no outlier
     to the noise level read there and is partly averaged in)."""
-    from tests.conftest import shared_file
+    from tests.helpers import shared_file
     path = shared_file("logs", "log171.bin")
     from gyrodenoise.mavlink import dataflash
     from gyrodenoise.mavlink.streams import detect_restarts

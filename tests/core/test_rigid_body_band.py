@@ -14,7 +14,6 @@ import contextlib
 import io
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,12 +21,12 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise.core import batch
 from gyrodenoise.core import kernels as K
+from tests.helpers import DATA
 
-HERE = Path(__file__).resolve().parent
 FS = 400.0                 # a drone gyro's rate
 CUT_HZ = 30.0              # the stated band of interest
 NOISE_DEG_S = 0.08         # per-sample white noise (ICM-20602 class at 400 Hz)
-GOLDEN = HERE / "data" / "motion_default_golden.npy"
+GOLDEN = DATA / "motion_default_golden.npy"
 
 
 def golden_record():
@@ -288,7 +287,7 @@ def test_cli_refuses_bad_values(vib_csv, tmp_path, args, named):
     (["--max-motion-hz", "-1"], "--max-motion-hz"), (["--max-motion-hz", "abc"], "--max-motion-hz"),
     (["--max-motion-hz", "30", "--method", "lowpass"], "--max-motion-hz")])
 def test_bridge_refuses_bad_values(tmp_path, args, named):
-    status, out, err = _cli("mavlink", HERE / "data" / "ardusub_small.BIN", "-o", tmp_path / "o",
+    status, out, err = _cli("mavlink", DATA / "ardusub_small.BIN", "-o", tmp_path / "o",
                             "--no-plots", "--no-csv", *args)
     lines = err.strip().splitlines()
     assert status == 2 and len(lines) == 1 and named in lines[0], err
@@ -298,7 +297,7 @@ def test_bridge_refuses_bad_values(tmp_path, args, named):
 def test_bridge_text_summary_names_the_option(tmp_path):
     """The text summary (not only the JSON) says that --max-motion-hz was applied: the
     "filtered log:" line said only "(method motion; ...)"."""
-    status, out, err = _cli("mavlink", HERE / "data" / "ardusub_small.BIN", "-o", tmp_path / "a",
+    status, out, err = _cli("mavlink", DATA / "ardusub_small.BIN", "-o", tmp_path / "a",
                             "--max-motion-hz", "5", "--no-plots", "--no-csv")
     assert status == 0, err
     line = [ln for ln in out.splitlines() if "filtered log:" in ln]
@@ -309,7 +308,7 @@ def test_bridge_applies_the_option_and_says_so(tmp_path):
     """The option reaches the filter (the CSV equals gd.denoise with it, causal form) and
     the JSON's filter_options names it; above a stream's Nyquist the stream is written raw
     with the reason (ardusub_small.BIN's gyro is at 25 Hz)."""
-    log = HERE / "data" / "ardusub_small.BIN"
+    log = DATA / "ardusub_small.BIN"
     status, out, _ = _cli("mavlink", log, "-o", tmp_path / "a", "--max-motion-hz", "5", "--causal",
                           "--no-plots", "--json")
     assert status == 0

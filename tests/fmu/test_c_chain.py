@@ -10,7 +10,6 @@ import io
 import os
 import shutil
 import subprocess
-import sys
 import zipfile
 from pathlib import Path
 
@@ -21,14 +20,11 @@ import gyrodenoise as gd
 from gyrodenoise.fmu import native
 from gyrodenoise.simulator import load_card
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from conftest import run_wine  # noqa: E402
-from test_fmu_native import _needed  # noqa: E402
-from test_fmu_simnative import windows_program  # noqa: E402
+from tests.fmu.fmi import needed_libraries, windows_program  # noqa: E402
+from tests.helpers import CHOST, run_wine  # noqa: E402
 
 pytest.importorskip("fmpy")     # the FMI 2.0 C headers
 
-HERE = Path(__file__).resolve().parent
 CASES = [("paper_fog", 4, "motion"), ("imar_fog", 21, "shakf"), ("kvh1750", 5, "kf")]
 
 
@@ -52,7 +48,7 @@ def chain(tmp_path_factory):
         pytest.skip("gcc not installed")
     exe = tmp_path_factory.mktemp("chainhost") / "chain"
     proc = subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", "-Werror", f"-I{native.fmi_headers_dir()}",
-                           str(HERE / "chost" / "chain.c"), "-o", str(exe), "-ldl"],
+                           str(CHOST / "chain.c"), "-o", str(exe), "-ldl"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     return [str(exe)]
@@ -127,7 +123,7 @@ def test_c_chain_process_has_no_python(unz, chain):
     files = [Path(chain[0])] + [dirs[n] / "binaries" / "linux64" / f"{n}.so"
                                  for n in ("SimulatedFogNative", "FogDenoiserNative")]
     for f in files:
-        assert _needed(f) <= {"libc.so.6", "libm.so.6", "libdl.so.2"}, f.name
+        assert needed_libraries(f) <= {"libc.so.6", "libm.so.6", "libdl.so.2"}, f.name
 
 
 def test_c_chain_steps_per_second(unz, chain):
@@ -147,7 +143,7 @@ def wine_chain(unz, tmp_path_factory):
     for name in ("SimulatedFogNative", "FogDenoiserNative"):
         if not (dirs[name] / "binaries" / "win64" / f"{name}.dll").is_file():
             pytest.skip(f"no win64 binary of {name}: {report.get('win64', 'not attempted')}")
-    return windows_program(HERE / "chost" / "chain.c", tmp_path_factory.mktemp("winchain"))
+    return windows_program(CHOST / "chain.c", tmp_path_factory.mktemp("winchain"))
 
 
 def test_win64_chain_under_wine_equals_simulate_then_denoise(unz, wine_chain):

@@ -8,7 +8,6 @@ fmi2Error and a logged reason, legal resource URIs, clean exits.
 """
 import ctypes
 import math
-import os
 import shutil
 import subprocess
 import sys
@@ -28,15 +27,18 @@ fmpy = pytest.importorskip("fmpy")
 from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,  # noqa: E402
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+                       )
 
-HERE = Path(__file__).resolve().parent
 FS = 1.0 / 0.005        # the sample rate the FMU derives from sample_period
 N = 2400
 RESTART_AT = 1500
-FMI_ERROR, FMI_DISCARD, FMI_WARNING = 3, 2, 1
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
+
+
+from tests.fmu.fmi import (FMI_DISCARD, FMI_ERROR, FMI_WARNING, REBUILD_WITH_LIBM, Logger,  # noqa: E402
+                           expect_error, exported_symbols, fmpy_rebuild, needed_libraries)
+from tests.helpers import CHOST, REPO  # noqa: E402
 
 
 # ----------------------------------------------------------------- fixtures
@@ -50,21 +52,11 @@ def built(native_build, tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def md(built):
-    return read_model_description(str(built[0]))
-
-
-@pytest.fixture(scope="module")
-def vr(md):
-    return {v.name: v.valueReference for v in md.modelVariables}
-
-
-@pytest.fixture(scope="module")
 def host(built, tmp_path_factory):
     exe = tmp_path_factory.mktemp("chost") / "host"
     # no -lm: the FMU binary must bring its own math library (it is NEEDED by the .so)
     subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", f"-I{native.fmi_headers_dir()}",
-                    str(HERE / "chost" / "host.c"), "-o", str(exe), "-ldl"],
+                    str(CHOST / "host.c"), "-o", str(exe), "-ldl"],
                    check=True, capture_output=True, text=True)
     return exe
 
@@ -77,23 +69,6 @@ def record(n=N, seed=3):
     rs = np.zeros(n, dtype=bool)
     rs[min(RESTART_AT, 2 * n // 3)] = True
     return z, rs
-
-
-class Logger:
-    """fmpy callbacks that keep the log messages (status, category, text)."""
-
-    def __init__(self):
-        self.messages = []
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-
-    def _log(self, env, name, status, category, message):
-        self.messages.append((status, category.decode(), message.decode()))
-
-    def errors(self):
-        return [m for s, c, m in self.messages if s >= FMI_ERROR]
 
 
 def slave(built, md, logger=None, logging_on=False, **params):
@@ -124,16 +99,6 @@ def run(s, vr, z, rs, t0=0.0, h=0.005):
         s.doStep(t0 + i * h, h)
         out[i] = s.getReal([vr["filtered_rate"]])[0]
     return out
-
-
-def expect_error(logger, call, *args):
-    """``call(*args)`` fails with fmi2Error and logs a reason."""
-    before = len(logger.errors())
-    with pytest.raises(FMICallException) as exc:
-        call(*args)
-    assert exc.value.status == FMI_ERROR
-    assert len(logger.errors()) > before, "no reason logged"
-    return logger.errors()[-1]
 
 
 # -------------------------------------------------------- the built FMU
@@ -317,7 +282,7 @@ def test_serialized_state_size_is_the_one_the_readme_states(built, md, vr):
     """README, "State": "(N bytes at order 3; ...)" is what fmi2SerializeFMUstate gives at order 3
     (the README said 1336 while the block had grown to 2560 bytes)."""
     import re
-    text = (HERE.parent / "README.md").read_text(encoding="utf-8")
+    text = (REPO / "README.md").read_text(encoding="utf-8")
     found = re.search(r"FogDenoiserNative \((\d+) bytes at order 3", text)
     assert found, "README no longer states the state size at order 3"
     s = slave(built, md, ar_order=3)
@@ -660,55 +625,17 @@ def test_instantiate_refuses_wrong_guid_and_model_exchange(built, md):
 
 
 # ------------------------------------------- a source rebuild by fmpy (cmake)
-def _exported(so):
-    nm = shutil.which("nm")
-    if nm is None:
-        pytest.skip("nm (binutils) not installed")
-    out = subprocess.run([nm, "-D", "--defined-only", str(so)], capture_output=True, text=True,
-                         check=True).stdout
-    return {line.split()[-1] for line in out.splitlines() if line.strip()}
-
-
-def _needed(so):
-    readelf = shutil.which("readelf")
-    if readelf is None:
-        pytest.skip("readelf (binutils) not installed")
-    dyn = subprocess.run([readelf, "-d", str(so)], capture_output=True, text=True, check=True).stdout
-    return {line.split("[")[1].split("]")[0] for line in dyn.splitlines() if "(NEEDED)" in line}
-
-
-#: the cmake options the README and the fmi2Instantiate message give for a rebuild with libm
-REBUILD_WITH_LIBM = {"CMAKE_C_STANDARD_LIBRARIES:STRING": "-lm", "CMAKE_C_FLAGS:STRING": "-DGD_LIBM_LINKED"}
-
-
-def _fmpy_rebuild(built, tmp_path, monkeypatch, cmake_options=None):
-    """The FMU's sources rebuilt by fmpy's build_platform_binary (its own CMakeLists: no flags,
-    no libraries of ours); returns the unzipped folder with the new binaries/linux64."""
-    from fmpy.build import build_platform_binary
-    cmake = shutil.which("cmake") or str(Path(sys.executable).parent / "cmake")
-    if not Path(cmake).exists():
-        pytest.skip("cmake not installed (pip install cmake)")
-    monkeypatch.setenv("PATH", str(Path(cmake).parent) + os.pathsep + os.environ.get("PATH", ""))
-    unz = tmp_path / "unzipped"
-    shutil.copytree(built[1], unz)
-    shutil.rmtree(unz / "binaries")
-    (tmp_path / "cmake_build").mkdir()
-    build_platform_binary(unz, tmp_path / "cmake_build", cmake_options=cmake_options)
-    assert len(list((unz / "binaries" / "linux64").glob("*.so"))) == 1   # (also used for SimulatedFogNative)
-    return unz
-
-
 def test_fmpy_source_rebuild_exports_fmi2_only_and_explains_a_missing_libm(built, host, tmp_path,
                                                                             monkeypatch):
     """Issue 22: a rebuild with fmpy's build_platform_binary exported 17 internal gd_* symbols
     and, not linked with libm, failed to load in a host without libm (undefined pow). The one
     listed source file hides the core; libm calls are weak there, so the binary loads and
     fmi2Instantiate refuses with the reason where the process has no libm."""
-    unz = _fmpy_rebuild(built, tmp_path, monkeypatch)
+    unz = fmpy_rebuild(built, tmp_path, monkeypatch)
     so = unz / "binaries" / "linux64" / "FogDenoiserNative.so"
-    exported = _exported(so)
+    exported = exported_symbols(so)
     assert exported and all(n.startswith("fmi2") for n in exported), sorted(exported)
-    assert "libm.so.6" not in _needed(so)
+    assert "libm.so.6" not in needed_libraries(so)
     z, rs = record(n=200)
     proc = host_run(host, unz, z, rs)             # the host has no libm either
     assert proc.returncode != 0
@@ -727,10 +654,10 @@ def test_fmpy_source_rebuild_exports_fmi2_only_and_explains_a_missing_libm(built
 def test_fmpy_source_rebuild_with_libm_equals_gd_denoise(built, host, tmp_path, monkeypatch):
     """The rebuild with the one option the README gives (link libm) runs in a host with no
     libm of its own and equals gd.denoise."""
-    unz = _fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM)
+    unz = fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM)
     so = unz / "binaries" / "linux64" / "FogDenoiserNative.so"
-    assert "libm.so.6" in _needed(so)
-    assert all(n.startswith("fmi2") for n in _exported(so))
+    assert "libm.so.6" in needed_libraries(so)
+    assert all(n.startswith("fmi2") for n in exported_symbols(so))
     z, rs = record()
     for method in ("motion", "lowpass"):
         proc = host_run(host, unz, z, rs, "--set", f"method={method}")
@@ -743,7 +670,7 @@ def test_readme_vendor_table_maps_every_parameter_to_gd_denoise(md):
     """The README's FMU <-> gd.denoise table names every parameter and input, and the
     argument names it gives are accepted by gd.denoise."""
     import re
-    text = (HERE.parent / "README.md").read_text()
+    text = (REPO / "README.md").read_text()
     section = text.split("**Parameters and `gd.denoise`.**", 1)[1].split("\n\n", 2)[1]
     rows = [ln for ln in section.splitlines() if ln.startswith("| `")]
     fmu_names = {n for ln in rows for n in re.findall(r"`([a-z_0-9]+)`", ln.split("|")[1])}

@@ -9,7 +9,6 @@ cross-compiled and run under wine; the variables against the pythonfmu Simulated
 fmpy validate; the binaries' imports and exports; the calls FMI 2.0 forbids (refused with
 fmi2Error and a logged reason, by the FMI layer it shares with FogDenoiserNative).
 """
-import os
 import shutil
 import subprocess
 import sys
@@ -20,7 +19,6 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from gyrodenoise.errors import InputError
 from gyrodenoise.fmu import native, simnative
 from gyrodenoise.core import simkernels as SK
 from gyrodenoise.simulator import load_card, parse_card
@@ -30,15 +28,10 @@ from fmpy import read_model_description  # noqa: E402
 from fmpy.fmi1 import FMICallException  # noqa: E402
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import binfmt  # noqa: E402
-from conftest import run_wine  # noqa: E402
-# the FMI layer's test helpers, and the fixtures md and vr (over this module's `built`)
-from test_fmu_native import (REBUILD_WITH_LIBM, Logger, _exported, _fmpy_rebuild, _needed,  # noqa: E402,F401
-                             expect_error, md, vr)
-
-HERE = Path(__file__).resolve().parent
-FMI_WARNING, FMI_DISCARD, FMI_ERROR = 1, 2, 3
+from tests.fmu import binfmt  # noqa: E402
+from tests.fmu.fmi import (FMI_DISCARD, FMI_WARNING, REBUILD_WITH_LIBM, Logger, expect_error, exported_symbols, fmpy_rebuild,  # noqa: E402
+                           needed_libraries, windows_program)
+from tests.helpers import CHOST, DATA, REPO, run_wine  # noqa: E402
 
 @pytest.fixture(scope="module")
 def built(native_build, tmp_path_factory):
@@ -56,7 +49,7 @@ def every_term_card(tmp_path_factory):
     """(ModelCard, path of its TOML, compiled text) of the card with every term (tests/data)
     plus two angle Gauss-Markov terms (one with sigma 0: not drawn)."""
     path = tmp_path_factory.mktemp("cards") / "every_term_agm.toml"
-    path.write_text((HERE / "data" / "every_term.toml").read_text()
+    path.write_text((DATA / "every_term.toml").read_text()
                     + "[[terms.angle_gauss_markov]]\nsigma = 5.0e-5\ntau = 0.3\n"
                     + "[[terms.angle_gauss_markov]]\nsigma = 0.0\ntau = 1.0\n")
     return load_card(path), path, simnative.compile_card(path)
@@ -68,7 +61,7 @@ def host(tmp_path_factory):
         pytest.skip("gcc not installed")
     exe = tmp_path_factory.mktemp("chost") / "host"
     subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", f"-I{native.fmi_headers_dir()}",
-                    str(HERE / "chost" / "host.c"), "-o", str(exe), "-ldl"],
+                    str(CHOST / "host.c"), "-o", str(exe), "-ldl"],
                    check=True, capture_output=True, text=True)
     return exe
 
@@ -205,7 +198,7 @@ def test_a_card_with_a_long_name_compiles_to_a_text_the_fmu_takes(built, md, vr,
     inside libcosim. The name in the comment is now shortened; the FMU takes the text and gives
     gd.simulate's numbers."""
     import re
-    c_src = (HERE.parent / "gyrodenoise" / "fmu" / "sources" / "native" / "simulatedfog_native.c").read_text()
+    c_src = (REPO / "gyrodenoise" / "fmu" / "sources" / "native" / "simulatedfog_native.c").read_text()
     text_max = int(re.search(r"#define CARD_LEN (\d+)", c_src).group(1)) - 1    # the terminating NUL
     _, path, _ = every_term_card
     long_path = tmp_path / "long_name.toml"
@@ -439,10 +432,10 @@ def test_fmpy_source_rebuild(built, host, tmp_path, monkeypatch, with_libm):
     """The one listed source file, rebuilt by fmpy's build_platform_binary (no flags of ours):
     fmi2* exports only; with libm linked (the README's option) it equals gd.simulate from a
     host without libm; without, that host gets fmi2Instantiate's refusal with the reason."""
-    unz = _fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM if with_libm else None)
+    unz = fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM if with_libm else None)
     so = unz / "binaries" / "linux64" / "SimulatedFogNative.so"
-    assert all(n.startswith("fmi2") for n in _exported(so))
-    assert ("libm.so.6" in _needed(so)) == with_libm
+    assert all(n.startswith("fmi2") for n in exported_symbols(so))
+    assert ("libm.so.6" in needed_libraries(so)) == with_libm
     truth, rs = inputs(1000, 100.0)
     proc = subprocess.run(host_cmd([str(host)], unz, "run", "--set", "card=paper_fog", "--set", "seed=6"),
                           input=host_data(truth, rs), capture_output=True, text=True, timeout=60)
@@ -484,8 +477,8 @@ def test_linux64_glibc_2_17_libc_libm_only_fmi2_exports(built):
         pytest.skip(f"linux64 built with {built[2].get('linux64')}: the glibc 2.17 baseline needs zig")
     versions = binfmt.elf_glibc_versions(so)
     assert versions and max(versions) <= (2, 17), versions
-    assert _needed(so) == {"libc.so.6", "libm.so.6"}
-    exported = _exported(so)
+    assert needed_libraries(so) == {"libc.so.6", "libm.so.6"}
+    exported = exported_symbols(so)
     assert exported and all(n.startswith("fmi2") for n in exported), sorted(exported)
 
 
@@ -504,27 +497,10 @@ def test_win64_dll_and_darwin64_dylib_exports(built):
     assert mach["dylibs"] == ["/usr/lib/libSystem.B.dylib"], mach["dylibs"]
 
 
-def windows_program(source, out_dir):
-    """(wine command, environment) of the C program ``source`` (tests/chost) cross-compiled
-    for win64; skips with the reason when wine or a Windows C compiler is absent."""
-    wine = shutil.which("wine") or shutil.which("wine64")
-    if wine is None:
-        pytest.skip("wine not installed (scripts/install_fmu_test_tools.sh)")
-    try:
-        cc, _ = native.compiler_for("win64")
-    except InputError as exc:
-        pytest.skip(f"no Windows C compiler: {exc}")
-    exe = Path(out_dir) / (Path(source).stem + ".exe")
-    proc = subprocess.run([*cc, "-std=c99", "-O2", f"-I{native.fmi_headers_dir()}", str(source), "-o", str(exe)],
-                          capture_output=True, text=True, timeout=300, cwd=exe.parent)
-    assert proc.returncode == 0, proc.stderr
-    return [wine, str(exe)], dict(os.environ, WINEDEBUG="-all")
-
-
 @pytest.fixture(scope="module")
 def wine_host(built, tmp_path_factory):
     binary(built, "win64")
-    return windows_program(HERE / "chost" / "host.c", tmp_path_factory.mktemp("winhost"))
+    return windows_program(CHOST / "host.c", tmp_path_factory.mktemp("winhost"))
 
 
 def test_win64_under_wine_equals_gd_simulate(built, wine_host, every_term_card):

@@ -22,7 +22,6 @@ import shutil
 import subprocess
 import sys
 import zipfile
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,11 +29,9 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise.fmu import native
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import binfmt  # noqa: E402
-from conftest import run_wine  # noqa: E402
+from tests.fmu import binfmt  # noqa: E402
+from tests.helpers import CHOST, run_wine  # noqa: E402
 
-HERE = Path(__file__).resolve().parent
 FS = 200.0
 FMI2_CS = {"fmi2Instantiate", "fmi2FreeInstance", "fmi2DoStep", "fmi2GetReal", "fmi2SetReal",
            "fmi2GetFMUstate", "fmi2SerializeFMUstate", "fmi2DeSerializeFMUstate", "fmi2SetDebugLogging",
@@ -114,7 +111,7 @@ def wine_host(unz, native_build, tmp_path_factory):
         pytest.skip("wine not installed (scripts/install_fmu_test_tools.sh: apt-get install wine)")
     exe = tmp_path_factory.mktemp("winhost") / "host.exe"
     proc = subprocess.run([*_windows_cc(), "-std=c99", "-O2", f"-I{native.fmi_headers_dir()}",
-                           str(HERE / "chost" / "host.c"), "-o", str(exe)],
+                           str(CHOST / "host.c"), "-o", str(exe)],
                           capture_output=True, text=True, timeout=300, cwd=exe.parent)
     assert proc.returncode == 0, proc.stderr
     env = dict(os.environ, WINEDEBUG="-all")

@@ -27,8 +27,8 @@ import gyrodenoise as gd
 from gyrodenoise import fmu as F
 from gyrodenoise.fmu import native
 from gyrodenoise.simulator import SimStream
+from tests.helpers import CHOST
 
-HERE = Path(__file__).resolve().parent
 H = 0.005
 FS = 1.0 / H
 N_EXITS = 10          # clean exits per FMU (0 crashes in 50 runs of each after the workarounds)
@@ -71,7 +71,7 @@ def fmus(tmp_path_factory):
 def host(tmp_path_factory):
     exe = tmp_path_factory.mktemp("chost_py") / "host"
     subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", f"-I{native.fmi_headers_dir()}",
-                    str(HERE / "chost" / "host.c"), "-o", str(exe), "-ldl", "-lm"],
+                    str(CHOST / "host.c"), "-o", str(exe), "-ldl", "-lm"],
                    check=True, capture_output=True, text=True)
     return exe
 

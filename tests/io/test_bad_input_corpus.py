@@ -4,7 +4,6 @@ repair with exit status 0 and nothing dropped or invented."""
 import random
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,11 +11,10 @@ import pytest
 from gyrodenoise.cli import main
 from gyrodenoise.errors import InputError
 from gyrodenoise.simulator import parse_card
+from tests.helpers import CORPUS, DATA
 
-CORPUS = Path(__file__).resolve().parent / "corpus"
 REC = CORPUS / "recordings"
 CARDS = CORPUS / "cards"
-DATA = Path(__file__).resolve().parent / "data"
 
 # file -> substring of the one-line error (exit 2)
 BAD_RECORDINGS = {

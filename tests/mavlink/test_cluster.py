@@ -10,8 +10,8 @@ import pytest
 from gyrodenoise.mavlink.cluster import run_task
 from gyrodenoise.mavlink.process import process_many
 from gyrodenoise.cli import main
+from tests.helpers import DATA
 
-DATA = Path(__file__).resolve().parent / "data"
 LOGS = [DATA / "ardusub_small.BIN", DATA / "fs-batt.log.tlog", DATA / "plane_truncated_test.BIN"]
 distributed = pytest.importorskip("distributed", reason="Dask distributed not installed (extra 'cluster')")
 

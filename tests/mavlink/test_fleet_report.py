@@ -7,7 +7,7 @@ import pytest
 
 from gyrodenoise.mavlink.fleet import fleet_rows, format_table, noise_density, write_fleet_report
 from gyrodenoise.mavlink.streams import noise_per_axis
-from conftest import SHARED_DATA
+from tests.helpers import SHARED_DATA
 
 SHARED_LOGS = SHARED_DATA / "logs"
 

@@ -20,10 +20,8 @@ from gyrodenoise.mavlink import dataflash
 from gyrodenoise.mavlink.engines import FmuEngine, NativeEngine
 from gyrodenoise.mavlink.process import process_log
 from gyrodenoise.mavlink.streams import detect_restarts
-from conftest import SHARED_DATA
+from tests.helpers import DATA, SHARED_DATA
 
-HERE = Path(__file__).resolve().parent
-DATA = HERE / "data"
 SHARED_LOGS = SHARED_DATA / "logs"
 
 

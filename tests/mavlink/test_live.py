@@ -20,10 +20,8 @@ import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from conftest import SHARED_DATA
+from tests.helpers import DATA, SHARED_DATA
 
-HERE = Path(__file__).resolve().parent
-DATA = HERE / "data"
 SHARED_LOGS = SHARED_DATA / "logs"
 R2D = 180.0 / math.pi
 GYRO = ("RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3", "HIGHRES_IMU")

@@ -14,7 +14,8 @@ import pytest
 from gyrodenoise.mavlink import process
 from gyrodenoise.mavlink.streams import GyroStream
 from gyrodenoise.analysis import motion_metrics as mm
-from test_bridge import DATA, by_name, shared_log
+from tests.helpers import DATA, shared_log
+from tests.mavlink.references import by_name
 
 
 def _main(*args):

@@ -24,7 +24,8 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise.denoiser import Denoiser
 
-from test_bridge import by_name, df_reference, ref_restarts, shared_log
+from tests.helpers import DATA, shared_log
+from tests.mavlink.references import by_name, df_reference, ref_restarts
 
 R2D = 180.0 / math.pi
 LOG = "log171.bin"          # real ArduCopter log: 3 IMUs, a 2 s gap (restart) in each
@@ -114,7 +115,6 @@ def test_causal_option_combinations(tmp_path):
     """--causal with another method is refused (one line, exit 2, nothing written);
     with --method lowpass --zero-phase the low-pass's offline form is named; the
     FMU engine's form is causal (tests/test_bridge_fmu.py, where an FMU is built)."""
-    from test_bridge import DATA
     log = DATA / "ardusub_small.BIN"
     status, out, err = _main(log, "-o", tmp_path / "x", "--method", "lowpass", "--causal", "--no-plots")
     assert status == 2 and out == "" and err.count("\n") == 1

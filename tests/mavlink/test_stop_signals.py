@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from test_bridge import SHARED_LOGS, gyrodenoise_cmd, shared_log
+from tests.helpers import SHARED_LOGS, gyrodenoise_cmd, shared_log
 
 #: seconds the command is given to stop after the signal (it takes ~0.1-0.5 s here)
 STOP_WITHIN_S = 10.0

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from gyrodenoise.mavlink import process
-from test_bridge import DATA, by_name, shared_log
+from tests.helpers import DATA, shared_log
+from tests.mavlink.references import by_name
 
 
 def _main(*args):

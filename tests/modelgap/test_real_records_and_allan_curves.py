@@ -20,7 +20,7 @@ from gyrodenoise.modelgap.candidates import SHAPE, gm_avar
 from gyrodenoise.modelgap.spectral import allan_columns, band_stop, find_bumps
 from gyrodenoise.simulator import parse_card
 
-from conftest import REPO, shared_file
+from tests.helpers import REPO, shared_file
 
 EMPTY = "[sensor]\nname = \"empty\"\nsample_rate_hz = 100.0\n"
 CURVES = ("allan_reference", "avar_precomputed_curves.csv")

@@ -36,7 +36,7 @@ from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap import COMPONENTS, edit_card, gm_avar
 from gyrodenoise.simulator import parse_card
 
-from conftest import shared_file
+from tests.helpers import shared_file
 
 FS = 100.0
 N30 = int(30 * 60 * FS)

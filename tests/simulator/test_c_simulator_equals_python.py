@@ -13,12 +13,12 @@ import gyrodenoise as gd
 import gyrodenoise.simulator as SIM
 from gyrodenoise.core import simkernels as SK
 from gyrodenoise.simulator import parse_card
-from conftest import run_wine
+from tests.helpers import CHOST, DATA, REPO, run_wine
 
 C = pytest.importorskip("gyrodenoise.core._gdcore")
 
 #: a card with every term (shared with tests/test_fmu_simnative.py)
-EVERY_TERM = (__import__("pathlib").Path(__file__).resolve().parent / "data" / "every_term.toml").read_text()
+EVERY_TERM = (DATA / "every_term.toml").read_text()
 
 # the angle Gauss-Markov term (issue 20): two instances (one with sigma 0: not drawn) on top of every other term
 EVERY_TERM_AGM = EVERY_TERM + "".join(f"[[terms.angle_gauss_markov]]\nsigma = {s}\ntau = {t}\n"
@@ -142,14 +142,13 @@ def test_malformed_buffers_are_refused():
 
 
 # ------------------------------------------------ the same numbers from plain C
-HERE = __import__("pathlib").Path(__file__).resolve().parent
-CORE = HERE.parent / "gyrodenoise" / "core"
+CORE = REPO / "gyrodenoise" / "core"
 
 
 def _compile_driver(cc, exe, tmp):
     import subprocess
     proc = subprocess.run([*cc, "-std=c99", "-O2", "-ffp-contract=off", f"-I{CORE}", "-o", str(exe),
-                           str(HERE / "chost" / "simdriver.c"), str(CORE / "gdsim.c"), "-lm"],
+                           str(CHOST / "simdriver.c"), str(CORE / "gdsim.c"), "-lm"],
                           capture_output=True, text=True, timeout=300, cwd=tmp)
     assert proc.returncode == 0, proc.stderr
 
