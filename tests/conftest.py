@@ -47,3 +47,15 @@ def native_build(fmu_build, tmp_path_factory):
     except InputError as exc:
         pytest.skip(f"native FMU not buildable here: {exc}")
     return out, report
+
+
+#: fixtures whose setup builds FMUs (tens of seconds): a test that uses one is in the slow tier
+FMU_BUILD_FIXTURES = frozenset({"fmu_build", "native_build"})
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark ``slow`` every test that needs the session's FMU build, so that the quick tier
+    (``pytest -m "not slow"``) never builds an FMU."""
+    for item in items:
+        if FMU_BUILD_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)

@@ -1,4 +1,4 @@
-"""The spectrum view (issue 21): gyrodenoise.analysis.spectrum against independent
+"""The spectrum view: gyrodenoise.analysis.spectrum against independent
 references (scipy.signal, known injected tones, white noise), and the bridge's
 spectrum outputs on a synthetic log with known tones and on real logs."""
 

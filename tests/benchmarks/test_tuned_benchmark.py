@@ -1,4 +1,4 @@
-"""The sceptic's benchmark (benchmarks/sceptic, issue 23): its simulator against
+"""The tuned-baselines benchmark (benchmarks/sceptic): its simulator against
 analytic expectations, its tuned baselines against independent references, its
 metrics against known answers. Seeded; tolerances stated per test."""
 

@@ -201,7 +201,7 @@ def test_option_errors_are_one_line_naming_the_command_and_option(tmp_path, capf
 
 def test_gap_says_which_rate_unit_it_assumed(tmp_path, capfd):
     """gap on a record without --rate-unit says it read the column as deg/s (a rad/s
-    record read silently as deg/s fitted a card 57x too small: a user's trial); with
+    record read silently as deg/s would fit a card 57x too small); with
     --rate-unit given, no such note, and the unit scales the fitted white noise."""
     rng = np.random.default_rng(20)
     t = np.arange(4096) / 100.0
@@ -229,7 +229,7 @@ def test_gap_says_which_rate_unit_it_assumed(tmp_path, capfd):
 
 def test_gap_spike_note_names_gaps_own_remedy(tmp_path, capfd):
     """A record with a wild sample: gap's note names gap's remedy (--outliers), not the
-    filters' options (--method shakf / --outlier-sigma are not gap options: a user's trial);
+    filters' options (--method shakf / --outlier-sigma are not gap options);
     denoise keeps naming the outlier gate."""
     rng = np.random.default_rng(21)
     t = np.arange(4096) / 100.0

@@ -451,7 +451,7 @@ def test_motion_params_of_the_native_fmu_equal_python():
 
 @pytest.mark.parametrize("n,sigma,lam", [(1, 3.0, 1.0), (3, 5.0, 0.99)])
 def test_rigid_option_c_equals_python_bit_for_bit(n, sigma, lam):
-    """max_motion_hz (issue 23 item 4: a Butterworth ahead of the motion bank, its delays in
+    """max_motion_hz (a Butterworth ahead of the motion bank, its delays in
     the state): the C step, the C batch and the traced run (the offline form's passes) equal
     the plain-Python kernels bit for bit, outputs and states, on a record with restarts,
     steps and spikes; hostile records (spikes up to 1e300, a 1e7 offset, constant, alternating)
@@ -490,7 +490,7 @@ def test_rigid_option_c_equals_python_bit_for_bit(n, sigma, lam):
 @pytest.mark.parametrize("card,fs", [("paper_fog", 200.0), ("icm20602", 400.0), ("kvh1750", 1000.0)])
 def test_motion_batch_bank_equals_python_on_sensor_records(card, fs):
     """gd_run's motion loop keeps the bank outside the state (one array per value, the
-    history twice over; issue 23, cost): outputs and final state bit for bit equal to the
+    history twice over, for speed): outputs and final state bit for bit equal to the
     plain-Python kernels and to the per-sample C step, on simulated sensor records (past the
     warm-up and the growing memory, through a step, a fast sinusoid near fs/4, a lone spike,
     restarts, a NaN sample that heals), whole and split at arbitrary points."""

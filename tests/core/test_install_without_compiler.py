@@ -1,4 +1,4 @@
-"""The package installs where there is no C compiler (issue 22, item 5).
+"""The package installs where there is no C compiler.
 
 The C extension is optional (setup.py): with the compiler hidden (``CC=false``)
 ``pip install`` still succeeds, the plain-Python kernels run, one warning line

@@ -1,4 +1,4 @@
-"""Issue 11's invariant on every shared real log: for the default method and
+"""The denoisers' invariant on every shared real log: for the default method and
 the paper's filters, through the bridge's readers, the output of every stream
 axis is finite and inside the raw range of each session (restart to restart).
 Skips with a reason without ../shared/data (licences forbid copying the logs)."""

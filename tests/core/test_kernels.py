@@ -220,7 +220,7 @@ def test_gate_on_real_imu4_outliers():
         assert np.max(np.abs(out[i:i + 500] - ref[i:i + 500])) < 0.01
 
 
-# ---------------------------------------------- issue 11: the old reproducers
+# ---------------------------------------------- records built to break a denoiser
 @pytest.mark.parametrize("method", ["shakf", "kf", "sh_classic"])
 @pytest.mark.parametrize("offset", [1e6, 1e7, -1e7])
 def test_large_offsets_are_harmless(method, offset):

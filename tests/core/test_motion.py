@@ -1,4 +1,4 @@
-"""method="motion" (issue 12) on seeded ground-truth profiles: the goal's
+"""method="motion" on seeded ground-truth profiles: the goal's
 properties, not timing. References: the true rate of the simulation and the
 specialists (raw, 1st-order LP 20 Hz, Butterworth-2 30 Hz, kf, shakf) run on
 the same record."""
@@ -159,7 +159,7 @@ def _sine_gain(y, f_hz, fs, lo):
 @pytest.mark.parametrize("snr, fracs", [(10.0, (0.01, 0.05, 0.15, 0.25, 0.35, 0.45)),
                                         (3.0, (0.01, 0.05, 0.15, 0.25))])
 def test_gain_of_a_sinusoid_within_5_percent(snr, fracs):
-    """Issue 23: a sinusoid standing snr sigma above white noise (1 kHz, sigma
+    """A sinusoid standing snr sigma above white noise (1 kHz, sigma
     0.35 deg/s, seeded) keeps its amplitude within 5 %, up to 0.45 fs at 10
     sigma (the old 4th-difference noise level erased everything above fs/4).
     At 3 sigma it holds to 0.25 fs only (0.88 at 0.35 fs, ~0 at 0.45 fs: a
@@ -187,7 +187,7 @@ def test_a_lone_spike_is_not_held():
     assert abs(y[i] - y[i - 1]) <= abs(z[i] - y[i - 1]) + 1e-9
     assert np.max(np.abs(y[i + 1:i + 6] - 1.0)) < 5.0 * sig, y[i - 1:i + 6]
     assert np.sqrt(np.mean((y[i + 10:i + 1000] - 1.0) ** 2)) * 10.0 < sig
-    # and the output stays inside the input's envelope (issue 12)
+    # and the output stays inside the input's envelope
     assert y.max() <= z.max() and y.min() >= z.min()
 
 

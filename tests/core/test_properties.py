@@ -171,7 +171,7 @@ LAMS = st.sampled_from([1.0, 0.999, 0.99, 0.9])
 
 @st.composite
 def hostile_signals(draw, max_size=3000):
-    """Records built to break a denoiser (issue 11): oscillating start-ups (an
+    """Records built to break a denoiser: oscillating start-ups (an
     AR fit with roots outside the unit circle), quantised and constant records,
     offsets up to 1e7 deg/s, lone huge samples (up to 1e300), runs of outliers
     that reach the gate, restarts."""
@@ -227,7 +227,7 @@ def envelope(z, restarts):
 @settings(max_examples=200, **SETTINGS)
 @given(sig=hostile_signals(), method=METHODS, order=ORDERS, gate=GATES, lam=LAMS)
 def test_output_is_finite_and_inside_the_input_envelope(sig, method, order, gate, lam):
-    """Issue 11's invariant, for every method and parameter set: finite input
+    """The invariant of every method: for every method and parameter set: finite input
     gives finite output that never leaves [min, max] of the input seen since the
     last restart (no margin needed: the output is clamped to raw values)."""
     z, rs = sig

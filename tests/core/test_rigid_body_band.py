@@ -1,12 +1,12 @@
-"""The rigid-body option of ``method="motion"`` (issue 23 item 4): ``max_motion_hz``, a
+"""The rigid-body option of ``method="motion"``: ``max_motion_hz``, a
 stated band of interest; content above it (a frame's vibration) counts as error.
 
 Held here: its gain (a sinusoid inside the band kept within 5 %, a tone above it
 removed, against the analytic response of the Butterworth it puts ahead of the bank),
 per-sample == batch (C and plain Python), the default filter unchanged with the option
 off (golden output of main's kernels.py before the option existed), bad values refused
-by the library, the CLI and the bridge. C == Python bit for bit: tests/test_ccore.py;
-the FMUs: tests/test_fmu.py and tests/test_fmu_native.py.
+by the library, the CLI and the bridge. C == Python bit for bit: tests/core/test_c_core_equals_python.py;
+the FMUs: tests/fmu/test_build_and_run.py and tests/fmu/test_native_denoiser.py.
 """
 from __future__ import annotations
 
@@ -80,7 +80,7 @@ def test_a_sinusoid_inside_the_band_is_kept_within_5_percent(f_hz, amp):
     """Up to max_motion_hz, causal form: the gain stays within 5 % of 1 at 10 deg/s and 30 sigma
     (the Butterworth alone is >= 0.996 there: flat to max_motion_hz, -3 dB at twice it, analytic
     below). At 3 sigma the default filter itself
-    reads 1.04-1.10 here (issue 23's missed gain line, a property of the bank): the option adds
+    reads 1.04-1.10 here (a property of the bank): the option adds
     at most 0.02 to or from the default's gain."""
     z = sine_record(f_hz, amp, seed=int(f_hz * 10))
     lo = int(2 * FS)

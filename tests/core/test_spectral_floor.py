@@ -1,8 +1,8 @@
 """The spectral noise floor of ``method="motion"`` (kernels.spectral_floor,
-gdcore.c spectral_floor_; issue 23): the sensor's white-noise level read from
+gdcore.c spectral_floor_): the sensor's white-noise level read from
 a low quantile of the Hann periodogram's upper bins, which frame-vibration
 tones do not lift (they lifted the 4th-difference estimate 35-80x on the
-sceptic benchmark's drone multirotor).
+tuned-baselines benchmark's drone multirotor).
 
 References: the known noise level of seeded white noise (with and without
 strong tones); the Python kernels (bit for bit); the batch path against the

@@ -201,7 +201,7 @@ def test_cli_fmu_run_missing_card_is_user_error(fmu_dir):
                                              ("SimulatedFog", "FogDenoiserNative"), ("SimulatedFog", "FogDenoiser")])
 @pytest.mark.parametrize("ssp", [False, True])
 def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp, sensor, denoiser):
-    """The first pair (the default) has no Python in the chain (issue 22)."""
+    """The first pair (the default) has no Python in the chain."""
     ssp_path = tmp_path / "chain.ssp" if ssp else None
     res = F.cosim_run(fmu_dir, duration_s=10.0, rate_deg_s=10.0, restart_at_s=5.0, seed=2, ssp=ssp_path,
                       keep_arrays=True, denoiser=denoiser, sensor=sensor)
@@ -523,8 +523,8 @@ def test_exception_in_step_is_logged_and_returned(fmu_dir, tmp_path):
                                        ({}, {"method": "motion"}),
                                        ({"max_motion_hz": 20.0}, {"method": "motion", "max_motion_hz": 20.0})])
 def test_lowpass_and_motion_in_the_fmu_equal_the_core(fmu_dir, params, kw):
-    """The FMU's default method is motion (issue 12); lowpass takes cutoff_hz and lowpass_order;
-    motion takes max_motion_hz (issue 23 item 4: a 60 Hz tone, 'vibration', rides on the record)."""
+    """The FMU's default method is motion; lowpass takes cutoff_hz and lowpass_order;
+    motion takes max_motion_hz (a 60 Hz tone, 'vibration', rides on the record)."""
     z = _raw(1500, seed=9, rate=3.0)
     z[700:] += 5.0                        # a step
     z += 2.0 * np.sin(2 * np.pi * 60.0 * np.arange(z.size) / FS)
@@ -584,7 +584,7 @@ def test_model_description_declares_units_default_experiment_and_bounds(fmu_dir)
     v = {x.name: x for x in md.modelVariables}
     assert v["R_hat"].unit == "deg2/s2" and v["sample_period"].unit == "s" and v["cutoff_hz"].unit == "Hz"
     assert float(v["lam"].max) == 1.0 and float(v["gamma"].min) == 1.0
-    # FMI min is inclusive: parameters that must be > 0 declare a positive min (issue 22: min="0.0")
+    # FMI min is inclusive: parameters that must be > 0 declare a positive min, not min="0.0"
     for p in ("sample_period", "lam", "b", "p0_rls", "p0_kf", "r_floor"):
         assert 0.0 < float(v[p].min) <= sys.float_info.min, (p, v[p].min)
     assert float(v["b"].max) < 1.0 and float(v["q0"].min) == 0.0 and float(v["cutoff_hz"].min) == 0.0
@@ -719,8 +719,8 @@ def test_the_ssp_runs_in_fmpy_simulate_ssp(fmu_dir, tmp_path, sensor):
 
 
 def test_method_description_names_every_method_and_no_fixed_cutoff(fmu_dir):
-    """Issue 22: FogDenoiser's ``method`` description said "lowpass (Butterworth, 20 Hz)" (the
-    cutoff is a parameter) and did not describe sh_classic; it now says what the native one says."""
+    """FogDenoiser's ``method`` description names every method (sh_classic included) and no
+    fixed cutoff (the cutoff is a parameter), as the native one does."""
     from fmpy import read_model_description
     from gyrodenoise.core.kernels import METHODS
     for name in ("FogDenoiser", "FogDenoiserNative"):
@@ -733,7 +733,7 @@ def test_method_description_names_every_method_and_no_fixed_cutoff(fmu_dir):
 
 @pytest.mark.parametrize("cutoff", [float("nan"), float("inf"), -1.0])
 def test_bad_cutoff_refused_whatever_the_method(fmu_dir, cutoff):
-    """Issue 22: cutoff_hz NaN/inf/-1 (declared min 0) was accepted when the method was not lowpass."""
+    """cutoff_hz NaN/inf/-1 (declared min 0) is refused whatever the method, lowpass or not."""
     from fmpy.fmi1 import FMICallException
     a = _inst(fmu_dir)
     a.slave.setupExperiment(startTime=0.0)
@@ -748,7 +748,7 @@ def test_bad_cutoff_refused_whatever_the_method(fmu_dir, cutoff):
 @pytest.mark.parametrize("method", ["motion", "shakf"])
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), -1.0, 100.0, 250.0])
 def test_bad_max_motion_hz_refused_whatever_the_method(fmu_dir, method, bad):
-    """Issue 23 item 4: max_motion_hz (declared min 0) NaN, inf, negative or not below half
+    """max_motion_hz (declared min 0) NaN, inf, negative or not below half
     the sample rate (100 Hz here) is refused at initialisation with the reason logged."""
     from fmpy.fmi1 import FMICallException
     a = _inst(fmu_dir)
@@ -795,9 +795,9 @@ print("ok", outs[1][:2])
 
 
 def test_simulatedfog_second_use_in_a_process(fmu_dir, tmp_path):
-    """Issue 22: a second SimulatedFog instance in a process, after the first unzip folder was
-    deleted, failed at fmi2ExitInitializationMode ("paper_fog: no such model card"), and so did
-    a second fmpy simulate_ssp. Run in a fresh process (the first use must be in it)."""
+    """A second SimulatedFog instance in a process, after the first unzip folder was deleted,
+    passes fmi2ExitInitializationMode (finds its model card), and so does a second fmpy
+    simulate_ssp. Run in a fresh process (the first use must be in it)."""
     ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir, sensor="SimulatedFog")
     proc = subprocess.run([sys.executable, "-c", SECOND_USE, str(fmu_dir / "SimulatedFog.fmu"), str(ssp)],
                           capture_output=True, text=True, timeout=120)
@@ -805,8 +805,7 @@ def test_simulatedfog_second_use_in_a_process(fmu_dir, tmp_path):
 
 
 def test_ssp_writer_targets_the_native_fmus_by_default(fmu_dir, tmp_path):
-    """Issue 22: the SSP writer could only target the pythonfmu FMUs; its default chain is now
-    SimulatedFogNative -> FogDenoiserNative (no Python), the card bound as its compiled text."""
+    """The SSP writer's default chain is SimulatedFogNative -> FogDenoiserNative (no Python), the card bound as its compiled text."""
     from gyrodenoise.fmu.simnative import compile_card
     ssp = F.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir, card="imar_fog")
     with zipfile.ZipFile(ssp) as z:

@@ -1,10 +1,10 @@
-"""The Python-free chain (issue 22, item 3): SimulatedFogNative -> FogDenoiserNative driven
+"""The Python-free chain: SimulatedFogNative -> FogDenoiserNative driven
 by a plain C program (tests/chost/chain.c: dlopen / LoadLibrary + the FMI 2.0 C API; no
 Python in the process), on linux64 and on win64 under wine. Its CSV output is checked
 against the library: measured_rate equal to gyrodenoise.simulate bit for bit, and
 filtered_rate equal to gyrodenoise.denoise of that record (Gauss-Seidel master: the denoiser
 gets the sample of the same step) to 1e-12. (The chain in fmpy's simulate_ssp and in
-libcosim: tests/test_fmu.py.)
+libcosim: test_build_and_run.py.)
 """
 import io
 import os

@@ -1,4 +1,4 @@
-"""FogDenoiserNative.fmu (issue 14, items 1 and 3): the native FMI 2.0 denoiser.
+"""FogDenoiserNative.fmu: the native FMI 2.0 denoiser.
 
 Built once per module with gcc (gyrodenoise.fmu.native.build_native_fmu), then
 checked by fmpy validate, fmutool -check, fmpy's FMU2Slave and a plain C host
@@ -185,7 +185,7 @@ def test_build_without_gcc_is_one_line_input_error(monkeypatch, tmp_path):
 # ------------------------------------------------------ outputs via fmpy
 CASES = [("motion", {}), ("shakf", {}), ("kf", {}),
          ("lowpass", {"cutoff_hz": 10.0, "lowpass_order": 3}),
-         ("motion", {"max_motion_hz": 20.0})]      # issue 23 item 4: the rigid-body option
+         ("motion", {"max_motion_hz": 20.0})]      # the rigid-body option
 
 
 def _core_kw(extra):
@@ -438,7 +438,7 @@ def test_invalid_parameter_refused_at_exit_initialization(built, md, params, rea
 @pytest.mark.parametrize("method", ["motion", "shakf", "none"])
 @pytest.mark.parametrize("cutoff", [math.nan, math.inf, -1.0])
 def test_bad_cutoff_refused_whatever_the_method(built, md, method, cutoff):
-    """Issue 22: cutoff_hz NaN, inf or -1 (declared min 0) passed when the method was not lowpass."""
+    """cutoff_hz NaN, inf or -1 (declared min 0) is refused whatever the method, lowpass or not."""
     log = Logger()
     s = slave(built, md, logger=log, method=method, cutoff_hz=cutoff)
     msg = expect_error(log, s.exitInitializationMode)
@@ -450,7 +450,7 @@ def test_bad_cutoff_refused_whatever_the_method(built, md, method, cutoff):
 
 
 def test_strictly_positive_parameters_declare_a_positive_min(md):
-    """Issue 22: min="0.0" was declared on parameters that must be > 0 (FMI min is inclusive)."""
+    """Parameters that must be > 0 declare a positive min, not min="0.0" (FMI min is inclusive)."""
     by = {v.name: v for v in md.modelVariables}
     for name in ("sample_period", "lam", "b", "p0_rls", "p0_kf", "r_floor"):
         lo = float(by[name].min)
@@ -461,7 +461,7 @@ def test_strictly_positive_parameters_declare_a_positive_min(md):
 
 
 def test_free_instance_frees_the_states_the_host_did_not_free(built, md, vr):
-    """Issue 22: fmi2FreeInstance left the FMU states the host had not freed (FMI 2.0: it frees
+    """fmi2FreeInstance frees the FMU states the host had not freed (FMI 2.0: it frees
     everything the instance allocated). Counted through the host's memory callbacks."""
     live = {}
 
@@ -514,7 +514,7 @@ def test_logging_honours_logging_on_and_categories(built, md, vr):
     s = slave(built, md, logger=log, logging_on=False)
     s.exitInitializationMode()                              # information: not logged (logging off)
     assert log.messages == []
-    # a warning status is explained even with logging off (issue 22: it came with no message)
+    # a warning status is explained even with logging off
     assert s.fmi2DoStep(s.component, 0.0, 0.01, 1) == FMI_WARNING
     assert [(st, c) for st, c, _ in log.messages] == [(FMI_WARNING, "logStatusWarning")]
     assert "differs from sample_period" in log.messages[-1][2]
@@ -534,8 +534,8 @@ def test_logging_honours_logging_on_and_categories(built, md, vr):
 
 
 def test_unknown_log_category_is_a_warning_with_its_reason(built, md):
-    """Issue 22: fmi2SetDebugLogging with an unknown category returned fmi2Warning and, with
-    logging off, logged nothing."""
+    """fmi2SetDebugLogging with an unknown category returns fmi2Warning and logs the reason,
+    even with logging off."""
     log = Logger()
     s = slave(built, md, logger=log, logging_on=False)
     for logging_on in (0, 1):
@@ -627,9 +627,9 @@ def test_instantiate_refuses_wrong_guid_and_model_exchange(built, md):
 # ------------------------------------------- a source rebuild by fmpy (cmake)
 def test_fmpy_source_rebuild_exports_fmi2_only_and_explains_a_missing_libm(built, host, tmp_path,
                                                                             monkeypatch):
-    """Issue 22: a rebuild with fmpy's build_platform_binary exported 17 internal gd_* symbols
-    and, not linked with libm, failed to load in a host without libm (undefined pow). The one
-    listed source file hides the core; libm calls are weak there, so the binary loads and
+    """A rebuild with fmpy's build_platform_binary exports the fmi2* functions only (no
+    internal gd_* symbol) and, not linked with libm, still loads in a host without libm (no
+    undefined pow). The one listed source file hides the core; libm calls are weak there, so the binary loads and
     fmi2Instantiate refuses with the reason where the process has no libm."""
     unz = fmpy_rebuild(built, tmp_path, monkeypatch)
     so = unz / "binaries" / "linux64" / "FogDenoiserNative.so"

@@ -1,4 +1,4 @@
-"""SimulatedFogNative.fmu (issue 22, item 2): the sensor model gdsim.c as a native FMI 2.0 FMU.
+"""SimulatedFogNative.fmu: the sensor model gdsim.c as a native FMI 2.0 FMU.
 
 Built once per session with the other native FMU (conftest ``native_build``: linux64, and
 win64 / darwin64 where a cross compiler is found). Checked against independent

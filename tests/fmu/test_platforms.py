@@ -1,4 +1,4 @@
-"""The native FMUs for every platform, cross-compiled on this machine (issue 22, item 1).
+"""The native FMUs for every platform, cross-compiled on this machine.
 
 `gyrodenoise fmu build` compiles the native FMU for linux64 (glibc 2.17 baseline),
 win64 and darwin64 with zig (the ``ziglang`` PyPI package, a test extra) or

@@ -1,11 +1,11 @@
-"""The pythonfmu FMUs (FogDenoiser.fmu, SimulatedFog.fmu) from a plain C host (issue 14).
+"""The pythonfmu FMUs (FogDenoiser.fmu, SimulatedFog.fmu) from a plain C host.
 
 tests/chost/host.c (dlopen + the FMI 2.0 C API) runs both FMUs with libpython
 LD_PRELOADed (pythonfmu's binary does not link libpython): outputs equal to
 gd.denoise / gd.simulate, the legal resource URI forms that pythonfmu's exporter
 parses, clean process exits, and the calls FMI 2.0 forbids as far as pythonfmu
 lets the slave answer them. Also SimulatedFog's refusal of forbidden writes
-(fmpy, in process), as FogDenoiser does (tests/test_fmu.py).
+(fmpy, in process), as FogDenoiser does (tests/fmu/test_build_and_run.py).
 
 What stays in pythonfmu 0.7.0's exporter (no way around it in the FMU):
 ``file:/path`` and ``file://localhost/path`` URIs, an empty URI (segfault) and a

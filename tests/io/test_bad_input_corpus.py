@@ -237,7 +237,7 @@ def test_truncated_and_corrupted_logs(tmp_path):
         assert code == want, (name, err)
         assert "Traceback" not in err and "Warning" not in err, (name, err)
         if want == 2:
-            # --json always prints one object, with the error in it (issue 11)
+            # --json always prints one object, with the error in it
             assert json.loads(out) == {"error": err.strip().removeprefix("gyrodenoise: error: "),
                                        "exit_status": 2}, (name, out)
             assert len(err.strip().splitlines()) == 1, (name, err)

@@ -1,4 +1,4 @@
-"""Fleet scale (issue 15): logs as Dask tasks on a LocalCluster (127.0.0.1,
+"""Fleet scale: logs as Dask tasks on a LocalCluster (127.0.0.1,
 2 workers), fsspec inputs/outputs, the fleet report, the option's errors.
 The reference is a serial run of the same logs: outputs must be byte-identical."""
 import json

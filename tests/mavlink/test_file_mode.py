@@ -185,7 +185,7 @@ def _check_filtered_tlog(path, out_log, rep, unit_mrad=True):
         rate = s["rate_hz"]
         assert rate == pytest.approx(1.0 / np.median(np.diff(t)[(np.diff(t) > 0) & ~r[1:]]), rel=1e-9)
         if rate < 20.0:
-            # too slow to denoise (issue 21 item 5): written raw, bit for bit, as the note says
+            # too slow to denoise: written raw, bit for bit, as the note says
             expected[name] = g
             np.testing.assert_array_equal(ref_out[name][1], g, err_msg=name)
             assert s["too_slow_to_denoise"] and "written raw" in s["slow_note"], name
@@ -535,7 +535,7 @@ def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):
         np.testing.assert_array_equal(got[keep, k], ref.astype(np.float32).astype(float))
 
 
-# ------------------------------------------------------------ issue 11: fail loudly
+# ------------------------------------------------------------ failing loudly
 def test_garbage_filter_output_leaves_that_stream_raw_exit_1(tmp_path, monkeypatch):
     """The safety net: a filter that returns garbage for one stream (IMU2 of the
     ArduPlane log) gets that stream written RAW, bit for bit, with one stderr line
@@ -610,12 +610,11 @@ def test_filtered_value_that_does_not_fit_int16_is_never_clipped(tmp_path, monke
 
 
 def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd):
-    """Issue 11 item 3: paths and option values; each gives one line naming the
+    """Paths and option values; each gives one line naming the
     option or path on stderr, exit 2, no traceback; with --json one object.
     The 66 runs go through gyrodenoise.cli in this process (main_in_process); three
     kinds (a path, an option value, an argparse error) also as the installed command in a
-    process of its own (run_cli: the console entry, interpreter start and exit). 66 processes
-    took 9.5 s of the suite."""
+    process of its own (run_cli: the console entry, interpreter start and exit)."""
     log = DATA / "ardusub_small.BIN"
     afile = tmp_path / "afile"
     afile.write_text("x")
@@ -627,8 +626,8 @@ def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd
         (["--gap-factor", "inf"], "--gap-factor"), (["--gap-factor", "nan"], "--gap-factor"),
         (["--sample-rate", "inf"], "--sample-rate"), (["--sample-rate", "-5"], "--sample-rate"),
         (["--sample-rate", "1e308", "--warmup-s", "1e6"], "--sample-rate"),
-        # issue 21: a rate no gyro has (accepted before, and nothing was filtered); live-only
-        # options with a file (silently ignored before); low-pass options
+        # a rate no gyro has (nothing would be filtered); live-only options with a file;
+        # low-pass options
         (["--sample-rate", "1e12"], "--sample-rate"), (["--count", "5"], "--count"),
         (["--duration", "3"], "--duration"), (["--forward", "udpout:127.0.0.1:14551"], "--forward"),
         (["--cutoff-hz", "10"], "--cutoff-hz"), (["--method", "lowpass", "--cutoff-hz", "-1"], "--cutoff-hz"),

@@ -70,8 +70,8 @@ def _welch_density(x, fs):
 
 
 def test_density_equals_welch_on_white_noise():
-    """Issue 21 item 3: the fleet's density was sqrt(2) low (the bridge's figure is
-    already std(diff) / sqrt 2). White noise of known density, seeded: the fleet's
+    """The fleet's density is the one-sided density of the bridge's noise figure (itself
+    std(diff) / sqrt 2, no second sqrt 2). White noise of known density, seeded: the fleet's
     figure, Welch's estimate and the truth agree within 3 %."""
     rng = np.random.default_rng(21)
     fs, density = 400.0, 0.02                         # deg/s/sqrt(Hz)
@@ -106,7 +106,7 @@ def _slow(name, noise):
 
 
 def test_old_and_new_dataflash_imu_names_are_one_fleet():
-    """Issue 21 item 9: a log naming its first IMU "IMU" (Copter 3.3) is compared with
+    """A log naming its first IMU "IMU" (Copter 3.3) is compared with
     logs naming it "IMU[0]" (4.x): at 7x a flagged-looking log's density it is flagged."""
     logs = [(f"ok{i}.bin", [_stream("IMU[0]", 0.010 + 0.002 * i)]) for i in range(4)]
     logs.append(("old.bin", [_stream("IMU", 0.30)]))
@@ -117,7 +117,7 @@ def test_old_and_new_dataflash_imu_names_are_one_fleet():
 
 
 def test_table_labels_rates_and_slow_rows(tmp_path):
-    """Issue 21 item 9: the noise columns say what they average; 2002 Hz is not
+    """The noise columns say what they average; 2002 Hz is not
     printed 2e+03; a telemetry row reads as written raw, not as an improvement; the
     plot's title names why logs are left to the table."""
     fast = dict(_stream("ISB.gyro[0]", 0.002), rate_hz=2001.6)
@@ -135,3 +135,23 @@ def test_table_labels_rates_and_slow_rows(tmp_path):
     from gyrodenoise.mavlink.fleet import plot_title
     title = plot_title(fleet_rows(_summary(logs)))
     assert "1 log(s) with telemetry streams only, below 20 Hz" in title and "no stream to denoise" not in title
+
+
+def _row(log, stream, density):
+    return {"log": log, "stream": stream, "status": "ok", "compared_as": stream, "noise_unit": "deg/s",
+            "noise_density_deg_s_rthz": density, "too_slow_to_denoise": density is None}
+
+
+def test_fleet_median_cell_says_why_it_is_empty():
+    """A stream with no peer (the only ISB.gyro[0] of the fleet), one with a single
+    peer, and one with no density: the "x fleet median" cell says why."""
+    from gyrodenoise.mavlink.fleet import _flag, vs_fleet_text
+    rows = [_row("a.bin", "IMU[0]", 0.01), _row("b.bin", "IMU[0]", 0.011), _row("c.bin", "IMU[0]", 0.012),
+            _row("a.bin", "ISB.gyro[0]", 0.001), _row("a.bin", "IMU[1]", 0.02), _row("b.bin", "IMU[1]", 0.02),
+            _row("a.tlog", "RAW_IMU", None)]
+    _flag(rows)
+    cells = [vs_fleet_text(r) for r in rows]
+    assert cells[0] == "0.91x of 3 IMU[0]"
+    assert cells[3] == "no peer: the only ISB.gyro[0] with a density in the fleet"
+    assert cells[4] == "only 2 IMU[1] with a density in the fleet (a median needs 3)"
+    assert cells[6] == "no density: too slow to denoise"

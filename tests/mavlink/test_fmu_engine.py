@@ -119,7 +119,7 @@ def test_bad_outlier_option_is_one_line(tmp_path):
 
 
 def test_lowpass_options_reach_both_engines(fmu_path, tmp_path):
-    """--cutoff-hz / --order (issue 21 item 4): the native Denoiser and the FMU
+    """--cutoff-hz / --order: the native Denoiser and the FMU
     (parameters cutoff_hz, lowpass_order) give the same filtered values, which are not
     the default low-pass's, and both report the cutoff applied."""
     path = DATA / "ardusub_small.BIN"

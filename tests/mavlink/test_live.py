@@ -188,7 +188,7 @@ def check_forwarded(sent, received, rep, sample_rate, **denoise_kw):
         assert reported[name]["restarts"] == int(r.sum()), name
         k = R2D / 1000.0                           # mrad/s (ArduPilot, MAVLink 2 / version string)
         if reported[name]["too_slow_to_denoise"]:
-            # telemetry below 20 Hz: forwarded raw, as in the file mode (issue 21 item 5)
+            # telemetry below 20 Hz: forwarded raw, as in the file mode
             assert reported[name]["rate_hz"] < 20.0
             np.testing.assert_array_equal(got, raw, err_msg=name)
             continue
@@ -238,7 +238,7 @@ def test_live_replay_copter_reboot_forwards_slow_streams_raw_and_restarts(tmp_pa
     """Real ArduCopter 4.1 tlog with three boot sessions: the first 6000 messages carry
     about 250 RAW_IMU / SCALED_IMU2 samples at 2 Hz, past the warm-up and across the
     first reboot. Too slow to denoise: forwarded raw, bit for bit, as the file mode
-    writes them (issue 21 item 5; they were filtered, 100+ values changed); the
+    writes them; the
     restarts are found."""
     path = SHARED_LOGS / "copter_20211208-151717.tlog"
     if not path.exists():
@@ -333,7 +333,7 @@ def test_live_replay_of_a_fast_stream_is_the_batch_denoiser(tmp_path):
 
 
 def test_live_replay_with_max_motion_hz_is_the_batch_denoiser_with_it(tmp_path):
-    """--max-motion-hz on a live link (issue 23 item 4): the 50 Hz stream filtered sample by
+    """--max-motion-hz on a live link: the 50 Hz stream filtered sample by
     sample with the rigid-body low-pass equals gd.denoise(..., max_motion_hz=10) on the same
     samples and restarts, and differs from the default (the option is really applied)."""
     sent = _scaled_imu2_packets()

@@ -1,7 +1,7 @@
-"""What a user's trial of the merged tree left open (previous note, "Left (next
-session)" 1-6): the noise figure that motion lifted, an interrupted fleet run with
-no record, --cutoff-hz above every Nyquist, allan/compare/denoise on a moving
-record, saturation at the gyro's full scale, two small wordings."""
+"""The bridge's noise figure on still, moving and real streams (the sensor's noise, not
+the motion), an interrupted fleet run, --cutoff-hz above every Nyquist, saturation at the
+gyro's full scale, the wording of a one-byte cut. (allan / compare / denoise on a moving
+record: tests/cli/test_moving_records.py.)"""
 from __future__ import annotations
 
 import contextlib
@@ -41,7 +41,7 @@ def _stream_report(x_deg_s, fs, name="IMU[0]"):
     return process.stream_report(s)
 
 
-# ------------------------------------------------------------ 1: a noise figure motion does not lift
+# ------------------------------------------------------------ a noise figure motion does not lift
 @pytest.mark.parametrize("fs", [25.0, 250.0])
 def test_white_noise_estimate_on_white_noise(fs):
     """Known-truth simulation (seeded): the core's estimate reads sigma to within
@@ -55,11 +55,10 @@ def test_white_noise_estimate_on_white_noise(fs):
 
 
 def test_moving_25hz_stream_noise_and_motion_verdict():
-    """The trial's case in a known-truth simulation: 25 Hz, +-30 deg/s of slow motion
+    """A moving stream in a known-truth simulation: 25 Hz, +-30 deg/s of slow motion
     (0.1-1 Hz) over white noise of 0.03 deg/s. The reported noise is the sensor's
-    (within -10/+10 %; the first-difference figure, the old one, is > 20x it) and the
-    axis is said to move (it said "no motion": the first-difference figure was
-    mostly motion)."""
+    (within -10/+10 %; the first-difference figure is > 20x it: mostly motion) and the
+    axis is said to move."""
     fs, sigma, n = 25.0, 0.03, 6000
     rng = np.random.default_rng(21)
     t = np.arange(n) / fs
@@ -111,7 +110,7 @@ def test_density_of_the_reported_noise_equals_welch_on_a_still_log(tmp_path):
         assert noise_density(s["noise"][ax]["raw"], s["rate_hz"]) == pytest.approx(ref, rel=0.15), ax
 
 
-# ------------------------------------------------------------ 2: an interrupted fleet run
+# ------------------------------------------------------------ an interrupted fleet run
 @pytest.mark.parametrize("exc, status", [(KeyboardInterrupt, 130), ("Terminated", 143)])
 def test_interrupted_fleet_run_writes_which_logs_completed(tmp_path, monkeypatch, exc, status):
     """The third log's task is interrupted (as SIGINT / SIGTERM do in the main
@@ -148,10 +147,10 @@ def test_interrupted_fleet_run_writes_which_logs_completed(tmp_path, monkeypatch
     assert not list(out.glob(".*.partial"))
 
 
-# ------------------------------------------------------------ 3: --cutoff-hz above every Nyquist
+# ------------------------------------------------------------ --cutoff-hz above every Nyquist
 def test_cutoff_above_every_nyquist_of_one_log_is_refused(tmp_path):
     """25 Hz log, --cutoff-hz 13 (Nyquist 12.5): one line naming the option, exit 2,
-    nothing written (as `denoise` does; it was exit 0 with everything raw)."""
+    nothing written (as `denoise` does)."""
     out = tmp_path / "o"
     st, so, se = _main(DATA / "ardusub_small.BIN", "-o", out, "--method", "lowpass", "--cutoff-hz", "13")
     assert st == 2 and so == ""
@@ -172,87 +171,7 @@ def test_cutoff_above_every_nyquist_of_every_log_is_refused(tmp_path):
     assert not out.exists()
 
 
-# ------------------------------------------------------------ 4: allan / compare / denoise with true_rate
-def _cli(*args):
-    """``gyrodenoise ARGS`` in this process: (status, stdout, stderr)."""
-    from gyrodenoise.cli import main
-    so, se = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
-        status = main([*map(str, args)])
-    return status, so.getvalue(), se.getvalue()
-
-
-def _moving_csv(path, n=12_000, fs=100.0, true_rate=True):
-    """paper_fog (seeded) under +-70 deg/s of smooth motion, and the same sensor at rest."""
-    import gyrodenoise as gd
-    from benchmarks import profiles
-    tr = profiles.smooth(n, fs, seed=3)
-    rec = gd.simulate("paper_fog", n, seed=5, true_rate_deg_s=tr)
-    still = gd.simulate("paper_fog", n, seed=5)
-    cols = [np.arange(n) / fs, rec.rate_deg_s] + ([tr] if true_rate else [])
-    np.savetxt(path, np.column_stack(cols), delimiter=",", comments="", fmt="%.12g",
-               header="time,rate" + (",true_rate" if true_rate else ""))
-    return tr, still
-
-
-def test_allan_of_a_moving_record_analyses_rate_minus_true_rate(tmp_path):
-    """With true_rate present allan analyses the sensor's error and says so: its N and
-    K equal those of the same sensor simulated at rest (same seed; independent
-    reference) within 1e-6, where the measured rate alone gives K ~ 1e6 deg/h^1.5."""
-    from gyrodenoise.analysis.allan import allan
-    path = tmp_path / "moving.csv"
-    _, still = _moving_csv(path)
-    st, out, _ = _cli("allan", path, "--json")
-    assert st == 0
-    d = json.loads(out)
-    assert d["analysed"].startswith("rate - true_rate")
-    assert d["true_rate_motion_deg_s"]["std"] > 5.0
-    ref = allan(still.rate_deg_s, 100.0)
-    for t in ("N", "K"):
-        assert d["terms"][t] == pytest.approx(ref.terms[t], rel=1e-6), t
-    st, text, _ = _cli("allan", path)
-    assert text.startswith("analysed: rate - true_rate")
-
-
-def test_compare_of_a_moving_record_warns(tmp_path):
-    path = tmp_path / "moving.csv"
-    _moving_csv(path)
-    st, out, _ = _cli("compare", path, "--json")
-    assert st == 0
-    d = json.loads(out)
-    assert any(w.startswith("the record moves") for w in d["warnings"])
-    assert "rmse_deg_s" in d
-    st, text, _ = _cli("compare", path)
-    assert "WARNING: the record moves (true_rate" in text
-
-
-def test_compare_of_a_still_record_does_not_warn(tmp_path):
-    import gyrodenoise as gd
-    rec = gd.simulate("paper_fog", 12_000, seed=5, true_rate_deg_s=2.0)
-    path = tmp_path / "still.csv"
-    np.savetxt(path, np.column_stack([np.arange(12_000) / 100.0, rec.rate_deg_s, rec.true_rate_deg_s]),
-               delimiter=",", header="time,rate,true_rate", comments="", fmt="%.12g")
-    st, out, _ = _cli("compare", path, "--json")
-    assert st == 0 and "warnings" not in json.loads(out)
-
-
-def test_denoise_with_true_rate_prints_rmse_raw_and_filtered(tmp_path):
-    """The RMSE line's figures equal numpy's RMSE of the written CSV's columns (4 digits)."""
-    import re
-    path = tmp_path / "moving.csv"
-    _moving_csv(path)
-    out = tmp_path / "out.csv"
-    st, _, err = _cli("denoise", path, "-o", out)
-    assert st == 0
-    m = re.search(r"RMSE against true_rate over (\d+) samples: raw (\S+), filtered (\S+) deg/s", err)
-    assert m, err
-    a = np.genfromtxt(out, delimiter=",", names=True)
-    assert int(m.group(1)) == len(a)
-    assert float(m.group(2)) == pytest.approx(np.sqrt(np.mean((a["raw"] - a["true_rate"]) ** 2)), rel=1e-3)
-    assert float(m.group(3)) == pytest.approx(np.sqrt(np.mean((a["filtered"] - a["true_rate"]) ** 2)), rel=1e-3)
-
-
-# ------------------------------------------------------------ 5: saturation at the gyro's full scale
+# ------------------------------------------------------------ saturation at the gyro's full scale
 def _sat_report(peak_deg_s):
     rng = np.random.default_rng(3)
     x = rng.normal(0.0, 0.5, (3000, 3))
@@ -283,28 +202,8 @@ def test_saturation_of_log171_at_the_crash(tmp_path):
     assert "peak 2022.7 on y" in lines[0]
 
 
-# ------------------------------------------------------------ 6: wordings
+# ------------------------------------------------------------ wordings
 def test_one_byte_cut_is_singular(tmp_path):
     path = shared_log("copter_00061-2021-11-21_18-03-38.bin")
     st, out, _ = _main(path, "-o", tmp_path, "--no-plots", "--no-csv")
     assert st == 0 and "truncated (1 byte cut)" in out and "(1 bytes cut)" not in out
-
-
-def _row(log, stream, density):
-    return {"log": log, "stream": stream, "status": "ok", "compared_as": stream, "noise_unit": "deg/s",
-            "noise_density_deg_s_rthz": density, "too_slow_to_denoise": density is None}
-
-
-def test_fleet_median_cell_says_why_it_is_empty():
-    """A stream with no peer (the only ISB.gyro[0] of the fleet), one with a single
-    peer, and one with no density: the "x fleet median" cell says why (it was blank)."""
-    from gyrodenoise.mavlink.fleet import _flag, vs_fleet_text
-    rows = [_row("a.bin", "IMU[0]", 0.01), _row("b.bin", "IMU[0]", 0.011), _row("c.bin", "IMU[0]", 0.012),
-            _row("a.bin", "ISB.gyro[0]", 0.001), _row("a.bin", "IMU[1]", 0.02), _row("b.bin", "IMU[1]", 0.02),
-            _row("a.tlog", "RAW_IMU", None)]
-    _flag(rows)
-    cells = [vs_fleet_text(r) for r in rows]
-    assert cells[0] == "0.91x of 3 IMU[0]"
-    assert cells[3] == "no peer: the only ISB.gyro[0] with a density in the fleet"
-    assert cells[4] == "only 2 IMU[1] with a density in the fleet (a median needs 3)"
-    assert cells[6] == "no density: too slow to denoise"

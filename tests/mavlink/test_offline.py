@@ -1,10 +1,10 @@
 """The bridge's file mode filters a whole log with the offline form of ``motion``
-by default (issue 23 item 3; spec section 7: whole-record entry points may, per-sample
+by default (spec section 7: whole-record entry points may, per-sample
 paths stay causal), ``--causal`` gives the causal filter, and the JSON and the text
 summary say which form was used.
 
 References, independent of the bridge's filtering code: the restarts from a rule
-written in tests/test_bridge.py (``ref_restarts``) on the timestamps read back by
+written in tests/mavlink/references.py (``ref_restarts``) on the timestamps read back by
 pymavlink's DataFlash reader (``df_reference``); the offline form as
 ``gd.denoise(offline=True)`` run on EACH SESSION ON ITS OWN (an offline output
 depends on its whole session and on nothing outside it); the causal form as
@@ -114,7 +114,7 @@ def test_offline_output_stays_inside_each_sessions_raw_range(tmp_path):
 def test_causal_option_combinations(tmp_path):
     """--causal with another method is refused (one line, exit 2, nothing written);
     with --method lowpass --zero-phase the low-pass's offline form is named; the
-    FMU engine's form is causal (tests/test_bridge_fmu.py, where an FMU is built)."""
+    FMU engine's form is causal (tests/mavlink/test_fmu_engine.py, where an FMU is built)."""
     log = DATA / "ardusub_small.BIN"
     status, out, err = _main(log, "-o", tmp_path / "x", "--method", "lowpass", "--causal", "--no-plots")
     assert status == 2 and out == "" and err.count("\n") == 1

@@ -1,4 +1,4 @@
-"""Interrupting ``gyrodenoise mavlink`` (issue 21 item 2), with real processes and
+"""Interrupting ``gyrodenoise mavlink``, with real processes and
 signals: SIGINT to the process group (a terminal's Ctrl-C) and SIGINT / SIGTERM to
 the main process only (timeout, systemd, Slurm, Dask's nanny). Each must stop the
 whole process tree within seconds with one line on stderr, exit 130 / 143
@@ -105,7 +105,7 @@ def test_jobs_2_run_stops_whole_tree(tmp_path, sig, to_group, status):
         os.killpg(proc.pid, signal.SIGKILL)
         raise
     _stop_and_check(proc, sig, to_group, status, out)
-    # the user trial after issue 21: the run says which logs completed (summary.json, whole)
+    # the run says which logs completed (summary.json, whole)
     import json
     sm = json.loads((out / "summary.json").read_text())
     n_logs = sum(1 for p in SHARED_LOGS.rglob("*") if p.suffix.lower() in (".tlog", ".bin", ".ulg", ".mavlink"))

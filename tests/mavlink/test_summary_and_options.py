@@ -1,6 +1,7 @@
-"""Issue 21 (a drone engineer's trial of ``gyrodenoise mavlink``), items 4, 6, 7, 8
-and 10; item 2 is tests/test_bridge_stop.py, items 3 and 9 tests/test_fleet.py,
-item 5 tests/test_bridge.py (_check_filtered_tlog: slow streams raw, bit for bit)."""
+"""``gyrodenoise mavlink`` on files: the low-pass options and the effective cutoff, the
+reasons a stream is left raw, no output folder after a failed run, the plots' time axis,
+the summary's rate and records. (Interruption: test_stop_signals.py; the fleet report:
+test_fleet_report.py; slow streams written raw bit for bit: test_file_mode.py.)"""
 from __future__ import annotations
 
 import contextlib
@@ -70,7 +71,7 @@ def test_lowpass_options_and_the_effective_cutoff_in_the_summary(tmp_path):
 def test_cutoff_a_stream_cannot_take_leaves_it_raw_with_the_reason(tmp_path):
     """--cutoff-hz above some streams' Nyquist but not all (copter_00061: IMUs at 25 Hz,
     the batch sampler at 2 kHz): those streams are not filtered, and say why; exit 0.
-    Above every stream's Nyquist the option is refused (tests/test_bridge_trial.py)."""
+    Above every stream's Nyquist the option is refused (test_noise_and_saturation.py)."""
     log = shared_log("copter_00061-2021-11-21_18-03-38.bin")
     status, out, _ = _main(log, "-o", tmp_path, "--method", "lowpass",
                            "--cutoff-hz", "15", "--no-plots", "--no-csv", "--json")

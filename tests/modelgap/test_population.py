@@ -116,7 +116,7 @@ def test_heldout_prediction_interval_includes_the_cards_estimation_error():
     Measured: within 9/10 with ``card_error=True`` (n_train 16384), 6/10 without (the
     card's error is not in the reference); asserted >= 8 and at least 2 more than
     without. A held-out record from a DIFFERENT card (N 5 % higher) is within 0/5 times
-    (asserted <= 1). (Over 30 trials: 27/30 against 16/30; 0/30 for N x 1.05.)"""
+    (asserted <= 1). (Over 30 seeded runs: 27/30 against 16/30; 0/30 for N x 1.05.)"""
     truth = parse_card(CARD)
     lay = Layout.for_record(16384, FS)
     fit = MagnitudeFit(truth, lay)

@@ -1,4 +1,4 @@
-"""The model-gap workflow on real records and on published Allan curves (issue 20).
+"""The model-gap workflow on real records and on published Allan curves.
 
 Real data is read from ../shared/data (skipped with the reason when absent); the
 slices and seed counts keep each test to seconds. Known-truth checks (synthetic

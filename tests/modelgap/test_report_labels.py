@@ -1,6 +1,6 @@
 """The gap report's step labels and the written card's closing comment say what each step
-did (a user's trial: "[k] after A + B + ..." listed every term ever added, removed ones
-included, and two steps with the same card had the same label)."""
+did (a label names the card of its step, not every term ever added; two steps with the same
+card have different labels)."""
 
 import numpy as np
 

@@ -111,7 +111,7 @@ HIDDEN = [
     # 4 deg/h, not 3: see the test's docstring (3 deg/h sits at the detection limit)
     ("sinusoid", BASE, {"amplitude": 4.0, "frequency": 1.3},
      {"amplitude": ("abs", 0.6), "frequency": ("abs", 1e-3)}),             # se 0.2 deg/h
-    # white angle noise with a correlation time (issue 20): below tau an extra white rate
+    # white angle noise with a correlation time: below tau an extra white rate
     # noise 2 sigma^2 / tau (2.4x the card's N^2 here), above it white angle noise; see the docstring
     ("angle_gauss_markov", BASE, {"sigma": 1.0e-3, "tau": 0.5}, {"sigma": ("rel", 0.15), "tau": ("rel", 0.30)}),
 ]
@@ -126,7 +126,7 @@ def test_hidden_effect_is_named_fitted_and_closes_the_gap(name, base, params, to
     """The hidden effect is the first (and only) effect added, except that after a
     hidden rate random walk a constant bias equal to the record mean may follow.
 
-    Evidence for the two cases at the edge (issue 22, C generator gdsim.c, simulation
+    Evidence for the two cases at the edge (C generator gdsim.c, simulation
     seeds 1-5, measurement seeds 1001-1008;
     ``.venv/bin/python benchmarks/gap_edge.py hidden --meas 8``):
 
@@ -148,8 +148,8 @@ def test_hidden_effect_is_named_fitted_and_closes_the_gap(name, base, params, to
       1.65-3.31, after 0.76-1.63). The amplitude tolerance is 3 standard errors of a
       line fitted to white noise: per-sample std N sqrt(fs) = 60 deg/h, se 60 sqrt(2/n)
       = 0.20 deg/h at n = 180,000 (10 % of 3 deg/h was 1.5 se).
-    * angle Gauss-Markov sigma = 1e-3 deg, tau = 0.5 s (issue 20; measurement seeds 1001-1003,
-      script in the h20 report): named alone 3/3, sigma 0.951-1.051e-3 (5 %), tau 0.451-0.552 s
+    * angle Gauss-Markov sigma = 1e-3 deg, tau = 0.5 s (measurement seeds 1001-1003,
+      benchmarks/gap_edge.py): named alone 3/3, sigma 0.951-1.051e-3 (5 %), tau 0.451-0.552 s
       (10 %), gap 2.4e3 -> 0.69-0.93 (threshold 1.9). At sigma = 2e-3: 8/8 (1001-1008) named
       first, sigma within 4.5 %, tau within 6.5 % (1008 then re-fits N as well). At 5e-4 (the
       extra white rate noise 0.6x the card's N^2): 4/4 found, sigma within 13 %, tau within 34 %,
@@ -250,14 +250,14 @@ def test_card_without_noise_terms_starts_from_a_fit_to_the_record():
 WHITE_SEEDS = (1, 2, 3, 4)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 20: the initial fit keeps a small quantization / short "
+@pytest.mark.xfail(strict=True, reason="the initial fit keeps a small quantization / short "
                    "Gauss-Markov / rate random walk beside the white noise; the rule that fixes it "
                    "(workflow.initial_terms with INITIAL_DCHI2) drops RLG x to 3/4 seed sets within, "
                    "so it is not wired in yet (docs/GAP.md, Initial fit)")
 @pytest.mark.parametrize("fs", [100.0, 1000.0])
 @pytest.mark.parametrize("n", [20000, 60000])
 def test_white_noise_from_an_empty_card_is_angle_random_walk_alone(fs, n):
-    """Issue 20 ("name physical effects where the evidence says so"): from an EMPTY
+    """Physical effects are named where the evidence says so: from an EMPTY
     card, a record of pure white rate noise (N = 0.5 deg/sqrt(h), numpy's seeded
     generator, independent of the simulator) comes out as angle_random_walk alone:
     no quantization, Gauss-Markov, rate random walk or any other term, at 100 Hz and
@@ -290,7 +290,7 @@ def test_white_noise_from_an_empty_card_is_angle_random_walk_alone(fs, n):
 
 @pytest.mark.parametrize("fs", [100.0, 1000.0])
 def test_initial_fit_rule_names_white_noise_alone_and_keeps_a_real_quantization(fs):
-    """The rule of issue 20 on the initial fit's own terms (workflow.initial_terms with
+    """The naming rule on the initial fit's own terms (workflow.initial_terms with
     INITIAL_DCHI2 and the Welch-band weights of welch_band_rel_sd): on white records
     (numpy seeds 1-8, 20,000 samples, N = 0.5 deg/sqrt(h)) angle_random_walk alone, N
     within 3 % (its standard error ~0.5 %); on the same N plus a quantization the record
@@ -606,8 +606,8 @@ def test_a_term_the_record_does_not_have_goes_to_zero():
     """A datasheet quantization Q = 1e-3 deg on a record of white noise only: its
     Allan signature (3 Q^2 / tau^2, 10x the white noise at tau = 10 ms) is absent, so
     Q is re-fitted down to zero and removed (or at least 10x down) and the card ends
-    within the scatter. (Before issue 20 the zero was rejected as "the card is
-    noisier than the record" and the card kept Q.)"""
+    within the scatter (the zero is not rejected as "the card is noisier than the
+    record")."""
     card = BASE.replace("angle_random_walk = { N = 0.1 }", "angle_random_walk = { N = 0.1 }\n"
                         "quantization = { Q = 1.0e-3 }   # deg, datasheet")
     y = _white(std=0.1 / 60.0 * math.sqrt(FS), n=40000)
@@ -703,7 +703,7 @@ def test_real_adis16405_from_white_noise_card():
       the record's (IEEE 952 C.1 error, 4.5 % at 41 s to 24 % at 1000 s) and the
       fitted card's own scatter, which the test's single run cannot see.
 
-    The card's scatter, measured (issue 22, C generator gdsim.c): the workflow run
+    The card's scatter, measured (C generator gdsim.c): the workflow run
     with seven sets of four simulation seeds (1-4, 11-14, ... 61-64;
     ``.venv/bin/python benchmarks/gap_edge.py adis --sets 5`` and ``--sets 4
     --first-set 3``) ends within the threshold 7/7 (gap 1.21-1.96 against 2.15-4.59);
@@ -714,7 +714,7 @@ def test_real_adis16405_from_white_noise_card():
     combined sigma, 0/7 (largest 4.75 against 5.1). What does not hold: at 655-1000 s
     the card sits ABOVE the record in 7/7 sets (mean +2.2 and +2.8 sigma_record), a
     bias of the fit at the longest taus on this record, not only scatter.
-    Re-measured with the angle Gauss-Markov term in the vocabulary (issue 20; ``gap_edge.py
+    Measured with the angle Gauss-Markov term in the vocabulary (``gap_edge.py
     adis --sets 4``, seeds 1-4 .. 31-34): within the threshold 4/4 (gap 0.79-1.85 against
     2.56-8.16), (card - record) / sigma_record at 655 and 1000 s +1.36..+2.54 and +1.53..+3.17:
     the same picture, inside the combined tolerance.

@@ -1,7 +1,7 @@
 """The simulated gyro in C (gyrodenoise/core/gdsim.c) and its plain-Python
 specification (gyrodenoise/core/simkernels.py): equal bit for bit on every card
 term; each term as the card says; the generator against published values and the
-normal law; sample by sample and batch the same numbers (issue 22, item 2).
+normal law; sample by sample and batch the same numbers.
 gd.simulate and SimStream are adapters over it (the C, or the Python twin where
 the extension is not built): the same numbers."""
 import math
@@ -17,10 +17,10 @@ from tests.helpers import CHOST, DATA, REPO, run_wine
 
 C = pytest.importorskip("gyrodenoise.core._gdcore")
 
-#: a card with every term (shared with tests/test_fmu_simnative.py)
+#: a card with every term (shared with tests/fmu/test_native_simulator.py)
 EVERY_TERM = (DATA / "every_term.toml").read_text()
 
-# the angle Gauss-Markov term (issue 20): two instances (one with sigma 0: not drawn) on top of every other term
+# the angle Gauss-Markov term: two instances (one with sigma 0: not drawn) on top of every other term
 EVERY_TERM_AGM = EVERY_TERM + "".join(f"[[terms.angle_gauss_markov]]\nsigma = {s}\ntau = {t}\n"
                                       for s, t in ((3.0e-5, 0.04), (0.0, 1.0), (1.0e-4, 2.5)))
 
@@ -223,7 +223,7 @@ def test_bad_seed_is_an_input_error(seed):
         gd.simulate("paper_fog", 10, seed=seed)
 
 
-# ------------------------------------------------ the angle Gauss-Markov term (issue 20)
+# ------------------------------------------------ the angle Gauss-Markov term
 # sha256 of gd.simulate(paper_fog, 3000, seed=7, restarts at 0, 1000, 2000).rate_deg_s.tobytes(), computed with
 # main's plain-Python twin (commit da1c420, before the angle Gauss-Markov term existed): an old card's seeds keep
 # their realisations bit for bit.

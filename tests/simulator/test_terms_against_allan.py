@@ -67,7 +67,7 @@ def test_angle_gauss_markov_reads_as_the_readme_says():
     is white rate noise with N = sigma sqrt(2 / tau) (deg/sqrt(s)), over much more than tau it is
     white angle noise with Q = sigma; the rate's PSD rises like f^2 below 1 / (2 pi tau) and is
     flat above it, at 2 sigma^2 / tau. Checked on one seeded simulation against those limits (the
-    exact curve, spectral.angle_gm_avar, is checked in test_gap)."""
+    exact curve, spectral.angle_gm_avar, is checked in tests/modelgap)."""
     from scipy.signal import welch
     sigma, tau_c, fs, n = 0.01, 1.0, 100.0, 400_000
     rec = gd.simulate(card(f"[[terms.angle_gauss_markov]]\nsigma = {sigma}\ntau = {tau_c}\n", fs), n, seed=3)
