@@ -12,6 +12,8 @@ import gyrodenoise as gd
 from benchmarks import reference_filters as RF
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow          # the benchmark's reference filters (numba compilation, dense posteriors)
+
 
 def _gain_db(b, a, f_hz, fs):
     _, h = signal.freqz(b, a, worN=[f_hz], fs=fs)

@@ -20,6 +20,8 @@ from sceptic import bench, sim  # noqa: E402
 
 from gyrodenoise.analysis.allan import adev  # noqa: E402
 
+pytestmark = pytest.mark.slow          # the benchmark's simulator, baselines and metrics
+
 
 def _only(sensor_key, **kw):
     """The sensor with every error term zero but those given."""

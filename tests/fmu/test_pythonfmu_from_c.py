@@ -167,6 +167,7 @@ def test_resource_uri_forms_pythonfmu_crashes_on(fmus, host, form):
 
 
 # ------------------------------------------------------------ clean exits
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(F.FMUS))
 def test_clean_exits(fmus, host, name):
     """SimulatedFog crashed at exit in 1 of 5 to 13 of 13 runs (pythonfmu's static

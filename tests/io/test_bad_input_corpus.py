@@ -229,6 +229,7 @@ def _logs(tmp_path):
     return cases
 
 
+@pytest.mark.slow
 def test_truncated_and_corrupted_logs(tmp_path):
     import json
     for name, (want, needle) in _logs(tmp_path).items():

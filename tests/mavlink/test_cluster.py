@@ -12,6 +12,8 @@ from gyrodenoise.mavlink.process import process_many
 from gyrodenoise.cli import main
 from tests.helpers import DATA
 
+pytestmark = pytest.mark.slow          # a Dask LocalCluster started per test
+
 LOGS = [DATA / "ardusub_small.BIN", DATA / "fs-batt.log.tlog", DATA / "plane_truncated_test.BIN"]
 distributed = pytest.importorskip("distributed", reason="Dask distributed not installed (extra 'cluster')")
 

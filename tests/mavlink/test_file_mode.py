@@ -109,6 +109,7 @@ def test_dataflash_filtered_log_read_back_by_pymavlink(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.slow
 def test_log171_three_imus_gap_restart_and_readback(tmp_path):
     path = shared_log("log171.bin")
     r = run_cli(path, "-o", tmp_path, "--json")
@@ -146,6 +147,7 @@ def test_truncated_dataflash_processed_up_to_the_cut(tmp_path):
 
 
 # ------------------------------------------------------------ tlog
+@pytest.mark.slow
 @pytest.mark.parametrize("name,local", [("fs-batt.log.tlog", True), ("ardusub_bad_data.tlog", False),
                                         ("sitl_copter_reboot.tlog", False), ("apm2_2013-10-13_18-31-24.tlog", False)])
 def test_tlog_framer_matches_pymavlink(name, local):
@@ -212,6 +214,7 @@ def _check_filtered_tlog(path, out_log, rep, unit_mrad=True):
 
 
 @pytest.mark.slow
+@pytest.mark.slow
 def test_copter_tlog_three_boot_sessions(tmp_path):
     path = shared_log("copter_20211202-132613.tlog")
     rep = process_log(path, tmp_path, plots=False)
@@ -225,6 +228,7 @@ def test_copter_tlog_three_boot_sessions(tmp_path):
     _check_filtered_tlog(path, Path(rep["output_log"]), rep)
 
 
+@pytest.mark.slow
 def test_fs_batt_tlog_end_to_end_via_cli(tmp_path):
     path = DATA / "fs-batt.log.tlog"
     r = run_cli(path, "-o", tmp_path, "--json")
@@ -238,6 +242,7 @@ def test_fs_batt_tlog_end_to_end_via_cli(tmp_path):
     _check_filtered_tlog(path, Path(rep["output_log"]), rep)
 
 
+@pytest.mark.slow
 def test_sitl_reboot_and_bad_records(tmp_path):
     path = shared_log("sitl_copter_reboot.tlog")
     rep = process_log(path, tmp_path, plots=False, csv=False)
@@ -250,6 +255,7 @@ def test_sitl_reboot_and_bad_records(tmp_path):
     _check_filtered_tlog(path, Path(rep["output_log"]), rep)
 
 
+@pytest.mark.slow
 def test_ardusub_bad_records_counted_and_kept(tmp_path):
     path = shared_log("ardusub_bad_data.tlog")
     rep = process_log(path, tmp_path, plots=False, csv=False)
@@ -272,6 +278,7 @@ def test_truncated_tlogs_processed(tmp_path, name):
     _check_filtered_tlog(path, Path(rep["output_log"]), rep)
 
 
+@pytest.mark.slow
 def test_apm2_raw_counts_are_not_guessed(tmp_path):
     path = shared_log("apm2_2013-10-13_18-31-24.tlog")
     rep = process_log(path, tmp_path, plots=False)
@@ -309,6 +316,7 @@ def test_repack_round_trip_through_pymavlink():
 
 
 # ------------------------------------------------------------ ULog
+@pytest.mark.slow
 def test_px4_ulog_dropouts_and_filtered_copy(tmp_path):
     path = shared_log("px4_sample.ulg")
     import pyulog
@@ -355,6 +363,7 @@ def test_unknown_file_type_exits_2(tmp_path):
         process_log(shutil.copy(junk, tmp_path / "fake.bin"), tmp_path / "o")
 
 
+@pytest.mark.slow
 def test_many_logs_in_parallel_one_summary(tmp_path):
     folder = tmp_path / "logs"
     folder.mkdir()
@@ -609,6 +618,7 @@ def test_filtered_value_that_does_not_fit_int16_is_never_clipped(tmp_path, monke
     np.testing.assert_array_equal(out["RAW_IMU"][1], ref["RAW_IMU"][1])
 
 
+@pytest.mark.slow
 def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd):
     """Paths and option values; each gives one line naming the
     option or path on stderr, exit 2, no traceback; with --json one object.
@@ -666,6 +676,7 @@ def test_every_user_error_is_one_line_exit_2_and_one_json_object(tmp_path, capfd
     assert r.returncode == 2 and "no gyro stream" in json.loads(r.stdout)["error"]
 
 
+@pytest.mark.slow
 def test_truncated_ulog_is_reported(tmp_path):
     """A .ulg cut in the middle of a message is reported as truncated (pyulog stops
     there silently); the whole file is not."""
@@ -706,6 +717,7 @@ def test_summary_motion_kept_lag_and_slow_note(tmp_path):
     assert "no improvement figure" in r.stdout and "(x" not in r.stdout
 
 
+@pytest.mark.slow
 def test_paper_filter_on_a_real_flight_is_warned(tmp_path):
     path = shared_log("log171.bin")
     r = run_cli(path, "-o", tmp_path, "--method", "shakf", "--no-plots", "--no-csv", "--json")

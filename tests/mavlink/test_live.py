@@ -22,6 +22,8 @@ import pytest
 import gyrodenoise as gd
 from tests.helpers import DATA, SHARED_DATA
 
+pytestmark = pytest.mark.slow          # real tlogs replayed over loopback UDP/TCP, with bounded waits
+
 SHARED_LOGS = SHARED_DATA / "logs"
 R2D = 180.0 / math.pi
 GYRO = ("RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3", "HIGHRES_IMU")

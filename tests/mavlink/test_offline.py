@@ -27,6 +27,8 @@ from gyrodenoise.denoiser import Denoiser
 from tests.helpers import DATA, shared_log
 from tests.mavlink.references import by_name, df_reference, ref_restarts
 
+pytestmark = pytest.mark.slow          # real logs filtered whole, offline and causal
+
 R2D = 180.0 / math.pi
 LOG = "log171.bin"          # real ArduCopter log: 3 IMUs, a 2 s gap (restart) in each
 

@@ -15,6 +15,8 @@ import pytest
 
 from tests.helpers import SHARED_LOGS, gyrodenoise_cmd, shared_log
 
+pytestmark = pytest.mark.slow          # process trees stopped by signals, with bounded waits
+
 #: seconds the command is given to stop after the signal (it takes ~0.1-0.5 s here)
 STOP_WITHIN_S = 10.0
 

@@ -109,6 +109,7 @@ def test_heldout_against_a_card_with_spread_accepts_another_unit_of_the_populati
     assert not heldout_gap(y_far, FS, _spread_card(0.1), seeds=8, refit_bias=False).within_scatter
 
 
+@pytest.mark.slow
 def test_heldout_prediction_interval_includes_the_cards_estimation_error():
     """Known truth (N = 0.1, GM 20 deg/h, 30 s). Ten times: the card fitted on a short
     training record (16384 samples: the GM magnitude comes out 0.76-1.16 of the truth),

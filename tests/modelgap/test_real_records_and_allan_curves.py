@@ -215,6 +215,7 @@ def test_psins_reader_arithmetic_and_header(tmp_path):
 
 
 # ------------------------------------------------------------------ the ring-laser gyro
+@pytest.mark.slow
 def test_rlg_z_slice_from_an_empty_card_names_earth_rate_quantum_and_vibration():
     """psins_lasergyro.imu z axis, first 60,000 samples (10 min), from an EMPTY card:
     the constant bias is the Earth's rotation at the log's latitude (8.46 deg/h on a
@@ -237,6 +238,7 @@ def test_rlg_z_slice_from_an_empty_card_names_earth_rate_quantum_and_vibration()
     assert res.gap_after <= 0.1 * res.gap_before, (res.gap_before, res.gap_after)
 
 
+@pytest.mark.slow
 def test_rlg_x_converges_from_an_empty_card_with_base_motion_and_dither_lines_out():
     """psins_lasergyro.imu x axis, whole record (30.8 min at 100 Hz), from an
     EMPTY card, 6 seeds: converges WITHIN the simulations' scatter (gap <= threshold
@@ -268,6 +270,7 @@ def test_rlg_x_converges_from_an_empty_card_with_base_motion_and_dither_lines_ou
     assert "base motion" in named and "line wandering in frequency" in named
 
 
+@pytest.mark.slow
 def test_rlg_y_converges_from_an_empty_card_with_the_base_motions_tail_out():
     """psins_lasergyro.imu y axis, whole record, from an EMPTY card, 6 seeds: converges
     WITHIN the simulations' scatter. y's base motion has a tail that the band widened at
@@ -293,6 +296,7 @@ def test_rlg_y_converges_from_an_empty_card_with_the_base_motions_tail_out():
     assert "base motion" in named and "internal low-pass filter" in named, named
 
 
+@pytest.mark.slow
 def test_rlg_z_converges_with_the_angle_gauss_markov_term():
     """psins_lasergyro.imu z axis, whole record, from an EMPTY card, 6 seeds: converges
     within the simulations' scatter (gap and every component) with angle Gauss-Markov
@@ -314,6 +318,7 @@ def test_rlg_z_converges_with_the_angle_gauss_markov_term():
     assert agm and all(g["tau"] < 2.0 / log.sample_rate_hz for g in agm), agm
 
 
+@pytest.mark.slow
 def test_cli_reads_a_psins_log_axis(tmp_path):
     """gap on the .imu log directly: --rate-column picks the axis, the latitude is
     taken from the header and the Earth's rotation is named (JSON named_effects)."""
@@ -332,6 +337,7 @@ def test_cli_reads_a_psins_log_axis(tmp_path):
 
 
 # ------------------------------------------------------------------ ADIS16405: fit on one, check the others
+@pytest.mark.slow
 def test_adis_fit_on_imu1_explains_held_out_imu3_better_than_the_datasheet_card():
     """gyro_x, 200,000-sample slices (33 min): the card fitted on imu1 (from an empty
     card) is checked on imu3 (nothing added, its own bias): its held-out gap is at
@@ -351,6 +357,7 @@ def test_adis_fit_on_imu1_explains_held_out_imu3_better_than_the_datasheet_card(
     assert fitted.gap_after * 20 < sheet.gap_after, (fitted.gap_after, sheet.gap_after)
 
 
+@pytest.mark.slow
 def test_xsens_with_outliers_converges_and_names_them():
     """XSens MTi-G gyro x (rad/s), first 100,000 samples, --outliers from an empty
     card: between 0.1 % and 1 % of the samples are named outliers (the data's
@@ -439,6 +446,7 @@ def test_line_allan_columns_match_a_sampled_sinusoid():
     np.testing.assert_allclose(ad ** 2, amp ** 2 * line_allan_columns([f0], m, fs)[:, 0], rtol=1e-4)
 
 
+@pytest.mark.slow
 def test_allan_curve_with_a_line_gets_one_sinusoid(tmp_path):
     """A curve made from the exact Allan variance of N = 0.003 deg/sqrt(h) and a 3 deg/h
     line at 157 Hz (1 kHz, 1e6 samples: the KVH 1750 case), 95 % bounds of such an
@@ -497,6 +505,7 @@ def test_shipped_card_against_its_published_curve(card, sensor, unit):
     assert not listed and not outside, (listed, outside)
 
 
+@pytest.mark.slow
 def test_ln200_curve_needs_the_angle_gauss_markov_terms(monkeypatch):
     """The LN-200 curve (22 taus, bounds of 0.07-0.2 % at 5-40 ms): fit_curve's exact model
     is inside the 95 % bounds at every tau with angle Gauss-Markov terms (and one line), and
@@ -532,6 +541,7 @@ def test_bad_allan_curve_is_one_line_exit_2_nothing_written(tmp_path, content, m
     assert "Traceback" not in proc.stderr and not out.exists()
 
 
+@pytest.mark.slow
 def test_allan_curve_needs_a_choice_among_several_curves(tmp_path):
     p = tmp_path / "two.csv"
     p.write_text("sensor,channel,tau_s,allan_deviation\nA,x,1,2\nA,x,2,1\nA,x,4,0.5\nB,x,1,2\nB,x,2,1\nB,x,4,0.5\n")

@@ -121,6 +121,7 @@ def _close(got, want, kind, tol):
     return abs(got - want) <= (tol * abs(want) if kind == "rel" else tol)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,base,params,tols", HIDDEN, ids=[h[0] for h in HIDDEN])
 def test_hidden_effect_is_named_fitted_and_closes_the_gap(name, base, params, tols):
     """The hidden effect is the first (and only) effect added, except that after a
@@ -169,6 +170,7 @@ def test_hidden_effect_is_named_fitted_and_closes_the_gap(name, base, params, to
     parse_card(res.card_text)   # the new card is a valid card
 
 
+@pytest.mark.slow
 def test_existing_term_is_refitted_not_duplicated():
     """Card says N = 0.1, the gyro has N = 0.2: the ARW line is re-fitted (within 5 %)."""
     res = _run(BASE, [("angle_random_walk", {"N": 0.2})])
@@ -190,6 +192,7 @@ def test_null_case_adds_nothing():
     assert res.card_text == BASE
 
 
+@pytest.mark.slow
 def test_two_missing_effects_are_both_found():
     truth = {"gauss_markov": {"sigma": 6.0, "tau": 2.0}, "sinusoid": {"amplitude": 5.0, "frequency": 7.7}}
     res = _run(BASE, list(truth.items()))
@@ -288,6 +291,7 @@ def test_white_noise_from_an_empty_card_is_angle_random_walk_alone(fs, n):
 
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fs", [100.0, 1000.0])
 def test_initial_fit_rule_names_white_noise_alone_and_keeps_a_real_quantization(fs):
     """The naming rule on the initial fit's own terms (workflow.initial_terms with
@@ -336,6 +340,7 @@ def _cli(*args, timeout=600):
                           capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_cli_json_contract_and_new_card(tmp_path):
     y = _measured(BASE, [("sinusoid", {"amplitude": 8.0, "frequency": 2.2})], n=60000)
     meas = tmp_path / "meas.csv"
@@ -359,6 +364,7 @@ def test_cli_json_contract_and_new_card(tmp_path):
     assert "gap" in proc.stderr             # the text report goes to stderr with --json
 
 
+@pytest.mark.slow
 def test_cli_card_written_at_the_rate_its_terms_were_fitted(tmp_path):
     """A 200 Hz card on a 100 Hz record: the terms are fitted at 100 Hz (a white-noise
     level per sample, an angle Gauss-Markov tau of half a sample simulate differently at
@@ -459,6 +465,7 @@ def test_card_at_rate_checks_nyquist_at_the_record_rate():
         gd.gap(_white(), FS, parse_card(CARD200, "c200.toml"), seeds=3, engine="native")
 
 
+@pytest.mark.slow
 def test_fmu_worker_error_comes_back_as_one_input_error(tmp_path):
     """A failing FMU (here: a file that is not an FMU) is reported as one InputError
     naming the card, the FMU and the seed, not as a BrokenProcessPool traceback."""
@@ -503,6 +510,7 @@ def test_edit_card_sub_table_round_trip_and_comments():
         check_editable(parse_card(one_sin, "one.toml"))
 
 
+@pytest.mark.slow
 def test_sub_table_card_refitted_twice_last_value_in_card():
     """White noise of std 0.01 deg/s at 100 Hz (N = 0.06 deg/sqrt(h)) against a
     sub-table card with N = 0.5: the white-noise level is re-fitted (listed once
@@ -576,6 +584,7 @@ def test_zeroed_term_is_not_written_as_a_fit(monkeypatch):
     assert G._zeroed([("bias_instability", None, True)]) == []
 
 
+@pytest.mark.slow
 def test_card_noisier_than_the_record_is_refitted_down():
     """The card says N = 0.5 deg/sqrt(h), the record is white noise of N = 0.06:
     the joint re-fit brings N down to the record's (within 5 %, ~3 standard errors
@@ -652,6 +661,7 @@ def fmu_dir(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_fmu_engine_end_to_end_matches_native(tmp_path, fmu_dir):
     """The default engine (SimulatedFog.fmu through fmpy, seeds in parallel
@@ -683,6 +693,7 @@ def test_fmu_engine_end_to_end_matches_native(tmp_path, fmu_dir):
 
 
 # ------------------------------------------------------------------ real record
+@pytest.mark.slow
 def test_real_adis16405_from_white_noise_card():
     """ADIS16405 imu1 gyro_x (2.78 h, 100 Hz, deg/s, quantised to 0.05 deg/s),
     starting from a white-noise-only card (N = 2.5 deg/sqrt(h)).
@@ -750,6 +761,7 @@ def test_real_adis16405_from_white_noise_card():
     assert set(res.iterations[0]["components"]) == set(COMPONENTS)
 
 
+@pytest.mark.slow
 def test_heldout_with_the_white_noise_level_refitted_is_an_option():
     """A 'fitted' card (N = 0.1 deg/sqrt(h), Gauss-Markov 6 deg/h, 2 s) and a held-out
     record of the same sensor whose white noise is 12 % higher (N = 0.112; seeded, 30
