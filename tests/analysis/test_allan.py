@@ -10,6 +10,7 @@ from gyrodenoise.analysis import allan as A
 from tests.helpers import shared_file
 
 
+@pytest.mark.slow
 def test_golden_adis16405_imu1_gyro_x():
     path = shared_file("static", "adis16405_imu1.csv.gz")
     ref_path = shared_file("allan_reference", "avar_precomputed_curves.csv")

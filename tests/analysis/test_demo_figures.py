@@ -1,7 +1,7 @@
-"""The demo's figures show the paper's model (issue: AR figures regressed to empty).
+"""The demo's figures show the paper's model: its AR figures are drawn from a SHAKF run.
 
-The package default (motion) identifies no AR model; the demo built its AR figures
-with it and drew flat zero lines, an empty residual PSD and c = 0. These tests read
+The package default (motion) identifies no AR model: AR figures drawn from it would be
+flat zero lines, an empty residual PSD and c = 0. These tests read
 the written PNGs back as pixels (independently of the code that drew them), check
 the AR numbers against a plain SHAKF run, and check that an empty figure is refused.
 """
@@ -14,7 +14,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import gyrodenoise as gd  # noqa: E402
-from gyrodenoise import plots  # noqa: E402
+from gyrodenoise.analysis import plots  # noqa: E402
 from gyrodenoise.core import kernels as K  # noqa: E402
 from gyrodenoise.core.batch import run  # noqa: E402
 from gyrodenoise.analysis.experiments import ar_identification, compare  # noqa: E402

@@ -115,6 +115,7 @@ def test_export_bad_path_and_factor_are_one_line_errors(tmp_path):
         export.export_from_args(args, res)
 
 
+@pytest.mark.slow
 def test_allan_command_writes_exports_and_keeps_json_clean(tmp_path):
     """`gyrodenoise allan IN --json --kalibr-yaml --matlab`: files written, the
     Kalibr density equals the JSON's N converted by hand, stdout one JSON object."""

@@ -162,6 +162,7 @@ def _highres_tlog(path, fs=400.0, n=8000, seed=5):
     path.write_bytes(bytes(out))
 
 
+@pytest.mark.slow
 def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
     from gyrodenoise.mavlink.process import process_log
     path = tmp_path / "tones.tlog"
@@ -212,6 +213,7 @@ PEAK_FIELDS = {"freq_hz", "amplitude_rms", "amplitude_deg_s_rms", "harmonic_of_h
                "harmonics_hz", "filter_gain", "phase_delay_s", "filtered_amplitude_rms"}
 
 
+@pytest.mark.slow
 def test_log171_spectrum_fields_in_the_json_and_png(tmp_path):
     """log171 (50 Hz): a spectrum, a spectrogram (4 min) and the filter's measured
     response per stream; its broadband vibration has no peak 6 dB above the floor,

@@ -56,6 +56,7 @@ def test_allan_json_contract(sim_csv):
     assert d["terms"]["N"] == pytest.approx(0.006, rel=0.1)
 
 
+@pytest.mark.slow
 def test_compare_json_contract(sim_csv):
     path, _ = sim_csv
     code, out, err = run_cli("compare", path, "--json")
@@ -67,6 +68,7 @@ def test_compare_json_contract(sim_csv):
     assert d["rows"]["shakf"]["N"] < d["rows"]["raw"]["N"]
 
 
+@pytest.mark.slow
 def test_demo_json_quick(tmp_path):
     code, out, err = run_cli("demo", "--hours", "0.05", "--dynamic-s", "20", "--json", "--out", tmp_path)
     assert code == 0, err

@@ -5,11 +5,13 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 import gyrodenoise as gd
 from gyrodenoise.cli import main
 
 
+@pytest.mark.slow
 def test_entry_output_equals_in_process_main(tmp_path):
     rec = gd.simulate("paper_fog", 20_000, seed=11)
     src = tmp_path / "in.csv"

@@ -153,8 +153,8 @@ def test_constants_mirror_kernels():
         assert C.layout_total(n) == K.layout(n)[6]
 
 
-@pytest.mark.parametrize("lam", [1.0, 0.98])
-@pytest.mark.parametrize("sigma", [0.0, 3.0, 5.0])
+@pytest.mark.parametrize("lam", [1.0, pytest.param(0.98, marks=pytest.mark.slow)])     # quick tier: lam 1,
+@pytest.mark.parametrize("sigma", [0.0, pytest.param(3.0, marks=pytest.mark.slow), 5.0])  # gate off and on
 @pytest.mark.parametrize("method", sorted(K.METHODS))
 def test_c_equals_python_every_method_order(method, sigma, lam):
     for n in range(1, 7):
@@ -167,6 +167,7 @@ def test_c_equals_python_every_method_order(method, sigma, lam):
         assert_close(ref_s, s, scale, "run state")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", sorted(K.METHODS))
 def test_seeded_random_long(method):
     """A long, plain record (converged filter, gate active, lam < 1)."""
@@ -322,6 +323,7 @@ def test_restart_equals_python():
     assert list(sc) == s
 
 
+@pytest.mark.slow
 @settings(derandomize=True, deadline=None, database=None, max_examples=400)
 @given(method=st.sampled_from(sorted(K.METHODS)), n=st.integers(1, 6),
        sigma=st.sampled_from([0.0, 2.0, 3.0, 5.0]), lam=st.sampled_from([1.0, 0.999, 0.95]),

@@ -10,6 +10,8 @@ from gyrodenoise.core import kernels as K
 from gyrodenoise.core.batch import run
 from tests.helpers import SHARED_DATA
 
+pytestmark = pytest.mark.slow          # every shared real log through the bridge's readers
+
 LOGS = SHARED_DATA / "logs"
 FILES = sorted(LOGS.glob("*")) if LOGS.is_dir() else []
 

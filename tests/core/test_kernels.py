@@ -195,6 +195,7 @@ def test_gate_off_is_the_papers_filter():
     assert s[K.S_NREJ] == 0 and s[K.S_NREOPEN] == 0
 
 
+@pytest.mark.slow
 def test_gate_on_real_imu4_outliers():
     """The real ADIS16405 imu4 record (100 Hz) around its outliers: with the gate
     the output within 5 s after each outlier stays within 0.01 deg/s of the

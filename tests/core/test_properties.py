@@ -10,12 +10,15 @@ such values (tests/corpus).
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from gyrodenoise.core import kernels as K
 from gyrodenoise.core.batch import run
 from gyrodenoise.io.recording import ABSURD_RATE_DEG_S
+
+pytestmark = pytest.mark.slow          # hypothesis searches (bounded, derandomized)
 
 SETTINGS = dict(derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -597,7 +597,7 @@ def test_model_description_declares_units_default_experiment_and_bounds(fmu_dir)
 def test_non_positive_or_nan_step_size_is_refused(fmu_dir, name, bad_step):
     """FMI 2.0 requires communicationStepSize > 0: refused with a logged reason
     (fmi2Discard, pythonfmu's only non-fatal refusal), the state unchanged (a
-    NaN step used to pass the size check and be processed as a sample)."""
+    NaN step is not processed as a sample)."""
     from fmpy.fmi1 import FMICallException
     a = _inst(fmu_dir, name)
     inp, out = ("raw_rate", "filtered_rate") if name == "FogDenoiser" else ("true_rate", "measured_rate")

@@ -355,7 +355,7 @@ def test_unusable_card_values_and_seed_refused(built, md, every_term_card):
 
 
 def test_second_use_in_a_process_after_the_first_unzip_folder_is_gone(built, md, vr, tmp_path):
-    """SimulatedFog.fmu's issue-22 defect, checked on the native one: each instance reads
+    """A second instance in a process, after the first one's unzip folder is gone: each instance reads
     the bundled card from its own resources."""
     ref = gd.simulate("paper_fog", 200, seed=3).rate_deg_s
     for k in range(2):

@@ -12,7 +12,6 @@ from gyrodenoise.mavlink.process import process_many
 from gyrodenoise.cli import main
 from tests.helpers import DATA
 
-pytestmark = pytest.mark.slow          # a Dask LocalCluster started per test
 
 LOGS = [DATA / "ardusub_small.BIN", DATA / "fs-batt.log.tlog", DATA / "plane_truncated_test.BIN"]
 distributed = pytest.importorskip("distributed", reason="Dask distributed not installed (extra 'cluster')")
@@ -32,6 +31,7 @@ def _files(folder):
             if p.is_file() and p.name not in ("summary.json",) and not p.name.startswith("fleet.")}
 
 
+@pytest.mark.slow
 def test_cluster_outputs_are_byte_identical_and_a_bad_log_fails_alone(cluster, tmp_path, capsys):
     bad = tmp_path / "junk.bin"
     bad.write_bytes(b"\xa3\x95 not a log at all")
@@ -117,6 +117,7 @@ def test_largest_input_first_and_results_in_input_order(tmp_path):
     assert [r["file"] for r in summary["logs"]] == [str(p) for p in logs]
 
 
+@pytest.mark.slow
 def test_file_urls_in_and_out_through_the_cli(cluster, tmp_path, capsys):
     """file:// URLs (the local filesystem through fsspec) for the inputs, a folder
     of logs among them, and for the output folder: the same bytes as local paths."""
@@ -138,6 +139,7 @@ def test_file_urls_in_and_out_through_the_cli(cluster, tmp_path, capsys):
         assert a[name] == b[name], name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("greeting", [None, b"\xff" * 64 + b"HTTP/1.1 400 Bad Request\r\n\r\n"])
 def test_a_port_that_is_not_a_scheduler_gives_one_line(tmp_path, capsys, monkeypatch, greeting):
     """A dashboard or other server port: the Dask client would wait for its handshake
@@ -172,6 +174,7 @@ def test_a_port_that_is_not_a_scheduler_gives_one_line(tmp_path, capsys, monkeyp
     assert code == 2 and len(err) == 1 and "--scheduler" in err[0] and "Traceback" not in err[0], err
 
 
+@pytest.mark.slow
 def test_relative_paths_are_the_callers_not_the_workers(cluster, tmp_path, capsys, monkeypatch):
     """Workers have their own working directory: relative inputs and -o are sent
     absolute, and the summary speaks of them as the caller wrote them."""
@@ -191,6 +194,7 @@ def test_relative_paths_are_the_callers_not_the_workers(cluster, tmp_path, capsy
     assert a and a == b
 
 
+@pytest.mark.slow
 def test_a_wrong_scheduler_writes_nothing(tmp_path, capsys):
     """Bad input writes nothing: the scheduler is reached before the output folder is made."""
     out = tmp_path / "never"

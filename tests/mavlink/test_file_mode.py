@@ -147,9 +147,9 @@ def test_truncated_dataflash_processed_up_to_the_cut(tmp_path):
 
 
 # ------------------------------------------------------------ tlog
-@pytest.mark.slow
-@pytest.mark.parametrize("name,local", [("fs-batt.log.tlog", True), ("ardusub_bad_data.tlog", False),
-                                        ("sitl_copter_reboot.tlog", False), ("apm2_2013-10-13_18-31-24.tlog", False)])
+@pytest.mark.parametrize("name,local", [("fs-batt.log.tlog", True)] + [
+    pytest.param(name, False, marks=pytest.mark.slow)           # the shared logs: seconds each
+    for name in ("ardusub_bad_data.tlog", "sitl_copter_reboot.tlog", "apm2_2013-10-13_18-31-24.tlog")])
 def test_tlog_framer_matches_pymavlink(name, local):
     path = DATA / name if local else shared_log(name)
     data, fr, streams = tlog.read(path)
@@ -512,7 +512,7 @@ def test_batch_sampler_bursts_parsed_filtered_and_written_back(tmp_path):
         expected = np.clip(np.rint(f * mul), -32768, 32767)
         assert np.abs(v2 - expected).max() <= 1 and np.mean(v2 != expected) < 1e-3
     # the filter did run (the default motion bank follows these 2 kHz bursts closely: 2.2 % of
-    # the integer samples change; the issue-12 filter changed > 20 %)
+    # the integer samples change; the paper's SHAKF changes > 20 %)
     assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.01
 
 

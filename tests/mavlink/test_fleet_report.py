@@ -83,7 +83,7 @@ def test_density_equals_welch_on_white_noise():
 
 
 def test_density_of_a_real_static_log_equals_welch():
-    """The disarmed copter log of the issue (IMU[0]: 0.00463 printed, Welch
+    """A disarmed copter log (IMU[0]: 0.00463 printed, Welch
     0.0058-0.0066): the fleet's density per axis within 15 % of Welch's above 2 Hz."""
     from gyrodenoise.mavlink import dataflash
     from gyrodenoise.mavlink.streams import detect_restarts

@@ -22,7 +22,6 @@ import pytest
 import gyrodenoise as gd
 from tests.helpers import DATA, SHARED_DATA
 
-pytestmark = pytest.mark.slow          # real tlogs replayed over loopback UDP/TCP, with bounded waits
 
 SHARED_LOGS = SHARED_DATA / "logs"
 R2D = 180.0 / math.pi
@@ -224,6 +223,7 @@ def test_live_replay_fs_batt_forwards_everything(tmp_path):
     assert len(csv) == 27
 
 
+@pytest.mark.slow
 def test_live_tcp_link(tmp_path):
     """The same over a TCP link (``tcp:`` connection string, the bridge connects).
     --causal is accepted on a live link (it is what a live link does anyway) and
@@ -235,6 +235,7 @@ def test_live_tcp_link(tmp_path):
     assert rep["form"] == "causal" and rep["method"] == "motion"
 
 
+@pytest.mark.slow
 @pytest.mark.slow
 def test_live_replay_copter_reboot_forwards_slow_streams_raw_and_restarts(tmp_path):
     """Real ArduCopter 4.1 tlog with three boot sessions: the first 6000 messages carry
@@ -256,6 +257,7 @@ def test_live_replay_copter_reboot_forwards_slow_streams_raw_and_restarts(tmp_pa
         assert ev[0]["previous_time_s"] > 190 and ev[0]["time_s"] < 40
 
 
+@pytest.mark.slow
 def test_live_link_that_cannot_open_exits_2(tmp_path):
     port = free_port()                    # nothing listens there
     r = subprocess.run(gyrodenoise_cmd() + ["mavlink", f"tcp:127.0.0.1:{port}", "--json", "--duration", "5",
@@ -324,6 +326,7 @@ def _scaled_imu2_packets(n=600, rate_hz=50.0, seed=21):
             for ti, gi in zip(t, g)]
 
 
+@pytest.mark.slow
 def test_live_replay_of_a_fast_stream_is_the_batch_denoiser(tmp_path):
     """A stream fast enough to denoise (50 Hz) is filtered live, sample by sample, and
     what comes back equals the core's batch denoiser on the same samples and restarts."""
@@ -334,6 +337,7 @@ def test_live_replay_of_a_fast_stream_is_the_batch_denoiser(tmp_path):
     assert not rep["streams"][0]["too_slow_to_denoise"] and n_changed > 500
 
 
+@pytest.mark.slow
 def test_live_replay_with_max_motion_hz_is_the_batch_denoiser_with_it(tmp_path):
     """--max-motion-hz on a live link: the 50 Hz stream filtered sample by
     sample with the rigid-body low-pass equals gd.denoise(..., max_motion_hz=10) on the same

@@ -160,6 +160,7 @@ def test_plot_of_a_log_whose_time_goes_back_labels_restarts_with_boot_time(tmp_p
 
 
 # ------------------------------------------------------------ item 10
+@pytest.mark.slow
 def test_ulog_summary_has_no_dash_for_unreadable_records(tmp_path):
     status, out, _ = _main(shared_log("px4_sample.ulg"), "-o", tmp_path, "--no-plots", "--no-csv")
     first = out.splitlines()[0]

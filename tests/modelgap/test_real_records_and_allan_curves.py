@@ -248,8 +248,8 @@ def test_rlg_x_converges_from_an_empty_card_with_base_motion_and_dither_lines_ou
     are taken out; the bias is within the Earth's horizontal rate at the log's latitude
     (12.43 deg/h) + 0.5 deg/h.
 
-    Before the tail rule (spectral.bump_tail_end) the band ended at 8.09 Hz and the PSD
-    component stayed above its own threshold (4.05 against 3.16 at 6.67-8.3 Hz, the
+    Without the tail rule (spectral.bump_tail_end) the band ends at 8.09 Hz and the PSD
+    component stays above its own threshold (4.05 against 3.16 at 6.67-8.3 Hz, the
     band's edge): gap below the threshold, within_scatter false. Evidence
     (``.venv/bin/python benchmarks/gap_edge.py rlg --sets 4 --axis x``, seed sets 1-6,
     11-16, 21-26, 31-36): within_scatter in 4/4 (docs/GAP.md)."""
@@ -509,8 +509,7 @@ def test_shipped_card_against_its_published_curve(card, sensor, unit):
 def test_ln200_curve_needs_the_angle_gauss_markov_terms(monkeypatch):
     """The LN-200 curve (22 taus, bounds of 0.07-0.2 % at 5-40 ms): fit_curve's exact model
     is inside the 95 % bounds at every tau with angle Gauss-Markov terms (and one line), and
-    outside somewhere when the dictionary of those terms is emptied (the fit of the
-    previous cards: outside at 9 taus)."""
+    outside somewhere when the dictionary of those terms is emptied (outside at 9 taus)."""
     from gyrodenoise.modelgap import curve as cv
     from gyrodenoise.modelgap import spectral as sp
     curve = cv.read_allan_curve(shared_file(*CURVES), "LN200", "Gyro. X", "rad/s")

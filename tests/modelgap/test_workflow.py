@@ -407,7 +407,7 @@ def test_cli_bad_input_one_line_exit_2(tmp_path, case):
         out = tmp_path / "no" / "such" / "new.toml"
     elif case == "too_short":
         _write_csv(meas, np.random.default_rng(5).standard_normal(500) * 0.01)
-    elif case == "constant":        # zero variance: log(0) PSD, inf gap before the fix
+    elif case == "constant":        # zero variance: a log(0) PSD, an infinite gap
         _write_csv(meas, np.full(8192, 0.01))
     elif case == "card_line_above_record_nyquist":     # 80 Hz line: fine at 200 Hz, not at 100 Hz
         card.write_text(CARD200)

@@ -135,7 +135,7 @@ def test_bad_cards_get_one_line(text, needle):
 
 
 def test_restarts_must_be_one_bool_per_sample():
-    """restarts given as indices ([3, 7]) used to be read as booleans for the first samples."""
+    """restarts given as indices ([3, 7]) are refused, not read as booleans for the first samples."""
     import gyrodenoise as gd
     from gyrodenoise.errors import InputError
     with pytest.raises(InputError, match="one bool per sample"):
