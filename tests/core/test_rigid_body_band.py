@@ -263,6 +263,7 @@ def test_cli_says_where_the_low_pass_really_cuts_and_blames_no_absent_filter(tmp
     assert "isolated spike" in err and "SHAKF's outlier gate" not in err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,named", [
     (["--max-motion-hz", "nan"], "--max-motion-hz"), (["--max-motion-hz", "inf"], "--max-motion-hz"),
     (["--max-motion-hz", "-1"], "--max-motion-hz"), (["--max-motion-hz", "250"], "--max-motion-hz"),

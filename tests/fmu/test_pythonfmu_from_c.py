@@ -103,6 +103,7 @@ def _sim_input(n=1500):
 
 
 # ------------------------------------------------------------ outputs
+@pytest.mark.slow
 def test_fogdenoiser_from_c_equals_denoise(fmus, host):
     z = gd.simulate("paper_fog", 1500, seed=4, true_rate_deg_s=1.0).rate_deg_s
     rs = np.zeros(len(z), dtype=bool)
@@ -132,6 +133,7 @@ def _uri_forms(d):
     }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("form", ["file:///path", "file:///path/", "file:////path", "plain path"])
 @pytest.mark.parametrize("name", list(F.FMUS))
 def test_resource_uri_forms_that_work(fmus, host, name, form):
@@ -297,6 +299,7 @@ print("ok")
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,inp,out", [("SimulatedFog", "true_rate", "measured_rate"),
                                           ("FogDenoiser", "raw_rate", "filtered_rate")])
 def test_usable_after_repeated_fatal(fmus, name, inp, out):

@@ -187,6 +187,7 @@ def run_cli(*args):
     ["compare", REC / "binary.csv"],
     ["demo", "--model", CARDS / "unknown_term.toml"],
 ])
+@pytest.mark.slow
 def test_real_entry_point_exits_2_without_traceback(argv):
     code, out, err = run_cli(*argv)
     assert code == 2 and out == "" and "Traceback" not in err

@@ -529,6 +529,7 @@ def test_ln200_curve_needs_the_angle_gauss_markov_terms(monkeypatch):
      "line 2: the bounds do not enclose"),
     ("", "empty Allan curve file"),
 ])
+@pytest.mark.slow
 def test_bad_allan_curve_is_one_line_exit_2_nothing_written(tmp_path, content, msg):
     p = tmp_path / "bad.csv"
     p.write_text(content)
