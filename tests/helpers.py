@@ -1,6 +1,8 @@
 """Helpers shared by the tests of every area: where the repository, the test data and the
 third-party data live (skipping without the latter), the command line in this process and
 in a subprocess, and running a program under wine. Fixtures are in tests/conftest.py."""
+import contextlib
+import io
 import os
 import subprocess
 import sys
@@ -64,6 +66,20 @@ def run_wine(cmd, input=None, env=None, timeout=180):
 
 #: the warnings a Python process prints with its default filters (all but these categories)
 SILENT_BY_DEFAULT = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
+
+
+def run_main(*args):
+    """``gyrodenoise ARGS`` run by gyrodenoise.cli in this process, sys.stdout and sys.stderr
+    redirected (what Python writes): (exit status, stdout, stderr); argparse's own errors
+    (SystemExit) give their exit status. ``main_in_process`` reads the file descriptors."""
+    from gyrodenoise.cli import main
+    so, se = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as exc:
+            status = exc.code
+    return status, so.getvalue(), se.getvalue()
 
 
 def main_in_process(capfd, *args):

@@ -1,21 +1,12 @@
 """allan, compare and denoise on a record that moves (a true_rate column): allan analyses
 the sensor's error (rate - true_rate), compare warns, denoise prints the RMSE against the
 true rate."""
-import contextlib
-import io
 import json
 
 import numpy as np
 import pytest
 
-
-def _cli(*args):
-    """``gyrodenoise ARGS`` in this process: (status, stdout, stderr)."""
-    from gyrodenoise.cli import main
-    so, se = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
-        status = main([*map(str, args)])
-    return status, so.getvalue(), se.getvalue()
+from tests.helpers import run_main
 
 
 def _moving_csv(path, n=12_000, fs=100.0, true_rate=True):
@@ -38,7 +29,7 @@ def test_allan_of_a_moving_record_analyses_rate_minus_true_rate(tmp_path):
     from gyrodenoise.analysis.allan import allan
     path = tmp_path / "moving.csv"
     _, still = _moving_csv(path)
-    st, out, _ = _cli("allan", path, "--json")
+    st, out, _ = run_main("allan", path, "--json")
     assert st == 0
     d = json.loads(out)
     assert d["analysed"].startswith("rate - true_rate")
@@ -46,19 +37,19 @@ def test_allan_of_a_moving_record_analyses_rate_minus_true_rate(tmp_path):
     ref = allan(still.rate_deg_s, 100.0)
     for t in ("N", "K"):
         assert d["terms"][t] == pytest.approx(ref.terms[t], rel=1e-6), t
-    st, text, _ = _cli("allan", path)
+    st, text, _ = run_main("allan", path)
     assert text.startswith("analysed: rate - true_rate")
 
 
 def test_compare_of_a_moving_record_warns(tmp_path):
     path = tmp_path / "moving.csv"
     _moving_csv(path)
-    st, out, _ = _cli("compare", path, "--json")
+    st, out, _ = run_main("compare", path, "--json")
     assert st == 0
     d = json.loads(out)
     assert any(w.startswith("the record moves") for w in d["warnings"])
     assert "rmse_deg_s" in d
-    st, text, _ = _cli("compare", path)
+    st, text, _ = run_main("compare", path)
     assert "WARNING: the record moves (true_rate" in text
 
 
@@ -68,7 +59,7 @@ def test_compare_of_a_still_record_does_not_warn(tmp_path):
     path = tmp_path / "still.csv"
     np.savetxt(path, np.column_stack([np.arange(12_000) / 100.0, rec.rate_deg_s, rec.true_rate_deg_s]),
                delimiter=",", header="time,rate,true_rate", comments="", fmt="%.12g")
-    st, out, _ = _cli("compare", path, "--json")
+    st, out, _ = run_main("compare", path, "--json")
     assert st == 0 and "warnings" not in json.loads(out)
 
 
@@ -78,7 +69,7 @@ def test_denoise_with_true_rate_prints_rmse_raw_and_filtered(tmp_path):
     path = tmp_path / "moving.csv"
     _moving_csv(path)
     out = tmp_path / "out.csv"
-    st, _, err = _cli("denoise", path, "-o", out)
+    st, _, err = run_main("denoise", path, "-o", out)
     assert st == 0
     m = re.search(r"RMSE against true_rate over (\d+) samples: raw (\S+), filtered (\S+) deg/s", err)
     assert m, err

@@ -10,8 +10,6 @@ the FMUs: tests/fmu/test_build_and_run.py and tests/fmu/test_native_denoiser.py.
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
 
@@ -21,7 +19,7 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise.core import batch
 from gyrodenoise.core import kernels as K
-from tests.helpers import DATA
+from tests.helpers import DATA, run_main
 
 FS = 400.0                 # a drone gyro's rate
 CUT_HZ = 30.0              # the stated band of interest
@@ -223,21 +221,10 @@ def vib_csv(tmp_path_factory):
     return path, z
 
 
-def _cli(*args):
-    from gyrodenoise.cli import main
-    so, se = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
-        try:
-            status = main([*map(str, args)])
-        except SystemExit as exc:           # argparse's own errors (a value that is not a number)
-            status = exc.code
-    return status, so.getvalue(), se.getvalue()
-
-
 def test_cli_applies_the_option(vib_csv, tmp_path):
     path, z = vib_csv
     out = tmp_path / "o.csv"
-    status, _, err = _cli("denoise", path, "-o", out, "--max-motion-hz", CUT_HZ, "--causal")
+    status, _, err = run_main("denoise", path, "-o", out, "--max-motion-hz", CUT_HZ, "--causal")
     assert status == 0 and "a 4th-order low-pass flat to 30 Hz, -3 dB at 60 Hz, before the filter bank" in err
     a = np.genfromtxt(out, delimiter=",", names=True)
     ref = gd.denoise(z, FS, max_motion_hz=CUT_HZ)
@@ -255,7 +242,7 @@ def test_cli_says_where_the_low_pass_really_cuts_and_blames_no_absent_filter(tmp
     path = tmp_path / "drone.csv"
     np.savetxt(path, np.column_stack([np.arange(z.size) / fs, z]), delimiter=",", header="time,rate",
                comments="", fmt="%.17g")
-    status, _, err = _cli("denoise", path, "-o", tmp_path / "o.csv", "--max-motion-hz", 20)
+    status, _, err = run_main("denoise", path, "-o", tmp_path / "o.csv", "--max-motion-hz", 20)
     assert status == 0, err
     assert K.rigid_cutoff_hz(20.0, fs) == pytest.approx(22.5)
     assert "flat to 20 Hz, -3 dB at 22.5 Hz (at most 0.45 x the sample rate" in err
@@ -288,7 +275,7 @@ def test_cli_refuses_bad_values(vib_csv, tmp_path, args, named):
     (["--max-motion-hz", "-1"], "--max-motion-hz"), (["--max-motion-hz", "abc"], "--max-motion-hz"),
     (["--max-motion-hz", "30", "--method", "lowpass"], "--max-motion-hz")])
 def test_bridge_refuses_bad_values(tmp_path, args, named):
-    status, out, err = _cli("mavlink", DATA / "ardusub_small.BIN", "-o", tmp_path / "o",
+    status, out, err = run_main("mavlink", DATA / "ardusub_small.BIN", "-o", tmp_path / "o",
                             "--no-plots", "--no-csv", *args)
     lines = err.strip().splitlines()
     assert status == 2 and len(lines) == 1 and named in lines[0], err
@@ -298,7 +285,7 @@ def test_bridge_refuses_bad_values(tmp_path, args, named):
 def test_bridge_text_summary_names_the_option(tmp_path):
     """The text summary (not only the JSON) says that --max-motion-hz was applied: the
     "filtered log:" line said only "(method motion; ...)"."""
-    status, out, err = _cli("mavlink", DATA / "ardusub_small.BIN", "-o", tmp_path / "a",
+    status, out, err = run_main("mavlink", DATA / "ardusub_small.BIN", "-o", tmp_path / "a",
                             "--max-motion-hz", "5", "--no-plots", "--no-csv")
     assert status == 0, err
     line = [ln for ln in out.splitlines() if "filtered log:" in ln]
@@ -310,7 +297,7 @@ def test_bridge_applies_the_option_and_says_so(tmp_path):
     the JSON's filter_options names it; above a stream's Nyquist the stream is written raw
     with the reason (ardusub_small.BIN's gyro is at 25 Hz)."""
     log = DATA / "ardusub_small.BIN"
-    status, out, _ = _cli("mavlink", log, "-o", tmp_path / "a", "--max-motion-hz", "5", "--causal",
+    status, out, _ = run_main("mavlink", log, "-o", tmp_path / "a", "--max-motion-hz", "5", "--causal",
                           "--no-plots", "--json")
     assert status == 0
     rep = json.loads(out)["logs"][0]
@@ -324,7 +311,7 @@ def test_bridge_applies_the_option_and_says_so(tmp_path):
         close = np.abs(a[f"filtered_{ax}"] - ref) <= 1e-6 * (1 + np.abs(ref))
         assert close.mean() > 0.99, ax
         assert np.max(np.abs(ref - default)) > 1e-3, ax        # the option changed the output
-    status, out, _ = _cli("mavlink", log, "-o", tmp_path / "b", "--max-motion-hz", "15", "--no-plots",
+    status, out, _ = run_main("mavlink", log, "-o", tmp_path / "b", "--max-motion-hz", "15", "--no-plots",
                           "--no-csv", "--json")
     assert status == 0
     s = json.loads(out)["logs"][0]["streams"][0]

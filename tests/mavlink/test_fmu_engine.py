@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,14 +19,9 @@ from gyrodenoise.mavlink import dataflash
 from gyrodenoise.mavlink.engines import FmuEngine, NativeEngine
 from gyrodenoise.mavlink.process import process_log
 from gyrodenoise.mavlink.streams import detect_restarts
-from tests.helpers import DATA, SHARED_DATA
+from tests.helpers import DATA, SHARED_DATA, gyrodenoise_cmd
 
 SHARED_LOGS = SHARED_DATA / "logs"
-
-
-def gyrodenoise_cmd():
-    exe = Path(sys.executable).with_name("gyrodenoise")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "gyrodenoise.cli"]
 
 
 @pytest.fixture(scope="module")

@@ -11,26 +11,20 @@ import json
 import math
 import socket
 import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import gyrodenoise as gd
-from tests.helpers import DATA, SHARED_DATA
+from tests.helpers import DATA, SHARED_DATA, gyrodenoise_cmd
+from tests.mavlink.references import ref_restarts
 
 
 SHARED_LOGS = SHARED_DATA / "logs"
 R2D = 180.0 / math.pi
 GYRO = ("RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3", "HIGHRES_IMU")
-
-
-def gyrodenoise_cmd():
-    exe = Path(sys.executable).with_name("gyrodenoise")
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "gyrodenoise.cli"]
 
 
 def free_port():
@@ -148,16 +142,6 @@ def replay(packets, sample_rate, out_dir, timeout=90.0, transport="udp", extra=(
     th.join(timeout=5)
     assert proc.returncode == 0, "".join(err_lines)
     return received, json.loads(stdout), "".join(err_lines)
-
-
-def ref_restarts(t, factor=5.0):
-    dt = np.diff(np.asarray(t, dtype=float))
-    med = np.median(dt[dt > 0])
-    r = np.zeros(len(t), dtype=bool)
-    r[1:] = (dt < 0) | (dt > factor * med)
-    if len(t) > 1:
-        r[1] = dt[0] < 0
-    return r
 
 
 def check_forwarded(sent, received, rep, sample_rate, **denoise_kw):

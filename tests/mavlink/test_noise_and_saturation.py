@@ -4,8 +4,6 @@ gyro's full scale, the wording of a one-byte cut. (allan / compare / denoise on 
 record: tests/cli/test_moving_records.py.)"""
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 
 import numpy as np
@@ -14,17 +12,13 @@ import pytest
 from gyrodenoise.mavlink import process
 from gyrodenoise.mavlink.streams import GyroStream
 from gyrodenoise.analysis import motion_metrics as mm
-from tests.helpers import DATA, shared_log
+from tests.helpers import DATA, run_main, shared_log
 from tests.mavlink.references import by_name
 
 
 def _main(*args):
     """``gyrodenoise mavlink ARGS`` in this process: (status, stdout, stderr)."""
-    from gyrodenoise.cli import main
-    so, se = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
-        status = main(["mavlink", *map(str, args)])
-    return status, so.getvalue(), se.getvalue()
+    return run_main("mavlink", *args)
 
 
 def _stream_report(x_deg_s, fs, name="IMU[0]"):

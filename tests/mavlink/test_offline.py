@@ -12,9 +12,7 @@ depends on its whole session and on nothing outside it); the causal form as
 """
 from __future__ import annotations
 
-import contextlib
 import functools
-import io
 import json
 import math
 
@@ -24,7 +22,7 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise.denoiser import Denoiser
 
-from tests.helpers import DATA, shared_log
+from tests.helpers import DATA, run_main, shared_log
 from tests.mavlink.references import by_name, df_reference, ref_restarts
 
 pytestmark = pytest.mark.slow          # real logs filtered whole, offline and causal
@@ -35,11 +33,7 @@ LOG = "log171.bin"          # real ArduCopter log: 3 IMUs, a 2 s gap (restart) i
 
 def _main(*args):
     """``gyrodenoise mavlink ARGS`` in this process: (status, stdout, stderr)."""
-    from gyrodenoise.cli import main
-    so, se = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
-        status = main(["mavlink", *map(str, args)])
-    return status, so.getvalue(), se.getvalue()
+    return run_main("mavlink", *args)
 
 
 def _sessions(restarts):

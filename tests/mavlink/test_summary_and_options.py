@@ -4,25 +4,19 @@ the summary's rate and records. (Interruption: test_stop_signals.py; the fleet r
 test_fleet_report.py; slow streams written raw bit for bit: test_file_mode.py.)"""
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 
 import numpy as np
 import pytest
 
 from gyrodenoise.mavlink import process
-from tests.helpers import DATA, shared_log
+from tests.helpers import DATA, run_main, shared_log
 from tests.mavlink.references import by_name
 
 
 def _main(*args):
     """``gyrodenoise mavlink ARGS`` in this process: (status, stdout, stderr)."""
-    from gyrodenoise.cli import main
-    so, se = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
-        status = main(["mavlink", *map(str, args)])
-    return status, so.getvalue(), se.getvalue()
+    return run_main("mavlink", *args)
 
 
 # ------------------------------------------------------------ item 4
