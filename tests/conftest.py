@@ -1,42 +1,100 @@
-"""Shared test helpers: where the third-party data lives, and skipping without it; the
-session's FMU build; running a program under wine; the CLI in this process."""
-import os
+"""Fixtures shared by the tests of every area: the session's FMU build (pythonfmu and native
+FMUs, built once, started in the background as soon as the tests to run are known). Plain
+helpers are in tests/helpers.py."""
+import shutil
 import subprocess
 import sys
 import tempfile
-import warnings
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-# ../shared/data beside the repository, or the folder named by GYRODENOISE_SHARED_DATA
-SHARED_DATA = Path(os.environ.get("GYRODENOISE_SHARED_DATA") or REPO.parent / "shared" / "data")
+NATIVE_REPORT_PREFIX = "gyrodenoise: native "      # the stderr lines of `fmu build` (gyrodenoise/cli/fmu.py)
+#: fixtures whose setup builds FMUs (tens of seconds): a test that uses one is in the slow tier
+FMU_BUILD_FIXTURES = frozenset({"fmu_build", "native_build"})
+BUILD_TIMEOUT_S = 300
 
 
-def shared_file(*parts):
-    """Path of a file in the shared data (SHARED_DATA), or skip the test with a reason."""
-    p = SHARED_DATA.joinpath(*parts)
-    if not p.exists():
-        pytest.skip(f"third-party data not present: {p} (licence forbids copying it into the repo)")
-    return p
+class FmuBuild:
+    """`gyrodenoise fmu build --out DIR` started in a subprocess; :meth:`result` waits for it.
+    stdout and stderr go to files in DIR's parent (a pipe nobody reads could stall the build)."""
+
+    def __init__(self, out):
+        self.out = Path(out)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self._stdout = open(self.out.parent / "fmu_build.stdout", "w+")
+        self._stderr = open(self.out.parent / "fmu_build.stderr", "w+")
+        self.args = [sys.executable, "-m", "gyrodenoise.cli", "fmu", "build", "--out", str(self.out)]
+        self.proc = subprocess.Popen(self.args, stdout=self._stdout, stderr=self._stderr, text=True)
+        self._result = None
+
+    def result(self):
+        """(folder, CompletedProcess) once the build has exited (killed after BUILD_TIMEOUT_S)."""
+        if self._result is None:
+            try:
+                self.proc.wait(timeout=BUILD_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+                raise
+            self._stdout.seek(0)
+            self._stderr.seek(0)
+            self._result = (self.out, subprocess.CompletedProcess(self.args, self.proc.returncode,
+                                                                   self._stdout.read(), self._stderr.read()))
+        return self._result
+
+    def close(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        self._stdout.close()
+        self._stderr.close()
 
 
-NATIVE_REPORT_PREFIX = "gyrodenoise: native "      # the stderr lines of `fmu build` (fmu/cli.py _cmd_build)
+BACKGROUND_BUILD = pytest.StashKey[FmuBuild]()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Mark ``slow`` every test that needs the session's FMU build, so that the quick tier
+    (``pytest -m "not slow"``) never builds an FMU (tryfirst: before -m deselects)."""
+    for item in items:
+        if FMU_BUILD_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
+
+
+def pytest_collection_finish(session):
+    """When a test to run needs the FMU build, start it now: it then runs beside the tests
+    that come before its first user (the build is mostly compilers, ~35 s)."""
+    if session.config.option.collectonly:
+        return
+    if any(FMU_BUILD_FIXTURES & set(getattr(item, "fixturenames", ())) for item in session.items):
+        folder = Path(tempfile.mkdtemp(prefix="gyrodenoise-fmu-build-"))
+        session.config.stash[BACKGROUND_BUILD] = FmuBuild(folder / "fmus")
+
+
+def pytest_sessionfinish(session):
+    build = session.config.stash.get(BACKGROUND_BUILD, None)
+    if build is not None:
+        build.close()
+        shutil.rmtree(build.out.parent, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
-def fmu_build(tmp_path_factory):
+def fmu_build(request, tmp_path_factory):
     """`gyrodenoise fmu build --out DIR` run once per session in a subprocess: the pythonfmu
     FMUs (FogDenoiser, SimulatedFog) and the native ones (FogDenoiserNative, SimulatedFogNative,
     every platform a compiler is found for); (folder, CompletedProcess). Each user checks the
-    exit status its own way (tests/test_fmu.py asserts it, tests/test_bridge_fmu.py skips).
+    exit status its own way (tests/fmu/test_build_and_run.py asserts it, tests/mavlink/test_fmu_engine.py
+    skips).
     One build serves every test that needs a built FMU: it is the suite's costliest setup
-    (~35 s, three native platforms x two models) and was run three times."""
-    out = tmp_path_factory.mktemp("fmus")
-    proc = subprocess.run([sys.executable, "-m", "gyrodenoise.cli", "fmu", "build", "--out", str(out)],
-                          capture_output=True, text=True, timeout=300)
-    return out, proc
+    (~35 s, three native platforms x two models), started when the session's tests are known
+    (pytest_collection_finish), or here."""
+    build = request.config.stash.get(BACKGROUND_BUILD, None)
+    if build is None:
+        build = FmuBuild(tmp_path_factory.mktemp("fmu_build") / "fmus")
+        request.addfinalizer(build.close)
+    return build.result()
 
 
 @pytest.fixture(scope="session")
@@ -63,40 +121,3 @@ def native_build(fmu_build, tmp_path_factory):
     except InputError as exc:
         pytest.skip(f"native FMU not buildable here: {exc}")
     return out, report
-
-
-def run_wine(cmd, input=None, env=None, timeout=180):
-    """``subprocess.run(cmd, input=input, capture_output=True, text=True, env=env, timeout=timeout)``
-    for a program run under wine, with stdout and stderr caught in temporary files instead of
-    pipes. The wineserver that a wine client starts inherits the client's stdout and stderr and
-    stays ~3 s after the last client exits (its default persistence), so a pipe reader waits
-    those 3 s for end-of-file on every run (measured: 2.9 s a run with pipes, 0.7 s with files,
-    tests/chost/host.c under wine, 2400 samples); a file is read once the program has exited."""
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        proc = subprocess.run(cmd, input=input, stdout=out, stderr=err, text=True, env=env, timeout=timeout)
-        out.seek(0)
-        err.seek(0)
-        return subprocess.CompletedProcess(proc.args, proc.returncode, out.read(), err.read())
-
-
-#: the warnings a Python process prints with its default filters (all but these categories)
-SILENT_BY_DEFAULT = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
-
-
-def main_in_process(capfd, *args):
-    """``gyrodenoise ARGS`` run by gyrodenoise.cli in this process: (exit status,
-    stdout, stderr). Read at the file descriptors (capfd: C-level writes too); a warning that
-    a process of its own would print (default filters) is a line of stderr; an exception is
-    a traceback and fails the caller."""
-    from gyrodenoise.cli import main
-    capfd.readouterr()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            status = main([str(a) for a in args])
-        except SystemExit as exc:           # argparse errors leave with sys.exit(2)
-            status = exc.code
-    out, err = capfd.readouterr()
-    err += "".join(f"{w.category.__name__}: {w.message}\n" for w in caught
-                   if not issubclass(w.category, SILENT_BY_DEFAULT))
-    return status, out, err

@@ -1,6 +1,6 @@
 /*
  * chain.c -- the simulated gyro -> denoiser chain from plain C: two native FMUs, no
- * Python anywhere (tests/test_fmu_chain.py, issue 22).
+ * Python anywhere (tests/fmu/test_c_chain.py).
  *
  *   chain FOG_DIR DEN_DIR [options] < inputs   one line per sample: "true_rate [restart]";
  *                                              writes CSV on stdout:

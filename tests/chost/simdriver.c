@@ -1,6 +1,6 @@
 /*
  * simdriver.c -- runs the simulated gyro of gyrodenoise/core/gdsim.c from plain C
- * (tests/test_gdsim.py: the same numbers on linux64 and on win64 under wine as the
+ * (tests/simulator/test_c_simulator_equals_python.py: the same numbers on linux64 and on win64 under wine as the
  * plain-Python specification; the steps/s of the model).
  *
  *   simdriver SEED N [bench] < card_vector     card vector: the 125 numbers of

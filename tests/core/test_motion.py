@@ -1,0 +1,325 @@
+"""method="motion" on seeded ground-truth profiles: the goal's
+properties, not timing. References: the true rate of the simulation and the
+specialists (raw, 1st-order LP 20 Hz, Butterworth-2 30 Hz, kf, shakf) run on
+the same record."""
+
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from gyrodenoise.core import kernels as K
+from benchmarks import reference_filters as RF
+from benchmarks.profiles import PROFILES
+from tests.helpers import SHARED_DATA
+
+SENSORS = {"fog": ("paper_fog", 200.0, 5.0), "mems": ("icm20602", 1000.0, 20.0)}
+SKIP_S = 2.0
+LOGS = SHARED_DATA / "logs"
+
+
+def record(profile, sensor, seconds, seed=1):
+    card, fs, rms = SENSORS[sensor]
+    n = int(seconds * fs)
+    kw = {"rms_deg_s": rms} if profile in ("smooth", "sine_0p2hz", "sine_1hz", "sine_5hz",
+                                           "rest_manoeuvre_rest") else {}
+    truth = PROFILES[profile](n, fs, seed=seed, **kw)
+    z = gd.simulate(card, n, seed=seed + 100, true_rate_deg_s=truth).rate_deg_s
+    return np.asarray(z, float), truth, fs
+
+
+def rmse(y, x, fs):
+    i = int(SKIP_S * fs)
+    return float(np.sqrt(np.mean((y[i:] - x[i:]) ** 2)))
+
+
+def specialists(z, fs):
+    return {"raw": z, "lp20": RF.lowpass1(z, fs, 20.0)[0],
+            "bw30": gd.denoise(z, fs, method="lowpass", cutoff_hz=30.0, order=2),
+            "kf": gd.denoise(z, fs, method="kf"), "shakf": gd.denoise(z, fs, method="shakf")}
+
+
+def test_motion_is_the_default():
+    assert K.DEFAULT_METHOD == "motion"
+    z, _, fs = record("smooth", "mems", 5.0)
+    np.testing.assert_array_equal(gd.denoise(z, fs), gd.denoise(z, fs, method="motion"))
+
+
+@pytest.mark.parametrize("sensor", ["fog", "mems"])
+def test_at_rest_it_averages_at_least_5x_below_raw(sensor):
+    z, x, fs = record("at_rest", sensor, 60.0)
+    y = gd.denoise(z, fs, method="motion")
+    assert rmse(y, x, fs) * 5.0 <= rmse(z, x, fs)
+    # and within 2x of the paper's SHAKF, the specialist at rest
+    assert rmse(y, x, fs) <= 2.0 * rmse(gd.denoise(z, fs, method="shakf"), x, fs)
+
+
+@pytest.mark.parametrize("sensor", ["fog", "mems"])
+@pytest.mark.parametrize("profile", ["steps", "smooth", "sine_1hz", "sine_5hz", "rest_manoeuvre_rest"])
+def test_moving_profiles_below_raw_and_within_2x_of_the_best(sensor, profile):
+    z, x, fs = record(profile, sensor, 20.0)
+    y = gd.denoise(z, fs, method="motion")
+    e = rmse(y, x, fs)
+    spec = {m: rmse(v, x, fs) for m, v in specialists(z, fs).items()}
+    assert e < spec["raw"], (e, spec)
+    assert e <= 2.0 * min(spec.values()), (e, spec)
+
+
+def test_a_step_is_followed_in_the_same_sample():
+    card, fs, _ = SENSORS["fog"]
+    n = int(20 * fs)
+    truth = np.zeros(n)
+    truth[n // 2:] = 10.0
+    z = gd.simulate(card, n, seed=5, true_rate_deg_s=truth).rate_deg_s
+    y = gd.denoise(z, fs, method="motion")
+    assert abs(y[n // 2] - 10.0) < 0.05          # noise 0.0036 deg/s: the step itself, not a lag
+    assert np.max(np.abs(y[n // 2 + 1:] - 10.0)) < 0.05
+
+
+def test_per_sample_path_equals_batch_and_restarts_reidentify():
+    z, _, fs = record("rest_manoeuvre_rest", "mems", 6.0)
+    rs = np.zeros(z.size, dtype=bool)
+    rs[3000] = True
+    batch = gd.denoise(z, fs, method="motion", restarts=rs)
+    d = gd.Denoiser(fs, method="motion")
+    plain = np.array([d.step(v, bool(r)) for v, r in zip(z, rs)])
+    np.testing.assert_allclose(plain, batch, rtol=0, atol=1e-12)
+    # after the restart: the same as a fresh filter on the rest of the record
+    np.testing.assert_allclose(batch[3000:], gd.denoise(z[3000:], fs, method="motion"), rtol=0, atol=1e-12)
+
+
+def _lowband(x, fs, band_hz=5.0):
+    from scipy.signal import butter, sosfiltfilt
+    return sosfiltfilt(butter(4, band_hz, fs=fs, output="sos"), x)
+
+
+def _streams(name):
+    from gyrodenoise.mavlink import dataflash, ulog
+    return dataflash.read(LOGS / name)[2] if name.endswith(".bin") else ulog.read(LOGS / name)[1]
+
+
+@pytest.mark.parametrize("name", ["log171.bin", "px4_sample.ulg"])
+def test_real_flight_keeps_the_low_band_motion(name):
+    """Real flights (log171.bin: Pixhawk, 50 Hz; px4_sample.ulg: PX4, 250 Hz):
+    in the 2 s windows where the vehicle moves (0-5 Hz content above 2 deg/s
+    std), the 0-5 Hz content of the output correlates >= 0.95 with the raw's
+    and keeps >= 85 % of its amplitude (the issue-12 goal)."""
+    if not (LOGS / name).is_file():
+        pytest.skip(f"../shared/data/logs/{name} absent")
+    from gyrodenoise.mavlink.streams import detect_restarts
+    checked = 0
+    for st in _streams(name):
+        detect_restarts(st)
+        x, _, _ = st.work_units()
+        fs = st.rate_hz
+        for k in range(3):
+            z = x[:, k]
+            y = gd.denoise(z, fs, method="motion", restarts=st.restarts)
+            lz, ly = _lowband(z, fs), _lowband(y, fs)
+            w = int(2 * fs)
+            moving = np.zeros(z.size, bool)
+            for i in range(0, z.size - w, w):
+                moving[i:i + w] = np.std(lz[i:i + w]) > 2.0
+            if moving.sum() < 2 * w:
+                continue
+            corr = np.corrcoef(lz[moving], ly[moving])[0, 1]
+            amp = np.std(ly[moving]) / np.std(lz[moving])
+            assert corr >= 0.95 and amp >= 0.85, (st.name, k, corr, amp)
+            checked += 1
+    assert checked >= 3
+
+
+def test_motion_reports_its_noise_estimates_and_no_ar_model():
+    """R_hat/q_hat (and the FMUs' R_hat/Q_hat outputs) are motion's own estimates:
+    R the white-noise variance of the sensor (known here: sigma 0.05 deg/s), q > 0;
+    c and phi are 0 for the methods that identify no AR model (were z_ref and 0)."""
+    rng = np.random.default_rng(7)
+    sigma = 0.05
+    z = 3.0 + sigma * rng.standard_normal(40_000)          # 200 s at 200 Hz, offset 3 deg/s
+    for method in ("motion", "lowpass"):
+        den = gd.Denoiser(sample_rate_hz=200.0, method=method)
+        for v in z:
+            den.step(float(v))
+        assert den.c == 0.0 and list(den.phi) == [0.0] * len(den.phi)
+        if method == "motion":
+            assert den.R_hat == pytest.approx(sigma ** 2, rel=0.10)
+            assert 0.0 < den.q_hat < den.R_hat and np.isfinite(den.q_hat)
+    den = gd.Denoiser(sample_rate_hz=200.0, method="shakf")    # the AR methods: unchanged meaning
+    for v in z[:5000]:
+        den.step(float(v))
+    assert den.c == pytest.approx(3.0 * (1.0 - sum(den.phi)), abs=0.05)
+
+
+def _sine_gain(y, f_hz, fs, lo):
+    t = np.arange(y.size) / fs
+    X = np.column_stack([np.sin(2 * np.pi * f_hz * t), np.cos(2 * np.pi * f_hz * t), np.ones_like(t)])[lo:]
+    c = np.linalg.lstsq(X, y[lo:], rcond=None)[0]
+    return float(np.hypot(c[0], c[1]))
+
+
+@pytest.mark.parametrize("snr, fracs", [(10.0, (0.01, 0.05, 0.15, 0.25, 0.35, 0.45)),
+                                        (3.0, (0.01, 0.05, 0.15, 0.25))])
+def test_gain_of_a_sinusoid_within_5_percent(snr, fracs):
+    """A sinusoid standing snr sigma above white noise (1 kHz, sigma
+    0.35 deg/s, seeded) keeps its amplitude within 5 %, up to 0.45 fs at 10
+    sigma (the old 4th-difference noise level erased everything above fs/4).
+    At 3 sigma it holds to 0.25 fs only (0.88 at 0.35 fs, ~0 at 0.45 fs: a
+    constant-velocity model cannot tell such a tone from noise; see the README)."""
+    fs, sig, n = 1000.0, 0.35, 8000
+    rng = np.random.default_rng(11)
+    t = np.arange(n) / fs
+    for frac in fracs:
+        x = snr * sig * np.sin(2 * np.pi * frac * fs * t + 0.3)
+        y = gd.denoise(x + sig * rng.standard_normal(n), fs)
+        g = _sine_gain(y, frac * fs, fs, 2000) / (snr * sig)
+        assert abs(g - 1.0) <= 0.05, (frac, g)
+
+
+def test_a_lone_spike_is_not_held():
+    """Hand-made record: 1 deg/s at rest (sigma 0.05, 200 Hz, seeded), one
+    sample +25 deg/s. The output at the spike moves at most to it, the next
+    samples are back at the rate (within 5 sigma) -- nothing held -- and the
+    averaging goes on (the 5 s after it: RMSE still 10x below raw)."""
+    rng = np.random.default_rng(3)
+    fs, n, sig, i = 200.0, 4000, 0.05, 3000
+    z = 1.0 + sig * rng.standard_normal(n)
+    z[i] += 25.0
+    y = gd.denoise(z, fs)
+    assert abs(y[i] - y[i - 1]) <= abs(z[i] - y[i - 1]) + 1e-9
+    assert np.max(np.abs(y[i + 1:i + 6] - 1.0)) < 5.0 * sig, y[i - 1:i + 6]
+    assert np.sqrt(np.mean((y[i + 10:i + 1000] - 1.0) ** 2)) * 10.0 < sig
+    # and the output stays inside the input's envelope
+    assert y.max() <= z.max() and y.min() >= z.min()
+
+
+def _log171_spikes():
+    """(stream, axis, z, y, i, height) for every lone spike of log171.bin: a sample
+    > 10 deg/s off the mean of its neighbours, which agree, after 5 calm
+    samples (within 30 % of the height of the last one; a spike, not a swing
+    of the 50 Hz-aliased vibration)."""
+    from tests.helpers import shared_file
+    path = shared_file("logs", "log171.bin")
+    from gyrodenoise.mavlink import dataflash
+    from gyrodenoise.mavlink.streams import detect_restarts
+    for st in dataflash.read(path)[2]:
+        detect_restarts(st)
+        x, _, _ = st.work_units()
+        for k in range(3):
+            z = x[:, k]
+            y = gd.denoise(z, st.rate_hz, restarts=st.restarts)
+            dev = np.abs(z[1:-1] - 0.5 * (z[:-2] + z[2:]))
+            idx = np.where((dev > 10.0) & (np.abs(z[:-2] - z[2:]) < 0.3 * dev))[0] + 1
+            for i in idx[(idx + 4 < z.size) & (idx > 6)]:
+                if np.max(np.abs(z[i - 6:i - 1] - z[i - 1])) < 0.3 * dev[i - 1]:
+                    yield st, k, z, y, int(i), float(dev[i - 1])
+
+
+def test_log171_a_spike_moves_the_output_at_most_by_itself():
+    """log171.bin (50 Hz, real flight; the issue: raw -3.3, output 11.1 after a
+    25.8 deg/s spike): at every lone spike the output moves at most to the
+    spike (+15 % of its height: the slope of the most likely filter may carry
+    it beyond; measured: none beyond, over the 8 spikes)."""
+    n = 0
+    for st, k, z, y, i, h in _log171_spikes():
+        assert abs(y[i] - y[i - 1]) <= abs(z[i] - y[i - 1]) + 0.15 * h, (st.name, k, i)
+        n += 1
+    assert n >= 5
+
+
+def test_log171_a_spike_is_not_held():
+    """Against the same record with the spike replaced by the mean of its
+    neighbours (the counterfactual): 3 samples on, the output is pulled
+    towards the spike by at most 20 % of its height (measured: at most 15 %,
+    in a noisy stretch; the issue's case, before: 43 % -- raw 0.07, output
+    11.1 after 25.8 deg/s)."""
+    n = 0
+    for st, k, z, y, i, h in _log171_spikes():
+        zc = z.copy()
+        zc[i] = 0.5 * (z[i - 1] + z[i + 1])
+        yc = gd.denoise(zc, st.rate_hz, restarts=st.restarts)
+        towards = (y[i + 3] - yc[i + 3]) * np.sign(z[i] - zc[i])
+        assert towards <= 0.2 * h, (st.name, k, i, y[i:i + 4], yc[i:i + 4])
+        n += 1
+    assert n >= 5
+
+
+def test_log171_the_issue_spike_is_not_held():
+    """The spike of the issue: log171.bin, IMU axis 0, sample 4366 (25.8 deg/s
+    between 15.5 and -3.3 deg/s). The issue-12 filter followed it and held it
+    (11.1 deg/s at the next sample, 11.0 where raw is 0.07). Now, against the
+    same record with the spike replaced by the mean of its neighbours, the
+    output is pulled towards it by at most 30 % of its height at the next
+    sample and 10 % four samples on (measured: 22 %, 16 %, 11 %, 7 %; in this
+    stretch the rate swings by 15 deg/s a sample, so the spike is no outlier
+    to the noise level read there and is partly averaged in)."""
+    from tests.helpers import shared_file
+    path = shared_file("logs", "log171.bin")
+    from gyrodenoise.mavlink import dataflash
+    from gyrodenoise.mavlink.streams import detect_restarts
+    st = dataflash.read(path)[2][0]
+    detect_restarts(st)
+    z = st.work_units()[0][:, 0]
+    i = 4366
+    assert z[i] == pytest.approx(25.78, abs=0.01) and z[i + 1] == pytest.approx(-3.26, abs=0.01)
+    zc = z.copy()
+    zc[i] = 0.5 * (z[i - 1] + z[i + 1])
+    h = z[i] - zc[i]
+    y = gd.denoise(z, st.rate_hz, restarts=st.restarts)
+    yc = gd.denoise(zc, st.rate_hz, restarts=st.restarts)
+    assert y[i] - y[i - 1] <= z[i] - y[i - 1]
+    assert y[i + 1] - yc[i + 1] <= 0.3 * h, (y[i:i + 6], yc[i:i + 6])
+    assert np.max(y[i + 4:i + 20] - yc[i + 4:i + 20]) <= 0.1 * h, (y[i:i + 6], yc[i:i + 6])
+
+
+def test_offline_is_the_blend_of_the_forward_and_backward_runs():
+    """gd.denoise(..., offline=True) (the default of `gyrodenoise denoise` on a
+    file): per run between restarts, the forward and backward runs of the
+    causal filter weighted by the inverse of their output variances (M_PVAR),
+    each alone where the other warms up; rebuilt here sample by sample with
+    the plain-Python kernels (the specification)."""
+    z, _, fs = record("rest_manoeuvre_rest", "mems", 6.0)
+    rs = np.zeros(z.size, dtype=bool)
+    rs[3500] = True
+    off = gd.denoise(z, fs, restarts=rs, offline=True)
+    p = K.make_params(3, "motion", sample_rate_hz=fs)
+    p[K.P_MO_VAR] = 1.0            # the causal filter keeps its output variance only when asked
+    warm = int(p[K.P_WARMUP])
+    assert warm == 1000            # so both runs (3500, 2500 samples) have a blended middle
+    o = K.layout(3)[6] - K.N_EXT + K.M_PVAR
+
+    def one_way(x):
+        s = K.init_state(p)
+        y, v = [], []
+        for zi in x:
+            y.append(K.step(p, s, float(zi), False))
+            v.append(s[o])
+        return np.array(y), np.array(v)
+    for a, b in ((0, 3500), (3500, z.size)):
+        seg = z[a:b]
+        fwd, vf = one_way(seg)
+        bwd, vb = one_way(seg[::-1])
+        bwd, vb = bwd[::-1], vb[::-1]
+        with np.errstate(invalid="ignore", divide="ignore"):    # 0/0 in the warm-ups, replaced below
+            ref = (vb * fwd + vf * bwd) / (vf + vb)
+        ref[:warm] = bwd[:warm]
+        ref[-warm:] = fwd[-warm:]
+        assert np.all(vf[warm:] > 0) and np.all(vb[:-warm] > 0)
+        np.testing.assert_allclose(off[a:b], ref, rtol=0, atol=1e-12)
+        assert np.max(np.abs(off[a + warm:b - warm] - 0.5 * (fwd + bwd)[warm:-warm])) > 0   # not a plain mean
+    with pytest.raises(ValueError, match="offline"):
+        gd.denoise(z, fs, method="kf", offline=True)
+
+
+@pytest.mark.parametrize("sensor", ["fog", "mems"])
+def test_offline_has_no_lag_and_beats_the_causal_filter(sensor):
+    """On a smooth manoeuvre (seeded, known truth) the offline output lags the
+    truth by less than one sample (cross-correlation peak) and its RMSE is
+    below the causal filter's."""
+    z, x, fs = record("smooth", sensor, 20.0)
+    off = gd.denoise(z, fs, offline=True)
+    cau = gd.denoise(z, fs)
+    assert rmse(off, x, fs) < rmse(cau, x, fs)
+    i = int(SKIP_S * fs)
+    e, t = off[i:-i] - off[i:-i].mean(), x[i:-i] - x[i:-i].mean()
+    lags = range(-5, 6)
+    c = [np.dot(np.roll(e, -k), t) for k in lags]
+    assert list(lags)[int(np.argmax(c))] == 0

@@ -1,0 +1,101 @@
+"""Helpers shared by the tests of every area: where the repository, the test data and the
+third-party data live (skipping without the latter), the command line in this process and
+in a subprocess, and running a program under wine. Fixtures are in tests/conftest.py."""
+import contextlib
+import io
+import os
+import subprocess
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+TESTS = REPO / "tests"
+#: small permissively licensed logs and cards kept in the repository (tests/data/README.md)
+DATA = TESTS / "data"
+#: the C hosts and drivers of the FMU and simulator tests
+CHOST = TESTS / "chost"
+#: the bad-input corpus (tests/corpus/README.md)
+CORPUS = TESTS / "corpus"
+# ../shared/data beside the repository, or the folder named by GYRODENOISE_SHARED_DATA
+SHARED_DATA = Path(os.environ.get("GYRODENOISE_SHARED_DATA") or REPO.parent / "shared" / "data")
+
+
+def shared_file(*parts):
+    """Path of a file in the shared data (SHARED_DATA), or skip the test with a reason."""
+    p = SHARED_DATA.joinpath(*parts)
+    if not p.exists():
+        pytest.skip(f"third-party data not present: {p} (licence forbids copying it into the repo)")
+    return p
+
+
+SHARED_LOGS = SHARED_DATA / "logs"
+
+
+def shared_log(name):
+    """Path of a flight log in the shared data (SHARED_LOGS), or skip the test with a reason."""
+    p = SHARED_LOGS / name
+    if not p.exists():
+        pytest.skip(f"third-party log not present: {p} (licence forbids copying it into the repo, "
+                    f"or too large)")
+    return p
+
+
+def gyrodenoise_cmd():
+    """The command that runs the program: the installed console script, or ``python -m gyrodenoise.cli``."""
+    exe = Path(sys.executable).with_name("gyrodenoise")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "gyrodenoise.cli"]
+
+
+def run_wine(cmd, input=None, env=None, timeout=180):
+    """``subprocess.run(cmd, input=input, capture_output=True, text=True, env=env, timeout=timeout)``
+    for a program run under wine, with stdout and stderr caught in temporary files instead of
+    pipes. The wineserver that a wine client starts inherits the client's stdout and stderr and
+    stays ~3 s after the last client exits (its default persistence), so a pipe reader waits
+    those 3 s for end-of-file on every run (measured: 2.9 s a run with pipes, 0.7 s with files,
+    tests/chost/host.c under wine, 2400 samples); a file is read once the program has exited."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.run(cmd, input=input, stdout=out, stderr=err, text=True, env=env, timeout=timeout)
+        out.seek(0)
+        err.seek(0)
+        return subprocess.CompletedProcess(proc.args, proc.returncode, out.read(), err.read())
+
+
+#: the warnings a Python process prints with its default filters (all but these categories)
+SILENT_BY_DEFAULT = (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning)
+
+
+def run_main(*args):
+    """``gyrodenoise ARGS`` run by gyrodenoise.cli in this process, sys.stdout and sys.stderr
+    redirected (what Python writes): (exit status, stdout, stderr); argparse's own errors
+    (SystemExit) give their exit status. ``main_in_process`` reads the file descriptors."""
+    from gyrodenoise.cli import main
+    so, se = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as exc:
+            status = exc.code
+    return status, so.getvalue(), se.getvalue()
+
+
+def main_in_process(capfd, *args):
+    """``gyrodenoise ARGS`` run by gyrodenoise.cli in this process: (exit status,
+    stdout, stderr). Read at the file descriptors (capfd: C-level writes too); a warning that
+    a process of its own would print (default filters) is a line of stderr; an exception is
+    a traceback and fails the caller."""
+    from gyrodenoise.cli import main
+    capfd.readouterr()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as exc:           # argparse errors leave with sys.exit(2)
+            status = exc.code
+    out, err = capfd.readouterr()
+    err += "".join(f"{w.category.__name__}: {w.message}\n" for w in caught
+                   if not issubclass(w.category, SILENT_BY_DEFAULT))
+    return status, out, err
