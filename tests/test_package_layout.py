@@ -336,7 +336,6 @@ def test_issue_number_pattern():
         assert not ISSUE_NUMBER.search(text), text
 
 
-@pytest.mark.xfail(strict=False, reason="passes once every area's rewording is merged")
 def test_no_issue_numbers():
     roots = [PACKAGE_DIR] + [REPO_DIR / d for d in ("tests", "benchmarks", "docs")]
     files = [p for r in roots if r.is_dir() for p in _text_files(r)]
