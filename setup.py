@@ -6,7 +6,7 @@ setup(ext_modules=[
         sources=["gyrodenoise/core/gdcore.c", "gyrodenoise/core/gdsim.c", "gyrodenoise/core/_gdcoremodule.c"],
         depends=["gyrodenoise/core/gdcore.h", "gyrodenoise/core/gdsim.h"],
         # -ffp-contract=off: no fused multiply-add, so the C core equals the plain-Python
-        # kernels bit for bit (tests/test_ccore.py). -fschedule-insns -fsched-pressure:
+        # kernels bit for bit (tests/core/test_c_core_equals_python.py). -fschedule-insns -fsched-pressure:
         # register-pressure-aware scheduling before allocation, measured with
         # benchmarks/bench_core.py: the gated SHAKF loop 36.4 -> 33.6 ns/sample, kf
         # 29.2 -> 28.0, the others unchanged, outputs identical (clang ignores both, warning).

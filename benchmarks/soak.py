@@ -7,7 +7,7 @@ Not part of the test run. The simulated paper_fog gyro (at a constant true rate)
 is generated in chunks with :class:`gyrodenoise.simulator.SimStream` (so the
 whole record never sits in memory) and filtered chunk by chunk with the
 compiled batch loop, carrying the filter state across chunks (a split run
-equals one run; tests/test_properties.py checks that). Per hour it prints:
+equals one run; tests/core/test_properties.py checks that). Per hour it prints:
 
 * ``R_hat`` and ``q_hat`` (the SHAKF's measurement- and process-noise
   estimates) at the end of the hour, and R_hat relative to the true white-noise

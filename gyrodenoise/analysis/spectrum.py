@@ -14,7 +14,7 @@ s, frequencies in Hz.
 * :func:`segment_spectra` / :func:`welch_psd` -- one-sided density, Hann
   window, each segment's mean removed: ``sum(psd) * df`` is the variance
   (Parseval); equal to ``scipy.signal.welch(window="hann", noverlap=nperseg // 2,
-  detrend="constant")`` to rounding (tests/test_spectrum.py). The mean over the
+  detrend="constant")`` to rounding (tests/analysis/test_spectrum.py). The mean over the
   segments is Welch's estimate; the segments themselves, in time order, are the
   spectrogram (:func:`spectrogram`).
 * :func:`cross_response` -- the filter's response measured from the raw and
@@ -69,7 +69,7 @@ FLOOR_REL_WIDTH = 0.5
 #: variance inflation of a median of neighbouring Hann-window bins (their powers
 #: correlate: 1 + 2 x 0.25**2 = 1.125 from the nearest neighbours' amplitude
 #: coherence 0.5, rounded up to 1.2 for the others): an approximation; the
-#: false-alarm rate it gives is measured in tests/test_spectrum.py
+#: false-alarm rate it gives is measured in tests/analysis/test_spectrum.py
 HANN_BIN_CORR_FACTOR = 1.2
 
 
@@ -297,7 +297,7 @@ def peak_threshold(n_bins, n_segments, false_alarm=FALSE_ALARM, window_bins=FLOO
     chi2 of pi/2 fewer degrees of freedom than their sum, fewer again for the
     correlation of neighbouring Hann bins (:data:`HANN_BIN_CORR_FACTOR`). White
     noise then gives a false peak in a spectrum with probability about
-    ``false_alarm`` (measured in tests/test_spectrum.py)."""
+    ``false_alarm`` (measured in tests/analysis/test_spectrum.py)."""
     dof = welch_dof(n_segments)
     p = 1.0 - false_alarm / max(1, n_bins)
     w = np.atleast_1d(np.asarray(window_bins, dtype=np.float64))
@@ -372,7 +372,7 @@ def presence(segment_psd, floor, k, ratio=PRESENCE_RATIO):
     segment) whose power in bins k-1..k+1 exceeds ``ratio`` x the floor's there:
     near 1 for a line present all along, near 1/N for one burst of N segments.
     Noise alone: the sum of 3 bins of a Hann periodogram exceeds twice its mean
-    in ~9.5 % of the segments (measured, tests/test_spectrum.py; 6.2 % if the
+    in ~9.5 % of the segments (measured, tests/analysis/test_spectrum.py; 6.2 % if the
     3 bins were independent, chi-square with 6 degrees of freedom: the Hann
     window correlates neighbouring bins)."""
     lo, hi = max(0, k - 1), min(segment_psd.shape[1], k + 2)

@@ -10,7 +10,7 @@ Given a measured rate record and a model card, the workflow
 
 1. simulates the card ``S`` times (seeds 1..S) at the record's sample rate and
    length, through ``SimulatedFog.fmu`` (engine ``"fmu"``) or the core simulator
-   (engine ``"native"``; the two are bit-identical, see ``tests/test_fmu.py``);
+   (engine ``"native"``; the two are bit-identical, see ``tests/fmu/test_build_and_run.py``);
 2. compares five noise *signatures* of the record with the simulations
    (:func:`signature`, :func:`zscores`, :data:`GAP_METRIC`);
 3. proposes candidate effects from the vocabulary of the spec, fits each

@@ -11,7 +11,7 @@
  *   - the parameter buffer of gyrodenoise.core.kernels.make_params, built here
  *     from the FMU parameters with the same checks and the same floating-point
  *     operations (warm-up, motion constants, Butterworth sections), so the
- *     output equals gd.denoise (tests/test_fmu_native.py);
+ *     output equals gd.denoise (tests/fmu/test_native_denoiser.py);
  *   - the variables (get/set), one step, and the fields of the serialized FMU
  *     state (a versioned, checksummed byte image of the parameters and the
  *     filter's state buffer, format 2: unchanged by the split into layer + hooks).
