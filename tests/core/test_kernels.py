@@ -200,7 +200,7 @@ def test_gate_on_real_imu4_outliers():
     """The real ADIS16405 imu4 record (100 Hz) around its outliers: with the gate
     the output within 5 s after each outlier stays within 0.01 deg/s of the
     output on the record with the outliers replaced by the median of their
-    neighbours (measured 0.0034 deg/s; ungated 0.0091 deg/s, docs/OUTLIERS.md)."""
+    neighbours (measured 0.0034 deg/s; ungated 0.0091 deg/s, docs/bench/outliers-soak.md)."""
     from tests.helpers import shared_file
     from gyrodenoise.io.recording import read_recording
     rec = read_recording(shared_file("static", "adis16405_imu4.csv.gz"), rate_column="gyro_x")

@@ -163,7 +163,7 @@ def test_gain_of_a_sinusoid_within_5_percent(snr, fracs):
     0.35 deg/s, seeded) keeps its amplitude within 5 %, up to 0.45 fs at 10
     sigma (the old 4th-difference noise level erased everything above fs/4).
     At 3 sigma it holds to 0.25 fs only (0.88 at 0.35 fs, ~0 at 0.45 fs: a
-    constant-velocity model cannot tell such a tone from noise; see the README)."""
+    constant-velocity model cannot tell such a tone from noise; see docs/method/motion.md)."""
     fs, sig, n = 1000.0, 0.35, 8000
     rng = np.random.default_rng(11)
     t = np.arange(n) / fs

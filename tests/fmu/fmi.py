@@ -66,7 +66,7 @@ def needed_libraries(so):
     return {line.split("[")[1].split("]")[0] for line in dyn.splitlines() if "(NEEDED)" in line}
 
 
-#: the cmake options the README and the fmi2Instantiate message give for a rebuild with libm
+#: the cmake options the docs and the fmi2Instantiate message give for a rebuild with libm
 REBUILD_WITH_LIBM = {"CMAKE_C_STANDARD_LIBRARIES:STRING": "-lm", "CMAKE_C_FLAGS:STRING": "-DGD_LIBM_LINKED"}
 
 

@@ -98,7 +98,7 @@ def test_c_chain_equals_simulate_then_denoise(unz, chain, card, seed, method):
 
 
 def test_c_chain_runs_the_readme_command_with_relative_folders(unz, chain):
-    """The README's command, `./chain SimulatedFogNative/ FogDenoiserNative/ --fog card=imar_fog ...`,
+    """The docs' command (docs/cosim/non-python.md), `./chain SimulatedFogNative/ FogDenoiserNative/ --fog card=imar_fog ...`,
     run from the folder that holds the unzipped FMUs: relative folders and a bundled card. (The
     resource URI was built as file://SimulatedFogNative//resources, whose host part is the folder's
     name: the sensor refused the bundled card, exit status 100.)"""

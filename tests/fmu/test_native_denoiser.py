@@ -652,7 +652,7 @@ def test_fmpy_source_rebuild_exports_fmi2_only_and_explains_a_missing_libm(built
 
 
 def test_fmpy_source_rebuild_with_libm_equals_gd_denoise(built, host, tmp_path, monkeypatch):
-    """The rebuild with the one option the README gives (link libm) runs in a host with no
+    """The rebuild with the one option the docs give (link libm) runs in a host with no
     libm of its own and equals gd.denoise."""
     unz = fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM)
     so = unz / "binaries" / "linux64" / "FogDenoiserNative.so"

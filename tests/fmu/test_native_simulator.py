@@ -430,7 +430,7 @@ def test_c_host_equals_gd_simulate(built, host, every_term_card):
 @pytest.mark.parametrize("with_libm", [True, False], ids=["with libm", "without libm"])
 def test_fmpy_source_rebuild(built, host, tmp_path, monkeypatch, with_libm):
     """The one listed source file, rebuilt by fmpy's build_platform_binary (no flags of ours):
-    fmi2* exports only; with libm linked (the README's option) it equals gd.simulate from a
+    fmi2* exports only; with libm linked (the docs' option) it equals gd.simulate from a
     host without libm; without, that host gets fmi2Instantiate's refusal with the reason."""
     unz = fmpy_rebuild(built, tmp_path, monkeypatch, REBUILD_WITH_LIBM if with_libm else None)
     so = unz / "binaries" / "linux64" / "SimulatedFogNative.so"

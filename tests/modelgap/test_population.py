@@ -2,7 +2,7 @@
 (drawn per simulated unit by the gap reference) and the card's own estimation error
 (parametric bootstrap) in the held-out check. Known-truth simulations, seeded; the
 numbers behind each tolerance are in the docstrings. The real ADIS16405 figures are
-in docs/GAP.md (benchmarks/gap_heldout.py)."""
+in docs/bench/gap.md (the gap_heldout study, docs/reports/studies.md)."""
 
 import numpy as np
 import pytest

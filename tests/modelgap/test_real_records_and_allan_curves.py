@@ -222,7 +222,7 @@ def test_rlg_z_slice_from_an_empty_card_names_earth_rate_quantum_and_vibration()
     vertical axis; the bias within 0.5 deg/h of it), the record's quantum is
     0.1 arcsec, the base vibration band covering 2-3 Hz is taken out, and the gap
     (after the initial fit) shrinks at least 10x. Convergence below the threshold
-    is NOT asserted: it does not hold on this record (docs/GAP.md)."""
+    is NOT asserted: it does not hold on this record (docs/bench/gap.md)."""
     from gyrodenoise.modelgap.effects import EARTH_RATE_DEG_H
     from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
@@ -251,8 +251,8 @@ def test_rlg_x_converges_from_an_empty_card_with_base_motion_and_dither_lines_ou
     Without the tail rule (spectral.bump_tail_end) the band ends at 8.09 Hz and the PSD
     component stays above its own threshold (4.05 against 3.16 at 6.67-8.3 Hz, the
     band's edge): gap below the threshold, within_scatter false. Evidence
-    (``.venv/bin/python benchmarks/gap_edge.py rlg --sets 4 --axis x``, seed sets 1-6,
-    11-16, 21-26, 31-36): within_scatter in 4/4 (docs/GAP.md)."""
+    (the gap_edge study (docs/reports/studies.md, `rlg --sets 4 --axis x`), seed sets 1-6,
+    11-16, 21-26, 31-36): within_scatter in 4/4 (docs/bench/gap.md)."""
     from gyrodenoise.modelgap.effects import EARTH_RATE_DEG_H
     from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
@@ -281,8 +281,8 @@ def test_rlg_y_converges_from_an_empty_card_with_the_base_motions_tail_out():
     (0.0244-15.2 Hz, the 10.5 Hz wandering line inside it) and the internal filter's band
     (30-50 Hz), the joint re-fit brings the card within the scatter; it is accepted as
     passing the loop's own stop test (its capped score gains less than the 0.8x rule asks).
-    Evidence (``.venv/bin/python benchmarks/gap_edge.py rlg --sets 4 --axis y``): within in
-    4/4 seed sets (docs/GAP.md)."""
+    Evidence (the gap_edge study (docs/reports/studies.md, `rlg --sets 4 --axis y`)): within in
+    4/4 seed sets (docs/bench/gap.md)."""
     from gyrodenoise.io.psins import read_psins
     log = read_psins(shared_file("static", "psins_lasergyro.imu"))
     res = gd.gap(log.axis("gyro_y"), log.sample_rate_hz, parse_card(EMPTY), seeds=6,
@@ -303,7 +303,7 @@ def test_rlg_z_converges_with_the_angle_gauss_markov_term():
     terms in the card: the record's white angle noise flattens above ~25 Hz, which white
     angle noise with a correlation time below one sample gives and plain Q does not.
 
-    Evidence (``.venv/bin/python benchmarks/gap_edge.py rlg --sets 4 --axis z``): seeds
+    Evidence (the gap_edge study (docs/reports/studies.md, `rlg --sets 4 --axis z`)): seeds
     1-6, 11-16, 21-26, 31-36: within_scatter 4/4, gap 0.67-0.91 (thresholds 3.61-4.80),
     PSD component 1.17-2.33, angle GM taus 5 and 7.3 ms each time. The same on main
     without the term: within_scatter 1/4, gap 2.32-2.93, PSD component 6.39-8.84."""
@@ -343,7 +343,7 @@ def test_adis_fit_on_imu1_explains_held_out_imu3_better_than_the_datasheet_card(
     card) is checked on imu3 (nothing added, its own bias): its held-out gap is at
     least 20x below that of the white-noise datasheet card (N = 2.5 deg/sqrt(h),
     bias likewise set to imu3's mean). It is NOT within imu3's scatter threshold on
-    this slice; the full-length numbers are in docs/GAP.md."""
+    this slice; the full-length numbers are in docs/bench/gap.md."""
     from gyrodenoise.io.recording import read_recording
 
     def rec(i):
@@ -410,7 +410,7 @@ def test_allan_curve_of_known_terms_is_fitted_back(tmp_path):
 
 def test_angle_gauss_markov_and_output_lowpass_columns_against_simulation():
     """Two exact columns the card does not use yet (evidence for a simulator term,
-    benchmarks/allan_proposed_terms.py), checked against numpy simulations (seeded,
+    the allan_proposed_terms study (docs/reports/studies.md)), checked against numpy simulations (seeded,
     400,000 samples at 100 Hz, 6 % at m = 1..256, the Allan estimate's own error there
     being <= 2 %): a Gauss-Markov ANGLE (std 1e-4 deg, tau 0.05 s) differenced / T,
     and white rate noise through the first-order low-pass y_k = a y_(k-1) + (1 - a) x_k

@@ -16,7 +16,7 @@ from the shape of one realisation's Allan curve.
 All nine effects of the vocabulary are revealable at this length when they
 are comparable to the white noise somewhere in tau; none is skipped. Effects
 that are hard to tell apart at this length (and why) are discussed in
-docs/GAP.md: bias instability vs rate random walk vs a long-correlation
+docs/bench/gap.md: bias instability vs rate random walk vs a long-correlation
 Gauss-Markov (all rise or flatten at the longest taus, where the Allan
 estimate has few clusters), and a very short-correlation Gauss-Markov vs
 white noise.
@@ -129,7 +129,7 @@ def test_hidden_effect_is_named_fitted_and_closes_the_gap(name, base, params, to
 
     Evidence for the two cases at the edge (C generator gdsim.c, simulation
     seeds 1-5, measurement seeds 1001-1008;
-    ``.venv/bin/python benchmarks/gap_edge.py hidden --meas 8``):
+    the gap_edge study (docs/reports/studies.md, `hidden --meas 8`)):
 
     * rate random walk K = 20 deg/h^1.5: named first 8/8, K 15.8-23.2 (within 25 %
       8/8). A random walk moves the record mean: over T = 0.5 h its mean has a std of
@@ -142,7 +142,7 @@ def test_hidden_effect_is_named_fitted_and_closes_the_gap(name, base, params, to
       against 1.90; seeds 1004 and 1006 end at 2.52 and 2.19): seed 1001 (the test's)
       is one of the six; the assertion is kept.
     * sinusoid at 1.3 Hz: at 3 deg/h it is found 3/8 with the C generator (numpy's
-      generator: 20/24, C 11/24 on 1001-1024, benchmarks/sim_generators.py; the line's
+      generator: 20/24, C 11/24 on 1001-1024, the sim_generators study (docs/reports/studies.md); the line's
       least-squares amplitude is the same for both, 2.99 +- 0.20 vs 3.04 +- 0.22 deg/h),
       gap_before 0.94-2.08 against a threshold of 1.90: the detection limit, not a
       generator fault. At 4 deg/h it is found 8/8 (fitted 3.59-4.49 deg/h, gap_before
@@ -150,7 +150,7 @@ def test_hidden_effect_is_named_fitted_and_closes_the_gap(name, base, params, to
       line fitted to white noise: per-sample std N sqrt(fs) = 60 deg/h, se 60 sqrt(2/n)
       = 0.20 deg/h at n = 180,000 (10 % of 3 deg/h was 1.5 se).
     * angle Gauss-Markov sigma = 1e-3 deg, tau = 0.5 s (measurement seeds 1001-1003,
-      benchmarks/gap_edge.py): named alone 3/3, sigma 0.951-1.051e-3 (5 %), tau 0.451-0.552 s
+      the gap_edge study (docs/reports/studies.md)): named alone 3/3, sigma 0.951-1.051e-3 (5 %), tau 0.451-0.552 s
       (10 %), gap 2.4e3 -> 0.69-0.93 (threshold 1.9). At sigma = 2e-3: 8/8 (1001-1008) named
       first, sigma within 4.5 %, tau within 6.5 % (1008 then re-fits N as well). At 5e-4 (the
       extra white rate noise 0.6x the card's N^2): 4/4 found, sigma within 13 %, tau within 34 %,
@@ -257,7 +257,7 @@ WHITE_SEEDS = (1, 2, 3, 4)
 @pytest.mark.xfail(strict=True, reason="the initial fit keeps a small quantization / short "
                    "Gauss-Markov / rate random walk beside the white noise; the rule that fixes it "
                    "(workflow.initial_terms with INITIAL_DCHI2) drops RLG x to 3/4 seed sets within, "
-                   "so it is not wired in yet (docs/GAP.md, Initial fit)")
+                   "so it is not wired in yet (docs/bench/gap.md, Initial fit)")
 @pytest.mark.parametrize("fs", [100.0, 1000.0])
 @pytest.mark.parametrize("n", [20000, 60000])
 def test_white_noise_from_an_empty_card_is_angle_random_walk_alone(fs, n):
@@ -700,7 +700,7 @@ def test_real_adis16405_from_white_noise_card():
     """ADIS16405 imu1 gyro_x (2.78 h, 100 Hz, deg/s, quantised to 0.05 deg/s),
     starting from a white-noise-only card (N = 2.5 deg/sqrt(h)).
 
-    What must come out, and why (numbers in docs/GAP.md):
+    What must come out, and why (numbers in docs/bench/gap.md):
 
     * first a constant bias equal to the record mean: the mean (1446 deg/h) is
       45x the rms wander of the 16 block means (32 deg/h), a deterministic
@@ -718,7 +718,7 @@ def test_real_adis16405_from_white_noise_card():
 
     The card's scatter, measured (C generator gdsim.c): the workflow run
     with seven sets of four simulation seeds (1-4, 11-14, ... 61-64;
-    ``.venv/bin/python benchmarks/gap_edge.py adis --sets 5`` and ``--sets 4
+    the gap_edge study (docs/reports/studies.md, `adis --sets 5`) and ``--sets 4
     --first-set 3``) ends within the threshold 7/7 (gap 1.21-1.96 against 2.15-4.59);
     (card - record) / sigma_record at 41, 82, 164, 328, 655, 1000 s has a mean of
     -1.33 -0.28 -0.69 0.22 2.19 2.81 and a std over the sets of 0.26 0.23 0.33 0.45
@@ -727,8 +727,8 @@ def test_real_adis16405_from_white_noise_card():
     combined sigma, 0/7 (largest 4.75 against 5.1). What does not hold: at 655-1000 s
     the card sits ABOVE the record in 7/7 sets (mean +2.2 and +2.8 sigma_record), a
     bias of the fit at the longest taus on this record, not only scatter.
-    Measured with the angle Gauss-Markov term in the vocabulary (``gap_edge.py
-    adis --sets 4``, seeds 1-4 .. 31-34): within the threshold 4/4 (gap 0.79-1.85 against
+    Measured with the angle Gauss-Markov term in the vocabulary (the gap_edge
+    study, `adis --sets 4`, seeds 1-4 .. 31-34): within the threshold 4/4 (gap 0.79-1.85 against
     2.56-8.16), (card - record) / sigma_record at 655 and 1000 s +1.36..+2.54 and +1.53..+3.17:
     the same picture, inside the combined tolerance.
     """
@@ -747,7 +747,7 @@ def test_real_adis16405_from_white_noise_card():
     final = parse_card(res.card_text)
     assert "rate_random_walk" not in final.terms
     # the gap within the scatter threshold (the per-component test, within_scatter, can
-    # fail on the PSD component with 4 seeds: docs/GAP.md)
+    # fail on the PSD component with 4 seeds: docs/bench/gap.md)
     assert res.gap_after <= res.threshold, (res.gap_after, res.threshold, res.iterations[-1]["components"])
     top = [(lo, hi) for lo, hi, peak in res.stop_bands if peak < 0]
     assert top and top[0] == pytest.approx((30.0, 50.0), rel=1e-6), res.stop_bands

@@ -62,7 +62,7 @@ def test_gauss_markov_and_sinusoid():
 
 
 def test_angle_gauss_markov_reads_as_the_readme_says():
-    """README, "Model cards": an angle Gauss-Markov term (sigma deg, tau s) is an angle error that
+    """docs/method/model-cards.md: an angle Gauss-Markov term (sigma deg, tau s) is an angle error that
     stays within +-sigma (std sigma) instead of walking away; averaged over much less than tau it
     is white rate noise with N = sigma sqrt(2 / tau) (deg/sqrt(s)), over much more than tau it is
     white angle noise with Q = sigma; the rate's PSD rises like f^2 below 1 / (2 pi tau) and is
