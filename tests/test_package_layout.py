@@ -32,7 +32,6 @@ import os
 import re
 from pathlib import Path
 
-import pytest
 
 PACKAGE = "gyrodenoise"
 PACKAGE_DIR = Path(importlib.util.find_spec(PACKAGE).submodule_search_locations[0]).resolve()
