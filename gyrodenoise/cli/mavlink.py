@@ -26,6 +26,7 @@ examples:
   gyrodenoise mavlink logs/ --jobs 4 --json        # every log of a folder, in parallel, one summary
   gyrodenoise mavlink flight.tlog --engine fmu     # same through the FogDenoiser FMU (fmpy)
   gyrodenoise mavlink udpin:127.0.0.1:14550 --forward udpout:127.0.0.1:14551 --duration 60
+  gyrodenoise mavlink signed.tlog --signing-key ~/.mavlink.key   # a signed link: verify, re-sign
 
 The filtered log keeps every message and byte of the input except the gyro
 fields of the IMU messages, which hold the filtered values (and, for MAVLink,
@@ -43,6 +44,12 @@ figure. A stream the filter never changed (every session shorter than its
 warm-up, e.g. the 2 kHz batch sampler's 1024-sample bursts) says why.
 With --method lowpass the summary gives each stream's cutoff (default
 min(20 Hz, rate / 4): 12.5 Hz on a 50 Hz log).
+
+Signed MAVLink 2 (telemetry logs and live links): a signed packet is never
+written or forwarded unsigned. With --signing-key FILE every packet is checked;
+unsigned (once signed packets have come) or badly signed ones are dropped and
+counted, and every changed packet is re-signed. Without it, signed packets go
+out unchanged (gyro raw) and the summary says how many.
 
 exit status:
   0  every log processed; every stream filtered and checked, or written raw for
@@ -85,6 +92,11 @@ def register_cli(subparsers):
                         "ArduPilot, else counts with unknown scale)")
     p.add_argument("--raw-imu-scale", type=number, default=None, metavar="DEG_S_PER_COUNT",
                    help="scale of RAW_IMU raw counts (old APM firmware)")
+    p.add_argument("--signing-key", default=None, metavar="FILE",
+                   help="MAVLink 2 signing key of the link (.tlog and live links): FILE holds 64 hex digits, or "
+                        "the signing passphrase (its SHA-256 is the key). Every packet is checked (unsigned or "
+                        "badly signed ones on a signed link are dropped and counted) and every changed packet "
+                        "re-signed. Without it a signed packet goes out unchanged (gyro raw)")
     p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
     p.add_argument("--no-csv", action="store_true", help="do not write CSV files")
     live = p.add_argument_group("live link (LOG is a connection string)")
@@ -299,8 +311,17 @@ def run(args):
         raise
 
 
+def _signing_key(args):
+    """The key of --signing-key (None without it); one line, exit 2, when it cannot be used."""
+    if getattr(args, "signing_key", None) is None:
+        return None
+    from gyrodenoise.mavlink.signing import read_key
+    return read_key(args.signing_key, warn=_log)
+
+
 def _run(args, created):
     _check(args)
+    args.key = _signing_key(args)
     links = [x for x in args.logs if LINK_RE.match(x) and not Path(x).exists()]
     if links:
         if len(args.logs) != 1:
@@ -335,7 +356,8 @@ def _run_logs(args, client, created):
               gap_factor=args.gap_factor, plots=not args.no_plots, csv=not args.no_csv,
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
-              filter_kw=_filter_kw(args), zero_phase=args.zero_phase, causal=args.causal)
+              filter_kw=_filter_kw(args), zero_phase=args.zero_phase, causal=args.causal,
+              signing_key=args.key)
     single = (len(args.logs) == 1 and not is_url(args.logs[0]) and Path(args.logs[0]).is_file()
               and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
@@ -542,11 +564,25 @@ def _print_log(out, r, summary):
     out.write(f"{r['file']} ({r['format']}): {r['messages']} messages{unread}{trunc}\n")
     out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
               f"{_form_text(r)})\n")
+    _print_signing(out, r)
     for s in r["streams"]:
         _print_stream(out, s, r, summary)
     for e in r["restarts"]:
         out.write(f"  restart: {e['stream']} sample {e['sample']} at t={e['time_s']:.3f} s "
                   f"(previous {e['previous_time_s']:.3f} s): {e['reason']}\n")
+
+
+def _print_signing(out, r):
+    """The signing lines of a log or link: the signed packets left raw for want of a key
+    (with how to give one), or what the key did; nothing for a link without signing."""
+    from gyrodenoise.mavlink.report import rejected_text
+    if r.get("signed_left_raw"):
+        out.write(f"  SIGNED, NOT FILTERED: {r['signing_note']}\n")
+    if r.get("signing_key") and (r.get("signed_packets") or r.get("rejected_signatures")):
+        out.write(f"  signing: {r['signed_packets']} signed packets in, {r['resigned_packets']} re-signed with "
+                  f"the key (the others kept their bytes)\n")
+    if r.get("rejected_signatures"):
+        out.write(f"  SIGNATURE CHECK: {rejected_text(r)}\n")
 
 
 def _print_stream(out, s, r, summary):
@@ -590,13 +626,15 @@ def _live(args, conn):
                     method=args.method, ar_order=args.ar_order, gap_factor=args.gap_factor,
                     sample_rate=args.sample_rate, raw_imu_unit=args.raw_imu_unit,
                     raw_imu_scale=args.raw_imu_scale, log=_log, warmup_s=args.warmup_s,
-                    filter_kw=_filter_kw(args))
+                    filter_kw=_filter_kw(args), signing_key=args.key)
 
 
 def _report_live(args, conn, rep, streams):
     _complete_live_report(args, conn, rep, streams)
     from gyrodenoise.mavlink.process import log_problems
+    from gyrodenoise.mavlink.report import signing_problems
     log_problems(dict(rep, file=conn, output_log=args.forward or "(nowhere)"), _log)
+    signing_problems(dict(rep, file=conn), _log)
     if args.json:
         emit_json(_finite(rep))
     else:
@@ -640,12 +678,15 @@ def _print_live(args, conn, rep):
               f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "
               f"stopped by {rep['stopped_by']} after {rep['seconds']} s; "
               f"method {rep['method']}, causal\n")
+    _print_signing(out, rep)
     for s in rep["streams"]:
         out.write(f"  {s['name']}: {s['samples']} samples, {_fmt(s['rate_hz'])} Hz, "
                   f"{s['restarts']} restart(s), unit {s['field_unit']}"
                   f"{'' if s['unit_known'] else ' (scale unknown)'}\n")
         if s.get("left_raw"):
             out.write(f"    NOT FILTERED from a sample on, forwarded raw: {s['left_raw']}\n")
+        if s.get("not_filtered"):
+            out.write(f"    NOT FILTERED: {s['not_filtered']}\n")
         if s.get("too_slow_to_denoise"):
             out.write(f"    note: {s['slow_note']}\n")
         if s.get("saturation"):

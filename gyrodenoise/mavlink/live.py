@@ -20,6 +20,14 @@ A stream sampled too slowly to denoise
 forwarded raw, as in the file mode: the rate is measured over its first
 :data:`RATE_SAMPLES` steps (inside the filter's warm-up, at least 10 (n+1)
 samples, so nothing filtered has been forwarded before the decision).
+
+Signed links (:mod:`gyrodenoise.mavlink.signing`): with the link's key every
+packet is checked as it arrives; one that fails (unsigned or MAVLink 1 once
+signed packets have come, a bad signature, a timestamp not newer than its
+stream's last) is not filtered and not forwarded, and is counted per source; a
+gyro packet the filter changes is re-signed (original link id and timestamp, or
+one more than the stream's last one out). Without the key a signed packet is
+forwarded as it came, gyro raw, and counted (``signed_left_raw``).
 """
 
 from __future__ import annotations
@@ -33,8 +41,9 @@ import numpy as np
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.errors import InputError
 
+from gyrodenoise.mavlink.signing import KEY_HINT, LinkSigning, is_signed
 from gyrodenoise.mavlink.streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
-from gyrodenoise.mavlink.tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repack
+from gyrodenoise.mavlink.tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
 
 
 #: a live RAW_IMU stream whose unit is still open (see :func:`gyrodenoise.mavlink.tlog.decide_raw_imu_unit`)
@@ -74,6 +83,8 @@ class _LiveStream:
         self.lo = [math.inf] * 3   # raw range of the session (work units), per axis
         self.hi = [-math.inf] * 3
         self.left_raw = None
+        self.signed_raw = 0        # signed samples forwarded raw for want of the key
+        self.changed = 0           # samples forwarded changed
 
     @property
     def pending(self):
@@ -197,7 +208,16 @@ class _LiveStream:
         s.non_finite = list(self.non_finite)
         s.left_raw = self.left_raw
         s.warmup_samples = (self.start or 0) + self.warmup
+        s.not_filtered = None
+        if self.signed_raw and not self.changed:
+            s.not_filtered = (f"its packets are signed (MAVLink 2) and no --signing-key was given: forwarded raw, "
+                              f"signatures kept (a signed packet is never sent unsigned); {KEY_HINT}")
         return s
+
+
+def _differ(a, b):
+    """True if the values ``a`` and ``b`` differ (NaN equal to NaN)."""
+    return any(x != y and not (x != x and y != y) for x, y in zip(a, b))
 
 
 def _enlarge_receive_buffer(conn, size=4 << 20):
@@ -213,16 +233,17 @@ def _enlarge_receive_buffer(conn, size=4 << 20):
 
 def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAULT_METHOD, ar_order=3,
              gap_factor=5.0, sample_rate=None, raw_imu_unit="auto", raw_imu_scale=None, log=None,
-             warmup_s=None, filter_kw=None):
+             warmup_s=None, filter_kw=None, signing_key=None):
     """Bridge ``source`` to ``forward`` (pymavlink connection strings) until
     ``duration`` seconds have passed or ``max_messages`` messages were
-    forwarded (or Ctrl-C). Returns (report dict, list of GyroStream)."""
+    forwarded (or Ctrl-C). ``signing_key``: the link's 32-byte MAVLink 2 key
+    (packets checked, changed ones re-signed). Returns (report dict, list of GyroStream)."""
     src, dst = _open_links(source, forward)
     if log:
         log(f"listening on {source}, forwarding to {forward or '(nowhere)'}")
     bridge = _LiveBridge(method=method, ar_order=ar_order, gap_factor=gap_factor, sample_rate=sample_rate,
                          warmup_s=warmup_s, filter_kw=filter_kw, raw_imu_unit=raw_imu_unit,
-                         raw_imu_scale=raw_imu_scale, log=log)
+                         raw_imu_scale=raw_imu_scale, log=log, signing_key=signing_key)
     t_start = time.monotonic()
     try:
         stopped_by = _forward_until_stopped(src, dst, bridge, t_start + duration if duration else None,
@@ -235,7 +256,7 @@ def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAUL
         "mode": "live", "input": source, "forward": forward, "stopped_by": stopped_by,
         "seconds": round(time.monotonic() - t_start, 3), "messages_in": bridge.n_in,
         "messages_forwarded": bridge.n_out, "unreadable_records": bridge.n_bad,
-        "signatures_dropped": bridge.n_sig, "handling_us": _handling_us(bridge.handle_ns),
+        **bridge.link.report(), "handling_us": _handling_us(bridge.handle_ns),
         "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
         "filter_options": dict(filter_kw or {}),
         "form": "causal", "form_note": "a live link is filtered as it comes, one sample at a time",
@@ -303,31 +324,39 @@ class _LiveBridge:
     received message into the bytes to forward."""
 
     def __init__(self, *, method, ar_order, gap_factor, sample_rate, warmup_s, filter_kw,
-                 raw_imu_unit, raw_imu_scale, log):
+                 raw_imu_unit, raw_imu_scale, log, signing_key=None):
         self.method, self.ar_order, self.gap_factor = method, ar_order, gap_factor
         self.sample_rate, self.warmup_s, self.filter_kw = sample_rate, warmup_s, filter_kw
         self.raw_imu_unit, self.raw_imu_scale, self.log = raw_imu_unit, raw_imu_scale, log
         self.streams = {}          # (system, component, message type, instance) -> _LiveStream
         self.vehicles = {}         # system id -> {"autopilots": set, "ap_version": bool}
-        self.n_in = self.n_out = self.n_bad = self.n_sig = 0
+        self.n_in = self.n_out = self.n_bad = 0
+        self.link = LinkSigning(signing_key)
         self.handle_ns = []
 
     def handle(self, msg):
         """The bytes to forward for one received message: a gyro message re-packed
-        with the filtered values, any other as it came (unreadable bytes too)."""
+        with the filtered values (re-signed if it came signed and the key is known),
+        any other as it came (unreadable bytes too); nothing (``b""``) for a packet
+        that fails the signature check."""
         self.n_in += 1
         mtype = msg.get_type()
         if mtype == "BAD_DATA":
             self.n_bad += 1
             return bytes(msg.data) if getattr(msg, "data", None) is not None else b""
-        out = msg.get_msgbuf()
+        pkt = bytes(msg.get_msgbuf())
+        if self.link.check(pkt) is not None:
+            return b""                   # not filtered, not forwarded: counted per source
+        out = pkt
         sysid = msg.get_srcSystem()
         if mtype == "HEARTBEAT":
             self._vehicle(sysid)["autopilots"].add(msg.autopilot)
         elif mtype == "STATUSTEXT" and _AP_VERSION_RE.search(msg.text or ""):
             self._vehicle(sysid)["ap_version"] = True
         elif mtype in GYRO_MESSAGES:
-            out = self._filter_gyro(msg, mtype, sysid, out)
+            out = self._filter_gyro(msg, mtype, sysid, pkt)
+        if out is pkt:
+            self.link.passed(pkt)
         return out
 
     def _vehicle(self, sysid):
@@ -340,10 +369,20 @@ class _LiveBridge:
             self._decide_unit(st, out, t_s, sysid)
         vals = st.step(t_s, [getattr(msg, g) for g in GYRO_FIELDS], self.sample_rate, self.method,
                        self.ar_order, self.warmup_s, self.filter_kw)
-        if vals is not st.raw[-1]:           # unchanged samples are forwarded byte for byte
-            out, dropped = repack(bytes(out), mtype, vals)
-            self.n_sig += dropped
-        return out
+        if vals is st.raw[-1]:               # unchanged samples are forwarded byte for byte
+            return out
+        if is_signed(out) and self.link.key is None:
+            # never sent unsigned: as it came, gyro raw (and so in the stream's record)
+            if _differ(vals, st.raw[-1]):
+                st.signed_raw += 1
+                self.link.left_raw += 1
+            st.fw[-1] = st.raw[-1]
+            return out
+        new = repacked(out, (mtype, vals), self.link)
+        if new == out:
+            return out
+        st.changed += 1
+        return new
 
     def _stream(self, msg, mtype, sysid):
         """The stream of a gyro message, created at its first message."""

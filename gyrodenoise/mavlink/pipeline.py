@@ -11,6 +11,11 @@ Outputs of a log ``NAME.ext`` in the output folder:
 * ``NAME.spectrum.png`` -- per stream raw and filtered PSD per axis, vibration
   peaks named; the filter's gain and lag; a spectrogram for a long record
   (:mod:`gyrodenoise.mavlink.spectra`).
+
+A telemetry log with signed MAVLink 2 packets (:mod:`gyrodenoise.mavlink.signing`):
+with ``signing_key`` every packet is checked in the log's order, those that fail are
+neither filtered nor written (counted per source), and the changed packets are
+re-signed; without it, signed packets are written unchanged, gyro raw.
 """
 
 from __future__ import annotations
@@ -25,10 +30,12 @@ from gyrodenoise.errors import InputError
 from gyrodenoise.mavlink.checks import usable_samples
 from gyrodenoise.mavlink.engines import make_engine
 from gyrodenoise.mavlink.filtering import check_some_stream_filterable, filter_form, filter_options, filter_streams
+from gyrodenoise.mavlink import tlog
 from gyrodenoise.mavlink.formats import log_kind, read_log, write_filtered_log
 from gyrodenoise.mavlink.output import joined_time, safe_name, write_csv
 from gyrodenoise.mavlink.plotting import Plotter, title_note
-from gyrodenoise.mavlink.report import log_problems, stream_report
+from gyrodenoise.mavlink.report import log_problems, signing_problems, stream_report
+from gyrodenoise.mavlink.signing import LinkSigning
 from gyrodenoise.mavlink.spectra import stream_spectrum
 from gyrodenoise.mavlink.stopping import atomic_path
 
@@ -36,7 +43,8 @@ from gyrodenoise.mavlink.stopping import atomic_path
 def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_order=3, gap_factor=5.0,
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
-                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False, causal=False):
+                plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False, causal=False,
+                signing_key=None):
     """Process one log file; return its report (a JSON-able dict).
 
     The form of the filter (``rep["form"]``): a whole log is filtered offline by
@@ -45,6 +53,10 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     ``zero_phase`` for the low-pass); ``causal=True`` gives the causal filter
     (``Denoiser``, as a live link, ``Denoiser.step`` and the FMUs run it). The FMU
     engine is always causal.
+
+    ``signing_key`` (32 bytes, :func:`gyrodenoise.mavlink.signing.read_key`): a
+    telemetry log's packets are checked and the changed ones re-signed; without it
+    signed packets are written unchanged (``signed_left_raw``).
 
     Raises InputError (one line naming the file) for a file that cannot be
     used: unknown type, unreadable, or without a gyro stream.
@@ -62,6 +74,10 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     try:
         streams, source, facts = read_log(path, kind, raw_imu_unit, raw_imu_scale)
         rep.update(facts)
+        link = None
+        if kind == "tlog":
+            link = LinkSigning(signing_key)
+            streams = _check_signatures(path, source, streams, link, raw_imu_unit, raw_imu_scale)
         offline = engine == "native" and method == "motion" and not causal
         eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase, offline)
         rep.update(filter_form(eng, engine))
@@ -69,10 +85,12 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
             filter_streams(streams, eng, gap_factor, sample_rate)
         finally:
             eng.close()
+        if link is not None:
+            tlog.keep_signed_raw(source["fr"], streams, link)
         check_some_stream_filterable(path, streams, filter_kw)
         what = f"{engine} {_method_label(method, ar_order, rep['form'])}"
         rep.update(_write_outputs(path, kind, source, streams, Path(out_dir), out_stem or path.stem,
-                                  plotter, csv, what, method, filter_kw, log))
+                                  plotter, csv, what, method, filter_kw, log, link))
         done = True
     finally:
         if plotter is not None:
@@ -84,25 +102,50 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     return rep
 
 
+def _check_signatures(path, source, streams, link, raw_imu_unit, raw_imu_scale):
+    """A telemetry log's packets through the signature check of ``link``; the gyro
+    streams without the rejected packets. InputError when the key verifies none of
+    the log's signed packets (a wrong key), or no gyro packet is left."""
+    data, fr = source["data"], source["fr"]
+    tlog.check_signatures(data, fr, link)
+    if link.key is None or not fr.rejected.any():
+        return streams
+    if link.signed and not (fr.signed & fr.usable).any():
+        raise InputError(f"{path}: none of its {link.signed} signed packets verifies under the --signing-key "
+                         f"(a wrong key, or a passphrase other than the link's?)")
+    streams = tlog.gyro_streams(data, fr, raw_imu_unit, raw_imu_scale)
+    if not streams:
+        raise InputError(f"{path}: no gyro stream is left once the {link.n_rejected} packets that fail the "
+                         f"signature check are taken out")
+    return streams
+
+
 def _method_label(method, ar_order, form):
     """The filter as the plots' titles name it, with its form (as the summary does)."""
     label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
     return f"{label}, {form}" if form else label
 
 
-def _write_outputs(path, kind, source, streams, out_dir, stem, plotter, csv, what, method, filter_kw, log):
+def _write_outputs(path, kind, source, streams, out_dir, stem, plotter, csv, what, method, filter_kw, log,
+                   link=None):
     """Every output file of a filtered log (plots queued first: a helper draws them
-    while the rest is written); the report's fields on them."""
+    while the rest is written); the report's fields on them (a telemetry log's
+    signing counts from ``link``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw)
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
     with atomic_path(out_log) as tmp:
-        rep = write_filtered_log(kind, source, streams, tmp)
+        if link is not None:
+            tlog.write_filtered(source["data"], source["fr"], streams, tmp, link)
+            rep = link.report()
+        else:
+            rep = write_filtered_log(kind, source, streams, tmp)
     rep["output_log"] = str(out_log)
     srep, restarts = _stream_reports(path, streams, out_dir, stem, csv, plotter, log)
     rep.update(streams=srep, restarts=restarts)
     if log:
         log_problems(dict(rep, file=str(path)), log)
+        signing_problems(dict(rep, file=str(path)), log)
     return rep
 
 

@@ -120,6 +120,27 @@ def log_problems(rep, log):
             log(f"{rep['file']}: warning: {w}")
 
 
+def signing_problems(rep, log):
+    """One stderr line on a log's / link's signed packets left raw for want of a key,
+    and one on the packets that failed the signature check (from which sources)."""
+    if rep.get("signed_left_raw"):
+        log(f"{rep['file']}: {rep['signing_note']}")
+    if rep.get("rejected_signatures"):
+        log(f"{rep['file']}: {rejected_text(rep)}")
+
+
+def rejected_text(rep):
+    """'12 packets failed the signature check and were dropped (from 1.1: 10 unsigned, 2 bad_signature)'."""
+    parts = []
+    for r in rep.get("rejected_by_source", []):
+        why = ", ".join(f"{r[k]} {k}" for k in ("unsigned", "mavlink1", "bad_signature", "replayed_timestamp")
+                        if r.get(k))
+        parts.append(f"from {r['system']}.{r['component']}: {why}")
+    n = rep["rejected_signatures"]
+    return (f"{n} packet{'' if n == 1 else 's'} failed the signature check and {'was' if n == 1 else 'were'} "
+            f"dropped (not filtered, not written or forwarded; {'; '.join(parts)})")
+
+
 def streams_left_raw(logs):
     """[{"file", "stream", "reason"}] of the streams written raw by the safety net."""
     return [{"file": r["file"], "stream": s["name"], "reason": s["left_raw"]}

@@ -25,8 +25,12 @@ Gyro messages (all int16 mrad/s except HIGHRES_IMU, float rad/s):
 Re-packing keeps the header (sequence, system, component, message id) and
 changes the gyro bytes of the payload and the CRC. MAVLink 2 payloads are
 re-trimmed of trailing zeros but never below their original length. A signed
-MAVLink 2 packet cannot be re-signed without the key: its signature is
-dropped, its signed flag cleared, and the report counts it.
+MAVLink 2 packet is never written unsigned (:mod:`gyrodenoise.mavlink.signing`):
+with the link's key it is re-signed (the original link id, a timestamp that keeps
+the signing rules); without it, it is written unchanged, its gyro fields raw, and
+counted (``signed_left_raw``). With a key, every packet is checked on the way in
+(:func:`check_signatures`): one that fails is left out of the streams and of the
+filtered log, and counted per source.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
+from gyrodenoise.mavlink.signing import IFLAG_SIGNED, LinkSigning, is_signed
 from gyrodenoise.mavlink.streams import UNIT_TO_DEG_S, GyroStream
 
 MAGIC_V1, MAGIC_V2 = 0xFE, 0xFD
@@ -174,6 +179,19 @@ class TlogFrames:
     bad_regions: list = field(default_factory=list)   # (start, end) unframed bytes
     truncated_bytes: int = 0
     zero_tail: bool = False    # the truncated tail is zero bytes (log cut at a block boundary)
+    signed: np.ndarray = None  # MAVLink 2 with the signed flag
+    rejected: np.ndarray = None   # failed the signature check under the link's key (check_signatures)
+
+    def __post_init__(self):
+        if self.signed is None:
+            self.signed = np.zeros(len(self.start), dtype=bool)
+        if self.rejected is None:
+            self.rejected = np.zeros(len(self.start), dtype=bool)
+
+    @property
+    def usable(self):
+        """Readable and not rejected by the signature check."""
+        return self.ok & ~self.rejected
 
     @property
     def n_unreadable(self):
@@ -237,7 +255,22 @@ def frame(data, path="<bytes>"):
                      | (buf[np.minimum(start + 17, n - 1)].astype(np.int64) << 16),
                      buf[np.minimum(start + 13, n - 1)].astype(np.int64)) if len(start) else np.zeros(0, np.int64)
     ok = _check_crcs(buf, start, length, v2, msgid)
-    return TlogFrames(path, n, start, length, ok, msgid, v2, bad, truncated, zero_tail)
+    signed = v2 & ((buf[np.minimum(start + 10, n - 1)] & IFLAG_SIGNED) != 0) if len(start) else np.zeros(0, bool)
+    return TlogFrames(path, n, start, length, ok, msgid, v2, bad, truncated, zero_tail, signed)
+
+
+def check_signatures(data, fr: TlogFrames, link: LinkSigning):
+    """Every readable packet of the log through ``link``'s check, in the log's order
+    (the signing rules are stateful): sets ``fr.rejected``. Without a key it only
+    counts the signed packets."""
+    if link.key is None:
+        link.signed += int((fr.signed & fr.ok).sum())
+        return
+    rejected = np.zeros(len(fr.start), dtype=bool)
+    for i in np.nonzero(fr.ok)[0].tolist():
+        a = int(fr.start[i]) + 8
+        rejected[i] = link.check(data[a:a + int(fr.length[i]) - 8]) is not None
+    fr.rejected = rejected
 
 
 def _check_crcs(buf, start, length, v2, msgid):
@@ -291,7 +324,7 @@ def _select(buf, fr: TlogFrames, name):
     """Good frames of message ``name``: (frame indices, layout, payload rows,
     system ids), or None when the log has none."""
     mid = getattr(_dialect(), "MAVLINK_MSG_ID_" + name)
-    sel = np.nonzero(fr.ok & (fr.msgid == mid))[0]
+    sel = np.nonzero(fr.usable & (fr.msgid == mid))[0]
     if not len(sel):
         return None
     lay = layout(name)
@@ -402,12 +435,21 @@ _raw_imu_unit = decide_raw_imu_unit     # the former private name
 
 
 # ---------------------------------------------------------------- re-packing
-def repack(pkt, name, values):
+class SignedPacketError(ValueError):
+    """A signed packet to re-pack without the link's key (it would go out unsigned)."""
+
+
+def repack(pkt, name, values, signer=None):
     """Packet ``pkt`` (bytes) of message ``name`` with its gyro fields set to
     ``values`` (3 numbers in the field unit; int16 fields are rounded). A value
     that does not fit the field's type raises ValueError (never clipped: the
     callers check :func:`gyrodenoise.mavlink.streams.field_misfit` first and keep the raw
-    values). Returns (new packet bytes, signature_dropped)."""
+    values). A signed packet is re-signed by ``signer``
+    (:class:`gyrodenoise.mavlink.signing.LinkSigning` holding the key); without one it
+    raises :class:`SignedPacketError` (a signed packet is never made unsigned).
+    Returns (new packet bytes, signature_dropped: always False)."""
+    if is_signed(pkt) and (signer is None or signer.key is None):
+        raise SignedPacketError(f"{name}: a signed packet cannot be changed without the link's key")
     lay = layout(name)
     v2 = pkt[0] == MAGIC_V2
     hl = 10 if v2 else 6
@@ -432,40 +474,94 @@ def repack(pkt, name, values):
         new_len = max(plen, k)
         header = bytearray(pkt[:hl])
         header[1] = new_len
-        dropped = bool(header[2] & 1)
-        header[2] &= 0xFE
     else:
         new_len = plen
         header = bytearray(pkt[:hl])
-        dropped = False
     body = bytes(header) + bytes(full[:new_len])
     crc = x25_crc(body[1:])
     crc = x25_crc(bytes([lay.crc_extra]), crc)
-    return body + struct.pack("<H", crc), dropped
+    body += struct.pack("<H", crc)
+    if is_signed(pkt):
+        return signer.resign(pkt, body), False
+    return body, False
 
 
-def write_filtered(data, fr: TlogFrames, streams, path):
+def keep_signed_raw(fr: TlogFrames, streams, link: LinkSigning):
+    """Without the link's key: the samples of signed packets go out raw (their
+    packets unchanged, signature kept), in ``s.filtered`` and the work values alike
+    (the CSV and the figures say what the log holds); counts them in
+    ``link.left_raw`` (those the filter had changed). A stream that the filter
+    changed only in signed packets gets the reason in ``s.not_filtered``."""
+    if link.key is not None:
+        return
+    for s in streams:
+        if s.filtered is None:
+            continue
+        sig = fr.signed[s.index]
+        changed = np.any(s.filtered != s.raw, axis=1) & ~np.all(np.isnan(s.filtered) & np.isnan(s.raw), axis=1)
+        lost = sig & changed
+        if not lost.any():
+            continue
+        link.left_raw += int(lost.sum())
+        s.filtered = np.where(lost[:, None], s.raw.astype(np.float64), s.filtered)
+        work = getattr(s, "_work", None)
+        if work is not None:
+            x, f, unit, rate = work
+            s._work = (x, np.where(lost[:, None], x, f), unit, rate)
+        if not (changed & ~sig).any() and not getattr(s, "not_filtered", None):
+            from gyrodenoise.mavlink.signing import KEY_HINT
+            s.not_filtered = (f"its packets are signed (MAVLink 2) and no --signing-key was given: written raw, "
+                              f"signatures kept (a signed packet is never written unsigned); {KEY_HINT}")
+
+
+def write_filtered(data, fr: TlogFrames, streams, path, link: LinkSigning | None = None):
     """Write the tlog with the filtered gyro values of ``streams``; returns the
-    number of signatures dropped."""
+    number of signatures dropped (0: a signed packet is never written unsigned).
+
+    ``link`` (:class:`gyrodenoise.mavlink.signing.LinkSigning`): with its key,
+    changed signed packets are re-signed and the records ``fr.rejected`` are left
+    out; without one (or no ``link``), a signed packet is written unchanged (see
+    :func:`keep_signed_raw`). A packet whose bytes the filter does not change
+    keeps them, signature and all."""
+    link = link if link is not None else LinkSigning()
     repl = {}
     for s in streams:
         if s.filtered is None:
             continue
         for rec, vals in zip(s.index.tolist(), s.filtered.tolist()):
             repl[rec] = (s.message, vals)
-    dropped = 0
+    cut = {int(r): None for r in np.nonzero(fr.rejected)[0]} if link.key is not None else {}
     with open(path, "wb") as fh:
         last = 0
-        for rec in sorted(repl):
+        for rec in sorted({**repl, **cut}):
             a = int(fr.start[rec])
             b = a + int(fr.length[rec])
+            if rec in cut:                      # failed the signature check: not written
+                fh.write(data[last:a])
+                last = b
+                continue
+            pkt = data[a + 8:b]
+            if fr.signed[rec] and link.key is None:
+                continue                        # never unsigned: written as it came
+            new = repacked(pkt, repl[rec], link)
             fh.write(data[last:a + 8])
-            pkt, d = repack(data[a + 8:b], *repl[rec])
-            dropped += d
-            fh.write(pkt)
+            fh.write(new)
             last = b
         fh.write(data[last:])
-    return dropped
+    return 0
+
+
+def repacked(pkt, rep, link):
+    """The packet with its new gyro values; a signed one whose payload the values do
+    not change keeps its bytes (and signature)."""
+    if not is_signed(pkt):
+        return repack(pkt, *rep)[0]
+    plain = bytearray(pkt[:-13])
+    plain[2] &= ~IFLAG_SIGNED & 0xFF
+    new = repack(bytes(plain), *rep)[0]
+    if new == bytes(plain):
+        return pkt
+    return repack(pkt, *rep, signer=link)[0]
 
 
 def looks_like_tlog(head):
