@@ -93,7 +93,8 @@ def _read_ulog(path):
 def write_filtered_log(kind, source, streams, path):
     """Write the filtered copy of a log to ``path``: the log of :func:`read_log`
     with the streams' ``filtered`` values in their gyro fields. Returns the
-    report's fields on the writing (telemetry logs: ``signatures_dropped``)."""
+    report's fields on the writing (telemetry logs: ``signatures_dropped``, always 0 since a
+    signed packet is never written unsigned: the pipeline writes signed links itself)."""
     if kind == "dataflash":
         Path(path).write_bytes(dataflash.patch(source["data"], source["sc"], streams))
         return {}
