@@ -9,7 +9,8 @@ of what completed (:func:`interrupted_summary`).
 
 from __future__ import annotations
 
-import sys
+import contextlib
+import os
 import time
 from pathlib import Path
 
@@ -100,11 +101,16 @@ def _unique_stems(files):
     return stems
 
 
+def _uses_pool(jobs, scheduler, n_tasks):
+    """Whether a run of ``n_tasks`` logs goes to the local process pool."""
+    return scheduler is None and jobs > 1 and n_tasks > 1
+
+
 def _run_tasks(tasks, jobs, scheduler, bar, results):
     """Run every task, each result into ``results`` as it ends (``bar(result)`` then)."""
     if scheduler is not None:
         cluster.run_on_cluster(tasks, scheduler, bar, into=results)
-    elif jobs > 1 and len(tasks) > 1:
+    elif _uses_pool(jobs, scheduler, len(tasks)):
         _run_in_pool(tasks, jobs, bar, results)
     else:
         for i, t in enumerate(tasks):
@@ -113,17 +119,83 @@ def _run_tasks(tasks, jobs, scheduler, bar, results):
                 bar(results[i])
 
 
-def _run_in_pool(tasks, jobs, bar, results):
-    """:func:`_run_tasks` in a local process pool of ``jobs`` workers, largest log first.
+#: the environment each ``--jobs`` worker starts with: one thread of BLAS (OpenBLAS,
+#: MKL, BLIS, Accelerate), OpenMP and numba, as Dask's nanny gives its workers. N
+#: workers each starting a thread per core oversubscribe the machine (measured on 16
+#: cores, 80 logs: ``--jobs 16`` no faster than serial with them, 9x serial without).
+WORKER_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                     "BLIS_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1",
+                     "NUMBA_NUM_THREADS": "1"}
+#: threads of BLAS / OpenMP / numba in each worker of the local pool (the summary's
+#: ``threads_per_worker``)
+THREADS_PER_WORKER = 1
+
+
+@contextlib.contextmanager
+def _worker_environment():
+    """The processes started in the block start with :data:`WORKER_THREAD_ENV`:
+    set in this process's environment for the block (a spawned child inherits
+    it), then restored as it was.
+
+    The environment of a fresh interpreter, not a call in a forked worker: these
+    libraries read the variables once, when they load (OpenBLAS starts its threads
+    then), and a forked worker inherits the parent's numpy already loaded with a
+    BLAS sized for every core; after the fork it restarts those threads at its
+    first call, and setting its count to 1 then (threadpoolctl's way, not installed
+    here) still starts them, idle (measured: numpy 2.4's OpenBLAS)."""
+    old = {k: os.environ.get(k) for k in WORKER_THREAD_ENV}
+    os.environ.update(WORKER_THREAD_ENV)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def worker_threads(task=None):
+    """The threads of the calling process (``task`` is not used: the signature of a
+    task, for :func:`_run_in_pool`):
+    ``{"process": threads of the process (Linux, else None), "numba": numba's
+    thread count or None (numba not installed), "env": the thread variables}``.
+    Run in a worker in place of :func:`gyrodenoise.mavlink.cluster.run_task`, it says
+    what the pool's workers get (the tests)."""
+    import numpy as np
+    a = np.ones((256, 256))
+    a @ a                               # BLAS starts its threads (if any) at its first call
+    task = Path("/proc/self/task")
+    try:
+        import numba
+        nb = int(numba.config.NUMBA_NUM_THREADS)
+    except ImportError:
+        nb = None
+    return {"process": len(list(task.iterdir())) if task.is_dir() else None, "numba": nb,
+            "env": {k: os.environ.get(k) for k in WORKER_THREAD_ENV}}
+
+
+def _run_in_pool(tasks, jobs, bar, results, fn=None):
+    """:func:`_run_tasks` in a local process pool of ``jobs`` workers, largest log first
+    (``fn``: what runs each task, :func:`gyrodenoise.mavlink.cluster.run_task`).
     The workers end with this process, and on an interrupt they are stopped at
-    once (the pool's own shutdown would wait for the logs under way)."""
+    once (the pool's own shutdown would wait for the logs under way).
+
+    Each worker runs one thread of BLAS / OpenMP / numba: ``jobs`` workers each with
+    a thread per core would oversubscribe the machine. The workers are spawned
+    (fresh interpreters, as on macOS and Windows) in :func:`_worker_environment`;
+    each pays its imports once (about 0.3 s). As with any spawned pool, a script
+    that calls this with ``jobs`` > 1 keeps its work under ``if __name__ ==
+    "__main__":`` (the workers import the script's main module)."""
     import concurrent.futures as cf
     import multiprocessing as mp
-    ctx = mp.get_context("fork") if sys.platform.startswith("linux") else None
-    ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx, initializer=as_child)
+    fn = cluster.run_task if fn is None else fn
+    ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=mp.get_context("spawn"),
+                                initializer=as_child)
     try:
-        with signals_blocked():           # the workers are forked by the first submit
-            futures = {ex.submit(cluster.run_task, tasks[i]): i for i in cluster.largest_first(tasks)}
+        # every worker is started by a submit in this block (one a submit, up to ``jobs``)
+        with signals_blocked(), _worker_environment():
+            futures = {ex.submit(fn, tasks[i]): i for i in cluster.largest_first(tasks)}
         for fut in cf.as_completed(futures):
             t = tasks[futures[fut]]
             try:
@@ -164,6 +236,9 @@ def _summary(files, results, ignored, seconds, jobs, scheduler, head=None):
         out["n_unfinished"] = sum(r is None for r in results)
     out.update({
         "jobs": None if scheduler is not None else int(jobs),     # the cluster decides its parallelism
+        # BLAS / OpenMP / numba threads of each pool worker; None: no pool (serial: this
+        # process's own; a Dask cluster: its workers', e.g. 1 under a nanny)
+        "threads_per_worker": THREADS_PER_WORKER if _uses_pool(jobs, scheduler, len(files)) else None,
         "scheduler": None if scheduler is None else str(scheduler),
         "seconds": round(seconds, 3),
         "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC, "spectrum_metric": SPECTRUM_METRIC,

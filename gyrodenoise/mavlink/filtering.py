@@ -58,11 +58,31 @@ def _accepts(s, engine, rate):
         engine.check_rate(rate)
     except ValueError as exc:               # e.g. --cutoff-hz not below this stream's Nyquist
         s.filtered = s.raw.astype(np.float64)
-        s.left_raw = None
         s.not_filtered = f"the filter cannot run at {rate:g} Hz: {exc}; written raw"
         s.rate_refused = rate
+        s.refused_option = refused_band_option(exc, getattr(engine, "filter_kw", None))
+        # a band option this stream cannot take: written raw, one stderr line, exit 1
+        # (every stream refusing it: the log is refused, check_some_stream_filterable)
+        s.left_raw = (None if s.refused_option is None else
+                      f"{s.refused_option[0]} {s.refused_option[1]:g} is at or above this stream's Nyquist "
+                      f"frequency ({rate / 2:.4g} Hz, sampled at {rate:.4g} Hz)")
         return False
     return True
+
+
+#: the band options (Hz) checked against each stream's rate: core parameter -> CLI option.
+#: One rule for both: below half the stream's rate (its Nyquist frequency)
+BAND_OPTIONS = {"cutoff_hz": "--cutoff-hz", "max_motion_hz": "--max-motion-hz"}
+
+
+def refused_band_option(exc, filter_kw):
+    """(CLI option, value) of the band option the core's ``exc`` (ValueError of a
+    rate check) refused, or None when it was something else."""
+    for param, option in BAND_OPTIONS.items():
+        value = (filter_kw or {}).get(param)
+        if value is not None and str(exc).startswith(f"{param} "):
+            return option, float(value)
+    return None
 
 
 def _filter_axes(s, engine, x, usable, rate):
@@ -110,19 +130,20 @@ def not_filtered_reason(s, method, warmup_samples, rate, sample_rate=None):
 
 
 def check_some_stream_filterable(path, streams, filter_kw):
-    """InputError (one line, nothing written) when a --cutoff-hz was given and every
-    stream that would be filtered (not too slow to denoise) refused it: at or above
-    its Nyquist frequency. A log where some stream takes it goes on: the others
-    are written raw, each with its reason."""
-    cutoff = (filter_kw or {}).get("cutoff_hz")
+    """InputError (one line, nothing written) when a band option (``--cutoff-hz``,
+    ``--max-motion-hz``: :data:`BAND_OPTIONS`) was given and every stream that would
+    be filtered (not too slow to denoise) refused it: at or above its Nyquist
+    frequency. A log where some stream takes it goes on: the others are written
+    raw, each with its reason (``left_raw``: a stderr line each, exit status 1)."""
     tried = [s for s in streams if not mm.too_slow_to_denoise(s.rate_hz)]   # the slow ones never reach the filter
-    if cutoff is None or not tried or not all(getattr(s, "rate_refused", None) is not None for s in tried):
+    if not tried or not all(getattr(s, "refused_option", None) for s in tried):
         return
+    option, value = tried[0].refused_option
     rates = sorted({s.rate_refused for s in tried})
-    exc = InputError(f"{path}: --cutoff-hz {cutoff:g} is at or above the Nyquist frequency of every gyro "
+    exc = InputError(f"{path}: {option} {value:g} is at or above the Nyquist frequency of every gyro "
                      f"stream (sampled at {', '.join(f'{r:.4g}' for r in rates)} Hz: Nyquist "
                      f"{', '.join(f'{r / 2:.4g}' for r in rates)} Hz); nothing to filter")
-    exc.option, exc.rates_hz = "--cutoff-hz", rates
+    exc.option, exc.rates_hz = option, rates
     raise exc
 
 
