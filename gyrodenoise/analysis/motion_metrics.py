@@ -183,7 +183,9 @@ def lag_s(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip
         n = len(lr)
         for j, k in enumerate(range(-max_k, max_k + 1)):
             if abs(k) < n:
-                cc[j] += float(np.dot(lr[:n - k], lf[k:]) if k >= 0 else np.dot(lr[-k:], lf[:n + k]))
+                # np.sum, not np.dot: a threaded BLAS dot sums in an order that depends on the
+                # number of threads, and the figure must not depend on what runs it
+                cc[j] += float(np.sum(lr[:n - k] * lf[k:]) if k >= 0 else np.sum(lr[-k:] * lf[:n + k]))
     j = int(np.argmax(cc))
     if not cc[j] > 0 or j == 0 or j == len(cc) - 1:
         return None

@@ -450,10 +450,13 @@ def _run_files(args, kw, single, client=None):
             summary["scheduler"] = args.scheduler
         if summary["n_logs"] == 0:
             raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
-        if not summary["n_ok"] and all(f.get("option") == "--cutoff-hz" for f in summary["failed"]):
+        refused = {f.get("option") for f in summary["failed"]}
+        if not summary["n_ok"] and len(refused) == 1 and refused <= {"--cutoff-hz", "--max-motion-hz"}:
             # the option, not the logs: one line, nothing written (as for one log)
+            option = refused.pop()
+            value = args.cutoff_hz if option == "--cutoff-hz" else args.max_motion_hz
             fastest = max(r for f in summary["failed"] for r in f.get("rates_hz") or [0.0])
-            raise InputError(f"--cutoff-hz {args.cutoff_hz:g} is at or above the Nyquist frequency of every "
+            raise InputError(f"{option} {value:g} is at or above the Nyquist frequency of every "
                              f"gyro stream of the {summary['n_logs']} log(s) (the fastest sampled at "
                              f"{fastest:.4g} Hz: Nyquist {fastest / 2:.4g} Hz); nothing to filter")
     summary["exit_status"] = exit_status(summary)

@@ -61,11 +61,10 @@ def _accepts(s, engine, rate):
         s.not_filtered = f"the filter cannot run at {rate:g} Hz: {exc}; written raw"
         s.rate_refused = rate
         s.refused_option = refused_band_option(exc, getattr(engine, "filter_kw", None))
-        # a band option this stream cannot take: written raw, one stderr line, exit 1
-        # (every stream refusing it: the log is refused, check_some_stream_filterable)
-        s.left_raw = (None if s.refused_option is None else
-                      f"{s.refused_option[0]} {s.refused_option[1]:g} is at or above this stream's Nyquist "
-                      f"frequency ({rate / 2:.4g} Hz, sampled at {rate:.4g} Hz)")
+        # a band option this stream cannot take (a slow stream of a multi-rate log): not
+        # filtered, with the reason, like a stream too slow to denoise; exit status 0.
+        # Every stream refusing it: the log is refused (check_some_stream_filterable)
+        s.left_raw = None
         return False
     return True
 
@@ -134,7 +133,7 @@ def check_some_stream_filterable(path, streams, filter_kw):
     ``--max-motion-hz``: :data:`BAND_OPTIONS`) was given and every stream that would
     be filtered (not too slow to denoise) refused it: at or above its Nyquist
     frequency. A log where some stream takes it goes on: the others are written
-    raw, each with its reason (``left_raw``: a stderr line each, exit status 1)."""
+    raw, each with its reason (``not_filtered``), as streams too slow to denoise are."""
     tried = [s for s in streams if not mm.too_slow_to_denoise(s.rate_hz)]   # the slow ones never reach the filter
     if not tried or not all(getattr(s, "refused_option", None) for s in tried):
         return
