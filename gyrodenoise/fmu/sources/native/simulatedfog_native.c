@@ -25,10 +25,15 @@
  *     Q 0x3ee84107b8a9d2b8 1.1565e-05
  *     ...
  *
+ * The same fields may be given on one line, separated by '|' (no comment lines):
+ *
+ *     gdcard 1 125 | sample_rate_hz 0x4069000000000000 200.0 | Q 0x3ee84107b8a9d2b8 1.1565e-05 | ...
+ *
  * `gyrodenoise fmu build` compiles the bundled cards into resources/cards/NAME.gdcard;
- * `gyrodenoise fmu card CARD.toml` compiles any card (gyrodenoise.fmu.simnative.
- * compile_card); the SSP writer passes the compiled text. A TOML card given here is
- * refused at fmi2ExitInitializationMode with the reason and the command to use.
+ * `gyrodenoise fmu card CARD.toml [--one-line]` compiles any card (gyrodenoise.fmu.simnative.
+ * compile_card); the SSP writer binds a bundled card's name, any other card on one line.
+ * A TOML card given here is refused at fmi2ExitInitializationMode with the reason and the
+ * command to use.
  *
  * The value references, the GUID, the start values and the card's field names come
  * from simulatedfog_native_vars.h, generated from one table (gyrodenoise/fmu/simnative.py).
@@ -120,8 +125,9 @@ static int hex_digit(int ch) {
 static int parse_compiled(const char *text, const char *what, double *v, char *err, size_t nerr) {
     const char *p = text;
     int line = 0, field = -1; /* -1: header expected */
-    /* the one-line form (no newline): its fields separated by '|' */
-    const char sep = strchr(text, '\n') == NULL ? '|' : '\n';
+    /* the one-line form (a '|' on the header's line): its fields separated by '|' */
+    const char *nl = strchr(text, '\n'), *bar = strchr(text, '|');
+    const char sep = bar != NULL && (nl == NULL || bar < nl) ? '|' : '\n';
     while (*p) {
         const char *eol = p, *q, *name;
         size_t nlen;
