@@ -279,3 +279,64 @@ def test_jacobi_master_feeds_the_denoiser_the_library_samples(fmu_dir, tmp_path,
     assert np.array_equal(np.array(filtered), ref)
     # the restart took effect (the output without it differs)
     assert np.max(np.abs(gd.denoise(samples, fs, method=method) - ref)) > 1e-9
+
+
+# --------------------------------------------------------------- Ecos
+ECOS_RUN = """
+import json, sys
+from ecospy import EcosSimulation
+ssp, h, n, set_name = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+sim = EcosSimulation(ssp_path=ssp, step_size=h)
+sim.init(parameter_set=set_name)
+received, filtered = [], []
+for k in range(n):
+    received.append(sim.get_real("denoiser::raw_rate"))     # the input of step k
+    sim.step()
+    filtered.append(sim.get_real("denoiser::filtered_rate"))
+card = sim.get_string("fog::card")
+sim.terminate()
+sim.free()
+print(json.dumps({"received": received, "filtered": filtered, "card": card}))
+"""
+
+
+def _tbb_lib_dir():
+    """The folder of libtbb.so.12 from the tbb wheel (ecospy's engine links it), or None."""
+    import sys
+    from pathlib import Path
+    for d in (Path(sys.prefix) / "lib", Path(sys.base_prefix) / "lib"):
+        if any(d.glob("libtbb.so.12*")):
+            return d
+    return None
+
+
+@pytest.mark.slow
+def test_ecos_runs_the_ssp_with_its_parameters(fmu_dir, tmp_path):
+    """Ecos (ecospy, a co-simulation engine nobody here wrote) loads the archive, applies the one
+    named parameter set (imar_fog at 400 Hz, seed 3, 2.5 deg/s, shakf): the denoiser receives
+    gyrodenoise.simulate's samples and outputs gyrodenoise.denoise's, bit for bit. In a fresh
+    process, with the tbb wheel's lib folder on LD_LIBRARY_PATH."""
+    import json
+    import os
+    import subprocess
+    import sys
+    import importlib.util
+    if importlib.util.find_spec("ecospy") is None:     # not imported here: it loads libtbb at import
+        pytest.skip("ecospy not installed (pip install ecospy tbb)")
+    tbb = _tbb_lib_dir()
+    if tbb is None:
+        pytest.skip("libtbb.so.12 not found (pip install tbb)")
+    n, fs = 400, 400.0
+    ssp = C.write_ssp(tmp_path / "chain.ssp", fmu_dir=fmu_dir, card="imar_fog", seed=3, method="shakf",
+                      rate_deg_s=2.5, duration_s=n / fs)
+    env = dict(os.environ, LD_LIBRARY_PATH=os.pathsep.join(
+        p for p in (str(tbb), os.environ.get("LD_LIBRARY_PATH", "")) if p))
+    proc = subprocess.run([sys.executable, "-c", ECOS_RUN, str(ssp), repr(1.0 / fs), str(n),
+                           C.PARAMETER_SET_NAME], capture_output=True, text=True, timeout=120, env=env,
+                          cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["card"] == "imar_fog"
+    samples = gd.simulate("imar_fog", n, seed=3, true_rate_deg_s=2.5).rate_deg_s
+    assert np.array_equal(np.array(out["received"]), samples)
+    assert np.array_equal(np.array(out["filtered"]), gd.denoise(samples, fs, method="shakf"))
