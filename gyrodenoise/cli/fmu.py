@@ -51,6 +51,9 @@ def _register_card(sub):
                                    "text or the file's path): the card vector, each value as its IEEE 754 bits.")
     c.add_argument("card", help="model card path or embedded name (e.g. paper_fog)")
     c.add_argument("--out", default=None, metavar="FILE", help="write the compiled card there (default: stdout)")
+    c.add_argument("--one-line", action="store_true",
+                   help="the fields on one line, separated by ' | ' (the form for a parameter value that a "
+                        "host writes into its result file, e.g. an SSP parameter binding)")
     c.set_defaults(func=_cmd_card)
 
 
@@ -103,7 +106,9 @@ def _cmd_build(args):
 
 def _cmd_card(args):
     from gyrodenoise.fmu.simnative import compile_card
-    text = compile_card(args.card)          # a bad card: InputError (one line, exit 2), nothing written
+    text = compile_card(args.card, one_line=args.one_line)  # a bad card: InputError (exit 2), nothing written
+    if args.one_line:
+        text += "\n"
     if args.out is None:
         sys.stdout.write(text)
         return 0

@@ -32,21 +32,41 @@ def _ssv_parameters(params, var_types):
     return "\n".join(rows)
 
 
+#: the name of the one parameter set of the SSP: every component's ParameterBinding holds a
+#: ParameterSet of this name (a host that applies one named set at a time, as Ecos does,
+#: applies them all; libcosim applies every binding whatever its name)
+PARAMETER_SET_NAME = "parameters"
+
+
+def card_parameter(card_obj, sensor="SimulatedFogNative"):
+    """The value of the sensor FMU's ``card`` parameter for the card ``card_obj``: the name of the
+    card bundled in the FMU when it is one of them (same numbers as the bundled card, whatever
+    its file), else for SimulatedFogNative the compiled card on one line
+    (:func:`gyrodenoise.fmu.simnative.compile_card`, ``one_line=True``) and for SimulatedFog
+    (pythonfmu, which reads TOML only) the card's TOML text.
+
+    One line, so that a host's result file stays one row per step (Ecos writes the String
+    parameters into its CSV unquoted); only a non-bundled card for the pythonfmu sensor is
+    multi-line."""
+    from gyrodenoise.fmu.simnative import bundled_name, compile_card
+    name = bundled_name(card_obj)
+    if name is not None:
+        return name
+    if sensor == "SimulatedFogNative":
+        return compile_card(card_obj, one_line=True)
+    return card_obj.text
+
+
 def system_parameters(card, seed=0, method=DEFAULT_METHOD, ar_order=3, rate_deg_s=0.0, denoiser_kw=None,
                       sensor="SimulatedFogNative"):
     """Parameter values of the two-FMU system: {instance: {variable: value}}.
 
-    The fog's ``card``: the card's TOML text for SimulatedFog, its compiled text
-    (:func:`gyrodenoise.fmu.simnative.compile_card`) for SimulatedFogNative."""
+    The fog's ``card``: :func:`card_parameter` (a bundled card's name, or the card in a form
+    the sensor FMU reads)."""
     card_obj = _resolve_card(card)
     fs = card_obj.sample_rate_hz
-    if sensor == "SimulatedFogNative":
-        from gyrodenoise.fmu.simnative import compile_card
-        card_value = compile_card(card_obj)
-    else:
-        card_value = card_obj.text
     return card_obj, {
-        "fog": {"card": card_value, "seed": int(seed), "true_rate": float(rate_deg_s)},
+        "fog": {"card": card_parameter(card_obj, sensor), "seed": int(seed), "true_rate": float(rate_deg_s)},
         "denoiser": _denoiser_params(method, ar_order, fs, denoiser_kw),
     }
 
@@ -93,7 +113,7 @@ def _ssp_component(inst, model, path, params):
         <ssd:ParameterBindings>
           <ssd:ParameterBinding>
             <ssd:ParameterValues>
-              <ssv:ParameterSet version="1.0" name="{inst}_parameters">
+              <ssv:ParameterSet version="1.0" name="{PARAMETER_SET_NAME}">
                 <ssv:Parameters>
 {_ssv_parameters(params, types)}
                 </ssv:Parameters>
@@ -263,12 +283,14 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
     and loads the system from it. A restart is injected with an override
     manipulator on ``fog.restart`` for one step.
 
-    libcosim's fixed-step master is of Jacobi type: FogDenoiser receives in step
-    k what the sensor FMU produced in step k-1 (and in step 0 its
-    initial output, 0 deg/s). The check is therefore that the denoiser's
-    received samples are the sensor's delayed by one step, that those equal
-    ``gyrodenoise.simulate``, and that the denoiser's output equals
-    ``gyrodenoise.denoise`` on the samples it received.
+    libcosim's fixed-step master is of Jacobi type: the denoiser receives in step
+    k the sensor's output at t_k, what it produced in step k-1; in step 0 its
+    output after initialisation: SimulatedFogNative's sample 0 (it samples at
+    fmi2ExitInitializationMode), SimulatedFog's start value 0 deg/s. The check is
+    therefore that the denoiser's received samples are the sensor's outputs
+    delayed by one step, that the sensor's samples equal ``gyrodenoise.simulate``,
+    and that the denoiser's output equals ``gyrodenoise.denoise`` on the samples it
+    received (with SimulatedFogNative: ``gyrodenoise.simulate``'s, no placeholder).
     """
     import numpy as np
     from fmpy import read_model_description
@@ -302,29 +324,52 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
            "max_abs_diff_received_vs_delayed_measured_deg_s":
                float(np.max(np.abs(received[1:] - measured[:-1]))) if n > 1 else 0.0}
     res.update(_check_against_core(measured, received, filtered, restarts, rate_deg_s, card_obj, seed, method,
-                                   ar_order, denoiser_kw, tol, res))
+                                   ar_order, denoiser_kw, tol, res, sensor))
     if keep_arrays:
         res["arrays"] = {"measured": measured, "received": received, "filtered": filtered,
                          "time_s": times, "restarts": restarts}
     return res
 
 
+def sensor_samples_at_init(sensor):
+    """True if the sensor FMU takes its first sample at fmi2ExitInitializationMode (its
+    ``measured_rate`` is ``initial="calculated"``: SimulatedFogNative), False if its output
+    before the first step is a start value (SimulatedFog: 0 deg/s, the sample of step k
+    at t_(k+1))."""
+    from gyrodenoise.fmu.variables import MODELS, PYTHONFMU_MODELS, initial
+    v = next(v for v in MODELS[sensor] if v.name == "measured_rate")
+    return initial(v, sensor in PYTHONFMU_MODELS) == "calculated"
+
+
 def _check_against_core(measured, received, filtered, restarts, rate_deg_s, card_obj, seed, method, ar_order,
-                        denoiser_kw, tol, res):
+                        denoiser_kw, tol, res, sensor="SimulatedFogNative"):
     """The comparisons with ``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` and the verdict
-    (``res`` holds the run's step size and delay check)."""
+    (``res`` holds the run's step size and delay check).
+
+    ``measured[k]``: the sensor's output after step k (at t_(k+1)); ``received[k]``: the
+    denoiser's input in step k (the sensor's output at t_k, Jacobi). A sensor that samples at
+    initialisation produced ``received[0], measured[0], ...`` (its samples 0..n, the restart
+    injected before step k on sample k+1); one that does not produced ``measured`` (samples
+    0..n-1, the restart on sample k) and the denoiser's first input is its start value."""
     import numpy as np
     from gyrodenoise.denoiser import denoise
-    n, fs = len(measured), card_obj.sample_rate_hz
-    truth = np.full(n, float(rate_deg_s))
-    # what the denoiser received: the sensor's initial output, then its samples one step late
+    fs = card_obj.sample_rate_hz
+    if sensor_samples_at_init(sensor):
+        samples = np.concatenate(([received[0]], measured))
+        sample_restarts = np.concatenate(([False], restarts))
+    else:
+        samples, sample_restarts = measured, restarts
+    truth = np.full(len(samples), float(rate_deg_s))
+    # what the denoiser received: the sensor's output at the start of each step, and the
+    # restart flag of that sample (fog.restarted) with it
     rec_restarts = np.concatenate(([False], restarts[:-1]))
-    cmp_ = compare_with_core(measured, measured, truth, restarts, card_obj, seed, method, ar_order,
+    cmp_ = compare_with_core(samples, samples, truth, sample_restarts, card_obj, seed, method, ar_order,
                              denoiser_kw)
     ref = denoise(received, fs, method=method, ar_order=ar_order, restarts=rec_restarts,
-                     **(denoiser_kw or {}))
+                  **(denoiser_kw or {}))
     out = {"max_abs_diff_measured_vs_simulate_deg_s": cmp_["max_abs_diff_measured_vs_simulate_deg_s"],
            "max_abs_diff_filtered_vs_denoise_deg_s": float(np.max(np.abs(filtered - ref))),
+           "first_received_is_a_sample": bool(sensor_samples_at_init(sensor)),
            "tolerance_deg_s": tol}
     out["ok"] = bool(res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
                      and abs(res["step_size_s"] * fs - 1.0) < 1e-9

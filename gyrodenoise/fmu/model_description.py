@@ -1,10 +1,12 @@
 """Complete the modelDescription.xml that pythonfmu writes.
 
-pythonfmu cannot declare units, a DefaultExperiment or min/max. :func:`complete` adds
-them from the FMU's variable declaration (:mod:`gyrodenoise.fmu.variables`): each Real's
+pythonfmu cannot declare units, a DefaultExperiment or min/max, and declares every slave
+able to handle a variable communication step size. :func:`complete` adds the first ones
+from the FMU's variable declaration (:mod:`gyrodenoise.fmu.variables`): each Real's
 ``unit`` with its ``UnitDefinitions`` entry, the DefaultExperiment (the step size the FMU
 expects) and the bounds of the bounded parameters, in the element order the FMI 2.0
-schema requires, and rewrites the FMU in place.
+schema requires, declares ``canHandleVariableCommunicationStepSize="false"`` (one step is
+one sample), and rewrites the FMU in place.
 """
 
 from __future__ import annotations
@@ -37,6 +39,10 @@ def complete_xml(xml_text, name):
         for attr in ("min", "max"):
             if getattr(v, attr) is not None:
                 typed.set(attr, format_value(getattr(v, attr), v.type))
+    for cs in root.findall("CoSimulation"):
+        # one communication step is one sample: a step of another size is refused
+        # (strict_step_size) or processed with a warning, never resampled
+        cs.set("canHandleVariableCommunicationStepSize", "false")
     for old in root.findall("UnitDefinitions") + root.findall("DefaultExperiment"):
         root.remove(old)
     if used:

@@ -76,7 +76,7 @@ def _model_header(spec, guid):
             'generationTool="gyrodenoise.fmu.native" variableNamingConvention="flat" '
             'numberOfEventIndicators="0">',
             f'  <CoSimulation modelIdentifier="{spec.name}" needsExecutionTool="false" '
-            'canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" '
+            'canHandleVariableCommunicationStepSize="false" canInterpolateInputs="false" '
             'maxOutputDerivativeOrder="0" canRunAsynchronuously="false" '
             'canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false" '
             'canGetAndSetFMUstate="true" canSerializeFMUstate="true" '

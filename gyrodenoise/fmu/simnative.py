@@ -54,8 +54,17 @@ CARD_TEXT_MAX = 8191
 CARD_COMMENT_MAX = 200
 
 
-def compile_card(card):
-    """The compiled card (text) of ``card`` (a ModelCard, a card path or a bundled name)."""
+#: the separator of the fields in the one-line form of a compiled card (no comma, semicolon,
+#: quote or tab: a CSV or TSV writer that does not quote keeps it in one cell)
+ONE_LINE_SEPARATOR = " | "
+
+
+def compile_card(card, one_line=False):
+    """The compiled card (text) of ``card`` (a ModelCard, a card path or a bundled name).
+
+    ``one_line=True``: the same fields on one line, separated by ``' | '``, without the
+    comment lines (``gdcard 1 125 | sample_rate_hz 0x4069000000000000 200.0 | ...``): the form
+    for a parameter value that ends up in a host's result file."""
     from gyrodenoise.simulator import load_card
     from gyrodenoise._version import __version__
     _check_layout()
@@ -73,7 +82,10 @@ def compile_card(card):
     for name, x in zip(CARD_FIELDS, v):
         bits = struct.unpack("<Q", struct.pack("<d", float(x)))[0]
         lines.append(f"{name} 0x{bits:016x} {float(x)!r}")
-    text = "\n".join(lines) + "\n"
+    if one_line:
+        text = ONE_LINE_SEPARATOR.join(line for line in lines if not line.startswith("#"))
+    else:
+        text = "\n".join(lines) + "\n"
     if len(text) > CARD_TEXT_MAX:           # cannot happen with CARD_COMMENT_MAX (worst case ~7,300)
         raise InputError(f"the compiled card is {len(text)} characters long, the FMU takes at most "
                          f"{CARD_TEXT_MAX}", card.source)
@@ -83,6 +95,25 @@ def compile_card(card):
 def bundled_cards():
     """{name: path} of the cards bundled in the FMU (the package's model cards)."""
     return {p.stem: p for p in sorted((PACKAGE_DIR / "data").glob("*.toml"))}
+
+
+def _fields(compiled):
+    """The field lines of a compiled card (its comment lines left out)."""
+    return [line for line in compiled.splitlines() if not line.startswith("#")]
+
+
+def bundled_name(card):
+    """The name of the bundled card that ``card`` (a ModelCard, a card path or a bundled name)
+    is, or None: a bundled card with the same card vector (same numbers), whatever the file it
+    was read from (the bundled card of the same file name first)."""
+    from gyrodenoise.simulator import load_card
+    card = load_card(card)
+    fields = _fields(compile_card(card))
+    stem = Path(str(card.source)).stem
+    for name, path in sorted(bundled_cards().items(), key=lambda item: item[0] != stem):
+        if _fields(compile_card(path)) == fields:
+            return name
+    return None
 
 
 def _resources():
