@@ -159,15 +159,9 @@ _NATIVE_CHANGES = {
                             "text ('gdcard 1 ...': gyrodenoise fmu card CARD.toml, its fields one a line or "
                             "on one line separated by '|'; a TOML card is refused at "
                             "fmi2ExitInitializationMode with this reason)"},
-    # the sample at the start time is taken at fmi2ExitInitializationMode (initial="calculated")
-    "measured_rate": {"start": None, "description": "Measured angular rate: true_rate + sensor errors; the "
-                      "sample at the start time from fmi2ExitInitializationMode on, then the sample at the "
-                      "end of each step"},
-    "restarted": {"start": None},
 }
 
-#: SimulatedFogNative.fmu: SimulatedFog's variables; its card parameter takes a compiled card, and its
-#: outputs hold the sample at the start time from fmi2ExitInitializationMode on
+#: SimulatedFogNative.fmu: SimulatedFog's variables; its card parameter takes a compiled card
 SIMULATED_FOG_NATIVE = tuple(v._replace(**_NATIVE_CHANGES.get(v.name, {})) for v in SIMULATED_FOG)
 
 #: FMU model name -> its variables

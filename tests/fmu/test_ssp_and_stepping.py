@@ -6,10 +6,9 @@
   result CSV unquoted keeps one row per step): a bundled card bound by its name, any other
   card as the one-line compiled form, the sensor's numbers unchanged (``gyrodenoise.simulate``).
 * Every FMU declares ``canHandleVariableCommunicationStepSize="false"`` (one step = one sample).
-* A Jacobi master (get every output, set every input, step every FMU), run by hand with fmpy:
-  SimulatedFogNative's output after initialisation is its first sample, so the denoiser's
-  inputs are ``gyrodenoise.simulate``'s samples (no placeholder sample) and its output is
-  ``gyrodenoise.denoise`` of them, bit for bit.
+* A Jacobi master (get every output, set every input, step every FMU), run by hand with fmpy,
+  should feed the denoiser ``gyrodenoise.simulate``'s samples (no placeholder sample): not yet
+  (xfail, strict: the sensor's output before its first step is a start value).
 
 References: ``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` (the batch library,
 themselves tested against the plain-Python specification), seeded.
@@ -209,48 +208,17 @@ def test_fixed_communication_step_size_declared(fmu_dir, name):
 
 
 # --------------------------------------------------------------- the first sample
-def test_sensor_output_after_initialisation_is_its_first_sample(fmu_dir, tmp_path):
-    """measured_rate is initial="calculated" and, after fmi2ExitInitializationMode, sample 0;
-    after step k, sample k+1 (the true rate set before the step); restarted follows restart."""
-    md = read_model_description(str(fmu_dir / "SimulatedFogNative.fmu"))
-    mr = next(v for v in md.modelVariables if v.name == "measured_rate")
-    assert mr.initial == "calculated" and mr.start is None
-    n, h = 50, 1.0 / 400.0
-    truth = np.linspace(-3.0, 7.0, n)
-    restarts = np.zeros(n, dtype=bool)
-    restarts[20] = True
-    s = Slave(fmu_dir / "SimulatedFogNative.fmu", tmp_path, "fog")
-    s.init(card="imar_fog", seed=9, true_rate=truth[0])
-    out, flags = [s.real("measured_rate")], [s.boolean("restarted")]
-    for k in range(1, n):
-        s.set(true_rate=truth[k], restart=bool(restarts[k]))
-        s.s.doStep((k - 1) * h, h)
-        out.append(s.real("measured_rate"))
-        flags.append(s.boolean("restarted"))
-    s.free()
-    ref = gd.simulate("imar_fog", n, seed=9, true_rate_deg_s=truth, restarts=restarts).rate_deg_s
-    assert np.array_equal(np.array(out), ref)
-    assert np.array_equal(np.array(flags), restarts)
-
-
-def test_non_finite_true_rate_at_initialisation_refused(fmu_dir, tmp_path):
-    s = Slave(fmu_dir / "SimulatedFogNative.fmu", tmp_path, "nan")
-    s.s.setupExperiment(startTime=0.0)
-    s.set(true_rate=float("nan"))
-    s.s.enterInitializationMode()
-    with pytest.raises(FMICallException):
-        s.s.exitInitializationMode()
-    assert any("true_rate is nan" in m for m in s.log.errors()), s.log.messages
-    s.s.freeInstance()
-
-
+@pytest.mark.xfail(strict=True, reason="open: the sensor's output before its first step is its start value "
+                   "(0 deg/s), so a Jacobi master feeds the denoiser a placeholder first sample; the fix "
+                   "(the first sample taken at fmi2ExitInitializationMode, in both sensor FMUs alike) "
+                   "changes when every sample is taken and is not made yet")
 @pytest.mark.parametrize("method", ["shakf", "motion"])
 def test_jacobi_master_feeds_the_denoiser_the_library_samples(fmu_dir, tmp_path, method):
     """A Jacobi master by hand (get every output, then set every input, then step every FMU),
-    imar_fog at 400 Hz, a restart injected: the denoiser receives gyrodenoise.simulate's
-    samples from the first step on (no placeholder), and its output equals gyrodenoise.denoise
-    on them, bit for bit. Before the sensor sampled at initialisation the denoiser's first
-    input was 0 deg/s and its output at 1 s differed from the library's by up to 7.3e-3 deg/s."""
+    imar_fog at 400 Hz, a restart injected: the denoiser should receive gyrodenoise.simulate's
+    samples from the first step on (no placeholder), and its output equal gyrodenoise.denoise
+    on them, bit for bit. Today its first input is 0 deg/s and its output at 1 s differs from
+    the library's by up to 7.3e-3 deg/s."""
     n, fs, seed, rate = 800, 400.0, 4, 3.0
     h = 1.0 / fs
     restart_step = 500                        # restart set on fog.restart before this step
