@@ -179,10 +179,6 @@ class FogDenoiser(Fmi2Slave):
                 self.log(f"FogDenoiser: step size {step_size!r} s at t={current_time!r} s differs from "
                          f"sample_period {self.sample_period!r} s; one step = one sample, so the filter's "
                          f"time base is wrong ({self._n_bad_steps} such step(s) so far)", Fmi2Status.warning)
-        if not math.isfinite(z):
-            self.log(f"FogDenoiser: raw_rate is {z!r} at t={current_time!r} s; sample refused, "
-                     f"filter state unchanged", Fmi2Status.error)
-            return False
         den = self._den
         saved = den.state[:]
         try:
@@ -193,6 +189,15 @@ class FogDenoiser(Fmi2Slave):
                      Fmi2Status.error)
             return False
         self._n_steps += 1
+        if not math.isfinite(z):
+            # a dropout: processed as gd.denoise and Denoiser.step process it (the core heals
+            # a non-finite state by restarting the filter); the run goes on. pythonfmu 0.7.0's
+            # fmi2DoStep answers only fmi2OK or fmi2Discard: the warning is the log's status
+            self.log(f"FogDenoiser: raw_rate is {z!r} at t={current_time!r} s: a dropout, processed "
+                     f"as gd.denoise processes it (a non-finite filter state restarts the filter, which "
+                     f"passes the raw samples through while it warms up again; "
+                     f"{int(den.state[self._K.S_NHEAL])} such restart(s) so far); filtered_rate = "
+                     f"{self.filtered_rate!r}; the run goes on", Fmi2Status.warning)
         return True
 
     def terminate(self):
