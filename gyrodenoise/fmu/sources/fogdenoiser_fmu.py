@@ -47,8 +47,12 @@ class FogDenoiser(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._K, self._D, variables = _rules.load_core(self.resources, "core.kernels", "denoiser", "fmu.variables")
+        # first the exit-crash work-around, so that a refusal below still ends the host cleanly
         _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
+        # runs on Python 3.10 and without numpy (the plain-Python kernels where the bundled
+        # C core does not load); anything else missing is a logged refusal, fmi2Instantiate NULL
+        self._K, self._D, variables = _rules.load_core_or_refuse(
+            "FogDenoiser", self.resources, "core.kernels", "denoiser", "fmu.variables")
 
         self._den = None          # the core's Denoiser, built at initialisation
         self._theta0 = 0          # offset of phi_1 in the state buffer
@@ -179,10 +183,6 @@ class FogDenoiser(Fmi2Slave):
                 self.log(f"FogDenoiser: step size {step_size!r} s at t={current_time!r} s differs from "
                          f"sample_period {self.sample_period!r} s; one step = one sample, so the filter's "
                          f"time base is wrong ({self._n_bad_steps} such step(s) so far)", Fmi2Status.warning)
-        if not math.isfinite(z):
-            self.log(f"FogDenoiser: raw_rate is {z!r} at t={current_time!r} s; sample refused, "
-                     f"filter state unchanged", Fmi2Status.error)
-            return False
         den = self._den
         saved = den.state[:]
         try:
@@ -193,6 +193,15 @@ class FogDenoiser(Fmi2Slave):
                      Fmi2Status.error)
             return False
         self._n_steps += 1
+        if not math.isfinite(z):
+            # a dropout: processed as gd.denoise and Denoiser.step process it (the core heals
+            # a non-finite state by restarting the filter); the run goes on. pythonfmu 0.7.0's
+            # fmi2DoStep answers only fmi2OK or fmi2Discard: the warning is the log's status
+            self.log(f"FogDenoiser: raw_rate is {z!r} at t={current_time!r} s: a dropout, processed "
+                     f"as gd.denoise processes it (a non-finite filter state restarts the filter, which "
+                     f"passes the raw samples through while it warms up again; "
+                     f"{int(den.state[self._K.S_NHEAL])} such restart(s) so far); filtered_rate = "
+                     f"{self.filtered_rate!r}; the run goes on", Fmi2Status.warning)
         return True
 
     def terminate(self):
@@ -214,34 +223,36 @@ class FogDenoiser(Fmi2Slave):
         }
 
     def _set_fmu_state(self, state):
-        try:
-            if "corrupted" in state:
-                raise ValueError(state["corrupted"])
-            if state.get("version") != STATE_VERSION:
-                raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
-            for name in self._parameter_names:
-                setattr(self, name, state["params"][name])
-            self.raw_rate = float(state["raw_rate"])
-            self.restart = bool(state["restart"])
-            self.filtered_rate = float(state["filtered_rate"])
-            self._n_steps = int(state["n_steps"])
-            self._n_bad_steps = int(state["n_bad_steps"])
-            if state["filter"] is None:
-                self._den = None
-            else:
-                self._make_denoiser()
-                self._den.set_state(state["filter"])
-            self._failed = None
-            self._initialised = self._den is not None
-        except Exception as exc:  # pythonfmu ignores a return value here: refuse the next steps
+        # all or nothing: a state that cannot be applied is refused, the instance unchanged
+        _rules.set_state_or_refuse(self, "FogDenoiser", state, self._apply_state, Fmi2Status.error)
+
+    def _apply_state(self, state):
+        if state.get("version") != STATE_VERSION:
+            raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
+        for name in self._parameter_names:
+            setattr(self, name, state["params"][name])
+        self.raw_rate = float(state["raw_rate"])
+        self.restart = bool(state["restart"])
+        self.filtered_rate = float(state["filtered_rate"])
+        self._n_steps = int(state["n_steps"])
+        self._n_bad_steps = int(state["n_bad_steps"])
+        if state["filter"] is None:
             self._den = None
-            self._failed = f"FogDenoiser: fmi2SetFMUstate failed: {type(exc).__name__}: {exc}"
-            self.log(self._failed, Fmi2Status.error)
+        else:
+            self._make_denoiser()
+            self._den.set_state(state["filter"])
+        self._failed = None
+        self._initialised = self._den is not None
+
+    @staticmethod
+    def _fmu_state_to_bytes(state):
+        # pythonfmu's JSON with a checksum (see gyrodenoise_pythonfmu_rules.state_to_bytes)
+        return _rules.state_to_bytes(state)
 
     @staticmethod
     def _fmu_state_from_bytes(state):
-        # a corrupted state becomes a marker: fmi2SetFMUstate with it logs the reason
-        # and the next fmi2DoStep is refused (see gyrodenoise_pythonfmu_rules)
+        # a corrupted or truncated state (checksum, JSON) becomes a marker: fmi2SetFMUstate
+        # with it is refused with the reason (see gyrodenoise_pythonfmu_rules)
         return _rules.state_from_bytes(Fmi2Slave._fmu_state_from_bytes, state)
 
 

@@ -33,6 +33,7 @@ import functools
 import hashlib
 import importlib
 import importlib.util
+import json
 import os
 import sys
 
@@ -224,17 +225,90 @@ def guard(cls, label, error_status):
         wrap(name)
 
 
+#: the key of the checksum in a serialized FMU state (a JSON object)
+STATE_CHECKSUM_KEY = "sha256"
+
+
+def _state_digest(state):
+    """SHA-256 of the state's canonical JSON (sorted keys; floats as repr, NaN as NaN)."""
+    return hashlib.sha256(json.dumps(state, sort_keys=True).encode("utf-8")).hexdigest()
+
+
+def state_to_bytes(state):
+    """A state as pythonfmu serializes it (one JSON object, the fields at the top level)
+    with the SHA-256 of its canonical form added, so that a flipped byte that still
+    parses (a digit of a number) is found on reading, as a truncation is."""
+    if STATE_CHECKSUM_KEY in state:
+        raise ValueError(f"a state field is named {STATE_CHECKSUM_KEY!r}")
+    return json.dumps({**state, STATE_CHECKSUM_KEY: _state_digest(state)}).encode("utf-8")
+
+
 def state_from_bytes(base, state):
-    """``base(state)`` (pythonfmu's deserialiser), or a marker dict
-    ``{"corrupted": reason}`` instead of an exception: pythonfmu calls it on the
-    class, where an exception would be fmi2Fatal with no instance to keep alive."""
+    """``base(state)`` (pythonfmu's deserialiser) checked against the checksum that
+    :func:`state_to_bytes` wrote, or a marker dict ``{"corrupted": reason}`` instead of
+    an exception: pythonfmu calls it on the class, where an exception would be fmi2Fatal
+    with no instance to keep alive. fmi2SetFMUstate with the marker is refused."""
     try:
         value = base(state)
         if not isinstance(value, dict):
             raise ValueError(f"not a state object: {type(value).__name__}")
+        digest = value.pop(STATE_CHECKSUM_KEY, None)
+        if digest is None:
+            raise ValueError(f"no {STATE_CHECKSUM_KEY} checksum (not written by this FMU)")
+        if digest != _state_digest(value):
+            raise ValueError(f"{STATE_CHECKSUM_KEY} checksum mismatch: the bytes were changed")
         return value
     except Exception as exc:  # noqa: BLE001 - any corruption becomes the marker
-        return {"corrupted": f"corrupted serialized FMU state ({type(exc).__name__}: {exc})"}
+        return {"corrupted": f"corrupted serialized FMU state ({len(state)} bytes; {type(exc).__name__}: {exc})"}
+
+
+def set_state_or_refuse(slave, label, state, apply, error_status):
+    """fmi2SetFMUstate: ``apply(state)`` (the slave's own), all or nothing. A state that
+    cannot be applied (the marker of :func:`state_from_bytes`, another version, a missing
+    or wrong field) leaves the instance as it was (its own state applied again), the
+    reason is logged, and ValueError is raised: pythonfmu 0.7.0 answers fmi2SetFMUstate
+    only with fmi2OK (returned) or fmi2Fatal (raised), so the refusal is fmi2Fatal, the
+    instance kept alive and usable (:func:`guard`)."""
+    before = slave._get_fmu_state()
+    failed, pending = slave._failed, slave._pending_error
+    try:
+        if not isinstance(state, dict):
+            raise ValueError(f"not a state object: {type(state).__name__}")
+        if state.get("corrupted"):
+            raise ValueError(state["corrupted"])
+        apply(state)
+    except Exception as exc:  # noqa: BLE001 - every reason refuses the state
+        apply(before)
+        slave._failed, slave._pending_error = failed, pending
+        msg = f"{label}: fmi2SetFMUstate refused: {type(exc).__name__}: {exc}; the instance is unchanged"
+        slave.log(msg, error_status)
+        raise ValueError(msg) from None
+
+
+def check_host(label, min_python=(3, 11), modules=()):
+    """Refuse to start, with a reason pythonfmu logs (fmi2Instantiate returns NULL), where
+    the host's Python cannot run this FMU: older than ``min_python``, or one of
+    ``modules`` not importable (numpy)."""
+    where = f"the host's Python is {sys.version.split()[0]} ({sys.prefix})"
+    if sys.version_info < min_python:
+        raise RuntimeError(f"{label}: needs Python >= {'.'.join(map(str, min_python))} with numpy in the "
+                           f"host's environment; {where} (see docs/cosim/requirements.md)")
+    for name in modules:
+        try:
+            importlib.import_module(name)
+        except ImportError as exc:
+            raise RuntimeError(f"{label}: needs {name} in the host's Python environment; {where}: "
+                               f"{type(exc).__name__}: {exc} (see docs/cosim/requirements.md)") from None
+
+
+def load_core_or_refuse(label, resources, *modules):
+    """:func:`load_core`, an ImportError turned into a one-line reason naming the host's Python."""
+    try:
+        return load_core(resources, *modules)
+    except ImportError as exc:
+        raise RuntimeError(f"{label}: the bundled gyrodenoise core does not import in the host's Python "
+                           f"{sys.version.split()[0]} ({sys.prefix}): {type(exc).__name__}: {exc} "
+                           f"(see docs/cosim/requirements.md)") from None
 
 
 def finalize_before_static_destructors(resources, model_identifier):

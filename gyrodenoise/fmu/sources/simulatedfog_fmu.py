@@ -48,8 +48,13 @@ class SimulatedFog(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._S, variables = _rules.load_core(self.resources, "simulator", "fmu.variables")
+        # first the exit-crash work-around, so that a refusal below still ends the host cleanly
         _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
+        # the model cards are TOML (tomllib: Python 3.11) and the simulator needs numpy: a host
+        # Python without them is a logged refusal (fmi2Instantiate returns NULL), not a crash
+        _rules.check_host("SimulatedFog", (3, 11), ("numpy",))
+        self._S, variables = _rules.load_core_or_refuse("SimulatedFog", self.resources, "simulator",
+                                                        "fmu.variables")
 
         self._sim = None
         self._period = None
@@ -185,35 +190,37 @@ class SimulatedFog(Fmi2Slave):
         }
 
     def _set_fmu_state(self, state):
-        try:
-            if state.get("corrupted"):
-                raise ValueError(state["corrupted"])
-            if state.get("version") != STATE_VERSION:
-                raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
-            for name in self._parameter_names:
-                setattr(self, name, state["params"][name])
-            self.true_rate = float(state["true_rate"])
-            self.restart = bool(state["restart"])
-            self.measured_rate = float(state["measured_rate"])
-            self.restarted = bool(state["restarted"])
-            self._n_steps = int(state["n_steps"])
-            self._n_bad_steps = int(state["n_bad_steps"])
-            if state["sim"] is None:
-                self._sim = None
-            else:
-                self._make_stream()
-                self._sim.set_state(state["sim"])
-            self._failed = None
-            self._initialised = self._sim is not None
-        except Exception as exc:  # pythonfmu ignores a return value here: refuse the next steps
+        # all or nothing: a state that cannot be applied is refused, the instance unchanged
+        _rules.set_state_or_refuse(self, "SimulatedFog", state, self._apply_state, Fmi2Status.error)
+
+    def _apply_state(self, state):
+        if state.get("version") != STATE_VERSION:
+            raise ValueError(f"state version {state.get('version')!r}, expected {STATE_VERSION}")
+        for name in self._parameter_names:
+            setattr(self, name, state["params"][name])
+        self.true_rate = float(state["true_rate"])
+        self.restart = bool(state["restart"])
+        self.measured_rate = float(state["measured_rate"])
+        self.restarted = bool(state["restarted"])
+        self._n_steps = int(state["n_steps"])
+        self._n_bad_steps = int(state["n_bad_steps"])
+        if state["sim"] is None:
             self._sim = None
-            self._failed = f"SimulatedFog: fmi2SetFMUstate failed: {type(exc).__name__}: {exc}"
-            self.log(self._failed, Fmi2Status.error)
+        else:
+            self._make_stream()
+            self._sim.set_state(state["sim"])
+        self._failed = None
+        self._initialised = self._sim is not None
+
+    @staticmethod
+    def _fmu_state_to_bytes(state):
+        # pythonfmu's JSON with a checksum (see gyrodenoise_pythonfmu_rules.state_to_bytes)
+        return _rules.state_to_bytes(state)
 
     @staticmethod
     def _fmu_state_from_bytes(state):
-        # a corrupted state becomes a marker: fmi2SetFMUstate with it logs the reason
-        # and the next fmi2DoStep is refused (see gyrodenoise_pythonfmu_rules)
+        # a corrupted or truncated state (checksum, JSON) becomes a marker: fmi2SetFMUstate
+        # with it is refused with the reason (see gyrodenoise_pythonfmu_rules)
         return _rules.state_from_bytes(Fmi2Slave._fmu_state_from_bytes, state)
 
 

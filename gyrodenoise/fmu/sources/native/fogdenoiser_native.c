@@ -277,10 +277,18 @@ static int dn_strict(const void *m) { return ((const dn_t *)m)->u.strict_step_si
 static fmi2Status dn_step(gdfmi_inst_t *c, double t) {
     dn_t *d = (dn_t *)c->m;
     double z = d->raw_rate;
-    if (!isfinite(z))
-        return gdfmi_fail(c, "fmi2DoStep: raw_rate is %g at t=%.17g s; sample refused, filter state "
-                          "unchanged", z, t);
     d->filtered_rate = gd_step(d->p, c->s, z, d->restart ? 1 : 0);
+    if (!isfinite(z)) {
+        /* a dropout: processed as gd.denoise and Denoiser.step process it (the core heals a
+         * non-finite state by restarting the filter, counted in S_NHEAL, and passes the raw
+         * sample through while it warms up again); the run goes on, with a warning */
+        gdfmi_log(c, fmi2Warning, "fmi2DoStep: raw_rate is %s at t=%.17g s: a dropout, processed as "
+                  "gd.denoise processes it (a non-finite filter state restarts the filter, which passes "
+                  "the raw samples through while it warms up again; %.17g such restart(s) so far); "
+                  "filtered_rate = %.17g; the run goes on", isnan(z) ? "nan" : (z > 0 ? "inf" : "-inf"),
+                  t, c->s[S_NHEAL], d->filtered_rate);
+        return fmi2Warning;
+    }
     return fmi2OK;
 }
 

@@ -809,10 +809,10 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint,
         status = fmi2Warning;
     }
     st = GDM->step(c, t);
-    if (st != fmi2OK) return st;
+    if (st != fmi2OK && st != fmi2Warning) return st;
     c->k.n_steps++;
     c->k.time = t + h;
-    return status;
+    return st == fmi2Warning ? fmi2Warning : status;
 }
 
 fmi2Status fmi2CancelStep(fmi2Component comp) {

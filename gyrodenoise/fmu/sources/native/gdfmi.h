@@ -125,7 +125,8 @@ typedef struct {
     double (*period)(const void *m);
     int (*strict_step_size)(const void *m);
     /* one sample at time t (the layer checked the state, t and the step size); returns
-     * fmi2OK or gdfmi_fail(...) */
+     * fmi2OK, fmi2Warning (the sample processed, the reason logged by the model: the step
+     * completes) or gdfmi_fail(...) */
     fmi2Status (*step)(gdfmi_inst_t *c, double t);
     /* getters (any variable of the type), setters (references to settable variables) */
     double (*get_real)(const gdfmi_inst_t *c, fmi2ValueReference vr);
