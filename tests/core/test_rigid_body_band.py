@@ -294,8 +294,8 @@ def test_bridge_text_summary_names_the_option(tmp_path):
 
 def test_bridge_applies_the_option_and_says_so(tmp_path):
     """The option reaches the filter (the CSV equals gd.denoise with it, causal form) and
-    the JSON's filter_options names it; above a stream's Nyquist the stream is written raw
-    with the reason (ardusub_small.BIN's gyro is at 25 Hz)."""
+    the JSON's filter_options names it; above the Nyquist frequency of every stream the option
+    is refused (ardusub_small.BIN's gyro is at 25 Hz)."""
     log = DATA / "ardusub_small.BIN"
     status, out, _ = run_main("mavlink", log, "-o", tmp_path / "a", "--max-motion-hz", "5", "--causal",
                           "--no-plots", "--json")
@@ -311,8 +311,8 @@ def test_bridge_applies_the_option_and_says_so(tmp_path):
         close = np.abs(a[f"filtered_{ax}"] - ref) <= 1e-6 * (1 + np.abs(ref))
         assert close.mean() > 0.99, ax
         assert np.max(np.abs(ref - default)) > 1e-3, ax        # the option changed the output
-    status, out, _ = run_main("mavlink", log, "-o", tmp_path / "b", "--max-motion-hz", "15", "--no-plots",
-                          "--no-csv", "--json")
-    assert status == 0
-    s = json.loads(out)["logs"][0]["streams"][0]
-    assert "cannot run at 25" in s["not_filtered"] and "max_motion_hz" in s["not_filtered"]
+    status, out, err = run_main("mavlink", log, "-o", tmp_path / "b", "--max-motion-hz", "15", "--no-plots",
+                                "--no-csv", "--json")
+    # its only gyro stream cannot take it: the option is refused (as --cutoff-hz is), one line
+    assert status == 2 and out == "", err
+    assert "--max-motion-hz 15 is at or above the Nyquist frequency of every gyro stream" in err, err
