@@ -147,9 +147,16 @@ def entry():
     is left is interpreter teardown (matplotlib, scipy module graphs),
     measured at ~0.3 s per run by the bridge benchmark. So flush the
     standard streams and leave with ``os._exit``. Tests call :func:`main`.
+
+    An interrupted run (130, 143) leaves through the normal exit instead: its
+    process pool's finalizers then release the pool's semaphores (a pool of spawned
+    workers registers them with multiprocessing's resource tracker, which would
+    otherwise print "leaked semaphore" warnings after the one-line message).
     """
     import os
     status = main()
+    if status in (130, 143):
+        sys.exit(status)
     try:
         sys.stdout.flush()
     except (BrokenPipeError, ValueError):
