@@ -4,7 +4,8 @@ pythonfmu cannot declare units, a DefaultExperiment or min/max, and declares eve
 able to handle a variable communication step size. :func:`complete` adds the first ones
 from the FMU's variable declaration (:mod:`gyrodenoise.fmu.variables`): each Real's
 ``unit`` with its ``UnitDefinitions`` entry, the DefaultExperiment (the step size the FMU
-expects) and the bounds of the bounded parameters, in the element order the FMI 2.0
+expects), the bounds of the bounded parameters and the InitialUnknowns (the outputs
+computed at fmi2ExitInitializationMode), in the element order the FMI 2.0
 schema requires, declares ``canHandleVariableCommunicationStepSize="false"`` (one step is
 one sample), and rewrites the FMU in place.
 """
@@ -17,7 +18,7 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-from gyrodenoise.fmu.variables import DEFAULT_STEP_SIZE_S, MODELS, UNITS, format_value
+from gyrodenoise.fmu.variables import DEFAULT_STEP_SIZE_S, MODELS, UNITS, format_value, initial
 
 # FMI 2.0 order of the children of fmiModelDescription
 _ORDER = ["ModelExchange", "CoSimulation", "UnitDefinitions", "TypeDefinitions", "LogCategories",
@@ -39,6 +40,18 @@ def complete_xml(xml_text, name):
         for attr in ("min", "max"):
             if getattr(v, attr) is not None:
                 typed.set(attr, format_value(getattr(v, attr), v.type))
+    # FMI 2.0: the outputs computed at initialisation (initial="calculated") are listed as
+    # InitialUnknowns (pythonfmu lists only the Outputs)
+    calculated = [i for i, sv in enumerate(root.iter("ScalarVariable"), start=1)
+                  if sv.get("initial") == "calculated"
+                  and initial(declared[sv.get("name")], pythonfmu=True) == "calculated"]
+    for structure in root.findall("ModelStructure"):
+        for old in structure.findall("InitialUnknowns"):
+            structure.remove(old)
+        if calculated:
+            unknowns = ET.SubElement(structure, "InitialUnknowns")
+            for i in calculated:
+                ET.SubElement(unknowns, "Unknown", {"index": str(i)})
     for cs in root.findall("CoSimulation"):
         # one communication step is one sample: a step of another size is refused
         # (strict_step_size) or processed with a warning, never resampled

@@ -85,9 +85,11 @@ def validation_run(fmu_dir="build", duration_s=600.0, rate_deg_s=0.0, restart_at
                    keep_arrays=False, denoiser_kw=None):
     """SimulatedFog -> FogDenoiser through fmpy ``FMU2Slave``, one step per sample.
 
-    Each step: SimulatedFog gets ``true_rate`` and ``restart`` and steps; its
-    ``measured_rate`` goes into FogDenoiser's ``raw_rate`` (with the same
-    ``restart``), which steps. The result is compared with the core
+    SimulatedFog takes sample 0 at fmi2ExitInitializationMode (``true_rate`` and
+    ``restart`` of sample 0 set before it); each step k: its ``measured_rate`` (sample
+    k) goes into FogDenoiser's ``raw_rate`` (with the same ``restart``), which steps,
+    then SimulatedFog gets sample k+1's ``true_rate`` and ``restart`` and steps (the
+    sample at the end of its step). The result is compared with the core
     (:func:`compare_with_core`); ``ok`` is true when both outputs agree within
     ``tol`` and the Allan reductions agree.
     """
@@ -105,19 +107,23 @@ def validation_run(fmu_dir="build", duration_s=600.0, rate_deg_s=0.0, restart_at
     fog = FmuInstance(paths["SimulatedFog"], "fog")
     den = FmuInstance(paths["FogDenoiser"], "denoiser")
     try:
-        fog.initialize(card=card_obj.text, seed=int(seed))
+        tl, rl = truth.tolist(), restarts.tolist()
+        # sample 0 is taken at fmi2ExitInitializationMode from the inputs set before it
+        fog.initialize(card=card_obj.text, seed=int(seed), true_rate=tl[0], restart=rl[0])
         den.initialize(**_denoiser_params(method, ar_order, fs, denoiser_kw))
         fog_step = _stepper(fog, "true_rate", "restart", "measured_rate")
         den_step = _stepper(den, "raw_rate", "restart", "filtered_rate")
         measured = np.empty(n)
         filtered = np.empty(n)
         t0 = time.perf_counter()
-        tl, rl = truth.tolist(), restarts.tolist()
+        z = fog.get("measured_rate")
         for k in range(n):
             t = k * h
-            z = fog_step(tl[k], rl[k], t, h)
             measured[k] = z
             filtered[k] = den_step(z, rl[k], t, h)
+            if k + 1 < n:
+                # the sensor's step from t_k produces sample k+1 (at its end) from truth[k+1]
+                z = fog_step(tl[k + 1], rl[k + 1], t, h)
         elapsed = time.perf_counter() - t0
         converged = den.get("converged")
         readouts = {name: den.get(name) for name in

@@ -14,7 +14,9 @@ slave declares every output ``initial="exact"`` with its value before the first 
 (0 or false) as start, and appends the unit to each description in brackets
 (``[deg/s]``, ``[1]`` for a number without unit, ``[-]`` for a string); a native FMU
 declares an output ``initial="exact"`` with its ``start`` where the declaration gives
-one, else ``initial="calculated"``.
+one, else ``initial="calculated"``. An output declared ``initial="calculated"`` (the
+sensor's ``measured_rate`` and ``restarted``: its sample at the start time is taken at
+fmi2ExitInitializationMode) is ``calculated``, without a start value, in both kinds.
 
 This module imports nothing from gyrodenoise: ``gyrodenoise fmu build`` bundles it
 into the pythonfmu FMUs (``resources/gdcore/fmu/variables.py``).
@@ -64,15 +66,18 @@ class Variable(NamedTuple):
     unit: str | None = None       # a key of UNITS
     min: float | int | None = None
     max: float | int | None = None
+    #: "calculated": an output computed at fmi2ExitInitializationMode, with no start value in
+    #: either FMU kind; None: the kind's rule (see the module's docstring)
+    initial: str | None = None
 
 
 def _input(name, type_, description, start, unit=None):
     return Variable(name, type_, "input", description, "discrete" if type_ == "Boolean" else None, start, unit)
 
 
-def _output(name, type_, description, unit=None, start=None):
+def _output(name, type_, description, unit=None, start=None, initial=None):
     variability = None if type_ == "Real" else "discrete"
-    return Variable(name, type_, "output", description, variability, start, unit)
+    return Variable(name, type_, "output", description, variability, start, unit, initial=initial)
 
 
 def _parameter(name, type_, start, description, unit=None, min=None, max=None):
@@ -141,9 +146,13 @@ SIMULATED_FOG = (
     _input("true_rate", "Real", "True angular rate", 0.0, "deg/s"),
     _input("restart", "Boolean", "True on the first sample after a gyro restart (fresh turn-on bias draw, "
            "turn-on transient restarts)", False),
-    _output("measured_rate", "Real", "Measured angular rate: true_rate + sensor errors", "deg/s", start=0.0),
-    _output("restarted", "Boolean", "The restart input of the step that produced measured_rate; connect it "
-            "to the denoiser's restart", start=False),
+    # the sample at the start time is taken at fmi2ExitInitializationMode (initial="calculated",
+    # both kinds): a Jacobi master passes sample 0 to the denoiser at the first step
+    _output("measured_rate", "Real", "Measured angular rate: true_rate + sensor errors; the sample at the "
+            "start time from fmi2ExitInitializationMode on (from the inputs set before it), then the sample "
+            "at the end of each step (from the inputs set before the step)", "deg/s", initial="calculated"),
+    _output("restarted", "Boolean", "The restart input of the sample in measured_rate; connect it to the "
+            "denoiser's restart", initial="calculated"),
     _parameter("card", "String", "paper_fog", "Model card: its TOML text (gyrodenoise spec section 4; term "
                "units as there: deg, deg/sqrt(h), deg/h, deg/h^1.5, deg/h^2, s, Hz), or a card file path, or "
                "the name of a card bundled in the FMU ('paper_fog', the paper's FOG, default)"),
@@ -174,13 +183,17 @@ MODELS = {
 #: the FMUs built by pythonfmu (the others are native)
 PYTHONFMU_MODELS = ("FogDenoiser", "SimulatedFog")
 
-_ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
+#: the value of an output of a type before it has one (a pythonfmu output's start; what an output
+#: declared initial="calculated" reads before fmi2ExitInitializationMode)
+ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
 
 
 def start_value(v, pythonfmu):
     """The start value ``v`` declares in the FMU kind (pythonfmu or native), or None."""
+    if v.initial == "calculated":
+        return None
     if pythonfmu and v.causality == "output" and v.start is None:
-        return _ZERO[v.type]
+        return ZERO[v.type]
     return v.start
 
 
@@ -188,6 +201,8 @@ def initial(v, pythonfmu):
     """The ``initial`` attribute of output ``v`` in the FMU kind, or None for a non-output."""
     if v.causality != "output":
         return None
+    if v.initial is not None:
+        return v.initial
     return "exact" if start_value(v, pythonfmu) is not None else "calculated"
 
 

@@ -25,17 +25,24 @@ def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
 
 
 def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
-    """Simulate one seed through SimulatedFog.fmu with fmpy FMU2Slave (one step per sample)."""
+    """Simulate one seed through SimulatedFog.fmu with fmpy FMU2Slave: sample 0 at
+    fmi2ExitInitializationMode, then one step per sample (``gyrodenoise.simulate``'s
+    numbers, bit for bit)."""
     from gyrodenoise.fmu import FmuInstance, _stepper
     fog = FmuInstance(fmu_path, f"fog{seed}")
     try:
-        fog.initialize(card=card_text, seed=int(seed))
-        step = _stepper(fog, "true_rate", "restart", "measured_rate")
-        h = 1.0 / fs
         rs = [False] * n if restarts is None else [bool(v) for v in restarts]
         out = np.empty(n)
-        for k in range(n):
-            out[k] = step(0.0, rs[k], k * h, h)
+        if n == 0:
+            return out
+        # sample 0 is taken at fmi2ExitInitializationMode from the inputs set before it;
+        # the step from t_(k-1) produces sample k (at its end) from the inputs set before it
+        fog.initialize(card=card_text, seed=int(seed), true_rate=0.0, restart=rs[0])
+        out[0] = fog.get("measured_rate")
+        step = _stepper(fog, "true_rate", "restart", "measured_rate")
+        h = 1.0 / fs
+        for k in range(1, n):
+            out[k] = step(0.0, rs[k], (k - 1) * h, h)
     finally:
         fog.free()
     return out

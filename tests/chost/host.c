@@ -23,6 +23,9 @@
  *   --restart NAME     Boolean input fed from column 2   (default restart; "" = none)
  *   --out NAME         Real output printed per sample (repeatable; default filtered_rate)
  *   --step H           communication step size (default 0.005)
+ *   --init-sample      run/bench: the first sample's inputs are set in initialisation mode and
+ *                      its outputs read after fmi2ExitInitializationMode (the sensor FMUs take
+ *                      sample 0 there); each further sample is one step from its inputs
  *   --n N              samples of bench (default 1000000)
  *   --log              loggingOn = fmi2True
  *
@@ -183,7 +186,7 @@ static const var_t *var(const char *name) {
 /* ------------------------------------------------------------- options */
 static const char *opt_uri, *opt_in = "raw_rate", *opt_restart = "restart";
 static const char *opt_set[MAX_SET], *opt_out[MAX_OUT], *opt_bad[MAX_SET];
-static int n_set, n_out, n_bad, opt_log;
+static int n_set, n_out, n_bad, opt_log, opt_init_sample;
 static double opt_step = 0.005;
 static long opt_n = 1000000;
 static char default_uri[4200];
@@ -285,22 +288,33 @@ static fmi2Status set_param(fmi2Component c, const char *assignment) {
     }
 }
 
-/* instantiate, set the parameters, initialise */
-static fmi2Component start(void) {
+/* instantiate, set the parameters: an instance in initialisation mode */
+static fmi2Component start_init(void) {
     int i;
     fmi2Component c = instantiate();
     if (SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) > fmi2Warning) die("fmi2SetupExperiment failed");
     if (EnterInit(c) > fmi2Warning) die("fmi2EnterInitializationMode failed");
     for (i = 0; i < n_set; i++)
         if (set_param(c, opt_set[i]) > fmi2Warning) die("setting %s failed", opt_set[i]);
+    return c;
+}
+
+static void exit_init(fmi2Component c) {
     if (ExitInit(c) > fmi2Warning) die("fmi2ExitInitializationMode failed");
+}
+
+/* instantiate, set the parameters, initialise */
+static fmi2Component start(void) {
+    fmi2Component c = start_init();
+    exit_init(c);
     return c;
 }
 
 
 /* ------------------------------------------------------------------ run */
 static int run(int bench) {
-    fmi2Component c = start();
+    fmi2Component c = start_init();
+    int in_init = opt_init_sample; /* the first sample is taken at fmi2ExitInitializationMode */
     fmi2ValueReference vin = var(opt_in)->vr, vr_restart = 0, vout[MAX_OUT];
     fmi2Real out[MAX_OUT];
     int has_restart = opt_restart[0] != '\0', i;
@@ -311,6 +325,7 @@ static int run(int bench) {
     if (has_restart) vr_restart = var(opt_restart)->vr;
     if (n_out == 0) opt_out[n_out++] = "filtered_rate";
     for (i = 0; i < n_out; i++) vout[i] = var(opt_out[i])->vr;
+    if (!in_init) exit_init(c);
     t0 = now();
     for (;;) {
         fmi2Real z;
@@ -329,8 +344,13 @@ static int run(int bench) {
         }
         if (SetReal(c, &vin, 1, &z) != fmi2OK) die("fmi2SetReal(%s) failed at sample %ld", opt_in, k);
         if (has_restart && SetBoolean(c, &vr_restart, 1, &r) != fmi2OK) die("fmi2SetBoolean failed");
-        if (DoStep(c, t, opt_step, fmi2True) > fmi2Warning) die("fmi2DoStep failed at sample %ld", k);
-        t += opt_step;
+        if (in_init) {
+            exit_init(c);
+            in_init = 0;
+        } else {
+            if (DoStep(c, t, opt_step, fmi2True) > fmi2Warning) die("fmi2DoStep failed at sample %ld", k);
+            t += opt_step;
+        }
         if (GetReal(c, vout, (size_t)n_out, out) != fmi2OK) die("fmi2GetReal failed at sample %ld", k);
         if (!bench) {
             for (i = 0; i < n_out; i++) printf(i ? " %.17g" : "%.17g", out[i]);
@@ -339,6 +359,7 @@ static int run(int bench) {
         k++;
     }
     elapsed = now() - t0;
+    if (in_init) exit_init(c); /* no sample at all */
     if (Terminate(c) != fmi2OK) die("fmi2Terminate failed");
     FreeInstance(c);
     if (bench) printf("steps_per_s %.0f\n", (double)k / elapsed);
@@ -479,6 +500,7 @@ int main(int argc, char **argv) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (strcmp(a, "--log") == 0) { opt_log = 1; continue; }
+        if (strcmp(a, "--init-sample") == 0) { opt_init_sample = 1; continue; }
         if (!v) die("%s needs a value", a);
         if (strcmp(a, "--uri") == 0) opt_uri = v;
         else if (strcmp(a, "--set") == 0 && n_set < MAX_SET) opt_set[n_set++] = v;

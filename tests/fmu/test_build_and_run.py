@@ -128,12 +128,17 @@ BLOCKED_HOST = textwrap.dedent("""
         s.setupExperiment(startTime=0.0)
         for k, v in params.items():
             s.setReal([vr[k]], [v])
-        s.enterInitializationMode(); s.exitInitializationMode()
         xs = out.get("SimulatedFog", [0.0] * 600)
-        ys = []
-        for i in range(600):
+        s.enterInitializationMode()
+        s.setReal([vr[inp]], [xs[0]])
+        s.exitInitializationMode()
+        # the sensor takes sample 0 at fmi2ExitInitializationMode, then a step per sample;
+        # the denoiser steps on each sample
+        first = name == "SimulatedFog"
+        ys = [s.getReal([vr[outp]])[0]] if first else []
+        for i in range(1 if first else 0, 600):
             s.setReal([vr[inp]], [xs[i]])
-            s.doStep(i * 0.005, 0.005)
+            s.doStep((i - 1 if first else i) * 0.005, 0.005)
             ys.append(s.getReal([vr[outp]])[0])
         s.terminate(); s.freeInstance()
         out[name] = ys
@@ -207,7 +212,9 @@ def test_libcosim_two_fmu_system(fmu_dir, tmp_path, ssp, sensor, denoiser):
     res = F.cosim_run(fmu_dir, duration_s=10.0, rate_deg_s=10.0, restart_at_s=5.0, seed=2, ssp=ssp_path,
                       keep_arrays=True, denoiser=denoiser, sensor=sensor)
     assert res["step_size_s"] == pytest.approx(H, rel=1e-9)
-    assert res["first_received_deg_s"] == 0.0
+    # the sensor's sample 0 (taken at fmi2ExitInitializationMode) is the denoiser's first input
+    assert res["first_received_is_a_sample"]
+    assert res["first_received_deg_s"] == gd.simulate("paper_fog", 1, seed=2, true_rate_deg_s=10.0).rate_deg_s[0]
     assert res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
     assert res["max_abs_diff_measured_vs_simulate_deg_s"] <= TOL
     assert res["max_abs_diff_filtered_vs_denoise_deg_s"] <= TOL
@@ -263,19 +270,20 @@ def test_simulator_state_roundtrip(fmu_dir):
     a = _inst(fmu_dir, "SimulatedFog", "fa")
     b = _inst(fmu_dir, "SimulatedFog", "fb")
     try:
-        a.initialize(seed=11)
+        a.initialize(seed=11, true_rate=1.0)     # sample 0 at fmi2ExitInitializationMode
         b.initialize(seed=99)
         step_a = F._stepper(a, "true_rate", "restart", "measured_rate")
         step_b = F._stepper(b, "true_rate", "restart", "measured_rate")
-        first = [step_a(1.0, False, k * H, H) for k in range(5000)]   # crosses a noise block
+        # the step from t_(k-1) produces sample k; 5000 samples cross a noise block
+        first = [a.get("measured_rate")] + [step_a(1.0, False, k * H, H) for k in range(4999)]
         st = a.slave.getFMUstate()
         blob = a.slave.serializeFMUstate(st)
         a.slave.freeFMUstate(st)
-        cont = [step_a(1.0, False, k * H, H) for k in range(5000, 5300)]
+        cont = [step_a(1.0, False, k * H, H) for k in range(4999, 5299)]
         st_b = b.slave.deSerializeFMUstate(blob)
         b.slave.setFMUstate(st_b)
         b.slave.freeFMUstate(st_b)
-        other = [step_b(1.0, False, k * H, H) for k in range(5000, 5300)]
+        other = [step_b(1.0, False, k * H, H) for k in range(4999, 5299)]
     finally:
         a.free()
         b.free()
@@ -414,9 +422,9 @@ def test_card_text_parameter(fmu_dir):
     card = "[sensor]\nsample_rate_hz = 100.0\n[terms]\nangle_random_walk = { N = 0.01 }\n"
     a = _inst(fmu_dir, "SimulatedFog")
     try:
-        a.initialize(card=card, seed=4)
+        a.initialize(card=card, seed=4, true_rate=0.5)     # sample 0 at fmi2ExitInitializationMode
         step = F._stepper(a, "true_rate", "restart", "measured_rate")
-        out = [step(0.5, False, k * 0.01, 0.01) for k in range(300)]
+        out = [a.get("measured_rate")] + [step(0.5, False, k * 0.01, 0.01) for k in range(299)]
         # information only: the sensor model in use (the extension this FMU bundles loads here)
         assert [m[0] for m in a.messages] == [0], a.messages
         assert "runs on the bundled C core (gdsim.c)" in a.messages[0][2]
@@ -714,11 +722,15 @@ def test_the_ssp_runs_in_fmpy_simulate_ssp(fmu_dir, tmp_path, sensor):
     measured = np.asarray(r["fog.measured_rate"], dtype=float)
     filtered = np.asarray(r["denoiser.filtered_rate"], dtype=float)
     assert len(measured) > 150 and np.std(measured) > 0
-    # Jacobi master: the denoiser sees the fog's output of the previous step
-    ref = gd.denoise(measured[:-1], FS)
-    np.testing.assert_allclose(filtered[1:], ref, rtol=0, atol=1e-9)
-    # the fog's own output (fmpy records it after each step) is the library's, bit for bit
-    assert np.array_equal(measured, gd.simulate("paper_fog", len(measured), seed=0).rate_deg_s)
+    samples = gd.simulate("paper_fog", len(measured) + 1, seed=0).rate_deg_s
+    # the fog's own output (fmpy records it after each step: samples 1.., sample 0 was taken at
+    # fmi2ExitInitializationMode) is the library's, bit for bit
+    assert np.array_equal(measured, samples[1:])
+    # Jacobi master: the denoiser's input in step k is the fog's output at the end of step k-1,
+    # sample k; in step 0 fmpy's own placeholder: simulate_ssp starts every connector at 0.0 and
+    # reads outputs only after a step, not after initialisation (libcosim and Ecos pass sample 0)
+    received = np.concatenate(([0.0], samples[1:-1]))
+    np.testing.assert_allclose(filtered, gd.denoise(received, FS), rtol=0, atol=1e-9)
 
 
 def test_method_description_names_every_method_and_no_fixed_cutoff(fmu_dir):

@@ -109,12 +109,21 @@ def inputs(n, fs, seed=11):
     return truth, rs
 
 
-def run(s, vr, truth, rs, fs, t0=0.0):
+def run(s, vr, truth, rs, fs, t0=0.0, init=True):
+    """The sensor's samples for ``truth`` and ``rs`` (and its restarted outputs).
+
+    ``init=True``: ``s`` is in initialisation mode; sample 0 is taken at
+    fmi2ExitInitializationMode from truth[0], rs[0] set before it, then the step from
+    t0 + (i-1)/fs produces sample i (the inputs set before it). ``init=False``: ``s`` is
+    initialised at time t0; the step from t0 + i/fs produces sample i."""
     out, restarted = np.empty(len(truth)), np.empty(len(truth), dtype=bool)
     for i in range(len(truth)):
         s.setReal([vr["true_rate"]], [float(truth[i])])
         s.setBoolean([vr["restart"]], [bool(rs[i])])
-        s.doStep(t0 + i / fs, 1.0 / fs)
+        if init and i == 0:
+            s.exitInitializationMode()
+        else:
+            s.doStep(t0 + (i - 1 if init else i) / fs, 1.0 / fs)
         out[i] = s.getReal([vr["measured_rate"]])[0]
         restarted[i] = s.getBoolean([vr["restarted"]])[0]
     return out, restarted
@@ -210,7 +219,6 @@ def test_a_card_with_a_long_name_compiles_to_a_text_the_fmu_takes(built, md, vr,
     fs = load_card(long_path).sample_rate_hz
     truth, rs = inputs(500, fs)
     s = slave(built, md, card=text, seed=3)
-    s.exitInitializationMode()
     out, _ = run(s, vr, truth, rs, fs)
     s.terminate()
     s.freeInstance()
@@ -224,7 +232,6 @@ def test_bundled_cards_equal_gd_simulate_bit_for_bit(built, md, vr, card_name, s
     fs = load_card(card_name).sample_rate_hz
     truth, rs = inputs(2000, fs)
     s = slave(built, md, card=card_name, seed=seed)
-    s.exitInitializationMode()
     out, restarted = run(s, vr, truth, rs, fs)
     s.terminate()
     s.freeInstance()
@@ -245,7 +252,6 @@ def test_every_card_term_equals_gd_simulate_bit_for_bit(built, md, vr, every_ter
     compiled.write_text(text)
     for given in (text, str(compiled)):
         s = slave(built, md, card=given, seed=42)
-        s.exitInitializationMode()
         out, _ = run(s, vr, truth, rs, fs)
         s.terminate()
         s.freeInstance()
@@ -258,17 +264,16 @@ def test_state_round_trip_and_serialized_into_another_instance(built, md, vr, ev
     truth, rs = inputs(600, fs)
     ref = gd.simulate(card, 600, seed=5, true_rate_deg_s=truth, restarts=rs).rate_deg_s
     s = slave(built, md, card=text, seed=5)
-    s.exitInitializationMode()
     head, _ = run(s, vr, truth[:300], rs[:300], fs)
     st = s.getFMUstate()
     blob = s.serializeFMUstate(st)
-    tail_a, _ = run(s, vr, truth[300:], rs[300:], fs, t0=300 / fs)
+    tail_a, _ = run(s, vr, truth[300:], rs[300:], fs, t0=299 / fs, init=False)
     s.setFMUstate(st)
-    tail_b, _ = run(s, vr, truth[300:], rs[300:], fs, t0=300 / fs)
+    tail_b, _ = run(s, vr, truth[300:], rs[300:], fs, t0=299 / fs, init=False)
     other = slave(built, md)                     # another instance, default card: the state carries the card
     other.exitInitializationMode()
     other.setFMUstate(other.deSerializeFMUstate(blob))
-    tail_c, _ = run(other, vr, truth[300:], rs[300:], fs, t0=300 / fs)
+    tail_c, _ = run(other, vr, truth[300:], rs[300:], fs, t0=299 / fs, init=False)
     assert np.array_equal(np.concatenate([head, tail_a]), ref)
     assert np.array_equal(tail_a, tail_b) and np.array_equal(tail_a, tail_c)
     s.freeFMUstate(st)
@@ -280,7 +285,6 @@ def test_state_round_trip_and_serialized_into_another_instance(built, md, vr, ev
 def test_corrupted_or_foreign_serialized_state_is_an_error(built, md, vr, native_build):
     log = Logger()
     s = slave(built, md, logger=log)
-    s.exitInitializationMode()
     run(s, vr, *inputs(20, 200.0), 200.0)
     st = s.getFMUstate()
     blob = bytearray(s.serializeFMUstate(st))
@@ -362,7 +366,6 @@ def test_second_use_in_a_process_after_the_first_unzip_folder_is_gone(built, md,
         unz = tmp_path / f"copy{k}"
         shutil.copytree(built[1], unz)
         s = slave(built, md, unz=unz, seed=3)
-        s.exitInitializationMode()
         out, _ = run(s, vr, np.zeros(200), np.zeros(200, dtype=bool), 200.0)
         s.terminate()
         s.freeInstance()
@@ -393,7 +396,6 @@ def test_step_size_rules_and_nan_input(built, md, vr):
 def test_free_instance_frees_everything_it_allocated(built, md, vr):
     log = CountingLogger()
     s = slave(built, md, logger=log, card="imar_fog")
-    s.exitInitializationMode()
     run(s, vr, *inputs(50, 400.0), 400.0)
     kept = [s.getFMUstate(), s.getFMUstate()]
     kept.append(s.deSerializeFMUstate(s.serializeFMUstate(kept[0])))
@@ -405,7 +407,7 @@ def test_free_instance_frees_everything_it_allocated(built, md, vr):
 
 # ------------------------------------------------------------------ C host
 def host_cmd(host, unz, mode, *args):
-    return [*host, str(unz), mode, "--in", "true_rate", "--restart", "restart", "--out", "measured_rate",
+    return [*host, str(unz), mode, "--in", "true_rate", "--restart", "restart", "--out", "measured_rate", "--init-sample",
             *args]
 
 

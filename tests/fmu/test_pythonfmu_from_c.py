@@ -87,7 +87,7 @@ def _run(host, d, mode, *args, stdin="", timeout=60):
                           env=_env(), timeout=timeout)
 
 
-SIM_ARGS = ("--in", "true_rate", "--out", "measured_rate")
+SIM_ARGS = ("--in", "true_rate", "--out", "measured_rate", "--init-sample")
 
 
 def _lines(z, rs):
@@ -251,12 +251,13 @@ def test_simulatedfog_forbidden_writes_and_step_after_terminate(fmus):
 def test_simulatedfog_parameters_settable_before_initialisation_and_after_reset(fmus):
     a = _inst(fmus)
     try:
-        a.initialize(seed=11, strict_step_size=True)
+        # sample 0 at fmi2ExitInitializationMode (true_rate set before it), then a step per sample
+        a.initialize(seed=11, strict_step_size=True, true_rate=1.0)
         step = F._stepper(a, "true_rate", "restart", "measured_rate")
-        first = [step(1.0, False, k * H, H) for k in range(50)]
+        first = [a.get("measured_rate")] + [step(1.0, False, k * H, H) for k in range(49)]
         a.slave.reset()
-        a.initialize(seed=11, strict_step_size=True)
-        again = [step(1.0, False, k * H, H) for k in range(50)]
+        a.initialize(seed=11, strict_step_size=True, true_rate=1.0)
+        again = [a.get("measured_rate")] + [step(1.0, False, k * H, H) for k in range(49)]
     finally:
         a.free()
     assert first == again
@@ -326,4 +327,6 @@ def test_state_json_roundtrip_unchanged(fmus):
     d = json.loads(bytes(blob))
     # version 2: the simulator's state is gdsim.c's state buffer (version 1 held numpy's generators)
     assert d["version"] == 2
-    assert d["sim"] == SimStream("paper_fog", seed=2).get_state()   # as initialised, no step yet
+    ref = SimStream("paper_fog", seed=2)
+    ref.step(0.0, False)        # as initialised: sample 0 taken at fmi2ExitInitializationMode, no step yet
+    assert d["sim"] == ref.get_state()

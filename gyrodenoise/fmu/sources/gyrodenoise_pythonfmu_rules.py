@@ -84,14 +84,18 @@ def register_declared(slave, variables, declared, getters=None):
 
     Inputs and parameters start at their declared start values, outputs without a getter
     (``getters``: {name: function () -> value}) at the value they declare in a pythonfmu
-    FMU; pythonfmu writes each attribute's value as the variable's start.
+    FMU (0 or false for one declared ``initial="calculated"``); pythonfmu writes each
+    attribute's value as the variable's start where the variable has one.
     """
     from pythonfmu import Boolean, Fmi2Causality, Fmi2Initial, Fmi2Variability, Integer, Real, String
     kinds = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
     getters = getters or {}
     for v in declared:
         if v.name not in getters:
-            setattr(slave, v.name, variables.start_value(v, pythonfmu=True))
+            # an output declared initial="calculated" has no start: it reads 0 (false) until
+            # fmi2ExitInitializationMode computes it
+            start = variables.start_value(v, pythonfmu=True)
+            setattr(slave, v.name, variables.ZERO[v.type] if start is None else start)
     for v in declared:
         kw = {"causality": Fmi2Causality[v.causality], "description": variables.pythonfmu_description(v)}
         if v.variability is not None:

@@ -1,7 +1,12 @@
 """SimulatedFog: the gyrodenoise model-card gyro as an FMI 2.0 co-simulation slave (pythonfmu).
 
-One communication step is one sample: set ``true_rate`` (and ``restart``), call
-fmi2DoStep, read ``measured_rate``. The sensor errors come from the core's
+One communication step is one sample. The sample at the start time is taken at
+fmi2ExitInitializationMode from the inputs set before it (``measured_rate`` and
+``restarted`` are ``initial="calculated"``: a Jacobi master passes sample 0 to the next FMU
+at the first step, not a placeholder); each fmi2DoStep takes the sample at the end of the
+step from the inputs set before it: set ``true_rate`` (and ``restart``), call fmi2DoStep,
+read ``measured_rate``. Sample k (``gyrodenoise.simulate``'s k-th) is the output at
+t = k h, as in SimulatedFogNative.fmu. The sensor errors come from the core's
 simulator (``gyrodenoise.simulator.SimStream`` over ``gdsim.c``), bundled into the FMU's
 resources as the package ``gdcore`` with the C core extension built for the building
 Python (its plain-Python twin ``core/simkernels.py`` where that extension does not load,
@@ -104,6 +109,10 @@ class SimulatedFog(Fmi2Slave):
 
     def exit_initialization_mode(self):
         try:
+            w = self.true_rate
+            if not math.isfinite(w):
+                raise ValueError(f"true_rate is {w!r}: the first sample (taken at fmi2ExitInitializationMode) "
+                                 f"needs a finite true rate")
             self._make_stream()
         except ValueError as exc:
             msg = f"SimulatedFog: invalid parameter: {exc}"
@@ -112,6 +121,12 @@ class SimulatedFog(Fmi2Slave):
             # pythonfmu turns the exception into fmi2Fatal from fmi2ExitInitializationMode
             # (the guard below keeps the instance's objects alive)
             raise ValueError(msg) from None
+        # the sample at the start time, from the inputs set during initialisation: measured_rate
+        # is valid from here on (a Jacobi master passes it on before the first step), and each
+        # step produces the sample at its end
+        restart = bool(self.restart)
+        self.measured_rate = self._sim.step(w, restart)
+        self.restarted = restart
         self._failed = None
         self._initialised = True
         if self._sim.compiled:

@@ -2,9 +2,15 @@
  * simulatedfog_native.c -- SimulatedFogNative: the model-card gyro as a native FMI 2.0
  * co-simulation slave (no Python, no libpython; C99 + libm).
  *
- * One communication step is one sample: set true_rate (and restart), call
+ * One communication step is one sample. The sample at the start time is taken at
+ * fmi2ExitInitializationMode from the inputs set before it (measured_rate and restarted
+ * are initial="calculated": valid from then on, so a Jacobi master passes the sensor's
+ * sample 0 to the next FMU at the first step, not a placeholder); each fmi2DoStep takes
+ * the sample at the end of the step from the inputs set before it (FMI 2.0: inputs held
+ * over the step, outputs valid at its end): set true_rate (and restart), call
  * fmi2DoStep, read measured_rate (= true_rate + the sensor errors of the card) and
- * restarted. The numbers come from the project's sensor model
+ * restarted. Sample k (gyrodenoise.simulate's k-th) is the output at t = k h; the pythonfmu
+ * SimulatedFog.fmu follows the same convention. The numbers come from the project's sensor model
  * (gyrodenoise/core/gdsim.c, gd_sim_step), the same C that gyrodenoise.simulate and
  * the pythonfmu SimulatedFog.fmu run: same card and seed, same numbers. This file is
  * the model's hooks for the shared FMI layer (gdfmi.h / gdfmi.c).
@@ -62,8 +68,8 @@ static void sf_defaults(void *mv) {
     sf_t *d = (sf_t *)mv;
     d->true_rate = START_true_rate;
     d->restart = START_restart;
-    d->measured_rate = START_measured_rate;
-    d->restarted = START_restarted;
+    d->measured_rate = 0.0; /* initial="calculated": the first sample, at fmi2ExitInitializationMode */
+    d->restarted = 0;
     d->seed = START_seed;
     d->strict_step_size = START_strict_step_size;
     strcpy(d->card, START_card);
@@ -278,6 +284,9 @@ static long sf_build(gdfmi_inst_t *c, char *err, size_t nerr) {
     double *p;
     long n_state;
     if (d->seed < 0) return gdfmi_fmt_err(err, nerr, "seed must be an integer >= 0, got %d", (int)d->seed);
+    if (!isfinite(d->true_rate)) /* the first sample is taken at fmi2ExitInitializationMode */
+        return gdfmi_fmt_err(err, nerr, "true_rate is %g: the first sample (taken at "
+                             "fmi2ExitInitializationMode) needs a finite true rate", d->true_rate);
     if (resolve_card(c, d->card, d->v, err, nerr) != 0) return -1;
     gd_sim_card_from_vector(d->v, GD_CARD_LEN, &card);
     d->np = gd_sim_n_params(&card);
@@ -295,8 +304,11 @@ static void sf_start(gdfmi_inst_t *c) {
     gd_sim_card_from_vector(d->v, GD_CARD_LEN, &card);
     gd_sim_params(&card, (double)d->seed, c->s);
     gd_sim_reset(c->s, c->s + d->np);
-    d->measured_rate = START_measured_rate;
-    d->restarted = START_restarted;
+    /* the sample at the start time, from the inputs set during initialisation: measured_rate
+     * is valid from fmi2ExitInitializationMode on (a Jacobi master passes it on before the
+     * first step), and each step produces the sample at its end */
+    d->measured_rate = gd_sim_step(c->s, c->s + d->np, d->true_rate, d->restart ? 1 : 0);
+    d->restarted = d->restart ? 1 : 0;
 }
 
 static double sf_period(const void *m) { return 1.0 / ((const sf_t *)m)->v[0]; }
