@@ -31,7 +31,7 @@ class Logger:
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
 
     def _log(self, env, name, status, category, message):
-        self.messages.append((status, category.decode(), message.decode()))
+        self.messages.append((status, (category or b"").decode(), (message or b"").decode()))
 
     def errors(self):
         return [m for s, c, m in self.messages if s >= FMI_ERROR]

@@ -7,8 +7,8 @@
   card as the one-line compiled form, the sensor's numbers unchanged (``gyrodenoise.simulate``).
 * Every FMU declares ``canHandleVariableCommunicationStepSize="false"`` (one step = one sample).
 * A Jacobi master (get every output, set every input, step every FMU), run by hand with fmpy,
-  should feed the denoiser ``gyrodenoise.simulate``'s samples (no placeholder sample): not yet
-  (xfail, strict: the sensor's output before its first step is a start value).
+  feeds the denoiser ``gyrodenoise.simulate``'s samples (no placeholder sample): both sensor
+  FMUs take sample 0 at fmi2ExitInitializationMode, and give the same outputs for the same calls.
 
 References: ``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` (the batch library,
 themselves tested against the plain-Python specification), seeded.
@@ -168,9 +168,9 @@ def test_one_line_card_gives_the_same_numbers(fmu_dir, tmp_path):
                         ("multi-line", simnative.compile_card(custom)),
                         ("name", "imar_fog"), ("imar one-line", simnative.compile_card("imar_fog", one_line=True))):
         s = Slave(fmu_dir / "SimulatedFogNative.fmu", tmp_path, label.replace(" ", "_"))
-        s.init(card=card, seed=5, true_rate=1.5)
-        out = []
-        for k in range(n):
+        s.init(card=card, seed=5, true_rate=1.5)      # sample 0 at fmi2ExitInitializationMode
+        out = [s.real("measured_rate")]
+        for k in range(n - 1):
             s.s.doStep(k * 1e-3, 1e-3)    # the step size is not checked here (strict_step_size off)
             out.append(s.real("measured_rate"))
         s.free()
@@ -208,21 +208,19 @@ def test_fixed_communication_step_size_declared(fmu_dir, name):
 
 
 # --------------------------------------------------------------- the first sample
-@pytest.mark.xfail(strict=True, reason="open: the sensor's output before its first step is its start value "
-                   "(0 deg/s), so a Jacobi master feeds the denoiser a placeholder first sample; the fix "
-                   "(the first sample taken at fmi2ExitInitializationMode, in both sensor FMUs alike) "
-                   "changes when every sample is taken and is not made yet")
+@pytest.mark.parametrize("sensor", ["SimulatedFogNative", "SimulatedFog"])
 @pytest.mark.parametrize("method", ["shakf", "motion"])
-def test_jacobi_master_feeds_the_denoiser_the_library_samples(fmu_dir, tmp_path, method):
+def test_jacobi_master_feeds_the_denoiser_the_library_samples(fmu_dir, tmp_path, method, sensor):
     """A Jacobi master by hand (get every output, then set every input, then step every FMU),
-    imar_fog at 400 Hz, a restart injected: the denoiser should receive gyrodenoise.simulate's
-    samples from the first step on (no placeholder), and its output equal gyrodenoise.denoise
-    on them, bit for bit. Today its first input is 0 deg/s and its output at 1 s differs from
-    the library's by up to 7.3e-3 deg/s."""
+    imar_fog at 400 Hz, a restart injected: the denoiser receives gyrodenoise.simulate's
+    samples from the first step on (no placeholder: the sensor takes sample 0 at
+    fmi2ExitInitializationMode), and its output equals gyrodenoise.denoise on them, bit for
+    bit (with the sensor's start value 0 deg/s as first input it differed at 1 s by up to
+    7.3e-3 deg/s)."""
     n, fs, seed, rate = 800, 400.0, 4, 3.0
     h = 1.0 / fs
     restart_step = 500                        # restart set on fog.restart before this step
-    fog = Slave(fmu_dir / "SimulatedFogNative.fmu", tmp_path, "fog")
+    fog = Slave(fmu_dir / f"{sensor}.fmu", tmp_path, "fog")
     den = Slave(fmu_dir / "FogDenoiserNative.fmu", tmp_path, "den")
     fog.init(card="imar_fog", seed=seed, true_rate=rate)
     den.init(method=method, sample_period=h)
@@ -247,6 +245,56 @@ def test_jacobi_master_feeds_the_denoiser_the_library_samples(fmu_dir, tmp_path,
     assert np.array_equal(np.array(filtered), ref)
     # the restart took effect (the output without it differs)
     assert np.max(np.abs(gd.denoise(samples, fs, method=method) - ref)) > 1e-9
+
+
+def test_both_sensor_kinds_give_the_same_outputs_for_the_same_calls(fmu_dir, tmp_path):
+    """SimulatedFog (pythonfmu) and SimulatedFogNative, the same calls (true rate and restart set
+    in initialisation mode, then set before each step, a restart on sample 0 and one later):
+    the same measured_rate and restarted after fmi2ExitInitializationMode and after each step,
+    equal to gyrodenoise.simulate's samples; both declare them initial="calculated" (no start)
+    and list them as InitialUnknowns."""
+    n, fs, seed = 300, 400.0, 6
+    h = 1.0 / fs
+    truth = 2.0 + np.sin(np.arange(n) / 40.0)
+    restarts = np.zeros(n, dtype=bool)
+    restarts[[0, 170]] = True
+    got = {}
+    for sensor in ("SimulatedFog", "SimulatedFogNative"):
+        md = read_model_description(str(fmu_dir / f"{sensor}.fmu"))
+        declared = {v.name: v for v in md.modelVariables}
+        index = {v.name: i + 1 for i, v in enumerate(md.modelVariables)}
+        for name in ("measured_rate", "restarted"):
+            assert declared[name].initial == "calculated" and declared[name].start is None, (sensor, name)
+        assert sorted(u.variable.name for u in md.initialUnknowns) == ["measured_rate", "restarted"], sensor
+        assert all(index[u.variable.name] for u in md.initialUnknowns)
+        fog = Slave(fmu_dir / f"{sensor}.fmu", tmp_path, sensor)
+        fog.init(card="imar_fog", seed=seed, true_rate=float(truth[0]), restart=bool(restarts[0]))
+        out, out_rs = [fog.real("measured_rate")], [fog.boolean("restarted")]
+        for k in range(1, n):
+            fog.set(true_rate=float(truth[k]), restart=bool(restarts[k]))
+            fog.s.doStep((k - 1) * h, h)
+            out.append(fog.real("measured_rate"))
+            out_rs.append(fog.boolean("restarted"))
+        fog.free()
+        got[sensor] = (np.array(out), np.array(out_rs))
+    ref = gd.simulate("imar_fog", n, seed=seed, true_rate_deg_s=truth, restarts=restarts).rate_deg_s
+    for sensor, (out, out_rs) in got.items():
+        assert np.array_equal(out, ref), sensor
+        assert np.array_equal(out_rs, restarts), sensor
+
+
+@pytest.mark.parametrize("sensor", ["SimulatedFogNative", "SimulatedFog"])
+def test_a_non_finite_true_rate_at_initialisation_is_refused_with_the_reason(fmu_dir, tmp_path, sensor):
+    """Sample 0 is taken at fmi2ExitInitializationMode: a NaN true rate then is refused there,
+    the reason logged, in both sensor kinds."""
+    fog = Slave(fmu_dir / f"{sensor}.fmu", tmp_path, "nan")
+    fog.s.setupExperiment(startTime=0.0)
+    fog.set(true_rate=float("nan"))
+    fog.s.enterInitializationMode()
+    with pytest.raises(FMICallException):
+        fog.s.exitInitializationMode()
+    assert any("true_rate is nan" in m and "first sample" in m for m in fog.log.errors()), fog.log.messages
+    fog.s.freeInstance()
 
 
 # --------------------------------------------------------------- Ecos
@@ -282,8 +330,8 @@ def _tbb_lib_dir():
 def test_ecos_runs_the_ssp_with_its_parameters(fmu_dir, tmp_path):
     """Ecos (ecospy, a co-simulation engine nobody here wrote) loads the archive, applies the one
     named parameter set (imar_fog at 400 Hz, seed 3, 2.5 deg/s, shakf): the denoiser receives
-    gyrodenoise.simulate's samples (one step late, Jacobi) and outputs gyrodenoise.denoise's of
-    what it received, bit for bit. In a fresh
+    gyrodenoise.simulate's samples (from sample 0 on, Jacobi, no placeholder) and outputs
+    gyrodenoise.denoise's of what it received, bit for bit. In a fresh
     process, with the tbb wheel's lib folder on LD_LIBRARY_PATH."""
     import json
     import os
@@ -308,8 +356,7 @@ def test_ecos_runs_the_ssp_with_its_parameters(fmu_dir, tmp_path):
     assert out["card"] == "imar_fog"
     samples = gd.simulate("imar_fog", n, seed=3, true_rate_deg_s=2.5).rate_deg_s
     received = np.array(out["received"])
-    # Jacobi: the denoiser receives the sensor's output at the start of each step, its start
-    # value (0 deg/s) first, then the samples one step late (the placeholder is the open defect
-    # test_jacobi_master_feeds_the_denoiser_the_library_samples documents)
-    assert received[0] == 0.0 and np.array_equal(received[1:], samples[:-1])
+    # Jacobi: the denoiser receives the sensor's output at the start of each step: sample 0
+    # (taken at fmi2ExitInitializationMode) first, then the sample of each step, no placeholder
+    assert np.array_equal(received, samples)
     assert np.array_equal(np.array(out["filtered"]), gd.denoise(received, fs, method="shakf"))
