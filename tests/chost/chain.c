@@ -12,10 +12,12 @@
  *   --den NAME=VALUE   a parameter of the denoiser FMU (repeatable), e.g. method=shakf
  *   --step H           communication step size, s (default 0.005)
  *
- * Master: Gauss-Seidel. At each step the sensor steps first; the denoiser then receives
- * this step's measured_rate and restarted and steps, so the denoiser's output is the
- * library's gd.denoise of the sensor's output, with no one-step delay (a Jacobi master,
- * as libcosim's, delays it by one step).
+ * Master: the sensor takes sample 0 at fmi2ExitInitializationMode (the first line's
+ * true_rate and restart set before it) and each further sample k in its step from
+ * t_(k-1) (the inputs of line k set before it); the denoiser receives sample k and its
+ * restarted in its step from t_k. So the denoiser's output is the library's gd.denoise
+ * of gd.simulate's samples, with no placeholder and no delay (a Jacobi master, as
+ * libcosim's, gives the same: the sensor's output at t_k is sample k).
  *
  * FOG_DIR and DEN_DIR are unzipped FMUs; this file reuses host.c's model-description
  * reader, loader and parameter setter (one FMU at a time is "current" there).
@@ -70,13 +72,30 @@ static void close_link(link_t *l) {
     l->free_instance(l->c);
 }
 
+/* the inputs of sample k: a line of stdin, or (bench) a zero rate for k < n_bench; 0 at the end */
+static int next_input(long n_bench, long k, char *line, size_t n, fmi2Real *w, fmi2Boolean *r) {
+    *w = 0.0;
+    *r = fmi2False;
+    if (n_bench >= 0) return k < n_bench;
+    for (;;) {
+        int rs = 0;
+        if (!fgets(line, (int)n, stdin)) return 0;
+        if (sscanf(line, "%lf %d", w, &rs) < 1) continue;
+        *r = rs ? fmi2True : fmi2False;
+        return 1;
+    }
+}
+
 int main(int argc, char **argv) {
     const char *fog_sets[MAX_SET], *den_sets[MAX_SET];
     int n_fog = 0, n_den = 0, i;
     long n_bench = -1, k = 0;
     double h = 0.005, t = 0.0, t0, elapsed;
     link_t fog, den;
-    char line[256];
+    char line[256], w_set[64], r_set[16];
+    fmi2Real w = 0.0;
+    fmi2Boolean r = fmi2False;
+    int have;
     (void)run;       /* host.c's own modes, not used here */
     (void)forbidden;
     if (argc < 3) {
@@ -94,24 +113,27 @@ int main(int argc, char **argv) {
         i++;
     }
     quiet_log = n_bench >= 0;
+    have = next_input(n_bench, k, line, sizeof line, &w, &r);
+    /* sample 0 is taken at the sensor's fmi2ExitInitializationMode: its inputs go in as
+     * initial values (set in initialisation mode, with the parameters) */
+    snprintf(w_set, sizeof w_set, "true_rate=%.17g", have ? w : 0.0);
+    snprintf(r_set, sizeof r_set, "restart=%d", have ? (int)r : 0);
+    if (n_fog + 2 > MAX_SET) die("too many --fog options");
+    fog_sets[n_fog++] = w_set;
+    fog_sets[n_fog++] = r_set;
     fog = open_link(argv[1], fog_sets, n_fog, "true_rate", "restart", "measured_rate", "restarted");
     den = open_link(argv[2], den_sets, n_den, "raw_rate", "restart", "filtered_rate", NULL);
     if (n_bench < 0) printf("t_s,true_rate,restart,measured_rate,filtered_rate\n");
     t0 = now();
-    for (;;) {
-        fmi2Real w = 0.0, y, f;
-        fmi2Boolean r = fmi2False, rr;
-        if (n_bench >= 0) {
-            if (k >= n_bench) break;
-        } else {
-            int rs = 0;
-            if (!fgets(line, sizeof line, stdin)) break;
-            if (sscanf(line, "%lf %d", &w, &rs) < 1) continue;
-            r = rs ? fmi2True : fmi2False;
-        }
-        if (fog.set_real(fog.c, &fog.in, 1, &w) != fmi2OK || fog.set_boolean(fog.c, &fog.restart_in, 1, &r) != fmi2OK
-            || fog.do_step(fog.c, t, h, fmi2True) != fmi2OK || fog.get_real(fog.c, &fog.out, 1, &y) != fmi2OK
-            || fog.get_boolean(fog.c, &fog.restart_out, 1, &rr) != fmi2OK)
+    while (have) {
+        fmi2Real y, f;
+        fmi2Boolean rr;
+        if (k > 0 /* sample k: the sensor's step from t_(k-1), the inputs of sample k set before it */
+            && (fog.set_real(fog.c, &fog.in, 1, &w) != fmi2OK
+                || fog.set_boolean(fog.c, &fog.restart_in, 1, &r) != fmi2OK
+                || fog.do_step(fog.c, t - h, h, fmi2True) != fmi2OK))
+            die("sensor FMU failed at sample %ld", k);
+        if (fog.get_real(fog.c, &fog.out, 1, &y) != fmi2OK || fog.get_boolean(fog.c, &fog.restart_out, 1, &rr) != fmi2OK)
             die("sensor FMU failed at sample %ld", k);
         if (den.set_real(den.c, &den.in, 1, &y) != fmi2OK || den.set_boolean(den.c, &den.restart_in, 1, &rr) != fmi2OK
             || den.do_step(den.c, t, h, fmi2True) != fmi2OK || den.get_real(den.c, &den.out, 1, &f) != fmi2OK)
@@ -119,6 +141,7 @@ int main(int argc, char **argv) {
         if (n_bench < 0) printf("%.17g,%.17g,%d,%.17g,%.17g\n", t, w, (int)r, y, f);
         t += h;
         k++;
+        have = next_input(n_bench, k, line, sizeof line, &w, &r);
     }
     elapsed = now() - t0;
     close_link(&fog);
