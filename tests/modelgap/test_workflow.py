@@ -663,6 +663,19 @@ def fmu_dir(tmp_path_factory):
     return out
 
 
+def test_fmu_engine_samples_equal_gd_simulate_bit_for_bit(fmu_dir):
+    """The gap workflow's FMU engine takes sample 0 at the FMU's fmi2ExitInitializationMode and
+    each further sample in a step: gyrodenoise.simulate's samples, bit for bit (a restart on
+    sample 0 and one later included)."""
+    from gyrodenoise.modelgap.simulation import _fmu_simulate
+    n, seed = 1500, 3
+    restarts = np.zeros(n, dtype=bool)
+    restarts[[0, 700]] = True
+    out = _fmu_simulate(str(fmu_dir / "SimulatedFog.fmu"), BASE, seed, n, FS, restarts.tolist())
+    ref = gd.simulate(gd.simulator.parse_card(BASE), n, seed=seed, restarts=restarts).rate_deg_s
+    assert np.array_equal(out, ref)
+
+
 @pytest.mark.slow
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_fmu_engine_end_to_end_matches_native(tmp_path, fmu_dir):
