@@ -285,12 +285,12 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
 
     libcosim's fixed-step master is of Jacobi type: the denoiser receives in step
     k the sensor's output at t_k, what it produced in step k-1; in step 0 its
-    output after initialisation: SimulatedFogNative's sample 0 (it samples at
-    fmi2ExitInitializationMode), SimulatedFog's start value 0 deg/s. The check is
+    output after initialisation: the sensor's sample 0 (both sensor FMUs sample at
+    fmi2ExitInitializationMode), no placeholder. The check is
     therefore that the denoiser's received samples are the sensor's outputs
     delayed by one step, that the sensor's samples equal ``gyrodenoise.simulate``,
     and that the denoiser's output equals ``gyrodenoise.denoise`` on the samples it
-    received (with SimulatedFogNative: ``gyrodenoise.simulate``'s, no placeholder).
+    received (``gyrodenoise.simulate``'s, no placeholder).
     """
     import numpy as np
     from fmpy import read_model_description
@@ -333,9 +333,9 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
 
 def sensor_samples_at_init(sensor):
     """True if the sensor FMU takes its first sample at fmi2ExitInitializationMode (its
-    ``measured_rate`` is ``initial="calculated"``: SimulatedFogNative), False if its output
-    before the first step is a start value (SimulatedFog: 0 deg/s, the sample of step k
-    at t_(k+1))."""
+    ``measured_rate`` is ``initial="calculated"``: both SimulatedFog and SimulatedFogNative),
+    False if its output before the first step were a start value (a sensor declared with one:
+    the sample of step k at t_(k+1))."""
     from gyrodenoise.fmu.variables import MODELS, PYTHONFMU_MODELS, initial
     v = next(v for v in MODELS[sensor] if v.name == "measured_rate")
     return initial(v, sensor in PYTHONFMU_MODELS) == "calculated"
