@@ -62,14 +62,13 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if FMU_BUILD_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
-            item.add_marker(pytest.mark.xdist_group("fmu_build"))   # one worker builds and uses them
 
 
 def pytest_collection_finish(session):
     """When a test to run needs the FMU build, start it now: it then runs beside the tests
     that come before its first user (the build is mostly compilers, ~35 s)."""
     if session.config.option.collectonly or os.environ.get("PYTEST_XDIST_WORKER"):
-        return          # under pytest-xdist every worker collects every test: the fixture builds, once
+        return          # under pytest-xdist every worker collects every test: the fixture builds, when needed
     if any(FMU_BUILD_FIXTURES & set(getattr(item, "fixturenames", ())) for item in session.items):
         folder = Path(tempfile.mkdtemp(prefix="gyrodenoise-fmu-build-"))
         session.config.stash[BACKGROUND_BUILD] = FmuBuild(folder / "fmus")
