@@ -102,7 +102,7 @@ def test_real_flight_keeps_the_low_band_motion(name):
     """Real flights (log171.bin: Pixhawk, 50 Hz; px4_sample.ulg: PX4, 250 Hz):
     in the 2 s windows where the vehicle moves (0-5 Hz content above 2 deg/s
     std), the 0-5 Hz content of the output correlates >= 0.95 with the raw's
-    and keeps >= 85 % of its amplitude (the issue-12 goal)."""
+    and keeps >= 85 % of its amplitude (the goal set for motion on real flights)."""
     if not (LOGS / name).is_file():
         pytest.skip(f"../shared/data/logs/{name} absent")
     from gyrodenoise.mavlink.streams import detect_restarts
@@ -242,9 +242,9 @@ def test_log171_a_spike_is_not_held():
     assert n >= 5
 
 
-def test_log171_the_issue_spike_is_not_held():
-    """The spike of the issue: log171.bin, IMU axis 0, sample 4366 (25.8 deg/s
-    between 15.5 and -3.3 deg/s). The issue-12 filter followed it and held it
+def test_log171_a_lone_spike_is_not_held():
+    """A lone spike of a real flight: log171.bin, IMU axis 0, sample 4366 (25.8 deg/s
+    between 15.5 and -3.3 deg/s). The first form of motion followed it and held it
     (11.1 deg/s at the next sample, 11.0 where raw is 0.07). Now, against the
     same record with the spike replaced by the mean of its neighbours, the
     output is pulled towards it by at most 30 % of its height at the next
