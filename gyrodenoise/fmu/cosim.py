@@ -324,41 +324,27 @@ def cosim_run(fmu_dir="build", duration_s=60.0, rate_deg_s=0.0, restart_at_s=Non
            "max_abs_diff_received_vs_delayed_measured_deg_s":
                float(np.max(np.abs(received[1:] - measured[:-1]))) if n > 1 else 0.0}
     res.update(_check_against_core(measured, received, filtered, restarts, rate_deg_s, card_obj, seed, method,
-                                   ar_order, denoiser_kw, tol, res, sensor))
+                                   ar_order, denoiser_kw, tol, res))
     if keep_arrays:
         res["arrays"] = {"measured": measured, "received": received, "filtered": filtered,
                          "time_s": times, "restarts": restarts}
     return res
 
 
-def sensor_samples_at_init(sensor):
-    """True if the sensor FMU takes its first sample at fmi2ExitInitializationMode (its
-    ``measured_rate`` is ``initial="calculated"``: both SimulatedFog and SimulatedFogNative),
-    False if its output before the first step were a start value (a sensor declared with one:
-    the sample of step k at t_(k+1))."""
-    from gyrodenoise.fmu.variables import MODELS, PYTHONFMU_MODELS, initial
-    v = next(v for v in MODELS[sensor] if v.name == "measured_rate")
-    return initial(v, sensor in PYTHONFMU_MODELS) == "calculated"
-
-
 def _check_against_core(measured, received, filtered, restarts, rate_deg_s, card_obj, seed, method, ar_order,
-                        denoiser_kw, tol, res, sensor="SimulatedFogNative"):
+                        denoiser_kw, tol, res):
     """The comparisons with ``gyrodenoise.simulate`` and ``gyrodenoise.denoise`` and the verdict
     (``res`` holds the run's step size and delay check).
 
     ``measured[k]``: the sensor's output after step k (at t_(k+1)); ``received[k]``: the
-    denoiser's input in step k (the sensor's output at t_k, Jacobi). A sensor that samples at
-    initialisation produced ``received[0], measured[0], ...`` (its samples 0..n, the restart
-    injected before step k on sample k+1); one that does not produced ``measured`` (samples
-    0..n-1, the restart on sample k) and the denoiser's first input is its start value."""
+    denoiser's input in step k (the sensor's output at t_k, Jacobi). Both sensor FMUs take
+    sample 0 at fmi2ExitInitializationMode, so they produced ``received[0], measured[0], ...``
+    (their samples 0..n, the restart injected before step k on sample k+1)."""
     import numpy as np
     from gyrodenoise.denoiser import denoise
     fs = card_obj.sample_rate_hz
-    if sensor_samples_at_init(sensor):
-        samples = np.concatenate(([received[0]], measured))
-        sample_restarts = np.concatenate(([False], restarts))
-    else:
-        samples, sample_restarts = measured, restarts
+    samples = np.concatenate(([received[0]], measured))
+    sample_restarts = np.concatenate(([False], restarts))
     truth = np.full(len(samples), float(rate_deg_s))
     # what the denoiser received: the sensor's output at the start of each step, and the
     # restart flag of that sample (fog.restarted) with it
@@ -369,7 +355,7 @@ def _check_against_core(measured, received, filtered, restarts, rate_deg_s, card
                   **(denoiser_kw or {}))
     out = {"max_abs_diff_measured_vs_simulate_deg_s": cmp_["max_abs_diff_measured_vs_simulate_deg_s"],
            "max_abs_diff_filtered_vs_denoise_deg_s": float(np.max(np.abs(filtered - ref))),
-           "first_received_is_a_sample": bool(sensor_samples_at_init(sensor)),
+           "first_received_is_a_sample": True,     # sample 0, taken at initialisation
            "tolerance_deg_s": tol}
     out["ok"] = bool(res["max_abs_diff_received_vs_delayed_measured_deg_s"] == 0.0
                      and abs(res["step_size_s"] * fs - 1.0) < 1e-9
