@@ -1,0 +1,447 @@
+"""A review of the vehicle's gyro filters from a pre-filter gyro spectrum, with
+recommended settings -- what ArduPilot's web Filter Review and PX4 Flight Review
+do with the batch sampler and the high-rate gyro FIFO.
+
+:func:`filter_review` picks the pre-filter stream, takes its Welch PSD per axis
+(:func:`gyrodenoise.analysis.spectrum.welch_psd`; over flying time when a mask is
+given), predicts the post-filter PSD ``|H|^2 x PSD`` for the logged settings and
+for the recommended ones (:func:`gyrodenoise.mavlink.vehicle_filters.chain_response`),
+and gives for each:
+
+* noise: the rms (deg/s) of the predicted post-filter gyro over the band from
+  :data:`NOISE_BAND_LO_HZ` (30 Hz, above a multicopter's rate-control bandwidth:
+  what the filters pass there is noise the rate controller feeds back and the D
+  term amplifies) to the stream's Nyquist frequency (or the filter rate's, if
+  lower), per axis and root-sum-square over the axes;
+* phase lag in ms at 10, 20 and 30 Hz (:func:`vehicle_filters.phase_lag_ms`).
+
+What it recommends, and why:
+
+* a harmonic notch on the dominant vibration peak at or above
+  :data:`PEAK_MIN_HZ` (:func:`gyrodenoise.analysis.spectrum.find_peaks`, the
+  strongest over the three axes; a peak that is the n-th harmonic of a lower peak
+  moves the notch to that fundamental), with the bandwidth half its centre and
+  40 dB attenuation -- the ArduPilot wiki's guidance ("Managing Gyro Noise with
+  the Static Notch and Dynamic Harmonic Notch Filters": "set INS_HNTCH_BW to half
+  of INS_HNTCH_FREQ"; ``INS_HNTCH_ATT`` 40 dB is its default), the harmonics
+  (``HMNCS``) those found at 2x..5x the fundamental. Tracking: ESC telemetry
+  (``MODE`` 3) where the log holds ESC RPM, an RPM sensor (2) where it holds RPM,
+  else throttle (1) with ``REF`` the hover throttle (``MOT_THST_HOVER``, else the
+  log's ``CTUN.ThH``) -- throttle tracking needs no sensor, and it is the wiki's
+  choice when there is no RPM telemetry. PX4: a static notch ``IMU_GYRO_NF0_FRQ``
+  / ``_BW`` on the peak (the same half-centre bandwidth, within its 100 Hz
+  maximum), or the ESC-RPM dynamic notch (``IMU_GYRO_DNF_EN`` 1) where ESC
+  status is logged.
+* the gyro low-pass cutoff: the highest (whole Hz, from :data:`CUTOFF_MIN_HZ`)
+  whose predicted noise, with the recommended notch, is no more than the logged
+  settings' -- no more noise than today, the least phase lag that allows.
+  The notch is recommended only when that chain lags less (mean of the lags at
+  10, 20 and 30 Hz) than the best chain without it: a notch earns its place by
+  letting the low-pass go higher by more than its own lag.
+
+Bins above half the rate the filters run at are left out of the predicted
+spectra (the filtered gyro is resampled there).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gyrodenoise.analysis import spectrum
+from gyrodenoise.mavlink import vehicle_filters as vf
+from gyrodenoise.mavlink.logdata import log_message_names, log_messages
+
+#: the noise band starts here (Hz)
+NOISE_BAND_LO_HZ = 30.0
+#: vibration peaks below this are taken as motion, not noise to notch (Hz)
+PEAK_MIN_HZ = 40.0
+#: phase lag is given at these frequencies (Hz)
+LAG_FREQS_HZ = (10.0, 20.0, 30.0)
+#: the low-pass cutoff is searched from here (Hz)
+CUTOFF_MIN_HZ = 15.0
+#: a pre-filter stream slower than this cannot show motor noise (Hz)
+MIN_REVIEW_RATE_HZ = 100.0
+#: the notch attenuation recommended (dB; ArduPilot's INS_HNTCH_ATT default)
+NOTCH_ATT_DB = 40.0
+#: PX4's IMU_GYRO_NF0_BW maximum (Hz)
+PX4_NOTCH_BW_MAX_HZ = 100.0
+AXES = ("x", "y", "z")
+
+
+# --------------------------------------------------------------------------- context from the log
+
+def review_context(kind, source, autopilot, params, filters, flying_mask_fn=None):
+    """What :func:`filter_review` needs from the log beyond the gyro: a dict with
+    ``notch_centre_hz`` ({stage params: Hz} of the harmonic notches where the log
+    tells: throttle tracking from the median ``CTUN.ThO`` over flying time (whole
+    log without a mask), measured tracking from ``FTN``), ``esc_telemetry`` and
+    ``rpm_sensor`` (the log holds ESC RPM / RPM messages), ``hover_throttle``
+    (``MOT_THST_HOVER`` or the median ``CTUN.ThH``) and ``notes``."""
+    ctx = {"notch_centre_hz": {}, "esc_telemetry": False, "rpm_sensor": False, "hover_throttle": None,
+           "notes": []}
+    names = set(log_message_names(kind, source) or [])
+    if autopilot == "ardupilot":
+        ctx["esc_telemetry"] = "ESC" in names
+        ctx["rpm_sensor"] = "RPM" in names
+        ctun = log_messages(kind, source, "CTUN") if "CTUN" in names else None
+        hover = params.get("MOT_THST_HOVER")
+        if hover is None and ctun is not None and "ThH" in ctun and len(ctun["ThH"]):
+            hover = float(np.nanmedian(ctun["ThH"]))
+        ctx["hover_throttle"] = None if hover is None else float(hover)
+        for st in filters.get("stages", []):
+            if st["kind"] != "harmonic_notch":
+                continue
+            if st["tracking"] == "throttle" and ctun is not None and "ThO" in ctun:
+                thr = _over_flying(ctun["time_s"], np.asarray(ctun["ThO"], dtype=np.float64), flying_mask_fn)
+                if thr is not None:
+                    ctx["notch_centre_hz"][st["params"]] = vf.throttle_notch_centre_hz(st, thr)
+                    ctx["notes"].append(f"{st['params']}: throttle notch at the median throttle out "
+                                        f"{thr:.3f} (CTUN.ThO): centre {ctx['notch_centre_hz'][st['params']]:.1f} Hz")
+            elif st["tracking"] not in ("fixed", "throttle") and "FTN" in names:
+                ftn = log_messages(kind, source, "FTN")
+                col = next((c for c in ("NF1", "DnF1") if c in ftn), None)
+                if col is not None:
+                    f = _over_flying(ftn["time_s"], np.asarray(ftn[col], dtype=np.float64), flying_mask_fn)
+                    if f is not None and f > 0:
+                        ctx["notch_centre_hz"][st["params"]] = f
+                        ctx["notes"].append(f"{st['params']}: centre {f:.1f} Hz, the median FTN.{col}")
+    elif autopilot == "px4":
+        ctx["esc_telemetry"] = "esc_status" in names
+        hte = log_messages(kind, source, "hover_thrust_estimate") if "hover_thrust_estimate" in names else None
+        if hte is not None and "hover_thrust" in hte and len(hte["hover_thrust"]):
+            ctx["hover_throttle"] = float(np.nanmedian(hte["hover_thrust"]))
+    return ctx
+
+
+def _over_flying(time_s, values, flying_mask_fn):
+    v = np.asarray(values, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    if flying_mask_fn is not None:
+        m = np.asarray(flying_mask_fn(t), dtype=bool)
+        if m.any():
+            v = v[m]
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if len(v) else None
+
+
+# --------------------------------------------------------------------------- stream choice
+
+def stream_rate_hz(stream):
+    """Sample rate (Hz) of a stream: its ``rate_hz``, else 1 / the median positive time step."""
+    if getattr(stream, "rate_hz", None):
+        return float(stream.rate_hz)
+    dt = np.diff(np.asarray(stream.time_s, dtype=np.float64))
+    dt = dt[dt > 0]
+    return float(1.0 / np.median(dt)) if len(dt) else None
+
+
+def pick_pre_filter_stream(streams, autopilot, params):
+    """(stream, rate_hz, stages {name: stage}) of the pre-filter stream to review:
+    the batch sampler logged before the filters, then PX4's high-rate gyro FIFO,
+    else the highest-rate pre-filter stream; (None, None, stages) when there is none."""
+    stages = {s.name: vf.stream_stage(autopilot, params, s) for s in streams}
+    pre = [s for s in streams if stages[s.name] == "pre-filter" and s.n > 1]
+
+    def rank(s):
+        first = s.message == "ISBD" or s.message == "sensor_gyro_fifo"
+        return (first, stream_rate_hz(s) or 0.0, s.n)
+    if not pre:
+        return None, None, stages
+    best = max(pre, key=rank)
+    return best, stream_rate_hz(best), stages
+
+
+def _no_stream_note(streams, autopilot, params, stages):
+    parts = []
+    for s in streams:
+        r = stream_rate_hz(s)
+        rate = f" at {r:.0f} Hz" if r else ""
+        where = {"post-filter": "after the vehicle's filters", "pre-filter": "before the vehicle's filters",
+                 "unknown": "at an unknown stage"}[stages[s.name]]
+        parts.append(f"{s.name} is logged {where}{rate}")
+    why = "; ".join(parts) if parts else "no gyro stream"
+    if autopilot == "ardupilot":
+        mask = params.get("INS_LOG_BAT_MASK")
+        if mask is None:
+            why += ", and the batch sampler's INS_LOG_BAT_MASK is not logged"
+        elif not mask:
+            why += ", and the batch sampler is off (INS_LOG_BAT_MASK 0)"
+        elif not any(s.message == "ISBD" for s in streams):
+            why += f", and the log holds no batch-sampler data (INS_LOG_BAT_MASK {_fmt(mask)})"
+    elif autopilot == "px4":
+        why += ", and the high-rate gyro FIFO (sensor_gyro_fifo) is not logged"
+    elif autopilot is None:
+        why += "; the autopilot is unknown, so no stream's stage can be told"
+    return f"no pre-filter gyro stream: {why}"
+
+
+# --------------------------------------------------------------------------- the review
+
+def _psd(stream, rate_hz, flying_mask_fn):
+    """(freq_hz, psd (3, n_bins) in (deg/s)^2/Hz, n_segments, nperseg, over) or None."""
+    t = np.asarray(stream.time_s, dtype=np.float64)
+    x = np.asarray(stream.raw, dtype=np.float64) * (stream.to_deg_s or 1.0)
+    dt = np.diff(t)
+    restarts = np.r_[False, (dt <= 0) | (dt > 5.0 / rate_hz)]
+    over = "whole log"
+    if flying_mask_fn is not None:
+        m = np.asarray(flying_mask_fn(t), dtype=bool)
+        if m.any():
+            x = np.where(m[:, None], x, np.nan)
+            over = "flying"
+    bounds = np.r_[0, np.flatnonzero(restarts), len(t)]
+    runs = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        fin = np.isfinite(x[a:b, 0])
+        runs.append(int(fin.sum()))
+    longest = max(runs) if runs else 0
+    if longest < 64:
+        return None
+    cap = 2 ** int(math.floor(math.log2(longest)))
+    nperseg = max(spectrum.nperseg_for_length(int(np.isfinite(x[:, 0]).sum()), min_segments=8,
+                                              min_nperseg=64, max_nperseg=min(cap, 4096)), min(128, cap))
+    out, n_seg, f = [], 0, None
+    for k in range(3):
+        f, p, n_seg = spectrum.welch_psd(x[:, k], rate_hz, nperseg, restarts=restarts)
+        if p is None:
+            return None
+        out.append(p)
+    return f, np.array(out), n_seg, nperseg, over
+
+
+def _band_rms(freq_hz, psd, lo_hz, hi_hz):
+    sel = (freq_hz >= lo_hz) & (freq_hz <= hi_hz)
+    df = freq_hz[1] - freq_hz[0]
+    per = [float(math.sqrt(max(0.0, float(np.sum(p[sel]) * df)))) for p in psd]
+    return {**{a: round(v, 5) for a, v in zip(AXES, per)}, "rss": round(math.sqrt(sum(v * v for v in per)), 5)}
+
+
+def _figures(stages, f, psd, fs_filter, band, centre):
+    h = vf.chain_response(stages, f, fs_filter, centre)
+    post = psd * np.abs(h) ** 2
+    lags = vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)
+    return post, {"noise_rms_deg_s": _band_rms(f, post, *band),
+                  "phase_lag_ms": {f"{q:g}": round(v, 3) for q, v in zip(LAG_FREQS_HZ, lags)}}
+
+
+def _peaks(f, psd, n_seg, fs):
+    found = []
+    for k, a in enumerate(AXES):
+        for q in spectrum.find_peaks(f, psd[k], n_seg, min_freq_hz=PEAK_MIN_HZ):
+            q = dict(q)
+            q["axis"] = a
+            found.append(q)
+    if not found:
+        return [], None
+    dom = max(found, key=lambda q: q["amplitude_rms"])
+    same_axis = [q for q in found if q["axis"] == dom["axis"]]
+    df = f[1] - f[0]
+    grouped = spectrum.group_harmonics(same_axis, df)
+    fund = dom
+    if dom.get("harmonic_of_hz"):
+        fund = next(q for q in grouped if q["freq_hz"] == dom["harmonic_of_hz"])
+    harmonics = sorted({1} | {q["harmonic_n"] for q in grouped if q.get("harmonic_of_hz") == fund["freq_hz"]})
+    peaks = [{"freq_hz": round(float(q["freq_hz"]), 2), "axis": q["axis"],
+              "amplitude_rms_deg_s": round(float(q["amplitude_rms"]), 5), "ratio_db": round(float(q["ratio_db"]), 2)}
+             for q in sorted(found, key=lambda q: -q["amplitude_rms"])[:8]]
+    return peaks, {"freq_hz": float(fund["freq_hz"]), "axis": fund["axis"], "harmonics": harmonics}
+
+
+def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
+    """({NAME: value}, stage or None, reasons) of the recommended notch."""
+    if fund is None:
+        return {}, None, ["no vibration peak at or above %g Hz: no notch recommended" % PEAK_MIN_HZ]
+    centre = round(fund["freq_hz"], 1)
+    bw = round(centre / 2.0, 1)
+    why = []
+    if autopilot == "ardupilot":
+        hm = sum(1 << (n - 1) for n in fund["harmonics"])
+        if ctx.get("esc_telemetry"):
+            mode, ref, how = 3, 1.0, "ESC telemetry is logged: the notch follows the motors' RPM"
+        elif ctx.get("rpm_sensor"):
+            mode, ref, how = 2, 1.0, "an RPM sensor is logged: the notch follows it"
+        else:
+            hover = ctx.get("hover_throttle")
+            logged_ref = params.get("INS_HNTCH_REF")
+            ref = round(float(hover), 3) if hover else (float(logged_ref) if logged_ref else 0.35)
+            mode = 1
+            how = ("no RPM or ESC telemetry in the log: throttle tracking, REF the hover throttle "
+                   f"({'MOT_THST_HOVER/CTUN.ThH' if hover else 'assumed'} {ref})")
+        rec = {"INS_HNTCH_ENABLE": 1, "INS_HNTCH_MODE": mode, "INS_HNTCH_FREQ": centre, "INS_HNTCH_BW": bw,
+               "INS_HNTCH_ATT": NOTCH_ATT_DB, "INS_HNTCH_HMNCS": hm, "INS_HNTCH_REF": ref}
+        stage = {"kind": "harmonic_notch", "path": "rate", "params": "INS_HNTCH_*", "centre_hz": centre,
+                 "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
+                 "tracking": "fixed", "composite": 1, "reference": ref, "min_ratio": 1.0}
+        why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
+                   f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}")
+        return rec, stage, why
+    if autopilot == "px4":
+        bw = min(bw, PX4_NOTCH_BW_MAX_HZ)
+        if ctx.get("esc_telemetry"):
+            rec = {"IMU_GYRO_DNF_EN": 1, "IMU_GYRO_DNF_HMC": max(fund["harmonics"]),
+                   "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
+            why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch")
+            stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
+                     "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
+                     "attenuation_db": None}
+            return rec, stage, why
+        rec = {"IMU_GYRO_NF0_FRQ": centre, "IMU_GYRO_NF0_BW": bw}
+        why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): static notch IMU_GYRO_NF0 there, "
+                   f"BW half the centre; no ESC telemetry in the log for the dynamic notch")
+        stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ, IMU_GYRO_NF0_BW",
+                 "centre_hz": centre, "bandwidth_hz": bw, "attenuation_db": None}
+        return rec, stage, why
+    return {}, None, ["unknown autopilot: no notch parameters to recommend"]
+
+
+def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name):
+    """(stages, cutoff_hz or None, notch centres) of the recommended chain: ``notch_stage``
+    (if any) in place of the logged stage it sets, the other logged notches as they
+    are, and the highest whole-Hz low-pass cutoff whose predicted noise is no more
+    than ``target`` (None when none is)."""
+    replaced = notch_stage["params"] if notch_stage else None
+    base = ([notch_stage] if notch_stage else []) + [
+        s for s in logged_stages
+        if s.get("path", "rate") == "rate" and s["kind"] != "lowpass" and s["params"] != replaced]
+    rec_centre = ({k: v for k, v in centre.items() if k != replaced} or None) if isinstance(centre, dict) else None
+    sos_base, _ = vf.chain_sections(base, fs_filter, rec_centre)
+    p_base = psd * np.abs(vf.sos_response(sos_base, f, fs_filter)) ** 2
+    best = None
+    for fc in range(int(CUTOFF_MIN_HZ), int(min(0.45 * fs_filter, band[1])) + 1):
+        lp = vf.lowpass2p_sos(float(fc), fs_filter)
+        if _band_rms(f, p_base * np.abs(vf.sos_response([lp], f, fs_filter)) ** 2, *band)["rss"] <= target * (1 + 1e-9):
+            best = fc
+    stages = base + ([{"kind": "lowpass", "path": "rate", "params": lp_name or "lowpass", "cutoff_hz": float(best)}]
+                     if best else [])
+    return stages, best, rec_centre
+
+
+def _mean_lag(chain, logged_lp, fs_filter):
+    stages, best, centre = chain
+    if best is None:
+        stages = stages + logged_lp
+    return float(np.mean(vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)))
+
+
+def _lowpass_param(autopilot):
+    return {"ardupilot": "INS_GYRO_FILTER", "px4": "IMU_GYRO_CUTOFF"}.get(autopilot)
+
+
+def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, context=None):
+    """(review or None, note) of the vehicle's gyro filters from a pre-filter gyro stream.
+
+    ``streams``: the log's gyro streams (:func:`gyrodenoise.mavlink.formats.read_log`);
+    ``params``/``filters``: :func:`gyrodenoise.mavlink.parameters.log_parameters` and
+    :func:`gyrodenoise.mavlink.vehicle_filters.vehicle_filters`;
+    ``flying_mask_fn(time_s) -> bool array``: the flying samples (whole log when
+    None or when no pre-filter sample is flying); ``context``: :func:`review_context`.
+
+    The review (JSON-able but for ``"_plot"``, numpy arrays for plotting that a
+    JSON writer drops): ``source`` (stream, rate, what the PSD is over),
+    ``filter_rate_hz``, ``noise_band_hz``, ``peaks``, ``figures`` {``pre_filter``,
+    ``logged``, ``recommended``: ``noise_rms_deg_s`` per axis and ``rss``, and
+    (the last two) ``phase_lag_ms`` at 10/20/30 Hz}, ``logged`` {NAME: value},
+    ``recommended`` {NAME: value}, ``param_lines``, ``why``, ``notes``. None and a
+    one-line note naming why when there is no usable pre-filter stream."""
+    params = params or {}
+    ctx = context or {}
+    stream, rate, stages = pick_pre_filter_stream(streams, autopilot, params)
+    if stream is None:
+        return None, _no_stream_note(streams, autopilot, params, stages)
+    if rate is None or rate < MIN_REVIEW_RATE_HZ:
+        return None, (f"no pre-filter gyro stream fast enough: {stream.name} is pre-filter but at "
+                      f"{rate or 0:.0f} Hz (below {MIN_REVIEW_RATE_HZ:g} Hz it cannot show motor noise)")
+    spec = _psd(stream, rate, flying_mask_fn)
+    if spec is None:
+        return None, f"{stream.name}: too few contiguous samples for a spectrum (64 needed)"
+    f, psd, n_seg, nperseg, over = spec
+    notes = list(ctx.get("notes", []))
+    fs_filter, fs_src = filters.get("filter_rate_hz"), filters.get("filter_rate_source")
+    if autopilot == "ardupilot" and stream.message == "ISBD" and not int(params.get("INS_LOG_BAT_OPT", 0)) & 1:
+        fs_filter, fs_src = rate, "the batch sampler's rate (it samples at the rate the filters run at)"
+    if not fs_filter:
+        fs_filter, fs_src = rate, "assumed: the pre-filter stream's rate"
+    keep = f < 0.5 * fs_filter
+    f, psd = f[keep], psd[:, keep]
+    band = (NOISE_BAND_LO_HZ, float(f[-1]))
+    centre = ctx.get("notch_centre_hz") or None
+    logged_stages = filters.get("stages", [])
+    _, logged_notes = vf.chain_sections(logged_stages, fs_filter, centre)
+    notes += logged_notes
+    if stream.message == "sensor_combined":
+        notes.append("sensor_combined is the estimator's IMU, averaged over the integration interval "
+                     f"(IMU_INTEG_RATE {_fmt(params.get('IMU_INTEG_RATE'))} Hz): attenuated near its Nyquist "
+                     "frequency and aliased above it, so peaks above it show folded")
+    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre)
+    peaks, fund = _peaks(f, psd, n_seg, rate)
+    rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
+
+    lp_name = _lowpass_param(autopilot)
+    target = fig_logged["noise_rms_deg_s"]["rss"]
+    logged_lp = [s for s in logged_stages if s["kind"] == "lowpass" and s.get("path", "rate") == "rate"]
+    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name)
+    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name)
+    if notch_stage is not None and _mean_lag(with_notch, logged_lp, fs_filter) >= _mean_lag(without, logged_lp,
+                                                                                           fs_filter):
+        why = [w for w in why if not w.startswith("dominant")]
+        why.append(f"the peak at {notch_stage['centre_hz']:g} Hz: with a notch there the chain that keeps the "
+                   f"noise lags more (mean over {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz) than without, "
+                   f"so none is recommended")
+        rec, notch_stage = {}, None
+    rec_stages, best, rec_centre = with_notch if notch_stage is not None else without
+    if best is None:
+        why.append(f"no cutoff from {CUTOFF_MIN_HZ:g} Hz keeps the noise at the logged settings' "
+                   f"{target:.3g} deg/s: low-pass cutoff left as logged")
+        rec_stages = rec_stages + logged_lp
+    elif lp_name:
+        rec[lp_name] = best
+        why.append(f"{lp_name} {best}: the highest cutoff whose predicted noise ({NOISE_BAND_LO_HZ:g} Hz.."
+                   f"{band[1]:.0f} Hz) is no more than the logged settings' ({target:.3g} deg/s rss)")
+    post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre)
+    fig_pre = {"noise_rms_deg_s": _band_rms(f, psd, *band)}
+    logged_names = {k: v for k, v in filters.get("parameters", {}).items() if k in rec}
+    review = {
+        "source": {"stream": stream.name, "message": stream.message, "stage": "pre-filter",
+                   "sample_rate_hz": round(rate, 3), "n_samples": int(stream.n), "over": over,
+                   "nperseg": int(nperseg), "resolution_hz": round(float(f[1] - f[0]), 4),
+                   "n_segments": int(n_seg)},
+        "filter_rate_hz": float(fs_filter), "filter_rate_source": fs_src,
+        "noise_band_hz": [band[0], round(band[1], 3)],
+        "noise_metric": (f"rms of the predicted post-filter gyro (deg/s) over {band[0]:g}..{band[1]:.0f} Hz: "
+                         "sqrt(sum(|H|^2 PSD) df) per axis, rss over the axes"),
+        "peaks": peaks,
+        "figures": {"pre_filter": fig_pre, "logged": fig_logged, "recommended": fig_rec},
+        "logged": logged_names,
+        "recommended": {k: _jsonable(v) for k, v in rec.items()},
+        "param_lines": param_lines(autopilot, rec),
+        "why": why,
+        "notes": notes,
+        "_plot": {"freq_hz": f, "psd_pre": psd, "psd_logged": post_logged, "psd_recommended": post_rec,
+                  "axes": AXES},
+    }
+    return review, ""
+
+
+def param_lines(autopilot, rec):
+    """Lines to paste: ArduPilot parameter-file ``NAME,VALUE``; PX4 console ``param set NAME VALUE``."""
+    if autopilot == "px4":
+        return [f"param set {k} {_fmt(v)}" for k, v in rec.items()]
+    return [f"{k},{_fmt(v)}" for k, v in rec.items()]
+
+
+def _jsonable(v):
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v)
+    return v
+
+
+def _fmt(v):
+    if v is None:
+        return "?"
+    if isinstance(v, float) and v.is_integer():
+        return str(int(v))
+    return f"{v:g}" if isinstance(v, float) else str(v)
