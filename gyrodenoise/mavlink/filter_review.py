@@ -263,7 +263,7 @@ def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
         elif ctx.get("rpm_sensor"):
             mode, ref, how = 2, 1.0, "an RPM sensor is logged: the notch follows it"
         else:
-            hover = ctx.get("hover_throttle")
+            hover = ctx.get("hover_throttle") or params.get("MOT_THST_HOVER")
             logged_ref = params.get("INS_HNTCH_REF")
             ref = round(float(hover), 3) if hover else (float(logged_ref) if logged_ref else 0.35)
             mode = 1
