@@ -21,7 +21,7 @@ def _kinds(segs):
 
 def _synthetic_df(events, n=400, rate_hz=20.0, hover=None):
     """SYNTHETIC DataFlash: CTUN at ``rate_hz`` from t=1 s (ThO 0.1 on the ground, a
-    0.3/0.7 alternating in the air, a steady 0.45 in the ``hover`` window), EV ``events``
+    0.2/0.8 alternating in the air, a steady 0.45 in the ``hover`` window), EV ``events``
     [(time_s, id)] and ARM records at the arming events."""
     w = DataFlashWriter()
     w.define("CTUN", "Qf", ["TimeUS", "ThO"])
@@ -41,7 +41,7 @@ def _synthetic_df(events, n=400, rate_hz=20.0, hover=None):
             if ev[k][1] in (10, 11):
                 w.add("ARM", e_us, int(ev[k][1] == 10), 0, 0, 0)
             k += 1
-        thr = 0.5 + 0.2 * (-1) ** j if air[j] else 0.1
+        thr = 0.5 + 0.3 * (-1) ** j if air[j] else 0.1
         if hover and hover[0] <= t[j] <= hover[1]:
             thr = 0.45
         w.add("CTUN", int(us[j]), thr)
