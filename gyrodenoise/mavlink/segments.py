@@ -186,14 +186,11 @@ def _hover(segs, throttle):
         np.add.at(cover, lo[ok], 1)
         np.add.at(cover, hi[ok], -1)
         steady = np.cumsum(cover[:-1]) > 0
-        for seg in _runs(t, np.where(steady, FLYING, GROUND)):
-            if seg["kind"] != "flying":
-                continue
-            # the run ends at the next (unsteady) sample: end at its last steady one
-            end = seg["end_s"] if seg["end_s"] == round(float(t[-1]), 6) else \
-                round(float(t[np.searchsorted(t, seg["end_s"], side="left") - 1]), 6)
-            if end - seg["start_s"] >= HOVER_MIN_S:
-                out.append({"kind": "hover", "start_s": seg["start_s"], "end_s": end, "_parent": s})
+        edges = np.diff(np.concatenate([[0], steady.astype(np.int8), [0]]))
+        for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1):
+            if t[j] - t[i] >= HOVER_MIN_S:       # from the first to the last steady sample
+                out.append({"kind": "hover", "start_s": round(float(t[i]), 6),
+                            "end_s": round(float(t[j]), 6), "_parent": s})
     return out
 
 
