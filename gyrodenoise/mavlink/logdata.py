@@ -15,7 +15,7 @@ Names are spelled as the format spells them:
   instance column (``I``, ``IMU``, ``Instance``, ``C`` -- the first of those it has).
   ``time_s``: ``TimeUS`` * 1e-6 (or ``TimeMS`` * 1e-3); a message type with no time
   column takes the time of the last timed message before it in the file (NaN before
-  the first).
+  the first; old GPS messages, whose ``TimeMS`` is the GPS time of week, do not count).
 * Telemetry log (``source`` ``{"data", "fr"}``): the message name of pymavlink's
   ``ardupilotmega`` dialect (``HEARTBEAT``, ``VIBRATION``, ``SERVO_OUTPUT_RAW``,
   ``RAW_IMU``, ``PARAM_VALUE``, ``STATUSTEXT``...), readable records only (good CRC,
@@ -196,8 +196,8 @@ def _df_anchor_time(source, offs):
             if f is None or not lst:
                 continue
             tcol, tscale = _df_time_column(f)
-            if tcol is None:
-                continue
+            if tcol is None or (tcol == "TimeMS" and "Week" in f.columns):
+                continue            # old GPS messages: TimeMS is the GPS time of week
             try:
                 rec, _, o = _df_records(data, sc, tid)
             except ValueError:
