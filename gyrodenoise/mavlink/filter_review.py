@@ -22,13 +22,15 @@ What it recommends, and why:
   strongest over the three axes; a peak that is the n-th harmonic of a lower peak
   moves the notch to that fundamental), with the bandwidth half its centre and
   40 dB attenuation -- the ArduPilot wiki's guidance ("Managing Gyro Noise with
-  the Static Notch and Dynamic Harmonic Notch Filters": "set INS_HNTCH_BW to half
-  of INS_HNTCH_FREQ"; ``INS_HNTCH_ATT`` 40 dB is its default), the harmonics
+  the Static Notch and Dynamic Harmonic Notch Filters", and its "Throttle Based
+  Dynamic Notch Setup": ``INS_HNTCH_FREQ`` the hover frequency, ``INS_HNTCH_BW``
+  hover_freq / 2, ``INS_HNTCH_REF`` the hover thrust; ``INS_HNTCH_ATT`` 40 dB is
+  the parameter's default in HarmonicNotchFilter.cpp), the harmonics
   (``HMNCS``) those found at 2x..5x the fundamental. Tracking: ESC telemetry
   (``MODE`` 3) where the log holds ESC RPM, an RPM sensor (2) where it holds RPM,
   else throttle (1) with ``REF`` the hover throttle (``MOT_THST_HOVER``, else the
-  log's ``CTUN.ThH``) -- throttle tracking needs no sensor, and it is the wiki's
-  choice when there is no RPM telemetry. PX4: a static notch ``IMU_GYRO_NF0_FRQ``
+  log's ``CTUN.ThH``) -- the wiki: "If you do not have ESC telemetry or an RPM
+  sensor [...] then throttle-based [...] center frequency control is best". PX4: a static notch ``IMU_GYRO_NF0_FRQ``
   / ``_BW`` on the peak (the same half-centre bandwidth, within its 100 Hz
   maximum), or the ESC-RPM dynamic notch (``IMU_GYRO_DNF_EN`` 1) where ESC
   status is logged.

@@ -28,7 +28,8 @@ here from their descriptions):
   notches at or above 0.48 x the sample rate are not run; the centre is kept within
   [0.52 BW, 0.48 fs]. The centre by ``MODE``: 0 fixed at ``FREQ``; 1 throttle,
   ``FREQ x max(FM_RAT, sqrt(throttle / REF))`` (``AP_Vehicle::update_throttle_notch``;
-  older firmware: ``max(1, ...)``, i.e. ``FM_RAT`` 1); 2/5 RPM sensor, 3 ESC
+  older firmware: ``max(1, ...)``, i.e. ``FM_RAT`` 1; with the motors shut
+  down it marks the notch inactive, which is not modelled); 2/5 RPM sensor, 3 ESC
   telemetry, 4 in-flight FFT: the centre comes from a measurement, modelled here
   only when the caller gives it (e.g. from the log's ``FTN`` message), else left
   out of the response with a note.
@@ -95,12 +96,11 @@ def filter_parameters(autopilot, params):
 
 
 def _jsonable(v):
-    if isinstance(v, (np.integer,)):
+    """A parameter value as a plain int or float (numpy scalars converted)."""
+    if isinstance(v, np.integer):
         return int(v)
-    if isinstance(v, (np.floating,)):
-        v = float(v)
-    if isinstance(v, float) and v.is_integer() and abs(v) < 2 ** 53:
-        return v
+    if isinstance(v, np.floating):
+        return float(v)
     return v
 
 
