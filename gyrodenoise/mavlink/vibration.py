@@ -1,0 +1,268 @@
+"""Vibration review of a log over its flight segments, against the thresholds the
+autopilot communities publish (:data:`THRESHOLDS`, one table with the source of each).
+
+Sources, the first the log has:
+
+* ArduPilot DataFlash ``VIBE`` -- ``VibeX/Y/Z`` (m/s/s: the standard deviation of the
+  accelerometer, high-passed) and the clip counters ``Clip0..2`` (or ``Clip`` per IMU
+  in ArduPilot 4.x, which logs one VIBE per IMU instance, field ``IMU``); cumulative
+  counts: a segment's figure is their increase over it.
+* Telemetry log ``VIBRATION`` -- ``vibration_x/y/z`` (the same m/s/s levels),
+  ``clipping_0..2`` (cumulative).
+* PX4 ULog ``vehicle_imu_status`` (every instance) -- ``accel_vibration_metric``
+  (m/s/s), ``gyro_vibration_metric`` (rad/s), ``delta_angle_coning_metric`` (rad^2),
+  ``accel_clipping[0..2]`` (cumulative).
+
+Beside those, the accelerometer spectrum over each segment (DataFlash ``IMU``
+AccX/Y/Z of the first IMU, ULog ``sensor_combined.accelerometer_m_s2[*]``): the
+dominant peaks of the summed x+y+z Welch PSD
+(:func:`gyrodenoise.analysis.spectrum.welch_psd`, :func:`~gyrodenoise.analysis.spectrum.find_peaks`),
+for information: no community threshold exists for them, so they carry no verdict.
+
+Figures are computed over the ``flying`` segments (:mod:`gyrodenoise.mavlink.segments`)
+by default (``"over": "flying"``); ``over="whole"`` (or a log with no flying segment,
+said in the note) takes the whole log as one segment (``"over": "whole log"``).
+A level's verdict judges its 95th percentile (the ArduPilot wiki asks for levels
+*mostly* below 30 m/s/s; brief peaks are normal); ``warn`` at or above the first
+threshold, ``fail`` at or above the second.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from gyrodenoise.analysis.spectrum import find_peaks, welch_psd
+from gyrodenoise.mavlink.logdata import log_messages
+from gyrodenoise.mavlink.segments import segment_mask
+
+ARDUPILOT_VIBE_URL = "https://ardupilot.org/copter/docs/common-measuring-vibration.html"
+FLIGHT_REVIEW_URL = "https://github.com/PX4/flight_review/blob/main/app/plot_app/configured_plots.py"
+
+#: figure -> warn and fail thresholds (at or above), unit, source and what it says
+THRESHOLDS = {
+    "vibe_m_s2": {
+        "warn": 30.0, "fail": 60.0, "unit": "m/s/s", "source": ARDUPILOT_VIBE_URL,
+        "says": "Vibration levels below 30m/s/s are normally acceptable. Levels above 30m/s/s may have "
+                "problems and levels above 60m/s/s nearly always have problems with position or altitude hold.",
+    },
+    "clip_increase": {
+        "warn": 1, "fail": 100, "unit": "count", "source": ARDUPILOT_VIBE_URL,
+        "says": "Ideally these should be zero for the whole flight but low numbers (<100) are likely ok "
+                "especially if they occur during hard landings.",
+    },
+    "accel_vibration_metric_m_s2": {
+        "warn": 4.905, "fail": 9.81, "unit": "m/s/s", "source": FLIGHT_REVIEW_URL,
+        "says": "PX4 Flight Review 'Vibration Metrics' plot: green below 4.905 m/s^2 (0.5 g), orange to "
+                "9.81 m/s^2 (1 g), red above.",
+    },
+}
+VERDICTS = ("pass", "warn", "fail")
+LOOKED_FOR = {
+    "dataflash": "VIBE (VibeX/Y/Z, Clip), IMU AccX/AccY/AccZ",
+    "tlog": "VIBRATION (vibration_x/y/z, clipping_0..2)",
+    "ulog": "vehicle_imu_status (accel_vibration_metric...), sensor_combined.accelerometer_m_s2",
+}
+MAX_PEAKS = 3
+PEAK_MIN_FREQ_HZ = 5.0
+
+
+def vibration_review(kind, source, segments, over="flying"):
+    """(result, note) of the vibration figures of a log read by
+    :func:`gyrodenoise.mavlink.formats.read_log`, over the ``flying`` segments of
+    ``segments`` (:func:`gyrodenoise.mavlink.segments.flight_segments`) or, with
+    ``over="whole"``, the whole log.
+
+    ``result``: ``{"source", "over": "flying"|"whole log", "thresholds", "segments":
+    [{"kind", "start_s", "end_s", "figures": {...}, "accel_peaks": [...],
+    "verdict"}], "verdict"}`` (JSON-able; see the module doc), or None when the log has
+    none of the sources, with a note naming what was looked for."""
+    if over not in ("flying", "whole"):
+        raise ValueError(f"over must be 'flying' or 'whole', not {over!r}")
+    levels = _levels(kind, source)
+    accel = _accel(kind, source)
+    if levels is None and accel is None:
+        return None, f"no vibration data in the log (looked for {LOOKED_FOR[kind]})"
+    times = [x["time_s"] for x in ([levels] if levels else []) + ([accel] if accel else [])]
+    t_all = np.concatenate(times)
+    t_all = t_all[np.isfinite(t_all)]
+    note = ""
+    spans = [s for s in segments if s["kind"] == "flying"] if over == "flying" else []
+    over_out = "flying"
+    if over == "whole" or not spans:
+        if over == "flying":
+            note = "no flying segment in the log: figures over the whole log; "
+        spans = [{"kind": "whole log", "start_s": float(t_all.min()), "end_s": float(t_all.max())}]
+        over_out = "whole log"
+    out_segs = []
+    for seg in spans:
+        entry = {"kind": seg["kind"], "start_s": round(float(seg["start_s"]), 3),
+                 "end_s": round(float(seg["end_s"]), 3), "figures": {}, "accel_peaks": None}
+        if levels is not None:
+            entry["figures"] = _segment_figures(levels, seg)
+        if accel is not None:
+            entry["accel_peaks"] = _segment_peaks(accel, seg)
+        entry["verdict"] = _worst(f.get("verdict") for f in entry["figures"].values())
+        out_segs.append(entry)
+    src_name = levels["source"] if levels is not None else "accelerometer spectra"
+    used = {levels["threshold"], "clip_increase"} if levels is not None else set()
+    result = {
+        "source": src_name,
+        "accel_source": accel["source"] if accel is not None else None,
+        "over": over_out,
+        "thresholds": {k: dict(v) for k, v in THRESHOLDS.items() if k in used},
+        "segments": out_segs,
+        "verdict": _worst(s["verdict"] for s in out_segs),
+    }
+    note += (f"{src_name} over {len(out_segs)} {over_out} segment(s); "
+             f"levels judged on their 95th percentile, clipping on its increase")
+    if levels is None:
+        note += "; no vibration level in the log: spectra only, no verdict (no published threshold)"
+    return result, note
+
+
+# ------------------------------------------------------------------- sources
+def _levels(kind, source):
+    """{"source", "threshold", "time_s", "instance", "levels": {name: column},
+    "clips": {name: cumulative column}} or None."""
+    if kind == "dataflash":
+        m = log_messages(kind, source, "VIBE")
+        if m is None:
+            return None
+        inst = m["IMU"].astype(np.int64) if "IMU" in m else np.zeros(len(m["time_s"]), np.int64)
+        return {"source": "VIBE", "threshold": "vibe_m_s2", "time_s": m["time_s"], "instance": inst,
+                "levels": {c: m[c] for c in ("VibeX", "VibeY", "VibeZ") if c in m},
+                "clips": {c: m[c] for c in m if re.fullmatch(r"Clip\d?", c)}}
+    if kind == "tlog":
+        m = log_messages(kind, source, "VIBRATION")
+        if m is None:
+            return None
+        return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"],
+                "instance": np.zeros(len(m["time_s"]), np.int64),
+                "levels": {c: m[c] for c in ("vibration_x", "vibration_y", "vibration_z")},
+                "clips": {c: m[c] for c in ("clipping_0", "clipping_1", "clipping_2")}}
+    parts = []
+    k = 0
+    while True:
+        m = log_messages(kind, source, "vehicle_imu_status" + (f"[{k}]" if k else ""))
+        if m is None or "accel_vibration_metric" not in m:
+            break
+        parts.append(m)
+        k += 1
+    if not parts:
+        return None
+    cat = {c: np.concatenate([p[c] for p in parts]) for c in parts[0] if all(c in p for p in parts)}
+    inst = np.concatenate([np.full(len(p["time_s"]), i) for i, p in enumerate(parts)])
+    lv = {c: cat[c] for c in ("accel_vibration_metric", "gyro_vibration_metric", "delta_angle_coning_metric")
+          if c in cat}
+    return {"source": "vehicle_imu_status", "threshold": "accel_vibration_metric_m_s2", "time_s": cat["time_s"],
+            "instance": inst, "levels": lv,
+            "clips": {c: cat[c] for c in cat if c.startswith("accel_clipping[")}}
+
+
+def _accel(kind, source):
+    """{"source", "time_s", "xyz": (n, 3)} of the first accelerometer, or None."""
+    if kind == "dataflash":
+        m = log_messages(kind, source, "IMU")
+        if m is None or not all(c in m for c in ("AccX", "AccY", "AccZ")):
+            return None
+        sel = m["I"] == 0 if "I" in m else np.ones(len(m["time_s"]), bool)
+        return {"source": "IMU.AccX/AccY/AccZ", "time_s": m["time_s"][sel],
+                "xyz": np.stack([m[c][sel] for c in ("AccX", "AccY", "AccZ")], 1).astype(np.float64)}
+    if kind == "ulog":
+        m = log_messages(kind, source, "sensor_combined")
+        cols = [f"accelerometer_m_s2[{i}]" for i in range(3)]
+        if m is None or not all(c in m for c in cols):
+            return None
+        return {"source": "sensor_combined.accelerometer_m_s2", "time_s": m["time_s"],
+                "xyz": np.stack([m[c] for c in cols], 1).astype(np.float64)}
+    return None
+
+
+# ------------------------------------------------------------------- figures
+def _verdict(value, key):
+    th = THRESHOLDS[key]
+    if value is None or not np.isfinite(value):
+        return None
+    return "fail" if value >= th["fail"] else "warn" if value >= th["warn"] else "pass"
+
+
+def _worst(verdicts):
+    vs = [v for v in verdicts if v is not None]
+    return max(vs, key=VERDICTS.index) if vs else None
+
+
+def _in(t, seg):
+    return segment_mask(t, [dict(seg, kind="x")], "x")
+
+
+def _segment_figures(lv, seg):
+    """Per level column and instance (``imuN.`` before the name where the log has
+    several): mean/max/p95 and verdict; per clip column: its increase and verdict."""
+    t = lv["time_s"]
+    out = {}
+    for inst in np.unique(lv["instance"]).tolist():
+        isel = lv["instance"] == inst
+        sel = isel & _in(t, seg)
+        prefix = f"imu{inst}." if len(np.unique(lv["instance"])) > 1 else ""
+        for name, col in lv["levels"].items():
+            x = np.asarray(col, np.float64)[sel]
+            x = x[np.isfinite(x)]
+            if not len(x):
+                continue
+            fig = {"mean": _r(np.mean(x)), "max": _r(np.max(x)), "p95": _r(np.percentile(x, 95)),
+                   "samples": int(len(x))}
+            if name in ("VibeX", "VibeY", "VibeZ", "vibration_x", "vibration_y", "vibration_z"):
+                fig["verdict"] = _verdict(fig["p95"], "vibe_m_s2")
+            elif name == "accel_vibration_metric":
+                fig["verdict"] = _verdict(fig["p95"], "accel_vibration_metric_m_s2")
+            else:
+                fig["verdict"] = None            # no published threshold
+            out[prefix + name] = fig
+        for name, col in lv["clips"].items():
+            c = np.asarray(col, np.float64)
+            idx = np.flatnonzero(sel)
+            if not len(idx):
+                continue
+            before = np.flatnonzero(isel & (t < seg["start_s"]))
+            base = c[before[-1]] if len(before) else c[idx[0]]
+            inc = float(np.max(c[idx]) - base)
+            inc = max(inc, 0.0)
+            out[prefix + name] = {"increase": int(inc), "verdict": _verdict(inc, "clip_increase")}
+    return out
+
+
+def _segment_peaks(acc, seg):
+    """Dominant peaks of the summed x+y+z accelerometer PSD over the segment
+    (strongest first), or [] when the segment is too short for a spectrum."""
+    t = acc["time_s"]
+    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    if len(sel) < 64:
+        return []
+    ts = t[sel]
+    dt = np.diff(ts)
+    rate_hz = 1.0 / float(np.median(dt))
+    restarts = np.zeros(len(sel), bool)
+    restarts[1:] = (np.diff(sel) != 1) | (dt > 2.5 / rate_hz) | (dt <= 0)
+    nperseg = int(min(256, 2 ** int(np.floor(np.log2(max(len(sel) // 4, 16))))))
+    total, n_seg, f = None, 0, None
+    for k in range(3):
+        x = acc["xyz"][sel, k]
+        x = x - np.nanmean(x)
+        f, p, n = welch_psd(x, rate_hz, nperseg, restarts=restarts)
+        if p is None:
+            return []
+        total = p if total is None else total + p
+        n_seg = n
+    peaks = find_peaks(f, total, n_seg, min_freq_hz=PEAK_MIN_FREQ_HZ, max_peaks=MAX_PEAKS)
+    return [{"freq_hz": _r(p["freq_hz"]), "amplitude_rms_m_s2": _r(p["amplitude_rms"]),
+             "ratio_db": _r(p["ratio_db"])} for p in peaks]
+
+
+def _r(v, digits=4):
+    """float rounded to ``digits`` significant figures (JSON-able)."""
+    v = float(v)
+    if v == 0 or not np.isfinite(v):
+        return v
+    return float(f"{v:.{digits}g}")
