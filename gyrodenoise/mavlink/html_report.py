@@ -221,8 +221,9 @@ class _Figures:
         """The figure as a ``<div class="plot">`` with its script (no plotly.js)."""
         import plotly.io as pio
         self.n += 1
+        top = fig.layout.margin.t
         fig.update_layout(font={"family": FONT, "size": 12}, template="plotly_white",
-                          margin={"l": 70, "r": 30, "t": 50, "b": 50})
+                          margin={"l": 70, "r": 30, "t": top if top is not None else 50, "b": 50})
         if height:
             fig.update_layout(height=height)
         return '<div class="plot">' + pio.to_html(fig, include_plotlyjs=False, full_html=False, config=PLOT_CONFIG,
@@ -319,8 +320,10 @@ def _time_figure(st, vehicle_rates, segments, title):
     if segments and boot_time and len(pt):
         _shade_segments(fig, segments, len(axes), float(np.nanmin(pt)), float(np.nanmax(pt)))
     fig.update_xaxes(title_text=xlabel, row=len(axes), col=1)
-    fig.update_layout(title={"text": _e(title), "font": {"size": 14}}, hovermode="closest",
-                      legend={"orientation": "h", "yanchor": "bottom", "y": 1.02, "x": 0})
+    # the title at the top, the legend between it and the plot
+    fig.update_layout(title={"text": _e(title), "font": {"size": 14}, "y": 0.995, "yanchor": "top"},
+                      hovermode="closest", margin={"t": 80},
+                      legend={"orientation": "h", "yanchor": "bottom", "y": 1.01, "x": 0})
     note = "" if boot_time or not segments else "segments not shaded: the log's time goes backwards"
     return fig, note
 

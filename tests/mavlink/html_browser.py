@@ -182,9 +182,8 @@ def check_page(html_path, screenshot=None, plot_shots=True):
             if screenshot:
                 page.evaluate("window.scrollTo(0, 0)")
                 Path(screenshot).parent.mkdir(parents=True, exist_ok=True)
-                target = page.query_selector("div.plot")
-                if target is not None:
-                    target.scroll_into_view_if_needed()
+                page.evaluate("() => { const h = document.getElementById('streams'); "
+                              "if (h) h.scrollIntoView({block: 'start'}); }")
                 page.screenshot(path=str(screenshot))
         finally:
             browser.close()
