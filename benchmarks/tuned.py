@@ -63,6 +63,8 @@ def parse(argv):
     ap.add_argument("--sensors", default=",".join(sim.SENSORS))
     ap.add_argument("--profiles", default=",".join(sim.PROFILES))
     ap.add_argument("--no-gain", action="store_true", help="skip the gain-vs-frequency table")
+    ap.add_argument("--no-rest", action="store_true", help="skip the at-rest goal line (a 120 s record per "
+                    "sensor; quick 30 s)")
     ap.add_argument("--rigid", action="store_true",
                     help="the frame vibration counted as error (sensors with vibration only, "
                          "default drone); motion with --max-motion-hz against the best tuned low-pass; "
@@ -375,6 +377,9 @@ def main(argv=None):
     rows = bench.evaluate(methods, sensors, profiles, seeds, args.quick, progress=log)
     gains = [] if args.no_gain else bench.gain_table(methods, sensors, args.quick, progress=log)
     goals = bench.goal_lines(rows, gains, list(methods))
+    if not args.no_rest and "motion" in methods:
+        goals += bench.rest_lines({"motion": methods["motion"]}, sensors, 30.0 if args.quick else 120.0,
+                                  quick=args.quick)
     elapsed = time.perf_counter() - t0
     summ = bench.summarise(rows)
     print(f"RMSE / best tuned causal filter, geometric mean ({len(seeds)} seed(s); {elapsed:.0f} s)")

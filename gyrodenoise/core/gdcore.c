@@ -473,6 +473,12 @@ void gd_motion_params(double *p, double fs)
     }
     p[P_MO_RFIX] = 0.0;
     gd_spectral_params(p, p[P_MO_BR], 1.5);
+    {
+        double t = 0.02 * fs;
+        p[P_MO_PT] = 1.0 / (t >= 1.0 ? t : 1.0);
+        p[P_MO_PT + 1] = 0.7;
+        p[P_MO_PT + 2] = 0.95;
+    }
 }
 
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] */
@@ -496,14 +502,24 @@ void gd_spectral_params(double *p, double b, double ratio)
     }
 }
 
+/* kernels._forget_weight: d_k = (1 - b) / (1 - bk), without the division once
+ * 1 - bk rounds to 1 */
+KERNEL double forget_weight_(double b, double bk)
+{
+    double den = 1.0 - bk;
+    if (den == 1.0)
+        return 1.0 - b;
+    return (1.0 - b) / den;
+}
+
 /* kernels.spectral_floor: the white-noise variance from a low quantile of the
  * Hann-windowed spectrum's upper bins, blocks of MO_SPEC_N samples, accumulated
  * sample by sample; 0.0 before the first block (see kernels.py) */
 KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long o, double z, double k)
 {
     const double *cs = p + P_MO_COS;
-    double x, low[MO_SPEC_RANK], re[MO_SPEC_NB], im[MO_SPEC_NB], xb, bb, d, m;
-    int n, j, nl, i, mi, dm;
+    double x, low[MO_SPEC_RANK], w1[MO_SPEC_NB], w2[MO_SPEC_NB], cf[MO_SPEC_NB], xb, bb, d, m;
+    int n, j, nl, i;
     if (k == 0.0) {
         s[o + M_SPOS] = 0.0;
         s[o + M_SR] = 0.0;
@@ -526,23 +542,24 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
         return s[o + M_SR];
     }
     s[o + M_SPOS] = 0.0;
+    /* Goertzel per bin, the bins side by side (data-parallel: the compiler runs
+       them two at a time), as kernels.spectral_floor */
     for (j = 0; j < MO_SPEC_NB; j++) {
-        re[j] = 0.0;
-        im[j] = 0.0;
+        w1[j] = 0.0;
+        w2[j] = 0.0;
+        cf[j] = 2.0 * cs[MO_SPEC_K0 + 2 * j];
     }
     for (n = 0; n < MO_SPEC_N / 2; n++) {
         double y = s[o + M_SFOLD + n];
-        mi = (MO_SPEC_K0 * n) & (MO_SPEC_N - 1);
-        dm = (2 * n) & (MO_SPEC_N - 1);
         for (j = 0; j < MO_SPEC_NB; j++) {
-            re[j] += y * cs[mi];
-            im[j] += y * cs[(mi + 3 * MO_SPEC_N / 4) & (MO_SPEC_N - 1)];
-            mi = (mi + dm) & (MO_SPEC_N - 1);
+            double w0 = y + cf[j] * w1[j] - w2[j];
+            w2[j] = w1[j];
+            w1[j] = w0;
         }
     }
     nl = 0;
     for (j = 0; j < MO_SPEC_NB; j++) {
-        double pw = re[j] * re[j] + im[j] * im[j];
+        double pw = w1[j] * w1[j] + w2[j] * w2[j] - cf[j] * w1[j] * w2[j];
         if (nl < MO_SPEC_RANK) {
             i = nl;
             nl++;
@@ -564,7 +581,7 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
     xb = low[MO_SPEC_RANK - 1] * p[P_MO_SPEC];
     bb = p[P_MO_SBB];
     s[o + M_SBK] *= bb;
-    d = (1.0 - bb) / (1.0 - s[o + M_SBK]);
+    d = forget_weight_(bb, s[o + M_SBK]);
     m = s[o + M_SR];
     if (d < 0.25 && xb > p[P_MO_HUBER] * m)
         xb = p[P_MO_HUBER] * m;
@@ -724,7 +741,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         double b = p[P_MO_BR], d, hub = p[P_MO_HUBER], least = 0.0, sig;
         int clip;
         s[o + M_BK] *= b;
-        d = (1.0 - b) / (1.0 - s[o + M_BK]);
+        d = forget_weight_(b, s[o + M_BK]);
         clip = d < 0.03125;
         for (j = 1; j <= nlag; j++) {
             int i1 = hb - j, i2 = hb - 2 * j, i3 = hb - 3 * j, i4 = hb - 4 * j;
@@ -778,13 +795,22 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         return z;
     }
     s[S_CONV] = 1.0;
-    nw = s[o + M_NW] + 1.0;
-    s[o + M_NW] = nw;
-    gm0 = 2.0 * (2.0 * nw - 1.0) / (nw * (nw + 1.0));
-    gm1 = 6.0 / (nw * (nw + 1.0));
+    gm0 = 0.0;
+    gm1 = 0.0;
     lgm = 0.0;
-    if (gm0 < 1.0)
-        lgm = log1m_small_(gm0);
+    if (s[o + M_NWC] == 0.0) {   /* the growing-memory gains, until below every filter's own */
+        double conv = 1.0;
+        nw = s[o + M_NW] + 1.0;
+        s[o + M_NW] = nw;
+        gm0 = 2.0 * (2.0 * nw - 1.0) / (nw * (nw + 1.0));
+        gm1 = 6.0 / (nw * (nw + 1.0));
+        if (gm0 < 1.0)
+            lgm = log1m_small_(gm0);
+        for (i = 0; i < nf; i++)
+            if (gm0 > p[P_MO_G + 3 * i])
+                conv = 0.0;
+        s[o + M_NWC] = conv;
+    }
     fade = p[P_MO_FADE];
     inv_r = 1.0 / r;
     clip2 = p[P_MO_CLIP2];
@@ -851,9 +877,20 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             var = 1.7976931348623157e308;
         s[o + M_PVAR] = var;
     }
+    c = P_MO_G + 3 * best;
+    if (p[P_MO_PT] > 0.0) {      /* pass-through (kernels.motion_step) */
+        double g = s[o + M_GEFF], lo = p[P_MO_PT + 1];
+        g += p[P_MO_PT] * (p[c] - g);
+        s[o + M_GEFF] = g;
+        if (g > lo) {
+            double bt = (g - lo) / (p[P_MO_PT + 2] - lo);
+            if (bt > 1.0)
+                bt = 1.0;
+            y = y + bt * (z - y);
+        }
+    }
     out = y + p[P_MO_KAPPA] * s[o + M_ANG];
     s[o + M_ANG] += z - out;
-    c = P_MO_G + 3 * best;
     s[o + M_BEST] = (double)best;
     s[S_INNOV] = z - out;
     s[S_SVAR] = r / (1.0 - p[c]);

@@ -71,7 +71,8 @@ extern "C" {
 #define MO_SPEC_RANK 4             /* the rank of |X|^2 read */
 #define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped;
                                      so is a 4th difference beyond it in the lag noise estimates (M_MABS) */
-#define N_PARAMS (P_MO_COS + MO_SPEC_N)
+#define P_MO_PT (P_MO_COS + MO_SPEC_N) /* motion: pass-through: gain smoothing per sample (0 = off), gains lo, hi */
+#define N_PARAMS (P_MO_PT + 3)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -123,7 +124,9 @@ extern "C" {
 #define M_SBK (M_SPOS + 2)           /* spectral floor: b^(blocks+1) */
 #define M_SBAD (M_SPOS + 3)          /* spectral floor: 1 if the block holds a sample beyond MO_SPEC_ZMAX */
 #define M_SFOLD (M_SPOS + 4)         /* spectral floor: the windowed block folded in two (N/2) */
-#define N_EXT (M_SFOLD + MO_SPEC_N / 2)
+#define M_GEFF (M_SFOLD + MO_SPEC_N / 2) /* pass-through: smoothed gain of the most likely filter */
+#define M_NWC (M_GEFF + 1)           /* 1 once the growing-memory gains are below every filter's */
+#define N_EXT (M_NWC + 1)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {

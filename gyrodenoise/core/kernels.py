@@ -92,7 +92,10 @@ MO_SPEC_NB = 16     # ... and MO_SPEC_NB bins, every other one (nearly uncorrela
 MO_SPEC_RANK = 4    # the periodogram's MO_SPEC_RANK-th smallest of those bins is read (a low quantile)
 MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow);
                          # so is a 4th difference beyond it in the lag noise estimates (M_MABS)
-N_PARAMS = P_MO_COS + MO_SPEC_N
+P_MO_PT = P_MO_COS + MO_SPEC_N   # motion: pass-through (:func:`motion_step`): smoothing of the best filter's
+                                  # gain per sample (0 = off), the gain where the output starts moving to the raw
+                                  # sample, and where it is the raw sample
+N_PARAMS = P_MO_PT + 3
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -152,7 +155,9 @@ M_SR = M_SPOS + 1              # spectral floor: its smoothed white-noise varian
 M_SBK = M_SPOS + 2             # spectral floor: b^(blocks+1) of its d_k
 M_SBAD = M_SPOS + 3            # spectral floor: 1.0 if the block holds a sample beyond MO_SPEC_ZMAX (it is skipped)
 M_SFOLD = M_SPOS + 4           # spectral floor: the windowed block folded in two, x[n] + x[n + N/2] (N/2 floats)
-N_EXT = M_SFOLD + MO_SPEC_N // 2
+M_GEFF = M_SFOLD + MO_SPEC_N // 2   # pass-through: the smoothed gain of the most likely filter
+M_NWC = M_GEFF + 1                   # 1.0 once the growing-memory gains are below every filter's own (converged)
+N_EXT = M_NWC + 1
 
 
 def layout(n):
@@ -353,7 +358,7 @@ def cv_gains(tracking_index):
 
 def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
                   tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
-                  clip_sigma=4.0, spectral=1.5):
+                  clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95)):
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
@@ -369,7 +374,10 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     time constant of the angle feedback (0 = off); clip_sigma: each filter
     but the fastest updates its state with its innovation clipped at this many sigma (a lone
     spike moves the filters that did not follow it by a negligible amount);
-    spectral: the ratio of the spectral noise floor (:func:`spectral_params`; negative = off)."""
+    spectral: the ratio of the spectral noise floor (:func:`spectral_params`; negative = off);
+    pass_tau_s, pass_gain: the pass-through (smoothing of the most likely filter's gain, and the
+    gains (lo, hi) between which the output moves from the bank's mean to the raw sample;
+    pass_tau_s = 0: off)."""
     fs = float(sample_rate_hz)
     if not 1 <= n_filters <= MO_MAX_NF or not 1 <= n_lag <= MO_MAX_NLAG:
         raise ValueError("motion: n_filters must be 1..%d and n_lag 1..%d" % (MO_MAX_NF, MO_MAX_NLAG))
@@ -380,7 +388,8 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     for i in range(n_filters):
         e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
         gains[3 * i:3 * i + 3] = cv_gains(10.0 ** e)
-    return p + gains + [0.0] + spectral_params(p[2], spectral)
+    pt = [1.0 / max(pass_tau_s * fs, 1.0) if pass_tau_s > 0 else 0.0, float(pass_gain[0]), float(pass_gain[1])]
+    return p + gains + [0.0] + spectral_params(p[2], spectral) + pt
 
 
 def spectral_params(b, ratio=1.0):
@@ -885,6 +894,15 @@ def log1m_small(g):
         + g * (0.14285714285714285 + g * 0.125)))))))
 
 
+def _forget_weight(b, bk):
+    """The Sage-Husa weight d_k = (1 - b) / (1 - b^(k+1)) for ``bk`` = b^(k+1); (1 - b) itself, with
+    no division, once 1 - bk rounds to 1 (the same number: x / 1.0 == x)."""
+    den = 1.0 - bk
+    if den == 1.0:
+        return 1.0 - b
+    return (1.0 - b) / den
+
+
 def spectral_floor(p, s, o, z, k):
     """The sensor's white-noise variance R read from the spectrum:
     a floor that vibration tones do not lift. Returns the current estimate,
@@ -926,23 +944,23 @@ def spectral_floor(p, s, o, z, k):
         s[o + M_SPOS] = float(n)
         return s[o + M_SR]
     s[o + M_SPOS] = 0.0
-    # the DFT of the folded block at the bins K0, K0 + 2, ...
-    re = [0.0] * MO_SPEC_NB
-    im = [0.0] * MO_SPEC_NB
-    mask = n_blk - 1                               # MO_SPEC_N is a power of 2: & mask == % MO_SPEC_N
+    # |X|^2 of the folded block (N/2 samples) at its bins K0/2 + j, j = 0..NB-1 (the 128-point
+    # DFT's K0 + 2 j): Goertzel's recursion per bin, w = y + 2 cos(t) w1 - w2, all bins side by side
+    # (a loop over the bins inside the loop over the samples: data-parallel, no table look-up)
+    w1 = [0.0] * MO_SPEC_NB
+    w2 = [0.0] * MO_SPEC_NB
+    cf = [2.0 * p[c + MO_SPEC_K0 + 2 * j] for j in range(MO_SPEC_NB)]
     for n in range(half):
         y = s[o + M_SFOLD + n]
-        m = (MO_SPEC_K0 * n) & mask
-        dm = (2 * n) & mask
         for j in range(MO_SPEC_NB):
-            re[j] += y * p[c + m]
-            im[j] += y * p[c + ((m + 3 * n_blk // 4) & mask)]   # sin(t) = cos(t - pi/2)
-            m = (m + dm) & mask                     # bin K0 + 2 (j + 1): phase (K0 + 2 j + 2) n
+            w0 = y + cf[j] * w1[j] - w2[j]
+            w2[j] = w1[j]
+            w1[j] = w0
     # the MO_SPEC_RANK smallest |X|^2, ascending (insertion)
     low = [0.0] * MO_SPEC_RANK
     nl = 0
     for j in range(MO_SPEC_NB):
-        pw = re[j] * re[j] + im[j] * im[j]
+        pw = w1[j] * w1[j] + w2[j] * w2[j] - cf[j] * w1[j] * w2[j]
         if nl < MO_SPEC_RANK:
             i = nl
             nl += 1
@@ -960,7 +978,7 @@ def spectral_floor(p, s, o, z, k):
     xb = low[MO_SPEC_RANK - 1] * p[P_MO_SPEC]
     bb = p[P_MO_SBB]
     s[o + M_SBK] *= bb
-    d = (1.0 - bb) / (1.0 - s[o + M_SBK])
+    d = _forget_weight(bb, s[o + M_SBK])
     m = s[o + M_SR]
     if d < 0.25 and xb > p[P_MO_HUBER] * m:
         xb = p[P_MO_HUBER] * m
@@ -1053,7 +1071,7 @@ def motion_step(p, s, z):
     if k >= 4.0 * nlag:
         b = p[P_MO_BR]
         s[o + M_BK] *= b
-        d = (1.0 - b) / (1.0 - s[o + M_BK])         # d_k, as in Eq. (33)
+        d = _forget_weight(b, s[o + M_BK])          # d_k, as in Eq. (33)
         hub = p[P_MO_HUBER]
         clip = d < 0.03125                           # no clip while the mean forms (32 samples)
         least = 0.0
@@ -1107,14 +1125,24 @@ def motion_step(p, s, z):
             s[q + 3] = 0.0
         return z
     s[S_CONV] = 1.0
-    nw = s[o + M_NW] + 1.0
-    s[o + M_NW] = nw
-    # gains of the least-squares line through the nw samples so far
-    gm0 = 2.0 * (2.0 * nw - 1.0) / (nw * (nw + 1.0))
-    gm1 = 6.0 / (nw * (nw + 1.0))
+    gm0 = 0.0
+    gm1 = 0.0
     lgm = 0.0
-    if gm0 < 1.0:
-        lgm = log1m_small(gm0)
+    if s[o + M_NWC] == 0.0:
+        nw = s[o + M_NW] + 1.0
+        s[o + M_NW] = nw
+        # gains of the least-squares line through the nw samples so far
+        gm0 = 2.0 * (2.0 * nw - 1.0) / (nw * (nw + 1.0))
+        gm1 = 6.0 / (nw * (nw + 1.0))
+        if gm0 < 1.0:
+            lgm = log1m_small(gm0)
+        # gm0 falls with nw: once it is at or below every filter's steady-state gain it
+        # never wins again (nor gm1, used only with it): 0 from the next sample on
+        conv = 1.0
+        for i in range(nf):
+            if gm0 > p[P_MO_G + 3 * i]:
+                conv = 0.0
+        s[o + M_NWC] = conv
     fade = p[P_MO_FADE]
     inv_r = 1.0 / r
     clip2 = p[P_MO_CLIP2]
@@ -1182,9 +1210,23 @@ def motion_step(p, s, z):
         if not var - var == 0.0:
             var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
         s[o + M_PVAR] = var
+    c = P_MO_G + 3 * best
+    if p[P_MO_PT] > 0.0:
+        # pass-through: where the most likely filter follows nearly every sample (its gain,
+        # smoothed, above p[P_MO_PT + 1]) the bank removes little noise and cannot tell a tone
+        # near the Nyquist frequency from noise (its prediction of it is poor): the output moves
+        # to the raw sample, all the way at p[P_MO_PT + 2] (never worse than raw there)
+        g = s[o + M_GEFF]
+        g += p[P_MO_PT] * (p[c] - g)
+        s[o + M_GEFF] = g
+        lo = p[P_MO_PT + 1]
+        if g > lo:
+            bt = (g - lo) / (p[P_MO_PT + 2] - lo)
+            if bt > 1.0:
+                bt = 1.0
+            y = y + bt * (z - y)
     out = y + p[P_MO_KAPPA] * s[o + M_ANG]
     s[o + M_ANG] += z - out
-    c = P_MO_G + 3 * best
     s[o + M_BEST] = float(best)
     s[S_INNOV] = z - out
     s[S_SVAR] = r / (1.0 - p[c])
