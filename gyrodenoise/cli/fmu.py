@@ -34,13 +34,14 @@ def _register_build(sub):
                                    "core (plain-Python kernels + the C extension) into FMI 2.0 "
                                    "co-simulation FMUs, and compile FogDenoiserNative.fmu and "
                                    "SimulatedFogNative.fmu from the C cores and their FMI layer (gyrodenoise/fmu/sources/native) "
-                                   "for linux64 (glibc 2.17), win64 and darwin64 (zig from the ziglang package; "
-                                   "mingw-w64 for win64).")
+                                   "for linux64 and aarch64-linux (glibc 2.17), win64, darwin64 and aarch64-darwin "
+                                   "(zig from the ziglang package; mingw-w64 for win64).")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
     b.add_argument("--platforms", default=None, metavar="LIST",
                    help="native FMU platforms, comma-separated, each required (linux64, win64, "
-                        "darwin64); default: every platform a compiler is found for (zig from the "
-                        "ziglang package: all three), the others skipped with the reason")
+                        "darwin64, aarch64-linux, aarch64-darwin); default: every platform a compiler "
+                        "is found for (zig from the ziglang package: all five), the others skipped "
+                        "with the reason")
     b.set_defaults(func=_cmd_build)
 
 

@@ -194,35 +194,49 @@ def fmi_headers_dir():
 #: FMI 2.0 platform folder -> (binary extension, zig target, other cross compilers tried first)
 #: linux64 targets glibc 2.17 (RHEL/CentOS 7, Ubuntu 14.04 and later); darwin64 is x86_64
 #: macOS (runs on Apple silicon under Rosetta 2), minimum version DARWIN_MIN.
+#: FMI 2.0 names x86 platforms only ("64" stands for 64-bit x86); for any other platform FMI
+#: 2.0.4 (section 2.3) says the FMI 3.0 platform tuples should be used: aarch64-linux (glibc
+#: 2.17, as linux64: Raspberry Pi OS 64-bit, Jetson) and aarch64-darwin (Apple silicon, from
+#: macOS DARWIN_AARCH64_MIN, the first arm64 macOS).
 DARWIN_MIN = "10.13"
+DARWIN_AARCH64_MIN = "11.0"
 PLATFORMS = {
     "linux64": (".so", "x86_64-linux-gnu.2.17", ()),
     "win64": (".dll", "x86_64-windows-gnu", ("x86_64-w64-mingw32-gcc",)),
     "darwin64": (".dylib", f"x86_64-macos.{DARWIN_MIN}", ()),
+    "aarch64-linux": (".so", "aarch64-linux-gnu.2.17", ()),
+    "aarch64-darwin": (".dylib", f"aarch64-macos.{DARWIN_AARCH64_MIN}", ()),
 }
+#: -ffp-contract=off on every target: no a*b+c fused into one fma (clang and zig contract by
+#: default on aarch64, where fma is an instruction), so every platform does the same IEEE
+#: operations as the x86_64 build and the Python extension
 COMMON_FLAGS = ["-O2", "-ffp-contract=off", "-std=c99", "-shared", "-fvisibility=hidden", "-Wall",
                 "-g0", "-DGD_LIBM_LINKED"]
 PLATFORM_FLAGS = {
     "linux64": ["-fPIC", "-Wl,-z,defs", "-s"],
     "win64": ["-s"],
     "darwin64": ["-Wl,-undefined,error"],
+    "aarch64-linux": ["-fPIC", "-Wl,-z,defs", "-s"],
+    "aarch64-darwin": ["-Wl,-undefined,error"],
 }
 GCC_ONLY_FLAGS = ["-fschedule-insns", "-fsched-pressure"]   # as setup.py (clang ignores them)
 
 
 def host_platform():
-    """The FMI 2.0 platform folder of this machine, or None if it is not one we build for."""
-    bits64 = sys.maxsize > 2 ** 32
-    machine = platform.machine().lower()
-    if not bits64 or machine not in ("x86_64", "amd64"):
+    """The FMI 2.0 platform folder of this machine (a key of :data:`PLATFORMS`), or None if it
+    is not one we build for."""
+    if sys.maxsize <= 2 ** 32:
         return None
-    if sys.platform.startswith("linux"):
-        return "linux64"
-    if sys.platform == "win32":
-        return "win64"
-    if sys.platform == "darwin":
-        return "darwin64"
-    return None
+    machine = platform.machine().lower()
+    arch = {"x86_64": "x86_64", "amd64": "x86_64", "aarch64": "aarch64", "arm64": "aarch64"}.get(machine)
+    system = ("linux" if sys.platform.startswith("linux") else "windows" if sys.platform == "win32"
+              else "darwin" if sys.platform == "darwin" else None)
+    return _FOLDERS.get((arch, system))
+
+
+#: (architecture, system) -> FMI 2.0 platform folder
+_FOLDERS = {("x86_64", "linux"): "linux64", ("x86_64", "windows"): "win64", ("x86_64", "darwin"): "darwin64",
+            ("aarch64", "linux"): "aarch64-linux", ("aarch64", "darwin"): "aarch64-darwin"}
 
 
 def zig_command():
@@ -240,7 +254,7 @@ def compiler_for(plat):
     linux64: zig's ``cc`` for glibc 2.17 (the ``ziglang`` package: ``pip install ziglang``);
     without it, when building on Linux, the system gcc, whose binary then needs the build
     machine's glibc. ``GYRODENOISE_CC`` names the compiler for this machine's platform.
-    win64: mingw-w64 gcc if installed, else zig. darwin64: zig.
+    win64: mingw-w64 gcc if installed, else zig. darwin64, aarch64-linux, aarch64-darwin: zig.
     """
     if plat not in PLATFORMS:
         raise InputError(f"unknown FMU platform {plat!r}; known: {', '.join(PLATFORMS)}")
@@ -259,10 +273,10 @@ def compiler_for(plat):
     zig = zig_command()
     if zig is not None:
         return zig + ["cc", "-target", target], f"zig cc -target {target}"
-    if plat == "linux64" and host_platform() == "linux64" and shutil.which("gcc"):
+    if plat in ("linux64", "aarch64-linux") and host_platform() == plat and shutil.which("gcc"):
         return [shutil.which("gcc")], "gcc (no zig: the binary needs this machine's glibc, not 2.17)"
-    hint = {"win64": "pip install ziglang, or apt-get install mingw-w64",
-            "darwin64": "pip install ziglang"}.get(plat, "pip install ziglang, or install gcc")
+    hint = {"win64": "pip install ziglang, or apt-get install mingw-w64"}.get(
+        plat, "pip install ziglang" if plat != host_platform() else "pip install ziglang, or install gcc")
     raise InputError(f"no C compiler for {plat}: {hint} (the native FMUs are compiled at build time)")
 
 

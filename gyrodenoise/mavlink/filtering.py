@@ -14,10 +14,14 @@ from gyrodenoise.mavlink.streams import detect_restarts, kept_restarts
 
 
 def filter_streams(streams, engine, gap_factor, sample_rate=None):
-    """Restarts, then each axis of each stream through its own denoiser. Unusable
-    samples (:func:`gyrodenoise.mavlink.checks.usable_samples`: NaN/inf in float
-    fields, or a corrupted record) are not fed to the filter (it would never
-    recover): they are kept as they are in the output and counted in ``non_finite``.
+    """Restarts, then each axis of each stream through its own denoiser. A non-finite
+    sample (NaN/inf in a float field) is a dropout: it is fed to the filter, which heals
+    it as ``gd.denoise`` does (the filter restarts at that sample and passes it through,
+    so the output there is the raw NaN/inf, then warms up again): the output of every
+    sample is the library's on the same samples. Dropouts are counted in
+    ``dropouts_healed``. A corrupted record (finite but beyond
+    :data:`gyrodenoise.mavlink.checks.ABSURD_WORK`) is not fed to the filter: it is kept
+    as it is in the output. Both count in ``non_finite`` (left out of the noise figures).
 
     Then the safety net (:func:`gyrodenoise.mavlink.checks.check_filtered`): a stream
     whose filtered output is not finite, leaves the raw range of a session, or does
@@ -35,6 +39,7 @@ def filter_streams(streams, engine, gap_factor, sample_rate=None):
         rate = sample_rate or s.rate_hz or 1.0
         x, back, unit = s.work_units()
         s.non_finite = [0] * x.shape[1]
+        s.dropouts_healed = [0] * x.shape[1]
         s.not_filtered = None
         s.warmup_samples = engine.warmup_samples(rate)
         s.cutoff_hz = engine.cutoff_hz(rate) if hasattr(engine, "cutoff_hz") else None
@@ -85,18 +90,23 @@ def refused_band_option(exc, filter_kw):
 
 
 def _filter_axes(s, engine, x, usable, rate):
-    """The filtered work values of each axis; the unusable samples stay as they are,
-    left out of the filter (a restart on one moves to the next usable sample)."""
+    """The filtered work values of each axis. The dropouts (non-finite samples) are fed to
+    the filter with the readings and healed there as the library heals them; the corrupted
+    records stay as they are, left out of the filter (a restart on one moves to the next
+    sample fed)."""
     f = x.copy()
     for k in range(x.shape[1]):
         fin = usable[:, k]
-        if fin.all():
+        dropped = ~np.isfinite(x[:, k])
+        fed = fin | dropped
+        s.non_finite[k] = int((~fin).sum())
+        if not fin.any():
+            continue                    # no reading at all: nothing to filter, written as it is
+        if fed.all():
             f[:, k] = engine.filter(x[:, k], s.restarts, rate)
-        elif fin.any():
-            s.non_finite[k] = int((~fin).sum())
-            f[fin, k] = engine.filter(x[fin, k], kept_restarts(s.restarts, fin), rate)
         else:
-            s.non_finite[k] = len(fin)
+            f[fed, k] = engine.filter(x[fed, k], kept_restarts(s.restarts, fed), rate)
+        s.dropouts_healed[k] = int(dropped.sum())
     return f
 
 

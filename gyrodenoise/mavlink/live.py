@@ -78,8 +78,8 @@ class _LiveStream:
         self.warmup = 0
         self.start = None          # index of the first sample with a known unit
         self.non_finite = [0, 0, 0]
+        self.dropouts_healed = [0, 0, 0]
         self.slow = None           # too slow to denoise: None until RATE_SAMPLES steps were seen
-        self.pending_restart = [False, False, False]
         self.lo = [math.inf] * 3   # raw range of the session (work units), per axis
         self.hi = [-math.inf] * 3
         self.left_raw = None
@@ -123,20 +123,22 @@ class _LiveStream:
         self._envelope(z, bool(reason))
         out = []
         for j, (d, zz) in enumerate(zip(self.den, z)):
-            if math.isfinite(zz):
-                y = d.step(zz, bool(reason) or self.pending_restart[j])
-                self.pending_restart[j] = False
-                bad = self._check(j, y)
-                if bad:
-                    self._leave_raw(i, j, y, bad)
-                    self.fw.append(raw)
-                    return raw
-                out.append(raw[j] if y == zz else y / k)      # passed through (warm-up): bit for bit
-            else:                                        # never fed to the filter; kept as it is
-                self.non_finite[j] += 1
-                self.pending_restart[j] = self.pending_restart[j] or bool(reason)
-                out.append(raw[j])
-        if misfit(np.asarray(out), self.field_dtype).any():
+            y = d.step(zz, bool(reason))
+            if not math.isfinite(zz):
+                # a dropout: healed by the core as gd.denoise heals it (the filter restarts at
+                # this sample and passes it through: y is the raw NaN/inf; with the AR methods'
+                # outlier gate a +-inf is rejected and y is the held prediction). The range the
+                # output is checked against stays the session's: it holds the core's
+                self._dropout(j)
+                out.append(raw[j] if not math.isfinite(y) else y / k)
+                continue
+            bad = self._check(j, y)
+            if bad:
+                self._leave_raw(i, j, y, bad)
+                self.fw.append(raw)
+                return raw
+            out.append(raw[j] if y == zz else y / k)      # passed through (warm-up): bit for bit
+        if (misfit(np.asarray(out), self.field_dtype) & np.isfinite(z)).any():   # a dropout goes as it came
             self._leave_raw(i, None, out, f"does not fit the field type {np.dtype(self.field_dtype).name}")
             self.fw.append(raw)
             return raw
@@ -160,19 +162,25 @@ class _LiveStream:
                     for _ in range(3)]
         self.warmup = int(self.den[0].params[P_WARMUP])
         for j, (d, v0) in enumerate(zip(self.den, self.raw[self.start])):
-            if math.isfinite(v0 * k):
-                d.step(v0 * k, False)
-            else:
-                self.non_finite[j] += 1
+            d.step(v0 * k, False)
+            if not math.isfinite(v0 * k):
+                self._dropout(j)
+
+    def _dropout(self, j):
+        """Count a non-finite sample of axis ``j``, fed to its denoiser and healed there."""
+        self.non_finite[j] += 1
+        self.dropouts_healed[j] += 1
 
     def _envelope(self, z, new_session):
         for j, zz in enumerate(z):
             if not math.isfinite(zz):
+                if new_session:            # a restart on a dropout: the range starts at the next sample
+                    self.lo[j], self.hi[j] = math.inf, -math.inf
                 continue
-            if new_session or self.pending_restart[j] or zz < self.lo[j]:
-                self.lo[j] = zz if (new_session or self.pending_restart[j]) else min(self.lo[j], zz)
-            if new_session or self.pending_restart[j] or zz > self.hi[j]:
-                self.hi[j] = zz if (new_session or self.pending_restart[j]) else max(self.hi[j], zz)
+            if new_session or zz < self.lo[j]:
+                self.lo[j] = zz if new_session else min(self.lo[j], zz)
+            if new_session or zz > self.hi[j]:
+                self.hi[j] = zz if new_session else max(self.hi[j], zz)
 
     def _check(self, j, y):
         """None, or what is wrong with output ``y`` (work units) of axis ``j``."""
@@ -206,6 +214,7 @@ class _LiveStream:
         x, f = s.raw * k, s.filtered * k
         s._work = (x, f, "deg/s" if s.to_deg_s is not None else unit, self.rate or 0.0)
         s.non_finite = list(self.non_finite)
+        s.dropouts_healed = list(self.dropouts_healed)
         s.left_raw = self.left_raw
         s.warmup_samples = (self.start or 0) + self.warmup
         s.not_filtered = None

@@ -2,8 +2,8 @@
  * host.c -- a plain C FMI 2.0 co-simulation host for the project's FMUs (tests).
  *
  * Loads binaries/<platform>/<modelIdentifier>.<ext> of an unzipped FMU (dlopen on
- * linux64 and darwin64, LoadLibrary on win64: the same file cross-compiled for Windows
- * runs under wine), reads the
+ * linux64, aarch64-linux and the darwin ones, LoadLibrary on win64: the same file
+ * cross-compiled for Windows runs under wine, for aarch64 Linux under qemu), reads the
  * GUID, model identifier and variables from its modelDescription.xml (a crude
  * attribute scan: enough for the FMUs we generate), and drives it through the
  * FMI 2.0 C API with the standard headers (fmpy's c-code directory).
@@ -43,10 +43,18 @@
 #define _XOPEN_SOURCE 700      /* realpath */
 #include <dlfcn.h>
 #ifdef __APPLE__
+#ifdef __aarch64__
+#define PLATFORM_DIR "aarch64-darwin" /* FMI 2.0.4: the FMI 3.0 platform tuple for non-x86 */
+#else
 #define PLATFORM_DIR "darwin64"
+#endif
 #define BINARY_EXT ".dylib"
 #else
+#ifdef __aarch64__
+#define PLATFORM_DIR "aarch64-linux" /* cross-built and run under qemu-aarch64: test_aarch64.py */
+#else
 #define PLATFORM_DIR "linux64"
+#endif
 #define BINARY_EXT ".so"
 #endif
 #endif

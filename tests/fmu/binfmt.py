@@ -7,6 +7,7 @@ read from the file formats as their specifications lay them out.
 - :func:`macho_info`: a 64-bit Mach-O dylib (darwin64): CPU, file type, exported
   symbols, linked dylibs, minimum macOS version.
 - :func:`elf_glibc_versions`: the GLIBC_x.y symbol versions an ELF binary requires.
+- :func:`elf_machine`: the ELF machine (EM_X86_64, EM_AARCH64).
 """
 import re
 import struct
@@ -63,6 +64,7 @@ def pe_info(path):
 
 MH_MAGIC_64 = 0xFEEDFACF
 CPU_TYPE_X86_64 = 0x01000007
+CPU_TYPE_ARM64 = 0x0100000C
 MH_DYLIB = 6
 LC_SYMTAB, LC_LOAD_DYLIB, LC_VERSION_MIN_MACOSX, LC_BUILD_VERSION = 0x2, 0xC, 0x24, 0x32
 N_EXT, N_PEXT, N_TYPE, N_SECT = 0x01, 0x10, 0x0E, 0x0E
@@ -108,3 +110,14 @@ def elf_glibc_versions(path):
     found = {tuple(int(x) for x in m.group(1).split(b"."))
              for m in re.finditer(rb"GLIBC_(\d+(?:\.\d+)+)\0", data)}
     return sorted(found)
+
+
+EM_X86_64, EM_AARCH64 = 62, 183
+
+
+def elf_machine(path):
+    """The e_machine field of a 64-bit little-endian ELF file (EM_X86_64, EM_AARCH64, ...)."""
+    data = open(path, "rb").read(20)
+    if data[:4] != b"\x7fELF" or data[4] != 2 or data[5] != 1:
+        raise ValueError(f"{path}: not a 64-bit little-endian ELF file")
+    return struct.unpack_from("<H", data, 18)[0]

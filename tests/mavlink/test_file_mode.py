@@ -516,17 +516,19 @@ def test_batch_sampler_bursts_parsed_filtered_and_written_back(tmp_path):
     assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.01
 
 
-def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):
+def test_non_finite_samples_are_dropouts_healed_as_gd_denoise_heals_them(tmp_path):
     """SYNTHETIC HIGHRES_IMU with NaN gyro values (one on x at 450, one on y at the
-    restart sample 600): kept as NaN, counted, and the filter runs on the other samples
-    (the restart moves to the next finite sample)."""
+    restart sample 600): dropouts, fed to the filter with the other samples, which heals
+    them as gd.denoise does (the filter restarts there): the filtered log is gd.denoise of
+    the whole axis, NaN kept at the dropouts; counted in non_finite_samples and
+    dropouts_healed."""
     path = tmp_path / "nan.tlog"
     t, g = _synthetic_tlog(path, autopilot=12, nan_at=[(450, 0), (600, 1)])
     r = run_cli(path, "-o", tmp_path / "out", "--json", "--no-plots")
     assert r.returncode == 0, r.stderr
     rep = json.loads(r.stdout)["logs"][0]
     s = by_name(rep)["HIGHRES_IMU"]
-    assert s["non_finite_samples"] == {"x": 1, "y": 1, "z": 0}
+    assert s["non_finite_samples"] == {"x": 1, "y": 1, "z": 0} and s["dropouts_healed"] == 2
     assert all(v["raw"] is not None and np.isfinite(v["raw"]) for v in s["noise"].values())
     out, _, _ = tlog_reference(Path(rep["output_log"]))
     raw = tlog_reference(path)[0]["HIGHRES_IMU"][1]               # float32 values as logged
@@ -534,14 +536,9 @@ def test_non_finite_samples_kept_counted_and_not_fed_to_the_filter(tmp_path):
     assert np.isnan(got[450, 0]) and np.isnan(got[600, 1]) and np.isfinite(got).sum() == got.size - 2
     r_all = np.zeros(len(t), bool)
     r_all[[300, 600]] = True
-    for k, bad in ((0, 450), (1, 600)):
-        keep = np.ones(len(t), bool)
-        keep[bad] = False
-        rk = r_all[keep].copy()
-        if bad == 600:
-            rk[600] = True                                        # sample 601, first after the restart
-        ref = gd.denoise(raw[keep, k] * R2D, 100.0, restarts=rk, offline=True) / R2D
-        np.testing.assert_array_equal(got[keep, k], ref.astype(np.float32).astype(float))
+    for k in range(3):
+        ref = gd.denoise(raw[:, k] * R2D, 100.0, restarts=r_all, offline=True) / R2D
+        np.testing.assert_array_equal(got[:, k], ref.astype(np.float32).astype(float))
 
 
 # ------------------------------------------------------------ failing loudly
