@@ -162,7 +162,7 @@ def vars_header(guid, spec=None):
         lines.append(f"#define VR_{v.name} {vr}u")
         if v.start is not None:
             lines.append(f"#define START_{v.name} {_c_literal(v.start, v.type)}")
-    rows = ", ".join(f'{{"{v.name}", T_{v.type.upper()}, {kinds[v.causality]}}}' for v in spec.variables)
+    rows = ", ".join(f'{{"{v.name}", T_{v.type.upper()}, {kinds[v.causality]}, {v.size}}}' for v in spec.variables)
     lines += [f"#define GD_VARIABLE_TABLE {{{rows}}}", "#endif", ""]
     return "\n".join(lines)
 

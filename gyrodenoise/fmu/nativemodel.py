@@ -13,7 +13,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1]      # gyrodenoise/
 CORE_DIR = PACKAGE_DIR / "core"                        # gdcore.c, gdsim.c and their headers
 NATIVE_SRC = Path(__file__).resolve().parent / "sources" / "native"
 #: the FMI layer shared by every native FMU (in NATIVE_SRC)
-LAYER_FILES = ("gdfmi.c", "gdfmi.h", "gdfmi_libm.h")
+LAYER_FILES = ("gdfmi.c", "gdfmi2.c", "gdfmi3.c", "gdfmi.h", "gdfmi_libm.h")
 
 
 class NativeModel:

@@ -69,6 +69,8 @@ class Variable(NamedTuple):
     #: "calculated": an output computed at fmi2ExitInitializationMode, with no start value in
     #: either FMU kind; None: the kind's rule (see the module's docstring)
     initial: str | None = None
+    #: values: 1 for a scalar; an array variable's length (FMI 3.0 only: ``<Dimension start="size"/>``)
+    size: int = 1
 
 
 def _input(name, type_, description, start, unit=None):

@@ -274,7 +274,7 @@ static double dn_period(const void *m) { return ((const dn_t *)m)->u.sample_peri
 
 static int dn_strict(const void *m) { return ((const dn_t *)m)->u.strict_step_size; }
 
-static fmi2Status dn_step(gdfmi_inst_t *c, double t) {
+static gd_status_t dn_step(gdfmi_inst_t *c, double t) {
     dn_t *d = (dn_t *)c->m;
     double z = d->raw_rate;
     d->filtered_rate = gd_step(d->p, c->s, z, d->restart ? 1 : 0);
@@ -282,17 +282,17 @@ static fmi2Status dn_step(gdfmi_inst_t *c, double t) {
         /* a dropout: processed as gd.denoise and Denoiser.step process it (the core heals a
          * non-finite state by restarting the filter, counted in S_NHEAL, and passes the raw
          * sample through while it warms up again); the run goes on, with a warning */
-        gdfmi_log(c, fmi2Warning, "fmi2DoStep: raw_rate is %s at t=%.17g s: a dropout, processed as "
+        gdfmi_log(c, GD_WARNING, GD_FN("DoStep") ": raw_rate is %s at t=%.17g s: a dropout, processed as "
                   "gd.denoise processes it (a non-finite filter state restarts the filter, which passes "
                   "the raw samples through while it warms up again; %.17g such restart(s) so far); "
                   "filtered_rate = %.17g; the run goes on", isnan(z) ? "nan" : (z > 0 ? "inf" : "-inf"),
                   t, c->s[S_NHEAL], d->filtered_rate);
-        return fmi2Warning;
+        return GD_WARNING;
     }
-    return fmi2OK;
+    return GD_OK;
 }
 
-static double dn_get_real(const gdfmi_inst_t *c, fmi2ValueReference vr) {
+static double dn_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
     const dn_t *d = (const dn_t *)c->m;
     const user_t *u = &d->u;
     const double *s = c->k.have_model ? c->s : NULL;
@@ -325,7 +325,7 @@ static double dn_get_real(const gdfmi_inst_t *c, fmi2ValueReference vr) {
     }
 }
 
-static double *dn_real_ref(void *m, fmi2ValueReference vr) {
+static double *dn_real_ref(void *m, gd_vr_t vr) {
     dn_t *d = (dn_t *)m;
     user_t *u = &d->u;
     switch (vr) {
@@ -347,7 +347,7 @@ static double *dn_real_ref(void *m, fmi2ValueReference vr) {
     }
 }
 
-static int32_t *dn_int_ref(void *m, fmi2ValueReference vr) {
+static int32_t *dn_int_ref(void *m, gd_vr_t vr) {
     dn_t *d = (dn_t *)m;
     switch (vr) {
     case VR_ar_order: return &d->u.ar_order;
@@ -359,25 +359,25 @@ static int32_t *dn_int_ref(void *m, fmi2ValueReference vr) {
     }
 }
 
-static fmi2Integer dn_get_integer(const gdfmi_inst_t *c, fmi2ValueReference vr) {
+static int32_t dn_get_integer(const gdfmi_inst_t *c, gd_vr_t vr) {
     if (vr == VR_n_rejected) {
         double v = c->k.have_model ? c->s[S_NREJ] : 0.0;
-        return v >= (double)INT_MAX ? INT_MAX : (fmi2Integer)v;
+        return v >= (double)INT_MAX ? INT_MAX : (int32_t)v;
     }
     return *dn_int_ref(c->m, vr);
 }
 
-static fmi2Boolean dn_get_boolean(const gdfmi_inst_t *c, fmi2ValueReference vr) {
-    if (vr == VR_converged) return (c->k.have_model && c->s[S_CONV] == 1.0) ? fmi2True : fmi2False;
-    return *dn_int_ref(c->m, vr) ? fmi2True : fmi2False;
+static int dn_get_boolean(const gdfmi_inst_t *c, gd_vr_t vr) {
+    if (vr == VR_converged) return (c->k.have_model && c->s[S_CONV] == 1.0) ? 1 : 0;
+    return *dn_int_ref(c->m, vr) ? 1 : 0;
 }
 
-static const char *dn_get_string(const gdfmi_inst_t *c, fmi2ValueReference vr) {
+static const char *dn_get_string(const gdfmi_inst_t *c, gd_vr_t vr) {
     (void)vr;
     return ((const dn_t *)c->m)->u.method;
 }
 
-static char *dn_string_ref(void *m, fmi2ValueReference vr, size_t *capacity) {
+static char *dn_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     (void)vr;
     *capacity = METHOD_LEN;
     return ((dn_t *)m)->u.method;
