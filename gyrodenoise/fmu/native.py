@@ -59,7 +59,8 @@ LOG_CATEGORIES = [
 #: FogDenoiserNative: the denoiser's hooks (fogdenoiser_native.c) over the core gdcore.c
 DENOISER = NativeModel(MODEL_NAME, DENOISER_DESCRIPTION, FOG_DENOISER, DEFAULT_STEP_SIZE_S, C_SOURCE,
                        UNITY_SOURCE, (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h"), UNITS,
-                       header_lines=(f"#define GD_MAX_AR_ORDER {MAX_AR_ORDER}",))
+                       header_lines=(f"#define GD_MAX_AR_ORDER {MAX_AR_ORDER}",),
+                       extra_sources=("fogdenoiser_params.c",))
 #: every native FMU
 NATIVE_MODELS = (DENOISER, SIMULATED_FOG_NATIVE)
 
@@ -170,7 +171,7 @@ def vars_header(guid, spec=None):
 def _sources(spec=None):
     """{file name: bytes} of the C sources that go into the binary and the FMU."""
     spec = DENOISER if spec is None else spec
-    files = {name: NATIVE_SRC / name for name in (spec.c_source, spec.unity, *LAYER_FILES)}
+    files = {name: NATIVE_SRC / name for name in (spec.c_source, spec.unity, *LAYER_FILES, *spec.extra_sources)}
     files.update({p.name: p for p in spec.core_files})
     missing = [str(p) for p in files.values() if not p.is_file()]
     if missing:
@@ -311,17 +312,37 @@ def _guid(spec, sources, resources):
         digest.update(name.encode() + b"\0" + sources[name])
     for name in sorted(resources):
         digest.update(b"resources/" + name.encode() + b"\0" + resources[name])
-    digest.update(model_description("", spec).encode())
+    digest.update(_description("", spec).encode())
     return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "gyrodenoise:" + spec.name + ":" + digest.hexdigest())) + "}"
 
 
-def _write_fmu(target, xml, binaries, sources, resources):
-    """Zip the FMU into ``target`` (through a ``.part`` file, replaced at the end)."""
+def _description(guid, spec):
+    """modelDescription.xml of ``spec`` in its FMI version's form."""
+    if spec.fmi_version == 3:
+        from gyrodenoise.fmu.native3 import model_description3
+        return model_description3(guid, spec)
+    return model_description(guid, spec)
+
+
+def _binary_folder(plat, spec):
+    """The folder under binaries/ of ``plat``'s binary: the FMI 2.0 platform name (a key of
+    :data:`PLATFORMS`), or for an FMI 3.0 FMU its platform tuple (e.g. x86_64-linux)."""
+    if spec.fmi_version == 3:
+        from gyrodenoise.fmu.native3 import fmi3_platform_folder
+        return fmi3_platform_folder(plat)
+    return plat
+
+
+def _write_fmu(target, xml, binaries, sources, resources, documentation=None):
+    """Zip the FMU into ``target`` (through a ``.part`` file, replaced at the end); ``binaries``:
+    {folder under binaries/: path}, ``documentation``: {path in documentation/: bytes}."""
     part = target.with_name(target.name + ".part")
     with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", xml)
-        for plat, binary in binaries.items():
-            z.write(binary, f"binaries/{plat}/{binary.name}")
+        for folder, binary in binaries.items():
+            z.write(binary, f"binaries/{folder}/{binary.name}")
+        for name in sorted(documentation or {}):
+            z.writestr(f"documentation/{name}", documentation[name])
         for name in sorted(sources):
             z.writestr(f"sources/{name}", sources[name])
         for name in sorted(resources):
@@ -362,9 +383,10 @@ def build_native_fmu(out_dir="build", platforms=None, report=None, spec=None):
             (tmp / plat).mkdir()
             binary = tmp / plat / f"{spec.name}{PLATFORMS[plat][0]}"
             _compile(plat, cc, src, binary, spec)
-            binaries[plat] = binary
+            binaries[_binary_folder(plat, spec)] = binary
             report[plat] = what
-        _write_fmu(target, model_description(guid, spec), binaries, sources, resources)
+        from gyrodenoise.fmu.reference import reference_documents
+        _write_fmu(target, _description(guid, spec), binaries, sources, resources, reference_documents(spec.name))
     return target
 
 
@@ -385,10 +407,18 @@ def native_stale_reason(fmu_path, spec=None):
     return None
 
 
-def build_native_fmus(out_dir="build", platforms=None, report=None):
-    """Build every native FMU (:data:`NATIVE_MODELS`) into ``out_dir``; returns {name: path}.
-    ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers serve all)."""
-    return {spec.name: build_native_fmu(out_dir, platforms, report, spec) for spec in NATIVE_MODELS}
+def native_models(fmi_versions=(2, 3)):
+    """The native FMUs of the FMI versions in ``fmi_versions`` (2: :data:`NATIVE_MODELS`, 3:
+    :data:`gyrodenoise.fmu.native3.NATIVE3_MODELS`)."""
+    from gyrodenoise.fmu.native3 import NATIVE3_MODELS
+    return tuple(m for m in NATIVE_MODELS + NATIVE3_MODELS if m.fmi_version in fmi_versions)
+
+
+def build_native_fmus(out_dir="build", platforms=None, report=None, fmi_versions=(2, 3)):
+    """Build every native FMU of ``fmi_versions`` (:func:`native_models`) into ``out_dir``; returns
+    {name: path}. ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers
+    serve all)."""
+    return {spec.name: build_native_fmu(out_dir, platforms, report, spec) for spec in native_models(fmi_versions)}
 
 
 def main(argv=None):  # pragma: no cover - convenience: python -m gyrodenoise.fmu.native [out_dir]

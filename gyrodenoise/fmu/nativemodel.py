@@ -25,10 +25,12 @@ class NativeModel:
     paths of the core's C files, ``units``: {FMI unit name: BaseUnit attributes} declared.
     ``header_lines``: extra lines of the generated C header, or a function () -> lines
     (read at build time); ``resources``: None or a function () -> {path in resources/: bytes}.
+    ``extra_sources``: more C files of :data:`NATIVE_SRC` the unity file includes;
+    ``fmi_version``: 2 or 3 (the unity file of a 3 defines ``GD_FMI_VERSION 3``).
     """
 
     def __init__(self, name, description, variables, step_size, c_source, unity, core_files,
-                 units, header_lines=(), resources=None):
+                 units, header_lines=(), resources=None, extra_sources=(), fmi_version=2):
         self.name = name
         self.description = description
         self.variables = variables
@@ -40,6 +42,16 @@ class NativeModel:
         self.units = units
         self.header_lines = header_lines
         self.resources = resources
+        self.extra_sources = tuple(extra_sources)
+        self.fmi_version = fmi_version
+
+    def replace(self, **changes):
+        """A copy with the attributes in ``changes`` (the constructor's names) replaced."""
+        fields = ("name", "description", "variables", "step_size", "c_source", "unity", "core_files",
+                  "units", "header_lines", "resources", "extra_sources", "fmi_version")
+        kw = {f: getattr(self, f) for f in fields}
+        kw.update(changes)
+        return NativeModel(**kw)
 
     def value_references(self):
         """{variable name: value reference}."""

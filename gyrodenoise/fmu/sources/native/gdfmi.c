@@ -390,6 +390,14 @@ static gd_status_t gdl_reset(gdfmi_inst_t *c) {
 }
 
 /* -------------------------------------------------------- getters/setters */
+/* FMI 3.0: the independent variable "time" (Float64, read only), value reference = the number of
+ * the model's variables (after them: theirs are the same in both versions) */
+#if GD_FMI_VERSION == 3
+#define IS_TIME(vr) ((vr) == GDM->n_vars)
+#else
+#define IS_TIME(vr) 0
+#endif
+
 /* every vr names a variable of the type, and their values number nValues (FMI 2.0: nvr) */
 static int check_vrs(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr, const void *value,
                      size_t nValues, int type) {
@@ -401,6 +409,10 @@ static int check_vrs(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t
         return 0;
     }
     for (i = 0; i < nvr; i++) {
+        if (IS_TIME(vr[i]) && type == T_REAL) { /* FMI 3.0: the independent variable */
+            total += 1;
+            continue;
+        }
         if (vr[i] >= GDM->n_vars) {
             gdfmi_fail(c, "%s: unknown value reference %u", fn, (unsigned)vr[i]);
             return 0;
@@ -425,7 +437,12 @@ static int check_vrs(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t
 static int check_settable(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr) {
     size_t i;
     for (i = 0; i < nvr; i++) {
-        int kind = GDM->vars[vr[i]].kind;
+        int kind;
+        if (IS_TIME(vr[i])) {
+            gdfmi_fail(c, "%s: time is the independent variable and cannot be set", fn);
+            return 0;
+        }
+        kind = GDM->vars[vr[i]].kind;
         if (kind == K_OUTPUT) {
             gdfmi_fail(c, "%s: %s is an output and cannot be set", fn, GDM->vars[vr[i]].name);
             return 0;
@@ -446,8 +463,9 @@ static gd_status_t gdl_get_real(gdfmi_inst_t *c, const char *fn, const gd_vr_t v
     size_t i, at = 0;
     if (!check_vrs(c, fn, vr, nvr, value, nValues, T_REAL)) return GD_ERROR;
     for (i = 0; i < nvr; i++) {
-        unsigned n = GDM->vars[vr[i]].n;
-        if (n == 1) value[at++] = GDM->get_real(c, vr[i]);
+        unsigned n = IS_TIME(vr[i]) ? 1 : GDM->vars[vr[i]].n;
+        if (IS_TIME(vr[i])) value[at++] = c->k.time;
+        else if (n == 1) value[at++] = GDM->get_real(c, vr[i]);
         else {
             memcpy(value + at, GDM->real_ref(c->m, vr[i]), n * sizeof(double));
             at += n;
