@@ -183,7 +183,7 @@ def _rebuild_stale(fmu_dir, native):
         if any(why.values()):
             log(f"gyrodenoise: (re)building the native FMUs in {fmu_dir}/ ("
                 + "; ".join(f"{n}: {r}" for n, r in why.items() if r) + ")")
-            build_native_fmus(fmu_dir)
+            build_native_fmus(fmu_dir, fmi_versions=(2,))   # the run uses the FMI 2.0 FMUs
 
 
 def _cases(args):
