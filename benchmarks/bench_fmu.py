@@ -217,7 +217,7 @@ def main(argv=None):
     if args.native_only:
         from gyrodenoise.fmu.native import build_native_fmus
         with tempfile.TemporaryDirectory() as tmp:
-            native_platforms(build_native_fmus(tmp, fmi_versions=(2,)), tmp, args.steps, wine=args.wine)
+            native_platforms(build_native_fmus(tmp), tmp, args.steps, wine=args.wine)
         return
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -94,7 +94,8 @@ def _register_run(sub):
 
 
 def _cmd_build(args):
-    from gyrodenoise.fmu.native import PLATFORMS, build_native_fmus
+    from gyrodenoise.fmu.native import PLATFORMS
+    from gyrodenoise.fmu.native3 import build_native_fmus
     platforms = None
     if args.platforms is not None:
         platforms = [p.strip() for p in args.platforms.split(",") if p.strip()]
@@ -183,7 +184,7 @@ def _rebuild_stale(fmu_dir, native):
         if any(why.values()):
             log(f"gyrodenoise: (re)building the native FMUs in {fmu_dir}/ ("
                 + "; ".join(f"{n}: {r}" for n, r in why.items() if r) + ")")
-            build_native_fmus(fmu_dir, fmi_versions=(2,))   # the run uses the FMI 2.0 FMUs
+            build_native_fmus(fmu_dir)
 
 
 def _cases(args):

@@ -317,20 +317,16 @@ def _guid(spec, sources, resources):
 
 
 def _description(guid, spec):
-    """modelDescription.xml of ``spec`` in its FMI version's form."""
-    if spec.fmi_version == 3:
-        from gyrodenoise.fmu.native3 import model_description3
-        return model_description3(guid, spec)
-    return model_description(guid, spec)
+    """modelDescription.xml of ``spec`` in its FMI version's form (an FMI 3.0 model brings its
+    writer: :func:`gyrodenoise.fmu.native3.model_description3`)."""
+    return spec.xml_writer(guid, spec) if spec.xml_writer else model_description(guid, spec)
 
 
 def _binary_folder(plat, spec):
     """The folder under binaries/ of ``plat``'s binary: the FMI 2.0 platform name (a key of
-    :data:`PLATFORMS`), or for an FMI 3.0 FMU its platform tuple (e.g. x86_64-linux)."""
-    if spec.fmi_version == 3:
-        from gyrodenoise.fmu.native3 import fmi3_platform_folder
-        return fmi3_platform_folder(plat)
-    return plat
+    :data:`PLATFORMS`), or for an FMI 3.0 FMU its platform tuple (e.g. x86_64-linux: the model
+    brings the mapping, :func:`gyrodenoise.fmu.native3.fmi3_platform_folder`)."""
+    return spec.binary_folder(plat) if spec.binary_folder else plat
 
 
 def _write_fmu(target, xml, binaries, sources, resources, documentation=None):
@@ -407,18 +403,11 @@ def native_stale_reason(fmu_path, spec=None):
     return None
 
 
-def native_models(fmi_versions=(2, 3)):
-    """The native FMUs of the FMI versions in ``fmi_versions`` (2: :data:`NATIVE_MODELS`, 3:
-    :data:`gyrodenoise.fmu.native3.NATIVE3_MODELS`)."""
-    from gyrodenoise.fmu.native3 import NATIVE3_MODELS
-    return tuple(m for m in NATIVE_MODELS + NATIVE3_MODELS if m.fmi_version in fmi_versions)
-
-
-def build_native_fmus(out_dir="build", platforms=None, report=None, fmi_versions=(2, 3)):
-    """Build every native FMU of ``fmi_versions`` (:func:`native_models`) into ``out_dir``; returns
-    {name: path}. ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers
-    serve all)."""
-    return {spec.name: build_native_fmu(out_dir, platforms, report, spec) for spec in native_models(fmi_versions)}
+def build_native_fmus(out_dir="build", platforms=None, report=None):
+    """Build every FMI 2.0 native FMU (:data:`NATIVE_MODELS`) into ``out_dir``; returns {name: path}.
+    ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers serve all).
+    The FMI 3.0 ones too: :func:`gyrodenoise.fmu.native3.build_native_fmus`."""
+    return {spec.name: build_native_fmu(out_dir, platforms, report, spec) for spec in NATIVE_MODELS}
 
 
 def main(argv=None):  # pragma: no cover - convenience: python -m gyrodenoise.fmu.native [out_dir]

@@ -9,7 +9,7 @@ Int32). FogDenoiserImuNative3 is the denoiser for a whole IMU: ``raw_rate`` and
 
 :func:`model_description3` writes their ``modelDescription.xml``; the build is
 :func:`gyrodenoise.fmu.native.build_native_fmu` (binaries under the FMI 3.0 platform tuples of
-:data:`FMI3_PLATFORM_FOLDERS`).
+:data:`FMI3_PLATFORM_FOLDERS`), :func:`build_native_fmus` builds them with the FMI 2.0 ones.
 
 >>> from gyrodenoise.fmu.native3 import fmi3_platform_folder
 >>> fmi3_platform_folder("linux64")
@@ -22,7 +22,7 @@ import re
 from xml.sax.saxutils import quoteattr
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.fmu.native import DENOISER, LOG_CATEGORIES
+from gyrodenoise.fmu.native import DENOISER, LOG_CATEGORIES, NATIVE_MODELS, build_native_fmu
 from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
 from gyrodenoise.fmu.variables import FMI3_TYPES, FOG_DENOISER_IMU, UNITS, format_value, initial
 
@@ -50,27 +50,6 @@ def fmi3_platform_folder(plat):
         return plat
     raise InputError(f"platform {plat!r}: no FMI 3.0 platform tuple known for it (add it to "
                      "gyrodenoise.fmu.native3.FMI3_PLATFORM_FOLDERS)")
-
-
-#: FogDenoiserNative3.fmu: FogDenoiserNative, FMI 3.0
-DENOISER3 = DENOISER.replace(
-    name="FogDenoiserNative3", unity="fogdenoiser_native3_all.c", fmi_version=3,
-    extra_sources=DENOISER.extra_sources + (DENOISER.unity,),
-    description=DENOISER.description.replace("native C:", "native C, FMI 3.0:"))
-#: SimulatedFogNative3.fmu: SimulatedFogNative, FMI 3.0
-SENSOR3 = SIMULATED_FOG_NATIVE.replace(
-    name="SimulatedFogNative3", unity="simulatedfog_native3_all.c", fmi_version=3,
-    extra_sources=SIMULATED_FOG_NATIVE.extra_sources + (SIMULATED_FOG_NATIVE.unity,),
-    description=SIMULATED_FOG_NATIVE.description.replace("native C:", "native C, FMI 3.0:"))
-#: FogDenoiserImuNative3.fmu: the 3-axis denoiser (FMI 3.0 only)
-IMU3 = DENOISER.replace(
-    name="FogDenoiserImuNative3", variables=FOG_DENOISER_IMU, c_source="fogdenoiser_imu_native.c",
-    unity="fogdenoiser_imu_native3_all.c", fmi_version=3,
-    description="Gyro denoiser for a whole IMU (three gyro axes, three independent filters: filtered_rate[j] "
-                "= gd.denoise of axis j), native C, FMI 3.0: no Python needed. One communication step = "
-                "one sample.")
-#: every FMI 3.0 native FMU
-NATIVE3_MODELS = (DENOISER3, SENSOR3, IMU3)
 
 
 def _variable(vr, v):
@@ -137,3 +116,35 @@ def model_description3(token, spec):
             if initial(v, pythonfmu=False) == "calculated"]
     out += ['  </ModelStructure>', '</fmiModelDescription>', '']
     return "\n".join(out)
+
+
+#: FogDenoiserNative3.fmu: FogDenoiserNative, FMI 3.0
+DENOISER3 = DENOISER.replace(
+    name="FogDenoiserNative3", unity="fogdenoiser_native3_all.c", fmi_version=3,
+    xml_writer=model_description3, binary_folder=fmi3_platform_folder,
+    extra_sources=DENOISER.extra_sources + (DENOISER.unity,),
+    description=DENOISER.description.replace("native C:", "native C, FMI 3.0:"))
+#: SimulatedFogNative3.fmu: SimulatedFogNative, FMI 3.0
+SENSOR3 = SIMULATED_FOG_NATIVE.replace(
+    name="SimulatedFogNative3", unity="simulatedfog_native3_all.c", fmi_version=3,
+    xml_writer=model_description3, binary_folder=fmi3_platform_folder,
+    extra_sources=SIMULATED_FOG_NATIVE.extra_sources + (SIMULATED_FOG_NATIVE.unity,),
+    description=SIMULATED_FOG_NATIVE.description.replace("native C:", "native C, FMI 3.0:"))
+#: FogDenoiserImuNative3.fmu: the 3-axis denoiser (FMI 3.0 only)
+IMU3 = DENOISER.replace(
+    name="FogDenoiserImuNative3", variables=FOG_DENOISER_IMU, c_source="fogdenoiser_imu_native.c",
+    unity="fogdenoiser_imu_native3_all.c", fmi_version=3,
+    xml_writer=model_description3, binary_folder=fmi3_platform_folder,
+    description="Gyro denoiser for a whole IMU (three gyro axes, three independent filters: filtered_rate[j] "
+                "= gd.denoise of axis j), native C, FMI 3.0: no Python needed. One communication step = "
+                "one sample.")
+#: every FMI 3.0 native FMU
+NATIVE3_MODELS = (DENOISER3, SENSOR3, IMU3)
+
+
+def build_native_fmus(out_dir="build", platforms=None, report=None, fmi_versions=(2, 3)):
+    """Build every native FMU of ``fmi_versions`` (2: :data:`gyrodenoise.fmu.native.NATIVE_MODELS`,
+    3: :data:`NATIVE3_MODELS`) into ``out_dir``; returns {name: path}. ``platforms`` and ``report``
+    as for :func:`gyrodenoise.fmu.native.build_native_fmu` (the same compilers serve all)."""
+    models = (NATIVE_MODELS if 2 in fmi_versions else ()) + (NATIVE3_MODELS if 3 in fmi_versions else ())
+    return {spec.name: build_native_fmu(out_dir, platforms, report, spec) for spec in models}
