@@ -102,10 +102,10 @@ def fmu_build(request, tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def native_build(fmu_build, tmp_path_factory):
-    """The native FMUs (FogDenoiserNative, SimulatedFogNative) for every platform a compiler is
-    found for; (folder, {platform: compiler or skip reason}). Taken from the session's
+    """The native FMUs (FogDenoiserNative, SimulatedFogNative and the FMI 3.0 ones) for every
+    platform a compiler is found for; (folder, {platform: compiler or skip reason}). Taken from the session's
     `fmu build` (its stderr report is build_native_fmus' report, one line a platform); if that
-    build failed, built alone here (gyrodenoise.fmu.native.build_native_fmus), or skipped."""
+    build failed, built alone here (gyrodenoise.fmu.native3.build_native_fmus), or skipped."""
     out, proc = fmu_build
     if proc.returncode == 0:
         report = {}
@@ -116,11 +116,11 @@ def native_build(fmu_build, tmp_path_factory):
         if report and all((out / f"{n}.fmu").is_file() for n in ("FogDenoiserNative", "SimulatedFogNative")):
             return out, report
     from gyrodenoise.errors import InputError
-    from gyrodenoise.fmu import native
+    from gyrodenoise.fmu import native3
     out = tmp_path_factory.mktemp("native_fmus")
     report = {}
     try:
-        native.build_native_fmus(out, report=report)
+        native3.build_native_fmus(out, report=report)    # FMI 2.0 and 3.0
     except InputError as exc:
         pytest.skip(f"native FMU not buildable here: {exc}")
     return out, report

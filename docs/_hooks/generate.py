@@ -21,6 +21,7 @@ import os
 
 CLI_PLACEHOLDER = "<!-- gd:cli-reference -->"
 FMU_PLACEHOLDER = "<!-- gd:fmu-variables -->"
+FMU3_PLACEHOLDER = "<!-- gd:fmu3-variables -->"
 
 #: help text is wrapped at this many columns, whatever the terminal building the site
 HELP_WIDTH_COLUMNS = 100
@@ -80,7 +81,15 @@ def fmu_variables_markdown():
     return markdown_tables()
 
 
-_GENERATORS = {CLI_PLACEHOLDER: cli_reference_markdown, FMU_PLACEHOLDER: fmu_variables_markdown}
+def fmu3_variables_markdown():
+    """The FMI 3.0 FMUs' variable tables (FMI 3.0 types), from the same declaration."""
+    from gyrodenoise.fmu.variables import markdown_tables
+
+    return markdown_tables(fmi_version=3)
+
+
+_GENERATORS = {CLI_PLACEHOLDER: cli_reference_markdown, FMU_PLACEHOLDER: fmu_variables_markdown,
+               FMU3_PLACEHOLDER: fmu3_variables_markdown}
 
 
 def on_page_markdown(markdown, page, config, files):

@@ -29,19 +29,28 @@ def register_cli(subparsers):
 
 def _register_build(sub):
     b = sub.add_parser("build", help="build FogDenoiser.fmu, SimulatedFog.fmu (pythonfmu), "
-                                     "FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python needed)",
+                                     "FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python needed), "
+                                     "and their FMI 3.0 versions FogDenoiserNative3.fmu, SimulatedFogNative3.fmu "
+                                     "with the 3-axis FogDenoiserImuNative3.fmu",
                        description="Package gyrodenoise/fmu/sources/*.py with pythonfmu (in a subprocess) and the "
                                    "core (plain-Python kernels + the C extension) into FMI 2.0 "
                                    "co-simulation FMUs, and compile FogDenoiserNative.fmu and "
                                    "SimulatedFogNative.fmu from the C cores and their FMI layer (gyrodenoise/fmu/sources/native) "
                                    "for linux64 and aarch64-linux (glibc 2.17), win64, darwin64 and aarch64-darwin "
-                                   "(zig from the ziglang package; mingw-w64 for win64).")
+                                   "(zig from the ziglang package; mingw-w64 for win64). The FMI 3.0 FMUs "
+                                   "(FogDenoiserNative3, SimulatedFogNative3, FogDenoiserImuNative3) come from the same "
+                                   "C sources, their binaries in the FMI 3.0 platform folders (x86_64-linux, "
+                                   "aarch64-linux, x86_64-windows, x86_64-darwin, aarch64-darwin). Every FMU carries "
+                                   "reference results (documentation/<Model>_in.csv and <Model>_ref.csv).")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
     b.add_argument("--platforms", default=None, metavar="LIST",
                    help="native FMU platforms, comma-separated, each required (linux64, win64, "
                         "darwin64, aarch64-linux, aarch64-darwin); default: every platform a compiler "
                         "is found for (zig from the ziglang package: all five), the others skipped "
                         "with the reason")
+    b.add_argument("--fmi-versions", default="2,3", metavar="LIST",
+                   help="FMI versions to build, comma-separated: 2 (the pythonfmu and native FMI 2.0 FMUs), "
+                        "3 (the native FMI 3.0 FMUs); default: 2,3")
     b.set_defaults(func=_cmd_build)
 
 
@@ -86,7 +95,8 @@ def _register_run(sub):
 
 
 def _cmd_build(args):
-    from gyrodenoise.fmu.native import PLATFORMS, build_native_fmus
+    from gyrodenoise.fmu.native import PLATFORMS
+    from gyrodenoise.fmu.native3 import build_native_fmus
     platforms = None
     if args.platforms is not None:
         platforms = [p.strip() for p in args.platforms.split(",") if p.strip()]
@@ -94,15 +104,27 @@ def _cmd_build(args):
         if bad or not platforms:
             raise InputError(f"--platforms: unknown platform {', '.join(bad) or '(none given)'}; "
                              f"known: {', '.join(PLATFORMS)}")
+    versions = _fmi_versions(args.fmi_versions)
     report = {}
-    native = build_native_fmus(args.out, platforms=platforms, report=report)   # compilers first: fails fast
-    paths = build_all(args.out)
+    native = build_native_fmus(args.out, platforms=platforms, report=report,    # compilers first: fails fast
+                               fmi_versions=versions)
+    paths = build_all(args.out) if 2 in versions else {}
     paths.update(native)
     for name, path in paths.items():
         print(f"{name}: {path}")
     for plat, what in report.items():
         log(f"gyrodenoise: native {plat}: {what}")
     return 0
+
+
+def _fmi_versions(text):
+    """The FMI versions (a tuple of 2 and/or 3) of a --fmi-versions value; InputError if bad."""
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    bad = [p for p in parts if p not in ("2", "3")]
+    if bad or not parts:
+        raise InputError(f"--fmi-versions: {', '.join(bad) or '(none given)'} is not an FMI version "
+                         "this command builds; known: 2, 3")
+    return tuple(sorted({int(p) for p in parts}))
 
 
 def _cmd_card(args):

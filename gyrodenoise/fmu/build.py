@@ -115,7 +115,23 @@ def build_fmu(name, out_dir="build", src_dir=None, python=None):
     if not path.is_file():
         raise RuntimeError(f"pythonfmu did not write {path}")
     from gyrodenoise.fmu.model_description import complete
-    return complete(path)      # units, DefaultExperiment, min/max (pythonfmu cannot declare them)
+    complete(path)      # units, DefaultExperiment, min/max (pythonfmu cannot declare them)
+    return add_documentation(path, name)
+
+
+def add_documentation(fmu_path, name):
+    """Add the reference results of model ``name`` (:func:`gyrodenoise.fmu.reference.reference_documents`:
+    ``documentation/<name>_in.csv`` and ``_ref.csv``) to the FMU at ``fmu_path``; returns the path."""
+    import zipfile
+
+    from gyrodenoise.fmu.reference import reference_documents
+    docs = reference_documents(name)
+    with zipfile.ZipFile(fmu_path, "a", zipfile.ZIP_DEFLATED) as z:
+        present = set(z.namelist())
+        for fname, data in sorted(docs.items()):
+            if f"documentation/{fname}" not in present:
+                z.writestr(f"documentation/{fname}", data)
+    return Path(fmu_path)
 
 
 def stale_reason(fmu_path, src_dir=None):

@@ -59,7 +59,8 @@ LOG_CATEGORIES = [
 #: FogDenoiserNative: the denoiser's hooks (fogdenoiser_native.c) over the core gdcore.c
 DENOISER = NativeModel(MODEL_NAME, DENOISER_DESCRIPTION, FOG_DENOISER, DEFAULT_STEP_SIZE_S, C_SOURCE,
                        UNITY_SOURCE, (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h"), UNITS,
-                       header_lines=(f"#define GD_MAX_AR_ORDER {MAX_AR_ORDER}",))
+                       header_lines=(f"#define GD_MAX_AR_ORDER {MAX_AR_ORDER}",),
+                       extra_sources=("fogdenoiser_params.c",))
 #: every native FMU
 NATIVE_MODELS = (DENOISER, SIMULATED_FOG_NATIVE)
 
@@ -162,7 +163,7 @@ def vars_header(guid, spec=None):
         lines.append(f"#define VR_{v.name} {vr}u")
         if v.start is not None:
             lines.append(f"#define START_{v.name} {_c_literal(v.start, v.type)}")
-    rows = ", ".join(f'{{"{v.name}", T_{v.type.upper()}, {kinds[v.causality]}}}' for v in spec.variables)
+    rows = ", ".join(f'{{"{v.name}", T_{v.type.upper()}, {kinds[v.causality]}, {v.size}}}' for v in spec.variables)
     lines += [f"#define GD_VARIABLE_TABLE {{{rows}}}", "#endif", ""]
     return "\n".join(lines)
 
@@ -170,7 +171,7 @@ def vars_header(guid, spec=None):
 def _sources(spec=None):
     """{file name: bytes} of the C sources that go into the binary and the FMU."""
     spec = DENOISER if spec is None else spec
-    files = {name: NATIVE_SRC / name for name in (spec.c_source, spec.unity, *LAYER_FILES)}
+    files = {name: NATIVE_SRC / name for name in (spec.c_source, spec.unity, *LAYER_FILES, *spec.extra_sources)}
     files.update({p.name: p for p in spec.core_files})
     missing = [str(p) for p in files.values() if not p.is_file()]
     if missing:
@@ -325,17 +326,33 @@ def _guid(spec, sources, resources):
         digest.update(name.encode() + b"\0" + sources[name])
     for name in sorted(resources):
         digest.update(b"resources/" + name.encode() + b"\0" + resources[name])
-    digest.update(model_description("", spec).encode())
+    digest.update(_description("", spec).encode())
     return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, "gyrodenoise:" + spec.name + ":" + digest.hexdigest())) + "}"
 
 
-def _write_fmu(target, xml, binaries, sources, resources):
-    """Zip the FMU into ``target`` (through a ``.part`` file, replaced at the end)."""
+def _description(guid, spec):
+    """modelDescription.xml of ``spec`` in its FMI version's form (an FMI 3.0 model brings its
+    writer: :func:`gyrodenoise.fmu.native3.model_description3`)."""
+    return spec.xml_writer(guid, spec) if spec.xml_writer else model_description(guid, spec)
+
+
+def _binary_folder(plat, spec):
+    """The folder under binaries/ of ``plat``'s binary: the FMI 2.0 platform name (a key of
+    :data:`PLATFORMS`), or for an FMI 3.0 FMU its platform tuple (e.g. x86_64-linux: the model
+    brings the mapping, :func:`gyrodenoise.fmu.native3.fmi3_platform_folder`)."""
+    return spec.binary_folder(plat) if spec.binary_folder else plat
+
+
+def _write_fmu(target, xml, binaries, sources, resources, documentation=None):
+    """Zip the FMU into ``target`` (through a ``.part`` file, replaced at the end); ``binaries``:
+    {folder under binaries/: path}, ``documentation``: {path in documentation/: bytes}."""
     part = target.with_name(target.name + ".part")
     with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
         z.writestr("modelDescription.xml", xml)
-        for plat, binary in binaries.items():
-            z.write(binary, f"binaries/{plat}/{binary.name}")
+        for folder, binary in binaries.items():
+            z.write(binary, f"binaries/{folder}/{binary.name}")
+        for name in sorted(documentation or {}):
+            z.writestr(f"documentation/{name}", documentation[name])
         for name in sorted(sources):
             z.writestr(f"sources/{name}", sources[name])
         for name in sorted(resources):
@@ -376,9 +393,10 @@ def build_native_fmu(out_dir="build", platforms=None, report=None, spec=None):
             (tmp / plat).mkdir()
             binary = tmp / plat / f"{spec.name}{PLATFORMS[plat][0]}"
             _compile(plat, cc, src, binary, spec)
-            binaries[plat] = binary
+            binaries[_binary_folder(plat, spec)] = binary
             report[plat] = what
-        _write_fmu(target, model_description(guid, spec), binaries, sources, resources)
+        from gyrodenoise.fmu.reference import reference_documents
+        _write_fmu(target, _description(guid, spec), binaries, sources, resources, reference_documents(spec.name))
     return target
 
 
@@ -400,8 +418,9 @@ def native_stale_reason(fmu_path, spec=None):
 
 
 def build_native_fmus(out_dir="build", platforms=None, report=None):
-    """Build every native FMU (:data:`NATIVE_MODELS`) into ``out_dir``; returns {name: path}.
-    ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers serve all)."""
+    """Build every FMI 2.0 native FMU (:data:`NATIVE_MODELS`) into ``out_dir``; returns {name: path}.
+    ``platforms`` and ``report`` as for :func:`build_native_fmu` (the same compilers serve all).
+    The FMI 3.0 ones too: :func:`gyrodenoise.fmu.native3.build_native_fmus`."""
     return {spec.name: build_native_fmu(out_dir, platforms, report, spec) for spec in NATIVE_MODELS}
 
 

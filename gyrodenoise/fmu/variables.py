@@ -69,6 +69,8 @@ class Variable(NamedTuple):
     #: "calculated": an output computed at fmi2ExitInitializationMode, with no start value in
     #: either FMU kind; None: the kind's rule (see the module's docstring)
     initial: str | None = None
+    #: values: 1 for a scalar; an array variable's length (FMI 3.0 only: ``<Dimension start="size"/>``)
+    size: int = 1
 
 
 def _input(name, type_, description, start, unit=None):
@@ -141,6 +143,19 @@ FOG_DENOISER = (
                "checked (finite, >= 0, below half the sample rate) whatever the method", "Hz", min=0.0),
 )
 
+#: FogDenoiserImuNative3.fmu (FMI 3.0 only): the denoiser for a whole IMU, three gyro axes with
+#: independent filter states; raw_rate and filtered_rate are arrays of IMU_AXES values, one
+#: restart for the three axes, the parameters of FOG_DENOISER
+IMU_AXES = 3
+FOG_DENOISER_IMU = (
+    _input("raw_rate", "Real", "Raw angular rates of the IMU's three gyro axes", 0.0, "deg/s")._replace(size=IMU_AXES),
+    _input("restart", "Boolean", "True on the first sample after an IMU restart: the three filters re-identify "
+           "their AR models from that sample on", False),
+    _output("filtered_rate", "Real", "Filtered angular rates, one a gyro axis (gd.denoise of each axis); the raw "
+            "samples during the warm-up after each restart", "deg/s")._replace(size=IMU_AXES),
+    *(v for v in FOG_DENOISER if v.causality == "parameter"),
+)
+
 #: SimulatedFog.fmu (pythonfmu): the card parameter takes a TOML card
 SIMULATED_FOG = (
     _input("true_rate", "Real", "True angular rate", 0.0, "deg/s"),
@@ -180,6 +195,14 @@ MODELS = {
     "SimulatedFog": SIMULATED_FOG,
     "SimulatedFogNative": SIMULATED_FOG_NATIVE,
 }
+#: FMI 3.0 FMU model name -> its variables (all native; Real is Float64, Integer Int32 there)
+FMI3_MODELS = {
+    "FogDenoiserNative3": FOG_DENOISER,
+    "SimulatedFogNative3": SIMULATED_FOG_NATIVE,
+    "FogDenoiserImuNative3": FOG_DENOISER_IMU,
+}
+#: FMI 2.0 type -> FMI 3.0 type of the same variable
+FMI3_TYPES = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 #: the FMUs built by pythonfmu (the others are native)
 PYTHONFMU_MODELS = ("FogDenoiser", "SimulatedFog")
 
@@ -231,10 +254,12 @@ def _cell(text):
 
 def _table(model):
     pythonfmu = model in PYTHONFMU_MODELS
+    fmi3 = model in FMI3_MODELS
     lines = ["| " + " | ".join(_COLUMNS) + " |", "|" + "---|" * len(_COLUMNS)]
-    for v in MODELS[model]:
+    for v in (FMI3_MODELS if fmi3 else MODELS)[model]:
         start = start_value(v, pythonfmu)
-        cells = (f"`{v.name}`", v.causality, v.type, v.unit or "",
+        type_ = (FMI3_TYPES[v.type] + (f"[{v.size}]" if v.size > 1 else "")) if fmi3 else v.type
+        cells = (f"`{v.name}`", v.causality, type_, v.unit or "",
                  "" if start is None else f"`{format_value(start, v.type)}`",
                  "" if v.min is None else format_value(v.min, v.type),
                  "" if v.max is None else format_value(v.max, v.type), v.description)
@@ -242,12 +267,12 @@ def _table(model):
     return lines
 
 
-def markdown_tables():
-    """Markdown tables of the FMUs' variables, one per FMU (FMUs with identical tables share one),
-    with the columns name, causality, type, unit, start, min, max and description.
-    Value reference = row number - 1."""
+def markdown_tables(fmi_version=2):
+    """Markdown tables of the FMUs' variables of ``fmi_version`` (2 or 3: FMI 3.0 types, an array's
+    length in brackets), one per FMU (FMUs with identical tables share one), with the columns name,
+    causality, type, unit, start, min, max and description. Value reference = row number - 1."""
     groups = {}
-    for model in MODELS:
+    for model in (FMI3_MODELS if fmi_version == 3 else MODELS):
         groups.setdefault("\n".join(_table(model)), []).append(model)
     out = []
     for table, models in groups.items():

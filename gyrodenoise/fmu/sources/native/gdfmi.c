@@ -1,6 +1,9 @@
 /*
- * gdfmi.c -- the FMI 2.0 co-simulation layer shared by the native FMUs (see gdfmi.h).
- * Included after the model file, which defines `static const gdfmi_model_t gdfmi_model`.
+ * gdfmi.c -- the co-simulation layer shared by the native FMUs (see gdfmi.h), written once
+ * for FMI 2.0 and FMI 3.0: the state machine, logging, get/set checks, FMU states. The
+ * exported entry points are thin wrappers over these gdl_* functions: gdfmi2.c (fmi2*) and
+ * gdfmi3.c (fmi3*). Included after the model file, which defines
+ * `static const gdfmi_model_t gdfmi_model`.
  */
 #include "gdfmi.h"
 
@@ -24,7 +27,7 @@
 static const char *const cat_names[N_CATS] = {
     "logStatusWarning", "logStatusDiscard", "logStatusError", "logStatusFatal", "logAll"};
 
-/* an FMU state: linked into its instance's list, so that fmi2FreeInstance frees the
+/* an FMU state: linked into its instance's list, so that FreeInstance frees the
  * states the host did not free (FMI 2.0: fmi2FreeInstance frees all it allocated) */
 struct gdfmi_state_s {
     uint32_t magic;
@@ -38,14 +41,23 @@ struct gdfmi_state_s {
 /* ------------------------------------------------------------------ memory */
 static void *gdfmi_alloc(const gdfmi_inst_t *c, size_t n, size_t size) {
     if (n == 0) n = 1;
+#if GD_FMI_VERSION == 2
     if (c && c->cb.allocateMemory) return c->cb.allocateMemory(n, size);
+#else
+    (void)c;
+#endif
     return calloc(n, size);
 }
 
 static void gdfmi_free(const gdfmi_inst_t *c, void *ptr) {
     if (!ptr) return;
+#if GD_FMI_VERSION == 2
     if (c && c->cb.freeMemory) c->cb.freeMemory(ptr);
     else free(ptr);
+#else
+    (void)c;
+    free(ptr);
+#endif
 }
 
 static char *str_dup(const gdfmi_inst_t *c, const char *src) {
@@ -70,35 +82,42 @@ static void gdfmi_strip(const char *s, const char **begin, const char **end) {
 }
 
 /* ----------------------------------------------------------------- logging */
-static int cat_of(fmi2Status st) {
+static int cat_of(gd_status_t st) {
     switch (st) {
-    case fmi2Warning: return CAT_WARNING;
-    case fmi2Discard: return CAT_DISCARD;
-    case fmi2Error: return CAT_ERROR;
-    case fmi2Fatal: return CAT_FATAL;
+    case GD_WARNING: return CAT_WARNING;
+    case GD_DISCARD: return CAT_DISCARD;
+    case GD_ERROR: return CAT_ERROR;
+    case GD_FATAL: return CAT_FATAL;
     default: return CAT_ALL;
     }
 }
 
-static void vlogmsg(const gdfmi_inst_t *c, fmi2Status st, const char *fmt, va_list ap) {
-    char text[1024], escaped[2048];
+static void vlogmsg(const gdfmi_inst_t *c, gd_status_t st, const char *fmt, va_list ap) {
+    char text[1024];
+#if GD_FMI_VERSION == 2
+    char escaped[2048];
     size_t i, j;
+#endif
     int cat = cat_of(st);
     if (!c || !c->cb.logger) return;
-    if (st == fmi2OK) { /* information: only when logging is on and its category enabled */
+    if (st == GD_OK) { /* information: only when logging is on and its category enabled */
         if (!c->logging_on || !(c->cat_on[cat] || c->cat_on[CAT_ALL])) return;
-    } /* a message explaining a status other than fmi2OK (a warning or a refusal) always goes out */
+    } /* a message explaining a status other than OK (a warning or a refusal) always goes out */
     vsnprintf(text, sizeof text, fmt, ap);
+#if GD_FMI_VERSION == 3
+    c->cb.logger(c->cb.env, (fmi3Status)st, cat_names[cat], text); /* FMI 3.0: the message is plain text */
+#else
     /* the logger treats the message as a printf format: escape '%' */
     for (i = 0, j = 0; text[i] && j + 2 < sizeof escaped; i++) {
         if (text[i] == '%') escaped[j++] = '%';
         escaped[j++] = text[i];
     }
     escaped[j] = '\0';
-    c->cb.logger(c->cb.componentEnvironment, c->name ? c->name : "", st, cat_names[cat], escaped);
+    c->cb.logger(c->cb.componentEnvironment, c->name ? c->name : "", (fmi2Status)st, cat_names[cat], escaped);
+#endif
 }
 
-static void gdfmi_log(const gdfmi_inst_t *c, fmi2Status st, const char *fmt, ...) {
+static void gdfmi_log(const gdfmi_inst_t *c, gd_status_t st, const char *fmt, ...) {
     va_list ap;
     va_start(ap, fmt);
     vlogmsg(c, st, fmt, ap);
@@ -106,13 +125,13 @@ static void gdfmi_log(const gdfmi_inst_t *c, fmi2Status st, const char *fmt, ...
 }
 
 /* log the reason and enter the error state */
-static fmi2Status gdfmi_fail(gdfmi_inst_t *c, const char *fmt, ...) {
+static gd_status_t gdfmi_fail(gdfmi_inst_t *c, const char *fmt, ...) {
     va_list ap;
     va_start(ap, fmt);
-    vlogmsg(c, fmi2Error, fmt, ap);
+    vlogmsg(c, GD_ERROR, fmt, ap);
     va_end(ap);
     c->k.phase = ST_ERROR;
-    return fmi2Error;
+    return GD_ERROR;
 }
 
 static int gdfmi_fmt_err(char *err, size_t n, const char *fmt, ...) {
@@ -127,7 +146,7 @@ static const char *phase_name(int phase) {
     switch (phase) {
     case ST_INSTANTIATED: return "instantiated";
     case ST_INIT: return "initializationMode";
-    case ST_STEP_COMPLETE: return "stepComplete";
+    case ST_STEP_COMPLETE: return GD_FMI_VERSION == 3 ? "stepMode" : "stepComplete";
     case ST_STEP_FAILED: return "stepFailed";
     case ST_TERMINATED: return "terminated";
     case ST_ERROR: return "error";
@@ -137,7 +156,7 @@ static const char *phase_name(int phase) {
 }
 
 /* the instance behind c, or NULL (a NULL or foreign pointer cannot be logged to) */
-static gdfmi_inst_t *inst_of(fmi2Component c) {
+static gdfmi_inst_t *inst_of(void *c) {
     gdfmi_inst_t *i = (gdfmi_inst_t *)c;
     if (!i || i->magic != INSTANCE_MAGIC) return NULL;
     return i;
@@ -147,18 +166,19 @@ static gdfmi_inst_t *inst_of(fmi2Component c) {
 static int allowed(gdfmi_inst_t *c, int mask, const char *fn) {
     if (c->k.phase & mask) return 1;
     if (c->k.phase == ST_FATAL) {
-        gdfmi_log(c, fmi2Error, "%s: not allowed: the instance is in the fatal state", fn);
+        gdfmi_log(c, GD_ERROR, "%s: not allowed: the instance is in the fatal state", fn);
         return 0;
     }
-    gdfmi_fail(c, "%s: not allowed in state %s (FMI 2.0 co-simulation state machine)", fn,
+    gdfmi_fail(c, "%s: not allowed in state %s (" GD_FMI_NAME " co-simulation state machine)", fn,
                phase_name(c->k.phase));
     return 0;
 }
 
+/* the first lines of an entry point: the instance behind `comp`, in a state that allows fn */
 #define BEGIN(fn, mask)                        \
     gdfmi_inst_t *c = inst_of(comp);           \
-    if (!c) return fmi2Error;                  \
-    if (!allowed(c, (mask), fn)) return fmi2Error
+    if (!c) return GD_API_ERROR;               \
+    if (!allowed(c, (mask), fn)) return GD_API_ERROR
 
 /* ------------------------------------------------------------- resources */
 static int hexval(int ch) {
@@ -176,7 +196,7 @@ GDFMI_MAYBE_UNUSED static int gdfmi_resource_path(const gdfmi_inst_t *c, const c
     const char *u = c->resource_uri, *p;
     size_t j = 0, i, len;
     if (!u || !u[0])
-        return gdfmi_fmt_err(err, nerr, "no resource location given to fmi2Instantiate (needed for "
+        return gdfmi_fmt_err(err, nerr, "no resource location given to " GD_FN_INSTANTIATE " (needed for "
                              "resources/%s)", relative);
     if (strncmp(u, "file:", 5) == 0) {
         p = u + 5;
@@ -198,7 +218,8 @@ GDFMI_MAYBE_UNUSED static int gdfmi_resource_path(const gdfmi_inst_t *c, const c
     len = strlen(p);
     for (i = 0; i < len; i++) {
         int ch = (unsigned char)p[i];
-        if (ch == '%' && i + 2 < len + 0 && hexval(p[i + 1]) >= 0 && hexval(p[i + 2]) >= 0) {
+        /* FMI 3.0's resourcePath is a plain path: percent-decoded only when given as a URI */
+        if (ch == '%' && (GD_FMI_VERSION == 2 || p != u) && i + 2 < len + 0 && hexval(p[i + 1]) >= 0 && hexval(p[i + 2]) >= 0) {
             ch = hexval(p[i + 1]) * 16 + hexval(p[i + 2]);
             i += 2;
         }
@@ -214,19 +235,14 @@ GDFMI_MAYBE_UNUSED static int gdfmi_resource_path(const gdfmi_inst_t *c, const c
 }
 
 /* ------------------------------------------------------------ general API */
-const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
-
-const char *fmi2GetVersion(void) { return fmi2Version; }
-
-fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t nCategories,
-                               const fmi2String categories[]) {
+/* the categories to enable: nCategories 0 = all; an unknown name is a warning */
+static gd_status_t gdl_set_debug_logging(gdfmi_inst_t *c, const char *fn, int loggingOn, size_t nCategories,
+                                         const char *const categories[]) {
     size_t i;
     int k, on[N_CATS] = {0}, unknown = 0;
     const char *first_unknown = NULL;
-    BEGIN("fmi2SetDebugLogging", MASK_SET_DEBUG_LOGGING);
     if (nCategories > 0 && !categories)
-        return gdfmi_fail(c, "fmi2SetDebugLogging: categories is NULL with nCategories = %lu",
-                          (unsigned long)nCategories);
+        return gdfmi_fail(c, "%s: categories is NULL with nCategories = %lu", fn, (unsigned long)nCategories);
     for (i = 0; i < nCategories; i++) {
         int found = 0;
         for (k = 0; k < N_CATS; k++)
@@ -236,12 +252,12 @@ fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t
     c->logging_on = loggingOn ? 1 : 0;
     for (k = 0; k < N_CATS; k++) c->cat_on[k] = nCategories == 0 ? 1 : on[k];
     if (unknown) {
-        gdfmi_log(c, fmi2Warning, "fmi2SetDebugLogging: %d unknown log categor%s ignored, the first "
+        gdfmi_log(c, GD_WARNING, "%s: %d unknown log categor%s ignored, the first "
                   "'%.100s' (known: logStatusWarning, logStatusDiscard, logStatusError, logStatusFatal, "
-                  "logAll)", unknown, unknown == 1 ? "y" : "ies", first_unknown);
-        return fmi2Warning;
+                  "logAll)", fn, unknown, unknown == 1 ? "y" : "ies", first_unknown);
+        return GD_WARNING;
     }
-    return fmi2OK;
+    return GD_OK;
 }
 
 static void set_defaults(gdfmi_inst_t *c) {
@@ -251,25 +267,15 @@ static void set_defaults(gdfmi_inst_t *c) {
     c->k.phase = ST_INSTANTIATED;
 }
 
-fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
-                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
-                              fmi2Boolean visible, fmi2Boolean loggingOn) {
-    gdfmi_inst_t tmp, *c;
+/* A new instance, or NULL with the reason logged through tmp (the host's callbacks in
+ * tmp->cb, logging on). The version's entry point checked what only it has (fmuType). */
+static gdfmi_inst_t *gdl_instantiate(gdfmi_inst_t *tmp, const char *instanceName, const char *token,
+                                     const char *resource, int loggingOn) {
+    gdfmi_inst_t *c;
     int k;
-    (void)visible;
-    memset(&tmp, 0, sizeof tmp);
-    if (functions) tmp.cb = *functions;
-    tmp.name = (char *)(instanceName ? instanceName : "");
-    tmp.logging_on = 1;
-    for (k = 0; k < N_CATS; k++) tmp.cat_on[k] = 1;
-    if (!functions) return NULL; /* nowhere to report to */
-    if ((functions->allocateMemory == NULL) != (functions->freeMemory == NULL)) {
-        gdfmi_log(&tmp, fmi2Error, "fmi2Instantiate: allocateMemory and freeMemory must both be given");
-        return NULL;
-    }
 #ifdef GD_LIBM_MISSING /* a source build without -lm (see gdfmi_libm.h) */
     if (GD_LIBM_MISSING()) {
-        gdfmi_log(&tmp, fmi2Error, "fmi2Instantiate: %s: the math library is not loaded in this process "
+        gdfmi_log(tmp, GD_ERROR, GD_FN_INSTANTIATE ": %s: the math library is not loaded in this process "
                   "(%s() missing): this binary was built without -lm; rebuild it with -lm -DGD_LIBM_LINKED "
                   "(fmpy: build_platform_binary(..., cmake_options={'CMAKE_C_STANDARD_LIBRARIES:STRING': "
                   "'-lm', 'CMAKE_C_FLAGS:STRING': '-DGD_LIBM_LINKED'})) or use the binary shipped in the "
@@ -278,35 +284,30 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     }
 #endif
     if (!instanceName || !instanceName[0]) {
-        gdfmi_log(&tmp, fmi2Error, "fmi2Instantiate: instanceName must be a non-empty string");
+        gdfmi_log(tmp, GD_ERROR, GD_FN_INSTANTIATE ": instanceName must be a non-empty string");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
-        gdfmi_log(&tmp, fmi2Error, "fmi2Instantiate: %s supports co-simulation only (fmuType %d)",
-                  GDM->identifier, (int)fmuType);
+    if (!token || strcmp(token, GDM->guid) != 0) {
+        gdfmi_log(tmp, GD_ERROR, GD_FN_INSTANTIATE ": " GD_TOKEN_NAME " %s does not match this binary's %s",
+                  token ? token : "(NULL)", GDM->guid);
         return NULL;
     }
-    if (!fmuGUID || strcmp(fmuGUID, GDM->guid) != 0) {
-        gdfmi_log(&tmp, fmi2Error, "fmi2Instantiate: GUID %s does not match this binary's %s",
-                  fmuGUID ? fmuGUID : "(NULL)", GDM->guid);
-        return NULL;
-    }
-    c = (gdfmi_inst_t *)gdfmi_alloc(&tmp, 1, sizeof *c);
+    c = (gdfmi_inst_t *)gdfmi_alloc(tmp, 1, sizeof *c);
     if (!c) {
-        gdfmi_log(&tmp, fmi2Error, "fmi2Instantiate: out of memory");
+        gdfmi_log(tmp, GD_ERROR, GD_FN_INSTANTIATE ": out of memory");
         return NULL;
     }
     memset(c, 0, sizeof *c);
-    c->cb = tmp.cb;
+    c->cb = tmp->cb;
     c->name = str_dup(c, instanceName);
-    c->resource_uri = str_dup(c, fmuResourceLocation);
+    c->resource_uri = str_dup(c, resource);
     c->m = gdfmi_alloc(c, 1, GDM->m_size);
-    if (!c->name || !c->m || (fmuResourceLocation && !c->resource_uri)) {
+    if (!c->name || !c->m || (resource && !c->resource_uri)) {
         gdfmi_free(c, c->name);
         gdfmi_free(c, c->resource_uri);
         gdfmi_free(c, c->m);
         gdfmi_free(c, c);
-        gdfmi_log(&tmp, fmi2Error, "fmi2Instantiate: out of memory");
+        gdfmi_log(tmp, GD_ERROR, GD_FN_INSTANTIATE ": out of memory");
         return NULL;
     }
     c->magic = INSTANCE_MAGIC;
@@ -314,8 +315,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     for (k = 0; k < N_CATS; k++) c->cat_on[k] = 1;
     set_defaults(c);
     c->s = NULL;
-    gdfmi_log(c, fmi2OK, "fmi2Instantiate: %s instantiated (resources %s)", GDM->identifier,
-              fmuResourceLocation ? fmuResourceLocation : "(NULL)");
+    gdfmi_log(c, GD_OK, GD_FN_INSTANTIATE ": %s instantiated (resources %s)", GDM->identifier,
+              resource ? resource : "(NULL)");
     return c;
 }
 
@@ -328,7 +329,7 @@ static void drop_model(gdfmi_inst_t *c) {
 
 static void free_state(gdfmi_state_t *f);
 
-void fmi2FreeInstance(fmi2Component comp) {
+static void gdl_free_instance(void *comp) {
     gdfmi_inst_t *c = inst_of(comp);
     if (!c) return;
     drop_model(c);
@@ -340,36 +341,26 @@ void fmi2FreeInstance(fmi2Component comp) {
     gdfmi_free(c, c);
 }
 
-fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined, fmi2Real tolerance,
-                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    BEGIN("fmi2SetupExperiment", MASK_SETUP_EXPERIMENT);
-    (void)toleranceDefined;
-    (void)tolerance;
+/* the experiment's start time (and stop time, if defined) */
+static gd_status_t gdl_setup_experiment(gdfmi_inst_t *c, const char *fn, double startTime, int stopTimeDefined,
+                                        double stopTime) {
     if (!isfinite(startTime))
-        return gdfmi_fail(c, "fmi2SetupExperiment: startTime %g is not finite", startTime);
+        return gdfmi_fail(c, "%s: startTime %g is not finite", fn, startTime);
     if (stopTimeDefined && !(stopTime >= startTime))
-        return gdfmi_fail(c, "fmi2SetupExperiment: stopTime %.17g is before startTime %.17g", stopTime,
-                          startTime);
+        return gdfmi_fail(c, "%s: stopTime %.17g is before startTime %.17g", fn, stopTime, startTime);
     c->k.time = startTime;
-    return fmi2OK;
+    return GD_OK;
 }
 
-fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
-    BEGIN("fmi2EnterInitializationMode", MASK_ENTER_INIT);
-    c->k.phase = ST_INIT;
-    return fmi2OK;
-}
-
-fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
+static gd_status_t gdl_exit_initialization_mode(gdfmi_inst_t *c) {
     char err[1024], info[512];
     long total;
-    BEGIN("fmi2ExitInitializationMode", MASK_EXIT_INIT);
     err[0] = '\0';
     total = GDM->build(c, err, sizeof err);
-    if (total <= 0) return gdfmi_fail(c, "fmi2ExitInitializationMode: invalid parameter: %s", err);
+    if (total <= 0) return gdfmi_fail(c, GD_FN("ExitInitializationMode") ": invalid parameter: %s", err);
     drop_model(c);
     c->s = (double *)gdfmi_alloc(c, (size_t)total, sizeof(double));
-    if (!c->s) return gdfmi_fail(c, "fmi2ExitInitializationMode: out of memory");
+    if (!c->s) return gdfmi_fail(c, GD_FN("ExitInitializationMode") ": out of memory");
     memset(c->s, 0, (size_t)total * sizeof(double));
     c->k.ns = total;
     GDM->start(c);
@@ -378,39 +369,50 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
     c->k.phase = ST_STEP_COMPLETE;
     if (c->logging_on) {
         GDM->describe(c, info, sizeof info);
-        gdfmi_log(c, fmi2OK, "fmi2ExitInitializationMode: %s", info);
+        gdfmi_log(c, GD_OK, GD_FN("ExitInitializationMode") ": %s", info);
     }
-    return fmi2OK;
+    return GD_OK;
 }
 
-fmi2Status fmi2Terminate(fmi2Component comp) {
-    BEGIN("fmi2Terminate", MASK_TERMINATE);
+static gd_status_t gdl_terminate(gdfmi_inst_t *c) {
     if (c->k.n_bad_steps)
-        gdfmi_log(c, fmi2OK, "fmi2Terminate: %lld of %lld step(s) had a size different from "
+        gdfmi_log(c, GD_OK, GD_FN("Terminate") ": %lld of %lld step(s) had a size different from "
                   "%s %.17g s", (long long)c->k.n_bad_steps, (long long)c->k.n_steps, GDM->period_name,
                   GDM->period(c->m));
     c->k.phase = ST_TERMINATED;
-    return fmi2OK;
+    return GD_OK;
 }
 
-fmi2Status fmi2Reset(fmi2Component comp) {
-    BEGIN("fmi2Reset", MASK_RESET);
+static gd_status_t gdl_reset(gdfmi_inst_t *c) {
     drop_model(c);
     set_defaults(c);
-    return fmi2OK;
+    return GD_OK;
 }
 
 /* -------------------------------------------------------- getters/setters */
-static int check_vrs(gdfmi_inst_t *c, const char *fn, const fmi2ValueReference vr[], size_t nvr,
-                     const void *value, int type) {
-    static const char *const tnames[] = {"Real", "Integer", "Boolean", "String"};
-    size_t i;
+/* FMI 3.0: the independent variable "time" (Float64, read only), value reference = the number of
+ * the model's variables (after them: theirs are the same in both versions) */
+#if GD_FMI_VERSION == 3
+#define IS_TIME(vr) ((vr) == GDM->n_vars)
+#else
+#define IS_TIME(vr) 0
+#endif
+
+/* every vr names a variable of the type, and their values number nValues (FMI 2.0: nvr) */
+static int check_vrs(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr, const void *value,
+                     size_t nValues, int type) {
+    static const char *const tnames[] = {GD_TYPE_NAME_REAL, GD_TYPE_NAME_INTEGER, "Boolean", "String"};
+    size_t i, total = 0;
     if (nvr == 0) return 1;
     if (!vr || !value) {
         gdfmi_fail(c, "%s: NULL value-reference or value array with nvr = %lu", fn, (unsigned long)nvr);
         return 0;
     }
     for (i = 0; i < nvr; i++) {
+        if (IS_TIME(vr[i]) && type == T_REAL) { /* FMI 3.0: the independent variable */
+            total += 1;
+            continue;
+        }
         if (vr[i] >= GDM->n_vars) {
             gdfmi_fail(c, "%s: unknown value reference %u", fn, (unsigned)vr[i]);
             return 0;
@@ -420,23 +422,34 @@ static int check_vrs(gdfmi_inst_t *c, const char *fn, const fmi2ValueReference v
                        GDM->vars[vr[i]].name, tnames[type]);
             return 0;
         }
+        total += GDM->vars[vr[i]].n;
+    }
+    if (total != nValues) {
+        gdfmi_fail(c, "%s: nValues = %lu, the %lu variable(s) have %lu value(s)", fn, (unsigned long)nValues,
+                   (unsigned long)nvr, (unsigned long)total);
+        return 0;
     }
     return 1;
 }
 
 /* a set of vr is allowed in the current state: inputs in instantiated, initialization
- * mode and stepComplete; fixed parameters before fmi2ExitInitializationMode; outputs never */
-static int check_settable(gdfmi_inst_t *c, const char *fn, const fmi2ValueReference vr[], size_t nvr) {
+ * mode and step mode; fixed parameters before ExitInitializationMode; outputs never */
+static int check_settable(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr) {
     size_t i;
     for (i = 0; i < nvr; i++) {
-        int kind = GDM->vars[vr[i]].kind;
+        int kind;
+        if (IS_TIME(vr[i])) {
+            gdfmi_fail(c, "%s: time is the independent variable and cannot be set", fn);
+            return 0;
+        }
+        kind = GDM->vars[vr[i]].kind;
         if (kind == K_OUTPUT) {
             gdfmi_fail(c, "%s: %s is an output and cannot be set", fn, GDM->vars[vr[i]].name);
             return 0;
         }
         if (kind == K_PARAMETER && !(c->k.phase & (ST_INSTANTIATED | ST_INIT))) {
             gdfmi_fail(c, "%s: %s is a fixed parameter: it can only be set before "
-                       "fmi2ExitInitializationMode (state is %s)", fn, GDM->vars[vr[i]].name,
+                       GD_FN("ExitInitializationMode") " (state is %s)", fn, GDM->vars[vr[i]].name,
                        phase_name(c->k.phase));
             return 0;
         }
@@ -444,62 +457,66 @@ static int check_settable(gdfmi_inst_t *c, const char *fn, const fmi2ValueRefere
     return 1;
 }
 
-/* fmi2Get<Type>: the state allows it, every vr names a variable of the type, then the
- * model's getter for each (a String stays valid until the next call) */
-#define GDFMI_GETTER(fn, ctype, type, hook)                                                      \
-    fmi2Status fn(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, ctype value[]) { \
-        size_t i;                                                                                \
-        BEGIN(#fn, MASK_GET);                                                                    \
-        if (!check_vrs(c, #fn, vr, nvr, value, type)) return fmi2Error;                          \
-        for (i = 0; i < nvr; i++) value[i] = GDM->hook(c, vr[i]);                                \
-        return fmi2OK;                                                                           \
-    }
-GDFMI_GETTER(fmi2GetReal, fmi2Real, T_REAL, get_real)
-GDFMI_GETTER(fmi2GetInteger, fmi2Integer, T_INTEGER, get_integer)
-GDFMI_GETTER(fmi2GetBoolean, fmi2Boolean, T_BOOLEAN, get_boolean)
-GDFMI_GETTER(fmi2GetString, fmi2String, T_STRING, get_string)
-#undef GDFMI_GETTER
-
-/* fmi2Set<Type> of Real, Integer, Boolean: the state allows it, every vr names a settable
- * variable of the type (inputs; fixed parameters before initialisation ends), then `store` */
-#define GDFMI_SETTER(fn, ctype, type, store)                                                           \
-    fmi2Status fn(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const ctype value[]) { \
-        size_t i;                                                                                      \
-        BEGIN(#fn, MASK_SET);                                                                          \
-        if (!check_vrs(c, #fn, vr, nvr, value, type) || !check_settable(c, #fn, vr, nvr))             \
-            return fmi2Error;                                                                          \
-        for (i = 0; i < nvr; i++) store;                                                               \
-        return fmi2OK;                                                                                 \
-    }
-GDFMI_SETTER(fmi2SetReal, fmi2Real, T_REAL, *GDM->real_ref(c->m, vr[i]) = value[i])
-GDFMI_SETTER(fmi2SetInteger, fmi2Integer, T_INTEGER, *GDM->int_ref(c->m, vr[i]) = value[i])
-GDFMI_SETTER(fmi2SetBoolean, fmi2Boolean, T_BOOLEAN, *GDM->int_ref(c->m, vr[i]) = value[i] ? 1 : 0)
-#undef GDFMI_SETTER
-
-fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                         const fmi2String value[]) {
-    size_t i, cap;
-    BEGIN("fmi2SetString", MASK_SET);
-    if (!check_vrs(c, "fmi2SetString", vr, nvr, value, T_STRING) ||
-        !check_settable(c, "fmi2SetString", vr, nvr))
-        return fmi2Error;
+/* Get<Real>: the values of vr (an array variable's n values in a row) */
+static gd_status_t gdl_get_real(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr, double value[],
+                                size_t nValues) {
+    size_t i, at = 0;
+    if (!check_vrs(c, fn, vr, nvr, value, nValues, T_REAL)) return GD_ERROR;
     for (i = 0; i < nvr; i++) {
-        if (!value[i]) return gdfmi_fail(c, "fmi2SetString: NULL string for %s", GDM->vars[vr[i]].name);
+        unsigned n = IS_TIME(vr[i]) ? 1 : GDM->vars[vr[i]].n;
+        if (IS_TIME(vr[i])) value[at++] = c->k.time;
+        else if (n == 1) value[at++] = GDM->get_real(c, vr[i]);
+        else {
+            memcpy(value + at, GDM->real_ref(c->m, vr[i]), n * sizeof(double));
+            at += n;
+        }
+    }
+    return GD_OK;
+}
+
+static gd_status_t gdl_set_real(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr,
+                                const double value[], size_t nValues) {
+    size_t i, at = 0;
+    if (!check_vrs(c, fn, vr, nvr, value, nValues, T_REAL) || !check_settable(c, fn, vr, nvr)) return GD_ERROR;
+    for (i = 0; i < nvr; i++) {
+        unsigned n = GDM->vars[vr[i]].n;
+        memcpy(GDM->real_ref(c->m, vr[i]), value + at, n * sizeof(double));
+        at += n;
+    }
+    return GD_OK;
+}
+
+/* Integer (FMI 3.0: Int32) and Boolean: scalars; the version's entry point converts */
+static gd_status_t gdl_check_get(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr,
+                                 const void *value, size_t nValues, int type) {
+    return check_vrs(c, fn, vr, nvr, value, nValues, type) ? GD_OK : GD_ERROR;
+}
+
+static gd_status_t gdl_check_set(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr,
+                                 const void *value, size_t nValues, int type) {
+    return check_vrs(c, fn, vr, nvr, value, nValues, type) && check_settable(c, fn, vr, nvr) ? GD_OK : GD_ERROR;
+}
+
+static gd_status_t gdl_set_string(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr,
+                                  const char *const value[], size_t nValues) {
+    size_t i, cap;
+    if (gdl_check_set(c, fn, vr, nvr, value, nValues, T_STRING) != GD_OK) return GD_ERROR;
+    for (i = 0; i < nvr; i++) {
+        if (!value[i]) return gdfmi_fail(c, "%s: NULL string for %s", fn, GDM->vars[vr[i]].name);
         GDM->string_ref(c->m, vr[i], &cap);
         if (strlen(value[i]) >= cap)
-            return gdfmi_fail(c, "fmi2SetString: %s is %lu characters long, at most %lu allowed",
+            return gdfmi_fail(c, "%s: %s is %lu characters long, at most %lu allowed", fn,
                               GDM->vars[vr[i]].name, (unsigned long)strlen(value[i]), (unsigned long)(cap - 1));
     }
     for (i = 0; i < nvr; i++) strcpy(GDM->string_ref(c->m, vr[i], &cap), value[i]);
-    return fmi2OK;
+    return GD_OK;
 }
 
 /* --------------------------------------------------------------- FMU state */
-static gdfmi_state_t *state_of(fmi2FMUstate st) {
+static gdfmi_state_t *state_of(void *st) {
     gdfmi_state_t *f = (gdfmi_state_t *)st;
     return (f && f->magic == FMUSTATE_MAGIC) ? f : NULL;
 }
-
 /* unlink f from the list of the instance that allocated it, free it with that
  * instance's memory callbacks */
 static void free_state(gdfmi_state_t *f) {
@@ -546,53 +563,53 @@ static gdfmi_state_t *new_state(gdfmi_inst_t *c, const gdfmi_core_t *k, const vo
     return f;
 }
 
-fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate) {
+static gd_status_t gdl_get_fmu_state(void *comp, void **FMUstate) {
     gdfmi_state_t *f, *old;
-    BEGIN("fmi2GetFMUstate", MASK_FMU_STATE);
-    if (!FMUstate) return gdfmi_fail(c, "fmi2GetFMUstate: FMUstate is NULL");
+    BEGIN(GD_FN_GET_STATE, MASK_FMU_STATE);
+    if (!FMUstate) return gdfmi_fail(c, GD_FN_GET_STATE ": FMUstate is NULL");
     old = *FMUstate ? state_of(*FMUstate) : NULL;
     if (*FMUstate && !old)
-        return gdfmi_fail(c, "fmi2GetFMUstate: *FMUstate is neither NULL nor a state of this FMU");
+        return gdfmi_fail(c, GD_FN_GET_STATE ": *FMUstate is neither NULL nor a state of this FMU");
     if (old && old->k.ns == c->k.ns) { /* overwrite in place */
         old->k = c->k;
         memcpy(old->m, c->m, GDM->m_size);
         if (c->k.ns > 0) memcpy(old->s, c->s, (size_t)c->k.ns * sizeof(double));
-        return fmi2OK;
+        return GD_OK;
     }
     f = new_state(c, &c->k, c->m, c->s);
-    if (!f) return gdfmi_fail(c, "fmi2GetFMUstate: out of memory");
+    if (!f) return gdfmi_fail(c, GD_FN_GET_STATE ": out of memory");
     free_state(old);
     *FMUstate = f;
-    return fmi2OK;
+    return GD_OK;
 }
 
-fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate FMUstate) {
+static gd_status_t gdl_set_fmu_state(void *comp, void *FMUstate) {
     gdfmi_state_t *f;
     double *s = NULL;
-    BEGIN("fmi2SetFMUstate", MASK_FMU_STATE);
+    BEGIN(GD_FN_SET_STATE, MASK_FMU_STATE);
     f = state_of(FMUstate);
-    if (!f) return gdfmi_fail(c, "fmi2SetFMUstate: not a state of this FMU (NULL, freed or foreign)");
+    if (!f) return gdfmi_fail(c, GD_FN_SET_STATE ": not a state of this FMU (NULL, freed or foreign)");
     if (f->k.ns > 0) {
         s = (double *)gdfmi_alloc(c, (size_t)f->k.ns, sizeof(double));
-        if (!s) return gdfmi_fail(c, "fmi2SetFMUstate: out of memory");
+        if (!s) return gdfmi_fail(c, GD_FN_SET_STATE ": out of memory");
         memcpy(s, f->s, (size_t)f->k.ns * sizeof(double));
     }
     gdfmi_free(c, c->s);
     c->s = s;
     c->k = f->k;
     memcpy(c->m, f->m, GDM->m_size);
-    return fmi2OK;
+    return GD_OK;
 }
 
-fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *FMUstate) {
+static gd_status_t gdl_free_fmu_state(void *comp, void **FMUstate) {
     gdfmi_state_t *f;
-    BEGIN("fmi2FreeFMUstate", MASK_FMU_STATE);
-    if (!FMUstate || !*FMUstate) return fmi2OK; /* nothing to free */
+    BEGIN(GD_FN_FREE_STATE, MASK_FMU_STATE);
+    if (!FMUstate || !*FMUstate) return GD_OK; /* nothing to free */
     f = state_of(*FMUstate);
-    if (!f) return gdfmi_fail(c, "fmi2FreeFMUstate: not a state of this FMU");
+    if (!f) return gdfmi_fail(c, GD_FN_FREE_STATE ": not a state of this FMU");
     free_state(f);
     *FMUstate = NULL;
-    return fmi2OK;
+    return GD_OK;
 }
 
 /* Serialized form (native byte order; checked on deserialization):
@@ -627,33 +644,32 @@ static void get(gdfmi_cursor_t *r, void *dst, size_t n) {
 static void io_put(gdfmi_cursor_t *c, void *p, size_t n) { put(c, p, n); }
 static void io_get(gdfmi_cursor_t *c, void *p, size_t n) { get(c, p, n); }
 
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate FMUstate, size_t *size) {
+static gd_status_t gdl_serialized_size(void *comp, void *FMUstate, size_t *size) {
     gdfmi_state_t *f;
-    BEGIN("fmi2SerializedFMUstateSize", MASK_FMU_STATE);
+    BEGIN(GD_FN_STATE_SIZE, MASK_FMU_STATE);
     f = state_of(FMUstate);
-    if (!f) return gdfmi_fail(c, "fmi2SerializedFMUstateSize: not a state of this FMU");
-    if (!size) return gdfmi_fail(c, "fmi2SerializedFMUstateSize: size is NULL");
+    if (!f) return gdfmi_fail(c, GD_FN_STATE_SIZE ": not a state of this FMU");
+    if (!size) return gdfmi_fail(c, GD_FN_STATE_SIZE ": size is NULL");
     *size = serial_size(f->k.ns);
-    return fmi2OK;
+    return GD_OK;
 }
 
-fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
-                                 size_t size) {
+static gd_status_t gdl_serialize(void *comp, void *FMUstate, unsigned char serializedState[], size_t size) {
     gdfmi_state_t *f;
     gdfmi_cursor_t w;
     gdfmi_core_t k;
     void *m;
     uint32_t version = GDM->serial_version, bom = 0x01020304u;
     uint64_t total, layout = GDM->serial_layout, h;
-    BEGIN("fmi2SerializeFMUstate", MASK_FMU_STATE);
+    BEGIN(GD_FN_SERIALIZE, MASK_FMU_STATE);
     f = state_of(FMUstate);
-    if (!f) return gdfmi_fail(c, "fmi2SerializeFMUstate: not a state of this FMU");
+    if (!f) return gdfmi_fail(c, GD_FN_SERIALIZE ": not a state of this FMU");
     total = serial_size(f->k.ns);
     if (!serializedState || size < total)
-        return gdfmi_fail(c, "fmi2SerializeFMUstate: buffer of %lu bytes, %lu needed "
-                          "(fmi2SerializedFMUstateSize)", (unsigned long)size, (unsigned long)total);
+        return gdfmi_fail(c, GD_FN_SERIALIZE ": buffer of %lu bytes, %lu needed "
+                          "(" GD_FN_STATE_SIZE ")", (unsigned long)size, (unsigned long)total);
     m = gdfmi_alloc(c, 1, GDM->m_size);
-    if (!m) return gdfmi_fail(c, "fmi2SerializeFMUstate: out of memory");
+    if (!m) return gdfmi_fail(c, GD_FN_SERIALIZE ": out of memory");
     memcpy(m, f->m, GDM->m_size);
     k = f->k;
     w.b = (unsigned char *)serializedState;
@@ -670,8 +686,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate FMUstate, fmi2
     if (f->k.ns > 0) put(&w, f->s, 8 * (size_t)f->k.ns);
     h = fnv1a(w.b, w.at);
     put(&w, &h, 8);
-    if (!w.ok || w.at != total) return gdfmi_fail(c, "fmi2SerializeFMUstate: internal size mismatch");
-    return fmi2OK;
+    if (!w.ok || w.at != total) return gdfmi_fail(c, GD_FN_SERIALIZE ": internal size mismatch");
+    return GD_OK;
 }
 
 /* the layer's own consistency rules of a deserialized state; 0 if consistent */
@@ -685,8 +701,8 @@ static int core_consistent(const gdfmi_core_t *k) {
     return 1;
 }
 
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serializedState[], size_t size,
-                                   fmi2FMUstate *FMUstate) {
+static gd_status_t gdl_deserialize(void *comp, const unsigned char serializedState[], size_t size,
+                                   void **FMUstate) {
     gdfmi_cursor_t r;
     char magic[8], err[512];
     uint32_t version, bom;
@@ -695,11 +711,11 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
     void *m;
     double *s = NULL;
     gdfmi_state_t *f;
-    fmi2Status st = fmi2OK;
-    BEGIN("fmi2DeSerializeFMUstate", MASK_FMU_STATE);
-    if (!FMUstate) return gdfmi_fail(c, "fmi2DeSerializeFMUstate: FMUstate is NULL");
+    gd_status_t st = GD_OK;
+    BEGIN(GD_FN_DESERIALIZE, MASK_FMU_STATE);
+    if (!FMUstate) return gdfmi_fail(c, GD_FN_DESERIALIZE ": FMUstate is NULL");
     if (!serializedState || size < SER_HEADER + 8)
-        return gdfmi_fail(c, "fmi2DeSerializeFMUstate: %lu bytes is too short for a serialized state",
+        return gdfmi_fail(c, GD_FN_DESERIALIZE ": %lu bytes is too short for a serialized state",
                           (unsigned long)size);
     r.b = (unsigned char *)serializedState;
     r.at = 0;
@@ -711,41 +727,41 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
     get(&r, &total, 8);
     get(&r, &layout, 8);
     if (memcmp(magic, GDM->serial_magic, 8) != 0)
-        return gdfmi_fail(c, "fmi2DeSerializeFMUstate: not a serialized %s state", GDM->identifier);
+        return gdfmi_fail(c, GD_FN_DESERIALIZE ": not a serialized %s state", GDM->identifier);
     if (bom != 0x01020304u)
-        return gdfmi_fail(c, "fmi2DeSerializeFMUstate: serialized on a platform of another byte order");
+        return gdfmi_fail(c, GD_FN_DESERIALIZE ": serialized on a platform of another byte order");
     if (version != GDM->serial_version || layout != GDM->serial_layout)
-        return gdfmi_fail(c, "fmi2DeSerializeFMUstate: serialized state version %u (%lu parameters), this "
+        return gdfmi_fail(c, GD_FN_DESERIALIZE ": serialized state version %u (%lu parameters), this "
                           "binary reads version %u (%lu parameters)", (unsigned)version,
                           (unsigned long)layout, (unsigned)GDM->serial_version,
                           (unsigned long)GDM->serial_layout);
     if (total != size)
-        return gdfmi_fail(c, "fmi2DeSerializeFMUstate: %lu bytes given, the state says %lu (truncated?)",
+        return gdfmi_fail(c, GD_FN_DESERIALIZE ": %lu bytes given, the state says %lu (truncated?)",
                           (unsigned long)size, (unsigned long)total);
     memcpy(&h_read, r.b + size - 8, 8);
     h = fnv1a(r.b, size - 8);
-    if (h != h_read) return gdfmi_fail(c, "fmi2DeSerializeFMUstate: checksum mismatch (corrupted state)");
+    if (h != h_read) return gdfmi_fail(c, GD_FN_DESERIALIZE ": checksum mismatch (corrupted state)");
     m = gdfmi_alloc(c, 1, GDM->m_size);
-    if (!m) return gdfmi_fail(c, "fmi2DeSerializeFMUstate: out of memory");
+    if (!m) return gdfmi_fail(c, GD_FN_DESERIALIZE ": out of memory");
     memset(m, 0, GDM->m_size);
     memset(&k, 0, sizeof k);
     GDM->xfer(&r, &k, m, io_get);
     if (!r.ok || k.ns < 0 || serial_size(k.ns) != size) {
-        st = gdfmi_fail(c, "fmi2DeSerializeFMUstate: inconsistent sizes (corrupted state)");
+        st = gdfmi_fail(c, GD_FN_DESERIALIZE ": inconsistent sizes (corrupted state)");
     } else if (!core_consistent(&k)) {
-        st = gdfmi_fail(c, "fmi2DeSerializeFMUstate: invalid state fields (corrupted state)");
+        st = gdfmi_fail(c, GD_FN_DESERIALIZE ": invalid state fields (corrupted state)");
     } else {
         if (k.ns > 0) {
             s = (double *)gdfmi_alloc(c, (size_t)k.ns, sizeof(double));
-            if (!s) st = gdfmi_fail(c, "fmi2DeSerializeFMUstate: out of memory");
+            if (!s) st = gdfmi_fail(c, GD_FN_DESERIALIZE ": out of memory");
             else get(&r, s, 8 * (size_t)k.ns);
         }
-        if (st == fmi2OK && GDM->check_state(c, &k, m, s, err, sizeof err) != 0)
-            st = gdfmi_fail(c, "fmi2DeSerializeFMUstate: %s", err);
+        if (st == GD_OK && GDM->check_state(c, &k, m, s, err, sizeof err) != 0)
+            st = gdfmi_fail(c, GD_FN_DESERIALIZE ": %s", err);
     }
-    if (st == fmi2OK) {
+    if (st == GD_OK) {
         f = new_state(c, &k, m, s);
-        if (!f) st = gdfmi_fail(c, "fmi2DeSerializeFMUstate: out of memory");
+        if (!f) st = gdfmi_fail(c, GD_FN_DESERIALIZE ": out of memory");
         else *FMUstate = f;
     }
     gdfmi_free(c, s);
@@ -753,110 +769,46 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte serialized
     return st;
 }
 
-/* ------------------------------------------------- not provided by these FMUs */
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueReference vUnknown_ref[],
-                                        size_t nUnknown, const fmi2ValueReference vKnown_ref[],
-                                        size_t nKnown, const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    gdfmi_inst_t *c = inst_of(comp);
-    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
-    if (!c) return fmi2Error;
-    return gdfmi_fail(c, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative=false)");
-}
-
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                                       const fmi2Integer order[], const fmi2Real value[]) {
-    gdfmi_inst_t *c = inst_of(comp);
-    (void)vr; (void)nvr; (void)order; (void)value;
-    if (!c) return fmi2Error;
-    return gdfmi_fail(c, "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=false)");
-}
-
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
-                                        const fmi2Integer order[], fmi2Real value[]) {
-    gdfmi_inst_t *c = inst_of(comp);
-    (void)vr; (void)nvr; (void)order; (void)value;
-    if (!c) return fmi2Error;
-    return gdfmi_fail(c, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=0)");
-}
-
 /* --------------------------------------------------------------- stepping */
-fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint,
-                      fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    fmi2Status status = fmi2OK, st;
-    double h = communicationStepSize, t = currentCommunicationPoint, T;
-    BEGIN("fmi2DoStep", MASK_DO_STEP);
-    (void)noSetFMUStatePriorToCurrentPoint;
-    if (!c->k.have_model || !c->s) return gdfmi_fail(c, "fmi2DoStep: no model (internal error)");
+/* one communication step [t, t + h]: one sample (the state allowed DoStep) */
+static gd_status_t gdl_do_step(gdfmi_inst_t *c, double t, double h) {
+    gd_status_t status = GD_OK, st;
+    double T;
+    if (!c->k.have_model || !c->s) return gdfmi_fail(c, GD_FN("DoStep") ": no model (internal error)");
     T = GDM->period(c->m);
     if (!isfinite(t))
-        return gdfmi_fail(c, "fmi2DoStep: currentCommunicationPoint %g is not finite", t);
+        return gdfmi_fail(c, GD_FN("DoStep") ": currentCommunicationPoint %g is not finite", t);
     if (!(h > 0.0) || !isfinite(h))
-        return gdfmi_fail(c, "fmi2DoStep: communication step size %.17g at t=%.17g s is not a finite "
+        return gdfmi_fail(c, GD_FN("DoStep") ": communication step size %.17g at t=%.17g s is not a finite "
                           "number > 0", h, t);
     if (fabs(h - T) > STEP_RTOL * T) {
         c->k.n_bad_steps++;
         if (GDM->strict_step_size(c->m)) {
-            gdfmi_log(c, fmi2Discard, "fmi2DoStep: step size %.17g s at t=%.17g s differs from "
+            gdfmi_log(c, GD_DISCARD, GD_FN("DoStep") ": step size %.17g s at t=%.17g s differs from "
                       "%s %.17g s; step refused (strict_step_size)", h, t, GDM->period_name, T);
             c->k.phase = ST_STEP_FAILED;
-            return fmi2Discard;
+            return GD_DISCARD;
         }
         if (c->k.n_bad_steps == 1 || c->k.n_bad_steps % 100000 == 0)
-            gdfmi_log(c, fmi2Warning, "fmi2DoStep: step size %.17g s at t=%.17g s differs from "
+            gdfmi_log(c, GD_WARNING, GD_FN("DoStep") ": step size %.17g s at t=%.17g s differs from "
                       "%s %.17g s; one step = one sample, so %s is "
                       "wrong (%lld such step(s) so far)", h, t, GDM->period_name, T, GDM->time_base,
                       (long long)c->k.n_bad_steps);
-        status = fmi2Warning;
+        status = GD_WARNING;
     }
     st = GDM->step(c, t);
-    if (st != fmi2OK && st != fmi2Warning) return st;
+    if (st != GD_OK && st != GD_WARNING) return st;
     c->k.n_steps++;
     c->k.time = t + h;
-    return st == fmi2Warning ? fmi2Warning : status;
+    return st == GD_WARNING ? GD_WARNING : status;
 }
 
-fmi2Status fmi2CancelStep(fmi2Component comp) {
-    gdfmi_inst_t *c = inst_of(comp);
-    if (!c) return fmi2Error;
-    return gdfmi_fail(c, "fmi2CancelStep: no asynchronous step to cancel (fmi2DoStep never returns fmi2Pending)");
-}
 
-/* a status kind this FMU does not provide: fmi2Discard, the reason logged */
-static fmi2Status no_status(const gdfmi_inst_t *c, const char *fn, int kind, const char *why) {
-    gdfmi_log(c, fmi2Discard, "%s: status kind %d not available%s", fn, kind, why);
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Status *value) {
-    BEGIN("fmi2GetStatus", MASK_STATUS);
-    (void)value;
-    return no_status(c, "fmi2GetStatus", (int)s, " (no asynchronous steps)");
-}
-
-fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Real *value) {
-    BEGIN("fmi2GetRealStatus", MASK_STATUS);
-    if (s != fmi2LastSuccessfulTime || !value) return no_status(c, "fmi2GetRealStatus", (int)s, "");
-    *value = c->k.time;
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Integer *value) {
-    BEGIN("fmi2GetIntegerStatus", MASK_STATUS);
-    (void)value;
-    return no_status(c, "fmi2GetIntegerStatus", (int)s, "");
-}
-
-fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean *value) {
-    BEGIN("fmi2GetBooleanStatus", MASK_STATUS);
-    if (s != fmi2Terminated || !value) return no_status(c, "fmi2GetBooleanStatus", (int)s, "");
-    *value = fmi2False; /* the slave never asks to end the simulation */
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component comp, const fmi2StatusKind s, fmi2String *value) {
-    BEGIN("fmi2GetStringStatus", MASK_STATUS);
-    (void)value;
-    return no_status(c, "fmi2GetStringStatus", (int)s, "");
-}
+/* the exported entry points of the standard compiled */
+#if GD_FMI_VERSION == 3
+#include "gdfmi3.c"
+#else
+#include "gdfmi2.c"
+#endif
 
 #undef GDM

@@ -1,8 +1,12 @@
 /*
- * gdfmi.h -- the FMI 2.0 co-simulation layer shared by the project's native FMUs
- * (FogDenoiserNative: fogdenoiser_native.c, SimulatedFogNative: simulatedfog_native.c).
+ * gdfmi.h -- the FMI 2.0 / FMI 3.0 co-simulation layer shared by the project's native FMUs
+ * (FogDenoiserNative[3]: fogdenoiser_native.c, SimulatedFogNative[3]: simulatedfog_native.c,
+ * FogDenoiserImuNative3: fogdenoiser_imu_native.c).
  *
- * gdfmi.c implements every fmi2* function once: the co-simulation state machine (a
+ * One layer, two standards: GD_FMI_VERSION (2, the default, or 3) chooses the FMI headers
+ * and the thin entry points compiled over it (gdfmi2.c: the fmi2* functions, gdfmi3.c: the
+ * fmi3* functions). gdfmi.c holds everything they share, written once: the co-simulation
+ * state machine (a
  * call the standard does not allow in the current state returns fmi2Error with the
  * reason logged and puts the instance in the error state, from which
  * fmi2SetFMUstate, fmi2Reset and fmi2FreeInstance recover), logging (a message
@@ -16,7 +20,7 @@
  * A model is a set of hooks (gdfmi_model_t) over two buffers of its own: a
  * fixed-size part m (parameters, inputs, outputs: plain data, copied as bytes)
  * and a state buffer s of doubles (k.ns of them, allocated at
- * fmi2ExitInitializationMode). Each native FMU is one translation unit:
+ * ExitInitializationMode). Each native FMU is one translation unit:
  *   the model file (includes this header, defines its hooks and
  *   `static const gdfmi_model_t gdfmi_model`), then gdfmi.c.
  * Everything here is static: only the fmi2* functions are exported.
@@ -34,7 +38,57 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifndef GD_FMI_VERSION
+#define GD_FMI_VERSION 2
+#endif
+#if GD_FMI_VERSION == 3
+#include "fmi3Functions.h"
+#define GD_FMI_NAME "FMI 3.0"
+#define GD_FN(name) "fmi3" name /* a function's name in messages */
+#define GD_FN_INSTANTIATE "fmi3InstantiateCoSimulation"
+#define GD_FN_GET_STATE "fmi3GetFMUState"
+#define GD_FN_SET_STATE "fmi3SetFMUState"
+#define GD_FN_FREE_STATE "fmi3FreeFMUState"
+#define GD_FN_STATE_SIZE "fmi3SerializedFMUStateSize"
+#define GD_FN_SERIALIZE "fmi3SerializeFMUState"
+#define GD_FN_DESERIALIZE "fmi3DeserializeFMUState"
+#define GD_TOKEN_NAME "instantiationToken"
+#define GD_API_ERROR fmi3Error /* what an entry point returns for an error */
+#define GD_TYPE_NAME_REAL "Float64"
+#define GD_TYPE_NAME_INTEGER "Int32"
+#elif GD_FMI_VERSION == 2
 #include "fmi2Functions.h"
+#define GD_FMI_NAME "FMI 2.0"
+#define GD_FN(name) "fmi2" name
+#define GD_FN_INSTANTIATE "fmi2Instantiate"
+#define GD_FN_GET_STATE "fmi2GetFMUstate"
+#define GD_FN_SET_STATE "fmi2SetFMUstate"
+#define GD_FN_FREE_STATE "fmi2FreeFMUstate"
+#define GD_FN_STATE_SIZE "fmi2SerializedFMUstateSize"
+#define GD_FN_SERIALIZE "fmi2SerializeFMUstate"
+#define GD_FN_DESERIALIZE "fmi2DeSerializeFMUstate"
+#define GD_TOKEN_NAME "GUID"
+#define GD_API_ERROR fmi2Error /* what an entry point returns for an error */
+#define GD_TYPE_NAME_REAL "Real"
+#define GD_TYPE_NAME_INTEGER "Integer"
+#else
+#error "GD_FMI_VERSION must be 2 or 3"
+#endif
+
+/* the layer's status (the values of fmi2Status and fmi3Status) and value reference */
+typedef int gd_status_t;
+enum { GD_OK = 0, GD_WARNING = 1, GD_DISCARD = 2, GD_ERROR = 3, GD_FATAL = 4 };
+typedef unsigned int gd_vr_t;
+
+/* the host's callbacks */
+#if GD_FMI_VERSION == 3
+typedef struct {
+    fmi3InstanceEnvironment env;
+    fmi3LogMessageCallback logger;
+} gdfmi_cb_t;
+#else
+typedef fmi2CallbackFunctions gdfmi_cb_t;
+#endif
 
 #if defined(__GNUC__)
 #define GDFMI_MAYBE_UNUSED __attribute__((unused)) /* a helper not every model calls */
@@ -71,12 +125,13 @@ enum { K_INPUT, K_OUTPUT, K_PARAMETER };
 typedef struct {
     const char *name;
     int type, kind;
+    unsigned n; /* values: 1 for a scalar, the length of an array variable (FMI 3.0, Real only) */
 } gdfmi_var_t;
 
 /* the part of an instance's state the layer owns (copied into FMU states) */
 typedef struct {
     int32_t phase;
-    int32_t have_model; /* s valid (after fmi2ExitInitializationMode) */
+    int32_t have_model; /* s valid (after ExitInitializationMode) */
     double time;        /* communication time reached */
     int64_t n_steps, n_bad_steps;
     int64_t ns;         /* doubles in s */
@@ -86,7 +141,7 @@ typedef struct gdfmi_state_s gdfmi_state_t;
 
 typedef struct {
     uint32_t magic;
-    fmi2CallbackFunctions cb;
+    gdfmi_cb_t cb;
     char *name;
     char *resource_uri; /* copy, may be NULL */
     int logging_on;
@@ -117,7 +172,7 @@ typedef struct {
     const char *period_name, *time_base;
 
     void (*defaults)(void *m); /* instantiated state: start values */
-    /* at fmi2ExitInitializationMode: check the parameters and build the model; returns
+    /* at ExitInitializationMode: check the parameters and build the model; returns
      * the doubles of s needed (> 0), or -1 with a one-line reason in err */
     long (*build)(gdfmi_inst_t *c, char *err, size_t nerr);
     /* fill s (ns doubles, zeroed) for the built model */
@@ -125,31 +180,31 @@ typedef struct {
     double (*period)(const void *m);
     int (*strict_step_size)(const void *m);
     /* one sample at time t (the layer checked the state, t and the step size); returns
-     * fmi2OK, fmi2Warning (the sample processed, the reason logged by the model: the step
+     * GD_OK, GD_WARNING (the sample processed, the reason logged by the model: the step
      * completes) or gdfmi_fail(...) */
-    fmi2Status (*step)(gdfmi_inst_t *c, double t);
+    gd_status_t (*step)(gdfmi_inst_t *c, double t);
     /* getters (any variable of the type), setters (references to settable variables) */
-    double (*get_real)(const gdfmi_inst_t *c, fmi2ValueReference vr);
-    fmi2Integer (*get_integer)(const gdfmi_inst_t *c, fmi2ValueReference vr);
-    fmi2Boolean (*get_boolean)(const gdfmi_inst_t *c, fmi2ValueReference vr);
-    const char *(*get_string)(const gdfmi_inst_t *c, fmi2ValueReference vr);
-    double *(*real_ref)(void *m, fmi2ValueReference vr);
-    int32_t *(*int_ref)(void *m, fmi2ValueReference vr); /* Integer and Boolean */
-    char *(*string_ref)(void *m, fmi2ValueReference vr, size_t *capacity);
+    double (*get_real)(const gdfmi_inst_t *c, gd_vr_t vr);
+    int32_t (*get_integer)(const gdfmi_inst_t *c, gd_vr_t vr);
+    int (*get_boolean)(const gdfmi_inst_t *c, gd_vr_t vr);
+    const char *(*get_string)(const gdfmi_inst_t *c, gd_vr_t vr);
+    double *(*real_ref)(void *m, gd_vr_t vr); /* an array variable: its first value, inputs and outputs */
+    int32_t *(*int_ref)(void *m, gd_vr_t vr); /* Integer and Boolean */
+    char *(*string_ref)(void *m, gd_vr_t vr, size_t *capacity);
     /* the serialized fields of (k, m), in a fixed order, in either direction */
     void (*xfer)(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io);
     /* a deserialized (k, m, s) the layer found consistent: 0, or -1 with the reason */
     int (*check_state)(const gdfmi_inst_t *c, const gdfmi_core_t *k, const void *m, const double *s,
                        char *err, size_t nerr);
-    /* information logged at fmi2ExitInitializationMode */
+    /* information logged at ExitInitializationMode */
     void (*describe)(const gdfmi_inst_t *c, char *out, size_t n);
 } gdfmi_model_t;
 
 /* helpers for the model (defined in gdfmi.c) */
 static void *gdfmi_alloc(const gdfmi_inst_t *c, size_t n, size_t size);
 static void gdfmi_free(const gdfmi_inst_t *c, void *ptr);
-static void gdfmi_log(const gdfmi_inst_t *c, fmi2Status st, const char *fmt, ...);
-static fmi2Status gdfmi_fail(gdfmi_inst_t *c, const char *fmt, ...);
+static void gdfmi_log(const gdfmi_inst_t *c, gd_status_t st, const char *fmt, ...);
+static gd_status_t gdfmi_fail(gdfmi_inst_t *c, const char *fmt, ...);
 static int gdfmi_fmt_err(char *err, size_t n, const char *fmt, ...);
 /* the local path of `relative` in the instance's resources folder: 0, or -1 with the reason */
 GDFMI_MAYBE_UNUSED static int gdfmi_resource_path(const gdfmi_inst_t *c, const char *relative, char *out, size_t n,

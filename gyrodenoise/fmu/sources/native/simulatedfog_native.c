@@ -286,7 +286,7 @@ static long sf_build(gdfmi_inst_t *c, char *err, size_t nerr) {
     if (d->seed < 0) return gdfmi_fmt_err(err, nerr, "seed must be an integer >= 0, got %d", (int)d->seed);
     if (!isfinite(d->true_rate)) /* the first sample is taken at fmi2ExitInitializationMode */
         return gdfmi_fmt_err(err, nerr, "true_rate is %g: the first sample (taken at "
-                             "fmi2ExitInitializationMode) needs a finite true rate", d->true_rate);
+                             GD_FN("ExitInitializationMode") ") needs a finite true rate", d->true_rate);
     if (resolve_card(c, d->card, d->v, err, nerr) != 0) return -1;
     gd_sim_card_from_vector(d->v, GD_CARD_LEN, &card);
     d->np = gd_sim_n_params(&card);
@@ -315,28 +315,28 @@ static double sf_period(const void *m) { return 1.0 / ((const sf_t *)m)->v[0]; }
 
 static int sf_strict(const void *m) { return ((const sf_t *)m)->strict_step_size; }
 
-static fmi2Status sf_step(gdfmi_inst_t *c, double t) {
+static gd_status_t sf_step(gdfmi_inst_t *c, double t) {
     sf_t *d = (sf_t *)c->m;
     double w = d->true_rate;
     if (!isfinite(w))
-        return gdfmi_fail(c, "fmi2DoStep: true_rate is %g at t=%.17g s; sample refused, sensor state "
+        return gdfmi_fail(c, GD_FN("DoStep") ": true_rate is %g at t=%.17g s; sample refused, sensor state "
                           "unchanged", w, t);
     d->measured_rate = gd_sim_step(c->s, c->s + d->np, w, d->restart ? 1 : 0);
     d->restarted = d->restart ? 1 : 0;
-    return fmi2OK;
+    return GD_OK;
 }
 
-static double sf_get_real(const gdfmi_inst_t *c, fmi2ValueReference vr) {
+static double sf_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
     const sf_t *d = (const sf_t *)c->m;
     return vr == VR_true_rate ? d->true_rate : d->measured_rate;
 }
 
-static double *sf_real_ref(void *m, fmi2ValueReference vr) {
+static double *sf_real_ref(void *m, gd_vr_t vr) {
     (void)vr; /* the only settable Real: true_rate */
     return &((sf_t *)m)->true_rate;
 }
 
-static int32_t *sf_int_ref(void *m, fmi2ValueReference vr) {
+static int32_t *sf_int_ref(void *m, gd_vr_t vr) {
     sf_t *d = (sf_t *)m;
     switch (vr) {
     case VR_restart: return &d->restart;
@@ -347,20 +347,20 @@ static int32_t *sf_int_ref(void *m, fmi2ValueReference vr) {
     }
 }
 
-static fmi2Integer sf_get_integer(const gdfmi_inst_t *c, fmi2ValueReference vr) {
+static int32_t sf_get_integer(const gdfmi_inst_t *c, gd_vr_t vr) {
     return *sf_int_ref(c->m, vr);
 }
 
-static fmi2Boolean sf_get_boolean(const gdfmi_inst_t *c, fmi2ValueReference vr) {
-    return *sf_int_ref(c->m, vr) ? fmi2True : fmi2False;
+static int sf_get_boolean(const gdfmi_inst_t *c, gd_vr_t vr) {
+    return *sf_int_ref(c->m, vr) ? 1 : 0;
 }
 
-static const char *sf_get_string(const gdfmi_inst_t *c, fmi2ValueReference vr) {
+static const char *sf_get_string(const gdfmi_inst_t *c, gd_vr_t vr) {
     (void)vr;
     return ((const sf_t *)c->m)->card;
 }
 
-static char *sf_string_ref(void *m, fmi2ValueReference vr, size_t *capacity) {
+static char *sf_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     (void)vr;
     *capacity = CARD_LEN;
     return ((sf_t *)m)->card;
