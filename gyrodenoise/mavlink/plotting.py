@@ -40,15 +40,34 @@ def plot_time(time_s, restarts):
             "time [s]: sessions joined end to end (boot time went backwards); restarts labelled with boot time")
 
 
-def plot_stream(path, title, t, x, f, restarts, unit, axes=("x", "y", "z")):
+#: shading of the flight segments (``report["segments"]`` kinds) on the time plots
+#: the filtered line (dark) and the raw one (lighter, drawn above it, half transparent)
+FILTERED_COLOUR, RAW_COLOUR = "#0b3d91", "#8fb3e8"
+SEGMENT_COLOURS = {"ground": "0.85", "armed": "#ffe08a", "flying": "#b7e4c7", "hover": "#b9d4ff"}
+
+
+def plot_stream(path, title, t, x, f, restarts, unit, axes=("x", "y", "z"), segments=None):
     """PNG of raw and filtered per axis (``t``: the samples' boot times, s),
-    restarts as dashed red lines."""
-    _draw(path, title, _plot_data(t, x, f, restarts), unit, axes)
+    restarts as dashed red lines; ``segments`` (``[{"kind", "start_s", "end_s"}]``,
+    the log's time) shaded behind the lines when given. A stream written raw
+    (``f`` None or equal to ``x``) gets one line, labelled as raw."""
+    _draw(path, title, _plot_data(t, x, f, restarts, segments), unit, axes)
 
 
-def _plot_data(t, x, f, restarts):
-    """What the plot needs: per axis the min/max envelopes, the restart times, their
-    boot times (labels when the plot's time is not the boot time) and the x label."""
+def written_raw(x, f):
+    """True when the output ``f`` is the raw record ``x`` (None, or equal, NaN alike):
+    such a line must not be called "filtered"."""
+    return f is None or np.array_equal(np.asarray(x), np.asarray(f), equal_nan=True)
+
+
+def _plot_data(t, x, f, restarts, segments=None):
+    """What the plot needs: per axis the min/max envelopes (the filtered one None
+    for a stream written raw), the restart times, their boot times (labels when the
+    plot's time is not the boot time), the x label and the segments to shade
+    (their times on the plot's axis; none when the plot's time is not the log's)."""
+    raw_only = written_raw(x, f)
+    if raw_only:
+        f = x
     pt, xlabel = plot_time(t, restarts)
     labels = None if pt is t or np.array_equal(pt, t) else np.asarray(t, dtype=np.float64)[restarts]
     rt = pt[restarts]
@@ -56,8 +75,15 @@ def _plot_data(t, x, f, restarts):
     if len(cut):
         pt, x, f = (np.insert(pt, cut, np.nan), np.insert(x, cut, np.nan, axis=0),
                     np.insert(f, cut, np.nan, axis=0))
-    lines = [(_envelope(pt, x[:, k]), _envelope(pt, f[:, k])) for k in range(x.shape[1])]
-    return lines, rt, labels, xlabel
+    lines = [(_envelope(pt, x[:, k]), None if raw_only else _envelope(pt, f[:, k])) for k in range(x.shape[1])]
+    shade = []
+    if segments and labels is None:
+        for g in segments:
+            try:
+                shade.append((float(g["start_s"]), float(g["end_s"]), str(g["kind"])))
+            except (KeyError, TypeError, ValueError):
+                continue
+    return lines, rt, labels, xlabel, shade
 
 
 def _draw(path, title, pdata, unit, axes, spectrum=None):
@@ -71,10 +97,19 @@ def _draw(path, title, pdata, unit, axes, spectrum=None):
     import matplotlib.pyplot as plt
     fig, axs = plt.subplots(len(axes), 1, figsize=(9, 6.5), sharex=True)
     fig.subplots_adjust(left=0.1, right=0.98, top=0.94, bottom=0.08, hspace=0.12)
-    lines, rt, rlabels, xlabel = pdata
+    lines, rt, rlabels, xlabel, shade = pdata
     for k, ax in enumerate(np.atleast_1d(axs)):
-        ax.plot(*lines[k][0], lw=0.6, color="0.6", label="raw")
-        ax.plot(*lines[k][1], lw=0.9, color="C0", label="filtered")
+        kinds = set()
+        for a, b, kind in shade:           # behind everything
+            ax.axvspan(a, b, color=SEGMENT_COLOURS.get(kind, "#e8c6f0"), alpha=0.5, lw=0, zorder=0,
+                       label=None if kind in kinds else kind)
+            kinds.add(kind)
+        if lines[k][1] is None:
+            ax.plot(*lines[k][0], lw=0.8, color="C0", label="raw (written raw, NOT filtered)", zorder=2)
+        else:
+            # filtered first, raw above it, lighter and half transparent: both show
+            ax.plot(*lines[k][1], lw=1.0, color=FILTERED_COLOUR, label="filtered", zorder=2)
+            ax.plot(*lines[k][0], lw=0.6, color=RAW_COLOUR, alpha=0.6, label="raw", zorder=3)
         if len(rt):
             ax.vlines(rt, 0, 1, transform=ax.get_xaxis_transform(), colors="C3", lw=0.8,
                       linestyles="--", label="restart")
@@ -84,7 +119,7 @@ def _draw(path, title, pdata, unit, axes, spectrum=None):
                         color="C3", va="bottom")
         ax.set_ylabel(f"{axes[k]} [{unit}]")
         ax.grid(True, lw=0.3)
-    axs[0].legend(loc="upper right", fontsize=8, ncol=3)
+    axs[0].legend(loc="upper right", fontsize=8, ncol=4)
     axs[0].set_title(title, fontsize=10)
     axs[-1].set_xlabel(xlabel)
     with atomic_path(path) as tmp:
@@ -150,8 +185,9 @@ class Plotter:
             if job is None:
                 break
 
-    def plot(self, path, title, t, x, f, restarts, unit, axes):
-        self._submit((path, title, _plot_data(t, x, f, restarts), unit, axes))
+    def plot(self, path, title, t, x, f, restarts, unit, axes, segments=None):
+        """Queue (or draw) a stream's PNG (:func:`plot_stream`)."""
+        self._submit((path, title, _plot_data(t, x, f, restarts, segments), unit, axes))
 
     def plot_spectrum(self, path, title, items):
         """The spectrum PNG of a log: [(stream name, plot data)] (:mod:`gyrodenoise.mavlink.spectra`)."""

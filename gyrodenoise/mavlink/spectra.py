@@ -74,12 +74,24 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
                     min_ratio=MIN_PEAK_RATIO, max_peaks=MAX_PEAKS, sos=sos)
     if an is None:
         return {"available": False, "reason": "no session long enough for a spectrum (32 samples)"}, None
+    # the response is measured after each session's warm-up; where what is left of
+    # the sessions cannot hold one segment of the PSD's length (the batch sampler's
+    # bursts of 1024 samples after a 0.1 s warm-up), it is measured with shorter ones
+    resp = an
+    if an["response_segments"] == 0 and not an["filtered_is_raw"] and skip_samples:
+        resp = _response_after_warmup(x, f, rate, s.restarts, skip_samples, usable, sos) or an
     freq = an["freq_hz"]
     rep = {"available": True, "rate_hz": rate, "nperseg": int(an["nperseg"]), "resolution_hz": float(freq[1]),
-           "segments": int(len(an["starts"])), "response_segments": int(an["response_segments"]),
+           "segments": int(len(an["starts"])), "response_segments": int(resp["response_segments"]),
            "unit": unit, "min_peak_freq_hz": MIN_PEAK_FREQ_HZ,
            "min_peak_db": round(10 * np.log10(MIN_PEAK_RATIO), 2), "false_alarm": sp.FALSE_ALARM,
            "response": "computed and measured" if sos is not None else "measured", "peaks": {}, "filter": {}}
+    if resp is not an:
+        rep["response_nperseg"] = int(resp["nperseg"])
+        rep["response_note"] = (f"measured over the {resp['response_over']}, with segments of {resp['nperseg']} "
+                                f"samples: the sessions after the filter's warm-up ({skip_samples} samples) hold "
+                                f"no segment of the spectrum's {an['nperseg']}")
+        _peak_response(an, resp)
     for k, a in enumerate(s.axes):
         rep["peaks"][a] = [{
             "freq_hz": q["freq_hz"], "amplitude_rms": q["amplitude_rms"],
@@ -90,12 +102,13 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
             "filtered_amplitude_rms": q["filtered_amplitude_rms"],
             "filter_gain": q["filter_gain"], "phase_delay_s": q["phase_delay_s"],
         } for q in an["peaks"][k]]
-        rep["filter"][a] = _response_summary(an, k)
+        rep["filter"][a] = _response_summary(resp, k)
     rep["dominant_peak"] = dominant_peak(rep["peaks"])
     pd = {"freq_hz": freq, "unit": unit, "axes": s.axes, "raw": an["psd_raw"], "filtered": an["psd_filtered"],
-          "floor": an["floor_raw"], "gain": an["gain"], "coherence": an["coherence"], "delay_s": an["delay_s"],
-          "peaks": [rep["peaks"][a] for a in s.axes], "computed_gain": an["computed_gain"],
-          "computed_delay_s": an["computed_delay_s"], "spectrogram": None,
+          "floor": an["floor_raw"], "gain": resp["gain"], "coherence": resp["coherence"],
+          "delay_s": resp["delay_s"], "response_freq_hz": resp["freq_hz"],
+          "peaks": [rep["peaks"][a] for a in s.axes], "computed_gain": resp["computed_gain"],
+          "computed_delay_s": resp["computed_delay_s"], "spectrogram": None,
           "filtered_is_raw": an["filtered_is_raw"]}
     span = float(s.time_s[-1] - s.time_s[0]) if s.n > 1 else 0.0
     if span >= SPECTROGRAM_MIN_SPAN_S and len(an["starts"]) >= 20:
@@ -107,6 +120,46 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
         pd["spectrogram"] = (np.asarray(t, dtype=np.float64)[cidx], dens)
         rep["spectrogram_columns"] = int(len(centre))
     return rep, pd
+
+
+def _response_after_warmup(x, f, rate, restarts, skip_samples, usable, sos):
+    """The filter's response (:func:`gyrodenoise.analysis.spectrum.analyse`) over the
+    samples after each session's warm-up only, its segment length chosen from what is
+    left of the sessions; None when even that holds no segment."""
+    from gyrodenoise.core.sessions import sessions
+    n = len(x)
+    ok = (np.isfinite(x).all(axis=1) & np.isfinite(f).all(axis=1)) if usable is None else np.asarray(usable, bool)
+    after = np.zeros(n, dtype=bool)
+    for a, b in sessions(n, restarts, skip_samples):
+        after[a:b] = True
+    resp = sp.analyse(x, f, rate, restarts, 0, ok & after, min_freq_hz=MIN_PEAK_FREQ_HZ,
+                      min_ratio=MIN_PEAK_RATIO, max_peaks=1, sos=sos)
+    if resp is not None and resp["response_segments"]:
+        resp["response_over"] = "after the warm-up"
+        return resp
+    # nothing left after the warm-up (a 1 s warm-up, 0.5 s bursts): where the filter
+    # did act within its warm-up (a low-pass does; the motion filter passes raw samples
+    # through), the response is measured over the whole sessions, and says so
+    warm = ok & ~after
+    if warm.any() and not np.array_equal(x[warm], f[warm], equal_nan=True):
+        resp = sp.analyse(x, f, rate, restarts, 0, ok, min_freq_hz=MIN_PEAK_FREQ_HZ,
+                          min_ratio=MIN_PEAK_RATIO, max_peaks=1, sos=sos)
+        if resp is not None and resp["response_segments"]:
+            resp["response_over"] = "whole sessions, the filter's warm-up included"
+            return resp
+    return None
+
+
+def _peak_response(an, resp):
+    """The filter's gain and lag at each peak of ``an`` from the response ``resp``
+    measured on another frequency grid (the nearest bin)."""
+    for k, peaks in enumerate(an["peaks"]):
+        if resp["gain"][k] is None:
+            continue
+        for q in peaks:
+            b = int(np.argmin(np.abs(resp["freq_hz"] - q["freq_hz"])))
+            q["filter_gain"] = float(resp["gain"][k][b])
+            q["phase_delay_s"] = float(resp["delay_s"][k][b])
 
 
 def _response_summary(an, k):
@@ -198,7 +251,7 @@ def draw_log_spectrum(path, title, items):
     ratios = [2.6] * len(items) + [1.7] + ([2.0] if sg_item else [])
     fig, axs = plt.subplots(len(ratios), 1, figsize=(9, 1.95 * len(ratios) + 0.9),
                             gridspec_kw={"height_ratios": ratios})
-    fig.subplots_adjust(left=0.09, right=0.97, top=1.0 - 0.45 / fig.get_figheight(), bottom=0.06,
+    fig.subplots_adjust(left=0.09, right=0.92 if sg_item else 0.97,   # room for the colour bar's label top=1.0 - 0.45 / fig.get_figheight(), bottom=0.06,
                         hspace=0.45)
     for ax, (name, pd) in zip(axs, items):
         _draw_psd(ax, name, pd)
@@ -234,17 +287,19 @@ def _draw_psd(ax, name, pd):
     colours = ", ".join(f"{a} {c}" for a, c in zip(pd["axes"], AXIS_COLOURS))
     lines = "raw (filtered = raw)" if pd["filtered_is_raw"] else "solid raw, dashed filtered"
     # one text box instead of legends: fewer artists, a cheaper figure
-    ax.text(0.01, 0.03, f"{name}: {colours}; {lines}, dotted noise floor\n"
+    # upper right (room made above the curves): the low-frequency corner, where the
+    # motion's power and a low-pass's knee are, stays clear
+    ax.text(0.99, 0.97, f"{name}: {colours}; {lines}, dotted noise floor\n"
             f"peaks (strongest {LABELLED_PEAKS} per axis; rms {unit}; in % of the segments; "
             f">= {MIN_PEAK_FREQ_HZ:g} Hz, >= {10 * np.log10(MIN_PEAK_RATIO):.0f} dB above the floor)\n" + "\n".join(listing),
-            transform=ax.transAxes, fontsize=7, va="bottom", ha="left",
+            transform=ax.transAxes, fontsize=7, va="top", ha="right",
             bbox={"boxstyle": "round", "fc": "white", "ec": "0.7", "alpha": 0.85})
     ax.set_yscale("log")
     shown = np.concatenate([v[sel] for v in pd["raw"] + pd["filtered"]])
     shown = shown[np.isfinite(shown) & (shown > 0)]
-    if len(shown):                        # room at the bottom for the list of peaks
+    if len(shown):                        # room at the top for the list of peaks
         lo, hi = float(shown.min()), float(shown.max())
-        ax.set_ylim(lo / (hi / lo) ** 0.45, hi * 2.0)
+        ax.set_ylim(lo / 2.0, hi * (hi / lo) ** 0.9)
     ax.yaxis.set_major_locator(LogLocator(numticks=5))
     ax.yaxis.set_minor_locator(NullLocator())
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))   # no mathtext: cheaper
@@ -262,7 +317,7 @@ def _draw_response(ax, items):
     from matplotlib.ticker import FuncFormatter
     drawn, rows, f_max, f_min = False, [], 0.0, np.inf
     for j, (name, pd) in enumerate(items):
-        fr = pd["freq_hz"]
+        fr = pd.get("response_freq_hz", pd["freq_hz"])
         sel = fr > 0
         f_max = max(f_max, fr[-1])
         f_min = min(f_min, fr[1])
@@ -275,7 +330,8 @@ def _draw_response(ax, items):
         if pd["computed_gain"] is not None:
             ax.plot(fr[sel], pd["computed_gain"][sel], lw=1.2, ls="--", color="k")
         if not gains:
-            rows.append(f"{name}: not measured (output = raw, or no sample after the warm-up)")
+            rows.append(f"{name}: not measured (" + ("written raw: the filter was not applied" if pd["filtered_is_raw"]
+                                                   else "no segment after the filter's warm-up") + ")")
             continue
         marks = [f for f in (1.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0) if f < 0.8 * fr[-1]][-3:]
         vals = []
@@ -315,9 +371,11 @@ def _draw_spectrogram(ax, name, pd):
     with np.errstate(divide="ignore"):
         db = 10.0 * np.log10(np.where(dens > 0, dens, np.nan))
     lo, hi = np.nanpercentile(db, [5, 99.5]) if np.isfinite(db).any() else (0, 1)
-    ax.imshow(db.T, origin="lower", aspect="auto", cmap="viridis", vmin=lo, vmax=hi,
-              extent=(t[0], t[-1] if t[-1] > t[0] else t[0] + 1, 0, fr[-1]), interpolation="nearest")
+    im = ax.imshow(db.T, origin="lower", aspect="auto", cmap="viridis", vmin=lo, vmax=hi,
+                   extent=(t[0], t[-1] if t[-1] > t[0] else t[0] + 1, 0, fr[-1]), interpolation="nearest")
+    cb = ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.025)
+    cb.set_label(f"PSD [dB ({pd['unit']})²/Hz]", fontsize=7)
+    cb.ax.tick_params(labelsize=7)
     ax.set_ylabel(f"{name}\nfrequency [Hz]", fontsize=8)
-    ax.set_xlabel(f"time [s]; spectrogram of {name} raw, axes summed, {lo:.0f} (dark) to {hi:.0f} "
-                  f"(yellow) dB ({pd['unit']})²/Hz", fontsize=8)
+    ax.set_xlabel(f"time [s]; spectrogram of {name} raw, axes summed", fontsize=8)
     ax.tick_params(labelsize=7)

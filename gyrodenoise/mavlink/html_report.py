@@ -1,0 +1,909 @@
+"""One self-contained interactive HTML report per log, and one per fleet (plotly).
+
+What ArduPilot's Filter Review and PX4's Flight Review give an engineer, from the
+bridge's own report: zoom, hover and legend toggles on every plot, in one file
+that opens offline (plotly.js is inlined once; no CDN, no web font, no request).
+
+:func:`write_log_report` draws, per section, whatever part of the report exists
+(the keys come from several steps of the bridge; a missing one is skipped, a
+``*_note`` key is shown where its section has none):
+
+* the summary: file, format, method and form, streams, restarts, noise figures,
+  flying time (from ``segments``);
+* per stream the time series per axis: raw (lighter, drawn above) and filtered,
+  both toggleable, the vehicle's own rate estimate beside them when given, restarts
+  as dashed red lines, the flight segments (``report["segments"]``) shaded;
+* per stream the spectrum: raw and filtered PSD per axis, the peaks marked (hover
+  names them), the vehicle's filter response (``report["vehicle_filters"]``) and
+  the recommended one (``report["filter_review"]``) on a second axis; a spectrogram;
+* the filter review: its figures, the recommended parameters and the lines to paste;
+* vibration levels per segment against their thresholds (``report["vibration"]``).
+
+Long series are reduced to a min/max envelope per bin (:data:`ENVELOPE_BINS` bins
+a trace, each session on its own): what a screen shows anyway, and a 10-minute
+400 Hz log stays a few MB (plotly.js itself is ~4.7 MB of it).
+"""
+
+from __future__ import annotations
+
+import datetime
+import html
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from gyrodenoise.mavlink.stopping import atomic_path
+
+#: bins of a long trace's min/max envelope (two points a bin)
+ENVELOPE_BINS = 1500
+#: shading of the flight segments on the time plots (kind -> colour)
+SEGMENT_COLOURS = {"ground": "rgba(150,150,150,0.18)", "armed": "rgba(255,190,0,0.18)",
+                   "flying": "rgba(0,170,80,0.14)", "hover": "rgba(0,120,255,0.14)"}
+#: per axis: (filtered colour, raw colour: the same hue, lighter)
+AXIS_COLOURS = (("#1f4fb4", "#9db8ee"), ("#d9650b", "#f7c08f"), ("#218a3a", "#9fd9a9"),
+                ("#7b3fa0", "#cfb0e3"))
+VEHICLE_RATE_COLOUR = "#222222"
+#: plotly's config on every plot: hover, zoom, pan and the modebar, no link to plotly's site
+PLOT_CONFIG = {"displaylogo": False, "responsive": True, "scrollZoom": False,
+               "toImageButtonOptions": {"format": "png", "scale": 2}}
+#: no web font: the browser's own sans-serif
+FONT = "DejaVu Sans, Arial, Helvetica, sans-serif"
+
+CSS = """
+body{font-family:DejaVu Sans,Arial,Helvetica,sans-serif;margin:0 auto;max-width:1400px;padding:0 16px 40px;
+color:#222;font-size:14px}
+h1{font-size:22px;margin:16px 0 4px}h2{font-size:18px;margin:28px 0 6px;border-bottom:1px solid #ccc}
+h3{font-size:15px;margin:18px 0 4px}
+table{border-collapse:collapse;margin:6px 0 10px;font-size:13px}
+td,th{border:1px solid #ccc;padding:3px 7px;text-align:left;vertical-align:top}
+th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
+.note{color:#555;font-style:italic;margin:4px 0}.warn{color:#a15c00}.fail{color:#b00020;font-weight:bold}
+.pass{color:#1a7f37;font-weight:bold}.plot{width:100%;min-height:300px}
+pre{background:#f6f6f6;padding:8px;border:1px solid #ddd;overflow-x:auto}
+nav a{margin-right:12px}.small{font-size:12px;color:#555}
+"""
+
+
+# ------------------------------------------------------------------ data helpers
+def envelope(t, y, nbins=ENVELOPE_BINS):
+    """(t, y) of a line reduced to its min and max per bin, in time order (both
+    arrays ``nbins * 2`` long at most; the input as it is when it is short). A
+    bin whose samples are all NaN keeps a NaN (a gap in the line)."""
+    t = np.asarray(t, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    n = len(y)
+    if n <= 2 * nbins:
+        return t, y
+    m = int(math.ceil(n / nbins))
+    nb = int(math.ceil(n / m))
+    pad = nb * m - n
+    yy = np.concatenate([y, np.full(pad, np.nan)]).reshape(nb, m)
+    fin = np.isfinite(yy)
+    imin = np.where(fin, yy, np.inf).argmin(axis=1)
+    imax = np.where(fin, yy, -np.inf).argmax(axis=1)
+    base = np.arange(nb) * m
+    idx = np.column_stack([np.minimum(imin, imax), np.maximum(imin, imax)]) + base[:, None]
+    idx = np.minimum(idx.ravel(), n - 1)
+    out = y[idx].copy()
+    out[~np.repeat(fin.any(axis=1), 2)] = np.nan
+    return t[idx], out
+
+
+def session_envelope(t, y, restarts, nbins=ENVELOPE_BINS):
+    """:func:`envelope` of each session (cut at ``restarts``, bool per sample) with a
+    NaN between them, so that no line is drawn across a restart; about ``nbins``
+    bins over the whole record."""
+    t = np.asarray(t, dtype=np.float64)
+    n = len(t)
+    cuts = [0] + [int(i) for i in np.flatnonzero(restarts) if i > 0] + [n]
+    ts, ys = [], []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        if b <= a:
+            continue
+        tb, yb = envelope(t[a:b], y[a:b], max(1, int(round(nbins * (b - a) / max(n, 1)))))
+        if ts:
+            ts.append(np.array([np.nan]))
+            ys.append(np.array([np.nan]))
+        ts.append(tb)
+        ys.append(yb)
+    if not ts:
+        return t, np.asarray(y, dtype=np.float64)
+    return np.concatenate(ts), np.concatenate(ys)
+
+
+def _restart_mask(restarts, n):
+    """Bool (n,) from a bool mask or a list of sample indices (None: no restart)."""
+    mask = np.zeros(n, dtype=bool)
+    if restarts is None:
+        return mask
+    r = np.asarray(restarts)
+    if r.dtype == bool and len(r) == n:
+        return r.copy()
+    idx = r.astype(np.int64)
+    mask[idx[(idx >= 0) & (idx < n)]] = True
+    return mask
+
+
+def stream_series(s, filtered_label="filtered", vehicle_rate=None):
+    """The ``series["streams"]`` entry of a processed :class:`GyroStream` (its
+    ``_work`` arrays: raw and filtered in the unit the filter worked in): a dict of
+    :func:`write_log_report`'s stream shape. A stream written raw (too slow, or
+    refused with a reason) gets ``filtered=None`` and its reason, so that no plot
+    calls its raw samples "filtered"."""
+    from gyrodenoise.analysis import motion_metrics as mm
+    x, f, unit, _ = s._work
+    raw_reason = ("too slow to denoise: written raw" if mm.too_slow_to_denoise(s.rate_hz)
+                  else getattr(s, "not_filtered", None) or getattr(s, "left_raw", None))
+    return {"name": s.name, "time_s": s.time_s, "raw": x, "filtered": None if raw_reason else f,
+            "unit": unit, "axes": tuple(s.axes), "restarts": s.restarts,
+            "filtered_label": filtered_label, "raw_reason": raw_reason}
+
+
+def series_of_streams(streams, filtered_label="filtered", spectra=None, vehicle_rate=None):
+    """The ``series`` of :func:`write_log_report` from a log's processed streams
+    (after :func:`gyrodenoise.mavlink.filtering.filter_streams`), their spectrum plot
+    data ``{name: plot data of gyrodenoise.mavlink.spectra.stream_spectrum}`` and the
+    vehicle's rate estimate (``[{"name", "time_s", "rate", "unit"}]``)."""
+    return {"streams": [stream_series(s, filtered_label) for s in streams],
+            "spectra": dict(spectra or {}), "vehicle_rate": list(vehicle_rate or [])}
+
+
+def _f(v, spec=".3g"):
+    """A number as text ('' for None, 'NaN' for a non-finite one)."""
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return format(float(v), spec) if math.isfinite(v) else "NaN"
+    return str(v)
+
+
+def _e(v):
+    return html.escape(str(v), quote=True)
+
+
+def _table(rows, head=None, cls=""):
+    """HTML table of rows (lists of cell texts, already escaped where they hold HTML)."""
+    out = [f'<table class="{cls}">']
+    if head:
+        out.append("<tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>")
+    for r in rows:
+        out.append("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>")
+    out.append("</table>")
+    return "".join(out)
+
+
+def _kv_table(d, skip=()):
+    """Key/value table of a dict's scalar entries (nested dicts and lists as JSON)."""
+    rows = []
+    for k, v in d.items():
+        if k in skip:
+            continue
+        if isinstance(v, (dict, list, tuple)):
+            v = json.dumps(v, default=_json_default)
+            v = v if len(v) <= 300 else v[:297] + "..."
+        rows.append([_e(k), _e(_f(v))])
+    return _table(rows, ["key", "value"]) if rows else ""
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    return str(o)
+
+
+def _note(text):
+    return f'<p class="note">{_e(text)}</p>'
+
+
+def _notes_for(report, *keys):
+    """The ``*_note`` texts of a report for sections ``keys`` (e.g. ``vibration`` ->
+    ``vibration_note``), as HTML paragraphs."""
+    return "".join(_note(f"{k}: {report[k + '_note']}") for k in keys if report.get(k + "_note"))
+
+
+# ------------------------------------------------------------------ figures
+class _Figures:
+    """Collects the plot divs of one page (plotly.js goes once into the page's head)."""
+
+    def __init__(self):
+        self.n = 0
+
+    def div(self, fig, height=None):
+        """The figure as a ``<div class="plot">`` with its script (no plotly.js)."""
+        import plotly.io as pio
+        self.n += 1
+        top = fig.layout.margin.t
+        fig.update_layout(font={"family": FONT, "size": 12}, template="plotly_white",
+                          margin={"l": 70, "r": 30, "t": top if top is not None else 50, "b": 50})
+        if height:
+            fig.update_layout(height=height)
+        return '<div class="plot">' + pio.to_html(fig, include_plotlyjs=False, full_html=False, config=PLOT_CONFIG,
+                                                 div_id=f"plot{self.n}", default_width="100%",
+                                                 default_height=f"{height or 450}px") + "</div>"
+
+
+def _shade_segments(fig, segments, rows, t_lo, t_hi):
+    """Shade each flight segment (kind -> :data:`SEGMENT_COLOURS`) behind the lines of
+    ``rows`` subplots; one legend entry per kind (a clickable, empty trace)."""
+    kinds = []
+    for seg in segments or []:
+        try:
+            a, b, kind = float(seg["start_s"]), float(seg["end_s"]), str(seg["kind"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        if b < t_lo or a > t_hi:
+            continue
+        colour = SEGMENT_COLOURS.get(kind, "rgba(200,0,200,0.12)")
+        for r in range(1, rows + 1):
+            fig.add_vrect(x0=a, x1=b, fillcolor=colour, line_width=0, layer="below", row=r, col=1)
+        if kind not in kinds:
+            kinds.append(kind)
+    import plotly.graph_objects as go
+    for kind in kinds:
+        fig.add_trace(go.Scatter(x=[None], y=[None], mode="markers", name=f"segment: {kind}",
+                                 marker={"symbol": "square", "size": 12,
+                                         "color": SEGMENT_COLOURS.get(kind, "rgba(200,0,200,0.3)")},
+                                 legendgroup="segments"), row=1, col=1)
+
+
+def _time_figure(st, vehicle_rates, segments, title):
+    """Per axis raw (light, above) and filtered, the vehicle's own rate, restarts and
+    the segments: one plotly figure, subplots sharing the time axis."""
+    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
+    from gyrodenoise.mavlink.plotting import plot_time
+    t = np.asarray(st["time_s"], dtype=np.float64)
+    raw = np.atleast_2d(np.asarray(st["raw"], dtype=np.float64).T).T
+    filt = st.get("filtered")
+    filt = None if filt is None else np.atleast_2d(np.asarray(filt, dtype=np.float64).T).T
+    axes = list(st.get("axes") or ["x", "y", "z"][:raw.shape[1]])
+    unit = st.get("unit", "")
+    restarts = _restart_mask(st.get("restarts"), len(t))
+    pt, xlabel = plot_time(t, restarts)
+    boot_time = pt is t or np.array_equal(pt, t)
+    fig = make_subplots(rows=len(axes), cols=1, shared_xaxes=True, vertical_spacing=0.04)
+    label = st.get("filtered_label") or "filtered"
+    for k, a in enumerate(axes):
+        dark, light = AXIS_COLOURS[k % len(AXIS_COLOURS)]
+        first = k == 0
+        if filt is not None:
+            tx, fy = session_envelope(pt, filt[:, k], restarts)
+            fig.add_trace(go.Scatter(x=tx, y=fy.astype(np.float32), name=f"{label}", legendgroup="filtered",
+                                       showlegend=first, line={"color": dark, "width": 1.3},
+                                       hovertemplate=f"{a} {label}: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
+                          row=k + 1, col=1)
+        tx, ry = session_envelope(pt, raw[:, k], restarts)
+        raw_name = "raw" if filt is not None else f"raw (written raw: {st.get('raw_reason') or 'not filtered'})"
+        # raw is drawn after (above) the filtered line, lighter and half transparent: both show
+        fig.add_trace(go.Scatter(x=tx, y=ry.astype(np.float32), name=raw_name, legendgroup="raw",
+                                   showlegend=first, opacity=0.75 if filt is not None else 1.0,
+                                   line={"color": light if filt is not None else dark, "width": 0.9},
+                                   hovertemplate=f"{a} raw: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
+                      row=k + 1, col=1)
+        for vr in vehicle_rates:
+            vt = np.asarray(vr["time_s"], dtype=np.float64)
+            rate = np.atleast_2d(np.asarray(vr["rate"], dtype=np.float64).T).T
+            if k >= rate.shape[1] or not boot_time:
+                continue
+            tx, vy = envelope(vt, rate[:, k])
+            vname = f"vehicle rate ({vr.get('name', '')})"
+            fig.add_trace(go.Scatter(x=tx, y=vy.astype(np.float32), name=vname, legendgroup=vname,
+                                       showlegend=first, line={"color": VEHICLE_RATE_COLOUR, "width": 1.0,
+                                                               "dash": "dot"},
+                                       hovertemplate=f"{a} {vname}: %{{y:.4g}} {vr.get('unit', unit)}"
+                                                     f"<br>t=%{{x:.3f}} s<extra></extra>"),
+                          row=k + 1, col=1)
+        fig.update_yaxes(title_text=f"{a} [{unit}]", row=k + 1, col=1)
+    rt = pt[restarts]
+    if len(rt):
+        # one trace of vertical lines per subplot (hover shows the restart's boot time)
+        for k in range(len(axes)):
+            yk = raw[:, k][np.isfinite(raw[:, k])]
+            lo, hi = (float(yk.min()), float(yk.max())) if len(yk) else (0.0, 1.0)
+            xs = np.repeat(rt, 3).astype(object)
+            xs[2::3] = None
+            ys = np.tile(np.array([lo, hi, None], dtype=object), len(rt))
+            fig.add_trace(go.Scatter(x=xs, y=ys, mode="lines", name="restart", legendgroup="restart",
+                                     showlegend=k == 0, line={"color": "#d62728", "dash": "dash", "width": 1},
+                                     customdata=np.repeat(t[restarts], 3),
+                                     hovertemplate="restart at boot time %{customdata:.3f} s<extra></extra>"),
+                          row=k + 1, col=1)
+    if segments and boot_time and len(pt):
+        _shade_segments(fig, segments, len(axes), float(np.nanmin(pt)), float(np.nanmax(pt)))
+    fig.update_xaxes(title_text=xlabel, row=len(axes), col=1)
+    # the title at the top, the legend between it and the plot
+    fig.update_layout(title={"text": _e(title), "font": {"size": 14}, "y": 0.995, "yanchor": "top"},
+                      hovermode="closest", margin={"t": 80},
+                      legend={"orientation": "h", "yanchor": "bottom", "y": 1.01, "x": 0})
+    note = "" if boot_time or not segments else "segments not shaded: the log's time goes backwards"
+    return fig, note
+
+
+def _psd_lists(pd):
+    """(raw, filtered) PSDs per axis of a spectrum's plot data (either naming)."""
+    raw = pd.get("raw", pd.get("psd_raw"))
+    filt = pd.get("filtered", pd.get("psd_filtered"))
+    return raw, filt
+
+
+def _spectrum_figure(name, pd, responses, title):
+    """PSD per axis (raw solid, filtered dashed), peaks marked; filter responses
+    (``responses``: [(label, freq_hz, gain, dash)]) on a second y axis."""
+    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
+    fig = make_subplots(specs=[[{"secondary_y": True}]])
+    fr = np.asarray(pd["freq_hz"], dtype=np.float64)
+    sel = fr > 0
+    raw, filt = _psd_lists(pd)
+    unit = pd.get("unit", "")
+    axes = list(pd.get("axes") or ["x", "y", "z"])
+    same = pd.get("filtered_is_raw")
+    for k, a in enumerate(axes):
+        dark, light = AXIS_COLOURS[k % len(AXIS_COLOURS)]
+        if raw is not None and k < len(raw) and raw[k] is not None:
+            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(raw[k])[sel], name=f"{a} raw", legendgroup=a,
+                                     line={"color": dark, "width": 1.2},
+                                     hovertemplate=f"{a} raw: %{{y:.3g}} ({unit})²/Hz at %{{x:.4g}} Hz<extra></extra>"),
+                          secondary_y=False)
+        if filt is not None and not same and k < len(filt) and filt[k] is not None:
+            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(filt[k])[sel], name=f"{a} filtered", legendgroup=a,
+                                     line={"color": dark, "width": 1.2, "dash": "dash"}, opacity=0.75,
+                                     hovertemplate=f"{a} filtered: %{{y:.3g}} ({unit})²/Hz at %{{x:.4g}} Hz"
+                                                   f"<extra></extra>"),
+                          secondary_y=False)
+        peaks = (pd.get("peaks") or [[]] * len(axes))[k] if k < len(pd.get("peaks") or []) else []
+        if peaks and raw is not None:
+            px = [q["freq_hz"] for q in peaks]
+            py = [float(np.asarray(raw[k])[int(np.argmin(np.abs(fr - f)))]) for f in px]
+            txt = [_peak_hover(q, unit) for q in peaks]
+            fig.add_trace(go.Scatter(x=px, y=py, mode="markers", name=f"{a} peaks", legendgroup=a,
+                                     marker={"symbol": "triangle-down", "size": 11, "color": dark,
+                                             "line": {"color": "black", "width": 1}},
+                                     text=txt, hovertemplate="%{text}<extra></extra>"), secondary_y=False)
+    for label, rf, gain, dash in responses:
+        rf = np.asarray(rf, dtype=np.float64)
+        ok = rf > 0
+        fig.add_trace(go.Scatter(x=rf[ok], y=np.asarray(gain, dtype=np.float64)[ok], name=label,
+                                 line={"color": "#555" if dash == "solid" else "#c2185b", "width": 1.6, "dash": dash},
+                                 hovertemplate=f"{_e(label)}: |H| %{{y:.3f}} at %{{x:.4g}} Hz<extra></extra>"),
+                      secondary_y=True)
+    fig.update_yaxes(type="log", title_text=f"PSD [({unit})²/Hz]", secondary_y=False,
+                     range=_log_range([v for v in (raw or []) if v is not None], sel))
+    fig.update_yaxes(title_text="filter gain |H|", range=[0, 1.3], secondary_y=True, showgrid=False,
+                     visible=bool(responses), tickmode="array", tickvals=[0, 0.25, 0.5, 0.707, 1.0])
+    fig.update_xaxes(title_text="frequency [Hz]")
+    fig.update_layout(title={"text": _e(title), "font": {"size": 14}}, hovermode="closest",
+                      legend={"orientation": "v", "x": 1.06, "y": 1})
+    return fig
+
+
+def _log_range(curves, sel, decades_below=3.0):
+    """A log axis' range [log10 lo, log10 hi]: the curves' span and ``decades_below``
+    decades under their lowest value (a steep filter's output would otherwise take
+    the axis down to 1e-70), or None (plotly's own) without a positive value."""
+    vals = [np.asarray(c, dtype=np.float64)[sel] for c in curves]
+    vals = np.concatenate(vals) if vals else np.zeros(0)
+    vals = vals[np.isfinite(vals) & (vals > 0)]
+    if not len(vals):
+        return None
+    return [math.log10(float(vals.min())) - decades_below, math.log10(float(vals.max())) + 0.5]
+
+
+def _peak_hover(q, unit):
+    from gyrodenoise.mavlink.spectra import describe_peak
+    try:
+        text = describe_peak(q, unit)
+    except (KeyError, TypeError, ValueError):
+        text = f"{q.get('freq_hz')} Hz"
+    if q.get("filter_gain") is not None:
+        text += f", filter gain {q['filter_gain']:.2f}"
+    return _e(text)
+
+
+def _spectrogram_figure(name, pd):
+    """The spectrogram (dB) of a stream's raw record with its colour bar and unit."""
+    import plotly.graph_objects as go
+    t, dens = pd["spectrogram"]
+    fr = np.asarray(pd["freq_hz"], dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        db = 10.0 * np.log10(np.where(np.asarray(dens) > 0, dens, np.nan))
+    lo, hi = np.nanpercentile(db, [5, 99.5]) if np.isfinite(db).any() else (0.0, 1.0)
+    step = max(1, int(math.ceil(db.shape[0] / 600)))          # at most ~600 columns
+    unit = pd.get("unit", "")
+    fig = go.Figure(go.Heatmap(x=np.asarray(t)[::step], y=fr, z=db[::step].T.astype(np.float32),
+                               zmin=lo, zmax=hi, colorscale="Viridis",
+                               colorbar={"title": {"text": f"dB ({unit})²/Hz"}},
+                               hovertemplate="t=%{x:.1f} s, %{y:.4g} Hz: %{z:.1f} dB<extra></extra>"))
+    fig.update_layout(title={"text": _e(f"{name}: spectrogram of the raw record (axes summed)"), "font": {"size": 14}})
+    fig.update_xaxes(title_text="time [s]")
+    fig.update_yaxes(title_text="frequency [Hz]")
+    return fig
+
+
+# ------------------------------------------------------------------ the vehicle's filters
+def stage_response(stage, freq_hz, rate_hz):
+    """Gain |H| of one of the vehicle's filter stages at ``freq_hz`` (sampled at
+    ``rate_hz``), or None when the stage's shape is not one this report models.
+
+    ``lowpass``: 2nd-order Butterworth at ``cutoff_hz`` (or ``freq_hz``); ``notch``,
+    ``harmonic_notch``, ``dynamic_notch``: a biquad notch at ``center_hz`` (or
+    ``freq_hz``) with ``bandwidth_hz`` (default a quarter of it), and at each of
+    ``harmonics`` (multiples; default [1]) when given; ``attenuation_db`` limits its
+    depth. Off (``enabled`` false, or a frequency of 0) gives all-pass."""
+    from scipy import signal
+    f = np.asarray(freq_hz, dtype=np.float64)
+    kind = str(stage.get("kind", ""))
+    if stage.get("enabled") is False:
+        return np.ones_like(f)
+    nyq = rate_hz / 2.0
+    if kind == "lowpass":
+        fc = stage.get("cutoff_hz", stage.get("freq_hz"))
+        if not fc:
+            return np.ones_like(f)
+        if not 0 < fc < nyq:
+            return None
+        sos = signal.butter(2, fc, fs=rate_hz, output="sos")
+        return np.abs(signal.sosfreqz(sos, worN=f, fs=rate_hz)[1])
+    if kind in ("notch", "harmonic_notch", "dynamic_notch"):
+        fc = stage.get("center_hz", stage.get("freq_hz"))
+        if not fc:
+            return np.ones_like(f)
+        bw = stage.get("bandwidth_hz") or fc / 4.0
+        floor = 10 ** (-float(stage.get("attenuation_db") or 40.0) / 20.0)
+        g = np.ones_like(f)
+        for h in stage.get("harmonics") or [1]:
+            fh = float(fc) * float(h)
+            if not 0 < fh < nyq:
+                continue
+            b, a = signal.iirnotch(fh, fh / bw, fs=rate_hz)
+            g = g * np.maximum(np.abs(signal.freqz(b, a, worN=f, fs=rate_hz)[1]), floor)
+        return g
+    return None
+
+
+def vehicle_response(stages, freq_hz, rate_hz):
+    """(gain of the chain of stages, the stages not modelled) at ``freq_hz``."""
+    g = np.ones_like(np.asarray(freq_hz, dtype=np.float64))
+    skipped = []
+    for st in stages or []:
+        if not isinstance(st, dict):
+            continue
+        r = stage_response(st, freq_hz, rate_hz)
+        if r is None:
+            skipped.append(str(st.get("kind")))
+        else:
+            g = g * r
+    return g, skipped
+
+
+# ------------------------------------------------------------------ sections
+def _summary_section(report, series):
+    rows = []
+    for key in ("file", "format", "engine", "method", "ar_order", "form", "form_note", "output_log", "seconds"):
+        if report.get(key) is not None:
+            rows.append([_e(key), _e(_f(report[key]))])
+    if report.get("filter_options"):
+        rows.append(["filter_options", _e(json.dumps(report["filter_options"], default=_json_default))])
+    streams = report.get("streams") or []
+    rows.append(["streams", _e(", ".join(s.get("name", "?") for s in streams) or "none")])
+    rows.append(["restarts", _e(len(report.get("restarts") or []))])
+    flying = _flying_time_s(report.get("segments"))
+    if flying is not None:
+        rows.append(["flying time", _e(f"{flying:.1f} s")])
+    elif report.get("segments_note"):
+        rows.append(["flying time", _e(f"unknown ({report['segments_note']})")])
+    out = ["<h2 id=summary>Summary</h2>", _table(rows, ["", "value"])]
+    srows = []
+    for s in streams:
+        noise = s.get("noise") or {}
+        for a, nz in noise.items():
+            nz = nz or {}
+            srows.append([_e(s.get("name")), _e(a), f'<span class=num>{_e(_f(s.get("rate_hz"), ".4g"))}</span>',
+                          _e(_f(s.get("samples"))), _e(_f(s.get("restarts"))),
+                          _e(_f(nz.get("raw"))), _e(_f(nz.get("filtered"))), _e(_f(nz.get("ratio"), ".2f")),
+                          _e(s.get("noise_unit", "")),
+                          _e(s.get("left_raw") or s.get("not_filtered") or s.get("slow_note") or s.get("note") or "")])
+    if srows:
+        out.append("<h3>Noise figures (white-noise sigma, the core's estimate)</h3>")
+        out.append(_table(srows, ["stream", "axis", "rate [Hz]", "samples", "restarts", "noise raw",
+                                  "noise filtered", "filtered/raw", "unit", "note"]))
+    warnings = [w for s in streams for w in s.get("warnings", [])]
+    if warnings:
+        out.append("<ul>" + "".join(f'<li class="warn">{_e(w)}</li>' for w in warnings) + "</ul>")
+    segs = report.get("segments")
+    if segs:
+        out.append("<h3>Segments</h3>" + _table(
+            [[_e(g.get("kind")), _e(_f(g.get("start_s"), ".2f")), _e(_f(g.get("end_s"), ".2f")),
+              _e(_f(_dur(g), ".1f"))] for g in segs], ["kind", "start [s]", "end [s]", "duration [s]"]))
+    elif "segments" in report or report.get("segments_note"):
+        out.append(_note("segments: none" + (f" ({report['segments_note']})" if report.get("segments_note") else "")))
+    return "".join(out)
+
+
+def _dur(seg):
+    try:
+        return float(seg["end_s"]) - float(seg["start_s"])
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _flying_time_s(segments):
+    """Seconds in ``flying`` or ``hover`` segments (hover counted once when it lies
+    inside a flying one), or None without segments."""
+    if not segments:
+        return None
+    spans = sorted((float(g["start_s"]), float(g["end_s"])) for g in segments
+                   if g.get("kind") in ("flying", "hover") and _dur(g) is not None)
+    total, end = 0.0, -math.inf
+    for a, b in spans:
+        a = max(a, end)
+        if b > a:
+            total += b - a
+            end = b
+    return total
+
+
+def _streams_section(report, series, figs):
+    out = ["<h2 id=streams>Gyro streams</h2>"]
+    sts = series.get("streams") or []
+    if not sts:
+        return "".join(out) + _note("no time series given")
+    vrates = series.get("vehicle_rate") or []
+    for st in sts:
+        title = f"{st['name']}: raw and {st.get('filtered_label') or 'filtered'}"
+        if st.get("filtered") is None:
+            title = f"{st['name']}: written raw (NOT FILTERED: {st.get('raw_reason') or 'no filtered output'})"
+        fig, note = _time_figure(st, vrates, report.get("segments"), title)
+        out.append(f"<h3>{_e(st['name'])}</h3>")
+        if note:
+            out.append(_note(note))
+        out.append(figs.div(fig, height=180 + 170 * len(st.get("axes") or "xyz")))
+    if not vrates:
+        out.append(_note("the vehicle's own rate estimate (ArduPilot RATE, PX4 vehicle_angular_velocity) "
+                         "was not given"))
+    return "".join(out)
+
+
+def _responses_for(report, series, rate_hz):
+    """[(label, freq_hz, gain, dash)] of the vehicle's filters and the recommended ones."""
+    out = []
+    fr_rev = series.get("filter_review") or {}
+    for key, label, dash in (("response_logged", "vehicle's filters (logged settings)", "solid"),
+                             ("response_recommended", "recommended settings", "dash")):
+        if fr_rev.get(key) is not None and fr_rev.get("freq_hz") is not None:
+            out.append((label, fr_rev["freq_hz"], fr_rev[key], dash))
+    if out:
+        return out
+    vf = report.get("vehicle_filters") or {}
+    stages = vf.get("stages") or []
+    if stages and rate_hz:
+        freq = np.linspace(0, rate_hz / 2.0, 512)
+        g, skipped = vehicle_response(stages, freq, rate_hz)
+        label = "vehicle's filters (logged settings)" + (f"; not modelled: {', '.join(skipped)}" if skipped else "")
+        out.append((label, freq, g, "solid"))
+        rec = (report.get("filter_review") or {}).get("recommended_stages")
+        if rec:
+            g2, _ = vehicle_response(rec, freq, rate_hz)
+            out.append(("recommended settings", freq, g2, "dash"))
+    return out
+
+
+def _spectra_section(report, series, figs):
+    out = ["<h2 id=spectra>Spectra</h2>"]
+    spectra = series.get("spectra") or {}
+    streams = {s.get("name"): s for s in report.get("streams") or []}
+    if not spectra:
+        reasons = [f"{n}: {s['spectrum'].get('reason')}" for n, s in streams.items()
+                   if isinstance(s.get("spectrum"), dict) and not s["spectrum"].get("available")]
+        return "".join(out) + _note("no spectrum" + (": " + "; ".join(reasons) if reasons else " given"))
+    sg_done = False
+    for name, pd in spectra.items():
+        rate = (streams.get(name) or {}).get("rate_hz") or (2.0 * float(np.asarray(pd["freq_hz"])[-1]))
+        stage = (streams.get(name) or {}).get("stage")
+        responses = _responses_for(report, series, rate) if stage != "post-filter" else []
+        title = f"{name}: PSD per axis (solid raw, dashed filtered; ▼ peaks, hover names them)"
+        if stage:
+            title += f"; the vehicle's {stage} gyro"
+        out.append(f"<h3>{_e(name)}</h3>" + figs.div(_spectrum_figure(name, pd, responses, title), height=460))
+        if pd.get("spectrogram") is not None and not sg_done:
+            out.append(figs.div(_spectrogram_figure(name, pd), height=380))
+            sg_done = True
+    if not (report.get("vehicle_filters") or {}).get("stages") and not series.get("filter_review"):
+        out.append(_notes_for(report, "vehicle_filters") or
+                   _note("the vehicle's filter settings were not found in the log: no response drawn"))
+    return "".join(out)
+
+
+def _filter_review_section(report, series, figs):
+    out = ["<h2 id=filters>Vehicle filters and review</h2>"]
+    vf = report.get("vehicle_filters")
+    if vf:
+        out.append(f"<p>autopilot: <b>{_e(vf.get('autopilot') or 'unknown')}</b></p>")
+        stages = vf.get("stages") or []
+        if stages:
+            keys = sorted({k for s in stages if isinstance(s, dict) for k in s} - {"kind"})
+            out.append(_table([[_e(s.get("kind"))] + [_e(_f(s.get(k))) for k in keys]
+                               for s in stages if isinstance(s, dict)], ["kind"] + keys))
+        params = vf.get("parameters") or {}
+        if params:
+            out.append("<details><summary>logged parameters (" + str(len(params)) + ")</summary>" +
+                       _table([[_e(k), _e(_f(v))] for k, v in params.items()], ["parameter", "value"]) +
+                       "</details>")
+        stage_rows = [[_e(s.get("name")), _e(s.get("stage"))] for s in report.get("streams") or [] if s.get("stage")]
+        if stage_rows:
+            out.append(_table(stage_rows, ["stream", "stage"]))
+    else:
+        out.append(_notes_for(report, "vehicle_filters") or _note("vehicle_filters: not in this report"))
+    fr = report.get("filter_review")
+    if fr:
+        out.append("<h3>Filter review</h3>" + _kv_table(fr, skip=("param_lines", "recommended")))
+        if fr.get("recommended"):
+            out.append("<h3>Recommended parameters</h3>" +
+                       _table([[_e(k), _e(_f(v))] for k, v in fr["recommended"].items()], ["parameter", "value"]))
+        if fr.get("param_lines"):
+            out.append("<p>Lines to paste into the autopilot's parameter file or console:</p><pre>" +
+                       _e("\n".join(str(x) for x in fr["param_lines"])) + "</pre>")
+    else:
+        out.append(_notes_for(report, "filter_review") or _note("filter_review: not in this report"))
+    rev = series.get("filter_review") or {}
+    if rev.get("freq_hz") is not None and any(rev.get(k) is not None for k in
+                                             ("psd_pre", "psd_post_logged", "psd_post_recommended")):
+        out.append(figs.div(_review_figure(rev), height=440))
+    return "".join(out)
+
+
+def _review_figure(rev):
+    """The review's PSDs (pre-filter, predicted post-filter for the logged and the
+    recommended settings) and the two responses on a second axis."""
+    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
+    fig = make_subplots(specs=[[{"secondary_y": True}]])
+    fr = np.asarray(rev["freq_hz"], dtype=np.float64)
+    sel = fr > 0
+    unit = rev.get("unit", "deg/s")
+    for key, label, colour, dash in (("psd_pre", "pre-filter (measured)", "#777", "solid"),
+                                     ("psd_post_logged", "post-filter, logged settings", "#1f4fb4", "solid"),
+                                     ("psd_post_recommended", "post-filter, recommended", "#c2185b", "dash")):
+        if rev.get(key) is not None:
+            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(rev[key], dtype=np.float64)[sel], name=label,
+                                     line={"color": colour, "dash": dash}), secondary_y=False)
+    for key, label, dash in (("response_logged", "|H| logged", "dot"), ("response_recommended", "|H| recommended",
+                                                                        "dashdot")):
+        if rev.get(key) is not None:
+            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(rev[key], dtype=np.float64)[sel], name=label,
+                                     line={"color": "#333", "dash": dash}), secondary_y=True)
+    fig.update_yaxes(type="log", title_text=f"PSD [({unit})²/Hz]", secondary_y=False,
+                     range=_log_range([rev[k] for k in ("psd_pre", "psd_post_logged") if rev.get(k) is not None], sel))
+    fig.update_yaxes(title_text="gain |H|", range=[0, 1.3], secondary_y=True, showgrid=False,
+                     tickmode="array", tickvals=[0, 0.25, 0.5, 0.707, 1.0])
+    fig.update_xaxes(title_text="frequency [Hz]")
+    fig.update_layout(title={"text": "filter review: predicted post-filter spectrum", "font": {"size": 14}},
+                      legend={"x": 1.08, "y": 1})
+    return fig
+
+
+def vibration_levels(vib):
+    """[(segment label, {metric: value})] and {metric: {"warn", "fail"}} of a
+    vibration report: its ``segments`` (or ``per_segment``) list of dicts, each
+    with its ``kind`` (or ``segment``) and numeric figures (or a ``levels`` dict of
+    them), and its ``thresholds``: {metric: {"warn", "fail"}} or one {"warn",
+    "fail"} for every metric."""
+    rows = []
+    for i, seg in enumerate(vib.get("segments") or vib.get("per_segment") or []):
+        if not isinstance(seg, dict):
+            continue
+        label = str(seg.get("kind") or seg.get("segment") or f"segment {i + 1}")
+        if seg.get("start_s") is not None:
+            label += f" {float(seg['start_s']):.0f}-{float(seg.get('end_s') or 0):.0f} s"
+        vals = seg.get("levels") if isinstance(seg.get("levels"), dict) else seg
+        nums = {k: float(v) for k, v in vals.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+                and k not in ("start_s", "end_s", "samples", "count", "n")}
+        if nums:
+            rows.append((label, nums))
+    if not rows and isinstance(vib.get("levels"), dict):
+        nums = {k: float(v) for k, v in vib["levels"].items() if isinstance(v, (int, float))}
+        if nums:
+            rows.append((vib.get("over") or "log", nums))
+    th = vib.get("thresholds") or {}
+    if isinstance(th, dict) and ("warn" in th or "fail" in th):
+        th = {k: th for k in {m for _, n in rows for m in n}}
+    return rows, {k: v for k, v in th.items() if isinstance(v, dict)}
+
+
+def _vibration_section(report, figs):
+    out = ["<h2 id=vibration>Vibration</h2>"]
+    vib = report.get("vibration")
+    if not vib:
+        return "".join(out) + (_notes_for(report, "vibration") or _note("vibration: not in this report"))
+    verdict = str(vib.get("verdict") or "")
+    cls = verdict if verdict in ("pass", "warn", "fail") else ""
+    out.append(f'<p>verdict: <span class="{cls}">{_e(verdict or "none")}</span>'
+               f'{" (source: " + _e(vib.get("source")) + ")" if vib.get("source") else ""}</p>')
+    rows, th = vibration_levels(vib)
+    if rows:
+        import plotly.graph_objects as go
+        metrics = sorted({m for _, n in rows for m in n})
+        fig = go.Figure()
+        for label, nums in rows:
+            fig.add_trace(go.Bar(x=metrics, y=[nums.get(m) for m in metrics], name=label,
+                                 hovertemplate=f"{_e(label)} %{{x}}: %{{y:.3g}}<extra></extra>"))
+        for j, m in enumerate(metrics):
+            for level, colour in (("warn", "#e69500"), ("fail", "#b00020")):
+                v = (th.get(m) or {}).get(level)
+                if v is None:
+                    continue
+                fig.add_shape(type="line", x0=j - 0.45, x1=j + 0.45, y0=v, y1=v, line={"color": colour, "width": 2,
+                                                                                      "dash": "dash"})
+                fig.add_trace(go.Scatter(x=[m], y=[v], mode="markers", marker={"color": colour, "symbol": "line-ew",
+                                                                               "size": 1},
+                                         name=f"{level} threshold", legendgroup=level,
+                                         showlegend=not any(t.name == f"{level} threshold" for t in fig.data),
+                                         hovertemplate=f"{level} threshold of %{{x}}: %{{y:.3g}}<extra></extra>"))
+        fig.update_layout(barmode="group", title={"text": "vibration per segment against the thresholds "
+                                                          "(dashed: warn orange, fail red)", "font": {"size": 14}},
+                          yaxis_title=_e(vib.get("unit") or "level"))
+        out.append(figs.div(fig, height=400))
+    out.append(_kv_table(vib, skip=("segments", "per_segment", "levels")))
+    return "".join(out)
+
+
+def _notes_section(report):
+    notes = [(k, v) for k, v in report.items() if k.endswith("_note") and v]
+    if not notes:
+        return ""
+    return "<h2 id=notes>Notes</h2>" + _table([[_e(k), _e(v)] for k, v in notes], ["note", "text"])
+
+
+# ------------------------------------------------------------------ pages
+def _page(title, body):
+    """A whole HTML page: plotly.js inlined once in the head, no external resource."""
+    from plotly.offline import get_plotlyjs
+    import plotly
+    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    from gyrodenoise._version import __version__
+    return ("<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
+            f"<meta name=viewport content='width=device-width, initial-scale=1'><title>{_e(title)}</title>"
+            f"<style>{CSS}</style><script type='text/javascript'>{get_plotlyjs()}</script></head><body>"
+            f"{body}<p class=small>gyrodenoise {_e(__version__)}, plotly.js {_e(_plotlyjs_version(plotly))}; "
+            f"written {stamp}; self-contained (opens offline)</p></body></html>\n")
+
+
+def _plotlyjs_version(plotly):
+    try:
+        from plotly.offline import get_plotlyjs_version
+        return get_plotlyjs_version()
+    except ImportError:
+        return plotly.__version__
+
+
+def _write(path, text):
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+    return path
+
+
+def write_log_report(path, report, series=None):
+    """Write the interactive HTML report of one log to ``path``; return ``path``.
+
+    ``report``: the log's report (:func:`gyrodenoise.mavlink.pipeline.process_log`,
+    with whatever of ``segments``, ``vehicle_filters``, ``filter_review``,
+    ``vibration`` and their ``*_note`` keys it has). ``series`` (arrays, all
+    optional)::
+
+        {"streams": [{"name": str, "time_s": (n,) boot time,
+                      "raw": (n, k), "filtered": (n, k) or None (written raw),
+                      "unit": "deg/s", "axes": ("x", "y", "z"),
+                      "restarts": bool (n,) or sample indices,
+                      "filtered_label": "filtered (motion, offline)",
+                      "raw_reason": why it was written raw, or None}, ...],
+         "vehicle_rate": [{"name": "RATE", "time_s": (m,), "rate": (m, 3), "unit": "deg/s"}],
+         "spectra": {stream name: the plot data of
+                     gyrodenoise.mavlink.spectra.stream_spectrum ("freq_hz", "raw" and
+                     "filtered" (or "psd_raw"/"psd_filtered") per axis, "peaks" per axis,
+                     "unit", "axes", "filtered_is_raw", "spectrogram": (t, density) or None)},
+         "filter_review": {"freq_hz", "unit", "psd_pre", "psd_post_logged", "psd_post_recommended",
+                           "response_logged", "response_recommended"}}
+
+    :func:`stream_series` gives a stream's entry from a processed GyroStream. Without
+    ``filter_review`` responses the vehicle's response is computed from
+    ``report["vehicle_filters"]["stages"]`` (:func:`stage_response`)."""
+    series = series or {}
+    figs = _Figures()
+    name = Path(str(report.get("file", "log"))).name
+    nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("summary", "summary"), ("streams", "streams"),
+                                                         ("spectra", "spectra"), ("filters", "filters"),
+                                                         ("vibration", "vibration"), ("notes", "notes")))
+    body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
+            _summary_section(report, series),
+            _streams_section(report, series, figs),
+            _spectra_section(report, series, figs),
+            _filter_review_section(report, series, figs),
+            _vibration_section(report, figs),
+            _notes_section(report)]
+    return _write(path, _page(f"{name}: gyro review", "".join(body)))
+
+
+def write_fleet_report(path, fleet_report, per_log=()):
+    """Write the fleet's interactive HTML report to ``path``; return ``path``.
+
+    ``fleet_report``: what :func:`gyrodenoise.mavlink.fleet.write_fleet_report`
+    writes to fleet.json (``rows`` of :func:`gyrodenoise.mavlink.fleet.fleet_rows`,
+    ``n_logs``, ``n_ok``, ``n_failed``); ``per_log``: the logs' reports (their
+    ``report_html`` becomes a link, relative to ``path``'s folder, and their
+    ``vibration`` verdict and flying time a column)."""
+    path = Path(path)
+    rows = list(fleet_report.get("rows") or [])
+    by_file = {str(r.get("file")): r for r in per_log or []}
+    figs = _Figures()
+    out = [f"<h1>Fleet report: {_e(fleet_report.get('n_logs', len(by_file)))} logs</h1>",
+           f"<p>{_e(fleet_report.get('n_ok', ''))} processed, {_e(fleet_report.get('n_failed', ''))} failed; "
+           f"noise columns: {_e(fleet_report.get('noise_of', ''))}</p>"]
+    table = []
+    for r in rows:
+        rep = by_file.get(str(r.get("file"))) or {}
+        link = _e(r.get("log"))
+        if rep.get("report_html"):
+            rel = os.path.relpath(Path(rep["report_html"]).resolve(), path.parent.resolve())
+            link = f"<a href='{_e(Path(rel).as_posix())}'>{link}</a>"
+        vib = rep.get("vibration") or {}
+        verdict = str(vib.get("verdict") or "")
+        flying = _flying_time_s(rep.get("segments"))
+        if r.get("status") == "failed":
+            table.append([link, "", '<span class="fail">failed</span>', "", "", "", "", "", "", _e(r.get("error"))])
+            continue
+        vs = r.get("density_vs_fleet_median")
+        table.append([link, _e(r.get("stream")), "ok", _e(_f(r.get("rate_hz"), ".4g")),
+                      _e(_f(r.get("noise_raw"))), _e(_f(r.get("noise_filtered"))),
+                      _e(_f(r.get("noise_density_deg_s_rthz"))),
+                      ('<span class="fail">' if r.get("flag") else "<span>") + _e(_f(vs, ".2g")) + "</span>",
+                      f'<span class="{_e(verdict)}">{_e(verdict)}</span>' +
+                      ("" if flying is None else f" {flying:.0f} s flying"),
+                      _e(r.get("left_raw") or r.get("vs_fleet_note") or r.get("note") or "")])
+    out.append("<h2>Logs</h2>" + _table(table, ["log (its report)", "stream", "status", "rate [Hz]", "noise raw",
+                                               "noise filtered", "density [deg/s/√Hz]", "x fleet median",
+                                               "vibration", "note"]))
+    fig = _fleet_figure(rows)
+    if fig is not None:
+        out.append("<h2>Noise density per log and stream</h2>" + figs.div(fig, height=480))
+    else:
+        out.append(_note("no stream has a noise density to compare"))
+    return _write(path, _page("gyrodenoise fleet report", "".join(out)))
+
+
+def _fleet_figure(rows):
+    """Noise density per log (x) and IMU (colour, as compared across the fleet);
+    flagged streams circled red. None when no stream has a density."""
+    import plotly.graph_objects as go
+    ok = [r for r in rows if r.get("status") == "ok" and r.get("noise_density_deg_s_rthz") is not None]
+    if not ok:
+        return None
+    logs = sorted({r["log"] for r in ok})
+    fig = go.Figure()
+    for g in sorted({r.get("compared_as") or r.get("stream") for r in ok}):
+        pts = [r for r in ok if (r.get("compared_as") or r.get("stream")) == g]
+        fig.add_trace(go.Scatter(x=[r["log"] for r in pts], y=[r["noise_density_deg_s_rthz"] for r in pts],
+                                 mode="markers", name=g, marker={"size": 10},
+                                 text=[f"{r['log']} {r['stream']}: filtered/raw noise "
+                                       f"{_f((r.get('noise_filtered') or 0) / r['noise_raw'], '.2f') if r.get('noise_raw') else ''}"
+                                       for r in pts],
+                                 hovertemplate="%{text}<br>%{y:.3g} deg/s/√Hz<extra></extra>"))
+    flagged = [r for r in ok if r.get("flag")]
+    if flagged:
+        fig.add_trace(go.Scatter(x=[r["log"] for r in flagged], y=[r["noise_density_deg_s_rthz"] for r in flagged],
+                                 mode="markers", name="noisier than the fleet",
+                                 marker={"size": 20, "color": "rgba(0,0,0,0)", "line": {"color": "red", "width": 2}}))
+    fig.update_xaxes(categoryorder="array", categoryarray=logs, tickangle=-45)
+    fig.update_yaxes(type="log", title_text="raw noise density [deg/s/√Hz]")
+    fig.update_layout(title={"text": "gyro noise density per log and IMU", "font": {"size": 14}})
+    return fig

@@ -1,0 +1,38 @@
+"""The HTML report without a browser: any subset of the report's keys renders, notes
+stand in for missing sections, long series are reduced, the page holds no external
+resource (the browser test, test_html_report_browser.py, checks that it draws)."""
+import numpy as np
+
+from gyrodenoise.mavlink import html_report as hr
+
+
+def test_a_report_with_only_its_file_renders_with_its_notes(tmp_path):
+    rep = {"file": "x.bin", "segments": [], "segments_note": "no arming record",
+           "vehicle_filters": None, "vehicle_filters_note": "no parameters in the log",
+           "filter_review": None, "filter_review_note": "no pre-filter stream", "vibration": None,
+           "vibration_note": "no VIBE messages"}
+    text = hr.write_log_report(tmp_path / "r.html", rep).read_text()
+    for note in ("no arming record", "no parameters in the log", "no pre-filter stream", "no VIBE messages"):
+        assert note in text
+    assert "<script src" not in text and "<link" not in text and "cdn." not in text.lower().split("</head>")[1]
+    hr.write_log_report(tmp_path / "bare.html", {"file": "y.bin"})
+
+
+def test_envelope_keeps_the_extremes_in_time_order():
+    t = np.arange(240_000) / 400.0
+    y = np.sin(t)
+    y[12345] = 50.0
+    tt, yy = hr.envelope(t, y, nbins=1500)
+    assert len(tt) <= 3000 and yy.max() == 50.0 and np.all(np.diff(tt) >= 0)
+    r = np.zeros(len(t), dtype=bool)
+    r[100_000] = True
+    tt, yy = hr.session_envelope(t, y, r)
+    assert np.isnan(yy).sum() == 1 and len(tt) <= 3002
+
+
+def test_vehicle_response_models_lowpass_and_notch():
+    f = np.array([1.0, 80.0, 150.0])
+    g, skipped = hr.vehicle_response([{"kind": "lowpass", "cutoff_hz": 100.0},
+                                      {"kind": "notch", "center_hz": 80.0, "bandwidth_hz": 20.0},
+                                      {"kind": "mystery"}], f, 1000.0)
+    assert g[0] > 0.99 and g[1] < 0.05 and skipped == ["mystery"]
