@@ -97,7 +97,12 @@ def register_cli(subparsers):
                         "the signing passphrase (its SHA-256 is the key). Every packet is checked (unsigned or "
                         "badly signed ones on a signed link are dropped and counted) and every changed packet "
                         "re-signed. Without it a signed packet goes out unchanged (gyro raw)")
-    p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
+    p.add_argument("--no-plots", action="store_true",
+                   help="do not write PNG plots nor the HTML report (NAME.report.html, fleet.html)")
+    p.add_argument("--whole-log", action="store_true",
+                   help="compute the spectra, noise figures, filter review and vibration over the whole log "
+                        "(default: over the flying segments, \"over\": \"flying\"; a log with no flying "
+                        "segment: the whole log, and the summary says so)")
     p.add_argument("--no-csv", action="store_true", help="do not write CSV files")
     live = p.add_argument_group("live link (LOG is a connection string)")
     live.add_argument("--forward", default=None, metavar="CONN",
@@ -357,7 +362,7 @@ def _run_logs(args, client, created):
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
               filter_kw=_filter_kw(args), zero_phase=args.zero_phase, causal=args.causal,
-              signing_key=args.key)
+              signing_key=args.key, whole_log=args.whole_log)
     single = (len(args.logs) == 1 and not is_url(args.logs[0]) and Path(args.logs[0]).is_file()
               and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
