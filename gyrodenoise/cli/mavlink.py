@@ -573,6 +573,11 @@ def _print_log(out, r, summary):
     out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
               f"{_form_text(r)})\n")
     _print_signing(out, r)
+    from gyrodenoise.mavlink.log_review import review_text
+    for line in review_text(r):
+        out.write(f"  {line}\n")
+    if r.get("report_html"):
+        out.write(f"  report: {r['report_html']}\n")
     for s in r["streams"]:
         _print_stream(out, s, r, summary)
     for e in r["restarts"]:
@@ -597,8 +602,9 @@ def _print_stream(out, s, r, summary):
     """One stream's lines of the text summary of log ``r``."""
     from gyrodenoise.mavlink.process import saturation_note
     from gyrodenoise.mavlink.spectra import summary_lines
+    stage = f"  {s['stage']}" if s.get("stage") else ""
     out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
-              f"{s['restarts']} restart(s)  unit {s['field_unit']}"
+              f"{s['restarts']} restart(s)  unit {s['field_unit']}{stage}"
               f"{'' if s['unit_known'] else ' (scale unknown)'}"
               f"{_filter_rate_text(s, summary)}\n")
     if s.get("left_raw"):
