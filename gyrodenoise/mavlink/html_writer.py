@@ -26,6 +26,8 @@ def _helper(conn):
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent stops it (abort)
     try:
         import plotly.graph_objects  # noqa: F401 - imported ahead, while the parent reads the log
+        import plotly.subplots  # noqa: F401
+        import scipy.signal  # noqa: F401 - the filters' responses (seconds to import)
         import gyrodenoise.mavlink.html_report  # noqa: F401
     except ImportError:
         pass
