@@ -49,7 +49,7 @@ class HtmlWriter:
     """Writes one log's HTML report, in a forked helper when ``background`` (Linux)."""
 
     def __init__(self, background=True):
-        self.proc = self.conn = None
+        self.proc = self.conn = self.sender = None
         self.pending = 0
         if background and sys.platform.startswith("linux"):
             import multiprocessing as mp
@@ -66,8 +66,18 @@ class HtmlWriter:
         if self.proc is None:
             _write(path, report, series)
             return
-        self.conn.send((str(path), report, series))
+        import threading
+        # a thread sends: a send blocks until the helper reads, and the helper may
+        # still be importing (the arrays are MBs)
+        self.sender = threading.Thread(target=self._send, args=((str(path), report, series),), daemon=True)
+        self.sender.start()
         self.pending += 1
+
+    def _send(self, job):
+        try:
+            self.conn.send(job)
+        except (OSError, ValueError):          # the helper was stopped (an interrupt)
+            pass
 
     def close(self):
         """Wait for the helper's page; RuntimeError with its failure."""
@@ -75,6 +85,8 @@ class HtmlWriter:
             return
         errors = []
         try:
+            if self.sender is not None:
+                self.sender.join()
             for _ in range(self.pending):
                 r = self.conn.recv()
                 if r:
