@@ -27,7 +27,6 @@ def _helper(conn):
     try:
         import plotly.graph_objects  # noqa: F401 - imported ahead, while the parent reads the log
         import plotly.subplots  # noqa: F401
-        import scipy.signal  # noqa: F401 - the filters' responses (seconds to import)
         import gyrodenoise.mavlink.html_report  # noqa: F401
     except ImportError:
         pass

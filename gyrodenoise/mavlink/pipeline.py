@@ -134,13 +134,34 @@ def _html_series(kind, source, streams, review, rep):
                           for s in streams],
               "spectra": spectra,
               "vehicle_rate": vehicle_rate_series(kind, source, (rep.get("vehicle_filters") or {}).get("autopilot"))}
-    if review.plot is not None:
-        p = review.plot
-        series["filter_review"] = {"freq_hz": p["freq_hz"], "unit": "deg/s",
-                                   "psd_pre": np.asarray(p["psd_pre"]).sum(axis=0),
-                                   "psd_post_logged": np.asarray(p["psd_logged"]).sum(axis=0),
-                                   "psd_post_recommended": np.asarray(p["psd_recommended"]).sum(axis=0)}
+    series["filter_review"] = _review_series(review.plot, rep.get("vehicle_filters") or {}, streams)
     return series
+
+
+def _review_series(plot, filters, streams):
+    """The ``series["filter_review"]`` of the HTML report: the review's spectra summed
+    over the axes and the gains |H| of the logged and the recommended chains, each
+    the ratio of the review's predicted post-filter PSD to the pre-filter one (the
+    autopilot's own biquads, :func:`gyrodenoise.mavlink.vehicle_filters.chain_response`,
+    with the notch centres the review used). Without a review, the logged chain's
+    gain from its stages; None when there are none."""
+    if plot is not None:
+        pre = np.asarray(plot["psd_pre"], dtype=np.float64)
+        out = {"freq_hz": plot["freq_hz"], "unit": "deg/s", "psd_pre": pre.sum(axis=0)}
+        for key, name in (("psd_logged", "logged"), ("psd_recommended", "recommended")):
+            post = np.asarray(plot[key], dtype=np.float64)
+            out[f"psd_post_{name}"] = post.sum(axis=0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[f"response_{name}"] = np.sqrt(np.where(pre[0] > 0, post[0] / pre[0], np.nan))
+        return out
+    stages = [st for st in filters.get("stages") or [] if st.get("path", "rate") == "rate"]
+    rates = [s.rate_hz for s in streams if s.rate_hz]
+    fs = filters.get("filter_rate_hz")
+    if not stages or not fs or not rates:
+        return None
+    from gyrodenoise.mavlink.vehicle_filters import chain_response
+    freq = np.linspace(0.0, min(fs, max(rates)) / 2.0, 512)
+    return {"freq_hz": freq, "unit": "deg/s", "response_logged": np.abs(chain_response(stages, freq, fs))}
 
 
 def _check_signatures(path, source, streams, link, raw_imu_unit, raw_imu_scale):
