@@ -371,7 +371,7 @@ def _run_logs(args, client, created):
     try:
         _write_out(args.out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
         if not single:
-            summary["fleet_report"] = _fleet_report(summary, args.out)
+            summary["fleet_report"] = _fleet_report(summary, args.out, html=not args.no_plots)
     except OSError as exc:
         raise InputError(f"-o {args.out}: cannot write summary.json ({exc.strerror or exc})") from None
     if summary["failed"]:
@@ -414,17 +414,18 @@ def _interrupted(out, summary):
             f"{len(summary['unfinished'])} unfinished log(s)")
 
 
-def _fleet_report(summary, out):
-    """The fleet report (fleet.md, fleet.json, fleet.png) beside the outputs; returns its paths."""
+def _fleet_report(summary, out, html=True):
+    """The fleet report (fleet.md, fleet.json, fleet.png and, with ``html``, fleet.html)
+    beside the outputs; returns its paths."""
     import tempfile
     from gyrodenoise.mavlink.cluster import is_url
     from gyrodenoise.mavlink.fleet import write_fleet_report
     if not is_url(out):
-        return [str(x) for x in write_fleet_report(summary, Path(out))]
+        return [str(x) for x in write_fleet_report(summary, Path(out), html=html)]
     with tempfile.TemporaryDirectory() as tmp:
         import fsspec
         paths = []
-        for f in write_fleet_report(summary, Path(tmp)):
+        for f in write_fleet_report(summary, Path(tmp), html=html):
             dest = str(out).rstrip("/") + "/" + f.name
             with fsspec.open(dest, "wb") as fh:
                 fh.write(f.read_bytes())
