@@ -168,9 +168,12 @@ def review_text(rep):
         seg_line = f"segments: none ({rep.get('segments_note', '')})"
     lines = [seg_line + f"; figures over: {rep.get('over', OVER_WHOLE)}"]
     vib = rep.get("vibration")
-    if vib:
-        lines.append(f"vibration: {str(vib.get('verdict') or 'no verdict').upper()} ({vib.get('source')}, over "
-                     f"{vib.get('over')})")
+    if vib and vib.get("verdict"):
+        lines.append(f"vibration: {vib['verdict'].upper()} ({vib.get('source')} over {vib.get('over')}"
+                     f"{_worst_figures(vib)})")
+    elif vib:
+        lines.append(f"vibration: no verdict ({vib.get('source')} only, over {vib.get('over')}: no published "
+                     f"threshold for them)")
     else:
         lines.append(f"vibration: none ({rep.get('vibration_note', '')})")
     fr = rep.get("filter_review")
@@ -182,3 +185,17 @@ def review_text(rep):
     else:
         lines.append(f"filter review: none ({rep.get('filter_review_note', '')})")
     return lines
+
+
+def _worst_figures(vib):
+    """'; vibration_z p95 34.9 (warn), clipping_0 +6311 (fail)': the figures of a
+    vibration review at warn or fail (the worst segment's value of each)."""
+    worst = {}
+    for seg in vib.get("segments") or []:
+        for name, f in (seg.get("figures") or {}).items():
+            v = f.get("verdict")
+            if v in ("warn", "fail"):
+                value = f"+{f['increase']}" if "increase" in f else f"p95 {f.get('p95')}"
+                if name not in worst or (v == "fail" and worst[name][1] != "fail"):
+                    worst[name] = (value, v)
+    return ("; " + ", ".join(f"{n} {val} ({v})" for n, (val, v) in worst.items())) if worst else ""
