@@ -327,7 +327,7 @@ def format_log_table(summary):
     for log in summary.get("logs", []):
         f = log_review_fields(log)
         vib = (f["vibration_verdict"] or "no verdict") if log.get("vibration") else "no data"
-        rec = ("no review: " + (log.get("filter_review_note") or "") if f["recommended"] is None else
+        rec = ("none: " + (log.get("filter_review_note") or "no review").split(":")[0] if f["recommended"] is None else
                " ".join(f"`{x}`" for x in f["recommended"]) or "no change")
         fly = f["flying_time_s"]
         out.append(f"| {Path(log['file']).name} | {'' if fly is None else format(fly, '.1f')} | "

@@ -239,7 +239,7 @@ def test_fleet_report_gives_each_logs_review(tmp_path):
              "vibration": {"verdict": "warn"}, "filter_review": {"param_lines": ["INS_GYRO_FILTER,37"]},
              "report_html": None},
             {"file": "b.bin", "streams": [], "flying_time_s": 0.0, "over": "whole log", "vibration": None,
-             "filter_review": None, "filter_review_note": "no pre-filter gyro stream"}]
+             "filter_review": None, "filter_review_note": "no pre-filter gyro stream: IMU is logged after the filters"}]
     text = fleet.format_log_table({"logs": logs})
     assert "| a.bin | 12.5 | flying | warn | `INS_GYRO_FILTER,37` |" in text
-    assert "| b.bin | 0.0 | whole log | no data | no review: no pre-filter gyro stream |" in text
+    assert "| b.bin | 0.0 | whole log | no data | none: no pre-filter gyro stream |" in text
