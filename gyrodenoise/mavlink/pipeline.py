@@ -133,7 +133,8 @@ def _html_series(kind, source, streams, review, rep):
     series = {"streams": [stream_series(s, f"filtered ({rep['method']}{', ' + rep['form'] if rep.get('form') else ''})")
                           for s in streams],
               "spectra": spectra,
-              "vehicle_rate": vehicle_rate_series(kind, source, (rep.get("vehicle_filters") or {}).get("autopilot"))}
+              "vehicle_rate": vehicle_rate_series(kind, source, (rep.get("vehicle_filters") or {}).get("autopilot"),
+                                                  streams)}
     series["filter_review"] = _review_series(review.plot, rep.get("vehicle_filters") or {}, streams)
     return series
 

@@ -243,3 +243,18 @@ def test_fleet_report_gives_each_logs_review(tmp_path):
     text = fleet.format_log_table({"logs": logs})
     assert "| a.bin | 12.5 | flying | warn | `INS_GYRO_FILTER,37` |" in text
     assert "| b.bin | 0.0 | whole log | no data | none: no pre-filter gyro stream |" in text
+
+
+def test_rate_scale_tells_centidegrees():
+    """SYNTHETIC: a RATE record 100x the gyro (ArduCopter 3.x, cdeg/s) is scaled by 0.01;
+    one in deg/s (4.x) is kept."""
+    from gyrodenoise.mavlink.log_review import rate_scale
+    from gyrodenoise.mavlink.streams import RAD_TO_DEG, GyroStream
+    t = np.arange(500) / 50.0
+    w = 30.0 * np.sin(2 * np.pi * 0.5 * t)[:, None] * np.array([1.0, 0.7, 0.3])      # deg/s
+    g = GyroStream(name="IMU", message="IMU", unit="rad/s", to_deg_s=RAD_TO_DEG, time_s=t,
+                   raw=w / RAD_TO_DEG, index=np.arange(500))
+    tr = t[::5]
+    assert rate_scale(tr, 100.0 * w[::5], [g]) == 0.01
+    assert rate_scale(tr, w[::5], [g]) == 1.0
+    assert rate_scale(tr, w[::5], []) == 1.0
