@@ -605,9 +605,9 @@ def _print_stream(out, s, r, summary):
     from gyrodenoise.mavlink.spectra import summary_lines
     stage = f"  {s['stage']}" if s.get("stage") else ""
     out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
-              f"{s['restarts']} restart(s)  unit {s['field_unit']}{stage}"
+              f"{s['restarts']} restart(s)  unit {s['field_unit']}"
               f"{'' if s['unit_known'] else ' (scale unknown)'}"
-              f"{_filter_rate_text(s, summary)}\n")
+              f"{_filter_rate_text(s, summary)}{stage}\n")
     if s.get("left_raw"):
         out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
     if s.get("all_zero"):

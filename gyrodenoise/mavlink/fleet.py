@@ -87,7 +87,7 @@ def fleet_rows(summary):
             kept = {a: m for a, m in measured.items() if m.get("motion_above_noise") is not False}
             rows.append({
                 "log": Path(log["file"]).name, "file": log["file"], "stream": s["name"], "status": "ok",
-                "compared_as": compared_as(s["name"]), "stage": s.get("stage", "unknown"),
+                "compared_as": compared_as(s["name"]), "stage": s.get("stage"),
                 "noise_over": s.get("noise_over"), **review,
                 "samples": s.get("samples"), "rate_hz": s.get("rate_hz"), "restarts": s.get("restarts"),
                 "noise_raw": raw, "noise_filtered": filt, "noise_unit": s.get("noise_unit"),
@@ -158,8 +158,9 @@ def peer_group(row):
     (:func:`compared_as`) at the same stage (``pre-filter``/``post-filter``/``unknown``,
     :func:`gyrodenoise.mavlink.vehicle_filters.stream_stage`): the batch sampler's
     pre-filter 2 kHz gyro and a 25 Hz post-filter IMU stream are not alike. As text:
-    ``"IMU[0] post-filter"``."""
-    return f"{row['compared_as']} {row.get('stage') or 'unknown'}"
+    ``"IMU[0] post-filter"`` (the IMU alone for a report without stages)."""
+    stage = row.get("stage")
+    return f"{row['compared_as']} {stage}" if stage else row["compared_as"]
 
 
 def _flag(rows):

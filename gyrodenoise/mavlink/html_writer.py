@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 
-from gyrodenoise.mavlink.stopping import signals_blocked, stop_processes
+from gyrodenoise.mavlink.stopping import as_child, signals_blocked, stop_processes
 
 
 def _write(path, report, series):
@@ -22,8 +22,7 @@ def _write(path, report, series):
 def _helper(conn):
     """The helper's loop: import, then write each ``(path, report, series)`` it is sent,
     answering "" or the error's text; ``None`` ends it."""
-    import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)       # the parent stops it (abort)
+    as_child()          # SIGINT ignored, SIGTERM unblocked, ends with its parent (the parent stops it)
     try:
         import plotly.graph_objects  # noqa: F401 - imported ahead, while the parent reads the log
         import plotly.subplots  # noqa: F401
