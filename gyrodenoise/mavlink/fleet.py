@@ -16,13 +16,16 @@ sigma / sqrt(fs / 2) is the one-sided density (the tests check it against
 Welch's estimate on real logs). The table gives
 the mean over the stream's axes (x, y, z) of the per-axis figures. Vibration
 near the Nyquist frequency still lifts it; the table flags a stream whose density is more than 3 robust sigmas
-above the median of the same IMU across the fleet, where DataFlash's older
+above the median of the same IMU at the same stage (pre-/post-filter, :func:`peer_group`)
+across the fleet, over each log's flying time where it has one, where DataFlash's older
 names are the same IMUs as the newer ones (``IMU`` = ``IMU[0]``, ``IMU2`` =
 ``IMU[1]``, ``IMU3`` = ``IMU[2]``: :func:`compared_as`), and gives each
 density's ratio to that median, or why there is none (no peer: fewer than 3
 of that IMU with a density; no density). Streams too slow to denoise (telemetry at 1-4
 Hz: whatever a filter removes there is motion as much as noise, and they are
-written raw) get no density and no flag, and a note that says so.
+written raw) get no density and no flag, and a note that says so. Each log's flight
+review (flying time, vibration verdict, the filter review's recommendation) is a row of
+a second table (:func:`format_log_table`); ``fleet.html`` links each log's HTML report.
 """
 
 from __future__ import annotations
