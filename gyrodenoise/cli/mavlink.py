@@ -97,7 +97,12 @@ def register_cli(subparsers):
                         "the signing passphrase (its SHA-256 is the key). Every packet is checked (unsigned or "
                         "badly signed ones on a signed link are dropped and counted) and every changed packet "
                         "re-signed. Without it a signed packet goes out unchanged (gyro raw)")
-    p.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
+    p.add_argument("--no-plots", action="store_true",
+                   help="do not write PNG plots nor the HTML report (NAME.report.html, fleet.html)")
+    p.add_argument("--whole-log", action="store_true",
+                   help="compute the spectra, noise figures, filter review and vibration over the whole log "
+                        "(default: over the flying segments, \"over\": \"flying\"; a log with no flying "
+                        "segment: the whole log, and the summary says so)")
     p.add_argument("--no-csv", action="store_true", help="do not write CSV files")
     live = p.add_argument_group("live link (LOG is a connection string)")
     live.add_argument("--forward", default=None, metavar="CONN",
@@ -357,7 +362,7 @@ def _run_logs(args, client, created):
               raw_imu_unit=args.raw_imu_unit, raw_imu_scale=args.raw_imu_scale,
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
               filter_kw=_filter_kw(args), zero_phase=args.zero_phase, causal=args.causal,
-              signing_key=args.key)
+              signing_key=args.key, whole_log=args.whole_log)
     single = (len(args.logs) == 1 and not is_url(args.logs[0]) and Path(args.logs[0]).is_file()
               and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
@@ -366,7 +371,7 @@ def _run_logs(args, client, created):
     try:
         _write_out(args.out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
         if not single:
-            summary["fleet_report"] = _fleet_report(summary, args.out)
+            summary["fleet_report"] = _fleet_report(summary, args.out, html=not args.no_plots)
     except OSError as exc:
         raise InputError(f"-o {args.out}: cannot write summary.json ({exc.strerror or exc})") from None
     if summary["failed"]:
@@ -409,17 +414,18 @@ def _interrupted(out, summary):
             f"{len(summary['unfinished'])} unfinished log(s)")
 
 
-def _fleet_report(summary, out):
-    """The fleet report (fleet.md, fleet.json, fleet.png) beside the outputs; returns its paths."""
+def _fleet_report(summary, out, html=True):
+    """The fleet report (fleet.md, fleet.json, fleet.png and, with ``html``, fleet.html)
+    beside the outputs; returns its paths."""
     import tempfile
     from gyrodenoise.mavlink.cluster import is_url
     from gyrodenoise.mavlink.fleet import write_fleet_report
     if not is_url(out):
-        return [str(x) for x in write_fleet_report(summary, Path(out))]
+        return [str(x) for x in write_fleet_report(summary, Path(out), html=html)]
     with tempfile.TemporaryDirectory() as tmp:
         import fsspec
         paths = []
-        for f in write_fleet_report(summary, Path(tmp)):
+        for f in write_fleet_report(summary, Path(tmp), html=html):
             dest = str(out).rstrip("/") + "/" + f.name
             with fsspec.open(dest, "wb") as fh:
                 fh.write(f.read_bytes())
@@ -568,6 +574,11 @@ def _print_log(out, r, summary):
     out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
               f"{_form_text(r)})\n")
     _print_signing(out, r)
+    from gyrodenoise.mavlink.log_review import review_text
+    for line in review_text(r):
+        out.write(f"  {line}\n")
+    if r.get("report_html"):
+        out.write(f"  report: {r['report_html']}\n")
     for s in r["streams"]:
         _print_stream(out, s, r, summary)
     for e in r["restarts"]:
@@ -592,10 +603,11 @@ def _print_stream(out, s, r, summary):
     """One stream's lines of the text summary of log ``r``."""
     from gyrodenoise.mavlink.process import saturation_note
     from gyrodenoise.mavlink.spectra import summary_lines
+    stage = f"  {s['stage']}" if s.get("stage") else ""
     out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
               f"{s['restarts']} restart(s)  unit {s['field_unit']}"
               f"{'' if s['unit_known'] else ' (scale unknown)'}"
-              f"{_filter_rate_text(s, summary)}\n")
+              f"{_filter_rate_text(s, summary)}{stage}\n")
     if s.get("left_raw"):
         out.write(f"    NOT FILTERED, written raw: {s['left_raw']}\n")
     if s.get("all_zero"):

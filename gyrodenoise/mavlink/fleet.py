@@ -16,13 +16,16 @@ sigma / sqrt(fs / 2) is the one-sided density (the tests check it against
 Welch's estimate on real logs). The table gives
 the mean over the stream's axes (x, y, z) of the per-axis figures. Vibration
 near the Nyquist frequency still lifts it; the table flags a stream whose density is more than 3 robust sigmas
-above the median of the same IMU across the fleet, where DataFlash's older
+above the median of the same IMU at the same stage (pre-/post-filter, :func:`peer_group`)
+across the fleet, over each log's flying time where it has one, where DataFlash's older
 names are the same IMUs as the newer ones (``IMU`` = ``IMU[0]``, ``IMU2`` =
 ``IMU[1]``, ``IMU3`` = ``IMU[2]``: :func:`compared_as`), and gives each
 density's ratio to that median, or why there is none (no peer: fewer than 3
 of that IMU with a density; no density). Streams too slow to denoise (telemetry at 1-4
 Hz: whatever a filter removes there is motion as much as noise, and they are
-written raw) get no density and no flag, and a note that says so.
+written raw) get no density and no flag, and a note that says so. Each log's flight
+review (flying time, vibration verdict, the filter review's recommendation) is a row of
+a second table (:func:`format_log_table`); ``fleet.html`` links each log's HTML report.
 """
 
 from __future__ import annotations
@@ -59,10 +62,24 @@ def _mean(values):
     return sum(v) / len(v) if v else None
 
 
+def log_review_fields(log):
+    """A log's flight review as the fleet table gives it: ``flying_time_s``,
+    ``vibration_verdict`` (``pass``/``warn``/``fail``, None: no verdict or no
+    vibration data), ``recommended`` (the filter review's ``param_lines``, [] when it
+    recommends nothing, None when there is no review) and ``report_html``."""
+    vib = log.get("vibration") or {}
+    fr = log.get("filter_review")
+    return {"flying_time_s": log.get("flying_time_s"), "over": log.get("over"),
+            "vibration_verdict": vib.get("verdict"),
+            "recommended": None if not fr else list(fr.get("param_lines") or []),
+            "report_html": log.get("report_html")}
+
+
 def fleet_rows(summary):
     """Flat rows (dicts) for the fleet table: one per log and stream, one per failed log."""
     rows = []
     for log in summary.get("logs", []):
+        review = log_review_fields(log)
         for s in log.get("streams", []):
             noise = s.get("noise", {})
             raw = _mean([a.get("raw") for a in noise.values()])
@@ -73,7 +90,8 @@ def fleet_rows(summary):
             kept = {a: m for a, m in measured.items() if m.get("motion_above_noise") is not False}
             rows.append({
                 "log": Path(log["file"]).name, "file": log["file"], "stream": s["name"], "status": "ok",
-                "compared_as": compared_as(s["name"]),
+                "compared_as": compared_as(s["name"]), "stage": s.get("stage"),
+                "noise_over": s.get("noise_over"), **review,
                 "samples": s.get("samples"), "rate_hz": s.get("rate_hz"), "restarts": s.get("restarts"),
                 "noise_raw": raw, "noise_filtered": filt, "noise_unit": s.get("noise_unit"),
                 "noise_of": NOISE_COLUMN,
@@ -138,13 +156,24 @@ def dominant_peaks_by_log(rows):
             for name in logs]
 
 
+def peer_group(row):
+    """What a stream's density is compared with across the fleet: the same IMU
+    (:func:`compared_as`) at the same stage (``pre-filter``/``post-filter``/``unknown``,
+    :func:`gyrodenoise.mavlink.vehicle_filters.stream_stage`): the batch sampler's
+    pre-filter 2 kHz gyro and a 25 Hz post-filter IMU stream are not alike. As text:
+    ``"IMU[0] post-filter"`` (the IMU alone for a report without stages)."""
+    stage = row.get("stage")
+    return f"{row['compared_as']} {stage}" if stage else row["compared_as"]
+
+
 def _flag(rows):
-    """Mark streams whose noise density is far above the fleet's for the same IMU
-    (:func:`compared_as`); give each density's ratio to that median."""
+    """Mark streams whose noise density is far above the fleet's for the same IMU at
+    the same stage (:func:`peer_group`); give each density's ratio to that median."""
     by = {}
     for r in rows:
         if r.get("noise_density_deg_s_rthz") is not None:
-            by.setdefault(r["compared_as"], []).append(r)
+            r["peer_group"] = peer_group(r)
+            by.setdefault(r["peer_group"], []).append(r)
     for group in by.values():
         vals = sorted(r["noise_density_deg_s_rthz"] for r in group)
         med = vals[len(vals) // 2]
@@ -155,12 +184,12 @@ def _flag(rows):
             r["fleet_size"] = len(vals)
             r["flag"] = bool(len(vals) >= 3 and mad > 0 and (v - med) > FLAG_SIGMAS * mad)
             if len(vals) < 3:
-                r["vs_fleet_note"] = (f"no peer: the only {r['compared_as']} with a density in the fleet"
+                r["vs_fleet_note"] = (f"no peer: the only {r['peer_group']} with a density in the fleet"
                                       if len(vals) == 1 else
-                                      f"only {len(vals)} {r['compared_as']} with a density in the fleet "
+                                      f"only {len(vals)} {r['peer_group']} with a density in the fleet "
                                       f"(a median needs 3)")
             elif not med > 0:
-                r["vs_fleet_note"] = f"the fleet median of {r['compared_as']} is 0"
+                r["vs_fleet_note"] = f"the fleet median of {r['peer_group']} is 0"
     for r in rows:
         if r["status"] == "ok" and r.get("noise_density_deg_s_rthz") is None:
             r["vs_fleet_note"] = ("no density: " + ("too slow to denoise" if r.get("too_slow_to_denoise") else
@@ -243,7 +272,7 @@ def vs_fleet_text(r):
     """The "x fleet median" cell: the ratio, or why there is none."""
     vs = r.get("density_vs_fleet_median")
     if vs is not None:
-        return f"{vs:.2g}x of {r['fleet_size']} {r['compared_as']}"
+        return f"{vs:.2g}x of {r['fleet_size']} {r.get('peer_group', r['compared_as'])}"
     return r.get("vs_fleet_note") or ""
 
 
@@ -252,8 +281,10 @@ def _named(rows):
     return (": " + ", ".join(f"{r['log']} {r['stream']}" for r in rows)) if rows else ""
 
 
-def write_fleet_report(summary, out_dir):
-    """Write ``fleet.json``, ``fleet.md`` and ``fleet.png`` into ``out_dir``; return their paths."""
+def write_fleet_report(summary, out_dir, html=True):
+    """Write ``fleet.json``, ``fleet.md``, ``fleet.png`` and (``html``) ``fleet.html``
+    (:func:`gyrodenoise.mavlink.html_report.write_fleet_report`, each log linked to its
+    own report) into ``out_dir``; return their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = fleet_rows(summary)
@@ -261,8 +292,9 @@ def write_fleet_report(summary, out_dir):
     head = (f"# Fleet report\n\n{summary.get('n_logs', 0)} logs: {summary.get('n_ok', 0)} processed, "
             f"{summary.get('n_failed', 0)} failed; {n_ok} gyro streams; "
             f"{sum(bool(r.get('flag')) for r in rows)} flagged as noisier than the fleet "
-            f"(> {FLAG_SIGMAS:g} robust sigmas above the median density of the same IMU across the fleet; "
-            f"IMU, IMU2, IMU3 compared as IMU[0], IMU[1], IMU[2])"
+            f"(> {FLAG_SIGMAS:g} robust sigmas above the median density of the same IMU at the same stage, "
+            f"pre- or post-filter, across the fleet; IMU, IMU2, IMU3 compared as IMU[0], IMU[1], IMU[2]; "
+            f"noise over each log's flying time where it has one)"
             f"{_named([r for r in rows if r.get('flag')])}; "
             f"{sum(bool(r.get('all_zero')) for r in rows)} with all samples zero"
             f"{_named([r for r in rows if r.get('all_zero')])}; "
@@ -272,7 +304,8 @@ def write_fleet_report(summary, out_dir):
             f"4th-difference estimate, which slow motion does not lift; filtered: the same estimate on the "
             f"output; density: sigma / sqrt(rate / 2)).\n\n"
             f"![noise density per log and stream](fleet.png)\n\n")
-    peaks = ("\n\n## Dominant vibration peak per log\n\n(the strongest spectral peak above the noise "
+    peaks = ("\n\n## Flight, vibration and filter review per log\n\n" + format_log_table(summary) +
+             "\n\n## Dominant vibration peak per log\n\n(the strongest spectral peak above the noise "
              "floor over the log's streams and axes; gyrodenoise.mavlink.spectra)\n\n" + "\n".join(dominant_peaks_by_log(rows)))
     from gyrodenoise.mavlink.stopping import atomic_path
     with atomic_path(out / "fleet.md") as tmp:
@@ -283,7 +316,27 @@ def write_fleet_report(summary, out_dir):
                                    "flag_sigmas": FLAG_SIGMAS, "noise_of": NOISE_COLUMN},
                                   indent=1, allow_nan=False) + "\n")
     _plot(rows, out / "fleet.png")
-    return [out / "fleet.md", out / "fleet.json", out / "fleet.png"]
+    paths = [out / "fleet.md", out / "fleet.json", out / "fleet.png"]
+    if html:
+        from gyrodenoise.mavlink.html_report import write_fleet_report as write_fleet_html
+        paths.append(write_fleet_html(out / "fleet.html", json.loads((out / "fleet.json").read_text()),
+                                      summary.get("logs", [])))
+    return paths
+
+
+def format_log_table(summary):
+    """The per-log table of the fleet report (Markdown): flying time, what the figures
+    are over, the vibration verdict, the filter review's recommendation."""
+    out = ["| log | flying s | figures over | vibration | filter review: recommended |", "|---|---|---|---|---|"]
+    for log in summary.get("logs", []):
+        f = log_review_fields(log)
+        vib = (f["vibration_verdict"] or "no verdict") if log.get("vibration") else "no data"
+        rec = ("none: " + (log.get("filter_review_note") or "no review").split(":")[0] if f["recommended"] is None else
+               " ".join(f"`{x}`" for x in f["recommended"]) or "no change")
+        fly = f["flying_time_s"]
+        out.append(f"| {Path(log['file']).name} | {'' if fly is None else format(fly, '.1f')} | "
+                   f"{f['over'] or ''} | {vib} | {rec.replace('|', '/')} |")
+    return "\n".join(out)
 
 
 def plot_title(rows):
@@ -312,20 +365,20 @@ def _plot(rows, path):
     logs = sorted({r["log"] for r in ok} | set(failed))
     xi = {name: i for i, name in enumerate(logs)}
     # one colour per IMU as compared across the fleet (IMU and IMU[0] alike)
-    groups = sorted({r["compared_as"] for r in ok})
+    groups = sorted({r["peer_group"] for r in ok})
     # side by side within a log, so that two IMUs with the same density both show
     dx = {name: (k - (len(groups) - 1) / 2.0) * min(0.12, 0.6 / max(1, len(groups)))
           for k, name in enumerate(groups)}
     fig, ax = plt.subplots(figsize=(max(7.0, 0.45 * len(logs) + 3), 5.2))
     for g in groups:
-        pts = [r for r in ok if r["compared_as"] == g]
-        other = sorted({r["stream"] for r in pts} - {g})
+        pts = [r for r in ok if r["peer_group"] == g]
+        other = sorted({r["stream"] for r in pts} - {r["compared_as"] for r in pts})
         label = g + (f" (also named {', '.join(other)})" if other else "")
         ax.plot([xi[r["log"]] + dx[g] for r in pts], [r["noise_density_deg_s_rthz"] for r in pts], "o",
                 label=label)
     flagged = [r for r in ok if r.get("flag")]
     if flagged:
-        ax.plot([xi[r["log"]] + dx[r["compared_as"]] for r in flagged],
+        ax.plot([xi[r["log"]] + dx[r["peer_group"]] for r in flagged],
                 [r["noise_density_deg_s_rthz"] for r in flagged],
                 "o", ms=14, mfc="none", mec="red", label="noisier than the fleet")
     for name in failed:

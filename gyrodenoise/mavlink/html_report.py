@@ -234,7 +234,7 @@ class _Figures:
 def _shade_segments(fig, segments, rows, t_lo, t_hi):
     """Shade each flight segment (kind -> :data:`SEGMENT_COLOURS`) behind the lines of
     ``rows`` subplots; one legend entry per kind (a clickable, empty trace)."""
-    kinds = []
+    kinds, shapes = [], []
     for seg in segments or []:
         try:
             a, b, kind = float(seg["start_s"]), float(seg["end_s"]), str(seg["kind"])
@@ -244,9 +244,15 @@ def _shade_segments(fig, segments, rows, t_lo, t_hi):
             continue
         colour = SEGMENT_COLOURS.get(kind, "rgba(200,0,200,0.12)")
         for r in range(1, rows + 1):
-            fig.add_vrect(x0=a, x1=b, fillcolor=colour, line_width=0, layer="below", row=r, col=1)
+            # the shapes of add_vrect, set at once: add_vrect per shape re-validates every
+            # shape already there (quadratic: 108 shapes took seconds)
+            ax = "" if r == 1 else str(r)
+            shapes.append({"type": "rect", "x0": a, "x1": b, "xref": f"x{ax}", "y0": 0, "y1": 1,
+                           "yref": f"y{ax} domain", "fillcolor": colour, "line": {"width": 0}, "layer": "below"})
         if kind not in kinds:
             kinds.append(kind)
+    if shapes:
+        fig.update_layout(shapes=list(fig.layout.shapes or ()) + shapes)
     import plotly.graph_objects as go
     for kind in kinds:
         fig.add_trace(go.Scatter(x=[None], y=[None], mode="markers", name=f"segment: {kind}",

@@ -32,6 +32,8 @@ from gyrodenoise.mavlink.engines import make_engine
 from gyrodenoise.mavlink.filtering import check_some_stream_filterable, filter_form, filter_options, filter_streams
 from gyrodenoise.mavlink import tlog
 from gyrodenoise.mavlink.formats import log_kind, read_log, write_filtered_log
+from gyrodenoise.mavlink.html_writer import HtmlWriter
+from gyrodenoise.mavlink.log_review import OVER_FLYING, log_review, vehicle_rate_series
 from gyrodenoise.mavlink.output import joined_time, safe_name, write_csv
 from gyrodenoise.mavlink.plotting import Plotter, title_note
 from gyrodenoise.mavlink.report import log_problems, signing_problems, stream_report
@@ -44,7 +46,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                 plots=True, csv=True, raw_imu_unit="auto", raw_imu_scale=None, fmu_path=None,
                 sample_rate=None, out_stem=None, log=None, background_plots=False,
                 plot_helpers=1, warmup_s=None, filter_kw=None, zero_phase=False, causal=False,
-                signing_key=None):
+                signing_key=None, whole_log=False, html=True):
     """Process one log file; return its report (a JSON-able dict).
 
     The form of the filter (``rep["form"]``): a whole log is filtered offline by
@@ -61,7 +63,15 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     Raises InputError (one line naming the file) for a file that cannot be
     used: unknown type, unreadable, or without a gyro stream.
     ``background_plots`` draws the PNGs in a forked helper process (Linux),
-    which overlaps matplotlib's import and drawing with the filtering.
+    which overlaps matplotlib's import and drawing with the filtering; the HTML
+    report (``html``, with ``plots``) is written by another such helper.
+
+    The flight review (:func:`gyrodenoise.mavlink.log_review.log_review`) adds the
+    keys ``segments``, ``vehicle_filters``, ``filter_review``, ``vibration`` (each
+    with its ``*_note``), ``over`` and ``report_html`` (None without plots); each
+    stream says its ``stage``. Spectra, noise figures and vibration are computed
+    over the flying segments (``"over": "flying"``) unless ``whole_log`` or the log
+    has none.
     """
     t0 = time.perf_counter()
     path = Path(path)
@@ -70,6 +80,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     kind = log_kind(path)
     rep = {"file": str(path), "format": kind}
     plotter = Plotter(background_plots, helpers=plot_helpers) if plots else None
+    html_writer = HtmlWriter(background_plots) if plots and html else None
     done = False
     try:
         streams, source, facts = read_log(path, kind, raw_imu_unit, raw_imu_scale)
@@ -78,6 +89,9 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
         if kind == "tlog":
             link = LinkSigning(signing_key)
             streams = _check_signatures(path, source, streams, link, raw_imu_unit, raw_imu_scale)
+        review = log_review(kind, source, streams, whole_log)
+        rep.update(review.fields)
+        rep.pop("stream_stages", None)
         offline = engine == "native" and method == "motion" and not causal
         eng = make_engine(engine, method, ar_order, fmu_path, warmup_s, filter_kw, zero_phase, offline)
         rep.update(filter_form(eng, engine))
@@ -89,17 +103,66 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
             tlog.keep_signed_raw(source["fr"], streams, link)
         check_some_stream_filterable(path, streams, filter_kw)
         what = f"{engine} {_method_label(method, ar_order, rep['form'])}"
-        rep.update(_write_outputs(path, kind, source, streams, Path(out_dir), out_stem or path.stem,
-                                  plotter, csv, what, method, filter_kw, log, link))
+        stem = out_stem or path.stem
+        rep.update(_write_outputs(path, kind, source, streams, Path(out_dir), stem,
+                                  plotter, csv, what, method, filter_kw, log, link, review))
+        for s in rep["streams"]:
+            s["stage"] = review.fields["stream_stages"].get(s["name"], "unknown")
+        rep["report_html"] = None
+        rep.update(engine=engine, method=method, ar_order=int(ar_order), gap_factor=gap_factor,
+                   warmup_s=warmup_s, filter_options=filter_options(method, filter_kw, zero_phase))
+        if html_writer is not None:
+            rep["report_html"] = str(Path(out_dir) / f"{stem}.report.html")
+            html_writer.write(rep["report_html"], rep, _html_series(kind, source, streams, review, rep))
         done = True
     finally:
-        if plotter is not None:
-            # an interrupt or a failure: stop the helpers now, without waiting for their plots
-            plotter.close() if done else plotter.abort()
-    rep.update(engine=engine, method=method, ar_order=int(ar_order), gap_factor=gap_factor,
-               warmup_s=warmup_s, filter_options=filter_options(method, filter_kw, zero_phase),
-               seconds=round(time.perf_counter() - t0, 3))
+        # an interrupt or a failure: stop the helpers now, without waiting for their plots
+        for helper in (plotter, html_writer):
+            if helper is not None:
+                helper.close() if done else helper.abort()
+    rep["seconds"] = round(time.perf_counter() - t0, 3)
     return rep
+
+
+def _html_series(kind, source, streams, review, rep):
+    """The ``series`` of :func:`gyrodenoise.mavlink.html_report.write_log_report`: the
+    streams (raw, filtered, restarts), their spectra, the vehicle's own rate estimate
+    and the filter review's spectra."""
+    from gyrodenoise.mavlink.html_report import stream_series
+    spectra = {s.name: s._spectrum_plot for s in streams if getattr(s, "_spectrum_plot", None) is not None}
+    series = {"streams": [stream_series(s, f"filtered ({rep['method']}{', ' + rep['form'] if rep.get('form') else ''})")
+                          for s in streams],
+              "spectra": spectra,
+              "vehicle_rate": vehicle_rate_series(kind, source, (rep.get("vehicle_filters") or {}).get("autopilot"),
+                                                  streams)}
+    series["filter_review"] = _review_series(review.plot, rep.get("vehicle_filters") or {}, streams)
+    return series
+
+
+def _review_series(plot, filters, streams):
+    """The ``series["filter_review"]`` of the HTML report: the review's spectra summed
+    over the axes and the gains |H| of the logged and the recommended chains, each
+    the ratio of the review's predicted post-filter PSD to the pre-filter one (the
+    autopilot's own biquads, :func:`gyrodenoise.mavlink.vehicle_filters.chain_response`,
+    with the notch centres the review used). Without a review, the logged chain's
+    gain from its stages; None when there are none."""
+    if plot is not None:
+        pre = np.asarray(plot["psd_pre"], dtype=np.float64)
+        out = {"freq_hz": plot["freq_hz"], "unit": "deg/s", "psd_pre": pre.sum(axis=0)}
+        for key, name in (("psd_logged", "logged"), ("psd_recommended", "recommended")):
+            post = np.asarray(plot[key], dtype=np.float64)
+            out[f"psd_post_{name}"] = post.sum(axis=0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[f"response_{name}"] = np.sqrt(np.where(pre[0] > 0, post[0] / pre[0], np.nan))
+        return out
+    stages = [st for st in filters.get("stages") or [] if st.get("path", "rate") == "rate"]
+    rates = [s.rate_hz for s in streams if s.rate_hz]
+    fs = filters.get("filter_rate_hz")
+    if not stages or not fs or not rates:
+        return None
+    from gyrodenoise.mavlink.vehicle_filters import chain_response
+    freq = np.linspace(0.0, min(fs, max(rates)) / 2.0, 512)
+    return {"freq_hz": freq, "unit": "deg/s", "response_logged": np.abs(chain_response(stages, freq, fs))}
 
 
 def _check_signatures(path, source, streams, link, raw_imu_unit, raw_imu_scale):
@@ -127,12 +190,12 @@ def _method_label(method, ar_order, form):
 
 
 def _write_outputs(path, kind, source, streams, out_dir, stem, plotter, csv, what, method, filter_kw, log,
-                   link=None):
+                   link=None, review=None):
     """Every output file of a filtered log (plots queued first: a helper draws them
     while the rest is written); the report's fields on them (a telemetry log's
     signing counts from ``link``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw)
+    _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw, review)
     out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
     with atomic_path(out_log) as tmp:
         if link is not None:
@@ -141,7 +204,7 @@ def _write_outputs(path, kind, source, streams, out_dir, stem, plotter, csv, wha
         else:
             rep = write_filtered_log(kind, source, streams, tmp)
     rep["output_log"] = str(out_log)
-    srep, restarts = _stream_reports(path, streams, out_dir, stem, csv, plotter, log)
+    srep, restarts = _stream_reports(path, streams, out_dir, stem, csv, plotter, log, review)
     rep.update(streams=srep, restarts=restarts)
     if log:
         log_problems(dict(rep, file=str(path)), log)
@@ -149,9 +212,12 @@ def _write_outputs(path, kind, source, streams, out_dir, stem, plotter, csv, wha
     return rep
 
 
-def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw):
-    """Queue each stream's plot, compute its spectrum (``s._spectrum``) and queue the
-    log's spectrum figure; ``s._png`` / ``s._spectrum_png``: where the plots go."""
+def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw, review=None):
+    """Queue each stream's plot (the flight segments shaded), compute its spectrum
+    (``s._spectrum``, over the samples of ``review.stream_mask``: flying time by
+    default) and queue the log's spectrum figure; ``s._png`` / ``s._spectrum_png``:
+    where the plots go; ``s._spectrum_plot``: the spectrum's plot data."""
+    segments = review.segments if review is not None else None
     spec_items = []
     spec_png = out_dir / f"{stem}.spectrum.png"
     for s in streams:
@@ -160,11 +226,18 @@ def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method
             s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
             cutoff = f" {s.cutoff_hz:.4g} Hz" if getattr(s, "cutoff_hz", None) else ""
             plotter.plot(s._png, f"{path.name}: {s.name} ({what}{cutoff}{title_note(s)})",
-                         s.time_s, x, f, s.restarts, unit, s.axes)
+                         s.time_s, x, f, s.restarts, unit, s.axes, segments=segments)
         usable = (usable_samples(x) & np.isfinite(f)).all(axis=1)
+        over = None
+        if review is not None:
+            s._figures_mask, over = review.stream_mask(s.time_s)
+            usable &= s._figures_mask
         s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
                                                  getattr(s, "warmup_samples", 0),
                                                  joined_time(s.time_s, s.restarts), usable)
+        if over is not None:
+            s._spectrum["over"] = over
+        s._spectrum_plot = spec_plot
         if spec_plot is not None:
             spec_items.append((s.name, spec_plot))
             s._spectrum_png = spec_png if plotter is not None else None
@@ -172,8 +245,10 @@ def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method
         plotter.plot_spectrum(spec_png, f"{path.name}: spectrum ({what})", spec_items)
 
 
-def _stream_reports(path, streams, out_dir, stem, csv, plotter, log):
-    """(the stream reports, the restart events of all streams); writes the CSVs."""
+def _stream_reports(path, streams, out_dir, stem, csv, plotter, log, review=None):
+    """(the stream reports, the restart events of all streams); writes the CSVs. The
+    noise figures are over the samples of ``review.stream_mask`` (flying time by
+    default; ``noise_over`` says which)."""
     srep, restarts = [], []
     for s in streams:
         x, f, unit, _ = s._work
@@ -183,7 +258,11 @@ def _stream_reports(path, streams, out_dir, stem, csv, plotter, log):
             write_csv(csv_path, s, x, f, unit)
         if plotter is not None:
             png_path = s._png
-        srep.append(stream_report(s, csv_path, png_path))
+        keep = getattr(s, "_figures_mask", None)
+        srep.append(stream_report(s, csv_path, png_path, keep=keep))
+        if review is not None:
+            srep[-1]["noise_over"] = (OVER_FLYING if keep is not None and not keep.all() else
+                                      "whole log")
         srep[-1]["spectrum"] = s._spectrum
         if getattr(s, "_spectrum_png", None) is not None:
             srep[-1]["spectrum_plot"] = str(s._spectrum_png)

@@ -18,17 +18,27 @@ MOTION_METRIC = ("per axis, over each session after the filter's warm-up: the 0-
                  "gyrodenoise.analysis.motion_metrics")
 
 
-def stream_report(s, csv_path=None, png_path=None, band_hz=None):
+def stream_report(s, csv_path=None, png_path=None, band_hz=None, keep=None):
     """The report of one stream: counts, noise figures and, beside them, how much
     of the low-band motion the filter kept and the lag it added
     (:mod:`gyrodenoise.analysis.motion_metrics`); a stream sampled too slowly to denoise
-    gets a note instead of an improvement figure."""
+    gets a note instead of an improvement figure. ``keep`` (bool per sample, e.g.
+    the flying samples): the noise figures are over those samples only (the others
+    as gaps); the motion figures, which need whole sessions, over all."""
     band_hz = mm.LOWBAND_HZ if band_hz is None else band_hz
     x, f, unit, rate = _figure_values(s)
     slow = mm.too_slow_to_denoise(s.rate_hz, band_hz)
     unfiltered = getattr(s, "not_filtered", None)
     written_raw = slow or unfiltered or getattr(s, "left_raw", None)
-    noise, noise_raw = _noise_figures(s, x, f, rate, slow, unfiltered, written_raw)
+    if keep is not None and not np.all(keep):
+        gap = ~np.asarray(keep, dtype=bool)[:, None]
+        noise, _ = _noise_figures(s, np.where(gap, np.nan, x), np.where(gap, np.nan, f), rate, slow,
+                                  unfiltered, written_raw)
+        # the motion figures' noise level: the same sensor noise, over the kept samples where it formed
+        noise_raw = [noise[a]["raw"] if noise[a]["raw"] is not None else mm.white_noise_std(x[:, k], rate, s.restarts)
+                     for k, a in enumerate(s.axes)]
+    else:
+        noise, noise_raw = _noise_figures(s, x, f, rate, slow, unfiltered, written_raw)
     skip = int(getattr(s, "warmup_samples", 0) or 0)
     motion, warnings = _motion_figures(s, x, f, noise_raw, band_hz, skip, written_raw)
     dur = float(np.sum(np.diff(joined_time(s.time_s, s.restarts)))) if s.n > 1 else 0.0
