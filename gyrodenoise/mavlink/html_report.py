@@ -46,6 +46,8 @@ SEGMENT_COLOURS = {"ground": "rgba(150,150,150,0.18)", "armed": "rgba(255,190,0,
 AXIS_COLOURS = (("#1f4fb4", "#9db8ee"), ("#d9650b", "#f7c08f"), ("#218a3a", "#9fd9a9"),
                 ("#7b3fa0", "#cfb0e3"))
 VEHICLE_RATE_COLOUR = "#222222"
+#: the vehicle's further rate lines (e.g. ArduPilot's desired rate beside its measured one): colour, dash
+VEHICLE_RATE_STYLES = ((VEHICLE_RATE_COLOUR, "dot"), ("#b15928", "dash"), ("#6a3d9a", "dashdot"))
 #: plotly's config on every plot: hover, zoom, pan and the modebar, no link to plotly's site
 PLOT_CONFIG = {"displaylogo": False, "responsive": True, "scrollZoom": False,
                "toImageButtonOptions": {"format": "png", "scale": 2}}
@@ -295,7 +297,8 @@ def _time_figure(st, vehicle_rates, segments, title):
                                    line={"color": light if filt is not None else dark, "width": 0.9},
                                    hovertemplate=f"{a} raw: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
                       row=k + 1, col=1)
-        for vr in vehicle_rates:
+        for j, vr in enumerate(vehicle_rates):
+            v_colour, v_dash = VEHICLE_RATE_STYLES[j % len(VEHICLE_RATE_STYLES)]
             vt = np.asarray(vr["time_s"], dtype=np.float64)
             rate = np.atleast_2d(np.asarray(vr["rate"], dtype=np.float64).T).T
             if k >= rate.shape[1] or not boot_time:
@@ -303,8 +306,7 @@ def _time_figure(st, vehicle_rates, segments, title):
             tx, vy = envelope(vt, rate[:, k])
             vname = f"vehicle rate ({vr.get('name', '')})"
             fig.add_trace(go.Scatter(x=tx, y=vy.astype(np.float32), name=vname, legendgroup=vname,
-                                       showlegend=first, line={"color": VEHICLE_RATE_COLOUR, "width": 1.0,
-                                                               "dash": "dot"},
+                                       showlegend=first, line={"color": v_colour, "width": 1.0, "dash": v_dash},
                                        hovertemplate=f"{a} {vname}: %{{y:.4g}} {vr.get('unit', unit)}"
                                                      f"<br>t=%{{x:.3f}} s<extra></extra>"),
                           row=k + 1, col=1)

@@ -251,8 +251,8 @@ def draw_log_spectrum(path, title, items):
     ratios = [2.6] * len(items) + [1.7] + ([2.0] if sg_item else [])
     fig, axs = plt.subplots(len(ratios), 1, figsize=(9, 1.95 * len(ratios) + 0.9),
                             gridspec_kw={"height_ratios": ratios})
-    fig.subplots_adjust(left=0.09, right=0.92 if sg_item else 0.97,   # room for the colour bar's label top=1.0 - 0.45 / fig.get_figheight(), bottom=0.06,
-                        hspace=0.45)
+    fig.subplots_adjust(left=0.09, right=0.92 if sg_item else 0.97,   # 0.92: room for the colour bar's label
+                        top=1.0 - 0.45 / fig.get_figheight(), bottom=0.06, hspace=0.45)
     for ax, (name, pd) in zip(axs, items):
         _draw_psd(ax, name, pd)
     axs[0].set_title(title, fontsize=9)
