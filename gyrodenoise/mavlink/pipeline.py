@@ -261,8 +261,8 @@ def _stream_reports(path, streams, out_dir, stem, csv, plotter, log, review=None
         keep = getattr(s, "_figures_mask", None)
         srep.append(stream_report(s, csv_path, png_path, keep=keep))
         if review is not None:
-            srep[-1]["noise_over"] = (OVER_FLYING if keep is not None and not keep.all() else
-                                      "whole log")
+            srep[-1]["noise_over"] = (OVER_FLYING if keep is not None and not keep.all()
+                                      and "noise_over_note" not in srep[-1] else "whole log")
         srep[-1]["spectrum"] = s._spectrum
         if getattr(s, "_spectrum_png", None) is not None:
             srep[-1]["spectrum_plot"] = str(s._spectrum_png)

@@ -30,14 +30,22 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None, keep=None):
     slow = mm.too_slow_to_denoise(s.rate_hz, band_hz)
     unfiltered = getattr(s, "not_filtered", None)
     written_raw = slow or unfiltered or getattr(s, "left_raw", None)
+    noise = None
+    noise_over_note = None
     if keep is not None and not np.all(keep):
         gap = ~np.asarray(keep, dtype=bool)[:, None]
         noise, _ = _noise_figures(s, np.where(gap, np.nan, x), np.where(gap, np.nan, f), rate, slow,
                                   unfiltered, written_raw)
-        # the motion figures' noise level: the same sensor noise, over the kept samples where it formed
-        noise_raw = [noise[a]["raw"] if noise[a]["raw"] is not None else mm.white_noise_std(x[:, k], rate, s.restarts)
-                     for k, a in enumerate(s.axes)]
-    else:
+        if any(noise[a]["raw"] is None for a in s.axes) and np.count_nonzero(keep) < len(keep):
+            # the kept (flying) stretches are too short for the estimate to form: whole log, said so
+            noise = None
+            noise_over_note = (f"the noise estimate does not form over the {int(np.count_nonzero(keep))} kept "
+                               f"samples (it needs a finite run of {mm.noise_ready_samples()}): over the whole log")
+        else:
+            # the motion figures' noise level: the same sensor noise, over the kept samples where it formed
+            noise_raw = [noise[a]["raw"] if noise[a]["raw"] is not None
+                         else mm.white_noise_std(x[:, k], rate, s.restarts) for k, a in enumerate(s.axes)]
+    if noise is None:
         noise, noise_raw = _noise_figures(s, x, f, rate, slow, unfiltered, written_raw)
     skip = int(getattr(s, "warmup_samples", 0) or 0)
     motion, warnings = _motion_figures(s, x, f, noise_raw, band_hz, skip, written_raw)
@@ -64,6 +72,8 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None, keep=None):
         rep["slow_note"] = (f"sampled at {_hz(s.rate_hz)} Hz, below {mm.MIN_DENOISE_RATE_HZ:g} Hz: too "
                             f"slowly to denoise (what a filter removes is motion as much as noise): "
                             f"written raw (unfiltered), no improvement figure")
+    if noise_over_note:
+        rep["noise_over_note"] = noise_over_note
     if s.note:
         rep["note"] = s.note
     if csv_path:

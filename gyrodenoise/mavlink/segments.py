@@ -195,12 +195,19 @@ def _hover(segs, throttle):
 
 
 def _timeline(*times):
-    """Sorted union of time columns (finite values)."""
+    """Sorted union of time columns (finite values), without the times a damaged record
+    gives: those further outside the span of the middle 80 % than twice that span (plus
+    60 s) -- a bit flip in a timestamp must not stretch a segment to 10^12 s."""
     parts = [np.asarray(t, np.float64) for t in times if t is not None and len(t)]
     if not parts:
         return np.zeros(0)
     t = np.concatenate(parts)
-    return np.unique(t[np.isfinite(t)])
+    t = t[np.isfinite(t)]
+    if len(t):
+        lo, hi = np.quantile(t, [0.1, 0.9])
+        margin = 2.0 * (hi - lo) + 60.0
+        t = t[(t >= lo - margin) & (t <= hi + margin)]
+    return np.unique(t)
 
 
 def _forward_fill(v):

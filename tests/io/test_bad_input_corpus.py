@@ -260,6 +260,8 @@ def test_truncated_and_corrupted_logs(tmp_path):
             # damaged DataFlash records decode to absurd rates: counted, kept out of the filter
             s0 = rep["streams"][0]
             assert sum(s0["non_finite_samples"].values()) > 0
+            # a damaged timestamp does not stretch a flight segment (the log spans 265-289 s)
+            assert rep["segments"] and all(seg["end_s"] < 300 for seg in rep["segments"]), rep["segments"]
             # and they stay out of the noise figures (a 25 Hz IMU at rest: ~0.05 deg/s)
             for a in ("x", "y", "z"):
                 assert 0 < s0["noise"][a]["raw"] < 1.0 and 0 < s0["noise"][a]["filtered"] < 1.0, s0["noise"]

@@ -511,9 +511,10 @@ def test_batch_sampler_bursts_parsed_filtered_and_written_back(tmp_path):
                       for k in range(3)], axis=1) / R2D
         expected = np.clip(np.rint(f * mul), -32768, 32767)
         assert np.abs(v2 - expected).max() <= 1 and np.mean(v2 != expected) < 1e-3
-    # the filter did run (the default motion bank follows these 2 kHz bursts closely: 2.2 % of
-    # the integer samples change; the paper's SHAKF changes > 20 %)
-    assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.01
+    # the filter did run (the default motion bank follows these 2 kHz bursts closely and passes
+    # most samples through: 0.3 % of the integer samples change, 2.2 % before the pass-through;
+    # the paper's SHAKF changes > 20 %)
+    assert np.mean(np.concatenate([b[1] for b in got]) != np.concatenate([b[1] for b in ref])) > 0.001
 
 
 def test_non_finite_samples_are_dropouts_healed_as_gd_denoise_heals_them(tmp_path):
