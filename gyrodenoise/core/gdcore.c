@@ -479,6 +479,12 @@ void gd_motion_params(double *p, double fs)
         p[P_MO_PT + 1] = 0.7;
         p[P_MO_PT + 2] = 0.95;
     }
+    {
+        double c = 0.0;
+        for (i = 0; i < MO_SPEC_RANK; i++)
+            c += 1.0 / (MO_SPEC_NB - i);
+        p[P_MO_LINE] = p[P_MO_SPEC] > 0.0 ? 10.0 / c : 0.0;
+    }
 }
 
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] */
@@ -518,13 +524,15 @@ KERNEL double forget_weight_(double b, double bk)
 KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long o, double z, double k)
 {
     const double *cs = p + P_MO_COS;
-    double x, low[MO_SPEC_RANK], w1[MO_SPEC_NB], w2[MO_SPEC_NB], cf[MO_SPEC_NB], xb, bb, d, m;
+    double x, low[MO_SPEC_RANK], w1[MO_SPEC_NB], w2[MO_SPEC_NB], cf[MO_SPEC_NB], xb, bb, d, m, top;
     int n, j, nl, i;
     if (k == 0.0) {
         s[o + M_SPOS] = 0.0;
         s[o + M_SR] = 0.0;
         s[o + M_SBK] = 1.0;
         s[o + M_SBAD] = 0.0;
+        s[o + M_LRAT] = 0.0;
+        s[o + M_LON] = 0.0;
     }
     if (!(fabs(z) < MO_SPEC_ZMAX)) {
         z = 0.0;
@@ -558,8 +566,11 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
         }
     }
     nl = 0;
+    top = 0.0;
     for (j = 0; j < MO_SPEC_NB; j++) {
         double pw = w1[j] * w1[j] + w2[j] * w2[j] - cf[j] * w1[j] * w2[j];
+        if (j >= MO_LINE_J0 && pw > top)
+            top = pw;
         if (nl < MO_SPEC_RANK) {
             i = nl;
             nl++;
@@ -589,6 +600,11 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
     if (m == 0.0)
         s[o + M_SBK] = 1.0;
     s[o + M_SR] = m;
+    if (p[P_MO_LINE] > 0.0) {    /* line test (kernels.spectral_floor) */
+        double lr = top * p[P_MO_SPEC], th = p[P_MO_LINE] * m;
+        s[o + M_LON] = (lr > th && s[o + M_LRAT] > th) ? 1.0 : 0.0;
+        s[o + M_LRAT] = lr;
+    }
     return m;
 }
 
@@ -889,6 +905,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             y = y + bt * (z - y);
         }
     }
+    if (s[o + M_LON] != 0.0)
+        y = z;                   /* a line near the Nyquist frequency: the raw sample */
     out = y + p[P_MO_KAPPA] * s[o + M_ANG];
     s[o + M_ANG] += z - out;
     s[o + M_BEST] = (double)best;
