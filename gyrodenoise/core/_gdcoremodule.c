@@ -489,7 +489,7 @@ static const struct {
     C(S_CONV), C(S_INNOV), C(S_SVAR), C(S_NRESET), C(S_OUT), C(S_RLS_ERR), C(S_BK), C(S_NREJ),
     C(S_REJRUN), C(S_NREOPEN), C(S_ZREF), C(S_LO), C(S_HI), C(S_HOLD), C(S_NCLAMP),
     C(S_NHEAL), C(N_HEADER), C(N_EXT), C(M_R), C(M_BK), C(M_HPOS), C(M_ANG), C(M_NW), C(M_BEST), C(M_PVAR),
-    C(M_MABS), C(M_HIST), C(M_BANK), C(M_LPD), C(M_SPOS), C(M_SR), C(M_SBK), C(M_SBAD), C(M_SFOLD), C(M_GEFF), C(M_NWC), C(M_LRAT), C(M_LON), C(P_MO_PT), C(P_MO_LINE), C(MAX_MOTION_ORDER),
+    C(M_MABS), C(M_HIST), C(M_BANK), C(M_LPD), C(M_SPOS), C(M_SR), C(M_SBK), C(M_SBAD), C(M_SFOLD), C(M_GEFF), C(M_NWC), C(M_LRAT), C(M_LON), C(M_CUS), C(P_MO_PT), C(P_MO_LINE), C(P_MO_CUS), C(MAX_MOTION_ORDER),
 };
 #undef C
 

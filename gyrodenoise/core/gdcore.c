@@ -485,6 +485,12 @@ void gd_motion_params(double *p, double fs)
             c += 1.0 / (MO_SPEC_NB - i);
         p[P_MO_LINE] = p[P_MO_SPEC] > 0.0 ? 10.0 / c : 0.0;
     }
+    {
+        double t = 0.1 * fs, fc = exp(-1.0 / (t >= 1.0 ? t : 1.0));
+        p[P_MO_CUS] = fc;
+        p[P_MO_CUS + 1] = 1.0;
+        p[P_MO_CUS + 2] = 3.75 * 3.75 / (1.0 - fc * fc);
+    }
 }
 
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] */
@@ -701,7 +707,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
     int pos, i, j, best, c, st, gst, nv, hb;
     double wts[MO_MAX_NF], ee[MO_MAX_NF];
-    double *bx, *ba, *bl, *bh;
+    double *bx, *ba, *bl, *bh, *bc = s + o + M_CUS;
     const double *pg0, *pg1, *pls, *hist;
     if (bk) {          /* the batch loop's bank: one array per value, all lanes */
         bx = bk->x;
@@ -807,6 +813,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             ba[st * i] = 0.0;
             bl[st * i] = 0.0;
             bh[st * i] = 0.0;
+            bc[i] = 0.0;
         }
         return z;
     }
@@ -846,6 +853,13 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         lk = fade * bl[st * i] - 0.5 * (u + ls);
         if (u > clip2 && i < nf - 1)
             v = v * sqrt(clip2 / u);
+        if (p[P_MO_CUS + 1] > 0.0) {   /* summed innovation (kernels.motion_step) */
+            double cs = p[P_MO_CUS] * bc[i] + v, x2;
+            bc[i] = cs;
+            x2 = cs * cs * (1.0 - g0) * inv_r - p[P_MO_CUS + 2];
+            if (x2 > 0.0)
+                lk -= 0.5 * p[P_MO_CUS + 1] * x2 * (1.0 - p[P_MO_CUS] * p[P_MO_CUS]);
+        }
         bx[st * i] = w + g0 * v;
         ba[st * i] = ba[st * i] + g1 * v;
         bl[st * i] = lk;
@@ -865,6 +879,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             if (bh[st * i] == 1.0) {
                 bx[st * i] = bx[st * best];
                 ba[st * i] = ba[st * best];
+                bc[i] = bc[best];
             }
             bl[st * i] = lmax - thr;
             bh[st * i] = 1.0;

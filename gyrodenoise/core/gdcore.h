@@ -74,7 +74,8 @@ extern "C" {
 #define P_MO_PT (P_MO_COS + MO_SPEC_N) /* motion: pass-through: gain smoothing per sample (0 = off), gains lo, hi */
 #define P_MO_LINE (P_MO_PT + 3) /* motion: spectral line test threshold x the floor (0 = off) */
 #define MO_LINE_J0 7               /* the line test's first bin (MO_SPEC_K0 + 2 x 7: 0.36 fs) */
-#define N_PARAMS (P_MO_PT + 4)
+#define P_MO_CUS (P_MO_PT + 4) /* motion: summed innovation: fading, weight, threshold (0 weight = off) */
+#define N_PARAMS (P_MO_PT + 7)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -130,7 +131,8 @@ extern "C" {
 #define M_NWC (M_GEFF + 1)           /* 1 once the growing-memory gains are below every filter's */
 #define M_LRAT (M_NWC + 1)           /* line test: the last block's highest top bin x p[P_MO_SPEC] */
 #define M_LON (M_NWC + 2)            /* line test: 1 while the last two blocks held a line (raw output) */
-#define N_EXT (M_NWC + 3)
+#define M_CUS (M_NWC + 3)            /* summed innovation per filter (MO_MAX_NF) */
+#define N_EXT (M_CUS + MO_MAX_NF)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {

@@ -99,7 +99,9 @@ P_MO_LINE = P_MO_PT + 3   # motion: spectral line test (:func:`spectral_floor`):
                           # MO_LINE_J0 whose |X|^2 x p[P_MO_SPEC] exceeds this x the floor, in two
                           # blocks in a row, puts the output on the raw sample (0 = off)
 MO_LINE_J0 = 7            # the line test's first bin: MO_SPEC_K0 + 2 x 7 = 46 (0.36 fs)
-N_PARAMS = P_MO_PT + 4
+P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`): fading of each filter's
+                          # summed innovation per sample, and its weight in the log-likelihood (0 = off)
+N_PARAMS = P_MO_PT + 7
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -163,7 +165,8 @@ M_GEFF = M_SFOLD + MO_SPEC_N // 2   # pass-through: the smoothed gain of the mos
 M_NWC = M_GEFF + 1                   # 1.0 once the growing-memory gains are below every filter's own (converged)
 M_LRAT = M_NWC + 1    # line test: the last block's highest bin at or above MO_LINE_J0 / the floor (x p[P_MO_SPEC])
 M_LON = M_NWC + 2     # line test: 1.0 while the last two blocks held a line (output = raw sample)
-N_EXT = M_NWC + 3
+M_CUS = M_NWC + 3     # summed-innovation test: per filter, its faded sum of innovations, deg/s
+N_EXT = M_CUS + MO_MAX_NF
 
 
 def layout(n):
@@ -364,7 +367,8 @@ def cv_gains(tracking_index):
 
 def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
                   tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
-                  clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0):
+                  clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0,
+                  cusum_tau_s=0.1, cusum_weight=1.0, cusum_sigma=3.75):
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
@@ -401,7 +405,11 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     for i in range(MO_SPEC_RANK):
         c += 1.0 / (MO_SPEC_NB - i)
     ln = [float(line) / c if line > 0 and sp[0] > 0 else 0.0]
-    return p + gains + [0.0] + sp + pt + ln
+    cu = [0.0, 0.0, 0.0]
+    if cusum_tau_s > 0 and cusum_weight > 0:
+        fc = math.exp(-1.0 / max(cusum_tau_s * fs, 1.0))
+        cu = [fc, float(cusum_weight), float(cusum_sigma) ** 2 / (1.0 - fc * fc)]
+    return p + gains + [0.0] + sp + pt + ln + cu
 
 
 def spectral_params(b, ratio=1.0):
@@ -1147,6 +1155,7 @@ def motion_step(p, s, z):
             s[q + 1] = 0.0
             s[q + 2] = 0.0
             s[q + 3] = 0.0
+            s[o + M_CUS + i] = 0.0
         return z
     s[S_CONV] = 1.0
     gm0 = 0.0
@@ -1189,6 +1198,16 @@ def motion_step(p, s, z):
         lk = fade * s[q + 2] - 0.5 * (u2 + ls)
         if u2 > clip2 and i < nf - 1:
             v = v * math.sqrt(clip2 / u2)                # Huber: the update sees at most clip sigma
+        if p[P_MO_CUS + 1] > 0.0:
+            # summed innovation: a filter that lags on accelerating motion leaves innovations
+            # of one sign, small each; their faded sum (of the clipped innovations: a lone
+            # spike does not count), over its variance under the filter's own model
+            # (chi-square, 1 degree), counts against its likelihood beyond its threshold
+            cs = p[P_MO_CUS] * s[o + M_CUS + i] + v
+            s[o + M_CUS + i] = cs
+            x2 = cs * cs * (1.0 - g0) * inv_r - p[P_MO_CUS + 2]
+            if x2 > 0.0:
+                lk -= 0.5 * p[P_MO_CUS + 1] * x2 * (1.0 - p[P_MO_CUS] * p[P_MO_CUS])
         s[q] = wp + g0 * v
         s[q + 1] = s[q + 1] + g1 * v
         s[q + 2] = lk
@@ -1209,6 +1228,7 @@ def motion_step(p, s, z):
             if s[q + 3] == 1.0:
                 s[q] = s[qb]
                 s[q + 1] = s[qb + 1]
+                s[o + M_CUS + i] = s[o + M_CUS + best]
             s[q + 2] = lmax - thr
             s[q + 3] = 1.0
         else:
