@@ -479,6 +479,18 @@ void gd_motion_params(double *p, double fs)
         p[P_MO_PT + 1] = 0.7;
         p[P_MO_PT + 2] = 0.95;
     }
+    {
+        double c = 0.0;
+        for (i = 0; i < MO_SPEC_RANK; i++)
+            c += 1.0 / (MO_SPEC_NB - i);
+        p[P_MO_LINE] = p[P_MO_SPEC] > 0.0 ? 10.0 / c : 0.0;
+    }
+    {
+        double t = 0.1 * fs, fc = exp(-1.0 / (t >= 1.0 ? t : 1.0));
+        p[P_MO_CUS] = fc;
+        p[P_MO_CUS + 1] = 1.0;
+        p[P_MO_CUS + 2] = 3.75 * 3.75 / (1.0 - fc * fc);
+    }
 }
 
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] */
@@ -518,13 +530,15 @@ KERNEL double forget_weight_(double b, double bk)
 KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long o, double z, double k)
 {
     const double *cs = p + P_MO_COS;
-    double x, low[MO_SPEC_RANK], w1[MO_SPEC_NB], w2[MO_SPEC_NB], cf[MO_SPEC_NB], xb, bb, d, m;
+    double x, low[MO_SPEC_RANK], w1[MO_SPEC_NB], w2[MO_SPEC_NB], cf[MO_SPEC_NB], xb, bb, d, m, top;
     int n, j, nl, i;
     if (k == 0.0) {
         s[o + M_SPOS] = 0.0;
         s[o + M_SR] = 0.0;
         s[o + M_SBK] = 1.0;
         s[o + M_SBAD] = 0.0;
+        s[o + M_LRAT] = 0.0;
+        s[o + M_LON] = 0.0;
     }
     if (!(fabs(z) < MO_SPEC_ZMAX)) {
         z = 0.0;
@@ -558,8 +572,11 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
         }
     }
     nl = 0;
+    top = 0.0;
     for (j = 0; j < MO_SPEC_NB; j++) {
         double pw = w1[j] * w1[j] + w2[j] * w2[j] - cf[j] * w1[j] * w2[j];
+        if (j >= MO_LINE_J0 && pw > top)
+            top = pw;
         if (nl < MO_SPEC_RANK) {
             i = nl;
             nl++;
@@ -589,6 +606,11 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
     if (m == 0.0)
         s[o + M_SBK] = 1.0;
     s[o + M_SR] = m;
+    if (p[P_MO_LINE] > 0.0) {    /* line test (kernels.spectral_floor) */
+        double lr = top * p[P_MO_SPEC], th = p[P_MO_LINE] * m;
+        s[o + M_LON] = (lr > th && s[o + M_LRAT] > th) ? 1.0 : 0.0;
+        s[o + M_LRAT] = lr;
+    }
     return m;
 }
 
@@ -685,7 +707,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
     int pos, i, j, best, c, st, gst, nv, hb;
     double wts[MO_MAX_NF], ee[MO_MAX_NF];
-    double *bx, *ba, *bl, *bh;
+    double *bx, *ba, *bl, *bh, *bc = s + o + M_CUS;
     const double *pg0, *pg1, *pls, *hist;
     if (bk) {          /* the batch loop's bank: one array per value, all lanes */
         bx = bk->x;
@@ -791,6 +813,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             ba[st * i] = 0.0;
             bl[st * i] = 0.0;
             bh[st * i] = 0.0;
+            bc[i] = 0.0;
         }
         return z;
     }
@@ -830,6 +853,13 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         lk = fade * bl[st * i] - 0.5 * (u + ls);
         if (u > clip2 && i < nf - 1)
             v = v * sqrt(clip2 / u);
+        if (p[P_MO_CUS + 1] > 0.0) {   /* summed innovation (kernels.motion_step) */
+            double cs = p[P_MO_CUS] * bc[i] + v, x2;
+            bc[i] = cs;
+            x2 = cs * cs * (1.0 - g0) * inv_r - p[P_MO_CUS + 2];
+            if (x2 > 0.0)
+                lk -= 0.5 * p[P_MO_CUS + 1] * x2 * (1.0 - p[P_MO_CUS] * p[P_MO_CUS]);
+        }
         bx[st * i] = w + g0 * v;
         ba[st * i] = ba[st * i] + g1 * v;
         bl[st * i] = lk;
@@ -849,6 +879,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             if (bh[st * i] == 1.0) {
                 bx[st * i] = bx[st * best];
                 ba[st * i] = ba[st * best];
+                bc[i] = bc[best];
             }
             bl[st * i] = lmax - thr;
             bh[st * i] = 1.0;
@@ -889,6 +920,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             y = y + bt * (z - y);
         }
     }
+    if (s[o + M_LON] != 0.0)
+        y = z;                   /* a line near the Nyquist frequency: the raw sample */
     out = y + p[P_MO_KAPPA] * s[o + M_ANG];
     s[o + M_ANG] += z - out;
     s[o + M_BEST] = (double)best;

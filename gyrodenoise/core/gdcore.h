@@ -72,7 +72,10 @@ extern "C" {
 #define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped;
                                      so is a 4th difference beyond it in the lag noise estimates (M_MABS) */
 #define P_MO_PT (P_MO_COS + MO_SPEC_N) /* motion: pass-through: gain smoothing per sample (0 = off), gains lo, hi */
-#define N_PARAMS (P_MO_PT + 3)
+#define P_MO_LINE (P_MO_PT + 3) /* motion: spectral line test threshold x the floor (0 = off) */
+#define MO_LINE_J0 7               /* the line test's first bin (MO_SPEC_K0 + 2 x 7: 0.36 fs) */
+#define P_MO_CUS (P_MO_PT + 4) /* motion: summed innovation: fading, weight, threshold (0 weight = off) */
+#define N_PARAMS (P_MO_PT + 7)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -126,7 +129,10 @@ extern "C" {
 #define M_SFOLD (M_SPOS + 4)         /* spectral floor: the windowed block folded in two (N/2) */
 #define M_GEFF (M_SFOLD + MO_SPEC_N / 2) /* pass-through: smoothed gain of the most likely filter */
 #define M_NWC (M_GEFF + 1)           /* 1 once the growing-memory gains are below every filter's */
-#define N_EXT (M_NWC + 1)
+#define M_LRAT (M_NWC + 1)           /* line test: the last block's highest top bin x p[P_MO_SPEC] */
+#define M_LON (M_NWC + 2)            /* line test: 1 while the last two blocks held a line (raw output) */
+#define M_CUS (M_NWC + 3)            /* summed innovation per filter (MO_MAX_NF) */
+#define N_EXT (M_CUS + MO_MAX_NF)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {

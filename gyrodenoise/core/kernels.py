@@ -95,7 +95,13 @@ MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or 
 P_MO_PT = P_MO_COS + MO_SPEC_N   # motion: pass-through (:func:`motion_step`): smoothing of the best filter's
                                   # gain per sample (0 = off), the gain where the output starts moving to the raw
                                   # sample, and where it is the raw sample
-N_PARAMS = P_MO_PT + 3
+P_MO_LINE = P_MO_PT + 3   # motion: spectral line test (:func:`spectral_floor`): a bin at or above
+                          # MO_LINE_J0 whose |X|^2 x p[P_MO_SPEC] exceeds this x the floor, in two
+                          # blocks in a row, puts the output on the raw sample (0 = off)
+MO_LINE_J0 = 7            # the line test's first bin: MO_SPEC_K0 + 2 x 7 = 46 (0.36 fs)
+P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`): fading of each filter's
+                          # summed innovation per sample, and its weight in the log-likelihood (0 = off)
+N_PARAMS = P_MO_PT + 7
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -157,7 +163,10 @@ M_SBAD = M_SPOS + 3            # spectral floor: 1.0 if the block holds a sample
 M_SFOLD = M_SPOS + 4           # spectral floor: the windowed block folded in two, x[n] + x[n + N/2] (N/2 floats)
 M_GEFF = M_SFOLD + MO_SPEC_N // 2   # pass-through: the smoothed gain of the most likely filter
 M_NWC = M_GEFF + 1                   # 1.0 once the growing-memory gains are below every filter's own (converged)
-N_EXT = M_NWC + 1
+M_LRAT = M_NWC + 1    # line test: the last block's highest bin at or above MO_LINE_J0 / the floor (x p[P_MO_SPEC])
+M_LON = M_NWC + 2     # line test: 1.0 while the last two blocks held a line (output = raw sample)
+M_CUS = M_NWC + 3     # summed-innovation test: per filter, its faded sum of innovations, deg/s
+N_EXT = M_CUS + MO_MAX_NF
 
 
 def layout(n):
@@ -358,7 +367,8 @@ def cv_gains(tracking_index):
 
 def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
                   tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
-                  clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95)):
+                  clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0,
+                  cusum_tau_s=0.1, cusum_weight=1.0, cusum_sigma=3.75):
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
@@ -377,7 +387,8 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     spectral: the ratio of the spectral noise floor (:func:`spectral_params`; negative = off);
     pass_tau_s, pass_gain: the pass-through (smoothing of the most likely filter's gain, and the
     gains (lo, hi) between which the output moves from the bank's mean to the raw sample;
-    pass_tau_s = 0: off)."""
+    pass_tau_s = 0: off); line: the spectral line test's threshold in units of the white-noise
+    level of one bin (:func:`spectral_floor`; 0 = off)."""
     fs = float(sample_rate_hz)
     if not 1 <= n_filters <= MO_MAX_NF or not 1 <= n_lag <= MO_MAX_NLAG:
         raise ValueError("motion: n_filters must be 1..%d and n_lag 1..%d" % (MO_MAX_NF, MO_MAX_NLAG))
@@ -389,7 +400,16 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
         e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
         gains[3 * i:3 * i + 3] = cv_gains(10.0 ** e)
     pt = [1.0 / max(pass_tau_s * fs, 1.0) if pass_tau_s > 0 else 0.0, float(pass_gain[0]), float(pass_gain[1])]
-    return p + gains + [0.0] + spectral_params(p[2], spectral) + pt
+    sp = spectral_params(p[2], spectral)
+    c = 0.0
+    for i in range(MO_SPEC_RANK):
+        c += 1.0 / (MO_SPEC_NB - i)
+    ln = [float(line) / c if line > 0 and sp[0] > 0 else 0.0]
+    cu = [0.0, 0.0, 0.0]
+    if cusum_tau_s > 0 and cusum_weight > 0:
+        fc = math.exp(-1.0 / max(cusum_tau_s * fs, 1.0))
+        cu = [fc, float(cusum_weight), float(cusum_sigma) ** 2 / (1.0 - fc * fc)]
+    return p + gains + [0.0] + sp + pt + ln + cu
 
 
 def spectral_params(b, ratio=1.0):
@@ -929,6 +949,8 @@ def spectral_floor(p, s, o, z, k):
         s[o + M_SR] = 0.0
         s[o + M_SBK] = 1.0
         s[o + M_SBAD] = 0.0
+        s[o + M_LRAT] = 0.0
+        s[o + M_LON] = 0.0
     if not abs(z) < MO_SPEC_ZMAX:
         z = 0.0
         s[o + M_SBAD] = 1.0
@@ -956,11 +978,14 @@ def spectral_floor(p, s, o, z, k):
             w0 = y + cf[j] * w1[j] - w2[j]
             w2[j] = w1[j]
             w1[j] = w0
-    # the MO_SPEC_RANK smallest |X|^2, ascending (insertion)
+    # the MO_SPEC_RANK smallest |X|^2, ascending (insertion), and the highest from MO_LINE_J0 on
     low = [0.0] * MO_SPEC_RANK
     nl = 0
+    top = 0.0
     for j in range(MO_SPEC_NB):
         pw = w1[j] * w1[j] + w2[j] * w2[j] - cf[j] * w1[j] * w2[j]
+        if j >= MO_LINE_J0 and pw > top:
+            top = pw
         if nl < MO_SPEC_RANK:
             i = nl
             nl += 1
@@ -986,6 +1011,13 @@ def spectral_floor(p, s, o, z, k):
     if m == 0.0:
         s[o + M_SBK] = 1.0     # a constant input so far: the mean starts with the first change
     s[o + M_SR] = m
+    if p[P_MO_LINE] > 0.0:
+        # line test: a bin near the Nyquist frequency far above the floor, in this block and the
+        # last (a tone, not the edge of a lone step): the bank would average it away
+        lr = top * p[P_MO_SPEC]
+        th = p[P_MO_LINE] * m
+        s[o + M_LON] = 1.0 if lr > th and s[o + M_LRAT] > th else 0.0
+        s[o + M_LRAT] = lr
     return m
 
 
@@ -1123,6 +1155,7 @@ def motion_step(p, s, z):
             s[q + 1] = 0.0
             s[q + 2] = 0.0
             s[q + 3] = 0.0
+            s[o + M_CUS + i] = 0.0
         return z
     s[S_CONV] = 1.0
     gm0 = 0.0
@@ -1165,6 +1198,16 @@ def motion_step(p, s, z):
         lk = fade * s[q + 2] - 0.5 * (u2 + ls)
         if u2 > clip2 and i < nf - 1:
             v = v * math.sqrt(clip2 / u2)                # Huber: the update sees at most clip sigma
+        if p[P_MO_CUS + 1] > 0.0:
+            # summed innovation: a filter that lags on accelerating motion leaves innovations
+            # of one sign, small each; their faded sum (of the clipped innovations: a lone
+            # spike does not count), over its variance under the filter's own model
+            # (chi-square, 1 degree), counts against its likelihood beyond its threshold
+            cs = p[P_MO_CUS] * s[o + M_CUS + i] + v
+            s[o + M_CUS + i] = cs
+            x2 = cs * cs * (1.0 - g0) * inv_r - p[P_MO_CUS + 2]
+            if x2 > 0.0:
+                lk -= 0.5 * p[P_MO_CUS + 1] * x2 * (1.0 - p[P_MO_CUS] * p[P_MO_CUS])
         s[q] = wp + g0 * v
         s[q + 1] = s[q + 1] + g1 * v
         s[q + 2] = lk
@@ -1185,6 +1228,7 @@ def motion_step(p, s, z):
             if s[q + 3] == 1.0:
                 s[q] = s[qb]
                 s[q + 1] = s[qb + 1]
+                s[o + M_CUS + i] = s[o + M_CUS + best]
             s[q + 2] = lmax - thr
             s[q + 3] = 1.0
         else:
@@ -1225,6 +1269,8 @@ def motion_step(p, s, z):
             if bt > 1.0:
                 bt = 1.0
             y = y + bt * (z - y)
+    if s[o + M_LON] != 0.0:
+        y = z              # a line near the Nyquist frequency (spectral_floor): the raw sample
     out = y + p[P_MO_KAPPA] * s[o + M_ANG]
     s[o + M_ANG] += z - out
     s[o + M_BEST] = float(best)

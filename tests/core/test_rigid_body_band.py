@@ -185,7 +185,9 @@ def test_default_unchanged_golden():
     """With the option off (default, or max_motion_hz=0) the filter is the default's, bit for
     bit: tests/data/motion_default_golden.npy is the output of the plain-Python kernels.py on
     golden_record() (regenerated when the pass-through was added: 778 of 1600 samples moved,
-    by at most 0.0038 deg/s; with p[P_MO_PT] = 0 the output is main's da1c420 golden)."""
+    by at most 0.0038 deg/s; with p[P_MO_PT] = 0 the output is main's da1c420 golden;
+    regenerated again for the summed-innovation test: 87 samples moved, by at most 2.2e-8 deg/s;
+    with p[P_MO_CUS + 1] = 0 the output is the golden before it, bit for bit)."""
     z, rs = golden_record()
     golden = np.load(GOLDEN)
     assert gd.denoise(z, FS, restarts=rs).tolist() == golden.tolist()
