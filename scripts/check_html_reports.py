@@ -35,7 +35,8 @@ if str(REPO) not in sys.path:          # run as a file: the tests' helpers live 
 
 from tests.mavlink.html_browser import CHROMIUM, CHROMIUM_ARGS, browser_missing  # noqa: E402
 
-#: JavaScript: per plotly div its id, whether plotly drew it, its trace count and the points of its
+#: JavaScript: per plotly div its id, whether plotly drew it (and its zoom/hover toolbar), its trace
+#: count and the points of its
 #: visible traces (plotly's own ``_fullData``: the page's arrays are base64 typed-array specs)
 PLOTS_JS = """() => Array.from(document.querySelectorAll('div.plotly-graph-div')).map(gd => {
   let points = 0;
@@ -45,7 +46,7 @@ PLOTS_JS = """() => Array.from(document.querySelectorAll('div.plotly-graph-div')
     else if (tr.z && typeof tr.z.length === 'number') points += tr.z.length;
   }
   const t = gd.layout && gd.layout.title;
-  return {id: gd.id, drawn: gd.querySelector('.main-svg') !== null,
+  return {id: gd.id, drawn: gd.querySelector('.main-svg') !== null, modebar: gd.querySelector('.modebar') !== null,
           traces: (gd._fullData || []).length, points: points,
           title: t ? (typeof t === 'string' ? t : (t.text || '')) : ''};
 })"""
@@ -70,11 +71,23 @@ def run_bridge(logs, out_dir, jobs=2, extra=()):
     return proc.returncode, summary, proc.stderr
 
 
+def _refuser(refused):
+    """A Playwright route handler: file, data and blob URLs go through, any other request
+    is aborted and its URL appended to ``refused``; returns the handler."""
+    def route(r):
+        if r.request.url.startswith(("file:", "data:", "blob:")):
+            r.continue_()
+        else:
+            refused.append(r.request.url)
+            r.abort()
+    return route
+
+
 def check_pages(pages, timeout_s=60.0, screenshot_dir=None):
     """Open each HTML page in one headless Chromium; returns one dict per page: ``page``,
     ``size_mb``, ``load_s`` (navigation until every plot drew; None if it never did),
     ``requests`` (URLs refused), ``console_errors``, ``page_errors``, ``plots`` (per plot
-    div: ``id``, ``drawn``, ``traces``, ``points``, ``title``), ``error`` (why the check
+    div: ``id``, ``drawn``, ``modebar``, ``traces``, ``points``, ``title``), ``error`` (why the check
     stopped, or None). With ``screenshot_dir`` a full-page PNG of each is saved there."""
     from playwright.sync_api import Error as PlaywrightError
     from playwright.sync_api import sync_playwright
@@ -89,14 +102,7 @@ def check_pages(pages, timeout_s=60.0, screenshot_dir=None):
                 ctx = browser.new_context(viewport={"width": 1300, "height": 900})
                 page = ctx.new_page()
 
-                def route(r, res=res):
-                    if r.request.url.startswith(("file:", "data:", "blob:")):
-                        r.continue_()
-                    else:
-                        res["requests"].append(r.request.url)
-                        r.abort()
-
-                page.route("**/*", route)
+                page.route("**/*", _refuser(res["requests"]))
                 page.on("console", lambda m, res=res: res["console_errors"].append(m.text)
                         if m.type == "error" else None)
                 page.on("pageerror", lambda e, res=res: res["page_errors"].append(str(e)))
@@ -136,6 +142,8 @@ def page_failures(res):
     for pl in res["plots"]:
         if not pl["drawn"]:
             bad.append(f"plot {pl['title'] or pl['id']!r} not drawn")
+        elif not pl["modebar"]:
+            bad.append(f"plot {pl['title'] or pl['id']!r} has no zoom/hover toolbar")
         elif pl["points"] == 0:
             bad.append(f"plot {pl['title'] or pl['id']!r} drawn empty")
     return bad
