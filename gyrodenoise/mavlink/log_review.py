@@ -21,7 +21,7 @@ import numpy as np
 from gyrodenoise.mavlink.filter_review import filter_review, review_context
 from gyrodenoise.mavlink.logdata import log_messages
 from gyrodenoise.mavlink.parameters import log_parameters
-from gyrodenoise.mavlink.segments import flight_segments, flying_time_s, segment_mask
+from gyrodenoise.mavlink.segments import flight_segments, flying_time_s, segment_mask, session_starts, sessions_of
 from gyrodenoise.mavlink.vehicle_filters import stream_stage, vehicle_filters
 from gyrodenoise.mavlink.vibration import vibration_review
 
@@ -32,28 +32,35 @@ OVER_FLYING, OVER_WHOLE = "flying", "whole log"
 
 class Review:
     """The review of a log: ``fields`` (the JSON-able report keys), ``plot`` (the
-    filter review's numpy arrays for plots, or None), ``over`` and
-    :meth:`flying_mask`."""
+    filter review's numpy arrays for plots, or None), ``over``, ``starts`` (the frame
+    indices where the log's boot sessions 1, 2, ... begin:
+    :func:`gyrodenoise.mavlink.segments.session_starts`) and :meth:`flying_mask`."""
 
-    def __init__(self, fields, plot, segments, over):
+    def __init__(self, fields, plot, segments, over, starts=None):
         self.fields = fields
         self.plot = plot
         self.segments = segments
         self.over = over
+        self.starts = np.zeros(0, np.int64) if starts is None else np.asarray(starts)
 
-    def flying_mask(self, time_s):
+    def flying_mask(self, time_s, records=None):
         """Bool array: the samples of ``time_s`` the figures are over (all True when
-        they are over the whole log)."""
+        they are over the whole log). ``records``: the samples' frame indices (a gyro
+        stream's ``index``): in a log of several boot sessions a sample is flying when
+        its session and its time are those of a flying segment (the boot times of the
+        sessions overlap); without them the time alone decides."""
         t = np.asarray(time_s, dtype=np.float64)
         if self.over != OVER_FLYING:
             return np.ones(t.shape, dtype=bool)
-        return segment_mask(t, self.segments, "flying")
+        sess = sessions_of(records, self.starts) if records is not None and len(self.starts) else None
+        return segment_mask(t, self.segments, "flying", sess)
 
-    def stream_mask(self, time_s):
+    def stream_mask(self, time_s, records=None):
         """(mask, over) for one stream: its flying samples and ``"flying"``, or all
         samples and ``"whole log"`` when it has fewer than :data:`MIN_FLYING_SAMPLES`
-        flying ones (or the figures are over the whole log)."""
-        m = self.flying_mask(time_s)
+        flying ones (or the figures are over the whole log). ``records``: as
+        :meth:`flying_mask`."""
+        m = self.flying_mask(time_s, records)
         if self.over == OVER_FLYING and int(m.sum()) >= MIN_FLYING_SAMPLES:
             return m, OVER_FLYING
         return np.ones(m.shape, dtype=bool), OVER_WHOLE
@@ -94,7 +101,11 @@ def log_review(kind, source, streams, whole_log=False):
         over, over_note = OVER_WHOLE, "no flying segment in the log: figures over the whole log"
     fields["over"] = over
     fields["over_note"] = over_note
-    review = Review(fields, None, segments, over)
+    try:
+        starts = session_starts(kind, source)
+    except Exception:  # noqa: BLE001 - without sessions the times alone select
+        starts = None
+    review = Review(fields, None, segments, over, starts)
 
     filters = vehicle_filters(autopilot, params)
     if not params:
@@ -113,7 +124,8 @@ def log_review(kind, source, streams, whole_log=False):
     fields["filter_review"] = rev
     fields["filter_review_note"] = note
     try:
-        vib, vnote = vibration_review(kind, source, segments, over="whole" if over == OVER_WHOLE else "flying")
+        vib, vnote = vibration_review(kind, source, segments, over="whole" if over == OVER_WHOLE else "flying",
+                                      starts=review.starts)
     except Exception as exc:  # noqa: BLE001
         vib, vnote = None, _failed("vibration review", exc)
     fields["vibration"] = vib

@@ -22,7 +22,8 @@ Names are spelled as the format spells them:
   not rejected by a signature check). Values as pymavlink gives them; ``char[]``
   fields as str (NULs stripped), other arrays 2-D. Extra columns: ``sysid``,
   ``compid`` (of the packet header), ``log_time_s`` (the record's tlog timestamp,
-  UNIX seconds). ``time_s`` (boot time, the gyro streams' time base): the message's
+  UNIX seconds), ``record`` (the record's frame index in the file, as a gyro
+  stream's ``index``: :func:`tlog_session_starts` numbers boot sessions by it). ``time_s`` (boot time, the gyro streams' time base): the message's
   own ``time_boot_ms`` * 1e-3, else its ``time_usec`` * 1e-6 where that is a boot time
   (below 1e12 us, about 11.6 days; larger values are UNIX times); else -- messages with
   no time of their own (HEARTBEAT, PARAM_VALUE, STATUSTEXT...) -- the boot time of the
@@ -265,6 +266,7 @@ def _tlog_messages(source, name):
     out["compid"] = np.where(v2, buf[start + 14], buf[start + 12]).astype(np.int64)
     wall_us = _tlog_stamps_us(buf, start)
     out["log_time_s"] = wall_us * 1e-6
+    out["record"] = sel.astype(np.int64)
     own = None
     if "time_boot_ms" in fields:
         own = out["time_boot_ms"].astype(np.float64) * 1e-3
@@ -316,6 +318,27 @@ def _tlog_anchors(source):
             anchors[sid] = (i[k], b[k], w[k])
     source["logdata_tlog_anchors"] = anchors
     return anchors
+
+
+#: a telemetry log's boot time stepping back by more than this (s), in file order, starts a boot session
+SESSION_STEP_BACK_S = 0.5
+
+
+def tlog_session_starts(source):
+    """Frame indices (sorted int64 array) at which a telemetry log's boot sessions 1, 2, ...
+    begin, empty for a log of one boot: where the ``time_boot_ms`` of the system that
+    sends most of them steps back, in file order, by more than
+    :data:`SESSION_STEP_BACK_S` (a reboot, or logs of several boots written into one
+    file). The session of a record with frame index ``i`` is
+    ``searchsorted(starts, i, side="right")``: the same numbering for every message
+    and gyro stream of the log, whatever their own clocks do."""
+    anchors = _tlog_anchors(source)
+    if not anchors:
+        return np.zeros(0, np.int64)
+    sid = max(anchors, key=lambda k: len(anchors[k][0]))
+    idx, boot, _ = anchors[sid]
+    back = np.flatnonzero(np.diff(boot) < -SESSION_STEP_BACK_S) + 1
+    return np.asarray(idx[back], dtype=np.int64)
 
 
 def _tlog_anchor_time(source, sel, sysid, wall_us):

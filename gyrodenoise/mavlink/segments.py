@@ -1,12 +1,21 @@
 """Flight segments of a log, from the log's own evidence: when the vehicle was on the
 ground (disarmed), armed but not flying, flying, and hovering.
 
-:func:`flight_segments` returns a list of ``{"kind", "start_s", "end_s"}`` in the log's
-own time base (the gyro streams' ``time_s``; :mod:`gyrodenoise.mavlink.logdata`):
+:func:`flight_segments` returns a list of ``{"kind", "start_s", "end_s", "session"}`` in
+the log's own time base (the gyro streams' ``time_s``; :mod:`gyrodenoise.mavlink.logdata`):
 
 * ``ground`` -- not armed; ``armed`` -- armed, not in the air; ``flying`` -- in the air.
   These three partition the stretch of the log that holds evidence, in log order; a
   reboot (the boot time stepping back) ends every segment and starts a new one.
+  A segment of no length (one sample) is left out.
+* ``session`` -- the boot session the segment lies in (0, 1, ...). A telemetry log can
+  hold several boots (a reboot, or several logs written into one file) whose boot
+  times overlap: a time alone does not say which boot it is in, so a sample is in a
+  segment when its session and its time both are (:func:`segment_mask` with
+  ``session``). Sessions are numbered in file order by the frame index of the
+  records (:func:`gyrodenoise.mavlink.logdata.tlog_session_starts`, the same
+  numbering for every message and gyro stream); a DataFlash or ULog log is one
+  session (0).
 * ``hover`` -- EXTRA entries, not part of the partition: a stretch of a ``flying``
   segment where the throttle is steady -- the union of the 2 s windows
   (:data:`HOVER_WINDOW_S`, at least 3 throttle samples) whose throttle standard
@@ -44,7 +53,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gyrodenoise.mavlink.logdata import log_messages
+from gyrodenoise.mavlink.logdata import log_messages, tlog_session_starts
 
 SEGMENT_KINDS = ("ground", "armed", "flying", "hover")
 GROUND, ARMED, FLYING = 0, 1, 2
@@ -87,8 +96,8 @@ def flight_segments(kind, source, autopilot=None):
         raise ValueError(f"unknown log kind {kind!r}")
     if isinstance(got, str):
         return [], got
-    t, state, throttle, note = got
-    segs = _runs(t, state)
+    t, state, throttle, note = got[:4]
+    segs = _runs(t, state, got[4] if len(got) > 4 else None)
     hov = _hover(segs, throttle) if throttle is not None else []
     if hov:
         note += (f"; hover: throttle std over {HOVER_WINDOW_S:g} s below {HOVER_STD:g} of full "
@@ -101,15 +110,35 @@ def flight_segments(kind, source, autopilot=None):
     return out, note
 
 
-def segment_mask(time_s, segments, kind):
+def segment_mask(time_s, segments, kind, session=None):
     """Boolean array: True where ``time_s`` lies in a segment of ``kind`` (start and end
-    included). ``kind`` "flying" covers the hover stretches too (they lie inside)."""
+    included) -- and, given ``session`` (each sample's boot session, an int array like
+    ``time_s``: :func:`sessions_of`), in that segment's session. ``kind`` "flying"
+    covers the hover stretches too (they lie inside)."""
     t = np.asarray(time_s, dtype=np.float64)
     mask = np.zeros(t.shape, dtype=bool)
+    sess = None if session is None else np.asarray(session)
     for s in segments:
         if s["kind"] == kind:
-            mask |= (t >= s["start_s"]) & (t <= s["end_s"])
+            m = (t >= s["start_s"]) & (t <= s["end_s"])
+            if sess is not None:
+                m &= sess == s.get("session", 0)
+            mask |= m
     return mask
+
+
+def session_starts(kind, source):
+    """Frame indices at which the log's boot sessions 1, 2, ... begin (int array; empty
+    for one session, and for DataFlash and ULog logs): see the module doc."""
+    if kind == "tlog":
+        return tlog_session_starts(source)
+    return np.zeros(0, np.int64)
+
+
+def sessions_of(records, starts):
+    """The boot session (int array) of each of ``records`` (frame indices: a telemetry
+    message's ``record`` column, a gyro stream's ``index``) given :func:`session_starts`."""
+    return np.searchsorted(np.asarray(starts), np.asarray(records), side="right")
 
 
 def flying_time_s(segments):
@@ -125,24 +154,33 @@ def _sessions(t):
     return np.concatenate([[0], np.cumsum(np.diff(t) < -REBOOT_STEP_S)]) if len(t) else np.zeros(0, np.int64)
 
 
-def _runs(t, state):
-    """Segments of constant ``state`` along the timeline ``t`` (log order): a run
-    ends where the next run starts, or at its last sample before a reboot."""
+def _runs(t, state, sess=None):
+    """Segments of constant ``state`` along the timeline ``t`` (log order), each with
+    its ``session``: a run ends where the next run starts, or at its last sample
+    before a reboot. ``sess``: each sample's boot session (the samples are then
+    ordered by session, then time); without it a step back in ``t`` of more than
+    :data:`REBOOT_STEP_S` starts a new one. Runs of no length are left out."""
     t = np.asarray(t, dtype=np.float64)
     state = np.asarray(state)
     ok = np.isfinite(t)
     t, state = t[ok], state[ok]
+    if sess is not None:
+        sess = np.asarray(sess)[ok]
+        order = np.lexsort((t, sess))
+        t, state, sess = t[order], state[order], sess[order]
     if not len(t):
         return []
-    sess = _sessions(t)
+    if sess is None:
+        sess = _sessions(t)
     brk = np.flatnonzero((np.diff(state) != 0) | (np.diff(sess) != 0)) + 1
     starts = np.concatenate([[0], brk])
     ends = np.concatenate([brk, [len(t)]])
     out = []
     for a, b in zip(starts.tolist(), ends.tolist()):
         end = t[b] if b < len(t) and sess[b] == sess[a] else t[b - 1]
-        out.append({"kind": _STATE_NAMES[int(state[a])], "start_s": round(float(t[a]), 6),
-                    "end_s": round(float(end), 6)})
+        if end > t[a]:
+            out.append({"kind": _STATE_NAMES[int(state[a])], "start_s": round(float(t[a]), 6),
+                        "end_s": round(float(end), 6), "session": int(sess[a])})
     return out
 
 
@@ -160,15 +198,18 @@ def _step(t_query, t_change, values, initial):
 
 
 def _hover(segs, throttle):
-    """Hover segments inside the flying ones from ``throttle`` = (time_s, 0..1)."""
-    tt, thr = throttle
+    """Hover segments inside the flying ones from ``throttle`` = (time_s, 0..1[, session])."""
+    tt, thr = throttle[0], throttle[1]
     ok = np.isfinite(tt) & np.isfinite(thr)
     tt, thr = np.asarray(tt, np.float64)[ok], np.asarray(thr, np.float64)[ok]
+    tsess = np.asarray(throttle[2])[ok] if len(throttle) > 2 else None
     out = []
     for s in segs:
         if s["kind"] != "flying":
             continue
         sel = (tt >= s["start_s"]) & (tt <= s["end_s"])
+        if tsess is not None:
+            sel &= tsess == s["session"]
         t, x = tt[sel], thr[sel]
         order = np.argsort(t, kind="stable")
         t, x = t[order], x[order]
@@ -190,7 +231,7 @@ def _hover(segs, throttle):
         for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1):
             if t[j] - t[i] >= HOVER_MIN_S:       # from the first to the last steady sample
                 out.append({"kind": "hover", "start_s": round(float(t[i]), 6),
-                            "end_s": round(float(t[j]), 6), "_parent": s})
+                            "end_s": round(float(t[j]), 6), "session": s["session"], "_parent": s})
     return out
 
 
@@ -341,6 +382,8 @@ def _tlog(source, autopilot):
     if (veh & (hb["compid"] == 1)).any():
         veh &= hb["compid"] == 1
     t = hb["time_s"][veh]
+    starts = tlog_session_starts(source)
+    hb_sess = sessions_of(hb["record"][veh], starts)
     armed = (hb["base_mode"][veh] & MAV_SAFETY_ARMED) != 0
     ap = autopilot or ("ardupilot" if int(np.bincount(hb["autopilot"][veh]).argmax()) == 3 else
                        "px4" if int(np.bincount(hb["autopilot"][veh]).argmax()) == 12 else None)
@@ -348,9 +391,9 @@ def _tlog(source, autopilot):
     ess = log_messages("tlog", source, "EXTENDED_SYS_STATE")
     if ess is not None:
         ess_sel = (ess["sysid"] == sysid) & np.isfinite(ess["time_s"])
-        ess = None if not ess_sel.any() else (ess["time_s"][ess_sel], ess["landed_state"][ess_sel])
-    if ess is not None:
-        air = _step(t, ess[0], np.isin(ess[1], (2, 3, 4)).astype(np.int64), initial=0) == 1
+        ess = None if not ess_sel.any() else (ess["record"][ess_sel], ess["landed_state"][ess_sel])
+    if ess is not None:         # in file order: boot times of several sessions overlap
+        air = _step(hb["record"][veh], ess[0], np.isin(ess[1], (2, 3, 4)).astype(np.int64), initial=0) == 1
         how = "in the air from EXTENDED_SYS_STATE.landed_state"
     elif ap == "ardupilot" and vtype in COPTER_TYPES:
         ss = hb["system_status"][veh]
@@ -366,15 +409,17 @@ def _tlog(source, autopilot):
     vfr = log_messages("tlog", source, "VFR_HUD")
     if vfr is not None and (vfr["sysid"] == sysid).any():
         s = vfr["sysid"] == sysid
-        throttle = (vfr["time_s"][s], vfr["throttle"][s].astype(np.float64) / 100.0)
+        throttle = (vfr["time_s"][s], vfr["throttle"][s].astype(np.float64) / 100.0,
+                    sessions_of(vfr["record"][s], starts))
     else:
         so = log_messages("tlog", source, "SERVO_OUTPUT_RAW")
         if so is not None and (so["sysid"] == sysid).any():
             s = so["sysid"] == sysid
             pwm = np.mean([so[f"servo{i}_raw"][s].astype(np.float64) for i in range(1, 5)], axis=0)
-            throttle = (so["time_s"][s], np.clip((pwm - 1000.0) / 1000.0, 0, 1))
+            throttle = (so["time_s"][s], np.clip((pwm - 1000.0) / 1000.0, 0, 1), sessions_of(so["record"][s], starts))
+    how += f"; {len(starts) + 1} boot sessions (numbered in file order)" if len(starts) else ""
     return (t, state, throttle,
-            f"telemetry log: HEARTBEAT of system {sysid} (armed bit of base_mode); {how}")
+            f"telemetry log: HEARTBEAT of system {sysid} (armed bit of base_mode); {how}", hb_sess)
 
 
 # --------------------------------------------------------------------- ULog

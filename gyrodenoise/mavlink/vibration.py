@@ -35,7 +35,7 @@ import numpy as np
 
 from gyrodenoise.analysis.spectrum import find_peaks, welch_psd
 from gyrodenoise.mavlink.logdata import log_messages
-from gyrodenoise.mavlink.segments import segment_mask
+from gyrodenoise.mavlink.segments import segment_mask, sessions_of
 
 ARDUPILOT_VIBE_URL = "https://ardupilot.org/copter/docs/common-measuring-vibration.html"
 FLIGHT_REVIEW_URL = "https://github.com/PX4/flight_review/blob/main/app/plot_app/configured_plots.py"
@@ -68,7 +68,7 @@ MAX_PEAKS = 3
 PEAK_MIN_FREQ_HZ = 5.0
 
 
-def vibration_review(kind, source, segments, over="flying"):
+def vibration_review(kind, source, segments, over="flying", starts=None):
     """(result, note) of the vibration figures of a log read by
     :func:`gyrodenoise.mavlink.formats.read_log`, over the ``flying`` segments of
     ``segments`` (:func:`gyrodenoise.mavlink.segments.flight_segments`) or, with
@@ -77,11 +77,17 @@ def vibration_review(kind, source, segments, over="flying"):
     ``result``: ``{"source", "over": "flying"|"whole log", "thresholds", "segments":
     [{"kind", "start_s", "end_s", "figures": {...}, "accel_peaks": [...],
     "verdict"}], "verdict"}`` (JSON-able; see the module doc), or None when the log has
-    none of the sources, with a note naming what was looked for."""
+    none of the sources, with a note naming what was looked for. ``starts``: the
+    frame indices where a telemetry log's boot sessions 1, 2, ... begin
+    (:func:`gyrodenoise.mavlink.segments.session_starts`): a sample is in a segment
+    when its boot session is the segment's ``session`` too."""
     if over not in ("flying", "whole"):
         raise ValueError(f"over must be 'flying' or 'whole', not {over!r}")
     levels = _levels(kind, source)
     accel = _accel(kind, source)
+    if levels is not None:
+        levels["session"] = (sessions_of(levels["record"], starts) if starts is not None and len(starts)
+                             and "record" in levels else None)
     if levels is None and accel is None:
         return None, f"no vibration data in the log (looked for {LOOKED_FOR[kind]})"
     times = [x["time_s"] for x in ([levels] if levels else []) + ([accel] if accel else [])]
@@ -98,7 +104,8 @@ def vibration_review(kind, source, segments, over="flying"):
     out_segs = []
     for seg in spans:
         entry = {"kind": seg["kind"], "start_s": round(float(seg["start_s"]), 3),
-                 "end_s": round(float(seg["end_s"]), 3), "figures": {}, "accel_peaks": None}
+                 "end_s": round(float(seg["end_s"]), 3), "session": int(seg.get("session", 0)),
+                 "figures": {}, "accel_peaks": None}
         if levels is not None:
             entry["figures"] = _segment_figures(levels, seg)
         if accel is not None:
@@ -138,7 +145,7 @@ def _levels(kind, source):
         m = log_messages(kind, source, "VIBRATION")
         if m is None:
             return None
-        return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"],
+        return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
                 "instance": np.zeros(len(m["time_s"]), np.int64),
                 "levels": {c: m[c] for c in ("vibration_x", "vibration_y", "vibration_z")},
                 "clips": {c: m[c] for c in ("clipping_0", "clipping_1", "clipping_2")}}
@@ -193,8 +200,8 @@ def _worst(verdicts):
     return max(vs, key=VERDICTS.index) if vs else None
 
 
-def _in(t, seg):
-    return segment_mask(t, [dict(seg, kind="x")], "x")
+def _in(t, seg, session=None):
+    return segment_mask(t, [dict(seg, kind="x")], "x", session if "session" in seg else None)
 
 
 def _segment_figures(lv, seg):
@@ -204,7 +211,7 @@ def _segment_figures(lv, seg):
     out = {}
     for inst in np.unique(lv["instance"]).tolist():
         isel = lv["instance"] == inst
-        sel = isel & _in(t, seg)
+        sel = isel & _in(t, seg, lv.get("session"))
         prefix = f"imu{inst}." if len(np.unique(lv["instance"])) > 1 else ""
         for name, col in lv["levels"].items():
             x = np.asarray(col, np.float64)[sel]
@@ -225,7 +232,10 @@ def _segment_figures(lv, seg):
             idx = np.flatnonzero(sel)
             if not len(idx):
                 continue
-            before = np.flatnonzero(isel & (t < seg["start_s"]))
+            before = isel & (t < seg["start_s"])
+            if lv.get("session") is not None and "session" in seg:
+                before &= lv["session"] == seg["session"]
+            before = np.flatnonzero(before)
             base = c[before[-1]] if len(before) else c[idx[0]]
             inc = float(np.max(c[idx]) - base)
             inc = max(inc, 0.0)

@@ -162,3 +162,59 @@ def test_real_telemetry_log_heartbeats():
     assert "HEARTBEAT" in note and 400 < flying_time_s(segs) < 470
     segs, _ = _real("copter_20211123-010337.tlog")
     assert {s["kind"] for s in segs} == {"ground"}
+
+
+def test_segment_mask_selects_by_session_and_time():
+    """Two boot sessions whose boot times overlap: a sample at 50 s of session 1 is not in
+    session 0's flying segment 40-60 s."""
+    segs = [{"kind": "flying", "start_s": 40.0, "end_s": 60.0, "session": 0},
+            {"kind": "ground", "start_s": 30.0, "end_s": 90.0, "session": 1}]
+    t = np.array([50.0, 50.0, 70.0])
+    sess = np.array([0, 1, 0])
+    assert segment_mask(t, segs, "flying", sess).tolist() == [True, False, False]
+    assert segment_mask(t, segs, "flying").tolist() == [True, True, False]      # time alone
+
+
+def test_synthetic_tlog_two_boot_sessions_kept_apart():
+    """SYNTHETIC telemetry log of two boots written one after the other (boot time 0-20 s,
+    then 0-20 s again): the first flies 8-15 s, the second stays on the ground. Each
+    segment carries its session; none has zero length."""
+    mav, add, out = tlog_writer()
+    wall0 = 1_700_000_000_000_000
+    for boot in (0, 1):
+        for k in range(200):
+            tb = 0.1 * k
+            wall = wall0 + (boot * 200 + k) * 100_000
+            add(mav.MAVLink_attitude_message(int(round(tb * 1000)), 0, 0, 0, 0, 0, 0), wall)
+            if k % 10 == 5:
+                armed = boot == 0 and 5.0 <= tb < 18.0
+                active = boot == 0 and 8.0 <= tb < 15.0
+                add(mav.MAVLink_heartbeat_message(2, 3, 0x80 if armed else 0, 0, 4 if active else 3, 3),
+                    wall + 20_000)
+    data = out()
+    src = {"data": data, "fr": tlog.frame(data)}
+    segs, note = flight_segments("tlog", src)
+    got = [(s["kind"], round(s["start_s"], 2), round(s["end_s"], 2), s["session"]) for s in segs]
+    assert got == [("ground", 0.52, 5.52, 0), ("armed", 5.52, 8.52, 0), ("flying", 8.52, 15.52, 0),
+                   ("armed", 15.52, 18.52, 0), ("ground", 18.52, 19.52, 0), ("ground", 0.52, 19.52, 1)]
+    assert "2 boot sessions" in note
+    assert all(s["end_s"] > s["start_s"] for s in segs)
+
+
+def test_real_multi_boot_tlog_flying_mask_by_session():
+    """copter_20211202-132613.tlog holds 3 boots whose boot times overlap; it flies in
+    the first only (77-559 s). Its flying VIBRATION samples are that boot's 482, not
+    the 1020 the times alone select; the segment (561.4, 561.4) of no length is gone."""
+    from gyrodenoise.mavlink.vibration import vibration_review
+    path = shared_log("copter_20211202-132613.tlog")
+    src = formats.read_log(path, "tlog")[1]
+    segs, _ = flight_segments("tlog", src)
+    assert all(s["end_s"] > s["start_s"] for s in segs)
+    assert {s["session"] for s in segs if s["kind"] == "flying"} == {0}
+    assert {s["session"] for s in segs} == {0, 1, 2}
+    from gyrodenoise.mavlink.segments import session_starts
+    res, _ = vibration_review("tlog", src, segs, starts=session_starts("tlog", src))
+    (seg,) = res["segments"]
+    vz = seg["figures"]["vibration_z"]
+    assert seg["session"] == 0 and vz["samples"] == 482
+    assert vz["mean"] == pytest.approx(22.55, abs=0.01) and vz["verdict"] == "warn"
