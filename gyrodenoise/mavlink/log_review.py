@@ -66,6 +66,20 @@ class Review:
         return np.ones(m.shape, dtype=bool), OVER_WHOLE
 
 
+def never_armed_note(segments):
+    """The ``filter_review_note`` of a log whose segments show the vehicle never armed
+    (all ``ground``), or "" (it armed or flew, or the log holds no segment evidence).
+    The motors never turned: the gyro spectrum at rest says nothing about the motor
+    noise the filters are there for, so no filter is recommended from it (the
+    streams' own spectra stay in the report)."""
+    kinds = {s["kind"] for s in segments or []}
+    if not kinds or kinds & {"armed", "flying", "hover"}:
+        return ""
+    return ("no filter review: the vehicle never armed in this log (segments: ground only); the gyro "
+            "spectrum at rest says nothing about motor noise (each stream's own spectrum is still in "
+            "the report)")
+
+
 def _failed(part, exc):
     return f"{part} failed: {type(exc).__name__}: {exc}"
 
@@ -114,11 +128,15 @@ def log_review(kind, source, streams, whole_log=False):
     fields["stream_stages"] = {s.name: stream_stage(autopilot, params, s) for s in streams}
 
     mask_fn = review.flying_mask if over == OVER_FLYING else None
-    try:
-        ctx = review_context(kind, source, autopilot, params, filters, mask_fn)
-        rev, note = filter_review(streams, autopilot, params, filters, mask_fn, ctx)
-    except Exception as exc:  # noqa: BLE001
-        rev, note = None, _failed("filter review", exc)
+    idle = never_armed_note(segments)
+    if idle:
+        rev, note = None, idle
+    else:
+        try:
+            ctx = review_context(kind, source, autopilot, params, filters, mask_fn)
+            rev, note = filter_review(streams, autopilot, params, filters, mask_fn, ctx)
+        except Exception as exc:  # noqa: BLE001
+            rev, note = None, _failed("filter review", exc)
     if rev is not None:
         review.plot = rev.pop("_plot", None)
     fields["filter_review"] = rev

@@ -27,12 +27,13 @@ STAGES = ("pre-filter", "post-filter", "unknown")
 KINDS = ("ground", "armed", "flying", "hover")
 
 
-def synthetic_log(path, seed=3):
+def synthetic_log(path, seed=3, events=None, params=None, tone_amp=3.0):
     """SYNTHETIC DataFlash log written to ``path``: PARM (PARAMS), IMU at 50 Hz from 1 to
     21 s (white noise, rad/s), CTUN at 10 Hz, the batch sampler's gyro (ISBH/ISBD,
     instance 0, pre-filter) in N_BURSTS bursts of 1024 samples at 2 kHz each second from
     1 s, a 3 deg/s tone at TONE_HZ on x in 0.3 deg/s white noise; EV/ARM: armed at 4 s,
-    in the air at 6 s, landed at 16 s, disarmed at 18 s."""
+    in the air at 6 s, landed at 16 s, disarmed at 18 s (``events`` [(time_s, EV id)]
+    replaces them, and without any the throttle stays at 0.1; ``params`` the PARM values; ``tone_amp`` the tone's deg/s)."""
     rng = np.random.default_rng(seed)
     w = DataFlashWriter()
     w.define("PARM", "QNf", ["TimeUS", "Name", "Value"])
@@ -42,16 +43,17 @@ def synthetic_log(path, seed=3):
     w.define("ARM", "QBIBB", ["TimeUS", "ArmState", "ArmChecks", "Forced", "Method"])
     w.define("ISBH", "QHBBHHQf", ["TimeUS", "N", "type", "instance", "mul", "smp_cnt", "SampleUS", "smp_rate"])
     w.define("ISBD", "QHHaaa", ["TimeUS", "N", "seqno", "x", "y", "z"])
-    for name, v in PARAMS.items():
+    for name, v in (PARAMS if params is None else params).items():
         w.add("PARM", 500_000, name, v)
-    events = [(ARM_S, 10), (TAKEOFF_S, 28), (LAND_S, 18), (DISARM_S, 11)]
+    if events is None:
+        events = [(ARM_S, 10), (TAKEOFF_S, 28), (LAND_S, 18), (DISARM_S, 11)]
     recs = []                                              # (time_us, order, name, values)
     for ts, i in events:
         recs.append((int(ts * 1e6), 0, "EV", (i,)))
         if i in (10, 11):
             recs.append((int(ts * 1e6), 1, "ARM", (int(i == 10), 0, 0, 0)))
     for t in 1.0 + np.arange(200) / 10.0:
-        thr = 0.5 + 0.05 * np.sin(t) if TAKEOFF_S <= t <= LAND_S else 0.1
+        thr = 0.5 + 0.05 * np.sin(t) if events and TAKEOFF_S <= t <= LAND_S else 0.1
         recs.append((int(round(t * 1e6)), 2, "CTUN", (float(thr),)))
     for t in 1.0 + np.arange(1000) / 50.0:
         g = rng.normal(0.0, 0.002, 3)
@@ -60,7 +62,7 @@ def synthetic_log(path, seed=3):
         t0 = 1.0 + n
         t = t0 + np.arange(BURST) / FS
         x = rng.normal(0.0, 0.3, (BURST, 3))
-        x[:, 0] += 3.0 * np.sin(2 * np.pi * TONE_HZ * t)
+        x[:, 0] += tone_amp * np.sin(2 * np.pi * TONE_HZ * t)
         counts = np.clip(np.rint(np.radians(x) * MUL), -32768, 32767).astype(int)
         us = int(round(t0 * 1e6))
         recs.append((us, 4, "ISBH", (n, 1, 0, int(MUL), BURST, us, FS)))
@@ -71,6 +73,32 @@ def synthetic_log(path, seed=3):
         w.add(name, us, *vals)
     path.write_bytes(w.bytes())
     return path
+
+
+def _log_review(path):
+    """The review fields of a log read in-process (no filtering, no outputs)."""
+    from gyrodenoise.mavlink.formats import log_kind, read_log
+    from gyrodenoise.mavlink.log_review import log_review
+    kind = log_kind(path)
+    streams, source, _ = read_log(path, kind)
+    return log_review(kind, source, streams).fields
+
+
+def test_never_armed_gives_no_filter_review(tmp_path):
+    """The same SYNTHETIC log with no arming event and the throttle at 0.1: all ground;
+    the tone in the pre-filter gyro must not become a notch recommendation -- the
+    review is None and its note says why."""
+    rep = _log_review(synthetic_log(tmp_path / "idle.bin", events=[]))
+    assert {s["kind"] for s in rep["segments"]} == {"ground"}
+    assert rep["filter_review"] is None
+    assert "never armed" in rep["filter_review_note"] and "at rest" in rep["filter_review_note"]
+
+
+def test_real_never_armed_log_has_no_filter_review():
+    """copter_00061 never armed (motors at 1000 us): no throttle notch from its peaks at rest."""
+    from tests.helpers import shared_log
+    rep = _log_review(shared_log("copter_00061-2021-11-21_18-03-38.bin"))
+    assert rep["filter_review"] is None and "never armed" in rep["filter_review_note"]
 
 
 @pytest.fixture(scope="module")
