@@ -69,6 +69,21 @@ MIN_REVIEW_RATE_HZ = 100.0
 NOTCH_ATT_DB = 40.0
 #: PX4's IMU_GYRO_NF0_BW maximum (Hz)
 PX4_NOTCH_BW_MAX_HZ = 100.0
+#: a notch is recommended only on a peak this far above the local spectral floor (dB)
+NOTCH_MIN_PROMINENCE_DB = 10.0
+#: above this share of the analysed stream's rate a peak may be folded (aliased), and no
+#: low-pass cutoff is recommended above it: the spectrum says little there
+FOLD_SHARE = 0.4
+#: PX4 IMU_GYRO_DNF_EN bits (PX4 parameter reference: "0: ESC RPM, 1: Onboard FFT")
+PX4_DNF_ESC_RPM, PX4_DNF_FFT = 1, 2
+PX4_DNF_URL = "https://docs.px4.io/main/en/advanced_config/parameter_reference.html#IMU_GYRO_DNF_EN"
+#: streams averaged before they are logged: their peaks may be folded, whatever their frequency
+AVERAGED_MESSAGES = {"sensor_combined": "sensor_combined is the estimator's IMU, averaged over the "
+                                        "integration interval: motor peaks above its Nyquist frequency fold "
+                                        "into it"}
+AP_HNTCH_REFRESH_NOTE = ("INS_HNTCH_ENABLE was 0: ArduPilot shows the other INS_HNTCH_* parameters only once it "
+                         "is 1 -- set INS_HNTCH_ENABLE,1, reboot the autopilot (or refresh the parameter list), "
+                         "then load the other lines")
 AXES = ("x", "y", "z")
 
 
@@ -110,11 +125,55 @@ def review_context(kind, source, autopilot, params, filters, flying_mask_fn=None
                         ctx["notch_centre_hz"][st["params"]] = f
                         ctx["notes"].append(f"{st['params']}: centre {f:.1f} Hz, the median FTN.{col}")
     elif autopilot == "px4":
-        ctx["esc_telemetry"] = "esc_status" in names
+        esc = log_messages(kind, source, "esc_status") if "esc_status" in names else None
+        ctx["esc_telemetry"] = esc is not None and any(
+            np.nanmax(np.abs(np.asarray(v, dtype=np.float64)), initial=0.0) > 0
+            for k, v in esc.items() if k.endswith("esc_rpm"))
         hte = log_messages(kind, source, "hover_thrust_estimate") if "hover_thrust_estimate" in names else None
         if hte is not None and "hover_thrust" in hte and len(hte["hover_thrust"]):
             ctx["hover_throttle"] = float(np.nanmedian(hte["hover_thrust"]))
+        if "sensor_gyro_fft" in names:
+            ctx["gyro_fft"] = px4_gyro_fft(log_messages(kind, source, "sensor_gyro_fft"), flying_mask_fn)
     return ctx
+
+
+def px4_gyro_fft(m, flying_mask_fn=None):
+    """What PX4's onboard gyro FFT (``sensor_gyro_fft``, computed on the raw gyro
+    before any filter) found, over flying time where a mask is given: ``{"sample_rate_hz"``
+    (median ``sensor_sample_rate_hz``: the raw gyro rate, the rate the filters run at),
+    ``"peaks_hz"`` (the median, 10th and 90th percentile of the ``peak_frequencies_*``
+    it reported, finite and positive), ``"n_peaks"``, ``"snr_median"``, ``"over"}``;
+    None when it reported no peak."""
+    if m is None or not len(m.get("time_s", [])):
+        return None
+    t = np.asarray(m["time_s"], dtype=np.float64)
+    keep = np.ones(len(t), dtype=bool)
+    over = "whole log"
+    if flying_mask_fn is not None:
+        fm = np.asarray(flying_mask_fn(t), dtype=bool)
+        if fm.any():
+            keep, over = fm, "flying"
+    freq, snr = [], []
+    for col in m:
+        if col.startswith("peak_frequencies_"):
+            f = np.asarray(m[col], dtype=np.float64)[keep]
+            q = np.asarray(m.get(col.replace("peak_frequencies_", "peak_snr_"), np.full(len(t), np.nan)),
+                           dtype=np.float64)[keep]
+            ok = np.isfinite(f) & (f > 0)
+            freq.append(f[ok])
+            snr.append(q[ok])
+    freq = np.concatenate(freq) if freq else np.zeros(0)
+    snr = np.concatenate(snr) if snr else np.zeros(0)
+    rate = np.asarray(m.get("sensor_sample_rate_hz", []), dtype=np.float64)
+    rate = rate[np.isfinite(rate) & (rate > 0)]
+    if not len(freq):
+        return None
+    p10, p50, p90 = np.percentile(freq, [10, 50, 90])
+    return {"sample_rate_hz": round(float(np.median(rate)), 2) if len(rate) else None,
+            "peaks_hz": {"median": round(float(p50), 1), "p10": round(float(p10), 1), "p90": round(float(p90), 1)},
+            "n_peaks": int(len(freq)),
+            "snr_median": round(float(np.nanmedian(snr)), 2) if np.isfinite(snr).any() else None,
+            "over": over}
 
 
 def _over_flying(time_s, values, flying_mask_fn):
@@ -228,15 +287,24 @@ def _figures(stages, f, psd, fs_filter, band, centre):
                   "phase_lag_ms": {f"{q:g}": round(v, 3) for q, v in zip(LAG_FREQS_HZ, lags)}}
 
 
-def _peaks(f, psd, n_seg, fs):
+def _peaks(f, psd, n_seg, fs, eligible=None):
+    """(peaks, fundamental or None): the strongest peaks (each with ``notch_ok`` and,
+    where not, ``why_not``) and the fundamental a notch would sit on, from the peaks
+    ``eligible(peak) -> "" | reason`` lets through."""
     found = []
     for k, a in enumerate(AXES):
         for q in spectrum.find_peaks(f, psd[k], n_seg, min_freq_hz=PEAK_MIN_HZ):
             q = dict(q)
             q["axis"] = a
+            q["why_not"] = eligible(q) if eligible is not None else ""
             found.append(q)
+    peaks = [{"freq_hz": round(float(q["freq_hz"]), 2), "axis": q["axis"],
+              "amplitude_rms_deg_s": round(float(q["amplitude_rms"]), 5), "ratio_db": round(float(q["ratio_db"]), 2),
+              "notch_ok": not q["why_not"], **({"why_not": q["why_not"]} if q["why_not"] else {})}
+             for q in sorted(found, key=lambda q: -q["amplitude_rms"])[:8]]
+    found = [q for q in found if not q["why_not"]]
     if not found:
-        return [], None
+        return peaks, None
     dom = max(found, key=lambda q: q["amplitude_rms"])
     same_axis = [q for q in found if q["axis"] == dom["axis"]]
     df = f[1] - f[0]
@@ -245,16 +313,42 @@ def _peaks(f, psd, n_seg, fs):
     if dom.get("harmonic_of_hz"):
         fund = next(q for q in grouped if q["freq_hz"] == dom["harmonic_of_hz"])
     harmonics = sorted({1} | {q["harmonic_n"] for q in grouped if q.get("harmonic_of_hz") == fund["freq_hz"]})
-    peaks = [{"freq_hz": round(float(q["freq_hz"]), 2), "axis": q["axis"],
-              "amplitude_rms_deg_s": round(float(q["amplitude_rms"]), 5), "ratio_db": round(float(q["ratio_db"]), 2)}
-             for q in sorted(found, key=lambda q: -q["amplitude_rms"])[:8]]
     return peaks, {"freq_hz": float(fund["freq_hz"]), "axis": fund["axis"], "harmonics": harmonics}
+
+
+def _px4_dynamic_notch(params, ctx):
+    """({NAME: value}, reasons) of PX4's dynamic notch where the log shows what drives it:
+    the onboard FFT's peaks (``sensor_gyro_fft``, computed on the raw gyro) or ESC RPM
+    (``esc_status``); ({}, []) where it shows neither."""
+    fft = ctx.get("gyro_fft")
+    dnf = int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0))
+    rec, why = {}, []
+    if fft is not None:
+        pk = fft["peaks_hz"]
+        if dnf & PX4_DNF_FFT:
+            why.append(f"the onboard FFT (sensor_gyro_fft) puts the motor peaks at {pk['p10']:g}-{pk['p90']:g} Hz "
+                       f"(median {pk['median']:g}) and its dynamic notch is on (IMU_GYRO_DNF_EN bit 1): no change")
+        else:
+            rec["IMU_GYRO_DNF_EN"] = dnf | PX4_DNF_FFT
+            if int(float(params.get("IMU_GYRO_FFT_EN", 0) or 0)) != 1:
+                rec["IMU_GYRO_FFT_EN"] = 1
+            why.append(f"the onboard FFT (sensor_gyro_fft, on the raw gyro at {fft['sample_rate_hz']} Hz) puts the "
+                       f"motor peaks at {pk['p10']:g}-{pk['p90']:g} Hz (median {pk['median']:g}, {fft['n_peaks']} "
+                       f"peaks over {fft['over']}) but IMU_GYRO_DNF_EN {dnf} does not use it: enable the FFT-driven "
+                       f"dynamic notch, IMU_GYRO_DNF_EN bit 1 (value {dnf | PX4_DNF_FFT}; {PX4_DNF_URL})")
+    if ctx.get("esc_telemetry") and not dnf & PX4_DNF_ESC_RPM:
+        rec["IMU_GYRO_DNF_EN"] = rec.get("IMU_GYRO_DNF_EN", dnf) | PX4_DNF_ESC_RPM
+        why.append("ESC status (esc_status) is logged: the ESC-RPM dynamic notch, IMU_GYRO_DNF_EN bit 0 "
+                   f"({PX4_DNF_URL})")
+    return rec, why
 
 
 def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
     """({NAME: value}, stage or None, reasons) of the recommended notch."""
     if fund is None:
-        return {}, None, ["no vibration peak at or above %g Hz: no notch recommended" % PEAK_MIN_HZ]
+        return {}, None, [f"no vibration peak at or above {PEAK_MIN_HZ:g} Hz fit for a notch (the rules: at least "
+                          f"{NOTCH_MIN_PROMINENCE_DB:g} dB above the local floor, at most {FOLD_SHARE:g} x the "
+                          "stream's rate, from a stream that is not averaged): no static notch recommended"]
     centre = round(fund["freq_hz"], 1)
     bw = round(centre / 2.0, 1)
     why = []
@@ -282,8 +376,8 @@ def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
     if autopilot == "px4":
         bw = min(bw, PX4_NOTCH_BW_MAX_HZ)
         if ctx.get("esc_telemetry"):
-            rec = {"IMU_GYRO_DNF_EN": 1, "IMU_GYRO_DNF_HMC": max(fund["harmonics"]),
-                   "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
+            rec = {"IMU_GYRO_DNF_EN": int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0)) | PX4_DNF_ESC_RPM,
+                   "IMU_GYRO_DNF_HMC": max(fund["harmonics"]), "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
             why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch")
             stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
                      "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
@@ -298,7 +392,7 @@ def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
     return {}, None, ["unknown autopilot: no notch parameters to recommend"]
 
 
-def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name):
+def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, cap_hz=None):
     """(stages, cutoff_hz or None, notch centres) of the recommended chain: ``notch_stage``
     (if any) in place of the logged stage it sets, the other logged notches as they
     are, and the highest whole-Hz low-pass cutoff whose predicted noise is no more
@@ -311,7 +405,8 @@ def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, tar
     sos_base, _ = vf.chain_sections(base, fs_filter, rec_centre)
     p_base = psd * np.abs(vf.sos_response(sos_base, f, fs_filter)) ** 2
     best = None
-    for fc in range(int(CUTOFF_MIN_HZ), int(min(0.45 * fs_filter, band[1])) + 1):
+    top = min(0.45 * fs_filter, band[1], cap_hz if cap_hz else np.inf)
+    for fc in range(int(CUTOFF_MIN_HZ), int(top) + 1):
         lp = vf.lowpass2p_sos(float(fc), fs_filter)
         if _band_rms(f, p_base * np.abs(vf.sos_response([lp], f, fs_filter)) ** 2, *band)["rss"] <= target * (1 + 1e-9):
             best = fc
@@ -327,7 +422,12 @@ def _mean_lag(chain, logged_lp, fs_filter):
     return float(np.mean(vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)))
 
 
-def _lowpass_param(autopilot):
+def _lowpass_param(autopilot, params=None):
+    """The gyro low-pass parameter to recommend: INS_GYRO_FILTER (ArduPilot), IMU_GYRO_CUTOFF
+    (PX4); None for an APM 2.x log whose only gyro low-pass is INS_MPU6K_FILTER (the sensor's
+    own filter, a few fixed values)."""
+    if autopilot == "ardupilot" and params and "INS_GYRO_FILTER" not in params and "INS_MPU6K_FILTER" in params:
+        return None
     return {"ardupilot": "INS_GYRO_FILTER", "px4": "IMU_GYRO_CUTOFF"}.get(autopilot)
 
 
@@ -363,28 +463,46 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     fs_filter, fs_src = filters.get("filter_rate_hz"), filters.get("filter_rate_source")
     if autopilot == "ardupilot" and stream.message == "ISBD" and not int(params.get("INS_LOG_BAT_OPT", 0)) & 1:
         fs_filter, fs_src = rate, "the batch sampler's rate (it samples at the rate the filters run at)"
+    fft = ctx.get("gyro_fft") if autopilot == "px4" else None
+    if fft is not None and fft.get("sample_rate_hz"):
+        fs_filter, fs_src = fft["sample_rate_hz"], "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
     if not fs_filter:
         fs_filter, fs_src = rate, "assumed: the pre-filter stream's rate"
     keep = f < 0.5 * fs_filter
     f, psd = f[keep], psd[:, keep]
     band = (NOISE_BAND_LO_HZ, float(f[-1]))
     centre = ctx.get("notch_centre_hz") or None
-    logged_stages = filters.get("stages", [])
+    logged_stages = [st for st in filters.get("stages", []) if st.get("path", "rate") == "rate"]
     _, logged_notes = vf.chain_sections(logged_stages, fs_filter, centre)
     notes += logged_notes
-    if stream.message == "sensor_combined":
-        notes.append("sensor_combined is the estimator's IMU, averaged over the integration interval "
-                     f"(IMU_INTEG_RATE {_fmt(params.get('IMU_INTEG_RATE'))} Hz): attenuated near its Nyquist "
-                     "frequency and aliased above it, so peaks above it show folded")
-    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre)
-    peaks, fund = _peaks(f, psd, n_seg, rate)
-    rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
+    averaged = AVERAGED_MESSAGES.get(stream.message)
+    fold_hz = FOLD_SHARE * rate
+    if averaged:
+        notes.append(f"{averaged} (IMU_INTEG_RATE {_fmt(params.get('IMU_INTEG_RATE'))} Hz; attenuated near its "
+                     "Nyquist frequency): no static notch is recommended from its peaks")
 
-    lp_name = _lowpass_param(autopilot)
+    def eligible(q):
+        if averaged:
+            return f"{stream.message} is averaged: the peak may be folded"
+        if q["freq_hz"] > fold_hz:
+            return f"above {FOLD_SHARE:g} x the stream's rate ({fold_hz:.0f} Hz): may be folded"
+        if q["ratio_db"] < NOTCH_MIN_PROMINENCE_DB:
+            return f"{q['ratio_db']:.1f} dB above the floor, below the {NOTCH_MIN_PROMINENCE_DB:g} dB a notch needs"
+        return ""
+
+    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre)
+    peaks, fund = _peaks(f, psd, n_seg, rate, eligible)
+    rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
+    if autopilot == "px4" and notch_stage is None:
+        dyn_rec, dyn_why = _px4_dynamic_notch(params, ctx)
+        rec.update(dyn_rec)
+        why += dyn_why
+
+    lp_name = _lowpass_param(autopilot, params)
     target = fig_logged["noise_rms_deg_s"]["rss"]
-    logged_lp = [s for s in logged_stages if s["kind"] == "lowpass" and s.get("path", "rate") == "rate"]
-    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name)
-    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name)
+    logged_lp = [s for s in logged_stages if s["kind"] == "lowpass"]
+    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
+    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
     if notch_stage is not None and _mean_lag(with_notch, logged_lp, fs_filter) >= _mean_lag(without, logged_lp,
                                                                                            fs_filter):
         why = [w for w in why if not w.startswith("dominant")]
@@ -399,31 +517,87 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
         rec_stages = rec_stages + logged_lp
     elif lp_name:
         rec[lp_name] = best
+        capped = " (searched up to %.0f Hz, %g x the stream's rate: the spectrum says little above)" % (
+            fold_hz, FOLD_SHARE) if best >= int(fold_hz) else ""
         why.append(f"{lp_name} {best}: the highest cutoff whose predicted noise ({NOISE_BAND_LO_HZ:g} Hz.."
-                   f"{band[1]:.0f} Hz) is no more than the logged settings' ({target:.3g} deg/s rss)")
+                   f"{band[1]:.0f} Hz) is no more than the logged settings' ({target:.3g} deg/s rss){capped}")
     post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre)
     fig_pre = {"noise_rms_deg_s": _band_rms(f, psd, *band)}
-    logged_names = {k: v for k, v in filters.get("parameters", {}).items() if k in rec}
+    logged_params = filters.get("parameters", {})
+    rec = {k: _jsonable(v) for k, v in rec.items()}
+    changes = {k: v for k, v in rec.items() if not _same(logged_params.get(k), v)}
+    for st in logged_stages:                # the logged notches the recommendation keeps
+        if st["kind"] != "lowpass" and (notch_stage is None or st["params"] != notch_stage["params"]):
+            why.append(f"{st['params']} ({_stage_text(st)}): logged on, kept as logged")
+    if changes.get("INS_HNTCH_ENABLE") == 1:
+        notes.append(AP_HNTCH_REFRESH_NOTE)
+        changes = {"INS_HNTCH_ENABLE": 1, **{k: v for k, v in changes.items() if k != "INS_HNTCH_ENABLE"}}
     review = {
         "source": {"stream": stream.name, "message": stream.message, "stage": "pre-filter",
                    "sample_rate_hz": round(rate, 3), "n_samples": int(stream.n), "over": over,
                    "nperseg": int(nperseg), "resolution_hz": round(float(f[1] - f[0]), 4),
-                   "n_segments": int(n_seg)},
+                   "n_segments": int(n_seg), "averaged": bool(averaged), "fold_hz": round(fold_hz, 1)},
         "filter_rate_hz": float(fs_filter), "filter_rate_source": fs_src,
         "noise_band_hz": [band[0], round(band[1], 3)],
         "noise_metric": (f"rms of the predicted post-filter gyro (deg/s) over {band[0]:g}..{band[1]:.0f} Hz: "
                          "sqrt(sum(|H|^2 PSD) df) per axis, rss over the axes"),
+        "notch_rule": (f"a static or harmonic notch only on a peak at or above {PEAK_MIN_HZ:g} Hz, at least "
+                       f"{NOTCH_MIN_PROMINENCE_DB:g} dB above the local floor, at most {FOLD_SHARE:g} x the "
+                       "analysed stream's rate, from a stream that is not averaged; no low-pass cutoff above "
+                       f"{FOLD_SHARE:g} x that rate"),
         "peaks": peaks,
+        "onboard_fft": fft,
         "figures": {"pre_filter": fig_pre, "logged": fig_logged, "recommended": fig_rec},
-        "logged": logged_names,
-        "recommended": {k: _jsonable(v) for k, v in rec.items()},
-        "param_lines": param_lines(autopilot, rec),
+        "logged": {k: v for k, v in logged_params.items() if k in rec or _in_stages(k, logged_stages)},
+        "logged_stages": logged_stages,
+        "recommended": rec,
+        "recommended_stages": rec_stages,
+        "changes": changes,
+        "verdict": "change" if changes else "no change",
+        "param_lines": param_lines(autopilot, changes),
         "why": why,
         "notes": notes,
         "_plot": {"freq_hz": f, "psd_pre": psd, "psd_logged": post_logged, "psd_recommended": post_rec,
                   "axes": AXES},
     }
+    if not changes:
+        review["why"].append("no change: every recommended value is the logged one")
     return review, ""
+
+
+def _same(logged, value):
+    """Whether a logged parameter value and a recommended one are the same setting."""
+    try:
+        return logged is not None and math.isclose(float(logged), float(value), rel_tol=1e-6, abs_tol=1e-6)
+    except (TypeError, ValueError):
+        return False
+
+
+def _in_stages(name, stages):
+    """Whether parameter ``name`` sets one of ``stages`` (their ``params``: a name, a
+    ``PREFIX_*`` or a comma-separated list)."""
+    for st in stages:
+        for p in str(st.get("params", "")).split(","):
+            p = p.strip()
+            if name == p or (p.endswith("*") and name.startswith(p[:-1])):
+                return True
+    return False
+
+
+def _stage_text(st):
+    """A stage's settings in a few words, e.g. 'harmonic_notch 97 Hz, BW 25 Hz, 6 dB, throttle'."""
+    parts = [st["kind"]]
+    if st.get("centre_hz") is not None:
+        parts.append(f"{_fmt(float(st['centre_hz']))} Hz")
+    if st.get("bandwidth_hz") is not None:
+        parts.append(f"BW {_fmt(float(st['bandwidth_hz']))} Hz")
+    if st.get("attenuation_db") is not None:
+        parts.append(f"{_fmt(float(st['attenuation_db']))} dB")
+    if st.get("tracking"):
+        parts.append(str(st["tracking"]))
+    if st.get("sources"):
+        parts.append("/".join(st["sources"]))
+    return ", ".join(parts[:1]) + (" " + ", ".join(parts[1:]) if len(parts) > 1 else "")
 
 
 def param_lines(autopilot, rec):

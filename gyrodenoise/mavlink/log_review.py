@@ -134,6 +134,10 @@ def log_review(kind, source, streams, whole_log=False):
     else:
         try:
             ctx = review_context(kind, source, autopilot, params, filters, mask_fn)
+            fft = ctx.get("gyro_fft")
+            if fft and fft.get("sample_rate_hz"):          # PX4: the raw gyro rate, measured on board
+                filters["filter_rate_hz"] = fft["sample_rate_hz"]
+                filters["filter_rate_source"] = "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
             rev, note = filter_review(streams, autopilot, params, filters, mask_fn, ctx)
         except Exception as exc:  # noqa: BLE001
             rev, note = None, _failed("filter review", exc)

@@ -26,14 +26,14 @@ PARAMS = {"INS_GYRO_FILTER": 40.0, "INS_HNTCH_ENABLE": 0.0, "INS_LOG_BAT_MASK": 
           "INS_GYR_ID": 1.0, "INS_GYR2_ID": 0.0, "INS_GYR3_ID": 0.0, "MOT_THST_HOVER": 0.3}
 
 
-def _batch_stream(seed=1, n_bursts=24, burst=1024, tone_deg_s=3.0, noise_deg_s=0.3):
+def _batch_stream(seed=1, n_bursts=24, burst=1024, tone_deg_s=3.0, noise_deg_s=0.3, tone_hz=TONE_HZ):
     """SYNTHETIC batch-sampler gyro: bursts of ``burst`` samples at FS, 3 s apart, a tone
     at TONE_HZ on x and y plus white noise on all axes (rad/s, as ISBD is read)."""
     rng = np.random.default_rng(seed)
     t = np.concatenate([3.0 * k + np.arange(burst) / FS for k in range(n_bursts)])
     x = rng.normal(0.0, noise_deg_s, (len(t), 3))
-    x[:, 0] += tone_deg_s * np.sin(2 * np.pi * TONE_HZ * t)
-    x[:, 1] += 0.5 * tone_deg_s * np.sin(2 * np.pi * TONE_HZ * t + 1.0)
+    x[:, 0] += tone_deg_s * np.sin(2 * np.pi * tone_hz * t)
+    x[:, 1] += 0.5 * tone_deg_s * np.sin(2 * np.pi * tone_hz * t + 1.0)
     return GyroStream(name="ISB.gyro[0]", message="ISBD", unit="rad/s", to_deg_s=RAD_TO_DEG, time_s=t,
                       raw=x / RAD_TO_DEG, index=np.arange(len(t)))
 
@@ -131,23 +131,64 @@ def test_copter_00061_review_from_its_batch_sampler():
 
 
 def test_copter462_review_sees_the_logged_throttle_notch():
+    """The logged harmonic notch (INS_HNTCH_ENABLE 1) shows in ``logged`` and the logged
+    chain, is kept in the recommended chain and said so; no line for an unchanged value
+    (INS_GYRO_FILTER 42 logged). (The bridge gives this fragment no review: never armed.)"""
     (review, note), filters = _real("copter462_notch_fragment.bin")
     assert note == "" and review["source"]["stage"] == "pre-filter"
     # not flying, throttle out 0: the throttle notch sits at FREQ x FM_RAT
     assert any("centre 72.8 Hz" in n for n in review["notes"])
+    assert review["logged"]["INS_HNTCH_ENABLE"] == 1.0 and review["logged"]["INS_HNTCH_FREQ"] == 97.0
+    assert any(s["kind"] == "harmonic_notch" for s in review["logged_stages"])
+    assert any(s["kind"] == "harmonic_notch" for s in review["recommended_stages"])
+    assert any(w.startswith("INS_HNTCH_* (harmonic_notch 97 Hz") and "kept as logged" in w for w in review["why"])
+    assert "INS_GYRO_FILTER,42" not in review["param_lines"]
+    assert all(not fr._same(review["logged"].get(k), v) for k, v in review["changes"].items())
 
 
 @pytest.mark.parametrize("name", ["px4_quad_battery_brownout.ulg", "px4_quad_ekf_failure.ulg",
                                   "px4_quad_gps_interference.ulg"])
-def test_px4_quads_review_or_clear_note(name):
+def test_px4_quads_no_static_notch_from_the_averaged_stream(name):
+    """sensor_combined is averaged (aliased): no static notch from its peaks whatever
+    their prominence (battery_brownout: 19 dB at 50.6 Hz), no low-pass cutoff above
+    0.4 x its rate, no line for an unchanged value."""
     (review, note), filters = _real(name)
     assert filters["parameters"]["IMU_GYRO_CUTOFF"] == 40.0
-    if review is None:
-        assert note.startswith("no pre-filter gyro stream")
-    else:
-        assert review["source"]["stream"] == "sensor_combined"
-        assert any("sensor_combined is the estimator's IMU" in n for n in review["notes"])
-        assert review["param_lines"][-1].startswith("param set IMU_GYRO_CUTOFF ")
+    assert review["source"]["stream"] == "sensor_combined" and review["source"]["averaged"]
+    assert any("sensor_combined is the estimator's IMU" in n for n in review["notes"])
+    assert not any(k.startswith("IMU_GYRO_NF") for k in review["recommended"])
+    assert all(not p["notch_ok"] for p in review["peaks"])
+    assert review["recommended"]["IMU_GYRO_CUTOFF"] <= 0.4 * review["source"]["sample_rate_hz"]
+    assert "param set IMU_GYRO_CUTOFF 40" not in review["param_lines"]
+
+
+def test_px4_battery_brownout_onboard_fft_enables_the_dynamic_notch():
+    """sensor_gyro_fft (on the 1995 Hz raw gyro) puts the motor peaks at 113-136 Hz,
+    IMU_GYRO_FFT_EN 1 and IMU_GYRO_DNF_EN 0: the advice is IMU_GYRO_DNF_EN bit 1 (2);
+    the filter rate is the FFT's sensor_sample_rate_hz, not an assumed 8 kHz."""
+    (review, _), _ = _real("px4_quad_battery_brownout.ulg")
+    assert review["filter_rate_hz"] == pytest.approx(1995, abs=2)
+    assert "sensor_gyro_fft" in review["filter_rate_source"]
+    assert 113 <= review["onboard_fft"]["peaks_hz"]["median"] <= 136
+    assert review["changes"] == {"IMU_GYRO_DNF_EN": 2}
+    assert review["param_lines"] == ["param set IMU_GYRO_DNF_EN 2"]
+
+
+def test_notch_rules_fold_and_prominence():
+    """SYNTHETIC batch sampler at 2 kHz: a tone above 0.4 x the rate (850 Hz) may be
+    folded, and a tone 2-3 dB above the floor is too weak: neither gets a notch."""
+    high, _ = _review([_batch_stream(tone_hz=850.0)])
+    assert "INS_HNTCH_FREQ" not in high["recommended"]
+    assert any("may be folded" in p.get("why_not", "") for p in high["peaks"])
+    weak, _ = _review([_batch_stream(tone_deg_s=0.05)])
+    assert "INS_HNTCH_FREQ" not in weak["recommended"]
+    assert all(p["ratio_db"] < fr.NOTCH_MIN_PROMINENCE_DB for p in weak["peaks"] if not p["notch_ok"])
+
+
+def test_hntch_enable_goes_first_with_the_refresh_note():
+    review, _ = _review([_batch_stream()])
+    assert review["param_lines"][0] == "INS_HNTCH_ENABLE,1"
+    assert fr.AP_HNTCH_REFRESH_NOTE in review["notes"]
 
 
 def test_tlog_note():
