@@ -94,8 +94,11 @@ def log_review(kind, source, streams, whole_log=False):
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
     ``vibration_note``)."""
     fields = {}
+    param_notes = []
     try:
-        autopilot, params = log_parameters(kind, source)
+        autopilot, params = log_parameters(kind, source, param_notes)
+        if param_notes:
+            fields["parameters_note"] = "; ".join(param_notes)
     except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
         autopilot, params = None, {}
         fields["parameters_note"] = _failed("reading the parameters", exc)

@@ -13,7 +13,11 @@
   the vehicle's system, each name's last value before the first armed ``HEARTBEAT``
   (``base_mode`` bit 7), else the first. PX4 sends integer parameters bytewise
   (the int32's bits in the float field, MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE):
-  they are decoded so; ArduPilot casts them (C cast), kept as they are.
+  they are decoded so; ArduPilot casts them (C cast), kept as they are. A name the
+  vehicle did not send is taken from the ``PARAM_VALUE`` records of any other source:
+  Mission Planner writes the parameters it downloads by FTP as ``PARAM_VALUE`` under
+  its own ids (system 255, component 190), and the vehicle then sends few or none
+  itself; a note says so.
 
 The autopilot: ``"ardupilot"`` for DataFlash, ``"px4"`` for ULog; for a
 telemetry log the ``HEARTBEAT.autopilot`` of the vehicle (3 ArduPilot, 12 PX4),
@@ -35,17 +39,19 @@ MAV_PARAM_INT_TYPES = {1, 2, 3, 4, 5, 6, 7, 8}
 DF_EV_ARMED = 10
 
 
-def log_parameters(kind, source):
+def log_parameters(kind, source, notes=None):
     """(autopilot, params) of a log read by :func:`gyrodenoise.mavlink.formats.read_log`:
     autopilot ``"ardupilot"``, ``"px4"`` or None; params ``{NAME: value as
     logged}`` (floats; ints where the log types them so), empty when the log holds
-    none (see the module doc for which value of a changed parameter is kept)."""
+    none (see the module doc for which value of a changed parameter is kept).
+    ``notes``: a list the reader appends a line to where it took parameters from
+    another source than the vehicle."""
     if kind == "dataflash":
         return "ardupilot", _dataflash_params(kind, source)
     if kind == "ulog":
         return "px4", _ulog_params(kind, source)
     if kind == "tlog":
-        return _tlog_params(kind, source)
+        return _tlog_params(kind, source, notes)
     return None, {}
 
 
@@ -111,7 +117,7 @@ def _plain(v):
     return _f32(v) if isinstance(v, (np.float32, float)) else float(v)
 
 
-def _tlog_params(kind, source):
+def _tlog_params(kind, source, notes=None):
     hb = log_messages(kind, source, "HEARTBEAT")
     sysid, autopilot, t_arm = None, None, None
     if hb is not None and len(hb.get("time_s", [])):
@@ -132,12 +138,22 @@ def _tlog_params(kind, source):
     params = {}
     pv = log_messages(kind, source, "PARAM_VALUE")
     if pv is not None and len(pv.get("param_id", [])):
-        sel = np.ones(len(pv["param_id"]), dtype=bool)
+        own = np.ones(len(pv["param_id"]), dtype=bool)
         if sysid is not None:
-            sel &= np.asarray(pv["sysid"]) == sysid
+            own &= np.asarray(pv["sysid"]) == sysid
         ids, vals = pv["param_id"], np.asarray(pv["param_value"], dtype=np.float32)
         types, log_t = np.asarray(pv["param_type"]), np.asarray(pv["log_time_s"])
-        for i in np.flatnonzero(sel):
+        vehicle_names = {str(ids[i]) for i in np.flatnonzero(own)}
+        other = np.flatnonzero(~own & ~np.isin(np.asarray(ids).astype(str), list(vehicle_names)))
+        if len(other):
+            pairs = sorted({(int(pv["sysid"][i]), int(pv["compid"][i])) for i in other})
+            n_other = len({str(ids[i]) for i in other})
+            if notes is not None:
+                notes.append(f"{n_other} parameters read from PARAM_VALUE records of "
+                             f"{', '.join(f'system {a} component {b}' for a, b in pairs)} (not the vehicle's: a "
+                             f"ground station's parameter download, e.g. Mission Planner's FTP), the vehicle "
+                             f"itself sent {len(vehicle_names)}")
+        for i in np.concatenate([np.flatnonzero(own), other]).astype(np.int64):
             n = str(ids[i])
             if not n:
                 continue

@@ -8,7 +8,9 @@ here from their descriptions):
 * ArduPilot ``libraries/Filter/LowPassFilter2p.cpp`` (``DigitalBiquadFilter::
   compute_params``): a second-order Butterworth low-pass by the bilinear
   transform with the cutoff prewarped, ``ohm = tan(pi fc / fs)``. The gyro
-  low-pass is ``INS_GYRO_FILTER`` (0: off). PX4
+  low-pass is ``INS_GYRO_FILTER`` (0: off); APM 2.x logs, which have none, set the
+  MPU6000's own low-pass with ``INS_MPU6K_FILTER`` (Hz, 0 the default: 20 Hz), a
+  lowpass stage modelled the same way (an approximation of the chip's filter). PX4
   ``src/lib/mathlib/math/filter/LowPassFilter2p.hpp`` is the same filter
   (``IMU_GYRO_CUTOFF``; ``IMU_DGYRO_CUTOFF`` filters the angular acceleration of
   the D term, not the rate: kept as a stage on that path, left out of the rate
@@ -66,6 +68,8 @@ AP_NOTCH_NYQUIST_SHARE = 0.48
 #: ArduPilot's harmonic notch defaults (HarmonicNotchFilter.cpp var_info), for parameters not logged
 AP_HNTCH_DEFAULTS = {"FREQ": 80.0, "BW": 40.0, "ATT": 40.0, "HMNCS": 3, "REF": 0.0, "MODE": 1,
                      "OPTS": 0, "FM_RAT": 1.0}
+#: APM 2.x INS_MPU6K_FILTER 0 ("Default"): 20 Hz per the parameter's description
+AP_MPU6K_DEFAULT_HZ = 20.0
 #: ArduPilot's static notch defaults (NotchFilter.cpp var_info)
 AP_NOTCH_DEFAULTS = {"FREQ": 80.0, "BW": 20.0, "ATT": 15.0}
 AP_TRACKING = {0: "fixed", 1: "throttle", 2: "rpm", 3: "esc", 4: "fft", 5: "rpm2"}
@@ -73,7 +77,7 @@ AP_TRACKING = {0: "fixed", 1: "throttle", 2: "rpm", 3: "esc", 4: "fft", 5: "rpm2
 BAT_OPT_SENSOR_RATE, BAT_OPT_POST_FILTER, BAT_OPT_PRE_POST_FILTER = 1, 2, 4
 
 FILTER_PARAM_PREFIXES = {
-    "ardupilot": ("INS_GYRO_FILTER", "INS_HNTCH_", "INS_HNTC2_", "INS_NOTCH_", "INS_GYRO_RATE",
+    "ardupilot": ("INS_GYRO_FILTER", "INS_MPU6K_FILTER", "INS_HNTCH_", "INS_HNTC2_", "INS_NOTCH_", "INS_GYRO_RATE",
                   "INS_FAST_SAMPLE", "INS_LOG_BAT_", "INS_GYR_ID", "INS_GYR2_ID", "INS_GYR3_ID",
                   "SCHED_LOOP_RATE"),
     "px4": ("IMU_GYRO_CUTOFF", "IMU_GYRO_NF", "IMU_GYRO_DNF_", "IMU_GYRO_RATEMAX", "IMU_DGYRO_CUTOFF",
@@ -147,7 +151,26 @@ def _ardupilot_stages(p):
     if fc is not None and fc > 0:
         stages.append({"kind": "lowpass", "path": "rate", "params": "INS_GYRO_FILTER", "cutoff_hz": fc,
                        "order": 2, "design": "Butterworth, bilinear with prewarping (LowPassFilter2p)"})
+    mpu = _num(p, "INS_MPU6K_FILTER")
+    if fc is None and mpu is not None:
+        stages.append(_mpu6k_stage(mpu))
     return stages
+
+
+def _mpu6k_stage(value_hz):
+    """The low-pass stage of APM 2.x's ``INS_MPU6K_FILTER`` (AP_InertialSensor: "Filter
+    frequency to ask the MPU6000 to apply to samples"; values 0 default, 5, 10, 20, 42,
+    98 Hz): the MPU6000's own digital low-pass (its DLPF_CFG setting), before the
+    samples reach the autopilot -- not a software biquad; modelled as a 2nd-order
+    Butterworth at that cutoff, an approximation. 0 is the firmware's default: 20 Hz
+    in the parameter's description for ArduPlane, APMrover2 and ArduCopter (some
+    ArduCopter releases of the time say 42 Hz)."""
+    default = value_hz <= 0
+    return {"kind": "lowpass", "path": "rate", "params": "INS_MPU6K_FILTER",
+            "cutoff_hz": AP_MPU6K_DEFAULT_HZ if default else float(value_hz), "order": 2,
+            "design": "MPU6000 on-chip digital low-pass (DLPF_CFG), modelled as a 2nd-order Butterworth",
+            **({"note": f"INS_MPU6K_FILTER 0: the firmware default, {AP_MPU6K_DEFAULT_HZ:g} Hz per the parameter's "
+                        "description (42 Hz on some ArduCopter releases)"} if default else {})}
 
 
 def _ap_harmonic_notch(p, prefix):

@@ -95,3 +95,27 @@ def test_real_logs(name, autopilot, expect):
 def test_real_tlog_autopilot_from_heartbeat():
     ap, p = _log("sitl_copter_reboot.tlog")
     assert ap == "ardupilot" and p["INS_GYR3_ID"] == 0.0
+
+
+def test_real_tlog_parameters_from_the_ground_stations_download():
+    """copter_2021-12-08-14-59-44.tlog: Mission Planner wrote the FTP parameter download
+    as PARAM_VALUE under its own ids (system 255, component 190); the vehicle sent one
+    name. Those ~980 parameters are read, and a note says where they came from."""
+    path = shared_log("copter_2021-12-08-14-59-44.tlog")
+    notes = []
+    ap, params = parameters.log_parameters("tlog", formats.read_log(path, "tlog")[1], notes)
+    assert ap == "ardupilot" and len(params) > 900
+    assert params["INS_GYRO_FILTER"] == 20.0 and params["INS_HNTCH_ENABLE"] == 0.0
+    assert notes and "system 255 component 190" in notes[0]
+
+
+def test_apm2_mpu6k_filter_is_the_gyro_lowpass():
+    """APM 2.x: INS_MPU6K_FILTER (the MPU6000's own low-pass, Hz; 0 the default 20 Hz)."""
+    from gyrodenoise.mavlink.vehicle_filters import vehicle_filters
+    (st,) = vehicle_filters("ardupilot", {"INS_MPU6K_FILTER": 42.0})["stages"]
+    assert st["kind"] == "lowpass" and st["params"] == "INS_MPU6K_FILTER" and st["cutoff_hz"] == 42.0
+    (st,) = vehicle_filters("ardupilot", {"INS_MPU6K_FILTER": 0.0})["stages"]
+    assert st["cutoff_hz"] == 20.0 and "default" in st["note"]
+    path = shared_log("apm2_2013-10-13_16-58-51.tlog")
+    ap, params = parameters.log_parameters("tlog", formats.read_log(path, "tlog")[1])
+    assert vehicle_filters(ap, params)["parameters"] == {"INS_MPU6K_FILTER": 0.0}
