@@ -13,7 +13,14 @@ Sources, the first the log has:
   (m/s/s), ``gyro_vibration_metric`` (rad/s), ``delta_angle_coning_metric`` (rad^2),
   ``accel_clipping[0..2]`` (cumulative).
 
-Beside those, the accelerometer spectrum over each segment (DataFlash ``IMU``
+Beside those, where the log has an accelerometer stream, its band rms per segment
+(``accel_band_rms_x/y/z``, :func:`_accel_figures`: the rms over 1 s windows of the
+accelerometer between 20 Hz -- half the Nyquist frequency for a stream slower than
+48 Hz -- and the Nyquist frequency, mean/p95/max over the windows), with no verdict:
+no community threshold exists for it (ArduPilot's VIBE thresholds apply to VIBE,
+computed on board on the raw accelerometer at its full rate; the logged accelerometer
+is low-passed and sampled at 25-250 Hz, so its band rms under-reads motor vibration),
+and the accelerometer spectrum over each segment (DataFlash ``IMU``
 AccX/Y/Z of the first IMU, ULog ``sensor_combined.accelerometer_m_s2[*]``): the
 dominant peaks of the summed x+y+z Welch PSD
 (:func:`gyrodenoise.analysis.spectrum.welch_psd`, :func:`~gyrodenoise.analysis.spectrum.find_peaks`),
@@ -66,6 +73,16 @@ LOOKED_FOR = {
 }
 MAX_PEAKS = 3
 PEAK_MIN_FREQ_HZ = 5.0
+#: the accelerometer's band rms runs from here to the stream's Nyquist frequency (Hz) ...
+ACCEL_BAND_LO_HZ = 20.0
+#: ... or, where the Nyquist frequency is below 1.2 x that (a 25 Hz stream), from this share of it
+ACCEL_BAND_LO_NYQ_SHARE = 0.5
+#: the accelerometer's band rms is taken over windows of this length (s)
+ACCEL_WINDOW_S = 1.0
+#: unit of each level column
+LEVEL_UNITS = {"VibeX": "m/s/s", "VibeY": "m/s/s", "VibeZ": "m/s/s", "vibration_x": "m/s/s",
+               "vibration_y": "m/s/s", "vibration_z": "m/s/s", "accel_vibration_metric": "m/s/s",
+               "gyro_vibration_metric": "rad/s", "delta_angle_coning_metric": "rad^2"}
 
 
 def vibration_review(kind, source, segments, over="flying", starts=None):
@@ -110,9 +127,10 @@ def vibration_review(kind, source, segments, over="flying", starts=None):
             entry["figures"] = _segment_figures(levels, seg)
         if accel is not None:
             entry["accel_peaks"] = _segment_peaks(accel, seg)
+            entry["figures"].update(_accel_figures(accel, seg))
         entry["verdict"] = _worst(f.get("verdict") for f in entry["figures"].values())
         out_segs.append(entry)
-    src_name = levels["source"] if levels is not None else "accelerometer spectra"
+    src_name = levels["source"] if levels is not None else "accelerometer"
     used = {levels["threshold"], "clip_increase"} if levels is not None else set()
     result = {
         "source": src_name,
@@ -125,7 +143,8 @@ def vibration_review(kind, source, segments, over="flying", starts=None):
     note += (f"{src_name} over {len(out_segs)} {over_out} segment(s); "
              f"levels judged on their 95th percentile, clipping on its increase")
     if levels is None:
-        note += "; no vibration level in the log: spectra only, no verdict (no published threshold)"
+        note += ("; no vibration level in the log: the accelerometer's band rms and spectra only, no verdict "
+                 "(no published threshold for them)")
     return result, note
 
 
@@ -195,6 +214,11 @@ def _verdict(value, key):
     return "fail" if value >= th["fail"] else "warn" if value >= th["warn"] else "pass"
 
 
+def _threshold(key):
+    """{"warn", "fail"} of a THRESHOLDS entry, or None (no published threshold)."""
+    return None if key is None else {"warn": THRESHOLDS[key]["warn"], "fail": THRESHOLDS[key]["fail"]}
+
+
 def _worst(verdicts):
     vs = [v for v in verdicts if v is not None]
     return max(vs, key=VERDICTS.index) if vs else None
@@ -218,14 +242,12 @@ def _segment_figures(lv, seg):
             x = x[np.isfinite(x)]
             if not len(x):
                 continue
-            fig = {"mean": _r(np.mean(x)), "max": _r(np.max(x)), "p95": _r(np.percentile(x, 95)),
+            key = ("vibe_m_s2" if name in ("VibeX", "VibeY", "VibeZ", "vibration_x", "vibration_y", "vibration_z")
+                   else "accel_vibration_metric_m_s2" if name == "accel_vibration_metric" else None)
+            fig = {"mean": _r(np.mean(x)), "p95": _r(np.percentile(x, 95)), "max": _r(np.max(x)),
+                   "unit": LEVEL_UNITS.get(name), "threshold": _threshold(key),
+                   "verdict": _verdict(_r(np.percentile(x, 95)), key) if key else None,   # None: no threshold
                    "samples": int(len(x))}
-            if name in ("VibeX", "VibeY", "VibeZ", "vibration_x", "vibration_y", "vibration_z"):
-                fig["verdict"] = _verdict(fig["p95"], "vibe_m_s2")
-            elif name == "accel_vibration_metric":
-                fig["verdict"] = _verdict(fig["p95"], "accel_vibration_metric_m_s2")
-            else:
-                fig["verdict"] = None            # no published threshold
             out[prefix + name] = fig
         for name, col in lv["clips"].items():
             c = np.asarray(col, np.float64)
@@ -239,7 +261,51 @@ def _segment_figures(lv, seg):
             base = c[before[-1]] if len(before) else c[idx[0]]
             inc = float(np.max(c[idx]) - base)
             inc = max(inc, 0.0)
-            out[prefix + name] = {"increase": int(inc), "verdict": _verdict(inc, "clip_increase")}
+            out[prefix + name] = {"increase": int(inc), "unit": "count", "threshold": _threshold("clip_increase"),
+                                  "verdict": _verdict(inc, "clip_increase")}
+    return out
+
+
+def _accel_figures(acc, seg):
+    """``accel_band_rms_x/y/z``: the rms (m/s/s) of the accelerometer in the band from
+    :data:`ACCEL_BAND_LO_HZ` (from half the Nyquist frequency where that is below 24 Hz) to the
+    stream's Nyquist frequency, per window of :data:`ACCEL_WINDOW_S` inside the segment
+    (mean removed per window; Parseval over the window's FFT bins in the band), as
+    mean/p95/max over the windows; no threshold, no verdict. {} when the segment holds
+    no whole window."""
+    t = acc["time_s"]
+    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    if len(sel) < 8:
+        return {}
+    ts = t[sel]
+    dt = np.diff(ts)
+    pos = dt[dt > 0]
+    if not len(pos):
+        return {}
+    rate_hz = 1.0 / float(np.median(pos))
+    nyq = 0.5 * rate_hz
+    lo = ACCEL_BAND_LO_HZ if nyq >= 1.2 * ACCEL_BAND_LO_HZ else ACCEL_BAND_LO_NYQ_SHARE * nyq
+    w = max(8, int(round(ACCEL_WINDOW_S * rate_hz)))
+    brk = np.r_[0, np.flatnonzero((np.diff(sel) != 1) | (dt > 2.5 / rate_hz) | (dt <= 0)) + 1, len(sel)]
+    freq = np.fft.rfftfreq(w, 1.0 / rate_hz)
+    band = freq >= lo
+    out = {}
+    for k, axis in enumerate("xyz"):
+        vals = []
+        for a, b in zip(brk[:-1], brk[1:]):
+            for c in range(a, b - w + 1, w):
+                x = acc["xyz"][sel[c:c + w], k]
+                if not np.all(np.isfinite(x)):
+                    continue
+                spec = np.abs(np.fft.rfft(x - x.mean())) ** 2
+                wt = np.where((freq > 0) & (freq < nyq - 1e-9), 2.0, 1.0)      # one-sided bins
+                vals.append(float(np.sqrt(np.sum(spec[band] * wt[band])) / w))
+        if vals:
+            v = np.asarray(vals)
+            out[f"accel_band_rms_{axis}"] = {
+                "mean": _r(v.mean()), "p95": _r(np.percentile(v, 95)), "max": _r(v.max()), "unit": "m/s/s",
+                "threshold": None, "verdict": None, "samples": int(len(v) * w), "windows": int(len(v)),
+                "band_hz": [_r(lo), _r(nyq)], "source": acc["source"]}
     return out
 
 

@@ -62,12 +62,14 @@ def test_synthetic_vibe_figures_exact_over_flying_time():
     fig = seg["figures"]
     x = np.array([20.0 + k % 5 for k in range(40, 141)])          # samples 5.0 .. 15.0 s
     assert fig["imu0.VibeX"] == {"mean": float(f"{x.mean():.4g}"), "max": 24.0,
-                                 "p95": float(f"{np.percentile(x, 95):.4g}"), "samples": 101, "verdict": "pass"}
+                                 "p95": float(f"{np.percentile(x, 95):.4g}"), "samples": 101, "verdict": "pass",
+                                 "unit": "m/s/s", "threshold": {"warn": 30.0, "fail": 60.0}}
     assert fig["imu0.VibeZ"]["p95"] == 45.0 and fig["imu0.VibeZ"]["verdict"] == "warn"
     assert fig["imu1.VibeZ"]["max"] == 70.0 and fig["imu1.VibeZ"]["verdict"] == "fail"
     # clip counter: +1 at samples 60, 90, 120 (6, 9, 12 s) -> 3 in the air
-    assert fig["imu0.Clip"] == {"increase": 3, "verdict": "warn"}
-    assert fig["imu1.Clip"] == {"increase": 0, "verdict": "pass"}
+    clip_th = {"warn": 1, "fail": 100}
+    assert fig["imu0.Clip"] == {"increase": 3, "verdict": "warn", "unit": "count", "threshold": clip_th}
+    assert fig["imu1.Clip"] == {"increase": 0, "verdict": "pass", "unit": "count", "threshold": clip_th}
     assert seg["verdict"] == "fail" and res["verdict"] == "fail"
     # the accelerometer spectrum finds the 40 Hz tone (rms 2/sqrt(2))
     top = seg["accel_peaks"][0]
@@ -134,4 +136,40 @@ def test_real_px4_quad_metrics_and_spectrum():
 
 def test_real_log_without_levels_spectra_only():
     res, note = _real("log171.bin")               # Copter 3.3: no VIBE message
-    assert res["source"] == "accelerometer spectra" and res["verdict"] is None and "spectra only" in note
+    assert res["source"] == "accelerometer" and res["verdict"] is None and "no verdict" in note
+    (seg,) = res["segments"]
+    fz = seg["figures"]["accel_band_rms_z"]
+    assert fz["band_hz"][0] == 20.0 and fz["band_hz"][1] == pytest.approx(25.0, abs=0.2) and fz["verdict"] is None and fz["threshold"] is None
+
+
+FIGURE_KEYS = {"mean", "p95", "max", "unit", "threshold", "verdict"}
+
+
+def _check_shape(figures):
+    """Every figure has the documented shape: levels {mean, p95, max, unit, threshold,
+    verdict}, clip counters {increase, unit, threshold, verdict}; threshold None or
+    {warn, fail}."""
+    for name, f in figures.items():
+        keys = {"increase", "unit", "threshold", "verdict"} if "increase" in f else FIGURE_KEYS
+        assert keys <= set(f), (name, f)
+        assert f["threshold"] is None or set(f["threshold"]) == {"warn", "fail"}
+        assert f["verdict"] in (None, "pass", "warn", "fail")
+
+
+def test_figures_shape_documented():
+    _, (res, _) = _synthetic_review()
+    for seg in res["segments"]:
+        _check_shape(seg["figures"])
+    assert res["segments"][0]["figures"]["imu0.VibeZ"]["threshold"] == {"warn": 30.0, "fail": 60.0}
+    assert res["segments"][0]["figures"]["imu0.VibeZ"]["unit"] == "m/s/s"
+
+
+@pytest.mark.parametrize("name", ["copter_00000-2021-12-02_13-34-15.bin", "px4_sample.ulg", "log171.bin"])
+def test_real_accelerometer_only_logs_get_figures(name):
+    """No vibration level logged: the accelerometer's band rms per segment, no verdict
+    (copter_00000: IMU at 25 Hz, so the band is 6.25-12.5 Hz)."""
+    res, _ = _real(name)
+    for seg in res["segments"]:
+        assert {"accel_band_rms_x", "accel_band_rms_y", "accel_band_rms_z"} <= set(seg["figures"])
+        _check_shape(seg["figures"])
+        assert all(f["verdict"] is None for f in seg["figures"].values())
