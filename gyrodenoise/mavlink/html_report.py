@@ -51,6 +51,8 @@ VEHICLE_RATE_STYLES = ((VEHICLE_RATE_COLOUR, "dot"), ("#b15928", "dash"), ("#6a3
 #: plotly's config on every plot: hover, zoom, pan and the modebar, no link to plotly's site
 PLOT_CONFIG = {"displaylogo": False, "responsive": True, "scrollZoom": False,
                "toImageButtonOptions": {"format": "png", "scale": 2}}
+#: plotly's template of every plot
+TEMPLATE = "plotly_white"
 #: no web font: the browser's own sans-serif
 FONT = "DejaVu Sans, Arial, Helvetica, sans-serif"
 
@@ -214,22 +216,47 @@ def _notes_for(report, *keys):
 
 # ------------------------------------------------------------------ figures
 class _Figures:
-    """Collects the plot divs of one page (plotly.js goes once into the page's head)."""
+    """Collects the plot divs of one page (plotly.js goes once into the page's head).
+
+    Used as a context manager around a page's figures: plotly's default template is
+    off while they are built (each figure would otherwise copy and validate the whole
+    default template when it is made, and again when :data:`TEMPLATE` replaces it),
+    and :data:`TEMPLATE` goes into each figure's JSON as it is written, taken once a
+    page (the same JSON as ``update_layout(template=TEMPLATE)`` gives)."""
 
     def __init__(self):
         self.n = 0
+        self.template = None
+        self._default = None
+
+    def __enter__(self):
+        import plotly.io as pio
+        self._default = pio.templates.default
+        pio.templates.default = None
+        self.template = pio.templates[TEMPLATE].to_plotly_json()
+        return self
+
+    def __exit__(self, *exc):
+        import plotly.io as pio
+        pio.templates.default = self._default
+        return False
 
     def div(self, fig, height=None):
         """The figure as a ``<div class="plot">`` with its script (no plotly.js)."""
         import plotly.io as pio
         self.n += 1
         top = fig.layout.margin.t
-        fig.update_layout(font={"family": FONT, "size": 12}, template="plotly_white",
+        fig.update_layout(font={"family": FONT, "size": 12},
                           margin={"l": 70, "r": 30, "t": top if top is not None else 50, "b": 50})
         if height:
             fig.update_layout(height=height)
-        return '<div class="plot">' + pio.to_html(fig, include_plotlyjs=False, full_html=False, config=PLOT_CONFIG,
-                                                 div_id=f"plot{self.n}", default_width="100%",
+        if self.template is None:           # outside a ``with``
+            self.template = pio.templates[TEMPLATE].to_plotly_json()
+        spec = fig.to_dict()
+        spec["layout"]["template"] = self.template
+        return '<div class="plot">' + pio.to_html(spec, validate=False, include_plotlyjs=False, full_html=False,
+                                                 config=PLOT_CONFIG, div_id=f"plot{self.n}",
+                                                 default_width="100%",
                                                  default_height=f"{height or 450}px") + "</div>"
 
 
@@ -827,18 +854,18 @@ def write_log_report(path, report, series=None):
     ``filter_review`` responses the vehicle's response is computed from
     ``report["vehicle_filters"]["stages"]`` (:func:`stage_response`)."""
     series = series or {}
-    figs = _Figures()
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("summary", "summary"), ("streams", "streams"),
                                                          ("spectra", "spectra"), ("filters", "filters"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
-    body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
-            _summary_section(report, series),
-            _streams_section(report, series, figs),
-            _spectra_section(report, series, figs),
-            _filter_review_section(report, series, figs),
-            _vibration_section(report, figs),
-            _notes_section(report)]
+    with _Figures() as figs:
+        body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
+                _summary_section(report, series),
+                _streams_section(report, series, figs),
+                _spectra_section(report, series, figs),
+                _filter_review_section(report, series, figs),
+                _vibration_section(report, figs),
+                _notes_section(report)]
     return _write(path, _page(f"{name}: gyro review", "".join(body)))
 
 
@@ -881,11 +908,12 @@ def write_fleet_report(path, fleet_report, per_log=()):
     out.append("<h2>Logs</h2>" + _table(table, ["log (its report)", "stream", "status", "rate [Hz]", "noise raw",
                                                "noise filtered", "density [deg/s/√Hz]", "x fleet median",
                                                "vibration", "note"]))
-    fig = _fleet_figure(rows)
-    if fig is not None:
-        out.append("<h2>Noise density per log and stream</h2>" + figs.div(fig, height=480))
-    else:
-        out.append(_note("no stream has a noise density to compare"))
+    with figs:
+        fig = _fleet_figure(rows)
+        if fig is not None:
+            out.append("<h2>Noise density per log and stream</h2>" + figs.div(fig, height=480))
+        else:
+            out.append(_note("no stream has a noise density to compare"))
     return _write(path, _page("gyrodenoise fleet report", "".join(out)))
 
 
