@@ -181,8 +181,9 @@ def worker_threads(task=None):
 
 #: what each worker of the local pool imports before its first log; with plots also
 #: :data:`PLOT_PRELOAD`. Imported once, by the forkserver the workers are forked from:
-#: a spawned worker importing them itself cost about 0.8 s of CPU (1.5 s with plots), a
-#: worker, on the 2-core machine of docs/logs/mavlink.md's Speed section
+#: with spawned workers importing them each, ``--jobs 2`` over the shared logs took 1.7 s
+#: (4.3 s with plots) of CPU more than serial, 0.8 s (3.3 s) with the forkserver
+#: (docs/logs/mavlink.md, Speed)
 WORKER_PRELOAD = ("__main__", "gyrodenoise.mavlink.cluster", "gyrodenoise.mavlink.pipeline",
                   "gyrodenoise.core.batch", "pymavlink.mavutil", "pyulog")
 PLOT_PRELOAD = ("matplotlib.pyplot", "plotly.graph_objects", "plotly.subplots", "gyrodenoise.mavlink.html_report")
