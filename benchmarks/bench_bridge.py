@@ -19,6 +19,12 @@ must have the same C core); printed: the median wall time (and its ratio to a ba
 pymavlink read, timed in the same rounds), the median CPU time of the process and
 its children, and the ratio of the two trees.
 
+``--parts`` instead prints the CPU seconds of each part of the bridge's work on
+LOG, measured in one process after a first run (imports done; a helper pays its
+imports and first calls once a log): the parent's work (read, review, filter, write,
+the plots' data queued), each PNG, the HTML page, and the imports of matplotlib
+and plotly the helpers pay. Their sum over two cores is the wall time's floor.
+
 The bridge run does everything the command does by default: parse, detect
 restarts, denoise 3 streams x 3 axes, the flight review (segments, parameters,
 vehicle filters, filter review, vibration), write the filtered log, 3 CSV files,
@@ -77,14 +83,28 @@ def timed(cmd, **kw):
     return dt, out
 
 
+def _subreaper():
+    """Make this process the subreaper of its descendants (Linux): a helper process
+    the command leaves behind is adopted here, and its CPU time counted once reaped."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+        ctypes.CDLL(None).prctl(36, 1, 0, 0, 0)        # PR_SET_CHILD_SUBREAPER
+
+
 def timed_cpu(cmd, **kw):
     """(wall s, CPU s, stdout) of one fresh process; CPU = user + system of it and its
     children (the plot helper's drawing included), which a loaded machine disturbs
     less than the wall time."""
+    _subreaper()
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     r = subprocess.run(cmd, capture_output=True, text=True, **kw)
     dt = time.perf_counter() - t
+    while True:                      # the helpers it left (adopted: this process is their subreaper)
+        try:
+            os.waitpid(-1, 0)
+        except ChildProcessError:
+            break
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         raise SystemExit(f"failed ({r.returncode}): {' '.join(cmd)}\n{r.stderr}")
@@ -138,17 +158,57 @@ def against(log, rev, repeat):
     return 0
 
 
+PARTS = """
+import sys, time, tempfile
+t = time.process_time()
+import matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot
+t_mpl = time.process_time() - t
+t = time.process_time()
+import plotly.graph_objects, plotly.subplots, gyrodenoise.mavlink.html_report
+t_plotly = time.process_time() - t
+from gyrodenoise.mavlink import pipeline, plotting, html_writer
+jobs, pages = [], []
+plotting.Plotter._submit = lambda self, job: jobs.append(job)
+html_writer.HtmlWriter.write = lambda self, path, report, series: pages.append((path, report, series))
+with tempfile.TemporaryDirectory() as tmp:
+    pipeline.process_log(sys.argv[1], tmp)
+    first = []
+    for j in jobs:
+        c = time.process_time(); plotting._draw(*j); first.append(time.process_time() - c)
+    c = time.process_time(); html_writer._write(*pages[0]); html_first = time.process_time() - c
+    jobs.clear(); pages.clear()
+    c = time.process_time(); pipeline.process_log(sys.argv[1], tmp); parent = time.process_time() - c
+    c = time.process_time(); pipeline.process_log(sys.argv[1], tmp, plots=False); noplots = time.process_time() - c
+    png = []
+    for j in jobs:
+        c = time.process_time(); plotting._draw(*j); png.append(time.process_time() - c)
+    c = time.process_time(); html_writer._write(*pages[0]); html = time.process_time() - c
+print(f"parent's work (plots queued) {parent:.2f} s, --no-plots {noplots:.2f} s")
+print(f"PNGs {sum(png):.2f} s ({' + '.join(f'{x:.2f}' for x in png)}; first time {sum(first):.2f} s)")
+print(f"HTML page {html:.2f} s (first time {html_first:.2f} s)")
+print(f"imports in the helpers: matplotlib {t_mpl:.2f} s, plotly and the report {t_plotly:.2f} s")
+"""
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("log", nargs="?", default=str(DEFAULT_LOG))
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--against", default=None, metavar="REV",
                     help="time this tree against commit REV instead (see the module's docstring)")
+    ap.add_argument("--parts", action="store_true", help="CPU seconds per part of the work (see the docstring)")
     a = ap.parse_args(argv)
     if not Path(a.log).is_file():
         raise SystemExit(f"{a.log}: not found (the shared data folder is needed)")
     if a.against:
         return against(a.log, a.against, a.repeat)
+    if a.parts:
+        for _ in range(a.repeat):
+            print(subprocess.run([sys.executable, "-c", PARTS, a.log], capture_output=True, text=True,
+                                 check=True).stdout, end="")
+        return 0
     bare_t, bridge_t, noplot_t, floor_t, bare_cpu, bridge_cpu = [], [], [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         # one warm-up run of each (OS file cache, imports)

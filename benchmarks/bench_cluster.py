@@ -11,9 +11,20 @@ Prints, from one run on this machine:
   * what one log costs, to size a cluster: CPU-seconds and peak memory of a
     ``gyrodenoise mavlink`` process per log (the largest of the shared logs).
 Plots are off (``--no-plots``) so that the figures are about the filtering.
+
+    python benchmarks/bench_cluster.py --local [--jobs 2] [--repeat 3]
+
+instead times ``gyrodenoise mavlink LOGS/ --jobs 1`` against ``--jobs N`` as fresh
+processes, alternately, with ``--no-plots`` and with plots (PNGs and HTML reports):
+the median wall times and their ratio (target >= 1.7x for 2 on 2 cores), and the CPU
+time of each run with its workers (the --jobs pool's forkserver and workers are
+reaped here: this process is their subreaper), whose ratio serial / (N-jobs CPU / N)
+is the speed-up an idle machine of N cores would give: on a machine shared with other
+jobs the wall ratio is what the other jobs leave.
 """
 
 import argparse
+import os
 import resource
 import subprocess
 import sys
@@ -43,6 +54,55 @@ def best_of(fn, repeat):
     return min(ts)
 
 
+def _reap_orphans():
+    """Wait for this process's children adopted as a subreaper (a --jobs pool's
+    forkserver outlives the CLI by a moment): their CPU time then counts in
+    RUSAGE_CHILDREN."""
+    while True:
+        try:
+            os.waitpid(-1, 0)
+        except ChildProcessError:
+            return
+
+
+def local(logs, jobs, repeat):
+    """Serial against ``--jobs`` (see the module's docstring)."""
+    import ctypes
+    import json
+    import shutil
+    import statistics
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None).prctl(36, 1, 0, 0, 0)        # PR_SET_CHILD_SUBREAPER
+    cmd = [sys.executable, "-m", "gyrodenoise.cli", "mavlink", str(logs), "--json"]
+    with tempfile.TemporaryDirectory() as tmp:
+        for extra in (["--no-plots"], []):
+            runs = {1: [], jobs: []}
+            for i in range(repeat + 1):                # the first round warms the file cache
+                for j in runs:
+                    out = Path(tmp) / "out"
+                    shutil.rmtree(out, ignore_errors=True)
+                    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    t0 = time.perf_counter()
+                    r = subprocess.run(cmd + ["-o", str(out), "--jobs", str(j)] + extra, capture_output=True, text=True)
+                    wall = time.perf_counter() - t0
+                    _reap_orphans()
+                    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+                    n = json.loads(r.stdout)["n_logs"] if r.stdout.strip() else 0
+                    if i:
+                        runs[j].append((wall, cpu))
+            w = {j: statistics.median(x for x, _ in v) for j, v in runs.items()}
+            c = {j: statistics.median(y for _, y in v) for j, v in runs.items()}
+            label = " ".join(extra) or "with plots"
+            for j in runs:
+                print(f"{label:>10} --jobs {j}: wall median {w[j]:6.2f} s, CPU median {c[j]:6.2f} s "
+                      f"(walls {', '.join(f'{x:.2f}' for x, _ in runs[j])})")
+            print(f"{label:>10}: wall ratio serial / --jobs {jobs}: {w[1] / w[jobs]:.2f}x (target >= 1.7x); "
+                  f"CPU-bound ratio serial / (CPU of --jobs {jobs} / {jobs}): {c[1] / (c[jobs] / jobs):.2f}x")
+    print(f"{n} logs under {logs}; cores: {os.cpu_count()}, load average: "
+          f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--logs", default=str(SHARED_DATA / "logs"))
@@ -50,7 +110,11 @@ def main(argv=None):
     ap.add_argument("--dask-defaults", action="store_true",
                     help="keep Dask's worker defaults (statistical profiler on, MALLOC_TRIM_THRESHOLD_=65536); "
                          "by default both are switched off as docs/logs/fleet.md recommends")
+    ap.add_argument("--local", action="store_true", help="serial against --jobs (see the module's docstring)")
+    ap.add_argument("--jobs", type=int, default=2)
     args = ap.parse_args(argv)
+    if args.local:
+        return local(Path(args.logs), args.jobs, args.repeat)
     import dask
     from distributed import Client, LocalCluster
     if not args.dask_defaults:

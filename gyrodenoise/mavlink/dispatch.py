@@ -159,9 +159,13 @@ def worker_threads(task=None):
     """The threads of the calling process (``task`` is not used: the signature of a
     task, for :func:`_run_in_pool`):
     ``{"process": threads of the process (Linux, else None), "numba": numba's
-    thread count or None (numba not installed), "env": the thread variables}``.
+    thread count or None (numba not installed), "env": the thread variables,
+    "preloaded": the modules of :data:`WORKER_PRELOAD` and :data:`PLOT_PRELOAD` the
+    process had imported before this call}``.
     Run in a worker in place of :func:`gyrodenoise.mavlink.cluster.run_task`, it says
     what the pool's workers get (the tests)."""
+    import sys
+    preloaded = sorted(m for m in WORKER_PRELOAD + PLOT_PRELOAD if m != "__main__" and m in sys.modules)
     import numpy as np
     a = np.ones((256, 256))
     a @ a                               # BLAS starts its threads (if any) at its first call
@@ -172,7 +176,37 @@ def worker_threads(task=None):
     except ImportError:
         nb = None
     return {"process": len(list(task.iterdir())) if task.is_dir() else None, "numba": nb,
-            "env": {k: os.environ.get(k) for k in WORKER_THREAD_ENV}}
+            "env": {k: os.environ.get(k) for k in WORKER_THREAD_ENV}, "preloaded": preloaded}
+
+
+#: what each worker of the local pool imports before its first log; with plots also
+#: :data:`PLOT_PRELOAD`. Imported once, by the forkserver the workers are forked from:
+#: with spawned workers importing them each, ``--jobs 2`` over the shared logs took 1.7 s
+#: (4.3 s with plots) of CPU more than serial, 0.8 s (3.3 s) with the forkserver
+#: (docs/logs/mavlink.md, Speed)
+WORKER_PRELOAD = ("__main__", "gyrodenoise.mavlink.cluster", "gyrodenoise.mavlink.pipeline",
+                  "gyrodenoise.core.batch", "pymavlink.mavutil", "pyulog")
+PLOT_PRELOAD = ("matplotlib.pyplot", "plotly.graph_objects", "plotly.subplots", "gyrodenoise.mavlink.html_report")
+
+
+def _pool_preload(tasks):
+    """The modules the pool's forkserver imports for ``tasks`` (:data:`WORKER_PRELOAD`,
+    and :data:`PLOT_PRELOAD` when a task draws plots)."""
+    plots = any(t[2].get("plots", True) for t in tasks)
+    return list(WORKER_PRELOAD) + (list(PLOT_PRELOAD) if plots else [])
+
+
+def _pool_context(tasks):
+    """The multiprocessing context of the local pool: forkserver (preloading
+    :func:`_pool_preload`) where the platform has it, else spawn. The forkserver is
+    one per process, started at the pool's first worker (in :func:`_worker_environment`);
+    a later pool reuses it and what it preloaded."""
+    import multiprocessing as mp
+    if "forkserver" not in mp.get_all_start_methods():
+        return mp.get_context("spawn")
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(_pool_preload(tasks))
+    return ctx
 
 
 def _run_in_pool(tasks, jobs, bar, results, fn=None):
@@ -182,15 +216,15 @@ def _run_in_pool(tasks, jobs, bar, results, fn=None):
     once (the pool's own shutdown would wait for the logs under way).
 
     Each worker runs one thread of BLAS / OpenMP / numba: ``jobs`` workers each with
-    a thread per core would oversubscribe the machine. The workers are spawned
-    (fresh interpreters, as on macOS and Windows) in :func:`_worker_environment`;
-    each pays its imports once (about 0.3 s). As with any spawned pool, a script
-    that calls this with ``jobs`` > 1 keeps its work under ``if __name__ ==
-    "__main__":`` (the workers import the script's main module)."""
+    a thread per core would oversubscribe the machine. The workers are forked from a
+    fresh interpreter (multiprocessing's forkserver; spawned where there is none, as
+    on macOS and Windows) started in :func:`_worker_environment`, which imports
+    :func:`_pool_preload` once for all of them (:func:`_pool_context`). As with any
+    spawned pool, a script that calls this with ``jobs`` > 1 keeps its work under
+    ``if __name__ == "__main__":`` (the workers import the script's main module)."""
     import concurrent.futures as cf
-    import multiprocessing as mp
     fn = cluster.run_task if fn is None else fn
-    ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=mp.get_context("spawn"),
+    ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_pool_context(tasks),
                                 initializer=as_child)
     try:
         # every worker is started by a submit in this block (one a submit, up to ``jobs``)

@@ -51,6 +51,8 @@ VEHICLE_RATE_STYLES = ((VEHICLE_RATE_COLOUR, "dot"), ("#b15928", "dash"), ("#6a3
 #: plotly's config on every plot: hover, zoom, pan and the modebar, no link to plotly's site
 PLOT_CONFIG = {"displaylogo": False, "responsive": True, "scrollZoom": False,
                "toImageButtonOptions": {"format": "png", "scale": 2}}
+#: plotly's template of every plot
+TEMPLATE = "plotly_white"
 #: no web font: the browser's own sans-serif
 FONT = "DejaVu Sans, Arial, Helvetica, sans-serif"
 
@@ -214,22 +216,47 @@ def _notes_for(report, *keys):
 
 # ------------------------------------------------------------------ figures
 class _Figures:
-    """Collects the plot divs of one page (plotly.js goes once into the page's head)."""
+    """Collects the plot divs of one page (plotly.js goes once into the page's head).
+
+    Used as a context manager around a page's figures: plotly's default template is
+    off while they are built (each figure would otherwise copy and validate the whole
+    default template when it is made, and again when :data:`TEMPLATE` replaces it),
+    and :data:`TEMPLATE` goes into each figure's JSON as it is written, taken once a
+    page (the same JSON as ``update_layout(template=TEMPLATE)`` gives)."""
 
     def __init__(self):
         self.n = 0
+        self.template = None
+        self._default = None
+
+    def __enter__(self):
+        import plotly.io as pio
+        self._default = pio.templates.default
+        pio.templates.default = None
+        self.template = pio.templates[TEMPLATE].to_plotly_json()
+        return self
+
+    def __exit__(self, *exc):
+        import plotly.io as pio
+        pio.templates.default = self._default
+        return False
 
     def div(self, fig, height=None):
         """The figure as a ``<div class="plot">`` with its script (no plotly.js)."""
         import plotly.io as pio
         self.n += 1
         top = fig.layout.margin.t
-        fig.update_layout(font={"family": FONT, "size": 12}, template="plotly_white",
+        fig.update_layout(font={"family": FONT, "size": 12},
                           margin={"l": 70, "r": 30, "t": top if top is not None else 50, "b": 50})
         if height:
             fig.update_layout(height=height)
-        return '<div class="plot">' + pio.to_html(fig, include_plotlyjs=False, full_html=False, config=PLOT_CONFIG,
-                                                 div_id=f"plot{self.n}", default_width="100%",
+        if self.template is None:           # outside a ``with``
+            self.template = pio.templates[TEMPLATE].to_plotly_json()
+        spec = fig.to_dict()
+        spec["layout"]["template"] = self.template
+        return '<div class="plot">' + pio.to_html(spec, validate=False, include_plotlyjs=False, full_html=False,
+                                                 config=PLOT_CONFIG, div_id=f"plot{self.n}",
+                                                 default_width="100%",
                                                  default_height=f"{height or 450}px") + "</div>"
 
 
@@ -257,7 +284,7 @@ def _shade_segments(fig, segments, rows, t_lo, t_hi):
         fig.update_layout(shapes=list(fig.layout.shapes or ()) + shapes)
     import plotly.graph_objects as go
     for kind in kinds:
-        fig.add_trace(go.Scatter(x=[None], y=[None], mode="markers", name=f"segment: {kind}",
+        fig.add_trace(go.Scatter(_validate=False, x=[None], y=[None], mode="markers", name=f"segment: {kind}",
                                  marker={"symbol": "square", "size": 12,
                                          "color": SEGMENT_COLOURS.get(kind, "rgba(200,0,200,0.3)")},
                                  legendgroup="segments"), row=1, col=1)
@@ -285,14 +312,14 @@ def _time_figure(st, vehicle_rates, segments, title):
         first = k == 0
         if filt is not None:
             tx, fy = session_envelope(pt, filt[:, k], restarts)
-            fig.add_trace(go.Scatter(x=tx, y=fy.astype(np.float32), name=f"{label}", legendgroup="filtered",
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=fy.astype(np.float32), name=f"{label}", legendgroup="filtered",
                                        showlegend=first, line={"color": dark, "width": 1.3},
                                        hovertemplate=f"{a} {label}: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
                           row=k + 1, col=1)
         tx, ry = session_envelope(pt, raw[:, k], restarts)
         raw_name = "raw" if filt is not None else f"raw (written raw: {st.get('raw_reason') or 'not filtered'})"
         # raw is drawn after (above) the filtered line, lighter and half transparent: both show
-        fig.add_trace(go.Scatter(x=tx, y=ry.astype(np.float32), name=raw_name, legendgroup="raw",
+        fig.add_trace(go.Scatter(_validate=False, x=tx, y=ry.astype(np.float32), name=raw_name, legendgroup="raw",
                                    showlegend=first, opacity=0.75 if filt is not None else 1.0,
                                    line={"color": light if filt is not None else dark, "width": 0.9},
                                    hovertemplate=f"{a} raw: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
@@ -305,7 +332,7 @@ def _time_figure(st, vehicle_rates, segments, title):
                 continue
             tx, vy = envelope(vt, rate[:, k])
             vname = f"vehicle rate ({vr.get('name', '')})"
-            fig.add_trace(go.Scatter(x=tx, y=vy.astype(np.float32), name=vname, legendgroup=vname,
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=vy.astype(np.float32), name=vname, legendgroup=vname,
                                        showlegend=first, line={"color": v_colour, "width": 1.0, "dash": v_dash},
                                        hovertemplate=f"{a} {vname}: %{{y:.4g}} {vr.get('unit', unit)}"
                                                      f"<br>t=%{{x:.3f}} s<extra></extra>"),
@@ -320,7 +347,7 @@ def _time_figure(st, vehicle_rates, segments, title):
             xs = np.repeat(rt, 3).astype(object)
             xs[2::3] = None
             ys = np.tile(np.array([lo, hi, None], dtype=object), len(rt))
-            fig.add_trace(go.Scatter(x=xs, y=ys, mode="lines", name="restart", legendgroup="restart",
+            fig.add_trace(go.Scatter(_validate=False, x=xs, y=ys, mode="lines", name="restart", legendgroup="restart",
                                      showlegend=k == 0, line={"color": "#d62728", "dash": "dash", "width": 1},
                                      customdata=np.repeat(t[restarts], 3),
                                      hovertemplate="restart at boot time %{customdata:.3f} s<extra></extra>"),
@@ -358,12 +385,12 @@ def _spectrum_figure(name, pd, responses, title):
     for k, a in enumerate(axes):
         dark, light = AXIS_COLOURS[k % len(AXIS_COLOURS)]
         if raw is not None and k < len(raw) and raw[k] is not None:
-            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(raw[k])[sel], name=f"{a} raw", legendgroup=a,
+            fig.add_trace(go.Scatter(_validate=False, x=fr[sel], y=np.asarray(raw[k])[sel], name=f"{a} raw", legendgroup=a,
                                      line={"color": dark, "width": 1.2},
                                      hovertemplate=f"{a} raw: %{{y:.3g}} ({unit})²/Hz at %{{x:.4g}} Hz<extra></extra>"),
                           secondary_y=False)
         if filt is not None and not same and k < len(filt) and filt[k] is not None:
-            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(filt[k])[sel], name=f"{a} filtered", legendgroup=a,
+            fig.add_trace(go.Scatter(_validate=False, x=fr[sel], y=np.asarray(filt[k])[sel], name=f"{a} filtered", legendgroup=a,
                                      line={"color": dark, "width": 1.2, "dash": "dash"}, opacity=0.75,
                                      hovertemplate=f"{a} filtered: %{{y:.3g}} ({unit})²/Hz at %{{x:.4g}} Hz"
                                                    f"<extra></extra>"),
@@ -373,14 +400,14 @@ def _spectrum_figure(name, pd, responses, title):
             px = [q["freq_hz"] for q in peaks]
             py = [float(np.asarray(raw[k])[int(np.argmin(np.abs(fr - f)))]) for f in px]
             txt = [_peak_hover(q, unit) for q in peaks]
-            fig.add_trace(go.Scatter(x=px, y=py, mode="markers", name=f"{a} peaks", legendgroup=a,
+            fig.add_trace(go.Scatter(_validate=False, x=px, y=py, mode="markers", name=f"{a} peaks", legendgroup=a,
                                      marker={"symbol": "triangle-down", "size": 11, "color": dark,
                                              "line": {"color": "black", "width": 1}},
                                      text=txt, hovertemplate="%{text}<extra></extra>"), secondary_y=False)
     for label, rf, gain, dash in responses:
         rf = np.asarray(rf, dtype=np.float64)
         ok = rf > 0
-        fig.add_trace(go.Scatter(x=rf[ok], y=np.asarray(gain, dtype=np.float64)[ok], name=label,
+        fig.add_trace(go.Scatter(_validate=False, x=rf[ok], y=np.asarray(gain, dtype=np.float64)[ok], name=label,
                                  line={"color": "#555" if dash == "solid" else "#c2185b", "width": 1.6, "dash": dash},
                                  hovertemplate=f"{_e(label)}: |H| %{{y:.3f}} at %{{x:.4g}} Hz<extra></extra>"),
                       secondary_y=True)
@@ -427,7 +454,7 @@ def _spectrogram_figure(name, pd):
     lo, hi = np.nanpercentile(db, [5, 99.5]) if np.isfinite(db).any() else (0.0, 1.0)
     step = max(1, int(math.ceil(db.shape[0] / 600)))          # at most ~600 columns
     unit = pd.get("unit", "")
-    fig = go.Figure(go.Heatmap(x=np.asarray(t)[::step], y=fr, z=db[::step].T.astype(np.float32),
+    fig = go.Figure(go.Heatmap(_validate=False, x=np.asarray(t)[::step], y=fr, z=db[::step].T.astype(np.float32),
                                zmin=lo, zmax=hi, colorscale="Viridis",
                                colorbar={"title": {"text": f"dB ({unit})²/Hz"}},
                                hovertemplate="t=%{x:.1f} s, %{y:.4g} Hz: %{z:.1f} dB<extra></extra>"))
@@ -682,12 +709,12 @@ def _review_figure(rev):
                                      ("psd_post_logged", "post-filter, logged settings", "#1f4fb4", "solid"),
                                      ("psd_post_recommended", "post-filter, recommended", "#c2185b", "dash")):
         if rev.get(key) is not None:
-            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(rev[key], dtype=np.float64)[sel], name=label,
+            fig.add_trace(go.Scatter(_validate=False, x=fr[sel], y=np.asarray(rev[key], dtype=np.float64)[sel], name=label,
                                      line={"color": colour, "dash": dash}), secondary_y=False)
     for key, label, dash in (("response_logged", "|H| logged", "dot"), ("response_recommended", "|H| recommended",
                                                                         "dashdot")):
         if rev.get(key) is not None:
-            fig.add_trace(go.Scatter(x=fr[sel], y=np.asarray(rev[key], dtype=np.float64)[sel], name=label,
+            fig.add_trace(go.Scatter(_validate=False, x=fr[sel], y=np.asarray(rev[key], dtype=np.float64)[sel], name=label,
                                      line={"color": "#333", "dash": dash}), secondary_y=True)
     fig.update_yaxes(type="log", title_text=f"PSD [({unit})²/Hz]", secondary_y=False,
                      range=_log_range([rev[k] for k in ("psd_pre", "psd_post_logged") if rev.get(k) is not None], sel))
@@ -742,7 +769,7 @@ def _vibration_section(report, figs):
         metrics = sorted({m for _, n in rows for m in n})
         fig = go.Figure()
         for label, nums in rows:
-            fig.add_trace(go.Bar(x=metrics, y=[nums.get(m) for m in metrics], name=label,
+            fig.add_trace(go.Bar(_validate=False, x=metrics, y=[nums.get(m) for m in metrics], name=label,
                                  hovertemplate=f"{_e(label)} %{{x}}: %{{y:.3g}}<extra></extra>"))
         for j, m in enumerate(metrics):
             for level, colour in (("warn", "#e69500"), ("fail", "#b00020")):
@@ -751,7 +778,7 @@ def _vibration_section(report, figs):
                     continue
                 fig.add_shape(type="line", x0=j - 0.45, x1=j + 0.45, y0=v, y1=v, line={"color": colour, "width": 2,
                                                                                       "dash": "dash"})
-                fig.add_trace(go.Scatter(x=[m], y=[v], mode="markers", marker={"color": colour, "symbol": "line-ew",
+                fig.add_trace(go.Scatter(_validate=False, x=[m], y=[v], mode="markers", marker={"color": colour, "symbol": "line-ew",
                                                                                "size": 1},
                                          name=f"{level} threshold", legendgroup=level,
                                          showlegend=not any(t.name == f"{level} threshold" for t in fig.data),
@@ -827,18 +854,18 @@ def write_log_report(path, report, series=None):
     ``filter_review`` responses the vehicle's response is computed from
     ``report["vehicle_filters"]["stages"]`` (:func:`stage_response`)."""
     series = series or {}
-    figs = _Figures()
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("summary", "summary"), ("streams", "streams"),
                                                          ("spectra", "spectra"), ("filters", "filters"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
-    body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
-            _summary_section(report, series),
-            _streams_section(report, series, figs),
-            _spectra_section(report, series, figs),
-            _filter_review_section(report, series, figs),
-            _vibration_section(report, figs),
-            _notes_section(report)]
+    with _Figures() as figs:
+        body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
+                _summary_section(report, series),
+                _streams_section(report, series, figs),
+                _spectra_section(report, series, figs),
+                _filter_review_section(report, series, figs),
+                _vibration_section(report, figs),
+                _notes_section(report)]
     return _write(path, _page(f"{name}: gyro review", "".join(body)))
 
 
@@ -881,11 +908,12 @@ def write_fleet_report(path, fleet_report, per_log=()):
     out.append("<h2>Logs</h2>" + _table(table, ["log (its report)", "stream", "status", "rate [Hz]", "noise raw",
                                                "noise filtered", "density [deg/s/√Hz]", "x fleet median",
                                                "vibration", "note"]))
-    fig = _fleet_figure(rows)
-    if fig is not None:
-        out.append("<h2>Noise density per log and stream</h2>" + figs.div(fig, height=480))
-    else:
-        out.append(_note("no stream has a noise density to compare"))
+    with figs:
+        fig = _fleet_figure(rows)
+        if fig is not None:
+            out.append("<h2>Noise density per log and stream</h2>" + figs.div(fig, height=480))
+        else:
+            out.append(_note("no stream has a noise density to compare"))
     return _write(path, _page("gyrodenoise fleet report", "".join(out)))
 
 
@@ -900,7 +928,7 @@ def _fleet_figure(rows):
     fig = go.Figure()
     for g in sorted({r.get("compared_as") or r.get("stream") for r in ok}):
         pts = [r for r in ok if (r.get("compared_as") or r.get("stream")) == g]
-        fig.add_trace(go.Scatter(x=[r["log"] for r in pts], y=[r["noise_density_deg_s_rthz"] for r in pts],
+        fig.add_trace(go.Scatter(_validate=False, x=[r["log"] for r in pts], y=[r["noise_density_deg_s_rthz"] for r in pts],
                                  mode="markers", name=g, marker={"size": 10},
                                  text=[f"{r['log']} {r['stream']}: filtered/raw noise "
                                        f"{_f((r.get('noise_filtered') or 0) / r['noise_raw'], '.2f') if r.get('noise_raw') else ''}"
@@ -908,7 +936,7 @@ def _fleet_figure(rows):
                                  hovertemplate="%{text}<br>%{y:.3g} deg/s/√Hz<extra></extra>"))
     flagged = [r for r in ok if r.get("flag")]
     if flagged:
-        fig.add_trace(go.Scatter(x=[r["log"] for r in flagged], y=[r["noise_density_deg_s_rthz"] for r in flagged],
+        fig.add_trace(go.Scatter(_validate=False, x=[r["log"] for r in flagged], y=[r["noise_density_deg_s_rthz"] for r in flagged],
                                  mode="markers", name="noisier than the fleet",
                                  marker={"size": 20, "color": "rgba(0,0,0,0)", "line": {"color": "red", "width": 2}}))
     fig.update_xaxes(categoryorder="array", categoryarray=logs, tickangle=-45)

@@ -8,6 +8,8 @@ process).
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from gyrodenoise.analysis import spectrum as sp
@@ -275,10 +277,13 @@ def _draw_psd(ax, name, pd):
         if not pd["filtered_is_raw"]:
             ax.plot(fr[sel], pd["filtered"][k][sel], lw=0.8, ls="--", color=f"C{k}", alpha=0.7)
         ax.plot(fr[sel], pd["floor"][k][sel], lw=0.5, ls=":", color=f"C{k}")
-        for q in pd["peaks"][k]:
-            b = int(np.argmin(np.abs(fr - q["freq_hz"])))
-            ax.plot(q["freq_hz"], pd["raw"][k][b], "v", color=f"C{k}",
-                    ms=4 if q["harmonic_of_hz"] else 6, mec="k", mew=0.5)
+        # one line of markers per run of peaks of one size (the same pixels as one a peak, in
+        # the same order; a matplotlib line costs its marker's set-up each)
+        for ms, run in itertools.groupby(pd["peaks"][k], key=lambda q: 4 if q["harmonic_of_hz"] else 6):
+            run = list(run)
+            b = [int(np.argmin(np.abs(fr - q["freq_hz"]))) for q in run]
+            ax.plot([q["freq_hz"] for q in run], np.asarray(pd["raw"][k])[b], "v", ls="none", color=f"C{k}",
+                    ms=ms, mec="k", mew=0.5)
         named = sorted(pd["peaks"][k], key=lambda q: -q["amplitude_rms"])[:LABELLED_PEAKS]
         listing.append(f"{a}: " + ("; ".join(
             f"{q['freq_hz']:.4g} Hz {q['amplitude_rms']:.2g} ({100 * q['present_in_segments']:.0f} %)" +

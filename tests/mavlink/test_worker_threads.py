@@ -34,6 +34,19 @@ def test_each_worker_runs_one_thread_and_the_parent_keeps_its_environment(monkey
     assert os.environ["OMP_NUM_THREADS"] == "7" and "OPENBLAS_NUM_THREADS" not in os.environ
 
 
+@linux
+def test_the_workers_start_with_the_bridge_imported():
+    """The workers are forked from a forkserver that imported the bridge (and, for
+    plots, matplotlib and plotly) once: no worker pays those imports itself."""
+    tasks = [(Path(f"log{i}.bin"), "out", {"plots": True}) for i in range(2)]
+    assert set(dispatch.PLOT_PRELOAD) <= set(dispatch._pool_preload(tasks))
+    assert not set(dispatch.PLOT_PRELOAD) & set(dispatch._pool_preload([(Path("a.bin"), "out", {"plots": False})]))
+    results = [None] * len(tasks)
+    dispatch._run_in_pool(tasks, 2, None, results, fn=dispatch.worker_threads)
+    for r in results:
+        assert {"gyrodenoise.mavlink.pipeline", "gyrodenoise.mavlink.cluster"} <= set(r["preloaded"]), r
+
+
 def test_the_summary_says_the_threads_per_worker(tmp_path):
     logs = [DATA / "ardusub_small.BIN", DATA / "plane_truncated_test.BIN"]
     pool = process_many(logs, tmp_path / "a", jobs=2, plots=False, csv=False)
