@@ -132,6 +132,168 @@ def _rigid_offline(p, seg, o_ext, compiled):
     return y[::-1].copy(), pb
 
 
+def _bank_record(p, seg, compiled):
+    """The causal ``motion`` filter stepped over ``seg``, recording its bank after every
+    sample. Returns (out, bank, nw, r, active, line, zref): the causal output (n,);
+    per filter its rate (centred), slope per sample and faded log-likelihood, (n, nf, 3);
+    the growing-memory sample count M_NW; the white-noise variance M_R; 1.0 where the bank
+    filtered that sample (past its warm-up, S_CONV); 1.0 where the line test held the
+    output on the raw sample (M_LON); the centring reference S_ZREF (deg/s) of each sample."""
+    o = K.ext_offset(p)
+    nf = int(p[K.P_MO_NF])
+    idx = [o + K.M_BANK + 4 * i + j for i in range(nf) for j in range(3)]
+    idx += [o + K.M_NW, o + K.M_R, K.S_CONV, o + K.M_LON, K.S_ZREF]
+    n = seg.shape[0]
+    out = np.empty(n)
+    rec = np.empty((n, len(idx)))
+    use_c = compiled and C is not None
+    if use_c:
+        pp, st, step = np.ascontiguousarray(p, dtype=np.float64), np.array(K.init_state(p)), C.step
+        ia = np.asarray(idx)
+        for i, v in enumerate(seg.tolist()):
+            out[i] = step(pp, st, v, False)
+            rec[i] = st[ia]
+    else:
+        pp, st = list(p), K.init_state(p)
+        for i, v in enumerate(seg.tolist()):
+            out[i] = K.step(pp, st, v, False)
+            rec[i] = [st[j] for j in idx]
+    m = 3 * nf
+    return (out, rec[:, :m].reshape(n, nf, 3), rec[:, m], rec[:, m + 1], rec[:, m + 2],
+            rec[:, m + 3], rec[:, m + 4])
+
+
+def _filtered_cov(p, i, nw):
+    """Filtered covariance of bank filter ``i`` (its rate and slope, in units of R) at
+    growing-memory counts ``nw`` (an array). Returns its entries (c00, c01, c11), arrays.
+
+    While the least-squares line's gains are larger than the filter's own (its start-up,
+    :func:`~gyrodenoise.core.kernels.motion_step`) the filter is that line through the nw
+    samples so far: rate variance 2(2nw-1)/(nw(nw+1)), covariance 6/(nw(nw+1)), slope
+    variance 12/(nw(nw^2-1)). Else it is at its steady state, the alpha-beta filter's
+    (alpha, beta from :func:`~gyrodenoise.core.kernels.cv_gains`):
+    [[alpha, beta], [beta, beta(2 alpha - beta) / (2(1 - alpha))]]."""
+    a, b = p[K.P_MO_G + 3 * i], p[K.P_MO_G + 3 * i + 1]
+    w = np.maximum(nw, 2.0)
+    g0 = 2.0 * (2.0 * w - 1.0) / (w * (w + 1.0))
+    line = g0 > a
+    c00 = np.where(line, g0, a)
+    c01 = np.where(line, 6.0 / (w * (w + 1.0)), b)
+    c11 = np.where(line, 12.0 / (w * (w * w - 1.0)), b * (2.0 * a - b) / (2.0 * (1.0 - a)))
+    return c00, c01, c11
+
+
+def two_filter_rate(xf, pf, xb, pb, lam2, r):
+    """One constant-velocity model's smoothed rate at sample k from its forward filtered
+    estimate at k and its backward (time-reversed) filtered estimate at k + 1.
+
+    ``xf`` = (rate, slope per sample) after z_k, ``pf`` = its covariance (c00, c01, c11) in
+    units of the white-noise variance ``r``; ``xb``, ``pb`` the same of the filter run on the
+    reversed samples after z_{k+1} (its slope per reversed sample); ``lam2`` the tracking
+    index squared (process noise lam2 r [[1/4, 1/2], [1/2, 1]] per sample). Scalars or
+    arrays. Returns (rate, the log-likelihood of the two estimates' agreement).
+
+    * backward prediction to k (the reversed model is the same white-noise acceleration
+      model): x_b = F x_b(k+1), P_b = F P_b(k+1) F^T + Q, then the slope back to forward
+      time (sign);
+    * Eq. S1, the two-filter smoother (Fraser and Potter 1969; the same fixed point as the
+      RTS smoother x_s(k) = x_f(k) + C_k (x_s(k+1) - x_p(k+1)), C_k = P_f F^T P_p(k+1)^-1):
+      x_s = x_f + P_f (P_f + P_b)^-1 (x_b - x_f);
+    * the agreement: -(d^T (P_f + P_b)^-1 d / r + log det(P_f + P_b)) / 2, d = x_b - x_f."""
+    f00, f01, f11 = pf
+    c00, c01, c11 = pb
+    b00 = c00 + 2.0 * c01 + c11 + 0.25 * lam2          # F P F^T + Q, reversed time ...
+    b01 = -(c01 + c11 + 0.5 * lam2)                    # ... and the slope's sign turned back
+    b11 = c11 + lam2
+    xb0, xb1 = xb[0] + xb[1], -xb[1]
+    m00, m01, m11 = f00 + b00, f01 + b01, f11 + b11    # P_f + P_b
+    det = m00 * m11 - m01 * m01
+    d0, d1 = xb0 - xf[0], xb1 - xf[1]
+    u0 = (m11 * d0 - m01 * d1) / det                   # (P_f + P_b)^-1 d
+    u1 = (m00 * d1 - m01 * d0) / det
+    rate = xf[0] + f00 * u0 + f01 * u1                 # Eq. S1, its rate
+    return rate, -0.5 * ((d0 * u0 + d1 * u1) / r + np.log(det))
+
+
+def smooth_motion(p, seg, *, compiled=True):
+    """Fixed-interval smoother of the ``motion`` bank over one run of samples (no restart
+    inside): the two-filter smoother of every constant-velocity model of the bank, blended
+    by the models' probabilities given the whole run.
+
+    The bank runs forwards and, from a fresh state, backwards in time (the causal filter on
+    the reversed samples); per model i and sample k:
+
+    * forward filtered estimate x_f = [rate, slope] after z_k, covariance P_f R
+      (:func:`_filtered_cov`);
+    * backward estimate after z_{k+1} (time reversed), predicted to k: x_b = F x_b(k+1),
+      P_b = F P(k+1) F^T + Q, Q = lam^2 [[1/4, 1/2], [1/2, 1]] (the white-noise acceleration
+      model the bank's gains come from), the slope's sign turned back to forward time. It
+      holds every sample after k, the forward one every sample up to k: independent;
+    * Eq. S1 (the two-filter smoother, Fraser and Potter 1969, the RTS smoother's fixed
+      point): x_s = x_f + P_f (P_f + P_b)^-1 (x_b - x_f);
+    * Eq. S2 (the model's log-probability given the whole run): the forward and backward
+      faded log-likelihoods of the bank plus that of the two estimates' agreement,
+      -(d^T (P_f + P_b)^-1 d / R + log det(P_f + P_b)) / 2, d = x_b - x_f;
+    * the output is the mean of the x_s rates weighted by exp(S2 - max S2).
+
+    Where only one direction filters (the other's warm-up: the first and last ``P_WARMUP``
+    samples) its causal output is used; where either direction's spectral line test holds
+    its output on the raw sample, the raw sample. The output stays inside [min, max] of the
+    finite samples of ``seg``; where it would not be finite (an input near the largest
+    float), the causal blend of :func:`run_offline` is used there. Returns the smoothed rate
+    (deg/s), an ndarray like ``seg``."""
+    nf = int(p[K.P_MO_NF])
+    fo, bf, nwf, rf, af, lf, zf = _bank_record(p, seg, compiled)
+    bo, bb, nwb, rb, ab, lb, zb = _bank_record(p, seg[::-1].copy(), compiled)
+    bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]
+    y = np.where(af == 1.0, fo, bo)          # one direction alone where the other warms up
+    k = np.flatnonzero((af[:-1] == 1.0) & (ab[1:] == 1.0))
+    if k.size:
+        j = k + 1
+        r = 0.5 * (rf[k] + rb[j])
+        xs = np.empty((k.size, nf))
+        ll = np.empty((k.size, nf))
+        for i in range(nf):
+            lam2 = p[K.P_MO_G + 3 * i + 1] ** 2 / (1.0 - p[K.P_MO_G + 3 * i])   # lam^2 = beta^2 / (1 - alpha)
+            xs[:, i], ll[:, i] = two_filter_rate(
+                (bf[k, i, 0] + zf[k], bf[k, i, 1]), _filtered_cov(p, i, nwf[k]),
+                (bb[j, i, 0] + zb[j], bb[j, i, 1]), _filtered_cov(p, i, nwb[j]), lam2, r)
+            ll[:, i] += bf[k, i, 2] + bb[j, i, 2]                  # Eq. S2: the faded log-likelihoods
+        with np.errstate(invalid="ignore", over="ignore"):
+            w = np.exp(ll - ll.max(axis=1, keepdims=True))
+            y[k] = np.sum(w * xs, axis=1) / np.sum(w, axis=1)
+    on = (lf == 1.0) | (lb == 1.0)
+    y[on] = seg[on]                          # the line test: the raw sample
+    fin = np.isfinite(seg)
+    if fin.any():
+        y = np.clip(y, seg[fin].min(), seg[fin].max())
+    bad = fin & ~np.isfinite(y)
+    if bad.any():
+        y[bad] = _blend(p, seg, compiled)[bad]
+    y[~fin] = seg[~fin]
+    return y
+
+
+def _blend(p, seg, compiled, pb=None):
+    """The forward and backward causal runs of one run of samples blended by their output
+    variances (the offline form before :func:`smooth_motion`; the rigid-body option keeps
+    it). Returns the blended rate (deg/s)."""
+    pb = p if pb is None else pb
+    warm = int(p[K.P_WARMUP])
+    o = K.ext_offset(p) + K.M_PVAR
+    fwd, _, vf = run(pb, K.init_state(pb), seg, trace_index=o, compiled=compiled)
+    bwd, _, vb = run(pb, K.init_state(pb), seg[::-1].copy(), trace_index=o, compiled=compiled)
+    bwd, vb = bwd[::-1], vb[::-1]
+    den = vf + vb
+    ok = den > 0.0
+    y = 0.5 * (fwd + bwd)
+    y[ok] = (vb[ok] * fwd[ok] + vf[ok] * bwd[ok]) / den[ok]
+    m = min(warm, seg.shape[0])
+    y[:m] = bwd[:m]                       # the forward pass is warming up there
+    y[seg.shape[0] - m:] = fwd[seg.shape[0] - m:]   # and the backward one here
+    return y
+
+
 def run_offline(p, z, restarts=None, *, compiled=True):
     """Whole-record (non-causal) filtering with ``method="motion"``: no lag.
 
@@ -162,24 +324,13 @@ def run_offline(p, z, restarts=None, *, compiled=True):
     out = np.empty_like(za)
     p = list(p)
     p[K.P_MO_VAR] = 1.0          # keep the output variance (not computed by the causal filter)
-    warm = int(p[K.P_WARMUP])
     rigid = p[K.P_LP_NSEC] > 0.0
     o_ext = K.ext_offset(p)
     for a, b in zip(bounds[:-1], bounds[1:]):
         seg = za[a:b]
-        pb = p
         if rigid:
             seg, pb = _rigid_offline(p, seg, o_ext, compiled)
-        o = o_ext + K.M_PVAR
-        fwd, _, vf = run(pb, K.init_state(pb), seg, trace_index=o, compiled=compiled)
-        bwd, _, vb = run(pb, K.init_state(pb), seg[::-1].copy(), trace_index=o, compiled=compiled)
-        bwd, vb = bwd[::-1], vb[::-1]
-        den = vf + vb
-        ok = den > 0.0
-        y = 0.5 * (fwd + bwd)
-        y[ok] = (vb[ok] * fwd[ok] + vf[ok] * bwd[ok]) / den[ok]
-        m = min(warm, seg.shape[0])
-        y[:m] = bwd[:m]                       # the forward pass is warming up there
-        y[seg.shape[0] - m:] = fwd[seg.shape[0] - m:]   # and the backward one here
-        out[a:b] = y
+            out[a:b] = _blend(p, seg, compiled, pb)
+        else:
+            out[a:b] = smooth_motion(p, seg, compiled=compiled)
     return out
