@@ -135,7 +135,7 @@ def _rigid_offline(p, seg, o_ext, compiled):
 def _bank_record(p, seg, compiled):
     """The causal ``motion`` filter stepped over ``seg``, recording its bank after every
     sample. Returns (out, bank, nw, r, active, line, zref): the causal output (n,);
-    per filter its rate (centred), slope per sample and faded log-likelihood, (n, nf, 3);
+    per filter its rate (centred), slope per sample and faded log-likelihood, (nf, 3, n);
     the growing-memory sample count M_NW; the white-noise variance M_R; 1.0 where the bank
     filtered that sample (past its warm-up, S_CONV); 1.0 where the line test held the
     output on the raw sample (M_LON); the centring reference S_ZREF (deg/s) of each sample."""
@@ -147,40 +147,39 @@ def _bank_record(p, seg, compiled):
     out = np.empty(n)
     rec = np.empty((n, len(idx)))
     use_c = compiled and C is not None
-    if use_c:
-        pp, st, step = np.ascontiguousarray(p, dtype=np.float64), np.array(K.init_state(p)), C.step
-        ia = np.asarray(idx)
-        for i, v in enumerate(seg.tolist()):
-            out[i] = step(pp, st, v, False)
-            rec[i] = st[ia]
+    if use_c:                                # the C loop records them (gd_run_record)
+        C.record(np.ascontiguousarray(p, dtype=np.float64), np.array(K.init_state(p)),
+                 np.ascontiguousarray(seg, dtype=np.float64), out, np.asarray(idx, dtype=np.float64), rec)
     else:
         pp, st = list(p), K.init_state(p)
         for i, v in enumerate(seg.tolist()):
             out[i] = K.step(pp, st, v, False)
             rec[i] = [st[j] for j in idx]
     m = 3 * nf
-    return (out, rec[:, :m].reshape(n, nf, 3), rec[:, m], rec[:, m + 1], rec[:, m + 2],
-            rec[:, m + 3], rec[:, m + 4])
+    rec = np.ascontiguousarray(rec.T)        # one contiguous row per recorded value
+    return out, rec[:m].reshape(nf, 3, n), rec[m], rec[m + 1], rec[m + 2], rec[m + 3], rec[m + 4]
 
 
-def _filtered_cov(p, i, nw):
-    """Filtered covariance of bank filter ``i`` (its rate and slope, in units of R) at
-    growing-memory counts ``nw`` (an array). Returns its entries (c00, c01, c11), arrays.
-
-    While the least-squares line's gains are larger than the filter's own (its start-up,
-    :func:`~gyrodenoise.core.kernels.motion_step`) the filter is that line through the nw
-    samples so far: rate variance 2(2nw-1)/(nw(nw+1)), covariance 6/(nw(nw+1)), slope
-    variance 12/(nw(nw^2-1)). Else it is at its steady state, the alpha-beta filter's
-    (alpha, beta from :func:`~gyrodenoise.core.kernels.cv_gains`):
-    [[alpha, beta], [beta, beta(2 alpha - beta) / (2(1 - alpha))]]."""
-    a, b = p[K.P_MO_G + 3 * i], p[K.P_MO_G + 3 * i + 1]
+def _line_cov(nw):
+    """Covariance of the least-squares line through ``nw`` samples (an array) at its last
+    sample, rate and slope per sample, in units of R: the bank's filters while they run at
+    the growing-memory gains (:func:`~gyrodenoise.core.kernels.motion_step`). Returns
+    (c00, c01, c11) = (2(2nw-1)/(nw(nw+1)), 6/(nw(nw+1)), 12/(nw(nw^2-1)))."""
     w = np.maximum(nw, 2.0)
-    g0 = 2.0 * (2.0 * w - 1.0) / (w * (w + 1.0))
-    line = g0 > a
-    c00 = np.where(line, g0, a)
-    c01 = np.where(line, 6.0 / (w * (w + 1.0)), b)
-    c11 = np.where(line, 12.0 / (w * (w * w - 1.0)), b * (2.0 * a - b) / (2.0 * (1.0 - a)))
-    return c00, c01, c11
+    w1 = w * (w + 1.0)
+    return 2.0 * (2.0 * w - 1.0) / w1, 6.0 / w1, 12.0 / (w1 * (w - 1.0))
+
+
+def _filtered_cov(p, i, line):
+    """Filtered covariance of bank filter ``i`` (its rate and slope, in units of R): the
+    least-squares line's (``line`` = :func:`_line_cov`) where its rate gain is larger than
+    the filter's own (its start-up), else the steady state of the alpha-beta filter
+    (alpha, beta from :func:`~gyrodenoise.core.kernels.cv_gains`):
+    [[alpha, beta], [beta, beta(2 alpha - beta) / (2(1 - alpha))]]. Returns (c00, c01, c11)."""
+    a, b = p[K.P_MO_G + 3 * i], p[K.P_MO_G + 3 * i + 1]
+    on = line[0] > a
+    return (np.where(on, line[0], a), np.where(on, line[1], b),
+            np.where(on, line[2], b * (2.0 * a - b) / (2.0 * (1.0 - a))))
 
 
 def two_filter_rate(xf, pf, xb, pb, lam2, r):
@@ -242,26 +241,30 @@ def smooth_motion(p, seg, *, compiled=True):
     finite samples of ``seg``; where it would not be finite (an input near the largest
     float), the causal blend of :func:`run_offline` is used there. Returns the smoothed rate
     (deg/s), an ndarray like ``seg``."""
-    nf = int(p[K.P_MO_NF])
+    n, nf = seg.shape[0], int(p[K.P_MO_NF])
     fo, bf, nwf, rf, af, lf, zf = _bank_record(p, seg, compiled)
     bo, bb, nwb, rb, ab, lb, zb = _bank_record(p, seg[::-1].copy(), compiled)
-    bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]
+    bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[:, :, ::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]
     y = np.where(af == 1.0, fo, bo)          # one direction alone where the other warms up
-    k = np.flatnonzero((af[:-1] == 1.0) & (ab[1:] == 1.0))
-    if k.size:
-        j = k + 1
-        r = 0.5 * (rf[k] + rb[j])
-        xs = np.empty((k.size, nf))
-        ll = np.empty((k.size, nf))
+    both = (af[:-1] == 1.0) & (ab[1:] == 1.0)
+    if both.any():
+        # every sample k < n - 1 with the forward bank at k and the backward one at k + 1
+        # (contiguous slices; the samples where one warms up are left out below)
+        lnf, lnb = _line_cov(nwf[:-1]), _line_cov(nwb[1:])
+        r = 0.5 * (rf[:-1] + rb[1:])
+        r = np.where(r > 0.0, r, 1.0)
+        xs = np.empty((nf, n - 1))
+        ll = np.empty((nf, n - 1))
         for i in range(nf):
             lam2 = p[K.P_MO_G + 3 * i + 1] ** 2 / (1.0 - p[K.P_MO_G + 3 * i])   # lam^2 = beta^2 / (1 - alpha)
-            xs[:, i], ll[:, i] = two_filter_rate(
-                (bf[k, i, 0] + zf[k], bf[k, i, 1]), _filtered_cov(p, i, nwf[k]),
-                (bb[j, i, 0] + zb[j], bb[j, i, 1]), _filtered_cov(p, i, nwb[j]), lam2, r)
-            ll[:, i] += bf[k, i, 2] + bb[j, i, 2]                  # Eq. S2: the faded log-likelihoods
+            xs[i], ll[i] = two_filter_rate(
+                (bf[i, 0, :-1] + zf[:-1], bf[i, 1, :-1]), _filtered_cov(p, i, lnf),
+                (bb[i, 0, 1:] + zb[1:], bb[i, 1, 1:]), _filtered_cov(p, i, lnb), lam2, r)
+            ll[i] += bf[i, 2, :-1] + bb[i, 2, 1:]                  # Eq. S2: the faded log-likelihoods
         with np.errstate(invalid="ignore", over="ignore"):
-            w = np.exp(ll - ll.max(axis=1, keepdims=True))
-            y[k] = np.sum(w * xs, axis=1) / np.sum(w, axis=1)
+            w = np.exp(ll - ll.max(axis=0))
+            ys = np.sum(w * xs, axis=0) / np.sum(w, axis=0)
+        y[:-1][both] = ys[both]
     on = (lf == 1.0) | (lb == 1.0)
     y[on] = seg[on]                          # the line test: the raw sample
     fin = np.isfinite(seg)
