@@ -240,8 +240,8 @@ fail_ps:
 PyDoc_STRVAR(record_doc,
 "record(p, s, z, out, idx, rec) -> None\n\n"
 "The batch loop with no restarts (out[i] = step(p, s, z[i], False)) that also\n"
-"records rec[i, j] = s[idx[j]] after sample i: idx a float64 buffer of state\n"
-"indices (whole numbers), rec a writable float64 buffer of len(z) x len(idx)\n"
+"records rec[j, i] = s[idx[j]] after sample i: idx a float64 buffer of state\n"
+"indices (whole numbers), rec a writable float64 buffer of len(idx) x len(z)\n"
 "(row-major). s is updated in place. Releases the GIL.");
 
 static PyObject *mod_record(PyObject *self, PyObject *const *args, Py_ssize_t nargs)

@@ -145,7 +145,7 @@ def _bank_record(p, seg, compiled):
     idx += [o + K.M_NW, o + K.M_R, K.S_CONV, o + K.M_LON, K.S_ZREF]
     n = seg.shape[0]
     out = np.empty(n)
-    rec = np.empty((n, len(idx)))
+    rec = np.empty((len(idx), n))            # one row per recorded value
     use_c = compiled and C is not None
     if use_c:                                # the C loop records them (gd_run_record)
         C.record(np.ascontiguousarray(p, dtype=np.float64), np.array(K.init_state(p)),
@@ -154,9 +154,8 @@ def _bank_record(p, seg, compiled):
         pp, st = list(p), K.init_state(p)
         for i, v in enumerate(seg.tolist()):
             out[i] = K.step(pp, st, v, False)
-            rec[i] = [st[j] for j in idx]
+            rec[:, i] = [st[j] for j in idx]
     m = 3 * nf
-    rec = np.ascontiguousarray(rec.T)        # one contiguous row per recorded value
     return out, rec[:m].reshape(nf, 3, n), rec[m], rec[m + 1], rec[m + 2], rec[m + 3], rec[m + 4]
 
 

@@ -1666,7 +1666,7 @@ void gd_run_trace(const double *p, double *s, const double *z, const unsigned ch
 }
 
 /* gd_run with no restarts that also records s[idx[j]] after each sample i into
- * rec[i * m + j] (the offline smoother's forward and backward runs of the motion
+ * rec[j * n + i] (the offline smoother's forward and backward runs of the motion
  * bank, batch.smooth_motion: the bank in s, as gd_step keeps it) */
 void gd_run_record(const double *p, double *s, const double *z, double *out, long n,
                    const long *idx, long m, double *rec)
@@ -1675,7 +1675,7 @@ void gd_run_record(const double *p, double *s, const double *z, double *out, lon
     for (i = 0; i < n; i++) {
         out[i] = step_(p, s, z[i], 0, NULL);
         for (j = 0; j < m; j++)
-            rec[i * m + j] = s[idx[j]];
+            rec[j * n + i] = s[idx[j]];
     }
 }
 
