@@ -299,16 +299,15 @@ def _blend(p, seg, compiled, pb=None):
 def run_offline(p, z, restarts=None, *, compiled=True):
     """Whole-record (non-causal) filtering with ``method="motion"``: no lag.
 
-    Each run of samples between restarts is filtered forwards and, from a
-    fresh state, backwards in time (the same causal core on the reversed
-    samples); the output is the mean of the two, which cancels the lag of
-    each (a forward filter lags, the backward one leads by as much), weighted
-    by the inverse of their variances (the filter's own, ``M_PVAR``: the
-    two-filter smoother's combination). Where one of the two is still in its
-    warm-up (the raw sample, the first ``P_WARMUP`` samples of its
-    direction) the other is used alone. Measured against filters tuned on the
-    truth in docs/reports/tuned/report.md. The output stays inside [min, max]
-    of the raw samples of its run.
+    Each run of samples between restarts is smoothed on its own by
+    :func:`smooth_motion` (the two-filter smoother of every model of the bank,
+    blended by the models' probabilities given the whole run). With the
+    rigid-body option (``max_motion_hz``) the run is low-passed zero-phase
+    first (:func:`_rigid_offline`) and the forward and backward runs of the
+    causal filter are blended by the inverse of their output variances
+    (:func:`_blend`). Measured against filters tuned on the truth in
+    docs/method/motion.md. The output stays inside [min, max] of the raw
+    samples of its run.
 
     Returns the filtered rate (deg/s), an ndarray like ``z``.
     """
