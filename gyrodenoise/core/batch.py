@@ -249,18 +249,19 @@ def smooth_motion(p, seg, *, compiled=True):
     if both.any():
         # every sample k < n - 1 with the forward bank at k and the backward one at k + 1
         # (contiguous slices; the samples where one warms up are left out below)
-        lnf, lnb = _line_cov(nwf[:-1]), _line_cov(nwb[1:])
-        r = 0.5 * (rf[:-1] + rb[1:])
-        r = np.where(r > 0.0, r, 1.0)
-        xs = np.empty((nf, n - 1))
-        ll = np.empty((nf, n - 1))
-        for i in range(nf):
-            lam2 = p[K.P_MO_G + 3 * i + 1] ** 2 / (1.0 - p[K.P_MO_G + 3 * i])   # lam^2 = beta^2 / (1 - alpha)
-            xs[i], ll[i] = two_filter_rate(
-                (bf[i, 0, :-1] + zf[:-1], bf[i, 1, :-1]), _filtered_cov(p, i, lnf),
-                (bb[i, 0, 1:] + zb[1:], bb[i, 1, 1:]), _filtered_cov(p, i, lnb), lam2, r)
-            ll[i] += bf[i, 2, :-1] + bb[i, 2, 1:]                  # Eq. S2: the faded log-likelihoods
-        with np.errstate(invalid="ignore", over="ignore"):
+        # the samples left out (a warm-up: no estimate yet) may divide by zero: not used
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            lnf, lnb = _line_cov(nwf[:-1]), _line_cov(nwb[1:])
+            r = 0.5 * (rf[:-1] + rb[1:])
+            r = np.where(r > 0.0, r, 1.0)
+            xs = np.empty((nf, n - 1))
+            ll = np.empty((nf, n - 1))
+            for i in range(nf):
+                lam2 = p[K.P_MO_G + 3 * i + 1] ** 2 / (1.0 - p[K.P_MO_G + 3 * i])   # lam^2 = beta^2 / (1 - alpha)
+                xs[i], ll[i] = two_filter_rate(
+                    (bf[i, 0, :-1] + zf[:-1], bf[i, 1, :-1]), _filtered_cov(p, i, lnf),
+                    (bb[i, 0, 1:] + zb[1:], bb[i, 1, 1:]), _filtered_cov(p, i, lnb), lam2, r)
+                ll[i] += bf[i, 2, :-1] + bb[i, 2, 1:]                  # Eq. S2: the faded log-likelihoods
             w = np.exp(ll - ll.max(axis=0))
             ys = np.sum(w * xs, axis=0) / np.sum(w, axis=0)
         y[:-1][both] = ys[both]
