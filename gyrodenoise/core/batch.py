@@ -132,6 +132,9 @@ def _rigid_offline(p, seg, o_ext, compiled):
     return y[::-1].copy(), pb
 
 
+SMOOTH_BLOCK = 8192     # samples per block of the offline smoother's combination (smooth_motion)
+
+
 def _bank_record(p, seg, compiled):
     """The causal ``motion`` filter stepped over ``seg``, recording its bank after every
     sample. Returns (out, bank, nw, r, active, line, zref): the causal output (n,);
@@ -246,25 +249,28 @@ def smooth_motion(p, seg, *, compiled=True):
     bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[:, :, ::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]
     y = np.where(af == 1.0, fo, bo)          # one direction alone where the other warms up
     both = (af[:-1] == 1.0) & (ab[1:] == 1.0)
-    if both.any():
-        # every sample k < n - 1 with the forward bank at k and the backward one at k + 1
-        # (contiguous slices; the samples where one warms up are left out below)
-        # the samples left out (a warm-up: no estimate yet) may divide by zero: not used
+    # every sample k < n - 1 with the forward bank at k and the backward one at k + 1, in blocks
+    # of SMOOTH_BLOCK samples (the temporaries stay small; the samples where one direction warms
+    # up are computed and left out: they may divide by zero, hence the errstate)
+    both = (af[:-1] == 1.0) & (ab[1:] == 1.0)
+    for a in range(0, n - 1 if both.any() else 0, SMOOTH_BLOCK):
+        k = slice(a, min(a + SMOOTH_BLOCK, n - 1))
+        j = slice(k.start + 1, k.stop + 1)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            lnf, lnb = _line_cov(nwf[:-1]), _line_cov(nwb[1:])
-            r = 0.5 * (rf[:-1] + rb[1:])
+            lnf, lnb = _line_cov(nwf[k]), _line_cov(nwb[j])
+            r = 0.5 * (rf[k] + rb[j])
             r = np.where(r > 0.0, r, 1.0)
-            xs = np.empty((nf, n - 1))
-            ll = np.empty((nf, n - 1))
+            xs = np.empty((nf, k.stop - k.start))
+            ll = np.empty_like(xs)
             for i in range(nf):
                 lam2 = p[K.P_MO_G + 3 * i + 1] ** 2 / (1.0 - p[K.P_MO_G + 3 * i])   # lam^2 = beta^2 / (1 - alpha)
                 xs[i], ll[i] = two_filter_rate(
-                    (bf[i, 0, :-1] + zf[:-1], bf[i, 1, :-1]), _filtered_cov(p, i, lnf),
-                    (bb[i, 0, 1:] + zb[1:], bb[i, 1, 1:]), _filtered_cov(p, i, lnb), lam2, r)
-                ll[i] += bf[i, 2, :-1] + bb[i, 2, 1:]                  # Eq. S2: the faded log-likelihoods
+                    (bf[i, 0, k] + zf[k], bf[i, 1, k]), _filtered_cov(p, i, lnf),
+                    (bb[i, 0, j] + zb[j], bb[i, 1, j]), _filtered_cov(p, i, lnb), lam2, r)
+                ll[i] += bf[i, 2, k] + bb[i, 2, j]                  # Eq. S2: the faded log-likelihoods
             w = np.exp(ll - ll.max(axis=0))
             ys = np.sum(w * xs, axis=0) / np.sum(w, axis=0)
-        y[:-1][both] = ys[both]
+        y[k][both[k]] = ys[both[k]]
     on = (lf == 1.0) | (lb == 1.0)
     y[on] = seg[on]                          # the line test: the raw sample
     fin = np.isfinite(seg)

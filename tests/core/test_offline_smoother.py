@@ -174,3 +174,13 @@ def test_offline_output_is_finite_and_inside_each_sessions_envelope(rec):
     bounds = [0] + [int(i) for i in np.flatnonzero(rs) if i > 0] + [z.size]
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         assert y[lo:hi].min() >= z[lo:hi].min() and y[lo:hi].max() <= z[lo:hi].max()
+
+
+def test_blocks_of_the_combination_do_not_change_a_bit(monkeypatch):
+    """batch.SMOOTH_BLOCK only bounds the temporaries: blocks of 97 samples give the same bits."""
+    fs = 100.0
+    z, _ = _session(700, fs, 5)
+    p = K.make_params(3, "motion", sample_rate_hz=fs, warmup_s=1.0)
+    ref = batch.smooth_motion(p, z)
+    monkeypatch.setattr(batch, "SMOOTH_BLOCK", 97)
+    assert batch.smooth_motion(p, z).tolist() == ref.tolist()
