@@ -163,8 +163,9 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
         backwards (squared magnitude response, no phase lag), each run of
         samples between restarts on its own.
     offline : bool
-        ``method="motion"`` only, for whole records: the forward and backward
-        runs of the same filter blended (no lag; :func:`gyrodenoise.core.batch.run_offline`).
+        ``method="motion"`` only, for whole records: each run between restarts
+        smoothed by the two-filter smoother of the bank's models (no lag;
+        :func:`gyrodenoise.core.batch.run_offline`).
         ``Denoiser.step``, the FMUs and live links stay causal.
     **kw
         Further parameters of :func:`gyrodenoise.core.kernels.make_params`, e.g.

@@ -237,6 +237,74 @@ fail_ps:
     return NULL;
 }
 
+PyDoc_STRVAR(record_doc,
+"record(p, s, z, out, idx, rec) -> None\n\n"
+"The batch loop with no restarts (out[i] = step(p, s, z[i], False)) that also\n"
+"records rec[j, i] = s[idx[j]] after sample i: idx a float64 buffer of state\n"
+"indices (whole numbers), rec a writable float64 buffer of len(idx) x len(z)\n"
+"(row-major). s is updated in place. Releases the GIL.");
+
+static PyObject *mod_record(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Py_buffer pb, sb, zb, ob, ib, rb;
+    Py_ssize_t n, m, j, ns;
+    long *idx = NULL;
+    PyObject *res = NULL;
+    (void)self;
+    if (!nargs_ok("record", nargs, 6))
+        return NULL;
+    if (get_ps(args[0], args[1], &pb, &sb) < 0)
+        return NULL;
+    ns = sb.len / 8;
+    if (get_f64(args[2], &zb, 0, "z") < 0)
+        goto fail_ps;
+    n = zb.len / 8;
+    if (get_f64(args[3], &ob, 1, "out") < 0)
+        goto fail_z;
+    if (get_f64(args[4], &ib, 0, "idx") < 0)
+        goto fail_o;
+    if (get_f64(args[5], &rb, 1, "rec") < 0)
+        goto fail_i;
+    m = ib.len / 8;
+    if (ob.len / 8 != n || rb.len / 8 != n * m) {
+        PyErr_Format(PyExc_ValueError, "out has %zd items and rec %zd, z has %zd and idx %zd",
+                     ob.len / 8, rb.len / 8, n, m);
+        goto fail_r;
+    }
+    idx = (long *)PyMem_Malloc((m > 0 ? m : 1) * sizeof(long));
+    if (idx == NULL) {
+        PyErr_NoMemory();
+        goto fail_r;
+    }
+    for (j = 0; j < m; j++) {
+        double v = ((const double *)ib.buf)[j];
+        if (!(v >= 0.0 && v < (double)ns && v == (double)(long)v)) {
+            PyErr_Format(PyExc_ValueError, "idx[%zd] is not an index of the state (%zd values)", j, ns);
+            goto fail_r;
+        }
+        idx[j] = (long)v;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    gd_run_record((const double *)pb.buf, (double *)sb.buf, (const double *)zb.buf,
+                  (double *)ob.buf, (long)n, idx, (long)m, (double *)rb.buf);
+    Py_END_ALLOW_THREADS
+    Py_INCREF(Py_None);
+    res = Py_None;
+fail_r:
+    PyMem_Free(idx);
+    PyBuffer_Release(&rb);
+fail_i:
+    PyBuffer_Release(&ib);
+fail_o:
+    PyBuffer_Release(&ob);
+fail_z:
+    PyBuffer_Release(&zb);
+fail_ps:
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&pb);
+    return res;
+}
+
 PyDoc_STRVAR(restart_doc,
 "restart(p, s) -> None\n\n"
 "Re-initialise the state s in place (kernels.restart; cumulative counters kept).");
@@ -460,6 +528,7 @@ done_ps:
 static PyMethodDef methods[] = {
     {"step", (PyCFunction)(void (*)(void))mod_step, METH_FASTCALL, step_doc},
     {"run", (PyCFunction)(void (*)(void))mod_run, METH_FASTCALL, run_doc},
+    {"record", (PyCFunction)(void (*)(void))mod_record, METH_FASTCALL, record_doc},
     {"restart", (PyCFunction)(void (*)(void))mod_restart, METH_FASTCALL, restart_doc},
     {"layout_total", mod_layout_total, METH_O, layout_total_doc},
     {"sim_n_params", mod_sim_n_params, METH_O, "sim_n_params(card) -> int (gdsim.c)"},

@@ -132,19 +132,189 @@ def _rigid_offline(p, seg, o_ext, compiled):
     return y[::-1].copy(), pb
 
 
+SMOOTH_BLOCK = 8192     # samples per block of the offline smoother's combination (smooth_motion)
+
+
+def _bank_record(p, seg, compiled):
+    """The causal ``motion`` filter stepped over ``seg``, recording its bank after every
+    sample. Returns (out, bank, nw, r, active, line, zref): the causal output (n,);
+    per filter its rate (centred), slope per sample and faded log-likelihood, (nf, 3, n);
+    the growing-memory sample count M_NW; the white-noise variance M_R; 1.0 where the bank
+    filtered that sample (past its warm-up, S_CONV); 1.0 where the line test held the
+    output on the raw sample (M_LON); the centring reference S_ZREF (deg/s) of each sample."""
+    o = K.ext_offset(p)
+    nf = int(p[K.P_MO_NF])
+    idx = [o + K.M_BANK + 4 * i + j for i in range(nf) for j in range(3)]
+    idx += [o + K.M_NW, o + K.M_R, K.S_CONV, o + K.M_LON, K.S_ZREF]
+    n = seg.shape[0]
+    out = np.empty(n)
+    rec = np.empty((len(idx), n))            # one row per recorded value
+    use_c = compiled and C is not None
+    if use_c:                                # the C loop records them (gd_run_record)
+        C.record(np.ascontiguousarray(p, dtype=np.float64), np.array(K.init_state(p)),
+                 np.ascontiguousarray(seg, dtype=np.float64), out, np.asarray(idx, dtype=np.float64), rec)
+    else:
+        pp, st = list(p), K.init_state(p)
+        for i, v in enumerate(seg.tolist()):
+            out[i] = K.step(pp, st, v, False)
+            rec[:, i] = [st[j] for j in idx]
+    m = 3 * nf
+    return out, rec[:m].reshape(nf, 3, n), rec[m], rec[m + 1], rec[m + 2], rec[m + 3], rec[m + 4]
+
+
+def _line_cov(nw):
+    """Covariance of the least-squares line through ``nw`` samples (an array) at its last
+    sample, rate and slope per sample, in units of R: the bank's filters while they run at
+    the growing-memory gains (:func:`~gyrodenoise.core.kernels.motion_step`). Returns
+    (c00, c01, c11) = (2(2nw-1)/(nw(nw+1)), 6/(nw(nw+1)), 12/(nw(nw^2-1)))."""
+    w = np.maximum(nw, 2.0)
+    w1 = w * (w + 1.0)
+    return 2.0 * (2.0 * w - 1.0) / w1, 6.0 / w1, 12.0 / (w1 * (w - 1.0))
+
+
+def _filtered_cov(p, i, line):
+    """Filtered covariance of bank filter ``i`` (its rate and slope, in units of R): the
+    least-squares line's (``line`` = :func:`_line_cov`) where its rate gain is larger than
+    the filter's own (its start-up), else the steady state of the alpha-beta filter
+    (alpha, beta from :func:`~gyrodenoise.core.kernels.cv_gains`):
+    [[alpha, beta], [beta, beta(2 alpha - beta) / (2(1 - alpha))]]. Returns (c00, c01, c11)."""
+    a, b = p[K.P_MO_G + 3 * i], p[K.P_MO_G + 3 * i + 1]
+    on = line[0] > a
+    return (np.where(on, line[0], a), np.where(on, line[1], b),
+            np.where(on, line[2], b * (2.0 * a - b) / (2.0 * (1.0 - a))))
+
+
+def two_filter_rate(xf, pf, xb, pb, lam2, r):
+    """One constant-velocity model's smoothed rate at sample k from its forward filtered
+    estimate at k and its backward (time-reversed) filtered estimate at k + 1.
+
+    ``xf`` = (rate, slope per sample) after z_k, ``pf`` = its covariance (c00, c01, c11) in
+    units of the white-noise variance ``r``; ``xb``, ``pb`` the same of the filter run on the
+    reversed samples after z_{k+1} (its slope per reversed sample); ``lam2`` the tracking
+    index squared (process noise lam2 r [[1/4, 1/2], [1/2, 1]] per sample). Scalars or
+    arrays. Returns (rate, the log-likelihood of the two estimates' agreement).
+
+    * backward prediction to k (the reversed model is the same white-noise acceleration
+      model): x_b = F x_b(k+1), P_b = F P_b(k+1) F^T + Q, then the slope back to forward
+      time (sign);
+    * Eq. S1, the two-filter smoother (Fraser and Potter 1969; the same fixed point as the
+      RTS smoother x_s(k) = x_f(k) + C_k (x_s(k+1) - x_p(k+1)), C_k = P_f F^T P_p(k+1)^-1):
+      x_s = x_f + P_f (P_f + P_b)^-1 (x_b - x_f);
+    * the agreement: -(d^T (P_f + P_b)^-1 d / r + log det(P_f + P_b)) / 2, d = x_b - x_f."""
+    f00, f01, f11 = pf
+    c00, c01, c11 = pb
+    b00 = c00 + 2.0 * c01 + c11 + 0.25 * lam2          # F P F^T + Q, reversed time ...
+    b01 = -(c01 + c11 + 0.5 * lam2)                    # ... and the slope's sign turned back
+    b11 = c11 + lam2
+    xb0, xb1 = xb[0] + xb[1], -xb[1]
+    m00, m01, m11 = f00 + b00, f01 + b01, f11 + b11    # P_f + P_b
+    det = m00 * m11 - m01 * m01
+    d0, d1 = xb0 - xf[0], xb1 - xf[1]
+    u0 = (m11 * d0 - m01 * d1) / det                   # (P_f + P_b)^-1 d
+    u1 = (m00 * d1 - m01 * d0) / det
+    rate = xf[0] + f00 * u0 + f01 * u1                 # Eq. S1, its rate
+    return rate, -0.5 * ((d0 * u0 + d1 * u1) / r + np.log(det))
+
+
+def smooth_motion(p, seg, *, compiled=True):
+    """Fixed-interval smoother of the ``motion`` bank over one run of samples (no restart
+    inside): the two-filter smoother of every constant-velocity model of the bank, blended
+    by the models' probabilities given the whole run.
+
+    The bank runs forwards and, from a fresh state, backwards in time (the causal filter on
+    the reversed samples); per model i and sample k:
+
+    * forward filtered estimate x_f = [rate, slope] after z_k, covariance P_f R
+      (:func:`_filtered_cov`);
+    * backward estimate after z_{k+1} (time reversed), predicted to k: x_b = F x_b(k+1),
+      P_b = F P(k+1) F^T + Q, Q = lam^2 [[1/4, 1/2], [1/2, 1]] (the white-noise acceleration
+      model the bank's gains come from), the slope's sign turned back to forward time. It
+      holds every sample after k, the forward one every sample up to k: independent;
+    * Eq. S1 (the two-filter smoother, Fraser and Potter 1969, the RTS smoother's fixed
+      point): x_s = x_f + P_f (P_f + P_b)^-1 (x_b - x_f);
+    * Eq. S2 (the model's log-probability given the whole run): the forward and backward
+      faded log-likelihoods of the bank plus that of the two estimates' agreement,
+      -(d^T (P_f + P_b)^-1 d / R + log det(P_f + P_b)) / 2, d = x_b - x_f;
+    * the output is the mean of the x_s rates weighted by exp(S2 - max S2).
+
+    Where only one direction filters (the other's warm-up: the first and last ``P_WARMUP``
+    samples) its causal output is used; where either direction's spectral line test holds
+    its output on the raw sample, the raw sample. The output stays inside [min, max] of the
+    finite samples of ``seg``; where it would not be finite (an input near the largest
+    float), the causal blend of :func:`run_offline` is used there. Returns the smoothed rate
+    (deg/s), an ndarray like ``seg``."""
+    n, nf = seg.shape[0], int(p[K.P_MO_NF])
+    fo, bf, nwf, rf, af, lf, zf = _bank_record(p, seg, compiled)
+    bo, bb, nwb, rb, ab, lb, zb = _bank_record(p, seg[::-1].copy(), compiled)
+    bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[:, :, ::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]
+    y = np.where(af == 1.0, fo, bo)          # one direction alone where the other warms up
+    both = (af[:-1] == 1.0) & (ab[1:] == 1.0)
+    # every sample k < n - 1 with the forward bank at k and the backward one at k + 1, in blocks
+    # of SMOOTH_BLOCK samples (the temporaries stay small; the samples where one direction warms
+    # up are computed and left out: they may divide by zero, hence the errstate)
+    both = (af[:-1] == 1.0) & (ab[1:] == 1.0)
+    for a in range(0, n - 1 if both.any() else 0, SMOOTH_BLOCK):
+        k = slice(a, min(a + SMOOTH_BLOCK, n - 1))
+        j = slice(k.start + 1, k.stop + 1)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            lnf, lnb = _line_cov(nwf[k]), _line_cov(nwb[j])
+            r = 0.5 * (rf[k] + rb[j])
+            r = np.where(r > 0.0, r, 1.0)
+            xs = np.empty((nf, k.stop - k.start))
+            ll = np.empty_like(xs)
+            for i in range(nf):
+                lam2 = p[K.P_MO_G + 3 * i + 1] ** 2 / (1.0 - p[K.P_MO_G + 3 * i])   # lam^2 = beta^2 / (1 - alpha)
+                xs[i], ll[i] = two_filter_rate(
+                    (bf[i, 0, k] + zf[k], bf[i, 1, k]), _filtered_cov(p, i, lnf),
+                    (bb[i, 0, j] + zb[j], bb[i, 1, j]), _filtered_cov(p, i, lnb), lam2, r)
+                ll[i] += bf[i, 2, k] + bb[i, 2, j]                  # Eq. S2: the faded log-likelihoods
+            w = np.exp(ll - ll.max(axis=0))
+            ys = np.sum(w * xs, axis=0) / np.sum(w, axis=0)
+        y[k][both[k]] = ys[both[k]]
+    on = (lf == 1.0) | (lb == 1.0)
+    y[on] = seg[on]                          # the line test: the raw sample
+    fin = np.isfinite(seg)
+    if fin.any():
+        y = np.clip(y, seg[fin].min(), seg[fin].max())
+    bad = fin & ~np.isfinite(y)
+    if bad.any():
+        y[bad] = _blend(p, seg, compiled)[bad]
+    y[~fin] = seg[~fin]
+    return y
+
+
+def _blend(p, seg, compiled, pb=None):
+    """The forward and backward causal runs of one run of samples blended by their output
+    variances (the offline form before :func:`smooth_motion`; the rigid-body option keeps
+    it). Returns the blended rate (deg/s)."""
+    pb = p if pb is None else pb
+    warm = int(p[K.P_WARMUP])
+    o = K.ext_offset(p) + K.M_PVAR
+    fwd, _, vf = run(pb, K.init_state(pb), seg, trace_index=o, compiled=compiled)
+    bwd, _, vb = run(pb, K.init_state(pb), seg[::-1].copy(), trace_index=o, compiled=compiled)
+    bwd, vb = bwd[::-1], vb[::-1]
+    den = vf + vb
+    ok = den > 0.0
+    y = 0.5 * (fwd + bwd)
+    y[ok] = (vb[ok] * fwd[ok] + vf[ok] * bwd[ok]) / den[ok]
+    m = min(warm, seg.shape[0])
+    y[:m] = bwd[:m]                       # the forward pass is warming up there
+    y[seg.shape[0] - m:] = fwd[seg.shape[0] - m:]   # and the backward one here
+    return y
+
+
 def run_offline(p, z, restarts=None, *, compiled=True):
     """Whole-record (non-causal) filtering with ``method="motion"``: no lag.
 
-    Each run of samples between restarts is filtered forwards and, from a
-    fresh state, backwards in time (the same causal core on the reversed
-    samples); the output is the mean of the two, which cancels the lag of
-    each (a forward filter lags, the backward one leads by as much), weighted
-    by the inverse of their variances (the filter's own, ``M_PVAR``: the
-    two-filter smoother's combination). Where one of the two is still in its
-    warm-up (the raw sample, the first ``P_WARMUP`` samples of its
-    direction) the other is used alone. Measured against filters tuned on the
-    truth in docs/reports/tuned/report.md. The output stays inside [min, max]
-    of the raw samples of its run.
+    Each run of samples between restarts is smoothed on its own by
+    :func:`smooth_motion` (the two-filter smoother of every model of the bank,
+    blended by the models' probabilities given the whole run). With the
+    rigid-body option (``max_motion_hz``) the run is low-passed zero-phase
+    first (:func:`_rigid_offline`) and the forward and backward runs of the
+    causal filter are blended by the inverse of their output variances
+    (:func:`_blend`). Measured against filters tuned on the truth in
+    docs/method/motion.md. The output stays inside [min, max] of the raw
+    samples of its run.
 
     Returns the filtered rate (deg/s), an ndarray like ``z``.
     """
@@ -162,24 +332,13 @@ def run_offline(p, z, restarts=None, *, compiled=True):
     out = np.empty_like(za)
     p = list(p)
     p[K.P_MO_VAR] = 1.0          # keep the output variance (not computed by the causal filter)
-    warm = int(p[K.P_WARMUP])
     rigid = p[K.P_LP_NSEC] > 0.0
     o_ext = K.ext_offset(p)
     for a, b in zip(bounds[:-1], bounds[1:]):
         seg = za[a:b]
-        pb = p
         if rigid:
             seg, pb = _rigid_offline(p, seg, o_ext, compiled)
-        o = o_ext + K.M_PVAR
-        fwd, _, vf = run(pb, K.init_state(pb), seg, trace_index=o, compiled=compiled)
-        bwd, _, vb = run(pb, K.init_state(pb), seg[::-1].copy(), trace_index=o, compiled=compiled)
-        bwd, vb = bwd[::-1], vb[::-1]
-        den = vf + vb
-        ok = den > 0.0
-        y = 0.5 * (fwd + bwd)
-        y[ok] = (vb[ok] * fwd[ok] + vf[ok] * bwd[ok]) / den[ok]
-        m = min(warm, seg.shape[0])
-        y[:m] = bwd[:m]                       # the forward pass is warming up there
-        y[seg.shape[0] - m:] = fwd[seg.shape[0] - m:]   # and the backward one here
-        out[a:b] = y
+            out[a:b] = _blend(p, seg, compiled, pb)
+        else:
+            out[a:b] = smooth_motion(p, seg, compiled=compiled)
     return out

@@ -1665,6 +1665,20 @@ void gd_run_trace(const double *p, double *s, const double *z, const unsigned ch
     run_steps_(p, s, z, restarts, out, n, trace_index, trace);
 }
 
+/* gd_run with no restarts that also records s[idx[j]] after each sample i into
+ * rec[j * n + i] (the offline smoother's forward and backward runs of the motion
+ * bank, batch.smooth_motion: the bank in s, as gd_step keeps it) */
+void gd_run_record(const double *p, double *s, const double *z, double *out, long n,
+                   const long *idx, long m, double *rec)
+{
+    long i, j;
+    for (i = 0; i < n; i++) {
+        out[i] = step_(p, s, z[i], 0, NULL);
+        for (j = 0; j < m; j++)
+            rec[j * n + i] = s[idx[j]];
+    }
+}
+
 /* ------------------------------------------------------------------------
  * The public names. The kernels above are static so that the compiler may
  * inline them into step_ and gd_run (exported functions in a -fPIC shared

@@ -173,6 +173,11 @@ void gd_run(const double *p, double *s, const double *z, const unsigned char *re
 /* gd_run, also trace[i] = s[trace_index] after sample i (0 <= trace_index < state length) */
 void gd_run_trace(const double *p, double *s, const double *z, const unsigned char *restarts,
                   double *out, long n, long trace_index, double *trace);
+/* the step loop with no restarts, also rec[j * n + i] = s[idx[j]] after sample i
+ * (0 <= idx[j] < state length; the state values the offline smoother reads,
+ * batch.smooth_motion) */
+void gd_run_record(const double *p, double *s, const double *z, double *out, long n,
+                   const long *idx, long m, double *rec);
 
 #ifdef __cplusplus
 }

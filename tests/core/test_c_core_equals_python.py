@@ -535,3 +535,27 @@ def test_motion_batch_equals_step_on_hostile_records(kind):
         p = params("motion", 2, 0.0, 1.0)
         p[K.P_MO_VAR] = var
         assert c_batch(p, z, r) == c_step_run(p, z, r)
+
+
+def test_record_equals_step_and_reading_the_state():
+    """C.record (gd_run_record, the offline smoother's bank runs): every output and every
+    recorded state value bit for bit equal to the plain-Python kernels stepped one sample at
+    a time and read after each sample (rows: one per recorded value); bad indices refused."""
+    p = K.make_params(3, "motion", sample_rate_hz=FS)
+    o = K.ext_offset(p)
+    idx = [o + K.M_BANK, o + K.M_BANK + 6, o + K.M_NW, o + K.M_R, K.S_CONV, K.S_ZREF]
+    z, _ = mixed_record(11, n_each=150)
+    s = K.init_state(p)
+    ref_out, ref_rec = [], []
+    for zi in z:
+        ref_out.append(K.step(p, s, zi, False))
+        ref_rec.append([s[j] for j in idx])
+    sa = np.array(K.init_state(p))
+    out, rec = np.empty(len(z)), np.empty((len(idx), len(z)))
+    C.record(np.asarray(p), sa, np.asarray(z), out, np.asarray(idx, dtype=np.float64), rec)
+    assert out.tolist() == ref_out and rec.T.tolist() == ref_rec and sa.tolist() == s
+    with pytest.raises(ValueError, match="idx"):
+        C.record(np.asarray(p), sa, np.asarray(z), out, np.asarray([len(sa)], dtype=np.float64),
+                 np.empty(len(z)))
+    with pytest.raises(ValueError, match="rec"):
+        C.record(np.asarray(p), sa, np.asarray(z), out, np.asarray(idx, dtype=np.float64), np.empty(3))

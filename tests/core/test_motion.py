@@ -273,18 +273,16 @@ def test_log171_a_lone_spike_is_not_held():
     assert np.max(y[i + 4:i + 20] - yc[i + 4:i + 20]) <= 0.1 * h, (y[i:i + 6], yc[i:i + 6])
 
 
-def test_offline_is_the_blend_of_the_forward_and_backward_runs():
-    """gd.denoise(..., offline=True) (the default of `gyrodenoise denoise` on a
-    file): per run between restarts, the forward and backward runs of the
+def test_causal_blend_is_the_blend_of_the_forward_and_backward_runs():
+    """batch._blend (the offline form before the smoother, kept by the rigid-body option
+    max_motion_hz): per run between restarts, the forward and backward runs of the
     causal filter weighted by the inverse of their output variances (M_PVAR),
     each alone where the other warms up; rebuilt here sample by sample with
     the plain-Python kernels (the specification)."""
     z, _, fs = record("rest_manoeuvre_rest", "mems", 6.0)
-    rs = np.zeros(z.size, dtype=bool)
-    rs[3500] = True
-    off = gd.denoise(z, fs, restarts=rs, offline=True)
     p = K.make_params(3, "motion", sample_rate_hz=fs)
     p[K.P_MO_VAR] = 1.0            # the causal filter keeps its output variance only when asked
+    off = np.concatenate([batch._blend(p, z[:3500], True), batch._blend(p, z[3500:], True)])
     warm = int(p[K.P_WARMUP])
     assert warm == 1000            # so both runs (3500, 2500 samples) have a blended middle
     o = K.layout(3)[6] - K.N_EXT + K.M_PVAR
