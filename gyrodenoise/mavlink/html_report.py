@@ -183,16 +183,38 @@ def _table(rows, head=None, cls=""):
     return "".join(out)
 
 
+def _value_html(v, depth=0):
+    """A report value as HTML, whole: a number or text escaped, a dict as a nested
+    key/value table, a list of scalars comma-separated, a list of dicts or texts as
+    lines; nothing is cut."""
+    if isinstance(v, dict):
+        if not v:
+            return ""
+        if depth >= 3:
+            return _e(json.dumps(v, default=_json_default))
+        return _table([[_e(k), _value_html(x, depth + 1)] for k, x in v.items()], cls="inner")
+    if isinstance(v, (list, tuple, np.ndarray)):
+        items = list(v)
+        if all(not isinstance(x, (dict, list, tuple)) for x in items) and sum(len(_f(x)) for x in items) < 120:
+            return _e(", ".join(_f(x) for x in items))
+        return "<ul>" + "".join(f"<li>{_value_html(x, depth + 1)}</li>" for x in items) + "</ul>"
+    return _link(v) if isinstance(v, str) and v.startswith(("http://", "https://")) else _e(_f(v))
+
+
+def _link(url):
+    """An http(s) address as a link (any other text escaped; '' for None)."""
+    if not url:
+        return ""
+    u = str(url)
+    if u.startswith(("http://", "https://")):
+        return f"<a href='{_e(u)}'>{_e(u)}</a>"
+    return _e(u)
+
+
 def _kv_table(d, skip=()):
-    """Key/value table of a dict's scalar entries (nested dicts and lists as JSON)."""
-    rows = []
-    for k, v in d.items():
-        if k in skip:
-            continue
-        if isinstance(v, (dict, list, tuple)):
-            v = json.dumps(v, default=_json_default)
-            v = v if len(v) <= 300 else v[:297] + "..."
-        rows.append([_e(k), _e(_f(v))])
+    """Key/value table of a dict's entries (nested dicts and lists rendered whole by
+    :func:`_value_html`, never cut)."""
+    rows = [[_e(k), _value_html(v)] for k, v in d.items() if k not in skip and not str(k).startswith("_")]
     return _table(rows, ["key", "value"]) if rows else ""
 
 
@@ -726,32 +748,170 @@ def _review_figure(rev):
     return fig
 
 
+#: verdict -> bar colour of the vibration plots (None: no published threshold)
+VERDICT_COLOURS = {"pass": "#2e9d4f", "warn": "#e69500", "fail": "#b00020", None: "#8c8c8c"}
+#: the bar pattern per segment of the vibration plots (the colour is the verdict's)
+SEGMENT_PATTERNS = ("", "/", "x", ".", "\\", "+", "-", "|")
+#: numeric keys of a vibration segment that are not metrics
+_SEGMENT_KEYS = ("start_s", "end_s", "samples", "count", "n", "session")
+
+
+def _segment_label(seg, i):
+    """'kind start-end s' (with its boot session when it is not 0) of a vibration segment."""
+    label = str(seg.get("kind") or seg.get("segment") or f"segment {i + 1}")
+    if seg.get("start_s") is not None:
+        label += f" {float(seg['start_s']):.0f}-{float(seg.get('end_s') or 0):.0f} s"
+    if seg.get("session") not in (None, 0):
+        label = f"session {seg['session']}: " + label
+    return label
+
+
 def vibration_levels(vib):
-    """[(segment label, {metric: value})] and {metric: {"warn", "fail"}} of a
-    vibration report: its ``segments`` (or ``per_segment``) list of dicts, each
-    with its ``kind`` (or ``segment``) and numeric figures (or a ``levels`` dict of
-    them), and its ``thresholds``: {metric: {"warn", "fail"}} or one {"warn",
-    "fail"} for every metric."""
+    """[(segment label, {metric: figure})] of a vibration report's ``segments``: each
+    figure a dict ``{"mean", "p95", "max", "unit", "threshold": {"warn", "fail"} or
+    None, "verdict", "samples"}`` of a level, or ``{"increase", "unit": "count",
+    "threshold", "verdict"}`` of a clip counter (docs/logs/vibration.md). A segment's
+    ``figures`` dict is read as it is; flat numbers of an older report (a segment's
+    own numbers or its ``levels``; not ``session``, ``start_s``...) become
+    ``{"p95": value}`` against the report's ``thresholds`` (one ``{"warn", "fail"}``
+    or one per metric), with no verdict."""
+    th = vib.get("thresholds") or {}
+    if isinstance(th, dict) and ("warn" in th or "fail" in th):
+        common = th
+    else:
+        common = None
+
+    def thr(metric):
+        t = common if common is not None else th.get(metric)
+        if isinstance(t, dict) and (t.get("warn") is not None or t.get("fail") is not None):
+            return {"warn": t.get("warn"), "fail": t.get("fail")}
+        return None
+
+    def flat(vals):
+        return {k: {"p95": float(v), "unit": vib.get("unit"), "threshold": thr(k), "verdict": None}
+                for k, v in vals.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+                and k not in _SEGMENT_KEYS}
+
     rows = []
     for i, seg in enumerate(vib.get("segments") or vib.get("per_segment") or []):
         if not isinstance(seg, dict):
             continue
-        label = str(seg.get("kind") or seg.get("segment") or f"segment {i + 1}")
-        if seg.get("start_s") is not None:
-            label += f" {float(seg['start_s']):.0f}-{float(seg.get('end_s') or 0):.0f} s"
-        vals = seg.get("levels") if isinstance(seg.get("levels"), dict) else seg
-        nums = {k: float(v) for k, v in vals.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
-                and k not in ("start_s", "end_s", "samples", "count", "n")}
-        if nums:
-            rows.append((label, nums))
+        if isinstance(seg.get("figures"), dict):
+            figs = {k: dict(v) for k, v in seg["figures"].items() if isinstance(v, dict)}
+        else:
+            figs = flat(seg.get("levels") if isinstance(seg.get("levels"), dict) else seg)
+        if figs:
+            rows.append((_segment_label(seg, i), figs))
     if not rows and isinstance(vib.get("levels"), dict):
-        nums = {k: float(v) for k, v in vib["levels"].items() if isinstance(v, (int, float))}
-        if nums:
-            rows.append((vib.get("over") or "log", nums))
-    th = vib.get("thresholds") or {}
-    if isinstance(th, dict) and ("warn" in th or "fail" in th):
-        th = {k: th for k in {m for _, n in rows for m in n}}
-    return rows, {k: v for k, v in th.items() if isinstance(v, dict)}
+        figs = flat(vib["levels"])
+        if figs:
+            rows.append((str(vib.get("over") or "log"), figs))
+    return rows
+
+
+def _is_clip(fig):
+    return "increase" in fig
+
+
+def _vibration_figure(rows, metrics, title, value_key):
+    """Bars of ``value_key`` (p95 of a level, increase of a clip counter) per metric
+    (x) and segment (pattern), coloured by verdict, the max as a marker above a
+    level's bar, its warn and fail thresholds as dashed lines; a metric with no
+    threshold is labelled "no published threshold"."""
+    import plotly.graph_objects as go
+    cats = []
+    for m in metrics:
+        has = any((figs.get(m) or {}).get("threshold") for _, figs in rows)
+        cats.append(m if has else f"{m}<br>(no published threshold)")
+    fig = go.Figure()
+    for i, (label, figs) in enumerate(rows):
+        vals = [(figs.get(m) or {}).get(value_key) for m in metrics]
+        if all(v is None for v in vals):
+            continue
+        verdicts = [(figs.get(m) or {}).get("verdict") for m in metrics]
+        units = [(figs.get(m) or {}).get("unit") or "" for m in metrics]
+        text = [f"{label}<br>{m}: {value_key} {_f(v)} {u}; verdict {vd or 'none (no published threshold)'}"
+                for m, v, u, vd in zip(metrics, vals, units, verdicts)]
+        fig.add_trace(go.Bar(_validate=False, x=cats, y=vals, name=label, offsetgroup=str(i),
+                             marker={"color": [VERDICT_COLOURS.get(v, VERDICT_COLOURS[None]) for v in verdicts],
+                                     "pattern": {"shape": SEGMENT_PATTERNS[i % len(SEGMENT_PATTERNS)]}},
+                             text=text, textposition="none", hovertemplate="%{text}<extra></extra>"))
+        if value_key == "p95":
+            mx = [(figs.get(m) or {}).get("max") for m in metrics]
+            if any(v is not None for v in mx):
+                fig.add_trace(go.Scatter(_validate=False, x=cats, y=mx, mode="markers", name=f"{label}: max",
+                                         offsetgroup=str(i), legendgroup="max", showlegend=i == 0,
+                                         marker={"symbol": "line-ew-open", "size": 14, "color": "#222",
+                                                 "line": {"width": 2}},
+                                         text=[f"{label}<br>{m}: max {_f(v)}" for m, v in zip(metrics, mx)],
+                                         hovertemplate="%{text}<extra></extra>"))
+    shown = set()
+    for j, m in enumerate(metrics):
+        t = next(((figs.get(m) or {}).get("threshold") for _, figs in rows
+                  if (figs.get(m) or {}).get("threshold")), None)
+        for level in ("warn", "fail"):
+            v = (t or {}).get(level)
+            if v is None:
+                continue
+            colour = VERDICT_COLOURS[level]
+            fig.add_shape(type="line", x0=j - 0.45, x1=j + 0.45, y0=v, y1=v,
+                          line={"color": colour, "width": 2, "dash": "dash"})
+            fig.add_trace(go.Scatter(_validate=False, x=[cats[j]], y=[v], mode="markers", name=f"{level} threshold",
+                                     legendgroup=level, showlegend=level not in shown,
+                                     marker={"color": colour, "symbol": "line-ew-open", "size": 18,
+                                             "line": {"width": 2, "color": colour}},
+                                     hovertemplate=f"{level} threshold of {m}: %{{y:.3g}}<extra></extra>"))
+            shown.add(level)
+    fig.update_layout(barmode="group", title={"text": title, "font": {"size": 14}},
+                      legend={"orientation": "h", "yanchor": "top", "y": -0.25, "x": 0})
+    return fig
+
+
+def _vibration_plots(rows):
+    """[(title, figure)]: one per unit of the levels (p95 bars, max markers), one of the
+    clip counters' increases."""
+    metrics = []
+    for _, figs in rows:
+        metrics += [m for m in figs if m not in metrics]
+    levels = [m for m in metrics if not any(_is_clip(figs.get(m) or {}) for _, figs in rows)]
+    clips = [m for m in metrics if m not in levels]
+    out = []
+    units = []
+    for m in levels:
+        u = next(((figs.get(m) or {}).get("unit") for _, figs in rows if (figs.get(m) or {}).get("unit")), "")
+        if u not in units:
+            units.append(u)
+    for u in units:
+        ms = [m for m in levels if next(((figs.get(m) or {}).get("unit") for _, figs in rows
+                                         if (figs.get(m) or {}).get("unit")), "") == u]
+        fig = _vibration_figure(rows, ms, f"vibration levels [{u or 'no unit'}]: p95 per segment (bar, colour: "
+                                          "verdict), max (dash), warn/fail thresholds (dashed lines)", "p95")
+        fig.update_yaxes(title_text=f"p95 [{u}]" if u else "p95")
+        out.append(fig)
+    if clips:
+        fig = _vibration_figure(rows, clips, "accelerometer clipping: increase over each segment "
+                                             "(colour: verdict; dashed: warn/fail)", "increase")
+        fig.update_yaxes(title_text="increase [count]")
+        out.append(fig)
+    return out
+
+
+def _vibration_table(rows):
+    """The vibration figures as a table: a row per segment and metric."""
+    out = []
+    for label, figs in rows:
+        for m, fg in figs.items():
+            th = fg.get("threshold") or {}
+            vd = fg.get("verdict")
+            out.append([_e(label), _e(m), *(f'<span class=num>{_e(_f(fg.get(k)))}</span>'
+                                            for k in ("mean", "p95", "max", "increase")),
+                        _e(fg.get("unit") or ""),
+                        _e(_f(th.get("warn"))) if th else "", _e(_f(th.get("fail"))) if th else "",
+                        f'<span class="{_e(vd)}">{_e(vd)}</span>' if vd else
+                        ('<span class=small>no published threshold</span>' if not th else ""),
+                        _e(_f(fg.get("samples")))])
+    return _table(out, ["segment", "metric", "mean", "p95", "max", "increase", "unit", "warn", "fail",
+                        "verdict", "samples"])
 
 
 def _vibration_section(report, figs):
@@ -761,33 +921,31 @@ def _vibration_section(report, figs):
         return "".join(out) + (_notes_for(report, "vibration") or _note("vibration: not in this report"))
     verdict = str(vib.get("verdict") or "")
     cls = verdict if verdict in ("pass", "warn", "fail") else ""
+    src = ", ".join(str(vib[k]) for k in ("source", "accel_source") if vib.get(k))
     out.append(f'<p>verdict: <span class="{cls}">{_e(verdict or "none")}</span>'
-               f'{" (source: " + _e(vib.get("source")) + ")" if vib.get("source") else ""}</p>')
-    rows, th = vibration_levels(vib)
+               f'{" (source: " + _e(src) + ")" if src else ""}'
+               f'{"; over " + _e(vib.get("over")) + " time" if vib.get("over") else ""}</p>')
+    rows = vibration_levels(vib)
+    for fig in _vibration_plots(rows):
+        out.append(figs.div(fig, height=420))
     if rows:
-        import plotly.graph_objects as go
-        metrics = sorted({m for _, n in rows for m in n})
-        fig = go.Figure()
-        for label, nums in rows:
-            fig.add_trace(go.Bar(_validate=False, x=metrics, y=[nums.get(m) for m in metrics], name=label,
-                                 hovertemplate=f"{_e(label)} %{{x}}: %{{y:.3g}}<extra></extra>"))
-        for j, m in enumerate(metrics):
-            for level, colour in (("warn", "#e69500"), ("fail", "#b00020")):
-                v = (th.get(m) or {}).get(level)
-                if v is None:
-                    continue
-                fig.add_shape(type="line", x0=j - 0.45, x1=j + 0.45, y0=v, y1=v, line={"color": colour, "width": 2,
-                                                                                      "dash": "dash"})
-                fig.add_trace(go.Scatter(_validate=False, x=[m], y=[v], mode="markers", marker={"color": colour, "symbol": "line-ew",
-                                                                               "size": 1},
-                                         name=f"{level} threshold", legendgroup=level,
-                                         showlegend=not any(t.name == f"{level} threshold" for t in fig.data),
-                                         hovertemplate=f"{level} threshold of %{{x}}: %{{y:.3g}}<extra></extra>"))
-        fig.update_layout(barmode="group", title={"text": "vibration per segment against the thresholds "
-                                                          "(dashed: warn orange, fail red)", "font": {"size": 14}},
-                          yaxis_title=_e(vib.get("unit") or "level"))
-        out.append(figs.div(fig, height=400))
-    out.append(_kv_table(vib, skip=("segments", "per_segment", "levels")))
+        out.append("<h3>Vibration per segment and metric</h3>" + _vibration_table(rows))
+    th = vib.get("thresholds")
+    if isinstance(th, dict) and th and not ("warn" in th or "fail" in th):
+        trows = [[_e(k), _e(_f(v.get("warn"))), _e(_f(v.get("fail"))), _e(v.get("unit") or ""),
+                  _e(v.get("says") or ""), _link(v.get("source"))] for k, v in th.items() if isinstance(v, dict)]
+        if trows:
+            out.append("<h3>Thresholds</h3>" + _table(trows, ["metric", "warn", "fail", "unit", "says", "source"]))
+    peaks = [(_segment_label(seg, i), p) for i, seg in enumerate(vib.get("segments") or [])
+             if isinstance(seg, dict) for p in seg.get("accel_peaks") or [] if isinstance(p, dict)]
+    if peaks:
+        out.append("<h3>Accelerometer peaks</h3>" + _table(
+            [[_e(lb), f"<span class=num>{_e(_f(p.get('freq_hz'), '.4g'))}</span>",
+              f"<span class=num>{_e(_f(p.get('amplitude_rms_m_s2')))}</span>",
+              f"<span class=num>{_e(_f(p.get('ratio_db'), '.3g'))}</span>"] for lb, p in peaks],
+            ["segment", "frequency [Hz]", "amplitude [m/s/s rms]", "above floor [dB]"]))
+    out.append(_kv_table(vib, skip=("segments", "per_segment", "levels", "thresholds", "verdict", "source",
+                                    "accel_source", "over")))
     return "".join(out)
 
 

@@ -36,3 +36,28 @@ def test_vehicle_response_models_lowpass_and_notch():
                                       {"kind": "notch", "center_hz": 80.0, "bandwidth_hz": 20.0},
                                       {"kind": "mystery"}], f, 1000.0)
     assert g[0] > 0.99 and g[1] < 0.05 and skipped == ["mystery"]
+
+
+def _vibration(tmp_path):
+    from tests.mavlink.html_browser import _vibe_segment
+    return {"source": "VIBE", "verdict": "warn", "over": "flying",
+            "segments": [_vibe_segment("flying", 22.0, 62.0, (12.0, 35.0, 20.0), 3),
+                         _vibe_segment("hover", 30.0, 45.0, (10.0, 28.0, 18.0), 0)]}
+
+
+def test_vibration_figures_are_plotted_per_metric_against_their_thresholds(tmp_path):
+    vib = _vibration(tmp_path)
+    rows = hr.vibration_levels(vib)
+    assert [len(f) for _, f in rows] == [5, 5]
+    assert not any("session" in f for _, f in rows)
+    plots = hr._vibration_plots(rows)
+    levels, gyro, clips = plots                        # m/s/s, rad/s, count
+    bars = [t for t in levels.data if t.type == "bar"]
+    assert len(bars) == 2 and list(bars[0].y) == [12.0, 35.0, 20.0]
+    assert list(bars[0].marker.color) == [hr.VERDICT_COLOURS[v] for v in ("pass", "warn", "pass")]
+    assert {s.y0 for s in levels.layout.shapes} == {30.0, 60.0}
+    assert any(t.name == "flying 22-62 s: max" and np.allclose(t.y, [15.6, 45.5, 26.0]) for t in levels.data)
+    assert "no published threshold" in gyro.data[0].x[0] and not gyro.layout.shapes
+    assert [t for t in clips.data if t.type == "bar"][0].y == (3,)
+    text = hr.write_log_report(tmp_path / "v.html", {"file": "v.bin", "vibration": vib}).read_text()
+    assert "VibeY" in text and "no published threshold" in text and '"session"' not in text
