@@ -60,7 +60,8 @@ CSS = """
 body{font-family:DejaVu Sans,Arial,Helvetica,sans-serif;margin:0 auto;max-width:1400px;padding:0 16px 40px;
 color:#222;font-size:14px}
 h1{font-size:22px;margin:16px 0 4px}h2{font-size:18px;margin:28px 0 6px;border-bottom:1px solid #ccc}
-h3{font-size:15px;margin:18px 0 4px}
+h3{font-size:15px;margin:18px 0 4px}h4{font-size:14px;margin:12px 0 4px}
+table.inner{margin:0;font-size:12px}table.inner td{border-color:#e2e2e2}
 table{border-collapse:collapse;margin:6px 0 10px;font-size:13px}
 td,th{border:1px solid #ccc;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
@@ -680,6 +681,87 @@ def _spectra_section(report, series, figs):
     return "".join(out)
 
 
+#: the review's figure sets, in the table's order: (key in ``figures``, row label)
+REVIEW_ROWS = (("pre_filter", "pre-filter (measured)"), ("logged", "logged settings (predicted)"),
+               ("recommended", "recommended settings (predicted)"))
+#: the frequencies of the review's phase lag columns [Hz]
+REVIEW_LAG_HZ = ("10", "20", "30")
+
+
+def _num(v, spec=".3g"):
+    return f"<span class=num>{_e(_f(v, spec))}</span>"
+
+
+def _review_html(fr):
+    """The filter review (docs/logs/filter-review.md) as readable HTML: noise (deg/s rms
+    per axis and rss) and phase lag at 10/20/30 Hz for the pre-filter / logged /
+    recommended chains, the verdict and its changes, the lines to paste in a
+    ``<pre>``, the peaks, the notch rule, the reasons and notes; what is left
+    (source, rates...) as a key/value table, nothing cut."""
+    out = []
+    figures = fr.get("figures") or {}
+    rows = []
+    for key, label in REVIEW_ROWS:
+        f = figures.get(key)
+        if not isinstance(f, dict):
+            continue
+        noise = f.get("noise_rms_deg_s") or {}
+        lag = f.get("phase_lag_ms") or {}
+        rows.append([_e(label)] + [_num(noise.get(a)) for a in ("x", "y", "z", "rss")] +
+                    [_num(lag.get(h), ".3g") if lag else "" for h in REVIEW_LAG_HZ])
+    if rows:
+        band = fr.get("noise_band_hz")
+        band_txt = f" over {_f(band[0])}..{_f(band[1])} Hz" if isinstance(band, (list, tuple)) and len(band) == 2 else ""
+        out.append(f"<h4>Noise{_e(band_txt)} and lag</h4>" + _table(
+            rows, ["chain", "noise x [deg/s]", "noise y [deg/s]", "noise z [deg/s]", "noise rss [deg/s]"] +
+            [f"lag at {h} Hz [ms]" for h in REVIEW_LAG_HZ]))
+    verdict = fr.get("verdict")
+    changes = fr.get("changes") or {}
+    logged = fr.get("logged") or {}
+    if verdict is not None or changes:
+        cls = "warn" if changes else "pass"
+        out.append(f'<p>verdict: <span class="{cls}">{_e(verdict or ("change" if changes else "no change"))}</span>'
+                   + ("" if changes else ": the logged settings are kept") + "</p>")
+    if changes:
+        out.append(_table([[_e(k), _num(logged.get(k)), _num(v)] for k, v in changes.items()],
+                          ["parameter", "logged", "recommended"]))
+    lines = fr.get("param_lines")
+    if lines:
+        out.append("<p>Lines to paste into the autopilot's parameter file or console:</p><pre class=paste>" +
+                   _e("\n".join(str(x) for x in lines)) + "</pre>")
+    rec = fr.get("recommended") or {}
+    if rec:
+        out.append("<details><summary>every recommended value (" + str(len(rec)) + ", changed or not)</summary>" +
+                   _table([[_e(k), _num(logged.get(k)), _num(v)] for k, v in rec.items()],
+                          ["parameter", "logged", "recommended"]) + "</details>")
+    for key, title in (("logged_stages", "logged filter chain"), ("recommended_stages", "recommended filter chain")):
+        stages = [s for s in fr.get(key) or [] if isinstance(s, dict)]
+        if stages:
+            cols = [k for k in dict.fromkeys(k for s in stages for k in s) if k != "kind"]
+            out.append(f"<h4>{_e(title)}</h4>" + _table([[_e(s.get("kind"))] + [_value_html(s.get(k)) for k in cols]
+                                                         for s in stages], ["kind"] + cols))
+    peaks = [p for p in fr.get("peaks") or [] if isinstance(p, dict)]
+    if peaks:
+        out.append("<h4>Peaks</h4>" + _table(
+            [[_num(p.get("freq_hz"), ".4g"), _e(p.get("axis") or ""), _num(p.get("ratio_db"), ".3g"),
+              _num(p.get("amplitude_rms_deg_s")),
+              '<span class="pass">yes</span>' if p.get("notch_ok") else
+              ('<span class="warn">no</span>' if p.get("notch_ok") is not None else ""),
+              _e(p.get("why_not") or "")] for p in peaks],
+            ["frequency [Hz]", "axis", "prominence [dB]", "amplitude [deg/s rms]", "notch ok", "why not"]))
+    if fr.get("notch_rule"):
+        out.append(f"<p><b>notch rule:</b> {_e(fr['notch_rule'])}</p>")
+    for key, title in (("why", "why"), ("notes", "notes")):
+        items = fr.get(key)
+        if isinstance(items, str):
+            items = [items]
+        if items:
+            out.append(f"<h4>{title}</h4><ul>" + "".join(f"<li>{_value_html(x)}</li>" for x in items) + "</ul>")
+    out.append(_kv_table(fr, skip=("figures", "verdict", "changes", "param_lines", "recommended", "logged_stages",
+                                   "recommended_stages", "peaks", "notch_rule", "why", "notes", "noise_band_hz")))
+    return "".join(out)
+
+
 def _filter_review_section(report, series, figs):
     out = ["<h2 id=filters>Vehicle filters and review</h2>"]
     vf = report.get("vehicle_filters")
@@ -702,13 +784,7 @@ def _filter_review_section(report, series, figs):
         out.append(_notes_for(report, "vehicle_filters") or _note("vehicle_filters: not in this report"))
     fr = report.get("filter_review")
     if fr:
-        out.append("<h3>Filter review</h3>" + _kv_table(fr, skip=("param_lines", "recommended")))
-        if fr.get("recommended"):
-            out.append("<h3>Recommended parameters</h3>" +
-                       _table([[_e(k), _e(_f(v))] for k, v in fr["recommended"].items()], ["parameter", "value"]))
-        if fr.get("param_lines"):
-            out.append("<p>Lines to paste into the autopilot's parameter file or console:</p><pre>" +
-                       _e("\n".join(str(x) for x in fr["param_lines"])) + "</pre>")
+        out.append("<h3>Filter review</h3>" + _review_html(fr))
     else:
         out.append(_notes_for(report, "filter_review") or _note("filter_review: not in this report"))
     rev = series.get("filter_review") or {}

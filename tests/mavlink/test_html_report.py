@@ -61,3 +61,19 @@ def test_vibration_figures_are_plotted_per_metric_against_their_thresholds(tmp_p
     assert [t for t in clips.data if t.type == "bar"][0].y == (3,)
     text = hr.write_log_report(tmp_path / "v.html", {"file": "v.bin", "vibration": vib}).read_text()
     assert "VibeY" in text and "no published threshold" in text and '"session"' not in text
+
+
+def test_the_filter_review_is_a_readable_table_not_a_cut_json(tmp_path):
+    from tests.mavlink.html_browser import synthetic_report
+    rep, _ = synthetic_report(tmp_path, seconds=4.0)
+    rev = rep["filter_review"]
+    rev["notes"] = ["x" * 400]                         # a long text stays whole
+    text = hr.write_log_report(tmp_path / "f.html", rep).read_text()
+    body = text.split("</head>")[1]
+    assert "..." not in body and "x" * 400 in body
+    assert "lag at 20 Hz [ms]" in body and "noise rss [deg/s]" in body and "9.5" in body
+    assert "<pre class=paste>INS_GYRO_FILTER,40</pre>" in body
+    assert "above 0.4 x the stream&#x27;s rate" in body and "notch rule:" in body
+    assert "verdict: <span class=\"warn\">change</span>" in body
+    rev.update(changes={}, verdict="no change", param_lines=[])
+    assert "the logged settings are kept" in hr.write_log_report(tmp_path / "g.html", rep).read_text()
