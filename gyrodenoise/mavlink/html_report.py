@@ -318,7 +318,7 @@ def _time_figure(st, vehicle_rates, segments, title):
     the segments: one plotly figure, subplots sharing the time axis."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
-    from gyrodenoise.mavlink.plotting import plot_time
+    from gyrodenoise.mavlink.plotting import Y_CLIPPED_NOTE, flying_mask, plot_time, robust_ylim
     t = np.asarray(st["time_s"], dtype=np.float64)
     raw = np.atleast_2d(np.asarray(st["raw"], dtype=np.float64).T).T
     filt = st.get("filtered")
@@ -378,6 +378,18 @@ def _time_figure(st, vehicle_rates, segments, title):
     if segments and boot_time and len(pt):
         _shade_segments(fig, segments, len(axes), float(np.nanmin(pt)), float(np.nanmax(pt)))
     fig.update_xaxes(title_text=xlabel, row=len(axes), col=1)
+    # the initial y range: the bulk of the (flying) samples, not a crash spike; the
+    # modebar's autoscale (or a second double-click) shows everything
+    keep = flying_mask(t, segments) if boot_time else None
+    clipped = []
+    for k, a in enumerate(axes):
+        cols = [raw[:, k]] + ([filt[:, k]] if filt is not None and k < filt.shape[1] else [])
+        lim = robust_ylim(np.column_stack(cols), keep)
+        if lim is not None:
+            fig.update_yaxes(range=list(lim), row=k + 1, col=1)
+            clipped.append(a)
+    if clipped:
+        title = f"{title}; {Y_CLIPPED_NOTE} ({', '.join(clipped)}; autoscale in the modebar shows all)"
     # the title at the top, the legend between it and the plot
     fig.update_layout(title={"text": _e(title), "font": {"size": 14}, "y": 0.995, "yanchor": "top"},
                       hovermode="closest", margin={"t": 80},

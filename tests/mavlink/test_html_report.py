@@ -77,3 +77,25 @@ def test_the_filter_review_is_a_readable_table_not_a_cut_json(tmp_path):
     assert "verdict: <span class=\"warn\">change</span>" in body
     rev.update(changes={}, verdict="no change", param_lines=[])
     assert "the logged settings are kept" in hr.write_log_report(tmp_path / "g.html", rep).read_text()
+
+
+def _spiky_stream(n=8000, rate_hz=400.0):
+    rng = np.random.default_rng(2)
+    t = np.arange(n) / rate_hz
+    raw = rng.normal(0, 5.0, (n, 3))
+    raw[-20:] = 2000.0                                 # the crash, after the flight
+    return {"name": "IMU", "time_s": t, "raw": raw, "filtered": raw * 0.5, "unit": "deg/s",
+            "axes": ("x", "y", "z"), "restarts": None}
+
+
+def test_a_crash_spike_does_not_set_the_initial_y_range():
+    st = _spiky_stream()
+    segs = [{"kind": "flying", "start_s": 2.0, "end_s": 18.0}]
+    fig, _ = hr._time_figure(st, [], segs, "IMU")
+    lo, hi = fig.layout.yaxis.range
+    assert -40 < lo < -10 and 10 < hi < 40
+    assert "y clipped to 99.8 % of samples" in fig.layout.title.text
+    st["raw"] = st["raw"][:-20]
+    st["filtered"], st["time_s"] = st["raw"] * 0.5, st["time_s"][:-20]
+    fig, _ = hr._time_figure(st, [], None, "IMU")      # no spike: plotly's own range
+    assert fig.layout.yaxis.range is None and "clipped" not in fig.layout.title.text

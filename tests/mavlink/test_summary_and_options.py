@@ -134,7 +134,7 @@ def test_plot_time_is_the_summary_time(tmp_path, monkeypatch):
     sessions joined from 0); the plot's time is now the boot time of the summary and CSV."""
     got = _captured_plots(monkeypatch)
     rep = process.process_log(shared_log("log171.bin"), tmp_path, csv=False)
-    lines, rt, labels, xlabel, _segments = got["log171.IMU.png"]
+    lines, rt, labels, xlabel, _segments, _ylims = got["log171.IMU.png"]
     restart = next(e for e in rep["restarts"] if e["stream"] == "IMU")
     assert rt.tolist() == [pytest.approx(restart["time_s"], abs=1e-6)]
     assert "boot time" in xlabel and labels is None
