@@ -67,6 +67,7 @@ td,th{border:1px solid #ccc;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .note{color:#555;font-style:italic;margin:4px 0}.warn{color:#a15c00}.fail{color:#b00020;font-weight:bold}
 .pass{color:#1a7f37;font-weight:bold}.plot{width:100%;min-height:300px}
+div.tbl{max-width:100%;overflow-x:auto}td{overflow-wrap:anywhere;max-width:60em}
 pre{background:#f6f6f6;padding:8px;border:1px solid #ddd;overflow-x:auto}
 nav a{margin-right:12px}.small{font-size:12px;color:#555}
 """
@@ -174,13 +175,14 @@ def _e(v):
 
 
 def _table(rows, head=None, cls=""):
-    """HTML table of rows (lists of cell texts, already escaped where they hold HTML)."""
-    out = [f'<table class="{cls}">']
+    """HTML table of rows (lists of cell texts, already escaped where they hold HTML), in
+    a box that scrolls sideways when the table is wider than the window."""
+    out = [f'<div class="tbl"><table class="{cls}">']
     if head:
         out.append("<tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>")
     for r in rows:
         out.append("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>")
-    out.append("</table>")
+    out.append("</table></div>")
     return "".join(out)
 
 
@@ -340,12 +342,15 @@ def _time_figure(st, vehicle_rates, segments, title):
                                        hovertemplate=f"{a} {label}: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
                           row=k + 1, col=1)
         tx, ry = session_envelope(pt, raw[:, k], restarts)
-        raw_name = "raw" if filt is not None else f"raw (written raw: {st.get('raw_reason') or 'not filtered'})"
+        # a short legend name (a long reason ran the legend off the page): the reason
+        # is in the title and the hover
+        raw_name = "raw" if filt is not None else "raw (not filtered)"
+        why = "" if filt is not None else f" (written raw: {_e(st.get('raw_reason') or 'not filtered')})"
         # raw is drawn after (above) the filtered line, lighter and half transparent: both show
         fig.add_trace(go.Scatter(_validate=False, x=tx, y=ry.astype(np.float32), name=raw_name, legendgroup="raw",
                                    showlegend=first, opacity=0.75 if filt is not None else 1.0,
                                    line={"color": light if filt is not None else dark, "width": 0.9},
-                                   hovertemplate=f"{a} raw: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
+                                   hovertemplate=f"{a} raw{why}: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
                       row=k + 1, col=1)
         for j, vr in enumerate(vehicle_rates):
             v_colour, v_dash = VEHICLE_RATE_STYLES[j % len(VEHICLE_RATE_STYLES)]
@@ -407,7 +412,7 @@ def _psd_lists(pd):
 
 def _spectrum_figure(name, pd, responses, title):
     """PSD per axis (raw solid, filtered dashed), peaks marked; filter responses
-    (``responses``: [(label, freq_hz, gain, dash)]) on a second y axis."""
+    (``responses``: [(label, freq_hz, gain, dash, hover note)]) on a second y axis."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
     fig = make_subplots(specs=[[{"secondary_y": True}]])
@@ -439,12 +444,13 @@ def _spectrum_figure(name, pd, responses, title):
                                      marker={"symbol": "triangle-down", "size": 11, "color": dark,
                                              "line": {"color": "black", "width": 1}},
                                      text=txt, hovertemplate="%{text}<extra></extra>"), secondary_y=False)
-    for label, rf, gain, dash in responses:
+    for label, rf, gain, dash, *more in responses:
+        hover = _e(label + (f"; {more[0]}" if more and more[0] else ""))
         rf = np.asarray(rf, dtype=np.float64)
         ok = rf > 0
         fig.add_trace(go.Scatter(_validate=False, x=rf[ok], y=np.asarray(gain, dtype=np.float64)[ok], name=label,
                                  line={"color": "#555" if dash == "solid" else "#c2185b", "width": 1.6, "dash": dash},
-                                 hovertemplate=f"{_e(label)}: |H| %{{y:.3f}} at %{{x:.4g}} Hz<extra></extra>"),
+                                 hovertemplate=f"{hover}: |H| %{{y:.3f}} at %{{x:.4g}} Hz<extra></extra>"),
                       secondary_y=True)
     fig.update_yaxes(type="log", title_text=f"PSD [({unit})²/Hz]", secondary_y=False,
                      range=_log_range([v for v in (raw or []) if v is not None], sel))
@@ -644,13 +650,14 @@ def _streams_section(report, series, figs):
 
 
 def _responses_for(report, series, rate_hz):
-    """[(label, freq_hz, gain, dash)] of the vehicle's filters and the recommended ones."""
+    """[(label, freq_hz, gain, dash, hover note)] of the vehicle's filters and the
+    recommended ones (the label short, for the legend; what is not modelled in the note)."""
     out = []
     fr_rev = series.get("filter_review") or {}
-    for key, label, dash in (("response_logged", "vehicle's filters (logged settings)", "solid"),
+    for key, label, dash in (("response_logged", "vehicle's filters (logged)", "solid"),
                              ("response_recommended", "recommended settings", "dash")):
         if fr_rev.get(key) is not None and fr_rev.get("freq_hz") is not None:
-            out.append((label, fr_rev["freq_hz"], fr_rev[key], dash))
+            out.append((label, fr_rev["freq_hz"], fr_rev[key], dash, ""))
     if out:
         return out
     vf = report.get("vehicle_filters") or {}
@@ -658,12 +665,12 @@ def _responses_for(report, series, rate_hz):
     if stages and rate_hz:
         freq = np.linspace(0, rate_hz / 2.0, 512)
         g, skipped = vehicle_response(stages, freq, rate_hz)
-        label = "vehicle's filters (logged settings)" + (f"; not modelled: {', '.join(skipped)}" if skipped else "")
-        out.append((label, freq, g, "solid"))
+        label = "vehicle's filters (logged)" + (" *" if skipped else "")
+        out.append((label, freq, g, "solid", f"* not modelled: {', '.join(skipped)}" if skipped else ""))
         rec = (report.get("filter_review") or {}).get("recommended_stages")
         if rec:
             g2, _ = vehicle_response(rec, freq, rate_hz)
-            out.append(("recommended settings", freq, g2, "dash"))
+            out.append(("recommended settings", freq, g2, "dash", ""))
     return out
 
 

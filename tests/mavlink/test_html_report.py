@@ -99,3 +99,14 @@ def test_a_crash_spike_does_not_set_the_initial_y_range():
     st["filtered"], st["time_s"] = st["raw"] * 0.5, st["time_s"][:-20]
     fig, _ = hr._time_figure(st, [], None, "IMU")      # no spike: plotly's own range
     assert fig.layout.yaxis.range is None and "clipped" not in fig.layout.title.text
+
+
+def test_wide_tables_scroll_in_their_own_box_and_legend_names_stay_short():
+    assert hr._table([["a" * 300]]).startswith('<div class="tbl"><table')
+    assert "div.tbl{max-width:100%;overflow-x:auto}" in hr.CSS
+    st = _spiky_stream()
+    st["filtered"], st["raw_reason"] = None, "too slow to denoise: written raw because of a very long reason"
+    fig, _ = hr._time_figure(st, [], None, "IMU")
+    names = {t.name for t in fig.data if t.showlegend is not False}
+    assert max(len(n) for n in names) <= 30, names
+    assert any("very long reason" in t.hovertemplate for t in fig.data)
