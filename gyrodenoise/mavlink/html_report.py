@@ -587,7 +587,8 @@ def _summary_section(report, series):
                           _e(_f(s.get("samples"))), _e(_f(s.get("restarts"))),
                           _e(_f(nz.get("raw"))), _e(_f(nz.get("filtered"))), _e(_f(nz.get("ratio"), ".2f")),
                           _e(s.get("noise_unit", "")),
-                          _e(s.get("left_raw") or s.get("not_filtered") or s.get("slow_note") or s.get("note") or "")])
+                          _e(s.get("left_raw") or s.get("not_filtered") or s.get("slow_note") or s.get("note") or
+                             passed_through(s))])
     if srows:
         out.append("<h3>Noise figures (white-noise sigma, the core's estimate)</h3>")
         out.append(_table(srows, ["stream", "axis", "rate [Hz]", "samples", "restarts", "noise raw",
@@ -603,6 +604,26 @@ def _summary_section(report, series):
     elif "segments" in report or report.get("segments_note"):
         out.append(_note("segments: none" + (f" ({report['segments_note']})" if report.get("segments_note") else "")))
     return "".join(out)
+
+
+#: a filtered/raw noise ratio this close to 1 means the filter passed the signal through
+PASSED_THROUGH_TOL = 0.02
+#: what the page says of such a stream
+PASSED_THROUGH_NOTE = "kept as motion: the filter passed the signal through"
+
+
+def passed_through(stream_report):
+    """The note for a filtered stream whose every axis has a filtered/raw noise ratio
+    within :data:`PASSED_THROUGH_TOL` of 1 (the filter changed nothing: what it saw
+    was kept as motion), with the ratios; '' otherwise (or when written raw)."""
+    s = stream_report or {}
+    if s.get("too_slow_to_denoise") or s.get("left_raw") or s.get("not_filtered"):
+        return ""
+    ratios = [(nz or {}).get("ratio") for nz in (s.get("noise") or {}).values()]
+    ratios = [float(r) for r in ratios if isinstance(r, (int, float)) and math.isfinite(r)]
+    if not ratios or any(abs(r - 1.0) > PASSED_THROUGH_TOL for r in ratios):
+        return ""
+    return f"{PASSED_THROUGH_NOTE} (filtered/raw noise {', '.join(f'{r:.2f}' for r in ratios)})"
 
 
 def _dur(seg):
@@ -634,6 +655,7 @@ def _streams_section(report, series, figs):
     if not sts:
         return "".join(out) + _note("no time series given")
     vrates = series.get("vehicle_rate") or []
+    by_name = {s.get("name"): s for s in report.get("streams") or []}
     for st in sts:
         title = f"{st['name']}: raw and {st.get('filtered_label') or 'filtered'}"
         if st.get("filtered") is None:
@@ -642,6 +664,8 @@ def _streams_section(report, series, figs):
         out.append(f"<h3>{_e(st['name'])}</h3>")
         if note:
             out.append(_note(note))
+        if st.get("filtered") is not None and passed_through(by_name.get(st["name"])):
+            out.append(f'<p class="warn">{_e(passed_through(by_name.get(st["name"])))}</p>')
         out.append(figs.div(fig, height=180 + 170 * len(st.get("axes") or "xyz")))
     if not vrates:
         out.append(_note("the vehicle's own rate estimate (ArduPilot RATE, PX4 vehicle_angular_velocity) "

@@ -110,3 +110,17 @@ def test_wide_tables_scroll_in_their_own_box_and_legend_names_stay_short():
     names = {t.name for t in fig.data if t.showlegend is not False}
     assert max(len(n) for n in names) <= 30, names
     assert any("very long reason" in t.hovertemplate for t in fig.data)
+
+
+def test_a_filter_that_changed_nothing_says_so(tmp_path):
+    s = {"name": "sensor_combined", "rate_hz": 220.0, "noise_unit": "deg/s",
+         "noise": {a: {"raw": 0.5, "filtered": 0.5, "ratio": 1.0} for a in "xyz"}}
+    assert hr.passed_through(s).startswith(hr.PASSED_THROUGH_NOTE)
+    assert not hr.passed_through({**s, "noise": {"x": {"ratio": 0.6}}})
+    text = hr.write_log_report(tmp_path / "p.html", {"file": "p.ulg", "streams": [s]}).read_text()
+    assert "kept as motion: the filter passed the signal through" in text
+
+
+def test_lags_that_are_numerical_noise_print_as_zero():
+    from gyrodenoise.mavlink.spectra import lag_text
+    assert lag_text(-3.1e-05) == "0" and lag_text(0.004) == "0" and lag_text(2.345) == "2.3"
