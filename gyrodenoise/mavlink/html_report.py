@@ -1176,14 +1176,15 @@ def write_fleet_report(path, fleet_report, per_log=()):
             continue
         vs = r.get("density_vs_fleet_median")
         table.append([link, _e(r.get("stream")), "ok", _e(_f(r.get("rate_hz"), ".4g")),
-                      _e(_f(r.get("noise_raw"))), _e(_f(r.get("noise_filtered"))),
+                      _with_unit(r.get("noise_raw"), r.get("noise_unit")),
+                      _with_unit(r.get("noise_filtered"), r.get("noise_unit")),
                       _e(_f(r.get("noise_density_deg_s_rthz"))),
                       ('<span class="fail">' if r.get("flag") else "<span>") + _e(_f(vs, ".2g")) + "</span>",
                       f'<span class="{_e(verdict)}">{_e(verdict)}</span>' +
                       ("" if flying is None else f" {flying:.0f} s flying"),
                       _e(r.get("left_raw") or r.get("vs_fleet_note") or r.get("note") or "")])
-    out.append("<h2>Logs</h2>" + _table(table, ["log (its report)", "stream", "status", "rate [Hz]", "noise raw",
-                                               "noise filtered", "density [deg/s/√Hz]", "x fleet median",
+    out.append("<h2>Logs</h2>" + _table(table, ["log (its report)", "stream", "status", "rate [Hz]",
+                                               "noise raw (unit)", "noise filtered (unit)", "density [deg/s/√Hz]", "x fleet median",
                                                "vibration", "note"]))
     with figs:
         fig = _fleet_figure(rows)
@@ -1192,6 +1193,14 @@ def write_fleet_report(path, fleet_report, per_log=()):
         else:
             out.append(_note("no stream has a noise density to compare"))
     return _write(path, _page("gyrodenoise fleet report", "".join(out)))
+
+
+def _with_unit(v, unit):
+    """A fleet table cell: the number with its unit ("0.81 deg/s", "12.3 raw counts"
+    where the unit is unknown), '' for None."""
+    if v is None:
+        return ""
+    return f"<span class=num>{_e(_f(v))}</span> {_e(unit or 'raw counts (unit unknown)')}"
 
 
 def _fleet_figure(rows):

@@ -124,3 +124,12 @@ def test_a_filter_that_changed_nothing_says_so(tmp_path):
 def test_lags_that_are_numerical_noise_print_as_zero():
     from gyrodenoise.mavlink.spectra import lag_text
     assert lag_text(-3.1e-05) == "0" and lag_text(0.004) == "0" and lag_text(2.345) == "2.3"
+
+
+def test_the_fleet_table_gives_each_noise_figure_its_unit(tmp_path):
+    rows = [{"log": "a", "file": "a.bin", "stream": "IMU", "status": "ok", "rate_hz": 400.0, "noise_raw": 0.8,
+             "noise_filtered": 0.2, "noise_unit": "deg/s"},
+            {"log": "b", "file": "b.tlog", "stream": "RAW_IMU", "status": "ok", "rate_hz": 10.0, "noise_raw": 12.0,
+             "noise_filtered": 12.0, "noise_unit": None}]
+    text = hr.write_fleet_report(tmp_path / "fleet.html", {"rows": rows, "n_logs": 2}).read_text()
+    assert "0.8</span> deg/s" in text and "12</span> raw counts (unit unknown)" in text
