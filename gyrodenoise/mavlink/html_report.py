@@ -315,6 +315,24 @@ def _shade_segments(fig, segments, rows, t_lo, t_hi):
                                  legendgroup="segments"), row=1, col=1)
 
 
+def armed_mask(time_s, segments):
+    """Bool per sample: inside an ``armed``, ``flying`` or ``hover`` segment."""
+    t = np.asarray(time_s, dtype=np.float64)
+    m = np.zeros(len(t), dtype=bool)
+    for g in segments or []:
+        try:
+            if g["kind"] in ("armed", "flying", "hover"):
+                m |= (t >= float(g["start_s"])) & (t <= float(g["end_s"]))
+        except (KeyError, TypeError, ValueError):
+            continue
+    return m
+
+
+def _is_target(vehicle_rate):
+    """True for a rate controller's target (ArduPilot's ``RATE`` desired rates)."""
+    return "desired" in str(vehicle_rate.get("name", "")).lower()
+
+
 def _time_figure(st, vehicle_rates, segments, title):
     """Per axis raw (light, above) and filtered, the vehicle's own rate, restarts and
     the segments: one plotly figure, subplots sharing the time axis."""
@@ -358,8 +376,13 @@ def _time_figure(st, vehicle_rates, segments, title):
             rate = np.atleast_2d(np.asarray(vr["rate"], dtype=np.float64).T).T
             if k >= rate.shape[1] or not boot_time:
                 continue
-            tx, vy = envelope(vt, rate[:, k])
+            vk = rate[:, k]
             vname = f"vehicle rate ({vr.get('name', '')})"
+            if _is_target(vr) and segments:
+                # a controller's target is meaningful only while armed: NaN (a gap) elsewhere
+                vk = np.where(armed_mask(vt, segments), vk, np.nan)
+                vname += " while armed"
+            tx, vy = envelope(vt, vk)
             fig.add_trace(go.Scatter(_validate=False, x=tx, y=vy.astype(np.float32), name=vname, legendgroup=vname,
                                        showlegend=first, line={"color": v_colour, "width": 1.0, "dash": v_dash},
                                        hovertemplate=f"{a} {vname}: %{{y:.4g}} {vr.get('unit', unit)}"

@@ -133,3 +133,15 @@ def test_the_fleet_table_gives_each_noise_figure_its_unit(tmp_path):
              "noise_filtered": 12.0, "noise_unit": None}]
     text = hr.write_fleet_report(tmp_path / "fleet.html", {"rows": rows, "n_logs": 2}).read_text()
     assert "0.8</span> deg/s" in text and "12</span> raw counts (unit unknown)" in text
+
+
+def test_the_desired_rate_is_drawn_only_while_armed():
+    st = _spiky_stream()
+    t = st["time_s"]
+    vr = [{"name": "RATE desired (RDes, PDes, YDes)", "time_s": t[::4], "rate": np.ones((len(t[::4]), 3)),
+           "unit": "deg/s"}]
+    segs = [{"kind": "ground", "start_s": 0.0, "end_s": 5.0}, {"kind": "armed", "start_s": 5.0, "end_s": 10.0}]
+    fig, _ = hr._time_figure(st, vr, segs, "IMU")
+    (tr,) = [d for d in fig.data if d.name and d.name.startswith("vehicle rate") and d.showlegend]
+    y, x = np.asarray(tr.y, dtype=float), np.asarray(tr.x, dtype=float)
+    assert "while armed" in tr.name and np.isnan(y[x < 4.9]).all() and np.isfinite(y[(x > 5.1) & (x < 9.9)]).all()
