@@ -479,10 +479,21 @@ def _spectrum_figure(name, pd, responses, title):
                      range=_log_range([v for v in (raw or []) if v is not None], sel))
     fig.update_yaxes(title_text="filter gain |H|", range=[0, 1.3], secondary_y=True, showgrid=False,
                      visible=bool(responses), tickmode="array", tickvals=[0, 0.25, 0.5, 0.707, 1.0])
-    fig.update_xaxes(title_text="frequency [Hz]")
+    log_x = str(name).startswith("ISB.")          # the batch sampler: kHz wide, its motion band at a few Hz
+    fig.update_xaxes(title_text="frequency [Hz]", type="log" if log_x else "linear")
+    fig.update_layout(updatemenus=[_frequency_axis_menu(log_x)])
     fig.update_layout(title={"text": _e(title), "font": {"size": 14}}, hovermode="closest",
                       legend={"orientation": "v", "x": 1.06, "y": 1})
     return fig
+
+
+def _frequency_axis_menu(log_x):
+    """Plotly buttons switching a spectrum's frequency axis between linear and log
+    (the active one first as ``log_x`` says)."""
+    buttons = [{"label": "log frequency", "method": "relayout", "args": [{"xaxis.type": "log"}]},
+               {"label": "linear frequency", "method": "relayout", "args": [{"xaxis.type": "linear"}]}]
+    return {"type": "buttons", "direction": "left", "x": 1, "xanchor": "right", "y": 1.01, "yanchor": "bottom",
+            "showactive": True, "active": 0 if log_x else 1, "buttons": buttons, "font": {"size": 11}}
 
 
 def _log_range(curves, sel, decades_below=3.0):

@@ -145,3 +145,12 @@ def test_the_desired_rate_is_drawn_only_while_armed():
     (tr,) = [d for d in fig.data if d.name and d.name.startswith("vehicle rate") and d.showlegend]
     y, x = np.asarray(tr.y, dtype=float), np.asarray(tr.x, dtype=float)
     assert "while armed" in tr.name and np.isnan(y[x < 4.9]).all() and np.isfinite(y[(x > 5.1) & (x < 9.9)]).all()
+
+
+def test_spectra_switch_between_linear_and_log_frequency_batch_sampler_log_first():
+    f = np.linspace(0, 1000, 513)
+    pd = {"freq_hz": f, "raw": [np.ones_like(f)] * 3, "filtered": [np.ones_like(f) * 0.5] * 3, "unit": "deg/s"}
+    fig = hr._spectrum_figure("ISB.gyro[0]", pd, [], "t")
+    assert fig.layout.xaxis.type == "log"
+    assert {b.args[0]["xaxis.type"] for b in fig.layout.updatemenus[0].buttons} == {"log", "linear"}
+    assert hr._spectrum_figure("IMU", pd, [], "t").layout.xaxis.type == "linear"
