@@ -683,6 +683,53 @@ def _flying_time_s(segments):
     return total
 
 
+#: streams written raw at or below this rate [Hz] share one compact plot (e.g. PX4's
+#: 1 Hz sensor_gyro[n] in a ULog that logs them slowly)
+SLOW_STREAM_HZ = 5.0
+
+
+def _stream_rate_hz(st, stream_report):
+    """A stream's rate [Hz]: the report's, else from its median sample interval (0 when unknown)."""
+    r = (stream_report or {}).get("rate_hz")
+    if r:
+        return float(r)
+    t = np.asarray(st.get("time_s"), dtype=np.float64)
+    dt = np.diff(t[np.isfinite(t)]) if len(t) > 1 else np.array([])
+    dt = dt[dt > 0]
+    return float(1.0 / np.median(dt)) if len(dt) else 0.0
+
+
+def _is_slow_raw(st, stream_report):
+    """True for a stream written raw whose rate is at most :data:`SLOW_STREAM_HZ`."""
+    return st.get("filtered") is None and 0 < _stream_rate_hz(st, stream_report) <= SLOW_STREAM_HZ
+
+
+def _slow_figure(streams):
+    """The slow streams written raw in one figure: a subplot per axis, a line per stream."""
+    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
+    axes = ("x", "y", "z")
+    fig = make_subplots(rows=3, cols=1, shared_xaxes=True, vertical_spacing=0.05)
+    for j, st in enumerate(streams):
+        colour = AXIS_COLOURS[j % len(AXIS_COLOURS)][0]
+        raw = np.atleast_2d(np.asarray(st["raw"], dtype=np.float64).T).T
+        t = np.asarray(st["time_s"], dtype=np.float64)
+        restarts = _restart_mask(st.get("restarts"), len(t))
+        for k in range(min(3, raw.shape[1])):
+            tx, y = session_envelope(t, raw[:, k], restarts)
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=y.astype(np.float32), name=st["name"],
+                                     legendgroup=st["name"], showlegend=k == 0, mode="lines+markers",
+                                     marker={"size": 3}, line={"color": colour, "width": 1},
+                                     hovertemplate=f"{_e(st['name'])} {axes[k]}: %{{y:.4g}} {_e(st.get('unit', ''))}"
+                                                   f"<br>t=%{{x:.1f}} s<extra></extra>"), row=k + 1, col=1)
+            fig.update_yaxes(title_text=f"{axes[k]} [{_e(st.get('unit', ''))}]", row=k + 1, col=1)
+    fig.update_xaxes(title_text="boot time [s]", row=3, col=1)
+    fig.update_layout(title={"text": "slow streams, written raw (NOT FILTERED)", "font": {"size": 14},
+                             "y": 0.995, "yanchor": "top"}, margin={"t": 70},
+                      legend={"orientation": "h", "yanchor": "bottom", "y": 1.01, "x": 0})
+    return fig
+
+
 def _streams_section(report, series, figs):
     out = ["<h2 id=streams>Gyro streams</h2>"]
     sts = series.get("streams") or []
@@ -690,7 +737,14 @@ def _streams_section(report, series, figs):
         return "".join(out) + _note("no time series given")
     vrates = series.get("vehicle_rate") or []
     by_name = {s.get("name"): s for s in report.get("streams") or []}
+    slow = [st for st in sts if _is_slow_raw(st, by_name.get(st["name"]))]
+    if len(slow) > 1:
+        out.append("<h3>Slow streams, written raw</h3>" + _note(
+            "; ".join(f"{st['name']}: {st.get('raw_reason') or 'not filtered'}" for st in slow)))
+        out.append(figs.div(_slow_figure(slow), height=130 + 120 * 3))
     for st in sts:
+        if len(slow) > 1 and any(st is x for x in slow):
+            continue
         title = f"{st['name']}: raw and {st.get('filtered_label') or 'filtered'}"
         if st.get("filtered") is None:
             title = f"{st['name']}: written raw (NOT FILTERED: {st.get('raw_reason') or 'no filtered output'})"

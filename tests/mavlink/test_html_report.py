@@ -154,3 +154,14 @@ def test_spectra_switch_between_linear_and_log_frequency_batch_sampler_log_first
     assert fig.layout.xaxis.type == "log"
     assert {b.args[0]["xaxis.type"] for b in fig.layout.updatemenus[0].buttons} == {"log", "linear"}
     assert hr._spectrum_figure("IMU", pd, [], "t").layout.xaxis.type == "linear"
+
+
+def test_slow_streams_written_raw_share_one_plot(tmp_path):
+    t = np.arange(60.0)
+    slow = [{"name": f"sensor_gyro[{i}]", "time_s": t, "raw": np.zeros((60, 3)), "filtered": None, "unit": "deg/s",
+             "axes": ("x", "y", "z"), "raw_reason": "too slow to denoise: written raw"} for i in range(2)]
+    with hr._Figures() as figs:
+        html_text = hr._streams_section({"streams": []}, {"streams": slow}, figs)
+    assert figs.n == 1 and "Slow streams, written raw" in html_text
+    fig = hr._slow_figure(slow)
+    assert {d.name for d in fig.data} == {"sensor_gyro[0]", "sensor_gyro[1]"} and len(fig.data) == 6
