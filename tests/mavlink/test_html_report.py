@@ -94,7 +94,11 @@ def test_a_crash_spike_does_not_set_the_initial_y_range():
     fig, _ = hr._time_figure(st, [], segs, "IMU")
     lo, hi = fig.layout.yaxis.range
     assert -40 < lo < -10 and 10 < hi < 40
-    assert "y clipped to 99.8 % of samples" in fig.layout.title.text
+    assert "y clipped to 1-99 % of the samples" in fig.layout.title.text
+    st["raw"][15 * 400:15 * 400 + 60] = -1500.0        # a crash inside the flight: 0.75 % of its samples
+    fig, _ = hr._time_figure(st, [], segs, "IMU")
+    assert -40 < fig.layout.yaxis.range[0] < -10
+    st = _spiky_stream()
     st["raw"] = st["raw"][:-20]
     st["filtered"], st["time_s"] = st["raw"] * 0.5, st["time_s"][:-20]
     fig, _ = hr._time_figure(st, [], None, "IMU")      # no spike: plotly's own range
