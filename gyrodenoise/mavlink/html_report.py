@@ -67,7 +67,7 @@ td,th{border:1px solid #ccc;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .note{color:#555;font-style:italic;margin:4px 0}.warn{color:#a15c00}.fail{color:#b00020;font-weight:bold}
 .pass{color:#1a7f37;font-weight:bold}.plot{width:100%;min-height:300px}
-div.tbl{max-width:100%;overflow-x:auto}td{overflow-wrap:anywhere;max-width:60em}
+div.tbl{max-width:100%;overflow-x:auto}td{overflow-wrap:break-word;max-width:60em}
 pre{background:#f6f6f6;padding:8px;border:1px solid #ddd;overflow-x:auto}
 nav a{margin-right:12px}.small{font-size:12px;color:#555}
 """
@@ -621,8 +621,8 @@ def _summary_section(report, series):
                           _e(_f(s.get("samples"))), _e(_f(s.get("restarts"))),
                           _e(_f(nz.get("raw"))), _e(_f(nz.get("filtered"))), _e(_f(nz.get("ratio"), ".2f")),
                           _e(s.get("noise_unit", "")),
-                          _e(s.get("left_raw") or s.get("not_filtered") or s.get("slow_note") or s.get("note") or
-                             passed_through(s))])
+                          (f'<span class="warn">{_e(passed_through(s))}</span>; ' if passed_through(s) else "") +
+                          _e(s.get("left_raw") or s.get("not_filtered") or s.get("slow_note") or s.get("note") or "")])
     if srows:
         out.append("<h3>Noise figures (white-noise sigma, the core's estimate)</h3>")
         out.append(_table(srows, ["stream", "axis", "rate [Hz]", "samples", "restarts", "noise raw",

@@ -117,7 +117,7 @@ def test_wide_tables_scroll_in_their_own_box_and_legend_names_stay_short():
 
 
 def test_a_filter_that_changed_nothing_says_so(tmp_path):
-    s = {"name": "sensor_combined", "rate_hz": 220.0, "noise_unit": "deg/s",
+    s = {"name": "sensor_combined", "rate_hz": 220.0, "noise_unit": "deg/s", "note": "ULog sensor_combined",
          "noise": {a: {"raw": 0.5, "filtered": 0.5, "ratio": 1.0} for a in "xyz"}}
     assert hr.passed_through(s).startswith(hr.PASSED_THROUGH_NOTE)
     assert not hr.passed_through({**s, "noise": {"x": {"ratio": 0.6}}})
