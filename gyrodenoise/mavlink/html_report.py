@@ -1096,8 +1096,10 @@ def _vibration_plots(rows):
         fig.update_yaxes(title_text=f"p95 [{u}]" if u else "p95")
         out.append(fig)
     if clips:
+        none = all(not (figs.get(m) or {}).get("increase") for _, figs in rows for m in clips)
         fig = _vibration_figure(rows, clips, "accelerometer clipping: increase over each segment "
-                                             "(colour: verdict; dashed: warn/fail)", "increase")
+                                             "(colour: verdict; dashed: warn/fail)" +
+                                ("; no clipping: every increase is 0" if none else ""), "increase")
         fig.update_yaxes(title_text="increase [count]")
         out.append(fig)
     return out
