@@ -60,12 +60,14 @@ CSS = """
 body{font-family:DejaVu Sans,Arial,Helvetica,sans-serif;margin:0 auto;max-width:1400px;padding:0 16px 40px;
 color:#222;font-size:14px}
 h1{font-size:22px;margin:16px 0 4px}h2{font-size:18px;margin:28px 0 6px;border-bottom:1px solid #ccc}
-h3{font-size:15px;margin:18px 0 4px}
+h3{font-size:15px;margin:18px 0 4px}h4{font-size:14px;margin:12px 0 4px}
+table.inner{margin:0;font-size:12px}table.inner td{border-color:#e2e2e2}
 table{border-collapse:collapse;margin:6px 0 10px;font-size:13px}
 td,th{border:1px solid #ccc;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .note{color:#555;font-style:italic;margin:4px 0}.warn{color:#a15c00}.fail{color:#b00020;font-weight:bold}
 .pass{color:#1a7f37;font-weight:bold}.plot{width:100%;min-height:300px}
+div.tbl{max-width:100%;overflow-x:auto}td{overflow-wrap:break-word;max-width:60em}
 pre{background:#f6f6f6;padding:8px;border:1px solid #ddd;overflow-x:auto}
 nav a{margin-right:12px}.small{font-size:12px;color:#555}
 """
@@ -173,26 +175,49 @@ def _e(v):
 
 
 def _table(rows, head=None, cls=""):
-    """HTML table of rows (lists of cell texts, already escaped where they hold HTML)."""
-    out = [f'<table class="{cls}">']
+    """HTML table of rows (lists of cell texts, already escaped where they hold HTML), in
+    a box that scrolls sideways when the table is wider than the window."""
+    out = [f'<div class="tbl"><table class="{cls}">']
     if head:
         out.append("<tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>")
     for r in rows:
         out.append("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>")
-    out.append("</table>")
+    out.append("</table></div>")
     return "".join(out)
 
 
+def _value_html(v, depth=0):
+    """A report value as HTML, whole: a number or text escaped, a dict as a nested
+    key/value table, a list of scalars comma-separated, a list of dicts or texts as
+    lines; nothing is cut."""
+    if isinstance(v, dict):
+        if not v:
+            return ""
+        if depth >= 3:
+            return _e(json.dumps(v, default=_json_default))
+        return _table([[_e(k), _value_html(x, depth + 1)] for k, x in v.items()], cls="inner")
+    if isinstance(v, (list, tuple, np.ndarray)):
+        items = list(v)
+        if all(not isinstance(x, (dict, list, tuple)) for x in items) and sum(len(_f(x)) for x in items) < 120:
+            return _e(", ".join(_f(x) for x in items))
+        return "<ul>" + "".join(f"<li>{_value_html(x, depth + 1)}</li>" for x in items) + "</ul>"
+    return _link(v) if isinstance(v, str) and v.startswith(("http://", "https://")) else _e(_f(v))
+
+
+def _link(url):
+    """An http(s) address as a link (any other text escaped; '' for None)."""
+    if not url:
+        return ""
+    u = str(url)
+    if u.startswith(("http://", "https://")):
+        return f"<a href='{_e(u)}'>{_e(u)}</a>"
+    return _e(u)
+
+
 def _kv_table(d, skip=()):
-    """Key/value table of a dict's scalar entries (nested dicts and lists as JSON)."""
-    rows = []
-    for k, v in d.items():
-        if k in skip:
-            continue
-        if isinstance(v, (dict, list, tuple)):
-            v = json.dumps(v, default=_json_default)
-            v = v if len(v) <= 300 else v[:297] + "..."
-        rows.append([_e(k), _e(_f(v))])
+    """Key/value table of a dict's entries (nested dicts and lists rendered whole by
+    :func:`_value_html`, never cut)."""
+    rows = [[_e(k), _value_html(v)] for k, v in d.items() if k not in skip and not str(k).startswith("_")]
     return _table(rows, ["key", "value"]) if rows else ""
 
 
@@ -290,12 +315,30 @@ def _shade_segments(fig, segments, rows, t_lo, t_hi):
                                  legendgroup="segments"), row=1, col=1)
 
 
+def armed_mask(time_s, segments):
+    """Bool per sample: inside an ``armed``, ``flying`` or ``hover`` segment."""
+    t = np.asarray(time_s, dtype=np.float64)
+    m = np.zeros(len(t), dtype=bool)
+    for g in segments or []:
+        try:
+            if g["kind"] in ("armed", "flying", "hover"):
+                m |= (t >= float(g["start_s"])) & (t <= float(g["end_s"]))
+        except (KeyError, TypeError, ValueError):
+            continue
+    return m
+
+
+def _is_target(vehicle_rate):
+    """True for a rate controller's target (ArduPilot's ``RATE`` desired rates)."""
+    return "desired" in str(vehicle_rate.get("name", "")).lower()
+
+
 def _time_figure(st, vehicle_rates, segments, title):
     """Per axis raw (light, above) and filtered, the vehicle's own rate, restarts and
     the segments: one plotly figure, subplots sharing the time axis."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
-    from gyrodenoise.mavlink.plotting import plot_time
+    from gyrodenoise.mavlink.plotting import Y_CLIPPED_NOTE, flying_mask, plot_time, robust_ylim
     t = np.asarray(st["time_s"], dtype=np.float64)
     raw = np.atleast_2d(np.asarray(st["raw"], dtype=np.float64).T).T
     filt = st.get("filtered")
@@ -317,12 +360,15 @@ def _time_figure(st, vehicle_rates, segments, title):
                                        hovertemplate=f"{a} {label}: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
                           row=k + 1, col=1)
         tx, ry = session_envelope(pt, raw[:, k], restarts)
-        raw_name = "raw" if filt is not None else f"raw (written raw: {st.get('raw_reason') or 'not filtered'})"
+        # a short legend name (a long reason ran the legend off the page): the reason
+        # is in the title and the hover
+        raw_name = "raw" if filt is not None else "raw (not filtered)"
+        why = "" if filt is not None else f" (written raw: {_e(st.get('raw_reason') or 'not filtered')})"
         # raw is drawn after (above) the filtered line, lighter and half transparent: both show
         fig.add_trace(go.Scatter(_validate=False, x=tx, y=ry.astype(np.float32), name=raw_name, legendgroup="raw",
                                    showlegend=first, opacity=0.75 if filt is not None else 1.0,
                                    line={"color": light if filt is not None else dark, "width": 0.9},
-                                   hovertemplate=f"{a} raw: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
+                                   hovertemplate=f"{a} raw{why}: %{{y:.4g}} {unit}<br>t=%{{x:.3f}} s<extra></extra>"),
                       row=k + 1, col=1)
         for j, vr in enumerate(vehicle_rates):
             v_colour, v_dash = VEHICLE_RATE_STYLES[j % len(VEHICLE_RATE_STYLES)]
@@ -330,8 +376,13 @@ def _time_figure(st, vehicle_rates, segments, title):
             rate = np.atleast_2d(np.asarray(vr["rate"], dtype=np.float64).T).T
             if k >= rate.shape[1] or not boot_time:
                 continue
-            tx, vy = envelope(vt, rate[:, k])
+            vk = rate[:, k]
             vname = f"vehicle rate ({vr.get('name', '')})"
+            if _is_target(vr) and segments:
+                # a controller's target is meaningful only while armed: NaN (a gap) elsewhere
+                vk = np.where(armed_mask(vt, segments), vk, np.nan)
+                vname += " while armed"
+            tx, vy = envelope(vt, vk)
             fig.add_trace(go.Scatter(_validate=False, x=tx, y=vy.astype(np.float32), name=vname, legendgroup=vname,
                                        showlegend=first, line={"color": v_colour, "width": 1.0, "dash": v_dash},
                                        hovertemplate=f"{a} {vname}: %{{y:.4g}} {vr.get('unit', unit)}"
@@ -355,6 +406,18 @@ def _time_figure(st, vehicle_rates, segments, title):
     if segments and boot_time and len(pt):
         _shade_segments(fig, segments, len(axes), float(np.nanmin(pt)), float(np.nanmax(pt)))
     fig.update_xaxes(title_text=xlabel, row=len(axes), col=1)
+    # the initial y range: the bulk of the (flying) samples, not a crash spike; the
+    # modebar's autoscale (or a second double-click) shows everything
+    keep = flying_mask(t, segments) if boot_time else None
+    clipped = []
+    for k, a in enumerate(axes):
+        cols = [raw[:, k]] + ([filt[:, k]] if filt is not None and k < filt.shape[1] else [])
+        lim = robust_ylim(np.column_stack(cols), keep)
+        if lim is not None:
+            fig.update_yaxes(range=list(lim), row=k + 1, col=1)
+            clipped.append(a)
+    if clipped:
+        title = f"{title}; {Y_CLIPPED_NOTE} ({', '.join(clipped)}; autoscale in the modebar shows all)"
     # the title at the top, the legend between it and the plot
     fig.update_layout(title={"text": _e(title), "font": {"size": 14}, "y": 0.995, "yanchor": "top"},
                       hovermode="closest", margin={"t": 80},
@@ -372,7 +435,7 @@ def _psd_lists(pd):
 
 def _spectrum_figure(name, pd, responses, title):
     """PSD per axis (raw solid, filtered dashed), peaks marked; filter responses
-    (``responses``: [(label, freq_hz, gain, dash)]) on a second y axis."""
+    (``responses``: [(label, freq_hz, gain, dash, hover note)]) on a second y axis."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
     fig = make_subplots(specs=[[{"secondary_y": True}]])
@@ -404,21 +467,33 @@ def _spectrum_figure(name, pd, responses, title):
                                      marker={"symbol": "triangle-down", "size": 11, "color": dark,
                                              "line": {"color": "black", "width": 1}},
                                      text=txt, hovertemplate="%{text}<extra></extra>"), secondary_y=False)
-    for label, rf, gain, dash in responses:
+    for label, rf, gain, dash, *more in responses:
+        hover = _e(label + (f"; {more[0]}" if more and more[0] else ""))
         rf = np.asarray(rf, dtype=np.float64)
         ok = rf > 0
         fig.add_trace(go.Scatter(_validate=False, x=rf[ok], y=np.asarray(gain, dtype=np.float64)[ok], name=label,
                                  line={"color": "#555" if dash == "solid" else "#c2185b", "width": 1.6, "dash": dash},
-                                 hovertemplate=f"{_e(label)}: |H| %{{y:.3f}} at %{{x:.4g}} Hz<extra></extra>"),
+                                 hovertemplate=f"{hover}: |H| %{{y:.3f}} at %{{x:.4g}} Hz<extra></extra>"),
                       secondary_y=True)
     fig.update_yaxes(type="log", title_text=f"PSD [({unit})²/Hz]", secondary_y=False,
                      range=_log_range([v for v in (raw or []) if v is not None], sel))
     fig.update_yaxes(title_text="filter gain |H|", range=[0, 1.3], secondary_y=True, showgrid=False,
                      visible=bool(responses), tickmode="array", tickvals=[0, 0.25, 0.5, 0.707, 1.0])
-    fig.update_xaxes(title_text="frequency [Hz]")
+    log_x = str(name).startswith("ISB.")          # the batch sampler: kHz wide, its motion band at a few Hz
+    fig.update_xaxes(title_text="frequency [Hz]", type="log" if log_x else "linear")
+    fig.update_layout(updatemenus=[_frequency_axis_menu(log_x)])
     fig.update_layout(title={"text": _e(title), "font": {"size": 14}}, hovermode="closest",
                       legend={"orientation": "v", "x": 1.06, "y": 1})
     return fig
+
+
+def _frequency_axis_menu(log_x):
+    """Plotly buttons switching a spectrum's frequency axis between linear and log
+    (the active one first as ``log_x`` says)."""
+    buttons = [{"label": "log frequency", "method": "relayout", "args": [{"xaxis.type": "log"}]},
+               {"label": "linear frequency", "method": "relayout", "args": [{"xaxis.type": "linear"}]}]
+    return {"type": "buttons", "direction": "left", "x": 1, "xanchor": "right", "y": 1.01, "yanchor": "bottom",
+            "showactive": True, "active": 0 if log_x else 1, "buttons": buttons, "font": {"size": 11}}
 
 
 def _log_range(curves, sel, decades_below=3.0):
@@ -546,6 +621,7 @@ def _summary_section(report, series):
                           _e(_f(s.get("samples"))), _e(_f(s.get("restarts"))),
                           _e(_f(nz.get("raw"))), _e(_f(nz.get("filtered"))), _e(_f(nz.get("ratio"), ".2f")),
                           _e(s.get("noise_unit", "")),
+                          (f'<span class="warn">{_e(passed_through(s))}</span>; ' if passed_through(s) else "") +
                           _e(s.get("left_raw") or s.get("not_filtered") or s.get("slow_note") or s.get("note") or "")])
     if srows:
         out.append("<h3>Noise figures (white-noise sigma, the core's estimate)</h3>")
@@ -562,6 +638,26 @@ def _summary_section(report, series):
     elif "segments" in report or report.get("segments_note"):
         out.append(_note("segments: none" + (f" ({report['segments_note']})" if report.get("segments_note") else "")))
     return "".join(out)
+
+
+#: a filtered/raw noise ratio this close to 1 means the filter passed the signal through
+PASSED_THROUGH_TOL = 0.02
+#: what the page says of such a stream
+PASSED_THROUGH_NOTE = "kept as motion: the filter passed the signal through"
+
+
+def passed_through(stream_report):
+    """The note for a filtered stream whose every axis has a filtered/raw noise ratio
+    within :data:`PASSED_THROUGH_TOL` of 1 (the filter changed nothing: what it saw
+    was kept as motion), with the ratios; '' otherwise (or when written raw)."""
+    s = stream_report or {}
+    if s.get("too_slow_to_denoise") or s.get("left_raw") or s.get("not_filtered"):
+        return ""
+    ratios = [(nz or {}).get("ratio") for nz in (s.get("noise") or {}).values()]
+    ratios = [float(r) for r in ratios if isinstance(r, (int, float)) and math.isfinite(r)]
+    if not ratios or any(abs(r - 1.0) > PASSED_THROUGH_TOL for r in ratios):
+        return ""
+    return f"{PASSED_THROUGH_NOTE} (filtered/raw noise {', '.join(f'{r:.2f}' for r in ratios)})"
 
 
 def _dur(seg):
@@ -587,13 +683,68 @@ def _flying_time_s(segments):
     return total
 
 
+#: streams written raw at or below this rate [Hz] share one compact plot (e.g. PX4's
+#: 1 Hz sensor_gyro[n] in a ULog that logs them slowly)
+SLOW_STREAM_HZ = 5.0
+
+
+def _stream_rate_hz(st, stream_report):
+    """A stream's rate [Hz]: the report's, else from its median sample interval (0 when unknown)."""
+    r = (stream_report or {}).get("rate_hz")
+    if r:
+        return float(r)
+    t = np.asarray(st.get("time_s"), dtype=np.float64)
+    dt = np.diff(t[np.isfinite(t)]) if len(t) > 1 else np.array([])
+    dt = dt[dt > 0]
+    return float(1.0 / np.median(dt)) if len(dt) else 0.0
+
+
+def _is_slow_raw(st, stream_report):
+    """True for a stream written raw whose rate is at most :data:`SLOW_STREAM_HZ`."""
+    return st.get("filtered") is None and 0 < _stream_rate_hz(st, stream_report) <= SLOW_STREAM_HZ
+
+
+def _slow_figure(streams):
+    """The slow streams written raw in one figure: a subplot per axis, a line per stream."""
+    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
+    axes = ("x", "y", "z")
+    fig = make_subplots(rows=3, cols=1, shared_xaxes=True, vertical_spacing=0.05)
+    for j, st in enumerate(streams):
+        colour = AXIS_COLOURS[j % len(AXIS_COLOURS)][0]
+        raw = np.atleast_2d(np.asarray(st["raw"], dtype=np.float64).T).T
+        t = np.asarray(st["time_s"], dtype=np.float64)
+        restarts = _restart_mask(st.get("restarts"), len(t))
+        for k in range(min(3, raw.shape[1])):
+            tx, y = session_envelope(t, raw[:, k], restarts)
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=y.astype(np.float32), name=st["name"],
+                                     legendgroup=st["name"], showlegend=k == 0, mode="lines+markers",
+                                     marker={"size": 3}, line={"color": colour, "width": 1},
+                                     hovertemplate=f"{_e(st['name'])} {axes[k]}: %{{y:.4g}} {_e(st.get('unit', ''))}"
+                                                   f"<br>t=%{{x:.1f}} s<extra></extra>"), row=k + 1, col=1)
+            fig.update_yaxes(title_text=f"{axes[k]} [{_e(st.get('unit', ''))}]", row=k + 1, col=1)
+    fig.update_xaxes(title_text="boot time [s]", row=3, col=1)
+    fig.update_layout(title={"text": "slow streams, written raw (NOT FILTERED)", "font": {"size": 14},
+                             "y": 0.995, "yanchor": "top"}, margin={"t": 70},
+                      legend={"orientation": "h", "yanchor": "bottom", "y": 1.01, "x": 0})
+    return fig
+
+
 def _streams_section(report, series, figs):
     out = ["<h2 id=streams>Gyro streams</h2>"]
     sts = series.get("streams") or []
     if not sts:
         return "".join(out) + _note("no time series given")
     vrates = series.get("vehicle_rate") or []
+    by_name = {s.get("name"): s for s in report.get("streams") or []}
+    slow = [st for st in sts if _is_slow_raw(st, by_name.get(st["name"]))]
+    if len(slow) > 1:
+        out.append("<h3>Slow streams, written raw</h3>" + _note(
+            "; ".join(f"{st['name']}: {st.get('raw_reason') or 'not filtered'}" for st in slow)))
+        out.append(figs.div(_slow_figure(slow), height=130 + 120 * 3))
     for st in sts:
+        if len(slow) > 1 and any(st is x for x in slow):
+            continue
         title = f"{st['name']}: raw and {st.get('filtered_label') or 'filtered'}"
         if st.get("filtered") is None:
             title = f"{st['name']}: written raw (NOT FILTERED: {st.get('raw_reason') or 'no filtered output'})"
@@ -601,6 +752,8 @@ def _streams_section(report, series, figs):
         out.append(f"<h3>{_e(st['name'])}</h3>")
         if note:
             out.append(_note(note))
+        if st.get("filtered") is not None and passed_through(by_name.get(st["name"])):
+            out.append(f'<p class="warn">{_e(passed_through(by_name.get(st["name"])))}</p>')
         out.append(figs.div(fig, height=180 + 170 * len(st.get("axes") or "xyz")))
     if not vrates:
         out.append(_note("the vehicle's own rate estimate (ArduPilot RATE, PX4 vehicle_angular_velocity) "
@@ -609,13 +762,14 @@ def _streams_section(report, series, figs):
 
 
 def _responses_for(report, series, rate_hz):
-    """[(label, freq_hz, gain, dash)] of the vehicle's filters and the recommended ones."""
+    """[(label, freq_hz, gain, dash, hover note)] of the vehicle's filters and the
+    recommended ones (the label short, for the legend; what is not modelled in the note)."""
     out = []
     fr_rev = series.get("filter_review") or {}
-    for key, label, dash in (("response_logged", "vehicle's filters (logged settings)", "solid"),
+    for key, label, dash in (("response_logged", "vehicle's filters (logged)", "solid"),
                              ("response_recommended", "recommended settings", "dash")):
         if fr_rev.get(key) is not None and fr_rev.get("freq_hz") is not None:
-            out.append((label, fr_rev["freq_hz"], fr_rev[key], dash))
+            out.append((label, fr_rev["freq_hz"], fr_rev[key], dash, ""))
     if out:
         return out
     vf = report.get("vehicle_filters") or {}
@@ -623,12 +777,12 @@ def _responses_for(report, series, rate_hz):
     if stages and rate_hz:
         freq = np.linspace(0, rate_hz / 2.0, 512)
         g, skipped = vehicle_response(stages, freq, rate_hz)
-        label = "vehicle's filters (logged settings)" + (f"; not modelled: {', '.join(skipped)}" if skipped else "")
-        out.append((label, freq, g, "solid"))
+        label = "vehicle's filters (logged)" + (" *" if skipped else "")
+        out.append((label, freq, g, "solid", f"* not modelled: {', '.join(skipped)}" if skipped else ""))
         rec = (report.get("filter_review") or {}).get("recommended_stages")
         if rec:
             g2, _ = vehicle_response(rec, freq, rate_hz)
-            out.append(("recommended settings", freq, g2, "dash"))
+            out.append(("recommended settings", freq, g2, "dash", ""))
     return out
 
 
@@ -658,6 +812,87 @@ def _spectra_section(report, series, figs):
     return "".join(out)
 
 
+#: the review's figure sets, in the table's order: (key in ``figures``, row label)
+REVIEW_ROWS = (("pre_filter", "pre-filter (measured)"), ("logged", "logged settings (predicted)"),
+               ("recommended", "recommended settings (predicted)"))
+#: the frequencies of the review's phase lag columns [Hz]
+REVIEW_LAG_HZ = ("10", "20", "30")
+
+
+def _num(v, spec=".3g"):
+    return f"<span class=num>{_e(_f(v, spec))}</span>"
+
+
+def _review_html(fr):
+    """The filter review (docs/logs/filter-review.md) as readable HTML: noise (deg/s rms
+    per axis and rss) and phase lag at 10/20/30 Hz for the pre-filter / logged /
+    recommended chains, the verdict and its changes, the lines to paste in a
+    ``<pre>``, the peaks, the notch rule, the reasons and notes; what is left
+    (source, rates...) as a key/value table, nothing cut."""
+    out = []
+    figures = fr.get("figures") or {}
+    rows = []
+    for key, label in REVIEW_ROWS:
+        f = figures.get(key)
+        if not isinstance(f, dict):
+            continue
+        noise = f.get("noise_rms_deg_s") or {}
+        lag = f.get("phase_lag_ms") or {}
+        rows.append([_e(label)] + [_num(noise.get(a)) for a in ("x", "y", "z", "rss")] +
+                    [_num(lag.get(h), ".3g") if lag else "" for h in REVIEW_LAG_HZ])
+    if rows:
+        band = fr.get("noise_band_hz")
+        band_txt = f" over {_f(band[0])}..{_f(band[1])} Hz" if isinstance(band, (list, tuple)) and len(band) == 2 else ""
+        out.append(f"<h4>Noise{_e(band_txt)} and lag</h4>" + _table(
+            rows, ["chain", "noise x [deg/s]", "noise y [deg/s]", "noise z [deg/s]", "noise rss [deg/s]"] +
+            [f"lag at {h} Hz [ms]" for h in REVIEW_LAG_HZ]))
+    verdict = fr.get("verdict")
+    changes = fr.get("changes") or {}
+    logged = fr.get("logged") or {}
+    if verdict is not None or changes:
+        cls = "warn" if changes else "pass"
+        out.append(f'<p>verdict: <span class="{cls}">{_e(verdict or ("change" if changes else "no change"))}</span>'
+                   + ("" if changes else ": the logged settings are kept") + "</p>")
+    if changes:
+        out.append(_table([[_e(k), _num(logged.get(k)), _num(v)] for k, v in changes.items()],
+                          ["parameter", "logged", "recommended"]))
+    lines = fr.get("param_lines")
+    if lines:
+        out.append("<p>Lines to paste into the autopilot's parameter file or console:</p><pre class=paste>" +
+                   _e("\n".join(str(x) for x in lines)) + "</pre>")
+    rec = fr.get("recommended") or {}
+    if rec:
+        out.append("<details><summary>every recommended value (" + str(len(rec)) + ", changed or not)</summary>" +
+                   _table([[_e(k), _num(logged.get(k)), _num(v)] for k, v in rec.items()],
+                          ["parameter", "logged", "recommended"]) + "</details>")
+    for key, title in (("logged_stages", "logged filter chain"), ("recommended_stages", "recommended filter chain")):
+        stages = [s for s in fr.get(key) or [] if isinstance(s, dict)]
+        if stages:
+            cols = [k for k in dict.fromkeys(k for s in stages for k in s) if k != "kind"]
+            out.append(f"<h4>{_e(title)}</h4>" + _table([[_e(s.get("kind"))] + [_value_html(s.get(k)) for k in cols]
+                                                         for s in stages], ["kind"] + cols))
+    peaks = [p for p in fr.get("peaks") or [] if isinstance(p, dict)]
+    if peaks:
+        out.append("<h4>Peaks</h4>" + _table(
+            [[_num(p.get("freq_hz"), ".4g"), _e(p.get("axis") or ""), _num(p.get("ratio_db"), ".3g"),
+              _num(p.get("amplitude_rms_deg_s")),
+              '<span class="pass">yes</span>' if p.get("notch_ok") else
+              ('<span class="warn">no</span>' if p.get("notch_ok") is not None else ""),
+              _e(p.get("why_not") or "")] for p in peaks],
+            ["frequency [Hz]", "axis", "prominence [dB]", "amplitude [deg/s rms]", "notch ok", "why not"]))
+    if fr.get("notch_rule"):
+        out.append(f"<p><b>notch rule:</b> {_e(fr['notch_rule'])}</p>")
+    for key, title in (("why", "why"), ("notes", "notes")):
+        items = fr.get(key)
+        if isinstance(items, str):
+            items = [items]
+        if items:
+            out.append(f"<h4>{title}</h4><ul>" + "".join(f"<li>{_value_html(x)}</li>" for x in items) + "</ul>")
+    out.append(_kv_table(fr, skip=("figures", "verdict", "changes", "param_lines", "recommended", "logged_stages",
+                                   "recommended_stages", "peaks", "notch_rule", "why", "notes", "noise_band_hz")))
+    return "".join(out)
+
+
 def _filter_review_section(report, series, figs):
     out = ["<h2 id=filters>Vehicle filters and review</h2>"]
     vf = report.get("vehicle_filters")
@@ -680,13 +915,7 @@ def _filter_review_section(report, series, figs):
         out.append(_notes_for(report, "vehicle_filters") or _note("vehicle_filters: not in this report"))
     fr = report.get("filter_review")
     if fr:
-        out.append("<h3>Filter review</h3>" + _kv_table(fr, skip=("param_lines", "recommended")))
-        if fr.get("recommended"):
-            out.append("<h3>Recommended parameters</h3>" +
-                       _table([[_e(k), _e(_f(v))] for k, v in fr["recommended"].items()], ["parameter", "value"]))
-        if fr.get("param_lines"):
-            out.append("<p>Lines to paste into the autopilot's parameter file or console:</p><pre>" +
-                       _e("\n".join(str(x) for x in fr["param_lines"])) + "</pre>")
+        out.append("<h3>Filter review</h3>" + _review_html(fr))
     else:
         out.append(_notes_for(report, "filter_review") or _note("filter_review: not in this report"))
     rev = series.get("filter_review") or {}
@@ -726,32 +955,172 @@ def _review_figure(rev):
     return fig
 
 
+#: verdict -> bar colour of the vibration plots (None: no published threshold)
+VERDICT_COLOURS = {"pass": "#2e9d4f", "warn": "#e69500", "fail": "#b00020", None: "#8c8c8c"}
+#: the bar pattern per segment of the vibration plots (the colour is the verdict's)
+SEGMENT_PATTERNS = ("", "/", "x", ".", "\\", "+", "-", "|")
+#: numeric keys of a vibration segment that are not metrics
+_SEGMENT_KEYS = ("start_s", "end_s", "samples", "count", "n", "session")
+
+
+def _segment_label(seg, i):
+    """'kind start-end s' (with its boot session when it is not 0) of a vibration segment."""
+    label = str(seg.get("kind") or seg.get("segment") or f"segment {i + 1}")
+    if seg.get("start_s") is not None:
+        label += f" {float(seg['start_s']):.0f}-{float(seg.get('end_s') or 0):.0f} s"
+    if seg.get("session") not in (None, 0):
+        label = f"session {seg['session']}: " + label
+    return label
+
+
 def vibration_levels(vib):
-    """[(segment label, {metric: value})] and {metric: {"warn", "fail"}} of a
-    vibration report: its ``segments`` (or ``per_segment``) list of dicts, each
-    with its ``kind`` (or ``segment``) and numeric figures (or a ``levels`` dict of
-    them), and its ``thresholds``: {metric: {"warn", "fail"}} or one {"warn",
-    "fail"} for every metric."""
+    """[(segment label, {metric: figure})] of a vibration report's ``segments``: each
+    figure a dict ``{"mean", "p95", "max", "unit", "threshold": {"warn", "fail"} or
+    None, "verdict", "samples"}`` of a level, or ``{"increase", "unit": "count",
+    "threshold", "verdict"}`` of a clip counter (docs/logs/vibration.md). A segment's
+    ``figures`` dict is read as it is; flat numbers of an older report (a segment's
+    own numbers or its ``levels``; not ``session``, ``start_s``...) become
+    ``{"p95": value}`` against the report's ``thresholds`` (one ``{"warn", "fail"}``
+    or one per metric), with no verdict."""
+    th = vib.get("thresholds") or {}
+    if isinstance(th, dict) and ("warn" in th or "fail" in th):
+        common = th
+    else:
+        common = None
+
+    def thr(metric):
+        t = common if common is not None else th.get(metric)
+        if isinstance(t, dict) and (t.get("warn") is not None or t.get("fail") is not None):
+            return {"warn": t.get("warn"), "fail": t.get("fail")}
+        return None
+
+    def flat(vals):
+        return {k: {"p95": float(v), "unit": vib.get("unit"), "threshold": thr(k), "verdict": None}
+                for k, v in vals.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+                and k not in _SEGMENT_KEYS}
+
     rows = []
     for i, seg in enumerate(vib.get("segments") or vib.get("per_segment") or []):
         if not isinstance(seg, dict):
             continue
-        label = str(seg.get("kind") or seg.get("segment") or f"segment {i + 1}")
-        if seg.get("start_s") is not None:
-            label += f" {float(seg['start_s']):.0f}-{float(seg.get('end_s') or 0):.0f} s"
-        vals = seg.get("levels") if isinstance(seg.get("levels"), dict) else seg
-        nums = {k: float(v) for k, v in vals.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
-                and k not in ("start_s", "end_s", "samples", "count", "n")}
-        if nums:
-            rows.append((label, nums))
+        if isinstance(seg.get("figures"), dict):
+            figs = {k: dict(v) for k, v in seg["figures"].items() if isinstance(v, dict)}
+        else:
+            figs = flat(seg.get("levels") if isinstance(seg.get("levels"), dict) else seg)
+        if figs:
+            rows.append((_segment_label(seg, i), figs))
     if not rows and isinstance(vib.get("levels"), dict):
-        nums = {k: float(v) for k, v in vib["levels"].items() if isinstance(v, (int, float))}
-        if nums:
-            rows.append((vib.get("over") or "log", nums))
-    th = vib.get("thresholds") or {}
-    if isinstance(th, dict) and ("warn" in th or "fail" in th):
-        th = {k: th for k in {m for _, n in rows for m in n}}
-    return rows, {k: v for k, v in th.items() if isinstance(v, dict)}
+        figs = flat(vib["levels"])
+        if figs:
+            rows.append((str(vib.get("over") or "log"), figs))
+    return rows
+
+
+def _is_clip(fig):
+    return "increase" in fig
+
+
+def _vibration_figure(rows, metrics, title, value_key):
+    """Bars of ``value_key`` (p95 of a level, increase of a clip counter) per metric
+    (x) and segment (pattern), coloured by verdict, the max as a marker above a
+    level's bar, its warn and fail thresholds as dashed lines; a metric with no
+    threshold is labelled "no published threshold"."""
+    import plotly.graph_objects as go
+    cats = []
+    for m in metrics:
+        has = any((figs.get(m) or {}).get("threshold") for _, figs in rows)
+        cats.append(m if has else f"{m}<br>(no published threshold)")
+    fig = go.Figure()
+    for i, (label, figs) in enumerate(rows):
+        vals = [(figs.get(m) or {}).get(value_key) for m in metrics]
+        if all(v is None for v in vals):
+            continue
+        verdicts = [(figs.get(m) or {}).get("verdict") for m in metrics]
+        units = [(figs.get(m) or {}).get("unit") or "" for m in metrics]
+        text = [f"{label}<br>{m}: {value_key} {_f(v)} {u}; verdict {vd or 'none (no published threshold)'}"
+                for m, v, u, vd in zip(metrics, vals, units, verdicts)]
+        fig.add_trace(go.Bar(_validate=False, x=cats, y=vals, name=label, offsetgroup=str(i),
+                             marker={"color": [VERDICT_COLOURS.get(v, VERDICT_COLOURS[None]) for v in verdicts],
+                                     "pattern": {"shape": SEGMENT_PATTERNS[i % len(SEGMENT_PATTERNS)]}},
+                             text=text, textposition="none", hovertemplate="%{text}<extra></extra>"))
+        if value_key == "p95":
+            mx = [(figs.get(m) or {}).get("max") for m in metrics]
+            if any(v is not None for v in mx):
+                fig.add_trace(go.Scatter(_validate=False, x=cats, y=mx, mode="markers", name=f"{label}: max",
+                                         offsetgroup=str(i), legendgroup="max", showlegend=i == 0,
+                                         marker={"symbol": "line-ew-open", "size": 14, "color": "#222",
+                                                 "line": {"width": 2}},
+                                         text=[f"{label}<br>{m}: max {_f(v)}" for m, v in zip(metrics, mx)],
+                                         hovertemplate="%{text}<extra></extra>"))
+    shown = set()
+    for j, m in enumerate(metrics):
+        t = next(((figs.get(m) or {}).get("threshold") for _, figs in rows
+                  if (figs.get(m) or {}).get("threshold")), None)
+        for level in ("warn", "fail"):
+            v = (t or {}).get(level)
+            if v is None:
+                continue
+            colour = VERDICT_COLOURS[level]
+            fig.add_shape(type="line", x0=j - 0.45, x1=j + 0.45, y0=v, y1=v,
+                          line={"color": colour, "width": 2, "dash": "dash"})
+            fig.add_trace(go.Scatter(_validate=False, x=[cats[j]], y=[v], mode="markers", name=f"{level} threshold",
+                                     legendgroup=level, showlegend=level not in shown,
+                                     marker={"color": colour, "symbol": "line-ew-open", "size": 18,
+                                             "line": {"width": 2, "color": colour}},
+                                     hovertemplate=f"{level} threshold of {m}: %{{y:.3g}}<extra></extra>"))
+            shown.add(level)
+    fig.update_layout(barmode="group", title={"text": title, "font": {"size": 14}},
+                      legend={"orientation": "h", "yanchor": "top", "y": -0.25, "x": 0})
+    return fig
+
+
+def _vibration_plots(rows):
+    """[(title, figure)]: one per unit of the levels (p95 bars, max markers), one of the
+    clip counters' increases."""
+    metrics = []
+    for _, figs in rows:
+        metrics += [m for m in figs if m not in metrics]
+    levels = [m for m in metrics if not any(_is_clip(figs.get(m) or {}) for _, figs in rows)]
+    clips = [m for m in metrics if m not in levels]
+    out = []
+    units = []
+    for m in levels:
+        u = next(((figs.get(m) or {}).get("unit") for _, figs in rows if (figs.get(m) or {}).get("unit")), "")
+        if u not in units:
+            units.append(u)
+    for u in units:
+        ms = [m for m in levels if next(((figs.get(m) or {}).get("unit") for _, figs in rows
+                                         if (figs.get(m) or {}).get("unit")), "") == u]
+        fig = _vibration_figure(rows, ms, f"vibration levels [{u or 'no unit'}]: p95 per segment (bar, colour: "
+                                          "verdict), max (dash), warn/fail thresholds (dashed lines)", "p95")
+        fig.update_yaxes(title_text=f"p95 [{u}]" if u else "p95")
+        out.append(fig)
+    if clips:
+        none = all(not (figs.get(m) or {}).get("increase") for _, figs in rows for m in clips)
+        fig = _vibration_figure(rows, clips, "accelerometer clipping: increase over each segment "
+                                             "(colour: verdict; dashed: warn/fail)" +
+                                ("; no clipping: every increase is 0" if none else ""), "increase")
+        fig.update_yaxes(title_text="increase [count]")
+        out.append(fig)
+    return out
+
+
+def _vibration_table(rows):
+    """The vibration figures as a table: a row per segment and metric."""
+    out = []
+    for label, figs in rows:
+        for m, fg in figs.items():
+            th = fg.get("threshold") or {}
+            vd = fg.get("verdict")
+            out.append([_e(label), _e(m), *(f'<span class=num>{_e(_f(fg.get(k)))}</span>'
+                                            for k in ("mean", "p95", "max", "increase")),
+                        _e(fg.get("unit") or ""),
+                        _e(_f(th.get("warn"))) if th else "", _e(_f(th.get("fail"))) if th else "",
+                        f'<span class="{_e(vd)}">{_e(vd)}</span>' if vd else
+                        ('<span class=small>no published threshold</span>' if not th else ""),
+                        _e(_f(fg.get("samples")))])
+    return _table(out, ["segment", "metric", "mean", "p95", "max", "increase", "unit", "warn", "fail",
+                        "verdict", "samples"])
 
 
 def _vibration_section(report, figs):
@@ -761,33 +1130,31 @@ def _vibration_section(report, figs):
         return "".join(out) + (_notes_for(report, "vibration") or _note("vibration: not in this report"))
     verdict = str(vib.get("verdict") or "")
     cls = verdict if verdict in ("pass", "warn", "fail") else ""
+    src = ", ".join(str(vib[k]) for k in ("source", "accel_source") if vib.get(k))
     out.append(f'<p>verdict: <span class="{cls}">{_e(verdict or "none")}</span>'
-               f'{" (source: " + _e(vib.get("source")) + ")" if vib.get("source") else ""}</p>')
-    rows, th = vibration_levels(vib)
+               f'{" (source: " + _e(src) + ")" if src else ""}'
+               f'{"; over " + _e(vib.get("over")) + " time" if vib.get("over") else ""}</p>')
+    rows = vibration_levels(vib)
+    for fig in _vibration_plots(rows):
+        out.append(figs.div(fig, height=420))
     if rows:
-        import plotly.graph_objects as go
-        metrics = sorted({m for _, n in rows for m in n})
-        fig = go.Figure()
-        for label, nums in rows:
-            fig.add_trace(go.Bar(_validate=False, x=metrics, y=[nums.get(m) for m in metrics], name=label,
-                                 hovertemplate=f"{_e(label)} %{{x}}: %{{y:.3g}}<extra></extra>"))
-        for j, m in enumerate(metrics):
-            for level, colour in (("warn", "#e69500"), ("fail", "#b00020")):
-                v = (th.get(m) or {}).get(level)
-                if v is None:
-                    continue
-                fig.add_shape(type="line", x0=j - 0.45, x1=j + 0.45, y0=v, y1=v, line={"color": colour, "width": 2,
-                                                                                      "dash": "dash"})
-                fig.add_trace(go.Scatter(_validate=False, x=[m], y=[v], mode="markers", marker={"color": colour, "symbol": "line-ew",
-                                                                               "size": 1},
-                                         name=f"{level} threshold", legendgroup=level,
-                                         showlegend=not any(t.name == f"{level} threshold" for t in fig.data),
-                                         hovertemplate=f"{level} threshold of %{{x}}: %{{y:.3g}}<extra></extra>"))
-        fig.update_layout(barmode="group", title={"text": "vibration per segment against the thresholds "
-                                                          "(dashed: warn orange, fail red)", "font": {"size": 14}},
-                          yaxis_title=_e(vib.get("unit") or "level"))
-        out.append(figs.div(fig, height=400))
-    out.append(_kv_table(vib, skip=("segments", "per_segment", "levels")))
+        out.append("<h3>Vibration per segment and metric</h3>" + _vibration_table(rows))
+    th = vib.get("thresholds")
+    if isinstance(th, dict) and th and not ("warn" in th or "fail" in th):
+        trows = [[_e(k), _e(_f(v.get("warn"))), _e(_f(v.get("fail"))), _e(v.get("unit") or ""),
+                  _e(v.get("says") or ""), _link(v.get("source"))] for k, v in th.items() if isinstance(v, dict)]
+        if trows:
+            out.append("<h3>Thresholds</h3>" + _table(trows, ["metric", "warn", "fail", "unit", "says", "source"]))
+    peaks = [(_segment_label(seg, i), p) for i, seg in enumerate(vib.get("segments") or [])
+             if isinstance(seg, dict) for p in seg.get("accel_peaks") or [] if isinstance(p, dict)]
+    if peaks:
+        out.append("<h3>Accelerometer peaks</h3>" + _table(
+            [[_e(lb), f"<span class=num>{_e(_f(p.get('freq_hz'), '.4g'))}</span>",
+              f"<span class=num>{_e(_f(p.get('amplitude_rms_m_s2')))}</span>",
+              f"<span class=num>{_e(_f(p.get('ratio_db'), '.3g'))}</span>"] for lb, p in peaks],
+            ["segment", "frequency [Hz]", "amplitude [m/s/s rms]", "above floor [dB]"]))
+    out.append(_kv_table(vib, skip=("segments", "per_segment", "levels", "thresholds", "verdict", "source",
+                                    "accel_source", "over")))
     return "".join(out)
 
 
@@ -899,14 +1266,15 @@ def write_fleet_report(path, fleet_report, per_log=()):
             continue
         vs = r.get("density_vs_fleet_median")
         table.append([link, _e(r.get("stream")), "ok", _e(_f(r.get("rate_hz"), ".4g")),
-                      _e(_f(r.get("noise_raw"))), _e(_f(r.get("noise_filtered"))),
+                      _with_unit(r.get("noise_raw"), r.get("noise_unit")),
+                      _with_unit(r.get("noise_filtered"), r.get("noise_unit")),
                       _e(_f(r.get("noise_density_deg_s_rthz"))),
                       ('<span class="fail">' if r.get("flag") else "<span>") + _e(_f(vs, ".2g")) + "</span>",
                       f'<span class="{_e(verdict)}">{_e(verdict)}</span>' +
                       ("" if flying is None else f" {flying:.0f} s flying"),
                       _e(r.get("left_raw") or r.get("vs_fleet_note") or r.get("note") or "")])
-    out.append("<h2>Logs</h2>" + _table(table, ["log (its report)", "stream", "status", "rate [Hz]", "noise raw",
-                                               "noise filtered", "density [deg/s/√Hz]", "x fleet median",
+    out.append("<h2>Logs</h2>" + _table(table, ["log (its report)", "stream", "status", "rate [Hz]",
+                                               "noise raw (unit)", "noise filtered (unit)", "density [deg/s/√Hz]", "x fleet median",
                                                "vibration", "note"]))
     with figs:
         fig = _fleet_figure(rows)
@@ -915,6 +1283,14 @@ def write_fleet_report(path, fleet_report, per_log=()):
         else:
             out.append(_note("no stream has a noise density to compare"))
     return _write(path, _page("gyrodenoise fleet report", "".join(out)))
+
+
+def _with_unit(v, unit):
+    """A fleet table cell: the number with its unit ("0.81 deg/s", "12.3 raw counts"
+    where the unit is unknown), '' for None."""
+    if v is None:
+        return ""
+    return f"<span class=num>{_e(_f(v))}</span> {_e(unit or 'raw counts (unit unknown)')}"
 
 
 def _fleet_figure(rows):

@@ -46,6 +46,54 @@ FILTERED_COLOUR, RAW_COLOUR = "#0b3d91", "#8fb3e8"
 SEGMENT_COLOURS = {"ground": "0.85", "armed": "#ffe08a", "flying": "#b7e4c7", "hover": "#b9d4ff"}
 
 
+#: the percentiles of the samples an initial y range keeps, widened by
+#: :data:`Y_MARGIN` of their span each side: a crash spike does not set it. 1-99, not
+#: 0.1-99.9: log171's crash (about 2 s at up to 1100 deg/s) is ~1 % of its flying
+#: samples, and 0.1-99.9 still gave +-600 deg/s for a flight within +-100
+Y_PERCENTILES = (1.0, 99.0)
+#: the margin of the initial y range, a share of the percentiles' span each side
+Y_MARGIN = 0.5
+#: what a clipped time plot says of its y range
+Y_CLIPPED_NOTE = "y clipped to 1-99 % of the samples + 50 %"
+
+
+def flying_mask(time_s, segments):
+    """Bool per sample: inside a ``flying`` or ``hover`` segment (all False without)."""
+    t = np.asarray(time_s, dtype=np.float64)
+    m = np.zeros(len(t), dtype=bool)
+    for g in segments or []:
+        try:
+            if g["kind"] in ("flying", "hover"):
+                m |= (t >= float(g["start_s"])) & (t <= float(g["end_s"]))
+        except (KeyError, TypeError, ValueError):
+            continue
+    return m
+
+
+def robust_ylim(values, keep=None, margin=Y_MARGIN):
+    """(lo, hi): the initial y range of a time plot, the :data:`Y_PERCENTILES` of the
+    finite ``values`` ((n,) or (n, k) samples; only the rows where ``keep`` when it
+    selects at least 100, e.g. the flying ones) widened by ``margin`` of their span
+    each side; None when every finite sample lies within half that range's width of
+    it (nothing worth clipping) or there is no finite sample."""
+    v = np.asarray(values, dtype=np.float64)
+    v2 = v.reshape(len(v), -1)
+    allv = v2[np.isfinite(v2)]
+    if not len(allv):
+        return None
+    sel = v2[keep] if keep is not None and int(np.count_nonzero(keep)) >= 100 else v2
+    sel = sel[np.isfinite(sel)]
+    if not len(sel):
+        sel = allv
+    lo, hi = np.percentile(sel, Y_PERCENTILES)
+    span = max(hi - lo, 1e-9 * max(abs(lo), abs(hi), 1.0))
+    lo, hi = lo - margin * span, hi + margin * span
+    slack = 0.5 * (hi - lo)
+    if allv.min() >= lo - slack and allv.max() <= hi + slack:
+        return None
+    return float(lo), float(hi)
+
+
 def plot_stream(path, title, t, x, f, restarts, unit, axes=("x", "y", "z"), segments=None):
     """PNG of raw and filtered per axis (``t``: the samples' boot times, s),
     restarts as dashed red lines; ``segments`` (``[{"kind", "start_s", "end_s"}]``,
@@ -63,12 +111,17 @@ def written_raw(x, f):
 def _plot_data(t, x, f, restarts, segments=None):
     """What the plot needs: per axis the min/max envelopes (the filtered one None
     for a stream written raw), the restart times, their boot times (labels when the
-    plot's time is not the boot time), the x label and the segments to shade
-    (their times on the plot's axis; none when the plot's time is not the log's)."""
+    plot's time is not the boot time), the x label, the segments to shade
+    (their times on the plot's axis; none when the plot's time is not the log's)
+    and per axis the initial y range (:func:`robust_ylim` over the flying samples,
+    else all; None where nothing is clipped)."""
     raw_only = written_raw(x, f)
     if raw_only:
         f = x
     pt, xlabel = plot_time(t, restarts)
+    keep = flying_mask(t, segments)
+    ylims = [robust_ylim(np.column_stack([x[:, k]] + ([] if raw_only else [f[:, k]])), keep)
+             for k in range(x.shape[1])]
     labels = None if pt is t or np.array_equal(pt, t) else np.asarray(t, dtype=np.float64)[restarts]
     rt = pt[restarts]
     cut = np.flatnonzero(restarts)          # no line drawn across a restart (a gap, a reboot)
@@ -83,7 +136,7 @@ def _plot_data(t, x, f, restarts, segments=None):
                 shade.append((float(g["start_s"]), float(g["end_s"]), str(g["kind"])))
             except (KeyError, TypeError, ValueError):
                 continue
-    return lines, rt, labels, xlabel, shade
+    return lines, rt, labels, xlabel, shade, ylims
 
 
 def _draw(path, title, pdata, unit, axes, spectrum=None):
@@ -97,7 +150,8 @@ def _draw(path, title, pdata, unit, axes, spectrum=None):
     import matplotlib.pyplot as plt
     fig, axs = plt.subplots(len(axes), 1, figsize=(9, 6.5), sharex=True)
     fig.subplots_adjust(left=0.1, right=0.98, top=0.94, bottom=0.08, hspace=0.12)
-    lines, rt, rlabels, xlabel, shade = pdata
+    lines, rt, rlabels, xlabel, shade = pdata[:5]
+    ylims = pdata[5] if len(pdata) > 5 else [None] * len(lines)
     for k, ax in enumerate(np.atleast_1d(axs)):
         kinds = set()
         for a, b, kind in shade:           # behind everything
@@ -119,8 +173,12 @@ def _draw(path, title, pdata, unit, axes, spectrum=None):
                         color="C3", va="bottom")
         ax.set_ylabel(f"{axes[k]} [{unit}]")
         ax.grid(True, lw=0.3)
+        if ylims[k] is not None:
+            ax.set_ylim(*ylims[k])
     axs[0].legend(loc="upper right", fontsize=8, ncol=4)
-    axs[0].set_title(title, fontsize=10)
+    clipped = [a for a, y in zip(axes, ylims) if y is not None]
+    axs[0].set_title(title + (f"  ({Y_CLIPPED_NOTE}: {', '.join(clipped)}; flying time where known)"
+                              if clipped else ""), fontsize=9 if clipped else 10)
     axs[-1].set_xlabel(xlabel)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=90, pil_kwargs={"compress_level": 1})

@@ -43,6 +43,18 @@ SPECTRUM_METRIC = (
     "gyrodenoise.analysis.spectrum").format(f=MIN_PEAK_FREQ_HZ, fa=sp.FALSE_ALARM)
 
 
+#: a lag this small [ms] is numerical noise of the measurement: printed as 0
+LAG_ZERO_MS = 0.01
+
+
+def lag_text(lag_ms):
+    """A lag [ms] as text: "0" where ``|lag| <`` :data:`LAG_ZERO_MS` (numerical noise,
+    not "-3.1e-05"), else two significant digits ('.2g')."""
+    if not np.isfinite(lag_ms):
+        return "-"
+    return "0" if abs(lag_ms) < LAG_ZERO_MS else f"{lag_ms:.2g}"
+
+
 def _computed_sos(method, rate_hz, filter_kw):
     """The low-pass's sections when the method is the core's Butterworth, else None."""
     if method != "lowpass":
@@ -344,8 +356,8 @@ def _draw_response(ax, items):
             b = int(np.argmin(np.abs(fr - f)))
             ok = [1000.0 * d[b] for d, gk, c in zip(pd["delay_s"], pd["gain"], pd["coherence"])
                   if d is not None and np.isfinite(d[b]) and gk[b] > 0.1 and c[b] > 0.5]
-            calc = "" if pd["computed_delay_s"] is None else f" ({1000.0 * pd['computed_delay_s'][b]:.3g})"
-            vals.append(f"{np.median(ok):.2g}{calc}" if ok else "-")
+            calc = "" if pd["computed_delay_s"] is None else f" ({lag_text(1000.0 * pd['computed_delay_s'][b])})"
+            vals.append(f"{lag_text(float(np.median(ok)))}{calc}" if ok else "-")
         rows.append(f"{name} ({colour_name(j)}): lag at " + " / ".join(f"{f:g}" for f in marks) +
                     " Hz: " + " / ".join(vals) + " ms")
     ax.set_ylim(0, 1.3)

@@ -85,16 +85,33 @@ def synthetic_report(out_dir, seconds=60.0, rate_hz=400.0, seed=3):
                             "stages": [{"kind": "lowpass", "cutoff_hz": 20.0},
                                        {"kind": "harmonic_notch", "center_hz": 80.0, "bandwidth_hz": 20.0,
                                         "attenuation_db": 40.0, "harmonics": [1, 2]}]},
-        "filter_review": {"source": "IMU[0]", "logged": {"noise_deg_s": 0.3, "lag_ms": {"10": 9.0, "20": 18.0}},
-                          "predicted": {"noise_deg_s": 0.2, "lag_ms": {"10": 6.0, "20": 12.0}},
-                          "recommended": {"INS_GYRO_FILTER": 40, "INS_HNTCH_FREQ": 80},
-                          "param_lines": ["INS_GYRO_FILTER,40", "INS_HNTCH_FREQ,80"]},
-        "vibration": {"source": "VIBE", "verdict": "warn", "unit": "m/s/s", "over": "flying",
-                      "thresholds": {"warn": 30.0, "fail": 60.0},
-                      "segments": [{"kind": "flying", "start_s": 22.0, "end_s": 62.0,
-                                    "vibe_x": 12.0, "vibe_y": 35.0, "vibe_z": 20.0},
-                                   {"kind": "hover", "start_s": 30.0, "end_s": 45.0,
-                                    "vibe_x": 10.0, "vibe_y": 28.0, "vibe_z": 18.0}]},
+        "filter_review": {
+            "source": {"stream": "IMU[0]", "stage": "pre-filter", "sample_rate_hz": rate_hz, "over": "flying"},
+            "noise_band_hz": [30.0, 160.0],
+            "notch_rule": "a static or harmonic notch only on a peak at or above 40 Hz, at least 10 dB above the "
+                          "local floor, at most 0.4 x the analysed stream's rate",
+            "peaks": [{"freq_hz": 80.0, "axis": "x", "amplitude_rms_deg_s": 1.06, "ratio_db": 25.0,
+                       "notch_ok": True, "why_not": None},
+                      {"freq_hz": 160.0, "axis": "x", "amplitude_rms_deg_s": 0.35, "ratio_db": 12.0,
+                       "notch_ok": False, "why_not": "above 0.4 x the stream's rate"}],
+            "figures": {"pre_filter": {"noise_rms_deg_s": {"x": 1.2, "y": 1.2, "z": 1.2, "rss": 2.08}},
+                        "logged": {"noise_rms_deg_s": {"x": 0.3, "y": 0.3, "z": 0.3, "rss": 0.52},
+                                   "phase_lag_ms": {"10": 9.0, "20": 9.5, "30": 10.1}},
+                        "recommended": {"noise_rms_deg_s": {"x": 0.2, "y": 0.2, "z": 0.2, "rss": 0.35},
+                                        "phase_lag_ms": {"10": 6.0, "20": 6.2, "30": 6.5}}},
+            "logged": {"INS_GYRO_FILTER": 20, "INS_HNTCH_FREQ": 80},
+            "logged_stages": [{"kind": "lowpass", "params": "INS_GYRO_FILTER", "cutoff_hz": 20.0}],
+            "recommended_stages": [{"kind": "lowpass", "params": "INS_GYRO_FILTER", "cutoff_hz": 40.0}],
+            "recommended": {"INS_GYRO_FILTER": 40, "INS_HNTCH_FREQ": 80},
+            "changes": {"INS_GYRO_FILTER": 40}, "verdict": "change",
+            "param_lines": ["INS_GYRO_FILTER,40"],
+            "why": ["INS_GYRO_FILTER 40: the highest cutoff whose predicted noise is no more than the logged "
+                    "settings'"]},
+        "vibration": {"source": "VIBE", "verdict": "warn", "over": "flying",
+                      "thresholds": {"vibe_level_m_s2": {"warn": 30.0, "fail": 60.0, "unit": "m/s/s"},
+                                     "clip_increase": {"warn": 1, "fail": 100, "unit": "count"}},
+                      "segments": [_vibe_segment("flying", 22.0, 62.0, (12.0, 35.0, 20.0), 3),
+                                   _vibe_segment("hover", 30.0, 45.0, (10.0, 28.0, 18.0), 0)]},
     }
     fr = pd["freq_hz"]
     from gyrodenoise.mavlink.html_report import vehicle_response
@@ -110,6 +127,24 @@ def synthetic_report(out_dir, seconds=60.0, rate_hz=400.0, seed=3):
                                 "psd_post_logged": pre * resp_logged ** 2, "psd_post_recommended": pre * resp_rec ** 2,
                                 "response_logged": resp_logged, "response_recommended": resp_rec}}
     return report, series
+
+
+def _vibe_segment(kind, start_s, end_s, p95, clips):
+    """A segment of ``report["vibration"]`` in the review's shape (docs/logs/vibration.md):
+    VibeX/Y/Z levels with ArduPilot's thresholds, a clip counter, and a gyro metric with
+    no published threshold."""
+    def verdict(v):
+        return "fail" if v >= 60.0 else "warn" if v >= 30.0 else "pass"
+    figures = {f"Vibe{a}": {"mean": 0.7 * v, "p95": v, "max": 1.3 * v, "unit": "m/s/s",
+                            "threshold": {"warn": 30.0, "fail": 60.0}, "verdict": verdict(v), "samples": 400}
+               for a, v in zip("XYZ", p95)}
+    figures["Clip0"] = {"increase": clips, "unit": "count", "threshold": {"warn": 1, "fail": 100},
+                        "verdict": "warn" if clips else "pass"}
+    figures["gyro_vibration_metric"] = {"mean": 0.4, "p95": 0.5, "max": 0.6, "unit": "rad/s", "threshold": None,
+                                        "verdict": None, "samples": 400}
+    worst = max((f["verdict"] for f in figures.values() if f["verdict"]), key=("pass", "warn", "fail").index)
+    return {"kind": kind, "start_s": start_s, "end_s": end_s, "session": 0, "figures": figures,
+            "accel_peaks": [{"freq_hz": 80.0, "amplitude_rms_m_s2": 0.6, "ratio_db": 14.0}], "verdict": worst}
 
 
 def real_log_report(log_path, out_dir):

@@ -138,3 +138,13 @@ def test_a_stream_written_raw_says_why_its_response_is_not_measured(captured, tm
     spectra.draw_log_spectrum(tmp_path / "s.png", "t", [("IMU", pd)])
     texts = " ".join(t.get_text() for ax in captured[-1].axes for t in ax.texts)
     assert "not measured (written raw" in texts
+
+
+def test_a_crash_spike_does_not_set_the_png_y_range(captured, tmp_path):
+    s, x = _stream()
+    x[-10:] = 2000.0
+    f = _lowpass(x, 400.0, s.restarts)
+    segs = [{"kind": "flying", "start_s": 1.0, "end_s": 9.0}]
+    plotting.plot_stream(tmp_path / "a.png", "t", s.time_s, x, f, s.restarts, "deg/s", segments=segs)
+    ax = captured[-1].axes[0]
+    assert ax.get_ylim()[1] < 100 and "y clipped to 1-99 % of the samples" in ax.get_title()

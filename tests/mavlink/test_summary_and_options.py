@@ -134,7 +134,7 @@ def test_plot_time_is_the_summary_time(tmp_path, monkeypatch):
     sessions joined from 0); the plot's time is now the boot time of the summary and CSV."""
     got = _captured_plots(monkeypatch)
     rep = process.process_log(shared_log("log171.bin"), tmp_path, csv=False)
-    lines, rt, labels, xlabel, _segments = got["log171.IMU.png"]
+    lines, rt, labels, xlabel, _segments, _ylims = got["log171.IMU.png"]
     restart = next(e for e in rep["restarts"] if e["stream"] == "IMU")
     assert rt.tolist() == [pytest.approx(restart["time_s"], abs=1e-6)]
     assert "boot time" in xlabel and labels is None
@@ -148,7 +148,7 @@ def test_plot_of_a_log_whose_time_goes_back_labels_restarts_with_boot_time(tmp_p
     the first sample's boot time, each restart line labelled with the summary's time."""
     got = _captured_plots(monkeypatch)
     rep = process.process_log(shared_log("copter_20211202-132613.tlog"), tmp_path, csv=False)
-    lines, rt, labels, xlabel, _segments = got["copter_20211202-132613.RAW_IMU.png"]
+    lines, rt, labels, xlabel, _segments, _ylims = got["copter_20211202-132613.RAW_IMU.png"]
     times = [e["time_s"] for e in rep["restarts"] if e["stream"] == "RAW_IMU"]
     assert labels.tolist() == pytest.approx(times) and "joined" in xlabel
     assert np.all(np.diff(rt) > 0)
