@@ -655,13 +655,14 @@ KERNEL double log1m_small_(double g)
 typedef struct {
     double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF], c[MO_MAX_NF];
     double g0[MO_MAX_NF], g1[MO_MAX_NF], ls[MO_MAX_NF];
+    double ct[MO_MAX_NF];   /* the Huber clip's threshold per lane: p[P_MO_CLIP2], +inf for the fastest on */
     double hist[2 * (4 * MO_MAX_NLAG + 1)];
 } mo_bank_t;
 
 KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
 {
     long o = layout_total_(ORDER(p)) - N_EXT, q = o + M_BANK;
-    int i, nh = 4 * (int)p[P_MO_NLAG] + 1;
+    int i, nh = 4 * (int)p[P_MO_NLAG] + 1, nf = (int)p[P_MO_NF];
     for (i = 0; i < MO_MAX_NF; i++) {
         b->x[i] = s[q + i];
         b->a[i] = s[q + MO_MAX_NF + i];
@@ -671,6 +672,7 @@ KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
         b->g0[i] = p[P_MO_G + i];
         b->g1[i] = p[P_MO_G + MO_MAX_NF + i];
         b->ls[i] = p[P_MO_G + 2 * MO_MAX_NF + i];
+        b->ct[i] = i < nf - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
     }
     for (i = 0; i < nh; i++) {
         b->hist[i] = s[o + M_HIST + i];
@@ -704,9 +706,10 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
     int pos, i, j, best, c, hb;
     double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], W[MO_MAX_NF], V[MO_MAX_NF],
-        U[MO_MAX_NF], LK[MO_MAX_NF], OM[MO_MAX_NF];
+        U[MO_MAX_NF], LK[MO_MAX_NF], OM[MO_MAX_NF], CL[MO_MAX_NF];
     double *bx, *ba, *bl, *bh, *bc;
-    const double *pg0, *pg1, *pls, *hist;
+    const double *pg0, *pg1, *pls, *pct, *hist;
+    double ctl[MO_MAX_NF];
     if (bk) {          /* the batch loop's bank (mo_bank_t) */
         bx = bk->x;
         ba = bk->a;
@@ -716,6 +719,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         pg0 = bk->g0;
         pg1 = bk->g1;
         pls = bk->ls;
+        pct = bk->ct;
     } else {           /* the state's bank, the same layout: MO_MAX_NF lanes per value */
         bx = s + o + M_BANK;
         ba = bx + MO_MAX_NF;
@@ -725,6 +729,9 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         pg0 = p + P_MO_G;
         pg1 = pg0 + MO_MAX_NF;
         pls = pg0 + 2 * MO_MAX_NF;
+        for (i = 0; i < MO_MAX_NF; i++)
+            ctl[i] = i < nf - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
+        pct = ctl;
     }
     if (p[P_LP_NSEC] > 0.0) {
         z = sos_cascade_(p, s, o + M_LPD, z);
@@ -846,6 +853,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             W[i] = w;
             V[i] = v;
             U[i] = u;
+            CL[i] = u > pct[i] ? 1.0 : 0.0;
             LK[i] = fade * bl[i] - 0.5 * (u + pls[i]);
         }
     } else {
@@ -865,12 +873,17 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             W[i] = w;
             V[i] = v;
             U[i] = u;
+            CL[i] = u > pct[i] ? 1.0 : 0.0;
             LK[i] = fade * bl[i] - 0.5 * (u + ls);
         }
     }
-    for (i = 0; i < nf - 1; i++)     /* Huber: the update sees at most clip sigma (not the fastest) */
-        if (U[i] > clip2)
-            V[i] = V[i] * sqrt(clip2 / U[i]);
+    for (i = 0; i < MO_MAX_NF / 2; i++)   /* how many filters clip: 0.0 or 1.0 per lane, summed */
+        CL[i] += CL[i + MO_MAX_NF / 2];
+    if (CL[0] + CL[1] + CL[2] + CL[3] + CL[4] + CL[5] + CL[6] + CL[7] > 0.0) {
+        for (i = 0; i < nf - 1; i++)     /* Huber: the update sees at most clip sigma (not the fastest) */
+            if (U[i] > clip2)
+                V[i] = V[i] * sqrt(clip2 / U[i]);
+    }
     if (p[P_MO_CUS + 1] > 0.0) {     /* summed innovation (kernels.motion_step) */
         double cf = p[P_MO_CUS], cw = 0.5 * p[P_MO_CUS + 1], cth = p[P_MO_CUS + 2], cf2 = 1.0 - cf * cf;
         for (i = 0; i < MO_MAX_NF; i++) {
@@ -899,11 +912,10 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     }
     lmax = bl[0];
     best = 0;
-    for (i = 1; i < nf; i++) {
-        if (bl[i] > lmax) {
-            lmax = bl[i];
-            best = i;
-        }
+    for (i = 1; i < nf; i++) {       /* the first most likely, without a branch (cmov) */
+        int gt = bl[i] > lmax;
+        lmax = gt ? bl[i] : lmax;
+        best = gt ? i : best;
     }
     for (i = 0; i < MO_MAX_NF; i++)
         ee[i] = exp_neg_sq_(bl[i] - lmax);
