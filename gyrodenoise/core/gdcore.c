@@ -693,6 +693,37 @@ KERNEL void mo_save_(const double *p, double *s, const mo_bank_t *b)
     }
 }
 
+/* The bank's state update, all lanes side by side (motion_step_): the summed
+ * innovation's penalty on the log-likelihood (kernels.motion_step) and the rate
+ * and slope updated with the gains g0, g1 (the filters' own, or the
+ * growing-memory ones); a function of its own so that each caller's g0, g1 are
+ * known apart from the bank (restrict), which the vectoriser needs. */
+KERNEL void mo_update_(const double *restrict p, double inv_r, const double *restrict V,
+                       const double *restrict W, const double *restrict OM, const double *restrict LK,
+                       const double *restrict g0, const double *restrict g1, double *restrict bx,
+                       double *restrict ba, double *restrict bl, double *restrict bc)
+{
+    int i;
+    if (p[P_MO_CUS + 1] > 0.0) {     /* summed innovation (kernels.motion_step) */
+        double cf = p[P_MO_CUS], cw = 0.5 * p[P_MO_CUS + 1], cth = p[P_MO_CUS + 2], cf2 = 1.0 - cf * cf;
+        for (i = 0; i < MO_MAX_NF; i++) {
+            double v = V[i], cs = cf * bc[i] + v, x2 = cs * cs * OM[i] * inv_r - cth, lk = LK[i];
+            double xp = x2 > 0.0 ? x2 : 0.0;     /* lk - 0.0 == lk: the same as no penalty */
+            bc[i] = cs;
+            bx[i] = W[i] + g0[i] * v;
+            ba[i] = ba[i] + g1[i] * v;
+            bl[i] = lk - cw * xp * cf2;
+        }
+    } else {
+        for (i = 0; i < MO_MAX_NF; i++) {
+            double v = V[i];
+            bx[i] = W[i] + g0[i] * v;
+            ba[i] = ba[i] + g1[i] * v;
+            bl[i] = LK[i];
+        }
+    }
+}
+
 /* method="motion": the bank of constant-velocity Kalman filters weighted by
  * their faded likelihoods, the noise level from 4th differences at several
  * lags, restarts from the best filter, angle feedback; with max_motion_hz
@@ -847,8 +878,6 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     if (gm0 == 0.0) {      /* the growing-memory gains are off: every filter at its own */
         for (i = 0; i < MO_MAX_NF; i++) {
             double om = 1.0 - pg0[i], w = bx[i] + ba[i], v = z - w, u = v * v * om * inv_r;
-            G0[i] = pg0[i];
-            G1[i] = pg1[i];
             OM[i] = om;
             W[i] = w;
             V[i] = v;
@@ -884,24 +913,10 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             if (U[i] > clip2)
                 V[i] = V[i] * sqrt(clip2 / U[i]);
     }
-    if (p[P_MO_CUS + 1] > 0.0) {     /* summed innovation (kernels.motion_step) */
-        double cf = p[P_MO_CUS], cw = 0.5 * p[P_MO_CUS + 1], cth = p[P_MO_CUS + 2], cf2 = 1.0 - cf * cf;
-        for (i = 0; i < MO_MAX_NF; i++) {
-            double v = V[i], cs = cf * bc[i] + v, x2 = cs * cs * OM[i] * inv_r - cth, lk = LK[i];
-            double xp = x2 > 0.0 ? x2 : 0.0;     /* lk - 0.0 == lk: the same as no penalty */
-            bc[i] = cs;
-            bx[i] = W[i] + G0[i] * v;
-            ba[i] = ba[i] + G1[i] * v;
-            bl[i] = lk - cw * xp * cf2;
-        }
-    } else {
-        for (i = 0; i < MO_MAX_NF; i++) {
-            double v = V[i];
-            bx[i] = W[i] + G0[i] * v;
-            ba[i] = ba[i] + G1[i] * v;
-            bl[i] = LK[i];
-        }
-    }
+    if (gm0 == 0.0)      /* the filters' own gains, read where they are */
+        mo_update_(p, inv_r, V, W, OM, LK, pg0, pg1, bx, ba, bl, bc);
+    else
+        mo_update_(p, inv_r, V, W, OM, LK, G0, G1, bx, ba, bl, bc);
     if (!bk) {     /* the state's lanes from nf on stay 0.0, as in kernels.py (mo_save_ leaves them) */
         for (i = nf; i < MO_MAX_NF; i++) {
             bx[i] = 0.0;
