@@ -2,7 +2,7 @@
 aarch64 build's output checked bit for bit against x86_64's (under qemu: emulation,
 no timing).
 
-    python benchmarks/motion_cost/motion_cost.py            # callgrind Ir / sample
+    python benchmarks/motion_cost/motion_cost.py            # callgrind Ir / sample, AVX2 vs SSE2 copy
     python benchmarks/motion_cost/motion_cost.py --aarch64  # also zig cc + qemu-aarch64
 
 A small C driver (driver.c) runs gd_run over case files written here: the core
@@ -83,19 +83,28 @@ def main():
     d = Path(tempfile.mkdtemp(prefix="motion_cost_"))
     cs = cases(d, a.n)
     x86 = build(d, ["gcc"], "drv_x86", core=a.core)
-    cg = d / "cg.out"
-    subprocess.run(["valgrind", "--tool=callgrind", "--toggle-collect=gd_run",
-                    f"--callgrind-out-file={cg}", str(x86), str(cs["bench"]), str(d / "o.bin")],
-                   check=True, capture_output=True)
-    rep = subprocess.run(["callgrind_annotate", str(cg)], check=True, capture_output=True, text=True).stdout
-    ir = next(int(ln.split()[0].replace(",", "")) for ln in rep.splitlines() if "PROGRAM TOTALS" in ln)
-    print(f"motion, gd_run, paper_fog 200 Hz, {a.n} samples: {ir / a.n:.1f} instructions/sample (callgrind)", flush=True)
+    sse2 = build(d, ["gcc"], "drv_sse2", FLAGS + ["-DGD_NO_TARGET_CLONES"], core=a.core)
+    for label, exe in (("as built (the AVX2 copy where the CPU has it)", x86),
+                       ("-DGD_NO_TARGET_CLONES (x86-64 baseline, SSE2)", sse2)):
+        cg = d / "cg.out"
+        subprocess.run(["valgrind", "--tool=callgrind", "--toggle-collect=gd_run",
+                        f"--callgrind-out-file={cg}", str(exe), str(cs["bench"]), str(d / "o.bin")],
+                       check=True, capture_output=True)
+        rep = subprocess.run(["callgrind_annotate", str(cg)], check=True, capture_output=True, text=True).stdout
+        ir = next(int(ln.split()[0].replace(",", "")) for ln in rep.splitlines() if "PROGRAM TOTALS" in ln)
+        print(f"motion, gd_run, paper_fog 200 Hz, {a.n} samples, {label}: "
+              f"{ir / a.n:.1f} instructions/sample (callgrind)", flush=True)
+    for name, case in cs.items():
+        subprocess.run([str(x86), str(case), str(d / f"{name}.x86")], check=True)
+        subprocess.run([str(sse2), str(case), str(d / f"{name}.sse2")], check=True)
+        same = (d / f"{name}.x86").read_bytes() == (d / f"{name}.sse2").read_bytes()
+        print(f"x86_64 as built vs -DGD_NO_TARGET_CLONES, case {name}: output and final state "
+              f"{'identical bit for bit' if same else 'DIFFER'}")
     if not a.aarch64:
         return
     zig = [sys.executable, "-m", "ziglang", "cc", "-target", "aarch64-linux-gnu"]
     arm = build(d, zig, "drv_arm", ["-O2", "-ffp-contract=off", "-std=c99", "-w"])   # clang: no -fsched-*
     for name, case in cs.items():
-        subprocess.run([str(x86), str(case), str(d / f"{name}.x86")], check=True)
         subprocess.run(["qemu-aarch64", "-L", "/usr/aarch64-linux-gnu", str(arm), str(case),
                         str(d / f"{name}.arm")], check=True)
         same = (d / f"{name}.x86").read_bytes() == (d / f"{name}.arm").read_bytes()

@@ -1684,7 +1684,15 @@ static void run_steps_(const double *p, double *s, const double *z, const unsign
 
 /* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
  * from the first sample to the last; s[trace_index] must not be in the bank */
-#if defined(__GNUC__)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) \
+    && defined(__GLIBC__) && __GNUC__ >= 8 && !defined(GD_NO_TARGET_CLONES)
+/* one copy for AVX2 machines (chosen at load time, glibc's ifunc), one for the rest:
+   the bank's loops four lanes at a time. The same IEEE operations (no fused
+   multiply-add: -ffp-contract=off, and AVX2 alone does not enable FMA), so the
+   same bits (tests/core/test_c_core_equals_python.py runs whichever this machine
+   picks). -DGD_NO_TARGET_CLONES builds the one copy. */
+__attribute__((noinline, target_clones("avx2", "default")))
+#elif defined(__GNUC__)
 __attribute__((noinline))
 #endif
 static void run_motion_(const double *p, double *s, const double *z, const unsigned char *restarts,
