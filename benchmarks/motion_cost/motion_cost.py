@@ -77,7 +77,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n", type=int, default=1_440_000, help="samples of the counted record (bench_core's)")
     ap.add_argument("--core", type=Path, default=CORE,
-                    help="folder of the gdcore.c / gdcore.h to count (e.g. an older commit's, from git archive)")
+                    help="folder of the gdcore.c / gdcore.h to count; the case files come from this "
+                         "checkout's kernels.py, so its parameter and state layout must match (to count "
+                         "an older commit, copy this folder into a `git archive` of it and run it there)")
     ap.add_argument("--aarch64", action="store_true", help="also the aarch64 bit check (qemu)")
     a = ap.parse_args()
     d = Path(tempfile.mkdtemp(prefix="motion_cost_"))
