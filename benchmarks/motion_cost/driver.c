@@ -3,7 +3,8 @@
  * gd_run over it and writes the output and the final state (doubles).
  * Used for callgrind's instruction counts and the aarch64 (qemu) bit check.
  * With a third argument R: also runs the record R more times from the same
- * initial state and prints the fastest run's ns/sample (wall clock). */
+ * initial state and prints the fastest run's ns/sample (wall clock); with
+ * "step" instead: the per-sample path, gd_step for every sample. */
 #define _POSIX_C_SOURCE 199309L
 #include <stdint.h>
 #include <stdio.h>
@@ -19,7 +20,7 @@ int main(int argc, char **argv)
     double *p, *s, *z, *out;
     unsigned char *rs;
     if (argc != 3 && argc != 4) {
-        fprintf(stderr, "usage: driver CASE.bin OUT.bin [REPEAT]\n");
+        fprintf(stderr, "usage: driver CASE.bin OUT.bin [REPEAT | step]\n");
         return 2;
     }
     f = fopen(argv[1], "rb");
@@ -34,7 +35,11 @@ int main(int argc, char **argv)
         || fread(z, 8, hdr[2], f) != (size_t)hdr[2] || fread(rs, 1, hdr[2], f) != (size_t)hdr[2])
         return 1;
     fclose(f);
-    if (argc == 4) {
+    if (argc == 4 && strcmp(argv[3], "step") == 0) {
+        long k;
+        for (k = 0; k < (long)hdr[2]; k++)
+            out[k] = gd_step(p, s, z[k], rs[k]);
+    } else if (argc == 4) {
         double *s0 = malloc(8 * hdr[1]), best = 1e300;
         int r, nr = atoi(argv[3]);
         memcpy(s0, s, 8 * hdr[1]);
@@ -53,7 +58,8 @@ int main(int argc, char **argv)
         memcpy(s, s0, 8 * hdr[1]);
         free(s0);
     }
-    gd_run(p, s, z, rs, out, (long)hdr[2]);
+    if (argc != 4 || strcmp(argv[3], "step") != 0)
+        gd_run(p, s, z, rs, out, (long)hdr[2]);
     f = fopen(argv[2], "wb");
     if (!f)
         return 1;

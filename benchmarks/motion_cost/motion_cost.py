@@ -88,14 +88,16 @@ def main():
     sse2 = build(d, ["gcc"], "drv_sse2", FLAGS + ["-DGD_NO_TARGET_CLONES"], core=a.core)
     for label, exe in (("as built (the AVX2 copy where the CPU has it)", x86),
                        ("-DGD_NO_TARGET_CLONES (x86-64 baseline, SSE2)", sse2)):
-        cg = d / "cg.out"
-        subprocess.run(["valgrind", "--tool=callgrind", "--toggle-collect=gd_run",
-                        f"--callgrind-out-file={cg}", str(exe), str(cs["bench"]), str(d / "o.bin")],
-                       check=True, capture_output=True)
-        rep = subprocess.run(["callgrind_annotate", str(cg)], check=True, capture_output=True, text=True).stdout
-        ir = next(int(ln.split()[0].replace(",", "")) for ln in rep.splitlines() if "PROGRAM TOTALS" in ln)
-        print(f"motion, gd_run, paper_fog 200 Hz, {a.n} samples, {label}: "
-              f"{ir / a.n:.1f} instructions/sample (callgrind)", flush=True)
+        for fn, extra in (("gd_run", []), ("gd_step", ["step"])):   # batch, per sample
+            cg = d / "cg.out"
+            subprocess.run(["valgrind", "--tool=callgrind", f"--toggle-collect={fn}*",
+                            f"--callgrind-out-file={cg}", str(exe), str(cs["bench"]), str(d / "o.bin")] + extra,
+                           check=True, capture_output=True)
+            rep = subprocess.run(["callgrind_annotate", str(cg)], check=True, capture_output=True,
+                                 text=True).stdout
+            ir = next(int(ln.split()[0].replace(",", "")) for ln in rep.splitlines() if "PROGRAM TOTALS" in ln)
+            print(f"motion, {fn}, paper_fog 200 Hz, {a.n} samples, {label}: "
+                  f"{ir / a.n:.1f} instructions/sample (callgrind)", flush=True)
     for name, case in cs.items():
         subprocess.run([str(x86), str(case), str(d / f"{name}.x86")], check=True)
         subprocess.run([str(sse2), str(case), str(d / f"{name}.sse2")], check=True)

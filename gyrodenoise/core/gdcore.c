@@ -17,6 +17,15 @@
  * common AR orders (constant loop bounds); the arithmetic is unchanged. */
 #if defined(__GNUC__)
 #define KERNEL static inline __attribute__((always_inline))
+#if !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && defined(__GLIBC__) && __GNUC__ >= 8 \
+    && !defined(GD_NO_TARGET_CLONES)
+/* gd_run's motion loop and gd_step compiled twice, for AVX2 machines (chosen at load
+   time, glibc's ifunc) and for the rest: the bank's loops four lanes at a time. The
+   same IEEE operations (no fused multiply-add: -ffp-contract=off, and AVX2 alone does
+   not enable FMA), so the same bits (tests/core/test_c_core_equals_python.py runs
+   whichever this machine picks). -DGD_NO_TARGET_CLONES builds the one copy. */
+#define GD_CLONES __attribute__((noinline, target_clones("avx2", "default")))
+#endif
 #define RARE static __attribute__((noinline, cold))   /* kept out of the hot loop */
 #else
 #define KERNEL static inline
@@ -1684,14 +1693,8 @@ static void run_steps_(const double *p, double *s, const double *z, const unsign
 
 /* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
  * from the first sample to the last; s[trace_index] must not be in the bank */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) \
-    && defined(__GLIBC__) && __GNUC__ >= 8 && !defined(GD_NO_TARGET_CLONES)
-/* one copy for AVX2 machines (chosen at load time, glibc's ifunc), one for the rest:
-   the bank's loops four lanes at a time. The same IEEE operations (no fused
-   multiply-add: -ffp-contract=off, and AVX2 alone does not enable FMA), so the
-   same bits (tests/core/test_c_core_equals_python.py runs whichever this machine
-   picks). -DGD_NO_TARGET_CLONES builds the one copy. */
-__attribute__((noinline, target_clones("avx2", "default")))
+#ifdef GD_CLONES
+GD_CLONES
 #elif defined(__GNUC__)
 __attribute__((noinline))
 #endif
@@ -1761,4 +1764,15 @@ double gd_filter_step(const double *p, double *s, double z) { return filter_step
 double gd_lowpass_step(const double *p, double *s, double z) { return lowpass_step_(p, s, z); }
 double gd_motion_step(const double *p, double *s, double z) { return motion_step_(p, s, z, NULL); }
 double gd_c_deg_s(const double *p, const double *s) { return c_deg_s_(p, s); }
+#ifdef GD_CLONES
+/* gd_step's two copies (AVX2, baseline) in a static function: an exported function
+   with target_clones would export its resolver and clones too (the FMUs export fmi2*
+   only) */
+GD_CLONES static double step_cloned_(const double *p, double *s, double z, int is_restart)
+{
+    return step_(p, s, z, is_restart, NULL);
+}
+double gd_step(const double *p, double *s, double z, int is_restart) { return step_cloned_(p, s, z, is_restart); }
+#else
 double gd_step(const double *p, double *s, double z, int is_restart) { return step_(p, s, z, is_restart, NULL); }
+#endif
