@@ -17,6 +17,15 @@
  * common AR orders (constant loop bounds); the arithmetic is unchanged. */
 #if defined(__GNUC__)
 #define KERNEL static inline __attribute__((always_inline))
+#if !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && defined(__GLIBC__) && __GNUC__ >= 8 \
+    && !defined(GD_NO_TARGET_CLONES)
+/* gd_run's motion loop and gd_step compiled twice, for AVX2 machines (chosen at load
+   time, glibc's ifunc) and for the rest: the bank's loops four lanes at a time. The
+   same IEEE operations (no fused multiply-add: -ffp-contract=off, and AVX2 alone does
+   not enable FMA), so the same bits (tests/core/test_c_core_equals_python.py runs
+   whichever this machine picks). -DGD_NO_TARGET_CLONES builds the one copy. */
+#define GD_CLONES __attribute__((noinline, target_clones("avx2", "default")))
+#endif
 #define RARE static __attribute__((noinline, cold))   /* kept out of the hot loop */
 #else
 #define KERNEL static inline
@@ -467,9 +476,9 @@ void gd_motion_params(double *p, double fs)
         double r = sqrt(lam * lam + 8.0 * lam);
         double alpha = -(lam * lam + 8.0 * lam - (lam + 4.0) * r) / 8.0;
         double beta = (lam * lam + 4.0 * lam - lam * r) / 4.0;
-        p[P_MO_G + 3 * i] = alpha;
-        p[P_MO_G + 3 * i + 1] = beta;
-        p[P_MO_G + 3 * i + 2] = -log(1.0 - alpha);
+        p[P_MO_G + i] = alpha;
+        p[P_MO_G + MO_MAX_NF + i] = beta;
+        p[P_MO_G + 2 * MO_MAX_NF + i] = -log(1.0 - alpha);
     }
     p[P_MO_RFIX] = 0.0;
     gd_spectral_params(p, p[P_MO_BR], 1.5);
@@ -644,36 +653,35 @@ KERNEL double log1m_small_(double g)
 }
 
 /* The motion bank held outside the state by gd_run's batch loop (the
- * per-sample paths keep it in s, four values per filter side by side): each
- * filter value in its own array (x = rate, a = change per sample, l =
- * log-likelihood, held = 1 if held at the floor), the per-filter parameters
- * likewise, and the sample history twice over (hist[j] == hist[j + nh]) so
- * that no index wraps. s keeps the history ring (written every sample too)
- * and the scalars; mo_load_ / mo_save_ move the bank between s and here.
- * Same operations in the same order as on s, so the same bits. The weights'
- * exp_neg_sq_ runs over all MO_MAX_NF lanes in one branch-free loop, which
- * the compiler runs two lanes at a time: against the bank updated in s, 1627 ->
- * 1546 instructions per sample (cachegrind) and 130 -> 117 ns/sample on the
- * core benchmark's record (both builds in one process; the bare KF 19.2 ns). */
+ * per-sample paths keep it in s, in the same structure-of-arrays layout: one
+ * run of MO_MAX_NF values per quantity): x = rate, a = change per sample,
+ * l = log-likelihood, held = 1 if held at the floor, c = summed innovation; the
+ * per-filter parameters likewise, and the sample history twice over
+ * (hist[j] == hist[j + nh]) so that no index wraps. s keeps the history ring
+ * (written every sample too) and the scalars; mo_load_ / mo_save_ move the bank
+ * between s and here (nothing the loop keeps can alias out[] or z[]). Same
+ * operations in the same order as on s, so the same bits. */
 typedef struct {
-    double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF];
+    double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF], c[MO_MAX_NF];
     double g0[MO_MAX_NF], g1[MO_MAX_NF], ls[MO_MAX_NF];
+    double ct[MO_MAX_NF];   /* the Huber clip's threshold per lane: p[P_MO_CLIP2], +inf for the fastest on */
     double hist[2 * (4 * MO_MAX_NLAG + 1)];
 } mo_bank_t;
 
 KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
 {
-    long o = layout_total_(ORDER(p)) - N_EXT, q;
-    int i, nf = (int)p[P_MO_NF], nh = 4 * (int)p[P_MO_NLAG] + 1;
+    long o = layout_total_(ORDER(p)) - N_EXT, q = o + M_BANK;
+    int i, nh = 4 * (int)p[P_MO_NLAG] + 1, nf = (int)p[P_MO_NF];
     for (i = 0; i < MO_MAX_NF; i++) {
-        q = o + M_BANK + 4 * i;
-        b->x[i] = i < nf ? s[q] : 0.0;
-        b->a[i] = i < nf ? s[q + 1] : 0.0;
-        b->l[i] = i < nf ? s[q + 2] : 0.0;
-        b->held[i] = i < nf ? s[q + 3] : 0.0;
-        b->g0[i] = i < nf ? p[P_MO_G + 3 * i] : 0.0;
-        b->g1[i] = i < nf ? p[P_MO_G + 3 * i + 1] : 0.0;
-        b->ls[i] = i < nf ? p[P_MO_G + 3 * i + 2] : 0.0;
+        b->x[i] = s[q + i];
+        b->a[i] = s[q + MO_MAX_NF + i];
+        b->l[i] = s[q + 2 * MO_MAX_NF + i];
+        b->held[i] = s[q + 3 * MO_MAX_NF + i];
+        b->c[i] = s[o + M_CUS + i];
+        b->g0[i] = p[P_MO_G + i];
+        b->g1[i] = p[P_MO_G + MO_MAX_NF + i];
+        b->ls[i] = p[P_MO_G + 2 * MO_MAX_NF + i];
+        b->ct[i] = i < nf - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
     }
     for (i = 0; i < nh; i++) {
         b->hist[i] = s[o + M_HIST + i];
@@ -683,14 +691,45 @@ KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
 
 KERNEL void mo_save_(const double *p, double *s, const mo_bank_t *b)
 {
-    long o = layout_total_(ORDER(p)) - N_EXT, q;
+    long o = layout_total_(ORDER(p)) - N_EXT, q = o + M_BANK;
     int i, nf = (int)p[P_MO_NF];
-    for (i = 0; i < nf; i++) {
-        q = o + M_BANK + 4 * i;
-        s[q] = b->x[i];
-        s[q + 1] = b->a[i];
-        s[q + 2] = b->l[i];
-        s[q + 3] = b->held[i];
+    for (i = 0; i < nf; i++) {      /* the lanes from nf on: computed, never read, not saved */
+        s[q + i] = b->x[i];
+        s[q + MO_MAX_NF + i] = b->a[i];
+        s[q + 2 * MO_MAX_NF + i] = b->l[i];
+        s[q + 3 * MO_MAX_NF + i] = b->held[i];
+        s[o + M_CUS + i] = b->c[i];
+    }
+}
+
+/* The bank's state update, all lanes side by side (motion_step_): the summed
+ * innovation's penalty on the log-likelihood (kernels.motion_step) and the rate
+ * and slope updated with the gains g0, g1 (the filters' own, or the
+ * growing-memory ones); a function of its own so that each caller's g0, g1 are
+ * known apart from the bank (restrict), which the vectoriser needs. */
+KERNEL void mo_update_(const double *restrict p, double inv_r, const double *restrict V,
+                       const double *restrict W, const double *restrict OM, const double *restrict LK,
+                       const double *restrict g0, const double *restrict g1, double *restrict bx,
+                       double *restrict ba, double *restrict bl, double *restrict bc)
+{
+    int i;
+    if (p[P_MO_CUS + 1] > 0.0) {     /* summed innovation (kernels.motion_step) */
+        double cf = p[P_MO_CUS], cw = 0.5 * p[P_MO_CUS + 1], cth = p[P_MO_CUS + 2], cf2 = 1.0 - cf * cf;
+        for (i = 0; i < MO_MAX_NF; i++) {
+            double v = V[i], cs = cf * bc[i] + v, x2 = cs * cs * OM[i] * inv_r - cth, lk = LK[i];
+            double xp = x2 > 0.0 ? x2 : 0.0;     /* lk - 0.0 == lk: the same as no penalty */
+            bc[i] = cs;
+            bx[i] = W[i] + g0[i] * v;
+            ba[i] = ba[i] + g1[i] * v;
+            bl[i] = lk - cw * xp * cf2;
+        }
+    } else {
+        for (i = 0; i < MO_MAX_NF; i++) {
+            double v = V[i];
+            bx[i] = W[i] + g0[i] * v;
+            ba[i] = ba[i] + g1[i] * v;
+            bl[i] = LK[i];
+        }
     }
 }
 
@@ -705,32 +744,34 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     long o = layout_total_(ORDER(p)) - N_EXT;
     double zr = z, k, r, rs, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
-    int pos, i, j, best, c, st, gst, nv, hb;
-    double wts[MO_MAX_NF], ee[MO_MAX_NF];
-    double *bx, *ba, *bl, *bh, *bc = s + o + M_CUS;
-    const double *pg0, *pg1, *pls, *hist;
-    if (bk) {          /* the batch loop's bank: one array per value, all lanes */
+    int pos, i, j, best, c, hb;
+    double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], W[MO_MAX_NF], V[MO_MAX_NF],
+        U[MO_MAX_NF], LK[MO_MAX_NF], OM[MO_MAX_NF], CL[MO_MAX_NF];
+    double *bx, *ba, *bl, *bh, *bc;
+    const double *pg0, *pg1, *pls, *pct, *hist;
+    double ctl[MO_MAX_NF];
+    if (bk) {          /* the batch loop's bank (mo_bank_t) */
         bx = bk->x;
         ba = bk->a;
         bl = bk->l;
         bh = bk->held;
-        st = 1;
+        bc = bk->c;
         pg0 = bk->g0;
         pg1 = bk->g1;
         pls = bk->ls;
-        gst = 1;
-        nv = MO_MAX_NF;
-    } else {           /* the state's bank: [x, a, l, held] per filter */
+        pct = bk->ct;
+    } else {           /* the state's bank, the same layout: MO_MAX_NF lanes per value */
         bx = s + o + M_BANK;
-        ba = bx + 1;
-        bl = bx + 2;
-        bh = bx + 3;
-        st = 4;
+        ba = bx + MO_MAX_NF;
+        bl = bx + 2 * MO_MAX_NF;
+        bh = bx + 3 * MO_MAX_NF;
+        bc = s + o + M_CUS;
         pg0 = p + P_MO_G;
-        pg1 = pg0 + 1;
-        pls = pg0 + 2;
-        gst = 3;
-        nv = nf;
+        pg1 = pg0 + MO_MAX_NF;
+        pls = pg0 + 2 * MO_MAX_NF;
+        for (i = 0; i < MO_MAX_NF; i++)
+            ctl[i] = i < nf - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
+        pct = ctl;
     }
     if (p[P_LP_NSEC] > 0.0) {
         z = sos_cascade_(p, s, o + M_LPD, z);
@@ -809,10 +850,10 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     r = s[o + M_R];
     if (k < p[P_WARMUP] || r == 0.0) {
         for (i = 0; i < nf; i++) {
-            bx[st * i] = z;
-            ba[st * i] = 0.0;
-            bl[st * i] = 0.0;
-            bh[st * i] = 0.0;
+            bx[i] = z;
+            ba[i] = 0.0;
+            bl[i] = 0.0;
+            bh[i] = 0.0;
             bc[i] = 0.0;
         }
         return z;
@@ -822,72 +863,104 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     gm1 = 0.0;
     lgm = 0.0;
     if (s[o + M_NWC] == 0.0) {   /* the growing-memory gains, until below every filter's own */
-        double conv = 1.0;
+        int grows = 0;
         nw = s[o + M_NW] + 1.0;
         s[o + M_NW] = nw;
         gm0 = 2.0 * (2.0 * nw - 1.0) / (nw * (nw + 1.0));
         gm1 = 6.0 / (nw * (nw + 1.0));
         if (gm0 < 1.0)
             lgm = log1m_small_(gm0);
-        for (i = 0; i < nf; i++)
-            if (gm0 > p[P_MO_G + 3 * i])
-                conv = 0.0;
-        s[o + M_NWC] = conv;
+        for (i = 0; i < nf && !grows; i++)   /* the slowest filter first: one test, as a rule */
+            grows = gm0 > pg0[i];
+        s[o + M_NWC] = grows ? 0.0 : 1.0;
     }
     fade = p[P_MO_FADE];
     inv_r = 1.0 / r;
     clip2 = p[P_MO_CLIP2];
-    lmax = 0.0;
-    best = 0;
-    for (i = 0; i < nf; i++) {
-        double g0 = pg0[gst * i], g1 = pg1[gst * i], ls = pls[gst * i], v, w, u, lk;
-        if (gm0 > g0) {
-            g0 = gm0;
-            ls = lgm;
-            if (gm1 > g1)
-                g1 = gm1;
+    /* The bank, the filters side by side: every loop over all MO_MAX_NF lanes without
+       a branch (the compiler runs them two or more lanes at a time; the lanes from nf
+       on are computed and never read), each lane the same operations as
+       kernels.motion_step.
+       Both sides of a choice are computed, then one is picked: with the default
+       -ftrapping-math the compiler does not itself hoist floating-point operations
+       out of a condition, so a conditional one keeps the loop scalar. */
+    if (gm0 == 0.0) {      /* the growing-memory gains are off: every filter at its own */
+        for (i = 0; i < MO_MAX_NF; i++) {
+            double om = 1.0 - pg0[i], w = bx[i] + ba[i], v = z - w, u = v * v * om * inv_r;
+            OM[i] = om;
+            W[i] = w;
+            V[i] = v;
+            U[i] = u;
+            CL[i] = u > pct[i] ? 1.0 : 0.0;
+            LK[i] = fade * bl[i] - 0.5 * (u + pls[i]);
         }
-        w = bx[st * i] + ba[st * i];
-        v = z - w;
-        u = v * v * (1.0 - g0) * inv_r;
-        lk = fade * bl[st * i] - 0.5 * (u + ls);
-        if (u > clip2 && i < nf - 1)
-            v = v * sqrt(clip2 / u);
-        if (p[P_MO_CUS + 1] > 0.0) {   /* summed innovation (kernels.motion_step) */
-            double cs = p[P_MO_CUS] * bc[i] + v, x2;
-            bc[i] = cs;
-            x2 = cs * cs * (1.0 - g0) * inv_r - p[P_MO_CUS + 2];
-            if (x2 > 0.0)
-                lk -= 0.5 * p[P_MO_CUS + 1] * x2 * (1.0 - p[P_MO_CUS] * p[P_MO_CUS]);
-        }
-        bx[st * i] = w + g0 * v;
-        ba[st * i] = ba[st * i] + g1 * v;
-        bl[st * i] = lk;
-        if (i == 0 || lk > lmax) {
-            lmax = lk;
-            best = i;
+    } else {
+        for (i = 0; i < MO_MAX_NF; i++) {
+            double g0 = pg0[i], g1 = pg1[i], ls = pls[i], w, v, u, om;
+            int grow = gm0 > g0;
+            g1 = (grow & (gm1 > g1)) ? gm1 : g1;
+            g0 = grow ? gm0 : g0;
+            ls = grow ? lgm : ls;
+            om = 1.0 - g0;
+            w = bx[i] + ba[i];
+            v = z - w;
+            u = v * v * om * inv_r;
+            G0[i] = g0;
+            G1[i] = g1;
+            OM[i] = om;
+            W[i] = w;
+            V[i] = v;
+            U[i] = u;
+            CL[i] = u > pct[i] ? 1.0 : 0.0;
+            LK[i] = fade * bl[i] - 0.5 * (u + ls);
         }
     }
-    for (i = 0; i < nv; i++)
-        ee[i] = exp_neg_sq_(bl[st * i] - lmax);
+    for (i = 0; i < MO_MAX_NF / 2; i++)   /* how many filters clip: 0.0 or 1.0 per lane, summed */
+        CL[i] += CL[i + MO_MAX_NF / 2];
+    if (CL[0] + CL[1] + CL[2] + CL[3] + CL[4] + CL[5] + CL[6] + CL[7] > 0.0) {
+        for (i = 0; i < nf - 1; i++)     /* Huber: the update sees at most clip sigma (not the fastest) */
+            if (U[i] > clip2)
+                V[i] = V[i] * sqrt(clip2 / U[i]);
+    }
+    if (gm0 == 0.0)      /* the filters' own gains, read where they are */
+        mo_update_(p, inv_r, V, W, OM, LK, pg0, pg1, bx, ba, bl, bc);
+    else
+        mo_update_(p, inv_r, V, W, OM, LK, G0, G1, bx, ba, bl, bc);
+    if (!bk) {     /* the state's lanes from nf on stay 0.0, as in kernels.py (mo_save_ leaves them) */
+        for (i = nf; i < MO_MAX_NF; i++) {
+            bx[i] = 0.0;
+            ba[i] = 0.0;
+            bl[i] = 0.0;
+            bc[i] = 0.0;
+        }
+    }
+    lmax = bl[0];
+    best = 0;
+    for (i = 1; i < nf; i++) {       /* the first most likely, without a branch (cmov) */
+        int gt = bl[i] > lmax;
+        lmax = gt ? bl[i] : lmax;
+        best = gt ? i : best;
+    }
+    for (i = 0; i < MO_MAX_NF; i++)
+        ee[i] = exp_neg_sq_(bl[i] - lmax);
     num = 0.0;
     den = 0.0;
     thr = p[P_MO_RESET];
     for (i = 0; i < nf; i++) {
-        double x = bl[st * i] - lmax;
+        double x = bl[i] - lmax;
         if (x < -thr) {
-            if (bh[st * i] == 1.0) {
-                bx[st * i] = bx[st * best];
-                ba[st * i] = ba[st * best];
+            if (bh[i] == 1.0) {
+                bx[i] = bx[best];
+                ba[i] = ba[best];
                 bc[i] = bc[best];
             }
-            bl[st * i] = lmax - thr;
-            bh[st * i] = 1.0;
+            bl[i] = lmax - thr;
+            bh[i] = 1.0;
         } else {
             double e = x < -30.0 ? 0.0 : ee[i];     /* kernels.exp_neg(x) */
-            num += e * bx[st * i];
+            num += e * bx[i];
             den += e;
-            bh[st * i] = 0.0;
+            bh[i] = 0.0;
             wts[i] = e;
         }
     }
@@ -895,11 +968,11 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     if (p[P_MO_VAR] != 0.0) {
         double var = 0.0;
         for (i = 0; i < nf; i++) {
-            if (bh[st * i] == 0.0) {
-                double g0 = pg0[gst * i], dw;
+            if (bh[i] == 0.0) {
+                double g0 = pg0[i], dw;
                 if (gm0 > g0)
                     g0 = gm0;
-                dw = bx[st * i] - y;
+                dw = bx[i] - y;
                 var += wts[i] * (g0 * r + dw * dw);
             }
         }
@@ -908,7 +981,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             var = 1.7976931348623157e308;
         s[o + M_PVAR] = var;
     }
-    c = P_MO_G + 3 * best;
+    c = P_MO_G + best;     /* alpha of the most likely filter; its beta at c + MO_MAX_NF */
     if (p[P_MO_PT] > 0.0) {      /* pass-through (kernels.motion_step) */
         double g = s[o + M_GEFF], lo = p[P_MO_PT + 1];
         g += p[P_MO_PT] * (p[c] - g);
@@ -928,7 +1001,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     s[S_INNOV] = z - out;
     s[S_SVAR] = r / (1.0 - p[c]);
     s[S_R] = r;
-    s[S_Q] = p[c + 1] * p[c + 1] / (1.0 - p[c]) * r;
+    s[S_Q] = p[c + MO_MAX_NF] * p[c + MO_MAX_NF] / (1.0 - p[c]) * r;
     return out;
 }
 
@@ -1620,7 +1693,9 @@ static void run_steps_(const double *p, double *s, const double *z, const unsign
 
 /* the motion loop of gd_run and gd_run_trace: the bank outside s (mo_bank_t)
  * from the first sample to the last; s[trace_index] must not be in the bank */
-#if defined(__GNUC__)
+#ifdef GD_CLONES
+GD_CLONES
+#elif defined(__GNUC__)
 __attribute__((noinline))
 #endif
 static void run_motion_(const double *p, double *s, const double *z, const unsigned char *restarts,
@@ -1658,7 +1733,9 @@ void gd_run_trace(const double *p, double *s, const double *z, const unsigned ch
                   double *out, long n, long trace_index, double *trace)
 {
     long bank = layout_total_(ORDER(p)) - N_EXT + M_BANK;
-    if (p[P_METHOD] == METHOD_MOTION && (trace_index < bank || trace_index >= bank + 4 * MO_MAX_NF)) {
+    long cus = bank - M_BANK + M_CUS;
+    if (p[P_METHOD] == METHOD_MOTION && (trace_index < bank || trace_index >= bank + 4 * MO_MAX_NF)
+        && (trace_index < cus || trace_index >= cus + MO_MAX_NF)) {
         run_motion_(p, s, z, restarts, out, n, trace_index, trace);
         return;
     }
@@ -1701,4 +1778,15 @@ double gd_filter_step(const double *p, double *s, double z) { return filter_step
 double gd_lowpass_step(const double *p, double *s, double z) { return lowpass_step_(p, s, z); }
 double gd_motion_step(const double *p, double *s, double z) { return motion_step_(p, s, z, NULL); }
 double gd_c_deg_s(const double *p, const double *s) { return c_deg_s_(p, s); }
+#ifdef GD_CLONES
+/* gd_step's two copies (AVX2, baseline) in a static function: an exported function
+   with target_clones would export its resolver and clones too (the FMUs export fmi2*
+   only) */
+GD_CLONES static double step_cloned_(const double *p, double *s, double z, int is_restart)
+{
+    return step_(p, s, z, is_restart, NULL);
+}
+double gd_step(const double *p, double *s, double z, int is_restart) { return step_cloned_(p, s, z, is_restart); }
+#else
 double gd_step(const double *p, double *s, double z, int is_restart) { return step_(p, s, z, is_restart, NULL); }
+#endif

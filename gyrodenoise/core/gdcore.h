@@ -57,7 +57,7 @@ extern "C" {
 #define P_MO_KAPPA (P_MO_NF + 6)        /* motion: angle feedback gain */
 #define P_MO_CLIP2 (P_MO_NF + 7)        /* motion: Huber clip of the innovation, sigma^2 */
 #define P_MO_VAR (P_MO_NF + 8)         /* motion: 1 = keep the output variance M_PVAR */
-#define P_MO_G (P_MO_NF + 9)            /* motion: (alpha, beta, log S/R) per filter */
+#define P_MO_G (P_MO_NF + 9)            /* motion: MO_MAX_NF alphas, then the betas, then the log S/R */
 #define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
 #define P_MO_RFIX (P_MO_G + 3 * MO_MAX_NF) /* motion: > 0 = R to use instead of the estimate */
@@ -120,7 +120,7 @@ extern "C" {
 #define M_PVAR 6
 #define M_MABS 7
 #define M_HIST (M_MABS + MO_MAX_NLAG)
-#define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1)
+#define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1) /* MO_MAX_NF rates, then the slopes, log-likelihoods, held flags */
 #define M_LPD (M_BANK + 4 * MO_MAX_NF)  /* max_motion_hz: delays of the rigid-body low-pass */
 #define M_SPOS (M_LPD + 2 * MAX_SOS) /* spectral floor: position in the block */
 #define M_SR (M_SPOS + 1)            /* spectral floor: smoothed R (0 = no block yet) */

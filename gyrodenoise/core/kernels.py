@@ -77,7 +77,8 @@ P_MO_HUBER = P_MO_NF + 5         # motion: Huber clip of |4th difference|, in un
 P_MO_KAPPA = P_MO_NF + 6         # motion: gain of the angle feedback per sample (0 = off)
 P_MO_CLIP2 = P_MO_NF + 7         # motion: Huber clip of the innovation in the state updates, (sigmas)^2
 P_MO_VAR = P_MO_NF + 8           # motion: 1.0 = also keep the output variance M_PVAR (batch.run_offline), 0.0 = not
-P_MO_G = P_MO_NF + 9             # motion: per filter (steady-state gain on rate, on slope, log S/R)
+P_MO_G = P_MO_NF + 9             # motion: MO_MAX_NF steady-state gains on the rate, then MO_MAX_NF on the
+                                 # slope, then MO_MAX_NF log S/R (one run per quantity: the C core's lanes)
 MO_MAX_NF = 16
 MO_MAX_NLAG = 8
 P_MO_RFIX = P_MO_G + 3 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
@@ -154,7 +155,13 @@ M_BEST = 5       # index of the most likely filter at the last sample
 M_PVAR = 6       # variance of the output (the weighted mixture of the filters), (deg/s)^2
 M_MABS = 7       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
 M_HIST = M_MABS + MO_MAX_NLAG              # ring of the last 4 NLAG + 1 centred samples
-M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # per filter: rate, slope per sample, log-likelihood, 1.0 if below the floor at the last sample
+M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # MO_MAX_NF rates, then MO_MAX_NF slopes per sample, log-likelihoods,
+                                           # and flags (1.0 if below the floor at the last sample): one run per
+                                           # quantity, the C core's lanes (MB_X + i, MB_A + i, ...)
+MB_X = M_BANK                   # the bank's runs: rates,
+MB_A = M_BANK + MO_MAX_NF       # slopes per sample,
+MB_L = M_BANK + 2 * MO_MAX_NF   # log-likelihoods,
+MB_H = M_BANK + 3 * MO_MAX_NF   # held flags
 M_LPD = M_BANK + 4 * MO_MAX_NF             # max_motion_hz: delays of the rigid-body low-pass, 2 per section
 M_SPOS = M_LPD + 2 * MAX_SOS   # spectral floor: position of the next sample in the block
 M_SR = M_SPOS + 1              # spectral floor: its smoothed white-noise variance, (deg/s)^2 (0 = no block yet)
@@ -398,7 +405,7 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     gains = [0.0] * (3 * MO_MAX_NF)
     for i in range(n_filters):
         e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
-        gains[3 * i:3 * i + 3] = cv_gains(10.0 ** e)
+        gains[i], gains[MO_MAX_NF + i], gains[2 * MO_MAX_NF + i] = cv_gains(10.0 ** e)
     pt = [1.0 / max(pass_tau_s * fs, 1.0) if pass_tau_s > 0 else 0.0, float(pass_gain[0]), float(pass_gain[1])]
     sp = spectral_params(p[2], spectral)
     c = 0.0
@@ -1150,11 +1157,10 @@ def motion_step(p, s, z):
     nf = int(p[P_MO_NF])
     if k < p[P_WARMUP] or r == 0.0:
         for i in range(nf):
-            q = o + M_BANK + 4 * i
-            s[q] = z
-            s[q + 1] = 0.0
-            s[q + 2] = 0.0
-            s[q + 3] = 0.0
+            s[o + MB_X + i] = z
+            s[o + MB_A + i] = 0.0
+            s[o + MB_L + i] = 0.0
+            s[o + MB_H + i] = 0.0
             s[o + M_CUS + i] = 0.0
         return z
     s[S_CONV] = 1.0
@@ -1173,29 +1179,27 @@ def motion_step(p, s, z):
         # never wins again (nor gm1, used only with it): 0 from the next sample on
         conv = 1.0
         for i in range(nf):
-            if gm0 > p[P_MO_G + 3 * i]:
+            if gm0 > p[P_MO_G + i]:
                 conv = 0.0
         s[o + M_NWC] = conv
     fade = p[P_MO_FADE]
     inv_r = 1.0 / r
     clip2 = p[P_MO_CLIP2]
-    lmax = 0.0
-    best = 0
+    # the filters one after another here; gdcore.c runs them side by side, in several
+    # passes over the filters, each filter's operations the same and in the same order
     for i in range(nf):
-        c = P_MO_G + 3 * i
-        g0 = p[c]
-        g1 = p[c + 1]
-        ls = p[c + 2]
+        g0 = p[P_MO_G + i]
+        g1 = p[P_MO_G + MO_MAX_NF + i]
+        ls = p[P_MO_G + 2 * MO_MAX_NF + i]
         if gm0 > g0:
             g0 = gm0
             ls = lgm
             if gm1 > g1:
                 g1 = gm1
-        q = o + M_BANK + 4 * i
-        wp = s[q] + s[q + 1]
+        wp = s[o + MB_X + i] + s[o + MB_A + i]
         v = z - wp
         u2 = v * v * (1.0 - g0) * inv_r                 # v^2 / S
-        lk = fade * s[q + 2] - 0.5 * (u2 + ls)
+        lk = fade * s[o + MB_L + i] - 0.5 * (u2 + ls)
         if u2 > clip2 and i < nf - 1:
             v = v * math.sqrt(clip2 / u2)                # Huber: the update sees at most clip sigma
         if p[P_MO_CUS + 1] > 0.0:
@@ -1208,34 +1212,35 @@ def motion_step(p, s, z):
             x2 = cs * cs * (1.0 - g0) * inv_r - p[P_MO_CUS + 2]
             if x2 > 0.0:
                 lk -= 0.5 * p[P_MO_CUS + 1] * x2 * (1.0 - p[P_MO_CUS] * p[P_MO_CUS])
-        s[q] = wp + g0 * v
-        s[q + 1] = s[q + 1] + g1 * v
-        s[q + 2] = lk
-        if i == 0 or lk > lmax:
-            lmax = lk
+        s[o + MB_X + i] = wp + g0 * v
+        s[o + MB_A + i] = s[o + MB_A + i] + g1 * v
+        s[o + MB_L + i] = lk
+    lmax = s[o + MB_L]
+    best = 0
+    for i in range(1, nf):
+        if s[o + MB_L + i] > lmax:
+            lmax = s[o + MB_L + i]
             best = i
     num = 0.0
     den = 0.0
     wts = [0.0] * nf
     thr = p[P_MO_RESET]
-    qb = o + M_BANK + 4 * best
     for i in range(nf):
-        q = o + M_BANK + 4 * i
-        x = s[q + 2] - lmax
+        x = s[o + MB_L + i] - lmax
         if x < -thr:
             # weight below exp(-thr): left out of the mean; held at the floor,
             # restarted from the best at the second sample there
-            if s[q + 3] == 1.0:
-                s[q] = s[qb]
-                s[q + 1] = s[qb + 1]
+            if s[o + MB_H + i] == 1.0:
+                s[o + MB_X + i] = s[o + MB_X + best]
+                s[o + MB_A + i] = s[o + MB_A + best]
                 s[o + M_CUS + i] = s[o + M_CUS + best]
-            s[q + 2] = lmax - thr
-            s[q + 3] = 1.0
+            s[o + MB_L + i] = lmax - thr
+            s[o + MB_H + i] = 1.0
         else:
             e = exp_neg(x)
-            num += e * s[q]
+            num += e * s[o + MB_X + i]
             den += e
-            s[q + 3] = 0.0
+            s[o + MB_H + i] = 0.0
             wts[i] = e
     y = num / den
     # variance of the mixture: sum of w (g0 R + (rate - y)^2) / sum of w, the
@@ -1243,18 +1248,17 @@ def motion_step(p, s, z):
     if p[P_MO_VAR] != 0.0:
         var = 0.0
         for i in range(nf):
-            q = o + M_BANK + 4 * i
-            if s[q + 3] == 0.0:
-                g0 = p[P_MO_G + 3 * i]
+            if s[o + MB_H + i] == 0.0:
+                g0 = p[P_MO_G + i]
                 if gm0 > g0:
                     g0 = gm0
-                dw = s[q] - y
+                dw = s[o + MB_X + i] - y
                 var += wts[i] * (g0 * r + dw * dw)
         var = var / den
         if not var - var == 0.0:
             var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
         s[o + M_PVAR] = var
-    c = P_MO_G + 3 * best
+    c = P_MO_G + best      # alpha of the most likely filter; its beta at c + MO_MAX_NF
     if p[P_MO_PT] > 0.0:
         # pass-through: where the most likely filter follows nearly every sample (its gain,
         # smoothed, above p[P_MO_PT + 1]) the bank removes little noise and cannot tell a tone
@@ -1277,7 +1281,7 @@ def motion_step(p, s, z):
     s[S_INNOV] = z - out
     s[S_SVAR] = r / (1.0 - p[c])
     s[S_R] = r      # reported as the other methods report theirs (R_hat, Q_hat of the FMUs)
-    s[S_Q] = p[c + 1] * p[c + 1] / (1.0 - p[c]) * r     # q = lam^2 R of the most likely filter
+    s[S_Q] = p[c + MO_MAX_NF] * p[c + MO_MAX_NF] / (1.0 - p[c]) * r     # q = lam^2 R of the most likely filter
     return out
 
 
