@@ -144,7 +144,7 @@ def _bank_record(p, seg, compiled):
     output on the raw sample (M_LON); the centring reference S_ZREF (deg/s) of each sample."""
     o = K.ext_offset(p)
     nf = int(p[K.P_MO_NF])
-    idx = [o + K.M_BANK + 4 * i + j for i in range(nf) for j in range(3)]
+    idx = [o + lane + i for i in range(nf) for lane in (K.MB_X, K.MB_A, K.MB_L)]   # the bank's lanes
     idx += [o + K.M_NW, o + K.M_R, K.S_CONV, o + K.M_LON, K.S_ZREF]
     n = seg.shape[0]
     out = np.empty(n)
@@ -178,7 +178,7 @@ def _filtered_cov(p, i, line):
     the filter's own (its start-up), else the steady state of the alpha-beta filter
     (alpha, beta from :func:`~gyrodenoise.core.kernels.cv_gains`):
     [[alpha, beta], [beta, beta(2 alpha - beta) / (2(1 - alpha))]]. Returns (c00, c01, c11)."""
-    a, b = p[K.P_MO_G + 3 * i], p[K.P_MO_G + 3 * i + 1]
+    a, b = p[K.P_MO_G + i], p[K.P_MO_G + K.MO_MAX_NF + i]          # the gains' lanes: alpha, beta
     on = line[0] > a
     return (np.where(on, line[0], a), np.where(on, line[1], b),
             np.where(on, line[2], b * (2.0 * a - b) / (2.0 * (1.0 - a))))
@@ -263,7 +263,7 @@ def smooth_motion(p, seg, *, compiled=True):
             xs = np.empty((nf, k.stop - k.start))
             ll = np.empty_like(xs)
             for i in range(nf):
-                lam2 = p[K.P_MO_G + 3 * i + 1] ** 2 / (1.0 - p[K.P_MO_G + 3 * i])   # lam^2 = beta^2 / (1 - alpha)
+                lam2 = p[K.P_MO_G + K.MO_MAX_NF + i] ** 2 / (1.0 - p[K.P_MO_G + i])   # lam^2 = beta^2 / (1 - alpha)
                 xs[i], ll[i] = two_filter_rate(
                     (bf[i, 0, k] + zf[k], bf[i, 1, k]), _filtered_cov(p, i, lnf),
                     (bb[i, 0, j] + zb[j], bb[i, 1, j]), _filtered_cov(p, i, lnb), lam2, r)
