@@ -79,23 +79,7 @@ static gd_status_t imu_step(gdfmi_inst_t *c, double t) {
 }
 
 static double imu_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
-    const user_t *u = &((const imu_t *)c->m)->u;
-    switch (vr) {
-    case VR_sample_period: return u->sample_period;
-    case VR_lam: return u->lam;
-    case VR_b: return u->b;
-    case VR_gamma: return u->gamma;
-    case VR_q0: return u->q0;
-    case VR_r0: return u->r0;
-    case VR_p0_rls: return u->p0_rls;
-    case VR_p0_kf: return u->p0_kf;
-    case VR_warmup_s: return u->warmup_s;
-    case VR_r_floor: return u->r_floor;
-    case VR_outlier_sigma: return u->outlier_sigma;
-    case VR_cutoff_hz: return u->cutoff_hz;
-    case VR_max_motion_hz: return u->max_motion_hz;
-    default: return 0.0;
-    }
+    return param_real(&((const imu_t *)c->m)->u, vr); /* the arrays are read through imu_real_ref */
 }
 
 static double *imu_real_ref(void *m, gd_vr_t vr) {
@@ -104,32 +88,15 @@ static double *imu_real_ref(void *m, gd_vr_t vr) {
     switch (vr) {
     case VR_raw_rate: return d->raw_rate;
     case VR_filtered_rate: return d->filtered_rate; /* read only: the layer never sets an output */
-    case VR_sample_period: return &u->sample_period;
-    case VR_lam: return &u->lam;
-    case VR_b: return &u->b;
-    case VR_gamma: return &u->gamma;
-    case VR_q0: return &u->q0;
-    case VR_r0: return &u->r0;
-    case VR_p0_rls: return &u->p0_rls;
-    case VR_p0_kf: return &u->p0_kf;
-    case VR_warmup_s: return &u->warmup_s;
-    case VR_r_floor: return &u->r_floor;
-    case VR_outlier_sigma: return &u->outlier_sigma;
-    case VR_cutoff_hz: return &u->cutoff_hz;
-    case VR_max_motion_hz: return &u->max_motion_hz;
-    default: return NULL;
+    default: return param_real_ref(u, vr);
     }
 }
 
 static int32_t *imu_int_ref(void *m, gd_vr_t vr) {
     imu_t *d = (imu_t *)m;
     switch (vr) {
-    case VR_ar_order: return &d->u.ar_order;
-    case VR_outlier_run: return &d->u.outlier_run;
-    case VR_lowpass_order: return &d->u.lowpass_order;
     case VR_restart: return &d->restart;
-    case VR_strict_step_size: return &d->u.strict_step_size;
-    default: return NULL;
+    default: return param_int_ref(&d->u, vr);
     }
 }
 

@@ -101,20 +101,7 @@ static double dn_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
     case VR_R_hat: return s ? s[S_R] : 0.0;
     case VR_Q_hat: return s ? s[S_Q] : 0.0;
     case VR_innovation: return s ? s[S_INNOV] : 0.0;
-    case VR_sample_period: return u->sample_period;
-    case VR_lam: return u->lam;
-    case VR_b: return u->b;
-    case VR_gamma: return u->gamma;
-    case VR_q0: return u->q0;
-    case VR_r0: return u->r0;
-    case VR_p0_rls: return u->p0_rls;
-    case VR_p0_kf: return u->p0_kf;
-    case VR_warmup_s: return u->warmup_s;
-    case VR_r_floor: return u->r_floor;
-    case VR_outlier_sigma: return u->outlier_sigma;
-    case VR_cutoff_hz: return u->cutoff_hz;
-    case VR_max_motion_hz: return u->max_motion_hz;
-    default: return 0.0;
+    default: return param_real(u, vr);
     }
 }
 
@@ -123,32 +110,15 @@ static double *dn_real_ref(void *m, gd_vr_t vr) {
     user_t *u = &d->u;
     switch (vr) {
     case VR_raw_rate: return &d->raw_rate;
-    case VR_sample_period: return &u->sample_period;
-    case VR_lam: return &u->lam;
-    case VR_b: return &u->b;
-    case VR_gamma: return &u->gamma;
-    case VR_q0: return &u->q0;
-    case VR_r0: return &u->r0;
-    case VR_p0_rls: return &u->p0_rls;
-    case VR_p0_kf: return &u->p0_kf;
-    case VR_warmup_s: return &u->warmup_s;
-    case VR_r_floor: return &u->r_floor;
-    case VR_outlier_sigma: return &u->outlier_sigma;
-    case VR_cutoff_hz: return &u->cutoff_hz;
-    case VR_max_motion_hz: return &u->max_motion_hz;
-    default: return NULL;
+    default: return param_real_ref(u, vr);
     }
 }
 
 static int32_t *dn_int_ref(void *m, gd_vr_t vr) {
     dn_t *d = (dn_t *)m;
     switch (vr) {
-    case VR_ar_order: return &d->u.ar_order;
-    case VR_outlier_run: return &d->u.outlier_run;
-    case VR_lowpass_order: return &d->u.lowpass_order;
     case VR_restart: return &d->restart;
-    case VR_strict_step_size: return &d->u.strict_step_size;
-    default: return NULL;
+    default: return param_int_ref(&d->u, vr);
     }
 }
 

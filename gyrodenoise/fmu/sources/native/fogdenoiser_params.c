@@ -15,6 +15,44 @@ typedef struct {
     char method[METHOD_LEN];
 } user_t;
 
+/* where each parameter is stored, by value reference (the names of the including model's
+   <model>_vars.h): its Real parameters, then its Integer ones; NULL for any other variable
+   (the model's inputs, outputs and states are its own) */
+static double *param_real_ref(user_t *u, gd_vr_t vr) {
+    switch (vr) {
+    case VR_sample_period: return &u->sample_period;
+    case VR_lam: return &u->lam;
+    case VR_b: return &u->b;
+    case VR_gamma: return &u->gamma;
+    case VR_q0: return &u->q0;
+    case VR_r0: return &u->r0;
+    case VR_p0_rls: return &u->p0_rls;
+    case VR_p0_kf: return &u->p0_kf;
+    case VR_warmup_s: return &u->warmup_s;
+    case VR_r_floor: return &u->r_floor;
+    case VR_outlier_sigma: return &u->outlier_sigma;
+    case VR_cutoff_hz: return &u->cutoff_hz;
+    case VR_max_motion_hz: return &u->max_motion_hz;
+    default: return NULL;
+    }
+}
+
+static int32_t *param_int_ref(user_t *u, gd_vr_t vr) {
+    switch (vr) {
+    case VR_ar_order: return &u->ar_order;
+    case VR_outlier_run: return &u->outlier_run;
+    case VR_lowpass_order: return &u->lowpass_order;
+    case VR_strict_step_size: return &u->strict_step_size;
+    default: return NULL;
+    }
+}
+
+/* a Real parameter's value (0.0 for a variable that is not one) */
+static double param_real(const user_t *u, gd_vr_t vr) {
+    const double *r = param_real_ref((user_t *)u, vr);
+    return r ? *r : 0.0;
+}
+
 /* the parameters' start values */
 static void user_defaults(user_t *u) {
     u->ar_order = START_ar_order;
