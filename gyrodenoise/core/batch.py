@@ -138,14 +138,14 @@ SMOOTH_BLOCK = 8192     # samples per block of the offline smoother's combinatio
 def _bank_record(p, seg, compiled):
     """The causal ``motion`` filter stepped over ``seg``, recording its bank after every
     sample. Returns (out, bank, nw, r, active, line, zref): the causal output (n,);
-    per constant-velocity filter (the bank's first P_MO_NF - P_MO_NCA lanes; the
-    constant-acceleration lanes are not recorded) its rate (centred), slope per sample and
+    per constant-velocity filter (the bank's first P_MO_NF lanes; the P_MO_NCA
+    constant-acceleration lanes after them are not recorded) its rate (centred), slope per sample and
     faded log-likelihood, (ncv, 3, n);
     the growing-memory sample count M_NW; the white-noise variance M_R; 1.0 where the bank
     filtered that sample (past its warm-up, S_CONV); 1.0 where the line test held the
     output on the raw sample (M_LON); the centring reference S_ZREF (deg/s) of each sample."""
     o = K.ext_offset(p)
-    nf = int(p[K.P_MO_NF]) - int(p[K.P_MO_NCA])     # the constant-velocity lanes
+    nf = int(p[K.P_MO_NF])       # the constant-velocity lanes (the CA ones follow them)
     idx = [o + lane + i for i in range(nf) for lane in (K.MB_X, K.MB_A, K.MB_L)]   # the bank's lanes
     idx += [o + K.M_NW, o + K.M_R, K.S_CONV, o + K.M_LON, K.S_ZREF]
     n = seg.shape[0]
@@ -222,7 +222,7 @@ def smooth_motion(p, seg, *, compiled=True):
     """Fixed-interval smoother of the ``motion`` bank over one run of samples (no restart
     inside): the two-filter smoother of every constant-velocity model of the bank, blended
     by the models' probabilities given the whole run. Only the bank's constant-velocity
-    models are combined (the first P_MO_NF - P_MO_NCA lanes, whose covariances have the
+    models are combined (the first P_MO_NF lanes, whose covariances have the
     closed forms below); its constant-acceleration lanes take part in the forward and
     backward causal runs (the restarts, the causal output where one direction warms up)
     but not in the combination.
@@ -249,7 +249,7 @@ def smooth_motion(p, seg, *, compiled=True):
     finite samples of ``seg``; where it would not be finite (an input near the largest
     float), the causal blend of :func:`run_offline` is used there. Returns the smoothed rate
     (deg/s), an ndarray like ``seg``."""
-    n, nf = seg.shape[0], int(p[K.P_MO_NF]) - int(p[K.P_MO_NCA])     # the CV models
+    n, nf = seg.shape[0], int(p[K.P_MO_NF])     # the CV models
     fo, bf, nwf, rf, af, lf, zf = _bank_record(p, seg, compiled)
     bo, bb, nwb, rb, ab, lb, zb = _bank_record(p, seg[::-1].copy(), compiled)
     bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[:, :, ::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]

@@ -70,8 +70,9 @@ const char *gd_check(const double *p, long n_p, long n_s)
         double nf = p[P_MO_NF], nlag = p[P_MO_NLAG];
         if (!(nf >= 1.0 && nf <= (double)MO_MAX_NF && nf == (double)(int)nf))
             return "p[P_MO_NF] must be a whole number in 1..MO_MAX_NF";
-        if (!(p[P_MO_NCA] >= 0.0 && p[P_MO_NCA] < nf && p[P_MO_NCA] == (double)(int)p[P_MO_NCA]))
-            return "p[P_MO_NCA] must be a whole number in 0..p[P_MO_NF] - 1";
+        if (!(p[P_MO_NCA] >= 0.0 && p[P_MO_NCA] <= (double)MO_MAX_NF - nf
+              && p[P_MO_NCA] == (double)(int)p[P_MO_NCA]))
+            return "p[P_MO_NCA] must be a whole number in 0..MO_MAX_NF - p[P_MO_NF]";
         if (!(nlag >= 1.0 && nlag <= (double)MO_MAX_NLAG && nlag == (double)(int)nlag))
             return "p[P_MO_NLAG] must be a whole number in 1..MO_MAX_NLAG";
     }
@@ -461,7 +462,7 @@ void gd_motion_params(double *p, double fs)
     const int nf = 8, nca = 4;
     const double lmin = -10.0, lmax = 2.0, amin = -4.0, amax = 0.0;
     int i;
-    p[P_MO_NF] = (double)(nf + nca);
+    p[P_MO_NF] = (double)nf;
     p[P_MO_FADE] = exp(-1.0 / (3.0 * fs));
     p[P_MO_BR] = 1.0 - 1.0 / (10.0 * fs);
     p[P_MO_RESET] = 20.0;
@@ -692,7 +693,7 @@ typedef struct {
 KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
 {
     long o = layout_total_(ORDER(p)) - N_EXT, q = o + M_BANK;
-    int i, nh = 4 * (int)p[P_MO_NLAG] + 1, nf = (int)p[P_MO_NF], ncv = nf - (int)p[P_MO_NCA];
+    int i, nh = 4 * (int)p[P_MO_NLAG] + 1, ncv = (int)p[P_MO_NF];
     for (i = 0; i < MO_MAX_NF; i++) {
         b->x[i] = s[q + i];
         b->a[i] = s[q + MO_MAX_NF + i];
@@ -716,7 +717,7 @@ KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
 KERNEL void mo_save_(const double *p, double *s, const mo_bank_t *b)
 {
     long o = layout_total_(ORDER(p)) - N_EXT, q = o + M_BANK;
-    int i, nf = (int)p[P_MO_NF];
+    int i, nf = (int)p[P_MO_NF] + (int)p[P_MO_NCA];
     for (i = 0; i < nf; i++) {      /* the lanes from nf on: computed, never read, not saved */
         s[q + i] = b->x[i];
         s[q + MO_MAX_NF + i] = b->a[i];
@@ -773,7 +774,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
     double zr = z, k, r, rs, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
-    int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF], ncv = nf - (int)p[P_MO_NCA];
+    int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, ncv = (int)p[P_MO_NF], nf = ncv + (int)p[P_MO_NCA];
     int pos, i, j, best, c, hb;
     double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], G2[MO_MAX_NF], W[MO_MAX_NF],
         AP[MO_MAX_NF], V[MO_MAX_NF], U[MO_MAX_NF], LK[MO_MAX_NF], OM[MO_MAX_NF], CL[MO_MAX_NF];

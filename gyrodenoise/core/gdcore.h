@@ -48,7 +48,7 @@ extern "C" {
 #define MAX_MOTION_ORDER 4  /* motion's rigid-body low-pass (max_motion_hz): Butterworth order, */
 #define MAX_MOTION_CUTOFF 2.0  /* -3 dB at this many times max_motion_hz, */
 #define MAX_MOTION_FS_CAP 0.45 /* at most this fraction of the sample rate (kernels.rigid_cutoff_hz) */
-#define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: filters in the bank, the last P_MO_NCA constant-acceleration */
+#define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: constant-velocity filters, lanes 0..NF-1 */
 #define P_MO_FADE (P_MO_NF + 1)         /* motion: fading of the log-likelihoods */
 #define P_MO_BR (P_MO_NF + 2)           /* motion: forgetting of the noise level */
 #define P_MO_RESET (P_MO_NF + 3)        /* motion: restart gap of the log-likelihood */
@@ -77,7 +77,7 @@ extern "C" {
 #define P_MO_LINE (P_MO_PT + 3) /* motion: spectral line test threshold x the floor (0 = off) */
 #define MO_LINE_J0 7               /* the line test's first bin (MO_SPEC_K0 + 2 x 7: 0.36 fs) */
 #define P_MO_CUS (P_MO_PT + 4) /* motion: summed innovation: fading, weight, threshold (0 weight = off) */
-#define P_MO_NCA (P_MO_PT + 7) /* motion: the bank's last this many filters are constant-acceleration lanes */
+#define P_MO_NCA (P_MO_PT + 7) /* motion: constant-acceleration filters, lanes NF..NF+NCA-1 */
 #define N_PARAMS (P_MO_PT + 8)
 
 /* p[P_METHOD] values (doubles, compared with ==) */

@@ -68,8 +68,8 @@ P_LP_NSEC = 13   # lowpass, and motion's rigid-body low-pass: number of second-o
 P_LP_CUTOFF = 14  # lowpass, and motion's rigid-body low-pass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
-P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of filters in the bank (<= MO_MAX_NF), the last P_MO_NCA of
-                                 # them constant-acceleration (CA) lanes, the others constant-velocity (CV)
+P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity (CV) filters in the bank, lanes 0..NF-1;
+                                 # P_MO_NCA constant-acceleration (CA) ones follow (NF + NCA <= MO_MAX_NF)
 P_MO_FADE = P_MO_NF + 1          # motion: fading factor of the filters' log-likelihoods per sample
 P_MO_BR = P_MO_NF + 2            # motion: forgetting factor of the noise-level estimate (Sage-Husa b)
 P_MO_RESET = P_MO_NF + 3         # motion: log-likelihood gap below the best at which a filter is re-started from it
@@ -105,7 +105,7 @@ P_MO_LINE = P_MO_PT + 3   # motion: spectral line test (:func:`spectral_floor`):
 MO_LINE_J0 = 7            # the line test's first bin: MO_SPEC_K0 + 2 x 7 = 46 (0.36 fs)
 P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`): fading of each filter's
                           # summed innovation per sample, and its weight in the log-likelihood (0 = off)
-P_MO_NCA = P_MO_PT + 7   # motion: the bank's last this many filters are constant-acceleration lanes
+P_MO_NCA = P_MO_PT + 7   # motion: constant-acceleration filters in the bank, lanes P_MO_NF..P_MO_NF+NCA-1
 N_PARAMS = P_MO_PT + 8
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
@@ -441,8 +441,7 @@ def motion_params(sample_rate_hz, n_filters=8, log10_lambda_min=-10.0, log10_lam
             or not 1 <= n_lag <= MO_MAX_NLAG):
         raise ValueError("motion: n_filters >= 1 and n_accel >= 0 must sum to at most %d, and n_lag be 1..%d"
                          % (MO_MAX_NF, MO_MAX_NLAG))
-    nf = n_filters + n_accel
-    p = [float(nf), math.exp(-1.0 / (tau_l_s * fs)), 1.0 - 1.0 / (r_tau_s * fs), float(reset),
+    p = [float(n_filters), math.exp(-1.0 / (tau_l_s * fs)), 1.0 - 1.0 / (r_tau_s * fs), float(reset),
          float(n_lag), float(huber), 1.0 / (tau_angle_s * fs) if tau_angle_s > 0 else 0.0,
          float(clip_sigma) * float(clip_sigma), 0.0]
     gains = [0.0] * (5 * MO_MAX_NF)      # runs: alpha, beta, log S/R, gamma, lam^2
@@ -1205,8 +1204,8 @@ def motion_step(p, s, z):
         s[o + M_R] = r
     s[S_K] = k + 1.0
     r = s[o + M_R]
-    nf = int(p[P_MO_NF])
-    ncv = nf - int(p[P_MO_NCA])      # lanes 0..ncv-1 constant velocity, ncv..nf-1 constant acceleration
+    ncv = int(p[P_MO_NF])
+    nf = ncv + int(p[P_MO_NCA])      # lanes 0..ncv-1 constant velocity, ncv..nf-1 constant acceleration
     if k < p[P_WARMUP] or r == 0.0:
         for i in range(nf):
             s[o + MB_X + i] = z
