@@ -1083,11 +1083,14 @@ def motion_step(p, s, z):
     constant-velocity Kalman filters weighted by their likelihoods (not in the
     paper).
 
-    Model of every filter: state [omega, a], the true rate and its change per
-    sample; omega += a, a += white noise (white-noise acceleration), z = omega +
-    white noise of variance R. The filters differ only in their tracking index
-    lam (q = lam^2 R): from one that averages the whole record to one that
-    follows every sample. Per sample, all O(1):
+    Model of the p[P_MO_NF] constant-velocity (CV) filters: state [omega, a], the
+    true rate and its change per sample; omega += a, a += white noise (white-noise
+    acceleration), z = omega + white noise of variance R. They differ only in their
+    tracking index lam (q = lam^2 R): from one that averages the whole record to one
+    that follows every sample. The p[P_MO_NCA] constant-acceleration (CA) filters
+    after them (lanes P_MO_NF..) add j, the change of a per sample: omega += a + j/2,
+    a += j, j += white noise (:func:`ca_gains`; gamma updates j); a CV filter lags
+    a smoothly accelerating motion, a CA one follows it. Per sample, all O(1):
 
     * R, the sensor's white-noise level: the mean |4th difference| of the
       samples at lags 1..NLAG (70 R for white noise: E|d4| = sqrt(70 R 2/pi)),
