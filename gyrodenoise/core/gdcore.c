@@ -686,7 +686,6 @@ typedef struct {
     double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF], c[MO_MAX_NF], j[MO_MAX_NF];
     double g0[MO_MAX_NF], g1[MO_MAX_NF], ls[MO_MAX_NF], g2[MO_MAX_NF];
     double ct[MO_MAX_NF];   /* the Huber clip's threshold per lane: p[P_MO_CLIP2], +inf for the fastest CV one */
-    double ca[MO_MAX_NF];   /* 1.0 in a constant-acceleration lane, 0.0 in a constant-velocity one */
     double hist[2 * (4 * MO_MAX_NLAG + 1)];
 } mo_bank_t;
 
@@ -706,7 +705,6 @@ KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
         b->ls[i] = p[P_MO_G + 2 * MO_MAX_NF + i];
         b->g2[i] = p[P_MO_G + 3 * MO_MAX_NF + i];
         b->ct[i] = i != ncv - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
-        b->ca[i] = i >= ncv ? 1.0 : 0.0;
     }
     for (i = 0; i < nh; i++) {
         b->hist[i] = s[o + M_HIST + i];
@@ -730,14 +728,14 @@ KERNEL void mo_save_(const double *p, double *s, const mo_bank_t *b)
 
 /* The bank's state update, all lanes side by side (motion_step_): the summed
  * innovation's penalty on the log-likelihood (kernels.motion_step) and the rate,
- * slope and (constant-acceleration lanes, ca[i] = 1) slope change updated with the
+ * slope and slope change (0.0 in a CV lane, whose gamma is 0.0) updated with the
  * gains g0, g1, g2 (the filters' own, or the growing-memory ones) from the
  * predictions W, AP; a function of its own so that each caller's gains are known
  * apart from the bank (restrict), which the vectoriser needs. */
 KERNEL void mo_update_(const double *restrict p, double inv_r, const double *restrict V,
                        const double *restrict W, const double *restrict AP, const double *restrict OM,
                        const double *restrict LK, const double *restrict g0, const double *restrict g1,
-                       const double *restrict g2, const double *restrict ca, double *restrict bx,
+                       const double *restrict g2, double *restrict bx,
                        double *restrict ba, double *restrict bl, double *restrict bc, double *restrict bj)
 {
     int i;
@@ -751,7 +749,7 @@ KERNEL void mo_update_(const double *restrict p, double inv_r, const double *res
             bx[i] = W[i] + g0[i] * v;
             ba[i] = AP[i] + g1[i] * v;
             bl[i] = lk - cw * xp * cf2;
-            bj[i] = ca[i] != 0.0 ? jn : bj[i];     /* a CV lane's j stays 0.0 */
+            bj[i] = jn;     /* a CV lane's j stays 0.0: gamma is 0.0 there */
         }
     } else {
         for (i = 0; i < MO_MAX_NF; i++) {
@@ -759,7 +757,7 @@ KERNEL void mo_update_(const double *restrict p, double inv_r, const double *res
             bx[i] = W[i] + g0[i] * v;
             ba[i] = AP[i] + g1[i] * v;
             bl[i] = LK[i];
-            bj[i] = ca[i] != 0.0 ? jn : bj[i];
+            bj[i] = jn;
         }
     }
 }
@@ -779,8 +777,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], G2[MO_MAX_NF], W[MO_MAX_NF],
         AP[MO_MAX_NF], V[MO_MAX_NF], U[MO_MAX_NF], LK[MO_MAX_NF], OM[MO_MAX_NF], CL[MO_MAX_NF];
     double *bx, *ba, *bl, *bh, *bc, *bj;
-    const double *pg0, *pg1, *pls, *pg2, *pct, *pca, *hist;
-    double ctl[MO_MAX_NF], cal[MO_MAX_NF];
+    const double *pg0, *pg1, *pls, *pg2, *pct, *hist;
+    double ctl[MO_MAX_NF];
     if (bk) {          /* the batch loop's bank (mo_bank_t) */
         bx = bk->x;
         ba = bk->a;
@@ -793,7 +791,6 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         pls = bk->ls;
         pg2 = bk->g2;
         pct = bk->ct;
-        pca = bk->ca;
     } else {           /* the state's bank, the same layout: MO_MAX_NF lanes per value */
         bx = s + o + M_BANK;
         ba = bx + MO_MAX_NF;
@@ -805,12 +802,9 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         pg1 = pg0 + MO_MAX_NF;
         pls = pg0 + 2 * MO_MAX_NF;
         pg2 = pg0 + 3 * MO_MAX_NF;
-        for (i = 0; i < MO_MAX_NF; i++) {
+        for (i = 0; i < MO_MAX_NF; i++)
             ctl[i] = i != ncv - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
-            cal[i] = i >= ncv ? 1.0 : 0.0;
-        }
         pct = ctl;
-        pca = cal;
     }
     if (p[P_LP_NSEC] > 0.0) {
         z = sos_cascade_(p, s, o + M_LPD, z);
@@ -926,14 +920,12 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
        out of a condition, so a conditional one keeps the loop scalar. */
     if (gm0 == 0.0) {      /* the growing-memory gains are off: every filter at its own */
         for (i = 0; i < MO_MAX_NF; i++) {
-            double om = 1.0 - pg0[i], w = bx[i] + ba[i], wj = w + 0.5 * bj[i], aj = ba[i] + bj[i], v, u;
-            int cal_ = pca[i] != 0.0;     /* CA lane: omega + a + j / 2, a + j */
-            w = cal_ ? wj : w;
-            v = z - w;
-            u = v * v * om * inv_r;
+            /* omega + a + j / 2, a + j: a CV lane's j is 0.0 (gamma 0.0), so it predicts
+               omega + a, a (kernels.motion_step) */
+            double om = 1.0 - pg0[i], w = bx[i] + ba[i] + 0.5 * bj[i], v = z - w, u = v * v * om * inv_r;
             OM[i] = om;
             W[i] = w;
-            AP[i] = cal_ ? aj : ba[i];
+            AP[i] = ba[i] + bj[i];
             V[i] = v;
             U[i] = u;
             CL[i] = u > pct[i] ? 1.0 : 0.0;
@@ -941,17 +933,14 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         }
     } else {
         for (i = 0; i < MO_MAX_NF; i++) {
-            double g0 = pg0[i], g1 = pg1[i], ls = pls[i], g2 = pg2[i], w, wj, aj, v, u, om;
-            int grow = gm0 > g0, cal_ = pca[i] != 0.0;
+            double g0 = pg0[i], g1 = pg1[i], ls = pls[i], g2 = pg2[i], w, v, u, om;
+            int grow = gm0 > g0;
             g1 = (grow & (gm1 > g1)) ? gm1 : g1;
             g0 = grow ? gm0 : g0;
             ls = grow ? lgm : ls;
             g2 = grow ? 0.0 : g2;      /* the line's start-up: gamma 0 */
             om = 1.0 - g0;
-            w = bx[i] + ba[i];
-            wj = w + 0.5 * bj[i];
-            aj = ba[i] + bj[i];
-            w = cal_ ? wj : w;
+            w = bx[i] + ba[i] + 0.5 * bj[i];
             v = z - w;
             u = v * v * om * inv_r;
             G0[i] = g0;
@@ -959,7 +948,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             G2[i] = g2;
             OM[i] = om;
             W[i] = w;
-            AP[i] = cal_ ? aj : ba[i];
+            AP[i] = ba[i] + bj[i];
             V[i] = v;
             U[i] = u;
             CL[i] = u > pct[i] ? 1.0 : 0.0;
@@ -977,9 +966,9 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
                 V[i] = V[i] * sqrt(clip2 / U[i]);
     }
     if (gm0 == 0.0)      /* the filters' own gains, read where they are */
-        mo_update_(p, inv_r, V, W, AP, OM, LK, pg0, pg1, pg2, pca, bx, ba, bl, bc, bj);
+        mo_update_(p, inv_r, V, W, AP, OM, LK, pg0, pg1, pg2, bx, ba, bl, bc, bj);
     else
-        mo_update_(p, inv_r, V, W, AP, OM, LK, G0, G1, G2, pca, bx, ba, bl, bc, bj);
+        mo_update_(p, inv_r, V, W, AP, OM, LK, G0, G1, G2, bx, ba, bl, bc, bj);
     if (!bk) {     /* the state's lanes from nf on stay 0.0, as in kernels.py (mo_save_ leaves them) */
         for (i = nf; i < MO_MAX_NF; i++) {
             bx[i] = 0.0;

@@ -1242,12 +1242,12 @@ def motion_step(p, s, z):
     clip2 = p[P_MO_CLIP2]
     # the filters one after another here; gdcore.c runs them side by side, in several
     # passes over the filters, each filter's operations the same and in the same order.
-    # A CA lane (i >= ncv) predicts omega + a + j / 2, a + j and updates j with gamma; a CV
-    # lane does neither (its j stays 0.0): the CV filter it was, operation for operation.
+    # Every lane predicts omega + a + j / 2, a + j and updates j with gamma; a CV lane's gamma
+    # is 0.0, so its j stays 0.0 and it is the CV filter it was (up to the sign of an exactly
+    # zero sum: x + a + 0.0 is +0.0 where x + a is -0.0; no select, so gdcore.c vectorises).
     # While the least-squares line's gain gm0 is above a lane's alpha, the lane (CV or CA)
     # runs at the line's gains and gamma 0 (the same as a CA filter from a diffuse prior)
     for i in range(nf):
-        ca = i >= ncv
         g0 = p[P_MO_G + i]
         g1 = p[P_MO_G + MO_MAX_NF + i]
         ls = p[P_MO_G + 2 * MO_MAX_NF + i]
@@ -1258,11 +1258,8 @@ def motion_step(p, s, z):
             g2 = 0.0
             if gm1 > g1:
                 g1 = gm1
-        wp = s[o + MB_X + i] + s[o + MB_A + i]
-        ap = s[o + MB_A + i]
-        if ca:
-            wp = wp + 0.5 * s[o + MB_J + i]
-            ap = ap + s[o + MB_J + i]
+        wp = s[o + MB_X + i] + s[o + MB_A + i] + 0.5 * s[o + MB_J + i]
+        ap = s[o + MB_A + i] + s[o + MB_J + i]
         v = z - wp
         u2 = v * v * (1.0 - g0) * inv_r                 # v^2 / S
         lk = fade * s[o + MB_L + i] - 0.5 * (u2 + ls)
@@ -1281,8 +1278,7 @@ def motion_step(p, s, z):
         s[o + MB_X + i] = wp + g0 * v
         s[o + MB_A + i] = ap + g1 * v
         s[o + MB_L + i] = lk
-        if ca:
-            s[o + MB_J + i] = s[o + MB_J + i] + g2 * v
+        s[o + MB_J + i] = s[o + MB_J + i] + g2 * v      # 0.0 + 0.0 * v in a CV lane
     lmax = s[o + MB_L]
     best = 0
     for i in range(1, nf):
