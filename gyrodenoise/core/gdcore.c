@@ -459,7 +459,7 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
  * Python bit for bit). */
 void gd_motion_params(double *p, double fs)
 {
-    const int nf = 8, nca = 4;
+    const int nf = 12, nca = 4;
     const double lmin = -10.0, lmax = 2.0, amin = -4.0, amax = 0.0;
     int i;
     p[P_MO_NF] = (double)nf;
@@ -955,12 +955,12 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             LK[i] = fade * bl[i] - 0.5 * (u + ls);
         }
     }
-#if MO_MAX_NF != 12
-#error "the sum of CL below is written out for MO_MAX_NF == 12"
+#if MO_MAX_NF != 16
+#error "the sum of CL below is written out for MO_MAX_NF == 16"
 #endif
     for (i = 0; i < MO_MAX_NF / 2; i++)   /* how many filters clip: 0.0 or 1.0 per lane, summed */
         CL[i] += CL[i + MO_MAX_NF / 2];
-    if (CL[0] + CL[1] + CL[2] + CL[3] + CL[4] + CL[5] > 0.0) {
+    if (CL[0] + CL[1] + CL[2] + CL[3] + CL[4] + CL[5] + CL[6] + CL[7] > 0.0) {
         for (i = 0; i < nf; i++)     /* Huber: the update sees at most clip sigma (not the fastest CV lane) */
             if (i != ncv - 1 && U[i] > clip2)
                 V[i] = V[i] * sqrt(clip2 / U[i]);

@@ -59,7 +59,7 @@ extern "C" {
 #define P_MO_VAR (P_MO_NF + 8)         /* motion: 1 = keep the output variance M_PVAR */
 #define P_MO_G (P_MO_NF + 9)            /* motion: MO_MAX_NF alphas, then the betas, the log S/R, the gammas
                                            (0 in a CV lane), the lam^2 (S_Q) */
-#define MO_MAX_NF 12
+#define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
 #define CA_NEWTON_STEPS 60 /* motion: Newton steps of the CA lanes' steady-state gains (kernels.ca_gains) */
 #define P_MO_RFIX (P_MO_G + 5 * MO_MAX_NF) /* motion: > 0 = R to use instead of the estimate */

@@ -82,7 +82,7 @@ P_MO_G = P_MO_NF + 9             # motion: MO_MAX_NF steady-state gains on the r
                                  # slope, then MO_MAX_NF log S/R, then MO_MAX_NF gains on the slope's change
                                  # (gamma: 0 for a CV lane), then MO_MAX_NF tracking indices squared lam^2
                                  # (q = lam^2 R: S_Q); one run per quantity: the C core's lanes
-MO_MAX_NF = 12
+MO_MAX_NF = 16
 MO_MAX_NLAG = 8
 P_MO_RFIX = P_MO_G + 5 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
                                      # the estimate (batch.run_offline with max_motion_hz only; 0 = estimate)
@@ -408,7 +408,7 @@ def ca_gains(tracking_index):
     return alpha, beta, gamma, -math.log(1.0 - alpha), lam * lam
 
 
-def motion_params(sample_rate_hz, n_filters=8, log10_lambda_min=-10.0, log10_lambda_max=2.0,
+def motion_params(sample_rate_hz, n_filters=12, log10_lambda_min=-10.0, log10_lambda_max=2.0,
                   n_accel=4, log10_accel_min=-4.0, log10_accel_max=0.0,
                   tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
                   clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0,
