@@ -389,7 +389,7 @@ def test_wrong_sizes_raise_value_error():
     # motion: the bank's and the history's sizes (the batch loop holds them in fixed arrays)
     pm, pma, sma = _bufs("motion")
     for field, values in ((K.P_MO_NF, (0.0, 13.0, 2.5, float("nan"))),
-                          (K.P_MO_NCA, (-1.0, 5.0, 1.5, float("nan"))),     # 8 CV + 5 CA > MO_MAX_NF
+                          (K.P_MO_NCA, (-1.0, 5.0, 1.5, float("nan"))),     # 12 CV + 5 CA > MO_MAX_NF
                           (K.P_MO_NLAG, (0.0, 9.0, 1e9, 6.5, float("nan")))):
         for v in values:
             bad = array.array("d", pm)
