@@ -459,8 +459,8 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
  * Python bit for bit). */
 void gd_motion_params(double *p, double fs)
 {
-    const int nf = 12, nca = 4;
-    const double lmin = -10.0, lmax = 2.0, amin = -4.0, amax = 0.0;
+    const int nf = 13, nca = 3;
+    const double lmin = -10.0, lmax = 2.0, amin = -2.0, amax = 0.0;
     int i;
     p[P_MO_NF] = (double)nf;
     p[P_MO_FADE] = exp(-1.0 / (3.0 * fs));

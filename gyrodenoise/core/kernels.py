@@ -408,8 +408,8 @@ def ca_gains(tracking_index):
     return alpha, beta, gamma, -math.log(1.0 - alpha), lam * lam
 
 
-def motion_params(sample_rate_hz, n_filters=12, log10_lambda_min=-10.0, log10_lambda_max=2.0,
-                  n_accel=4, log10_accel_min=-4.0, log10_accel_max=0.0,
+def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
+                  n_accel=3, log10_accel_min=-2.0, log10_accel_max=0.0,
                   tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
                   clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0,
                   cusum_tau_s=0.1, cusum_weight=1.0, cusum_sigma=3.75):

@@ -388,8 +388,8 @@ def test_wrong_sizes_raise_value_error():
             C.step(bad, sa, 1.0, False)
     # motion: the bank's and the history's sizes (the batch loop holds them in fixed arrays)
     pm, pma, sma = _bufs("motion")
-    for field, values in ((K.P_MO_NF, (0.0, 13.0, 2.5, float("nan"))),
-                          (K.P_MO_NCA, (-1.0, 5.0, 1.5, float("nan"))),     # 12 CV + 5 CA > MO_MAX_NF
+    for field, values in ((K.P_MO_NF, (0.0, 17.0, 2.5, float("nan"))),
+                          (K.P_MO_NCA, (-1.0, 4.0, 1.5, float("nan"))),     # 13 CV + 4 CA > MO_MAX_NF
                           (K.P_MO_NLAG, (0.0, 9.0, 1e9, 6.5, float("nan")))):
         for v in values:
             bad = array.array("d", pm)

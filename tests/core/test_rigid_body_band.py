@@ -188,11 +188,9 @@ def test_default_unchanged_golden():
     by at most 0.0038 deg/s; with p[P_MO_PT] = 0 the output is main's da1c420 golden;
     regenerated again for the summed-innovation test: 87 samples moved, by at most 2.2e-8 deg/s;
     with p[P_MO_CUS + 1] = 0 the output is the golden before it, bit for bit; regenerated for
-    the bank of 8 constant-velocity + 4 constant-acceleration lanes: 796 samples moved, by at
-    most 0.0147 deg/s, median 1.8e-6; regenerated for 12 constant-velocity + 4 constant-acceleration
-    lanes: against the golden of 8 + 4, 796 samples moved, by at most 0.0073 deg/s, median 1.1e-6;
-    against main's (13 constant-velocity lanes), 796, at most 0.0084 deg/s, median 6.6e-7 (medians
-    of the samples that moved); to regenerate: the plain-Python
+    the bank of 13 constant-velocity + 3 constant-acceleration lanes: 789 samples moved, by at
+    most 1.5e-8 deg/s (median of those 9.4e-14); with p[P_MO_NCA] = 0 the output is the golden
+    before it, bit for bit; to regenerate: the plain-Python
     batch.run(p, K.init_state(p), z, restarts=rs, compiled=False) saved with np.save)."""
     z, rs = golden_record()
     golden = np.load(GOLDEN)
