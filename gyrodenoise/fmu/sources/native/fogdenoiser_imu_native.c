@@ -15,7 +15,7 @@
 #include "gdcore.h"
 #include "fogdenoiser_imu_native_vars.h"
 
-#define SERIAL_VERSION 2u   /* 2: the motion bank of 12 CV + 4 CA lanes (core parameters and state changed) */
+#define SERIAL_VERSION 2u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed) */
 #define N_AXES 3
 
 #include "fogdenoiser_params.c"
