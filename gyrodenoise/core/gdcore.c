@@ -70,6 +70,9 @@ const char *gd_check(const double *p, long n_p, long n_s)
         double nf = p[P_MO_NF], nlag = p[P_MO_NLAG];
         if (!(nf >= 1.0 && nf <= (double)MO_MAX_NF && nf == (double)(int)nf))
             return "p[P_MO_NF] must be a whole number in 1..MO_MAX_NF";
+        if (!(p[P_MO_NCA] >= 0.0 && p[P_MO_NCA] <= (double)MO_MAX_NF - nf
+              && p[P_MO_NCA] == (double)(int)p[P_MO_NCA]))
+            return "p[P_MO_NCA] must be a whole number in 0..MO_MAX_NF - p[P_MO_NF]";
         if (!(nlag >= 1.0 && nlag <= (double)MO_MAX_NLAG && nlag == (double)(int)nlag))
             return "p[P_MO_NLAG] must be a whole number in 1..MO_MAX_NLAG";
     }
@@ -456,8 +459,8 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
  * Python bit for bit). */
 void gd_motion_params(double *p, double fs)
 {
-    const int nf = 13;
-    const double lmin = -10.0, lmax = 2.0;
+    const int nf = 13, nca = 3;
+    const double lmin = -10.0, lmax = 2.0, amin = -2.0, amax = 0.0;
     int i;
     p[P_MO_NF] = (double)nf;
     p[P_MO_FADE] = exp(-1.0 / (3.0 * fs));
@@ -468,7 +471,7 @@ void gd_motion_params(double *p, double fs)
     p[P_MO_KAPPA] = 1.0 / (30.0 * fs);
     p[P_MO_CLIP2] = 4.0 * 4.0;
     p[P_MO_VAR] = 0.0;
-    for (i = 0; i < 3 * MO_MAX_NF; i++)
+    for (i = 0; i < 5 * MO_MAX_NF; i++)
         p[P_MO_G + i] = 0.0;
     for (i = 0; i < nf; i++) {
         double e = lmin + (lmax - lmin) * i / (double)(nf - 1);
@@ -479,6 +482,23 @@ void gd_motion_params(double *p, double fs)
         p[P_MO_G + i] = alpha;
         p[P_MO_G + MO_MAX_NF + i] = beta;
         p[P_MO_G + 2 * MO_MAX_NF + i] = -log(1.0 - alpha);
+        p[P_MO_G + 4 * MO_MAX_NF + i] = beta * beta / (1.0 - alpha);
+    }
+    for (i = 0; i < nca; i++) {     /* kernels.ca_gains: Newton on the cubic, a fixed count */
+        double e = amin + (amax - amin) * i / (double)(nca - 1);
+        double lam = pow(10.0, e), u = 1.0, alpha;
+        int it;
+        for (it = 0; it < CA_NEWTON_STEPS; it++) {
+            double g = ((2.0 * u - lam) * u + 3.0 * lam) * u - 2.0 * lam;
+            double dg = (6.0 * u - 2.0 * lam) * u + 3.0 * lam;
+            u = u - g / dg;
+        }
+        alpha = u * (2.0 - u);
+        p[P_MO_G + nf + i] = alpha;
+        p[P_MO_G + MO_MAX_NF + nf + i] = 2.0 * u * u;
+        p[P_MO_G + 2 * MO_MAX_NF + nf + i] = -log(1.0 - alpha);
+        p[P_MO_G + 3 * MO_MAX_NF + nf + i] = 2.0 * u * u * u / (2.0 - u);
+        p[P_MO_G + 4 * MO_MAX_NF + nf + i] = lam * lam;
     }
     p[P_MO_RFIX] = 0.0;
     gd_spectral_params(p, p[P_MO_BR], 1.5);
@@ -500,6 +520,7 @@ void gd_motion_params(double *p, double fs)
         p[P_MO_CUS + 1] = 1.0;
         p[P_MO_CUS + 2] = 3.75 * 3.75 / (1.0 - fc * fc);
     }
+    p[P_MO_NCA] = (double)nca;
 }
 
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] */
@@ -662,26 +683,28 @@ KERNEL double log1m_small_(double g)
  * between s and here (nothing the loop keeps can alias out[] or z[]). Same
  * operations in the same order as on s, so the same bits. */
 typedef struct {
-    double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF], c[MO_MAX_NF];
-    double g0[MO_MAX_NF], g1[MO_MAX_NF], ls[MO_MAX_NF];
-    double ct[MO_MAX_NF];   /* the Huber clip's threshold per lane: p[P_MO_CLIP2], +inf for the fastest on */
+    double x[MO_MAX_NF], a[MO_MAX_NF], l[MO_MAX_NF], held[MO_MAX_NF], c[MO_MAX_NF], j[MO_MAX_NF];
+    double g0[MO_MAX_NF], g1[MO_MAX_NF], ls[MO_MAX_NF], g2[MO_MAX_NF];
+    double ct[MO_MAX_NF];   /* the Huber clip's threshold per lane: p[P_MO_CLIP2], +inf for the fastest CV one */
     double hist[2 * (4 * MO_MAX_NLAG + 1)];
 } mo_bank_t;
 
 KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
 {
     long o = layout_total_(ORDER(p)) - N_EXT, q = o + M_BANK;
-    int i, nh = 4 * (int)p[P_MO_NLAG] + 1, nf = (int)p[P_MO_NF];
+    int i, nh = 4 * (int)p[P_MO_NLAG] + 1, ncv = (int)p[P_MO_NF];
     for (i = 0; i < MO_MAX_NF; i++) {
         b->x[i] = s[q + i];
         b->a[i] = s[q + MO_MAX_NF + i];
         b->l[i] = s[q + 2 * MO_MAX_NF + i];
         b->held[i] = s[q + 3 * MO_MAX_NF + i];
+        b->j[i] = s[q + 4 * MO_MAX_NF + i];
         b->c[i] = s[o + M_CUS + i];
         b->g0[i] = p[P_MO_G + i];
         b->g1[i] = p[P_MO_G + MO_MAX_NF + i];
         b->ls[i] = p[P_MO_G + 2 * MO_MAX_NF + i];
-        b->ct[i] = i < nf - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
+        b->g2[i] = p[P_MO_G + 3 * MO_MAX_NF + i];
+        b->ct[i] = i != ncv - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
     }
     for (i = 0; i < nh; i++) {
         b->hist[i] = s[o + M_HIST + i];
@@ -692,25 +715,28 @@ KERNEL void mo_load_(const double *p, const double *s, mo_bank_t *b)
 KERNEL void mo_save_(const double *p, double *s, const mo_bank_t *b)
 {
     long o = layout_total_(ORDER(p)) - N_EXT, q = o + M_BANK;
-    int i, nf = (int)p[P_MO_NF];
+    int i, nf = (int)p[P_MO_NF] + (int)p[P_MO_NCA];
     for (i = 0; i < nf; i++) {      /* the lanes from nf on: computed, never read, not saved */
         s[q + i] = b->x[i];
         s[q + MO_MAX_NF + i] = b->a[i];
         s[q + 2 * MO_MAX_NF + i] = b->l[i];
         s[q + 3 * MO_MAX_NF + i] = b->held[i];
+        s[q + 4 * MO_MAX_NF + i] = b->j[i];
         s[o + M_CUS + i] = b->c[i];
     }
 }
 
 /* The bank's state update, all lanes side by side (motion_step_): the summed
- * innovation's penalty on the log-likelihood (kernels.motion_step) and the rate
- * and slope updated with the gains g0, g1 (the filters' own, or the
- * growing-memory ones); a function of its own so that each caller's g0, g1 are
- * known apart from the bank (restrict), which the vectoriser needs. */
+ * innovation's penalty on the log-likelihood (kernels.motion_step) and the rate,
+ * slope and slope change (0.0 in a CV lane, whose gamma is 0.0) updated with the
+ * gains g0, g1, g2 (the filters' own, or the growing-memory ones) from the
+ * predictions W, AP; a function of its own so that each caller's gains are known
+ * apart from the bank (restrict), which the vectoriser needs. */
 KERNEL void mo_update_(const double *restrict p, double inv_r, const double *restrict V,
-                       const double *restrict W, const double *restrict OM, const double *restrict LK,
-                       const double *restrict g0, const double *restrict g1, double *restrict bx,
-                       double *restrict ba, double *restrict bl, double *restrict bc)
+                       const double *restrict W, const double *restrict AP, const double *restrict OM,
+                       const double *restrict LK, const double *restrict g0, const double *restrict g1,
+                       const double *restrict g2, double *restrict bx,
+                       double *restrict ba, double *restrict bl, double *restrict bc, double *restrict bj)
 {
     int i;
     if (p[P_MO_CUS + 1] > 0.0) {     /* summed innovation (kernels.motion_step) */
@@ -718,17 +744,20 @@ KERNEL void mo_update_(const double *restrict p, double inv_r, const double *res
         for (i = 0; i < MO_MAX_NF; i++) {
             double v = V[i], cs = cf * bc[i] + v, x2 = cs * cs * OM[i] * inv_r - cth, lk = LK[i];
             double xp = x2 > 0.0 ? x2 : 0.0;     /* lk - 0.0 == lk: the same as no penalty */
+            double jn = bj[i] + g2[i] * v;
             bc[i] = cs;
             bx[i] = W[i] + g0[i] * v;
-            ba[i] = ba[i] + g1[i] * v;
+            ba[i] = AP[i] + g1[i] * v;
             bl[i] = lk - cw * xp * cf2;
+            bj[i] = jn;     /* a CV lane's j stays 0.0: gamma is 0.0 there */
         }
     } else {
         for (i = 0; i < MO_MAX_NF; i++) {
-            double v = V[i];
+            double v = V[i], jn = bj[i] + g2[i] * v;
             bx[i] = W[i] + g0[i] * v;
-            ba[i] = ba[i] + g1[i] * v;
+            ba[i] = AP[i] + g1[i] * v;
             bl[i] = LK[i];
+            bj[i] = jn;
         }
     }
 }
@@ -743,12 +772,12 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
     double zr = z, k, r, rs, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
-    int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, nf = (int)p[P_MO_NF];
+    int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, ncv = (int)p[P_MO_NF], nf = ncv + (int)p[P_MO_NCA];
     int pos, i, j, best, c, hb;
-    double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], W[MO_MAX_NF], V[MO_MAX_NF],
-        U[MO_MAX_NF], LK[MO_MAX_NF], OM[MO_MAX_NF], CL[MO_MAX_NF];
-    double *bx, *ba, *bl, *bh, *bc;
-    const double *pg0, *pg1, *pls, *pct, *hist;
+    double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], G2[MO_MAX_NF], W[MO_MAX_NF],
+        AP[MO_MAX_NF], V[MO_MAX_NF], U[MO_MAX_NF], LK[MO_MAX_NF], OM[MO_MAX_NF], CL[MO_MAX_NF];
+    double *bx, *ba, *bl, *bh, *bc, *bj;
+    const double *pg0, *pg1, *pls, *pg2, *pct, *hist;
     double ctl[MO_MAX_NF];
     if (bk) {          /* the batch loop's bank (mo_bank_t) */
         bx = bk->x;
@@ -756,21 +785,25 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         bl = bk->l;
         bh = bk->held;
         bc = bk->c;
+        bj = bk->j;
         pg0 = bk->g0;
         pg1 = bk->g1;
         pls = bk->ls;
+        pg2 = bk->g2;
         pct = bk->ct;
     } else {           /* the state's bank, the same layout: MO_MAX_NF lanes per value */
         bx = s + o + M_BANK;
         ba = bx + MO_MAX_NF;
         bl = bx + 2 * MO_MAX_NF;
         bh = bx + 3 * MO_MAX_NF;
+        bj = bx + 4 * MO_MAX_NF;
         bc = s + o + M_CUS;
         pg0 = p + P_MO_G;
         pg1 = pg0 + MO_MAX_NF;
         pls = pg0 + 2 * MO_MAX_NF;
+        pg2 = pg0 + 3 * MO_MAX_NF;
         for (i = 0; i < MO_MAX_NF; i++)
-            ctl[i] = i < nf - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
+            ctl[i] = i != ncv - 1 ? p[P_MO_CLIP2] : HUGE_VAL;
         pct = ctl;
     }
     if (p[P_LP_NSEC] > 0.0) {
@@ -854,6 +887,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             ba[i] = 0.0;
             bl[i] = 0.0;
             bh[i] = 0.0;
+            bj[i] = 0.0;
             bc[i] = 0.0;
         }
         return z;
@@ -886,9 +920,12 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
        out of a condition, so a conditional one keeps the loop scalar. */
     if (gm0 == 0.0) {      /* the growing-memory gains are off: every filter at its own */
         for (i = 0; i < MO_MAX_NF; i++) {
-            double om = 1.0 - pg0[i], w = bx[i] + ba[i], v = z - w, u = v * v * om * inv_r;
+            /* omega + a + j / 2, a + j: a CV lane's j is 0.0 (gamma 0.0), so it predicts
+               omega + a, a (kernels.motion_step) */
+            double om = 1.0 - pg0[i], w = bx[i] + ba[i] + 0.5 * bj[i], v = z - w, u = v * v * om * inv_r;
             OM[i] = om;
             W[i] = w;
+            AP[i] = ba[i] + bj[i];
             V[i] = v;
             U[i] = u;
             CL[i] = u > pct[i] ? 1.0 : 0.0;
@@ -896,42 +933,49 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         }
     } else {
         for (i = 0; i < MO_MAX_NF; i++) {
-            double g0 = pg0[i], g1 = pg1[i], ls = pls[i], w, v, u, om;
+            double g0 = pg0[i], g1 = pg1[i], ls = pls[i], g2 = pg2[i], w, v, u, om;
             int grow = gm0 > g0;
             g1 = (grow & (gm1 > g1)) ? gm1 : g1;
             g0 = grow ? gm0 : g0;
             ls = grow ? lgm : ls;
+            g2 = grow ? 0.0 : g2;      /* the line's start-up: gamma 0 */
             om = 1.0 - g0;
-            w = bx[i] + ba[i];
+            w = bx[i] + ba[i] + 0.5 * bj[i];
             v = z - w;
             u = v * v * om * inv_r;
             G0[i] = g0;
             G1[i] = g1;
+            G2[i] = g2;
             OM[i] = om;
             W[i] = w;
+            AP[i] = ba[i] + bj[i];
             V[i] = v;
             U[i] = u;
             CL[i] = u > pct[i] ? 1.0 : 0.0;
             LK[i] = fade * bl[i] - 0.5 * (u + ls);
         }
     }
+#if MO_MAX_NF != 16
+#error "the sum of CL below is written out for MO_MAX_NF == 16"
+#endif
     for (i = 0; i < MO_MAX_NF / 2; i++)   /* how many filters clip: 0.0 or 1.0 per lane, summed */
         CL[i] += CL[i + MO_MAX_NF / 2];
     if (CL[0] + CL[1] + CL[2] + CL[3] + CL[4] + CL[5] + CL[6] + CL[7] > 0.0) {
-        for (i = 0; i < nf - 1; i++)     /* Huber: the update sees at most clip sigma (not the fastest) */
-            if (U[i] > clip2)
+        for (i = 0; i < nf; i++)     /* Huber: the update sees at most clip sigma (not the fastest CV lane) */
+            if (i != ncv - 1 && U[i] > clip2)
                 V[i] = V[i] * sqrt(clip2 / U[i]);
     }
     if (gm0 == 0.0)      /* the filters' own gains, read where they are */
-        mo_update_(p, inv_r, V, W, OM, LK, pg0, pg1, bx, ba, bl, bc);
+        mo_update_(p, inv_r, V, W, AP, OM, LK, pg0, pg1, pg2, bx, ba, bl, bc, bj);
     else
-        mo_update_(p, inv_r, V, W, OM, LK, G0, G1, bx, ba, bl, bc);
+        mo_update_(p, inv_r, V, W, AP, OM, LK, G0, G1, G2, bx, ba, bl, bc, bj);
     if (!bk) {     /* the state's lanes from nf on stay 0.0, as in kernels.py (mo_save_ leaves them) */
         for (i = nf; i < MO_MAX_NF; i++) {
             bx[i] = 0.0;
             ba[i] = 0.0;
             bl[i] = 0.0;
             bc[i] = 0.0;
+            bj[i] = 0.0;
         }
     }
     lmax = bl[0];
@@ -953,6 +997,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
                 bx[i] = bx[best];
                 ba[i] = ba[best];
                 bc[i] = bc[best];
+                if (i >= ncv)
+                    bj[i] = bj[best];     /* 0.0 from a CV filter */
             }
             bl[i] = lmax - thr;
             bh[i] = 1.0;
@@ -981,7 +1027,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             var = 1.7976931348623157e308;
         s[o + M_PVAR] = var;
     }
-    c = P_MO_G + best;     /* alpha of the most likely filter; its beta at c + MO_MAX_NF */
+    c = P_MO_G + best;     /* alpha of the most likely filter; its lam^2 at c + 4 MO_MAX_NF */
     if (p[P_MO_PT] > 0.0) {      /* pass-through (kernels.motion_step) */
         double g = s[o + M_GEFF], lo = p[P_MO_PT + 1];
         g += p[P_MO_PT] * (p[c] - g);
@@ -1001,7 +1047,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     s[S_INNOV] = z - out;
     s[S_SVAR] = r / (1.0 - p[c]);
     s[S_R] = r;
-    s[S_Q] = p[c + MO_MAX_NF] * p[c + MO_MAX_NF] / (1.0 - p[c]) * r;
+    s[S_Q] = p[c + 4 * MO_MAX_NF] * r;
     return out;
 }
 
@@ -1734,7 +1780,7 @@ void gd_run_trace(const double *p, double *s, const double *z, const unsigned ch
 {
     long bank = layout_total_(ORDER(p)) - N_EXT + M_BANK;
     long cus = bank - M_BANK + M_CUS;
-    if (p[P_METHOD] == METHOD_MOTION && (trace_index < bank || trace_index >= bank + 4 * MO_MAX_NF)
+    if (p[P_METHOD] == METHOD_MOTION && (trace_index < bank || trace_index >= bank + 5 * MO_MAX_NF)
         && (trace_index < cus || trace_index >= cus + MO_MAX_NF)) {
         run_motion_(p, s, z, restarts, out, n, trace_index, trace);
         return;

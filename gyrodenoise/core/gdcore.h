@@ -48,7 +48,7 @@ extern "C" {
 #define MAX_MOTION_ORDER 4  /* motion's rigid-body low-pass (max_motion_hz): Butterworth order, */
 #define MAX_MOTION_CUTOFF 2.0  /* -3 dB at this many times max_motion_hz, */
 #define MAX_MOTION_FS_CAP 0.45 /* at most this fraction of the sample rate (kernels.rigid_cutoff_hz) */
-#define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: filters in the bank */
+#define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: constant-velocity filters, lanes 0..NF-1 */
 #define P_MO_FADE (P_MO_NF + 1)         /* motion: fading of the log-likelihoods */
 #define P_MO_BR (P_MO_NF + 2)           /* motion: forgetting of the noise level */
 #define P_MO_RESET (P_MO_NF + 3)        /* motion: restart gap of the log-likelihood */
@@ -57,10 +57,12 @@ extern "C" {
 #define P_MO_KAPPA (P_MO_NF + 6)        /* motion: angle feedback gain */
 #define P_MO_CLIP2 (P_MO_NF + 7)        /* motion: Huber clip of the innovation, sigma^2 */
 #define P_MO_VAR (P_MO_NF + 8)         /* motion: 1 = keep the output variance M_PVAR */
-#define P_MO_G (P_MO_NF + 9)            /* motion: MO_MAX_NF alphas, then the betas, then the log S/R */
+#define P_MO_G (P_MO_NF + 9)            /* motion: MO_MAX_NF alphas, then the betas, the log S/R, the gammas
+                                           (0 in a CV lane), the lam^2 (S_Q) */
 #define MO_MAX_NF 16
 #define MO_MAX_NLAG 8
-#define P_MO_RFIX (P_MO_G + 3 * MO_MAX_NF) /* motion: > 0 = R to use instead of the estimate */
+#define CA_NEWTON_STEPS 60 /* motion: Newton steps of the CA lanes' steady-state gains (kernels.ca_gains) */
+#define P_MO_RFIX (P_MO_G + 5 * MO_MAX_NF) /* motion: > 0 = R to use instead of the estimate */
 #define P_MO_SPEC (P_MO_RFIX + 1)  /* motion: spectral noise floor scale 1 / (c sum w^2), 0 = off */
 #define P_MO_SBB (P_MO_RFIX + 2)   /* motion: its forgetting per block */
 #define P_MO_SRATIO (P_MO_RFIX + 3) /* motion: the spectral estimate rs replaces the lag one r where rs x this < r */
@@ -75,7 +77,8 @@ extern "C" {
 #define P_MO_LINE (P_MO_PT + 3) /* motion: spectral line test threshold x the floor (0 = off) */
 #define MO_LINE_J0 7               /* the line test's first bin (MO_SPEC_K0 + 2 x 7: 0.36 fs) */
 #define P_MO_CUS (P_MO_PT + 4) /* motion: summed innovation: fading, weight, threshold (0 weight = off) */
-#define N_PARAMS (P_MO_PT + 7)
+#define P_MO_NCA (P_MO_PT + 7) /* motion: constant-acceleration filters, lanes NF..NF+NCA-1 */
+#define N_PARAMS (P_MO_PT + 8)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -120,8 +123,9 @@ extern "C" {
 #define M_PVAR 6
 #define M_MABS 7
 #define M_HIST (M_MABS + MO_MAX_NLAG)
-#define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1) /* MO_MAX_NF rates, then the slopes, log-likelihoods, held flags */
-#define M_LPD (M_BANK + 4 * MO_MAX_NF)  /* max_motion_hz: delays of the rigid-body low-pass */
+#define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1) /* MO_MAX_NF rates, then the slopes, log-likelihoods, held flags,
+                                                 the slopes' changes (j: 0 in a CV lane) */
+#define M_LPD (M_BANK + 5 * MO_MAX_NF)  /* max_motion_hz: delays of the rigid-body low-pass */
 #define M_SPOS (M_LPD + 2 * MAX_SOS) /* spectral floor: position in the block */
 #define M_SR (M_SPOS + 1)            /* spectral floor: smoothed R (0 = no block yet) */
 #define M_SBK (M_SPOS + 2)           /* spectral floor: b^(blocks+1) */

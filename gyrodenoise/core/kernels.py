@@ -68,7 +68,8 @@ P_LP_NSEC = 13   # lowpass, and motion's rigid-body low-pass: number of second-o
 P_LP_CUTOFF = 14  # lowpass, and motion's rigid-body low-pass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
-P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity filters in the bank (<= MO_MAX_NF)
+P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity (CV) filters in the bank, lanes 0..NF-1;
+                                 # P_MO_NCA constant-acceleration (CA) ones follow (NF + NCA <= MO_MAX_NF)
 P_MO_FADE = P_MO_NF + 1          # motion: fading factor of the filters' log-likelihoods per sample
 P_MO_BR = P_MO_NF + 2            # motion: forgetting factor of the noise-level estimate (Sage-Husa b)
 P_MO_RESET = P_MO_NF + 3         # motion: log-likelihood gap below the best at which a filter is re-started from it
@@ -78,10 +79,12 @@ P_MO_KAPPA = P_MO_NF + 6         # motion: gain of the angle feedback per sample
 P_MO_CLIP2 = P_MO_NF + 7         # motion: Huber clip of the innovation in the state updates, (sigmas)^2
 P_MO_VAR = P_MO_NF + 8           # motion: 1.0 = also keep the output variance M_PVAR (batch.run_offline), 0.0 = not
 P_MO_G = P_MO_NF + 9             # motion: MO_MAX_NF steady-state gains on the rate, then MO_MAX_NF on the
-                                 # slope, then MO_MAX_NF log S/R (one run per quantity: the C core's lanes)
+                                 # slope, then MO_MAX_NF log S/R, then MO_MAX_NF gains on the slope's change
+                                 # (gamma: 0 for a CV lane), then MO_MAX_NF tracking indices squared lam^2
+                                 # (q = lam^2 R: S_Q); one run per quantity: the C core's lanes
 MO_MAX_NF = 16
 MO_MAX_NLAG = 8
-P_MO_RFIX = P_MO_G + 3 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
+P_MO_RFIX = P_MO_G + 5 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
                                      # the estimate (batch.run_offline with max_motion_hz only; 0 = estimate)
 P_MO_SPEC = P_MO_RFIX + 1   # motion: spectral noise floor (:func:`spectral_floor`): 1 / (c sum w^2), 0 = off
 P_MO_SBB = P_MO_RFIX + 2    # motion: its forgetting factor per block (P_MO_BR ^ MO_SPEC_N)
@@ -102,7 +105,8 @@ P_MO_LINE = P_MO_PT + 3   # motion: spectral line test (:func:`spectral_floor`):
 MO_LINE_J0 = 7            # the line test's first bin: MO_SPEC_K0 + 2 x 7 = 46 (0.36 fs)
 P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`): fading of each filter's
                           # summed innovation per sample, and its weight in the log-likelihood (0 = off)
-N_PARAMS = P_MO_PT + 7
+P_MO_NCA = P_MO_PT + 7   # motion: constant-acceleration filters in the bank, lanes P_MO_NF..P_MO_NF+NCA-1
+N_PARAMS = P_MO_PT + 8
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -156,13 +160,15 @@ M_PVAR = 6       # variance of the output (the weighted mixture of the filters),
 M_MABS = 7       # MO_MAX_NLAG mean |4th difference| at lags 1..NLAG, deg/s
 M_HIST = M_MABS + MO_MAX_NLAG              # ring of the last 4 NLAG + 1 centred samples
 M_BANK = M_HIST + 4 * MO_MAX_NLAG + 1      # MO_MAX_NF rates, then MO_MAX_NF slopes per sample, log-likelihoods,
-                                           # and flags (1.0 if below the floor at the last sample): one run per
+                                           # flags (1.0 if below the floor at the last sample), and the slopes'
+                                           # change per sample (0.0 in a CV lane): one run per
                                            # quantity, the C core's lanes (MB_X + i, MB_A + i, ...)
 MB_X = M_BANK                   # the bank's runs: rates,
 MB_A = M_BANK + MO_MAX_NF       # slopes per sample,
 MB_L = M_BANK + 2 * MO_MAX_NF   # log-likelihoods,
-MB_H = M_BANK + 3 * MO_MAX_NF   # held flags
-M_LPD = M_BANK + 4 * MO_MAX_NF             # max_motion_hz: delays of the rigid-body low-pass, 2 per section
+MB_H = M_BANK + 3 * MO_MAX_NF   # held flags,
+MB_J = M_BANK + 4 * MO_MAX_NF   # changes of the slope per sample (CA lanes; 0.0 in the CV lanes)
+M_LPD = M_BANK + 5 * MO_MAX_NF             # max_motion_hz: delays of the rigid-body low-pass, 2 per section
 M_SPOS = M_LPD + 2 * MAX_SOS   # spectral floor: position of the next sample in the block
 M_SR = M_SPOS + 1              # spectral floor: its smoothed white-noise variance, (deg/s)^2 (0 = no block yet)
 M_SBK = M_SPOS + 2             # spectral floor: b^(blocks+1) of its d_k
@@ -372,7 +378,38 @@ def cv_gains(tracking_index):
     return alpha, beta, -math.log(1.0 - alpha)
 
 
+CA_NEWTON_STEPS = 60   # ca_gains: Newton steps on its cubic from u = 1 (a fixed count: the same bits in C)
+
+
+def ca_gains(tracking_index):
+    """Steady-state gains of the constant-acceleration Kalman filter: state
+    [omega, a, j] (rate, its change per sample, the change of a per sample),
+    omega += a + j / 2, a += j, j += white noise w, G = [1/2, 1, 1]^T, process
+    noise q = lam^2 R (the discrete Wiener-process acceleration model, in units
+    of the white-noise variance R of z = omega + noise).
+
+    The discrete algebraic Riccati equation's steady state satisfies (Kalata;
+    Gray and Murray 1993) beta = 2(2 - alpha) - 4 sqrt(1 - alpha), gamma =
+    beta^2 / (2 alpha), lam^2 = gamma^2 / (1 - alpha); with s = sqrt(1 - alpha),
+    u = 1 - s: lam = 2 u^3 / (s (1 + s)), i.e. the cubic 2u^3 - lam u^2 + 3 lam u
+    - 2 lam = 0, increasing in u (lam < 18) with its one root in (0, 1), solved
+    here by CA_NEWTON_STEPS Newton steps from u = 1 (convex there: monotone).
+    Then alpha = u (2 - u), beta = 2 u^2, gamma = 2 u^3 / (2 - u).
+    Returns (alpha, beta, gamma, log(S / R) = -log(1 - alpha), lam^2)."""
+    lam = float(tracking_index)
+    u = 1.0
+    for _ in range(CA_NEWTON_STEPS):
+        g = ((2.0 * u - lam) * u + 3.0 * lam) * u - 2.0 * lam
+        dg = (6.0 * u - 2.0 * lam) * u + 3.0 * lam
+        u = u - g / dg
+    alpha = u * (2.0 - u)
+    beta = 2.0 * u * u
+    gamma = 2.0 * u * u * u / (2.0 - u)
+    return alpha, beta, gamma, -math.log(1.0 - alpha), lam * lam
+
+
 def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
+                  n_accel=3, log10_accel_min=-2.0, log10_accel_max=0.0,
                   tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
                   clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0,
                   cusum_tau_s=0.1, cusum_weight=1.0, cusum_sigma=3.75):
@@ -384,7 +421,10 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
 
     n_filters constant-velocity Kalman filters, tracking indices log-spaced
     from 10^log10_lambda_min (averages a whole record) to 10^log10_lambda_max
-    (follows every sample); tau_l_s: memory of their log-likelihoods; r_tau_s:
+    (follows every sample), then n_accel constant-acceleration ones
+    (:func:`ca_gains`), tracking indices log-spaced from 10^log10_accel_min to
+    10^log10_accel_max (a CV filter lags a smoothly accelerating motion; a CA
+    one follows it with a third-order error); tau_l_s: memory of their log-likelihoods; r_tau_s:
     memory of the noise-level estimate; reset: log-likelihood gap below the
     best at which a filter restarts from the best (as an IMM mixes); n_lag:
     lags of the 4th-difference noise estimates; huber: their clip; tau_angle_s:
@@ -397,15 +437,25 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     pass_tau_s = 0: off); line: the spectral line test's threshold in units of the white-noise
     level of one bin (:func:`spectral_floor`; 0 = off)."""
     fs = float(sample_rate_hz)
-    if not 1 <= n_filters <= MO_MAX_NF or not 1 <= n_lag <= MO_MAX_NLAG:
-        raise ValueError("motion: n_filters must be 1..%d and n_lag 1..%d" % (MO_MAX_NF, MO_MAX_NLAG))
+    if (not 1 <= n_filters or not 0 <= n_accel or not n_filters + n_accel <= MO_MAX_NF
+            or not 1 <= n_lag <= MO_MAX_NLAG):
+        raise ValueError("motion: n_filters >= 1 and n_accel >= 0 must sum to at most %d, and n_lag be 1..%d"
+                         % (MO_MAX_NF, MO_MAX_NLAG))
     p = [float(n_filters), math.exp(-1.0 / (tau_l_s * fs)), 1.0 - 1.0 / (r_tau_s * fs), float(reset),
          float(n_lag), float(huber), 1.0 / (tau_angle_s * fs) if tau_angle_s > 0 else 0.0,
          float(clip_sigma) * float(clip_sigma), 0.0]
-    gains = [0.0] * (3 * MO_MAX_NF)
+    gains = [0.0] * (5 * MO_MAX_NF)      # runs: alpha, beta, log S/R, gamma, lam^2
     for i in range(n_filters):
         e = log10_lambda_min + (log10_lambda_max - log10_lambda_min) * i / max(n_filters - 1, 1)
-        gains[i], gains[MO_MAX_NF + i], gains[2 * MO_MAX_NF + i] = cv_gains(10.0 ** e)
+        a, b, ls = cv_gains(10.0 ** e)
+        gains[i], gains[MO_MAX_NF + i], gains[2 * MO_MAX_NF + i] = a, b, ls
+        gains[4 * MO_MAX_NF + i] = b * b / (1.0 - a)      # lam^2 (S_Q), as the bank computed it before
+    for c in range(n_accel):
+        i = n_filters + c
+        e = log10_accel_min + (log10_accel_max - log10_accel_min) * c / max(n_accel - 1, 1)
+        a, b, g, ls, lam2 = ca_gains(10.0 ** e)
+        gains[i], gains[MO_MAX_NF + i], gains[2 * MO_MAX_NF + i] = a, b, ls
+        gains[3 * MO_MAX_NF + i], gains[4 * MO_MAX_NF + i] = g, lam2
     pt = [1.0 / max(pass_tau_s * fs, 1.0) if pass_tau_s > 0 else 0.0, float(pass_gain[0]), float(pass_gain[1])]
     sp = spectral_params(p[2], spectral)
     c = 0.0
@@ -416,7 +466,7 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     if cusum_tau_s > 0 and cusum_weight > 0:
         fc = math.exp(-1.0 / max(cusum_tau_s * fs, 1.0))
         cu = [fc, float(cusum_weight), float(cusum_sigma) ** 2 / (1.0 - fc * fc)]
-    return p + gains + [0.0] + sp + pt + ln + cu
+    return p + gains + [0.0] + sp + pt + ln + cu + [float(n_accel)]
 
 
 def spectral_params(b, ratio=1.0):
@@ -1033,11 +1083,14 @@ def motion_step(p, s, z):
     constant-velocity Kalman filters weighted by their likelihoods (not in the
     paper).
 
-    Model of every filter: state [omega, a], the true rate and its change per
-    sample; omega += a, a += white noise (white-noise acceleration), z = omega +
-    white noise of variance R. The filters differ only in their tracking index
-    lam (q = lam^2 R): from one that averages the whole record to one that
-    follows every sample. Per sample, all O(1):
+    Model of the p[P_MO_NF] constant-velocity (CV) filters: state [omega, a], the
+    true rate and its change per sample; omega += a, a += white noise (white-noise
+    acceleration), z = omega + white noise of variance R. They differ only in their
+    tracking index lam (q = lam^2 R): from one that averages the whole record to one
+    that follows every sample. The p[P_MO_NCA] constant-acceleration (CA) filters
+    after them (lanes P_MO_NF..) add j, the change of a per sample: omega += a + j/2,
+    a += j, j += white noise (:func:`ca_gains`; gamma updates j); a CV filter lags
+    a smoothly accelerating motion, a CA one follows it. Per sample, all O(1):
 
     * R, the sensor's white-noise level: the mean |4th difference| of the
       samples at lags 1..NLAG (70 R for white noise: E|d4| = sqrt(70 R 2/pi)),
@@ -1154,13 +1207,15 @@ def motion_step(p, s, z):
         s[o + M_R] = r
     s[S_K] = k + 1.0
     r = s[o + M_R]
-    nf = int(p[P_MO_NF])
+    ncv = int(p[P_MO_NF])
+    nf = ncv + int(p[P_MO_NCA])      # lanes 0..ncv-1 constant velocity, ncv..nf-1 constant acceleration
     if k < p[P_WARMUP] or r == 0.0:
         for i in range(nf):
             s[o + MB_X + i] = z
             s[o + MB_A + i] = 0.0
             s[o + MB_L + i] = 0.0
             s[o + MB_H + i] = 0.0
+            s[o + MB_J + i] = 0.0
             s[o + M_CUS + i] = 0.0
         return z
     s[S_CONV] = 1.0
@@ -1186,21 +1241,29 @@ def motion_step(p, s, z):
     inv_r = 1.0 / r
     clip2 = p[P_MO_CLIP2]
     # the filters one after another here; gdcore.c runs them side by side, in several
-    # passes over the filters, each filter's operations the same and in the same order
+    # passes over the filters, each filter's operations the same and in the same order.
+    # Every lane predicts omega + a + j / 2, a + j and updates j with gamma; a CV lane's gamma
+    # is 0.0, so its j stays 0.0 and it is the CV filter it was (up to the sign of an exactly
+    # zero sum: x + a + 0.0 is +0.0 where x + a is -0.0; no select, so gdcore.c vectorises).
+    # While the least-squares line's gain gm0 is above a lane's alpha, the lane (CV or CA)
+    # runs at the line's gains and gamma 0 (the same as a CA filter from a diffuse prior)
     for i in range(nf):
         g0 = p[P_MO_G + i]
         g1 = p[P_MO_G + MO_MAX_NF + i]
         ls = p[P_MO_G + 2 * MO_MAX_NF + i]
+        g2 = p[P_MO_G + 3 * MO_MAX_NF + i]
         if gm0 > g0:
             g0 = gm0
             ls = lgm
+            g2 = 0.0
             if gm1 > g1:
                 g1 = gm1
-        wp = s[o + MB_X + i] + s[o + MB_A + i]
+        wp = s[o + MB_X + i] + s[o + MB_A + i] + 0.5 * s[o + MB_J + i]
+        ap = s[o + MB_A + i] + s[o + MB_J + i]
         v = z - wp
         u2 = v * v * (1.0 - g0) * inv_r                 # v^2 / S
         lk = fade * s[o + MB_L + i] - 0.5 * (u2 + ls)
-        if u2 > clip2 and i < nf - 1:
+        if u2 > clip2 and i != ncv - 1:     # every lane but the fastest CV filter
             v = v * math.sqrt(clip2 / u2)                # Huber: the update sees at most clip sigma
         if p[P_MO_CUS + 1] > 0.0:
             # summed innovation: a filter that lags on accelerating motion leaves innovations
@@ -1213,8 +1276,9 @@ def motion_step(p, s, z):
             if x2 > 0.0:
                 lk -= 0.5 * p[P_MO_CUS + 1] * x2 * (1.0 - p[P_MO_CUS] * p[P_MO_CUS])
         s[o + MB_X + i] = wp + g0 * v
-        s[o + MB_A + i] = s[o + MB_A + i] + g1 * v
+        s[o + MB_A + i] = ap + g1 * v
         s[o + MB_L + i] = lk
+        s[o + MB_J + i] = s[o + MB_J + i] + g2 * v      # 0.0 + 0.0 * v in a CV lane
     lmax = s[o + MB_L]
     best = 0
     for i in range(1, nf):
@@ -1234,6 +1298,8 @@ def motion_step(p, s, z):
                 s[o + MB_X + i] = s[o + MB_X + best]
                 s[o + MB_A + i] = s[o + MB_A + best]
                 s[o + M_CUS + i] = s[o + M_CUS + best]
+                if i >= ncv:
+                    s[o + MB_J + i] = s[o + MB_J + best]     # 0.0 from a CV filter
             s[o + MB_L + i] = lmax - thr
             s[o + MB_H + i] = 1.0
         else:
@@ -1258,7 +1324,7 @@ def motion_step(p, s, z):
         if not var - var == 0.0:
             var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
         s[o + M_PVAR] = var
-    c = P_MO_G + best      # alpha of the most likely filter; its beta at c + MO_MAX_NF
+    c = P_MO_G + best      # alpha of the most likely filter; its lam^2 at c + 4 MO_MAX_NF
     if p[P_MO_PT] > 0.0:
         # pass-through: where the most likely filter follows nearly every sample (its gain,
         # smoothed, above p[P_MO_PT + 1]) the bank removes little noise and cannot tell a tone
@@ -1281,7 +1347,7 @@ def motion_step(p, s, z):
     s[S_INNOV] = z - out
     s[S_SVAR] = r / (1.0 - p[c])
     s[S_R] = r      # reported as the other methods report theirs (R_hat, Q_hat of the FMUs)
-    s[S_Q] = p[c + MO_MAX_NF] * p[c + MO_MAX_NF] / (1.0 - p[c]) * r     # q = lam^2 R of the most likely filter
+    s[S_Q] = p[c + 4 * MO_MAX_NF] * r     # q = lam^2 R of the most likely filter
     return out
 
 

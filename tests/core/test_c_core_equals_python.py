@@ -389,11 +389,12 @@ def test_wrong_sizes_raise_value_error():
     # motion: the bank's and the history's sizes (the batch loop holds them in fixed arrays)
     pm, pma, sma = _bufs("motion")
     for field, values in ((K.P_MO_NF, (0.0, 17.0, 2.5, float("nan"))),
+                          (K.P_MO_NCA, (-1.0, 4.0, 1.5, float("nan"))),     # 13 CV + 4 CA > MO_MAX_NF
                           (K.P_MO_NLAG, (0.0, 9.0, 1e9, 6.5, float("nan")))):
         for v in values:
             bad = array.array("d", pm)
             bad[field] = v
-            name = "P_MO_NF" if field == K.P_MO_NF else "P_MO_NLAG"
+            name = {K.P_MO_NF: "P_MO_NF", K.P_MO_NCA: "P_MO_NCA"}.get(field, "P_MO_NLAG")
             with pytest.raises(ValueError, match=name):
                 C.step(bad, sma, 1.0, False)
             with pytest.raises(ValueError, match=name):

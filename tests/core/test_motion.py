@@ -159,22 +159,43 @@ def _sine_gain(y, f_hz, fs, lo):
     return float(np.hypot(c[0], c[1]))
 
 
-@pytest.mark.parametrize("snr, fracs", [(10.0, (0.01, 0.05, 0.15, 0.25, 0.35, 0.45)),
-                                        (3.0, (0.01, 0.05, 0.15, 0.25))])
-def test_gain_of_a_sinusoid_within_5_percent(snr, fracs):
-    """A sinusoid standing snr sigma above white noise (1 kHz, sigma
-    0.35 deg/s, seeded) keeps its amplitude within 5 %, up to 0.45 fs at 10
-    sigma (the old 4th-difference noise level erased everything above fs/4).
-    At 3 sigma it holds to 0.25 fs only (0.88 at 0.35 fs, ~0 at 0.45 fs: a
-    constant-velocity model cannot tell such a tone from noise; see docs/method/motion.md)."""
+@pytest.mark.parametrize("snr, tols", [(10.0, {0.01: 0.05, 0.05: 0.05, 0.15: 0.05, 0.25: 0.05, 0.35: 0.05,
+                                                0.45: 0.05}),
+                                        (3.0, {0.01: 0.10, 0.05: 0.10, 0.15: 0.10})])
+def test_gain_of_a_sinusoid_is_kept(snr, tols):
+    """A sinusoid standing snr sigma above white noise (1 kHz, sigma 0.35 deg/s, seeded)
+    keeps its amplitude within 5 %, up to 0.45 fs at 10 sigma (the old 4th-difference noise
+    level erased everything above fs/4); at 3 sigma within 10 % up to 0.25 fs (the next
+    test). Measured on seeds 11-13 (this test: seed 11) with the default bank (13 CV lanes,
+    tracking indices 10x apart, + 3 CA lanes, 1e-2..1): 10 sigma 1.012-1.014 at 0.01 fs (13 CV
+    lanes alone 1.031-1.033), 1.033-1.038 at 0.05 fs, 0.997-1.001 from 0.15 fs up; 3 sigma
+    1.033-1.039 at 0.01 fs, 1.028-1.047 at 0.05 fs, 0.998-1.008 at 0.15 fs (as the CV lanes
+    alone). Not tested, same seeds: 0.02 fs at 3 sigma 1.103-1.114. A bank of 8 CV lanes
+    (52x apart) + 4 CA lanes (1e-4..1), tried: 1.076-1.087 at 0.01 fs, 3 sigma."""
     fs, sig, n = 1000.0, 0.35, 8000
     rng = np.random.default_rng(11)
     t = np.arange(n) / fs
-    for frac in fracs:
+    for frac, tol in tols.items():
         x = snr * sig * np.sin(2 * np.pi * frac * fs * t + 0.3)
         y = gd.denoise(x + sig * rng.standard_normal(n), fs)
         g = _sine_gain(y, frac * fs, fs, 2000) / (snr * sig)
-        assert abs(g - 1.0) <= 0.05, (frac, g)
+        assert abs(g - 1.0) <= tol, (frac, g)
+
+
+def test_gain_of_a_3_sigma_sinusoid_at_a_quarter_of_the_rate():
+    """The 3-sigma sinusoid of the test above at 0.25 fs (the same seeded noise stream: the
+    draws for 0.01, 0.05 and 0.15 fs first) keeps its amplitude within 2 %. Measured on seeds
+    11-13 (this test: seed 11): 0.990-1.002 with the default bank (13 CV lanes, 10x apart, + 3
+    CA lanes); a bank of 8 CV lanes (52x apart) + 4 CA lanes, tried, averaged it down to
+    0.49-0.55 of its amplitude (the CA lanes did not change that)."""
+    fs, sig, n = 1000.0, 0.35, 8000
+    rng = np.random.default_rng(11)
+    t = np.arange(n) / fs
+    for frac in (0.01, 0.05, 0.15, 0.25):
+        x = 3.0 * sig * np.sin(2 * np.pi * frac * fs * t + 0.3)
+        z = x + sig * rng.standard_normal(n)
+    g = _sine_gain(gd.denoise(z, fs), frac * fs, fs, 2000) / (3.0 * sig)
+    assert abs(g - 1.0) <= 0.02, g
 
 
 def test_a_lone_spike_is_not_held():
@@ -330,8 +351,10 @@ def test_offline_has_no_lag_and_beats_the_causal_filter(sensor):
 def test_summed_innovations_cut_the_angle_error_on_a_chirp(seed):
     """A chirp (0.2-3.2 Hz, 20 sigma, 20 s at 200 Hz): the summed-innovation test of the bank
     (p[P_MO_CUS]) drops a filter that lags, so the integrated angle error over 0.1 s windows is
-    lower than with it off (measured 11-15 % lower on seeds 0-5), for at most 3 % more RMSE
-    (measured -1 to +2 %)."""
+    lower than with it off, for at most 3 % more RMSE. Measured with the 13-filter CV bank:
+    11-15 % lower on seeds 0-5, RMSE -1 to +2 %; with the default bank (13 CV + 3 CA lanes):
+    2.1-8.2 % lower, RMSE -0.9 to +0.9 %, the angle error itself 0.00149-0.00163 deg (the CA
+    lanes follow the chirp: less left for the test to drop); 8 CV + 4 CA lanes, tried: 5-12 %."""
     fs, n, sig, lo = 200.0, 4000, 0.05, 400
     rng = np.random.default_rng(seed)
     t = np.arange(n) / fs
@@ -351,7 +374,7 @@ def test_summed_innovations_cut_the_angle_error_on_a_chirp(seed):
     def err(y):
         return float(np.sqrt(np.mean((y[lo:] - truth[lo:]) ** 2)))
 
-    assert angle(on) < 0.95 * angle(off)
+    assert angle(on) < 0.98 * angle(off)
     assert err(on) <= 1.03 * err(off)
 
 
@@ -371,3 +394,69 @@ def test_the_line_test_stays_off_on_white_noise_and_on_a_tone_below_it():
     tone = white[:2000] + 3.0 * np.sin(2.0 * np.pi * 0.45 * fs * t[:2000])
     on = batch.run(p, K.init_state(p), tone, trace_index=o)[2]
     assert not on[:2 * K.MO_SPEC_N - 1].any() and on[2 * K.MO_SPEC_N:].all()
+
+
+def test_ca_gains_equal_the_riccati_solution():
+    """kernels.ca_gains (Newton on the steady state's cubic, a fixed count) equals the
+    constant-acceleration filter's gains from scipy's discrete algebraic Riccati solver
+    within 1e-12 relative over the default lanes' tracking indices (1e-4..1), and
+    log(S / R) = -log(1 - alpha)."""
+    linalg = pytest.importorskip("scipy.linalg")
+    f3 = np.array([[1.0, 1.0, 0.5], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]])
+    g3 = np.array([[0.5], [1.0], [1.0]])
+    h = np.array([[1.0, 0.0, 0.0]])
+    for e in np.linspace(-4.0, 0.0, 7):
+        lam = 10.0 ** e
+        pp = linalg.solve_discrete_are(f3.T, h.T, lam * lam * (g3 @ g3.T), np.array([[1.0]]))
+        ref = (pp @ h.T / (pp[0, 0] + 1.0))[:, 0]
+        alpha, beta, gamma, ls, lam2 = K.ca_gains(lam)
+        assert np.allclose([alpha, beta, gamma], ref, rtol=1e-12, atol=0.0), e
+        assert abs(ls - np.log(pp[0, 0] + 1.0)) <= 1e-12 * abs(ls)
+        assert lam2 == lam * lam
+
+
+def test_default_bank_is_13_cv_and_3_ca_lanes():
+    """The default bank: 13 constant-velocity lanes (tracking indices 1e-10..1e2) then 3
+    constant-acceleration ones (1e-2..1); a CV lane's gamma is 0 and its lam^2 the value
+    S_Q used before (beta^2 / (1 - alpha)); the fastest CV lane is the last CV one."""
+    p = K.make_params(method="motion", sample_rate_hz=200.0)
+    ncv, nca = int(p[K.P_MO_NF]), int(p[K.P_MO_NCA])
+    nf = ncv + nca
+    assert (ncv, nca) == (13, 3) and nf == K.MO_MAX_NF == 16
+    g = K.P_MO_G
+    m = K.MO_MAX_NF
+    for i in range(13):
+        a, b, ls = K.cv_gains(10.0 ** (-10.0 + 12.0 * i / 12))
+        assert (p[g + i], p[g + m + i], p[g + 2 * m + i], p[g + 3 * m + i]) == (a, b, ls, 0.0)
+        assert p[g + 4 * m + i] == b * b / (1.0 - a)
+    for c in range(3):
+        a, b, gm, ls, lam2 = K.ca_gains(10.0 ** (-2.0 + 2.0 * c / 2))
+        assert [p[g + j * m + 13 + c] for j in range(5)] == [a, b, ls, gm, lam2]
+    assert all(v == 0.0 for j in range(5) for v in p[g + j * m + nf:g + (j + 1) * m])
+
+
+def test_cv_lanes_keep_j_zero_and_ca_lanes_track_a_parabola():
+    """On a quadratic rate (constant rate acceleration, 30 deg/s^3, 200 Hz, sigma 0.05) the
+    CV lanes' j stays exactly 0.0, the most likely lane at the end is a CA lane and its j
+    reads the acceleration's change per sample (0.00135 against 0.0015); the output's error is
+    within 1 % of the 13 CV lanes' alone (RMSE after 2 s 0.0399 against 0.0397 deg/s: a CV
+    lane's lag on a parabola is a constant the bank's slow lanes absorb). With 3 deg/s^3 the
+    most likely lane is a CV one and the RMSE equal to the CV lanes' alone."""
+    fs = 200.0
+    n = 4000
+    t = np.arange(n) / fs
+    truth = 30.0 * t * t
+    z = truth + 0.05 * np.random.default_rng(5).standard_normal(n)
+    p = K.make_params(method="motion", sample_rate_hz=fs)
+    y, s = batch.run(p, K.init_state(p), z)
+    o = K.ext_offset(p)
+    ncv = int(p[K.P_MO_NF])
+    assert all(s[o + K.MB_J + i] == 0.0 for i in range(ncv))
+    best = int(s[o + K.M_BEST])
+    assert best >= ncv
+    assert abs(s[o + K.MB_J + best] - 60.0 / fs ** 2) < 0.3 * 60.0 / fs ** 2     # 2 x 30 deg/s^3 / fs^2
+    cv = K.make_params(method="motion", sample_rate_hz=fs)
+    for i, v in enumerate(K.motion_params(fs, n_accel=0)):   # the default's CV lanes alone
+        cv[K.P_MO_NF + i] = v
+    ycv, _ = batch.run(cv, K.init_state(cv), z)
+    assert rmse(y, truth, fs) < 1.01 * rmse(ycv, truth, fs)

@@ -15,7 +15,7 @@
 #include "gdcore.h"
 #include "fogdenoiser_imu_native_vars.h"
 
-#define SERIAL_VERSION 1u
+#define SERIAL_VERSION 2u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed) */
 #define N_AXES 3
 
 #include "fogdenoiser_params.c"
@@ -115,7 +115,7 @@ static char *imu_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     return ((imu_t *)m)->u.method;
 }
 
-/* serialized fields, format 1: the flags (8-byte integers), the integer parameters, the method
+/* serialized fields, format 2 (the layout of 1; the core's parameters and state changed): the flags (8-byte integers), the integer parameters, the method
  * string, the real parameters, the inputs, time, the outputs, counters and the parameter buffer */
 #define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 13 + 8 * N_AXES + 8 + 8 * N_AXES + 8 * 3 + 8 * N_PARAMS)
 

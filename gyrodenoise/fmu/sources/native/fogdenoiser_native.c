@@ -14,7 +14,7 @@
  *     output equals gd.denoise (tests/fmu/test_native_denoiser.py);
  *   - the variables (get/set), one step, and the fields of the serialized FMU
  *     state (a versioned, checksummed byte image of the parameters and the
- *     filter's state buffer, format 2: unchanged by the split into layer + hooks).
+ *     filter's state buffer, format 3: the motion bank's constant-acceleration lanes).
  *
  * The value references, the GUID and the start values come from
  * fogdenoiser_native_vars.h, generated with modelDescription.xml from one table
@@ -28,7 +28,8 @@
 #include "gdcore.h"
 #include "fogdenoiser_native_vars.h"
 
-#define SERIAL_VERSION 2u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays */
+#define SERIAL_VERSION 3u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays; 3: the motion
+                                bank of 13 CV + 3 CA lanes (MO_MAX_NF 16, the lanes' j, gamma, lam^2) */
 #include "fogdenoiser_params.c"
 
 /* the model's fixed-size part (m): parameters, inputs, outputs, the core's parameter
@@ -146,7 +147,7 @@ static char *dn_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     return ((dn_t *)m)->u.method;
 }
 
-/* serialized fields, format 2: the flags (8-byte integers), the integer parameters, the method
+/* serialized fields, format 3 (the layout of 2; the core's parameters and state changed): the flags (8-byte integers), the integer parameters, the method
  * string, the real parameters, then the run's values and the core's state, in the order of dn_xfer */
 #define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 13 + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
 
