@@ -511,8 +511,9 @@ void gd_motion_params(double *p, double fs)
     {
         double c = 0.0;
         for (i = 0; i < MO_SPEC_RANK; i++)
-            c += 1.0 / (MO_SPEC_NB - i);
+            c += 1.0 / (MO_HI_NB - i);
         p[P_MO_LINE] = p[P_MO_SPEC] > 0.0 ? 10.0 / c : 0.0;
+        p[P_MO_SPECH] = p[P_MO_SPEC] > 0.0 ? 1.0 / (c * (0.375 * MO_SPEC_N)) : 0.0;
     }
     {
         double t = 0.1 * fs, fc = exp(-1.0 / (t >= 1.0 ? t : 1.0));
@@ -554,14 +555,53 @@ KERNEL double forget_weight_(double b, double bk)
     return (1.0 - b) / den;
 }
 
+/* kernels._insert_low: offer pw to the MO_SPEC_RANK smallest (ascending, nl
+ * filled); returns the new count */
+KERNEL int insert_low_(double *low, int nl, double pw)
+{
+    int i;
+    if (nl < MO_SPEC_RANK) {
+        i = nl;
+        nl++;
+    } else if (pw < low[MO_SPEC_RANK - 1]) {
+        i = MO_SPEC_RANK - 1;
+    } else {
+        return nl;
+    }
+    while (i > 0 && low[i - 1] > pw) {
+        low[i] = low[i - 1];
+        i--;
+    }
+    low[i] = pw;
+    return nl;
+}
+
+/* kernels._floor_update: one block's estimate xb into the smoothed floor s[im]
+ * (Sage-Husa weight from s[ibk], Huber clip); returns the new floor */
+KERNEL double floor_update_(const double *restrict p, double *restrict s, long im, long ibk, double xb)
+{
+    double bb = p[P_MO_SBB], d, m;
+    s[ibk] *= bb;
+    d = forget_weight_(bb, s[ibk]);
+    m = s[im];
+    if (d < 0.25 && xb > p[P_MO_HUBER] * m)
+        xb = p[P_MO_HUBER] * m;
+    m += d * (xb - m);
+    if (m == 0.0)
+        s[ibk] = 1.0;
+    s[im] = m;
+    return m;
+}
+
 /* kernels.spectral_floor: the white-noise variance from a low quantile of the
- * Hann-windowed spectrum's upper bins, blocks of MO_SPEC_N samples, accumulated
- * sample by sample; 0.0 before the first block (see kernels.py) */
+ * Hann-windowed spectrum's bins 0.0625-0.48 fs, blocks of MO_SPEC_N samples,
+ * accumulated sample by sample; 0.0 before the first block; the line test's
+ * own floor from the MO_HI_NB bins from MO_HI_J0 (see kernels.py) */
 KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long o, double z, double k)
 {
     const double *cs = p + P_MO_COS;
-    double x, low[MO_SPEC_RANK], w1[MO_SPEC_NB], w2[MO_SPEC_NB], cf[MO_SPEC_NB], xb, bb, d, m, top;
-    int n, j, nl, i;
+    double x, low[MO_SPEC_RANK], lowh[MO_SPEC_RANK], w1[MO_SPEC_NB], w2[MO_SPEC_NB], cf[MO_SPEC_NB], m, top;
+    int n, j, nl, nh;
     if (k == 0.0) {
         s[o + M_SPOS] = 0.0;
         s[o + M_SR] = 0.0;
@@ -569,6 +609,8 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
         s[o + M_SBAD] = 0.0;
         s[o + M_LRAT] = 0.0;
         s[o + M_LON] = 0.0;
+        s[o + M_SRH] = 0.0;
+        s[o + M_SBKH] = 1.0;
     }
     if (!(fabs(z) < MO_SPEC_ZMAX)) {
         z = 0.0;
@@ -602,42 +644,24 @@ KERNEL double spectral_floor_(const double *restrict p, double *restrict s, long
         }
     }
     nl = 0;
+    nh = 0;
     top = 0.0;
     for (j = 0; j < MO_SPEC_NB; j++) {
         double pw = w1[j] * w1[j] + w2[j] * w2[j] - cf[j] * w1[j] * w2[j];
         if (j >= MO_LINE_J0 && pw > top)
             top = pw;
-        if (nl < MO_SPEC_RANK) {
-            i = nl;
-            nl++;
-        } else if (pw < low[MO_SPEC_RANK - 1]) {
-            i = MO_SPEC_RANK - 1;
-        } else {
-            continue;
-        }
-        while (i > 0 && low[i - 1] > pw) {
-            low[i] = low[i - 1];
-            i--;
-        }
-        low[i] = pw;
+        if (j >= MO_HI_J0)
+            nh = insert_low_(lowh, nh, pw);
+        nl = insert_low_(low, nl, pw);
     }
     if (s[o + M_SBAD] != 0.0) {
         s[o + M_SBAD] = 0.0;
         return s[o + M_SR];
     }
-    xb = low[MO_SPEC_RANK - 1] * p[P_MO_SPEC];
-    bb = p[P_MO_SBB];
-    s[o + M_SBK] *= bb;
-    d = forget_weight_(bb, s[o + M_SBK]);
-    m = s[o + M_SR];
-    if (d < 0.25 && xb > p[P_MO_HUBER] * m)
-        xb = p[P_MO_HUBER] * m;
-    m += d * (xb - m);
-    if (m == 0.0)
-        s[o + M_SBK] = 1.0;
-    s[o + M_SR] = m;
-    if (p[P_MO_LINE] > 0.0) {    /* line test (kernels.spectral_floor) */
-        double lr = top * p[P_MO_SPEC], th = p[P_MO_LINE] * m;
+    m = floor_update_(p, s, o + M_SR, o + M_SBK, low[MO_SPEC_RANK - 1] * p[P_MO_SPEC]);
+    if (p[P_MO_LINE] > 0.0) {    /* line test (kernels.spectral_floor), against the high bins' floor */
+        double mh = floor_update_(p, s, o + M_SRH, o + M_SBKH, lowh[MO_SPEC_RANK - 1] * p[P_MO_SPECH]);
+        double lr = top * p[P_MO_SPECH], th = p[P_MO_LINE] * mh;
         s[o + M_LON] = (lr > th && s[o + M_LRAT] > th) ? 1.0 : 0.0;
         s[o + M_LRAT] = lr;
     }

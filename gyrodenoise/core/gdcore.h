@@ -68,17 +68,20 @@ extern "C" {
 #define P_MO_SRATIO (P_MO_RFIX + 3) /* motion: the spectral estimate rs replaces the lag one r where rs x this < r */
 #define P_MO_COS (P_MO_RFIX + 4)   /* motion: cos(2 pi m / MO_SPEC_N), m = 0..MO_SPEC_N-1 */
 #define MO_SPEC_N 128              /* spectral floor: block length */
-#define MO_SPEC_K0 32              /* its first bin */
-#define MO_SPEC_NB 16              /* its bins, every other one */
+#define MO_SPEC_K0 8               /* its first bin (0.0625 fs) */
+#define MO_SPEC_NB 28              /* its bins, every other one (to 62: 0.48 fs) */
 #define MO_SPEC_RANK 4             /* the rank of |X|^2 read */
+#define MO_HI_J0 12                /* the line test's floor: the bins from MO_SPEC_K0 + 2 x 12 = 32 (0.25 fs) */
+#define MO_HI_NB 16                /* ... MO_HI_NB of them */
 #define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped;
                                      so is a 4th difference beyond it in the lag noise estimates (M_MABS) */
 #define P_MO_PT (P_MO_COS + MO_SPEC_N) /* motion: pass-through: gain smoothing per sample (0 = off), gains lo, hi */
 #define P_MO_LINE (P_MO_PT + 3) /* motion: spectral line test threshold x the floor (0 = off) */
-#define MO_LINE_J0 7               /* the line test's first bin (MO_SPEC_K0 + 2 x 7: 0.36 fs) */
+#define MO_LINE_J0 19              /* the line test's first bin (MO_SPEC_K0 + 2 x 19 = 46: 0.36 fs) */
 #define P_MO_CUS (P_MO_PT + 4) /* motion: summed innovation: fading, weight, threshold (0 weight = off) */
 #define P_MO_NCA (P_MO_PT + 7) /* motion: constant-acceleration filters, lanes NF..NF+NCA-1 */
-#define N_PARAMS (P_MO_PT + 8)
+#define P_MO_SPECH (P_MO_PT + 8) /* motion: the line test's floor scale 1 / (c sum w^2) over MO_HI_NB bins */
+#define N_PARAMS (P_MO_PT + 9)
 
 /* p[P_METHOD] values (doubles, compared with ==) */
 #define METHOD_NONE 0.0
@@ -136,7 +139,9 @@ extern "C" {
 #define M_LRAT (M_NWC + 1)           /* line test: the last block's highest top bin x p[P_MO_SPEC] */
 #define M_LON (M_NWC + 2)            /* line test: 1 while the last two blocks held a line (raw output) */
 #define M_CUS (M_NWC + 3)            /* summed innovation per filter (MO_MAX_NF) */
-#define N_EXT (M_CUS + MO_MAX_NF)
+#define M_SRH (M_CUS + MO_MAX_NF)    /* line test: its smoothed floor from the MO_HI_NB high bins (as M_SR) */
+#define M_SBKH (M_SRH + 1)           /* line test: b^(blocks+1) of that floor (as M_SBK) */
+#define N_EXT (M_SRH + 2)
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {

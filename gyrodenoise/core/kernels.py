@@ -86,14 +86,17 @@ MO_MAX_NF = 16
 MO_MAX_NLAG = 8
 P_MO_RFIX = P_MO_G + 5 * MO_MAX_NF   # motion: > 0 = the white-noise variance R to use, (deg/s)^2, instead of
                                      # the estimate (batch.run_offline with max_motion_hz only; 0 = estimate)
-P_MO_SPEC = P_MO_RFIX + 1   # motion: spectral noise floor (:func:`spectral_floor`): 1 / (c sum w^2), 0 = off
+P_MO_SPEC = P_MO_RFIX + 1   # motion: spectral noise floor (:func:`spectral_floor`): 1 / (c sum w^2) over the
+                            # MO_SPEC_NB bins (R's floor), 0 = off
 P_MO_SBB = P_MO_RFIX + 2    # motion: its forgetting factor per block (P_MO_BR ^ MO_SPEC_N)
 P_MO_SRATIO = P_MO_RFIX + 3  # motion: the spectral estimate rs replaces the lag one r where rs x this < r
 P_MO_COS = P_MO_RFIX + 4    # motion: cos(2 pi m / MO_SPEC_N), m = 0..MO_SPEC_N-1 (window and DFT twiddles)
 MO_SPEC_N = 128     # spectral floor: block length, samples (Hann-windowed DFT per block)
-MO_SPEC_K0 = 32     # its first bin (MO_SPEC_N / 4: 0.25 fs) ...
-MO_SPEC_NB = 16     # ... and MO_SPEC_NB bins, every other one (nearly uncorrelated under the Hann window)
+MO_SPEC_K0 = 8      # its first bin (MO_SPEC_N / 16: 0.0625 fs) ...
+MO_SPEC_NB = 28     # ... and MO_SPEC_NB bins, every other one (nearly uncorrelated under the Hann window)
 MO_SPEC_RANK = 4    # the periodogram's MO_SPEC_RANK-th smallest of those bins is read (a low quantile)
+MO_HI_J0 = 12       # the line test's floor: the bins from MO_SPEC_K0 + 2 x 12 = 32 (0.25 fs) ...
+MO_HI_NB = 16       # ... MO_HI_NB of them (to 62: 0.25-0.5 fs), their MO_SPEC_RANK-th smallest
 MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow);
                          # so is a 4th difference beyond it in the lag noise estimates (M_MABS)
 P_MO_PT = P_MO_COS + MO_SPEC_N   # motion: pass-through (:func:`motion_step`): smoothing of the best filter's
@@ -102,11 +105,13 @@ P_MO_PT = P_MO_COS + MO_SPEC_N   # motion: pass-through (:func:`motion_step`): s
 P_MO_LINE = P_MO_PT + 3   # motion: spectral line test (:func:`spectral_floor`): a bin at or above
                           # MO_LINE_J0 whose |X|^2 x p[P_MO_SPEC] exceeds this x the floor, in two
                           # blocks in a row, puts the output on the raw sample (0 = off)
-MO_LINE_J0 = 7            # the line test's first bin: MO_SPEC_K0 + 2 x 7 = 46 (0.36 fs)
+MO_LINE_J0 = 19           # the line test's first bin: MO_SPEC_K0 + 2 x 19 = 46 (0.36 fs)
 P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`): fading of each filter's
                           # summed innovation per sample, and its weight in the log-likelihood (0 = off)
 P_MO_NCA = P_MO_PT + 7   # motion: constant-acceleration filters in the bank, lanes P_MO_NF..P_MO_NF+NCA-1
-N_PARAMS = P_MO_PT + 8
+P_MO_SPECH = P_MO_PT + 8  # motion: the line test's floor (:func:`spectral_floor`): 1 / (c sum w^2) over the
+                          # MO_HI_NB bins from MO_HI_J0 (0 = off with P_MO_SPEC)
+N_PARAMS = P_MO_PT + 9
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -179,7 +184,9 @@ M_NWC = M_GEFF + 1                   # 1.0 once the growing-memory gains are bel
 M_LRAT = M_NWC + 1    # line test: the last block's highest bin at or above MO_LINE_J0 / the floor (x p[P_MO_SPEC])
 M_LON = M_NWC + 2     # line test: 1.0 while the last two blocks held a line (output = raw sample)
 M_CUS = M_NWC + 3     # summed-innovation test: per filter, its faded sum of innovations, deg/s
-N_EXT = M_CUS + MO_MAX_NF
+M_SRH = M_CUS + MO_MAX_NF   # line test: its smoothed floor from the MO_HI_NB high bins, (deg/s)^2 (as M_SR)
+M_SBKH = M_SRH + 1          # line test: b^(blocks+1) of that floor's d_k (as M_SBK)
+N_EXT = M_SRH + 2
 
 
 def layout(n):
@@ -460,13 +467,14 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     sp = spectral_params(p[2], spectral)
     c = 0.0
     for i in range(MO_SPEC_RANK):
-        c += 1.0 / (MO_SPEC_NB - i)
+        c += 1.0 / (MO_HI_NB - i)
     ln = [float(line) / c if line > 0 and sp[0] > 0 else 0.0]
     cu = [0.0, 0.0, 0.0]
     if cusum_tau_s > 0 and cusum_weight > 0:
         fc = math.exp(-1.0 / max(cusum_tau_s * fs, 1.0))
         cu = [fc, float(cusum_weight), float(cusum_sigma) ** 2 / (1.0 - fc * fc)]
-    return p + gains + [0.0] + sp + pt + ln + cu + [float(n_accel)]
+    sph = [1.0 / (c * (0.375 * MO_SPEC_N)) if sp[0] > 0 else 0.0]
+    return p + gains + [0.0] + sp + pt + ln + cu + [float(n_accel)] + sph
 
 
 def spectral_params(b, ratio=1.0):
@@ -478,7 +486,9 @@ def spectral_params(b, ratio=1.0):
     Scale: for white noise of variance R each bin's |X|^2 is R sum(w^2) times an
     exponential variable of mean 1 (chi-square, 2 degrees of freedom), and the
     j-th smallest of M independent ones has the mean sum_{i<j} 1 / (M - i)
-    (Renyi); sum(w^2) = 3 N / 8 for the periodic Hann window."""
+    (Renyi); sum(w^2) = 3 N / 8 for the periodic Hann window. Returns
+    p[P_MO_SPEC:P_MO_PT]; the line test's own scale (MO_HI_NB bins,
+    p[P_MO_SPECH]) is set by :func:`motion_params`."""
     c = 0.0
     for i in range(MO_SPEC_RANK):
         c += 1.0 / (MO_SPEC_NB - i)
@@ -987,8 +997,10 @@ def spectral_floor(p, s, o, z, k):
     ``z``: the raw centred sample, ``k``: samples since the restart.
 
     Every MO_SPEC_N samples: the Hann-windowed DFT of the block at the
-    MO_SPEC_NB bins MO_SPEC_K0, MO_SPEC_K0 + 2, ... (0.25-0.5 fs, above the
-    motion of every profile; every other bin: the Hann window correlates
+    MO_SPEC_NB bins MO_SPEC_K0, MO_SPEC_K0 + 2, ... (0.0625-0.48 fs: above
+    the motion of every profile, and wide enough that a vibration lifting
+    the whole upper half of the band, as on a quadrotor at 120 Hz, leaves
+    bins below it; every other bin: the Hann window correlates
     neighbours); all those bins are even, so the windowed block is folded in
     two as it comes (x[n] + x[n + N/2]) and the DFT runs over N/2 samples at
     the block's end (MO_SPEC_NB x N/2 multiply-adds per block: O(1) per
@@ -998,7 +1010,14 @@ def spectral_floor(p, s, o, z, k):
     cannot move a low quantile. The blocks are averaged with the Sage-Husa
     weight d_k of Eq. (33) (forgetting p[P_MO_SBB] per block), each clipped at
     p[P_MO_HUBER] x the mean once 4 blocks are in; a block holding a sample
-    beyond MO_SPEC_ZMAX (or not finite) is left out (no overflow in the state)."""
+    beyond MO_SPEC_ZMAX (or not finite) is left out (no overflow in the state).
+
+    The line test (p[P_MO_LINE] > 0) keeps its own floor, from the same
+    pass: the MO_SPEC_RANK-th smallest of the MO_HI_NB bins from MO_HI_J0
+    (0.25-0.5 fs) times p[P_MO_SPECH], smoothed as above in M_SRH (M_SBKH):
+    a noise rising towards the Nyquist frequency (a FOG's angle
+    quantisation) lifts those bins and their floor alike, so it does not
+    read as a line against the lower R."""
     n_blk = MO_SPEC_N
     half = n_blk // 2
     if k == 0.0:
@@ -1008,6 +1027,8 @@ def spectral_floor(p, s, o, z, k):
         s[o + M_SBAD] = 0.0
         s[o + M_LRAT] = 0.0
         s[o + M_LON] = 0.0
+        s[o + M_SRH] = 0.0
+        s[o + M_SBKH] = 1.0
     if not abs(z) < MO_SPEC_ZMAX:
         z = 0.0
         s[o + M_SBAD] = 1.0
@@ -1035,46 +1056,66 @@ def spectral_floor(p, s, o, z, k):
             w0 = y + cf[j] * w1[j] - w2[j]
             w2[j] = w1[j]
             w1[j] = w0
-    # the MO_SPEC_RANK smallest |X|^2, ascending (insertion), and the highest from MO_LINE_J0 on
+    # the MO_SPEC_RANK smallest |X|^2 of all the bins and of the MO_HI_NB from MO_HI_J0, ascending
+    # (insertion), and the highest from MO_LINE_J0 on
     low = [0.0] * MO_SPEC_RANK
+    lowh = [0.0] * MO_SPEC_RANK
     nl = 0
+    nh = 0
     top = 0.0
     for j in range(MO_SPEC_NB):
         pw = w1[j] * w1[j] + w2[j] * w2[j] - cf[j] * w1[j] * w2[j]
         if j >= MO_LINE_J0 and pw > top:
             top = pw
-        if nl < MO_SPEC_RANK:
-            i = nl
-            nl += 1
-        elif pw < low[MO_SPEC_RANK - 1]:
-            i = MO_SPEC_RANK - 1
-        else:
-            continue
-        while i > 0 and low[i - 1] > pw:
-            low[i] = low[i - 1]
-            i -= 1
-        low[i] = pw
+        if j >= MO_HI_J0:
+            nh = _insert_low(lowh, nh, pw)
+        nl = _insert_low(low, nl, pw)
     if s[o + M_SBAD] != 0.0:
         s[o + M_SBAD] = 0.0
         return s[o + M_SR]
-    xb = low[MO_SPEC_RANK - 1] * p[P_MO_SPEC]
+    m = _floor_update(p, s, o + M_SR, o + M_SBK, low[MO_SPEC_RANK - 1] * p[P_MO_SPEC])
+    if p[P_MO_LINE] > 0.0:
+        # line test: a bin near the Nyquist frequency far above the high bins' floor, in this block
+        # and the last (a tone, not the edge of a lone step): the bank would average it away
+        mh = _floor_update(p, s, o + M_SRH, o + M_SBKH, lowh[MO_SPEC_RANK - 1] * p[P_MO_SPECH])
+        lr = top * p[P_MO_SPECH]
+        th = p[P_MO_LINE] * mh
+        s[o + M_LON] = 1.0 if lr > th and s[o + M_LRAT] > th else 0.0
+        s[o + M_LRAT] = lr
+    return m
+
+
+def _insert_low(low, nl, pw):
+    """Keep in ``low`` (ascending, ``nl`` filled) the MO_SPEC_RANK smallest values seen,
+    with ``pw`` offered (insertion). Returns the new count of filled entries."""
+    if nl < MO_SPEC_RANK:
+        i = nl
+        nl += 1
+    elif pw < low[MO_SPEC_RANK - 1]:
+        i = MO_SPEC_RANK - 1
+    else:
+        return nl
+    while i > 0 and low[i - 1] > pw:
+        low[i] = low[i - 1]
+        i -= 1
+    low[i] = pw
+    return nl
+
+
+def _floor_update(p, s, i_m, i_bk, xb):
+    """One block's estimate ``xb`` into the smoothed floor s[i_m] (:func:`spectral_floor`):
+    Sage-Husa weight from s[i_bk] (forgetting p[P_MO_SBB] per block), clipped at
+    p[P_MO_HUBER] x the mean once d < 1/4. Returns the new floor, (deg/s)^2."""
     bb = p[P_MO_SBB]
-    s[o + M_SBK] *= bb
-    d = _forget_weight(bb, s[o + M_SBK])
-    m = s[o + M_SR]
+    s[i_bk] *= bb
+    d = _forget_weight(bb, s[i_bk])
+    m = s[i_m]
     if d < 0.25 and xb > p[P_MO_HUBER] * m:
         xb = p[P_MO_HUBER] * m
     m += d * (xb - m)
     if m == 0.0:
-        s[o + M_SBK] = 1.0     # a constant input so far: the mean starts with the first change
-    s[o + M_SR] = m
-    if p[P_MO_LINE] > 0.0:
-        # line test: a bin near the Nyquist frequency far above the floor, in this block and the
-        # last (a tone, not the edge of a lone step): the bank would average it away
-        lr = top * p[P_MO_SPEC]
-        th = p[P_MO_LINE] * m
-        s[o + M_LON] = 1.0 if lr > th and s[o + M_LRAT] > th else 0.0
-        s[o + M_LRAT] = lr
+        s[i_bk] = 1.0     # a constant input so far: the mean starts with the first change
+    s[i_m] = m
     return m
 
 
