@@ -15,7 +15,8 @@
 #include "gdcore.h"
 #include "fogdenoiser_imu_native_vars.h"
 
-#define SERIAL_VERSION 2u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed) */
+#define SERIAL_VERSION 3u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed);
+                               3: the line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH) */
 #define N_AXES 3
 
 #include "fogdenoiser_params.c"

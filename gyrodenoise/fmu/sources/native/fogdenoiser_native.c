@@ -28,8 +28,9 @@
 #include "gdcore.h"
 #include "fogdenoiser_native_vars.h"
 
-#define SERIAL_VERSION 3u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays; 3: the motion
-                                bank of 13 CV + 3 CA lanes (MO_MAX_NF 16, the lanes' j, gamma, lam^2) */
+#define SERIAL_VERSION 4u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays; 3: the motion
+                                bank of 13 CV + 3 CA lanes (MO_MAX_NF 16, the lanes' j, gamma, lam^2); 4: the
+                                line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH) */
 #include "fogdenoiser_params.c"
 
 /* the model's fixed-size part (m): parameters, inputs, outputs, the core's parameter
