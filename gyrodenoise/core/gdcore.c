@@ -454,6 +454,17 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
     return y;
 }
 
+/* kernels.rank_mean: the mean of the MO_SPEC_RANK-th smallest of n_bins exponential
+ * variables of mean 1 (the spectral floors' order-statistic bias) */
+static double rank_mean_(int n_bins)
+{
+    double c = 0.0;
+    int i;
+    for (i = 0; i < MO_SPEC_RANK; i++)
+        c += 1.0 / (double)(n_bins - i);
+    return c;
+}
+
 /* kernels.motion_params(fs) with its defaults, written into p[P_MO_NF ...]
  * (the native FMU builds its parameters here; the tests hold it to the
  * Python bit for bit). */
@@ -509,9 +520,7 @@ void gd_motion_params(double *p, double fs)
         p[P_MO_PT + 2] = 0.95;
     }
     {
-        double c = 0.0;
-        for (i = 0; i < MO_SPEC_RANK; i++)
-            c += 1.0 / (MO_HI_NB - i);
+        double c = rank_mean_(MO_HI_NB);
         p[P_MO_LINE] = p[P_MO_SPEC] > 0.0 ? 10.0 / c : 0.0;
         p[P_MO_SPECH] = p[P_MO_SPEC] > 0.0 ? 1.0 / (c * (0.375 * MO_SPEC_N)) : 0.0;
     }
@@ -527,10 +536,8 @@ void gd_motion_params(double *p, double fs)
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] */
 void gd_spectral_params(double *p, double b, double ratio)
 {
-    double c = 0.0, bb = 1.0;
+    double c = rank_mean_(MO_SPEC_NB), bb = 1.0;
     int i;
-    for (i = 0; i < MO_SPEC_RANK; i++)
-        c += 1.0 / (double)(MO_SPEC_NB - i);
     for (i = 0; i < MO_SPEC_N; i++)
         bb *= b;
     for (i = 0; i < MO_SPEC_N; i++)

@@ -465,16 +465,24 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
         gains[3 * MO_MAX_NF + i], gains[4 * MO_MAX_NF + i] = g, lam2
     pt = [1.0 / max(pass_tau_s * fs, 1.0) if pass_tau_s > 0 else 0.0, float(pass_gain[0]), float(pass_gain[1])]
     sp = spectral_params(p[2], spectral)
-    c = 0.0
-    for i in range(MO_SPEC_RANK):
-        c += 1.0 / (MO_HI_NB - i)
+    c = rank_mean(MO_HI_NB)
     ln = [float(line) / c if line > 0 and sp[0] > 0 else 0.0]
     cu = [0.0, 0.0, 0.0]
     if cusum_tau_s > 0 and cusum_weight > 0:
         fc = math.exp(-1.0 / max(cusum_tau_s * fs, 1.0))
         cu = [fc, float(cusum_weight), float(cusum_sigma) ** 2 / (1.0 - fc * fc)]
-    sph = [1.0 / (c * (0.375 * MO_SPEC_N)) if sp[0] > 0 else 0.0]
+    sph = [1.0 / (c * (0.375 * MO_SPEC_N)) if sp[0] > 0 else 0.0]   # as P_MO_SPEC, for MO_HI_NB bins
     return p + gains + [0.0] + sp + pt + ln + cu + [float(n_accel)] + sph
+
+
+def rank_mean(n_bins):
+    """Mean of the MO_SPEC_RANK-th smallest of ``n_bins`` independent exponential
+    variables of mean 1 (Renyi): sum over i < MO_SPEC_RANK of 1 / (n_bins - i); the
+    spectral floors' order-statistic bias (:func:`spectral_params`)."""
+    c = 0.0
+    for i in range(MO_SPEC_RANK):
+        c += 1.0 / (n_bins - i)
+    return c
 
 
 def spectral_params(b, ratio=1.0):
@@ -489,9 +497,7 @@ def spectral_params(b, ratio=1.0):
     (Renyi); sum(w^2) = 3 N / 8 for the periodic Hann window. Returns
     p[P_MO_SPEC:P_MO_PT]; the line test's own scale (MO_HI_NB bins,
     p[P_MO_SPECH]) is set by :func:`motion_params`."""
-    c = 0.0
-    for i in range(MO_SPEC_RANK):
-        c += 1.0 / (MO_SPEC_NB - i)
+    c = rank_mean(MO_SPEC_NB)
     bb = 1.0
     for _ in range(MO_SPEC_N):
         bb *= b
