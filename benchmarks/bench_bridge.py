@@ -166,9 +166,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot
 t_mpl = time.process_time() - t
 t = time.process_time()
-import plotly.graph_objects, plotly.subplots, gyrodenoise.mavlink.html_report
+import plotly.graph_objects, plotly.subplots, gyrodenoise.flightlog.html_report
 t_plotly = time.process_time() - t
-from gyrodenoise.mavlink import pipeline, plotting, html_writer
+from gyrodenoise.flightlog import pipeline, plotting, html_writer
 jobs, pages = [], []
 plotting.Plotter._submit = lambda self, job: jobs.append(job)
 html_writer.HtmlWriter.write = lambda self, path, report, series: pages.append((path, report, series))

@@ -120,8 +120,8 @@ def main(argv=None):
     if not args.dask_defaults:
         dask.config.set(WORKER_TUNING)
 
-    from gyrodenoise.mavlink.cluster import run_task
-    from gyrodenoise.mavlink.process import process_many
+    from gyrodenoise.flightlog.cluster import run_task
+    from gyrodenoise.flightlog.process import process_many
     logs = Path(args.logs)
     files = sorted(p for p in logs.iterdir() if p.suffix.lower() in (".bin", ".tlog", ".ulg"))
     kw = dict(plots=False)

@@ -145,13 +145,13 @@ def rest_manoeuvre_rest(n, sample_rate_hz, seed=0, rms_deg_s=20.0, bandwidth_hz=
 
 def load_ulog_gyro_deg_s(path=DEFAULT_ULOG):
     """(time_s from the first sample, rate_deg_s[N, 3]) of ``sensor_combined.gyro_rad`` in a
-    PX4 ULog, read by the package's reader (:func:`gyrodenoise.mavlink.ulog.read`).
+    PX4 ULog, read by the package's reader (:func:`gyrodenoise.flightlog.ulog.read`).
 
     The log stores whole microseconds and float32 rad/s: the time is taken in whole
     microseconds from the first sample and the rate converted in the log's own precision.
     Raises FileNotFoundError if the file is absent, ValueError if it has no
     ``sensor_combined`` gyro, and gyrodenoise's InputError if it cannot be read."""
-    from gyrodenoise.mavlink import ulog
+    from gyrodenoise.flightlog import ulog
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"flight_like needs the PX4 log {p} (sensor_combined.gyro_rad); "

@@ -33,7 +33,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:          # run as a file: the tests' helpers live in the repository
     sys.path.insert(0, str(REPO))
 
-from tests.mavlink.html_browser import CHROMIUM, CHROMIUM_ARGS, browser_missing  # noqa: E402
+from tests.flightlog.html_browser import CHROMIUM, CHROMIUM_ARGS, browser_missing  # noqa: E402
 
 #: JavaScript: per plotly div its id, whether plotly drew it (and its zoom/hover toolbar), its trace
 #: count and the points of its

@@ -4,7 +4,7 @@ Usage (from the repository root)::
 
     PYTHONPATH=. python scripts/flight_review_json.py ../shared/data/logs/px4_quad_battery_brownout.ulg
 
-The review only (:func:`gyrodenoise.mavlink.log_review.log_review` on the log as read):
+The review only (:func:`gyrodenoise.flightlog.log_review.log_review` on the log as read):
 no filtering, no output files. The hover entries of ``segments`` are left out; the
 filter review without its plot arrays and per-peak list.
 """
@@ -13,8 +13,8 @@ from __future__ import annotations
 import json
 import sys
 
-from gyrodenoise.mavlink.formats import log_kind, read_log
-from gyrodenoise.mavlink.log_review import log_review
+from gyrodenoise.flightlog.formats import log_kind, read_log
+from gyrodenoise.flightlog.log_review import log_review
 
 
 def review_json(path):

@@ -156,7 +156,7 @@ def fmu_build(request, tmp_path_factory):
     """`gyrodenoise fmu build --out DIR` run once per session in a subprocess: the pythonfmu
     FMUs (FogDenoiser, SimulatedFog) and the native ones (FogDenoiserNative, SimulatedFogNative,
     every platform a compiler is found for); (folder, CompletedProcess). Each user checks the
-    exit status its own way (tests/fmu/test_build_and_run.py asserts it, tests/mavlink/test_fmu_engine.py
+    exit status its own way (tests/fmu/test_build_and_run.py asserts it, tests/flightlog/test_fmu_engine.py
     skips).
     One build serves every test that needs a built FMU: it is the suite's costliest setup
     (~35 s with a warm zig cache, five native platforms x two models), started when the session's tests are known

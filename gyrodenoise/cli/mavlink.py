@@ -211,7 +211,7 @@ def _check_run_options(args):
                              f"got {args.scheduler!r}")
         if args.jobs != 1:
             raise InputError("--jobs and --scheduler exclude each other (the cluster decides the parallelism)")
-        from gyrodenoise.mavlink.cluster import require_dask
+        from gyrodenoise.flightlog.cluster import require_dask
         require_dask("--scheduler")
 
 
@@ -269,9 +269,9 @@ def _check_out(out, created=None):
 
 def _clean_up(out, created):
     """After a failed or interrupted run: the partial files in ``out``
-    (:mod:`gyrodenoise.mavlink.stopping`), then the folders this run created, if empty."""
-    from gyrodenoise.mavlink.cluster import is_url
-    from gyrodenoise.mavlink.stopping import remove_partials
+    (:mod:`gyrodenoise.flightlog.stopping`), then the folders this run created, if empty."""
+    from gyrodenoise.flightlog.cluster import is_url
+    from gyrodenoise.flightlog.stopping import remove_partials
     if out is None or is_url(out):
         return
     remove_partials(out)
@@ -320,7 +320,7 @@ def _signing_key(args):
     """The key of --signing-key (None without it); one line, exit 2, when it cannot be used."""
     if getattr(args, "signing_key", None) is None:
         return None
-    from gyrodenoise.mavlink.signing import read_key
+    from gyrodenoise.flightlog.signing import read_key
     return read_key(args.signing_key, warn=_log)
 
 
@@ -340,7 +340,7 @@ def _run(args, created):
     for opt, v in (("--count", args.count), ("--duration", args.duration), ("--forward", args.forward)):
         if v is not None:
             raise InputError(f"{opt} applies to a live link (udpin:, tcp:, ...) only, not to log files")
-    from gyrodenoise.mavlink.cluster import connect, is_url
+    from gyrodenoise.flightlog.cluster import connect, is_url
     for x in args.logs:
         if not is_url(x) and not Path(x).exists():
             raise InputError(f"{x}: no such file or folder")
@@ -354,7 +354,7 @@ def _run(args, created):
 
 
 def _run_logs(args, client, created):
-    from gyrodenoise.mavlink.cluster import is_url
+    from gyrodenoise.flightlog.cluster import is_url
     if not is_url(args.out):
         _check_out(args.out, created)
     kw = dict(engine=args.engine, method=args.method, ar_order=args.ar_order,
@@ -391,8 +391,8 @@ def _run_logs(args, client, created):
 
 def _write_out(out, name, text):
     """Write ``name`` into the output folder ``out`` (a local path or an fsspec URL)."""
-    from gyrodenoise.mavlink.cluster import is_url
-    from gyrodenoise.mavlink.stopping import atomic_path
+    from gyrodenoise.flightlog.cluster import is_url
+    from gyrodenoise.flightlog.stopping import atomic_path
     if is_url(out):
         import fsspec
         with fsspec.open(str(out).rstrip("/") + "/" + name, "w") as fh:
@@ -418,8 +418,8 @@ def _fleet_report(summary, out, html=True):
     """The fleet report (fleet.md, fleet.json, fleet.png and, with ``html``, fleet.html)
     beside the outputs; returns its paths."""
     import tempfile
-    from gyrodenoise.mavlink.cluster import is_url
-    from gyrodenoise.mavlink.fleet import write_fleet_report
+    from gyrodenoise.flightlog.cluster import is_url
+    from gyrodenoise.flightlog.fleet import write_fleet_report
     if not is_url(out):
         return [str(x) for x in write_fleet_report(summary, Path(out), html=html)]
     with tempfile.TemporaryDirectory() as tmp:
@@ -439,10 +439,10 @@ def exit_status(summary):
 
 
 def _run_files(args, kw, single, client=None):
-    from gyrodenoise.mavlink.process import MOTION_METRIC, process_many, process_log, streams_left_raw
+    from gyrodenoise.flightlog.process import MOTION_METRIC, process_many, process_log, streams_left_raw
     if single:
         # one file: errors are the command's error (exit 2, one line)
-        from gyrodenoise.mavlink.streams import NOISE_METRIC
+        from gyrodenoise.flightlog.streams import NOISE_METRIC
         rep = process_log(args.logs[0], args.out, log=_log, background_plots=True, plot_helpers=1, **kw)
         summary = {"logs": [rep], "failed": [], "ignored_files": [], "n_logs": 1, "n_ok": 1,
                    "n_failed": 0, "jobs": 1, "seconds": rep["seconds"], "noise_metric": NOISE_METRIC,
@@ -574,7 +574,7 @@ def _print_log(out, r, summary):
     out.write(f"  filtered log: {r['output_log']}  (method {r['method']}{_options_text(r)}; "
               f"{_form_text(r)})\n")
     _print_signing(out, r)
-    from gyrodenoise.mavlink.log_review import review_text
+    from gyrodenoise.flightlog.log_review import review_text
     for line in review_text(r):
         out.write(f"  {line}\n")
     if r.get("report_html"):
@@ -589,7 +589,7 @@ def _print_log(out, r, summary):
 def _print_signing(out, r):
     """The signing lines of a log or link: the signed packets left raw for want of a key
     (with how to give one), or what the key did; nothing for a link without signing."""
-    from gyrodenoise.mavlink.report import rejected_text
+    from gyrodenoise.flightlog.report import rejected_text
     if r.get("signed_left_raw"):
         out.write(f"  SIGNED, NOT FILTERED: {r['signing_note']}\n")
     if r.get("signing_key") and (r.get("signed_packets") or r.get("rejected_signatures")):
@@ -601,8 +601,8 @@ def _print_signing(out, r):
 
 def _print_stream(out, s, r, summary):
     """One stream's lines of the text summary of log ``r``."""
-    from gyrodenoise.mavlink.process import saturation_note
-    from gyrodenoise.mavlink.spectra import summary_lines
+    from gyrodenoise.flightlog.process import saturation_note
+    from gyrodenoise.flightlog.spectra import summary_lines
     stage = f"  {s['stage']}" if s.get("stage") else ""
     out.write(f"  {s['name']:<16} {s['samples']:>7} samples  {_fmt(s['rate_hz'])} Hz  "
               f"{s['restarts']} restart(s)  unit {s['field_unit']}"
@@ -636,7 +636,7 @@ def _run_live(args, conn):
 
 
 def _live(args, conn):
-    from gyrodenoise.mavlink.live import run_live
+    from gyrodenoise.flightlog.live import run_live
     return run_live(conn, args.forward, duration=args.duration, max_messages=args.count,
                     method=args.method, ar_order=args.ar_order, gap_factor=args.gap_factor,
                     sample_rate=args.sample_rate, raw_imu_unit=args.raw_imu_unit,
@@ -646,8 +646,8 @@ def _live(args, conn):
 
 def _report_live(args, conn, rep, streams):
     _complete_live_report(args, conn, rep, streams)
-    from gyrodenoise.mavlink.process import log_problems
-    from gyrodenoise.mavlink.report import signing_problems
+    from gyrodenoise.flightlog.process import log_problems
+    from gyrodenoise.flightlog.report import signing_problems
     log_problems(dict(rep, file=conn, output_log=args.forward or "(nowhere)"), _log)
     signing_problems(dict(rep, file=conn), _log)
     if args.json:
@@ -660,8 +660,8 @@ def _report_live(args, conn, rep, streams):
 def _complete_live_report(args, conn, rep, streams):
     """The link's report completed with its streams (their CSV and PNG written unless
     --no-csv / --no-plots), restarts, metrics, the streams left raw and the exit status."""
-    from gyrodenoise.mavlink.process import MOTION_METRIC, plot_stream, safe_name, stream_report, write_csv
-    from gyrodenoise.mavlink.streams import NOISE_METRIC
+    from gyrodenoise.flightlog.process import MOTION_METRIC, plot_stream, safe_name, stream_report, write_csv
+    from gyrodenoise.flightlog.streams import NOISE_METRIC
     out = Path(args.out)
     srep, restarts = [], []
     for s in streams:
@@ -687,7 +687,7 @@ def _complete_live_report(args, conn, rep, streams):
 
 def _print_live(args, conn, rep):
     """The text summary of a live link."""
-    from gyrodenoise.mavlink.process import saturation_note
+    from gyrodenoise.flightlog.process import saturation_note
     out = sys.stdout
     out.write(f"{conn} -> {args.forward or '(nowhere)'}: {rep['messages_in']} messages in, "
               f"{rep['messages_forwarded']} forwarded, {rep['unreadable_records']} unreadable, "

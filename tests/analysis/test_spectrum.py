@@ -198,7 +198,7 @@ def _highres_tlog(path, fs=400.0, n=8000, seed=5):
 
 @pytest.mark.slow
 def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
-    from gyrodenoise.mavlink.process import process_log
+    from gyrodenoise.flightlog.process import process_log
     path = tmp_path / "tones.tlog"
     _highres_tlog(path)
     rep = process_log(path, tmp_path / "out", method="lowpass", filter_kw={"cutoff_hz": 60.0}, csv=False)
@@ -215,7 +215,7 @@ def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
     assert spec["peaks"]["y"] == [] and spec["peaks"]["z"] == []
     assert spec["dominant_peak"]["axis"] == "x" and spec["dominant_peak"]["freq_hz"] == px[0]["freq_hz"]
     # the filter's gain at the line: measured from the records = the Butterworth's |H| there
-    from gyrodenoise.mavlink.spectra import _computed_sos
+    from gyrodenoise.flightlog.spectra import _computed_sos
     sos = _computed_sos("lowpass", 400.0, {"cutoff_hz": 60.0})
     for q in px:
         h = abs(sp.sos_response(sos, [q["freq_hz"]], 400.0)[0])
@@ -224,7 +224,7 @@ def test_bridge_names_the_injected_line_and_the_lowpass_response(tmp_path):
     assert fx["measured"] and abs(fx["minus3db_hz"] - fx["computed_minus3db_hz"]) <= df
     assert abs(fx["computed_minus3db_hz"] - 60.0) <= df
     # the text summary names the line and its harmonic, and says when an axis has none
-    from gyrodenoise.mavlink.spectra import summary_lines
+    from gyrodenoise.flightlog.spectra import summary_lines
     lines = summary_lines(spec)
     assert px[0]["present_in_segments"] == 1.0 and px[1]["present_in_segments"] == 1.0   # all along
     assert lines[0].startswith(f"x: vibration {px[0]['freq_hz']:.3g} Hz, 0.71 deg/s rms (in 100 % of "
@@ -252,7 +252,7 @@ def test_log171_spectrum_fields_in_the_json_and_png(tmp_path):
     """log171 (50 Hz): a spectrum, a spectrogram (4 min) and the filter's measured
     response per stream; its broadband vibration has no peak 6 dB above the floor,
     and each listed peak (if the method changes that) carries every field."""
-    from gyrodenoise.mavlink.process import process_log
+    from gyrodenoise.flightlog.process import process_log
     log = shared_file("logs", "log171.bin")
     rep = process_log(log, tmp_path, csv=False)
     json.dumps(rep, allow_nan=False)
@@ -274,7 +274,7 @@ def test_log171_spectrum_fields_in_the_json_and_png(tmp_path):
 def test_batch_sampler_bursts_spectrum_up_to_1khz(tmp_path):
     """copter_00061: the ISB bursts at ~2 kHz get a spectrum to ~1 kHz from
     segments inside the 1024-sample bursts; the 25 Hz IMU streams one to 12.5 Hz."""
-    from gyrodenoise.mavlink.process import process_log
+    from gyrodenoise.flightlog.process import process_log
     log = shared_file("logs", "copter_00061-2021-11-21_18-03-38.bin")
     rep = process_log(log, tmp_path, csv=False, plots=False)
     s = {x["name"]: x["spectrum"] for x in rep["streams"]}
@@ -294,8 +294,8 @@ def test_batch_sampler_bursts_spectrum_up_to_1khz(tmp_path):
 def test_fleet_report_lists_each_logs_dominant_vibration_peak(tmp_path):
     """The fleet table has each stream's dominant peak, and fleet.md each log's:
     the strongest over the log's streams and axes of the summary's JSON."""
-    from gyrodenoise.mavlink.fleet import write_fleet_report
-    from gyrodenoise.mavlink.process import process_many
+    from gyrodenoise.flightlog.fleet import write_fleet_report
+    from gyrodenoise.flightlog.process import process_many
     logs = [shared_file("logs", "log171.bin"), shared_file("logs", "copter_00061-2021-11-21_18-03-38.bin")]
     summary = process_many([str(p) for p in logs], tmp_path / "out", plots=False, csv=False)
     md, js = write_fleet_report(summary, tmp_path / "out", html=False)[:2]

@@ -17,7 +17,7 @@ FILES = sorted(LOGS.glob("*")) if LOGS.is_dir() else []
 
 
 def read_streams(path):
-    from gyrodenoise.mavlink import dataflash, tlog, ulog
+    from gyrodenoise.flightlog import dataflash, tlog, ulog
     from gyrodenoise.errors import InputError
     try:
         if path.suffix.lower() == ".bin":
@@ -45,7 +45,7 @@ def session_range(z, restarts):
 @pytest.mark.skipif(not FILES, reason="../shared/data/logs absent (third-party logs are not in the repository)")
 @pytest.mark.parametrize("path", FILES, ids=[p.name for p in FILES])
 def test_every_shared_log_stays_finite_and_inside_its_range(path):
-    from gyrodenoise.mavlink.streams import detect_restarts
+    from gyrodenoise.flightlog.streams import detect_restarts
     for st in read_streams(path):
         detect_restarts(st)
         x, _, _ = st.work_units()

@@ -96,7 +96,7 @@ def _lowband(x, fs, band_hz=5.0):
 
 
 def _streams(name):
-    from gyrodenoise.mavlink import dataflash, ulog
+    from gyrodenoise.flightlog import dataflash, ulog
     return dataflash.read(LOGS / name)[2] if name.endswith(".bin") else ulog.read(LOGS / name)[1]
 
 
@@ -108,7 +108,7 @@ def test_real_flight_keeps_the_low_band_motion(name):
     and keeps >= 85 % of its amplitude (the goal set for motion on real flights)."""
     if not (LOGS / name).is_file():
         pytest.skip(f"../shared/data/logs/{name} absent")
-    from gyrodenoise.mavlink.streams import detect_restarts
+    from gyrodenoise.flightlog.streams import detect_restarts
     checked = 0
     for st in _streams(name):
         detect_restarts(st)
@@ -222,8 +222,8 @@ def _log171_spikes():
     of the 50 Hz-aliased vibration)."""
     from tests.helpers import shared_file
     path = shared_file("logs", "log171.bin")
-    from gyrodenoise.mavlink import dataflash
-    from gyrodenoise.mavlink.streams import detect_restarts
+    from gyrodenoise.flightlog import dataflash
+    from gyrodenoise.flightlog.streams import detect_restarts
     for st in dataflash.read(path)[2]:
         detect_restarts(st)
         x, _, _ = st.work_units()
@@ -277,8 +277,8 @@ def test_log171_a_lone_spike_is_not_held():
     to the noise level read there and is partly averaged in)."""
     from tests.helpers import shared_file
     path = shared_file("logs", "log171.bin")
-    from gyrodenoise.mavlink import dataflash
-    from gyrodenoise.mavlink.streams import detect_restarts
+    from gyrodenoise.flightlog import dataflash
+    from gyrodenoise.flightlog.streams import detect_restarts
     st = dataflash.read(path)[2][0]
     detect_restarts(st)
     z = st.work_units()[0][:, 0]

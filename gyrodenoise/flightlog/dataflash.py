@@ -1,0 +1,296 @@
+"""ArduPilot DataFlash binary logs (``.bin``): scan, decode the IMU gyro fields, patch.
+
+A DataFlash log is a sequence of messages ``A3 95 <type> <payload>``; the
+length and layout of each type come from FMT messages (type 128) in the log
+itself. :func:`scan` walks the file once (as pymavlink's ``DFReader_binary``
+does: bytes that do not start a known message are skipped and counted, a
+message cut by the end of the file ends the walk) and keeps the offsets of
+every message per type. The IMU messages are then decoded in bulk with numpy,
+and :func:`patch` writes the filtered gyro values into a copy of the file at
+the same offsets: every other byte of the file is unchanged.
+
+Gyro streams: ``IMU``, ``IMU2``, ``IMU3`` (older logs, one type per IMU) and
+``IMU`` with an instance field ``I`` (ArduPilot 4.x: one stream per instance).
+Fields ``GyrX``, ``GyrY``, ``GyrZ`` are rad/s (float). Time: ``TimeUS`` (us) or
+``TimeMS`` (ms) since boot.
+
+Batch-sampler bursts: an ``ISBH`` header (``type`` 1 = gyro, ``instance``,
+``mul``, ``smp_cnt``, ``SampleUS`` of the first sample, ``smp_rate``) followed
+by ``ISBD`` messages with the same ``N`` (``seqno`` 0, 1, ...), each holding 32
+samples per axis in int16 arrays ``x``, ``y``, ``z``; rad/s = value / mul. One
+stream ``ISB.gyro[instance]`` per instance; sample k of a burst is at
+``SampleUS + k / smp_rate``. A burst whose ISBD messages are incomplete is
+used as far as it goes (the samples it has).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gyrodenoise.errors import InputError
+
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream
+
+HEAD1, HEAD2, FMT_TYPE, FMT_LEN = 0xA3, 0x95, 0x80, 89
+
+# DataFlash format characters -> numpy dtype (little endian)
+_DF_TYPES = {
+    "a": ("<i2", (32,)), "b": ("i1", ()), "B": ("u1", ()), "h": ("<i2", ()), "H": ("<u2", ()),
+    "i": ("<i4", ()), "I": ("<u4", ()), "f": ("<f4", ()), "d": ("<f8", ()), "n": ("S4", ()),
+    "N": ("S16", ()), "Z": ("S64", ()), "c": ("<i2", ()), "C": ("<u2", ()), "e": ("<i4", ()),
+    "E": ("<u4", ()), "L": ("<i4", ()), "M": ("u1", ()), "q": ("<i8", ()), "Q": ("<u8", ()),
+}
+
+GYRO_FIELDS = ("GyrX", "GyrY", "GyrZ")
+IMU_TYPE_RE = re.compile(r"^IMU\d?$")
+
+
+@dataclass
+class DFFormat:
+    type: int
+    length: int
+    name: str
+    format: str
+    columns: list
+
+    def dtype(self):
+        """numpy structured dtype of the whole message, header included."""
+        names, formats, offsets = [], [], []
+        off = 3
+        for ch, col in zip(self.format, self.columns):
+            if ch not in _DF_TYPES:
+                raise ValueError(f"unknown DataFlash format character {ch!r} in {self.name}")
+            base, shape = _DF_TYPES[ch]
+            dt = np.dtype((base, shape)) if shape else np.dtype(base)
+            names.append(col)
+            formats.append(dt)
+            offsets.append(off)
+            off += dt.itemsize
+        if off != self.length:
+            raise ValueError(f"{self.name}: format {self.format!r} gives {off} bytes, FMT says {self.length}")
+        return np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                         "itemsize": self.length})
+
+
+@dataclass
+class DFScan:
+    path: str
+    size: int
+    formats: dict                          # type id -> DFFormat
+    offsets: dict                          # type id -> list of offsets
+    n_messages: int = 0
+    bad_regions: list = field(default_factory=list)   # (start, end) of skipped bytes
+    truncated_bytes: int = 0               # bytes of a message cut by the end of the file
+
+    @property
+    def bad_bytes(self):
+        return sum(e - s for s, e in self.bad_regions)
+
+
+def _parse_fmt(data, pos):
+    t = data[pos + 3]
+    ln = data[pos + 4]
+    name = bytes(data[pos + 5:pos + 9]).split(b"\0", 1)[0].decode("ascii", "replace")
+    fmt = bytes(data[pos + 9:pos + 25]).split(b"\0", 1)[0].decode("ascii", "replace")
+    cols = bytes(data[pos + 25:pos + 89]).split(b"\0", 1)[0].decode("ascii", "replace")
+    return DFFormat(t, ln, name, fmt, cols.split(",") if cols else [])
+
+
+def scan(data, path="<bytes>"):
+    """Walk a DataFlash log held in ``data`` (bytes); return a :class:`DFScan`."""
+    n = len(data)
+    lens = {FMT_TYPE: FMT_LEN}
+    formats = {FMT_TYPE: DFFormat(FMT_TYPE, FMT_LEN, "FMT", "BBnNZ",
+                                  ["Type", "Length", "Name", "Format", "Columns"])}
+    offsets = {}
+    bad = []
+    pos = 0
+    count = 0
+    truncated = 0
+    bad_start = None
+    find = data.find
+    while pos + 3 <= n:
+        if data[pos] == HEAD1 and data[pos + 1] == HEAD2:
+            t = data[pos + 2]
+            ln = lens.get(t)
+            if ln is not None:
+                end = pos + ln
+                if end > n:
+                    truncated = n - pos
+                    break
+                if bad_start is not None:
+                    bad.append((bad_start, pos))
+                    bad_start = None
+                if t == FMT_TYPE:
+                    f = _parse_fmt(data, pos)
+                    if f.length >= 3:
+                        lens[f.type] = f.length
+                        formats[f.type] = f
+                lst = offsets.get(t)
+                if lst is None:
+                    lst = offsets[t] = []
+                lst.append(pos)
+                count += 1
+                pos = end
+                continue
+        # not the start of a known message: skip to the next header candidate
+        if bad_start is None:
+            bad_start = pos
+        nxt = find(b"\xa3\x95", pos + 1)
+        pos = n if nxt < 0 else nxt
+    else:
+        if pos < n and bad_start is None:   # 1-2 stray bytes at the very end
+            truncated = n - pos
+    if bad_start is not None:
+        bad.append((bad_start, min(pos, n)))
+    return DFScan(path, n, formats, offsets, count, bad, truncated)
+
+
+def decode(data, sc: DFScan, type_id):
+    """All messages of ``type_id`` as a numpy structured array (header included)."""
+    f = sc.formats[type_id]
+    offs = np.asarray(sc.offsets.get(type_id, []), dtype=np.int64)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    rows = buf[offs[:, None] + np.arange(f.length)]
+    return rows.view(f.dtype()).reshape(-1)
+
+
+def gyro_streams(data, sc: DFScan):
+    """The gyro streams of a scanned log, in file order of first appearance."""
+    streams = []
+    for tid in sorted(sc.offsets, key=lambda t: sc.offsets[t][0]):
+        f = sc.formats.get(tid)
+        if f is None or not IMU_TYPE_RE.match(f.name) or not all(g in f.columns for g in GYRO_FIELDS):
+            continue
+        if "TimeUS" in f.columns:
+            tcol, tscale = "TimeUS", 1e-6
+        elif "TimeMS" in f.columns:
+            tcol, tscale = "TimeMS", 1e-3
+        else:
+            continue
+        rec = decode(data, sc, tid)
+        offs = np.asarray(sc.offsets[tid], dtype=np.int64)
+        raw = np.stack([rec[g].astype(np.float64) for g in GYRO_FIELDS], axis=1)
+        tt = rec[tcol].astype(np.float64) * tscale
+        if "I" in f.columns:
+            inst = rec["I"].astype(np.int64)
+            groups = [(f"{f.name}[{i}]", inst == i) for i in np.unique(inst)]
+        else:
+            groups = [(f.name, np.ones(len(rec), dtype=bool))]
+        for name, sel in groups:
+            streams.append(GyroStream(
+                name=name, message=f.name, unit="rad/s", to_deg_s=UNIT_TO_DEG_S["rad/s"],
+                time_s=tt[sel], raw=raw[sel], index=offs[sel],
+                note=f"DataFlash {f.name}.GyrX/GyrY/GyrZ (float, rad/s), time {tcol}"))
+    streams += batch_sampler_streams(data, sc)
+    return streams
+
+
+def _type_id(sc, name):
+    for t, f in sc.formats.items():
+        if f.name == name and t in sc.offsets:
+            return t
+    return None
+
+
+def batch_sampler_streams(data, sc: DFScan):
+    """Gyro streams of the batch sampler (ISBH/ISBD), one per IMU instance."""
+    th, td = _type_id(sc, "ISBH"), _type_id(sc, "ISBD")
+    if th is None or td is None:
+        return []
+    fh, fd = sc.formats[th], sc.formats[td]
+    need_h = {"N", "type", "instance", "mul", "SampleUS", "smp_rate"}
+    need_d = {"N", "seqno", "x", "y", "z"}
+    if not need_h <= set(fh.columns) or not need_d <= set(fd.columns):
+        return []
+    h = decode(data, sc, th)
+    d = decode(data, sc, td)
+    d_offs = np.asarray(sc.offsets[td], dtype=np.int64)
+    per_inst = {}
+    for hi in np.nonzero(h["type"] == 1)[0]:
+        hdr = h[hi]
+        sel = np.nonzero(d["N"] == hdr["N"])[0]
+        if not len(sel) or hdr["mul"] == 0 or not hdr["smp_rate"] > 0:
+            continue
+        sel = sel[np.argsort(d["seqno"][sel], kind="stable")]
+        n = 32 * len(sel)
+        cnt = int(hdr["smp_cnt"]) if "smp_cnt" in fh.columns else n
+        n = min(n, cnt)
+        vals = np.stack([d[a][sel].reshape(-1)[:n] for a in ("x", "y", "z")], axis=1).astype(np.float64)
+        k = np.arange(n)
+        t = hdr["SampleUS"] * 1e-6 + k / float(hdr["smp_rate"])
+        # sample index -> (ISBD message offset) * 32 + position in its arrays
+        idx = d_offs[sel][k // 32] * 32 + (k % 32)
+        mul = np.full(n, float(hdr["mul"]))
+        per_inst.setdefault(int(hdr["instance"]), []).append((t, vals / mul[:, None], idx, mul))
+    out = []
+    for inst, bursts in sorted(per_inst.items()):
+        t = np.concatenate([b[0] for b in bursts])
+        raw = np.concatenate([b[1] for b in bursts])
+        idx = np.concatenate([b[2] for b in bursts])
+        mul = np.concatenate([b[3] for b in bursts])
+        s = GyroStream(name=f"ISB.gyro[{inst}]", message="ISBD", unit="rad/s",
+                       to_deg_s=UNIT_TO_DEG_S["rad/s"], time_s=t, raw=raw, index=idx,
+                       note=f"DataFlash batch sampler ISBH/ISBD, gyro instance {inst}: "
+                            f"{len(bursts)} bursts, int16 / mul = rad/s, time SampleUS + k/smp_rate")
+        s.extra["mul"] = mul
+        s.field_dtype, s.field_scale = "<i2", mul
+        out.append(s)
+    return out
+
+
+def gyro_field_offsets(sc: DFScan, message):
+    """Byte offsets of GyrX/GyrY/GyrZ inside a message of type name ``message``."""
+    for f in sc.formats.values():
+        if f.name == message:
+            dt = f.dtype()
+            return [dt.fields[g][1] for g in GYRO_FIELDS]
+    raise KeyError(message)
+
+
+def patch(data, sc: DFScan, streams):
+    """A copy of ``data`` (bytearray) with each stream's filtered values (field
+    unit, float32) written over its gyro fields."""
+    out = bytearray(data)
+    buf = np.frombuffer(out, dtype=np.uint8)
+    for s in streams:
+        if s.filtered is None or s.n == 0:
+            continue
+        if s.message == "ISBD":
+            dt = next(f for f in sc.formats.values() if f.name == "ISBD").dtype()
+            off = s.index // 32
+            pos = s.index % 32
+            counts = np.rint(s.filtered * s.extra["mul"][:, None])
+            if not np.all((counts >= -32768) & (counts <= 32767)):     # never clipped silently
+                raise ValueError(f"{s.name}: a value does not fit int16 (check field_misfit first)")
+            counts = counts.astype("<i2")
+            for k, a in enumerate(("x", "y", "z")):
+                at = off + dt.fields[a][1] + 2 * pos
+                buf[at[:, None] + np.arange(2)] = counts[:, k].copy().view(np.uint8).reshape(-1, 2)
+            continue
+        fo = gyro_field_offsets(sc, s.message)
+        vals = np.ascontiguousarray(s.filtered, dtype="<f4")      # (n, 3)
+        for k in range(3):
+            b = vals[:, k].copy().view(np.uint8).reshape(-1, 4)
+            buf[(s.index + fo[k])[:, None] + np.arange(4)] = b
+    return out
+
+
+def read(path):
+    """Read a DataFlash file: (bytes, DFScan, streams). InputError if unreadable."""
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if len(data) < 3 or data[0] != HEAD1 or data[1] != HEAD2:
+        raise InputError(f"{path}: not a DataFlash binary log (does not start with A3 95)")
+    sc = scan(data, str(path))
+    try:
+        streams = gyro_streams(data, sc)
+    except ValueError as exc:
+        raise InputError(f"{path}: bad FMT message: {exc}") from None
+    return data, sc, streams

@@ -1,0 +1,303 @@
+"""Many logs in one run: the inputs found, each log run as one task (serially, in
+a local process pool or on a Dask cluster), and the summary of the run.
+
+Each task is :func:`gyrodenoise.flightlog.cluster.run_task` (one log through
+:func:`gyrodenoise.flightlog.pipeline.process_log`), whichever way the logs run, so
+outputs are byte-identical. An interrupted run (Ctrl-C, SIGTERM) gets a summary
+of what completed (:func:`interrupted_summary`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from pathlib import Path
+
+from gyrodenoise.errors import Terminated
+from gyrodenoise.flightlog import cluster
+from gyrodenoise.flightlog.formats import LOG_SUFFIXES
+from gyrodenoise.flightlog.report import MOTION_METRIC, log_problems, streams_left_raw
+from gyrodenoise.flightlog.spectra import SPECTRUM_METRIC
+from gyrodenoise.flightlog.stopping import as_child, signals_blocked, stop_processes
+from gyrodenoise.flightlog.streams import NOISE_METRIC
+
+
+def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=False, on_interrupt=None, **kw):
+    """Process files and folders; one summary dict. A failing log is listed
+    under ``failed`` and does not stop the others (nor does a crashed worker).
+
+    ``jobs`` > 1 runs a local process pool; ``scheduler`` (``tcp://HOST:PORT``
+    or a ``distributed.Client``) runs each log as one task on a Dask cluster
+    (:mod:`gyrodenoise.flightlog.cluster`). Items and ``out_dir`` may be fsspec URLs.
+    ``progress`` shows logs done / failed / remaining and samples per second
+    on stderr. Outputs are byte-identical whichever way the logs are run.
+    ``kw``: the keywords of :func:`gyrodenoise.flightlog.pipeline.process_log`.
+
+    Interrupted (KeyboardInterrupt, :class:`gyrodenoise.errors.Terminated`): the
+    workers are stopped, then ``on_interrupt(summary)`` is called with the
+    summary of the logs that completed (:func:`interrupted_summary`: which logs
+    completed, which did not) before the interrupt goes on up; a text it
+    returns is set as the exception's ``stop_note`` (the CLI's stop line).
+    """
+    files, ignored = _log_files(items)
+    stems = _unique_stems(files)
+    tasks = [(f, out_dir, dict(kw, out_stem=st, log=None)) for f, st in zip(files, stems)]
+    t0 = time.perf_counter()
+    where = "Dask cluster" if scheduler is not None else f"{jobs} processes" if jobs > 1 else "local"
+    bar = cluster.Progress(len(tasks), where) if progress and tasks else None
+    results = [None] * len(tasks)           # filled as the logs end (read by an interrupt)
+    try:
+        _run_tasks(tasks, jobs, scheduler, bar, results)
+    except (KeyboardInterrupt, Terminated) as exc:
+        if on_interrupt is not None:
+            note = on_interrupt(interrupted_summary(files, stems, results, ignored, exc,
+                                                    time.perf_counter() - t0, jobs, scheduler))
+            if note:
+                exc.stop_note = note            # the CLI's one line says it
+        raise
+    finally:
+        if bar:
+            bar.close()
+    if log:
+        _log_stream_problems([r["report"] for r in results if r["ok"]], log)
+    return _summary(files, results, ignored, time.perf_counter() - t0, jobs, scheduler)
+
+
+def _log_files(items):
+    """(log files, ignored files) of local paths and fsspec URLs, local ones first."""
+    files, ignored = expand_inputs([it for it in items if not cluster.is_url(it)])
+    urls = [it for it in items if cluster.is_url(it)]
+    if urls:
+        found, missing = cluster.expand_url_inputs(urls)
+        files += found
+        ignored += missing
+    return files, ignored
+
+
+def expand_inputs(items):
+    """Files and folders -> (list of log files, list of ignored files)."""
+    files, ignored = [], []
+    for it in items:
+        p = Path(it)
+        if p.is_dir():
+            for q in sorted(p.rglob("*")):
+                if q.is_file():
+                    (files if q.suffix.lower() in LOG_SUFFIXES else ignored).append(q)
+        else:
+            files.append(p)
+    return files, ignored
+
+
+def _unique_stems(files):
+    """The output stem of each log: its file stem, ``-2``, ``-3``... on a repeat."""
+    seen = {}
+    stems = []
+    for f in files:
+        st = Path(str(f).split("://", 1)[-1]).stem
+        k = seen.get(st, 0)
+        seen[st] = k + 1
+        stems.append(st if k == 0 else f"{st}-{k + 1}")
+    return stems
+
+
+def _uses_pool(jobs, scheduler, n_tasks):
+    """Whether a run of ``n_tasks`` logs goes to the local process pool."""
+    return scheduler is None and jobs > 1 and n_tasks > 1
+
+
+def _run_tasks(tasks, jobs, scheduler, bar, results):
+    """Run every task, each result into ``results`` as it ends (``bar(result)`` then)."""
+    if scheduler is not None:
+        cluster.run_on_cluster(tasks, scheduler, bar, into=results)
+    elif _uses_pool(jobs, scheduler, len(tasks)):
+        _run_in_pool(tasks, jobs, bar, results)
+    else:
+        for i, t in enumerate(tasks):
+            results[i] = cluster.run_task(t)
+            if bar:
+                bar(results[i])
+
+
+#: the environment each ``--jobs`` worker starts with: one thread of BLAS (OpenBLAS,
+#: MKL, BLIS, Accelerate), OpenMP and numba, as Dask's nanny gives its workers. N
+#: workers each starting a thread per core oversubscribe the machine (measured on 16
+#: cores, 80 logs: ``--jobs 16`` no faster than serial with them, 9x serial without).
+WORKER_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                     "BLIS_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1",
+                     "NUMBA_NUM_THREADS": "1"}
+#: threads of BLAS / OpenMP / numba in each worker of the local pool (the summary's
+#: ``threads_per_worker``)
+THREADS_PER_WORKER = 1
+
+
+@contextlib.contextmanager
+def _worker_environment():
+    """The processes started in the block start with :data:`WORKER_THREAD_ENV`:
+    set in this process's environment for the block (a spawned child inherits
+    it), then restored as it was.
+
+    The environment of a fresh interpreter, not a call in a forked worker: these
+    libraries read the variables once, when they load (OpenBLAS starts its threads
+    then), and a forked worker inherits the parent's numpy already loaded with a
+    BLAS sized for every core; after the fork it restarts those threads at its
+    first call, and setting its count to 1 then (threadpoolctl's way, not installed
+    here) still starts them, idle (measured: numpy 2.4's OpenBLAS)."""
+    old = {k: os.environ.get(k) for k in WORKER_THREAD_ENV}
+    os.environ.update(WORKER_THREAD_ENV)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def worker_threads(task=None):
+    """The threads of the calling process (``task`` is not used: the signature of a
+    task, for :func:`_run_in_pool`):
+    ``{"process": threads of the process (Linux, else None), "numba": numba's
+    thread count or None (numba not installed), "env": the thread variables,
+    "preloaded": the modules of :data:`WORKER_PRELOAD` and :data:`PLOT_PRELOAD` the
+    process had imported before this call}``.
+    Run in a worker in place of :func:`gyrodenoise.flightlog.cluster.run_task`, it says
+    what the pool's workers get (the tests)."""
+    import sys
+    preloaded = sorted(m for m in WORKER_PRELOAD + PLOT_PRELOAD if m != "__main__" and m in sys.modules)
+    import numpy as np
+    a = np.ones((256, 256))
+    a @ a                               # BLAS starts its threads (if any) at its first call
+    task = Path("/proc/self/task")
+    try:
+        import numba
+        nb = int(numba.config.NUMBA_NUM_THREADS)
+    except ImportError:
+        nb = None
+    return {"process": len(list(task.iterdir())) if task.is_dir() else None, "numba": nb,
+            "env": {k: os.environ.get(k) for k in WORKER_THREAD_ENV}, "preloaded": preloaded}
+
+
+#: what each worker of the local pool imports before its first log; with plots also
+#: :data:`PLOT_PRELOAD`. Imported once, by the forkserver the workers are forked from:
+#: with spawned workers importing them each, ``--jobs 2`` over the shared logs took 1.7 s
+#: (4.3 s with plots) of CPU more than serial, 0.8 s (3.3 s) with the forkserver
+#: (docs/logs/mavlink.md, Speed)
+WORKER_PRELOAD = ("__main__", "gyrodenoise.flightlog.cluster", "gyrodenoise.flightlog.pipeline",
+                  "gyrodenoise.core.batch", "pymavlink.mavutil", "pyulog")
+PLOT_PRELOAD = ("matplotlib.pyplot", "plotly.graph_objects", "plotly.subplots", "gyrodenoise.flightlog.html_report")
+
+
+def _pool_preload(tasks):
+    """The modules the pool's forkserver imports for ``tasks`` (:data:`WORKER_PRELOAD`,
+    and :data:`PLOT_PRELOAD` when a task draws plots)."""
+    plots = any(t[2].get("plots", True) for t in tasks)
+    return list(WORKER_PRELOAD) + (list(PLOT_PRELOAD) if plots else [])
+
+
+def _pool_context(tasks):
+    """The multiprocessing context of the local pool: forkserver (preloading
+    :func:`_pool_preload`) where the platform has it, else spawn. The forkserver is
+    one per process, started at the pool's first worker (in :func:`_worker_environment`);
+    a later pool reuses it and what it preloaded."""
+    import multiprocessing as mp
+    if "forkserver" not in mp.get_all_start_methods():
+        return mp.get_context("spawn")
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(_pool_preload(tasks))
+    return ctx
+
+
+def _run_in_pool(tasks, jobs, bar, results, fn=None):
+    """:func:`_run_tasks` in a local process pool of ``jobs`` workers, largest log first
+    (``fn``: what runs each task, :func:`gyrodenoise.flightlog.cluster.run_task`).
+    The workers end with this process, and on an interrupt they are stopped at
+    once (the pool's own shutdown would wait for the logs under way).
+
+    Each worker runs one thread of BLAS / OpenMP / numba: ``jobs`` workers each with
+    a thread per core would oversubscribe the machine. The workers are forked from a
+    fresh interpreter (multiprocessing's forkserver; spawned where there is none, as
+    on macOS and Windows) started in :func:`_worker_environment`, which imports
+    :func:`_pool_preload` once for all of them (:func:`_pool_context`). As with any
+    spawned pool, a script that calls this with ``jobs`` > 1 keeps its work under
+    ``if __name__ == "__main__":`` (the workers import the script's main module)."""
+    import concurrent.futures as cf
+    fn = cluster.run_task if fn is None else fn
+    ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_pool_context(tasks),
+                                initializer=as_child)
+    try:
+        # every worker is started by a submit in this block (one a submit, up to ``jobs``)
+        with signals_blocked(), _worker_environment():
+            futures = {ex.submit(fn, tasks[i]): i for i in cluster.largest_first(tasks)}
+        for fut in cf.as_completed(futures):
+            t = tasks[futures[fut]]
+            try:
+                res = fut.result()
+            except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by a crash
+                res = {"ok": False, "file": str(t[0]),
+                       "error": f"{t[0]}: worker failed: {type(exc).__name__}: {exc}"}
+            results[futures[fut]] = res
+            if bar:
+                bar(res)
+    except BaseException:
+        stop_processes(list((getattr(ex, "_processes", None) or {}).values()))
+        ex.shutdown(wait=False, cancel_futures=True)
+        raise
+    ex.shutdown(wait=True)
+
+
+def _log_stream_problems(logs, log):
+    """The stderr lines of a run: streams of unknown unit, streams left raw, warnings."""
+    for r in logs:
+        for s in r["streams"]:
+            if not s["unit_known"]:
+                log(f"{r['file']}: {s['name']}: unit unknown, filtered in {s['field_unit']}")
+        log_problems(r, log)
+
+
+def _summary(files, results, ignored, seconds, jobs, scheduler, head=None):
+    """The summary of a run from the tasks' results (None: not completed); ``head``:
+    the fields that open an interrupted run's summary (which then counts its
+    unfinished logs)."""
+    done = [r for r in results if r is not None]
+    logs = [r["report"] for r in done if r["ok"]]
+    failed = _failed_entries(done)
+    out = dict(head or {})
+    out.update({"logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
+                "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed)})
+    if head is not None:
+        out["n_unfinished"] = sum(r is None for r in results)
+    out.update({
+        "jobs": None if scheduler is not None else int(jobs),     # the cluster decides its parallelism
+        # BLAS / OpenMP / numba threads of each pool worker; None: no pool (serial: this
+        # process's own; a Dask cluster: its workers', e.g. 1 under a nanny)
+        "threads_per_worker": THREADS_PER_WORKER if _uses_pool(jobs, scheduler, len(files)) else None,
+        "scheduler": None if scheduler is None else str(scheduler),
+        "seconds": round(seconds, 3),
+        "noise_metric": NOISE_METRIC, "motion_metric": MOTION_METRIC, "spectrum_metric": SPECTRUM_METRIC,
+        "streams_left_raw": streams_left_raw(logs),
+    })
+    return out
+
+
+def _failed_entries(results):
+    """The ``failed`` list of a summary: file, error and, when a log refused an option, which."""
+    return [{k: r[k] for k in ("file", "error", "option", "rates_hz") if k in r} for r in results if not r["ok"]]
+
+
+def interrupted_summary(files, stems, results, ignored, exc, seconds, jobs=1, scheduler=None):
+    """The summary of an interrupted run: the completed logs' reports (``logs``,
+    ``failed``) as in a full summary, ``"interrupted": true``, the signal, and
+    ``completed`` / ``unfinished`` (file and output stem): an unfinished log's
+    outputs (``STEM.*``) may be absent or only some of them present, each file
+    whole (written under a partial name, renamed when complete)."""
+    sig = "SIGINT" if isinstance(exc, KeyboardInterrupt) else "SIGTERM"
+    head = {
+        "interrupted": True, "signal": sig, "exit_status": 130 if sig == "SIGINT" else 143,
+        "completed": [str(f) for f, r in zip(files, results) if r is not None],
+        "unfinished": [{"file": str(f), "out_stem": st,
+                        "note": f"not completed: its outputs {st}.* in this folder, if any, are not all there"}
+                       for f, st, r in zip(files, stems, results) if r is None],
+    }
+    return _summary(files, results, ignored, seconds, jobs, scheduler, head)

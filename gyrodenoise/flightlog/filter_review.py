@@ -1,0 +1,623 @@
+"""A review of the vehicle's gyro filters from a pre-filter gyro spectrum, with
+recommended settings -- what ArduPilot's web Filter Review and PX4 Flight Review
+do with the batch sampler and the high-rate gyro FIFO.
+
+:func:`filter_review` picks the pre-filter stream, takes its Welch PSD per axis
+(:func:`gyrodenoise.analysis.spectrum.welch_psd`; over flying time when a mask is
+given), predicts the post-filter PSD ``|H|^2 x PSD`` for the logged settings and
+for the recommended ones (:func:`gyrodenoise.flightlog.vehicle_filters.chain_response`),
+and gives for each:
+
+* noise: the rms (deg/s) of the predicted post-filter gyro over the band from
+  :data:`NOISE_BAND_LO_HZ` (30 Hz, above a multicopter's rate-control bandwidth:
+  what the filters pass there is noise the rate controller feeds back and the D
+  term amplifies) to the stream's Nyquist frequency (or the filter rate's, if
+  lower), per axis and root-sum-square over the axes;
+* phase lag in ms at 10, 20 and 30 Hz (:func:`vehicle_filters.phase_lag_ms`).
+
+What it recommends, and why:
+
+* a harmonic notch on the dominant vibration peak at or above
+  :data:`PEAK_MIN_HZ` (:func:`gyrodenoise.analysis.spectrum.find_peaks`, the
+  strongest over the three axes; a peak that is the n-th harmonic of a lower peak
+  moves the notch to that fundamental), with the bandwidth half its centre and
+  40 dB attenuation -- the ArduPilot wiki's guidance ("Managing Gyro Noise with
+  the Static Notch and Dynamic Harmonic Notch Filters", and its "Throttle Based
+  Dynamic Notch Setup": ``INS_HNTCH_FREQ`` the hover frequency, ``INS_HNTCH_BW``
+  hover_freq / 2, ``INS_HNTCH_REF`` the hover thrust; ``INS_HNTCH_ATT`` 40 dB is
+  the parameter's default in HarmonicNotchFilter.cpp), the harmonics
+  (``HMNCS``) those found at 2x..5x the fundamental. Tracking: ESC telemetry
+  (``MODE`` 3) where the log holds ESC RPM, an RPM sensor (2) where it holds RPM,
+  else throttle (1) with ``REF`` the hover throttle (``MOT_THST_HOVER``, else the
+  log's ``CTUN.ThH``) -- the wiki: "If you do not have ESC telemetry or an RPM
+  sensor [...] then throttle-based [...] center frequency control is best". PX4: a static notch ``IMU_GYRO_NF0_FRQ``
+  / ``_BW`` on the peak (the same half-centre bandwidth, within its 100 Hz
+  maximum), or the ESC-RPM dynamic notch (``IMU_GYRO_DNF_EN`` 1) where ESC
+  status is logged.
+* the gyro low-pass cutoff: the highest (whole Hz, from :data:`CUTOFF_MIN_HZ`)
+  whose predicted noise, with the recommended notch, is no more than the logged
+  settings' -- no more noise than today, the least phase lag that allows.
+  The notch is recommended only when that chain lags less (mean of the lags at
+  10, 20 and 30 Hz) than the best chain without it: a notch earns its place by
+  letting the low-pass go higher by more than its own lag.
+
+Bins above half the rate the filters run at are left out of the predicted
+spectra (the filtered gyro is resampled there).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gyrodenoise.analysis import spectrum
+from gyrodenoise.flightlog import vehicle_filters as vf
+from gyrodenoise.flightlog.logdata import log_message_names, log_messages
+
+#: the noise band starts here (Hz)
+NOISE_BAND_LO_HZ = 30.0
+#: vibration peaks below this are taken as motion, not noise to notch (Hz)
+PEAK_MIN_HZ = 40.0
+#: phase lag is given at these frequencies (Hz)
+LAG_FREQS_HZ = (10.0, 20.0, 30.0)
+#: the low-pass cutoff is searched from here (Hz)
+CUTOFF_MIN_HZ = 15.0
+#: a pre-filter stream slower than this cannot show motor noise (Hz)
+MIN_REVIEW_RATE_HZ = 100.0
+#: the notch attenuation recommended (dB; ArduPilot's INS_HNTCH_ATT default)
+NOTCH_ATT_DB = 40.0
+#: PX4's IMU_GYRO_NF0_BW maximum (Hz)
+PX4_NOTCH_BW_MAX_HZ = 100.0
+#: a notch is recommended only on a peak this far above the local spectral floor (dB)
+NOTCH_MIN_PROMINENCE_DB = 10.0
+#: above this share of the analysed stream's rate a peak may be folded (aliased), and no
+#: low-pass cutoff is recommended above it: the spectrum says little there
+FOLD_SHARE = 0.4
+#: PX4 IMU_GYRO_DNF_EN bits (PX4 parameter reference: "0: ESC RPM, 1: Onboard FFT")
+PX4_DNF_ESC_RPM, PX4_DNF_FFT = 1, 2
+PX4_DNF_URL = "https://docs.px4.io/main/en/advanced_config/parameter_reference.html#IMU_GYRO_DNF_EN"
+#: streams averaged before they are logged: their peaks may be folded, whatever their frequency
+AVERAGED_MESSAGES = {"sensor_combined": "sensor_combined is the estimator's IMU, averaged over the "
+                                        "integration interval: motor peaks above its Nyquist frequency fold "
+                                        "into it"}
+AP_HNTCH_REFRESH_NOTE = ("INS_HNTCH_ENABLE was 0: ArduPilot shows the other INS_HNTCH_* parameters only once it "
+                         "is 1 -- set INS_HNTCH_ENABLE,1, reboot the autopilot (or refresh the parameter list), "
+                         "then load the other lines")
+AXES = ("x", "y", "z")
+
+
+# --------------------------------------------------------------------------- context from the log
+
+def review_context(kind, source, autopilot, params, filters, flying_mask_fn=None):
+    """What :func:`filter_review` needs from the log beyond the gyro: a dict with
+    ``notch_centre_hz`` ({stage params: Hz} of the harmonic notches where the log
+    tells: throttle tracking from the median ``CTUN.ThO`` over flying time (whole
+    log without a mask), measured tracking from ``FTN``), ``esc_telemetry`` and
+    ``rpm_sensor`` (the log holds ESC RPM / RPM messages), ``hover_throttle``
+    (``MOT_THST_HOVER`` or the median ``CTUN.ThH``) and ``notes``."""
+    ctx = {"notch_centre_hz": {}, "esc_telemetry": False, "rpm_sensor": False, "hover_throttle": None,
+           "notes": []}
+    names = set(log_message_names(kind, source) or [])
+    if autopilot == "ardupilot":
+        ctx["esc_telemetry"] = "ESC" in names
+        ctx["rpm_sensor"] = "RPM" in names
+        ctun = log_messages(kind, source, "CTUN") if "CTUN" in names else None
+        hover = params.get("MOT_THST_HOVER")
+        if hover is None and ctun is not None and "ThH" in ctun and len(ctun["ThH"]):
+            hover = float(np.nanmedian(ctun["ThH"]))
+        ctx["hover_throttle"] = None if hover is None else float(hover)
+        for st in filters.get("stages", []):
+            if st["kind"] != "harmonic_notch":
+                continue
+            if st["tracking"] == "throttle" and ctun is not None and "ThO" in ctun:
+                thr = _over_flying(ctun["time_s"], np.asarray(ctun["ThO"], dtype=np.float64), flying_mask_fn)
+                if thr is not None:
+                    ctx["notch_centre_hz"][st["params"]] = vf.throttle_notch_centre_hz(st, thr)
+                    ctx["notes"].append(f"{st['params']}: throttle notch at the median throttle out "
+                                        f"{thr:.3f} (CTUN.ThO): centre {ctx['notch_centre_hz'][st['params']]:.1f} Hz")
+            elif st["tracking"] not in ("fixed", "throttle") and "FTN" in names:
+                ftn = log_messages(kind, source, "FTN")
+                col = next((c for c in ("NF1", "DnF1") if c in ftn), None)
+                if col is not None:
+                    f = _over_flying(ftn["time_s"], np.asarray(ftn[col], dtype=np.float64), flying_mask_fn)
+                    if f is not None and f > 0:
+                        ctx["notch_centre_hz"][st["params"]] = f
+                        ctx["notes"].append(f"{st['params']}: centre {f:.1f} Hz, the median FTN.{col}")
+    elif autopilot == "px4":
+        esc = log_messages(kind, source, "esc_status") if "esc_status" in names else None
+        ctx["esc_telemetry"] = esc is not None and any(
+            np.nanmax(np.abs(np.asarray(v, dtype=np.float64)), initial=0.0) > 0
+            for k, v in esc.items() if k.endswith("esc_rpm"))
+        hte = log_messages(kind, source, "hover_thrust_estimate") if "hover_thrust_estimate" in names else None
+        if hte is not None and "hover_thrust" in hte and len(hte["hover_thrust"]):
+            ctx["hover_throttle"] = float(np.nanmedian(hte["hover_thrust"]))
+        if "sensor_gyro_fft" in names:
+            ctx["gyro_fft"] = px4_gyro_fft(log_messages(kind, source, "sensor_gyro_fft"), flying_mask_fn)
+    return ctx
+
+
+def px4_gyro_fft(m, flying_mask_fn=None):
+    """What PX4's onboard gyro FFT (``sensor_gyro_fft``, computed on the raw gyro
+    before any filter) found, over flying time where a mask is given: ``{"sample_rate_hz"``
+    (median ``sensor_sample_rate_hz``: the raw gyro rate, the rate the filters run at),
+    ``"peaks_hz"`` (the median, 10th and 90th percentile of the ``peak_frequencies_*``
+    it reported, finite and positive), ``"n_peaks"``, ``"snr_median"``, ``"over"}``;
+    None when it reported no peak."""
+    if m is None or not len(m.get("time_s", [])):
+        return None
+    t = np.asarray(m["time_s"], dtype=np.float64)
+    keep = np.ones(len(t), dtype=bool)
+    over = "whole log"
+    if flying_mask_fn is not None:
+        fm = np.asarray(flying_mask_fn(t), dtype=bool)
+        if fm.any():
+            keep, over = fm, "flying"
+    freq, snr = [], []
+    for col in m:
+        if col.startswith("peak_frequencies_"):
+            f = np.asarray(m[col], dtype=np.float64)[keep]
+            q = np.asarray(m.get(col.replace("peak_frequencies_", "peak_snr_"), np.full(len(t), np.nan)),
+                           dtype=np.float64)[keep]
+            ok = np.isfinite(f) & (f > 0)
+            freq.append(f[ok])
+            snr.append(q[ok])
+    freq = np.concatenate(freq) if freq else np.zeros(0)
+    snr = np.concatenate(snr) if snr else np.zeros(0)
+    rate = np.asarray(m.get("sensor_sample_rate_hz", []), dtype=np.float64)
+    rate = rate[np.isfinite(rate) & (rate > 0)]
+    if not len(freq):
+        return None
+    p10, p50, p90 = np.percentile(freq, [10, 50, 90])
+    return {"sample_rate_hz": round(float(np.median(rate)), 2) if len(rate) else None,
+            "peaks_hz": {"median": round(float(p50), 1), "p10": round(float(p10), 1), "p90": round(float(p90), 1)},
+            "n_peaks": int(len(freq)),
+            "snr_median": round(float(np.nanmedian(snr)), 2) if np.isfinite(snr).any() else None,
+            "over": over}
+
+
+def _over_flying(time_s, values, flying_mask_fn):
+    v = np.asarray(values, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    if flying_mask_fn is not None:
+        m = np.asarray(flying_mask_fn(t), dtype=bool)
+        if m.any():
+            v = v[m]
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if len(v) else None
+
+
+# --------------------------------------------------------------------------- stream choice
+
+def stream_rate_hz(stream):
+    """Sample rate (Hz) of a stream: its ``rate_hz``, else 1 / the median positive time step."""
+    if getattr(stream, "rate_hz", None):
+        return float(stream.rate_hz)
+    dt = np.diff(np.asarray(stream.time_s, dtype=np.float64))
+    dt = dt[dt > 0]
+    return float(1.0 / np.median(dt)) if len(dt) else None
+
+
+def pick_pre_filter_stream(streams, autopilot, params):
+    """(stream, rate_hz, stages {name: stage}) of the pre-filter stream to review:
+    the batch sampler logged before the filters, then PX4's high-rate gyro FIFO,
+    else the highest-rate pre-filter stream; (None, None, stages) when there is none."""
+    stages = {s.name: vf.stream_stage(autopilot, params, s) for s in streams}
+    pre = [s for s in streams if stages[s.name] == "pre-filter" and s.n > 1]
+
+    def rank(s):
+        first = s.message == "ISBD" or s.message == "sensor_gyro_fifo"
+        return (first, stream_rate_hz(s) or 0.0, s.n)
+    if not pre:
+        return None, None, stages
+    best = max(pre, key=rank)
+    return best, stream_rate_hz(best), stages
+
+
+def _no_stream_note(streams, autopilot, params, stages):
+    parts = []
+    for s in streams:
+        r = stream_rate_hz(s)
+        rate = f" at {r:.0f} Hz" if r else ""
+        where = {"post-filter": "after the vehicle's filters", "pre-filter": "before the vehicle's filters",
+                 "unknown": "at an unknown stage"}[stages[s.name]]
+        parts.append(f"{s.name} is logged {where}{rate}")
+    why = "; ".join(parts) if parts else "no gyro stream"
+    if autopilot == "ardupilot":
+        mask = params.get("INS_LOG_BAT_MASK")
+        if mask is None:
+            why += ", and the batch sampler's INS_LOG_BAT_MASK is not logged"
+        elif not mask:
+            why += ", and the batch sampler is off (INS_LOG_BAT_MASK 0)"
+        elif not any(s.message == "ISBD" for s in streams):
+            why += f", and the log holds no batch-sampler data (INS_LOG_BAT_MASK {_fmt(mask)})"
+    elif autopilot == "px4":
+        why += ", and the high-rate gyro FIFO (sensor_gyro_fifo) is not logged"
+    elif autopilot is None:
+        why += "; the autopilot is unknown, so no stream's stage can be told"
+    return f"no pre-filter gyro stream: {why}"
+
+
+# --------------------------------------------------------------------------- the review
+
+def _psd(stream, rate_hz, flying_mask_fn):
+    """(freq_hz, psd (3, n_bins) in (deg/s)^2/Hz, n_segments, nperseg, over) or None."""
+    t = np.asarray(stream.time_s, dtype=np.float64)
+    x = np.asarray(stream.raw, dtype=np.float64) * (stream.to_deg_s or 1.0)
+    dt = np.diff(t)
+    restarts = np.r_[False, (dt <= 0) | (dt > 5.0 / rate_hz)]
+    over = "whole log"
+    if flying_mask_fn is not None:
+        m = np.asarray(flying_mask_fn(t), dtype=bool)
+        if m.any():
+            x = np.where(m[:, None], x, np.nan)
+            over = "flying"
+    bounds = np.r_[0, np.flatnonzero(restarts), len(t)]
+    runs = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        fin = np.isfinite(x[a:b, 0])
+        runs.append(int(fin.sum()))
+    longest = max(runs) if runs else 0
+    if longest < 64:
+        return None
+    cap = 2 ** int(math.floor(math.log2(longest)))
+    nperseg = max(spectrum.nperseg_for_length(int(np.isfinite(x[:, 0]).sum()), min_segments=8,
+                                              min_nperseg=64, max_nperseg=min(cap, 4096)), min(128, cap))
+    out, n_seg, f = [], 0, None
+    for k in range(3):
+        f, p, n_seg = spectrum.welch_psd(x[:, k], rate_hz, nperseg, restarts=restarts)
+        if p is None:
+            return None
+        out.append(p)
+    return f, np.array(out), n_seg, nperseg, over
+
+
+def _band_rms(freq_hz, psd, lo_hz, hi_hz):
+    sel = (freq_hz >= lo_hz) & (freq_hz <= hi_hz)
+    df = freq_hz[1] - freq_hz[0]
+    per = [float(math.sqrt(max(0.0, float(np.sum(p[sel]) * df)))) for p in psd]
+    return {**{a: round(v, 5) for a, v in zip(AXES, per)}, "rss": round(math.sqrt(sum(v * v for v in per)), 5)}
+
+
+def _figures(stages, f, psd, fs_filter, band, centre):
+    h = vf.chain_response(stages, f, fs_filter, centre)
+    post = psd * np.abs(h) ** 2
+    lags = vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)
+    return post, {"noise_rms_deg_s": _band_rms(f, post, *band),
+                  "phase_lag_ms": {f"{q:g}": round(v, 3) for q, v in zip(LAG_FREQS_HZ, lags)}}
+
+
+def _peaks(f, psd, n_seg, fs, eligible=None):
+    """(peaks, fundamental or None): the strongest peaks (each with ``notch_ok`` and,
+    where not, ``why_not``) and the fundamental a notch would sit on, from the peaks
+    ``eligible(peak) -> "" | reason`` lets through."""
+    found = []
+    for k, a in enumerate(AXES):
+        for q in spectrum.find_peaks(f, psd[k], n_seg, min_freq_hz=PEAK_MIN_HZ):
+            q = dict(q)
+            q["axis"] = a
+            q["why_not"] = eligible(q) if eligible is not None else ""
+            found.append(q)
+    peaks = [{"freq_hz": round(float(q["freq_hz"]), 2), "axis": q["axis"],
+              "amplitude_rms_deg_s": round(float(q["amplitude_rms"]), 5), "ratio_db": round(float(q["ratio_db"]), 2),
+              "notch_ok": not q["why_not"], **({"why_not": q["why_not"]} if q["why_not"] else {})}
+             for q in sorted(found, key=lambda q: -q["amplitude_rms"])[:8]]
+    found = [q for q in found if not q["why_not"]]
+    if not found:
+        return peaks, None
+    dom = max(found, key=lambda q: q["amplitude_rms"])
+    same_axis = [q for q in found if q["axis"] == dom["axis"]]
+    df = f[1] - f[0]
+    grouped = spectrum.group_harmonics(same_axis, df)
+    fund = dom
+    if dom.get("harmonic_of_hz"):
+        fund = next(q for q in grouped if q["freq_hz"] == dom["harmonic_of_hz"])
+    harmonics = sorted({1} | {q["harmonic_n"] for q in grouped if q.get("harmonic_of_hz") == fund["freq_hz"]})
+    return peaks, {"freq_hz": float(fund["freq_hz"]), "axis": fund["axis"], "harmonics": harmonics}
+
+
+def _px4_dynamic_notch(params, ctx):
+    """({NAME: value}, reasons) of PX4's dynamic notch where the log shows what drives it:
+    the onboard FFT's peaks (``sensor_gyro_fft``, computed on the raw gyro) or ESC RPM
+    (``esc_status``); ({}, []) where it shows neither."""
+    fft = ctx.get("gyro_fft")
+    dnf = int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0))
+    rec, why = {}, []
+    if fft is not None:
+        pk = fft["peaks_hz"]
+        if dnf & PX4_DNF_FFT:
+            why.append(f"the onboard FFT (sensor_gyro_fft) puts the motor peaks at {pk['p10']:g}-{pk['p90']:g} Hz "
+                       f"(median {pk['median']:g}) and its dynamic notch is on (IMU_GYRO_DNF_EN bit 1): no change")
+        else:
+            rec["IMU_GYRO_DNF_EN"] = dnf | PX4_DNF_FFT
+            if int(float(params.get("IMU_GYRO_FFT_EN", 0) or 0)) != 1:
+                rec["IMU_GYRO_FFT_EN"] = 1
+            why.append(f"the onboard FFT (sensor_gyro_fft, on the raw gyro at {fft['sample_rate_hz']} Hz) puts the "
+                       f"motor peaks at {pk['p10']:g}-{pk['p90']:g} Hz (median {pk['median']:g}, {fft['n_peaks']} "
+                       f"peaks over {fft['over']}) but IMU_GYRO_DNF_EN {dnf} does not use it: enable the FFT-driven "
+                       f"dynamic notch, IMU_GYRO_DNF_EN bit 1 (value {dnf | PX4_DNF_FFT}; {PX4_DNF_URL})")
+    if ctx.get("esc_telemetry") and not dnf & PX4_DNF_ESC_RPM:
+        rec["IMU_GYRO_DNF_EN"] = rec.get("IMU_GYRO_DNF_EN", dnf) | PX4_DNF_ESC_RPM
+        why.append("ESC status (esc_status) is logged: the ESC-RPM dynamic notch, IMU_GYRO_DNF_EN bit 0 "
+                   f"({PX4_DNF_URL})")
+    return rec, why
+
+
+def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
+    """({NAME: value}, stage or None, reasons) of the recommended notch."""
+    if fund is None:
+        return {}, None, [f"no vibration peak at or above {PEAK_MIN_HZ:g} Hz fit for a notch (the rules: at least "
+                          f"{NOTCH_MIN_PROMINENCE_DB:g} dB above the local floor, at most {FOLD_SHARE:g} x the "
+                          "stream's rate, from a stream that is not averaged): no static notch recommended"]
+    centre = round(fund["freq_hz"], 1)
+    bw = round(centre / 2.0, 1)
+    why = []
+    if autopilot == "ardupilot":
+        hm = sum(1 << (n - 1) for n in fund["harmonics"])
+        if ctx.get("esc_telemetry"):
+            mode, ref, how = 3, 1.0, "ESC telemetry is logged: the notch follows the motors' RPM"
+        elif ctx.get("rpm_sensor"):
+            mode, ref, how = 2, 1.0, "an RPM sensor is logged: the notch follows it"
+        else:
+            hover = ctx.get("hover_throttle") or params.get("MOT_THST_HOVER")
+            logged_ref = params.get("INS_HNTCH_REF")
+            ref = round(float(hover), 3) if hover else (float(logged_ref) if logged_ref else 0.35)
+            mode = 1
+            how = ("no RPM or ESC telemetry in the log: throttle tracking, REF the hover throttle "
+                   f"({'MOT_THST_HOVER/CTUN.ThH' if hover else 'assumed'} {ref})")
+        rec = {"INS_HNTCH_ENABLE": 1, "INS_HNTCH_MODE": mode, "INS_HNTCH_FREQ": centre, "INS_HNTCH_BW": bw,
+               "INS_HNTCH_ATT": NOTCH_ATT_DB, "INS_HNTCH_HMNCS": hm, "INS_HNTCH_REF": ref}
+        stage = {"kind": "harmonic_notch", "path": "rate", "params": "INS_HNTCH_*", "centre_hz": centre,
+                 "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
+                 "tracking": "fixed", "composite": 1, "reference": ref, "min_ratio": 1.0}
+        why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
+                   f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}")
+        return rec, stage, why
+    if autopilot == "px4":
+        bw = min(bw, PX4_NOTCH_BW_MAX_HZ)
+        if ctx.get("esc_telemetry"):
+            rec = {"IMU_GYRO_DNF_EN": int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0)) | PX4_DNF_ESC_RPM,
+                   "IMU_GYRO_DNF_HMC": max(fund["harmonics"]), "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
+            why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch")
+            stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
+                     "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
+                     "attenuation_db": None}
+            return rec, stage, why
+        rec = {"IMU_GYRO_NF0_FRQ": centre, "IMU_GYRO_NF0_BW": bw}
+        why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): static notch IMU_GYRO_NF0 there, "
+                   f"BW half the centre; no ESC telemetry in the log for the dynamic notch")
+        stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ, IMU_GYRO_NF0_BW",
+                 "centre_hz": centre, "bandwidth_hz": bw, "attenuation_db": None}
+        return rec, stage, why
+    return {}, None, ["unknown autopilot: no notch parameters to recommend"]
+
+
+def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, cap_hz=None):
+    """(stages, cutoff_hz or None, notch centres) of the recommended chain: ``notch_stage``
+    (if any) in place of the logged stage it sets, the other logged notches as they
+    are, and the highest whole-Hz low-pass cutoff whose predicted noise is no more
+    than ``target`` (None when none is)."""
+    replaced = notch_stage["params"] if notch_stage else None
+    base = ([notch_stage] if notch_stage else []) + [
+        s for s in logged_stages
+        if s.get("path", "rate") == "rate" and s["kind"] != "lowpass" and s["params"] != replaced]
+    rec_centre = ({k: v for k, v in centre.items() if k != replaced} or None) if isinstance(centre, dict) else None
+    sos_base, _ = vf.chain_sections(base, fs_filter, rec_centre)
+    p_base = psd * np.abs(vf.sos_response(sos_base, f, fs_filter)) ** 2
+    best = None
+    top = min(0.45 * fs_filter, band[1], cap_hz if cap_hz else np.inf)
+    for fc in range(int(CUTOFF_MIN_HZ), int(top) + 1):
+        lp = vf.lowpass2p_sos(float(fc), fs_filter)
+        if _band_rms(f, p_base * np.abs(vf.sos_response([lp], f, fs_filter)) ** 2, *band)["rss"] <= target * (1 + 1e-9):
+            best = fc
+    stages = base + ([{"kind": "lowpass", "path": "rate", "params": lp_name or "lowpass", "cutoff_hz": float(best)}]
+                     if best else [])
+    return stages, best, rec_centre
+
+
+def _mean_lag(chain, logged_lp, fs_filter):
+    stages, best, centre = chain
+    if best is None:
+        stages = stages + logged_lp
+    return float(np.mean(vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)))
+
+
+def _lowpass_param(autopilot, params=None):
+    """The gyro low-pass parameter to recommend: INS_GYRO_FILTER (ArduPilot), IMU_GYRO_CUTOFF
+    (PX4); None for an APM 2.x log whose only gyro low-pass is INS_MPU6K_FILTER (the sensor's
+    own filter, a few fixed values)."""
+    if autopilot == "ardupilot" and params and "INS_GYRO_FILTER" not in params and "INS_MPU6K_FILTER" in params:
+        return None
+    return {"ardupilot": "INS_GYRO_FILTER", "px4": "IMU_GYRO_CUTOFF"}.get(autopilot)
+
+
+def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, context=None):
+    """(review or None, note) of the vehicle's gyro filters from a pre-filter gyro stream.
+
+    ``streams``: the log's gyro streams (:func:`gyrodenoise.flightlog.formats.read_log`);
+    ``params``/``filters``: :func:`gyrodenoise.flightlog.parameters.log_parameters` and
+    :func:`gyrodenoise.flightlog.vehicle_filters.vehicle_filters`;
+    ``flying_mask_fn(time_s) -> bool array``: the flying samples (whole log when
+    None or when no pre-filter sample is flying); ``context``: :func:`review_context`.
+
+    The review (JSON-able but for ``"_plot"``, numpy arrays for plotting that a
+    JSON writer drops): ``source`` (stream, rate, what the PSD is over),
+    ``filter_rate_hz``, ``noise_band_hz``, ``peaks``, ``figures`` {``pre_filter``,
+    ``logged``, ``recommended``: ``noise_rms_deg_s`` per axis and ``rss``, and
+    (the last two) ``phase_lag_ms`` at 10/20/30 Hz}, ``logged`` {NAME: value},
+    ``recommended`` {NAME: value}, ``param_lines``, ``why``, ``notes``. None and a
+    one-line note naming why when there is no usable pre-filter stream."""
+    params = params or {}
+    ctx = context or {}
+    stream, rate, stages = pick_pre_filter_stream(streams, autopilot, params)
+    if stream is None:
+        return None, _no_stream_note(streams, autopilot, params, stages)
+    if rate is None or rate < MIN_REVIEW_RATE_HZ:
+        return None, (f"no pre-filter gyro stream fast enough: {stream.name} is pre-filter but at "
+                      f"{rate or 0:.0f} Hz (below {MIN_REVIEW_RATE_HZ:g} Hz it cannot show motor noise)")
+    spec = _psd(stream, rate, flying_mask_fn)
+    if spec is None:
+        return None, f"{stream.name}: too few contiguous samples for a spectrum (64 needed)"
+    f, psd, n_seg, nperseg, over = spec
+    notes = list(ctx.get("notes", []))
+    fs_filter, fs_src = filters.get("filter_rate_hz"), filters.get("filter_rate_source")
+    if autopilot == "ardupilot" and stream.message == "ISBD" and not int(params.get("INS_LOG_BAT_OPT", 0)) & 1:
+        fs_filter, fs_src = rate, "the batch sampler's rate (it samples at the rate the filters run at)"
+    fft = ctx.get("gyro_fft") if autopilot == "px4" else None
+    if fft is not None and fft.get("sample_rate_hz"):
+        fs_filter, fs_src = fft["sample_rate_hz"], "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
+    if not fs_filter:
+        fs_filter, fs_src = rate, "assumed: the pre-filter stream's rate"
+    keep = f < 0.5 * fs_filter
+    f, psd = f[keep], psd[:, keep]
+    band = (NOISE_BAND_LO_HZ, float(f[-1]))
+    centre = ctx.get("notch_centre_hz") or None
+    logged_stages = [st for st in filters.get("stages", []) if st.get("path", "rate") == "rate"]
+    _, logged_notes = vf.chain_sections(logged_stages, fs_filter, centre)
+    notes += logged_notes
+    averaged = AVERAGED_MESSAGES.get(stream.message)
+    fold_hz = FOLD_SHARE * rate
+    if averaged:
+        notes.append(f"{averaged} (IMU_INTEG_RATE {_fmt(params.get('IMU_INTEG_RATE'))} Hz; attenuated near its "
+                     "Nyquist frequency): no static notch is recommended from its peaks")
+
+    def eligible(q):
+        if averaged:
+            return f"{stream.message} is averaged: the peak may be folded"
+        if q["freq_hz"] > fold_hz:
+            return f"above {FOLD_SHARE:g} x the stream's rate ({fold_hz:.0f} Hz): may be folded"
+        if q["ratio_db"] < NOTCH_MIN_PROMINENCE_DB:
+            return f"{q['ratio_db']:.1f} dB above the floor, below the {NOTCH_MIN_PROMINENCE_DB:g} dB a notch needs"
+        return ""
+
+    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre)
+    peaks, fund = _peaks(f, psd, n_seg, rate, eligible)
+    rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
+    if autopilot == "px4" and notch_stage is None:
+        dyn_rec, dyn_why = _px4_dynamic_notch(params, ctx)
+        rec.update(dyn_rec)
+        why += dyn_why
+
+    lp_name = _lowpass_param(autopilot, params)
+    target = fig_logged["noise_rms_deg_s"]["rss"]
+    logged_lp = [s for s in logged_stages if s["kind"] == "lowpass"]
+    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
+    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
+    if notch_stage is not None and _mean_lag(with_notch, logged_lp, fs_filter) >= _mean_lag(without, logged_lp,
+                                                                                           fs_filter):
+        why = [w for w in why if not w.startswith("dominant")]
+        why.append(f"the peak at {notch_stage['centre_hz']:g} Hz: with a notch there the chain that keeps the "
+                   f"noise lags more (mean over {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz) than without, "
+                   f"so none is recommended")
+        rec, notch_stage = {}, None
+    rec_stages, best, rec_centre = with_notch if notch_stage is not None else without
+    if best is None:
+        why.append(f"no cutoff from {CUTOFF_MIN_HZ:g} Hz keeps the noise at the logged settings' "
+                   f"{target:.3g} deg/s: low-pass cutoff left as logged")
+        rec_stages = rec_stages + logged_lp
+    elif lp_name:
+        rec[lp_name] = best
+        capped = " (searched up to %.0f Hz, %g x the stream's rate: the spectrum says little above)" % (
+            fold_hz, FOLD_SHARE) if best >= int(fold_hz) else ""
+        why.append(f"{lp_name} {best}: the highest cutoff whose predicted noise ({NOISE_BAND_LO_HZ:g} Hz.."
+                   f"{band[1]:.0f} Hz) is no more than the logged settings' ({target:.3g} deg/s rss){capped}")
+    post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre)
+    fig_pre = {"noise_rms_deg_s": _band_rms(f, psd, *band)}
+    logged_params = filters.get("parameters", {})
+    rec = {k: _jsonable(v) for k, v in rec.items()}
+    changes = {k: v for k, v in rec.items() if not _same(logged_params.get(k), v)}
+    for st in logged_stages:                # the logged notches the recommendation keeps
+        if st["kind"] != "lowpass" and (notch_stage is None or st["params"] != notch_stage["params"]):
+            why.append(f"{st['params']} ({_stage_text(st)}): logged on, kept as logged")
+    if changes.get("INS_HNTCH_ENABLE") == 1:
+        notes.append(AP_HNTCH_REFRESH_NOTE)
+        changes = {"INS_HNTCH_ENABLE": 1, **{k: v for k, v in changes.items() if k != "INS_HNTCH_ENABLE"}}
+    review = {
+        "source": {"stream": stream.name, "message": stream.message, "stage": "pre-filter",
+                   "sample_rate_hz": round(rate, 3), "n_samples": int(stream.n), "over": over,
+                   "nperseg": int(nperseg), "resolution_hz": round(float(f[1] - f[0]), 4),
+                   "n_segments": int(n_seg), "averaged": bool(averaged), "fold_hz": round(fold_hz, 1)},
+        "filter_rate_hz": float(fs_filter), "filter_rate_source": fs_src,
+        "noise_band_hz": [band[0], round(band[1], 3)],
+        "noise_metric": (f"rms of the predicted post-filter gyro (deg/s) over {band[0]:g}..{band[1]:.0f} Hz: "
+                         "sqrt(sum(|H|^2 PSD) df) per axis, rss over the axes"),
+        "notch_rule": (f"a static or harmonic notch only on a peak at or above {PEAK_MIN_HZ:g} Hz, at least "
+                       f"{NOTCH_MIN_PROMINENCE_DB:g} dB above the local floor, at most {FOLD_SHARE:g} x the "
+                       "analysed stream's rate, from a stream that is not averaged; no low-pass cutoff above "
+                       f"{FOLD_SHARE:g} x that rate"),
+        "peaks": peaks,
+        "onboard_fft": fft,
+        "figures": {"pre_filter": fig_pre, "logged": fig_logged, "recommended": fig_rec},
+        "logged": {k: v for k, v in logged_params.items() if k in rec or _in_stages(k, logged_stages)},
+        "logged_stages": logged_stages,
+        "recommended": rec,
+        "recommended_stages": rec_stages,
+        "changes": changes,
+        "verdict": "change" if changes else "no change",
+        "param_lines": param_lines(autopilot, changes),
+        "why": why,
+        "notes": notes,
+        "_plot": {"freq_hz": f, "psd_pre": psd, "psd_logged": post_logged, "psd_recommended": post_rec,
+                  "axes": AXES},
+    }
+    if not changes:
+        review["why"].append("no change: every recommended value is the logged one")
+    return review, ""
+
+
+def _same(logged, value):
+    """Whether a logged parameter value and a recommended one are the same setting."""
+    try:
+        return logged is not None and math.isclose(float(logged), float(value), rel_tol=1e-6, abs_tol=1e-6)
+    except (TypeError, ValueError):
+        return False
+
+
+def _in_stages(name, stages):
+    """Whether parameter ``name`` sets one of ``stages`` (their ``params``: a name, a
+    ``PREFIX_*`` or a comma-separated list)."""
+    for st in stages:
+        for p in str(st.get("params", "")).split(","):
+            p = p.strip()
+            if name == p or (p.endswith("*") and name.startswith(p[:-1])):
+                return True
+    return False
+
+
+def _stage_text(st):
+    """A stage's settings in a few words, e.g. 'harmonic_notch 97 Hz, BW 25 Hz, 6 dB, throttle'."""
+    parts = [st["kind"]]
+    if st.get("centre_hz") is not None:
+        parts.append(f"{_fmt(float(st['centre_hz']))} Hz")
+    if st.get("bandwidth_hz") is not None:
+        parts.append(f"BW {_fmt(float(st['bandwidth_hz']))} Hz")
+    if st.get("attenuation_db") is not None:
+        parts.append(f"{_fmt(float(st['attenuation_db']))} dB")
+    if st.get("tracking"):
+        parts.append(str(st["tracking"]))
+    if st.get("sources"):
+        parts.append("/".join(st["sources"]))
+    return ", ".join(parts[:1]) + (" " + ", ".join(parts[1:]) if len(parts) > 1 else "")
+
+
+def param_lines(autopilot, rec):
+    """Lines to paste: ArduPilot parameter-file ``NAME,VALUE``; PX4 console ``param set NAME VALUE``."""
+    if autopilot == "px4":
+        return [f"param set {k} {_fmt(v)}" for k, v in rec.items()]
+    return [f"{k},{_fmt(v)}" for k, v in rec.items()]
+
+
+def _jsonable(v):
+    if isinstance(v, (np.integer,)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v)
+    return v
+
+
+def _fmt(v):
+    if v is None:
+        return "?"
+    if isinstance(v, float) and v.is_integer():
+        return str(int(v))
+    return f"{v:g}" if isinstance(v, float) else str(v)

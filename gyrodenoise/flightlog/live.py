@@ -1,0 +1,419 @@
+"""Live links: receive MAVLink, filter the gyro fields sample by sample, forward everything.
+
+Every message received on the input connection is written to the output
+connection as soon as it has been handled: gyro messages (RAW_IMU,
+SCALED_IMU*, HIGHRES_IMU) re-packed with the filtered values, all others
+byte for byte; nothing is buffered, so the added latency is the handling time
+of one message (reported as ``handling_us``). Unreadable bytes (pymavlink's
+BAD_DATA) are forwarded unchanged too, and counted.
+
+Each stream (message type, system, component, instance) and axis has its own
+:class:`gyrodenoise.Denoiser`, stepped once per sample with the restart flag of
+:class:`gyrodenoise.flightlog.streams.RestartDetector` (same rules as for files). The filter's
+sample rate (which only sets the warm-up length) is ``sample_rate`` when given,
+else the rate of the first two samples; the denoiser is created at the second
+sample and fed the first one then: this gives the same output as creating it
+at the first sample (the first sample of a warm-up is passed through raw).
+
+A stream sampled too slowly to denoise
+(:func:`gyrodenoise.analysis.motion_metrics.too_slow_to_denoise`, telemetry at 1-4 Hz) is
+forwarded raw, as in the file mode: the rate is measured over its first
+:data:`RATE_SAMPLES` steps (inside the filter's warm-up, at least 10 (n+1)
+samples, so nothing filtered has been forwarded before the decision).
+
+Signed links (:mod:`gyrodenoise.flightlog.signing`): with the link's key every
+packet is checked as it arrives; one that fails (unsigned or MAVLink 1 once
+signed packets have come, a bad signature, a timestamp not newer than its
+stream's last) is not filtered and not forwarded, and is counted per source; a
+gyro packet the filter changes is re-signed (original link id and timestamp, or
+one more than the stream's last one out). Without the key a signed packet is
+forwarded as it came, gyro raw, and counted (``signed_left_raw``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numpy as np
+
+from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.errors import InputError
+
+from gyrodenoise.flightlog.signing import KEY_HINT, LinkSigning, is_signed
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
+from gyrodenoise.flightlog.tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
+
+
+#: a live RAW_IMU stream whose unit is still open (see :func:`gyrodenoise.flightlog.tlog.decide_raw_imu_unit`)
+#: is decided with what is known after this many seconds of its own boot time
+UNIT_WAIT_S = 10.0
+#: a live stream's rate is judged (too slow to denoise or not) after this many time steps
+RATE_SAMPLES = 8
+
+
+class _LiveStream:
+    """One live gyro stream: restart detection, one denoiser per axis, and the
+    safety net sample by sample (finite, inside the raw range of the session,
+    fitting the field type; else the stream is forwarded raw from there on).
+
+    A RAW_IMU stream whose unit is not yet known (``to_deg`` is ``"pending"``)
+    is forwarded unfiltered until :func:`gyrodenoise.flightlog.tlog.decide_raw_imu_unit`
+    decides it (the same rule as the file mode, on what the link showed so far;
+    final after :data:`UNIT_WAIT_S`); the denoisers start then."""
+
+    def __init__(self, name, message, unit, to_deg, note, gap_factor, field_dtype="<f4", *,
+                 time_field=None, time_scale=1.0):
+        self.name, self.message, self.unit, self.to_deg, self.note = name, message, unit, to_deg, note
+        self.field_dtype = field_dtype
+        self.time_field, self.time_scale = time_field, time_scale     # the message's boot-time field, to s
+        self.any_v2 = False        # a MAVLink 2 frame seen (what decides a RAW_IMU unit)
+        self.waited_s = 0.0        # boot time seen while the unit is pending
+        self.det = RestartDetector(gap_factor)
+        self.den = None
+        self.t, self.raw, self.fw, self.r = [], [], [], []
+        self.events = []
+        self.rate = None
+        self.warmup = 0
+        self.start = None          # index of the first sample with a known unit
+        self.non_finite = [0, 0, 0]
+        self.dropouts_healed = [0, 0, 0]
+        self.slow = None           # too slow to denoise: None until RATE_SAMPLES steps were seen
+        self.lo = [math.inf] * 3   # raw range of the session (work units), per axis
+        self.hi = [-math.inf] * 3
+        self.left_raw = None
+        self.signed_raw = 0        # signed samples forwarded raw for want of the key
+        self.changed = 0           # samples forwarded changed
+
+    @property
+    def pending(self):
+        return self.to_deg == "pending"
+
+    def decide(self, unit, to_deg, note):
+        self.unit, self.to_deg, self.note = unit, to_deg, note
+
+    def step(self, t, raw, sample_rate, method, ar_order, warmup_s=None, filter_kw=None):
+        """One sample (field units) in; the values to forward (field units) out."""
+        reason = self.det.update(t)
+        i = len(self.t)
+        if reason:
+            self.events.append({"stream": self.name, "sample": i, "time_s": t,
+                                "previous_time_s": self.t[-1], "reason": reason})
+        raw = [float(v) for v in raw]
+        self.t.append(t)
+        self.raw.append(raw)
+        self.r.append(bool(reason))
+        if self.slow is None and len(self.t) > RATE_SAMPLES:
+            from gyrodenoise.analysis.motion_metrics import too_slow_to_denoise
+            self.slow = too_slow_to_denoise(measured_rate_hz(self.t, self.r))
+        if self.pending or self.left_raw or self.slow:
+            self.fw.append(raw)
+            return raw
+        k = self.to_deg if self.to_deg is not None else 1.0
+        z = [v * k for v in raw]
+        if self.start is None:
+            self.start = i
+        if i == self.start:
+            self._envelope(z, True)
+            self.fw.append(raw)                          # first sample of a warm-up: raw
+            return raw
+        if self.den is None:
+            self._start_denoisers(t, k, sample_rate, method, ar_order, warmup_s, filter_kw)
+        self._envelope(z, bool(reason))
+        out = []
+        for j, (d, zz) in enumerate(zip(self.den, z)):
+            y = d.step(zz, bool(reason))
+            if not math.isfinite(zz):
+                # a dropout: healed by the core as gd.denoise heals it (the filter restarts at
+                # this sample and passes it through: y is the raw NaN/inf; with the AR methods'
+                # outlier gate a +-inf is rejected and y is the held prediction). The range the
+                # output is checked against stays the session's: it holds the core's
+                self._dropout(j)
+                out.append(raw[j] if not math.isfinite(y) else y / k)
+                continue
+            bad = self._check(j, y)
+            if bad:
+                self._leave_raw(i, j, y, bad)
+                self.fw.append(raw)
+                return raw
+            out.append(raw[j] if y == zz else y / k)      # passed through (warm-up): bit for bit
+        if (misfit(np.asarray(out), self.field_dtype) & np.isfinite(z)).any():   # a dropout goes as it came
+            self._leave_raw(i, None, out, f"does not fit the field type {np.dtype(self.field_dtype).name}")
+            self.fw.append(raw)
+            return raw
+        self.fw.append(out)
+        return out
+
+    def _start_denoisers(self, t, k, sample_rate, method, ar_order, warmup_s, filter_kw):
+        """One denoiser per axis at the second sample of known unit (rate: ``sample_rate``,
+        else from the first two samples), fed the first one (``k``: to work units)."""
+        from gyrodenoise.core.kernels import P_WARMUP
+        from gyrodenoise.denoiser import Denoiser
+        if sample_rate:
+            rate = float(sample_rate)
+        else:
+            dt = t - self.t[self.start]
+            rate = 1.0 / dt if dt > 0 else 50.0
+        self.rate = rate
+        kw = {} if warmup_s is None else {"warmup_s": float(warmup_s)}
+        kw.update(filter_kw or {})
+        self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
+                    for _ in range(3)]
+        self.warmup = int(self.den[0].params[P_WARMUP])
+        for j, (d, v0) in enumerate(zip(self.den, self.raw[self.start])):
+            d.step(v0 * k, False)
+            if not math.isfinite(v0 * k):
+                self._dropout(j)
+
+    def _dropout(self, j):
+        """Count a non-finite sample of axis ``j``, fed to its denoiser and healed there."""
+        self.non_finite[j] += 1
+        self.dropouts_healed[j] += 1
+
+    def _envelope(self, z, new_session):
+        for j, zz in enumerate(z):
+            if not math.isfinite(zz):
+                if new_session:            # a restart on a dropout: the range starts at the next sample
+                    self.lo[j], self.hi[j] = math.inf, -math.inf
+                continue
+            if new_session or zz < self.lo[j]:
+                self.lo[j] = zz if new_session else min(self.lo[j], zz)
+            if new_session or zz > self.hi[j]:
+                self.hi[j] = zz if new_session else max(self.hi[j], zz)
+
+    def _check(self, j, y):
+        """None, or what is wrong with output ``y`` (work units) of axis ``j``."""
+        if not math.isfinite(y):
+            return "not finite"
+        m = 1e-9 * (1.0 + max(abs(self.lo[j]), abs(self.hi[j])))
+        if not self.lo[j] - m <= y <= self.hi[j] + m:
+            return f"outside the raw range since the last restart [{self.lo[j]:.6g}, {self.hi[j]:.6g}]"
+        return None
+
+    def _leave_raw(self, i, j, value, why):
+        ax = "xyz"[j] + ": " if j is not None else ""
+        self.left_raw = (f"{ax}filtered value {value if j is None else f'{value:.6g}'} at sample {i} "
+                         f"(t={self.t[i]:.3f} s) {why}; forwarded raw from that sample on")
+
+    def as_stream(self):
+        n = len(self.t)
+        k = self.to_deg if isinstance(self.to_deg, float) else 1.0
+        unit = self.unit if not self.pending else "counts"
+        s = GyroStream(name=self.name, message=self.message, unit=unit,
+                       to_deg_s=self.to_deg if isinstance(self.to_deg, float) else None,
+                       time_s=np.asarray(self.t), raw=np.asarray(self.raw, dtype=np.float64).reshape(n, 3),
+                       index=np.arange(n), note=self.note if not self.pending else
+                       "RAW_IMU unit never decided on this link (no HEARTBEAT of the sender): forwarded raw",
+                       field_dtype=self.field_dtype)
+        s.restarts = np.asarray(self.r, dtype=bool)
+        s.restart_events = self.events
+        s.repeated_timestamps = self.det.repeated
+        s.rate_hz = measured_rate_hz(s.time_s, s.restarts)
+        s.filtered = np.asarray(self.fw, dtype=np.float64).reshape(n, 3)
+        x, f = s.raw * k, s.filtered * k
+        s._work = (x, f, "deg/s" if s.to_deg_s is not None else unit, self.rate or 0.0)
+        s.non_finite = list(self.non_finite)
+        s.dropouts_healed = list(self.dropouts_healed)
+        s.left_raw = self.left_raw
+        s.warmup_samples = (self.start or 0) + self.warmup
+        s.not_filtered = None
+        if self.signed_raw and not self.changed:
+            s.not_filtered = (f"its packets are signed (MAVLink 2) and no --signing-key was given: forwarded raw, "
+                              f"signatures kept (a signed packet is never sent unsigned); {KEY_HINT}")
+        return s
+
+
+def _differ(a, b):
+    """True if the values ``a`` and ``b`` differ (NaN equal to NaN)."""
+    return any(x != y and not (x != x and y != y) for x, y in zip(a, b))
+
+
+def _enlarge_receive_buffer(conn, size=4 << 20):
+    """Ask for a larger UDP receive buffer (bursts while the process is descheduled)."""
+    import socket
+    sock = getattr(conn, "port", None)
+    if isinstance(sock, socket.socket) and sock.type == socket.SOCK_DGRAM:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size)
+        except OSError:
+            pass
+
+
+def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAULT_METHOD, ar_order=3,
+             gap_factor=5.0, sample_rate=None, raw_imu_unit="auto", raw_imu_scale=None, log=None,
+             warmup_s=None, filter_kw=None, signing_key=None):
+    """Bridge ``source`` to ``forward`` (pymavlink connection strings) until
+    ``duration`` seconds have passed or ``max_messages`` messages were
+    forwarded (or Ctrl-C). ``signing_key``: the link's 32-byte MAVLink 2 key
+    (packets checked, changed ones re-signed). Returns (report dict, list of GyroStream)."""
+    src, dst = _open_links(source, forward)
+    if log:
+        log(f"listening on {source}, forwarding to {forward or '(nowhere)'}")
+    bridge = _LiveBridge(method=method, ar_order=ar_order, gap_factor=gap_factor, sample_rate=sample_rate,
+                         warmup_s=warmup_s, filter_kw=filter_kw, raw_imu_unit=raw_imu_unit,
+                         raw_imu_scale=raw_imu_scale, log=log, signing_key=signing_key)
+    t_start = time.monotonic()
+    try:
+        stopped_by = _forward_until_stopped(src, dst, bridge, t_start + duration if duration else None,
+                                            max_messages)
+    finally:
+        src.close()
+        if dst is not None:
+            dst.close()
+    report = {
+        "mode": "live", "input": source, "forward": forward, "stopped_by": stopped_by,
+        "seconds": round(time.monotonic() - t_start, 3), "messages_in": bridge.n_in,
+        "messages_forwarded": bridge.n_out, "unreadable_records": bridge.n_bad,
+        **bridge.link.report(), "handling_us": _handling_us(bridge.handle_ns),
+        "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
+        "filter_options": dict(filter_kw or {}),
+        "form": "causal", "form_note": "a live link is filtered as it comes, one sample at a time",
+    }
+    return report, [st.as_stream() for st in bridge.streams.values()]
+
+
+def _open_links(source, forward):
+    """(input connection, output connection or None), MAVLink 2 with the ArduPilot
+    dialect; InputError with one line when one cannot be opened."""
+    os.environ.setdefault("MAVLINK20", "1")
+    from pymavlink import mavutil
+    mavutil.set_dialect("ardupilotmega")
+    try:
+        src = mavutil.mavlink_connection(source, robust_parsing=True)
+    except Exception as exc:  # noqa: BLE001 - socket/serial errors of many kinds
+        raise InputError(f"{source}: cannot open the input link ({type(exc).__name__}: {exc})") from None
+    _enlarge_receive_buffer(src)
+    try:
+        dst = mavutil.mavlink_connection(forward) if forward else None
+    except Exception as exc:  # noqa: BLE001
+        src.close()
+        raise InputError(f"{forward}: cannot open the output link ({type(exc).__name__}: {exc})") from None
+    return src, dst
+
+
+def _forward_until_stopped(src, dst, bridge, deadline, max_messages):
+    """Receive, handle and forward messages one at a time; return what stopped it:
+    ``"count"`` (``max_messages`` received), ``"duration"`` (``deadline``, a
+    :func:`time.monotonic` time, passed) or ``"interrupt"`` (Ctrl-C)."""
+    try:
+        while True:
+            if max_messages is not None and bridge.n_in >= max_messages:
+                return "count"
+            timeout = 0.2
+            if deadline is not None:
+                timeout = deadline - time.monotonic()
+                if timeout <= 0:
+                    return "duration"
+                timeout = min(timeout, 0.2)
+            msg = src.recv_match(blocking=True, timeout=timeout)
+            if msg is None:
+                continue
+            h0 = time.perf_counter_ns()
+            out = bridge.handle(msg)
+            if dst is not None and out:
+                dst.write(out)
+                bridge.n_out += 1
+            bridge.handle_ns.append(time.perf_counter_ns() - h0)
+    except KeyboardInterrupt:
+        return "interrupt"
+
+
+def _handling_us(handle_ns):
+    """Mean, 99th percentile and largest handling time of a message, microseconds."""
+    hs = np.asarray(handle_ns, dtype=np.float64) / 1000.0
+    return {"mean": float(hs.mean()) if len(hs) else None,
+            "p99": float(np.percentile(hs, 99)) if len(hs) else None,
+            "max": float(hs.max()) if len(hs) else None}
+
+
+class _LiveBridge:
+    """What a live link has seen so far: its gyro streams, its vehicles (what
+    decides a RAW_IMU unit) and the message counts; :meth:`handle` turns one
+    received message into the bytes to forward."""
+
+    def __init__(self, *, method, ar_order, gap_factor, sample_rate, warmup_s, filter_kw,
+                 raw_imu_unit, raw_imu_scale, log, signing_key=None):
+        self.method, self.ar_order, self.gap_factor = method, ar_order, gap_factor
+        self.sample_rate, self.warmup_s, self.filter_kw = sample_rate, warmup_s, filter_kw
+        self.raw_imu_unit, self.raw_imu_scale, self.log = raw_imu_unit, raw_imu_scale, log
+        self.streams = {}          # (system, component, message type, instance) -> _LiveStream
+        self.vehicles = {}         # system id -> {"autopilots": set, "ap_version": bool}
+        self.n_in = self.n_out = self.n_bad = 0
+        self.link = LinkSigning(signing_key)
+        self.handle_ns = []
+
+    def handle(self, msg):
+        """The bytes to forward for one received message: a gyro message re-packed
+        with the filtered values (re-signed if it came signed and the key is known),
+        any other as it came (unreadable bytes too); nothing (``b""``) for a packet
+        that fails the signature check."""
+        self.n_in += 1
+        mtype = msg.get_type()
+        if mtype == "BAD_DATA":
+            self.n_bad += 1
+            return bytes(msg.data) if getattr(msg, "data", None) is not None else b""
+        pkt = bytes(msg.get_msgbuf())
+        if self.link.check(pkt) is not None:
+            return b""                   # not filtered, not forwarded: counted per source
+        out = pkt
+        sysid = msg.get_srcSystem()
+        if mtype == "HEARTBEAT":
+            self._vehicle(sysid)["autopilots"].add(msg.autopilot)
+        elif mtype == "STATUSTEXT" and _AP_VERSION_RE.search(msg.text or ""):
+            self._vehicle(sysid)["ap_version"] = True
+        elif mtype in GYRO_MESSAGES:
+            out = self._filter_gyro(msg, mtype, sysid, pkt)
+        if out is pkt:
+            self.link.passed(pkt)
+        return out
+
+    def _vehicle(self, sysid):
+        return self.vehicles.setdefault(sysid, {"autopilots": set(), "ap_version": False})
+
+    def _filter_gyro(self, msg, mtype, sysid, out):
+        st = self._stream(msg, mtype, sysid)
+        t_s = getattr(msg, st.time_field) * st.time_scale
+        if st.pending:
+            self._decide_unit(st, out, t_s, sysid)
+        vals = st.step(t_s, [getattr(msg, g) for g in GYRO_FIELDS], self.sample_rate, self.method,
+                       self.ar_order, self.warmup_s, self.filter_kw)
+        if vals is st.raw[-1]:               # unchanged samples are forwarded byte for byte
+            return out
+        if is_signed(out) and self.link.key is None:
+            # never sent unsigned: as it came, gyro raw (and so in the stream's record)
+            if _differ(vals, st.raw[-1]):
+                st.signed_raw += 1
+                self.link.left_raw += 1
+            st.fw[-1] = st.raw[-1]
+            return out
+        new = repacked(out, (mtype, vals), self.link)
+        if new == out:
+            return out
+        st.changed += 1
+        return new
+
+    def _stream(self, msg, mtype, sysid):
+        """The stream of a gyro message, created at its first message."""
+        inst = msg.id if "id" in msg.get_fieldnames() else 0
+        key = (sysid, msg.get_srcComponent(), mtype, inst)
+        st = self.streams.get(key)
+        if st is None:
+            tfield, tscale, unit = GYRO_MESSAGES[mtype]
+            to_deg, note = (UNIT_TO_DEG_S[unit], "") if unit != "raw" else ("pending", "")
+            name = f"{mtype}" + (f"[{inst}]" if inst else "") + f"@{key[0]}.{key[1]}"
+            st = self.streams[key] = _LiveStream(name, mtype, unit, to_deg, note, self.gap_factor,
+                                                 field_dtype(mtype), time_field=tfield, time_scale=tscale)
+        return st
+
+    def _decide_unit(self, st, out, t_s, sysid):
+        """A RAW_IMU stream's unit by the file mode's rule on what the link showed so far."""
+        st.any_v2 = st.any_v2 or bytes(out[:1]) == b"\xfd"
+        if st.t and t_s > st.t[-1]:
+            st.waited_s += t_s - st.t[-1]
+        got = decide_raw_imu_unit(self.vehicles.get(sysid), st.any_v2, self.raw_imu_unit,
+                                  self.raw_imu_scale, final=st.waited_s >= UNIT_WAIT_S)
+        if got is not None:
+            st.decide(*got)
+            if self.log and got[1] is None:
+                self.log(f"{st.name}: {got[2]}")

@@ -1,0 +1,270 @@
+"""The flight review of one log, as the bridge reports it: the flight segments, the
+vehicle's own gyro filters, the review of those filters and the vibration review
+(the keys of a log's report in the interface spec, section 8).
+
+:func:`log_review` runs :mod:`gyrodenoise.flightlog.parameters`,
+:mod:`gyrodenoise.flightlog.segments`, :mod:`gyrodenoise.flightlog.vehicle_filters`,
+:mod:`gyrodenoise.flightlog.filter_review` and :mod:`gyrodenoise.flightlog.vibration`
+on a log read by :func:`gyrodenoise.flightlog.formats.read_log`, and says what the
+figures are computed over: the ``flying`` segments by default (``"over":
+"flying"``), the whole log with ``whole_log=True`` or when the log has no flying
+segment (``"over": "whole log"``, and ``over_note`` says why).
+
+Each part is independent: one that fails (an odd log) gives ``None`` and a note
+naming the error; the others and the filtered outputs go on.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gyrodenoise.flightlog.filter_review import filter_review, review_context
+from gyrodenoise.flightlog.logdata import log_messages
+from gyrodenoise.flightlog.parameters import log_parameters
+from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, session_starts, sessions_of
+from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
+from gyrodenoise.flightlog.vibration import vibration_review
+
+#: a stream needs this many flying samples for its figures over flying time
+MIN_FLYING_SAMPLES = 64
+OVER_FLYING, OVER_WHOLE = "flying", "whole log"
+
+
+class Review:
+    """The review of a log: ``fields`` (the JSON-able report keys), ``plot`` (the
+    filter review's numpy arrays for plots, or None), ``over``, ``starts`` (the frame
+    indices where the log's boot sessions 1, 2, ... begin:
+    :func:`gyrodenoise.flightlog.segments.session_starts`) and :meth:`flying_mask`."""
+
+    def __init__(self, fields, plot, segments, over, starts=None):
+        self.fields = fields
+        self.plot = plot
+        self.segments = segments
+        self.over = over
+        self.starts = np.zeros(0, np.int64) if starts is None else np.asarray(starts)
+
+    def flying_mask(self, time_s, records=None):
+        """Bool array: the samples of ``time_s`` the figures are over (all True when
+        they are over the whole log). ``records``: the samples' frame indices (a gyro
+        stream's ``index``): in a log of several boot sessions a sample is flying when
+        its session and its time are those of a flying segment (the boot times of the
+        sessions overlap); without them the time alone decides."""
+        t = np.asarray(time_s, dtype=np.float64)
+        if self.over != OVER_FLYING:
+            return np.ones(t.shape, dtype=bool)
+        sess = sessions_of(records, self.starts) if records is not None and len(self.starts) else None
+        return segment_mask(t, self.segments, "flying", sess)
+
+    def stream_mask(self, time_s, records=None):
+        """(mask, over) for one stream: its flying samples and ``"flying"``, or all
+        samples and ``"whole log"`` when it has fewer than :data:`MIN_FLYING_SAMPLES`
+        flying ones (or the figures are over the whole log). ``records``: as
+        :meth:`flying_mask`."""
+        m = self.flying_mask(time_s, records)
+        if self.over == OVER_FLYING and int(m.sum()) >= MIN_FLYING_SAMPLES:
+            return m, OVER_FLYING
+        return np.ones(m.shape, dtype=bool), OVER_WHOLE
+
+
+def never_armed_note(segments):
+    """The ``filter_review_note`` of a log whose segments show the vehicle never armed
+    (all ``ground``), or "" (it armed or flew, or the log holds no segment evidence).
+    The motors never turned: the gyro spectrum at rest says nothing about the motor
+    noise the filters are there for, so no filter is recommended from it (the
+    streams' own spectra stay in the report)."""
+    kinds = {s["kind"] for s in segments or []}
+    if not kinds or kinds & {"armed", "flying", "hover"}:
+        return ""
+    return ("no filter review: the vehicle never armed in this log (segments: ground only); the gyro "
+            "spectrum at rest says nothing about motor noise (each stream's own spectrum is still in "
+            "the report)")
+
+
+def _failed(part, exc):
+    return f"{part} failed: {type(exc).__name__}: {exc}"
+
+
+def log_review(kind, source, streams, whole_log=False):
+    """The :class:`Review` of a log read by :func:`gyrodenoise.flightlog.formats.read_log`.
+
+    ``fields``: ``segments``, ``segments_note``, ``flying_time_s``, ``over``,
+    ``over_note``, ``vehicle_filters`` (``autopilot`` ``"ardupilot"``/``"px4"``/None,
+    ``parameters``, ``stages``; ``note`` when the log holds no parameters),
+    ``stream_stages`` ({stream name: ``pre-filter``/``post-filter``/``unknown``}),
+    ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
+    ``vibration_note``)."""
+    fields = {}
+    param_notes = []
+    try:
+        autopilot, params = log_parameters(kind, source, param_notes)
+        if param_notes:
+            fields["parameters_note"] = "; ".join(param_notes)
+    except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
+        autopilot, params = None, {}
+        fields["parameters_note"] = _failed("reading the parameters", exc)
+    try:
+        segments, seg_note = flight_segments(kind, source, autopilot)
+    except Exception as exc:  # noqa: BLE001
+        segments, seg_note = [], _failed("flight segments", exc)
+    fields["segments"] = segments
+    fields["segments_note"] = seg_note
+    fields["flying_time_s"] = flying_time_s(segments)
+    has_flying = any(s["kind"] == "flying" for s in segments)
+    if whole_log:
+        over, over_note = OVER_WHOLE, "--whole-log: figures over the whole log"
+    elif has_flying:
+        over, over_note = OVER_FLYING, "figures over the flying segments (--whole-log: over the whole log)"
+    else:
+        over, over_note = OVER_WHOLE, "no flying segment in the log: figures over the whole log"
+    fields["over"] = over
+    fields["over_note"] = over_note
+    try:
+        starts = session_starts(kind, source)
+    except Exception:  # noqa: BLE001 - without sessions the times alone select
+        starts = None
+    review = Review(fields, None, segments, over, starts)
+
+    filters = vehicle_filters(autopilot, params)
+    if not params:
+        filters["note"] = "no parameters in the log: the vehicle's filters are not known"
+    fields["vehicle_filters"] = filters
+    fields["stream_stages"] = {s.name: stream_stage(autopilot, params, s) for s in streams}
+
+    mask_fn = review.flying_mask if over == OVER_FLYING else None
+    idle = never_armed_note(segments)
+    if idle:
+        rev, note = None, idle
+    else:
+        try:
+            ctx = review_context(kind, source, autopilot, params, filters, mask_fn)
+            fft = ctx.get("gyro_fft")
+            if fft and fft.get("sample_rate_hz"):          # PX4: the raw gyro rate, measured on board
+                filters["filter_rate_hz"] = fft["sample_rate_hz"]
+                filters["filter_rate_source"] = "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
+            rev, note = filter_review(streams, autopilot, params, filters, mask_fn, ctx)
+        except Exception as exc:  # noqa: BLE001
+            rev, note = None, _failed("filter review", exc)
+    if rev is not None:
+        review.plot = rev.pop("_plot", None)
+    fields["filter_review"] = rev
+    fields["filter_review_note"] = note
+    try:
+        vib, vnote = vibration_review(kind, source, segments, over="whole" if over == OVER_WHOLE else "flying",
+                                      starts=review.starts)
+    except Exception as exc:  # noqa: BLE001
+        vib, vnote = None, _failed("vibration review", exc)
+    fields["vibration"] = vib
+    fields["vibration_note"] = vnote
+    return review
+
+
+#: RATE / gyro magnitude ratios read as centidegrees per second (older ArduCopter, e.g. 3.3)
+CDEG_RATIO_RANGE = (30.0, 300.0)
+
+
+def rate_scale(time_s, rate, streams):
+    """1.0, or 0.01 where ``rate`` (m, 3) reads about 100x the first gyro stream in deg/s
+    over the same times (ArduCopter 3.x logs ``RATE`` in centidegrees per second, 4.x in
+    degrees per second; the log's FMT does not say): the median of |rate| over the median
+    of |gyro| at the same times, within :data:`CDEG_RATIO_RANGE`."""
+    g = next((st for st in streams if st.to_deg_s and st.n > 10), None)
+    if g is None:
+        return 1.0
+    t = np.asarray(g.time_s, dtype=np.float64)
+    order = np.argsort(t, kind="stable")
+    gyro = np.abs(np.asarray(g.raw, dtype=np.float64)[order] * g.to_deg_s)
+    t = t[order]
+    inside = (time_s >= t[0]) & (time_s <= t[-1])
+    if inside.sum() < 10:
+        return 1.0
+    gi = np.column_stack([np.interp(time_s[inside], t, gyro[:, k]) for k in range(min(3, gyro.shape[1]))])
+    num, den = np.nanmedian(np.abs(rate[inside][:, :gi.shape[1]])), np.nanmedian(gi)
+    if not (den > 0 and np.isfinite(num)):
+        return 1.0
+    return 0.01 if CDEG_RATIO_RANGE[0] < num / den < CDEG_RATIO_RANGE[1] else 1.0
+
+
+def vehicle_rate_series(kind, source, autopilot, streams=()):
+    """The vehicle's own body-rate estimate for the HTML report, ``[{"name", "time_s",
+    "rate": (m, 3) deg/s, "unit"}]``: ArduPilot ``RATE`` (``R``, ``P``, ``Y``: the rate
+    controller's measured roll/pitch/yaw rates, deg/s in ArduCopter 4.x, centidegrees/s
+    in 3.x, told by :func:`rate_scale` against the gyro ``streams``; ``RDes``/``PDes``/
+    ``YDes`` its targets, a second entry), PX4 ``vehicle_angular_velocity.xyz[0..2]``
+    (rad/s, converted); empty when the log has none."""
+    out = []
+    try:
+        if kind == "dataflash":
+            m = log_messages(kind, source, "RATE")
+            scale = None
+            for name, cols in (("RATE (R, P, Y)", ("R", "P", "Y")), ("RATE desired (RDes, PDes, YDes)",
+                                                                    ("RDes", "PDes", "YDes"))):
+                if m is not None and all(c in m for c in cols) and len(m["time_s"]):
+                    t = np.asarray(m["time_s"], dtype=np.float64)
+                    rate = np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])
+                    if scale is None:                 # from the measured rates, for both entries
+                        scale = rate_scale(t, rate, streams)
+                    if scale != 1.0:
+                        name += ", logged in cdeg/s"
+                    out.append({"name": name, "time_s": t, "rate": rate * scale, "unit": "deg/s"})
+        elif kind == "ulog":
+            m = log_messages(kind, source, "vehicle_angular_velocity")
+            cols = ("xyz[0]", "xyz[1]", "xyz[2]")
+            if m is not None and all(c in m for c in cols) and len(m["time_s"]):
+                out.append({"name": "vehicle_angular_velocity", "time_s": np.asarray(m["time_s"], dtype=np.float64),
+                            "rate": np.degrees(np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])),
+                            "unit": "deg/s"})
+    except Exception:  # noqa: BLE001 - a plot's extra line, never a reason to fail a log
+        return []
+    return out
+
+
+def review_text(rep):
+    """Lines of the text summary for a log's review: segments and flying time,
+    vibration verdict, the filter review's recommendation (a line each)."""
+    segs = rep.get("segments")
+    if segs is None:
+        return []
+    main = [s for s in segs if s["kind"] != "hover"]
+    if main:
+        shown = ", ".join(f"{s['kind']} {s['start_s']:.1f}-{s['end_s']:.1f} s" for s in main[:6])
+        more = f", ... ({len(main)} in all)" if len(main) > 6 else ""
+        n_hover = sum(s["kind"] == "hover" for s in segs)
+        hov = f"; {n_hover} hover stretch(es)" if n_hover else ""
+        fly = rep.get("flying_time_s") or 0.0
+        seg_line = (f"segments: {shown}{more}{hov}; flying {fly:.1f} s" if fly else
+                    f"segments: {shown}{more}; never flying")
+    else:
+        seg_line = f"segments: none ({rep.get('segments_note', '')})"
+    lines = [seg_line + f"; figures over: {rep.get('over', OVER_WHOLE)}"]
+    vib = rep.get("vibration")
+    if vib and vib.get("verdict"):
+        lines.append(f"vibration: {vib['verdict'].upper()} ({vib.get('source')} over {vib.get('over')}"
+                     f"{_worst_figures(vib)})")
+    elif vib:
+        lines.append(f"vibration: no verdict ({vib.get('source')} only, over {vib.get('over')}: no published "
+                     f"threshold for them)")
+    else:
+        lines.append(f"vibration: none ({rep.get('vibration_note', '')})")
+    fr = rep.get("filter_review")
+    if fr:
+        rec = fr.get("param_lines") or []
+        src = fr.get("source", {}).get("stream")
+        lines.append(f"filter review ({src}): " + ("recommends " + " ".join(rec) if rec else
+                                                   "no change recommended"))
+    else:
+        lines.append(f"filter review: none ({rep.get('filter_review_note', '')})")
+    return lines
+
+
+def _worst_figures(vib):
+    """'; vibration_z p95 34.9 (warn), clipping_0 +6311 (fail)': the figures of a
+    vibration review at warn or fail (the worst segment's value of each)."""
+    worst = {}
+    for seg in vib.get("segments") or []:
+        for name, f in (seg.get("figures") or {}).items():
+            v = f.get("verdict")
+            if v in ("warn", "fail"):
+                value = f"+{f['increase']}" if "increase" in f else f"p95 {f.get('p95')}"
+                if name not in worst or (v == "fail" and worst[name][1] != "fail"):
+                    worst[name] = (value, v)
+    return ("; " + ", ".join(f"{n} {val} ({v})" for n, (val, v) in worst.items())) if worst else ""

@@ -1,0 +1,391 @@
+"""Any message of a log as numpy columns: :func:`log_messages` and :func:`log_message_names`.
+
+The readers of :mod:`gyrodenoise.flightlog.formats` keep what they read in an opaque
+``source`` dict (:func:`gyrodenoise.flightlog.formats.read_log`); this module decodes
+any other message type from it, in bulk (numpy, no loop over the messages), for the
+flight segments, the vibration review and the parameters.
+
+Names are spelled as the format spells them:
+
+* DataFlash (``source`` ``{"data", "sc"}``): the FMT name (``EV``, ``ARM``, ``MODE``,
+  ``RCOU``, ``CTUN``, ``VIBE``, ``IMU``, ``PARM``, ``MSG``...). Values as pymavlink's
+  ``DFReader`` gives them: format characters ``c``/``C``/``e``/``E`` scaled by 0.01 and
+  ``L`` by 1e-7 (floats, divided by 100 and 1e7 as pymavlink does), ``n``/``N``/``Z`` strings (str, NULs stripped), ``a``
+  (int16[32]) a 2-D column. ``NAME[i]`` selects instance ``i`` of a message with an
+  instance column (``I``, ``IMU``, ``Instance``, ``C`` -- the first of those it has).
+  ``time_s``: ``TimeUS`` * 1e-6 (or ``TimeMS`` * 1e-3); a message type with no time
+  column takes the time of the last timed message before it in the file (NaN before
+  the first; old GPS messages, whose ``TimeMS`` is the GPS time of week, do not count).
+* Telemetry log (``source`` ``{"data", "fr"}``): the message name of pymavlink's
+  ``ardupilotmega`` dialect (``HEARTBEAT``, ``VIBRATION``, ``SERVO_OUTPUT_RAW``,
+  ``RAW_IMU``, ``PARAM_VALUE``, ``STATUSTEXT``...), readable records only (good CRC,
+  not rejected by a signature check). Values as pymavlink gives them; ``char[]``
+  fields as str (NULs stripped), other arrays 2-D. Extra columns: ``sysid``,
+  ``compid`` (of the packet header), ``log_time_s`` (the record's tlog timestamp,
+  UNIX seconds), ``record`` (the record's frame index in the file, as a gyro
+  stream's ``index``: :func:`tlog_session_starts` numbers boot sessions by it). ``time_s`` (boot time, the gyro streams' time base): the message's
+  own ``time_boot_ms`` * 1e-3, else its ``time_usec`` * 1e-6 where that is a boot time
+  (below 1e12 us, about 11.6 days; larger values are UNIX times); else -- messages with
+  no time of their own (HEARTBEAT, PARAM_VALUE, STATUSTEXT...) -- the boot time of the
+  last earlier record of the same system that carries a ``time_boot_ms``, plus the
+  tlog timestamps' difference between the two records (the first record carrying one
+  anchors the records before it; NaN when the system sends none). A reboot
+  (``time_boot_ms`` restarting) is followed, as the anchor is always the last one.
+* ULog (``source`` ``{"u"}``, a ``pyulog.ULog``): the topic name (``vehicle_status``,
+  ``actuator_outputs``, ``sensor_accel``...), its first instance (lowest ``multi_id``);
+  ``topic[1]`` the instance with ``multi_id`` 1. Field names as pyulog gives them
+  (``accelerometer_m_s2[0]``...); ``char`` arrays joined into one str column.
+  ``time_s``: ``timestamp`` * 1e-6.
+
+Decoded messages are cached in ``source["logdata"]`` (a dict), so asking twice costs
+nothing.
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+
+import numpy as np
+
+from gyrodenoise.flightlog import tlog
+
+_INDEX_RE = re.compile(r"^(.+)\[(\d+)\]$")
+DF_INSTANCE_COLUMNS = ("I", "IMU", "Instance", "C")
+
+# DataFlash format character -> (numpy dtype, shape, divisor as pymavlink applies it)
+_DF_CHARS = {
+    "a": ("<i2", (32,), None), "b": ("i1", (), None), "B": ("u1", (), None), "g": ("<f2", (), None),
+    "h": ("<i2", (), None), "H": ("<u2", (), None), "i": ("<i4", (), None), "I": ("<u4", (), None),
+    "f": ("<f4", (), None), "d": ("<f8", (), None), "n": ("S4", (), None), "N": ("S16", (), None),
+    "Z": ("S64", (), None), "c": ("<i2", (), 100.0), "C": ("<u2", (), 100.0), "e": ("<i4", (), 100.0),
+    "E": ("<u4", (), 100.0), "L": ("<i4", (), 1e7), "M": ("u1", (), None), "q": ("<i8", (), None),
+    "Q": ("<u8", (), None),
+}
+_BOOT_USEC_MAX = 1e12      # time_usec below this is a boot time, above a UNIX time
+
+
+def log_messages(kind, source, name):
+    """Every field of message (topic) ``name`` of a log read by
+    :func:`gyrodenoise.flightlog.formats.read_log` as ``{field: numpy column}`` plus
+    ``"time_s"`` (boot time, s, the gyro streams' time base; see the module doc for
+    each format), in log order; None when the log has no such message."""
+    cache = source.setdefault("logdata", {})
+    if name not in cache:
+        if kind == "dataflash":
+            cache[name] = _df_messages(source, name)
+        elif kind == "tlog":
+            cache[name] = _tlog_messages(source, name)
+        elif kind == "ulog":
+            cache[name] = _ulog_messages(source, name)
+        else:
+            raise ValueError(f"unknown log kind {kind!r}")
+    return cache[name]
+
+
+def log_message_names(kind, source):
+    """The names of the message types (topics) the log holds, sorted, as
+    :func:`log_messages` takes them (ULog: ``topic`` and ``topic[1]``...)."""
+    if kind == "dataflash":
+        sc = source["sc"]
+        return sorted({sc.formats[t].name for t in sc.offsets if t in sc.formats})
+    if kind == "tlog":
+        fr = source["fr"]
+        mav = tlog._dialect()
+        ids = np.unique(fr.msgid[fr.usable])
+        return sorted(mav.mavlink_map[int(i)].msgname for i in ids if int(i) in mav.mavlink_map)
+    if kind == "ulog":
+        out = set()
+        for d in source["u"].data_list:
+            out.add(d.name if d.multi_id == 0 else f"{d.name}[{d.multi_id}]")
+        return sorted(out)
+    raise ValueError(f"unknown log kind {kind!r}")
+
+
+def _split_index(name):
+    m = _INDEX_RE.match(name)
+    return (m.group(1), int(m.group(2))) if m else (name, None)
+
+
+def _strings(col):
+    """bytes column -> str column (NULs stripped, undecodable bytes replaced)."""
+    flat = np.asarray(col).reshape(-1)
+    if not len(flat):
+        return np.zeros(0, dtype=str)
+    return np.array([b.split(b"\0", 1)[0].decode("utf-8", "replace") for b in flat.tolist()])
+
+
+# ----------------------------------------------------------------- DataFlash
+def _df_dtype(f):
+    """(numpy dtype of the message, {column: divisor}) of DataFlash format ``f``."""
+    names, formats, offsets, scales = [], [], [], {}
+    off = 3
+    for ch, col in zip(f.format, f.columns):
+        if ch not in _DF_CHARS:
+            raise ValueError(f"unknown DataFlash format character {ch!r} in {f.name}")
+        base, shape, scale = _DF_CHARS[ch]
+        dt = np.dtype((base, shape)) if shape else np.dtype(base)
+        names.append(col)
+        formats.append(dt)
+        offsets.append(off)
+        if scale is not None:
+            scales[col] = scale
+        off += dt.itemsize
+    if off > f.length:
+        raise ValueError(f"{f.name}: format {f.format!r} gives {off} bytes, FMT says {f.length}")
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": f.length}), scales
+
+
+def _df_records(data, sc, tid):
+    f = sc.formats[tid]
+    dt, scales = _df_dtype(f)
+    offs = np.asarray(sc.offsets[tid], dtype=np.int64)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    rows = buf[offs[:, None] + np.arange(f.length)]
+    return rows.view(dt).reshape(-1), scales, offs
+
+
+def _df_time_column(f):
+    if "TimeUS" in f.columns:
+        return "TimeUS", 1e-6
+    if "TimeMS" in f.columns:
+        return "TimeMS", 1e-3
+    return None, None
+
+
+def _df_messages(source, name):
+    data, sc = source["data"], source["sc"]
+    base, inst = _split_index(name)
+    tid = next((t for t, f in sc.formats.items() if f.name == base and t in sc.offsets), None)
+    if tid is None:
+        return None
+    f = sc.formats[tid]
+    rec, scales, offs = _df_records(data, sc, tid)
+    if inst is not None:
+        icol = next((c for c in DF_INSTANCE_COLUMNS if c in f.columns), None)
+        if icol is None:
+            return None
+        keep = rec[icol].astype(np.int64) == inst
+        if not keep.any():
+            return None
+        rec, offs = rec[keep], offs[keep]
+    out = {}
+    for col in f.columns:
+        v = rec[col]
+        if v.dtype.kind == "S":
+            out[col] = _strings(v)
+        elif col in scales:
+            out[col] = v.astype(np.float64) / scales[col]
+        else:
+            out[col] = np.array(v)
+    tcol, tscale = _df_time_column(f)
+    if tcol is not None:
+        out["time_s"] = rec[tcol].astype(np.float64) * tscale
+    else:
+        out["time_s"] = _df_anchor_time(source, offs)
+    return out
+
+
+def _df_anchor_time(source, offs):
+    """Time of the last timed message before each offset (NaN before the first)."""
+    anchors = source.get("logdata_df_anchors")
+    if anchors is None:
+        data, sc = source["data"], source["sc"]
+        at, tt = [], []
+        for tid, lst in sc.offsets.items():
+            f = sc.formats.get(tid)
+            if f is None or not lst:
+                continue
+            tcol, tscale = _df_time_column(f)
+            if tcol is None or (tcol == "TimeMS" and "Week" in f.columns):
+                continue            # old GPS messages: TimeMS is the GPS time of week
+            try:
+                rec, _, o = _df_records(data, sc, tid)
+            except ValueError:
+                continue
+            at.append(o)
+            tt.append(rec[tcol].astype(np.float64) * tscale)
+        if at:
+            a, t = np.concatenate(at), np.concatenate(tt)
+            order = np.argsort(a, kind="stable")
+            anchors = (a[order], t[order])
+        else:
+            anchors = (np.zeros(0, np.int64), np.zeros(0))
+        source["logdata_df_anchors"] = anchors
+    a, t = anchors
+    k = np.searchsorted(a, offs) - 1
+    out = np.full(len(offs), np.nan)
+    ok = k >= 0
+    out[ok] = t[k[ok]]
+    return out
+
+
+# --------------------------------------------------------------------- tlog
+_STRUCT_TO_NP = {"Q": "<u8", "q": "<i8", "I": "<u4", "i": "<i4", "H": "<u2", "h": "<i2",
+                 "B": "u1", "b": "i1", "f": "<f4", "d": "<f8", "c": "S1", "?": "u1"}
+
+
+def _tlog_fields(c):
+    """{field: (offset, dtype, is_string)} of pymavlink message class ``c`` (wire order)."""
+    tokens = re.findall(r"(\d*)([a-zA-Z?])", c.unpacker.format.lstrip("<"))
+    out = {}
+    off = 0
+    for name, (cnt, ch) in zip(c.ordered_fieldnames, tokens):
+        k = int(cnt) if cnt else 1
+        if ch in "sc":
+            out[name] = (off, np.dtype(f"S{k}"), True)
+        else:
+            dt = np.dtype(_STRUCT_TO_NP[ch])
+            out[name] = (off, dt if k == 1 else np.dtype((dt, (k,))), False)
+        off += struct.calcsize("<" + cnt + ch)
+    return out, off
+
+
+def _tlog_messages(source, name):
+    data, fr = source["data"], source["fr"]
+    mav = tlog._dialect()
+    mid = getattr(mav, "MAVLINK_MSG_ID_" + name, None)
+    if mid is None or mid not in mav.mavlink_map:
+        return None
+    c = mav.mavlink_map[mid]
+    buf = np.frombuffer(data, dtype=np.uint8)
+    sel = np.nonzero(fr.usable & (fr.msgid == mid))[0]
+    if not len(sel):
+        return None
+    fields, size = _tlog_fields(c)
+    pay = tlog._payloads(buf, fr, sel, size)
+    out = {}
+    for fname in c.fieldnames:
+        off, dt, is_str = fields[fname]
+        v = np.ascontiguousarray(pay[:, off:off + dt.itemsize]).view(dt).reshape((len(sel),) + dt.shape)
+        out[fname] = _strings(v) if is_str else np.array(v)
+    v2 = fr.v2[sel]
+    start = fr.start[sel]
+    sysid = np.where(v2, buf[start + 13], buf[start + 11]).astype(np.int64)
+    out["sysid"] = sysid
+    out["compid"] = np.where(v2, buf[start + 14], buf[start + 12]).astype(np.int64)
+    wall_us = _tlog_stamps_us(buf, start)
+    out["log_time_s"] = wall_us * 1e-6
+    out["record"] = sel.astype(np.int64)
+    own = None
+    if "time_boot_ms" in fields:
+        own = out["time_boot_ms"].astype(np.float64) * 1e-3
+    elif "time_usec" in fields and not fields["time_usec"][1].shape:
+        t = out["time_usec"].astype(np.float64)
+        if len(t) and np.all(t < _BOOT_USEC_MAX):
+            own = t * 1e-6
+    out["time_s"] = own if own is not None else _tlog_anchor_time(source, sel, sysid, wall_us)
+    return out
+
+
+def _tlog_stamps_us(buf, start):
+    """The records' tlog timestamps (big-endian uint64, us) as int64."""
+    b = buf[start[:, None] + np.arange(8)]
+    return np.ascontiguousarray(b).view(">u8").reshape(-1).astype(np.int64)
+
+
+def _tlog_anchors(source):
+    """Per system id: (frame indices, boot time s, tlog time us) of every record that
+    carries a ``time_boot_ms``, in file order."""
+    anchors = source.get("logdata_tlog_anchors")
+    if anchors is not None:
+        return anchors
+    data, fr = source["data"], source["fr"]
+    mav = tlog._dialect()
+    buf = np.frombuffer(data, dtype=np.uint8)
+    idx, boot = [], []
+    for mid in np.unique(fr.msgid[fr.usable]).tolist():
+        c = mav.mavlink_map.get(mid)
+        if c is None or "time_boot_ms" not in c.fieldnames:
+            continue
+        fields, size = _tlog_fields(c)
+        sel = np.nonzero(fr.usable & (fr.msgid == mid))[0]
+        off, dt, _ = fields["time_boot_ms"]
+        pay = tlog._payloads(buf, fr, sel, off + dt.itemsize)
+        idx.append(sel)
+        boot.append(np.ascontiguousarray(pay[:, off:off + dt.itemsize]).view(dt).reshape(-1) * 1e-3)
+    anchors = {}
+    if idx:
+        i = np.concatenate(idx)
+        b = np.concatenate(boot).astype(np.float64)
+        order = np.argsort(i, kind="stable")
+        i, b = i[order], b[order]
+        start = fr.start[i]
+        s = np.where(fr.v2[i], buf[start + 13], buf[start + 11]).astype(np.int64)
+        w = _tlog_stamps_us(buf, start)
+        for sid in np.unique(s).tolist():
+            k = s == sid
+            anchors[sid] = (i[k], b[k], w[k])
+    source["logdata_tlog_anchors"] = anchors
+    return anchors
+
+
+#: a telemetry log's boot time stepping back by more than this (s), in file order, starts a boot session
+SESSION_STEP_BACK_S = 0.5
+
+
+def tlog_session_starts(source):
+    """Frame indices (sorted int64 array) at which a telemetry log's boot sessions 1, 2, ...
+    begin, empty for a log of one boot: where the ``time_boot_ms`` of the system that
+    sends most of them steps back, in file order, by more than
+    :data:`SESSION_STEP_BACK_S` (a reboot, or logs of several boots written into one
+    file). The session of a record with frame index ``i`` is
+    ``searchsorted(starts, i, side="right")``: the same numbering for every message
+    and gyro stream of the log, whatever their own clocks do."""
+    anchors = _tlog_anchors(source)
+    if not anchors:
+        return np.zeros(0, np.int64)
+    sid = max(anchors, key=lambda k: len(anchors[k][0]))
+    idx, boot, _ = anchors[sid]
+    back = np.flatnonzero(np.diff(boot) < -SESSION_STEP_BACK_S) + 1
+    return np.asarray(idx[back], dtype=np.int64)
+
+
+def _tlog_anchor_time(source, sel, sysid, wall_us):
+    anchors = _tlog_anchors(source)
+    out = np.full(len(sel), np.nan)
+    for sid in np.unique(sysid).tolist():
+        got = anchors.get(sid)
+        if got is None:
+            continue
+        ai, ab, aw = got
+        k = sysid == sid
+        j = np.clip(np.searchsorted(ai, sel[k], side="right") - 1, 0, len(ai) - 1)
+        out[k] = ab[j] + (wall_us[k] - aw[j]) * 1e-6
+    return out
+
+
+# --------------------------------------------------------------------- ULog
+def _ulog_messages(source, name):
+    u = source["u"]
+    base, inst = _split_index(name)
+    ds = [d for d in u.data_list if d.name == base]
+    if not ds:
+        return None
+    if inst is None:
+        d = min(ds, key=lambda e: e.multi_id)
+    else:
+        d = next((e for e in ds if e.multi_id == inst), None)
+        if d is None:
+            return None
+    chars = {}
+    for f in d.field_data:
+        if f.type_str.startswith("char"):
+            m = _INDEX_RE.match(f.field_name)
+            if m:
+                chars.setdefault(m.group(1), []).append((int(m.group(2)), f.field_name))
+    out = {}
+    done = set()
+    for key, val in d.data.items():
+        m = _INDEX_RE.match(key)
+        if m and m.group(1) in chars:
+            base_name = m.group(1)
+            if base_name not in done:
+                cols = [d.data[k] for _, k in sorted(chars[base_name])]
+                mat = np.stack([np.asarray(c).astype(np.uint8) for c in cols], axis=1)
+                out[base_name] = _strings(np.ascontiguousarray(mat).view(f"S{mat.shape[1]}"))
+                done.add(base_name)
+            continue
+        out[key] = np.asarray(val)
+    out["time_s"] = np.asarray(d.data["timestamp"], dtype=np.float64) * 1e-6
+    return out

@@ -1,0 +1,173 @@
+"""The autopilot that wrote a log and the parameters it logged.
+
+:func:`log_parameters` reads them through :func:`gyrodenoise.flightlog.logdata.log_messages`:
+
+* DataFlash ``PARM`` (``Name``, ``Value``): each name's last value logged before
+  the first arming (``EV`` id 10, ARMED, or ``ARM`` ``ArmState`` 1), else -- no
+  arming in the log -- its first value (ArduPilot writes every parameter at the
+  start of a log, and again when one changes).
+* ULog: pyulog's ``initial_parameters`` plus its ``changed_parameters`` logged
+  before the first arming (``vehicle_status.arming_state`` 2); without an arming,
+  the initial ones.
+* Telemetry log ``PARAM_VALUE`` (``param_id``, ``param_value``, ``param_type``) of
+  the vehicle's system, each name's last value before the first armed ``HEARTBEAT``
+  (``base_mode`` bit 7), else the first. PX4 sends integer parameters bytewise
+  (the int32's bits in the float field, MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE):
+  they are decoded so; ArduPilot casts them (C cast), kept as they are. A name the
+  vehicle did not send is taken from the ``PARAM_VALUE`` records of any other source:
+  Mission Planner writes the parameters it downloads by FTP as ``PARAM_VALUE`` under
+  its own ids (system 255, component 190), and the vehicle then sends few or none
+  itself; a note says so.
+
+The autopilot: ``"ardupilot"`` for DataFlash, ``"px4"`` for ULog; for a
+telemetry log the ``HEARTBEAT.autopilot`` of the vehicle (3 ArduPilot, 12 PX4),
+else from the parameter names (``INS_``/``ATC_`` ArduPilot, ``IMU_GYRO_``/``MC_``
+PX4), else None.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gyrodenoise.flightlog.logdata import log_messages
+
+MAV_AUTOPILOT = {3: "ardupilot", 12: "px4"}
+MAV_TYPE_GCS = 6
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+#: MAV_PARAM_TYPE values of integers (UINT8..INT64)
+MAV_PARAM_INT_TYPES = {1, 2, 3, 4, 5, 6, 7, 8}
+DF_EV_ARMED = 10
+
+
+def log_parameters(kind, source, notes=None):
+    """(autopilot, params) of a log read by :func:`gyrodenoise.flightlog.formats.read_log`:
+    autopilot ``"ardupilot"``, ``"px4"`` or None; params ``{NAME: value as
+    logged}`` (floats; ints where the log types them so), empty when the log holds
+    none (see the module doc for which value of a changed parameter is kept).
+    ``notes``: a list the reader appends a line to where it took parameters from
+    another source than the vehicle."""
+    if kind == "dataflash":
+        return "ardupilot", _dataflash_params(kind, source)
+    if kind == "ulog":
+        return "px4", _ulog_params(kind, source)
+    if kind == "tlog":
+        return _tlog_params(kind, source, notes)
+    return None, {}
+
+
+def _first_arm_s(kind, source):
+    """Boot time (s) of the first arming the log records, or None."""
+    if kind == "dataflash":
+        times = []
+        ev = log_messages(kind, source, "EV")
+        if ev is not None and "Id" in ev:
+            t = ev["time_s"][np.asarray(ev["Id"]) == DF_EV_ARMED]
+            times += list(t[np.isfinite(t)])
+        arm = log_messages(kind, source, "ARM")
+        if arm is not None and "ArmState" in arm:
+            t = arm["time_s"][np.asarray(arm["ArmState"]) == 1]
+            times += list(t[np.isfinite(t)])
+        return min(times) if times else None
+    if kind == "ulog":
+        vs = log_messages(kind, source, "vehicle_status")
+        if vs is not None and "arming_state" in vs:
+            t = vs["time_s"][np.asarray(vs["arming_state"]) == 2]
+            return float(t[0]) if len(t) else None
+    return None
+
+
+def _dataflash_params(kind, source):
+    parm = log_messages(kind, source, "PARM")
+    if parm is None or "Name" not in parm or "Value" not in parm:
+        return {}
+    names, values, times = parm["Name"], np.asarray(parm["Value"], dtype=np.float64), parm["time_s"]
+    t_arm = _first_arm_s(kind, source)
+    out = {}
+    for i in range(len(names)):
+        n = str(names[i])
+        if not n:
+            continue
+        before = t_arm is None or not np.isfinite(times[i]) or times[i] < t_arm
+        if n not in out or (t_arm is not None and before):
+            out[n] = _f32(values[i])
+    return out
+
+
+def _ulog_params(kind, source):
+    u = source.get("u")
+    if u is None:
+        return {}
+    out = {str(k): _plain(v) for k, v in (getattr(u, "initial_parameters", None) or {}).items()}
+    t_arm = _first_arm_s(kind, source)
+    if t_arm is not None:
+        for ts, name, value in getattr(u, "changed_parameters", None) or []:
+            if ts * 1e-6 < t_arm:
+                out[str(name)] = _plain(value)
+    return out
+
+
+def _f32(v):
+    """A float32 as logged, as the shortest decimal that reads back to it (0.32, not 0.3199999928)."""
+    return float(str(np.float32(v)))
+
+
+def _plain(v):
+    if isinstance(v, (np.integer, int)) and not isinstance(v, bool):
+        return int(v)
+    return _f32(v) if isinstance(v, (np.float32, float)) else float(v)
+
+
+def _tlog_params(kind, source, notes=None):
+    hb = log_messages(kind, source, "HEARTBEAT")
+    sysid, autopilot, t_arm = None, None, None
+    if hb is not None and len(hb.get("time_s", [])):
+        veh = np.asarray(hb["type"]) != MAV_TYPE_GCS
+        ap = np.asarray(hb["autopilot"])
+        known = veh & np.isin(ap, list(MAV_AUTOPILOT))
+        if known.any():
+            vals, counts = np.unique(ap[known], return_counts=True)
+            autopilot = MAV_AUTOPILOT[int(vals[np.argmax(counts)])]
+            sys_known = np.asarray(hb["sysid"])[known & (ap == vals[np.argmax(counts)])]
+            sv, sc = np.unique(sys_known, return_counts=True)
+            sysid = int(sv[np.argmax(sc)])
+            armed = known & (np.asarray(hb["sysid"]) == sysid) & (
+                (np.asarray(hb["base_mode"]).astype(np.int64) & MAV_MODE_FLAG_SAFETY_ARMED) != 0)
+            if armed.any():
+                t_arm = int(np.flatnonzero(armed)[0])      # an index into HEARTBEAT: compare log times below
+                t_arm = float(np.asarray(hb["log_time_s"])[t_arm])
+    params = {}
+    pv = log_messages(kind, source, "PARAM_VALUE")
+    if pv is not None and len(pv.get("param_id", [])):
+        own = np.ones(len(pv["param_id"]), dtype=bool)
+        if sysid is not None:
+            own &= np.asarray(pv["sysid"]) == sysid
+        ids, vals = pv["param_id"], np.asarray(pv["param_value"], dtype=np.float32)
+        types, log_t = np.asarray(pv["param_type"]), np.asarray(pv["log_time_s"])
+        vehicle_names = {str(ids[i]) for i in np.flatnonzero(own)}
+        other = np.flatnonzero(~own & ~np.isin(np.asarray(ids).astype(str), list(vehicle_names)))
+        if len(other):
+            pairs = sorted({(int(pv["sysid"][i]), int(pv["compid"][i])) for i in other})
+            n_other = len({str(ids[i]) for i in other})
+            if notes is not None:
+                notes.append(f"{n_other} parameters read from PARAM_VALUE records of "
+                             f"{', '.join(f'system {a} component {b}' for a, b in pairs)} (not the vehicle's: a "
+                             f"ground station's parameter download, e.g. Mission Planner's FTP), the vehicle "
+                             f"itself sent {len(vehicle_names)}")
+        for i in np.concatenate([np.flatnonzero(own), other]).astype(np.int64):
+            n = str(ids[i])
+            if not n:
+                continue
+            before = t_arm is None or log_t[i] < t_arm
+            if n in params and not (t_arm is not None and before):
+                continue
+            v = vals[i]
+            if autopilot == "px4" and int(types[i]) in MAV_PARAM_INT_TYPES:
+                params[n] = int(np.asarray(v, dtype=np.float32).view(np.int32))
+            else:
+                params[n] = _f32(v)
+    if autopilot is None and params:
+        if any(k.startswith(("INS_", "ATC_", "SCHED_")) for k in params):
+            autopilot = "ardupilot"
+        elif any(k.startswith(("IMU_GYRO_", "MC_", "SENS_")) for k in params):
+            autopilot = "px4"
+    return autopilot, params

@@ -1,0 +1,344 @@
+"""Vibration review of a log over its flight segments, against the thresholds the
+autopilot communities publish (:data:`THRESHOLDS`, one table with the source of each).
+
+Sources, the first the log has:
+
+* ArduPilot DataFlash ``VIBE`` -- ``VibeX/Y/Z`` (m/s/s: the standard deviation of the
+  accelerometer, high-passed) and the clip counters ``Clip0..2`` (or ``Clip`` per IMU
+  in ArduPilot 4.x, which logs one VIBE per IMU instance, field ``IMU``); cumulative
+  counts: a segment's figure is their increase over it.
+* Telemetry log ``VIBRATION`` -- ``vibration_x/y/z`` (the same m/s/s levels),
+  ``clipping_0..2`` (cumulative).
+* PX4 ULog ``vehicle_imu_status`` (every instance) -- ``accel_vibration_metric``
+  (m/s/s), ``gyro_vibration_metric`` (rad/s), ``delta_angle_coning_metric`` (rad^2),
+  ``accel_clipping[0..2]`` (cumulative).
+
+Beside those, where the log has an accelerometer stream, its band rms per segment
+(``accel_band_rms_x/y/z``, :func:`_accel_figures`: the rms over 1 s windows of the
+accelerometer between 20 Hz -- half the Nyquist frequency for a stream slower than
+48 Hz -- and the Nyquist frequency, mean/p95/max over the windows), with no verdict:
+no community threshold exists for it (ArduPilot's VIBE thresholds apply to VIBE,
+computed on board on the raw accelerometer at its full rate; the logged accelerometer
+is low-passed and sampled at 25-250 Hz, so its band rms under-reads motor vibration),
+and the accelerometer spectrum over each segment (DataFlash ``IMU``
+AccX/Y/Z of the first IMU, ULog ``sensor_combined.accelerometer_m_s2[*]``): the
+dominant peaks of the summed x+y+z Welch PSD
+(:func:`gyrodenoise.analysis.spectrum.welch_psd`, :func:`~gyrodenoise.analysis.spectrum.find_peaks`),
+for information: no community threshold exists for them, so they carry no verdict.
+
+Figures are computed over the ``flying`` segments (:mod:`gyrodenoise.flightlog.segments`)
+by default (``"over": "flying"``); ``over="whole"`` (or a log with no flying segment,
+said in the note) takes the whole log as one segment (``"over": "whole log"``).
+A level's verdict judges its 95th percentile (the ArduPilot wiki asks for levels
+*mostly* below 30 m/s/s; brief peaks are normal); ``warn`` at or above the first
+threshold, ``fail`` at or above the second.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from gyrodenoise.analysis.spectrum import find_peaks, welch_psd
+from gyrodenoise.flightlog.logdata import log_messages
+from gyrodenoise.flightlog.segments import segment_mask, sessions_of
+
+ARDUPILOT_VIBE_URL = "https://ardupilot.org/copter/docs/common-measuring-vibration.html"
+FLIGHT_REVIEW_URL = "https://github.com/PX4/flight_review/blob/main/app/plot_app/configured_plots.py"
+
+#: figure -> warn and fail thresholds (at or above), unit, source and what it says
+THRESHOLDS = {
+    "vibe_m_s2": {
+        "warn": 30.0, "fail": 60.0, "unit": "m/s/s", "source": ARDUPILOT_VIBE_URL,
+        "says": "Vibration levels below 30m/s/s are normally acceptable. Levels above 30m/s/s may have "
+                "problems and levels above 60m/s/s nearly always have problems with position or altitude hold.",
+    },
+    "clip_increase": {
+        "warn": 1, "fail": 100, "unit": "count", "source": ARDUPILOT_VIBE_URL,
+        "says": "Ideally these should be zero for the whole flight but low numbers (<100) are likely ok "
+                "especially if they occur during hard landings.",
+    },
+    "accel_vibration_metric_m_s2": {
+        "warn": 4.905, "fail": 9.81, "unit": "m/s/s", "source": FLIGHT_REVIEW_URL,
+        "says": "PX4 Flight Review 'Vibration Metrics' plot: green below 4.905 m/s^2 (0.5 g), orange to "
+                "9.81 m/s^2 (1 g), red above.",
+    },
+}
+VERDICTS = ("pass", "warn", "fail")
+LOOKED_FOR = {
+    "dataflash": "VIBE (VibeX/Y/Z, Clip), IMU AccX/AccY/AccZ",
+    "tlog": "VIBRATION (vibration_x/y/z, clipping_0..2)",
+    "ulog": "vehicle_imu_status (accel_vibration_metric...), sensor_combined.accelerometer_m_s2",
+}
+MAX_PEAKS = 3
+PEAK_MIN_FREQ_HZ = 5.0
+#: the accelerometer's band rms runs from here to the stream's Nyquist frequency (Hz) ...
+ACCEL_BAND_LO_HZ = 20.0
+#: ... or, where the Nyquist frequency is below 1.2 x that (a 25 Hz stream), from this share of it
+ACCEL_BAND_LO_NYQ_SHARE = 0.5
+#: the accelerometer's band rms is taken over windows of this length (s)
+ACCEL_WINDOW_S = 1.0
+#: unit of each level column
+LEVEL_UNITS = {"VibeX": "m/s/s", "VibeY": "m/s/s", "VibeZ": "m/s/s", "vibration_x": "m/s/s",
+               "vibration_y": "m/s/s", "vibration_z": "m/s/s", "accel_vibration_metric": "m/s/s",
+               "gyro_vibration_metric": "rad/s", "delta_angle_coning_metric": "rad^2"}
+
+
+def vibration_review(kind, source, segments, over="flying", starts=None):
+    """(result, note) of the vibration figures of a log read by
+    :func:`gyrodenoise.flightlog.formats.read_log`, over the ``flying`` segments of
+    ``segments`` (:func:`gyrodenoise.flightlog.segments.flight_segments`) or, with
+    ``over="whole"``, the whole log.
+
+    ``result``: ``{"source", "over": "flying"|"whole log", "thresholds", "segments":
+    [{"kind", "start_s", "end_s", "figures": {...}, "accel_peaks": [...],
+    "verdict"}], "verdict"}`` (JSON-able; see the module doc), or None when the log has
+    none of the sources, with a note naming what was looked for. ``starts``: the
+    frame indices where a telemetry log's boot sessions 1, 2, ... begin
+    (:func:`gyrodenoise.flightlog.segments.session_starts`): a sample is in a segment
+    when its boot session is the segment's ``session`` too."""
+    if over not in ("flying", "whole"):
+        raise ValueError(f"over must be 'flying' or 'whole', not {over!r}")
+    levels = _levels(kind, source)
+    accel = _accel(kind, source)
+    if levels is not None:
+        levels["session"] = (sessions_of(levels["record"], starts) if starts is not None and len(starts)
+                             and "record" in levels else None)
+    if levels is None and accel is None:
+        return None, f"no vibration data in the log (looked for {LOOKED_FOR[kind]})"
+    times = [x["time_s"] for x in ([levels] if levels else []) + ([accel] if accel else [])]
+    t_all = np.concatenate(times)
+    t_all = t_all[np.isfinite(t_all)]
+    note = ""
+    spans = [s for s in segments if s["kind"] == "flying"] if over == "flying" else []
+    over_out = "flying"
+    if over == "whole" or not spans:
+        if over == "flying":
+            note = "no flying segment in the log: figures over the whole log; "
+        spans = [{"kind": "whole log", "start_s": float(t_all.min()), "end_s": float(t_all.max())}]
+        over_out = "whole log"
+    out_segs = []
+    for seg in spans:
+        entry = {"kind": seg["kind"], "start_s": round(float(seg["start_s"]), 3),
+                 "end_s": round(float(seg["end_s"]), 3), "session": int(seg.get("session", 0)),
+                 "figures": {}, "accel_peaks": None}
+        if levels is not None:
+            entry["figures"] = _segment_figures(levels, seg)
+        if accel is not None:
+            entry["accel_peaks"] = _segment_peaks(accel, seg)
+            entry["figures"].update(_accel_figures(accel, seg))
+        entry["verdict"] = _worst(f.get("verdict") for f in entry["figures"].values())
+        out_segs.append(entry)
+    src_name = levels["source"] if levels is not None else "accelerometer"
+    used = {levels["threshold"], "clip_increase"} if levels is not None else set()
+    result = {
+        "source": src_name,
+        "accel_source": accel["source"] if accel is not None else None,
+        "over": over_out,
+        "thresholds": {k: dict(v) for k, v in THRESHOLDS.items() if k in used},
+        "segments": out_segs,
+        "verdict": _worst(s["verdict"] for s in out_segs),
+    }
+    note += (f"{src_name} over {len(out_segs)} {over_out} segment(s); "
+             f"levels judged on their 95th percentile, clipping on its increase")
+    if levels is None:
+        note += ("; no vibration level in the log: the accelerometer's band rms and spectra only, no verdict "
+                 "(no published threshold for them)")
+    return result, note
+
+
+# ------------------------------------------------------------------- sources
+def _levels(kind, source):
+    """{"source", "threshold", "time_s", "instance", "levels": {name: column},
+    "clips": {name: cumulative column}} or None."""
+    if kind == "dataflash":
+        m = log_messages(kind, source, "VIBE")
+        if m is None:
+            return None
+        inst = m["IMU"].astype(np.int64) if "IMU" in m else np.zeros(len(m["time_s"]), np.int64)
+        return {"source": "VIBE", "threshold": "vibe_m_s2", "time_s": m["time_s"], "instance": inst,
+                "levels": {c: m[c] for c in ("VibeX", "VibeY", "VibeZ") if c in m},
+                "clips": {c: m[c] for c in m if re.fullmatch(r"Clip\d?", c)}}
+    if kind == "tlog":
+        m = log_messages(kind, source, "VIBRATION")
+        if m is None:
+            return None
+        return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
+                "instance": np.zeros(len(m["time_s"]), np.int64),
+                "levels": {c: m[c] for c in ("vibration_x", "vibration_y", "vibration_z")},
+                "clips": {c: m[c] for c in ("clipping_0", "clipping_1", "clipping_2")}}
+    parts = []
+    k = 0
+    while True:
+        m = log_messages(kind, source, "vehicle_imu_status" + (f"[{k}]" if k else ""))
+        if m is None or "accel_vibration_metric" not in m:
+            break
+        parts.append(m)
+        k += 1
+    if not parts:
+        return None
+    cat = {c: np.concatenate([p[c] for p in parts]) for c in parts[0] if all(c in p for p in parts)}
+    inst = np.concatenate([np.full(len(p["time_s"]), i) for i, p in enumerate(parts)])
+    lv = {c: cat[c] for c in ("accel_vibration_metric", "gyro_vibration_metric", "delta_angle_coning_metric")
+          if c in cat}
+    return {"source": "vehicle_imu_status", "threshold": "accel_vibration_metric_m_s2", "time_s": cat["time_s"],
+            "instance": inst, "levels": lv,
+            "clips": {c: cat[c] for c in cat if c.startswith("accel_clipping[")}}
+
+
+def _accel(kind, source):
+    """{"source", "time_s", "xyz": (n, 3)} of the first accelerometer, or None."""
+    if kind == "dataflash":
+        m = log_messages(kind, source, "IMU")
+        if m is None or not all(c in m for c in ("AccX", "AccY", "AccZ")):
+            return None
+        sel = m["I"] == 0 if "I" in m else np.ones(len(m["time_s"]), bool)
+        return {"source": "IMU.AccX/AccY/AccZ", "time_s": m["time_s"][sel],
+                "xyz": np.stack([m[c][sel] for c in ("AccX", "AccY", "AccZ")], 1).astype(np.float64)}
+    if kind == "ulog":
+        m = log_messages(kind, source, "sensor_combined")
+        cols = [f"accelerometer_m_s2[{i}]" for i in range(3)]
+        if m is None or not all(c in m for c in cols):
+            return None
+        return {"source": "sensor_combined.accelerometer_m_s2", "time_s": m["time_s"],
+                "xyz": np.stack([m[c] for c in cols], 1).astype(np.float64)}
+    return None
+
+
+# ------------------------------------------------------------------- figures
+def _verdict(value, key):
+    th = THRESHOLDS[key]
+    if value is None or not np.isfinite(value):
+        return None
+    return "fail" if value >= th["fail"] else "warn" if value >= th["warn"] else "pass"
+
+
+def _threshold(key):
+    """{"warn", "fail"} of a THRESHOLDS entry, or None (no published threshold)."""
+    return None if key is None else {"warn": THRESHOLDS[key]["warn"], "fail": THRESHOLDS[key]["fail"]}
+
+
+def _worst(verdicts):
+    vs = [v for v in verdicts if v is not None]
+    return max(vs, key=VERDICTS.index) if vs else None
+
+
+def _in(t, seg, session=None):
+    return segment_mask(t, [dict(seg, kind="x")], "x", session if "session" in seg else None)
+
+
+def _segment_figures(lv, seg):
+    """Per level column and instance (``imuN.`` before the name where the log has
+    several): mean/max/p95 and verdict; per clip column: its increase and verdict."""
+    t = lv["time_s"]
+    out = {}
+    for inst in np.unique(lv["instance"]).tolist():
+        isel = lv["instance"] == inst
+        sel = isel & _in(t, seg, lv.get("session"))
+        prefix = f"imu{inst}." if len(np.unique(lv["instance"])) > 1 else ""
+        for name, col in lv["levels"].items():
+            x = np.asarray(col, np.float64)[sel]
+            x = x[np.isfinite(x)]
+            if not len(x):
+                continue
+            key = ("vibe_m_s2" if name in ("VibeX", "VibeY", "VibeZ", "vibration_x", "vibration_y", "vibration_z")
+                   else "accel_vibration_metric_m_s2" if name == "accel_vibration_metric" else None)
+            fig = {"mean": _r(np.mean(x)), "p95": _r(np.percentile(x, 95)), "max": _r(np.max(x)),
+                   "unit": LEVEL_UNITS.get(name), "threshold": _threshold(key),
+                   "verdict": _verdict(_r(np.percentile(x, 95)), key) if key else None,   # None: no threshold
+                   "samples": int(len(x))}
+            out[prefix + name] = fig
+        for name, col in lv["clips"].items():
+            c = np.asarray(col, np.float64)
+            idx = np.flatnonzero(sel)
+            if not len(idx):
+                continue
+            before = isel & (t < seg["start_s"])
+            if lv.get("session") is not None and "session" in seg:
+                before &= lv["session"] == seg["session"]
+            before = np.flatnonzero(before)
+            base = c[before[-1]] if len(before) else c[idx[0]]
+            inc = float(np.max(c[idx]) - base)
+            inc = max(inc, 0.0)
+            out[prefix + name] = {"increase": int(inc), "unit": "count", "threshold": _threshold("clip_increase"),
+                                  "verdict": _verdict(inc, "clip_increase")}
+    return out
+
+
+def _accel_figures(acc, seg):
+    """``accel_band_rms_x/y/z``: the rms (m/s/s) of the accelerometer in the band from
+    :data:`ACCEL_BAND_LO_HZ` (from half the Nyquist frequency where that is below 24 Hz) to the
+    stream's Nyquist frequency, per window of :data:`ACCEL_WINDOW_S` inside the segment
+    (mean removed per window; Parseval over the window's FFT bins in the band), as
+    mean/p95/max over the windows; no threshold, no verdict. {} when the segment holds
+    no whole window."""
+    t = acc["time_s"]
+    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    if len(sel) < 8:
+        return {}
+    ts = t[sel]
+    dt = np.diff(ts)
+    pos = dt[dt > 0]
+    if not len(pos):
+        return {}
+    rate_hz = 1.0 / float(np.median(pos))
+    nyq = 0.5 * rate_hz
+    lo = ACCEL_BAND_LO_HZ if nyq >= 1.2 * ACCEL_BAND_LO_HZ else ACCEL_BAND_LO_NYQ_SHARE * nyq
+    w = max(8, int(round(ACCEL_WINDOW_S * rate_hz)))
+    brk = np.r_[0, np.flatnonzero((np.diff(sel) != 1) | (dt > 2.5 / rate_hz) | (dt <= 0)) + 1, len(sel)]
+    freq = np.fft.rfftfreq(w, 1.0 / rate_hz)
+    band = freq >= lo
+    out = {}
+    for k, axis in enumerate("xyz"):
+        vals = []
+        for a, b in zip(brk[:-1], brk[1:]):
+            for c in range(a, b - w + 1, w):
+                x = acc["xyz"][sel[c:c + w], k]
+                if not np.all(np.isfinite(x)):
+                    continue
+                spec = np.abs(np.fft.rfft(x - x.mean())) ** 2
+                wt = np.where((freq > 0) & (freq < nyq - 1e-9), 2.0, 1.0)      # one-sided bins
+                vals.append(float(np.sqrt(np.sum(spec[band] * wt[band])) / w))
+        if vals:
+            v = np.asarray(vals)
+            out[f"accel_band_rms_{axis}"] = {
+                "mean": _r(v.mean()), "p95": _r(np.percentile(v, 95)), "max": _r(v.max()), "unit": "m/s/s",
+                "threshold": None, "verdict": None, "samples": int(len(v) * w), "windows": int(len(v)),
+                "band_hz": [_r(lo), _r(nyq)], "source": acc["source"]}
+    return out
+
+
+def _segment_peaks(acc, seg):
+    """Dominant peaks of the summed x+y+z accelerometer PSD over the segment
+    (strongest first), or [] when the segment is too short for a spectrum."""
+    t = acc["time_s"]
+    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    if len(sel) < 64:
+        return []
+    ts = t[sel]
+    dt = np.diff(ts)
+    rate_hz = 1.0 / float(np.median(dt))
+    restarts = np.zeros(len(sel), bool)
+    restarts[1:] = (np.diff(sel) != 1) | (dt > 2.5 / rate_hz) | (dt <= 0)
+    nperseg = int(min(256, 2 ** int(np.floor(np.log2(max(len(sel) // 4, 16))))))
+    total, n_seg, f = None, 0, None
+    for k in range(3):
+        x = acc["xyz"][sel, k]
+        x = x - np.nanmean(x)
+        f, p, n = welch_psd(x, rate_hz, nperseg, restarts=restarts)
+        if p is None:
+            return []
+        total = p if total is None else total + p
+        n_seg = n
+    peaks = find_peaks(f, total, n_seg, min_freq_hz=PEAK_MIN_FREQ_HZ, max_peaks=MAX_PEAKS)
+    return [{"freq_hz": _r(p["freq_hz"]), "amplitude_rms_m_s2": _r(p["amplitude_rms"]),
+             "ratio_db": _r(p["ratio_db"])} for p in peaks]
+
+
+def _r(v, digits=4):
+    """float rounded to ``digits`` significant figures (JSON-able)."""
+    v = float(v)
+    if v == 0 or not np.isfinite(v):
+        return v
+    return float(f"{v:.{digits}g}")
