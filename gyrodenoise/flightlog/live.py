@@ -23,7 +23,7 @@ samples, so nothing filtered has been forwarded before the decision).
 
 Signed links (:mod:`gyrodenoise.flightlog.signing`): with the link's key every
 packet is checked as it arrives; one that fails (unsigned or MAVLink 1 once
-signed packets have come, a bad signature, a timestamp not newer than its
+a packet signed with the key has come, a bad signature, a timestamp not newer than its
 stream's last) is not filtered and not forwarded, and is counted per source; a
 gyro packet the filter changes is re-signed (original link id and timestamp, or
 one more than the stream's last one out). Without the key a signed packet is
