@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 from gyrodenoise.errors import Terminated
 from gyrodenoise.flightlog import cluster
@@ -65,27 +67,72 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
 
 
 def _log_files(items):
-    """(log files, ignored files) of local paths and fsspec URLs, local ones first."""
+    """(log files, ignored files: :class:`IgnoredFile`) of local paths and fsspec URLs, local ones first."""
     files, ignored = expand_inputs([it for it in items if not cluster.is_url(it)])
     urls = [it for it in items if cluster.is_url(it)]
     if urls:
         found, missing = cluster.expand_url_inputs(urls)
         files += found
-        ignored += missing
+        ignored += [IgnoredFile(m, "nothing found at this URL") for m in missing]
     return files, ignored
 
 
+class IgnoredFile(NamedTuple):
+    """An input not processed, and why (the summary's ``ignored_files``: ``{"file", "reason"}``)."""
+    file: str
+    reason: str
+
+    def as_dict(self):
+        return {"file": str(self.file), "reason": self.reason}
+
+
+#: files that are not regular files, by what ``stat`` says they are: never opened (a FIFO
+#: blocks its reader until a writer comes, a device such as /dev/zero never ends)
+SPECIAL_FILE_KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+                      (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
+                      (stat.S_ISDIR, "a folder"))
+
+
+def special_file_reason(path):
+    """None for a regular file (or a link to one), else why ``path`` is not read: what it is
+    (a link: what it points to), or why it cannot be looked at."""
+    p = Path(path)
+    link = f"a link to {os.readlink(p)}, " if p.is_symlink() else ""
+    try:
+        mode = p.stat().st_mode
+    except OSError as exc:
+        return f"{link}cannot be looked at ({exc.strerror or exc})"
+    if stat.S_ISREG(mode):
+        return None
+    what = next((name for test, name in SPECIAL_FILE_KINDS if test(mode)), "not a regular file")
+    return f"{link}{what}: not a regular file, not opened"
+
+
 def expand_inputs(items):
-    """Files and folders -> (list of log files, list of ignored files)."""
+    """Files and folders -> (list of log files, list of :class:`IgnoredFile`): in a folder,
+    files not named as logs (:data:`LOG_SUFFIXES`) and, anywhere, files that are not
+    regular files (:func:`special_file_reason`: FIFOs, devices, sockets, broken links),
+    which are never opened. A path that does not exist is left to fail as a log."""
     files, ignored = [], []
+
+    def add(path, why):
+        if why is None:
+            files.append(path)
+        else:
+            ignored.append(IgnoredFile(str(path), why))
+
     for it in items:
         p = Path(it)
         if p.is_dir():
             for q in sorted(p.rglob("*")):
-                if q.is_file():
-                    (files if q.suffix.lower() in LOG_SUFFIXES else ignored).append(q)
+                if q.is_dir() and not q.is_symlink():
+                    continue
+                why = special_file_reason(q)
+                if why is None and q.suffix.lower() not in LOG_SUFFIXES:
+                    why = f"not named as a log ({' '.join(sorted(LOG_SUFFIXES))})"
+                add(q, why)
         else:
-            files.append(p)
+            add(p, special_file_reason(p) if p.exists() or p.is_symlink() else None)
     return files, ignored
 
 
@@ -264,7 +311,7 @@ def _summary(files, results, ignored, seconds, jobs, scheduler, head=None):
     logs = [r["report"] for r in done if r["ok"]]
     failed = _failed_entries(done)
     out = dict(head or {})
-    out.update({"logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
+    out.update({"logs": logs, "failed": failed, "ignored_files": [i.as_dict() for i in ignored],
                 "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed)})
     if head is not None:
         out["n_unfinished"] = sum(r is None for r in results)
