@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import stat
 import time
 from pathlib import Path
@@ -21,7 +22,7 @@ from gyrodenoise.flightlog import cluster
 from gyrodenoise.flightlog.formats import LOG_SUFFIXES
 from gyrodenoise.flightlog.report import MOTION_METRIC, log_problems, streams_left_raw
 from gyrodenoise.flightlog.spectra import SPECTRUM_METRIC
-from gyrodenoise.flightlog.stopping import as_child, signals_blocked, stop_processes
+from gyrodenoise.flightlog.stopping import STOP_WAIT_S, as_child, remove_partials, signals_blocked, stop_processes
 from gyrodenoise.flightlog.streams import NOISE_METRIC
 
 
@@ -260,7 +261,13 @@ def _run_in_pool(tasks, jobs, bar, results, fn=None):
     """:func:`_run_tasks` in a local process pool of ``jobs`` workers, largest log first
     (``fn``: what runs each task, :func:`gyrodenoise.flightlog.cluster.run_task`).
     The workers end with this process, and on an interrupt they are stopped at
-    once (the pool's own shutdown would wait for the logs under way).
+    once (without waiting for the logs under way).
+
+    A worker that dies in the middle of a log (killed, out of memory, a crash in C)
+    fails that log alone: it is listed as failed with how the worker ended, its
+    partial files are deleted (:func:`remove_task_partials`), a new worker takes its
+    place and the other logs go on. (concurrent.futures' pool fails every log with
+    ``BrokenProcessPool`` then, those under way and those not started.)
 
     Each worker runs one thread of BLAS / OpenMP / numba: ``jobs`` workers each with
     a thread per core would oversubscribe the machine. The workers are forked from a
@@ -269,29 +276,124 @@ def _run_in_pool(tasks, jobs, bar, results, fn=None):
     :func:`_pool_preload` once for all of them (:func:`_pool_context`). As with any
     spawned pool, a script that calls this with ``jobs`` > 1 keeps its work under
     ``if __name__ == "__main__":`` (the workers import the script's main module)."""
-    import concurrent.futures as cf
+    from multiprocessing.connection import wait
     fn = cluster.run_task if fn is None else fn
-    ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_pool_context(tasks),
-                                initializer=as_child)
+    ctx = _pool_context(tasks)
+    todo = list(cluster.largest_first(tasks))
+    todo.reverse()                                  # popped from the end: largest first
+    idle, busy, died = [], {}, []                  # busy: worker -> index of its task
+    n_workers = min(jobs, len(tasks))
     try:
-        # every worker is started by a submit in this block (one a submit, up to ``jobs``)
-        with signals_blocked(), _worker_environment():
-            futures = {ex.submit(fn, tasks[i]): i for i in cluster.largest_first(tasks)}
-        for fut in cf.as_completed(futures):
-            t = tasks[futures[fut]]
-            try:
-                res = fut.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by a crash
-                res = {"ok": False, "file": str(t[0]),
-                       "error": f"{t[0]}: worker failed: {type(exc).__name__}: {exc}"}
-            results[futures[fut]] = res
-            if bar:
-                bar(res)
+        while todo or busy:
+            while todo and (idle or len(busy) < n_workers):
+                was_idle = bool(idle)
+                w = idle.pop() if was_idle else _PoolWorker(ctx, fn)
+                i = todo[-1]
+                if not w.send((i, tasks[i])) and was_idle:    # it died waiting: another one
+                    w.close()
+                    continue
+                busy[w] = todo.pop()
+            ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in busy]))
+            for w in [w for w in busy if w.conn in ready or w.proc.sentinel in ready]:
+                i = busy.pop(w)
+                res = w.result()
+                if res is None:                     # the worker died with the log
+                    res = _worker_died(tasks[i], w.proc)
+                    died.append(tasks[i])
+                    w.close()
+                else:
+                    idle.append(w)
+                results[i] = res
+                if bar:
+                    bar(res)
     except BaseException:
-        stop_processes(list((getattr(ex, "_processes", None) or {}).values()))
-        ex.shutdown(wait=False, cancel_futures=True)
+        stop_processes([w.proc for w in [*busy, *idle]])
         raise
-    ex.shutdown(wait=True)
+    finally:
+        for w in idle:
+            w.close()
+        for t in died:          # its worker's plot helper (killed with it) may have written last
+            remove_task_partials(t)
+
+
+class _PoolWorker:
+    """One worker process of :func:`_run_in_pool` and its end of a pipe: it is sent
+    ``(index, task)`` and answers ``(index, result)``; ``None`` ends it."""
+
+    def __init__(self, ctx, fn):
+        self.conn, child = ctx.Pipe()
+        # started in this block: its environment and signal mask (see _run_in_pool)
+        with signals_blocked(), _worker_environment():
+            # not a daemon: it starts a plot helper of its own
+            self.proc = ctx.Process(target=_pool_worker_main, args=(child, fn))
+            self.proc.start()
+        child.close()
+
+    def send(self, msg):
+        """Send ``msg``; False when the worker is gone."""
+        try:
+            self.conn.send(msg)
+            return True
+        except OSError:
+            return False
+
+    def result(self):
+        """The result of the task sent, or None when the worker died before it answered."""
+        try:
+            if self.conn.poll():
+                return self.conn.recv()[1]
+        except (EOFError, OSError):
+            pass
+        return None
+
+    def close(self):
+        """End the worker (asked, then stopped if it does not) and close its pipe."""
+        self.send(None)
+        self.proc.join(STOP_WAIT_S)
+        stop_processes([self.proc])
+        self.conn.close()
+
+
+def _pool_worker_main(conn, fn):
+    """A pool worker: :func:`as_child`, then the tasks it is sent, one at a time."""
+    as_child()
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return
+        if msg is None:
+            return
+        i, task = msg
+        try:
+            res = fn(task)
+        except Exception as exc:  # noqa: BLE001 - the task's own failure, said as its result
+            res = {"ok": False, "file": str(task[0]), "error": f"{task[0]}: worker failed: {type(exc).__name__}: {exc}"}
+        conn.send((i, res))
+
+
+def _worker_died(task, proc):
+    """The failed result of a task whose worker process ended before it answered."""
+    proc.join(STOP_WAIT_S)
+    code = proc.exitcode
+    if code is None or code >= 0:
+        how = f"exit status {code}"
+    elif -code in signal.valid_signals():
+        how = f"killed by {signal.Signals(-code).name}"
+    else:
+        how = f"killed by signal {-code}"
+    return {"ok": False, "file": str(task[0]),
+            "error": f"{task[0]}: the worker process processing this log died ({how}); "
+                     f"its partial outputs were deleted, the other logs were not affected"}
+
+
+def remove_task_partials(task):
+    """Delete the partial files (:func:`gyrodenoise.flightlog.stopping.partial_path`) of one
+    log task's outputs (``STEM.*`` in its output folder); how many."""
+    out_dir, stem = task[1], task[2].get("out_stem")
+    if stem is None or cluster.is_url(out_dir):
+        return 0
+    return remove_partials(out_dir, f"{stem}.*")
 
 
 def _log_stream_problems(logs, log):

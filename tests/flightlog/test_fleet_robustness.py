@@ -3,6 +3,7 @@ inputs (never opened, listed with the reason), and a ``--jobs`` worker killed in
 middle of a log (that log fails alone, no partial file is left)."""
 import os
 import shutil
+import sys
 import threading
 from pathlib import Path
 
@@ -44,3 +45,47 @@ def test_special_files_are_listed_with_the_reason_and_never_opened(tmp_path):
     assert why["zero.tlog"] == "a link to /dev/zero, a character device: not a regular file, not opened"
     assert why["broken.ulg"].startswith(f"a link to {tmp_path / 'nowhere.ulg'}, cannot be looked at")
     assert why["notes.txt"].startswith("not named as a log")
+
+
+# ------------------------------------------------------------ a worker killed mid-log
+KILLED = "killed-mid-log"
+
+
+def _run_task_killed_on_its_first_output(task):
+    """:func:`gyrodenoise.flightlog.cluster.run_task`, in a pool worker; for the log named
+    :data:`KILLED` the worker SIGKILLs itself the moment its first output file is complete
+    under its partial name (before the rename): a worker killed in the middle of a log."""
+    import signal
+
+    from gyrodenoise.flightlog import cluster, stopping
+    if Path(task[0]).stem == KILLED:
+        def replace(src, dst):
+            assert Path(src).name.endswith(stopping.PARTIAL_SUFFIX) and Path(src).exists()
+            os.kill(os.getpid(), signal.SIGKILL)
+        stopping.os.replace = replace            # the module's os: this worker's only, it dies
+    return cluster.run_task(task)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork") or sys.platform == "win32", reason="SIGKILL of a pool worker")
+def test_a_killed_worker_fails_its_own_log_alone_and_leaves_no_partial_file(tmp_path, monkeypatch):
+    from gyrodenoise.flightlog import cluster
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    names = []
+    for i, src in enumerate([DATA / "ardusub_small.BIN", DATA / "plane_truncated_test.BIN",
+                             DATA / "fs-batt.log.tlog"] * 2):
+        names.append(f"log{i}{src.suffix}")
+        shutil.copy(src, folder / names[-1])
+    shutil.copy(DATA / "ardusub_small.BIN", folder / f"{KILLED}.BIN")
+    monkeypatch.setattr(cluster, "run_task", _run_task_killed_on_its_first_output)
+    out = tmp_path / "out"
+    summary = _in_thread(lambda: process_many([folder], out, jobs=3, plots=False, csv=True))
+    assert summary["n_logs"] == 7 and summary["n_ok"] == 6 and summary["n_failed"] == 1, summary["failed"]
+    assert sorted(Path(r["file"]).name for r in summary["logs"]) == sorted(names)
+    (failed,) = summary["failed"]
+    assert failed["file"] == str(folder / f"{KILLED}.BIN")
+    assert "the worker process processing this log died (killed by SIGKILL)" in failed["error"]
+    assert not [p.name for p in out.rglob("*") if p.name.endswith(".partial")]
+    assert not list(out.glob(f"{KILLED}.*"))            # it died before its first output was complete
+    for name in names:                                  # the others complete
+        assert (out / f"{Path(name).stem}.filtered{Path(name).suffix}").is_file()
