@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from gyrodenoise.flightlog.process import process_many
-from tests.helpers import DATA
+from tests.helpers import DATA, run_main
 
 posix = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs and /dev/zero are POSIX")
 
@@ -89,3 +89,13 @@ def test_a_killed_worker_fails_its_own_log_alone_and_leaves_no_partial_file(tmp_
     assert not list(out.glob(f"{KILLED}.*"))            # it died before its first output was complete
     for name in names:                                  # the others complete
         assert (out / f"{Path(name).stem}.filtered{Path(name).suffix}").is_file()
+
+
+@posix
+def test_only_special_files_named_exit_2_with_the_reason(tmp_path):
+    fifo = tmp_path / "named.tlog"
+    os.mkfifo(fifo)
+    status, out, err = _in_thread(lambda: run_main("mavlink", fifo, "-o", tmp_path / "out", "--no-plots"))
+    assert status == 2 and "Traceback" not in err
+    assert err.strip() == (f"gyrodenoise: error: {fifo}: no .tlog, .bin or .ulg file found "
+                           f"(ignored: {fifo}: a FIFO (named pipe): not a regular file, not opened)")
