@@ -13,10 +13,12 @@ being whole MAVLink packets (as autopilots, MAVProxy and routers send them): the
 packets of one datagram go out as one datagram (datagrams out <= datagrams in), and
 a datagram that does not frame as whole packets is dropped unparsed and counted
 (a flood of garbage costs a length check per datagram, not a parse). Datagrams
-wait in a bounded queue (:data:`QUEUE_BYTES`, the oldest dropped and counted when
-it is full) between the socket, drained first at each step, and the filter: memory
-and latency stay bounded whatever comes in. Other links (TCP, serial) are read as
-a byte stream by pymavlink, a message at a time.
+wait in a bounded queue (:data:`QUEUE_BYTES`; when it is full the oldest datagram
+of the sender holding the most is dropped, and counted) between the socket, drained
+first at each step, and the filter: memory and latency stay bounded whatever comes
+in. Each sender has its own queue and the senders are served in turn
+(:class:`FairQueue`): a flood from one sender does not crowd out another. Other
+links (TCP, serial) are read as a byte stream by pymavlink, a message at a time.
 
 Each stream (message type, system, component, instance) and axis has its own
 :class:`gyrodenoise.Denoiser`, stepped once per sample with the restart flag of
@@ -57,9 +59,9 @@ import numpy as np
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.errors import InputError
 
-from gyrodenoise.flightlog.signing import KEY_HINT, LinkSigning, is_signed
+from gyrodenoise.flightlog.signing import KEY_HINT, MAGIC_V2, LinkSigning, is_signed
 from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
-from gyrodenoise.flightlog.tlog import _AP_VERSION_RE, GYRO_FIELDS, _packet_len, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
+from gyrodenoise.flightlog.tlog import _AP_VERSION_RE, GYRO_FIELDS, _check_crcs, _packet_len, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
 
 
 #: a live RAW_IMU stream whose unit is still open (see :func:`gyrodenoise.flightlog.tlog.decide_raw_imu_unit`)
@@ -354,16 +356,32 @@ _SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40 if sys.platform.startswith("lin
 
 
 def mavlink_frames(data):
-    """The MAVLink 1 / 2 packets of a datagram that is whole packets end to end (lengths
-    only, the CRCs are checked when each is decoded), else None."""
-    frames, p, n = [], 0, len(data)
+    """The offsets of the MAVLink 1 / 2 packets of a datagram that is whole packets end
+    to end (lengths only: the CRCs are checked by :func:`crc_ok`), else None."""
+    offsets, p, n = [], 0, len(data)
     while p < n:
         ln = _packet_len(data, p, n)
         if ln is None or ln < 0 or p + ln > n:
             return None
-        frames.append(data[p:p + ln])
+        offsets.append(p)
         p += ln
-    return frames or None
+    return offsets or None
+
+
+#: a datagram of more packets than this has their CRCs checked together (numpy), not one by one
+MANY_PACKETS = 8
+
+
+def crc_ok(data, offsets):
+    """Which of the packets at ``offsets`` of ``data`` have a known message id and a good
+    CRC: :func:`gyrodenoise.flightlog.tlog._check_crcs`, the tlog reader's vectorised check
+    (it addresses a tlog record, whose packet starts 8 bytes in)."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    at = np.asarray(offsets, dtype=np.int64)
+    v2 = buf[at] == MAGIC_V2          # the id: a MAVLink 1 packet's at byte 5, a 2's at bytes 7-9
+    msgid = np.where(v2, buf[at + 7].astype(np.int64) | (buf[at + 8].astype(np.int64) << 8)
+                     | (buf[at + 9].astype(np.int64) << 16), buf[at + 5].astype(np.int64))
+    return _check_crcs(buf, at - 8, np.diff(np.append(at, len(buf))) + 8, v2, msgid)
 
 
 class _ReadCounts:
@@ -392,17 +410,69 @@ class _ReadCounts:
         return rep
 
 
+#: a sender's datagram dropped from a full queue is the largest of its oldest this many
+DROP_AMONG = 32
+
+
+class FairQueue:
+    """Datagrams waiting to be handled: one first-in first-out queue per sender, the
+    senders served in turn, ``limit`` bytes in all at most: beyond, the sender holding
+    the most bytes loses the largest of its :data:`DROP_AMONG` oldest datagrams (a flood
+    from one sender delays another by one of its datagrams at most and takes its place
+    in the queue only; large garbage goes before the small packets of a link it is mixed with)."""
+
+    def __init__(self, limit):
+        self.limit = limit
+        self.senders = {}              # sender -> [deque of (item, size), bytes]; in serving order
+        self.bytes = 0
+
+    def __len__(self):
+        return sum(len(q) for q, _ in self.senders.values())
+
+    def put(self, sender, item, size):
+        """Queue ``item`` (``size`` bytes) of ``sender``; how many datagrams were dropped for it."""
+        entry = self.senders.setdefault(sender, [deque(), 0])
+        entry[0].append((item, size))
+        entry[1] += size
+        self.bytes += size
+        dropped = 0
+        while self.bytes > self.limit:
+            who = max(self.senders, key=lambda k: self.senders[k][1])
+            q = self.senders[who]
+            oldest = [q[0][i][1] for i in range(min(len(q[0]), DROP_AMONG))]
+            i = oldest.index(max(oldest))
+            n = q[0][i][1]
+            del q[0][i]
+            q[1] -= n
+            self.bytes -= n
+            dropped += 1
+            if not q[0]:
+                del self.senders[who]
+        return dropped
+
+    def get(self):
+        """The oldest item of the next sender in turn, or None."""
+        for who in self.senders:
+            q = self.senders.pop(who)
+            item, n = q[0].popleft()
+            q[1] -= n
+            self.bytes -= n
+            if q[0]:
+                self.senders[who] = q  # to the end of the turn
+            return item
+        return None
+
+
 class DatagramReader(_ReadCounts):
     """A UDP link's datagrams (``sock``: non-blocking), decoded with ``parser`` (a
-    pymavlink ``MAVLink``): :meth:`next` drains the socket into a bounded queue (a
+    pymavlink ``MAVLink``): :meth:`next` drains the socket into a :class:`FairQueue` (a
     datagram that is not whole packets counted and dropped there, :func:`mavlink_frames`)
-    and returns the messages of the oldest datagram queued."""
+    and returns the messages of the next datagram queued."""
 
     def __init__(self, sock, parser):
         super().__init__()
         self.sock, self.parser = sock, parser
-        self.queue = deque()           # frames of each datagram waiting
-        self.queued = 0                # their bytes
+        self.queue = FairQueue(QUEUE_BYTES)
         self.anc = 0
         if _SO_RXQ_OVFL is not None:
             try:
@@ -415,7 +485,7 @@ class DatagramReader(_ReadCounts):
     def _drain(self):
         for _ in range(DRAIN_MAX):
             try:
-                data, anc, _, _ = self.sock.recvmsg(1 << 16, self.anc)
+                data, anc, _, sender = self.sock.recvmsg(1 << 16, self.anc)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError:            # e.g. ECONNREFUSED of an earlier send: nothing to read
@@ -424,34 +494,34 @@ class DatagramReader(_ReadCounts):
                 if level == socket.SOL_SOCKET and kind == _SO_RXQ_OVFL and len(value) >= 4:
                     self.kernel_dropped = max(self.kernel_dropped or 0, int.from_bytes(value[:4], sys.byteorder))
             self.datagrams_in += 1
-            frames = mavlink_frames(data)
-            if frames is None:
+            offsets = mavlink_frames(data)
+            if offsets is None:
                 self.garbage_datagrams += 1
                 self.bad(len(data))
                 continue
-            self.queue.append(frames)
-            self.queued += len(data)
-            while self.queued > QUEUE_BYTES and len(self.queue) > 1:
-                old = self.queue.popleft()
-                self.queued -= sum(map(len, old))
-                self.overload_dropped += 1
+            self.overload_dropped += self.queue.put(sender, (data, offsets), len(data))
 
     def next(self, timeout):
         """The readable messages of the next datagram ([] for none within ``timeout`` s)."""
         self._drain()
-        if not self.queue:
+        item = self.queue.get()
+        if item is None:
             select.select([self.sock], [], [], timeout)
             self._drain()
-            if not self.queue:
+            item = self.queue.get()
+            if item is None:
                 return []
-        frames = self.queue.popleft()
-        self.queued -= sum(map(len, frames))
+        data, offsets = item
+        ends = offsets[1:] + [len(data)]
+        good = crc_ok(data, offsets) if len(offsets) > MANY_PACKETS else [True] * len(offsets)
         msgs = []
-        for f in frames:
+        for a, b, ok in zip(offsets, ends, good):
             try:
-                msgs.append(self.parser.decode(bytearray(f)))
+                if not ok:
+                    raise ValueError("bad CRC or unknown message id")
+                msgs.append(self.parser.decode(bytearray(data[a:b])))
             except Exception:  # noqa: BLE001 - pymavlink's MAVError and struct errors: a bad packet
-                self.bad(len(f))
+                self.bad(b - a)
         return msgs
 
 
