@@ -260,3 +260,18 @@ def test_fair_queue_serves_senders_in_turn_and_drops_from_the_largest():
     assert q.put("flood", "f3", 40) == 1                 # 130 > 100: the flood's oldest goes
     assert q.get() == "f2" and q.get() == "l1" and q.get() == "f3" and q.get() is None
     assert q.bytes == 0 and len(q) == 0
+
+
+@pytest.mark.slow
+def test_garbage_on_a_tcp_link_is_dropped_and_counted(tmp_path):
+    """A byte-stream link (TCP): garbage bytes before each packet are counted as unreadable and
+    never forwarded (they were forwarded, a datagram each); the packets come out as they went in."""
+    from tests.flightlog.test_live import replay, tlog_packets
+    from tests.helpers import DATA
+    sent = tlog_packets(DATA / "fs-batt.log.tlog", limit=60)
+    rng = np.random.default_rng(4)
+    noise = [bytes(rng.integers(0, 0xFD, 50, dtype=np.uint8)) for _ in sent]    # no magic byte in it
+    received, rep, _ = replay([g + p for g, p in zip(noise, sent)], 2.4, tmp_path, transport="tcp")
+    assert received == sent
+    assert rep["messages_in"] == rep["messages_forwarded"] == len(sent)
+    assert rep["unreadable_records"] >= 1 and rep["unreadable_bytes"] == 50 * len(sent)
