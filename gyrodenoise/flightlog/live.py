@@ -344,9 +344,8 @@ def _forward_until_stopped(src, dst, bridge, deadline, max_messages):
         return "interrupt"
 
 
-#: bytes of datagrams waiting to be handled, at most (the oldest dropped and counted beyond):
-#: about 0.1 s of handling in the worst case (a flood of datagrams that frame as packets
-#: with bad CRCs, ~12 ms per 64 kB parsed), many seconds of a fast IMU link
+#: bytes of datagrams waiting to be handled, at most (:class:`FairQueue`; beyond, dropped and
+#: counted): two 64 kB datagrams of a flood, many seconds of a fast IMU link (~50 bytes a packet)
 QUEUE_BYTES = 1 << 17
 #: datagrams read from the socket at most before the next one is handled
 DRAIN_MAX = 256
