@@ -455,7 +455,9 @@ def _run_files(args, kw, single, client=None):
         if args.scheduler is not None:
             summary["scheduler"] = args.scheduler
         if summary["n_logs"] == 0:
-            raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found")
+            ign = summary["ignored_files"]
+            why = "; ".join(f"{i['file']}: {i['reason']}" for i in ign[:3]) + (f"; {len(ign) - 3} more" if len(ign) > 3 else "")
+            raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found" + (f" (ignored: {why})" if why else ""))
         refused = {f.get("option") for f in summary["failed"]}
         if not summary["n_ok"] and len(refused) == 1 and refused <= {"--cutoff-hz", "--max-motion-hz"}:
             # the option, not the logs: one line, nothing written (as for one log)

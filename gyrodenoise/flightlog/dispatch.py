@@ -11,15 +11,18 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
+import stat
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 from gyrodenoise.errors import Terminated
 from gyrodenoise.flightlog import cluster
 from gyrodenoise.flightlog.formats import LOG_SUFFIXES
 from gyrodenoise.flightlog.report import MOTION_METRIC, log_problems, streams_left_raw
 from gyrodenoise.flightlog.spectra import SPECTRUM_METRIC
-from gyrodenoise.flightlog.stopping import as_child, signals_blocked, stop_processes
+from gyrodenoise.flightlog.stopping import STOP_WAIT_S, as_child, remove_partials, signals_blocked, stop_processes
 from gyrodenoise.flightlog.streams import NOISE_METRIC
 
 
@@ -65,27 +68,72 @@ def process_many(items, out_dir, jobs=1, log=None, scheduler=None, progress=Fals
 
 
 def _log_files(items):
-    """(log files, ignored files) of local paths and fsspec URLs, local ones first."""
+    """(log files, ignored files: :class:`IgnoredFile`) of local paths and fsspec URLs, local ones first."""
     files, ignored = expand_inputs([it for it in items if not cluster.is_url(it)])
     urls = [it for it in items if cluster.is_url(it)]
     if urls:
         found, missing = cluster.expand_url_inputs(urls)
         files += found
-        ignored += missing
+        ignored += [IgnoredFile(m, "nothing found at this URL") for m in missing]
     return files, ignored
 
 
+class IgnoredFile(NamedTuple):
+    """An input not processed, and why (the summary's ``ignored_files``: ``{"file", "reason"}``)."""
+    file: str
+    reason: str
+
+    def as_dict(self):
+        return {"file": str(self.file), "reason": self.reason}
+
+
+#: files that are not regular files, by what ``stat`` says they are: never opened (a FIFO
+#: blocks its reader until a writer comes, a device such as /dev/zero never ends)
+SPECIAL_FILE_KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+                      (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
+                      (stat.S_ISDIR, "a folder"))
+
+
+def special_file_reason(path):
+    """None for a regular file (or a link to one), else why ``path`` is not read: what it is
+    (a link: what it points to), or why it cannot be looked at."""
+    p = Path(path)
+    link = f"a link to {os.readlink(p)}, " if p.is_symlink() else ""
+    try:
+        mode = p.stat().st_mode
+    except OSError as exc:
+        return f"{link}cannot be looked at ({exc.strerror or exc})"
+    if stat.S_ISREG(mode):
+        return None
+    what = next((name for test, name in SPECIAL_FILE_KINDS if test(mode)), "not a regular file")
+    return f"{link}{what}: not a regular file, not opened"
+
+
 def expand_inputs(items):
-    """Files and folders -> (list of log files, list of ignored files)."""
+    """Files and folders -> (list of log files, list of :class:`IgnoredFile`): in a folder,
+    files not named as logs (:data:`LOG_SUFFIXES`) and, anywhere, files that are not
+    regular files (:func:`special_file_reason`: FIFOs, devices, sockets, broken links),
+    which are never opened. A path that does not exist is left to fail as a log."""
     files, ignored = [], []
+
+    def add(path, why):
+        if why is None:
+            files.append(path)
+        else:
+            ignored.append(IgnoredFile(str(path), why))
+
     for it in items:
         p = Path(it)
         if p.is_dir():
             for q in sorted(p.rglob("*")):
-                if q.is_file():
-                    (files if q.suffix.lower() in LOG_SUFFIXES else ignored).append(q)
+                if q.is_dir() and not q.is_symlink():
+                    continue
+                why = special_file_reason(q)
+                if why is None and q.suffix.lower() not in LOG_SUFFIXES:
+                    why = f"not named as a log ({' '.join(sorted(LOG_SUFFIXES))})"
+                add(q, why)
         else:
-            files.append(p)
+            add(p, special_file_reason(p) if p.exists() or p.is_symlink() else None)
     return files, ignored
 
 
@@ -213,7 +261,13 @@ def _run_in_pool(tasks, jobs, bar, results, fn=None):
     """:func:`_run_tasks` in a local process pool of ``jobs`` workers, largest log first
     (``fn``: what runs each task, :func:`gyrodenoise.flightlog.cluster.run_task`).
     The workers end with this process, and on an interrupt they are stopped at
-    once (the pool's own shutdown would wait for the logs under way).
+    once (without waiting for the logs under way).
+
+    A worker that dies in the middle of a log (killed, out of memory, a crash in C)
+    fails that log alone: it is listed as failed with how the worker ended, its
+    partial files are deleted (:func:`remove_task_partials`), a new worker takes its
+    place and the other logs go on. (concurrent.futures' pool fails every log with
+    ``BrokenProcessPool`` then, those under way and those not started.)
 
     Each worker runs one thread of BLAS / OpenMP / numba: ``jobs`` workers each with
     a thread per core would oversubscribe the machine. The workers are forked from a
@@ -222,29 +276,124 @@ def _run_in_pool(tasks, jobs, bar, results, fn=None):
     :func:`_pool_preload` once for all of them (:func:`_pool_context`). As with any
     spawned pool, a script that calls this with ``jobs`` > 1 keeps its work under
     ``if __name__ == "__main__":`` (the workers import the script's main module)."""
-    import concurrent.futures as cf
+    from multiprocessing.connection import wait
     fn = cluster.run_task if fn is None else fn
-    ex = cf.ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_pool_context(tasks),
-                                initializer=as_child)
+    ctx = _pool_context(tasks)
+    todo = list(cluster.largest_first(tasks))
+    todo.reverse()                                  # popped from the end: largest first
+    idle, busy, died = [], {}, []                  # busy: worker -> index of its task
+    n_workers = min(jobs, len(tasks))
     try:
-        # every worker is started by a submit in this block (one a submit, up to ``jobs``)
-        with signals_blocked(), _worker_environment():
-            futures = {ex.submit(fn, tasks[i]): i for i in cluster.largest_first(tasks)}
-        for fut in cf.as_completed(futures):
-            t = tasks[futures[fut]]
-            try:
-                res = fut.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. a worker killed by a crash
-                res = {"ok": False, "file": str(t[0]),
-                       "error": f"{t[0]}: worker failed: {type(exc).__name__}: {exc}"}
-            results[futures[fut]] = res
-            if bar:
-                bar(res)
+        while todo or busy:
+            while todo and (idle or len(busy) < n_workers):
+                was_idle = bool(idle)
+                w = idle.pop() if was_idle else _PoolWorker(ctx, fn)
+                i = todo[-1]
+                if not w.send((i, tasks[i])) and was_idle:    # it died waiting: another one
+                    w.close()
+                    continue
+                busy[w] = todo.pop()
+            ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in busy]))
+            for w in [w for w in busy if w.conn in ready or w.proc.sentinel in ready]:
+                i = busy.pop(w)
+                res = w.result()
+                if res is None:                     # the worker died with the log
+                    res = _worker_died(tasks[i], w.proc)
+                    died.append(tasks[i])
+                    w.close()
+                else:
+                    idle.append(w)
+                results[i] = res
+                if bar:
+                    bar(res)
     except BaseException:
-        stop_processes(list((getattr(ex, "_processes", None) or {}).values()))
-        ex.shutdown(wait=False, cancel_futures=True)
+        stop_processes([w.proc for w in [*busy, *idle]])
         raise
-    ex.shutdown(wait=True)
+    finally:
+        for w in idle:
+            w.close()
+        for t in died:          # its worker's plot helper (killed with it) may have written last
+            remove_task_partials(t)
+
+
+class _PoolWorker:
+    """One worker process of :func:`_run_in_pool` and its end of a pipe: it is sent
+    ``(index, task)`` and answers ``(index, result)``; ``None`` ends it."""
+
+    def __init__(self, ctx, fn):
+        self.conn, child = ctx.Pipe()
+        # started in this block: its environment and signal mask (see _run_in_pool)
+        with signals_blocked(), _worker_environment():
+            # not a daemon: it starts a plot helper of its own
+            self.proc = ctx.Process(target=_pool_worker_main, args=(child, fn))
+            self.proc.start()
+        child.close()
+
+    def send(self, msg):
+        """Send ``msg``; False when the worker is gone."""
+        try:
+            self.conn.send(msg)
+            return True
+        except OSError:
+            return False
+
+    def result(self):
+        """The result of the task sent, or None when the worker died before it answered."""
+        try:
+            if self.conn.poll():
+                return self.conn.recv()[1]
+        except (EOFError, OSError):
+            pass
+        return None
+
+    def close(self):
+        """End the worker (asked, then stopped if it does not) and close its pipe."""
+        self.send(None)
+        self.proc.join(STOP_WAIT_S)
+        stop_processes([self.proc])
+        self.conn.close()
+
+
+def _pool_worker_main(conn, fn):
+    """A pool worker: :func:`as_child`, then the tasks it is sent, one at a time."""
+    as_child()
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return
+        if msg is None:
+            return
+        i, task = msg
+        try:
+            res = fn(task)
+        except Exception as exc:  # noqa: BLE001 - the task's own failure, said as its result
+            res = {"ok": False, "file": str(task[0]), "error": f"{task[0]}: worker failed: {type(exc).__name__}: {exc}"}
+        conn.send((i, res))
+
+
+def _worker_died(task, proc):
+    """The failed result of a task whose worker process ended before it answered."""
+    proc.join(STOP_WAIT_S)
+    code = proc.exitcode
+    if code is None or code >= 0:
+        how = f"exit status {code}"
+    elif -code in signal.valid_signals():
+        how = f"killed by {signal.Signals(-code).name}"
+    else:
+        how = f"killed by signal {-code}"
+    return {"ok": False, "file": str(task[0]),
+            "error": f"{task[0]}: the worker process processing this log died ({how}); "
+                     f"its partial outputs were deleted, the other logs were not affected"}
+
+
+def remove_task_partials(task):
+    """Delete the partial files (:func:`gyrodenoise.flightlog.stopping.partial_path`) of one
+    log task's outputs (``STEM.*`` in its output folder); how many."""
+    out_dir, stem = task[1], task[2].get("out_stem")
+    if stem is None or cluster.is_url(out_dir):
+        return 0
+    return remove_partials(out_dir, f"{stem}.*")
 
 
 def _log_stream_problems(logs, log):
@@ -264,7 +413,7 @@ def _summary(files, results, ignored, seconds, jobs, scheduler, head=None):
     logs = [r["report"] for r in done if r["ok"]]
     failed = _failed_entries(done)
     out = dict(head or {})
-    out.update({"logs": logs, "failed": failed, "ignored_files": [str(p) for p in ignored],
+    out.update({"logs": logs, "failed": failed, "ignored_files": [i.as_dict() for i in ignored],
                 "n_logs": len(files), "n_ok": len(logs), "n_failed": len(failed)})
     if head is not None:
         out["n_unfinished"] = sum(r is None for r in results)

@@ -3,9 +3,22 @@
 Every message received on the input connection is written to the output
 connection as soon as it has been handled: gyro messages (RAW_IMU,
 SCALED_IMU*, HIGHRES_IMU) re-packed with the filtered values, all others
-byte for byte; nothing is buffered, so the added latency is the handling time
-of one message (reported as ``handling_us``). Unreadable bytes (pymavlink's
-BAD_DATA) are forwarded unchanged too, and counted.
+byte for byte; the added latency is the handling time of one message (reported
+as ``handling_us``). Unreadable bytes (a bad CRC, an unknown message id, bytes
+that do not frame) are dropped and counted, never forwarded: what comes out is
+never more than what came in.
+
+A UDP link (:class:`DatagramReader`) is read a datagram at a time, each datagram
+being whole MAVLink packets (as autopilots, MAVProxy and routers send them): the
+packets of one datagram go out as one datagram (datagrams out <= datagrams in), and
+a datagram that does not frame as whole packets is dropped unparsed and counted
+(a flood of garbage costs a length check per datagram, not a parse). Datagrams
+wait in a bounded queue (:data:`QUEUE_BYTES`; when it is full the oldest datagram
+of the sender holding the most is dropped, and counted) between the socket, drained
+first at each step, and the filter: memory and latency stay bounded whatever comes
+in. Each sender has its own queue and the senders are served in turn
+(:class:`FairQueue`): a flood from one sender does not crowd out another. Other
+links (TCP, serial) are read as a byte stream by pymavlink, a message at a time.
 
 Each stream (message type, system, component, instance) and axis has its own
 :class:`gyrodenoise.Denoiser`, stepped once per sample with the restart flag of
@@ -23,7 +36,7 @@ samples, so nothing filtered has been forwarded before the decision).
 
 Signed links (:mod:`gyrodenoise.flightlog.signing`): with the link's key every
 packet is checked as it arrives; one that fails (unsigned or MAVLink 1 once
-signed packets have come, a bad signature, a timestamp not newer than its
+a packet signed with the key has come, a bad signature, a timestamp not newer than its
 stream's last) is not filtered and not forwarded, and is counted per source; a
 gyro packet the filter changes is re-signed (original link id and timestamp, or
 one more than the stream's last one out). Without the key a signed packet is
@@ -34,16 +47,21 @@ from __future__ import annotations
 
 import math
 import os
+import select
+import socket
+import sys
 import time
+from array import array
+from collections import deque
 
 import numpy as np
 
 from gyrodenoise.core.kernels import DEFAULT_METHOD
 from gyrodenoise.errors import InputError
 
-from gyrodenoise.flightlog.signing import KEY_HINT, LinkSigning, is_signed
+from gyrodenoise.flightlog.signing import KEY_HINT, MAGIC_V2, LinkSigning, is_signed
 from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
-from gyrodenoise.flightlog.tlog import _AP_VERSION_RE, GYRO_FIELDS, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
+from gyrodenoise.flightlog.tlog import _AP_VERSION_RE, GYRO_FIELDS, _check_crcs, _packet_len, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
 
 
 #: a live RAW_IMU stream whose unit is still open (see :func:`gyrodenoise.flightlog.tlog.decide_raw_imu_unit`)
@@ -253,6 +271,7 @@ def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAUL
     bridge = _LiveBridge(method=method, ar_order=ar_order, gap_factor=gap_factor, sample_rate=sample_rate,
                          warmup_s=warmup_s, filter_kw=filter_kw, raw_imu_unit=raw_imu_unit,
                          raw_imu_scale=raw_imu_scale, log=log, signing_key=signing_key)
+    bridge.reader = link_reader(src)
     t_start = time.monotonic()
     try:
         stopped_by = _forward_until_stopped(src, dst, bridge, t_start + duration if duration else None,
@@ -264,7 +283,7 @@ def run_live(source, forward, *, duration=None, max_messages=None, method=DEFAUL
     report = {
         "mode": "live", "input": source, "forward": forward, "stopped_by": stopped_by,
         "seconds": round(time.monotonic() - t_start, 3), "messages_in": bridge.n_in,
-        "messages_forwarded": bridge.n_out, "unreadable_records": bridge.n_bad,
+        "messages_forwarded": bridge.n_out, **bridge.reader.report(isinstance(bridge.reader, DatagramReader)),
         **bridge.link.report(), "handling_us": _handling_us(bridge.handle_ns),
         "method": method, "ar_order": int(ar_order), "gap_factor": gap_factor, "warmup_s": warmup_s,
         "filter_options": dict(filter_kw or {}),
@@ -293,9 +312,10 @@ def _open_links(source, forward):
 
 
 def _forward_until_stopped(src, dst, bridge, deadline, max_messages):
-    """Receive, handle and forward messages one at a time; return what stopped it:
-    ``"count"`` (``max_messages`` received), ``"duration"`` (``deadline``, a
+    """Receive, handle and forward messages (a UDP datagram's together); return what stopped it:
+    ``"count"`` (``max_messages`` readable messages received), ``"duration"`` (``deadline``, a
     :func:`time.monotonic` time, passed) or ``"interrupt"`` (Ctrl-C)."""
+    reader = bridge.reader
     try:
         while True:
             if max_messages is not None and bridge.n_in >= max_messages:
@@ -306,17 +326,230 @@ def _forward_until_stopped(src, dst, bridge, deadline, max_messages):
                 if timeout <= 0:
                     return "duration"
                 timeout = min(timeout, 0.2)
-            msg = src.recv_match(blocking=True, timeout=timeout)
-            if msg is None:
+            msgs = reader.next(timeout)
+            if not msgs:
                 continue
-            h0 = time.perf_counter_ns()
-            out = bridge.handle(msg)
+            out = []
+            for msg in msgs:
+                h0 = time.perf_counter_ns()
+                b = bridge.handle(msg)
+                if b:
+                    out.append(b)
+                bridge.handle_ns.append(time.perf_counter_ns() - h0)
             if dst is not None and out:
-                dst.write(out)
-                bridge.n_out += 1
-            bridge.handle_ns.append(time.perf_counter_ns() - h0)
+                dst.write(b"".join(out))        # one datagram in, at most one out
+                bridge.n_out += len(out)
+                reader.writes_out += 1
     except KeyboardInterrupt:
         return "interrupt"
+
+
+#: bytes of datagrams waiting to be handled, at most (:class:`FairQueue`; beyond, dropped and
+#: counted): two 64 kB datagrams of a flood, many seconds of a fast IMU link (~50 bytes a packet)
+QUEUE_BYTES = 1 << 17
+#: datagrams read from the socket at most before the next one is handled
+DRAIN_MAX = 256
+#: Linux's socket option that puts the count of datagrams the kernel dropped (receive
+#: buffer full) on each datagram received
+_SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40 if sys.platform.startswith("linux") else None)
+
+
+def mavlink_frames(data):
+    """The offsets of the MAVLink 1 / 2 packets of a datagram that is whole packets end
+    to end (lengths only: the CRCs are checked by :func:`crc_ok`), else None."""
+    offsets, p, n = [], 0, len(data)
+    while p < n:
+        ln = _packet_len(data, p, n)
+        if ln is None or ln < 0 or p + ln > n:
+            return None
+        offsets.append(p)
+        p += ln
+    return offsets or None
+
+
+#: a datagram of more packets than this has their CRCs checked together (numpy), not one by one
+MANY_PACKETS = 8
+
+
+def crc_ok(data, offsets):
+    """Which of the packets at ``offsets`` of ``data`` have a known message id and a good
+    CRC: :func:`gyrodenoise.flightlog.tlog._check_crcs`, the tlog reader's vectorised check
+    (it addresses a tlog record, whose packet starts 8 bytes in)."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    at = np.asarray(offsets, dtype=np.int64)
+    v2 = buf[at] == MAGIC_V2          # the id: a MAVLink 1 packet's at byte 5, a 2's at bytes 7-9
+    msgid = np.where(v2, buf[at + 7].astype(np.int64) | (buf[at + 8].astype(np.int64) << 8)
+                     | (buf[at + 9].astype(np.int64) << 16), buf[at + 5].astype(np.int64))
+    return _check_crcs(buf, at - 8, np.diff(np.append(at, len(buf))) + 8, v2, msgid)
+
+
+class _ReadCounts:
+    """What a link reader counted: ``unreadable`` (records dropped: datagrams that do
+    not frame, packets that do not decode, pymavlink's BAD_DATA) and their bytes, the
+    datagrams in and out, dropped from a full queue, dropped by the kernel."""
+
+    def __init__(self):
+        self.unreadable = self.unreadable_bytes = 0
+        self.datagrams_in = self.writes_out = 0
+        self.garbage_datagrams = self.overload_dropped = 0
+        self.kernel_dropped = None
+
+    def bad(self, n_bytes):
+        self.unreadable += 1
+        self.unreadable_bytes += n_bytes
+
+    def report(self, datagrams):
+        rep = {"unreadable_records": self.unreadable, "unreadable_bytes": self.unreadable_bytes,
+               "unreadable_note": "dropped, never forwarded"}
+        if datagrams:
+            rep.update({"datagrams_in": self.datagrams_in, "datagrams_out": self.writes_out,
+                        "garbage_datagrams": self.garbage_datagrams,
+                        "queue_bytes": QUEUE_BYTES, "overload_dropped_datagrams": self.overload_dropped,
+                        "kernel_dropped_datagrams": self.kernel_dropped})
+        return rep
+
+
+#: a sender's datagram dropped from a full queue is the largest of its oldest this many
+DROP_AMONG = 32
+
+
+class FairQueue:
+    """Datagrams waiting to be handled: one first-in first-out queue per sender, the
+    senders served in turn, ``limit`` bytes in all at most: beyond, the sender holding
+    the most bytes loses the largest of its :data:`DROP_AMONG` oldest datagrams (a flood
+    from one sender delays another by one of its datagrams at most and takes its place
+    in the queue only; large garbage goes before the small packets of a link it is mixed with)."""
+
+    def __init__(self, limit):
+        self.limit = limit
+        self.senders = {}              # sender -> [deque of (item, size), bytes]; in serving order
+        self.bytes = 0
+
+    def __len__(self):
+        return sum(len(q) for q, _ in self.senders.values())
+
+    def put(self, sender, item, size):
+        """Queue ``item`` (``size`` bytes) of ``sender``; how many datagrams were dropped for it."""
+        entry = self.senders.setdefault(sender, [deque(), 0])
+        entry[0].append((item, size))
+        entry[1] += size
+        self.bytes += size
+        dropped = 0
+        while self.bytes > self.limit:
+            who = max(self.senders, key=lambda k: self.senders[k][1])
+            q = self.senders[who]
+            oldest = [q[0][i][1] for i in range(min(len(q[0]), DROP_AMONG))]
+            i = oldest.index(max(oldest))
+            n = q[0][i][1]
+            del q[0][i]
+            q[1] -= n
+            self.bytes -= n
+            dropped += 1
+            if not q[0]:
+                del self.senders[who]
+        return dropped
+
+    def get(self):
+        """The oldest item of the next sender in turn, or None."""
+        for who in self.senders:
+            q = self.senders.pop(who)
+            item, n = q[0].popleft()
+            q[1] -= n
+            self.bytes -= n
+            if q[0]:
+                self.senders[who] = q  # to the end of the turn
+            return item
+        return None
+
+
+class DatagramReader(_ReadCounts):
+    """A UDP link's datagrams (``sock``: non-blocking), decoded with ``parser`` (a
+    pymavlink ``MAVLink``): :meth:`next` drains the socket into a :class:`FairQueue` (a
+    datagram that is not whole packets counted and dropped there, :func:`mavlink_frames`)
+    and returns the messages of the next datagram queued."""
+
+    def __init__(self, sock, parser):
+        super().__init__()
+        self.sock, self.parser = sock, parser
+        self.queue = FairQueue(QUEUE_BYTES)
+        self.anc = 0
+        if _SO_RXQ_OVFL is not None:
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, _SO_RXQ_OVFL, 1)
+                self.anc = socket.CMSG_SPACE(4)
+                self.kernel_dropped = 0
+            except OSError:
+                pass
+
+    def _drain(self):
+        for _ in range(DRAIN_MAX):
+            try:
+                data, anc, _, sender = self.sock.recvmsg(1 << 16, self.anc)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:            # e.g. ECONNREFUSED of an earlier send: nothing to read
+                return
+            for level, kind, value in anc:
+                if level == socket.SOL_SOCKET and kind == _SO_RXQ_OVFL and len(value) >= 4:
+                    self.kernel_dropped = max(self.kernel_dropped or 0, int.from_bytes(value[:4], sys.byteorder))
+            self.datagrams_in += 1
+            offsets = mavlink_frames(data)
+            if offsets is None:
+                self.garbage_datagrams += 1
+                self.bad(len(data))
+                continue
+            self.overload_dropped += self.queue.put(sender, (data, offsets), len(data))
+
+    def next(self, timeout):
+        """The readable messages of the next datagram ([] for none within ``timeout`` s)."""
+        self._drain()
+        item = self.queue.get()
+        if item is None:
+            select.select([self.sock], [], [], timeout)
+            self._drain()
+            item = self.queue.get()
+            if item is None:
+                return []
+        data, offsets = item
+        ends = offsets[1:] + [len(data)]
+        good = crc_ok(data, offsets) if len(offsets) > MANY_PACKETS else [True] * len(offsets)
+        msgs = []
+        for a, b, ok in zip(offsets, ends, good):
+            try:
+                if not ok:
+                    raise ValueError("bad CRC or unknown message id")
+                msgs.append(self.parser.decode(bytearray(data[a:b])))
+            except Exception:  # noqa: BLE001 - pymavlink's MAVError and struct errors: a bad packet
+                self.bad(b - a)
+        return msgs
+
+
+class StreamReader(_ReadCounts):
+    """A byte-stream link (TCP, serial) read by pymavlink a message at a time;
+    unreadable bytes (BAD_DATA) counted and dropped."""
+
+    def __init__(self, conn):
+        super().__init__()
+        self.conn = conn
+
+    def next(self, timeout):
+        msg = self.conn.recv_match(blocking=True, timeout=timeout)
+        if msg is None:
+            return []
+        if msg.get_type() == "BAD_DATA":
+            self.bad(len(getattr(msg, "data", None) or b""))
+            return []
+        return [msg]
+
+
+def link_reader(conn):
+    """The reader of an input connection: :class:`DatagramReader` for a UDP socket, else
+    :class:`StreamReader`."""
+    sock = getattr(conn, "port", None)
+    if isinstance(sock, socket.socket) and sock.type == socket.SOCK_DGRAM:
+        sock.setblocking(False)
+        return DatagramReader(sock, conn.mav)
+    return StreamReader(conn)
 
 
 def _handling_us(handle_ns):
@@ -339,20 +572,18 @@ class _LiveBridge:
         self.raw_imu_unit, self.raw_imu_scale, self.log = raw_imu_unit, raw_imu_scale, log
         self.streams = {}          # (system, component, message type, instance) -> _LiveStream
         self.vehicles = {}         # system id -> {"autopilots": set, "ap_version": bool}
-        self.n_in = self.n_out = self.n_bad = 0
+        self.n_in = self.n_out = 0
         self.link = LinkSigning(signing_key)
-        self.handle_ns = []
+        self.handle_ns = array("q")          # ns per message: 8 bytes each
+        self.reader = None                   # the input link's reader (link_reader)
 
     def handle(self, msg):
-        """The bytes to forward for one received message: a gyro message re-packed
-        with the filtered values (re-signed if it came signed and the key is known),
-        any other as it came (unreadable bytes too); nothing (``b""``) for a packet
-        that fails the signature check."""
+        """The bytes to forward for one received message (readable: the readers drop
+        the rest): a gyro message re-packed with the filtered values (re-signed if it
+        came signed and the key is known), any other as it came; nothing (``b""``) for
+        a packet that fails the signature check."""
         self.n_in += 1
         mtype = msg.get_type()
-        if mtype == "BAD_DATA":
-            self.n_bad += 1
-            return bytes(msg.data) if getattr(msg, "data", None) is not None else b""
         pkt = bytes(msg.get_msgbuf())
         if self.link.check(pkt) is not None:
             return b""                   # not filtered, not forwarded: counted per source

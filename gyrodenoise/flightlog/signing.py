@@ -120,7 +120,7 @@ class LinkSigning:
         self.streams = {}           # (link id, system, component) -> last accepted timestamp
         self.emitted = {}           # (link id, system, component) -> last timestamp sent out
         self.newest = 0             # newest accepted timestamp of the link
-        self.seen_signed = False    # a signed packet has come: the link is signed
+        self.seen_signed = False    # a packet signed with the key has come: the link is signed
         self.signed = self.resigned = self.left_raw = 0
         self.rejected = {}
 
@@ -135,9 +135,9 @@ class LinkSigning:
             if not self.seen_signed or message_id(pkt) in UNSIGNED_ALLOWED_IDS:
                 return None
             return self._reject(pkt, "unsigned" if pkt[0] == MAGIC_V2 else "mavlink1")
-        self.seen_signed = True
         if len(pkt) < HEADER_LEN_V2 + 2 + SIGNATURE_LEN or not signature_ok(self.key, pkt):
-            return self._reject(pkt, "bad_signature")
+            return self._reject(pkt, "bad_signature")     # anyone can set the flag: the link stays as it was
+        self.seen_signed = True
         link_id, ts = signature_fields(pkt)
         stream = (link_id, *source_of(pkt))
         last = self.streams.get(stream)

@@ -104,11 +104,12 @@ def atomic_path(path):
     os.replace(tmp, path)
 
 
-def remove_partials(folder):
-    """Delete the partial files (:func:`partial_path`) in ``folder``; returns how many."""
+def remove_partials(folder, names="*"):
+    """Delete the partial files (:func:`partial_path`) in ``folder`` of the files
+    whose names match the glob pattern ``names`` (all by default); returns how many."""
     n = 0
     with contextlib.suppress(OSError):
-        for p in Path(folder).glob(f".*{PARTIAL_SUFFIX}"):
+        for p in Path(folder).glob(f".{names}{PARTIAL_SUFFIX}"):
             with contextlib.suppress(OSError):
                 p.unlink()
                 n += 1

@@ -379,7 +379,7 @@ def test_many_logs_in_parallel_one_summary(tmp_path):
     assert summary["n_logs"] == 4 and summary["n_ok"] == 3 and summary["n_failed"] == 1
     assert summary["failed"][0]["file"].endswith("broken.bin")
     assert "broken.bin: not a DataFlash binary log" in summary["failed"][0]["error"]
-    assert summary["ignored_files"][0].endswith("notes.txt")
+    assert summary["ignored_files"][0]["file"].endswith("notes.txt")
     assert "broken.bin" in r.stderr and "Traceback" not in r.stderr
     # each processed log equals a single-log run of the same file
     for rep in summary["logs"]:

@@ -328,3 +328,23 @@ def test_live_without_a_key_forwards_signed_packets_unchanged(tmp_path):
 def replay_link(sent, tmp_path, *extra):
     from tests.flightlog.test_live import replay
     return replay(sent, 50.0, tmp_path, extra=extra)
+
+
+# ------------------------------------------------------------------ a bogus signed packet
+def test_a_bogus_signed_packet_does_not_make_the_link_signed():
+    """A signed packet whose signature does not verify (another key: anyone can set the
+    flag) is rejected, and the unsigned link goes on as it was: its packets still pass.
+    A packet that verifies makes the link signed: unsigned ones are refused from then on."""
+    link = signing.LinkSigning(KEY)
+    plain = _encoder(None)
+    unsigned = [plain.heartbeat_encode(2, 3, 0, 0, 4).pack(plain) for _ in range(3)]
+    rogue = _encoder(OTHER_KEY, src=(7, 1))
+    bogus = rogue.scaled_imu2_encode(4000, 0, 0, 1000, 5, 5, 5, 0, 0, 0, 0).pack(rogue)
+    assert link.check(unsigned[0]) is None
+    assert link.check(bogus) == "bad_signature"
+    assert link.check(unsigned[1]) is None                # not switched to signed by the bogus one
+    good = _encoder(KEY)
+    assert link.check(good.heartbeat_encode(2, 3, 0, 0, 4).pack(good)) is None
+    assert link.check(unsigned[2]) == "unsigned"          # switched by the verified one
+    assert link.rejected == {(7, 1): dict(dict.fromkeys(signing.REASONS, 0), bad_signature=1),
+                             (1, 1): dict(dict.fromkeys(signing.REASONS, 0), unsigned=1)}
