@@ -173,7 +173,11 @@ class BlackboxLog:
 
     @property
     def gyro_prefilter_dps(self) -> np.ndarray | None:
-        """The unfiltered gyro (deg/s, (n, 3)) where the debug mode logs it, else None."""
+        """The unfiltered gyro (deg/s, (n, 3)) where the debug mode logs it, else None.
+
+        Betaflight sets it in the gyro loop and the blackbox keeps one sample in each P
+        interval: it is decimated without an anti-alias filter (noise above half the
+        log rate folds down), unlike gyroADC, which passed the lowpasses first."""
         if self.gyro_prefilter_source is None:
             return None
         return self.columns("debug")[:, :3].astype(float)
@@ -189,6 +193,14 @@ class BlackboxLog:
     @property
     def motors(self) -> np.ndarray | None:
         return self.columns("motor")
+
+    @property
+    def throttle(self) -> np.ndarray | None:
+        """Throttle in [0, 1]: Betaflight 4.x logs it as setpoint[3], 0-1000; None without it."""
+        sp = self.setpoint
+        if sp is None or sp.shape[1] < 4 or self.header.firmware != "Betaflight":
+            return None
+        return np.clip(sp[:, 3] / 1000.0, 0.0, 1.0)
 
     @property
     def sample_rate_hz(self) -> float:
