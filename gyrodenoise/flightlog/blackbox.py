@@ -167,7 +167,8 @@ class BlackboxLog:
     @property
     def gyro_prefilter_source(self) -> str | None:
         """Which debug mode holds the unfiltered gyro in debug[0..2]; None when this log has none."""
-        if self.header.firmware != "Betaflight" or self.columns("debug") is None:
+        debug = self.columns("debug")
+        if self.header.firmware != "Betaflight" or debug is None or debug.shape[1] < 3:
             return None
         return PREFILTER_DEBUG_MODES.get(self.header.debug_mode)
 
@@ -208,8 +209,9 @@ class BlackboxLog:
         return 1e6 / float(np.median(np.diff(t))) if len(t) > 1 else float("nan")
 
     def _scaled(self, raw: np.ndarray | None, name: str) -> np.ndarray:
-        if raw is None:
-            raise InputError(f"log {self.index} has no {name} fields", self.path)
+        if raw is None or raw.shape[1] != 3:
+            found = 0 if raw is None else raw.shape[1]
+            raise InputError(f"log {self.index} has {found} {name}[i] fields, 3 expected", self.path)
         return raw.astype(float) * self.header.gyro_scale
 
 
@@ -225,6 +227,17 @@ def _int(lines: dict[str, str], name: str, default: int | None, source: str) -> 
         return int(text.split(",")[0].strip(), 0)
     except ValueError:
         raise InputError(f"header field {name} is {text!r}, not an integer", source) from None
+
+
+def _ints(name: str, text: str, source: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise InputError(f"header field {name} is {text!r}, not integers", source) from None
+
+
+def _table(rows: list[list[int]], width: int) -> np.ndarray:
+    return np.array(rows, dtype=np.int64).reshape(len(rows), width)
 
 
 def _field_defs(lines: dict[str, str], frame: str, source: str, inherit_from: str | None = None) -> list[FieldDef]:
@@ -285,14 +298,11 @@ def _parse_header(text: bytes, source: str) -> tuple[BlackboxHeader, dict[str, l
         frames[frame] = _field_defs(lines, frame, source)
 
     p_text = lines.get("P interval", "1")
-    if "/" in p_text:
-        num, _, den = p_text.partition("/")
-        p_num, p_den = int(num), int(den)
-    else:
-        p_num, p_den = 1, _int(lines, "P interval", 1, source)
+    p_parts = _ints("P interval", p_text.replace("/", ","), source)
+    p_num, p_den = (1, p_parts[0]) if len(p_parts) == 1 else p_parts[:2]
     if p_num <= 0 or p_den <= 0:
         raise InputError(f"header field P interval is {p_text!r}", source)
-    motor_output = tuple(int(v) for v in lines.get("motorOutput", "0").split(",") if v.strip())
+    motor_output = _ints("motorOutput", lines.get("motorOutput", "0"), source)
     scale_text = lines.get("gyro_scale", "0x3f800000")
     try:
         gyro_scale = struct.unpack("<f", struct.pack("<I", int(scale_text, 16)))[0]
@@ -655,14 +665,14 @@ def _decode_log(data: bytes, start: int, end: int, index: int, path: str) -> Bla
             if kind in "IP":
                 st.prev = st.prev2 = None
             r.pos = frame_start + 1
-    main = _wrap(np.array(main_rows, dtype=np.int64).reshape(-1, len(names)), i_defs)
+    main = _wrap(_table(main_rows, len(names)), i_defs)
     slow_names = tuple(d.name for d in defs["S"])
     gps_names = tuple(d.name for d in defs["G"])
     return BlackboxLog(
         path=path, index=index, header=header, fields=names, main=main,
-        slow_fields=slow_names, slow=np.array(slow_rows, dtype=np.int64).reshape(-1, len(slow_names)),
+        slow_fields=slow_names, slow=_table(slow_rows, len(slow_names)),
         slow_main_index=np.array(slow_at, dtype=np.int64),
-        gps_fields=gps_names, gps=np.array(gps_rows, dtype=np.int64).reshape(-1, len(gps_names)),
+        gps_fields=gps_names, gps=_table(gps_rows, len(gps_names)),
         events=events, frames_damaged=damaged, bytes_skipped=skipped_bytes, ended_cleanly=ended)
 
 
