@@ -95,7 +95,7 @@ class BlackboxHeader:
     minthrottle: int
     vbatref: int
     motor_output: tuple[int, ...]
-    filters: FilterSettings
+    filters: FilterSettings | None      # Betaflight's gyro filters; None for other firmware (not modelled)
 
     def get(self, name: str, default: str | None = None) -> str | None:
         for key, value in self.lines:
@@ -334,7 +334,8 @@ def _parse_header(text: bytes, source: str) -> tuple[BlackboxHeader, dict[str, l
         minthrottle=_int(lines, "minthrottle", 0, source),
         vbatref=_int(lines, "vbatref", 0, source),
         motor_output=motor_output or (0,),
-        filters=FilterSettings.from_header(lines, source),
+        filters=(FilterSettings.from_header(lines, source)
+                 if (revision.split() or [""])[0] == "Betaflight" else None),
     )
     if header.looptime_us <= 0:
         raise InputError(f"header field looptime is {header.looptime_us}", source)

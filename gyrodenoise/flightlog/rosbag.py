@@ -109,6 +109,9 @@ class ImuTopic:
     receive_ns: np.ndarray              # bag receive times (int64 ns, the recorder's clock)
     angular_velocity: np.ndarray        # (n, 3) rad/s
     linear_acceleration: np.ndarray     # (n, 3) m/s^2
+    # messages that declare the field absent (covariance[0] == -1, sensor_msgs/Imu's convention)
+    angular_velocity_absent: int = 0
+    linear_acceleration_absent: int = 0
 
     def __len__(self) -> int:
         return len(self.stamp_ns)
@@ -229,12 +232,15 @@ def read_imu(path: str | os.PathLike, topic: str | None = None) -> ImuBag:
             for conn, t_ns, raw in reader.messages(connections=imu_conns) if imu_conns else ():
                 msg = reader.deserialize(raw, conn.msgtype)
                 rows = collected.setdefault(conn.topic, {"type": [conn.msgtype], "stamp": [], "recv": [],
-                                                         "gyro": [], "acc": [], "frames": []})
+                                                         "gyro": [], "acc": [], "frames": [],
+                                                         "no_gyro": [0], "no_acc": [0]})
                 rows["stamp"].append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
                 rows["recv"].append(t_ns)
                 av, la = msg.angular_velocity, msg.linear_acceleration
                 rows["gyro"].append((av.x, av.y, av.z))
                 rows["acc"].append((la.x, la.y, la.z))
+                rows["no_gyro"][0] += bool(msg.angular_velocity_covariance[0] == -1)
+                rows["no_acc"][0] += bool(msg.linear_acceleration_covariance[0] == -1)
                 if msg.header.frame_id not in rows["frames"]:
                     rows["frames"].append(msg.header.frame_id)
         except InputError:
@@ -246,7 +252,8 @@ def read_imu(path: str | os.PathLike, topic: str | None = None) -> ImuBag:
                      frame_id=rows["frames"][0] if rows["frames"] else "", frame_ids=tuple(rows["frames"]),
                      stamp_ns=np.array(rows["stamp"], dtype=np.int64), receive_ns=np.array(rows["recv"], dtype=np.int64),
                      angular_velocity=np.array(rows["gyro"], dtype=float).reshape(-1, 3),
-                     linear_acceleration=np.array(rows["acc"], dtype=float).reshape(-1, 3))
+                     linear_acceleration=np.array(rows["acc"], dtype=float).reshape(-1, 3),
+                     angular_velocity_absent=rows["no_gyro"][0], linear_acceleration_absent=rows["no_acc"][0])
             for name, rows in sorted(collected.items()))
         counts: dict[tuple[str, str], int] = {}
         for c in conns:

@@ -172,6 +172,12 @@ def test_foreign_and_broken_files_give_one_line(tmp_path, path):
     broken.write_bytes(text.replace(b"H Field P encoding:9,", b"H Field P encoding:42,", 1))
     with pytest.raises(InputError, match="encoding 42"):
         bb.read_blackbox(broken)
+    inav = tmp_path / "inav.txt"
+    inav.write_bytes(text.replace(b"Firmware revision:Betaflight 4.2.0", b"Firmware revision:INAV 6.1.0", 1))
+    other = bb.read_blackbox(inav)[0]
+    assert other.header.firmware == "INAV" and other.header.filters is None       # Betaflight's chain not assumed
+    assert other.gyro_prefilter_dps is None and other.throttle is None          # debug modes are Betaflight's
+    assert other.gyro_dps.shape == (16774, 3)
     assert bb.sniff(text[:64]) and not bb.sniff(b"\x89HDF")
 
 

@@ -110,7 +110,7 @@ def test_read_imu_gives_the_generated_values(tmp_path, kind):
         np.testing.assert_array_equal(t.stamp_ns, tr["stamp"])
         assert np.all(t.receive_ns - t.stamp_ns >= 300_000) and np.all(t.receive_ns - t.stamp_ns < 300_007)
         assert t.frame_id == "imu" and t.frame_ids == ("imu", "imu_", "imu__", "imu___", "imu____")
-        assert t.stamps_are_epoch
+        assert t.stamps_are_epoch and t.angular_velocity_absent == 0
     assert bag.topic("/imu/data").rate_hz == pytest.approx(200.0, rel=1e-9)
     assert bag.topic("/cam/imu").rate_hz == pytest.approx(100.0, rel=1e-9)
     only = rb.read_imu(path, topic="/cam/imu")
@@ -197,9 +197,10 @@ def test_bad_input_gives_one_line(tmp_path):
     assert not any(p.name.startswith("o") for p in tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("ros2, frame", [(False, ""), (False, "abc"), (True, ""), (True, "a"), (True, "abcd"),
-                                         (True, "abcdefgh")])
-def test_angular_velocity_offset_matches_the_serializer(ros2, frame):
+@pytest.mark.parametrize("ros2, frame, little", [(False, "", True), (False, "abc", True), (True, "", True),
+                                                 (True, "a", True), (True, "abcd", True), (True, "abcdefgh", True),
+                                                 (True, "abc", False), (True, "abcdefg", False)])
+def test_angular_velocity_offset_matches_the_serializer(ros2, frame, little):
     ts = get_typestore(Stores.ROS2_HUMBLE if ros2 else Stores.ROS1_NOETIC)
     T = ts.types
     hdr = T["std_msgs/msg/Header"](**({} if ros2 else {"seq": 3}), stamp=T["builtin_interfaces/msg/Time"](sec=1, nanosec=2),
@@ -209,9 +210,31 @@ def test_angular_velocity_offset_matches_the_serializer(ros2, frame):
     msg = T[IMU](header=hdr, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
                  orientation_covariance=z, angular_velocity=v3(x=1.25, y=-2.5, z=3.75), angular_velocity_covariance=z,
                  linear_acceleration=v3(x=9.0, y=8.0, z=7.0), linear_acceleration_covariance=z)
-    raw = ts.serialize_cdr(msg, IMU) if ros2 else ts.serialize_ros1(msg, IMU)
+    raw = ts.serialize_cdr(msg, IMU, little_endian=little) if ros2 else ts.serialize_ros1(msg, IMU)
     off, order = rb.angular_velocity_offset(bytes(raw), ros2)
     assert np.frombuffer(bytes(raw), dtype=order + "f8", count=3, offset=off).tolist() == [1.25, -2.5, 3.75]
+    assert order == ("<" if little else ">")
+
+
+def test_declared_absent_angular_velocity_is_counted(tmp_path):
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    path = tmp_path / "absent"
+    cov = np.zeros(9)
+    none = np.array([-1.0] + [0.0] * 8)
+    with Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c = w.add_connection("/imu", IMU, typestore=ts)
+        for i in range(10):
+            hdr = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=i, nanosec=0), frame_id="f")
+            v3 = T["geometry_msgs/msg/Vector3"]
+            msg = T[IMU](header=hdr, orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                         orientation_covariance=cov, angular_velocity=v3(x=0.0, y=0.0, z=0.0),
+                         angular_velocity_covariance=none if i < 4 else cov,
+                         linear_acceleration=v3(x=0.0, y=0.0, z=9.8), linear_acceleration_covariance=cov)
+            w.write(c, i * 10**9, ts.serialize_cdr(msg, IMU))
+    t = rb.read_imu(path).topic("/imu")
+    assert (t.angular_velocity_absent, t.linear_acceleration_absent) == (4, 0)
+    assert not t.stamps_are_epoch and t.rate_hz == 1.0
 
 
 @pytest.mark.parametrize("kind", ["ros1", "mcap"])
