@@ -153,11 +153,14 @@ class FilterSettings:
         if "dyn_notch_count" not in values and values.get("dyn_notch_max_hz", 0) > 0:
             # before 4.3: one notch per axis, two when dyn_notch_width_percent > 0
             values["dyn_notch_count"] = 2 if values.get("dyn_notch_width_percent", 0) > 0 else 1
+        # PT2 and PT3 came with 4.3's names; before, 0 and 1 (PT1, biquad) only, and 2 was a FIR in 3.x
+        known = len(LOWPASS_TYPES) if new_names else 2
         for field in ("lpf1_type", "lpf2_type"):
-            if not 0 <= values.get(field, 0) < len(LOWPASS_TYPES):
+            if not 0 <= values.get(field, 0) < known:
                 setting = SETTING_BY_FIELD[field]
                 raise InputError(f"header field {setting.header_new if new_names else setting.header_old} is "
-                                 f"{values[field]}: Betaflight's lowpass types are 0-{len(LOWPASS_TYPES) - 1}", source)
+                                 f"{values[field]}: lowpass types {', '.join(LOWPASS_TYPES[:known])} "
+                                 f"(0-{known - 1}) are modelled for this firmware", source)
         return cls(gyro_rate_hz=1e6 / looptime_us, new_names=new_names, **values)
 
     @property

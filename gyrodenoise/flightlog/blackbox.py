@@ -55,10 +55,13 @@ PRED_ZERO, PRED_PREVIOUS, PRED_STRAIGHT_LINE, PRED_AVERAGE_2, PRED_MINTHROTTLE =
 PRED_MOTOR_0, PRED_INC, PRED_HOME_COORD, PRED_1500, PRED_VBATREF = 5, 6, 7, 8, 9
 PRED_LAST_MAIN_FRAME_TIME, PRED_MINMOTOR = 10, 11
 KNOWN_PREDICTORS = set(range(12))
+PREDICTOR_HEADER_VALUES = {PRED_MINTHROTTLE: "minthrottle", PRED_VBATREF: "vbatref", PRED_MINMOTOR: "motorOutput"}
 
 # event types (FLIGHT_LOG_EVENT_*) with their payload readers, below
 EVENT_NAMES = {0: "sync_beep", 13: "inflight_adjustment", 14: "logging_resume", 15: "disarm",
                30: "flight_mode", 255: "log_end"}
+
+KNOWN_FIRMWARE = ("Betaflight", "INAV", "EmuFlight", "Rotorflight", "Butterflight", "Cleanflight", "Baseflight")
 
 # Betaflight debug modes whose debug[0..2] hold the unfiltered gyro in deg/s (``DEBUG_GYRO_SCALED``).
 PREFILTER_DEBUG_MODES = {6: "GYRO_SCALED"}
@@ -84,7 +87,7 @@ class BlackboxHeader:
     craft_name: str
     log_start: str
     data_version: int
-    looptime_us: int
+    looptime_us: int | None             # None in logs that do not say (Cleanflight 2016)
     gyro_sync_denom: int
     pid_process_denom: int
     i_interval: int
@@ -95,7 +98,9 @@ class BlackboxHeader:
     minthrottle: int
     vbatref: int
     motor_output: tuple[int, ...]
+    defaults_used: tuple[str, ...]      # header values a predictor needs that the header lacks (0 used)
     filters: FilterSettings | None      # Betaflight's gyro filters; None for other firmware (not modelled)
+    #                                     and without a looptime
 
     def get(self, name: str, default: str | None = None) -> str | None:
         for key, value in self.lines:
@@ -105,12 +110,17 @@ class BlackboxHeader:
 
     @property
     def firmware(self) -> str:
-        """Betaflight / INAV / Cleanflight, from the revision string (BF 4.x writes type Cleanflight)."""
-        return (self.firmware_revision.split() or [self.firmware_type])[0]
+        """Betaflight, INAV, ...: the revision's first word where it names one (Betaflight 4 writes
+        firmware type Cleanflight), else the firmware type."""
+        first = (self.firmware_revision.split() or [""])[0]
+        return first if first in KNOWN_FIRMWARE else self.firmware_type
 
     @property
     def log_rate_hz(self) -> float:
-        """Main frames per second: the PID rate divided by the P interval."""
+        """Nominal main frames per second: the PID rate divided by the P interval (NaN without a
+        looptime). A loop that overruns logs slower: :attr:`BlackboxLog.sample_rate_hz` is measured."""
+        if self.looptime_us is None:
+            return float("nan")
         pid_rate = 1e6 / (self.looptime_us * self.pid_process_denom)
         return pid_rate * self.p_interval_num / self.p_interval_denom
 
@@ -303,12 +313,16 @@ def _parse_header(text: bytes, source: str) -> tuple[BlackboxHeader, dict[str, l
     if p_num <= 0 or p_den <= 0:
         raise InputError(f"header field P interval is {p_text!r}", source)
     motor_output = _ints("motorOutput", lines.get("motorOutput", "0"), source)
-    scale_text = lines.get("gyro_scale", "0x3f800000")
+    scale_text = lines.get("gyro_scale", lines.get("gyro.scale", "0x3f800000"))
     try:
         gyro_scale = struct.unpack("<f", struct.pack("<I", int(scale_text, 16)))[0]
     except (ValueError, struct.error):
         raise InputError(f"header field gyro_scale is {scale_text!r}, not a hexadecimal float", source) from None
     revision = lines.get("Firmware revision", "")
+    looptime = _int(lines, "looptime", -1, source) if "looptime" in lines else None
+    if looptime is not None and looptime <= 0:
+        raise InputError(f"header field looptime is {lines['looptime']!r}, not a positive time", source)
+    betaflight = (revision.split() or [""])[0] == "Betaflight"
     if lines.get("Firmware type", "").lower() == "baseflight":
         gyro_scale = gyro_scale * 1e6 * 180.0 / np.pi      # Baseflight's scale gives rad/us
     data_version = _int(lines, "Data version", 2, source)
@@ -323,7 +337,7 @@ def _parse_header(text: bytes, source: str) -> tuple[BlackboxHeader, dict[str, l
         craft_name=lines.get("Craft name", ""),
         log_start=lines.get("Log start datetime", ""),
         data_version=data_version,
-        looptime_us=_int(lines, "looptime", None, source),
+        looptime_us=looptime,
         gyro_sync_denom=_int(lines, "gyro_sync_denom", 1, source),
         pid_process_denom=_int(lines, "pid_process_denom", 1, source),
         i_interval=max(_int(lines, "I interval", 32, source), 1),
@@ -334,11 +348,10 @@ def _parse_header(text: bytes, source: str) -> tuple[BlackboxHeader, dict[str, l
         minthrottle=_int(lines, "minthrottle", 0, source),
         vbatref=_int(lines, "vbatref", 0, source),
         motor_output=motor_output or (0,),
-        filters=(FilterSettings.from_header(lines, source)
-                 if (revision.split() or [""])[0] == "Betaflight" else None),
+        defaults_used=tuple(name for pred, name in PREDICTOR_HEADER_VALUES.items()
+                            if name not in lines and any(d.predictor == pred for d in frames["I"] + frames["P"])),
+        filters=FilterSettings.from_header(lines, source) if betaflight and looptime else None,
     )
-    if header.looptime_us <= 0:
-        raise InputError(f"header field looptime is {header.looptime_us}", source)
     return header, frames
 
 

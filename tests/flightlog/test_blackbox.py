@@ -52,6 +52,7 @@ def test_header_fields_match_the_plain_text_header(path, log):
     assert h.looptime_us == int(text["looptime"]) == 125
     assert h.debug_mode == int(text["debug_mode"]) == 6
     assert h.gyro_scale == 1.0                      # 0x3f800000
+    assert h.defaults_used == ()
     assert log.fields == tuple(text["Field I name"].split(","))
     f = h.filters
     assert f.gyro_rate_hz == 8000.0
@@ -172,6 +173,9 @@ def test_foreign_and_broken_files_give_one_line(tmp_path, path):
     broken.write_bytes(text.replace(b"H Field P encoding:9,", b"H Field P encoding:42,", 1))
     with pytest.raises(InputError, match="encoding 42"):
         bb.read_blackbox(broken)
+    novbat = tmp_path / "novbat.bfl"
+    novbat.write_bytes(text.replace(b"H vbatref:2277\n", b"", 1))
+    assert bb.read_blackbox(novbat)[0].header.defaults_used == ("vbatref",)      # vbatLatest's I predictor
     inav = tmp_path / "inav.txt"
     inav.write_bytes(text.replace(b"Firmware revision:Betaflight 4.2.0", b"Firmware revision:INAV 6.1.0", 1))
     other = bb.read_blackbox(inav)[0]
@@ -232,3 +236,16 @@ def test_mutated_logs_decode_or_give_one_line(path, tmp_path):
             assert "\n" not in str(e)
             outcomes["refused"] += 1
     assert outcomes["decoded"] > 60 and outcomes["refused"] > 5
+
+
+def test_header_without_looptime_and_with_old_gyro_scale_name(path, log, tmp_path):
+    """Cleanflight's 2016 logs have no looptime line and name the scale gyro.scale (counts to deg/s)."""
+    text = path.read_bytes()
+    old = text.replace(b"H looptime:125\n", b"", 1).replace(b"H gyro_scale:0x3f800000", b"H gyro.scale:0x3d79c190", 1)
+    p = tmp_path / "old.TXT"
+    p.write_bytes(old)
+    got = bb.read_blackbox(p)[0]
+    assert got.header.looptime_us is None and np.isnan(got.header.log_rate_hz) and got.header.filters is None
+    assert got.sample_rate_hz == 1000.0
+    np.testing.assert_allclose(got.gyro_dps, log.main[:, [log.fields.index(f"gyroADC[{k}]") for k in range(3)]]
+                               * np.float32(0.0609756112), rtol=1e-7)
