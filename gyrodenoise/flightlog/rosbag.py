@@ -11,8 +11,8 @@ the 24 bytes of ``angular_velocity`` differ: the values are patched in the
 serialized message (their offset found from the message's own layout and
 checked against rosbags' decode), never re-serialized. The container around the
 messages (chunks, indexes, the sqlite3 database, the MCAP summary) is written
-anew by rosbags: a ROS 1 copy is uncompressed; a ROS 2 copy keeps the input's
-compression mode.
+anew by rosbags, with the input's compression (a ROS 1 bag's first chunk's, a ROS 2
+bag's mode and format).
 
 The kinds of file are a small registry (:data:`BAG_KINDS`), each with its test of
 the file's content: ``#ROSBAG V2.0`` for ROS 1, the MCAP magic, a folder with a
@@ -316,10 +316,26 @@ def _check_filtered(bag: ImuBag, filtered: Mapping[str, np.ndarray]) -> dict[str
     return arrays
 
 
-def _open_writer(kind: BagKind, storage: str | None, reader, dest: Path):
+def ros1_chunk_compression(path: Path) -> str:
+    """The compression of a ROS 1 bag's first chunk ("none", "bz2", "lz4"), from its record header:
+    the ``compression=`` field, whose uint32 length precedes it."""
+    with path.open("rb") as fh:
+        head = fh.read(1 << 16)
+    at = head.find(b"compression=")
+    if at < 4:
+        return "none"
+    (length,) = struct.unpack_from("<I", head, at - 4)
+    return head[at + len(b"compression="):at + length].decode("ascii", "replace")
+
+
+def _open_writer(kind: BagKind, storage: str | None, reader, dest: Path, source: Path):
     if not kind.ros2:
         from rosbags.rosbag1 import Writer as Writer1
-        return Writer1(dest)
+        writer = Writer1(dest)
+        compression = ros1_chunk_compression(source)
+        if compression.upper() in Writer1.CompressionFormat.__members__:
+            writer.set_compression(Writer1.CompressionFormat[compression.upper()])
+        return writer
     from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin
     from rosbags.rosbag2 import Writer as Writer2
     if storage is None or storage.upper() not in StoragePlugin.__members__:
@@ -362,7 +378,7 @@ def write_filtered(path: str | os.PathLike, out_path: str | os.PathLike,
         folder_output = kind.ros2 and not kind.suffix
         dest = out if folder_output else Path(tmp) / ("out" + (".bag" if not kind.ros2 else ""))
         try:
-            writer = _open_writer(kind, bag.storage, reader, dest)
+            writer = _open_writer(kind, bag.storage, reader, dest, p)
             writer.open()
         except InputError:
             raise

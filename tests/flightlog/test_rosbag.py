@@ -16,7 +16,7 @@ pytest.importorskip("rosbags", reason="rosbags (ROS bag reader/writer) not insta
 
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
-from rosbags.rosbag2 import StoragePlugin  # noqa: E402
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin  # noqa: E402
 from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
@@ -28,7 +28,7 @@ T0_NS = 1_700_000_000_123_456_789
 KINDS = ("ros1", "sqlite3", "mcap")
 
 
-def _build(kind, path, n=300, seed=7):
+def _build(kind, path, n=300, seed=7, compression=None):
     """A bag with two Imu topics (200 Hz and 100 Hz, frame ids of varying length: CDR padding
     varies), a String topic and a Float64MultiArray topic; returns the generated values."""
     rng = np.random.default_rng(seed)
@@ -38,9 +38,13 @@ def _build(kind, path, n=300, seed=7):
     truth = {}
     if ros1:
         writer, ser = Writer1(path), ts.serialize_ros1
+        if compression:
+            writer.set_compression(Writer1.CompressionFormat[compression])
     else:
         plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
         writer, ser = Writer2(path, version=9, storage_plugin=plugin), ts.serialize_cdr
+        if compression:
+            writer.set_compression(CompressionMode[compression], CompressionFormat.ZSTD)
     with writer:
         conns = {"/imu/data": writer.add_connection("/imu/data", IMU, typestore=ts),
                  "/cam/imu": writer.add_connection("/cam/imu", IMU, typestore=ts),
@@ -146,6 +150,34 @@ def test_filtered_copy_changes_only_the_angular_velocity_of_the_filtered_topic(t
         assert (da.header.frame_id, da.header.stamp.sec, da.header.stamp.nanosec) == (
             db.header.frame_id, db.header.stamp.sec, db.header.stamp.nanosec)
     assert row == len(new)
+
+
+@pytest.mark.parametrize("compression", ["BZ2", "LZ4"])
+def test_compressed_ros1_bag_is_copied_compressed(tmp_path, compression):
+    path = tmp_path / "c.bag"
+    truth = _build("ros1", path, n=60, compression=compression)
+    assert rb.ros1_chunk_compression(path) == compression.lower()
+    out = rb.write_filtered(path, tmp_path / "o.bag", {"/imu/data": truth["/imu/data"]["gyro"] * 2})
+    assert rb.ros1_chunk_compression(out) == compression.lower()
+    _, msgs_in, _ = _rosbags_read(path)
+    _, msgs_out, _ = _rosbags_read(out)
+    assert [m[:3] for m in msgs_in] == [m[:3] for m in msgs_out]
+    assert [m[3] for m in msgs_in if m[0] != "/imu/data"] == [m[3] for m in msgs_out if m[0] != "/imu/data"]
+    np.testing.assert_array_equal(rb.read_imu(out).topic("/imu/data").angular_velocity, truth["/imu/data"]["gyro"] * 2)
+
+
+@pytest.mark.parametrize("mode", ["MESSAGE", "FILE"])
+def test_compressed_ros2_bag_keeps_its_compression(tmp_path, mode):
+    path = tmp_path / "z"
+    truth = _build("sqlite3", path, n=60, compression=mode)
+    out = rb.write_filtered(path, tmp_path / "oz", {"/cam/imu": truth["/cam/imu"]["gyro"] + 1})
+    meta = (out / "metadata.yaml").read_text()
+    assert f"compression_mode: {mode.lower()}" in meta and "compression_format: zstd" in meta
+    _, msgs_in, _ = _rosbags_read(path)
+    _, msgs_out, _ = _rosbags_read(out)
+    assert [m[:3] for m in msgs_in] == [m[:3] for m in msgs_out]
+    assert [m[3] for m in msgs_in if m[0] != "/cam/imu"] == [m[3] for m in msgs_out if m[0] != "/cam/imu"]
+    np.testing.assert_array_equal(rb.read_imu(out).topic("/cam/imu").angular_velocity, truth["/cam/imu"]["gyro"] + 1)
 
 
 def test_bare_mcap_file_and_renamed_ros1_bag_are_known_by_content(tmp_path):
