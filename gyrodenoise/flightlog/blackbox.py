@@ -743,8 +743,9 @@ def _wrap(main: np.ndarray, defs: list[FieldDef]) -> np.ndarray:
 # --- files -----------------------------------------------------------------------------------------
 
 def sniff(head: bytes) -> bool:
-    """True when the bytes open a blackbox log (its first header line)."""
-    return head.startswith(b"H Product:Blackbox flight data recorder")
+    """True when the bytes (a file's first kilobytes) hold a blackbox log's first header line;
+    a dump from flash may have bytes before it."""
+    return b"H Product:Blackbox flight data recorder" in head
 
 
 def read_blackbox(path: str | os.PathLike) -> list[BlackboxLog]:

@@ -182,7 +182,7 @@ def test_foreign_and_broken_files_give_one_line(tmp_path, path):
     assert other.header.firmware == "INAV" and other.header.filters is None       # Betaflight's chain not assumed
     assert other.gyro_prefilter_dps is None and other.throttle is None          # debug modes are Betaflight's
     assert other.gyro_dps.shape == (16774, 3)
-    assert bb.sniff(text[:64]) and not bb.sniff(b"\x89HDF")
+    assert bb.sniff(text[:64]) and bb.sniff(b"\xff" * 10 + text[:64]) and not bb.sniff(b"\x89HDF")
 
 
 def test_filtered_streams_are_written_beside_as_csv(log, tmp_path):
