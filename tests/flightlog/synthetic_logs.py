@@ -16,22 +16,31 @@ _STRUCT = {"b": "b", "B": "B", "h": "h", "H": "H", "i": "i", "I": "I", "f": "f",
 class DataFlashWriter:
     """Builds a DataFlash log in memory: ``define(name, format, columns)`` once per
     type, then ``add(name, *values)`` (strings as bytes or str, ``c``/``e``... already
-    scaled to the integers as logged); ``bytes()`` the log."""
+    scaled to the integers as logged); ``bytes()`` the log. ``define(..., type_id=T)``
+    declares (or re-declares, mid-log) type id T. ``written``: (name, offset, format,
+    columns) of every message added, in order."""
 
     def __init__(self):
         self.out = bytearray()
         self.types = {}
+        self.written = []
+        self._next_id = 0x81
 
-    def define(self, name, fmt, columns):
-        tid = 0x81 + len(self.types)
+    def define(self, name, fmt, columns, type_id=None):
+        if type_id is None:
+            tid, self._next_id = self._next_id, self._next_id + 1
+        else:
+            tid = type_id
+            self.types = {k: v for k, v in self.types.items() if v[0] != tid}
         st = "<" + "".join(_STRUCT[c] for c in fmt)
         length = 3 + struct.calcsize(st)
-        self.types[name] = (tid, st)
+        self.types[name] = (tid, st, fmt, list(columns))
         self.out += struct.pack("<BBBBB4s16s64s", 0xA3, 0x95, 0x80, tid, length, name.encode(),
                                 fmt.encode(), ",".join(columns).encode())
 
     def add(self, name, *values):
-        tid, st = self.types[name]
+        tid, st, fmt, columns = self.types[name]
+        self.written.append((name, len(self.out), fmt, columns))
         flat = []
         for v in values:
             if isinstance(v, str):
