@@ -5,10 +5,18 @@ readers (pymavlink's DFReader, pyulog) and a byte diff, not against our reader."
 from __future__ import annotations
 
 import struct
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tests.flightlog.synthetic_logs import _STRUCT, DataFlashWriter
+
+from tests.helpers import shared_file
+
+
+def shared_log(name):
+    return shared_file("logs", name)
 
 
 # ------------------------------------------------------------ our code, one place
@@ -131,3 +139,99 @@ def test_fmt_redefined_mid_log_is_honoured(tmp_path):
     # the byte diff: nothing outside the IMU gyro fields
     allowed = df_field_positions(w.written, {"IMU"}, set(GYRO))
     assert changed_positions(data, out.read_bytes()) - allowed == set()
+
+
+# ------------------------------------------------------------ ULog, in place
+def ulog_gyro_positions(path, topics):
+    """Byte positions (a set) of the fields ``topics[topic]`` in the data messages
+    of a ULog file: the message headers walked here, each topic's layout from
+    pyulog's field list (independent of our scanner; for uncorrupted files)."""
+    import pyulog
+    u = pyulog.ULog(str(path))
+    fields = {}
+    for d in u.data_list:
+        if d.name not in topics:
+            continue
+        at, offs = 0, {}
+        for f in d.field_data:
+            size = pyulog.ULog._UNPACK_TYPES[f.type_str][1]
+            offs[f.field_name] = (at, size)
+            at += size
+        fields[d.msg_id] = [offs[c] for c in topics[d.name] if c in offs]
+    data = Path(path).read_bytes()
+    pos, n, out = 16, len(data), set()
+    while pos + 3 <= n:
+        size = data[pos] | (data[pos + 1] << 8)
+        if data[pos + 2] == ord("D") and pos + 5 <= n:
+            for off, k in fields.get(data[pos + 3] | (data[pos + 4] << 8), ()):
+                out.update(range(pos + 5 + off, pos + 5 + off + k))
+        pos += 3 + size
+    return out
+
+
+def assert_ulog_same_except(a_path, b_path, topics, expected=None):
+    """pyulog's readings of two ULog files agree on everything but the fields
+    ``topics[topic]``; those of ``b`` equal ``expected[(topic, multi_id)]`` (n, k)
+    when given."""
+    import pyulog
+    a, b = pyulog.ULog(str(a_path)), pyulog.ULog(str(b_path))
+    assert [(d.name, d.multi_id) for d in a.data_list] == [(d.name, d.multi_id) for d in b.data_list]
+    for da, db in zip(a.data_list, b.data_list):
+        assert list(da.data) == list(db.data)
+        skip = topics.get(da.name, ())
+        for f in da.data:
+            if f not in skip:
+                assert np.array_equal(da.data[f], db.data[f], equal_nan=da.data[f].dtype.kind == "f"), \
+                    (da.name, da.multi_id, f)
+        if expected is not None and (da.name, da.multi_id) in expected:
+            got = np.stack([db.data[c] for c in skip], axis=1)
+            np.testing.assert_array_equal(got, expected[(da.name, da.multi_id)].astype(got.dtype))
+    assert a.msg_info_dict == b.msg_info_dict
+    assert a.initial_parameters == b.initial_parameters
+    assert a.changed_parameters == b.changed_parameters
+    assert [(m.timestamp, m.message) for m in a.logged_messages] == [(m.timestamp, m.message) for m in b.logged_messages]
+    assert [(d.timestamp, d.duration) for d in a.dropouts] == [(d.timestamp, d.duration) for d in b.dropouts]
+
+
+ULOG_GYRO = {"sensor_combined": ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"), "sensor_gyro": ("x", "y", "z")}
+
+
+def _ulog_expected(streams):
+    out = {}
+    for s in streams:
+        base, _, inst = s.name.partition("[")
+        out[(s.message, int(inst.rstrip("]")) if inst else 0)] = s.filtered
+    return out
+
+
+@pytest.mark.parametrize("name", ["px4_vtol_small.ulg", "px4_quad_ekf_failure.ulg"])
+def test_ulog_filtered_copy_is_patched_in_place(tmp_path, name):
+    src = shared_log(name)
+    out = tmp_path / ("filtered_" + name)
+    streams, _ = filter_copy(src, out, lambda s: s.raw * 0.5 + 0.01)
+    assert streams
+    orig, new = src.read_bytes(), out.read_bytes()
+    assert len(orig) == len(new)
+    assert changed_positions(orig, new) - ulog_gyro_positions(src, ULOG_GYRO) == set()
+    assert_ulog_same_except(src, out, ULOG_GYRO, _ulog_expected(streams))
+
+
+def test_ulog_bad_timestamp_keeps_the_order(tmp_path):
+    """One sensor_gyro timestamp set far back: the copy keeps the messages where they were."""
+    import pyulog
+    src = shared_log("px4_vtol_small.ulg")
+    data = bytearray(src.read_bytes())
+    u = pyulog.ULog(str(src))
+    d = next(d for d in u.data_list if d.name == "sensor_gyro")
+    pos, hits = 16, []
+    while pos + 3 <= len(data):
+        if data[pos + 2] == ord("D") and (data[pos + 3] | (data[pos + 4] << 8)) == d.msg_id:
+            hits.append(pos)
+        pos += 3 + (data[pos] | (data[pos + 1] << 8))
+    data[hits[2] + 5:hits[2] + 13] = struct.pack("<Q", 5)      # timestamp is the first field
+    bad = tmp_path / "bad_ts.ulg"
+    bad.write_bytes(bytes(data))
+    out = tmp_path / "bad_ts.filtered.ulg"
+    streams, _ = filter_copy(bad, out, lambda s: s.raw * 0.5)
+    assert changed_positions(bytes(data), out.read_bytes()) - ulog_gyro_positions(bad, ULOG_GYRO) == set()
+    assert_ulog_same_except(bad, out, ULOG_GYRO, _ulog_expected(streams))
