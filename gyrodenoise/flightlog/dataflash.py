@@ -263,6 +263,17 @@ def batch_sampler_streams(data, sc: DFScan):
     need_d = {"N", "seqno", "x", "y", "z"}
     if not need_h <= set(fh.columns) or not need_d <= set(fd.columns):
         return []
+    chars = dict(zip(fd.columns, fd.format))
+    why = None
+    try:
+        fh.dtype(), fd.dtype()
+    except ValueError as exc:
+        why = str(exc)
+    if why is None and any(chars.get(a) != "a" for a in ("x", "y", "z")):
+        why = f"x/y/z not int16[32] ('a') in format {fd.format!r}"
+    if why is not None:
+        sc.skipped.append(f"ISBH/ISBD: batch sampler not read as gyro: {why}")
+        return []
     h = decode(data, sc, th)
     d = decode(data, sc, td)
     d_offs = np.asarray(sc.offsets[td], dtype=np.int64)

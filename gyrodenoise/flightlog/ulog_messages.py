@@ -89,17 +89,24 @@ class ULogScan:
         lay, size = self.layout(name)
         names = list(lay)
         return np.dtype({"names": names, "formats": [lay[k][1] for k in names],
-                         "offsets": [lay[k][0] for k in names], "itemsize": size})
+                         "offsets": [lay[k][0] for k in names], "itemsize": self.logged_size(name)})
+
+    def logged_size(self, name):
+        """Bytes of a data message's fields for format ``name``: up to the end of its
+        last field that is not padding (a logger leaves trailing padding out)."""
+        lay, _ = self.layout(name)
+        return max((off + dt.itemsize for off, dt in lay.values()), default=0)
 
     def decode(self, data, topic, multi_id=0):
         """(records as a structured array, D message offsets) of a topic instance;
-        messages shorter than the format are left out (pyulog skips them too)."""
+        a message whose size is not the topic's :meth:`logged_size` is left out
+        (pyulog skips it too, as corrupt)."""
         offs = np.asarray(self.data.get((topic, multi_id), []), dtype=np.int64)
         dt = self.dtype(topic)
         buf = np.frombuffer(data, dtype=np.uint8)
         if len(offs):
             sizes = buf[offs].astype(np.int64) | (buf[offs + 1].astype(np.int64) << 8)
-            offs = offs[sizes - 2 >= dt.itemsize]
+            offs = offs[sizes - 2 == self.logged_size(topic)]
         rows = buf[(offs + 5)[:, None] + np.arange(dt.itemsize)] if len(offs) else np.zeros((0, dt.itemsize), np.uint8)
         return np.ascontiguousarray(rows).view(dt).reshape(-1), offs
 

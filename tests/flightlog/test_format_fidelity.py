@@ -10,13 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.flightlog.synthetic_logs import _STRUCT, DataFlashWriter
+from tests.flightlog.synthetic_logs import _STRUCT, DataFlashWriter, ULogWriter, tlog_writer
 
-from tests.helpers import shared_file
-
-
-def shared_log(name):
-    return shared_file("logs", name)
+from tests.helpers import shared_log
 
 
 # ------------------------------------------------------------ our code, one place
@@ -158,7 +154,12 @@ def ulog_gyro_positions(path, topics):
             offs[f.field_name] = (at, size)
             at += size
         fields[d.msg_id] = [offs[c] for c in topics[d.name] if c in offs]
-    data = Path(path).read_bytes()
+    return ulog_field_positions(Path(path).read_bytes(), fields)
+
+
+def ulog_field_positions(data, fields):
+    """Byte positions (a set) of the fields ``fields[msg_id]`` ((offset after the msg
+    id, size) each) in the data messages of a ULog file held in ``data``."""
     pos, n, out = 16, len(data), set()
     while pos + 3 <= n:
         size = data[pos] | (data[pos + 1] << 8)
@@ -209,7 +210,9 @@ def test_ulog_filtered_copy_is_patched_in_place(tmp_path, name):
     src = shared_log(name)
     out = tmp_path / ("filtered_" + name)
     streams, _ = filter_copy(src, out, lambda s: s.raw * 0.5 + 0.01)
-    assert streams
+    import pyulog
+    assert sorted(_ulog_expected(streams)) == sorted(
+        (d.name, d.multi_id) for d in pyulog.ULog(str(src)).data_list if d.name in ULOG_GYRO)
     orig, new = src.read_bytes(), out.read_bytes()
     assert len(orig) == len(new)
     assert changed_positions(orig, new) - ulog_gyro_positions(src, ULOG_GYRO) == set()
@@ -235,3 +238,84 @@ def test_ulog_bad_timestamp_keeps_the_order(tmp_path):
     streams, _ = filter_copy(bad, out, lambda s: s.raw * 0.5)
     assert changed_positions(bytes(data), out.read_bytes()) - ulog_gyro_positions(bad, ULOG_GYRO) == set()
     assert_ulog_same_except(bad, out, ULOG_GYRO, _ulog_expected(streams))
+
+
+# ------------------------------------------------------------ malformed input
+def test_dataflash_imu_format_without_gyro_fields(tmp_path):
+    """A format named IMU without GyrX/GyrY/GyrZ (declared before the real one) is
+    skipped with the reason; the gyro IMU is read and patched at its own offsets."""
+    rng = np.random.default_rng(3)
+    w = DataFlashWriter()
+    w.define("IMU", "QBfff", ["TimeUS", "I", "AccX", "AccY", "AccZ"])
+    w.define("IMU", *IMU_OLD)
+    truth = rng.normal(0, 0.2, (300, 3)).astype(np.float32)
+    for k in range(300):
+        w.add("IMU", 1000 + 2500 * k, 0, *truth[k], 0.1, 0.2, 9.8)
+    src = tmp_path / "nogyro.bin"
+    src.write_bytes(w.bytes())
+    out = tmp_path / "nogyro.filtered.bin"
+    streams, facts = filter_copy(src, out, lambda s: s.raw * 0.5)
+    assert [s.name for s in streams] == ["IMU[0]"]
+    np.testing.assert_array_equal(streams[0].raw.astype(np.float32), truth)
+    after = df_messages(out)
+    got = np.array([[f[g] for g in GYRO] for name, f in after if name == "IMU"], dtype=np.float32)
+    np.testing.assert_array_equal(got, (truth * 0.5).astype(np.float32))
+    assert changed_positions(src.read_bytes(), out.read_bytes()) - \
+        df_field_positions(w.written, {"IMU"}, set(GYRO)) == set()
+
+
+def test_ulog_sensor_combined_without_timestamp(tmp_path):
+    """sensor_combined without a timestamp field: skipped with the reason in the
+    facts; sensor_gyro read and patched; every other byte kept. (pyulog stops
+    reading at the first sensor_combined message of such a log: the check is on
+    the bytes, with the layout this test wrote.)"""
+    rng = np.random.default_rng(4)
+    u = ULogWriter()
+    u.define("sensor_combined", [("uint64_t", "time"), ("float[3]", "gyro_rad")])
+    u.define("sensor_gyro", [("uint64_t", "timestamp"), ("uint8_t", "n"), ("uint8_t[3]", "_padding0"),
+                             ("float", "x"), ("float", "y"), ("float", "z")])
+    a, b = u.subscribe("sensor_combined"), u.subscribe("sensor_gyro")
+    truth = rng.normal(0, 0.1, (500, 3)).astype(np.float32)
+    for k in range(500):
+        u.add(a, 1000 * k, rng.normal(0, 0.1, 3))
+        u.add(b, 1000 * k, 7, *truth[k])
+        if k % 100 == 0:
+            u.sync()
+    src = tmp_path / "nots.ulg"
+    src.write_bytes(u.bytes())
+    out = tmp_path / "nots.filtered.ulg"
+    streams, facts = filter_copy(src, out, lambda s: s.raw * 0.5)
+    assert [s.name for s in streams] == ["sensor_gyro"]
+    np.testing.assert_array_equal(streams[0].raw.astype(np.float32), truth)
+    assert any("sensor_combined" in r and "timestamp" in r for r in facts["streams_skipped"])
+    xyz = {b: [(12, 4), (16, 4), (20, 4)]}
+    new = out.read_bytes()
+    assert changed_positions(src.read_bytes(), new) - ulog_field_positions(src.read_bytes(), xyz) == set()
+    at = sorted(ulog_field_positions(new, {b: [(12, 12)]}))
+    got = np.frombuffer(bytes(new[i] for i in at), dtype="<f4").reshape(-1, 3)
+    np.testing.assert_array_equal(got, (truth * 0.5).astype(np.float32))
+
+
+def test_tlog_highres_imu_with_an_infinity(tmp_path):
+    """One -inf in a HIGHRES_IMU gyro field: written back as -inf (the damaged sample
+    kept as it was), the other samples filtered; no exception."""
+    from pymavlink import mavutil
+    rng = np.random.default_rng(5)
+    mav, add, get = tlog_writer()
+    truth = rng.normal(0, 0.1, (400, 3))
+    truth[150, 1] = -np.inf
+    for k in range(400):
+        if k % 50 == 0:
+            add(mav.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3), 1e15 + 4000 * k)
+        add(mav.MAVLink_highres_imu_message(4000 * k, 0, 0, 9.8, *truth[k], 0, 0, 0, 1000, 0, 0, 20, 0),
+            1e15 + 4000 * k)
+    src = tmp_path / "inf.tlog"
+    src.write_bytes(get())
+    out = tmp_path / "inf.filtered.tlog"
+    filter_copy(src, out, lambda s: np.where(np.isfinite(s.raw), s.raw * 0.5, s.raw))
+    m = mavutil.mavlink_connection(str(out))
+    got = []
+    while (msg := m.recv_match(type="HIGHRES_IMU")) is not None:
+        got.append((msg.xgyro, msg.ygyro, msg.zgyro))
+    want = np.where(np.isfinite(truth), truth * 0.5, truth).astype(np.float32)
+    np.testing.assert_array_equal(np.array(got, dtype=np.float32), want)
