@@ -180,7 +180,8 @@ def scan(data):
 
 def write_fields(buf, offs, field_offset, values, dtype):
     """Write ``values`` (one per D message at ``offs``) as ``dtype`` at
-    ``field_offset`` of each message's payload into ``buf`` (a writable uint8 array)."""
+    ``field_offset`` (one for all, or one per value) of each message's payload into
+    ``buf`` (a writable uint8 array)."""
     dt = np.dtype(dtype)
     b = np.ascontiguousarray(np.asarray(values).astype(dt)).view(np.uint8).reshape(-1, dt.itemsize)
     buf[(np.asarray(offs, dtype=np.int64) + 5 + field_offset)[:, None] + np.arange(dt.itemsize)] = b

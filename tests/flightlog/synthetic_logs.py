@@ -98,7 +98,10 @@ class ULogWriter:
 
     def define(self, name, fields):
         st = "<"
-        for tname, fname in fields:
+        logged = list(fields)
+        while logged and logged[-1][1].startswith("_padding"):    # a logger leaves trailing padding out
+            logged.pop()
+        for tname, fname in logged:
             base, _, n = tname.partition("[")
             st += (n.rstrip("]") if n else "") + ("x" if fname.startswith("_padding") else _ULOG_STRUCT[base])
         self.structs[name] = st

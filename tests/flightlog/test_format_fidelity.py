@@ -319,3 +319,73 @@ def test_tlog_highres_imu_with_an_infinity(tmp_path):
         got.append((msg.xgyro, msg.ygyro, msg.zgyro))
     want = np.where(np.isfinite(truth), truth * 0.5, truth).astype(np.float32)
     np.testing.assert_array_equal(np.array(got, dtype=np.float32), want)
+
+
+# ------------------------------------------------------------ PX4 FIFO topics
+FIFO_FIELDS = [("uint64_t", "timestamp"), ("uint64_t", "timestamp_sample"), ("uint32_t", "device_id"),
+               ("float", "dt"), ("float", "scale"), ("int16_t[32]", "x"), ("int16_t[32]", "y"),
+               ("int16_t[32]", "z"), ("uint8_t", "samples"), ("uint8_t[7]", "_padding0")]
+
+
+def fifo_log(tone_hz=173.0, rate_hz=2000.0, per_msg=8, seconds=4.0, seed=11):
+    """A ULog with sensor_gyro_fifo and sensor_accel_fifo at ``rate_hz`` (``per_msg``
+    samples a message), a tone on gyro x and accel z, and sensor_combined at 250
+    Hz. Returns (bytes, fifo msg ids (gyro, accel), gyro counts (n, 3), scale)."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * rate_hz) // per_msg * per_msg
+    t = np.arange(n) / rate_hz
+    g_scale, a_scale = np.float32(2000 / 32768 * np.pi / 180), np.float32(16 * 9.81 / 32768)
+    gyro = np.stack([0.3 * np.sin(2 * np.pi * tone_hz * t), 0.02 * t, np.zeros(n)], 1) + rng.normal(0, 0.01, (n, 3))
+    counts = np.rint(gyro / g_scale).astype(np.int16)
+    acc = np.stack([np.zeros(n), np.zeros(n), -9.81 + 2.0 * np.sin(2 * np.pi * tone_hz * t)], 1)
+    acounts = np.rint(acc / a_scale).astype(np.int16)
+    u = ULogWriter()
+    u.define("sensor_gyro_fifo", FIFO_FIELDS)
+    u.define("sensor_accel_fifo", FIFO_FIELDS)
+    u.define("sensor_combined", [("uint64_t", "timestamp"), ("float[3]", "gyro_rad"),
+                                 ("uint32_t", "gyro_integral_dt")])
+    gi, ai, ci = u.subscribe("sensor_gyro_fifo"), u.subscribe("sensor_accel_fifo"), u.subscribe("sensor_combined")
+    dt_us = 1e6 / rate_hz
+    for m in range(n // per_msg):
+        sl = slice(m * per_msg, (m + 1) * per_msg)
+        last_us = int(round(1e6 + (m + 1) * per_msg * dt_us - dt_us))
+        pad = np.zeros(32 - per_msg, np.int16)
+        for mid, c, sc in ((gi, counts, g_scale), (ai, acounts, a_scale)):
+            u.add(mid, last_us + 50, last_us, 123, dt_us, sc,
+                  *[np.concatenate([c[sl, k], pad]) for k in range(3)], per_msg)
+        u.add(ci, last_us + 60, gyro[sl].mean(0), 4000)
+        if m % 100 == 0:
+            u.sync()
+    return u.bytes(), (gi, ai), counts, float(g_scale)
+
+
+def test_px4_fifo_topics_read_at_their_rate_and_patched(tmp_path):
+    from gyrodenoise.flightlog import ulog
+    data, (gi, ai), counts, scale = fifo_log()
+    src = tmp_path / "fifo.ulg"
+    src.write_bytes(data)
+    out = tmp_path / "fifo.filtered.ulg"
+    streams, _ = filter_copy(src, out, lambda s: s.raw * 0.5)
+    fifo = next(s for s in streams if s.name == "sensor_gyro_fifo")
+    np.testing.assert_array_equal(fifo.raw, counts * np.float64(np.float32(scale)))
+    step = np.median(np.diff(fifo.time_s))
+    assert 1 / step == pytest.approx(2000.0, rel=1e-3) and np.all(np.diff(fifo.time_s) > 0)
+    spec = np.abs(np.fft.rfft(fifo.raw[:, 0] - fifo.raw[:, 0].mean()))
+    freqs = np.fft.rfftfreq(fifo.n, step)
+    assert freqs[np.argmax(spec)] == pytest.approx(173.0, abs=freqs[1])
+    # the accelerometer FIFO: the same tone at the same rate
+    _, _, refs = ulog.read(src)
+    acc = ulog.accel_streams(refs)
+    assert [a.name for a in acc] == ["sensor_accel_fifo"] and acc[0].rate_hz == pytest.approx(2000.0)
+    aspec = np.abs(np.fft.rfft(acc[0].values[:, 2] - acc[0].values[:, 2].mean()))
+    assert np.fft.rfftfreq(len(aspec) * 2 - 2, 1 / 2000.0)[np.argmax(aspec)] == pytest.approx(173.0, abs=0.5)
+    # the copy: pyulog reads every field unchanged but the valid FIFO samples, which hold
+    # the filtered values in counts; bytes changed only there
+    gyro_cols = {"sensor_gyro_fifo": tuple(f"{a}[{k}]" for a in "xyz" for k in range(8))}
+    want = np.rint(counts.astype(np.float64) * 0.5).reshape(-1, 8, 3).transpose(0, 2, 1).reshape(-1, 24)
+    assert_ulog_same_except(src, out, dict(gyro_cols, sensor_combined=("gyro_rad[0]", "gyro_rad[1]",
+                                                                       "gyro_rad[2]")),
+                            {("sensor_gyro_fifo", 0): want})
+    allowed = ulog_field_positions(data, {gi: [(28 + 64 * a, 16) for a in range(3)]})
+    comb = ulog_gyro_positions(src, {"sensor_combined": ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]")})
+    assert changed_positions(data, out.read_bytes()) - allowed - comb == set()
