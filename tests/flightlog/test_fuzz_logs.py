@@ -14,7 +14,7 @@ from tests.flightlog.test_format_fidelity import (assert_ulog_same_except, chang
                                                   filter_copy)
 from tests.helpers import shared_log
 
-MUTANTS = 10
+MUTANTS = 20
 FMT_HEAD = b"\xa3\x95\x80"
 
 
