@@ -19,7 +19,7 @@ LOG_SUFFIXES = {".tlog": "tlog", ".mavlink": "tlog", ".bin": "dataflash", ".ulg"
 GYRO_LOOKED_FOR = {
     "tlog": "RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3, HIGHRES_IMU",
     "dataflash": "IMU, IMU2, IMU3 with GyrX/GyrY/GyrZ, ISBH/ISBD gyro bursts",
-    "ulog": "sensor_combined.gyro_rad, sensor_gyro",
+    "ulog": "sensor_combined.gyro_rad, sensor_gyro, sensor_gyro_fifo",
 }
 
 

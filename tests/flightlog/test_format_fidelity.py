@@ -80,11 +80,11 @@ IMU_NEW = ("QBffffffH", ["TimeUS", "I", "AccX", "AccY", "AccZ", "GyrX", "GyrY", 
 GYRO = ("GyrX", "GyrY", "GyrZ")
 
 
-def redefined_fmt_log(n=200, seed=7):
+def redefined_fmt_log(n=200, seed=7, move=True):
     """IMU (type 0x81) redefined with another layout and length after n messages;
-    BARO's type id renamed XYZ with another length; then the name IMU moves to a
-    third layout on a new type id while 0x81 becomes VIBE. Returns (bytes, writer,
-    gyro truth (3n, 3) in file order)."""
+    BARO's type id renamed XYZ with another length; then (``move``) the name IMU
+    moves to a third layout on a new type id while 0x81 becomes VIBE. Returns
+    (bytes, writer, gyro truth (2n or 3n, 3) in file order)."""
     rng = np.random.default_rng(seed)
     w = DataFlashWriter()
     w.define("IMU", *IMU_OLD)                                   # 0x81
@@ -102,6 +102,8 @@ def redefined_fmt_log(n=200, seed=7):
         t += 2500
         w.add("IMU", t, 0, *acc[k], *truth[k], 4000 + k)
         w.add("XYZ", t, k, 2 * k, 3 * k)
+    if not move:
+        return w.bytes(), w, truth[:2 * n]
     w.define("VIBE", "Qfff", ["TimeUS", "VibeX", "VibeY", "VibeZ"], type_id=0x81)
     w.define("IMU", "QBIffffff", ["TimeUS", "I", "EG", "GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ"],
              type_id=0x90)
@@ -112,8 +114,9 @@ def redefined_fmt_log(n=200, seed=7):
     return w.bytes(), w, truth
 
 
-def test_fmt_redefined_mid_log_is_honoured(tmp_path):
-    data, w, truth = redefined_fmt_log()
+@pytest.mark.parametrize("move", [False, True], ids=["same_id_new_layout", "name_moves_to_new_id"])
+def test_fmt_redefined_mid_log_is_honoured(tmp_path, move):
+    data, w, truth = redefined_fmt_log(move=move)
     src = tmp_path / "redef.bin"
     src.write_bytes(data)
     out = tmp_path / "redef.filtered.bin"
