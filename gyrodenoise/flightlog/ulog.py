@@ -196,21 +196,15 @@ def accel_streams(refs):
 
 def truncated_bytes(path):
     """Bytes of a message cut by the end of the file (0: the file ends on a message
-    boundary). Walks the message headers (uint16 size, uint8 type) after the
-    16-byte file header, as pyulog does; pyulog itself stops silently at a cut
-    message. -1 when the file is too short for a header."""
+    boundary; pyulog itself stops silently at a cut message), from the walk of
+    :func:`gyrodenoise.flightlog.ulog_messages.scan`. -1 when the file has no
+    ULog header."""
     with open(path, "rb") as fh:
         data = fh.read()
-    n = len(data)
-    if n < 16:
+    try:
+        return ulog_messages.scan(data).truncated_bytes
+    except ValueError:
         return -1
-    pos = 16
-    while pos + 3 <= n:
-        nxt = pos + 3 + (data[pos] | (data[pos + 1] << 8))
-        if nxt > n:
-            return n - pos
-        pos = nxt
-    return n - pos
 
 
 def patched(streams, refs):
