@@ -14,7 +14,7 @@ from tests.flightlog.test_format_fidelity import (assert_ulog_same_except, chang
                                                   filter_copy)
 from tests.helpers import shared_log
 
-MUTANTS = 20
+MUTANTS = 16
 FMT_HEAD = b"\xa3\x95\x80"
 
 
@@ -63,6 +63,50 @@ def ulog_duplicated(data, rng):
     return data[:at] + data[a:b] + data[at:], f"message {a}:{b} copied to {at}"
 
 
+def tlog_extreme_values(data, rng):
+    """Gyro fields of a few RAW_IMU / SCALED_IMU2 packets set to the int16 ends (CRC
+    recomputed, so that the packets stay readable), and a HIGHRES_IMU record with an
+    infinity and a NaN among its gyro values inserted at a record boundary."""
+    from pymavlink.dialects.v20 import ardupilotmega as mav
+    from pymavlink.generator.mavcrc import x25crc
+    out = bytearray(data)
+    starts, pos = [], 0
+    while pos + 9 <= len(out) and out[pos + 8] in (0xFE, 0xFD):
+        v2 = out[pos + 8] == 0xFD
+        n = (12 if v2 else 8) + out[pos + 9] + (13 if v2 and out[pos + 10] & 1 else 0)
+        if pos + 8 + n > len(out):
+            break
+        starts.append((pos, v2))
+        pos += 8 + n
+    touched = 0
+    for i in rng.permutation(len(starts)).tolist():
+        a, v2 = starts[i]
+        hl = 10 if v2 else 6
+        msgid = (out[a + 15] | out[a + 16] << 8) if v2 else out[a + 13]
+        if msgid not in (mav.MAVLINK_MSG_ID_RAW_IMU, mav.MAVLINK_MSG_ID_SCALED_IMU2) or (v2 and out[a + 10] & 1):
+            continue
+        c = mav.mavlink_map[msgid]
+        off = 8 if msgid == mav.MAVLINK_MSG_ID_RAW_IMU else 4       # time, then xacc..zacc, then xgyro
+        off += 6 + 2 * int(rng.integers(3))
+        plen = out[a + 9]
+        if off + 2 > plen:
+            continue
+        p0 = a + 8 + hl
+        out[p0 + off:p0 + off + 2] = int(rng.choice([32767, -32768, -32767])).to_bytes(2, "little", signed=True)
+        crc = x25crc(bytes(out[a + 9:p0 + plen]))
+        crc.accumulate([c.crc_extra])
+        out[p0 + plen:p0 + plen + 2] = crc.crc.to_bytes(2, "little")
+        touched += 1
+        if touched == 5:
+            break
+    m = mav.MAVLink(None, srcSystem=1, srcComponent=1)
+    g = [float("inf"), float("nan"), -1.0]
+    pkt = mav.MAVLink_highres_imu_message(1000, 0, 0, 9.8, *g, 0, 0, 0, 1000, 0, 0, 20, 0).pack(m)
+    at = starts[int(rng.integers(len(starts)))][0] if starts else 0
+    rec = bytes(out[at:at + 8]) + pkt
+    return bytes(out[:at]) + rec + bytes(out[at:]), f"{touched} gyro values at int16 ends, HIGHRES_IMU inf/nan at {at}"
+
+
 def pymavlink_reads(path):
     try:
         df_messages(path)
@@ -74,8 +118,8 @@ def pymavlink_reads(path):
 CASES = [
     ("plane_truncated_test.BIN", (flips, truncation, duplicated_fmt)),
     ("copter462_notch_fragment.bin", (flips, truncation, duplicated_fmt)),
-    ("copter_20211202-133659.tlog", (flips, truncation)),
-    ("fs-batt.log.tlog", (flips, truncation)),
+    ("copter_20211202-133659.tlog", (flips, truncation, tlog_extreme_values)),
+    ("fs-batt.log.tlog", (flips, truncation, tlog_extreme_values)),
     ("px4_vtol_small.ulg", (flips, truncation, ulog_duplicated)),
 ]
 
