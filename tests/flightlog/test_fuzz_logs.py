@@ -115,12 +115,36 @@ def pymavlink_reads(path):
     return True
 
 
+def ulog_renamed_field(data, rng):
+    """A field of a format ('F') message renamed (same length): half the time
+    sensor_combined's timestamp, else a random field of a random format."""
+    pos, fmts = 16, []
+    while pos + 3 <= len(data):
+        size = data[pos] | (data[pos + 1] << 8)
+        if data[pos + 2] == ord("F"):
+            fmts.append((pos + 3, pos + 3 + size))
+        pos += 3 + size
+    out = bytearray(data)
+    comb = [f for f in fmts if data[f[0]:f[1]].startswith(b"sensor_combined:")]
+    if comb and rng.random() < 0.5:
+        a, b = comb[0]
+        k = data.find(b" timestamp;", a, b)
+        if k >= 0:
+            out[k + 1] = ord("T")
+            return bytes(out), "sensor_combined.timestamp renamed"
+    a, b = fmts[int(rng.integers(len(fmts)))]
+    spaces = [i for i in range(a, b) if data[i] == 0x20]
+    k = int(rng.choice(spaces)) + 1
+    out[k] = ord("Q")
+    return bytes(out), f"a field renamed at {k}"
+
+
 CASES = [
     ("plane_truncated_test.BIN", (flips, truncation, duplicated_fmt)),
     ("copter462_notch_fragment.bin", (flips, truncation, duplicated_fmt)),
     ("copter_20211202-133659.tlog", (flips, truncation, tlog_extreme_values)),
     ("fs-batt.log.tlog", (flips, truncation, tlog_extreme_values)),
-    ("px4_vtol_small.ulg", (flips, truncation, ulog_duplicated)),
+    ("px4_vtol_small.ulg", (flips, truncation, ulog_duplicated, ulog_renamed_field)),
 ]
 
 
