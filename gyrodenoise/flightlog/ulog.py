@@ -69,6 +69,7 @@ def _topic_problem(sc, topic, cols):
     """Why ``topic`` cannot be read as a gyro stream (None: it can)."""
     try:
         lay, _ = sc.layout(topic)
+        sc.dtype(topic)                  # e.g. two fields of one name
     except ValueError as exc:
         return str(exc)
     if topic in FIFO_TOPICS:
@@ -121,6 +122,10 @@ def read(path):
                                 f"as gyro: {why}")
             continue
         rec, offs = sc.decode(data, topic, multi_id)
+        n_msgs = len(sc.data[(topic, multi_id)])
+        if len(rec) < n_msgs:
+            refs.skipped.append(f"{topic}[{multi_id}]: {n_msgs - len(rec)} of {n_msgs} messages not of the "
+                                f"format's size ({sc.logged_size(topic)} bytes), left out")
         if not len(rec):
             continue
         n_inst = sum(1 for k in sc.data if k[0] == topic)

@@ -23,6 +23,7 @@ import numpy as np
 HEADER_MAGIC = b"ULog\x01\x12\x35"
 HEADER_LEN = 16
 SYNC_BYTES = b"\x2F\x73\x13\x20\x25\x0C\xBB\x12"
+MAX_MESSAGE = 0xFFFF            # bytes of a message's payload at most (uint16 size)
 #: message types the walk knows (others are a corruption)
 KNOWN_TYPES = frozenset(b"FDIMPQARLCSOB")
 
@@ -77,11 +78,15 @@ class ULogScan:
                 label = prefix + (f"{fname}[{i}]" if alen else fname)
                 if tname in BASE_TYPES:
                     dt = np.dtype(BASE_TYPES[tname])
+                    if label in out:
+                        raise ValueError(f"format {name!r} has two fields named {label!r}")
                     if not fname.startswith("_padding"):
                         out[label] = (off, dt)
                     off += dt.itemsize
                 else:
                     off = self._flatten(tname, label + ".", off, out, seen + (name,))
+                if off - base > MAX_MESSAGE:
+                    raise ValueError(f"format {name!r} is longer than a message can be")
         return off
 
     def dtype(self, name):
@@ -124,7 +129,7 @@ def _parse_format(payload):
         if tname.endswith("]") and "[" in tname:
             tname, _, n = tname[:-1].partition("[")
             alen = int(n) if n.isdigit() else None
-            if alen is None:
+            if alen is None or not 0 < alen <= MAX_MESSAGE:
                 raise ValueError(f"bad array length in {part!r}")
         fields.append((tname, alen, fname))
     return ULogFormat(name, fields)

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gyrodenoise.errors import InputError
+
 from tests.flightlog.synthetic_logs import _STRUCT, DataFlashWriter, ULogWriter, tlog_writer
 
 from tests.helpers import shared_log
@@ -297,6 +299,36 @@ def test_ulog_sensor_combined_without_timestamp(tmp_path):
     at = sorted(ulog_field_positions(new, {b: [(12, 12)]}))
     got = np.frombuffer(bytes(new[i] for i in at), dtype="<f4").reshape(-1, 3)
     np.testing.assert_array_equal(got, (truth * 0.5).astype(np.float32))
+
+
+@pytest.mark.parametrize("fields", [
+    [("uint64_t", "timestamp"), ("float", "x"), ("float", "x"), ("float", "y"), ("float", "z")],
+    [("uint64_t", "timestamp"), ("float", "x"), ("float", "y"), ("float", "z"), ("uint8_t[99999999]", "big")],
+    [("uint64_t", "timestamp"), ("sensor_gyro", "inner"), ("float", "x"), ("float", "y"), ("float", "z")],
+], ids=["duplicate_field", "huge_array", "nests_itself"])
+def test_ulog_malformed_gyro_format_is_skipped(tmp_path, fields):
+    """sensor_gyro's format with two fields of one name or an array longer than a
+    message: skipped with the reason, sensor_combined read; nested in itself (pyulog
+    cannot read the file): one line."""
+    u = ULogWriter()
+    u.define("sensor_combined", [("uint64_t", "timestamp"), ("float[3]", "gyro_rad")])
+    text = "sensor_gyro:" + "".join(f"{t} {f};" for t, f in fields)
+    u._msg("F", text.encode())
+    a, b = u.subscribe("sensor_combined"), u.subscribe("sensor_gyro")
+    u.structs["sensor_gyro"] = "<Qfff"
+    for k in range(200):
+        u.add(a, 1000 * k, [0.1, 0.2, 0.3])
+        u.add(b, 1000 * k, 0.1, 0.2, 0.3)
+    src = tmp_path / "bad_format.ulg"
+    src.write_bytes(u.bytes())
+    if fields[1][0] == "sensor_gyro":           # pyulog cannot read it at all: one line
+        with pytest.raises(InputError, match=r"not a readable ULog \(RecursionError") as exc:
+            filter_copy(src, tmp_path / "out.ulg", lambda s: s.raw * 0.5)
+        assert "\n" not in str(exc.value)
+        return
+    streams, facts = filter_copy(src, tmp_path / "out.ulg", lambda s: s.raw * 0.5)
+    assert [s.name for s in streams] == ["sensor_combined"]
+    assert any(r.startswith("sensor_gyro[0]") for r in facts["streams_skipped"])
 
 
 def test_tlog_highres_imu_with_an_infinity(tmp_path):
