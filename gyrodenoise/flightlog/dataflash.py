@@ -32,7 +32,7 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
-from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, misfit
 
 HEAD1, HEAD2, FMT_TYPE, FMT_LEN = 0xA3, 0x95, 0x80, 89
 
@@ -335,6 +335,15 @@ def _gyro_positions(sc: DFScan, s):
     return at
 
 
+def _check_fits(s, dtype):
+    """ValueError when a finite filtered value of ``s`` overflows the float field
+    (never stored as an infinity silently; an infinity or a NaN is stored as itself)."""
+    with np.errstate(invalid="ignore"):
+        bad = np.isfinite(s.filtered) & misfit(s.filtered, dtype)
+    if bad.any():
+        raise ValueError(f"{s.name}: a value does not fit {np.dtype(dtype).name} (check field_misfit first)")
+
+
 def patch(data, sc: DFScan, streams):
     """A copy of ``data`` (bytearray) with each stream's filtered values (field
     unit, float32) written over its gyro fields."""
@@ -356,6 +365,7 @@ def patch(data, sc: DFScan, streams):
                 buf[at[:, None] + np.arange(2)] = counts[:, k].copy().view(np.uint8).reshape(-1, 2)
             continue
         at = _gyro_positions(sc, s)
+        _check_fits(s, "<f4")
         vals = np.ascontiguousarray(s.filtered, dtype="<f4")      # (n, 3)
         for k in range(3):
             b = vals[:, k].copy().view(np.uint8).reshape(-1, 4)

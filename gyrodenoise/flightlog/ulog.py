@@ -28,7 +28,7 @@ import numpy as np
 from gyrodenoise.errors import InputError
 
 from gyrodenoise.flightlog import ulog_messages
-from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, misfit
 
 TOPICS = {
     "sensor_combined": ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"),
@@ -232,6 +232,9 @@ def patched(streams, refs):
             continue
         for k, c in enumerate(cols):
             off, dt = lay[c]
+            with np.errstate(invalid="ignore"):
+                if (np.isfinite(s.filtered[:, k]) & misfit(s.filtered[:, k], dt)).any():
+                    raise ValueError(f"{s.name}: a value does not fit {dt.name} (check field_misfit first)")
             ulog_messages.write_fields(buf, s.index, off, s.filtered[:, k], dt)
     return out
 

@@ -424,3 +424,26 @@ def test_px4_fifo_topics_read_at_their_rate_and_patched(tmp_path):
     allowed = ulog_field_positions(data, {gi: [(28 + 64 * a, 16) for a in range(3)]})
     comb = ulog_gyro_positions(src, {"sensor_combined": ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]")})
     assert changed_positions(data, out.read_bytes()) - allowed - comb == set()
+
+
+@pytest.mark.parametrize("make", ["dataflash", "ulog"])
+def test_overflowing_float_is_refused_not_stored_as_infinity(tmp_path, make):
+    """A finite filtered value beyond float32 is refused (ValueError, as for an int16
+    field): the pipeline checks field_misfit first and keeps such a stream raw."""
+    if make == "dataflash":
+        w = DataFlashWriter()
+        w.define("IMU", *IMU_OLD)
+        for k in range(50):
+            w.add("IMU", 1000 + 2500 * k, 0, 0.1, 0.2, 0.3, 0.0, 0.0, 9.8)
+        src = tmp_path / "o.bin"
+        src.write_bytes(w.bytes())
+    else:
+        u = ULogWriter()
+        u.define("sensor_gyro", [("uint64_t", "timestamp"), ("float", "x"), ("float", "y"), ("float", "z")])
+        g = u.subscribe("sensor_gyro")
+        for k in range(50):
+            u.add(g, 1000 * k, 0.1, 0.2, 0.3)
+        src = tmp_path / "o.ulg"
+        src.write_bytes(u.bytes())
+    with pytest.raises(ValueError, match="does not fit float32"):
+        filter_copy(src, tmp_path / ("out" + src.suffix), lambda s: np.where(np.arange(s.n)[:, None] == 7, 1e39, s.raw))
