@@ -32,7 +32,7 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
-from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, misfit
 
 HEAD1, HEAD2, FMT_TYPE, FMT_LEN = 0xA3, 0x95, 0x80, 89
 
@@ -77,17 +77,28 @@ class DFFormat:
 
 @dataclass
 class DFScan:
+    """Where the messages of a DataFlash log are. ``formats`` and ``offsets`` are
+    keyed by a *format key*: the type id for the first definition of a type, and
+    ``type id + 256 * k`` for its k-th redefinition with another name or layout (a
+    FMT message re-declaring a type id mid-log holds from that point on, as
+    pymavlink's sequential reader does); ``formats[key].type`` is the type id."""
     path: str
     size: int
-    formats: dict                          # type id -> DFFormat
-    offsets: dict                          # type id -> list of offsets
+    formats: dict                          # format key -> DFFormat
+    offsets: dict                          # format key -> list of offsets
     n_messages: int = 0
     bad_regions: list = field(default_factory=list)   # (start, end) of skipped bytes
     truncated_bytes: int = 0               # bytes of a message cut by the end of the file
+    redefinitions: int = 0                 # FMT messages that changed a type's name or layout
+    skipped: list = field(default_factory=list)       # why a would-be gyro format was not read
 
     @property
     def bad_bytes(self):
         return sum(e - s for s, e in self.bad_regions)
+
+    def keys_named(self, name):
+        """Format keys (with messages) of the formats named ``name``, in order of definition."""
+        return [k for k, f in self.formats.items() if f.name == name and k in self.offsets]
 
 
 def _parse_fmt(data, pos):
@@ -99,17 +110,24 @@ def _parse_fmt(data, pos):
     return DFFormat(t, ln, name, fmt, cols.split(",") if cols else [])
 
 
+def _same_layout(a: DFFormat, b: DFFormat):
+    return (a.length, a.name, a.format, a.columns) == (b.length, b.name, b.format, b.columns)
+
+
 def scan(data, path="<bytes>"):
     """Walk a DataFlash log held in ``data`` (bytes); return a :class:`DFScan`."""
     n = len(data)
     lens = {FMT_TYPE: FMT_LEN}
     formats = {FMT_TYPE: DFFormat(FMT_TYPE, FMT_LEN, "FMT", "BBnNZ",
                                   ["Type", "Length", "Name", "Format", "Columns"])}
+    current = {FMT_TYPE: FMT_TYPE}         # type id -> format key now in force
+    generation = {}                        # type id -> redefinitions so far
     offsets = {}
     bad = []
     pos = 0
     count = 0
     truncated = 0
+    redefinitions = 0
     bad_start = None
     find = data.find
     while pos + 3 <= n:
@@ -126,12 +144,21 @@ def scan(data, path="<bytes>"):
                     bad_start = None
                 if t == FMT_TYPE:
                     f = _parse_fmt(data, pos)
-                    if f.length >= 3:
+                    if f.length >= 3 and f.type != FMT_TYPE:
+                        key = current.get(f.type)
+                        if key is None:
+                            key = f.type
+                        elif not _same_layout(formats[key], f):
+                            generation[f.type] = generation.get(f.type, 0) + 1
+                            key = f.type + 256 * generation[f.type]
+                            redefinitions += 1
+                        current[f.type] = key
                         lens[f.type] = f.length
-                        formats[f.type] = f
-                lst = offsets.get(t)
+                        formats[key] = f
+                key = current[t]
+                lst = offsets.get(key)
                 if lst is None:
-                    lst = offsets[t] = []
+                    lst = offsets[key] = []
                 lst.append(pos)
                 count += 1
                 pos = end
@@ -146,7 +173,7 @@ def scan(data, path="<bytes>"):
             truncated = n - pos
     if bad_start is not None:
         bad.append((bad_start, min(pos, n)))
-    return DFScan(path, n, formats, offsets, count, bad, truncated)
+    return DFScan(path, n, formats, offsets, count, bad, truncated, redefinitions)
 
 
 def decode(data, sc: DFScan, type_id):
@@ -158,21 +185,43 @@ def decode(data, sc: DFScan, type_id):
     return rows.view(f.dtype()).reshape(-1)
 
 
+def _gyro_format_problem(f: DFFormat):
+    """Why format ``f`` (named like an IMU) cannot be read as a gyro stream, or None."""
+    missing = [g for g in GYRO_FIELDS if g not in f.columns]
+    if missing:
+        return f"no {'/'.join(missing)} field"
+    if not ("TimeUS" in f.columns or "TimeMS" in f.columns):
+        return "no TimeUS/TimeMS field"
+    try:
+        f.dtype()
+    except ValueError as exc:
+        return str(exc)
+    chars = dict(zip(f.columns, f.format))
+    bad = [g for g in GYRO_FIELDS if chars.get(g) != "f"]
+    if bad:
+        return f"{'/'.join(bad)} not float ('f') in format {f.format!r}"
+    return None
+
+
 def gyro_streams(data, sc: DFScan):
-    """The gyro streams of a scanned log, in file order of first appearance."""
-    streams = []
-    for tid in sorted(sc.offsets, key=lambda t: sc.offsets[t][0]):
-        f = sc.formats.get(tid)
-        if f is None or not IMU_TYPE_RE.match(f.name) or not all(g in f.columns for g in GYRO_FIELDS):
+    """The gyro streams of a scanned log, in file order of first appearance. A
+    type redefined mid-log is read with the layout in force at each message; the
+    messages of one name (and instance) form one stream whatever their format key.
+    A format named like an IMU that cannot be read is skipped, the reason in
+    ``sc.skipped``."""
+    pieces = {}                            # stream name -> [(offsets, time, raw, format name, time column)]
+    for key in sorted(sc.offsets, key=lambda k: sc.offsets[k][0]):
+        f = sc.formats.get(key)
+        if f is None or not IMU_TYPE_RE.match(f.name):
             continue
-        if "TimeUS" in f.columns:
-            tcol, tscale = "TimeUS", 1e-6
-        elif "TimeMS" in f.columns:
-            tcol, tscale = "TimeMS", 1e-3
-        else:
+        why = _gyro_format_problem(f)
+        if why is not None:
+            sc.skipped.append(f"{f.name} (type {f.type}): {len(sc.offsets[key])} messages not read "
+                              f"as gyro: {why}")
             continue
-        rec = decode(data, sc, tid)
-        offs = np.asarray(sc.offsets[tid], dtype=np.int64)
+        tcol, tscale = ("TimeUS", 1e-6) if "TimeUS" in f.columns else ("TimeMS", 1e-3)
+        rec = decode(data, sc, key)
+        offs = np.asarray(sc.offsets[key], dtype=np.int64)
         raw = np.stack([rec[g].astype(np.float64) for g in GYRO_FIELDS], axis=1)
         tt = rec[tcol].astype(np.float64) * tscale
         if "I" in f.columns:
@@ -181,10 +230,18 @@ def gyro_streams(data, sc: DFScan):
         else:
             groups = [(f.name, np.ones(len(rec), dtype=bool))]
         for name, sel in groups:
-            streams.append(GyroStream(
-                name=name, message=f.name, unit="rad/s", to_deg_s=UNIT_TO_DEG_S["rad/s"],
-                time_s=tt[sel], raw=raw[sel], index=offs[sel],
-                note=f"DataFlash {f.name}.GyrX/GyrY/GyrZ (float, rad/s), time {tcol}"))
+            pieces.setdefault(name, []).append((offs[sel], tt[sel], raw[sel], f.name, tcol))
+    streams = []
+    for name, parts in sorted(pieces.items(), key=lambda kv: min(p[0][0] for p in kv[1])):
+        offs = np.concatenate([p[0] for p in parts])
+        order = np.argsort(offs, kind="stable")
+        tcols = sorted({p[4] for p in parts})
+        streams.append(GyroStream(
+            name=name, message=parts[0][3], unit="rad/s", to_deg_s=UNIT_TO_DEG_S["rad/s"],
+            time_s=np.concatenate([p[1] for p in parts])[order],
+            raw=np.concatenate([p[2] for p in parts])[order], index=offs[order],
+            note=f"DataFlash {parts[0][3]}.GyrX/GyrY/GyrZ (float, rad/s), time {'/'.join(tcols)}"
+                 + (f"; {len(parts)} layouts (FMT redefined mid-log)" if len(parts) > 1 else "")))
     streams += batch_sampler_streams(data, sc)
     return streams
 
@@ -205,6 +262,17 @@ def batch_sampler_streams(data, sc: DFScan):
     need_h = {"N", "type", "instance", "mul", "SampleUS", "smp_rate"}
     need_d = {"N", "seqno", "x", "y", "z"}
     if not need_h <= set(fh.columns) or not need_d <= set(fd.columns):
+        return []
+    chars = dict(zip(fd.columns, fd.format))
+    why = None
+    try:
+        fh.dtype(), fd.dtype()
+    except ValueError as exc:
+        why = str(exc)
+    if why is None and any(chars.get(a) != "a" for a in ("x", "y", "z")):
+        why = f"x/y/z not int16[32] ('a') in format {fd.format!r}"
+    if why is not None:
+        sc.skipped.append(f"ISBH/ISBD: batch sampler not read as gyro: {why}")
         return []
     h = decode(data, sc, th)
     d = decode(data, sc, td)
@@ -243,12 +311,37 @@ def batch_sampler_streams(data, sc: DFScan):
 
 
 def gyro_field_offsets(sc: DFScan, message):
-    """Byte offsets of GyrX/GyrY/GyrZ inside a message of type name ``message``."""
+    """Byte offsets of GyrX/GyrY/GyrZ inside a message of type name ``message``
+    (its first definition with gyro fields)."""
     for f in sc.formats.values():
-        if f.name == message:
+        if f.name == message and _gyro_format_problem(f) is None:
             dt = f.dtype()
             return [dt.fields[g][1] for g in GYRO_FIELDS]
     raise KeyError(message)
+
+
+def _gyro_positions(sc: DFScan, s):
+    """Per sample of stream ``s`` (message offsets ``s.index``): the byte offsets
+    of its GyrX/GyrY/GyrZ, (n, 3), from the layout each message was written with."""
+    at = np.full((s.n, 3), -1, dtype=np.int64)
+    for key, f in sc.formats.items():
+        if f.name != s.message or key not in sc.offsets or _gyro_format_problem(f) is not None:
+            continue
+        sel = np.isin(s.index, np.asarray(sc.offsets[key], dtype=np.int64))
+        dt = f.dtype()
+        at[sel] = s.index[sel, None] + np.array([dt.fields[g][1] for g in GYRO_FIELDS])
+    if (at < 0).any():
+        raise ValueError(f"{s.name}: {int((at[:, 0] < 0).sum())} samples not at a {s.message} message")
+    return at
+
+
+def _check_fits(s, dtype):
+    """ValueError when a finite filtered value of ``s`` overflows the float field
+    (never stored as an infinity silently; an infinity or a NaN is stored as itself)."""
+    with np.errstate(invalid="ignore"):
+        bad = np.isfinite(s.filtered) & misfit(s.filtered, dtype)
+    if bad.any():
+        raise ValueError(f"{s.name}: a value does not fit {np.dtype(dtype).name} (check field_misfit first)")
 
 
 def patch(data, sc: DFScan, streams):
@@ -271,11 +364,12 @@ def patch(data, sc: DFScan, streams):
                 at = off + dt.fields[a][1] + 2 * pos
                 buf[at[:, None] + np.arange(2)] = counts[:, k].copy().view(np.uint8).reshape(-1, 2)
             continue
-        fo = gyro_field_offsets(sc, s.message)
+        at = _gyro_positions(sc, s)
+        _check_fits(s, "<f4")
         vals = np.ascontiguousarray(s.filtered, dtype="<f4")      # (n, 3)
         for k in range(3):
             b = vals[:, k].copy().view(np.uint8).reshape(-1, 4)
-            buf[(s.index + fo[k])[:, None] + np.arange(4)] = b
+            buf[at[:, k][:, None] + np.arange(4)] = b
     return out
 
 

@@ -19,7 +19,7 @@ LOG_SUFFIXES = {".tlog": "tlog", ".mavlink": "tlog", ".bin": "dataflash", ".ulg"
 GYRO_LOOKED_FOR = {
     "tlog": "RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3, HIGHRES_IMU",
     "dataflash": "IMU, IMU2, IMU3 with GyrX/GyrY/GyrZ, ISBH/ISBD gyro bursts",
-    "ulog": "sensor_combined.gyro_rad, sensor_gyro",
+    "ulog": "sensor_combined.gyro_rad, sensor_gyro, sensor_gyro_fifo",
 }
 
 
@@ -65,7 +65,8 @@ def _read_dataflash(path):
     facts = dict(messages=sc.n_messages, unreadable_records=len(sc.bad_regions),
                  unreadable_bytes=sc.bad_bytes, truncated=sc.truncated_bytes > 0,
                  truncated_bytes=sc.truncated_bytes,
-                 truncation="message cut by the end of the file" if sc.truncated_bytes else None)
+                 truncation="message cut by the end of the file" if sc.truncated_bytes else None,
+                 streams_skipped=sc.skipped)
     return streams, {"data": data, "sc": sc}, facts
 
 
@@ -82,7 +83,8 @@ def _read_tlog(path, raw_imu_unit, raw_imu_scale):
 def _read_ulog(path):
     u, streams, refs = ulog.read(path)
     cut = ulog.truncated_bytes(path)
-    facts = dict(messages=sum(len(d.data["timestamp"]) for d in u.data_list),
+    facts = dict(messages=sum(len(next(iter(d.data.values()), ())) for d in u.data_list),
+                 streams_skipped=refs.skipped,
                  unreadable_records=None,
                  data_corruption=bool(getattr(u, "file_corruption", False)),
                  truncated=cut > 0, truncated_bytes=max(cut, 0),

@@ -35,6 +35,7 @@ filtered log, and counted per source.
 
 from __future__ import annotations
 
+import math
 import re
 import struct
 from dataclasses import dataclass, field
@@ -441,7 +442,8 @@ class SignedPacketError(ValueError):
 
 def repack(pkt, name, values, signer=None):
     """Packet ``pkt`` (bytes) of message ``name`` with its gyro fields set to
-    ``values`` (3 numbers in the field unit; int16 fields are rounded). A value
+    ``values`` (3 numbers in the field unit; int16 fields are rounded; a float
+    field holds an infinity or a NaN as itself). A value
     that does not fit the field's type raises ValueError (never clipped: the
     callers check :func:`gyrodenoise.flightlog.streams.field_misfit` first and keep the raw
     values). A signed packet is re-signed by ``signer``
@@ -464,7 +466,9 @@ def repack(pkt, name, values, signer=None):
             if not (abs(fv) < 2.0 ** 63 and info.min <= round(fv) <= info.max):
                 raise ValueError(f"{name}.{g}: {v!r} does not fit {dt.name}")
             v = int(round(fv))
-        elif not abs(float(v)) <= np.finfo(dt).max and float(v) == float(v):
+        elif math.isfinite(float(v)) and abs(float(v)) > np.finfo(dt).max:
+            # a finite value the float field cannot hold; an infinity or a NaN (a
+            # damaged sample the filter kept as it was) is stored as itself
             raise ValueError(f"{name}.{g}: {v!r} does not fit {dt.name}")
         full[off:off + dt.itemsize] = np.array(v, dtype=dt).tobytes()
     if v2:
