@@ -38,7 +38,7 @@ import gyrodenoise as gd
 from benchmarks import reference_filters as RF
 from benchmarks.provenance import stamp
 from gyrodenoise.core import kernels as K
-from gyrodenoise.analysis.allan import TERM_NAMES
+from gyrodenoise.units import TERM_SYMBOLS
 from gyrodenoise.analysis.experiments import compare, filter_record, paper_std, rise_time, rmse
 from gyrodenoise.simulator import load_card, simulate
 
@@ -126,7 +126,7 @@ def static_section(key, cfg, seed):
     std = {m: paper_std(y[start:]) for m, y in outs.items()}
     out = {"n": n, "fs": fs, "rows": rows, "bounds": bounds, "std": std, "allan": res,
            "ratio": {m: {t: (rows[m][t] / rows["raw"][t] if rows["raw"][t] > 0 else None)
-                         for t in TERM_NAMES} for m in METHODS}}
+                         for t in TERM_SYMBOLS} for m in METHODS}}
     if key == "fog":
         log("fog: paper Table 1 via experiments.compare")
         cmp = compare(rec, **PAPER_KW)
@@ -465,8 +465,8 @@ def write_report(outdir, R, figs, args, elapsed):
     w("| | N | B | K | R | Q |\n|---|---|---|---|---|---|")
     for m in ("ar_fit", "kf", "shakf"):
         w(f"| paper {m} / raw | " + " | ".join(_g(PAPER_TABLE1[m][t] / PAPER_TABLE1['raw'][t])
-                                               for t in TERM_NAMES) + " |")
-    w("| ours ar_fit / raw | " + " | ".join(_g(cmp["ratio_to_raw"]["ar_fit"][t]) for t in TERM_NAMES) + " |")
+                                               for t in TERM_SYMBOLS) + " |")
+    w("| ours ar_fit / raw | " + " | ".join(_g(cmp["ratio_to_raw"]["ar_fit"][t]) for t in TERM_SYMBOLS) + " |")
     w("\nAR-fit accuracy (1 - |fit - raw| / raw, the paper's \"fitting accuracy\", claimed >= 93.2 %): "
       + ", ".join(f"{t} {_g(100 * v, '.1f') if v is not None else '-'} %" for t, v in cmp["ar_fit_accuracy"].items())
       + f"; identified AR(3): phi = {', '.join(_g(v, '.4f') for v in cmp['ar_model']['phi'])}, "
@@ -528,12 +528,12 @@ def write_report(outdir, R, figs, args, elapsed):
 
 
 def terms_table(st):
-    lines = ["| method | " + " | ".join(TERM_NAMES) + " | " + " | ".join(f"{t} ratio" for t in TERM_NAMES) + " |",
+    lines = ["| method | " + " | ".join(TERM_SYMBOLS) + " | " + " | ".join(f"{t} ratio" for t in TERM_SYMBOLS) + " |",
              "|---|" + "---|" * 10]
     for m in METHODS:
         vals = [(_g(st["rows"][m][t]) + (" (ub)" if st["bounds"][m][t] == "upper_bound" else ""))
-                for t in TERM_NAMES]
-        rat = [_g(st["ratio"][m][t]) for t in TERM_NAMES]
+                for t in TERM_SYMBOLS]
+        rat = [_g(st["ratio"][m][t]) for t in TERM_SYMBOLS]
         lines.append(f"| {LABEL[m]} | " + " | ".join(vals) + " | " + " | ".join(rat) + " |")
     return "\n".join(lines)
 
@@ -614,10 +614,10 @@ def claims(R):
     dyf, dym = R["dyn"]["fog"], R["dyn"]["mems"]
     t2f = R["table2"]["fog"]
     r_sh = fog["ratio"]["shakf"]
-    half = {t: (r_sh[t] is not None and r_sh[t] <= 0.5) for t in TERM_NAMES}
+    half = {t: (r_sh[t] is not None and r_sh[t] <= 0.5) for t in TERM_SYMBOLS}
     ub = {t: fog["bounds"]["raw"][t] == "upper_bound" or fog["bounds"]["shakf"][t] == "upper_bound"
-          for t in TERM_NAMES}
-    better = [t for t in TERM_NAMES if fog["rows"]["shakf"][t] < fog["rows"]["kf"][t]]
+          for t in TERM_SYMBOLS}
+    better = [t for t in TERM_SYMBOLS if fog["rows"]["shakf"][t] < fog["rows"]["kf"][t]]
     std_sh = np.array([r["std"]["shakf"] / r["std"]["raw"] for r in t2f])
     std_kf = np.array([r["std"]["kf"] / r["std"]["raw"] for r in t2f])
     rm_sh = np.array([r["rmse"]["shakf"] / r["rmse"]["raw"] for r in t2f])
@@ -632,8 +632,8 @@ def claims(R):
     rows.append(
         "| 1 | After the modified SHAKF all five Allan coefficients are less than half of the raw ones "
         "(Table 1, Section 4.2) | SHAKF / raw: " + ", ".join(
-            f"{t} {_g(r_sh[t])}{' (ub)' if ub[t] else ''}" for t in TERM_NAMES)
-        + " | " + _verdict(all(half[t] and not ub[t] for t in TERM_NAMES), any(half.values()))
+            f"{t} {_g(r_sh[t])}{' (ub)' if ub[t] else ''}" for t in TERM_SYMBOLS)
+        + " | " + _verdict(all(half[t] and not ub[t] for t in TERM_SYMBOLS), any(half.values()))
         + (" (ratios marked ub compare upper bounds, not measured terms)" if any(ub.values()) else "") + " |")
     rows.append(
         f"| 2 | SHAKF halves bias instability (0.000712 -> 0.000352 deg/h) | B ratio {_g(r_sh['B'])}"

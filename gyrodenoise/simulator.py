@@ -59,24 +59,26 @@ import numpy as np
 
 from .core import simkernels as SK
 from .errors import InputError
-
-DEG_H = 1.0 / 3600.0             # deg/h -> deg/s
-DEG_RTH = 1.0 / 60.0             # deg/sqrt(h) -> deg/sqrt(s)
-DEG_H15 = 1.0 / 3600.0 ** 1.5    # deg/h^1.5 -> deg/s^1.5
-DEG_H2 = 1.0 / 3600.0 ** 2       # deg/h^2 -> deg/s^2
+from .units import NOISE_SECTIONS, TERM_BY_SECTION
 
 # optional on a noise term: the relative 1-sigma of its magnitude between units/runs, drawn per
 # simulated record by the gap workflow's reference (modelgap.population.draw_unit); simulate() and
 # the FMUs simulate the card's value (one unit)
 SPREAD = (False, 0.0, "(relative 1-sigma)")
 SPREAD_GROUP = (False, 0.0, "(terms with the same group number share one draw; 0: none)")
+
+
+def _allan_field(section, minimum):
+    """{field: (required, minimum, unit)} of an Allan term's one field (its symbol, its unit)."""
+    term = TERM_BY_SECTION[section]
+    return {term.symbol: (True, minimum, term.unit)}
+
+
 # term -> {field: (required, minimum, unit)}
 TERM_FIELDS = {
-    "quantization": {"Q": (True, 0.0, "deg"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "angle_random_walk": {"N": (True, 0.0, "deg/sqrt(h)"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "bias_instability": {"B": (True, 0.0, "deg/h"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "rate_random_walk": {"K": (True, 0.0, "deg/h^1.5"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "rate_ramp": {"R": (True, None, "deg/h^2")},
+    **{nm: {**_allan_field(nm, 0.0), "spread": SPREAD, "spread_group": SPREAD_GROUP}
+       for nm in NOISE_SECTIONS},
+    "rate_ramp": _allan_field("rate_ramp", None),
     "constant_bias": {"value": (True, None, "deg/h"), "repeatability": (False, 0.0, "deg/h")},
     "turn_on_transient": {"amplitude": (True, None, "deg/h"), "tau": (True, 1e-300, "s")},
     "gauss_markov": {"sigma": (True, 0.0, "deg/h"), "tau": (True, 1e-300, "s"), "spread": SPREAD, "spread_group": SPREAD_GROUP},

@@ -23,15 +23,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gyrodenoise.units import TERM_BY_SYMBOL, TERM_SYMBOLS
+
 try:
     import numba
 except ImportError:  # pragma: no cover
     numba = None
 
-TERM_NAMES = ("N", "B", "K", "R", "Q")
-UNITS = {"N": "deg/sqrt(h)", "B": "deg/h", "K": "deg/h^1.5", "R": "deg/h^2", "Q": "deg"}
-# value in s-based units (deg/s, s) * factor = value in the spec's units
-TO_SPEC = {"N": 60.0, "B": 3600.0, "K": 3600.0 ** 1.5, "R": 3600.0 ** 2, "Q": 1.0}
 BI_FACTOR = 2.0 * math.log(2.0) / math.pi     # Eq. (40): sigma^2 = (2 ln2 / pi) B^2
 
 
@@ -141,8 +139,8 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
     ok = np.isfinite(a) & (a > 0) & np.isfinite(e)
     t, a, e = t[ok], a[ok], e[ok]
     if t.size == 0:
-        return ({k: 0.0 for k in TERM_NAMES}, {k: "upper_bound" for k in TERM_NAMES},
-                {k: 0.0 for k in TERM_NAMES})
+        return ({k: 0.0 for k in TERM_SYMBOLS}, {k: "upper_bound" for k in TERM_SYMBOLS},
+                {k: 0.0 for k in TERM_SYMBOLS})
     avar = a * a
     rel = e / a                                # relative 1-sigma of adev (cluster count only)
     A = basis(t)
@@ -252,7 +250,7 @@ class AllanResult:
     terms: dict = field(init=False)
 
     def __post_init__(self):
-        self.terms = {k: self.terms_s[k] * TO_SPEC[k] for k in TERM_NAMES}
+        self.terms = {k: self.terms_s[k] * TERM_BY_SYMBOL[k].to_spec for k in TERM_SYMBOLS}
 
     @property
     def adev_deg_h(self):
@@ -281,8 +279,8 @@ class AllanResult:
         return float(np.exp(np.max(np.abs(np.log(model[ok] / adev[ok])))))
 
     def to_json(self):
-        return {"terms": {k: float(self.terms[k]) for k in TERM_NAMES},
-                "units": dict(UNITS),
+        return {"terms": {k: float(self.terms[k]) for k in TERM_SYMBOLS},
+                "units": {k: TERM_BY_SYMBOL[k].unit for k in TERM_SYMBOLS},
                 "bounds": dict(self.bounds),
                 "tau_s": [float(v) for v in self.tau_s],
                 "adev_deg_h": [float(v) for v in self.adev_deg_h],

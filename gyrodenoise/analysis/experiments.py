@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from gyrodenoise.core import kernels as K
-from gyrodenoise.analysis.allan import TERM_NAMES, allan
+from gyrodenoise.analysis.allan import allan
+from gyrodenoise.units import TERM_SYMBOLS
 from gyrodenoise.core.batch import run as batch_run
 from gyrodenoise.simulator import load_card, simulate
 
@@ -113,11 +114,11 @@ def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
     series = {"raw": z, "ar_fit": ar_fit_sequence(p, st, z.shape[0], z[0], seed), **outs}
     start = int(p[K.P_WARMUP]) if skip_warmup and z.shape[0] > 4 * p[K.P_WARMUP] else 0
     results = {k: allan(v[start:], fs) for k, v in series.items()}
-    rows = {k: {t: float(r.terms[t]) for t in TERM_NAMES} for k, r in results.items()}
+    rows = {k: {t: float(r.terms[t]) for t in TERM_SYMBOLS} for k, r in results.items()}
     bounds = {k: dict(r.bounds) for k, r in results.items()}
-    ratio = {k: {t: _ratio(rows[k][t], rows["raw"][t]) for t in TERM_NAMES} for k in ("ar_fit",) + METHODS}
+    ratio = {k: {t: _ratio(rows[k][t], rows["raw"][t]) for t in TERM_SYMBOLS} for k in ("ar_fit",) + METHODS}
     acc = {t: (1.0 - abs(rows["ar_fit"][t] - rows["raw"][t]) / rows["raw"][t]) if rows["raw"][t] > 0 else None
-           for t in TERM_NAMES}
+           for t in TERM_SYMBOLS}
     out = {
         "source": record.source,
         "n_samples": int(z.shape[0]),
@@ -126,7 +127,7 @@ def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
         "rows": rows,
         "bounds": bounds,
         "ratio_to_raw": ratio,
-        "shakf_vs_kf": {t: _ratio(rows["shakf"][t], rows["kf"][t]) for t in TERM_NAMES},
+        "shakf_vs_kf": {t: _ratio(rows["shakf"][t], rows["kf"][t]) for t in TERM_SYMBOLS},
         "ar_fit_accuracy": acc,
         "ar_model": {"order": ar_order, "phi": K.phi(p, st), "c_deg_s": K.rls_c(p, st),
                      "sigma_a_deg_s": float(np.sqrt(max(st[K.S_S2], 0.0)))},

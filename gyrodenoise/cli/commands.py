@@ -12,6 +12,7 @@ from gyrodenoise.cli.options import (MODEL_OPTIONS, add_filter_options, add_reco
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
+from gyrodenoise.units import ALLAN_TERMS, TERM_SYMBOLS
 
 
 def _read(args):
@@ -172,20 +173,18 @@ def public(d):
     return {k: v for k, v in d.items() if not k.startswith("_")}
 
 
-UNIT_LABEL = {"N": "deg/sqrt(h)", "B": "deg/h", "K": "deg/h^1.5", "R": "deg/h^2", "Q": "deg"}
-
-
 def format_terms_table(rows, bounds):
     """Five-term table; '<' marks an upper bound (term not resolved)."""
     names = list(rows)
     lines = [f"{'term (unit)':<20}" + "".join(f"{n:>14}" for n in names)]
-    for t in ("N", "B", "K", "R", "Q"):
+    for term in ALLAN_TERMS:
+        t = term.symbol
         cells = []
         for n in names:
             v = rows[n][t]
             mark = "<" if bounds[n].get(t) == "upper_bound" else " "
             cells.append(f"{mark + format(v, '.4e'):>14}")
-        lines.append(f"{t + ' (' + UNIT_LABEL[t] + ')':<20}" + "".join(cells))
+        lines.append(f"{t + ' (' + term.unit + ')':<20}" + "".join(cells))
     lines.append("('<' = upper bound: the record cannot resolve that term)")
     return "\n".join(lines)
 
@@ -200,7 +199,7 @@ def format_compare(res):
     out.append("")
     names = list(res["ratio_to_raw"])
     out.append(f"{'ratio to raw':<20}" + "".join(f"{n:>14}" for n in names))
-    for t in ("N", "B", "K", "R", "Q"):
+    for t in TERM_SYMBOLS:
         cells = "".join(f"{_fmt(res['ratio_to_raw'][n][t]):>14}" for n in names)
         out.append(f"{t:<20}{cells}")
     poor = {k: v for k, v in res.get("fit_misfit_factor", {}).items() if v is not None and v > POOR_FIT}
@@ -214,7 +213,7 @@ def format_compare(res):
                    "and live links run; `denoise` on a file defaults to the offline form)")
     acc = res["ar_fit_accuracy"]
     out.append("AR fit accuracy (1-|fit-raw|/raw): " +
-               ", ".join(f"{t} {_fmt(acc[t], pct=True)}" for t in ("N", "B", "K", "R", "Q")))
+               ", ".join(f"{t} {_fmt(acc[t], pct=True)}" for t in TERM_SYMBOLS))
     ar = res["ar_model"]
     out.append(f"AR({ar['order']}) model: phi = [{', '.join(f'{v:.4f}' for v in ar['phi'])}], "
                f"c = {ar['c_deg_s']:.4g} deg/s, sigma_a = {ar['sigma_a_deg_s']:.4g} deg/s")

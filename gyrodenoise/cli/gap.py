@@ -12,6 +12,7 @@ from gyrodenoise.cli.options import add_recording_options
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
+from gyrodenoise.units import RATE_TO_DEG_S
 
 
 def register_cli(subparsers):
@@ -27,7 +28,7 @@ def register_cli(subparsers):
                    help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
                         "measurement instead of IN; see docs/bench/gap.md")
     p.add_argument("--allan-unit", default=None,
-                   help="unit of the curve's ADEV columns: deg/s, deg/h or rad/s (required with --allan: "
+                   help=f"unit of the curve's ADEV columns: {', '.join(RATE_TO_DEG_S)} (required with --allan: "
                         "a curve file carries no unit)")
     p.add_argument("--sensor", default=None, help="--allan: the rows of this sensor (file with a sensor column)")
     p.add_argument("--channel", default=None, help="--allan: the rows of this channel")
@@ -155,7 +156,7 @@ def _read_curve(args):
     curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit or "deg/s", args.sample_rate,
                              args.n_samples)
     if args.allan_unit is None:  # the file read well; its numbers mean nothing without their unit
-        raise InputError("the curve's ADEV columns carry no unit: give --allan-unit deg/s, deg/h or rad/s "
+        raise InputError(f"the curve's ADEV columns carry no unit: give --allan-unit {', '.join(RATE_TO_DEG_S)} "
                          "(a rad/s curve read as deg/s would be 57x too small)", args.allan)
     for note in curve.notes:
         log(f"gyrodenoise: note: {args.allan}: {note}")

@@ -38,8 +38,8 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.simulator import Record
+from gyrodenoise.units import RATE_TO_DEG_S
 
-RATE_UNITS = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
 GAP_FACTOR = 1.5
 MIN_SAMPLES = 2
 ABSURD_RATE_DEG_S = 1.0e6   # 2,800 rev/s: no gyro measures that
@@ -80,7 +80,8 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
     rate_column, time_column, true_column : str
         Column names; the time column is optional when ``sample_rate_hz`` is
         given, ``true_column`` is optional.
-    rate_unit : {"deg/s", "deg/h", "rad/s"}
+    rate_unit : str
+        A key of :data:`gyrodenoise.units.RATE_TO_DEG_S`: "deg/s", "deg/h", "rad/s" or "mrad/s".
         Unit of the rate and true-rate columns.
     sample_rate_hz : float, optional
         Sample rate when the file has no time column.
@@ -107,7 +108,7 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
         raise InputError("header only, no data rows", src)
     if n < MIN_SAMPLES:
         raise InputError(f"only {n} data row(s); at least {MIN_SAMPLES} are needed", src)
-    scale = RATE_UNITS[rate_unit]
+    scale = RATE_TO_DEG_S[rate_unit]
     rate = np.asarray(values[i_rate]) * scale
     true = np.asarray(values[i_true]) * scale if i_true is not None else None
     _check_rate_magnitude(rate, values[i_rate], text, rate_column, rate_unit, src)
@@ -130,8 +131,8 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
 
 def _check_arguments(rate_unit, sample_rate_hz, src):
     """InputError for a rate unit or a stated sample rate the reader cannot use."""
-    if rate_unit not in RATE_UNITS:
-        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_UNITS)})", src)
+    if rate_unit not in RATE_TO_DEG_S:
+        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_TO_DEG_S)})", src)
     if sample_rate_hz is not None and not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
         raise InputError(f"sample rate must be a positive number, got {sample_rate_hz!r}", src)
 

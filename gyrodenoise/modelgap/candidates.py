@@ -7,8 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gyrodenoise.modelgap.settings import ALLAN_SHAPES, BI_FACTOR, CARD_FIELD, N_PARAMS
+from gyrodenoise.analysis.allan import BI_FACTOR
+from gyrodenoise.modelgap.settings import CARD_FIELD, N_PARAMS
 from gyrodenoise.modelgap.spectral import AGM_TAU_MAX_S, angle_gm_avar
+from gyrodenoise.units import NOISE_SECTIONS
 
 
 # ------------------------------------------------------------------ candidates
@@ -159,7 +161,7 @@ class _AllanExcess:
         sig_avar = 2.0 * np.maximum(avar_m, avar_s) * ref.sigma["allan"]
         w = 1.0 / sig_avar ** 2
         existing = {nm: (card.terms[nm][CARD_FIELD[nm][0]] / CARD_FIELD[nm][1]) ** 2
-                    for nm in ALLAN_SHAPES if nm in card.terms}
+                    for nm in NOISE_SECTIONS if nm in card.terms}
         rest = np.maximum(avar_s - sum(v * SHAPE[nm](tau) for nm, v in existing.items()), 0.0)
         return cls(tau, avar_m, avar_s, np.sqrt(w), avar_m - rest, existing, z["allan"] >= -limit, limit)
 
@@ -228,7 +230,7 @@ def _allan_shape_candidates(ax):
     that changes them, with them held), and a re-fit of the card's own alone."""
     out = []
     ex_names, ex_cols = ax.ex_names, ax.ex_cols
-    for name in ALLAN_SHAPES:
+    for name in NOISE_SECTIONS:
         fld, to_card = CARD_FIELD[name]
         if name in ax.existing:
             continue
@@ -378,7 +380,7 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
     :func:`.spectral.fit_terms` on the measured Allan variance and Welch-band PSD
     minus what the card's other terms (sinusoids, ramp, transient, bias) add in
     the simulations. None when nothing would change."""
-    from gyrodenoise.modelgap.spectral import ALLAN_TERMS, allan_columns, band_columns, fit_terms, stochastic_specs
+    from gyrodenoise.modelgap.spectral import allan_columns, band_columns, fit_terms, stochastic_specs
     specs, coef = stochastic_specs(card)
     e = layout.band_edges
     band_mean = lambda p: np.array([p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])  # noqa: E731
@@ -396,7 +398,7 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
     if angle_gm and not terms.get("angle_gauss_markov"):
         return None         # the same as the plain re-fit
     changes = []
-    for nm in ALLAN_TERMS:
+    for nm in NOISE_SECTIONS:
         fld, to_card = CARD_FIELD[nm]
         new = math.sqrt(terms[nm]) * to_card
         old = card.terms.get(nm, {}).get(fld)

@@ -20,13 +20,13 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap.settings import CARD_FIELD
+from gyrodenoise.units import NOISE_SECTIONS, RATE_TO_DEG_S
 
 # accepted column names (first match wins)
 TAU_COLS = ("tau_s", "tau")
 ADEV_COLS = ("allan_deviation", "adev")
 LO_COLS = ("adev_lci", "adev_lo", "lower")
 HI_COLS = ("adev_uci", "adev_hi", "upper")
-UNIT_TO_DEG_S = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
 Z95 = 1.959964
 FIT_ROBUST = 10             # Huber re-weightings of the fit (spectral.fit_terms)
 MAX_LINES = 2               # sinusoids the fit may add, only if they bring it inside the bounds at every tau
@@ -60,8 +60,8 @@ def read_allan_curve(path, sensor=None, channel=None, unit="deg/s", sample_rate_
     ``n_samples`` must be given). ``unit`` is the unit of the ADEV columns.
     """
     src = str(path)
-    if unit not in UNIT_TO_DEG_S:
-        raise InputError(f"--allan-unit {unit!r} is not one of {', '.join(UNIT_TO_DEG_S)}", src)
+    if unit not in RATE_TO_DEG_S:
+        raise InputError(f"--allan-unit {unit!r} is not one of {', '.join(RATE_TO_DEG_S)}", src)
     header, body = _read_rows(path, src)
     col = _columns(header)
     body = _select_curve(body, col, sensor, channel, src)
@@ -71,7 +71,7 @@ def read_allan_curve(path, sensor=None, channel=None, unit="deg/s", sample_rate_
         raise InputError(f"the sample rate must be positive, got {fs:g}", src)
     if n < 2 * tau[-1] * fs:
         raise InputError(f"n_samples {n} is too short for tau {tau[-1]:g} s at {fs:g} Hz", src)
-    k = UNIT_TO_DEG_S[unit]
+    k = RATE_TO_DEG_S[unit]
     label = " ".join(x for x in (sensor, channel) if x) or Path(src).name
     return AllanCurve(tau * 1.0, ad * k, lo * k, hi * k, fs, n, label, unit, notes)
 
@@ -232,7 +232,7 @@ def card_from_terms(text, terms, note, source="<card>"):
     from gyrodenoise.simulator import parse_card
     from gyrodenoise.modelgap.cards import edit_card
     card = parse_card(text, source)
-    for nm in ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk"):
+    for nm in NOISE_SECTIONS:
         fld, to_card = CARD_FIELD[nm]
         if terms[nm] > 0:
             text = edit_card(text, nm, {fld: math.sqrt(terms[nm]) * to_card}, nm in card.terms, note, source)

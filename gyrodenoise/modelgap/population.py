@@ -27,20 +27,21 @@ from __future__ import annotations
 import numpy as np
 
 from gyrodenoise.modelgap.cards import card_at_rate, edit_card
+from gyrodenoise.units import NOISE_SECTIONS, TERM_BY_SECTION
 
 SPREAD_STREAM = 952          # first word of the spread draws' seed (IEEE Std 952): numpy default_rng([952, seed])
 DOMINANT_SHARE = 0.8         # a term's spread is estimated where it makes more than 80 % of the card's signature
 TRAIN_SEED_OFFSET = 2 ** 40  # the bootstrap's simulated training records: seeds 2^40 + seed
 # term -> the field that carries its magnitude (what ``spread`` scales)
-SPREAD_FIELDS = {"quantization": "Q", "angle_random_walk": "N", "bias_instability": "B",
-                 "rate_random_walk": "K", "gauss_markov": "sigma", "angle_gauss_markov": "sigma"}
+SPREAD_FIELDS = {**{nm: TERM_BY_SECTION[nm].symbol for nm in NOISE_SECTIONS},
+                 "gauss_markov": "sigma", "angle_gauss_markov": "sigma"}
 
 
 def noise_terms(card):
     """The card's noise terms with a magnitude, in the order of :func:`.spectral.stochastic_specs`:
     list of ``(name, index, params)`` (``index`` within a repeatable term, else None)."""
     out = []
-    for nm in ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk"):
+    for nm in NOISE_SECTIONS:
         if card.terms.get(nm):
             out.append((nm, None, card.terms[nm]))
     for nm in ("gauss_markov", "angle_gauss_markov"):

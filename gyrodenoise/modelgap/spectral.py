@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from gyrodenoise.analysis.spectrum import nperseg_for_length, running_median, segment_count, welch_psd
+from gyrodenoise.units import NOISE_SECTIONS
 
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
 N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
@@ -369,7 +370,6 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
 
 
 # ------------------------------------------------------------------ the joint fit
-ALLAN_TERMS = ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk")
 GM_PER_DECADE = 6
 HUBER_C = 1.5
 LINE_GRID_POINTS = 400     # line frequencies tried in an Allan-curve fit (log-spaced, line_grid)
@@ -398,7 +398,7 @@ def stochastic_specs(card):
     """(specs, s-based squared coefficients) of a card's stochastic terms (dictionary form)."""
     from gyrodenoise.modelgap.settings import CARD_FIELD
     specs, coef = [], []
-    for nm in ALLAN_TERMS:
+    for nm in NOISE_SECTIONS:
         t = card.terms.get(nm)
         if t:
             fld, to_card = CARD_FIELD[nm]
@@ -531,7 +531,7 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
     to its s-based coefficient (0 = not needed), ``"gauss_markov"`` to a list
     of ``(sigma_deg_s, tau_s)``, ``"angle_gauss_markov"`` to a list of ``(sigma_deg, tau_s)``
     and ``"sinusoid"`` to ``(amplitude_deg_s, frequency_hz)``."""
-    specs = [(nm, None) for nm in ALLAN_TERMS] + [("gauss_markov", t) for t in gm_grid(layout)]
+    specs = [(nm, None) for nm in NOISE_SECTIONS] + [("gauss_markov", t) for t in gm_grid(layout)]
     if angle_gm:
         specs += [("angle_gauss_markov", t) for t in agm_grid(layout)]
     A_a = allan_columns(specs, layout.m, layout.fs, bands, lowpass_hz)
@@ -557,9 +557,9 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
             raise ValueError("fit_terms: min_dchi2 compares plain chi^2 (robust=0)")
         n_par = np.array([1 if tc is None else 2 for _, tc in specs] + [2] * (A.shape[1] - len(specs)))
         c = _drop_unneeded(A, b, c, chi2, min_dchi2, n_par)
-    terms = {nm: float(c[i]) for i, nm in enumerate(ALLAN_TERMS)}
+    terms = {nm: float(c[i]) for i, nm in enumerate(NOISE_SECTIONS)}
     for kind in ("gauss_markov", "angle_gauss_markov"):
-        terms[kind] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))
+        terms[kind] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(NOISE_SECTIONS), len(specs))
                        if c[i] > 0 and specs[i][0] == kind]
     terms["sinusoid"] = [(math.sqrt(c[len(specs) + k]), f) for k, f in enumerate(f_lines) if c[len(specs) + k] > 0]
     return terms, A_a @ c, None if A_p is None else A_p @ c
