@@ -78,11 +78,6 @@ def min_segment_samples(sample_rate_hz, band_hz=LOWBAND_HZ):
     return max(int(math.ceil(2.0 * sample_rate_hz / band_hz)), 3 * (2 * LOWBAND_ORDER + 1) + 1)
 
 
-def _segments(n, restarts, finite, skip_samples, min_len):
-    """[(start, stop)] of the finite runs inside sessions (:func:`gyrodenoise.core.sessions.sessions`)."""
-    return sessions(n, restarts, skip_samples=skip_samples, finite=finite, min_len=min_len)
-
-
 def _zero_phase(x, sample_rate_hz, band_hz):
     """Zero-phase (forward-backward) Butterworth low-pass of order
     LOWBAND_ORDER, by the core's ``lowpass`` method (no scipy.signal import,
@@ -106,8 +101,7 @@ def _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_sample
     _zero_phase(np.zeros(1), sample_rate_hz, band_hz)      # checks the band
     finite = np.isfinite(raw) & np.isfinite(filtered)
     out = []
-    for a, b in _segments(len(raw), restarts, finite, skip_samples,
-                          min_segment_samples(sample_rate_hz, band_hz)):
+    for a, b in sessions(len(raw), restarts, skip_samples, finite, min_segment_samples(sample_rate_hz, band_hz)):
         lr = _zero_phase(raw[a:b] - raw[a:b].mean(), sample_rate_hz, band_hz)
         lf = _zero_phase(filtered[a:b] - filtered[a:b].mean(), sample_rate_hz, band_hz)
         out.append((lr - lr.mean(), lf - lf.mean()))
@@ -120,8 +114,7 @@ def lowband(x, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None):
     x = np.asarray(x, dtype=np.float64)
     _zero_phase(np.zeros(1), sample_rate_hz, band_hz)      # checks the band
     out = np.full(len(x), np.nan)
-    for a, b in _segments(len(x), restarts, np.isfinite(x), 0,
-                             min_segment_samples(sample_rate_hz, band_hz)):
+    for a, b in sessions(len(x), restarts, 0, np.isfinite(x), min_segment_samples(sample_rate_hz, band_hz)):
         y = _zero_phase(x[a:b] - x[a:b].mean(), sample_rate_hz, band_hz)
         out[a:b] = y - y.mean()
     return out
@@ -224,7 +217,7 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     ready = noise_ready_samples()
     s0 = K.init_state(p)                 # batch.run does not modify it: each run starts fresh
     vals = []
-    for a, b in _segments(len(x), restarts, np.isfinite(x), 0, ready + 1):
+    for a, b in sessions(len(x), restarts, 0, np.isfinite(x), ready + 1):
         _, _, trace = batch.run(p, s0, x[a:b], None, trace_index=at)
         vals.append(trace[ready:])
     if not vals:
