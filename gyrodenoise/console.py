@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 
 
-def log(msg, *, quiet=False, prefix=""):
+def log(msg: object, *, quiet: bool = False, prefix: str = "") -> None:
     """Print ``prefix + msg`` as one line on stderr (nothing when ``quiet``)."""
     if not quiet:
         print(f"{prefix}{msg}", file=sys.stderr, flush=True)
