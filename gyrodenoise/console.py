@@ -1,7 +1,7 @@
 """Progress and notes for a person: one line on stderr, flushed at once.
 
 stdout is kept for results (``--json`` prints exactly one object there); everything a
-person reads while a command runs goes through :func:`log`.
+person reads while a command runs goes through `log`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """User-facing errors: one line that names the file, field or line and what is wrong.
 
-The CLI turns :class:`InputError` into that line on stderr and exit status 2,
+The CLI turns `InputError` into that line on stderr and exit status 2,
 with no traceback. Library callers get the exception.
 """
 

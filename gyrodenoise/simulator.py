@@ -43,8 +43,8 @@ bias draw and the transient clock (the stochastic processes run on).
 The model itself is ``gyrodenoise/core/gdsim.c`` (its plain-Python twin
 ``core/simkernels.py`` where the extension is not built): this module parses
 cards and adapts. One seeded generator (xoshiro256**, see ``gdsim.h``) draws
-the noise sample by sample, so streaming (:class:`SimStream`, used by
-SimulatedFog.fmu) and batch (:func:`simulate`) give the same numbers, and so do
+the noise sample by sample, so streaming (`SimStream`, used by
+SimulatedFog.fmu) and batch (`simulate`) give the same numbers, and so do
 SimulatedFogNative.fmu and any C host of ``gdsim.c``.
 """
 
@@ -180,7 +180,7 @@ def models_dir() -> Path:
 
 def load_card(path_or_name: CardLike) -> ModelCard:
     """Read a card from a path, or by name from the cards embedded in the package
-    (:func:`models_dir`: ``paper_fog``, ``ln200``, ...)."""
+    (`models_dir`: ``paper_fog``, ``ln200``, ...)."""
     if isinstance(path_or_name, ModelCard):
         return path_or_name
     path = Path(path_or_name)

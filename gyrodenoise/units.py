@@ -1,12 +1,12 @@
 """Units: the one home of the rate units and of the Allan noise terms' names and units.
 
 Inside, rates are deg/s and times s. A rate read in another unit is multiplied by
-:data:`RATE_TO_DEG_S` of that unit (recordings' ``--rate-unit``, published Allan
+`RATE_TO_DEG_S` of that unit (recordings' ``--rate-unit``, published Allan
 curves' ``--allan-unit``, the flight logs' field units).
 
 The Allan noise terms (IEEE Std 952-1997, Annex C; Sun et al. 2016, Eq. (40)) are
 named three ways: a symbol (``N``), a model card's section (``angle_random_walk``)
-and a unit in the spec (``deg/sqrt(h)``). :data:`ALLAN_TERMS` holds the three and
+and a unit in the spec (``deg/sqrt(h)``). `ALLAN_TERMS` holds the three and
 the factor from the s-based value (deg/s, s) to the spec's unit; everything else
 (the Allan fit's output, the CLI's table, the model cards, the model-gap workflow)
 derives its names, labels and factors from it.

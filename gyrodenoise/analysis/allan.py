@@ -71,7 +71,7 @@ def adev(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | No
     rate_deg_s : array_like
     sample_rate_hz : float
     m : array_like of int, optional
-        Cluster sizes; default :func:`default_m`.
+        Cluster sizes; default `default_m`.
     tau_s : array_like, optional
         Averaging times instead of ``m`` (rounded to whole samples).
 
@@ -137,7 +137,7 @@ def fit_terms(tau_s: npt.ArrayLike, adev_deg_s: npt.ArrayLike,
         Term -> "fit" or "upper_bound".
     fitted_s : dict
         The model refitted with the resolved terms only (0 for the others):
-        what :func:`model_adev` should draw.
+        what `model_adev` should draw.
     """
     t = np.asarray(tau_s, dtype=float)
     a = np.asarray(adev_deg_s, dtype=float)
@@ -245,7 +245,22 @@ def model_adev(tau_s: npt.ArrayLike, terms_s: Mapping[str, float]) -> np.ndarray
 
 @dataclass
 class AllanResult:
-    """Allan deviation of a record and its five-term fit (spec section 3)."""
+    """Allan deviation of a record and its five-term fit (spec section 3).
+
+    Attributes
+    ----------
+    tau_s, adev_deg_s, adev_err_deg_s : ndarray
+        Averaging times (s), the overlapping Allan deviation (deg/s) and its 1-sigma error.
+    terms : dict
+        Symbol (N, B, K, R, Q) -> value in the spec's unit (``gyrodenoise.units.ALLAN_TERMS``).
+    terms_s : dict
+        The same in s-based units (deg/s, s).
+    bounds : dict
+        Symbol -> "fit", or "upper_bound" where the record cannot resolve the term.
+    fitted_s : dict
+        The model refitted with the resolved terms only (0 for the others): what
+        `model_adev` draws.
+    """
     tau_s: np.ndarray
     adev_deg_s: np.ndarray
     adev_err_deg_s: np.ndarray
@@ -261,13 +276,16 @@ class AllanResult:
 
     @property
     def adev_deg_h(self) -> np.ndarray:
+        """The Allan deviation in deg/h."""
         return self.adev_deg_s * 3600.0
 
     @property
     def adev_err_deg_h(self) -> np.ndarray:
+        """Its 1-sigma error in deg/h."""
         return self.adev_err_deg_s * 3600.0
 
     def model_adev_deg_h(self, tau_s: npt.ArrayLike | None = None) -> np.ndarray:
+        """The fitted model's Allan deviation (deg/h) at ``tau_s`` (default: the measured taus)."""
         t = self.tau_s if tau_s is None else np.asarray(tau_s, dtype=float)
         return model_adev(t, self.fitted_s) * 3600.0
 
@@ -286,6 +304,7 @@ class AllanResult:
         return float(np.exp(np.max(np.abs(np.log(model[ok] / adev[ok])))))
 
     def to_json(self) -> dict[str, Any]:
+        """Plain JSON: the terms with their units and bounds, the curve in deg/h."""
         return {"terms": {k: float(self.terms[k]) for k in TERM_SYMBOLS},
                 "units": {k: TERM_BY_SYMBOL[k].unit for k in TERM_SYMBOLS},
                 "bounds": dict(self.bounds),

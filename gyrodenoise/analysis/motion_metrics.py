@@ -6,21 +6,21 @@ the slow, real motion survived and how late it came out. Plain functions over
 numpy arrays; the values are in the unit of the input (any unit, the same for
 ``raw`` and ``filtered``), times in seconds, rates in Hz.
 
-* :func:`lowband` -- the 0..``band_hz`` content of a record: zero-phase
+* `lowband` -- the 0..``band_hz`` content of a record: zero-phase
   Butterworth low-pass (order 4, forwards and backwards), per segment, each
   segment's mean removed (a constant offset is not motion).
-* :func:`lowband_kept` -- correlation and amplitude ratio (std filtered / std
+* `lowband_kept` -- correlation and amplitude ratio (std filtered / std
   raw) of the low-band content of the filtered and the raw record: identity
   keeps 1 and 1; a constant output keeps amplitude 0 (correlation undefined).
-* :func:`lag_s` -- the delay of the filtered low band behind the raw low band,
+* `lag_s` -- the delay of the filtered low band behind the raw low band,
   at the peak of their cross-correlation (parabolic interpolation between
   samples), searched within ``max_lag_s``.
-* :func:`envelope_violation` -- the first sample where a filtered record is not
+* `envelope_violation` -- the first sample where a filtered record is not
   finite or leaves the range of the raw samples seen since the last restart.
-* :func:`motion_above_noise` -- whether the raw low band holds motion at all
+* `motion_above_noise` -- whether the raw low band holds motion at all
   (at rest it is noise, and "kept" figures measure noise removed).
-* :func:`motion_loss` -- the warning rule: most of the real motion removed.
-* :func:`white_noise_std` -- the record's white-noise level that motion does not
+* `motion_loss` -- the warning rule: most of the real motion removed.
+* `white_noise_std` -- the record's white-noise level that motion does not
   lift: the core's own estimate (the motion filter's 4th differences at several
   lags, or its spectral noise floor where lower), the level the two functions above
   compare the low band with.
@@ -29,7 +29,7 @@ Segments: a record is cut at each restart (``restarts[i]`` True: sample i is the
 first of a new session) and at every non-finite sample of either record; the
 first ``skip_samples`` samples of each session (a filter's warm-up, when it
 passes the raw samples through) and segments shorter than
-:func:`min_segment_samples` are left out.
+`min_segment_samples` are left out.
 """
 
 from __future__ import annotations
@@ -46,15 +46,15 @@ LOWBAND_HZ = 5.0
 #: order of the Butterworth low-pass that isolates the band (applied forwards and
 #: backwards: zero phase, squared magnitude)
 LOWBAND_ORDER = 4
-#: below this sample rate (Hz) a record is too slow to denoise: :func:`too_slow_to_denoise`
+#: below this sample rate (Hz) a record is too slow to denoise: `too_slow_to_denoise`
 MIN_DENOISE_RATE_HZ = 4.0 * LOWBAND_HZ
-#: warning thresholds of :func:`motion_loss`
+#: warning thresholds of `motion_loss`
 KEPT_AMPLITUDE_MIN = 0.5
 KEPT_CORR_MIN = 0.8
 #: the raw low band "has motion" when its std is this many times the white noise's
-#: share of the band (:func:`lowband_noise_std`)
+#: share of the band (`lowband_noise_std`)
 MOTION_TO_NOISE_MIN = 3.0
-#: default largest lag searched by :func:`lag_s`, s
+#: default largest lag searched by `lag_s`, s
 MAX_LAG_S = 0.5
 
 
@@ -191,20 +191,20 @@ def lag_s(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip
 def white_noise_std(x, sample_rate_hz, restarts=None):
     """The white-noise standard deviation of a record (its unit), an estimate
     that slow motion does not lift, or None (no finite run longer than
-    :func:`noise_ready_samples`).
+    `noise_ready_samples`).
 
     It is the core's own estimate, not a second implementation: the record runs
-    through ``method="motion"`` (:func:`gyrodenoise.core.kernels.motion_step`),
+    through ``method="motion"`` (`gyrodenoise.core.kernels.motion_step`),
     whose noise level R is the smallest over lags L = 1..6 of the running mean
     |4th difference| at lag L (Huber-clipped, 10 s memory) x sqrt(pi / 140), or
-    the spectral noise floor (:func:`gyrodenoise.core.kernels.spectral_floor`,
+    the spectral noise floor (`gyrodenoise.core.kernels.spectral_floor`,
     a low quantile of the spectrum's upper quarter, which tones do not lift)
     where that is more than 1.5x lower.
     A 4th difference cancels any cubic over its 4 L samples, so motion below a
     few Hz adds (2 sin(pi f L / fs))^8 of its power: at 25 Hz, 1 Hz motion
     reaches it at 2e-5 of its power, where the first difference keeps 0.06.
     Returned: sqrt of the median of R over the samples where it has formed
-    (each finite run of each session, after its first :func:`noise_ready_samples`).
+    (each finite run of each session, after its first `noise_ready_samples`).
     On white noise it reads 2-6 % low (the smallest of six running means; 6 %
     at 25 Hz, 2 % at 250 Hz, tested); motion near the
     Nyquist frequency and vibration are not removed. 0.0 for a constant record."""
@@ -227,7 +227,7 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
 
 
 def noise_ready_samples():
-    """Samples of a run before :func:`white_noise_std` reads the core's estimate:
+    """Samples of a run before `white_noise_std` reads the core's estimate:
     the 4th difference at the largest lag (4 x 6) and 32 samples of its mean."""
     from gyrodenoise.core import kernels as K
     return 4 * int(K.motion_params(1.0)[K.P_MO_NLAG - K.P_MO_NF]) + 32
@@ -242,9 +242,9 @@ def lowband_noise_std(white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
 
 
 def motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
-    """True when the raw low band of ``kept`` (a :func:`lowband_kept` result) holds
-    motion clearly above the noise: std at least :data:`MOTION_TO_NOISE_MIN` x
-    :func:`lowband_noise_std` of the raw record's white-noise level
+    """True when the raw low band of ``kept`` (a `lowband_kept` result) holds
+    motion clearly above the noise: std at least `MOTION_TO_NOISE_MIN` x
+    `lowband_noise_std` of the raw record's white-noise level
     ``white_noise_std``; False at rest (the low band is then noise, and what a
     filter removes from it is noise); None when it cannot be told."""
     sr = kept.get("raw_lowband_std")
@@ -257,12 +257,12 @@ def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     """The warning rule: a short reason when the filter removed most of the real
     motion, else None.
 
-    ``kept`` is a :func:`lowband_kept` result, ``white_noise_std`` the raw
+    ``kept`` is a `lowband_kept` result, ``white_noise_std`` the raw
     record's white-noise level (e.g. std of first differences / sqrt 2). The
     raw low band must hold motion clearly above the noise (std at least
-    :data:`MOTION_TO_NOISE_MIN` x :func:`lowband_noise_std`); then the filter
+    `MOTION_TO_NOISE_MIN` x `lowband_noise_std`); then the filter
     is said to remove most of it when the amplitude kept is below
-    :data:`KEPT_AMPLITUDE_MIN` or the correlation below :data:`KEPT_CORR_MIN`."""
+    `KEPT_AMPLITUDE_MIN` or the correlation below `KEPT_CORR_MIN`."""
     if not motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz):
         return None
     amp, corr = kept.get("amplitude_ratio"), kept.get("corr")

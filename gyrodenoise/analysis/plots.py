@@ -131,9 +131,9 @@ def demo_figures(card, rec, res, outdir, ar_order=3, seed=0, **kw):
     """All demo figures into ``outdir``; returns their paths.
 
     The AR figures (Figs 2, 4, 5) show the paper's model, identified by the
-    modified SHAKF's RLS (:func:`gyrodenoise.analysis.experiments.ar_identification`), with
+    modified SHAKF's RLS (`gyrodenoise.analysis.experiments.ar_identification`), with
     the same filter options ``kw`` as the tables. Every figure is checked before it
-    is written (:func:`check_drawn`): an empty figure is an error, not a PNG.
+    is written (`check_drawn`): an empty figure is an error, not a PNG.
     """
     from gyrodenoise.analysis.experiments import ar_identification
     outdir = Path(outdir)
@@ -154,7 +154,7 @@ class EmptyFigureError(RuntimeError):
 
 
 def check_drawn(fig, name):
-    """Raise :class:`EmptyFigureError` unless every panel of ``fig`` shows data.
+    """Raise `EmptyFigureError` unless every panel of ``fig`` shows data.
 
     A panel shows data when at least one of its lines has two or more finite
     points (positive ones on a logarithmic y axis) whose y values are not all

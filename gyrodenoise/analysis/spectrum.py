@@ -5,37 +5,37 @@ Plain functions over numpy arrays (numpy only: no scipy import). Values are in
 the unit of the input (deg/s in the bridge), densities in unit**2/Hz, times in
 s, frequencies in Hz.
 
-* :func:`segments` -- where the Welch segments go: within sessions (a record
+* `segments` -- where the Welch segments go: within sessions (a record
   is cut at each restart and at every non-finite sample), after each session's
   first ``skip_samples`` (a filter's warm-up), half-overlapping.
-* :func:`choose_nperseg` (a target resolution, the bridge's views) and
-  :func:`nperseg_for_length` (a number of segments, the model-gap signatures) --
-  two rules for the segment length; :func:`segment_count` -- how many segments fit.
-* :func:`segment_spectra` / :func:`welch_psd` -- one-sided density, Hann
+* `choose_nperseg` (a target resolution, the bridge's views) and
+  `nperseg_for_length` (a number of segments, the model-gap signatures) --
+  two rules for the segment length; `segment_count` -- how many segments fit.
+* `segment_spectra` / `welch_psd` -- one-sided density, Hann
   window, each segment's mean removed: ``sum(psd) * df`` is the variance
   (Parseval); equal to ``scipy.signal.welch(window="hann", noverlap=nperseg // 2,
   detrend="constant")`` to rounding (tests/analysis/test_spectrum.py). The mean over the
   segments is Welch's estimate; the segments themselves, in time order, are the
-  spectrogram (:func:`spectrogram`).
-* :func:`cross_response` -- the filter's response measured from the raw and
+  spectrogram (`spectrogram`).
+* `cross_response` -- the filter's response measured from the raw and
   filtered records (H1 = S_xf / S_xx, coherence, phase delay); it is the best
   linear description of an adaptive filter, the exact one of a linear filter.
-* :func:`sos_response` -- the computed response of second-order sections
+* `sos_response` -- the computed response of second-order sections
   (the core's Butterworth low-pass).
-* :func:`analyse` -- all of it for a raw/filtered record pair, per axis.
-* :func:`running_median` -- the local level of a spectrum (exact, a width per
+* `analyse` -- all of it for a raw/filtered record pair, per axis.
+* `running_median` -- the local level of a spectrum (exact, a width per
   bin or one for all, ends reflected or repeated).
-* :func:`noise_floor` -- running median of the PSD over a width proportional
+* `noise_floor` -- running median of the PSD over a width proportional
   to the frequency (5..31 bins), corrected for the bias of the median of a
   chi-square variable: robust to the peaks themselves, following a steep slope.
-* :func:`find_peaks` -- local maxima above the floor by a threshold set for a
-  chosen false-alarm probability per spectrum (:func:`peak_threshold`: a Welch
+* `find_peaks` -- local maxima above the floor by a threshold set for a
+  chosen false-alarm probability per spectrum (`peak_threshold`: a Welch
   bin over its median floor treated as F-distributed), and at least
   ``min_ratio``; amplitude = rms of the excess over the floor across the
   window's main lobe.
-* :func:`presence` -- in what share of the segments a peak is there: a line
+* `presence` -- in what share of the segments a peak is there: a line
   all along, or one loud burst that dominates Welch's mean.
-* :func:`group_harmonics` -- a peak within tolerance of n x a lower peak
+* `group_harmonics` -- a peak within tolerance of n x a lower peak
   (n = 2..``max_harmonic``) is that peak's harmonic.
 """
 
@@ -58,12 +58,12 @@ PEAK_HALF_WIDTH_BINS = 3
 #: removal (a notch at DC, two bins wide with the Hann window) and the floor's
 #: 5-bin minimum window, which makes the steep low end of a spectrum look like a peak
 MIN_PEAK_BIN = 4
-#: a segment "holds" a peak when its power there is this many times the floor's (:func:`presence`)
+#: a segment "holds" a peak when its power there is this many times the floor's (`presence`)
 PRESENCE_RATIO = 2.0
-#: default false-alarm probability of :func:`find_peaks`, per spectrum
+#: default false-alarm probability of `find_peaks`, per spectrum
 FALSE_ALARM = 0.01
-#: bins of the running median of :func:`noise_floor` (at most), and its width
-#: either side relative to the bin index (:func:`floor_window_bins`)
+#: bins of the running median of `noise_floor` (at most), and its width
+#: either side relative to the bin index (`floor_window_bins`)
 FLOOR_WINDOW_BINS = 31
 FLOOR_REL_WIDTH = 0.5
 #: variance inflation of a median of neighbouring Hann-window bins (their powers
@@ -148,7 +148,7 @@ def freq_hz(nperseg, sample_rate_hz):
 
 def welch_psd(x, sample_rate_hz, nperseg, restarts=None, skip_samples=0):
     """(freq_hz, psd in unit**2/Hz, number of segments) of one record; psd is None
-    when no segment fits. Segments stay within sessions (see :func:`sessions`)."""
+    when no segment fits. Segments stay within sessions (see `sessions`)."""
     x = np.asarray(x, dtype=np.float64)
     starts = segments(sessions(len(x), restarts, skip_samples, np.isfinite(x)), nperseg)
     f = freq_hz(nperseg, sample_rate_hz)
@@ -265,8 +265,8 @@ def running_median(psd, width_bins, ends="reflect"):
 
 
 def noise_floor(psd, n_segments, window_bins=FLOOR_WINDOW_BINS):
-    """Robust floor of a Welch PSD: a running median (:func:`running_median`, widths
-    of :func:`floor_window_bins`, ends reflected), divided by the median of
+    """Robust floor of a Welch PSD: a running median (`running_median`, widths
+    of `floor_window_bins`, ends reflected), divided by the median of
     chi2(dof)/dof so that it estimates the mean density where there is no peak."""
     psd = np.asarray(psd, dtype=np.float64)
     n = len(psd)
@@ -295,7 +295,7 @@ def peak_threshold(n_bins, n_segments, false_alarm=FALSE_ALARM, window_bins=FLOO
     chi2(dof)/dof, to the floor, itself an estimate: the median of
     ``window_bins`` such bins (a scalar, or one per bin), which varies like a
     chi2 of pi/2 fewer degrees of freedom than their sum, fewer again for the
-    correlation of neighbouring Hann bins (:data:`HANN_BIN_CORR_FACTOR`). White
+    correlation of neighbouring Hann bins (`HANN_BIN_CORR_FACTOR`). White
     noise then gives a false peak in a spectrum with probability about
     ``false_alarm`` (measured in tests/analysis/test_spectrum.py)."""
     dof = welch_dof(n_segments)
@@ -311,9 +311,9 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
     """Vibration peaks of a Welch PSD, strongest first (at most ``max_peaks``).
 
     A peak is a local maximum at or above ``min_freq_hz`` (and bin
-    :data:`MIN_PEAK_BIN`)
-    whose PSD is above the floor (:func:`noise_floor` unless given) by the
-    larger of :func:`peak_threshold` and ``min_ratio``; of two within
+    `MIN_PEAK_BIN`)
+    whose PSD is above the floor (`noise_floor` unless given) by the
+    larger of `peak_threshold` and ``min_ratio``; of two within
     ``half_width_bins`` the higher is kept. Each is a dict: ``freq_hz`` (log-
     parabolic interpolation over 3 bins), ``bin``, ``amplitude_rms`` (square
     root of the excess power over the floor within ``half_width_bins``: the rms
@@ -323,7 +323,7 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
     alone, against its (1 - false_alarm / n_bins) quantile. It answers "is there a
     narrow line at f above the local floor?"; a line wandering wider than the
     window's main lobe and its extent, or a broad bump's extent, are other questions
-    (:mod:`gyrodenoise.modelgap.spectral`)."""
+    (`gyrodenoise.modelgap.spectral`)."""
     f = np.asarray(freq_hz, dtype=np.float64)
     p = np.asarray(psd, dtype=np.float64)
     nb = len(p)
@@ -385,7 +385,7 @@ def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable
     """The spectrum view of a raw/filtered record pair (``(n, m)`` arrays, one
     column per axis), or None when no session holds a segment.
 
-    Welch segments (:func:`choose_nperseg`) over the usable samples (``usable``:
+    Welch segments (`choose_nperseg`) over the usable samples (``usable``:
     bool per sample, default all finite) within sessions; the filter's response
     over those after each session's first ``skip_samples``. Returns a dict:
     ``nperseg``, ``freq_hz``, ``starts`` (segment starts), ``response_segments``,
@@ -393,8 +393,8 @@ def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable
     column), ``power_raw_sum`` (per-segment density summed over the columns: the
     spectrogram's input), ``gain``/``coherence``/``delay_s`` (lists per column;
     None when no segment follows the warm-up or the output equals the input),
-    ``peaks`` (per column, :func:`find_peaks` then :func:`group_harmonics`, each
-    with ``present_in_segments`` (:func:`presence`), ``filtered_amplitude_rms`` at
+    ``peaks`` (per column, `find_peaks` then `group_harmonics`, each
+    with ``present_in_segments`` (`presence`), ``filtered_amplitude_rms`` at
     the same bins, ``filter_gain`` and ``phase_delay_s`` there), ``filtered_is_raw``, and with ``sos`` (second-order
     sections of a linear filter) ``computed_gain`` and ``computed_delay_s``."""
     x = np.asarray(raw, dtype=np.float64)

@@ -81,7 +81,7 @@ def _form_text(args, offline, sample_rate_hz):
 
 def rmse_line(raw, filtered, truth):
     """'RMSE against true_rate over N samples: raw X, filtered Y deg/s (xR)' over the
-    samples where all three are finite (the RMSE of :mod:`gyrodenoise.analysis.experiments`)."""
+    samples where all three are finite (the RMSE of `gyrodenoise.analysis.experiments`)."""
     from gyrodenoise.analysis.experiments import rmse
     raw, filtered, truth = (np.asarray(v, dtype=np.float64) for v in (raw, filtered, truth))
     ok = np.isfinite(raw) & np.isfinite(filtered) & np.isfinite(truth)

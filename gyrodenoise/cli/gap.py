@@ -1,5 +1,5 @@
 """Subcommand ``gap``: the model-gap workflow (spec sections 1 and 4). Parsing and printing only;
-the work is in :mod:`gyrodenoise.modelgap`."""
+the work is in `gyrodenoise.modelgap`."""
 
 from __future__ import annotations
 

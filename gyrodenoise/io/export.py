@@ -113,7 +113,7 @@ def kalibr_imu_yaml(terms: Mapping[str, float], update_rate_hz: float, rostopic:
         The IMU rate the densities refer to (the record's sample rate).
     rostopic : str
     bounds : dict, optional
-        Term -> "fit" / "upper_bound" (from :class:`AllanResult`).
+        Term -> "fit" / "upper_bound" (from `AllanResult`).
     inflate : float
         Factor applied to both densities (>= 1 usual; 1 = the fitted values).
     source : str
@@ -188,7 +188,7 @@ def add_export_options(parser: argparse.ArgumentParser) -> None:
 
 
 def export_from_args(args: argparse.Namespace, allan_result: AllanResult) -> list[str]:
-    """Write the files asked for by :func:`add_export_options`; returns their paths.
+    """Write the files asked for by `add_export_options`; returns their paths.
 
     Raises
     ------

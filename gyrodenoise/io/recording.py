@@ -1,6 +1,6 @@
 """Reading and writing recordings (spec section 2) with the bad-input rules.
 
-Every problem is either a one-line :class:`~gyrodenoise.errors.InputError`
+Every problem is either a one-line `gyrodenoise.errors.InputError`
 naming the file, line and column, or a documented repair recorded in
 ``Record.notes`` (the CLI prints the notes on stderr and in ``--json``):
 
@@ -10,10 +10,10 @@ naming the file, line and column, or a documented repair recorded in
 * columns other than time / rate / true_rate: ignored and reported;
 * a constant rate: accepted (a valid, if dull, record: the filter passes it
   through and the Allan terms are zero) and reported;
-* suspected saturation (a run of at least :data:`SAT_RUN` equal samples at the
+* suspected saturation (a run of at least `SAT_RUN` equal samples at the
   rate column's maximum or minimum): kept as is and reported with the count and
   the first time;
-* isolated spikes (a sample more than :data:`SPIKE_SIGMAS` robust standard
+* isolated spikes (a sample more than `SPIKE_SIGMAS` robust standard
   deviations of the sample-to-sample difference away from both neighbours, in
   the same direction): kept as is and reported; the SHAKF's outlier gate
   (``outlier_sigma``, docs/bench/outliers-soak.md) keeps them out of the filter.
@@ -21,7 +21,7 @@ naming the file, line and column, or a documented repair recorded in
 Errors: missing or unreadable file, empty file, header only, missing rate or
 time column, a value that is not a number, NaN or inf, a short (truncated)
 row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
-no time column and no sample rate, a rate beyond :data:`ABSURD_RATE_DEG_S`
+no time column and no sample rate, a rate beyond `ABSURD_RATE_DEG_S`
 (after unit conversion; not a gyro reading).
 The test suite's corpus of bad recordings holds one file per case.
 """
@@ -79,20 +79,23 @@ SPIKE_ADVICE = ("with --method shakf, kf or sh_classic the outlier gate (--outli
 def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str = "time",
                    rate_unit: str = "deg/s", sample_rate_hz: float | None = None, true_column: str = "true_rate",
                    spike_advice: str = SPIKE_ADVICE) -> Record:
-    """Read a recording CSV into a :class:`Record` (rates in deg/s).
+    """Read a recording CSV into a `Record` (rates in deg/s).
 
     Parameters
     ----------
     path : str or Path
         CSV (optionally gzip-compressed) with a header row.
-    rate_column, time_column, true_column : str
-        Column names; the time column is optional when ``sample_rate_hz`` is
-        given, ``true_column`` is optional.
+    rate_column : str
+        Name of the rate column.
+    time_column : str
+        Name of the time column (s); optional when ``sample_rate_hz`` is given.
     rate_unit : str
         Unit of the rate and true-rate columns, a key of ``gyrodenoise.units.RATE_TO_DEG_S``:
         "deg/s", "deg/h", "rad/s" or "mrad/s".
     sample_rate_hz : float, optional
         Sample rate when the file has no time column.
+    true_column : str
+        Name of the true-rate column (optional in the file).
     spike_advice : str
         The remedy a spike note names (default: the filters' outlier gate).
     """

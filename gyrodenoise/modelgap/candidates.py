@@ -219,7 +219,7 @@ class _AllanExcess:
         return c, c * math.sqrt(float(np.dot(a, a)))
 
     def held_chi2(self, col):
-        """chi^2 of :meth:`held` (the points it uses)."""
+        """chi^2 of `held` (the points it uses)."""
         hc, _ = self.held(col)
         res = ((self.avar_m - self.avar_s - max(hc, 0.0) * col) * self.sw)[self.keep]
         return float(np.dot(res, res))
@@ -264,7 +264,7 @@ def _best_log_tau(chi2, lo_T, hi_T):
 
 
 def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=()):
-    """A term with a correlation time (sigma, tau): tau by :func:`_best_log_tau`, jointly
+    """A term with a correlation time (sigma, tau): tau by `_best_log_tau`, jointly
     with the card's Allan-shaped terms, and (when the card has some) with them held. With
     ``rivals`` (Allan shapes of the same number of parameters that the term tends to at its
     limits), it is proposed only when it fits the Allan variance better than they do by
@@ -377,7 +377,7 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
     """One candidate that re-fits ALL the card's noise terms at once (up, down or to
     zero = removed): Q, N, B, K and the Gauss-Markov terms (with ``angle_gm``, also
     a dictionary of angle Gauss-Markov terms), by
-    :func:`.spectral.fit_terms` on the measured Allan variance and Welch-band PSD
+    `spectral.fit_terms` on the measured Allan variance and Welch-band PSD
     minus what the card's other terms (sinusoids, ramp, transient, bias) add in
     the simulations. None when nothing would change."""
     from gyrodenoise.modelgap.spectral import allan_columns, band_columns, fit_terms, stochastic_specs

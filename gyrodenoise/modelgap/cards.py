@@ -16,7 +16,7 @@ def _fmt_num(v):
 def card_at_rate(text, fs, source="<card>"):
     """Parse a card's text as simulated at ``fs`` Hz (the record's rate).
 
-    The text is re-parsed through :func:`gyrodenoise.simulator.parse_card`
+    The text is re-parsed through `gyrodenoise.simulator.parse_card`
     with ``sensor.sample_rate_hz`` set to ``fs``, so every rate-dependent
     check (a sinusoid above the record's Nyquist frequency) applies at the
     rate the card is actually simulated at; the error names ``source``.
@@ -86,7 +86,7 @@ def _remove_lines(lines, name, note):
 
 
 def _edit_lines(lines, name, params, refit, note):
-    """The edit itself (see :func:`edit_card`); returns the new list of lines."""
+    """The edit itself (see `edit_card`); returns the new list of lines."""
     from gyrodenoise.simulator import REPEATABLE
     if params is None:
         return _remove_lines(lines, name, note)
@@ -174,7 +174,7 @@ def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap",
     table at the end. The edited text is checked by parsing it back: the term
     must then hold exactly ``params``; a layout this function cannot edit
     (e.g. a term written as dotted keys ``name.N = ...`` or a repeatable term
-    written as an inline array) raises :class:`InputError` naming ``source``
+    written as an inline array) raises `InputError` naming ``source``
     and the term.
     """
     new = "\n".join(_edit_lines(text.splitlines(), name, params, refit, note)) + "\n"
@@ -195,8 +195,8 @@ _PROBE_PARAMS = {"quantization": {"Q": 1e-4}, "angle_random_walk": {"N": 0.1}, "
 
 
 def check_editable(card):
-    """Raise :class:`InputError` up front (naming the card and the term) when
-    :func:`edit_card` cannot add or re-fit some term of the vocabulary in the
+    """Raise `InputError` up front (naming the card and the term) when
+    `edit_card` cannot add or re-fit some term of the vocabulary in the
     way this card is written."""
     from gyrodenoise.simulator import parse_card
     for name, params in _PROBE_PARAMS.items():

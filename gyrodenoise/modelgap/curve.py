@@ -2,7 +2,7 @@
 
 The curve (tau, ADEV and, optionally, the lower and upper bounds of its confidence
 interval) replaces the record: the card's noise terms (Q, N, B, K and a dictionary
-of Gauss-Markov processes, :func:`.spectral.fit_terms`) are fitted to the Allan
+of Gauss-Markov processes, `spectral.fit_terms`) are fitted to the Allan
 variance with weights from the bounds, written into the card, and the card is then
 checked by simulation: the mean simulated Allan deviation of ``S`` records of the
 published length and rate must lie inside the published bounds at every tau.
@@ -184,7 +184,7 @@ def _rate_and_length(body, col, sample_rate_hz, n_samples, src):
 
 
 class _CurveLayout:
-    """What :func:`.spectral.fit_terms` needs of a layout when there is no PSD."""
+    """What `spectral.fit_terms` needs of a layout when there is no PSD."""
     def __init__(self, m, fs, n):
         self.m, self.fs, self.n = np.asarray(m, np.int64), float(fs), int(n)
 
@@ -198,11 +198,11 @@ def fit_curve(curve):
     shortest taus of a long record (bounds of +-0.1 %, shaped by the sensor's
     internal filter, which no term represents) do not pull every term off the rest
     of the curve. When the fit is not inside the bounds at every tau, up to
-    MAX_LINES sinusoids are tried (:func:`.spectral.fit_terms`, ``max_lines``) and kept
+    MAX_LINES sinusoids are tried (`spectral.fit_terms`, ``max_lines``) and kept
     only if they bring it inside everywhere (the KVH 1750 curve: one line). When it is
     still outside somewhere, the fit is made again with a dictionary of angle
     Gauss-Markov terms added (white angle noise with a correlation time,
-    :func:`.spectral.agm_grid`) and kept when it is inside at more taus (the LN-200
+    `spectral.agm_grid`) and kept when it is inside at more taus (the LN-200
     curve, whose ADEV falls slightly faster than white noise from 0.16 to 2.6 s).
     Returns (terms, model ADEV at the curve's tau in deg/s)."""
     from gyrodenoise.modelgap.spectral import fit_terms
@@ -228,7 +228,7 @@ def fit_curve(curve):
 
 
 def card_from_terms(text, terms, note, source="<card>"):
-    """The card text with its noise terms replaced by ``terms`` (from :func:`fit_curve`)."""
+    """The card text with its noise terms replaced by ``terms`` (from `fit_curve`)."""
     from gyrodenoise.simulator import parse_card
     from gyrodenoise.modelgap.cards import edit_card
     card = parse_card(text, source)

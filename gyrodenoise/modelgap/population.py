@@ -1,24 +1,24 @@
 """A card as a population: the spread of its noise terms between units or runs, and the
-error of a card estimated from one finite record (for the held-out check, :func:`.heldout_gap`).
+error of a card estimated from one finite record (for the held-out check, `heldout_gap`).
 
 Two things make a held-out record differ from a card fitted on another record beyond the
 simulations' own scatter:
 
 * the units (or runs) differ: a term's ``spread`` (relative 1-sigma of its magnitude;
-  :data:`SPREAD_FIELDS`) is drawn per simulated record, ``magnitude * exp(spread * z)``,
+  `SPREAD_FIELDS`) is drawn per simulated record, ``magnitude * exp(spread * z)``,
   ``z ~ N(0, 1)`` from a generator seeded by ``(SPREAD_STREAM, seed)``, in the layer that
-  builds the reference (:class:`.simulation.Simulator`); the simulator itself (C core,
+  builds the reference (`simulation.Simulator`); the simulator itself (C core,
   FMUs) simulates the card's values. A card without ``spread`` keeps its realisations bit
   for bit (its text is simulated unchanged).
-* the card was itself estimated from one record: :func:`bootstrap_cards` re-estimates the
+* the card was itself estimated from one record: `bootstrap_cards` re-estimates the
   card's term magnitudes on simulated training records of the card (a parametric bootstrap),
   so the held-out reference is a prediction interval, not a confidence interval.
 
 The magnitudes are re-fitted by weighted non-negative least squares of the Allan variance
 (octave taus) and the Welch-band PSD on the card's OWN terms (their correlation times held),
-on the exact columns of :mod:`.spectral`, with the analytic 1-sigma of one record as the
-weights (:class:`MagnitudeFit`). A term's spread is estimated where it (or its
-``spread_group``) makes most of the card's signature (:func:`estimate_spread`), from
+on the exact columns of `spectral`, with the analytic 1-sigma of one record as the
+weights (`MagnitudeFit`). A term's spread is estimated where it (or its
+``spread_group``) makes most of the card's signature (`estimate_spread`), from
 training records that never include the record to be checked.
 """
 
@@ -38,7 +38,7 @@ SPREAD_FIELDS = {**{nm: TERM_BY_SECTION[nm].symbol for nm in NOISE_SECTIONS},
 
 
 def noise_terms(card):
-    """The card's noise terms with a magnitude, in the order of :func:`.spectral.stochastic_specs`:
+    """The card's noise terms with a magnitude, in the order of `spectral.stochastic_specs`:
     list of ``(name, index, params)`` (``index`` within a repeatable term, else None)."""
     out = []
     for nm in NOISE_SECTIONS:
@@ -51,7 +51,7 @@ def noise_terms(card):
 
 def with_magnitudes(text, card, factors, spreads=None, note="drawn unit", groups=None):
     """The card text with each noise term's magnitude multiplied by ``factors[i]`` (order of
-    :func:`noise_terms`) and its ``spread`` set to ``spreads[i]`` (None: the field dropped,
+    `noise_terms`) and its ``spread`` set to ``spreads[i]`` (None: the field dropped,
     a value <= 0 too) and, given ``groups`` ({index: group id}), its ``spread_group``.
     Every other term and field is kept."""
     terms = noise_terms(card)
@@ -78,7 +78,7 @@ def with_magnitudes(text, card, factors, spreads=None, note="drawn unit", groups
 
 def draw_unit(text, seed, source="<card>"):
     """The card text of one simulated unit: each noise term's magnitude times
-    ``exp(spread * z)``, ``z ~ N(0, 1)`` drawn in the order of :func:`noise_terms` (one draw
+    ``exp(spread * z)``, ``z ~ N(0, 1)`` drawn in the order of `noise_terms` (one draw
     per term, spread or not) from ``numpy.random.default_rng([SPREAD_STREAM, seed])``; terms
     with the same ``spread_group`` (> 0) all take the draw of the first of them (their
     magnitudes move together: a group of terms that only together make a part of the signature).
@@ -102,8 +102,8 @@ def draw_unit(text, seed, source="<card>"):
 
 class MagnitudeFit:
     """Weighted NNLS of a record's Allan variance and Welch bands on a card's own noise terms
-    (correlation times held): :meth:`coefficients` of a record, in the s-based squared units of
-    :func:`.spectral.stochastic_specs`. The columns are computed once per card and layout."""
+    (correlation times held): `coefficients` of a record, in the s-based squared units of
+    `spectral.stochastic_specs`. The columns are computed once per card and layout."""
 
     def __init__(self, card, layout, bands=()):
         from gyrodenoise.modelgap.spectral import allan_columns, band_columns, stochastic_specs
@@ -130,7 +130,7 @@ class MagnitudeFit:
         return _nnls_huber(*self._weighted(sig), 0)[0]
 
     def group_factors(self, sig, groups):
-        """Each GROUP of terms (lists of term indices, :func:`noise_terms` order) re-fitted alone
+        """Each GROUP of terms (lists of term indices, `noise_terms` order) re-fitted alone
         to one record by one common factor on its squared magnitudes, on the points where the
         group makes more than DOMINANT_SHARE of the card's own Allan variance or band PSD, every
         other term held at the card's value (weighted least squares of one number, >= 0).
@@ -154,14 +154,14 @@ class MagnitudeFit:
 def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
     """One card per seed, re-estimated from a simulated training record of ``n_train`` samples
     (a parametric bootstrap of the card's estimation error): the card's noise-term magnitudes
-    re-fitted (:class:`MagnitudeFit`) to the simulation of the card (one drawn unit,
-    :func:`draw_unit`) with seed ``TRAIN_SEED_OFFSET + seed`` (streams the held-out reference
+    re-fitted (`MagnitudeFit`) to the simulation of the card (one drawn unit,
+    `draw_unit`) with seed ``TRAIN_SEED_OFFSET + seed`` (streams the held-out reference
     does not use). Each bootstrap card is the card as it would have come out of that training
     record: its expected signatures are the card's plus the fit's error (several terms of a
     dictionary card trade off against each other, so the single magnitudes swing much more
     than the signatures they add up to). Returns ``(texts, factors)``: the per-seed card texts
     (the card's ``spread`` kept) and the amplitude factors ``sqrt(c_j / c)`` (rows: seeds;
-    columns: :func:`noise_terms`; a term the card has at 0 stays 0)."""
+    columns: `noise_terms`; a term the card has at 0 stays 0)."""
     from gyrodenoise.simulator import simulate
     from gyrodenoise.modelgap.metric import Layout, signature
     from gyrodenoise.modelgap.spectral import band_stop
@@ -187,7 +187,7 @@ def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<ca
     records: never the record to be checked), net of the estimator's own error.
 
     Each term's amplitude ``a = sqrt(c)`` is re-fitted on each record alone, where it
-    dominates the card, the other terms held (:meth:`MagnitudeFit.group_factors`; with
+    dominates the card, the other terms held (`MagnitudeFit.group_factors`; with
     ``groups``, lists of term indices, one common factor per group, the group's spread
     given to each of its terms: write them with one ``spread_group``), over the records'
     common length ``n``;
@@ -195,7 +195,7 @@ def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<ca
     itself (``seeds``, length ``n``) gives its own error ``est``; the spread is
     ``sqrt(max(between^2 - est^2, 0))`` (method of moments: what the records differ by
     beyond what one record's estimate scatters). Returns ``(spread, between, est, factors)``
-    (factors: ``a / a_card``, rows records, columns :func:`noise_terms`; terms in no group
+    (factors: ``a / a_card``, rows records, columns `noise_terms`; terms in no group
     get 0 and factor 1)."""
     from gyrodenoise.simulator import simulate
     from gyrodenoise.modelgap.metric import Layout, signature
@@ -222,7 +222,7 @@ def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<ca
 
 
 def spread_text(text, spread, source="<card>", note="spread between the training records", groups=None):
-    """The card text with each noise term's ``spread`` set (order of :func:`noise_terms`) and,
+    """The card text with each noise term's ``spread`` set (order of `noise_terms`) and,
     for each of ``groups`` with more than one term, ``spread_group = k`` (k = 1, 2, ...)."""
     from gyrodenoise.simulator import parse_card
     card = parse_card(text, source)
@@ -234,8 +234,8 @@ def spread_text(text, spread, source="<card>", note="spread between the training
 
 
 def groups_by_tau(card, fs, edges_s=(10.0,)):
-    """Groups of the card's noise terms (lists of indices, :func:`noise_terms` order) for
-    :func:`estimate_spread`: the terms that act as white noise (Gauss-Markov tau < 2 samples),
+    """Groups of the card's noise terms (lists of indices, `noise_terms` order) for
+    `estimate_spread`: the terms that act as white noise (Gauss-Markov tau < 2 samples),
     N, Q, B and K each alone; the other Gauss-Markov and angle Gauss-Markov terms by their
     correlation time, split at ``edges_s``."""
     groups = {}

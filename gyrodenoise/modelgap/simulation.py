@@ -63,10 +63,10 @@ def fmu_path_for(fmu_dir=None, quiet=False):
 class Simulator:
     """Simulate a card text S times at a record's rate and length.
 
-    ``engine="native"`` uses :func:`gyrodenoise.simulator.simulate`;
+    ``engine="native"`` uses `gyrodenoise.simulator.simulate`;
     ``engine="fmu"`` steps SimulatedFog.fmu through fmpy in ``workers``
     processes (one FMU instance per process). A card whose noise terms carry a
-    ``spread`` is simulated as one drawn unit per seed (:func:`.population.draw_unit`);
+    ``spread`` is simulated as one drawn unit per seed (`population.draw_unit`);
     a card without one, as written (bit for bit).
     """
 

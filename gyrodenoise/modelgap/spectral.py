@@ -1,27 +1,27 @@
 """Exact spectra of the card's stochastic terms as simulated, their Allan variances, the
-bands taken out of the comparison (:func:`find_bumps`: broad bumps and lines wandering in
+bands taken out of the comparison (`find_bumps`: broad bumps and lines wandering in
 frequency) with the band-stop shared by the record and its simulations, and the joint
 spectral fit.
 
 Three questions about spectral lines are answered here and in
-:mod:`gyrodenoise.analysis.spectrum`, each with its own statistic:
+`gyrodenoise.analysis.spectrum`, each with its own statistic:
 
 * is there a narrow line at f above the local floor? --
-  :func:`gyrodenoise.analysis.spectrum.find_peaks` (a local maximum whose ratio to the
+  `gyrodenoise.analysis.spectrum.find_peaks` (a local maximum whose ratio to the
   bias-corrected running median passes an F-test at a false-alarm rate per spectrum);
-* is there a line too wide for one sinusoid, and over which bins? -- :func:`wandering_lines`
-  (runs of at least :data:`MIN_LINE_BINS` bins standing :data:`LINE_RATIO` x above the
-  plain running median of the same :func:`gyrodenoise.analysis.spectrum.running_median`,
+* is there a line too wide for one sinusoid, and over which bins? -- `wandering_lines`
+  (runs of at least `MIN_LINE_BINS` bins standing `LINE_RATIO` x above the
+  plain running median of the same `gyrodenoise.analysis.spectrum.running_median`,
   widened over their skirt): a sinusoid, which the card's ``sinusoid`` term gives, must NOT
   be reported, and a wandering line must be reported with its extent, which a per-bin test
   does not give;
-* how far does a broad excess extend? -- :func:`find_bumps` (band means against the lowest
-  band on both sides, then :func:`bump_tail_end`).
+* how far does a broad excess extend? -- `find_bumps` (band means against the lowest
+  band on both sides, then `bump_tail_end`).
 
 A narrow line the card lacks is found by comparison with the card's simulations instead
-(the ``line`` signature's z, :func:`gyrodenoise.modelgap.candidates.propose`), and the
+(the ``line`` signature's z, `gyrodenoise.modelgap.candidates.propose`), and the
 lines of a published Allan curve, which has no spectrum, by the Allan chi^2
-(:func:`_pick_allan_lines`). The F-test of ``find_peaks`` is not used for wandering lines:
+(`_pick_allan_lines`). The F-test of ``find_peaks`` is not used for wandering lines:
 its threshold at the gap's segment count (about 1.6 x the floor for the ring-laser gyro record
 psins_lasergyro.imu: 89 segments, a Bonferroni bound over 2048 bins) accepts runs that
 the fixed 3 x rejects: on that record's x and y axes it adds two and three stop bands
@@ -136,7 +136,7 @@ def lowpass_gain(f, fs, cutoff_hz=None):
 def allan_columns(specs, m, fs, bands=(), lowpass_hz=None):
     """Allan variance at cluster sizes ``m`` of each term in ``specs`` (list of
     (name, tau_s or None)) with unit coefficient, through the stop mask (and the
-    output low-pass :func:`lowpass_gain` when ``lowpass_hz`` is given)."""
+    output low-pass `lowpass_gain` when ``lowpass_hz`` is given)."""
     T = 1.0 / fs
     out = np.zeros((len(m), len(specs)))
     for i, mi in enumerate(np.asarray(m, float)):
@@ -176,7 +176,7 @@ def band_columns(specs, layout, bands=(), lowpass_hz=None):
 
 def record_psd(y, fs):
     """The record's one-sided Welch PSD above DC, with the segments of the gap
-    signatures (:func:`gyrodenoise.analysis.spectrum.nperseg_for_length`): (freq_hz,
+    signatures (`gyrodenoise.analysis.spectrum.nperseg_for_length`): (freq_hz,
     psd, nperseg)."""
     nper = nperseg_for_length(len(y))
     f, p, _ = welch_psd(y, fs, nper)
@@ -185,20 +185,20 @@ def record_psd(y, fs):
 
 def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
     """The bands to take out of the comparison: broad spectral bumps and lines
-    wandering in frequency (:func:`wandering_lines`), [(lo_hz, hi_hz, peak_ratio)].
+    wandering in frequency (`wandering_lines`), [(lo_hz, hi_hz, peak_ratio)].
 
     A bump is a band whose PSD, averaged in log-spaced bands (``per_decade``),
     stands more than ``ratio`` times above the lowest band PSD on BOTH sides within
     a factor ``span`` in frequency (a monotone spectrum - white, 1/f, f^2 - never
-    does; :func:`_bump_flags`) and spans at least :data:`MIN_BUMP_BINS` Welch bins
+    does; `_bump_flags`) and spans at least `MIN_BUMP_BINS` Welch bins
     (a narrower one is a line, for a sinusoid). Each is widened over its flanks
-    (:func:`_widen_run`), reaches down to DC when nothing below it is the sensor's,
-    and up over its tail (:func:`bump_tail_end`). A wandering line inside a bump
+    (`_widen_run`), reaches down to DC when nothing below it is the sensor's,
+    and up over its tail (`bump_tail_end`). A wandering line inside a bump
     is not listed again.
 
     This answers "how far does a broad excess extend?", not "is there a line at
     f?": its test is a ratio of band means to the band floor on both sides, not a
-    per-bin test against a local floor (:func:`gyrodenoise.analysis.spectrum.find_peaks`,
+    per-bin test against a local floor (`gyrodenoise.analysis.spectrum.find_peaks`,
     which would report a bump as a row of peaks and not give its extent)."""
     y = np.asarray(y, float)
     f, p, nper = record_psd(y, fs)
@@ -250,7 +250,7 @@ def _bump_flags(fc, pv, ratio, span):
 
 
 def _widen_run(i, j, fc, pv, span):
-    """Bands ``i..j`` of a bump widened while the PSD stays above :data:`WIDEN` x the
+    """Bands ``i..j`` of a bump widened while the PSD stays above `WIDEN` x the
     lowest band on the far side (within ``span``)."""
     while i > 0:
         left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
@@ -267,7 +267,7 @@ def _widen_run(i, j, fc, pv, span):
 
 def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
     """The bump (lo_hz, hi_hz, peak_ratio) of the bands ``i..j`` (flagged, then widened),
-    or None when it spans fewer than :data:`MIN_BUMP_BINS` Welch bins (a narrow line: a
+    or None when it spans fewer than `MIN_BUMP_BINS` Welch bins (a narrow line: a
     sinusoid's business, not a band to take out)."""
     lo = edges[max(i - 1, 0)][0]
     hi = min(edges[min(j + 1, len(edges) - 1)][1], fs / 2.0)
@@ -288,16 +288,16 @@ def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
 
 def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     """Upper edge (Hz) of a bump with its tail: the base motion falls steeply above the
-    band that :func:`find_bumps` widened (2x its far-side floor), but a tail of 10-50 %
+    band that `find_bumps` widened (2x its far-side floor), but a tail of 10-50 %
     over the sensor's level is left, and the comparison resolves the PSD to ~1 %
     (the RLG's y axis: 1.2-3x from 10 to 15 Hz). The sensor's level is fitted over
-    :data:`TAIL_FIT` x ``hi_hz`` by non-negative least squares (relative weights) on the
+    `TAIL_FIT` x ``hi_hz`` by non-negative least squares (relative weights) on the
     shapes the sensor's terms take above a few Hz - white rate ``1``, white angle
     ``sin^2(pi f T)`` - and extrapolated down (a third shape falling like ``1 / sin^2(pi f
     T)`` is not separable from these over the span and extrapolated the noise of the fit:
     on seeded records it stops the edge with half the tail left). The edge moves up over
-    each chunk of :data:`TAIL_BINS` Welch bins whose mean stands more than
-    :data:`TAIL_SE` standard errors of a chunk (``1 / sqrt(1.8 K TAIL_BINS)``, ``K``
+    each chunk of `TAIL_BINS` Welch bins whose mean stands more than
+    `TAIL_SE` standard errors of a chunk (``1 / sqrt(1.8 K TAIL_BINS)``, ``K``
     Welch segments) above it, and stops at the first two chunks in a row that do not
     (or at the fitted span). Unchanged when the fitted span
     does not fit below the top Welch bin. ``p``: the PSD with the wandering lines
@@ -327,7 +327,7 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
 
 
 def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
-    """Lines too wide for one sinusoid: runs spanning at least :data:`MIN_LINE_BINS`
+    """Lines too wide for one sinusoid: runs spanning at least `MIN_LINE_BINS`
     Welch bins (gaps of up to LINE_BRIDGE_BINS bins bridged) that stand more than ``ratio`` times
     above the running median of the PSD over ``window_hz``. A sinusoid stays within
     the Hann main lobe (4 bins; about 3 above 3x for a line 15x its floor); a line
@@ -335,7 +335,7 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
     segments a noise bin 3x above the median is ~13 standard deviations off (a fixed
     ratio to the plain running median, not the F-test of
-    :func:`gyrodenoise.analysis.spectrum.find_peaks`: see the module docstring).
+    `gyrodenoise.analysis.spectrum.find_peaks`: see the module docstring).
     Each run is then widened over its skirt: while a bin within LINE_BRIDGE_BINS of
     its edge stands above SKIRT_RATIO x the median (a line wandering over a band
     leaves weaker lobes beside its strongest run: the RLG y axis at 10.0-11.0 Hz).
@@ -490,7 +490,7 @@ def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
 
 
 def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
-    """Greedy choice of up to ``max_lines`` sinusoids (frequencies of :func:`line_grid`)
+    """Greedy choice of up to ``max_lines`` sinusoids (frequencies of `line_grid`)
     for an Allan-curve fit: each step adds the line that lowers the plain chi^2 most.
     The lines are kept only when, with them, the model is inside the published bounds
     at every tau (``inside_fn(model_avar)``) and it is not without them: a line is not spent
@@ -518,15 +518,15 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
               max_lines=0, inside_fn=None, angle_gm=False, min_dchi2=0.0):
     """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
     the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
-    Gauss-Markov processes (:func:`gm_grid`), each through the stop mask; with
-    ``angle_gm`` also a dictionary of angle Gauss-Markov terms (:func:`agm_grid`).
+    Gauss-Markov processes (`gm_grid`), each through the stop mask; with
+    ``angle_gm`` also a dictionary of angle Gauss-Markov terms (`agm_grid`).
 
-    ``robust``: that many Huber re-weightings (:func:`_nnls_huber`).
+    ``robust``: that many Huber re-weightings (`_nnls_huber`).
     ``max_lines`` (Allan curve only, ``psd_target`` None): up to that many sinusoids
-    (:func:`_pick_allan_lines`), kept only when they bring the model inside the bounds
+    (`_pick_allan_lines`), kept only when they bring the model inside the bounds
     (``inside_fn(model_avar) -> bool``) at every point.
     ``min_dchi2`` > 0: a term stays only when leaving it out (the others re-fitted)
-    raises the plain chi^2 by at least that much (:func:`_drop_unneeded`).
+    raises the plain chi^2 by at least that much (`_drop_unneeded`).
     Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
     to its s-based coefficient (0 = not needed), ``"gauss_markov"`` to a list
     of ``(sigma_deg_s, tau_s)``, ``"angle_gauss_markov"`` to a list of ``(sigma_deg, tau_s)``

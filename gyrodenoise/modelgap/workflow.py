@@ -1,4 +1,4 @@
-"""The workflow: score candidates, choose, edit the card, repeat (:func:`gap`)."""
+"""The workflow: score candidates, choose, edit the card, repeat (`gap`)."""
 
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ from gyrodenoise.modelgap.spectral import band_stop, find_bumps
 # ------------------------------------------------------------------ the workflow
 @dataclass
 class GapResult:
-    """Outcome of :func:`gap`."""
+    """Outcome of `gap`."""
     effects_added: list
     gap_before: float
     gap_after: float
@@ -66,7 +66,7 @@ class GapResult:
         return bool(self.iterations[-1].get("within_scatter", False))
 
     def to_json(self):
-        """Plain JSON (every float finite or null, see :func:`_finite`)."""
+        """Plain JSON (every float finite or null, see `_finite`)."""
         return _finite({"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"],
                                            "iteration": e["iteration"]}
                                           for e in self.effects_added],
@@ -84,7 +84,7 @@ class GapResult:
 
 
 def _finite(obj):
-    """A copy of a JSON-able structure with every float through :func:`_f` (NaN/inf -> None)."""
+    """A copy of a JSON-able structure with every float through `_f` (NaN/inf -> None)."""
     if isinstance(obj, dict):
         return {k: _finite(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -131,7 +131,7 @@ def explainable(zs):
 
 def robust_gap(z, mask=None):
     """The gap used to CHOOSE candidates: every point's ``z^2`` capped at
-    :data:`Z2_CAP` (``|z| = 5``), and, given ``mask`` (:func:`explainable`), the
+    `Z2_CAP` (``|z| = 5``), and, given ``mask`` (`explainable`), the
     points that no candidate brings within the cap left out (they count 0).
 
     A candidate is then judged by how many points it brings into agreement,
@@ -221,13 +221,13 @@ def welch_band_rel_sd(layout):
 
 
 def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
-    """The noise terms fitted to the record's signatures alone (:func:`.spectral.fit_terms`;
+    """The noise terms fitted to the record's signatures alone (`spectral.fit_terms`;
     weights: the analytic 1-sigma of one record's Allan variance and, unless
     ``psd_rel_sd`` is given, ``metric._floors``' for its Welch bands). With ``min_dchi2``
     > 0 a term is kept only when leaving it out (the others re-fitted) raises the fit's
     chi^2 by more than that: with ``INITIAL_DCHI2`` and ``welch_band_rel_sd(layout)`` a
     white-noise record comes out as angle random walk alone (the workflow's
-    :func:`_initial_fit` does not apply this rule: docs/bench/gap.md, "Initial fit")."""
+    `_initial_fit` does not apply this rule: docs/bench/gap.md, "Initial fit")."""
     from gyrodenoise.modelgap.metric import _floors
     from gyrodenoise.modelgap.spectral import fit_terms
     fl = _floors(sig_m, layout)
@@ -239,7 +239,7 @@ def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
 
 
 def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
-    """Write the noise terms fitted to the record alone (:func:`initial_terms`) into a
+    """Write the noise terms fitted to the record alone (`initial_terms`) into a
     card that has none; appends to ``effects``."""
     terms = initial_terms(sig_m, layout, bands)
     note = f"initial fit to {Path(str(source)).name}"
@@ -291,14 +291,51 @@ def _top_disagrees(z):
 def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
         fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None,
         outliers=False):
-    """Find what a model card misses to behave like a measured record (see :func:`_gap_once`).
+    """Find what a model card misses to behave like a measured record.
 
     With ``stop_bands="auto"``, when the card cannot be brought within the scatter
-    and what still disagrees sits at the top of the band (:func:`_top_disagreement`:
-    the sensor's internal low-pass filter, which no term of the vocabulary
-    represents), the workflow goes on from the card reached, with that top band
-    taken out of the comparison as well (named in ``named``); ``gap_before`` stays
-    the first pass's and the iterations of both passes are kept."""
+    and what still disagrees sits at the top of the band (the sensor's internal
+    low-pass filter, which no term of the vocabulary represents), the workflow goes
+    on from the card reached, with that top band taken out of the comparison as well
+    (named in ``named``); ``gap_before`` stays the first pass's and the iterations
+    of both passes are kept.
+
+    Parameters
+    ----------
+    rate_deg_s : array_like
+        Measured rate (deg/s), fixed sample rate.
+    sample_rate_hz : float
+    card : ModelCard, path or card name
+    seeds : int or list of int
+        Simulated records per evaluation (int S: seeds 1..S).
+    engine : {"native", "fmu"}
+        Simulator for the reported gaps; candidates are screened with the
+        native engine (bit-identical to the FMU).
+    restarts : array_like of bool, optional
+    max_effects : int
+        Most effects added (a joint re-fit of the noise terms counts as one).
+    fmu_dir : path, optional
+        Folder of SimulatedFog.fmu (engine "fmu"; default build/, built when missing).
+    workers : int, optional
+        Processes for the FMU engine (default: one per seed, up to the cores).
+    source : str
+        The record's name in messages.
+    quiet : bool
+        No progress lines on stderr.
+    stop_bands : "auto", list of (lo_hz, hi_hz) or None
+        Spectral bumps (base vibration, dither) taken out of the comparison by
+        one band-stop applied alike to the record and to every simulation;
+        "auto": `spectral.find_bumps`; None or []: none.
+    latitude_deg : float, optional
+        Where the record was taken: a fitted constant bias is compared with the
+        Earth's rotation there (`effects.name_effects`).
+    outliers : bool
+        Replace isolated outliers by the running median before the comparison.
+
+    Returns
+    -------
+    GapResult
+    """
     n_out = 0
     if outliers:
         from gyrodenoise.modelgap.effects import screen_outliers
@@ -341,7 +378,7 @@ def _with_outliers(res, n_out, n):
 
 @dataclass
 class _Pass:
-    """What one pass of the workflow (:func:`_gap_once`) holds fixed: the record and
+    """What one pass of the workflow (`_gap_once`) holds fixed: the record and
     its signatures, the simulator, the stop bands, and where the card came from."""
     y: np.ndarray
     fs: float
@@ -378,7 +415,7 @@ def _seed_list(seeds):
 
 def _resolve_stop_bands(y, fs, stop_bands):
     """The bands taken out of the comparison, [(lo_hz, hi_hz, peak ratio or NaN when
-    given)]: :func:`.spectral.find_bumps` for ``"auto"``; InputError for a bad band."""
+    given)]: `spectral.find_bumps` for ``"auto"``; InputError for a bad band."""
     if isinstance(stop_bands, str):
         if stop_bands != "auto":
             raise InputError(f"stop_bands must be 'auto', None or a list of (lo_hz, hi_hz), got {stop_bands!r}")
@@ -403,7 +440,7 @@ def _thresholds(ref):
 
 def _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir, workers, source, quiet,
                 stop_bands):
-    """Check the inputs and set up one pass: (:class:`_Pass`, card text, stop bands, seeds)."""
+    """Check the inputs and set up one pass: (`_Pass`, card text, stop bands, seeds)."""
     from gyrodenoise.simulator import load_card
     y = check_record(rate_deg_s, source)
     fs = float(sample_rate_hz)
@@ -426,7 +463,7 @@ def _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_d
 def _first_card(ctx, text, effects):
     """The card the loop starts from and its simulations: an empty (or deterministic-only)
     card starts from the noise terms fitted to the record alone, with the analytic scatter
-    of one record as the weights (:func:`_initial_fit`; appends to ``effects``)."""
+    of one record as the weights (`_initial_fit`; appends to ``effects``)."""
     sims = ctx.sim.run(text)
     if not np.any([np.std(s_) > 0 for s_ in sims]):
         text = _initial_fit(text, ctx.sig_m, ctx.layout, ctx.bands, card_at_rate(text, ctx.fs, ctx.csrc), ctx.csrc,
@@ -439,34 +476,7 @@ def _first_card(ctx, text, effects):
 
 def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
               fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None):
-    """Find what a model card misses to behave like a measured record.
-
-    Parameters
-    ----------
-    rate_deg_s : array_like
-        Measured rate (deg/s), fixed sample rate.
-    sample_rate_hz : float
-    card : ModelCard, path or card name
-    seeds : int or list of int
-        Simulated records per evaluation (int S: seeds 1..S).
-    engine : {"native", "fmu"}
-        Simulator for the reported gaps; candidates are screened with the
-        native engine (bit-identical to the FMU).
-    restarts : array_like of bool, optional
-    max_effects : int
-        Most effects added (a joint re-fit of the noise terms counts as one).
-    stop_bands : "auto", list of (lo_hz, hi_hz) or None
-        Spectral bumps (base vibration, dither) taken out of the comparison by
-        one band-stop applied alike to the record and to every simulation;
-        "auto": :func:`.spectral.find_bumps`; None or []: none.
-    latitude_deg : float, optional
-        Where the record was taken: a fitted constant bias is compared with the
-        Earth's rotation there (:func:`.effects.name_effects`).
-
-    Returns
-    -------
-    GapResult
-    """
+    """One pass of `gap` (its parameters), with the stop bands as given."""
     ctx, text, bumps, seed_list = _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir,
                                               workers, source, quiet, stop_bands)
     effects, iterations, limitations = [], [], []
@@ -534,11 +544,11 @@ def _score(c):
 
 
 def _candidates(ctx, card, ref, z, it):
-    """The candidates of one iteration: :func:`.candidates.propose`, the joint re-fits
-    (:func:`.candidates.spectral_refit`, plain and with angle Gauss-Markov terms: the
+    """The candidates of one iteration: `candidates.propose`, the joint re-fits
+    (`candidates.spectral_refit`, plain and with angle Gauss-Markov terms: the
     fallback, marked ``fallback``) when the Allan or PSD signatures disagree, and only
     the constant bias when the record mean is off deterministically
-    (:func:`deterministic_offset`)."""
+    (`deterministic_offset`)."""
     cands = propose(ctx.y, ctx.layout, ref, z, card, ctx.restarts)
     if np.any(np.abs(z["allan"]) > 3.0) or np.any(np.abs(z["psd"]) > 3.0):
         for agm in (False, True):   # the fallback: tried when no single effect (or pair) will do
@@ -586,12 +596,12 @@ def _simulate_candidate(ctx, c, text, ref, z, limitations):
 
 def _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold):
     """The candidate accepted in this iteration, or None: every candidate simulated and
-    scored (:func:`robust_gap` over the points some candidate explains, plus
-    :func:`widening`, penalised per parameter), then the acceptance rules in turn:
+    scored (`robust_gap` over the points some candidate explains, plus
+    `widening`, penalised per parameter), then the acceptance rules in turn:
     a score below MIN_IMPROVEMENT x the card's, a pair of candidates
-    (:func:`_best_pair`), the joint re-fit (:func:`_with_fallback`), a 4x smaller plain
-    gap (:func:`_on_plain_gap`), and the card brought within the scatter
-    (:func:`_within_scatter`). Records the candidates in ``it``."""
+    (`_best_pair`), the joint re-fit (`_with_fallback`), a 4x smaller plain
+    gap (`_on_plain_gap`), and the card brought within the scatter
+    (`_within_scatter`). Records the candidates in ``it``."""
     cands = _candidates(ctx, card_at_rate(text, ctx.fs, ctx.csrc), ref, z, it)
     for c in cands:
         _simulate_candidate(ctx, c, text, ref, z, limitations)
@@ -682,8 +692,8 @@ def _within_scatter(cands, best, g, rg, threshold, comp_threshold):
     """The loop's own stop test: a candidate that brings the card within the scatter (its
     gap and every component below their thresholds), no worse capped with the widening
     charged, is accepted although its score gains less than the rule asks. Not applied
-    while the top of the band still disagrees in the first pass (:func:`_choose`): that
-    band is taken out next (:func:`gap`), and the card is judged without it. Returns
+    while the top of the band still disagrees in the first pass (`_choose`): that
+    band is taken out next (`gap`), and the card is judged without it. Returns
     (best, accepted)."""
     inside = [c for c in {id(c): c for c in cands}.values()
               if c.gap <= threshold and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
@@ -700,7 +710,7 @@ def white_level_factor(y, fs, card, bands=()):
     with tau < 2 samples, which act as white noise) would be scaled to fit record ``y``,
     every other term held: weighted least squares (``s^2 >= 0``) of the record's Allan
     variance at the octave taus, through the stop bands, on the exact columns of
-    :mod:`.spectral`, with the analytic 1-sigma of one record as the weights."""
+    `spectral`, with the analytic 1-sigma of one record as the weights."""
     from gyrodenoise.modelgap.metric import _floors
     from gyrodenoise.modelgap.spectral import allan_columns, stochastic_specs
     layout = Layout.for_record(len(y), fs)
@@ -724,7 +734,7 @@ def _acts_as_white(name, tau_s, fs):
 
 
 def _scale_white(text, card, s, fs, note):
-    """The card text with its white noise (see :func:`white_level_factor`) scaled by ``s``."""
+    """The card text with its white noise (see `white_level_factor`) scaled by ``s``."""
     from gyrodenoise.modelgap.population import noise_terms, with_magnitudes
     terms = noise_terms(card)
     factors = [s if _acts_as_white(nm, p.get("tau", 0.0), fs) else 1.0 for nm, _, p in terms]
@@ -733,7 +743,7 @@ def _scale_white(text, card, s, fs, note):
 
 def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
     """One evaluation of record ``y`` (no fitting) against a reference whose simulation ``j``
-    is card ``j`` of :func:`.population.bootstrap_cards` (the card re-estimated on a simulated
+    is card ``j`` of `population.bootstrap_cards` (the card re-estimated on a simulated
     training record of ``n_train`` samples) simulated with seed ``j``: a prediction interval."""
     from gyrodenoise.modelgap.effects import name_effects
     from gyrodenoise.modelgap.population import bootstrap_cards, relative_error
@@ -766,12 +776,12 @@ def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, r
     With ``refit_bias`` the card's constant bias is first set to this record's mean:
     a turn-on bias differs from run to run (its spread is the term's
     ``repeatability``), the card's noise is what is checked. The same stop bands
-    as in the fit. Returns the :class:`GapResult` of that single evaluation
+    as in the fit. Returns the `GapResult` of that single evaluation
     (``within_scatter``, ``gap_after``, ``threshold``).
 
     ``refit_white`` (an option, NOT the default held-out check): the card's white-noise
     level is also re-fitted to this record, every other term held
-    (:func:`white_level_factor`; N and the Gauss-Markov terms shorter than 2 samples
+    (`white_level_factor`; N and the Gauss-Markov terms shorter than 2 samples
     scaled by one factor, reported in ``named``). This checks the card's SHAPE - its
     correlated terms, filter, bands - on a run whose white-noise level differs (a
     sensor's ARW varies from run to run and unit to unit, like its turn-on bias); it
@@ -779,13 +789,13 @@ def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, r
     the held-out record.
 
     ``card_error`` (an option, NOT the default): the reference is a prediction interval
-    that includes the card's own estimation error (:func:`_heldout_population`): simulation
+    that includes the card's own estimation error (`_heldout_population`): simulation
     ``j`` comes from the card re-estimated on a simulated training record of ``n_train``
     samples (default: as long as this record; give the length of the record the card was
     fitted on). Nothing is fitted to the held-out record (but its bias, as above).
 
     The card's ``spread`` fields (relative 1-sigma of a term's magnitude between units,
-    :mod:`.population`), when it has them, are drawn per simulation in every case: the
+    `population`), when it has them, are drawn per simulation in every case: the
     reference is then the population of units, not one unit. The default held-out check
     (no option) is the plain one: the card as written, S seeded simulations."""
     from gyrodenoise.simulator import parse_card
