@@ -303,7 +303,7 @@ class Record:
     """A gyro record: rate in deg/s at a fixed sample rate."""
     rate_deg_s: np.ndarray
     sample_rate_hz: float
-    time_s: np.ndarray | None = None
+    time_s: np.ndarray = None  # type: ignore[assignment]  # left out: arange(n) / sample_rate_hz
     true_rate_deg_s: np.ndarray | None = None
     restarts: np.ndarray | None = None
     source: str = ""

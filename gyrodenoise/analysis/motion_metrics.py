@@ -35,8 +35,11 @@ passes the raw samples through) and segments shorter than
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.core.sessions import sessions
 
@@ -58,7 +61,7 @@ MOTION_TO_NOISE_MIN = 3.0
 MAX_LAG_S = 0.5
 
 
-def too_slow_to_denoise(sample_rate_hz, band_hz=LOWBAND_HZ):
+def too_slow_to_denoise(sample_rate_hz: float | None, band_hz: float = LOWBAND_HZ) -> bool:
     """True when samples come too slowly for denoising to keep the motion.
 
     The threshold is 4 x ``band_hz`` (20 Hz for the 5 Hz motion band): the
@@ -71,14 +74,14 @@ def too_slow_to_denoise(sample_rate_hz, band_hz=LOWBAND_HZ):
     return sample_rate_hz is None or not sample_rate_hz >= 4.0 * band_hz
 
 
-def min_segment_samples(sample_rate_hz, band_hz=LOWBAND_HZ):
+def min_segment_samples(sample_rate_hz: float, band_hz: float = LOWBAND_HZ) -> int:
     """Shortest segment the low band is measured on: two periods of the band
     edge, and at least 3 x (2 x order + 1) + 1 samples (the forward-backward
     filter's padding)."""
     return max(int(math.ceil(2.0 * sample_rate_hz / band_hz)), 3 * (2 * LOWBAND_ORDER + 1) + 1)
 
 
-def _zero_phase(x, sample_rate_hz, band_hz):
+def _zero_phase(x: npt.ArrayLike, sample_rate_hz: float, band_hz: float) -> np.ndarray:
     """Zero-phase (forward-backward) Butterworth low-pass of order
     LOWBAND_ORDER, by the core's ``lowpass`` method (no scipy.signal import,
     which costs ~1 s of a bridge run; the core's cascade equals
@@ -91,7 +94,8 @@ def _zero_phase(x, sample_rate_hz, band_hz):
                    zero_phase=True)
 
 
-def _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_samples):
+def _lowband_pairs(raw: npt.ArrayLike, filtered: npt.ArrayLike, sample_rate_hz: float, band_hz: float, restarts: npt.ArrayLike | None,
+                   skip_samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """[(raw low band, filtered low band)] per kept segment, means removed."""
     raw = np.asarray(raw, dtype=np.float64)
     filtered = np.asarray(filtered, dtype=np.float64)
@@ -108,7 +112,8 @@ def _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_sample
     return out
 
 
-def lowband(x, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None):
+def lowband(x: npt.ArrayLike, sample_rate_hz: float, band_hz: float = LOWBAND_HZ,
+            restarts: npt.ArrayLike | None = None) -> np.ndarray:
     """The 0..``band_hz`` content of ``x``, each segment's mean removed; NaN on
     samples outside the measured segments (see the module's docstring)."""
     x = np.asarray(x, dtype=np.float64)
@@ -120,7 +125,8 @@ def lowband(x, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None):
     return out
 
 
-def lowband_kept(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip_samples=0):
+def lowband_kept(raw: npt.ArrayLike, filtered: npt.ArrayLike, sample_rate_hz: float, band_hz: float = LOWBAND_HZ,
+                 restarts: npt.ArrayLike | None = None, skip_samples: int = 0) -> dict[str, Any]:
     """How much of the raw record's 0..``band_hz`` motion the filtered record kept.
 
     Returns a dict:
@@ -133,7 +139,7 @@ def lowband_kept(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=Non
     * ``samples``: samples measured (0: no segment long enough; then all None).
     """
     pairs = _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_samples)
-    res = {"corr": None, "amplitude_ratio": None, "raw_lowband_std": None,
+    res: dict[str, Any] = {"corr": None, "amplitude_ratio": None, "raw_lowband_std": None,
            "filtered_lowband_std": None, "samples": 0}
     if not pairs:
         return res
@@ -149,8 +155,8 @@ def lowband_kept(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=Non
     return res
 
 
-def lag_s(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip_samples=0,
-          max_lag_s=MAX_LAG_S):
+def lag_s(raw: npt.ArrayLike, filtered: npt.ArrayLike, sample_rate_hz: float, band_hz: float = LOWBAND_HZ,
+          restarts: npt.ArrayLike | None = None, skip_samples: int = 0, max_lag_s: float = MAX_LAG_S) -> float | None:
     """Delay of the filtered record's low band behind the raw one's, s (positive:
     the filtered record comes later).
 
@@ -188,7 +194,7 @@ def lag_s(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip
     return float((j - max_k + frac) / sample_rate_hz)
 
 
-def white_noise_std(x, sample_rate_hz, restarts=None):
+def white_noise_std(x: npt.ArrayLike, sample_rate_hz: float | None, restarts: npt.ArrayLike | None = None) -> float | None:
     """The white-noise standard deviation of a record (its unit), an estimate
     that slow motion does not lift, or None (no finite run longer than
     `noise_ready_samples`).
@@ -226,14 +232,14 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     return 0.0 if r <= p[K.P_R_FLOOR] else math.sqrt(r)
 
 
-def noise_ready_samples():
+def noise_ready_samples() -> int:
     """Samples of a run before `white_noise_std` reads the core's estimate:
     the 4th difference at the largest lag (4 x 6) and 32 samples of its mean."""
     from gyrodenoise.core import kernels as K
     return 4 * int(K.motion_params(1.0)[K.P_MO_NLAG - K.P_MO_NF]) + 32
 
 
-def lowband_noise_std(white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
+def lowband_noise_std(white_noise_std: float, sample_rate_hz: float, band_hz: float = LOWBAND_HZ) -> float:
     """Std of white noise of std ``white_noise_std`` (sampled at ``sample_rate_hz``)
     after the 0..``band_hz`` low-pass: its power scales with the band's share of
     the Nyquist band, 2 band / fs (the order-4 Butterworth applied twice is close
@@ -241,7 +247,8 @@ def lowband_noise_std(white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     return float(white_noise_std) * math.sqrt(min(1.0, 2.0 * band_hz / sample_rate_hz))
 
 
-def motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
+def motion_above_noise(kept: Mapping[str, Any], white_noise_std: float | None, sample_rate_hz: float,
+                       band_hz: float = LOWBAND_HZ) -> bool | None:
     """True when the raw low band of ``kept`` (a `lowband_kept` result) holds
     motion clearly above the noise: std at least `MOTION_TO_NOISE_MIN` x
     `lowband_noise_std` of the raw record's white-noise level
@@ -253,7 +260,8 @@ def motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ
     return bool(sr >= MOTION_TO_NOISE_MIN * lowband_noise_std(white_noise_std, sample_rate_hz, band_hz))
 
 
-def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
+def motion_loss(kept: Mapping[str, Any], white_noise_std: float | None, sample_rate_hz: float,
+                band_hz: float = LOWBAND_HZ) -> str | None:
     """The warning rule: a short reason when the filter removed most of the real
     motion, else None.
 
@@ -276,7 +284,8 @@ def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     return "; ".join(why) or None
 
 
-def envelope_violation(raw, filtered, restarts=None, rel_margin=1e-9, causal=True):
+def envelope_violation(raw: npt.ArrayLike, filtered: npt.ArrayLike, restarts: npt.ArrayLike | None = None, rel_margin: float = 1e-9,
+                       causal: bool = True) -> dict[str, Any] | None:
     """The first sample where ``filtered`` is not finite, or outside [lo - m, hi + m],
     lo/hi the least/greatest finite raw sample since the last restart (up to and
     including that sample; ``causal=False``: of the whole session, for a
