@@ -3,18 +3,28 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.analysis.allan import BI_FACTOR
 from gyrodenoise.modelgap.settings import CARD_FIELD, N_PARAMS
 from gyrodenoise.modelgap.spectral import AGM_TAU_MAX_S, angle_gm_avar
 from gyrodenoise.units import NOISE_SECTIONS
 
+if TYPE_CHECKING:
+    from gyrodenoise.modelgap.metric import Layout, Reference, Signature
+    from gyrodenoise.simulator import ModelCard
+
+#: one edit of a card: (term, its parameters in card units or None to remove it, re-fit of a term in the card)
+Change: TypeAlias = "tuple[str, dict[str, float] | None, bool]"
+
 
 # ------------------------------------------------------------------ candidates
-def gm_avar(tau, sigma, T):
+def gm_avar(tau: npt.ArrayLike, sigma: float, T: float) -> np.ndarray:
     """Allan variance of a first-order Gauss-Markov process (see module docstring)."""
     x = np.asarray(tau, dtype=float) / T
     small = x < 1e-3
@@ -54,8 +64,10 @@ def _since_restart(n, fs, restarts):
 
 @dataclass
 class Candidate:
+    """An effect proposed for the card: a term with its parameters, why, and once simulated
+    its gap, score and components."""
     name: str
-    params: dict              # card units
+    params: dict[str, float] | None     # card units; None: the term is removed
     refit: bool
     why: str
     text: str = ""
@@ -63,20 +75,22 @@ class Candidate:
     score: float = float("nan")
     widen: float = float("nan")
     robust: float = float("nan")
-    z: dict = None
-    components: dict = None
-    extra: list = field(default_factory=list)   # (name, params, refit) changed along with this one
+    z: dict[str, np.ndarray] | None = None
+    components: dict[str, float] | None = None
+    extra: list[Change] = field(default_factory=list)   # (name, params, refit) changed along with this one
 
     @property
-    def changes(self):
+    def changes(self) -> list[Change]:
+        """This candidate's change and those made along with it."""
         return [(self.name, self.params, self.refit)] + list(self.extra)
 
     @property
-    def n_params(self):
+    def n_params(self) -> int:
         """Parameters written (a removal writes none)."""
         return sum(N_PARAMS[nm] for nm, pr, _ in self.changes if pr is not None)
 
-    def to_json(self):
+    def to_json(self) -> dict[str, Any]:
+        """Plain JSON."""
         return {"name": self.name, "params": _params_json(self.params),
                 "refit": self.refit, "why": self.why,
                 "with": [{"name": e[0], "params": _params_json(e[1]), "refit": e[2]} for e in self.extra], "gap": _f(self.gap), "robust_gap": _f(self.robust), "widen": _f(self.widen),
@@ -93,7 +107,8 @@ def _f(v):
     return None if v is None or not math.isfinite(v) else float(v)
 
 
-def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
+def propose(y: npt.ArrayLike, layout: Layout, ref: Reference, z: Mapping[str, np.ndarray], card: ModelCard,
+            restarts: npt.ArrayLike | None = None, limit: float = 3.0) -> list[Candidate]:
     """Candidate effects with parameters fitted to the record ``y`` (deg/s).
 
     Allan-shaped terms (Q, N, B, K) and gauss_markov are fitted to the Allan
@@ -107,7 +122,7 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
     and re-simulation chooses between the two.
     """
     fs, n = layout.fs, layout.n
-    cands = []
+    cands: list[Candidate] = []
     allan_flag = np.any(np.abs(z["allan"]) > limit)
     if allan_flag:
         ax = _AllanExcess.of(layout, ref, z, card, limit)
@@ -373,7 +388,9 @@ def _sinusoid_candidate(r, t, layout, k, z_line):
                      False, f"spectral line at {fr:.4g} Hz (z={z_line:.1f})")
 
 
-def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
+def spectral_refit(sig_m: Signature, layout: Layout, ref: Reference, card: ModelCard,
+                   bands: Sequence[tuple[float, float]] = (), why: str = "",
+                   angle_gm: bool = False) -> Candidate | None:
     """One candidate that re-fits ALL the card's noise terms at once (up, down or to
     zero = removed): Q, N, B, K and the Gauss-Markov terms (with ``angle_gm``, also
     a dictionary of angle Gauss-Markov terms), by
@@ -397,7 +414,7 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
                             psd_m - rest_p, psd_m * ref.sigma["psd"], angle_gm=angle_gm)
     if angle_gm and not terms.get("angle_gauss_markov"):
         return None         # the same as the plain re-fit
-    changes = []
+    changes: list[Change] = []
     for nm in NOISE_SECTIONS:
         fld, to_card = CARD_FIELD[nm]
         new = math.sqrt(terms[nm]) * to_card

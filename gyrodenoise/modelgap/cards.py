@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 from gyrodenoise.errors import InputError
+
+if TYPE_CHECKING:
+    from gyrodenoise.simulator import ModelCard
 
 
 # ------------------------------------------------------------------ cards as text
@@ -13,7 +18,7 @@ def _fmt_num(v):
     return f"{float(v):.6g}"
 
 
-def card_at_rate(text, fs, source="<card>"):
+def card_at_rate(text: str, fs: float, source: str = "<card>") -> ModelCard:
     """Parse a card's text as simulated at ``fs`` Hz (the record's rate).
 
     The text is re-parsed through `gyrodenoise.simulator.parse_card`
@@ -42,7 +47,7 @@ def card_at_rate(text, fs, source="<card>"):
     return at
 
 
-def text_at_rate(text, fs):
+def text_at_rate(text: str, fs: float) -> str:
     """The card text with sensor.sample_rate_hz set to ``fs`` (for the FMU's String parameter)."""
     new, n = re.subn(r"(?m)^(\s*sample_rate_hz\s*=\s*)[^#\n]*", lambda mo: mo.group(1) + repr(float(fs)) + " ",
                      text, count=1)
@@ -162,7 +167,8 @@ def _n_instances(text, name):
     return 0 if t is None else len(t) if isinstance(t, list) else 1
 
 
-def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap", source="<card>"):
+def edit_card(text: str, name: str, params: Mapping[str, float] | None, refit: bool = False,
+              note: str = "fitted by gyrodenoise gap", source: str = "<card>") -> str:
     """Add a term to (or replace a re-fitted term in, or with ``params=None`` remove
     every instance of a term from) the TEXT of a card.
 
@@ -194,7 +200,7 @@ _PROBE_PARAMS = {"quantization": {"Q": 1e-4}, "angle_random_walk": {"N": 0.1}, "
           "angle_gauss_markov": {"sigma": 1e-4, "tau": 0.1}}
 
 
-def check_editable(card):
+def check_editable(card: ModelCard) -> None:
     """Raise `InputError` up front (naming the card and the term) when
     `edit_card` cannot add or re-fit some term of the vocabulary in the
     way this card is written."""

@@ -13,8 +13,11 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -43,14 +46,16 @@ class AllanCurve:
     n_samples: int
     label: str
     unit: str
-    notes: list = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
 
 def _pick(header, names):
     return next((header.index(n) for n in names if n in header), None)
 
 
-def read_allan_curve(path, sensor=None, channel=None, unit="deg/s", sample_rate_hz=None, n_samples=None):
+def read_allan_curve(path: str | os.PathLike[str], sensor: str | None = None, channel: str | None = None,
+                     unit: str = "deg/s", sample_rate_hz: float | None = None,
+                     n_samples: int | None = None) -> AllanCurve:
     """Read CURVE.csv (see the module docstring): one line, exit 2 on anything wrong.
 
     Columns: ``tau_s`` (or ``tau``), ``allan_deviation`` (or ``adev``); optional
@@ -189,7 +194,7 @@ class _CurveLayout:
         self.m, self.fs, self.n = np.asarray(m, np.int64), float(fs), int(n)
 
 
-def fit_curve(curve):
+def fit_curve(curve: AllanCurve) -> tuple[dict[str, Any], np.ndarray]:
     """Fit Q, N, B, K and Gauss-Markov terms to the curve's Allan variance.
 
     Weights: the 1-sigma of the Allan variance from the bounds (half the
@@ -212,7 +217,7 @@ def fit_curve(curve):
     sd_ad = np.where(np.isfinite(half) & (half > 0), half / Z95, 0.05 * curve.adev_deg_s)
     avar = curve.adev_deg_s ** 2
 
-    def fit(angle_gm):
+    def fit(angle_gm: bool) -> tuple[dict[str, Any], np.ndarray, int]:
         t, mav, _ = fit_terms(_CurveLayout(m, curve.sample_rate_hz, curve.n_samples), (), avar,
                               2.0 * curve.adev_deg_s * sd_ad, None, None, robust=FIT_ROBUST, max_lines=MAX_LINES,
                               inside_fn=lambda av: bool(np.all(inside(curve, np.sqrt(np.maximum(av, 0.0))))),
@@ -227,7 +232,7 @@ def fit_curve(curve):
     return terms, model
 
 
-def card_from_terms(text, terms, note, source="<card>"):
+def card_from_terms(text: str, terms: Mapping[str, Any], note: str, source: str = "<card>") -> str:
     """The card text with its noise terms replaced by ``terms`` (from `fit_curve`)."""
     from gyrodenoise.simulator import parse_card
     from gyrodenoise.modelgap.cards import edit_card
@@ -248,7 +253,8 @@ def card_from_terms(text, terms, note, source="<card>"):
     return text
 
 
-def simulated_curve(text, curve, seeds, source="<card>"):
+def simulated_curve(text: str, curve: AllanCurve, seeds: Iterable[int],
+                    source: str = "<card>") -> tuple[np.ndarray, np.ndarray]:
     """Mean (over ``seeds``) and each seed's ADEV (deg/s) at the curve's tau of the
     card simulated at the curve's rate and length."""
     from gyrodenoise.analysis.allan import adev
@@ -256,15 +262,12 @@ def simulated_curve(text, curve, seeds, source="<card>"):
     from gyrodenoise.modelgap.cards import card_at_rate
     card = card_at_rate(text, curve.sample_rate_hz, source)
     m = np.maximum(np.round(curve.tau_s * curve.sample_rate_hz), 1).astype(np.int64)
-    runs = []
-    for s in seeds:
-        y = simulate(card, curve.n_samples, seed=int(s)).rate_deg_s
-        runs.append(adev(y, curve.sample_rate_hz, m=m)[1])
-    runs = np.array(runs)
-    return runs.mean(axis=0), runs
+    each = np.array([adev(simulate(card, curve.n_samples, seed=int(s)).rate_deg_s, curve.sample_rate_hz, m=m)[1]
+                     for s in seeds])
+    return each.mean(axis=0), each
 
 
-def inside(curve, ad):
+def inside(curve: AllanCurve, ad: np.ndarray) -> np.ndarray:
     """Per tau: is ``ad`` inside the published bounds (an absent bound does not bind)?"""
     lo_ok = ~np.isfinite(curve.lo_deg_s) | (ad >= curve.lo_deg_s)
     hi_ok = ~np.isfinite(curve.hi_deg_s) | (ad <= curve.hi_deg_s)

@@ -24,10 +24,18 @@ training records that never include the record to be checked.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.modelgap.cards import card_at_rate, edit_card
 from gyrodenoise.units import NOISE_SECTIONS, TERM_BY_SECTION
+
+if TYPE_CHECKING:
+    from gyrodenoise.modelgap.metric import Layout, Signature
+    from gyrodenoise.simulator import ModelCard
 
 SPREAD_STREAM = 952          # first word of the spread draws' seed (IEEE Std 952): numpy default_rng([952, seed])
 DOMINANT_SHARE = 0.8         # a term's spread is estimated where it makes more than 80 % of the card's signature
@@ -37,10 +45,10 @@ SPREAD_FIELDS = {**{nm: TERM_BY_SECTION[nm].symbol for nm in NOISE_SECTIONS},
                  "gauss_markov": "sigma", "angle_gauss_markov": "sigma"}
 
 
-def noise_terms(card):
+def noise_terms(card: ModelCard) -> list[tuple[str, int | None, dict[str, float]]]:
     """The card's noise terms with a magnitude, in the order of `spectral.stochastic_specs`:
     list of ``(name, index, params)`` (``index`` within a repeatable term, else None)."""
-    out = []
+    out: list[tuple[str, int | None, dict[str, float]]] = []
     for nm in NOISE_SECTIONS:
         if card.terms.get(nm):
             out.append((nm, None, card.terms[nm]))
@@ -49,14 +57,15 @@ def noise_terms(card):
     return out
 
 
-def with_magnitudes(text, card, factors, spreads=None, note="drawn unit", groups=None):
+def with_magnitudes(text: str, card: ModelCard, factors: Sequence[float] | np.ndarray, spreads: Iterable[float | None] | None = None,
+                    note: str = "drawn unit", groups: Mapping[int, int] | None = None) -> str:
     """The card text with each noise term's magnitude multiplied by ``factors[i]`` (order of
     `noise_terms`) and its ``spread`` set to ``spreads[i]`` (None: the field dropped,
     a value <= 0 too) and, given ``groups`` ({index: group id}), its ``spread_group``.
     Every other term and field is kept."""
     terms = noise_terms(card)
     spreads = [None] * len(terms) if spreads is None else list(spreads)
-    rep = {}
+    rep: dict[str, list[dict[str, float]]] = {}
     for i, ((nm, idx, p), f, s) in enumerate(zip(terms, factors, spreads)):
         fld = SPREAD_FIELDS[nm]
         new = {k: v for k, v in p.items() if k != "spread"}
@@ -76,7 +85,7 @@ def with_magnitudes(text, card, factors, spreads=None, note="drawn unit", groups
     return text
 
 
-def draw_unit(text, seed, source="<card>"):
+def draw_unit(text: str, seed: int, source: str = "<card>") -> str:
     """The card text of one simulated unit: each noise term's magnitude times
     ``exp(spread * z)``, ``z ~ N(0, 1)`` drawn in the order of `noise_terms` (one draw
     per term, spread or not) from ``numpy.random.default_rng([SPREAD_STREAM, seed])``; terms
@@ -92,7 +101,7 @@ def draw_unit(text, seed, source="<card>"):
     if not np.any(sp > 0):
         return text
     z = np.random.default_rng([SPREAD_STREAM, int(seed)]).standard_normal(len(terms))
-    first = {}
+    first: dict[float, int] = {}
     for i, (_, _, p) in enumerate(terms):     # a spread_group shares the draw of its first term
         g = p.get("spread_group", 0.0)
         if g > 0:
@@ -105,14 +114,14 @@ class MagnitudeFit:
     (correlation times held): `coefficients` of a record, in the s-based squared units of
     `spectral.stochastic_specs`. The columns are computed once per card and layout."""
 
-    def __init__(self, card, layout, bands=()):
+    def __init__(self, card: ModelCard, layout: Layout, bands: Sequence[tuple[float, float]] = ()) -> None:
         from gyrodenoise.modelgap.spectral import allan_columns, band_columns, stochastic_specs
         self.layout, self.bands = layout, list(bands)
         self.specs, self.coef = stochastic_specs(card)
         self.A_a = allan_columns(self.specs, layout.m, layout.fs, self.bands)
         self.A_p, self.clear = band_columns(self.specs, layout, self.bands)
 
-    def _weighted(self, sig):
+    def _weighted(self, sig: Signature) -> tuple[np.ndarray, np.ndarray]:
         """(A, b): the columns and the record's Allan variance and clear Welch bands, each row
         divided by the analytic 1-sigma of one record."""
         from gyrodenoise.modelgap.metric import _floors
@@ -124,12 +133,12 @@ class MagnitudeFit:
         b = np.concatenate([sig["avar"] / sd_a, (psd / sd_p)[self.clear]])
         return A, b
 
-    def coefficients(self, sig):
+    def coefficients(self, sig: Signature) -> np.ndarray:
         """Squared magnitudes fitted jointly to one record's signature (``metric.signature``)."""
         from gyrodenoise.modelgap.spectral import _nnls_huber
         return _nnls_huber(*self._weighted(sig), 0)[0]
 
-    def group_factors(self, sig, groups):
+    def group_factors(self, sig: Signature, groups: Iterable[list[int]]) -> np.ndarray:
         """Each GROUP of terms (lists of term indices, `noise_terms` order) re-fitted alone
         to one record by one common factor on its squared magnitudes, on the points where the
         group makes more than DOMINANT_SHARE of the card's own Allan variance or band PSD, every
@@ -141,7 +150,7 @@ class MagnitudeFit:
         r = b - A @ self.coef
         cols = np.vstack([self.A_a, self.A_p[self.clear]])
         tot = cols @ self.coef
-        out = []
+        out: list[float] = []
         for g in groups:
             d = A[:, g] @ self.coef[g]
             part = cols[:, g] @ self.coef[g]
@@ -151,7 +160,8 @@ class MagnitudeFit:
         return np.array(out)
 
 
-def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
+def bootstrap_cards(text: str, fs: float, n_train: int, seeds: Iterable[int], bands: Sequence[tuple[float, float]] = (),
+                    source: str = "<card>") -> tuple[list[str], np.ndarray]:
     """One card per seed, re-estimated from a simulated training record of ``n_train`` samples
     (a parametric bootstrap of the card's estimation error): the card's noise-term magnitudes
     re-fitted (`MagnitudeFit`) to the simulation of the card (one drawn unit,
@@ -170,7 +180,8 @@ def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
     fit = MagnitudeFit(card, layout, bands)
     c0 = fit.coef
     sp = [p.get("spread") for _, _, p in noise_terms(card)]
-    texts, factors = [], []
+    texts: list[str] = []
+    factors: list[np.ndarray] = []
     for s in seeds:
         ts = TRAIN_SEED_OFFSET + int(s)
         y = simulate(card_at_rate(draw_unit(text, ts, source), fs, source), int(n_train), seed=ts).rate_deg_s
@@ -182,7 +193,9 @@ def bootstrap_cards(text, fs, n_train, seeds, bands=(), source="<card>"):
     return texts, np.array(factors)
 
 
-def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<card>", groups=None):
+def estimate_spread(records: Sequence[np.ndarray], fs: float, text: str, bands: Sequence[tuple[float, float]] = (),
+                    seeds: Iterable[int] = range(1, 17), source: str = "<card>",
+                    groups: Sequence[list[int]] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Relative 1-sigma spread of each noise term's magnitude between ``records`` (training
     records: never the record to be checked), net of the estimator's own error.
 
@@ -221,24 +234,26 @@ def estimate_spread(records, fs, text, bands=(), seeds=range(1, 17), source="<ca
     return np.sqrt(np.maximum(between ** 2 - est ** 2, 0.0)), between, est, f_rec
 
 
-def spread_text(text, spread, source="<card>", note="spread between the training records", groups=None):
+def spread_text(text: str, spread: Sequence[float] | np.ndarray, source: str = "<card>",
+                note: str = "spread between the training records",
+                groups: Iterable[list[int]] | None = None) -> str:
     """The card text with each noise term's ``spread`` set (order of `noise_terms`) and,
     for each of ``groups`` with more than one term, ``spread_group = k`` (k = 1, 2, ...)."""
     from gyrodenoise.simulator import parse_card
     card = parse_card(text, source)
-    gid = {}
+    gid: dict[int, int] = {}
     for k, g in enumerate(groups or ()):
         if len(g) > 1:
             gid.update({i: k + 1 for i in g})
     return with_magnitudes(text, card, np.ones(len(spread)), [float(s) for s in spread], note, gid)
 
 
-def groups_by_tau(card, fs, edges_s=(10.0,)):
+def groups_by_tau(card: ModelCard, fs: float, edges_s: Sequence[float] = (10.0,)) -> list[list[int]]:
     """Groups of the card's noise terms (lists of indices, `noise_terms` order) for
     `estimate_spread`: the terms that act as white noise (Gauss-Markov tau < 2 samples),
     N, Q, B and K each alone; the other Gauss-Markov and angle Gauss-Markov terms by their
     correlation time, split at ``edges_s``."""
-    groups = {}
+    groups: dict[tuple[str, int], list[int]] = {}
     for i, (nm, _, p) in enumerate(noise_terms(card)):
         if "tau" not in p or (nm == "gauss_markov" and p["tau"] < 2.0 / fs):
             groups[("alone", i)] = [i]
@@ -247,7 +262,7 @@ def groups_by_tau(card, fs, edges_s=(10.0,)):
     return list(groups.values())
 
 
-def relative_error(factors):
+def relative_error(factors: npt.ArrayLike) -> np.ndarray:
     """Relative 1-sigma of each magnitude over bootstrap factors (rows seeds)."""
     f = np.asarray(factors, float)
     return f.std(axis=0, ddof=1) if f.shape[0] > 1 else np.zeros(f.shape[1])
