@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from gyrodenoise.modelgap.settings import COMPONENTS, GAP_METRIC, N_BLOCKS
 
+if TYPE_CHECKING:
+    from gyrodenoise.modelgap.curve import AllanCurve
+    from gyrodenoise.modelgap.workflow import GapResult
+
 
 # ------------------------------------------------------------------ report and plot
-def format_report(res, source="MEASURED"):
+def format_report(res: GapResult, source: str = "MEASURED") -> str:
     """A short text report (a minute to read)."""
     lay = res.layout
     out = [f"gyrodenoise gap: {source} ({lay.n} samples, {lay.fs:g} Hz, {lay.n / lay.fs / 60:.1f} min), "
@@ -91,10 +99,10 @@ def _not_within(res):
             f"within the scatter: component(s) above their own threshold ({', '.join(over) or 'none'})")
 
 
-def describe_edits(effects):
+def describe_edits(effects: Iterable[Mapping[str, Any]]) -> str:
     """'added A, B; re-fitted C; removed D' for entries of ``GapResult.effects_added`` (a
     term whose re-fit is zero is removed; a name is listed once per kind of edit)."""
-    kinds = {"added": [], "re-fitted": [], "removed": []}
+    kinds: dict[str, list[str]] = {"added": [], "re-fitted": [], "removed": []}
     for e in effects:
         kind = "removed" if e.get("params") is None else "re-fitted" if e.get("refit") else "added"
         if e["name"] not in kinds[kind]:
@@ -108,7 +116,7 @@ def _short(params):
     return "{" + ", ".join(f"{k}={v:.4g}" for k, v in params.items()) + "}"
 
 
-def plot_gap(res, path, title=""):
+def plot_gap(res: GapResult, path: str | os.PathLike[str], title: str = "") -> str | os.PathLike[str]:
     """PNG: measured Allan deviation vs the simulated band (mean +- 1 sigma of one
     simulation) for the input card and after each added effect; a PSD panel when a
     sinusoid was added."""
@@ -163,7 +171,7 @@ def _allan_axes(ax, title):
     ax.legend(fontsize=8)
 
 
-def _save(fig, path):
+def _save(fig: Any, path: str | os.PathLike[str]) -> str | os.PathLike[str]:
     import matplotlib.pyplot as plt
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -171,7 +179,8 @@ def _save(fig, path):
     return path
 
 
-def plot_curve(curve, model_deg_s, simulated_deg_s, path, title=""):
+def plot_curve(curve: AllanCurve, model_deg_s: np.ndarray, simulated_deg_s: np.ndarray, path: str | os.PathLike[str],
+               title: str = "") -> str | os.PathLike[str]:
     """PNG: a published Allan curve with its bounds, the fitted card's exact curve and
     its simulated curve (mean of the seeds), in deg/h."""
     import matplotlib

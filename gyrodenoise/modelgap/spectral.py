@@ -31,11 +31,18 @@ the fixed 3 x rejects: on that record's x and y axes it adds two and three stop 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.analysis.spectrum import nperseg_for_length, running_median, segment_count, welch_psd
 from gyrodenoise.units import NOISE_SECTIONS
+
+if TYPE_CHECKING:
+    from gyrodenoise.modelgap.metric import Layout
+    from gyrodenoise.simulator import ModelCard
 
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
 N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
@@ -53,7 +60,7 @@ TAIL_SE = 3.0         # ... taken out while a chunk stands more than TAIL_SE sta
 TAIL_FIT = (1.5, 2.5)  # ... the sensor's level fitted over TAIL_FIT x the bump's upper edge
 
 
-def psd_two_sided(name, f, fs, tau_s=None):
+def psd_two_sided(name: str, f: np.ndarray, fs: float, tau_s: float | None = None) -> np.ndarray:
     """Two-sided PSD of one term with unit s-based coefficient (see module docstring)."""
     T = 1.0 / fs
     s2 = np.maximum(np.sin(np.pi * f * T) ** 2, 1e-300)
@@ -63,12 +70,13 @@ def psd_two_sided(name, f, fs, tau_s=None):
         return 4.0 * s2 / T
     if name == "rate_random_walk":
         return T * T / (4.0 * s2)
-    if name == "gauss_markov":
+    if name in ("gauss_markov", "angle_gauss_markov"):
+        if tau_s is None:
+            raise ValueError(f"psd_two_sided: {name} needs its correlation time tau_s")
         a = math.exp(-T / tau_s)
-        return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a)
-    if name == "angle_gauss_markov":     # a first-order GM ANGLE (std 1, tau_s), differenced / T
-        a = math.exp(-T / tau_s)
-        return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a) * 4.0 * s2 / (T * T)
+        gm = (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a)
+        # angle_gauss_markov: a first-order GM ANGLE (std 1, tau_s), differenced / T
+        return gm if name == "gauss_markov" else gm * 4.0 * s2 / (T * T)
     if name == "bias_instability":
         from gyrodenoise.simulator import _bank, parse_card
         card = parse_card(f"[sensor]\nname='unit'\nsample_rate_hz={fs!r}\n[terms]\n"
@@ -82,7 +90,7 @@ def psd_two_sided(name, f, fs, tau_s=None):
     raise ValueError(name)
 
 
-def angle_gm_avar(m, fs, tau_s, sigma=1.0):
+def angle_gm_avar(m: npt.ArrayLike, fs: float, tau_s: float, sigma: float = 1.0) -> np.ndarray:
     """Closed-form overlapping Allan variance at cluster sizes ``m`` of the simulator's
     angle Gauss-Markov term (angle std ``sigma``, correlation time ``tau_s``, rate =
     angle differenced / T): the m-sample mean rate is ``(th_(k+m) - th_k) / (m T)``, the
@@ -96,7 +104,7 @@ def angle_gm_avar(m, fs, tau_s, sigma=1.0):
     return sigma * sigma * (3.0 - 4.0 * am + am * am) / (m * T) ** 2
 
 
-def stop_mask(f, bands):
+def stop_mask(f: np.ndarray, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
     """1 outside, 0 inside the stop bands [(lo, hi), ...] (Hz)."""
     m = np.ones_like(f)
     for lo, hi in bands or ():
@@ -104,7 +112,7 @@ def stop_mask(f, bands):
     return m
 
 
-def band_stop(y, fs, bands):
+def band_stop(y: npt.ArrayLike, fs: float, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
     """The record with the stop bands removed (FFT bins zeroed, the mean removed
     first and kept; zero-padded to a fast FFT length).
 
@@ -123,7 +131,7 @@ def band_stop(y, fs, bands):
     return sfft.irfft(X, nfft)[:n] + mu
 
 
-def lowpass_gain(f, fs, cutoff_hz=None):
+def lowpass_gain(f: np.ndarray, fs: float, cutoff_hz: float | None = None) -> np.ndarray | float:
     """Power gain ``|H|^2`` of a first-order discrete low-pass on the sensor's output,
     ``y_k = a y_(k-1) + (1 - a) x_k`` with ``a = exp(-2 pi cutoff_hz / fs)``:
     ``(1 - a)^2 / (1 - 2 a cos(2 pi f / fs) + a^2)`` (1 at f = 0); 1 when ``cutoff_hz`` is None."""
@@ -133,7 +141,8 @@ def lowpass_gain(f, fs, cutoff_hz=None):
     return (1.0 - a) ** 2 / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f / fs) + a * a)
 
 
-def allan_columns(specs, m, fs, bands=(), lowpass_hz=None):
+def allan_columns(specs: Sequence[tuple[str, float | None]], m: Sequence[float] | np.ndarray, fs: float, bands: Sequence[tuple[float, float]] | None = (),
+                  lowpass_hz: float | None = None) -> np.ndarray:
     """Allan variance at cluster sizes ``m`` of each term in ``specs`` (list of
     (name, tau_s or None)) with unit coefficient, through the stop mask (and the
     output low-pass `lowpass_gain` when ``lowpass_hz`` is given)."""
@@ -158,7 +167,8 @@ def allan_columns(specs, m, fs, bands=(), lowpass_hz=None):
     return out
 
 
-def band_columns(specs, layout, bands=(), lowpass_hz=None):
+def band_columns(specs: Sequence[tuple[str, float | None]], layout: Layout, bands: Sequence[tuple[float, float]] | None = (),
+                 lowpass_hz: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One-sided Welch-band PSD (mean over each band's bins) of each term with unit
     coefficient, through the stop mask; and a mask of the bands clear of the stop
     bands (two Welch bins of margin for the Hann window's leakage)."""
@@ -174,16 +184,19 @@ def band_columns(specs, layout, bands=(), lowpass_hz=None):
     return cols, clear
 
 
-def record_psd(y, fs):
+def record_psd(y: Sequence[float] | np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
     """The record's one-sided Welch PSD above DC, with the segments of the gap
     signatures (`gyrodenoise.analysis.spectrum.nperseg_for_length`): (freq_hz,
     psd, nperseg)."""
     nper = nperseg_for_length(len(y))
     f, p, _ = welch_psd(y, fs, nper)
+    if p is None:
+        raise ValueError(f"a record of {len(y)} samples holds no Welch segment of {nper}")
     return f[1:], p[1:], nper
 
 
-def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
+def find_bumps(y: npt.ArrayLike, fs: float, ratio: float = 3.0, span: float = 5.0,
+               per_decade: int = 20) -> list[tuple[float, float, float]]:
     """The bands to take out of the comparison: broad spectral bumps and lines
     wandering in frequency (`wandering_lines`), [(lo_hz, hi_hz, peak_ratio)].
 
@@ -286,7 +299,7 @@ def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
     return float(lo), float(hi), peak
 
 
-def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
+def bump_tail_end(f: np.ndarray, p: np.ndarray, hi_hz: float, fs: float, n: int, nperseg: int) -> float:
     """Upper edge (Hz) of a bump with its tail: the base motion falls steeply above the
     band that `find_bumps` widened (2x its far-side floor), but a tail of 10-50 %
     over the sensor's level is left, and the comparison resolves the PSD to ~1 %
@@ -326,7 +339,8 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     return float(f[k - 1]) if k > k0 else float(hi_hz)
 
 
-def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
+def wandering_lines(f: np.ndarray, p: np.ndarray, ratio: float = LINE_RATIO,
+                    window_hz: float = LINE_WINDOW_HZ) -> tuple[list[tuple[float, float, float]], np.ndarray]:
     """Lines too wide for one sinusoid: runs spanning at least `MIN_LINE_BINS`
     Welch bins (gaps of up to LINE_BRIDGE_BINS bins bridged) that stand more than ``ratio`` times
     above the running median of the PSD over ``window_hz``. A sinusoid stays within
@@ -345,7 +359,8 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     w = max(int(round(window_hz / df)) | 1, 8 * MIN_LINE_BINS + 1)
     floor = running_median(p, w, ends="nearest")
     idx = np.flatnonzero(p > ratio * floor)
-    out, clean = [], p.copy()
+    out: list[tuple[float, float, float]] = []
+    clean = p.copy()
     if not len(idx):
         return out, clean
     skirt = p > SKIRT_RATIO * floor
@@ -378,13 +393,13 @@ LINE_GRID_POINTS = 400     # line frequencies tried in an Allan-curve fit (log-s
 AGM_TAU_MAX_S = 10.0       # the angle Gauss-Markov dictionary's longest correlation time
 
 
-def gm_grid(layout):
+def gm_grid(layout: Any) -> list[float]:
     """Correlation times of the Gauss-Markov dictionary: 3 per decade, 2 samples .. record / 3."""
     lo, hi = math.log10(0.5 / layout.fs), math.log10(layout.n / layout.fs / 3.0)
     return list(10.0 ** np.arange(lo, hi + 1e-9, 1.0 / GM_PER_DECADE))
 
 
-def agm_grid(layout):
+def agm_grid(layout: Any) -> list[float]:
     """Correlation times of the angle Gauss-Markov dictionary: GM_PER_DECADE per decade from
     half a sample to AGM_TAU_MAX_S (at most a tenth of the record). Shorter than half a
     sample the term is white angle noise (quantization); much longer, it is white rate noise
@@ -394,10 +409,11 @@ def agm_grid(layout):
     return list(10.0 ** np.arange(lo, hi + 1e-9, 1.0 / GM_PER_DECADE))
 
 
-def stochastic_specs(card):
+def stochastic_specs(card: ModelCard) -> tuple[list[tuple[str, float | None]], np.ndarray]:
     """(specs, s-based squared coefficients) of a card's stochastic terms (dictionary form)."""
     from gyrodenoise.modelgap.settings import CARD_FIELD
-    specs, coef = [], []
+    specs: list[tuple[str, float | None]] = []
+    coef: list[float] = []
     for nm in NOISE_SECTIONS:
         t = card.terms.get(nm)
         if t:
@@ -413,7 +429,7 @@ def stochastic_specs(card):
     return specs, np.array(coef)
 
 
-def card_allan_variance(card, m, fs):
+def card_allan_variance(card: ModelCard, m: Sequence[float] | np.ndarray, fs: float) -> np.ndarray:
     """Exact Allan variance (deg/s)^2 at cluster sizes ``m`` of a card's stochastic terms
     and sinusoids as the simulator draws them at ``fs`` (deterministic ramp, bias and
     transient left out: the published curves are of records without them)."""
@@ -424,7 +440,7 @@ def card_allan_variance(card, m, fs):
     return av
 
 
-def line_allan_columns(freq_hz, m, fs):
+def line_allan_columns(freq_hz: npt.ArrayLike, m: npt.ArrayLike, fs: float) -> np.ndarray:
     """Allan variance at cluster sizes ``m`` of a sampled sinusoid of unit amplitude at
     each of ``freq_hz``: ``(1/4) * 4 sin^4(pi f m T) / (m^2 sin^2(pi f T))`` (the Allan
     filter at the line; its variance 1/2 split over +-f)."""
@@ -434,7 +450,7 @@ def line_allan_columns(freq_hz, m, fs):
     return np.sin(np.pi * f * m * T) ** 4 / (m * m * np.sin(np.pi * f * T) ** 2)
 
 
-def line_grid(fs, m):
+def line_grid(fs: float, m: npt.ArrayLike) -> np.ndarray:
     """Candidate line frequencies for an Allan-curve fit: LINE_GRID_POINTS log-spaced
     from a tenth of the inverse of the longest cluster to 0.45 fs."""
     return np.geomspace(0.1 * fs / float(np.max(m)), 0.45 * fs, LINE_GRID_POINTS)
@@ -514,8 +530,11 @@ def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
     return []
 
 
-def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0, lowpass_hz=None,
-              max_lines=0, inside_fn=None, angle_gm=False, min_dchi2=0.0):
+def fit_terms(layout: Any, bands: Sequence[tuple[float, float]] | None, avar_target: np.ndarray, avar_sd: np.ndarray,
+              psd_target: np.ndarray | None, psd_sd: np.ndarray | None, rel_floor: float = 0.0, robust: int = 0,
+              lowpass_hz: float | None = None, max_lines: int = 0,
+              inside_fn: Callable[[np.ndarray], bool] | None = None, angle_gm: bool = False,
+              min_dchi2: float = 0.0) -> tuple[dict[str, Any], np.ndarray, np.ndarray | None]:
     """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
     the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
     Gauss-Markov processes (`gm_grid`), each through the stop mask; with
@@ -543,11 +562,16 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
         if max_lines:
             raise ValueError("fit_terms: max_lines is for an Allan curve (psd_target None)")
         A_p, clear = band_columns(specs, layout, bands, lowpass_hz)
+        if psd_sd is None:
+            raise ValueError("fit_terms: psd_target needs psd_sd")
         sd_p = np.maximum(psd_sd, rel_floor * np.abs(psd_target))
         A = np.vstack([A, (A_p / sd_p[:, None])[clear]])
         b = np.concatenate([b, (psd_target / sd_p)[clear]])
     elif max_lines:
-        f_lines = _pick_allan_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside_fn(av * sd_a))
+        if inside_fn is None:
+            raise ValueError("fit_terms: max_lines needs inside_fn")
+        inside = inside_fn
+        f_lines = _pick_allan_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside(av * sd_a))
         if f_lines:
             A_l = line_allan_columns(f_lines, layout.m, layout.fs)
             A_a, A = np.hstack([A_a, A_l]), np.hstack([A, A_l / sd_a[:, None]])
@@ -557,7 +581,7 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
             raise ValueError("fit_terms: min_dchi2 compares plain chi^2 (robust=0)")
         n_par = np.array([1 if tc is None else 2 for _, tc in specs] + [2] * (A.shape[1] - len(specs)))
         c = _drop_unneeded(A, b, c, chi2, min_dchi2, n_par)
-    terms = {nm: float(c[i]) for i, nm in enumerate(NOISE_SECTIONS)}
+    terms: dict[str, Any] = {nm: float(c[i]) for i, nm in enumerate(NOISE_SECTIONS)}
     for kind in ("gauss_markov", "angle_gauss_markov"):
         terms[kind] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(NOISE_SECTIONS), len(specs))
                        if c[i] > 0 and specs[i][0] == kind]
