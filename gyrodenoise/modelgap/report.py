@@ -12,13 +12,14 @@ from gyrodenoise.modelgap.settings import COMPONENTS, GAP_METRIC, N_BLOCKS
 
 if TYPE_CHECKING:
     from gyrodenoise.modelgap.curve import AllanCurve
+    from gyrodenoise.modelgap.metric import Layout, Signature
     from gyrodenoise.modelgap.workflow import GapResult
 
 
 # ------------------------------------------------------------------ report and plot
 def format_report(res: GapResult, source: str = "MEASURED") -> str:
     """A short text report (a minute to read)."""
-    lay = res.layout
+    lay, _ = _evidence(res)
     out = [f"gyrodenoise gap: {source} ({lay.n} samples, {lay.fs:g} Hz, {lay.n / lay.fs / 60:.1f} min), "
            f"{len(res.seeds)} simulated seeds per card, engine {res.engine}",
            f"gap metric: {GAP_METRIC}",
@@ -99,6 +100,13 @@ def _not_within(res):
             f"within the scatter: component(s) above their own threshold ({', '.join(over) or 'none'})")
 
 
+def _evidence(res: GapResult) -> tuple[Layout, Signature]:
+    """The layout and the measured signatures of a result of `gap`."""
+    if res.layout is None or res.measured is None:
+        raise ValueError("a GapResult without its layout and measured signatures (not from gap)")
+    return res.layout, res.measured
+
+
 def describe_edits(effects: Iterable[Mapping[str, Any]]) -> str:
     """'added A, B; re-fitted C; removed D' for entries of ``GapResult.effects_added`` (a
     term whose re-fit is zero is removed; a name is listed once per kind of edit)."""
@@ -123,7 +131,7 @@ def plot_gap(res: GapResult, path: str | os.PathLike[str], title: str = "") -> s
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    lay, sig = res.layout, res.measured
+    lay, sig = _evidence(res)
     spectral = any(e["name"] == "sinusoid" for e in res.effects_added)
     fig, axes = plt.subplots(1, 2 if spectral else 1, figsize=(13 if spectral else 7.5, 5.5), squeeze=False)
     ax = axes[0, 0]

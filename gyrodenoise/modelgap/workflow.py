@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
@@ -15,6 +19,7 @@ from gyrodenoise.modelgap.cards import card_at_rate, check_editable, edit_card
 from gyrodenoise.modelgap.metric import (
     Layout,
     Reference,
+    Signature,
     gap_components,
     gap_value,
     loo_gaps,
@@ -37,35 +42,37 @@ from gyrodenoise.modelgap.settings import (
 )
 from gyrodenoise.modelgap.simulation import Simulator
 from gyrodenoise.modelgap.spectral import band_stop, find_bumps
+from gyrodenoise.simulator import CardLike, ModelCard
 
 
 # ------------------------------------------------------------------ the workflow
 @dataclass
 class GapResult:
-    """Outcome of `gap`."""
-    effects_added: list
+    """Outcome of `gap`: the card reached (``card_text``), the effects added, the gap
+    before and after with its threshold, and each iteration's candidates and scores."""
+    effects_added: list[dict[str, Any]]
     gap_before: float
     gap_after: float
     card_text: str
-    iterations: list
+    iterations: list[dict[str, Any]]
     threshold: float
     engine: str
-    component_threshold: dict
-    seeds: list
-    limitations: list = field(default_factory=list)
-    layout: Layout = None
-    measured: dict = None
-    stop_bands: list = field(default_factory=list)     # [(lo_hz, hi_hz, peak ratio or nan)]
-    named: list = field(default_factory=list)          # physical effects named from the evidence
-    white_factor: float = None     # heldout_gap(refit_white=True): the white-noise level's factor
-    card_error: list = None        # heldout_gap(card_error=True): bootstrap relative 1-sigma per noise term
+    component_threshold: dict[str, float]
+    seeds: list[int]
+    limitations: list[str] = field(default_factory=list)
+    layout: Layout | None = None
+    measured: Signature | None = None
+    stop_bands: list[tuple[float, float, float]] = field(default_factory=list)  # [(lo_hz, hi_hz, peak ratio or nan)]
+    named: list[str] = field(default_factory=list)     # physical effects named from the evidence
+    white_factor: float | None = None     # heldout_gap(refit_white=True): the white-noise level's factor
+    card_error: list[float] | None = None  # heldout_gap(card_error=True): bootstrap relative 1-sigma per noise term
 
     @property
-    def within_scatter(self):
+    def within_scatter(self) -> bool:
         """The final card is within the simulations' scatter (the stop test of the loop)."""
         return bool(self.iterations[-1].get("within_scatter", False))
 
-    def to_json(self):
+    def to_json(self) -> Any:
         """Plain JSON (every float finite or null, see `_finite`)."""
         return _finite({"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"],
                                            "iteration": e["iteration"]}
@@ -83,7 +90,7 @@ class GapResult:
                                        for it in self.iterations]})
 
 
-def _finite(obj):
+def _finite(obj: Any) -> Any:
     """A copy of a JSON-able structure with every float through `_f` (NaN/inf -> None)."""
     if isinstance(obj, dict):
         return {k: _finite(v) for k, v in obj.items()}
@@ -122,14 +129,14 @@ def _points(z):
            "mean": z["mean"] ** 2, "trend": z["trend"] ** 2}
 
 
-def explainable(zs):
+def explainable(zs: Iterable[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
     """Mask of the points that at least one of the z sets (the current card and
     its candidates) brings within the cap ``|z| <= 5``."""
     pts = [_points(z) for z in zs]
     return {c: np.any([p[c] < Z2_CAP for p in pts], axis=0) for c in COMPONENTS}
 
 
-def robust_gap(z, mask=None):
+def robust_gap(z: Mapping[str, np.ndarray], mask: Mapping[str, np.ndarray] | None = None) -> float:
     """The gap used to CHOOSE candidates: every point's ``z^2`` capped at
     `Z2_CAP` (``|z| = 5``), and, given ``mask`` (`explainable`), the
     points that no candidate brings within the cap left out (they count 0).
@@ -153,7 +160,7 @@ def robust_gap(z, mask=None):
     return gap_value(comp)
 
 
-def widening(ref_new, ref_old, z_old):
+def widening(ref_new: Reference, ref_old: Reference, z_old: Mapping[str, np.ndarray]) -> float:
     """Log-likelihood price of a wider simulated scatter that the record does not ask for.
 
     ``-2 ln L`` of the measured signatures under a card is ``sum z^2 + sum
@@ -174,7 +181,8 @@ def widening(ref_new, ref_old, z_old):
     return tot / len(COMPONENTS)
 
 
-def deterministic_offset(sig_m, ref, z, limit=3.0):
+def deterministic_offset(sig_m: Signature, ref: Reference, z: Mapping[str, np.ndarray],
+                         limit: float = 3.0) -> tuple[bool, float, float]:
     """Is the record mean's disagreement a deterministic offset rather than a wander?
 
     A slow random process (bias instability, random walk, Gauss-Markov) that
@@ -207,7 +215,7 @@ def _evaluate(sims, sig_m, layout, bands=()):
 INITIAL_DCHI2 = 2 * 3.0 ** 2
 
 
-def welch_band_rel_sd(layout):
+def welch_band_rel_sd(layout: Layout) -> np.ndarray:
     """Relative 1-sigma of the mean of each Welch band's bins for a smooth spectrum
     (Hann window, 50 % overlap, ``K`` segments): one bin ``sqrt(1.056 / K)`` (adjacent
     segments' periodograms correlated 0.028, counted twice), and the bins of a band
@@ -220,7 +228,8 @@ def welch_band_rel_sd(layout):
     return np.sqrt(1.056 * corr / (layout.n_segments * nb))
 
 
-def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
+def initial_terms(sig_m: Signature, layout: Layout, bands: Sequence[tuple[float, float]], min_dchi2: float = 0.0,
+                  psd_rel_sd: np.ndarray | None = None) -> dict[str, Any]:
     """The noise terms fitted to the record's signatures alone (`spectral.fit_terms`;
     weights: the analytic 1-sigma of one record's Allan variance and, unless
     ``psd_rel_sd`` is given, ``metric._floors``' for its Welch bands). With ``min_dchi2``
@@ -255,7 +264,7 @@ def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
     return text
 
 
-def check_record(rate_deg_s, source="MEASURED"):
+def check_record(rate_deg_s: npt.ArrayLike, source: str = "MEASURED") -> np.ndarray:
     """The measured record as a float array, or InputError (one line) when the
     workflow cannot use it: not 1-D finite, too short, or constant."""
     y = np.asarray(rate_deg_s, dtype=float)
@@ -288,9 +297,11 @@ def _top_disagrees(z):
     return abs(z["psd"][-1]) > 3.0 or abs(z["allan"][0]) > 3.0
 
 
-def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
-        fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None,
-        outliers=False):
+def gap(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds: int | Sequence[int] = 6,
+        engine: str = "native", restarts: npt.ArrayLike | None = None, max_effects: int = 6,
+        fmu_dir: str | os.PathLike[str] | None = None, workers: int | None = None, source: str = "MEASURED",
+        quiet: bool = True, stop_bands: str | Sequence[tuple[float, float]] | None = "auto", latitude_deg: float | None = None,
+        outliers: bool = False) -> GapResult:
     """Find what a model card misses to behave like a measured record.
 
     With ``stop_bands="auto"``, when the card cannot be brought within the scatter
@@ -347,7 +358,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     res = _gap_once(rate_deg_s, sample_rate_hz, card, stop_bands=stop_bands, **kw)
     lo = None if res.within_scatter or stop_bands != "auto" else _top_disagreement(res)
     if lo is None:
-        return _with_outliers(res, n_out, len(rate_deg_s))
+        return _with_outliers(res, n_out, len(np.asarray(rate_deg_s)))
     from gyrodenoise.simulator import parse_card
     log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
         f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet=quiet)
@@ -365,7 +376,7 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     from gyrodenoise.modelgap.effects import name_effects
     res2.named = name_effects(check_record(rate_deg_s, source), float(sample_rate_hz),
                               parse_card(res2.card_text), res2.stop_bands, latitude_deg)
-    return _with_outliers(res2, n_out, len(rate_deg_s))
+    return _with_outliers(res2, n_out, len(np.asarray(rate_deg_s)))
 
 
 def _with_outliers(res, n_out, n):
@@ -705,7 +716,7 @@ def _within_scatter(cands, best, g, rg, threshold, comp_threshold):
     return best, True
 
 
-def white_level_factor(y, fs, card, bands=()):
+def white_level_factor(y: np.ndarray, fs: float, card: ModelCard, bands: Sequence[tuple[float, float]] = ()) -> float:
     """The factor ``s`` by which the card's white noise (N and the Gauss-Markov terms
     with tau < 2 samples, which act as white noise) would be scaled to fit record ``y``,
     every other term held: weighted least squares (``s^2 >= 0``) of the record's Allan
@@ -769,8 +780,11 @@ def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
     return res
 
 
-def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, refit_bias=True,
-                source="HELD-OUT", outliers=False, refit_white=False, card_error=False, n_train=None):
+def heldout_gap(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card_text: str,
+                stop_bands: Sequence[Sequence[float]] | None = (),
+                seeds: int | Sequence[int] = 4, refit_bias: bool = True, source: str = "HELD-OUT",
+                outliers: bool = False, refit_white: bool = False, card_error: bool = False,
+                n_train: int | None = None) -> GapResult:
     """The gap of an already fitted card on ANOTHER record of the same sensor (nothing added).
 
     With ``refit_bias`` the card's constant bias is first set to this record's mean:
