@@ -308,16 +308,8 @@ def figures(outdir, R):
         for m in METHODS:
             a = st["allan"][m]
             ax.loglog(a.tau_s, a.adev_deg_h, color=COLOR[m], label=LABEL[m], lw=2 if m in ("raw", "shakf") else 1)
-        ax.set_xlabel("tau, s")
-        ax.set_ylabel("Allan deviation, deg/h")
-        ax.set_title(f"Static record, {CARD_LABEL[key]}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="lower left")
-        f = f"allan_{key}.png"
-        fig.tight_layout()
-        fig.savefig(outdir / f, dpi=110)
-        plt.close(fig)
-        files.append(f)
+        files.append(_finish(plt, fig, ax, outdir / f"allan_{key}.png", "tau, s", "Allan deviation, deg/h",
+                             f"Static record, {CARD_LABEL[key]}", "lower left"))
 
         dy = R["dyn"][key]
         fig, ax = plt.subplots(figsize=(7, 4.5))
@@ -327,31 +319,18 @@ def figures(outdir, R):
             idx = np.unique(np.geomspace(1, c.size, 1500).astype(int)) - 1    # log-spaced samples
             ax.semilogx((idx + 1) / fs, c[idx], color=COLOR[m], label=LABEL[m], lw=1)
         ax.axhline(STEP_DEG_S, color="k", lw=0.5)
-        ax.set_xlabel("time after the step, s (log)")
-        ax.set_ylabel("incremental response, deg/s")
-        ax.set_title(f"{STEP_DEG_S:g} deg/s step after {dy['pre_s']:g} s at rest, {CARD_LABEL[key]}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="center left")
-        f = f"step_{key}.png"
-        fig.tight_layout()
-        fig.savefig(outdir / f, dpi=110)
-        plt.close(fig)
-        files.append(f)
+        files.append(_finish(plt, fig, ax, outdir / f"step_{key}.png", "time after the step, s (log)",
+                             "incremental response, deg/s",
+                             f"{STEP_DEG_S:g} deg/s step after {dy['pre_s']:g} s at rest, {CARD_LABEL[key]}",
+                             "center left"))
 
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for m in METHODS:
             ax.loglog(dy["freqs"], np.maximum(dy["gains"][m], 1e-4), "o-", ms=3, color=COLOR[m], label=LABEL[m])
         ax.axhline(1 / math.sqrt(2), color="k", lw=0.5, ls="--")
-        ax.set_xlabel("frequency, Hz")
-        ax.set_ylabel("gain (incremental response / true sinusoid)")
-        ax.set_title(f"Gain from sinusoid sweeps, {CARD_LABEL[key]}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="lower left")
-        f = f"gain_{key}.png"
-        fig.tight_layout()
-        fig.savefig(outdir / f, dpi=110)
-        plt.close(fig)
-        files.append(f)
+        files.append(_finish(plt, fig, ax, outdir / f"gain_{key}.png", "frequency, Hz",
+                             "gain (incremental response / true sinusoid)",
+                             f"Gain from sinusoid sweeps, {CARD_LABEL[key]}", "lower left"))
 
     fig, ax = plt.subplots(figsize=(7, 5))
     for key, mk in (("fog", "o"), ("mems", "s")):
@@ -365,16 +344,25 @@ def figures(outdir, R):
                 ax.annotate(q, (bw, red), textcoords="offset points", xytext=(5, 3), fontsize=8)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("-3 dB bandwidth, Hz (from sinusoid sweeps; < / > = beyond the sweep)")
-    ax.set_ylabel("static noise reduction (raw std / output std)")
-    ax.set_title("The price of lower noise: circles FOG 200 Hz, squares MEMS 1 kHz")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(outdir / "tradeoff.png", dpi=110)
-    plt.close(fig)
-    files.append("tradeoff.png")
+    files.append(_finish(plt, fig, ax, outdir / "tradeoff.png",
+                         "-3 dB bandwidth, Hz (from sinusoid sweeps; < / > = beyond the sweep)",
+                         "static noise reduction (raw std / output std)",
+                         "The price of lower noise: circles FOG 200 Hz, squares MEMS 1 kHz"))
     return files
+
+
+def _finish(plt, fig, ax, path, xlabel, ylabel, title, legend_loc=None):
+    """Label the axes, draw the grid and the legend, write the PNG ``path`` and close the
+    figure; returns the file's name."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc=legend_loc)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
 
 
 # ------------------------------------------------------------------ report
