@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, TypeAlias
 
@@ -38,7 +38,7 @@ SHAPE = {"quantization": lambda t: 3.0 / (t * t), "angle_random_walk": lambda t:
          "bias_instability": lambda t: np.full_like(t, BI_FACTOR), "rate_random_walk": lambda t: t / 3.0}
 
 
-def _deterministic_s(card, n, fs, restarts):
+def _deterministic_s(card: ModelCard, n: int, fs: float, restarts: npt.ArrayLike | None) -> np.ndarray:
     """The card's deterministic rate (deg/s): bias, ramp, transient, sinusoids (no noise)."""
     t = np.arange(n) / fs
     cb = card.terms.get("constant_bias", {})
@@ -54,7 +54,7 @@ def _deterministic_s(card, n, fs, restarts):
     return det
 
 
-def _since_restart(n, fs, restarts):
+def _since_restart(n: int, fs: float, restarts: npt.ArrayLike | None) -> np.ndarray:
     k = np.arange(n)
     if restarts is None or not np.any(restarts):
         return k / fs
@@ -78,6 +78,7 @@ class Candidate:
     z: dict[str, np.ndarray] | None = None
     components: dict[str, float] | None = None
     extra: list[Change] = field(default_factory=list)   # (name, params, refit) changed along with this one
+    fallback: bool = False    # a joint re-fit of every noise term, tried when no single effect will do
 
     @property
     def changes(self) -> list[Change]:
@@ -98,12 +99,12 @@ class Candidate:
                 "components": self.components}
 
 
-def _params_json(params):
+def _params_json(params: Mapping[str, float] | None) -> dict[str, float] | None:
     """Plain floats, or None for a term removed from the card."""
     return None if params is None else {k: float(v) for k, v in params.items()}
 
 
-def _f(v):
+def _f(v: float | None) -> float | None:
     return None if v is None or not math.isfinite(v) else float(v)
 
 
@@ -164,12 +165,13 @@ class _AllanExcess:
     avar_s: np.ndarray
     sw: np.ndarray
     target: np.ndarray
-    existing: dict
+    existing: dict[str, float]
     keep: np.ndarray
     limit: float
 
     @classmethod
-    def of(cls, layout, ref, z, card, limit):
+    def of(cls, layout: Layout, ref: Reference, z: Mapping[str, np.ndarray], card: ModelCard,
+           limit: float) -> _AllanExcess:
         tau = layout.tau_s
         avar_m = np.exp(2 * (ref.mean["allan"] + z["allan"] * ref.sigma["allan"]))   # measured
         avar_s = np.exp(2 * ref.mean["allan"])
@@ -181,14 +183,14 @@ class _AllanExcess:
         return cls(tau, avar_m, avar_s, np.sqrt(w), avar_m - rest, existing, z["allan"] >= -limit, limit)
 
     @property
-    def ex_names(self):
+    def ex_names(self) -> list[str]:
         return list(self.existing)
 
     @property
-    def ex_cols(self):
+    def ex_cols(self) -> list[np.ndarray]:
         return [SHAPE[nm](self.tau) for nm in self.existing]
 
-    def joint(self, cols):
+    def joint(self, cols: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, float]:
         """Weighted NNLS of the target on ``cols`` (the card's Allan-shaped terms re-fitted
         with the others): (coefficients, z of each (unconstrained covariance at the
         solution), chi^2)."""
@@ -205,7 +207,7 @@ class _AllanExcess:
             zc = np.zeros_like(coef)
         return coef, zc, rn * rn
 
-    def refits(self, coef):
+    def refits(self, coef: np.ndarray) -> list[Change]:
         """Changes [(name, params or None, True)] of the card's Allan-shaped terms whose
         re-fitted coefficient moves by more than 2 % (a term re-fitted to zero is removed)."""
         out = []
@@ -216,7 +218,7 @@ class _AllanExcess:
                 out.append((nm, {fld: math.sqrt(c) * to_card} if c > 0 else None, True))
         return out
 
-    def held(self, col):
+    def held(self, col: np.ndarray) -> tuple[float, float]:
         """Fit one term to the excess over the WHOLE current card, its terms held:
         (coefficient, its z).
 
@@ -233,17 +235,17 @@ class _AllanExcess:
         c = float(np.dot(a, ((self.avar_m - self.avar_s) * self.sw)[self.keep]) / np.dot(a, a))
         return c, c * math.sqrt(float(np.dot(a, a)))
 
-    def held_chi2(self, col):
+    def held_chi2(self, col: np.ndarray) -> float:
         """chi^2 of `held` (the points it uses)."""
         hc, _ = self.held(col)
         res = ((self.avar_m - self.avar_s - max(hc, 0.0) * col) * self.sw)[self.keep]
         return float(np.dot(res, res))
 
 
-def _allan_shape_candidates(ax):
+def _allan_shape_candidates(ax: _AllanExcess) -> list[Candidate]:
     """Each Allan-shaped term the card lacks, fitted jointly with the card's own (and, when
     that changes them, with them held), and a re-fit of the card's own alone."""
-    out = []
+    out: list[Candidate] = []
     ex_names, ex_cols = ax.ex_names, ax.ex_cols
     for name in NOISE_SECTIONS:
         fld, to_card = CARD_FIELD[name]
@@ -268,7 +270,7 @@ def _allan_shape_candidates(ax):
     return out
 
 
-def _best_log_tau(chi2, lo_T, hi_T):
+def _best_log_tau(chi2: Callable[[float], float], lo_T: float, hi_T: float) -> float:
     """The log correlation time minimising ``chi2(log T)``: a 41-point grid over
     ``lo_T .. hi_T``, then a bounded refinement within +-0.25 of the grid's best."""
     from scipy.optimize import minimize_scalar
@@ -278,13 +280,14 @@ def _best_log_tau(chi2, lo_T, hi_T):
     return float(opt.x)
 
 
-def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=()):
+def _correlated_candidates(ax: _AllanExcess, kind: str, col_of: Callable[[float], np.ndarray], lo_T: float, hi_T: float,
+                           to_card: float, what: str, rivals: Sequence[np.ndarray] = ()) -> list[Candidate]:
     """A term with a correlation time (sigma, tau): tau by `_best_log_tau`, jointly
     with the card's Allan-shaped terms, and (when the card has some) with them held. With
     ``rivals`` (Allan shapes of the same number of parameters that the term tends to at its
     limits), it is proposed only when it fits the Allan variance better than they do by
     ``limit^2`` in chi^2 (its correlation time is resolved)."""
-    out = []
+    out: list[Candidate] = []
     ex_names, ex_cols, limit = ax.ex_names, ax.ex_cols, ax.limit
     rival = ax.joint(ex_cols + list(rivals))[2] if rivals else math.inf
     rival_held = min((ax.held_chi2(c) for c in rivals), default=math.inf)
@@ -297,7 +300,7 @@ def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=(
                              f"{what}, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
                              extra=ax.refits(coef[:-1])))
     if ex_names:    # the term on top of the card's terms held, its own correlation time
-        def held_chi2(logT):
+        def held_chi2(logT: float) -> float:
             return ax.held_chi2(col_of(math.exp(logT)))
         Th = math.exp(_best_log_tau(held_chi2, lo_T, hi_T))
         hc, hz = ax.held(col_of(Th))
@@ -310,7 +313,7 @@ def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=(
     return out
 
 
-def _bias_candidate(card, r, z):
+def _bias_candidate(card: ModelCard, r: np.ndarray, z: Mapping[str, np.ndarray]) -> Candidate:
     """The constant bias that takes the mean of ``r`` (record minus the card's deterministic part)."""
     old = card.terms.get("constant_bias")
     params = dict(old) if old else {}
@@ -318,7 +321,7 @@ def _bias_candidate(card, r, z):
     return Candidate("constant_bias", params, old is not None, f"record mean off by z={z['mean'][0]:.1f}")
 
 
-def _ramp_candidate(card, r, t):
+def _ramp_candidate(card: ModelCard, r: np.ndarray, t: np.ndarray) -> Candidate:
     """The rate ramp fitted to ``r`` through the origin (the card's ramp is R t)."""
     old = card.terms.get("rate_ramp")
     slope = float(np.dot(r, t) / np.dot(t, t))
@@ -326,7 +329,7 @@ def _ramp_candidate(card, r, t):
                      old is not None, "trend over the record (linear)")
 
 
-def _transient_candidates(card, r, fs, restarts):
+def _transient_candidates(card: ModelCard, r: np.ndarray, fs: float, restarts: npt.ArrayLike | None) -> list[Candidate]:
     """The turn-on transient (amplitude, tau) fitted to block means of ``r`` (about 2000
     samples each) after start and restarts: least squares of a constant and the decay
     for each tau of a 40-point log grid, then a bounded refinement; none when the best
@@ -338,7 +341,7 @@ def _transient_candidates(card, r, fs, restarts):
     tb = _since_restart(n, fs, restarts)[:m * nb].reshape(m, nb)
     rb = r[:m * nb].reshape(m, nb).mean(axis=1)
 
-    def sse(logtau, ret=False):
+    def sse(logtau: float, ret: bool = False) -> Any:
         e = np.exp(-tb / math.exp(logtau)).mean(axis=1)
         A = np.column_stack([np.ones(m), e])
         coef, *_ = np.linalg.lstsq(A, rb, rcond=None)
@@ -358,7 +361,7 @@ def _transient_candidates(card, r, fs, restarts):
     return []
 
 
-def _sinusoid_candidate(r, t, layout, k, z_line):
+def _sinusoid_candidate(r: np.ndarray, t: np.ndarray, layout: Layout, k: int, z_line: float) -> Candidate:
     """The sinusoid at the Welch bin ``k`` where the record's PSD stands out of the
     simulations' (z ``z_line``): the frequency of the peak of the record's own periodogram
     (zero-padded 4x) within +-1.5 Welch bins, refined by maximising the power of ``r`` at
@@ -374,7 +377,7 @@ def _sinusoid_candidate(r, t, layout, k, z_line):
     j = int(sel[np.argmax(spec[sel])])
     dff = ff[1] - ff[0]
 
-    def neg_power(fr):
+    def neg_power(fr: float) -> float:
         ph = 2 * np.pi * fr * t
         return -(np.dot(r, np.cos(ph)) ** 2 + np.dot(r, np.sin(ph)) ** 2)
     opt = minimize_scalar(neg_power, bounds=(max(ff[j] - dff, 1e-9), min(ff[j] + dff, fs / 2)),

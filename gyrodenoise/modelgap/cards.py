@@ -14,7 +14,7 @@ if TYPE_CHECKING:
 
 
 # ------------------------------------------------------------------ cards as text
-def _fmt_num(v):
+def _fmt_num(v: float) -> str:
     return f"{float(v):.6g}"
 
 
@@ -54,22 +54,23 @@ def text_at_rate(text: str, fs: float) -> str:
     return new if n else text
 
 
-def _table_range(lines, i):
+def _table_range(lines: list[str], i: int) -> tuple[int, int]:
     """(start, end) of the body of the table whose header is line ``i``."""
     header = re.compile(r"^\s*\[")
     end = next((j for j in range(i + 1, len(lines)) if header.match(lines[j])), len(lines))
     return i + 1, end
 
 
-def _last_content(lines, lo, hi, default):
+def _last_content(lines: list[str], lo: int, hi: int, default: int) -> int:
     return max([j for j in range(lo, hi) if lines[j].strip() and not lines[j].lstrip().startswith("#")],
                default=default)
 
 
-def _remove_lines(lines, name, note):
+def _remove_lines(lines: list[str], name: str, note: str) -> list[str]:
     """Comment out every instance of terms.name: its inline line in [terms], its
     [terms.name] table or its [[terms.name]] tables with their bodies."""
-    out, i = [], 0
+    out: list[str] = []
+    i = 0
     table = re.compile(rf"^\s*\[\[?\s*terms\s*\.\s*{re.escape(name)}\s*\]\]?\s*(#.*)?$")
     inline = re.compile(rf"^\s*{re.escape(name)}\s*=")
     in_terms = False
@@ -90,7 +91,8 @@ def _remove_lines(lines, name, note):
     return out
 
 
-def _edit_lines(lines, name, params, refit, note):
+def _edit_lines(lines: list[str], name: str, params: Mapping[str, float] | None, refit: bool,
+                note: str) -> list[str]:
     """The edit itself (see `edit_card`); returns the new list of lines."""
     from gyrodenoise.simulator import REPEATABLE
     if params is None:
@@ -137,7 +139,7 @@ def _edit_lines(lines, name, params, refit, note):
     return lines[:first] + ["[terms]", inline, ""] + lines[first:]
 
 
-def _holds(text, name, params, n_before):
+def _holds(text: str, name: str, params: Mapping[str, float] | None, n_before: int) -> bool:
     """Does the card text parse as TOML with terms.name holding ``params`` (the last
     instance, one more than ``n_before``, for a repeatable term)?"""
     import tomllib
@@ -158,7 +160,7 @@ def _holds(text, name, params, n_before):
     return all(math.isclose(float(t[k]), float(v), rel_tol=1e-5, abs_tol=1e-300) for k, v in params.items())
 
 
-def _n_instances(text, name):
+def _n_instances(text: str, name: str) -> int:
     import tomllib
     try:
         t = tomllib.loads(text).get("terms", {}).get(name)

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap.settings import CARD_FIELD
@@ -49,7 +50,7 @@ class AllanCurve:
     notes: list[str] = field(default_factory=list)
 
 
-def _pick(header, names):
+def _pick(header: list[str], names: Iterable[str]) -> int | None:
     return next((header.index(n) for n in names if n in header), None)
 
 
@@ -81,7 +82,7 @@ def read_allan_curve(path: str | os.PathLike[str], sensor: str | None = None, ch
     return AllanCurve(tau * 1.0, ad * k, lo * k, hi * k, fs, n, label, unit, notes)
 
 
-def _read_rows(path, src):
+def _read_rows(path: str | os.PathLike[str], src: str) -> tuple[list[str], list[tuple[int, list[str]]]]:
     """(header, [(line number, fields)] of the non-blank rows, each as wide as the header)."""
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -102,7 +103,7 @@ def _read_rows(path, src):
     return header, body
 
 
-def _columns(header):
+def _columns(header: list[str]) -> dict[str, int | None]:
     """Index of each column the reader knows (None when absent)."""
     return {"tau": _pick(header, TAU_COLS), "adev": _pick(header, ADEV_COLS), "lo": _pick(header, LO_COLS),
             "hi": _pick(header, HI_COLS), "sensor": _pick(header, ("sensor",)),
@@ -110,7 +111,8 @@ def _columns(header):
             "n_samples": _pick(header, ("n_samples",))}
 
 
-def _select_curve(body, col, sensor, channel, src):
+def _select_curve(body: list[tuple[int, list[str]]], col: dict[str, int | None], sensor: str | None, channel: str | None,
+                  src: str) -> list[tuple[int, list[str]]]:
     """The rows of the chosen sensor and channel (required when the file holds several);
     at least 3."""
     for what, want in (("sensor", sensor), ("channel", channel)):
@@ -131,7 +133,7 @@ def _select_curve(body, col, sensor, channel, src):
     return body
 
 
-def _number(lineno, r, i, name, src):
+def _number(lineno: int, r: list[str], i: int, name: str, src: str) -> float:
     """Field ``i`` of row ``r`` as a finite float, or InputError naming the line."""
     try:
         v = float(r[i])
@@ -142,12 +144,14 @@ def _number(lineno, r, i, name, src):
     return v
 
 
-def _curve_values(body, header, col, src):
+def _curve_values(body: list[tuple[int, list[str]]], header: list[str], col: dict[str, int | None],
+                  src: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """(tau, adev, lower, upper, notes) in the file's unit, checked: tau positive and
     increasing, adev positive, the bounds enclosing it (NaN where a bound is absent or
     not positive, with a note)."""
-    def column(key):
+    def column(key: str) -> np.ndarray:
         i = col[key]
+        assert i is not None        # the caller checks that the column is there
         return np.array([_number(ln, r, i, header[i], src) for ln, r in body])
     tau, ad = column("tau"), column("adev")
     for (ln, _), t_, a_ in zip(body, tau, ad):
@@ -164,13 +168,14 @@ def _curve_values(body, header, col, src):
     bad = np.flatnonzero((hi < ad) | (lo > ad))
     if len(bad):
         raise InputError(f"line {body[bad[0]][0]}: the bounds do not enclose the Allan deviation", src)
-    notes = []
+    notes: list[str] = []
     if np.any(lo <= 0):
         notes.append(f"{int(np.sum(lo <= 0))} lower bound(s) <= 0 (long tau): no lower bound there")
     return tau, ad, np.where(lo > 0, lo, np.nan), hi, notes
 
 
-def _rate_and_length(body, col, sample_rate_hz, n_samples, src):
+def _rate_and_length(body: list[tuple[int, list[str]]], col: dict[str, int | None], sample_rate_hz: float | None, n_samples: int | None,
+                     src: str) -> tuple[float, int]:
     """(sample rate, record length) from the file's first row, else from the arguments."""
     ln, r = body[0]
     if col["freq_hz"] is not None:
@@ -190,7 +195,7 @@ def _rate_and_length(body, col, sample_rate_hz, n_samples, src):
 
 class _CurveLayout:
     """What `spectral.fit_terms` needs of a layout when there is no PSD."""
-    def __init__(self, m, fs, n):
+    def __init__(self, m: npt.ArrayLike, fs: float, n: int) -> None:
         self.m, self.fs, self.n = np.asarray(m, np.int64), float(fs), int(n)
 
 

@@ -224,7 +224,7 @@ def estimate_spread(records: Sequence[np.ndarray], fs: float, text: str, bands: 
     for k, g in enumerate(groups):
         member[k, g] = 1.0
 
-    def factors(ys):
+    def factors(ys: Iterable[np.ndarray]) -> np.ndarray:
         return np.array([np.sqrt(fit.group_factors(signature(band_stop(np.asarray(y[:n], float), fs, bands),
                                                              layout), groups)) @ member
                          + (1.0 - member.sum(axis=0)) for y in ys])

@@ -83,12 +83,12 @@ def format_report(res: GapResult, source: str = "MEASURED") -> str:
     return "\n".join(out)
 
 
-def _tau_range(a, b):
+def _tau_range(a: float, b: float) -> str:
     """'0.01 s' for one Allan point, '0.04-0.08 s' for a run of them."""
     return f"{a:.3g} s" if f"{a:.3g}" == f"{b:.3g}" else f"{a:.3g}-{b:.3g} s"
 
 
-def _not_within(res):
+def _not_within(res: GapResult) -> str:
     """Why the final card is not within the scatter: the gap above the threshold, or (the gap
     below it) the components above their own thresholds, named with both numbers."""
     if not res.gap_after <= res.threshold:
@@ -118,7 +118,7 @@ def describe_edits(effects: Iterable[Mapping[str, Any]]) -> str:
     return "; ".join(f"{k} {', '.join(v)}" for k, v in kinds.items() if v) or "nothing"
 
 
-def _short(params):
+def _short(params: Mapping[str, float] | None) -> str:
     if params is None:
         return "(removed)"
     return "{" + ", ".join(f"{k}={v:.4g}" for k, v in params.items()) + "}"
@@ -171,7 +171,7 @@ def plot_gap(res: GapResult, path: str | os.PathLike[str], title: str = "") -> s
     return _save(fig, path)
 
 
-def _allan_axes(ax, title):
+def _allan_axes(ax: Any, title: str) -> None:
     ax.set_xlabel("averaging time tau (s)")
     ax.set_ylabel("Allan deviation (deg/h)")
     ax.set_title(title, fontsize=9)

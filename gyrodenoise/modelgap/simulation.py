@@ -16,7 +16,8 @@ from gyrodenoise.modelgap.population import draw_unit
 
 
 # ------------------------------------------------------------------ simulation
-def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
+def _fmu_worker(fmu_path: str, card_text: str, seed: int, n: int, fs: float,
+                restarts: list[bool] | None) -> np.ndarray | str:
     """Simulate one seed through SimulatedFog.fmu; returns the rates, or a one-line
     error message (str) instead of raising: FMU exceptions need not unpickle in the
     parent process, and a raise there would surface as a BrokenProcessPool."""
@@ -27,7 +28,8 @@ def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
         return f"{exc.__class__.__name__}: {msg}"
 
 
-def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
+def _fmu_simulate(fmu_path: str, card_text: str, seed: int, n: int, fs: float,
+                  restarts: list[bool] | None) -> np.ndarray:
     """Simulate one seed through SimulatedFog.fmu with fmpy FMU2Slave: sample 0 at
     fmi2ExitInitializationMode, then one step per sample (``gyrodenoise.simulate``'s
     numbers, bit for bit)."""

@@ -235,7 +235,7 @@ def find_bumps(y: npt.ArrayLike, fs: float, ratio: float = 3.0, span: float = 5.
     return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
 
 
-def _log_bands(f, p, per_decade):
+def _log_bands(f: np.ndarray, p: np.ndarray, per_decade: int) -> tuple[list[tuple[float, float]], np.ndarray, np.ndarray]:
     """Log-spaced bands (``per_decade``) over the Welch bins ``f``: (edges of the bands
     holding at least one bin [(lo_hz, hi_hz)], their centres (geometric), their mean PSD)."""
     edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
@@ -248,7 +248,7 @@ def _log_bands(f, p, per_decade):
     return [(a, b) for a, b, _ in bands], fc, pv
 
 
-def _bump_flags(fc, pv, ratio, span):
+def _bump_flags(fc: np.ndarray, pv: np.ndarray, ratio: float, span: float) -> tuple[np.ndarray, np.ndarray]:
     """Per band: does it stand more than ``ratio`` above the lowest band on both sides
     within a factor ``span``; and that side floor (the larger of the two minima)."""
     flag = np.zeros(len(fc), bool)
@@ -262,7 +262,7 @@ def _bump_flags(fc, pv, ratio, span):
     return flag, side
 
 
-def _widen_run(i, j, fc, pv, span):
+def _widen_run(i: int, j: int, fc: np.ndarray, pv: np.ndarray, span: float) -> tuple[int, int]:
     """Bands ``i..j`` of a bump widened while the PSD stays above `WIDEN` x the
     lowest band on the far side (within ``span``)."""
     while i > 0:
@@ -278,7 +278,8 @@ def _widen_run(i, j, fc, pv, span):
     return i, j
 
 
-def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
+def _bump_of_run(y: np.ndarray, fs: float, f: np.ndarray, p: np.ndarray, nper: int, edges: list[tuple[float, float]], fc: np.ndarray,
+                 pv: np.ndarray, side: np.ndarray, i: int, j: int, span: float) -> tuple[float, float, float] | None:
     """The bump (lo_hz, hi_hz, peak_ratio) of the bands ``i..j`` (flagged, then widened),
     or None when it spans fewer than `MIN_BUMP_BINS` Welch bins (a narrow line: a
     sinusoid's business, not a band to take out)."""
@@ -326,7 +327,7 @@ def bump_tail_end(f: np.ndarray, p: np.ndarray, hi_hz: float, fs: float, n: int,
     level = shapes @ c
     n_seg = max(segment_count([n], nperseg), 1)
     limit = 1.0 + TAIL_SE / math.sqrt(1.8 * n_seg * TAIL_BINS)
-    def above(k_):
+    def above(k_: int) -> bool:
         return k_ + TAIL_BINS <= k_fit0 and p[k_:k_ + TAIL_BINS].mean() > limit * level[k_:k_ + TAIL_BINS].mean()
     k = k0
     while True:
@@ -456,7 +457,7 @@ def line_grid(fs: float, m: npt.ArrayLike) -> np.ndarray:
     return np.geomspace(0.1 * fs / float(np.max(m)), 0.45 * fs, LINE_GRID_POINTS)
 
 
-def _nnls_huber(A, b, robust):
+def _nnls_huber(A: np.ndarray, b: np.ndarray, robust: int) -> tuple[np.ndarray, float]:
     """Non-negative least squares of ``A x = b`` (columns scaled), ``robust`` Huber
     re-weightings: a point that no combination of the columns reaches (a sensor's
     internal filter at the shortest taus) is down-weighted instead of pulling every
@@ -472,7 +473,7 @@ def _nnls_huber(A, b, robust):
     return c / scale, float(r @ r)
 
 
-def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
+def _drop_unneeded(A: np.ndarray, b: np.ndarray, c: np.ndarray, chi2: float, min_dchi2: float, n_params: np.ndarray) -> np.ndarray:
     """Backward elimination: while some column with a non-zero coefficient raises the
     chi^2 by less than ``min_dchi2`` when it is left out (the others re-fitted), one of
     those is left out: the one with the most parameters (``n_params`` per column: a
@@ -505,7 +506,8 @@ def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
         off |= c <= 0
 
 
-def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
+def _pick_allan_lines(A: np.ndarray, b: np.ndarray, sd: np.ndarray, m: np.ndarray, fs: float, max_lines: int,
+                      inside_fn: Callable[[np.ndarray], bool]) -> list[float]:
     """Greedy choice of up to ``max_lines`` sinusoids (frequencies of `line_grid`)
     for an Allan-curve fit: each step adds the line that lowers the plain chi^2 most.
     The lines are kept only when, with them, the model is inside the published bounds
@@ -517,7 +519,7 @@ def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
     x0, _ = _nnls_huber(A, b, 0)
     if inside_fn(A @ x0):
         return []
-    chosen = []
+    chosen: list[int] = []
     for _ in range(max_lines):
         best = min(((_nnls_huber(np.hstack([A, L[:, chosen + [j]]]), b, 0)[1], j) for j in range(len(grid))
                     if j not in chosen), default=None)

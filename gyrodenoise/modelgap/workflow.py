@@ -7,14 +7,14 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
 
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
-from gyrodenoise.modelgap.candidates import Candidate, _f, propose, spectral_refit
+from gyrodenoise.modelgap.candidates import Candidate, Change, _f, propose, spectral_refit
 from gyrodenoise.modelgap.cards import card_at_rate, check_editable, edit_card
 from gyrodenoise.modelgap.metric import (
     Layout,
@@ -107,7 +107,7 @@ def _finite(obj: Any) -> Any:
     return obj
 
 
-def _zeroed(changes):
+def _zeroed(changes: Iterable[Change]) -> list[str]:
     """Fields that a set of changes would write as 0 (a noise term fitted to nothing)."""
     out = []
     for nm, pr, _ in changes:
@@ -121,7 +121,7 @@ def _zeroed(changes):
     return out
 
 
-def _points(z):
+def _points(z: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Per-point contributions to the five gap components (component units)."""
     nl = len(z["line"])
     return {"allan": z["allan"] ** 2, "psd": z["psd"] ** 2,
@@ -199,7 +199,7 @@ def deterministic_offset(sig_m: Signature, ref: Reference, z: Mapping[str, np.nd
     return bool(flag), off, wander
 
 
-def _evaluate(sims, sig_m, layout, bands=()):
+def _evaluate(sims: Iterable[np.ndarray], sig_m: Signature, layout: Layout, bands: Sequence[tuple[float, float]] = ()) -> tuple[Reference, dict[str, np.ndarray], dict[str, float], float]:
     ref = Reference(layout, [signature(band_stop(s, layout.fs, bands), layout) for s in sims])
     z = zscores(sig_m, ref)
     comp = gap_components(z)
@@ -247,7 +247,8 @@ def initial_terms(sig_m: Signature, layout: Layout, bands: Sequence[tuple[float,
                      psd_m * rel, min_dchi2=min_dchi2)[0]
 
 
-def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
+def _initial_fit(text: str, sig_m: Signature, layout: Layout, bands: Sequence[tuple[float, float]], card: ModelCard, csrc: str,
+                 source: str, effects: list[dict[str, Any]]) -> str:
     """Write the noise terms fitted to the record alone (`initial_terms`) into a
     card that has none; appends to ``effects``."""
     terms = initial_terms(sig_m, layout, bands)
@@ -282,17 +283,17 @@ FALLBACK_GAIN = 0.5  # the joint re-fit is accepted when it at least halves the 
 TOP_FROM = 0.3      # the band given to an internal low-pass filter: 0.3 fs to Nyquist
 
 
-def _top_disagreement(res):
+def _top_disagreement(res: GapResult) -> float | None:
     """Lower edge (Hz) of the band given to the sensor's internal low-pass filter,
     TOP_FROM * fs, when what still disagrees sits at the top of the band: a run of
     Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point; else
     None. (A fixed edge: where the run starts moves with the seeds' scatter.)"""
-    if not _top_disagrees(res.iterations[-1]["_z"]):
+    if res.layout is None or not _top_disagrees(res.iterations[-1]["_z"]):
         return None
     return float(TOP_FROM * res.layout.fs)
 
 
-def _top_disagrees(z):
+def _top_disagrees(z: Mapping[str, np.ndarray]) -> bool:
     """A run of Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point."""
     return abs(z["psd"][-1]) > 3.0 or abs(z["allan"][0]) > 3.0
 
@@ -353,8 +354,8 @@ def gap(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds:
         rate_deg_s, idx = screen_outliers(check_record(rate_deg_s, source))
         n_out = len(idx)
         log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet=quiet)
-    kw = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
-              workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
+    kw: dict[str, Any] = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
+                              workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
     res = _gap_once(rate_deg_s, sample_rate_hz, card, stop_bands=stop_bands, **kw)
     lo = None if res.within_scatter or stop_bands != "auto" else _top_disagreement(res)
     if lo is None:
@@ -379,7 +380,7 @@ def gap(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds:
     return _with_outliers(res2, n_out, len(np.asarray(rate_deg_s)))
 
 
-def _with_outliers(res, n_out, n):
+def _with_outliers(res: GapResult, n_out: int, n: int) -> GapResult:
     if n_out:
         res.named.insert(0, f"outliers: {n_out} isolated wild samples ({100.0 * n_out / n:.2g} % of the record, "
                             f"> 10 robust sigmas off the running median) replaced before the comparison; no term "
@@ -395,36 +396,38 @@ class _Pass:
     fs: float
     layout: Layout
     sim: Simulator
-    sig_m: dict
-    bands: list
-    restarts: object
-    source: object
+    sig_m: Signature
+    bands: list[tuple[float, float]]
+    restarts: npt.ArrayLike | None
+    source: str
     csrc: str
-    stop_bands: object      # as given: "auto" or a list
+    stop_bands: str | Sequence[tuple[float, float]] | None      # as given: "auto" or a list
     quiet: bool
 
-    def evaluate(self, text, engine=None):
+    def evaluate(self, text: str, engine: str | None = None) -> tuple[Reference, dict[str, np.ndarray], dict[str, float], float]:
         """(reference, z, components, gap) of the card ``text`` simulated (``engine``: the
         simulator's own unless given)."""
         sims = self.sim.run(text) if engine is None else self.sim.run(text, engine=engine)
         return _evaluate(sims, self.sig_m, self.layout, self.bands)
 
-    def edited(self, text, changes):
+    def edited(self, text: str, changes: Iterable[Change]) -> str:
         """``text`` with ``changes`` [(name, params, refit)] written in, each with its note."""
         for nm, pr, rf in changes:
             text = edit_card(text, nm, pr, rf, f"fitted to {Path(str(self.source)).name}", self.csrc)
         return text
 
 
-def _seed_list(seeds):
+def _seed_list(seeds: int | Sequence[int]) -> list[int]:
     """Seeds 1..S for an int S, else the given seeds; InputError below 3."""
-    seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s) for s in seeds]
+    seed_list = (list(range(1, int(cast(int, seeds)) + 1)) if np.isscalar(seeds)
+                 else [int(s) for s in cast(Sequence[int], seeds)])
     if len(seed_list) < 3:
         raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
     return seed_list
 
 
-def _resolve_stop_bands(y, fs, stop_bands):
+def _resolve_stop_bands(y: np.ndarray, fs: float,
+                        stop_bands: str | Sequence[tuple[float, float]] | None) -> list[tuple[float, float, float]]:
     """The bands taken out of the comparison, [(lo_hz, hi_hz, peak ratio or NaN when
     given)]: `spectral.find_bumps` for ``"auto"``; InputError for a bad band."""
     if isinstance(stop_bands, str):
@@ -439,7 +442,7 @@ def _resolve_stop_bands(y, fs, stop_bands):
     return bumps
 
 
-def _thresholds(ref):
+def _thresholds(ref: Reference) -> tuple[float, dict[str, float]]:
     """(gap threshold, per-component thresholds) from the simulations' leave-one-out gaps:
     1.5 x their largest, at least 1.5 for the gap and COMPONENT_FLOOR for a component."""
     loo = loo_gaps(ref)
@@ -449,8 +452,10 @@ def _thresholds(ref):
     return threshold, comp_threshold
 
 
-def _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir, workers, source, quiet,
-                stop_bands):
+def _start_pass(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds: int | Sequence[int],
+                engine: str, restarts: npt.ArrayLike | None, fmu_dir: str | os.PathLike[str] | None,
+                workers: int | None, source: str, quiet: bool, stop_bands: str | Sequence[tuple[float, float]] | None
+                ) -> tuple[_Pass, str, list[tuple[float, float, float]], list[int]]:
     """Check the inputs and set up one pass: (`_Pass`, card text, stop bands, seeds)."""
     from gyrodenoise.simulator import load_card
     y = check_record(rate_deg_s, source)
@@ -471,7 +476,7 @@ def _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_d
     return ctx, card0.text, bumps, seed_list
 
 
-def _first_card(ctx, text, effects):
+def _first_card(ctx: _Pass, text: str, effects: list[dict[str, Any]]) -> tuple[str, list[np.ndarray]]:
     """The card the loop starts from and its simulations: an empty (or deterministic-only)
     card starts from the noise terms fitted to the record alone, with the analytic scatter
     of one record as the weights (`_initial_fit`; appends to ``effects``)."""
@@ -485,12 +490,17 @@ def _first_card(ctx, text, effects):
     return text, sims
 
 
-def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
-              fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None):
+def _gap_once(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds: int | Sequence[int] = 6,
+              engine: str = "native", restarts: npt.ArrayLike | None = None, max_effects: int = 6,
+              fmu_dir: str | os.PathLike[str] | None = None, workers: int | None = None, source: str = "MEASURED",
+              quiet: bool = True, stop_bands: str | Sequence[tuple[float, float]] | None = "auto",
+              latitude_deg: float | None = None) -> GapResult:
     """One pass of `gap` (its parameters), with the stop bands as given."""
     ctx, text, bumps, seed_list = _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir,
                                               workers, source, quiet, stop_bands)
-    effects, iterations, limitations = [], [], []
+    effects: list[dict[str, Any]] = []
+    iterations: list[dict[str, Any]] = []
+    limitations: list[str] = []
     text, sims = _first_card(ctx, text, effects)
     ref, z, comp, g = _evaluate(sims, ctx.sig_m, ctx.layout, ctx.bands)
     threshold, comp_threshold = _thresholds(ref)
@@ -523,7 +533,7 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
                      component_threshold=comp_threshold, layout=ctx.layout, measured=ctx.sig_m, stop_bands=bumps)
 
 
-def _take(best, g, it, iteration, effects, quiet):
+def _take(best: Candidate, g: float, it: dict[str, Any], iteration: int, effects: list[dict[str, Any]], quiet: bool) -> str:
     """Accept candidate ``best`` in iteration ``it`` (number ``iteration``): log it, list
     its changes in ``effects`` and ``it["chosen"]``; returns the card text with it."""
     log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
@@ -536,7 +546,7 @@ def _take(best, g, it, iteration, effects, quiet):
     return best.text
 
 
-def _note_card_noisier(last, limitations):
+def _note_card_noisier(last: dict[str, Any], limitations: list[str]) -> None:
     """Add the limitation "the card is noisier than the record" when the last iteration
     is not within the scatter and every Allan disagreement is the record below the card."""
     if not last["within_scatter"] and any(s_ < 0 for s_ in last["where"]["allan_sign"]) \
@@ -549,12 +559,12 @@ def _note_card_noisier(last, limitations):
 
 
 # ------------------------------------------------------------------ one iteration: choose a candidate
-def _score(c):
+def _score(c: Candidate) -> float:
     """A candidate's score: capped gap plus the widening, times 1 + PENALTY_PER_PARAM per parameter."""
     return (c.robust + c.widen) * (1.0 + PENALTY_PER_PARAM * c.n_params)
 
 
-def _candidates(ctx, card, ref, z, it):
+def _candidates(ctx: _Pass, card: ModelCard, ref: Reference, z: Mapping[str, np.ndarray], it: dict[str, Any]) -> list[Candidate]:
     """The candidates of one iteration: `candidates.propose`, the joint re-fits
     (`candidates.spectral_refit`, plain and with angle Gauss-Markov terms: the
     fallback, marked ``fallback``) when the Allan or PSD signatures disagree, and only
@@ -578,7 +588,8 @@ def _candidates(ctx, card, ref, z, it):
     return cands
 
 
-def _simulate_candidate(ctx, c, text, ref, z, limitations):
+def _simulate_candidate(ctx: _Pass, c: Candidate, text: str, ref: Reference, z: Mapping[str, np.ndarray],
+                        limitations: list[str]) -> None:
     """Write candidate ``c`` into the card ``text`` and evaluate it by re-simulation (native
     engine): sets ``c.text``, ``c.z``, ``c.components``, ``c.gap``, ``c.widen``; a candidate
     that would write a term as 0, that the card cannot hold at the record's rate or whose gap
@@ -605,7 +616,8 @@ def _simulate_candidate(ctx, c, text, ref, z, limitations):
         c.z = None
 
 
-def _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold):
+def _choose(ctx: _Pass, text: str, ref: Reference, z: Mapping[str, np.ndarray], g: float, it: dict[str, Any], limitations: list[str],
+            threshold: float, comp_threshold: Mapping[str, float]) -> Candidate | None:
     """The candidate accepted in this iteration, or None: every candidate simulated and
     scored (`robust_gap` over the points some candidate explains, plus
     `widening`, penalised per parameter), then the acceptance rules in turn:
@@ -617,14 +629,15 @@ def _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold):
     for c in cands:
         _simulate_candidate(ctx, c, text, ref, z, limitations)
     ok = [c for c in cands if c.z is not None]
-    mask = explainable([z] + [c.z for c in ok])
-    for c in ok:
-        c.robust = robust_gap(c.z, mask)
+    zs = [c.z for c in ok if c.z is not None]
+    mask = explainable([z, *zs])
+    for c, cz in zip(ok, zs):
+        c.robust = robust_gap(cz, mask)
         c.score = _score(c)
     ok = [c for c in ok if math.isfinite(c.score)]      # never accept a non-finite score
     it["candidates"] = [c.to_json() for c in cands]
-    fallback = [c for c in ok if getattr(c, "fallback", False)]
-    ok = [c for c in ok if not getattr(c, "fallback", False)]
+    fallback = [c for c in ok if c.fallback]
+    ok = [c for c in ok if not c.fallback]
     best = min(ok, key=lambda c: c.score) if ok else None
     rg = robust_gap(z, mask)
     it["unexplained_points"] = {c_: int(np.sum(~mask[c_])) for c_ in COMPONENTS}
@@ -640,7 +653,8 @@ def _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold):
     return best if accepted else None
 
 
-def _best_pair(ctx, ok, best, ref, z, mask, it):
+def _best_pair(ctx: _Pass, ok: list[Candidate], best: Candidate, ref: Reference, z: Mapping[str, np.ndarray], mask: Mapping[str, np.ndarray],
+               it: dict[str, Any]) -> Candidate:
     """No single effect shrinks the gap significantly: look one step ahead, pairs of the
     three best-scoring candidates (two effects that only together explain a signature,
     e.g. a bias and a ramp that offset each other's mean). The best pair replaces
@@ -669,7 +683,8 @@ def _best_pair(ctx, ok, best, ref, z, mask, it):
     return bp if bp is not None and bp.score < MIN_IMPROVEMENT * best.score else best
 
 
-def _with_fallback(fallback, best, ok, g, rg):
+def _with_fallback(fallback: list[Candidate], best: Candidate | None, ok: list[Candidate], g: float,
+                   rg: float) -> tuple[Candidate | None, list[Candidate]]:
     """The joint re-fit (with or without angle Gauss-Markov terms) when no candidate is
     accepted on its score: it replaces ``best`` when it scores better or brings the
     plain gap to a quarter, and it is accepted when it halves the plain gap
@@ -686,7 +701,7 @@ def _with_fallback(fallback, best, ok, g, rg):
     return best, ok
 
 
-def _on_plain_gap(ok, best, g, rg):
+def _on_plain_gap(ok: list[Candidate], best: Candidate | None, g: float, rg: float) -> Candidate | None:
     """Every capped point stays capped (|z| > 5 everywhere, e.g. a card far from a long
     real record): the capped score cannot see progress; the candidate that shrinks the
     plain gap most, by at least 4x, is taken when it is no worse capped."""
@@ -699,7 +714,8 @@ def _on_plain_gap(ok, best, g, rg):
     return best
 
 
-def _within_scatter(cands, best, g, rg, threshold, comp_threshold):
+def _within_scatter(cands: list[Candidate], best: Candidate | None, g: float, rg: float, threshold: float,
+                    comp_threshold: Mapping[str, float]) -> tuple[Candidate | None, bool]:
     """The loop's own stop test: a candidate that brings the card within the scatter (its
     gap and every component below their thresholds), no worse capped with the widening
     charged, is accepted although its score gains less than the rule asks. Not applied
@@ -707,7 +723,8 @@ def _within_scatter(cands, best, g, rg, threshold, comp_threshold):
     band is taken out next (`gap`), and the card is judged without it. Returns
     (best, accepted)."""
     inside = [c for c in {id(c): c for c in cands}.values()
-              if c.gap <= threshold and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
+              if c.gap <= threshold and c.components is not None
+              and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
               and c.robust + c.widen <= rg]
     if not inside:
         return best, False
@@ -739,12 +756,12 @@ def white_level_factor(y: np.ndarray, fs: float, card: ModelCard, bands: Sequenc
     return math.sqrt(max(s2, 0.0))
 
 
-def _acts_as_white(name, tau_s, fs):
+def _acts_as_white(name: str, tau_s: float | None, fs: float) -> bool:
     """N, and a Gauss-Markov term shorter than 2 samples: the terms that act as white noise."""
-    return name == "angle_random_walk" or (name == "gauss_markov" and tau_s < 2.0 / fs)
+    return name == "angle_random_walk" or (name == "gauss_markov" and tau_s is not None and tau_s < 2.0 / fs)
 
 
-def _scale_white(text, card, s, fs, note):
+def _scale_white(text: str, card: ModelCard, s: float, fs: float, note: str) -> str:
     """The card text with its white noise (see `white_level_factor`) scaled by ``s``."""
     from gyrodenoise.modelgap.population import noise_terms, with_magnitudes
     terms = noise_terms(card)
@@ -752,7 +769,8 @@ def _scale_white(text, card, s, fs, note):
     return with_magnitudes(text, card, factors, [p.get("spread") for _, _, p in terms], note)
 
 
-def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
+def _heldout_population(y: np.ndarray, fs: float, text: str, bands: Sequence[tuple[float, float]], seed_list: list[int], n_train: int,
+                        source: str) -> GapResult:
     """One evaluation of record ``y`` (no fitting) against a reference whose simulation ``j``
     is card ``j`` of `population.bootstrap_cards` (the card re-estimated on a simulated
     training record of ``n_train`` samples) simulated with seed ``j``: a prediction interval."""
