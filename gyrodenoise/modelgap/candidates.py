@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gyrodenoise.analysis.allan import BI_FACTOR
-from gyrodenoise.modelgap.settings import CARD_FIELD, N_PARAMS
+from gyrodenoise.modelgap.settings import CARD_FIELD, N_PARAMS, SIGMA_TO_CARD
 from gyrodenoise.modelgap.spectral import AGM_TAU_MAX_S, angle_gm_avar
 from gyrodenoise.units import NOISE_SECTIONS
 
@@ -428,7 +428,7 @@ def spectral_refit(sig_m: Signature, layout: Layout, ref: Reference, card: Model
             changes.append((nm, None, True))
         elif old is not None and abs(new - old) > 0.02 * old:
             changes.append((nm, {fld: new}, True))
-    for kind, to_card in (("gauss_markov", 3600.0), ("angle_gauss_markov", 1.0)):
+    for kind, to_card in SIGMA_TO_CARD.items():
         old_gm = sorted((g["sigma"], g["tau"]) for g in card.term_list(kind))
         new_gm = sorted((s * to_card, t) for s, t in terms.get(kind, ()))
         if len(old_gm) != len(new_gm) or any(abs(a[0] - b[0]) > 0.02 * a[0] or abs(a[1] - b[1]) > 0.02 * a[1]

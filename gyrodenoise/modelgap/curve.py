@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.modelgap.settings import CARD_FIELD
+from gyrodenoise.modelgap.settings import CARD_FIELD, SIGMA_TO_CARD
 from gyrodenoise.units import NOISE_SECTIONS, RATE_TO_DEG_S
 
 # accepted column names (first match wins)
@@ -248,7 +248,7 @@ def card_from_terms(text: str, terms: Mapping[str, Any], note: str, source: str 
             text = edit_card(text, nm, {fld: math.sqrt(terms[nm]) * to_card}, nm in card.terms, note, source)
         elif nm in card.terms:
             text = edit_card(text, nm, None, True, note, source)
-    for kind, to_card in (("gauss_markov", 3600.0), ("angle_gauss_markov", 1.0)):
+    for kind, to_card in SIGMA_TO_CARD.items():
         if card.term_list(kind):
             text = edit_card(text, kind, None, True, note, source)
         for s, t in terms.get(kind, ()):

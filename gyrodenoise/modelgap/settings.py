@@ -27,3 +27,5 @@ OFFSET_RATIO = 5.0            # mean offset > 5x the block-mean wander (and |z| 
 WIDEN_COMPONENTS = ("allan", "psd", "mean", "trend")   # scatter-widening penalty (log-likelihood term)
 # Allan term's card section -> (its card field, s-based value -> card units)
 CARD_FIELD = {t.section: (t.symbol, t.to_spec) for t in ALLAN_TERMS}
+# correlated term -> its sigma's s-based value -> card units (gauss_markov in deg/h, angle_gauss_markov in deg)
+SIGMA_TO_CARD = {"gauss_markov": 3600.0, "angle_gauss_markov": 1.0}

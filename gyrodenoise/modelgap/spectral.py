@@ -412,7 +412,7 @@ def agm_grid(layout: Any) -> list[float]:
 
 def stochastic_specs(card: ModelCard) -> tuple[list[tuple[str, float | None]], np.ndarray]:
     """(specs, s-based squared coefficients) of a card's stochastic terms (dictionary form)."""
-    from gyrodenoise.modelgap.settings import CARD_FIELD
+    from gyrodenoise.modelgap.settings import CARD_FIELD, SIGMA_TO_CARD
     specs: list[tuple[str, float | None]] = []
     coef: list[float] = []
     for nm in NOISE_SECTIONS:
@@ -421,12 +421,10 @@ def stochastic_specs(card: ModelCard) -> tuple[list[tuple[str, float | None]], n
             fld, to_card = CARD_FIELD[nm]
             specs.append((nm, None))
             coef.append((t[fld] / to_card) ** 2)
-    for g in card.term_list("gauss_markov"):
-        specs.append(("gauss_markov", g["tau"]))
-        coef.append((g["sigma"] / 3600.0) ** 2)
-    for g in card.term_list("angle_gauss_markov"):      # sigma in deg: s-based already
-        specs.append(("angle_gauss_markov", g["tau"]))
-        coef.append(g["sigma"] ** 2)
+    for kind, to_card in SIGMA_TO_CARD.items():
+        for g in card.term_list(kind):
+            specs.append((kind, g["tau"]))
+            coef.append((g["sigma"] / to_card) ** 2)
     return specs, np.array(coef)
 
 

@@ -37,6 +37,7 @@ from gyrodenoise.modelgap.settings import (
     MIN_SAMPLES,
     OFFSET_RATIO,
     PENALTY_PER_PARAM,
+    SIGMA_TO_CARD,
     WIDEN_COMPONENTS,
     Z2_CAP,
 )
@@ -255,7 +256,8 @@ def _initial_fit(text: str, sig_m: Signature, layout: Layout, bands: Sequence[tu
     note = f"initial fit to {Path(str(source)).name}"
     changes = [(nm, {CARD_FIELD[nm][0]: float(np.sqrt(v)) * CARD_FIELD[nm][1]}) for nm, v in terms.items()
                if nm in CARD_FIELD and v > 0]
-    changes += [("gauss_markov", {"sigma": s_ * 3600.0, "tau": t_}) for s_, t_ in terms["gauss_markov"]]
+    changes += [("gauss_markov", {"sigma": s_ * SIGMA_TO_CARD["gauss_markov"], "tau": t_})
+                for s_, t_ in terms["gauss_markov"]]
     if not changes:
         raise InputError("the card has no noise term and none could be fitted to the record", csrc)
     for nm, pr in changes:
