@@ -19,7 +19,7 @@ Sun et al. (2016), Eq. (40).
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -103,14 +103,19 @@ def adev(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | No
     return tau, ad, err, clusters
 
 
+#: each term's Allan variance at averaging times t (s) for a unit s-based coefficient, Eq. (40):
+#: sigma^2 = R^2 t^2/2 + K^2 t/3 + (2ln2/pi) B^2 + N^2/t + 3Q^2/t^2
+AVAR_SHAPE: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "R": lambda t: t * t / 2.0, "K": lambda t: t / 3.0, "B": lambda t: np.full_like(t, BI_FACTOR),
+    "N": lambda t: 1.0 / t, "Q": lambda t: 3.0 / (t * t)}
+_ORDER = ("R", "K", "B", "N", "Q")   # column order of basis()
+
+
 def basis(tau_s: npt.ArrayLike) -> np.ndarray:
     """Design matrix of Eq. (40) in the coefficients [R^2, K^2, B^2, N^2, Q^2]
-    (s-based units): sigma^2 = R^2 t^2/2 + K^2 t/3 + (2ln2/pi) B^2 + N^2/t + 3Q^2/t^2."""
+    (s-based units): the columns of `AVAR_SHAPE`."""
     t = np.asarray(tau_s, dtype=float)
-    return np.column_stack([t * t / 2.0, t / 3.0, np.full_like(t, BI_FACTOR), 1.0 / t, 3.0 / (t * t)])
-
-
-_ORDER = ("R", "K", "B", "N", "Q")   # column order of basis()
+    return np.column_stack([AVAR_SHAPE[k](t) for k in _ORDER])
 DCHI2_RESOLVED = 25.0
 IRLS_ITERATIONS = 5
 

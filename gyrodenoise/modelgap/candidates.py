@@ -10,10 +10,10 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from gyrodenoise.analysis.allan import BI_FACTOR
+from gyrodenoise.analysis.allan import AVAR_SHAPE
 from gyrodenoise.modelgap.settings import CARD_FIELD, N_PARAMS, SIGMA_TO_CARD
 from gyrodenoise.modelgap.spectral import AGM_TAU_MAX_S, angle_gm_avar
-from gyrodenoise.units import NOISE_SECTIONS
+from gyrodenoise.units import NOISE_SECTIONS, TERM_BY_SECTION
 
 if TYPE_CHECKING:
     from gyrodenoise.modelgap.metric import Layout, Reference, Signature
@@ -34,8 +34,8 @@ def gm_avar(tau: npt.ArrayLike, sigma: float, T: float) -> np.ndarray:
     return np.where(small, approx, full)
 
 
-SHAPE = {"quantization": lambda t: 3.0 / (t * t), "angle_random_walk": lambda t: 1.0 / t,
-         "bias_instability": lambda t: np.full_like(t, BI_FACTOR), "rate_random_walk": lambda t: t / 3.0}
+#: the Allan variance shape of each Allan-shaped noise term (card section), unit s-based coefficient
+SHAPE = {nm: AVAR_SHAPE[TERM_BY_SECTION[nm].symbol] for nm in NOISE_SECTIONS}
 
 
 def _deterministic_s(card: ModelCard, n: int, fs: float, restarts: npt.ArrayLike | None) -> np.ndarray:
