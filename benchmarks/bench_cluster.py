@@ -35,6 +35,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
 
 from benchmarks._data import SHARED_DATA
+from benchmarks._timing import best_of
 
 
 #: Worker settings docs/logs/fleet.md recommends for this workload (measured here): the
@@ -43,15 +44,6 @@ from benchmarks._data import SHARED_DATA
 #: bridge's many medium-size arrays; together ~15 % of a log's time in a worker.
 WORKER_TUNING = {"distributed.worker.profile.enabled": False,
                  "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
-
-
-def best_of(fn, repeat):
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return min(ts)
 
 
 def _reap_orphans():

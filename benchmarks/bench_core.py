@@ -18,12 +18,12 @@ import ctypes
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's benchmarks and gyrodenoise first
+from benchmarks._timing import best_of  # noqa: E402
 
 BARE_KF_C = r"""
 /* A bare scalar 3-state KF (random walk rate, AR(1) error, bias), fixed Q and R:
@@ -54,15 +54,6 @@ void bare_kf(const double *z, double *out, long n) {
     }
 }
 """
-
-
-def best_of(fn, repeat=3):
-    t = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        t.append(time.perf_counter() - t0)
-    return min(t)
 
 
 def bare_kf_loop():

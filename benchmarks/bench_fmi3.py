@@ -15,7 +15,6 @@ import argparse
 import subprocess
 import sys
 import tempfile
-import time
 import zipfile
 from pathlib import Path
 
@@ -27,17 +26,8 @@ from gyrodenoise.fmu.reference import reference_tables
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+from benchmarks._timing import best_of  # noqa: E402
 from tests.fmu.fmi3 import Slave3, build_host3  # noqa: E402
-
-
-def best(fn, repeats=3):
-    return min(_timed(fn) for _ in range(repeats))
-
-
-def _timed(fn):
-    t = time.perf_counter()
-    fn()
-    return time.perf_counter() - t
 
 
 def fmpy_steps_per_s(unz, md, z, rs, n_axes):
@@ -65,7 +55,7 @@ def fmpy_steps_per_s(unz, md, z, rs, n_axes):
             s.doStep((k0 + k) * 0.005, 0.005)
             get_r([vr["filtered_rate"]], n_axes) if n_axes > 1 else get_r([vr["filtered_rate"]])
         t0[0] = (k0 + len(z)) * 0.005
-    rate = len(z) / best(loop)
+    rate = len(z) / best_of(loop)
     s.terminate()
     s.freeInstance()
     return rate
@@ -81,7 +71,7 @@ def c_host_steps_per_s(host2, host3, unz, md, z, rs, n_axes):
                "--restart", str(vr["restart"]), "--out", f"{vr['filtered_rate']}:{n_axes}"]
     else:
         cmd = [str(host2), str(unz), "run"]
-    return len(z) / best(lambda: subprocess.run(cmd, input=rows, capture_output=True, text=True, check=True))
+    return len(z) / best_of(lambda: subprocess.run(cmd, input=rows, capture_output=True, text=True, check=True))
 
 
 def main(argv=None):
@@ -94,13 +84,13 @@ def main(argv=None):
     z = np.tile(ins["raw_rate"], args.repeat)
     rs = np.tile(ins["restart"], args.repeat)
     n = len(z)
-    lib_batch = n / best(lambda: gd.denoise(z, 200.0, restarts=rs))
+    lib_batch = n / best_of(lambda: gd.denoise(z, 200.0, restarts=rs))
     d = gd.Denoiser(200.0)
 
     def per_sample():
         for k in range(n):
             d.step(float(z[k]), restart=bool(rs[k]))
-    lib_step = n / best(per_sample, 1)
+    lib_step = n / best_of(per_sample, 1)
     print(f"{n} samples of the reference input (load avg {open('/proc/loadavg').read().split()[0]})")
     print(f"  library gd.denoise (batch)            {lib_batch:12.0f} samples/s")
     print(f"  library Denoiser.step (one a call)    {lib_step:12.0f} samples/s")

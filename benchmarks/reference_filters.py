@@ -37,18 +37,11 @@ import math
 
 import numpy as np
 
+from benchmarks._jit import HAVE_NUMBA, njit
 from gyrodenoise.core.sessions import sessions
 
 from gyrodenoise.core import kernels as K
 
-try:
-    import numba
-except ImportError:  # pragma: no cover
-    numba = None
-
-
-def _njit(fn):
-    return numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
 
 
 
@@ -273,7 +266,7 @@ def _rts_py(z, phi, c, q, r, x0, p0, xs, want_filtered, xf_out):
         xs[k] = xsk[0]
 
 
-_rts_fast = _njit(_rts_py) if numba is not None else None
+_rts_fast = njit(_rts_py) if HAVE_NUMBA else None
 
 
 def ar_rts_smoother(z, phi, c, q, r, x0, p0, return_filtered=False):
@@ -318,11 +311,6 @@ def ar_rts_smoother(z, phi, c, q, r, x0, p0, return_filtered=False):
     return (xs, xf) if return_filtered else xs
 
 
-def _segments(n_samples, restarts):
-    """[start, stop) of each run between restarts."""
-    return sessions(n_samples, restarts)
-
-
 def smooth_record(rate_deg_s, sample_rate_hz, ar_order=3, restarts=None, model=None, **kw):
     """Offline RTS smoothing of a gyro record on the KF's identified AR model.
 
@@ -357,7 +345,7 @@ def _filtered_runs(z, m, ar_order, restarts):
     filtered (after its warm-up), b the end of the run, x0 = [z_{w-1} ... z_{w-n}]
     (as kernels.start_filter) and p0 = r_w I."""
     n = int(ar_order)
-    for a, b in _segments(z.shape[0], restarts):
+    for a, b in sessions(z.shape[0], restarts):
         conv = np.flatnonzero(m["converged"][a:b])
         if conv.size == 0:
             continue
@@ -417,7 +405,7 @@ def _vbakf_py(z, phi, c, q_nom, r0, x0, p0, tau, rho, n_iter, out, r_hat):
         r_hat[k] = U / (u - 2.0)
 
 
-_vbakf_fast = _njit(_vbakf_py) if numba is not None else None
+_vbakf_fast = njit(_vbakf_py) if HAVE_NUMBA else None
 
 
 def vbakf(z, phi, c, q_nom, r0, x0, p0, tau=3.0, rho=1.0 - math.exp(-4.0), n_iter=10):

@@ -38,7 +38,7 @@ import gyrodenoise as gd
 from benchmarks import reference_filters as RF
 from benchmarks.provenance import stamp
 from gyrodenoise.core import kernels as K
-from gyrodenoise.analysis.allan import TERM_NAMES
+from gyrodenoise.units import TERM_SYMBOLS
 from gyrodenoise.analysis.experiments import compare, filter_record, paper_std, rise_time, rmse
 from gyrodenoise.simulator import load_card, simulate
 
@@ -126,7 +126,7 @@ def static_section(key, cfg, seed):
     std = {m: paper_std(y[start:]) for m, y in outs.items()}
     out = {"n": n, "fs": fs, "rows": rows, "bounds": bounds, "std": std, "allan": res,
            "ratio": {m: {t: (rows[m][t] / rows["raw"][t] if rows["raw"][t] > 0 else None)
-                         for t in TERM_NAMES} for m in METHODS}}
+                         for t in TERM_SYMBOLS} for m in METHODS}}
     if key == "fog":
         log("fog: paper Table 1 via experiments.compare")
         cmp = compare(rec, **PAPER_KW)
@@ -308,16 +308,8 @@ def figures(outdir, R):
         for m in METHODS:
             a = st["allan"][m]
             ax.loglog(a.tau_s, a.adev_deg_h, color=COLOR[m], label=LABEL[m], lw=2 if m in ("raw", "shakf") else 1)
-        ax.set_xlabel("tau, s")
-        ax.set_ylabel("Allan deviation, deg/h")
-        ax.set_title(f"Static record, {CARD_LABEL[key]}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="lower left")
-        f = f"allan_{key}.png"
-        fig.tight_layout()
-        fig.savefig(outdir / f, dpi=110)
-        plt.close(fig)
-        files.append(f)
+        files.append(_finish(plt, fig, ax, outdir / f"allan_{key}.png", "tau, s", "Allan deviation, deg/h",
+                             f"Static record, {CARD_LABEL[key]}", "lower left"))
 
         dy = R["dyn"][key]
         fig, ax = plt.subplots(figsize=(7, 4.5))
@@ -327,31 +319,18 @@ def figures(outdir, R):
             idx = np.unique(np.geomspace(1, c.size, 1500).astype(int)) - 1    # log-spaced samples
             ax.semilogx((idx + 1) / fs, c[idx], color=COLOR[m], label=LABEL[m], lw=1)
         ax.axhline(STEP_DEG_S, color="k", lw=0.5)
-        ax.set_xlabel("time after the step, s (log)")
-        ax.set_ylabel("incremental response, deg/s")
-        ax.set_title(f"{STEP_DEG_S:g} deg/s step after {dy['pre_s']:g} s at rest, {CARD_LABEL[key]}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="center left")
-        f = f"step_{key}.png"
-        fig.tight_layout()
-        fig.savefig(outdir / f, dpi=110)
-        plt.close(fig)
-        files.append(f)
+        files.append(_finish(plt, fig, ax, outdir / f"step_{key}.png", "time after the step, s (log)",
+                             "incremental response, deg/s",
+                             f"{STEP_DEG_S:g} deg/s step after {dy['pre_s']:g} s at rest, {CARD_LABEL[key]}",
+                             "center left"))
 
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for m in METHODS:
             ax.loglog(dy["freqs"], np.maximum(dy["gains"][m], 1e-4), "o-", ms=3, color=COLOR[m], label=LABEL[m])
         ax.axhline(1 / math.sqrt(2), color="k", lw=0.5, ls="--")
-        ax.set_xlabel("frequency, Hz")
-        ax.set_ylabel("gain (incremental response / true sinusoid)")
-        ax.set_title(f"Gain from sinusoid sweeps, {CARD_LABEL[key]}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="lower left")
-        f = f"gain_{key}.png"
-        fig.tight_layout()
-        fig.savefig(outdir / f, dpi=110)
-        plt.close(fig)
-        files.append(f)
+        files.append(_finish(plt, fig, ax, outdir / f"gain_{key}.png", "frequency, Hz",
+                             "gain (incremental response / true sinusoid)",
+                             f"Gain from sinusoid sweeps, {CARD_LABEL[key]}", "lower left"))
 
     fig, ax = plt.subplots(figsize=(7, 5))
     for key, mk in (("fog", "o"), ("mems", "s")):
@@ -365,16 +344,25 @@ def figures(outdir, R):
                 ax.annotate(q, (bw, red), textcoords="offset points", xytext=(5, 3), fontsize=8)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("-3 dB bandwidth, Hz (from sinusoid sweeps; < / > = beyond the sweep)")
-    ax.set_ylabel("static noise reduction (raw std / output std)")
-    ax.set_title("The price of lower noise: circles FOG 200 Hz, squares MEMS 1 kHz")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(outdir / "tradeoff.png", dpi=110)
-    plt.close(fig)
-    files.append("tradeoff.png")
+    files.append(_finish(plt, fig, ax, outdir / "tradeoff.png",
+                         "-3 dB bandwidth, Hz (from sinusoid sweeps; < / > = beyond the sweep)",
+                         "static noise reduction (raw std / output std)",
+                         "The price of lower noise: circles FOG 200 Hz, squares MEMS 1 kHz"))
     return files
+
+
+def _finish(plt, fig, ax, path, xlabel, ylabel, title, legend_loc=None):
+    """Label the axes, draw the grid and the legend, write the PNG ``path`` and close the
+    figure; returns the file's name."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc=legend_loc)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
 
 
 # ------------------------------------------------------------------ report
@@ -465,8 +453,8 @@ def write_report(outdir, R, figs, args, elapsed):
     w("| | N | B | K | R | Q |\n|---|---|---|---|---|---|")
     for m in ("ar_fit", "kf", "shakf"):
         w(f"| paper {m} / raw | " + " | ".join(_g(PAPER_TABLE1[m][t] / PAPER_TABLE1['raw'][t])
-                                               for t in TERM_NAMES) + " |")
-    w("| ours ar_fit / raw | " + " | ".join(_g(cmp["ratio_to_raw"]["ar_fit"][t]) for t in TERM_NAMES) + " |")
+                                               for t in TERM_SYMBOLS) + " |")
+    w("| ours ar_fit / raw | " + " | ".join(_g(cmp["ratio_to_raw"]["ar_fit"][t]) for t in TERM_SYMBOLS) + " |")
     w("\nAR-fit accuracy (1 - |fit - raw| / raw, the paper's \"fitting accuracy\", claimed >= 93.2 %): "
       + ", ".join(f"{t} {_g(100 * v, '.1f') if v is not None else '-'} %" for t, v in cmp["ar_fit_accuracy"].items())
       + f"; identified AR(3): phi = {', '.join(_g(v, '.4f') for v in cmp['ar_model']['phi'])}, "
@@ -528,12 +516,12 @@ def write_report(outdir, R, figs, args, elapsed):
 
 
 def terms_table(st):
-    lines = ["| method | " + " | ".join(TERM_NAMES) + " | " + " | ".join(f"{t} ratio" for t in TERM_NAMES) + " |",
+    lines = ["| method | " + " | ".join(TERM_SYMBOLS) + " | " + " | ".join(f"{t} ratio" for t in TERM_SYMBOLS) + " |",
              "|---|" + "---|" * 10]
     for m in METHODS:
         vals = [(_g(st["rows"][m][t]) + (" (ub)" if st["bounds"][m][t] == "upper_bound" else ""))
-                for t in TERM_NAMES]
-        rat = [_g(st["ratio"][m][t]) for t in TERM_NAMES]
+                for t in TERM_SYMBOLS]
+        rat = [_g(st["ratio"][m][t]) for t in TERM_SYMBOLS]
         lines.append(f"| {LABEL[m]} | " + " | ".join(vals) + " | " + " | ".join(rat) + " |")
     return "\n".join(lines)
 
@@ -614,10 +602,10 @@ def claims(R):
     dyf, dym = R["dyn"]["fog"], R["dyn"]["mems"]
     t2f = R["table2"]["fog"]
     r_sh = fog["ratio"]["shakf"]
-    half = {t: (r_sh[t] is not None and r_sh[t] <= 0.5) for t in TERM_NAMES}
+    half = {t: (r_sh[t] is not None and r_sh[t] <= 0.5) for t in TERM_SYMBOLS}
     ub = {t: fog["bounds"]["raw"][t] == "upper_bound" or fog["bounds"]["shakf"][t] == "upper_bound"
-          for t in TERM_NAMES}
-    better = [t for t in TERM_NAMES if fog["rows"]["shakf"][t] < fog["rows"]["kf"][t]]
+          for t in TERM_SYMBOLS}
+    better = [t for t in TERM_SYMBOLS if fog["rows"]["shakf"][t] < fog["rows"]["kf"][t]]
     std_sh = np.array([r["std"]["shakf"] / r["std"]["raw"] for r in t2f])
     std_kf = np.array([r["std"]["kf"] / r["std"]["raw"] for r in t2f])
     rm_sh = np.array([r["rmse"]["shakf"] / r["rmse"]["raw"] for r in t2f])
@@ -632,8 +620,8 @@ def claims(R):
     rows.append(
         "| 1 | After the modified SHAKF all five Allan coefficients are less than half of the raw ones "
         "(Table 1, Section 4.2) | SHAKF / raw: " + ", ".join(
-            f"{t} {_g(r_sh[t])}{' (ub)' if ub[t] else ''}" for t in TERM_NAMES)
-        + " | " + _verdict(all(half[t] and not ub[t] for t in TERM_NAMES), any(half.values()))
+            f"{t} {_g(r_sh[t])}{' (ub)' if ub[t] else ''}" for t in TERM_SYMBOLS)
+        + " | " + _verdict(all(half[t] and not ub[t] for t in TERM_SYMBOLS), any(half.values()))
         + (" (ratios marked ub compare upper bounds, not measured terms)" if any(ub.values()) else "") + " |")
     rows.append(
         f"| 2 | SHAKF halves bias instability (0.000712 -> 0.000352 deg/h) | B ratio {_g(r_sh['B'])}"

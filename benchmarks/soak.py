@@ -35,7 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's
 
 from gyrodenoise.core import kernels as K
 from gyrodenoise.core.batch import run
-from gyrodenoise.simulator import DEG_RTH, SimStream, load_card
+from gyrodenoise.simulator import SimStream, load_card
+from gyrodenoise.units import TERM_BY_SYMBOL
 
 
 def rss_mb():
@@ -51,7 +52,7 @@ def white_variance(card):
     fs = card.sample_rate_hz
     var = 0.0
     if "angle_random_walk" in card.terms:
-        var += (card.terms["angle_random_walk"]["N"] * DEG_RTH) ** 2 * fs
+        var += (card.terms["angle_random_walk"]["N"] / TERM_BY_SYMBOL["N"].to_spec) ** 2 * fs
     if "quantization" in card.terms:
         var += 2.0 * (card.terms["quantization"]["Q"] * fs) ** 2
     return var

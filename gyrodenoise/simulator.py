@@ -43,40 +43,47 @@ bias draw and the transient clock (the stochastic processes run on).
 The model itself is ``gyrodenoise/core/gdsim.c`` (its plain-Python twin
 ``core/simkernels.py`` where the extension is not built): this module parses
 cards and adapts. One seeded generator (xoshiro256**, see ``gdsim.h``) draws
-the noise sample by sample, so streaming (:class:`SimStream`, used by
-SimulatedFog.fmu) and batch (:func:`simulate`) give the same numbers, and so do
+the noise sample by sample, so streaming (`SimStream`, used by
+SimulatedFog.fmu) and batch (`simulate`) give the same numbers, and so do
 SimulatedFogNative.fmu and any C host of ``gdsim.c``.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from .core import simkernels as SK
 from .errors import InputError
-
-DEG_H = 1.0 / 3600.0             # deg/h -> deg/s
-DEG_RTH = 1.0 / 60.0             # deg/sqrt(h) -> deg/sqrt(s)
-DEG_H15 = 1.0 / 3600.0 ** 1.5    # deg/h^1.5 -> deg/s^1.5
-DEG_H2 = 1.0 / 3600.0 ** 2       # deg/h^2 -> deg/s^2
+from .units import NOISE_SECTIONS, TERM_BY_SECTION
 
 # optional on a noise term: the relative 1-sigma of its magnitude between units/runs, drawn per
 # simulated record by the gap workflow's reference (modelgap.population.draw_unit); simulate() and
 # the FMUs simulate the card's value (one unit)
-SPREAD = (False, 0.0, "(relative 1-sigma)")
-SPREAD_GROUP = (False, 0.0, "(terms with the same group number share one draw; 0: none)")
+#: a field of a term: (required, minimum or None, unit)
+FieldSpec: TypeAlias = "tuple[bool, float | None, str]"
+SPREAD: FieldSpec = (False, 0.0, "(relative 1-sigma)")
+SPREAD_GROUP: FieldSpec = (False, 0.0, "(terms with the same group number share one draw; 0: none)")
+
+
+def _allan_field(section: str, minimum: float | None) -> dict[str, FieldSpec]:
+    """{field: (required, minimum, unit)} of an Allan term's one field (its symbol, its unit)."""
+    term = TERM_BY_SECTION[section]
+    return {term.symbol: (True, minimum, term.unit)}
+
+
 # term -> {field: (required, minimum, unit)}
-TERM_FIELDS = {
-    "quantization": {"Q": (True, 0.0, "deg"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "angle_random_walk": {"N": (True, 0.0, "deg/sqrt(h)"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "bias_instability": {"B": (True, 0.0, "deg/h"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "rate_random_walk": {"K": (True, 0.0, "deg/h^1.5"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
-    "rate_ramp": {"R": (True, None, "deg/h^2")},
+TERM_FIELDS: dict[str, dict[str, FieldSpec]] = {
+    **{nm: {**_allan_field(nm, 0.0), "spread": SPREAD, "spread_group": SPREAD_GROUP}
+       for nm in NOISE_SECTIONS},
+    "rate_ramp": _allan_field("rate_ramp", None),
     "constant_bias": {"value": (True, None, "deg/h"), "repeatability": (False, 0.0, "deg/h")},
     "turn_on_transient": {"amplitude": (True, None, "deg/h"), "tau": (True, 1e-300, "s")},
     "gauss_markov": {"sigma": (True, 0.0, "deg/h"), "tau": (True, 1e-300, "s"), "spread": SPREAD, "spread_group": SPREAD_GROUP},
@@ -93,11 +100,11 @@ class ModelCard:
     """A parsed, checked model card."""
     name: str
     sample_rate_hz: float
-    terms: dict            # term -> dict of floats, or list of dicts (repeatable)
+    terms: dict[str, Any]  # term -> dict of floats, or list of dicts (repeatable)
     text: str = ""         # the TOML source, comments included
     source: str = "<card>"
 
-    def term_list(self, name):
+    def term_list(self, name: str) -> list[dict[str, float]]:
         """The instances of a term as a list (empty when absent)."""
         t = self.terms.get(name)
         if t is None:
@@ -105,7 +112,11 @@ class ModelCard:
         return t if isinstance(t, list) else [t]
 
 
-def parse_card(text, source="<card>"):
+#: a model card: parsed, or its path, or the name of an embedded card ("paper_fog")
+CardLike: TypeAlias = "ModelCard | str | os.PathLike[str]"
+
+
+def parse_card(text: str, source: str = "<card>") -> ModelCard:
     """Parse and check a model card; raises InputError naming the field."""
     try:
         data = tomllib.loads(text)
@@ -125,7 +136,7 @@ def parse_card(text, source="<card>"):
     raw_terms = data.get("terms", {})
     if not isinstance(raw_terms, dict):
         raise InputError("[terms] must be a table", source)
-    terms = {}
+    terms: dict[str, Any] = {}
     for tname, tval in raw_terms.items():
         if tname not in TERM_FIELDS:
             raise InputError(f"unknown term terms.{tname} (known: {', '.join(TERM_FIELDS)})", source)
@@ -137,7 +148,7 @@ def parse_card(text, source="<card>"):
             where = f"terms.{tname}" + (f"[{idx}]" if isinstance(tval, list) else "")
             if not isinstance(item, dict):
                 raise InputError(f"{where} must be a table of fields", source)
-            out = {}
+            out: dict[str, float] = {}
             for fname, fval in item.items():
                 if fname not in TERM_FIELDS[tname]:
                     raise InputError(f"unknown field {where}.{fname} (known: "
@@ -162,14 +173,14 @@ def parse_card(text, source="<card>"):
     return ModelCard(name=name, sample_rate_hz=float(fs), terms=terms, text=text, source=source)
 
 
-def models_dir():
+def models_dir() -> Path:
     """Folder of the embedded model cards."""
     return Path(__file__).resolve().parent / "data"
 
 
-def load_card(path_or_name):
+def load_card(path_or_name: CardLike) -> ModelCard:
     """Read a card from a path, or by name from the cards embedded in the package
-    (:func:`models_dir`: ``paper_fog``, ``ln200``, ...)."""
+    (`models_dir`: ``paper_fog``, ``ln200``, ...)."""
     if isinstance(path_or_name, ModelCard):
         return path_or_name
     path = Path(path_or_name)
@@ -187,16 +198,16 @@ def load_card(path_or_name):
 
 
 # ----------------------------------------------------------------- the model
-def _core():
+def _core() -> Any:
     """The compiled sensor model (gdsim.c through the extension), or None."""
     try:
-        from .core import _gdcore
+        from .core import _gdcore  # type: ignore[attr-defined]  # the compiled extension
     except ImportError:
         return None
     return _gdcore if hasattr(_gdcore, "sim_run") else None
 
 
-def _bank(card):
+def _bank(card: CardLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """AR(1) bank [a_j], [g_j], [stationary std_j] in deg/s for one sample period:
     flicker poles, Gauss-Markov terms, rate random walk (the model's parameters,
     ``simkernels.params``)."""
@@ -221,7 +232,7 @@ class SimStream:
     seed : int, 0 <= seed < 2**53
     """
 
-    def __init__(self, card, seed=0):
+    def __init__(self, card: CardLike, seed: int = 0) -> None:
         self.card = load_card(card)
         if isinstance(seed, bool) or int(seed) != seed or not 0 <= int(seed) < 2 ** 53:
             raise InputError(f"seed must be a whole number from 0 to 2**53 - 1, got {seed!r}")
@@ -231,6 +242,8 @@ class SimStream:
         except ValueError as exc:
             raise InputError(str(exc), self.card.source) from None
         self._C = _core()
+        self.p: Any
+        self.s: Any     # the model's state buffer: an array (compiled) or a list (plain Python)
         if self._C is not None:
             v = np.array(v)
             self.p = np.zeros(self._C.sim_n_params(v))
@@ -242,18 +255,18 @@ class SimStream:
         self.reset()
 
     @property
-    def compiled(self):
+    def compiled(self) -> bool:
         """True if this stream runs gdsim.c (else the plain-Python twin, same numbers)."""
         return self._C is not None
 
-    def reset(self):
+    def reset(self) -> None:
         """Back to the start (seeded generators, stationary bank, first bias draw)."""
         if self._C is not None:
             self._C.sim_reset(self.p, self.s)
         else:
             SK.reset(self.p, self.s)
 
-    def step(self, true_rate_deg_s=0.0, restart=False):
+    def step(self, true_rate_deg_s: float = 0.0, restart: bool = False) -> float:
         """One measured sample (deg/s) for the true rate (deg/s)."""
         if self._C is None:
             return SK.step(self.p, self.s, float(true_rate_deg_s), bool(restart))
@@ -261,7 +274,8 @@ class SimStream:
         self._C.sim_run(self.p, self.s, np.array([float(true_rate_deg_s)]), np.array([bool(restart)]), out)
         return float(out[0])
 
-    def run(self, n_samples, true_rate_deg_s=None, restarts=None):
+    def run(self, n_samples: int, true_rate_deg_s: npt.ArrayLike | None = None,
+            restarts: npt.ArrayLike | None = None) -> np.ndarray:
         """``n_samples`` measured samples (deg/s) at once, continuing the stream."""
         n = int(n_samples)
         truth = None if true_rate_deg_s is None else np.ascontiguousarray(
@@ -274,10 +288,10 @@ class SimStream:
         return out
 
     # -- state save / restore (for FMU state and tests): the state buffer, as floats
-    def get_state(self):
+    def get_state(self) -> list[float]:
         return [float(x) for x in self.s]
 
-    def set_state(self, st):
+    def set_state(self, st: list[float]) -> None:
         if len(st) != len(self.s):
             raise ValueError(f"simulator state has {len(st)} values, this card needs {len(self.s)}")
         for i, x in enumerate(st):
@@ -289,21 +303,22 @@ class Record:
     """A gyro record: rate in deg/s at a fixed sample rate."""
     rate_deg_s: np.ndarray
     sample_rate_hz: float
-    time_s: np.ndarray | None = None
+    time_s: np.ndarray = None  # type: ignore[assignment]  # left out: arange(n) / sample_rate_hz
     true_rate_deg_s: np.ndarray | None = None
     restarts: np.ndarray | None = None
     source: str = ""
-    notes: list = field(default_factory=list)   # repairs and remarks, reported
+    notes: list[str] = field(default_factory=list)   # repairs and remarks, reported
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.time_s is None:
             self.time_s = np.arange(len(self.rate_deg_s)) / self.sample_rate_hz
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self.rate_deg_s)
 
 
-def simulate(card, n_samples, seed=0, true_rate_deg_s=None, restarts=None):
+def simulate(card: CardLike, n_samples: int, seed: int = 0, true_rate_deg_s: npt.ArrayLike | None = None,
+             restarts: npt.ArrayLike | None = None) -> Record:
     """Simulate ``n_samples`` of the gyro described by ``card``.
 
     Parameters

@@ -5,10 +5,10 @@ The documented layout: imports go one way, from the foundation up to the CLI.
 ====================  =====================================================
 area                  may import (of gyrodenoise)
 ====================  =====================================================
-errors                nothing
+errors, units         nothing
 console               errors
 core                  core, errors
-analysis, io,         core, errors, console, data, analysis, io,
+analysis, io,         core, errors, units, console, data, analysis, io,
 simulator, denoiser   simulator, denoiser
 modelgap, fmu,        anything but cli
 mavlink
@@ -37,12 +37,13 @@ PACKAGE = "gyrodenoise"
 PACKAGE_DIR = Path(importlib.util.find_spec(PACKAGE).submodule_search_locations[0]).resolve()
 REPO_DIR = PACKAGE_DIR.parent      # the checkout (the test reads its tests, benchmarks and docs)
 
-_LOWER = ("core", "errors", "console", "data", "analysis", "io", "simulator", "denoiser")
+_LOWER = ("core", "errors", "units", "console", "data", "analysis", "io", "simulator", "denoiser")
 _ALL_BUT_CLI = _LOWER + ("modelgap", "fmu", "mavlink", "")
 # area (relative to gyrodenoise; "" is the top-level package facade) -> the areas it may import.
 # A module's area is the longest key that is its name or a parent of it.
 LAYOUT = {
     "errors": (),
+    "units": (),
     "console": ("errors",),
     "core": ("core", "errors"),
     "analysis": _LOWER,

@@ -37,18 +37,12 @@ from pathlib import Path
 
 import numpy as np
 from benchmarks._data import SHARED_DATA
+from benchmarks._jit import njit
+from benchmarks.motion_bench import baselines as B
 
-try:
-    import numba
-except ImportError:  # pragma: no cover
-    numba = None
 
 MOTION_DIR = SHARED_DATA / "motion"
 WINDOWS_S = (0.1, 1.0)
-
-
-def _njit(fn):
-    return numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
 
 
 # ------------------------------------------------------------------ quaternions (w, x, y, z)
@@ -81,7 +75,7 @@ def qrotvec(q):
     return q[..., 1:] * scale[..., None]
 
 
-@_njit
+@njit
 def _integrate(rate_rad_s, dt, starts, ends, out):
     for i in range(starts.size):
         w, x, y, z = 1.0, 0.0, 0.0, 0.0
@@ -340,13 +334,11 @@ def apply_per_axis(fn, rate_deg_s, fs):
 def tuned_butter(trial, window_s, orders=(1, 2), n_grid=14):
     """Causal Butterworth tuned against the reference (an oracle): the cutoff and
     order with the lowest RMS window error at ``window_s``."""
-    from scipy.signal import butter, sosfilt, sosfilt_zi
     fs = trial.sample_rate_hz
     best = (math.inf, None, None)
     for order in orders:
         for fc in np.geomspace(0.5, 0.45 * fs, n_grid):
-            sos = butter(order, fc, fs=fs, output="sos")
-            y = np.column_stack([sosfilt(sos, x, zi=sosfilt_zi(sos) * x[0])[0] for x in trial.rate_deg_s.T])
+            y = np.column_stack([B.butter(x, fs, order, fc) for x in trial.rate_deg_s.T])
             e = rms(window_errors_deg(trial, y, window_s))
             if e < best[0]:
                 best = (e, {"order": order, "cutoff_hz": float(fc)}, y)

@@ -1,3 +1,3 @@
-"""Analysis of gyro records: Allan variance (:mod:`.allan`), spectra and peaks
-(:mod:`.spectrum`), motion kept and lag (:mod:`.motion_metrics`), the paper's
-tables (:mod:`.experiments`) and the demo's figures (:mod:`.plots`)."""
+"""Analysis of gyro records: Allan variance (`allan`), spectra and peaks
+(`spectrum`), motion kept and lag (`motion_metrics`), the paper's
+tables (`experiments`) and the demo's figures (`plots`)."""

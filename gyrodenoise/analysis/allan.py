@@ -19,23 +19,25 @@ Sun et al. (2016), Eq. (40).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
+from gyrodenoise.units import TERM_BY_SYMBOL, TERM_SYMBOLS
+
+numba: Any
 try:
     import numba
 except ImportError:  # pragma: no cover
     numba = None
 
-TERM_NAMES = ("N", "B", "K", "R", "Q")
-UNITS = {"N": "deg/sqrt(h)", "B": "deg/h", "K": "deg/h^1.5", "R": "deg/h^2", "Q": "deg"}
-# value in s-based units (deg/s, s) * factor = value in the spec's units
-TO_SPEC = {"N": 60.0, "B": 3600.0, "K": 3600.0 ** 1.5, "R": 3600.0 ** 2, "Q": 1.0}
 BI_FACTOR = 2.0 * math.log(2.0) / math.pi     # Eq. (40): sigma^2 = (2 ln2 / pi) B^2
 
 
-def _avar_sums_py(phase, ms, out):
+def _avar_sums_py(phase: np.ndarray, ms: np.ndarray, out: np.ndarray) -> None:
     """out[i] = sum_k (x[k+2m] - 2 x[k+m] + x[k])^2 for m = ms[i]."""
     n = phase.shape[0]
     for i in range(ms.shape[0]):
@@ -50,7 +52,7 @@ def _avar_sums_py(phase, ms, out):
 _avar_sums = numba.njit(cache=True, nogil=True)(_avar_sums_py) if numba else None
 
 
-def default_m(n_samples, per_decade=10):
+def default_m(n_samples: int, per_decade: int = 10) -> np.ndarray:
     """Cluster sizes m, log-spaced ``per_decade`` per decade, 1 <= m <= (N-1)/2."""
     m_max = (n_samples - 1) // 2
     if m_max < 1:
@@ -60,7 +62,8 @@ def default_m(n_samples, per_decade=10):
     return ms[(ms >= 1) & (ms <= m_max)]
 
 
-def adev(rate_deg_s, sample_rate_hz, m=None, tau_s=None):
+def adev(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | None = None,
+         tau_s: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Overlapping Allan deviation of a rate record.
 
     Parameters
@@ -68,7 +71,7 @@ def adev(rate_deg_s, sample_rate_hz, m=None, tau_s=None):
     rate_deg_s : array_like
     sample_rate_hz : float
     m : array_like of int, optional
-        Cluster sizes; default :func:`default_m`.
+        Cluster sizes; default `default_m`.
     tau_s : array_like, optional
         Averaging times instead of ``m`` (rounded to whole samples).
 
@@ -100,19 +103,25 @@ def adev(rate_deg_s, sample_rate_hz, m=None, tau_s=None):
     return tau, ad, err, clusters
 
 
-def basis(tau_s):
-    """Design matrix of Eq. (40) in the coefficients [R^2, K^2, B^2, N^2, Q^2]
-    (s-based units): sigma^2 = R^2 t^2/2 + K^2 t/3 + (2ln2/pi) B^2 + N^2/t + 3Q^2/t^2."""
-    t = np.asarray(tau_s, dtype=float)
-    return np.column_stack([t * t / 2.0, t / 3.0, np.full_like(t, BI_FACTOR), 1.0 / t, 3.0 / (t * t)])
-
-
+#: each term's Allan variance at averaging times t (s) for a unit s-based coefficient, Eq. (40):
+#: sigma^2 = R^2 t^2/2 + K^2 t/3 + (2ln2/pi) B^2 + N^2/t + 3Q^2/t^2
+AVAR_SHAPE: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "R": lambda t: t * t / 2.0, "K": lambda t: t / 3.0, "B": lambda t: np.full_like(t, BI_FACTOR),
+    "N": lambda t: 1.0 / t, "Q": lambda t: 3.0 / (t * t)}
 _ORDER = ("R", "K", "B", "N", "Q")   # column order of basis()
+
+
+def basis(tau_s: npt.ArrayLike) -> np.ndarray:
+    """Design matrix of Eq. (40) in the coefficients [R^2, K^2, B^2, N^2, Q^2]
+    (s-based units): the columns of `AVAR_SHAPE`."""
+    t = np.asarray(tau_s, dtype=float)
+    return np.column_stack([AVAR_SHAPE[k](t) for k in _ORDER])
 DCHI2_RESOLVED = 25.0
 IRLS_ITERATIONS = 5
 
 
-def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
+def fit_terms(tau_s: npt.ArrayLike, adev_deg_s: npt.ArrayLike,
+              adev_err_deg_s: npt.ArrayLike) -> tuple[dict[str, float], dict[str, str], dict[str, float]]:
     """Weighted non-negative least-squares fit of Eq. (40) to an Allan curve.
 
     Each point's residual in Allan *variance* is weighted by the inverse of its
@@ -133,7 +142,7 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
         Term -> "fit" or "upper_bound".
     fitted_s : dict
         The model refitted with the resolved terms only (0 for the others):
-        what :func:`model_adev` should draw.
+        what `model_adev` should draw.
     """
     t = np.asarray(tau_s, dtype=float)
     a = np.asarray(adev_deg_s, dtype=float)
@@ -141,15 +150,16 @@ def fit_terms(tau_s, adev_deg_s, adev_err_deg_s):
     ok = np.isfinite(a) & (a > 0) & np.isfinite(e)
     t, a, e = t[ok], a[ok], e[ok]
     if t.size == 0:
-        return ({k: 0.0 for k in TERM_NAMES}, {k: "upper_bound" for k in TERM_NAMES},
-                {k: 0.0 for k in TERM_NAMES})
+        return ({k: 0.0 for k in TERM_SYMBOLS}, {k: "upper_bound" for k in TERM_SYMBOLS},
+                {k: 0.0 for k in TERM_SYMBOLS})
     avar = a * a
     rel = e / a                                # relative 1-sigma of adev (cluster count only)
     A = basis(t)
     sig = _irls_sigma(A, avar, rel)
     fit = _WeightedFit(A, avar, sig)
     resolved = _resolved_columns(fit)
-    terms, kinds = {}, {}
+    terms: dict[str, float] = {}
+    kinds: dict[str, str] = {}
     for j, name in enumerate(_ORDER):
         if j in resolved:
             terms[name] = math.sqrt(fit.coef[j])
@@ -166,7 +176,7 @@ class _WeightedFit:
     errors ``sig``: the weighted system (``Aw``, ``yw``), its column scaling (for
     conditioning), the coefficients and chi^2."""
 
-    def __init__(self, A, avar, sig):
+    def __init__(self, A: np.ndarray, avar: np.ndarray, sig: np.ndarray) -> None:
         from scipy.optimize import nnls
         self.Aw = A / sig[:, None]
         self.yw = avar / sig
@@ -175,19 +185,19 @@ class _WeightedFit:
         self.coef = coef / self.scale
         self.chi2 = rnorm * rnorm
 
-    def coef_of(self, cols):
+    def coef_of(self, cols: list[int]) -> tuple[np.ndarray, float]:
         """Coefficients of the fit on the columns ``cols`` only, and its chi^2."""
         from scipy.optimize import nnls
         c, rn = nnls(self.Aw[:, cols] / self.scale[cols], self.yw)
         return c / self.scale[cols], rn * rn
 
-    def chi2_without(self, drop):
+    def chi2_without(self, drop: Collection[int]) -> float:
         """chi^2 of the fit with the columns ``drop`` left out."""
         keep = [i for i in range(self.Aw.shape[1]) if i not in drop]
         return self.coef_of(keep)[1]
 
 
-def _irls_sigma(A, avar, rel):
+def _irls_sigma(A: np.ndarray, avar: np.ndarray, rel: np.ndarray) -> np.ndarray:
     """1-sigma of each Allan variance point, 2 x ``rel`` x the variance, for the fit.
 
     Weighting by the *measured* variance (2 a^2 rel) lets a point that happens to
@@ -205,7 +215,7 @@ def _irls_sigma(A, avar, rel):
     return sig
 
 
-def _resolved_columns(fit):
+def _resolved_columns(fit: _WeightedFit) -> set[int]:
     """Columns of the basis the record resolves: those whose removal raises chi^2 by
     more than DCHI2_RESOLVED (neighbouring taus are correlated, hence the generous
     threshold). Terms that can stand in for each other (K and R, N and Q) may each
@@ -221,7 +231,7 @@ def _resolved_columns(fit):
     return resolved
 
 
-def _refit_resolved(fit, kinds):
+def _refit_resolved(fit: _WeightedFit, kinds: Mapping[str, str]) -> dict[str, float]:
     """The model curve: the terms refitted with the resolved ones only (0 for the others)."""
     cols = [j for j, name in enumerate(_ORDER) if kinds[name] == "fit"]
     fitted = {name: 0.0 for name in _ORDER}
@@ -232,7 +242,7 @@ def _refit_resolved(fit, kinds):
     return fitted
 
 
-def model_adev(tau_s, terms_s):
+def model_adev(tau_s: npt.ArrayLike, terms_s: Mapping[str, float]) -> np.ndarray:
     """Allan deviation (deg/s) of Eq. (40) for terms in s-based units."""
     c = np.array([terms_s[k] ** 2 for k in _ORDER])
     return np.sqrt(basis(tau_s) @ c)
@@ -240,33 +250,51 @@ def model_adev(tau_s, terms_s):
 
 @dataclass
 class AllanResult:
-    """Allan deviation of a record and its five-term fit (spec section 3)."""
+    """Allan deviation of a record and its five-term fit (spec section 3).
+
+    Attributes
+    ----------
+    tau_s, adev_deg_s, adev_err_deg_s : ndarray
+        Averaging times (s), the overlapping Allan deviation (deg/s) and its 1-sigma error.
+    terms : dict
+        Symbol (N, B, K, R, Q) -> value in the spec's unit (``gyrodenoise.units.ALLAN_TERMS``).
+    terms_s : dict
+        The same in s-based units (deg/s, s).
+    bounds : dict
+        Symbol -> "fit", or "upper_bound" where the record cannot resolve the term.
+    fitted_s : dict
+        The model refitted with the resolved terms only (0 for the others): what
+        `model_adev` draws.
+    """
     tau_s: np.ndarray
     adev_deg_s: np.ndarray
     adev_err_deg_s: np.ndarray
-    terms_s: dict
-    bounds: dict
-    fitted_s: dict
+    terms_s: dict[str, float]      #: symbol -> value in s-based units (deg/s, s)
+    bounds: dict[str, str]         #: symbol -> "fit" or "upper_bound"
+    fitted_s: dict[str, float]     #: the model refitted with the resolved terms only
     sample_rate_hz: float
     n_samples: int
-    terms: dict = field(init=False)
+    terms: dict[str, float] = field(init=False)   #: symbol -> value in the spec's unit
 
-    def __post_init__(self):
-        self.terms = {k: self.terms_s[k] * TO_SPEC[k] for k in TERM_NAMES}
+    def __post_init__(self) -> None:
+        self.terms = {k: self.terms_s[k] * TERM_BY_SYMBOL[k].to_spec for k in TERM_SYMBOLS}
 
     @property
-    def adev_deg_h(self):
+    def adev_deg_h(self) -> np.ndarray:
+        """The Allan deviation in deg/h."""
         return self.adev_deg_s * 3600.0
 
     @property
-    def adev_err_deg_h(self):
+    def adev_err_deg_h(self) -> np.ndarray:
+        """Its 1-sigma error in deg/h."""
         return self.adev_err_deg_s * 3600.0
 
-    def model_adev_deg_h(self, tau_s=None):
+    def model_adev_deg_h(self, tau_s: npt.ArrayLike | None = None) -> np.ndarray:
+        """The fitted model's Allan deviation (deg/h) at ``tau_s`` (default: the measured taus)."""
         t = self.tau_s if tau_s is None else np.asarray(tau_s, dtype=float)
         return model_adev(t, self.fitted_s) * 3600.0
 
-    def fit_misfit(self):
+    def fit_misfit(self) -> float | None:
         """Largest factor between the Eq. (40) fit and the measured Allan deviation
         over the well-measured taus (1.0 = the fit passes through every point). A filter's output
         is not a sum of Eq. (40) noises: a large factor says its terms are a fit to a
@@ -280,9 +308,10 @@ class AllanResult:
             return None
         return float(np.exp(np.max(np.abs(np.log(model[ok] / adev[ok])))))
 
-    def to_json(self):
-        return {"terms": {k: float(self.terms[k]) for k in TERM_NAMES},
-                "units": dict(UNITS),
+    def to_json(self) -> dict[str, Any]:
+        """Plain JSON: the terms with their units and bounds, the curve in deg/h."""
+        return {"terms": {k: float(self.terms[k]) for k in TERM_SYMBOLS},
+                "units": {k: TERM_BY_SYMBOL[k].unit for k in TERM_SYMBOLS},
                 "bounds": dict(self.bounds),
                 "tau_s": [float(v) for v in self.tau_s],
                 "adev_deg_h": [float(v) for v in self.adev_deg_h],
@@ -291,7 +320,8 @@ class AllanResult:
                 "n_samples": int(self.n_samples)}
 
 
-def allan(rate_deg_s, sample_rate_hz, m=None, tau_s=None, per_decade=10):
+def allan(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | None = None,
+          tau_s: npt.ArrayLike | None = None, per_decade: int = 10) -> AllanResult:
     """Allan deviation (overlapping) and five-term fit of a rate record.
 
     Parameters

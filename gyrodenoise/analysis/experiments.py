@@ -15,19 +15,24 @@ against the true rate, which the paper could not measure.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.core import kernels as K
-from gyrodenoise.analysis.allan import TERM_NAMES, allan
+from gyrodenoise.analysis.allan import allan
+from gyrodenoise.units import TERM_SYMBOLS
 from gyrodenoise.core.batch import run as batch_run
-from gyrodenoise.simulator import load_card, simulate
+from gyrodenoise.simulator import CardLike, Record, load_card, simulate
 
 METHODS = ("kf", "shakf", "motion")   # the paper's two filters, and ours beside them
 PAPER_METHODS = ("kf", "shakf")
 AR_METHOD = "shakf"   # the filter whose online RLS identifies the paper's improved AR(n) model
 
 
-def paper_params(ar_order=3, sample_rate_hz=200.0, **kw):
+def paper_params(ar_order: int = 3, sample_rate_hz: float = 200.0, **kw: Any) -> Any:
     """Parameters of the paper's modified SHAKF, whose RLS identifies the AR model.
 
     The package default (``motion``) identifies no AR model: its phi and c stay 0.
@@ -38,7 +43,8 @@ def paper_params(ar_order=3, sample_rate_hz=200.0, **kw):
     return K.make_params(ar_order=ar_order, method=AR_METHOD, sample_rate_hz=sample_rate_hz, **kw)
 
 
-def ar_identification(rate_deg_s, sample_rate_hz, ar_order=3, first_s=60.0, **kw):
+def ar_identification(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, ar_order: int = 3, first_s: float = 60.0,
+                      **kw: Any) -> tuple[np.ndarray, np.ndarray, float]:
     """The paper's online AR identification on a record (Figs 2, 4 and 5).
 
     Returns ``(theta, residual_deg_s, warmup_s)``: theta, shape (m, n+1), is
@@ -55,14 +61,15 @@ def ar_identification(rate_deg_s, sample_rate_hz, ar_order=3, first_s=60.0, **kw
     return theta, diag[start:, 3], p[K.P_WARMUP] / sample_rate_hz
 
 
-def filter_record(rate_deg_s, sample_rate_hz, method, ar_order=3, restarts=None,
-                  record_theta=False, **kw):
+def filter_record(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, method: str, ar_order: int = 3,
+                  restarts: npt.ArrayLike | None = None, record_theta: bool = False, **kw: Any) -> Any:
     """Run one method over a record; returns (filtered, state[, theta])."""
     p = K.make_params(ar_order=ar_order, method=method, sample_rate_hz=sample_rate_hz, **kw)
     return batch_run(p, K.init_state(p), rate_deg_s, restarts, record_theta=record_theta)
 
 
-def ar_fit_sequence(params, state, n_samples, first_value, seed=0):
+def ar_fit_sequence(params: Any, state: Sequence[float], n_samples: int, first_value: float,
+                    seed: int = 0) -> np.ndarray:
     """Simulate the identified improved AR(n) model (Eq. 4) for ``n_samples``."""
     from scipy.signal import lfilter
     phi = np.array(K.phi(params, state))
@@ -78,24 +85,26 @@ def ar_fit_sequence(params, state, n_samples, first_value, seed=0):
     return lfilter([1.0], a, drive, zi=zi)[0]
 
 
-def lfilter_zi_const(a, level):
+def lfilter_zi_const(a: npt.ArrayLike, level: float) -> np.ndarray:
     """Initial conditions of lfilter([1], a) for a past output held at ``level``."""
     from scipy.signal import lfilter_zi
     # steady state for a constant input u with output level: u = level * sum(a)
     return lfilter_zi([1.0], a) * level * np.sum(a)
 
 
-def paper_std(x):
+def paper_std(x: npt.ArrayLike) -> float:
     """The paper's "MSE" of Eq. (41): the standard deviation about the mean."""
     x = np.asarray(x, dtype=float)
     return float(np.sqrt(np.mean((x - x.mean()) ** 2)))
 
 
-def rmse(x, truth):
+def rmse(x: npt.ArrayLike, truth: npt.ArrayLike) -> float:
+    """Root-mean-square of ``x - truth``."""
     return float(np.sqrt(np.mean((np.asarray(x) - np.asarray(truth)) ** 2)))
 
 
-def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
+def compare(record: Record, ar_order: int = 3, seed: int = 0, skip_warmup: bool = True,
+            **kw: Any) -> dict[str, Any]:
     """The paper's Table 1 for a record (and RMSE against truth when present).
 
     Returns a dict following spec section 3 (``rows``, ``rmse_deg_s``) plus
@@ -104,7 +113,8 @@ def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
     """
     fs = record.sample_rate_hz
     z = np.asarray(record.rate_deg_s, dtype=float)
-    outs, states = {}, {}
+    outs: dict[str, np.ndarray] = {}
+    states: dict[str, Any] = {}
     for m in METHODS:
         outs[m], states[m] = filter_record(z, fs, m, ar_order, record.restarts, **kw)
     p = paper_params(ar_order, fs, **kw)
@@ -113,12 +123,12 @@ def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
     series = {"raw": z, "ar_fit": ar_fit_sequence(p, st, z.shape[0], z[0], seed), **outs}
     start = int(p[K.P_WARMUP]) if skip_warmup and z.shape[0] > 4 * p[K.P_WARMUP] else 0
     results = {k: allan(v[start:], fs) for k, v in series.items()}
-    rows = {k: {t: float(r.terms[t]) for t in TERM_NAMES} for k, r in results.items()}
+    rows = {k: {t: float(r.terms[t]) for t in TERM_SYMBOLS} for k, r in results.items()}
     bounds = {k: dict(r.bounds) for k, r in results.items()}
-    ratio = {k: {t: _ratio(rows[k][t], rows["raw"][t]) for t in TERM_NAMES} for k in ("ar_fit",) + METHODS}
+    ratio = {k: {t: _ratio(rows[k][t], rows["raw"][t]) for t in TERM_SYMBOLS} for k in ("ar_fit",) + METHODS}
     acc = {t: (1.0 - abs(rows["ar_fit"][t] - rows["raw"][t]) / rows["raw"][t]) if rows["raw"][t] > 0 else None
-           for t in TERM_NAMES}
-    out = {
+           for t in TERM_SYMBOLS}
+    out: dict[str, Any] = {
         "source": record.source,
         "n_samples": int(z.shape[0]),
         "sample_rate_hz": float(fs),
@@ -126,7 +136,7 @@ def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
         "rows": rows,
         "bounds": bounds,
         "ratio_to_raw": ratio,
-        "shakf_vs_kf": {t: _ratio(rows["shakf"][t], rows["kf"][t]) for t in TERM_NAMES},
+        "shakf_vs_kf": {t: _ratio(rows["shakf"][t], rows["kf"][t]) for t in TERM_SYMBOLS},
         "ar_fit_accuracy": acc,
         "ar_model": {"order": ar_order, "phi": K.phi(p, st), "c_deg_s": K.rls_c(p, st),
                      "sigma_a_deg_s": float(np.sqrt(max(st[K.S_S2], 0.0)))},
@@ -143,18 +153,19 @@ def compare(record, ar_order=3, seed=0, skip_warmup=True, **kw):
     return out
 
 
-def _ratio(a, b):
+def _ratio(a: float, b: float) -> float | None:
     return float(a / b) if b > 0 else None
 
 
-def rise_time(y, t, t_step, level, frac=0.9):
+def rise_time(y: npt.ArrayLike, t: np.ndarray, t_step: float, level: float, frac: float = 0.9) -> float | None:
     """Seconds from ``t_step`` until ``y`` first reaches ``frac * level``."""
     idx = np.flatnonzero((t >= t_step) & (np.asarray(y) >= frac * level))
     return float(t[idx[0]] - t_step) if idx.size else None   # None: never reached
 
 
-def dynamic_table(card, rates_deg_s=(5.0, 15.0, 25.0, 35.0, 50.0), duration_s=600.0, seed=0,
-                  ar_order=3, step_deg_s=10.0, **kw):
+def dynamic_table(card: CardLike, rates_deg_s: Sequence[float] = (5.0, 15.0, 25.0, 35.0, 50.0),
+                  duration_s: float = 600.0, seed: int = 0, ar_order: int = 3, step_deg_s: float = 10.0,
+                  **kw: Any) -> dict[str, Any]:
     """The paper's Table 2 on the simulated gyro, plus RMSE and step lag.
 
     For each constant rate, ``duration_s`` of the card's gyro rotating at that
@@ -169,22 +180,24 @@ def dynamic_table(card, rates_deg_s=(5.0, 15.0, 25.0, 35.0, 50.0), duration_s=60
     n = int(round(duration_s * fs))
     p = paper_params(ar_order, fs, **kw)
     start = int(p[K.P_WARMUP])
-    rows = []
+    rows: list[dict[str, Any]] = []
     for i, w in enumerate(rates_deg_s):
         rec = simulate(card, n, seed=seed + i, true_rate_deg_s=w)
-        row = {"rate_deg_s": float(w),
-               "std_deg_s": {"raw": paper_std(rec.rate_deg_s[start:])},
-               "rmse_deg_s": {"raw": rmse(rec.rate_deg_s[start:], rec.true_rate_deg_s[start:])}}
+        true_rate = rec.true_rate_deg_s
+        assert true_rate is not None        # simulate always sets it
+        row: dict[str, Any] = {"rate_deg_s": float(w),
+                               "std_deg_s": {"raw": paper_std(rec.rate_deg_s[start:])},
+                               "rmse_deg_s": {"raw": rmse(rec.rate_deg_s[start:], true_rate[start:])}}
         for m in METHODS:
             y, _ = filter_record(rec.rate_deg_s, fs, m, ar_order, **kw)
             row["std_deg_s"][m] = paper_std(y[start:])
-            row["rmse_deg_s"][m] = rmse(y[start:], rec.true_rate_deg_s[start:])
+            row["rmse_deg_s"][m] = rmse(y[start:], true_rate[start:])
         rows.append(row)
     truth = np.zeros(n)
     truth[n // 2:] = step_deg_s
     rec = simulate(card, n, seed=seed + 100, true_rate_deg_s=truth)
     t = rec.time_s
-    step = {"step_deg_s": float(step_deg_s), "rise_time_90_s": {}, "rmse_deg_s": {}}
+    step: dict[str, Any] = {"step_deg_s": float(step_deg_s), "rise_time_90_s": {}, "rmse_deg_s": {}}
     for m in ("raw",) + METHODS:
         y = rec.rate_deg_s if m == "raw" else filter_record(rec.rate_deg_s, fs, m, ar_order, **kw)[0]
         step["rise_time_90_s"][m] = rise_time(y, t, t[n // 2], step_deg_s)

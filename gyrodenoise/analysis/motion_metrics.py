@@ -6,21 +6,21 @@ the slow, real motion survived and how late it came out. Plain functions over
 numpy arrays; the values are in the unit of the input (any unit, the same for
 ``raw`` and ``filtered``), times in seconds, rates in Hz.
 
-* :func:`lowband` -- the 0..``band_hz`` content of a record: zero-phase
+* `lowband` -- the 0..``band_hz`` content of a record: zero-phase
   Butterworth low-pass (order 4, forwards and backwards), per segment, each
   segment's mean removed (a constant offset is not motion).
-* :func:`lowband_kept` -- correlation and amplitude ratio (std filtered / std
+* `lowband_kept` -- correlation and amplitude ratio (std filtered / std
   raw) of the low-band content of the filtered and the raw record: identity
   keeps 1 and 1; a constant output keeps amplitude 0 (correlation undefined).
-* :func:`lag_s` -- the delay of the filtered low band behind the raw low band,
+* `lag_s` -- the delay of the filtered low band behind the raw low band,
   at the peak of their cross-correlation (parabolic interpolation between
   samples), searched within ``max_lag_s``.
-* :func:`envelope_violation` -- the first sample where a filtered record is not
+* `envelope_violation` -- the first sample where a filtered record is not
   finite or leaves the range of the raw samples seen since the last restart.
-* :func:`motion_above_noise` -- whether the raw low band holds motion at all
+* `motion_above_noise` -- whether the raw low band holds motion at all
   (at rest it is noise, and "kept" figures measure noise removed).
-* :func:`motion_loss` -- the warning rule: most of the real motion removed.
-* :func:`white_noise_std` -- the record's white-noise level that motion does not
+* `motion_loss` -- the warning rule: most of the real motion removed.
+* `white_noise_std` -- the record's white-noise level that motion does not
   lift: the core's own estimate (the motion filter's 4th differences at several
   lags, or its spectral noise floor where lower), the level the two functions above
   compare the low band with.
@@ -29,14 +29,17 @@ Segments: a record is cut at each restart (``restarts[i]`` True: sample i is the
 first of a new session) and at every non-finite sample of either record; the
 first ``skip_samples`` samples of each session (a filter's warm-up, when it
 passes the raw samples through) and segments shorter than
-:func:`min_segment_samples` are left out.
+`min_segment_samples` are left out.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.core.sessions import sessions
 
@@ -46,19 +49,19 @@ LOWBAND_HZ = 5.0
 #: order of the Butterworth low-pass that isolates the band (applied forwards and
 #: backwards: zero phase, squared magnitude)
 LOWBAND_ORDER = 4
-#: below this sample rate (Hz) a record is too slow to denoise: :func:`too_slow_to_denoise`
+#: below this sample rate (Hz) a record is too slow to denoise: `too_slow_to_denoise`
 MIN_DENOISE_RATE_HZ = 4.0 * LOWBAND_HZ
-#: warning thresholds of :func:`motion_loss`
+#: warning thresholds of `motion_loss`
 KEPT_AMPLITUDE_MIN = 0.5
 KEPT_CORR_MIN = 0.8
 #: the raw low band "has motion" when its std is this many times the white noise's
-#: share of the band (:func:`lowband_noise_std`)
+#: share of the band (`lowband_noise_std`)
 MOTION_TO_NOISE_MIN = 3.0
-#: default largest lag searched by :func:`lag_s`, s
+#: default largest lag searched by `lag_s`, s
 MAX_LAG_S = 0.5
 
 
-def too_slow_to_denoise(sample_rate_hz, band_hz=LOWBAND_HZ):
+def too_slow_to_denoise(sample_rate_hz: float | None, band_hz: float = LOWBAND_HZ) -> bool:
     """True when samples come too slowly for denoising to keep the motion.
 
     The threshold is 4 x ``band_hz`` (20 Hz for the 5 Hz motion band): the
@@ -71,19 +74,14 @@ def too_slow_to_denoise(sample_rate_hz, band_hz=LOWBAND_HZ):
     return sample_rate_hz is None or not sample_rate_hz >= 4.0 * band_hz
 
 
-def min_segment_samples(sample_rate_hz, band_hz=LOWBAND_HZ):
+def min_segment_samples(sample_rate_hz: float, band_hz: float = LOWBAND_HZ) -> int:
     """Shortest segment the low band is measured on: two periods of the band
     edge, and at least 3 x (2 x order + 1) + 1 samples (the forward-backward
     filter's padding)."""
     return max(int(math.ceil(2.0 * sample_rate_hz / band_hz)), 3 * (2 * LOWBAND_ORDER + 1) + 1)
 
 
-def _segments(n, restarts, finite, skip_samples, min_len):
-    """[(start, stop)] of the finite runs inside sessions (:func:`gyrodenoise.core.sessions.sessions`)."""
-    return sessions(n, restarts, skip_samples=skip_samples, finite=finite, min_len=min_len)
-
-
-def _zero_phase(x, sample_rate_hz, band_hz):
+def _zero_phase(x: npt.ArrayLike, sample_rate_hz: float, band_hz: float) -> np.ndarray:
     """Zero-phase (forward-backward) Butterworth low-pass of order
     LOWBAND_ORDER, by the core's ``lowpass`` method (no scipy.signal import,
     which costs ~1 s of a bridge run; the core's cascade equals
@@ -96,7 +94,8 @@ def _zero_phase(x, sample_rate_hz, band_hz):
                    zero_phase=True)
 
 
-def _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_samples):
+def _lowband_pairs(raw: npt.ArrayLike, filtered: npt.ArrayLike, sample_rate_hz: float, band_hz: float, restarts: npt.ArrayLike | None,
+                   skip_samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """[(raw low band, filtered low band)] per kept segment, means removed."""
     raw = np.asarray(raw, dtype=np.float64)
     filtered = np.asarray(filtered, dtype=np.float64)
@@ -106,28 +105,28 @@ def _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_sample
     _zero_phase(np.zeros(1), sample_rate_hz, band_hz)      # checks the band
     finite = np.isfinite(raw) & np.isfinite(filtered)
     out = []
-    for a, b in _segments(len(raw), restarts, finite, skip_samples,
-                          min_segment_samples(sample_rate_hz, band_hz)):
+    for a, b in sessions(len(raw), restarts, skip_samples, finite, min_segment_samples(sample_rate_hz, band_hz)):
         lr = _zero_phase(raw[a:b] - raw[a:b].mean(), sample_rate_hz, band_hz)
         lf = _zero_phase(filtered[a:b] - filtered[a:b].mean(), sample_rate_hz, band_hz)
         out.append((lr - lr.mean(), lf - lf.mean()))
     return out
 
 
-def lowband(x, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None):
+def lowband(x: npt.ArrayLike, sample_rate_hz: float, band_hz: float = LOWBAND_HZ,
+            restarts: npt.ArrayLike | None = None) -> np.ndarray:
     """The 0..``band_hz`` content of ``x``, each segment's mean removed; NaN on
     samples outside the measured segments (see the module's docstring)."""
     x = np.asarray(x, dtype=np.float64)
     _zero_phase(np.zeros(1), sample_rate_hz, band_hz)      # checks the band
     out = np.full(len(x), np.nan)
-    for a, b in _segments(len(x), restarts, np.isfinite(x), 0,
-                             min_segment_samples(sample_rate_hz, band_hz)):
+    for a, b in sessions(len(x), restarts, 0, np.isfinite(x), min_segment_samples(sample_rate_hz, band_hz)):
         y = _zero_phase(x[a:b] - x[a:b].mean(), sample_rate_hz, band_hz)
         out[a:b] = y - y.mean()
     return out
 
 
-def lowband_kept(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip_samples=0):
+def lowband_kept(raw: npt.ArrayLike, filtered: npt.ArrayLike, sample_rate_hz: float, band_hz: float = LOWBAND_HZ,
+                 restarts: npt.ArrayLike | None = None, skip_samples: int = 0) -> dict[str, Any]:
     """How much of the raw record's 0..``band_hz`` motion the filtered record kept.
 
     Returns a dict:
@@ -140,7 +139,7 @@ def lowband_kept(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=Non
     * ``samples``: samples measured (0: no segment long enough; then all None).
     """
     pairs = _lowband_pairs(raw, filtered, sample_rate_hz, band_hz, restarts, skip_samples)
-    res = {"corr": None, "amplitude_ratio": None, "raw_lowband_std": None,
+    res: dict[str, Any] = {"corr": None, "amplitude_ratio": None, "raw_lowband_std": None,
            "filtered_lowband_std": None, "samples": 0}
     if not pairs:
         return res
@@ -156,8 +155,8 @@ def lowband_kept(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=Non
     return res
 
 
-def lag_s(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip_samples=0,
-          max_lag_s=MAX_LAG_S):
+def lag_s(raw: npt.ArrayLike, filtered: npt.ArrayLike, sample_rate_hz: float, band_hz: float = LOWBAND_HZ,
+          restarts: npt.ArrayLike | None = None, skip_samples: int = 0, max_lag_s: float = MAX_LAG_S) -> float | None:
     """Delay of the filtered record's low band behind the raw one's, s (positive:
     the filtered record comes later).
 
@@ -195,23 +194,23 @@ def lag_s(raw, filtered, sample_rate_hz, band_hz=LOWBAND_HZ, restarts=None, skip
     return float((j - max_k + frac) / sample_rate_hz)
 
 
-def white_noise_std(x, sample_rate_hz, restarts=None):
+def white_noise_std(x: npt.ArrayLike, sample_rate_hz: float | None, restarts: npt.ArrayLike | None = None) -> float | None:
     """The white-noise standard deviation of a record (its unit), an estimate
     that slow motion does not lift, or None (no finite run longer than
-    :func:`noise_ready_samples`).
+    `noise_ready_samples`).
 
     It is the core's own estimate, not a second implementation: the record runs
-    through ``method="motion"`` (:func:`gyrodenoise.core.kernels.motion_step`),
+    through ``method="motion"`` (`gyrodenoise.core.kernels.motion_step`),
     whose noise level R is the smallest over lags L = 1..6 of the running mean
     |4th difference| at lag L (Huber-clipped, 10 s memory) x sqrt(pi / 140), or
-    the spectral noise floor (:func:`gyrodenoise.core.kernels.spectral_floor`,
+    the spectral noise floor (`gyrodenoise.core.kernels.spectral_floor`,
     a low quantile of the spectrum's upper quarter, which tones do not lift)
     where that is more than 1.5x lower.
     A 4th difference cancels any cubic over its 4 L samples, so motion below a
     few Hz adds (2 sin(pi f L / fs))^8 of its power: at 25 Hz, 1 Hz motion
     reaches it at 2e-5 of its power, where the first difference keeps 0.06.
     Returned: sqrt of the median of R over the samples where it has formed
-    (each finite run of each session, after its first :func:`noise_ready_samples`).
+    (each finite run of each session, after its first `noise_ready_samples`).
     On white noise it reads 2-6 % low (the smallest of six running means; 6 %
     at 25 Hz, 2 % at 250 Hz, tested); motion near the
     Nyquist frequency and vibration are not removed. 0.0 for a constant record."""
@@ -224,7 +223,7 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     ready = noise_ready_samples()
     s0 = K.init_state(p)                 # batch.run does not modify it: each run starts fresh
     vals = []
-    for a, b in _segments(len(x), restarts, np.isfinite(x), 0, ready + 1):
+    for a, b in sessions(len(x), restarts, 0, np.isfinite(x), ready + 1):
         _, _, trace = batch.run(p, s0, x[a:b], None, trace_index=at)
         vals.append(trace[ready:])
     if not vals:
@@ -233,14 +232,14 @@ def white_noise_std(x, sample_rate_hz, restarts=None):
     return 0.0 if r <= p[K.P_R_FLOOR] else math.sqrt(r)
 
 
-def noise_ready_samples():
-    """Samples of a run before :func:`white_noise_std` reads the core's estimate:
+def noise_ready_samples() -> int:
+    """Samples of a run before `white_noise_std` reads the core's estimate:
     the 4th difference at the largest lag (4 x 6) and 32 samples of its mean."""
     from gyrodenoise.core import kernels as K
     return 4 * int(K.motion_params(1.0)[K.P_MO_NLAG - K.P_MO_NF]) + 32
 
 
-def lowband_noise_std(white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
+def lowband_noise_std(white_noise_std: float, sample_rate_hz: float, band_hz: float = LOWBAND_HZ) -> float:
     """Std of white noise of std ``white_noise_std`` (sampled at ``sample_rate_hz``)
     after the 0..``band_hz`` low-pass: its power scales with the band's share of
     the Nyquist band, 2 band / fs (the order-4 Butterworth applied twice is close
@@ -248,10 +247,11 @@ def lowband_noise_std(white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     return float(white_noise_std) * math.sqrt(min(1.0, 2.0 * band_hz / sample_rate_hz))
 
 
-def motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
-    """True when the raw low band of ``kept`` (a :func:`lowband_kept` result) holds
-    motion clearly above the noise: std at least :data:`MOTION_TO_NOISE_MIN` x
-    :func:`lowband_noise_std` of the raw record's white-noise level
+def motion_above_noise(kept: Mapping[str, Any], white_noise_std: float | None, sample_rate_hz: float,
+                       band_hz: float = LOWBAND_HZ) -> bool | None:
+    """True when the raw low band of ``kept`` (a `lowband_kept` result) holds
+    motion clearly above the noise: std at least `MOTION_TO_NOISE_MIN` x
+    `lowband_noise_std` of the raw record's white-noise level
     ``white_noise_std``; False at rest (the low band is then noise, and what a
     filter removes from it is noise); None when it cannot be told."""
     sr = kept.get("raw_lowband_std")
@@ -260,16 +260,17 @@ def motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ
     return bool(sr >= MOTION_TO_NOISE_MIN * lowband_noise_std(white_noise_std, sample_rate_hz, band_hz))
 
 
-def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
+def motion_loss(kept: Mapping[str, Any], white_noise_std: float | None, sample_rate_hz: float,
+                band_hz: float = LOWBAND_HZ) -> str | None:
     """The warning rule: a short reason when the filter removed most of the real
     motion, else None.
 
-    ``kept`` is a :func:`lowband_kept` result, ``white_noise_std`` the raw
+    ``kept`` is a `lowband_kept` result, ``white_noise_std`` the raw
     record's white-noise level (e.g. std of first differences / sqrt 2). The
     raw low band must hold motion clearly above the noise (std at least
-    :data:`MOTION_TO_NOISE_MIN` x :func:`lowband_noise_std`); then the filter
+    `MOTION_TO_NOISE_MIN` x `lowband_noise_std`); then the filter
     is said to remove most of it when the amplitude kept is below
-    :data:`KEPT_AMPLITUDE_MIN` or the correlation below :data:`KEPT_CORR_MIN`."""
+    `KEPT_AMPLITUDE_MIN` or the correlation below `KEPT_CORR_MIN`."""
     if not motion_above_noise(kept, white_noise_std, sample_rate_hz, band_hz):
         return None
     amp, corr = kept.get("amplitude_ratio"), kept.get("corr")
@@ -283,7 +284,8 @@ def motion_loss(kept, white_noise_std, sample_rate_hz, band_hz=LOWBAND_HZ):
     return "; ".join(why) or None
 
 
-def envelope_violation(raw, filtered, restarts=None, rel_margin=1e-9, causal=True):
+def envelope_violation(raw: npt.ArrayLike, filtered: npt.ArrayLike, restarts: npt.ArrayLike | None = None, rel_margin: float = 1e-9,
+                       causal: bool = True) -> dict[str, Any] | None:
     """The first sample where ``filtered`` is not finite, or outside [lo - m, hi + m],
     lo/hi the least/greatest finite raw sample since the last restart (up to and
     including that sample; ``causal=False``: of the whole session, for a

@@ -3,22 +3,32 @@ convergence after a restart (paper Figs 4-5), residual PSD (Fig 2)."""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from gyrodenoise.analysis.allan import AllanResult
+    from gyrodenoise.simulator import ModelCard, Record
+
+PathLike = str | os.PathLike[str]
 
 COLORS = {"raw": "tab:blue", "ar_fit": "tab:gray", "kf": "tab:green", "shakf": "tab:red", "motion": "tab:purple"}
 LABELS = {"raw": "raw", "ar_fit": "AR-fitted sequence", "kf": "KF", "shakf": "modified SHAKF", "motion": "motion"}
 
 
-def _plt():
+def _plt() -> Any:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
 
 
-def _save(plt, fig, path):
+def _save(plt: Any, fig: Any, path: PathLike) -> None:
     """Check that every panel shows data, then write the PNG; the figure is closed either way."""
     try:
         check_drawn(fig, Path(path).name)
@@ -28,7 +38,7 @@ def _save(plt, fig, path):
         plt.close(fig)
 
 
-def allan_figure(results, path, title=""):
+def allan_figure(results: Mapping[str, AllanResult], path: PathLike, title: str = "") -> PathLike:
     """Allan deviation with 1-sigma bars and the fitted Eq. (40) per series."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
@@ -48,7 +58,8 @@ def allan_figure(results, path, title=""):
     return path
 
 
-def series_figure(time_s, series, path, zoom_s=2.0, truth=None):
+def series_figure(time_s: np.ndarray, series: Mapping[str, np.ndarray], path: PathLike, zoom_s: float = 2.0,
+                  truth: np.ndarray | None = None) -> PathLike:
     """Raw vs filtered over the whole record and a zoom of ``zoom_s`` seconds."""
     plt = _plt()
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 6.5))
@@ -74,7 +85,8 @@ def series_figure(time_s, series, path, zoom_s=2.0, truth=None):
     return path
 
 
-def convergence_figure(time_s, theta, path, warmup_s=None):
+def convergence_figure(time_s: np.ndarray, theta: np.ndarray, path: PathLike,
+                       warmup_s: float | None = None) -> PathLike:
     """phi_1..phi_n and c of the online RLS after a restart (paper Figs 4-5)."""
     plt = _plt()
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
@@ -95,7 +107,7 @@ def convergence_figure(time_s, theta, path, warmup_s=None):
     return path
 
 
-def octave_band_spread(f_hz, pxx):
+def octave_band_spread(f_hz: npt.ArrayLike, pxx: npt.ArrayLike) -> float:
     """Ratio of the highest to the lowest mean PSD over octave bands from 8 frequency
     bins up to (not including) Nyquist: 1 for white noise, up to the estimate's
     scatter (each band averages at least 8 bins)."""
@@ -109,7 +121,7 @@ def octave_band_spread(f_hz, pxx):
     return float(max(levels) / min(levels))
 
 
-def psd_figure(residual, sample_rate_hz, path):
+def psd_figure(residual: np.ndarray, sample_rate_hz: float, path: PathLike) -> PathLike:
     """Welch PSD of the AR one-step prediction residual (paper Fig. 2)."""
     from scipy.signal import welch
     plt = _plt()
@@ -127,13 +139,14 @@ def psd_figure(residual, sample_rate_hz, path):
     return path
 
 
-def demo_figures(card, rec, res, outdir, ar_order=3, seed=0, **kw):
+def demo_figures(card: ModelCard, rec: Record, res: Mapping[str, Any], outdir: PathLike, ar_order: int = 3,
+                 seed: int = 0, **kw: Any) -> list[PathLike]:
     """All demo figures into ``outdir``; returns their paths.
 
     The AR figures (Figs 2, 4, 5) show the paper's model, identified by the
-    modified SHAKF's RLS (:func:`gyrodenoise.analysis.experiments.ar_identification`), with
+    modified SHAKF's RLS (`gyrodenoise.analysis.experiments.ar_identification`), with
     the same filter options ``kw`` as the tables. Every figure is checked before it
-    is written (:func:`check_drawn`): an empty figure is an error, not a PNG.
+    is written (`check_drawn`): an empty figure is an error, not a PNG.
     """
     from gyrodenoise.analysis.experiments import ar_identification
     outdir = Path(outdir)
@@ -153,8 +166,8 @@ class EmptyFigureError(RuntimeError):
     """A figure would show nothing (no finite, varying curve in some panel)."""
 
 
-def check_drawn(fig, name):
-    """Raise :class:`EmptyFigureError` unless every panel of ``fig`` shows data.
+def check_drawn(fig: Any, name: str) -> None:
+    """Raise `EmptyFigureError` unless every panel of ``fig`` shows data.
 
     A panel shows data when at least one of its lines has two or more finite
     points (positive ones on a logarithmic y axis) whose y values are not all

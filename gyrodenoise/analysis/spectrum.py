@@ -5,46 +5,49 @@ Plain functions over numpy arrays (numpy only: no scipy import). Values are in
 the unit of the input (deg/s in the bridge), densities in unit**2/Hz, times in
 s, frequencies in Hz.
 
-* :func:`segments` -- where the Welch segments go: within sessions (a record
+* `segments` -- where the Welch segments go: within sessions (a record
   is cut at each restart and at every non-finite sample), after each session's
   first ``skip_samples`` (a filter's warm-up), half-overlapping.
-* :func:`choose_nperseg` (a target resolution, the bridge's views) and
-  :func:`nperseg_for_length` (a number of segments, the model-gap signatures) --
-  two rules for the segment length; :func:`segment_count` -- how many segments fit.
-* :func:`segment_spectra` / :func:`welch_psd` -- one-sided density, Hann
+* `choose_nperseg` (a target resolution, the bridge's views) and
+  `nperseg_for_length` (a number of segments, the model-gap signatures) --
+  two rules for the segment length; `segment_count` -- how many segments fit.
+* `segment_spectra` / `welch_psd` -- one-sided density, Hann
   window, each segment's mean removed: ``sum(psd) * df`` is the variance
   (Parseval); equal to ``scipy.signal.welch(window="hann", noverlap=nperseg // 2,
   detrend="constant")`` to rounding (tests/analysis/test_spectrum.py). The mean over the
   segments is Welch's estimate; the segments themselves, in time order, are the
-  spectrogram (:func:`spectrogram`).
-* :func:`cross_response` -- the filter's response measured from the raw and
+  spectrogram (`spectrogram`).
+* `cross_response` -- the filter's response measured from the raw and
   filtered records (H1 = S_xf / S_xx, coherence, phase delay); it is the best
   linear description of an adaptive filter, the exact one of a linear filter.
-* :func:`sos_response` -- the computed response of second-order sections
+* `sos_response` -- the computed response of second-order sections
   (the core's Butterworth low-pass).
-* :func:`analyse` -- all of it for a raw/filtered record pair, per axis.
-* :func:`running_median` -- the local level of a spectrum (exact, a width per
+* `analyse` -- all of it for a raw/filtered record pair, per axis.
+* `running_median` -- the local level of a spectrum (exact, a width per
   bin or one for all, ends reflected or repeated).
-* :func:`noise_floor` -- running median of the PSD over a width proportional
+* `noise_floor` -- running median of the PSD over a width proportional
   to the frequency (5..31 bins), corrected for the bias of the median of a
   chi-square variable: robust to the peaks themselves, following a steep slope.
-* :func:`find_peaks` -- local maxima above the floor by a threshold set for a
-  chosen false-alarm probability per spectrum (:func:`peak_threshold`: a Welch
+* `find_peaks` -- local maxima above the floor by a threshold set for a
+  chosen false-alarm probability per spectrum (`peak_threshold`: a Welch
   bin over its median floor treated as F-distributed), and at least
   ``min_ratio``; amplitude = rms of the excess over the floor across the
   window's main lobe.
-* :func:`presence` -- in what share of the segments a peak is there: a line
+* `presence` -- in what share of the segments a peak is there: a line
   all along, or one loud burst that dominates Welch's mean.
-* :func:`group_harmonics` -- a peak within tolerance of n x a lower peak
+* `group_harmonics` -- a peak within tolerance of n x a lower peak
   (n = 2..``max_harmonic``) is that peak's harmonic.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from statistics import NormalDist
+from typing import Any, Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.core.sessions import sessions
 
@@ -58,12 +61,12 @@ PEAK_HALF_WIDTH_BINS = 3
 #: removal (a notch at DC, two bins wide with the Hann window) and the floor's
 #: 5-bin minimum window, which makes the steep low end of a spectrum look like a peak
 MIN_PEAK_BIN = 4
-#: a segment "holds" a peak when its power there is this many times the floor's (:func:`presence`)
+#: a segment "holds" a peak when its power there is this many times the floor's (`presence`)
 PRESENCE_RATIO = 2.0
-#: default false-alarm probability of :func:`find_peaks`, per spectrum
+#: default false-alarm probability of `find_peaks`, per spectrum
 FALSE_ALARM = 0.01
-#: bins of the running median of :func:`noise_floor` (at most), and its width
-#: either side relative to the bin index (:func:`floor_window_bins`)
+#: bins of the running median of `noise_floor` (at most), and its width
+#: either side relative to the bin index (`floor_window_bins`)
 FLOOR_WINDOW_BINS = 31
 FLOOR_REL_WIDTH = 0.5
 #: variance inflation of a median of neighbouring Hann-window bins (their powers
@@ -73,13 +76,13 @@ FLOOR_REL_WIDTH = 0.5
 HANN_BIN_CORR_FACTOR = 1.2
 
 
-def hann(n):
+def hann(n: int) -> np.ndarray:
     """Periodic Hann window of ``n`` samples (the spectral-analysis form)."""
     return 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
 
 
-def choose_nperseg(session_lengths, sample_rate_hz, resolution_hz=0.5, min_segments=16,
-                   min_nperseg=32, max_nperseg=1024):
+def choose_nperseg(session_lengths: Iterable[int], sample_rate_hz: float, resolution_hz: float = 0.5,
+                   min_segments: int = 16, min_nperseg: int = 32, max_nperseg: int = 1024) -> int | None:
     """Segment length: the power of two nearest ``sample_rate_hz / resolution_hz``
     (within ``min_nperseg .. max_nperseg``), halved until the sessions give at
     least ``min_segments`` half-overlapping segments; None when even
@@ -93,18 +96,19 @@ def choose_nperseg(session_lengths, sample_rate_hz, resolution_hz=0.5, min_segme
     return n if _count(lengths, n) else None
 
 
-def _count(lengths, n):
+def _count(lengths: list[int], n: int) -> int:
     step = n // 2
     return sum((m - n) // step + 1 for m in lengths if m >= n)
 
 
-def segment_count(session_lengths, nperseg):
+def segment_count(session_lengths: Iterable[int], nperseg: int) -> int:
     """Number of half-overlapping segments of ``nperseg`` samples that sessions of
     ``session_lengths`` samples hold (a session shorter than a segment holds none)."""
     return _count([int(n) for n in session_lengths], int(nperseg))
 
 
-def nperseg_for_length(n_samples, min_segments=32, min_nperseg=64, max_nperseg=16384):
+def nperseg_for_length(n_samples: int, min_segments: int = 32, min_nperseg: int = 64,
+                       max_nperseg: int = 16384) -> int:
     """Segment length for one session of ``n_samples``: the largest power of two
     that gives at least ``min_segments`` segments without overlap
     (``n_samples / min_segments``), within ``min_nperseg .. max_nperseg`` (powers
@@ -115,14 +119,14 @@ def nperseg_for_length(n_samples, min_segments=32, min_nperseg=64, max_nperseg=1
     return int(2 ** min(hi, max(lo, math.floor(math.log2(max(n_samples / float(min_segments), min_nperseg))))))
 
 
-def segments(runs, nperseg):
+def segments(runs: Iterable[tuple[int, int]], nperseg: int) -> np.ndarray:
     """Start indices of the half-overlapping segments of length ``nperseg`` in ``runs``."""
     step = nperseg // 2
     out = [np.arange(a, b - nperseg + 1, step) for a, b in runs if b - a >= nperseg]
     return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
 
 
-def segment_spectra(x, starts, nperseg):
+def segment_spectra(x: npt.ArrayLike, starts: npt.ArrayLike, nperseg: int) -> np.ndarray:
     """Hann-windowed FFT of each segment (mean removed): complex (n_segments, nperseg // 2 + 1)."""
     x = np.asarray(x, dtype=np.float64)
     idx = np.asarray(starts, dtype=np.int64)[:, None] + np.arange(nperseg)
@@ -131,7 +135,7 @@ def segment_spectra(x, starts, nperseg):
     return np.fft.rfft(seg * hann(nperseg), axis=1)
 
 
-def density_scale(nperseg, sample_rate_hz):
+def density_scale(nperseg: int, sample_rate_hz: float) -> np.ndarray:
     """Per-bin factors turning |FFT|**2 of Hann segments into a one-sided density
     (unit**2/Hz): 2 / (fs * sum(w**2)), not doubled at 0 and at Nyquist."""
     w = hann(nperseg)
@@ -142,13 +146,15 @@ def density_scale(nperseg, sample_rate_hz):
     return sc
 
 
-def freq_hz(nperseg, sample_rate_hz):
+def freq_hz(nperseg: int, sample_rate_hz: float) -> np.ndarray:
+    """The frequencies (Hz) of the bins of an rfft of ``nperseg`` samples."""
     return np.fft.rfftfreq(nperseg, 1.0 / sample_rate_hz)
 
 
-def welch_psd(x, sample_rate_hz, nperseg, restarts=None, skip_samples=0):
+def welch_psd(x: npt.ArrayLike, sample_rate_hz: float, nperseg: int, restarts: npt.ArrayLike | None = None,
+              skip_samples: int = 0) -> tuple[np.ndarray, np.ndarray | None, int]:
     """(freq_hz, psd in unit**2/Hz, number of segments) of one record; psd is None
-    when no segment fits. Segments stay within sessions (see :func:`sessions`)."""
+    when no segment fits. Segments stay within sessions (see `sessions`)."""
     x = np.asarray(x, dtype=np.float64)
     starts = segments(sessions(len(x), restarts, skip_samples, np.isfinite(x)), nperseg)
     f = freq_hz(nperseg, sample_rate_hz)
@@ -158,7 +164,8 @@ def welch_psd(x, sample_rate_hz, nperseg, restarts=None, skip_samples=0):
     return f, np.mean(np.abs(X) ** 2, axis=0) * density_scale(nperseg, sample_rate_hz), len(starts)
 
 
-def spectrogram(power, starts, nperseg, max_columns=200):
+def spectrogram(power: np.ndarray, starts: np.ndarray, nperseg: int,
+                max_columns: int = 200) -> tuple[np.ndarray, np.ndarray]:
     """Time-frequency density from per-segment densities ``power`` (n_seg, n_bins):
     averaged in groups of consecutive segments to at most ``max_columns``
     columns. Returns (centre sample of each column, density (n_cols, n_bins))."""
@@ -175,7 +182,7 @@ def spectrogram(power, starts, nperseg, max_columns=200):
     return centre, dens / counts[:, None]
 
 
-def cross_response(X, F):
+def cross_response(X: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Measured response of the filter raw -> filtered from their segment spectra
     ``X``, ``F`` (same segments): H1 = S_xf / S_xx (complex, per bin),
     coherence |S_xf|**2 / (S_xx S_ff) and the phase delay -unwrap(arg H) / (2 pi f)
@@ -192,7 +199,7 @@ def cross_response(X, F):
     return h, coh, delay
 
 
-def phase_delay_samples(h):
+def phase_delay_samples(h: npt.ArrayLike) -> np.ndarray:
     """-unwrap(arg H) / omega of a response ``h`` on the bins of an rfft
     (omega = pi k / (n_bins - 1) rad/sample), in samples; NaN at DC."""
     h = np.asarray(h)
@@ -202,7 +209,7 @@ def phase_delay_samples(h):
         return np.where(omega > 0, -phase / np.where(omega > 0, omega, 1.0), np.nan)
 
 
-def sos_response(sos, freq_hz, sample_rate_hz):
+def sos_response(sos: Iterable[Sequence[float]], freq_hz: npt.ArrayLike, sample_rate_hz: float) -> np.ndarray:
     """Complex response of second-order sections [(b0, b1, b2, a1, a2)] (a0 = 1)
     at ``freq_hz``: the product of (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)."""
     z1 = np.exp(-2j * np.pi * np.asarray(freq_hz, dtype=np.float64) / sample_rate_hz)
@@ -212,7 +219,7 @@ def sos_response(sos, freq_hz, sample_rate_hz):
     return h
 
 
-def welch_dof(n_segments):
+def welch_dof(n_segments: float) -> float:
     """Equivalent degrees of freedom of a Welch estimate from ``n_segments``
     half-overlapping Hann segments (Welch 1967: 2K over the correlation of
     neighbours)."""
@@ -222,14 +229,15 @@ def welch_dof(n_segments):
     return 2.0 * k / (1.0 + 2.0 * (1.0 - 1.0 / k) * HANN_OVERLAP_CORR ** 2)
 
 
-def chi2_quantile_per_dof(p, dof):
+def chi2_quantile_per_dof(p: float, dof: float) -> float:
     """Quantile ``p`` of chi2(dof) / dof (Wilson-Hilferty: good to a few % for dof >= 10)."""
     z = NormalDist().inv_cdf(p)
     a = 2.0 / (9.0 * dof)
     return max(0.0, 1.0 - a + z * math.sqrt(a)) ** 3
 
 
-def floor_window_bins(n_bins, window_bins=FLOOR_WINDOW_BINS, rel_width=FLOOR_REL_WIDTH):
+def floor_window_bins(n_bins: int, window_bins: int = FLOOR_WINDOW_BINS,
+                      rel_width: float = FLOOR_REL_WIDTH) -> np.ndarray:
     """Odd running-median width per bin: ``rel_width`` x the bin index either side
     (constant relative bandwidth, so that the floor follows the steep low end of a
     spectrum), at least 5 bins, at most ``window_bins``."""
@@ -238,7 +246,7 @@ def floor_window_bins(n_bins, window_bins=FLOOR_WINDOW_BINS, rel_width=FLOOR_REL
     return np.clip(w, 5, max(5, int(window_bins) | 1))
 
 
-def running_median(psd, width_bins, ends="reflect"):
+def running_median(psd: npt.ArrayLike, width_bins: npt.ArrayLike, ends: str = "reflect") -> np.ndarray:
     """Running median of ``psd`` over an odd number of bins centred on each bin:
     ``width_bins`` a scalar, or one width per bin. Beyond the ends the PSD is
     reflected about its first and last bins (``ends="reflect"``) or its end values
@@ -253,7 +261,8 @@ def running_median(psd, width_bins, ends="reflect"):
     if np.any(widths % 2 == 0):
         raise ValueError("running_median: the widths must be odd")
     h_max = int(widths.max()) // 2
-    pad = np.pad(psd, h_max, mode={"reflect": "reflect", "nearest": "edge"}[ends])
+    modes: dict[str, Literal["reflect", "edge"]] = {"reflect": "reflect", "nearest": "edge"}
+    pad = np.pad(psd, h_max, mode=modes[ends])
     from numpy.lib.stride_tricks import sliding_window_view
     med = np.empty(n)
     for w in np.unique(widths):
@@ -264,9 +273,9 @@ def running_median(psd, width_bins, ends="reflect"):
     return med
 
 
-def noise_floor(psd, n_segments, window_bins=FLOOR_WINDOW_BINS):
-    """Robust floor of a Welch PSD: a running median (:func:`running_median`, widths
-    of :func:`floor_window_bins`, ends reflected), divided by the median of
+def noise_floor(psd: npt.ArrayLike, n_segments: float, window_bins: int = FLOOR_WINDOW_BINS) -> np.ndarray:
+    """Robust floor of a Welch PSD: a running median (`running_median`, widths
+    of `floor_window_bins`, ends reflected), divided by the median of
     chi2(dof)/dof so that it estimates the mean density where there is no peak."""
     psd = np.asarray(psd, dtype=np.float64)
     n = len(psd)
@@ -276,7 +285,7 @@ def noise_floor(psd, n_segments, window_bins=FLOOR_WINDOW_BINS):
     return med / chi2_quantile_per_dof(0.5, welch_dof(n_segments))
 
 
-def f_quantile(p, dof1, dof2):
+def f_quantile(p: float, dof1: float, dof2: float) -> float:
     """Quantile ``p`` of the F(dof1, dof2) distribution (Paulson's approximation:
     Wilson-Hilferty applied to both chi-square variables)."""
     z = NormalDist().inv_cdf(p)
@@ -289,13 +298,14 @@ def f_quantile(p, dof1, dof2):
     return u ** 3
 
 
-def peak_threshold(n_bins, n_segments, false_alarm=FALSE_ALARM, window_bins=FLOOR_WINDOW_BINS):
+def peak_threshold(n_bins: int, n_segments: float, false_alarm: float = FALSE_ALARM,
+                   window_bins: npt.ArrayLike = FLOOR_WINDOW_BINS) -> float | np.ndarray:
     """PSD / floor above which a bin is a peak: the (1 - false_alarm / n_bins)
     quantile (a Bonferroni bound over the bins) of the ratio of a Welch bin,
     chi2(dof)/dof, to the floor, itself an estimate: the median of
     ``window_bins`` such bins (a scalar, or one per bin), which varies like a
     chi2 of pi/2 fewer degrees of freedom than their sum, fewer again for the
-    correlation of neighbouring Hann bins (:data:`HANN_BIN_CORR_FACTOR`). White
+    correlation of neighbouring Hann bins (`HANN_BIN_CORR_FACTOR`). White
     noise then gives a false peak in a spectrum with probability about
     ``false_alarm`` (measured in tests/analysis/test_spectrum.py)."""
     dof = welch_dof(n_segments)
@@ -306,14 +316,15 @@ def peak_threshold(n_bins, n_segments, false_alarm=FALSE_ALARM, window_bins=FLOO
     return float(out[0]) if np.ndim(window_bins) == 0 else out
 
 
-def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alarm=FALSE_ALARM,
-               min_ratio=2.0, max_peaks=8, half_width_bins=PEAK_HALF_WIDTH_BINS):
+def find_peaks(freq_hz: npt.ArrayLike, psd: npt.ArrayLike, n_segments: float, floor: npt.ArrayLike | None = None,
+               min_freq_hz: float = 0.0, false_alarm: float = FALSE_ALARM, min_ratio: float = 2.0,
+               max_peaks: int = 8, half_width_bins: int = PEAK_HALF_WIDTH_BINS) -> list[dict[str, Any]]:
     """Vibration peaks of a Welch PSD, strongest first (at most ``max_peaks``).
 
     A peak is a local maximum at or above ``min_freq_hz`` (and bin
-    :data:`MIN_PEAK_BIN`)
-    whose PSD is above the floor (:func:`noise_floor` unless given) by the
-    larger of :func:`peak_threshold` and ``min_ratio``; of two within
+    `MIN_PEAK_BIN`)
+    whose PSD is above the floor (`noise_floor` unless given) by the
+    larger of `peak_threshold` and ``min_ratio``; of two within
     ``half_width_bins`` the higher is kept. Each is a dict: ``freq_hz`` (log-
     parabolic interpolation over 3 bins), ``bin``, ``amplitude_rms`` (square
     root of the excess power over the floor within ``half_width_bins``: the rms
@@ -323,7 +334,7 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
     alone, against its (1 - false_alarm / n_bins) quantile. It answers "is there a
     narrow line at f above the local floor?"; a line wandering wider than the
     window's main lobe and its extent, or a broad bump's extent, are other questions
-    (:mod:`gyrodenoise.modelgap.spectral`)."""
+    (`gyrodenoise.modelgap.spectral`)."""
     f = np.asarray(freq_hz, dtype=np.float64)
     p = np.asarray(psd, dtype=np.float64)
     nb = len(p)
@@ -342,7 +353,7 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
     is_max = (p > left) & (p >= right) & (ratio > thr)
     ks = [int(k) for k in cand_bins if is_max[k]]
     ks.sort(key=lambda k: -p[k])
-    kept = []
+    kept: list[int] = []
     for k in ks:
         if all(abs(k - j) > half_width_bins for j in kept):
             kept.append(k)
@@ -360,14 +371,16 @@ def find_peaks(freq_hz, psd, n_segments, floor=None, min_freq_hz=0.0, false_alar
     return peaks
 
 
-def excess_power(psd, floor, k, resolution_hz, half_width_bins=PEAK_HALF_WIDTH_BINS):
+def excess_power(psd: npt.ArrayLike, floor: npt.ArrayLike, k: int, resolution_hz: float,
+                 half_width_bins: int = PEAK_HALF_WIDTH_BINS) -> float:
     """Power (unit**2) of ``psd`` above ``floor`` within ``half_width_bins`` of bin ``k``:
     the square of a peak's rms amplitude."""
-    lo, hi = max(0, k - half_width_bins), min(len(psd), k + half_width_bins + 1)
-    return float(np.sum(np.maximum(np.asarray(psd)[lo:hi] - np.asarray(floor)[lo:hi], 0.0)) * resolution_hz)
+    p, fl = np.asarray(psd), np.asarray(floor)
+    lo, hi = max(0, k - half_width_bins), min(len(p), k + half_width_bins + 1)
+    return float(np.sum(np.maximum(p[lo:hi] - fl[lo:hi], 0.0)) * resolution_hz)
 
 
-def presence(segment_psd, floor, k, ratio=PRESENCE_RATIO):
+def presence(segment_psd: np.ndarray, floor: np.ndarray, k: int, ratio: float = PRESENCE_RATIO) -> float:
     """Fraction of the segments (rows of ``segment_psd``, one density per
     segment) whose power in bins k-1..k+1 exceeds ``ratio`` x the floor's there:
     near 1 for a line present all along, near 1/N for one burst of N segments.
@@ -380,12 +393,14 @@ def presence(segment_psd, floor, k, ratio=PRESENCE_RATIO):
     return float(np.mean(power > ratio * float(np.sum(floor[lo:hi]))))
 
 
-def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable=None,
-            min_freq_hz=0.0, min_ratio=2.0, max_peaks=8, false_alarm=FALSE_ALARM, sos=None):
+def analyse(raw: npt.ArrayLike, filtered: npt.ArrayLike, sample_rate_hz: float, restarts: npt.ArrayLike | None = None,
+            skip_samples: int = 0, usable: npt.ArrayLike | None = None, min_freq_hz: float = 0.0, min_ratio: float = 2.0,
+            max_peaks: int = 8, false_alarm: float = FALSE_ALARM,
+            sos: Iterable[Sequence[float]] | None = None) -> dict[str, Any] | None:
     """The spectrum view of a raw/filtered record pair (``(n, m)`` arrays, one
     column per axis), or None when no session holds a segment.
 
-    Welch segments (:func:`choose_nperseg`) over the usable samples (``usable``:
+    Welch segments (`choose_nperseg`) over the usable samples (``usable``:
     bool per sample, default all finite) within sessions; the filter's response
     over those after each session's first ``skip_samples``. Returns a dict:
     ``nperseg``, ``freq_hz``, ``starts`` (segment starts), ``response_segments``,
@@ -393,8 +408,8 @@ def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable
     column), ``power_raw_sum`` (per-segment density summed over the columns: the
     spectrogram's input), ``gain``/``coherence``/``delay_s`` (lists per column;
     None when no segment follows the warm-up or the output equals the input),
-    ``peaks`` (per column, :func:`find_peaks` then :func:`group_harmonics`, each
-    with ``present_in_segments`` (:func:`presence`), ``filtered_amplitude_rms`` at
+    ``peaks`` (per column, `find_peaks` then `group_harmonics`, each
+    with ``present_in_segments`` (`presence`), ``filtered_amplitude_rms`` at
     the same bins, ``filter_gain`` and ``phase_delay_s`` there), ``filtered_is_raw``, and with ``sos`` (second-order
     sections of a linear filter) ``computed_gain`` and ``computed_delay_s``."""
     x = np.asarray(raw, dtype=np.float64)
@@ -402,8 +417,7 @@ def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable
     if x.ndim == 1:
         x, y = x[:, None], y[:, None]
     n = len(x)
-    if usable is None:
-        usable = np.isfinite(x).all(axis=1) & np.isfinite(y).all(axis=1)
+    usable = (np.isfinite(x).all(axis=1) & np.isfinite(y).all(axis=1)) if usable is None else np.asarray(usable)
     runs = sessions(n, restarts, 0, usable)
     nper = choose_nperseg([b - a for a, b in runs], sample_rate_hz)
     if nper is None:
@@ -414,8 +428,8 @@ def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable
     df = float(freq[1])
     scale = density_scale(nper, sample_rate_hz)
     same = bool(np.array_equal(x[usable], y[usable]))
-    out = {"nperseg": nper, "freq_hz": freq, "starts": starts, "response_segments": len(starts_h),
-           "filtered_is_raw": same, "computed_gain": None, "computed_delay_s": None}
+    out: dict[str, Any] = {"nperseg": nper, "freq_hz": freq, "starts": starts, "response_segments": len(starts_h),
+                           "filtered_is_raw": same, "computed_gain": None, "computed_delay_s": None}
     for key in ("psd_raw", "psd_filtered", "floor_raw", "floor_filtered", "gain", "coherence",
                 "delay_s", "peaks"):
         out[key] = []
@@ -453,7 +467,7 @@ def analyse(raw, filtered, sample_rate_hz, restarts=None, skip_samples=0, usable
     return out
 
 
-def minus3db_bin(freq_hz, gain):
+def minus3db_bin(freq_hz: npt.ArrayLike, gain: npt.ArrayLike) -> int | None:
     """The first bin (above 0 Hz) where ``gain`` is below 1/sqrt(2), or None."""
     f = np.asarray(freq_hz)
     g = np.asarray(gain, dtype=np.float64)
@@ -461,7 +475,8 @@ def minus3db_bin(freq_hz, gain):
     return int(below[0]) if len(below) else None
 
 
-def group_harmonics(peaks, resolution_hz, max_harmonic=5, rel_tol=0.01):
+def group_harmonics(peaks: Iterable[dict[str, Any]], resolution_hz: float, max_harmonic: int = 5,
+                    rel_tol: float = 0.01) -> list[dict[str, Any]]:
     """Set ``harmonic_of_hz`` and ``harmonic_n`` on each peak (in place; returns
     the peaks sorted by frequency): a peak within tolerance of n x a lower peak
     that is not itself a harmonic (n = 2..``max_harmonic``) is that peak's n-th
@@ -474,7 +489,7 @@ def group_harmonics(peaks, resolution_hz, max_harmonic=5, rel_tol=0.01):
     out = sorted(peaks, key=lambda q: q["freq_hz"])
     for q in out:
         q["harmonic_of_hz"], q["harmonic_n"], q["harmonics_hz"] = None, 1, []
-    found = {}                              # id of a fundamental -> harmonic numbers found
+    found: dict[int, set[int]] = {}         # id of a fundamental -> harmonic numbers found
     for i, q in enumerate(out):
         for base in out[:i]:
             if base["harmonic_of_hz"] is not None or base["freq_hz"] <= 0:

@@ -2,19 +2,27 @@
 
 from __future__ import annotations
 
+import argparse
 import time
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.cli.options import (MODEL_OPTIONS, add_filter_options, add_recording_options, check_core_params,
                                      check_method_options, core_default, filter_kw)
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
+from gyrodenoise.units import ALLAN_TERMS, TERM_SYMBOLS
+
+if TYPE_CHECKING:
+    from gyrodenoise.simulator import ModelCard, Record
 
 
-def _read(args):
+def _read(args: argparse.Namespace) -> Record:
     from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
@@ -23,7 +31,7 @@ def _read(args):
     return rec
 
 
-def _check_params(args, fs):
+def _check_params(args: argparse.Namespace, fs: float) -> None:
     """The filter options of ``denoise`` / ``compare`` at sample rate ``fs``: one line (InputError)."""
     check_method_options(args, ("--max-motion-hz",))
     mhz = getattr(args, "max_motion_hz", None)
@@ -37,7 +45,7 @@ def _check_params(args, fs):
 
 
 # ---------------------------------------------------------------- denoise
-def cmd_denoise(args):
+def cmd_denoise(args: argparse.Namespace) -> int:
     from gyrodenoise.denoiser import Denoiser
     from gyrodenoise.io.recording import write_recording
     _check_params(args, 1e9 if args.method == "lowpass" or args.max_motion_hz is not None
@@ -64,7 +72,7 @@ def cmd_denoise(args):
     return 0
 
 
-def _form_text(args, offline, sample_rate_hz):
+def _form_text(args: argparse.Namespace, offline: bool, sample_rate_hz: float) -> str:
     """'causal' or 'offline (...)', and the rigid-body low-pass applied with --max-motion-hz."""
     mode = "offline (forward + backward, no lag)" if offline or args.zero_phase else "causal"
     if args.max_motion_hz:
@@ -78,9 +86,9 @@ def _form_text(args, offline, sample_rate_hz):
     return mode
 
 
-def rmse_line(raw, filtered, truth):
+def rmse_line(raw: npt.ArrayLike, filtered: npt.ArrayLike, truth: npt.ArrayLike) -> str:
     """'RMSE against true_rate over N samples: raw X, filtered Y deg/s (xR)' over the
-    samples where all three are finite (the RMSE of :mod:`gyrodenoise.analysis.experiments`)."""
+    samples where all three are finite (the RMSE of `gyrodenoise.analysis.experiments`)."""
     from gyrodenoise.analysis.experiments import rmse
     raw, filtered, truth = (np.asarray(v, dtype=np.float64) for v in (raw, filtered, truth))
     ok = np.isfinite(raw) & np.isfinite(filtered) & np.isfinite(truth)
@@ -91,7 +99,7 @@ def rmse_line(raw, filtered, truth):
     return f"RMSE against true_rate over {int(ok.sum())} samples: raw {r:.4g}, filtered {f:.4g} deg/s{ratio}"
 
 
-def true_rate_motion(rec):
+def true_rate_motion(rec: Record) -> dict[str, float] | None:
     """None when the record has no true_rate or a constant one; else
     {"std", "min", "max"} of its true rate (deg/s): the record moves."""
     if rec.true_rate_deg_s is None:
@@ -109,7 +117,7 @@ ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a tru
 
 
 # ------------------------------------------------------------------ allan
-def cmd_allan(args):
+def cmd_allan(args: argparse.Namespace) -> int:
     from gyrodenoise.analysis.allan import allan
     rec = _read(args)
     if len(rec) < 5:
@@ -140,7 +148,7 @@ def cmd_allan(args):
 
 
 # ---------------------------------------------------------------- compare
-def cmd_compare(args):
+def cmd_compare(args: argparse.Namespace) -> int:
     from gyrodenoise.analysis.experiments import compare
     _check_params(args, 1.0)          # bad options fail before the file is read
     rec = _read(args)
@@ -159,7 +167,7 @@ def cmd_compare(args):
     return 0
 
 
-def moving_warning(moving):
+def moving_warning(moving: Mapping[str, float]) -> str:
     """The warning of ``compare`` on a record whose true rate moves."""
     return (f"the record moves (true_rate {moving['min']:.4g} to {moving['max']:.4g} deg/s, std "
             f"{moving['std']:.4g}): every row's Allan terms include that motion (K and R above all are the "
@@ -167,25 +175,23 @@ def moving_warning(moving):
             f"analyses rate - true_rate")
 
 
-def public(d):
+def public(d: Mapping[str, Any]) -> dict[str, Any]:
     """Drop the private (array) entries of a result dict."""
     return {k: v for k, v in d.items() if not k.startswith("_")}
 
 
-UNIT_LABEL = {"N": "deg/sqrt(h)", "B": "deg/h", "K": "deg/h^1.5", "R": "deg/h^2", "Q": "deg"}
-
-
-def format_terms_table(rows, bounds):
+def format_terms_table(rows: Mapping[str, Mapping[str, float]], bounds: Mapping[str, Mapping[str, str]]) -> str:
     """Five-term table; '<' marks an upper bound (term not resolved)."""
     names = list(rows)
     lines = [f"{'term (unit)':<20}" + "".join(f"{n:>14}" for n in names)]
-    for t in ("N", "B", "K", "R", "Q"):
+    for term in ALLAN_TERMS:
+        t = term.symbol
         cells = []
         for n in names:
             v = rows[n][t]
             mark = "<" if bounds[n].get(t) == "upper_bound" else " "
             cells.append(f"{mark + format(v, '.4e'):>14}")
-        lines.append(f"{t + ' (' + UNIT_LABEL[t] + ')':<20}" + "".join(cells))
+        lines.append(f"{t + ' (' + term.unit + ')':<20}" + "".join(cells))
     lines.append("('<' = upper bound: the record cannot resolve that term)")
     return "\n".join(lines)
 
@@ -193,14 +199,15 @@ def format_terms_table(rows, bounds):
 POOR_FIT = 2.0     # fit_misfit_factor above which Table 1 flags a series' Eq. (40) fit
 
 
-def format_compare(res):
+def format_compare(res: Mapping[str, Any]) -> str:
+    """Table 1 (the Allan terms of each series, their ratios to raw, the AR model) as text."""
     out = [f"Table 1 -- Allan terms of {res['source']} ({res['n_samples']} samples, "
            f"{res['sample_rate_hz']:g} Hz; first {res['skipped_warmup_samples']} warm-up samples skipped)"]
     out.append(format_terms_table(res["rows"], res["bounds"]))
     out.append("")
     names = list(res["ratio_to_raw"])
     out.append(f"{'ratio to raw':<20}" + "".join(f"{n:>14}" for n in names))
-    for t in ("N", "B", "K", "R", "Q"):
+    for t in TERM_SYMBOLS:
         cells = "".join(f"{_fmt(res['ratio_to_raw'][n][t]):>14}" for n in names)
         out.append(f"{t:<20}{cells}")
     poor = {k: v for k, v in res.get("fit_misfit_factor", {}).items() if v is not None and v > POOR_FIT}
@@ -214,7 +221,7 @@ def format_compare(res):
                    "and live links run; `denoise` on a file defaults to the offline form)")
     acc = res["ar_fit_accuracy"]
     out.append("AR fit accuracy (1-|fit-raw|/raw): " +
-               ", ".join(f"{t} {_fmt(acc[t], pct=True)}" for t in ("N", "B", "K", "R", "Q")))
+               ", ".join(f"{t} {_fmt(acc[t], pct=True)}" for t in TERM_SYMBOLS))
     ar = res["ar_model"]
     out.append(f"AR({ar['order']}) model: phi = [{', '.join(f'{v:.4f}' for v in ar['phi'])}], "
                f"c = {ar['c_deg_s']:.4g} deg/s, sigma_a = {ar['sigma_a_deg_s']:.4g} deg/s")
@@ -228,13 +235,14 @@ def format_compare(res):
     return "\n".join(out)
 
 
-def _fmt(v, pct=False):
+def _fmt(v: float | None, pct: bool = False) -> str:
     if v is None:
         return "n/a"
     return f"{100 * v:.1f}%" if pct else f"{v:.3g}"
 
 
-def format_dynamic(dyn):
+def format_dynamic(dyn: Mapping[str, Any]) -> str:
+    """Table 2 (constant rates, the step) as text."""
     names = list(dyn["rows"][0]["std_deg_s"])
     label = {"raw": "raw", "kf": "KF", "shakf": "SHAKF", "motion": "motion"}
     out = [f"Table 2 -- constant rotation, {dyn['duration_s']:g} s each ({dyn['card']})",
@@ -265,7 +273,7 @@ def format_dynamic(dyn):
 
 
 # ------------------------------------------------------------------- demo
-def cmd_demo(args):
+def cmd_demo(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     check_core_params(**filter_kw(args))
     card, rec = _demo_record(args)
@@ -294,7 +302,7 @@ def cmd_demo(args):
     return 0
 
 
-def _demo_record(args):
+def _demo_record(args: argparse.Namespace) -> tuple[ModelCard, Record]:
     """The model card and its simulated static record of ``--hours``."""
     from gyrodenoise.simulator import load_card, simulate
     card = load_card(args.model)
@@ -306,7 +314,7 @@ def _demo_record(args):
     return card, simulate(card, n, seed=args.seed)
 
 
-def _demo_tables(args, card, rec):
+def _demo_tables(args: argparse.Namespace, card: ModelCard, rec: Record) -> tuple[dict[str, Any], dict[str, Any]]:
     """Table 1 (the static record) and Table 2 (constant rates and a step)."""
     from gyrodenoise.analysis.experiments import compare, dynamic_table
     log("gyrodenoise demo: static experiment (Table 1): KF, modified SHAKF and motion, Allan fits")
@@ -318,7 +326,8 @@ def _demo_tables(args, card, rec):
 
 
 # ------------------------------------------------------------------ parsers
-def register_cli(sub):
+def register_cli(sub: Any) -> None:
+    """Add the subcommands demo, denoise, allan and compare to the parser's subparsers ``sub``."""
     _register_demo(sub)
     p = sub.add_parser("denoise", help="filter a recording to time,raw,filtered CSV")
     add_recording_options(p)
@@ -340,7 +349,7 @@ def register_cli(sub):
     p.set_defaults(func=cmd_compare)
 
 
-def _register_demo(sub):
+def _register_demo(sub: Any) -> None:
     p = sub.add_parser("demo", help="simulate the default FOG, denoise with KF, SHAKF and motion, print Tables 1-2, "
                                     "plot",
                        description="The main job on the embedded default model card: simulate the paper's FOG, "

@@ -1,20 +1,34 @@
 """Subcommand ``gap``: the model-gap workflow (spec sections 1 and 4). Parsing and printing only;
-the work is in :mod:`gyrodenoise.modelgap`."""
+the work is in `gyrodenoise.modelgap`."""
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
 import sys
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from gyrodenoise.cli.options import add_recording_options
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
+from gyrodenoise.units import RATE_TO_DEG_S, TERM_BY_SYMBOL
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from gyrodenoise.modelgap.curve import AllanCurve
+    from gyrodenoise.modelgap.workflow import GapResult
+    from gyrodenoise.simulator import ModelCard
+
+TO_N = TERM_BY_SYMBOL["N"].to_spec     # white rate noise: sqrt(s-based variance density) -> N (deg/sqrt(h))
 
 
-def register_cli(subparsers):
+def register_cli(subparsers: Any) -> None:
+    """Add the subcommand ``gap`` to the parser's ``subparsers``."""
     p = subparsers.add_parser(
         "gap", help="what a model card misses to behave like a measured record; writes the completed card",
         description="Simulate CARD like MEASURED (same rate and length, several seeds), compare Allan "
@@ -27,7 +41,7 @@ def register_cli(subparsers):
                    help="a published Allan curve (tau_s, allan_deviation[, adev_lci, adev_uci]) as the "
                         "measurement instead of IN; see docs/bench/gap.md")
     p.add_argument("--allan-unit", default=None,
-                   help="unit of the curve's ADEV columns: deg/s, deg/h or rad/s (required with --allan: "
+                   help=f"unit of the curve's ADEV columns: {', '.join(RATE_TO_DEG_S)} (required with --allan: "
                         "a curve file carries no unit)")
     p.add_argument("--sensor", default=None, help="--allan: the rows of this sensor (file with a sensor column)")
     p.add_argument("--channel", default=None, help="--allan: the rows of this channel")
@@ -58,7 +72,7 @@ def register_cli(subparsers):
     p.set_defaults(func=cmd_gap)
 
 
-def _check_writable(path, what):
+def _check_writable(path: str, what: str) -> None:
     d = Path(path).resolve().parent
     if Path(path).is_dir():
         raise InputError(f"{what} is a directory", str(path))
@@ -66,12 +80,12 @@ def _check_writable(path, what):
         raise InputError(f"cannot write {what}: folder {d} does not exist or is not writable", str(path))
 
 
-def _stop_bands(values):
+def _stop_bands(values: Sequence[str] | None) -> str | list[tuple[float, float]] | None:
     if values is None:
         return "auto"
     if values == ["none"]:
         return None
-    out = []
+    out: list[tuple[float, float]] = []
     for v in values:
         try:
             lo, hi = (float(x) for x in v.split(":"))
@@ -83,7 +97,7 @@ def _stop_bands(values):
     return out
 
 
-def _at_fitted_rate(text, fs, card_hz, model):
+def _at_fitted_rate(text: str, fs: float, card_hz: float, model: str) -> str:
     """The completed card stating the rate its terms were fitted at (the record's, ``fs``): a
     term fitted at one rate simulates differently at another (an angle Gauss-Markov tau of
     half a sample, white noise per sample). InputError (one line) when the card's rate
@@ -99,7 +113,7 @@ def _at_fitted_rate(text, fs, card_hz, model):
                                    f"(the input card said {card_hz:g} Hz)\n")
 
 
-def _read_input(args):
+def _read_input(args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray | None]:
     """The record: a PSINS .imu log (--rate-column gyro_x/y/z) or a recording CSV."""
     if str(args.input).lower().endswith(".imu"):
         from gyrodenoise.io.psins import read_psins
@@ -121,7 +135,7 @@ def _read_input(args):
     return rec.rate_deg_s, rec.sample_rate_hz, rec.restarts
 
 
-def _cmd_allan(args, card):
+def _cmd_allan(args: argparse.Namespace, card: ModelCard) -> int:
     """gap --allan CURVE.csv: fit the card's noise terms to a published Allan curve, check by simulation."""
     from gyrodenoise.modelgap.cards import text_at_rate
     from gyrodenoise.modelgap.curve import card_from_terms, fit_curve, simulated_curve
@@ -149,20 +163,20 @@ def _cmd_allan(args, card):
                         "inside_every_tau": not out_tau, "points": rows})
 
 
-def _read_curve(args):
+def _read_curve(args: argparse.Namespace) -> AllanCurve:
     """The published Allan curve of --allan, in deg/s; InputError when --allan-unit is missing."""
     from gyrodenoise.modelgap.curve import read_allan_curve
     curve = read_allan_curve(args.allan, args.sensor, args.channel, args.allan_unit or "deg/s", args.sample_rate,
                              args.n_samples)
     if args.allan_unit is None:  # the file read well; its numbers mean nothing without their unit
-        raise InputError("the curve's ADEV columns carry no unit: give --allan-unit deg/s, deg/h or rad/s "
+        raise InputError(f"the curve's ADEV columns carry no unit: give --allan-unit {', '.join(RATE_TO_DEG_S)} "
                          "(a rad/s curve read as deg/s would be 57x too small)", args.allan)
     for note in curve.notes:
         log(f"gyrodenoise: note: {args.allan}: {note}")
     return curve
 
 
-def _curve_rows(curve, model, mean):
+def _curve_rows(curve: AllanCurve, model: np.ndarray, mean: np.ndarray) -> list[dict[str, Any]]:
     """Per tau: the published ADEV and bounds (None where open), the fit, the simulated mean, inside?"""
     import numpy as np
 
@@ -174,11 +188,11 @@ def _curve_rows(curve, model, mean):
             zip(curve.tau_s, curve.adev_deg_s, curve.lo_deg_s, curve.hi_deg_s, model, mean, ok)]
 
 
-def _white_noise_notes(text, terms, curve):
+def _white_noise_notes(text: str, terms: Mapping[str, Any], curve: AllanCurve) -> str:
     """The card's comments on the fitted terms that act as white noise at the curve's rate."""
     fast = [(s_, t_) for s_, t_ in terms["gauss_markov"] if t_ < 2.0 / curve.sample_rate_hz]
     if fast:    # Gauss-Markov terms shorter than 2 samples act as (slightly coloured) white noise
-        n_eq = math.sqrt(terms["angle_random_walk"] + sum(2.0 * s_ * s_ * t_ for s_, t_ in fast)) * 60.0
+        n_eq = math.sqrt(terms["angle_random_walk"] + sum(2.0 * s_ * s_ * t_ for s_, t_ in fast)) * TO_N
         text = text.rstrip("\n") + (f"\n# white noise: the Gauss-Markov terms with tau < 2 samples act as white "
                                     f"noise (the fit used their slight colour at the shortest taus); with N they "
                                     f"make an angle random walk of {n_eq:.4g} deg/sqrt(h)\n")
@@ -189,11 +203,11 @@ def _white_noise_notes(text, terms, curve):
         text = text.rstrip("\n") + (f"\n# the angle Gauss-Markov terms act as white rate noise below their tau "
                                     f"(N^2 = 2 sigma^2 / tau) and as white angle noise above; the whole card's "
                                     f"ADEV at 1 s is {ad1 * 3600:.4g} deg/h, read as an angle random walk "
-                                    f"{ad1 * 60:.4g} deg/sqrt(h)\n")
+                                    f"{ad1 * TO_N:.4g} deg/sqrt(h)\n")
     return text
 
 
-def _curve_table(args, curve, rows):
+def _curve_table(args: argparse.Namespace, curve: AllanCurve, rows: list[dict[str, Any]]) -> list[str]:
     """The lines of the published / fitted / simulated table, in deg/h."""
     lines = [f"gyrodenoise gap --allan: {args.allan} ({curve.label}; {len(curve.tau_s)} taus "
              f"{curve.tau_s[0]:g}-{curve.tau_s[-1]:g} s; ADEV in {curve.unit}"
@@ -206,12 +220,12 @@ def _curve_table(args, curve, rows):
     return lines
 
 
-def _plot_path(args):
+def _plot_path(args: argparse.Namespace) -> str | None:
     """The figure to write: --plot, else NEW.gap.png beside --out; None with --no-plot."""
     return None if args.no_plot else (args.plot or str(Path(args.out).with_suffix("")) + ".gap.png")
 
 
-def _write_card(args, text, report, plot, obj):
+def _write_card(args: argparse.Namespace, text: str, report: str, plot: str | None, obj: Any) -> int:
     """Write the completed card (last: only after a successful run), then the report: on stdout,
     or with --json on stderr and ``obj`` as the one JSON object on stdout."""
     try:
@@ -227,7 +241,7 @@ def _write_card(args, text, report, plot, obj):
     return 0
 
 
-def _check_options(args):
+def _check_options(args: argparse.Namespace) -> None:
     """--seeds, --workers, --max-effects, and that --out and --plot can be written."""
     if args.seeds < 3:
         raise InputError(f"--seeds must be at least 3, got {args.seeds}")
@@ -241,7 +255,8 @@ def _check_options(args):
         _check_writable(args.plot, "--plot")
 
 
-def cmd_gap(args):
+def cmd_gap(args: argparse.Namespace) -> int:
+    """``gyrodenoise gap``: a record (IN) or a published Allan curve (--allan) against a card."""
     from gyrodenoise.simulator import load_card
     card = load_card(args.model)
     _check_options(args)
@@ -254,7 +269,7 @@ def cmd_gap(args):
     return _cmd_record(args, card)
 
 
-def _cmd_record(args, card):
+def _cmd_record(args: argparse.Namespace, card: ModelCard) -> int:
     """gap IN: simulate the card like the record, name and fit what it misses, write the completed card."""
     from gyrodenoise.modelgap import check_record, format_report, gap, plot_gap
     plot = _plot_path(args)
@@ -278,7 +293,7 @@ def _cmd_record(args, card):
     return _write_card(args, text, report, plot, d)
 
 
-def _rate_notes(args, card, fs):
+def _rate_notes(args: argparse.Namespace, card: ModelCard, fs: float) -> None:
     """Notes (after every refusal) on a card at another rate than the record, and on a unit not given."""
     from gyrodenoise.modelgap import card_at_rate
     if abs(card.sample_rate_hz - fs) > 1e-6 * fs:
@@ -292,7 +307,7 @@ def _rate_notes(args, card, fs):
             f"--rate-unit deg/h or rad/s if the record is in another unit: the fitted card scales with it)")
 
 
-def _completed_text(args, card, fs, res):
+def _completed_text(args: argparse.Namespace, card: ModelCard, fs: float, res: GapResult) -> str:
     """The completed card: at the record's rate when a term was fitted, with a comment on the edits."""
     from gyrodenoise.modelgap.report import describe_edits
     text = res.card_text

@@ -30,7 +30,7 @@ FMUS = {
     "FogDenoiser": ("fogdenoiser_fmu.py", ("core/__init__.py", "core/kernels.py", "denoiser.py", "errors.py",
                                            "fmu/variables.py")),
     "SimulatedFog": ("simulatedfog_fmu.py", ("core/__init__.py", "core/simkernels.py", "errors.py",
-                                             "simulator.py", "fmu/variables.py")),
+                                             "simulator.py", "units.py", "fmu/variables.py")),
 }
 
 

@@ -1,2 +1,2 @@
-"""Files in and out: recordings (CSV, :mod:`.recording`), PSINS text records
-(:mod:`.psins`), noise terms for Kalibr and MATLAB (:mod:`.export`)."""
+"""Files in and out: recordings (CSV, `recording`), PSINS text records
+(`psins`), noise terms for Kalibr and MATLAB (`export`)."""

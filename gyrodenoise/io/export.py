@@ -49,12 +49,20 @@ value carries its unit and origin in a comment; the numbers are printed with
 
 from __future__ import annotations
 
+import argparse
 import math
+import os
 import re
+from collections.abc import Mapping
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from gyrodenoise.errors import InputError
+from gyrodenoise.units import TERM_BY_SYMBOL
+
+if TYPE_CHECKING:
+    from gyrodenoise.analysis.allan import AllanResult
 
 DEG = math.pi / 180.0
 # ROS graph resource names: letters, digits, '_', '/' separators, optional leading
@@ -62,7 +70,7 @@ DEG = math.pi / 180.0
 _ROS_NAME = re.compile(r"[/~]?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*")
 
 
-def terms_to_si(terms):
+def terms_to_si(terms: Mapping[str, float]) -> dict[str, float]:
     """The five Allan terms (spec units) in SI, per second.
 
     Parameters
@@ -76,28 +84,25 @@ def terms_to_si(terms):
         ``N_rad_sqrt_s`` (= rad/s/sqrt(Hz)), ``B_rad_s``, ``K_rad_s1_5``
         (= rad/s^2/sqrt(Hz)), ``R_rad_s2``, ``Q_rad``.
     """
-    return {
-        "N_rad_sqrt_s": float(terms["N"]) * DEG / 60.0,
-        "B_rad_s": float(terms["B"]) * DEG / 3600.0,
-        "K_rad_s1_5": float(terms["K"]) * DEG / 3600.0 ** 1.5,
-        "R_rad_s2": float(terms["R"]) * DEG / 3600.0 ** 2,
-        "Q_rad": float(terms["Q"]) * DEG,
-    }
+    si = lambda k: float(terms[k]) * DEG / TERM_BY_SYMBOL[k].to_spec  # noqa: E731
+    return {"N_rad_sqrt_s": si("N"), "B_rad_s": si("B"), "K_rad_s1_5": si("K"), "R_rad_s2": si("R"),
+            "Q_rad": si("Q")}
 
 
-def _yaml_float(x):
+def _yaml_float(x: float) -> str:
     """10 significant digits, always written as a float (200.0, not 200)."""
     t = f"{float(x):.10g}"
     return t if any(ch in t for ch in ".en") else t + ".0"
 
 
-def _bound_note(bounds, name):
+def _bound_note(bounds: Mapping[str, str] | None, name: str) -> str:
     if bounds and bounds.get(name) == "upper_bound":
         return "; UPPER BOUND: the record cannot resolve this term"
     return ""
 
 
-def kalibr_imu_yaml(terms, update_rate_hz, rostopic="/imu0", bounds=None, inflate=1.0, source=""):
+def kalibr_imu_yaml(terms: Mapping[str, float], update_rate_hz: float, rostopic: str = "/imu0",
+                    bounds: Mapping[str, str] | None = None, inflate: float = 1.0, source: str = "") -> str:
     """Text of a Kalibr ``imu.yaml`` for the gyro (accelerometer keys to fill in).
 
     Parameters
@@ -108,7 +113,7 @@ def kalibr_imu_yaml(terms, update_rate_hz, rostopic="/imu0", bounds=None, inflat
         The IMU rate the densities refer to (the record's sample rate).
     rostopic : str
     bounds : dict, optional
-        Term -> "fit" / "upper_bound" (from :class:`AllanResult`).
+        Term -> "fit" / "upper_bound" (from `AllanResult`).
     inflate : float
         Factor applied to both densities (>= 1 usual; 1 = the fitted values).
     source : str
@@ -146,7 +151,8 @@ def kalibr_imu_yaml(terms, update_rate_hz, rostopic="/imu0", bounds=None, inflat
     return "\n".join(lines)
 
 
-def matlab_gyroparams_script(terms, bounds=None, source=""):
+def matlab_gyroparams_script(terms: Mapping[str, float], bounds: Mapping[str, str] | None = None,
+                             source: str = "") -> str:
     """Text of a MATLAB ``.m`` script that builds ``params = gyroparams(...)``."""
     si = terms_to_si(terms)
     nb = lambda k: (" UPPER BOUND: not resolved by the record." if bounds and bounds.get(k) == "upper_bound"  # noqa: E731
@@ -168,7 +174,7 @@ def matlab_gyroparams_script(terms, bounds=None, source=""):
 
 
 # ------------------------------------------------------------- CLI helpers
-def add_export_options(parser):
+def add_export_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--kalibr-yaml``, ``--kalibr-rostopic``, ``--kalibr-inflate`` and
     ``--matlab`` to an argparse parser (the ``allan`` subcommand)."""
     g = parser.add_argument_group("export of the noise terms")
@@ -181,15 +187,15 @@ def add_export_options(parser):
                    help="also write a MATLAB script building gyroparams (NoiseDensity, BiasInstability, RandomWalk)")
 
 
-def export_from_args(args, allan_result):
-    """Write the files asked for by :func:`add_export_options`; returns their paths.
+def export_from_args(args: argparse.Namespace, allan_result: AllanResult) -> list[str]:
+    """Write the files asked for by `add_export_options`; returns their paths.
 
     Raises
     ------
     InputError
         One line naming the option or path and what is wrong.
     """
-    written = []
+    written: list[str] = []
     source = str(getattr(args, "input", "") or "")
     terms, bounds = allan_result.terms, allan_result.bounds
     if getattr(args, "kalibr_yaml", None):
@@ -208,7 +214,7 @@ def export_from_args(args, allan_result):
     return written
 
 
-def _write(path, text):
+def _write(path: str | os.PathLike[str], text: str) -> str:
     p = Path(path)
     try:
         p.write_text(text, encoding="utf-8")

@@ -14,6 +14,7 @@ ring-laser gyro of ``psins_lasergyro.imu``, so its quantum is 0.1 arcsec of angl
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,7 @@ class PsinsLog:
     quantum_deg: np.ndarray         # angle per pulse, per axis (deg)
     source: str
 
-    def axis(self, name):
+    def axis(self, name: str) -> np.ndarray:
         """One axis by column name (``gyro_x``, ``gyro_y``, ``gyro_z``)."""
         if name not in AXES:
             raise InputError(f"no column '{name}' in a PSINS log (columns: {', '.join(AXES)}); "
@@ -40,7 +41,7 @@ class PsinsLog:
         return self.rate_deg_s[:, AXES.index(name)]
 
 
-def _numbers(line, lineno, source, want):
+def _numbers(line: str, lineno: int, source: str, want: int) -> list[float]:
     try:
         vals = [float(v) for v in line.split()]
     except ValueError:
@@ -50,7 +51,7 @@ def _numbers(line, lineno, source, want):
     return vals
 
 
-def read_psins(path):
+def read_psins(path: str | os.PathLike[str]) -> PsinsLog:
     """Read the gyro channels of a PSINS ``.imu`` log (see the module docstring)."""
     src = str(path)
     try:

@@ -1,6 +1,6 @@
 """Reading and writing recordings (spec section 2) with the bad-input rules.
 
-Every problem is either a one-line :class:`~gyrodenoise.errors.InputError`
+Every problem is either a one-line `gyrodenoise.errors.InputError`
 naming the file, line and column, or a documented repair recorded in
 ``Record.notes`` (the CLI prints the notes on stderr and in ``--json``):
 
@@ -10,10 +10,10 @@ naming the file, line and column, or a documented repair recorded in
 * columns other than time / rate / true_rate: ignored and reported;
 * a constant rate: accepted (a valid, if dull, record: the filter passes it
   through and the Allan terms are zero) and reported;
-* suspected saturation (a run of at least :data:`SAT_RUN` equal samples at the
+* suspected saturation (a run of at least `SAT_RUN` equal samples at the
   rate column's maximum or minimum): kept as is and reported with the count and
   the first time;
-* isolated spikes (a sample more than :data:`SPIKE_SIGMAS` robust standard
+* isolated spikes (a sample more than `SPIKE_SIGMAS` robust standard
   deviations of the sample-to-sample difference away from both neighbours, in
   the same direction): kept as is and reported; the SHAKF's outlier gate
   (``outlier_sigma``, docs/bench/outliers-soak.md) keeps them out of the filter.
@@ -21,7 +21,7 @@ naming the file, line and column, or a documented repair recorded in
 Errors: missing or unreadable file, empty file, header only, missing rate or
 time column, a value that is not a number, NaN or inf, a short (truncated)
 row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
-no time column and no sample rate, a rate beyond :data:`ABSURD_RATE_DEG_S`
+no time column and no sample rate, a rate beyond `ABSURD_RATE_DEG_S`
 (after unit conversion; not a gyro reading).
 The test suite's corpus of bad recordings holds one file per case.
 """
@@ -32,14 +32,21 @@ import csv
 import gzip
 import io
 import math
+import os
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.simulator import Record
+from gyrodenoise.units import RATE_TO_DEG_S
 
-RATE_UNITS = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": 180.0 / math.pi}
+if TYPE_CHECKING:
+    from _csv import Reader as _CsvReader
+
 GAP_FACTOR = 1.5
 MIN_SAMPLES = 2
 ABSURD_RATE_DEG_S = 1.0e6   # 2,800 rev/s: no gyro measures that
@@ -47,7 +54,7 @@ SAT_RUN = 10                # equal samples at the column's max/min: suspected s
 SPIKE_SIGMAS = 8.0          # isolated spike: this many robust sigmas from both neighbours
 
 
-def _open_text(path):
+def _open_text(path: str | os.PathLike[str]) -> str:
     p = Path(path)
     if not p.exists():
         raise InputError("no such file", str(path))
@@ -69,21 +76,26 @@ SPIKE_ADVICE = ("with --method shakf, kf or sh_classic the outlier gate (--outli
                 "wild samples out of the filter")
 
 
-def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/s",
-                   sample_rate_hz=None, true_column="true_rate", spike_advice=SPIKE_ADVICE):
-    """Read a recording CSV into a :class:`Record` (rates in deg/s).
+def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str = "time",
+                   rate_unit: str = "deg/s", sample_rate_hz: float | None = None, true_column: str = "true_rate",
+                   spike_advice: str = SPIKE_ADVICE) -> Record:
+    """Read a recording CSV into a `Record` (rates in deg/s).
 
     Parameters
     ----------
     path : str or Path
         CSV (optionally gzip-compressed) with a header row.
-    rate_column, time_column, true_column : str
-        Column names; the time column is optional when ``sample_rate_hz`` is
-        given, ``true_column`` is optional.
-    rate_unit : {"deg/s", "deg/h", "rad/s"}
-        Unit of the rate and true-rate columns.
+    rate_column : str
+        Name of the rate column.
+    time_column : str
+        Name of the time column (s); optional when ``sample_rate_hz`` is given.
+    rate_unit : str
+        Unit of the rate and true-rate columns, a key of ``gyrodenoise.units.RATE_TO_DEG_S``:
+        "deg/s", "deg/h", "rad/s" or "mrad/s".
     sample_rate_hz : float, optional
         Sample rate when the file has no time column.
+    true_column : str
+        Name of the true-rate column (optional in the file).
     spike_advice : str
         The remedy a spike note names (default: the filters' outlier gate).
     """
@@ -107,16 +119,17 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
         raise InputError("header only, no data rows", src)
     if n < MIN_SAMPLES:
         raise InputError(f"only {n} data row(s); at least {MIN_SAMPLES} are needed", src)
-    scale = RATE_UNITS[rate_unit]
+    scale = RATE_TO_DEG_S[rate_unit]
     rate = np.asarray(values[i_rate]) * scale
     true = np.asarray(values[i_true]) * scale if i_true is not None else None
     _check_rate_magnitude(rate, values[i_rate], text, rate_column, rate_unit, src)
-    notes = []
+    notes: list[str] = []
     ignored = [h for j, h in enumerate(header) if j not in (i_rate, i_time, i_true)]
     if ignored:
         notes.append(f"ignored columns: {', '.join(ignored)}")
     notes.extend(_signal_notes(rate, lambda i: _line_of(text, i), spike_advice))
     if i_time is None:
+        assert sample_rate_hz is not None     # refused above when there is no time column either
         fs = float(sample_rate_hz)
         t = np.arange(n) / fs
         restarts = None
@@ -128,15 +141,15 @@ def read_recording(path, rate_column="rate", time_column="time", rate_unit="deg/
                   restarts=restarts, source=src, notes=notes)
 
 
-def _check_arguments(rate_unit, sample_rate_hz, src):
+def _check_arguments(rate_unit: str, sample_rate_hz: float | None, src: str) -> None:
     """InputError for a rate unit or a stated sample rate the reader cannot use."""
-    if rate_unit not in RATE_UNITS:
-        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_UNITS)})", src)
+    if rate_unit not in RATE_TO_DEG_S:
+        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_TO_DEG_S)})", src)
     if sample_rate_hz is not None and not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
         raise InputError(f"sample rate must be a positive number, got {sample_rate_hz!r}", src)
 
 
-def _read_header(reader, rate_column, time_column, src):
+def _read_header(reader: Iterator[list[str]], rate_column: str, time_column: str, src: str) -> list[str]:
     """The header row's column names; InputError when it cannot be read or has no rate
     column (saying why: no header at all, another field separator, another name)."""
     try:
@@ -155,11 +168,12 @@ def _read_header(reader, rate_column, time_column, src):
                      f"use --rate-column", src)
 
 
-def _read_values(reader, header, cols, names, src):
+def _read_values(reader: _CsvReader, header: list[str], cols: list[int], names: dict[int | None, str],
+                 src: str) -> dict[int, list[float]]:
     """{column index: list of floats} of the columns ``cols`` over the data rows (blank
     lines skipped); InputError at the first short row, non-number, NaN or inf."""
     need = max(cols) + 1
-    values = {c: [] for c in cols}
+    values: dict[int, list[float]] = {c: [] for c in cols}
     lineno = 1
     try:
         for row in reader:
@@ -184,7 +198,8 @@ def _read_values(reader, header, cols, names, src):
     return values
 
 
-def _check_rate_magnitude(rate, cells, text, rate_column, rate_unit, src):
+def _check_rate_magnitude(rate: np.ndarray, cells: list[float], text: str, rate_column: str, rate_unit: str,
+                          src: str) -> None:
     """InputError at the first rate beyond ABSURD_RATE_DEG_S (deg/s, after the unit)."""
     big = np.flatnonzero(np.abs(rate) > ABSURD_RATE_DEG_S)
     if big.size:
@@ -194,7 +209,8 @@ def _check_rate_magnitude(rate, cells, text, rate_column, rate_unit, src):
                          f"(wrong --rate-unit?)", src)
 
 
-def _time_axis(t, n, sample_rate_hz, text, src):
+def _time_axis(t: np.ndarray, n: int, sample_rate_hz: float | None, text: str,
+               src: str) -> tuple[float, np.ndarray | None, list[str]]:
     """(sample rate, restarts or None, notes) of a time column ``t`` of a record of ``n``
     samples: the rate from the median
     period; a restart after each gap longer than GAP_FACTOR periods (reported, not
@@ -223,7 +239,7 @@ def _time_axis(t, n, sample_rate_hz, text, src):
                           f"the filter restarts after each gap"]
 
 
-def _runs_at(x, value, min_len):
+def _runs_at(x: np.ndarray, value: float, min_len: int) -> tuple[int, int]:
     """(count of samples, first index) in runs of >= min_len samples equal to value."""
     eq = np.concatenate([[False], x == value, [False]]).astype(np.int8)
     d = np.diff(eq)
@@ -235,7 +251,8 @@ def _runs_at(x, value, min_len):
     return int(np.sum((ends - starts)[long_])), int(starts[long_][0])
 
 
-def _signal_notes(rate, line_of=lambda i: i + 2, spike_advice=SPIKE_ADVICE):
+def _signal_notes(rate: np.ndarray, line_of: Callable[[int], int] = lambda i: i + 2,
+                  spike_advice: str = SPIKE_ADVICE) -> list[str]:
     """Reported (never repaired) properties of the rate column: constant,
     suspected saturation, isolated spikes."""
     notes = []
@@ -263,7 +280,7 @@ def _signal_notes(rate, line_of=lambda i: i + 2, spike_advice=SPIKE_ADVICE):
     return notes
 
 
-def _is_number(cell):
+def _is_number(cell: str) -> bool:
     try:
         float(cell)
     except ValueError:
@@ -271,7 +288,7 @@ def _is_number(cell):
     return True
 
 
-def _line_of(text, sample_index):
+def _line_of(text: str, sample_index: int) -> int:
     """File line number of data sample ``sample_index`` (skipping blank lines)."""
     line = 1
     count = -1
@@ -284,7 +301,8 @@ def _line_of(text, sample_index):
     return line
 
 
-def write_recording(path, time_s, raw_deg_s, filtered_deg_s, true_rate_deg_s=None):
+def write_recording(path: str | os.PathLike[str], time_s: npt.ArrayLike, raw_deg_s: npt.ArrayLike,
+                    filtered_deg_s: npt.ArrayLike, true_rate_deg_s: npt.ArrayLike | None = None) -> None:
     """Write ``time,raw,filtered[,true_rate]`` (deg/s) to a CSV file."""
     cols = [np.asarray(time_s), np.asarray(raw_deg_s), np.asarray(filtered_deg_s)]
     header = "time,raw,filtered"

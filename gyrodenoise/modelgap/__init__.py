@@ -1,10 +1,10 @@
 """The model-gap workflow: what is a model card missing to behave like a real gyro?
 
-Modules, by concern: :mod:`.metric` (signatures, z-scores, the gap),
-:mod:`.cards` (card text: re-parse, edit), :mod:`.simulation` (the card S
-times, FMU or native), :mod:`.candidates` (effects fitted to the record),
-:mod:`.workflow` (choose, edit, repeat: :func:`gap`), :mod:`.report` (text and
-plot), :mod:`.settings` (constants).
+Modules, by concern: `metric` (signatures, z-scores, the gap),
+`cards` (card text: re-parse, edit), `simulation` (the card S
+times, FMU or native), `candidates` (effects fitted to the record),
+`workflow` (choose, edit, repeat: `gap`), `report` (text and
+plot), `settings` (constants).
 
 Given a measured rate record and a model card, the workflow
 
@@ -12,12 +12,12 @@ Given a measured rate record and a model card, the workflow
    length, through ``SimulatedFog.fmu`` (engine ``"fmu"``) or the core simulator
    (engine ``"native"``; the two are bit-identical, see ``tests/fmu/test_build_and_run.py``);
 2. compares five noise *signatures* of the record with the simulations
-   (:func:`signature`, :func:`zscores`, :data:`GAP_METRIC`);
+   (`signature`, `zscores`, `GAP_METRIC`);
 3. proposes candidate effects from the vocabulary of the spec, fits each
-   candidate's parameters to the record (:func:`propose`), screens each by
+   candidate's parameters to the record (`propose`), screens each by
    re-simulation and keeps the one that shrinks the gap most for its number of
    parameters;
-4. adds it to the card text (:func:`edit_card`) and repeats until the gap is
+4. adds it to the card text (`edit_card`) and repeats until the gap is
    within the simulations' own scatter (leave-one-out threshold) or nothing
    improves it.
 
@@ -46,15 +46,15 @@ Choosing a candidate
 --------------------
 The gap measures how far the record is from a card; choosing WHICH effect to
 add uses a different number, the candidate's *score*: the gap with every
-point's ``z^2`` capped at 25 (:func:`robust_gap`; points that neither the card
+point's ``z^2`` capped at 25 (`robust_gap`; points that neither the card
 nor any candidate brings within ``|z| <= 5`` count 0), plus the Gaussian
 log-likelihood price of a wider simulated scatter that the record does not ask
-for (:func:`widening`: per point ``ln(sigma_new^2 / sigma_old^2) - ln(max(z^2,
+for (`widening`: per point ``ln(sigma_new^2 / sigma_old^2) - ln(max(z^2,
 1))`` when positive), times ``1 + 0.05``
 per parameter. A candidate is accepted when its score is below 0.8 times the
 current card's capped gap. Before any stochastic candidate, a record mean far
 off the card's (``|z| > 3`` and more than 5 times the rms wander of the block
-means, :func:`deterministic_offset`) is explained by a constant bias. Why: on a
+means, `deterministic_offset`) is explained by a constant bias. Why: on a
 long real record (an ADIS16405, docs/bench/gap.md) the plain gap rewards a large rate
 random walk, whose wider scatter shrinks the z of a deterministic mean offset,
 and is dominated by short-tau points (a sensor's internal low-pass filter)

@@ -3,16 +3,28 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
-from gyrodenoise.modelgap.settings import ALLAN_SHAPES, BI_FACTOR, CARD_FIELD, N_PARAMS
+from gyrodenoise.analysis.allan import AVAR_SHAPE
+from gyrodenoise.modelgap.settings import CARD_FIELD, N_PARAMS, SIGMA_TO_CARD
 from gyrodenoise.modelgap.spectral import AGM_TAU_MAX_S, angle_gm_avar
+from gyrodenoise.units import NOISE_SECTIONS, TERM_BY_SECTION
+
+if TYPE_CHECKING:
+    from gyrodenoise.modelgap.metric import Layout, Reference, Signature
+    from gyrodenoise.simulator import ModelCard
+
+#: one edit of a card: (term, its parameters in card units or None to remove it, re-fit of a term in the card)
+Change: TypeAlias = "tuple[str, dict[str, float] | None, bool]"
 
 
 # ------------------------------------------------------------------ candidates
-def gm_avar(tau, sigma, T):
+def gm_avar(tau: npt.ArrayLike, sigma: float, T: float) -> np.ndarray:
     """Allan variance of a first-order Gauss-Markov process (see module docstring)."""
     x = np.asarray(tau, dtype=float) / T
     small = x < 1e-3
@@ -22,11 +34,11 @@ def gm_avar(tau, sigma, T):
     return np.where(small, approx, full)
 
 
-SHAPE = {"quantization": lambda t: 3.0 / (t * t), "angle_random_walk": lambda t: 1.0 / t,
-         "bias_instability": lambda t: np.full_like(t, BI_FACTOR), "rate_random_walk": lambda t: t / 3.0}
+#: the Allan variance shape of each Allan-shaped noise term (card section), unit s-based coefficient
+SHAPE = {nm: AVAR_SHAPE[TERM_BY_SECTION[nm].symbol] for nm in NOISE_SECTIONS}
 
 
-def _deterministic_s(card, n, fs, restarts):
+def _deterministic_s(card: ModelCard, n: int, fs: float, restarts: npt.ArrayLike | None) -> np.ndarray:
     """The card's deterministic rate (deg/s): bias, ramp, transient, sinusoids (no noise)."""
     t = np.arange(n) / fs
     cb = card.terms.get("constant_bias", {})
@@ -42,7 +54,7 @@ def _deterministic_s(card, n, fs, restarts):
     return det
 
 
-def _since_restart(n, fs, restarts):
+def _since_restart(n: int, fs: float, restarts: npt.ArrayLike | None) -> np.ndarray:
     k = np.arange(n)
     if restarts is None or not np.any(restarts):
         return k / fs
@@ -52,8 +64,10 @@ def _since_restart(n, fs, restarts):
 
 @dataclass
 class Candidate:
+    """An effect proposed for the card: a term with its parameters, why, and once simulated
+    its gap, score and components."""
     name: str
-    params: dict              # card units
+    params: dict[str, float] | None     # card units; None: the term is removed
     refit: bool
     why: str
     text: str = ""
@@ -61,20 +75,23 @@ class Candidate:
     score: float = float("nan")
     widen: float = float("nan")
     robust: float = float("nan")
-    z: dict = None
-    components: dict = None
-    extra: list = field(default_factory=list)   # (name, params, refit) changed along with this one
+    z: dict[str, np.ndarray] | None = None
+    components: dict[str, float] | None = None
+    extra: list[Change] = field(default_factory=list)   # (name, params, refit) changed along with this one
+    fallback: bool = False    # a joint re-fit of every noise term, tried when no single effect will do
 
     @property
-    def changes(self):
+    def changes(self) -> list[Change]:
+        """This candidate's change and those made along with it."""
         return [(self.name, self.params, self.refit)] + list(self.extra)
 
     @property
-    def n_params(self):
+    def n_params(self) -> int:
         """Parameters written (a removal writes none)."""
         return sum(N_PARAMS[nm] for nm, pr, _ in self.changes if pr is not None)
 
-    def to_json(self):
+    def to_json(self) -> dict[str, Any]:
+        """Plain JSON."""
         return {"name": self.name, "params": _params_json(self.params),
                 "refit": self.refit, "why": self.why,
                 "with": [{"name": e[0], "params": _params_json(e[1]), "refit": e[2]} for e in self.extra], "gap": _f(self.gap), "robust_gap": _f(self.robust), "widen": _f(self.widen),
@@ -82,16 +99,17 @@ class Candidate:
                 "components": self.components}
 
 
-def _params_json(params):
+def _params_json(params: Mapping[str, float] | None) -> dict[str, float] | None:
     """Plain floats, or None for a term removed from the card."""
     return None if params is None else {k: float(v) for k, v in params.items()}
 
 
-def _f(v):
+def _f(v: float | None) -> float | None:
     return None if v is None or not math.isfinite(v) else float(v)
 
 
-def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
+def propose(y: npt.ArrayLike, layout: Layout, ref: Reference, z: Mapping[str, np.ndarray], card: ModelCard,
+            restarts: npt.ArrayLike | None = None, limit: float = 3.0) -> list[Candidate]:
     """Candidate effects with parameters fitted to the record ``y`` (deg/s).
 
     Allan-shaped terms (Q, N, B, K) and gauss_markov are fitted to the Allan
@@ -105,7 +123,7 @@ def propose(y, layout, ref, z, card, restarts=None, limit=3.0):
     and re-simulation chooses between the two.
     """
     fs, n = layout.fs, layout.n
-    cands = []
+    cands: list[Candidate] = []
     allan_flag = np.any(np.abs(z["allan"]) > limit)
     if allan_flag:
         ax = _AllanExcess.of(layout, ref, z, card, limit)
@@ -147,31 +165,32 @@ class _AllanExcess:
     avar_s: np.ndarray
     sw: np.ndarray
     target: np.ndarray
-    existing: dict
+    existing: dict[str, float]
     keep: np.ndarray
     limit: float
 
     @classmethod
-    def of(cls, layout, ref, z, card, limit):
+    def of(cls, layout: Layout, ref: Reference, z: Mapping[str, np.ndarray], card: ModelCard,
+           limit: float) -> _AllanExcess:
         tau = layout.tau_s
         avar_m = np.exp(2 * (ref.mean["allan"] + z["allan"] * ref.sigma["allan"]))   # measured
         avar_s = np.exp(2 * ref.mean["allan"])
         sig_avar = 2.0 * np.maximum(avar_m, avar_s) * ref.sigma["allan"]
         w = 1.0 / sig_avar ** 2
         existing = {nm: (card.terms[nm][CARD_FIELD[nm][0]] / CARD_FIELD[nm][1]) ** 2
-                    for nm in ALLAN_SHAPES if nm in card.terms}
+                    for nm in NOISE_SECTIONS if nm in card.terms}
         rest = np.maximum(avar_s - sum(v * SHAPE[nm](tau) for nm, v in existing.items()), 0.0)
         return cls(tau, avar_m, avar_s, np.sqrt(w), avar_m - rest, existing, z["allan"] >= -limit, limit)
 
     @property
-    def ex_names(self):
+    def ex_names(self) -> list[str]:
         return list(self.existing)
 
     @property
-    def ex_cols(self):
+    def ex_cols(self) -> list[np.ndarray]:
         return [SHAPE[nm](self.tau) for nm in self.existing]
 
-    def joint(self, cols):
+    def joint(self, cols: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, float]:
         """Weighted NNLS of the target on ``cols`` (the card's Allan-shaped terms re-fitted
         with the others): (coefficients, z of each (unconstrained covariance at the
         solution), chi^2)."""
@@ -188,7 +207,7 @@ class _AllanExcess:
             zc = np.zeros_like(coef)
         return coef, zc, rn * rn
 
-    def refits(self, coef):
+    def refits(self, coef: np.ndarray) -> list[Change]:
         """Changes [(name, params or None, True)] of the card's Allan-shaped terms whose
         re-fitted coefficient moves by more than 2 % (a term re-fitted to zero is removed)."""
         out = []
@@ -199,7 +218,7 @@ class _AllanExcess:
                 out.append((nm, {fld: math.sqrt(c) * to_card} if c > 0 else None, True))
         return out
 
-    def held(self, col):
+    def held(self, col: np.ndarray) -> tuple[float, float]:
         """Fit one term to the excess over the WHOLE current card, its terms held:
         (coefficient, its z).
 
@@ -216,19 +235,19 @@ class _AllanExcess:
         c = float(np.dot(a, ((self.avar_m - self.avar_s) * self.sw)[self.keep]) / np.dot(a, a))
         return c, c * math.sqrt(float(np.dot(a, a)))
 
-    def held_chi2(self, col):
-        """chi^2 of :meth:`held` (the points it uses)."""
+    def held_chi2(self, col: np.ndarray) -> float:
+        """chi^2 of `held` (the points it uses)."""
         hc, _ = self.held(col)
         res = ((self.avar_m - self.avar_s - max(hc, 0.0) * col) * self.sw)[self.keep]
         return float(np.dot(res, res))
 
 
-def _allan_shape_candidates(ax):
+def _allan_shape_candidates(ax: _AllanExcess) -> list[Candidate]:
     """Each Allan-shaped term the card lacks, fitted jointly with the card's own (and, when
     that changes them, with them held), and a re-fit of the card's own alone."""
-    out = []
+    out: list[Candidate] = []
     ex_names, ex_cols = ax.ex_names, ax.ex_cols
-    for name in ALLAN_SHAPES:
+    for name in NOISE_SECTIONS:
         fld, to_card = CARD_FIELD[name]
         if name in ax.existing:
             continue
@@ -251,7 +270,7 @@ def _allan_shape_candidates(ax):
     return out
 
 
-def _best_log_tau(chi2, lo_T, hi_T):
+def _best_log_tau(chi2: Callable[[float], float], lo_T: float, hi_T: float) -> float:
     """The log correlation time minimising ``chi2(log T)``: a 41-point grid over
     ``lo_T .. hi_T``, then a bounded refinement within +-0.25 of the grid's best."""
     from scipy.optimize import minimize_scalar
@@ -261,13 +280,14 @@ def _best_log_tau(chi2, lo_T, hi_T):
     return float(opt.x)
 
 
-def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=()):
-    """A term with a correlation time (sigma, tau): tau by :func:`_best_log_tau`, jointly
+def _correlated_candidates(ax: _AllanExcess, kind: str, col_of: Callable[[float], np.ndarray], lo_T: float, hi_T: float,
+                           to_card: float, what: str, rivals: Sequence[np.ndarray] = ()) -> list[Candidate]:
+    """A term with a correlation time (sigma, tau): tau by `_best_log_tau`, jointly
     with the card's Allan-shaped terms, and (when the card has some) with them held. With
     ``rivals`` (Allan shapes of the same number of parameters that the term tends to at its
     limits), it is proposed only when it fits the Allan variance better than they do by
     ``limit^2`` in chi^2 (its correlation time is resolved)."""
-    out = []
+    out: list[Candidate] = []
     ex_names, ex_cols, limit = ax.ex_names, ax.ex_cols, ax.limit
     rival = ax.joint(ex_cols + list(rivals))[2] if rivals else math.inf
     rival_held = min((ax.held_chi2(c) for c in rivals), default=math.inf)
@@ -280,7 +300,7 @@ def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=(
                              f"{what}, best correlation time {T:.3g} s (z={zc[-1]:.1f})",
                              extra=ax.refits(coef[:-1])))
     if ex_names:    # the term on top of the card's terms held, its own correlation time
-        def held_chi2(logT):
+        def held_chi2(logT: float) -> float:
             return ax.held_chi2(col_of(math.exp(logT)))
         Th = math.exp(_best_log_tau(held_chi2, lo_T, hi_T))
         hc, hz = ax.held(col_of(Th))
@@ -293,7 +313,7 @@ def _correlated_candidates(ax, kind, col_of, lo_T, hi_T, to_card, what, rivals=(
     return out
 
 
-def _bias_candidate(card, r, z):
+def _bias_candidate(card: ModelCard, r: np.ndarray, z: Mapping[str, np.ndarray]) -> Candidate:
     """The constant bias that takes the mean of ``r`` (record minus the card's deterministic part)."""
     old = card.terms.get("constant_bias")
     params = dict(old) if old else {}
@@ -301,7 +321,7 @@ def _bias_candidate(card, r, z):
     return Candidate("constant_bias", params, old is not None, f"record mean off by z={z['mean'][0]:.1f}")
 
 
-def _ramp_candidate(card, r, t):
+def _ramp_candidate(card: ModelCard, r: np.ndarray, t: np.ndarray) -> Candidate:
     """The rate ramp fitted to ``r`` through the origin (the card's ramp is R t)."""
     old = card.terms.get("rate_ramp")
     slope = float(np.dot(r, t) / np.dot(t, t))
@@ -309,7 +329,7 @@ def _ramp_candidate(card, r, t):
                      old is not None, "trend over the record (linear)")
 
 
-def _transient_candidates(card, r, fs, restarts):
+def _transient_candidates(card: ModelCard, r: np.ndarray, fs: float, restarts: npt.ArrayLike | None) -> list[Candidate]:
     """The turn-on transient (amplitude, tau) fitted to block means of ``r`` (about 2000
     samples each) after start and restarts: least squares of a constant and the decay
     for each tau of a 40-point log grid, then a bounded refinement; none when the best
@@ -321,7 +341,7 @@ def _transient_candidates(card, r, fs, restarts):
     tb = _since_restart(n, fs, restarts)[:m * nb].reshape(m, nb)
     rb = r[:m * nb].reshape(m, nb).mean(axis=1)
 
-    def sse(logtau, ret=False):
+    def sse(logtau: float, ret: bool = False) -> Any:
         e = np.exp(-tb / math.exp(logtau)).mean(axis=1)
         A = np.column_stack([np.ones(m), e])
         coef, *_ = np.linalg.lstsq(A, rb, rcond=None)
@@ -341,7 +361,7 @@ def _transient_candidates(card, r, fs, restarts):
     return []
 
 
-def _sinusoid_candidate(r, t, layout, k, z_line):
+def _sinusoid_candidate(r: np.ndarray, t: np.ndarray, layout: Layout, k: int, z_line: float) -> Candidate:
     """The sinusoid at the Welch bin ``k`` where the record's PSD stands out of the
     simulations' (z ``z_line``): the frequency of the peak of the record's own periodogram
     (zero-padded 4x) within +-1.5 Welch bins, refined by maximising the power of ``r`` at
@@ -357,7 +377,7 @@ def _sinusoid_candidate(r, t, layout, k, z_line):
     j = int(sel[np.argmax(spec[sel])])
     dff = ff[1] - ff[0]
 
-    def neg_power(fr):
+    def neg_power(fr: float) -> float:
         ph = 2 * np.pi * fr * t
         return -(np.dot(r, np.cos(ph)) ** 2 + np.dot(r, np.sin(ph)) ** 2)
     opt = minimize_scalar(neg_power, bounds=(max(ff[j] - dff, 1e-9), min(ff[j] + dff, fs / 2)),
@@ -371,14 +391,16 @@ def _sinusoid_candidate(r, t, layout, k, z_line):
                      False, f"spectral line at {fr:.4g} Hz (z={z_line:.1f})")
 
 
-def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
+def spectral_refit(sig_m: Signature, layout: Layout, ref: Reference, card: ModelCard,
+                   bands: Sequence[tuple[float, float]] = (), why: str = "",
+                   angle_gm: bool = False) -> Candidate | None:
     """One candidate that re-fits ALL the card's noise terms at once (up, down or to
     zero = removed): Q, N, B, K and the Gauss-Markov terms (with ``angle_gm``, also
     a dictionary of angle Gauss-Markov terms), by
-    :func:`.spectral.fit_terms` on the measured Allan variance and Welch-band PSD
+    `spectral.fit_terms` on the measured Allan variance and Welch-band PSD
     minus what the card's other terms (sinusoids, ramp, transient, bias) add in
     the simulations. None when nothing would change."""
-    from gyrodenoise.modelgap.spectral import ALLAN_TERMS, allan_columns, band_columns, fit_terms, stochastic_specs
+    from gyrodenoise.modelgap.spectral import allan_columns, band_columns, fit_terms, stochastic_specs
     specs, coef = stochastic_specs(card)
     e = layout.band_edges
     band_mean = lambda p: np.array([p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])  # noqa: E731
@@ -395,8 +417,8 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
                             psd_m - rest_p, psd_m * ref.sigma["psd"], angle_gm=angle_gm)
     if angle_gm and not terms.get("angle_gauss_markov"):
         return None         # the same as the plain re-fit
-    changes = []
-    for nm in ALLAN_TERMS:
+    changes: list[Change] = []
+    for nm in NOISE_SECTIONS:
         fld, to_card = CARD_FIELD[nm]
         new = math.sqrt(terms[nm]) * to_card
         old = card.terms.get(nm, {}).get(fld)
@@ -406,7 +428,7 @@ def spectral_refit(sig_m, layout, ref, card, bands=(), why="", angle_gm=False):
             changes.append((nm, None, True))
         elif old is not None and abs(new - old) > 0.02 * old:
             changes.append((nm, {fld: new}, True))
-    for kind, to_card in (("gauss_markov", 3600.0), ("angle_gauss_markov", 1.0)):
+    for kind, to_card in SIGMA_TO_CARD.items():
         old_gm = sorted((g["sigma"], g["tau"]) for g in card.term_list(kind))
         new_gm = sorted((s * to_card, t) for s, t in terms.get(kind, ()))
         if len(old_gm) != len(new_gm) or any(abs(a[0] - b[0]) > 0.02 * a[0] or abs(a[1] - b[1]) > 0.02 * a[1]

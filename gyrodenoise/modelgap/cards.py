@@ -4,19 +4,24 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 from gyrodenoise.errors import InputError
 
+if TYPE_CHECKING:
+    from gyrodenoise.simulator import ModelCard
+
 
 # ------------------------------------------------------------------ cards as text
-def _fmt_num(v):
+def _fmt_num(v: float) -> str:
     return f"{float(v):.6g}"
 
 
-def card_at_rate(text, fs, source="<card>"):
+def card_at_rate(text: str, fs: float, source: str = "<card>") -> ModelCard:
     """Parse a card's text as simulated at ``fs`` Hz (the record's rate).
 
-    The text is re-parsed through :func:`gyrodenoise.simulator.parse_card`
+    The text is re-parsed through `gyrodenoise.simulator.parse_card`
     with ``sensor.sample_rate_hz`` set to ``fs``, so every rate-dependent
     check (a sinusoid above the record's Nyquist frequency) applies at the
     rate the card is actually simulated at; the error names ``source``.
@@ -42,29 +47,30 @@ def card_at_rate(text, fs, source="<card>"):
     return at
 
 
-def text_at_rate(text, fs):
+def text_at_rate(text: str, fs: float) -> str:
     """The card text with sensor.sample_rate_hz set to ``fs`` (for the FMU's String parameter)."""
     new, n = re.subn(r"(?m)^(\s*sample_rate_hz\s*=\s*)[^#\n]*", lambda mo: mo.group(1) + repr(float(fs)) + " ",
                      text, count=1)
     return new if n else text
 
 
-def _table_range(lines, i):
+def _table_range(lines: list[str], i: int) -> tuple[int, int]:
     """(start, end) of the body of the table whose header is line ``i``."""
     header = re.compile(r"^\s*\[")
     end = next((j for j in range(i + 1, len(lines)) if header.match(lines[j])), len(lines))
     return i + 1, end
 
 
-def _last_content(lines, lo, hi, default):
+def _last_content(lines: list[str], lo: int, hi: int, default: int) -> int:
     return max([j for j in range(lo, hi) if lines[j].strip() and not lines[j].lstrip().startswith("#")],
                default=default)
 
 
-def _remove_lines(lines, name, note):
+def _remove_lines(lines: list[str], name: str, note: str) -> list[str]:
     """Comment out every instance of terms.name: its inline line in [terms], its
     [terms.name] table or its [[terms.name]] tables with their bodies."""
-    out, i = [], 0
+    out: list[str] = []
+    i = 0
     table = re.compile(rf"^\s*\[\[?\s*terms\s*\.\s*{re.escape(name)}\s*\]\]?\s*(#.*)?$")
     inline = re.compile(rf"^\s*{re.escape(name)}\s*=")
     in_terms = False
@@ -85,8 +91,9 @@ def _remove_lines(lines, name, note):
     return out
 
 
-def _edit_lines(lines, name, params, refit, note):
-    """The edit itself (see :func:`edit_card`); returns the new list of lines."""
+def _edit_lines(lines: list[str], name: str, params: Mapping[str, float] | None, refit: bool,
+                note: str) -> list[str]:
+    """The edit itself (see `edit_card`); returns the new list of lines."""
     from gyrodenoise.simulator import REPEATABLE
     if params is None:
         return _remove_lines(lines, name, note)
@@ -132,7 +139,7 @@ def _edit_lines(lines, name, params, refit, note):
     return lines[:first] + ["[terms]", inline, ""] + lines[first:]
 
 
-def _holds(text, name, params, n_before):
+def _holds(text: str, name: str, params: Mapping[str, float] | None, n_before: int) -> bool:
     """Does the card text parse as TOML with terms.name holding ``params`` (the last
     instance, one more than ``n_before``, for a repeatable term)?"""
     import tomllib
@@ -153,7 +160,7 @@ def _holds(text, name, params, n_before):
     return all(math.isclose(float(t[k]), float(v), rel_tol=1e-5, abs_tol=1e-300) for k, v in params.items())
 
 
-def _n_instances(text, name):
+def _n_instances(text: str, name: str) -> int:
     import tomllib
     try:
         t = tomllib.loads(text).get("terms", {}).get(name)
@@ -162,7 +169,8 @@ def _n_instances(text, name):
     return 0 if t is None else len(t) if isinstance(t, list) else 1
 
 
-def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap", source="<card>"):
+def edit_card(text: str, name: str, params: Mapping[str, float] | None, refit: bool = False,
+              note: str = "fitted by gyrodenoise gap", source: str = "<card>") -> str:
     """Add a term to (or replace a re-fitted term in, or with ``params=None`` remove
     every instance of a term from) the TEXT of a card.
 
@@ -174,7 +182,7 @@ def edit_card(text, name, params, refit=False, note="fitted by gyrodenoise gap",
     table at the end. The edited text is checked by parsing it back: the term
     must then hold exactly ``params``; a layout this function cannot edit
     (e.g. a term written as dotted keys ``name.N = ...`` or a repeatable term
-    written as an inline array) raises :class:`InputError` naming ``source``
+    written as an inline array) raises `InputError` naming ``source``
     and the term.
     """
     new = "\n".join(_edit_lines(text.splitlines(), name, params, refit, note)) + "\n"
@@ -194,9 +202,9 @@ _PROBE_PARAMS = {"quantization": {"Q": 1e-4}, "angle_random_walk": {"N": 0.1}, "
           "angle_gauss_markov": {"sigma": 1e-4, "tau": 0.1}}
 
 
-def check_editable(card):
-    """Raise :class:`InputError` up front (naming the card and the term) when
-    :func:`edit_card` cannot add or re-fit some term of the vocabulary in the
+def check_editable(card: ModelCard) -> None:
+    """Raise `InputError` up front (naming the card and the term) when
+    `edit_card` cannot add or re-fit some term of the vocabulary in the
     way this card is written."""
     from gyrodenoise.simulator import parse_card
     for name, params in _PROBE_PARAMS.items():

@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from gyrodenoise.simulator import ModelCard
 
 EARTH_RATE_DEG_H = 15.041067       # sidereal rotation of the Earth (deg/h)
 
 
-def record_quantum(y):
+def record_quantum(y: npt.ArrayLike) -> float | None:
     """The record's quantum (deg/s per sample) when every sample is a whole multiple
     of one step (a pulse or LSB output), else None."""
     y = np.asarray(y, float)
@@ -23,7 +29,8 @@ def record_quantum(y):
     return None
 
 
-def name_effects(y, fs, card, bumps=(), latitude_deg=None):
+def name_effects(y: np.ndarray, fs: float, card: ModelCard, bumps: Sequence[Sequence[float]] = (),
+                 latitude_deg: float | None = None) -> list[str]:
     """Plain sentences naming what the evidence says (see docs/bench/gap.md)."""
     out = []
     n = len(y)
@@ -86,7 +93,7 @@ OUTLIER_WINDOW = 31         # samples of the running median
 OUTLIER_MAX_FRACTION = 0.01
 
 
-def screen_outliers(y):
+def screen_outliers(y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Isolated wild samples: more than OUTLIER_K robust sigmas (1.4826 x the median
     absolute deviation of the record about its running median of OUTLIER_WINDOW
     samples) off that running median. Returns (cleaned copy, indices): each outlier

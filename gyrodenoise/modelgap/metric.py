@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.analysis.spectrum import nperseg_for_length, segment_count, welch_psd
 from gyrodenoise.modelgap.settings import (
@@ -15,6 +18,9 @@ from gyrodenoise.modelgap.settings import (
     MIN_CLUSTERS,
     N_BLOCKS,
 )
+
+#: the signatures of one record: component -> array (and ``avar``, ``psd_bins``, ``std``, ...)
+Signature: TypeAlias = "dict[str, Any]"
 
 
 # ------------------------------------------------------------------ signatures
@@ -28,7 +34,8 @@ class Layout:
     band_edges: np.ndarray      # indices into the Welch bins (bins 1..), len n_bands + 1
 
     @classmethod
-    def for_record(cls, n, fs):
+    def for_record(cls, n: int, fs: float) -> Layout:
+        """The layout of a record of ``n`` samples at ``fs`` Hz."""
         m_max = n // MIN_CLUSTERS
         m = 2 ** np.arange(0, int(math.floor(math.log2(max(m_max, 1)))) + 1)
         nper = nperseg_for_length(n)
@@ -41,24 +48,27 @@ class Layout:
         return cls(n=n, fs=float(fs), m=m.astype(np.int64), nperseg=nper, band_edges=idx)
 
     @property
-    def tau_s(self):
+    def tau_s(self) -> np.ndarray:
         return self.m / self.fs
 
     @property
-    def freq_hz(self):
+    def freq_hz(self) -> np.ndarray:
         return np.arange(1, self.nperseg // 2 + 1) * self.fs / self.nperseg
 
     @property
-    def n_segments(self):
+    def n_segments(self) -> int:
         return max(1, segment_count([self.n], self.nperseg))
 
 
-def signature(y, layout):
+def signature(y: npt.ArrayLike, layout: Layout) -> Signature:
     """The five signatures of a record (see the module docstring)."""
     from gyrodenoise.analysis.allan import adev
     y = np.asarray(y, dtype=float)
     tau, ad, err, _ = adev(y, layout.fs, m=layout.m)
-    p = welch_psd(y, layout.fs, layout.nperseg)[1][1:layout.nperseg // 2 + 1]
+    psd = welch_psd(y, layout.fs, layout.nperseg)[1]
+    if psd is None:
+        raise ValueError(f"a record of {len(y)} samples holds no Welch segment of {layout.nperseg}")
+    p = psd[1:layout.nperseg // 2 + 1]
     e = layout.band_edges
     band = np.array([p[e[i]:e[i + 1]].mean() for i in range(len(e) - 1)])
     nb = layout.n // N_BLOCKS
@@ -69,7 +79,7 @@ def signature(y, layout):
             "trend": blocks - mean, "std": float(y.std())}
 
 
-def _floors(sig, layout):
+def _floors(sig: Signature, layout: Layout) -> dict[str, np.ndarray]:
     """Analytic 1-sigma of one record's signatures (lower bounds for the scatter)."""
     nbins = np.diff(layout.band_edges).astype(float)
     k_eff = 1.8 * layout.n_segments     # Welch, Hann, 50 % overlap: ~1.8 K equivalent segments
@@ -85,11 +95,11 @@ def _floors(sig, layout):
 class Reference:
     """Mean and scatter of the signatures of S simulated records."""
     layout: Layout
-    sigs: list
-    mean: dict = field(init=False)
-    sigma: dict = field(init=False)
+    sigs: list[Signature]
+    mean: dict[str, np.ndarray] = field(init=False)
+    sigma: dict[str, np.ndarray] = field(init=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         S = len(self.sigs)
         self.mean, self.sigma = {}, {}
         fl = [_floors(s, self.layout) for s in self.sigs]
@@ -106,12 +116,12 @@ class Reference:
         self.mean["psd_bins"] = np.mean([s["psd_bins"] for s in self.sigs], axis=0)
 
 
-def zscores(sig, ref):
+def zscores(sig: Signature, ref: Reference) -> dict[str, np.ndarray]:
     """z per component of a measured signature against a reference."""
     return {c: (sig[c] - ref.mean[c]) / ref.sigma[c] for c in COMPONENTS}
 
 
-def gap_components(z):
+def gap_components(z: Mapping[str, np.ndarray]) -> dict[str, float]:
     """The five components of the gap (each ~1 when consistent)."""
     nl = len(z["line"])
     return {"allan": float(np.mean(z["allan"] ** 2)),
@@ -121,13 +131,14 @@ def gap_components(z):
             "trend": float(np.mean(z["trend"] ** 2))}
 
 
-def gap_value(comp):
+def gap_value(comp: Mapping[str, float]) -> float:
+    """The gap: the mean of the five components."""
     return float(np.mean([comp[c] for c in COMPONENTS]))
 
 
-def loo_gaps(ref):
+def loo_gaps(ref: Reference) -> list[tuple[float, dict[str, float]]]:
     """(gap, components) of each simulated record against the other simulations."""
-    out = []
+    out: list[tuple[float, dict[str, float]]] = []
     S = len(ref.sigs)
     if S < 3:
         return out
@@ -138,11 +149,12 @@ def loo_gaps(ref):
     return out
 
 
-def where_disagree(z, layout, limit=3.0):
+def where_disagree(z: Mapping[str, np.ndarray], layout: Layout, limit: float = 3.0) -> dict[str, Any]:
     """Tau ranges, PSD bands and blocks where |z| > limit, and PSD lines (bins whose
     own contribution to the line component exceeds COMPONENT_FLOOR) as plain dicts."""
-    def ranges(x, mask):
-        out, start = [], None
+    def ranges(x: np.ndarray, mask: np.ndarray) -> list[list[float]]:
+        out: list[list[float]] = []
+        start = None
         for i, flag in enumerate(list(mask) + [False]):
             if flag and start is None:
                 start = i

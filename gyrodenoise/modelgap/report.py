@@ -2,15 +2,24 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from gyrodenoise.modelgap.settings import COMPONENTS, GAP_METRIC, N_BLOCKS
 
+if TYPE_CHECKING:
+    from gyrodenoise.modelgap.curve import AllanCurve
+    from gyrodenoise.modelgap.metric import Layout, Signature
+    from gyrodenoise.modelgap.workflow import GapResult
+
 
 # ------------------------------------------------------------------ report and plot
-def format_report(res, source="MEASURED"):
+def format_report(res: GapResult, source: str = "MEASURED") -> str:
     """A short text report (a minute to read)."""
-    lay = res.layout
+    lay, _ = _evidence(res)
     out = [f"gyrodenoise gap: {source} ({lay.n} samples, {lay.fs:g} Hz, {lay.n / lay.fs / 60:.1f} min), "
            f"{len(res.seeds)} simulated seeds per card, engine {res.engine}",
            f"gap metric: {GAP_METRIC}",
@@ -74,12 +83,12 @@ def format_report(res, source="MEASURED"):
     return "\n".join(out)
 
 
-def _tau_range(a, b):
+def _tau_range(a: float, b: float) -> str:
     """'0.01 s' for one Allan point, '0.04-0.08 s' for a run of them."""
     return f"{a:.3g} s" if f"{a:.3g}" == f"{b:.3g}" else f"{a:.3g}-{b:.3g} s"
 
 
-def _not_within(res):
+def _not_within(res: GapResult) -> str:
     """Why the final card is not within the scatter: the gap above the threshold, or (the gap
     below it) the components above their own thresholds, named with both numbers."""
     if not res.gap_after <= res.threshold:
@@ -91,10 +100,17 @@ def _not_within(res):
             f"within the scatter: component(s) above their own threshold ({', '.join(over) or 'none'})")
 
 
-def describe_edits(effects):
+def _evidence(res: GapResult) -> tuple[Layout, Signature]:
+    """The layout and the measured signatures of a result of `gap`."""
+    if res.layout is None or res.measured is None:
+        raise ValueError("a GapResult without its layout and measured signatures (not from gap)")
+    return res.layout, res.measured
+
+
+def describe_edits(effects: Iterable[Mapping[str, Any]]) -> str:
     """'added A, B; re-fitted C; removed D' for entries of ``GapResult.effects_added`` (a
     term whose re-fit is zero is removed; a name is listed once per kind of edit)."""
-    kinds = {"added": [], "re-fitted": [], "removed": []}
+    kinds: dict[str, list[str]] = {"added": [], "re-fitted": [], "removed": []}
     for e in effects:
         kind = "removed" if e.get("params") is None else "re-fitted" if e.get("refit") else "added"
         if e["name"] not in kinds[kind]:
@@ -102,20 +118,20 @@ def describe_edits(effects):
     return "; ".join(f"{k} {', '.join(v)}" for k, v in kinds.items() if v) or "nothing"
 
 
-def _short(params):
+def _short(params: Mapping[str, float] | None) -> str:
     if params is None:
         return "(removed)"
     return "{" + ", ".join(f"{k}={v:.4g}" for k, v in params.items()) + "}"
 
 
-def plot_gap(res, path, title=""):
+def plot_gap(res: GapResult, path: str | os.PathLike[str], title: str = "") -> str | os.PathLike[str]:
     """PNG: measured Allan deviation vs the simulated band (mean +- 1 sigma of one
     simulation) for the input card and after each added effect; a PSD panel when a
     sinusoid was added."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    lay, sig = res.layout, res.measured
+    lay, sig = _evidence(res)
     spectral = any(e["name"] == "sinusoid" for e in res.effects_added)
     fig, axes = plt.subplots(1, 2 if spectral else 1, figsize=(13 if spectral else 7.5, 5.5), squeeze=False)
     ax = axes[0, 0]
@@ -155,7 +171,7 @@ def plot_gap(res, path, title=""):
     return _save(fig, path)
 
 
-def _allan_axes(ax, title):
+def _allan_axes(ax: Any, title: str) -> None:
     ax.set_xlabel("averaging time tau (s)")
     ax.set_ylabel("Allan deviation (deg/h)")
     ax.set_title(title, fontsize=9)
@@ -163,7 +179,7 @@ def _allan_axes(ax, title):
     ax.legend(fontsize=8)
 
 
-def _save(fig, path):
+def _save(fig: Any, path: str | os.PathLike[str]) -> str | os.PathLike[str]:
     import matplotlib.pyplot as plt
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -171,7 +187,8 @@ def _save(fig, path):
     return path
 
 
-def plot_curve(curve, model_deg_s, simulated_deg_s, path, title=""):
+def plot_curve(curve: AllanCurve, model_deg_s: np.ndarray, simulated_deg_s: np.ndarray, path: str | os.PathLike[str],
+               title: str = "") -> str | os.PathLike[str]:
     """PNG: a published Allan curve with its bounds, the fitted card's exact curve and
     its simulated curve (mean of the seeds), in deg/h."""
     import matplotlib

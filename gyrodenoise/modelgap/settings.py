@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import math
+from gyrodenoise.units import ALLAN_TERMS
 
 GAP_METRIC = ("gap = average of 5 components, each ~1 when the card explains the record: "
               "mean z^2 over octave-spaced Allan deviations (log), mean z^2 over log-spaced Welch PSD "
@@ -25,9 +25,7 @@ MIN_IMPROVEMENT = 0.8         # accept a candidate only when it brings the gap b
 Z2_CAP = 25.0                 # selection: each point's z^2 counts at most 25 (|z| = 5)
 OFFSET_RATIO = 5.0            # mean offset > 5x the block-mean wander (and |z| > 3): a deterministic bias
 WIDEN_COMPONENTS = ("allan", "psd", "mean", "trend")   # scatter-widening penalty (log-likelihood term)
-ALLAN_SHAPES = ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk")
-# card field, s-based value -> card units
-CARD_FIELD = {"quantization": ("Q", 1.0), "angle_random_walk": ("N", 60.0),
-              "bias_instability": ("B", 3600.0), "rate_random_walk": ("K", 3600.0 ** 1.5),
-              "rate_ramp": ("R", 3600.0 ** 2)}
-BI_FACTOR = 2.0 * math.log(2.0) / math.pi
+# Allan term's card section -> (its card field, s-based value -> card units)
+CARD_FIELD = {t.section: (t.symbol, t.to_spec) for t in ALLAN_TERMS}
+# correlated term -> its sigma's s-based value -> card units (gauss_markov in deg/h, angle_gauss_markov in deg)
+SIGMA_TO_CARD = {"gauss_markov": 3600.0, "angle_gauss_markov": 1.0}

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
@@ -13,7 +16,8 @@ from gyrodenoise.modelgap.population import draw_unit
 
 
 # ------------------------------------------------------------------ simulation
-def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
+def _fmu_worker(fmu_path: str, card_text: str, seed: int, n: int, fs: float,
+                restarts: list[bool] | None) -> np.ndarray | str:
     """Simulate one seed through SimulatedFog.fmu; returns the rates, or a one-line
     error message (str) instead of raising: FMU exceptions need not unpickle in the
     parent process, and a raise there would surface as a BrokenProcessPool."""
@@ -24,7 +28,8 @@ def _fmu_worker(fmu_path, card_text, seed, n, fs, restarts):
         return f"{exc.__class__.__name__}: {msg}"
 
 
-def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
+def _fmu_simulate(fmu_path: str, card_text: str, seed: int, n: int, fs: float,
+                  restarts: list[bool] | None) -> np.ndarray:
     """Simulate one seed through SimulatedFog.fmu with fmpy FMU2Slave: sample 0 at
     fmi2ExitInitializationMode, then one step per sample (``gyrodenoise.simulate``'s
     numbers, bit for bit)."""
@@ -48,7 +53,7 @@ def _fmu_simulate(fmu_path, card_text, seed, n, fs, restarts):
     return out
 
 
-def fmu_path_for(fmu_dir=None, quiet=False):
+def fmu_path_for(fmu_dir: str | os.PathLike[str] | None = None, quiet: bool = False) -> Path:
     """SimulatedFog.fmu in ``fmu_dir`` (default build/), built when missing or stale."""
     from gyrodenoise import fmu as F
     d = Path(fmu_dir) if fmu_dir is not None else Path("build")
@@ -63,15 +68,16 @@ def fmu_path_for(fmu_dir=None, quiet=False):
 class Simulator:
     """Simulate a card text S times at a record's rate and length.
 
-    ``engine="native"`` uses :func:`gyrodenoise.simulator.simulate`;
+    ``engine="native"`` uses `gyrodenoise.simulator.simulate`;
     ``engine="fmu"`` steps SimulatedFog.fmu through fmpy in ``workers``
     processes (one FMU instance per process). A card whose noise terms carry a
-    ``spread`` is simulated as one drawn unit per seed (:func:`.population.draw_unit`);
+    ``spread`` is simulated as one drawn unit per seed (`population.draw_unit`);
     a card without one, as written (bit for bit).
     """
 
-    def __init__(self, n, fs, seeds, engine="native", restarts=None, fmu_dir=None, workers=None,
-                 quiet=False, source="<card>"):
+    def __init__(self, n: int, fs: float, seeds: Iterable[int], engine: str = "native",
+                 restarts: npt.ArrayLike | None = None, fmu_dir: str | os.PathLike[str] | None = None,
+                 workers: int | None = None, quiet: bool = False, source: str = "<card>") -> None:
         if engine not in ("native", "fmu"):
             raise InputError(f"unknown engine {engine!r} (use fmu or native)")
         if workers is not None and (isinstance(workers, bool) or int(workers) != workers or workers < 1):
@@ -85,7 +91,8 @@ class Simulator:
         self.fmu_path = fmu_path_for(fmu_dir, quiet=quiet) if engine == "fmu" else None
         self.n_runs = 0
 
-    def run(self, text, engine=None):
+    def run(self, text: str, engine: str | None = None) -> list[np.ndarray]:
+        """The card ``text`` simulated once per seed (``engine``: this simulator's unless given)."""
         engine = engine or self.engine
         self.n_runs += len(self.seeds)
         if engine == "native":
@@ -93,25 +100,27 @@ class Simulator:
             return [simulate(card_at_rate(draw_unit(text, s, self.source), self.fs, self.source), self.n, seed=s,
                              restarts=self.restarts).rate_deg_s for s in self.seeds]
         import multiprocessing as mp
-        import os
         from concurrent.futures import ProcessPoolExecutor
         from concurrent.futures.process import BrokenProcessPool
+        fmu_path = self.fmu_path
+        if fmu_path is None:
+            raise ValueError("engine 'fmu' needs a Simulator made with engine='fmu' (it builds the FMU)")
         card_at_rate(text, self.fs, self.source)          # check it first
         ftexts = [text_at_rate(draw_unit(text, s, self.source), self.fs) for s in self.seeds]
         workers = self.workers or min(len(self.seeds), os.cpu_count() or 1)
         rs = None if self.restarts is None else self.restarts.tolist()
         log(f"gyrodenoise: simulating {len(self.seeds)} seeds x {self.n} samples through "
-            f"{self.fmu_path.name} ({workers} processes)", quiet=self.quiet)
+            f"{fmu_path.name} ({workers} processes)", quiet=self.quiet)
         with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
                                  max_tasks_per_child=1) as ex:
-            futs = [ex.submit(_fmu_worker, str(self.fmu_path), ft, s, self.n, self.fs, rs)
+            futs = [ex.submit(_fmu_worker, str(fmu_path), ft, s, self.n, self.fs, rs)
                     for ft, s in zip(ftexts, self.seeds)]
             out = []
             try:
                 for i, f in enumerate(futs):
                     r = f.result()
                     if isinstance(r, str):
-                        raise InputError(f"{self.fmu_path.name} failed on seed {self.seeds[i]}: {r}",
+                        raise InputError(f"{fmu_path.name} failed on seed {self.seeds[i]}: {r}",
                                          self.source)
                     out.append(r)
                     log(f"gyrodenoise:   seed {self.seeds[i]} done", quiet=self.quiet)

@@ -1,27 +1,27 @@
 """Exact spectra of the card's stochastic terms as simulated, their Allan variances, the
-bands taken out of the comparison (:func:`find_bumps`: broad bumps and lines wandering in
+bands taken out of the comparison (`find_bumps`: broad bumps and lines wandering in
 frequency) with the band-stop shared by the record and its simulations, and the joint
 spectral fit.
 
 Three questions about spectral lines are answered here and in
-:mod:`gyrodenoise.analysis.spectrum`, each with its own statistic:
+`gyrodenoise.analysis.spectrum`, each with its own statistic:
 
 * is there a narrow line at f above the local floor? --
-  :func:`gyrodenoise.analysis.spectrum.find_peaks` (a local maximum whose ratio to the
+  `gyrodenoise.analysis.spectrum.find_peaks` (a local maximum whose ratio to the
   bias-corrected running median passes an F-test at a false-alarm rate per spectrum);
-* is there a line too wide for one sinusoid, and over which bins? -- :func:`wandering_lines`
-  (runs of at least :data:`MIN_LINE_BINS` bins standing :data:`LINE_RATIO` x above the
-  plain running median of the same :func:`gyrodenoise.analysis.spectrum.running_median`,
+* is there a line too wide for one sinusoid, and over which bins? -- `wandering_lines`
+  (runs of at least `MIN_LINE_BINS` bins standing `LINE_RATIO` x above the
+  plain running median of the same `gyrodenoise.analysis.spectrum.running_median`,
   widened over their skirt): a sinusoid, which the card's ``sinusoid`` term gives, must NOT
   be reported, and a wandering line must be reported with its extent, which a per-bin test
   does not give;
-* how far does a broad excess extend? -- :func:`find_bumps` (band means against the lowest
-  band on both sides, then :func:`bump_tail_end`).
+* how far does a broad excess extend? -- `find_bumps` (band means against the lowest
+  band on both sides, then `bump_tail_end`).
 
 A narrow line the card lacks is found by comparison with the card's simulations instead
-(the ``line`` signature's z, :func:`gyrodenoise.modelgap.candidates.propose`), and the
+(the ``line`` signature's z, `gyrodenoise.modelgap.candidates.propose`), and the
 lines of a published Allan curve, which has no spectrum, by the Allan chi^2
-(:func:`_pick_allan_lines`). The F-test of ``find_peaks`` is not used for wandering lines:
+(`_pick_allan_lines`). The F-test of ``find_peaks`` is not used for wandering lines:
 its threshold at the gap's segment count (about 1.6 x the floor for the ring-laser gyro record
 psins_lasergyro.imu: 89 segments, a Bonferroni bound over 2048 bins) accepts runs that
 the fixed 3 x rejects: on that record's x and y axes it adds two and three stop bands
@@ -31,10 +31,18 @@ the fixed 3 x rejects: on that record's x and y axes it adds two and three stop 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.analysis.spectrum import nperseg_for_length, running_median, segment_count, welch_psd
+from gyrodenoise.units import NOISE_SECTIONS
+
+if TYPE_CHECKING:
+    from gyrodenoise.modelgap.metric import Layout
+    from gyrodenoise.simulator import ModelCard
 
 N_LIN = 4000          # integration points below 40 / (m T) (50 per oscillation of sin^4)
 N_TAIL = 1500         # log-spaced points above, where sin^4 averages to 3/8
@@ -52,7 +60,7 @@ TAIL_SE = 3.0         # ... taken out while a chunk stands more than TAIL_SE sta
 TAIL_FIT = (1.5, 2.5)  # ... the sensor's level fitted over TAIL_FIT x the bump's upper edge
 
 
-def psd_two_sided(name, f, fs, tau_s=None):
+def psd_two_sided(name: str, f: np.ndarray, fs: float, tau_s: float | None = None) -> np.ndarray:
     """Two-sided PSD of one term with unit s-based coefficient (see module docstring)."""
     T = 1.0 / fs
     s2 = np.maximum(np.sin(np.pi * f * T) ** 2, 1e-300)
@@ -62,12 +70,13 @@ def psd_two_sided(name, f, fs, tau_s=None):
         return 4.0 * s2 / T
     if name == "rate_random_walk":
         return T * T / (4.0 * s2)
-    if name == "gauss_markov":
+    if name in ("gauss_markov", "angle_gauss_markov"):
+        if tau_s is None:
+            raise ValueError(f"psd_two_sided: {name} needs its correlation time tau_s")
         a = math.exp(-T / tau_s)
-        return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a)
-    if name == "angle_gauss_markov":     # a first-order GM ANGLE (std 1, tau_s), differenced / T
-        a = math.exp(-T / tau_s)
-        return (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a) * 4.0 * s2 / (T * T)
+        gm = (1.0 - a * a) * T / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f * T) + a * a)
+        # angle_gauss_markov: a first-order GM ANGLE (std 1, tau_s), differenced / T
+        return gm if name == "gauss_markov" else gm * 4.0 * s2 / (T * T)
     if name == "bias_instability":
         from gyrodenoise.simulator import _bank, parse_card
         card = parse_card(f"[sensor]\nname='unit'\nsample_rate_hz={fs!r}\n[terms]\n"
@@ -81,7 +90,7 @@ def psd_two_sided(name, f, fs, tau_s=None):
     raise ValueError(name)
 
 
-def angle_gm_avar(m, fs, tau_s, sigma=1.0):
+def angle_gm_avar(m: npt.ArrayLike, fs: float, tau_s: float, sigma: float = 1.0) -> np.ndarray:
     """Closed-form overlapping Allan variance at cluster sizes ``m`` of the simulator's
     angle Gauss-Markov term (angle std ``sigma``, correlation time ``tau_s``, rate =
     angle differenced / T): the m-sample mean rate is ``(th_(k+m) - th_k) / (m T)``, the
@@ -95,7 +104,7 @@ def angle_gm_avar(m, fs, tau_s, sigma=1.0):
     return sigma * sigma * (3.0 - 4.0 * am + am * am) / (m * T) ** 2
 
 
-def stop_mask(f, bands):
+def stop_mask(f: np.ndarray, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
     """1 outside, 0 inside the stop bands [(lo, hi), ...] (Hz)."""
     m = np.ones_like(f)
     for lo, hi in bands or ():
@@ -103,7 +112,7 @@ def stop_mask(f, bands):
     return m
 
 
-def band_stop(y, fs, bands):
+def band_stop(y: npt.ArrayLike, fs: float, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
     """The record with the stop bands removed (FFT bins zeroed, the mean removed
     first and kept; zero-padded to a fast FFT length).
 
@@ -122,7 +131,7 @@ def band_stop(y, fs, bands):
     return sfft.irfft(X, nfft)[:n] + mu
 
 
-def lowpass_gain(f, fs, cutoff_hz=None):
+def lowpass_gain(f: np.ndarray, fs: float, cutoff_hz: float | None = None) -> np.ndarray | float:
     """Power gain ``|H|^2`` of a first-order discrete low-pass on the sensor's output,
     ``y_k = a y_(k-1) + (1 - a) x_k`` with ``a = exp(-2 pi cutoff_hz / fs)``:
     ``(1 - a)^2 / (1 - 2 a cos(2 pi f / fs) + a^2)`` (1 at f = 0); 1 when ``cutoff_hz`` is None."""
@@ -132,10 +141,11 @@ def lowpass_gain(f, fs, cutoff_hz=None):
     return (1.0 - a) ** 2 / (1.0 - 2.0 * a * np.cos(2.0 * np.pi * f / fs) + a * a)
 
 
-def allan_columns(specs, m, fs, bands=(), lowpass_hz=None):
+def allan_columns(specs: Sequence[tuple[str, float | None]], m: Sequence[float] | np.ndarray, fs: float, bands: Sequence[tuple[float, float]] | None = (),
+                  lowpass_hz: float | None = None) -> np.ndarray:
     """Allan variance at cluster sizes ``m`` of each term in ``specs`` (list of
     (name, tau_s or None)) with unit coefficient, through the stop mask (and the
-    output low-pass :func:`lowpass_gain` when ``lowpass_hz`` is given)."""
+    output low-pass `lowpass_gain` when ``lowpass_hz`` is given)."""
     T = 1.0 / fs
     out = np.zeros((len(m), len(specs)))
     for i, mi in enumerate(np.asarray(m, float)):
@@ -157,7 +167,8 @@ def allan_columns(specs, m, fs, bands=(), lowpass_hz=None):
     return out
 
 
-def band_columns(specs, layout, bands=(), lowpass_hz=None):
+def band_columns(specs: Sequence[tuple[str, float | None]], layout: Layout, bands: Sequence[tuple[float, float]] | None = (),
+                 lowpass_hz: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One-sided Welch-band PSD (mean over each band's bins) of each term with unit
     coefficient, through the stop mask; and a mask of the bands clear of the stop
     bands (two Welch bins of margin for the Hann window's leakage)."""
@@ -173,31 +184,34 @@ def band_columns(specs, layout, bands=(), lowpass_hz=None):
     return cols, clear
 
 
-def record_psd(y, fs):
+def record_psd(y: Sequence[float] | np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
     """The record's one-sided Welch PSD above DC, with the segments of the gap
-    signatures (:func:`gyrodenoise.analysis.spectrum.nperseg_for_length`): (freq_hz,
+    signatures (`gyrodenoise.analysis.spectrum.nperseg_for_length`): (freq_hz,
     psd, nperseg)."""
     nper = nperseg_for_length(len(y))
     f, p, _ = welch_psd(y, fs, nper)
+    if p is None:
+        raise ValueError(f"a record of {len(y)} samples holds no Welch segment of {nper}")
     return f[1:], p[1:], nper
 
 
-def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
+def find_bumps(y: npt.ArrayLike, fs: float, ratio: float = 3.0, span: float = 5.0,
+               per_decade: int = 20) -> list[tuple[float, float, float]]:
     """The bands to take out of the comparison: broad spectral bumps and lines
-    wandering in frequency (:func:`wandering_lines`), [(lo_hz, hi_hz, peak_ratio)].
+    wandering in frequency (`wandering_lines`), [(lo_hz, hi_hz, peak_ratio)].
 
     A bump is a band whose PSD, averaged in log-spaced bands (``per_decade``),
     stands more than ``ratio`` times above the lowest band PSD on BOTH sides within
     a factor ``span`` in frequency (a monotone spectrum - white, 1/f, f^2 - never
-    does; :func:`_bump_flags`) and spans at least :data:`MIN_BUMP_BINS` Welch bins
+    does; `_bump_flags`) and spans at least `MIN_BUMP_BINS` Welch bins
     (a narrower one is a line, for a sinusoid). Each is widened over its flanks
-    (:func:`_widen_run`), reaches down to DC when nothing below it is the sensor's,
-    and up over its tail (:func:`bump_tail_end`). A wandering line inside a bump
+    (`_widen_run`), reaches down to DC when nothing below it is the sensor's,
+    and up over its tail (`bump_tail_end`). A wandering line inside a bump
     is not listed again.
 
     This answers "how far does a broad excess extend?", not "is there a line at
     f?": its test is a ratio of band means to the band floor on both sides, not a
-    per-bin test against a local floor (:func:`gyrodenoise.analysis.spectrum.find_peaks`,
+    per-bin test against a local floor (`gyrodenoise.analysis.spectrum.find_peaks`,
     which would report a bump as a row of peaks and not give its extent)."""
     y = np.asarray(y, float)
     f, p, nper = record_psd(y, fs)
@@ -221,7 +235,7 @@ def find_bumps(y, fs, ratio=3.0, span=5.0, per_decade=20):
     return out + [ln for ln in lines if not any(a <= ln[0] and ln[1] <= b for a, b, _ in out)]
 
 
-def _log_bands(f, p, per_decade):
+def _log_bands(f: np.ndarray, p: np.ndarray, per_decade: int) -> tuple[list[tuple[float, float]], np.ndarray, np.ndarray]:
     """Log-spaced bands (``per_decade``) over the Welch bins ``f``: (edges of the bands
     holding at least one bin [(lo_hz, hi_hz)], their centres (geometric), their mean PSD)."""
     edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
@@ -234,7 +248,7 @@ def _log_bands(f, p, per_decade):
     return [(a, b) for a, b, _ in bands], fc, pv
 
 
-def _bump_flags(fc, pv, ratio, span):
+def _bump_flags(fc: np.ndarray, pv: np.ndarray, ratio: float, span: float) -> tuple[np.ndarray, np.ndarray]:
     """Per band: does it stand more than ``ratio`` above the lowest band on both sides
     within a factor ``span``; and that side floor (the larger of the two minima)."""
     flag = np.zeros(len(fc), bool)
@@ -248,8 +262,8 @@ def _bump_flags(fc, pv, ratio, span):
     return flag, side
 
 
-def _widen_run(i, j, fc, pv, span):
-    """Bands ``i..j`` of a bump widened while the PSD stays above :data:`WIDEN` x the
+def _widen_run(i: int, j: int, fc: np.ndarray, pv: np.ndarray, span: float) -> tuple[int, int]:
+    """Bands ``i..j`` of a bump widened while the PSD stays above `WIDEN` x the
     lowest band on the far side (within ``span``)."""
     while i > 0:
         left = pv[(fc >= fc[i - 1] / span) & (fc < fc[i - 1])]
@@ -264,9 +278,10 @@ def _widen_run(i, j, fc, pv, span):
     return i, j
 
 
-def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
+def _bump_of_run(y: np.ndarray, fs: float, f: np.ndarray, p: np.ndarray, nper: int, edges: list[tuple[float, float]], fc: np.ndarray,
+                 pv: np.ndarray, side: np.ndarray, i: int, j: int, span: float) -> tuple[float, float, float] | None:
     """The bump (lo_hz, hi_hz, peak_ratio) of the bands ``i..j`` (flagged, then widened),
-    or None when it spans fewer than :data:`MIN_BUMP_BINS` Welch bins (a narrow line: a
+    or None when it spans fewer than `MIN_BUMP_BINS` Welch bins (a narrow line: a
     sinusoid's business, not a band to take out)."""
     lo = edges[max(i - 1, 0)][0]
     hi = min(edges[min(j + 1, len(edges) - 1)][1], fs / 2.0)
@@ -285,18 +300,18 @@ def _bump_of_run(y, fs, f, p, nper, edges, fc, pv, side, i, j, span):
     return float(lo), float(hi), peak
 
 
-def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
+def bump_tail_end(f: np.ndarray, p: np.ndarray, hi_hz: float, fs: float, n: int, nperseg: int) -> float:
     """Upper edge (Hz) of a bump with its tail: the base motion falls steeply above the
-    band that :func:`find_bumps` widened (2x its far-side floor), but a tail of 10-50 %
+    band that `find_bumps` widened (2x its far-side floor), but a tail of 10-50 %
     over the sensor's level is left, and the comparison resolves the PSD to ~1 %
     (the RLG's y axis: 1.2-3x from 10 to 15 Hz). The sensor's level is fitted over
-    :data:`TAIL_FIT` x ``hi_hz`` by non-negative least squares (relative weights) on the
+    `TAIL_FIT` x ``hi_hz`` by non-negative least squares (relative weights) on the
     shapes the sensor's terms take above a few Hz - white rate ``1``, white angle
     ``sin^2(pi f T)`` - and extrapolated down (a third shape falling like ``1 / sin^2(pi f
     T)`` is not separable from these over the span and extrapolated the noise of the fit:
     on seeded records it stops the edge with half the tail left). The edge moves up over
-    each chunk of :data:`TAIL_BINS` Welch bins whose mean stands more than
-    :data:`TAIL_SE` standard errors of a chunk (``1 / sqrt(1.8 K TAIL_BINS)``, ``K``
+    each chunk of `TAIL_BINS` Welch bins whose mean stands more than
+    `TAIL_SE` standard errors of a chunk (``1 / sqrt(1.8 K TAIL_BINS)``, ``K``
     Welch segments) above it, and stops at the first two chunks in a row that do not
     (or at the fitted span). Unchanged when the fitted span
     does not fit below the top Welch bin. ``p``: the PSD with the wandering lines
@@ -312,7 +327,7 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     level = shapes @ c
     n_seg = max(segment_count([n], nperseg), 1)
     limit = 1.0 + TAIL_SE / math.sqrt(1.8 * n_seg * TAIL_BINS)
-    def above(k_):
+    def above(k_: int) -> bool:
         return k_ + TAIL_BINS <= k_fit0 and p[k_:k_ + TAIL_BINS].mean() > limit * level[k_:k_ + TAIL_BINS].mean()
     k = k0
     while True:
@@ -325,8 +340,9 @@ def bump_tail_end(f, p, hi_hz, fs, n, nperseg):
     return float(f[k - 1]) if k > k0 else float(hi_hz)
 
 
-def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
-    """Lines too wide for one sinusoid: runs spanning at least :data:`MIN_LINE_BINS`
+def wandering_lines(f: np.ndarray, p: np.ndarray, ratio: float = LINE_RATIO,
+                    window_hz: float = LINE_WINDOW_HZ) -> tuple[list[tuple[float, float, float]], np.ndarray]:
+    """Lines too wide for one sinusoid: runs spanning at least `MIN_LINE_BINS`
     Welch bins (gaps of up to LINE_BRIDGE_BINS bins bridged) that stand more than ``ratio`` times
     above the running median of the PSD over ``window_hz``. A sinusoid stays within
     the Hann main lobe (4 bins; about 3 above 3x for a line 15x its floor); a line
@@ -334,7 +350,7 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     speed drifts) spreads wider and no term of the card gives it. With ~80 Welch
     segments a noise bin 3x above the median is ~13 standard deviations off (a fixed
     ratio to the plain running median, not the F-test of
-    :func:`gyrodenoise.analysis.spectrum.find_peaks`: see the module docstring).
+    `gyrodenoise.analysis.spectrum.find_peaks`: see the module docstring).
     Each run is then widened over its skirt: while a bin within LINE_BRIDGE_BINS of
     its edge stands above SKIRT_RATIO x the median (a line wandering over a band
     leaves weaker lobes beside its strongest run: the RLG y axis at 10.0-11.0 Hz).
@@ -344,7 +360,8 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
     w = max(int(round(window_hz / df)) | 1, 8 * MIN_LINE_BINS + 1)
     floor = running_median(p, w, ends="nearest")
     idx = np.flatnonzero(p > ratio * floor)
-    out, clean = [], p.copy()
+    out: list[tuple[float, float, float]] = []
+    clean = p.copy()
     if not len(idx):
         return out, clean
     skirt = p > SKIRT_RATIO * floor
@@ -369,7 +386,6 @@ def wandering_lines(f, p, ratio=LINE_RATIO, window_hz=LINE_WINDOW_HZ):
 
 
 # ------------------------------------------------------------------ the joint fit
-ALLAN_TERMS = ("quantization", "angle_random_walk", "bias_instability", "rate_random_walk")
 GM_PER_DECADE = 6
 HUBER_C = 1.5
 LINE_GRID_POINTS = 400     # line frequencies tried in an Allan-curve fit (log-spaced, line_grid)
@@ -378,13 +394,13 @@ LINE_GRID_POINTS = 400     # line frequencies tried in an Allan-curve fit (log-s
 AGM_TAU_MAX_S = 10.0       # the angle Gauss-Markov dictionary's longest correlation time
 
 
-def gm_grid(layout):
+def gm_grid(layout: Any) -> list[float]:
     """Correlation times of the Gauss-Markov dictionary: 3 per decade, 2 samples .. record / 3."""
     lo, hi = math.log10(0.5 / layout.fs), math.log10(layout.n / layout.fs / 3.0)
     return list(10.0 ** np.arange(lo, hi + 1e-9, 1.0 / GM_PER_DECADE))
 
 
-def agm_grid(layout):
+def agm_grid(layout: Any) -> list[float]:
     """Correlation times of the angle Gauss-Markov dictionary: GM_PER_DECADE per decade from
     half a sample to AGM_TAU_MAX_S (at most a tenth of the record). Shorter than half a
     sample the term is white angle noise (quantization); much longer, it is white rate noise
@@ -394,26 +410,25 @@ def agm_grid(layout):
     return list(10.0 ** np.arange(lo, hi + 1e-9, 1.0 / GM_PER_DECADE))
 
 
-def stochastic_specs(card):
+def stochastic_specs(card: ModelCard) -> tuple[list[tuple[str, float | None]], np.ndarray]:
     """(specs, s-based squared coefficients) of a card's stochastic terms (dictionary form)."""
-    from gyrodenoise.modelgap.settings import CARD_FIELD
-    specs, coef = [], []
-    for nm in ALLAN_TERMS:
+    from gyrodenoise.modelgap.settings import CARD_FIELD, SIGMA_TO_CARD
+    specs: list[tuple[str, float | None]] = []
+    coef: list[float] = []
+    for nm in NOISE_SECTIONS:
         t = card.terms.get(nm)
         if t:
             fld, to_card = CARD_FIELD[nm]
             specs.append((nm, None))
             coef.append((t[fld] / to_card) ** 2)
-    for g in card.term_list("gauss_markov"):
-        specs.append(("gauss_markov", g["tau"]))
-        coef.append((g["sigma"] / 3600.0) ** 2)
-    for g in card.term_list("angle_gauss_markov"):      # sigma in deg: s-based already
-        specs.append(("angle_gauss_markov", g["tau"]))
-        coef.append(g["sigma"] ** 2)
+    for kind, to_card in SIGMA_TO_CARD.items():
+        for g in card.term_list(kind):
+            specs.append((kind, g["tau"]))
+            coef.append((g["sigma"] / to_card) ** 2)
     return specs, np.array(coef)
 
 
-def card_allan_variance(card, m, fs):
+def card_allan_variance(card: ModelCard, m: Sequence[float] | np.ndarray, fs: float) -> np.ndarray:
     """Exact Allan variance (deg/s)^2 at cluster sizes ``m`` of a card's stochastic terms
     and sinusoids as the simulator draws them at ``fs`` (deterministic ramp, bias and
     transient left out: the published curves are of records without them)."""
@@ -424,7 +439,7 @@ def card_allan_variance(card, m, fs):
     return av
 
 
-def line_allan_columns(freq_hz, m, fs):
+def line_allan_columns(freq_hz: npt.ArrayLike, m: npt.ArrayLike, fs: float) -> np.ndarray:
     """Allan variance at cluster sizes ``m`` of a sampled sinusoid of unit amplitude at
     each of ``freq_hz``: ``(1/4) * 4 sin^4(pi f m T) / (m^2 sin^2(pi f T))`` (the Allan
     filter at the line; its variance 1/2 split over +-f)."""
@@ -434,13 +449,13 @@ def line_allan_columns(freq_hz, m, fs):
     return np.sin(np.pi * f * m * T) ** 4 / (m * m * np.sin(np.pi * f * T) ** 2)
 
 
-def line_grid(fs, m):
+def line_grid(fs: float, m: npt.ArrayLike) -> np.ndarray:
     """Candidate line frequencies for an Allan-curve fit: LINE_GRID_POINTS log-spaced
     from a tenth of the inverse of the longest cluster to 0.45 fs."""
     return np.geomspace(0.1 * fs / float(np.max(m)), 0.45 * fs, LINE_GRID_POINTS)
 
 
-def _nnls_huber(A, b, robust):
+def _nnls_huber(A: np.ndarray, b: np.ndarray, robust: int) -> tuple[np.ndarray, float]:
     """Non-negative least squares of ``A x = b`` (columns scaled), ``robust`` Huber
     re-weightings: a point that no combination of the columns reaches (a sensor's
     internal filter at the shortest taus) is down-weighted instead of pulling every
@@ -456,7 +471,7 @@ def _nnls_huber(A, b, robust):
     return c / scale, float(r @ r)
 
 
-def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
+def _drop_unneeded(A: np.ndarray, b: np.ndarray, c: np.ndarray, chi2: float, min_dchi2: float, n_params: np.ndarray) -> np.ndarray:
     """Backward elimination: while some column with a non-zero coefficient raises the
     chi^2 by less than ``min_dchi2`` when it is left out (the others re-fitted), one of
     those is left out: the one with the most parameters (``n_params`` per column: a
@@ -489,8 +504,9 @@ def _drop_unneeded(A, b, c, chi2, min_dchi2, n_params):
         off |= c <= 0
 
 
-def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
-    """Greedy choice of up to ``max_lines`` sinusoids (frequencies of :func:`line_grid`)
+def _pick_allan_lines(A: np.ndarray, b: np.ndarray, sd: np.ndarray, m: np.ndarray, fs: float, max_lines: int,
+                      inside_fn: Callable[[np.ndarray], bool]) -> list[float]:
+    """Greedy choice of up to ``max_lines`` sinusoids (frequencies of `line_grid`)
     for an Allan-curve fit: each step adds the line that lowers the plain chi^2 most.
     The lines are kept only when, with them, the model is inside the published bounds
     at every tau (``inside_fn(model_avar)``) and it is not without them: a line is not spent
@@ -501,7 +517,7 @@ def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
     x0, _ = _nnls_huber(A, b, 0)
     if inside_fn(A @ x0):
         return []
-    chosen = []
+    chosen: list[int] = []
     for _ in range(max_lines):
         best = min(((_nnls_huber(np.hstack([A, L[:, chosen + [j]]]), b, 0)[1], j) for j in range(len(grid))
                     if j not in chosen), default=None)
@@ -514,24 +530,27 @@ def _pick_allan_lines(A, b, sd, m, fs, max_lines, inside_fn):
     return []
 
 
-def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor=0.0, robust=0, lowpass_hz=None,
-              max_lines=0, inside_fn=None, angle_gm=False, min_dchi2=0.0):
+def fit_terms(layout: Any, bands: Sequence[tuple[float, float]] | None, avar_target: np.ndarray, avar_sd: np.ndarray,
+              psd_target: np.ndarray | None, psd_sd: np.ndarray | None, rel_floor: float = 0.0, robust: int = 0,
+              lowpass_hz: float | None = None, max_lines: int = 0,
+              inside_fn: Callable[[np.ndarray], bool] | None = None, angle_gm: bool = False,
+              min_dchi2: float = 0.0) -> tuple[dict[str, Any], np.ndarray, np.ndarray | None]:
     """Weighted non-negative least squares of the Allan variance (at ``layout.m``) and
     the Welch-band PSD (clear bands only) on Q, N, B, K and a dictionary of
-    Gauss-Markov processes (:func:`gm_grid`), each through the stop mask; with
-    ``angle_gm`` also a dictionary of angle Gauss-Markov terms (:func:`agm_grid`).
+    Gauss-Markov processes (`gm_grid`), each through the stop mask; with
+    ``angle_gm`` also a dictionary of angle Gauss-Markov terms (`agm_grid`).
 
-    ``robust``: that many Huber re-weightings (:func:`_nnls_huber`).
+    ``robust``: that many Huber re-weightings (`_nnls_huber`).
     ``max_lines`` (Allan curve only, ``psd_target`` None): up to that many sinusoids
-    (:func:`_pick_allan_lines`), kept only when they bring the model inside the bounds
+    (`_pick_allan_lines`), kept only when they bring the model inside the bounds
     (``inside_fn(model_avar) -> bool``) at every point.
     ``min_dchi2`` > 0: a term stays only when leaving it out (the others re-fitted)
-    raises the plain chi^2 by at least that much (:func:`_drop_unneeded`).
+    raises the plain chi^2 by at least that much (`_drop_unneeded`).
     Returns ``(terms, model_avar, model_psd)``: ``terms`` maps each of Q, N, B, K
     to its s-based coefficient (0 = not needed), ``"gauss_markov"`` to a list
     of ``(sigma_deg_s, tau_s)``, ``"angle_gauss_markov"`` to a list of ``(sigma_deg, tau_s)``
     and ``"sinusoid"`` to ``(amplitude_deg_s, frequency_hz)``."""
-    specs = [(nm, None) for nm in ALLAN_TERMS] + [("gauss_markov", t) for t in gm_grid(layout)]
+    specs = [(nm, None) for nm in NOISE_SECTIONS] + [("gauss_markov", t) for t in gm_grid(layout)]
     if angle_gm:
         specs += [("angle_gauss_markov", t) for t in agm_grid(layout)]
     A_a = allan_columns(specs, layout.m, layout.fs, bands, lowpass_hz)
@@ -543,11 +562,16 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
         if max_lines:
             raise ValueError("fit_terms: max_lines is for an Allan curve (psd_target None)")
         A_p, clear = band_columns(specs, layout, bands, lowpass_hz)
+        if psd_sd is None:
+            raise ValueError("fit_terms: psd_target needs psd_sd")
         sd_p = np.maximum(psd_sd, rel_floor * np.abs(psd_target))
         A = np.vstack([A, (A_p / sd_p[:, None])[clear]])
         b = np.concatenate([b, (psd_target / sd_p)[clear]])
     elif max_lines:
-        f_lines = _pick_allan_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside_fn(av * sd_a))
+        if inside_fn is None:
+            raise ValueError("fit_terms: max_lines needs inside_fn")
+        inside = inside_fn
+        f_lines = _pick_allan_lines(A, b, sd_a, layout.m, layout.fs, max_lines, lambda av: inside(av * sd_a))
         if f_lines:
             A_l = line_allan_columns(f_lines, layout.m, layout.fs)
             A_a, A = np.hstack([A_a, A_l]), np.hstack([A, A_l / sd_a[:, None]])
@@ -557,9 +581,9 @@ def fit_terms(layout, bands, avar_target, avar_sd, psd_target, psd_sd, rel_floor
             raise ValueError("fit_terms: min_dchi2 compares plain chi^2 (robust=0)")
         n_par = np.array([1 if tc is None else 2 for _, tc in specs] + [2] * (A.shape[1] - len(specs)))
         c = _drop_unneeded(A, b, c, chi2, min_dchi2, n_par)
-    terms = {nm: float(c[i]) for i, nm in enumerate(ALLAN_TERMS)}
+    terms: dict[str, Any] = {nm: float(c[i]) for i, nm in enumerate(NOISE_SECTIONS)}
     for kind in ("gauss_markov", "angle_gauss_markov"):
-        terms[kind] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(ALLAN_TERMS), len(specs))
+        terms[kind] = [(math.sqrt(c[i]), specs[i][1]) for i in range(len(NOISE_SECTIONS), len(specs))
                        if c[i] > 0 and specs[i][0] == kind]
     terms["sinusoid"] = [(math.sqrt(c[len(specs) + k]), f) for k, f in enumerate(f_lines) if c[len(specs) + k] > 0]
     return terms, A_a @ c, None if A_p is None else A_p @ c

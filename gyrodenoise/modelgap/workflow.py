@@ -1,20 +1,25 @@
-"""The workflow: score candidates, choose, edit the card, repeat (:func:`gap`)."""
+"""The workflow: score candidates, choose, edit the card, repeat (`gap`)."""
 
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
-from gyrodenoise.modelgap.candidates import Candidate, _f, propose, spectral_refit
+from gyrodenoise.modelgap.candidates import Candidate, Change, _f, propose, spectral_refit
 from gyrodenoise.modelgap.cards import card_at_rate, check_editable, edit_card
 from gyrodenoise.modelgap.metric import (
     Layout,
     Reference,
+    Signature,
     gap_components,
     gap_value,
     loo_gaps,
@@ -32,41 +37,44 @@ from gyrodenoise.modelgap.settings import (
     MIN_SAMPLES,
     OFFSET_RATIO,
     PENALTY_PER_PARAM,
+    SIGMA_TO_CARD,
     WIDEN_COMPONENTS,
     Z2_CAP,
 )
 from gyrodenoise.modelgap.simulation import Simulator
 from gyrodenoise.modelgap.spectral import band_stop, find_bumps
+from gyrodenoise.simulator import CardLike, ModelCard
 
 
 # ------------------------------------------------------------------ the workflow
 @dataclass
 class GapResult:
-    """Outcome of :func:`gap`."""
-    effects_added: list
+    """Outcome of `gap`: the card reached (``card_text``), the effects added, the gap
+    before and after with its threshold, and each iteration's candidates and scores."""
+    effects_added: list[dict[str, Any]]
     gap_before: float
     gap_after: float
     card_text: str
-    iterations: list
+    iterations: list[dict[str, Any]]
     threshold: float
     engine: str
-    component_threshold: dict
-    seeds: list
-    limitations: list = field(default_factory=list)
-    layout: Layout = None
-    measured: dict = None
-    stop_bands: list = field(default_factory=list)     # [(lo_hz, hi_hz, peak ratio or nan)]
-    named: list = field(default_factory=list)          # physical effects named from the evidence
-    white_factor: float = None     # heldout_gap(refit_white=True): the white-noise level's factor
-    card_error: list = None        # heldout_gap(card_error=True): bootstrap relative 1-sigma per noise term
+    component_threshold: dict[str, float]
+    seeds: list[int]
+    limitations: list[str] = field(default_factory=list)
+    layout: Layout | None = None
+    measured: Signature | None = None
+    stop_bands: list[tuple[float, float, float]] = field(default_factory=list)  # [(lo_hz, hi_hz, peak ratio or nan)]
+    named: list[str] = field(default_factory=list)     # physical effects named from the evidence
+    white_factor: float | None = None     # heldout_gap(refit_white=True): the white-noise level's factor
+    card_error: list[float] | None = None  # heldout_gap(card_error=True): bootstrap relative 1-sigma per noise term
 
     @property
-    def within_scatter(self):
+    def within_scatter(self) -> bool:
         """The final card is within the simulations' scatter (the stop test of the loop)."""
         return bool(self.iterations[-1].get("within_scatter", False))
 
-    def to_json(self):
-        """Plain JSON (every float finite or null, see :func:`_finite`)."""
+    def to_json(self) -> Any:
+        """Plain JSON (every float finite or null, see `_finite`)."""
         return _finite({"effects_added": [{"name": e["name"], "params": e["params"], "refit": e["refit"],
                                            "iteration": e["iteration"]}
                                           for e in self.effects_added],
@@ -83,8 +91,8 @@ class GapResult:
                                        for it in self.iterations]})
 
 
-def _finite(obj):
-    """A copy of a JSON-able structure with every float through :func:`_f` (NaN/inf -> None)."""
+def _finite(obj: Any) -> Any:
+    """A copy of a JSON-able structure with every float through `_f` (NaN/inf -> None)."""
     if isinstance(obj, dict):
         return {k: _finite(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -100,7 +108,7 @@ def _finite(obj):
     return obj
 
 
-def _zeroed(changes):
+def _zeroed(changes: Iterable[Change]) -> list[str]:
     """Fields that a set of changes would write as 0 (a noise term fitted to nothing)."""
     out = []
     for nm, pr, _ in changes:
@@ -114,7 +122,7 @@ def _zeroed(changes):
     return out
 
 
-def _points(z):
+def _points(z: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Per-point contributions to the five gap components (component units)."""
     nl = len(z["line"])
     return {"allan": z["allan"] ** 2, "psd": z["psd"] ** 2,
@@ -122,16 +130,16 @@ def _points(z):
            "mean": z["mean"] ** 2, "trend": z["trend"] ** 2}
 
 
-def explainable(zs):
+def explainable(zs: Iterable[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
     """Mask of the points that at least one of the z sets (the current card and
     its candidates) brings within the cap ``|z| <= 5``."""
     pts = [_points(z) for z in zs]
     return {c: np.any([p[c] < Z2_CAP for p in pts], axis=0) for c in COMPONENTS}
 
 
-def robust_gap(z, mask=None):
+def robust_gap(z: Mapping[str, np.ndarray], mask: Mapping[str, np.ndarray] | None = None) -> float:
     """The gap used to CHOOSE candidates: every point's ``z^2`` capped at
-    :data:`Z2_CAP` (``|z| = 5``), and, given ``mask`` (:func:`explainable`), the
+    `Z2_CAP` (``|z| = 5``), and, given ``mask`` (`explainable`), the
     points that no candidate brings within the cap left out (they count 0).
 
     A candidate is then judged by how many points it brings into agreement,
@@ -153,7 +161,7 @@ def robust_gap(z, mask=None):
     return gap_value(comp)
 
 
-def widening(ref_new, ref_old, z_old):
+def widening(ref_new: Reference, ref_old: Reference, z_old: Mapping[str, np.ndarray]) -> float:
     """Log-likelihood price of a wider simulated scatter that the record does not ask for.
 
     ``-2 ln L`` of the measured signatures under a card is ``sum z^2 + sum
@@ -174,7 +182,8 @@ def widening(ref_new, ref_old, z_old):
     return tot / len(COMPONENTS)
 
 
-def deterministic_offset(sig_m, ref, z, limit=3.0):
+def deterministic_offset(sig_m: Signature, ref: Reference, z: Mapping[str, np.ndarray],
+                         limit: float = 3.0) -> tuple[bool, float, float]:
     """Is the record mean's disagreement a deterministic offset rather than a wander?
 
     A slow random process (bias instability, random walk, Gauss-Markov) that
@@ -191,7 +200,7 @@ def deterministic_offset(sig_m, ref, z, limit=3.0):
     return bool(flag), off, wander
 
 
-def _evaluate(sims, sig_m, layout, bands=()):
+def _evaluate(sims: Iterable[np.ndarray], sig_m: Signature, layout: Layout, bands: Sequence[tuple[float, float]] = ()) -> tuple[Reference, dict[str, np.ndarray], dict[str, float], float]:
     ref = Reference(layout, [signature(band_stop(s, layout.fs, bands), layout) for s in sims])
     z = zscores(sig_m, ref)
     comp = gap_components(z)
@@ -207,7 +216,7 @@ def _evaluate(sims, sig_m, layout, bands=()):
 INITIAL_DCHI2 = 2 * 3.0 ** 2
 
 
-def welch_band_rel_sd(layout):
+def welch_band_rel_sd(layout: Layout) -> np.ndarray:
     """Relative 1-sigma of the mean of each Welch band's bins for a smooth spectrum
     (Hann window, 50 % overlap, ``K`` segments): one bin ``sqrt(1.056 / K)`` (adjacent
     segments' periodograms correlated 0.028, counted twice), and the bins of a band
@@ -220,14 +229,15 @@ def welch_band_rel_sd(layout):
     return np.sqrt(1.056 * corr / (layout.n_segments * nb))
 
 
-def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
-    """The noise terms fitted to the record's signatures alone (:func:`.spectral.fit_terms`;
+def initial_terms(sig_m: Signature, layout: Layout, bands: Sequence[tuple[float, float]], min_dchi2: float = 0.0,
+                  psd_rel_sd: np.ndarray | None = None) -> dict[str, Any]:
+    """The noise terms fitted to the record's signatures alone (`spectral.fit_terms`;
     weights: the analytic 1-sigma of one record's Allan variance and, unless
     ``psd_rel_sd`` is given, ``metric._floors``' for its Welch bands). With ``min_dchi2``
     > 0 a term is kept only when leaving it out (the others re-fitted) raises the fit's
     chi^2 by more than that: with ``INITIAL_DCHI2`` and ``welch_band_rel_sd(layout)`` a
     white-noise record comes out as angle random walk alone (the workflow's
-    :func:`_initial_fit` does not apply this rule: docs/bench/gap.md, "Initial fit")."""
+    `_initial_fit` does not apply this rule: docs/bench/gap.md, "Initial fit")."""
     from gyrodenoise.modelgap.metric import _floors
     from gyrodenoise.modelgap.spectral import fit_terms
     fl = _floors(sig_m, layout)
@@ -238,14 +248,16 @@ def initial_terms(sig_m, layout, bands, min_dchi2=0.0, psd_rel_sd=None):
                      psd_m * rel, min_dchi2=min_dchi2)[0]
 
 
-def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
-    """Write the noise terms fitted to the record alone (:func:`initial_terms`) into a
+def _initial_fit(text: str, sig_m: Signature, layout: Layout, bands: Sequence[tuple[float, float]], card: ModelCard, csrc: str,
+                 source: str, effects: list[dict[str, Any]]) -> str:
+    """Write the noise terms fitted to the record alone (`initial_terms`) into a
     card that has none; appends to ``effects``."""
     terms = initial_terms(sig_m, layout, bands)
     note = f"initial fit to {Path(str(source)).name}"
     changes = [(nm, {CARD_FIELD[nm][0]: float(np.sqrt(v)) * CARD_FIELD[nm][1]}) for nm, v in terms.items()
                if nm in CARD_FIELD and v > 0]
-    changes += [("gauss_markov", {"sigma": s_ * 3600.0, "tau": t_}) for s_, t_ in terms["gauss_markov"]]
+    changes += [("gauss_markov", {"sigma": s_ * SIGMA_TO_CARD["gauss_markov"], "tau": t_})
+                for s_, t_ in terms["gauss_markov"]]
     if not changes:
         raise InputError("the card has no noise term and none could be fitted to the record", csrc)
     for nm, pr in changes:
@@ -255,7 +267,7 @@ def _initial_fit(text, sig_m, layout, bands, card, csrc, source, effects):
     return text
 
 
-def check_record(rate_deg_s, source="MEASURED"):
+def check_record(rate_deg_s: npt.ArrayLike, source: str = "MEASURED") -> np.ndarray:
     """The measured record as a float array, or InputError (one line) when the
     workflow cannot use it: not 1-D finite, too short, or constant."""
     y = np.asarray(rate_deg_s, dtype=float)
@@ -273,44 +285,83 @@ FALLBACK_GAIN = 0.5  # the joint re-fit is accepted when it at least halves the 
 TOP_FROM = 0.3      # the band given to an internal low-pass filter: 0.3 fs to Nyquist
 
 
-def _top_disagreement(res):
+def _top_disagreement(res: GapResult) -> float | None:
     """Lower edge (Hz) of the band given to the sensor's internal low-pass filter,
     TOP_FROM * fs, when what still disagrees sits at the top of the band: a run of
     Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point; else
     None. (A fixed edge: where the run starts moves with the seeds' scatter.)"""
-    if not _top_disagrees(res.iterations[-1]["_z"]):
+    if res.layout is None or not _top_disagrees(res.iterations[-1]["_z"]):
         return None
     return float(TOP_FROM * res.layout.fs)
 
 
-def _top_disagrees(z):
+def _top_disagrees(z: Mapping[str, np.ndarray]) -> bool:
     """A run of Welch bands ending at Nyquist with |z| > 3, or the one-sample Allan point."""
     return abs(z["psd"][-1]) > 3.0 or abs(z["allan"][0]) > 3.0
 
 
-def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
-        fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None,
-        outliers=False):
-    """Find what a model card misses to behave like a measured record (see :func:`_gap_once`).
+def gap(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds: int | Sequence[int] = 6,
+        engine: str = "native", restarts: npt.ArrayLike | None = None, max_effects: int = 6,
+        fmu_dir: str | os.PathLike[str] | None = None, workers: int | None = None, source: str = "MEASURED",
+        quiet: bool = True, stop_bands: str | Sequence[tuple[float, float]] | None = "auto", latitude_deg: float | None = None,
+        outliers: bool = False) -> GapResult:
+    """Find what a model card misses to behave like a measured record.
 
     With ``stop_bands="auto"``, when the card cannot be brought within the scatter
-    and what still disagrees sits at the top of the band (:func:`_top_disagreement`:
-    the sensor's internal low-pass filter, which no term of the vocabulary
-    represents), the workflow goes on from the card reached, with that top band
-    taken out of the comparison as well (named in ``named``); ``gap_before`` stays
-    the first pass's and the iterations of both passes are kept."""
+    and what still disagrees sits at the top of the band (the sensor's internal
+    low-pass filter, which no term of the vocabulary represents), the workflow goes
+    on from the card reached, with that top band taken out of the comparison as well
+    (named in ``named``); ``gap_before`` stays the first pass's and the iterations
+    of both passes are kept.
+
+    Parameters
+    ----------
+    rate_deg_s : array_like
+        Measured rate (deg/s), fixed sample rate.
+    sample_rate_hz : float
+    card : ModelCard, path or card name
+    seeds : int or list of int
+        Simulated records per evaluation (int S: seeds 1..S).
+    engine : {"native", "fmu"}
+        Simulator for the reported gaps; candidates are screened with the
+        native engine (bit-identical to the FMU).
+    restarts : array_like of bool, optional
+    max_effects : int
+        Most effects added (a joint re-fit of the noise terms counts as one).
+    fmu_dir : path, optional
+        Folder of SimulatedFog.fmu (engine "fmu"; default build/, built when missing).
+    workers : int, optional
+        Processes for the FMU engine (default: one per seed, up to the cores).
+    source : str
+        The record's name in messages.
+    quiet : bool
+        No progress lines on stderr.
+    stop_bands : "auto", list of (lo_hz, hi_hz) or None
+        Spectral bumps (base vibration, dither) taken out of the comparison by
+        one band-stop applied alike to the record and to every simulation;
+        "auto": `spectral.find_bumps`; None or []: none.
+    latitude_deg : float, optional
+        Where the record was taken: a fitted constant bias is compared with the
+        Earth's rotation there (`effects.name_effects`).
+    outliers : bool
+        Replace isolated outliers by the running median before the comparison.
+
+    Returns
+    -------
+    GapResult
+    """
     n_out = 0
     if outliers:
         from gyrodenoise.modelgap.effects import screen_outliers
         rate_deg_s, idx = screen_outliers(check_record(rate_deg_s, source))
         n_out = len(idx)
         log(f"gyrodenoise: {n_out} outlier(s) replaced by the running median before the comparison", quiet=quiet)
-    kw = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
-              workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
+    kw: dict[str, Any] = dict(seeds=seeds, engine=engine, restarts=restarts, max_effects=max_effects, fmu_dir=fmu_dir,
+                              workers=workers, source=source, quiet=quiet, latitude_deg=latitude_deg)
     res = _gap_once(rate_deg_s, sample_rate_hz, card, stop_bands=stop_bands, **kw)
     lo = None if res.within_scatter or stop_bands != "auto" else _top_disagreement(res)
     if lo is None:
-        return _with_outliers(res, n_out, len(rate_deg_s))
+        return _with_outliers(res, n_out, len(np.asarray(rate_deg_s)))
     from gyrodenoise.simulator import parse_card
     log(f"gyrodenoise: what disagrees sits at the top of the band: the sensor's internal low-pass filter; "
         f"going on with {lo:.3g}-{float(sample_rate_hz) / 2:.3g} Hz taken out as well", quiet=quiet)
@@ -328,10 +379,10 @@ def gap(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=Non
     from gyrodenoise.modelgap.effects import name_effects
     res2.named = name_effects(check_record(rate_deg_s, source), float(sample_rate_hz),
                               parse_card(res2.card_text), res2.stop_bands, latitude_deg)
-    return _with_outliers(res2, n_out, len(rate_deg_s))
+    return _with_outliers(res2, n_out, len(np.asarray(rate_deg_s)))
 
 
-def _with_outliers(res, n_out, n):
+def _with_outliers(res: GapResult, n_out: int, n: int) -> GapResult:
     if n_out:
         res.named.insert(0, f"outliers: {n_out} isolated wild samples ({100.0 * n_out / n:.2g} % of the record, "
                             f"> 10 robust sigmas off the running median) replaced before the comparison; no term "
@@ -341,44 +392,46 @@ def _with_outliers(res, n_out, n):
 
 @dataclass
 class _Pass:
-    """What one pass of the workflow (:func:`_gap_once`) holds fixed: the record and
+    """What one pass of the workflow (`_gap_once`) holds fixed: the record and
     its signatures, the simulator, the stop bands, and where the card came from."""
     y: np.ndarray
     fs: float
     layout: Layout
     sim: Simulator
-    sig_m: dict
-    bands: list
-    restarts: object
-    source: object
+    sig_m: Signature
+    bands: list[tuple[float, float]]
+    restarts: npt.ArrayLike | None
+    source: str
     csrc: str
-    stop_bands: object      # as given: "auto" or a list
+    stop_bands: str | Sequence[tuple[float, float]] | None      # as given: "auto" or a list
     quiet: bool
 
-    def evaluate(self, text, engine=None):
+    def evaluate(self, text: str, engine: str | None = None) -> tuple[Reference, dict[str, np.ndarray], dict[str, float], float]:
         """(reference, z, components, gap) of the card ``text`` simulated (``engine``: the
         simulator's own unless given)."""
         sims = self.sim.run(text) if engine is None else self.sim.run(text, engine=engine)
         return _evaluate(sims, self.sig_m, self.layout, self.bands)
 
-    def edited(self, text, changes):
+    def edited(self, text: str, changes: Iterable[Change]) -> str:
         """``text`` with ``changes`` [(name, params, refit)] written in, each with its note."""
         for nm, pr, rf in changes:
             text = edit_card(text, nm, pr, rf, f"fitted to {Path(str(self.source)).name}", self.csrc)
         return text
 
 
-def _seed_list(seeds):
+def _seed_list(seeds: int | Sequence[int]) -> list[int]:
     """Seeds 1..S for an int S, else the given seeds; InputError below 3."""
-    seed_list = list(range(1, int(seeds) + 1)) if np.isscalar(seeds) else [int(s) for s in seeds]
+    seed_list = (list(range(1, int(cast(int, seeds)) + 1)) if np.isscalar(seeds)
+                 else [int(s) for s in cast(Sequence[int], seeds)])
     if len(seed_list) < 3:
         raise InputError(f"need at least 3 seeds to know the simulation's scatter, got {len(seed_list)}")
     return seed_list
 
 
-def _resolve_stop_bands(y, fs, stop_bands):
+def _resolve_stop_bands(y: np.ndarray, fs: float,
+                        stop_bands: str | Sequence[tuple[float, float]] | None) -> list[tuple[float, float, float]]:
     """The bands taken out of the comparison, [(lo_hz, hi_hz, peak ratio or NaN when
-    given)]: :func:`.spectral.find_bumps` for ``"auto"``; InputError for a bad band."""
+    given)]: `spectral.find_bumps` for ``"auto"``; InputError for a bad band."""
     if isinstance(stop_bands, str):
         if stop_bands != "auto":
             raise InputError(f"stop_bands must be 'auto', None or a list of (lo_hz, hi_hz), got {stop_bands!r}")
@@ -391,7 +444,7 @@ def _resolve_stop_bands(y, fs, stop_bands):
     return bumps
 
 
-def _thresholds(ref):
+def _thresholds(ref: Reference) -> tuple[float, dict[str, float]]:
     """(gap threshold, per-component thresholds) from the simulations' leave-one-out gaps:
     1.5 x their largest, at least 1.5 for the gap and COMPONENT_FLOOR for a component."""
     loo = loo_gaps(ref)
@@ -401,9 +454,11 @@ def _thresholds(ref):
     return threshold, comp_threshold
 
 
-def _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir, workers, source, quiet,
-                stop_bands):
-    """Check the inputs and set up one pass: (:class:`_Pass`, card text, stop bands, seeds)."""
+def _start_pass(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds: int | Sequence[int],
+                engine: str, restarts: npt.ArrayLike | None, fmu_dir: str | os.PathLike[str] | None,
+                workers: int | None, source: str, quiet: bool, stop_bands: str | Sequence[tuple[float, float]] | None
+                ) -> tuple[_Pass, str, list[tuple[float, float, float]], list[int]]:
+    """Check the inputs and set up one pass: (`_Pass`, card text, stop bands, seeds)."""
     from gyrodenoise.simulator import load_card
     y = check_record(rate_deg_s, source)
     fs = float(sample_rate_hz)
@@ -423,10 +478,10 @@ def _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_d
     return ctx, card0.text, bumps, seed_list
 
 
-def _first_card(ctx, text, effects):
+def _first_card(ctx: _Pass, text: str, effects: list[dict[str, Any]]) -> tuple[str, list[np.ndarray]]:
     """The card the loop starts from and its simulations: an empty (or deterministic-only)
     card starts from the noise terms fitted to the record alone, with the analytic scatter
-    of one record as the weights (:func:`_initial_fit`; appends to ``effects``)."""
+    of one record as the weights (`_initial_fit`; appends to ``effects``)."""
     sims = ctx.sim.run(text)
     if not np.any([np.std(s_) > 0 for s_ in sims]):
         text = _initial_fit(text, ctx.sig_m, ctx.layout, ctx.bands, card_at_rate(text, ctx.fs, ctx.csrc), ctx.csrc,
@@ -437,39 +492,17 @@ def _first_card(ctx, text, effects):
     return text, sims
 
 
-def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restarts=None, max_effects=6,
-              fmu_dir=None, workers=None, source="MEASURED", quiet=True, stop_bands="auto", latitude_deg=None):
-    """Find what a model card misses to behave like a measured record.
-
-    Parameters
-    ----------
-    rate_deg_s : array_like
-        Measured rate (deg/s), fixed sample rate.
-    sample_rate_hz : float
-    card : ModelCard, path or card name
-    seeds : int or list of int
-        Simulated records per evaluation (int S: seeds 1..S).
-    engine : {"native", "fmu"}
-        Simulator for the reported gaps; candidates are screened with the
-        native engine (bit-identical to the FMU).
-    restarts : array_like of bool, optional
-    max_effects : int
-        Most effects added (a joint re-fit of the noise terms counts as one).
-    stop_bands : "auto", list of (lo_hz, hi_hz) or None
-        Spectral bumps (base vibration, dither) taken out of the comparison by
-        one band-stop applied alike to the record and to every simulation;
-        "auto": :func:`.spectral.find_bumps`; None or []: none.
-    latitude_deg : float, optional
-        Where the record was taken: a fitted constant bias is compared with the
-        Earth's rotation there (:func:`.effects.name_effects`).
-
-    Returns
-    -------
-    GapResult
-    """
+def _gap_once(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card: CardLike, seeds: int | Sequence[int] = 6,
+              engine: str = "native", restarts: npt.ArrayLike | None = None, max_effects: int = 6,
+              fmu_dir: str | os.PathLike[str] | None = None, workers: int | None = None, source: str = "MEASURED",
+              quiet: bool = True, stop_bands: str | Sequence[tuple[float, float]] | None = "auto",
+              latitude_deg: float | None = None) -> GapResult:
+    """One pass of `gap` (its parameters), with the stop bands as given."""
     ctx, text, bumps, seed_list = _start_pass(rate_deg_s, sample_rate_hz, card, seeds, engine, restarts, fmu_dir,
                                               workers, source, quiet, stop_bands)
-    effects, iterations, limitations = [], [], []
+    effects: list[dict[str, Any]] = []
+    iterations: list[dict[str, Any]] = []
+    limitations: list[str] = []
     text, sims = _first_card(ctx, text, effects)
     ref, z, comp, g = _evaluate(sims, ctx.sig_m, ctx.layout, ctx.bands)
     threshold, comp_threshold = _thresholds(ref)
@@ -502,7 +535,7 @@ def _gap_once(rate_deg_s, sample_rate_hz, card, seeds=6, engine="native", restar
                      component_threshold=comp_threshold, layout=ctx.layout, measured=ctx.sig_m, stop_bands=bumps)
 
 
-def _take(best, g, it, iteration, effects, quiet):
+def _take(best: Candidate, g: float, it: dict[str, Any], iteration: int, effects: list[dict[str, Any]], quiet: bool) -> str:
     """Accept candidate ``best`` in iteration ``it`` (number ``iteration``): log it, list
     its changes in ``effects`` and ``it["chosen"]``; returns the card text with it."""
     log("gyrodenoise: " + "; ".join(f"{'re-fit' if rf else 'add'} {nm} {_short(pr)}"
@@ -515,7 +548,7 @@ def _take(best, g, it, iteration, effects, quiet):
     return best.text
 
 
-def _note_card_noisier(last, limitations):
+def _note_card_noisier(last: dict[str, Any], limitations: list[str]) -> None:
     """Add the limitation "the card is noisier than the record" when the last iteration
     is not within the scatter and every Allan disagreement is the record below the card."""
     if not last["within_scatter"] and any(s_ < 0 for s_ in last["where"]["allan_sign"]) \
@@ -528,17 +561,17 @@ def _note_card_noisier(last, limitations):
 
 
 # ------------------------------------------------------------------ one iteration: choose a candidate
-def _score(c):
+def _score(c: Candidate) -> float:
     """A candidate's score: capped gap plus the widening, times 1 + PENALTY_PER_PARAM per parameter."""
     return (c.robust + c.widen) * (1.0 + PENALTY_PER_PARAM * c.n_params)
 
 
-def _candidates(ctx, card, ref, z, it):
-    """The candidates of one iteration: :func:`.candidates.propose`, the joint re-fits
-    (:func:`.candidates.spectral_refit`, plain and with angle Gauss-Markov terms: the
+def _candidates(ctx: _Pass, card: ModelCard, ref: Reference, z: Mapping[str, np.ndarray], it: dict[str, Any]) -> list[Candidate]:
+    """The candidates of one iteration: `candidates.propose`, the joint re-fits
+    (`candidates.spectral_refit`, plain and with angle Gauss-Markov terms: the
     fallback, marked ``fallback``) when the Allan or PSD signatures disagree, and only
     the constant bias when the record mean is off deterministically
-    (:func:`deterministic_offset`)."""
+    (`deterministic_offset`)."""
     cands = propose(ctx.y, ctx.layout, ref, z, card, ctx.restarts)
     if np.any(np.abs(z["allan"]) > 3.0) or np.any(np.abs(z["psd"]) > 3.0):
         for agm in (False, True):   # the fallback: tried when no single effect (or pair) will do
@@ -557,7 +590,8 @@ def _candidates(ctx, card, ref, z, it):
     return cands
 
 
-def _simulate_candidate(ctx, c, text, ref, z, limitations):
+def _simulate_candidate(ctx: _Pass, c: Candidate, text: str, ref: Reference, z: Mapping[str, np.ndarray],
+                        limitations: list[str]) -> None:
     """Write candidate ``c`` into the card ``text`` and evaluate it by re-simulation (native
     engine): sets ``c.text``, ``c.z``, ``c.components``, ``c.gap``, ``c.widen``; a candidate
     that would write a term as 0, that the card cannot hold at the record's rate or whose gap
@@ -584,26 +618,28 @@ def _simulate_candidate(ctx, c, text, ref, z, limitations):
         c.z = None
 
 
-def _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold):
+def _choose(ctx: _Pass, text: str, ref: Reference, z: Mapping[str, np.ndarray], g: float, it: dict[str, Any], limitations: list[str],
+            threshold: float, comp_threshold: Mapping[str, float]) -> Candidate | None:
     """The candidate accepted in this iteration, or None: every candidate simulated and
-    scored (:func:`robust_gap` over the points some candidate explains, plus
-    :func:`widening`, penalised per parameter), then the acceptance rules in turn:
+    scored (`robust_gap` over the points some candidate explains, plus
+    `widening`, penalised per parameter), then the acceptance rules in turn:
     a score below MIN_IMPROVEMENT x the card's, a pair of candidates
-    (:func:`_best_pair`), the joint re-fit (:func:`_with_fallback`), a 4x smaller plain
-    gap (:func:`_on_plain_gap`), and the card brought within the scatter
-    (:func:`_within_scatter`). Records the candidates in ``it``."""
+    (`_best_pair`), the joint re-fit (`_with_fallback`), a 4x smaller plain
+    gap (`_on_plain_gap`), and the card brought within the scatter
+    (`_within_scatter`). Records the candidates in ``it``."""
     cands = _candidates(ctx, card_at_rate(text, ctx.fs, ctx.csrc), ref, z, it)
     for c in cands:
         _simulate_candidate(ctx, c, text, ref, z, limitations)
     ok = [c for c in cands if c.z is not None]
-    mask = explainable([z] + [c.z for c in ok])
-    for c in ok:
-        c.robust = robust_gap(c.z, mask)
+    zs = [c.z for c in ok if c.z is not None]
+    mask = explainable([z, *zs])
+    for c, cz in zip(ok, zs):
+        c.robust = robust_gap(cz, mask)
         c.score = _score(c)
     ok = [c for c in ok if math.isfinite(c.score)]      # never accept a non-finite score
     it["candidates"] = [c.to_json() for c in cands]
-    fallback = [c for c in ok if getattr(c, "fallback", False)]
-    ok = [c for c in ok if not getattr(c, "fallback", False)]
+    fallback = [c for c in ok if c.fallback]
+    ok = [c for c in ok if not c.fallback]
     best = min(ok, key=lambda c: c.score) if ok else None
     rg = robust_gap(z, mask)
     it["unexplained_points"] = {c_: int(np.sum(~mask[c_])) for c_ in COMPONENTS}
@@ -619,7 +655,8 @@ def _choose(ctx, text, ref, z, g, it, limitations, threshold, comp_threshold):
     return best if accepted else None
 
 
-def _best_pair(ctx, ok, best, ref, z, mask, it):
+def _best_pair(ctx: _Pass, ok: list[Candidate], best: Candidate, ref: Reference, z: Mapping[str, np.ndarray], mask: Mapping[str, np.ndarray],
+               it: dict[str, Any]) -> Candidate:
     """No single effect shrinks the gap significantly: look one step ahead, pairs of the
     three best-scoring candidates (two effects that only together explain a signature,
     e.g. a bias and a ramp that offset each other's mean). The best pair replaces
@@ -648,7 +685,8 @@ def _best_pair(ctx, ok, best, ref, z, mask, it):
     return bp if bp is not None and bp.score < MIN_IMPROVEMENT * best.score else best
 
 
-def _with_fallback(fallback, best, ok, g, rg):
+def _with_fallback(fallback: list[Candidate], best: Candidate | None, ok: list[Candidate], g: float,
+                   rg: float) -> tuple[Candidate | None, list[Candidate]]:
     """The joint re-fit (with or without angle Gauss-Markov terms) when no candidate is
     accepted on its score: it replaces ``best`` when it scores better or brings the
     plain gap to a quarter, and it is accepted when it halves the plain gap
@@ -665,7 +703,7 @@ def _with_fallback(fallback, best, ok, g, rg):
     return best, ok
 
 
-def _on_plain_gap(ok, best, g, rg):
+def _on_plain_gap(ok: list[Candidate], best: Candidate | None, g: float, rg: float) -> Candidate | None:
     """Every capped point stays capped (|z| > 5 everywhere, e.g. a card far from a long
     real record): the capped score cannot see progress; the candidate that shrinks the
     plain gap most, by at least 4x, is taken when it is no worse capped."""
@@ -678,15 +716,17 @@ def _on_plain_gap(ok, best, g, rg):
     return best
 
 
-def _within_scatter(cands, best, g, rg, threshold, comp_threshold):
+def _within_scatter(cands: list[Candidate], best: Candidate | None, g: float, rg: float, threshold: float,
+                    comp_threshold: Mapping[str, float]) -> tuple[Candidate | None, bool]:
     """The loop's own stop test: a candidate that brings the card within the scatter (its
     gap and every component below their thresholds), no worse capped with the widening
     charged, is accepted although its score gains less than the rule asks. Not applied
-    while the top of the band still disagrees in the first pass (:func:`_choose`): that
-    band is taken out next (:func:`gap`), and the card is judged without it. Returns
+    while the top of the band still disagrees in the first pass (`_choose`): that
+    band is taken out next (`gap`), and the card is judged without it. Returns
     (best, accepted)."""
     inside = [c for c in {id(c): c for c in cands}.values()
-              if c.gap <= threshold and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
+              if c.gap <= threshold and c.components is not None
+              and all(c.components[k] <= comp_threshold[k] for k in COMPONENTS)
               and c.robust + c.widen <= rg]
     if not inside:
         return best, False
@@ -695,12 +735,12 @@ def _within_scatter(cands, best, g, rg, threshold, comp_threshold):
     return best, True
 
 
-def white_level_factor(y, fs, card, bands=()):
+def white_level_factor(y: np.ndarray, fs: float, card: ModelCard, bands: Sequence[tuple[float, float]] = ()) -> float:
     """The factor ``s`` by which the card's white noise (N and the Gauss-Markov terms
     with tau < 2 samples, which act as white noise) would be scaled to fit record ``y``,
     every other term held: weighted least squares (``s^2 >= 0``) of the record's Allan
     variance at the octave taus, through the stop bands, on the exact columns of
-    :mod:`.spectral`, with the analytic 1-sigma of one record as the weights."""
+    `spectral`, with the analytic 1-sigma of one record as the weights."""
     from gyrodenoise.modelgap.metric import _floors
     from gyrodenoise.modelgap.spectral import allan_columns, stochastic_specs
     layout = Layout.for_record(len(y), fs)
@@ -718,22 +758,23 @@ def white_level_factor(y, fs, card, bands=()):
     return math.sqrt(max(s2, 0.0))
 
 
-def _acts_as_white(name, tau_s, fs):
+def _acts_as_white(name: str, tau_s: float | None, fs: float) -> bool:
     """N, and a Gauss-Markov term shorter than 2 samples: the terms that act as white noise."""
-    return name == "angle_random_walk" or (name == "gauss_markov" and tau_s < 2.0 / fs)
+    return name == "angle_random_walk" or (name == "gauss_markov" and tau_s is not None and tau_s < 2.0 / fs)
 
 
-def _scale_white(text, card, s, fs, note):
-    """The card text with its white noise (see :func:`white_level_factor`) scaled by ``s``."""
+def _scale_white(text: str, card: ModelCard, s: float, fs: float, note: str) -> str:
+    """The card text with its white noise (see `white_level_factor`) scaled by ``s``."""
     from gyrodenoise.modelgap.population import noise_terms, with_magnitudes
     terms = noise_terms(card)
     factors = [s if _acts_as_white(nm, p.get("tau", 0.0), fs) else 1.0 for nm, _, p in terms]
     return with_magnitudes(text, card, factors, [p.get("spread") for _, _, p in terms], note)
 
 
-def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
+def _heldout_population(y: np.ndarray, fs: float, text: str, bands: Sequence[tuple[float, float]], seed_list: list[int], n_train: int,
+                        source: str) -> GapResult:
     """One evaluation of record ``y`` (no fitting) against a reference whose simulation ``j``
-    is card ``j`` of :func:`.population.bootstrap_cards` (the card re-estimated on a simulated
+    is card ``j`` of `population.bootstrap_cards` (the card re-estimated on a simulated
     training record of ``n_train`` samples) simulated with seed ``j``: a prediction interval."""
     from gyrodenoise.modelgap.effects import name_effects
     from gyrodenoise.modelgap.population import bootstrap_cards, relative_error
@@ -759,19 +800,22 @@ def _heldout_population(y, fs, text, bands, seed_list, n_train, source):
     return res
 
 
-def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, refit_bias=True,
-                source="HELD-OUT", outliers=False, refit_white=False, card_error=False, n_train=None):
+def heldout_gap(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, card_text: str,
+                stop_bands: Sequence[Sequence[float]] | None = (),
+                seeds: int | Sequence[int] = 4, refit_bias: bool = True, source: str = "HELD-OUT",
+                outliers: bool = False, refit_white: bool = False, card_error: bool = False,
+                n_train: int | None = None) -> GapResult:
     """The gap of an already fitted card on ANOTHER record of the same sensor (nothing added).
 
     With ``refit_bias`` the card's constant bias is first set to this record's mean:
     a turn-on bias differs from run to run (its spread is the term's
     ``repeatability``), the card's noise is what is checked. The same stop bands
-    as in the fit. Returns the :class:`GapResult` of that single evaluation
+    as in the fit. Returns the `GapResult` of that single evaluation
     (``within_scatter``, ``gap_after``, ``threshold``).
 
     ``refit_white`` (an option, NOT the default held-out check): the card's white-noise
     level is also re-fitted to this record, every other term held
-    (:func:`white_level_factor`; N and the Gauss-Markov terms shorter than 2 samples
+    (`white_level_factor`; N and the Gauss-Markov terms shorter than 2 samples
     scaled by one factor, reported in ``named``). This checks the card's SHAPE - its
     correlated terms, filter, bands - on a run whose white-noise level differs (a
     sensor's ARW varies from run to run and unit to unit, like its turn-on bias); it
@@ -779,13 +823,13 @@ def heldout_gap(rate_deg_s, sample_rate_hz, card_text, stop_bands=(), seeds=4, r
     the held-out record.
 
     ``card_error`` (an option, NOT the default): the reference is a prediction interval
-    that includes the card's own estimation error (:func:`_heldout_population`): simulation
+    that includes the card's own estimation error (`_heldout_population`): simulation
     ``j`` comes from the card re-estimated on a simulated training record of ``n_train``
     samples (default: as long as this record; give the length of the record the card was
     fitted on). Nothing is fitted to the held-out record (but its bias, as above).
 
     The card's ``spread`` fields (relative 1-sigma of a term's magnitude between units,
-    :mod:`.population`), when it has them, are drawn per simulation in every case: the
+    `population`), when it has them, are drawn per simulation in every case: the
     reference is then the population of units, not one unit. The default held-out check
     (no option) is the plain one: the card as written, S seeded simulations."""
     from gyrodenoise.simulator import parse_card
