@@ -49,6 +49,8 @@ class CaseResult:
     angle_motion: dict
     angle_best_causal: dict
     seconds: float  # wall time of this run (generation, tuning, both forms of the filter)
+    sensor: dict  # the drawn sensor's parameters
+    earth_rate_dps: float
 
     @property
     def vs_best_causal(self) -> float:
@@ -88,6 +90,7 @@ def run_case(seed: int) -> CaseResult:
         angle_motion={w: angle_error_rms(motion, truth, fs, w) for w in ANGLE_WINDOWS_S},
         angle_best_causal={w: angle_error_rms(causal.estimate, truth, fs, w) for w in ANGLE_WINDOWS_S},
         seconds=time.perf_counter() - t0,
+        sensor=asdict(case.sensor), earth_rate_dps=case.earth_rate_dps,
     )
 
 
