@@ -151,17 +151,19 @@ class Tuned:
     estimate: np.ndarray
 
 
-def tune(family: Family, raw: np.ndarray, truth: np.ndarray, fs: float) -> Tuned:
-    """The member of ``family``'s grid with the lowest RMSE against ``truth`` on this record."""
+def tune(family: Family, raw: np.ndarray, truth: np.ndarray, fs: float, score_from: int = 0) -> Tuned:
+    """The member of ``family``'s grid with the lowest RMSE against ``truth`` on this record
+    (scored from sample ``score_from`` on; every member still runs from the first sample)."""
     best = None
     for params in family.grid(fs):
         est = family.apply(raw, fs, **params)
-        e = rmse(est, truth)
+        e = rmse(est[score_from:], truth[score_from:])
         if best is None or e < best.rmse:
             best = Tuned(family.name, params, e, est)
     return best
 
 
-def best_tuned(families: tuple[Family, ...], raw: np.ndarray, truth: np.ndarray, fs: float) -> Tuned:
+def best_tuned(families: tuple[Family, ...], raw: np.ndarray, truth: np.ndarray, fs: float,
+               score_from: int = 0) -> Tuned:
     """The best member of all ``families`` on this record (``CAUSAL_FAMILIES``, ``ZERO_PHASE_FAMILIES``)."""
-    return min((tune(f, raw, truth, fs) for f in families), key=lambda t: t.rmse)
+    return min((tune(f, raw, truth, fs, score_from) for f in families), key=lambda t: t.rmse)
