@@ -128,3 +128,24 @@ def test_tuning_picks_the_grid_minimum_and_is_never_worse_than_raw():
     bw = baselines.tune(baselines.CAUSAL_FAMILIES[0], case.raw, case.truth, case.fs)
     for params in baselines.butterworth_grid(case.fs)[::5]:
         assert bw.rmse <= baselines.rmse(baselines.butterworth_causal(case.raw, case.fs, **params), case.truth)
+
+
+def test_the_constant_velocity_kalman_matches_filterpy():
+    """An independent reference: filterpy's KalmanFilter with the same model, the same start."""
+    kalman = pytest.importorskip("filterpy.kalman")
+    fs, q_over_r = 200.0, 50.0
+    dt = 1 / fs
+    z = np.cumsum(np.random.default_rng(3).normal(size=600)) * 0.05 + np.random.default_rng(4).normal(size=600)
+    kf = kalman.KalmanFilter(dim_x=2, dim_z=1)
+    kf.F = np.array([[1.0, dt], [0.0, 1.0]])
+    kf.H = np.array([[1.0, 0.0]])
+    kf.R = np.array([[1.0]])
+    kf.Q = q_over_r * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
+    kf.x = np.array([[z[0]], [0.0]])
+    kf.P = np.diag([1.0, 1e12])
+    expected = [z[0]]
+    for zk in z[1:]:
+        kf.predict()
+        kf.update(zk)
+        expected.append(kf.x[0, 0])
+    np.testing.assert_allclose(baselines.cv_kalman(z, fs, q_over_r), expected, rtol=1e-9, atol=1e-9)
