@@ -19,6 +19,8 @@ import numba
 import numpy as np
 from scipy.signal import butter, sosfilt, sosfilt_zi, sosfiltfilt
 
+from benchmarks.heldout.metrics import rmse
+
 N_CUTOFFS = 24
 ORDERS = (1, 2, 3, 4)
 
@@ -26,10 +28,6 @@ ORDERS = (1, 2, 3, 4)
 def cutoff_grid(fs: float, n: int = N_CUTOFFS) -> np.ndarray:
     """Cutoffs from 0.05 Hz to 0.45 fs, log-spaced, Hz."""
     return np.geomspace(0.05, 0.45 * fs, n)
-
-
-def rmse(estimate: np.ndarray, truth: np.ndarray) -> float:
-    return float(np.sqrt(np.mean((estimate - truth) ** 2)))
 
 
 def butterworth_causal(x: np.ndarray, fs: float, order: int, cutoff_hz: float) -> np.ndarray:
@@ -147,23 +145,27 @@ ZERO_PHASE_FAMILIES = (
 class Tuned:
     family: str
     params: dict
-    rmse: float
+    score: float  # the lowest score on the grid (an RMSE or an angle error against the truth)
     estimate: np.ndarray
 
 
-def tune(family: Family, raw: np.ndarray, truth: np.ndarray, fs: float, score_from: int = 0) -> Tuned:
-    """The member of ``family``'s grid with the lowest RMSE against ``truth`` on this record
-    (scored from sample ``score_from`` on; every member still runs from the first sample)."""
-    best = None
-    for params in family.grid(fs):
-        est = family.apply(raw, fs, **params)
-        e = rmse(est[score_from:], truth[score_from:])
-        if best is None or e < best.rmse:
-            best = Tuned(family.name, params, e, est)
+Score = Callable[[np.ndarray], float]
+
+
+def best_tuned_each(families: tuple[Family, ...], raw: np.ndarray, fs: float, scores: list[Score]) -> list[Tuned]:
+    """For each score (an oracle: it knows the truth), the member of all ``families``' grids with
+    the lowest score on this record; every member runs once and is scored by all."""
+    best: list[Tuned | None] = [None] * len(scores)
+    for family in families:
+        for params in family.grid(fs):
+            est = family.apply(raw, fs, **params)
+            for i, score in enumerate(scores):
+                value = score(est)
+                if best[i] is None or value < best[i].score:
+                    best[i] = Tuned(family.name, params, value, est)
     return best
 
 
-def best_tuned(families: tuple[Family, ...], raw: np.ndarray, truth: np.ndarray, fs: float,
-               score_from: int = 0) -> Tuned:
-    """The best member of all ``families`` on this record (``CAUSAL_FAMILIES``, ``ZERO_PHASE_FAMILIES``)."""
-    return min((tune(f, raw, truth, fs, score_from) for f in families), key=lambda t: t.rmse)
+def best_tuned(families: tuple[Family, ...], raw: np.ndarray, truth: np.ndarray, fs: float) -> Tuned:
+    """The member of all ``families`` with the lowest RMSE on this record (``CAUSAL_FAMILIES``, ...)."""
+    return best_tuned_each(families, raw, fs, [lambda est: rmse(est, truth)])[0]

@@ -9,6 +9,7 @@ import pytest
 
 from benchmarks.heldout import baselines
 from benchmarks.heldout.cases import DURATION_S, MAX_SAMPLES, SEED_SETS, make_case
+from benchmarks.heldout.metrics import angle_error_rms, rmse
 from benchmarks.heldout.motions import EARTH_RATE_DPS, PROFILE_BY_NAME
 from benchmarks.heldout.sensors import (
     GM_FACTOR, GRADE_BY_NAME, GRADES, WARMUP_TAU_S, analytic_avar, draw_sensor, stochastic_error, white_noise)
@@ -123,11 +124,23 @@ def test_the_zero_phase_baseline_is_not_causal():
 def test_tuning_picks_the_grid_minimum_and_is_never_worse_than_raw():
     case = make_case(2)
     best = baselines.best_tuned(baselines.CAUSAL_FAMILIES, case.raw, case.truth, case.fs)
-    assert best.rmse <= baselines.rmse(case.raw, case.truth)
-    assert best.rmse == pytest.approx(baselines.rmse(best.estimate, case.truth))
-    bw = baselines.tune(baselines.CAUSAL_FAMILIES[0], case.raw, case.truth, case.fs)
+    assert best.score <= rmse(case.raw, case.truth)
+    assert best.score == pytest.approx(rmse(best.estimate, case.truth))
     for params in baselines.butterworth_grid(case.fs)[::5]:
-        assert bw.rmse <= baselines.rmse(baselines.butterworth_causal(case.raw, case.fs, **params), case.truth)
+        assert best.score <= rmse(baselines.butterworth_causal(case.raw, case.fs, **params), case.truth)
+    # one pass, several scores: each the minimum of its own
+    by_rmse, by_angle = baselines.best_tuned_each(
+        baselines.CAUSAL_FAMILIES, case.raw, case.fs,
+        [lambda e: rmse(e, case.truth), lambda e: angle_error_rms(e, case.truth, case.fs, 1.0)])
+    assert by_rmse.score == best.score
+    assert by_angle.score <= angle_error_rms(best.estimate, case.truth, case.fs, 1.0)
+    assert by_angle.score <= angle_error_rms(case.raw, case.truth, case.fs, 1.0)
+
+
+def test_the_angle_error_of_a_constant_rate_error():
+    """A rate error of 0.5 deg/s held over a 0.1 s window is 0.05 deg, in every window."""
+    truth = np.zeros(1000)
+    assert angle_error_rms(truth + 0.5, truth, 200.0, 0.1) == pytest.approx(0.05)
 
 
 def test_the_constant_velocity_kalman_matches_filterpy():
