@@ -16,7 +16,7 @@ from benchmarks.heldout.sensors import GRADES, Sensor, draw_sensor, measure
 
 SEED_SETS = {"dev": range(0, 100), "heldout": range(1000, 1100)}
 DURATION_S = Range(20.0, 60.0)
-MAX_SAMPLES = 120_000  # caps the record at high sample rates (8 kHz: 15 s)
+MAX_SAMPLES = 160_000  # caps the record at high sample rates (8 kHz: 20 s)
 
 
 @dataclass(frozen=True)
