@@ -333,7 +333,7 @@ def _is_target(vehicle_rate):
     return "desired" in str(vehicle_rate.get("name", "")).lower()
 
 
-def _time_figure(st, vehicle_rates, segments, title):
+def _time_figure(st, vehicle_rates, segments, title, axis="boot time [s]"):
     """Per axis raw (light, above) and filtered, the vehicle's own rate, restarts and
     the segments: one plotly figure, subplots sharing the time axis."""
     import plotly.graph_objects as go
@@ -346,7 +346,7 @@ def _time_figure(st, vehicle_rates, segments, title):
     axes = list(st.get("axes") or ["x", "y", "z"][:raw.shape[1]])
     unit = st.get("unit", "")
     restarts = _restart_mask(st.get("restarts"), len(t))
-    pt, xlabel = plot_time(t, restarts)
+    pt, xlabel = plot_time(t, restarts, axis)
     boot_time = pt is t or np.array_equal(pt, t)
     fig = make_subplots(rows=len(axes), cols=1, shared_xaxes=True, vertical_spacing=0.04)
     label = st.get("filtered_label") or "filtered"
@@ -704,7 +704,12 @@ def _is_slow_raw(st, stream_report):
     return st.get("filtered") is None and 0 < _stream_rate_hz(st, stream_report) <= SLOW_STREAM_HZ
 
 
-def _slow_figure(streams):
+def _axis(report):
+    """The x label of the log's time (its ``time_base``: boot time or a Unix epoch clock)."""
+    return (report.get("time_base") or {}).get("axis") or "boot time [s]"
+
+
+def _slow_figure(streams, axis="boot time [s]"):
     """The slow streams written raw in one figure: a subplot per axis, a line per stream."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
@@ -723,7 +728,7 @@ def _slow_figure(streams):
                                      hovertemplate=f"{_e(st['name'])} {axes[k]}: %{{y:.4g}} {_e(st.get('unit', ''))}"
                                                    f"<br>t=%{{x:.1f}} s<extra></extra>"), row=k + 1, col=1)
             fig.update_yaxes(title_text=f"{axes[k]} [{_e(st.get('unit', ''))}]", row=k + 1, col=1)
-    fig.update_xaxes(title_text="boot time [s]", row=3, col=1)
+    fig.update_xaxes(title_text=axis, row=3, col=1)
     fig.update_layout(title={"text": "slow streams, written raw (NOT FILTERED)", "font": {"size": 14},
                              "y": 0.995, "yanchor": "top"}, margin={"t": 70},
                       legend={"orientation": "h", "yanchor": "bottom", "y": 1.01, "x": 0})
@@ -741,14 +746,14 @@ def _streams_section(report, series, figs):
     if len(slow) > 1:
         out.append("<h3>Slow streams, written raw</h3>" + _note(
             "; ".join(f"{st['name']}: {st.get('raw_reason') or 'not filtered'}" for st in slow)))
-        out.append(figs.div(_slow_figure(slow), height=130 + 120 * 3))
+        out.append(figs.div(_slow_figure(slow, _axis(report)), height=130 + 120 * 3))
     for st in sts:
         if len(slow) > 1 and any(st is x for x in slow):
             continue
         title = f"{st['name']}: raw and {st.get('filtered_label') or 'filtered'}"
         if st.get("filtered") is None:
             title = f"{st['name']}: written raw (NOT FILTERED: {st.get('raw_reason') or 'no filtered output'})"
-        fig, note = _time_figure(st, vrates, report.get("segments"), title)
+        fig, note = _time_figure(st, vrates, report.get("segments"), title, _axis(report))
         out.append(f"<h3>{_e(st['name'])}</h3>")
         if note:
             out.append(_note(note))

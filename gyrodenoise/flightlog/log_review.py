@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.filter_review import filter_review, review_context
-from gyrodenoise.flightlog.logdata import log_messages
-from gyrodenoise.flightlog.parameters import log_parameters
-from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, session_starts, sessions_of
+from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, sessions_of
 from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
 from gyrodenoise.flightlog.vibration import vibration_review
 
@@ -32,9 +31,9 @@ OVER_FLYING, OVER_WHOLE = "flying", "whole log"
 
 class Review:
     """The review of a log: ``fields`` (the JSON-able report keys), ``plot`` (the
-    filter review's numpy arrays for plots, or None), ``over``, ``starts`` (the frame
-    indices where the log's boot sessions 1, 2, ... begin:
-    :func:`gyrodenoise.flightlog.segments.session_starts`) and :meth:`flying_mask`."""
+    filter review's numpy arrays for plots, or None), ``over``, ``starts`` (the
+    records where the log's boot sessions 1, 2, ... begin:
+    :meth:`gyrodenoise.flightlog.model.FlightLog.boot_starts`) and :meth:`flying_mask`."""
 
     def __init__(self, fields, plot, segments, over, starts=None):
         self.fields = fields
@@ -84,28 +83,41 @@ def _failed(part, exc):
     return f"{part} failed: {type(exc).__name__}: {exc}"
 
 
-def log_review(kind, source, streams, whole_log=False):
-    """The :class:`Review` of a log read by :func:`gyrodenoise.flightlog.formats.read_log`.
+def boots_fields(log, segments):
+    """The report's ``boots``: each boot of the log (:class:`~gyrodenoise.flightlog.model.Boot`)
+    with its time base, its segments and its flying time."""
+    out = []
+    for b in log.boots:
+        segs = [s for s in segments if s.get("session", 0) == b.index]
+        out.append({**b.to_fields(), "segments": segs, "flying_time_s": flying_time_s(segs)})
+    return out
 
-    ``fields``: ``segments``, ``segments_note``, ``flying_time_s``, ``over``,
+
+def log_review(log, whole_log=False):
+    """The :class:`Review` of a :class:`~gyrodenoise.flightlog.model.FlightLog`.
+
+    ``fields``: ``time_base``, ``boots`` (each boot: its time base, segments and flying
+    time), ``segments``, ``segments_note``, ``flying_time_s``, ``over``,
     ``over_note``, ``vehicle_filters`` (``autopilot`` ``"ardupilot"``/``"px4"``/None,
     ``parameters``, ``stages``; ``note`` when the log holds no parameters),
     ``stream_stages`` ({stream name: ``pre-filter``/``post-filter``/``unknown``}),
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
     ``vibration_note``)."""
-    fields = {}
-    param_notes = []
+    streams = log.gyro
+    fields = {"time_base": log.time_base.to_fields()}
     try:
-        autopilot, params = log_parameters(kind, source, param_notes)
-        if param_notes:
-            fields["parameters_note"] = "; ".join(param_notes)
+        got = log.parameters()
+        autopilot, params = got.autopilot, got.values
+        if got.notes:
+            fields["parameters_note"] = "; ".join(got.notes)
     except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
-        autopilot, params = None, {}
+        autopilot, params = UNKNOWN, {}
         fields["parameters_note"] = _failed("reading the parameters", exc)
     try:
-        segments, seg_note = flight_segments(kind, source, autopilot)
+        segments, seg_note = flight_segments(log, autopilot)
     except Exception as exc:  # noqa: BLE001
         segments, seg_note = [], _failed("flight segments", exc)
+    fields["boots"] = boots_fields(log, segments)
     fields["segments"] = segments
     fields["segments_note"] = seg_note
     fields["flying_time_s"] = flying_time_s(segments)
@@ -118,17 +130,15 @@ def log_review(kind, source, streams, whole_log=False):
         over, over_note = OVER_WHOLE, "no flying segment in the log: figures over the whole log"
     fields["over"] = over
     fields["over_note"] = over_note
-    try:
-        starts = session_starts(kind, source)
-    except Exception:  # noqa: BLE001 - without sessions the times alone select
-        starts = None
-    review = Review(fields, None, segments, over, starts)
+    review = Review(fields, None, segments, over, log.boot_starts())
 
     filters = vehicle_filters(autopilot, params)
     if not params:
         filters["note"] = "no parameters in the log: the vehicle's filters are not known"
     fields["vehicle_filters"] = filters
-    fields["stream_stages"] = {s.name: stream_stage(autopilot, params, s) for s in streams}
+    for s in streams:
+        s.stage = stream_stage(autopilot, params, s)
+    fields["stream_stages"] = {s.name: s.stage for s in streams}
 
     mask_fn = review.flying_mask if over == OVER_FLYING else None
     idle = never_armed_note(segments)
@@ -136,7 +146,7 @@ def log_review(kind, source, streams, whole_log=False):
         rev, note = None, idle
     else:
         try:
-            ctx = review_context(kind, source, autopilot, params, filters, mask_fn)
+            ctx = review_context(log, autopilot, params, filters, mask_fn)
             fft = ctx.get("gyro_fft")
             if fft and fft.get("sample_rate_hz"):          # PX4: the raw gyro rate, measured on board
                 filters["filter_rate_hz"] = fft["sample_rate_hz"]
@@ -149,8 +159,7 @@ def log_review(kind, source, streams, whole_log=False):
     fields["filter_review"] = rev
     fields["filter_review_note"] = note
     try:
-        vib, vnote = vibration_review(kind, source, segments, over="whole" if over == OVER_WHOLE else "flying",
-                                      starts=review.starts)
+        vib, vnote = vibration_review(log, segments, over="whole" if over == OVER_WHOLE else "flying")
     except Exception as exc:  # noqa: BLE001
         vib, vnote = None, _failed("vibration review", exc)
     fields["vibration"] = vib
@@ -184,38 +193,47 @@ def rate_scale(time_s, rate, streams):
     return 0.01 if CDEG_RATIO_RANGE[0] < num / den < CDEG_RATIO_RANGE[1] else 1.0
 
 
-def vehicle_rate_series(kind, source, autopilot, streams=()):
+def vehicle_rate_series(log, streams=()):
     """The vehicle's own body-rate estimate for the HTML report, ``[{"name", "time_s",
-    "rate": (m, 3) deg/s, "unit"}]``: ArduPilot ``RATE`` (``R``, ``P``, ``Y``: the rate
-    controller's measured roll/pitch/yaw rates, deg/s in ArduCopter 4.x, centidegrees/s
-    in 3.x, told by :func:`rate_scale` against the gyro ``streams``; ``RDes``/``PDes``/
-    ``YDes`` its targets, a second entry), PX4 ``vehicle_angular_velocity.xyz[0..2]``
-    (rad/s, converted); empty when the log has none."""
-    out = []
+    "rate": (m, 3) deg/s, "unit"}]`` (the format adapter's ``vehicle_rate``: ArduPilot
+    :func:`dataflash_rate_series`, PX4 :func:`ulog_rate_series`); empty when the log
+    has none."""
     try:
-        if kind == "dataflash":
-            m = log_messages(kind, source, "RATE")
-            scale = None
-            for name, cols in (("RATE (R, P, Y)", ("R", "P", "Y")), ("RATE desired (RDes, PDes, YDes)",
-                                                                    ("RDes", "PDes", "YDes"))):
-                if m is not None and all(c in m for c in cols) and len(m["time_s"]):
-                    t = np.asarray(m["time_s"], dtype=np.float64)
-                    rate = np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])
-                    if scale is None:                 # from the measured rates, for both entries
-                        scale = rate_scale(t, rate, streams)
-                    if scale != 1.0:
-                        name += ", logged in cdeg/s"
-                    out.append({"name": name, "time_s": t, "rate": rate * scale, "unit": "deg/s"})
-        elif kind == "ulog":
-            m = log_messages(kind, source, "vehicle_angular_velocity")
-            cols = ("xyz[0]", "xyz[1]", "xyz[2]")
-            if m is not None and all(c in m for c in cols) and len(m["time_s"]):
-                out.append({"name": "vehicle_angular_velocity", "time_s": np.asarray(m["time_s"], dtype=np.float64),
-                            "rate": np.degrees(np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])),
-                            "unit": "deg/s"})
+        return log.format.vehicle_rate(log, streams)
     except Exception:  # noqa: BLE001 - a plot's extra line, never a reason to fail a log
         return []
+
+
+def dataflash_rate_series(log, streams):
+    """ArduPilot ``RATE`` (``R``, ``P``, ``Y``: the rate controller's measured
+    roll/pitch/yaw rates, deg/s in ArduCopter 4.x, centidegrees/s in 3.x, told by
+    :func:`rate_scale` against the gyro ``streams``; ``RDes``/``PDes``/``YDes`` its
+    targets, a second entry)."""
+    out = []
+    m = log.messages("RATE")
+    scale = None
+    for name, cols in (("RATE (R, P, Y)", ("R", "P", "Y")), ("RATE desired (RDes, PDes, YDes)",
+                                                            ("RDes", "PDes", "YDes"))):
+        if m is not None and all(c in m for c in cols) and len(m["time_s"]):
+            t = np.asarray(m["time_s"], dtype=np.float64)
+            rate = np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])
+            if scale is None:                 # from the measured rates, for both entries
+                scale = rate_scale(t, rate, streams)
+            if scale != 1.0:
+                name += ", logged in cdeg/s"
+            out.append({"name": name, "time_s": t, "rate": rate * scale, "unit": "deg/s"})
     return out
+
+
+def ulog_rate_series(log):
+    """PX4 ``vehicle_angular_velocity.xyz[0..2]`` (rad/s, converted to deg/s)."""
+    m = log.messages("vehicle_angular_velocity")
+    cols = ("xyz[0]", "xyz[1]", "xyz[2]")
+    if m is None or not all(c in m for c in cols) or not len(m["time_s"]):
+        return []
+    return [{"name": "vehicle_angular_velocity", "time_s": np.asarray(m["time_s"], dtype=np.float64),
+             "rate": np.degrees(np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])),
+             "unit": "deg/s"}]
 
 
 def review_text(rep):

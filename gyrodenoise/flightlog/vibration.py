@@ -41,8 +41,7 @@ import re
 import numpy as np
 
 from gyrodenoise.analysis.spectrum import find_peaks, welch_psd
-from gyrodenoise.flightlog.logdata import log_messages
-from gyrodenoise.flightlog.segments import segment_mask, sessions_of
+from gyrodenoise.flightlog.segments import segment_mask
 
 ARDUPILOT_VIBE_URL = "https://ardupilot.org/copter/docs/common-measuring-vibration.html"
 FLIGHT_REVIEW_URL = "https://github.com/PX4/flight_review/blob/main/app/plot_app/configured_plots.py"
@@ -66,11 +65,6 @@ THRESHOLDS = {
     },
 }
 VERDICTS = ("pass", "warn", "fail")
-LOOKED_FOR = {
-    "dataflash": "VIBE (VibeX/Y/Z, Clip), IMU AccX/AccY/AccZ",
-    "tlog": "VIBRATION (vibration_x/y/z, clipping_0..2)",
-    "ulog": "vehicle_imu_status (accel_vibration_metric...), sensor_combined.accelerometer_m_s2",
-}
 MAX_PEAKS = 3
 PEAK_MIN_FREQ_HZ = 5.0
 #: the accelerometer's band rms runs from here to the stream's Nyquist frequency (Hz) ...
@@ -85,7 +79,7 @@ LEVEL_UNITS = {"VibeX": "m/s/s", "VibeY": "m/s/s", "VibeZ": "m/s/s", "vibration_
                "gyro_vibration_metric": "rad/s", "delta_angle_coning_metric": "rad^2"}
 
 
-def vibration_review(kind, source, segments, over="flying", starts=None):
+def vibration_review(log, segments, over="flying"):
     """(result, note) of the vibration figures of a log read by
     :func:`gyrodenoise.flightlog.formats.read_log`, over the ``flying`` segments of
     ``segments`` (:func:`gyrodenoise.flightlog.segments.flight_segments`) or, with
@@ -94,19 +88,18 @@ def vibration_review(kind, source, segments, over="flying", starts=None):
     ``result``: ``{"source", "over": "flying"|"whole log", "thresholds", "segments":
     [{"kind", "start_s", "end_s", "figures": {...}, "accel_peaks": [...],
     "verdict"}], "verdict"}`` (JSON-able; see the module doc), or None when the log has
-    none of the sources, with a note naming what was looked for. ``starts``: the
-    frame indices where a telemetry log's boot sessions 1, 2, ... begin
-    (:func:`gyrodenoise.flightlog.segments.session_starts`): a sample is in a segment
-    when its boot session is the segment's ``session`` too."""
+    none of the sources, with a note naming what was looked for. In a log of several
+    boots a sample is in a segment when its boot is the segment's ``session`` too."""
     if over not in ("flying", "whole"):
         raise ValueError(f"over must be 'flying' or 'whole', not {over!r}")
-    levels = _levels(kind, source)
-    accel = _accel(kind, source)
-    if levels is not None:
-        levels["session"] = (sessions_of(levels["record"], starts) if starts is not None and len(starts)
-                             and "record" in levels else None)
+    levels = log.format.vibration_levels(log)
+    accel = log.format.accelerometer(log)
+    for src in (levels, accel):
+        if src is not None:
+            src["session"] = (log.boot_of(src["record"]) if len(log.boots) > 1 and src.get("record") is not None
+                              else None)
     if levels is None and accel is None:
-        return None, f"no vibration data in the log (looked for {LOOKED_FOR[kind]})"
+        return None, f"no vibration data in the log (looked for {log.format.vibration_looked_for})"
     times = [x["time_s"] for x in ([levels] if levels else []) + ([accel] if accel else [])]
     t_all = np.concatenate(times)
     t_all = t_all[np.isfinite(t_all)]
@@ -149,29 +142,35 @@ def vibration_review(kind, source, segments, over="flying", starts=None):
 
 
 # ------------------------------------------------------------------- sources
-def _levels(kind, source):
-    """{"source", "threshold", "time_s", "instance", "levels": {name: column},
-    "clips": {name: cumulative column}} or None."""
-    if kind == "dataflash":
-        m = log_messages(kind, source, "VIBE")
-        if m is None:
-            return None
-        inst = m["IMU"].astype(np.int64) if "IMU" in m else np.zeros(len(m["time_s"]), np.int64)
-        return {"source": "VIBE", "threshold": "vibe_m_s2", "time_s": m["time_s"], "instance": inst,
-                "levels": {c: m[c] for c in ("VibeX", "VibeY", "VibeZ") if c in m},
-                "clips": {c: m[c] for c in m if re.fullmatch(r"Clip\d?", c)}}
-    if kind == "tlog":
-        m = log_messages(kind, source, "VIBRATION")
-        if m is None:
-            return None
-        return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
-                "instance": np.zeros(len(m["time_s"]), np.int64),
-                "levels": {c: m[c] for c in ("vibration_x", "vibration_y", "vibration_z")},
-                "clips": {c: m[c] for c in ("clipping_0", "clipping_1", "clipping_2")}}
+# The sources, one reader per format (the format adapters' ``vibration_levels`` and
+# ``accelerometer``): levels {"source", "threshold", "time_s", "record" (or None),
+# "instance", "levels": {name: column}, "clips": {name: cumulative column}};
+# accelerometer {"source", "time_s", "record", "xyz": (n, 3)}; or None.
+def dataflash_levels(log):
+    m = log.messages("VIBE")
+    if m is None:
+        return None
+    inst = m["IMU"].astype(np.int64) if "IMU" in m else np.zeros(len(m["time_s"]), np.int64)
+    return {"source": "VIBE", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
+            "instance": inst, "levels": {c: m[c] for c in ("VibeX", "VibeY", "VibeZ") if c in m},
+            "clips": {c: m[c] for c in m if re.fullmatch(r"Clip\d?", c)}}
+
+
+def tlog_levels(log):
+    m = log.messages("VIBRATION")
+    if m is None:
+        return None
+    return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
+            "instance": np.zeros(len(m["time_s"]), np.int64),
+            "levels": {c: m[c] for c in ("vibration_x", "vibration_y", "vibration_z")},
+            "clips": {c: m[c] for c in ("clipping_0", "clipping_1", "clipping_2")}}
+
+
+def ulog_levels(log):
     parts = []
     k = 0
     while True:
-        m = log_messages(kind, source, "vehicle_imu_status" + (f"[{k}]" if k else ""))
+        m = log.messages("vehicle_imu_status" + (f"[{k}]" if k else ""))
         if m is None or "accel_vibration_metric" not in m:
             break
         parts.append(m)
@@ -187,23 +186,22 @@ def _levels(kind, source):
             "clips": {c: cat[c] for c in cat if c.startswith("accel_clipping[")}}
 
 
-def _accel(kind, source):
-    """{"source", "time_s", "xyz": (n, 3)} of the first accelerometer, or None."""
-    if kind == "dataflash":
-        m = log_messages(kind, source, "IMU")
-        if m is None or not all(c in m for c in ("AccX", "AccY", "AccZ")):
-            return None
-        sel = m["I"] == 0 if "I" in m else np.ones(len(m["time_s"]), bool)
-        return {"source": "IMU.AccX/AccY/AccZ", "time_s": m["time_s"][sel],
-                "xyz": np.stack([m[c][sel] for c in ("AccX", "AccY", "AccZ")], 1).astype(np.float64)}
-    if kind == "ulog":
-        m = log_messages(kind, source, "sensor_combined")
-        cols = [f"accelerometer_m_s2[{i}]" for i in range(3)]
-        if m is None or not all(c in m for c in cols):
-            return None
-        return {"source": "sensor_combined.accelerometer_m_s2", "time_s": m["time_s"],
-                "xyz": np.stack([m[c] for c in cols], 1).astype(np.float64)}
-    return None
+def dataflash_accel(log):
+    m = log.messages("IMU")
+    if m is None or not all(c in m for c in ("AccX", "AccY", "AccZ")):
+        return None
+    sel = m["I"] == 0 if "I" in m else np.ones(len(m["time_s"]), bool)
+    return {"source": "IMU.AccX/AccY/AccZ", "time_s": m["time_s"][sel], "record": m["record"][sel],
+            "xyz": np.stack([m[c][sel] for c in ("AccX", "AccY", "AccZ")], 1).astype(np.float64)}
+
+
+def ulog_accel(log):
+    m = log.messages("sensor_combined")
+    cols = [f"accelerometer_m_s2[{i}]" for i in range(3)]
+    if m is None or not all(c in m for c in cols):
+        return None
+    return {"source": "sensor_combined.accelerometer_m_s2", "time_s": m["time_s"], "record": None,
+            "xyz": np.stack([m[c] for c in cols], 1).astype(np.float64)}
 
 
 # ------------------------------------------------------------------- figures
@@ -274,7 +272,7 @@ def _accel_figures(acc, seg):
     mean/p95/max over the windows; no threshold, no verdict. {} when the segment holds
     no whole window."""
     t = acc["time_s"]
-    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    sel = np.flatnonzero(_in(t, seg, acc.get("session")) & np.isfinite(t))
     if len(sel) < 8:
         return {}
     ts = t[sel]
@@ -313,7 +311,7 @@ def _segment_peaks(acc, seg):
     """Dominant peaks of the summed x+y+z accelerometer PSD over the segment
     (strongest first), or [] when the segment is too short for a spectrum."""
     t = acc["time_s"]
-    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    sel = np.flatnonzero(_in(t, seg, acc.get("session")) & np.isfinite(t))
     if len(sel) < 64:
         return []
     ts = t[sel]

@@ -154,14 +154,14 @@ def real_log_report(log_path, out_dir):
     from gyrodenoise.core.kernels import DEFAULT_METHOD
     from gyrodenoise.flightlog.engines import make_engine
     from gyrodenoise.flightlog.filtering import filter_streams
-    from gyrodenoise.flightlog.formats import log_kind, read_log
+    from gyrodenoise.flightlog.formats import read_log
     from gyrodenoise.flightlog.html_report import series_of_streams
     from gyrodenoise.flightlog.output import joined_time
     from gyrodenoise.flightlog.pipeline import process_log
     from gyrodenoise.flightlog.spectra import stream_spectrum
     from gyrodenoise.flightlog.checks import usable_samples
     rep = process_log(log_path, out_dir, plots=False, csv=False)
-    streams, _, _ = read_log(Path(log_path), log_kind(Path(log_path)))
+    streams = read_log(Path(log_path)).gyro
     eng = make_engine("native", DEFAULT_METHOD, offline=True)
     try:
         filter_streams(streams, eng, 5.0)

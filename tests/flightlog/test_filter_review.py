@@ -83,9 +83,9 @@ def test_synthetic_tone_found_notched_and_predicted():
 
 def test_flying_mask_and_its_fallback():
     s = _batch_stream()
-    review, _ = _review([s], flying_mask_fn=lambda t: t >= 30.0)
+    review, _ = _review([s], flying_mask_fn=lambda t, records=None: t >= 30.0)
     assert review["source"]["over"] == "flying"
-    review, _ = _review([s], flying_mask_fn=lambda t: np.zeros(len(t), dtype=bool))
+    review, _ = _review([s], flying_mask_fn=lambda t, records=None: np.zeros(len(t), dtype=bool))
     assert review["source"]["over"] == "whole log"
 
 
@@ -112,13 +112,11 @@ def test_param_lines():
 
 @functools.lru_cache(maxsize=8)
 def _real(name):
-    path = shared_log(name)
-    kind = formats.log_kind(path)
-    streams, source, _ = formats.read_log(path, kind)
-    ap, params = parameters.log_parameters(kind, source)
+    log = formats.read_log(shared_log(name))
+    ap, params = parameters.log_parameters(log)
     filters = vf.vehicle_filters(ap, params)
-    ctx = fr.review_context(kind, source, ap, params, filters)
-    return fr.filter_review(streams, ap, params, filters, context=ctx), filters
+    ctx = fr.review_context(log, ap, params, filters)
+    return fr.filter_review(log.gyro, ap, params, filters, context=ctx), filters
 
 
 def test_copter_00061_review_from_its_batch_sampler():

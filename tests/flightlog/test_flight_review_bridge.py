@@ -77,11 +77,9 @@ def synthetic_log(path, seed=3, events=None, params=None, tone_amp=3.0):
 
 def _log_review(path):
     """The review fields of a log read in-process (no filtering, no outputs)."""
-    from gyrodenoise.flightlog.formats import log_kind, read_log
+    from gyrodenoise.flightlog.formats import read_log
     from gyrodenoise.flightlog.log_review import log_review
-    kind = log_kind(path)
-    streams, source, _ = read_log(path, kind)
-    return log_review(kind, source, streams).fields
+    return log_review(read_log(path)).fields
 
 
 def test_never_armed_gives_no_filter_review(tmp_path):

@@ -1,0 +1,1 @@
+"""One adapter per log format (the interface: :mod:`gyrodenoise.flightlog.formats`)."""

@@ -1,0 +1,207 @@
+"""The typed log model, the format registry and the autopilot strategies
+(gyrodenoise.flightlog.model, .formats, .adapters, .autopilots): formats sniffed by
+content, no format or autopilot switched on outside an adapter or a strategy, every
+GyroStream attribute declared, boots as their own sessions (two DataFlash logs
+concatenated), epoch time bases (PX4 SITL ULog, a telemetry log's HIGHRES_IMU)."""
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrodenoise.errors import InputError
+from gyrodenoise.flightlog import autopilots, formats
+from gyrodenoise.flightlog.log_review import log_review
+from gyrodenoise.flightlog.model import UNIX_EPOCH
+from gyrodenoise.flightlog.streams import GyroStream
+
+from tests.flightlog.flight_logs import log_of_bytes
+from tests.flightlog.synthetic_logs import tlog_writer
+from tests.helpers import shared_log
+
+PACKAGE = Path(__file__).resolve().parents[2] / "gyrodenoise" / "flightlog"
+#: where a format or an autopilot may be named in a comparison: its adapter, its strategy,
+#: the registries, and the low-level readers (owned by their formats)
+ALLOWED = {"formats.py", "autopilots.py", "dataflash.py", "tlog.py", "ulog.py", "blackbox.py", "rosbag.py",
+           "betaflight_filters.py"}
+NAMES = r"(tlog|dataflash|ulog|ardupilot|px4|betaflight|blackbox|rosbag)"
+BRANCH = re.compile(rf"""(==|!=)\s*["']{NAMES}["']|["']{NAMES}["']\s*(==|!=)|\[kind\]|\.get\((kind|autopilot)\)""")
+
+
+def test_no_format_or_autopilot_branch_outside_adapters_and_strategies():
+    """A format or an autopilot compared by its name, or a table looked up by a format
+    name, anywhere but in an adapter, a strategy or a registry: each is one more place a
+    new format or autopilot would have to touch. (Segment and filter-stage kinds are
+    not formats, and are not named here.)"""
+    hits = []
+    for p in sorted(PACKAGE.rglob("*.py")):
+        if p.name in ALLOWED or "adapters" in p.parts:
+            continue
+        for i, line in enumerate(p.read_text().splitlines(), 1):
+            code = line.split("#", 1)[0]
+            if BRANCH.search(code):
+                hits.append(f"{p.relative_to(PACKAGE)}:{i}: {line.strip()}")
+    assert hits == []
+
+
+def test_every_format_has_the_adapter_interface_and_sniffs_its_logs():
+    needed = ("name", "suffixes", "gyro_looked_for", "flight_looked_for", "vibration_looked_for", "sniff", "read",
+              "write_filtered", "signing", "keep_signed_raw", "messages", "message_names", "flight_evidence",
+              "vibration_levels", "accelerometer", "parameters", "vehicle_rate")
+    for f in formats.FORMATS:
+        assert all(hasattr(f, k) for k in needed), f.name
+    for name, fmt in (("log171.bin", "dataflash"), ("px4_sample.ulg", "ulog"), ("fs-batt.log.tlog", "tlog")):
+        assert formats.log_format(shared_log(name)).name == fmt
+
+
+def test_content_decides_not_the_suffix(tmp_path):
+    """A DataFlash log named .ulg is read as DataFlash (the ULog reader never gets a file
+    that is not a ULog); a file no format claims is refused in one line."""
+    p = tmp_path / "renamed.ulg"
+    p.write_bytes(shared_log("ardusub_small.BIN").read_bytes())
+    log = formats.read_log(p)
+    assert log.format.name == "dataflash" and log.gyro
+    junk = tmp_path / "junk.dat"
+    junk.write_bytes(b"\x00\x01garbage" * 50)
+    with pytest.raises(InputError, match="unknown file type"):
+        formats.read_log(junk)
+
+
+def test_gyro_stream_declares_every_attribute():
+    s = GyroStream(name="x", message="IMU", unit="rad/s", to_deg_s=1.0, time_s=np.zeros(1), raw=np.zeros((1, 3)),
+                   index=np.zeros(1, np.int64))
+    s.left_raw, s.warmup_samples, s._work, s.stage = "why", 3, (None, None, "deg/s", 1.0), "pre-filter"
+    with pytest.raises(AttributeError):
+        s.not_declared = 1
+
+
+def test_autopilot_strategies_param_lines_and_registry():
+    changes = {"IMU_GYRO_CUTOFF": 44.0, "GYRO_LPF1_STATIC_HZ": 150}
+    assert autopilots.named("px4").param_lines(changes)[0] == "param set IMU_GYRO_CUTOFF 44"
+    assert autopilots.named("ardupilot").param_lines({"INS_GYRO_FILTER": 37})[0] == "INS_GYRO_FILTER,37"
+    assert autopilots.named("betaflight").param_lines({"GYRO_LPF1_STATIC_HZ": 150}) == [
+        "set gyro_lpf1_static_hz = 150"]
+    assert autopilots.named(None) is autopilots.UNKNOWN and autopilots.from_mav_autopilot(12).name == "px4"
+
+
+# ------------------------------------------------------------ two boots in one file
+@functools.lru_cache(maxsize=2)
+def _reviews(tmp_root):
+    single = shared_log("log171.bin")
+    two = Path(tmp_root) / "two_boots.bin"
+    two.write_bytes(single.read_bytes() * 2)
+    return (log_review(formats.read_log(single)), formats.read_log(two), log_review(formats.read_log(two)))
+
+
+@pytest.fixture(scope="module")
+def reviews(tmp_path_factory):
+    return _reviews(str(tmp_path_factory.mktemp("boots")))
+
+
+def test_two_dataflash_logs_concatenated_are_two_boots(reviews):
+    """log171.bin twice in one file: two boots, each with the segments, flying time and
+    VIBE figures of the log alone, on its own time axis (before: one time axis, flying
+    171.1 s instead of 342.3 s, boot 2's flight merged into boot 1's)."""
+    one, log, two = reviews
+    assert [b.index for b in log.boots] == [0, 1]
+    assert log.boots[1].first_record == pytest.approx(shared_log("log171.bin").stat().st_size, abs=100)
+    f1, f2 = one.fields, two.fields
+    assert f2["flying_time_s"] == pytest.approx(2 * f1["flying_time_s"], abs=1e-6)
+    assert [b["flying_time_s"] for b in f2["boots"]] == [f1["flying_time_s"]] * 2
+    strip = [{k: v for k, v in s.items() if k != "session"} for s in f1["segments"]]
+    for k in (0, 1):
+        got = [s for s in f2["segments"] if s["session"] == k]
+        assert [{kk: v for kk, v in s.items() if kk != "session"} for s in got] == strip
+        assert f2["boots"][k]["segments"] == got
+    v1, v2 = f1["vibration"]["segments"], f2["vibration"]["segments"]
+    assert [s["session"] for s in v2] == [0] * len(v1) + [1] * len(v1)
+    for k in (0, 1):
+        for a, b in zip(v1, v2[k * len(v1):(k + 1) * len(v1)]):
+            assert a["figures"] == b["figures"]
+
+
+def test_two_boots_flying_mask_selects_each_boots_own_samples(reviews):
+    """A gyro sample is flying when its boot and its time are a flying segment's: the
+    concatenated log's IMU flying samples are exactly twice the single log's."""
+    one, log, two = reviews
+    single = formats.read_log(shared_log("log171.bin"))
+    s1 = next(s for s in single.gyro if s.name.startswith("IMU"))
+    s2 = next(s for s in log.gyro if s.name == s1.name)
+    n1 = int(one.flying_mask(s1.time_s, s1.index).sum())
+    n2 = int(two.flying_mask(s2.time_s, s2.index).sum())
+    assert n1 > 1000 and n2 == 2 * n1
+
+
+def test_a_step_back_of_one_message_type_is_no_boot():
+    """SYNTHETIC: all VIBE records, then all IMU records (each type in time order, the
+    file not): one boot, not two."""
+    from tests.flightlog.synthetic_logs import DataFlashWriter
+    w = DataFlashWriter()
+    w.define("VIBE", "Qf", ["TimeUS", "VibeX"])
+    w.define("IMU", "Qfff", ["TimeUS", "GyrX", "GyrY", "GyrZ"])
+    for k in range(100):
+        w.add("VIBE", 1_000_000 + 100_000 * k, 1.0)
+    for k in range(400):
+        w.add("IMU", 1_000_000 + 25_000 * k, 0.0, 0.0, 0.0)
+    assert len(log_of_bytes(w.bytes(), "dataflash").boots) == 1
+
+
+# --------------------------------------------------------------------- epoch time
+def _epoch_ulog(tmp_path, offset_us=1_710_773_350_000_000):
+    """px4_vtol_small.ulg with every timestamp moved onto a Unix epoch clock, as PX4
+    SITL writes them."""
+    import pyulog
+    u = pyulog.ULog(str(shared_log("px4_vtol_small.ulg")))
+    u._start_timestamp += offset_us
+    for d in u.data_list:
+        d.data["timestamp"] = d.data["timestamp"] + np.uint64(offset_us)
+    u._changed_parameters = [(t + offset_us, n, v) for t, n, v in u.changed_parameters]
+    for m in u.logged_messages:
+        m.timestamp += offset_us
+    p = tmp_path / "sitl_epoch.ulg"
+    u.write_ulog(str(p))
+    return p
+
+
+def test_epoch_ulog_time_base_detected_and_segments_relative(tmp_path):
+    """Before: axes 'boot time' to 1.71e9 s, segments at 1710773350 s. Now the log's time
+    base says Unix epoch, times start at 0 at the log's start, and the segments are
+    those of the same log on its boot clock."""
+    ref = log_review(formats.read_log(shared_log("px4_vtol_small.ulg"))).fields
+    log = formats.read_log(_epoch_ulog(tmp_path))
+    rev = log_review(log).fields
+    assert rev["time_base"]["kind"] == UNIX_EPOCH and "epoch" in rev["time_base"]["axis"]
+    assert rev["time_base"]["offset_s"] > 1.7e9
+    assert all(0 <= s.time_s.min() < 1e4 for s in log.gyro)
+    assert rev["boots"][0]["wall_clock_offset_s"] == rev["time_base"]["offset_s"]
+    shift = ref["boots"][0]["start_s"]
+    assert rev["segments"] and len(rev["segments"]) == len(ref["segments"])
+    for a, b in zip(rev["segments"], ref["segments"]):
+        assert a["kind"] == b["kind"] and a["start_s"] == pytest.approx(b["start_s"] - shift, abs=1e-3)
+    assert rev["flying_time_s"] == pytest.approx(ref["flying_time_s"], abs=1e-3)
+
+
+def test_tlog_epoch_gyro_time_put_on_the_boot_time():
+    """SYNTHETIC telemetry log: HIGHRES_IMU at 50 Hz whose time_usec is a Unix time,
+    ATTITUDE at 10 Hz with time_boot_ms = 5 s + the same elapsed time. The gyro stream
+    lands on the boot time (5 s + t, to the record stamps' jitter), with its own clock
+    steps kept; before, its times were 1.7e9 s, beside every other message's boot time."""
+    mav, add, out = tlog_writer()
+    rng = np.random.default_rng(3)
+    wall0, epoch0 = 1_700_000_000_000_000, 1_700_000_000_200_000
+    for k in range(500):
+        t = k / 50
+        wall = wall0 + int(t * 1e6) + int(rng.integers(2000, 9000))       # the ground station's jitter
+        add(mav.MAVLink_highres_imu_message(epoch0 + int(round(t * 1e6)), 0, 0, 0, 0.01, 0.02, 0.03,
+                                            0, 0, 0, 0, 0, 0, 0, 0), wall)
+        if k % 5 == 0:
+            add(mav.MAVLink_attitude_message(int(round((5.0 + t) * 1000)), 0, 0, 0, 0, 0, 0), wall)
+    log = log_of_bytes(out(), "tlog")
+    (s,) = log.gyro
+    assert log.time_base.kind != UNIX_EPOCH
+    np.testing.assert_allclose(s.time_s, 5.0 + np.arange(500) / 50, atol=2e-3)
+    np.testing.assert_allclose(np.diff(s.time_s), 0.02, atol=2e-6)         # the vehicle's clock, no jitter
+    assert "Unix time" in s.note
