@@ -36,7 +36,9 @@ What each format reads is its adapter's ``flight_evidence`` (:mod:`gyrodenoise.f
   Without land events the throttle decides (above :data:`FLYING_THROTTLE` of full
   throttle = in the air); without any arming record, the throttle alone decides
   between ``ground`` and ``flying`` (a log with no arming record and the throttle at
-  zero is all ground). ArduSub and Rover never fly (armed at most). Throttle:
+  zero is all ground). Without land events nor throttle, GPS and airspeed decide where
+  logged (:func:`_df_motion`: ground speed or airspeed above 3 m/s at a height above
+  5 m: an ArduPlane 3.1 log with no ARM/EV/CTUN). ArduSub and Rover never fly (armed at most). Throttle:
   ``CTUN.ThO`` (0..1), ``CTUN.ThrOut`` (0..1000, Copter 3.x), else the mean of
   ``RCOU`` C1..C4 (``Ch1..Ch4``) as (PWM - 1000 us) / 1000 us.
 * Telemetry log (:func:`tlog_evidence`): the vehicle's ``HEARTBEAT`` (not a ground station's: autopilot 8 or
@@ -269,6 +271,45 @@ def _df_throttle(log, boot):
     return None
 
 
+#: GPS/airspeed evidence: in the air above this speed (m/s) ...
+FLYING_SPEED_M_S = 3.0
+#: ... and this height (m) above the first 3-D fix (or GPS RelAlt)
+FLYING_HEIGHT_M = 5.0
+GPS_3D_FIX = 3
+
+
+def _df_motion(log, boot):
+    """(time_s, in the air 0/1, the evidence named) from GPS ground speed and height
+    (``GPS.Spd``; ``GPS.RelAlt`` where logged, else ``GPS.Alt`` above the median of the
+    first 10 samples with a 3-D fix) and airspeed (``ARSP.Airspeed``, where faster):
+    in the air where the speed is above :data:`FLYING_SPEED_M_S` and the height above
+    :data:`FLYING_HEIGHT_M`; None without a GPS height and speed."""
+    gps = log.boot_messages("GPS", boot)
+    if gps is None or "Spd" not in gps or not ({"RelAlt", "Alt"} & gps.keys()):
+        return None
+    t = np.asarray(gps["time_s"], dtype=np.float64)
+    fix = np.asarray(gps["Status"]) >= GPS_3D_FIX if "Status" in gps else np.ones(len(t), bool)
+    fix &= np.isfinite(t)
+    if fix.sum() < 2:
+        return None
+    t = t[fix]
+    speed = np.asarray(gps["Spd"], dtype=np.float64)[fix]
+    if "RelAlt" in gps:
+        height, hname = np.asarray(gps["RelAlt"], dtype=np.float64)[fix], "GPS.RelAlt"
+    else:
+        alt = np.asarray(gps["Alt"], dtype=np.float64)[fix]
+        height, hname = alt - np.median(alt[:10]), "GPS.Alt above the first fix"
+    what = f"GPS.Spd > {FLYING_SPEED_M_S:g} m/s and {hname} > {FLYING_HEIGHT_M:g} m"
+    arsp = log.boot_messages("ARSP", boot)
+    if arsp is not None and "Airspeed" in arsp and len(arsp["time_s"]) > 1:
+        ta, va = _sorted(np.asarray(arsp["time_s"], np.float64), np.asarray(arsp["Airspeed"], np.float64))
+        if len(ta) > 1:
+            speed = np.maximum(speed, np.interp(t, ta, va, left=0.0, right=0.0))
+            what = f"GPS.Spd or ARSP.Airspeed > {FLYING_SPEED_M_S:g} m/s and {hname} > {FLYING_HEIGHT_M:g} m"
+    air = ((speed > FLYING_SPEED_M_S) & (height > FLYING_HEIGHT_M)).astype(np.int64)
+    return t, air, what
+
+
 def _df_vehicle(log, boot):
     msg = log.boot_messages("MSG", boot)
     if msg is None:
@@ -307,7 +348,8 @@ def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
     lv = np.concatenate(lv) if lv else np.zeros(0, np.int64)
     ok = np.isfinite(lt)
     lt, lv = lt[ok], lv[ok]
-    if not len(at) and thr is None:
+    motion = _df_motion(log, boot)
+    if not len(at) and thr is None and motion is None:
         return f"no flight evidence in the log (looked for {looked_for})"
     clock = None
     for name in ("CTUN", "RCOU", "ATT", "IMU", "BARO"):
@@ -315,7 +357,8 @@ def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
         if m is not None:
             clock = m["time_s"]
             break
-    t = _timeline(clock, at, lt, thr[0] if thr is not None else None)
+    t = _timeline(clock, at, lt, thr[0] if thr is not None else None,
+                  motion[0] if motion is not None else None)
     vehicle = _df_vehicle(log, boot)
     never_flies = vehicle in ("ArduSub", "ArduRover", "Rover")
     notes = []
@@ -342,12 +385,18 @@ def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
         tv = np.interp(t, *_sorted(thr[0], thr[1]))
         air = (tv > FLYING_THROTTLE).astype(np.int64)
         notes.append(f"in the air where {thr[2]} > {FLYING_THROTTLE:g} (no land events)")
+        alone = "the throttle"
+    elif motion is not None:
+        air = _step(t, motion[0], motion[1], initial=0)
+        notes.append(f"in the air from {motion[2]} (no land events nor throttle)")
+        alone = "GPS/airspeed"
     else:
         air = np.zeros(len(t), np.int64)
         notes.append("no land events nor throttle: armed stretches not split into flying")
+        alone = "nothing"
     if armed is None:
         state = np.where(air == 1, FLYING, GROUND)
-        notes.insert(0, "no ARM/EV arming record: ground/flying from the throttle alone")
+        notes.insert(0, f"no ARM/EV arming record: ground/flying from {alone} alone")
     else:
         state = np.where(armed == 1, np.where(air == 1, FLYING, ARMED), GROUND)
     throttle = Throttle(thr[0], thr[1], thr[2]) if thr is not None else None

@@ -205,3 +205,41 @@ def test_tlog_epoch_gyro_time_put_on_the_boot_time():
     np.testing.assert_allclose(s.time_s, 5.0 + np.arange(500) / 50, atol=2e-3)
     np.testing.assert_allclose(np.diff(s.time_s), 0.02, atol=2e-6)         # the vehicle's clock, no jitter
     assert "Unix time" in s.note
+
+
+# ------------------------------------------------- flight evidence without arming records
+def _plane31(fly=(20.0, 80.0), speed_cm_s=1000, rel_alt_cm=8600):
+    """SYNTHETIC ArduPlane 3.1 layout: IMU (TimeMS) at 10 Hz for 100 s, GPS at 5 Hz whose
+    TimeMS is the GPS time of week (with Week), 3-D fix; ground speed ``speed_cm_s`` at
+    ``rel_alt_cm`` between ``fly``, 0 at 0 m elsewhere; no ARM, EV, CTUN nor RCOU."""
+    from tests.flightlog.synthetic_logs import DataFlashWriter
+    w = DataFlashWriter()
+    w.define("IMU", "Iffffff", ["TimeMS", "GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ"])
+    w.define("GPS", "BIHBcLLeeEefI", ["Status", "TimeMS", "Week", "NSats", "HDop", "Lat", "Lng", "RelAlt", "Alt",
+                                     "Spd", "GCrs", "VZ", "T"])
+    for k in range(1000):
+        t = k / 10
+        w.add("IMU", k * 100, 0.0, 0.0, 0.0, 0.0, 0.0, -9.8)
+        if k % 2 == 0:
+            air = fly[0] <= t < fly[1]
+            w.add("GPS", 3, 300_000_000 + k * 100, 1800, 10, 100, 0, 0, rel_alt_cm if air else 0,
+                  1000 + (rel_alt_cm if air else 0), speed_cm_s if air else 0, 0, 0.0, k * 100)
+    return log_of_bytes(w.bytes(), "dataflash")
+
+
+def test_plane_without_arming_records_flies_on_gps_evidence():
+    """GPS 10 m/s at 86 m with no ARM/EV/CTUN: flying 20-80 s, the evidence named
+    (before: 'no flight evidence'; the GPS time of week was taken for a boot time)."""
+    from gyrodenoise.flightlog.segments import flight_segments, flying_time_s
+    segs, note = flight_segments(_plane31())
+    assert [(s["kind"], s["start_s"], s["end_s"]) for s in segs] == [
+        ("ground", 0.0, 20.0), ("flying", 20.0, 80.0), ("ground", 80.0, 99.9)]
+    assert flying_time_s(segs) == 60.0
+    assert "GPS.Spd" in note and "GPS.RelAlt" in note and "no ARM/EV arming record" in note
+
+
+def test_gps_speed_on_the_ground_is_not_flying():
+    """10 m/s at 0 m (a car, a taxi run): ground throughout."""
+    from gyrodenoise.flightlog.segments import flight_segments
+    segs, _ = flight_segments(_plane31(rel_alt_cm=0))
+    assert {s["kind"] for s in segs} == {"ground"}
