@@ -86,7 +86,7 @@ def flight_segments(log, autopilot=None):
     with an empty list -- what was looked for when the log holds none. ``autopilot``
     (a strategy of :mod:`gyrodenoise.flightlog.autopilots`, or None) decides how a
     telemetry log's ``system_status`` is read."""
-    out, notes, missing = [], [], []
+    out, notes, missing, hovers = [], [], [], False
     for boot in range(max(1, len(log.boots))):
         got = log.format.flight_evidence(log, boot, autopilot)
         if isinstance(got, str):
@@ -94,12 +94,9 @@ def flight_segments(log, autopilot=None):
             continue
         segs = _runs(got.time_s, got.state, np.full(len(got.time_s), boot))
         hov = _hover(segs, got.throttle) if got.throttle is not None else []
-        note = got.note
-        if hov:
-            note += (f"; hover: throttle std over {HOVER_WINDOW_S:g} s below {HOVER_STD:g} of full "
-                     f"throttle for at least {HOVER_MIN_S:g} s")
-        if note not in notes:
-            notes.append(note)
+        hovers |= bool(hov)
+        if got.note not in notes:
+            notes.append(got.note)
         for seg in segs:                 # log order; each hover entry after its flying segment
             out.append(seg)
             if seg["kind"] == "flying":
@@ -107,6 +104,9 @@ def flight_segments(log, autopilot=None):
     if not notes:
         return [], missing[0] if missing else "no flight evidence in the log"
     note = "; ".join(notes)
+    if hovers:
+        note += (f"; hover: throttle std over {HOVER_WINDOW_S:g} s below {HOVER_STD:g} of full "
+                 f"throttle for at least {HOVER_MIN_S:g} s")
     if len(log.boots) > 1:
         note += f"; {len(log.boots)} boot sessions, each on its own boot time (numbered in file order)"
         if missing:
@@ -357,6 +357,10 @@ def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
         if m is not None:
             clock = m["time_s"]
             break
+    n_land = int(np.isin(lv, (0, 1)).sum()) if len(lv) else 0
+    has_land_events = ev is not None and np.isin(ev["Id"], (EV_LAND_COMPLETE, EV_NOT_LANDED)).any()
+    if (has_land_events and n_land) or thr is not None:
+        motion = None                  # GPS/airspeed only where neither land events nor throttle tell
     t = _timeline(clock, at, lt, thr[0] if thr is not None else None,
                   motion[0] if motion is not None else None)
     vehicle = _df_vehicle(log, boot)
@@ -369,8 +373,6 @@ def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
                                             if av[order][0] == 0 else ""))
     else:
         armed = None
-    n_land = int(np.isin(lv, (0, 1)).sum()) if len(lv) else 0
-    has_land_events = ev is not None and np.isin(ev["Id"], (EV_LAND_COMPLETE, EV_NOT_LANDED)).any()
     if never_flies:
         air = np.zeros(len(t), np.int64)
         notes.append(f"{vehicle}: never flying")
