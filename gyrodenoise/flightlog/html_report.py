@@ -606,9 +606,13 @@ def _summary_section(report, series):
     streams = report.get("streams") or []
     rows.append(["streams", _e(", ".join(s.get("name", "?") for s in streams) or "none")])
     rows.append(["restarts", _e(len(report.get("restarts") or []))])
-    flying = _flying_time_s(report.get("segments"))
+    flying = _flying_time_s(report)
     if flying is not None:
         rows.append(["flying time", _e(f"{flying:.1f} s")])
+    base = report.get("time_base") or {}
+    if base.get("kind") and base.get("kind") != "boot time":
+        rows.append(["time base", _e(f"{base['kind']}: times from {base.get('offset_s')} s on that clock "
+                                     f"({base.get('axis')})")])
     elif report.get("segments_note"):
         rows.append(["flying time", _e(f"unknown ({report['segments_note']})")])
     out = ["<h2 id=summary>Summary</h2>", _table(rows, ["", "value"])]
@@ -630,11 +634,24 @@ def _summary_section(report, series):
     warnings = [w for s in streams for w in s.get("warnings", [])]
     if warnings:
         out.append("<ul>" + "".join(f'<li class="warn">{_e(w)}</li>' for w in warnings) + "</ul>")
+    boots = report.get("boots") or []
+    if len(boots) > 1:
+        out.append("<h3>Boots</h3>" + _note(
+            f"the file holds {len(boots)} boots: each has its own time axis, its segments and figures; no "
+            "segment or figure spans two") + _table(
+            [[_e(b.get("session")), _e(_f(b.get("start_s"), ".2f")), _e(_f(b.get("end_s"), ".2f")),
+              _e((b.get("time_base") or {}).get("kind")), _e(_f(b.get("wall_clock_offset_s"))),
+              _e(_f(b.get("flying_time_s"), ".1f")), _e(len([g for g in b.get("segments") or []
+                                                          if g.get("kind") != "hover"]))] for b in boots],
+            ["boot", "start [s]", "end [s]", "time base", "wall clock at 0 [Unix s]", "flying [s]", "segments"]))
     segs = report.get("segments")
     if segs:
+        several = len(boots) > 1
         out.append("<h3>Segments</h3>" + _table(
-            [[_e(g.get("kind")), _e(_f(g.get("start_s"), ".2f")), _e(_f(g.get("end_s"), ".2f")),
-              _e(_f(_dur(g), ".1f"))] for g in segs], ["kind", "start [s]", "end [s]", "duration [s]"]))
+            [([_e(g.get("session", 0))] if several else []) +
+             [_e(g.get("kind")), _e(_f(g.get("start_s"), ".2f")), _e(_f(g.get("end_s"), ".2f")),
+              _e(_f(_dur(g), ".1f"))] for g in segs],
+            (["boot"] if several else []) + ["kind", "start [s]", "end [s]", "duration [s]"]))
     elif "segments" in report or report.get("segments_note"):
         out.append(_note("segments: none" + (f" ({report['segments_note']})" if report.get("segments_note") else "")))
     return "".join(out)
@@ -667,20 +684,12 @@ def _dur(seg):
         return None
 
 
-def _flying_time_s(segments):
-    """Seconds in ``flying`` or ``hover`` segments (hover counted once when it lies
-    inside a flying one), or None without segments."""
-    if not segments:
+def _flying_time_s(report):
+    """The log's flying time (``flying_time_s``, summed over its boots by
+    :func:`gyrodenoise.flightlog.segments.flying_time_s`), or None without segments."""
+    if not report.get("segments"):
         return None
-    spans = sorted((float(g["start_s"]), float(g["end_s"])) for g in segments
-                   if g.get("kind") in ("flying", "hover") and _dur(g) is not None)
-    total, end = 0.0, -math.inf
-    for a, b in spans:
-        a = max(a, end)
-        if b > a:
-            total += b - a
-            end = b
-    return total
+    return report.get("flying_time_s")
 
 
 #: streams written raw at or below this rate [Hz] share one compact plot (e.g. PX4's
@@ -1265,7 +1274,7 @@ def write_fleet_report(path, fleet_report, per_log=()):
             link = f"<a href='{_e(Path(rel).as_posix())}'>{link}</a>"
         vib = rep.get("vibration") or {}
         verdict = str(vib.get("verdict") or "")
-        flying = _flying_time_s(rep.get("segments"))
+        flying = _flying_time_s(rep)
         if r.get("status") == "failed":
             table.append([link, "", '<span class="fail">failed</span>', "", "", "", "", "", "", _e(r.get("error"))])
             continue

@@ -243,3 +243,17 @@ def test_gps_speed_on_the_ground_is_not_flying():
     from gyrodenoise.flightlog.segments import flight_segments
     segs, _ = flight_segments(_plane31(rel_alt_cm=0))
     assert {s["kind"] for s in segs} == {"ground"}
+
+
+def test_html_report_shows_the_boots_and_their_summed_flying_time(reviews, tmp_path):
+    """The page's flying time is the report's (summed over the boots: 342.3 s), not the
+    flying spans merged on one time axis (171.1 s, the two boots' spans overlapping),
+    and a table lists the boots."""
+    from gyrodenoise.flightlog.html_report import write_log_report
+    _, log, two = reviews
+    page = tmp_path / "two.report.html"
+    fields = {k: v for k, v in two.fields.items() if k != "stream_stages"}
+    write_log_report(page, {"file": str(log.path), "format": "dataflash", "streams": [], **fields})
+    html = page.read_text()
+    assert "flying time</td><td>342.3 s" in html
+    assert "<h3>Boots</h3>" in html and "the file holds 2 boots" in html
