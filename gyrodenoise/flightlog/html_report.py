@@ -540,59 +540,25 @@ def _spectrogram_figure(name, pd):
 
 
 # ------------------------------------------------------------------ the vehicle's filters
-def stage_response(stage, freq_hz, rate_hz):
-    """Gain |H| of one of the vehicle's filter stages at ``freq_hz`` (sampled at
-    ``rate_hz``), or None when the stage's shape is not one this report models.
-
-    ``lowpass``: 2nd-order Butterworth at ``cutoff_hz`` (or ``freq_hz``); ``notch``,
-    ``harmonic_notch``, ``dynamic_notch``: a biquad notch at ``center_hz`` (or
-    ``freq_hz``) with ``bandwidth_hz`` (default a quarter of it), and at each of
-    ``harmonics`` (multiples; default [1]) when given; ``attenuation_db`` limits its
-    depth. Off (``enabled`` false, or a frequency of 0) gives all-pass."""
-    from scipy import signal
-    f = np.asarray(freq_hz, dtype=np.float64)
-    kind = str(stage.get("kind", ""))
-    if stage.get("enabled") is False:
-        return np.ones_like(f)
-    nyq = rate_hz / 2.0
-    if kind == "lowpass":
-        fc = stage.get("cutoff_hz", stage.get("freq_hz"))
-        if not fc:
-            return np.ones_like(f)
-        if not 0 < fc < nyq:
-            return None
-        sos = signal.butter(2, fc, fs=rate_hz, output="sos")
-        return np.abs(signal.sosfreqz(sos, worN=f, fs=rate_hz)[1])
-    if kind in ("notch", "harmonic_notch", "dynamic_notch"):
-        fc = stage.get("center_hz", stage.get("freq_hz"))
-        if not fc:
-            return np.ones_like(f)
-        bw = stage.get("bandwidth_hz") or fc / 4.0
-        floor = 10 ** (-float(stage.get("attenuation_db") or 40.0) / 20.0)
-        g = np.ones_like(f)
-        for h in stage.get("harmonics") or [1]:
-            fh = float(fc) * float(h)
-            if not 0 < fh < nyq:
-                continue
-            b, a = signal.iirnotch(fh, fh / bw, fs=rate_hz)
-            g = g * np.maximum(np.abs(signal.freqz(b, a, worN=f, fs=rate_hz)[1]), floor)
-        return g
-    return None
-
-
 def vehicle_response(stages, freq_hz, rate_hz):
-    """(gain of the chain of stages, the stages not modelled) at ``freq_hz``."""
-    g = np.ones_like(np.asarray(freq_hz, dtype=np.float64))
-    skipped = []
+    """(gain |H| of the vehicle's chain of ``stages`` at ``freq_hz``, the stages not
+    modelled): the autopilot's own biquads on the gyro rate path, the one model the
+    filter review uses too (:func:`gyrodenoise.flightlog.vehicle_filters.chain_sections`);
+    a stage it cannot run (a notch that follows a measurement, a cutoff at or above
+    the Nyquist frequency, a kind it does not know) is left out and named."""
+    from gyrodenoise.flightlog import vehicle_filters as vf
+    sos, skipped = [], []
     for st in stages or []:
         if not isinstance(st, dict):
             continue
-        r = stage_response(st, freq_hz, rate_hz)
-        if r is None:
+        try:
+            got, notes = vf.chain_sections([st], rate_hz)
+        except (KeyError, TypeError, ValueError):
+            got, notes = [], ["not modelled"]
+        if notes or (not got and st.get("path", "rate") == "rate"):
             skipped.append(str(st.get("kind")))
-        else:
-            g = g * r
-    return g, skipped
+        sos += got
+    return np.abs(vf.sos_response(sos, np.asarray(freq_hz, dtype=np.float64), rate_hz)), skipped
 
 
 # ------------------------------------------------------------------ sections
@@ -1233,7 +1199,7 @@ def write_log_report(path, report, series=None):
 
     :func:`stream_series` gives a stream's entry from a processed GyroStream. Without
     ``filter_review`` responses the vehicle's response is computed from
-    ``report["vehicle_filters"]["stages"]`` (:func:`stage_response`)."""
+    ``report["vehicle_filters"]["stages"]`` (:func:`vehicle_response`)."""
     series = series or {}
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("summary", "summary"), ("streams", "streams"),
