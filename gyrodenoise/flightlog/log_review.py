@@ -253,6 +253,13 @@ def review_text(rep):
                     f"segments: {shown}{more}; never flying")
     else:
         seg_line = f"segments: none ({rep.get('segments_note', '')})"
+    boots = rep.get("boots") or []
+    if len(boots) > 1:
+        seg_line += (f"; {len(boots)} boots, each on its own time (flying "
+                     + ", ".join(f"{b.get('flying_time_s') or 0.0:.1f}" for b in boots) + " s)")
+    base = rep.get("time_base") or {}
+    if base.get("kind") and base.get("kind") != "boot time":
+        seg_line += f"; times on a {base['kind']} clock from {base.get('offset_s')} s"
     lines = [seg_line + f"; figures over: {rep.get('over', OVER_WHOLE)}"]
     vib = rep.get("vibration")
     if vib and vib.get("verdict"):

@@ -116,6 +116,8 @@ def test_two_dataflash_logs_concatenated_are_two_boots(reviews):
         got = [s for s in f2["segments"] if s["session"] == k]
         assert [{kk: v for kk, v in s.items() if kk != "session"} for s in got] == strip
         assert f2["boots"][k]["segments"] == got
+    from gyrodenoise.flightlog.log_review import review_text
+    assert "2 boots, each on its own time (flying 171.1, 171.1 s)" in review_text(f2)[0]
     v1, v2 = f1["vibration"]["segments"], f2["vibration"]["segments"]
     assert [s["session"] for s in v2] == [0] * len(v1) + [1] * len(v1)
     for k in (0, 1):
