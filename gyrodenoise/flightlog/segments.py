@@ -37,8 +37,8 @@ What each format reads is its adapter's ``flight_evidence`` (:mod:`gyrodenoise.f
   throttle = in the air); without any arming record, the throttle alone decides
   between ``ground`` and ``flying`` (a log with no arming record and the throttle at
   zero is all ground). Without land events nor throttle, GPS and airspeed decide where
-  logged (:func:`_df_motion`: ground speed or airspeed above 3 m/s at a height above
-  5 m: an ArduPlane 3.1 log with no ARM/EV/CTUN). ArduSub and Rover never fly (armed at most). Throttle:
+  logged (:func:`_df_motion`: a stretch above 5 m in which the ground speed or airspeed
+  exceeds 3 m/s: an ArduPlane 3.1 log with no ARM/EV/CTUN). ArduSub and Rover never fly (armed at most). Throttle:
   ``CTUN.ThO`` (0..1), ``CTUN.ThrOut`` (0..1000, Copter 3.x), else the mean of
   ``RCOU`` C1..C4 (``Ch1..Ch4``) as (PWM - 1000 us) / 1000 us.
 * Telemetry log (:func:`tlog_evidence`): the vehicle's ``HEARTBEAT`` (not a ground station's: autopilot 8 or
@@ -47,7 +47,9 @@ What each format reads is its adapter's ``flight_evidence`` (:mod:`gyrodenoise.f
   ``EXTENDED_SYS_STATE.landed_state`` 2-4 (in air, taking off, landing) where sent,
   else for an ArduPilot multicopter or helicopter ``system_status`` 4
   (MAV_STATE_ACTIVE: ArduCopter reports ACTIVE only while not landed); for other
-  vehicles without EXTENDED_SYS_STATE only ``ground``/``armed``. Throttle for hover:
+  vehicles without EXTENDED_SYS_STATE (a plane) the height and speed rule of the
+  DataFlash GPS evidence on ``GLOBAL_POSITION_INT.relative_alt`` and ``VFR_HUD``
+  (:func:`_tlog_motion`), never for a rover, boat or submarine; else only ``ground``/``armed``. Throttle for hover:
   ``VFR_HUD.throttle`` (%), else ``SERVO_OUTPUT_RAW`` servo1..4.
 * PX4 ULog (:func:`ulog_evidence`): armed = ``vehicle_status.arming_state`` 2 (ARMED) or ``actuator_armed.armed``;
   in the air = armed and ``vehicle_land_detected.landed`` 0; throttle for hover:
@@ -282,8 +284,9 @@ def _df_motion(log, boot):
     """(time_s, in the air 0/1, the evidence named) from GPS ground speed and height
     (``GPS.Spd``; ``GPS.RelAlt`` where logged, else ``GPS.Alt`` above the median of the
     first 10 samples with a 3-D fix) and airspeed (``ARSP.Airspeed``, where faster):
-    in the air where the speed is above :data:`FLYING_SPEED_M_S` and the height above
-    :data:`FLYING_HEIGHT_M`; None without a GPS height and speed."""
+    in the air over each stretch above :data:`FLYING_HEIGHT_M` in which the speed
+    exceeds :data:`FLYING_SPEED_M_S` (:func:`_height_runs_moving`); None without a GPS
+    height and speed."""
     gps = log.boot_messages("GPS", boot)
     if gps is None or "Spd" not in gps or not ({"RelAlt", "Alt"} & gps.keys()):
         return None
@@ -299,15 +302,30 @@ def _df_motion(log, boot):
     else:
         alt = np.asarray(gps["Alt"], dtype=np.float64)[fix]
         height, hname = alt - np.median(alt[:10]), "GPS.Alt above the first fix"
-    what = f"GPS.Spd > {FLYING_SPEED_M_S:g} m/s and {hname} > {FLYING_HEIGHT_M:g} m"
+    what = f"{hname} > {FLYING_HEIGHT_M:g} m in a stretch whose GPS.Spd exceeds {FLYING_SPEED_M_S:g} m/s"
     arsp = log.boot_messages("ARSP", boot)
     if arsp is not None and "Airspeed" in arsp and len(arsp["time_s"]) > 1:
         ta, va = _sorted(np.asarray(arsp["time_s"], np.float64), np.asarray(arsp["Airspeed"], np.float64))
         if len(ta) > 1:
             speed = np.maximum(speed, np.interp(t, ta, va, left=0.0, right=0.0))
-            what = f"GPS.Spd or ARSP.Airspeed > {FLYING_SPEED_M_S:g} m/s and {hname} > {FLYING_HEIGHT_M:g} m"
-    air = ((speed > FLYING_SPEED_M_S) & (height > FLYING_HEIGHT_M)).astype(np.int64)
-    return t, air, what
+            what = (f"{hname} > {FLYING_HEIGHT_M:g} m in a stretch whose GPS.Spd or ARSP.Airspeed exceeds "
+                    f"{FLYING_SPEED_M_S:g} m/s")
+    return t, _height_runs_moving(height, speed), what
+
+
+def _height_runs_moving(height, speed):
+    """In the air (0/1 per sample): each run of samples above :data:`FLYING_HEIGHT_M`
+    in which the speed exceeds :data:`FLYING_SPEED_M_S` at least once (a hover or a
+    slow descent inside a flight stays in the air; a GPS height offset on the ground,
+    never moving, does not fly; a taxi at 0 m does not either)."""
+    up = np.asarray(height, dtype=np.float64) > FLYING_HEIGHT_M
+    fast = np.asarray(speed, dtype=np.float64) > FLYING_SPEED_M_S
+    air = np.zeros(len(up), np.int64)
+    edges = np.diff(np.concatenate([[0], up.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        if fast[a:b].any():
+            air[a:b] = 1
+    return air
 
 
 def _df_vehicle(log, boot):
@@ -443,10 +461,15 @@ def tlog_evidence(log, boot, autopilot, looked_for) -> FlightEvidence | str:
         air = _forward_fill(np.where(ss == MAV_STATE_ACTIVE, 1, np.where(np.isin(ss, (5, 6)), -1, 0))) == 1
         how = ("in the air where system_status is ACTIVE (ArduPilot multicopter; CRITICAL/EMERGENCY "
                "keep the state before)")
+    elif vtype not in NEVER_FLYING_TYPES and (motion := _tlog_motion(log, boot, sysid)) is not None:
+        air = _step(t, motion[0], motion[1], initial=0) == 1
+        how = (f"in the air from {motion[2]} (no EXTENDED_SYS_STATE, and the vehicle (autopilot {ap.name}, "
+               f"type {vtype}) does not report landing in system_status)")
     else:
         air = np.zeros(len(t), bool)
         how = (f"not split into flying: no EXTENDED_SYS_STATE and the vehicle (autopilot {ap.name}, "
-               f"type {vtype}) does not report landing in system_status")
+               f"type {vtype}) does not report landing in system_status"
+               + ("" if vtype in NEVER_FLYING_TYPES else ", nor GPS height and speed"))
     state = np.where(armed, np.where(air, FLYING, ARMED), GROUND)
     throttle = None
     vfr = log.boot_messages("VFR_HUD", boot)
@@ -461,6 +484,36 @@ def tlog_evidence(log, boot, autopilot, looked_for) -> FlightEvidence | str:
             throttle = Throttle(so["time_s"][s], np.clip((pwm - 1000.0) / 1000.0, 0, 1), "SERVO_OUTPUT_RAW")
     return FlightEvidence(t, state, throttle,
                           f"telemetry log: HEARTBEAT of system {sysid} (armed bit of base_mode); {how}")
+
+
+#: MAV_TYPE of vehicles that never fly: ground rover, surface boat, submarine
+NEVER_FLYING_TYPES = {10, 11, 12}
+
+
+def _tlog_motion(log, boot, sysid):
+    """(time_s, in the air 0/1, the evidence named) of a telemetry log's system ``sysid``
+    from its height (``GLOBAL_POSITION_INT.relative_alt``) and speed (``VFR_HUD``
+    groundspeed or airspeed, the faster): the rule of :func:`_df_motion`; None without both."""
+    gp = log.boot_messages("GLOBAL_POSITION_INT", boot)
+    vfr = log.boot_messages("VFR_HUD", boot)
+    if gp is None or vfr is None:
+        return None
+    g, v = gp["sysid"] == sysid, vfr["sysid"] == sysid
+    if g.sum() < 2 or v.sum() < 2:
+        return None
+    t = np.asarray(gp["time_s"], dtype=np.float64)[g]
+    height = np.asarray(gp["relative_alt"], dtype=np.float64)[g] / 1000.0
+    tv = np.asarray(vfr["time_s"], dtype=np.float64)[v]
+    speed = np.maximum(np.asarray(vfr["groundspeed"], dtype=np.float64)[v],
+                       np.asarray(vfr["airspeed"], dtype=np.float64)[v])
+    ts, vs = _sorted(tv, speed)
+    ok = np.isfinite(t)
+    if len(ts) < 2 or ok.sum() < 2:
+        return None
+    t, height = t[ok], height[ok]
+    return t, _height_runs_moving(height, np.interp(t, ts, vs)), (
+        f"GLOBAL_POSITION_INT.relative_alt > {FLYING_HEIGHT_M:g} m in a stretch whose VFR_HUD "
+        f"groundspeed/airspeed exceeds {FLYING_SPEED_M_S:g} m/s")
 
 
 # --------------------------------------------------------------------- ULog

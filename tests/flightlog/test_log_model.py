@@ -259,3 +259,28 @@ def test_html_report_shows_the_boots_and_their_summed_flying_time(reviews, tmp_p
     html = page.read_text()
     assert "flying time</td><td>342.3 s" in html
     assert "<h3>Boots</h3>" in html and "the file holds 2 boots" in html
+
+
+def test_quadplane_tlog_flies_on_height_and_speed():
+    """sitl_vtol.tlog (SITL ArduPlane QuadPlane, no EXTENDED_SYS_STATE): in the air from
+    its height and speed, take-off after arming to the 'Land complete' message, a
+    pymavlink read giving both times (before: never flying, 'not split into flying')."""
+    from pymavlink import mavutil
+    from gyrodenoise.flightlog.segments import flight_segments
+    c = mavutil.mavlink_connection(str(shared_log("sitl_vtol.tlog")))
+    t_boot, armed_at, landed_at = None, None, None
+    while True:
+        m = c.recv_match(type=["GLOBAL_POSITION_INT", "HEARTBEAT", "STATUSTEXT"])
+        if m is None:
+            break
+        if m.get_type() == "GLOBAL_POSITION_INT" and m.get_srcSystem() == 1:
+            t_boot = m.time_boot_ms / 1000
+        elif m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1 and m.base_mode & 128 and armed_at is None:
+            armed_at = t_boot
+        elif m.get_type() == "STATUSTEXT" and "Land complete" in m.text:
+            landed_at = t_boot
+    segs, note = flight_segments(formats.read_log(shared_log("sitl_vtol.tlog")))
+    (fly,) = [s for s in segs if s["kind"] == "flying"]
+    assert armed_at < fly["start_s"] < armed_at + 5.0
+    assert abs(fly["end_s"] - landed_at) < 2.0
+    assert "GLOBAL_POSITION_INT.relative_alt" in note and "VFR_HUD" in note
