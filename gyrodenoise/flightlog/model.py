@@ -22,6 +22,7 @@ format's adapter, never the format's name, for what differs between formats.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,21 @@ from gyrodenoise.flightlog.streams import GyroStream
 BOOT_TIME, UNIX_EPOCH = "boot time", "Unix epoch"
 #: a clock reading above this (us) is a Unix epoch time, not a time since boot (about 11.6 days)
 EPOCH_US_MIN = 1e12
+
+
+_INSTANCE_RE = re.compile(r"\[(\d+)\]")
+_NUMBERED_RE = re.compile(r"^[A-Za-z_]*?[A-Za-z_](\d)$")
+
+
+def number_instances(streams):
+    """Set each gyro stream's ``instance``: the ``[n]`` of its name (a DataFlash ``I``, a
+    ULog ``multi_id``, a telemetry ``id``), else the sensor number its message names
+    (``IMU2``, ``SCALED_IMU3``: 1, 2), else 0."""
+    for s in streams:
+        m = _INSTANCE_RE.search(s.name)
+        n = _NUMBERED_RE.match(s.message or "")
+        s.instance = int(m.group(1)) if m else int(n.group(1)) - 1 if n else 0
+    return streams
 
 
 @dataclass(frozen=True)
@@ -130,6 +146,23 @@ class FlightEvidence:
     note: str
 
 
+@dataclass(frozen=True)
+class LogEvent:
+    """Something the log says happened: ``text`` (a DataFlash ``EV`` id as ``EV 10``, a
+    ``MSG``/``STATUSTEXT``/ULog logged message), at ``time_s`` of boot ``boot``."""
+    time_s: float
+    boot: int
+    text: str
+
+
+@dataclass(frozen=True)
+class ModeChange:
+    """The flight mode ``mode`` (the log's name or number for it) from ``time_s`` of boot ``boot``."""
+    time_s: float
+    boot: int
+    mode: str
+
+
 @dataclass
 class LogParameters:
     """``autopilot``: the strategy of the autopilot that wrote the log
@@ -155,6 +188,8 @@ class FlightLog:
     options: ReadOptions = field(default_factory=ReadOptions)
     _cache: dict = field(default_factory=dict, repr=False)
     _parameters: LogParameters | None = field(default=None, repr=False)
+    _events: list | None = field(default=None, repr=False)
+    _modes: list | None = field(default=None, repr=False)
 
     @property
     def time_base(self) -> TimeBase:
@@ -194,6 +229,25 @@ class FlightLog:
         """The boot (int array) of each of ``records`` (a message's ``record`` column,
         a gyro stream's ``index``)."""
         return np.searchsorted(self.boot_starts(), np.asarray(records), side="right")
+
+    def events(self) -> list[LogEvent]:
+        """The log's events and messages, in log order (cached; the adapter's ``events``)."""
+        if self._events is None:
+            self._events = self.format.events(self)
+        return self._events
+
+    def modes(self) -> list[ModeChange]:
+        """The flight mode changes, in log order (cached; the adapter's ``modes``)."""
+        if self._modes is None:
+            self._modes = self.format.modes(self)
+        return self._modes
+
+    def rows_boot(self, m):
+        """The boot (int array) of each row of message columns ``m`` (0 without ``record``)."""
+        if m is None:
+            return np.zeros(0, np.int64)
+        n = len(m["time_s"])
+        return self.boot_of(m["record"]) if "record" in m and len(self.boots) > 1 else np.zeros(n, np.int64)
 
     def parameters(self) -> LogParameters:
         """The autopilot and its parameters (cached; :meth:`LogFormat.parameters`)."""

@@ -284,3 +284,35 @@ def test_quadplane_tlog_flies_on_height_and_speed():
     assert armed_at < fly["start_s"] < armed_at + 5.0
     assert abs(fly["end_s"] - landed_at) < 2.0
     assert "GLOBAL_POSITION_INT.relative_alt" in note and "VFR_HUD" in note
+
+
+def test_events_and_modes_equal_pymavlink_and_pyulog(reviews):
+    """The model's events and mode changes: DataFlash EV/MSG/MODE as pymavlink reads them
+    (each boot of the concatenated log tagged), ULog logged messages as pyulog gives them."""
+    from pymavlink import mavutil
+    c = mavutil.mavlink_connection(str(shared_log("log171.bin")))
+    ev, msg, modes = [], [], []
+    while True:
+        m = c.recv_match(type=["EV", "MSG", "MODE"])
+        if m is None:
+            break
+        {"EV": ev, "MSG": msg, "MODE": modes}[m.get_type()].append(m)
+    log = formats.read_log(shared_log("log171.bin"))
+    texts = [e.text for e in log.events()]
+    assert sorted(texts) == sorted([f"EV {m.Id}" for m in ev] + [m.Message for m in msg])
+    assert [m.mode for m in log.modes()] == [str(m.Mode) for m in modes]
+    two = reviews[1]
+    assert [e.boot for e in two.events()] == [0] * len(texts) + [1] * len(texts)
+    assert [(m.boot, m.mode) for m in two.modes()] == [(b, str(m.Mode)) for b in (0, 1) for m in modes]
+    import pyulog
+    u = pyulog.ULog(str(shared_log("px4_vtol_small.ulg")))
+    ulog = formats.read_log(shared_log("px4_vtol_small.ulg"))
+    assert [e.text for e in ulog.events()] == [m.message for m in u.logged_messages]
+    np.testing.assert_allclose([e.time_s for e in ulog.events()], [m.timestamp * 1e-6 for m in u.logged_messages])
+
+
+def test_streams_carry_their_instance():
+    got = {n: [(s.name, s.instance) for s in formats.read_log(shared_log(n)).gyro]
+           for n in ("log171.bin", "px4_vtol_small.ulg")}
+    assert got["log171.bin"] == [("IMU", 0), ("IMU2", 1), ("IMU3", 2)]
+    assert got["px4_vtol_small.ulg"][1:] == [("sensor_gyro[0]", 0), ("sensor_gyro[1]", 1), ("sensor_gyro[2]", 2)]

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import dataflash, logdata, parameters, segments, vibration
-from gyrodenoise.flightlog.model import Boot, FlightLog, LogFacts
+from gyrodenoise.flightlog import events, dataflash, logdata, parameters, segments, vibration
+from gyrodenoise.flightlog.model import Boot, FlightLog, LogFacts, number_instances
 
 
 class DataFlashFormat:
@@ -32,7 +32,7 @@ class DataFlashFormat:
         facts = LogFacts(messages=sc.n_messages, unreadable_records=len(sc.bad_regions),
                          unreadable_bytes=sc.bad_bytes, truncated_bytes=sc.truncated_bytes,
                          truncation="message cut by the end of the file" if sc.truncated_bytes else None)
-        log = FlightLog(format=self, path=Path(path), gyro=streams, facts=facts,
+        log = FlightLog(format=self, path=Path(path), gyro=number_instances(streams), facts=facts,
                         payload=logdata.DataFlashFile(data, sc))
         log.boots = _boots(log)
         return log
@@ -61,6 +61,12 @@ class DataFlashFormat:
 
     def accelerometer(self, log):
         return vibration.dataflash_accel(log)
+
+    def events(self, log):
+        return events.dataflash_events(log)
+
+    def modes(self, log):
+        return events.dataflash_modes(log)
 
     def parameters(self, log):
         return parameters.dataflash_parameters(log)

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.flightlog import logdata, parameters, segments, tlog, vibration
-from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase
+from gyrodenoise.flightlog import events, logdata, parameters, segments, tlog, vibration
+from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 from gyrodenoise.flightlog.signing import LinkSigning
 
 EPOCH_S_MIN = EPOCH_US_MIN * 1e-6
@@ -45,7 +45,7 @@ class TelemetryFormat:
                          truncated_bytes=fr.truncated_bytes,
                          truncation=("zero-filled tail" if fr.zero_tail else
                                      "record cut by the end of the file" if fr.truncated_bytes else None))
-        log = FlightLog(format=self, path=Path(path), gyro=streams, facts=facts,
+        log = FlightLog(format=self, path=Path(path), gyro=number_instances(streams), facts=facts,
                         payload=logdata.TelemetryFile(data, fr), options=options)
         log.boots = _boots(log)
         _epoch_streams(log)
@@ -70,7 +70,8 @@ class TelemetryFormat:
         if link.signed and not (p.frames.signed & p.frames.usable).any():
             raise InputError(f"{log.path}: none of its {link.signed} signed packets verifies under the "
                              f"--signing-key (a wrong key, or a passphrase other than the link's?)")
-        log.gyro = tlog.gyro_streams(p.data, p.frames, log.options.raw_imu_unit, log.options.raw_imu_scale)
+        log.gyro = number_instances(tlog.gyro_streams(p.data, p.frames, log.options.raw_imu_unit,
+                                                       log.options.raw_imu_scale))
         _epoch_streams(log)
         log._cache.clear()
         if not log.gyro:
@@ -95,6 +96,12 @@ class TelemetryFormat:
 
     def accelerometer(self, log):
         return None
+
+    def events(self, log):
+        return events.tlog_events(log)
+
+    def modes(self, log):
+        return events.tlog_modes(log)
 
     def parameters(self, log):
         return parameters.tlog_parameters(log)

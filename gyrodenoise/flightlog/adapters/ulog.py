@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import logdata, parameters, segments, ulog, vibration
-from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase
+from gyrodenoise.flightlog import events, logdata, parameters, segments, ulog, vibration
+from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 
 MAGIC = b"ULog\x01\x12\x35"
 
@@ -38,7 +38,7 @@ class ULogFormat:
                          data_corruption=bool(getattr(u, "file_corruption", False)),
                          truncated_bytes=max(cut, 0),
                          truncation="message cut by the end of the file" if cut > 0 else None)
-        log = FlightLog(format=self, path=Path(path), gyro=streams, facts=facts,
+        log = FlightLog(format=self, path=Path(path), gyro=number_instances(streams), facts=facts,
                         payload=logdata.ULogFile(u, refs), options=options)
         start_us = float(u.start_timestamp)
         base = TimeBase()
@@ -78,6 +78,12 @@ class ULogFormat:
 
     def accelerometer(self, log):
         return vibration.ulog_accel(log)
+
+    def events(self, log):
+        return events.ulog_events(log)
+
+    def modes(self, log):
+        return events.ulog_modes(log)
 
     def parameters(self, log):
         return parameters.ulog_parameters(log)
