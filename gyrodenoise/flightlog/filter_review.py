@@ -252,7 +252,7 @@ def _psd(stream, rate_hz, flying_mask_fn):
     restarts = np.r_[False, (dt <= 0) | (dt > 5.0 / rate_hz)]
     over = "whole log"
     if flying_mask_fn is not None:
-        m = np.asarray(flying_mask_fn(t, stream.index), dtype=bool)
+        m = np.asarray(flying_mask_fn(t, stream.sample_records), dtype=bool)
         if m.any():
             x = np.where(m[:, None], x, np.nan)
             over = "flying"

@@ -141,19 +141,10 @@ def log_review(log, whole_log=False):
     fields["stream_stages"] = {s.name: s.stage for s in streams}
 
     mask_fn = review.flying_mask if over == OVER_FLYING else None
-    idle = never_armed_note(segments)
-    if idle:
-        rev, note = None, idle
+    if len(log.boots) > 1:
+        rev, note = _review_per_boot(log, review, autopilot, params, filters, mask_fn)
     else:
-        try:
-            ctx = review_context(log, autopilot, params, filters, mask_fn)
-            fft = ctx.get("gyro_fft")
-            if fft and fft.get("sample_rate_hz"):          # PX4: the raw gyro rate, measured on board
-                filters["filter_rate_hz"] = fft["sample_rate_hz"]
-                filters["filter_rate_source"] = "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
-            rev, note = filter_review(streams, autopilot, params, filters, mask_fn, ctx)
-        except Exception as exc:  # noqa: BLE001
-            rev, note = None, _failed("filter review", exc)
+        rev, note = _filter_review(log, segments, autopilot, params, filters, mask_fn)
     if rev is not None:
         review.plot = rev.pop("_plot", None)
     fields["filter_review"] = rev
@@ -165,6 +156,52 @@ def log_review(log, whole_log=False):
     fields["vibration"] = vib
     fields["vibration_note"] = vnote
     return review
+
+
+def _filter_review(log, segments, autopilot, params, filters, mask_fn):
+    """(review or None, note) of the filter review over ``mask_fn``'s samples; None
+    and a note when the vehicle never armed in ``segments`` or the review failed."""
+    idle = never_armed_note(segments)
+    if idle:
+        return None, idle
+    try:
+        ctx = review_context(log, autopilot, params, filters, mask_fn)
+        fft = ctx.get("gyro_fft")
+        if fft and fft.get("sample_rate_hz"):          # PX4: the raw gyro rate, measured on board
+            filters["filter_rate_hz"] = fft["sample_rate_hz"]
+            filters["filter_rate_source"] = "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
+        return filter_review(log.gyro, autopilot, params, filters, mask_fn, ctx)
+    except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
+        return None, _failed("filter review", exc)
+
+
+def _review_per_boot(log, review, autopilot, params, filters, mask_fn):
+    """The filter review of a log of several boots, boot by boot (no figure spans two):
+    each boot's review (without its plot arrays) and note go into its entry of
+    ``boots``; the log's ``filter_review`` is the review of the boot that flew longest
+    (the first of those that has one), its ``source.boot`` saying which."""
+    boots = review.fields["boots"]
+    found = {}
+    for b in boots:
+        k = b["session"]
+
+        def boot_mask(t, records=None, k=k):
+            t = np.asarray(t, dtype=np.float64)
+            base = mask_fn(t, records) if mask_fn is not None else np.ones(t.shape, dtype=bool)
+            if records is None:                # samples that do not say their boot: none of this one's
+                return np.zeros(t.shape, dtype=bool)
+            return base & (log.boot_of(records) == k)
+        rev, note = _filter_review(log, b["segments"], autopilot, params, filters, boot_mask)
+        if rev is not None:
+            rev["source"]["boot"] = k
+            found[k] = rev
+        b["filter_review"] = None if rev is None else {key: v for key, v in rev.items() if key != "_plot"}
+        b["filter_review_note"] = note
+    if not found:
+        return None, "; ".join(f"boot {b['session']}: {b['filter_review_note']}" for b in boots)
+    best = max(found, key=lambda k: (boots[k]["flying_time_s"] or 0.0, -k))
+    return found[best], (f"the review of boot {best}, the one that flew longest ({len(boots)} boots, each "
+                         f"reviewed on its own in boots)")
 
 
 #: RATE / gyro magnitude ratios read as centidegrees per second (older ArduCopter, e.g. 3.3)

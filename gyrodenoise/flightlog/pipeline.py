@@ -207,7 +207,7 @@ def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method
         usable = (usable_samples(x) & np.isfinite(f)).all(axis=1)
         over = None
         if review is not None:
-            s._figures_mask, over = review.stream_mask(s.time_s, s.index)
+            s._figures_mask, over = review.stream_mask(s.time_s, s.sample_records)
             usable &= s._figures_mask
         s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
                                                  getattr(s, "warmup_samples", 0),

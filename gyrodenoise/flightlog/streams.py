@@ -65,6 +65,9 @@ class GyroStream:
     field_scale: object = 1.0
     #: the stream's instance (IMU number, multi_id) where the log numbers them, else None
     instance: int | None = None
+    #: per sample: the record it was read from, in the log's numbering (a DataFlash byte
+    #: offset, a telemetry frame index), which tells its boot; None: ``index`` is it
+    records: np.ndarray | None = None
     #: where it was logged in the vehicle's filter chain: "pre-filter", "post-filter", "unknown"
     stage: str = "unknown"
     # -- set by the filtering step (gyrodenoise.flightlog.filtering, .live) --
@@ -94,6 +97,11 @@ class GyroStream:
     @property
     def n(self):
         return len(self.time_s)
+
+    @property
+    def sample_records(self):
+        """The record of each sample (``records``, else ``index``)."""
+        return self.index if self.records is None else self.records
 
     def work_units(self):
         """(raw values in the unit the filter works in, factor back, unit label)."""

@@ -34,6 +34,9 @@ class DataFlashFormat:
                          truncation="message cut by the end of the file" if sc.truncated_bytes else None)
         log = FlightLog(format=self, path=Path(path), gyro=number_instances(streams), facts=facts,
                         payload=logdata.DataFlashFile(data, sc))
+        for s in streams:
+            if s.message == "ISBD":           # batch-sampler index: ISBD offset * 32 + position in its arrays
+                s.records = s.index // 32
         log.boots = _boots(log)
         return log
 
