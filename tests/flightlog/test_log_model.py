@@ -316,3 +316,15 @@ def test_streams_carry_their_instance():
            for n in ("log171.bin", "px4_vtol_small.ulg")}
     assert got["log171.bin"] == [("IMU", 0), ("IMU2", 1), ("IMU3", 2)]
     assert got["px4_vtol_small.ulg"][1:] == [("sensor_gyro[0]", 0), ("sensor_gyro[1]", 1), ("sensor_gyro[2]", 2)]
+
+
+def test_epoch_time_base_on_the_axes_and_in_the_report(tmp_path):
+    """The report of a PX4 SITL-like log says its clock (time_base) and its HTML page's
+    time axes are labelled with it, not 'boot time' (before: 'boot time [s]' running to
+    1.71e9)."""
+    from gyrodenoise.flightlog.pipeline import process_log
+    rep = process_log(_epoch_ulog(tmp_path), tmp_path / "out", csv=False)
+    assert rep["time_base"]["kind"] == UNIX_EPOCH
+    html = Path(rep["report_html"]).read_text()
+    assert "time since the log's start [s] (Unix epoch clock)" in html
+    assert all(s["start_s"] < 1e4 for s in rep["segments"])
