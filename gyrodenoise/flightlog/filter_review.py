@@ -48,6 +48,7 @@ spectra (the filtered gyro is resampled there).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -433,8 +434,21 @@ def _mean_lag(chain, logged_lp, fs_filter):
     return float(np.mean(vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)))
 
 
+@dataclass(frozen=True)
+class ReviewPlot:
+    """The filter review's spectra for the plots: the pre-filter PSD and the predicted
+    post-filter PSDs of the logged and the recommended settings, ((deg/s)^2/Hz, one row
+    per axis of :data:`AXES`) at ``freq_hz``."""
+    freq_hz: np.ndarray
+    psd_pre: np.ndarray
+    psd_logged: np.ndarray
+    psd_recommended: np.ndarray
+    axes: tuple = AXES
+
+
 def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, context=None):
-    """(review or None, note) of the vehicle's gyro filters from a pre-filter gyro stream.
+    """(review or None, note, plot or None) of the vehicle's gyro filters from a pre-filter
+    gyro stream.
 
     ``streams``: the log's gyro streams (:func:`gyrodenoise.flightlog.formats.read_log`);
     ``params``/``filters``: :func:`gyrodenoise.flightlog.parameters.log_parameters` and
@@ -443,8 +457,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     samples' records, which tell their boot, or None) (whole log when
     None or when no pre-filter sample is flying); ``context``: :func:`review_context`.
 
-    The review (JSON-able but for ``"_plot"``, numpy arrays for plotting that a
-    JSON writer drops): ``source`` (stream, rate, what the PSD is over),
+    The review (JSON-able; its spectra for the plots apart, a :class:`ReviewPlot`): ``source`` (stream, rate, what the PSD is over),
     ``filter_rate_hz``, ``noise_band_hz``, ``peaks``, ``figures`` {``pre_filter``,
     ``logged``, ``recommended``: ``noise_rms_deg_s`` per axis and ``rss``, and
     (the last two) ``phase_lag_ms`` at 10/20/30 Hz}, ``logged`` {NAME: value},
@@ -455,13 +468,13 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     ap = named(autopilot)
     stream, rate, stages = pick_pre_filter_stream(streams, ap, params)
     if stream is None:
-        return None, _no_stream_note(streams, autopilot, params, stages)
+        return None, _no_stream_note(streams, autopilot, params, stages), None
     if rate is None or rate < MIN_REVIEW_RATE_HZ:
         return None, (f"no pre-filter gyro stream fast enough: {stream.name} is pre-filter but at "
-                      f"{rate or 0:.0f} Hz (below {MIN_REVIEW_RATE_HZ:g} Hz it cannot show motor noise)")
+                      f"{rate or 0:.0f} Hz (below {MIN_REVIEW_RATE_HZ:g} Hz it cannot show motor noise)"), None
     spec = _psd(stream, rate, flying_mask_fn)
     if spec is None:
-        return None, f"{stream.name}: too few contiguous samples for a spectrum (64 needed)"
+        return None, f"{stream.name}: too few contiguous samples for a spectrum (64 needed)", None
     f, psd, n_seg, nperseg, over = spec
     notes = list(ctx.get("notes", []))
     fs_filter, fs_src = filters.get("filter_rate_hz"), filters.get("filter_rate_source")
@@ -560,12 +573,11 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
         "param_lines": param_lines(autopilot, changes),
         "why": why,
         "notes": notes,
-        "_plot": {"freq_hz": f, "psd_pre": psd, "psd_logged": post_logged, "psd_recommended": post_rec,
-                  "axes": AXES},
     }
+    plot = ReviewPlot(freq_hz=f, psd_pre=psd, psd_logged=post_logged, psd_recommended=post_rec)
     if not changes:
         review["why"].append("no change: every recommended value is the logged one")
-    return review, ""
+    return review, "", plot
 
 
 def _same(logged, value):

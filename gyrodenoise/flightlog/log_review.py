@@ -142,11 +142,9 @@ def log_review(log, whole_log=False):
 
     mask_fn = review.flying_mask if over == OVER_FLYING else None
     if len(log.boots) > 1:
-        rev, note = _review_per_boot(log, review, autopilot, params, filters, mask_fn)
+        rev, note, review.plot = _review_per_boot(log, review, autopilot, params, filters, mask_fn)
     else:
-        rev, note = _filter_review(log, segments, autopilot, params, filters, mask_fn)
-    if rev is not None:
-        review.plot = rev.pop("_plot", None)
+        rev, note, review.plot = _filter_review(log, segments, autopilot, params, filters, mask_fn)
     fields["filter_review"] = rev
     fields["filter_review_note"] = note
     try:
@@ -159,11 +157,12 @@ def log_review(log, whole_log=False):
 
 
 def _filter_review(log, segments, autopilot, params, filters, mask_fn):
-    """(review or None, note) of the filter review over ``mask_fn``'s samples; None
-    and a note when the vehicle never armed in ``segments`` or the review failed."""
+    """(review or None, note, plot or None) of the filter review over ``mask_fn``'s
+    samples; None and a note when the vehicle never armed in ``segments`` or the
+    review failed."""
     idle = never_armed_note(segments)
     if idle:
-        return None, idle
+        return None, idle, None
     try:
         ctx = review_context(log, autopilot, params, filters, mask_fn)
         fft = ctx.get("gyro_fft")
@@ -172,7 +171,7 @@ def _filter_review(log, segments, autopilot, params, filters, mask_fn):
             filters["filter_rate_source"] = "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
         return filter_review(log.gyro, autopilot, params, filters, mask_fn, ctx)
     except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
-        return None, _failed("filter review", exc)
+        return None, _failed("filter review", exc), None
 
 
 def _review_per_boot(log, review, autopilot, params, filters, mask_fn):
@@ -191,17 +190,17 @@ def _review_per_boot(log, review, autopilot, params, filters, mask_fn):
             if records is None:                # samples that do not say their boot: none of this one's
                 return np.zeros(t.shape, dtype=bool)
             return base & (log.boot_of(records) == k)
-        rev, note = _filter_review(log, b["segments"], autopilot, params, filters, boot_mask)
+        rev, note, plot = _filter_review(log, b["segments"], autopilot, params, filters, boot_mask)
         if rev is not None:
             rev["source"]["boot"] = k
-            found[k] = rev
-        b["filter_review"] = None if rev is None else {key: v for key, v in rev.items() if key != "_plot"}
+            found[k] = (rev, plot)
+        b["filter_review"] = rev
         b["filter_review_note"] = note
     if not found:
-        return None, "; ".join(f"boot {b['session']}: {b['filter_review_note']}" for b in boots)
+        return None, "; ".join(f"boot {b['session']}: {b['filter_review_note']}" for b in boots), None
     best = max(found, key=lambda k: (boots[k]["flying_time_s"] or 0.0, -k))
-    return found[best], (f"the review of boot {best}, the one that flew longest ({len(boots)} boots, each "
-                         f"reviewed on its own in boots)")
+    return found[best][0], (f"the review of boot {best}, the one that flew longest ({len(boots)} boots, "
+                            f"each reviewed on its own in boots)"), found[best][1]
 
 
 #: RATE / gyro magnitude ratios read as centidegrees per second (older ArduCopter, e.g. 3.3)

@@ -144,10 +144,10 @@ def _review_series(plot, filters, streams):
     with the notch centres the review used). Without a review, the logged chain's
     gain from its stages; None when there are none."""
     if plot is not None:
-        pre = np.asarray(plot["psd_pre"], dtype=np.float64)
-        out = {"freq_hz": plot["freq_hz"], "unit": "deg/s", "psd_pre": pre.sum(axis=0)}
-        for key, name in (("psd_logged", "logged"), ("psd_recommended", "recommended")):
-            post = np.asarray(plot[key], dtype=np.float64)
+        pre = np.asarray(plot.psd_pre, dtype=np.float64)
+        out = {"freq_hz": plot.freq_hz, "unit": "deg/s", "psd_pre": pre.sum(axis=0)}
+        for post, name in ((plot.psd_logged, "logged"), (plot.psd_recommended, "recommended")):
+            post = np.asarray(post, dtype=np.float64)
             out[f"psd_post_{name}"] = post.sum(axis=0)
             with np.errstate(divide="ignore", invalid="ignore"):
                 out[f"response_{name}"] = np.sqrt(np.where(pre[0] > 0, post[0] / pre[0], np.nan))
