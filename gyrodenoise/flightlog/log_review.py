@@ -71,7 +71,7 @@ def never_armed_note(segments):
     The motors never turned: the gyro spectrum at rest says nothing about the motor
     noise the filters are there for, so no filter is recommended from it (the
     streams' own spectra stay in the report)."""
-    kinds = {s["kind"] for s in segments or []}
+    kinds = {s.kind for s in segments or []}
     if not kinds or kinds & {"armed", "flying", "hover"}:
         return ""
     return ("no filter review: the vehicle never armed in this log (segments: ground only); the gyro "
@@ -88,8 +88,8 @@ def boots_fields(log, segments):
     with its time base, its segments and its flying time."""
     out = []
     for b in log.boots:
-        segs = [s for s in segments if s.get("session", 0) == b.index]
-        out.append({**b.to_fields(), "segments": segs, "flying_time_s": flying_time_s(segs)})
+        segs = [s for s in segments if s.session == b.index]
+        out.append({**b.to_fields(), "segments": [s.to_fields() for s in segs], "flying_time_s": flying_time_s(segs)})
     return out
 
 
@@ -118,10 +118,10 @@ def log_review(log, whole_log=False):
     except Exception as exc:  # noqa: BLE001
         segments, seg_note = [], _failed("flight segments", exc)
     fields["boots"] = boots_fields(log, segments)
-    fields["segments"] = segments
+    fields["segments"] = [s.to_fields() for s in segments]
     fields["segments_note"] = seg_note
     fields["flying_time_s"] = flying_time_s(segments)
-    has_flying = any(s["kind"] == "flying" for s in segments)
+    has_flying = any(s.kind == "flying" for s in segments)
     if whole_log:
         over, over_note = OVER_WHOLE, "--whole-log: figures over the whole log"
     elif has_flying:
@@ -190,14 +190,19 @@ def _review_per_boot(log, review, autopilot, params, filters, mask_fn):
             if records is None:                # samples that do not say their boot: none of this one's
                 return np.zeros(t.shape, dtype=bool)
             return base & (log.boot_of(records) == k)
-        rev, note, plot = _filter_review(log, b["segments"], autopilot, params, filters, boot_mask)
+        rev, note, plot = _filter_review(log, [s for s in review.segments if s.session == k], autopilot, params,
+                                         filters, boot_mask)
         if rev is not None:
             rev["source"]["boot"] = k
             found[k] = (rev, plot)
         b["filter_review"] = rev
         b["filter_review_note"] = note
     if not found:
-        return None, "; ".join(f"boot {b['session']}: {b['filter_review_note']}" for b in boots), None
+        by_note = {}
+        for b in boots:
+            by_note.setdefault(b["filter_review_note"], []).append(str(b["session"]))
+        return None, "; ".join(f"boot{'s' if len(ks) > 1 else ''} {', '.join(ks)}: {n}"
+                               for n, ks in by_note.items()), None
     best = max(found, key=lambda k: (boots[k]["flying_time_s"] or 0.0, -k))
     return found[best][0], (f"the review of boot {best}, the one that flew longest ({len(boots)} boots, "
                             f"each reviewed on its own in boots)"), found[best][1]

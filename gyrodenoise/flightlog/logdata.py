@@ -230,19 +230,37 @@ def _df_anchor_time(file: DataFlashFile, offs):
     return out
 
 
-#: timed messages either side of a step back that must confirm it (DataFlash boots)
+#: timed messages either side of a step back that must confirm it (a new boot)
 BOOT_CONFIRM = 20
+#: a new boot's time steps back by more than this share of the time before the step too
+#: (a telemetry log's boot time stepping back 1.5 s at 612 s is its stamps, not a reboot)
+BOOT_STEP_SHARE = 0.1
+
+
+def boot_steps(t):
+    """Indices ``i`` where a boot begins in the boot times ``t`` (in file order): ``t``
+    steps back by more than :data:`SESSION_STEP_BACK_S` and :data:`BOOT_STEP_SHARE` of
+    ``t[i - 1]``, and stays back: the median of the next :data:`BOOT_CONFIRM` times is
+    below ``t[i - 1]`` and the median of the ones before above ``t[i]`` by as much (one
+    damaged timestamp, or a run of them, is no boot)."""
+    t = np.asarray(t, dtype=np.float64)
+    out = []
+    for i in (np.flatnonzero(np.diff(t) < -SESSION_STEP_BACK_S) + 1).tolist():
+        step = max(SESSION_STEP_BACK_S, BOOT_STEP_SHARE * abs(t[i - 1]))
+        if t[i - 1] - t[i] <= step:
+            continue
+        if np.median(t[i:i + BOOT_CONFIRM]) < t[i - 1] - step and \
+                np.median(t[max(0, i - BOOT_CONFIRM):i]) > t[i] + step:
+            out.append(i)
+    return np.asarray(out, dtype=np.int64)
 
 
 def dataflash_boot_starts(f: DataFlashFile):
     """Byte offsets (sorted int64 array) at which a DataFlash log's boots 1, 2, ... begin,
     empty for a log of one boot: where the boot time of the timed message type the log
-    holds most of steps back, in file order, by more than :data:`SESSION_STEP_BACK_S`
-    and stays back (the median of its next :data:`BOOT_CONFIRM` messages is below the
-    one before the step, and the median of the ones before above the one after: one
-    damaged timestamp is no boot). A boot begins just after the last timed message (of
-    any type) before the first one whose time stepped back, so that its own FMT and PARM
-    messages are in it."""
+    holds most of steps back, in file order, and stays back (:func:`boot_steps`). A boot
+    begins just after the last timed message (of any type) before the first one whose
+    time stepped back, so that its own FMT and PARM messages are in it."""
     _df_anchor_time(f, np.zeros(0, np.int64))
     a, t = f.anchors
     sc = f.scan
@@ -262,11 +280,7 @@ def dataflash_boot_starts(f: DataFlashFile):
     tcol, tscale = _df_time_column(fmt)
     tt = rec[tcol].astype(np.float64) * tscale
     out = []
-    for i in (np.flatnonzero(np.diff(tt) < -SESSION_STEP_BACK_S) + 1).tolist():
-        after = np.median(tt[i:i + BOOT_CONFIRM])
-        before = np.median(tt[max(0, i - BOOT_CONFIRM):i])
-        if not (after < tt[i - 1] - SESSION_STEP_BACK_S and before > tt[i] + SESSION_STEP_BACK_S):
-            continue
+    for i in boot_steps(tt).tolist():
         lo, hi = np.searchsorted(a, offs[i - 1]), np.searchsorted(a, offs[i])
         back = np.flatnonzero(t[lo:hi + 1] < tt[i - 1] - SESSION_STEP_BACK_S)
         j = lo + int(back[0]) if len(back) else hi
@@ -379,9 +393,8 @@ def _tlog_anchors(f: TelemetryFile):
 def tlog_boot_starts(f: TelemetryFile):
     """Frame indices (sorted int64 array) at which a telemetry log's boot sessions 1, 2, ...
     begin, empty for a log of one boot: where the ``time_boot_ms`` of the system that
-    sends most of them steps back, in file order, by more than
-    :data:`SESSION_STEP_BACK_S` (a reboot, or logs of several boots written into one
-    file). The session of a record with frame index ``i`` is
+    sends most of them steps back, in file order, and stays back (:func:`boot_steps`: a
+    reboot, or logs of several boots written into one file). The session of a record with frame index ``i`` is
     ``searchsorted(starts, i, side="right")``: the same numbering for every message
     and gyro stream of the log, whatever their own clocks do."""
     anchors = _tlog_anchors(f)
@@ -389,8 +402,7 @@ def tlog_boot_starts(f: TelemetryFile):
         return np.zeros(0, np.int64)
     sid = max(anchors, key=lambda k: len(anchors[k][0]))
     idx, boot, _ = anchors[sid]
-    back = np.flatnonzero(np.diff(boot) < -SESSION_STEP_BACK_S) + 1
-    return np.asarray(idx[back], dtype=np.int64)
+    return np.asarray(idx[boot_steps(boot)], dtype=np.int64)
 
 
 def _tlog_anchor_time(f, sel, sysid, wall_us):

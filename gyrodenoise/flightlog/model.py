@@ -126,6 +126,38 @@ class ReadOptions:
     raw_imu_scale: float | None = None
 
 
+@dataclass(frozen=True)
+class Segment:
+    """A stretch of one boot: ``kind`` ``ground``/``armed``/``flying``/``hover`` (or, for a
+    figure over a whole boot, ``whole log``), ``start_s``/``end_s`` on the boot's time
+    axis (start and end included), ``session`` the boot (None: any boot, a figure over
+    the whole of a log of one boot)."""
+    kind: str
+    start_s: float
+    end_s: float
+    session: int | None = 0
+
+    @property
+    def duration_s(self):
+        return self.end_s - self.start_s
+
+    def contains(self, time_s, sessions=None):
+        """Bool array: ``time_s`` inside the segment (and, given each sample's boot
+        ``sessions``, in its boot)."""
+        t = np.asarray(time_s, dtype=np.float64)
+        m = (t >= self.start_s) & (t <= self.end_s)
+        if sessions is not None and self.session is not None:
+            m &= np.asarray(sessions) == self.session
+        return m
+
+    def to_fields(self):
+        """The report's dict (the JSON edge)."""
+        out = {"kind": self.kind, "start_s": self.start_s, "end_s": self.end_s}
+        if self.session is not None:
+            out["session"] = self.session
+        return out
+
+
 @dataclass
 class Throttle:
     """Throttle 0..1 at ``time_s`` (for hover stretches and, without land evidence,

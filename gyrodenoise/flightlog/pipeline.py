@@ -193,7 +193,7 @@ def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method
     (``s._spectrum``, over the samples of ``review.stream_mask``: flying time by
     default) and queue the log's spectrum figure; ``s._png`` / ``s._spectrum_png``:
     where the plots go; ``s._spectrum_plot``: the spectrum's plot data."""
-    segments = review.segments if review is not None else None
+    segments = [s.to_fields() for s in review.segments] if review is not None else None
     axis = review.fields["time_base"]["axis"] if review is not None else BOOT_AXIS
     spec_items = []
     spec_png = out_dir / f"{stem}.spectrum.png"

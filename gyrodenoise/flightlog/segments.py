@@ -1,7 +1,8 @@
 """Flight segments of a log, from the log's own evidence: when the vehicle was on the
 ground (disarmed), armed but not flying, flying, and hovering.
 
-:func:`flight_segments` returns a list of ``{"kind", "start_s", "end_s", "session"}`` in
+:func:`flight_segments` returns a list of :class:`~gyrodenoise.flightlog.model.Segment` (``kind``,
+``start_s``, ``end_s``, ``session``; ``to_fields()`` the report's dict) in
 the log's own time base (the gyro streams' ``time_s``; :mod:`gyrodenoise.flightlog.logdata`):
 
 * ``ground`` -- not armed; ``armed`` -- armed, not in the air; ``flying`` -- in the air.
@@ -60,7 +61,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gyrodenoise.flightlog.model import FlightEvidence, Throttle
+from gyrodenoise.flightlog.model import FlightEvidence, Segment, Throttle
 
 SEGMENT_KINDS = ("ground", "armed", "flying", "hover")
 GROUND, ARMED, FLYING = 0, 1, 2
@@ -82,9 +83,9 @@ PX4_ARMING_STATE_ARMED = 2
 def flight_segments(log, autopilot=None):
     """(segments, note) of a :class:`~gyrodenoise.flightlog.model.FlightLog`, boot by boot.
 
-    ``segments``: list of ``{"kind": "ground"|"armed"|"flying"|"hover", "start_s",
-    "end_s", "session"}`` (see the module doc; ``hover`` entries lie inside ``flying``
-    ones), each boot's on its own time axis; ``note``: which evidence gave them, or --
+    ``segments``: list of :class:`~gyrodenoise.flightlog.model.Segment` (``kind``
+    ``ground``/``armed``/``flying``/``hover``, ``start_s``, ``end_s``, ``session``: see the
+    module doc; ``hover`` ones lie inside ``flying`` ones), each boot's on its own time axis; ``note``: which evidence gave them, or --
     with an empty list -- what was looked for when the log holds none. ``autopilot``
     (a strategy of :mod:`gyrodenoise.flightlog.autopilots`, or None) decides how a
     telemetry log's ``system_status`` is read."""
@@ -101,8 +102,8 @@ def flight_segments(log, autopilot=None):
             notes.append(got.note)
         for seg in segs:                 # log order; each hover entry after its flying segment
             out.append(seg)
-            if seg["kind"] == "flying":
-                out += [{k: v for k, v in h.items() if k != "_parent"} for h in hov if h["_parent"] is seg]
+            if seg.kind == "flying":
+                out += [h for parent, h in hov if parent is seg]
     if not notes:
         return [], missing[0] if missing else "no flight evidence in the log"
     note = "; ".join(notes)
@@ -123,13 +124,9 @@ def segment_mask(time_s, segments, kind, session=None):
     covers the hover stretches too (they lie inside)."""
     t = np.asarray(time_s, dtype=np.float64)
     mask = np.zeros(t.shape, dtype=bool)
-    sess = None if session is None else np.asarray(session)
     for s in segments:
-        if s["kind"] == kind:
-            m = (t >= s["start_s"]) & (t <= s["end_s"])
-            if sess is not None:
-                m &= sess == s.get("session", 0)
-            mask |= m
+        if s.kind == kind:
+            mask |= s.contains(t, session)
     return mask
 
 
@@ -142,7 +139,7 @@ def sessions_of(records, starts):
 
 def flying_time_s(segments):
     """Seconds in the air: the summed length of the ``flying`` segments (float)."""
-    return round(float(sum(s["end_s"] - s["start_s"] for s in segments if s["kind"] == "flying")), 3)
+    return round(float(sum(s.duration_s for s in segments if s.kind == "flying")), 3)
 
 
 # ------------------------------------------------------------------ helpers
@@ -178,8 +175,8 @@ def _runs(t, state, sess=None):
     for a, b in zip(starts.tolist(), ends.tolist()):
         end = t[b] if b < len(t) and sess[b] == sess[a] else t[b - 1]
         if end > t[a]:
-            out.append({"kind": _STATE_NAMES[int(state[a])], "start_s": round(float(t[a]), 6),
-                        "end_s": round(float(end), 6), "session": int(sess[a])})
+            out.append(Segment(_STATE_NAMES[int(state[a])], round(float(t[a]), 6), round(float(end), 6),
+                               int(sess[a])))
     return out
 
 
@@ -197,15 +194,16 @@ def _step(t_query, t_change, values, initial):
 
 
 def _hover(segs, throttle):
-    """Hover segments inside the flying ones (of one boot) from ``throttle`` (:class:`Throttle`)."""
+    """[(its flying segment, hover segment)] inside the flying ones (of one boot) from
+    ``throttle`` (:class:`Throttle`)."""
     tt, thr = throttle.time_s, throttle.value
     ok = np.isfinite(tt) & np.isfinite(thr)
     tt, thr = np.asarray(tt, np.float64)[ok], np.asarray(thr, np.float64)[ok]
     out = []
     for s in segs:
-        if s["kind"] != "flying":
+        if s.kind != "flying":
             continue
-        sel = (tt >= s["start_s"]) & (tt <= s["end_s"])
+        sel = s.contains(tt)
         t, x = tt[sel], thr[sel]
         order = np.argsort(t, kind="stable")
         t, x = t[order], x[order]
@@ -226,8 +224,7 @@ def _hover(segs, throttle):
         edges = np.diff(np.concatenate([[0], steady.astype(np.int8), [0]]))
         for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1):
             if t[j] - t[i] >= HOVER_MIN_S:       # from the first to the last steady sample
-                out.append({"kind": "hover", "start_s": round(float(t[i]), 6),
-                            "end_s": round(float(t[j]), 6), "session": s["session"], "_parent": s})
+                out.append((s, Segment("hover", round(float(t[i]), 6), round(float(t[j]), 6), s.session)))
     return out
 
 

@@ -41,7 +41,7 @@ import re
 import numpy as np
 
 from gyrodenoise.analysis.spectrum import find_peaks, welch_psd
-from gyrodenoise.flightlog.segments import segment_mask
+from gyrodenoise.flightlog.model import Segment
 
 ARDUPILOT_VIBE_URL = "https://ardupilot.org/copter/docs/common-measuring-vibration.html"
 FLIGHT_REVIEW_URL = "https://github.com/PX4/flight_review/blob/main/app/plot_app/configured_plots.py"
@@ -100,21 +100,18 @@ def vibration_review(log, segments, over="flying"):
                               else None)
     if levels is None and accel is None:
         return None, f"no vibration data in the log (looked for {log.format.vibration_looked_for})"
-    times = [x["time_s"] for x in ([levels] if levels else []) + ([accel] if accel else [])]
-    t_all = np.concatenate(times)
-    t_all = t_all[np.isfinite(t_all)]
     note = ""
-    spans = [s for s in segments if s["kind"] == "flying"] if over == "flying" else []
+    spans = [s for s in segments if s.kind == "flying"] if over == "flying" else []
     over_out = "flying"
     if over == "whole" or not spans:
         if over == "flying":
             note = "no flying segment in the log: figures over the whole log; "
-        spans = [{"kind": "whole log", "start_s": float(t_all.min()), "end_s": float(t_all.max())}]
+        spans = _whole_boots(log, levels, accel)
         over_out = "whole log"
     out_segs = []
     for seg in spans:
-        entry = {"kind": seg["kind"], "start_s": round(float(seg["start_s"]), 3),
-                 "end_s": round(float(seg["end_s"]), 3), "session": int(seg.get("session", 0)),
+        entry = {"kind": seg.kind, "start_s": round(float(seg.start_s), 3),
+                 "end_s": round(float(seg.end_s), 3), "session": int(seg.session or 0),
                  "figures": {}, "accel_peaks": None}
         if levels is not None:
             entry["figures"] = _segment_figures(levels, seg)
@@ -222,8 +219,26 @@ def _worst(verdicts):
     return max(vs, key=VERDICTS.index) if vs else None
 
 
+def _whole_boots(log, levels, accel):
+    """One ``whole log`` segment per boot over the samples of the sources (a log of one
+    boot: one over all of them, of no boot in particular)."""
+    srcs = [x for x in (levels, accel) if x is not None]
+    t = np.concatenate([np.asarray(x["time_s"], np.float64) for x in srcs])
+    several = len(log.boots) > 1 and all(x.get("session") is not None for x in srcs)
+    if not several:
+        t = t[np.isfinite(t)]
+        return [Segment("whole log", float(t.min()), float(t.max()), None)]
+    sess = np.concatenate([np.asarray(x["session"]) for x in srcs])
+    out = []
+    for k in np.unique(sess).tolist():
+        tk = t[(sess == k) & np.isfinite(t)]
+        if len(tk):
+            out.append(Segment("whole log", float(tk.min()), float(tk.max()), int(k)))
+    return out
+
+
 def _in(t, seg, session=None):
-    return segment_mask(t, [dict(seg, kind="x")], "x", session if "session" in seg else None)
+    return seg.contains(t, session)
 
 
 def _segment_figures(lv, seg):
@@ -252,9 +267,9 @@ def _segment_figures(lv, seg):
             idx = np.flatnonzero(sel)
             if not len(idx):
                 continue
-            before = isel & (t < seg["start_s"])
-            if lv.get("session") is not None and "session" in seg:
-                before &= lv["session"] == seg["session"]
+            before = isel & (t < seg.start_s)
+            if lv.get("session") is not None and seg.session is not None:
+                before &= lv["session"] == seg.session
             before = np.flatnonzero(before)
             base = c[before[-1]] if len(before) else c[idx[0]]
             inc = float(np.max(c[idx]) - base)

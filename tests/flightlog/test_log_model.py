@@ -234,7 +234,7 @@ def test_plane_without_arming_records_flies_on_gps_evidence():
     (before: 'no flight evidence'; the GPS time of week was taken for a boot time)."""
     from gyrodenoise.flightlog.segments import flight_segments, flying_time_s
     segs, note = flight_segments(_plane31())
-    assert [(s["kind"], s["start_s"], s["end_s"]) for s in segs] == [
+    assert [(s.kind, s.start_s, s.end_s) for s in segs] == [
         ("ground", 0.0, 20.0), ("flying", 20.0, 80.0), ("ground", 80.0, 99.9)]
     assert flying_time_s(segs) == 60.0
     assert "GPS.Spd" in note and "GPS.RelAlt" in note and "no ARM/EV arming record" in note
@@ -244,7 +244,7 @@ def test_gps_speed_on_the_ground_is_not_flying():
     """10 m/s at 0 m (a car, a taxi run): ground throughout."""
     from gyrodenoise.flightlog.segments import flight_segments
     segs, _ = flight_segments(_plane31(rel_alt_cm=0))
-    assert {s["kind"] for s in segs} == {"ground"}
+    assert {s.kind for s in segs} == {"ground"}
 
 
 def test_html_report_shows_the_boots_and_their_summed_flying_time(reviews, tmp_path):
@@ -280,9 +280,9 @@ def test_quadplane_tlog_flies_on_height_and_speed():
         elif m.get_type() == "STATUSTEXT" and "Land complete" in m.text:
             landed_at = t_boot
     segs, note = flight_segments(formats.read_log(shared_log("sitl_vtol.tlog")))
-    (fly,) = [s for s in segs if s["kind"] == "flying"]
-    assert armed_at < fly["start_s"] < armed_at + 5.0
-    assert abs(fly["end_s"] - landed_at) < 2.0
+    (fly,) = [s for s in segs if s.kind == "flying"]
+    assert armed_at < fly.start_s < armed_at + 5.0
+    assert abs(fly.end_s - landed_at) < 2.0
     assert "GLOBAL_POSITION_INT.relative_alt" in note and "VFR_HUD" in note
 
 
@@ -328,3 +328,15 @@ def test_epoch_time_base_on_the_axes_and_in_the_report(tmp_path):
     html = Path(rep["report_html"]).read_text()
     assert "time since the log's start [s] (Unix epoch clock)" in html
     assert all(s["start_s"] < 1e4 for s in rep["segments"])
+
+
+def test_damaged_timestamps_and_log_stamps_are_no_boots():
+    """ardusub_bad_data.tlog (1967 unreadable records) is one boot, not 906: a boot time
+    that steps back for a record or a few is damage; sitl_vtol.tlog's boot time stepping
+    back 1.5 s at 612 s is its stamps (README), not a reboot; the three boots of
+    copter_20211202-132613.tlog and sitl_copter_reboot.tlog's reboot stay."""
+    n = {name: len(formats.read_log(shared_log(name)).boots)
+         for name in ("ardusub_bad_data.tlog", "sitl_vtol.tlog", "copter_20211202-132613.tlog",
+                      "sitl_copter_reboot.tlog")}
+    assert n == {"ardusub_bad_data.tlog": 1, "sitl_vtol.tlog": 1, "copter_20211202-132613.tlog": 3,
+                 "sitl_copter_reboot.tlog": 2}

@@ -54,7 +54,7 @@ def _synthetic_review():
 
 def test_synthetic_vibe_figures_exact_over_flying_time():
     segs, (res, note) = _synthetic_review()
-    assert [s["kind"] for s in segs if s["kind"] != "hover"] == ["ground", "armed", "flying", "armed", "ground"]
+    assert [s.kind for s in segs if s.kind != "hover"] == ["ground", "armed", "flying", "armed", "ground"]
     assert res["source"] == "VIBE" and res["over"] == "flying" and "95th percentile" in note
     (seg,) = res["segments"]
     assert (seg["start_s"], seg["end_s"]) == (5.0, 15.0)
