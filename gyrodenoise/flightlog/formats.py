@@ -31,8 +31,10 @@ format a log is:
 * ``vehicle_rate(log, streams) -> list`` -- the vehicle's own body-rate estimate for
   the HTML report (empty where none).
 
-A new format (a Betaflight blackbox, a ROS bag) is one adapter module and one line
-in :data:`FORMATS`; :func:`read_log` never sends a file to a format whose ``sniff``
+An adapter derives from :class:`gyrodenoise.flightlog.adapters.BaseFormat`, which
+answers for the parts a format lacks (no signing, messages, flight evidence, vibration
+source, events or rate estimate). A new format (a Betaflight blackbox, a ROS bag) is one
+adapter module and one line in :data:`FORMATS`; :func:`read_log` never sends a file to a format whose ``sniff``
 (or suffix) did not claim it.
 """
 

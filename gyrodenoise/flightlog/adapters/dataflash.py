@@ -12,10 +12,11 @@ from pathlib import Path
 import numpy as np
 
 from gyrodenoise.flightlog import events, dataflash, logdata, parameters, segments, vibration
+from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import Boot, FlightLog, LogFacts, number_instances
 
 
-class DataFlashFormat:
+class DataFlashFormat(BaseFormat):
     name = "dataflash"
     description = "an ArduPilot DataFlash log"
     suffixes = (".bin",)
@@ -43,12 +44,6 @@ class DataFlashFormat:
     def write_filtered(self, log, path, link=None):
         Path(path).write_bytes(dataflash.patch(log.payload.data, log.payload.scan, log.gyro))
         return {}
-
-    def signing(self, log, key):
-        return None
-
-    def keep_signed_raw(self, log, link):
-        return None
 
     def messages(self, log, name):
         return logdata.dataflash_messages(log.payload, name)

@@ -20,13 +20,14 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.flightlog import events, logdata, parameters, segments, tlog, vibration
+from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 from gyrodenoise.flightlog.signing import LinkSigning
 
 EPOCH_S_MIN = EPOCH_US_MIN * 1e-6
 
 
-class TelemetryFormat:
+class TelemetryFormat(BaseFormat):
     name = "tlog"
     description = "a MAVLink telemetry log"
     suffixes = (".tlog", ".mavlink")
@@ -94,9 +95,6 @@ class TelemetryFormat:
     def vibration_levels(self, log):
         return vibration.tlog_levels(log)
 
-    def accelerometer(self, log):
-        return None
-
     def events(self, log):
         return events.tlog_events(log)
 
@@ -105,9 +103,6 @@ class TelemetryFormat:
 
     def parameters(self, log):
         return parameters.tlog_parameters(log)
-
-    def vehicle_rate(self, log, streams):
-        return []
 
 
 def _boots(log):

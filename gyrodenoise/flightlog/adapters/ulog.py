@@ -13,12 +13,13 @@ from pathlib import Path
 import numpy as np
 
 from gyrodenoise.flightlog import events, logdata, parameters, segments, ulog, vibration
+from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 
 MAGIC = b"ULog\x01\x12\x35"
 
 
-class ULogFormat:
+class ULogFormat(BaseFormat):
     name = "ulog"
     description = "a PX4 log"
     suffixes = (".ulg",)
@@ -57,12 +58,6 @@ class ULogFormat:
     def write_filtered(self, log, path, link=None):
         ulog.write_filtered(log.payload.ulog, log.gyro, log.payload.refs, path)
         return {}
-
-    def signing(self, log, key):
-        return None
-
-    def keep_signed_raw(self, log, link):
-        return None
 
     def messages(self, log, name):
         return logdata.ulog_messages(log.payload, name)
