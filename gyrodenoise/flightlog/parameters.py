@@ -78,6 +78,9 @@ def dataflash_parameters(log) -> LogParameters:
     if arm is not None and "ArmState" in arm:
         arm_times.append(arm["time_s"][np.asarray(arm["ArmState"]) == 1])
     t_arm = _first_time(np.concatenate(arm_times)) if arm_times else None
+    if np.asarray(parm["Value"]).dtype.kind not in "iuf":
+        return LogParameters(ARDUPILOT, {}, [f"PARM.Value is no number in this log's FMT "
+                                             f"({np.asarray(parm['Value']).dtype}): parameters not read"])
     names, values, times = parm["Name"], np.asarray(parm["Value"], dtype=np.float64), parm["time_s"]
     out = {}
     for i in range(len(names)):

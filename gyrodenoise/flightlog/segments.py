@@ -391,6 +391,7 @@ def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
     if never_flies:
         air = np.zeros(len(t), np.int64)
         notes.append(f"{vehicle}: never flying")
+        alone = "the vehicle type"
     elif has_land_events and n_land:
         order = np.argsort(lt, kind="stable")
         first_land = lv[order][0]
@@ -398,6 +399,7 @@ def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
         init = 1 if (first_land == 0 and int(first_id[0]) == EV_LAND_COMPLETE) else 0
         air = _step(t, lt, lv, initial=init)
         notes.append("in the air from EV NOT_LANDED/LAND_COMPLETE")
+        alone = "the land events"
     elif thr is not None:
         tv = np.interp(t, *_sorted(thr[0], thr[1]))
         air = (tv > FLYING_THROTTLE).astype(np.int64)

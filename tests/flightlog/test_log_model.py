@@ -340,3 +340,31 @@ def test_damaged_timestamps_and_log_stamps_are_no_boots():
                       "sitl_copter_reboot.tlog")}
     assert n == {"ardusub_bad_data.tlog": 1, "sitl_vtol.tlog": 1, "copter_20211202-132613.tlog": 3,
                  "sitl_copter_reboot.tlog": 2}
+
+
+def test_land_events_without_arming_records():
+    """SYNTHETIC DataFlash: EV NOT_LANDED at 5 s and LAND_COMPLETE at 12 s, a throttle, no
+    ARM and no arming event: flying 5-12 s from the land events (before: 'flight segments
+    failed: UnboundLocalError', found by mutating shared logs)."""
+    from tests.flightlog.synthetic_logs import DataFlashWriter
+    from gyrodenoise.flightlog.segments import flight_segments
+    w = DataFlashWriter()
+    w.define("EV", "QB", ["TimeUS", "Id"])
+    w.define("CTUN", "Qf", ["TimeUS", "ThO"])
+    for k in range(200):
+        w.add("CTUN", 1_000_000 + 100_000 * k, 0.1)
+        if k in (40, 110):
+            w.add("EV", 1_000_000 + 100_000 * k, 28 if k == 40 else 18)
+    segs, note = flight_segments(log_of_bytes(w.bytes(), "dataflash"))
+    assert [(s.kind, s.start_s, s.end_s) for s in segs if s.kind != "hover"] == [
+        ("ground", 1.0, 5.0), ("flying", 5.0, 12.0), ("ground", 12.0, 20.9)]
+    assert "from the land events alone" in note
+
+
+def test_parameters_with_a_text_value_column_are_left_out_with_a_note():
+    from tests.flightlog.synthetic_logs import DataFlashWriter
+    w = DataFlashWriter()
+    w.define("PARM", "QNN", ["TimeUS", "Name", "Value"])
+    w.add("PARM", 1_000_000, "INS_GYRO_FILTER", "20")
+    got = log_of_bytes(w.bytes(), "dataflash").parameters()
+    assert got.values == {} and "PARM.Value is no number" in got.notes[0]
