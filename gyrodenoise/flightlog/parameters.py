@@ -96,7 +96,12 @@ def dataflash_parameters(log) -> LogParameters:
 def ulog_parameters(log) -> LogParameters:
     """PX4's parameters from a ULog (pyulog's initial and changed parameters)."""
     u = log.payload.ulog
-    out = {str(k): _plain(v) for k, v in (getattr(u, "initial_parameters", None) or {}).items()}
+    out, bad = {}, []
+    for k, v in (getattr(u, "initial_parameters", None) or {}).items():
+        if _is_number(v):
+            out[str(k)] = _plain(v)
+        else:
+            bad.append(str(k))
     vs = log.messages("vehicle_status")
     t_arm = None
     if vs is not None and "arming_state" in vs:
@@ -105,9 +110,14 @@ def ulog_parameters(log) -> LogParameters:
     if t_arm is not None:
         offset = log.time_base.offset_s
         for ts, name, value in getattr(u, "changed_parameters", None) or []:
-            if ts * 1e-6 - offset < t_arm:
+            if ts * 1e-6 - offset < t_arm and _is_number(value):
                 out[str(name)] = _plain(value)
-    return LogParameters(PX4_AUTOPILOT, out)
+    notes = [f"{len(bad)} parameters with a value that is no number left out ({', '.join(bad[:5])})"] if bad else []
+    return LogParameters(PX4_AUTOPILOT, out, notes)
+
+
+def _is_number(v):
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
 
 
 def _f32(v):

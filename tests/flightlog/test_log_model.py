@@ -368,3 +368,18 @@ def test_parameters_with_a_text_value_column_are_left_out_with_a_note():
     w.add("PARM", 1_000_000, "INS_GYRO_FILTER", "20")
     got = log_of_bytes(w.bytes(), "dataflash").parameters()
     assert got.values == {} and "PARM.Value is no number" in got.notes[0]
+
+
+def test_ulog_parameter_that_is_no_number_is_left_out_with_a_note():
+    """A ULog parameter whose value pyulog hands back as bytes (a damaged type): the others
+    are read and a note names it (before: 'reading the parameters failed: ValueError',
+    found by mutating shared logs)."""
+    from types import SimpleNamespace
+    from gyrodenoise.flightlog.logdata import ULogFile
+    from gyrodenoise.flightlog.model import FlightLog, LogFacts
+    u = SimpleNamespace(initial_parameters={"IMU_GYRO_CUTOFF": 40.0, "BROKEN": b"\x00\x80\xbbD"},
+                        changed_parameters=[], data_list=[])
+    log = FlightLog(format=formats.format_named("ulog"), path=Path("x.ulg"), gyro=[],
+                    facts=LogFacts(0, None, 0, None), payload=ULogFile(u, []))
+    got = log.parameters()
+    assert got.values == {"IMU_GYRO_CUTOFF": 40.0} and "BROKEN" in got.notes[0]
