@@ -7,10 +7,13 @@ log in which only the gyro fields of the IMU messages differ.
 
 Modules, by concern. Imports go one way: a module imports only modules after it
 in the chain ``process`` (the re-export), ``dispatch``, ``cluster``, ``pipeline``,
-(``formats``, ``filtering``, ``report``, ``plotting``), (``log_review`` and the review
-modules), ``adapters``, (``spectra``, ``engines``, ``checks``, ``output``), (``dataflash``,
-``tlog``, ``ulog``, ``logdata``), ``model``, (``streams``, ``stopping``); ``autopilots`` is
-imported by the modules that need a strategy; ``live`` and ``fleet`` stand beside it.
+(``formats``, ``log_review``, ``filtering``, ``report``, ``plotting``), ``adapters``, (the
+review modules ``segments``, ``vibration``, ``parameters``, ``filter_review``,
+``vehicle_filters``, ``events``, ``vehicle_rate``; ``spectra``, ``engines``, ``checks``,
+``output``), (``dataflash``, ``tlog``, ``ulog``, ``logdata``), ``model``, (``streams``,
+``stopping``); ``autopilots`` is imported by the modules that need a strategy (its
+strategies import the review modules inside their methods); ``live`` and ``fleet``
+stand beside it.
 
 Reading and writing logs:
 

@@ -275,7 +275,7 @@ def test_fleet_report_gives_each_logs_review(tmp_path):
 def test_rate_scale_tells_centidegrees():
     """SYNTHETIC: a RATE record 100x the gyro (ArduCopter 3.x, cdeg/s) is scaled by 0.01;
     one in deg/s (4.x) is kept."""
-    from gyrodenoise.flightlog.log_review import rate_scale
+    from gyrodenoise.flightlog.vehicle_rate import rate_scale
     from gyrodenoise.flightlog.streams import RAD_TO_DEG, GyroStream
     t = np.arange(500) / 50.0
     w = 30.0 * np.sin(2 * np.pi * 0.5 * t)[:, None] * np.array([1.0, 0.7, 0.3])      # deg/s

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import events, dataflash, logdata, parameters, segments, vibration
+from gyrodenoise.flightlog import dataflash, events, logdata, parameters, segments, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import Boot, FlightLog, LogFacts, number_instances
 
@@ -70,8 +70,7 @@ class DataFlashFormat(BaseFormat):
         return parameters.dataflash_parameters(log)
 
     def vehicle_rate(self, log, streams):
-        from gyrodenoise.flightlog.log_review import dataflash_rate_series
-        return dataflash_rate_series(log, streams)
+        return vehicle_rate.dataflash_rate_series(log, streams)
 
 
 def _boots(log):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import events, logdata, parameters, segments, ulog, vibration
+from gyrodenoise.flightlog import events, logdata, parameters, segments, ulog, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 
@@ -84,8 +84,7 @@ class ULogFormat(BaseFormat):
         return parameters.ulog_parameters(log)
 
     def vehicle_rate(self, log, streams):
-        from gyrodenoise.flightlog.log_review import ulog_rate_series
-        return ulog_rate_series(log)
+        return vehicle_rate.ulog_rate_series(log)
 
 
 FORMAT = ULogFormat()
