@@ -75,6 +75,11 @@ class Autopilot:
         from gyrodenoise.flightlog.filter_review import fmt_value
         return [f"{k},{fmt_value(v)}" for k, v in changes.items()]
 
+    def vibration_levels(self, levels):
+        """The vibration levels of a log (:mod:`gyrodenoise.flightlog.vibration`) as this
+        autopilot fills them: named and judged as what they are."""
+        return levels
+
 
 class ArduPilot(Autopilot):
     name = "ardupilot"
@@ -166,6 +171,21 @@ class PX4(Autopilot):
 
     def lowpass_param(self, params):
         return "IMU_GYRO_CUTOFF"
+
+    #: PX4's MAVLink VIBRATION fields: what of vehicle_imu_status each carries
+    VIBRATION_FIELDS = {"vibration_x": "delta_angle_coning_metric", "vibration_y": "gyro_vibration_metric",
+                        "vibration_z": "accel_vibration_metric"}
+
+    def vibration_levels(self, levels):
+        """PX4's telemetry VIBRATION carries vehicle_imu_status' metrics (x the delta-angle
+        coning, y the gyro vibration, z the accelerometer vibration metric:
+        MavlinkStreamVibration), not ArduPilot's m/s/s levels: renamed, and judged on the
+        PX4 Flight Review thresholds (the accelerometer metric only)."""
+        if levels.get("source") != "VIBRATION":
+            return levels
+        renamed = {self.VIBRATION_FIELDS.get(k, k): v for k, v in levels["levels"].items()}
+        return dict(levels, source="VIBRATION (PX4: vehicle_imu_status metrics)",
+                    threshold="accel_vibration_metric_m_s2", levels=renamed)
 
     def param_lines(self, changes):
         from gyrodenoise.flightlog.filter_review import fmt_value

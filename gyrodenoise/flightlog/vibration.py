@@ -7,8 +7,11 @@ Sources, the first the log has:
   accelerometer, high-passed) and the clip counters ``Clip0..2`` (or ``Clip`` per IMU
   in ArduPilot 4.x, which logs one VIBE per IMU instance, field ``IMU``); cumulative
   counts: a segment's figure is their increase over it.
-* Telemetry log ``VIBRATION`` -- ``vibration_x/y/z`` (the same m/s/s levels),
-  ``clipping_0..2`` (cumulative).
+* Telemetry log ``VIBRATION`` -- from ArduPilot ``vibration_x/y/z`` (the same m/s/s
+  levels as VIBE), ``clipping_0..2`` (cumulative); from PX4 (its strategy's
+  ``vibration_levels``) x is the delta-angle coning metric, y the gyro vibration metric
+  and z the accelerometer vibration metric of ``vehicle_imu_status`` (PX4's
+  MavlinkStreamVibration), named and judged as those.
 * PX4 ULog ``vehicle_imu_status`` (every instance) -- ``accel_vibration_metric``
   (m/s/s), ``gyro_vibration_metric`` (rad/s), ``delta_angle_coning_metric`` (rad^2),
   ``accel_clipping[0..2]`` (cumulative).
@@ -93,6 +96,8 @@ def vibration_review(log, segments, over="flying"):
     if over not in ("flying", "whole"):
         raise ValueError(f"over must be 'flying' or 'whole', not {over!r}")
     levels = log.format.vibration_levels(log)
+    if levels is not None:
+        levels = log.parameters().autopilot.vibration_levels(levels)
     accel = log.format.accelerometer(log)
     for src in (levels, accel):
         if src is not None:

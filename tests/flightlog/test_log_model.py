@@ -383,3 +383,23 @@ def test_ulog_parameter_that_is_no_number_is_left_out_with_a_note():
                     facts=LogFacts(0, None, 0, None), payload=ULogFile(u, []))
     got = log.parameters()
     assert got.values == {"IMU_GYRO_CUTOFF": 40.0} and "BROKEN" in got.notes[0]
+
+
+def test_px4_telemetry_vibration_judged_as_px4_metrics():
+    """SYNTHETIC PX4 telemetry log (HEARTBEAT autopilot 12): its VIBRATION carries
+    vehicle_imu_status' metrics (x coning, y gyro, z accelerometer: PX4's
+    MavlinkStreamVibration). z 12 m/s/s fails PX4 Flight Review's 9.81; x 40 (rad^2) has
+    no threshold (before: read as ArduPilot's m/s/s levels, x 'warn' at 40, z 'pass')."""
+    from gyrodenoise.flightlog.vibration import vibration_review
+    mav, add, out = tlog_writer()
+    wall = 1_700_000_000_000_000
+    for k in range(100):
+        add(mav.MAVLink_heartbeat_message(2, 12, 0, 0, 3, 3), wall + k * 100_000)
+        add(mav.MAVLink_vibration_message(k * 100_000, 40.0, 0.1, 12.0, 0, 0, 0), wall + k * 100_000 + 10)
+    log = log_of_bytes(out(), "tlog")
+    assert log.parameters().autopilot.name == "px4"
+    res, _ = vibration_review(log, [], over="whole")
+    figs = res["segments"][0]["figures"]
+    assert figs["accel_vibration_metric"]["verdict"] == "fail"
+    assert figs["delta_angle_coning_metric"]["verdict"] is None and "vibration_x" not in figs
+    assert "PX4" in res["source"] and set(res["thresholds"]) == {"accel_vibration_metric_m_s2", "clip_increase"}
