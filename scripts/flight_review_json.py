@@ -13,15 +13,13 @@ from __future__ import annotations
 import json
 import sys
 
-from gyrodenoise.flightlog.formats import log_kind, read_log
+from gyrodenoise.flightlog.formats import read_log
 from gyrodenoise.flightlog.log_review import log_review
 
 
 def review_json(path):
     """The JSON-able summary of the flight review of the log at ``path`` (a dict)."""
-    kind = log_kind(path)
-    streams, source, _ = read_log(path, kind)
-    fields = log_review(kind, source, streams).fields
+    fields = log_review(read_log(path)).fields
     out = {"segments": [s for s in fields["segments"] if s["kind"] != "hover"],
            "parameters_note": fields.get("parameters_note"),
            "vibration": fields["vibration"], "vibration_note": fields["vibration_note"]}

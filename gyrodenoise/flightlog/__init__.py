@@ -7,9 +7,13 @@ log in which only the gyro fields of the IMU messages differ.
 
 Modules, by concern. Imports go one way: a module imports only modules after it
 in the chain ``process`` (the re-export), ``dispatch``, ``cluster``, ``pipeline``,
-(``formats``, ``filtering``, ``report``, ``plotting``), (``spectra``, ``engines``,
-``checks``, ``output``), (``dataflash``, ``tlog``, ``ulog``), (``streams``,
-``stopping``); ``live`` and ``fleet`` stand beside it.
+(``formats``, ``log_review``, ``filtering``, ``report``, ``plotting``), ``adapters``, (the
+review modules ``segments``, ``vibration``, ``parameters``, ``filter_review``,
+``vehicle_filters``, ``events``, ``vehicle_rate``; ``spectra``, ``engines``, ``checks``,
+``output``), (``dataflash``, ``tlog``, ``ulog``, ``logdata``), ``model``, (``streams``,
+``stopping``); ``autopilots`` is imported by the modules that need a strategy (its
+strategies import the review modules inside their methods); ``live`` and ``fleet``
+stand beside it.
 
 Reading and writing logs:
 
@@ -17,7 +21,11 @@ Reading and writing logs:
 * :mod:`gyrodenoise.flightlog.dataflash` -- DataFlash ``.bin`` scanner / patcher (numpy, no per-message objects)
 * :mod:`gyrodenoise.flightlog.tlog` -- telemetry-log framer, IMU decoding and re-packing (CRC checked)
 * :mod:`gyrodenoise.flightlog.ulog` -- PX4 ULog via pyulog
-* :mod:`gyrodenoise.flightlog.formats` -- which format a file is; read its gyro streams, write the filtered copy
+* :mod:`gyrodenoise.flightlog.model` -- the typed log: ``FlightLog``, its boots and time bases, facts, evidence
+* :mod:`gyrodenoise.flightlog.formats` -- the registry of formats and the adapter interface; ``read_log``
+* :mod:`gyrodenoise.flightlog.adapters` -- one adapter per format (sniff, read, messages, evidence, filtered copy)
+* :mod:`gyrodenoise.flightlog.logdata` -- the per-format message decoders the adapters use
+* :mod:`gyrodenoise.flightlog.autopilots` -- one strategy per autopilot (filter chain, stages, review rules, lines)
 
 One log:
 

@@ -48,12 +48,13 @@ spectra (the filtered gyro is resampled there).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from gyrodenoise.analysis import spectrum
 from gyrodenoise.flightlog import vehicle_filters as vf
-from gyrodenoise.flightlog.logdata import log_message_names, log_messages
+from gyrodenoise.flightlog.autopilots import named
 
 #: the noise band starts here (Hz)
 NOISE_BAND_LO_HZ = 30.0
@@ -89,51 +90,63 @@ AXES = ("x", "y", "z")
 
 # --------------------------------------------------------------------------- context from the log
 
-def review_context(kind, source, autopilot, params, filters, flying_mask_fn=None):
+def review_context(log, autopilot, params, filters, flying_mask_fn=None):
     """What :func:`filter_review` needs from the log beyond the gyro: a dict with
     ``notch_centre_hz`` ({stage params: Hz} of the harmonic notches where the log
     tells: throttle tracking from the median ``CTUN.ThO`` over flying time (whole
     log without a mask), measured tracking from ``FTN``), ``esc_telemetry`` and
     ``rpm_sensor`` (the log holds ESC RPM / RPM messages), ``hover_throttle``
-    (``MOT_THST_HOVER`` or the median ``CTUN.ThH``) and ``notes``."""
+    (``MOT_THST_HOVER`` or the median ``CTUN.ThH``), PX4's ``gyro_fft`` and ``notes``;
+    what each autopilot reads: its strategy's ``review_context``."""
     ctx = {"notch_centre_hz": {}, "esc_telemetry": False, "rpm_sensor": False, "hover_throttle": None,
            "notes": []}
-    names = set(log_message_names(kind, source) or [])
-    if autopilot == "ardupilot":
-        ctx["esc_telemetry"] = "ESC" in names
-        ctx["rpm_sensor"] = "RPM" in names
-        ctun = log_messages(kind, source, "CTUN") if "CTUN" in names else None
-        hover = params.get("MOT_THST_HOVER")
-        if hover is None and ctun is not None and "ThH" in ctun and len(ctun["ThH"]):
-            hover = float(np.nanmedian(ctun["ThH"]))
-        ctx["hover_throttle"] = None if hover is None else float(hover)
-        for st in filters.get("stages", []):
-            if st["kind"] != "harmonic_notch":
-                continue
-            if st["tracking"] == "throttle" and ctun is not None and "ThO" in ctun:
-                thr = _over_flying(ctun["time_s"], np.asarray(ctun["ThO"], dtype=np.float64), flying_mask_fn)
-                if thr is not None:
-                    ctx["notch_centre_hz"][st["params"]] = vf.throttle_notch_centre_hz(st, thr)
-                    ctx["notes"].append(f"{st['params']}: throttle notch at the median throttle out "
-                                        f"{thr:.3f} (CTUN.ThO): centre {ctx['notch_centre_hz'][st['params']]:.1f} Hz")
-            elif st["tracking"] not in ("fixed", "throttle") and "FTN" in names:
-                ftn = log_messages(kind, source, "FTN")
-                col = next((c for c in ("NF1", "DnF1") if c in ftn), None)
-                if col is not None:
-                    f = _over_flying(ftn["time_s"], np.asarray(ftn[col], dtype=np.float64), flying_mask_fn)
-                    if f is not None and f > 0:
-                        ctx["notch_centre_hz"][st["params"]] = f
-                        ctx["notes"].append(f"{st['params']}: centre {f:.1f} Hz, the median FTN.{col}")
-    elif autopilot == "px4":
-        esc = log_messages(kind, source, "esc_status") if "esc_status" in names else None
-        ctx["esc_telemetry"] = esc is not None and any(
-            np.nanmax(np.abs(np.asarray(v, dtype=np.float64)), initial=0.0) > 0
-            for k, v in esc.items() if k.endswith("esc_rpm"))
-        hte = log_messages(kind, source, "hover_thrust_estimate") if "hover_thrust_estimate" in names else None
-        if hte is not None and "hover_thrust" in hte and len(hte["hover_thrust"]):
-            ctx["hover_throttle"] = float(np.nanmedian(hte["hover_thrust"]))
-        if "sensor_gyro_fft" in names:
-            ctx["gyro_fft"] = px4_gyro_fft(log_messages(kind, source, "sensor_gyro_fft"), flying_mask_fn)
+    return named(autopilot).review_context(log, params, filters, flying_mask_fn, ctx)
+
+
+def ardupilot_context(log, params, filters, flying_mask_fn, ctx):
+    """:func:`review_context` of an ArduPilot log."""
+    names = set(log.message_names() or [])
+    ctx["esc_telemetry"] = "ESC" in names
+    ctx["rpm_sensor"] = "RPM" in names
+    ctun = log.messages("CTUN") if "CTUN" in names else None
+    hover = params.get("MOT_THST_HOVER")
+    if hover is None and ctun is not None and "ThH" in ctun and len(ctun["ThH"]):
+        hover = float(np.nanmedian(ctun["ThH"]))
+    ctx["hover_throttle"] = None if hover is None else float(hover)
+    for st in filters.get("stages", []):
+        if st["kind"] != "harmonic_notch":
+            continue
+        if st["tracking"] == "throttle" and ctun is not None and "ThO" in ctun:
+            thr = _over_flying(ctun["time_s"], np.asarray(ctun["ThO"], dtype=np.float64), flying_mask_fn,
+                               ctun.get("record"))
+            if thr is not None:
+                ctx["notch_centre_hz"][st["params"]] = vf.throttle_notch_centre_hz(st, thr)
+                ctx["notes"].append(f"{st['params']}: throttle notch at the median throttle out "
+                                    f"{thr:.3f} (CTUN.ThO): centre {ctx['notch_centre_hz'][st['params']]:.1f} Hz")
+        elif st["tracking"] not in ("fixed", "throttle") and "FTN" in names:
+            ftn = log.messages("FTN")
+            col = next((c for c in ("NF1", "DnF1") if c in ftn), None)
+            if col is not None:
+                f = _over_flying(ftn["time_s"], np.asarray(ftn[col], dtype=np.float64), flying_mask_fn,
+                                 ftn.get("record"))
+                if f is not None and f > 0:
+                    ctx["notch_centre_hz"][st["params"]] = f
+                    ctx["notes"].append(f"{st['params']}: centre {f:.1f} Hz, the median FTN.{col}")
+    return ctx
+
+
+def px4_context(log, params, filters, flying_mask_fn, ctx):
+    """:func:`review_context` of a PX4 log."""
+    names = set(log.message_names() or [])
+    esc = log.messages("esc_status") if "esc_status" in names else None
+    ctx["esc_telemetry"] = esc is not None and any(
+        np.nanmax(np.abs(np.asarray(v, dtype=np.float64)), initial=0.0) > 0
+        for k, v in esc.items() if k.endswith("esc_rpm"))
+    hte = log.messages("hover_thrust_estimate") if "hover_thrust_estimate" in names else None
+    if hte is not None and "hover_thrust" in hte and len(hte["hover_thrust"]):
+        ctx["hover_throttle"] = float(np.nanmedian(hte["hover_thrust"]))
+    if "sensor_gyro_fft" in names:
+        ctx["gyro_fft"] = px4_gyro_fft(log.messages("sensor_gyro_fft"), flying_mask_fn)
     return ctx
 
 
@@ -150,7 +163,7 @@ def px4_gyro_fft(m, flying_mask_fn=None):
     keep = np.ones(len(t), dtype=bool)
     over = "whole log"
     if flying_mask_fn is not None:
-        fm = np.asarray(flying_mask_fn(t), dtype=bool)
+        fm = np.asarray(flying_mask_fn(t, None), dtype=bool)
         if fm.any():
             keep, over = fm, "flying"
     freq, snr = [], []
@@ -176,11 +189,13 @@ def px4_gyro_fft(m, flying_mask_fn=None):
             "over": over}
 
 
-def _over_flying(time_s, values, flying_mask_fn):
+def _over_flying(time_s, values, flying_mask_fn, records=None):
+    """The median of ``values`` over the flying samples (all without a mask); ``records``:
+    the samples' records, which tell their boot in a log of several."""
     v = np.asarray(values, dtype=np.float64)
     t = np.asarray(time_s, dtype=np.float64)
     if flying_mask_fn is not None:
-        m = np.asarray(flying_mask_fn(t), dtype=bool)
+        m = np.asarray(flying_mask_fn(t, records), dtype=bool)
         if m.any():
             v = v[m]
     v = v[np.isfinite(v)]
@@ -215,6 +230,7 @@ def pick_pre_filter_stream(streams, autopilot, params):
 
 
 def _no_stream_note(streams, autopilot, params, stages):
+    """Why no stream is fit for the review, in one line."""
     parts = []
     for s in streams:
         r = stream_rate_hz(s)
@@ -223,18 +239,7 @@ def _no_stream_note(streams, autopilot, params, stages):
                  "unknown": "at an unknown stage"}[stages[s.name]]
         parts.append(f"{s.name} is logged {where}{rate}")
     why = "; ".join(parts) if parts else "no gyro stream"
-    if autopilot == "ardupilot":
-        mask = params.get("INS_LOG_BAT_MASK")
-        if mask is None:
-            why += ", and the batch sampler's INS_LOG_BAT_MASK is not logged"
-        elif not mask:
-            why += ", and the batch sampler is off (INS_LOG_BAT_MASK 0)"
-        elif not any(s.message == "ISBD" for s in streams):
-            why += f", and the log holds no batch-sampler data (INS_LOG_BAT_MASK {_fmt(mask)})"
-    elif autopilot == "px4":
-        why += ", and the high-rate gyro FIFO (sensor_gyro_fifo) is not logged"
-    elif autopilot is None:
-        why += "; the autopilot is unknown, so no stream's stage can be told"
+    why += named(autopilot).no_stream_reason(params, streams)
     return f"no pre-filter gyro stream: {why}"
 
 
@@ -248,7 +253,7 @@ def _psd(stream, rate_hz, flying_mask_fn):
     restarts = np.r_[False, (dt <= 0) | (dt > 5.0 / rate_hz)]
     over = "whole log"
     if flying_mask_fn is not None:
-        m = np.asarray(flying_mask_fn(t), dtype=bool)
+        m = np.asarray(flying_mask_fn(t, stream.sample_records), dtype=bool)
         if m.any():
             x = np.where(m[:, None], x, np.nan)
             over = "flying"
@@ -316,7 +321,7 @@ def _peaks(f, psd, n_seg, fs, eligible=None):
     return peaks, {"freq_hz": float(fund["freq_hz"]), "axis": fund["axis"], "harmonics": harmonics}
 
 
-def _px4_dynamic_notch(params, ctx):
+def px4_dynamic_notch(params, ctx):
     """({NAME: value}, reasons) of PX4's dynamic notch where the log shows what drives it:
     the onboard FFT's peaks (``sensor_gyro_fft``, computed on the raw gyro) or ESC RPM
     (``esc_status``); ({}, []) where it shows neither."""
@@ -351,45 +356,52 @@ def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
                           "stream's rate, from a stream that is not averaged): no static notch recommended"]
     centre = round(fund["freq_hz"], 1)
     bw = round(centre / 2.0, 1)
+    return named(autopilot).recommend_notch(params, fund, ctx, centre, bw)
+
+
+def ardupilot_notch(params, fund, ctx, centre, bw):
+    """({NAME: value}, stage, reasons) of ArduPilot's recommended harmonic notch."""
     why = []
-    if autopilot == "ardupilot":
-        hm = sum(1 << (n - 1) for n in fund["harmonics"])
-        if ctx.get("esc_telemetry"):
-            mode, ref, how = 3, 1.0, "ESC telemetry is logged: the notch follows the motors' RPM"
-        elif ctx.get("rpm_sensor"):
-            mode, ref, how = 2, 1.0, "an RPM sensor is logged: the notch follows it"
-        else:
-            hover = ctx.get("hover_throttle") or params.get("MOT_THST_HOVER")
-            logged_ref = params.get("INS_HNTCH_REF")
-            ref = round(float(hover), 3) if hover else (float(logged_ref) if logged_ref else 0.35)
-            mode = 1
-            how = ("no RPM or ESC telemetry in the log: throttle tracking, REF the hover throttle "
-                   f"({'MOT_THST_HOVER/CTUN.ThH' if hover else 'assumed'} {ref})")
-        rec = {"INS_HNTCH_ENABLE": 1, "INS_HNTCH_MODE": mode, "INS_HNTCH_FREQ": centre, "INS_HNTCH_BW": bw,
-               "INS_HNTCH_ATT": NOTCH_ATT_DB, "INS_HNTCH_HMNCS": hm, "INS_HNTCH_REF": ref}
-        stage = {"kind": "harmonic_notch", "path": "rate", "params": "INS_HNTCH_*", "centre_hz": centre,
-                 "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
-                 "tracking": "fixed", "composite": 1, "reference": ref, "min_ratio": 1.0}
-        why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
-                   f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}")
+    hm = sum(1 << (n - 1) for n in fund["harmonics"])
+    if ctx.get("esc_telemetry"):
+        mode, ref, how = 3, 1.0, "ESC telemetry is logged: the notch follows the motors' RPM"
+    elif ctx.get("rpm_sensor"):
+        mode, ref, how = 2, 1.0, "an RPM sensor is logged: the notch follows it"
+    else:
+        hover = ctx.get("hover_throttle") or params.get("MOT_THST_HOVER")
+        logged_ref = params.get("INS_HNTCH_REF")
+        ref = round(float(hover), 3) if hover else (float(logged_ref) if logged_ref else 0.35)
+        mode = 1
+        how = ("no RPM or ESC telemetry in the log: throttle tracking, REF the hover throttle "
+               f"({'MOT_THST_HOVER/CTUN.ThH' if hover else 'assumed'} {ref})")
+    rec = {"INS_HNTCH_ENABLE": 1, "INS_HNTCH_MODE": mode, "INS_HNTCH_FREQ": centre, "INS_HNTCH_BW": bw,
+           "INS_HNTCH_ATT": NOTCH_ATT_DB, "INS_HNTCH_HMNCS": hm, "INS_HNTCH_REF": ref}
+    stage = {"kind": "harmonic_notch", "path": "rate", "params": "INS_HNTCH_*", "centre_hz": centre,
+             "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
+             "tracking": "fixed", "composite": 1, "reference": ref, "min_ratio": 1.0}
+    why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
+               f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}")
+    return rec, stage, why
+
+
+def px4_notch(params, fund, ctx, centre, bw):
+    """({NAME: value}, stage, reasons) of PX4's recommended notch."""
+    why = []
+    bw = min(bw, PX4_NOTCH_BW_MAX_HZ)
+    if ctx.get("esc_telemetry"):
+        rec = {"IMU_GYRO_DNF_EN": int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0)) | PX4_DNF_ESC_RPM,
+               "IMU_GYRO_DNF_HMC": max(fund["harmonics"]), "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
+        why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch")
+        stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
+                 "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
+                 "attenuation_db": None}
         return rec, stage, why
-    if autopilot == "px4":
-        bw = min(bw, PX4_NOTCH_BW_MAX_HZ)
-        if ctx.get("esc_telemetry"):
-            rec = {"IMU_GYRO_DNF_EN": int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0)) | PX4_DNF_ESC_RPM,
-                   "IMU_GYRO_DNF_HMC": max(fund["harmonics"]), "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
-            why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch")
-            stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
-                     "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
-                     "attenuation_db": None}
-            return rec, stage, why
-        rec = {"IMU_GYRO_NF0_FRQ": centre, "IMU_GYRO_NF0_BW": bw}
-        why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): static notch IMU_GYRO_NF0 there, "
-                   f"BW half the centre; no ESC telemetry in the log for the dynamic notch")
-        stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ, IMU_GYRO_NF0_BW",
-                 "centre_hz": centre, "bandwidth_hz": bw, "attenuation_db": None}
-        return rec, stage, why
-    return {}, None, ["unknown autopilot: no notch parameters to recommend"]
+    rec = {"IMU_GYRO_NF0_FRQ": centre, "IMU_GYRO_NF0_BW": bw}
+    why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): static notch IMU_GYRO_NF0 there, "
+               f"BW half the centre; no ESC telemetry in the log for the dynamic notch")
+    stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ, IMU_GYRO_NF0_BW",
+             "centre_hz": centre, "bandwidth_hz": bw, "attenuation_db": None}
+    return rec, stage, why
 
 
 def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, cap_hz=None):
@@ -422,26 +434,30 @@ def _mean_lag(chain, logged_lp, fs_filter):
     return float(np.mean(vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)))
 
 
-def _lowpass_param(autopilot, params=None):
-    """The gyro low-pass parameter to recommend: INS_GYRO_FILTER (ArduPilot), IMU_GYRO_CUTOFF
-    (PX4); None for an APM 2.x log whose only gyro low-pass is INS_MPU6K_FILTER (the sensor's
-    own filter, a few fixed values)."""
-    if autopilot == "ardupilot" and params and "INS_GYRO_FILTER" not in params and "INS_MPU6K_FILTER" in params:
-        return None
-    return {"ardupilot": "INS_GYRO_FILTER", "px4": "IMU_GYRO_CUTOFF"}.get(autopilot)
+@dataclass(frozen=True)
+class ReviewPlot:
+    """The filter review's spectra for the plots: the pre-filter PSD and the predicted
+    post-filter PSDs of the logged and the recommended settings, ((deg/s)^2/Hz, one row
+    per axis of :data:`AXES`) at ``freq_hz``."""
+    freq_hz: np.ndarray
+    psd_pre: np.ndarray
+    psd_logged: np.ndarray
+    psd_recommended: np.ndarray
+    axes: tuple = AXES
 
 
 def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, context=None):
-    """(review or None, note) of the vehicle's gyro filters from a pre-filter gyro stream.
+    """(review or None, note, plot or None) of the vehicle's gyro filters from a pre-filter
+    gyro stream.
 
     ``streams``: the log's gyro streams (:func:`gyrodenoise.flightlog.formats.read_log`);
     ``params``/``filters``: :func:`gyrodenoise.flightlog.parameters.log_parameters` and
     :func:`gyrodenoise.flightlog.vehicle_filters.vehicle_filters`;
-    ``flying_mask_fn(time_s) -> bool array``: the flying samples (whole log when
+    ``flying_mask_fn(time_s, records) -> bool array``: the flying samples (``records``: the
+    samples' records, which tell their boot, or None) (whole log when
     None or when no pre-filter sample is flying); ``context``: :func:`review_context`.
 
-    The review (JSON-able but for ``"_plot"``, numpy arrays for plotting that a
-    JSON writer drops): ``source`` (stream, rate, what the PSD is over),
+    The review (JSON-able; its spectra for the plots apart, a :class:`ReviewPlot`): ``source`` (stream, rate, what the PSD is over),
     ``filter_rate_hz``, ``noise_band_hz``, ``peaks``, ``figures`` {``pre_filter``,
     ``logged``, ``recommended``: ``noise_rms_deg_s`` per axis and ``rss``, and
     (the last two) ``phase_lag_ms`` at 10/20/30 Hz}, ``logged`` {NAME: value},
@@ -449,23 +465,23 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     one-line note naming why when there is no usable pre-filter stream."""
     params = params or {}
     ctx = context or {}
-    stream, rate, stages = pick_pre_filter_stream(streams, autopilot, params)
+    ap = named(autopilot)
+    stream, rate, stages = pick_pre_filter_stream(streams, ap, params)
     if stream is None:
-        return None, _no_stream_note(streams, autopilot, params, stages)
+        return None, _no_stream_note(streams, autopilot, params, stages), None
     if rate is None or rate < MIN_REVIEW_RATE_HZ:
         return None, (f"no pre-filter gyro stream fast enough: {stream.name} is pre-filter but at "
-                      f"{rate or 0:.0f} Hz (below {MIN_REVIEW_RATE_HZ:g} Hz it cannot show motor noise)")
+                      f"{rate or 0:.0f} Hz (below {MIN_REVIEW_RATE_HZ:g} Hz it cannot show motor noise)"), None
     spec = _psd(stream, rate, flying_mask_fn)
     if spec is None:
-        return None, f"{stream.name}: too few contiguous samples for a spectrum (64 needed)"
+        return None, f"{stream.name}: too few contiguous samples for a spectrum (64 needed)", None
     f, psd, n_seg, nperseg, over = spec
     notes = list(ctx.get("notes", []))
     fs_filter, fs_src = filters.get("filter_rate_hz"), filters.get("filter_rate_source")
-    if autopilot == "ardupilot" and stream.message == "ISBD" and not int(params.get("INS_LOG_BAT_OPT", 0)) & 1:
-        fs_filter, fs_src = rate, "the batch sampler's rate (it samples at the rate the filters run at)"
-    fft = ctx.get("gyro_fft") if autopilot == "px4" else None
-    if fft is not None and fft.get("sample_rate_hz"):
-        fs_filter, fs_src = fft["sample_rate_hz"], "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
+    own_rate = ap.review_filter_rate(stream, rate, params, ctx)
+    if own_rate is not None:
+        fs_filter, fs_src = own_rate
+    fft = ctx.get("gyro_fft")
     if not fs_filter:
         fs_filter, fs_src = rate, "assumed: the pre-filter stream's rate"
     keep = f < 0.5 * fs_filter
@@ -478,7 +494,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     averaged = AVERAGED_MESSAGES.get(stream.message)
     fold_hz = FOLD_SHARE * rate
     if averaged:
-        notes.append(f"{averaged} (IMU_INTEG_RATE {_fmt(params.get('IMU_INTEG_RATE'))} Hz; attenuated near its "
+        notes.append(f"{averaged} (IMU_INTEG_RATE {fmt_value(params.get('IMU_INTEG_RATE'))} Hz; attenuated near its "
                      "Nyquist frequency): no static notch is recommended from its peaks")
 
     def eligible(q):
@@ -493,12 +509,12 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre)
     peaks, fund = _peaks(f, psd, n_seg, rate, eligible)
     rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
-    if autopilot == "px4" and notch_stage is None:
-        dyn_rec, dyn_why = _px4_dynamic_notch(params, ctx)
+    if notch_stage is None:
+        dyn_rec, dyn_why = ap.recommend_without_notch(params, ctx)
         rec.update(dyn_rec)
         why += dyn_why
 
-    lp_name = _lowpass_param(autopilot, params)
+    lp_name = ap.lowpass_param(params)
     target = fig_logged["noise_rms_deg_s"]["rss"]
     logged_lp = [s for s in logged_stages if s["kind"] == "lowpass"]
     with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
@@ -557,12 +573,11 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
         "param_lines": param_lines(autopilot, changes),
         "why": why,
         "notes": notes,
-        "_plot": {"freq_hz": f, "psd_pre": psd, "psd_logged": post_logged, "psd_recommended": post_rec,
-                  "axes": AXES},
     }
+    plot = ReviewPlot(freq_hz=f, psd_pre=psd, psd_logged=post_logged, psd_recommended=post_rec)
     if not changes:
         review["why"].append("no change: every recommended value is the logged one")
-    return review, ""
+    return review, "", plot
 
 
 def _same(logged, value):
@@ -588,11 +603,11 @@ def _stage_text(st):
     """A stage's settings in a few words, e.g. 'harmonic_notch 97 Hz, BW 25 Hz, 6 dB, throttle'."""
     parts = [st["kind"]]
     if st.get("centre_hz") is not None:
-        parts.append(f"{_fmt(float(st['centre_hz']))} Hz")
+        parts.append(f"{fmt_value(float(st['centre_hz']))} Hz")
     if st.get("bandwidth_hz") is not None:
-        parts.append(f"BW {_fmt(float(st['bandwidth_hz']))} Hz")
+        parts.append(f"BW {fmt_value(float(st['bandwidth_hz']))} Hz")
     if st.get("attenuation_db") is not None:
-        parts.append(f"{_fmt(float(st['attenuation_db']))} dB")
+        parts.append(f"{fmt_value(float(st['attenuation_db']))} dB")
     if st.get("tracking"):
         parts.append(str(st["tracking"]))
     if st.get("sources"):
@@ -601,10 +616,9 @@ def _stage_text(st):
 
 
 def param_lines(autopilot, rec):
-    """Lines to paste: ArduPilot parameter-file ``NAME,VALUE``; PX4 console ``param set NAME VALUE``."""
-    if autopilot == "px4":
-        return [f"param set {k} {_fmt(v)}" for k, v in rec.items()]
-    return [f"{k},{_fmt(v)}" for k, v in rec.items()]
+    """Lines to paste: ArduPilot parameter-file ``NAME,VALUE``; PX4 console ``param set NAME VALUE``
+    (the strategy's ``param_lines``)."""
+    return named(autopilot).param_lines(rec)
 
 
 def _jsonable(v):
@@ -615,7 +629,8 @@ def _jsonable(v):
     return v
 
 
-def _fmt(v):
+def fmt_value(v):
+    """A parameter value as the lines to paste write it (37, 0.32)."""
     if v is None:
         return "?"
     if isinstance(v, float) and v.is_integer():

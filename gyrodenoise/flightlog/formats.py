@@ -1,106 +1,129 @@
-"""The log formats the bridge reads and writes: which format a file is, its gyro
-streams and facts, and the filtered copy.
+"""The registry of the log formats the bridge reads and writes: :data:`FORMATS`.
 
-Three formats, each with its own module: telemetry logs (:mod:`gyrodenoise.flightlog.tlog`),
-ArduPilot DataFlash (:mod:`gyrodenoise.flightlog.dataflash`) and PX4 ULog
-(:mod:`gyrodenoise.flightlog.ulog`). :func:`read_log` and :func:`write_filtered_log`
-dispatch to them; what a reader returns beside the streams (the raw bytes, the
-framing, the parsed ULog) travels as an opaque ``source`` dict from one to the other.
+Each format is one adapter object (a module under :mod:`gyrodenoise.flightlog.adapters`)
+with this interface (:class:`LogFormat`); nothing outside an adapter asks which
+format a log is:
+
+* ``name`` (str: the report's ``format``), ``suffixes`` (lower-case file suffixes),
+  ``gyro_looked_for``, ``flight_looked_for``, ``vibration_looked_for`` (what the
+  notes name when a log holds none);
+* ``sniff(head: bytes) -> bool`` -- True when the first bytes of a file are this
+  format (by content; the suffix decides only where no format's content matches);
+* ``read(path, options: ReadOptions) -> FlightLog`` -- the typed log
+  (:mod:`gyrodenoise.flightlog.model`): gyro streams, facts, boots with their time
+  bases, and the adapter's own ``payload``; InputError (one line) on a file it
+  cannot read;
+* ``write_filtered(log, path, link=None) -> dict`` -- the filtered copy (the gyro
+  fields patched with each stream's ``filtered``, every other byte kept); the
+  report's fields on the writing;
+* ``signing(log, key) -> LinkSigning | None`` and ``keep_signed_raw(log, link)`` --
+  a format with signed packets checks them (others return None / do nothing);
+* ``messages(log, name) -> dict | None`` and ``message_names(log) -> list`` -- any
+  message as numpy columns (``time_s`` on the log's clock, ``record`` where the
+  format numbers its records as the gyro streams' ``index``);
+* ``flight_evidence(log, boot, autopilot) -> FlightEvidence | str`` -- arming, in the
+  air and throttle in one boot (a str: what was looked for, when it holds none);
+* ``vibration_levels(log)``, ``accelerometer(log)`` -- the vibration review's sources
+  (:mod:`gyrodenoise.flightlog.vibration`), None where the format has none;
+* ``parameters(log) -> LogParameters`` -- the autopilot and its parameters;
+* ``events(log)``, ``modes(log)`` -- the log's events and messages (``LogEvent``) and its
+  flight mode changes (``ModeChange``), in log order;
+* ``vehicle_rate(log, streams) -> list`` -- the vehicle's own body-rate estimate for
+  the HTML report (empty where none).
+
+An adapter derives from :class:`gyrodenoise.flightlog.adapters.BaseFormat`, which
+answers for the parts a format lacks (no signing, messages, flight evidence, vibration
+source, events or rate estimate). A new format (a Betaflight blackbox, a ROS bag) is one
+adapter module and one line in :data:`FORMATS`; :func:`read_log` never sends a file to a format whose ``sniff``
+(or suffix) did not claim it.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Protocol
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.flightlog import dataflash, tlog, ulog
+from gyrodenoise.flightlog.adapters import dataflash as _dataflash
+from gyrodenoise.flightlog.adapters import tlog as _tlog
+from gyrodenoise.flightlog.adapters import ulog as _ulog
+from gyrodenoise.flightlog.model import FlightLog, ReadOptions
 
-LOG_SUFFIXES = {".tlog": "tlog", ".mavlink": "tlog", ".bin": "dataflash", ".ulg": "ulog"}
-GYRO_LOOKED_FOR = {
-    "tlog": "RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3, HIGHRES_IMU",
-    "dataflash": "IMU, IMU2, IMU3 with GyrX/GyrY/GyrZ, ISBH/ISBD gyro bursts",
-    "ulog": "sensor_combined.gyro_rad, sensor_gyro, sensor_gyro_fifo",
-}
+#: bytes read from the start of a file for ``sniff``
+HEAD_BYTES = 600
 
 
-def log_kind(path):
-    """'tlog', 'dataflash' or 'ulog' from the suffix, else from the first bytes."""
+class LogFormat(Protocol):
+    """The adapter interface of a log format (see the module doc)."""
+    name: str
+    suffixes: tuple
+    gyro_looked_for: str
+    flight_looked_for: str
+    vibration_looked_for: str
+
+    def sniff(self, head: bytes) -> bool: ...
+    def read(self, path, options: ReadOptions) -> FlightLog: ...
+    def write_filtered(self, log: FlightLog, path, link=None) -> dict: ...
+    def signing(self, log: FlightLog, key): ...
+    def keep_signed_raw(self, log: FlightLog, link) -> None: ...
+    def messages(self, log: FlightLog, name): ...
+    def message_names(self, log: FlightLog) -> list: ...
+    def flight_evidence(self, log: FlightLog, boot: int, autopilot): ...
+    def vibration_levels(self, log: FlightLog): ...
+    def accelerometer(self, log: FlightLog): ...
+    def parameters(self, log: FlightLog): ...
+    def events(self, log: FlightLog) -> list: ...
+    def modes(self, log: FlightLog) -> list: ...
+    def vehicle_rate(self, log: FlightLog, streams) -> list: ...
+
+
+#: every format the bridge reads, sniffed in this order
+FORMATS: tuple[LogFormat, ...] = (_dataflash.FORMAT, _ulog.FORMAT, _tlog.FORMAT)
+#: file suffix -> the name of its format (a folder's log files are found by these)
+LOG_SUFFIXES = {sfx: f.name for f in FORMATS for sfx in f.suffixes}
+
+
+def format_named(name) -> LogFormat:
+    """The adapter of format ``name`` (``"tlog"``, ``"dataflash"``, ``"ulog"``)."""
+    for f in FORMATS:
+        if f.name == name:
+            return f
+    raise InputError(f"unknown log format {name!r} (known: {', '.join(f.name for f in FORMATS)})")
+
+
+def log_format(path) -> LogFormat:
+    """The format of the file at ``path``: the first whose ``sniff`` claims its first
+    bytes, else the one its suffix names; InputError when none does."""
     p = Path(path)
-    kind = LOG_SUFFIXES.get(p.suffix.lower())
-    if kind:
-        return kind
     try:
         with open(p, "rb") as fh:
-            head = fh.read(600)
+            head = fh.read(HEAD_BYTES)
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    if head[:2] == b"\xa3\x95":
-        return "dataflash"
-    if head[:7] == b"ULog\x01\x12\x35":
-        return "ulog"
-    if tlog.looks_like_tlog(head):
-        return "tlog"
-    raise InputError(f"{path}: unknown file type (expected a MAVLink telemetry log .tlog, "
-                     f"an ArduPilot DataFlash log .bin or a PX4 log .ulg)")
+    for f in FORMATS:
+        if f.sniff(head):
+            return f
+    suffix = p.suffix.lower()
+    for f in FORMATS:
+        if suffix in f.suffixes:
+            return f
+    raise InputError(f"{path}: unknown file type (expected "
+                     + ", ".join(f"{f.description} {'/'.join(f.suffixes)}" for f in FORMATS) + ")")
 
 
-def read_log(path, kind, raw_imu_unit="auto", raw_imu_scale=None):
-    """(gyro streams, source, facts) of the log at ``path`` of format ``kind``
-    (:func:`log_kind`). ``source``: what :func:`write_filtered_log` needs to write
-    the filtered copy; ``facts``: the report's fields on the file itself (messages,
-    unreadable records and bytes, truncation). InputError when it has no gyro stream."""
-    if kind == "dataflash":
-        streams, source, facts = _read_dataflash(path)
-    elif kind == "tlog":
-        streams, source, facts = _read_tlog(path, raw_imu_unit, raw_imu_scale)
-    else:
-        streams, source, facts = _read_ulog(path)
-    if not streams:
-        raise InputError(f"{path}: no gyro stream (looked for {GYRO_LOOKED_FOR[kind]})")
-    return streams, source, facts
+def log_kind(path) -> str:
+    """The name of the format a file is named as: by its suffix where a format claims it
+    (the name alone: a URL, a file not fetched yet), else by its content
+    (:func:`log_format`; InputError when neither tells). Reading goes by content."""
+    name = LOG_SUFFIXES.get(Path(path).suffix.lower())
+    return name if name else log_format(path).name
 
 
-def _read_dataflash(path):
-    data, sc, streams = dataflash.read(path)
-    facts = dict(messages=sc.n_messages, unreadable_records=len(sc.bad_regions),
-                 unreadable_bytes=sc.bad_bytes, truncated=sc.truncated_bytes > 0,
-                 truncated_bytes=sc.truncated_bytes,
-                 truncation="message cut by the end of the file" if sc.truncated_bytes else None,
-                 streams_skipped=sc.skipped)
-    return streams, {"data": data, "sc": sc}, facts
-
-
-def _read_tlog(path, raw_imu_unit, raw_imu_scale):
-    data, fr, streams = tlog.read(path, raw_imu_unit, raw_imu_scale)
-    facts = dict(messages=int(fr.ok.sum()), unreadable_records=fr.n_unreadable,
-                 unreadable_bytes=int(fr.length[~fr.ok].sum()) + sum(e - s for s, e in fr.bad_regions),
-                 truncated=fr.truncated_bytes > 0, truncated_bytes=fr.truncated_bytes,
-                 truncation=("zero-filled tail" if fr.zero_tail else
-                             "record cut by the end of the file" if fr.truncated_bytes else None))
-    return streams, {"data": data, "fr": fr}, facts
-
-
-def _read_ulog(path):
-    u, streams, refs = ulog.read(path)
-    cut = ulog.truncated_bytes(path)
-    facts = dict(messages=sum(len(next(iter(d.data.values()), ())) for d in u.data_list),
-                 streams_skipped=refs.skipped,
-                 unreadable_records=None,
-                 data_corruption=bool(getattr(u, "file_corruption", False)),
-                 truncated=cut > 0, truncated_bytes=max(cut, 0),
-                 truncation="message cut by the end of the file" if cut > 0 else None)
-    return streams, {"u": u, "refs": refs}, facts
-
-
-def write_filtered_log(kind, source, streams, path):
-    """Write the filtered copy of a log to ``path``: the log of :func:`read_log`
-    with the streams' ``filtered`` values in their gyro fields. Returns the
-    report's fields on the writing (telemetry logs: ``signatures_dropped``, always 0 since a
-    signed packet is never written unsigned: the pipeline writes signed links itself)."""
-    if kind == "dataflash":
-        Path(path).write_bytes(dataflash.patch(source["data"], source["sc"], streams))
-        return {}
-    if kind == "tlog":
-        return {"signatures_dropped": tlog.write_filtered(source["data"], source["fr"], streams, path)}
-    ulog.write_filtered(source["u"], streams, source["refs"], path)
-    return {}
+def read_log(path, fmt: LogFormat | None = None, options: ReadOptions | None = None) -> FlightLog:
+    """The :class:`FlightLog` of the file at ``path`` (its format from
+    :func:`log_format` unless given). InputError when it has no gyro stream."""
+    fmt = fmt or log_format(path)
+    log = fmt.read(Path(path), options or ReadOptions())
+    if not log.gyro:
+        raise InputError(f"{path}: no gyro stream (looked for {fmt.gyro_looked_for})")
+    return log

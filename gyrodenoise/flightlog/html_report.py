@@ -333,7 +333,7 @@ def _is_target(vehicle_rate):
     return "desired" in str(vehicle_rate.get("name", "")).lower()
 
 
-def _time_figure(st, vehicle_rates, segments, title):
+def _time_figure(st, vehicle_rates, segments, title, axis="boot time [s]"):
     """Per axis raw (light, above) and filtered, the vehicle's own rate, restarts and
     the segments: one plotly figure, subplots sharing the time axis."""
     import plotly.graph_objects as go
@@ -346,7 +346,7 @@ def _time_figure(st, vehicle_rates, segments, title):
     axes = list(st.get("axes") or ["x", "y", "z"][:raw.shape[1]])
     unit = st.get("unit", "")
     restarts = _restart_mask(st.get("restarts"), len(t))
-    pt, xlabel = plot_time(t, restarts)
+    pt, xlabel = plot_time(t, restarts, axis)
     boot_time = pt is t or np.array_equal(pt, t)
     fig = make_subplots(rows=len(axes), cols=1, shared_xaxes=True, vertical_spacing=0.04)
     label = st.get("filtered_label") or "filtered"
@@ -540,59 +540,25 @@ def _spectrogram_figure(name, pd):
 
 
 # ------------------------------------------------------------------ the vehicle's filters
-def stage_response(stage, freq_hz, rate_hz):
-    """Gain |H| of one of the vehicle's filter stages at ``freq_hz`` (sampled at
-    ``rate_hz``), or None when the stage's shape is not one this report models.
-
-    ``lowpass``: 2nd-order Butterworth at ``cutoff_hz`` (or ``freq_hz``); ``notch``,
-    ``harmonic_notch``, ``dynamic_notch``: a biquad notch at ``center_hz`` (or
-    ``freq_hz``) with ``bandwidth_hz`` (default a quarter of it), and at each of
-    ``harmonics`` (multiples; default [1]) when given; ``attenuation_db`` limits its
-    depth. Off (``enabled`` false, or a frequency of 0) gives all-pass."""
-    from scipy import signal
-    f = np.asarray(freq_hz, dtype=np.float64)
-    kind = str(stage.get("kind", ""))
-    if stage.get("enabled") is False:
-        return np.ones_like(f)
-    nyq = rate_hz / 2.0
-    if kind == "lowpass":
-        fc = stage.get("cutoff_hz", stage.get("freq_hz"))
-        if not fc:
-            return np.ones_like(f)
-        if not 0 < fc < nyq:
-            return None
-        sos = signal.butter(2, fc, fs=rate_hz, output="sos")
-        return np.abs(signal.sosfreqz(sos, worN=f, fs=rate_hz)[1])
-    if kind in ("notch", "harmonic_notch", "dynamic_notch"):
-        fc = stage.get("center_hz", stage.get("freq_hz"))
-        if not fc:
-            return np.ones_like(f)
-        bw = stage.get("bandwidth_hz") or fc / 4.0
-        floor = 10 ** (-float(stage.get("attenuation_db") or 40.0) / 20.0)
-        g = np.ones_like(f)
-        for h in stage.get("harmonics") or [1]:
-            fh = float(fc) * float(h)
-            if not 0 < fh < nyq:
-                continue
-            b, a = signal.iirnotch(fh, fh / bw, fs=rate_hz)
-            g = g * np.maximum(np.abs(signal.freqz(b, a, worN=f, fs=rate_hz)[1]), floor)
-        return g
-    return None
-
-
 def vehicle_response(stages, freq_hz, rate_hz):
-    """(gain of the chain of stages, the stages not modelled) at ``freq_hz``."""
-    g = np.ones_like(np.asarray(freq_hz, dtype=np.float64))
-    skipped = []
+    """(gain |H| of the vehicle's chain of ``stages`` at ``freq_hz``, the stages not
+    modelled): the autopilot's own biquads on the gyro rate path, the one model the
+    filter review uses too (:func:`gyrodenoise.flightlog.vehicle_filters.chain_sections`);
+    a stage it cannot run (a notch that follows a measurement, a cutoff at or above
+    the Nyquist frequency, a kind it does not know) is left out and named."""
+    from gyrodenoise.flightlog import vehicle_filters as vf
+    sos, skipped = [], []
     for st in stages or []:
         if not isinstance(st, dict):
             continue
-        r = stage_response(st, freq_hz, rate_hz)
-        if r is None:
+        try:
+            got, notes = vf.chain_sections([st], rate_hz)
+        except (KeyError, TypeError, ValueError):
+            got, notes = [], ["not modelled"]
+        if notes or (not got and st.get("path", "rate") == "rate"):
             skipped.append(str(st.get("kind")))
-        else:
-            g = g * r
-    return g, skipped
+        sos += got
+    return np.abs(vf.sos_response(sos, np.asarray(freq_hz, dtype=np.float64), rate_hz)), skipped
 
 
 # ------------------------------------------------------------------ sections
@@ -606,9 +572,13 @@ def _summary_section(report, series):
     streams = report.get("streams") or []
     rows.append(["streams", _e(", ".join(s.get("name", "?") for s in streams) or "none")])
     rows.append(["restarts", _e(len(report.get("restarts") or []))])
-    flying = _flying_time_s(report.get("segments"))
+    flying = _flying_time_s(report)
     if flying is not None:
         rows.append(["flying time", _e(f"{flying:.1f} s")])
+    base = report.get("time_base") or {}
+    if base.get("kind") and base.get("kind") != "boot time":
+        rows.append(["time base", _e(f"{base['kind']}: times from {base.get('offset_s')} s on that clock "
+                                     f"({base.get('axis')})")])
     elif report.get("segments_note"):
         rows.append(["flying time", _e(f"unknown ({report['segments_note']})")])
     out = ["<h2 id=summary>Summary</h2>", _table(rows, ["", "value"])]
@@ -630,11 +600,24 @@ def _summary_section(report, series):
     warnings = [w for s in streams for w in s.get("warnings", [])]
     if warnings:
         out.append("<ul>" + "".join(f'<li class="warn">{_e(w)}</li>' for w in warnings) + "</ul>")
+    boots = report.get("boots") or []
+    if len(boots) > 1:
+        out.append("<h3>Boots</h3>" + _note(
+            f"the file holds {len(boots)} boots: each has its own time axis, its segments and figures; no "
+            "segment or figure spans two") + _table(
+            [[_e(b.get("session")), _e(_f(b.get("start_s"), ".2f")), _e(_f(b.get("end_s"), ".2f")),
+              _e((b.get("time_base") or {}).get("kind")), _e(_f(b.get("wall_clock_offset_s"))),
+              _e(_f(b.get("flying_time_s"), ".1f")), _e(len([g for g in b.get("segments") or []
+                                                          if g.get("kind") != "hover"]))] for b in boots],
+            ["boot", "start [s]", "end [s]", "time base", "wall clock at 0 [Unix s]", "flying [s]", "segments"]))
     segs = report.get("segments")
     if segs:
+        several = len(boots) > 1
         out.append("<h3>Segments</h3>" + _table(
-            [[_e(g.get("kind")), _e(_f(g.get("start_s"), ".2f")), _e(_f(g.get("end_s"), ".2f")),
-              _e(_f(_dur(g), ".1f"))] for g in segs], ["kind", "start [s]", "end [s]", "duration [s]"]))
+            [([_e(g.get("session", 0))] if several else []) +
+             [_e(g.get("kind")), _e(_f(g.get("start_s"), ".2f")), _e(_f(g.get("end_s"), ".2f")),
+              _e(_f(_dur(g), ".1f"))] for g in segs],
+            (["boot"] if several else []) + ["kind", "start [s]", "end [s]", "duration [s]"]))
     elif "segments" in report or report.get("segments_note"):
         out.append(_note("segments: none" + (f" ({report['segments_note']})" if report.get("segments_note") else "")))
     return "".join(out)
@@ -667,20 +650,12 @@ def _dur(seg):
         return None
 
 
-def _flying_time_s(segments):
-    """Seconds in ``flying`` or ``hover`` segments (hover counted once when it lies
-    inside a flying one), or None without segments."""
-    if not segments:
+def _flying_time_s(report):
+    """The log's flying time (``flying_time_s``, summed over its boots by
+    :func:`gyrodenoise.flightlog.segments.flying_time_s`), or None without segments."""
+    if not report.get("segments"):
         return None
-    spans = sorted((float(g["start_s"]), float(g["end_s"])) for g in segments
-                   if g.get("kind") in ("flying", "hover") and _dur(g) is not None)
-    total, end = 0.0, -math.inf
-    for a, b in spans:
-        a = max(a, end)
-        if b > a:
-            total += b - a
-            end = b
-    return total
+    return report.get("flying_time_s")
 
 
 #: streams written raw at or below this rate [Hz] share one compact plot (e.g. PX4's
@@ -704,7 +679,12 @@ def _is_slow_raw(st, stream_report):
     return st.get("filtered") is None and 0 < _stream_rate_hz(st, stream_report) <= SLOW_STREAM_HZ
 
 
-def _slow_figure(streams):
+def _axis(report):
+    """The x label of the log's time (its ``time_base``: boot time or a Unix epoch clock)."""
+    return (report.get("time_base") or {}).get("axis") or "boot time [s]"
+
+
+def _slow_figure(streams, axis="boot time [s]"):
     """The slow streams written raw in one figure: a subplot per axis, a line per stream."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
@@ -723,7 +703,7 @@ def _slow_figure(streams):
                                      hovertemplate=f"{_e(st['name'])} {axes[k]}: %{{y:.4g}} {_e(st.get('unit', ''))}"
                                                    f"<br>t=%{{x:.1f}} s<extra></extra>"), row=k + 1, col=1)
             fig.update_yaxes(title_text=f"{axes[k]} [{_e(st.get('unit', ''))}]", row=k + 1, col=1)
-    fig.update_xaxes(title_text="boot time [s]", row=3, col=1)
+    fig.update_xaxes(title_text=axis, row=3, col=1)
     fig.update_layout(title={"text": "slow streams, written raw (NOT FILTERED)", "font": {"size": 14},
                              "y": 0.995, "yanchor": "top"}, margin={"t": 70},
                       legend={"orientation": "h", "yanchor": "bottom", "y": 1.01, "x": 0})
@@ -741,14 +721,14 @@ def _streams_section(report, series, figs):
     if len(slow) > 1:
         out.append("<h3>Slow streams, written raw</h3>" + _note(
             "; ".join(f"{st['name']}: {st.get('raw_reason') or 'not filtered'}" for st in slow)))
-        out.append(figs.div(_slow_figure(slow), height=130 + 120 * 3))
+        out.append(figs.div(_slow_figure(slow, _axis(report)), height=130 + 120 * 3))
     for st in sts:
         if len(slow) > 1 and any(st is x for x in slow):
             continue
         title = f"{st['name']}: raw and {st.get('filtered_label') or 'filtered'}"
         if st.get("filtered") is None:
             title = f"{st['name']}: written raw (NOT FILTERED: {st.get('raw_reason') or 'no filtered output'})"
-        fig, note = _time_figure(st, vrates, report.get("segments"), title)
+        fig, note = _time_figure(st, vrates, report.get("segments"), title, _axis(report))
         out.append(f"<h3>{_e(st['name'])}</h3>")
         if note:
             out.append(_note(note))
@@ -1219,7 +1199,7 @@ def write_log_report(path, report, series=None):
 
     :func:`stream_series` gives a stream's entry from a processed GyroStream. Without
     ``filter_review`` responses the vehicle's response is computed from
-    ``report["vehicle_filters"]["stages"]`` (:func:`stage_response`)."""
+    ``report["vehicle_filters"]["stages"]`` (:func:`vehicle_response`)."""
     series = series or {}
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("summary", "summary"), ("streams", "streams"),
@@ -1260,7 +1240,7 @@ def write_fleet_report(path, fleet_report, per_log=()):
             link = f"<a href='{_e(Path(rel).as_posix())}'>{link}</a>"
         vib = rep.get("vibration") or {}
         verdict = str(vib.get("verdict") or "")
-        flying = _flying_time_s(rep.get("segments"))
+        flying = _flying_time_s(rep)
         if r.get("status") == "failed":
             table.append([link, "", '<span class="fail">failed</span>', "", "", "", "", "", "", _e(r.get("error"))])
             continue

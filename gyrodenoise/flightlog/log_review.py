@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.filter_review import filter_review, review_context
-from gyrodenoise.flightlog.logdata import log_messages
-from gyrodenoise.flightlog.parameters import log_parameters
-from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, session_starts, sessions_of
+from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, sessions_of
 from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
 from gyrodenoise.flightlog.vibration import vibration_review
 
@@ -32,9 +31,9 @@ OVER_FLYING, OVER_WHOLE = "flying", "whole log"
 
 class Review:
     """The review of a log: ``fields`` (the JSON-able report keys), ``plot`` (the
-    filter review's numpy arrays for plots, or None), ``over``, ``starts`` (the frame
-    indices where the log's boot sessions 1, 2, ... begin:
-    :func:`gyrodenoise.flightlog.segments.session_starts`) and :meth:`flying_mask`."""
+    filter review's numpy arrays for plots, or None), ``over``, ``starts`` (the
+    records where the log's boot sessions 1, 2, ... begin:
+    :meth:`gyrodenoise.flightlog.model.FlightLog.boot_starts`) and :meth:`flying_mask`."""
 
     def __init__(self, fields, plot, segments, over, starts=None):
         self.fields = fields
@@ -72,7 +71,7 @@ def never_armed_note(segments):
     The motors never turned: the gyro spectrum at rest says nothing about the motor
     noise the filters are there for, so no filter is recommended from it (the
     streams' own spectra stay in the report)."""
-    kinds = {s["kind"] for s in segments or []}
+    kinds = {s.kind for s in segments or []}
     if not kinds or kinds & {"armed", "flying", "hover"}:
         return ""
     return ("no filter review: the vehicle never armed in this log (segments: ground only); the gyro "
@@ -84,32 +83,45 @@ def _failed(part, exc):
     return f"{part} failed: {type(exc).__name__}: {exc}"
 
 
-def log_review(kind, source, streams, whole_log=False):
-    """The :class:`Review` of a log read by :func:`gyrodenoise.flightlog.formats.read_log`.
+def boots_fields(log, segments):
+    """The report's ``boots``: each boot of the log (:class:`~gyrodenoise.flightlog.model.Boot`)
+    with its time base, its segments and its flying time."""
+    out = []
+    for b in log.boots:
+        segs = [s for s in segments if s.session == b.index]
+        out.append({**b.to_fields(), "segments": [s.to_fields() for s in segs], "flying_time_s": flying_time_s(segs)})
+    return out
 
-    ``fields``: ``segments``, ``segments_note``, ``flying_time_s``, ``over``,
+
+def log_review(log, whole_log=False):
+    """The :class:`Review` of a :class:`~gyrodenoise.flightlog.model.FlightLog`.
+
+    ``fields``: ``time_base``, ``boots`` (each boot: its time base, segments and flying
+    time), ``segments``, ``segments_note``, ``flying_time_s``, ``over``,
     ``over_note``, ``vehicle_filters`` (``autopilot`` ``"ardupilot"``/``"px4"``/None,
     ``parameters``, ``stages``; ``note`` when the log holds no parameters),
     ``stream_stages`` ({stream name: ``pre-filter``/``post-filter``/``unknown``}),
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
     ``vibration_note``)."""
-    fields = {}
-    param_notes = []
+    streams = log.gyro
+    fields = {"time_base": log.time_base.to_fields()}
     try:
-        autopilot, params = log_parameters(kind, source, param_notes)
-        if param_notes:
-            fields["parameters_note"] = "; ".join(param_notes)
+        got = log.parameters()
+        autopilot, params = got.autopilot, got.values
+        if got.notes:
+            fields["parameters_note"] = "; ".join(got.notes)
     except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
-        autopilot, params = None, {}
+        autopilot, params = UNKNOWN, {}
         fields["parameters_note"] = _failed("reading the parameters", exc)
     try:
-        segments, seg_note = flight_segments(kind, source, autopilot)
+        segments, seg_note = flight_segments(log, autopilot)
     except Exception as exc:  # noqa: BLE001
         segments, seg_note = [], _failed("flight segments", exc)
-    fields["segments"] = segments
+    fields["boots"] = boots_fields(log, segments)
+    fields["segments"] = [s.to_fields() for s in segments]
     fields["segments_note"] = seg_note
     fields["flying_time_s"] = flying_time_s(segments)
-    has_flying = any(s["kind"] == "flying" for s in segments)
+    has_flying = any(s.kind == "flying" for s in segments)
     if whole_log:
         over, over_note = OVER_WHOLE, "--whole-log: figures over the whole log"
     elif has_flying:
@@ -118,39 +130,25 @@ def log_review(kind, source, streams, whole_log=False):
         over, over_note = OVER_WHOLE, "no flying segment in the log: figures over the whole log"
     fields["over"] = over
     fields["over_note"] = over_note
-    try:
-        starts = session_starts(kind, source)
-    except Exception:  # noqa: BLE001 - without sessions the times alone select
-        starts = None
-    review = Review(fields, None, segments, over, starts)
+    review = Review(fields, None, segments, over, log.boot_starts())
 
     filters = vehicle_filters(autopilot, params)
     if not params:
         filters["note"] = "no parameters in the log: the vehicle's filters are not known"
     fields["vehicle_filters"] = filters
-    fields["stream_stages"] = {s.name: stream_stage(autopilot, params, s) for s in streams}
+    for s in streams:
+        s.stage = stream_stage(autopilot, params, s)
+    fields["stream_stages"] = {s.name: s.stage for s in streams}
 
     mask_fn = review.flying_mask if over == OVER_FLYING else None
-    idle = never_armed_note(segments)
-    if idle:
-        rev, note = None, idle
+    if len(log.boots) > 1:
+        rev, note, review.plot = _review_per_boot(log, review, autopilot, params, filters, mask_fn)
     else:
-        try:
-            ctx = review_context(kind, source, autopilot, params, filters, mask_fn)
-            fft = ctx.get("gyro_fft")
-            if fft and fft.get("sample_rate_hz"):          # PX4: the raw gyro rate, measured on board
-                filters["filter_rate_hz"] = fft["sample_rate_hz"]
-                filters["filter_rate_source"] = "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
-            rev, note = filter_review(streams, autopilot, params, filters, mask_fn, ctx)
-        except Exception as exc:  # noqa: BLE001
-            rev, note = None, _failed("filter review", exc)
-    if rev is not None:
-        review.plot = rev.pop("_plot", None)
+        rev, note, review.plot = _filter_review(log, segments, autopilot, params, filters, mask_fn)
     fields["filter_review"] = rev
     fields["filter_review_note"] = note
     try:
-        vib, vnote = vibration_review(kind, source, segments, over="whole" if over == OVER_WHOLE else "flying",
-                                      starts=review.starts)
+        vib, vnote = vibration_review(log, segments, over="whole" if over == OVER_WHOLE else "flying")
     except Exception as exc:  # noqa: BLE001
         vib, vnote = None, _failed("vibration review", exc)
     fields["vibration"] = vib
@@ -158,64 +156,67 @@ def log_review(kind, source, streams, whole_log=False):
     return review
 
 
-#: RATE / gyro magnitude ratios read as centidegrees per second (older ArduCopter, e.g. 3.3)
-CDEG_RATIO_RANGE = (30.0, 300.0)
-
-
-def rate_scale(time_s, rate, streams):
-    """1.0, or 0.01 where ``rate`` (m, 3) reads about 100x the first gyro stream in deg/s
-    over the same times (ArduCopter 3.x logs ``RATE`` in centidegrees per second, 4.x in
-    degrees per second; the log's FMT does not say): the median of |rate| over the median
-    of |gyro| at the same times, within :data:`CDEG_RATIO_RANGE`."""
-    g = next((st for st in streams if st.to_deg_s and st.n > 10), None)
-    if g is None:
-        return 1.0
-    t = np.asarray(g.time_s, dtype=np.float64)
-    order = np.argsort(t, kind="stable")
-    gyro = np.abs(np.asarray(g.raw, dtype=np.float64)[order] * g.to_deg_s)
-    t = t[order]
-    inside = (time_s >= t[0]) & (time_s <= t[-1])
-    if inside.sum() < 10:
-        return 1.0
-    gi = np.column_stack([np.interp(time_s[inside], t, gyro[:, k]) for k in range(min(3, gyro.shape[1]))])
-    num, den = np.nanmedian(np.abs(rate[inside][:, :gi.shape[1]])), np.nanmedian(gi)
-    if not (den > 0 and np.isfinite(num)):
-        return 1.0
-    return 0.01 if CDEG_RATIO_RANGE[0] < num / den < CDEG_RATIO_RANGE[1] else 1.0
-
-
-def vehicle_rate_series(kind, source, autopilot, streams=()):
-    """The vehicle's own body-rate estimate for the HTML report, ``[{"name", "time_s",
-    "rate": (m, 3) deg/s, "unit"}]``: ArduPilot ``RATE`` (``R``, ``P``, ``Y``: the rate
-    controller's measured roll/pitch/yaw rates, deg/s in ArduCopter 4.x, centidegrees/s
-    in 3.x, told by :func:`rate_scale` against the gyro ``streams``; ``RDes``/``PDes``/
-    ``YDes`` its targets, a second entry), PX4 ``vehicle_angular_velocity.xyz[0..2]``
-    (rad/s, converted); empty when the log has none."""
-    out = []
+def _filter_review(log, segments, autopilot, params, filters, mask_fn):
+    """(review or None, note, plot or None) of the filter review over ``mask_fn``'s
+    samples; None and a note when the vehicle never armed in ``segments`` or the
+    review failed."""
+    idle = never_armed_note(segments)
+    if idle:
+        return None, idle, None
     try:
-        if kind == "dataflash":
-            m = log_messages(kind, source, "RATE")
-            scale = None
-            for name, cols in (("RATE (R, P, Y)", ("R", "P", "Y")), ("RATE desired (RDes, PDes, YDes)",
-                                                                    ("RDes", "PDes", "YDes"))):
-                if m is not None and all(c in m for c in cols) and len(m["time_s"]):
-                    t = np.asarray(m["time_s"], dtype=np.float64)
-                    rate = np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])
-                    if scale is None:                 # from the measured rates, for both entries
-                        scale = rate_scale(t, rate, streams)
-                    if scale != 1.0:
-                        name += ", logged in cdeg/s"
-                    out.append({"name": name, "time_s": t, "rate": rate * scale, "unit": "deg/s"})
-        elif kind == "ulog":
-            m = log_messages(kind, source, "vehicle_angular_velocity")
-            cols = ("xyz[0]", "xyz[1]", "xyz[2]")
-            if m is not None and all(c in m for c in cols) and len(m["time_s"]):
-                out.append({"name": "vehicle_angular_velocity", "time_s": np.asarray(m["time_s"], dtype=np.float64),
-                            "rate": np.degrees(np.column_stack([np.asarray(m[c], dtype=np.float64) for c in cols])),
-                            "unit": "deg/s"})
+        ctx = review_context(log, autopilot, params, filters, mask_fn)
+        fft = ctx.get("gyro_fft")
+        if fft and fft.get("sample_rate_hz"):          # PX4: the raw gyro rate, measured on board
+            filters["filter_rate_hz"] = fft["sample_rate_hz"]
+            filters["filter_rate_source"] = "sensor_gyro_fft.sensor_sample_rate_hz (the raw gyro rate)"
+        return filter_review(log.gyro, autopilot, params, filters, mask_fn, ctx)
+    except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
+        return None, _failed("filter review", exc), None
+
+
+def _review_per_boot(log, review, autopilot, params, filters, mask_fn):
+    """The filter review of a log of several boots, boot by boot (no figure spans two):
+    each boot's review (without its plot arrays) and note go into its entry of
+    ``boots``; the log's ``filter_review`` is the review of the boot that flew longest
+    (the first of those that has one), its ``source.boot`` saying which."""
+    boots = review.fields["boots"]
+    found = {}
+    for b in boots:
+        k = b["session"]
+
+        def boot_mask(t, records=None, k=k):
+            t = np.asarray(t, dtype=np.float64)
+            base = mask_fn(t, records) if mask_fn is not None else np.ones(t.shape, dtype=bool)
+            if records is None:                # samples that do not say their boot: none of this one's
+                return np.zeros(t.shape, dtype=bool)
+            return base & (log.boot_of(records) == k)
+        rev, note, plot = _filter_review(log, [s for s in review.segments if s.session == k], autopilot, params,
+                                         filters, boot_mask)
+        if rev is not None:
+            rev["source"]["boot"] = k
+            found[k] = (rev, plot)
+        b["filter_review"] = rev
+        b["filter_review_note"] = note
+    if not found:
+        by_note = {}
+        for b in boots:
+            by_note.setdefault(b["filter_review_note"], []).append(str(b["session"]))
+        return None, "; ".join(f"boot{'s' if len(ks) > 1 else ''} {', '.join(ks)}: {n}"
+                               for n, ks in by_note.items()), None
+    best = max(found, key=lambda k: (boots[k]["flying_time_s"] or 0.0, -k))
+    return found[best][0], (f"the review of boot {best}, the one that flew longest ({len(boots)} boots, "
+                            f"each reviewed on its own in boots)"), found[best][1]
+
+
+def vehicle_rate_series(log, streams=()):
+    """The vehicle's own body-rate estimate for the HTML report, ``[{"name", "time_s",
+    "rate": (m, 3) deg/s, "unit"}]`` (the format adapter's ``vehicle_rate``: ArduPilot
+    :func:`dataflash_rate_series`, PX4 :func:`ulog_rate_series`); empty when the log
+    has none."""
+    try:
+        return log.format.vehicle_rate(log, streams)
     except Exception:  # noqa: BLE001 - a plot's extra line, never a reason to fail a log
         return []
-    return out
 
 
 def review_text(rep):
@@ -235,6 +236,13 @@ def review_text(rep):
                     f"segments: {shown}{more}; never flying")
     else:
         seg_line = f"segments: none ({rep.get('segments_note', '')})"
+    boots = rep.get("boots") or []
+    if len(boots) > 1:
+        seg_line += (f"; {len(boots)} boots, each on its own time (flying "
+                     + ", ".join(f"{b.get('flying_time_s') or 0.0:.1f}" for b in boots) + " s)")
+    base = rep.get("time_base") or {}
+    if base.get("kind") and base.get("kind") != "boot time":
+        seg_line += f"; times on a {base['kind']} clock from {base.get('offset_s')} s"
     lines = [seg_line + f"; figures over: {rep.get('over', OVER_WHOLE)}"]
     vib = rep.get("vibration")
     if vib and vib.get("verdict"):

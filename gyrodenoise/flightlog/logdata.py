@@ -1,13 +1,12 @@
-"""Any message of a log as numpy columns: :func:`log_messages` and :func:`log_message_names`.
-
-The readers of :mod:`gyrodenoise.flightlog.formats` keep what they read in an opaque
-``source`` dict (:func:`gyrodenoise.flightlog.formats.read_log`); this module decodes
-any other message type from it, in bulk (numpy, no loop over the messages), for the
-flight segments, the vibration review and the parameters.
+"""The per-format message decoders the format adapters use
+(:mod:`gyrodenoise.flightlog.formats`): any message of a log as numpy columns,
+in bulk (numpy, no loop over the messages), for the flight segments, the
+vibration review and the parameters. Read them through
+:meth:`gyrodenoise.flightlog.model.FlightLog.messages` (which caches them).
 
 Names are spelled as the format spells them:
 
-* DataFlash (``source`` ``{"data", "sc"}``): the FMT name (``EV``, ``ARM``, ``MODE``,
+* DataFlash (:class:`DataFlashFile`, :func:`dataflash_messages`): the FMT name (``EV``, ``ARM``, ``MODE``,
   ``RCOU``, ``CTUN``, ``VIBE``, ``IMU``, ``PARM``, ``MSG``...). Values as pymavlink's
   ``DFReader`` gives them: format characters ``c``/``C``/``e``/``E`` scaled by 0.01 and
   ``L`` by 1e-7 (floats, divided by 100 and 1e7 as pymavlink does), ``n``/``N``/``Z`` strings (str, NULs stripped), ``a``
@@ -15,15 +14,17 @@ Names are spelled as the format spells them:
   instance column (``I``, ``IMU``, ``Instance``, ``C`` -- the first of those it has).
   ``time_s``: ``TimeUS`` * 1e-6 (or ``TimeMS`` * 1e-3); a message type with no time
   column takes the time of the last timed message before it in the file (NaN before
-  the first; old GPS messages, whose ``TimeMS`` is the GPS time of week, do not count).
-* Telemetry log (``source`` ``{"data", "fr"}``): the message name of pymavlink's
+  the first); so do old GPS messages, whose ``TimeMS`` is the GPS time of week (they
+  do not count as timed messages either). ``record``: the message's byte offset (as a
+  gyro stream's ``index``: :func:`dataflash_boot_starts` numbers boots by it).
+* Telemetry log (:class:`TelemetryFile`, :func:`tlog_messages`): the message name of pymavlink's
   ``ardupilotmega`` dialect (``HEARTBEAT``, ``VIBRATION``, ``SERVO_OUTPUT_RAW``,
   ``RAW_IMU``, ``PARAM_VALUE``, ``STATUSTEXT``...), readable records only (good CRC,
   not rejected by a signature check). Values as pymavlink gives them; ``char[]``
   fields as str (NULs stripped), other arrays 2-D. Extra columns: ``sysid``,
   ``compid`` (of the packet header), ``log_time_s`` (the record's tlog timestamp,
   UNIX seconds), ``record`` (the record's frame index in the file, as a gyro
-  stream's ``index``: :func:`tlog_session_starts` numbers boot sessions by it). ``time_s`` (boot time, the gyro streams' time base): the message's
+  stream's ``index``: :func:`tlog_boot_starts` numbers boot sessions by it). ``time_s`` (boot time, the gyro streams' time base): the message's
   own ``time_boot_ms`` * 1e-3, else its ``time_usec`` * 1e-6 where that is a boot time
   (below 1e12 us, about 11.6 days; larger values are UNIX times); else -- messages with
   no time of their own (HEARTBEAT, PARAM_VALUE, STATUSTEXT...) -- the boot time of the
@@ -31,20 +32,18 @@ Names are spelled as the format spells them:
   tlog timestamps' difference between the two records (the first record carrying one
   anchors the records before it; NaN when the system sends none). A reboot
   (``time_boot_ms`` restarting) is followed, as the anchor is always the last one.
-* ULog (``source`` ``{"u"}``, a ``pyulog.ULog``): the topic name (``vehicle_status``,
+* ULog (:class:`ULogFile`, :func:`ulog_messages`): the topic name (``vehicle_status``,
   ``actuator_outputs``, ``sensor_accel``...), its first instance (lowest ``multi_id``);
   ``topic[1]`` the instance with ``multi_id`` 1. Field names as pyulog gives them
   (``accelerometer_m_s2[0]``...); ``char`` arrays joined into one str column.
-  ``time_s``: ``timestamp`` * 1e-6.
-
-Decoded messages are cached in ``source["logdata"]`` (a dict), so asking twice costs
-nothing.
+  ``time_s``: ``timestamp`` * 1e-6 (a topic without ``timestamp``: None).
 """
 
 from __future__ import annotations
 
 import re
 import struct
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -63,43 +62,47 @@ _DF_CHARS = {
     "Q": ("<u8", (), None),
 }
 _BOOT_USEC_MAX = 1e12      # time_usec below this is a boot time, above a UNIX time
+#: a log's boot time stepping back by more than this (s), in file order, starts a boot session
+SESSION_STEP_BACK_S = 0.5
 
 
-def log_messages(kind, source, name):
-    """Every field of message (topic) ``name`` of a log read by
-    :func:`gyrodenoise.flightlog.formats.read_log` as ``{field: numpy column}`` plus
-    ``"time_s"`` (boot time, s, the gyro streams' time base; see the module doc for
-    each format), in log order; None when the log has no such message."""
-    cache = source.setdefault("logdata", {})
-    if name not in cache:
-        if kind == "dataflash":
-            cache[name] = _df_messages(source, name)
-        elif kind == "tlog":
-            cache[name] = _tlog_messages(source, name)
-        elif kind == "ulog":
-            cache[name] = _ulog_messages(source, name)
-        else:
-            raise ValueError(f"unknown log kind {kind!r}")
-    return cache[name]
+@dataclass
+class DataFlashFile:
+    """A DataFlash log as read: its bytes and :class:`~gyrodenoise.flightlog.dataflash.DFScan`."""
+    data: bytes
+    scan: object
+    anchors: tuple | None = None
 
 
-def log_message_names(kind, source):
-    """The names of the message types (topics) the log holds, sorted, as
-    :func:`log_messages` takes them (ULog: ``topic`` and ``topic[1]``...)."""
-    if kind == "dataflash":
-        sc = source["sc"]
-        return sorted({sc.formats[t].name for t in sc.offsets if t in sc.formats})
-    if kind == "tlog":
-        fr = source["fr"]
-        mav = tlog._dialect()
-        ids = np.unique(fr.msgid[fr.usable])
-        return sorted(mav.mavlink_map[int(i)].msgname for i in ids if int(i) in mav.mavlink_map)
-    if kind == "ulog":
-        out = set()
-        for d in source["u"].data_list:
-            out.add(d.name if d.multi_id == 0 else f"{d.name}[{d.multi_id}]")
-        return sorted(out)
-    raise ValueError(f"unknown log kind {kind!r}")
+@dataclass
+class TelemetryFile:
+    """A telemetry log as read: its bytes and :class:`~gyrodenoise.flightlog.tlog.TlogFrames`."""
+    data: bytes
+    frames: object
+    anchors: dict | None = None
+
+
+@dataclass
+class ULogFile:
+    """A ULog as read: the ``pyulog.ULog`` and the gyro streams' (dataset, fields)."""
+    ulog: object
+    refs: list
+
+
+def dataflash_message_names(f: DataFlashFile):
+    sc = f.scan
+    return sorted({sc.formats[t].name for t in sc.offsets if t in sc.formats})
+
+
+def tlog_message_names(f: TelemetryFile):
+    fr = f.frames
+    mav = tlog._dialect()
+    ids = np.unique(fr.msgid[fr.usable])
+    return sorted(mav.mavlink_map[int(i)].msgname for i in ids if int(i) in mav.mavlink_map)
+
+
+def ulog_message_names(f: ULogFile):
+    return sorted({d.name if d.multi_id == 0 else f"{d.name}[{d.multi_id}]" for d in f.ulog.data_list})
 
 
 def _split_index(name):
@@ -153,16 +156,17 @@ def _df_time_column(f):
     return None, None
 
 
-def _df_messages(source, name):
-    data, sc = source["data"], source["sc"]
+def dataflash_messages(f: DataFlashFile, name):
+    """Message ``name`` of a DataFlash log (see the module doc); None when absent."""
+    data, sc = f.data, f.scan
     base, inst = _split_index(name)
     tid = next((t for t, f in sc.formats.items() if f.name == base and t in sc.offsets), None)
     if tid is None:
         return None
-    f = sc.formats[tid]
+    fmt = sc.formats[tid]
     rec, scales, offs = _df_records(data, sc, tid)
     if inst is not None:
-        icol = next((c for c in DF_INSTANCE_COLUMNS if c in f.columns), None)
+        icol = next((c for c in DF_INSTANCE_COLUMNS if c in fmt.columns), None)
         if icol is None:
             return None
         keep = rec[icol].astype(np.int64) == inst
@@ -170,7 +174,7 @@ def _df_messages(source, name):
             return None
         rec, offs = rec[keep], offs[keep]
     out = {}
-    for col in f.columns:
+    for col in fmt.columns:
         v = rec[col]
         if v.dtype.kind == "S":
             out[col] = _strings(v)
@@ -178,26 +182,32 @@ def _df_messages(source, name):
             out[col] = v.astype(np.float64) / scales[col]
         else:
             out[col] = np.array(v)
-    tcol, tscale = _df_time_column(f)
-    if tcol is not None:
+    tcol, tscale = _df_time_column(fmt)
+    if tcol is not None and not _gps_time_of_week(fmt, tcol):
         out["time_s"] = rec[tcol].astype(np.float64) * tscale
     else:
-        out["time_s"] = _df_anchor_time(source, offs)
+        out["time_s"] = _df_anchor_time(f, offs)
+    out["record"] = offs.astype(np.int64)
     return out
 
 
-def _df_anchor_time(source, offs):
+def _gps_time_of_week(fmt, tcol):
+    """True for old GPS messages, whose ``TimeMS`` is the GPS time of week, not a boot time."""
+    return tcol == "TimeMS" and "Week" in fmt.columns
+
+
+def _df_anchor_time(file: DataFlashFile, offs):
     """Time of the last timed message before each offset (NaN before the first)."""
-    anchors = source.get("logdata_df_anchors")
+    anchors = file.anchors
     if anchors is None:
-        data, sc = source["data"], source["sc"]
+        data, sc = file.data, file.scan
         at, tt = [], []
         for tid, lst in sc.offsets.items():
             f = sc.formats.get(tid)
             if f is None or not lst:
                 continue
             tcol, tscale = _df_time_column(f)
-            if tcol is None or (tcol == "TimeMS" and "Week" in f.columns):
+            if tcol is None or _gps_time_of_week(f, tcol):
                 continue            # old GPS messages: TimeMS is the GPS time of week
             try:
                 rec, _, o = _df_records(data, sc, tid)
@@ -211,13 +221,71 @@ def _df_anchor_time(source, offs):
             anchors = (a[order], t[order])
         else:
             anchors = (np.zeros(0, np.int64), np.zeros(0))
-        source["logdata_df_anchors"] = anchors
+        file.anchors = anchors
     a, t = anchors
     k = np.searchsorted(a, offs) - 1
     out = np.full(len(offs), np.nan)
     ok = k >= 0
     out[ok] = t[k[ok]]
     return out
+
+
+#: timed messages either side of a step back that must confirm it (a new boot)
+BOOT_CONFIRM = 20
+#: a new boot's time steps back by more than this share of the time before the step too
+#: (a telemetry log's boot time stepping back 1.5 s at 612 s is its stamps, not a reboot)
+BOOT_STEP_SHARE = 0.1
+
+
+def boot_steps(t):
+    """Indices ``i`` where a boot begins in the boot times ``t`` (in file order): ``t``
+    steps back by more than :data:`SESSION_STEP_BACK_S` and :data:`BOOT_STEP_SHARE` of
+    ``t[i - 1]``, and stays back: the median of the next :data:`BOOT_CONFIRM` times is
+    below ``t[i - 1]`` and the median of the ones before above ``t[i]`` by as much (one
+    damaged timestamp, or a run of them, is no boot)."""
+    t = np.asarray(t, dtype=np.float64)
+    out = []
+    for i in (np.flatnonzero(np.diff(t) < -SESSION_STEP_BACK_S) + 1).tolist():
+        step = max(SESSION_STEP_BACK_S, BOOT_STEP_SHARE * abs(t[i - 1]))
+        if t[i - 1] - t[i] <= step:
+            continue
+        if np.median(t[i:i + BOOT_CONFIRM]) < t[i - 1] - step and \
+                np.median(t[max(0, i - BOOT_CONFIRM):i]) > t[i] + step:
+            out.append(i)
+    return np.asarray(out, dtype=np.int64)
+
+
+def dataflash_boot_starts(f: DataFlashFile):
+    """Byte offsets (sorted int64 array) at which a DataFlash log's boots 1, 2, ... begin,
+    empty for a log of one boot: where the boot time of the timed message type the log
+    holds most of steps back, in file order, and stays back (:func:`boot_steps`). A boot
+    begins just after the last timed message (of any type) before the first one whose
+    time stepped back, so that its own FMT and PARM messages are in it."""
+    _df_anchor_time(f, np.zeros(0, np.int64))
+    a, t = f.anchors
+    sc = f.scan
+    best, best_n = None, 0
+    for tid, offs in sc.offsets.items():
+        fmt = sc.formats.get(tid)
+        if fmt is not None and len(offs) > best_n and _df_time_column(fmt)[0] is not None \
+                and not _gps_time_of_week(fmt, _df_time_column(fmt)[0]):
+            best, best_n = tid, len(offs)
+    if best is None or best_n < 2:
+        return np.zeros(0, np.int64)
+    fmt = sc.formats[best]
+    try:
+        rec, _, offs = _df_records(f.data, sc, best)
+    except ValueError:
+        return np.zeros(0, np.int64)
+    tcol, tscale = _df_time_column(fmt)
+    tt = rec[tcol].astype(np.float64) * tscale
+    out = []
+    for i in boot_steps(tt).tolist():
+        lo, hi = np.searchsorted(a, offs[i - 1]), np.searchsorted(a, offs[i])
+        back = np.flatnonzero(t[lo:hi + 1] < tt[i - 1] - SESSION_STEP_BACK_S)
+        j = lo + int(back[0]) if len(back) else hi
+        out.append(int(a[j - 1]) + 1)
+    return np.asarray(out, dtype=np.int64)
 
 
 # --------------------------------------------------------------------- tlog
@@ -241,8 +309,9 @@ def _tlog_fields(c):
     return out, off
 
 
-def _tlog_messages(source, name):
-    data, fr = source["data"], source["fr"]
+def tlog_messages(f: TelemetryFile, name):
+    """Message ``name`` of a telemetry log (see the module doc); None when absent."""
+    data, fr = f.data, f.frames
     mav = tlog._dialect()
     mid = getattr(mav, "MAVLINK_MSG_ID_" + name, None)
     if mid is None or mid not in mav.mavlink_map:
@@ -274,7 +343,7 @@ def _tlog_messages(source, name):
         t = out["time_usec"].astype(np.float64)
         if len(t) and np.all(t < _BOOT_USEC_MAX):
             own = t * 1e-6
-    out["time_s"] = own if own is not None else _tlog_anchor_time(source, sel, sysid, wall_us)
+    out["time_s"] = own if own is not None else _tlog_anchor_time(f, sel, sysid, wall_us)
     return out
 
 
@@ -284,13 +353,12 @@ def _tlog_stamps_us(buf, start):
     return np.ascontiguousarray(b).view(">u8").reshape(-1).astype(np.int64)
 
 
-def _tlog_anchors(source):
+def _tlog_anchors(f: TelemetryFile):
     """Per system id: (frame indices, boot time s, tlog time us) of every record that
     carries a ``time_boot_ms``, in file order."""
-    anchors = source.get("logdata_tlog_anchors")
-    if anchors is not None:
-        return anchors
-    data, fr = source["data"], source["fr"]
+    if f.anchors is not None:
+        return f.anchors
+    data, fr = f.data, f.frames
     mav = tlog._dialect()
     buf = np.frombuffer(data, dtype=np.uint8)
     idx, boot = [], []
@@ -316,33 +384,29 @@ def _tlog_anchors(source):
         for sid in np.unique(s).tolist():
             k = s == sid
             anchors[sid] = (i[k], b[k], w[k])
-    source["logdata_tlog_anchors"] = anchors
+    f.anchors = anchors
     return anchors
 
 
-#: a telemetry log's boot time stepping back by more than this (s), in file order, starts a boot session
-SESSION_STEP_BACK_S = 0.5
 
 
-def tlog_session_starts(source):
+def tlog_boot_starts(f: TelemetryFile):
     """Frame indices (sorted int64 array) at which a telemetry log's boot sessions 1, 2, ...
     begin, empty for a log of one boot: where the ``time_boot_ms`` of the system that
-    sends most of them steps back, in file order, by more than
-    :data:`SESSION_STEP_BACK_S` (a reboot, or logs of several boots written into one
-    file). The session of a record with frame index ``i`` is
+    sends most of them steps back, in file order, and stays back (:func:`boot_steps`: a
+    reboot, or logs of several boots written into one file). The session of a record with frame index ``i`` is
     ``searchsorted(starts, i, side="right")``: the same numbering for every message
     and gyro stream of the log, whatever their own clocks do."""
-    anchors = _tlog_anchors(source)
+    anchors = _tlog_anchors(f)
     if not anchors:
         return np.zeros(0, np.int64)
     sid = max(anchors, key=lambda k: len(anchors[k][0]))
     idx, boot, _ = anchors[sid]
-    back = np.flatnonzero(np.diff(boot) < -SESSION_STEP_BACK_S) + 1
-    return np.asarray(idx[back], dtype=np.int64)
+    return np.asarray(idx[boot_steps(boot)], dtype=np.int64)
 
 
-def _tlog_anchor_time(source, sel, sysid, wall_us):
-    anchors = _tlog_anchors(source)
+def _tlog_anchor_time(f, sel, sysid, wall_us):
+    anchors = _tlog_anchors(f)
     out = np.full(len(sel), np.nan)
     for sid in np.unique(sysid).tolist():
         got = anchors.get(sid)
@@ -356,8 +420,9 @@ def _tlog_anchor_time(source, sel, sysid, wall_us):
 
 
 # --------------------------------------------------------------------- ULog
-def _ulog_messages(source, name):
-    u = source["u"]
+def ulog_messages(f: ULogFile, name):
+    """Topic ``name`` of a ULog (see the module doc); None when absent."""
+    u = f.ulog
     base, inst = _split_index(name)
     ds = [d for d in u.data_list if d.name == base]
     if not ds:
@@ -387,5 +452,7 @@ def _ulog_messages(source, name):
                 done.add(base_name)
             continue
         out[key] = np.asarray(val)
+    if "timestamp" not in d.data:
+        return None
     out["time_s"] = np.asarray(d.data["timestamp"], dtype=np.float64) * 1e-6
     return out

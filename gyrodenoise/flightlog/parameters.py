@@ -1,6 +1,7 @@
 """The autopilot that wrote a log and the parameters it logged.
 
-:func:`log_parameters` reads them through :func:`gyrodenoise.flightlog.logdata.log_messages`:
+:func:`log_parameters` reads them through the log's format adapter (its ``parameters``,
+one of the readers below):
 
 * DataFlash ``PARM`` (``Name``, ``Value``): each name's last value logged before
   the first arming (``EV`` id 10, ARMED, or ``ARM`` ``ArmState`` 1), else -- no
@@ -19,7 +20,8 @@
   its own ids (system 255, component 190), and the vehicle then sends few or none
   itself; a note says so.
 
-The autopilot: ``"ardupilot"`` for DataFlash, ``"px4"`` for ULog; for a
+The autopilot (a strategy of :mod:`gyrodenoise.flightlog.autopilots`): ArduPilot for
+DataFlash, PX4 for ULog; for a
 telemetry log the ``HEARTBEAT.autopilot`` of the vehicle (3 ArduPilot, 12 PX4),
 else from the parameter names (``INS_``/``ATC_`` ArduPilot, ``IMU_GYRO_``/``MC_``
 PX4), else None.
@@ -29,9 +31,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from gyrodenoise.flightlog.logdata import log_messages
+from gyrodenoise.flightlog.autopilots import (ARDUPILOT, AUTOPILOTS, PX4_AUTOPILOT, UNKNOWN, from_mav_autopilot,
+                                               from_parameter_names)
+from gyrodenoise.flightlog.model import LogParameters
 
-MAV_AUTOPILOT = {3: "ardupilot", 12: "px4"}
 MAV_TYPE_GCS = 6
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 #: MAV_PARAM_TYPE values of integers (UINT8..INT64)
@@ -39,49 +42,46 @@ MAV_PARAM_INT_TYPES = {1, 2, 3, 4, 5, 6, 7, 8}
 DF_EV_ARMED = 10
 
 
-def log_parameters(kind, source, notes=None):
-    """(autopilot, params) of a log read by :func:`gyrodenoise.flightlog.formats.read_log`:
-    autopilot ``"ardupilot"``, ``"px4"`` or None; params ``{NAME: value as
-    logged}`` (floats; ints where the log types them so), empty when the log holds
-    none (see the module doc for which value of a changed parameter is kept).
-    ``notes``: a list the reader appends a line to where it took parameters from
-    another source than the vehicle."""
-    if kind == "dataflash":
-        return "ardupilot", _dataflash_params(kind, source)
-    if kind == "ulog":
-        return "px4", _ulog_params(kind, source)
-    if kind == "tlog":
-        return _tlog_params(kind, source, notes)
-    return None, {}
+def log_parameters(log):
+    """(autopilot, params) of a :class:`~gyrodenoise.flightlog.model.FlightLog`: the
+    autopilot's strategy (:mod:`gyrodenoise.flightlog.autopilots`); params ``{NAME:
+    value as logged}`` (floats; ints where the log types them so), empty when the log
+    holds none (see the module doc for which value of a changed parameter is kept).
+    The notes (where parameters came from another source than the vehicle):
+    ``log.parameters().notes``."""
+    got = log.parameters()
+    return got.autopilot, got.values
 
 
-def _first_arm_s(kind, source):
-    """Boot time (s) of the first arming the log records, or None."""
-    if kind == "dataflash":
-        times = []
-        ev = log_messages(kind, source, "EV")
-        if ev is not None and "Id" in ev:
-            t = ev["time_s"][np.asarray(ev["Id"]) == DF_EV_ARMED]
-            times += list(t[np.isfinite(t)])
-        arm = log_messages(kind, source, "ARM")
-        if arm is not None and "ArmState" in arm:
-            t = arm["time_s"][np.asarray(arm["ArmState"]) == 1]
-            times += list(t[np.isfinite(t)])
-        return min(times) if times else None
-    if kind == "ulog":
-        vs = log_messages(kind, source, "vehicle_status")
-        if vs is not None and "arming_state" in vs:
-            t = vs["time_s"][np.asarray(vs["arming_state"]) == 2]
-            return float(t[0]) if len(t) else None
-    return None
+def _first_time(times):
+    times = np.asarray(times, dtype=np.float64)
+    times = times[np.isfinite(times)]
+    return float(times.min()) if len(times) else None
 
 
-def _dataflash_params(kind, source):
-    parm = log_messages(kind, source, "PARM")
+def _boot_first(log, name):
+    """Message ``name`` of the log's first boot: parameters are those the vehicle flew
+    with first (each boot logs its own; the first is the one every boot starts from)."""
+    return log.boot_messages(name, 0)
+
+
+def dataflash_parameters(log) -> LogParameters:
+    """ArduPilot's parameters from a DataFlash log's ``PARM`` (its first boot)."""
+    parm = _boot_first(log, "PARM")
     if parm is None or "Name" not in parm or "Value" not in parm:
-        return {}
+        return LogParameters(ARDUPILOT, {})
+    arm_times = []
+    ev = _boot_first(log, "EV")
+    if ev is not None and "Id" in ev:
+        arm_times.append(ev["time_s"][np.asarray(ev["Id"]) == DF_EV_ARMED])
+    arm = _boot_first(log, "ARM")
+    if arm is not None and "ArmState" in arm:
+        arm_times.append(arm["time_s"][np.asarray(arm["ArmState"]) == 1])
+    t_arm = _first_time(np.concatenate(arm_times)) if arm_times else None
+    if np.asarray(parm["Value"]).dtype.kind not in "iuf":
+        return LogParameters(ARDUPILOT, {}, [f"PARM.Value is no number in this log's FMT "
+                                             f"({np.asarray(parm['Value']).dtype}): parameters not read"])
     names, values, times = parm["Name"], np.asarray(parm["Value"], dtype=np.float64), parm["time_s"]
-    t_arm = _first_arm_s(kind, source)
     out = {}
     for i in range(len(names)):
         n = str(names[i])
@@ -90,20 +90,34 @@ def _dataflash_params(kind, source):
         before = t_arm is None or not np.isfinite(times[i]) or times[i] < t_arm
         if n not in out or (t_arm is not None and before):
             out[n] = _f32(values[i])
-    return out
+    return LogParameters(ARDUPILOT, out)
 
 
-def _ulog_params(kind, source):
-    u = source.get("u")
-    if u is None:
-        return {}
-    out = {str(k): _plain(v) for k, v in (getattr(u, "initial_parameters", None) or {}).items()}
-    t_arm = _first_arm_s(kind, source)
+def ulog_parameters(log) -> LogParameters:
+    """PX4's parameters from a ULog (pyulog's initial and changed parameters)."""
+    u = log.payload.ulog
+    out, bad = {}, []
+    for k, v in (getattr(u, "initial_parameters", None) or {}).items():
+        if _is_number(v):
+            out[str(k)] = _plain(v)
+        else:
+            bad.append(str(k))
+    vs = log.messages("vehicle_status")
+    t_arm = None
+    if vs is not None and "arming_state" in vs:
+        t = vs["time_s"][np.asarray(vs["arming_state"]) == 2]
+        t_arm = float(t[0]) if len(t) else None
     if t_arm is not None:
+        offset = log.time_base.offset_s
         for ts, name, value in getattr(u, "changed_parameters", None) or []:
-            if ts * 1e-6 < t_arm:
+            if ts * 1e-6 - offset < t_arm and _is_number(value):
                 out[str(name)] = _plain(value)
-    return out
+    notes = [f"{len(bad)} parameters with a value that is no number left out ({', '.join(bad[:5])})"] if bad else []
+    return LogParameters(PX4_AUTOPILOT, out, notes)
+
+
+def _is_number(v):
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
 
 
 def _f32(v):
@@ -117,16 +131,18 @@ def _plain(v):
     return _f32(v) if isinstance(v, (np.float32, float)) else float(v)
 
 
-def _tlog_params(kind, source, notes=None):
-    hb = log_messages(kind, source, "HEARTBEAT")
-    sysid, autopilot, t_arm = None, None, None
+def tlog_parameters(log) -> LogParameters:
+    """The parameters of a telemetry log's ``PARAM_VALUE`` records (the module doc)."""
+    notes = []
+    hb = log.messages("HEARTBEAT")
+    sysid, autopilot, t_arm = None, UNKNOWN, None
     if hb is not None and len(hb.get("time_s", [])):
         veh = np.asarray(hb["type"]) != MAV_TYPE_GCS
         ap = np.asarray(hb["autopilot"])
-        known = veh & np.isin(ap, list(MAV_AUTOPILOT))
+        known = veh & np.isin(ap, [a.mav_autopilot for a in AUTOPILOTS.values() if a.mav_autopilot is not None])
         if known.any():
             vals, counts = np.unique(ap[known], return_counts=True)
-            autopilot = MAV_AUTOPILOT[int(vals[np.argmax(counts)])]
+            autopilot = from_mav_autopilot(int(vals[np.argmax(counts)]))
             sys_known = np.asarray(hb["sysid"])[known & (ap == vals[np.argmax(counts)])]
             sv, sc = np.unique(sys_known, return_counts=True)
             sysid = int(sv[np.argmax(sc)])
@@ -136,7 +152,7 @@ def _tlog_params(kind, source, notes=None):
                 t_arm = int(np.flatnonzero(armed)[0])      # an index into HEARTBEAT: compare log times below
                 t_arm = float(np.asarray(hb["log_time_s"])[t_arm])
     params = {}
-    pv = log_messages(kind, source, "PARAM_VALUE")
+    pv = log.messages("PARAM_VALUE")
     if pv is not None and len(pv.get("param_id", [])):
         own = np.ones(len(pv["param_id"]), dtype=bool)
         if sysid is not None:
@@ -148,11 +164,10 @@ def _tlog_params(kind, source, notes=None):
         if len(other):
             pairs = sorted({(int(pv["sysid"][i]), int(pv["compid"][i])) for i in other})
             n_other = len({str(ids[i]) for i in other})
-            if notes is not None:
-                notes.append(f"{n_other} parameters read from PARAM_VALUE records of "
-                             f"{', '.join(f'system {a} component {b}' for a, b in pairs)} (not the vehicle's: a "
-                             f"ground station's parameter download, e.g. Mission Planner's FTP), the vehicle "
-                             f"itself sent {len(vehicle_names)}")
+            notes.append(f"{n_other} parameters read from PARAM_VALUE records of "
+                         f"{', '.join(f'system {a} component {b}' for a, b in pairs)} (not the vehicle's: a "
+                         f"ground station's parameter download, e.g. Mission Planner's FTP), the vehicle "
+                         f"itself sent {len(vehicle_names)}")
         for i in np.concatenate([np.flatnonzero(own), other]).astype(np.int64):
             n = str(ids[i])
             if not n:
@@ -161,13 +176,10 @@ def _tlog_params(kind, source, notes=None):
             if n in params and not (t_arm is not None and before):
                 continue
             v = vals[i]
-            if autopilot == "px4" and int(types[i]) in MAV_PARAM_INT_TYPES:
+            if autopilot.int_params_bytewise and int(types[i]) in MAV_PARAM_INT_TYPES:
                 params[n] = int(np.asarray(v, dtype=np.float32).view(np.int32))
             else:
                 params[n] = _f32(v)
-    if autopilot is None and params:
-        if any(k.startswith(("INS_", "ATC_", "SCHED_")) for k in params):
-            autopilot = "ardupilot"
-        elif any(k.startswith(("IMU_GYRO_", "MC_", "SENS_")) for k in params):
-            autopilot = "px4"
-    return autopilot, params
+    if autopilot is UNKNOWN and params:
+        autopilot = from_parameter_names(params)
+    return LogParameters(autopilot, params, notes)

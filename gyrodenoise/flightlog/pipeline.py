@@ -30,14 +30,13 @@ from gyrodenoise.errors import InputError
 from gyrodenoise.flightlog.checks import usable_samples
 from gyrodenoise.flightlog.engines import make_engine
 from gyrodenoise.flightlog.filtering import check_some_stream_filterable, filter_form, filter_options, filter_streams
-from gyrodenoise.flightlog import tlog
-from gyrodenoise.flightlog.formats import log_kind, read_log, write_filtered_log
+from gyrodenoise.flightlog.formats import log_format, read_log
+from gyrodenoise.flightlog.model import ReadOptions
 from gyrodenoise.flightlog.html_writer import HtmlWriter
 from gyrodenoise.flightlog.log_review import OVER_FLYING, log_review, vehicle_rate_series
 from gyrodenoise.flightlog.output import joined_time, safe_name, write_csv
-from gyrodenoise.flightlog.plotting import Plotter, title_note
+from gyrodenoise.flightlog.plotting import BOOT_AXIS, Plotter, title_note
 from gyrodenoise.flightlog.report import log_problems, signing_problems, stream_report
-from gyrodenoise.flightlog.signing import LinkSigning
 from gyrodenoise.flightlog.spectra import stream_spectrum
 from gyrodenoise.flightlog.stopping import atomic_path
 
@@ -77,19 +76,17 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
-    kind = log_kind(path)
-    rep = {"file": str(path), "format": kind}
+    fmt = log_format(path)
+    rep = {"file": str(path), "format": fmt.name}
     plotter = Plotter(background_plots, helpers=plot_helpers) if plots else None
     html_writer = HtmlWriter(background_plots) if plots and html else None
     done = False
     try:
-        streams, source, facts = read_log(path, kind, raw_imu_unit, raw_imu_scale)
-        rep.update(facts)
-        link = None
-        if kind == "tlog":
-            link = LinkSigning(signing_key)
-            streams = _check_signatures(path, source, streams, link, raw_imu_unit, raw_imu_scale)
-        review = log_review(kind, source, streams, whole_log)
+        flight = read_log(path, fmt, ReadOptions(raw_imu_unit, raw_imu_scale))
+        rep.update(flight.facts.to_fields())
+        link = fmt.signing(flight, signing_key)
+        streams = flight.gyro
+        review = log_review(flight, whole_log)
         rep.update(review.fields)
         rep.pop("stream_stages", None)
         offline = engine == "native" and method == "motion" and not causal
@@ -100,11 +97,11 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
         finally:
             eng.close()
         if link is not None:
-            tlog.keep_signed_raw(source["fr"], streams, link)
+            fmt.keep_signed_raw(flight, link)
         check_some_stream_filterable(path, streams, filter_kw)
         what = f"{engine} {_method_label(method, ar_order, rep['form'])}"
         stem = out_stem or path.stem
-        rep.update(_write_outputs(path, kind, source, streams, Path(out_dir), stem,
+        rep.update(_write_outputs(path, flight, Path(out_dir), stem,
                                   plotter, csv, what, method, filter_kw, log, link, review))
         for s in rep["streams"]:
             s["stage"] = review.fields["stream_stages"].get(s["name"], "unknown")
@@ -113,7 +110,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
                    warmup_s=warmup_s, filter_options=filter_options(method, filter_kw, zero_phase))
         if html_writer is not None:
             rep["report_html"] = str(Path(out_dir) / f"{stem}.report.html")
-            html_writer.write(rep["report_html"], rep, _html_series(kind, source, streams, review, rep))
+            html_writer.write(rep["report_html"], rep, _html_series(flight, review, rep))
         done = True
     finally:
         # an interrupt or a failure: stop the helpers now, without waiting for their plots
@@ -124,17 +121,17 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     return rep
 
 
-def _html_series(kind, source, streams, review, rep):
+def _html_series(log, review, rep):
     """The ``series`` of :func:`gyrodenoise.flightlog.html_report.write_log_report`: the
     streams (raw, filtered, restarts), their spectra, the vehicle's own rate estimate
     and the filter review's spectra."""
     from gyrodenoise.flightlog.html_report import stream_series
+    streams = log.gyro
     spectra = {s.name: s._spectrum_plot for s in streams if getattr(s, "_spectrum_plot", None) is not None}
     series = {"streams": [stream_series(s, f"filtered ({rep['method']}{', ' + rep['form'] if rep.get('form') else ''})")
                           for s in streams],
               "spectra": spectra,
-              "vehicle_rate": vehicle_rate_series(kind, source, (rep.get("vehicle_filters") or {}).get("autopilot"),
-                                                  streams)}
+              "vehicle_rate": vehicle_rate_series(log, streams)}
     series["filter_review"] = _review_series(review.plot, rep.get("vehicle_filters") or {}, streams)
     return series
 
@@ -147,10 +144,10 @@ def _review_series(plot, filters, streams):
     with the notch centres the review used). Without a review, the logged chain's
     gain from its stages; None when there are none."""
     if plot is not None:
-        pre = np.asarray(plot["psd_pre"], dtype=np.float64)
-        out = {"freq_hz": plot["freq_hz"], "unit": "deg/s", "psd_pre": pre.sum(axis=0)}
-        for key, name in (("psd_logged", "logged"), ("psd_recommended", "recommended")):
-            post = np.asarray(plot[key], dtype=np.float64)
+        pre = np.asarray(plot.psd_pre, dtype=np.float64)
+        out = {"freq_hz": plot.freq_hz, "unit": "deg/s", "psd_pre": pre.sum(axis=0)}
+        for post, name in ((plot.psd_logged, "logged"), (plot.psd_recommended, "recommended")):
+            post = np.asarray(post, dtype=np.float64)
             out[f"psd_post_{name}"] = post.sum(axis=0)
             with np.errstate(divide="ignore", invalid="ignore"):
                 out[f"response_{name}"] = np.sqrt(np.where(pre[0] > 0, post[0] / pre[0], np.nan))
@@ -165,44 +162,23 @@ def _review_series(plot, filters, streams):
     return {"freq_hz": freq, "unit": "deg/s", "response_logged": np.abs(chain_response(stages, freq, fs))}
 
 
-def _check_signatures(path, source, streams, link, raw_imu_unit, raw_imu_scale):
-    """A telemetry log's packets through the signature check of ``link``; the gyro
-    streams without the rejected packets. InputError when the key verifies none of
-    the log's signed packets (a wrong key), or no gyro packet is left."""
-    data, fr = source["data"], source["fr"]
-    tlog.check_signatures(data, fr, link)
-    if link.key is None or not fr.rejected.any():
-        return streams
-    if link.signed and not (fr.signed & fr.usable).any():
-        raise InputError(f"{path}: none of its {link.signed} signed packets verifies under the --signing-key "
-                         f"(a wrong key, or a passphrase other than the link's?)")
-    streams = tlog.gyro_streams(data, fr, raw_imu_unit, raw_imu_scale)
-    if not streams:
-        raise InputError(f"{path}: no gyro stream is left once the {link.n_rejected} packets that fail the "
-                         f"signature check are taken out")
-    return streams
-
-
 def _method_label(method, ar_order, form):
     """The filter as the plots' titles name it, with its form (as the summary does)."""
     label = f"{method}, AR({ar_order})" if method in ("shakf", "kf", "sh_classic") else method
     return f"{label}, {form}" if form else label
 
 
-def _write_outputs(path, kind, source, streams, out_dir, stem, plotter, csv, what, method, filter_kw, log,
+def _write_outputs(path, flight_log, out_dir, stem, plotter, csv, what, method, filter_kw, log,
                    link=None, review=None):
     """Every output file of a filtered log (plots queued first: a helper draws them
     while the rest is written); the report's fields on them (a telemetry log's
     signing counts from ``link``)."""
+    streams = flight_log.gyro
     out_dir.mkdir(parents=True, exist_ok=True)
     _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw, review)
-    out_log = out_dir / f"{stem}.filtered{path.suffix or '.' + kind}"
+    out_log = out_dir / f"{stem}.filtered{path.suffix or flight_log.format.suffixes[0]}"
     with atomic_path(out_log) as tmp:
-        if link is not None:
-            tlog.write_filtered(source["data"], source["fr"], streams, tmp, link)
-            rep = link.report()
-        else:
-            rep = write_filtered_log(kind, source, streams, tmp)
+        rep = flight_log.format.write_filtered(flight_log, tmp, link)
     rep["output_log"] = str(out_log)
     srep, restarts = _stream_reports(path, streams, out_dir, stem, csv, plotter, log, review)
     rep.update(streams=srep, restarts=restarts)
@@ -217,7 +193,8 @@ def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method
     (``s._spectrum``, over the samples of ``review.stream_mask``: flying time by
     default) and queue the log's spectrum figure; ``s._png`` / ``s._spectrum_png``:
     where the plots go; ``s._spectrum_plot``: the spectrum's plot data."""
-    segments = review.segments if review is not None else None
+    segments = [s.to_fields() for s in review.segments] if review is not None else None
+    axis = review.fields["time_base"]["axis"] if review is not None else BOOT_AXIS
     spec_items = []
     spec_png = out_dir / f"{stem}.spectrum.png"
     for s in streams:
@@ -226,11 +203,11 @@ def _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method
             s._png = out_dir / f"{stem}.{safe_name(s.name)}.png"
             cutoff = f" {s.cutoff_hz:.4g} Hz" if getattr(s, "cutoff_hz", None) else ""
             plotter.plot(s._png, f"{path.name}: {s.name} ({what}{cutoff}{title_note(s)})",
-                         s.time_s, x, f, s.restarts, unit, s.axes, segments=segments)
+                         s.time_s, x, f, s.restarts, unit, s.axes, segments=segments, axis=axis)
         usable = (usable_samples(x) & np.isfinite(f)).all(axis=1)
         over = None
         if review is not None:
-            s._figures_mask, over = review.stream_mask(s.time_s, s.index)
+            s._figures_mask, over = review.stream_mask(s.time_s, s.sample_records)
             usable &= s._figures_mask
         s._spectrum, spec_plot = stream_spectrum(s, x, f, unit, rate, method, filter_kw,
                                                  getattr(s, "warmup_samples", 0),

@@ -27,15 +27,20 @@ def _envelope(t, y, nbins=2000):
     return np.repeat(t[edges], 2), np.column_stack([lo, hi]).ravel()
 
 
-def plot_time(time_s, restarts):
-    """(time axis of a stream's plot, x-axis label). The log's boot time, as in the
-    summary and the CSV (gaps shown as gaps), when it never goes backwards; else
-    (a reboot, a concatenated log) the sessions laid end to end from the first
+#: the x label of a log whose clock is the time since boot (the log's ``time_base["axis"]``)
+BOOT_AXIS = "boot time [s]"
+
+
+def plot_time(time_s, restarts, axis=BOOT_AXIS):
+    """(time axis of a stream's plot, x-axis label). The log's time (``axis``: its
+    time base's label: boot time, or the time since the start of a Unix epoch clock),
+    as in the summary and the CSV (gaps shown as gaps), when it never goes backwards;
+    else (a reboot, a concatenated log) the sessions laid end to end from the first
     sample's boot time (:func:`joined_time`), each restart line labelled with its
     boot time."""
     t = np.asarray(time_s, dtype=np.float64)
     if len(t) < 2 or np.all(np.diff(t) >= 0):
-        return t, "boot time [s] (as in the summary and the CSV)"
+        return t, f"{axis} (as in the summary and the CSV)"
     return (t[0] + joined_time(t, restarts),
             "time [s]: sessions joined end to end (boot time went backwards); restarts labelled with boot time")
 
@@ -94,12 +99,12 @@ def robust_ylim(values, keep=None, margin=Y_MARGIN):
     return float(lo), float(hi)
 
 
-def plot_stream(path, title, t, x, f, restarts, unit, axes=("x", "y", "z"), segments=None):
+def plot_stream(path, title, t, x, f, restarts, unit, axes=("x", "y", "z"), segments=None, axis=BOOT_AXIS):
     """PNG of raw and filtered per axis (``t``: the samples' boot times, s),
     restarts as dashed red lines; ``segments`` (``[{"kind", "start_s", "end_s"}]``,
     the log's time) shaded behind the lines when given. A stream written raw
     (``f`` None or equal to ``x``) gets one line, labelled as raw."""
-    _draw(path, title, _plot_data(t, x, f, restarts, segments), unit, axes)
+    _draw(path, title, _plot_data(t, x, f, restarts, segments, axis), unit, axes)
 
 
 def written_raw(x, f):
@@ -108,7 +113,7 @@ def written_raw(x, f):
     return f is None or np.array_equal(np.asarray(x), np.asarray(f), equal_nan=True)
 
 
-def _plot_data(t, x, f, restarts, segments=None):
+def _plot_data(t, x, f, restarts, segments=None, axis=BOOT_AXIS):
     """What the plot needs: per axis the min/max envelopes (the filtered one None
     for a stream written raw), the restart times, their boot times (labels when the
     plot's time is not the boot time), the x label, the segments to shade
@@ -118,7 +123,7 @@ def _plot_data(t, x, f, restarts, segments=None):
     raw_only = written_raw(x, f)
     if raw_only:
         f = x
-    pt, xlabel = plot_time(t, restarts)
+    pt, xlabel = plot_time(t, restarts, axis)
     keep = flying_mask(t, segments)
     ylims = [robust_ylim(np.column_stack([x[:, k]] + ([] if raw_only else [f[:, k]])), keep)
              for k in range(x.shape[1])]
@@ -243,9 +248,9 @@ class Plotter:
             if job is None:
                 break
 
-    def plot(self, path, title, t, x, f, restarts, unit, axes, segments=None):
+    def plot(self, path, title, t, x, f, restarts, unit, axes, segments=None, axis=BOOT_AXIS):
         """Queue (or draw) a stream's PNG (:func:`plot_stream`)."""
-        self._submit((path, title, _plot_data(t, x, f, restarts, segments), unit, axes))
+        self._submit((path, title, _plot_data(t, x, f, restarts, segments, axis), unit, axes))
 
     def plot_spectrum(self, path, title, items):
         """The spectrum PNG of a log: [(stream name, plot data)] (:mod:`gyrodenoise.flightlog.spectra`)."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 from gyrodenoise.flightlog.checks import ABSURD_WORK, check_filtered, saturation, saturation_note
 from gyrodenoise.flightlog.dispatch import expand_inputs, interrupted_summary, process_many
 from gyrodenoise.flightlog.filtering import filter_form, filter_streams, not_filtered_reason
-from gyrodenoise.flightlog.formats import LOG_SUFFIXES, log_kind
+from gyrodenoise.flightlog.formats import LOG_SUFFIXES, log_format
 from gyrodenoise.flightlog.output import joined_time, safe_name, write_csv
 from gyrodenoise.flightlog.pipeline import process_log
 from gyrodenoise.flightlog.plotting import Plotter, plot_stream
@@ -25,7 +25,7 @@ _filter_streams = filter_streams
 
 __all__ = [
     "ABSURD_WORK", "LOG_SUFFIXES", "MOTION_METRIC", "Plotter", "check_filtered", "expand_inputs",
-    "filter_form", "filter_streams", "interrupted_summary", "joined_time", "log_kind", "log_problems",
+    "filter_form", "filter_streams", "interrupted_summary", "joined_time", "log_format", "log_problems",
     "not_filtered_reason", "plot_stream", "process_log", "process_many", "safe_name", "saturation",
     "saturation_note", "stream_report", "streams_left_raw", "write_csv",
 ]

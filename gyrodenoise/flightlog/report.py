@@ -56,7 +56,7 @@ def stream_report(s, csv_path=None, png_path=None, band_hz=None, keep=None):
         "samples": int(s.n), "rate_hz": s.rate_hz, "filter_rate_hz": rate,
         "duration_s": dur, "restarts": len(s.restart_events),
         "repeated_timestamps": int(s.repeated_timestamps),
-        "non_finite_samples": dict(zip(s.axes, getattr(s, "non_finite", [0] * len(s.axes)))),
+        "non_finite_samples": dict(zip(s.axes, s.non_finite or [0] * len(s.axes))),
         "dropouts_healed": 0 if written_raw else int(sum(getattr(s, "dropouts_healed", ()))),
         "all_zero": bool(s.n and not np.any(s.raw)),
         "noise_unit": unit, "noise": noise,

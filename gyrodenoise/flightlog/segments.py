@@ -1,21 +1,23 @@
 """Flight segments of a log, from the log's own evidence: when the vehicle was on the
 ground (disarmed), armed but not flying, flying, and hovering.
 
-:func:`flight_segments` returns a list of ``{"kind", "start_s", "end_s", "session"}`` in
+:func:`flight_segments` returns a list of :class:`~gyrodenoise.flightlog.model.Segment` (``kind``,
+``start_s``, ``end_s``, ``session``; ``to_fields()`` the report's dict) in
 the log's own time base (the gyro streams' ``time_s``; :mod:`gyrodenoise.flightlog.logdata`):
 
 * ``ground`` -- not armed; ``armed`` -- armed, not in the air; ``flying`` -- in the air.
   These three partition the stretch of the log that holds evidence, in log order; a
   reboot (the boot time stepping back) ends every segment and starts a new one.
   A segment of no length (one sample) is left out.
-* ``session`` -- the boot session the segment lies in (0, 1, ...). A telemetry log can
-  hold several boots (a reboot, or several logs written into one file) whose boot
-  times overlap: a time alone does not say which boot it is in, so a sample is in a
-  segment when its session and its time both are (:func:`segment_mask` with
-  ``session``). Sessions are numbered in file order by the frame index of the
-  records (:func:`gyrodenoise.flightlog.logdata.tlog_session_starts`, the same
-  numbering for every message and gyro stream); a DataFlash or ULog log is one
-  session (0).
+* ``session`` -- the boot the segment lies in (0, 1, ...,
+  :attr:`gyrodenoise.flightlog.model.FlightLog.boots`). A file can hold several boots
+  (a reboot, a log downloaded whole, logs concatenated) whose boot times overlap: each
+  boot's evidence is read on its own (its messages only) and its segments are on its
+  own time axis; a time alone does not say which boot it is in, so a sample is in a
+  segment when its boot and its time both are (:func:`segment_mask` with ``session``).
+  Boots are numbered in file order by the records' place in the file (a telemetry
+  record's frame index, a DataFlash message's byte offset: the same numbering for every
+  message and gyro stream of the log).
 * ``hover`` -- EXTRA entries, not part of the partition: a stretch of a ``flying``
   segment where the throttle is steady -- the union of the 2 s windows
   (:data:`HOVER_WINDOW_S`, at least 3 throttle samples) whose throttle standard
@@ -24,7 +26,9 @@ the log's own time base (the gyro streams' ``time_s``; :mod:`gyrodenoise.flightl
 
 Evidence, by format:
 
-* ArduPilot DataFlash: arming from ``ARM.ArmState`` and the ``EV`` events; in the air
+What each format reads is its adapter's ``flight_evidence`` (:mod:`gyrodenoise.flightlog.formats`):
+
+* ArduPilot DataFlash (:func:`dataflash_evidence`): arming from ``ARM.ArmState`` and the ``EV`` events; in the air
   from the events ``NOT_LANDED`` (in the air) and ``LAND_COMPLETE`` (landed; arming
   and disarming also mean landed). Event ids from ArduPilot's ``LogEvent`` enum
   (libraries/AP_Logger/AP_Logger.h): 10 ARMED, 11 DISARMED, 15 AUTO_ARMED,
@@ -33,18 +37,22 @@ Evidence, by format:
   Without land events the throttle decides (above :data:`FLYING_THROTTLE` of full
   throttle = in the air); without any arming record, the throttle alone decides
   between ``ground`` and ``flying`` (a log with no arming record and the throttle at
-  zero is all ground). ArduSub and Rover never fly (armed at most). Throttle:
+  zero is all ground). Without land events nor throttle, GPS and airspeed decide where
+  logged (:func:`_df_motion`: a stretch above 5 m in which the ground speed or airspeed
+  exceeds 3 m/s: an ArduPlane 3.1 log with no ARM/EV/CTUN). ArduSub and Rover never fly (armed at most). Throttle:
   ``CTUN.ThO`` (0..1), ``CTUN.ThrOut`` (0..1000, Copter 3.x), else the mean of
   ``RCOU`` C1..C4 (``Ch1..Ch4``) as (PWM - 1000 us) / 1000 us.
-* Telemetry log: the vehicle's ``HEARTBEAT`` (not a ground station's: autopilot 8 or
+* Telemetry log (:func:`tlog_evidence`): the vehicle's ``HEARTBEAT`` (not a ground station's: autopilot 8 or
   type 6 are left out; the system id with most heartbeats, its component 1 if it
   sends any): armed = ``base_mode`` bit 128 (MAV_MODE_FLAG_SAFETY_ARMED); in the air:
   ``EXTENDED_SYS_STATE.landed_state`` 2-4 (in air, taking off, landing) where sent,
   else for an ArduPilot multicopter or helicopter ``system_status`` 4
   (MAV_STATE_ACTIVE: ArduCopter reports ACTIVE only while not landed); for other
-  vehicles without EXTENDED_SYS_STATE only ``ground``/``armed``. Throttle for hover:
+  vehicles without EXTENDED_SYS_STATE (a plane) the height and speed rule of the
+  DataFlash GPS evidence on ``GLOBAL_POSITION_INT.relative_alt`` and ``VFR_HUD``
+  (:func:`_tlog_motion`), never for a rover, boat or submarine; else only ``ground``/``armed``. Throttle for hover:
   ``VFR_HUD.throttle`` (%), else ``SERVO_OUTPUT_RAW`` servo1..4.
-* PX4 ULog: armed = ``vehicle_status.arming_state`` 2 (ARMED) or ``actuator_armed.armed``;
+* PX4 ULog (:func:`ulog_evidence`): armed = ``vehicle_status.arming_state`` 2 (ARMED) or ``actuator_armed.armed``;
   in the air = armed and ``vehicle_land_detected.landed`` 0; throttle for hover:
   ``vehicle_thrust_setpoint`` -xyz[2], else ``actuator_controls_0`` control[3].
 """
@@ -53,7 +61,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gyrodenoise.flightlog.logdata import log_messages, tlog_session_starts
+from gyrodenoise.flightlog.model import FlightEvidence, Segment, Throttle
 
 SEGMENT_KINDS = ("ground", "armed", "flying", "hover")
 GROUND, ARMED, FLYING = 0, 1, 2
@@ -71,42 +79,41 @@ MAV_SAFETY_ARMED = 128
 COPTER_TYPES = {2, 3, 4, 13, 14, 15, 29}     # quad, coaxial, heli, hexa, octo, tri, dodeca
 PX4_ARMING_STATE_ARMED = 2
 
-LOOKED_FOR = {
-    "dataflash": "ARM.ArmState, EV (ARMED/DISARMED/NOT_LANDED/LAND_COMPLETE), CTUN.ThO/ThrOut, RCOU C1..C4",
-    "tlog": "HEARTBEAT (base_mode armed bit, system_status) of the vehicle, EXTENDED_SYS_STATE.landed_state",
-    "ulog": "vehicle_status.arming_state, actuator_armed.armed, vehicle_land_detected.landed",
-}
 
+def flight_segments(log, autopilot=None):
+    """(segments, note) of a :class:`~gyrodenoise.flightlog.model.FlightLog`, boot by boot.
 
-def flight_segments(kind, source, autopilot=None):
-    """(segments, note) of a log read by :func:`gyrodenoise.flightlog.formats.read_log`.
-
-    ``segments``: list of ``{"kind": "ground"|"armed"|"flying"|"hover", "start_s",
-    "end_s"}`` (see the module doc; ``hover`` entries lie inside ``flying`` ones);
-    ``note``: which evidence gave them, or -- with an empty list -- what was looked for
-    when the log holds none. ``autopilot`` ("ardupilot", "px4" or None: from the log)
-    decides how a telemetry log's ``system_status`` is read."""
-    if kind == "dataflash":
-        got = _dataflash(source)
-    elif kind == "tlog":
-        got = _tlog(source, autopilot)
-    elif kind == "ulog":
-        got = _ulog(source)
-    else:
-        raise ValueError(f"unknown log kind {kind!r}")
-    if isinstance(got, str):
-        return [], got
-    t, state, throttle, note = got[:4]
-    segs = _runs(t, state, got[4] if len(got) > 4 else None)
-    hov = _hover(segs, throttle) if throttle is not None else []
-    if hov:
+    ``segments``: list of :class:`~gyrodenoise.flightlog.model.Segment` (``kind``
+    ``ground``/``armed``/``flying``/``hover``, ``start_s``, ``end_s``, ``session``: see the
+    module doc; ``hover`` ones lie inside ``flying`` ones), each boot's on its own time axis; ``note``: which evidence gave them, or --
+    with an empty list -- what was looked for when the log holds none. ``autopilot``
+    (a strategy of :mod:`gyrodenoise.flightlog.autopilots`, or None) decides how a
+    telemetry log's ``system_status`` is read."""
+    out, notes, missing, hovers = [], [], [], False
+    for boot in range(max(1, len(log.boots))):
+        got = log.format.flight_evidence(log, boot, autopilot)
+        if isinstance(got, str):
+            missing.append(got)
+            continue
+        segs = _runs(got.time_s, got.state, np.full(len(got.time_s), boot))
+        hov = _hover(segs, got.throttle) if got.throttle is not None else []
+        hovers |= bool(hov)
+        if got.note not in notes:
+            notes.append(got.note)
+        for seg in segs:                 # log order; each hover entry after its flying segment
+            out.append(seg)
+            if seg.kind == "flying":
+                out += [h for parent, h in hov if parent is seg]
+    if not notes:
+        return [], missing[0] if missing else "no flight evidence in the log"
+    note = "; ".join(notes)
+    if hovers:
         note += (f"; hover: throttle std over {HOVER_WINDOW_S:g} s below {HOVER_STD:g} of full "
                  f"throttle for at least {HOVER_MIN_S:g} s")
-    out = []
-    for seg in segs:                 # log order; each hover entry after its flying segment
-        out.append(seg)
-        if seg["kind"] == "flying":
-            out += [{k: v for k, v in h.items() if k != "_parent"} for h in hov if h["_parent"] is seg]
+    if len(log.boots) > 1:
+        note += f"; {len(log.boots)} boot sessions, each on its own boot time (numbered in file order)"
+        if missing:
+            note += f"; {len(missing)} without flight evidence"
     return out, note
 
 
@@ -117,33 +124,22 @@ def segment_mask(time_s, segments, kind, session=None):
     covers the hover stretches too (they lie inside)."""
     t = np.asarray(time_s, dtype=np.float64)
     mask = np.zeros(t.shape, dtype=bool)
-    sess = None if session is None else np.asarray(session)
     for s in segments:
-        if s["kind"] == kind:
-            m = (t >= s["start_s"]) & (t <= s["end_s"])
-            if sess is not None:
-                m &= sess == s.get("session", 0)
-            mask |= m
+        if s.kind == kind:
+            mask |= s.contains(t, session)
     return mask
 
 
-def session_starts(kind, source):
-    """Frame indices at which the log's boot sessions 1, 2, ... begin (int array; empty
-    for one session, and for DataFlash and ULog logs): see the module doc."""
-    if kind == "tlog":
-        return tlog_session_starts(source)
-    return np.zeros(0, np.int64)
-
-
 def sessions_of(records, starts):
-    """The boot session (int array) of each of ``records`` (frame indices: a telemetry
-    message's ``record`` column, a gyro stream's ``index``) given :func:`session_starts`."""
+    """The boot session (int array) of each of ``records`` (a message's ``record``
+    column, a gyro stream's ``index``) given the records where boots 1, 2, ... start
+    (:meth:`gyrodenoise.flightlog.model.FlightLog.boot_starts`)."""
     return np.searchsorted(np.asarray(starts), np.asarray(records), side="right")
 
 
 def flying_time_s(segments):
     """Seconds in the air: the summed length of the ``flying`` segments (float)."""
-    return round(float(sum(s["end_s"] - s["start_s"] for s in segments if s["kind"] == "flying")), 3)
+    return round(float(sum(s.duration_s for s in segments if s.kind == "flying")), 3)
 
 
 # ------------------------------------------------------------------ helpers
@@ -179,8 +175,8 @@ def _runs(t, state, sess=None):
     for a, b in zip(starts.tolist(), ends.tolist()):
         end = t[b] if b < len(t) and sess[b] == sess[a] else t[b - 1]
         if end > t[a]:
-            out.append({"kind": _STATE_NAMES[int(state[a])], "start_s": round(float(t[a]), 6),
-                        "end_s": round(float(end), 6), "session": int(sess[a])})
+            out.append(Segment(_STATE_NAMES[int(state[a])], round(float(t[a]), 6), round(float(end), 6),
+                               int(sess[a])))
     return out
 
 
@@ -198,18 +194,16 @@ def _step(t_query, t_change, values, initial):
 
 
 def _hover(segs, throttle):
-    """Hover segments inside the flying ones from ``throttle`` = (time_s, 0..1[, session])."""
-    tt, thr = throttle[0], throttle[1]
+    """[(its flying segment, hover segment)] inside the flying ones (of one boot) from
+    ``throttle`` (:class:`Throttle`)."""
+    tt, thr = throttle.time_s, throttle.value
     ok = np.isfinite(tt) & np.isfinite(thr)
     tt, thr = np.asarray(tt, np.float64)[ok], np.asarray(thr, np.float64)[ok]
-    tsess = np.asarray(throttle[2])[ok] if len(throttle) > 2 else None
     out = []
     for s in segs:
-        if s["kind"] != "flying":
+        if s.kind != "flying":
             continue
-        sel = (tt >= s["start_s"]) & (tt <= s["end_s"])
-        if tsess is not None:
-            sel &= tsess == s["session"]
+        sel = s.contains(tt)
         t, x = tt[sel], thr[sel]
         order = np.argsort(t, kind="stable")
         t, x = t[order], x[order]
@@ -230,8 +224,7 @@ def _hover(segs, throttle):
         edges = np.diff(np.concatenate([[0], steady.astype(np.int8), [0]]))
         for i, j in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1):
             if t[j] - t[i] >= HOVER_MIN_S:       # from the first to the last steady sample
-                out.append({"kind": "hover", "start_s": round(float(t[i]), 6),
-                            "end_s": round(float(t[j]), 6), "session": s["session"], "_parent": s})
+                out.append((s, Segment("hover", round(float(t[i]), 6), round(float(t[j]), 6), s.session)))
     return out
 
 
@@ -260,14 +253,14 @@ def _forward_fill(v):
 
 
 # ---------------------------------------------------------------- DataFlash
-def _df_throttle(source):
+def _df_throttle(log, boot):
     """(time_s, throttle 0..1, where from) or None."""
-    ctun = log_messages("dataflash", source, "CTUN")
+    ctun = log.boot_messages("CTUN", boot)
     if ctun is not None and "ThO" in ctun:
         return ctun["time_s"], ctun["ThO"].astype(np.float64), "CTUN.ThO"
     if ctun is not None and "ThrOut" in ctun:
         return ctun["time_s"], ctun["ThrOut"].astype(np.float64) / 1000.0, "CTUN.ThrOut/1000"
-    rcou = log_messages("dataflash", source, "RCOU")
+    rcou = log.boot_messages("RCOU", boot)
     if rcou is not None:
         cols = [c for c in ("C1", "C2", "C3", "C4") if c in rcou] or \
                [c for c in ("Ch1", "Ch2", "Ch3", "Ch4") if c in rcou]
@@ -277,8 +270,63 @@ def _df_throttle(source):
     return None
 
 
-def _df_vehicle(source):
-    msg = log_messages("dataflash", source, "MSG")
+#: GPS/airspeed evidence: in the air above this speed (m/s) ...
+FLYING_SPEED_M_S = 3.0
+#: ... and this height (m) above the first 3-D fix (or GPS RelAlt)
+FLYING_HEIGHT_M = 5.0
+GPS_3D_FIX = 3
+
+
+def _df_motion(log, boot):
+    """(time_s, in the air 0/1, the evidence named) from GPS ground speed and height
+    (``GPS.Spd``; ``GPS.RelAlt`` where logged, else ``GPS.Alt`` above the median of the
+    first 10 samples with a 3-D fix) and airspeed (``ARSP.Airspeed``, where faster):
+    in the air over each stretch above :data:`FLYING_HEIGHT_M` in which the speed
+    exceeds :data:`FLYING_SPEED_M_S` (:func:`_height_runs_moving`); None without a GPS
+    height and speed."""
+    gps = log.boot_messages("GPS", boot)
+    if gps is None or "Spd" not in gps or not ({"RelAlt", "Alt"} & gps.keys()):
+        return None
+    t = np.asarray(gps["time_s"], dtype=np.float64)
+    fix = np.asarray(gps["Status"]) >= GPS_3D_FIX if "Status" in gps else np.ones(len(t), bool)
+    fix &= np.isfinite(t)
+    if fix.sum() < 2:
+        return None
+    t = t[fix]
+    speed = np.asarray(gps["Spd"], dtype=np.float64)[fix]
+    if "RelAlt" in gps:
+        height, hname = np.asarray(gps["RelAlt"], dtype=np.float64)[fix], "GPS.RelAlt"
+    else:
+        alt = np.asarray(gps["Alt"], dtype=np.float64)[fix]
+        height, hname = alt - np.median(alt[:10]), "GPS.Alt above the first fix"
+    what = f"{hname} > {FLYING_HEIGHT_M:g} m in a stretch whose GPS.Spd exceeds {FLYING_SPEED_M_S:g} m/s"
+    arsp = log.boot_messages("ARSP", boot)
+    if arsp is not None and "Airspeed" in arsp and len(arsp["time_s"]) > 1:
+        ta, va = _sorted(np.asarray(arsp["time_s"], np.float64), np.asarray(arsp["Airspeed"], np.float64))
+        if len(ta) > 1:
+            speed = np.maximum(speed, np.interp(t, ta, va, left=0.0, right=0.0))
+            what = (f"{hname} > {FLYING_HEIGHT_M:g} m in a stretch whose GPS.Spd or ARSP.Airspeed exceeds "
+                    f"{FLYING_SPEED_M_S:g} m/s")
+    return t, _height_runs_moving(height, speed), what
+
+
+def _height_runs_moving(height, speed):
+    """In the air (0/1 per sample): each run of samples above :data:`FLYING_HEIGHT_M`
+    in which the speed exceeds :data:`FLYING_SPEED_M_S` at least once (a hover or a
+    slow descent inside a flight stays in the air; a GPS height offset on the ground,
+    never moving, does not fly; a taxi at 0 m does not either)."""
+    up = np.asarray(height, dtype=np.float64) > FLYING_HEIGHT_M
+    fast = np.asarray(speed, dtype=np.float64) > FLYING_SPEED_M_S
+    air = np.zeros(len(up), np.int64)
+    edges = np.diff(np.concatenate([[0], up.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        if fast[a:b].any():
+            air[a:b] = 1
+    return air
+
+
+def _df_vehicle(log, boot):
+    msg = log.boot_messages("MSG", boot)
     if msg is None:
         return None
     for text in msg["Message"].tolist():
@@ -288,10 +336,11 @@ def _df_vehicle(source):
     return None
 
 
-def _dataflash(source):
-    ev = log_messages("dataflash", source, "EV")
-    arm = log_messages("dataflash", source, "ARM")
-    thr = _df_throttle(source)
+def dataflash_evidence(log, boot, looked_for) -> FlightEvidence | str:
+    """The flight evidence of boot ``boot`` of a DataFlash log (the module doc)."""
+    ev = log.boot_messages("EV", boot)
+    arm = log.boot_messages("ARM", boot)
+    thr = _df_throttle(log, boot)
     # arming changes: (time, 0/1) from ARM.ArmState and EV 10/11
     at, av = [], []
     if arm is not None and "ArmState" in arm:
@@ -314,16 +363,22 @@ def _dataflash(source):
     lv = np.concatenate(lv) if lv else np.zeros(0, np.int64)
     ok = np.isfinite(lt)
     lt, lv = lt[ok], lv[ok]
-    if not len(at) and thr is None:
-        return f"no flight evidence in the log (looked for {LOOKED_FOR['dataflash']})"
+    motion = _df_motion(log, boot)
+    if not len(at) and thr is None and motion is None:
+        return f"no flight evidence in the log (looked for {looked_for})"
     clock = None
     for name in ("CTUN", "RCOU", "ATT", "IMU", "BARO"):
-        m = log_messages("dataflash", source, name)
+        m = log.boot_messages(name, boot)
         if m is not None:
             clock = m["time_s"]
             break
-    t = _timeline(clock, at, lt, thr[0] if thr is not None else None)
-    vehicle = _df_vehicle(source)
+    n_land = int(np.isin(lv, (0, 1)).sum()) if len(lv) else 0
+    has_land_events = ev is not None and np.isin(ev["Id"], (EV_LAND_COMPLETE, EV_NOT_LANDED)).any()
+    if (has_land_events and n_land) or thr is not None:
+        motion = None                  # GPS/airspeed only where neither land events nor throttle tell
+    t = _timeline(clock, at, lt, thr[0] if thr is not None else None,
+                  motion[0] if motion is not None else None)
+    vehicle = _df_vehicle(log, boot)
     never_flies = vehicle in ("ArduSub", "ArduRover", "Rover")
     notes = []
     if len(at):
@@ -333,11 +388,10 @@ def _dataflash(source):
                                             if av[order][0] == 0 else ""))
     else:
         armed = None
-    n_land = int(np.isin(lv, (0, 1)).sum()) if len(lv) else 0
-    has_land_events = ev is not None and np.isin(ev["Id"], (EV_LAND_COMPLETE, EV_NOT_LANDED)).any()
     if never_flies:
         air = np.zeros(len(t), np.int64)
         notes.append(f"{vehicle}: never flying")
+        alone = "the vehicle type"
     elif has_land_events and n_land:
         order = np.argsort(lt, kind="stable")
         first_land = lv[order][0]
@@ -345,20 +399,27 @@ def _dataflash(source):
         init = 1 if (first_land == 0 and int(first_id[0]) == EV_LAND_COMPLETE) else 0
         air = _step(t, lt, lv, initial=init)
         notes.append("in the air from EV NOT_LANDED/LAND_COMPLETE")
+        alone = "the land events"
     elif thr is not None:
         tv = np.interp(t, *_sorted(thr[0], thr[1]))
         air = (tv > FLYING_THROTTLE).astype(np.int64)
         notes.append(f"in the air where {thr[2]} > {FLYING_THROTTLE:g} (no land events)")
+        alone = "the throttle"
+    elif motion is not None:
+        air = _step(t, motion[0], motion[1], initial=0)
+        notes.append(f"in the air from {motion[2]} (no land events nor throttle)")
+        alone = "GPS/airspeed"
     else:
         air = np.zeros(len(t), np.int64)
         notes.append("no land events nor throttle: armed stretches not split into flying")
+        alone = "nothing"
     if armed is None:
         state = np.where(air == 1, FLYING, GROUND)
-        notes.insert(0, "no ARM/EV arming record: ground/flying from the throttle alone")
+        notes.insert(0, f"no ARM/EV arming record: ground/flying from {alone} alone")
     else:
         state = np.where(armed == 1, np.where(air == 1, FLYING, ARMED), GROUND)
-    throttle = (thr[0], thr[1]) if thr is not None else None
-    return t, state, throttle, "DataFlash: " + "; ".join(notes)
+    throttle = Throttle(thr[0], thr[1], thr[2]) if thr is not None else None
+    return FlightEvidence(t, state, throttle, "DataFlash: " + "; ".join(notes))
 
 
 def _sorted(t, v):
@@ -368,80 +429,113 @@ def _sorted(t, v):
 
 
 # --------------------------------------------------------------------- tlog
-def _tlog(source, autopilot):
-    hb = log_messages("tlog", source, "HEARTBEAT")
-    if hb is None:
-        return f"no flight evidence in the log (looked for {LOOKED_FOR['tlog']})"
+def tlog_evidence(log, boot, autopilot, looked_for) -> FlightEvidence | str:
+    """The flight evidence of boot ``boot`` of a telemetry log (the module doc)."""
+    from gyrodenoise.flightlog.autopilots import from_mav_autopilot
+    hb = log.boot_messages("HEARTBEAT", boot)
+    if hb is None or not len(hb["time_s"]):
+        return f"no flight evidence in the log (looked for {looked_for})"
     veh = (hb["autopilot"] != 8) & (hb["type"] != 6) & np.isfinite(hb["time_s"])
     if not veh.any():
         return (f"no vehicle HEARTBEAT with a boot time (only ground stations', or no message "
-                f"with time_boot_ms to place them; looked for {LOOKED_FOR['tlog']})")
+                f"with time_boot_ms to place them; looked for {looked_for})")
     ids, counts = np.unique(hb["sysid"][veh], return_counts=True)
     sysid = int(ids[np.argmax(counts)])
     veh &= hb["sysid"] == sysid
     if (veh & (hb["compid"] == 1)).any():
         veh &= hb["compid"] == 1
     t = hb["time_s"][veh]
-    starts = tlog_session_starts(source)
-    hb_sess = sessions_of(hb["record"][veh], starts)
     armed = (hb["base_mode"][veh] & MAV_SAFETY_ARMED) != 0
-    ap = autopilot or ("ardupilot" if int(np.bincount(hb["autopilot"][veh]).argmax()) == 3 else
-                       "px4" if int(np.bincount(hb["autopilot"][veh]).argmax()) == 12 else None)
+    ap = autopilot or from_mav_autopilot(int(np.bincount(hb["autopilot"][veh]).argmax()))
     vtype = int(np.bincount(hb["type"][veh]).argmax())
-    ess = log_messages("tlog", source, "EXTENDED_SYS_STATE")
+    ess = log.boot_messages("EXTENDED_SYS_STATE", boot)
     if ess is not None:
         ess_sel = (ess["sysid"] == sysid) & np.isfinite(ess["time_s"])
         ess = None if not ess_sel.any() else (ess["record"][ess_sel], ess["landed_state"][ess_sel])
     if ess is not None:         # in file order: boot times of several sessions overlap
         air = _step(hb["record"][veh], ess[0], np.isin(ess[1], (2, 3, 4)).astype(np.int64), initial=0) == 1
         how = "in the air from EXTENDED_SYS_STATE.landed_state"
-    elif ap == "ardupilot" and vtype in COPTER_TYPES:
+    elif ap.air_from_system_status(vtype):
         ss = hb["system_status"][veh]
         air = _forward_fill(np.where(ss == MAV_STATE_ACTIVE, 1, np.where(np.isin(ss, (5, 6)), -1, 0))) == 1
         how = ("in the air where system_status is ACTIVE (ArduPilot multicopter; CRITICAL/EMERGENCY "
                "keep the state before)")
+    elif vtype not in NEVER_FLYING_TYPES and (motion := _tlog_motion(log, boot, sysid)) is not None:
+        air = _step(t, motion[0], motion[1], initial=0) == 1
+        how = (f"in the air from {motion[2]} (no EXTENDED_SYS_STATE, and the vehicle (autopilot {ap.name}, "
+               f"type {vtype}) does not report landing in system_status)")
     else:
         air = np.zeros(len(t), bool)
-        how = (f"not split into flying: no EXTENDED_SYS_STATE and the vehicle (autopilot {ap}, "
-               f"type {vtype}) does not report landing in system_status")
+        how = (f"not split into flying: no EXTENDED_SYS_STATE and the vehicle (autopilot {ap.name}, "
+               f"type {vtype}) does not report landing in system_status"
+               + ("" if vtype in NEVER_FLYING_TYPES else ", nor GPS height and speed"))
     state = np.where(armed, np.where(air, FLYING, ARMED), GROUND)
     throttle = None
-    vfr = log_messages("tlog", source, "VFR_HUD")
+    vfr = log.boot_messages("VFR_HUD", boot)
     if vfr is not None and (vfr["sysid"] == sysid).any():
         s = vfr["sysid"] == sysid
-        throttle = (vfr["time_s"][s], vfr["throttle"][s].astype(np.float64) / 100.0,
-                    sessions_of(vfr["record"][s], starts))
+        throttle = Throttle(vfr["time_s"][s], vfr["throttle"][s].astype(np.float64) / 100.0, "VFR_HUD.throttle")
     else:
-        so = log_messages("tlog", source, "SERVO_OUTPUT_RAW")
+        so = log.boot_messages("SERVO_OUTPUT_RAW", boot)
         if so is not None and (so["sysid"] == sysid).any():
             s = so["sysid"] == sysid
             pwm = np.mean([so[f"servo{i}_raw"][s].astype(np.float64) for i in range(1, 5)], axis=0)
-            throttle = (so["time_s"][s], np.clip((pwm - 1000.0) / 1000.0, 0, 1), sessions_of(so["record"][s], starts))
-    how += f"; {len(starts) + 1} boot sessions (numbered in file order)" if len(starts) else ""
-    return (t, state, throttle,
-            f"telemetry log: HEARTBEAT of system {sysid} (armed bit of base_mode); {how}", hb_sess)
+            throttle = Throttle(so["time_s"][s], np.clip((pwm - 1000.0) / 1000.0, 0, 1), "SERVO_OUTPUT_RAW")
+    return FlightEvidence(t, state, throttle,
+                          f"telemetry log: HEARTBEAT of system {sysid} (armed bit of base_mode); {how}")
+
+
+#: MAV_TYPE of vehicles that never fly: ground rover, surface boat, submarine
+NEVER_FLYING_TYPES = {10, 11, 12}
+
+
+def _tlog_motion(log, boot, sysid):
+    """(time_s, in the air 0/1, the evidence named) of a telemetry log's system ``sysid``
+    from its height (``GLOBAL_POSITION_INT.relative_alt``) and speed (``VFR_HUD``
+    groundspeed or airspeed, the faster): the rule of :func:`_df_motion`; None without both."""
+    gp = log.boot_messages("GLOBAL_POSITION_INT", boot)
+    vfr = log.boot_messages("VFR_HUD", boot)
+    if gp is None or vfr is None:
+        return None
+    g, v = gp["sysid"] == sysid, vfr["sysid"] == sysid
+    if g.sum() < 2 or v.sum() < 2:
+        return None
+    t = np.asarray(gp["time_s"], dtype=np.float64)[g]
+    height = np.asarray(gp["relative_alt"], dtype=np.float64)[g] / 1000.0
+    tv = np.asarray(vfr["time_s"], dtype=np.float64)[v]
+    speed = np.maximum(np.asarray(vfr["groundspeed"], dtype=np.float64)[v],
+                       np.asarray(vfr["airspeed"], dtype=np.float64)[v])
+    ts, vs = _sorted(tv, speed)
+    ok = np.isfinite(t)
+    if len(ts) < 2 or ok.sum() < 2:
+        return None
+    t, height = t[ok], height[ok]
+    return t, _height_runs_moving(height, np.interp(t, ts, vs)), (
+        f"GLOBAL_POSITION_INT.relative_alt > {FLYING_HEIGHT_M:g} m in a stretch whose VFR_HUD "
+        f"groundspeed/airspeed exceeds {FLYING_SPEED_M_S:g} m/s")
 
 
 # --------------------------------------------------------------------- ULog
-def _ulog(source):
-    vs = log_messages("ulog", source, "vehicle_status")
-    aa = log_messages("ulog", source, "actuator_armed")
-    ld = log_messages("ulog", source, "vehicle_land_detected")
+def ulog_evidence(log, looked_for) -> FlightEvidence | str:
+    """The flight evidence of a ULog (one boot; the module doc)."""
+    vs = log.messages("vehicle_status")
+    aa = log.messages("actuator_armed")
+    ld = log.messages("vehicle_land_detected")
     if vs is None and aa is None:
-        return f"no flight evidence in the log (looked for {LOOKED_FOR['ulog']})"
+        return f"no flight evidence in the log (looked for {looked_for})"
     ends = [m["time_s"][-1] for m in (vs, aa, ld) if m is not None and len(m["time_s"])]
     for name in ("sensor_combined", "vehicle_angular_velocity"):
-        m = log_messages("ulog", source, name)
+        m = log.messages(name)
         if m is not None and len(m["time_s"]):
             ends.append(m["time_s"][-1])
-    span = [source["u"].start_timestamp * 1e-6, max(ends)]
+    span = [log.boots[0].start_s, max(ends)]
     if vs is not None and "arming_state" in vs:
         at, av, how = vs["time_s"], (vs["arming_state"] == PX4_ARMING_STATE_ARMED).astype(np.int64), \
             "vehicle_status.arming_state"
     elif aa is not None:
         at, av, how = aa["time_s"], (aa["armed"] != 0).astype(np.int64), "actuator_armed.armed"
     else:
-        return f"no flight evidence in the log (looked for {LOOKED_FOR['ulog']})"
+        return f"no flight evidence in the log (looked for {looked_for})"
     t = _timeline(span, at, ld["time_s"] if ld is not None else None)
     t = t[(t >= span[0]) & (t <= span[1])]
     armed = _step(t, at, av, initial=int(av[0]))
@@ -453,11 +547,11 @@ def _ulog(source):
         how += "; no vehicle_land_detected: armed stretches not split into flying"
     state = np.where(armed == 1, np.where(air == 1, FLYING, ARMED), GROUND)
     throttle = None
-    ts = log_messages("ulog", source, "vehicle_thrust_setpoint")
+    ts = log.messages("vehicle_thrust_setpoint")
     if ts is not None and "xyz[2]" in ts:
-        throttle = (ts["time_s"], -ts["xyz[2]"].astype(np.float64))
+        throttle = Throttle(ts["time_s"], -ts["xyz[2]"].astype(np.float64), "vehicle_thrust_setpoint.xyz[2]")
     else:
-        ac = log_messages("ulog", source, "actuator_controls_0")
+        ac = log.messages("actuator_controls_0")
         if ac is not None and "control[3]" in ac:
-            throttle = (ac["time_s"], ac["control[3]"].astype(np.float64))
-    return t, state, throttle, "ULog: armed from " + how
+            throttle = Throttle(ac["time_s"], ac["control[3]"].astype(np.float64), "actuator_controls_0.control[3]")
+    return FlightEvidence(t, state, throttle, "ULog: armed from " + how)

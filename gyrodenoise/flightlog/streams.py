@@ -40,9 +40,10 @@ NOISE_METRIC = ("per axis: raw = the sensor's white-noise standard deviation, th
                 "(field units when the unit is unknown)")
 
 
-@dataclass
+@dataclass(slots=True)
 class GyroStream:
-    """One gyro stream of a log."""
+    """One gyro stream of a log. Every attribute a step sets is declared here (slots: an
+    undeclared one raises AttributeError)."""
     name: str                       # e.g. "IMU2", "IMU[1]", "RAW_IMU", "SCALED_IMU2@1.1"
     message: str                    # message type in the log
     unit: str                       # unit of the log field: rad/s, mrad/s, counts, ...
@@ -62,10 +63,45 @@ class GyroStream:
     #: the field unit to the stored number (a scalar, or per sample: ISBD ``mul``)
     field_dtype: str = "<f4"
     field_scale: object = 1.0
+    #: the stream's instance (IMU number, multi_id) where the log numbers them, else None
+    instance: int | None = None
+    #: per sample: the record it was read from, in the log's numbering (a DataFlash byte
+    #: offset, a telemetry frame index), which tells its boot; None: ``index`` is it
+    records: np.ndarray | None = None
+    #: where it was logged in the vehicle's filter chain: "pre-filter", "post-filter", "unknown"
+    stage: str = "unknown"
+    # -- set by the filtering step (gyrodenoise.flightlog.filtering, .live) --
+    #: per axis: samples that were not finite, and dropouts healed before filtering
+    non_finite: list = field(default_factory=list)
+    dropouts_healed: list = field(default_factory=list)
+    #: why the stream was not filtered / was written raw (None: it was filtered and written)
+    not_filtered: str | None = None
+    left_raw: str | None = None
+    #: the filter's warm-up (samples) and its cutoff (Hz, filters that have one)
+    warmup_samples: int = 0
+    cutoff_hz: float | None = None
+    #: the rate (Hz) the filter refused to run at, and the option that made it refuse
+    rate_refused: float | None = None
+    refused_option: object = None
+    #: (raw, filtered values in the working unit, the unit, the rate Hz) once filtered
+    _work: tuple | None = None
+    # -- set by the pipeline (gyrodenoise.flightlog.pipeline) --
+    #: the samples its figures are over (flying time by default), its spectrum report
+    #: and plot data, and where its plots go
+    _figures_mask: np.ndarray | None = None
+    _spectrum: dict | None = None
+    _spectrum_plot: dict | None = None
+    _png: object = None
+    _spectrum_png: object = None
 
     @property
     def n(self):
         return len(self.time_s)
+
+    @property
+    def sample_records(self):
+        """The record of each sample (``records``, else ``index``)."""
+        return self.index if self.records is None else self.records
 
     def work_units(self):
         """(raw values in the unit the filter works in, factor back, unit label)."""

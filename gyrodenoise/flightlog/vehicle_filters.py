@@ -59,6 +59,8 @@ import math
 
 import numpy as np
 
+from gyrodenoise.flightlog.autopilots import named
+
 #: ArduPilot's gyro backend rate when nothing in the log says otherwise
 AP_DEFAULT_FILTER_RATE_HZ = 1000.0
 #: PX4 filters at the raw sensor rate; "commonly 8 kHz" (IMU_GYRO_RATEMAX's description)
@@ -76,15 +78,6 @@ AP_TRACKING = {0: "fixed", 1: "throttle", 2: "rpm", 3: "esc", 4: "fft", 5: "rpm2
 #: INS_LOG_BAT_OPT bits (AP_InertialSensor BatchSampler: BATCH_OPT_*)
 BAT_OPT_SENSOR_RATE, BAT_OPT_POST_FILTER, BAT_OPT_PRE_POST_FILTER = 1, 2, 4
 
-FILTER_PARAM_PREFIXES = {
-    "ardupilot": ("INS_GYRO_FILTER", "INS_MPU6K_FILTER", "INS_HNTCH_", "INS_HNTC2_", "INS_NOTCH_", "INS_GYRO_RATE",
-                  "INS_FAST_SAMPLE", "INS_LOG_BAT_", "INS_GYR_ID", "INS_GYR2_ID", "INS_GYR3_ID",
-                  "SCHED_LOOP_RATE"),
-    "px4": ("IMU_GYRO_CUTOFF", "IMU_GYRO_NF", "IMU_GYRO_DNF_", "IMU_GYRO_RATEMAX", "IMU_DGYRO_CUTOFF",
-            "IMU_GYRO_FFT_", "IMU_INTEG_RATE"),
-}
-
-
 def _num(params, name, default=None):
     v = params.get(name, default)
     try:
@@ -94,8 +87,9 @@ def _num(params, name, default=None):
 
 
 def filter_parameters(autopilot, params):
-    """The filter-relevant entries of ``params`` ({NAME: value}, names sorted)."""
-    prefixes = FILTER_PARAM_PREFIXES.get(autopilot, ())
+    """The filter-relevant entries of ``params`` ({NAME: value}, names sorted) of
+    ``autopilot`` (a strategy or its name: :func:`gyrodenoise.flightlog.autopilots.named`)."""
+    prefixes = named(autopilot).filter_param_prefixes
     return {k: _jsonable(params[k]) for k in sorted(params) if k.startswith(prefixes)}
 
 
@@ -115,27 +109,30 @@ def vehicle_filters(autopilot, params):
     (``lowpass``, ``notch``, ``harmonic_notch``, ``dynamic_notch``), ``path``
     (``rate``: on the gyro rate the controllers use; ``d_term``: PX4's
     angular-acceleration filter), the parameter names it comes from and its
-    settings. An unknown autopilot gives no stages."""
+    settings. An unknown autopilot gives no stages. ``autopilot``: a strategy of
+    :mod:`gyrodenoise.flightlog.autopilots` or its name."""
     params = params or {}
-    out = {"autopilot": autopilot, "parameters": filter_parameters(autopilot, params), "stages": []}
-    if autopilot == "ardupilot":
-        out["stages"] = _ardupilot_stages(params)
-        rate = _num(params, "INS_GYRO_RATE")
-        if rate is not None and _num(params, "INS_FAST_SAMPLE", 0.0):
-            out["filter_rate_hz"] = 1000.0 * 2 ** int(rate)
-            out["filter_rate_source"] = f"INS_GYRO_RATE {int(rate)} with fast sampling: 1 kHz x 2**{int(rate)}"
-        else:
-            out["filter_rate_hz"] = AP_DEFAULT_FILTER_RATE_HZ
-            out["filter_rate_source"] = "assumed: ArduPilot's typical gyro backend rate (1 kHz)"
-    elif autopilot == "px4":
-        out["stages"] = _px4_stages(params)
-        out["filter_rate_hz"] = PX4_DEFAULT_FILTER_RATE_HZ
-        out["filter_rate_source"] = ("assumed: PX4 filters at the raw sensor rate, commonly 8 kHz "
-                                     "(not in the log unless sensor_gyro_fifo is)")
-    else:
-        out["filter_rate_hz"] = None
-        out["filter_rate_source"] = "unknown autopilot"
-    return out
+    ap = named(autopilot)
+    stages, rate, source = ap.filter_chain(params)
+    return {"autopilot": ap.name, "parameters": filter_parameters(ap, params), "stages": stages,
+            "filter_rate_hz": rate, "filter_rate_source": source}
+
+
+def ardupilot_chain(params):
+    """(stages, filter rate Hz, its source) of ArduPilot's gyro filters."""
+    rate = _num(params, "INS_GYRO_RATE")
+    if rate is not None and _num(params, "INS_FAST_SAMPLE", 0.0):
+        return (_ardupilot_stages(params), 1000.0 * 2 ** int(rate),
+                f"INS_GYRO_RATE {int(rate)} with fast sampling: 1 kHz x 2**{int(rate)}")
+    return (_ardupilot_stages(params), AP_DEFAULT_FILTER_RATE_HZ,
+            "assumed: ArduPilot's typical gyro backend rate (1 kHz)")
+
+
+def px4_chain(params):
+    """(stages, filter rate Hz, its source) of PX4's gyro filters."""
+    return (_px4_stages(params), PX4_DEFAULT_FILTER_RATE_HZ,
+            "assumed: PX4 filters at the raw sensor rate, commonly 8 kHz (not in the log unless "
+            "sensor_gyro_fifo is)")
 
 
 def _ardupilot_stages(p):
@@ -328,12 +325,7 @@ def chain_sections(stages, sample_rate_hz, notch_centre_hz=None):
             else:
                 sos.append(s)
         elif kind == "notch":
-            if st.get("form") == "px4":
-                s = px4_notch_sos(float(st["centre_hz"]), float(st["bandwidth_hz"]), fs)
-            else:
-                a, q = ardupilot_notch_a_q(float(st["centre_hz"]), float(st["bandwidth_hz"]),
-                                           float(st["attenuation_db"]))
-                s = ardupilot_notch_sos(float(st["centre_hz"]), a, q, fs)
+            s = NOTCH_FORMS[st.get("form", "ardupilot")](st, fs)
             if s is None:
                 notes.append(f"{st['params']}: notch at {st['centre_hz']} Hz not run at fs {fs:g} Hz")
             else:
@@ -347,6 +339,19 @@ def chain_sections(stages, sample_rate_hz, notch_centre_hz=None):
         elif kind == "dynamic_notch":
             notes.append(f"{st['params']}: dynamic notch ({', '.join(st.get('sources', []))}): not modelled")
     return sos, notes
+
+
+def _ardupilot_notch(st, fs):
+    a, q = ardupilot_notch_a_q(float(st["centre_hz"]), float(st["bandwidth_hz"]), float(st["attenuation_db"]))
+    return ardupilot_notch_sos(float(st["centre_hz"]), a, q, fs)
+
+
+def _px4_notch(st, fs):
+    return px4_notch_sos(float(st["centre_hz"]), float(st["bandwidth_hz"]), fs)
+
+
+#: a notch stage's ``form`` (whose biquad design it runs) -> its biquad at fs
+NOTCH_FORMS = {"ardupilot": _ardupilot_notch, "px4": _px4_notch}
 
 
 def sos_response(sos, freq_hz, sample_rate_hz):
@@ -443,25 +448,33 @@ def stream_stage(autopilot, params, stream):
       controllers, not the estimators"). Those versions log ``IMU_INTEG_RATE``;
       without it (older PX4, whose drivers low-passed sensor_gyro) unknown.
     * anything else, or an unknown autopilot: unknown.
+
+    ``autopilot``: a strategy of :mod:`gyrodenoise.flightlog.autopilots` or its name.
     """
-    params = params or {}
+    return named(autopilot).stream_stage(params or {}, stream)
+
+
+def ardupilot_stream_stage(params, stream):
+    """:func:`stream_stage` of an ArduPilot log."""
     msg = getattr(stream, "message", "") or ""
     name = getattr(stream, "name", "") or ""
-    if autopilot == "ardupilot":
-        if msg == "ISBD" or name.startswith("ISB."):
-            inst = _instance(name)
-            return batch_stage(params, inst if inst is not None else 0)[0]
-        if msg in ("IMU", "IMU2", "IMU3", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3"):
-            return "post-filter"
-        return "unknown"
-    if autopilot == "px4":
-        if msg == "vehicle_angular_velocity":
-            return "post-filter"
-        if msg == "sensor_gyro_fifo":
-            return "pre-filter"
-        if msg in ("sensor_gyro", "sensor_combined"):
-            return "pre-filter" if "IMU_INTEG_RATE" in params else "unknown"
-        return "unknown"
+    if msg == "ISBD" or name.startswith("ISB."):
+        inst = _instance(name)
+        return batch_stage(params, inst if inst is not None else 0)[0]
+    if msg in ("IMU", "IMU2", "IMU3", "RAW_IMU", "SCALED_IMU", "SCALED_IMU2", "SCALED_IMU3"):
+        return "post-filter"
+    return "unknown"
+
+
+def px4_stream_stage(params, stream):
+    """:func:`stream_stage` of a PX4 log."""
+    msg = getattr(stream, "message", "") or ""
+    if msg == "vehicle_angular_velocity":
+        return "post-filter"
+    if msg == "sensor_gyro_fifo":
+        return "pre-filter"
+    if msg in ("sensor_gyro", "sensor_combined"):
+        return "pre-filter" if "IMU_INTEG_RATE" in params else "unknown"
     return "unknown"
 
 

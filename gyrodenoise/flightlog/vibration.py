@@ -7,8 +7,11 @@ Sources, the first the log has:
   accelerometer, high-passed) and the clip counters ``Clip0..2`` (or ``Clip`` per IMU
   in ArduPilot 4.x, which logs one VIBE per IMU instance, field ``IMU``); cumulative
   counts: a segment's figure is their increase over it.
-* Telemetry log ``VIBRATION`` -- ``vibration_x/y/z`` (the same m/s/s levels),
-  ``clipping_0..2`` (cumulative).
+* Telemetry log ``VIBRATION`` -- from ArduPilot ``vibration_x/y/z`` (the same m/s/s
+  levels as VIBE), ``clipping_0..2`` (cumulative); from PX4 (its strategy's
+  ``vibration_levels``) x is the delta-angle coning metric, y the gyro vibration metric
+  and z the accelerometer vibration metric of ``vehicle_imu_status`` (PX4's
+  MavlinkStreamVibration), named and judged as those.
 * PX4 ULog ``vehicle_imu_status`` (every instance) -- ``accel_vibration_metric``
   (m/s/s), ``gyro_vibration_metric`` (rad/s), ``delta_angle_coning_metric`` (rad^2),
   ``accel_clipping[0..2]`` (cumulative).
@@ -41,8 +44,7 @@ import re
 import numpy as np
 
 from gyrodenoise.analysis.spectrum import find_peaks, welch_psd
-from gyrodenoise.flightlog.logdata import log_messages
-from gyrodenoise.flightlog.segments import segment_mask, sessions_of
+from gyrodenoise.flightlog.model import Segment
 
 ARDUPILOT_VIBE_URL = "https://ardupilot.org/copter/docs/common-measuring-vibration.html"
 FLIGHT_REVIEW_URL = "https://github.com/PX4/flight_review/blob/main/app/plot_app/configured_plots.py"
@@ -66,11 +68,6 @@ THRESHOLDS = {
     },
 }
 VERDICTS = ("pass", "warn", "fail")
-LOOKED_FOR = {
-    "dataflash": "VIBE (VibeX/Y/Z, Clip), IMU AccX/AccY/AccZ",
-    "tlog": "VIBRATION (vibration_x/y/z, clipping_0..2)",
-    "ulog": "vehicle_imu_status (accel_vibration_metric...), sensor_combined.accelerometer_m_s2",
-}
 MAX_PEAKS = 3
 PEAK_MIN_FREQ_HZ = 5.0
 #: the accelerometer's band rms runs from here to the stream's Nyquist frequency (Hz) ...
@@ -85,7 +82,7 @@ LEVEL_UNITS = {"VibeX": "m/s/s", "VibeY": "m/s/s", "VibeZ": "m/s/s", "vibration_
                "gyro_vibration_metric": "rad/s", "delta_angle_coning_metric": "rad^2"}
 
 
-def vibration_review(kind, source, segments, over="flying", starts=None):
+def vibration_review(log, segments, over="flying"):
     """(result, note) of the vibration figures of a log read by
     :func:`gyrodenoise.flightlog.formats.read_log`, over the ``flying`` segments of
     ``segments`` (:func:`gyrodenoise.flightlog.segments.flight_segments`) or, with
@@ -94,34 +91,32 @@ def vibration_review(kind, source, segments, over="flying", starts=None):
     ``result``: ``{"source", "over": "flying"|"whole log", "thresholds", "segments":
     [{"kind", "start_s", "end_s", "figures": {...}, "accel_peaks": [...],
     "verdict"}], "verdict"}`` (JSON-able; see the module doc), or None when the log has
-    none of the sources, with a note naming what was looked for. ``starts``: the
-    frame indices where a telemetry log's boot sessions 1, 2, ... begin
-    (:func:`gyrodenoise.flightlog.segments.session_starts`): a sample is in a segment
-    when its boot session is the segment's ``session`` too."""
+    none of the sources, with a note naming what was looked for. In a log of several
+    boots a sample is in a segment when its boot is the segment's ``session`` too."""
     if over not in ("flying", "whole"):
         raise ValueError(f"over must be 'flying' or 'whole', not {over!r}")
-    levels = _levels(kind, source)
-    accel = _accel(kind, source)
+    levels = log.format.vibration_levels(log)
     if levels is not None:
-        levels["session"] = (sessions_of(levels["record"], starts) if starts is not None and len(starts)
-                             and "record" in levels else None)
+        levels = log.parameters().autopilot.vibration_levels(levels)
+    accel = log.format.accelerometer(log)
+    for src in (levels, accel):
+        if src is not None:
+            src["session"] = (log.boot_of(src["record"]) if len(log.boots) > 1 and src.get("record") is not None
+                              else None)
     if levels is None and accel is None:
-        return None, f"no vibration data in the log (looked for {LOOKED_FOR[kind]})"
-    times = [x["time_s"] for x in ([levels] if levels else []) + ([accel] if accel else [])]
-    t_all = np.concatenate(times)
-    t_all = t_all[np.isfinite(t_all)]
+        return None, f"no vibration data in the log (looked for {log.format.vibration_looked_for})"
     note = ""
-    spans = [s for s in segments if s["kind"] == "flying"] if over == "flying" else []
+    spans = [s for s in segments if s.kind == "flying"] if over == "flying" else []
     over_out = "flying"
     if over == "whole" or not spans:
         if over == "flying":
             note = "no flying segment in the log: figures over the whole log; "
-        spans = [{"kind": "whole log", "start_s": float(t_all.min()), "end_s": float(t_all.max())}]
+        spans = _whole_boots(log, levels, accel)
         over_out = "whole log"
     out_segs = []
     for seg in spans:
-        entry = {"kind": seg["kind"], "start_s": round(float(seg["start_s"]), 3),
-                 "end_s": round(float(seg["end_s"]), 3), "session": int(seg.get("session", 0)),
+        entry = {"kind": seg.kind, "start_s": round(float(seg.start_s), 3),
+                 "end_s": round(float(seg.end_s), 3), "session": int(seg.session or 0),
                  "figures": {}, "accel_peaks": None}
         if levels is not None:
             entry["figures"] = _segment_figures(levels, seg)
@@ -149,29 +144,35 @@ def vibration_review(kind, source, segments, over="flying", starts=None):
 
 
 # ------------------------------------------------------------------- sources
-def _levels(kind, source):
-    """{"source", "threshold", "time_s", "instance", "levels": {name: column},
-    "clips": {name: cumulative column}} or None."""
-    if kind == "dataflash":
-        m = log_messages(kind, source, "VIBE")
-        if m is None:
-            return None
-        inst = m["IMU"].astype(np.int64) if "IMU" in m else np.zeros(len(m["time_s"]), np.int64)
-        return {"source": "VIBE", "threshold": "vibe_m_s2", "time_s": m["time_s"], "instance": inst,
-                "levels": {c: m[c] for c in ("VibeX", "VibeY", "VibeZ") if c in m},
-                "clips": {c: m[c] for c in m if re.fullmatch(r"Clip\d?", c)}}
-    if kind == "tlog":
-        m = log_messages(kind, source, "VIBRATION")
-        if m is None:
-            return None
-        return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
-                "instance": np.zeros(len(m["time_s"]), np.int64),
-                "levels": {c: m[c] for c in ("vibration_x", "vibration_y", "vibration_z")},
-                "clips": {c: m[c] for c in ("clipping_0", "clipping_1", "clipping_2")}}
+# The sources, one reader per format (the format adapters' ``vibration_levels`` and
+# ``accelerometer``): levels {"source", "threshold", "time_s", "record" (or None),
+# "instance", "levels": {name: column}, "clips": {name: cumulative column}};
+# accelerometer {"source", "time_s", "record", "xyz": (n, 3)}; or None.
+def dataflash_levels(log):
+    m = log.messages("VIBE")
+    if m is None:
+        return None
+    inst = m["IMU"].astype(np.int64) if "IMU" in m else np.zeros(len(m["time_s"]), np.int64)
+    return {"source": "VIBE", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
+            "instance": inst, "levels": {c: m[c] for c in ("VibeX", "VibeY", "VibeZ") if c in m},
+            "clips": {c: m[c] for c in m if re.fullmatch(r"Clip\d?", c)}}
+
+
+def tlog_levels(log):
+    m = log.messages("VIBRATION")
+    if m is None:
+        return None
+    return {"source": "VIBRATION", "threshold": "vibe_m_s2", "time_s": m["time_s"], "record": m["record"],
+            "instance": np.zeros(len(m["time_s"]), np.int64),
+            "levels": {c: m[c] for c in ("vibration_x", "vibration_y", "vibration_z")},
+            "clips": {c: m[c] for c in ("clipping_0", "clipping_1", "clipping_2")}}
+
+
+def ulog_levels(log):
     parts = []
     k = 0
     while True:
-        m = log_messages(kind, source, "vehicle_imu_status" + (f"[{k}]" if k else ""))
+        m = log.messages("vehicle_imu_status" + (f"[{k}]" if k else ""))
         if m is None or "accel_vibration_metric" not in m:
             break
         parts.append(m)
@@ -187,23 +188,22 @@ def _levels(kind, source):
             "clips": {c: cat[c] for c in cat if c.startswith("accel_clipping[")}}
 
 
-def _accel(kind, source):
-    """{"source", "time_s", "xyz": (n, 3)} of the first accelerometer, or None."""
-    if kind == "dataflash":
-        m = log_messages(kind, source, "IMU")
-        if m is None or not all(c in m for c in ("AccX", "AccY", "AccZ")):
-            return None
-        sel = m["I"] == 0 if "I" in m else np.ones(len(m["time_s"]), bool)
-        return {"source": "IMU.AccX/AccY/AccZ", "time_s": m["time_s"][sel],
-                "xyz": np.stack([m[c][sel] for c in ("AccX", "AccY", "AccZ")], 1).astype(np.float64)}
-    if kind == "ulog":
-        m = log_messages(kind, source, "sensor_combined")
-        cols = [f"accelerometer_m_s2[{i}]" for i in range(3)]
-        if m is None or not all(c in m for c in cols):
-            return None
-        return {"source": "sensor_combined.accelerometer_m_s2", "time_s": m["time_s"],
-                "xyz": np.stack([m[c] for c in cols], 1).astype(np.float64)}
-    return None
+def dataflash_accel(log):
+    m = log.messages("IMU")
+    if m is None or not all(c in m for c in ("AccX", "AccY", "AccZ")):
+        return None
+    sel = m["I"] == 0 if "I" in m else np.ones(len(m["time_s"]), bool)
+    return {"source": "IMU.AccX/AccY/AccZ", "time_s": m["time_s"][sel], "record": m["record"][sel],
+            "xyz": np.stack([m[c][sel] for c in ("AccX", "AccY", "AccZ")], 1).astype(np.float64)}
+
+
+def ulog_accel(log):
+    m = log.messages("sensor_combined")
+    cols = [f"accelerometer_m_s2[{i}]" for i in range(3)]
+    if m is None or not all(c in m for c in cols):
+        return None
+    return {"source": "sensor_combined.accelerometer_m_s2", "time_s": m["time_s"], "record": None,
+            "xyz": np.stack([m[c] for c in cols], 1).astype(np.float64)}
 
 
 # ------------------------------------------------------------------- figures
@@ -224,8 +224,26 @@ def _worst(verdicts):
     return max(vs, key=VERDICTS.index) if vs else None
 
 
+def _whole_boots(log, levels, accel):
+    """One ``whole log`` segment per boot over the samples of the sources (a log of one
+    boot: one over all of them, of no boot in particular)."""
+    srcs = [x for x in (levels, accel) if x is not None]
+    t = np.concatenate([np.asarray(x["time_s"], np.float64) for x in srcs])
+    several = len(log.boots) > 1 and all(x.get("session") is not None for x in srcs)
+    if not several:
+        t = t[np.isfinite(t)]
+        return [Segment("whole log", float(t.min()), float(t.max()), None)]
+    sess = np.concatenate([np.asarray(x["session"]) for x in srcs])
+    out = []
+    for k in np.unique(sess).tolist():
+        tk = t[(sess == k) & np.isfinite(t)]
+        if len(tk):
+            out.append(Segment("whole log", float(tk.min()), float(tk.max()), int(k)))
+    return out
+
+
 def _in(t, seg, session=None):
-    return segment_mask(t, [dict(seg, kind="x")], "x", session if "session" in seg else None)
+    return seg.contains(t, session)
 
 
 def _segment_figures(lv, seg):
@@ -254,9 +272,9 @@ def _segment_figures(lv, seg):
             idx = np.flatnonzero(sel)
             if not len(idx):
                 continue
-            before = isel & (t < seg["start_s"])
-            if lv.get("session") is not None and "session" in seg:
-                before &= lv["session"] == seg["session"]
+            before = isel & (t < seg.start_s)
+            if lv.get("session") is not None and seg.session is not None:
+                before &= lv["session"] == seg.session
             before = np.flatnonzero(before)
             base = c[before[-1]] if len(before) else c[idx[0]]
             inc = float(np.max(c[idx]) - base)
@@ -274,7 +292,7 @@ def _accel_figures(acc, seg):
     mean/p95/max over the windows; no threshold, no verdict. {} when the segment holds
     no whole window."""
     t = acc["time_s"]
-    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    sel = np.flatnonzero(_in(t, seg, acc.get("session")) & np.isfinite(t))
     if len(sel) < 8:
         return {}
     ts = t[sel]
@@ -313,7 +331,7 @@ def _segment_peaks(acc, seg):
     """Dominant peaks of the summed x+y+z accelerometer PSD over the segment
     (strongest first), or [] when the segment is too short for a spectrum."""
     t = acc["time_s"]
-    sel = np.flatnonzero(_in(t, seg) & np.isfinite(t))
+    sel = np.flatnonzero(_in(t, seg, acc.get("session")) & np.isfinite(t))
     if len(sel) < 64:
         return []
     ts = t[sel]

@@ -42,6 +42,7 @@ def synthetic_report(out_dir, seconds=60.0, rate_hz=400.0, seed=3):
     from gyrodenoise.flightlog.spectra import stream_spectrum
     from gyrodenoise.flightlog.streams import GyroStream
     from gyrodenoise.flightlog.html_report import stream_series
+    from gyrodenoise.flightlog.vehicle_filters import vehicle_filters
     rng = np.random.default_rng(seed)
     n = int(seconds * rate_hz)
     t = 10.0 + np.arange(n) / rate_hz
@@ -82,9 +83,10 @@ def synthetic_report(out_dir, seconds=60.0, rate_hz=400.0, seed=3):
         "segments": segments,
         "vehicle_filters": {"autopilot": "ardupilot", "parameters": {"INS_GYRO_FILTER": 20, "INS_HNTCH_ENABLE": 1,
                                                                      "INS_HNTCH_FREQ": 80, "INS_HNTCH_BW": 20},
-                            "stages": [{"kind": "lowpass", "cutoff_hz": 20.0},
-                                       {"kind": "harmonic_notch", "center_hz": 80.0, "bandwidth_hz": 20.0,
-                                        "attenuation_db": 40.0, "harmonics": [1, 2]}]},
+                            "stages": vehicle_filters("ardupilot", {
+                                "INS_GYRO_FILTER": 20.0, "INS_HNTCH_ENABLE": 1, "INS_HNTCH_FREQ": 80.0,
+                                "INS_HNTCH_BW": 20.0, "INS_HNTCH_ATT": 40.0, "INS_HNTCH_HMNCS": 3,
+                                "INS_HNTCH_MODE": 0})["stages"]},
         "filter_review": {
             "source": {"stream": "IMU[0]", "stage": "pre-filter", "sample_rate_hz": rate_hz, "over": "flying"},
             "noise_band_hz": [30.0, 160.0],
@@ -116,9 +118,10 @@ def synthetic_report(out_dir, seconds=60.0, rate_hz=400.0, seed=3):
     fr = pd["freq_hz"]
     from gyrodenoise.flightlog.html_report import vehicle_response
     resp_logged, _ = vehicle_response(report["vehicle_filters"]["stages"], fr, rate_hz)
-    resp_rec, _ = vehicle_response([{"kind": "lowpass", "cutoff_hz": 40.0},
-                                    {"kind": "harmonic_notch", "center_hz": 80.0, "bandwidth_hz": 20.0,
-                                     "harmonics": [1, 2]}], fr, rate_hz)
+    resp_rec, _ = vehicle_response([{"kind": "lowpass", "path": "rate", "params": "INS_GYRO_FILTER", "cutoff_hz": 40.0},
+                                    {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ",
+                                     "centre_hz": 80.0, "bandwidth_hz": 20.0, "attenuation_db": None}],
+                                   fr, rate_hz)
     pre = np.mean(pd["raw"], axis=0)
     series = {"streams": [stream_series(s, "filtered (lowpass 30 Hz, offline)"), stream_series(slow)],
               "vehicle_rate": [{"name": "RATE", "time_s": t[::8], "rate": motion[::8], "unit": "deg/s"}],
@@ -154,14 +157,14 @@ def real_log_report(log_path, out_dir):
     from gyrodenoise.core.kernels import DEFAULT_METHOD
     from gyrodenoise.flightlog.engines import make_engine
     from gyrodenoise.flightlog.filtering import filter_streams
-    from gyrodenoise.flightlog.formats import log_kind, read_log
+    from gyrodenoise.flightlog.formats import read_log
     from gyrodenoise.flightlog.html_report import series_of_streams
     from gyrodenoise.flightlog.output import joined_time
     from gyrodenoise.flightlog.pipeline import process_log
     from gyrodenoise.flightlog.spectra import stream_spectrum
     from gyrodenoise.flightlog.checks import usable_samples
     rep = process_log(log_path, out_dir, plots=False, csv=False)
-    streams, _, _ = read_log(Path(log_path), log_kind(Path(log_path)))
+    streams = read_log(Path(log_path)).gyro
     eng = make_engine("native", DEFAULT_METHOD, offline=True)
     try:
         filter_streams(streams, eng, 5.0)

@@ -353,8 +353,8 @@ def test_unknown_file_type_exits_2(tmp_path):
     junk = tmp_path / "notes.dat"
     junk.write_bytes(b"hello, this is not a flight log\n" * 40)
     r = run_cli(junk, "-o", tmp_path / "o", "--json")
-    msg = (f"{junk}: unknown file type (expected a MAVLink telemetry log .tlog, "
-           f"an ArduPilot DataFlash log .bin or a PX4 log .ulg)")
+    msg = (f"{junk}: unknown file type (expected an ArduPilot DataFlash log .bin, a PX4 log .ulg, "
+           f"a MAVLink telemetry log .tlog/.mavlink)")
     assert r.returncode == 2
     assert json.loads(r.stdout) == {"error": msg, "exit_status": 2}     # --json: one object, the error
     assert r.stdout.count("\n") == 1

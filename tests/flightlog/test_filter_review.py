@@ -44,13 +44,17 @@ def _imu_stream():
                       raw=np.zeros((500, 3)), index=np.arange(500))
 
 
-def _review(streams, params=PARAMS, **kw):
+def _review_and_plot(streams, params=PARAMS, **kw):
     filters = vf.vehicle_filters("ardupilot", params)
     return fr.filter_review(streams, "ardupilot", params, filters, **kw)
 
 
+def _review(streams, params=PARAMS, **kw):
+    return _review_and_plot(streams, params, **kw)[:2]
+
+
 def test_synthetic_tone_found_notched_and_predicted():
-    review, note = _review([_imu_stream(), _batch_stream()])
+    review, note, plot = _review_and_plot([_imu_stream(), _batch_stream()])
     assert note == "" and review["source"]["stream"] == "ISB.gyro[0]"
     df = review["source"]["resolution_hz"]
     assert review["filter_rate_hz"] == pytest.approx(FS)
@@ -62,30 +66,29 @@ def test_synthetic_tone_found_notched_and_predicted():
     assert rec["INS_HNTCH_HMNCS"] == 1 and rec["INS_HNTCH_ATT"] == 40.0
     assert f"INS_HNTCH_FREQ,{rec['INS_HNTCH_FREQ']:g}" in review["param_lines"]
     # the predicted spectrum is |H|^2 of the recommended parameters, as the vehicle would run them
-    plot = review["_plot"]
     fs = review["filter_rate_hz"]
-    h = vf.chain_response(vf.vehicle_filters("ardupilot", {**PARAMS, **rec})["stages"], plot["freq_hz"], fs)
-    np.testing.assert_allclose(plot["psd_recommended"], plot["psd_pre"] * np.abs(h) ** 2, rtol=1e-9)
-    k = int(np.argmin(np.abs(plot["freq_hz"] - TONE_HZ)))
-    assert plot["psd_recommended"][0, k] / plot["psd_pre"][0, k] == pytest.approx(abs(h[k]) ** 2, rel=1e-9)
+    h = vf.chain_response(vf.vehicle_filters("ardupilot", {**PARAMS, **rec})["stages"], plot.freq_hz, fs)
+    np.testing.assert_allclose(plot.psd_recommended, plot.psd_pre * np.abs(h) ** 2, rtol=1e-9)
+    k = int(np.argmin(np.abs(plot.freq_hz - TONE_HZ)))
+    assert plot.psd_recommended[0, k] / plot.psd_pre[0, k] == pytest.approx(abs(h[k]) ** 2, rel=1e-9)
     assert 10 * math.log10(abs(h[k]) ** 2) < -30        # the tone is notched
     # ... and the logged chain's the logged low-pass
-    h_log = vf.chain_response(vf.vehicle_filters("ardupilot", PARAMS)["stages"], plot["freq_hz"], fs)
-    np.testing.assert_allclose(plot["psd_logged"], plot["psd_pre"] * np.abs(h_log) ** 2, rtol=1e-9)
+    h_log = vf.chain_response(vf.vehicle_filters("ardupilot", PARAMS)["stages"], plot.freq_hz, fs)
+    np.testing.assert_allclose(plot.psd_logged, plot.psd_pre * np.abs(h_log) ** 2, rtol=1e-9)
     # figures: noise no worse than logged, and less lag (the reason the notch is there)
     figs = review["figures"]
     assert figs["recommended"]["noise_rms_deg_s"]["rss"] <= figs["logged"]["noise_rms_deg_s"]["rss"] * (1 + 1e-9)
     assert figs["recommended"]["phase_lag_ms"]["20"] < figs["logged"]["phase_lag_ms"]["20"]
     assert rec["INS_GYRO_FILTER"] > 40
     assert set(figs["logged"]["phase_lag_ms"]) == {"10", "20", "30"}
-    json.dumps({k: v for k, v in review.items() if k != "_plot"})       # JSON-able but for _plot
+    json.dumps(review)                                                   # JSON-able, its plot apart
 
 
 def test_flying_mask_and_its_fallback():
     s = _batch_stream()
-    review, _ = _review([s], flying_mask_fn=lambda t: t >= 30.0)
+    review, _ = _review([s], flying_mask_fn=lambda t, records=None: t >= 30.0)
     assert review["source"]["over"] == "flying"
-    review, _ = _review([s], flying_mask_fn=lambda t: np.zeros(len(t), dtype=bool))
+    review, _ = _review([s], flying_mask_fn=lambda t, records=None: np.zeros(len(t), dtype=bool))
     assert review["source"]["over"] == "whole log"
 
 
@@ -100,7 +103,7 @@ def test_no_pre_filter_stream_note():
     assert review is None
     assert note == ("no pre-filter gyro stream: IMU[0] is logged after the vehicle's filters at 25 Hz, "
                     "and the batch sampler is off (INS_LOG_BAT_MASK 0)")
-    review, note = fr.filter_review([_imu_stream()], None, {}, vf.vehicle_filters(None, {}))
+    review, note, _ = fr.filter_review([_imu_stream()], None, {}, vf.vehicle_filters(None, {}))
     assert review is None and "autopilot is unknown" in note
 
 
@@ -112,13 +115,11 @@ def test_param_lines():
 
 @functools.lru_cache(maxsize=8)
 def _real(name):
-    path = shared_log(name)
-    kind = formats.log_kind(path)
-    streams, source, _ = formats.read_log(path, kind)
-    ap, params = parameters.log_parameters(kind, source)
+    log = formats.read_log(shared_log(name))
+    ap, params = parameters.log_parameters(log)
     filters = vf.vehicle_filters(ap, params)
-    ctx = fr.review_context(kind, source, ap, params, filters)
-    return fr.filter_review(streams, ap, params, filters, context=ctx), filters
+    ctx = fr.review_context(log, ap, params, filters)
+    return fr.filter_review(log.gyro, ap, params, filters, context=ctx)[:2], filters
 
 
 def test_copter_00061_review_from_its_batch_sampler():
@@ -127,7 +128,7 @@ def test_copter_00061_review_from_its_batch_sampler():
     assert review["source"]["sample_rate_hz"] == pytest.approx(2000, rel=0.01)
     assert review["logged"]["INS_GYRO_FILTER"] == 30.0
     assert "INS_GYRO_FILTER" in review["recommended"]
-    json.dumps({k: v for k, v in review.items() if k != "_plot"})
+    json.dumps(review)
 
 
 def test_copter462_review_sees_the_logged_throttle_notch():

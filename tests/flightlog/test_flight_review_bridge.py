@@ -27,13 +27,14 @@ STAGES = ("pre-filter", "post-filter", "unknown")
 KINDS = ("ground", "armed", "flying", "hover")
 
 
-def synthetic_log(path, seed=3, events=None, params=None, tone_amp=3.0):
+def synthetic_log(path, seed=3, events=None, params=None, tone_amp=3.0, tone_hz=TONE_HZ, first_burst=0):
     """SYNTHETIC DataFlash log written to ``path``: PARM (PARAMS), IMU at 50 Hz from 1 to
     21 s (white noise, rad/s), CTUN at 10 Hz, the batch sampler's gyro (ISBH/ISBD,
     instance 0, pre-filter) in N_BURSTS bursts of 1024 samples at 2 kHz each second from
     1 s, a 3 deg/s tone at TONE_HZ on x in 0.3 deg/s white noise; EV/ARM: armed at 4 s,
     in the air at 6 s, landed at 16 s, disarmed at 18 s (``events`` [(time_s, EV id)]
-    replaces them, and without any the throttle stays at 0.1; ``params`` the PARM values; ``tone_amp`` the tone's deg/s)."""
+    replaces them, and without any the throttle stays at 0.1; ``params`` the PARM values; ``tone_amp`` the tone's
+    deg/s, ``tone_hz`` its frequency; ``first_burst`` the number N of the first burst)."""
     rng = np.random.default_rng(seed)
     w = DataFlashWriter()
     w.define("PARM", "QNf", ["TimeUS", "Name", "Value"])
@@ -62,13 +63,13 @@ def synthetic_log(path, seed=3, events=None, params=None, tone_amp=3.0):
         t0 = 1.0 + n
         t = t0 + np.arange(BURST) / FS
         x = rng.normal(0.0, 0.3, (BURST, 3))
-        x[:, 0] += tone_amp * np.sin(2 * np.pi * TONE_HZ * t)
+        x[:, 0] += tone_amp * np.sin(2 * np.pi * tone_hz * t)
         counts = np.clip(np.rint(np.radians(x) * MUL), -32768, 32767).astype(int)
         us = int(round(t0 * 1e6))
-        recs.append((us, 4, "ISBH", (n, 1, 0, int(MUL), BURST, us, FS)))
+        recs.append((us, 4, "ISBH", (first_burst + n, 1, 0, int(MUL), BURST, us, FS)))
         for q in range(BURST // 32):
             sl = slice(32 * q, 32 * q + 32)
-            recs.append((us + 1 + q, 5, "ISBD", (n, q, counts[sl, 0], counts[sl, 1], counts[sl, 2])))
+            recs.append((us + 1 + q, 5, "ISBD", (first_burst + n, q, counts[sl, 0], counts[sl, 1], counts[sl, 2])))
     for us, _, name, vals in sorted(recs, key=lambda r: (r[0], r[1])):
         w.add(name, us, *vals)
     path.write_bytes(w.bytes())
@@ -77,11 +78,9 @@ def synthetic_log(path, seed=3, events=None, params=None, tone_amp=3.0):
 
 def _log_review(path):
     """The review fields of a log read in-process (no filtering, no outputs)."""
-    from gyrodenoise.flightlog.formats import log_kind, read_log
+    from gyrodenoise.flightlog.formats import read_log
     from gyrodenoise.flightlog.log_review import log_review
-    kind = log_kind(path)
-    streams, source, _ = read_log(path, kind)
-    return log_review(kind, source, streams).fields
+    return log_review(read_log(path)).fields
 
 
 def test_never_armed_gives_no_filter_review(tmp_path):
@@ -276,7 +275,7 @@ def test_fleet_report_gives_each_logs_review(tmp_path):
 def test_rate_scale_tells_centidegrees():
     """SYNTHETIC: a RATE record 100x the gyro (ArduCopter 3.x, cdeg/s) is scaled by 0.01;
     one in deg/s (4.x) is kept."""
-    from gyrodenoise.flightlog.log_review import rate_scale
+    from gyrodenoise.flightlog.vehicle_rate import rate_scale
     from gyrodenoise.flightlog.streams import RAD_TO_DEG, GyroStream
     t = np.arange(500) / 50.0
     w = 30.0 * np.sin(2 * np.pi * 0.5 * t)[:, None] * np.array([1.0, 0.7, 0.3])      # deg/s
@@ -286,3 +285,24 @@ def test_rate_scale_tells_centidegrees():
     assert rate_scale(tr, 100.0 * w[::5], [g]) == 0.01
     assert rate_scale(tr, w[::5], [g]) == 1.0
     assert rate_scale(tr, w[::5], []) == 1.0
+
+
+def test_two_boots_reviewed_each_on_its_own(tmp_path):
+    """Two SYNTHETIC flights in one file, the tone at 123.4 Hz in the first and 80.0 Hz
+    in the second (the second flies 10 s, the first 10 s too: the first is the log's
+    review): each boot's filter review finds its own tone, none sees the other's; the
+    log's review is boot 0's and says so."""
+    a = synthetic_log(tmp_path / "a.bin").read_bytes()
+    # (burst numbers go on in the second boot: the low-level reader matches ISBD to ISBH by N
+    # over the whole file, so a second boot that starts again at N 0 would mix the boots' bursts)
+    b = synthetic_log(tmp_path / "b.bin", seed=5, tone_hz=80.0, first_burst=N_BURSTS).read_bytes()
+    both = tmp_path / "both.bin"
+    both.write_bytes(a + b)
+    rep = _log_review(both)
+    assert [x["flying_time_s"] for x in rep["boots"]] == [10.0, 10.0]
+    got = [x["filter_review"]["peaks"][0]["freq_hz"] for x in rep["boots"]]
+    df = rep["boots"][0]["filter_review"]["source"]["resolution_hz"]
+    assert abs(got[0] - TONE_HZ) <= df and abs(got[1] - 80.0) <= df
+    for x, other in zip(rep["boots"], (80.0, TONE_HZ)):
+        assert all(abs(p["freq_hz"] - other) > 3 * df for p in x["filter_review"]["peaks"])
+    assert rep["filter_review"]["source"]["boot"] == 0 and "boot 0" in rep["filter_review_note"]

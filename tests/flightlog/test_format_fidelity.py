@@ -21,12 +21,12 @@ from tests.helpers import shared_log
 def filter_copy(path, out, values):
     """Read ``path`` with gyrodenoise, set each stream's filtered values to
     ``values(stream)`` and write the filtered copy to ``out``; (streams, facts)."""
-    from gyrodenoise.flightlog.formats import log_kind, read_log, write_filtered_log
-    kind = log_kind(path)
-    streams, source, facts = read_log(path, kind)
-    for s in streams:
+    from gyrodenoise.flightlog.formats import read_log
+    log = read_log(path)
+    for s in log.gyro:
         s.filtered = values(s)
-    write_filtered_log(kind, source, streams, out)
+    log.format.write_filtered(log, out)
+    streams, facts = log.gyro, log.facts.to_fields()
     return streams, facts
 
 

@@ -30,11 +30,19 @@ def test_envelope_keeps_the_extremes_in_time_order():
     assert np.isnan(yy).sum() == 1 and len(tt) <= 3002
 
 
-def test_vehicle_response_models_lowpass_and_notch():
+def test_vehicle_response_is_the_vehicles_own_chain():
+    """The page's gain of the vehicle's filters is the filter review's model (the
+    autopilot's biquads, vehicle_filters.chain_response), notches included: before, a
+    second model (scipy) read ``center_hz``, which no stage has, and drew every notch
+    as all-pass."""
+    from gyrodenoise.flightlog import vehicle_filters as vf
+    stages = vf.vehicle_filters("ardupilot", {"INS_GYRO_FILTER": 100.0, "INS_HNTCH_ENABLE": 1,
+                                              "INS_HNTCH_FREQ": 80.0, "INS_HNTCH_BW": 20.0,
+                                              "INS_HNTCH_ATT": 40.0, "INS_HNTCH_HMNCS": 1,
+                                              "INS_HNTCH_MODE": 0})["stages"]
     f = np.array([1.0, 80.0, 150.0])
-    g, skipped = hr.vehicle_response([{"kind": "lowpass", "cutoff_hz": 100.0},
-                                      {"kind": "notch", "center_hz": 80.0, "bandwidth_hz": 20.0},
-                                      {"kind": "mystery"}], f, 1000.0)
+    g, skipped = hr.vehicle_response(stages + [{"kind": "mystery", "params": "X"}], f, 1000.0)
+    np.testing.assert_allclose(g, np.abs(vf.chain_response(stages, f, 1000.0)), rtol=1e-12)
     assert g[0] > 0.99 and g[1] < 0.05 and skipped == ["mystery"]
 
 

@@ -9,17 +9,15 @@ import functools
 import numpy as np
 import pytest
 
-from gyrodenoise.flightlog import dataflash, formats, logdata, tlog
-
+from tests.flightlog.flight_logs import log_of_bytes, shared_flight_log
 from tests.helpers import shared_log
 from tests.flightlog.synthetic_logs import DataFlashWriter, tlog_writer
 
 
 @functools.lru_cache(maxsize=4)
 def _read(name):
-    path = shared_log(name)
-    kind = formats.log_kind(path)
-    return path, kind, formats.read_log(path, kind)[1]
+    log = shared_flight_log(name)
+    return log.path, log.format.name, log
 
 
 @functools.lru_cache(maxsize=4)
@@ -53,7 +51,7 @@ def test_equal_to_pymavlink_on_real_logs(name, types):
     _, kind, source = _read(name)
     ref = _pymavlink(name, types)
     for ty in types:
-        ours = logdata.log_messages(kind, source, ty)
+        ours = source.messages(ty)
         assert ours is not None and len(ours["time_s"]) == len(ref[ty]), ty
         for field in ref[ty][0].get_fieldnames():
             _same(ref[ty], ours, field)
@@ -65,37 +63,37 @@ def test_equal_to_pymavlink_on_real_logs(name, types):
 
 def test_names_absent_message_and_time_bases():
     _, kind, source = _read("copter_2021-12-08-14-59-44.tlog")
-    names = logdata.log_message_names(kind, source)
+    names = source.message_names()
     assert {"HEARTBEAT", "VIBRATION", "RAW_IMU"} <= set(names)
-    assert logdata.log_messages(kind, source, "ESC_TELEMETRY_1_TO_4") is None
-    assert logdata.log_messages(kind, source, "NOT_A_MESSAGE") is None
+    assert source.messages("ESC_TELEMETRY_1_TO_4") is None
+    assert source.messages("NOT_A_MESSAGE") is None
     # own boot times: VIBRATION time_usec, SYS_STATUS none -> anchored, close to VIBRATION's
-    vib = logdata.log_messages(kind, source, "VIBRATION")
+    vib = source.messages("VIBRATION")
     np.testing.assert_array_equal(vib["time_s"], vib["time_usec"] * 1e-6)
-    hb = logdata.log_messages(kind, source, "HEARTBEAT")
+    hb = source.messages("HEARTBEAT")
     veh = hb["autopilot"] == 3                               # the vehicle, not the GCS (autopilot 8)
     assert np.isfinite(hb["time_s"][veh]).all()
     assert abs(np.nanmax(hb["time_s"][veh]) - vib["time_s"].max()) < 2.0
     # the gyro streams share the time base
-    st = formats.read_log(shared_log("copter_2021-12-08-14-59-44.tlog"), kind)[0]
-    raw = logdata.log_messages(kind, source, "RAW_IMU")
+    st = source.gyro
+    raw = source.messages("RAW_IMU")
     np.testing.assert_array_equal(st[0].time_s, raw["time_usec"] * 1e-6)
-    assert logdata.log_messages(kind, source, "HEARTBEAT") is hb        # cached
+    assert source.messages("HEARTBEAT") is hb        # cached
 
 
 def test_ulog_topics_and_instances_equal_pyulog():
     _, kind, source = _read("px4_vtol_small.ulg")
-    u = source["u"]
-    names = logdata.log_message_names(kind, source)
+    u = source.payload.ulog
+    names = source.message_names()
     assert {"vehicle_status", "sensor_accel", "sensor_accel[1]", "vehicle_imu_status[2]"} <= set(names)
     for name, multi in (("sensor_accel", 0), ("sensor_accel[1]", 1), ("vehicle_status", 0)):
-        ours = logdata.log_messages(kind, source, name)
+        ours = source.messages(name)
         ref = u.get_dataset(name.split("[")[0], multi)
         for k, v in ref.data.items():
             np.testing.assert_array_equal(ours[k], v)
         np.testing.assert_array_equal(ours["time_s"], ref.data["timestamp"] * 1e-6)
-    assert logdata.log_messages(kind, source, "sensor_accel[7]") is None
-    assert logdata.log_messages(kind, source, "no_such_topic") is None
+    assert source.messages("sensor_accel[7]") is None
+    assert source.messages("no_such_topic") is None
 
 
 def test_synthetic_dataflash_scaling_strings_instances_and_untimed():
@@ -110,23 +108,23 @@ def test_synthetic_dataflash_scaling_strings_instances_and_untimed():
             w.add("PARM", "ATC_RAT_RLL_P", 0.135, 0)
     w.add("MSG", 2_000_000, "ArduCopter V4.5.0 (abc)")
     data = w.bytes()
-    source = {"data": data, "sc": dataflash.scan(data)}
-    assert logdata.log_message_names("dataflash", source) == ["FMT", "MSG", "PARM", "VIBE"]
-    v = logdata.log_messages("dataflash", source, "VIBE")
+    source = log_of_bytes(data, "dataflash")
+    assert source.message_names() == ["FMT", "MSG", "PARM", "VIBE"]
+    v = source.messages("VIBE")
     np.testing.assert_array_equal(v["time_s"], (1_000_000 + 100_000 * np.arange(6)) * 1e-6)
     np.testing.assert_array_equal(v["VibeX"], np.float32(1.5 * np.arange(6)))
     np.testing.assert_array_equal(v["Clip0"], np.arange(6))
     np.testing.assert_array_equal(v["Alt"], np.full(6, -12.34))
-    v1 = logdata.log_messages("dataflash", source, "VIBE[1]")
+    v1 = source.messages("VIBE[1]")
     np.testing.assert_array_equal(v1["time_s"], np.array([1_100_000, 1_300_000, 1_500_000]) * 1e-6)
-    p = logdata.log_messages("dataflash", source, "PARM")
+    p = source.messages("PARM")
     assert p["Name"].tolist() == ["INS_HNTCH_FREQ", "ATC_RAT_RLL_P"]
     np.testing.assert_array_equal(p["Value"], np.float32([97.5, 0.135]))
     # untimed: the time of the last timed message before it (none before the first)
     assert np.isnan(p["time_s"][0]) and p["time_s"][1] == pytest.approx(1.2)
-    assert logdata.log_messages("dataflash", source, "MSG")["Message"].tolist() == ["ArduCopter V4.5.0 (abc)"]
-    assert logdata.log_messages("dataflash", source, "EV") is None
-    assert logdata.log_messages("dataflash", source, "PARM[0]") is None    # no instance column
+    assert source.messages("MSG")["Message"].tolist() == ["ArduCopter V4.5.0 (abc)"]
+    assert source.messages("EV") is None
+    assert source.messages("PARM[0]") is None    # no instance column
 
 
 def test_synthetic_tlog_anchored_time_follows_reboot_and_system():
@@ -140,10 +138,10 @@ def test_synthetic_tlog_anchored_time_follows_reboot_and_system():
     add(mav.MAVLink_attitude_message(500, 0, 0, 0, 0, 0, 0), wall + 5_000_000)
     add(mav.MAVLink_heartbeat_message(2, 3, 0, 0, 3, 3), wall + 5_750_000)
     data = out()
-    source = {"data": data, "fr": tlog.frame(data)}
-    hb = logdata.log_messages("tlog", source, "HEARTBEAT")
+    source = log_of_bytes(data, "tlog")
+    hb = source.messages("HEARTBEAT")
     np.testing.assert_allclose(hb["time_s"], [9.9, 10.25, 1.25], atol=1e-9)
     assert hb["base_mode"].tolist() == [0, 0x80, 0] and hb["sysid"].tolist() == [1, 1, 1]
     np.testing.assert_allclose(hb["log_time_s"] - hb["log_time_s"][0], [0, 0.35, 5.75], atol=1e-6)
-    st = logdata.log_messages("tlog", source, "STATUSTEXT")
+    st = source.messages("STATUSTEXT")
     assert st["text"].tolist() == ["hello"] and st["time_s"][0] == pytest.approx(10.3)

@@ -8,9 +8,9 @@ import struct
 
 import pytest
 
-from gyrodenoise.flightlog import dataflash, formats, parameters, tlog
+from gyrodenoise.flightlog import parameters
 
-from tests.helpers import shared_log
+from tests.flightlog.flight_logs import log_of_bytes, shared_flight_log
 from tests.flightlog.synthetic_logs import DataFlashWriter, tlog_writer
 
 
@@ -25,8 +25,8 @@ def test_dataflash_value_before_first_arming():
     w.add("PARM", 4_000_000, "INS_GYRO_FILTER", 60.0)       # changed in flight: not the setting flown
     w.add("PARM", 4_000_100, "ATC_RAT_RLL_P", 0.1)          # first logged after arming: kept
     data = w.bytes()
-    ap, p = parameters.log_parameters("dataflash", {"data": data, "sc": dataflash.scan(data)})
-    assert ap == "ardupilot"
+    ap, p = parameters.log_parameters(log_of_bytes(data, "dataflash"))
+    assert ap.name == "ardupilot"
     assert p == {"INS_GYRO_FILTER": 30.0, "INS_HNTCH_REF": 0.32, "ATC_RAT_RLL_P": 0.1}
 
 
@@ -36,7 +36,7 @@ def test_dataflash_without_arming_keeps_the_first():
     w.add("PARM", 1_000_000, "INS_GYRO_FILTER", 20.0)
     w.add("PARM", 2_000_000, "INS_GYRO_FILTER", 30.0)
     data = w.bytes()
-    assert parameters.log_parameters("dataflash", {"data": data, "sc": dataflash.scan(data)})[1] == \
+    assert parameters.log_parameters(log_of_bytes(data, "dataflash"))[1] == \
         {"INS_GYRO_FILTER": 20.0}
 
 
@@ -51,7 +51,8 @@ def _tlog(autopilot, params, armed_at=None):
         if armed_at == k:
             add(mav.MAVLink_heartbeat_message(2, autopilot, 0x80, 0, 4, 3), wall + 10_000 * (k + 1) + 5000)
     data = out()
-    return parameters.log_parameters("tlog", {"data": data, "fr": tlog.frame(data)})
+    ap, params = parameters.log_parameters(log_of_bytes(data, "tlog"))
+    return ap.name, params
 
 
 def test_tlog_px4_bytewise_integers_and_autopilot():
@@ -69,9 +70,8 @@ def test_tlog_ardupilot_value_before_arming():
 
 @functools.lru_cache(maxsize=8)
 def _log(name):
-    path = shared_log(name)
-    kind = formats.log_kind(path)
-    return parameters.log_parameters(kind, formats.read_log(path, kind)[1])
+    ap, params = parameters.log_parameters(shared_flight_log(name))
+    return ap.name, params
 
 
 @pytest.mark.parametrize("name, autopilot, expect", [
@@ -101,10 +101,9 @@ def test_real_tlog_parameters_from_the_ground_stations_download():
     """copter_2021-12-08-14-59-44.tlog: Mission Planner wrote the FTP parameter download
     as PARAM_VALUE under its own ids (system 255, component 190); the vehicle sent one
     name. Those ~980 parameters are read, and a note says where they came from."""
-    path = shared_log("copter_2021-12-08-14-59-44.tlog")
-    notes = []
-    ap, params = parameters.log_parameters("tlog", formats.read_log(path, "tlog")[1], notes)
-    assert ap == "ardupilot" and len(params) > 900
+    got = shared_flight_log("copter_2021-12-08-14-59-44.tlog").parameters()
+    ap, params, notes = got.autopilot, got.values, got.notes
+    assert ap.name == "ardupilot" and len(params) > 900
     assert params["INS_GYRO_FILTER"] == 20.0 and params["INS_HNTCH_ENABLE"] == 0.0
     assert notes and "system 255 component 190" in notes[0]
 
@@ -116,6 +115,5 @@ def test_apm2_mpu6k_filter_is_the_gyro_lowpass():
     assert st["kind"] == "lowpass" and st["params"] == "INS_MPU6K_FILTER" and st["cutoff_hz"] == 42.0
     (st,) = vehicle_filters("ardupilot", {"INS_MPU6K_FILTER": 0.0})["stages"]
     assert st["cutoff_hz"] == 20.0 and "default" in st["note"]
-    path = shared_log("apm2_2013-10-13_16-58-51.tlog")
-    ap, params = parameters.log_parameters("tlog", formats.read_log(path, "tlog")[1])
+    ap, params = parameters.log_parameters(shared_flight_log("apm2_2013-10-13_16-58-51.tlog"))
     assert vehicle_filters(ap, params)["parameters"] == {"INS_MPU6K_FILTER": 0.0}

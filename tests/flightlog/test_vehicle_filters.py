@@ -166,11 +166,9 @@ def test_stream_stages():
 
 @functools.lru_cache(maxsize=8)
 def _log(name):
-    path = shared_log(name)
-    kind = formats.log_kind(path)
-    streams, source, _ = formats.read_log(path, kind)
-    ap, params = parameters.log_parameters(kind, source)
-    return streams, ap, params, vf.vehicle_filters(ap, params)
+    log = formats.read_log(shared_log(name))
+    ap, params = parameters.log_parameters(log)
+    return log.gyro, ap.name, params, vf.vehicle_filters(ap, params)
 
 
 def test_copter_00061_lowpass_30_no_notch_batch_pre_filter():

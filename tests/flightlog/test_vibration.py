@@ -9,11 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from gyrodenoise.flightlog import dataflash, formats
 from gyrodenoise.flightlog.segments import flight_segments
 from gyrodenoise.flightlog.vibration import THRESHOLDS, vibration_review
 
-from tests.helpers import shared_log
+from tests.flightlog.flight_logs import log_of_bytes, shared_flight_log
 from tests.flightlog.synthetic_logs import DataFlashWriter
 
 
@@ -43,19 +42,19 @@ def _synthetic(with_imu=True):
             w.add("IMU", int(round(t * 1e6)), 0, 2.0 * np.sin(2 * np.pi * 40 * t) + rng.normal(0, 0.1),
                   rng.normal(0, 0.1), -9.8 + rng.normal(0, 0.1))
     data = w.bytes()
-    return {"data": data, "sc": dataflash.scan(data)}
+    return log_of_bytes(data, "dataflash")
 
 
 @functools.lru_cache(maxsize=1)
 def _synthetic_review():
     src = _synthetic()
-    segs, _ = flight_segments("dataflash", src)
-    return segs, vibration_review("dataflash", src, segs)
+    segs, _ = flight_segments(src)
+    return segs, vibration_review(src, segs)
 
 
 def test_synthetic_vibe_figures_exact_over_flying_time():
     segs, (res, note) = _synthetic_review()
-    assert [s["kind"] for s in segs if s["kind"] != "hover"] == ["ground", "armed", "flying", "armed", "ground"]
+    assert [s.kind for s in segs if s.kind != "hover"] == ["ground", "armed", "flying", "armed", "ground"]
     assert res["source"] == "VIBE" and res["over"] == "flying" and "95th percentile" in note
     (seg,) = res["segments"]
     assert (seg["start_s"], seg["end_s"]) == (5.0, 15.0)
@@ -80,8 +79,8 @@ def test_synthetic_vibe_figures_exact_over_flying_time():
 
 def test_whole_log_and_thresholds_table():
     src = _synthetic(with_imu=False)
-    segs, _ = flight_segments("dataflash", src)
-    res, _ = vibration_review("dataflash", src, segs, over="whole")
+    segs, _ = flight_segments(src)
+    res, _ = vibration_review(src, segs, over="whole")
     (seg,) = res["segments"]
     assert res["over"] == "whole log" and seg["kind"] == "whole log"
     assert seg["figures"]["imu0.VibeX"]["samples"] == 200 and seg["figures"]["imu0.VibeX"]["max"] == 24.0
@@ -90,10 +89,10 @@ def test_whole_log_and_thresholds_table():
     assert THRESHOLDS["vibe_m_s2"]["warn"] == 30 and THRESHOLDS["vibe_m_s2"]["fail"] == 60
     assert all(v["source"].startswith("https://") and v["says"] for v in THRESHOLDS.values())
     # no flying segment: the whole log, said in the note
-    res, note = vibration_review("dataflash", src, [])
+    res, note = vibration_review(src, [])
     assert res["over"] == "whole log" and "no flying segment" in note
     with pytest.raises(ValueError):
-        vibration_review("dataflash", src, segs, over="hover")
+        vibration_review(src, segs, over="hover")
 
 
 def test_nothing_to_review_gives_none_and_note():
@@ -101,17 +100,15 @@ def test_nothing_to_review_gives_none_and_note():
     w.define("BARO", "Qf", ["TimeUS", "Alt"])
     w.add("BARO", 1_000_000, 1.0)
     data = w.bytes()
-    res, note = vibration_review("dataflash", {"data": data, "sc": dataflash.scan(data)}, [])
+    res, note = vibration_review(log_of_bytes(data, "dataflash"), [])
     assert res is None and "VIBE" in note and "IMU" in note
 
 
 @functools.lru_cache(maxsize=None)
 def _real(name, over="flying"):
-    path = shared_log(name)
-    kind = formats.log_kind(path)
-    src = formats.read_log(path, kind)[1]
-    segs, _ = flight_segments(kind, src)
-    return vibration_review(kind, src, segs, over=over)
+    src = shared_flight_log(name)
+    segs, _ = flight_segments(src)
+    return vibration_review(src, segs, over=over)
 
 
 def test_real_copter_tlog_clips_in_flight():

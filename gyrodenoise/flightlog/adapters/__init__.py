@@ -1,0 +1,46 @@
+"""One adapter per log format (the interface: :mod:`gyrodenoise.flightlog.formats`).
+
+:class:`BaseFormat` gives what a format that lacks a part answers (no signing, no
+messages, no flight evidence, no vibration source, no events, no rate estimate): an
+adapter implements ``sniff``, ``read``, ``write_filtered`` and ``parameters``, and
+overrides the rest where its logs hold them.
+"""
+
+from __future__ import annotations
+
+
+class BaseFormat:
+    """Defaults of the adapter interface for what a format does not have."""
+    name = description = ""
+    suffixes: tuple = ()
+    gyro_looked_for = flight_looked_for = vibration_looked_for = ""
+
+    def signing(self, log, key):
+        return None
+
+    def keep_signed_raw(self, log, link):
+        return None
+
+    def messages(self, log, name):
+        return None
+
+    def message_names(self, log):
+        return []
+
+    def flight_evidence(self, log, boot, autopilot):
+        return f"no flight evidence in the log (looked for {self.flight_looked_for or 'nothing: not read'})"
+
+    def vibration_levels(self, log):
+        return None
+
+    def accelerometer(self, log):
+        return None
+
+    def events(self, log):
+        return []
+
+    def modes(self, log):
+        return []
+
+    def vehicle_rate(self, log, streams):
+        return []
