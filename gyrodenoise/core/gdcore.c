@@ -454,6 +454,31 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
     return y;
 }
 
+/* kernels.one_euro_step: the 1-euro filter (Casiez et al. 2012) on the centred sample */
+KERNEL double one_euro_step_(const double *p, double *s, double z)
+{
+    long o = layout_total_(ORDER(p)) - N_EXT;
+    double x;
+    if (s[S_K] == 0.0) {
+        x = z;
+        s[o + OE_DX] = 0.0;
+    } else {
+        double fs = p[P_FS];
+        double ad = 1.0 / (1.0 + fs / (6.283185307179586 * p[P_OE_DCUT]));
+        double dx = s[o + OE_DX], a;
+        dx = dx + ad * ((z - s[o + OE_ZP]) * fs - dx);
+        s[o + OE_DX] = dx;
+        a = 1.0 / (1.0 + fs / (6.283185307179586 * (p[P_OE_MIN] + p[P_OE_BETA] * fabs(dx))));
+        x = s[o + OE_X];
+        x = x + a * (z - x);
+    }
+    s[o + OE_X] = x;
+    s[o + OE_ZP] = z;
+    s[S_K] += 1.0;
+    s[S_CONV] = 1.0;
+    return x;
+}
+
 /* kernels.rank_mean: the mean of the MO_SPEC_RANK-th smallest of n_bins exponential
  * variables of mean 1 (the spectral floors' order-statistic bias) */
 static double rank_mean_(int n_bins)
@@ -1103,7 +1128,7 @@ KERNEL double c_deg_s_(const double *p, const double *s)
     long o = layout_(n).theta;
     double one_minus = 1.0;
     int i;
-    if (p[P_METHOD] == METHOD_MOTION || p[P_METHOD] == METHOD_LOWPASS)
+    if (p[P_METHOD] == METHOD_MOTION || p[P_METHOD] == METHOD_LOWPASS || p[P_METHOD] == METHOD_ONE_EURO)
         return 0.0;                       /* no AR model identified */
     for (i = 0; i < n; i++)
         one_minus -= s[o + i];
@@ -1119,12 +1144,13 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
     int code = 0;
     int lowpass = !bk && p[P_METHOD] == METHOD_LOWPASS;
     int motion = bk || p[P_METHOD] == METHOD_MOTION;
+    int one_euro = !bk && p[P_METHOD] == METHOD_ONE_EURO;
     double xc, out;
     if (is_restart) {
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (!lowpass && !motion && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
+    } else if (!lowpass && !motion && !one_euro && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
              && p[P_METHOD] != METHOD_NONE)     /* the flags first: no loads for lowpass */
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
@@ -1142,6 +1168,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         xc = lowpass_step_(p, s, z - s[S_ZREF]);
     else if (motion)
         xc = motion_step_(p, s, z - s[S_ZREF], bk);
+    else if (one_euro)
+        xc = one_euro_step_(p, s, z - s[S_ZREF]);
     else
         xc = filter_step_(p, s, z - s[S_ZREF]);
     if (!(healthy(p, s) && finite_(xc))) {
@@ -1156,6 +1184,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
             xc = lowpass_step_(p, s, 0.0);
         else if (motion)
             xc = motion_step_(p, s, 0.0, bk);
+        else if (one_euro)
+            xc = one_euro_step_(p, s, 0.0);
         else
             xc = filter_step_(p, s, 0.0);
     }
@@ -1854,6 +1884,7 @@ int gd_gate(const double *p, double *s, double z) { return gate_(p, s, z); }
 double gd_filter_step(const double *p, double *s, double z) { return filter_step_(p, s, z); }
 double gd_lowpass_step(const double *p, double *s, double z) { return lowpass_step_(p, s, z); }
 double gd_motion_step(const double *p, double *s, double z) { return motion_step_(p, s, z, NULL); }
+double gd_one_euro_step(const double *p, double *s, double z) { return one_euro_step_(p, s, z); }
 double gd_c_deg_s(const double *p, const double *s) { return c_deg_s_(p, s); }
 #ifdef GD_CLONES
 /* gd_step's two copies (AVX2, baseline) in a static function: an exported function

@@ -81,15 +81,15 @@ extern "C" {
 #define P_MO_CUS (P_MO_PT + 4) /* motion: summed innovation: fading, weight, threshold (0 weight = off) */
 #define P_MO_NCA (P_MO_PT + 7) /* motion: constant-acceleration filters, lanes NF..NF+NCA-1 */
 #define P_MO_SPECH (P_MO_PT + 8) /* motion: the line test's floor scale 1 / (c sum w^2) over MO_HI_NB bins */
-#define N_PARAMS (P_MO_PT + 9)
+#define P_FS (P_MO_PT + 9)        /* the sample rate, Hz (one_euro) */
+#define P_OE_MIN (P_FS + 1)       /* one_euro: cutoff at rest, Hz */
+#define P_OE_BETA (P_FS + 2)      /* one_euro: growth of the cutoff with |d rate / dt| */
+#define P_OE_DCUT (P_FS + 3)      /* one_euro: cutoff of the low-pass on the rate's change, Hz */
+#define N_PARAMS (P_FS + 4)
 
-/* p[P_METHOD] values (doubles, compared with ==) */
-#define METHOD_NONE 0.0
-#define METHOD_KF 1.0
-#define METHOD_SHAKF 2.0
-#define METHOD_SH_CLASSIC 3.0
-#define METHOD_MOTION 4.0
-#define METHOD_LOWPASS 5.0
+/* p[P_METHOD] values (doubles, compared with ==): METHOD_* of the registry
+   (gyrodenoise/core/methods.py), generated into gdmethods.h */
+#include "gdmethods.h"
 
 /* state header s[] */
 #define S_K 0
@@ -142,6 +142,10 @@ extern "C" {
 #define M_SRH (M_CUS + MO_MAX_NF)    /* line test: its smoothed floor from the MO_HI_NB high bins (as M_SR) */
 #define M_SBKH (M_SRH + 1)           /* line test: b^(blocks+1) of that floor (as M_SBK) */
 #define N_EXT (M_SRH + 2)
+/* one_euro's state, the first floats of the method-specific block */
+#define OE_X 0
+#define OE_DX 1
+#define OE_ZP 2
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {
@@ -169,6 +173,7 @@ int gd_gate(const double *p, double *s, double z);
 double gd_filter_step(const double *p, double *s, double z);
 double gd_lowpass_step(const double *p, double *s, double z);
 double gd_motion_step(const double *p, double *s, double z);
+double gd_one_euro_step(const double *p, double *s, double z);
 /* kernels.motion_params(fs) with its defaults into p[P_MO_NF ...] (the native FMU) */
 void gd_motion_params(double *p, double fs);
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] (ratio < 0: off) */

@@ -50,6 +50,8 @@ from __future__ import annotations
 
 import math
 
+from . import methods as _methods
+
 # ---------------------------------------------------------------- parameters
 P_ORDER = 0      # AR order n (>= 1)
 P_METHOD = 1     # METHOD_* below
@@ -111,21 +113,27 @@ P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`)
 P_MO_NCA = P_MO_PT + 7   # motion: constant-acceleration filters in the bank, lanes P_MO_NF..P_MO_NF+NCA-1
 P_MO_SPECH = P_MO_PT + 8  # motion: the line test's floor (:func:`spectral_floor`): 1 / (c sum w^2) over the
                           # MO_HI_NB bins from MO_HI_J0 (0 = off with P_MO_SPEC)
-N_PARAMS = P_MO_PT + 9
+P_FS = P_MO_PT + 9         # the sample rate, Hz (one_euro)
+P_OE_MIN = P_FS + 1        # one_euro: cutoff at rest, Hz
+P_OE_BETA = P_FS + 2       # one_euro: growth of the cutoff with |d rate / dt|, Hz per deg/s^2
+P_OE_DCUT = P_FS + 3       # one_euro: cutoff of the low-pass on the rate's change, Hz
+N_PARAMS = P_FS + 4
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
 MAX_MOTION_FS_CAP = 0.45  # at most this fraction of the sample rate
 
-METHOD_NONE = 0.0      # identification only, output = raw
-METHOD_KF = 1.0        # conventional KF, fixed Q and R
-METHOD_SHAKF = 2.0     # modified Sage-Husa AKF (Section 3.2.3)
-METHOD_SH_CLASSIC = 3.0  # classic Sage-Husa, Eq. (22) and (26) unmodified
-METHOD_MOTION = 4.0      # motion-aware: true rate + acceleration, adaptive (not in the paper)
-METHOD_LOWPASS = 5.0     # causal Butterworth low-pass (not in the paper)
-METHODS = {"motion": METHOD_MOTION, "shakf": METHOD_SHAKF, "kf": METHOD_KF,
-           "sh_classic": METHOD_SH_CLASSIC, "lowpass": METHOD_LOWPASS, "none": METHOD_NONE}
-DEFAULT_METHOD = "motion"   # of gd.denoise, the CLI, the bridge and the FMU
+# p[P_METHOD] of each method: the registry's ids (gyrodenoise.core.methods, gdmethods.h)
+METHOD_NONE = _methods.BY_NAME["none"].id          # identification only, output = raw
+METHOD_KF = _methods.BY_NAME["kf"].id              # conventional KF, fixed Q and R
+METHOD_SHAKF = _methods.BY_NAME["shakf"].id        # modified Sage-Husa AKF (Section 3.2.3)
+METHOD_SH_CLASSIC = _methods.BY_NAME["sh_classic"].id  # classic Sage-Husa, Eq. (22) and (26) unmodified
+METHOD_MOTION = _methods.BY_NAME["motion"].id      # motion-aware: true rate + acceleration, adaptive (not in the paper)
+METHOD_LOWPASS = _methods.BY_NAME["lowpass"].id    # causal Butterworth low-pass (not in the paper)
+METHOD_ONE_EURO = _methods.BY_NAME["one_euro"].id  # the 1-euro filter, Casiez et al. 2012 (not in the paper)
+#: method name -> p[P_METHOD]
+METHODS = {m.name: m.id for m in _methods.METHODS}
+DEFAULT_METHOD = _methods.DEFAULT_METHOD   # of gd.denoise, the CLI, the bridge and the FMU
 
 # --------------------------------------------------------------------- state
 S_K = 0          # samples seen since the last restart
@@ -188,6 +196,11 @@ M_SRH = M_CUS + MO_MAX_NF   # line test: its smoothed floor from the MO_HI_NB hi
 M_SBKH = M_SRH + 1          # line test: b^(blocks+1) of that floor's d_k (as M_SBK)
 N_EXT = M_SRH + 2
 
+# one_euro's state, the first floats of the method-specific block:
+OE_X = 0         # the filtered (centred) rate, deg/s
+OE_DX = 1        # the filtered rate of change, deg/s^2
+OE_ZP = 2        # the last centred sample, deg/s
+
 
 def layout(n):
     """Offsets of (theta, P_rls, x, P, z_hist, w, total) for AR order ``n``."""
@@ -208,53 +221,39 @@ def ext_offset(p):
     bank and noise estimates: the ``M_*`` offsets count from it), for params ``p``."""
     return layout(int(p[P_ORDER]))[6] - N_EXT
 
-def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0,
-                b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
-                warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20,
-                cutoff_hz=None, order=2, max_motion_hz=0.0):
+def make_params(ar_order: int = 3, method: str = DEFAULT_METHOD, sample_rate_hz: float = 200.0,
+                **kw: float | int | None) -> list[float]:
     """Build and check the parameter buffer (a list of floats).
+
+    The keywords, their defaults, ranges and units are the registry's
+    (:data:`gyrodenoise.core.methods.PARAMS`); the main ones:
 
     Parameters
     ----------
     ar_order : int
         Order n of the improved AR(n) model, Eq. (4). n >= 1.
-    method : {"motion", "shakf", "kf", "sh_classic", "lowpass", "none"}
-        "motion" (default): follows the true rate (:func:`motion_step`);
-        "shakf", "kf", "sh_classic": filters on the AR state model (the paper);
-        "lowpass": Butterworth (``cutoff_hz``, ``order``); "none": output = input.
+    method : str
+        One of :data:`gyrodenoise.core.methods.METHODS`: "motion" (default) follows the
+        true rate (:func:`motion_step`); "shakf", "kf", "sh_classic" filter on the AR
+        state model (the paper); "lowpass" a Butterworth (``cutoff_hz``, ``order``);
+        "one_euro" the 1-euro filter (``min_cutoff_hz``, ``beta``, ``d_cutoff_hz``,
+        :func:`one_euro_step`); "none": output = input.
     sample_rate_hz : float
-        Sample rate; only used to turn ``warmup_s`` into samples.
-    lam : float
-        RLS forgetting factor in (0, 1]; 1 is the paper's plain RLS.
-    b : float
-        Sage-Husa forgetting factor in (0, 1); d_k = (1-b)/(1-b^(k+1)).
-    gamma : float
-        Strictness of the convergence criterion, Eq. (32); gamma >= 1.
-    q0, r0 : float
-        Process / measurement noise variances in (deg/s)^2; 0 selects the
-        automatic level (half the AR prediction-error variance each).
-    p0_rls, p0_kf : float
-        Initial diagonal covariance of the RLS and of the filter (> 0).
-    warmup_s : float
-        Seconds after each restart during which the model is treated as not yet
-        converged and the raw sample is passed through (>= 0). At least
-        10 (n+1) samples are always used.
-    r_floor : float
-        Lower bound for R and for the automatic noise levels, (deg/s)^2.
-    outlier_sigma : float
+        Sample rate; turns ``warmup_s`` into samples, designs the low-passes.
+    lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s, r_floor : float
+        The RLS forgetting factor (0, 1], the Sage-Husa forgetting factor (0, 1), the
+        strictness of Eq. (32) (>= 1), the noise variances (0 = automatic: half the AR
+        prediction-error variance each), the initial covariances, the warm-up after each
+        restart (raw passed through; at least 10 (n+1) samples), the floor of R.
+    outlier_sigma, outlier_run
         Innovation gate (not in the paper; docs/bench/outliers-soak.md, :func:`gate`): after
         the warm-up a sample with |v| > outlier_sigma sqrt(S) is rejected (kept out
         of the RLS, the filter and the R/Q estimators; the output is the filter's
-        prediction). 0 = off (the paper's filter); otherwise >= 2.
-    outlier_run : int
-        With the gate on: after this many consecutive rejections the filter
-        re-opens at the next outlying sample (a restart there). >= 1.
-    cutoff_hz : float or None
-        ``method="lowpass"``: -3 dB cutoff in Hz, 0 < cutoff_hz < sample_rate_hz / 2.
-        None: 20 Hz (ArduPilot's and PX4's usual gyro filter), at most a
-        quarter of the sample rate.
-    order : int
-        ``method="lowpass"``: Butterworth order, 1..8.
+        prediction); 0 = off (the paper's filter), otherwise >= 2. After ``outlier_run``
+        consecutive rejections the filter re-opens at the next outlying sample.
+    cutoff_hz, order
+        ``method="lowpass"``: -3 dB cutoff (None: 20 Hz, ArduPilot's and PX4's usual
+        gyro filter, at most a quarter of the sample rate) and Butterworth order 1..8.
     max_motion_hz : float
         ``method="motion"``, the rigid-body option: the band of interest,
         0 < max_motion_hz < sample_rate_hz / 2; content above it (a frame's
@@ -267,29 +266,40 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     ValueError
         With a one-line reason naming the parameter.
     """
-    n = _checked_order(ar_order)
-    _check_params(method, sample_rate_hz, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s,
-                  r_floor, outlier_sigma, outlier_run, max_motion_hz)
-    cutoff_hz, sos = _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz)
+    unknown = sorted(set(kw) - set(_methods.BY_PARAM))
+    if unknown:
+        raise TypeError(f"make_params() got an unexpected keyword argument {unknown[0]!r}")
+    _methods.method(method)
+    values = {**_methods.defaults(), **kw, "ar_order": ar_order, "sample_rate_hz": sample_rate_hz}
+    fs = float(_checked(values, "sample_rate_hz", method))
+    for par in _methods.PARAMS:
+        if par.applies_to(method) or par.off:
+            _checked(values, par.name, method, fs)
+        if not par.applies_to(method) and par.off and values[par.name]:
+            raise ValueError(f"{par.name} applies to method {par.methods[0]!r} only, got method {method!r}")
+    n = int(values["ar_order"])
+    cutoff_hz, sos = _lowpass_sections(method, fs, values["cutoff_hz"], values["order"],
+                                       values["max_motion_hz"])
     p = [0.0] * N_PARAMS
-    p[P_ORDER] = float(n)
+    for par in _methods.PARAMS:
+        if par.slot is not None and par.applies_to(method):
+            p[globals()[par.slot]] = float(values[par.name])
     p[P_METHOD] = METHODS[method]
-    p[P_LAM] = float(lam)
-    p[P_B] = float(b)
-    p[P_GAMMA] = float(gamma)
-    p[P_Q0] = float(q0)
-    p[P_R0] = float(r0)
-    p[P_P0_RLS] = float(p0_rls)
-    p[P_P0_KF] = float(p0_kf)
-    p[P_WARMUP] = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
-    p[P_R_FLOOR] = float(r_floor)
-    p[P_OUTLIER_SIGMA] = float(outlier_sigma)
-    p[P_OUTLIER_RUN] = float(int(outlier_run))
+    p[P_WARMUP] = max(float(round(values["warmup_s"] * fs)), 10.0 * (n + 1))
     if method == "motion":
-        for i, v in enumerate(motion_params(sample_rate_hz)):
+        for i, v in enumerate(motion_params(fs)):
             p[P_MO_NF + i] = v
     _write_sections(p, cutoff_hz, sos)
     return p
+
+
+def _checked(values, name, method, fs=None):
+    """``values[name]``, ValueError with the registry's reason if it is out of range."""
+    v = values[name]
+    if v is None and _methods.BY_PARAM[name].default is None:
+        return v
+    _methods.check(name, v, fs)
+    return v
 
 
 def _write_sections(p, cutoff_hz, sos):
@@ -303,49 +313,11 @@ def _write_sections(p, cutoff_hz, sos):
             p[P_SOS + 5 * i + j] = sec[j]
 
 
-def _checked_order(ar_order):
-    """The AR order as an int, or ValueError when it is not an integer >= 1."""
-    n = int(ar_order)
-    if n != ar_order or n < 1:
-        raise ValueError(f"ar_order must be an integer >= 1, got {ar_order!r}")
-    return n
-
-
-def _check_params(method, sample_rate_hz, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s,
-                  r_floor, outlier_sigma, outlier_run, max_motion_hz):
-    """ValueError naming the first of :func:`make_params`'s scalar parameters out of
-    range (each must also be finite)."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
-    checks = [
-        ("sample_rate_hz", sample_rate_hz, sample_rate_hz > 0, "> 0 Hz"),
-        ("lam", lam, 0 < lam <= 1, "0 < lam <= 1"),
-        ("b", b, 0 < b < 1, "0 < b < 1"),
-        ("gamma", gamma, gamma >= 1, ">= 1"),
-        ("q0", q0, q0 >= 0, ">= 0 (deg/s)^2, 0 = automatic"),
-        ("r0", r0, r0 >= 0, ">= 0 (deg/s)^2, 0 = automatic"),
-        ("p0_rls", p0_rls, p0_rls > 0, "> 0"),
-        ("p0_kf", p0_kf, p0_kf > 0, "> 0 (deg/s)^2"),
-        ("warmup_s", warmup_s, warmup_s >= 0, ">= 0 s"),
-        ("r_floor", r_floor, r_floor > 0, "> 0 (deg/s)^2"),
-        ("outlier_sigma", outlier_sigma, outlier_sigma == 0 or outlier_sigma >= 2, "0 (off) or >= 2"),
-        ("max_motion_hz", max_motion_hz, 0 <= max_motion_hz < 0.5 * sample_rate_hz,
-         f"0 (off) or > 0 and below half the sample rate, {0.5 * sample_rate_hz:g} Hz"),
-    ]
-    for name, value, ok, rule in checks:
-        if not (ok and value == value and abs(value) != float("inf")):
-            raise ValueError(f"{name} out of range: {value!r} (must be {rule})")
-    if int(outlier_run) != outlier_run or outlier_run < 1:
-        raise ValueError(f"outlier_run must be an integer >= 1, got {outlier_run!r}")
-
-
 def _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz):
     """(cutoff_hz, second-order sections) of the Butterworth low-pass the method runs:
     the rigid-body low-pass of ``motion`` with ``max_motion_hz`` > 0, the ``lowpass``
-    method's filter, or (cutoff_hz, []) for none. ValueError for a cutoff or order out of
-    range, or ``max_motion_hz`` with a method other than ``motion``."""
-    if method != "motion" and max_motion_hz > 0:
-        raise ValueError(f"max_motion_hz applies to method 'motion' only, got method {method!r}")
+    method's filter, or (cutoff_hz, []) for none. ValueError for a default cutoff out of
+    range (a sample rate below 0 Hz cannot take)."""
     if max_motion_hz > 0:
         cutoff_hz = rigid_cutoff_hz(float(max_motion_hz), float(sample_rate_hz))
         return cutoff_hz, butter_sos(MAX_MOTION_ORDER, cutoff_hz, float(sample_rate_hz))
@@ -353,11 +325,6 @@ def _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz):
         return cutoff_hz, []
     if cutoff_hz is None:
         cutoff_hz = min(20.0, 0.25 * sample_rate_hz)
-    if not (0.0 < cutoff_hz < 0.5 * sample_rate_hz):
-        raise ValueError(f"cutoff_hz out of range: {cutoff_hz!r} (must be > 0 and below "
-                         f"half the sample rate, {0.5 * sample_rate_hz:g} Hz)")
-    if int(order) != order or not 1 <= order <= 2 * MAX_SOS:
-        raise ValueError(f"order must be an integer 1..{2 * MAX_SOS}, got {order!r}")
     return cutoff_hz, butter_sos(int(order), float(cutoff_hz), float(sample_rate_hz))
 
 
@@ -962,6 +929,32 @@ def lowpass_step(p, s, z):
     return y
 
 
+def one_euro_step(p, s, z):
+    """One centred sample ``z`` through the 1-euro filter (Casiez, Roussel, Vogel,
+    CHI 2012): a first-order low-pass whose cutoff is p[P_OE_MIN] + p[P_OE_BETA] x
+    |dz/dt|, dz/dt the rate's change per second through a first-order low-pass of
+    cutoff p[P_OE_DCUT]; each low-pass's weight is alpha = 1 / (1 + fs / (2 pi fc)).
+    The first sample since the restart is passed through (the filter starts on it)."""
+    o = ext_offset(p)
+    if s[S_K] == 0.0:
+        x = z
+        s[o + OE_DX] = 0.0
+    else:
+        fs = p[P_FS]
+        ad = 1.0 / (1.0 + fs / (6.283185307179586 * p[P_OE_DCUT]))
+        dx = s[o + OE_DX]
+        dx = dx + ad * ((z - s[o + OE_ZP]) * fs - dx)
+        s[o + OE_DX] = dx
+        a = 1.0 / (1.0 + fs / (6.283185307179586 * (p[P_OE_MIN] + p[P_OE_BETA] * abs(dx))))
+        x = s[o + OE_X]
+        x = x + a * (z - x)
+    s[o + OE_X] = x
+    s[o + OE_ZP] = z
+    s[S_K] += 1.0
+    s[S_CONV] = 1.0
+    return x
+
+
 def exp_neg(x):
     """exp(x) for -30 <= x <= 0 (0.0 below): the Taylor polynomial of degree 2
     at x / 256, squared 8 times; relative error < 3e-6 for x >= -1, < 2 % at
@@ -1404,6 +1397,8 @@ def _method_step(p, s, zc):
         return lowpass_step(p, s, zc)
     if p[P_METHOD] == METHOD_MOTION:
         return motion_step(p, s, zc)
+    if p[P_METHOD] == METHOD_ONE_EURO:
+        return one_euro_step(p, s, zc)
     return filter_step(p, s, zc)
 
 
@@ -1444,7 +1439,8 @@ def step(p, s, z, is_restart):
     if is_restart:
         restart(p, s)
     elif (p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE
-          and p[P_METHOD] != METHOD_LOWPASS and p[P_METHOD] != METHOD_MOTION):
+          and p[P_METHOD] != METHOD_LOWPASS and p[P_METHOD] != METHOD_MOTION
+          and p[P_METHOD] != METHOD_ONE_EURO):
         code = gate(p, s, z - s[S_ZREF])
     if s[S_K] == 0.0:
         s[S_ZREF] = z
@@ -1491,8 +1487,8 @@ def c_deg_s(p, s):
     """Constant term c of the improved AR model, Eq. (4), deg/s, for the raw
     (uncentred) samples: the state holds c for z - z_ref (see :func:`step`),
     and z = sum phi_i z_{k-i} + c holds with c = c_ref + (1 - sum phi) z_ref.
-    0.0 for the methods that identify no AR model (motion, lowpass)."""
-    if p[P_METHOD] == METHOD_MOTION or p[P_METHOD] == METHOD_LOWPASS:
+    0.0 for the methods that identify no AR model (motion, lowpass, one_euro)."""
+    if p[P_METHOD] == METHOD_MOTION or p[P_METHOD] == METHOD_LOWPASS or p[P_METHOD] == METHOD_ONE_EURO:
         return 0.0
     n = int(p[P_ORDER])
     o = layout(n)[0]

@@ -16,12 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.core.methods import BY_PARAM, PARAMS
 from gyrodenoise.errors import InputError
 
 ENGINES = ("native", "fmu")
 
 
-def _params(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
+def _params(method: str, ar_order: int, rate_hz: float, warmup_s: float | None = None,
+            filter_kw: dict | None = None) -> list[float]:
     from gyrodenoise.core import kernels as K
     kw = dict(filter_kw or {})
     if warmup_s is not None:
@@ -29,13 +31,14 @@ def _params(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
     return K.make_params(ar_order=ar_order, method=method, sample_rate_hz=rate_hz, **kw)
 
 
-def warmup_samples(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
+def warmup_samples(method: str, ar_order: int, rate_hz: float, warmup_s: float | None = None,
+                   filter_kw: dict | None = None) -> int:
     """Samples after each restart that the core passes through raw (its warm-up rule)."""
     from gyrodenoise.core import kernels as K
     try:
         return int(_params(method, ar_order, rate_hz, warmup_s, filter_kw)[K.P_WARMUP])
     except ValueError:          # e.g. a cutoff this rate cannot take: the warm-up without it
-        kw = {k: v for k, v in (filter_kw or {}).items() if k not in ("cutoff_hz", "order", "max_motion_hz")}
+        kw = {k: v for k, v in (filter_kw or {}).items() if not BY_PARAM[k].methods}   # a method's own
         return int(_params(method, ar_order, rate_hz, warmup_s, kw)[K.P_WARMUP])
 
 
@@ -120,8 +123,8 @@ class FmuEngine(_Settings):
     #: the FMU steps one sample at a time: always the causal filter
     causal = True
 
-    #: core parameter name -> FMU parameter name, where they differ
-    FMU_NAMES = {"order": "lowpass_order"}
+    #: core parameter name -> FMU parameter name (the registry's; they differ for the low-pass order)
+    FMU_NAMES = {p.name: p.fmu for p in PARAMS if p.fmu}
 
     def __init__(self, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None,
                  zero_phase=False):

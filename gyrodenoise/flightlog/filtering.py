@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from gyrodenoise.analysis import motion_metrics as mm
+from gyrodenoise.core.methods import BY_NAME, PARAMS
 from gyrodenoise.core.sessions import sessions
 from gyrodenoise.errors import InputError
 from gyrodenoise.flightlog.checks import check_filtered, usable_samples
@@ -76,7 +77,7 @@ def _accepts(s, engine, rate):
 
 #: the band options (Hz) checked against each stream's rate: core parameter -> CLI option.
 #: One rule for both: below half the stream's rate (its Nyquist frequency)
-BAND_OPTIONS = {"cutoff_hz": "--cutoff-hz", "max_motion_hz": "--max-motion-hz"}
+BAND_OPTIONS = {p.name: p.option for p in PARAMS if p.nyquist and p.option}
 
 
 def refused_band_option(exc, filter_kw):
@@ -169,11 +170,13 @@ def filter_form(eng, engine):
 
 
 def filter_options(method, filter_kw, zero_phase):
-    """The report's ``filter_options``: the method's options as given, and for the
-    low-pass its defaults spelled out."""
+    """The report's ``filter_options``: the method's options as given, its own
+    parameters' defaults spelled out (the low-pass's, the 1-euro filter's), and
+    ``zero_phase`` for a method whose offline form it is."""
     options = dict(filter_kw or {})
-    if method == "lowpass":
-        options.setdefault("cutoff_hz", None)          # None: the default, min(20 Hz, rate / 4)
-        options.setdefault("order", 2)
+    for p in PARAMS:
+        if method in p.methods and not p.off:
+            options.setdefault(p.name, p.default)   # lowpass's cutoff_hz None: min(20 Hz, rate / 4)
+    if method in BY_NAME and BY_NAME[method].offline == "zero_phase":
         options["zero_phase"] = bool(zero_phase)
     return options
