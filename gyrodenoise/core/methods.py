@@ -167,12 +167,12 @@ class Param(NamedTuple):
             hi = None if hi is None else int(hi)
         return lo, hi
 
-    def fmu_rule(self) -> str:
+    def fmu_rule(self, sample_rate_hz: float | None = None) -> str:
         """The range an FMU checks (whatever the method), as its message says it."""
         if self.type is int:
             hi = self.fmu_max if self.fmu_max is not None else self.hi
             return f"{self.lo:g}..{hi:g}" if hi is not None else f">= {self.lo:g}"
-        rule = self.rule()
+        rule = self.rule(sample_rate_hz)
         return f"{rule}; 0 = the default" if self.default is None else rule
 
     def fmu_error(self, value: object, sample_rate_hz: float) -> str | None:
@@ -186,8 +186,9 @@ class Param(NamedTuple):
             return None
         if self.default is None and value == 0.0:
             return None
-        why = self.error(value, sample_rate_hz)
-        return None if why is None else f"{name}{why[len(self.name):]}"
+        if self.error(value, sample_rate_hz) is None:
+            return None
+        return f"{name} out of range: {value!r} (must be {self.fmu_rule(sample_rate_hz)})"
 
     def fmu_default(self) -> float | int:
         return self.fmu_start if self.default is None else self.default   # type: ignore[return-value]

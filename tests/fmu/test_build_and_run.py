@@ -532,7 +532,9 @@ def test_exception_in_step_is_logged_and_returned(fmu_dir, tmp_path):
 @pytest.mark.parametrize("params,kw", [({"method": "lowpass", "cutoff_hz": 10.0, "lowpass_order": 3},
                                         {"method": "lowpass", "cutoff_hz": 10.0, "order": 3}),
                                        ({}, {"method": "motion"}),
-                                       ({"max_motion_hz": 20.0}, {"method": "motion", "max_motion_hz": 20.0})])
+                                       ({"max_motion_hz": 20.0}, {"method": "motion", "max_motion_hz": 20.0}),
+                                       ({"method": "one_euro", "min_cutoff_hz": 2.0, "beta": 0.02},
+                                        {"method": "one_euro", "min_cutoff_hz": 2.0, "beta": 0.02})])
 def test_lowpass_and_motion_in_the_fmu_equal_the_core(fmu_dir, params, kw):
     """The FMU's default method is motion; lowpass takes cutoff_hz and lowpass_order;
     motion takes max_motion_hz (a 60 Hz tone, 'vibration', rides on the record)."""

@@ -20,6 +20,7 @@ import pytest
 
 import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
+from gyrodenoise.core.methods import BY_FMU
 from gyrodenoise.errors import InputError
 from gyrodenoise.fmu import native
 
@@ -185,12 +186,13 @@ def test_build_without_gcc_is_one_line_input_error(monkeypatch, tmp_path):
 # ------------------------------------------------------ outputs via fmpy
 CASES = [("motion", {}), ("shakf", {}), ("kf", {}),
          ("lowpass", {"cutoff_hz": 10.0, "lowpass_order": 3}),
-         ("motion", {"max_motion_hz": 20.0})]      # the rigid-body option
+         ("motion", {"max_motion_hz": 20.0}),      # the rigid-body option
+         ("one_euro", {"min_cutoff_hz": 2.0, "beta": 0.02, "d_cutoff_hz": 3.0})]
 
 
 def _core_kw(extra):
-    """gd.denoise's arguments for the FMU parameters ``extra``."""
-    return {("order" if k == "lowpass_order" else k): v for k, v in extra.items()}
+    """gd.denoise's arguments for the FMU parameters ``extra`` (the registry's names)."""
+    return {BY_FMU[k].name: v for k, v in extra.items()}
 
 
 @pytest.mark.parametrize("method,extra", CASES, ids=[c[0] + "".join("-" + k for k in c[1]) for c in CASES])
@@ -558,7 +560,8 @@ def host_run(host, unz, z, rs, *args, uri=None):
     return proc
 
 
-@pytest.mark.parametrize("method,extra", CASES[:2] + CASES[3:], ids=["motion", "shakf", "lowpass", "motion-rigid"])
+@pytest.mark.parametrize("method,extra", CASES[:2] + CASES[3:], ids=["motion", "shakf", "lowpass", "motion-rigid",
+                                                                     "one_euro"])
 def test_c_host_equals_gd_denoise(built, host, method, extra):
     z, rs = record()
     args = ["--set", f"method={method}"] + [a for k, v in extra.items() for a in ("--set", f"{k}={v!r}")]

@@ -49,7 +49,7 @@ class SimulatedFog(Fmi2Slave):
     description = ("Simulated gyro from a gyrodenoise model card (TOML): measured_rate = true_rate + "
                    "sensor errors. One communication step = one sample.")
     license = "MIT"
-    version = "0.1.0"
+    version = _rules.bundled_version(_HERE)   # gyrodenoise/_version.py, bundled by fmu build
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
