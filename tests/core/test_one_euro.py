@@ -114,3 +114,29 @@ def test_cli_refuses_its_options_with_another_method(tmp_path, capsys):
     assert main(["denoise", str(src), "-o", str(tmp_path / "o.csv"), "--method", "one_euro",
                  "--min-cutoff-hz", "0"]) == 2
     assert "min_cutoff_hz out of range" in capsys.readouterr().err
+
+
+def test_bridge_filters_a_log_with_it(tmp_path, capsys):
+    """gyrodenoise mavlink --method one_euro: each axis is gd.denoise's one_euro of its samples
+    (a log without restarts), the report names the parameters; its options with another
+    method are refused in one line."""
+    from gyrodenoise.cli.program import main
+    from gyrodenoise.flightlog.process import process_log
+    from tests.helpers import DATA
+    path = DATA / "ardusub_small.BIN"
+    fk = {"min_cutoff_hz": 3.0, "beta": 0.01}
+    rep = process_log(path, tmp_path / "a", plots=False, html=False, method="one_euro", filter_kw=fk, causal=True)
+    assert rep["filter_options"] == {**fk, "d_cutoff_hz": 1.0}
+    st = rep["streams"][0]
+    a = np.genfromtxt(st["csv"], delimiter=",", names=True)
+    default = process_log(path, tmp_path / "b", plots=False, html=False, method="one_euro", causal=True)
+    b = np.genfromtxt(default["streams"][0]["csv"], delimiter=",", names=True)
+    assert st["restarts"] == 0 and not a["restart"].any()
+    for ax in "xyz":
+        ref = gd.denoise(a[f"raw_{ax}"], st["filter_rate_hz"], method="one_euro", **fk)
+        np.testing.assert_allclose(a[f"filtered_{ax}"], ref, rtol=0, atol=1e-7)   # the CSV keeps 9 digits
+        assert not np.array_equal(a[f"filtered_{ax}"], b[f"filtered_{ax}"])
+        assert np.std(np.diff(a[f"filtered_{ax}"])) < np.std(np.diff(a[f"raw_{ax}"]))
+    assert main(["mavlink", str(path), "-o", str(tmp_path / "c"), "--method", "kf", "--beta", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--beta applies to --method one_euro only, not kf" in err
