@@ -326,6 +326,33 @@ static PyObject *mod_restart(PyObject *self, PyObject *const *args, Py_ssize_t n
 PyDoc_STRVAR(layout_total_doc,
 "layout_total(n) -> int\n\nLength of the state buffer for AR order n (kernels.layout(n)[6]).");
 
+static PyObject *mod_butter_sos(PyObject *self, PyObject *args)
+{
+    int order, i, j, nsec;
+    double fc, fs, p[N_PARAMS];
+    PyObject *out;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "idd", &order, &fc, &fs))
+        return NULL;
+    if (order < 1 || order > 2 * MAX_SOS) {
+        PyErr_Format(PyExc_ValueError, "order must be in 1..%d, got %d", 2 * MAX_SOS, order);
+        return NULL;
+    }
+    nsec = gd_butter_sos(order, fc, fs, p);
+    out = PyList_New(nsec);
+    for (i = 0; out != NULL && i < nsec; i++) {
+        PyObject *sec = PyTuple_New(5);
+        if (sec == NULL) {
+            Py_CLEAR(out);
+            break;
+        }
+        for (j = 0; j < 5; j++)
+            PyTuple_SET_ITEM(sec, j, PyFloat_FromDouble(p[P_SOS + 5 * i + j]));
+        PyList_SET_ITEM(out, i, sec);
+    }
+    return out;
+}
+
 static PyObject *mod_layout_total(PyObject *self, PyObject *arg)
 {
     long n = PyLong_AsLong(arg);
@@ -531,6 +558,8 @@ static PyMethodDef methods[] = {
     {"record", (PyCFunction)(void (*)(void))mod_record, METH_FASTCALL, record_doc},
     {"restart", (PyCFunction)(void (*)(void))mod_restart, METH_FASTCALL, restart_doc},
     {"layout_total", mod_layout_total, METH_O, layout_total_doc},
+    {"butter_sos", mod_butter_sos, METH_VARARGS,
+     "butter_sos(order, cutoff_hz, fs) -> [(b0, b1, b2, a1, a2)] (gdcore.c gd_butter_sos, as kernels.butter_sos)"},
     {"sim_n_params", mod_sim_n_params, METH_O, "sim_n_params(card) -> int (gdsim.c)"},
     {"sim_params", (PyCFunction)(void (*)(void))mod_sim_params, METH_FASTCALL,
      "sim_params(card, seed, p): fill p from a card vector and a seed (gdsim.c)"},

@@ -70,7 +70,11 @@ P_LP_NSEC = 13   # lowpass, and motion's rigid-body low-pass: number of second-o
 P_LP_CUTOFF = 14  # lowpass, and motion's rigid-body low-pass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
-P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity (CV) filters in the bank, lanes 0..NF-1;
+P_FS = P_SOS + 5 * MAX_SOS   # the sample rate, Hz (one_euro)
+P_OE_MIN = P_FS + 1          # one_euro: cutoff at rest, Hz
+P_OE_BETA = P_FS + 2         # one_euro: growth of the cutoff with |d rate / dt|, Hz per deg/s^2
+P_OE_DCUT = P_FS + 3         # one_euro: cutoff of the low-pass on the rate's change, Hz
+P_MO_NF = P_FS + 4               # motion: number of constant-velocity (CV) filters in the bank, lanes 0..NF-1;
                                  # P_MO_NCA constant-acceleration (CA) ones follow (NF + NCA <= MO_MAX_NF)
 P_MO_FADE = P_MO_NF + 1          # motion: fading factor of the filters' log-likelihoods per sample
 P_MO_BR = P_MO_NF + 2            # motion: forgetting factor of the noise-level estimate (Sage-Husa b)
@@ -113,11 +117,7 @@ P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`)
 P_MO_NCA = P_MO_PT + 7   # motion: constant-acceleration filters in the bank, lanes P_MO_NF..P_MO_NF+NCA-1
 P_MO_SPECH = P_MO_PT + 8  # motion: the line test's floor (:func:`spectral_floor`): 1 / (c sum w^2) over the
                           # MO_HI_NB bins from MO_HI_J0 (0 = off with P_MO_SPEC)
-P_FS = P_MO_PT + 9         # the sample rate, Hz (one_euro)
-P_OE_MIN = P_FS + 1        # one_euro: cutoff at rest, Hz
-P_OE_BETA = P_FS + 2       # one_euro: growth of the cutoff with |d rate / dt|, Hz per deg/s^2
-P_OE_DCUT = P_FS + 3       # one_euro: cutoff of the low-pass on the rate's change, Hz
-N_PARAMS = P_FS + 4
+N_PARAMS = P_MO_PT + 9
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),

@@ -91,3 +91,12 @@ def test_cli_options_are_derived():
     assert O.METHOD_OF_OPTION == {"--cutoff-hz": "lowpass", "--order": "lowpass", "--max-motion-hz": "motion",
                                   "--min-cutoff-hz": "one_euro", "--beta": "one_euro", "--d-cutoff-hz": "one_euro",
                                   "--causal": "motion", "--zero-phase": "lowpass"}
+
+
+def test_c_butter_sos_equals_python_bit_for_bit():
+    """gd_butter_sos (the native FMU's low-pass design, in the C core) is kernels.butter_sos."""
+    C = pytest.importorskip("gyrodenoise.core._gdcore")
+    for fs in (25.000625015646552, 200.0, 400.0, 8000.0, 1e6):
+        for fc in (1e-3, 0.3, 3.3, 20.0, 0.2499 * fs, 0.45 * fs, 0.4999 * fs):
+            for order in range(1, 9):
+                assert C.butter_sos(order, fc, fs) == K.butter_sos(order, fc, fs), (order, fc, fs)

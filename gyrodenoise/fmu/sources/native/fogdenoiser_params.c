@@ -1,7 +1,7 @@
 /*
  * fogdenoiser_params.c -- the denoiser's fixed parameters (user_t), their start values and
  * their translation into the core's parameter buffer (build_params: kernels.make_params,
- * operation for operation), shared by the scalar denoiser (fogdenoiser_native.c) and the
+ * operation for operation; the checks and the slots from the registry's gdmethods.h), shared by the scalar denoiser (fogdenoiser_native.c) and the
  * 3-axis one (fogdenoiser_imu_native.c). Included by the model file after its generated
  * <model>_vars.h (the START_* values of the parameters, the same names in both).
  */
@@ -99,74 +99,8 @@ static int check_param(const char *name, double v, double lo, double hi, int fla
 
 /* ------------------------------------------- parameters: kernels.make_params */
 
-static double (*volatile libm_pow)(double, double) = pow; /* Python's float ** calls pow() */
-/* cmath.exp calls sin() and cos(): called through pointers so that gcc does not fuse them into
- * the GNU sincos() (not in every libm; a weak reference in gdfmi_libm.h) */
-static double (*volatile libm_sin)(double) = sin;
-static double (*volatile libm_cos)(double) = cos;
-
-/* _Py_c_quot: complex division as CPython does it */
-static void py_c_quot(double ar, double ai, double br, double bi, double *rr, double *ri) {
-    double abs_br = br < 0 ? -br : br, abs_bi = bi < 0 ? -bi : bi;
-    if (abs_br >= abs_bi) {
-        if (abs_br == 0.0) {
-            *rr = *ri = 0.0;
-        } else {
-            double ratio = bi / br, denom = br + bi * ratio;
-            *rr = (ar + ai * ratio) / denom;
-            *ri = (ai - ar * ratio) / denom;
-        }
-    } else if (abs_bi >= abs_br) {
-        double ratio = br / bi, denom = br * ratio + bi;
-        *rr = (ar * ratio + ai) / denom;
-        *ri = (ai * ratio - ar) / denom;
-    } else {
-        *rr = *ri = NAN;
-    }
-}
-
-/* kernels.butter_sos, operation for operation (complex arithmetic as CPython's);
- * writes the sections into p[P_SOS..], returns their number */
-static int butter_sos(int order, double cutoff_hz, double fs, double *p) {
-    const double pi = 3.141592653589793; /* math.pi */
-    double fs2 = 2.0 * fs;
-    double wc = fs2 * tan(pi * cutoff_hz / fs);
-    int k, nsec = 0;
-    for (k = 0; k < order / 2; k++) {
-        /* 1j * math.pi * (2k + order + 1) / (2 order): (0, pi m) / (2N, 0) */
-        double ang_r, ang_i, cr, ci, sr, si, zr, zi, a1, a2, g;
-        py_c_quot(0.0 * (double)(2 * k + order + 1) - pi * 0.0, pi * (double)(2 * k + order + 1),
-                  (double)(2 * order), 0.0, &ang_r, &ang_i);
-        /* cmath.exp */
-        cr = exp(ang_r) * libm_cos(ang_i);
-        ci = exp(ang_r) * libm_sin(ang_i);
-        /* wc * (cr, ci) */
-        sr = wc * cr - 0.0 * ci;
-        si = wc * ci + 0.0 * cr;
-        /* (fs2 + sp) / (fs2 - sp) */
-        py_c_quot(fs2 + sr, 0.0 + si, fs2 - sr, 0.0 - si, &zr, &zi);
-        a1 = -2.0 * zr;
-        a2 = libm_pow(hypot(zr, zi), 2.0);
-        g = (1.0 + a1 + a2) / 4.0;
-        p[P_SOS + 5 * nsec + 0] = g;
-        p[P_SOS + 5 * nsec + 1] = 2.0 * g;
-        p[P_SOS + 5 * nsec + 2] = g;
-        p[P_SOS + 5 * nsec + 3] = a1;
-        p[P_SOS + 5 * nsec + 4] = a2;
-        nsec++;
-    }
-    if (order % 2) {
-        double zp = (fs2 - wc) / (fs2 + wc);
-        double g = (1.0 - zp) / 2.0;
-        p[P_SOS + 5 * nsec + 0] = g;
-        p[P_SOS + 5 * nsec + 1] = g;
-        p[P_SOS + 5 * nsec + 2] = 0.0;
-        p[P_SOS + 5 * nsec + 3] = -zp;
-        p[P_SOS + 5 * nsec + 4] = 0.0;
-        nsec++;
-    }
-    return nsec;
-}
+/* the Butterworth sections: gd_butter_sos of the core (kernels.butter_sos bit for bit) */
+#define butter_sos gd_butter_sos
 
 /* Build p (N_PARAMS doubles) from the FMU parameters, with the checks of the
  * pythonfmu FogDenoiser and kernels.make_params; -1 and a one-line reason in err. */
