@@ -26,7 +26,7 @@ def core_default(param: str) -> float | int | None:
     return methods.BY_PARAM[param].default
 
 
-def integer(text):
+def integer(text: str) -> int:
     """argparse type: an int, refused as ``not an integer: 'x'``."""
     try:
         return int(text)
@@ -34,7 +34,7 @@ def integer(text):
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
 
 
-def number(text):
+def number(text: str) -> float:
     """argparse type: a float, refused as ``not a number: 'x'``."""
     try:
         return float(text)
@@ -43,7 +43,8 @@ def number(text):
 
 
 # ------------------------------------------------------------------ the recording
-def add_recording_options(parser, *, input_help=None, input_optional=False, rate_unit_default="deg/s"):
+def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | None = None,
+                          input_optional: bool = False, rate_unit_default: str | None = "deg/s") -> None:
     """``IN`` and the options that say how to read it (:func:`gyrodenoise.io.recording.read_recording`).
 
     ``input_optional``: IN may be omitted (``gap --allan``); ``rate_unit_default`` None: the

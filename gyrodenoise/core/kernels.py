@@ -2,7 +2,8 @@
 
 The executable specification of the core
 ----------------------------------------
-Every function here is plain scalar Python over two flat buffers of floats:
+Every function here is plain scalar Python over two flat buffers of floats (``Buf``,
+``MutBuf``):
 
 * ``p`` -- the parameters (see :func:`make_params` and the ``P_*`` indices),
 * ``s`` -- the whole filter state (see :func:`init_state` and the ``S_*`` indices).
@@ -13,7 +14,8 @@ copy, save or restore it at any sample. ``gdcore.c`` (beside this file) is the
 same functions in C99 over the same buffers, operation for operation; the
 extension :mod:`gyrodenoise.core._gdcore` runs it for :mod:`gyrodenoise.core.batch`,
 :class:`gyrodenoise.Denoiser` and the FMUs, and the tests hold it to this file
-bit for bit. This file needs nothing but ``math``: it is also the
+bit for bit. This file needs nothing but ``math`` and the method registry
+(:mod:`gyrodenoise.core.methods`, standard library only): it is also the
 fallback where the compiled core is not available (an FMU on a platform its
 bundled binary does not fit), ~20-50 us a sample. Change the maths here first,
 then mirror it in gdcore.c (the tests fail until both agree).
@@ -49,8 +51,15 @@ Choices the paper leaves open (documented in docs/method/paper.md):
 from __future__ import annotations
 
 import math
+from collections.abc import MutableSequence, Sequence
+from typing import TypeAlias
 
 from . import methods as _methods
+
+#: the parameter buffer (read only) and the state buffer (written in place): lists of floats,
+#: or the C core's float64 arrays
+Buf: TypeAlias = Sequence[float]
+MutBuf: TypeAlias = MutableSequence[float]
 
 # ---------------------------------------------------------------- parameters
 P_ORDER = 0      # AR order n (>= 1)
@@ -202,7 +211,7 @@ OE_DX = 1        # the filtered rate of change, deg/s^2
 OE_ZP = 2        # the last centred sample, deg/s
 
 
-def layout(n):
+def layout(n: int) -> tuple[int, int, int, int, int, int, int]:
     """Offsets of (theta, P_rls, x, P, z_hist, w, total) for AR order ``n``."""
     m = n + 1
     o_theta = N_HEADER
@@ -216,7 +225,7 @@ def layout(n):
 
 
 
-def ext_offset(p):
+def ext_offset(p: Buf) -> int:
     """Offset in the state of the method-specific block (lowpass delays, motion's
     bank and noise estimates: the ``M_*`` offsets count from it), for params ``p``."""
     return layout(int(p[P_ORDER]))[6] - N_EXT
@@ -328,7 +337,7 @@ def _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz):
     return cutoff_hz, butter_sos(int(order), float(cutoff_hz), float(sample_rate_hz))
 
 
-def rigid_cutoff_hz(max_motion_hz, sample_rate_hz):
+def rigid_cutoff_hz(max_motion_hz: float, sample_rate_hz: float) -> float:
     """-3 dB point of the rigid-body low-pass for a stated band ``max_motion_hz``:
     MAX_MOTION_CUTOFF x max_motion_hz, at most MAX_MOTION_FS_CAP x the sample rate
     (the native FMU repeats these operations). With the Butterworth of order
@@ -339,7 +348,7 @@ def rigid_cutoff_hz(max_motion_hz, sample_rate_hz):
     return cap if fc > cap else fc
 
 
-def cv_gains(tracking_index):
+def cv_gains(tracking_index: float) -> tuple[float, float, float]:
     """Steady-state gains (alpha on the rate, beta on its change per sample) of
     the constant-velocity Kalman filter with white-noise acceleration of
     tracking index lam = sigma_w T^2 / sigma_v (Kalata 1984, "The tracking
@@ -355,7 +364,7 @@ def cv_gains(tracking_index):
 CA_NEWTON_STEPS = 60   # ca_gains: Newton steps on its cubic from u = 1 (a fixed count: the same bits in C)
 
 
-def ca_gains(tracking_index):
+def ca_gains(tracking_index: float) -> tuple[float, float, float, float, float]:
     """Steady-state gains of the constant-acceleration Kalman filter: state
     [omega, a, j] (rate, its change per sample, the change of a per sample),
     omega += a + j / 2, a += j, j += white noise w, G = [1/2, 1, 1]^T, process
@@ -382,11 +391,13 @@ def ca_gains(tracking_index):
     return alpha, beta, gamma, -math.log(1.0 - alpha), lam * lam
 
 
-def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
-                  n_accel=3, log10_accel_min=-2.0, log10_accel_max=0.0,
-                  tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
-                  clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0,
-                  cusum_tau_s=0.1, cusum_weight=1.0, cusum_sigma=3.75):
+def motion_params(sample_rate_hz: float, n_filters: int = 13, log10_lambda_min: float = -10.0,
+                  log10_lambda_max: float = 2.0, n_accel: int = 3, log10_accel_min: float = -2.0,
+                  log10_accel_max: float = 0.0, tau_l_s: float = 3.0, r_tau_s: float = 10.0, reset: float = 20.0,
+                  n_lag: int = 6, huber: float = 4.0, tau_angle_s: float = 30.0, clip_sigma: float = 4.0,
+                  spectral: float = 1.5, pass_tau_s: float = 0.02, pass_gain: tuple[float, float] = (0.7, 0.95),
+                  line: float = 10.0, cusum_tau_s: float = 0.1, cusum_weight: float = 1.0,
+                  cusum_sigma: float = 3.75) -> list[float]:
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
@@ -442,7 +453,7 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
     return p + gains + [0.0] + sp + pt + ln + cu + [float(n_accel)] + sph
 
 
-def rank_mean(n_bins):
+def rank_mean(n_bins: int) -> float:
     """Mean of the MO_SPEC_RANK-th smallest of ``n_bins`` independent exponential
     variables of mean 1 (Renyi): sum over i < MO_SPEC_RANK of 1 / (n_bins - i); the
     spectral floors' order-statistic bias (:func:`spectral_params`)."""
@@ -452,7 +463,7 @@ def rank_mean(n_bins):
     return c
 
 
-def spectral_params(b, ratio=1.0):
+def spectral_params(b: float, ratio: float = 1.0) -> list[float]:
     """Parameters of :func:`spectral_floor` (p[P_MO_SPEC ...]) for the per-sample
     forgetting factor ``b`` of the noise level; the spectral estimate replaces
     the lag estimate where it is below it by more than ``ratio`` (1.0: R is the
@@ -474,7 +485,7 @@ def spectral_params(b, ratio=1.0):
     return [1.0 / (c * (0.375 * MO_SPEC_N)), bb, float(ratio)] + cos_tab
 
 
-def butter_sos(order, cutoff_hz, sample_rate_hz):
+def butter_sos(order: int, cutoff_hz: float, sample_rate_hz: float) -> list[tuple[float, float, float, float, float]]:
     """Digital Butterworth low-pass as second-order sections [(b0, b1, b2, a1, a2)].
 
     The analog prototype's poles exp(i pi (2k + N + 1) / (2N)), scaled to the
@@ -502,7 +513,7 @@ def butter_sos(order, cutoff_hz, sample_rate_hz):
     return sos
 
 
-def init_state(p):
+def init_state(p: Buf) -> list[float]:
     """A fresh state buffer (list of floats) for parameters ``p``."""
     n = int(p[P_ORDER])
     s = [0.0] * layout(n)[6]
@@ -510,7 +521,7 @@ def init_state(p):
     return s
 
 
-def restart(p, s):
+def restart(p: Buf, s: MutBuf) -> None:
     """Re-initialise identification and filter (a gyro restart), in place.
 
     The cumulative counters S_NREJ, S_NREOPEN, S_NCLAMP and S_NHEAL are kept.
@@ -549,7 +560,7 @@ def _rls_gain(p, s, o_prls, o_z, o_w, n, m):
     return den
 
 
-def rls_update(p, s, z):
+def rls_update(p: Buf, s: MutBuf, z: float) -> float:
     """One RLS step of the improved AR(n) model, Eq. (8)-(11); returns e.
 
     Regressor Z_(h+1) = [z_{k-1} ... z_{k-n} 1] (Eq. 8); the past samples are
@@ -605,7 +616,7 @@ def rls_update(p, s, z):
     return e
 
 
-def kf_predict(p, s, q):
+def kf_predict(p: Buf, s: MutBuf, q: float) -> float:
     """Time update on the AR state model, Eq. (34); returns the prediction of z.
 
     X = [z_k ... z_{k-n+1}, c], A = [[phi_1..phi_n, 1], [I 0 0], [0 .. 0 1]].
@@ -647,7 +658,7 @@ def kf_predict(p, s, q):
     return x0
 
 
-def kf_update(p, s, v, r):
+def kf_update(p: Buf, s: MutBuf, v: float, r: float) -> float:
     """Measurement update with H = [1 0 ... 0], Eq. (35); returns S = HPH' + r.
 
     K = P H' / S, x += K v, P = P - P H' H P / S (equal to the Joseph form for
@@ -675,7 +686,7 @@ def kf_update(p, s, v, r):
     return svar
 
 
-def start_filter(p, s):
+def start_filter(p: Buf, s: MutBuf) -> None:
     """(Re)start the filter from the identified model at the end of warm-up.
 
     X = [z_{k-1} ... z_{k-n}, c_rls] (the last n raw samples and the RLS
@@ -692,7 +703,7 @@ def start_filter(p, s):
     tie_c(p, s)
 
 
-def tie_c(p, s):
+def tie_c(p: Buf, s: MutBuf) -> None:
     """Set the filter's c state to the RLS estimate of c (Eq. 4).
 
     The RLS identifies phi and c jointly; least squares with an intercept keeps
@@ -715,7 +726,7 @@ def tie_c(p, s):
     s[o_p + n * m + n] = p[P_R_FLOOR]
 
 
-def ar_stable(a, o_a, n, w, o_w):
+def ar_stable(a: Buf, o_a: int, n: int, w: MutBuf, o_w: int) -> bool:
     """True if the AR(n) model with phi_i = a[o_a + i - 1] is stable.
 
     Tests the polynomial 1 - phi_1 q^-1 - ... - phi_n q^-n (Eq. 4) with the
@@ -745,7 +756,7 @@ def ar_stable(a, o_a, n, w, o_w):
     return True
 
 
-def gate(p, s, z):
+def gate(p: Buf, s: MutBuf, z: float) -> int:
     """Innovation gate against single wild samples (not in the paper).
 
     ``z`` is the centred sample (see :func:`step`). Predicts the innovation
@@ -814,7 +825,7 @@ def gate(p, s, z):
     return 1
 
 
-def filter_step(p, s, z):
+def filter_step(p: Buf, s: MutBuf, z: float) -> float:
     """Identification and filter for one accepted, centred sample ``z``;
     returns the centred filter estimate (or ``z`` itself while warming up).
     Called by :func:`step`, which owns restarts, the gate and the envelope."""
@@ -905,7 +916,7 @@ def filter_step(p, s, z):
     return out
 
 
-def sos_cascade(p, s, o, z):
+def sos_cascade(p: Buf, s: MutBuf, o: int, z: float) -> float:
     """One sample ``z`` through the Butterworth cascade of p[P_SOS ...]
     (transposed direct form II, as ``scipy.signal.sosfilt``), its delays at
     s[o], s[o + 1] (first section), ...; returns the output."""
@@ -919,7 +930,7 @@ def sos_cascade(p, s, o, z):
     return y
 
 
-def lowpass_step(p, s, z):
+def lowpass_step(p: Buf, s: MutBuf, z: float) -> float:
     """One sample of the Butterworth cascade (:func:`sos_cascade`) on the
     centred sample ``z``; the delays start at 0, which is the steady state for
     the first sample (centred to 0)."""
@@ -929,7 +940,7 @@ def lowpass_step(p, s, z):
     return y
 
 
-def one_euro_step(p, s, z):
+def one_euro_step(p: Buf, s: MutBuf, z: float) -> float:
     """One centred sample ``z`` through the 1-euro filter (Casiez, Roussel, Vogel,
     CHI 2012): a first-order low-pass whose cutoff is p[P_OE_MIN] + p[P_OE_BETA] x
     |dz/dt|, dz/dt the rate's change per second through a first-order low-pass of
@@ -955,7 +966,7 @@ def one_euro_step(p, s, z):
     return x
 
 
-def exp_neg(x):
+def exp_neg(x: float) -> float:
     """exp(x) for -30 <= x <= 0 (0.0 below): the Taylor polynomial of degree 2
     at x / 256, squared 8 times; relative error < 3e-6 for x >= -1, < 2 % at
     -20 (weights below 2e-9 there). The weights of the motion bank need no
@@ -970,7 +981,7 @@ def exp_neg(x):
     return e
 
 
-def log1m_small(g):
+def log1m_small(g: float) -> float:
     """-log(1 - g) for 0 <= g <= 0.125 by its series to g^8 (error < 1e-9
     relative), with math.log above: the log-likelihood penalty of the
     growing-memory gain, one per sample (gdcore.c repeats these operations)."""
@@ -989,7 +1000,7 @@ def _forget_weight(b, bk):
     return (1.0 - b) / den
 
 
-def spectral_floor(p, s, o, z, k):
+def spectral_floor(p: Buf, s: MutBuf, o: int, z: float, k: float) -> float:
     """The sensor's white-noise variance R read from the spectrum:
     a floor that vibration tones do not lift. Returns the current estimate,
     (deg/s)^2, 0.0 before the first block. ``o``: offset of motion's state,
@@ -1118,7 +1129,7 @@ def _floor_update(p, s, i_m, i_bk, xb):
     return m
 
 
-def motion_step(p, s, z):
+def motion_step(p: Buf, s: MutBuf, z: float) -> float:
     """``method="motion"``: one centred sample ``z`` through a bank of
     constant-velocity Kalman filters weighted by their likelihoods (not in the
     paper).
@@ -1414,7 +1425,7 @@ def _healthy(p, s):
             and _finite(s[S_Q]) and _finite(s[S_RLS_ERR]) and _finite(s[S_S2]))
 
 
-def step(p, s, z, is_restart):
+def step(p: Buf, s: MutBuf, z: float, is_restart: bool) -> float:
     """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
 
     ``is_restart`` true re-initialises everything first (the gyro restarted and
@@ -1476,14 +1487,14 @@ def step(p, s, z, is_restart):
 
 
 # ------------------------------------------------------------------ readouts
-def phi(p, s):
+def phi(p: Buf, s: MutBuf) -> list[float]:
     """Current AR parameters [phi_1 ... phi_n] (list)."""
     n = int(p[P_ORDER])
     o = layout(n)[0]
     return [float(s[o + i]) for i in range(n)]
 
 
-def c_deg_s(p, s):
+def c_deg_s(p: Buf, s: MutBuf) -> float:
     """Constant term c of the improved AR model, Eq. (4), deg/s, for the raw
     (uncentred) samples: the state holds c for z - z_ref (see :func:`step`),
     and z = sum phi_i z_{k-i} + c holds with c = c_ref + (1 - sum phi) z_ref.
@@ -1498,12 +1509,12 @@ def c_deg_s(p, s):
     return s[o + n] + one_minus * s[S_ZREF]
 
 
-def rls_c(p, s):
+def rls_c(p: Buf, s: MutBuf) -> float:
     """Current constant term c of the improved AR model, Eq. (4), deg/s."""
     return float(c_deg_s(p, s))
 
 
-def filter_state(p, s):
+def filter_state(p: Buf, s: MutBuf) -> list[float]:
     """Filter state estimate [z_k ... z_{k-n+1}, c] (list), deg/s."""
     n = int(p[P_ORDER])
     o = layout(n)[2]
@@ -1511,7 +1522,7 @@ def filter_state(p, s):
             + [float(s[o + n] + (1.0 - sum(phi(p, s))) * s[S_ZREF])])
 
 
-def filter_cov(p, s):
+def filter_cov(p: Buf, s: MutBuf) -> list[list[float]]:
     """Filter covariance P as a list of rows."""
     n = int(p[P_ORDER])
     m = n + 1
@@ -1519,7 +1530,7 @@ def filter_cov(p, s):
     return [[float(s[o + i * m + j]) for j in range(m)] for i in range(m)]
 
 
-def rls_cov(p, s):
+def rls_cov(p: Buf, s: MutBuf) -> list[list[float]]:
     """RLS covariance as a list of rows."""
     n = int(p[P_ORDER])
     m = n + 1

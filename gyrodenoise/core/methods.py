@@ -39,6 +39,11 @@ class Method(NamedTuple):
     #: ``--zero-phase``: forwards then backwards) or "smoother" (``offline=True``, the
     #: command line's default on files, ``--causal`` turns it off)
     offline: str | None = None
+    #: False: the raw samples pass through for ``warmup_s`` after each restart (the AR methods, motion)
+    #: do not apply; the output is filtered from the first sample on
+    warmup: bool = True
+    #: False: the output is the input (identification only)
+    filters: bool = True
 
 
 #: in the order of the command line's choices; the first is the default
@@ -47,10 +52,10 @@ METHODS: tuple[Method, ...] = (
     Method("shakf", 2.0, "the paper's modified Sage-Husa adaptive KF on the online AR(n) model"),
     Method("kf", 1.0, "conventional KF on the online AR(n) model, fixed Q and R"),
     Method("sh_classic", 3.0, "classic Sage-Husa adaptive KF, Eq. (22) and (26) unmodified"),
-    Method("lowpass", 5.0, "causal Butterworth low-pass (cutoff_hz, order)", "zero_phase"),
+    Method("lowpass", 5.0, "causal Butterworth low-pass (cutoff_hz, order)", "zero_phase", warmup=False),
     Method("one_euro", 6.0, "the 1-euro filter (Casiez et al. 2012): a first-order low-pass whose cutoff "
-           "rises with the rate's change (min_cutoff_hz, beta, d_cutoff_hz)"),
-    Method("none", 0.0, "identification only, output = input"),
+           "rises with the rate's change (min_cutoff_hz, beta, d_cutoff_hz)", warmup=False),
+    Method("none", 0.0, "identification only, output = input", filters=False),
 )
 DEFAULT_METHOD = METHODS[0].name
 BY_NAME = {m.name: m for m in METHODS}

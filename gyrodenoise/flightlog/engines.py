@@ -104,7 +104,7 @@ class NativeEngine(_Settings):
         pass
 
 
-def default_fmu_path():
+def default_fmu_path() -> Path:
     """``$GYRODENOISE_FMU``, else ``build/FogDenoiser.fmu`` of the source tree or the cwd."""
     env = os.environ.get("GYRODENOISE_FMU")
     if env:

@@ -80,7 +80,7 @@ def _accepts(s, engine, rate):
 BAND_OPTIONS = {p.name: p.option for p in PARAMS if p.nyquist and p.option}
 
 
-def refused_band_option(exc, filter_kw):
+def refused_band_option(exc: Exception, filter_kw: dict | None) -> tuple[str, float] | None:
     """(CLI option, value) of the band option the core's ``exc`` (ValueError of a
     rate check) refused, or None when it was something else."""
     for param, option in BAND_OPTIONS.items():
@@ -125,13 +125,15 @@ def _apply_safety_net(s, engine, x, f, back, usable, rate, sample_rate):
     return f
 
 
-def not_filtered_reason(s, method, warmup_samples, rate, sample_rate=None):
+def not_filtered_reason(s, method: str, warmup_samples: int, rate: float,
+                        sample_rate: float | None = None) -> str:
     """Why the filter's output of stream ``s`` equals its input on every sample."""
-    if method == "none":
-        return "--method none: output = input"
+    m = BY_NAME[method]
+    if not m.filters:
+        return f"--method {method}: output = input"
     runs = sessions(s.n, s.restarts)
     longest = max(b - a for a, b in runs)
-    if method != "lowpass" and longest <= warmup_samples:
+    if m.warmup and longest <= warmup_samples:
         each = "its one session is" if len(runs) == 1 else f"each of its {len(runs)} sessions is at most"
         return (f"{each} {longest} samples, not longer than the filter's warm-up of {warmup_samples} samples "
                 f"at {rate:.4g} Hz{' (--sample-rate)' if sample_rate else ''}, during which the raw samples "
@@ -169,7 +171,7 @@ def filter_form(eng, engine):
                                            "Denoiser.step and the FMUs)"}
 
 
-def filter_options(method, filter_kw, zero_phase):
+def filter_options(method: str, filter_kw: dict | None, zero_phase: bool) -> dict:
     """The report's ``filter_options``: the method's options as given, its own
     parameters' defaults spelled out (the low-pass's, the 1-euro filter's), and
     ``zero_phase`` for a method whose offline form it is."""

@@ -216,7 +216,7 @@ PYTHONFMU_MODELS = ("FogDenoiser", "SimulatedFog")
 ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
 
 
-def start_value(v, pythonfmu):
+def start_value(v: Variable, pythonfmu: bool) -> object:
     """The start value ``v`` declares in the FMU kind (pythonfmu or native), or None."""
     if v.initial == "calculated":
         return None
@@ -225,7 +225,7 @@ def start_value(v, pythonfmu):
     return v.start
 
 
-def initial(v, pythonfmu):
+def initial(v: Variable, pythonfmu: bool) -> str | None:
     """The ``initial`` attribute of output ``v`` in the FMU kind, or None for a non-output."""
     if v.causality != "output":
         return None
@@ -234,13 +234,13 @@ def initial(v, pythonfmu):
     return "exact" if start_value(v, pythonfmu) is not None else "calculated"
 
 
-def pythonfmu_description(v):
+def pythonfmu_description(v: Variable) -> str:
     """The description a pythonfmu slave gives ``v``: with its unit in brackets."""
     label = UNIT_LABELS[v.unit] if v.unit else ("-" if v.type == "String" else "1")
     return f"{v.description} [{label}]"
 
 
-def format_value(value, type_):
+def format_value(value: object, type_: str) -> str:
     """``value`` as written in a modelDescription.xml attribute of a variable of ``type_``."""
     if type_ == "Real":
         return repr(float(value))
@@ -272,7 +272,7 @@ def _table(model):
     return lines
 
 
-def markdown_tables(fmi_version=2):
+def markdown_tables(fmi_version: int = 2) -> str:
     """Markdown tables of the FMUs' variables of ``fmi_version`` (2 or 3: FMI 3.0 types, an array's
     length in brackets), one per FMU (FMUs with identical tables share one), with the columns name,
     causality, type, unit, start, min, max and description. Value reference = row number - 1."""
