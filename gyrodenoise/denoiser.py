@@ -22,7 +22,7 @@ from .core import kernels as K
 from .core import methods
 
 try:
-    from .core import _gdcore as _C
+    from .core import _gdcore as _C  # type: ignore[attr-defined]  # the C extension: no stub
     _C_MISSING = ""
 except ImportError as exc:  # pragma: no cover - no compiler at install, or an FMU on another platform
     _C = None

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import MutableSequence, Sequence
-from typing import TypeAlias
+from typing import Any, TypeAlias
 
 from . import methods as _methods
 
@@ -279,7 +279,7 @@ def make_params(ar_order: int = 3, method: str = DEFAULT_METHOD, sample_rate_hz:
     if unknown:
         raise TypeError(f"make_params() got an unexpected keyword argument {unknown[0]!r}")
     _methods.method(method)
-    values = {**_methods.defaults(), **kw, "ar_order": ar_order, "sample_rate_hz": sample_rate_hz}
+    values: dict[str, Any] = {**_methods.defaults(), **kw, "ar_order": ar_order, "sample_rate_hz": sample_rate_hz}
     fs = float(_checked(values, "sample_rate_hz", method))
     for par in _methods.PARAMS:
         if par.applies_to(method) or par.off:
@@ -443,13 +443,13 @@ def motion_params(sample_rate_hz: float, n_filters: int = 13, log10_lambda_min: 
         gains[3 * MO_MAX_NF + i], gains[4 * MO_MAX_NF + i] = g, lam2
     pt = [1.0 / max(pass_tau_s * fs, 1.0) if pass_tau_s > 0 else 0.0, float(pass_gain[0]), float(pass_gain[1])]
     sp = spectral_params(p[2], spectral)
-    c = rank_mean(MO_HI_NB)
-    ln = [float(line) / c if line > 0 and sp[0] > 0 else 0.0]
+    ch = rank_mean(MO_HI_NB)
+    ln = [float(line) / ch if line > 0 and sp[0] > 0 else 0.0]
     cu = [0.0, 0.0, 0.0]
     if cusum_tau_s > 0 and cusum_weight > 0:
         fc = math.exp(-1.0 / max(cusum_tau_s * fs, 1.0))
         cu = [fc, float(cusum_weight), float(cusum_sigma) ** 2 / (1.0 - fc * fc)]
-    sph = [1.0 / (c * (0.375 * MO_SPEC_N)) if sp[0] > 0 else 0.0]   # as P_MO_SPEC, for MO_HI_NB bins
+    sph = [1.0 / (ch * (0.375 * MO_SPEC_N)) if sp[0] > 0 else 0.0]   # as P_MO_SPEC, for MO_HI_NB bins
     return p + gains + [0.0] + sp + pt + ln + cu + [float(n_accel)] + sph
 
 

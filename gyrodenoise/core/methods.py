@@ -199,22 +199,23 @@ class Param(NamedTuple):
         return self.fmu_start if self.default is None else self.default   # type: ignore[return-value]
 
 
-_NYQ = dict(nyquist=True, unit="Hz")
+#: the largest ar_order an FMU takes (it declares phi_1 .. phi_6)
+FMU_MAX_AR_ORDER = 6
 
 #: every parameter, in the order of the command line's help; the FMUs declare theirs in this order
 PARAMS: tuple[Param, ...] = (
     Param("sample_rate_hz", float, 200.0, "sample rate", "Hz", lo=0.0, lo_open=True, slot="P_FS"),
     Param("ar_order", int, 3, "order n of the improved AR(n) model, Eq. (4)", lo=1, slot="P_ORDER",
-          option="--ar-order", fmu="ar_order", fmu_max=6),
+          option="--ar-order", fmu="ar_order", fmu_max=FMU_MAX_AR_ORDER),
     Param("cutoff_hz", float, None, "-3 dB cutoff (default 20 Hz, at most a quarter of the sample rate)",
           lo=0.0, lo_open=True, methods=("lowpass",), option="--cutoff-hz", metavar="HZ", fmu="cutoff_hz",
-          fmu_start=0.0, **_NYQ),
+          fmu_start=0.0, nyquist=True, unit="Hz"),
     Param("order", int, 2, "Butterworth order", lo=1, hi=8, methods=("lowpass",), option="--order",
           fmu="lowpass_order"),
     Param("max_motion_hz", float, 0.0, "rigid-body option for frames that vibrate (drones): the band of "
           "interest; content above it counts as error (a 4th-order Butterworth before the filter bank, flat "
           "to it, -3 dB at twice it, -24 dB at 4 times it)", lo=0.0, lo_open=True, off=True,
-          methods=("motion",), option="--max-motion-hz", metavar="HZ", fmu="max_motion_hz", **_NYQ),
+          methods=("motion",), option="--max-motion-hz", metavar="HZ", fmu="max_motion_hz", nyquist=True, unit="Hz"),
     Param("min_cutoff_hz", float, 1.0, "cutoff of the low-pass at rest", "Hz", lo=0.0, lo_open=True,
           methods=("one_euro",), slot="P_OE_MIN", option="--min-cutoff-hz", metavar="HZ", fmu="min_cutoff_hz"),
     Param("beta", float, 0.001, "growth of the cutoff with |rate change|: cutoff = min_cutoff_hz + beta "

@@ -37,7 +37,7 @@ from typing import NamedTuple
 from ..core import methods  # noqa: TID252 - relative: the FMUs bundle the two as package gdcore
 
 #: phi_1 .. phi_MAX_AR_ORDER are declared; phi_k for k > ar_order reads 0
-MAX_AR_ORDER = methods.BY_PARAM["ar_order"].fmu_max
+MAX_AR_ORDER = methods.FMU_MAX_AR_ORDER
 #: DefaultExperiment stepSize of every FMU, s (200 Hz: the default sample_period and paper_fog's rate)
 DEFAULT_STEP_SIZE_S = 0.005
 
@@ -240,7 +240,7 @@ def pythonfmu_description(v: Variable) -> str:
     return f"{v.description} [{label}]"
 
 
-def format_value(value: object, type_: str) -> str:
+def format_value(value: float | int | bool | str, type_: str) -> str:
     """``value`` as written in a modelDescription.xml attribute of a variable of ``type_``."""
     if type_ == "Real":
         return repr(float(value))
@@ -276,7 +276,7 @@ def markdown_tables(fmi_version: int = 2) -> str:
     """Markdown tables of the FMUs' variables of ``fmi_version`` (2 or 3: FMI 3.0 types, an array's
     length in brackets), one per FMU (FMUs with identical tables share one), with the columns name,
     causality, type, unit, start, min, max and description. Value reference = row number - 1."""
-    groups = {}
+    groups: dict[str, list[str]] = {}
     for model in (FMI3_MODELS if fmi_version == 3 else MODELS):
         groups.setdefault("\n".join(_table(model)), []).append(model)
     out = []
