@@ -16,7 +16,7 @@ from gyrodenoise.cli.options import (METHOD_OPTIONS, add_filter_options, check_c
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.core.kernels import DEFAULT_METHOD
-from gyrodenoise.core.methods import METHODS
+from gyrodenoise.core.methods import METHODS, PARAMS
 from gyrodenoise.errors import InputError
 
 LINK_RE = re.compile(r"^(udpin|udpout|udp|tcp|tcpin|udpbcast|serial|com\d*)[:]", re.IGNORECASE)
@@ -523,13 +523,15 @@ def _axis_line(s, a):
 
 def _options_text(r):
     """', Butterworth order 2, zero phase' for the low-pass; ', rigid body: --max-motion-hz 20'
-    for motion with that option; '' otherwise."""
+    for motion with that option; another method's own options (', --min-cutoff-hz 3, --beta
+    0.01, --d-cutoff-hz 1' for one_euro); '' otherwise."""
     o = r.get("filter_options") or {}
     if r.get("method") == "motion" and o.get("max_motion_hz"):
         return (f", rigid body: --max-motion-hz {o['max_motion_hz']:g} (a 4th-order low-pass flat to it, "
                 f"-3 dB at twice it or 0.45 x each stream's rate, whichever is lower)")
-    if r.get("method") != "lowpass":
-        return ""
+    if r.get("method") != "lowpass":   # another method's own options, as given or their defaults
+        own = [p for p in PARAMS if r.get("method") in p.methods and p.name in o and p.option]
+        return "".join(f", {p.option} {o[p.name]:g}" for p in own)
     return f", Butterworth order {o.get('order', 2)}, {'zero phase' if o.get('zero_phase') else 'causal'}"
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrodenoise.core.kernels import DEFAULT_METHOD
-from gyrodenoise.core.methods import BY_PARAM, PARAMS
+from gyrodenoise.core.methods import BY_NAME, BY_PARAM, METHODS, PARAMS
 from gyrodenoise.errors import InputError
 
 ENGINES = ("native", "fmu")
@@ -57,7 +57,7 @@ class _Settings:
         """The low-pass's effective -3 dB cutoff at ``rate_hz`` (the default is
         min(20 Hz, rate / 4)); None for the other methods or a rate it cannot take."""
         from gyrodenoise.core import kernels as K
-        if self.method != "lowpass":
+        if not BY_PARAM["cutoff_hz"].applies_to(self.method):
             return None
         try:
             return float(_params(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)[K.P_LP_CUTOFF])
@@ -75,8 +75,9 @@ class NativeEngine(_Settings):
 
     def __init__(self, method=DEFAULT_METHOD, ar_order=3, warmup_s=None, filter_kw=None, zero_phase=False,
                  offline=False):
-        if offline and method != "motion":
-            raise InputError(f"the offline form is defined for --method motion only, not {method}")
+        if offline and (method not in BY_NAME or BY_NAME[method].offline != "smoother"):
+            owners = [m.name for m in METHODS if m.offline == "smoother"]
+            raise InputError(f"the offline form is defined for --method {', '.join(owners)} only, not {method}")
         self.method = method
         self.ar_order = int(ar_order)
         self.warmup_s = warmup_s
