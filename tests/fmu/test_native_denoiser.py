@@ -192,7 +192,7 @@ CASES = [("motion", {}), ("shakf", {}), ("kf", {}),
 
 def _core_kw(extra):
     """gd.denoise's arguments for the FMU parameters ``extra`` (the registry's names)."""
-    return {BY_FMU[k].name: v for k, v in extra.items()}
+    return {BY_FMU[k].name if k in BY_FMU else k: v for k, v in extra.items()}
 
 
 @pytest.mark.parametrize("method,extra", CASES, ids=[c[0] + "".join("-" + k for k in c[1]) for c in CASES])
@@ -409,7 +409,7 @@ def test_forbidden_calls_are_fmi2error_with_a_reason(built, md, vr):
 BAD_PARAMS = [
     ({"lam": 1.5}, "lam out of range"), ({"b": 1.0}, "b out of range"),
     ({"gamma": math.nan}, "gamma out of range"), ({"method": "wiener"}, "method must be one of"),
-    ({"ar_order": 7}, "ar_order must be in 1..6"), ({"ar_order": 0}, "ar_order"),
+    ({"ar_order": 7}, "ar_order must be an integer 1..6"), ({"ar_order": 0}, "ar_order"),
     ({"sample_period": 0.0}, "sample_period"), ({"sample_period": -1.0}, "sample_period"),
     ({"r_floor": 0.0}, "r_floor"), ({"outlier_sigma": 1.0}, "outlier_sigma"),
     ({"outlier_run": 0}, "outlier_run"), ({"q0": -1.0}, "q0"), ({"warmup_s": math.inf}, "warmup_s"),
@@ -420,6 +420,9 @@ BAD_PARAMS = [
     ({"max_motion_hz": -1.0}, "max_motion_hz out of range"),
     ({"max_motion_hz": 100.0}, "max_motion_hz out of range"),      # = half the sample rate
     ({"method": "shakf", "max_motion_hz": -1.0}, "max_motion_hz out of range"),   # whatever the method
+    ({"method": "one_euro", "min_cutoff_hz": 0.0}, "min_cutoff_hz out of range: 0 (must be > 0 Hz)"),
+    ({"method": "one_euro", "beta": -1.0}, "beta out of range"),
+    ({"method": "one_euro", "d_cutoff_hz": math.inf}, "d_cutoff_hz out of range"),
 ]
 
 
@@ -431,7 +434,7 @@ def test_invalid_parameter_refused_at_exit_initialization(built, md, params, rea
     assert "invalid parameter" in msg and reason in msg
     # the same parameters are refused by the Python core too
     if not any(k in params for k in ("ar_order", "sample_period")):
-        kw = {("order" if k == "lowpass_order" else k): v for k, v in params.items()}
+        kw = _core_kw(params)
         with pytest.raises(ValueError):
             K.make_params(sample_rate_hz=FS, **kw)
     s.freeInstance()
