@@ -16,7 +16,7 @@ from gyrodenoise.cli.options import (METHOD_OPTIONS, add_filter_options, check_c
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.core.kernels import DEFAULT_METHOD
-from gyrodenoise.core.methods import METHODS, PARAMS
+from gyrodenoise.core.methods import BY_OPTION, METHODS, PARAMS
 from gyrodenoise.errors import InputError
 
 LINK_RE = re.compile(r"^(udpin|udpout|udp|tcp|tcpin|udpbcast|serial|com\d*)[:]", re.IGNORECASE)
@@ -225,17 +225,16 @@ def _check_filter_options(args):
         raise InputError(f"--sample-rate must be a number of Hz in (0, {MAX_SAMPLE_RATE_HZ:g}], "
                          f"got {args.sample_rate:g}")
     check_method_options(args, METHOD_OPTIONS, notes={"--causal": " (the other methods are causal unless --zero-phase)"})
-    if args.max_motion_hz is not None and not (_finite_num(args.max_motion_hz) and args.max_motion_hz >= 0):
-        raise InputError(f"--max-motion-hz must be a finite number >= 0 Hz (0 = off), got {args.max_motion_hz}")
-    if args.cutoff_hz is not None and not (_finite_num(args.cutoff_hz) and args.cutoff_hz > 0):
-        raise InputError(f"--cutoff-hz must be a finite number > 0 Hz, got {args.cutoff_hz}")
-    if args.warmup_s is not None and not (_finite_num(args.warmup_s) and 0 <= args.warmup_s <= MAX_WARMUP_S):
+    # each option given against the registry's range (the band options' Nyquist bound is checked
+    # per stream, at its rate, when it is filtered: a stream too slow for it is written raw)
+    for opt, par in BY_OPTION.items():
+        value = getattr(args, par.name, None)
+        why = None if value is None else par.error(value)
+        if why is not None:
+            raise InputError(f"{opt}: {why}")
+    if args.warmup_s is not None and not args.warmup_s <= MAX_WARMUP_S:
         raise InputError(f"--warmup-s must be a number of seconds in [0, {MAX_WARMUP_S:g}], "
                          f"got {args.warmup_s}")
-    if args.outlier_sigma is not None and not _finite_num(args.outlier_sigma):
-        raise InputError(f"--outlier-sigma must be 0 (off) or a finite number >= 2, got {args.outlier_sigma}")
-    if args.outlier_run is not None and args.outlier_run < 1:
-        raise InputError(f"--outlier-run must be >= 1, got {args.outlier_run}")
     try:
         # the cutoff is checked against each stream's rate when it is filtered
         # (a stream too slow for it is written raw, with the reason)
