@@ -94,13 +94,14 @@ def test_model_description_interface(fmu_dir):
 
 
 def test_bundled_core_is_the_per_sample_path_only(fmu_dir):
-    """The FMU carries the plain-Python kernels, the C core of this build and the variable
-    declaration, nothing else."""
+    """The FMU carries the plain-Python kernels, the method registry, the C core of this build
+    and the variable declaration, nothing else."""
     with zipfile.ZipFile(fmu_dir / "FogDenoiser.fmu") as z:
         names = set(z.namelist())
     core = {n for n in names if n.startswith("resources/gdcore/") and n.endswith(".py")}
     assert core == {f"resources/gdcore/{m}" for m in ("__init__.py", "core/__init__.py", "core/kernels.py",
-                                                      "denoiser.py", "errors.py", "fmu/variables.py")}
+                                                      "core/methods.py", "denoiser.py", "errors.py",
+                                                      "fmu/variables.py")}
     binaries = {n for n in names if n.startswith("resources/gdcore/core/_gdcore")}
     assert binaries == {f"resources/gdcore/core/{so.name}" for so in F.compiled_core_files()}
     assert F.stale_reason(fmu_dir / "FogDenoiser.fmu") is None
