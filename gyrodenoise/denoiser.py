@@ -12,29 +12,35 @@ numbers). They share the state, so a stream may mix them freely.
 from __future__ import annotations
 
 from array import array
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import ArrayLike
 
 from .core import kernels as K
+from .core import methods
 
 try:
-    from .core import _gdcore as _C
+    from .core import _gdcore as _C  # type: ignore[attr-defined]  # the C extension: no stub
     _C_MISSING = ""
 except ImportError as exc:  # pragma: no cover - no compiler at install, or an FMU on another platform
     _C = None
     _C_MISSING = str(exc)
 
 
-def core_name():
+def core_name() -> str:
     """Which implementation runs the filter: ``"C"`` or ``"Python"``."""
     return "C" if _C is not None else "Python"
 
 
-def core_fallback_reason():
+def core_fallback_reason() -> str:
     """Why the C core could not be imported ("" when it runs)."""
     return _C_MISSING
 
 
 class Denoiser:
-    """Online improved-AR(n) identification + KF/SHAKF, or ``motion``, for one gyro axis.
+    """One gyro axis through one of the core's methods (default: ``motion``), sample by sample or in batches.
 
     Parameters are those of :func:`gyrodenoise.core.kernels.make_params`.
 
@@ -44,7 +50,8 @@ class Denoiser:
     >>> y = d.step(0.01, restart=False)
     """
 
-    def __init__(self, sample_rate_hz=200.0, method=K.DEFAULT_METHOD, ar_order=3, **kw):
+    def __init__(self, sample_rate_hz: float = 200.0, method: str = "motion", ar_order: int = 3,
+                 **kw: float | int | None) -> None:
         params = K.make_params(ar_order=ar_order, method=method, sample_rate_hz=sample_rate_hz, **kw)
         # float64 buffers the C core reads and writes in place (plain lists for
         # the Python kernels); ``state`` indexes like a list either way
@@ -58,16 +65,17 @@ class Denoiser:
         return array("d", values) if _C is not None else [float(v) for v in values]
 
     # -- per-sample path
-    def step(self, rate_deg_s, restart=False):
+    def step(self, rate_deg_s: float, restart: bool = False) -> float:
         """Filter one sample (deg/s); ``restart`` marks a gyro restart."""
         return self._step(self.params, self.state, float(rate_deg_s), bool(restart))
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget everything (as at construction)."""
         self.state = self._buffer(K.init_state(list(self.params)))
 
     # -- batch path
-    def process(self, rate_deg_s, restarts=None, compiled=True):
+    def process(self, rate_deg_s: ArrayLike, restarts: ArrayLike | None = None,
+                compiled: bool = True) -> np.ndarray:
         """Filter an array, continuing the state; returns a numpy array."""
         from .core import batch
         out, st = batch.run(self.params, self.state, rate_deg_s, restarts, compiled=compiled)
@@ -76,71 +84,72 @@ class Denoiser:
 
     # -- readouts
     @property
-    def order(self):
+    def order(self) -> int:
         return int(self.params[K.P_ORDER])
 
     @property
-    def phi(self):
+    def phi(self) -> list[float]:
         """Current AR coefficients phi_1..phi_n (Eq. 4)."""
         return K.phi(self.params, self.state)
 
     @property
-    def c(self):
+    def c(self) -> float:
         """Current constant term c of the improved AR model (Eq. 4), deg/s (0.0
         for motion and lowpass, which identify no AR model)."""
         return K.rls_c(self.params, self.state)
 
     @property
-    def R_hat(self):
+    def R_hat(self) -> float:
         """Current measurement-noise variance estimate, (deg/s)^2 (motion: the
         sensor's white-noise estimate from the 4th differences, or the spectral
         noise floor where that is more than 1.5x lower: kernels.motion_step)."""
         return float(self.state[K.S_R])
 
     @property
-    def q_hat(self):
+    def q_hat(self) -> float:
         """Current process-noise variance estimate, (deg/s)^2 (motion: the
         variance q of the rate increment per sample)."""
         return float(self.state[K.S_Q])
 
     @property
-    def innovation(self):
+    def innovation(self) -> float:
         """Last innovation v_k = z_k - H X_pred, deg/s."""
         return float(self.state[K.S_INNOV])
 
     @property
-    def converged(self):
+    def converged(self) -> bool:
         """True once the AR model has converged since the last restart."""
         return self.state[K.S_CONV] == 1.0
 
     @property
-    def n_divergence_resets(self):
+    def n_divergence_resets(self) -> int:
         """How many times the criterion of Eq. (32) restarted d_k."""
         return int(self.state[K.S_NRESET])
 
     @property
-    def n_rejected(self):
+    def n_rejected(self) -> int:
         """Samples rejected by the outlier gate (``outlier_sigma`` > 0) so far."""
         return int(self.state[K.S_NREJ])
 
     @property
-    def n_reopened(self):
+    def n_reopened(self) -> int:
         """Times a run of ``outlier_run`` rejections re-opened the filter."""
         return int(self.state[K.S_NREOPEN])
 
-    def get_state(self):
+    def get_state(self) -> list[float]:
         """A copy of the full state (a list of floats) for save/restore."""
         return [float(v) for v in self.state]
 
-    def set_state(self, state):
+    def set_state(self, state: list[float]) -> None:
         if len(state) != len(self.state):
             raise ValueError(f"state has {len(state)} values, expected {len(self.state)}")
         self.state = self._buffer(state)
 
 
-def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, restarts=None,
-            zero_phase=False, offline=False, **kw):
-    """Denoise a gyro record with the online improved-AR(n) model + KF/SHAKF.
+def denoise(rate_deg_s: ArrayLike, sample_rate_hz: float, method: str = "motion", ar_order: int = 3,
+            restarts: ArrayLike | None = None, zero_phase: bool = False, offline: bool = False,
+            **kw: float | int | None) -> np.ndarray:
+    """Denoise a gyro record with one of the core's methods (default: ``motion``).
 
     Parameters
     ----------
@@ -148,11 +157,12 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
         Raw angular rate, deg/s.
     sample_rate_hz : float
         Sample rate, Hz.
-    method : {"motion", "shakf", "kf", "sh_classic", "lowpass", "none"}
-        "motion" (default) follows manoeuvres and averages at rest;
-        "shakf" is the modified Sage-Husa AKF of the paper (Section 3.2.3),
-        with ``outlier_sigma=0`` exactly the paper's filter; "lowpass" a
-        causal Butterworth (``cutoff_hz``, ``order``). See
+    method : str
+        One of :data:`gyrodenoise.core.methods.METHODS`: "motion" (default) follows
+        manoeuvres and averages at rest; "shakf" is the modified Sage-Husa AKF of the
+        paper (Section 3.2.3), with ``outlier_sigma=0`` exactly the paper's filter;
+        "lowpass" a causal Butterworth (``cutoff_hz``, ``order``); "one_euro" the
+        1-euro filter (``min_cutoff_hz``, ``beta``, ``d_cutoff_hz``). See
         :func:`gyrodenoise.core.kernels.make_params`.
     ar_order : int
         Order n of the improved AR(n) model (Eq. 4).
@@ -183,10 +193,10 @@ def denoise(rate_deg_s, sample_rate_hz, method=K.DEFAULT_METHOD, ar_order=3, res
     from .core import batch
     p = K.make_params(ar_order=ar_order, method=method,
                       sample_rate_hz=sample_rate_hz, **kw)
-    if zero_phase and method != "lowpass":
-        raise ValueError(f"zero_phase applies to method='lowpass' only, not {method!r}")
-    if offline and method != "motion":
-        raise ValueError(f"offline applies to method='motion' only, not {method!r}")
+    for form, on in (("zero_phase", zero_phase), ("smoother", offline)):
+        owner = next(m.name for m in methods.METHODS if m.offline == form)
+        if on and method != owner:
+            raise ValueError(f"{methods.OFFLINE_FORMS[form][0]} applies to method={owner!r} only, not {method!r}")
     if offline:
         return batch.run_offline(p, rate_deg_s, restarts)
     out, _ = batch.run(p, K.init_state(p), rate_deg_s, restarts)

@@ -7,8 +7,8 @@ the grid is the tuned filter (an oracle: it saw the truth). Families:
 causal
     ``butter1`` / ``butter2`` -- Butterworth order 1 / 2 over a cutoff grid
     (``scipy.signal.sosfilt``, started at the first sample's steady state);
-    ``one_euro`` -- the 1-euro filter (Casiez, Roussel, Vogel, CHI 2012) over
-    (min_cutoff, beta), derivative cutoff 1 Hz;
+    ``one_euro`` -- the 1-euro filter (Casiez, Roussel, Vogel, CHI 2012; the core's method
+    ``one_euro``) over (min_cutoff, beta), derivative cutoff 1 Hz;
     ``cv_kf`` -- a constant-velocity Kalman filter, state [rate, rate
     derivative], white-noise-acceleration model, over its tracking index
     lambda = sigma_w T^2 / sigma_v (Kalata 1984);
@@ -77,19 +77,11 @@ def butter(z, fs, order, cutoff_hz, zero_phase=False):
 
 
 # ------------------------------------------------------------------ 1-euro
-@_njit
-def _one_euro(z, fs, min_cutoff, beta, d_cutoff, y):
-    te = 1.0 / fs
-    ad = 1.0 / (1.0 + 1.0 / (2.0 * math.pi * d_cutoff * te))
-    x = z[0]
-    dx = 0.0
-    y[0] = x
-    for k in range(1, z.size):
-        dx += ad * ((z[k] - z[k - 1]) * fs - dx)
-        fc = min_cutoff + beta * abs(dx)
-        a = 1.0 / (1.0 + 1.0 / (2.0 * math.pi * fc * te))
-        x += a * (z[k] - x)
-        y[k] = x
+def one_euro(z: np.ndarray, fs: float, min_cutoff_hz: float, beta: float, d_cutoff_hz: float = 1.0) -> np.ndarray:
+    """The 1-euro filter: the core's method ``one_euro`` (gd.denoise), the filter a user runs."""
+    import gyrodenoise as gd
+    return gd.denoise(np.asarray(z, dtype=float), float(fs), method="one_euro", min_cutoff_hz=float(min_cutoff_hz),
+                      beta=float(beta), d_cutoff_hz=float(d_cutoff_hz))
 
 
 @_njit
@@ -99,21 +91,6 @@ def _rmse(y, ref, lo, hi):
         e = y[k] - ref[k]
         acc += e * e
     return math.sqrt(acc / (hi - lo))
-
-
-@_njit
-def _one_euro_grid(z, ref, fs, mins, betas, d_cutoff, lo, hi, out):
-    y = np.empty(z.size)
-    for g in range(mins.size):
-        _one_euro(z, fs, mins[g], betas[g], d_cutoff, y)
-        out[g] = _rmse(y, ref, lo, hi)
-
-
-def one_euro(z, fs, min_cutoff_hz, beta, d_cutoff_hz=1.0):
-    y = np.empty_like(z)
-    _one_euro(np.ascontiguousarray(z, dtype=float), float(fs), float(min_cutoff_hz), float(beta),
-              float(d_cutoff_hz), y)
-    return y
 
 
 # ------------------------------------------------------------------ constant-velocity KF and its smoother
@@ -260,11 +237,10 @@ def tune(family, z, ref, fs, lo, hi, quick=False):
         grid = euro_grid(fs, quick)
         mins = np.array([g[0] for g in grid])
         betas = np.array([g[1] for g in grid])
-        out = np.empty(len(grid))
-        _one_euro_grid(z, ref, float(fs), mins, betas, 1.0, lo, hi, out)
+        runs = [one_euro(z, fs, m, b) for m, b in zip(mins, betas)]
+        out = np.array([_rmse(y, ref, lo, hi) for y in runs])
         g = int(np.argmin(out))
-        y = one_euro(z, fs, mins[g], betas[g])
-        return {"min_cutoff_hz": float(mins[g]), "beta": float(betas[g])}, float(out[g]), y
+        return {"min_cutoff_hz": float(mins[g]), "beta": float(betas[g])}, float(out[g]), runs[g]
     if family in ("cv_kf", "cv_rts"):
         lams = tracking_grid(quick)
         out = np.empty(lams.size)

@@ -11,11 +11,12 @@ import re
 import sys
 from pathlib import Path
 
-from gyrodenoise.cli.options import (add_filter_options, check_core_params, check_method_options, core_default,
-                                     filter_kw, integer, number)
+from gyrodenoise.cli.options import (METHOD_OPTIONS, add_filter_options, check_core_params, check_method_options,
+                                     core_default, filter_kw, integer, number)
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.core.methods import BY_OPTION, METHODS, PARAMS
 from gyrodenoise.errors import InputError
 
 LINK_RE = re.compile(r"^(udpin|udpout|udp|tcp|tcpin|udpbcast|serial|com\d*)[:]", re.IGNORECASE)
@@ -79,8 +80,7 @@ def register_cli(subparsers):
     # per stream, the tuning options not given take the core's defaults at the stream's rate
     form = dict(help=_filter_option_help(), metavar={"--order": "N", "--ar-order": "N", "--warmup-s": "S"},
                 strict_numbers=True, unset=("--order", "--warmup-s", "--outlier-sigma", "--outlier-run"))
-    add_filter_options(p, ("--method", "--cutoff-hz", "--order", "--zero-phase", "--causal", "--max-motion-hz",
-                           "--ar-order"), **form)
+    add_filter_options(p, ("--method", *METHOD_OPTIONS, "--ar-order"), **form)
     p.add_argument("--gap-factor", type=number, default=5.0, metavar="K",
                    help="a time step over K times the recent sample period is a restart (default 5)")
     p.add_argument("--sample-rate", type=number, default=None, metavar="HZ",
@@ -143,9 +143,8 @@ def _filter_option_help():
     """The bridge's wording of the filter options: each stream is filtered at its own rate,
     a live link as it comes."""
     return {
-        "--method": f"filter (default {DEFAULT_METHOD}: follows manoeuvres, averages at rest; "
-                    f"shakf: the paper's modified Sage-Husa AKF; kf; sh_classic; lowpass: "
-                    f"causal Butterworth at the core's default cutoff; none)",
+        "--method": f"filter (default {DEFAULT_METHOD}): "
+                    + "; ".join(f"{m.name}: {m.help}" for m in METHODS),
         "--cutoff-hz": "--method lowpass: -3 dB cutoff (default min(20 Hz, a quarter of each stream's "
                        "sample rate); the summary gives the one applied per stream)",
         "--order": f"--method lowpass: Butterworth order 1..8 (default {core_default('order')})",
@@ -225,19 +224,17 @@ def _check_filter_options(args):
                                              0 < args.sample_rate <= MAX_SAMPLE_RATE_HZ):
         raise InputError(f"--sample-rate must be a number of Hz in (0, {MAX_SAMPLE_RATE_HZ:g}], "
                          f"got {args.sample_rate:g}")
-    check_method_options(args, ("--cutoff-hz", "--order", "--zero-phase", "--causal", "--max-motion-hz"),
-                         notes={"--causal": " (the other methods are causal unless --zero-phase)"})
-    if args.max_motion_hz is not None and not (_finite_num(args.max_motion_hz) and args.max_motion_hz >= 0):
-        raise InputError(f"--max-motion-hz must be a finite number >= 0 Hz (0 = off), got {args.max_motion_hz}")
-    if args.cutoff_hz is not None and not (_finite_num(args.cutoff_hz) and args.cutoff_hz > 0):
-        raise InputError(f"--cutoff-hz must be a finite number > 0 Hz, got {args.cutoff_hz}")
-    if args.warmup_s is not None and not (_finite_num(args.warmup_s) and 0 <= args.warmup_s <= MAX_WARMUP_S):
+    check_method_options(args, METHOD_OPTIONS, notes={"--causal": " (the other methods are causal unless --zero-phase)"})
+    # each option given against the registry's range (the band options' Nyquist bound is checked
+    # per stream, at its rate, when it is filtered: a stream too slow for it is written raw)
+    for opt, par in BY_OPTION.items():
+        value = getattr(args, par.name, None)
+        why = None if value is None else par.error(value)
+        if why is not None:
+            raise InputError(f"{opt}: {why}")
+    if args.warmup_s is not None and not args.warmup_s <= MAX_WARMUP_S:
         raise InputError(f"--warmup-s must be a number of seconds in [0, {MAX_WARMUP_S:g}], "
                          f"got {args.warmup_s}")
-    if args.outlier_sigma is not None and not _finite_num(args.outlier_sigma):
-        raise InputError(f"--outlier-sigma must be 0 (off) or a finite number >= 2, got {args.outlier_sigma}")
-    if args.outlier_run is not None and args.outlier_run < 1:
-        raise InputError(f"--outlier-run must be >= 1, got {args.outlier_run}")
     try:
         # the cutoff is checked against each stream's rate when it is filtered
         # (a stream too slow for it is written raw, with the reason)
@@ -527,13 +524,15 @@ def _axis_line(s, a):
 
 def _options_text(r):
     """', Butterworth order 2, zero phase' for the low-pass; ', rigid body: --max-motion-hz 20'
-    for motion with that option; '' otherwise."""
+    for motion with that option; another method's own options (', --min-cutoff-hz 3, --beta
+    0.01, --d-cutoff-hz 1' for one_euro); '' otherwise."""
     o = r.get("filter_options") or {}
     if r.get("method") == "motion" and o.get("max_motion_hz"):
         return (f", rigid body: --max-motion-hz {o['max_motion_hz']:g} (a 4th-order low-pass flat to it, "
                 f"-3 dB at twice it or 0.45 x each stream's rate, whichever is lower)")
-    if r.get("method") != "lowpass":
-        return ""
+    if r.get("method") != "lowpass":   # another method's own options, as given or their defaults
+        own = [p for p in PARAMS if r.get("method") in p.methods and p.name in o and p.option]
+        return "".join(f", {p.option} {o[p.name]:g}" for p in own)
     return f", Butterworth order {o.get('order', 2)}, {'zero phase' if o.get('zero_phase') else 'causal'}"
 
 

@@ -3,9 +3,9 @@
 * the recording options (``IN``, ``--rate-column``, ``--time-column``, ``--rate-unit``,
   ``--sample-rate``) of ``denoise``, ``allan``, ``compare`` and ``gap``;
 * the filter options (``--method`` ... ``--outlier-run``) of ``denoise``, ``compare``,
-  ``demo`` and ``mavlink``: their defaults are read from the signature of
-  :func:`gyrodenoise.core.kernels.make_params` (and ``DEFAULT_METHOD`` / ``METHODS``),
-  never restated here;
+  ``demo`` and ``mavlink``: their spelling, type, help, range, default and the method
+  each applies to are read from the registry (:mod:`gyrodenoise.core.methods`), never
+  restated here;
 * the checks on them that the commands share: an option given with a method it does
   not apply to, and the core's own check of the values (``make_params``).
 
@@ -16,18 +16,17 @@ each stream at its own rate): :func:`add_filter_options` takes those texts.
 from __future__ import annotations
 
 import argparse
-import inspect
 
-from gyrodenoise.core import kernels
+from gyrodenoise.core import kernels, methods
 from gyrodenoise.errors import InputError
 
 
-def core_default(param):
-    """The default of ``make_params``' parameter ``param``: the one source of the filter defaults."""
-    return inspect.signature(kernels.make_params).parameters[param].default
+def core_default(param: str) -> float | int | None:
+    """The default of ``make_params``' parameter ``param``: the registry's (gyrodenoise.core.methods)."""
+    return methods.BY_PARAM[param].default
 
 
-def integer(text):
+def integer(text: str) -> int:
     """argparse type: an int, refused as ``not an integer: 'x'``."""
     try:
         return int(text)
@@ -35,7 +34,7 @@ def integer(text):
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
 
 
-def number(text):
+def number(text: str) -> float:
     """argparse type: a float, refused as ``not a number: 'x'``."""
     try:
         return float(text)
@@ -44,7 +43,8 @@ def number(text):
 
 
 # ------------------------------------------------------------------ the recording
-def add_recording_options(parser, *, input_help=None, input_optional=False, rate_unit_default="deg/s"):
+def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | None = None,
+                          input_optional: bool = False, rate_unit_default: str | None = "deg/s") -> None:
     """``IN`` and the options that say how to read it (:func:`gyrodenoise.io.recording.read_recording`).
 
     ``input_optional``: IN may be omitted (``gap --allan``); ``rate_unit_default`` None: the
@@ -59,64 +59,56 @@ def add_recording_options(parser, *, input_help=None, input_optional=False, rate
 
 
 # ------------------------------------------------------------------ the filter
-#: option -> make_params parameter, for the filter options with a value
-FILTER_PARAMS = {"--method": "method", "--cutoff-hz": "cutoff_hz", "--order": "order",
-                 "--max-motion-hz": "max_motion_hz", "--ar-order": "ar_order", "--warmup-s": "warmup_s",
-                 "--b": "b", "--gamma": "gamma", "--lam": "lam", "--outlier-sigma": "outlier_sigma",
-                 "--outlier-run": "outlier_run"}
+#: option -> make_params parameter, for the filter options with a value (the registry's)
+FILTER_PARAMS = {"--method": "method", **{opt: p.name for opt, p in methods.BY_OPTION.items()}}
 
-#: the method each method-specific option applies to
-METHOD_OF_OPTION = {"--cutoff-hz": "lowpass", "--order": "lowpass", "--zero-phase": "lowpass",
-                    "--causal": "motion", "--max-motion-hz": "motion"}
+#: the method each method-specific option applies to: the parameters of one method, and the
+#: options of the methods' offline forms
+METHOD_OF_OPTION = {**{opt: p.methods[0] for opt, p in methods.BY_OPTION.items() if len(p.methods) == 1},
+                    **{methods.OFFLINE_FORMS[m.offline][1]: m.name for m in methods.METHODS if m.offline}}
 
-#: make_params parameters whose value is an int (the others with a value are floats)
-_INT_PARAMS = ("order", "ar_order", "outlier_run")
+#: the options of one method (in the order of the help), refused with another
+METHOD_OPTIONS = tuple(METHOD_OF_OPTION)
 
-#: options whose default on the command line is None, "not given", whatever the core's:
-#: the checks tell a given option from the default (``--max-motion-hz 0`` is given: off)
-_UNSET_BY_DEFAULT = ("--cutoff-hz", "--max-motion-hz")
+
+def _offline_option(opt):
+    """The method whose offline form ``opt`` (``--zero-phase``, ``--causal``) switches, or None."""
+    return next((m for m in methods.METHODS if m.offline and methods.OFFLINE_FORMS[m.offline][1] == opt), None)
+
+
+def _default_text(p):
+    if p.default is None:
+        return ""
+    if p.off and p.default == 0:
+        return " (default 0: off)"
+    return f" (default {p.default:g})"
 
 
 def _help_texts():
-    """The filter options' help of ``denoise`` and ``compare``, with the core's defaults."""
-    d = {p: core_default(p) for p in FILTER_PARAMS.values() if p != "method"}
-    return {
-        "--method": f"filter (default: {kernels.DEFAULT_METHOD}); shakf is the paper's modified Sage-Husa AKF, "
-                    "lowpass a causal Butterworth (--cutoff-hz, --order)",
-        "--cutoff-hz": "lowpass: -3 dB cutoff (default 20 Hz, at most a quarter of the sample rate)",
-        "--order": f"lowpass: Butterworth order 1..8 (default {d['order']})",
-        "--zero-phase": "lowpass, offline: filter forwards and backwards (no lag)",
-        "--causal": "motion: the causal filter (as live, Denoiser.step and the FMUs run it); "
-                    "default on a file: offline, the forward and backward runs blended (no lag)",
-        "--max-motion-hz": "motion, rigid-body option for frames that vibrate (drones): the band of interest; "
-                           "content above it counts as error (a 4th-order Butterworth before the filter bank, "
-                           "flat to HZ, -3 dB at 2 HZ, -24 dB at 4 HZ); 0 < HZ < half the sample rate "
-                           f"(default, {d['max_motion_hz']:g}: off)",
-        "--ar-order": f"order n of the improved AR(n) model (default {d['ar_order']})",
-        "--warmup-s": "seconds after each restart with raw pass-through while the AR model converges",
-        "--b": f"Sage-Husa forgetting factor b, 0<b<1 (default {d['b']:g})",
-        "--gamma": f"divergence criterion gamma >= 1 (Eq. 32, default {d['gamma']:g})",
-        "--lam": f"RLS forgetting factor, 0<lam<=1 (default {d['lam']:g})",
-        "--outlier-sigma": "outlier gate: after the warm-up a sample with |innovation| > K sqrt(S) is kept out "
-                           "of the filter and the output is the prediction; 0 = off (the paper's filter); "
-                           f"K >= 2 (default {d['outlier_sigma']:g}, see docs/bench/outliers-soak.md)",
-        "--outlier-run": "after M consecutive rejected samples the next one is taken as a real rate change "
-                         f"and the filter restarts there (default {d['outlier_run']})",
-    }
+    """The filter options' help of ``denoise`` and ``compare``: the registry's text, the
+    method it applies to, the range and the core's default."""
+    texts = {"--method": f"filter (default: {kernels.DEFAULT_METHOD}): "
+                         + "; ".join(f"{m.name}: {m.help}" for m in methods.METHODS)}
+    for opt, p in methods.BY_OPTION.items():
+        where = f"{p.methods[0]}: " if p.methods else ""
+        rng = p.int_rule() if p.type is int else p.rule()
+        texts[opt] = f"{where}{p.help}; {rng}{_default_text(p)}".replace("%", "%%")
+    for m in methods.METHODS:
+        if m.offline:
+            _, opt, text = methods.OFFLINE_FORMS[m.offline]
+            texts[opt] = f"{m.name}: {text}"
+    return texts
 
-
-#: metavar of the filter options in the help of ``denoise`` and ``compare`` (None: argparse's)
-_METAVARS = {"--cutoff-hz": "HZ", "--max-motion-hz": "HZ", "--outlier-sigma": "K", "--outlier-run": "M"}
 
 #: the filter options of ``denoise`` (in this order); ``compare`` has those from --ar-order on
-FILTER_OPTIONS = ("--method", "--cutoff-hz", "--order", "--zero-phase", "--causal", "--max-motion-hz",
-                  "--ar-order", "--warmup-s", "--b", "--gamma", "--lam", "--outlier-sigma", "--outlier-run")
+FILTER_OPTIONS = ("--method", *METHOD_OPTIONS,
+                  *(opt for opt, p in methods.BY_OPTION.items() if not p.methods))
 #: the filter options that tune the AR model and the Kalman filters, those of ``compare``
 MODEL_OPTIONS = FILTER_OPTIONS[FILTER_OPTIONS.index("--ar-order"):]
 
 
-def add_filter_options(parser, options=FILTER_OPTIONS, *, help=None, metavar=None, strict_numbers=False,
-                       unset=()):
+def add_filter_options(parser: argparse.ArgumentParser, options=FILTER_OPTIONS, *, help: dict | None = None,
+                       metavar: dict | None = None, strict_numbers: bool = False, unset=()) -> None:
     """Add the filter ``options`` to ``parser``, each with the core's default.
 
     help, metavar : dict, optional
@@ -129,42 +121,44 @@ def add_filter_options(parser, options=FILTER_OPTIONS, *, help=None, metavar=Non
         default itself, e.g. per stream).
     """
     texts = _help_texts() | (help or {})
-    metavars = _METAVARS | (metavar or {})
+    metavars = {opt: p.metavar for opt, p in methods.BY_OPTION.items()} | (metavar or {})
     as_float, as_int = (number, integer) if strict_numbers else (float, int)
     for opt in options:
-        if opt in ("--zero-phase", "--causal"):
+        if _offline_option(opt) is not None:
             parser.add_argument(opt, action="store_true", help=texts[opt])
         elif opt == "--method":
             parser.add_argument(opt, default=kernels.DEFAULT_METHOD, choices=list(kernels.METHODS),
                                 help=texts[opt])
         else:
-            param = FILTER_PARAMS[opt]
-            default = None if opt in _UNSET_BY_DEFAULT or opt in unset else core_default(param)
-            parser.add_argument(opt, type=as_int if param in _INT_PARAMS else as_float, default=default,
+            p = methods.BY_OPTION[opt]
+            # a method's own option is "not given" by default: the checks tell it from the default
+            default = None if p.methods or p.default is None or opt in unset else p.default
+            parser.add_argument(opt, type=as_int if p.type is int else as_float, default=default,
                                 metavar=metavars.get(opt), help=texts[opt])
 
 
-def filter_kw(args):
+def filter_kw(args: argparse.Namespace) -> dict[str, float | int]:
     """The core filter parameters given on the command line, by ``make_params``' names
     (``method`` and ``ar_order`` apart): an option left at None is not passed (the
-    core's default applies); ``--cutoff-hz`` and ``--order`` only with ``--method
-    lowpass``; ``--max-motion-hz`` only with ``--method motion`` and when on (not 0)."""
+    core's default applies), nor a method's own option with another method, nor an
+    option that is off (0, the default of ``--max-motion-hz``). InputError for a method's
+    own option given with another method (:func:`check_method_options`)."""
     method = getattr(args, "method", None)
+    if method is not None:      # a method's own option given with another method: refused, not dropped
+        check_method_options(args, [o for o, p in methods.BY_OPTION.items() if p.methods and hasattr(args, p.name)])
     kw = {}
-    if method == "lowpass":
-        for param in ("cutoff_hz", "order"):
-            if getattr(args, param, None) is not None:
-                kw[param] = getattr(args, param)
-    if method == "motion" and getattr(args, "max_motion_hz", None):
-        kw["max_motion_hz"] = float(args.max_motion_hz)
-    for param in ("warmup_s", "b", "gamma", "lam", "outlier_sigma", "outlier_run"):
-        if getattr(args, param, None) is not None:
-            kw[param] = getattr(args, param)
+    for opt, p in methods.BY_OPTION.items():
+        value = getattr(args, p.name, None)
+        if p.name == "ar_order" or value is None or (p.methods and method not in p.methods):
+            continue
+        if p.off and p.methods and not value:
+            continue
+        kw[p.name] = float(value) if p.type is float and p.methods else value
     return kw
 
 
 # ------------------------------------------------------------------ checks
-def check_method_options(args, options, notes=None):
+def check_method_options(args: argparse.Namespace, options, notes: dict[str, str] | None = None) -> None:
     """InputError ``--X applies to --method M only, not N`` for the first of ``options``
     given (not None, not False) with a method it does not apply to; ``notes``: option ->
     text appended to its message."""
@@ -176,7 +170,7 @@ def check_method_options(args, options, notes=None):
                              f"{(notes or {}).get(opt, '')}")
 
 
-def option_named(message):
+def option_named(message: str) -> str:
     """The core's message about a parameter (``warmup_s out of range: ...``), naming the
     command-line option first (``--warmup-s: warmup_s out of range: ...``)."""
     for opt, param in {**FILTER_PARAMS, "--sample-rate": "sample_rate_hz"}.items():
@@ -185,7 +179,7 @@ def option_named(message):
     return message
 
 
-def check_core_params(*, name_options=False, **params):
+def check_core_params(*, name_options: bool = False, **params) -> None:
     """``make_params(**params)``: the core's own checks of a filter's parameters, a
     refusal as one line (InputError), naming the option first when ``name_options``."""
     try:

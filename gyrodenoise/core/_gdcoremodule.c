@@ -326,6 +326,33 @@ static PyObject *mod_restart(PyObject *self, PyObject *const *args, Py_ssize_t n
 PyDoc_STRVAR(layout_total_doc,
 "layout_total(n) -> int\n\nLength of the state buffer for AR order n (kernels.layout(n)[6]).");
 
+static PyObject *mod_butter_sos(PyObject *self, PyObject *args)
+{
+    int order, i, j, nsec;
+    double fc, fs, p[N_PARAMS];
+    PyObject *out;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "idd", &order, &fc, &fs))
+        return NULL;
+    if (order < 1 || order > 2 * MAX_SOS) {
+        PyErr_Format(PyExc_ValueError, "order must be in 1..%d, got %d", 2 * MAX_SOS, order);
+        return NULL;
+    }
+    nsec = gd_butter_sos(order, fc, fs, p);
+    out = PyList_New(nsec);
+    for (i = 0; out != NULL && i < nsec; i++) {
+        PyObject *sec = PyTuple_New(5);
+        if (sec == NULL) {
+            Py_CLEAR(out);
+            break;
+        }
+        for (j = 0; j < 5; j++)
+            PyTuple_SET_ITEM(sec, j, PyFloat_FromDouble(p[P_SOS + 5 * i + j]));
+        PyList_SET_ITEM(out, i, sec);
+    }
+    return out;
+}
+
 static PyObject *mod_layout_total(PyObject *self, PyObject *arg)
 {
     long n = PyLong_AsLong(arg);
@@ -531,6 +558,8 @@ static PyMethodDef methods[] = {
     {"record", (PyCFunction)(void (*)(void))mod_record, METH_FASTCALL, record_doc},
     {"restart", (PyCFunction)(void (*)(void))mod_restart, METH_FASTCALL, restart_doc},
     {"layout_total", mod_layout_total, METH_O, layout_total_doc},
+    {"butter_sos", mod_butter_sos, METH_VARARGS,
+     "butter_sos(order, cutoff_hz, fs) -> [(b0, b1, b2, a1, a2)] (gdcore.c gd_butter_sos, as kernels.butter_sos)"},
     {"sim_n_params", mod_sim_n_params, METH_O, "sim_n_params(card) -> int (gdsim.c)"},
     {"sim_params", (PyCFunction)(void (*)(void))mod_sim_params, METH_FASTCALL,
      "sim_params(card, seed, p): fill p from a card vector and a seed (gdsim.c)"},
@@ -553,14 +582,21 @@ static const struct {
     C(P_LP_CUTOFF), C(P_SOS), C(MAX_SOS), C(P_MO_NF), C(P_MO_FADE), C(P_MO_BR), C(P_MO_RESET),
     C(P_MO_NLAG), C(P_MO_HUBER), C(P_MO_KAPPA), C(P_MO_CLIP2), C(P_MO_VAR), C(P_MO_G), C(P_MO_RFIX), C(P_MO_SPEC), C(P_MO_SBB), C(P_MO_SRATIO), C(P_MO_COS),
     C(MO_SPEC_N), C(MO_SPEC_K0), C(MO_SPEC_NB), C(MO_SPEC_RANK), C(MO_HI_J0), C(MO_HI_NB), C(MO_LINE_J0), C(MO_MAX_NF), C(MO_MAX_NLAG),
-    C(N_PARAMS), C(METHOD_NONE), C(METHOD_KF), C(METHOD_SHAKF), C(METHOD_SH_CLASSIC),
-    C(METHOD_MOTION), C(METHOD_LOWPASS), C(S_K), C(S_KD), C(S_R), C(S_Q), C(S_S2), C(S_NS2),
+    C(N_PARAMS), C(P_FS), C(P_OE_MIN), C(P_OE_BETA), C(P_OE_DCUT), C(OE_X), C(OE_DX), C(OE_ZP), C(S_K), C(S_KD), C(S_R), C(S_Q), C(S_S2), C(S_NS2),
     C(S_CONV), C(S_INNOV), C(S_SVAR), C(S_NRESET), C(S_OUT), C(S_RLS_ERR), C(S_BK), C(S_NREJ),
     C(S_REJRUN), C(S_NREOPEN), C(S_ZREF), C(S_LO), C(S_HI), C(S_HOLD), C(S_NCLAMP),
     C(S_NHEAL), C(N_HEADER), C(N_EXT), C(M_R), C(M_BK), C(M_HPOS), C(M_ANG), C(M_NW), C(M_BEST), C(M_PVAR),
     C(M_MABS), C(M_HIST), C(M_BANK), C(M_LPD), C(M_SPOS), C(M_SR), C(M_SBK), C(M_SBAD), C(M_SFOLD), C(M_GEFF), C(M_NWC), C(M_LRAT), C(M_LON), C(M_CUS), C(P_MO_PT), C(P_MO_LINE), C(P_MO_CUS), C(P_MO_NCA), C(P_MO_SPECH), C(M_SRH), C(M_SBKH), C(CA_NEWTON_STEPS), C(MAX_MOTION_ORDER),
 };
 #undef C
+
+/* the methods' ids, METHOD_<NAME> (floats in kernels.py), from the registry's gdmethods.h */
+#define M(name, id) {#id, id},
+static const struct {
+    const char *name;
+    double value;
+} method_ids[] = {GD_METHODS(M)};
+#undef M
 
 static int exec_module(PyObject *m)
 {
@@ -569,11 +605,17 @@ static int exec_module(PyObject *m)
     if (d == NULL)
         return -1;
     for (i = 0; i < sizeof constants / sizeof constants[0]; i++) {
-        double v = constants[i].value;
-        /* METHOD_* are floats in kernels.py, the indices ints */
-        PyObject *o = strncmp(constants[i].name, "METHOD_", 7) == 0 ? PyFloat_FromDouble(v)
-                                                                    : PyLong_FromDouble(v);
+        PyObject *o = PyLong_FromDouble(constants[i].value);
         if (o == NULL || PyDict_SetItemString(d, constants[i].name, o) < 0) {
+            Py_XDECREF(o);
+            Py_DECREF(d);
+            return -1;
+        }
+        Py_DECREF(o);
+    }
+    for (i = 0; i < sizeof method_ids / sizeof method_ids[0]; i++) {
+        PyObject *o = PyFloat_FromDouble(method_ids[i].value);
+        if (o == NULL || PyDict_SetItemString(d, method_ids[i].name, o) < 0) {
             Py_XDECREF(o);
             Py_DECREF(d);
             return -1;

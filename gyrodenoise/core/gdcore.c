@@ -454,6 +454,103 @@ KERNEL double lowpass_step_(const double *p, double *s, double z)
     return y;
 }
 
+/* kernels.one_euro_step: the 1-euro filter (Casiez et al. 2012) on the centred sample */
+KERNEL double one_euro_step_(const double *p, double *s, double z)
+{
+    long o = layout_total_(ORDER(p)) - N_EXT;
+    double x;
+    if (s[S_K] == 0.0) {
+        x = z;
+        s[o + OE_DX] = 0.0;
+    } else {
+        double fs = p[P_FS];
+        double ad = 1.0 / (1.0 + fs / (6.283185307179586 * p[P_OE_DCUT]));
+        double dx = s[o + OE_DX], a;
+        dx = dx + ad * ((z - s[o + OE_ZP]) * fs - dx);
+        s[o + OE_DX] = dx;
+        a = 1.0 / (1.0 + fs / (6.283185307179586 * (p[P_OE_MIN] + p[P_OE_BETA] * fabs(dx))));
+        x = s[o + OE_X];
+        x = x + a * (z - x);
+    }
+    s[o + OE_X] = x;
+    s[o + OE_ZP] = z;
+    s[S_K] += 1.0;
+    s[S_CONV] = 1.0;
+    return x;
+}
+
+/* ---- kernels.butter_sos, operation for operation (complex arithmetic as CPython's): the
+ * native FMU designs its low-passes here, the extension exposes it for the tests */
+static double (*volatile libm_pow)(double, double) = pow; /* Python's float ** calls pow() */
+/* cmath.exp calls sin() and cos(): called through pointers so that gcc does not fuse them into
+ * the GNU sincos() (not in every libm; a weak reference in gdfmi_libm.h) */
+static double (*volatile libm_sin)(double) = sin;
+static double (*volatile libm_cos)(double) = cos;
+
+/* _Py_c_quot: complex division as CPython does it */
+static void py_c_quot(double ar, double ai, double br, double bi, double *rr, double *ri)
+{
+    double abs_br = br < 0 ? -br : br, abs_bi = bi < 0 ? -bi : bi;
+    if (abs_br >= abs_bi) {
+        if (abs_br == 0.0) {
+            *rr = *ri = 0.0;
+        } else {
+            double ratio = bi / br, denom = br + bi * ratio;
+            *rr = (ar + ai * ratio) / denom;
+            *ri = (ai - ar * ratio) / denom;
+        }
+    } else if (abs_bi >= abs_br) {
+        double ratio = br / bi, denom = br * ratio + bi;
+        *rr = (ar * ratio + ai) / denom;
+        *ri = (ai * ratio - ar) / denom;
+    } else {
+        *rr = *ri = NAN;
+    }
+}
+
+int gd_butter_sos(int order, double cutoff_hz, double fs, double *p)
+{
+    const double pi = 3.141592653589793; /* math.pi */
+    double fs2 = 2.0 * fs;
+    double wc = fs2 * tan(pi * cutoff_hz / fs);
+    int k, nsec = 0;
+    for (k = 0; k < order / 2; k++) {
+        /* 1j * math.pi * (2k + order + 1) / (2 order): (0, pi m) / (2N, 0) */
+        double ang_r, ang_i, cr, ci, sr, si, zr, zi, a1, a2, g;
+        py_c_quot(0.0 * (double)(2 * k + order + 1) - pi * 0.0, pi * (double)(2 * k + order + 1),
+                  (double)(2 * order), 0.0, &ang_r, &ang_i);
+        /* cmath.exp */
+        cr = exp(ang_r) * libm_cos(ang_i);
+        ci = exp(ang_r) * libm_sin(ang_i);
+        /* wc * (cr, ci) */
+        sr = wc * cr - 0.0 * ci;
+        si = wc * ci + 0.0 * cr;
+        /* (fs2 + sp) / (fs2 - sp) */
+        py_c_quot(fs2 + sr, 0.0 + si, fs2 - sr, 0.0 - si, &zr, &zi);
+        a1 = -2.0 * zr;
+        a2 = libm_pow(hypot(zr, zi), 2.0);
+        g = (1.0 + a1 + a2) / 4.0;
+        p[P_SOS + 5 * nsec + 0] = g;
+        p[P_SOS + 5 * nsec + 1] = 2.0 * g;
+        p[P_SOS + 5 * nsec + 2] = g;
+        p[P_SOS + 5 * nsec + 3] = a1;
+        p[P_SOS + 5 * nsec + 4] = a2;
+        nsec++;
+    }
+    if (order % 2) {
+        double zp = (fs2 - wc) / (fs2 + wc);
+        double g = (1.0 - zp) / 2.0;
+        p[P_SOS + 5 * nsec + 0] = g;
+        p[P_SOS + 5 * nsec + 1] = g;
+        p[P_SOS + 5 * nsec + 2] = 0.0;
+        p[P_SOS + 5 * nsec + 3] = -zp;
+        p[P_SOS + 5 * nsec + 4] = 0.0;
+        nsec++;
+    }
+    return nsec;
+}
+
+
 /* kernels.rank_mean: the mean of the MO_SPEC_RANK-th smallest of n_bins exponential
  * variables of mean 1 (the spectral floors' order-statistic bias) */
 static double rank_mean_(int n_bins)
@@ -1103,7 +1200,7 @@ KERNEL double c_deg_s_(const double *p, const double *s)
     long o = layout_(n).theta;
     double one_minus = 1.0;
     int i;
-    if (p[P_METHOD] == METHOD_MOTION || p[P_METHOD] == METHOD_LOWPASS)
+    if (p[P_METHOD] == METHOD_MOTION || p[P_METHOD] == METHOD_LOWPASS || p[P_METHOD] == METHOD_ONE_EURO)
         return 0.0;                       /* no AR model identified */
     for (i = 0; i < n; i++)
         one_minus -= s[o + i];
@@ -1119,12 +1216,13 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
     int code = 0;
     int lowpass = !bk && p[P_METHOD] == METHOD_LOWPASS;
     int motion = bk || p[P_METHOD] == METHOD_MOTION;
+    int one_euro = !bk && p[P_METHOD] == METHOD_ONE_EURO;
     double xc, out;
     if (is_restart) {
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (!lowpass && !motion && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
+    } else if (!lowpass && !motion && !one_euro && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
              && p[P_METHOD] != METHOD_NONE)     /* the flags first: no loads for lowpass */
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
@@ -1142,6 +1240,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         xc = lowpass_step_(p, s, z - s[S_ZREF]);
     else if (motion)
         xc = motion_step_(p, s, z - s[S_ZREF], bk);
+    else if (one_euro)
+        xc = one_euro_step_(p, s, z - s[S_ZREF]);
     else
         xc = filter_step_(p, s, z - s[S_ZREF]);
     if (!(healthy(p, s) && finite_(xc))) {
@@ -1156,6 +1256,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
             xc = lowpass_step_(p, s, 0.0);
         else if (motion)
             xc = motion_step_(p, s, 0.0, bk);
+        else if (one_euro)
+            xc = one_euro_step_(p, s, 0.0);
         else
             xc = filter_step_(p, s, 0.0);
     }
@@ -1854,6 +1956,7 @@ int gd_gate(const double *p, double *s, double z) { return gate_(p, s, z); }
 double gd_filter_step(const double *p, double *s, double z) { return filter_step_(p, s, z); }
 double gd_lowpass_step(const double *p, double *s, double z) { return lowpass_step_(p, s, z); }
 double gd_motion_step(const double *p, double *s, double z) { return motion_step_(p, s, z, NULL); }
+double gd_one_euro_step(const double *p, double *s, double z) { return one_euro_step_(p, s, z); }
 double gd_c_deg_s(const double *p, const double *s) { return c_deg_s_(p, s); }
 #ifdef GD_CLONES
 /* gd_step's two copies (AVX2, baseline) in a static function: an exported function

@@ -12,7 +12,7 @@
  *
  * Compile with -ffp-contract=off and without -ffast-math: no fused
  * multiply-add, no reassociation (the finiteness test v - v == 0.0 must stay).
- * Depends on libm only (fabs, exp, sqrt).
+ * Depends on libm only (fabs, exp, sqrt, log, cos; tan, hypot, pow, sin for gd_butter_sos).
  *
  * The buffers are not checked here: the caller guarantees p has GD_N_PARAMS
  * doubles, s has gd_layout_total((int)p[P_ORDER]) doubles, and
@@ -48,7 +48,11 @@ extern "C" {
 #define MAX_MOTION_ORDER 4  /* motion's rigid-body low-pass (max_motion_hz): Butterworth order, */
 #define MAX_MOTION_CUTOFF 2.0  /* -3 dB at this many times max_motion_hz, */
 #define MAX_MOTION_FS_CAP 0.45 /* at most this fraction of the sample rate (kernels.rigid_cutoff_hz) */
-#define P_MO_NF (P_SOS + 5 * MAX_SOS)   /* motion: constant-velocity filters, lanes 0..NF-1 */
+#define P_FS (P_SOS + 5 * MAX_SOS)  /* the sample rate, Hz (one_euro) */
+#define P_OE_MIN (P_FS + 1)         /* one_euro: cutoff at rest, Hz */
+#define P_OE_BETA (P_FS + 2)        /* one_euro: growth of the cutoff with |d rate / dt| */
+#define P_OE_DCUT (P_FS + 3)        /* one_euro: cutoff of the low-pass on the rate's change, Hz */
+#define P_MO_NF (P_FS + 4)              /* motion: constant-velocity filters, lanes 0..NF-1 */
 #define P_MO_FADE (P_MO_NF + 1)         /* motion: fading of the log-likelihoods */
 #define P_MO_BR (P_MO_NF + 2)           /* motion: forgetting of the noise level */
 #define P_MO_RESET (P_MO_NF + 3)        /* motion: restart gap of the log-likelihood */
@@ -83,13 +87,9 @@ extern "C" {
 #define P_MO_SPECH (P_MO_PT + 8) /* motion: the line test's floor scale 1 / (c sum w^2) over MO_HI_NB bins */
 #define N_PARAMS (P_MO_PT + 9)
 
-/* p[P_METHOD] values (doubles, compared with ==) */
-#define METHOD_NONE 0.0
-#define METHOD_KF 1.0
-#define METHOD_SHAKF 2.0
-#define METHOD_SH_CLASSIC 3.0
-#define METHOD_MOTION 4.0
-#define METHOD_LOWPASS 5.0
+/* p[P_METHOD] values (doubles, compared with ==): METHOD_* of the registry
+   (gyrodenoise/core/methods.py), generated into gdmethods.h */
+#include "gdmethods.h"
 
 /* state header s[] */
 #define S_K 0
@@ -142,6 +142,10 @@ extern "C" {
 #define M_SRH (M_CUS + MO_MAX_NF)    /* line test: its smoothed floor from the MO_HI_NB high bins (as M_SR) */
 #define M_SBKH (M_SRH + 1)           /* line test: b^(blocks+1) of that floor (as M_SBK) */
 #define N_EXT (M_SRH + 2)
+/* one_euro's state, the first floats of the method-specific block */
+#define OE_X 0
+#define OE_DX 1
+#define OE_ZP 2
 
 /* ---------------------------------------------------------------- layout */
 typedef struct {
@@ -169,8 +173,11 @@ int gd_gate(const double *p, double *s, double z);
 double gd_filter_step(const double *p, double *s, double z);
 double gd_lowpass_step(const double *p, double *s, double z);
 double gd_motion_step(const double *p, double *s, double z);
+double gd_one_euro_step(const double *p, double *s, double z);
 /* kernels.motion_params(fs) with its defaults into p[P_MO_NF ...] (the native FMU) */
 void gd_motion_params(double *p, double fs);
+/* kernels.butter_sos(order, cutoff_hz, fs) into p[P_SOS ...]; returns the number of sections */
+int gd_butter_sos(int order, double cutoff_hz, double fs, double *p);
 /* kernels.spectral_params(b, ratio) into p[P_MO_SPEC ...] (ratio < 0: off) */
 void gd_spectral_params(double *p, double b, double ratio);
 double gd_c_deg_s(const double *p, const double *s);

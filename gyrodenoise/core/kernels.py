@@ -2,7 +2,8 @@
 
 The executable specification of the core
 ----------------------------------------
-Every function here is plain scalar Python over two flat buffers of floats:
+Every function here is plain scalar Python over two flat buffers of floats (``Buf``,
+``MutBuf``):
 
 * ``p`` -- the parameters (see :func:`make_params` and the ``P_*`` indices),
 * ``s`` -- the whole filter state (see :func:`init_state` and the ``S_*`` indices).
@@ -13,7 +14,8 @@ copy, save or restore it at any sample. ``gdcore.c`` (beside this file) is the
 same functions in C99 over the same buffers, operation for operation; the
 extension :mod:`gyrodenoise.core._gdcore` runs it for :mod:`gyrodenoise.core.batch`,
 :class:`gyrodenoise.Denoiser` and the FMUs, and the tests hold it to this file
-bit for bit. This file needs nothing but ``math``: it is also the
+bit for bit. This file needs nothing but ``math`` and the method registry
+(:mod:`gyrodenoise.core.methods`, standard library only): it is also the
 fallback where the compiled core is not available (an FMU on a platform its
 bundled binary does not fit), ~20-50 us a sample. Change the maths here first,
 then mirror it in gdcore.c (the tests fail until both agree).
@@ -49,6 +51,15 @@ Choices the paper leaves open (documented in docs/method/paper.md):
 from __future__ import annotations
 
 import math
+from collections.abc import MutableSequence, Sequence
+from typing import Any, TypeAlias
+
+from . import methods as _methods
+
+#: the parameter buffer (read only) and the state buffer (written in place): lists of floats,
+#: or the C core's float64 arrays
+Buf: TypeAlias = Sequence[float]
+MutBuf: TypeAlias = MutableSequence[float]
 
 # ---------------------------------------------------------------- parameters
 P_ORDER = 0      # AR order n (>= 1)
@@ -68,7 +79,11 @@ P_LP_NSEC = 13   # lowpass, and motion's rigid-body low-pass: number of second-o
 P_LP_CUTOFF = 14  # lowpass, and motion's rigid-body low-pass: -3 dB cutoff, Hz
 P_SOS = 15       # lowpass: MAX_SOS sections of (b0, b1, b2, a1, a2), a0 = 1
 MAX_SOS = 4      # Butterworth orders 1..8
-P_MO_NF = P_SOS + 5 * MAX_SOS    # motion: number of constant-velocity (CV) filters in the bank, lanes 0..NF-1;
+P_FS = P_SOS + 5 * MAX_SOS   # the sample rate, Hz (one_euro)
+P_OE_MIN = P_FS + 1          # one_euro: cutoff at rest, Hz
+P_OE_BETA = P_FS + 2         # one_euro: growth of the cutoff with |d rate / dt|, Hz per deg/s^2
+P_OE_DCUT = P_FS + 3         # one_euro: cutoff of the low-pass on the rate's change, Hz
+P_MO_NF = P_FS + 4               # motion: number of constant-velocity (CV) filters in the bank, lanes 0..NF-1;
                                  # P_MO_NCA constant-acceleration (CA) ones follow (NF + NCA <= MO_MAX_NF)
 P_MO_FADE = P_MO_NF + 1          # motion: fading factor of the filters' log-likelihoods per sample
 P_MO_BR = P_MO_NF + 2            # motion: forgetting factor of the noise-level estimate (Sage-Husa b)
@@ -117,15 +132,17 @@ MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butter
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
 MAX_MOTION_FS_CAP = 0.45  # at most this fraction of the sample rate
 
-METHOD_NONE = 0.0      # identification only, output = raw
-METHOD_KF = 1.0        # conventional KF, fixed Q and R
-METHOD_SHAKF = 2.0     # modified Sage-Husa AKF (Section 3.2.3)
-METHOD_SH_CLASSIC = 3.0  # classic Sage-Husa, Eq. (22) and (26) unmodified
-METHOD_MOTION = 4.0      # motion-aware: true rate + acceleration, adaptive (not in the paper)
-METHOD_LOWPASS = 5.0     # causal Butterworth low-pass (not in the paper)
-METHODS = {"motion": METHOD_MOTION, "shakf": METHOD_SHAKF, "kf": METHOD_KF,
-           "sh_classic": METHOD_SH_CLASSIC, "lowpass": METHOD_LOWPASS, "none": METHOD_NONE}
-DEFAULT_METHOD = "motion"   # of gd.denoise, the CLI, the bridge and the FMU
+# p[P_METHOD] of each method: the registry's ids (gyrodenoise.core.methods, gdmethods.h)
+METHOD_NONE = _methods.BY_NAME["none"].id          # identification only, output = raw
+METHOD_KF = _methods.BY_NAME["kf"].id              # conventional KF, fixed Q and R
+METHOD_SHAKF = _methods.BY_NAME["shakf"].id        # modified Sage-Husa AKF (Section 3.2.3)
+METHOD_SH_CLASSIC = _methods.BY_NAME["sh_classic"].id  # classic Sage-Husa, Eq. (22) and (26) unmodified
+METHOD_MOTION = _methods.BY_NAME["motion"].id      # motion-aware: true rate + acceleration, adaptive (not in the paper)
+METHOD_LOWPASS = _methods.BY_NAME["lowpass"].id    # causal Butterworth low-pass (not in the paper)
+METHOD_ONE_EURO = _methods.BY_NAME["one_euro"].id  # the 1-euro filter, Casiez et al. 2012 (not in the paper)
+#: method name -> p[P_METHOD]
+METHODS = {m.name: m.id for m in _methods.METHODS}
+DEFAULT_METHOD = _methods.DEFAULT_METHOD   # of gd.denoise, the CLI, the bridge and the FMU
 
 # --------------------------------------------------------------------- state
 S_K = 0          # samples seen since the last restart
@@ -188,8 +205,13 @@ M_SRH = M_CUS + MO_MAX_NF   # line test: its smoothed floor from the MO_HI_NB hi
 M_SBKH = M_SRH + 1          # line test: b^(blocks+1) of that floor's d_k (as M_SBK)
 N_EXT = M_SRH + 2
 
+# one_euro's state, the first floats of the method-specific block:
+OE_X = 0         # the filtered (centred) rate, deg/s
+OE_DX = 1        # the filtered rate of change, deg/s^2
+OE_ZP = 2        # the last centred sample, deg/s
 
-def layout(n):
+
+def layout(n: int) -> tuple[int, int, int, int, int, int, int]:
     """Offsets of (theta, P_rls, x, P, z_hist, w, total) for AR order ``n``."""
     m = n + 1
     o_theta = N_HEADER
@@ -203,58 +225,44 @@ def layout(n):
 
 
 
-def ext_offset(p):
+def ext_offset(p: Buf) -> int:
     """Offset in the state of the method-specific block (lowpass delays, motion's
     bank and noise estimates: the ``M_*`` offsets count from it), for params ``p``."""
     return layout(int(p[P_ORDER]))[6] - N_EXT
 
-def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0,
-                b=0.99, gamma=3.0, q0=0.0, r0=0.0, p0_rls=1.0e4, p0_kf=1.0,
-                warmup_s=1.0, r_floor=1.0e-18, outlier_sigma=5.0, outlier_run=20,
-                cutoff_hz=None, order=2, max_motion_hz=0.0):
+def make_params(ar_order: int = 3, method: str = DEFAULT_METHOD, sample_rate_hz: float = 200.0,
+                **kw: float | int | None) -> list[float]:
     """Build and check the parameter buffer (a list of floats).
+
+    The keywords, their defaults, ranges and units are the registry's
+    (:data:`gyrodenoise.core.methods.PARAMS`); the main ones:
 
     Parameters
     ----------
     ar_order : int
         Order n of the improved AR(n) model, Eq. (4). n >= 1.
-    method : {"motion", "shakf", "kf", "sh_classic", "lowpass", "none"}
-        "motion" (default): follows the true rate (:func:`motion_step`);
-        "shakf", "kf", "sh_classic": filters on the AR state model (the paper);
-        "lowpass": Butterworth (``cutoff_hz``, ``order``); "none": output = input.
+    method : str
+        One of :data:`gyrodenoise.core.methods.METHODS`: "motion" (default) follows the
+        true rate (:func:`motion_step`); "shakf", "kf", "sh_classic" filter on the AR
+        state model (the paper); "lowpass" a Butterworth (``cutoff_hz``, ``order``);
+        "one_euro" the 1-euro filter (``min_cutoff_hz``, ``beta``, ``d_cutoff_hz``,
+        :func:`one_euro_step`); "none": output = input.
     sample_rate_hz : float
-        Sample rate; only used to turn ``warmup_s`` into samples.
-    lam : float
-        RLS forgetting factor in (0, 1]; 1 is the paper's plain RLS.
-    b : float
-        Sage-Husa forgetting factor in (0, 1); d_k = (1-b)/(1-b^(k+1)).
-    gamma : float
-        Strictness of the convergence criterion, Eq. (32); gamma >= 1.
-    q0, r0 : float
-        Process / measurement noise variances in (deg/s)^2; 0 selects the
-        automatic level (half the AR prediction-error variance each).
-    p0_rls, p0_kf : float
-        Initial diagonal covariance of the RLS and of the filter (> 0).
-    warmup_s : float
-        Seconds after each restart during which the model is treated as not yet
-        converged and the raw sample is passed through (>= 0). At least
-        10 (n+1) samples are always used.
-    r_floor : float
-        Lower bound for R and for the automatic noise levels, (deg/s)^2.
-    outlier_sigma : float
+        Sample rate; turns ``warmup_s`` into samples, designs the low-passes.
+    lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s, r_floor : float
+        The RLS forgetting factor (0, 1], the Sage-Husa forgetting factor (0, 1), the
+        strictness of Eq. (32) (>= 1), the noise variances (0 = automatic: half the AR
+        prediction-error variance each), the initial covariances, the warm-up after each
+        restart (raw passed through; at least 10 (n+1) samples), the floor of R.
+    outlier_sigma, outlier_run
         Innovation gate (not in the paper; docs/bench/outliers-soak.md, :func:`gate`): after
         the warm-up a sample with |v| > outlier_sigma sqrt(S) is rejected (kept out
         of the RLS, the filter and the R/Q estimators; the output is the filter's
-        prediction). 0 = off (the paper's filter); otherwise >= 2.
-    outlier_run : int
-        With the gate on: after this many consecutive rejections the filter
-        re-opens at the next outlying sample (a restart there). >= 1.
-    cutoff_hz : float or None
-        ``method="lowpass"``: -3 dB cutoff in Hz, 0 < cutoff_hz < sample_rate_hz / 2.
-        None: 20 Hz (ArduPilot's and PX4's usual gyro filter), at most a
-        quarter of the sample rate.
-    order : int
-        ``method="lowpass"``: Butterworth order, 1..8.
+        prediction); 0 = off (the paper's filter), otherwise >= 2. After ``outlier_run``
+        consecutive rejections the filter re-opens at the next outlying sample.
+    cutoff_hz, order
+        ``method="lowpass"``: -3 dB cutoff (None: 20 Hz, ArduPilot's and PX4's usual
+        gyro filter, at most a quarter of the sample rate) and Butterworth order 1..8.
     max_motion_hz : float
         ``method="motion"``, the rigid-body option: the band of interest,
         0 < max_motion_hz < sample_rate_hz / 2; content above it (a frame's
@@ -267,29 +275,40 @@ def make_params(ar_order=3, method=DEFAULT_METHOD, sample_rate_hz=200.0, lam=1.0
     ValueError
         With a one-line reason naming the parameter.
     """
-    n = _checked_order(ar_order)
-    _check_params(method, sample_rate_hz, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s,
-                  r_floor, outlier_sigma, outlier_run, max_motion_hz)
-    cutoff_hz, sos = _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz)
+    unknown = sorted(set(kw) - set(_methods.BY_PARAM))
+    if unknown:
+        raise TypeError(f"make_params() got an unexpected keyword argument {unknown[0]!r}")
+    _methods.method(method)
+    values: dict[str, Any] = {**_methods.defaults(), **kw, "ar_order": ar_order, "sample_rate_hz": sample_rate_hz}
+    fs = float(_checked(values, "sample_rate_hz", method))
+    for par in _methods.PARAMS:
+        if par.applies_to(method) or par.off:
+            _checked(values, par.name, method, fs)
+        if not par.applies_to(method) and par.off and values[par.name]:
+            raise ValueError(f"{par.name} applies to method {par.methods[0]!r} only, got method {method!r}")
+    n = int(values["ar_order"])
+    cutoff_hz, sos = _lowpass_sections(method, fs, values["cutoff_hz"], values["order"],
+                                       values["max_motion_hz"])
     p = [0.0] * N_PARAMS
-    p[P_ORDER] = float(n)
+    for par in _methods.PARAMS:
+        if par.slot is not None and par.applies_to(method):
+            p[globals()[par.slot]] = float(values[par.name])
     p[P_METHOD] = METHODS[method]
-    p[P_LAM] = float(lam)
-    p[P_B] = float(b)
-    p[P_GAMMA] = float(gamma)
-    p[P_Q0] = float(q0)
-    p[P_R0] = float(r0)
-    p[P_P0_RLS] = float(p0_rls)
-    p[P_P0_KF] = float(p0_kf)
-    p[P_WARMUP] = max(float(round(warmup_s * sample_rate_hz)), 10.0 * (n + 1))
-    p[P_R_FLOOR] = float(r_floor)
-    p[P_OUTLIER_SIGMA] = float(outlier_sigma)
-    p[P_OUTLIER_RUN] = float(int(outlier_run))
+    p[P_WARMUP] = max(float(round(values["warmup_s"] * fs)), 10.0 * (n + 1))
     if method == "motion":
-        for i, v in enumerate(motion_params(sample_rate_hz)):
+        for i, v in enumerate(motion_params(fs)):
             p[P_MO_NF + i] = v
     _write_sections(p, cutoff_hz, sos)
     return p
+
+
+def _checked(values, name, method, fs=None):
+    """``values[name]``, ValueError with the registry's reason if it is out of range."""
+    v = values[name]
+    if v is None and _methods.BY_PARAM[name].default is None:
+        return v
+    _methods.check(name, v, fs)
+    return v
 
 
 def _write_sections(p, cutoff_hz, sos):
@@ -303,49 +322,11 @@ def _write_sections(p, cutoff_hz, sos):
             p[P_SOS + 5 * i + j] = sec[j]
 
 
-def _checked_order(ar_order):
-    """The AR order as an int, or ValueError when it is not an integer >= 1."""
-    n = int(ar_order)
-    if n != ar_order or n < 1:
-        raise ValueError(f"ar_order must be an integer >= 1, got {ar_order!r}")
-    return n
-
-
-def _check_params(method, sample_rate_hz, lam, b, gamma, q0, r0, p0_rls, p0_kf, warmup_s,
-                  r_floor, outlier_sigma, outlier_run, max_motion_hz):
-    """ValueError naming the first of :func:`make_params`'s scalar parameters out of
-    range (each must also be finite)."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
-    checks = [
-        ("sample_rate_hz", sample_rate_hz, sample_rate_hz > 0, "> 0 Hz"),
-        ("lam", lam, 0 < lam <= 1, "0 < lam <= 1"),
-        ("b", b, 0 < b < 1, "0 < b < 1"),
-        ("gamma", gamma, gamma >= 1, ">= 1"),
-        ("q0", q0, q0 >= 0, ">= 0 (deg/s)^2, 0 = automatic"),
-        ("r0", r0, r0 >= 0, ">= 0 (deg/s)^2, 0 = automatic"),
-        ("p0_rls", p0_rls, p0_rls > 0, "> 0"),
-        ("p0_kf", p0_kf, p0_kf > 0, "> 0 (deg/s)^2"),
-        ("warmup_s", warmup_s, warmup_s >= 0, ">= 0 s"),
-        ("r_floor", r_floor, r_floor > 0, "> 0 (deg/s)^2"),
-        ("outlier_sigma", outlier_sigma, outlier_sigma == 0 or outlier_sigma >= 2, "0 (off) or >= 2"),
-        ("max_motion_hz", max_motion_hz, 0 <= max_motion_hz < 0.5 * sample_rate_hz,
-         f"0 (off) or > 0 and below half the sample rate, {0.5 * sample_rate_hz:g} Hz"),
-    ]
-    for name, value, ok, rule in checks:
-        if not (ok and value == value and abs(value) != float("inf")):
-            raise ValueError(f"{name} out of range: {value!r} (must be {rule})")
-    if int(outlier_run) != outlier_run or outlier_run < 1:
-        raise ValueError(f"outlier_run must be an integer >= 1, got {outlier_run!r}")
-
-
 def _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz):
     """(cutoff_hz, second-order sections) of the Butterworth low-pass the method runs:
     the rigid-body low-pass of ``motion`` with ``max_motion_hz`` > 0, the ``lowpass``
-    method's filter, or (cutoff_hz, []) for none. ValueError for a cutoff or order out of
-    range, or ``max_motion_hz`` with a method other than ``motion``."""
-    if method != "motion" and max_motion_hz > 0:
-        raise ValueError(f"max_motion_hz applies to method 'motion' only, got method {method!r}")
+    method's filter, or (cutoff_hz, []) for none. ValueError for a default cutoff out of
+    range (a sample rate below 0 Hz cannot take)."""
     if max_motion_hz > 0:
         cutoff_hz = rigid_cutoff_hz(float(max_motion_hz), float(sample_rate_hz))
         return cutoff_hz, butter_sos(MAX_MOTION_ORDER, cutoff_hz, float(sample_rate_hz))
@@ -353,15 +334,10 @@ def _lowpass_sections(method, sample_rate_hz, cutoff_hz, order, max_motion_hz):
         return cutoff_hz, []
     if cutoff_hz is None:
         cutoff_hz = min(20.0, 0.25 * sample_rate_hz)
-    if not (0.0 < cutoff_hz < 0.5 * sample_rate_hz):
-        raise ValueError(f"cutoff_hz out of range: {cutoff_hz!r} (must be > 0 and below "
-                         f"half the sample rate, {0.5 * sample_rate_hz:g} Hz)")
-    if int(order) != order or not 1 <= order <= 2 * MAX_SOS:
-        raise ValueError(f"order must be an integer 1..{2 * MAX_SOS}, got {order!r}")
     return cutoff_hz, butter_sos(int(order), float(cutoff_hz), float(sample_rate_hz))
 
 
-def rigid_cutoff_hz(max_motion_hz, sample_rate_hz):
+def rigid_cutoff_hz(max_motion_hz: float, sample_rate_hz: float) -> float:
     """-3 dB point of the rigid-body low-pass for a stated band ``max_motion_hz``:
     MAX_MOTION_CUTOFF x max_motion_hz, at most MAX_MOTION_FS_CAP x the sample rate
     (the native FMU repeats these operations). With the Butterworth of order
@@ -372,7 +348,7 @@ def rigid_cutoff_hz(max_motion_hz, sample_rate_hz):
     return cap if fc > cap else fc
 
 
-def cv_gains(tracking_index):
+def cv_gains(tracking_index: float) -> tuple[float, float, float]:
     """Steady-state gains (alpha on the rate, beta on its change per sample) of
     the constant-velocity Kalman filter with white-noise acceleration of
     tracking index lam = sigma_w T^2 / sigma_v (Kalata 1984, "The tracking
@@ -388,7 +364,7 @@ def cv_gains(tracking_index):
 CA_NEWTON_STEPS = 60   # ca_gains: Newton steps on its cubic from u = 1 (a fixed count: the same bits in C)
 
 
-def ca_gains(tracking_index):
+def ca_gains(tracking_index: float) -> tuple[float, float, float, float, float]:
     """Steady-state gains of the constant-acceleration Kalman filter: state
     [omega, a, j] (rate, its change per sample, the change of a per sample),
     omega += a + j / 2, a += j, j += white noise w, G = [1/2, 1, 1]^T, process
@@ -415,11 +391,13 @@ def ca_gains(tracking_index):
     return alpha, beta, gamma, -math.log(1.0 - alpha), lam * lam
 
 
-def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_lambda_max=2.0,
-                  n_accel=3, log10_accel_min=-2.0, log10_accel_max=0.0,
-                  tau_l_s=3.0, r_tau_s=10.0, reset=20.0, n_lag=6, huber=4.0, tau_angle_s=30.0,
-                  clip_sigma=4.0, spectral=1.5, pass_tau_s=0.02, pass_gain=(0.7, 0.95), line=10.0,
-                  cusum_tau_s=0.1, cusum_weight=1.0, cusum_sigma=3.75):
+def motion_params(sample_rate_hz: float, n_filters: int = 13, log10_lambda_min: float = -10.0,
+                  log10_lambda_max: float = 2.0, n_accel: int = 3, log10_accel_min: float = -2.0,
+                  log10_accel_max: float = 0.0, tau_l_s: float = 3.0, r_tau_s: float = 10.0, reset: float = 20.0,
+                  n_lag: int = 6, huber: float = 4.0, tau_angle_s: float = 30.0, clip_sigma: float = 4.0,
+                  spectral: float = 1.5, pass_tau_s: float = 0.02, pass_gain: tuple[float, float] = (0.7, 0.95),
+                  line: float = 10.0, cusum_tau_s: float = 0.1, cusum_weight: float = 1.0,
+                  cusum_sigma: float = 3.75) -> list[float]:
     """The constants of ``method="motion"`` (:func:`motion_step`), one default
     for every sensor (they are relative to the noise level the filter reads
     from the data; times are turned into samples here). Measured against
@@ -465,17 +443,17 @@ def motion_params(sample_rate_hz, n_filters=13, log10_lambda_min=-10.0, log10_la
         gains[3 * MO_MAX_NF + i], gains[4 * MO_MAX_NF + i] = g, lam2
     pt = [1.0 / max(pass_tau_s * fs, 1.0) if pass_tau_s > 0 else 0.0, float(pass_gain[0]), float(pass_gain[1])]
     sp = spectral_params(p[2], spectral)
-    c = rank_mean(MO_HI_NB)
-    ln = [float(line) / c if line > 0 and sp[0] > 0 else 0.0]
+    ch = rank_mean(MO_HI_NB)
+    ln = [float(line) / ch if line > 0 and sp[0] > 0 else 0.0]
     cu = [0.0, 0.0, 0.0]
     if cusum_tau_s > 0 and cusum_weight > 0:
         fc = math.exp(-1.0 / max(cusum_tau_s * fs, 1.0))
         cu = [fc, float(cusum_weight), float(cusum_sigma) ** 2 / (1.0 - fc * fc)]
-    sph = [1.0 / (c * (0.375 * MO_SPEC_N)) if sp[0] > 0 else 0.0]   # as P_MO_SPEC, for MO_HI_NB bins
+    sph = [1.0 / (ch * (0.375 * MO_SPEC_N)) if sp[0] > 0 else 0.0]   # as P_MO_SPEC, for MO_HI_NB bins
     return p + gains + [0.0] + sp + pt + ln + cu + [float(n_accel)] + sph
 
 
-def rank_mean(n_bins):
+def rank_mean(n_bins: int) -> float:
     """Mean of the MO_SPEC_RANK-th smallest of ``n_bins`` independent exponential
     variables of mean 1 (Renyi): sum over i < MO_SPEC_RANK of 1 / (n_bins - i); the
     spectral floors' order-statistic bias (:func:`spectral_params`)."""
@@ -485,7 +463,7 @@ def rank_mean(n_bins):
     return c
 
 
-def spectral_params(b, ratio=1.0):
+def spectral_params(b: float, ratio: float = 1.0) -> list[float]:
     """Parameters of :func:`spectral_floor` (p[P_MO_SPEC ...]) for the per-sample
     forgetting factor ``b`` of the noise level; the spectral estimate replaces
     the lag estimate where it is below it by more than ``ratio`` (1.0: R is the
@@ -507,7 +485,7 @@ def spectral_params(b, ratio=1.0):
     return [1.0 / (c * (0.375 * MO_SPEC_N)), bb, float(ratio)] + cos_tab
 
 
-def butter_sos(order, cutoff_hz, sample_rate_hz):
+def butter_sos(order: int, cutoff_hz: float, sample_rate_hz: float) -> list[tuple[float, float, float, float, float]]:
     """Digital Butterworth low-pass as second-order sections [(b0, b1, b2, a1, a2)].
 
     The analog prototype's poles exp(i pi (2k + N + 1) / (2N)), scaled to the
@@ -535,7 +513,7 @@ def butter_sos(order, cutoff_hz, sample_rate_hz):
     return sos
 
 
-def init_state(p):
+def init_state(p: Buf) -> list[float]:
     """A fresh state buffer (list of floats) for parameters ``p``."""
     n = int(p[P_ORDER])
     s = [0.0] * layout(n)[6]
@@ -543,7 +521,7 @@ def init_state(p):
     return s
 
 
-def restart(p, s):
+def restart(p: Buf, s: MutBuf) -> None:
     """Re-initialise identification and filter (a gyro restart), in place.
 
     The cumulative counters S_NREJ, S_NREOPEN, S_NCLAMP and S_NHEAL are kept.
@@ -582,7 +560,7 @@ def _rls_gain(p, s, o_prls, o_z, o_w, n, m):
     return den
 
 
-def rls_update(p, s, z):
+def rls_update(p: Buf, s: MutBuf, z: float) -> float:
     """One RLS step of the improved AR(n) model, Eq. (8)-(11); returns e.
 
     Regressor Z_(h+1) = [z_{k-1} ... z_{k-n} 1] (Eq. 8); the past samples are
@@ -638,7 +616,7 @@ def rls_update(p, s, z):
     return e
 
 
-def kf_predict(p, s, q):
+def kf_predict(p: Buf, s: MutBuf, q: float) -> float:
     """Time update on the AR state model, Eq. (34); returns the prediction of z.
 
     X = [z_k ... z_{k-n+1}, c], A = [[phi_1..phi_n, 1], [I 0 0], [0 .. 0 1]].
@@ -680,7 +658,7 @@ def kf_predict(p, s, q):
     return x0
 
 
-def kf_update(p, s, v, r):
+def kf_update(p: Buf, s: MutBuf, v: float, r: float) -> float:
     """Measurement update with H = [1 0 ... 0], Eq. (35); returns S = HPH' + r.
 
     K = P H' / S, x += K v, P = P - P H' H P / S (equal to the Joseph form for
@@ -708,7 +686,7 @@ def kf_update(p, s, v, r):
     return svar
 
 
-def start_filter(p, s):
+def start_filter(p: Buf, s: MutBuf) -> None:
     """(Re)start the filter from the identified model at the end of warm-up.
 
     X = [z_{k-1} ... z_{k-n}, c_rls] (the last n raw samples and the RLS
@@ -725,7 +703,7 @@ def start_filter(p, s):
     tie_c(p, s)
 
 
-def tie_c(p, s):
+def tie_c(p: Buf, s: MutBuf) -> None:
     """Set the filter's c state to the RLS estimate of c (Eq. 4).
 
     The RLS identifies phi and c jointly; least squares with an intercept keeps
@@ -748,7 +726,7 @@ def tie_c(p, s):
     s[o_p + n * m + n] = p[P_R_FLOOR]
 
 
-def ar_stable(a, o_a, n, w, o_w):
+def ar_stable(a: Buf, o_a: int, n: int, w: MutBuf, o_w: int) -> bool:
     """True if the AR(n) model with phi_i = a[o_a + i - 1] is stable.
 
     Tests the polynomial 1 - phi_1 q^-1 - ... - phi_n q^-n (Eq. 4) with the
@@ -778,7 +756,7 @@ def ar_stable(a, o_a, n, w, o_w):
     return True
 
 
-def gate(p, s, z):
+def gate(p: Buf, s: MutBuf, z: float) -> int:
     """Innovation gate against single wild samples (not in the paper).
 
     ``z`` is the centred sample (see :func:`step`). Predicts the innovation
@@ -847,7 +825,7 @@ def gate(p, s, z):
     return 1
 
 
-def filter_step(p, s, z):
+def filter_step(p: Buf, s: MutBuf, z: float) -> float:
     """Identification and filter for one accepted, centred sample ``z``;
     returns the centred filter estimate (or ``z`` itself while warming up).
     Called by :func:`step`, which owns restarts, the gate and the envelope."""
@@ -938,7 +916,7 @@ def filter_step(p, s, z):
     return out
 
 
-def sos_cascade(p, s, o, z):
+def sos_cascade(p: Buf, s: MutBuf, o: int, z: float) -> float:
     """One sample ``z`` through the Butterworth cascade of p[P_SOS ...]
     (transposed direct form II, as ``scipy.signal.sosfilt``), its delays at
     s[o], s[o + 1] (first section), ...; returns the output."""
@@ -952,7 +930,7 @@ def sos_cascade(p, s, o, z):
     return y
 
 
-def lowpass_step(p, s, z):
+def lowpass_step(p: Buf, s: MutBuf, z: float) -> float:
     """One sample of the Butterworth cascade (:func:`sos_cascade`) on the
     centred sample ``z``; the delays start at 0, which is the steady state for
     the first sample (centred to 0)."""
@@ -962,7 +940,33 @@ def lowpass_step(p, s, z):
     return y
 
 
-def exp_neg(x):
+def one_euro_step(p: Buf, s: MutBuf, z: float) -> float:
+    """One centred sample ``z`` through the 1-euro filter (Casiez, Roussel, Vogel,
+    CHI 2012): a first-order low-pass whose cutoff is p[P_OE_MIN] + p[P_OE_BETA] x
+    |dz/dt|, dz/dt the rate's change per second through a first-order low-pass of
+    cutoff p[P_OE_DCUT]; each low-pass's weight is alpha = 1 / (1 + fs / (2 pi fc)).
+    The first sample since the restart is passed through (the filter starts on it)."""
+    o = ext_offset(p)
+    if s[S_K] == 0.0:
+        x = z
+        s[o + OE_DX] = 0.0
+    else:
+        fs = p[P_FS]
+        ad = 1.0 / (1.0 + fs / (6.283185307179586 * p[P_OE_DCUT]))
+        dx = s[o + OE_DX]
+        dx = dx + ad * ((z - s[o + OE_ZP]) * fs - dx)
+        s[o + OE_DX] = dx
+        a = 1.0 / (1.0 + fs / (6.283185307179586 * (p[P_OE_MIN] + p[P_OE_BETA] * abs(dx))))
+        x = s[o + OE_X]
+        x = x + a * (z - x)
+    s[o + OE_X] = x
+    s[o + OE_ZP] = z
+    s[S_K] += 1.0
+    s[S_CONV] = 1.0
+    return x
+
+
+def exp_neg(x: float) -> float:
     """exp(x) for -30 <= x <= 0 (0.0 below): the Taylor polynomial of degree 2
     at x / 256, squared 8 times; relative error < 3e-6 for x >= -1, < 2 % at
     -20 (weights below 2e-9 there). The weights of the motion bank need no
@@ -977,7 +981,7 @@ def exp_neg(x):
     return e
 
 
-def log1m_small(g):
+def log1m_small(g: float) -> float:
     """-log(1 - g) for 0 <= g <= 0.125 by its series to g^8 (error < 1e-9
     relative), with math.log above: the log-likelihood penalty of the
     growing-memory gain, one per sample (gdcore.c repeats these operations)."""
@@ -996,7 +1000,7 @@ def _forget_weight(b, bk):
     return (1.0 - b) / den
 
 
-def spectral_floor(p, s, o, z, k):
+def spectral_floor(p: Buf, s: MutBuf, o: int, z: float, k: float) -> float:
     """The sensor's white-noise variance R read from the spectrum:
     a floor that vibration tones do not lift. Returns the current estimate,
     (deg/s)^2, 0.0 before the first block. ``o``: offset of motion's state,
@@ -1125,7 +1129,7 @@ def _floor_update(p, s, i_m, i_bk, xb):
     return m
 
 
-def motion_step(p, s, z):
+def motion_step(p: Buf, s: MutBuf, z: float) -> float:
     """``method="motion"``: one centred sample ``z`` through a bank of
     constant-velocity Kalman filters weighted by their likelihoods (not in the
     paper).
@@ -1404,6 +1408,8 @@ def _method_step(p, s, zc):
         return lowpass_step(p, s, zc)
     if p[P_METHOD] == METHOD_MOTION:
         return motion_step(p, s, zc)
+    if p[P_METHOD] == METHOD_ONE_EURO:
+        return one_euro_step(p, s, zc)
     return filter_step(p, s, zc)
 
 
@@ -1419,7 +1425,7 @@ def _healthy(p, s):
             and _finite(s[S_Q]) and _finite(s[S_RLS_ERR]) and _finite(s[S_S2]))
 
 
-def step(p, s, z, is_restart):
+def step(p: Buf, s: MutBuf, z: float, is_restart: bool) -> float:
     """Process one raw sample ``z`` (deg/s); returns the output (deg/s).
 
     ``is_restart`` true re-initialises everything first (the gyro restarted and
@@ -1444,7 +1450,8 @@ def step(p, s, z, is_restart):
     if is_restart:
         restart(p, s)
     elif (p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE
-          and p[P_METHOD] != METHOD_LOWPASS and p[P_METHOD] != METHOD_MOTION):
+          and p[P_METHOD] != METHOD_LOWPASS and p[P_METHOD] != METHOD_MOTION
+          and p[P_METHOD] != METHOD_ONE_EURO):
         code = gate(p, s, z - s[S_ZREF])
     if s[S_K] == 0.0:
         s[S_ZREF] = z
@@ -1480,19 +1487,19 @@ def step(p, s, z, is_restart):
 
 
 # ------------------------------------------------------------------ readouts
-def phi(p, s):
+def phi(p: Buf, s: MutBuf) -> list[float]:
     """Current AR parameters [phi_1 ... phi_n] (list)."""
     n = int(p[P_ORDER])
     o = layout(n)[0]
     return [float(s[o + i]) for i in range(n)]
 
 
-def c_deg_s(p, s):
+def c_deg_s(p: Buf, s: MutBuf) -> float:
     """Constant term c of the improved AR model, Eq. (4), deg/s, for the raw
     (uncentred) samples: the state holds c for z - z_ref (see :func:`step`),
     and z = sum phi_i z_{k-i} + c holds with c = c_ref + (1 - sum phi) z_ref.
-    0.0 for the methods that identify no AR model (motion, lowpass)."""
-    if p[P_METHOD] == METHOD_MOTION or p[P_METHOD] == METHOD_LOWPASS:
+    0.0 for the methods that identify no AR model (motion, lowpass, one_euro)."""
+    if p[P_METHOD] == METHOD_MOTION or p[P_METHOD] == METHOD_LOWPASS or p[P_METHOD] == METHOD_ONE_EURO:
         return 0.0
     n = int(p[P_ORDER])
     o = layout(n)[0]
@@ -1502,12 +1509,12 @@ def c_deg_s(p, s):
     return s[o + n] + one_minus * s[S_ZREF]
 
 
-def rls_c(p, s):
+def rls_c(p: Buf, s: MutBuf) -> float:
     """Current constant term c of the improved AR model, Eq. (4), deg/s."""
     return float(c_deg_s(p, s))
 
 
-def filter_state(p, s):
+def filter_state(p: Buf, s: MutBuf) -> list[float]:
     """Filter state estimate [z_k ... z_{k-n+1}, c] (list), deg/s."""
     n = int(p[P_ORDER])
     o = layout(n)[2]
@@ -1515,7 +1522,7 @@ def filter_state(p, s):
             + [float(s[o + n] + (1.0 - sum(phi(p, s))) * s[S_ZREF])])
 
 
-def filter_cov(p, s):
+def filter_cov(p: Buf, s: MutBuf) -> list[list[float]]:
     """Filter covariance P as a list of rows."""
     n = int(p[P_ORDER])
     m = n + 1
@@ -1523,7 +1530,7 @@ def filter_cov(p, s):
     return [[float(s[o + i * m + j]) for j in range(m)] for i in range(m)]
 
 
-def rls_cov(p, s):
+def rls_cov(p: Buf, s: MutBuf) -> list[list[float]]:
     """RLS covariance as a list of rows."""
     n = int(p[P_ORDER])
     m = n + 1

@@ -16,12 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from gyrodenoise.core.kernels import DEFAULT_METHOD
+from gyrodenoise.core.methods import BY_NAME, BY_PARAM, METHODS, PARAMS
 from gyrodenoise.errors import InputError
 
 ENGINES = ("native", "fmu")
 
 
-def _params(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
+def _params(method: str, ar_order: int, rate_hz: float, warmup_s: float | None = None,
+            filter_kw: dict | None = None) -> list[float]:
     from gyrodenoise.core import kernels as K
     kw = dict(filter_kw or {})
     if warmup_s is not None:
@@ -29,13 +31,14 @@ def _params(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
     return K.make_params(ar_order=ar_order, method=method, sample_rate_hz=rate_hz, **kw)
 
 
-def warmup_samples(method, ar_order, rate_hz, warmup_s=None, filter_kw=None):
+def warmup_samples(method: str, ar_order: int, rate_hz: float, warmup_s: float | None = None,
+                   filter_kw: dict | None = None) -> int:
     """Samples after each restart that the core passes through raw (its warm-up rule)."""
     from gyrodenoise.core import kernels as K
     try:
         return int(_params(method, ar_order, rate_hz, warmup_s, filter_kw)[K.P_WARMUP])
     except ValueError:          # e.g. a cutoff this rate cannot take: the warm-up without it
-        kw = {k: v for k, v in (filter_kw or {}).items() if k not in ("cutoff_hz", "order", "max_motion_hz")}
+        kw = {k: v for k, v in (filter_kw or {}).items() if not BY_PARAM[k].methods}   # a method's own
         return int(_params(method, ar_order, rate_hz, warmup_s, kw)[K.P_WARMUP])
 
 
@@ -54,7 +57,7 @@ class _Settings:
         """The low-pass's effective -3 dB cutoff at ``rate_hz`` (the default is
         min(20 Hz, rate / 4)); None for the other methods or a rate it cannot take."""
         from gyrodenoise.core import kernels as K
-        if self.method != "lowpass":
+        if not BY_PARAM["cutoff_hz"].applies_to(self.method):
             return None
         try:
             return float(_params(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)[K.P_LP_CUTOFF])
@@ -72,8 +75,9 @@ class NativeEngine(_Settings):
 
     def __init__(self, method=DEFAULT_METHOD, ar_order=3, warmup_s=None, filter_kw=None, zero_phase=False,
                  offline=False):
-        if offline and method != "motion":
-            raise InputError(f"the offline form is defined for --method motion only, not {method}")
+        if offline and (method not in BY_NAME or BY_NAME[method].offline != "smoother"):
+            owners = [m.name for m in METHODS if m.offline == "smoother"]
+            raise InputError(f"the offline form is defined for --method {', '.join(owners)} only, not {method}")
         self.method = method
         self.ar_order = int(ar_order)
         self.warmup_s = warmup_s
@@ -101,7 +105,7 @@ class NativeEngine(_Settings):
         pass
 
 
-def default_fmu_path():
+def default_fmu_path() -> Path:
     """``$GYRODENOISE_FMU``, else ``build/FogDenoiser.fmu`` of the source tree or the cwd."""
     env = os.environ.get("GYRODENOISE_FMU")
     if env:
@@ -120,8 +124,8 @@ class FmuEngine(_Settings):
     #: the FMU steps one sample at a time: always the causal filter
     causal = True
 
-    #: core parameter name -> FMU parameter name, where they differ
-    FMU_NAMES = {"order": "lowpass_order"}
+    #: core parameter name -> FMU parameter name (the registry's; they differ for the low-pass order)
+    FMU_NAMES = {p.name: p.fmu for p in PARAMS if p.fmu}
 
     def __init__(self, method=DEFAULT_METHOD, ar_order=3, fmu_path=None, warmup_s=None, filter_kw=None,
                  zero_phase=False):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from gyrodenoise.analysis import motion_metrics as mm
+from gyrodenoise.core.methods import BY_NAME, PARAMS
 from gyrodenoise.core.sessions import sessions
 from gyrodenoise.errors import InputError
 from gyrodenoise.flightlog.checks import check_filtered, usable_samples
@@ -76,10 +77,10 @@ def _accepts(s, engine, rate):
 
 #: the band options (Hz) checked against each stream's rate: core parameter -> CLI option.
 #: One rule for both: below half the stream's rate (its Nyquist frequency)
-BAND_OPTIONS = {"cutoff_hz": "--cutoff-hz", "max_motion_hz": "--max-motion-hz"}
+BAND_OPTIONS = {p.name: p.option for p in PARAMS if p.nyquist and p.option}
 
 
-def refused_band_option(exc, filter_kw):
+def refused_band_option(exc: Exception, filter_kw: dict | None) -> tuple[str, float] | None:
     """(CLI option, value) of the band option the core's ``exc`` (ValueError of a
     rate check) refused, or None when it was something else."""
     for param, option in BAND_OPTIONS.items():
@@ -124,13 +125,15 @@ def _apply_safety_net(s, engine, x, f, back, usable, rate, sample_rate):
     return f
 
 
-def not_filtered_reason(s, method, warmup_samples, rate, sample_rate=None):
+def not_filtered_reason(s, method: str, warmup_samples: int, rate: float,
+                        sample_rate: float | None = None) -> str:
     """Why the filter's output of stream ``s`` equals its input on every sample."""
-    if method == "none":
-        return "--method none: output = input"
+    m = BY_NAME[method]
+    if not m.filters:
+        return f"--method {method}: output = input"
     runs = sessions(s.n, s.restarts)
     longest = max(b - a for a, b in runs)
-    if method != "lowpass" and longest <= warmup_samples:
+    if m.warmup and longest <= warmup_samples:
         each = "its one session is" if len(runs) == 1 else f"each of its {len(runs)} sessions is at most"
         return (f"{each} {longest} samples, not longer than the filter's warm-up of {warmup_samples} samples "
                 f"at {rate:.4g} Hz{' (--sample-rate)' if sample_rate else ''}, during which the raw samples "
@@ -168,12 +171,14 @@ def filter_form(eng, engine):
                                            "Denoiser.step and the FMUs)"}
 
 
-def filter_options(method, filter_kw, zero_phase):
-    """The report's ``filter_options``: the method's options as given, and for the
-    low-pass its defaults spelled out."""
+def filter_options(method: str, filter_kw: dict | None, zero_phase: bool) -> dict:
+    """The report's ``filter_options``: the method's options as given, its own
+    parameters' defaults spelled out (the low-pass's, the 1-euro filter's), and
+    ``zero_phase`` for a method whose offline form it is."""
     options = dict(filter_kw or {})
-    if method == "lowpass":
-        options.setdefault("cutoff_hz", None)          # None: the default, min(20 Hz, rate / 4)
-        options.setdefault("order", 2)
+    for p in PARAMS:
+        if method in p.methods and not p.off:
+            options.setdefault(p.name, p.default)   # lowpass's cutoff_hz None: min(20 Hz, rate / 4)
+    if method in BY_NAME and BY_NAME[method].offline == "zero_phase":
         options["zero_phase"] = bool(zero_phase)
     return options

@@ -27,10 +27,10 @@ FMU_SRC = Path(__file__).resolve().parent / "sources"
 #: model name -> (slave script, modules of the package bundled as ``gdcore``, paths relative to
 #: PACKAGE_DIR); the variable declaration ``fmu/variables.py`` is bundled with each
 FMUS = {
-    "FogDenoiser": ("fogdenoiser_fmu.py", ("core/__init__.py", "core/kernels.py", "denoiser.py", "errors.py",
-                                           "fmu/variables.py")),
-    "SimulatedFog": ("simulatedfog_fmu.py", ("core/__init__.py", "core/simkernels.py", "errors.py",
-                                             "simulator.py", "units.py", "fmu/variables.py")),
+    "FogDenoiser": ("fogdenoiser_fmu.py", ("core/__init__.py", "core/kernels.py", "core/methods.py", "denoiser.py",
+                                           "errors.py", "fmu/variables.py")),
+    "SimulatedFog": ("simulatedfog_fmu.py", ("core/__init__.py", "core/methods.py", "core/simkernels.py",
+                                             "errors.py", "simulator.py", "units.py", "fmu/variables.py")),
 }
 
 

@@ -33,6 +33,7 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
+from gyrodenoise._version import __version__
 from gyrodenoise.errors import InputError
 from gyrodenoise.fmu.nativemodel import CORE_DIR, LAYER_FILES, NATIVE_SRC, NativeModel
 from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
@@ -58,7 +59,7 @@ LOG_CATEGORIES = [
 
 #: FogDenoiserNative: the denoiser's hooks (fogdenoiser_native.c) over the core gdcore.c
 DENOISER = NativeModel(MODEL_NAME, DENOISER_DESCRIPTION, FOG_DENOISER, DEFAULT_STEP_SIZE_S, C_SOURCE,
-                       UNITY_SOURCE, (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h"), UNITS,
+                       UNITY_SOURCE, (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h", CORE_DIR / "gdmethods.h"), UNITS,
                        header_lines=(f"#define GD_MAX_AR_ORDER {MAX_AR_ORDER}",),
                        extra_sources=("fogdenoiser_params.c",))
 #: every native FMU
@@ -73,7 +74,7 @@ def value_references():
 def _model_header(spec, guid):
     return ['<?xml version="1.0" encoding="UTF-8"?>',
             f'<fmiModelDescription fmiVersion="2.0" modelName="{spec.name}" guid="{guid}" '
-            f'description={quoteattr(spec.description)} author="gyrodenoise" version="0.1.0" license="MIT" '
+            f'description={quoteattr(spec.description)} author="gyrodenoise" version="{__version__}" license="MIT" '
             'generationTool="gyrodenoise.fmu.native" variableNamingConvention="flat" '
             'numberOfEventIndicators="0">',
             f'  <CoSimulation modelIdentifier="{spec.name}" needsExecutionTool="false" '

@@ -21,6 +21,7 @@ from __future__ import annotations
 import re
 from xml.sax.saxutils import quoteattr
 
+from gyrodenoise._version import __version__
 from gyrodenoise.errors import InputError
 from gyrodenoise.fmu.native import DENOISER, LOG_CATEGORIES, NATIVE_MODELS, build_native_fmu
 from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
@@ -83,7 +84,7 @@ def model_description3(token, spec):
     cats = [(n, d.replace("fmi2", "fmi3")) for n, d in LOG_CATEGORIES]
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            f'<fmiModelDescription fmiVersion="3.0" modelName="{spec.name}" instantiationToken="{token}" '
-           f'description={quoteattr(spec.description)} author="gyrodenoise" version="0.1.0" license="MIT" '
+           f'description={quoteattr(spec.description)} author="gyrodenoise" version="{__version__}" license="MIT" '
            'generationTool="gyrodenoise.fmu.native3" variableNamingConvention="flat">',
            f'  <CoSimulation modelIdentifier="{spec.name}" needsExecutionTool="false" '
            'canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" '

@@ -7,7 +7,7 @@ Each model's variables are a tuple of :class:`Variable`, in value-reference orde
   register their variables from them, and :mod:`gyrodenoise.fmu.model_description`
   adds the units and bounds pythonfmu cannot declare;
 * the native FMUs' ``modelDescription.xml`` and C header are generated from them
-  (:mod:`gyrodenoise.fmu.nativespec`, :mod:`gyrodenoise.fmu.native`).
+  (:mod:`gyrodenoise.fmu.native`, :mod:`gyrodenoise.fmu.native3`).
 
 How the two kinds differ, by rule rather than by a second declaration: a pythonfmu
 slave declares every output ``initial="exact"`` with its value before the first step
@@ -18,8 +18,10 @@ one, else ``initial="calculated"``. An output declared ``initial="calculated"`` 
 sensor's ``measured_rate`` and ``restarted``: its sample at the start time is taken at
 fmi2ExitInitializationMode) is ``calculated``, without a start value, in both kinds.
 
-This module imports nothing from gyrodenoise: ``gyrodenoise fmu build`` bundles it
-into the pythonfmu FMUs (``resources/gdcore/fmu/variables.py``).
+The filter's parameters (type, start, range, unit, description) are declared once, in the
+method registry :mod:`gyrodenoise.core.methods`; this module imports nothing else from
+gyrodenoise: ``gyrodenoise fmu build`` bundles the two into the pythonfmu FMUs
+(``resources/gdcore/fmu/variables.py``, ``resources/gdcore/core/methods.py``).
 
 >>> from gyrodenoise.fmu.variables import FOG_DENOISER
 >>> [v.name for v in FOG_DENOISER][:3]
@@ -32,14 +34,16 @@ import math
 import sys
 from typing import NamedTuple
 
+from ..core import methods  # noqa: TID252 - relative: the FMUs bundle the two as package gdcore
+
 #: phi_1 .. phi_MAX_AR_ORDER are declared; phi_k for k > ar_order reads 0
-MAX_AR_ORDER = 6
+MAX_AR_ORDER = methods.FMU_MAX_AR_ORDER
 #: DefaultExperiment stepSize of every FMU, s (200 Hz: the default sample_period and paper_fog's rate)
 DEFAULT_STEP_SIZE_S = 0.005
 
 #: FMI 2.0 ``min``/``max`` are inclusive: a parameter that must be > 0 declares the smallest
 #: positive normal double (sys.float_info.min), one that must be < 1 the largest double below 1
-POSITIVE_MIN = sys.float_info.min
+POSITIVE_MIN = methods.POSITIVE_MIN
 BELOW_ONE = 1.0 - sys.float_info.epsilon / 2.0
 
 DEG = math.pi / 180.0
@@ -86,13 +90,32 @@ def _parameter(name, type_, start, description, unit=None, min=None, max=None):
     return Variable(name, type_, "parameter", description, "fixed", start, unit, min, max)
 
 
-METHOD_DOC = ("Filter, one of: 'motion' (default: follows manoeuvres, averages at rest), 'shakf' "
-              "(modified Sage-Husa AKF, the paper), 'kf' (conventional KF), 'sh_classic' (classic "
-              "Sage-Husa), 'lowpass' (Butterworth, cutoff_hz and lowpass_order) or 'none' (output = "
-              "input); case and surrounding blanks ignored; any other value is refused at "
-              "fmi2ExitInitializationMode")
+METHOD_DOC = (f"Filter, one of: {methods.method_doc()}; case and surrounding blanks ignored; any other value "
+              "is refused at fmi2ExitInitializationMode")
 
-#: FogDenoiser.fmu and FogDenoiserNative.fmu (defaults of gyrodenoise.core.kernels.make_params)
+
+def _description(p):
+    """An FMU parameter's description: the registry's help, the method it applies to, its range
+    (checked whatever the method)."""
+    where = f"method '{p.methods[0]}': " if p.methods else ""
+    text = p.help[0].upper() + p.help[1:] if not where else p.help
+    return f"{where}{text}; {p.fmu_rule()}"
+
+
+def _registry_parameter(name):
+    """The FMU parameter ``name`` as the registry declares it (gyrodenoise.core.methods)."""
+    p = methods.BY_FMU[name]
+    lo, hi = p.fmu_bounds()
+    return _parameter(name, "Integer" if p.type is int else "Real", p.fmu_default(), _description(p), p.unit,
+                      min=lo, max=hi)
+
+
+def _registry_parameters(*names):
+    return tuple(_registry_parameter(n) for n in names)
+
+
+#: FogDenoiser.fmu and FogDenoiserNative.fmu: the order of the variables (= value references) is
+#: kept from release to release, the parameters' declarations are the registry's
 FOG_DENOISER = (
     _input("raw_rate", "Real", "Raw angular rate of the gyro", 0.0, "deg/s"),
     _input("restart", "Boolean", "True on the first sample after a gyro restart: the filter re-identifies "
@@ -100,9 +123,10 @@ FOG_DENOISER = (
     _output("filtered_rate", "Real", "Filtered angular rate; the raw sample during the warm-up after each "
             "restart", "deg/s"),
     *(_output(f"phi_{k}", "Real", f"AR coefficient phi_{k} of the improved AR(n) model, Eq. (4) (0 when {k} > "
-              "ar_order, and for the methods motion and lowpass)") for k in range(1, MAX_AR_ORDER + 1)),
-    _output("c", "Real", "Constant term c of the improved AR model, Eq. (4) (0 for the methods motion and "
-            "lowpass)", "deg/s"),
+              "ar_order, and for the methods without an AR model: motion, lowpass, one_euro)")
+      for k in range(1, MAX_AR_ORDER + 1)),
+    _output("c", "Real", "Constant term c of the improved AR model, Eq. (4) (0 for the methods motion, "
+            "lowpass and one_euro)", "deg/s"),
     _output("R_hat", "Real", "Estimated measurement-noise variance (motion: the sensor's white-noise "
             "estimate)", "deg2/s2"),
     _output("Q_hat", "Real", "Estimated process-noise variance (motion: of the rate increment per sample)",
@@ -110,38 +134,19 @@ FOG_DENOISER = (
     _output("innovation", "Real", "Last innovation v_k = z_k - H X_pred", "deg/s"),
     _output("converged", "Boolean", "True once the AR model has converged since the last restart (the "
             "output is filtered from then on)"),
-    _parameter("ar_order", "Integer", 3, f"Order n of the AR model, 1..{MAX_AR_ORDER}", min=1, max=MAX_AR_ORDER),
-    _parameter("method", "String", "motion", METHOD_DOC),
-    _parameter("sample_period", "Real", 0.005, "Sample period, > 0; every communication step must have this "
-               "size", "s", min=POSITIVE_MIN),
-    _parameter("lam", "Real", 1.0, "RLS forgetting factor, 0 < lam <= 1", min=POSITIVE_MIN, max=1.0),
-    _parameter("b", "Real", 0.99, "Sage-Husa forgetting factor, 0 < b < 1", min=POSITIVE_MIN, max=BELOW_ONE),
-    _parameter("gamma", "Real", 3.0, "Convergence-criterion strictness, Eq. (32), gamma >= 1", min=1.0),
-    _parameter("q0", "Real", 0.0, "Process-noise variance, 0 = automatic", "deg2/s2", min=0.0),
-    _parameter("r0", "Real", 0.0, "Measurement-noise variance, 0 = automatic", "deg2/s2", min=0.0),
-    _parameter("p0_rls", "Real", 1.0e4, "Initial RLS covariance (diagonal), > 0", min=POSITIVE_MIN),
-    _parameter("p0_kf", "Real", 1.0, "Initial filter covariance (diagonal), > 0", "deg2/s2", min=POSITIVE_MIN),
-    _parameter("warmup_s", "Real", 1.0, "Warm-up after each restart (raw passed through), >= 0; at least "
-               "10 (ar_order + 1) samples", "s", min=0.0),
-    _parameter("r_floor", "Real", 1.0e-18, "Lower bound of R and of the automatic noise levels, > 0",
-               "deg2/s2", min=POSITIVE_MIN),
-    _parameter("outlier_sigma", "Real", 5.0, "Outlier gate: a sample with |innovation| > outlier_sigma "
-               "sqrt(S) is kept out of the filter; 0 = off (the paper's filter), else >= 2", min=0.0),
-    _parameter("outlier_run", "Integer", 20, "Consecutive rejected samples after which the filter re-opens "
-               "(restarts) on a real rate change, >= 1", min=1),
-    _parameter("cutoff_hz", "Real", 0.0, "method 'lowpass': -3 dB cutoff, below half the sample rate; 0 = "
-               "20 Hz, at most a quarter of the sample rate; checked (finite, >= 0) whatever the method",
-               "Hz", min=0.0),
-    _parameter("lowpass_order", "Integer", 2, "method 'lowpass': Butterworth order, 1..8", min=1, max=8),
+    _registry_parameter("ar_order"),
+    _parameter("method", "String", methods.DEFAULT_METHOD, METHOD_DOC),
+    _parameter("sample_period", "Real", DEFAULT_STEP_SIZE_S, "Sample period, > 0; every communication step "
+               "must have this size", "s", min=POSITIVE_MIN),
+    *_registry_parameters("lam", "b", "gamma", "q0", "r0", "p0_rls", "p0_kf", "warmup_s", "r_floor",
+                          "outlier_sigma", "outlier_run", "cutoff_hz", "lowpass_order"),
     _output("n_rejected", "Integer", "Samples kept out of the filter by the outlier gate since "
             "initialisation"),
     _parameter("strict_step_size", "Boolean", False, "If true, a step whose size differs from sample_period "
                "is refused (fmi2Discard); if false it is processed and a warning is logged"),
-    _parameter("max_motion_hz", "Real", 0.0, "method 'motion', rigid-body option: the band of interest; "
-               "content above it counts as error (a 4th-order Butterworth before the bank, flat to it, -3 dB "
-               "at twice it, at most 0.45 / sample_period); 0 = off, else below half the sample rate; "
-               "checked (finite, >= 0, below half the sample rate) whatever the method", "Hz", min=0.0),
+    *_registry_parameters("max_motion_hz", "min_cutoff_hz", "beta", "d_cutoff_hz"),
 )
+assert {v.name for v in FOG_DENOISER} >= set(methods.BY_FMU), "an FMU parameter of the registry is not declared"
 
 #: FogDenoiserImuNative3.fmu (FMI 3.0 only): the denoiser for a whole IMU, three gyro axes with
 #: independent filter states; raw_rate and filtered_rate are arrays of IMU_AXES values, one
@@ -211,7 +216,7 @@ PYTHONFMU_MODELS = ("FogDenoiser", "SimulatedFog")
 ZERO = {"Real": 0.0, "Integer": 0, "Boolean": False, "String": ""}
 
 
-def start_value(v, pythonfmu):
+def start_value(v: Variable, pythonfmu: bool) -> object:
     """The start value ``v`` declares in the FMU kind (pythonfmu or native), or None."""
     if v.initial == "calculated":
         return None
@@ -220,7 +225,7 @@ def start_value(v, pythonfmu):
     return v.start
 
 
-def initial(v, pythonfmu):
+def initial(v: Variable, pythonfmu: bool) -> str | None:
     """The ``initial`` attribute of output ``v`` in the FMU kind, or None for a non-output."""
     if v.causality != "output":
         return None
@@ -229,13 +234,13 @@ def initial(v, pythonfmu):
     return "exact" if start_value(v, pythonfmu) is not None else "calculated"
 
 
-def pythonfmu_description(v):
+def pythonfmu_description(v: Variable) -> str:
     """The description a pythonfmu slave gives ``v``: with its unit in brackets."""
     label = UNIT_LABELS[v.unit] if v.unit else ("-" if v.type == "String" else "1")
     return f"{v.description} [{label}]"
 
 
-def format_value(value, type_):
+def format_value(value: float | int | bool | str, type_: str) -> str:
     """``value`` as written in a modelDescription.xml attribute of a variable of ``type_``."""
     if type_ == "Real":
         return repr(float(value))
@@ -267,11 +272,11 @@ def _table(model):
     return lines
 
 
-def markdown_tables(fmi_version=2):
+def markdown_tables(fmi_version: int = 2) -> str:
     """Markdown tables of the FMUs' variables of ``fmi_version`` (2 or 3: FMI 3.0 types, an array's
     length in brackets), one per FMU (FMUs with identical tables share one), with the columns name,
     causality, type, unit, start, min, max and description. Value reference = row number - 1."""
-    groups = {}
+    groups: dict[str, list[str]] = {}
     for model in (FMI3_MODELS if fmi_version == 3 else MODELS):
         groups.setdefault("\n".join(_table(model)), []).append(model)
     out = []

@@ -188,7 +188,7 @@ def test_restarts_heal_and_counters(method):
         z[i] += 300.0
     r = [i in (300, 800) for i in range(900)]
     ref_out, ref_s = check_against_python(params(method, 3, 0.0, 1.0), z, r)
-    if method != "lowpass":                  # linear: 1e155 stays finite there
+    if method not in ("lowpass", "one_euro"):   # nothing squared: 1e155 stays finite there
         assert ref_s[K.S_NHEAL] >= 1
     check_against_python(params(method, 2, 5.0, 0.99, run=3), z, r)
 

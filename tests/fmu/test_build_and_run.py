@@ -94,13 +94,14 @@ def test_model_description_interface(fmu_dir):
 
 
 def test_bundled_core_is_the_per_sample_path_only(fmu_dir):
-    """The FMU carries the plain-Python kernels, the C core of this build and the variable
-    declaration, nothing else."""
+    """The FMU carries the plain-Python kernels, the method registry, the C core of this build
+    and the variable declaration, nothing else."""
     with zipfile.ZipFile(fmu_dir / "FogDenoiser.fmu") as z:
         names = set(z.namelist())
     core = {n for n in names if n.startswith("resources/gdcore/") and n.endswith(".py")}
     assert core == {f"resources/gdcore/{m}" for m in ("__init__.py", "core/__init__.py", "core/kernels.py",
-                                                      "denoiser.py", "errors.py", "fmu/variables.py")}
+                                                      "core/methods.py", "denoiser.py", "errors.py",
+                                                      "fmu/variables.py")}
     binaries = {n for n in names if n.startswith("resources/gdcore/core/_gdcore")}
     assert binaries == {f"resources/gdcore/core/{so.name}" for so in F.compiled_core_files()}
     assert F.stale_reason(fmu_dir / "FogDenoiser.fmu") is None
@@ -532,7 +533,9 @@ def test_exception_in_step_is_logged_and_returned(fmu_dir, tmp_path):
 @pytest.mark.parametrize("params,kw", [({"method": "lowpass", "cutoff_hz": 10.0, "lowpass_order": 3},
                                         {"method": "lowpass", "cutoff_hz": 10.0, "order": 3}),
                                        ({}, {"method": "motion"}),
-                                       ({"max_motion_hz": 20.0}, {"method": "motion", "max_motion_hz": 20.0})])
+                                       ({"max_motion_hz": 20.0}, {"method": "motion", "max_motion_hz": 20.0}),
+                                       ({"method": "one_euro", "min_cutoff_hz": 2.0, "beta": 0.02},
+                                        {"method": "one_euro", "min_cutoff_hz": 2.0, "beta": 0.02})])
 def test_lowpass_and_motion_in_the_fmu_equal_the_core(fmu_dir, params, kw):
     """The FMU's default method is motion; lowpass takes cutoff_hz and lowpass_order;
     motion takes max_motion_hz (a 60 Hz tone, 'vibration', rides on the record)."""

@@ -20,6 +20,7 @@ import pytest
 
 import gyrodenoise as gd
 from gyrodenoise.core import kernels as K
+from gyrodenoise.core.methods import BY_FMU
 from gyrodenoise.errors import InputError
 from gyrodenoise.fmu import native
 
@@ -185,12 +186,13 @@ def test_build_without_gcc_is_one_line_input_error(monkeypatch, tmp_path):
 # ------------------------------------------------------ outputs via fmpy
 CASES = [("motion", {}), ("shakf", {}), ("kf", {}),
          ("lowpass", {"cutoff_hz": 10.0, "lowpass_order": 3}),
-         ("motion", {"max_motion_hz": 20.0})]      # the rigid-body option
+         ("motion", {"max_motion_hz": 20.0}),      # the rigid-body option
+         ("one_euro", {"min_cutoff_hz": 2.0, "beta": 0.02, "d_cutoff_hz": 3.0})]
 
 
 def _core_kw(extra):
-    """gd.denoise's arguments for the FMU parameters ``extra``."""
-    return {("order" if k == "lowpass_order" else k): v for k, v in extra.items()}
+    """gd.denoise's arguments for the FMU parameters ``extra`` (the registry's names)."""
+    return {BY_FMU[k].name if k in BY_FMU else k: v for k, v in extra.items()}
 
 
 @pytest.mark.parametrize("method,extra", CASES, ids=[c[0] + "".join("-" + k for k in c[1]) for c in CASES])
@@ -407,7 +409,7 @@ def test_forbidden_calls_are_fmi2error_with_a_reason(built, md, vr):
 BAD_PARAMS = [
     ({"lam": 1.5}, "lam out of range"), ({"b": 1.0}, "b out of range"),
     ({"gamma": math.nan}, "gamma out of range"), ({"method": "wiener"}, "method must be one of"),
-    ({"ar_order": 7}, "ar_order must be in 1..6"), ({"ar_order": 0}, "ar_order"),
+    ({"ar_order": 7}, "ar_order must be an integer 1..6"), ({"ar_order": 0}, "ar_order"),
     ({"sample_period": 0.0}, "sample_period"), ({"sample_period": -1.0}, "sample_period"),
     ({"r_floor": 0.0}, "r_floor"), ({"outlier_sigma": 1.0}, "outlier_sigma"),
     ({"outlier_run": 0}, "outlier_run"), ({"q0": -1.0}, "q0"), ({"warmup_s": math.inf}, "warmup_s"),
@@ -418,6 +420,9 @@ BAD_PARAMS = [
     ({"max_motion_hz": -1.0}, "max_motion_hz out of range"),
     ({"max_motion_hz": 100.0}, "max_motion_hz out of range"),      # = half the sample rate
     ({"method": "shakf", "max_motion_hz": -1.0}, "max_motion_hz out of range"),   # whatever the method
+    ({"method": "one_euro", "min_cutoff_hz": 0.0}, "min_cutoff_hz out of range: 0 (must be > 0 Hz)"),
+    ({"method": "one_euro", "beta": -1.0}, "beta out of range"),
+    ({"method": "one_euro", "d_cutoff_hz": math.inf}, "d_cutoff_hz out of range"),
 ]
 
 
@@ -429,7 +434,7 @@ def test_invalid_parameter_refused_at_exit_initialization(built, md, params, rea
     assert "invalid parameter" in msg and reason in msg
     # the same parameters are refused by the Python core too
     if not any(k in params for k in ("ar_order", "sample_period")):
-        kw = {("order" if k == "lowpass_order" else k): v for k, v in params.items()}
+        kw = _core_kw(params)
         with pytest.raises(ValueError):
             K.make_params(sample_rate_hz=FS, **kw)
     s.freeInstance()
@@ -558,7 +563,8 @@ def host_run(host, unz, z, rs, *args, uri=None):
     return proc
 
 
-@pytest.mark.parametrize("method,extra", CASES[:2] + CASES[3:], ids=["motion", "shakf", "lowpass", "motion-rigid"])
+@pytest.mark.parametrize("method,extra", CASES[:2] + CASES[3:], ids=["motion", "shakf", "lowpass", "motion-rigid",
+                                                                     "one_euro"])
 def test_c_host_equals_gd_denoise(built, host, method, extra):
     z, rs = record()
     args = ["--set", f"method={method}"] + [a for k, v in extra.items() for a in ("--set", f"{k}={v!r}")]

@@ -23,6 +23,10 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 if _HERE not in sys.path:
     sys.path.insert(0, _HERE)
 import gyrodenoise_pythonfmu_rules as _rules  # noqa: E402
+#: the version of the bundled core (gyrodenoise/_version.py, written into gdcore/__init__.py by
+#: gyrodenoise fmu build). Read once: pythonfmu executes this file again at every fmi2Instantiate
+#: with this module's dict as globals, whose __file__ may name an unzip folder since deleted
+_VERSION = globals().get("_VERSION") or _rules.bundled_version(_HERE)
 #: the objects the rules keep alive, referenced from this module too: pythonfmu keeps
 #: this module's dict to the end (see the bottom of the file), whereas the rules
 #: module is cleared with sys.modules at interpreter finalisation
@@ -30,9 +34,10 @@ _REFUSED = _rules.REFUSED
 
 #: relative tolerance between the step size and the sample period
 STEP_RTOL = 1e-6
-#: format of the FMU state: parameters (max_motion_hz included), inputs, output and the core's
-#: state (with the rigid-body low-pass delays); a state of another version is refused
-STATE_VERSION = 3
+#: format of the FMU state: parameters (the 1-euro filter's included), inputs, output and the
+#: core's state; a state of another version is refused (4: the 1-euro filter's parameters, the
+#: core's parameter buffer with the sample rate)
+STATE_VERSION = 4
 
 
 
@@ -43,7 +48,7 @@ class FogDenoiser(Fmi2Slave):
     description = ("Gyro denoiser (online improved AR(n) + KF / modified Sage-Husa AKF, "
                    "Sun et al. 2016). One communication step = one sample.")
     license = "MIT"
-    version = "0.1.0"
+    version = _VERSION
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -51,8 +56,8 @@ class FogDenoiser(Fmi2Slave):
         _rules.finalize_before_static_destructors(self.resources, type(self).__name__)
         # runs on Python 3.10 and without numpy (the plain-Python kernels where the bundled
         # C core does not load); anything else missing is a logged refusal, fmi2Instantiate NULL
-        self._K, self._D, variables = _rules.load_core_or_refuse(
-            "FogDenoiser", self.resources, "core.kernels", "denoiser", "fmu.variables")
+        self._K, self._M, self._D, variables = _rules.load_core_or_refuse(
+            "FogDenoiser", self.resources, "core.kernels", "core.methods", "denoiser", "fmu.variables")
 
         self._den = None          # the core's Denoiser, built at initialisation
         self._theta0 = 0          # offset of phi_1 in the state buffer
@@ -102,34 +107,25 @@ class FogDenoiser(Fmi2Slave):
 
     # ---------------------------------------------------------- lifecycle
     def _make_denoiser(self):
-        """Build the core's Denoiser from the parameters; ValueError if invalid."""
-        order = self.ar_order
-        if not 1 <= order <= self._max_order:
-            raise ValueError(f"ar_order must be in 1..{self._max_order} (phi outputs declared), got {order}")
+        """Build the core's Denoiser from the parameters; ValueError if invalid. Every
+        parameter is checked against its range whatever the method (the registry's,
+        gdcore/core/methods.py, as the native FMUs check it); 0 stands for a default
+        computed from the sample rate (cutoff_hz)."""
+        M = self._M
         if not (self.sample_period > 0 and math.isfinite(self.sample_period)):
             raise ValueError(f"sample_period must be a finite number > 0 s, got {self.sample_period!r}")
-        # the lowpass parameters are checked against their declared bounds whatever the method
-        if not (self.cutoff_hz >= 0.0 and math.isfinite(self.cutoff_hz)):
-            raise ValueError(f"cutoff_hz out of range: {self.cutoff_hz!r} (must be a finite number >= 0 "
-                             "Hz, 0 = default; checked whatever the method)")
-        if not 1 <= self.lowpass_order <= 8:
-            raise ValueError(f"lowpass_order must be an integer 1..8, got {self.lowpass_order} (checked "
-                             "whatever the method)")
         fs = 1.0 / self.sample_period
-        if not 0.0 <= self.max_motion_hz < 0.5 * fs:
-            raise ValueError(f"max_motion_hz out of range: {self.max_motion_hz!r} (must be 0 (off) or > 0 "
-                             f"and below half the sample rate, {0.5 * fs:g} Hz; checked whatever the method)")
+        for p in M.fmu_parameters():
+            why = p.fmu_error(getattr(self, p.fmu), fs)
+            if why is not None:
+                raise ValueError(why)
         method = str(self.method).strip().lower()
-        rigid = {"max_motion_hz": float(self.max_motion_hz)} if method == "motion" else {}
-        den = self._D.Denoiser(
-            sample_rate_hz=fs, method=method,
-            ar_order=order, lam=self.lam, b=self.b, gamma=self.gamma, q0=self.q0, r0=self.r0,
-            p0_rls=self.p0_rls, p0_kf=self.p0_kf, warmup_s=self.warmup_s, r_floor=self.r_floor,
-            outlier_sigma=self.outlier_sigma, outlier_run=self.outlier_run,
-            cutoff_hz=self.cutoff_hz if self.cutoff_hz != 0.0 else None, order=self.lowpass_order, **rigid)
-        self._den = den
-        self._n = order
-        self._theta0 = self._K.layout(order)[0]
+        M.method(method)
+        kw = {p.name: getattr(self, p.fmu) for p in M.fmu_parameters() if p.applies_to(method)}
+        kw.update({p.name: None for p in M.fmu_parameters() if p.name in kw and p.default is None and not kw[p.name]})
+        self._den = self._D.Denoiser(sample_rate_hz=fs, method=method, **kw)
+        self._n = self.ar_order
+        self._theta0 = self._K.layout(self.ar_order)[0]
 
     def exit_initialization_mode(self):
         try:

@@ -45,6 +45,17 @@ REFUSED = []
 _EXIT_HOOKS = {}
 
 
+def bundled_version(here):
+    """The version of gyrodenoise whose core is bundled beside the slave script in ``here``
+    (``gdcore/__init__.py``'s ``__version__``, written from gyrodenoise/_version.py by
+    ``gyrodenoise fmu build``: the one place of the version)."""
+    with open(os.path.join(here, "gdcore", "__init__.py"), encoding="utf-8") as fh:
+        for line in fh:
+            if line.startswith("__version__ = "):
+                return line.split("=", 1)[1].strip().strip("\"'")
+    raise RuntimeError(f"{here}/gdcore/__init__.py names no __version__")
+
+
 def load_core(resources, *modules):
     """Import the gyrodenoise core bundled in ``resources/gdcore``; its ``modules``.
 

@@ -29,6 +29,10 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 if _HERE not in sys.path:
     sys.path.insert(0, _HERE)
 import gyrodenoise_pythonfmu_rules as _rules  # noqa: E402
+#: the version of the bundled core (gyrodenoise/_version.py, written into gdcore/__init__.py by
+#: gyrodenoise fmu build). Read once: pythonfmu executes this file again at every fmi2Instantiate
+#: with this module's dict as globals, whose __file__ may name an unzip folder since deleted
+_VERSION = globals().get("_VERSION") or _rules.bundled_version(_HERE)
 #: the objects the rules keep alive, referenced from this module too: pythonfmu keeps
 #: this module's dict to the end (see the bottom of the file), whereas the rules
 #: module is cleared with sys.modules at interpreter finalisation
@@ -49,7 +53,7 @@ class SimulatedFog(Fmi2Slave):
     description = ("Simulated gyro from a gyrodenoise model card (TOML): measured_rate = true_rate + "
                    "sensor errors. One communication step = one sample.")
     license = "MIT"
-    version = "0.1.0"
+    version = _VERSION
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)

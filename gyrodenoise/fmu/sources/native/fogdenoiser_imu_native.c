@@ -15,8 +15,10 @@
 #include "gdcore.h"
 #include "fogdenoiser_imu_native_vars.h"
 
-#define SERIAL_VERSION 3u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed);
-                               3: the line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH) */
+#define SERIAL_VERSION 4u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed);
+                               3: the line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH); 4: the
+                               parameters in the registry's order (gdmethods.h), the 1-euro filter's among
+                               them, and the core's parameter buffer with P_FS and the 1-euro slots */
 #define N_AXES 3
 
 #include "fogdenoiser_params.c"
@@ -116,23 +118,18 @@ static char *imu_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     return ((imu_t *)m)->u.method;
 }
 
-/* serialized fields, format 2 (the layout of 1; the core's parameters and state changed): the flags (8-byte integers), the integer parameters, the method
- * string, the real parameters, the inputs, time, the outputs, counters and the parameter buffer */
-#define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 13 + 8 * N_AXES + 8 + 8 * N_AXES + 8 * 3 + 8 * N_PARAMS)
+/* serialized fields, format 4: the flags (8-byte integers), the parameters (user_xfer: the integer ones,
+ * the method string, the real ones, in the registry's order), the inputs, time, the outputs, counters and
+ * the parameter buffer */
+#define SER_DYN (8 * 4 + SER_USER + 8 * N_AXES + 8 + 8 * N_AXES + 8 * 3 + 8 * N_PARAMS)
 
 static void imu_xfer(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io) {
     imu_t *d = (imu_t *)m;
     int32_t pad = 0;
     int32_t *i32[] = {&k->phase, &d->restart, &k->have_model, &pad};
-    int32_t *u32[] = {&d->u.ar_order, &d->u.outlier_run, &d->u.lowpass_order, &d->u.strict_step_size};
-    double *f64[] = {&d->u.sample_period, &d->u.lam, &d->u.b, &d->u.gamma, &d->u.q0, &d->u.r0,
-                     &d->u.p0_rls, &d->u.p0_kf, &d->u.warmup_s, &d->u.r_floor, &d->u.outlier_sigma,
-                     &d->u.cutoff_hz, &d->u.max_motion_hz};
     size_t j;
     for (j = 0; j < 4; j++) { int64_t v = *i32[j]; io(cu, &v, 8); *i32[j] = (int32_t)v; }
-    for (j = 0; j < 4; j++) io(cu, u32[j], 4);
-    io(cu, d->u.method, METHOD_LEN);
-    for (j = 0; j < 13; j++) io(cu, f64[j], 8);
+    user_xfer(cu, &d->u, io);
     io(cu, d->raw_rate, 8 * N_AXES);
     io(cu, &k->time, 8);
     io(cu, d->filtered_rate, 8 * N_AXES);

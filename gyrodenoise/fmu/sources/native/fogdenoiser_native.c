@@ -14,7 +14,7 @@
  *     output equals gd.denoise (tests/fmu/test_native_denoiser.py);
  *   - the variables (get/set), one step, and the fields of the serialized FMU
  *     state (a versioned, checksummed byte image of the parameters and the
- *     filter's state buffer, format 3: the motion bank's constant-acceleration lanes).
+ *     filter's state buffer, format 5: the parameters of the method registry, gdmethods.h).
  *
  * The value references, the GUID and the start values come from
  * fogdenoiser_native_vars.h, generated with modelDescription.xml from one table
@@ -28,9 +28,11 @@
 #include "gdcore.h"
 #include "fogdenoiser_native_vars.h"
 
-#define SERIAL_VERSION 4u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays; 3: the motion
+#define SERIAL_VERSION 5u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays; 3: the motion
                                 bank of 13 CV + 3 CA lanes (MO_MAX_NF 16, the lanes' j, gamma, lam^2); 4: the
-                                line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH) */
+                                line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH); 5: the parameters
+                                in the registry's order (gdmethods.h), the 1-euro filter's among them, and the
+                                core's parameter buffer with P_FS and the 1-euro slots */
 #include "fogdenoiser_params.c"
 
 /* the model's fixed-size part (m): parameters, inputs, outputs, the core's parameter
@@ -148,23 +150,18 @@ static char *dn_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     return ((dn_t *)m)->u.method;
 }
 
-/* serialized fields, format 3 (the layout of 2; the core's parameters and state changed): the flags (8-byte integers), the integer parameters, the method
- * string, the real parameters, then the run's values and the core's state, in the order of dn_xfer */
-#define SER_DYN (8 * 4 + 4 * 4 + METHOD_LEN + 8 * 13 + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
+/* serialized fields, format 5: the flags (8-byte integers), the parameters (user_xfer: the integer ones,
+ * the method string, the real ones, in the registry's order), then the run's values and the core's state,
+ * in the order of dn_xfer */
+#define SER_DYN (8 * 4 + SER_USER + 8 * 3 + 8 * 3 + 8 * N_PARAMS)
 
 static void dn_xfer(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io) {
     dn_t *d = (dn_t *)m;
     int32_t pad = 0;
     int32_t *i32[] = {&k->phase, &d->restart, &k->have_model, &pad};
-    int32_t *u32[] = {&d->u.ar_order, &d->u.outlier_run, &d->u.lowpass_order, &d->u.strict_step_size};
-    double *f64[] = {&d->u.sample_period, &d->u.lam, &d->u.b, &d->u.gamma, &d->u.q0, &d->u.r0,
-                     &d->u.p0_rls, &d->u.p0_kf, &d->u.warmup_s, &d->u.r_floor, &d->u.outlier_sigma,
-                     &d->u.cutoff_hz, &d->u.max_motion_hz};
     size_t j;
     for (j = 0; j < 4; j++) { int64_t v = *i32[j]; io(cu, &v, 8); *i32[j] = (int32_t)v; }
-    for (j = 0; j < 4; j++) io(cu, u32[j], 4);
-    io(cu, d->u.method, METHOD_LEN);
-    for (j = 0; j < 13; j++) io(cu, f64[j], 8);
+    user_xfer(cu, &d->u, io);
     io(cu, &d->raw_rate, 8);
     io(cu, &k->time, 8);
     io(cu, &d->filtered_rate, 8);
