@@ -26,6 +26,8 @@ A strategy (:class:`Autopilot`) holds, for its autopilot:
 
 from __future__ import annotations
 
+from gyrodenoise.flightlog.model import fmt_value
+
 COPTER_TYPES = {2, 3, 4, 13, 14, 15, 29}     # MAV_TYPE quad, coaxial, heli, hexa, octo, tri, dodeca
 
 
@@ -72,7 +74,6 @@ class Autopilot:
         return None
 
     def param_lines(self, changes):
-        from gyrodenoise.flightlog.filter_review import fmt_value
         return [f"{k},{fmt_value(v)}" for k, v in changes.items()]
 
     def vibration_levels(self, levels):
@@ -110,7 +111,6 @@ class ArduPilot(Autopilot):
         return None
 
     def no_stream_reason(self, params, streams):
-        from gyrodenoise.flightlog.filter_review import fmt_value
         mask = params.get("INS_LOG_BAT_MASK")
         if mask is None:
             return ", and the batch sampler's INS_LOG_BAT_MASK is not logged"
@@ -188,7 +188,6 @@ class PX4(Autopilot):
                     threshold="accel_vibration_metric_m_s2", levels=renamed)
 
     def param_lines(self, changes):
-        from gyrodenoise.flightlog.filter_review import fmt_value
         return [f"param set {k} {fmt_value(v)}" for k, v in changes.items()]
 
 
@@ -202,7 +201,6 @@ class Betaflight(Autopilot):
         return ", and the Betaflight filter chain is not modelled yet"
 
     def param_lines(self, changes):
-        from gyrodenoise.flightlog.filter_review import fmt_value
         return [f"set {k.lower()} = {fmt_value(v)}" for k, v in changes.items()]
 
 

@@ -54,7 +54,7 @@ import numpy as np
 
 from gyrodenoise.analysis import spectrum
 from gyrodenoise.flightlog import vehicle_filters as vf
-from gyrodenoise.flightlog.autopilots import named
+from gyrodenoise.flightlog.model import fmt_value
 
 #: the noise band starts here (Hz)
 NOISE_BAND_LO_HZ = 30.0
@@ -100,7 +100,7 @@ def review_context(log, autopilot, params, filters, flying_mask_fn=None):
     what each autopilot reads: its strategy's ``review_context``."""
     ctx = {"notch_centre_hz": {}, "esc_telemetry": False, "rpm_sensor": False, "hover_throttle": None,
            "notes": []}
-    return named(autopilot).review_context(log, params, filters, flying_mask_fn, ctx)
+    return autopilot.review_context(log, params, filters, flying_mask_fn, ctx)
 
 
 def ardupilot_context(log, params, filters, flying_mask_fn, ctx):
@@ -239,7 +239,7 @@ def _no_stream_note(streams, autopilot, params, stages):
                  "unknown": "at an unknown stage"}[stages[s.name]]
         parts.append(f"{s.name} is logged {where}{rate}")
     why = "; ".join(parts) if parts else "no gyro stream"
-    why += named(autopilot).no_stream_reason(params, streams)
+    why += autopilot.no_stream_reason(params, streams)
     return f"no pre-filter gyro stream: {why}"
 
 
@@ -356,7 +356,7 @@ def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
                           "stream's rate, from a stream that is not averaged): no static notch recommended"]
     centre = round(fund["freq_hz"], 1)
     bw = round(centre / 2.0, 1)
-    return named(autopilot).recommend_notch(params, fund, ctx, centre, bw)
+    return autopilot.recommend_notch(params, fund, ctx, centre, bw)
 
 
 def ardupilot_notch(params, fund, ctx, centre, bw):
@@ -465,7 +465,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     one-line note naming why when there is no usable pre-filter stream."""
     params = params or {}
     ctx = context or {}
-    ap = named(autopilot)
+    ap = autopilot
     stream, rate, stages = pick_pre_filter_stream(streams, ap, params)
     if stream is None:
         return None, _no_stream_note(streams, autopilot, params, stages), None
@@ -618,7 +618,7 @@ def _stage_text(st):
 def param_lines(autopilot, rec):
     """Lines to paste: ArduPilot parameter-file ``NAME,VALUE``; PX4 console ``param set NAME VALUE``
     (the strategy's ``param_lines``)."""
-    return named(autopilot).param_lines(rec)
+    return autopilot.param_lines(rec)
 
 
 def _jsonable(v):
@@ -627,12 +627,3 @@ def _jsonable(v):
     if isinstance(v, (np.floating, float)):
         return float(v)
     return v
-
-
-def fmt_value(v):
-    """A parameter value as the lines to paste write it (37, 0.32)."""
-    if v is None:
-        return "?"
-    if isinstance(v, float) and v.is_integer():
-        return str(int(v))
-    return f"{v:g}" if isinstance(v, float) else str(v)

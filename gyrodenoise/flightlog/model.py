@@ -290,3 +290,12 @@ class FlightLog:
         if self._parameters is None:
             self._parameters = self.format.parameters(self)
         return self._parameters
+
+
+def fmt_value(v):
+    """A parameter value as the lines to paste write it (37, 0.32)."""
+    if v is None:
+        return "?"
+    if isinstance(v, float) and v.is_integer():
+        return str(int(v))
+    return f"{v:g}" if isinstance(v, float) else str(v)

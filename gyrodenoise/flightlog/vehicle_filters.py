@@ -59,7 +59,6 @@ import math
 
 import numpy as np
 
-from gyrodenoise.flightlog.autopilots import named
 
 #: ArduPilot's gyro backend rate when nothing in the log says otherwise
 AP_DEFAULT_FILTER_RATE_HZ = 1000.0
@@ -88,8 +87,8 @@ def _num(params, name, default=None):
 
 def filter_parameters(autopilot, params):
     """The filter-relevant entries of ``params`` ({NAME: value}, names sorted) of
-    ``autopilot`` (a strategy or its name: :func:`gyrodenoise.flightlog.autopilots.named`)."""
-    prefixes = named(autopilot).filter_param_prefixes
+    ``autopilot`` (a strategy of :mod:`gyrodenoise.flightlog.autopilots`: `named` gives it from a name)."""
+    prefixes = autopilot.filter_param_prefixes
     return {k: _jsonable(params[k]) for k in sorted(params) if k.startswith(prefixes)}
 
 
@@ -110,9 +109,9 @@ def vehicle_filters(autopilot, params):
     (``rate``: on the gyro rate the controllers use; ``d_term``: PX4's
     angular-acceleration filter), the parameter names it comes from and its
     settings. An unknown autopilot gives no stages. ``autopilot``: a strategy of
-    :mod:`gyrodenoise.flightlog.autopilots` or its name."""
+    :mod:`gyrodenoise.flightlog.autopilots` (`named` gives it from a name)."""
     params = params or {}
-    ap = named(autopilot)
+    ap = autopilot
     stages, rate, source = ap.filter_chain(params)
     return {"autopilot": ap.name, "parameters": filter_parameters(ap, params), "stages": stages,
             "filter_rate_hz": rate, "filter_rate_source": source}
@@ -449,9 +448,9 @@ def stream_stage(autopilot, params, stream):
       without it (older PX4, whose drivers low-passed sensor_gyro) unknown.
     * anything else, or an unknown autopilot: unknown.
 
-    ``autopilot``: a strategy of :mod:`gyrodenoise.flightlog.autopilots` or its name.
+    ``autopilot``: a strategy of :mod:`gyrodenoise.flightlog.autopilots` (`named` gives it from a name).
     """
-    return named(autopilot).stream_stage(params or {}, stream)
+    return autopilot.stream_stage(params or {}, stream)
 
 
 def ardupilot_stream_stage(params, stream):

@@ -43,6 +43,7 @@ def synthetic_report(out_dir, seconds=60.0, rate_hz=400.0, seed=3):
     from gyrodenoise.flightlog.streams import GyroStream
     from gyrodenoise.flightlog.html_report import stream_series
     from gyrodenoise.flightlog.vehicle_filters import vehicle_filters
+    from gyrodenoise.flightlog.autopilots import named
     rng = np.random.default_rng(seed)
     n = int(seconds * rate_hz)
     t = 10.0 + np.arange(n) / rate_hz
@@ -83,7 +84,7 @@ def synthetic_report(out_dir, seconds=60.0, rate_hz=400.0, seed=3):
         "segments": segments,
         "vehicle_filters": {"autopilot": "ardupilot", "parameters": {"INS_GYRO_FILTER": 20, "INS_HNTCH_ENABLE": 1,
                                                                      "INS_HNTCH_FREQ": 80, "INS_HNTCH_BW": 20},
-                            "stages": vehicle_filters("ardupilot", {
+                            "stages": vehicle_filters(named("ardupilot"), {
                                 "INS_GYRO_FILTER": 20.0, "INS_HNTCH_ENABLE": 1, "INS_HNTCH_FREQ": 80.0,
                                 "INS_HNTCH_BW": 20.0, "INS_HNTCH_ATT": 40.0, "INS_HNTCH_HMNCS": 3,
                                 "INS_HNTCH_MODE": 0})["stages"]},

@@ -16,6 +16,7 @@ import pytest
 from gyrodenoise.flightlog import filter_review as fr
 from gyrodenoise.flightlog import formats, parameters
 from gyrodenoise.flightlog import vehicle_filters as vf
+from gyrodenoise.flightlog.autopilots import UNKNOWN, named
 from gyrodenoise.flightlog.streams import RAD_TO_DEG, GyroStream
 
 from tests.helpers import shared_log
@@ -45,8 +46,8 @@ def _imu_stream():
 
 
 def _review_and_plot(streams, params=PARAMS, **kw):
-    filters = vf.vehicle_filters("ardupilot", params)
-    return fr.filter_review(streams, "ardupilot", params, filters, **kw)
+    filters = vf.vehicle_filters(named("ardupilot"), params)
+    return fr.filter_review(streams, named("ardupilot"), params, filters, **kw)
 
 
 def _review(streams, params=PARAMS, **kw):
@@ -67,13 +68,13 @@ def test_synthetic_tone_found_notched_and_predicted():
     assert f"INS_HNTCH_FREQ,{rec['INS_HNTCH_FREQ']:g}" in review["param_lines"]
     # the predicted spectrum is |H|^2 of the recommended parameters, as the vehicle would run them
     fs = review["filter_rate_hz"]
-    h = vf.chain_response(vf.vehicle_filters("ardupilot", {**PARAMS, **rec})["stages"], plot.freq_hz, fs)
+    h = vf.chain_response(vf.vehicle_filters(named("ardupilot"), {**PARAMS, **rec})["stages"], plot.freq_hz, fs)
     np.testing.assert_allclose(plot.psd_recommended, plot.psd_pre * np.abs(h) ** 2, rtol=1e-9)
     k = int(np.argmin(np.abs(plot.freq_hz - TONE_HZ)))
     assert plot.psd_recommended[0, k] / plot.psd_pre[0, k] == pytest.approx(abs(h[k]) ** 2, rel=1e-9)
     assert 10 * math.log10(abs(h[k]) ** 2) < -30        # the tone is notched
     # ... and the logged chain's the logged low-pass
-    h_log = vf.chain_response(vf.vehicle_filters("ardupilot", PARAMS)["stages"], plot.freq_hz, fs)
+    h_log = vf.chain_response(vf.vehicle_filters(named("ardupilot"), PARAMS)["stages"], plot.freq_hz, fs)
     np.testing.assert_allclose(plot.psd_logged, plot.psd_pre * np.abs(h_log) ** 2, rtol=1e-9)
     # figures: noise no worse than logged, and less lag (the reason the notch is there)
     figs = review["figures"]
@@ -103,14 +104,14 @@ def test_no_pre_filter_stream_note():
     assert review is None
     assert note == ("no pre-filter gyro stream: IMU[0] is logged after the vehicle's filters at 25 Hz, "
                     "and the batch sampler is off (INS_LOG_BAT_MASK 0)")
-    review, note, _ = fr.filter_review([_imu_stream()], None, {}, vf.vehicle_filters(None, {}))
+    review, note, _ = fr.filter_review([_imu_stream()], UNKNOWN, {}, vf.vehicle_filters(UNKNOWN, {}))
     assert review is None and "autopilot is unknown" in note
 
 
 def test_param_lines():
-    assert fr.param_lines("ardupilot", {"INS_GYRO_FILTER": 37, "INS_HNTCH_BW": 37.6}) == \
+    assert fr.param_lines(named("ardupilot"), {"INS_GYRO_FILTER": 37, "INS_HNTCH_BW": 37.6}) == \
         ["INS_GYRO_FILTER,37", "INS_HNTCH_BW,37.6"]
-    assert fr.param_lines("px4", {"IMU_GYRO_CUTOFF": 44.0}) == ["param set IMU_GYRO_CUTOFF 44"]
+    assert fr.param_lines(named("px4"), {"IMU_GYRO_CUTOFF": 44.0}) == ["param set IMU_GYRO_CUTOFF 44"]
 
 
 @functools.lru_cache(maxsize=8)

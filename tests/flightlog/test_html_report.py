@@ -3,6 +3,7 @@ stand in for missing sections, long series are reduced, the page holds no extern
 resource (the browser test, test_html_report_browser.py, checks that it draws)."""
 import numpy as np
 
+from gyrodenoise.flightlog.autopilots import named
 from gyrodenoise.flightlog import html_report as hr
 
 
@@ -36,7 +37,7 @@ def test_vehicle_response_is_the_vehicles_own_chain():
     second model (scipy) read ``center_hz``, which no stage has, and drew every notch
     as all-pass."""
     from gyrodenoise.flightlog import vehicle_filters as vf
-    stages = vf.vehicle_filters("ardupilot", {"INS_GYRO_FILTER": 100.0, "INS_HNTCH_ENABLE": 1,
+    stages = vf.vehicle_filters(named("ardupilot"), {"INS_GYRO_FILTER": 100.0, "INS_HNTCH_ENABLE": 1,
                                               "INS_HNTCH_FREQ": 80.0, "INS_HNTCH_BW": 20.0,
                                               "INS_HNTCH_ATT": 40.0, "INS_HNTCH_HMNCS": 1,
                                               "INS_HNTCH_MODE": 0})["stages"]

@@ -8,6 +8,7 @@ import struct
 
 import pytest
 
+from gyrodenoise.flightlog.autopilots import named
 from gyrodenoise.flightlog import parameters
 
 from tests.flightlog.flight_logs import log_of_bytes, shared_flight_log
@@ -111,9 +112,9 @@ def test_real_tlog_parameters_from_the_ground_stations_download():
 def test_apm2_mpu6k_filter_is_the_gyro_lowpass():
     """APM 2.x: INS_MPU6K_FILTER (the MPU6000's own low-pass, Hz; 0 the default 20 Hz)."""
     from gyrodenoise.flightlog.vehicle_filters import vehicle_filters
-    (st,) = vehicle_filters("ardupilot", {"INS_MPU6K_FILTER": 42.0})["stages"]
+    (st,) = vehicle_filters(named("ardupilot"), {"INS_MPU6K_FILTER": 42.0})["stages"]
     assert st["kind"] == "lowpass" and st["params"] == "INS_MPU6K_FILTER" and st["cutoff_hz"] == 42.0
-    (st,) = vehicle_filters("ardupilot", {"INS_MPU6K_FILTER": 0.0})["stages"]
+    (st,) = vehicle_filters(named("ardupilot"), {"INS_MPU6K_FILTER": 0.0})["stages"]
     assert st["cutoff_hz"] == 20.0 and "default" in st["note"]
     ap, params = parameters.log_parameters(shared_flight_log("apm2_2013-10-13_16-58-51.tlog"))
     assert vehicle_filters(ap, params)["parameters"] == {"INS_MPU6K_FILTER": 0.0}

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from gyrodenoise.flightlog.autopilots import UNKNOWN, named
 from gyrodenoise.flightlog import formats, parameters
 from gyrodenoise.flightlog import vehicle_filters as vf
 from gyrodenoise.flightlog.streams import GyroStream
@@ -115,7 +116,7 @@ def test_throttle_tracking_centre():
 
 
 def test_chain_response_and_phase_lag():
-    stages = vf.vehicle_filters("ardupilot", {"INS_GYRO_FILTER": 30.0, "INS_HNTCH_ENABLE": 1,
+    stages = vf.vehicle_filters(named("ardupilot"), {"INS_GYRO_FILTER": 30.0, "INS_HNTCH_ENABLE": 1,
                                               "INS_HNTCH_FREQ": 80.0, "INS_HNTCH_BW": 40.0,
                                               "INS_HNTCH_ATT": 40.0, "INS_HNTCH_HMNCS": 1,
                                               "INS_HNTCH_MODE": 1, "INS_HNTCH_REF": 0.3})["stages"]
@@ -149,31 +150,31 @@ def _stream(name, message):
     (3, 1, "pre-filter"), (3, 2, "post-filter"), (1, 0, "pre-filter")])
 def test_batch_sampler_stage_by_ins_log_bat_opt(opt, inst, expect):
     p = {"INS_LOG_BAT_OPT": opt, "INS_GYR_ID": 1234, "INS_GYR2_ID": 5678, "INS_GYR3_ID": 0}
-    assert vf.stream_stage("ardupilot", p, _stream(f"ISB.gyro[{inst}]", "ISBD")) == expect
-    assert vf.stream_stage("ardupilot", {}, _stream("ISB.gyro[0]", "ISBD")) == "unknown"
+    assert vf.stream_stage(named("ardupilot"), p, _stream(f"ISB.gyro[{inst}]", "ISBD")) == expect
+    assert vf.stream_stage(named("ardupilot"), {}, _stream("ISB.gyro[0]", "ISBD")) == "unknown"
 
 
 def test_stream_stages():
-    ap, px4 = "ardupilot", "px4"
+    ap, px4 = named("ardupilot"), named("px4")
     assert vf.stream_stage(ap, {}, _stream("IMU[0]", "IMU")) == "post-filter"
     assert vf.stream_stage(ap, {}, _stream("RAW_IMU", "RAW_IMU")) == "post-filter"
     assert vf.stream_stage(px4, {}, _stream("vehicle_angular_velocity", "vehicle_angular_velocity")) == "post-filter"
     assert vf.stream_stage(px4, {}, _stream("sensor_gyro_fifo", "sensor_gyro_fifo")) == "pre-filter"
     assert vf.stream_stage(px4, {"IMU_INTEG_RATE": 200}, _stream("sensor_combined", "sensor_combined")) == "pre-filter"
     assert vf.stream_stage(px4, {}, _stream("sensor_combined", "sensor_combined")) == "unknown"
-    assert vf.stream_stage(None, {}, _stream("RAW_IMU", "RAW_IMU")) == "unknown"
+    assert vf.stream_stage(UNKNOWN, {}, _stream("RAW_IMU", "RAW_IMU")) == "unknown"
 
 
 @functools.lru_cache(maxsize=8)
 def _log(name):
     log = formats.read_log(shared_log(name))
     ap, params = parameters.log_parameters(log)
-    return log.gyro, ap.name, params, vf.vehicle_filters(ap, params)
+    return log.gyro, ap, params, vf.vehicle_filters(ap, params)
 
 
 def test_copter_00061_lowpass_30_no_notch_batch_pre_filter():
     streams, ap, params, f = _log("copter_00061-2021-11-21_18-03-38.bin")
-    assert ap == "ardupilot"
+    assert ap.name == "ardupilot"
     assert [s["kind"] for s in f["stages"]] == ["lowpass"]
     assert f["stages"][0]["cutoff_hz"] == 30.0
     assert f["parameters"]["INS_GYRO_FILTER"] == 30.0 and f["parameters"]["INS_HNTCH_ENABLE"] == 0
@@ -198,7 +199,7 @@ def test_copter462_throttle_harmonic_notch_and_pre_filter_batch():
                                   "px4_quad_gps_interference.ulg", "px4_vtol_small.ulg"])
 def test_px4_gyro_cutoff_40(name):
     _, ap, params, f = _log(name)
-    assert ap == "px4"
+    assert ap.name == "px4"
     rate = [s for s in f["stages"] if s["kind"] == "lowpass" and s["path"] == "rate"]
     assert [s["cutoff_hz"] for s in rate] == [40.0]
     assert not [s for s in f["stages"] if "notch" in s["kind"]]        # NF0 0 Hz, DNF off
