@@ -1,0 +1,504 @@
+"""One time model for every recording: the unit, the sample rate and the kind of
+timestamps, read from the timestamp column itself.
+
+:func:`analyse_time` takes a timestamp column as read (any numbers: seconds,
+milliseconds, a ROS ``%time`` in ns since 1970, a boot time in µs) and returns a
+:class:`TimeBase`; :func:`restart_mask` gives the samples where a filter starts
+over. What each choice does to a user's numbers:
+
+**Unit** (``unit=`` names it and wins; otherwise the first rule that applies):
+
+* *epoch*: the first timestamp is a date between 2000 and 2100 in s, ms, µs or ns
+  since 1970 (the four windows are 1000x apart and do not overlap) and the steps
+  give 0.01 Hz to 1 MHz in that unit. ``epoch`` is True and ``epoch_offset_s``
+  is that date in s; times are then counted from the first sample.
+* *sample rate*: ``nominal_rate`` is given and exactly one unit puts the record's
+  rate within :data:`NOMINAL_TOLERANCE` of it.
+* *spacing*: steps under 1 (fractional) are seconds; whole-number steps are the
+  largest of ms, µs, ns that gives at least :data:`MIN_SPACING_RATE_HZ` (10 Hz).
+  So 0.01 reads as s (100 Hz), 10 and 1 as ms (100 Hz, 1 kHz), 125 and 1000 as µs
+  (8 kHz, 1 kHz), 5e6 as ns (200 Hz). A record in whole seconds (1 Hz and
+  slower) or in ms slower than 10 Hz is misread: the note names the other
+  reading when it is a plausible one, and ``unit=`` settles it.
+
+**Sample rate**: count over span, never 1/median step. Within each run (below),
+(samples - 1 + samples missing in bridged gaps) / (last time - first time),
+summed over the runs: jitter and bursts average out, missing samples are
+counted, the time of restarting gaps and reversals is left out. The median
+step is the check: when 1/median step differs from the rate the note says why
+(bursts, jitter). A stated ``nominal_rate`` is used when it is within
+:data:`NOMINAL_TOLERANCE` (2 %: a MEMS sensor's own clock may be that far off its
+nominal rate) of the record's rate; further off it is an InputError naming both.
+
+**Kind of timestamps** (:class:`TimestampKind`): *bursty* when 1/median step is
+more than 1.25x the rate (a host stamping USB packets: many samples ~0 apart,
+then a long step); else *jittered* when more than 1 % of the steps are more than
+1 % off the period; else *uniform*.
+
+**Gap** (what counts): samples missing by count, not a long step alone. A step
+of at least :data:`GAP_CANDIDATE` (1.5) periods is a candidate; its samples
+missing are the rise of the sample clock across it: E = time / period - sample
+number, and the rise is the lower envelope of E over the
+:data:`LEVEL_WINDOW` samples after the step minus that before it (host stamps are
+late, never early, so the lower envelope is the steady one). A burst's long step
+only makes up for the short steps before it, and a jittered step for its
+neighbours: their rise is 0. A candidate whose rise rounds to 1 or more (and
+stands out from the noise of the rises: 5 robust sigmas) is a gap of that many
+missing samples; its duration is the step.
+
+**Restarts** (:func:`restart_mask`): a time reversal (time going back: a reboot, a
+concatenated log) and a gap of more than :data:`MAX_BRIDGED_MISSING` (4) missing
+samples restart a filter; jitter, bursts, repeated timestamps and shorter gaps do
+not (the filter carries on, the next sample taken as the next one: one drop at
+a time costs no denoising). This is the flight-log readers' rule (a step of more
+than 5 periods). The runs are the stretches between restarts; the note gives
+their lengths.
+
+Bad input (an :class:`~gyrodenoise.errors.InputError`, one line): a value that is
+not a finite number, fewer than 2 samples, all timestamps equal, time that
+never advances, an unknown unit, a ``nominal_rate`` that is not a number above 0
+and at most :data:`MAX_RATE_HZ`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
+from enum import Enum
+
+import numpy as np
+
+from gyrodenoise.errors import InputError
+
+GAP_CANDIDATE = 1.5          # a step of this many periods may hold missing samples
+LEVEL_WINDOW = 16            # (>= 2) samples each side of a step for the sample clock's level
+NOISE_SIGMAS = 5.0           # a rise must stand this far out of the rises' own noise
+BURST_WINDOW_CYCLES = 16     # for bursts: this many burst cycles (a burst ends with a candidate step)
+MAX_BRIDGED_MISSING = 4      # gaps of up to this many missing samples do not restart a filter
+NOMINAL_TOLERANCE = 0.02     # a stated rate is used within 2 % of the record's own
+MIN_SPACING_RATE_HZ = 10.0   # the spacing rule's floor for whole-number steps
+MAX_RATE_HZ = 1.0e7          # above: not a sample rate
+BURST_RATIO = 1.25           # 1/median step above this x rate: bursts
+UNIFORM_TOLERANCE = 0.01     # a step within 1 % of the period is uniform ...
+UNIFORM_SHARE = 0.01         # ... and at most 1 % of the steps may be off
+EPOCH_WINDOW_S = (946_684_800.0, 4_102_444_800.0)   # 2000-01-01 .. 2100-01-01
+EPOCH_RATE_HZ = (0.01, 1.0e6)                        # steps an epoch column must give
+
+
+@dataclass(frozen=True)
+class TimeUnit:
+    name: str
+    seconds: float
+    aliases: tuple = ()
+
+
+UNITS = (TimeUnit("s", 1.0, ("sec",)), TimeUnit("ms", 1e-3), TimeUnit("µs", 1e-6, ("us", "μs")),
+         TimeUnit("ns", 1e-9))
+
+
+def time_unit(name):
+    """The :class:`TimeUnit` called ``name`` (s, ms, us/µs, ns); InputError otherwise."""
+    for u in UNITS:
+        if name == u.name or name in u.aliases:
+            return u
+    raise InputError(f"unknown time unit {name!r} (use one of s, ms, us, ns)")
+
+
+class UnitRule(Enum):
+    """Which rule decided the time unit (the text is the note's)."""
+    STATED = "as stated"
+    EPOCH = "a Unix epoch"
+    NOMINAL = "matching the stated sample rate"
+    SPACING = "by its spacing"
+
+
+class TimestampKind(Enum):
+    UNIFORM = "uniform"
+    JITTERED = "jittered"
+    BURSTY = "bursty"
+
+
+@dataclass(frozen=True)
+class Gap:
+    index: int        # the first sample after the gap
+    seconds: float    # the step across it
+    missing: int      # samples missing by count
+    restarts: bool    # more than MAX_BRIDGED_MISSING missing: a filter restarts
+
+
+@dataclass(frozen=True)
+class Run:
+    start: int        # first sample
+    stop: int         # one past the last sample
+    missing: int      # samples missing in its bridged gaps
+    seconds: float    # last time - first time
+    cause: str        # what ended the previous run: "start", "gap", "reversal"
+
+    @property
+    def samples(self):
+        return self.stop - self.start
+
+
+@dataclass(frozen=True, eq=False)
+class TimeBase:
+    """The time model of one record (see the module docstring for the rules)."""
+    n: int
+    rate_hz: float             # the rate to use (the stated one when reconciled)
+    measured_rate_hz: float    # count over span
+    median_rate_hz: float      # 1 / median step (inf when over half the steps are 0)
+    unit: TimeUnit
+    unit_rule: UnitRule
+    epoch: bool
+    epoch_offset_s: float | None   # the first timestamp, s since 1970, when epoch
+    origin: float              # the first timestamp as read (raw unit)
+    kind: TimestampKind
+    spread: float              # 95th percentile of |step / period - 1| (0 for uniform)
+    repeated: int              # steps of exactly 0
+    gap_index: np.ndarray = field(repr=False)     # first sample after each gap
+    gap_seconds: np.ndarray = field(repr=False)
+    gap_missing: np.ndarray = field(repr=False)
+    gap_restarts: np.ndarray = field(repr=False)
+    reversals: np.ndarray = field(repr=False)     # first sample after time went back
+    runs: tuple = field(repr=False)
+    note: str = ""
+
+    @property
+    def gaps(self):
+        """The gaps as :class:`Gap` objects (built on each call)."""
+        return tuple(Gap(int(i), float(s), int(m), bool(r)) for i, s, m, r in
+                     zip(self.gap_index, self.gap_seconds, self.gap_missing, self.gap_restarts))
+
+    @property
+    def restarts(self):
+        """Sample indices where a run starts after the first (sorted)."""
+        return np.array([r.start for r in self.runs[1:]], dtype=np.int64)
+
+    @property
+    def missing(self):
+        return int(self.gap_missing.sum())
+
+    def seconds(self, t):
+        """The column ``t`` in seconds: since the first sample for an epoch column,
+        else the column's own zero (a boot time stays a boot time)."""
+        t = np.asarray(t)
+        if self.epoch:
+            return _relative(t) * self.unit.seconds
+        return t.astype(np.float64) * self.unit.seconds
+
+
+def restart_mask(tb):
+    """Bool (n,): True at the first sample of each run after the first (a time
+    reversal, or a gap of more than MAX_BRIDGED_MISSING missing samples)."""
+    mask = np.zeros(tb.n, dtype=bool)
+    mask[tb.restarts] = True
+    return mask
+
+
+def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=None):
+    """The :class:`TimeBase` of the timestamp column ``t``.
+
+    unit : str, optional
+        s, ms, us (µs) or ns; wins over detection.
+    nominal_rate : float, optional
+        A stated sample rate (Hz), used when within NOMINAL_TOLERANCE of the
+        record's count over span; InputError otherwise.
+    name, source : str
+        What the error messages call the column and the file.
+    """
+    def fail(msg):
+        raise InputError(f"{name}: {msg}", source)
+
+    stated = time_unit(unit) if unit is not None else None
+    nominal = _check_nominal(nominal_rate, source)
+    t = np.asarray(t)
+    if t.dtype.kind == "b":
+        fail("values are booleans, not times")
+    if t.dtype.kind not in "iuf":
+        try:
+            t = t.astype(np.float64)
+        except (TypeError, ValueError):
+            fail(f"values are not numbers (dtype {t.dtype})")
+    t = t.ravel()
+    n = t.size
+    if n < 2:
+        fail(f"{n} sample(s); at least 2 are needed")
+    if t.dtype.kind == "f":
+        bad = ~np.isfinite(t)
+        if bad.any():
+            i = int(np.argmax(bad))
+            fail(f"{int(bad.sum()):,} value(s) not finite (first at sample {i:,}: {t[i]})")
+    rel = _relative(t)
+    dt = np.diff(rel)
+    back = dt < 0
+    if not (dt > 0).any():
+        if back.any():
+            fail("time never advances (it only goes back: reversed order?)")
+        fail(f"all {n:,} timestamps are equal ({t[0]}): no time base")
+
+    fwd = dt[~back]
+    med = float(np.median(fwd))
+    period = _first_period(fwd, med)
+    for _ in range(2):        # a second pass with the period from count over span, when it moved
+        gaps = _find_gaps(dt, back, period, med)
+        runs, count, span = _runs(rel, dt, back, gaps)
+        if span <= 0:
+            fail("time never advances within a run")
+        moved = abs(span / count / period - 1.0)
+        period = span / count
+        if moved < 1e-4 and not gaps[0].size:
+            break
+    del fwd
+    kind, spread = _kind(dt, back, gaps, period, med)
+
+    t0 = float(t[0])
+    uobj, rule, alt = _decide_unit(stated, nominal, period, t0)
+    rate = 1.0 / (period * uobj.seconds)
+    epoch = _is_epoch(t0, uobj)
+    used = rate
+    if nominal is not None:
+        if abs(nominal / rate - 1.0) > NOMINAL_TOLERANCE:
+            fail(f"the stated sample rate {nominal:g} Hz and the record's {rate:.6g} Hz (time in "
+                 f"{uobj.name}, {n:,} samples over {span * uobj.seconds:.4g} s) differ by more than "
+                 f"{NOMINAL_TOLERANCE:.0%}")
+        used = float(nominal)
+    gi, gm, gr = gaps
+    run_objs = tuple(Run(int(a), int(b), int(m), float(s * uobj.seconds), c) for a, b, m, s, c in runs)
+    tb = TimeBase(
+        n=n, rate_hz=float(used), measured_rate_hz=float(rate),
+        median_rate_hz=(math.inf if med == 0 else 1.0 / (med * uobj.seconds)),
+        unit=uobj, unit_rule=rule, epoch=epoch,
+        epoch_offset_s=(t0 * uobj.seconds if epoch else None), origin=t0, kind=kind,
+        spread=spread, repeated=int(np.count_nonzero(dt == 0)),
+        gap_index=gi + 1, gap_seconds=dt[gi] * uobj.seconds, gap_missing=gm, gap_restarts=gr,
+        reversals=np.flatnonzero(back) + 1, runs=run_objs)
+    return _with_note(tb, med * uobj.seconds, span * uobj.seconds, alt, nominal)
+
+
+def _check_nominal(nominal_rate, source):
+    if nominal_rate is None:
+        return None
+    try:
+        v = float(nominal_rate)
+    except (TypeError, ValueError):
+        raise InputError(f"the stated sample rate {nominal_rate!r} is not a number", source) from None
+    if not (math.isfinite(v) and 0.0 < v <= MAX_RATE_HZ):
+        raise InputError(f"the stated sample rate {v:g} Hz is not a sample rate (it must be above 0 and "
+                         f"at most {MAX_RATE_HZ:g} Hz)", source)
+    return v
+
+
+def _relative(t):
+    """t - t[0] as float64, exact for integer columns (ns since 1970 has 19 digits)."""
+    if t.dtype.kind in "iu" and (t.dtype.kind == "i" or int(t.max()) < 2 ** 63):
+        return (t.astype(np.int64) - np.int64(t[0])).astype(np.float64)
+    return t.astype(np.float64) - np.float64(t[0])
+
+
+def _first_period(fwd, med):
+    """A first period (raw unit) from the forward steps ``fwd`` and their median
+    ``med``: the median step, or for bursts (the median block mean more than
+    BURST_RATIO x the median step) the median block mean."""
+    k = int(min(256, max(8, fwd.size // 32)))
+    nb = fwd.size // k
+    blk = float(np.median(fwd[:nb * k].reshape(nb, k).mean(axis=1))) if nb else float(fwd.mean())
+    if med > 0 and blk <= BURST_RATIO * med:
+        return med
+    return blk if blk > 0 else float(fwd.mean())
+
+
+def _sliding_min(x, w):
+    """min(x[i:i+w]) for every i, windows clipped at the end (doubling: O(n log w))."""
+    m = x.copy()
+    k = 1
+    while 2 * k <= w:
+        np.minimum(m[:-k], m[k:], out=m[:-k])
+        k *= 2
+    if k < w:
+        d = w - k
+        np.minimum(m[:-d], m[d:], out=m[:-d])
+    return m
+
+
+def _find_gaps(dt, back, period, med):
+    """(step indices, samples missing, restarts) of the gaps (module docstring)."""
+    cand = np.flatnonzero(dt >= GAP_CANDIDATE * period)
+    empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, bool))
+    if not cand.size:
+        return empty
+    s = dt / period - 1.0
+    s[back] = 0.0
+    e = np.empty(dt.size + 1)
+    e[0] = 0.0
+    np.cumsum(s, out=e[1:])
+    w = LEVEL_WINDOW
+    bursty = med * BURST_RATIO < period
+    if bursty:                          # a window spans several bursts
+        cycle = dt.size / max(1, cand.size)
+        w = int(min(1024, max(w, math.ceil(BURST_WINDOW_CYCLES * cycle))))
+    # the lower envelope, blind to one early stamp (a repeated timestamp): a sample
+    # below both neighbours is raised to the lower of them, then the window's min
+    f = e.copy()
+    np.maximum(f[1:-1], np.minimum(e[:-2], e[2:]), out=f[1:-1])
+    lvl = _sliding_min(f, w)
+    after = lvl[cand + 1]                          # e[k+1 .. k+w]
+    before = lvl[np.maximum(cand + 1 - w, 0)]      # e[k+1-w .. k]
+    n = e.size
+    # a window cut short (an end of the record, or the next step that rises) may hold
+    # only the top of a burst: its level is taken down by the sample clock's typical
+    # range over a window (rises there are underestimated, never made up); without
+    # bursts, the window before is cut to the same length
+    rises = after - _level_before(cand, after, before, after - before, w) >= 0.5
+    room = np.full(cand.size, n)
+    nxt = np.flatnonzero(rises)
+    if nxt.size:
+        j = np.searchsorted(nxt, np.arange(cand.size), side="right")
+        has = j < nxt.size
+        room[has] = cand[nxt[j[has]]] + 1
+    h = np.minimum(np.minimum(room - cand - 1, cand + 1), w)
+    short = np.flatnonzero(h < w)
+    catch_up = 0.0
+    if bursty and short.size:
+        catch_up = float(np.median(-_sliding_min(-e, w)[cand + 1] - lvl[cand + 1]))
+    for j in short:
+        k, hj = int(cand[j]) + 1, max(1, int(h[j]))
+        after[j] = e[k:k + hj].min() - catch_up
+        if not bursty:
+            before[j] = e[k - hj:k].min()
+    rise = after - _level_before(cand, after, before, after - before, w)
+    resid = rise - np.rint(rise)
+    noise = 1.4826 * float(np.median(np.abs(resid)))
+    missing = np.rint(rise)
+    if not bursty:       # host-stamped bursts may stamp the samples before a gap late: the step is short
+        missing = np.minimum(missing, np.rint(s[cand]))
+    keep = (rise >= max(0.5, NOISE_SIGMAS * noise)) & (missing >= 1)
+    if not keep.any():
+        return empty
+    gi = cand[keep]
+    gm = missing[keep].astype(np.int64)
+    return gi, gm, gm > MAX_BRIDGED_MISSING
+
+
+def _level_before(cand, after, before, rise, w):
+    """The level before each candidate step: where an earlier candidate within the
+    window before rose (``rise`` >= 0.5), the level after that one."""
+    pos = np.flatnonzero(rise >= 0.5)
+    if not pos.size:
+        return before
+    prev = np.full(cand.size, -1)
+    prev[pos] = pos
+    prev = np.maximum.accumulate(np.concatenate([[-1], prev[:-1]]))
+    has = (prev >= 0) & (cand - cand[np.maximum(prev, 0)] < w)
+    return np.maximum(before, np.where(has, after[np.maximum(prev, 0)], -np.inf))
+
+
+def _runs(rel, dt, back, gaps):
+    """([(start, stop, bridged missing, span, cause)], intervals + bridged missing, span) in the raw unit."""
+    gi, gm, gr = gaps
+    cuts = np.concatenate([np.flatnonzero(back) + 1, gi[gr] + 1])
+    causes = np.concatenate([np.full(int(back.sum()), "reversal"), np.full(int(gr.sum()), "gap")])
+    order = np.argsort(cuts, kind="stable")
+    cuts, causes = cuts[order], causes[order]
+    starts = np.concatenate([[0], cuts])
+    stops = np.concatenate([cuts, [rel.size]])
+    spans = rel[stops - 1] - rel[starts]
+    bridged = ~gr
+    run_of = np.searchsorted(starts, gi[bridged] + 1, side="right") - 1
+    miss = np.bincount(run_of, weights=gm[bridged], minlength=starts.size).astype(np.int64)
+    count = float(np.sum(stops - starts - 1) + miss.sum())
+    cause = ["start"] + [str(c) for c in causes]
+    runs = list(zip(starts, stops, miss, spans, cause))
+    return runs, count, float(spans.sum())
+
+
+def _kind(dt, back, gaps, period, med):
+    """(TimestampKind, spread): module docstring."""
+    ok = ~back
+    ok[gaps[0]] = False
+    r = np.abs(dt[ok] / period - 1.0)
+    if r.size == 0:
+        return TimestampKind.UNIFORM, 0.0
+    sub = r[::-(-r.size // 1_000_000)]          # the spread from at most 1 M steps, evenly spread
+    k95 = min(sub.size - 1, int(0.95 * sub.size))
+    spread = float(np.partition(sub, k95)[k95])
+    if med * BURST_RATIO < period:
+        return TimestampKind.BURSTY, spread
+    if np.count_nonzero(r > UNIFORM_TOLERANCE) > UNIFORM_SHARE * r.size:
+        return TimestampKind.JITTERED, spread
+    return TimestampKind.UNIFORM, spread
+
+
+def _is_epoch(t0, u):
+    lo, hi = EPOCH_WINDOW_S
+    return lo <= t0 * u.seconds <= hi
+
+
+def _decide_unit(stated, nominal, period, t0):
+    """(unit, rule, the other plausible unit or None) for a period in the raw unit."""
+    if stated is not None:
+        return stated, UnitRule.STATED, None
+    rates = [1.0 / (period * u.seconds) for u in UNITS]
+    for u, r in zip(UNITS, rates):
+        if _is_epoch(t0, u) and EPOCH_RATE_HZ[0] <= r <= EPOCH_RATE_HZ[1]:
+            return u, UnitRule.EPOCH, None
+    if nominal is not None:
+        fits = [u for u, r in zip(UNITS, rates) if abs(nominal / r - 1.0) <= NOMINAL_TOLERANCE]
+        if len(fits) == 1:
+            return fits[0], UnitRule.NOMINAL, None
+    if period < 1.0:
+        return UNITS[0], UnitRule.SPACING, None
+    for i in range(1, len(UNITS)):
+        if rates[i] >= MIN_SPACING_RATE_HZ or i == len(UNITS) - 1:
+            other = UNITS[i - 1] if rates[i - 1] >= 0.5 else None
+            return UNITS[i], UnitRule.SPACING, other
+
+
+def _count(n, word):
+    return f"{n:,} {word}{'' if n == 1 else 's'}"
+
+
+def _with_note(tb, med_s, span_s, alt, nominal):
+    u = tb.unit
+    head = f"time column in {u.name} ({tb.unit_rule.value}"
+    if tb.epoch:
+        when = datetime.fromtimestamp(tb.epoch_offset_s, timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+        head += f" from {when}" if tb.unit_rule is UnitRule.EPOCH else f", epoch from {when}"
+    head += f"; median step {med_s / u.seconds:.4g} {u.name})"
+    what = f"{tb.n:,} samples over {span_s:.1f} s"
+    if len(tb.runs) > 1:
+        what += f" in {len(tb.runs)} runs"
+    if nominal is not None:
+        head += f": rate {tb.rate_hz:.6g} Hz as stated (the record gives {tb.measured_rate_hz:.6g} Hz from {what})"
+    else:
+        head += f": rate {tb.rate_hz:.6g} Hz from {what}"
+    parts = [head]
+    if tb.kind is TimestampKind.BURSTY:
+        med = "infinite" if math.isinf(tb.median_rate_hz) else f"{tb.median_rate_hz:.4g} Hz"
+        parts.append(f"host-stamped bursts (1/median step would say {med}); bursts do not restart the filter")
+    elif tb.kind is TimestampKind.JITTERED:
+        parts.append(f"jittered timestamps (95 % of steps within ±{tb.spread:.0%} of the period; "
+                     f"1/median step {tb.median_rate_hz:.4g} Hz); jitter does not restart the filter")
+    else:
+        parts.append("uniform steps")
+    if tb.repeated and tb.kind is not TimestampKind.BURSTY:
+        parts.append(f"{_count(tb.repeated, 'repeated timestamp')} (kept)")
+    bridged = ~tb.gap_restarts
+    if bridged.any():
+        parts.append(f"{_count(int(bridged.sum()), 'short gap')} ({_count(int(tb.gap_missing[bridged].sum()), 'sample')} "
+                     f"missing, at most {MAX_BRIDGED_MISSING} each) bridged: no restart")
+    if tb.gap_restarts.any():
+        j = int(np.argmax(np.where(tb.gap_restarts, tb.gap_seconds, -np.inf)))
+        parts.append(f"{_count(int(tb.gap_restarts.sum()), 'gap')} of more than {MAX_BRIDGED_MISSING} missing samples "
+                     f"({int(tb.gap_missing[tb.gap_restarts].sum()):,} missing; longest {tb.gap_seconds[j]:.4g} s "
+                     f"before sample {int(tb.gap_index[j]):,}) restart the filter")
+    if tb.reversals.size:
+        parts.append(f"{_count(int(tb.reversals.size), 'time reversal')} (first before sample "
+                     f"{int(tb.reversals[0]):,}) restart the filter")
+    if len(tb.runs) > 1:
+        shown = " | ".join(f"{r.samples:,}" for r in tb.runs[:4])
+        more = f" | ... (shortest {min(r.samples for r in tb.runs):,})" if len(tb.runs) > 4 else ""
+        parts.append(f"runs of {shown}{more} samples")
+    if alt is not None:
+        parts.append(f"read as {alt.name} it would be {tb.measured_rate_hz * u.seconds / alt.seconds:.3g} Hz: "
+                     f"state the unit if so")
+    return replace(tb, note="; ".join(parts))
