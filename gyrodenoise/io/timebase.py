@@ -237,8 +237,8 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
         fail(f"all {n:,} timestamps are equal ({t[0]}): no time base")
 
     fwd = dt[~back]
-    med = float(np.median(fwd))
-    period = _first_period(fwd, med)
+    period, med = _first_period(fwd)
+    del fwd
     for _ in range(2):        # a second pass with the period from count over span, when it moved
         gaps = _find_gaps(dt, back, period, med)
         runs, count, span = _runs(rel, dt, back, gaps)
@@ -246,9 +246,8 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
             fail("time never advances within a run")
         moved = abs(span / count / period - 1.0)
         period = span / count
-        if moved < 1e-4 and not gaps[0].size:
+        if moved < 1e-4:
             break
-    del fwd
     kind, spread = _kind(dt, back, gaps, period, med)
 
     t0 = float(t[0])
@@ -295,21 +294,23 @@ def _relative(t):
     return t.astype(np.float64) - np.float64(t[0])
 
 
-def _first_period(fwd, med):
-    """A first period (raw unit) from the forward steps ``fwd`` and their median
-    ``med``: the median step, or for bursts (the median block mean more than
-    BURST_RATIO x the median step) the median block mean."""
+def _first_period(fwd):
+    """(a first period, the median step) in the raw unit, from the forward steps
+    ``fwd`` (a copy: reordered here): the median step, or for bursts (the median
+    block mean more than BURST_RATIO x the median step) the median block mean."""
     k = int(min(256, max(8, fwd.size // 32)))
     nb = fwd.size // k
-    blk = float(np.median(fwd[:nb * k].reshape(nb, k).mean(axis=1))) if nb else float(fwd.mean())
+    mean = float(fwd.mean())
+    blk = float(np.median(fwd[:nb * k].reshape(nb, k).mean(axis=1))) if nb else mean
+    med = float(np.median(fwd, overwrite_input=True))
     if med > 0 and blk <= BURST_RATIO * med:
-        return med
-    return blk if blk > 0 else float(fwd.mean())
+        return med, med
+    return (blk if blk > 0 else mean), med
 
 
-def _sliding_min(x, w):
+def _sliding_min(x, w, inplace=False):
     """min(x[i:i+w]) for every i, windows clipped at the end (doubling: O(n log w))."""
-    m = x.copy()
+    m = x if inplace else x.copy()
     k = 1
     while 2 * k <= w:
         np.minimum(m[:-k], m[k:], out=m[:-k])
@@ -326,11 +327,13 @@ def _find_gaps(dt, back, period, med):
     empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, bool))
     if not cand.size:
         return empty
-    s = dt / period - 1.0
-    s[back] = 0.0
-    e = np.empty(dt.size + 1)
+    e = np.empty(dt.size + 1)      # the sample clock: time / period - sample number
     e[0] = 0.0
-    np.cumsum(s, out=e[1:])
+    np.divide(dt, period, out=e[1:])
+    e[1:] -= 1.0
+    e[1:][back] = 0.0              # a reversal is a restart, not a level
+    np.cumsum(e[1:], out=e[1:])
+    excess = dt[cand] / period - 1.0
     w = LEVEL_WINDOW
     bursty = med * BURST_RATIO < period
     if bursty:                          # a window spans several bursts
@@ -338,9 +341,11 @@ def _find_gaps(dt, back, period, med):
         w = int(min(1024, max(w, math.ceil(BURST_WINDOW_CYCLES * cycle))))
     # the lower envelope, blind to one early stamp (a repeated timestamp): a sample
     # below both neighbours is raised to the lower of them, then the window's min
-    f = e.copy()
-    np.maximum(f[1:-1], np.minimum(e[:-2], e[2:]), out=f[1:-1])
-    lvl = _sliding_min(f, w)
+    lvl = np.empty_like(e)
+    lvl[0], lvl[-1] = e[0], e[-1]
+    np.minimum(e[:-2], e[2:], out=lvl[1:-1])
+    np.maximum(lvl[1:-1], e[1:-1], out=lvl[1:-1])
+    _sliding_min(lvl, w, inplace=True)
     after = lvl[cand + 1]                          # e[k+1 .. k+w]
     before = lvl[np.maximum(cand + 1 - w, 0)]      # e[k+1-w .. k]
     n = e.size
@@ -370,7 +375,7 @@ def _find_gaps(dt, back, period, med):
     noise = 1.4826 * float(np.median(np.abs(resid)))
     missing = np.rint(rise)
     if not bursty:       # host-stamped bursts may stamp the samples before a gap late: the step is short
-        missing = np.minimum(missing, np.rint(s[cand]))
+        missing = np.minimum(missing, np.rint(excess))
     keep = (rise >= max(0.5, NOISE_SIGMAS * noise)) & (missing >= 1)
     if not keep.any():
         return empty
@@ -415,7 +420,10 @@ def _kind(dt, back, gaps, period, med):
     """(TimestampKind, spread): module docstring."""
     ok = ~back
     ok[gaps[0]] = False
-    r = np.abs(dt[ok] / period - 1.0)
+    r = dt[ok]
+    r /= period
+    r -= 1.0
+    np.abs(r, out=r)
     if r.size == 0:
         return TimestampKind.UNIFORM, 0.0
     sub = r[::-(-r.size // 1_000_000)]          # the spread from at most 1 M steps, evenly spread
