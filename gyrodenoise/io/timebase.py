@@ -39,20 +39,27 @@ then a long step); else *jittered* when more than 1 % of the steps are more than
 of at least :data:`GAP_CANDIDATE` (1.5) periods is a candidate; its samples
 missing are the rise of the sample clock across it: E = time / period - sample
 number, and the rise is the lower envelope of E over the
-:data:`LEVEL_WINDOW` samples after the step minus that before it (host stamps are
-late, never early, so the lower envelope is the steady one). A burst's long step
-only makes up for the short steps before it, and a jittered step for its
-neighbours: their rise is 0. A candidate whose rise rounds to 1 or more (and
-stands out from the noise of the rises: 5 robust sigmas) is a gap of that many
-missing samples; its duration is the step.
+:data:`LEVEL_WINDOW` samples after the step minus that before it (16, or 16
+burst cycles for bursts; host stamps are late, never early, so the lower
+envelope is the steady one; a single stamp below both neighbours, such as a
+repeated timestamp, is left out of it). A burst's long step only makes up for
+the short steps before it, and a jittered step for its neighbours: their rise is
+0. A candidate whose rise rounds to 1 or more (and stands out from the noise of
+the rises: :data:`NOISE_SIGMAS` robust sigmas) is a gap of that many missing
+samples; its duration is the step. On uniform and jittered stamps each dropped
+sample is found (tested: 2 % dropped at random, every gap and count exact);
+inside bursts a lone dropped sample is hidden by the bursts' own scatter, so
+the rate of a bursty record that drops single samples lies between the
+delivered rate and the sensor's (tested: 2 % dropped, within 2 %); a lost
+packet or a longer outage is found.
 
 **Restarts** (:func:`restart_mask`): a time reversal (time going back: a reboot, a
 concatenated log) and a gap of more than :data:`MAX_BRIDGED_MISSING` (4) missing
-samples restart a filter; jitter, bursts, repeated timestamps and shorter gaps do
-not (the filter carries on, the next sample taken as the next one: one drop at
-a time costs no denoising). This is the flight-log readers' rule (a step of more
-than 5 periods). The runs are the stretches between restarts; the note gives
-their lengths.
+samples whose step is also more than 4 periods long restart a filter; jitter,
+bursts, repeated timestamps and shorter gaps do not (the filter carries on, the
+next sample taken as the next one: a dropped sample costs no denoising). This
+is the flight-log readers' rule (a step of more than 5 periods). The runs are
+the stretches between restarts; the note gives their lengths.
 
 Bad input (an :class:`~gyrodenoise.errors.InputError`, one line): a value that is
 not a finite number, fewer than 2 samples, all timestamps equal, time that
@@ -124,7 +131,7 @@ class Gap:
     index: int        # the first sample after the gap
     seconds: float    # the step across it
     missing: int      # samples missing by count
-    restarts: bool    # more than MAX_BRIDGED_MISSING missing: a filter restarts
+    restarts: bool    # more than MAX_BRIDGED_MISSING missing (and as long a step): a filter restarts
 
 
 @dataclass(frozen=True)
@@ -381,7 +388,9 @@ def _find_gaps(dt, back, period, med):
         return empty
     gi = cand[keep]
     gm = missing[keep].astype(np.int64)
-    return gi, gm, gm > MAX_BRIDGED_MISSING
+    # a restart needs the step itself to span the missing samples too: drops inside
+    # bursts add up in the sample clock without a long step, and are no break
+    return gi, gm, np.minimum(gm, np.rint(excess[keep])) > MAX_BRIDGED_MISSING
 
 
 def _level_before(cand, after, before, rise, w):
