@@ -104,12 +104,12 @@ UNITS = (TimeUnit("s", 1.0, ("sec",)), TimeUnit("ms", 1e-3), TimeUnit("µs", 1e-
          TimeUnit("ns", 1e-9))
 
 
-def time_unit(name):
+def time_unit(name, source=None):
     """The :class:`TimeUnit` called ``name`` (s, ms, us/µs, ns); InputError otherwise."""
     for u in UNITS:
         if name == u.name or name in u.aliases:
             return u
-    raise InputError(f"unknown time unit {name!r} (use one of s, ms, us, ns)")
+    raise InputError(f"unknown time unit {name!r} (use one of s, ms, us, ns)", source)
 
 
 class UnitRule(Enum):
@@ -118,6 +118,13 @@ class UnitRule(Enum):
     EPOCH = "a Unix epoch"
     NOMINAL = "matching the stated sample rate"
     SPACING = "by its spacing"
+
+
+class RunStart(Enum):
+    """Why a run starts (the note's word)."""
+    START = "start"
+    GAP = "gap"
+    REVERSAL = "reversal"
 
 
 class TimestampKind(Enum):
@@ -140,7 +147,7 @@ class Run:
     stop: int         # one past the last sample
     missing: int      # samples missing in its bridged gaps
     seconds: float    # last time - first time
-    cause: str        # what ended the previous run: "start", "gap", "reversal"
+    cause: RunStart   # why it starts: the record's start, a restarting gap, a time reversal
 
     @property
     def samples(self):
@@ -196,7 +203,8 @@ class TimeBase:
 
 def restart_mask(tb):
     """Bool (n,): True at the first sample of each run after the first (a time
-    reversal, or a gap of more than MAX_BRIDGED_MISSING missing samples)."""
+    reversal, or a gap of more than MAX_BRIDGED_MISSING missing samples and as
+    long a step); the convention of ``GyroStream.restarts`` and ``Record.restarts``."""
     mask = np.zeros(tb.n, dtype=bool)
     mask[tb.restarts] = True
     return mask
@@ -216,7 +224,7 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
     def fail(msg):
         raise InputError(f"{name}: {msg}", source)
 
-    stated = time_unit(unit) if unit is not None else None
+    stated = time_unit(unit, source) if unit is not None else None
     nominal = _check_nominal(nominal_rate, source)
     t = np.asarray(t)
     if t.dtype.kind == "b":
@@ -410,9 +418,9 @@ def _runs(rel, dt, back, gaps):
     """([(start, stop, bridged missing, span, cause)], intervals + bridged missing, span) in the raw unit."""
     gi, gm, gr = gaps
     cuts = np.concatenate([np.flatnonzero(back) + 1, gi[gr] + 1])
-    causes = np.concatenate([np.full(int(back.sum()), "reversal"), np.full(int(gr.sum()), "gap")])
+    is_gap = np.concatenate([np.zeros(int(back.sum()), bool), np.ones(int(gr.sum()), bool)])
     order = np.argsort(cuts, kind="stable")
-    cuts, causes = cuts[order], causes[order]
+    cuts, is_gap = cuts[order], is_gap[order]
     starts = np.concatenate([[0], cuts])
     stops = np.concatenate([cuts, [rel.size]])
     spans = rel[stops - 1] - rel[starts]
@@ -420,7 +428,7 @@ def _runs(rel, dt, back, gaps):
     run_of = np.searchsorted(starts, gi[bridged] + 1, side="right") - 1
     miss = np.bincount(run_of, weights=gm[bridged], minlength=starts.size).astype(np.int64)
     count = float(np.sum(stops - starts - 1) + miss.sum())
-    cause = ["start"] + [str(c) for c in causes]
+    cause = [RunStart.START] + [RunStart.GAP if g else RunStart.REVERSAL for g in is_gap]
     runs = list(zip(starts, stops, miss, spans, cause))
     return runs, count, float(spans.sum())
 
@@ -480,7 +488,7 @@ def _with_note(tb, med_s, span_s, alt, nominal):
     if tb.epoch:
         when = datetime.fromtimestamp(tb.epoch_offset_s, timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
         head += f" from {when}" if tb.unit_rule is UnitRule.EPOCH else f", epoch from {when}"
-    head += f"; median step {med_s / u.seconds:.4g} {u.name})"
+    head += f"; median step {med_s / u.seconds:.6g} {u.name})"
     what = f"{tb.n:,} samples over {span_s:.1f} s"
     if len(tb.runs) > 1:
         what += f" in {len(tb.runs)} runs"

@@ -10,8 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.io.timebase import (MAX_BRIDGED_MISSING, Run, TimestampKind, UnitRule, analyse_time,
-                                     restart_mask)
+from gyrodenoise.io.timebase import (MAX_BRIDGED_MISSING, Run, RunStart, TimestampKind, UnitRule,
+                                     analyse_time, restart_mask)
 
 SCALE = {"s": 1.0, "ms": 1e3, "µs": 1e6, "ns": 1e9}     # raw units per second
 
@@ -36,7 +36,7 @@ def host_bursts(seed, n=65_067, span_s=655.0, inner_s=1 / 491.4, poll_s=(0.030, 
 
 
 def one_run(tb):
-    assert tb.runs == (Run(0, tb.n, tb.missing, tb.runs[0].seconds, "start"),)
+    assert tb.runs == (Run(0, tb.n, tb.missing, tb.runs[0].seconds, RunStart.START),)
     assert not restart_mask(tb).any()
 
 
@@ -223,7 +223,7 @@ def test_one_real_five_second_gap():
     assert list(tb.gap_index) == [2000] and list(tb.gap_missing) == [500]
     assert tb.gap_seconds[0] == pytest.approx(5.01)
     assert list(tb.restarts) == [2000]
-    assert [(r.start, r.stop, r.cause) for r in tb.runs] == [(0, 2000, "start"), (2000, 5500, "gap")]
+    assert [(r.start, r.stop, r.cause) for r in tb.runs] == [(0, 2000, RunStart.START), (2000, 5500, RunStart.GAP)]
     assert tb.rate_hz == pytest.approx(100.0, rel=1e-12)
     assert "runs of 2,000 | 3,500 samples" in tb.note
 
@@ -243,7 +243,7 @@ def test_time_reversal_restarts():
     tb = analyse_time(t)
     assert list(tb.reversals) == [3000] and tb.gap_index.size == 0
     assert list(tb.restarts) == [3000]
-    assert [(r.start, r.stop, r.cause) for r in tb.runs] == [(0, 3000, "start"), (3000, 5000, "reversal")]
+    assert [(r.start, r.stop, r.cause) for r in tb.runs] == [(0, 3000, RunStart.START), (3000, 5000, RunStart.REVERSAL)]
     assert tb.rate_hz == pytest.approx(100.0, rel=1e-12)
     assert "1 time reversal (first before sample 3,000) restart the filter" in tb.note
 
@@ -259,7 +259,7 @@ def test_epoch_ns_with_a_reboot():
     assert (tb.unit.name, tb.epoch, tb.rate_hz) == ("ns", True, pytest.approx(200.0, rel=1e-12))
     assert list(tb.reversals) == [4000]
     assert list(tb.gap_index) == [7000] and list(tb.gap_missing) == [400]    # a step of 2.005 s: 401 periods
-    assert [(r.start, r.cause) for r in tb.runs] == [(0, "start"), (4000, "reversal"), (7000, "gap")]
+    assert [(r.start, r.cause) for r in tb.runs] == [(0, RunStart.START), (4000, RunStart.REVERSAL), (7000, RunStart.GAP)]
 
 
 def test_repeated_timestamps_are_counted_not_restarts():
