@@ -32,7 +32,8 @@ nominal rate) of the record's rate; further off it is an InputError naming both.
 
 **Kind of timestamps** (:class:`TimestampKind`): *bursty* when 1/median step is
 more than 1.25x the rate (a host stamping USB packets: many samples ~0 apart,
-then a long step); else *jittered* when more than 1 % of the steps are more than
+then a long step; told only over 32 steps or more: a few steps and a long one
+are a gap); else *jittered* when more than 1 % of the steps are more than
 1 % off the period; else *uniform*.
 
 **Gap** (what counts): samples missing by count, not a long step alone. A step
@@ -87,6 +88,7 @@ NOMINAL_TOLERANCE = 0.02     # a stated rate is used within 2 % of the record's 
 MIN_SPACING_RATE_HZ = 10.0   # the spacing rule's floor for whole-number steps
 MAX_RATE_HZ = 1.0e7          # above: not a sample rate
 BURST_RATIO = 1.25           # 1/median step above this x rate: bursts
+MIN_BURST_BLOCKS = 4         # bursts are told from a median of at least this many block means (>= 32 steps)
 UNIFORM_TOLERANCE = 0.01     # a step within 1 % of the period is uniform ...
 UNIFORM_SHARE = 0.01         # ... and at most 1 % of the steps may be off
 EPOCH_WINDOW_S = (946_684_800.0, 4_102_444_800.0)   # 2000-01-01 .. 2100-01-01
@@ -312,13 +314,15 @@ def _relative(t):
 def _first_period(fwd):
     """(a first period, the median step) in the raw unit, from the forward steps
     ``fwd`` (a copy: reordered here): the median step, or for bursts (the median
-    block mean more than BURST_RATIO x the median step) the median block mean."""
+    block mean more than BURST_RATIO x the median step, over at least
+    MIN_BURST_BLOCKS blocks: a few steps with one long one are a gap) the median
+    block mean."""
     k = int(min(256, max(8, fwd.size // 32)))
     nb = fwd.size // k
     mean = float(fwd.mean())
     blk = float(np.median(fwd[:nb * k].reshape(nb, k).mean(axis=1))) if nb else mean
     med = float(np.median(fwd, overwrite_input=True))
-    if med > 0 and blk <= BURST_RATIO * med:
+    if med > 0 and (blk <= BURST_RATIO * med or nb < MIN_BURST_BLOCKS):
         return med, med
     return (blk if blk > 0 else mean), med
 
@@ -489,7 +493,7 @@ def _with_note(tb, med_s, span_s, alt, nominal):
         when = datetime.fromtimestamp(tb.epoch_offset_s, timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
         head += f" from {when}" if tb.unit_rule is UnitRule.EPOCH else f", epoch from {when}"
     head += f"; median step {med_s / u.seconds:.6g} {u.name})"
-    what = f"{tb.n:,} samples over {span_s:.1f} s"
+    what = f"{tb.n:,} samples over {span_s:.1f} s" if span_s >= 10 else f"{tb.n:,} samples over {span_s:.4g} s"
     if len(tb.runs) > 1:
         what += f" in {len(tb.runs)} runs"
     if nominal is not None:

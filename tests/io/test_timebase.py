@@ -262,6 +262,12 @@ def test_epoch_ns_with_a_reboot():
     assert [(r.start, r.cause) for r in tb.runs] == [(0, RunStart.START), (4000, RunStart.REVERSAL), (7000, RunStart.GAP)]
 
 
+def test_few_samples_and_one_long_step_is_a_gap_not_bursts():
+    tb = analyse_time([0.0, 0.01, 0.02, 10.0])
+    assert tb.kind is TimestampKind.UNIFORM and tb.rate_hz == pytest.approx(100.0)
+    assert list(tb.gap_index) == [3] and list(tb.gap_missing) == [997] and list(tb.restarts) == [3]
+
+
 def test_repeated_timestamps_are_counted_not_restarts():
     t = uniform(1000, 100.0)
     t[500] = t[499]
