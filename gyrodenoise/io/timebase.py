@@ -30,7 +30,13 @@ step is the check: when 1/median step differs from the rate the note says why
 :data:`NOMINAL_TOLERANCE` (2 %: a MEMS sensor's own clock may be that far off its
 nominal rate) of the record's rate; further off it is an InputError naming both.
 
-**Kind of timestamps** (:class:`TimestampKind`): *bursty* when 1/median step is
+**Kind of timestamps** (:class:`TimestampKind`): *varying* when the rate changes
+along the record (the median steps of blocks of up to 256 steps differ by more
+than :data:`RATE_CHANGE`, 1.5x, between their 10th and 90th percentiles: a
+telemetry stream whose rate a ground station changed); the rate is then the
+mean (count over span) and gaps are judged against the median step of each
+block; else
+*bursty* when 1/median step is
 more than 1.25x the rate (a host stamping USB packets: many samples ~0 apart,
 then a long step; told only over 32 steps or more: a few steps and a long one
 are a gap); else *jittered* when more than 1 % of the steps are more than
@@ -88,7 +94,8 @@ NOMINAL_TOLERANCE = 0.02     # a stated rate is used within 2 % of the record's 
 MIN_SPACING_RATE_HZ = 10.0   # the spacing rule's floor for whole-number steps
 MAX_RATE_HZ = 1.0e7          # above: not a sample rate
 BURST_RATIO = 1.25           # 1/median step above this x rate: bursts
-MIN_BURST_BLOCKS = 4         # bursts are told from a median of at least this many block means (>= 32 steps)
+MIN_BURST_BLOCKS = 4         # bursts and rate changes are told over at least this many blocks (>= 32 steps)
+RATE_CHANGE = 1.5            # block median steps further apart (90th / 10th percentile): the rate varies
 UNIFORM_TOLERANCE = 0.01     # a step within 1 % of the period is uniform ...
 UNIFORM_SHARE = 0.01         # ... and at most 1 % of the steps may be off
 EPOCH_WINDOW_S = (946_684_800.0, 4_102_444_800.0)   # 2000-01-01 .. 2100-01-01
@@ -133,6 +140,7 @@ class TimestampKind(Enum):
     UNIFORM = "uniform"
     JITTERED = "jittered"
     BURSTY = "bursty"
+    VARYING = "varying"
 
 
 @dataclass(frozen=True)
@@ -177,6 +185,7 @@ class TimeBase:
     gap_restarts: np.ndarray = field(repr=False)
     reversals: np.ndarray = field(repr=False)     # first sample after time went back
     runs: tuple = field(repr=False)
+    rate_range_hz: tuple | None = None   # VARYING: the block rates' 10th and 90th percentiles
     note: str = ""
 
     @property
@@ -254,18 +263,23 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
         fail(f"all {n:,} timestamps are equal ({t[0]}): no time base")
 
     fwd = dt[~back]
-    period, med = _first_period(fwd)
+    period, med, pattern, steps = _first_period(fwd)
     del fwd
+    if pattern is TimestampKind.VARYING:
+        period = _local_period(dt)
     for _ in range(2):        # a second pass with the period from count over span, when it moved
-        gaps = _find_gaps(dt, back, period, med)
+        gaps = _find_gaps(dt, back, period, pattern)
         runs, count, span = _runs(rel, dt, back, gaps)
         if span <= 0:
             fail("time never advances within a run")
+        if pattern is TimestampKind.VARYING:         # judged against the blocks' own steps
+            break
         moved = abs(span / count / period - 1.0)
         period = span / count
         if moved < 1e-4:
             break
-    kind, spread = _kind(dt, back, gaps, period, med)
+    period = span / count
+    kind, spread = _kind(dt, back, gaps, period, pattern)
 
     t0 = float(t[0])
     uobj, rule, alt = _decide_unit(stated, nominal, period, t0)
@@ -287,7 +301,8 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
         epoch_offset_s=(t0 * uobj.seconds if epoch else None), origin=t0, kind=kind,
         spread=spread, repeated=int(np.count_nonzero(dt == 0)),
         gap_index=gi + 1, gap_seconds=dt[gi] * uobj.seconds, gap_missing=gm, gap_restarts=gr,
-        reversals=np.flatnonzero(back) + 1, runs=run_objs)
+        reversals=np.flatnonzero(back) + 1, runs=run_objs,
+        rate_range_hz=(None if steps is None else (1.0 / (steps[1] * uobj.seconds), 1.0 / (steps[0] * uobj.seconds))))
     return _with_note(tb, med * uobj.seconds, span * uobj.seconds, alt, nominal)
 
 
@@ -312,19 +327,43 @@ def _relative(t):
 
 
 def _first_period(fwd):
-    """(a first period, the median step) in the raw unit, from the forward steps
-    ``fwd`` (a copy: reordered here): the median step, or for bursts (the median
-    block mean more than BURST_RATIO x the median step, over at least
-    MIN_BURST_BLOCKS blocks: a few steps with one long one are a gap) the median
-    block mean."""
-    k = int(min(256, max(8, fwd.size // 32)))
+    """(a first period, the median step, the pattern, the block rates' 10th and 90th
+    percentiles or None) in the raw unit, from the forward steps ``fwd`` (a copy:
+    reordered here). The pattern: VARYING when the median steps of blocks differ
+    by more than RATE_CHANGE (over at least MIN_BURST_BLOCKS blocks), BURSTY when
+    the median block mean is more than BURST_RATIO x the median step (over as
+    many blocks: a few steps and a long one are a gap), else UNIFORM (uniform or
+    jittered, told later). The first period is the median step, or for bursts the
+    median block mean."""
+    k = _block(fwd.size)
     nb = fwd.size // k
     mean = float(fwd.mean())
-    blk = float(np.median(fwd[:nb * k].reshape(nb, k).mean(axis=1))) if nb else mean
+    blocks = fwd[:nb * k].reshape(nb, k)
+    blk = float(np.median(blocks.mean(axis=1))) if nb else mean
+    lo = hi = None
+    if nb >= MIN_BURST_BLOCKS:
+        lo, hi = np.quantile(np.median(blocks, axis=1), [0.1, 0.9])
     med = float(np.median(fwd, overwrite_input=True))
+    if lo is not None and lo > 0 and hi > RATE_CHANGE * lo:
+        return med, med, TimestampKind.VARYING, (float(lo), float(hi))
     if med > 0 and (blk <= BURST_RATIO * med or nb < MIN_BURST_BLOCKS):
-        return med, med
-    return (blk if blk > 0 else mean), med
+        return med, med, TimestampKind.UNIFORM, None
+    return (blk if blk > 0 else mean), med, TimestampKind.BURSTY, None
+
+
+def _local_period(dt):
+    """Per step, the median step of its block (BLOCK steps; the last block takes
+    what is left): the period of a record whose rate varies."""
+    k = _block(dt.size)
+    nb = -(-dt.size // k)
+    pad = np.full(nb * k, np.nan)
+    pad[:dt.size] = np.where(dt >= 0, dt, np.nan)
+    meds = np.nanmedian(pad.reshape(nb, k), axis=1)
+    return np.repeat(meds, k)[:dt.size]
+
+
+def _block(n_steps):
+    return int(min(256, max(8, n_steps // 32)))
 
 
 def _sliding_min(x, w, inplace=False):
@@ -340,7 +379,7 @@ def _sliding_min(x, w, inplace=False):
     return m
 
 
-def _find_gaps(dt, back, period, med):
+def _find_gaps(dt, back, period, pattern):
     """(step indices, samples missing, restarts) of the gaps (module docstring)."""
     cand = np.flatnonzero(dt >= GAP_CANDIDATE * period)
     empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, bool))
@@ -352,9 +391,9 @@ def _find_gaps(dt, back, period, med):
     e[1:] -= 1.0
     e[1:][back] = 0.0              # a reversal is a restart, not a level
     np.cumsum(e[1:], out=e[1:])
-    excess = dt[cand] / period - 1.0
+    excess = dt[cand] / (period if np.ndim(period) == 0 else period[cand]) - 1.0
     w = LEVEL_WINDOW
-    bursty = med * BURST_RATIO < period
+    bursty = pattern is TimestampKind.BURSTY
     if bursty:                          # a window spans several bursts
         cycle = dt.size / max(1, cand.size)
         w = int(min(1024, max(w, math.ceil(BURST_WINDOW_CYCLES * cycle))))
@@ -437,7 +476,7 @@ def _runs(rel, dt, back, gaps):
     return runs, count, float(spans.sum())
 
 
-def _kind(dt, back, gaps, period, med):
+def _kind(dt, back, gaps, period, pattern):
     """(TimestampKind, spread): module docstring."""
     ok = ~back
     ok[gaps[0]] = False
@@ -450,8 +489,8 @@ def _kind(dt, back, gaps, period, med):
     sub = r[::-(-r.size // 1_000_000)]          # the spread from at most 1 M steps, evenly spread
     k95 = min(sub.size - 1, int(0.95 * sub.size))
     spread = float(np.partition(sub, k95)[k95])
-    if med * BURST_RATIO < period:
-        return TimestampKind.BURSTY, spread
+    if pattern is not TimestampKind.UNIFORM:
+        return pattern, spread
     if np.count_nonzero(r > UNIFORM_TOLERANCE) > UNIFORM_SHARE * r.size:
         return TimestampKind.JITTERED, spread
     return TimestampKind.UNIFORM, spread
@@ -507,6 +546,10 @@ def _with_note(tb, med_s, span_s, alt, nominal):
     elif tb.kind is TimestampKind.JITTERED:
         parts.append(f"jittered timestamps (95 % of steps within ±{tb.spread:.0%} of the period; "
                      f"1/median step {tb.median_rate_hz:.4g} Hz); jitter does not restart the filter")
+    elif tb.kind is TimestampKind.VARYING:
+        lo, hi = tb.rate_range_hz
+        parts.append(f"the rate varies along the record ({lo:.4g} to {hi:.4g} Hz over blocks of steps): the rate "
+                     f"given is the mean; gaps are judged against each block's median step")
     else:
         parts.append("uniform steps")
     if tb.repeated and tb.kind is not TimestampKind.BURSTY:
@@ -514,7 +557,7 @@ def _with_note(tb, med_s, span_s, alt, nominal):
     bridged = ~tb.gap_restarts
     if bridged.any():
         parts.append(f"{_count(int(bridged.sum()), 'short gap')} ({_count(int(tb.gap_missing[bridged].sum()), 'sample')} "
-                     f"missing, at most {MAX_BRIDGED_MISSING} each) bridged: no restart")
+                     f"missing) bridged: no restart")
     if tb.gap_restarts.any():
         j = int(np.argmax(np.where(tb.gap_restarts, tb.gap_seconds, -np.inf)))
         parts.append(f"{_count(int(tb.gap_restarts.sum()), 'gap')} of more than {MAX_BRIDGED_MISSING} missing samples "

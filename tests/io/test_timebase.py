@@ -200,7 +200,7 @@ def test_two_percent_dropped_counted_by_samples_missing(seed):
     assert np.array_equal(tb.restarts, long_)
     assert np.array_equal(np.flatnonzero(restart_mask(tb)), long_)
     assert tb.rate_hz == pytest.approx(100.0, rel=1e-12)
-    assert f"{after.size:,} short gaps ({int(missing.sum()):,} samples missing" in tb.note
+    assert f"{after.size:,} short gaps ({int(missing.sum()):,} samples missing) bridged" in tb.note
 
 
 def test_drops_in_jittered_stamps():
@@ -268,11 +268,50 @@ def test_few_samples_and_one_long_step_is_a_gap_not_bursts():
     assert list(tb.gap_index) == [3] and list(tb.gap_missing) == [997] and list(tb.restarts) == [3]
 
 
+def test_rate_that_changes_along_the_record():
+    """A telemetry stream whose rate a ground station lowered from 2 Hz to 0.8 Hz, then a
+    40 s outage: the rate given is the mean; the steps of the slow part are no gap; the
+    outage is (judged against the slow part's own step)."""
+    rng = np.random.default_rng(8)
+    steps = np.concatenate([np.full(300, 0.5), np.full(299, 1.25), [40.0], np.full(200, 1.25)])
+    jitter = 1 + rng.uniform(-0.05, 0.05, steps.size)
+    jitter[599] = 1.0                                   # the outage: 32 steps of 1.25 s, 31 missing
+    t = np.concatenate([[0.0], np.cumsum(steps * jitter)])
+    tb = analyse_time(t, unit="s")
+    assert tb.kind is TimestampKind.VARYING
+    lo, hi = tb.rate_range_hz
+    assert lo == pytest.approx(0.8, rel=0.05) and hi == pytest.approx(2.0, rel=0.05)
+    assert list(tb.gap_index) == [600] and list(tb.gap_missing) == [31] and list(tb.restarts) == [600]
+    assert tb.rate_hz == pytest.approx(799 / (t[-1] - t[0] - tb.gap_seconds[0]), rel=1e-9)
+    assert "the rate varies along the record" in tb.note
+
+
 def test_repeated_timestamps_are_counted_not_restarts():
     t = uniform(1000, 100.0)
     t[500] = t[499]
     tb = analyse_time(t)
     assert tb.repeated == 1 and tb.restarts.size == 0 and tb.gap_index.size == 0
+
+
+# --- real logs: the facts their README states, and the flight-log readers' restarts ----------------
+
+@pytest.mark.parametrize("name,stream,rate,restarts,cause", [
+    ("log171.bin", "IMU", 49.53, [3018], RunStart.GAP),                  # "one 2.0 s gap"
+    ("copter_20211202-132613.tlog", "RAW_IMU", 1.0, [524, 1013], RunStart.REVERSAL),   # "3 boot sessions"
+    ("sitl_copter_reboot.tlog", "RAW_IMU", 10.0, [61], RunStart.REVERSAL),            # "one reboot"
+])
+def test_real_logs(name, stream, rate, restarts, cause):
+    from gyrodenoise.flightlog.formats import log_kind, read_log
+    from gyrodenoise.flightlog.streams import restart_flags
+    from tests.helpers import shared_log
+    path = shared_log(name)
+    s = next(s for s in read_log(path, log_kind(path))[0] if s.name == stream)
+    tb = analyse_time(s.time_s, unit="s")
+    assert tb.rate_hz == pytest.approx(rate, rel=1e-3)
+    assert list(tb.restarts) == restarts and all(r.cause is cause for r in tb.runs[1:])
+    assert np.array_equal(restart_mask(tb), restart_flags(s.time_s, 5.0)[0])
+    if cause is RunStart.GAP:
+        assert tb.gap_seconds[tb.gap_restarts] == pytest.approx([2.022])
 
 
 # --- the stated sample rate ----------------------------------------------------------------------
