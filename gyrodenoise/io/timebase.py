@@ -342,7 +342,8 @@ def _first_period(fwd):
     blk = float(np.median(blocks.mean(axis=1))) if nb else mean
     lo = hi = None
     if nb >= MIN_BURST_BLOCKS:
-        lo, hi = np.quantile(np.median(blocks, axis=1), [0.1, 0.9])
+        sample = blocks[::max(1, nb // 1024)]          # at most about 2,000 blocks, evenly spread
+        lo, hi = np.quantile(np.median(sample, axis=1), [0.1, 0.9])
     med = float(np.median(fwd, overwrite_input=True))
     if lo is not None and lo > 0 and hi > RATE_CHANGE * lo:
         return med, med, TimestampKind.VARYING, (float(lo), float(hi))
@@ -422,7 +423,9 @@ def _find_gaps(dt, back, period, pattern):
     short = np.flatnonzero(h < w)
     catch_up = 0.0
     if bursty and short.size:
-        catch_up = float(np.median(-_sliding_min(-e, w)[cand + 1] - lvl[cand + 1]))
+        at = cand[::max(1, cand.size // 1000)] + 1      # the range over at most about 2,000 windows
+        win = e[np.minimum(at[:, None] + np.arange(w), n - 1)]
+        catch_up = float(np.median(win.max(axis=1) - lvl[at]))
     for j in short:
         k, hj = int(cand[j]) + 1, max(1, int(h[j]))
         after[j] = e[k:k + hj].min() - catch_up
