@@ -86,6 +86,7 @@ import numpy as np
 from gyrodenoise.errors import InputError
 
 GAP_CANDIDATE = 1.5          # a step of this many periods may hold missing samples
+PASSES = 6                   # at most this many passes: gaps found with a period, the period from them
 LEVEL_WINDOW = 16            # (>= 2) samples each side of a step for the sample clock's level
 NOISE_SIGMAS = 5.0           # a rise must stand this far out of the rises' own noise
 BURST_WINDOW_CYCLES = 16     # for bursts: this many burst cycles (a burst ends with a candidate step)
@@ -267,7 +268,7 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
     del fwd
     if pattern is TimestampKind.VARYING:
         period = _local_period(dt)
-    for _ in range(2):        # a second pass with the period from count over span, when it moved
+    for _ in range(PASSES):   # again with the period from count over span, while it moves
         gaps = _find_gaps(dt, back, period, pattern)
         runs, count, span = _runs(rel, dt, back, gaps)
         if span <= 0:
@@ -333,8 +334,8 @@ def _first_period(fwd):
     by more than RATE_CHANGE (over at least MIN_BURST_BLOCKS blocks), BURSTY when
     the median block mean is more than BURST_RATIO x the median step (over as
     many blocks: a few steps and a long one are a gap), else UNIFORM (uniform or
-    jittered, told later). The first period is the median step, or for bursts the
-    median block mean."""
+    jittered, told later). The first period is the median step (of those within
+    0.5-1.5x the median), or for bursts the median block mean."""
     k = _block(fwd.size)
     nb = fwd.size // k
     mean = float(fwd.mean())
@@ -348,7 +349,10 @@ def _first_period(fwd):
     if lo is not None and lo > 0 and hi > RATE_CHANGE * lo:
         return med, med, TimestampKind.VARYING, (float(lo), float(hi))
     if med > 0 and (blk <= BURST_RATIO * med or nb < MIN_BURST_BLOCKS):
-        return med, med, TimestampKind.UNIFORM, None
+        # steps of missing samples (2 periods and more) lift the median: the median
+        # of the steps within 0.5-1.5x the median (a symmetric cut of the jitter)
+        mid = fwd[(fwd > 0.5 * med) & (fwd < 1.5 * med)]
+        return (float(np.median(mid)) if mid.size else med), med, TimestampKind.UNIFORM, None
     return (blk if blk > 0 else mean), med, TimestampKind.BURSTY, None
 
 
@@ -408,10 +412,11 @@ def _find_gaps(dt, back, period, pattern):
     after = lvl[cand + 1]                          # e[k+1 .. k+w]
     before = lvl[np.maximum(cand + 1 - w, 0)]      # e[k+1-w .. k]
     n = e.size
-    # a window cut short (an end of the record, or the next step that rises) may hold
-    # only the top of a burst: its level is taken down by the sample clock's typical
-    # range over a window (rises there are underestimated, never made up); without
-    # bursts, the window before is cut to the same length
+    # a window cut short (an end of the record, or the next step that rises) sees too
+    # little of the stamps' scatter: with bursts it may hold only the top of one, so
+    # its level is taken down by the sample clock's typical range over a window; near
+    # an end of the record too (a gap there must stand out of the scatter); before
+    # the next rise, without bursts, the window before is cut to the same length
     rises = after - _level_before(cand, after, before, after - before, w) >= 0.5
     room = np.full(cand.size, n)
     nxt = np.flatnonzero(rises)
@@ -421,14 +426,15 @@ def _find_gaps(dt, back, period, pattern):
         room[has] = cand[nxt[j[has]]] + 1
     h = np.minimum(np.minimum(room - cand - 1, cand + 1), w)
     short = np.flatnonzero(h < w)
-    catch_up = 0.0
-    if bursty and short.size:
+    scatter = 0.0
+    if short.size:
         at = cand[::max(1, cand.size // 1000)] + 1      # the range over at most about 2,000 windows
         win = e[np.minimum(at[:, None] + np.arange(w), n - 1)]
-        catch_up = float(np.median(win.max(axis=1) - lvl[at]))
+        scatter = float(np.median(win.max(axis=1) - lvl[at]))
     for j in short:
         k, hj = int(cand[j]) + 1, max(1, int(h[j]))
-        after[j] = e[k:k + hj].min() - catch_up
+        at_end = k < w or k + w > n
+        after[j] = e[k:k + hj].min() - (scatter if bursty or at_end else 0.0)
         if not bursty:
             before[j] = e[k - hj:k].min()
     rise = after - _level_before(cand, after, before, after - before, w)
