@@ -35,11 +35,9 @@ along the record (the median steps of blocks of up to 256 steps differ by more
 than :data:`RATE_CHANGE`, 1.5x, between their 10th and 90th percentiles: a
 telemetry stream whose rate a ground station changed); the rate is then the
 mean (count over span) and gaps are judged against the median step of each
-block; else
-*bursty* when 1/median step is
-more than 1.25x the rate (a host stamping USB packets: many samples ~0 apart,
-then a long step; told only over 32 steps or more: a few steps and a long one
-are a gap); else *jittered* when more than 1 % of the steps are more than
+block; else *bursty* when 1/median step is more than 1.25x the rate (a host
+stamping USB packets: many samples ~0 apart, then a long step; told only over
+32 steps or more: a few steps and a long one are a gap); else *jittered* when more than 1 % of the steps are more than
 1 % off the period; else *uniform*.
 
 **Gap** (what counts): samples missing by count, not a long step alone. A step
@@ -97,7 +95,7 @@ from gyrodenoise.errors import InputError
 GAP_CANDIDATE = 1.5          # a step of this many periods may hold missing samples
 PASSES = 6                   # at most this many passes: gaps found with a period, the period from them
 LEVEL_WINDOW = 16            # (>= 2) samples each side of a step for the sample clock's level
-LOCKED = 0.15               # lone rises this close to whole numbers (median): a clock locked to samples
+LOCKED = 0.15                # lone rises this close to whole numbers (median): a clock locked to samples
 NOISE_SIGMAS = 5.0           # a rise must stand this far out of the rises' own noise
 BURST_WINDOW_CYCLES = 16     # for bursts: this many burst cycles (a burst ends with a candidate step)
 MAX_BRIDGED_MISSING = 4      # gaps of up to this many missing samples do not restart a filter
