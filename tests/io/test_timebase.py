@@ -301,11 +301,11 @@ def test_repeated_timestamps_are_counted_not_restarts():
     ("sitl_copter_reboot.tlog", "RAW_IMU", 10.0, [61], RunStart.REVERSAL),            # "one reboot"
 ])
 def test_real_logs(name, stream, rate, restarts, cause):
-    from gyrodenoise.flightlog.formats import log_kind, read_log
+    from gyrodenoise.flightlog.formats import read_log
     from gyrodenoise.flightlog.streams import restart_flags
     from tests.helpers import shared_log
     path = shared_log(name)
-    s = next(s for s in read_log(path, log_kind(path))[0] if s.name == stream)
+    s = next(s for s in read_log(path).gyro if s.name == stream)
     tb = analyse_time(s.time_s, unit="s")
     assert tb.rate_hz == pytest.approx(rate, rel=1e-3)
     assert list(tb.restarts) == restarts and all(r.cause is cause for r in tb.runs[1:])
