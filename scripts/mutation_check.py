@@ -190,8 +190,10 @@ def _copy_repository(dest):
     repo = dest / "repo"
     for f in filter(None, files):
         src = ROOT / f
-        if src.is_file():
-            (repo / f).parent.mkdir(parents=True, exist_ok=True)
+        (repo / f).parent.mkdir(parents=True, exist_ok=True)
+        if src.is_symlink():                              # gyrodenoise/data -> ../models
+            (repo / f).symlink_to(os.readlink(src))
+        elif src.is_file():
             shutil.copy2(src, repo / f)
     shared = (ROOT.parent / "shared").resolve()
     if shared.is_dir():
