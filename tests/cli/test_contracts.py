@@ -166,7 +166,12 @@ def test_dynamic_table_reports_the_step_with_and_without_the_gate():
     """Demo's 'price paid': with the default outlier gate a 10 deg/s step is
     followed within 0.2 s (20 rejected samples at 200 Hz, then a re-open);
     the paper's SHAKF without the gate has not reached 90 % after 10 s."""
-    from gyrodenoise.analysis.experiments import dynamic_table
+    from gyrodenoise.analysis.experiments import dynamic_table, rise_time
+    # the figure itself: a ramp of 1 deg/s per s from t = 2 s reaches 90 % of 10 at 11 s
+    t = np.arange(0.0, 20.0, 0.5)
+    assert rise_time(np.clip(t - 2.0, 0.0, None), t, 2.0, 10.0) == 9.0
+    assert rise_time(np.clip(t - 2.0, 0.0, None), t, 2.0, 10.0, frac=0.5) == 5.0
+    assert rise_time(np.zeros_like(t), t, 2.0, 10.0) is None
     dyn = dynamic_table("paper_fog", rates_deg_s=(5.0,), duration_s=60.0, seed=3)
     st = dyn["step"]
     assert st["rise_time_90_s"]["shakf"] is not None and st["rise_time_90_s"]["shakf"] <= 0.2

@@ -465,6 +465,19 @@ def test_card_at_rate_checks_nyquist_at_the_record_rate():
     assert ok.sample_rate_hz == 100.0 and ok.term_list("sinusoid")[0]["frequency"] == 20.0
     with pytest.raises(InputError, match="c200.toml: .*terms.sinusoid"):
         gd.gap(_white(), FS, parse_card(CARD200, "c200.toml"), seeds=3, engine="native")
+    # the rate in an inline table (not on a line of its own, so not rewritten): checked by
+    # hand against the record's Nyquist frequency, not its rate
+    inline = CARD200.replace('[sensor]\nname = "gap test 200 Hz"\nsample_rate_hz = 200.0\n',
+                             'sensor = { name = "inline", sample_rate_hz = 200.0 }\n')
+    assert inline != CARD200
+    for line_hz, ok in ((60.0, False), (80.0, False), (40.0, True)):
+        text = inline.replace("frequency = 80.0", f"frequency = {line_hz}")
+        if ok:
+            assert card_at_rate(text, 100.0, "i.toml").sample_rate_hz == 100.0
+        else:
+            with pytest.raises(InputError, match=rf"^i\.toml: terms\.sinusoid\[0\]\.frequency {line_hz:g} Hz is "
+                                                 r"above the record's Nyquist \(50 Hz; the record is 100 Hz"):
+                card_at_rate(text, 100.0, "i.toml")
 
 
 @pytest.mark.slow
