@@ -36,7 +36,7 @@ from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap import COMPONENTS, edit_card, gm_avar
 from gyrodenoise.simulator import parse_card
 
-from tests.helpers import shared_file
+from tests.helpers import assert_golden, shared_file
 
 FS = 100.0
 N30 = int(30 * 60 * FS)
@@ -567,10 +567,12 @@ def test_report_says_why_not_within_when_the_gap_is_below_the_threshold():
     assert "Allan deviation at tau 0.01 s, 0.04-0.08 s" in rep
 
 
+@pytest.mark.golden
 def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkeypatch):
     """With every candidate's score NaN (widening patched to NaN), nothing is
     accepted; the report says the gap is still above the threshold (not
-    "nothing missing"), the JSON is finite and says within_scatter false."""
+    "nothing missing"), the JSON is finite and says within_scatter false (the whole JSON:
+    the reviewed tests/golden/gap_non_finite_scores.json)."""
     import gyrodenoise.modelgap.workflow as G
     from gyrodenoise.modelgap import format_report
     card = parse_card(SUB)                 # N = 0.5: far noisier than the record
@@ -583,6 +585,7 @@ def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkey
     assert "nothing missing" not in rep and "still above the scatter threshold" in rep
     d = res.to_json()
     assert d["within_scatter"] is False
+    assert_golden("gap_non_finite_scores", d)
     json.dumps(d, allow_nan=False)
     # the finite guard reaches nested floats (card_gap, components, robust_gap)
     out = G._finite({"card_gap": float("inf"), "components": {"psd": float("nan"), "x": np.float64(2.0)},
