@@ -15,8 +15,12 @@ from pathlib import Path
 import pytest
 
 NATIVE_REPORT_PREFIX = "gyrodenoise: native "      # the stderr lines of `fmu build` (gyrodenoise/cli/fmu.py)
-#: fixtures whose setup builds FMUs (tens of seconds): a test that uses one is in the slow tier
+#: fixtures whose setup is the session's FMU build (tens of seconds), started in the background
 FMU_BUILD_FIXTURES = frozenset({"fmu_build", "native_build"})
+#: a test that uses one of these is in the slow tier: the session's build, or ``builds_fmus``,
+#: which a fixture that builds FMUs of its own (pythonfmu, gcc) requests (tests/test_quick_tier.py
+#: checks that every such fixture does)
+SLOW_FIXTURES = FMU_BUILD_FIXTURES | {"builds_fmus"}
 #: a cold zig cache (a fresh CI machine) builds each target's C library first: measured on 2
 #: shared cores, 229 s for linux64 + win64 + darwin64 and 44 s more for the two aarch64 targets
 BUILD_TIMEOUT_S = 480
@@ -105,10 +109,10 @@ def pytest_configure(config):
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Mark ``slow`` every test that needs the session's FMU build, so that the quick tier
-    (``pytest -m "not slow"``) never builds an FMU (tryfirst: before -m deselects)."""
+    """Mark ``slow`` every test that needs an FMU built (SLOW_FIXTURES), so that the quick
+    tier (``pytest -m "not slow"``) never builds one (tryfirst: before -m deselects)."""
     for item in items:
-        if FMU_BUILD_FIXTURES & set(getattr(item, "fixturenames", ())):
+        if SLOW_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
 
 
@@ -149,6 +153,12 @@ def _stop_left_build(folder):
     deadline = time.monotonic() + BUILD_TIMEOUT_S
     while not (folder / "rc").is_file() and time.monotonic() < deadline:
         time.sleep(0.2)
+
+
+@pytest.fixture(scope="session")
+def builds_fmus():
+    """Nothing to set up: requested by a fixture that builds FMUs itself, it puts the tests
+    using that fixture in the slow tier (:func:`pytest_collection_modifyitems`)."""
 
 
 @pytest.fixture(scope="session")

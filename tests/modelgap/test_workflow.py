@@ -671,8 +671,9 @@ def test_spectral_refit_writes_a_zero_coefficient_as_a_removal(monkeypatch):
 
 # ------------------------------------------------------------------ through the FMU
 @pytest.fixture(scope="module")
-def fmu_dir(tmp_path_factory):
-    """Only SimulatedFog.fmu, built into a temporary folder (as `gyrodenoise fmu build` does)."""
+def fmu_dir(builds_fmus, tmp_path_factory):
+    """Only SimulatedFog.fmu, built into a temporary folder (as `gyrodenoise fmu build` does):
+    its tests are slow (builds_fmus)."""
     from gyrodenoise.fmu import build_fmu
     out = tmp_path_factory.mktemp("gap_fmus")
     assert build_fmu("SimulatedFog", out).is_file()
