@@ -50,7 +50,8 @@ class Target:
 TARGETS = (
     Target("gyrodenoise/core/kernels.py",
            ("tests/core/test_kernels.py", "tests/core/test_c_core_equals_python.py",
-            "tests/core/test_lowpass.py", "tests/core/test_rls.py", "tests/core/test_motion.py"),
+            "tests/core/test_lowpass.py", "tests/core/test_rls.py", "tests/core/test_motion.py",
+            "tests/core/test_spectral_floor.py", "tests/core/test_rigid_body_band.py"),
            0.45),
     Target("gyrodenoise/flightlog/dataflash.py",
            ("tests/flightlog/test_logdata.py", "tests/flightlog/test_file_mode.py",

@@ -7,6 +7,7 @@ to its own marks (a build that fails at once, such as one without a compiler, is
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 from tests.conftest import SLOW_FIXTURES
@@ -25,27 +26,24 @@ def _is_fixture(fn):
     return False
 
 
-def _builds(fn):
+_BUILDS = re.compile(r"\b(?:%s)\s*\(|[\"']fmu[\"'],\s*[\"']build[\"']" % "|".join(sorted(BUILDERS)))
+
+
+def _builds(text, fn):
     """Does the function call an FMU builder or run `... fmu build`?"""
-    for node in ast.walk(fn):
-        if isinstance(node, ast.Call):
-            f = node.func
-            name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
-            if name in BUILDERS:
-                return True
-            words = [a.value for a in ast.walk(node) if isinstance(a, ast.Constant) and isinstance(a.value, str)]
-            if any(w == "fmu" and nxt == "build" for w, nxt in zip(words, words[1:])):
-                return True
-    return False
+    return bool(_BUILDS.search(ast.get_source_segment(text, fn) or ""))
 
 
 def building_fixtures():
     """[(file, fixture, its parameters)] of every fixture under tests/ that builds FMUs."""
     out = []
     for path in sorted(TESTS.rglob("*.py")):
-        tree = ast.parse(path.read_text(), str(path))
+        text = path.read_text()
+        if "build" not in text or "fixture" not in text:
+            continue
+        tree = ast.parse(text, str(path))
         for fn in ast.walk(tree):
-            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)) and _is_fixture(fn) and _builds(fn):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)) and _is_fixture(fn) and _builds(text, fn):
                 out.append((path.relative_to(TESTS), fn.name, {a.arg for a in fn.args.args}))
     return out
 
