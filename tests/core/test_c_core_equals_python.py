@@ -551,6 +551,42 @@ def test_motion_batch_bank_equals_python_on_sensor_records(card, fs):
     assert same((got, s), (ref_out, ref_s))
 
 
+def test_spectral_floor_line_test_and_huber_clip_equal_python():
+    """motion's spectral floor at 200 Hz, 30 s: a 3-sigma tone at 0.45 fs (the line test trips:
+    M_LON on) and a burst of 30x the noise (the floor's Huber clip acts: the floor differs with
+    the clip off). Outputs, the recorded M_LON and M_SR after every sample and the final state
+    equal the plain-Python kernels bit for bit (C.record; the motion tests run these branches
+    through the C core only, so a change to the Python alone showed nowhere else)."""
+    fs, n = 200.0, 6000
+    p = K.make_params(2, "motion", sample_rate_hz=fs)
+    o = K.ext_offset(p)
+    idx = [o + K.M_LON, o + K.M_SR]
+    rng = random.Random(13)
+    z = [rng.gauss(0.0, 1.0) for _ in range(n)]
+    for i in range(1500, 2500):
+        z[i] += 3.0 * np.sin(2.0 * np.pi * 0.45 * i)
+    for i in range(3500, 3700):
+        z[i] *= 30.0
+
+    def python(p):
+        s, out, rec = K.init_state(p), [], []
+        for zi in z:
+            out.append(K.step(p, s, zi, False))
+            rec.append([s[j] for j in idx])
+        return out, rec, s
+    ref_out, ref_rec, ref_s = python(p)
+    sa, out, rec = np.array(K.init_state(p)), np.empty(n), np.empty((len(idx), n))
+    C.record(np.asarray(p), sa, np.asarray(z), out, np.asarray(idx, dtype=np.float64), rec)
+    assert_same(ref_out, out.tolist(), "output")
+    assert_same([r[0] for r in ref_rec], rec[0].tolist(), "M_LON")
+    assert_same([r[1] for r in ref_rec], rec[1].tolist(), "M_SR")
+    assert_same(ref_s, sa.tolist(), "state")
+    assert 500 < sum(r[0] for r in ref_rec) < 1100                  # the line test tripped
+    unclipped = list(p)
+    unclipped[K.P_MO_HUBER] = 1e300
+    assert [r[1] for r in python(unclipped)[1]] != [r[1] for r in ref_rec]   # the clip acted
+
+
 @pytest.mark.parametrize("kind", KINDS)
 def test_motion_batch_equals_step_on_hostile_records(kind):
     """The motion batch loop (bank outside the state) on every hostile kind (spikes up to
