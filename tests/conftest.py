@@ -99,9 +99,25 @@ def _shared_folder():
     return Path(tempfile.gettempdir()) / f"{SHARED_PREFIX}{uid}" if uid else None
 
 
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _checkout_first_on_pythonpath():
+    """The programs the tests start (``python -m gyrodenoise.cli``, the console script, the
+    session's ``fmu build``) import this checkout's package, as the tests themselves do
+    (pyproject's ``pythonpath = ["."]``), not an installed copy of another checkout (an
+    editable install made from a sibling worktree). Tests that check an installed copy set
+    their own PYTHONPATH."""
+    parts = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    if str(REPO) not in parts:
+        os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO)] + parts)
+
+
 def pytest_configure(config):
-    """The controller fixes the test run's id (xdist passes it to the workers), so that it
+    """Subprocesses import this checkout (:func:`_checkout_first_on_pythonpath`). The
+    controller fixes the test run's id (xdist passes it to the workers), so that it
     can remove the workers' shared build folder at the end."""
+    _checkout_first_on_pythonpath()
     if not os.environ.get("PYTEST_XDIST_WORKER") and hasattr(config.option, "testrunuid") \
             and config.option.testrunuid is None:
         config.option.testrunuid = uuid.uuid4().hex
