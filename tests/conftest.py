@@ -15,8 +15,12 @@ from pathlib import Path
 import pytest
 
 NATIVE_REPORT_PREFIX = "gyrodenoise: native "      # the stderr lines of `fmu build` (gyrodenoise/cli/fmu.py)
-#: fixtures whose setup builds FMUs (tens of seconds): a test that uses one is in the slow tier
+#: fixtures whose setup is the session's FMU build (tens of seconds), started in the background
 FMU_BUILD_FIXTURES = frozenset({"fmu_build", "native_build"})
+#: a test that uses one of these is in the slow tier: the session's build, or ``builds_fmus``,
+#: which a fixture that builds FMUs of its own (pythonfmu, gcc) requests (tests/test_quick_tier.py
+#: checks that every such fixture does)
+SLOW_FIXTURES = FMU_BUILD_FIXTURES | {"builds_fmus"}
 #: a cold zig cache (a fresh CI machine) builds each target's C library first: measured on 2
 #: shared cores, 229 s for linux64 + win64 + darwin64 and 44 s more for the two aarch64 targets
 BUILD_TIMEOUT_S = 480
@@ -95,9 +99,25 @@ def _shared_folder():
     return Path(tempfile.gettempdir()) / f"{SHARED_PREFIX}{uid}" if uid else None
 
 
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _checkout_first_on_pythonpath():
+    """The programs the tests start (``python -m gyrodenoise.cli``, the console script, the
+    session's ``fmu build``) import this checkout's package, as the tests themselves do
+    (pyproject's ``pythonpath = ["."]``), not an installed copy of another checkout (an
+    editable install made from a sibling worktree). Tests that check an installed copy set
+    their own PYTHONPATH."""
+    parts = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    if str(REPO) not in parts:
+        os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO)] + parts)
+
+
 def pytest_configure(config):
-    """The controller fixes the test run's id (xdist passes it to the workers), so that it
+    """Subprocesses import this checkout (:func:`_checkout_first_on_pythonpath`). The
+    controller fixes the test run's id (xdist passes it to the workers), so that it
     can remove the workers' shared build folder at the end."""
+    _checkout_first_on_pythonpath()
     if not os.environ.get("PYTEST_XDIST_WORKER") and hasattr(config.option, "testrunuid") \
             and config.option.testrunuid is None:
         config.option.testrunuid = uuid.uuid4().hex
@@ -105,10 +125,10 @@ def pytest_configure(config):
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """Mark ``slow`` every test that needs the session's FMU build, so that the quick tier
-    (``pytest -m "not slow"``) never builds an FMU (tryfirst: before -m deselects)."""
+    """Mark ``slow`` every test that needs an FMU built (SLOW_FIXTURES), so that the quick
+    tier (``pytest -m "not slow"``) never builds one (tryfirst: before -m deselects)."""
     for item in items:
-        if FMU_BUILD_FIXTURES & set(getattr(item, "fixturenames", ())):
+        if SLOW_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
 
 
@@ -149,6 +169,12 @@ def _stop_left_build(folder):
     deadline = time.monotonic() + BUILD_TIMEOUT_S
     while not (folder / "rc").is_file() and time.monotonic() < deadline:
         time.sleep(0.2)
+
+
+@pytest.fixture(scope="session")
+def builds_fmus():
+    """Nothing to set up: requested by a fixture that builds FMUs itself, it puts the tests
+    using that fixture in the slow tier (:func:`pytest_collection_modifyitems`)."""
 
 
 @pytest.fixture(scope="session")

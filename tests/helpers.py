@@ -107,3 +107,82 @@ def main_in_process(capfd, *args):
     err += "".join(f"{w.category.__name__}: {w.message}\n" for w in caught
                    if not issubclass(w.category, SILENT_BY_DEFAULT))
     return status, out, err
+
+
+# ------------------------------------------------------------------ golden files
+#: reviewed JSON outputs (tests/golden/README.md); scripts/regen_golden.py rewrites them
+GOLDEN = TESTS / "golden"
+#: set (to anything) to write the golden files instead of comparing with them
+REGEN_GOLDEN_ENV = "GYRODENOISE_REGEN_GOLDEN"
+#: keys whose values change from run to run or from release to release: never compared
+VOLATILE_KEYS = frozenset({"seconds", "elapsed_s", "version", "gyrodenoise_version", "created"})
+#: relative tolerance of a number against its golden value (the outputs are seeded; this
+#: only absorbs a libm or BLAS that rounds differently, never a changed result)
+GOLDEN_RTOL = 1e-7
+
+
+def normalise_json(obj, replace=None):
+    """``obj`` as its JSON text reads back, with VOLATILE_KEYS' values replaced by
+    "<volatile>" and each ``replace`` key (a path of this run, e.g. tmp_path) replaced by its
+    value ("<tmp>") inside every string."""
+    import json
+    replace = {str(k): v for k, v in (replace or {}).items()}
+
+    def walk(o):
+        if isinstance(o, dict):
+            return {k: "<volatile>" if k in VOLATILE_KEYS else walk(v) for k, v in o.items()}
+        if isinstance(o, list):
+            return [walk(v) for v in o]
+        if isinstance(o, str):
+            for k in sorted(replace, key=len, reverse=True):
+                o = o.replace(k, replace[k])
+        return o
+    return walk(json.loads(json.dumps(obj)))
+
+
+def _golden_diffs(want, got, where):
+    """Every difference of ``got`` from ``want`` ("where: ..." lines): the same keys, lengths,
+    types, strings and booleans; numbers within GOLDEN_RTOL."""
+    import math
+    if isinstance(want, dict) and isinstance(got, dict):
+        for k in sorted(set(want) | set(got)):
+            if k not in got:
+                yield f"{where}.{k}: missing"
+            elif k not in want:
+                yield f"{where}.{k}: not in the golden file ({got[k]!r:.80})"
+            else:
+                yield from _golden_diffs(want[k], got[k], f"{where}.{k}")
+    elif isinstance(want, list) and isinstance(got, list):
+        if len(want) != len(got):
+            yield f"{where}: {len(got)} items, the golden file has {len(want)}"
+        for i, (w, g) in enumerate(zip(want, got)):
+            yield from _golden_diffs(w, g, f"{where}[{i}]")
+    elif (isinstance(want, (int, float)) and isinstance(got, (int, float))
+          and not isinstance(want, bool) and not isinstance(got, bool)):
+        if not math.isclose(want, got, rel_tol=GOLDEN_RTOL, abs_tol=1e-300):
+            yield f"{where}: {got!r}, the golden file has {want!r}"
+    elif isinstance(want, str) and isinstance(got, str):
+        if want != got:        # from the first character that differs
+            i = next((i for i, (a, b) in enumerate(zip(want, got)) if a != b), min(len(want), len(got)))
+            a = max(0, i - 20)
+            yield f"{where}: ...{got[a:i + 60]!r}..., the golden file has ...{want[a:i + 60]!r}..."
+    elif want != got or type(want) is not type(got):
+        yield f"{where}: {got!r:.200}, the golden file has {want!r:.200}"
+
+
+def assert_golden(name, obj, replace=None):
+    """``obj`` (a JSON output) equals tests/golden/NAME.json after :func:`normalise_json`;
+    with GYRODENOISE_REGEN_GOLDEN set, writes that file instead (review it as a diff)."""
+    import json
+    got = normalise_json(obj, replace)
+    path = GOLDEN / f"{name}.json"
+    if os.environ.get(REGEN_GOLDEN_ENV):
+        path.parent.mkdir(exist_ok=True)
+        path.write_text(json.dumps(got, indent=1, sort_keys=True, ensure_ascii=False) + "\n")
+        return
+    if not path.is_file():
+        pytest.fail(f"{path} is missing: write it with `python scripts/regen_golden.py` and review it")
+    diffs = list(_golden_diffs(json.loads(path.read_text()), got, name))
+    assert not diffs, (f"{len(diffs)} difference(s) from {path.relative_to(REPO)} (if intended: "
+                       f"python scripts/regen_golden.py, then review `git diff tests/golden`):\n"
+                       + "\n".join(diffs[:30]))

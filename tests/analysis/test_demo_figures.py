@@ -5,22 +5,27 @@ flat zero lines, an empty residual PSD and c = 0. These tests read
 the written PNGs back as pixels (independently of the code that drew them), check
 the AR numbers against a plain SHAKF run, and check that an empty figure is refused.
 """
-import matplotlib
+import numpy as np
+import pytest
 
-matplotlib.use("Agg")
-import matplotlib.image as mpimg  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-
-import gyrodenoise as gd  # noqa: E402
-from gyrodenoise.analysis import plots  # noqa: E402
-from gyrodenoise.core import kernels as K  # noqa: E402
-from gyrodenoise.core.batch import run  # noqa: E402
-from gyrodenoise.analysis.experiments import ar_identification, compare  # noqa: E402
-from gyrodenoise.simulator import load_card  # noqa: E402
+import gyrodenoise as gd
+from gyrodenoise.analysis import plots
+from gyrodenoise.core import kernels as K
+from gyrodenoise.core.batch import run
+from gyrodenoise.analysis.experiments import ar_identification, compare
+from gyrodenoise.simulator import load_card
 
 FS_HZ = 200.0
+
+
+@pytest.fixture
+def plt():
+    """matplotlib.pyplot on the Agg backend (imported by the tests that draw: collecting
+    this module imports no matplotlib)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot
+    return matplotlib.pyplot
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +41,8 @@ def demo(tmp_path_factory):
 
 def coloured_rows(png):
     """Pixel rows holding saturated (coloured, not grey/black/white) pixels."""
-    img = mpimg.imread(png)[..., :3]
+    import matplotlib.image
+    img = matplotlib.image.imread(png)[..., :3]
     sat = img.max(axis=2) - img.min(axis=2)
     return np.flatnonzero((sat > 0.3).any(axis=1))
 
@@ -73,7 +79,7 @@ def test_demo_pngs_are_not_empty(demo):
         assert rows.size > 60, f"{name}: only {rows.size} pixel rows carry a coloured curve"
 
 
-def test_an_empty_figure_is_refused(tmp_path):
+def test_an_empty_figure_is_refused(tmp_path, plt):
     fig, (a1, a2) = plt.subplots(2, 1)
     a1.plot([0, 1, 2], [0.3, 0.1, 0.2])
     a2.plot([0, 1, 2], [0.0, 0.0, 0.0])           # an AR parameter never identified

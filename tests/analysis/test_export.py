@@ -1,6 +1,7 @@
 """Kalibr / MATLAB export of the Allan terms: conversions worked by hand."""
 
 import argparse
+import datetime
 import math
 import re
 
@@ -10,6 +11,7 @@ import pytest
 import gyrodenoise as gd
 from gyrodenoise.io import export
 from gyrodenoise.errors import InputError
+from tests.helpers import assert_golden
 
 # a known case, in the spec's units
 TERMS = {"N": 0.15, "B": 2.0, "K": 30.0, "R": 5.0, "Q": 1e-4}
@@ -39,19 +41,25 @@ def test_si_conversion_by_hand():
     assert si["Q_rad"] == pytest.approx(1e-4 * math.pi / 180, rel=1e-14)
 
 
+def _lines(text):
+    """An exported file as golden JSON: its lines, today's date (in its header) normalised."""
+    return {"lines": text.replace(datetime.date.today().isoformat(), "<date>").splitlines()}
+
+
+@pytest.mark.golden
 def test_kalibr_yaml_keys_units_and_placeholders():
+    """The values by hand; the whole file (units, header, placeholders) is the reviewed
+    tests/golden/kalibr_imu_yaml.json."""
     text = export.kalibr_imu_yaml(TERMS, 200.0, rostopic="/imu0", source="x.csv")
+    assert_golden("kalibr_imu_yaml", _lines(text))
     k = _keys(text)
     assert set(k) == {"gyroscope_noise_density", "gyroscope_random_walk", "rostopic", "update_rate"}
     assert float(k["gyroscope_noise_density"][0]) == pytest.approx(4.36332313e-5, rel=1e-8)
-    assert "rad/s/sqrt(Hz)" in k["gyroscope_noise_density"][1]
     assert float(k["gyroscope_random_walk"][0]) == pytest.approx(2.42406841e-6, rel=1e-8)
-    assert "rad/s^2/sqrt(Hz)" in k["gyroscope_random_walk"][1]
     assert k["rostopic"][0] == "/imu0" and k["update_rate"][0] == "200.0"
     # a rate estimated from timestamps is written to 10 digits, still a float
     assert _keys(export.kalibr_imu_yaml(TERMS, 200.0000000001819))["update_rate"][0] == "200.0"
-    # accelerometer keys: present only as commented placeholders, never invented
-    assert "# accelerometer_noise_density: FILL_ME" in text
+    # accelerometer keys: present only as commented placeholders (the golden file), never invented
     assert "accelerometer_noise_density" not in k
     # inflation multiplies both densities and is recorded
     k3 = _keys(export.kalibr_imu_yaml(TERMS, 200.0, inflate=3.0))
@@ -66,8 +74,10 @@ def test_kalibr_marks_upper_bounds():
     assert "UPPER BOUND" not in k["gyroscope_noise_density"][1]
 
 
+@pytest.mark.golden
 def test_matlab_script_values_by_hand():
     text = export.matlab_gyroparams_script(TERMS)
+    assert_golden("matlab_gyroparams", _lines(text))
     vals = dict(re.findall(r"'(\w+)', ([0-9.eE+-]+)", text))
     assert float(vals["NoiseDensity"]) == pytest.approx(0.15 * math.pi / 180 / 60, rel=1e-15)
     # BiasInstability is B itself (the plateau divided by 0.664), not the plateau

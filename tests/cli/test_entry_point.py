@@ -3,6 +3,7 @@ after flushing: nothing it writes may be lost or differ from an in-process run."
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -49,3 +50,14 @@ def test_api_functions_survive_cli_imports():
         if name != "__version__":
             obj = getattr(gd, name)
             assert callable(obj) and not isinstance(obj, type(gd)), name
+
+
+def test_programs_the_tests_start_import_this_checkout(tmp_path):
+    """python -m gyrodenoise.cli and the console script, started from another folder, import
+    the package of the checkout under test (tests/conftest.py puts it first on PYTHONPATH),
+    not an installed copy of another checkout."""
+    from tests.helpers import REPO
+    p = subprocess.run([sys.executable, "-c", "import gyrodenoise; print(gyrodenoise.__file__)"],
+                       capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    assert Path(p.stdout.strip()).resolve() == REPO / "gyrodenoise" / "__init__.py"

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from tests.helpers import run_main
+from tests.helpers import assert_golden, run_main
 
 
 def _moving_csv(path, n=12_000, fs=100.0, true_rate=True):
@@ -22,17 +22,20 @@ def _moving_csv(path, n=12_000, fs=100.0, true_rate=True):
     return tr, still
 
 
+@pytest.mark.golden
 def test_allan_of_a_moving_record_analyses_rate_minus_true_rate(tmp_path):
     """With true_rate present allan analyses the sensor's error and says so: its N and
     K equal those of the same sensor simulated at rest (same seed; independent
-    reference) within 1e-6, where the measured rate alone gives K ~ 1e6 deg/h^1.5."""
+    reference) within 1e-6, where the measured rate alone gives K ~ 1e6 deg/h^1.5. The
+    whole JSON (what was analysed, the motion's figures, every term) is the reviewed
+    tests/golden/allan_moving_record.json."""
     from gyrodenoise.analysis.allan import allan
     path = tmp_path / "moving.csv"
     _, still = _moving_csv(path)
     st, out, _ = run_main("allan", path, "--json")
     assert st == 0
     d = json.loads(out)
-    assert d["analysed"].startswith("rate - true_rate")
+    assert_golden("allan_moving_record", d, {tmp_path: "<tmp>"})
     assert d["true_rate_motion_deg_s"]["std"] > 5.0
     ref = allan(still.rate_deg_s, 100.0)
     for t in ("N", "K"):
@@ -41,14 +44,17 @@ def test_allan_of_a_moving_record_analyses_rate_minus_true_rate(tmp_path):
     assert text.startswith("analysed: rate - true_rate")
 
 
+@pytest.mark.golden
 def test_compare_of_a_moving_record_warns(tmp_path):
+    """compare's JSON on a moving record (its warning, the RMSE against the true rate, every
+    row) is the reviewed tests/golden/compare_moving_record.json; the text says it too."""
     path = tmp_path / "moving.csv"
     _moving_csv(path)
     st, out, _ = run_main("compare", path, "--json")
     assert st == 0
     d = json.loads(out)
-    assert any(w.startswith("the record moves") for w in d["warnings"])
-    assert "rmse_deg_s" in d
+    assert_golden("compare_moving_record", d, {tmp_path: "<tmp>"})
+    assert len(d["warnings"]) == 1
     st, text, _ = run_main("compare", path)
     assert "WARNING: the record moves (true_rate" in text
 

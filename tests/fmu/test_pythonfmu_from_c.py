@@ -54,7 +54,7 @@ elif LIBPYTHON is None:
 
 # ----------------------------------------------------------------- fixtures
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
+def fmus(builds_fmus, tmp_path_factory):
     out = tmp_path_factory.mktemp("pyfmus")
     dirs = {}
     for name in F.FMUS:

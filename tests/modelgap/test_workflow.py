@@ -36,7 +36,7 @@ from gyrodenoise.errors import InputError
 from gyrodenoise.modelgap import COMPONENTS, edit_card, gm_avar
 from gyrodenoise.simulator import parse_card
 
-from tests.helpers import shared_file
+from tests.helpers import assert_golden, shared_file
 
 FS = 100.0
 N30 = int(30 * 60 * FS)
@@ -465,6 +465,19 @@ def test_card_at_rate_checks_nyquist_at_the_record_rate():
     assert ok.sample_rate_hz == 100.0 and ok.term_list("sinusoid")[0]["frequency"] == 20.0
     with pytest.raises(InputError, match="c200.toml: .*terms.sinusoid"):
         gd.gap(_white(), FS, parse_card(CARD200, "c200.toml"), seeds=3, engine="native")
+    # the rate in an inline table (not on a line of its own, so not rewritten): checked by
+    # hand against the record's Nyquist frequency, not its rate
+    inline = CARD200.replace('[sensor]\nname = "gap test 200 Hz"\nsample_rate_hz = 200.0\n',
+                             'sensor = { name = "inline", sample_rate_hz = 200.0 }\n')
+    assert inline != CARD200
+    for line_hz, ok in ((60.0, False), (80.0, False), (40.0, True)):
+        text = inline.replace("frequency = 80.0", f"frequency = {line_hz}")
+        if ok:
+            assert card_at_rate(text, 100.0, "i.toml").sample_rate_hz == 100.0
+        else:
+            with pytest.raises(InputError, match=rf"^i\.toml: terms\.sinusoid\[0\]\.frequency {line_hz:g} Hz is "
+                                                 r"above the record's Nyquist \(50 Hz; the record is 100 Hz"):
+                card_at_rate(text, 100.0, "i.toml")
 
 
 @pytest.mark.slow
@@ -554,10 +567,12 @@ def test_report_says_why_not_within_when_the_gap_is_below_the_threshold():
     assert "Allan deviation at tau 0.01 s, 0.04-0.08 s" in rep
 
 
+@pytest.mark.golden
 def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkeypatch):
     """With every candidate's score NaN (widening patched to NaN), nothing is
     accepted; the report says the gap is still above the threshold (not
-    "nothing missing"), the JSON is finite and says within_scatter false."""
+    "nothing missing"), the JSON is finite and says within_scatter false (the whole JSON:
+    the reviewed tests/golden/gap_non_finite_scores.json)."""
     import gyrodenoise.modelgap.workflow as G
     from gyrodenoise.modelgap import format_report
     card = parse_card(SUB)                 # N = 0.5: far noisier than the record
@@ -570,6 +585,7 @@ def test_non_finite_scores_never_accepted_and_report_says_gap_still_above(monkey
     assert "nothing missing" not in rep and "still above the scatter threshold" in rep
     d = res.to_json()
     assert d["within_scatter"] is False
+    assert_golden("gap_non_finite_scores", d)
     json.dumps(d, allow_nan=False)
     # the finite guard reaches nested floats (card_gap, components, robust_gap)
     out = G._finite({"card_gap": float("inf"), "components": {"psd": float("nan"), "x": np.float64(2.0)},
@@ -655,8 +671,9 @@ def test_spectral_refit_writes_a_zero_coefficient_as_a_removal(monkeypatch):
 
 # ------------------------------------------------------------------ through the FMU
 @pytest.fixture(scope="module")
-def fmu_dir(tmp_path_factory):
-    """Only SimulatedFog.fmu, built into a temporary folder (as `gyrodenoise fmu build` does)."""
+def fmu_dir(builds_fmus, tmp_path_factory):
+    """Only SimulatedFog.fmu, built into a temporary folder (as `gyrodenoise fmu build` does):
+    its tests are slow (builds_fmus)."""
     from gyrodenoise.fmu import build_fmu
     out = tmp_path_factory.mktemp("gap_fmus")
     assert build_fmu("SimulatedFog", out).is_file()
