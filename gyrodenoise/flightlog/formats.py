@@ -9,6 +9,9 @@ format a log is:
   notes name when a log holds none);
 * ``sniff(head: bytes) -> bool`` -- True when the first bytes of a file are this
   format (by content; the suffix decides only where no format's content matches);
+* ``sniff_folder(path) -> bool`` -- True when the folder at ``path`` is one log of this
+  format (a ROS 2 bag: a folder with its ``metadata.yaml``); a folder no format claims
+  is a folder of logs;
 * ``read(path, options: ReadOptions) -> FlightLog`` -- the typed log
   (:mod:`gyrodenoise.flightlog.model`): gyro streams, facts, boots with their time
   bases, and the adapter's own ``payload``; InputError (one line) on a file it
@@ -45,6 +48,7 @@ from typing import Protocol
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.flightlog.adapters import dataflash as _dataflash
+from gyrodenoise.flightlog.adapters import rosbag as _rosbag
 from gyrodenoise.flightlog.adapters import tlog as _tlog
 from gyrodenoise.flightlog.adapters import ulog as _ulog
 from gyrodenoise.flightlog.model import FlightLog, ReadOptions
@@ -62,6 +66,7 @@ class LogFormat(Protocol):
     vibration_looked_for: str
 
     def sniff(self, head: bytes) -> bool: ...
+    def sniff_folder(self, path) -> bool: ...
     def read(self, path, options: ReadOptions) -> FlightLog: ...
     def write_filtered(self, log: FlightLog, path, link=None) -> dict: ...
     def signing(self, log: FlightLog, key): ...
@@ -78,7 +83,8 @@ class LogFormat(Protocol):
 
 
 #: every format the bridge reads, sniffed in this order
-FORMATS: tuple[LogFormat, ...] = (_dataflash.FORMAT, _ulog.FORMAT, _tlog.FORMAT)
+FORMATS: tuple[LogFormat, ...] = (_dataflash.FORMAT, _ulog.FORMAT, _tlog.FORMAT,
+                                  _rosbag.FORMAT)
 #: file suffix -> the name of its format (a folder's log files are found by these)
 LOG_SUFFIXES = {sfx: f.name for f in FORMATS for sfx in f.suffixes}
 
@@ -91,10 +97,22 @@ def format_named(name) -> LogFormat:
     raise InputError(f"unknown log format {name!r} (known: {', '.join(f.name for f in FORMATS)})")
 
 
+def folder_format(path) -> LogFormat | None:
+    """The format that claims the folder at ``path`` as one log (``sniff_folder``), or None."""
+    return next((f for f in FORMATS if f.sniff_folder(path)), None)
+
+
 def log_format(path) -> LogFormat:
     """The format of the file at ``path``: the first whose ``sniff`` claims its first
-    bytes, else the one its suffix names; InputError when none does."""
+    bytes, else the one its suffix names; of a folder, the one that claims it as a log
+    (:func:`folder_format`); InputError when none does."""
     p = Path(path)
+    if p.is_dir():
+        fmt = folder_format(p)
+        if fmt is None:
+            raise InputError(f"{path}: a folder that is no log (no format claims it: a ROS 2 bag "
+                             f"has a metadata.yaml)")
+        return fmt
     try:
         with open(p, "rb") as fh:
             head = fh.read(HEAD_BYTES)

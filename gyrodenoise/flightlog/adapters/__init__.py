@@ -1,7 +1,7 @@
 """One adapter per log format (the interface: :mod:`gyrodenoise.flightlog.formats`).
 
 :class:`BaseFormat` gives what a format that lacks a part answers (no signing, no
-messages, no flight evidence, no vibration source, no events, no rate estimate): an
+messages, no flight evidence, no vibration source, no events, no rate estimate; no log that is a folder): an
 adapter implements ``sniff``, ``read``, ``write_filtered`` and ``parameters``, and
 overrides the rest where its logs hold them.
 """
@@ -14,6 +14,9 @@ class BaseFormat:
     name = description = ""
     suffixes: tuple = ()
     gyro_looked_for = flight_looked_for = vibration_looked_for = ""
+
+    def sniff_folder(self, path):
+        return False
 
     def signing(self, log, key):
         return None
