@@ -527,7 +527,10 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
                    f"so none is recommended")
         rec, notch_stage = {}, None
     rec_stages, best, rec_centre = with_notch if notch_stage is not None else without
-    if best is None:
+    if not lp_name:
+        rec_stages = [st for st in rec_stages if st["kind"] != "lowpass"] + logged_lp
+        why.append(f"low-pass cutoffs left as logged: no low-pass parameter is recommended for {ap.name}")
+    elif best is None:
         why.append(f"no cutoff from {CUTOFF_MIN_HZ:g} Hz keeps the noise at the logged settings' "
                    f"{target:.3g} deg/s: low-pass cutoff left as logged")
         rec_stages = rec_stages + logged_lp

@@ -17,8 +17,9 @@ format a log is:
   bases, and the adapter's own ``payload``; InputError (one line) on a file it
   cannot read;
 * ``write_filtered(log, path, link=None) -> dict`` -- the filtered copy (the gyro
-  fields patched with each stream's ``filtered``, every other byte kept); the
-  report's fields on the writing;
+  fields patched with each stream's ``filtered``, every other byte kept; a format that
+  cannot be patched writes the filtered streams and says so); the report's fields on
+  the writing; ``filtered_name(path, stem)`` -- its file name;
 * ``signing(log, key) -> LinkSigning | None`` and ``keep_signed_raw(log, link)`` --
   a format with signed packets checks them (others return None / do nothing);
 * ``messages(log, name) -> dict | None`` and ``message_names(log) -> list`` -- any
@@ -47,6 +48,7 @@ from pathlib import Path
 from typing import Protocol
 
 from gyrodenoise.errors import InputError
+from gyrodenoise.flightlog.adapters import blackbox as _blackbox
 from gyrodenoise.flightlog.adapters import dataflash as _dataflash
 from gyrodenoise.flightlog.adapters import rosbag as _rosbag
 from gyrodenoise.flightlog.adapters import tlog as _tlog
@@ -69,6 +71,7 @@ class LogFormat(Protocol):
     def sniff_folder(self, path) -> bool: ...
     def read(self, path, options: ReadOptions) -> FlightLog: ...
     def write_filtered(self, log: FlightLog, path, link=None) -> dict: ...
+    def filtered_name(self, path, stem) -> str: ...
     def signing(self, log: FlightLog, key): ...
     def keep_signed_raw(self, log: FlightLog, link) -> None: ...
     def messages(self, log: FlightLog, name): ...
@@ -84,7 +87,7 @@ class LogFormat(Protocol):
 
 #: every format the bridge reads, sniffed in this order
 FORMATS: tuple[LogFormat, ...] = (_dataflash.FORMAT, _ulog.FORMAT, _tlog.FORMAT,
-                                  _rosbag.FORMAT)
+                                  _rosbag.FORMAT, _blackbox.FORMAT)
 #: file suffix -> the name of its format (a folder's log files are found by these)
 LOG_SUFFIXES = {sfx: f.name for f in FORMATS for sfx in f.suffixes}
 
@@ -127,6 +130,17 @@ def log_format(path) -> LogFormat:
             return f
     raise InputError(f"{path}: unknown file type (expected "
                      + ", ".join(f"{f.description} {'/'.join(f.suffixes)}" for f in FORMATS) + ")")
+
+
+def sniffed(path) -> LogFormat | None:
+    """The format whose ``sniff`` claims the first bytes of the regular file at ``path``,
+    or None (also when it cannot be read)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(HEAD_BYTES)
+    except OSError:
+        return None
+    return next((f for f in FORMATS if f.sniff(head)), None)
 
 
 def log_kind(path) -> str:

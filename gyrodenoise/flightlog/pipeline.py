@@ -176,8 +176,7 @@ def _write_outputs(path, flight_log, out_dir, stem, plotter, csv, what, method, 
     streams = flight_log.gyro
     out_dir.mkdir(parents=True, exist_ok=True)
     _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw, review)
-    suffix = "" if path.is_dir() else path.suffix or flight_log.format.suffixes[0]   # a folder log: a folder
-    out_log = out_dir / f"{stem}.filtered{suffix}"
+    out_log = out_dir / flight_log.format.filtered_name(path, stem)
     with atomic_path(out_log) as tmp:
         rep = flight_log.format.write_filtered(flight_log, tmp, link)
     rep["output_log"] = str(out_log)

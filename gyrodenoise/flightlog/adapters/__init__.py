@@ -8,6 +8,8 @@ overrides the rest where its logs hold them.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 
 class BaseFormat:
     """Defaults of the adapter interface for what a format does not have."""
@@ -17,6 +19,12 @@ class BaseFormat:
 
     def sniff_folder(self, path):
         return False
+
+    def filtered_name(self, path, stem):
+        """The file name of the filtered copy of the log at ``path``: ``STEM.filtered`` and its
+        suffix (none for a log that is a folder)."""
+        path = Path(path)
+        return f"{stem}.filtered" + ("" if path.is_dir() else path.suffix or self.suffixes[0])
 
     def signing(self, log, key):
         return None
