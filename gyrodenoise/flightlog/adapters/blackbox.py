@@ -16,7 +16,7 @@ the filtered copy is a CSV beside the log (``STEM.filtered.csv``:
 :func:`gyrodenoise.flightlog.blackbox.write_filtered_csv`, the file's logs one after the
 other), and the report says so.
 
-This adapter took 153 lines (this module, docstring included) and one registry line in
+This adapter took 154 lines (this module, docstring included) and one registry line in
 ``FORMATS``. Around it, once: the format interface gained ``filtered_name`` (a filtered copy
 in another format) and a folder scan that knows a log by its content (``.txt``); the
 Betaflight strategy (autopilots.py) its filter chain and recommendations, and
