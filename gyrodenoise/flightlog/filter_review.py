@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyrodenoise.analysis import spectrum
+from gyrodenoise.core.sessions import sessions
 from gyrodenoise.flightlog import vehicle_filters as vf
 from gyrodenoise.flightlog.autopilots import named
 
@@ -257,11 +258,7 @@ def _psd(stream, rate_hz, flying_mask_fn):
         if m.any():
             x = np.where(m[:, None], x, np.nan)
             over = "flying"
-    bounds = np.r_[0, np.flatnonzero(restarts), len(t)]
-    runs = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        fin = np.isfinite(x[a:b, 0])
-        runs.append(int(fin.sum()))
+    runs = [int(np.isfinite(x[a:b, 0]).sum()) for a, b in sessions(len(t), restarts)]
     longest = max(runs) if runs else 0
     if longest < 64:
         return None

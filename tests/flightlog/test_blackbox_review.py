@@ -69,6 +69,8 @@ def test_blackbox_through_the_cli(tmp_path, capfd):
 
 def test_blackbox_review_spectrum_shows_the_motor_peak():
     log = formats.read_log(LOG)
+    assert [a.name for a in log.accel] == ["accSmooth"]        # accSmooth / acc_1G: 1 g at rest and in hover
+    assert np.median(np.linalg.norm(log.accel[0].values, axis=1)) == pytest.approx(9.8, rel=0.15)
     review = log_review(log)
     plot = review.plot
     assert plot is not None

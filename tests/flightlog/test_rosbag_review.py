@@ -13,6 +13,7 @@ import pytest
 
 pytest.importorskip("rosbags", reason="rosbags (ROS bag reader/writer) not installed")
 
+from gyrodenoise.flightlog import formats  # noqa: E402
 from gyrodenoise.flightlog.dispatch import expand_inputs  # noqa: E402
 from tests.flightlog.test_rosbag import IMU, _build, _rosbags_read  # noqa: E402
 from tests.helpers import main_in_process  # noqa: E402
@@ -56,6 +57,9 @@ def test_bag_through_the_cli_and_the_review(tmp_path, capfd, kind):
     assert rep["segments"] == [] and "no arming" in rep["segments_note"] and "ROS bag" in rep["segments_note"]
     assert "no autopilot parameters" in rep["parameters_note"]
     assert rep["filter_review"] is None and rep["filter_review_note"]
+    accel = formats.read_log(path).accel                    # every Imu topic's linear_acceleration, m/s^2
+    assert [(a.name, len(a.time_s)) for a in accel] == [("/imu/data", N), ("/cam/imu", N // 2)]
+    np.testing.assert_array_equal(accel[0].values, truth["/imu/data"]["acc"])
     vib = rep["vibration"]
     assert vib["accel_source"] == "/imu/data.linear_acceleration"          # the topic with the most messages
     assert vib["segments"][0]["figures"]["accel_band_rms_x"]["samples"] == N

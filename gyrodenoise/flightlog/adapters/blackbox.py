@@ -16,7 +16,7 @@ the filtered copy is a CSV beside the log (``STEM.filtered.csv``:
 :func:`gyrodenoise.flightlog.blackbox.write_filtered_csv`, the file's logs one after the
 other), and the report says so.
 
-This adapter took 154 lines (this module, docstring included) and one registry line in
+This adapter took 157 lines (this module, docstring included) and one registry line in
 ``FORMATS``. Around it, once: the format interface gained ``filtered_name`` (a filtered copy
 in another format) and a folder scan that knows a log by its content (``.txt``); the
 Betaflight strategy (autopilots.py) its filter chain and recommendations, and
@@ -34,7 +34,7 @@ from gyrodenoise.flightlog import blackbox
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.autopilots import BETAFLIGHT, UNKNOWN
 from gyrodenoise.flightlog.model import Boot, FlightEvidence, FlightLog, LogEvent, LogFacts, LogParameters, ModeChange, Throttle
-from gyrodenoise.flightlog.streams import GyroStream
+from gyrodenoise.flightlog.streams import AccelStream, GyroStream
 
 #: in the air where the mean motor output is above this share of its range (motorOutput)
 AIR_MOTOR_FRACTION = 0.15
@@ -80,6 +80,9 @@ class BlackboxFormat(BaseFormat):
                  for k, (b, first) in enumerate(zip(logs, starts))]
         log = FlightLog(format=self, path=Path(path), gyro=streams, facts=facts, payload=logs, boots=boots,
                         options=options)
+        acc = self.accelerometer(log)
+        log.accel = [] if acc is None else [AccelStream("accSmooth", "accSmooth", acc["time_s"], acc["xyz"],
+                                                        rate_hz=logs[0].sample_rate_hz, note=acc["source"])]
         return log
 
     def write_filtered(self, log, path, link=None):

@@ -29,7 +29,7 @@ from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.model import UNIX_EPOCH, Boot, FlightLog, LogFacts, LogParameters, TimeBase
 from gyrodenoise.flightlog.stopping import completed_path
-from gyrodenoise.flightlog.streams import GyroStream
+from gyrodenoise.flightlog.streams import AccelStream, GyroStream
 from gyrodenoise.units import RAD_TO_DEG
 
 NO_FLIGHT = ("a ROS bag's sensor_msgs/Imu holds no arming, throttle, land-detector or GPS state "
@@ -105,8 +105,7 @@ class RosBagFormat(BaseFormat):
 
     def accelerometer(self, log, all_topics=False):
         """The vibration review's accelerometer (the first Imu topic with one), or with
-        ``all_topics`` one :class:`~gyrodenoise.flightlog.ulog.AccelStream` per topic."""
-        from gyrodenoise.flightlog.ulog import AccelStream
+        ``all_topics`` one :class:`~gyrodenoise.flightlog.streams.AccelStream` per topic."""
         got = []
         for t in sorted(log.payload.imu, key=lambda t: -len(t)):     # the most messages first
             if not len(t) or t.linear_acceleration_absent == len(t):
