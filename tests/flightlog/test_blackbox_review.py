@@ -103,3 +103,27 @@ def test_two_logs_in_one_file_are_two_boots(tmp_path):
     out = tmp_path / "f.csv"
     rep = log.format.write_filtered(log, out)
     assert rep["patched"] is False and len(out.read_text().splitlines()) == 2 * n + 1
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mutated_blackbox_goes_through_or_gives_one_line(tmp_path, seed):
+    """LOG00037 with seeded byte flips or a cut: the whole pipeline (read, review, filter,
+    the filtered CSV) gives a report or the one-line InputError, never anything else; the
+    CSV holds one row per frame read and the damage is counted."""
+    from gyrodenoise.errors import InputError
+    from gyrodenoise.flightlog.pipeline import process_log
+    from tests.flightlog.test_fuzz_logs import flips, truncation
+    rng = np.random.default_rng(seed)
+    data, what = (flips if seed % 2 else truncation)(LOG.read_bytes(), rng)
+    src = tmp_path / "m.bfl"
+    src.write_bytes(data)
+    try:
+        rep = process_log(src, tmp_path / "out", plots=False, csv=False, html=False)
+    except InputError as exc:
+        assert "\n" not in str(exc), what
+        return
+    frames = sum(len(b.main) for b in blackbox.read_blackbox(src))
+    assert rep["messages"] == frames, what
+    assert len(open(rep["output_log"]).read().splitlines()) == frames + 1, what
+    if seed % 2 == 0:
+        assert rep["truncation"], what          # no end-of-log event after a cut

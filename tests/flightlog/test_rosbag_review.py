@@ -97,3 +97,24 @@ def test_a_folder_holding_a_bag_folder_gives_the_bag_as_one_log(tmp_path):
     assert files == [bag]
     assert [i.file for i in ignored] == [str(tmp_path / "flights" / "notes.txt")]
     assert expand_inputs([bag]) == ([bag], [])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mutated_bag_goes_through_or_gives_one_line(tmp_path, seed):
+    """An MCAP file with seeded byte flips or a cut: the whole pipeline gives a report (a
+    filtered bag rosbags reads, with as many messages) or the one-line InputError."""
+    from gyrodenoise.errors import InputError
+    from gyrodenoise.flightlog.pipeline import process_log
+    from tests.flightlog.test_fuzz_logs import flips, truncation
+    path, _ = _bag(tmp_path, "mcap")
+    rng = np.random.default_rng(seed)
+    data, what = (flips if seed % 2 else truncation)(path.read_bytes(), rng)
+    path.write_bytes(data)
+    try:
+        rep = process_log(path, tmp_path / "out", plots=False, csv=False, html=False)
+    except InputError as exc:
+        assert "\n" not in str(exc), what
+        return
+    _, msgs_in, _ = _rosbags_read(path)
+    _, msgs_out, _ = _rosbags_read(rep["output_log"])
+    assert [m[:3] for m in msgs_out] == [m[:3] for m in msgs_in], what
