@@ -192,13 +192,54 @@ class PX4(Autopilot):
 
 
 class Betaflight(Autopilot):
-    """Betaflight / INAV: recognised and its parameter lines (``set name = value``); its
-    filter chain (gyro low-passes, dynamic notch, RPM filter from the blackbox header)
-    is to be added here from :mod:`gyrodenoise.flightlog.betaflight_filters`."""
+    """Betaflight: its gyro filter chain from the blackbox header (low-passes, static and
+    dynamic notches, RPM filter: :mod:`gyrodenoise.flightlog.betaflight_filters`), its
+    streams' stages (``gyroADC`` after the filters, debug ``GYRO_SCALED`` before), and its
+    recommendations (``betaflight_filters.recommend``) as ``set name = value`` lines."""
     name = "betaflight"
+    filter_param_prefixes = ("gyro_", "dyn_notch_", "dyn_lpf_", "rpm_filter_", "looptime", "dshot_bidir")
+    STAGES = {"gyroADC": "post-filter", "debug": "pre-filter"}
+
+    @staticmethod
+    def settings(params):
+        from gyrodenoise.flightlog.betaflight_filters import FilterSettings
+        return FilterSettings.from_header(params)
+
+    def filter_chain(self, params):
+        from gyrodenoise.flightlog.betaflight_filters import review_stages
+        s = self.settings(params)
+        return review_stages(s), s.gyro_rate_hz, f"looptime {params.get('looptime')} us (the gyro loop)"
+
+    def stream_stage(self, params, stream):
+        return self.STAGES.get(stream.message, "unknown")
+
+    def review_context(self, log, params, filters, flying_mask_fn, ctx):
+        return dict(ctx, rpm_available=str(params.get("dshot_bidir", "0")).strip() == "1")
 
     def no_stream_reason(self, params, streams):
-        return ", and the Betaflight filter chain is not modelled yet"
+        return (f", and the debug mode ({params.get('debug_mode', 'not logged')}) is not GYRO_SCALED (6): the "
+                "blackbox holds no gyro from before the filters")
+
+    def _recommend(self, params, **evidence):
+        from gyrodenoise.flightlog.betaflight_filters import changed_settings, recommend
+        s = self.settings(params)
+        rec = recommend(s, **evidence)
+        return changed_settings(s, rec), list(rec.reasons)
+
+    def recommend_notch(self, params, fund, ctx, centre, bw):
+        s = self.settings(params)
+        changes, why = self._recommend(params, noise_peak_hz=fund["freq_hz"])
+        if not changes:
+            why = [f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): inside the dynamic notch range "
+                   f"{s.dyn_notch_min_hz}-{s.dyn_notch_max_hz} Hz, which follows it" if s.dyn_notch_max_hz else
+                   f"dominant vibration at {centre:g} Hz: the dynamic notch is off, no range to widen"]
+        return changes, None, why
+
+    def recommend_without_notch(self, params, ctx):
+        return self._recommend(params, rpm_available=bool(ctx.get("rpm_available")))
+
+    def lowpass_param(self, params):
+        return None
 
     def param_lines(self, changes):
         return [f"set {k.lower()} = {fmt_value(v)}" for k, v in changes.items()]

@@ -379,3 +379,48 @@ def recommend(settings: FilterSettings, noise_peak_hz: float | None = None,
         reasons.append(f"motors turn at {motor_hz_range[0]:.0f} Hz, below the RPM notch minimum {settings.rpm_min_hz}")
     return Recommendation(dataclasses.replace(settings, **changes), tuple(reasons),
                           tuple(settings.set_lines(**changes)))
+
+
+# --- the flight review's stages --------------------------------------------------------------------
+
+#: the chain's stage names (:func:`chain_stages`) -> (the review's kind, the settings that set it)
+REVIEW_STAGES = (("gyro lowpass 1 (dynamic)", "lowpass", ("lpf1_dyn_min_hz", "lpf1_dyn_max_hz")),
+                 ("gyro lowpass 1", "lowpass", ("lpf1_static_hz",)), ("gyro lowpass 2", "lowpass", ("lpf2_static_hz",)),
+                 ("static notch 1", "notch", ("notch1_hz", "notch1_cutoff_hz")),
+                 ("static notch 2", "notch", ("notch2_hz", "notch2_cutoff_hz")))
+
+
+def cli_name(settings: FilterSettings, field: str) -> str:
+    """The CLI name of setting ``field`` in the firmware that wrote ``settings``."""
+    s = SETTING_BY_FIELD[field]
+    return s.cli_new if settings.new_names else s.cli_old
+
+
+def review_stages(settings: FilterSettings, throttle: float = 0.5) -> list[dict]:
+    """The chain as the flight review's stages (:mod:`gyrodenoise.flightlog.vehicle_filters`):
+    the low-passes (the dynamic one at ``throttle``) and static notches with their biquads
+    (``sections``, run at ``rate_hz``); the RPM filter and the dynamic notches, whose centres
+    follow the motors and the gyro spectrum, as ``dynamic_notch`` stages (not modelled)."""
+    out = []
+    for st in chain_stages(settings, throttle):
+        name, kind, fields = next(r for r in REVIEW_STAGES if st.name.startswith(r[0]))
+        out.append({"kind": kind, "path": "rate", "params": ", ".join(cli_name(settings, f) for f in fields),
+                    "name": st.name, "sections": [list(x) for x in st.sections], "rate_hz": settings.gyro_rate_hz})
+        if kind == "lowpass":
+            lpf1 = name.startswith("gyro lowpass 1")
+            out[-1]["cutoff_hz"] = round(settings.lpf1_cutoff_hz(throttle) if lpf1 else float(settings.lpf2_static_hz), 3)
+        if name.endswith("(dynamic)"):
+            out[-1]["note"] = f"dynamic: its cutoff follows the throttle, here at throttle {throttle:g}"
+    if settings.rpm_harmonics > 0:
+        out.append({"kind": "dynamic_notch", "path": "rate", "params": cli_name(settings, "rpm_harmonics"),
+                    "sources": ["motor RPM"], "harmonics": settings.rpm_harmonics})
+    if settings.dyn_notch_count > 0 and settings.dyn_notch_max_hz > 0:
+        out.append({"kind": "dynamic_notch", "path": "rate", "params": "dyn_notch_*", "sources": ["gyro FFT"],
+                    "range_hz": [settings.dyn_notch_min_hz, settings.dyn_notch_max_hz]})
+    return out
+
+
+def changed_settings(before: FilterSettings, rec: Recommendation) -> dict[str, int]:
+    """{CLI name: value} of the settings ``rec`` changes (the names its ``set`` lines use)."""
+    return {cli_name(before, f): getattr(rec.settings, f) for f in SETTING_BY_FIELD
+            if getattr(rec.settings, f) != getattr(before, f)}

@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 from gyrodenoise.errors import Terminated
 from gyrodenoise.flightlog import cluster
-from gyrodenoise.flightlog.formats import LOG_SUFFIXES
+from gyrodenoise.flightlog.formats import LOG_SUFFIXES, folder_format, sniffed
 from gyrodenoise.flightlog.report import MOTION_METRIC, log_problems, streams_left_raw
 from gyrodenoise.flightlog.spectra import SPECTRUM_METRIC
 from gyrodenoise.flightlog.stopping import STOP_WAIT_S, as_child, remove_partials, signals_blocked, stop_processes
@@ -110,8 +110,11 @@ def special_file_reason(path):
 
 
 def expand_inputs(items):
-    """Files and folders -> (list of log files, list of :class:`IgnoredFile`): in a folder,
-    files not named as logs (:data:`LOG_SUFFIXES`) and, anywhere, files that are not
+    """Files and folders -> (list of log files, list of :class:`IgnoredFile`): a folder that
+    is one log (:func:`gyrodenoise.flightlog.formats.folder_format`: a ROS 2 bag) is a log,
+    found at any depth and not looked into; in a folder of logs, files neither named as logs
+    nor known as one by their content (:func:`gyrodenoise.flightlog.formats.sniffed`: a
+    blackbox ``.txt``) (:data:`LOG_SUFFIXES`) and, anywhere, files that are not
     regular files (:func:`special_file_reason`: FIFOs, devices, sockets, broken links),
     which are never opened. A path that does not exist is left to fail as a log."""
     files, ignored = [], []
@@ -124,14 +127,22 @@ def expand_inputs(items):
 
     for it in items:
         p = Path(it)
-        if p.is_dir():
+        if p.is_dir() and folder_format(p) is None:
+            logs_in = []                    # folders that are one log each (a ROS 2 bag): not looked into
             for q in sorted(p.rglob("*")):
+                if any(d in q.parents for d in logs_in):
+                    continue
                 if q.is_dir() and not q.is_symlink():
+                    if folder_format(q) is not None:
+                        logs_in.append(q)
+                        add(q, None)
                     continue
                 why = special_file_reason(q)
-                if why is None and q.suffix.lower() not in LOG_SUFFIXES:
-                    why = f"not named as a log ({' '.join(sorted(LOG_SUFFIXES))})"
+                if why is None and q.suffix.lower() not in LOG_SUFFIXES and not sniffed(q):
+                    why = f"not named as a log ({' '.join(sorted(LOG_SUFFIXES))}) nor one by its content"
                 add(q, why)
+        elif p.is_dir():
+            add(p, None)
         else:
             add(p, special_file_reason(p) if p.exists() or p.is_symlink() else None)
     return files, ignored

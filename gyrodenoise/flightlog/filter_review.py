@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyrodenoise.analysis import spectrum
+from gyrodenoise.core.sessions import sessions
 from gyrodenoise.flightlog import vehicle_filters as vf
 from gyrodenoise.flightlog.model import fmt_value
 
@@ -257,11 +258,7 @@ def _psd(stream, rate_hz, flying_mask_fn):
         if m.any():
             x = np.where(m[:, None], x, np.nan)
             over = "flying"
-    bounds = np.r_[0, np.flatnonzero(restarts), len(t)]
-    runs = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        fin = np.isfinite(x[a:b, 0])
-        runs.append(int(fin.sum()))
+    runs = [int(np.isfinite(x[a:b, 0]).sum()) for a, b in sessions(len(t), restarts)]
     longest = max(runs) if runs else 0
     if longest < 64:
         return None
@@ -527,7 +524,10 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
                    f"so none is recommended")
         rec, notch_stage = {}, None
     rec_stages, best, rec_centre = with_notch if notch_stage is not None else without
-    if best is None:
+    if not lp_name:
+        rec_stages = [st for st in rec_stages if st["kind"] != "lowpass"] + logged_lp
+        why.append(f"low-pass cutoffs left as logged: no low-pass parameter is recommended for {ap.name}")
+    elif best is None:
         why.append(f"no cutoff from {CUTOFF_MIN_HZ:g} Hz keeps the noise at the logged settings' "
                    f"{target:.3g} deg/s: low-pass cutoff left as logged")
         rec_stages = rec_stages + logged_lp

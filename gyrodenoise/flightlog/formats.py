@@ -9,13 +9,17 @@ format a log is:
   notes name when a log holds none);
 * ``sniff(head: bytes) -> bool`` -- True when the first bytes of a file are this
   format (by content; the suffix decides only where no format's content matches);
+* ``sniff_folder(path) -> bool`` -- True when the folder at ``path`` is one log of this
+  format (a ROS 2 bag: a folder with its ``metadata.yaml``); a folder no format claims
+  is a folder of logs;
 * ``read(path, options: ReadOptions) -> FlightLog`` -- the typed log
   (:mod:`gyrodenoise.flightlog.model`): gyro streams, facts, boots with their time
   bases, and the adapter's own ``payload``; InputError (one line) on a file it
   cannot read;
 * ``write_filtered(log, path, link=None) -> dict`` -- the filtered copy (the gyro
-  fields patched with each stream's ``filtered``, every other byte kept); the
-  report's fields on the writing;
+  fields patched with each stream's ``filtered``, every other byte kept; a format that
+  cannot be patched writes the filtered streams and says so); the report's fields on
+  the writing; ``filtered_name(path, stem)`` -- its file name;
 * ``signing(log, key) -> LinkSigning | None`` and ``keep_signed_raw(log, link)`` --
   a format with signed packets checks them (others return None / do nothing);
 * ``messages(log, name) -> dict | None`` and ``message_names(log) -> list`` -- any
@@ -44,7 +48,9 @@ from pathlib import Path
 from typing import Protocol
 
 from gyrodenoise.errors import InputError
+from gyrodenoise.flightlog.adapters import blackbox as _blackbox
 from gyrodenoise.flightlog.adapters import dataflash as _dataflash
+from gyrodenoise.flightlog.adapters import rosbag as _rosbag
 from gyrodenoise.flightlog.adapters import tlog as _tlog
 from gyrodenoise.flightlog.adapters import ulog as _ulog
 from gyrodenoise.flightlog.model import FlightLog, ReadOptions
@@ -62,8 +68,10 @@ class LogFormat(Protocol):
     vibration_looked_for: str
 
     def sniff(self, head: bytes) -> bool: ...
+    def sniff_folder(self, path) -> bool: ...
     def read(self, path, options: ReadOptions) -> FlightLog: ...
     def write_filtered(self, log: FlightLog, path, link=None) -> dict: ...
+    def filtered_name(self, path, stem) -> str: ...
     def signing(self, log: FlightLog, key): ...
     def keep_signed_raw(self, log: FlightLog, link) -> None: ...
     def messages(self, log: FlightLog, name): ...
@@ -78,7 +86,8 @@ class LogFormat(Protocol):
 
 
 #: every format the bridge reads, sniffed in this order
-FORMATS: tuple[LogFormat, ...] = (_dataflash.FORMAT, _ulog.FORMAT, _tlog.FORMAT)
+FORMATS: tuple[LogFormat, ...] = (_dataflash.FORMAT, _ulog.FORMAT, _tlog.FORMAT,
+                                  _rosbag.FORMAT, _blackbox.FORMAT)
 #: file suffix -> the name of its format (a folder's log files are found by these)
 LOG_SUFFIXES = {sfx: f.name for f in FORMATS for sfx in f.suffixes}
 
@@ -91,10 +100,22 @@ def format_named(name) -> LogFormat:
     raise InputError(f"unknown log format {name!r} (known: {', '.join(f.name for f in FORMATS)})")
 
 
+def folder_format(path) -> LogFormat | None:
+    """The format that claims the folder at ``path`` as one log (``sniff_folder``), or None."""
+    return next((f for f in FORMATS if f.sniff_folder(path)), None)
+
+
 def log_format(path) -> LogFormat:
     """The format of the file at ``path``: the first whose ``sniff`` claims its first
-    bytes, else the one its suffix names; InputError when none does."""
+    bytes, else the one its suffix names; of a folder, the one that claims it as a log
+    (:func:`folder_format`); InputError when none does."""
     p = Path(path)
+    if p.is_dir():
+        fmt = folder_format(p)
+        if fmt is None:
+            raise InputError(f"{path}: a folder that is no log (no format claims it: a ROS 2 bag "
+                             f"has a metadata.yaml)")
+        return fmt
     try:
         with open(p, "rb") as fh:
             head = fh.read(HEAD_BYTES)
@@ -109,6 +130,17 @@ def log_format(path) -> LogFormat:
             return f
     raise InputError(f"{path}: unknown file type (expected "
                      + ", ".join(f"{f.description} {'/'.join(f.suffixes)}" for f in FORMATS) + ")")
+
+
+def sniffed(path) -> LogFormat | None:
+    """The format whose ``sniff`` claims the first bytes of the regular file at ``path``,
+    or None (also when it cannot be read)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(HEAD_BYTES)
+    except OSError:
+        return None
+    return next((f for f in FORMATS if f.sniff(head)), None)
 
 
 def log_kind(path) -> str:

@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrodenoise.core.sessions import sessions
 from gyrodenoise.flightlog.stopping import atomic_path
 
 #: bins of a long trace's min/max envelope (two points a bin)
@@ -104,11 +105,8 @@ def session_envelope(t, y, restarts, nbins=ENVELOPE_BINS):
     bins over the whole record."""
     t = np.asarray(t, dtype=np.float64)
     n = len(t)
-    cuts = [0] + [int(i) for i in np.flatnonzero(restarts) if i > 0] + [n]
     ts, ys = [], []
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        if b <= a:
-            continue
+    for a, b in sessions(n, restarts):
         tb, yb = envelope(t[a:b], y[a:b], max(1, int(round(nbins * (b - a) / max(n, 1)))))
         if ts:
             ts.append(np.array([np.nan]))

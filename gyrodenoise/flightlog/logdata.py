@@ -157,12 +157,28 @@ def _df_time_column(f):
 
 
 def dataflash_messages(f: DataFlashFile, name):
-    """Message ``name`` of a DataFlash log (see the module doc); None when absent."""
-    data, sc = f.data, f.scan
+    """Message ``name`` of a DataFlash log (see the module doc); None when absent. A format
+    redefined in the log (its FMT again, another layout) gives the rows of every definition,
+    in file order; a column that only some definitions have is NaN (empty text) in the others."""
     base, inst = _split_index(name)
-    tid = next((t for t, f in sc.formats.items() if f.name == base and t in sc.offsets), None)
-    if tid is None:
-        return None
+    parts = [p for p in (_df_key_messages(f, key, inst) for key in f.scan.keys_named(base)) if p is not None]
+    if len(parts) < 2:
+        return parts[0] if parts else None
+    cols = list(dict.fromkeys(c for p in parts for c in p))
+    out = {}
+    for c in cols:
+        kinds = [p[c] for p in parts if c in p]
+        text = any(v.dtype.kind in "OU" for v in kinds)
+        out[c] = np.concatenate([p[c] if c in p else np.full(len(p["record"]), "" if text else np.nan,
+                                                              dtype=object if text else np.float64)
+                                 for p in parts])
+    order = np.argsort(out["record"], kind="stable")
+    return {c: v[order] for c, v in out.items()}
+
+
+def _df_key_messages(f: DataFlashFile, tid, inst):
+    """The messages of one format key ``tid`` (of instance ``inst`` where not None), or None."""
+    data, sc = f.data, f.scan
     fmt = sc.formats[tid]
     rec, scales, offs = _df_records(data, sc, tid)
     if inst is not None:

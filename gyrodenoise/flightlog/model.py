@@ -220,7 +220,7 @@ class FlightLog:
     facts: LogFacts
     payload: Any
     boots: list[Boot] = field(default_factory=list)
-    accel: list = field(default_factory=list)
+    accel: list = field(default_factory=list)   # AccelStream: the accelerometer streams the adapter reads
     options: ReadOptions = field(default_factory=ReadOptions)
     _cache: dict = field(default_factory=dict, repr=False)
     _parameters: LogParameters | None = field(default=None, repr=False)

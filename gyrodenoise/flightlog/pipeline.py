@@ -74,7 +74,7 @@ def process_log(path, out_dir, *, engine="native", method=DEFAULT_METHOD, ar_ord
     """
     t0 = time.perf_counter()
     path = Path(path)
-    if not path.is_file():
+    if not (path.is_file() or path.is_dir()):
         raise InputError(f"{path}: no such file")
     fmt = log_format(path)
     rep = {"file": str(path), "format": fmt.name}
@@ -176,7 +176,7 @@ def _write_outputs(path, flight_log, out_dir, stem, plotter, csv, what, method, 
     streams = flight_log.gyro
     out_dir.mkdir(parents=True, exist_ok=True)
     _queue_plots_and_spectra(path, streams, out_dir, stem, plotter, what, method, filter_kw, review)
-    out_log = out_dir / f"{stem}.filtered{path.suffix or flight_log.format.suffixes[0]}"
+    out_log = out_dir / flight_log.format.filtered_name(path, stem)
     with atomic_path(out_log) as tmp:
         rep = flight_log.format.write_filtered(flight_log, tmp, link)
     rep["output_log"] = str(out_log)

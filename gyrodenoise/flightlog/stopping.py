@@ -14,7 +14,7 @@ and output files that are either complete or absent.
   handler in the child (a traceback) nor before the child ignores it.
 * :func:`stop_processes` -- what the parent does on an interrupt: SIGTERM to
   each child, a short wait, SIGKILL to any that is left.
-* :func:`atomic_path` -- every output file is written under a partial name
+* :func:`atomic_path` -- every output file (or folder) is written under a partial name
   (``.NAME.partial`` beside it) and renamed into place when complete;
   :func:`remove_partials` deletes the partial files of an interrupted run.
 """
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import signal
 import sys
 from pathlib import Path
@@ -90,6 +91,15 @@ def partial_path(path):
     return path.with_name(f".{path.name}{PARTIAL_SUFFIX}")
 
 
+def completed_path(partial):
+    """The path a partial path (:func:`partial_path`) stands for (``partial`` itself when it is none)."""
+    partial = Path(partial)
+    name = partial.name
+    if name.startswith(".") and name.endswith(PARTIAL_SUFFIX):
+        return partial.with_name(name[1:-len(PARTIAL_SUFFIX)])
+    return partial
+
+
 @contextlib.contextmanager
 def atomic_path(path):
     """Yield the partial path of ``path`` to write to; rename it to ``path`` when the
@@ -98,10 +108,20 @@ def atomic_path(path):
     try:
         yield tmp
     except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+        _remove(tmp)
         raise
     os.replace(tmp, path)
+
+
+def _remove(path):
+    """Delete the file, or the folder (a ROS 2 bag is one), at ``path``; True when it was there."""
+    with contextlib.suppress(OSError):
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+        return True
+    return False
 
 
 def remove_partials(folder, names="*"):
@@ -110,7 +130,5 @@ def remove_partials(folder, names="*"):
     n = 0
     with contextlib.suppress(OSError):
         for p in Path(folder).glob(f".{names}{PARTIAL_SUFFIX}"):
-            with contextlib.suppress(OSError):
-                p.unlink()
-                n += 1
+            n += _remove(p)
     return n

@@ -22,11 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-RAD_TO_DEG = 180.0 / math.pi
-MRAD_TO_DEG = RAD_TO_DEG / 1000.0
-
-#: DataFlash/MAVLink unit label -> factor to deg/s
-UNIT_TO_DEG_S = {"rad/s": RAD_TO_DEG, "mrad/s": MRAD_TO_DEG, "deg/s": 1.0}
+from gyrodenoise.units import RAD_TO_DEG  # noqa: F401 - the flight-log modules' name for it
+from gyrodenoise.units import RATE_TO_DEG_S as UNIT_TO_DEG_S  # noqa: F401 - unit label -> factor to deg/s
 
 NOISE_METRIC = ("per axis: raw = the sensor's white-noise standard deviation, the core's own estimate "
                 "(gyrodenoise.analysis.motion_metrics.white_noise_std: the motion filter's noise level, the smallest "
@@ -108,6 +105,19 @@ class GyroStream:
         if self.to_deg_s is None:
             return self.raw.astype(np.float64), 1.0, self.unit
         return self.raw.astype(np.float64) * self.to_deg_s, 1.0 / self.to_deg_s, "deg/s"
+
+
+@dataclass
+class AccelStream:
+    """An accelerometer stream of a log (a FlightLog's ``accel``): ULog ``sensor_accel_fifo``,
+    a ROS bag's Imu ``linear_acceleration``, a blackbox's ``accSmooth``; m/s^2."""
+    name: str
+    message: str
+    time_s: np.ndarray               # time of each sample on the log's time axis, s
+    values: np.ndarray               # (n, 3) m/s^2
+    unit: str = "m/s^2"
+    rate_hz: float | None = None
+    note: str = ""
 
 
 def field_misfit(stream, values):

@@ -28,7 +28,7 @@ import numpy as np
 from gyrodenoise.errors import InputError
 
 from gyrodenoise.flightlog import ulog_messages
-from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, misfit
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, AccelStream, GyroStream, misfit
 
 TOPICS = {
     "sensor_combined": ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"),
@@ -39,18 +39,6 @@ TOPICS = {
 FIFO_TOPICS = ("sensor_gyro_fifo", "sensor_accel_fifo")
 FIFO_LEN = 32
 _FIFO_FIELDS = ("timestamp_sample", "dt", "scale", "samples")
-
-
-@dataclass
-class AccelStream:
-    """An accelerometer stream of a ULog (``sensor_accel_fifo``), m/s^2."""
-    name: str
-    message: str
-    time_s: np.ndarray               # boot time of each sample, s
-    values: np.ndarray               # (n, 3) m/s^2
-    unit: str = "m/s^2"
-    rate_hz: float | None = None     # from the messages' dt
-    note: str = ""
 
 
 class ULogRefs(list):

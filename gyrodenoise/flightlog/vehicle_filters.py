@@ -317,7 +317,12 @@ def chain_sections(stages, sample_rate_hz, notch_centre_hz=None):
         if st.get("path", "rate") != "rate":
             continue
         kind = st["kind"]
-        if kind == "lowpass":
+        if "sections" in st:                # the autopilot's own biquads (Betaflight), designed at rate_hz
+            if not math.isclose(float(st["rate_hz"]), fs):
+                notes.append(f"{st['params']}: designed for {st['rate_hz']:g} Hz, not run at fs {fs:g} Hz")
+            else:
+                sos += [tuple(x) for x in st["sections"]]
+        elif kind == "lowpass":
             s = lowpass2p_sos(float(st["cutoff_hz"]), fs)
             if s is None:
                 notes.append(f"{st['params']}: cutoff {st['cutoff_hz']} Hz not below fs/2 = {fs / 2:g} Hz: not applied")

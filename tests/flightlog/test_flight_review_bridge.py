@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from gyrodenoise.flightlog import fleet
+from gyrodenoise.flightlog import autopilots, fleet
 from tests.helpers import SHARED_LOGS, run_main
 from tests.flightlog.synthetic_logs import DataFlashWriter
 
@@ -178,7 +178,7 @@ def check_section8(rep):
     if not rep["segments"]:
         assert isinstance(rep["segments_note"], str) and rep["segments_note"]
     vf = rep["vehicle_filters"]
-    assert vf["autopilot"] in ("ardupilot", "px4", None)
+    assert vf["autopilot"] in (*autopilots.AUTOPILOTS, None)
     assert isinstance(vf["parameters"], dict) and isinstance(vf["stages"], list)
     assert all(isinstance(s, dict) and "kind" in s for s in vf["stages"])
     if vf["autopilot"] is None:

@@ -403,3 +403,20 @@ def test_px4_telemetry_vibration_judged_as_px4_metrics():
     assert figs["accel_vibration_metric"]["verdict"] == "fail"
     assert figs["delta_angle_coning_metric"]["verdict"] is None and "vibration_x" not in figs
     assert "PX4" in res["source"] and set(res["thresholds"]) == {"accel_vibration_metric_m_s2", "clip_increase"}
+
+
+def test_flight_log_accel_holds_the_px4_accelerometer_fifo(tmp_path):
+    """FlightLog.accel: the ULog adapter reads sensor_accel_fifo (m/s^2, at its 2 kHz, on the
+    log's time axis, the tone on z where the generator put it). Failed before: accel empty."""
+    from tests.flightlog.test_format_fidelity import fifo_log
+    data, _, _, _ = fifo_log(tone_hz=173.0)
+    path = tmp_path / "fifo.ulg"
+    path.write_bytes(data)
+    log = formats.read_log(path)
+    assert [(a.name, a.unit) for a in log.accel] == [("sensor_accel_fifo", "m/s^2")]
+    a = log.accel[0]
+    assert a.rate_hz == pytest.approx(2000.0) and a.values.shape == (len(a.time_s), 3)
+    assert a.time_s[0] == pytest.approx(1.0, abs=1e-3) and np.all(np.diff(a.time_s) > 0)
+    assert np.mean(a.values[:, 2]) == pytest.approx(-9.81, abs=0.05)
+    spec = np.abs(np.fft.rfft(a.values[:, 2] - a.values[:, 2].mean()))
+    assert np.fft.rfftfreq(len(a.time_s), 1 / 2000.0)[np.argmax(spec)] == pytest.approx(173.0, abs=0.5)

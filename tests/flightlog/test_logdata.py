@@ -145,3 +145,29 @@ def test_synthetic_tlog_anchored_time_follows_reboot_and_system():
     np.testing.assert_allclose(hb["log_time_s"] - hb["log_time_s"][0], [0, 0.35, 5.75], atol=1e-6)
     st = source.messages("STATUSTEXT")
     assert st["text"].tolist() == ["hello"] and st["time_s"][0] == pytest.approx(10.3)
+
+
+def test_messages_after_a_fmt_redefinition_are_read(tmp_path):
+    """A DataFlash format redefined mid-log (IMU: another layout on its type id, then moved to
+    a new type id): messages("IMU") holds the rows of every definition, as pymavlink's
+    sequential reader (each FMT holding from where it stands) gives them; a column only some
+    definitions have is NaN in the others. Failed before: only the first definition's rows."""
+    from tests.flightlog.test_format_fidelity import df_messages, redefined_fmt_log
+    data, _, _ = redefined_fmt_log(n=50, move=True)
+    path = tmp_path / "redef.bin"
+    path.write_bytes(data)
+    ref = df_messages(path)
+    log = log_of_bytes(data, "dataflash")
+    for name in ("IMU", "VIBE", "BARO", "XYZ"):
+        rows = [f for n, f in ref if n == name]
+        got = log.messages(name)
+        assert len(got["record"]) == len(rows), name
+        assert np.all(np.diff(got["record"]) > 0)
+        for col in rows[0]:
+            if col in ("mavpackettype",) or col not in got:
+                continue
+            want = np.array([r.get(col, np.nan) for r in rows], dtype=np.float64)
+            np.testing.assert_array_equal(got[col].astype(np.float64), want, err_msg=f"{name}.{col}")
+    imu = log.messages("IMU")
+    assert np.isnan(imu["T"][:50]).all() and not np.isnan(imu["T"][50:100]).any() and np.isnan(imu["T"][100:]).all()
+    assert np.isfinite(imu["time_s"]).all() and np.all(np.diff(imu["time_s"]) > 0)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from gyrodenoise.flightlog.formats import LOG_SUFFIXES
 from tests.helpers import SHARED_LOGS, gyrodenoise_cmd, shared_log
 
 pytestmark = pytest.mark.slow          # process trees stopped by signals, with bounded waits
@@ -110,7 +111,7 @@ def test_jobs_2_run_stops_whole_tree(tmp_path, sig, to_group, status):
     # the run says which logs completed (summary.json, whole)
     import json
     sm = json.loads((out / "summary.json").read_text())
-    n_logs = sum(1 for p in SHARED_LOGS.rglob("*") if p.suffix.lower() in (".tlog", ".bin", ".ulg", ".mavlink"))
+    n_logs = sum(1 for p in SHARED_LOGS.rglob("*") if p.suffix.lower() in LOG_SUFFIXES)
     assert sm["interrupted"] is True and sm["exit_status"] == status
     assert len(sm["completed"]) + len(sm["unfinished"]) == sm["n_logs"] == n_logs
     assert len(sm["logs"]) + len(sm["failed"]) == len(sm["completed"])

@@ -1,12 +1,14 @@
 """One adapter per log format (the interface: :mod:`gyrodenoise.flightlog.formats`).
 
 :class:`BaseFormat` gives what a format that lacks a part answers (no signing, no
-messages, no flight evidence, no vibration source, no events, no rate estimate): an
+messages, no flight evidence, no vibration source, no events, no rate estimate; no log that is a folder): an
 adapter implements ``sniff``, ``read``, ``write_filtered`` and ``parameters``, and
 overrides the rest where its logs hold them.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 
 class BaseFormat:
@@ -14,6 +16,15 @@ class BaseFormat:
     name = description = ""
     suffixes: tuple = ()
     gyro_looked_for = flight_looked_for = vibration_looked_for = ""
+
+    def sniff_folder(self, path):
+        return False
+
+    def filtered_name(self, path, stem):
+        """The file name of the filtered copy of the log at ``path``: ``STEM.filtered`` and its
+        suffix (none for a log that is a folder)."""
+        path = Path(path)
+        return f"{stem}.filtered" + ("" if path.is_dir() else path.suffix or self.suffixes[0])
 
     def signing(self, log, key):
         return None

@@ -52,6 +52,9 @@ class ULogFormat(BaseFormat):
                 s.time_s = s.time_s - offset
         t0 = start_us * 1e-6 - base.offset_s
         ends = [float(np.nanmax(s.time_s)) for s in streams if s.n]
+        log.accel = ulog.accel_streams(refs)
+        for a in log.accel:
+            a.time_s = a.time_s - base.offset_s
         log.boots = [Boot(index=0, first_record=0, start_s=t0, end_s=max(ends) if ends else np.nan,
                           time_base=base, wall_clock_offset_s=base.offset_s if base.kind == UNIX_EPOCH else None)]
         return log
