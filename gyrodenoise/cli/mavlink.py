@@ -360,7 +360,10 @@ def _run_logs(args, client, created):
               fmu_path=args.fmu, sample_rate=args.sample_rate, warmup_s=args.warmup_s,
               filter_kw=_filter_kw(args), zero_phase=args.zero_phase, causal=args.causal,
               signing_key=args.key, whole_log=args.whole_log)
-    single = (len(args.logs) == 1 and not is_url(args.logs[0]) and Path(args.logs[0]).is_file()
+    from gyrodenoise.flightlog.formats import folder_format
+    one = Path(args.logs[0]) if len(args.logs) == 1 and not is_url(args.logs[0]) else None
+    # one log: a file, or a folder that is itself one log (a ROS 2 bag)
+    single = (one is not None and (one.is_file() or (one.is_dir() and folder_format(one) is not None))
               and args.scheduler is None)
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
     with contextlib.redirect_stdout(sys.stderr):
@@ -454,7 +457,10 @@ def _run_files(args, kw, single, client=None):
         if summary["n_logs"] == 0:
             ign = summary["ignored_files"]
             why = "; ".join(f"{i['file']}: {i['reason']}" for i in ign[:3]) + (f"; {len(ign) - 3} more" if len(ign) > 3 else "")
-            raise InputError(f"{', '.join(args.logs)}: no .tlog, .bin or .ulg file found" + (f" (ignored: {why})" if why else ""))
+            from gyrodenoise.flightlog.formats import LOG_SUFFIXES
+            looked = ", ".join(sorted(LOG_SUFFIXES))
+            raise InputError(f"{', '.join(args.logs)}: no flight log found (looked for {looked} files and ROS 2 bag "
+                             f"folders)" + (f" (ignored: {why})" if why else ""))
         refused = {f.get("option") for f in summary["failed"]}
         if not summary["n_ok"] and len(refused) == 1 and refused <= {"--cutoff-hz", "--max-motion-hz"}:
             # the option, not the logs: one line, nothing written (as for one log)

@@ -97,5 +97,7 @@ def test_only_special_files_named_exit_2_with_the_reason(tmp_path):
     os.mkfifo(fifo)
     status, out, err = _in_thread(lambda: run_main("mavlink", fifo, "-o", tmp_path / "out", "--no-plots"))
     assert status == 2 and "Traceback" not in err
-    assert err.strip() == (f"gyrodenoise: error: {fifo}: no .tlog, .bin or .ulg file found "
+    from gyrodenoise.flightlog.formats import LOG_SUFFIXES
+    assert err.strip() == (f"gyrodenoise: error: {fifo}: no flight log found (looked for "
+                           f"{', '.join(sorted(LOG_SUFFIXES))} files and ROS 2 bag folders) "
                            f"(ignored: {fifo}: a FIFO (named pipe): not a regular file, not opened)")
