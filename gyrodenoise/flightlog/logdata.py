@@ -13,8 +13,9 @@ Names are spelled as the format spells them:
   (int16[32]) a 2-D column. ``NAME[i]`` selects instance ``i`` of a message with an
   instance column (``I``, ``IMU``, ``Instance``, ``C`` -- the first of those it has).
   ``time_s``: ``TimeUS`` * 1e-6 (or ``TimeMS`` * 1e-3); a message type with no time
-  column takes the time of the last timed message before it in the file (NaN before
-  the first); so do old GPS messages, whose ``TimeMS`` is the GPS time of week (they
+  column takes the time of the last timed message before it in the file (before the
+  first, and where the time steps back across it -- a new boot's first messages -- the
+  next timed message's); so do old GPS messages, whose ``TimeMS`` is the GPS time of week (they
   do not count as timed messages either). ``record``: the message's byte offset (as a
   gyro stream's ``index``: :func:`dataflash_boot_starts` numbers boots by it).
 * Telemetry log (:class:`TelemetryFile`, :func:`tlog_messages`): the message name of pymavlink's
@@ -213,7 +214,8 @@ def _gps_time_of_week(fmt, tcol):
 
 
 def _df_anchor_time(file: DataFlashFile, offs):
-    """Time of the last timed message before each offset (NaN before the first)."""
+    """Time of the last timed message before each offset; the next one's before the first
+    timed message and where the time steps back across the offset (a new boot)."""
     anchors = file.anchors
     if anchors is None:
         data, sc = file.data, file.scan
@@ -239,10 +241,17 @@ def _df_anchor_time(file: DataFlashFile, offs):
             anchors = (np.zeros(0, np.int64), np.zeros(0))
         file.anchors = anchors
     a, t = anchors
-    k = np.searchsorted(a, offs) - 1
     out = np.full(len(offs), np.nan)
-    ok = k >= 0
-    out[ok] = t[k[ok]]
+    if not len(a):
+        return out
+    k = np.searchsorted(a, offs) - 1
+    # before the first timed message, or where the time steps back across the message
+    # (a new boot: logs joined, a reboot), the next timed message's time: an untimed
+    # message at a boot's start (Copter 3.1's EV) belongs to that boot, not the one before
+    nxt = np.minimum(k + 1, len(a) - 1)
+    prev = t[np.maximum(k, 0)]
+    use_next = (k < 0) | ((k + 1 < len(a)) & (t[nxt] < prev - SESSION_STEP_BACK_S))
+    out[:] = np.where(use_next, t[nxt], prev)
     return out
 
 
@@ -280,21 +289,34 @@ def dataflash_boot_starts(f: DataFlashFile):
     _df_anchor_time(f, np.zeros(0, np.int64))
     a, t = f.anchors
     sc = f.scan
-    best, best_n = None, 0
-    for tid, offs in sc.offsets.items():
-        fmt = sc.formats.get(tid)
-        if fmt is not None and len(offs) > best_n and _df_time_column(fmt)[0] is not None \
+    # the message name (not the type id: two logs joined may give one name two ids, and
+    # a redefined FMT gives it another key) with the most timed messages, all its keys
+    counts = {}
+    for key, offs in sc.offsets.items():
+        fmt = sc.formats.get(key)
+        if fmt is not None and _df_time_column(fmt)[0] is not None \
                 and not _gps_time_of_week(fmt, _df_time_column(fmt)[0]):
-            best, best_n = tid, len(offs)
-    if best is None or best_n < 2:
+            counts[fmt.name] = counts.get(fmt.name, 0) + len(offs)
+    if not counts or max(counts.values()) < 2:
         return np.zeros(0, np.int64)
-    fmt = sc.formats[best]
-    try:
-        rec, _, offs = _df_records(f.data, sc, best)
-    except ValueError:
+    best = max(counts, key=counts.get)
+    parts_t, parts_o = [], []
+    for key in sc.keys_named(best):
+        fmt = sc.formats[key]
+        tcol, tscale = _df_time_column(fmt)
+        if tcol is None or _gps_time_of_week(fmt, tcol):
+            continue
+        try:
+            rec, _, offs = _df_records(f.data, sc, key)
+        except ValueError:
+            continue
+        parts_t.append(rec[tcol].astype(np.float64) * tscale)
+        parts_o.append(np.asarray(offs, dtype=np.int64))
+    if not parts_o:
         return np.zeros(0, np.int64)
-    tcol, tscale = _df_time_column(fmt)
-    tt = rec[tcol].astype(np.float64) * tscale
+    offs = np.concatenate(parts_o)
+    order = np.argsort(offs, kind="stable")
+    offs, tt = offs[order], np.concatenate(parts_t)[order]
     out = []
     for i in boot_steps(tt).tolist():
         lo, hi = np.searchsorted(a, offs[i - 1]), np.searchsorted(a, offs[i])

@@ -420,3 +420,35 @@ def test_flight_log_accel_holds_the_px4_accelerometer_fifo(tmp_path):
     assert np.mean(a.values[:, 2]) == pytest.approx(-9.81, abs=0.05)
     spec = np.abs(np.fft.rfft(a.values[:, 2] - a.values[:, 2].mean()))
     assert np.fft.rfftfreq(len(a.time_s), 1 / 2000.0)[np.argmax(spec)] == pytest.approx(173.0, abs=0.5)
+
+
+# ------------------------------------------------------------ boots of logs joined (unseen logs)
+def _dataflash_boot(t0_s, n, filler_types=0):
+    """One synthetic boot: ``filler_types`` dummy formats first (so IMU gets another
+    type id), an untimed EV 10 (armed, as Copter 3.1 logs it: no time column) before
+    the first timed message, then IMU at 50 Hz from ``t0_s``."""
+    from tests.flightlog.synthetic_logs import DataFlashWriter
+    w = DataFlashWriter()
+    for k in range(filler_types):
+        w.define(f"XX{k}", "Qf", ["TimeUS", "V"])
+    w.define("EV", "B", ["Id"])
+    w.define("IMU", "Qffffff", ["TimeUS", "GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ"])
+    w.add("EV", 10)
+    for i in range(n):
+        w.add("IMU", int((t0_s + i / 50.0) * 1e6), 0.01, 0.02, 0.03, 0.0, 0.0, -9.81)
+    return w.bytes()
+
+
+def test_logs_joined_whose_imu_type_ids_differ_are_two_boots(tmp_path):
+    """Two logs of different firmware joined: IMU is type 0x82 in the first, 0x81 in the
+    second (an unseen pair of Copter 3.6.4 / 3.4.4 logs was read as one boot, its second
+    flight lost: boots were found in one type id). Each untimed message at a boot's start
+    takes that boot's time (Copter 3.1's EV armed took the previous boot's last time)."""
+    p = tmp_path / "joined.bin"
+    first, second = _dataflash_boot(200.0, 500, filler_types=1), _dataflash_boot(30.0, 400)
+    p.write_bytes(first + second)
+    log = formats.read_log(p)
+    assert [b.index for b in log.boots] == [0, 1]
+    assert log.boots[1].first_record == pytest.approx(len(first), abs=200)
+    ev = log.messages("EV")
+    np.testing.assert_allclose(ev["time_s"], [200.0, 30.0])

@@ -121,7 +121,9 @@ def test_synthetic_dataflash_scaling_strings_instances_and_untimed():
     assert p["Name"].tolist() == ["INS_HNTCH_FREQ", "ATC_RAT_RLL_P"]
     np.testing.assert_array_equal(p["Value"], np.float32([97.5, 0.135]))
     # untimed: the time of the last timed message before it (none before the first)
-    assert np.isnan(p["time_s"][0]) and p["time_s"][1] == pytest.approx(1.2)
+    # before the first timed message: the first one's time (1.0 s; an untimed message at a
+    # boot's start belongs to that boot)
+    assert p["time_s"][0] == pytest.approx(1.0) and p["time_s"][1] == pytest.approx(1.2)
     assert source.messages("MSG")["Message"].tolist() == ["ArduCopter V4.5.0 (abc)"]
     assert source.messages("EV") is None
     assert source.messages("PARM[0]") is None    # no instance column
