@@ -1,11 +1,12 @@
 """Overlapping Allan deviation and the five-term fit of Eq. (40).
 
-Why not call allantools for the curve: on 1e6 samples at 100 taus
-``allantools.oadev`` takes 0.54 s on our CI machine (five array passes and
-temporaries per tau); the same estimator as a single compiled pass per tau
-takes a fraction of that (the core benchmark prints both). The tests check
-this module against allantools (1e-9) and against a published ADIS16405 curve
-(1e-3), so allantools remains our reference implementation.
+Why not call allantools for the curve: it holds several record-sized arrays per
+tau; here the sums read the cumulative sum in blocks of `BLOCK` samples (numpy
+only), and `adev_of_chunks` takes a record of any length in chunks in bounded
+memory (benchmarks/records/allan_memory.py measures both against pandas +
+allantools). The tests check this module against allantools (1e-9) and against a
+published ADIS16405 curve (1e-3), so allantools remains our reference
+implementation.
 
 Units: rates in deg/s in, tau in s; terms out in the spec's units
 (N deg/sqrt(h), B deg/h, K deg/h^1.5, R deg/h^2, Q deg).
@@ -19,7 +20,8 @@ Sun et al. (2016), Eq. (40).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection, Mapping
+import tempfile
+from collections.abc import Callable, Collection, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,28 +30,45 @@ import numpy.typing as npt
 
 from gyrodenoise.units import TERM_BY_SYMBOL, TERM_SYMBOLS
 
-numba: Any
-try:
-    import numba
-except ImportError:  # pragma: no cover
-    numba = None
-
 BI_FACTOR = 2.0 * math.log(2.0) / math.pi     # Eq. (40): sigma^2 = (2 ln2 / pi) B^2
 
+#: samples of the phase read at a time by the Allan sums: what bounds their memory
+#: (a few blocks of float64 whatever the record's length)
+BLOCK = 1 << 18
 
-def _avar_sums_py(phase: np.ndarray, ms: np.ndarray, out: np.ndarray) -> None:
-    """out[i] = sum_k (x[k+2m] - 2 x[k+m] + x[k])^2 for m = ms[i]."""
-    n = phase.shape[0]
-    for i in range(ms.shape[0]):
-        m = ms[i]
-        acc = 0.0
-        for k in range(n - 2 * m):
-            v = phase[k + 2 * m] - 2.0 * phase[k + m] + phase[k]
-            acc += v * v
-        out[i] = acc
+#: reads the phase (cumulative sum x tau0) from index a to b (exclusive)
+PhaseReader = Callable[[int, int], np.ndarray]
 
 
-_avar_sums = numba.njit(cache=True, nogil=True)(_avar_sums_py) if numba else None
+def _avar_sums(read: PhaseReader, n_phase: int, ms: np.ndarray) -> np.ndarray:
+    """sum_k (x[k+2m] - 2 x[k+m] + x[k])^2 for each m of ``ms`` over the phase x of
+    ``n_phase`` values, read `BLOCK` values of k at a time.
+
+    The cluster sizes with 2m <= `BLOCK` are served by one read per block (the block
+    and the 2m values after it); each larger m reads its two shifted slices. Memory:
+    a few blocks, whatever ``n_phase``."""
+    block = BLOCK
+    out = np.zeros(ms.shape[0])
+    if ms.size == 0:
+        return out
+    small = 2 * ms <= block
+    reach = int(2 * ms[small].max()) if small.any() else 0
+    k_end = n_phase - 2 * int(ms.min())           # the most terms any m has
+    for a in range(0, k_end, block):
+        b = min(a + block, k_end)
+        seg = read(a, min(b + reach, n_phase))
+        for i, m in enumerate(ms):
+            m = int(m)
+            length = min(b, n_phase - 2 * m) - a
+            if length <= 0:
+                continue
+            if small[i]:
+                v = seg[2 * m:2 * m + length] - 2.0 * seg[m:m + length] + seg[:length]
+            else:
+                v = read(a + 2 * m, a + 2 * m + length) - 2.0 * read(a + m, a + m + length) + seg[:length]
+            v *= v
+            out[i] += float(v.sum())      # pairwise: within 1e-15 of an exact sum
+    return out
 
 
 def default_m(n_samples: int, per_decade: int = 10) -> np.ndarray:
@@ -60,6 +79,38 @@ def default_m(n_samples: int, per_decade: int = 10) -> np.ndarray:
     n_pts = max(1, int(math.ceil(math.log10(m_max) * per_decade)) + 1)
     ms = np.unique(np.round(np.logspace(0, math.log10(m_max), n_pts)).astype(np.int64))
     return ms[(ms >= 1) & (ms <= m_max)]
+
+
+def octave_m(n_samples: int) -> np.ndarray:
+    """Cluster sizes 1, 2, 4, ... <= (N-1)/2: the octave-spaced taus of a long record."""
+    m_max = (n_samples - 1) // 2
+    if m_max < 1:
+        return np.array([], dtype=np.int64)
+    return 2 ** np.arange(int(math.log2(m_max)) + 1, dtype=np.int64)
+
+
+def _cluster_sizes(n: int, tau0: float, m: npt.ArrayLike | None, tau_s: npt.ArrayLike | None,
+                   default: Callable[[int], np.ndarray]) -> np.ndarray:
+    """The cluster sizes asked for (``tau_s`` rounded to whole samples, else ``m``, else
+    ``default(n)``), each once, within 1 <= m <= (n-1)/2."""
+    if tau_s is not None:
+        ms = np.round(np.asarray(tau_s, dtype=float) / tau0).astype(np.int64)
+    elif m is not None:
+        ms = np.asarray(m, dtype=np.int64)
+    else:
+        ms = default(n)
+    return np.unique(ms[(ms >= 1) & (ms <= (n - 1) // 2)])
+
+
+def _adev_of_sums(ms: np.ndarray, sums: np.ndarray, n: int,
+                  tau0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """tau, adev, its 1-sigma error (IEEE 952 C.1) and the cluster count from the sums."""
+    tau = ms * tau0
+    n_terms = (n + 1 - 2 * ms).astype(float)
+    ad = np.sqrt(sums / (2.0 * tau * tau * n_terms))
+    clusters = n / ms
+    err = ad / np.sqrt(np.maximum(2.0 * (clusters - 1.0), 1.0))
+    return tau, ad, err, clusters
 
 
 def adev(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | None = None,
@@ -84,23 +135,61 @@ def adev(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | No
     y = np.asarray(rate_deg_s, dtype=np.float64)
     n = y.shape[0]
     tau0 = 1.0 / float(sample_rate_hz)
-    if tau_s is not None:
-        ms = np.round(np.asarray(tau_s, dtype=float) / tau0).astype(np.int64)
-    elif m is not None:
-        ms = np.asarray(m, dtype=np.int64)
-    else:
-        ms = default_m(n)
-    ms = np.unique(ms[(ms >= 1) & (ms <= (n - 1) // 2)])
+    ms = _cluster_sizes(n, tau0, m, tau_s, default_m)
     phase = np.concatenate(([0.0], np.cumsum(y))) * tau0
-    sums = np.empty(ms.shape[0])
-    (_avar_sums or _avar_sums_py)(phase, ms, sums)
-    tau = ms * tau0
-    n_terms = (phase.shape[0] - 2 * ms).astype(float)
-    avar = sums / (2.0 * tau * tau * n_terms)
-    ad = np.sqrt(avar)
-    clusters = n / ms
-    err = ad / np.sqrt(np.maximum(2.0 * (clusters - 1.0), 1.0))
-    return tau, ad, err, clusters
+    sums = _avar_sums(lambda a, b: phase[a:b], phase.shape[0], ms)
+    return _adev_of_sums(ms, sums, n, tau0)
+
+
+def adev_of_chunks(chunks: Iterable[npt.ArrayLike], sample_rate_hz: float, m: npt.ArrayLike | None = None,
+                   tau_s: npt.ArrayLike | None = None, spill_dir: str | None = None,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`adev` of a record given in chunks (any length), in memory bounded by the chunk
+    size and `BLOCK`, whatever the length.
+
+    The running cumulative sum (the phase) is carried from chunk to chunk (the same
+    sequential sums as ``np.cumsum`` over the whole record, bit for bit) and written to
+    an anonymous temporary file (8 bytes a sample, in ``spill_dir``, default the
+    system's), which the sums then read in blocks: the overlapping estimator at
+    cluster size m needs the phase 2m samples back, which no bounded memory can hold
+    for m up to half the record. Default taus: octave-spaced (`octave_m`).
+
+    Raises
+    ------
+    ValueError
+        A chunk that is not 1-D or holds NaN or inf (the sample index said).
+    """
+    tau0 = 1.0 / float(sample_rate_hz)
+    ms, sums, n = _sums_of_chunks(chunks, tau0, m, tau_s, spill_dir)
+    return _adev_of_sums(ms, sums, n, tau0)
+
+
+def _sums_of_chunks(chunks: Iterable[npt.ArrayLike], tau0: float, m: npt.ArrayLike | None,
+                    tau_s: npt.ArrayLike | None, spill_dir: str | None) -> tuple[np.ndarray, np.ndarray, int]:
+    """The cluster sizes, their Allan sums and the sample count of a chunked record
+    (`adev_of_chunks`)."""
+    with tempfile.TemporaryFile(dir=spill_dir) as f:
+        carry, n = 0.0, 0
+        np.zeros(1).tofile(f)
+        for chunk in chunks:
+            y = np.asarray(chunk, dtype=np.float64)
+            if y.ndim != 1:
+                raise ValueError(f"a chunk of shape {y.shape}: need 1-D chunks")
+            bad = np.flatnonzero(~np.isfinite(y))
+            if bad.size:
+                raise ValueError(f"the record holds NaN or inf (sample {n + int(bad[0])})")
+            if y.size:
+                s = np.cumsum(np.concatenate(([carry], y)))
+                (s[1:] * tau0).tofile(f)
+                carry, n = float(s[-1]), n + y.shape[0]
+        f.flush()
+        ms = _cluster_sizes(n, tau0, m, tau_s, octave_m)
+
+        def read(a: int, b: int) -> np.ndarray:
+            f.seek(8 * a)
+            return np.fromfile(f, dtype=np.float64, count=b - a)
+
+        return ms, _avar_sums(read, n + 1, ms), n
 
 
 #: each term's Allan variance at averaging times t (s) for a unit s-based coefficient, Eq. (40):
@@ -347,6 +436,25 @@ def allan(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | N
     if m is None and tau_s is None:
         m = default_m(y.shape[0], per_decade)
     tau, ad, err, _ = adev(y, sample_rate_hz, m=m, tau_s=tau_s)
-    terms_s, kinds, fitted_s = fit_terms(tau, ad, err)
-    return AllanResult(tau_s=tau, adev_deg_s=ad, adev_err_deg_s=err, terms_s=terms_s,
-                       bounds=kinds, fitted_s=fitted_s, sample_rate_hz=float(sample_rate_hz), n_samples=int(y.shape[0]))
+    return allan_of_curve(tau, ad, err, sample_rate_hz, y.shape[0])
+
+
+def allan_of_chunks(chunks: Iterable[npt.ArrayLike], sample_rate_hz: float, m: npt.ArrayLike | None = None,
+                    tau_s: npt.ArrayLike | None = None, spill_dir: str | None = None) -> AllanResult:
+    """`allan` of a record given in chunks, in bounded memory (`adev_of_chunks`; default
+    taus octave-spaced)."""
+    tau0 = 1.0 / float(sample_rate_hz)
+    ms, sums, n = _sums_of_chunks(chunks, tau0, m, tau_s, spill_dir)
+    if n < 5:
+        raise ValueError(f"need a record of at least 5 samples, got {n}")
+    tau, ad, err, _ = _adev_of_sums(ms, sums, n, tau0)
+    return allan_of_curve(tau, ad, err, sample_rate_hz, n)
+
+
+def allan_of_curve(tau_s: np.ndarray, adev_deg_s: np.ndarray, adev_err_deg_s: np.ndarray,
+                   sample_rate_hz: float, n_samples: int) -> AllanResult:
+    """The five-term fit of a measured Allan curve (tau s, adev deg/s and its 1-sigma error)."""
+    terms_s, kinds, fitted_s = fit_terms(tau_s, adev_deg_s, adev_err_deg_s)
+    return AllanResult(tau_s=tau_s, adev_deg_s=adev_deg_s, adev_err_deg_s=adev_err_deg_s, terms_s=terms_s,
+                       bounds=kinds, fitted_s=fitted_s, sample_rate_hz=float(sample_rate_hz),
+                       n_samples=int(n_samples))
