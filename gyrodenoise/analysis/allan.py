@@ -11,6 +11,13 @@ implementation.
 Units: rates in deg/s in, tau in s; terms out in the spec's units
 (N deg/sqrt(h), B deg/h, K deg/h^1.5, R deg/h^2, Q deg).
 
+Which value to trust: the fit uses every point, and where the curve is not of Eq. (40)'s
+shape (a sensor's internal filter bends it at short taus) it can miss its own points by 2x
+and B with it. `AllanResult.agreement` holds, per term, the fit against the points where
+that term dominates, against their 95 % band, and the IEEE 952 / MathWorks slope-point
+read beside it (`SLOPE_READS`); `AllanResult.exported_terms` is what the exports write: the
+fit where it agrees, the slope-point read where it misses.
+
 References
 ----------
 IEEE Std 952-1997, Annex C (Allan variance, error of the estimate).
