@@ -216,3 +216,24 @@ def test_adis16405_b_exported_inside_the_published_bounds():
     assert res.exported_bounds["B"] == "slope_point"
     assert lo <= res.exported_terms["B"] <= hi, (lo, res.exported_terms["B"], hi)
     assert not lo <= res.terms["B"] <= hi
+
+
+def test_the_kalibr_and_matlab_exports_write_the_exported_terms(tmp_path):
+    """The files carry the slope-point read where the fit misses, the fit elsewhere."""
+    fs = 100.0
+    y = _bent_record(200_000, fs, seed=2)
+    path = tmp_path / "bent.csv"
+    np.savetxt(path, np.column_stack([np.arange(y.size) / fs, y]), delimiter=",", header="time,rate",
+               comments="", fmt="%.9g")
+    status, out, err = run_main("allan", path, "--json", "--kalibr-yaml", tmp_path / "imu.yaml",
+                                "--matlab", tmp_path / "p.m")
+    assert status == 0, err
+    d = json.loads(out)
+    assert "slope_point" in d["exported_bounds"].values(), d["fit_agreement"]
+    yaml = (tmp_path / "imu.yaml").read_text()
+    nd = float(yaml.split("gyroscope_noise_density:")[1].split()[0])
+    assert nd == pytest.approx(d["exported_terms"]["N"] * math.pi / 180.0 / 60.0, rel=1e-9)
+    mfile = (tmp_path / "p.m").read_text()
+    bi = float(mfile.split("'BiasInstability',")[1].split(",")[0])
+    assert bi == pytest.approx(d["exported_terms"]["B"] * math.pi / 180.0 / 3600.0, rel=1e-12)
+    assert "slope-point read" in err
