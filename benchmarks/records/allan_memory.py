@@ -14,8 +14,9 @@ Rows:
 * ``gyrodenoise, .npy chunks``: the record read 1 M samples at a time from the .npy file;
 * ``gyrodenoise, CSV chunks``: read 1 M rows at a time by ``pandas.read_csv(chunksize=...)``;
 * ``pandas + allantools``: ``pandas.read_csv`` of the whole file, then ``allantools.oadev``;
-* ``imports only``: a process that imports numpy, scipy, pandas, allantools and gyrodenoise
-  and stops: the floor under every row's peak.
+* ``imports only``: a process that imports what the gyrodenoise rows import (numpy, scipy,
+  pandas, gyrodenoise) and stops: the floor under their peaks (the baseline also imports
+  allantools).
 
 The gyrodenoise rows include the five-term fit and the slope-point reads (allantools has
 neither); every row imports numpy, scipy and pandas before its clock starts.
@@ -91,7 +92,6 @@ def one(kind: str, path: str) -> dict:
     """The measurement ``kind`` on ``path`` in this process: time and the curve."""
     from gyrodenoise.analysis.allan import allan_of_chunks, octave_m
     if kind == IMPORTS:
-        import allantools  # noqa: F401
         import pandas  # noqa: F401
         import scipy.optimize  # noqa: F401
         return {"wall_s": 0.0, "tau_s": [], "adev": []}
