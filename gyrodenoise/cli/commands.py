@@ -213,11 +213,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if len(rec) < 100:
         raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
     res = compare(rec, ar_order=args.ar_order, **filter_kw(args))
-    add_warnings(res, raw_misfit_warnings(res))
     moving = true_rate_motion(rec)
-    if moving:
+    if moving:          # first: the motion is what a raw misfit then shows
         res["true_rate_motion_deg_s"] = moving
         add_warnings(res, [moving_warning(moving)])
+    add_warnings(res, raw_misfit_warnings(res))
     if args.json:
         emit_json(public(res))
     else:
