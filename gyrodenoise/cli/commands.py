@@ -214,10 +214,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
     res = compare(rec, ar_order=args.ar_order, **filter_kw(args))
     moving = true_rate_motion(rec)
-    if moving:          # first: the motion is what a raw misfit then shows
+    if moving:
         res["true_rate_motion_deg_s"] = moving
         add_warnings(res, [moving_warning(moving)])
-    add_warnings(res, raw_misfit_warnings(res))
+    else:     # a moving record's raw curve is the motion's (its warning says so); `allan` analyses another
+        add_warnings(res, raw_misfit_warnings(res))
     if args.json:
         emit_json(public(res))
     else:
