@@ -1,14 +1,22 @@
 """Overlapping Allan deviation and the five-term fit of Eq. (40).
 
-Why not call allantools for the curve: on 1e6 samples at 100 taus
-``allantools.oadev`` takes 0.54 s on our CI machine (five array passes and
-temporaries per tau); the same estimator as a single compiled pass per tau
-takes a fraction of that (the core benchmark prints both). The tests check
-this module against allantools (1e-9) and against a published ADIS16405 curve
-(1e-3), so allantools remains our reference implementation.
+Why not call allantools for the curve: it holds several record-sized arrays per
+tau; here the sums read the cumulative sum in blocks of `BLOCK` samples (numpy
+only), and `adev_of_chunks` takes a record of any length in chunks in bounded
+memory (benchmarks/records/allan_memory.py measures both against pandas +
+allantools). The tests check this module against allantools (1e-9) and against a
+published ADIS16405 curve (1e-3), so allantools remains our reference
+implementation.
 
 Units: rates in deg/s in, tau in s; terms out in the spec's units
 (N deg/sqrt(h), B deg/h, K deg/h^1.5, R deg/h^2, Q deg).
+
+Which value to trust: the fit uses every point, and where the curve is not of Eq. (40)'s
+shape (a sensor's internal filter bends it at short taus) it can miss its own points by 2x
+and B with it. `AllanResult.agreement` holds, per term, the fit against the points where
+that term dominates, against their 95 % band, and the IEEE 952 / MathWorks slope-point
+read beside it (`SLOPE_READS`); `AllanResult.exported_terms` is what the exports write: the
+fit where it agrees, the slope-point read where it misses.
 
 References
 ----------
@@ -19,7 +27,8 @@ Sun et al. (2016), Eq. (40).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection, Mapping
+import tempfile
+from collections.abc import Callable, Collection, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,28 +37,51 @@ import numpy.typing as npt
 
 from gyrodenoise.units import TERM_BY_SYMBOL, TERM_SYMBOLS
 
-numba: Any
-try:
-    import numba
-except ImportError:  # pragma: no cover
-    numba = None
-
 BI_FACTOR = 2.0 * math.log(2.0) / math.pi     # Eq. (40): sigma^2 = (2 ln2 / pi) B^2
 
+#: samples of the phase read at a time by the Allan sums: what bounds their memory
+#: (a few blocks of float64 whatever the record's length)
+BLOCK = 1 << 18
 
-def _avar_sums_py(phase: np.ndarray, ms: np.ndarray, out: np.ndarray) -> None:
-    """out[i] = sum_k (x[k+2m] - 2 x[k+m] + x[k])^2 for m = ms[i]."""
-    n = phase.shape[0]
-    for i in range(ms.shape[0]):
-        m = ms[i]
-        acc = 0.0
-        for k in range(n - 2 * m):
-            v = phase[k + 2 * m] - 2.0 * phase[k + m] + phase[k]
-            acc += v * v
-        out[i] = acc
+#: reads the phase (cumulative sum x tau0) from index a to b (exclusive)
+PhaseReader = Callable[[int, int], np.ndarray]
 
 
-_avar_sums = numba.njit(cache=True, nogil=True)(_avar_sums_py) if numba else None
+def _avar_sums(read: PhaseReader, n_phase: int, ms: np.ndarray) -> np.ndarray:
+    """sum_k (x[k+2m] - 2 x[k+m] + x[k])^2 for each m of ``ms`` over the phase x of
+    ``n_phase`` values, read `BLOCK` values of k at a time.
+
+    The cluster sizes with 2m <= `BLOCK` are served by one read per block (the block
+    and the 2m values after it); each larger m reads its two shifted slices. Memory:
+    a few blocks, whatever ``n_phase``."""
+    block = BLOCK
+    out = np.zeros(ms.shape[0])
+    with np.errstate(over="ignore", invalid="ignore"):     # an overflow gives inf: said by to_json
+        _add_sums(read, n_phase, ms, block, out)
+    return out
+
+
+def _add_sums(read: PhaseReader, n_phase: int, ms: np.ndarray, block: int, out: np.ndarray) -> None:
+    """The loop of `_avar_sums`, adding into ``out``."""
+    if ms.size == 0:
+        return
+    small = 2 * ms <= block
+    reach = int(2 * ms[small].max()) if small.any() else 0
+    k_end = n_phase - 2 * int(ms.min())           # the most terms any m has
+    for a in range(0, k_end, block):
+        b = min(a + block, k_end)
+        seg = read(a, min(b + reach, n_phase))
+        for i, m in enumerate(ms):
+            m = int(m)
+            length = min(b, n_phase - 2 * m) - a
+            if length <= 0:
+                continue
+            if small[i]:
+                v = seg[2 * m:2 * m + length] - 2.0 * seg[m:m + length] + seg[:length]
+            else:
+                v = read(a + 2 * m, a + 2 * m + length) - 2.0 * read(a + m, a + m + length) + seg[:length]
+            v *= v
+            out[i] += float(v.sum())      # pairwise: within 1e-15 of an exact sum
 
 
 def default_m(n_samples: int, per_decade: int = 10) -> np.ndarray:
@@ -60,6 +92,39 @@ def default_m(n_samples: int, per_decade: int = 10) -> np.ndarray:
     n_pts = max(1, int(math.ceil(math.log10(m_max) * per_decade)) + 1)
     ms = np.unique(np.round(np.logspace(0, math.log10(m_max), n_pts)).astype(np.int64))
     return ms[(ms >= 1) & (ms <= m_max)]
+
+
+def octave_m(n_samples: int) -> np.ndarray:
+    """Cluster sizes 1, 2, 4, ... <= (N-1)/2: the octave-spaced taus of a long record."""
+    m_max = (n_samples - 1) // 2
+    if m_max < 1:
+        return np.array([], dtype=np.int64)
+    return 2 ** np.arange(int(math.log2(m_max)) + 1, dtype=np.int64)
+
+
+def _cluster_sizes(n: int, tau0: float, m: npt.ArrayLike | None, tau_s: npt.ArrayLike | None,
+                   default: Callable[[int], np.ndarray]) -> np.ndarray:
+    """The cluster sizes asked for (``tau_s`` rounded to whole samples, else ``m``, else
+    ``default(n)``), each once, within 1 <= m <= (n-1)/2."""
+    if tau_s is not None:
+        ms = np.round(np.asarray(tau_s, dtype=float) / tau0).astype(np.int64)
+    elif m is not None:
+        ms = np.asarray(m, dtype=np.int64)
+    else:
+        ms = default(n)
+    return np.unique(ms[(ms >= 1) & (ms <= (n - 1) // 2)])
+
+
+def _adev_of_sums(ms: np.ndarray, sums: np.ndarray, n: int,
+                  tau0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """tau, adev, its 1-sigma error (IEEE 952 C.1) and the cluster count from the sums."""
+    tau = ms * tau0
+    n_terms = (n + 1 - 2 * ms).astype(float)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):   # inf / nan: said by to_json
+        ad = np.sqrt(sums / (2.0 * tau * tau * n_terms))
+    clusters = n / ms
+    err = ad / np.sqrt(np.maximum(2.0 * (clusters - 1.0), 1.0))
+    return tau, ad, err, clusters
 
 
 def adev(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | None = None,
@@ -84,23 +149,61 @@ def adev(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | No
     y = np.asarray(rate_deg_s, dtype=np.float64)
     n = y.shape[0]
     tau0 = 1.0 / float(sample_rate_hz)
-    if tau_s is not None:
-        ms = np.round(np.asarray(tau_s, dtype=float) / tau0).astype(np.int64)
-    elif m is not None:
-        ms = np.asarray(m, dtype=np.int64)
-    else:
-        ms = default_m(n)
-    ms = np.unique(ms[(ms >= 1) & (ms <= (n - 1) // 2)])
+    ms = _cluster_sizes(n, tau0, m, tau_s, default_m)
     phase = np.concatenate(([0.0], np.cumsum(y))) * tau0
-    sums = np.empty(ms.shape[0])
-    (_avar_sums or _avar_sums_py)(phase, ms, sums)
-    tau = ms * tau0
-    n_terms = (phase.shape[0] - 2 * ms).astype(float)
-    avar = sums / (2.0 * tau * tau * n_terms)
-    ad = np.sqrt(avar)
-    clusters = n / ms
-    err = ad / np.sqrt(np.maximum(2.0 * (clusters - 1.0), 1.0))
-    return tau, ad, err, clusters
+    sums = _avar_sums(lambda a, b: phase[a:b], phase.shape[0], ms)
+    return _adev_of_sums(ms, sums, n, tau0)
+
+
+def adev_of_chunks(chunks: Iterable[npt.ArrayLike], sample_rate_hz: float, m: npt.ArrayLike | None = None,
+                   tau_s: npt.ArrayLike | None = None, spill_dir: str | None = None,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`adev` of a record given in chunks (any length), in memory bounded by the chunk
+    size and `BLOCK`, whatever the length.
+
+    The running cumulative sum (the phase) is carried from chunk to chunk (the same
+    sequential sums as ``np.cumsum`` over the whole record, bit for bit) and written to
+    an anonymous temporary file (8 bytes a sample, in ``spill_dir``, default the
+    system's), which the sums then read in blocks: the overlapping estimator at
+    cluster size m needs the phase 2m samples back, which no bounded memory can hold
+    for m up to half the record. Default taus: octave-spaced (`octave_m`).
+
+    Raises
+    ------
+    ValueError
+        A chunk that is not 1-D or holds NaN or inf (the sample index said).
+    """
+    tau0 = 1.0 / float(sample_rate_hz)
+    ms, sums, n = _sums_of_chunks(chunks, tau0, m, tau_s, spill_dir)
+    return _adev_of_sums(ms, sums, n, tau0)
+
+
+def _sums_of_chunks(chunks: Iterable[npt.ArrayLike], tau0: float, m: npt.ArrayLike | None,
+                    tau_s: npt.ArrayLike | None, spill_dir: str | None) -> tuple[np.ndarray, np.ndarray, int]:
+    """The cluster sizes, their Allan sums and the sample count of a chunked record
+    (`adev_of_chunks`)."""
+    with tempfile.TemporaryFile(dir=spill_dir) as f:
+        carry, n = 0.0, 0
+        np.zeros(1).tofile(f)
+        for chunk in chunks:
+            y = np.asarray(chunk, dtype=np.float64)
+            if y.ndim != 1:
+                raise ValueError(f"a chunk of shape {y.shape}: need 1-D chunks")
+            bad = np.flatnonzero(~np.isfinite(y))
+            if bad.size:
+                raise ValueError(f"the record holds NaN or inf (sample {n + int(bad[0])})")
+            if y.size:
+                s = np.cumsum(np.concatenate(([carry], y)))
+                (s[1:] * tau0).tofile(f)
+                carry, n = float(s[-1]), n + y.shape[0]
+        f.flush()
+        ms = _cluster_sizes(n, tau0, m, tau_s, octave_m)
+
+        def read(a: int, b: int) -> np.ndarray:
+            f.seek(8 * a)
+            return np.fromfile(f, dtype=np.float64, count=b - a)
+
+        return ms, _avar_sums(read, n + 1, ms), n
 
 
 #: each term's Allan variance at averaging times t (s) for a unit s-based coefficient, Eq. (40):
@@ -248,6 +351,118 @@ def model_adev(tau_s: npt.ArrayLike, terms_s: Mapping[str, float]) -> np.ndarray
     return np.sqrt(basis(tau_s) @ c)
 
 
+#: a point of the curve is read (the fit's agreement, the slope-point reads) when its
+#: 1-sigma error is under this fraction of the Allan deviation: the last taus of any
+#: record scatter by tens of per cent
+WELL_MEASURED = 0.1
+#: the confidence band of a point: +-Z_95 x its 1-sigma error (IEEE 952 C.1), about 95 %
+Z_95 = 1.96
+#: a slope-point read is taken only where the curve's local log-log slope is within this of
+#: the term's slope; further off, the curve has no stretch of that slope to read
+SLOPE_TOLERANCE = 0.2
+
+
+@dataclass(frozen=True)
+class SlopeRead:
+    """The IEEE 952 / MathWorks slope-point read of one term from the measured curve: the
+    line of the term's log-log ``slope`` through the point whose local slope is nearest
+    it (for the flat term, the curve's minimum), read at ``tau_read_s``, divided by
+    ``divisor``."""
+    symbol: str
+    slope: float
+    tau_read_s: float
+    divisor: float
+    recipe: str      #: how it is read, in words
+
+    def read(self, tau: np.ndarray, adev: np.ndarray) -> tuple[float, float, float] | None:
+        """(value in s-based units, tau of the point read, the curve's local slope there),
+        or None when fewer than 3 points or no stretch within `SLOPE_TOLERANCE` of the slope."""
+        if tau.size < 3:
+            return None
+        lt, la = np.log10(tau), np.log10(adev)
+        local = np.gradient(la, lt)
+        i = int(np.argmin(adev)) if self.slope == 0.0 else int(np.argmin(np.abs(local - self.slope)))
+        if abs(local[i] - self.slope) > SLOPE_TOLERANCE:
+            return None
+        level = la[i] + self.slope * (math.log10(self.tau_read_s) - lt[i])
+        return 10.0 ** level / self.divisor, float(tau[i]), float(local[i])
+
+
+#: the three terms the IEEE 952 / MathWorks recipe reads off the curve by their slopes
+SLOPE_READS: dict[str, SlopeRead] = {r.symbol: r for r in (
+    SlopeRead("N", -0.5, 1.0, 1.0, "the -1/2 line read at tau = 1 s"),
+    SlopeRead("B", 0.0, 1.0, math.sqrt(BI_FACTOR), "the curve's minimum / 0.664"),
+    SlopeRead("K", 0.5, 3.0, 1.0, "the +1/2 line read at tau = 3 s"))}
+
+
+@dataclass(frozen=True)
+class TermAgreement:
+    """How the Eq. (40) fit of one term agrees with the measured points where that term
+    dominates the fit, and which value the exports use.
+
+    ``fit_over_measured`` and ``band`` are at ``tau_s``, the worst point of the term's
+    stretch; ``band`` is the point's relative 95 % half-width. ``slope_point`` is the
+    slope-point read (spec unit; None where the recipe has none or the curve no stretch
+    of that slope); ``exported`` is "fit" or "slope_point", ``why`` says why in words."""
+    symbol: str
+    tau_s: float | None
+    fit_over_measured: float | None
+    band: float | None
+    misses: bool
+    slope_point: float | None
+    slope_point_tau_s: float | None
+    exported: str
+    why: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"tau_s": self.tau_s, "fit_over_measured": self.fit_over_measured, "band_95": self.band,
+                "misses": self.misses, "slope_point": self.slope_point,
+                "slope_point_tau_s": self.slope_point_tau_s, "exported": self.exported, "why": self.why}
+
+
+def term_agreement(tau: np.ndarray, adev: np.ndarray, err: np.ndarray, fitted_s: Mapping[str, float],
+                   bounds: Mapping[str, str]) -> dict[str, TermAgreement]:
+    """Each term's `TermAgreement` on a measured curve (s-based units in, spec units out)."""
+    ok = (adev > 0) & (err < WELL_MEASURED * adev)
+    t, a, e = tau[ok], adev[ok], err[ok]
+    parts = basis(t) * np.array([fitted_s[k] ** 2 for k in _ORDER])    # each term's share of the model
+    model = np.sqrt(parts.sum(axis=1)) if t.size else np.zeros(0)
+    lead = np.argmax(parts, axis=1) if t.size else np.zeros(0, dtype=int)
+    out = {}
+    for j, sym in enumerate(_ORDER):
+        to_spec = TERM_BY_SYMBOL[sym].to_spec
+        recipe = SLOPE_READS.get(sym)
+        read = recipe.read(t, a) if recipe else None
+        slope_value = float(read[0] * to_spec) if read else None
+        slope_tau = read[1] if read else None
+        where = (lead == j) & (parts[:, j] > 0) if t.size else np.zeros(0, dtype=bool)
+        if bounds[sym] != "fit" or not where.any():
+            why = ("not resolved by the record: the fit's upper bound is exported" if bounds[sym] != "fit"
+                   else "dominates the fit at no well-measured tau: the fit is exported")
+            out[sym] = TermAgreement(sym, None, None, None, False, slope_value, slope_tau, "fit", why)
+            continue
+        ratio = model[where] / a[where]
+        band = Z_95 * e[where] / a[where]
+        i = int(np.argmax(np.abs(np.log(ratio)) - np.log1p(band)))     # the worst against its band
+        misses = bool(abs(ratio[i] - 1.0) > band[i])
+        at = f"fit/measured {ratio[i]:.3g} at tau {t[where][i]:.3g} s, 95 % band +-{100 * band[i]:.2g} %"
+        if not misses:
+            exported, why = "fit", f"the fit agrees with its points where {sym} dominates ({at})"
+        elif slope_value is None or recipe is None:
+            exported = "fit"
+            why = (f"the fit misses its points where {sym} dominates ({at}); "
+                   + ("the recipe reads no slope point for it" if recipe is None else
+                      f"the curve has no stretch of slope {recipe.slope:+g} to read it from")
+                   + ": the fit is exported")
+        else:
+            exported = "slope_point"
+            why = (f"the fit misses its points where {sym} dominates ({at}): the slope-point read "
+                   f"({recipe.recipe}, as IEEE 952 and the MathWorks example) is exported")
+        out[sym] = TermAgreement(sym, float(t[where][i]), float(ratio[i]), float(band[i]), misses,
+                                 slope_value, slope_tau, exported, why)
+    return {k: out[k] for k in TERM_SYMBOLS}
+
+
 @dataclass
 class AllanResult:
     """Allan deviation of a record and its five-term fit (spec section 3).
@@ -265,6 +480,12 @@ class AllanResult:
     fitted_s : dict
         The model refitted with the resolved terms only (0 for the others): what
         `model_adev` draws.
+    agreement : dict
+        Symbol -> `TermAgreement`: the fit against its own points where the term
+        dominates, the slope-point read beside it, and which of the two is exported.
+    exported_terms, exported_bounds : dict
+        What the exports (Kalibr, MATLAB) write: the fit, or the slope-point read where
+        the fit misses its points (``exported_bounds`` then says "slope_point").
     """
     tau_s: np.ndarray
     adev_deg_s: np.ndarray
@@ -275,9 +496,24 @@ class AllanResult:
     sample_rate_hz: float
     n_samples: int
     terms: dict[str, float] = field(init=False)   #: symbol -> value in the spec's unit
+    agreement: dict[str, TermAgreement] = field(init=False)
 
     def __post_init__(self) -> None:
         self.terms = {k: self.terms_s[k] * TERM_BY_SYMBOL[k].to_spec for k in TERM_SYMBOLS}
+        self.agreement = term_agreement(self.tau_s, self.adev_deg_s, self.adev_err_deg_s, self.fitted_s,
+                                        self.bounds)
+
+    @property
+    def exported_terms(self) -> dict[str, float]:
+        """Symbol -> the value the exports write (spec unit): the fit, or the slope-point read."""
+        return {k: (a.slope_point if a.exported == "slope_point" and a.slope_point is not None
+                    else self.terms[k]) for k, a in self.agreement.items()}
+
+    @property
+    def exported_bounds(self) -> dict[str, str]:
+        """Symbol -> "fit", "upper_bound" or "slope_point": what `exported_terms` holds."""
+        return {k: ("slope_point" if a.exported == "slope_point" else self.bounds[k])
+                for k, a in self.agreement.items()}
 
     @property
     def adev_deg_h(self) -> np.ndarray:
@@ -303,21 +539,44 @@ class AllanResult:
         model = model_adev(self.tau_s, self.fitted_s)
         # only the taus the record measures well (1-sigma error under 10 %): the last
         # few taus of any record scatter by tens of per cent
-        ok = (adev > 0) & (model > 0) & (self.adev_err_deg_s < 0.1 * adev)
+        ok = (adev > 0) & (model > 0) & (self.adev_err_deg_s < WELL_MEASURED * adev)
         if not ok.any():
             return None
         return float(np.exp(np.max(np.abs(np.log(model[ok] / adev[ok])))))
 
     def to_json(self) -> dict[str, Any]:
-        """Plain JSON: the terms with their units and bounds, the curve in deg/h."""
-        return {"terms": {k: float(self.terms[k]) for k in TERM_SYMBOLS},
-                "units": {k: TERM_BY_SYMBOL[k].unit for k in TERM_SYMBOLS},
-                "bounds": dict(self.bounds),
-                "tau_s": [float(v) for v in self.tau_s],
-                "adev_deg_h": [float(v) for v in self.adev_deg_h],
-                "adev_err_deg_h": [float(v) for v in self.adev_err_deg_h],
-                "sample_rate_hz": float(self.sample_rate_hz),
-                "n_samples": int(self.n_samples)}
+        """Plain JSON: the terms with their units and bounds, each term's agreement and what
+        the exports use, the curve in deg/h. Strict JSON: a value that is not a finite
+        number is null, and ``nulls`` says which and why."""
+        d = {"terms": {k: float(self.terms[k]) for k in TERM_SYMBOLS},
+             "units": {k: TERM_BY_SYMBOL[k].unit for k in TERM_SYMBOLS},
+             "bounds": dict(self.bounds),
+             "fit_agreement": {k: a.to_json() for k, a in self.agreement.items()},
+             "exported_terms": {k: float(v) for k, v in self.exported_terms.items()},
+             "exported_bounds": self.exported_bounds,
+             "tau_s": [float(v) for v in self.tau_s],
+             "adev_deg_h": [float(v) for v in self.adev_deg_h],
+             "adev_err_deg_h": [float(v) for v in self.adev_err_deg_h],
+             "sample_rate_hz": float(self.sample_rate_hz),
+             "n_samples": int(self.n_samples)}
+        nulls: dict[str, str] = {}
+        d = _finite_or_null(d, "", nulls)
+        d["nulls"] = nulls
+        return d
+
+
+def _finite_or_null(v: Any, path: str, nulls: dict[str, str]) -> Any:
+    """``v`` with every float that is not finite replaced by None, its path and value noted
+    in ``nulls`` (strict JSON has no Infinity or NaN)."""
+    if isinstance(v, dict):
+        return {k: _finite_or_null(x, f"{path}.{k}" if path else str(k), nulls) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_finite_or_null(x, f"{path}[{i}]", nulls) for i, x in enumerate(v)]
+    if isinstance(v, float) and not math.isfinite(v):
+        nulls[path] = (f"computed as {v!r}, not a finite number (float64 overflow or 0/0: a sample rate "
+                       f"or values far outside a gyro's)")
+        return None
+    return v
 
 
 def allan(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | None = None,
@@ -347,6 +606,25 @@ def allan(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | N
     if m is None and tau_s is None:
         m = default_m(y.shape[0], per_decade)
     tau, ad, err, _ = adev(y, sample_rate_hz, m=m, tau_s=tau_s)
-    terms_s, kinds, fitted_s = fit_terms(tau, ad, err)
-    return AllanResult(tau_s=tau, adev_deg_s=ad, adev_err_deg_s=err, terms_s=terms_s,
-                       bounds=kinds, fitted_s=fitted_s, sample_rate_hz=float(sample_rate_hz), n_samples=int(y.shape[0]))
+    return allan_of_curve(tau, ad, err, sample_rate_hz, y.shape[0])
+
+
+def allan_of_chunks(chunks: Iterable[npt.ArrayLike], sample_rate_hz: float, m: npt.ArrayLike | None = None,
+                    tau_s: npt.ArrayLike | None = None, spill_dir: str | None = None) -> AllanResult:
+    """`allan` of a record given in chunks, in bounded memory (`adev_of_chunks`; default
+    taus octave-spaced)."""
+    tau0 = 1.0 / float(sample_rate_hz)
+    ms, sums, n = _sums_of_chunks(chunks, tau0, m, tau_s, spill_dir)
+    if n < 5:
+        raise ValueError(f"need a record of at least 5 samples, got {n}")
+    tau, ad, err, _ = _adev_of_sums(ms, sums, n, tau0)
+    return allan_of_curve(tau, ad, err, sample_rate_hz, n)
+
+
+def allan_of_curve(tau_s: np.ndarray, adev_deg_s: np.ndarray, adev_err_deg_s: np.ndarray,
+                   sample_rate_hz: float, n_samples: int) -> AllanResult:
+    """The five-term fit of a measured Allan curve (tau s, adev deg/s and its 1-sigma error)."""
+    terms_s, kinds, fitted_s = fit_terms(tau_s, adev_deg_s, adev_err_deg_s)
+    return AllanResult(tau_s=tau_s, adev_deg_s=adev_deg_s, adev_err_deg_s=adev_err_deg_s, terms_s=terms_s,
+                       bounds=kinds, fitted_s=fitted_s, sample_rate_hz=float(sample_rate_hz),
+                       n_samples=int(n_samples))

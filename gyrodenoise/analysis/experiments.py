@@ -142,6 +142,7 @@ def compare(record: Record, ar_order: int = 3, seed: int = 0, skip_warmup: bool 
                      "sigma_a_deg_s": float(np.sqrt(max(st[K.S_S2], 0.0)))},
         "std_deg_s": {k: paper_std(series[k][start:]) for k in ("raw",) + METHODS},
         "fit_misfit_factor": {k: r.fit_misfit() for k, r in results.items()},
+        "fit_agreement": {k: {t: a.to_json() for t, a in r.agreement.items()} for k, r in results.items()},
         "motion_form": "causal",    # the per-sample filter (Denoiser.step, FMUs, live links)
         "notes": list(record.notes),
     }

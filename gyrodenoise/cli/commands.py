@@ -16,9 +16,10 @@ from gyrodenoise.cli.options import (MODEL_OPTIONS, add_filter_options, add_reco
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
 from gyrodenoise.errors import InputError
-from gyrodenoise.units import ALLAN_TERMS, TERM_SYMBOLS
+from gyrodenoise.units import ALLAN_TERMS, TERM_BY_SYMBOL, TERM_SYMBOLS
 
 if TYPE_CHECKING:
+    from gyrodenoise.analysis.allan import AllanResult
     from gyrodenoise.simulator import ModelCard, Record
 
 
@@ -119,6 +120,7 @@ ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a tru
 # ------------------------------------------------------------------ allan
 def cmd_allan(args: argparse.Namespace) -> int:
     from gyrodenoise.analysis.allan import allan
+    unit = rate_unit_used(args)
     rec = _read(args)
     if len(rec) < 5:
         raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
@@ -127,24 +129,79 @@ def cmd_allan(args: argparse.Namespace) -> int:
         series = np.asarray(rec.rate_deg_s, dtype=np.float64) - np.asarray(rec.true_rate_deg_s, dtype=np.float64)
         analysed = ALLAN_OF_ERROR
     res = allan(series, rec.sample_rate_hz)
+    if not np.isfinite(res.adev_deg_s).any():
+        raise InputError(f"the Allan deviation is not a finite number at any tau at {rec.sample_rate_hz:g} Hz: "
+                         f"the sample rate or the rates are beyond what float64 holds", args.input)
     from gyrodenoise.io.export import export_from_args
-    for path in export_from_args(args, res):
-        log(f"gyrodenoise: wrote {path}")
+    written = export_from_args(args, res)
+    for path in written:
+        log(f"gyrodenoise: wrote {path} ({exported_text(res)})")
     if args.json:
         d = res.to_json()
         d["source"] = args.input
         d["notes"] = rec.notes
         d["analysed"] = analysed
+        d["rate_unit"] = unit
         d["true_rate_motion_deg_s"] = true_rate_motion(rec)
         emit_json(d)
     else:
         print(f"analysed: {analysed}")
+        print(f"rate unit: {unit['unit']} ({unit['how']})")
         print(format_terms_table({"record": res.terms}, {"record": res.bounds}))
+        print()
+        print(format_agreement(res))
         print()
         print(f"{'tau_s':>12} {'adev_deg_h':>14} {'err_deg_h':>12}")
         for t, a, e in zip(res.tau_s, res.adev_deg_h, res.adev_err_deg_h):
             print(f"{t:12.4g} {a:14.6g} {e:12.3g}")
     return 0
+
+
+def rate_unit_used(args: argparse.Namespace) -> dict[str, str]:
+    """{"unit", "how"}: the rate unit the record is read in and how it was decided (given,
+    or the default deg/s, with a word when the column's name says another unit); sets
+    ``args.rate_unit`` to it."""
+    if args.rate_unit is not None:
+        return {"unit": args.rate_unit, "how": "given with --rate-unit"}
+    args.rate_unit = "deg/s"
+    how = "the default: --rate-unit not given"
+    column = str(args.rate_column).lower()
+    said = next((u for u in ("mrad", "rad", "dps", "deg") if u in column), None)
+    if said in ("mrad", "rad"):
+        how += (f"; the column's name {args.rate_column!r} says {said}: give --rate-unit {said}/s if it is "
+                f"(rad/s read as deg/s makes every term {180 / np.pi:.1f}x too small)")
+    else:
+        how += ("; a record in rad/s read as deg/s gives every term 57.3x too small: give --rate-unit "
+                "rad/s if it is")
+    return {"unit": "deg/s", "how": how}
+
+
+def exported_text(res: AllanResult) -> str:
+    """'N fit, B slope-point read, ...': what the exports wrote, term by term."""
+    words = {"fit": "fit", "upper_bound": "upper bound of the fit", "slope_point": "slope-point read"}
+    return "terms: " + ", ".join(f"{k} {words[v]}" for k, v in res.exported_bounds.items() if k in ("N", "B", "K"))
+
+
+def format_agreement(res: AllanResult) -> str:
+    """Per term: the fit against its own points where the term dominates, the slope-point
+    read beside it and which one the exports use, with why."""
+    lines = [f"{'term (unit)':<20}{'fit':>12}{'slope point':>13}{'fit/measured':>14}{'95% band':>10}"
+             f"{'at tau s':>10}  exported"]
+    for term in ALLAN_TERMS:
+        a = res.agreement[term.symbol]
+        cells = (f"{res.terms[term.symbol]:12.4g}"
+                 + (f"{a.slope_point:13.4g}" if a.slope_point is not None else f"{'-':>13}")
+                 + (f"{a.fit_over_measured:14.3g}{'+-' + format(100 * a.band, '.2g') + '%':>10}"
+                    f"{a.tau_s:10.3g}" if a.fit_over_measured is not None and a.band is not None
+                    and a.tau_s is not None else f"{'-':>14}{'-':>10}{'-':>10}"))
+        lines.append(f"{term.symbol + ' (' + term.unit + ')':<20}{cells}  {a.exported.replace('_', '-')}")
+    lines.append("exported (Kalibr, MATLAB): the fit where it agrees with its own points within their 95 % "
+                 "band; where it misses, the slope-point read (IEEE 952 / MathWorks recipe: N on the -1/2 "
+                 "line at 1 s, B = minimum / 0.664, K on the +1/2 line at 3 s)")
+    for sym, a in res.agreement.items():
+        if a.misses:
+            lines.append(f"{sym}: {a.why}")
+    return "\n".join(lines)
 
 
 # ---------------------------------------------------------------- compare
@@ -159,12 +216,37 @@ def cmd_compare(args: argparse.Namespace) -> int:
     moving = true_rate_motion(rec)
     if moving:
         res["true_rate_motion_deg_s"] = moving
-        res.setdefault("warnings", []).append(moving_warning(moving))
+        add_warnings(res, [moving_warning(moving)])
+    else:     # a moving record's raw curve is the motion's (its warning says so); `allan` analyses another
+        add_warnings(res, raw_misfit_warnings(res))
     if args.json:
         emit_json(public(res))
     else:
         print(format_compare(res))
     return 0
+
+
+def add_warnings(res: dict[str, Any], warnings: list[str]) -> None:
+    """Append ``warnings`` to ``res["warnings"]``, made only when there is one."""
+    if warnings:
+        res.setdefault("warnings", []).extend(warnings)
+
+
+def raw_misfit_warnings(res: Mapping[str, Any]) -> list[str]:
+    """A warning per term whose Eq. (40) fit on the raw record misses its own Allan points
+    beyond their 95 % band, with the slope-point read beside it (what `allan` exports)."""
+    out = []
+    for sym, a in res.get("fit_agreement", {}).get("raw", {}).items():
+        if not a["misses"]:
+            continue
+        unit = TERM_BY_SYMBOL[sym].unit
+        beside = (f"the slope-point read gives {a['slope_point']:.4g} {unit} beside the fit's "
+                  f"{res['rows']['raw'][sym]:.4g} (`gyrodenoise allan` exports the slope-point read)"
+                  if a["exported"] == "slope_point" else "no slope-point read to put beside it")
+        out.append(f"raw: the Eq. (40) fit misses its own Allan points where {sym} dominates (fit/measured "
+                   f"{a['fit_over_measured']:.3g} at tau {a['tau_s']:.3g} s, 95 % band +-{100 * a['band_95']:.2g} %): "
+                   f"{beside}")
+    return out
 
 
 def moving_warning(moving: Mapping[str, float]) -> str:
@@ -210,7 +292,8 @@ def format_compare(res: Mapping[str, Any]) -> str:
     for t in TERM_SYMBOLS:
         cells = "".join(f"{_fmt(res['ratio_to_raw'][n][t]):>14}" for n in names)
         out.append(f"{t:<20}{cells}")
-    poor = {k: v for k, v in res.get("fit_misfit_factor", {}).items() if v is not None and v > POOR_FIT}
+    poor = {k: v for k, v in res.get("fit_misfit_factor", {}).items()
+            if k != "raw" and v is not None and v > POOR_FIT}     # raw: raw_misfit_warnings, per term
     if poor:
         out.append("Eq. (40) fit misses its own Allan points by up to " +
                    ", ".join(f"{v:.2g}x ({k})" for k, v in poor.items()) +
@@ -319,6 +402,7 @@ def _demo_tables(args: argparse.Namespace, card: ModelCard, rec: Record) -> tupl
     from gyrodenoise.analysis.experiments import compare, dynamic_table
     log("gyrodenoise demo: static experiment (Table 1): KF, modified SHAKF and motion, Allan fits")
     res = compare(rec, ar_order=args.ar_order, seed=args.seed, **filter_kw(args))
+    add_warnings(res, raw_misfit_warnings(res))
     log(f"gyrodenoise demo: dynamic experiment (Table 2): {args.dynamic_s:g} s at each rate")
     dyn = dynamic_table(card, duration_s=args.dynamic_s, seed=args.seed, ar_order=args.ar_order,
                         **filter_kw(args))
@@ -336,7 +420,7 @@ def register_cli(sub: Any) -> None:
     p.set_defaults(func=cmd_denoise)
 
     p = sub.add_parser("allan", help="Allan deviation and five-term fit of a recording")
-    add_recording_options(p)
+    add_recording_options(p, rate_unit_default=None)
     p.add_argument("--json", action="store_true")
     from gyrodenoise.io.export import add_export_options
     add_export_options(p)

@@ -197,7 +197,7 @@ def export_from_args(args: argparse.Namespace, allan_result: AllanResult) -> lis
     """
     written: list[str] = []
     source = str(getattr(args, "input", "") or "")
-    terms, bounds = allan_result.terms, allan_result.bounds
+    terms, bounds = allan_result.exported_terms, allan_result.exported_bounds
     if getattr(args, "kalibr_yaml", None):
         topic = args.kalibr_rostopic
         if not _ROS_NAME.fullmatch(topic or ""):
