@@ -93,3 +93,11 @@ def test_gap_figure_without_the_report_extra(monkeypatch, tmp_path):
     status, _, err = run_main("gap", "--allan", DATA / "missing.csv", "--model", "paper_fog",
                               "--out", tmp_path / "new.toml")
     assert "(or --no-plot)" in _one_line_install(status, err, "report")
+
+
+def test_gap_fmu_engine_without_the_fmu_extra(monkeypatch, tmp_path):
+    _hide(monkeypatch, "pythonfmu")
+    status, _, err = run_main("gap", DATA / "missing.csv", "--model", "paper_fog", "--no-plot",
+                              "--out", tmp_path / "new.toml")
+    assert "needs pythonfmu," in _one_line_install(status, err, "fmu")
+    assert "or --engine native" in err

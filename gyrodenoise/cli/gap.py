@@ -256,6 +256,8 @@ def _check_options(args: argparse.Namespace) -> None:
         _check_writable(args.plot, "--plot")
     if not args.no_plot:
         require("report", "matplotlib", what="gyrodenoise gap's figure (or --no-plot)")
+    if args.allan is None and args.engine == "fmu":     # --allan simulates with the core
+        require("fmu", "fmpy", "pythonfmu", what="gyrodenoise gap --engine fmu (the default; or --engine native)")
 
 
 def cmd_gap(args: argparse.Namespace) -> int:
