@@ -101,3 +101,9 @@ def test_gap_fmu_engine_without_the_fmu_extra(monkeypatch, tmp_path):
                               "--out", tmp_path / "new.toml")
     assert "needs pythonfmu," in _one_line_install(status, err, "fmu")
     assert "or --engine native" in err
+
+
+def test_mavlink_urls_without_the_cluster_extra(monkeypatch, tmp_path):
+    _hide(monkeypatch, "fsspec")
+    status, _, err = run_main("mavlink", "memory://logs/a.tlog", "--out", tmp_path / "o", "--no-plots")
+    assert "URL memory://logs/a.tlog" in _one_line_install(status, err, "cluster")

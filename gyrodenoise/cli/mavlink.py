@@ -315,10 +315,15 @@ def run(args):
 
 
 def _require_extras(args):
-    """The log readers ([logs]) always; the plots and HTML reports ([report]) unless --no-plots."""
+    """The log readers ([logs]) always; the plots and HTML reports ([report]) unless --no-plots;
+    fsspec ([cluster]) for an input or output URL."""
+    from gyrodenoise.flightlog.cluster import is_url
     require("logs", what="gyrodenoise mavlink")
     if not args.no_plots:
         require("report", what="gyrodenoise mavlink's plots and HTML report (or --no-plots)")
+    urls = [x for x in [*args.logs, args.out] if x is not None and is_url(x)]
+    if urls:
+        require("cluster", "fsspec", what=f"gyrodenoise mavlink's URL {urls[0]}")
 
 
 def _signing_key(args):
