@@ -113,12 +113,10 @@ WIN64_PYCONFIG = """\
 #define ALIGNOF_SIZE_T 8
 #define HAVE_WCHAR_H 1
 #define HAVE_STDDEF_H 1
-#define PY_LITTLE_ENDIAN 1
 #define DOUBLE_IS_LITTLE_ENDIAN_IEEE754 1
 #define HAVE_PY_SSIZE_T 1
 #include <basetsd.h>
 typedef __int64 Py_ssize_t;
-#define Py_WCHAR_FMT "hs"
 #endif
 """
 
