@@ -12,9 +12,12 @@ setup(ext_modules=[
         # 29.2 -> 28.0, the others unchanged, outputs identical (clang ignores both, warning).
         extra_compile_args=["-O2", "-fschedule-insns", "-fsched-pressure", "-ffp-contract=off", "-std=c99"],
         libraries=["m"],
+        # the stable ABI (_gdcoremodule.c defines Py_LIMITED_API 0x030B0000): one binary per
+        # platform for every CPython >= 3.11, named _gdcore.abi3.so, in a wheel tagged cp311-abi3
+        py_limited_api=True,
         # optional: where there is no C compiler (most Windows and macOS desktops) the
         # package installs without it and runs the plain-Python kernels (same numbers,
         # slower; gyrodenoise/core/batch.py says so in one warning line)
         optional=True,
     ),
-])
+], options={"bdist_wheel": {"py_limited_api": "cp311"}})

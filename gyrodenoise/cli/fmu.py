@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from gyrodenoise._extras import require
 from gyrodenoise.cli.options import add_filter_options
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
@@ -95,6 +96,7 @@ def _register_run(sub):
 
 
 def _cmd_build(args):
+    require("fmu", "fmpy", "pythonfmu", what="gyrodenoise fmu build")   # the FMI headers, the Python FMUs
     from gyrodenoise.fmu.native import PLATFORMS
     from gyrodenoise.fmu.native3 import build_native_fmus
     platforms = None
@@ -147,6 +149,7 @@ def _cmd_card(args):
 
 
 def _cmd_run(args):
+    require("fmu", "fmpy", "pythonfmu", what="gyrodenoise fmu run")     # the master, a stale FMU rebuilt
     fmu_dir = Path(args.fmu_dir)
     _resolve_card(args.card)          # a bad card is a user error before anything runs
     _rebuild_stale(fmu_dir, native=args.master != "fmpy")

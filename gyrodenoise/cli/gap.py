@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gyrodenoise._extras import require
 from gyrodenoise.cli.options import add_recording_options
 from gyrodenoise.cli.program import emit_json
 from gyrodenoise.console import log
@@ -253,6 +254,10 @@ def _check_options(args: argparse.Namespace) -> None:
     _check_writable(args.out, "--out")
     if args.plot and not args.no_plot:
         _check_writable(args.plot, "--plot")
+    if not args.no_plot:
+        require("report", "matplotlib", what="gyrodenoise gap's figure (or --no-plot)")
+    if args.allan is None and args.engine == "fmu":     # --allan simulates with the core
+        require("fmu", "fmpy", "pythonfmu", what="gyrodenoise gap --engine fmu (the default; or --engine native)")
 
 
 def cmd_gap(args: argparse.Namespace) -> int:

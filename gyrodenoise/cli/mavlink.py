@@ -11,6 +11,7 @@ import re
 import sys
 from pathlib import Path
 
+from gyrodenoise._extras import require
 from gyrodenoise.cli.options import (METHOD_OPTIONS, add_filter_options, check_core_params, check_method_options,
                                      core_default, filter_kw, integer, number)
 from gyrodenoise.cli.program import emit_json
@@ -313,6 +314,18 @@ def run(args):
         raise
 
 
+def _require_extras(args):
+    """The log readers ([logs]) always; the plots and HTML reports ([report]) unless --no-plots;
+    fsspec ([cluster]) for an input or output URL."""
+    from gyrodenoise.flightlog.cluster import is_url
+    require("logs", what="gyrodenoise mavlink")
+    if not args.no_plots:
+        require("report", what="gyrodenoise mavlink's plots and HTML report (or --no-plots)")
+    urls = [x for x in [*args.logs, args.out] if x is not None and is_url(x)]
+    if urls:
+        require("cluster", "fsspec", what=f"gyrodenoise mavlink's URL {urls[0]}")
+
+
 def _signing_key(args):
     """The key of --signing-key (None without it); one line, exit 2, when it cannot be used."""
     if getattr(args, "signing_key", None) is None:
@@ -322,6 +335,7 @@ def _signing_key(args):
 
 
 def _run(args, created):
+    _require_extras(args)
     _check(args)
     args.key = _signing_key(args)
     links = [x for x in args.logs if LINK_RE.match(x) and not Path(x).exists()]

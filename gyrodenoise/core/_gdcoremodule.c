@@ -18,7 +18,12 @@
  *   sim_n_state(p) -> int              length of s
  *   sim_reset(p, s)                    s at the start
  *   sim_run(p, s, truth, restarts, out) out[i] = one measured sample; GIL released
+ *
+ * Written against the stable ABI of CPython 3.11 (the buffer protocol joined
+ * the limited API in 3.11): one binary, tagged abi3, imports on every
+ * CPython >= 3.11 (setup.py py_limited_api).
  */
+#define Py_LIMITED_API 0x030B0000
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <string.h>
@@ -61,11 +66,15 @@ static int get_f64(PyObject *obj, Py_buffer *b, int writable, const char *name)
 {
     if (PyObject_GetBuffer(obj, b, PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0) {
         if (PyErr_ExceptionMatches(PyExc_TypeError) || PyErr_ExceptionMatches(PyExc_BufferError)) {
+            PyObject *tname = PyType_GetName(Py_TYPE(obj));
             PyErr_Clear();
+            if (tname == NULL)
+                return -1;
             PyErr_Format(PyExc_TypeError,
                          "%s must be a contiguous%s float64 buffer (array.array('d') or a "
-                         "numpy float64 array), got %.100s",
-                         name, writable ? " writable" : "", Py_TYPE(obj)->tp_name);
+                         "numpy float64 array), got %U",
+                         name, writable ? " writable" : "", tname);
+            Py_DECREF(tname);
         }
         return -1;
     }
@@ -121,13 +130,9 @@ static PyObject *mod_step(PyObject *self, PyObject *const *args, Py_ssize_t narg
     (void)self;
     if (!nargs_ok("step", nargs, 4))
         return NULL;
-    if (PyFloat_CheckExact(args[2])) {
-        z = PyFloat_AS_DOUBLE(args[2]);
-    } else {
-        z = PyFloat_AsDouble(args[2]);
-        if (z == -1.0 && PyErr_Occurred())
-            return NULL;
-    }
+    z = PyFloat_AsDouble(args[2]);
+    if (z == -1.0 && PyErr_Occurred())
+        return NULL;
     if (args[3] == Py_False || args[3] == Py_None)
         restart = 0;
     else if (args[3] == Py_True)
@@ -346,9 +351,18 @@ static PyObject *mod_butter_sos(PyObject *self, PyObject *args)
             Py_CLEAR(out);
             break;
         }
-        for (j = 0; j < 5; j++)
-            PyTuple_SET_ITEM(sec, j, PyFloat_FromDouble(p[P_SOS + 5 * i + j]));
-        PyList_SET_ITEM(out, i, sec);
+        for (j = 0; j < 5; j++) {
+            PyObject *v = PyFloat_FromDouble(p[P_SOS + 5 * i + j]);
+            if (v == NULL || PyTuple_SetItem(sec, j, v) < 0) {   /* SetItem steals v */
+                Py_DECREF(sec);
+                Py_CLEAR(out);
+                break;
+            }
+        }
+        if (out == NULL || PyList_SetItem(out, i, sec) < 0) {   /* steals sec */
+            Py_CLEAR(out);
+            break;
+        }
     }
     return out;
 }

@@ -1,0 +1,199 @@
+"""The wheels of scripts/build_wheels.py: one per platform (cp311-abi3), built here from the sdist.
+
+* every binary inspected (format, machine, what it links, glibc / minimum macOS, exports), with
+  ``auditwheel show`` for the manylinux ones where auditwheel is installed;
+* the linux x86_64 wheel installed into a fresh virtual environment with no compiler on the PATH:
+  the core only (numpy and scipy are all it pulls), the compiled core imported from the
+  wheel and equal to the plain-Python kernels, a short ``gyrodenoise demo``, and the
+  ``mavlink`` command saying which extra to install;
+* the sdist holds what building needs (the C core, the FMU sources, the model cards) and builds:
+  the wheels are made from it in a clean folder.
+
+The macOS and Windows binaries are only inspected here (no macOS, no wine with a Windows
+Python). The build is slow (~1 min: the sdist and a wheel in pip's isolated build
+environments, zig for five targets) and needs setuptools from the package index or pip's cache.
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import zipfile
+
+import pytest
+
+from tests.helpers import DATA, REPO
+
+sys.path.insert(0, str(REPO / "scripts"))
+import build_wheels as bw  # noqa: E402
+
+
+def test_check_refuses_what_a_wheel_must_not_carry():
+    linux = bw.TARGETS["linux_x86_64"]
+    fine = bw.Inspection("ELF", "EM_X86_64", ["libc.so.6", "libm.so.6"], ["PyInit__gdcore"], (2, 14))
+    assert bw.check(fine, linux) == []
+    new_glibc = bw.Inspection("ELF", "EM_X86_64", ["libm.so.6"], ["PyInit__gdcore"], (2, 29))
+    assert "glibc" in " ".join(bw.check(new_glibc, linux))
+    stray = bw.Inspection("ELF", "EM_X86_64", ["libpython3.11.so.1.0"], ["PyInit__gdcore", "gd_step"], (2, 17))
+    assert len(bw.check(stray, linux)) == 2
+    mac = bw.TARGETS["macos_arm64"]
+    assert bw.check(bw.Inspection("Mach-O", "Arm64", ["/usr/lib/libSystem.B.dylib"], ["_PyInit__gdcore"],
+                                  min_os="14.0"), mac) == ["minimum macOS 14.0, expected 11.0"]
+    win = bw.TARGETS["windows_x86_64"]
+    assert bw.check(bw.Inspection("PE", "x86_64", ["python311.dll", "KERNEL32.dll"], ["PyInit__gdcore"]), win)
+
+
+@pytest.fixture(scope="module")
+def wheels(tmp_path_factory):
+    if shutil.which("llvm-readobj") is None or shutil.which("llvm-nm") is None:
+        pytest.skip("llvm-readobj / llvm-nm are needed to inspect the binaries (Debian: llvm)")
+    try:
+        bw.zig()
+    except SystemExit as exc:
+        pytest.skip(str(exc))
+    out = tmp_path_factory.mktemp("dist")
+    try:
+        built = bw.build(list(bw.TARGETS.values()), out)
+    except SystemExit as exc:
+        if "No matching distribution" in str(exc) or "Could not find a version" in str(exc):
+            pytest.skip(f"the build backend cannot be fetched here: {str(exc)[-200:]}")
+        raise
+    return out, {t.name: (whl, insp) for t, whl, insp in built}
+
+
+@pytest.mark.slow
+def test_every_wheel_is_tagged_abi3_and_carries_one_inspected_core(wheels):
+    out, built = wheels
+    assert set(built) == set(bw.TARGETS)
+    for name, (whl, insp) in built.items():
+        t = bw.TARGETS[name]
+        assert whl.name.endswith(f"-cp311-abi3-{'.'.join(t.platform_tags)}.whl")
+        with zipfile.ZipFile(whl) as z:
+            binaries = [n for n in z.namelist() if n.endswith((".so", ".pyd", ".dylib", ".dll"))]
+            wheel_meta = z.read(next(n for n in z.namelist() if n.endswith(".dist-info/WHEEL"))).decode()
+            names = set(z.namelist())
+        assert binaries == [f"gyrodenoise/core/{t.binary}"], name
+        assert [ln[5:] for ln in wheel_meta.splitlines() if ln.startswith("Tag: ")] == \
+            [f"cp311-abi3-{p}" for p in t.platform_tags]
+        assert {"gyrodenoise/data/paper_fog.toml", "gyrodenoise/core/gdcore.c",
+                "gyrodenoise/fmu/sources/native/gdfmi.c"} <= names
+        assert bw.check(insp, t) == [], (name, insp)
+        assert insp.exports in (["PyInit__gdcore"], ["_PyInit__gdcore"])
+
+
+@pytest.mark.slow
+def test_auditwheel_finds_the_linux_wheels_manylinux2014(wheels):
+    if shutil.which("auditwheel") is None and not _has_module("auditwheel"):
+        pytest.skip("auditwheel is not installed (pip install auditwheel)")
+    out, built = wheels
+    for name in ("linux_x86_64", "linux_aarch64"):
+        proc = subprocess.run([sys.executable, "-m", "auditwheel", "show", str(built[name][0])],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        text = " ".join(proc.stdout.split())
+        arch = name.split("_", 1)[1]
+        assert f'consistent with the following platform tag: "manylinux_2_17_{arch}"' in text, text
+        assert "requires no external shared libraries" in text or "libpython" not in text
+
+
+def _has_module(name):
+    import importlib.util
+    return importlib.util.find_spec(name) is not None
+
+
+@pytest.mark.slow
+def test_the_sdist_holds_what_the_build_needs(wheels):
+    out, _ = wheels
+    (sdist,) = out.glob("gyrodenoise-*.tar.gz")
+    with tarfile.open(sdist) as tar:
+        names = {n.split("/", 1)[1] for n in tar.getnames() if "/" in n}
+    need = {"setup.py", "pyproject.toml", "README.md", *(f"gyrodenoise/core/{s}" for s in bw.SOURCES),
+            "gyrodenoise/core/gdcore.h", "gyrodenoise/core/gdmethods.h", "gyrodenoise/core/gdsim.h",
+            "gyrodenoise/data/paper_fog.toml", "gyrodenoise/fmu/sources/native/gdfmi.h"}
+    assert need <= names, need - names
+    packaged = {str(p.relative_to(REPO)) for p in (REPO / "gyrodenoise" / "fmu" / "sources").rglob("*")
+                if p.is_file() and "__pycache__" not in p.parts and p.suffix in (".c", ".h", ".py")}
+    assert packaged <= names, packaged - names
+
+
+@pytest.mark.slow
+def test_the_linux_wheel_runs_in_a_fresh_venv_without_a_compiler(wheels, tmp_path):
+    if not sys.platform.startswith("linux") or os.uname().machine != "x86_64":
+        pytest.skip("the linux x86_64 wheel runs on linux x86_64")
+    out, built = wheels
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    py = venv / "bin" / "python"
+    # the PATH holds the venv alone: no cc, gcc, clang or zig can be found by pip or the package
+    env = {"PATH": str(venv / "bin"), "HOME": os.environ.get("HOME", str(tmp_path)), "CC": "no-compiler",
+           "PIP_DISABLE_PIP_VERSION_CHECK": "1", "LANG": "C.UTF-8"}
+    for k in ("PIP_INDEX_URL", "PIP_EXTRA_INDEX_URL", "PIP_FIND_LINKS", "PIP_NO_INDEX"):
+        if k in os.environ:
+            env[k] = os.environ[k]
+    proc = subprocess.run([str(py), "-c", "import shutil; print([c for c in ('cc', 'gcc', 'clang', 'zig') "
+                           "if shutil.which(c)])"], capture_output=True, text=True, env=env, timeout=60)
+    assert proc.stdout.strip() == "[]", proc.stdout
+    whl = built["linux_x86_64"][0]
+    proc = subprocess.run([str(py), "-m", "pip", "install", "-q", "--only-binary", ":all:", str(whl)],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    if proc.returncode != 0 and ("No matching distribution" in proc.stderr or "Could not find" in proc.stderr):
+        pytest.skip(f"numpy / scipy cannot be fetched here: {proc.stderr.strip().splitlines()[-1]}")
+    assert proc.returncode == 0, proc.stderr
+    proc = subprocess.run([str(py), "-m", "pip", "list", "--format", "json"], capture_output=True, text=True,
+                          env=env, timeout=120)
+    dists = {d["name"].lower() for d in json.loads(proc.stdout)} - {"pip", "setuptools", "wheel"}
+    assert dists == {"gyrodenoise", "numpy", "scipy"}
+
+    # the wheel's core, imported from the venv, equals the plain-Python kernels bit for bit
+    check = (
+        "import numpy as np, gyrodenoise as gd\n"
+        "from gyrodenoise.core import _gdcore, kernels as K\n"
+        "from gyrodenoise.core.batch import run, compiled_core\n"
+        "import sys; assert compiled_core() and _gdcore.__file__.startswith(sys.prefix), _gdcore.__file__\n"
+        "assert _gdcore.__file__.endswith('_gdcore.abi3.so'), _gdcore.__file__\n"
+        "z = np.ascontiguousarray(gd.simulate('paper_fog', 3000, seed=1).rate_deg_s)\n"
+        "for m in ('shakf', 'kf', 'motion', 'lowpass'):\n"
+        "    p = K.make_params(method=m, sample_rate_hz=200.0)\n"
+        "    c = run(p, K.init_state(p), z)[0]\n"
+        "    py = run(p, K.init_state(p), z, compiled=False)[0]\n"
+        "    assert np.array_equal(c, py), m\n"
+        "print('ok')\n")
+    proc = subprocess.run([str(py), "-c", check], capture_output=True, text=True, env=env, cwd=tmp_path,
+                          timeout=300)
+    assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr[-3000:]
+
+    gd = venv / "bin" / "gyrodenoise"
+    proc = subprocess.run([str(gd), "demo", "--hours", "0.01", "--dynamic-s", "4", "--no-plots", "--json",
+                           "--out", str(tmp_path / "demo")], capture_output=True, text=True, env=env,
+                          cwd=tmp_path, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    res = json.loads(proc.stdout)
+    assert res["static"] and res["dynamic"]
+    assert "plain-Python kernels" not in proc.stderr
+
+    proc = subprocess.run([str(gd), "mavlink", str(DATA / "fs-batt.log.tlog"), "--out", str(tmp_path / "m")],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert proc.stderr.strip().endswith("pip install 'gyrodenoise[logs]'"), proc.stderr
+
+
+@pytest.mark.slow
+def test_the_sdist_compiles_its_core_in_a_clean_folder(wheels, tmp_path):
+    """pip builds a wheel from the sdist alone (copied into an empty folder), the compiler on:
+    the C core it compiles is the abi3 one, in a cp311-abi3 wheel."""
+    if shutil.which(os.environ.get("CC", "cc")) is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler here")
+    out, _ = wheels
+    (sdist,) = out.glob("gyrodenoise-*.tar.gz")
+    clean = tmp_path / "clean"
+    clean.mkdir()
+    shutil.copy2(sdist, clean / sdist.name)
+    proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(clean / "w"),
+                           str(clean / sdist.name)], capture_output=True, text=True, cwd=clean, timeout=600,
+                          env=dict(os.environ, PIP_DISABLE_PIP_VERSION_CHECK="1"))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (whl,) = (clean / "w").glob("*.whl")
+    assert "-cp311-abi3-" in whl.name, whl.name
+    with zipfile.ZipFile(whl) as z:
+        assert [n for n in z.namelist() if n.endswith(".so")] == ["gyrodenoise/core/_gdcore.abi3.so"]
