@@ -6,12 +6,13 @@ The documented layout: imports go one way, from the foundation up to the CLI.
 area                  may import (of gyrodenoise)
 ====================  =====================================================
 errors, units         nothing
+_extras               errors
 console               errors
 core                  core, errors
 analysis, io,         core, errors, units, console, data, analysis, io,
 simulator, denoiser   simulator, denoiser
 modelgap, fmu,        anything but cli
-mavlink
+flightlog
 cli                   anything
 ====================  =====================================================
 
@@ -37,13 +38,14 @@ PACKAGE = "gyrodenoise"
 PACKAGE_DIR = Path(importlib.util.find_spec(PACKAGE).submodule_search_locations[0]).resolve()
 REPO_DIR = PACKAGE_DIR.parent      # the checkout (the test reads its tests, benchmarks and docs)
 
-_LOWER = ("core", "errors", "units", "console", "data", "analysis", "io", "simulator", "denoiser")
-_ALL_BUT_CLI = _LOWER + ("modelgap", "fmu", "mavlink", "")
+_LOWER = ("core", "errors", "units", "_extras", "console", "data", "analysis", "io", "simulator", "denoiser")
+_ALL_BUT_CLI = _LOWER + ("modelgap", "fmu", "flightlog", "")
 # area (relative to gyrodenoise; "" is the top-level package facade) -> the areas it may import.
 # A module's area is the longest key that is its name or a parent of it.
 LAYOUT = {
     "errors": (),
     "units": (),
+    "_extras": ("errors",),
     "console": ("errors",),
     "core": ("core", "errors"),
     "analysis": _LOWER,
@@ -52,7 +54,7 @@ LAYOUT = {
     "denoiser": _LOWER,
     "modelgap": _ALL_BUT_CLI,
     "fmu": _ALL_BUT_CLI,
-    "mavlink": _ALL_BUT_CLI,
+    "flightlog": _ALL_BUT_CLI,
     "cli": _ALL_BUT_CLI + ("cli",),
 }
 CLI_ENTRY_POINTS = {f"{PACKAGE}.__main__"}     # ``python -m gyrodenoise``: runs the CLI

@@ -3,7 +3,7 @@
 Why not call allantools for the curve: it holds several record-sized arrays per
 tau; here the sums read the cumulative sum in blocks of `BLOCK` samples (numpy
 only), and `adev_of_chunks` takes a record of any length in chunks in bounded
-memory (benchmarks/records/allan_memory.py measures both against pandas +
+memory (a benchmark of the repository measures both against pandas +
 allantools). The tests check this module against allantools (1e-9) and against a
 published ADIS16405 curve (1e-3), so allantools remains our reference
 implementation.

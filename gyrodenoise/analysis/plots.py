@@ -22,6 +22,8 @@ LABELS = {"raw": "raw", "ar_fit": "AR-fitted sequence", "kf": "KF", "shakf": "mo
 
 
 def _plt() -> Any:
+    from gyrodenoise._extras import require
+    require("report", "matplotlib", what="the figures (or --no-plots)")
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

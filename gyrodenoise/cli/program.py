@@ -96,6 +96,15 @@ def main(argv=None):
     except InputError as exc:
         print(f"gyrodenoise: error: {exc}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as exc:
+        # a module of an extra that is not installed, reached past the commands' own checks
+        from gyrodenoise._extras import extra_of
+        extra = extra_of(exc.name)
+        if extra is None:
+            raise
+        print(f"gyrodenoise: error: this command needs {exc.name}, not installed: "
+              f"pip install 'gyrodenoise[{extra}]'", file=sys.stderr)
+        return 2
     except KeyboardInterrupt as exc:
         print(f"gyrodenoise: interrupted (SIGINT), stopped{_stop_note(exc)}", file=sys.stderr)
         return 130
