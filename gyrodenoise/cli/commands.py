@@ -23,9 +23,11 @@ if TYPE_CHECKING:
 
 
 def _read(args: argparse.Namespace) -> Record:
+    from gyrodenoise.io.export import check_export_args
     from gyrodenoise.io.recording import read_recording
+    check_export_args(args)       # refused before the file is read (and its notes printed)
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
-                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec

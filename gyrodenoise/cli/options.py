@@ -43,6 +43,10 @@ def number(text: str) -> float:
 
 
 # ------------------------------------------------------------------ the recording
+#: the units ``--time-unit`` takes (gyrodenoise.io.timebase.time_unit reads them)
+TIME_UNITS = ("s", "ms", "us", "ns")
+
+
 def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | None = None,
                           input_optional: bool = False, rate_unit_default: str | None = "deg/s") -> None:
     """``IN`` and the options that say how to read it (:func:`gyrodenoise.io.recording.read_recording`).
@@ -52,10 +56,14 @@ def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | 
     parser.add_argument("input", metavar="IN", nargs="?" if input_optional else None,
                         help=input_help or "recording CSV (columns time,rate[,true_rate]; .gz ok)")
     parser.add_argument("--rate-column", default="rate", help="rate column name (default: rate)")
-    parser.add_argument("--time-column", default="time", help="time column name, s (default: time)")
+    parser.add_argument("--time-column", default="time", help="time column name (default: time)")
+    parser.add_argument("--time-unit", default=None, choices=TIME_UNITS,
+                        help="unit of the time column (default: detected from its values, said in a note; "
+                             "an epoch in any of them is detected)")
     parser.add_argument("--rate-unit", default=rate_unit_default, help="deg/s (default), deg/h or rad/s")
     parser.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
-                        help="sample rate when there is no time column")
+                        help="sample rate: the rate when there is no time column; with one, used when within "
+                             "2%% of the column's own (samples over span), an error further off")
 
 
 # ------------------------------------------------------------------ the filter

@@ -195,9 +195,23 @@ def export_from_args(args: argparse.Namespace, allan_result: AllanResult) -> lis
     InputError
         One line naming the option or path and what is wrong.
     """
+    check_export_args(args)
     written: list[str] = []
     source = str(getattr(args, "input", "") or "")
     terms, bounds = allan_result.terms, allan_result.bounds
+    if getattr(args, "kalibr_yaml", None):
+        text = kalibr_imu_yaml(terms, allan_result.sample_rate_hz, rostopic=args.kalibr_rostopic,
+                               bounds=bounds, inflate=args.kalibr_inflate, source=source)
+        written.append(_write(args.kalibr_yaml, text))
+    if getattr(args, "matlab", None):
+        written.append(_write(args.matlab, matlab_gyroparams_script(terms, bounds, source)))
+    return written
+
+
+def check_export_args(args: argparse.Namespace) -> None:
+    """The export options of `add_export_options` (a ROS topic name, a positive inflation,
+    folders that exist): one-line InputError, so that a command refuses them before it
+    reads its input."""
     if getattr(args, "kalibr_yaml", None):
         topic = args.kalibr_rostopic
         if not _ROS_NAME.fullmatch(topic or ""):
@@ -206,12 +220,9 @@ def export_from_args(args: argparse.Namespace, allan_result: AllanResult) -> lis
         f = args.kalibr_inflate
         if not (f > 0 and math.isfinite(f)):
             raise InputError(f"--kalibr-inflate must be a positive number, got {f!r}")
-        text = kalibr_imu_yaml(terms, allan_result.sample_rate_hz, rostopic=args.kalibr_rostopic,
-                               bounds=bounds, inflate=f, source=source)
-        written.append(_write(args.kalibr_yaml, text))
-    if getattr(args, "matlab", None):
-        written.append(_write(args.matlab, matlab_gyroparams_script(terms, bounds, source)))
-    return written
+    for path in (getattr(args, "kalibr_yaml", None), getattr(args, "matlab", None)):
+        if path and not Path(path).resolve().parent.is_dir():
+            raise InputError("cannot write: No such file or directory", str(path))
 
 
 def _write(path: str | os.PathLike[str], text: str) -> str:

@@ -4,9 +4,13 @@ Every problem is either a one-line `gyrodenoise.errors.InputError`
 naming the file, line and column, or a documented repair recorded in
 ``Record.notes`` (the CLI prints the notes on stderr and in ``--json``):
 
-* a time gap longer than 1.5 median sample periods: no interpolation; the
-  sample after the gap is marked as a restart (the AR model and filter are
-  re-identified there) and the gap is reported;
+* the time column: its unit, sample rate, kind of timestamps (uniform,
+  jittered, bursty, varying), gaps and restarts are those of
+  :func:`gyrodenoise.io.timebase.analyse_time`, said in one note line. No
+  interpolation: jitter, bursts, repeated timestamps and gaps of up to 4
+  missing samples do not restart the filter; a longer gap or a time reversal
+  marks the next sample as a restart (the AR model and filter are re-identified
+  there) and the note gives the samples each run holds;
 * columns other than time / rate / true_rate: ignored and reported;
 * a constant rate: accepted (a valid, if dull, record: the filter passes it
   through and the Allan terms are zero) and reported;
@@ -20,7 +24,7 @@ naming the file, line and column, or a documented repair recorded in
 
 Errors: missing or unreadable file, empty file, header only, missing rate or
 time column, a value that is not a number, NaN or inf, a short (truncated)
-row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
+row, time that never advances, fewer than 2 samples, unknown rate unit,
 no time column and no sample rate, a rate beyond `ABSURD_RATE_DEG_S`
 (after unit conversion; not a gyro reading).
 The test suite's corpus of bad recordings holds one file per case.
@@ -41,13 +45,13 @@ import numpy as np
 import numpy.typing as npt
 
 from gyrodenoise.errors import InputError
+from gyrodenoise.io.timebase import MAX_RATE_HZ, analyse_time, restart_mask
 from gyrodenoise.simulator import Record
 from gyrodenoise.units import RATE_TO_DEG_S
 
 if TYPE_CHECKING:
     from _csv import Reader as _CsvReader
 
-GAP_FACTOR = 1.5
 MIN_SAMPLES = 2
 ABSURD_RATE_DEG_S = 1.0e6   # 2,800 rev/s: no gyro measures that
 SAT_RUN = 10                # equal samples at the column's max/min: suspected saturation
@@ -78,7 +82,7 @@ SPIKE_ADVICE = ("with --method shakf, kf or sh_classic the outlier gate (--outli
 
 def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str = "time",
                    rate_unit: str = "deg/s", sample_rate_hz: float | None = None, true_column: str = "true_rate",
-                   spike_advice: str = SPIKE_ADVICE) -> Record:
+                   spike_advice: str = SPIKE_ADVICE, time_unit: str | None = None) -> Record:
     """Read a recording CSV into a `Record` (rates in deg/s).
 
     Parameters
@@ -93,11 +97,15 @@ def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time
         Unit of the rate and true-rate columns, a key of ``gyrodenoise.units.RATE_TO_DEG_S``:
         "deg/s", "deg/h", "rad/s" or "mrad/s".
     sample_rate_hz : float, optional
-        Sample rate when the file has no time column.
+        Sample rate: the rate when the file has no time column; with a time column,
+        used when within 2 % of the column's count over span (a one-line error further off).
     true_column : str
         Name of the true-rate column (optional in the file).
     spike_advice : str
         The remedy a spike note names (default: the filters' outlier gate).
+    time_unit : str, optional
+        Unit of the time column (s, ms, us, ns); detected when not given
+        (:func:`gyrodenoise.io.timebase.analyse_time`).
     """
     src = str(path)
     _check_arguments(rate_unit, sample_rate_hz, src)
@@ -133,10 +141,13 @@ def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time
         fs = float(sample_rate_hz)
         t = np.arange(n) / fs
         restarts = None
+        notes.append(f"no column '{time_column}': rate {fs:g} Hz as stated (--sample-rate)")
     else:
-        t = np.asarray(values[i_time])
-        fs, restarts, gap_notes = _time_axis(t, n, sample_rate_hz, text, src)
-        notes.extend(gap_notes)
+        tb = analyse_time(values[i_time], unit=time_unit, nominal_rate=sample_rate_hz,
+                          name=f"column {time_column}", source=src)
+        fs, t = tb.rate_hz, tb.seconds(values[i_time])
+        restarts = restart_mask(tb) if len(tb.runs) > 1 else None
+        notes.append(tb.note)
     return Record(rate_deg_s=rate, sample_rate_hz=fs, time_s=t, true_rate_deg_s=true,
                   restarts=restarts, source=src, notes=notes)
 
@@ -145,8 +156,9 @@ def _check_arguments(rate_unit: str, sample_rate_hz: float | None, src: str) -> 
     """InputError for a rate unit or a stated sample rate the reader cannot use."""
     if rate_unit not in RATE_TO_DEG_S:
         raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_TO_DEG_S)})", src)
-    if sample_rate_hz is not None and not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
-        raise InputError(f"sample rate must be a positive number, got {sample_rate_hz!r}", src)
+    if sample_rate_hz is not None and not (0 < sample_rate_hz <= MAX_RATE_HZ):
+        raise InputError(f"--sample-rate {sample_rate_hz:g} Hz is not a sample rate (it must be above 0 and "
+                         f"at most {MAX_RATE_HZ:g} Hz)", src)
 
 
 def _read_header(reader: Iterator[list[str]], rate_column: str, time_column: str, src: str) -> list[str]:
@@ -207,36 +219,6 @@ def _check_rate_magnitude(rate: np.ndarray, cells: list[float], text: str, rate_
         raise InputError(f"line {_line_of(text, j)}: column {rate_column}: {cells[j]!r} "
                          f"{rate_unit} is beyond {ABSURD_RATE_DEG_S:g} deg/s, not a gyro reading "
                          f"(wrong --rate-unit?)", src)
-
-
-def _time_axis(t: np.ndarray, n: int, sample_rate_hz: float | None, text: str,
-               src: str) -> tuple[float, np.ndarray | None, list[str]]:
-    """(sample rate, restarts or None, notes) of a time column ``t`` of a record of ``n``
-    samples: the rate from the median
-    period; a restart after each gap longer than GAP_FACTOR periods (reported, not
-    interpolated). InputError for a repeated or decreasing time, or a stated sample rate
-    that disagrees with the column by more than 1 %."""
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        j = int(bad[0])
-        what = "repeated" if dt[j] == 0 else "decreasing"
-        raise InputError(f"line {_line_of(text, j + 1)}: {what} time {float(t[j + 1]):.10g} "
-                         f"(previous {float(t[j]):.10g})", src)
-    med = float(np.median(dt))
-    fs = 1.0 / med
-    if sample_rate_hz is not None and abs(sample_rate_hz - fs) > 0.01 * fs:
-        raise InputError(f"--sample-rate {sample_rate_hz:g} Hz disagrees with the time column "
-                         f"({fs:g} Hz)", src)
-    gaps = np.flatnonzero(dt > GAP_FACTOR * med)
-    if not gaps.size:
-        return fs, None, []
-    restarts = np.zeros(n, dtype=bool)
-    restarts[gaps + 1] = True
-    first = int(gaps[0])
-    return fs, restarts, [f"{gaps.size} time gap(s) longer than {GAP_FACTOR} sample periods "
-                          f"(first at t={t[first]:g} s, {dt[first]:g} s long): not interpolated; "
-                          f"the filter restarts after each gap"]
 
 
 def _runs_at(x: np.ndarray, value: float, min_len: int) -> tuple[int, int]:
