@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 
 from gyrodenoise.console import log
 from gyrodenoise.units import ACCEL_TERMS, ALLAN_TERMS, TERM_SYMBOLS
@@ -102,22 +101,3 @@ def cmd_allan_axes(args: argparse.Namespace) -> int:
             print(f"  {label:<22}{mark}{r.terms[t]:.4e}")
     print("('<' = upper bound: the record cannot resolve that term)")
     return 0
-
-
-def denoise_axes(args: argparse.Namespace, rec: Recording, filter_one) -> list[tuple[Axis, np.ndarray]]:
-    """Each axis filtered by ``filter_one(record)`` (the command's filter)."""
-    return [(ax, filter_one(rec.record(ax))) for ax in rec.axes]
-
-
-def write_axes(path: str, rec: Recording, filtered: list[tuple[Axis, np.ndarray]]) -> None:
-    """``time`` (s), then per axis its column (raw, deg/s or m/s^2) and ``<column>_filtered``."""
-    from gyrodenoise.errors import InputError
-    header = ["time"]
-    cols = [rec.time_s]
-    for ax, out in filtered:
-        header += [ax.column, f"{ax.column}_filtered"]
-        cols += [ax.values, out]
-    try:
-        np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror}", str(path)) from None

@@ -48,8 +48,8 @@ def _check_params(args: argparse.Namespace, fs: float) -> None:
 
 # ---------------------------------------------------------------- denoise
 def cmd_denoise(args: argparse.Namespace) -> int:
-    from gyrodenoise.cli.axes import read_axes_args, wants_axes, write_axes
-    from gyrodenoise.io.recording import write_recording
+    from gyrodenoise.cli.axes import read_axes_args, wants_axes
+    from gyrodenoise.io.recording import write_axes, write_recording
     _check_params(args, 1e9 if args.method == "lowpass" or args.max_motion_hz is not None
                   else 1.0)   # bad options fail before the file is read
     offline = args.method == "motion" and not args.causal
@@ -57,7 +57,7 @@ def cmd_denoise(args: argparse.Namespace) -> int:
         recording = read_axes_args(args)
         _check_params(args, recording.sample_rate_hz)
         done = [(ax, _denoise_one(args, recording.record(ax), offline)) for ax in recording.axes]
-        write_axes(args.output, recording, [(ax, out) for ax, (out, _) in done])
+        write_axes(args.output, recording, [out for _, (out, _) in done])
         log(f"gyrodenoise: wrote {args.output} ({len(recording.time_s)} samples x {len(done)} axes "
             f"({', '.join(ax.column for ax, _ in done)}), {recording.sample_rate_hz:g} Hz, {args.method}, "
             f"{_form_text(args, offline, recording.sample_rate_hz)})")

@@ -517,3 +517,17 @@ def write_recording(path: str | os.PathLike[str], time_s: npt.ArrayLike, raw_deg
                    fmt="%.10g")
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", str(path)) from None
+
+
+def write_axes(path: str | os.PathLike[str], rec: Recording, filtered: Sequence[np.ndarray]) -> None:
+    """Write ``time`` (s), then for each axis of ``rec`` its column (raw, deg/s or m/s^2)
+    and ``<column>_filtered`` (``filtered``, one series per axis) to a CSV file."""
+    header = ["time"]
+    cols = [np.asarray(rec.time_s)]
+    for ax, out in zip(rec.axes, filtered, strict=True):
+        header += [ax.column, f"{ax.column}_filtered"]
+        cols += [ax.values, np.asarray(out)]
+    try:
+        np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", str(path)) from None
