@@ -8,7 +8,7 @@ MATLAB ``.mat`` files, read into named columns that the recording reader
   ``angular_velocity.x/y/z`` (rad/s) and ``linear_acceleration.x/y/z`` (m/s^2; left out
   when every message marks it absent, covariance[0] = -1), as REP 103 defines them.
 * A ``.mat`` file: v5 (and older) through ``scipy.io.loadmat``, v7.3 (HDF5) through
-  ``h5py`` (the ``mat`` extra). Every numeric variable (or the fields of the struct
+  ``h5py`` (not a dependency: pip install h5py). Every numeric variable (or the fields of the struct
   ``variable``) becomes columns: a vector its name, an n x 3 matrix ``name_x/y/z``, an
   n x k matrix ``name_1`` ... ``name_k`` (the longer side is the samples, so MATLAB's
   column-major 3 x n reads too); the columns of the most common length are kept, the
@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 
 from gyrodenoise.errors import InputError
+
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
 @dataclass(frozen=True)
@@ -102,24 +105,27 @@ def _read_mat(p: Path, variable: str | None) -> Table:
 
 
 def _load_mat(p: Path) -> dict[str, Any]:
-    """Top-level variables of a .mat file: v5 by scipy, v7.3 (HDF5) by h5py."""
+    """Top-level variables of a .mat file: v7.3 (HDF5, its signature at byte 0 or after
+    MATLAB's 512-byte header) by h5py, older ones by scipy."""
+    with open(p, "rb") as f:
+        head = f.read(520)
+    if HDF5_SIGNATURE in (head[:8], head[512:520]):
+        try:
+            import h5py
+        except ImportError:
+            raise InputError("a MATLAB v7.3 (HDF5) file needs h5py (pip install h5py)",
+                             str(p)) from None
+        try:
+            with h5py.File(p, "r") as f:
+                return {k: _h5_value(f[k]) for k in f if not k.startswith("#")}
+        except OSError as exc:
+            raise InputError(f"cannot read as a MATLAB v7.3 file: {exc}", str(p)) from None
     import scipy.io
     try:
         return {k: v for k, v in scipy.io.loadmat(str(p), squeeze_me=True, struct_as_record=False).items()
                 if not k.startswith("__")}
-    except NotImplementedError:       # v7.3: HDF5
-        pass
-    except (ValueError, TypeError, OSError) as exc:
+    except (NotImplementedError, ValueError, TypeError, OSError) as exc:
         raise InputError(f"cannot read as a MATLAB file: {exc}", str(p)) from None
-    try:
-        import h5py
-    except ImportError:
-        raise InputError("a MATLAB v7.3 (HDF5) file needs h5py: pip install 'gyrodenoise[mat]'", str(p)) from None
-    try:
-        with h5py.File(p, "r") as f:
-            return {k: _h5_value(f[k]) for k in f if not k.startswith("#")}
-    except OSError as exc:
-        raise InputError(f"cannot read as a MATLAB v7.3 file: {exc}", str(p)) from None
 
 
 def _h5_value(obj: Any) -> Any:
