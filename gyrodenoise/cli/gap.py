@@ -132,6 +132,7 @@ def _read_input(args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray
     check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
+    args.input_notes = rec.notes     # also in the --json object
     return rec.rate_deg_s, rec.sample_rate_hz, rec.restarts
 
 
@@ -287,7 +288,8 @@ def _cmd_record(args: argparse.Namespace, card: ModelCard) -> int:
     # everything that can fail first; NEW.toml is written last, only after a successful run
     report = format_report(res, args.input)
     d = res.to_json()
-    d.update({"out": str(args.out), "plot": plot, "source": str(args.input), "model": str(args.model)})
+    d.update({"out": str(args.out), "plot": plot, "source": str(args.input), "model": str(args.model),
+              "notes": list(getattr(args, "input_notes", []))})
     if plot:
         plot_gap(res, plot, title=f"{Path(args.input).name} vs {Path(str(args.model)).name}")
     return _write_card(args, text, report, plot, d)

@@ -158,3 +158,18 @@ def test_sample_rate_without_a_time_column(tmp_path, capsys):
         code = main([*cmd, str(path), "--sample-rate", "1e300"])
         _, err = capsys.readouterr()
         assert code == 2 and len(err.strip().splitlines()) == 1 and "is not a sample rate" in err, err
+
+
+def test_gap_says_the_time_note_and_puts_it_in_its_json(tmp_path, capsys):
+    """gap reads the record with the same time model (a time column in ms: 200 Hz, not 0.2 Hz)."""
+    import gyrodenoise as gd
+    r = gd.simulate("paper_fog", 20_000, seed=1)
+    path = tmp_path / "ms.csv"
+    np.savetxt(path, np.column_stack([r.time_s * 1000.0, r.rate_deg_s]), delimiter=",", header="time,rate",
+               comments="", fmt="%.10g")
+    code = main(["gap", str(path), "--model", "paper_fog", "--out", str(tmp_path / "new.toml"), "--engine", "native",
+                 "--seeds", "3", "--no-plot", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    note = next(x for x in json.loads(out)["notes"] if x.startswith("time column"))
+    assert note.startswith("time column in ms (by its spacing; median step 5 ms): rate 200 Hz") and note in err
