@@ -129,10 +129,8 @@ def _read_input(args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray
                          spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
                                       "off the running median (another test: its count may differ)")
     from gyrodenoise.modelgap import check_record
-    check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
-    for note in rec.notes:
-        log(f"gyrodenoise: note: {args.input}: {note}")
-    args.input_notes = rec.notes     # also in the --json object
+    check_record(rec.rate_deg_s, args.input)
+    args.input_notes = rec.notes     # said after every refusal (_rate_notes), and in the --json object
     return rec.rate_deg_s, rec.sample_rate_hz, rec.restarts
 
 
@@ -304,6 +302,8 @@ def _rate_notes(args: argparse.Namespace, card: ModelCard, fs: float) -> None:
         log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
             f"{fs:g} Hz: simulating at the record's rate; {args.out} states the record's rate when a "
             f"term is fitted (the terms are fitted at it), else keeps the card's")
+    for note in getattr(args, "input_notes", []):      # the reader's, after every refusal
+        log(f"gyrodenoise: note: {args.input}: {note}")
     if args.rate_unit is None and not str(args.input).lower().endswith(".imu"):   # after every refusal
         log(f"gyrodenoise: note: {args.input}: column {args.rate_column!r} read as deg/s (the default; "
             f"--rate-unit deg/h or rad/s if the record is in another unit: the fitted card scales with it)")
