@@ -38,13 +38,14 @@ def wants_axes(args: argparse.Namespace) -> bool:
 
 def read_axes_args(args: argparse.Namespace) -> Recording:
     """The recording of ``args`` (its notes printed on stderr)."""
+    from gyrodenoise.flightlog.rosbag import read_imu
     from gyrodenoise.io.export import check_export_args
     from gyrodenoise.io.recording import read_axes
     check_export_args(args)
     rec = read_axes(args.input, _split(args.rate_column), _split(args.accel_column),
                     time_column=args.time_column, rate_unit=args.rate_unit, accel_unit=args.accel_unit,
                     sample_rate_hz=args.sample_rate, time_unit=args.time_unit, topic=getattr(args, "topic", None),
-                    variable=getattr(args, "variable", None))
+                    variable=getattr(args, "variable", None), bag_reader=read_imu)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec

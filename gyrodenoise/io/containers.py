@@ -3,7 +3,7 @@ MATLAB ``.mat`` files, read into named columns that the recording reader
 (:func:`gyrodenoise.io.recording.read_axes`) takes as it takes a CSV's.
 
 * A bag (read by :func:`gyrodenoise.flightlog.rosbag.read_imu`, the flight-log side's
-  reader): one ``sensor_msgs/Imu`` topic (``topic``; the only one when not given) gives
+  reader, which the caller passes in): one ``sensor_msgs/Imu`` topic (``topic``; the only one when not given) gives
   ``time`` (the header stamps, int ns; the receive times when the stamps are unset),
   ``angular_velocity.x/y/z`` (rad/s) and ``linear_acceleration.x/y/z`` (m/s^2; left out
   when every message marks it absent, covariance[0] = -1), as REP 103 defines them.
@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,8 +40,12 @@ class Table:
     row_name: str
 
 
-def read_container(path: str | os.PathLike[str], topic: str | None = None, variable: str | None = None) -> Table:
-    """The columns of a bag, an MCAP or a ``.mat`` file (module doc); InputError (one line)."""
+def read_container(path: str | os.PathLike[str], topic: str | None = None, variable: str | None = None,
+                   bag_reader: Callable[..., Any] | None = None) -> Table:
+    """The columns of a bag, an MCAP or a ``.mat`` file (module doc); InputError (one line).
+
+    ``bag_reader(path, topic)``: the bag reader, :func:`gyrodenoise.flightlog.rosbag.read_imu`
+    (passed in: this layer does not import the flight-log side)."""
     p = Path(path)
     if not p.exists():
         raise InputError("no such file", str(path))
@@ -50,11 +55,13 @@ def read_container(path: str | os.PathLike[str], topic: str | None = None, varia
         return _read_mat(p, variable)
     if variable is not None:
         raise InputError("--variable applies to MATLAB .mat files, not to a bag", str(path))
-    return _read_bag(p, topic)
+    if bag_reader is None:
+        raise InputError("a bag needs the bag reader: read_axes(..., bag_reader=gyrodenoise.flightlog.rosbag.read_imu)",
+                         str(path))
+    return _read_bag(p, topic, bag_reader)
 
 
-def _read_bag(p: Path, topic: str | None) -> Table:
-    from gyrodenoise.flightlog.rosbag import read_imu
+def _read_bag(p: Path, topic: str | None, read_imu: Callable[..., Any]) -> Table:
     bag = read_imu(p, topic)
     if not bag.imu:
         raise InputError(f"no sensor_msgs/Imu topic (topics: {', '.join(bag.topics) or 'none'})", str(p))

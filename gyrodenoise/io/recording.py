@@ -189,7 +189,8 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
               accel_columns: Sequence[str] | None = None, *, time_column: str | None = None,
               rate_unit: str | None = None, accel_unit: str | None = None, sample_rate_hz: float | None = None,
               true_column: str = "true_rate", spike_advice: str = SPIKE_ADVICE,
-              time_unit: str | None = None, topic: str | None = None, variable: str | None = None) -> Recording:
+              time_unit: str | None = None, topic: str | None = None, variable: str | None = None,
+              bag_reader: Callable[..., Any] | None = None) -> Recording:
     """Read the gyro (and accelerometer) columns of a recording CSV on one time base.
 
     ``rate_columns`` None: ``rate`` when the file has it, else the first group of gyro
@@ -197,15 +198,17 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     and then the accelerometer columns of `ACCEL` too unless ``accel_columns`` names them.
     The true-rate column is read with a single rate column only. Other parameters as
     :func:`read_recording`; ``accel_unit`` a key of ``ACCEL_TO_M_S2`` (default m/s^2).
-    A ROS bag or MCAP file (``topic``) and a MATLAB ``.mat`` file (``variable``) are read
-    by :mod:`gyrodenoise.io.containers` into the same columns.
+    A ROS bag or MCAP file (``topic``; ``bag_reader``: pass
+    :func:`gyrodenoise.flightlog.rosbag.read_imu`) and a MATLAB ``.mat`` file (``variable``)
+    are read by :mod:`gyrodenoise.io.containers` into the same columns.
     """
     src = str(path)
     _check_arguments(rate_unit, accel_unit, sample_rate_hz, src)
     first = (rate_columns or ["rate"])[0]
-    if topic is not None or variable is not None or is_container(path):
+    container = topic is not None or variable is not None or is_container(path)
+    if container:
         from gyrodenoise.io.containers import read_container
-        table = read_container(path, topic=topic, variable=variable)
+        table = read_container(path, topic=topic, variable=variable, bag_reader=bag_reader)
         header, notes = list(table.columns), list(table.notes)
         where: Callable[[int], str] = lambda i: f"{table.row_name} {i + 1:,}"   # noqa: E731
     else:
@@ -230,7 +233,7 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     if not has_time and sample_rate_hz is None:
         raise InputError(f"line 1: no column '{time_column}' and no --sample-rate given", src)
     wanted = [*gyro_cols, *accel_cols] + ([time_column] if has_time else []) + ([true_column] if has_true else [])
-    if is_container(path) or topic is not None or variable is not None:
+    if container:
         values: dict[str, Any] = {c: table.columns[c] for c in wanted}
     else:
         values = _read_values(rows, header, {name: header.index(name) for name in wanted}, sep != ",", src)

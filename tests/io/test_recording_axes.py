@@ -1,4 +1,4 @@
-"""Every axis and the accelerometer in one run (issue 39, item 3): `allan` and `denoise`
+"""Every axis and the accelerometer in one run: `allan` and `denoise`
 over gx,gy,gz,ax,ay,az of one file, synthetic white noise of known N per axis; the
 complete Kalibr imu.yaml and the MATLAB gyroparams + accelparams from one command."""
 import json

@@ -1,4 +1,4 @@
-"""Bags and MATLAB files as recordings (issue 39, item 4): a ROS 1 bag, a ROS 2 bag and an
+"""Bags and MATLAB files as recordings: a ROS 1 bag, a ROS 2 bag and an
 MCAP file written here with rosbags, and .mat files (v5 by scipy, v7.3 by h5py), give the
 same Allan terms as the same samples in a CSV; `allan imu.bag --topic /imu0 --kalibr-yaml`
 is the whole calibration."""

@@ -1,4 +1,4 @@
-"""Awkward but ordinary recording files (issue 39): a ``rostopic echo -p`` export, space /
+"""Awkward but ordinary recording files: a ``rostopic echo -p`` export, space /
 tab / semicolon separators and decimal commas, a cell ``1_05``, the rate unit always said.
 Synthetic records of known N (deg/sqrt(h))."""
 import json

@@ -1,5 +1,5 @@
 """The recording reader and the commands on the time model (gyrodenoise.io.timebase):
-synthetic records of known rate, unit and gaps (issue 39, item 1)."""
+synthetic records of known rate, unit and gaps."""
 import json
 
 import numpy as np
