@@ -302,7 +302,7 @@ def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
         with open(path, "rb") as f:
             head = f.read(2)
         opener = gzip.open if head == b"\x1f\x8b" else open
-        with opener(path, "rt", encoding="utf-8-sig", errors="replace") as f:   # type: ignore[operator]
+        with opener(path, "rt", encoding="utf-8-sig", errors="replace") as f:
             first = ""
             while not first.strip():
                 first = f.readline()
