@@ -259,7 +259,7 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
             _check_magnitude(kind, v, values[c], where, c, unit, src)
             true = np.asarray(values[true_column], dtype=np.float64) * scale if has_true else None
             axes.append(Axis(c, kind, unit, v, true))
-    ignored = [h for h in header if h not in wanted]
+    ignored = [h for h in header if h not in wanted and h]
     if ignored:
         shown = ", ".join(ignored[:8]) + (f", ... ({len(ignored)} in all)" if len(ignored) > 8 else "")
         notes.append(f"ignored columns: {shown}")
@@ -414,6 +414,10 @@ def _read_values(rows: Iterator[tuple[int, list[str]]], header: list[str], index
         if len(row) < need:
             raise InputError(f"line {lineno}: {len(row)} fields, expected {len(header)} "
                              f"(truncated row?)", src)
+        if len(row) > len(header) and any(c.strip() for c in row[len(header):]):
+            raise InputError(f"line {lineno}: {len(row)} fields, expected {len(header)}"
+                             + (" (decimal commas in a comma-separated file? separate the fields by ';')"
+                                if not decimal_comma else ""), src)
         for name, c in index.items():
             cell = row[c].strip()
             try:

@@ -102,3 +102,15 @@ def test_the_rate_unit_is_always_said(tmp_path, capsys):
         code = main(["allan", str(path), "--json", *extra])
         out, err = capsys.readouterr()
         assert code == 0 and said in err and said in json.loads(out)["notes"], err
+
+
+def test_decimal_commas_in_a_comma_separated_file_are_refused(tmp_path, capsys):
+    """`0,01,1,05` under `time,rate` read as time 0, rate 1 before: silently wrong."""
+    path = tmp_path / "dc.csv"
+    path.write_text("time,rate\n0,00,1,00\n0,01,1,05\n")
+    code = main(["allan", str(path)])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.strip() == (f"gyrodenoise: error: {path}: line 2: 4 fields, expected 2 (decimal commas "
+                                         f"in a comma-separated file? separate the fields by ';')")
+    path.write_text("time,rate,\n0.00,1.00,\n0.01,1.05,\n0.02,1.0,\n")      # a trailing comma: an empty field
+    assert read_recording(path).rate_deg_s.tolist() == [1.0, 1.05, 1.0]
