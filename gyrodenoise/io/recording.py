@@ -35,6 +35,7 @@ from __future__ import annotations
 import csv
 import gzip
 import io
+import itertools
 import math
 import os
 import re
@@ -206,6 +207,7 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     _check_arguments(rate_unit, accel_unit, sample_rate_hz, src)
     first = (rate_columns or ["rate"])[0]
     container = topic is not None or variable is not None or is_container(path)
+    file_units: dict[str, str] = {}
     if container:
         from gyrodenoise.io.containers import read_container
         table = read_container(path, topic=topic, variable=variable, bag_reader=bag_reader)
@@ -219,7 +221,9 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
         rows = _rows(text, sep, src)
         header = _read_header(rows, first, time_column or "time", src)
         notes = [] if sep == "," else [f"fields separated by {SEPARATOR_NAMES[sep]}"]
-        where = lambda i: f"line {_line_of(text, i)}"   # noqa: E731
+        rows, file_units = _units_row(rows, header)
+        skip = 2 if file_units else 1
+        where = lambda i: f"line {_line_of(text, i, skip)}"   # noqa: E731
     lower = {h.lower(): h for h in header}
     gyro_cols, gyro_group = _columns(GYRO, rate_columns, header, lower, "rate", src)
     if accel_columns is None and rate_columns is None and gyro_group is not None:
@@ -249,7 +253,12 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
                                     (ACCEL, accel_cols, accel_group, accel_unit)):
         if not cols:
             continue
+        said = {file_units[c] for c in cols if file_units.get(c) in kind.units}
+        if not unit and len(said) > 1:
+            raise InputError(f"line 2: the units row gives the {kind.name} columns {', '.join(sorted(said))}: "
+                             f"read them in separate runs", src)
         unit, why = (unit, "as stated") if unit else \
+            (said.pop(), "as its units row says") if said else \
             ((group.unit, group.why) if group and group.unit else
              (next(iter(kind.units)), f"assumed; {kind.option} {'|'.join(list(kind.units)[1:])} if not"))
         scale = kind.units[unit]
@@ -273,6 +282,8 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
         restarts = None
         notes.append(f"no column '{time_column}': rate {fs:g} Hz as stated (--sample-rate)")
     else:
+        if time_unit is None and file_units.get(time_column) in TIME_UNIT_NAMES:
+            time_unit = file_units[time_column]
         tb = analyse_time(values[time_column], unit=time_unit, nominal_rate=sample_rate_hz,
                           name=f"column {time_column}", source=src)
         fs, t = tb.rate_hz, tb.seconds(values[time_column])
@@ -383,6 +394,28 @@ def _rows(text: str, sep: str | None, src: str) -> Iterator[tuple[int, list[str]
             yield reader.line_num, row
     except csv.Error as exc:
         raise InputError(f"line {reader.line_num}: {exc}", src) from None
+
+
+#: what a units row (a second header row) may say -> the unit's name here
+UNIT_SPELLINGS = {**{u: u for u in (*RATE_TO_DEG_S, *ACCEL_TO_M_S2)},
+                  "°/s": "deg/s", "dps": "deg/s", "deg/sec": "deg/s", "rad/sec": "rad/s", "°/h": "deg/h",
+                  "m/s2": "m/s^2", "m/s²": "m/s^2", "m/s/s": "m/s^2",
+                  "s": "s", "sec": "s", "ms": "ms", "us": "us", "µs": "us", "μs": "us", "ns": "ns"}
+TIME_UNIT_NAMES = ("s", "ms", "us", "ns")
+
+
+def _units_row(rows: Iterator[tuple[int, list[str]]], header: list[str]
+               ) -> tuple[Iterator[tuple[int, list[str]]], dict[str, str]]:
+    """(the rows, {column: unit}): a first data row with no number in it and a unit among its
+    cells (``s,rad/s,rad/s``, ``[s] [deg/s]``) is a units row, taken out of the rows."""
+    for lineno, row in rows:
+        if not row or (len(row) == 1 and not row[0].strip()):
+            continue
+        cells = [c.strip().strip("[]()").strip().lower() for c in row]
+        if not any(_is_number(c) for c in cells if c) and any(c in UNIT_SPELLINGS for c in cells):
+            return rows, {h: UNIT_SPELLINGS[c] for h, c in zip(header, cells) if c in UNIT_SPELLINGS}
+        return itertools.chain([(lineno, row)], rows), {}
+    return rows, {}
 
 
 def _read_header(rows: Iterator[tuple[int, list[str]]], rate_column: str, time_column: str,
@@ -498,12 +531,13 @@ def _is_number(cell: str) -> bool:
     return True
 
 
-def _line_of(text: str, sample_index: int) -> int:
-    """File line number of data sample ``sample_index`` (skipping blank lines)."""
+def _line_of(text: str, sample_index: int, header_lines: int = 1) -> int:
+    """File line number of data sample ``sample_index`` (skipping blank lines and the
+    ``header_lines`` first lines)."""
     line = 1
     count = -1
     for line, raw in enumerate(text.splitlines(), start=1):
-        if line == 1 or not raw.strip():
+        if line <= header_lines or not raw.strip():
             continue
         count += 1
         if count == sample_index:

@@ -114,3 +114,21 @@ def test_decimal_commas_in_a_comma_separated_file_are_refused(tmp_path, capsys):
                                          f"in a comma-separated file? separate the fields by ';')")
     path.write_text("time,rate,\n0.00,1.00,\n0.01,1.05,\n0.02,1.0,\n")      # a trailing comma: an empty field
     assert read_recording(path).rate_deg_s.tolist() == [1.0, 1.05, 1.0]
+
+
+def test_a_units_row_under_the_header_gives_the_units(tmp_path, capsys):
+    """A two-row header (names, then units: a TStick export in rad/s): before, 'not a number'."""
+    t, z = _plain()
+    z_rad = z * math.pi / 180.0
+    z_rad[300] += 1.0                                          # a spike: its line counts the units row
+    path = tmp_path / "tstick.csv"
+    path.write_text("time,gx\ns,rad/s\n" + "".join(f"{a:.6f},{b:.9f}\n" for a, b in zip(t, z_rad)))
+    rec = read_recording(path, rate_column="gx")
+    np.testing.assert_allclose(rec.rate_deg_s[:300], z[:300], atol=1e-6)
+    assert "gyro column gx in rad/s (as its units row says)" in rec.notes
+    assert any("first at line 303, sample 300" in x for x in rec.notes), rec.notes
+    path.write_text("t [ms]\n[ms] [deg/s]\n".replace("t [ms]", "t rate")
+                    + "".join(f"{a * 1000:.0f} {b:.6f}\n" for a, b in zip(t, z)))
+    rec = read_recording(path)
+    assert rec.sample_rate_hz == pytest.approx(FS) and "gyro column rate in deg/s (as its units row says)" in rec.notes
+    assert any(x.startswith("time column in ms (as stated") for x in rec.notes), rec.notes
