@@ -375,7 +375,7 @@ _DECIMAL_COMMA_CELL = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
 def _separator(text: str) -> str | None:
     """The field separator of the header line (the first line that is not blank): a comma
     when it has one, else a semicolon, a tab, else runs of spaces (None)."""
-    first = next((ln for ln in text.splitlines() if ln.strip()), "")
+    first = next((ln for ln in io.StringIO(text) if ln.strip()), "")
     for sep in (",", ";", "\t"):
         if sep in first:
             return sep
@@ -440,34 +440,36 @@ def _read_values(rows: Iterator[tuple[int, list[str]]], header: list[str], index
     With ``decimal_comma`` (the separator is not a comma) a cell such as ``0,25`` is read as
     0.25 and the key DECIMAL_COMMA is set."""
     need = max(index.values()) + 1
+    width = len(header)
     values: dict[str, list[float]] = {c: [] for c in index}
+    cols = [(name, c, values[name].append) for name, c in index.items()]
     for lineno, row in rows:
-        if not row or (len(row) == 1 and not row[0].strip()):
-            continue
-        if len(row) < need:
-            raise InputError(f"line {lineno}: {len(row)} fields, expected {len(header)} "
-                             f"(truncated row?)", src)
-        if len(row) > len(header) and any(c.strip() for c in row[len(header):]):
-            raise InputError(f"line {lineno}: {len(row)} fields, expected {len(header)}"
-                             + (" (decimal commas in a comma-separated file? separate the fields by ';')"
-                                if not decimal_comma else ""), src)
-        for name, c in index.items():
-            cell = row[c].strip()
+        if len(row) != width:
+            if not row or (len(row) == 1 and not row[0].strip()):
+                continue
+            if len(row) < need:
+                raise InputError(f"line {lineno}: {len(row)} fields, expected {width} (truncated row?)", src)
+            if len(row) > width and any(c.strip() for c in row[width:]):
+                raise InputError(f"line {lineno}: {len(row)} fields, expected {width}"
+                                 + (" (decimal commas in a comma-separated file? separate the fields by ';')"
+                                    if not decimal_comma else ""), src)
+        for name, c, add in cols:
+            cell = row[c]
             try:
-                if "_" in cell:
-                    raise ValueError(cell)
-                # a long whole number (ns since 1970) read exactly: a float keeps 16 digits
-                v = int(cell) if len(cell) > 15 and cell.isdigit() else float(cell)
+                v = float(cell)
             except ValueError:
-                if decimal_comma and _DECIMAL_COMMA_CELL.fullmatch(cell):
-                    v = float(cell.replace(",", "."))
-                    values[DECIMAL_COMMA] = []
-                else:
-                    raise InputError(f"line {lineno}: column {name}: {cell!r} is not a number",
-                                     src) from None
-            if not math.isfinite(v):
-                raise InputError(f"line {lineno}: column {name} is {cell}", src)
-            values[name].append(v)
+                cell = cell.strip()
+                if not (decimal_comma and _DECIMAL_COMMA_CELL.fullmatch(cell)):
+                    raise InputError(f"line {lineno}: column {name}: {cell!r} is not a number", src) from None
+                v = float(cell.replace(",", "."))
+                values[DECIMAL_COMMA] = []
+            if "_" in cell:           # float() reads 1_05 as 105
+                raise InputError(f"line {lineno}: column {name}: {cell.strip()!r} is not a number", src)
+            if not -math.inf < v < math.inf:
+                raise InputError(f"line {lineno}: column {name} is {cell.strip()}", src)
+            if len(cell) > 15 and cell.strip().isdigit():    # ns since 1970: exact (a float keeps 16 digits)
+                v = int(cell)
+            add(v)
     return values
 
 
