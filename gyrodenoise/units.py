@@ -24,6 +24,11 @@ MRAD_TO_DEG = RAD_TO_DEG / 1000.0
 RATE_TO_DEG_S: dict[str, float] = {"deg/s": 1.0, "deg/h": 1.0 / 3600.0, "rad/s": RAD_TO_DEG,
                                    "mrad/s": MRAD_TO_DEG}
 
+#: standard gravity, m/s^2 (the "g" of accelerometer datasheets)
+STANDARD_GRAVITY = 9.80665
+#: acceleration unit label -> factor to m/s^2 (the accelerometer columns' ``--accel-unit``)
+ACCEL_TO_M_S2: dict[str, float] = {"m/s^2": 1.0, "g": STANDARD_GRAVITY, "mg": STANDARD_GRAVITY / 1000.0}
+
 
 @dataclass(frozen=True)
 class AllanTerm:
@@ -53,3 +58,11 @@ TERM_SYMBOLS: tuple[str, ...] = tuple(t.symbol for t in ALLAN_TERMS)
 #: angle_random_walk, bias_instability, rate_random_walk
 NOISE_SECTIONS: tuple[str, ...] = tuple(t.section for t in sorted(ALLAN_TERMS, key=lambda t: t.adev_slope)
                                         if t.stochastic)
+
+
+#: an accelerometer's Allan terms: the gyro's numbers (an acceleration in m/s^2 where the gyro's
+#: rate is in deg/s) with m/s in place of deg, and their names: symbol -> (name, unit)
+ACCEL_TERMS: dict[str, tuple[str, str]] = {
+    "N": ("velocity random walk", "m/s/sqrt(h)"), "B": ("bias instability", "m/s/h"),
+    "K": ("acceleration random walk", "m/s/h^1.5"), "R": ("acceleration ramp", "m/s/h^2"),
+    "Q": ("velocity quantization", "m/s")}

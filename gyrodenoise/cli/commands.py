@@ -24,9 +24,11 @@ if TYPE_CHECKING:
 
 
 def _read(args: argparse.Namespace) -> Record:
+    from gyrodenoise.io.export import check_export_args
     from gyrodenoise.io.recording import read_recording
-    rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
-                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate)
+    check_export_args(args)       # refused before the file is read (and its notes printed)
+    rec = read_recording(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
@@ -47,30 +49,52 @@ def _check_params(args: argparse.Namespace, fs: float) -> None:
 
 # ---------------------------------------------------------------- denoise
 def cmd_denoise(args: argparse.Namespace) -> int:
-    from gyrodenoise.denoiser import Denoiser
-    from gyrodenoise.io.recording import write_recording
+    from gyrodenoise.cli.axes import read_axes_args, wants_axes
+    from gyrodenoise.io.recording import write_axes, write_recording
     _check_params(args, 1e9 if args.method == "lowpass" or args.max_motion_hz is not None
                   else 1.0)   # bad options fail before the file is read
+    offline = args.method == "motion" and not args.causal
+    if wants_axes(args):
+        recording = read_axes_args(args)
+        _check_params(args, recording.sample_rate_hz)
+        done = [(ax, _denoise_one(args, recording.record(ax), offline)) for ax in recording.axes]
+        write_axes(args.output, recording, [out for _, (out, _) in done])
+        log(f"gyrodenoise: wrote {args.output} ({len(recording.time_s)} samples x {len(done)} axes "
+            f"({', '.join(ax.column for ax, _ in done)}), {recording.sample_rate_hz:g} Hz, {args.method}, "
+            f"{_form_text(args, offline, recording.sample_rate_hz)})")
+        for ax, (_, den) in done:
+            _gate_note(args, den, ax.column)
+        return 0
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
+    out, den = _denoise_one(args, rec, offline)
+    write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
+    log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, "
+        f"{_form_text(args, offline, rec.sample_rate_hz)})")
+    if rec.true_rate_deg_s is not None:
+        log(f"gyrodenoise: {rmse_line(rec.rate_deg_s, out, rec.true_rate_deg_s)}")
+    _gate_note(args, den)
+    return 0
+
+
+def _denoise_one(args: argparse.Namespace, rec: Record, offline: bool) -> tuple[np.ndarray, Any]:
+    """(the filtered series, the Denoiser that ran causally, for its gate counts) of one record."""
+    from gyrodenoise.denoiser import Denoiser
     den = Denoiser(rec.sample_rate_hz, method=args.method, ar_order=args.ar_order, **filter_kw(args))
-    offline = args.method == "motion" and not args.causal
     if args.zero_phase or offline:
         from gyrodenoise.denoiser import denoise
         out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method=args.method, ar_order=args.ar_order,
                       restarts=rec.restarts, zero_phase=args.zero_phase, offline=offline, **filter_kw(args))
     else:
         out = den.process(rec.rate_deg_s, rec.restarts)
-    write_recording(args.output, rec.time_s, rec.rate_deg_s, out, rec.true_rate_deg_s)
-    log(f"gyrodenoise: wrote {args.output} ({len(rec)} samples, {rec.sample_rate_hz:g} Hz, {args.method}, "
-        f"{_form_text(args, offline, rec.sample_rate_hz)})")
-    if rec.true_rate_deg_s is not None:
-        log(f"gyrodenoise: {rmse_line(rec.rate_deg_s, out, rec.true_rate_deg_s)}")
+    return out, den
+
+
+def _gate_note(args: argparse.Namespace, den: Any, column: str | None = None) -> None:
     if args.outlier_sigma > 0 and args.method in ("shakf", "kf", "sh_classic"):
-        log(f"gyrodenoise: note: {args.input}: outlier gate (k={args.outlier_sigma:g}): "
-            f"{den.n_rejected} sample(s) kept out of the filter (output = prediction there), "
-            f"{den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")
-    return 0
+        log(f"gyrodenoise: note: {args.input}: {column + ': ' if column else ''}outlier gate "
+            f"(k={args.outlier_sigma:g}): {den.n_rejected} sample(s) kept out of the filter (output = prediction "
+            f"there), {den.n_reopened} re-opening(s) after {args.outlier_run} consecutive rejections")
 
 
 def _form_text(args: argparse.Namespace, offline: bool, sample_rate_hz: float) -> str:
@@ -202,6 +226,12 @@ def format_agreement(res: AllanResult) -> str:
         if a.misses:
             lines.append(f"{sym}: {a.why}")
     return "\n".join(lines)
+
+
+def _allan_of_axes_or_one(args: argparse.Namespace) -> int:
+    """``allan``: over several axes (gyrodenoise.cli.axes) or one (:func:`cmd_allan`)."""
+    from gyrodenoise.cli.axes import cmd_allan_axes, wants_axes
+    return cmd_allan_axes(args) if wants_axes(args) else cmd_allan(args)
 
 
 # ---------------------------------------------------------------- compare
@@ -414,17 +444,17 @@ def register_cli(sub: Any) -> None:
     """Add the subcommands demo, denoise, allan and compare to the parser's subparsers ``sub``."""
     _register_demo(sub)
     p = sub.add_parser("denoise", help="filter a recording to time,raw,filtered CSV")
-    add_recording_options(p)
+    add_recording_options(p, axes=True)
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv")
     add_filter_options(p)
     p.set_defaults(func=cmd_denoise)
 
     p = sub.add_parser("allan", help="Allan deviation and five-term fit of a recording")
-    add_recording_options(p, rate_unit_default=None)
+    add_recording_options(p, rate_unit_default=None, axes=True)
     p.add_argument("--json", action="store_true")
     from gyrodenoise.io.export import add_export_options
     add_export_options(p)
-    p.set_defaults(func=cmd_allan)
+    p.set_defaults(func=_allan_of_axes_or_one)
 
     p = sub.add_parser("compare", help="the paper's Table 1 for a recording (raw, AR fit, KF, SHAKF)")
     add_recording_options(p)

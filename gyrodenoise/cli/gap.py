@@ -126,13 +126,12 @@ def _read_input(args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray
         return rate, imu.sample_rate_hz, None
     from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
-                         rate_unit=args.rate_unit or "deg/s", sample_rate_hz=args.sample_rate,
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
                          spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
                                       "off the running median (another test: its count may differ)")
     from gyrodenoise.modelgap import check_record
-    check_record(rec.rate_deg_s, args.input)   # before the reader's notes: one line, not a note and an error
-    for note in rec.notes:
-        log(f"gyrodenoise: note: {args.input}: {note}")
+    check_record(rec.rate_deg_s, args.input)
+    args.input_notes = rec.notes     # said after every refusal (_rate_notes), and in the --json object
     return rec.rate_deg_s, rec.sample_rate_hz, rec.restarts
 
 
@@ -292,7 +291,8 @@ def _cmd_record(args: argparse.Namespace, card: ModelCard) -> int:
     # everything that can fail first; NEW.toml is written last, only after a successful run
     report = format_report(res, args.input)
     d = res.to_json()
-    d.update({"out": str(args.out), "plot": plot, "source": str(args.input), "model": str(args.model)})
+    d.update({"out": str(args.out), "plot": plot, "source": str(args.input), "model": str(args.model),
+              "notes": list(getattr(args, "input_notes", []))})
     if plot:
         plot_gap(res, plot, title=f"{Path(args.input).name} vs {Path(str(args.model)).name}")
     return _write_card(args, text, report, plot, d)
@@ -307,6 +307,8 @@ def _rate_notes(args: argparse.Namespace, card: ModelCard, fs: float) -> None:
         log(f"gyrodenoise: note: {args.model} says {card.sample_rate_hz:g} Hz, {args.input} is "
             f"{fs:g} Hz: simulating at the record's rate; {args.out} states the record's rate when a "
             f"term is fitted (the terms are fitted at it), else keeps the card's")
+    for note in getattr(args, "input_notes", []):      # the reader's, after every refusal
+        log(f"gyrodenoise: note: {args.input}: {note}")
     if args.rate_unit is None and not str(args.input).lower().endswith(".imu"):   # after every refusal
         log(f"gyrodenoise: note: {args.input}: column {args.rate_column!r} read as deg/s (the default; "
             f"--rate-unit deg/h or rad/s if the record is in another unit: the fitted card scales with it)")

@@ -43,19 +43,47 @@ def number(text: str) -> float:
 
 
 # ------------------------------------------------------------------ the recording
+#: the units ``--time-unit`` takes (gyrodenoise.io.timebase.time_unit reads them)
+TIME_UNITS = ("s", "ms", "us", "ns")
+
+
 def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | None = None,
-                          input_optional: bool = False, rate_unit_default: str | None = "deg/s") -> None:
+                          input_optional: bool = False, rate_unit_default: str | None = None,
+                          axes: bool = False) -> None:
     """``IN`` and the options that say how to read it (:func:`gyrodenoise.io.recording.read_recording`).
 
     ``input_optional``: IN may be omitted (``gap --allan``); ``rate_unit_default`` None: the
-    command says in a note that the unit was not given."""
+    reader says in a note which unit it assumed. ``axes``: several columns in one run
+    (:func:`gyrodenoise.io.recording.read_axes`): ``--rate-column`` takes a list and is detected
+    when not given, ``--accel-column`` and ``--accel-unit`` are added."""
     parser.add_argument("input", metavar="IN", nargs="?" if input_optional else None,
                         help=input_help or "recording CSV (columns time,rate[,true_rate]; .gz ok)")
-    parser.add_argument("--rate-column", default="rate", help="rate column name (default: rate)")
-    parser.add_argument("--time-column", default="time", help="time column name, s (default: time)")
-    parser.add_argument("--rate-unit", default=rate_unit_default, help="deg/s (default), deg/h or rad/s")
+    if axes:
+        parser.add_argument("--rate-column", default=None, metavar="NAME[,NAME...]",
+                            help="gyro column(s), comma-separated (default: rate, else the gyro columns detected: "
+                                 "gyro_x/y/z, gx/gy/gz, field.angular_velocity.x/y/z ..., with the accelerometer "
+                                 "columns beside them)")
+        parser.add_argument("--accel-column", default=None, metavar="NAME[,NAME...]",
+                            help="accelerometer column(s), comma-separated (default: detected beside detected "
+                                 "gyro columns: accel_x/y/z, ax/ay/az, field.linear_acceleration.x/y/z ...)")
+        parser.add_argument("--accel-unit", default=None, help="m/s^2 (default), g or mg")
+        parser.add_argument("--topic", default=None, metavar="NAME",
+                            help="ROS bag / MCAP: the sensor_msgs/Imu topic (default: the only one)")
+        parser.add_argument("--variable", default=None, metavar="NAME",
+                            help="MATLAB .mat: the variable (a struct or a matrix) to read (default: all)")
+    else:
+        parser.add_argument("--rate-column", default="rate", help="rate column name (default: rate)")
+    parser.add_argument("--time-column", default=None,
+                        help="time column name (default: the first of time, field.header.stamp, %%time, timestamp, "
+                             "t in the file)")
+    parser.add_argument("--time-unit", default=None, choices=TIME_UNITS,
+                        help="unit of the time column (default: detected from its values, said in a note; "
+                             "an epoch in any of them is detected)")
+    parser.add_argument("--rate-unit", default=rate_unit_default, help="deg/s (default, said in a note), deg/h, rad/s or mrad/s (ROS "
+                        "sensor_msgs/Imu columns: rad/s)")
     parser.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
-                        help="sample rate when there is no time column")
+                        help="sample rate: the rate when there is no time column; with one, used when within "
+                             "2%% of the column's own (samples over span), an error further off")
 
 
 # ------------------------------------------------------------------ the filter

@@ -53,7 +53,8 @@ import argparse
 import math
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -195,9 +196,23 @@ def export_from_args(args: argparse.Namespace, allan_result: AllanResult) -> lis
     InputError
         One line naming the option or path and what is wrong.
     """
+    check_export_args(args)
     written: list[str] = []
     source = str(getattr(args, "input", "") or "")
     terms, bounds = allan_result.exported_terms, allan_result.exported_bounds
+    if getattr(args, "kalibr_yaml", None):
+        text = kalibr_imu_yaml(terms, allan_result.sample_rate_hz, rostopic=args.kalibr_rostopic,
+                               bounds=bounds, inflate=args.kalibr_inflate, source=source)
+        written.append(_write(args.kalibr_yaml, text))
+    if getattr(args, "matlab", None):
+        written.append(_write(args.matlab, matlab_gyroparams_script(terms, bounds, source)))
+    return written
+
+
+def check_export_args(args: argparse.Namespace) -> None:
+    """The export options of `add_export_options` (a ROS topic name, a positive inflation,
+    folders that exist): one-line InputError, so that a command refuses them before it
+    reads its input."""
     if getattr(args, "kalibr_yaml", None):
         topic = args.kalibr_rostopic
         if not _ROS_NAME.fullmatch(topic or ""):
@@ -206,12 +221,9 @@ def export_from_args(args: argparse.Namespace, allan_result: AllanResult) -> lis
         f = args.kalibr_inflate
         if not (f > 0 and math.isfinite(f)):
             raise InputError(f"--kalibr-inflate must be a positive number, got {f!r}")
-        text = kalibr_imu_yaml(terms, allan_result.sample_rate_hz, rostopic=args.kalibr_rostopic,
-                               bounds=bounds, inflate=f, source=source)
-        written.append(_write(args.kalibr_yaml, text))
-    if getattr(args, "matlab", None):
-        written.append(_write(args.matlab, matlab_gyroparams_script(terms, bounds, source)))
-    return written
+    for path in (getattr(args, "kalibr_yaml", None), getattr(args, "matlab", None)):
+        if path and not Path(path).resolve().parent.is_dir():
+            raise InputError("cannot write: No such file or directory", str(path))
 
 
 def _write(path: str | os.PathLike[str], text: str) -> str:
@@ -221,3 +233,111 @@ def _write(path: str | os.PathLike[str], text: str) -> str:
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror or exc.__class__.__name__}", str(p)) from None
     return str(p)
+
+
+# ------------------------------------------------------- several axes, gyro and accel
+@dataclass(frozen=True)
+class AxisTerms:
+    """The Allan terms of one axis for the exports: ``terms`` and ``bounds`` as
+    `AllanResult`'s (spec units for a gyro; for an accelerometer the same numbers in
+    m/s instead of deg: N m/s/sqrt(h), B m/s/h, K m/s/h^1.5)."""
+    column: str
+    accel: bool
+    terms: Mapping[str, float]
+    bounds: Mapping[str, str]
+
+    def si(self) -> dict[str, float]:
+        """`terms_to_si` of a gyro (rad); of an accelerometer the same in m (no deg -> rad)."""
+        si = terms_to_si(self.terms)
+        return {k: v / DEG for k, v in si.items()} if self.accel else si
+
+
+def _largest(axes: Sequence[AxisTerms], key: str) -> tuple[float, AxisTerms]:
+    """The largest SI value of ``key`` over ``axes`` and its axis (Kalibr takes one number
+    for the three axes: the noisiest, so that none is overconfident)."""
+    best = max(axes, key=lambda a: a.si()[key])
+    return best.si()[key], best
+
+
+def kalibr_imu_yaml_axes(axes: Sequence[AxisTerms], update_rate_hz: float, rostopic: str = "/imu0",
+                         inflate: float = 1.0, source: str = "") -> str:
+    """Text of a complete Kalibr ``imu.yaml`` from the gyro and accelerometer axes of one
+    record: each density is the largest over its sensor's axes (named in a comment with
+    every axis's value); accelerometer keys left to fill in when no accelerometer axis."""
+    if not (update_rate_hz > 0 and math.isfinite(update_rate_hz)):
+        raise ValueError(f"update_rate_hz must be > 0, got {update_rate_hz!r}")
+    if not (inflate > 0 and math.isfinite(inflate)):
+        raise ValueError(f"inflate must be > 0, got {inflate!r}")
+    gyro = [a for a in axes if not a.accel]
+    accel = [a for a in axes if a.accel]
+    if not gyro:
+        raise ValueError("no gyro axis")
+    lines = ["# Kalibr IMU noise parameters (continuous time), written by gyrodenoise",
+             f"# from the Allan fits of {source or 'a record'} on {datetime.now(timezone.utc):%Y-%m-%d}",
+             f"# ({len(gyro)} gyro and {len(accel)} accelerometer axes); each density is the largest over the "
+             f"axes (Kalibr takes one per sensor).",
+             "# Kalibr models white noise + bias random walk only: B (bias instability), R and Q are left out.",
+             f"# Inflation factor applied to all densities: {inflate:g}", "#"]
+    for a in axes:
+        si = a.si()
+        u = ("m/s^2/sqrt(Hz)", "m/s^3/sqrt(Hz)") if a.accel else ("rad/s/sqrt(Hz)", "rad/s^2/sqrt(Hz)")
+        lines.append(f"# {a.column}: noise density {si['N_rad_sqrt_s']:.6g} {u[0]}, random walk "
+                     f"{si['K_rad_s1_5']:.6g} {u[1]}{_bound_note(a.bounds, 'N')}{_bound_note(a.bounds, 'K')}")
+    lines.append("")
+    for name, group, units in (("accelerometer", accel, ("m/s^2/sqrt(Hz)", "m/s^3/sqrt(Hz)")),
+                               ("gyroscope", gyro, ("rad/s/sqrt(Hz)", "rad/s^2/sqrt(Hz)"))):
+        lines.append(f"# {name.capitalize()}s")
+        if not group:
+            lines += ["# Not measured by this record: Kalibr requires these two keys; fill them in from",
+                      f"# your {name}'s Allan analysis or datasheet.",
+                      f"# {name}_noise_density: FILL_ME  # {units[0]}",
+                      f"# {name}_random_walk:   FILL_ME  # {units[1]}", ""]
+            continue
+        nd, a_nd = _largest(group, "N_rad_sqrt_s")
+        rw, a_rw = _largest(group, "K_rad_s1_5")
+        lines += [f"{name}_noise_density: {nd * inflate:.10g}  # {units[0]}, {a_nd.column}"
+                  f"{_bound_note(a_nd.bounds, 'N')}",
+                  f"{name}_random_walk: {rw * inflate:.10g}  # {units[1]}, {a_rw.column}"
+                  f"{_bound_note(a_rw.bounds, 'K')}", ""]
+    lines += [f"rostopic: {rostopic}", f"update_rate: {_yaml_float(update_rate_hz)}  # Hz", ""]
+    return "\n".join(lines)
+
+
+def matlab_imu_params_script(axes: Sequence[AxisTerms], source: str = "") -> str:
+    """Text of a MATLAB ``.m`` script that builds ``gyro = gyroparams(...)`` and, with
+    accelerometer axes, ``accel = accelparams(...)`` for ``imuSensor`` (vector properties,
+    one value per axis in the order of the columns)."""
+    out = ["% IMU noise parameters for MATLAB's imuSensor, written by gyrodenoise",
+           f"% from the Allan fits of {source or 'a record'} on {datetime.now(timezone.utc):%Y-%m-%d}.",
+           "% BiasInstability is the coefficient B (Allan plateau / 0.664), as in the MathWorks example",
+           "% 'Inertial Sensor Noise Analysis Using Allan Variance'; R and Q have no property.",
+           "% One value per axis, in the order of the columns named."]
+    for fn, accel, units in (("gyroparams", False, ("(rad/s)/sqrt(Hz)", "rad/s", "(rad/s)*sqrt(Hz)")),
+                             ("accelparams", True, ("(m/s^2)/sqrt(Hz)", "m/s^2", "(m/s^2)*sqrt(Hz)"))):
+        group = [a for a in axes if a.accel == accel]
+        if not group:
+            continue
+        var = "accel" if accel else "gyro"
+        vec = lambda key: "[" + " ".join(f"{a.si()[key]:.17g}" for a in group) + "]"  # noqa: E731
+        upper = [f"{a.column} {k}" for a in group for k in "NBK" if a.bounds.get(k) == "upper_bound"]
+        out += [f"% {var}: columns {', '.join(a.column for a in group)}"
+                + (f"; UPPER BOUNDS (not resolved): {', '.join(upper)}" if upper else ""),
+                f"{var} = {fn}( ...",
+                f"    'NoiseDensity', {vec('N_rad_sqrt_s')}, ...    % {units[0]}",
+                f"    'BiasInstability', {vec('B_rad_s')}, ... % {units[1]}",
+                f"    'RandomWalk', {vec('K_rad_s1_5')});        % {units[2]}"]
+    out.append("")
+    return "\n".join(out)
+
+
+def export_axes_from_args(args: argparse.Namespace, axes: Sequence[AxisTerms], sample_rate_hz: float) -> list[str]:
+    """Write the files asked for by `add_export_options` from several axes; their paths."""
+    check_export_args(args)
+    written: list[str] = []
+    source = str(getattr(args, "input", "") or "")
+    if getattr(args, "kalibr_yaml", None):
+        written.append(_write(args.kalibr_yaml, kalibr_imu_yaml_axes(
+            axes, sample_rate_hz, rostopic=args.kalibr_rostopic, inflate=args.kalibr_inflate, source=source)))
+    if getattr(args, "matlab", None):
+        written.append(_write(args.matlab, matlab_imu_params_script(axes, source)))
+    return written

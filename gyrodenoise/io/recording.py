@@ -4,9 +4,13 @@ Every problem is either a one-line `gyrodenoise.errors.InputError`
 naming the file, line and column, or a documented repair recorded in
 ``Record.notes`` (the CLI prints the notes on stderr and in ``--json``):
 
-* a time gap longer than 1.5 median sample periods: no interpolation; the
-  sample after the gap is marked as a restart (the AR model and filter are
-  re-identified there) and the gap is reported;
+* the time column: its unit, sample rate, kind of timestamps (uniform,
+  jittered, bursty, varying), gaps and restarts are those of
+  :func:`gyrodenoise.io.timebase.analyse_time`, said in one note line. No
+  interpolation: jitter, bursts, repeated timestamps and gaps of up to 4
+  missing samples do not restart the filter; a longer gap or a time reversal
+  marks the next sample as a restart (the AR model and filter are re-identified
+  there) and the note gives the samples each run holds;
 * columns other than time / rate / true_rate: ignored and reported;
 * a constant rate: accepted (a valid, if dull, record: the filter passes it
   through and the Allan terms are zero) and reported;
@@ -20,7 +24,7 @@ naming the file, line and column, or a documented repair recorded in
 
 Errors: missing or unreadable file, empty file, header only, missing rate or
 time column, a value that is not a number, NaN or inf, a short (truncated)
-row, repeated or decreasing time, fewer than 2 samples, unknown rate unit,
+row, time that never advances, fewer than 2 samples, unknown rate unit,
 no time column and no sample rate, a rate beyond `ABSURD_RATE_DEG_S`
 (after unit conversion; not a gyro reading).
 The test suite's corpus of bad recordings holds one file per case.
@@ -31,25 +35,26 @@ from __future__ import annotations
 import csv
 import gzip
 import io
+import itertools
 import math
 import os
-from collections.abc import Callable, Iterator
+import re
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from gyrodenoise.errors import InputError
+from gyrodenoise.io.timebase import MAX_RATE_HZ, analyse_time, restart_mask
 from gyrodenoise.simulator import Record
-from gyrodenoise.units import RATE_TO_DEG_S
+from gyrodenoise.units import ACCEL_TO_M_S2, RATE_TO_DEG_S
 
-if TYPE_CHECKING:
-    from _csv import Reader as _CsvReader
-
-GAP_FACTOR = 1.5
 MIN_SAMPLES = 2
 ABSURD_RATE_DEG_S = 1.0e6   # 2,800 rev/s: no gyro measures that
+ABSURD_ACCEL_M_S2 = 1.0e5   # 10,000 g: no accelerometer of an IMU measures that
 SAT_RUN = 10                # equal samples at the column's max/min: suspected saturation
 SPIKE_SIGMAS = 8.0          # isolated spike: this many robust sigmas from both neighbours
 
@@ -76,167 +81,407 @@ SPIKE_ADVICE = ("with --method shakf, kf or sh_classic the outlier gate (--outli
                 "wild samples out of the filter")
 
 
-def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str = "time",
-                   rate_unit: str = "deg/s", sample_rate_hz: float | None = None, true_column: str = "true_rate",
-                   spike_advice: str = SPIKE_ADVICE) -> Record:
-    """Read a recording CSV into a `Record` (rates in deg/s).
+@dataclass(frozen=True)
+class SensorKind:
+    """What a column measures: its unit inside (``internal``), the units it may be read in
+    (label -> factor to ``internal``), the column names that identify it (groups of axes,
+    the first that the file holds wins; a group may imply its unit) and the magnitude
+    beyond which a value is no reading."""
+    name: str
+    internal: str
+    units: Mapping[str, float]
+    groups: tuple[ColumnGroup, ...]
+    absurd: float
+    option: str            # the command-line option naming its columns
+
+
+@dataclass(frozen=True)
+class ColumnGroup:
+    """Column names of the axes of one sensor as a file names them; ``unit``: the unit the
+    names imply (ROS ``sensor_msgs/Imu`` is in SI, REP 103), with ``why``."""
+    names: tuple[str, ...]
+    unit: str | None = None
+    why: str = ""
+
+
+def _xyz(prefix: str, unit: str | None = None, why: str = "") -> ColumnGroup:
+    return ColumnGroup(tuple(f"{prefix}{a}" for a in "xyz"), unit, why)
+
+
+_ROS = "sensor_msgs/Imu, REP 103"
+GYRO = SensorKind("gyro", "deg/s", RATE_TO_DEG_S, (
+    _xyz("field.angular_velocity.", "rad/s", f"{_ROS}: rad/s"), _xyz("angular_velocity.", "rad/s", f"{_ROS}: rad/s"),
+    _xyz("angular_velocity_", "rad/s", f"{_ROS}: rad/s"),
+    _xyz("gyro_"), _xyz("gyr_"), _xyz("gyro"), _xyz("g"), _xyz("w")), ABSURD_RATE_DEG_S, "--rate-unit")
+ACCEL = SensorKind("accel", "m/s^2", ACCEL_TO_M_S2, (
+    _xyz("field.linear_acceleration.", "m/s^2", f"{_ROS}: m/s^2"),
+    _xyz("linear_acceleration.", "m/s^2", f"{_ROS}: m/s^2"), _xyz("linear_acceleration_", "m/s^2", f"{_ROS}: m/s^2"),
+    _xyz("accel_"), _xyz("acc_"), _xyz("accel"), _xyz("acc"), _xyz("a")), ABSURD_ACCEL_M_S2, "--accel-unit")
+
+#: time column names tried in order when none is given: ours, a ROS message's own stamp and
+#: ``rostopic echo -p``'s receive time (both ns since 1970), common others
+TIME_COLUMNS = ("time", "field.header.stamp", "%time", "timestamp", "t")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One column of a recording: ``values`` in its kind's internal unit (deg/s, m/s^2)."""
+    column: str
+    kind: SensorKind
+    unit: str                  # the unit it was read in
+    values: np.ndarray = field(repr=False)
+    true: np.ndarray | None = field(default=None, repr=False)
+
+
+@dataclass
+class Recording:
+    """The axes of a file on one time base (the notes cover all of them)."""
+    source: str
+    sample_rate_hz: float
+    time_s: np.ndarray = field(repr=False)
+    restarts: np.ndarray | None = field(repr=False)
+    axes: tuple[Axis, ...]
+    notes: list[str]
+
+    def record(self, axis: Axis) -> Record:
+        """The `Record` of one axis (``rate_deg_s`` in the axis kind's internal unit: m/s^2
+        for an accelerometer) for the filters and the Allan analysis."""
+        return Record(rate_deg_s=axis.values, sample_rate_hz=self.sample_rate_hz, time_s=self.time_s,
+                      true_rate_deg_s=axis.true, restarts=self.restarts, source=self.source, notes=self.notes)
+
+
+def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str | None = None,
+                   rate_unit: str | None = None, sample_rate_hz: float | None = None,
+                   true_column: str = "true_rate", spike_advice: str = SPIKE_ADVICE,
+                   time_unit: str | None = None) -> Record:
+    """Read one rate column of a recording into a `Record` (rates in deg/s).
 
     Parameters
     ----------
     path : str or Path
-        CSV (optionally gzip-compressed) with a header row.
+        CSV (optionally gzip-compressed) with a header row; fields separated by commas,
+        semicolons, tabs or spaces (decimal commas read when the separator is not a comma).
     rate_column : str
         Name of the rate column.
-    time_column : str
-        Name of the time column (s); optional when ``sample_rate_hz`` is given.
-    rate_unit : str
+    time_column : str, optional
+        Name of the time column; default the first of `TIME_COLUMNS` in the file. Optional
+        when ``sample_rate_hz`` is given.
+    rate_unit : str, optional
         Unit of the rate and true-rate columns, a key of ``gyrodenoise.units.RATE_TO_DEG_S``:
-        "deg/s", "deg/h", "rad/s" or "mrad/s".
+        "deg/s", "deg/h", "rad/s" or "mrad/s"; default deg/s (said in a note).
     sample_rate_hz : float, optional
-        Sample rate when the file has no time column.
+        Sample rate: the rate when the file has no time column; with a time column,
+        used when within 2 % of the column's count over span (a one-line error further off).
     true_column : str
         Name of the true-rate column (optional in the file).
     spike_advice : str
         The remedy a spike note names (default: the filters' outlier gate).
+    time_unit : str, optional
+        Unit of the time column (s, ms, us, ns); detected when not given
+        (:func:`gyrodenoise.io.timebase.analyse_time`).
+    """
+    rec = read_axes(path, [rate_column], time_column=time_column, rate_unit=rate_unit,
+                    sample_rate_hz=sample_rate_hz, true_column=true_column, spike_advice=spike_advice,
+                    time_unit=time_unit)
+    return rec.record(rec.axes[0])
+
+
+def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None = None,
+              accel_columns: Sequence[str] | None = None, *, time_column: str | None = None,
+              rate_unit: str | None = None, accel_unit: str | None = None, sample_rate_hz: float | None = None,
+              true_column: str = "true_rate", spike_advice: str = SPIKE_ADVICE,
+              time_unit: str | None = None, topic: str | None = None, variable: str | None = None,
+              bag_reader: Callable[..., Any] | None = None) -> Recording:
+    """Read the gyro (and accelerometer) columns of a recording CSV on one time base.
+
+    ``rate_columns`` None: ``rate`` when the file has it, else the first group of gyro
+    columns of `GYRO` it holds (gyro_x/y/z, gx/gy/gz, field.angular_velocity.x/y/z ...),
+    and then the accelerometer columns of `ACCEL` too unless ``accel_columns`` names them.
+    The true-rate column is read with a single rate column only. Other parameters as
+    :func:`read_recording`; ``accel_unit`` a key of ``ACCEL_TO_M_S2`` (default m/s^2).
+    A ROS bag or MCAP file (``topic``; ``bag_reader``: pass
+    :func:`gyrodenoise.flightlog.rosbag.read_imu`) and a MATLAB ``.mat`` file (``variable``)
+    are read by :mod:`gyrodenoise.io.containers` into the same columns.
     """
     src = str(path)
-    _check_arguments(rate_unit, sample_rate_hz, src)
-    text = _open_text(path)
-    if not text.strip():
-        raise InputError("empty file", src)
-    reader = csv.reader(io.StringIO(text))
-    header = _read_header(reader, rate_column, time_column, src)
-    i_rate = header.index(rate_column)
-    i_time = header.index(time_column) if time_column in header else None
-    i_true = header.index(true_column) if true_column in header else None
-    if i_time is None and sample_rate_hz is None:
+    _check_arguments(rate_unit, accel_unit, sample_rate_hz, src)
+    first = (rate_columns or ["rate"])[0]
+    container = topic is not None or variable is not None or is_container(path)
+    file_units: dict[str, str] = {}
+    if container:
+        from gyrodenoise.io.containers import read_container
+        table = read_container(path, topic=topic, variable=variable, bag_reader=bag_reader)
+        header, notes = list(table.columns), list(table.notes)
+        where: Callable[[int], str] = lambda i: f"{table.row_name} {i + 1:,}"   # noqa: E731
+    else:
+        text = _open_text(path)
+        if not text.strip():
+            raise InputError("empty file", src)
+        sep = _separator(text)
+        rows = _rows(text, sep, src)
+        header = _read_header(rows, first, time_column or "time", src)
+        notes = [] if sep == "," else [f"fields separated by {SEPARATOR_NAMES[sep]}"]
+        rows, file_units = _units_row(rows, header)
+        skip = 2 if file_units else 1
+        where = lambda i: f"line {_line_of(text, i, skip)}"   # noqa: E731
+    lower = {h.lower(): h for h in header}
+    gyro_cols, gyro_group = _columns(GYRO, rate_columns, header, lower, "rate", src)
+    if accel_columns is None and rate_columns is None and gyro_group is not None:
+        accel_cols, accel_group = _detected(ACCEL, lower)
+    else:
+        accel_cols, accel_group = _columns(ACCEL, accel_columns or [], header, lower, None, src)
+    if time_column is None:
+        time_column = next((lower[c] for c in TIME_COLUMNS if c in lower), "time")
+    has_time = time_column in header
+    has_true = len(gyro_cols) == 1 and true_column in header
+    if not has_time and sample_rate_hz is None:
         raise InputError(f"line 1: no column '{time_column}' and no --sample-rate given", src)
-    names = {i_rate: rate_column, i_time: time_column, i_true: true_column}
-    cols = [i_rate] + ([i_time] if i_time is not None else []) + ([i_true] if i_true is not None else [])
-    values = _read_values(reader, header, cols, names, src)
-    n = len(values[i_rate])
+    wanted = [*gyro_cols, *accel_cols] + ([time_column] if has_time else []) + ([true_column] if has_true else [])
+    if container:
+        values: dict[str, Any] = {c: table.columns[c] for c in wanted}
+    else:
+        values = _read_values(rows, header, {name: header.index(name) for name in wanted}, sep != ",", src)
+        if values.pop(DECIMAL_COMMA, None) is not None:
+            notes[-1] += "; decimal commas read"
+    n = len(values[wanted[0]])
     if n == 0:
         raise InputError("header only, no data rows", src)
     if n < MIN_SAMPLES:
         raise InputError(f"only {n} data row(s); at least {MIN_SAMPLES} are needed", src)
-    scale = RATE_TO_DEG_S[rate_unit]
-    rate = np.asarray(values[i_rate]) * scale
-    true = np.asarray(values[i_true]) * scale if i_true is not None else None
-    _check_rate_magnitude(rate, values[i_rate], text, rate_column, rate_unit, src)
-    notes: list[str] = []
-    ignored = [h for j, h in enumerate(header) if j not in (i_rate, i_time, i_true)]
+    axes = []
+    for kind, cols, group, unit in ((GYRO, gyro_cols, gyro_group, rate_unit),
+                                    (ACCEL, accel_cols, accel_group, accel_unit)):
+        if not cols:
+            continue
+        said = {file_units[c] for c in cols if file_units.get(c) in kind.units}
+        if not unit and len(said) > 1:
+            raise InputError(f"line 2: the units row gives the {kind.name} columns {', '.join(sorted(said))}: "
+                             f"read them in separate runs", src)
+        unit, why = (unit, "as stated") if unit else \
+            (said.pop(), "as its units row says") if said else \
+            ((group.unit, group.why) if group and group.unit else
+             (next(iter(kind.units)), f"assumed; {kind.option} {'|'.join(list(kind.units)[1:])} if not"))
+        scale = kind.units[unit]
+        notes.append(f"{kind.name} column{'s' if len(cols) > 1 else ''} {', '.join(cols)} in {unit} ({why})")
+        for c in cols:
+            v = np.asarray(values[c], dtype=np.float64) * scale
+            _check_magnitude(kind, v, values[c], where, c, unit, src)
+            true = np.asarray(values[true_column], dtype=np.float64) * scale if has_true else None
+            axes.append(Axis(c, kind, unit, v, true))
+    ignored = [h for h in header if h not in wanted and h]
     if ignored:
-        notes.append(f"ignored columns: {', '.join(ignored)}")
-    notes.extend(_signal_notes(rate, lambda i: _line_of(text, i), spike_advice))
-    if i_time is None:
+        shown = ", ".join(ignored[:8]) + (f", ... ({len(ignored)} in all)" if len(ignored) > 8 else "")
+        notes.append(f"ignored columns: {shown}")
+    for ax in axes:
+        for note in _signal_notes(ax.values, where, spike_advice, ax.kind.internal):
+            notes.append(note if len(axes) == 1 else f"column {ax.column}: {note}")
+    if not has_time:
         assert sample_rate_hz is not None     # refused above when there is no time column either
         fs = float(sample_rate_hz)
         t = np.arange(n) / fs
         restarts = None
+        notes.append(f"no column '{time_column}': rate {fs:g} Hz as stated (--sample-rate)")
     else:
-        t = np.asarray(values[i_time])
-        fs, restarts, gap_notes = _time_axis(t, n, sample_rate_hz, text, src)
-        notes.extend(gap_notes)
-    return Record(rate_deg_s=rate, sample_rate_hz=fs, time_s=t, true_rate_deg_s=true,
-                  restarts=restarts, source=src, notes=notes)
+        if time_unit is None and file_units.get(time_column) in TIME_UNIT_NAMES:
+            time_unit = file_units[time_column]
+        tb = analyse_time(values[time_column], unit=time_unit, nominal_rate=sample_rate_hz,
+                          name=f"column {time_column}", source=src)
+        fs, t = tb.rate_hz, tb.seconds(values[time_column])
+        restarts = restart_mask(tb) if len(tb.runs) > 1 else None
+        notes.append(tb.note)
+    return Recording(source=src, sample_rate_hz=fs, time_s=t, restarts=restarts, axes=tuple(axes), notes=notes)
 
 
-def _check_arguments(rate_unit: str, sample_rate_hz: float | None, src: str) -> None:
-    """InputError for a rate unit or a stated sample rate the reader cannot use."""
-    if rate_unit not in RATE_TO_DEG_S:
-        raise InputError(f"unknown rate unit {rate_unit!r} (use one of {', '.join(RATE_TO_DEG_S)})", src)
-    if sample_rate_hz is not None and not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
-        raise InputError(f"sample rate must be a positive number, got {sample_rate_hz!r}", src)
+#: the file name endings read as containers (gyrodenoise.io.containers), not as text
+CONTAINER_SUFFIXES = (".bag", ".mcap", ".db3", ".mat")
 
 
-def _read_header(reader: Iterator[list[str]], rate_column: str, time_column: str, src: str) -> list[str]:
-    """The header row's column names; InputError when it cannot be read or has no rate
-    column (saying why: no header at all, another field separator, another name)."""
+def is_container(path: str | os.PathLike[str] | None) -> bool:
+    """Whether ``path`` names a ROS bag (a ROS 2 bag folder too), an MCAP or a MATLAB file."""
+    if path is None:
+        return False
+    p = Path(path)
+    return p.suffix.lower() in CONTAINER_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").is_file())
+
+
+def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
+    """The first line's fields of a text recording (gzip too), or None when it cannot be read
+    (the reader then says why)."""
+    if path is None:
+        return None
     try:
-        header = [h.strip() for h in next(reader)]
-    except (StopIteration, csv.Error) as exc:
-        raise InputError(f"line 1: cannot read the header ({exc})", src) from None
-    if rate_column in header:
-        return header
+        with open(path, "rb") as f:
+            head = f.read(2)
+        opener = gzip.open if head == b"\x1f\x8b" else open
+        with opener(path, "rt", encoding="utf-8-sig", errors="replace") as f:
+            first = ""
+            while not first.strip():
+                first = f.readline()
+                if not first:
+                    return None
+    except (OSError, EOFError, gzip.BadGzipFile):
+        return None
+    sep = _separator(first)
+    return [h.strip() for h in (first.split() if sep is None else next(csv.reader([first], delimiter=sep)))]
+
+
+def _check_arguments(rate_unit: str | None, accel_unit: str | None, sample_rate_hz: float | None,
+                     src: str) -> None:
+    """InputError for a unit or a stated sample rate the reader cannot use."""
+    for kind, unit in ((GYRO, rate_unit), (ACCEL, accel_unit)):
+        if unit is not None and unit not in kind.units:
+            raise InputError(f"unknown {'rate' if kind is GYRO else 'acceleration'} unit {unit!r} "
+                             f"(use one of {', '.join(kind.units)})", src)
+    if sample_rate_hz is not None and not (0 < sample_rate_hz <= MAX_RATE_HZ):
+        raise InputError(f"--sample-rate {sample_rate_hz:g} Hz is not a sample rate (it must be above 0 and "
+                         f"at most {MAX_RATE_HZ:g} Hz)", src)
+
+
+def _columns(kind: SensorKind, given: Sequence[str] | None, header: list[str], lower: dict[str, str],
+             default: str | None, src: str) -> tuple[list[str], ColumnGroup | None]:
+    """The columns of ``kind`` to read: those ``given`` (each must be there), else ``default``
+    when the file has it, else the first group of ``kind`` it holds; InputError when none."""
+    if given:
+        missing = [c for c in given if c not in header]
+        if missing:
+            raise InputError(f"line 1: no column '{missing[0]}' (columns: {', '.join(header)}); "
+                             f"use {'--rate-column' if kind is GYRO else '--accel-column'}", src)
+        return list(given), next((g for g in kind.groups if set(given) <= set(g.names)), None)
+    if default is None:
+        return [], None
+    if default in header:
+        return [default], None
+    cols, group = _detected(kind, lower)
+    if not cols:
+        raise InputError(f"line 1: no column '{default}' (columns: {', '.join(header)}); use --rate-column", src)
+    return cols, group
+
+
+def _detected(kind: SensorKind, lower: dict[str, str]) -> tuple[list[str], ColumnGroup | None]:
+    """The file's columns (as spelt there) of the first group of ``kind`` it holds."""
+    for g in kind.groups:
+        cols = [lower[name] for name in g.names if name in lower]
+        if cols:
+            return cols, g
+    return [], None
+
+
+#: the separators told from the header line (None: runs of spaces), by name
+SEPARATOR_NAMES = {",": "commas", ";": "semicolons", "\t": "tabs", None: "spaces"}
+DECIMAL_COMMA = "\0decimal comma"     # key of _read_values' answer: a decimal comma was read
+_DECIMAL_COMMA_CELL = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
+
+
+def _separator(text: str) -> str | None:
+    """The field separator of the header line (the first line that is not blank): a comma
+    when it has one, else a semicolon, a tab, else runs of spaces (None)."""
+    first = next((ln for ln in io.StringIO(text) if ln.strip()), "")
+    for sep in (",", ";", "\t"):
+        if sep in first:
+            return sep
+    return None if len(first.split()) > 1 else ","
+
+
+def _rows(text: str, sep: str | None, src: str) -> Iterator[tuple[int, list[str]]]:
+    """(line number, fields) of each line; InputError for a line the csv module refuses."""
+    if sep is None:
+        for lineno, line in enumerate(text.splitlines(), start=1):
+            yield lineno, line.split()
+        return
+    reader = csv.reader(io.StringIO(text), delimiter=sep)
+    try:
+        for row in reader:
+            yield reader.line_num, row
+    except csv.Error as exc:
+        raise InputError(f"line {reader.line_num}: {exc}", src) from None
+
+
+#: what a units row (a second header row) may say -> the unit's name here
+UNIT_SPELLINGS = {**{u: u for u in (*RATE_TO_DEG_S, *ACCEL_TO_M_S2)},
+                  "°/s": "deg/s", "dps": "deg/s", "deg/sec": "deg/s", "rad/sec": "rad/s", "°/h": "deg/h",
+                  "m/s2": "m/s^2", "m/s²": "m/s^2", "m/s/s": "m/s^2",
+                  "s": "s", "sec": "s", "ms": "ms", "us": "us", "µs": "us", "μs": "us", "ns": "ns"}
+TIME_UNIT_NAMES = ("s", "ms", "us", "ns")
+
+
+def _units_row(rows: Iterator[tuple[int, list[str]]], header: list[str]
+               ) -> tuple[Iterator[tuple[int, list[str]]], dict[str, str]]:
+    """(the rows, {column: unit}): a first data row with no number in it and a unit among its
+    cells (``s,rad/s,rad/s``, ``[s] [deg/s]``) is a units row, taken out of the rows."""
+    for lineno, row in rows:
+        if not row or (len(row) == 1 and not row[0].strip()):
+            continue
+        cells = [c.strip().strip("[]()").strip().lower() for c in row]
+        if not any(_is_number(c) for c in cells if c) and any(c in UNIT_SPELLINGS for c in cells):
+            return rows, {h: UNIT_SPELLINGS[c] for h, c in zip(header, cells) if c in UNIT_SPELLINGS}
+        return itertools.chain([(lineno, row)], rows), {}
+    return rows, {}
+
+
+def _read_header(rows: Iterator[tuple[int, list[str]]], rate_column: str, time_column: str,
+                 src: str) -> list[str]:
+    """The header row's column names; InputError when it cannot be read or is a row of
+    numbers (no header at all)."""
+    try:
+        _, row = next(rows)
+    except StopIteration:
+        raise InputError("line 1: cannot read the header", src) from None
+    header = [h.strip() for h in row]
     if all(_is_number(h) for h in header):   # a row of numbers: no header at all
         raise InputError(f"line 1: no header row (expected column names such as "
                          f"'{time_column},{rate_column}')", src)
-    if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
-        raise InputError(f"line 1: fields are not separated by commas ({header[0]!r}); "
-                         f"a recording is a comma-separated CSV", src)
-    raise InputError(f"line 1: no column '{rate_column}' (columns: {', '.join(header)}); "
-                     f"use --rate-column", src)
+    return header
 
 
-def _read_values(reader: _CsvReader, header: list[str], cols: list[int], names: dict[int | None, str],
-                 src: str) -> dict[int, list[float]]:
-    """{column index: list of floats} of the columns ``cols`` over the data rows (blank
-    lines skipped); InputError at the first short row, non-number, NaN or inf."""
-    need = max(cols) + 1
-    values: dict[int, list[float]] = {c: [] for c in cols}
-    lineno = 1
-    try:
-        for row in reader:
-            lineno = reader.line_num
+def _read_values(rows: Iterator[tuple[int, list[str]]], header: list[str], index: dict[str, int],
+                 decimal_comma: bool, src: str) -> dict[str, list[float]]:
+    """{column name: list of floats} over the data rows (blank lines skipped); InputError at
+    the first short row, non-number (``1_05`` too: Python would read it as 105), NaN or inf.
+    With ``decimal_comma`` (the separator is not a comma) a cell such as ``0,25`` is read as
+    0.25 and the key DECIMAL_COMMA is set."""
+    need = max(index.values()) + 1
+    width = len(header)
+    values: dict[str, list[float]] = {c: [] for c in index}
+    cols = [(name, c, values[name].append) for name, c in index.items()]
+    for lineno, row in rows:
+        if len(row) != width:
             if not row or (len(row) == 1 and not row[0].strip()):
                 continue
             if len(row) < need:
-                raise InputError(f"line {lineno}: {len(row)} fields, expected {len(header)} "
-                                 f"(truncated row?)", src)
-            for c in cols:
-                cell = row[c].strip()
-                try:
-                    v = float(cell)
-                except ValueError:
-                    raise InputError(f"line {lineno}: column {names[c]}: {cell!r} is not a number",
-                                     src) from None
-                if not math.isfinite(v):
-                    raise InputError(f"line {lineno}: column {names[c]} is {cell}", src)
-                values[c].append(v)
-    except csv.Error as exc:
-        raise InputError(f"line {lineno}: {exc}", src) from None
+                raise InputError(f"line {lineno}: {len(row)} fields, expected {width} (truncated row?)", src)
+            if len(row) > width and any(c.strip() for c in row[width:]):
+                raise InputError(f"line {lineno}: {len(row)} fields, expected {width}"
+                                 + (" (decimal commas in a comma-separated file? separate the fields by ';')"
+                                    if not decimal_comma else ""), src)
+        for name, c, add in cols:
+            cell = row[c]
+            try:
+                v = float(cell)
+            except ValueError:
+                cell = cell.strip()
+                if not (decimal_comma and _DECIMAL_COMMA_CELL.fullmatch(cell)):
+                    raise InputError(f"line {lineno}: column {name}: {cell!r} is not a number", src) from None
+                v = float(cell.replace(",", "."))
+                values[DECIMAL_COMMA] = []
+            if "_" in cell:           # float() reads 1_05 as 105
+                raise InputError(f"line {lineno}: column {name}: {cell.strip()!r} is not a number", src)
+            if not -math.inf < v < math.inf:
+                raise InputError(f"line {lineno}: column {name} is {cell.strip()}", src)
+            if len(cell) > 15 and cell.strip().isdigit():    # ns since 1970: exact (a float keeps 16 digits)
+                v = int(cell)
+            add(v)
     return values
 
 
-def _check_rate_magnitude(rate: np.ndarray, cells: list[float], text: str, rate_column: str, rate_unit: str,
-                          src: str) -> None:
-    """InputError at the first rate beyond ABSURD_RATE_DEG_S (deg/s, after the unit)."""
-    big = np.flatnonzero(np.abs(rate) > ABSURD_RATE_DEG_S)
+def _check_magnitude(kind: SensorKind, v: np.ndarray, cells: Any, where: Callable[[int], str], column: str,
+                     unit: str, src: str) -> None:
+    """InputError at the first value beyond the kind's absurd magnitude (after the unit)."""
+    big = np.flatnonzero(np.abs(v) > kind.absurd)
     if big.size:
         j = int(big[0])
-        raise InputError(f"line {_line_of(text, j)}: column {rate_column}: {cells[j]!r} "
-                         f"{rate_unit} is beyond {ABSURD_RATE_DEG_S:g} deg/s, not a gyro reading "
-                         f"(wrong --rate-unit?)", src)
-
-
-def _time_axis(t: np.ndarray, n: int, sample_rate_hz: float | None, text: str,
-               src: str) -> tuple[float, np.ndarray | None, list[str]]:
-    """(sample rate, restarts or None, notes) of a time column ``t`` of a record of ``n``
-    samples: the rate from the median
-    period; a restart after each gap longer than GAP_FACTOR periods (reported, not
-    interpolated). InputError for a repeated or decreasing time, or a stated sample rate
-    that disagrees with the column by more than 1 %."""
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        j = int(bad[0])
-        what = "repeated" if dt[j] == 0 else "decreasing"
-        raise InputError(f"line {_line_of(text, j + 1)}: {what} time {float(t[j + 1]):.10g} "
-                         f"(previous {float(t[j]):.10g})", src)
-    med = float(np.median(dt))
-    fs = 1.0 / med
-    if sample_rate_hz is not None and abs(sample_rate_hz - fs) > 0.01 * fs:
-        raise InputError(f"--sample-rate {sample_rate_hz:g} Hz disagrees with the time column "
-                         f"({fs:g} Hz)", src)
-    gaps = np.flatnonzero(dt > GAP_FACTOR * med)
-    if not gaps.size:
-        return fs, None, []
-    restarts = np.zeros(n, dtype=bool)
-    restarts[gaps + 1] = True
-    first = int(gaps[0])
-    return fs, restarts, [f"{gaps.size} time gap(s) longer than {GAP_FACTOR} sample periods "
-                          f"(first at t={t[first]:g} s, {dt[first]:g} s long): not interpolated; "
-                          f"the filter restarts after each gap"]
+        raise InputError(f"{where(j)}: column {column}: {float(cells[j])!r} "
+                         f"{unit} is beyond {kind.absurd:g} {kind.internal}, not a {kind.name} reading "
+                         f"(wrong {kind.option}?)", src)
 
 
 def _runs_at(x: np.ndarray, value: float, min_len: int) -> tuple[int, int]:
@@ -251,21 +496,21 @@ def _runs_at(x: np.ndarray, value: float, min_len: int) -> tuple[int, int]:
     return int(np.sum((ends - starts)[long_])), int(starts[long_][0])
 
 
-def _signal_notes(rate: np.ndarray, line_of: Callable[[int], int] = lambda i: i + 2,
-                  spike_advice: str = SPIKE_ADVICE) -> list[str]:
+def _signal_notes(rate: np.ndarray, where: Callable[[int], str] = lambda i: f"line {i + 2}",
+                  spike_advice: str = SPIKE_ADVICE, unit: str = "deg/s") -> list[str]:
     """Reported (never repaired) properties of the rate column: constant,
     suspected saturation, isolated spikes."""
     notes = []
     lo, hi = float(rate.min()), float(rate.max())
     if lo == hi:
-        return [f"the rate is constant ({lo:g} deg/s): nothing to denoise; the filter passes it "
+        return [f"the rate is constant ({lo:g} {unit}): nothing to denoise; the filter passes it "
                 f"through (to 1e-6 relative); its Allan deviation is zero, so the fit reports only "
                 f"(tiny) upper bounds"]
     for label, value in (("maximum", hi), ("minimum", lo)):
         count, first = _runs_at(rate, value, SAT_RUN)
         if count:
             notes.append(f"suspected saturation: {count} samples in runs of >= {SAT_RUN} equal values at "
-                         f"the rate's {label} {value:g} deg/s (first at line {line_of(first)}, sample {first}); kept as is")
+                         f"the rate's {label} {value:g} {unit} (first at {where(first)}, sample {first}); kept as is")
     if rate.size >= 3:
         d = np.diff(rate)
         sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))
@@ -275,7 +520,7 @@ def _signal_notes(rate: np.ndarray, line_of: Callable[[int], int] = lambda i: i 
             spikes = np.flatnonzero(((a > lim) & (b > lim)) | ((a < -lim) & (b < -lim))) + 1
             if spikes.size:
                 notes.append(f"{spikes.size} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
-                             f"(first at line {line_of(int(spikes[0]))}, sample {int(spikes[0])}, {rate[spikes[0]]:g} deg/s); "
+                             f"(first at {where(int(spikes[0]))}, sample {int(spikes[0])}, {rate[spikes[0]]:g} {unit}); "
                              f"kept as is in the input; {spike_advice}")
     return notes
 
@@ -288,12 +533,13 @@ def _is_number(cell: str) -> bool:
     return True
 
 
-def _line_of(text: str, sample_index: int) -> int:
-    """File line number of data sample ``sample_index`` (skipping blank lines)."""
+def _line_of(text: str, sample_index: int, header_lines: int = 1) -> int:
+    """File line number of data sample ``sample_index`` (skipping blank lines and the
+    ``header_lines`` first lines)."""
     line = 1
     count = -1
     for line, raw in enumerate(text.splitlines(), start=1):
-        if line == 1 or not raw.strip():
+        if line <= header_lines or not raw.strip():
             continue
         count += 1
         if count == sample_index:
@@ -312,5 +558,19 @@ def write_recording(path: str | os.PathLike[str], time_s: npt.ArrayLike, raw_deg
     try:
         np.savetxt(path, np.column_stack(cols), delimiter=",", header=header, comments="",
                    fmt="%.10g")
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", str(path)) from None
+
+
+def write_axes(path: str | os.PathLike[str], rec: Recording, filtered: Sequence[np.ndarray]) -> None:
+    """Write ``time`` (s), then for each axis of ``rec`` its column (raw, deg/s or m/s^2)
+    and ``<column>_filtered`` (``filtered``, one series per axis) to a CSV file."""
+    header = ["time"]
+    cols = [np.asarray(rec.time_s)]
+    for ax, out in zip(rec.axes, filtered, strict=True):
+        header += [ax.column, f"{ax.column}_filtered"]
+        cols += [ax.values, np.asarray(out)]
+    try:
+        np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", str(path)) from None

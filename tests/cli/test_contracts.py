@@ -87,8 +87,6 @@ BAD = {
     "nan.csv": ("time,rate\n0,1\n0.01,nan\n0.02,1\n", "line 3: column rate is nan"),
     "inf.csv": ("time,rate\n0,1\n0.01,1\n0.02,-inf\n", "line 4: column rate is -inf"),
     "text.csv": ("time,rate\n0,1\n0.01,abc\n", "line 3: column rate: 'abc' is not a number"),
-    "repeat.csv": ("time,rate\n0,1\n0.01,1\n0.01,1\n0.03,1\n", "line 4: repeated time"),
-    "decrease.csv": ("time,rate\n0,1\n0.02,1\n0.01,1\n", "line 4: decreasing time"),
     "short.csv": ("time,rate,true_rate\n0,1,0\n0.01,1\n", "line 3: 2 fields"),
     "one.csv": ("time,rate\n0,1\n", "only 1 data row"),
     "col.csv": ("t,omega\n0,1\n0.01,1\n", "no column 'rate'"),
@@ -132,7 +130,7 @@ def test_gap_is_reported_and_restarts_the_filter(tmp_path):
     p = tmp_path / "gap.csv"
     np.savetxt(p, np.column_stack([t, z]), delimiter=",", header="time,rate", comments="")
     code, out, err = run_cli("denoise", p, "-o", tmp_path / "o.csv", "--causal")
-    assert code == 0 and "time gap" in err and "restarts" in err and "causal" in err
+    assert code == 0 and "restart the filter" in err and "causal" in err
     data = np.loadtxt(tmp_path / "o.csv", delimiter=",", skiprows=1)
     assert data.shape[0] == t.size                       # nothing dropped or invented
     # after the gap the filter warms up again: raw passes through

@@ -1,0 +1,104 @@
+"""Several axes in one run: ``allan`` and ``denoise`` over the gyro (and accelerometer)
+columns of a file, a bag or a MATLAB file (:func:`gyrodenoise.io.recording.read_axes`).
+
+A run is one of several axes when ``--rate-column`` lists more than one column, when
+``--accel-column`` is given, when IN is a bag, an MCAP or a ``.mat`` file, or when no
+``--rate-column`` is given and the CSV has no ``rate`` column (its gyro columns are then
+detected). Otherwise the single-axis commands run as before (their output unchanged).
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING, Any
+
+
+from gyrodenoise.console import log
+from gyrodenoise.units import ACCEL_TERMS, ALLAN_TERMS, TERM_SYMBOLS
+
+if TYPE_CHECKING:
+    from gyrodenoise.io.recording import Axis, Recording
+
+
+def _split(text: str | None) -> list[str] | None:
+    return [c.strip() for c in text.split(",") if c.strip()] if text else None
+
+
+def wants_axes(args: argparse.Namespace) -> bool:
+    """Whether ``args`` ask for the several-axes form (module doc)."""
+    from gyrodenoise.io.recording import is_container, peek_header
+    cols = _split(args.rate_column)
+    if getattr(args, "accel_column", None) or (cols and len(cols) > 1) or is_container(args.input):
+        return True
+    if cols:
+        return False
+    header = peek_header(args.input)
+    return header is not None and "rate" not in header
+
+
+def read_axes_args(args: argparse.Namespace) -> Recording:
+    """The recording of ``args`` (its notes printed on stderr)."""
+    from gyrodenoise.flightlog.rosbag import read_imu
+    from gyrodenoise.io.export import check_export_args
+    from gyrodenoise.io.recording import read_axes
+    check_export_args(args)
+    rec = read_axes(args.input, _split(args.rate_column), _split(args.accel_column),
+                    time_column=args.time_column, rate_unit=args.rate_unit, accel_unit=args.accel_unit,
+                    sample_rate_hz=args.sample_rate, time_unit=args.time_unit, topic=getattr(args, "topic", None),
+                    variable=getattr(args, "variable", None), bag_reader=read_imu)
+    for note in rec.notes:
+        log(f"gyrodenoise: note: {args.input}: {note}")
+    return rec
+
+
+def _label(ax: Axis) -> tuple[str, ...]:
+    """The term labels 'N (unit)' of the axis' kind."""
+    if ax.kind.name == "accel":
+        return tuple(f"{t} ({ACCEL_TERMS[t][1]})" for t in TERM_SYMBOLS)
+    return tuple(f"{t.symbol} ({t.unit})" for t in ALLAN_TERMS)
+
+
+def axis_json(ax: Axis, res: Any) -> dict[str, Any]:
+    """One axis' object: `AllanResult.to_json` (spec section 3), the sensor and the unit
+    read; an accelerometer's terms and curve in m/s units (``units``, ``adev_unit``)."""
+    d = res.to_json()
+    d["sensor"] = ax.kind.name
+    d["unit_read"] = ax.unit
+    if ax.kind.name == "accel":
+        d["units"] = {t: ACCEL_TERMS[t][1] for t in TERM_SYMBOLS}
+        d["names"] = {t: ACCEL_TERMS[t][0] for t in TERM_SYMBOLS}
+        d["adev_unit"] = "m/s/h"
+    else:
+        d["adev_unit"] = "deg/h"
+    return d
+
+
+def cmd_allan_axes(args: argparse.Namespace) -> int:
+    """``allan`` over every axis: one JSON object whose ``axes`` maps each column to its
+    object; one Kalibr imu.yaml and one MATLAB script for all axes."""
+    from gyrodenoise.analysis.allan import allan
+    from gyrodenoise.cli.program import emit_json
+    from gyrodenoise.errors import InputError
+    from gyrodenoise.io.export import AxisTerms, export_axes_from_args
+    rec = read_axes_args(args)
+    if len(rec.time_s) < 5:
+        raise InputError(f"only {len(rec.time_s)} samples; the Allan deviation needs at least 5", args.input)
+    results = [(ax, allan(ax.values, rec.sample_rate_hz)) for ax in rec.axes]
+    if any(ax.kind.name == "gyro" for ax in rec.axes):
+        terms = [AxisTerms(ax.column, ax.kind.name == "accel", r.terms, r.bounds) for ax, r in results]
+        for path in export_axes_from_args(args, terms, rec.sample_rate_hz):
+            log(f"gyrodenoise: wrote {path}")
+    elif getattr(args, "kalibr_yaml", None) or getattr(args, "matlab", None):
+        raise InputError("no gyro column: the exports need one (--rate-column)", args.input)
+    if args.json:
+        emit_json({"source": str(args.input), "notes": rec.notes, "sample_rate_hz": rec.sample_rate_hz,
+                   "n_samples": len(rec.time_s),
+                   "axes": {ax.column: axis_json(ax, r) for ax, r in results}})
+        return 0
+    for ax, r in results:
+        print(f"{ax.column} ({ax.kind.name}, read in {ax.unit})")
+        for label, t in zip(_label(ax), TERM_SYMBOLS):
+            mark = "<" if r.bounds.get(t) == "upper_bound" else " "
+            print(f"  {label:<22}{mark}{r.terms[t]:.4e}")
+    print("('<' = upper bound: the record cannot resolve that term)")
+    return 0
