@@ -183,11 +183,10 @@ def cmd_allan(args: argparse.Namespace) -> int:
 
 def rate_unit_used(args: argparse.Namespace) -> dict[str, str]:
     """{"unit", "how"}: the rate unit the record is read in and how it was decided (given,
-    or the default deg/s, with a word when the column's name says another unit); sets
-    ``args.rate_unit`` to it."""
+    or the default deg/s, with a word when the column's name says another unit); the
+    reader states the same in its note."""
     if args.rate_unit is not None:
         return {"unit": args.rate_unit, "how": "given with --rate-unit"}
-    args.rate_unit = "deg/s"
     how = "the default: --rate-unit not given"
     column = str(args.rate_column).lower()
     said = next((u for u in ("mrad", "rad", "dps", "deg") if u in column), None)

@@ -189,9 +189,12 @@ def test_allan_json_is_strict_with_nulls_said(tmp_path):
 
 def test_allan_refuses_a_curve_with_no_finite_point(tmp_path):
     path = tmp_path / "r.csv"
-    np.savetxt(path, 0.01 * np.random.default_rng(0).standard_normal(2000), header="rate", comments="")
-    status, out, err = run_main("allan", path, "--sample-rate", "1e300", "--json")
-    assert status == 2 and "not a finite number at any tau" in err and "Traceback" not in err
+    # rates whose squares would overflow float64 (no tau with a finite Allan deviation): refused
+    # in one line, exit 2, nothing on stdout (the reader refuses them first, as no gyro reading)
+    np.savetxt(path, 1e200 * np.random.default_rng(0).standard_normal(2000), header="rate", comments="")
+    status, out, err = run_main("allan", path, "--sample-rate", "100", "--json")
+    assert status == 2 and out == "" and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and ("not a finite number at any tau" in err or "beyond" in err)
 
 
 @pytest.mark.slow
