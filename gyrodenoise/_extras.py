@@ -19,6 +19,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "fmu": ("fmpy", "pythonfmu", "ziglang"),
     "report": ("matplotlib", "plotly"),
     "cluster": ("distributed", "fsspec"),
+    "mat": ("h5py",),
 }
 
 

@@ -8,7 +8,7 @@ MATLAB ``.mat`` files, read into named columns that the recording reader
   ``angular_velocity.x/y/z`` (rad/s) and ``linear_acceleration.x/y/z`` (m/s^2; left out
   when every message marks it absent, covariance[0] = -1), as REP 103 defines them.
 * A ``.mat`` file: v5 (and older) through ``scipy.io.loadmat``, v7.3 (HDF5) through
-  ``h5py`` (not a dependency: pip install h5py). Every numeric variable (or the fields of the struct
+  ``h5py`` (the ``mat`` extra: pip install 'gyrodenoise[mat]'). Every numeric variable (or the fields of the struct
   ``variable``) becomes columns: a vector its name, an n x 3 matrix ``name_x/y/z``, an
   n x k matrix ``name_1`` ... ``name_k`` (the longer side is the samples, so MATLAB's
   column-major 3 x n reads too); the columns of the most common length are kept, the
@@ -120,7 +120,7 @@ def _load_mat(p: Path) -> dict[str, Any]:
         try:
             import h5py
         except ImportError:
-            raise InputError("a MATLAB v7.3 (HDF5) file needs h5py (pip install h5py)",
+            raise InputError("a MATLAB v7.3 (HDF5) file needs h5py, not installed: pip install 'gyrodenoise[mat]'",
                              str(p)) from None
         try:
             with h5py.File(p, "r") as f:
