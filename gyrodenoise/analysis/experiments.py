@@ -15,7 +15,7 @@ against the true rate, which the paper could not measure.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import MutableSequence, Sequence
 from typing import Any
 
 import numpy as np
@@ -68,7 +68,7 @@ def filter_record(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, method: str,
     return batch_run(p, K.init_state(p), rate_deg_s, restarts, record_theta=record_theta)
 
 
-def ar_fit_sequence(params: Any, state: Sequence[float], n_samples: int, first_value: float,
+def ar_fit_sequence(params: Any, state: MutableSequence[float], n_samples: int, first_value: float,
                     seed: int = 0) -> np.ndarray:
     """Simulate the identified improved AR(n) model (Eq. 4) for ``n_samples``."""
     from scipy.signal import lfilter

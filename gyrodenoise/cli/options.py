@@ -16,6 +16,7 @@ each stream at its own rate): :func:`add_filter_options` takes those texts.
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from gyrodenoise.core import kernels, methods
 from gyrodenoise.errors import InputError
@@ -165,7 +166,7 @@ def add_filter_options(parser: argparse.ArgumentParser, options=FILTER_OPTIONS, 
                                 metavar=metavars.get(opt), help=texts[opt])
 
 
-def filter_kw(args: argparse.Namespace) -> dict[str, float | int]:
+def filter_kw(args: argparse.Namespace) -> dict[str, Any]:
     """The core filter parameters given on the command line, by ``make_params``' names
     (``method`` and ``ar_order`` apart): an option left at None is not passed (the
     core's default applies), nor a method's own option with another method, nor an

@@ -62,6 +62,7 @@ HEAD_BYTES = 600
 class LogFormat(Protocol):
     """The adapter interface of a log format (see the module doc)."""
     name: str
+    description: str
     suffixes: tuple
     gyro_looked_for: str
     flight_looked_for: str
