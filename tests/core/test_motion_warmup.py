@@ -88,3 +88,16 @@ def test_compiled_equals_python_across_the_end_of_the_warm_up(fs):
     b, sb = batch.run(p, K.init_state(p), z, rs, compiled=False)
     assert a.tolist() == b.tolist()
     assert np.array_equal(sa, sb, equal_nan=True)
+
+
+def test_each_restart_warms_up_again():
+    """After a restart the noise level is read afresh: raw again until that session's first
+    noise-floor block is complete."""
+    fs = 1000.0
+    z = 0.3 + 0.01 * np.random.default_rng(5).standard_normal(1000)
+    rs = np.zeros(z.size, dtype=bool)
+    rs[600] = True
+    p = K.make_params(method="motion", sample_rate_hz=fs)
+    y, _, conv = batch.run(p, K.init_state(p), z, rs, trace_index=K.S_CONV)
+    assert np.flatnonzero(conv == 0.0).tolist() == list(range(K.MO_SPEC_N - 1)) + list(range(600, 600 + K.MO_SPEC_N - 1))
+    assert y[600:600 + K.MO_SPEC_N - 1].tolist() == z[600:600 + K.MO_SPEC_N - 1].tolist()
