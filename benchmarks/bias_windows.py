@@ -12,7 +12,8 @@
 * oracle: minus the mean of the trial's first rest segment from its ``movement`` flags (what
   ``real_motion.py`` removes before any filter; not available to a user in general).
 
-    python benchmarks/bias_windows.py                 # every BROAD trial found (about a minute)
+    python benchmarks/bias_windows.py                 # every BROAD trial found (about 20 s)
+    python benchmarks/bias_windows.py --per-axis      # stillness decided per axis (a one-axis core)
 
 Data: ``../shared/data/motion/broad`` (README there). Windows and the reference rotation are
 :mod:`benchmarks.motion_bench.realmotion`'s (the time offset estimated on the oracle-de-biased
@@ -52,21 +53,29 @@ def best_lane(rate_deg_s, fs):
     return np.where(conv == 1.0, best, -1.0)
 
 
-def stillness_bias(raw, fs, still_lane, still_s):
-    """Causal bias estimate (N x 3): the mean of the raw samples of the still stretches so far
-    (still: every axis's most likely filter at or below ``still_lane`` for ``still_s`` s)."""
-    lanes = np.column_stack([best_lane(raw[:, k], fs) for k in range(raw.shape[1])])
-    calm = np.all((lanes >= 0) & (lanes <= still_lane), axis=1)
-    need = max(1, int(round(still_s * fs)))
+def _still(calm, need):
     run = np.zeros(calm.size, dtype=int)
     c = 0
     for i, v in enumerate(calm):
         c = c + 1 if v else 0
         run[i] = c
-    still = run >= need
-    n = np.cumsum(still)
-    s = np.cumsum(np.where(still[:, None], raw, 0.0), axis=0)
-    bias = np.where(n[:, None] > 0, s / np.maximum(n, 1)[:, None], 0.0)
+    return run >= need
+
+
+def stillness_bias(raw, fs, still_lane, still_s, per_axis=False):
+    """Causal bias estimate (N x 3): the mean of the raw samples of the still stretches so far
+    (still: every axis's most likely filter at or below ``still_lane`` for ``still_s`` s; with
+    ``per_axis``, each axis on its own, as a one-axis filter core would decide)."""
+    lanes = np.column_stack([best_lane(raw[:, k], fs) for k in range(raw.shape[1])])
+    calm = (lanes >= 0) & (lanes <= still_lane)
+    need = max(1, int(round(still_s * fs)))
+    if per_axis:
+        still = np.column_stack([_still(calm[:, k], need) for k in range(raw.shape[1])])
+    else:
+        still = np.repeat(_still(np.all(calm, axis=1), need)[:, None], raw.shape[1], axis=1)
+    n = np.cumsum(still, axis=0)
+    s = np.cumsum(np.where(still, raw, 0.0), axis=0)
+    bias = np.where(n > 0, s / np.maximum(n, 1), 0.0)
     return bias, float(still.mean())
 
 
@@ -75,6 +84,7 @@ def main(argv=None) -> int:
     ap.add_argument("--cal-s", type=float, default=2.0, help="start-up calibration: seconds averaged")
     ap.add_argument("--still-lane", type=int, default=4, help="bank stillness: slowest lanes counted as still")
     ap.add_argument("--still-s", type=float, default=1.0, help="bank stillness: seconds still in a row")
+    ap.add_argument("--per-axis", action="store_true", help="bank stillness decided per axis (not all three)")
     args = ap.parse_args(argv)
     paths = sorted((R.MOTION_DIR / "broad").glob("*.hdf5"))
     if not paths:
@@ -82,7 +92,8 @@ def main(argv=None) -> int:
         return 2
     names = ("raw", "startup_cal", "bank_still", "oracle")
     print(f"RMS rotation error over windows (deg); ratio to raw / to the start-up calibration "
-          f"({args.cal_s:g} s); bank stillness: lanes <= {args.still_lane}, {args.still_s:g} s")
+          f"({args.cal_s:g} s); bank stillness: lanes <= {args.still_lane}, {args.still_s:g} s"
+          f"{', per axis' if args.per_axis else ', all axes'}")
     print(f"{'trial':44s} {'win':>4s} " + " ".join(f"{n:>12s}" for n in names) + "  still%")
     for path in paths:
         trial = R.load_broad(path)
@@ -94,7 +105,7 @@ def main(argv=None) -> int:
             print(f"{path.stem}: moves within the first {args.cal_s:g} s: skipped", file=sys.stderr)
             continue
         oracle = raw - trial.rate_deg_s                  # the first rest segment's mean, per axis
-        bias, frac = stillness_bias(raw, fs, args.still_lane, args.still_s)
+        bias, frac = stillness_bias(raw, fs, args.still_lane, args.still_s, args.per_axis)
         rates = {"raw": raw, "startup_cal": raw - raw[:k].mean(axis=0), "bank_still": raw - bias,
                  "oracle": raw - oracle}
         for w in WINDOWS_S:
