@@ -11,6 +11,7 @@ state after every sample, so they step sample by sample (C when available).
 from __future__ import annotations
 
 import logging
+from typing import NamedTuple
 
 import numpy as np
 
@@ -132,7 +133,18 @@ def _rigid_offline(p, seg, o_ext, compiled):
     return y[::-1].copy(), pb
 
 
+SMOOTH_PASS = (0.6, 0.85)   # smooth_motion's pass-through: the smoothed variance (units of R) where the
+                            # output starts moving to the raw sample, and where it is the raw sample
 SMOOTH_BLOCK = 8192     # samples per block of the offline smoother's combination (smooth_motion)
+
+
+class TwoFilter(NamedTuple):
+    """One constant-velocity model's two-filter smoothing at a sample (:func:`two_filter_rate`)."""
+
+    rate: object      # the smoothed rate, deg/s
+    loglik: object    # the log-likelihood of the two estimates' agreement
+    chi2: object      # d^T (P_f + P_b)^-1 d / r, the agreement's chi-square (2 degrees of freedom)
+    var: object       # the smoothed rate's variance, in units of r
 
 
 def _bank_record(p, seg, compiled):
@@ -194,7 +206,8 @@ def two_filter_rate(xf, pf, xb, pb, lam2, r):
     units of the white-noise variance ``r``; ``xb``, ``pb`` the same of the filter run on the
     reversed samples after z_{k+1} (its slope per reversed sample); ``lam2`` the tracking
     index squared (process noise lam2 r [[1/4, 1/2], [1/2, 1]] per sample). Scalars or
-    arrays. Returns (rate, the log-likelihood of the two estimates' agreement).
+    arrays. Returns a :class:`TwoFilter`: the smoothed rate, the log-likelihood of the two
+    estimates' agreement, its chi-square and the smoothed rate's variance in units of ``r``.
 
     * backward prediction to k (the reversed model is the same white-noise acceleration
       model): x_b = F x_b(k+1), P_b = F P_b(k+1) F^T + Q, then the slope back to forward
@@ -202,7 +215,8 @@ def two_filter_rate(xf, pf, xb, pb, lam2, r):
     * Eq. S1, the two-filter smoother (Fraser and Potter 1969; the same fixed point as the
       RTS smoother x_s(k) = x_f(k) + C_k (x_s(k+1) - x_p(k+1)), C_k = P_f F^T P_p(k+1)^-1):
       x_s = x_f + P_f (P_f + P_b)^-1 (x_b - x_f);
-    * the agreement: -(d^T (P_f + P_b)^-1 d / r + log det(P_f + P_b)) / 2, d = x_b - x_f."""
+    * the agreement: -(d^T (P_f + P_b)^-1 d / r + log det(P_f + P_b)) / 2, d = x_b - x_f;
+    * the smoothed covariance P_f - P_f (P_f + P_b)^-1 P_f, its rate's entry."""
     f00, f01, f11 = pf
     c00, c01, c11 = pb
     b00 = c00 + 2.0 * c01 + c11 + 0.25 * lam2          # F P F^T + Q, reversed time ...
@@ -215,7 +229,9 @@ def two_filter_rate(xf, pf, xb, pb, lam2, r):
     u0 = (m11 * d0 - m01 * d1) / det                   # (P_f + P_b)^-1 d
     u1 = (m00 * d1 - m01 * d0) / det
     rate = xf[0] + f00 * u0 + f01 * u1                 # Eq. S1, its rate
-    return rate, -0.5 * ((d0 * u0 + d1 * u1) / r + np.log(det))
+    chi2 = (d0 * u0 + d1 * u1) / r
+    var = f00 - (f00 * (m11 * f00 - m01 * f01) + f01 * (m00 * f01 - m01 * f00)) / det
+    return TwoFilter(rate, -0.5 * (chi2 + np.log(det)), chi2, var)
 
 
 def smooth_motion(p, seg, *, compiled=True):
@@ -242,7 +258,15 @@ def smooth_motion(p, seg, *, compiled=True):
     * Eq. S2 (the model's log-probability given the whole run): the forward and backward
       faded log-likelihoods of the bank plus that of the two estimates' agreement,
       -(d^T (P_f + P_b)^-1 d / R + log det(P_f + P_b)) / 2, d = x_b - x_f;
-    * the output is the mean of the x_s rates weighted by exp(S2 - max S2).
+    * the output is the mean of the x_s rates weighted by exp(S2 - max S2);
+    * the pass-through: where the weighted mean of the models' smoothed variances (units of
+      R, :class:`TwoFilter`) is above SMOOTH_PASS[0] the smoother removes little noise and its
+      model may not follow the motion (real vibration above the noise): the output moves
+      linearly to the raw sample, all the way at SMOOTH_PASS[1];
+    * the break test: where every model's agreement chi-square exceeds twice the bank's
+      restart gap (P_MO_RESET log-likelihood units), no model sees the samples up to k and
+      those after it as one motion (a step: the fastest filter rings after it and the slower
+      ones restart from it), and the output is the raw sample.
 
     Where only one direction filters (the other's warm-up: the first and last ``P_WARMUP``
     samples) its causal output is used; where either direction's spectral line test holds
@@ -257,7 +281,8 @@ def smooth_motion(p, seg, *, compiled=True):
     bo, bb, nwb, rb, ab, lb, zb = _bank_record(p, seg[::-1].copy(), compiled)
     bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[:, :, ::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]
     y = np.where(af == 1.0, fo, bo)          # one direction alone where the other warms up
-    both = (af[:-1] == 1.0) & (ab[1:] == 1.0)
+    gate = 2.0 * p[K.P_MO_RESET]               # the break test's chi-square (below)
+    lo, hi = SMOOTH_PASS
     # every sample k < n - 1 with the forward bank at k and the backward one at k + 1, in blocks
     # of SMOOTH_BLOCK samples (the temporaries stay small; the samples where one direction warms
     # up are computed and left out: they may divide by zero, hence the errstate)
@@ -270,15 +295,20 @@ def smooth_motion(p, seg, *, compiled=True):
             r = 0.5 * (rf[k] + rb[j])
             r = np.where(r > 0.0, r, 1.0)
             xs = np.empty((nf, k.stop - k.start))
-            ll = np.empty_like(xs)
+            ll, c2, vs = np.empty_like(xs), np.empty_like(xs), np.empty_like(xs)
             for i in range(nf):
                 lam2 = p[K.P_MO_G + 4 * K.MO_MAX_NF + i]     # lam^2 = beta^2 / (1 - alpha)
-                xs[i], ll[i] = two_filter_rate(
+                xs[i], ll[i], c2[i], vs[i] = two_filter_rate(
                     (bf[i, 0, k] + zf[k], bf[i, 1, k]), _filtered_cov(p, i, lnf),
                     (bb[i, 0, j] + zb[j], bb[i, 1, j]), _filtered_cov(p, i, lnb), lam2, r)
                 ll[i] += bf[i, 2, k] + bb[i, 2, j]                  # Eq. S2: the faded log-likelihoods
             w = np.exp(ll - ll.max(axis=0))
-            ys = np.sum(w * xs, axis=0) / np.sum(w, axis=0)
+            sw = np.sum(w, axis=0)
+            ys = np.sum(w * xs, axis=0) / sw
+            if p[K.P_MO_PT] > 0.0:                                  # the pass-through
+                u = np.clip((np.sum(w * vs, axis=0) / sw - lo) / (hi - lo), 0.0, 1.0)
+                ys += u * (seg[k] - ys)
+            ys = np.where(c2.min(axis=0) <= gate, ys, seg[k])      # the break test
         y[k][both[k]] = ys[both[k]]
     on = (lf == 1.0) | (lb == 1.0)
     y[on] = seg[on]                          # the line test: the raw sample

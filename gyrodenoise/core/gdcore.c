@@ -1009,7 +1009,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     }
     s[S_K] = k + 1.0;
     r = s[o + M_R];
-    if (k < p[P_WARMUP] || r == 0.0) {
+    if ((k < p[P_WARMUP] && !(p[P_MO_SPEC] > 0.0 && s[o + M_SR] > 0.0)) || r == 0.0) {
         for (i = 0; i < nf; i++) {
             bx[i] = z;
             ba[i] = 0.0;

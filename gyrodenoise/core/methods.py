@@ -225,7 +225,8 @@ PARAMS: tuple[Param, ...] = (
           lo_open=True, methods=("one_euro",), slot="P_OE_DCUT", option="--d-cutoff-hz", metavar="HZ",
           fmu="d_cutoff_hz"),
     Param("warmup_s", float, 1.0, "seconds after each restart with raw pass-through while the AR model "
-          "converges (at least 10 (ar_order + 1) samples)", "s", lo=0.0, option="--warmup-s", fmu="warmup_s"),
+          "converges (at least 10 (ar_order + 1) samples; motion: at most until its noise floor's first "
+          "128-sample block)", "s", lo=0.0, option="--warmup-s", fmu="warmup_s"),
     Param("b", float, 0.99, "Sage-Husa forgetting factor b", lo=0.0, hi=1.0, lo_open=True, hi_open=True,
           slot="P_B", option="--b", fmu="b"),
     Param("gamma", float, 3.0, "divergence criterion gamma (Eq. 32)", lo=1.0, slot="P_GAMMA", option="--gamma",

@@ -79,11 +79,12 @@ def test_two_filter_rate_equals_the_batch_least_squares_solution(lam):
     xb, pb = xb[::-1], pb[::-1]
     ref = _batch_ls(z, lam2, m0, p0, m1, p1)
     k = np.arange(n - 1)
-    rate, ll = batch.two_filter_rate((xf[k, 0], xf[k, 1]), (pf[k, 0, 0], pf[k, 0, 1], pf[k, 1, 1]),
+    rate, ll, chi2, var = batch.two_filter_rate((xf[k, 0], xf[k, 1]), (pf[k, 0, 0], pf[k, 0, 1], pf[k, 1, 1]),
                                      (xb[k + 1, 0], xb[k + 1, 1]),
                                      (pb[k + 1, 0, 0], pb[k + 1, 0, 1], pb[k + 1, 1, 1]), lam2, 1.0)
     np.testing.assert_allclose(rate, ref[:-1], rtol=0, atol=1e-9 * max(1.0, np.abs(ref).max()))
-    assert np.all(np.isfinite(ll))
+    assert np.all(np.isfinite(ll)) and np.all(chi2 >= 0.0)
+    assert np.all((var > 0.0) & (var < pf[k, 0, 0]))     # both halves: below the forward variance
     assert np.abs(xf[:-1, 0] - ref[:-1]).max() > 1e-3     # the forward filter alone is not it
 
 

@@ -190,7 +190,10 @@ def test_default_unchanged_golden():
     with p[P_MO_CUS + 1] = 0 the output is the golden before it, bit for bit; regenerated for
     the bank of 13 constant-velocity + 3 constant-acceleration lanes: 789 samples moved, by at
     most 1.5e-8 deg/s (median of those 9.4e-14); with p[P_MO_NCA] = 0 the output is the golden
-    before it, bit for bit; to regenerate: the plain-Python
+    before it, bit for bit; regenerated when motion's warm-up came to end at its noise floor's
+    first block (127 samples, not warmup_s's 400 at 400 Hz): 1342 samples moved (the 273 of
+    samples 127-399, raw before, and the bank's history after them), by at most 0.0156 deg/s
+    (median of those 1.8e-6); to regenerate: the plain-Python
     batch.run(p, K.init_state(p), z, restarts=rs, compiled=False) saved with np.save)."""
     z, rs = golden_record()
     golden = np.load(GOLDEN)
