@@ -93,11 +93,17 @@ def test_streams_never_filtered_say_why(tmp_path):
 
 
 def test_batch_sampler_bursts_shorter_than_the_warmup_say_why(tmp_path):
-    rep = process.process_log(shared_log("copter_00061-2021-11-21_18-03-38.bin"), tmp_path, plots=False, csv=False)
+    """An AR method's 1 s warm-up (2002 samples at 2 kHz) is longer than every 1024-sample
+    burst: the stream is left raw with the reason. ``motion`` ends its warm-up once the
+    noise level is read (128 samples), so it filters the same bursts."""
+    log = shared_log("copter_00061-2021-11-21_18-03-38.bin")
+    rep = process.process_log(log, tmp_path / "shakf", plots=False, csv=False, method="shakf")
     isb = by_name(rep)["ISB.gyro[0]"]
     assert "each of its 23 sessions is at most 1024 samples" in isb["not_filtered"]
     assert "warm-up of 2002 samples" in isb["not_filtered"] and "--warmup-s" in isb["not_filtered"]
     assert all(v["ratio"] is None for v in isb["noise"].values())
+    motion = by_name(process.process_log(log, tmp_path / "motion", plots=False, csv=False))["ISB.gyro[0]"]
+    assert motion["not_filtered"] is None and all(v["ratio"] is not None for v in motion["noise"].values())
 
 
 # ------------------------------------------------------------ item 7
