@@ -22,8 +22,9 @@ row k during the step [t_k, t_(k+1)]:
   (row 0, row 0, row 1, ..., row N-2) and row j >= 1 that run's sample j (a restart in input
   row k shows in output row k + 1);
 * a denoiser filters row k in the step [t_k, t_(k+1)]: output row k + 1 is ``denoise``'s
-  sample k of the input rows; output row 0 is what the denoiser gives before its first step
-  (:data:`DENOISER_INITIAL_OUTPUT`).
+  sample k of the input rows; output row 0, read before the first step, is the first output for
+  row 0 (the denoiser computes it when asked in initialisation mode and from
+  ExitInitializationMode on), equal to row 1.
 
 The last input row is set before a step that the run does not take (its stop time is
 t_(N-1), the last row's time): the inputs and outputs have the same times, N rows each. An array
@@ -49,8 +50,6 @@ N_SAMPLES = 800
 RESTART_AT = 500
 SEED = 7            # of the denoisers' input noise (the sensor uses its seed parameter's start value, 0)
 SENSOR_CARD = "paper_fog"   # the sensors' card parameter's start value
-#: a denoiser's filtered_rate before its first step (read after ExitInitializationMode)
-DENOISER_INITIAL_OUTPUT = 0.0
 
 #: FMU model name -> what it is ("denoiser", "sensor" or "imu")
 KINDS = {
@@ -85,15 +84,16 @@ def sensor_sample_rows(n):
 
 
 def _denoiser_outputs(z, restarts):
-    """A denoiser's output rows for the input rows ``z`` (n, or n x axes) and ``restarts``: row 0
-    the initial output, row k + 1 the filter's sample k."""
+    """A denoiser's output rows for the input rows ``z`` (n, or n x axes) and ``restarts``: row k + 1
+    the filter's sample k, row 0 its first output (sample 0: row 0's alone, the filter is causal)."""
     fs = 1.0 / DEFAULT_STEP_SIZE_S
-    y = np.full(z.shape, DENOISER_INITIAL_OUTPUT)
+    y = np.empty(z.shape)
     if z.ndim == 1:
         y[1:] = denoise(z[:-1], fs, restarts=restarts[:-1])
     else:
         for j in range(z.shape[1]):
             y[1:, j] = denoise(z[:-1, j], fs, restarts=restarts[:-1])
+    y[0] = y[1]
     return y
 
 

@@ -74,7 +74,8 @@ class FogDenoiser(Fmi2Slave):
         getters = {f"phi_{k}": self._phi_getter(k) for k in range(1, variables.MAX_AR_ORDER + 1)}
         getters.update(c=self._get_c, R_hat=self._state_getter("S_R"), Q_hat=self._state_getter("S_Q"),
                        innovation=self._state_getter("S_INNOV"), converged=self._get_converged,
-                       n_rejected=self._get_n_rejected)
+                       n_rejected=self._get_n_rejected, filtered_rate=self._get_filtered_rate)
+        self.filtered_rate = 0.0   # the output of the last step (the first output before the first step)
         self._max_order = variables.MAX_AR_ORDER   # phi_1 .. phi_max declared; phi_k, k > ar_order, reads 0
         self._parameter_names = _rules.register_declared(self, variables, variables.FOG_DENOISER, getters)
         # FMI 2.0 forbids setting an output, and a fixed parameter after initialisation
@@ -98,6 +99,27 @@ class FogDenoiser(Fmi2Slave):
         def get():
             return 0.0 if self._den is None else self._den.state[idx]
         return get
+
+    def _get_filtered_rate(self):
+        # in initialisation mode: the first output for the inputs and parameters set so far, so that
+        # a master that propagates values in initialisation mode (OMSimulator) passes it on
+        if getattr(self, "_in_init", False):
+            first = self._first_output()
+            if first is not None:
+                return first
+        return self.filtered_rate
+
+    def _first_output(self):
+        """The first step's filtered_rate for the inputs and parameters set so far, from a scratch
+        filter (None if the parameters cannot build one: fmi2ExitInitializationMode says why)."""
+        kept = self._den, self._n, self._theta0
+        try:
+            self._make_denoiser()
+            return float(self._den.step(self.raw_rate, self.restart))
+        except Exception:
+            return None
+        finally:
+            self._den, self._n, self._theta0 = kept
 
     def _get_n_rejected(self):
         return 0 if self._den is None else self._den.n_rejected
@@ -128,6 +150,7 @@ class FogDenoiser(Fmi2Slave):
         self._theta0 = self._K.layout(self.ar_order)[0]
 
     def exit_initialization_mode(self):
+        first = self._first_output()   # the output until the first step
         try:
             self._make_denoiser()
         except ValueError as exc:
@@ -137,6 +160,7 @@ class FogDenoiser(Fmi2Slave):
             # pythonfmu turns the exception into fmi2Fatal from fmi2ExitInitializationMode
             # (the guard keeps the instance's objects alive, see gyrodenoise_pythonfmu_rules)
             raise ValueError(msg) from None
+        self.filtered_rate = first
         self._failed = None
         self._initialised = True
         if self._D.core_name() == "C":

@@ -76,13 +76,43 @@ class SimulatedFog(Fmi2Slave):
 
         # the variables (inputs, parameters at their defaults, outputs) as declared in
         # gyrodenoise/fmu/variables.py
-        self._parameter_names = _rules.register_declared(self, variables, variables.SIMULATED_FOG)
+        self.measured_rate, self.restarted = 0.0, False   # until fmi2ExitInitializationMode takes sample 0
+        self._parameter_names = _rules.register_declared(
+            self, variables, variables.SIMULATED_FOG,
+            {"measured_rate": lambda: self._output("measured_rate"), "restarted": lambda: self._output("restarted")})
         # FMI 2.0 forbids setting an output, and a fixed parameter after
         # initialisation. pythonfmu would set them silently and cannot return
         # fmi2Error from a setter: the write is refused with a logged error and
         # the next fmi2DoStep is refused (fmi2Discard) with the reason.
         _rules.install_write_rules(self, "SimulatedFog", Fmi2Causality.output, Fmi2Causality.parameter,
                                    Fmi2Status.error)
+
+    # ----------------------------------------------------------- readouts
+    def _output(self, name):
+        """An output; in initialisation mode sample 0's for the inputs and parameters set so far (from a
+        scratch stream), so that a master that propagates values in initialisation mode (OMSimulator)
+        passes sample 0 on."""
+        if getattr(self, "_in_init", False):
+            first = self._first_sample()
+            if first is not None:
+                return first[name]
+        return getattr(self, name)
+
+    def _first_sample(self):
+        """{"measured_rate", "restarted"} of sample 0 for the inputs and parameters set so far, or None
+        (a non-finite true rate, invalid parameters: fmi2ExitInitializationMode says why)."""
+        kept = self._sim, self._period
+        try:
+            w = float(self.true_rate)
+            if not math.isfinite(w):
+                return None
+            self._make_stream()
+            restart = bool(self.restart)
+            return {"measured_rate": float(self._sim.step(w, restart)), "restarted": restart}
+        except Exception:
+            return None
+        finally:
+            self._sim, self._period = kept
 
     # ---------------------------------------------------------- lifecycle
     def _make_stream(self):

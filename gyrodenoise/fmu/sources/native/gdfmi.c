@@ -352,6 +352,50 @@ static gd_status_t gdl_setup_experiment(gdfmi_inst_t *c, const char *fn, double 
     return GD_OK;
 }
 
+/* ---------------------------------------------- outputs before the first step */
+/* The outputs for the parameters and inputs set so far, computed on a scratch copy of c (tmp:
+ * its own m and s, no logger, no FMU states): the model built and started and, for a model whose
+ * first sample a step takes (first_sample_at_start 0: the denoisers), one step at the start time.
+ * So a master that propagates values in initialisation mode (OMSimulator) reads the sensor's
+ * sample 0 and the denoiser's first output, not placeholders. 1 if tmp holds them (free it with
+ * drop_scratch); 0 where the parameters cannot build the model (ExitInitializationMode will say
+ * why) or memory is short: the outputs then read as before initialisation. */
+static int first_outputs(gdfmi_inst_t *c, gdfmi_inst_t *tmp) {
+    char err[512];
+    long total;
+    *tmp = *c;
+    tmp->cb.logger = NULL;
+    tmp->states = NULL;
+    tmp->s = NULL;
+    tmp->m = gdfmi_alloc(c, 1, GDM->m_size);
+    if (!tmp->m) return 0;
+    memcpy(tmp->m, c->m, GDM->m_size);
+    total = GDM->build(tmp, err, sizeof err);
+    if (total > 0) tmp->s = (double *)gdfmi_alloc(c, (size_t)total, sizeof(double));
+    if (!tmp->s) {
+        gdfmi_free(c, tmp->m);
+        return 0;
+    }
+    memset(tmp->s, 0, (size_t)total * sizeof(double));
+    tmp->k.ns = total;
+    tmp->k.have_model = 1;
+    GDM->start(tmp);
+    if (!GDM->first_sample_at_start) {
+        gd_status_t st = GDM->step(tmp, tmp->k.time);
+        if (st != GD_OK && st != GD_WARNING) {
+            gdfmi_free(c, tmp->s);
+            gdfmi_free(c, tmp->m);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static void drop_scratch(gdfmi_inst_t *tmp) {
+    gdfmi_free(tmp, tmp->s);
+    gdfmi_free(tmp, tmp->m);
+}
+
 static gd_status_t gdl_exit_initialization_mode(gdfmi_inst_t *c) {
     char err[1024], info[512];
     long total;
@@ -364,6 +408,13 @@ static gd_status_t gdl_exit_initialization_mode(gdfmi_inst_t *c) {
     memset(c->s, 0, (size_t)total * sizeof(double));
     c->k.ns = total;
     GDM->start(c);
+    if (!GDM->first_sample_at_start) { /* until the first step, its outputs (a step changes only outputs in m) */
+        gdfmi_inst_t tmp;
+        if (first_outputs(c, &tmp)) {
+            memcpy(c->m, tmp.m, GDM->m_size);
+            drop_scratch(&tmp);
+        }
+    }
     c->k.have_model = 1;
     c->k.n_steps = c->k.n_bad_steps = 0;
     c->k.phase = ST_STEP_COMPLETE;
@@ -458,19 +509,32 @@ static int check_settable(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], s
 }
 
 /* Get<Real>: the values of vr (an array variable's n values in a row) */
+/* the instance the values of vr are read from: c, or in initialisation mode, when vr names an
+ * output, the scratch copy tmp holding the first sample's outputs (drop_scratch it when != c) */
+static gdfmi_inst_t *read_source(gdfmi_inst_t *c, const gd_vr_t vr[], size_t nvr, gdfmi_inst_t *tmp) {
+    size_t i;
+    if (c->k.phase != ST_INIT) return c;
+    for (i = 0; i < nvr; i++)
+        if (!IS_TIME(vr[i]) && GDM->vars[vr[i]].kind == K_OUTPUT) return first_outputs(c, tmp) ? tmp : c;
+    return c;
+}
+
 static gd_status_t gdl_get_real(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr, double value[],
                                 size_t nValues) {
     size_t i, at = 0;
+    gdfmi_inst_t tmp, *src;
     if (!check_vrs(c, fn, vr, nvr, value, nValues, T_REAL)) return GD_ERROR;
+    src = read_source(c, vr, nvr, &tmp);
     for (i = 0; i < nvr; i++) {
         unsigned n = IS_TIME(vr[i]) ? 1 : GDM->vars[vr[i]].n;
         if (IS_TIME(vr[i])) value[at++] = c->k.time;
-        else if (n == 1) value[at++] = GDM->get_real(c, vr[i]);
+        else if (n == 1) value[at++] = GDM->get_real(src, vr[i]);
         else {
-            memcpy(value + at, GDM->real_ref(c->m, vr[i]), n * sizeof(double));
+            memcpy(value + at, GDM->real_ref(src->m, vr[i]), n * sizeof(double));
             at += n;
         }
     }
+    if (src != c) drop_scratch(&tmp);
     return GD_OK;
 }
 

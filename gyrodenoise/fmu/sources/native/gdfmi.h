@@ -198,6 +198,10 @@ typedef struct {
                        char *err, size_t nerr);
     /* information logged at ExitInitializationMode */
     void (*describe)(const gdfmi_inst_t *c, char *out, size_t n);
+    /* 1: start takes the first sample (a sensor's sample 0, from the inputs set in initialisation
+     * mode); 0: the first step does (a denoiser). Either way the outputs read in initialisation
+     * mode are the first sample's, computed on a scratch copy (gdfmi.c: first_outputs) */
+    int first_sample_at_start;
 } gdfmi_model_t;
 
 /* helpers for the model (defined in gdfmi.c) */

@@ -1,0 +1,137 @@
+"""How hosts we do not run here step our FMUs, emulated over fmpy's low-level API
+(tests/fmu/hosts.py): a master that propagates values in initialisation mode (OMSimulator), a
+master that accumulates its time (OMSimulator, the FMU Compliance Checker). Neither host is
+installed here: these are emulations of their documented and observed behaviour."""
+import numpy as np
+import pytest
+
+import gyrodenoise as gd
+from tests.fmu.fmi import Logger  # noqa: E402
+from tests.fmu.fmi3 import Slave3, unzip_all  # noqa: E402
+from tests.fmu.hosts import Driver  # noqa: E402
+
+from fmpy.fmi2 import FMU2Slave  # noqa: E402
+
+#: (sensor, denoiser) pairs of one FMU kind
+CHAINS = {"native FMI 2.0": ("SimulatedFogNative", "FogDenoiserNative"),
+          "native FMI 3.0": ("SimulatedFogNative3", "FogDenoiserNative3"),
+          "pythonfmu": ("SimulatedFog", "FogDenoiser")}
+H = 0.005
+
+
+@pytest.fixture(scope="module")
+def fmus(fmu_build, native_build, tmp_path_factory):
+    folder, proc = fmu_build
+    if proc.returncode != 0:
+        pytest.skip(f"fmu build failed: {proc.stderr[-300:]}")
+    dest = tmp_path_factory.mktemp("hosts")
+    out = unzip_all(folder, ("SimulatedFog", "FogDenoiser"), dest)
+    out.update(unzip_all(native_build[0], ("SimulatedFogNative", "FogDenoiserNative", "SimulatedFogNative3",
+                                           "FogDenoiserNative3", "FogDenoiserImuNative3"), dest))
+    return out
+
+
+class Instance:
+    """An fmpy slave of an unzipped FMU (FMI 2.0 or 3.0) with a Driver, its log kept."""
+
+    def __init__(self, entry, name):
+        fmu, unz, md = entry
+        self.md = md
+        self.log = []
+        if md.fmiVersion == "3.0":
+            self._keep = Slave3(unz, md, instance=name)
+            self.s = self._keep.s
+            self.log = self._keep.log
+        else:
+            self._keep = Logger()
+            self.log = self._keep.messages
+            self.s = FMU2Slave(guid=md.guid, unzipDirectory=str(unz),
+                               modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+            self.s.instantiate(callbacks=self._keep.callbacks)
+        self.d = Driver(self.s, md)
+
+    def enter(self):
+        if self.md.fmiVersion == "3.0":
+            self.s.enterInitializationMode(startTime=0.0)
+        else:
+            self.s.setupExperiment(startTime=0.0)
+            self.s.enterInitializationMode()
+
+    def close(self):
+        self.s.terminate()
+        self.s.freeInstance()
+
+
+def _truth(n):
+    t = np.arange(n) * H
+    truth = 0.5 + 3.0 * np.sin(2 * np.pi * 0.5 * t) * (t > 1.0)
+    rs = np.zeros(n, dtype=bool)
+    rs[300] = True
+    return truth, rs
+
+
+@pytest.mark.parametrize("chain", list(CHAINS))
+def test_a_master_that_propagates_in_initialisation_gets_the_chain_from_sample_0(fmus, chain):
+    """OMSimulator's order: in initialisation mode the sensor's outputs are read and set on the
+    denoiser; then each step: every FMU steps, then the outputs are passed on. The sensor's
+    sample 0 must be there in initialisation mode (it read 0.0 before: 0.49 deg/s off end to end
+    at sample 0), and the denoiser's output from then on is gd.denoise(gd.simulate(...)) from
+    sample 0."""
+    sensor_name, denoiser_name = CHAINS[chain]
+    n = 600
+    truth, rs = _truth(n + 1)
+    sensor, den = Instance(fmus[sensor_name], "sensor"), Instance(fmus[denoiser_name], "denoiser")
+    sensor.enter()
+    den.enter()
+    sensor.d.set("true_rate", truth[0])
+    sensor.d.set("restart", rs[0])
+    s0, r0 = sensor.d.get("measured_rate"), sensor.d.get("restarted")
+    den.d.set("raw_rate", s0)
+    den.d.set("restart", r0)
+    y_init = den.d.get("filtered_rate")
+    sensor.s.exitInitializationMode()
+    den.s.exitInitializationMode()
+    assert sensor.d.get("measured_rate") == s0          # the sample taken at initialisation, unchanged
+    assert den.d.get("filtered_rate") == y_init         # the first output, until the first step
+    ys, ss = [], [s0]
+    for k in range(n):
+        sensor.d.set("true_rate", truth[k + 1])        # sample k + 1 from the step [t_k, t_k+1]
+        sensor.d.set("restart", rs[k + 1])
+        sensor.s.doStep(k * H, H)
+        den.s.doStep(k * H, H)
+        ys.append(den.d.get("filtered_rate"))
+        ss.append(sensor.d.get("measured_rate"))
+        den.d.set("raw_rate", ss[-1])                   # propagation after the step
+        den.d.set("restart", sensor.d.get("restarted"))
+    sensor.close()
+    den.close()
+    rec = gd.simulate("paper_fog", n + 1, seed=0, true_rate_deg_s=truth, restarts=rs)
+    assert s0 == rec.rate_deg_s[0]
+    assert np.array_equal(ss, rec.rate_deg_s)
+    want = gd.denoise(rec.rate_deg_s[:n], 1 / H, restarts=rs[:n])
+    assert y_init == want[0]
+    assert np.array_equal(ys, want)
+
+
+@pytest.mark.parametrize("name", ["FogDenoiserNative", "FogDenoiserNative3", "FogDenoiser",
+                                  "FogDenoiserImuNative3"])
+def test_the_denoisers_first_output_in_initialisation_follows_its_inputs_without_filtering(fmus, name):
+    """Reading the output in initialisation mode filters nothing: the first step still filters the
+    input set before it as sample 0."""
+    inst = Instance(fmus[name], "d")
+    inst.enter()
+    imu = name.endswith("ImuNative3")
+    z = (np.array([1.0, 2.0, 3.0]) if imu else 1.0)
+    inst.d.set("raw_rate", z)
+    first = inst.d.get("filtered_rate")
+    inst.d.set("raw_rate", 2 * z)
+    second = inst.d.get("filtered_rate")
+    inst.s.exitInitializationMode()
+    inst.d.set("raw_rate", 3 * z)
+    inst.s.doStep(0.0, H)
+    after = inst.d.get("filtered_rate")
+    inst.close()
+    one = lambda x: gd.denoise(np.array([x]), 1 / H)[0]  # noqa: E731
+    np.testing.assert_array_equal(first, np.vectorize(one)(z))
+    np.testing.assert_array_equal(second, np.vectorize(one)(2 * z))
+    np.testing.assert_array_equal(after, np.vectorize(one)(3 * z))
