@@ -144,3 +144,28 @@ def fmusim_run(slave, md, inputs, outputs, stop_time, interval, start_time=0.0):
             n_steps += 1
         sample(time)
     return {k: np.array(v) for k, v in rec.items()}
+
+
+def accumulated_run(slave, md, inputs_at, stop_time, h, on_step=None):
+    """Drive ``slave`` (initialised, in step mode) as a master that accumulates its time does
+    (OMSimulator, the FMU Compliance Checker): t = 0; while t < stop: the inputs ``inputs_at(t)``
+    ({name: value}) are set, a step of min(h, stop - t) is taken, t += that step. ``on_step(t, size)``
+    is called after each step. Returns the step sizes taken."""
+    d = Driver(slave, md)
+    t, sizes = 0.0, []
+    while t < stop_time:
+        size = min(h, stop_time - t)
+        for name, value in inputs_at(t).items():
+            d.set(name, value)
+        slave.doStep(t, size)
+        t += size
+        sizes.append(size)
+        if on_step is not None:
+            on_step(t, size)
+    return sizes
+
+
+def row_at(times, t, tol):
+    """The row of ``times`` a time ``t`` belongs to: the one within ``tol`` of it, else the last before it."""
+    k = int(np.searchsorted(times, t + tol, side="right")) - 1
+    return max(k, 0)

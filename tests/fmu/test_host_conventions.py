@@ -2,13 +2,15 @@
 (tests/fmu/hosts.py): a master that propagates values in initialisation mode (OMSimulator), a
 master that accumulates its time (OMSimulator, the FMU Compliance Checker). Neither host is
 installed here: these are emulations of their documented and observed behaviour."""
+import zipfile
+
 import numpy as np
 import pytest
 
 import gyrodenoise as gd
 from tests.fmu.fmi import Logger  # noqa: E402
 from tests.fmu.fmi3 import Slave3, unzip_all  # noqa: E402
-from tests.fmu.hosts import Driver  # noqa: E402
+from tests.fmu.hosts import Driver, accumulated_run, row_at  # noqa: E402
 
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 
@@ -47,7 +49,7 @@ class Instance:
             self.log = self._keep.messages
             self.s = FMU2Slave(guid=md.guid, unzipDirectory=str(unz),
                                modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-            self.s.instantiate(callbacks=self._keep.callbacks)
+            self.s.instantiate(callbacks=self._keep.callbacks, loggingOn=True)
         self.d = Driver(self.s, md)
 
     def enter(self):
@@ -135,3 +137,50 @@ def test_the_denoisers_first_output_in_initialisation_follows_its_inputs_without
     np.testing.assert_array_equal(first, np.vectorize(one)(z))
     np.testing.assert_array_equal(second, np.vectorize(one)(2 * z))
     np.testing.assert_array_equal(after, np.vectorize(one)(3 * z))
+
+
+@pytest.mark.parametrize("name,stop", [("FogDenoiserNative", 600.0), ("FogDenoiserNative3", 600.0),
+                                       ("SimulatedFogNative", 600.0), ("SimulatedFogNative3", 4.0),
+                                       ("FogDenoiser", 4.0), ("SimulatedFog", 4.0)])
+def test_a_run_with_accumulated_time_ends_without_a_warning(fmus, name, stop):
+    """t += 0.005 up to 600 s (or 4 s) ends with a step of 4.7e-10 s (6.3e-14 s): below 1e-6 of the
+    sample period, no sample: answered OK without a warning, the outputs unchanged (OMSimulator
+    treats a warning as an error: the run failed at its last step)."""
+    inst = Instance(fmus[name], "acc")
+    inst.enter()
+    sensor = "Simulated" in name
+    out = "measured_rate" if sensor else "filtered_rate"
+    inst.s.exitInitializationMode()
+    last = []
+    sizes = accumulated_run(inst.s, inst.md, lambda t: {("true_rate" if sensor else "raw_rate"): 1.0 + np.sin(t)},
+                            stop, H, on_step=lambda t, size: last.append(inst.d.get(out)) if size < H / 2 else None)
+    assert 0 < sizes[-1] < 1e-6 * H and all(s == H for s in sizes[:-1])
+    assert len(sizes) == round(stop / H) + 1
+    assert [m for m in inst.log if m[0] >= 1] == []          # no warning, no error
+    before = inst.d.get(out)
+    inst.close()
+    assert last == [before]
+
+
+def test_the_reference_replays_under_accumulated_time(fmus):
+    """A master that accumulates its time and reads its inputs at the row its time belongs to
+    within 1e-6 of the period: the reference of FogDenoiserNative replays row for row, the
+    restart on its sample, the last step a sliver."""
+    from gyrodenoise.fmu.reference import N_SAMPLES
+    from tests.fmu.hosts import read_table
+    fmu, unz, md = fmus["FogDenoiserNative"]
+    with zipfile.ZipFile(fmu) as z:
+        inputs = read_table(z.read("documentation/FogDenoiserNative_in.csv").decode())
+        ref = read_table(z.read("documentation/FogDenoiserNative_ref.csv").decode())
+    inst = Instance(fmus["FogDenoiserNative"], "acc")
+    inst.enter()
+    inst.d.set("raw_rate", inputs["raw_rate"][0])
+    inst.s.exitInitializationMode()
+    rows = lambda t: row_at(inputs["time"], t, 1e-6 * H)  # noqa: E731
+    out = [inst.d.get("filtered_rate")]
+    accumulated_run(inst.s, md, lambda t: {"raw_rate": inputs["raw_rate"][rows(t)],
+                                           "restart": inputs["restart"][rows(t)]},
+                    (N_SAMPLES - 1) * H, H, on_step=lambda t, size: out.append(inst.d.get("filtered_rate")))
+    assert [m for m in inst.log if m[0] >= 1] == []
+    inst.close()
+    assert np.array_equal(out[:N_SAMPLES], ref["filtered_rate"])

@@ -40,6 +40,9 @@ _REFUSED = _rules.REFUSED
 
 #: relative tolerance between the step size and the card's sample period
 STEP_RTOL = 1e-6
+#: a step shorter than this fraction of the sample period is no sample: the sliver a master that
+#: accumulates its time (t += h) leaves before its stop time; answered OK, outputs unchanged
+SLIVER_RTOL = 1e-6
 #: format of the FMU state: parameters, inputs, outputs and the state buffer of gdsim.c; a
 #: state of another version is refused
 STATE_VERSION = 2
@@ -69,6 +72,7 @@ class SimulatedFog(Fmi2Slave):
         self._period = None
         self._n_steps = 0
         self._n_bad_steps = 0
+        self._n_slivers = 0         # steps shorter than SLIVER_RTOL of the period (no sample)
         self._failed = None         # reason why stepping is refused, if any
         self._initialised = False   # fixed parameters are frozen from fmi2ExitInitializationMode on
         self._terminated = False
@@ -193,6 +197,8 @@ class SimulatedFog(Fmi2Slave):
             self.log(f"SimulatedFog: communication step size {step_size!r} s at t={current_time!r} s "
                      f"is not a positive finite number; step refused", Fmi2Status.error)
             return False
+        if step_size < SLIVER_RTOL * period:
+            return self._sliver(current_time, step_size, period)
         if abs(step_size - period) > STEP_RTOL * period:
             self._n_bad_steps += 1
             if self.strict_step_size:
@@ -220,11 +226,23 @@ class SimulatedFog(Fmi2Slave):
         self._n_steps += 1
         return True
 
+    def _sliver(self, current_time, step_size, period):
+        """A step below SLIVER_RTOL of the period: no sample, the outputs stay as they are."""
+        self._n_slivers += 1
+        self.log(f"SimulatedFog: step size {step_size!r} s at t={current_time!r} s is below {SLIVER_RTOL} of "
+                 f"the card's sample period {period!r} s: no sample (a master's accumulated time), outputs unchanged",
+                 Fmi2Status.ok)
+        return True
+
     def terminate(self):
         self._terminated = True
+        if self._n_slivers:
+            self.log(f"SimulatedFog: {self._n_slivers} step(s) shorter than {SLIVER_RTOL} of the sample period took "
+                     f"no sample (a master's accumulated time)", Fmi2Status.ok)
         if self._n_bad_steps:
-            self.log(f"SimulatedFog: {self._n_bad_steps} of {self._n_steps} step(s) had a step size "
-                     f"different from the card's sample period {self._period!r} s", Fmi2Status.warning)
+            self.log(f"SimulatedFog: {self._n_bad_steps} step(s) had a step size "
+                     f"different from the card's sample period {self._period!r} s ({self._n_steps} sample(s) taken)",
+                     Fmi2Status.warning)
 
     # -------------------------------------------------------------- state
     def _get_fmu_state(self):

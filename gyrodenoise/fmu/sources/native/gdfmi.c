@@ -427,9 +427,13 @@ static gd_status_t gdl_exit_initialization_mode(gdfmi_inst_t *c) {
 
 static gd_status_t gdl_terminate(gdfmi_inst_t *c) {
     if (c->k.n_bad_steps)
-        gdfmi_log(c, GD_OK, GD_FN("Terminate") ": %lld of %lld step(s) had a size different from "
-                  "%s %.17g s", (long long)c->k.n_bad_steps, (long long)c->k.n_steps, GDM->period_name,
-                  GDM->period(c->m));
+        gdfmi_log(c, GD_OK, GD_FN("Terminate") ": %lld step(s) had a size different from %s %.17g s "
+                  "(%lld sample(s) taken)", (long long)c->k.n_bad_steps, GDM->period_name,
+                  GDM->period(c->m), (long long)c->k.n_steps);
+    if (c->n_slivers)
+        gdfmi_log(c, GD_OK, GD_FN("Terminate") ": %lld step(s) shorter than %g of %s %.17g s took no "
+                  "sample (a master's accumulated time)", (long long)c->n_slivers, SLIVER_RTOL,
+                  GDM->period_name, GDM->period(c->m));
     c->k.phase = ST_TERMINATED;
     return GD_OK;
 }
@@ -437,6 +441,7 @@ static gd_status_t gdl_terminate(gdfmi_inst_t *c) {
 static gd_status_t gdl_reset(gdfmi_inst_t *c) {
     drop_model(c);
     set_defaults(c);
+    c->n_slivers = 0;
     return GD_OK;
 }
 
@@ -845,6 +850,14 @@ static gd_status_t gdl_do_step(gdfmi_inst_t *c, double t, double h) {
     if (!(h > 0.0) || !isfinite(h))
         return gdfmi_fail(c, GD_FN("DoStep") ": communication step size %.17g at t=%.17g s is not a finite "
                           "number > 0", h, t);
+    if (h < SLIVER_RTOL * T) { /* no sample: the outputs stay those at t */
+        c->n_slivers++;
+        gdfmi_log(c, GD_OK, GD_FN("DoStep") ": step size %.17g s at t=%.17g s is below %g of %s %.17g s: "
+                  "no sample (a master's accumulated time), outputs unchanged", h, t, SLIVER_RTOL,
+                  GDM->period_name, T);
+        c->k.time = t + h;
+        return GD_OK;
+    }
     if (fabs(h - T) > STEP_RTOL * T) {
         c->k.n_bad_steps++;
         if (GDM->strict_step_size(c->m)) {

@@ -117,6 +117,9 @@ enum {
 #define N_CATS 5
 
 #define STEP_RTOL 1e-6 /* tolerated relative mismatch of step size and the model's sample period */
+/* a step shorter than this fraction of the sample period is no sample: the sliver a master that
+ * accumulates its time (t += h) leaves before its stop time; answered OK, outputs unchanged */
+#define SLIVER_RTOL 1e-6
 
 /* variable types and kinds of the variable table */
 enum { T_REAL, T_INTEGER, T_BOOLEAN, T_STRING };
@@ -150,6 +153,7 @@ typedef struct {
     void *m;   /* the model's fixed-size part (gdfmi_model.m_size bytes) */
     double *s; /* the model's state buffer, k.ns doubles (NULL before initialisation) */
     gdfmi_state_t *states; /* the FMU states this instance allocated and the host has not freed */
+    int64_t n_slivers;     /* steps shorter than SLIVER_RTOL of the period (no sample), for the log */
 } gdfmi_inst_t;
 
 /* a serialization cursor; io is put (write) or get (read) */
