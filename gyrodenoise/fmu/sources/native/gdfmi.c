@@ -31,6 +31,7 @@ static const char *const cat_names[N_CATS] = {
  * states the host did not free (FMI 2.0: fmi2FreeInstance frees all it allocated) */
 struct gdfmi_state_s {
     uint32_t magic;
+    uint64_t tag; /* the model's (model_tag): every native FMU shares this layer and its magic */
     gdfmi_core_t k;
     void *m;
     double *s;
@@ -582,9 +583,22 @@ static gd_status_t gdl_set_string(gdfmi_inst_t *c, const char *fn, const gd_vr_t
 }
 
 /* --------------------------------------------------------------- FMU state */
+/* the tag of this model's FMU states: FNV-1a of its GUID (instantiation token), so that an FMU
+ * refuses the in-memory state of another of the project's FMUs (same layer, same magic, other
+ * buffers) instead of reading past that model's buffers */
+static uint64_t model_tag(void) {
+    const unsigned char *p = (const unsigned char *)GDM->guid;
+    uint64_t h = 1469598103934665603ULL;
+    while (*p) {
+        h ^= *p++;
+        h *= 1099511628211ULL;
+    }
+    return h;
+}
+
 static gdfmi_state_t *state_of(void *st) {
     gdfmi_state_t *f = (gdfmi_state_t *)st;
-    return (f && f->magic == FMUSTATE_MAGIC) ? f : NULL;
+    return (f && f->magic == FMUSTATE_MAGIC && f->tag == model_tag()) ? f : NULL;
 }
 /* unlink f from the list of the instance that allocated it, free it with that
  * instance's memory callbacks */
@@ -624,6 +638,7 @@ static gdfmi_state_t *new_state(gdfmi_inst_t *c, const gdfmi_core_t *k, const vo
         memcpy(f->s, s, (size_t)k->ns * sizeof(double));
     }
     f->magic = FMUSTATE_MAGIC;
+    f->tag = model_tag();
     f->owner = c;
     f->prev = NULL;
     f->next = c->states;
