@@ -43,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from gyrodenoise.denoiser import denoise
-from gyrodenoise.fmu.variables import DEFAULT_STEP_SIZE_S, IMU_AXES
+from gyrodenoise.fmu.variables import DEFAULT_STEP_SIZE_S, IMU_AXES, IMU_AXIS_NAMES
 from gyrodenoise.simulator import simulate
 
 N_SAMPLES = 800
@@ -55,7 +55,7 @@ SENSOR_CARD = "paper_fog"   # the sensors' card parameter's start value
 KINDS = {
     "FogDenoiser": "denoiser", "FogDenoiserNative": "denoiser", "FogDenoiserNative3": "denoiser",
     "SimulatedFog": "sensor", "SimulatedFogNative": "sensor", "SimulatedFogNative3": "sensor",
-    "FogDenoiserImuNative3": "imu",
+    "FogDenoiserImuNative3": "imu", "FogDenoiserImuNative": "imu_xyz",
 }
 
 
@@ -98,7 +98,7 @@ def _denoiser_outputs(z, restarts):
 
 
 def reference_tables(kind):
-    """(inputs, outputs) of the reference run of an FMU of ``kind`` ("denoiser", "sensor", "imu"):
+    """(inputs, outputs) of the reference run of an FMU of ``kind`` ("denoiser", "sensor", "imu", "imu_xyz"):
     each a dict {column name: array of N_SAMPLES values (N_SAMPLES x n for an array variable)},
     the time first."""
     t, rs = _time(), _restarts()
@@ -110,6 +110,11 @@ def reference_tables(kind):
         z = np.column_stack([_rate(j) for j in range(IMU_AXES)])
         return ({"time": t, "raw_rate": z, "restart": rs},
                 {"time": t, "filtered_rate": _denoiser_outputs(z, rs)})
+    if kind == "imu_xyz":       # the imu run, one column an axis (raw_rate_x, ...)
+        ins, outs = reference_tables("imu")
+        return ({"time": t, **{f"raw_rate_{a}": ins["raw_rate"][:, j] for j, a in enumerate(IMU_AXIS_NAMES)},
+                 "restart": rs},
+                {"time": t, **{f"filtered_rate_{a}": outs["filtered_rate"][:, j] for j, a in enumerate(IMU_AXIS_NAMES)}})
     if kind == "sensor":
         truth = 0.5 + 3.0 * np.sin(2 * np.pi * 0.5 * t) * (t > 1.0)
         rows = sensor_sample_rows(N_SAMPLES)

@@ -29,7 +29,8 @@ def fmus(fmu_build, native_build, tmp_path_factory):
     dest = tmp_path_factory.mktemp("hosts")
     out = unzip_all(folder, ("SimulatedFog", "FogDenoiser"), dest)
     out.update(unzip_all(native_build[0], ("SimulatedFogNative", "FogDenoiserNative", "SimulatedFogNative3",
-                                           "FogDenoiserNative3", "FogDenoiserImuNative3"), dest))
+                                           "FogDenoiserNative3", "FogDenoiserImuNative3", "FogDenoiserImuNative"),
+                         dest))
     return out
 
 
@@ -184,3 +185,43 @@ def test_the_reference_replays_under_accumulated_time(fmus):
     assert [m for m in inst.log if m[0] >= 1] == []
     inst.close()
     assert np.array_equal(out[:N_SAMPLES], ref["filtered_rate"])
+
+
+def test_the_3_axis_denoiser_without_arrays(fmus):
+    """FogDenoiserImuNative: FMI 2.0, one scalar variable an axis (OMSimulator reads one value of an FMI
+    3.0 array, FMI 2.0 hosts have none), the outputs of FogDenoiserImuNative3 axis by axis."""
+    import gyrodenoise.fmu.variables as V
+    md = fmus["FogDenoiserImuNative"][2]
+    assert md.fmiVersion == "2.0"
+    names = [v.name for v in md.modelVariables]
+    assert names[:7] == ["raw_rate_x", "raw_rate_y", "raw_rate_z", "restart", "filtered_rate_x",
+                         "filtered_rate_y", "filtered_rate_z"]
+    assert names == [v.name for v in V.FOG_DENOISER_IMU_XYZ]
+    xyz, arr = Instance(fmus["FogDenoiserImuNative"], "xyz"), Instance(fmus["FogDenoiserImuNative3"], "arr")
+    rng = np.random.default_rng(3)
+    z = 1.0 + 0.05 * rng.standard_normal((400, 3)) + np.array([0.0, 1.0, 2.0])
+    for inst in (xyz, arr):
+        inst.enter()
+        inst.d.set("restart", False)
+    for a, col in zip("xyz", z[0]):
+        xyz.d.set(f"raw_rate_{a}", col)
+    arr.d.set("raw_rate", z[0])
+    xyz.s.exitInitializationMode()
+    arr.s.exitInitializationMode()
+    ys = []
+    for k in range(len(z)):
+        for a, col in zip("xyz", z[k]):
+            xyz.d.set(f"raw_rate_{a}", col)
+        arr.d.set("raw_rate", z[k])
+        xyz.d.set("restart", k == 250)
+        arr.d.set("restart", k == 250)
+        xyz.s.doStep(k * H, H)
+        arr.s.doStep(k * H, H)
+        y = [xyz.d.get(f"filtered_rate_{a}") for a in "xyz"]
+        assert np.array_equal(y, arr.d.get("filtered_rate"))
+        ys.append(y)
+    xyz.close()
+    arr.close()
+    rs = np.arange(len(z)) == 250
+    for j in range(3):
+        assert np.array_equal(np.array(ys)[:, j], gd.denoise(z[:, j], 1 / H, restarts=rs))

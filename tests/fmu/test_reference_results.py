@@ -23,7 +23,8 @@ from fmpy import simulate_fmu  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 from fmpy.util import read_csv as fmpy_read_csv  # noqa: E402
 
-FMI2_NATIVE = ("FogDenoiserNative", "SimulatedFogNative")
+FMI2_NATIVE = ("FogDenoiserNative", "SimulatedFogNative", "FogDenoiserImuNative")
+C_HOST2 = ("FogDenoiserNative", "SimulatedFogNative")     # one scalar input, one output: tests/chost/host.c
 PYTHONFMU = ("FogDenoiser", "SimulatedFog")
 ALL = PYTHONFMU + FMI2_NATIVE + FMI3_FMUS
 H = 0.005
@@ -156,7 +157,7 @@ def _host_rows(kind, n):
     return np.arange(n - 1), np.arange(1, n)
 
 
-@pytest.mark.parametrize("name", FMI2_NATIVE)
+@pytest.mark.parametrize("name", C_HOST2)
 def test_replay_through_the_fmi2_c_host_equals_the_reference(fmus, host2, name):
     fmu, unz, md = fmus[name]
     inputs, ref = documents(fmu, name)
