@@ -30,13 +30,14 @@ def register_cli(subparsers):
 
 def _register_build(sub):
     b = sub.add_parser("build", help="build FogDenoiser.fmu, SimulatedFog.fmu (pythonfmu), "
-                                     "FogDenoiserNative.fmu and SimulatedFogNative.fmu (C, no Python needed), "
-                                     "and their FMI 3.0 versions FogDenoiserNative3.fmu, SimulatedFogNative3.fmu "
+                                     "FogDenoiserNative.fmu, SimulatedFogNative.fmu and the 3-axis FogDenoiserImuNative.fmu "
+                                     "(C, no Python needed), and the FMI 3.0 versions FogDenoiserNative3.fmu, SimulatedFogNative3.fmu "
                                      "with the 3-axis FogDenoiserImuNative3.fmu",
                        description="Package gyrodenoise/fmu/sources/*.py with pythonfmu (in a subprocess) and the "
                                    "core (plain-Python kernels + the C extension) into FMI 2.0 "
-                                   "co-simulation FMUs, and compile FogDenoiserNative.fmu and "
-                                   "SimulatedFogNative.fmu from the C cores and their FMI layer (gyrodenoise/fmu/sources/native) "
+                                   "co-simulation FMUs, and compile FogDenoiserNative.fmu, "
+                                   "SimulatedFogNative.fmu and FogDenoiserImuNative.fmu (3 axes, one scalar an axis) "
+                                   "from the C cores and their FMI layer (gyrodenoise/fmu/sources/native) "
                                    "for linux64 and aarch64-linux (glibc 2.17), win64, darwin64 and aarch64-darwin "
                                    "(zig from the ziglang package; mingw-w64 for win64). The FMI 3.0 FMUs "
                                    "(FogDenoiserNative3, SimulatedFogNative3, FogDenoiserImuNative3) come from the same "

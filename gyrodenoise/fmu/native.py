@@ -37,8 +37,8 @@ from gyrodenoise._version import __version__
 from gyrodenoise.errors import InputError
 from gyrodenoise.fmu.nativemodel import CORE_DIR, LAYER_FILES, NATIVE_SRC, NativeModel
 from gyrodenoise.fmu.simnative import SIMULATED_FOG_NATIVE
-from gyrodenoise.fmu.variables import (DEFAULT_STEP_SIZE_S, FOG_DENOISER, MAX_AR_ORDER, UNITS, format_value,
-                                       initial)
+from gyrodenoise.fmu.variables import (DEFAULT_STEP_SIZE_S, FOG_DENOISER, FOG_DENOISER_IMU_XYZ, MAX_AR_ORDER, UNITS,
+                                       format_value, initial)
 
 MODEL_NAME = "FogDenoiserNative"
 C_SOURCE = "fogdenoiser_native.c"
@@ -62,8 +62,16 @@ DENOISER = NativeModel(MODEL_NAME, DENOISER_DESCRIPTION, FOG_DENOISER, DEFAULT_S
                        UNITY_SOURCE, (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h", CORE_DIR / "gdmethods.h"), UNITS,
                        header_lines=(f"#define GD_MAX_AR_ORDER {MAX_AR_ORDER}",),
                        extra_sources=("fogdenoiser_params.c",))
-#: every native FMU
-NATIVE_MODELS = (DENOISER, SIMULATED_FOG_NATIVE)
+#: FogDenoiserImuNative: the 3-axis denoiser (FogDenoiserImuNative3's hooks) with one scalar variable an
+#: axis, FMI 2.0, for hosts without FMI 3.0 arrays
+IMU_XYZ = DENOISER.replace(
+    name="FogDenoiserImuNative", variables=FOG_DENOISER_IMU_XYZ, c_source="fogdenoiser_imu_xyz_native.c",
+    unity="fogdenoiser_imu_xyz_native_all.c", extra_sources=DENOISER.extra_sources + ("fogdenoiser_imu_native.c",),
+    description="Gyro denoiser for a whole IMU (three gyro axes x, y, z, three independent filters: "
+                "filtered_rate_x = gd.denoise of raw_rate_x, ...), one scalar variable an axis, native C: no "
+                "Python needed. One communication step = one sample.")
+#: every FMI 2.0 native FMU
+NATIVE_MODELS = (DENOISER, SIMULATED_FOG_NATIVE, IMU_XYZ)
 
 
 def value_references():

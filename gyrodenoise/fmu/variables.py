@@ -161,6 +161,21 @@ FOG_DENOISER_IMU = (
     *(v for v in FOG_DENOISER if v.causality == "parameter"),
 )
 
+#: the axes' suffixes of FOG_DENOISER_IMU_XYZ's scalar variables (axis j: IMU_AXIS_NAMES[j])
+IMU_AXIS_NAMES = ("x", "y", "z")
+#: FogDenoiserImuNative.fmu (FMI 2.0): FogDenoiserImuNative3 with one scalar variable an axis
+#: (raw_rate_x, raw_rate_y, raw_rate_z; filtered_rate_x, ...) for hosts without FMI 3.0 arrays
+#: (FMI 2.0 hosts; OMSimulator reads one value of an FMI 3.0 array)
+FOG_DENOISER_IMU_XYZ = (
+    *(_input(f"raw_rate_{a}", "Real", f"Raw angular rate of the IMU's {a} gyro axis", 0.0, "deg/s")
+      for a in IMU_AXIS_NAMES),
+    _input("restart", "Boolean", "True on the first sample after an IMU restart: the three filters re-identify "
+           "their AR models from that sample on", False),
+    *(_output(f"filtered_rate_{a}", "Real", f"Filtered angular rate of the {a} axis (gd.denoise of that axis); "
+              "the raw sample during the warm-up after each restart", "deg/s") for a in IMU_AXIS_NAMES),
+    *(v for v in FOG_DENOISER if v.causality == "parameter"),
+)
+
 #: SimulatedFog.fmu (pythonfmu): the card parameter takes a TOML card
 SIMULATED_FOG = (
     _input("true_rate", "Real", "True angular rate", 0.0, "deg/s"),
@@ -199,6 +214,7 @@ MODELS = {
     "FogDenoiserNative": FOG_DENOISER,
     "SimulatedFog": SIMULATED_FOG,
     "SimulatedFogNative": SIMULATED_FOG_NATIVE,
+    "FogDenoiserImuNative": FOG_DENOISER_IMU_XYZ,
 }
 #: FMI 3.0 FMU model name -> its variables (all native; Real is Float64, Integer Int32 there)
 FMI3_MODELS = {

@@ -1,6 +1,5 @@
 """Helpers of the FMI 3.0 FMU tests: the unzipped FMI 3.0 FMUs of the session's build, an
-fmpy FMU3Slave that keeps its log, the plain C host tests/chost/host3.c, and runs of the
-reference protocol (gyrodenoise.fmu.reference) through each."""
+fmpy FMU3Slave that keeps its log and the plain C host tests/chost/host3.c."""
 import io
 import shutil
 import subprocess
@@ -53,46 +52,6 @@ class Slave3:
             v = next(x for x in self.md.modelVariables if x.name == name)
             {"Float64": self.s.setFloat64, "Int32": self.s.setInt32, "Boolean": self.s.setBoolean,
              "String": self.s.setString}[v.type]([v.valueReference], [value])
-
-
-def run_reference(slave, vr, kind, inputs, step=0.005):
-    """The outputs (a {column: array}) of the reference protocol (gyrodenoise.fmu.reference) run
-    through ``slave`` (an fmpy FMU2Slave or FMU3Slave in initialisation mode, ``vr`` its value
-    references by name) for an FMU of ``kind``; ``inputs``: the reference input table."""
-    fmi3 = isinstance(slave, FMU3Slave)
-    set_real = slave.setFloat64 if fmi3 else slave.setReal
-    get_real = slave.getFloat64 if fmi3 else slave.getReal
-    n = len(inputs["time"])
-    rs = inputs["restart"]
-    if kind == "sensor":
-        out = {"measured_rate": np.empty(n), "restarted": np.empty(n, dtype=bool)}
-        for k in range(n):
-            set_real([vr["true_rate"]], [float(inputs["true_rate"][k])])
-            slave.setBoolean([vr["restart"]], [bool(rs[k])])
-            if k == 0:
-                slave.exitInitializationMode()
-            else:
-                slave.doStep((k - 1) * step, step)
-            out["measured_rate"][k] = get_real([vr["measured_rate"]])[0]
-            out["restarted"][k] = slave.getBoolean([vr["restarted"]])[0]
-        return out
-    slave.exitInitializationMode()
-    if kind == "imu":
-        zs = np.column_stack([inputs[f"raw_rate[{j}]"] for j in (1, 2, 3)])
-        ys = np.empty_like(zs)
-        for k in range(n):
-            set_real([vr["raw_rate"]], [float(x) for x in zs[k]])
-            slave.setBoolean([vr["restart"]], [bool(rs[k])])
-            slave.doStep(k * step, step)
-            ys[k] = get_real([vr["filtered_rate"]], 3)
-        return {f"filtered_rate[{j + 1}]": ys[:, j] for j in range(3)}
-    y = np.empty(n)
-    for k in range(n):
-        set_real([vr["raw_rate"]], [float(inputs["raw_rate"][k])])
-        slave.setBoolean([vr["restart"]], [bool(rs[k])])
-        slave.doStep(k * step, step)
-        y[k] = get_real([vr["filtered_rate"]])[0]
-    return {"filtered_rate": y}
 
 
 def build_host3(dest):

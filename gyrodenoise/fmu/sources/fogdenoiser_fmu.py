@@ -34,6 +34,9 @@ _REFUSED = _rules.REFUSED
 
 #: relative tolerance between the step size and the sample period
 STEP_RTOL = 1e-6
+#: a step shorter than this fraction of the sample period is no sample: the sliver a master that
+#: accumulates its time (t += h) leaves before its stop time; answered OK, outputs unchanged
+SLIVER_RTOL = 1e-6
 #: format of the FMU state: parameters (the 1-euro filter's included), inputs, output and the
 #: core's state; a state of another version is refused (4: the 1-euro filter's parameters, the
 #: core's parameter buffer with the sample rate)
@@ -63,7 +66,8 @@ class FogDenoiser(Fmi2Slave):
         self._theta0 = 0          # offset of phi_1 in the state buffer
         self._n = 0
         self._n_steps = 0         # samples processed
-        self._n_bad_steps = 0     # steps whose size disagreed with sample_period
+        self._n_bad_steps = 0
+        self._n_slivers = 0         # steps shorter than SLIVER_RTOL of the period (no sample)     # steps whose size disagreed with sample_period
         self._failed = None       # reason why stepping is refused, if any
         self._initialised = False  # fixed parameters are frozen from fmi2ExitInitializationMode on
         self._terminated = False
@@ -74,7 +78,8 @@ class FogDenoiser(Fmi2Slave):
         getters = {f"phi_{k}": self._phi_getter(k) for k in range(1, variables.MAX_AR_ORDER + 1)}
         getters.update(c=self._get_c, R_hat=self._state_getter("S_R"), Q_hat=self._state_getter("S_Q"),
                        innovation=self._state_getter("S_INNOV"), converged=self._get_converged,
-                       n_rejected=self._get_n_rejected)
+                       n_rejected=self._get_n_rejected, filtered_rate=self._get_filtered_rate)
+        self.filtered_rate = 0.0   # the output of the last step (the first output before the first step)
         self._max_order = variables.MAX_AR_ORDER   # phi_1 .. phi_max declared; phi_k, k > ar_order, reads 0
         self._parameter_names = _rules.register_declared(self, variables, variables.FOG_DENOISER, getters)
         # FMI 2.0 forbids setting an output, and a fixed parameter after initialisation
@@ -98,6 +103,27 @@ class FogDenoiser(Fmi2Slave):
         def get():
             return 0.0 if self._den is None else self._den.state[idx]
         return get
+
+    def _get_filtered_rate(self):
+        # in initialisation mode: the first output for the inputs and parameters set so far, so that
+        # a master that propagates values in initialisation mode (OMSimulator) passes it on
+        if getattr(self, "_in_init", False):
+            first = self._first_output()
+            if first is not None:
+                return first
+        return self.filtered_rate
+
+    def _first_output(self):
+        """The first step's filtered_rate for the inputs and parameters set so far, from a scratch
+        filter (None if the parameters cannot build one: fmi2ExitInitializationMode says why)."""
+        kept = self._den, self._n, self._theta0
+        try:
+            self._make_denoiser()
+            return float(self._den.step(self.raw_rate, self.restart))
+        except Exception:
+            return None
+        finally:
+            self._den, self._n, self._theta0 = kept
 
     def _get_n_rejected(self):
         return 0 if self._den is None else self._den.n_rejected
@@ -128,6 +154,7 @@ class FogDenoiser(Fmi2Slave):
         self._theta0 = self._K.layout(self.ar_order)[0]
 
     def exit_initialization_mode(self):
+        first = self._first_output()   # the output until the first step
         try:
             self._make_denoiser()
         except ValueError as exc:
@@ -137,6 +164,7 @@ class FogDenoiser(Fmi2Slave):
             # pythonfmu turns the exception into fmi2Fatal from fmi2ExitInitializationMode
             # (the guard keeps the instance's objects alive, see gyrodenoise_pythonfmu_rules)
             raise ValueError(msg) from None
+        self.filtered_rate = first
         self._failed = None
         self._initialised = True
         if self._D.core_name() == "C":
@@ -168,6 +196,8 @@ class FogDenoiser(Fmi2Slave):
             self.log(f"FogDenoiser: communication step size {step_size!r} s at t={current_time!r} s "
                      f"is not a positive finite number; step refused", Fmi2Status.error)
             return False
+        if step_size < SLIVER_RTOL * self.sample_period:
+            return self._sliver(current_time, step_size, self.sample_period)
         if abs(step_size - self.sample_period) > STEP_RTOL * self.sample_period:
             self._n_bad_steps += 1
             if self.strict_step_size:
@@ -200,11 +230,23 @@ class FogDenoiser(Fmi2Slave):
                      f"{self.filtered_rate!r}; the run goes on", Fmi2Status.warning)
         return True
 
+    def _sliver(self, current_time, step_size, period):
+        """A step below SLIVER_RTOL of the period: no sample, the outputs stay as they are."""
+        self._n_slivers += 1
+        self.log(f"FogDenoiser: step size {step_size!r} s at t={current_time!r} s is below {SLIVER_RTOL} of "
+                 f"sample_period {period!r} s: no sample (a master's accumulated time), outputs unchanged",
+                 Fmi2Status.ok)
+        return True
+
     def terminate(self):
         self._terminated = True
+        if self._n_slivers:
+            self.log(f"FogDenoiser: {self._n_slivers} step(s) shorter than {SLIVER_RTOL} of the sample period took "
+                     f"no sample (a master's accumulated time)", Fmi2Status.ok)
         if self._n_bad_steps:
-            self.log(f"FogDenoiser: {self._n_bad_steps} of {self._n_steps} step(s) had a step size "
-                     f"different from sample_period {self.sample_period!r} s", Fmi2Status.warning)
+            self.log(f"FogDenoiser: {self._n_bad_steps} step(s) had a step size "
+                     f"different from sample_period {self.sample_period!r} s ({self._n_steps} sample(s) taken)",
+                     Fmi2Status.warning)
 
     # -------------------------------------------------------------- state
     def _get_fmu_state(self):

@@ -40,6 +40,9 @@ _REFUSED = _rules.REFUSED
 
 #: relative tolerance between the step size and the card's sample period
 STEP_RTOL = 1e-6
+#: a step shorter than this fraction of the sample period is no sample: the sliver a master that
+#: accumulates its time (t += h) leaves before its stop time; answered OK, outputs unchanged
+SLIVER_RTOL = 1e-6
 #: format of the FMU state: parameters, inputs, outputs and the state buffer of gdsim.c; a
 #: state of another version is refused
 STATE_VERSION = 2
@@ -69,6 +72,7 @@ class SimulatedFog(Fmi2Slave):
         self._period = None
         self._n_steps = 0
         self._n_bad_steps = 0
+        self._n_slivers = 0         # steps shorter than SLIVER_RTOL of the period (no sample)
         self._failed = None         # reason why stepping is refused, if any
         self._initialised = False   # fixed parameters are frozen from fmi2ExitInitializationMode on
         self._terminated = False
@@ -76,13 +80,43 @@ class SimulatedFog(Fmi2Slave):
 
         # the variables (inputs, parameters at their defaults, outputs) as declared in
         # gyrodenoise/fmu/variables.py
-        self._parameter_names = _rules.register_declared(self, variables, variables.SIMULATED_FOG)
+        self.measured_rate, self.restarted = 0.0, False   # until fmi2ExitInitializationMode takes sample 0
+        self._parameter_names = _rules.register_declared(
+            self, variables, variables.SIMULATED_FOG,
+            {"measured_rate": lambda: self._output("measured_rate"), "restarted": lambda: self._output("restarted")})
         # FMI 2.0 forbids setting an output, and a fixed parameter after
         # initialisation. pythonfmu would set them silently and cannot return
         # fmi2Error from a setter: the write is refused with a logged error and
         # the next fmi2DoStep is refused (fmi2Discard) with the reason.
         _rules.install_write_rules(self, "SimulatedFog", Fmi2Causality.output, Fmi2Causality.parameter,
                                    Fmi2Status.error)
+
+    # ----------------------------------------------------------- readouts
+    def _output(self, name):
+        """An output; in initialisation mode sample 0's for the inputs and parameters set so far (from a
+        scratch stream), so that a master that propagates values in initialisation mode (OMSimulator)
+        passes sample 0 on."""
+        if getattr(self, "_in_init", False):
+            first = self._first_sample()
+            if first is not None:
+                return first[name]
+        return getattr(self, name)
+
+    def _first_sample(self):
+        """{"measured_rate", "restarted"} of sample 0 for the inputs and parameters set so far, or None
+        (a non-finite true rate, invalid parameters: fmi2ExitInitializationMode says why)."""
+        kept = self._sim, self._period
+        try:
+            w = float(self.true_rate)
+            if not math.isfinite(w):
+                return None
+            self._make_stream()
+            restart = bool(self.restart)
+            return {"measured_rate": float(self._sim.step(w, restart)), "restarted": restart}
+        except Exception:
+            return None
+        finally:
+            self._sim, self._period = kept
 
     # ---------------------------------------------------------- lifecycle
     def _make_stream(self):
@@ -163,6 +197,8 @@ class SimulatedFog(Fmi2Slave):
             self.log(f"SimulatedFog: communication step size {step_size!r} s at t={current_time!r} s "
                      f"is not a positive finite number; step refused", Fmi2Status.error)
             return False
+        if step_size < SLIVER_RTOL * period:
+            return self._sliver(current_time, step_size, period)
         if abs(step_size - period) > STEP_RTOL * period:
             self._n_bad_steps += 1
             if self.strict_step_size:
@@ -190,11 +226,23 @@ class SimulatedFog(Fmi2Slave):
         self._n_steps += 1
         return True
 
+    def _sliver(self, current_time, step_size, period):
+        """A step below SLIVER_RTOL of the period: no sample, the outputs stay as they are."""
+        self._n_slivers += 1
+        self.log(f"SimulatedFog: step size {step_size!r} s at t={current_time!r} s is below {SLIVER_RTOL} of "
+                 f"the card's sample period {period!r} s: no sample (a master's accumulated time), outputs unchanged",
+                 Fmi2Status.ok)
+        return True
+
     def terminate(self):
         self._terminated = True
+        if self._n_slivers:
+            self.log(f"SimulatedFog: {self._n_slivers} step(s) shorter than {SLIVER_RTOL} of the sample period took "
+                     f"no sample (a master's accumulated time)", Fmi2Status.ok)
         if self._n_bad_steps:
-            self.log(f"SimulatedFog: {self._n_bad_steps} of {self._n_steps} step(s) had a step size "
-                     f"different from the card's sample period {self._period!r} s", Fmi2Status.warning)
+            self.log(f"SimulatedFog: {self._n_bad_steps} step(s) had a step size "
+                     f"different from the card's sample period {self._period!r} s ({self._n_steps} sample(s) taken)",
+                     Fmi2Status.warning)
 
     # -------------------------------------------------------------- state
     def _get_fmu_state(self):

@@ -13,7 +13,14 @@
  */
 #include "gdfmi.h"
 #include "gdcore.h"
+#ifdef GD_IMU_AXIS_SCALARS /* FogDenoiserImuNative (fogdenoiser_imu_xyz_native.c): one scalar an axis */
+#include "fogdenoiser_imu_xyz_native_vars.h"
+#define START_raw_rate START_raw_rate_x
+#define IMU_SERIAL_MAGIC "GDIMUXYZ"
+#else
 #include "fogdenoiser_imu_native_vars.h"
+#define IMU_SERIAL_MAGIC "GDIMU3AX"
+#endif
 
 #define SERIAL_VERSION 4u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed);
                                3: the line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH); 4: the
@@ -82,17 +89,28 @@ static gd_status_t imu_step(gdfmi_inst_t *c, double t) {
 }
 
 static double imu_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
-    return param_real(&((const imu_t *)c->m)->u, vr); /* the arrays are read through imu_real_ref */
+    const imu_t *d = (const imu_t *)c->m;
+#ifdef GD_IMU_AXIS_SCALARS
+    if (vr >= VR_raw_rate_x && vr <= VR_raw_rate_z) return d->raw_rate[vr - VR_raw_rate_x];
+    if (vr >= VR_filtered_rate_x && vr <= VR_filtered_rate_z) return d->filtered_rate[vr - VR_filtered_rate_x];
+#endif
+    return param_real(&d->u, vr); /* the arrays are read through imu_real_ref */
 }
 
 static double *imu_real_ref(void *m, gd_vr_t vr) {
     imu_t *d = (imu_t *)m;
     user_t *u = &d->u;
+#ifdef GD_IMU_AXIS_SCALARS
+    if (vr >= VR_raw_rate_x && vr <= VR_raw_rate_z) return d->raw_rate + (vr - VR_raw_rate_x);
+    if (vr >= VR_filtered_rate_x && vr <= VR_filtered_rate_z) return d->filtered_rate + (vr - VR_filtered_rate_x);
+    return param_real_ref(u, vr);
+#else
     switch (vr) {
     case VR_raw_rate: return d->raw_rate;
     case VR_filtered_rate: return d->filtered_rate; /* read only: the layer never sets an output */
     default: return param_real_ref(u, vr);
     }
+#endif
 }
 
 static int32_t *imu_int_ref(void *m, gd_vr_t vr) {
@@ -164,7 +182,7 @@ static void imu_describe(const gdfmi_inst_t *c, char *out, size_t n) {
 
 static const gdfmi_model_t gdfmi_model = {
     GD_MODEL_IDENTIFIER, GD_GUID, vars, GD_N_VARS, sizeof(imu_t),
-    "GDIMU3AX", SERIAL_VERSION, N_PARAMS, SER_DYN,
+    IMU_SERIAL_MAGIC, SERIAL_VERSION, N_PARAMS, SER_DYN,
     "sample_period", "the filter's time base",
     imu_defaults, imu_build, imu_start, imu_period, imu_strict, imu_step,
     imu_get_real, imu_get_integer, imu_get_boolean, imu_get_string,

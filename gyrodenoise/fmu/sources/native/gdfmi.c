@@ -31,6 +31,7 @@ static const char *const cat_names[N_CATS] = {
  * states the host did not free (FMI 2.0: fmi2FreeInstance frees all it allocated) */
 struct gdfmi_state_s {
     uint32_t magic;
+    uint64_t tag; /* the model's (model_tag): every native FMU shares this layer and its magic */
     gdfmi_core_t k;
     void *m;
     double *s;
@@ -352,6 +353,50 @@ static gd_status_t gdl_setup_experiment(gdfmi_inst_t *c, const char *fn, double 
     return GD_OK;
 }
 
+/* ---------------------------------------------- outputs before the first step */
+/* The outputs for the parameters and inputs set so far, computed on a scratch copy of c (tmp:
+ * its own m and s, no logger, no FMU states): the model built and started and, for a model whose
+ * first sample a step takes (first_sample_at_start 0: the denoisers), one step at the start time.
+ * So a master that propagates values in initialisation mode (OMSimulator) reads the sensor's
+ * sample 0 and the denoiser's first output, not placeholders. 1 if tmp holds them (free it with
+ * drop_scratch); 0 where the parameters cannot build the model (ExitInitializationMode will say
+ * why) or memory is short: the outputs then read as before initialisation. */
+static int first_outputs(gdfmi_inst_t *c, gdfmi_inst_t *tmp) {
+    char err[512];
+    long total;
+    *tmp = *c;
+    tmp->cb.logger = NULL;
+    tmp->states = NULL;
+    tmp->s = NULL;
+    tmp->m = gdfmi_alloc(c, 1, GDM->m_size);
+    if (!tmp->m) return 0;
+    memcpy(tmp->m, c->m, GDM->m_size);
+    total = GDM->build(tmp, err, sizeof err);
+    if (total > 0) tmp->s = (double *)gdfmi_alloc(c, (size_t)total, sizeof(double));
+    if (!tmp->s) {
+        gdfmi_free(c, tmp->m);
+        return 0;
+    }
+    memset(tmp->s, 0, (size_t)total * sizeof(double));
+    tmp->k.ns = total;
+    tmp->k.have_model = 1;
+    GDM->start(tmp);
+    if (!GDM->first_sample_at_start) {
+        gd_status_t st = GDM->step(tmp, tmp->k.time);
+        if (st != GD_OK && st != GD_WARNING) {
+            gdfmi_free(c, tmp->s);
+            gdfmi_free(c, tmp->m);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static void drop_scratch(gdfmi_inst_t *tmp) {
+    gdfmi_free(tmp, tmp->s);
+    gdfmi_free(tmp, tmp->m);
+}
+
 static gd_status_t gdl_exit_initialization_mode(gdfmi_inst_t *c) {
     char err[1024], info[512];
     long total;
@@ -364,6 +409,13 @@ static gd_status_t gdl_exit_initialization_mode(gdfmi_inst_t *c) {
     memset(c->s, 0, (size_t)total * sizeof(double));
     c->k.ns = total;
     GDM->start(c);
+    if (!GDM->first_sample_at_start) { /* until the first step, its outputs (a step changes only outputs in m) */
+        gdfmi_inst_t tmp;
+        if (first_outputs(c, &tmp)) {
+            memcpy(c->m, tmp.m, GDM->m_size);
+            drop_scratch(&tmp);
+        }
+    }
     c->k.have_model = 1;
     c->k.n_steps = c->k.n_bad_steps = 0;
     c->k.phase = ST_STEP_COMPLETE;
@@ -376,9 +428,13 @@ static gd_status_t gdl_exit_initialization_mode(gdfmi_inst_t *c) {
 
 static gd_status_t gdl_terminate(gdfmi_inst_t *c) {
     if (c->k.n_bad_steps)
-        gdfmi_log(c, GD_OK, GD_FN("Terminate") ": %lld of %lld step(s) had a size different from "
-                  "%s %.17g s", (long long)c->k.n_bad_steps, (long long)c->k.n_steps, GDM->period_name,
-                  GDM->period(c->m));
+        gdfmi_log(c, GD_OK, GD_FN("Terminate") ": %lld step(s) had a size different from %s %.17g s "
+                  "(%lld sample(s) taken)", (long long)c->k.n_bad_steps, GDM->period_name,
+                  GDM->period(c->m), (long long)c->k.n_steps);
+    if (c->n_slivers)
+        gdfmi_log(c, GD_OK, GD_FN("Terminate") ": %lld step(s) shorter than %g of %s %.17g s took no "
+                  "sample (a master's accumulated time)", (long long)c->n_slivers, SLIVER_RTOL,
+                  GDM->period_name, GDM->period(c->m));
     c->k.phase = ST_TERMINATED;
     return GD_OK;
 }
@@ -386,6 +442,7 @@ static gd_status_t gdl_terminate(gdfmi_inst_t *c) {
 static gd_status_t gdl_reset(gdfmi_inst_t *c) {
     drop_model(c);
     set_defaults(c);
+    c->n_slivers = 0;
     return GD_OK;
 }
 
@@ -458,19 +515,32 @@ static int check_settable(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], s
 }
 
 /* Get<Real>: the values of vr (an array variable's n values in a row) */
+/* the instance the values of vr are read from: c, or in initialisation mode, when vr names an
+ * output, the scratch copy tmp holding the first sample's outputs (drop_scratch it when != c) */
+static gdfmi_inst_t *read_source(gdfmi_inst_t *c, const gd_vr_t vr[], size_t nvr, gdfmi_inst_t *tmp) {
+    size_t i;
+    if (c->k.phase != ST_INIT) return c;
+    for (i = 0; i < nvr; i++)
+        if (!IS_TIME(vr[i]) && GDM->vars[vr[i]].kind == K_OUTPUT) return first_outputs(c, tmp) ? tmp : c;
+    return c;
+}
+
 static gd_status_t gdl_get_real(gdfmi_inst_t *c, const char *fn, const gd_vr_t vr[], size_t nvr, double value[],
                                 size_t nValues) {
     size_t i, at = 0;
+    gdfmi_inst_t tmp, *src;
     if (!check_vrs(c, fn, vr, nvr, value, nValues, T_REAL)) return GD_ERROR;
+    src = read_source(c, vr, nvr, &tmp);
     for (i = 0; i < nvr; i++) {
         unsigned n = IS_TIME(vr[i]) ? 1 : GDM->vars[vr[i]].n;
         if (IS_TIME(vr[i])) value[at++] = c->k.time;
-        else if (n == 1) value[at++] = GDM->get_real(c, vr[i]);
+        else if (n == 1) value[at++] = GDM->get_real(src, vr[i]);
         else {
-            memcpy(value + at, GDM->real_ref(c->m, vr[i]), n * sizeof(double));
+            memcpy(value + at, GDM->real_ref(src->m, vr[i]), n * sizeof(double));
             at += n;
         }
     }
+    if (src != c) drop_scratch(&tmp);
     return GD_OK;
 }
 
@@ -513,9 +583,22 @@ static gd_status_t gdl_set_string(gdfmi_inst_t *c, const char *fn, const gd_vr_t
 }
 
 /* --------------------------------------------------------------- FMU state */
+/* the tag of this model's FMU states: FNV-1a of its GUID (instantiation token), so that an FMU
+ * refuses the in-memory state of another of the project's FMUs (same layer, same magic, other
+ * buffers) instead of reading past that model's buffers */
+static uint64_t model_tag(void) {
+    const unsigned char *p = (const unsigned char *)GDM->guid;
+    uint64_t h = 1469598103934665603ULL;
+    while (*p) {
+        h ^= *p++;
+        h *= 1099511628211ULL;
+    }
+    return h;
+}
+
 static gdfmi_state_t *state_of(void *st) {
     gdfmi_state_t *f = (gdfmi_state_t *)st;
-    return (f && f->magic == FMUSTATE_MAGIC) ? f : NULL;
+    return (f && f->magic == FMUSTATE_MAGIC && f->tag == model_tag()) ? f : NULL;
 }
 /* unlink f from the list of the instance that allocated it, free it with that
  * instance's memory callbacks */
@@ -555,6 +638,7 @@ static gdfmi_state_t *new_state(gdfmi_inst_t *c, const gdfmi_core_t *k, const vo
         memcpy(f->s, s, (size_t)k->ns * sizeof(double));
     }
     f->magic = FMUSTATE_MAGIC;
+    f->tag = model_tag();
     f->owner = c;
     f->prev = NULL;
     f->next = c->states;
@@ -781,6 +865,14 @@ static gd_status_t gdl_do_step(gdfmi_inst_t *c, double t, double h) {
     if (!(h > 0.0) || !isfinite(h))
         return gdfmi_fail(c, GD_FN("DoStep") ": communication step size %.17g at t=%.17g s is not a finite "
                           "number > 0", h, t);
+    if (h < SLIVER_RTOL * T) { /* no sample: the outputs stay those at t */
+        c->n_slivers++;
+        gdfmi_log(c, GD_OK, GD_FN("DoStep") ": step size %.17g s at t=%.17g s is below %g of %s %.17g s: "
+                  "no sample (a master's accumulated time), outputs unchanged", h, t, SLIVER_RTOL,
+                  GDM->period_name, T);
+        c->k.time = t + h;
+        return GD_OK;
+    }
     if (fabs(h - T) > STEP_RTOL * T) {
         c->k.n_bad_steps++;
         if (GDM->strict_step_size(c->m)) {

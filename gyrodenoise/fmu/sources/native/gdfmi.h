@@ -117,6 +117,9 @@ enum {
 #define N_CATS 5
 
 #define STEP_RTOL 1e-6 /* tolerated relative mismatch of step size and the model's sample period */
+/* a step shorter than this fraction of the sample period is no sample: the sliver a master that
+ * accumulates its time (t += h) leaves before its stop time; answered OK, outputs unchanged */
+#define SLIVER_RTOL 1e-6
 
 /* variable types and kinds of the variable table */
 enum { T_REAL, T_INTEGER, T_BOOLEAN, T_STRING };
@@ -150,6 +153,7 @@ typedef struct {
     void *m;   /* the model's fixed-size part (gdfmi_model.m_size bytes) */
     double *s; /* the model's state buffer, k.ns doubles (NULL before initialisation) */
     gdfmi_state_t *states; /* the FMU states this instance allocated and the host has not freed */
+    int64_t n_slivers;     /* steps shorter than SLIVER_RTOL of the period (no sample), for the log */
 } gdfmi_inst_t;
 
 /* a serialization cursor; io is put (write) or get (read) */
@@ -198,6 +202,10 @@ typedef struct {
                        char *err, size_t nerr);
     /* information logged at ExitInitializationMode */
     void (*describe)(const gdfmi_inst_t *c, char *out, size_t n);
+    /* 1: start takes the first sample (a sensor's sample 0, from the inputs set in initialisation
+     * mode); 0: the first step does (a denoiser). Either way the outputs read in initialisation
+     * mode are the first sample's, computed on a scratch copy (gdfmi.c: first_outputs) */
+    int first_sample_at_start;
 } gdfmi_model_t;
 
 /* helpers for the model (defined in gdfmi.c) */

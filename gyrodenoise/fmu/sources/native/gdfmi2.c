@@ -84,14 +84,17 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 #define GDFMI2_GETTER(fn, ctype, type, expr)                                                     \
     fmi2Status fn(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, ctype value[]) { \
         size_t i;                                                                                \
+        gdfmi_inst_t tmp, *src;                                                                  \
         BEGIN(#fn, MASK_GET);                                                                    \
         if (gdl_check_get(c, #fn, vr, nvr, value, nvr, type) != GD_OK) return fmi2Error;         \
+        src = read_source(c, vr, nvr, &tmp); /* in initialisation mode: the first sample's */    \
         for (i = 0; i < nvr; i++) value[i] = expr;                                               \
+        if (src != c) drop_scratch(&tmp);                                                        \
         return fmi2OK;                                                                           \
     }
-GDFMI2_GETTER(fmi2GetInteger, fmi2Integer, T_INTEGER, GDM->get_integer(c, vr[i]))
-GDFMI2_GETTER(fmi2GetBoolean, fmi2Boolean, T_BOOLEAN, GDM->get_boolean(c, vr[i]) ? fmi2True : fmi2False)
-GDFMI2_GETTER(fmi2GetString, fmi2String, T_STRING, GDM->get_string(c, vr[i]))
+GDFMI2_GETTER(fmi2GetInteger, fmi2Integer, T_INTEGER, GDM->get_integer(src, vr[i]))
+GDFMI2_GETTER(fmi2GetBoolean, fmi2Boolean, T_BOOLEAN, GDM->get_boolean(src, vr[i]) ? fmi2True : fmi2False)
+GDFMI2_GETTER(fmi2GetString, fmi2String, T_STRING, GDM->get_string(src, vr[i]))
 #undef GDFMI2_GETTER
 
 #define GDFMI2_SETTER(fn, ctype, type, store)                                                          \

@@ -137,14 +137,17 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
                   size_t nValues) {                                                                \
         void *comp = instance;                                                                     \
         size_t i;                                                                                  \
+        gdfmi_inst_t tmp, *src;                                                                    \
         BEGIN(#fn, MASK_GET);                                                                      \
         if (gdl_check_get(c, #fn, vr, nvr, values, nValues, type) != GD_OK) return fmi3Error;      \
+        src = read_source(c, vr, nvr, &tmp); /* in initialisation mode: the first sample's */      \
         for (i = 0; i < nvr; i++) values[i] = expr;                                                \
+        if (src != c) drop_scratch(&tmp);                                                          \
         return fmi3OK;                                                                             \
     }
-GDFMI3_GETTER(fmi3GetInt32, fmi3Int32, T_INTEGER, GDM->get_integer(c, vr[i]))
-GDFMI3_GETTER(fmi3GetBoolean, fmi3Boolean, T_BOOLEAN, GDM->get_boolean(c, vr[i]) ? fmi3True : fmi3False)
-GDFMI3_GETTER(fmi3GetString, fmi3String, T_STRING, GDM->get_string(c, vr[i]))
+GDFMI3_GETTER(fmi3GetInt32, fmi3Int32, T_INTEGER, GDM->get_integer(src, vr[i]))
+GDFMI3_GETTER(fmi3GetBoolean, fmi3Boolean, T_BOOLEAN, GDM->get_boolean(src, vr[i]) ? fmi3True : fmi3False)
+GDFMI3_GETTER(fmi3GetString, fmi3String, T_STRING, GDM->get_string(src, vr[i]))
 #undef GDFMI3_GETTER
 
 #define GDFMI3_SETTER(fn, ctype, type, store)                                                            \

@@ -427,4 +427,4 @@ static const gdfmi_model_t gdfmi_model = {
     sf_defaults, sf_build, sf_start, sf_period, sf_strict, sf_step,
     sf_get_real, sf_get_integer, sf_get_boolean, sf_get_string,
     sf_real_ref, sf_int_ref, sf_string_ref,
-    sf_xfer, sf_check_state, sf_describe};
+    sf_xfer, sf_check_state, sf_describe, 1};
