@@ -42,7 +42,8 @@ from gyrodenoise.flightlog.stopping import atomic_path
 ENVELOPE_BINS = 1500
 #: shading of the flight segments on the time plots (kind -> colour)
 SEGMENT_COLOURS = {"ground": "rgba(150,150,150,0.18)", "armed": "rgba(255,190,0,0.18)",
-                   "flying": "rgba(0,170,80,0.14)", "hover": "rgba(0,120,255,0.14)"}
+                   "flying": "rgba(0,170,80,0.14)", "hover": "rgba(0,120,255,0.14)",
+                   "after impact": "rgba(220,0,0,0.16)"}
 #: per axis: (filtered colour, raw colour: the same hue, lighter)
 AXIS_COLOURS = (("#1f4fb4", "#9db8ee"), ("#d9650b", "#f7c08f"), ("#218a3a", "#9fd9a9"),
                 ("#7b3fa0", "#cfb0e3"))

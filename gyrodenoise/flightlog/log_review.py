@@ -98,7 +98,8 @@ def log_review(log, whole_log=False):
 
     ``fields``: ``time_base``, ``boots`` (each boot: its time base, segments and flying
     time), ``segments``, ``segments_note``, ``flying_time_s``, ``over``,
-    ``over_note``, ``vehicle_filters`` (``autopilot`` ``"ardupilot"``/``"px4"``/None,
+    ``over_note``, ``impacts`` (each crash found: :class:`~gyrodenoise.flightlog.impact.Impact`;
+    the flight ends there), ``vehicle_filters`` (``autopilot`` ``"ardupilot"``/``"px4"``/None,
     ``parameters``, ``stages``; ``note`` when the log holds no parameters),
     ``stream_stages`` ({stream name: ``pre-filter``/``post-filter``/``unknown``}),
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
@@ -121,11 +122,14 @@ def log_review(log, whole_log=False):
     fields["segments"] = [s.to_fields() for s in segments]
     fields["segments_note"] = seg_note
     fields["flying_time_s"] = flying_time_s(segments)
+    fields["impacts"] = [s.impact.to_fields() for s in segments if s.impact is not None]
     has_flying = any(s.kind == "flying" for s in segments)
     if whole_log:
         over, over_note = OVER_WHOLE, "--whole-log: figures over the whole log"
     elif has_flying:
         over, over_note = OVER_FLYING, "figures over the flying segments (--whole-log: over the whole log)"
+        if fields["impacts"]:
+            over_note += "; the flight ends at the impact: what follows is shown (after impact), not judged"
     else:
         over, over_note = OVER_WHOLE, "no flying segment in the log: figures over the whole log"
     fields["over"] = over
@@ -244,6 +248,8 @@ def review_text(rep):
     if base.get("kind") and base.get("kind") != "boot time":
         seg_line += f"; times on a {base['kind']} clock from {base.get('offset_s')} s"
     lines = [seg_line + f"; figures over: {rep.get('over', OVER_WHOLE)}"]
+    for imp in rep.get("impacts") or []:
+        lines.append(f"crash: {imp['reason']}; the flight ends there (after impact: shown, not judged)")
     vib = rep.get("vibration")
     if vib and vib.get("verdict"):
         lines.append(f"vibration: {vib['verdict'].upper()} ({vib.get('source')} over {vib.get('over')}"
@@ -269,6 +275,8 @@ def _worst_figures(vib):
     vibration review at warn or fail (the worst segment's value of each)."""
     worst = {}
     for seg in vib.get("segments") or []:
+        if not seg.get("in_verdict", True):
+            continue
         for name, f in (seg.get("figures") or {}).items():
             v = f.get("verdict")
             if v in ("warn", "fail"):

@@ -47,6 +47,10 @@ class BaseFormat:
     def accelerometer(self, log):
         return None
 
+    def attitude(self, log):
+        """``{"source", "time_s", "record", "roll_deg", "pitch_deg"}`` or None (not logged)."""
+        return None
+
     def events(self, log):
         return []
 

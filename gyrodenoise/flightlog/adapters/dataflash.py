@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import dataflash, events, logdata, parameters, segments, vehicle_rate, vibration
+from gyrodenoise.flightlog import dataflash, events, impact, logdata, parameters, segments, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import Boot, FlightLog, LogFacts, number_instances
 
@@ -60,6 +60,9 @@ class DataFlashFormat(BaseFormat):
 
     def accelerometer(self, log):
         return vibration.dataflash_accel(log)
+
+    def attitude(self, log):
+        return impact.dataflash_attitude(log)
 
     def events(self, log):
         return events.dataflash_events(log)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import events, logdata, parameters, segments, ulog, vehicle_rate, vibration
+from gyrodenoise.flightlog import events, impact, logdata, parameters, segments, ulog, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 
@@ -77,6 +77,9 @@ class ULogFormat(BaseFormat):
 
     def accelerometer(self, log):
         return vibration.ulog_accel(log)
+
+    def attitude(self, log):
+        return impact.ulog_attitude(log)
 
     def events(self, log):
         return events.ulog_events(log)
