@@ -21,6 +21,7 @@ import numpy as np
 from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.filter_review import filter_review, review_context
 from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, sessions_of
+from gyrodenoise.flightlog.step_response import step_response_review
 from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
 from gyrodenoise.flightlog.vibration import vibration_review
 
@@ -41,6 +42,8 @@ class Review:
         self.segments = segments
         self.over = over
         self.starts = np.zeros(0, np.int64) if starts is None else np.asarray(starts)
+        #: {axis: StepResponse} of the step response, for the plot
+        self.step_curves = {}
 
     def flying_mask(self, time_s, records=None):
         """Bool array: the samples of ``time_s`` the figures are over (all True when
@@ -103,7 +106,8 @@ def log_review(log, whole_log=False):
     ``parameters``, ``stages``; ``note`` when the log holds no parameters),
     ``stream_stages`` ({stream name: ``pre-filter``/``post-filter``/``unknown``}),
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
-    ``vibration_note``)."""
+    ``vibration_note``), ``step_response`` (the rate loop's step response per axis:
+    :mod:`gyrodenoise.flightlog.step_response`; None with ``step_response_note``)."""
     streams = log.gyro
     fields = {"time_base": log.time_base.to_fields()}
     try:
@@ -157,6 +161,12 @@ def log_review(log, whole_log=False):
         vib, vnote = None, _failed("vibration review", exc)
     fields["vibration"] = vib
     fields["vibration_note"] = vnote
+    try:
+        step, snote, review.step_curves = step_response_review(log, segments)
+    except Exception as exc:  # noqa: BLE001
+        step, snote = None, _failed("step response", exc)
+    fields["step_response"] = step
+    fields["step_response_note"] = snote
     return review
 
 
@@ -259,6 +269,11 @@ def review_text(rep):
                      f"threshold for them)")
     else:
         lines.append(f"vibration: none ({rep.get('vibration_note', '')})")
+    sr = rep.get("step_response")
+    if sr:
+        lines.append("step response: " + step_response_line(sr))
+    elif "step_response_note" in rep:
+        lines.append(f"step response: none ({rep['step_response_note']})")
     fr = rep.get("filter_review")
     if fr:
         rec = fr.get("param_lines") or []
@@ -284,3 +299,16 @@ def _worst_figures(vib):
                 if name not in worst or (v == "fail" and worst[name][1] != "fail"):
                     worst[name] = (value, v)
     return ("; " + ", ".join(f"{n} {val} ({v})" for n, (val, v) in worst.items())) if worst else ""
+
+
+def step_response_line(sr):
+    """'roll rise 32 ms, overshoot 17 %; pitch ...; (RATE ...)': a step response in a line."""
+    parts = []
+    for axis, f in (sr.get("axes") or {}).items():
+        if not f:
+            parts.append(f"{axis} none")
+            continue
+        rise = "?" if f["rise_time_s"] is None else f"{f['rise_time_s'] * 1000:.0f} ms"
+        over = "?" if f["overshoot_pct"] is None else f"{f['overshoot_pct']:.0f} %"
+        parts.append(f"{axis} rise {rise}, overshoot {over}")
+    return "; ".join(parts) + f" ({sr.get('source')})"
