@@ -69,6 +69,7 @@ td,th{border:1px solid #ccc;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .note{color:#555;font-style:italic;margin:4px 0}.warn{color:#a15c00}.fail{color:#b00020;font-weight:bold}
 .pass{color:#1a7f37;font-weight:bold}.plot{width:100%;min-height:300px}
+.change{color:#0b5cad;font-weight:bold}.verdict.none{color:#555}
 div.tbl{max-width:100%;overflow-x:auto}td{overflow-wrap:break-word;max-width:60em}
 pre{background:#f6f6f6;padding:8px;border:1px solid #ddd;overflow-x:auto}
 nav a{margin-right:12px}.small{font-size:12px;color:#555}
@@ -561,6 +562,30 @@ def vehicle_response(stages, freq_hz, rate_hz):
 
 
 # ------------------------------------------------------------------ sections
+#: the overview's identity rows (report key, label)
+OVERVIEW_ROWS = (("vehicle", "vehicle"), ("firmware", "firmware"), ("board", "board"), ("frame", "frame"),
+                 ("vehicle_id", "vehicle / board id"))
+
+
+def _overview_section(report):
+    """The first screen: the vehicle, its flight time per boot and one line per verdict
+    with its reason (the report's ``overview``: :mod:`gyrodenoise.flightlog.overview`)."""
+    ov = report.get("overview")
+    if not ov:
+        return ""
+    rows = [[_e(label), _e(ov.get(key) if ov.get(key) is not None else "not in the log")]
+            for key, label in OVERVIEW_ROWS]
+    times = ov.get("flight_time_s") or []
+    if times:
+        per = ", ".join(f"boot {k}: {t or 0:.1f} s" for k, t in enumerate(times)) if len(times) > 1 else \
+            f"{times[0] or 0:.1f} s"
+        rows.append(["flight time", _e(per)])
+    vrows = [[_e(v["topic"]), f'<span class="verdict {_e(v["verdict"] or "none")}">'
+              f'{_e((v["verdict"] or "no verdict").upper())}</span>', _e(v["reason"])] for v in ov.get("verdicts") or []]
+    return ("<h2 id=overview>Overview</h2>" + _table(rows, ["", "value"]) +
+            _table(vrows, ["", "verdict", "reason"], cls="verdicts"))
+
+
 def _summary_section(report, series):
     rows = []
     for key in ("file", "format", "engine", "method", "ar_order", "form", "form_note", "output_log", "seconds"):
@@ -1201,11 +1226,13 @@ def write_log_report(path, report, series=None):
     ``report["vehicle_filters"]["stages"]`` (:func:`vehicle_response`)."""
     series = series or {}
     name = Path(str(report.get("file", "log"))).name
-    nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("summary", "summary"), ("streams", "streams"),
+    nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("overview", "overview"), ("summary", "summary"),
+                                                         ("streams", "streams"),
                                                          ("spectra", "spectra"), ("filters", "filters"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
     with _Figures() as figs:
         body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
+                _overview_section(report),
                 _summary_section(report, series),
                 _streams_section(report, series, figs),
                 _spectra_section(report, series, figs),

@@ -20,6 +20,7 @@ import numpy as np
 
 from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.filter_review import filter_review, review_context
+from gyrodenoise.flightlog.overview import overview
 from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, sessions_of
 from gyrodenoise.flightlog.step_response import step_response_review
 from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
@@ -107,7 +108,8 @@ def log_review(log, whole_log=False):
     ``stream_stages`` ({stream name: ``pre-filter``/``post-filter``/``unknown``}),
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
     ``vibration_note``), ``step_response`` (the rate loop's step response per axis:
-    :mod:`gyrodenoise.flightlog.step_response`; None with ``step_response_note``)."""
+    :mod:`gyrodenoise.flightlog.step_response`; None with ``step_response_note``),
+    ``overview`` (the first screen: :mod:`gyrodenoise.flightlog.overview`)."""
     streams = log.gyro
     fields = {"time_base": log.time_base.to_fields()}
     try:
@@ -167,6 +169,11 @@ def log_review(log, whole_log=False):
         step, snote = None, _failed("step response", exc)
     fields["step_response"] = step
     fields["step_response_note"] = snote
+    try:
+        ident = log.format.identity(log)
+    except Exception:  # noqa: BLE001 - the identity is a convenience: unknown fields, never a failed log
+        ident = {}
+    fields["overview"] = overview(fields, ident)
     return review
 
 

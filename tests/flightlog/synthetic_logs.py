@@ -151,7 +151,8 @@ def crash_dataflash(crash_s=20.0, end_s=30.0, disarm_s=None, tumble=True, spike=
     w.define("EV", "QB", ["TimeUS", "Id"])
     w.define("ARM", "QBIBB", ["TimeUS", "ArmState", "ArmChecks", "Forced", "Method"])
     w.define("MSG", "QZ", ["TimeUS", "Message"])
-    w.add("MSG", 900_000, "ArduCopter V4.5.7 (0123abcd)")
+    for text in ("ArduCopter V4.5.7 (0123abcd)", "CubeOrange 00300021 31305110 30393738", "Frame: QUAD/X"):
+        w.add("MSG", 900_000, text)
     t = 1.0 + np.arange(int(round((end_s - 1.0) * rate_hz))) / rate_hz
     crashed = np.zeros(len(t), bool) if crash_s is None else t >= crash_s
     gyr = rng.normal(0, 5.0, (len(t), 3))

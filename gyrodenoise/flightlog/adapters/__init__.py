@@ -47,6 +47,11 @@ class BaseFormat:
     def accelerometer(self, log):
         return None
 
+    def identity(self, log):
+        """``{"vehicle", "firmware", "board", "frame", "vehicle_id"}`` as the log names them
+        (:mod:`gyrodenoise.flightlog.overview`); empty: not told."""
+        return {}
+
     def rate_setpoint(self, log):
         """``[{"boot", "source", "time_s", "setpoint": (n, 3) deg/s, "rate": (n, 3) deg/s}]``
         (:mod:`gyrodenoise.flightlog.step_response`); empty: not logged."""

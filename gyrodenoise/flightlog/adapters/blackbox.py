@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import step_response, blackbox
+from gyrodenoise.flightlog import overview, step_response, blackbox
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.autopilots import BETAFLIGHT, UNKNOWN
 from gyrodenoise.flightlog.model import Boot, FlightEvidence, FlightLog, LogEvent, LogFacts, LogParameters, ModeChange, Throttle
@@ -122,6 +122,9 @@ class BlackboxFormat(BaseFormat):
 
     def rate_setpoint(self, log):
         return step_response.blackbox_rate_setpoint(log)
+
+    def identity(self, log):
+        return overview.blackbox_identity(log)
 
     def accelerometer(self, log):
         rows = [(b.time_s, b.columns("accSmooth"), float(b.header.get("acc_1G") or "nan")) for b in log.payload

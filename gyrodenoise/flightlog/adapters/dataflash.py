@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import step_response, dataflash, events, impact, logdata, parameters, segments, vehicle_rate, vibration
+from gyrodenoise.flightlog import overview, step_response, dataflash, events, impact, logdata, parameters, segments, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import Boot, FlightLog, LogFacts, number_instances
 
@@ -61,6 +61,9 @@ class DataFlashFormat(BaseFormat):
 
     def rate_setpoint(self, log):
         return step_response.dataflash_rate_setpoint(log, log.gyro)
+
+    def identity(self, log):
+        return overview.ardupilot_identity(log)
 
     def accelerometer(self, log):
         return vibration.dataflash_accel(log)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import step_response, events, impact, logdata, parameters, segments, ulog, vehicle_rate, vibration
+from gyrodenoise.flightlog import overview, step_response, events, impact, logdata, parameters, segments, ulog, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 
@@ -78,6 +78,9 @@ class ULogFormat(BaseFormat):
 
     def rate_setpoint(self, log):
         return step_response.ulog_rate_setpoint(log)
+
+    def identity(self, log):
+        return overview.ulog_identity(log)
 
     def accelerometer(self, log):
         return vibration.ulog_accel(log)
