@@ -586,6 +586,46 @@ def _overview_section(report):
             _table(vrows, ["", "verdict", "reason"], cls="verdicts"))
 
 
+def _ms(v):
+    return "" if v is None else f"{v * 1000:.0f}"
+
+
+def _step_response_section(report, figs):
+    """The rate loop's step response per axis (the report's ``step_response``: each axis'
+    averaged ``curve``), its figures in a table; a note when there is none."""
+    sr = report.get("step_response")
+    out = ["<h2 id=step>Step response</h2>"]
+    if not sr:
+        if report.get("step_response_note"):
+            out.append(_note(f"no step response: {report['step_response_note']}"))
+        return "".join(out) if len(out) > 1 else ""
+    import plotly.graph_objects as go
+    fig = go.Figure()
+    rows = []
+    for k, (axis, f) in enumerate((sr.get("axes") or {}).items()):
+        if not f:
+            rows.append([_e(axis), "", "", "", "", "", _e("too little setpoint motion")])
+            continue
+        c = f.get("curve") or {}
+        if c.get("time_s"):
+            fig.add_trace(go.Scatter(x=[t * 1000 for t in c["time_s"]], y=c["response"], mode="lines", name=axis,
+                                     line={"color": AXIS_COLOURS[k % len(AXIS_COLOURS)][0]},
+                                     hovertemplate=f"{axis}: %{{y:.3f}} at %{{x:.0f}} ms<extra></extra>"))
+        rows.append([_e(axis), _e(_ms(f.get("rise_time_s"))), _e(_ms(f.get("delay_s"))),
+                     _e("" if f.get("overshoot_pct") is None else f"{f['overshoot_pct']:.0f}"),
+                     _e(_f(f.get("final"), ".2f")), _e(f"{f.get('windows')} x {f.get('window_s'):g} s"),
+                     _e(f.get("note") or "")])
+    fig.add_hline(y=1.0, line={"color": "#888", "dash": "dot"})
+    fig.update_layout(title={"text": _e(f"step response to a unit setpoint step ({sr.get('source')})"),
+                             "font": {"size": 14}}, xaxis_title="time after the step [ms]",
+                      yaxis_title="rate / setpoint step", hovermode="closest")
+    out.append(figs.div(fig, height=380))
+    out.append(_table(rows, ["axis", "rise 10-90 % [ms]", "delay to 50 % [ms]", "overshoot [%]", "final",
+                             "windows", "note"]))
+    out.append(_note(sr.get("method", "")))
+    return "".join(out)
+
+
 def _summary_section(report, series):
     rows = []
     for key in ("file", "format", "engine", "method", "ar_order", "form", "form_note", "output_log", "seconds"):
@@ -599,12 +639,12 @@ def _summary_section(report, series):
     flying = _flying_time_s(report)
     if flying is not None:
         rows.append(["flying time", _e(f"{flying:.1f} s")])
+    elif report.get("segments_note"):
+        rows.append(["flying time", _e(f"unknown ({report['segments_note']})")])
     base = report.get("time_base") or {}
     if base.get("kind") and base.get("kind") != "boot time":
         rows.append(["time base", _e(f"{base['kind']}: times from {base.get('offset_s')} s on that clock "
                                      f"({base.get('axis')})")])
-    elif report.get("segments_note"):
-        rows.append(["flying time", _e(f"unknown ({report['segments_note']})")])
     out = ["<h2 id=summary>Summary</h2>", _table(rows, ["", "value"])]
     srows = []
     for s in streams:
@@ -1228,7 +1268,7 @@ def write_log_report(path, report, series=None):
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("overview", "overview"), ("summary", "summary"),
                                                          ("streams", "streams"),
-                                                         ("spectra", "spectra"), ("filters", "filters"),
+                                                         ("spectra", "spectra"), ("filters", "filters"), ("step", "step response"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
     with _Figures() as figs:
         body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
@@ -1237,6 +1277,7 @@ def write_log_report(path, report, series=None):
                 _streams_section(report, series, figs),
                 _spectra_section(report, series, figs),
                 _filter_review_section(report, series, figs),
+                _step_response_section(report, figs),
                 _vibration_section(report, figs),
                 _notes_section(report)]
     return _write(path, _page(f"{name}: gyro review", "".join(body)))

@@ -50,6 +50,8 @@ MIN_WINDOWS = 3
 #: the uniform grid runs at the rate stream's median rate, at most this (Hz)
 MAX_GRID_HZ = 1000.0
 AXES = ("roll", "pitch", "yaw")
+#: the report keeps the averaged step response at most this many points (for its plot)
+CURVE_POINTS = 250
 
 
 @dataclass
@@ -78,6 +80,9 @@ class StepResponse:
         out = {"windows": self.windows, "window_s": self.window_s, "sample_rate_hz": round(self.sample_rate_hz, 2),
                "final": round(float(self.final), 4), "rise_time_s": r(self.rise_time_s), "delay_s": r(self.delay_s),
                "overshoot_pct": r(self.overshoot_pct, 2)}
+        k = max(1, int(np.ceil(len(self.time_s) / CURVE_POINTS)))
+        out["curve"] = {"time_s": [round(float(x), 5) for x in self.time_s[::k]],
+                        "response": [round(float(x), 4) for x in self.response[::k]]}
         if not self.settles:
             out["note"] = (f"the averaged response settles at {self.final:.2f}, not within {FINAL_RANGE[0]:g}-"
                            f"{FINAL_RANGE[1]:g} of the setpoint: setpoint and rate do not explain each other "

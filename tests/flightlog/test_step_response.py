@@ -69,7 +69,7 @@ def test_quiet_setpoint_gives_none():
     assert step_response(sp, sp + rng.normal(0, 1, len(sp)), FS) is None
 
 
-def test_through_a_synthetic_dataflash_rate_log():
+def test_through_a_synthetic_dataflash_rate_log(tmp_path):
     """RATE at 500 Hz (RDes/R the loop above on roll, PDes/P a slower one on pitch, yaw
     still) in a flight from 4 s: the review reads it through the DataFlash adapter, over
     flying time, the figures as the core's; yaw (no setpoint motion) has none."""
@@ -101,3 +101,10 @@ def test_through_a_synthetic_dataflash_rate_log():
         assert f["overshoot_pct"] == pytest.approx(over, abs=3.0)
     assert any(line.startswith("step response: roll rise") for line in review_text(rev.fields))
     assert set(rev.step_curves) == {"roll", "pitch"}
+    # the page: a plot of the averaged responses and the figures' table
+    from gyrodenoise.flightlog.html_report import write_log_report
+    html = write_log_report(tmp_path / "rate.report.html", {"file": "rate.bin", "format": "dataflash",
+                                                            "streams": [], **rev.fields}).read_text()
+    step = html[html.index("<h2 id=step>"):]
+    assert "Plotly.newPlot" in step and "rise 10-90 % [ms]" in step
+    assert f"<td>roll</td><td>{sr['axes']['roll']['rise_time_s'] * 1000:.0f}</td>" in step
