@@ -18,10 +18,12 @@ _AP_VEHICLE = re.compile(r"^(ArduCopter|ArduPlane|ArduRover|ArduSub|APM:Copter|A
                          r"AntennaTracker)\s+(V?\d\S*(?:\s+\([0-9a-f]+\))?)")
 _AP_BOARD = re.compile(r"^([A-Za-z][\w-]*)\s+([0-9A-F]{8}(?:\s+[0-9A-F]{8}){2})\s*$")
 _AP_FRAME = re.compile(r"^Frame:\s*(.+?)\s*$")
-#: PX4's MAV_TYPE parameter -> the vehicle it names (the common ones)
-MAV_TYPES = {1: "fixed wing", 2: "quadrotor", 3: "coaxial", 4: "helicopter", 10: "ground rover", 12: "submarine",
-             13: "hexarotor", 14: "octorotor", 15: "tricopter", 19: "VTOL tailsitter", 20: "VTOL tiltrotor",
-             21: "VTOL standard", 22: "VTOL tailsitter"}
+#: PX4's ``MAV_TYPE`` parameter -> the vehicle it names (the values PX4's parameter
+#: reference lists, https://docs.px4.io/main/en/advanced_config/parameter_reference.html)
+MAV_TYPES = {1: "fixed wing", 2: "quadrotor", 3: "coaxial", 4: "helicopter", 7: "airship", 8: "free balloon",
+             10: "ground rover", 11: "surface boat", 12: "submarine", 13: "hexarotor", 14: "octorotor",
+             15: "tricopter", 19: "VTOL two-rotor tailsitter", 20: "VTOL quad-rotor tailsitter",
+             21: "VTOL tiltrotor", 22: "VTOL standard", 23: "VTOL tailsitter", 29: "dodecarotor"}
 
 
 def _identity(**kw):
@@ -90,8 +92,8 @@ def crash_line(fields):
     if imps:
         return _line("crash", "fail", "; ".join(f"boot {i['session']}: {i['reason']}" for i in imps) +
                      " -- the flight ends there; what follows is kept out of the verdicts")
-    if not fields.get("segments"):
-        return _line("crash", None, "not looked for: no flight segments")
+    if not any(s.get("kind") == "flying" for s in fields.get("segments") or []):
+        return _line("crash", None, "not looked for: the log holds no flight")
     return _line("crash", "pass", "no impact found (a body-rate jump 4x the flight's envelope with a 3 g "
                                   "accelerometer spike, then a disarm or a tumble)")
 

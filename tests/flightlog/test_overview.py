@@ -57,6 +57,8 @@ def test_overview_tops_the_html_page(tmp_path):
     ("betaflight/LOG00037.BFL", ("Betaflight", "Betaflight 4.2.0 (8f2d21460) STM32F745", "HBRO KAKUTEF7", None)),
     ("px4_quad_ekf_failure.ulg", ("PX4 quadrotor", "1.15.0 (git b589596a)", "NXP_MR_TROPIC",
                                   "airframe 4001 (SYS_AUTOSTART)")),
+    ("px4_vtol_small.ulg", ("PX4 VTOL standard", "1.11.2 (git 8583f1da)", "CUBEPILOT_CUBEORANGE",
+                            "airframe 13014 (SYS_AUTOSTART)")),
 ])
 def test_shared_logs_identity(name, want):
     path = SHARED_LOGS / name
@@ -65,3 +67,11 @@ def test_shared_logs_identity(name, want):
     ov = log_review(read_log(path)).fields["overview"]
     assert (ov["vehicle"], ov["firmware"], ov["board"], ov["frame"]) == want
     assert len(ov["verdicts"]) == 4 and all(v["reason"] for v in ov["verdicts"])
+
+
+def test_never_flying_log_has_no_crash_verdict():
+    path = SHARED_LOGS / "px4_sample.ulg"                   # never armed
+    if not path.exists():
+        pytest.skip(f"third-party log not present: {path}")
+    (crash,) = [v for v in log_review(read_log(path)).fields["overview"]["verdicts"] if v["topic"] == "crash"]
+    assert crash["verdict"] is None and "no flight" in crash["reason"]
