@@ -108,3 +108,42 @@ def test_through_a_synthetic_dataflash_rate_log(tmp_path):
     step = html[html.index("<h2 id=step>"):]
     assert "Plotly.newPlot" in step and "rise 10-90 % [ms]" in step
     assert f"<td>roll</td><td>{sr['axes']['roll']['rise_time_s'] * 1000:.0f}</td>" in step
+
+
+def test_through_a_synthetic_px4_ulog():
+    """PX4: vehicle_rates_setpoint at 250 Hz (rad/s) held over vehicle_angular_velocity at
+    500 Hz, the roll loop above; armed and in the air throughout: the review's roll figures
+    are the loop's (the hold adds at most one 500 Hz sample of delay)."""
+    from gyrodenoise.flightlog.log_review import log_review
+
+    from tests.flightlog.flight_logs import log_of_bytes
+    from tests.flightlog.synthetic_logs import ULogWriter
+    sp, gy = _flight(8.0, 0.5, 0.004, seconds=60.0)
+    u = ULogWriter()
+    u.define("sensor_combined", [("uint64_t", "timestamp"), ("float[3]", "gyro_rad")])
+    u.define("vehicle_rates_setpoint", [("uint64_t", "timestamp"), ("float", "roll"), ("float", "pitch"),
+                                        ("float", "yaw")])
+    u.define("vehicle_angular_velocity", [("uint64_t", "timestamp"), ("float[3]", "xyz")])
+    u.define("vehicle_status", [("uint64_t", "timestamp"), ("uint8_t", "arming_state")])
+    u.define("vehicle_land_detected", [("uint64_t", "timestamp"), ("uint8_t", "landed")])
+    sc, rs, av, vs, ld = (u.subscribe(n) for n in ("sensor_combined", "vehicle_rates_setpoint",
+                                                    "vehicle_angular_velocity", "vehicle_status",
+                                                    "vehicle_land_detected"))
+    u.add(vs, 1000, 2)
+    u.add(ld, 1000, 0)
+    for j in range(len(sp)):
+        us = 2000 + int(round(j * 1e6 / FS))
+        r = np.radians(gy[j])
+        if j % 2 == 0:
+            u.add(rs, us, np.radians(sp[j]), 0.0, 0.0)
+        u.add(av, us, [r, 0.0, 0.0])
+        u.add(sc, us, [r, 0.0, 0.0])
+    u.add(vs, 2000 + int(len(sp) * 1e6 / FS), 2)
+    u.add(ld, 2000 + int(len(sp) * 1e6 / FS), 0)
+    sr = log_review(log_of_bytes(u.bytes(), "ulog")).fields["step_response"]
+    assert sr is not None and sr["source"].startswith("vehicle_rates_setpoint")
+    rise, t50, over = _truth(8.0, 0.5, 0.004)
+    f = sr["axes"]["roll"]
+    assert f["rise_time_s"] == pytest.approx(rise, rel=0.08, abs=1 / FS)
+    assert f["delay_s"] == pytest.approx(t50, rel=0.08, abs=1 / FS)
+    assert f["overshoot_pct"] == pytest.approx(over, abs=3.0)
