@@ -13,7 +13,8 @@ little power the estimate is pulled to 0 instead of dividing noise by almost not
 the impulse response is ``H``'s inverse FFT and the step response its running sum over
 the first :data:`RESPONSE_S`. The windows' step responses are averaged. From the
 average: ``final`` (the mean over its last 40 %), the rise time (10 % to 90 % of
-``final``), the delay (to 50 %), the overshoot (the peak above ``final``, in % of it);
+``final``), the delay (to 50 %), the overshoot (the peak above ``final``, in % of it; ``peak``
+itself is the response's maximum to a unit step, as PID tools plot it);
 given only where ``final`` lies within :data:`FINAL_RANGE` (else the setpoint did not
 explain the rate: a note says so).
 
@@ -79,7 +80,7 @@ class StepResponse:
             return None if x is None or not self.settles else round(float(x), nd)
         out = {"windows": self.windows, "window_s": self.window_s, "sample_rate_hz": round(self.sample_rate_hz, 2),
                "final": round(float(self.final), 4), "rise_time_s": r(self.rise_time_s), "delay_s": r(self.delay_s),
-               "overshoot_pct": r(self.overshoot_pct, 2)}
+               "overshoot_pct": r(self.overshoot_pct, 2), "peak": r(float(self.response.max()), 3)}
         k = max(1, int(np.ceil(len(self.time_s) / CURVE_POINTS)))
         out["curve"] = {"time_s": [round(float(x), 5) for x in self.time_s[::k]],
                         "response": [round(float(x), 4) for x in self.response[::k]]}
