@@ -8,9 +8,11 @@ vehicle recorded after hitting the ground stays out of the verdicts.
    flight's own envelope (the 99th percentile of |rate| over the segment up to
    :data:`IMPACT_WINDOW_S` before the jump) and at least :data:`IMPACT_RATE_MIN_DPS`;
 2. **the accelerometer spike** -- where the log has an accelerometer
-   (:meth:`LogFormat.accelerometer`), |accel| of at least :data:`IMPACT_ACCEL_M_S2`
-   (3 g; a crash clips the accelerometer at its range) within :data:`IMPACT_WINDOW_S`
-   of the rate jump; a log without an accelerometer is judged on 1 and 3 alone;
+   (:meth:`LogFormat.accelerometer`) or clip counters (:meth:`LogFormat.vibration_levels`:
+   ``VIBE.Clip``, ``clipping_0..2``, ``accel_clipping``), |accel| of at least
+   :data:`IMPACT_ACCEL_M_S2` (3 g) or a clip counter rising (the accelerometer hit its
+   range: a low-passed 25 Hz log can under-read the spike itself) within
+   :data:`IMPACT_WINDOW_S` of the rate jump; a log with neither is judged on 1 and 3 alone;
 3. **what follows** -- within :data:`IMPACT_CONFIRM_S` the vehicle is no longer flying
    (disarmed or landed: the segment ends), or it tumbled: its tilt (from the attitude,
    :meth:`LogFormat.attitude`) stays above :data:`TUMBLE_TILT_DEG` over the
@@ -55,11 +57,13 @@ class Impact:
     rate_source: str
     accel_peak_m_s2: float | None
     confirmed_by: str
+    clipped: bool = False
 
     @property
     def reason(self):
         accel = ("" if self.accel_peak_m_s2 is None else
-                 f", accelerometer spike {self.accel_peak_m_s2:.0f} m/s/s")
+                 f", accelerometer peak {self.accel_peak_m_s2:.0f} m/s/s") + (
+            ", the accelerometer clipping" if self.clipped else "")
         return (f"impact at {self.time_s:.2f} s: body rate {self.rate_peak_deg_s:.0f} deg/s against the "
                 f"flight's 99th percentile before it {self.rate_envelope_deg_s:.0f} deg/s ({self.rate_source}){accel}; "
                 f"then {self.confirmed_by}")
@@ -69,7 +73,7 @@ class Impact:
                 "rate_peak_deg_s": round(self.rate_peak_deg_s, 1),
                 "rate_envelope_deg_s": round(self.rate_envelope_deg_s, 1), "rate_source": self.rate_source,
                 "accel_peak_m_s2": None if self.accel_peak_m_s2 is None else round(self.accel_peak_m_s2, 2),
-                "confirmed_by": self.confirmed_by, "reason": self.reason}
+                "clipped": self.clipped, "confirmed_by": self.confirmed_by, "reason": self.reason}
 
 
 def boot_rate(log, boot):
@@ -118,6 +122,7 @@ def find_impact(log, segment, rate=None) -> Impact | None:
         ta, rows = _boot_rows(log, accel, boot)
         amag = np.sqrt(np.sum(np.asarray(accel["xyz"], np.float64)[rows] ** 2, axis=1))
     att = log.format.attitude(log)
+    clips = _clip_times(log, boot)
     cand = np.flatnonzero(mf > IMPACT_RATE_MIN_DPS)
     if len(cand):                                  # the first sample of each burst above the floor
         cand = cand[np.concatenate([[True], np.diff(tf[cand]) > IMPACT_WINDOW_S])]
@@ -131,18 +136,46 @@ def find_impact(log, segment, rate=None) -> Impact | None:
             continue
         near = (tf >= t_jump - IMPACT_WINDOW_S) & (tf <= t_jump + IMPACT_WINDOW_S)
         peak = float(mf[near].max())
-        t_imp, a_peak = t_jump, None
+        t_imp, a_peak, clipped = t_jump, None, False
+        if clips is not None:
+            near_clip = clips[(clips >= t_jump - IMPACT_WINDOW_S) & (clips <= t_jump + IMPACT_WINDOW_S)]
+            clipped = len(near_clip) > 0
         if accel is not None:
             w = (ta >= t_jump - IMPACT_WINDOW_S) & (ta <= t_jump + IMPACT_WINDOW_S)
             spike = w & (amag >= IMPACT_ACCEL_M_S2)
-            if not spike.any():
+            a_peak = float(amag[w].max()) if w.any() else None
+            if spike.any():
+                t_imp = min(t_jump, float(ta[spike][0]))
+            elif not clipped:
                 continue
-            a_peak = float(amag[w].max())
-            t_imp = min(t_jump, float(ta[spike][0]))
+        elif clips is not None and not clipped:
+            continue
         confirmed = _confirmed(log, att, boot, segment, t_imp)
         if confirmed:
-            return Impact(t_imp, boot, peak, envelope, name, a_peak, confirmed)
+            return Impact(t_imp, boot, peak, envelope, name, a_peak, confirmed, clipped)
     return None
+
+
+def _clip_times(log, boot):
+    """The times (sorted) at which any of boot ``boot``'s accelerometer clip counters
+    rose; None when the log has no clip counter."""
+    lv = log.format.vibration_levels(log)
+    if lv is None or not lv.get("clips"):
+        return None
+    t = np.asarray(lv["time_s"], np.float64)
+    sel = np.isfinite(t)
+    if len(log.boots) > 1 and lv.get("record") is not None:
+        sel &= log.boot_of(lv["record"]) == boot
+    inst = np.asarray(lv.get("instance", np.zeros(len(t), np.int64)))
+    rises = []
+    for col in lv["clips"].values():
+        c = np.asarray(col, np.float64)
+        for k in np.unique(inst[sel]):                   # a counter per IMU instance
+            m = sel & (inst == k)
+            order = np.argsort(t[m], kind="stable")
+            tk, ck = t[m][order], c[m][order]
+            rises.append(tk[1:][np.diff(ck) > 0])
+    return np.sort(np.concatenate(rises)) if rises else np.zeros(0)
 
 
 def _confirmed(log, att, boot, segment, t_imp):

@@ -130,12 +130,12 @@ class ULogWriter:
 
 
 def crash_dataflash(crash_s=20.0, end_s=30.0, disarm_s=None, tumble=True, spike=True,
-                    swing=None, rate_hz=200.0, seed=0):
+                    swing=None, rate_hz=200.0, seed=0, clips=True):
     """A SYNTHETIC ArduCopter DataFlash flight with a crash at ``crash_s`` (None: none):
     IMU (GyrX/Y/Z rad/s, AccX/Y/Z m/s/s) at ``rate_hz`` from 1 s to ``end_s``; armed at
     2 s, in the air at 4 s (EV 28); CTUN.ThO steady at 0.45 in the air (0.1 before);
     VIBE at 10 Hz: VibeZ 20 m/s/s in flight, 90 after the crash, Clip +1 per sample
-    after it (on the ground after a crash the clip counter runs). Before the crash the
+    after it (with ``clips``; on the ground after a crash the counter runs). Before the crash the
     body rate is noise of 5 deg/s per axis plus a 90 deg/s roll manoeuvre (0.25 Hz)
     from 8 to 12 s. The crash: from ``crash_s`` 0.3 s of a 1500 deg/s roll rate and (with
     ``spike``) a 12 g accelerometer spike of 40 ms; then (``tumble``) ATT.Roll at 175 deg,
@@ -188,6 +188,6 @@ def crash_dataflash(crash_s=20.0, end_s=30.0, disarm_s=None, tumble=True, spike=
             roll = 175.0 if (tumble and crashed[j] and t[j] >= crash_s + 0.3) else 0.0
             w.add("ATT", us, roll, 0.0)
             vz = 90.0 if crashed[j] else 20.0
-            clip = int(np.sum(crashed[:j][:: int(rate_hz / 10)]))          # counted after the impact sample
+            clip = int(np.sum(crashed[:j][:: int(rate_hz / 10)])) if clips else 0   # counted after the impact
             w.add("VIBE", us, 0, 10.0, 10.0, vz, clip)
     return w.bytes()

@@ -57,7 +57,7 @@ def test_disarm_after_the_impact_confirms_it():
     assert "no longer flying 1.5 s later" in rev.fields["impacts"][0]["confirmed_by"]
 
 
-@pytest.mark.parametrize("kw", [{"spike": False},                       # a flip: no impact spike
+@pytest.mark.parametrize("kw", [{"spike": False, "clips": False},       # a flip: no spike, no clipping
                                 {"tumble": False}])                     # upright, flying on: nothing follows
 def test_no_impact_without_all_its_evidence(kw):
     rev = _review(**kw)
@@ -84,3 +84,11 @@ def test_log171_crash():
     assert after.impact.rate_peak_deg_s > 1500 and after.impact.accel_peak_m_s2 > 100
     assert "tumble" in after.impact.confirmed_by
     assert all(s.end_s <= after.start_s for s in segs if s.kind in ("flying", "hover"))
+
+
+def test_clipping_alone_stands_for_the_spike():
+    """No 3 g sample in the logged accelerometer (a low-passed log under-reads it), but
+    VIBE.Clip rises just after the rate jump: the impact is found, said clipped."""
+    (imp,) = _review(spike=False).fields["impacts"]
+    assert imp["time_s"] == CRASH_S and imp["clipped"] is True and imp["accel_peak_m_s2"] < 3 * 9.81
+    assert "clipping" in imp["reason"]
