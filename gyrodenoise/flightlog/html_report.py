@@ -42,7 +42,8 @@ from gyrodenoise.flightlog.stopping import atomic_path
 ENVELOPE_BINS = 1500
 #: shading of the flight segments on the time plots (kind -> colour)
 SEGMENT_COLOURS = {"ground": "rgba(150,150,150,0.18)", "armed": "rgba(255,190,0,0.18)",
-                   "flying": "rgba(0,170,80,0.14)", "hover": "rgba(0,120,255,0.14)"}
+                   "flying": "rgba(0,170,80,0.14)", "hover": "rgba(0,120,255,0.14)",
+                   "after impact": "rgba(220,0,0,0.16)"}
 #: per axis: (filtered colour, raw colour: the same hue, lighter)
 AXIS_COLOURS = (("#1f4fb4", "#9db8ee"), ("#d9650b", "#f7c08f"), ("#218a3a", "#9fd9a9"),
                 ("#7b3fa0", "#cfb0e3"))
@@ -68,6 +69,7 @@ td,th{border:1px solid #ccc;padding:3px 7px;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 .note{color:#555;font-style:italic;margin:4px 0}.warn{color:#a15c00}.fail{color:#b00020;font-weight:bold}
 .pass{color:#1a7f37;font-weight:bold}.plot{width:100%;min-height:300px}
+.change{color:#0b5cad;font-weight:bold}.verdict.none{color:#555}
 div.tbl{max-width:100%;overflow-x:auto}td{overflow-wrap:break-word;max-width:60em}
 pre{background:#f6f6f6;padding:8px;border:1px solid #ddd;overflow-x:auto}
 nav a{margin-right:12px}.small{font-size:12px;color:#555}
@@ -560,6 +562,70 @@ def vehicle_response(stages, freq_hz, rate_hz):
 
 
 # ------------------------------------------------------------------ sections
+#: the overview's identity rows (report key, label)
+OVERVIEW_ROWS = (("vehicle", "vehicle"), ("firmware", "firmware"), ("board", "board"), ("frame", "frame"),
+                 ("vehicle_id", "vehicle / board id"))
+
+
+def _overview_section(report):
+    """The first screen: the vehicle, its flight time per boot and one line per verdict
+    with its reason (the report's ``overview``: :mod:`gyrodenoise.flightlog.overview`)."""
+    ov = report.get("overview")
+    if not ov:
+        return ""
+    rows = [[_e(label), _e(ov.get(key) if ov.get(key) is not None else "not in the log")]
+            for key, label in OVERVIEW_ROWS]
+    times = ov.get("flight_time_s") or []
+    if times:
+        per = ", ".join(f"boot {k}: {t or 0:.1f} s" for k, t in enumerate(times)) if len(times) > 1 else \
+            f"{times[0] or 0:.1f} s"
+        rows.append(["flight time", _e(per)])
+    vrows = [[_e(v["topic"]), f'<span class="verdict {_e(v["verdict"] or "none")}">'
+              f'{_e((v["verdict"] or "no verdict").upper())}</span>', _e(v["reason"])] for v in ov.get("verdicts") or []]
+    return ("<h2 id=overview>Overview</h2>" + _table(rows, ["", "value"]) +
+            _table(vrows, ["", "verdict", "reason"], cls="verdicts"))
+
+
+def _ms(v):
+    return "" if v is None else f"{v * 1000:.0f}"
+
+
+def _step_response_section(report, figs):
+    """The rate loop's step response per axis (the report's ``step_response``: each axis'
+    averaged ``curve``), its figures in a table; a note when there is none."""
+    sr = report.get("step_response")
+    out = ["<h2 id=step>Step response</h2>"]
+    if not sr:
+        if report.get("step_response_note"):
+            out.append(_note(f"no step response: {report['step_response_note']}"))
+        return "".join(out) if len(out) > 1 else ""
+    import plotly.graph_objects as go
+    fig = go.Figure()
+    rows = []
+    for k, (axis, f) in enumerate((sr.get("axes") or {}).items()):
+        if not f:
+            rows.append([_e(axis), "", "", "", "", "", _e("too little setpoint motion")])
+            continue
+        c = f.get("curve") or {}
+        if c.get("time_s"):
+            fig.add_trace(go.Scatter(x=[t * 1000 for t in c["time_s"]], y=c["response"], mode="lines", name=axis,
+                                     line={"color": AXIS_COLOURS[k % len(AXIS_COLOURS)][0]},
+                                     hovertemplate=f"{axis}: %{{y:.3f}} at %{{x:.0f}} ms<extra></extra>"))
+        rows.append([_e(axis), _e(_ms(f.get("rise_time_s"))), _e(_ms(f.get("delay_s"))),
+                     _e("" if f.get("overshoot_pct") is None else f"{f['overshoot_pct']:.0f}"),
+                     _e(_f(f.get("final"), ".2f")), _e(f"{f.get('windows')} x {f.get('window_s'):g} s"),
+                     _e(f.get("note") or "")])
+    fig.add_hline(y=1.0, line={"color": "#888", "dash": "dot"})
+    fig.update_layout(title={"text": _e(f"step response to a unit setpoint step ({sr.get('source')})"),
+                             "font": {"size": 14}}, xaxis_title="time after the step [ms]",
+                      yaxis_title="rate / setpoint step", hovermode="closest")
+    out.append(figs.div(fig, height=380))
+    out.append(_table(rows, ["axis", "rise 10-90 % [ms]", "delay to 50 % [ms]", "overshoot [%]", "final",
+                             "windows", "note"]))
+    out.append(_note(sr.get("method", "")))
+    return "".join(out)
+
+
 def _summary_section(report, series):
     rows = []
     for key in ("file", "format", "engine", "method", "ar_order", "form", "form_note", "output_log", "seconds"):
@@ -573,12 +639,12 @@ def _summary_section(report, series):
     flying = _flying_time_s(report)
     if flying is not None:
         rows.append(["flying time", _e(f"{flying:.1f} s")])
+    elif report.get("segments_note"):
+        rows.append(["flying time", _e(f"unknown ({report['segments_note']})")])
     base = report.get("time_base") or {}
     if base.get("kind") and base.get("kind") != "boot time":
         rows.append(["time base", _e(f"{base['kind']}: times from {base.get('offset_s')} s on that clock "
                                      f"({base.get('axis')})")])
-    elif report.get("segments_note"):
-        rows.append(["flying time", _e(f"unknown ({report['segments_note']})")])
     out = ["<h2 id=summary>Summary</h2>", _table(rows, ["", "value"])]
     srows = []
     for s in streams:
@@ -1200,15 +1266,18 @@ def write_log_report(path, report, series=None):
     ``report["vehicle_filters"]["stages"]`` (:func:`vehicle_response`)."""
     series = series or {}
     name = Path(str(report.get("file", "log"))).name
-    nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("summary", "summary"), ("streams", "streams"),
-                                                         ("spectra", "spectra"), ("filters", "filters"),
+    nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("overview", "overview"), ("summary", "summary"),
+                                                         ("streams", "streams"),
+                                                         ("spectra", "spectra"), ("filters", "filters"), ("step", "step response"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
     with _Figures() as figs:
         body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
+                _overview_section(report),
                 _summary_section(report, series),
                 _streams_section(report, series, figs),
                 _spectra_section(report, series, figs),
                 _filter_review_section(report, series, figs),
+                _step_response_section(report, figs),
                 _vibration_section(report, figs),
                 _notes_section(report)]
     return _write(path, _page(f"{name}: gyro review", "".join(body)))

@@ -20,7 +20,9 @@ import numpy as np
 
 from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.filter_review import filter_review, review_context
+from gyrodenoise.flightlog.overview import overview
 from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, sessions_of
+from gyrodenoise.flightlog.step_response import step_response_review
 from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
 from gyrodenoise.flightlog.vibration import vibration_review
 
@@ -41,6 +43,8 @@ class Review:
         self.segments = segments
         self.over = over
         self.starts = np.zeros(0, np.int64) if starts is None else np.asarray(starts)
+        #: {axis: StepResponse} of the step response, for the plot
+        self.step_curves = {}
 
     def flying_mask(self, time_s, records=None):
         """Bool array: the samples of ``time_s`` the figures are over (all True when
@@ -98,11 +102,14 @@ def log_review(log, whole_log=False):
 
     ``fields``: ``time_base``, ``boots`` (each boot: its time base, segments and flying
     time), ``segments``, ``segments_note``, ``flying_time_s``, ``over``,
-    ``over_note``, ``vehicle_filters`` (``autopilot`` ``"ardupilot"``/``"px4"``/None,
+    ``over_note``, ``impacts`` (each crash found: :class:`~gyrodenoise.flightlog.impact.Impact`;
+    the flight ends there), ``vehicle_filters`` (``autopilot`` ``"ardupilot"``/``"px4"``/None,
     ``parameters``, ``stages``; ``note`` when the log holds no parameters),
     ``stream_stages`` ({stream name: ``pre-filter``/``post-filter``/``unknown``}),
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
-    ``vibration_note``)."""
+    ``vibration_note``), ``step_response`` (the rate loop's step response per axis:
+    :mod:`gyrodenoise.flightlog.step_response`; None with ``step_response_note``),
+    ``overview`` (the first screen: :mod:`gyrodenoise.flightlog.overview`)."""
     streams = log.gyro
     fields = {"time_base": log.time_base.to_fields()}
     try:
@@ -121,11 +128,14 @@ def log_review(log, whole_log=False):
     fields["segments"] = [s.to_fields() for s in segments]
     fields["segments_note"] = seg_note
     fields["flying_time_s"] = flying_time_s(segments)
+    fields["impacts"] = [s.impact.to_fields() for s in segments if s.impact is not None]
     has_flying = any(s.kind == "flying" for s in segments)
     if whole_log:
         over, over_note = OVER_WHOLE, "--whole-log: figures over the whole log"
     elif has_flying:
         over, over_note = OVER_FLYING, "figures over the flying segments (--whole-log: over the whole log)"
+        if fields["impacts"]:
+            over_note += "; the flight ends at the impact: what follows is shown (after impact), not judged"
     else:
         over, over_note = OVER_WHOLE, "no flying segment in the log: figures over the whole log"
     fields["over"] = over
@@ -153,6 +163,17 @@ def log_review(log, whole_log=False):
         vib, vnote = None, _failed("vibration review", exc)
     fields["vibration"] = vib
     fields["vibration_note"] = vnote
+    try:
+        step, snote, review.step_curves = step_response_review(log, segments)
+    except Exception as exc:  # noqa: BLE001
+        step, snote = None, _failed("step response", exc)
+    fields["step_response"] = step
+    fields["step_response_note"] = snote
+    try:
+        ident = log.format.identity(log)
+    except Exception:  # noqa: BLE001 - the identity is a convenience: unknown fields, never a failed log
+        ident = {}
+    fields["overview"] = overview(fields, ident)
     return review
 
 
@@ -244,6 +265,8 @@ def review_text(rep):
     if base.get("kind") and base.get("kind") != "boot time":
         seg_line += f"; times on a {base['kind']} clock from {base.get('offset_s')} s"
     lines = [seg_line + f"; figures over: {rep.get('over', OVER_WHOLE)}"]
+    for imp in rep.get("impacts") or []:
+        lines.append(f"crash: {imp['reason']}; the flight ends there (after impact: shown, not judged)")
     vib = rep.get("vibration")
     if vib and vib.get("verdict"):
         lines.append(f"vibration: {vib['verdict'].upper()} ({vib.get('source')} over {vib.get('over')}"
@@ -253,6 +276,11 @@ def review_text(rep):
                      f"threshold for them)")
     else:
         lines.append(f"vibration: none ({rep.get('vibration_note', '')})")
+    sr = rep.get("step_response")
+    if sr:
+        lines.append("step response: " + step_response_line(sr))
+    elif "step_response_note" in rep:
+        lines.append(f"step response: none ({rep['step_response_note']})")
     fr = rep.get("filter_review")
     if fr:
         rec = fr.get("param_lines") or []
@@ -269,6 +297,8 @@ def _worst_figures(vib):
     vibration review at warn or fail (the worst segment's value of each)."""
     worst = {}
     for seg in vib.get("segments") or []:
+        if not seg.get("in_verdict", True):
+            continue
         for name, f in (seg.get("figures") or {}).items():
             v = f.get("verdict")
             if v in ("warn", "fail"):
@@ -276,3 +306,16 @@ def _worst_figures(vib):
                 if name not in worst or (v == "fail" and worst[name][1] != "fail"):
                     worst[name] = (value, v)
     return ("; " + ", ".join(f"{n} {val} ({v})" for n, (val, v) in worst.items())) if worst else ""
+
+
+def step_response_line(sr):
+    """'roll rise 32 ms, overshoot 17 %; pitch ...; (RATE ...)': a step response in a line."""
+    parts = []
+    for axis, f in (sr.get("axes") or {}).items():
+        if not f:
+            parts.append(f"{axis} none")
+            continue
+        rise = "?" if f["rise_time_s"] is None else f"{f['rise_time_s'] * 1000:.0f} ms"
+        over = "?" if f["overshoot_pct"] is None else f"{f['overshoot_pct']:.0f} %"
+        parts.append(f"{axis} rise {rise}, overshoot {over}")
+    return "; ".join(parts) + f" ({sr.get('source')})"

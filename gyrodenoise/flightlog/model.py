@@ -130,16 +130,22 @@ class ReadOptions:
     raw_imu_scale: float | None = None
 
 
+#: the kind of the segment that follows a crash (:mod:`gyrodenoise.flightlog.impact`)
+AFTER_IMPACT = "after impact"
+
+
 @dataclass(frozen=True)
 class Segment:
-    """A stretch of one boot: ``kind`` ``ground``/``armed``/``flying``/``hover`` (or, for a
-    figure over a whole boot, ``whole log``), ``start_s``/``end_s`` on the boot's time
-    axis (start and end included), ``session`` the boot (None: any boot, a figure over
-    the whole of a log of one boot)."""
+    """A stretch of one boot: ``kind`` ``ground``/``armed``/``flying``/``after impact``/``hover``
+    (or, for a figure over a whole boot, ``whole log``), ``start_s``/``end_s`` on the boot's
+    time axis (start and end included), ``session`` the boot (None: any boot, a figure over
+    the whole of a log of one boot); ``impact``: the crash an ``after impact`` segment
+    starts with (:class:`gyrodenoise.flightlog.impact.Impact`)."""
     kind: str
     start_s: float
     end_s: float
     session: int | None = 0
+    impact: Any = None
 
     @property
     def duration_s(self):
@@ -159,6 +165,8 @@ class Segment:
         out = {"kind": self.kind, "start_s": self.start_s, "end_s": self.end_s}
         if self.session is not None:
             out["session"] = self.session
+        if self.impact is not None:
+            out["impact"] = self.impact.to_fields()
         return out
 
 

@@ -48,7 +48,8 @@ def plot_time(time_s, restarts, axis=BOOT_AXIS):
 #: shading of the flight segments (``report["segments"]`` kinds) on the time plots
 #: the filtered line (dark) and the raw one (lighter, drawn above it, half transparent)
 FILTERED_COLOUR, RAW_COLOUR = "#0b3d91", "#8fb3e8"
-SEGMENT_COLOURS = {"ground": "0.85", "armed": "#ffe08a", "flying": "#b7e4c7", "hover": "#b9d4ff"}
+SEGMENT_COLOURS = {"ground": "0.85", "armed": "#ffe08a", "flying": "#b7e4c7", "hover": "#b9d4ff",
+                   "after impact": "#f4b0b0"}
 
 
 #: the percentiles of the samples an initial y range keeps, widened by

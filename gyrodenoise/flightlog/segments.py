@@ -18,10 +18,17 @@ the log's own time base (the gyro streams' ``time_s``; :mod:`gyrodenoise.flightl
   Boots are numbered in file order by the records' place in the file (a telemetry
   record's frame index, a DataFlash message's byte offset: the same numbering for every
   message and gyro stream of the log).
+* ``after impact`` -- the rest of a ``flying`` segment from a crash on
+  (:mod:`gyrodenoise.flightlog.impact`): the flight ends at the impact (the first
+  sample of the rate jump or the accelerometer spike); what follows is shown but kept out of the verdicts (the segment carries
+  the :class:`~gyrodenoise.flightlog.impact.Impact`).
 * ``hover`` -- EXTRA entries, not part of the partition: a stretch of a ``flying``
   segment where the throttle is steady -- the union of the 2 s windows
   (:data:`HOVER_WINDOW_S`, at least 3 throttle samples) whose throttle standard
-  deviation is below 0.03 of full throttle (:data:`HOVER_STD`) -- at least 3 s long
+  deviation is below 0.03 of full throttle (:data:`HOVER_STD`) and in which the body
+  rate (the boot's first gyro, averaged per axis over :data:`HOVER_RATE_SMOOTH_S`) stays
+  below :data:`HOVER_RATE_DPS` (steady throttle alone is not a hover: a motor failure
+  swings the vehicle at a steady throttle) -- at least 3 s long
   (:data:`HOVER_MIN_S`). Each lies inside a ``flying`` segment.
 
 Evidence, by format:
@@ -61,14 +68,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from gyrodenoise.flightlog.model import FlightEvidence, Segment, Throttle
+from gyrodenoise.flightlog.impact import boot_rate, find_impact
+from gyrodenoise.flightlog.model import AFTER_IMPACT, FlightEvidence, Segment, Throttle
 
-SEGMENT_KINDS = ("ground", "armed", "flying", "hover")
+SEGMENT_KINDS = ("ground", "armed", "flying", AFTER_IMPACT, "hover")
 GROUND, ARMED, FLYING = 0, 1, 2
 _STATE_NAMES = ("ground", "armed", "flying")
 
 HOVER_WINDOW_S = 2.0
 HOVER_STD = 0.03
+#: hover: the body rate, averaged over this (s) per axis, stays below ...
+HOVER_RATE_SMOOTH_S = 0.25
+#: ... this (deg/s) -- a motor failure with the throttle steady swings far beyond it
+HOVER_RATE_DPS = 60.0
 HOVER_MIN_S = 3.0
 FLYING_THROTTLE = 0.2
 REBOOT_STEP_S = 0.5
@@ -96,7 +108,9 @@ def flight_segments(log, autopilot=None):
             missing.append(got)
             continue
         segs = _runs(got.time_s, got.state, np.full(len(got.time_s), boot))
-        hov = _hover(segs, got.throttle) if got.throttle is not None else []
+        rate = boot_rate(log, boot)
+        segs = _split_at_impacts(log, segs, rate)
+        hov = _hover(segs, got.throttle, rate) if got.throttle is not None else []
         hovers |= bool(hov)
         if got.note not in notes:
             notes.append(got.note)
@@ -109,7 +123,11 @@ def flight_segments(log, autopilot=None):
     note = "; ".join(notes)
     if hovers:
         note += (f"; hover: throttle std over {HOVER_WINDOW_S:g} s below {HOVER_STD:g} of full "
-                 f"throttle for at least {HOVER_MIN_S:g} s")
+                 f"throttle and the body rate (mean over {HOVER_RATE_SMOOTH_S:g} s) below "
+                 f"{HOVER_RATE_DPS:g} deg/s for at least {HOVER_MIN_S:g} s")
+    for seg in out:
+        if seg.impact is not None:
+            note += f"; boot {seg.session}: {seg.impact.reason}: the flight ends there (after impact)"
     if len(log.boots) > 1:
         note += f"; {len(log.boots)} boot sessions, each on its own boot time (numbered in file order)"
         if missing:
@@ -193,12 +211,42 @@ def _step(t_query, t_change, values, initial):
     return out
 
 
-def _hover(segs, throttle):
+def _split_at_impacts(log, segs, rate):
+    """``segs`` with each ``flying`` segment that holds an impact
+    (:func:`gyrodenoise.flightlog.impact.find_impact`) cut there: ``flying`` up to the
+    impact, ``after impact`` (the impact attached) from it to the segment's end."""
+    out = []
+    for s in segs:
+        hit = find_impact(log, s, rate) if s.kind == "flying" and rate is not None else None
+        if hit is None or not s.start_s < hit.time_s < s.end_s:
+            out.append(s)
+            continue
+        t = round(float(hit.time_s), 6)
+        out += [Segment("flying", s.start_s, t, s.session), Segment(AFTER_IMPACT, t, s.end_s, s.session, impact=hit)]
+    return out
+
+
+def _rate_unsteady(rate):
+    """(time_s, bool per sample): the body rate, averaged per axis over
+    :data:`HOVER_RATE_SMOOTH_S` (motor noise out), above :data:`HOVER_RATE_DPS`."""
+    t, xyz, _ = rate
+    c = np.vstack([np.zeros((1, 3)), np.cumsum(xyz, axis=0)])
+    lo = np.searchsorted(t, t - HOVER_RATE_SMOOTH_S / 2, side="left")
+    hi = np.searchsorted(t, t + HOVER_RATE_SMOOTH_S / 2, side="right")
+    mean = (c[hi] - c[lo]) / (hi - lo)[:, None]
+    return t, np.sqrt(np.sum(mean * mean, axis=1)) > HOVER_RATE_DPS
+
+
+def _hover(segs, throttle, rate=None):
     """[(its flying segment, hover segment)] inside the flying ones (of one boot) from
-    ``throttle`` (:class:`Throttle`)."""
+    ``throttle`` (:class:`Throttle`) and, where the boot has a gyro, the body ``rate``
+    (:func:`gyrodenoise.flightlog.impact.boot_rate`): a window is steady when both are."""
     tt, thr = throttle.time_s, throttle.value
     ok = np.isfinite(tt) & np.isfinite(thr)
     tt, thr = np.asarray(tt, np.float64)[ok], np.asarray(thr, np.float64)[ok]
+    if rate is not None:
+        rt, bad = _rate_unsteady(rate)
+        n_bad = np.concatenate([[0], np.cumsum(bad)])
     out = []
     for s in segs:
         if s.kind != "flying":
@@ -217,6 +265,10 @@ def _hover(segs, throttle):
         mean = (c1[hi] - c1[lo]) / n
         var = np.maximum((c2[hi] - c2[lo]) / n - mean * mean, 0.0)
         ok = (np.sqrt(var) < HOVER_STD) & (n >= 3) & (t + HOVER_WINDOW_S <= t[-1])
+        if rate is not None:                                     # no unsteady rate sample in the window
+            a = np.searchsorted(rt, t, side="left")
+            b = np.searchsorted(rt, t + HOVER_WINDOW_S, side="right")
+            ok &= n_bad[b] == n_bad[a]
         cover = np.zeros(len(t) + 1, np.int64)                   # samples inside a steady window
         np.add.at(cover, lo[ok], 1)
         np.add.at(cover, hi[ok], -1)

@@ -44,7 +44,7 @@ import re
 import numpy as np
 
 from gyrodenoise.analysis.spectrum import find_peaks, welch_psd
-from gyrodenoise.flightlog.model import Segment
+from gyrodenoise.flightlog.model import AFTER_IMPACT, Segment
 
 ARDUPILOT_VIBE_URL = "https://ardupilot.org/copter/docs/common-measuring-vibration.html"
 FLIGHT_REVIEW_URL = "https://github.com/PX4/flight_review/blob/main/app/plot_app/configured_plots.py"
@@ -113,6 +113,9 @@ def vibration_review(log, segments, over="flying"):
             note = "no flying segment in the log: figures over the whole log; "
         spans = _whole_boots(log, levels, accel)
         over_out = "whole log"
+    else:                     # shown, labelled, outside the verdict: what a crash left in the log
+        spans = sorted(spans + [s for s in segments if s.kind == AFTER_IMPACT],
+                       key=lambda s: (s.session or 0, s.start_s))
     out_segs = []
     for seg in spans:
         entry = {"kind": seg.kind, "start_s": round(float(seg.start_s), 3),
@@ -124,6 +127,9 @@ def vibration_review(log, segments, over="flying"):
             entry["accel_peaks"] = _segment_peaks(accel, seg)
             entry["figures"].update(_accel_figures(accel, seg))
         entry["verdict"] = _worst(f.get("verdict") for f in entry["figures"].values())
+        if seg.kind == AFTER_IMPACT:
+            entry["in_verdict"] = False
+            entry["note"] = f"after impact ({seg.impact.reason}): shown, not judged"
         out_segs.append(entry)
     src_name = levels["source"] if levels is not None else "accelerometer"
     used = {levels["threshold"], "clip_increase"} if levels is not None else set()
@@ -133,9 +139,13 @@ def vibration_review(log, segments, over="flying"):
         "over": over_out,
         "thresholds": {k: dict(v) for k, v in THRESHOLDS.items() if k in used},
         "segments": out_segs,
-        "verdict": _worst(s["verdict"] for s in out_segs),
+        "verdict": _worst(s["verdict"] for s in out_segs if s.get("in_verdict", True)),
     }
-    note += (f"{src_name} over {len(out_segs)} {over_out} segment(s); "
+    after = sum(not s.get("in_verdict", True) for s in out_segs)
+    if after:
+        note += (f"{after} segment(s) after an impact shown but kept out of the verdict (what the crash "
+                 f"did to the sensors says nothing about the vehicle's vibration); ")
+    note += (f"{src_name} over {len(out_segs) - after} {over_out} segment(s); "
              f"levels judged on their 95th percentile, clipping on its increase")
     if levels is None:
         note += ("; no vibration level in the log: the accelerometer's band rms and spectra only, no verdict "

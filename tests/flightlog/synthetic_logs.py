@@ -127,3 +127,67 @@ class ULogWriter:
 
     def bytes(self):
         return bytes(self.out)
+
+
+def crash_dataflash(crash_s=20.0, end_s=30.0, disarm_s=None, tumble=True, spike=True,
+                    swing=None, rate_hz=200.0, seed=0, clips=True):
+    """A SYNTHETIC ArduCopter DataFlash flight with a crash at ``crash_s`` (None: none):
+    IMU (GyrX/Y/Z rad/s, AccX/Y/Z m/s/s) at ``rate_hz`` from 1 s to ``end_s``; armed at
+    2 s, in the air at 4 s (EV 28); CTUN.ThO steady at 0.45 in the air (0.1 before);
+    VIBE at 10 Hz: VibeZ 20 m/s/s in flight, 90 after the crash, Clip +1 per sample
+    after it (with ``clips``; on the ground after a crash the counter runs). Before the crash the
+    body rate is noise of 5 deg/s per axis plus a 90 deg/s roll manoeuvre (0.25 Hz)
+    from 8 to 12 s. The crash: from ``crash_s`` 0.3 s of a 1500 deg/s roll rate and (with
+    ``spike``) a 12 g accelerometer spike of 40 ms; then (``tumble``) ATT.Roll at 175 deg,
+    and a disarm (EV 11) at ``disarm_s`` where given. ``swing``: (start, end) of a
+    motor failure -- the roll rate swinging +-131 deg/s at 0.5 Hz with the throttle steady.
+    Returns the log's bytes."""
+    rng = np.random.default_rng(seed)
+    w = DataFlashWriter()
+    w.define("IMU", "QBffffff", ["TimeUS", "I", "GyrX", "GyrY", "GyrZ", "AccX", "AccY", "AccZ"])
+    w.define("CTUN", "Qf", ["TimeUS", "ThO"])
+    w.define("ATT", "Qff", ["TimeUS", "Roll", "Pitch"])
+    w.define("VIBE", "QBfffI", ["TimeUS", "IMU", "VibeX", "VibeY", "VibeZ", "Clip"])
+    w.define("EV", "QB", ["TimeUS", "Id"])
+    w.define("ARM", "QBIBB", ["TimeUS", "ArmState", "ArmChecks", "Forced", "Method"])
+    w.define("MSG", "QZ", ["TimeUS", "Message"])
+    for text in ("ArduCopter V4.5.7 (0123abcd)", "CubeOrange 00300021 31305110 30393738", "Frame: QUAD/X"):
+        w.add("MSG", 900_000, text)
+    t = 1.0 + np.arange(int(round((end_s - 1.0) * rate_hz))) / rate_hz
+    crashed = np.zeros(len(t), bool) if crash_s is None else t >= crash_s
+    gyr = rng.normal(0, 5.0, (len(t), 3))
+    man = (t >= 8) & (t < 12)
+    gyr[man, 0] += 90 * np.sin(2 * np.pi * 0.25 * (t[man] - 8))
+    if swing is not None:
+        sw = (t >= swing[0]) & (t < swing[1])
+        gyr[sw, 0] += 131 * np.sin(2 * np.pi * 0.5 * (t[sw] - swing[0]))
+    acc = np.stack([rng.normal(0, 1.0, len(t)), rng.normal(0, 1.0, len(t)), -9.8 + rng.normal(0, 1.0, len(t))], 1)
+    if crash_s is not None:
+        hit = (t >= crash_s) & (t < crash_s + 0.3)
+        gyr[hit, 0] = 1500.0
+        if spike:
+            acc[(t >= crash_s) & (t < crash_s + 0.04), 2] = 12 * 9.8
+        if tumble:
+            acc[t >= crash_s + 0.3, 2] += 19.6                     # upside down: +g on z
+        gyr[t >= crash_s + 0.3] *= 0.2                            # lying still
+    gyr = np.radians(gyr)
+    events = [(2.0, 10), (4.0, 28)] + ([(disarm_s, 11)] if disarm_s is not None else [])
+    k = 0
+    for j in range(len(t)):
+        us = int(round(t[j] * 1e6))
+        while k < len(events) and events[k][0] * 1e6 <= us:
+            e_us = int(round(events[k][0] * 1e6))
+            w.add("EV", e_us, events[k][1])
+            if events[k][1] in (10, 11):
+                w.add("ARM", e_us, int(events[k][1] == 10), 0, 0, 0)
+            k += 1
+        w.add("IMU", us, 0, *gyr[j], *acc[j])
+        if j % int(rate_hz / 10) == 0:
+            air = 4.0 <= t[j] and (disarm_s is None or t[j] < disarm_s)
+            w.add("CTUN", us, (0.45 + rng.normal(0, 0.005)) if air else 0.1)
+            roll = 175.0 if (tumble and crashed[j] and t[j] >= crash_s + 0.3) else 0.0
+            w.add("ATT", us, roll, 0.0)
+            vz = 90.0 if crashed[j] else 20.0
+            clip = int(np.sum(crashed[:j][:: int(rate_hz / 10)])) if clips else 0   # counted after the impact
+            w.add("VIBE", us, 0, 10.0, 10.0, vz, clip)
+    return w.bytes()

@@ -24,7 +24,7 @@ N_BURSTS = 20
 PARAMS = {"INS_GYRO_FILTER": 40.0, "INS_HNTCH_ENABLE": 0.0, "INS_LOG_BAT_MASK": 1.0, "INS_LOG_BAT_OPT": 0.0,
           "INS_GYR_ID": 1.0, "MOT_THST_HOVER": 0.3}
 STAGES = ("pre-filter", "post-filter", "unknown")
-KINDS = ("ground", "armed", "flying", "hover")
+KINDS = ("ground", "armed", "flying", "after impact", "hover")
 
 
 def synthetic_log(path, seed=3, events=None, params=None, tone_amp=3.0, tone_hz=TONE_HZ, first_burst=0):

@@ -70,3 +70,20 @@ def test_fleet_report_links_each_log_and_draws(tmp_path):
     _assert_page_ok(res, 1)
     json.dumps(res)                                       # plain data (a failing run prints it)
     assert Path(tmp_path / "logs" / "a.report.html").is_file()
+
+
+def test_betaflight_overview_and_step_response_draw(tmp_path):
+    """LOG00037 (Betaflight, 1 kHz setpoint and gyroADC): the overview opens the page and
+    the step response plot is drawn with the others."""
+    from gyrodenoise.flightlog.html_report import write_log_report
+    log = SHARED_LOGS / "betaflight" / "LOG00037.BFL"
+    if not log.exists():
+        pytest.skip(f"third-party log not present: {log}")
+    rep, series = real_log_report(log, tmp_path)
+    path = write_log_report(tmp_path / "LOG00037.report.html", rep, series)
+    text = path.read_text()
+    assert text.index("<h2 id=overview>") < text.index("<h2 id=summary>") < text.index("<h2 id=step>")
+    assert "HBRO KAKUTEF7" in text[:text.index("<h2 id=summary>")]
+    assert text[text.index("<h2 id=step>"):text.index("<h2 id=vibration>")].count("Plotly.newPlot") == 1
+    res = check_page(path)
+    _assert_page_ok(res, text.count("Plotly.newPlot"))              # every plot drawn, the step response's too

@@ -134,7 +134,9 @@ def test_real_px4_quad_metrics_and_spectrum():
 def test_real_log_without_levels_spectra_only():
     res, note = _real("log171.bin")               # Copter 3.3: no VIBE message
     assert res["source"] == "accelerometer" and res["verdict"] is None and "no verdict" in note
-    (seg,) = res["segments"]
+    seg, after = res["segments"]             # it crashed at 239.14 s: the rest shown, not judged
+    assert after["kind"] == "after impact" and after["in_verdict"] is False and after["start_s"] == 239.14
+    assert seg["figures"]["accel_band_rms_x"]["max"] < after["figures"]["accel_band_rms_x"]["max"]
     fz = seg["figures"]["accel_band_rms_z"]
     assert fz["band_hz"][0] == 20.0 and fz["band_hz"][1] == pytest.approx(25.0, abs=0.2) and fz["verdict"] is None and fz["threshold"] is None
 

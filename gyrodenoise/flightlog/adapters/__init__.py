@@ -15,7 +15,7 @@ class BaseFormat:
     """Defaults of the adapter interface for what a format does not have."""
     name = description = ""
     suffixes: tuple = ()
-    gyro_looked_for = flight_looked_for = vibration_looked_for = ""
+    gyro_looked_for = flight_looked_for = vibration_looked_for = setpoint_looked_for = ""
 
     def sniff_folder(self, path):
         return False
@@ -45,6 +45,20 @@ class BaseFormat:
         return None
 
     def accelerometer(self, log):
+        return None
+
+    def identity(self, log):
+        """``{"vehicle", "firmware", "board", "frame", "vehicle_id"}`` as the log names them
+        (:mod:`gyrodenoise.flightlog.overview`); empty: not told."""
+        return {}
+
+    def rate_setpoint(self, log):
+        """``[{"boot", "source", "time_s", "setpoint": (n, 3) deg/s, "rate": (n, 3) deg/s}]``
+        (:mod:`gyrodenoise.flightlog.step_response`); empty: not logged."""
+        return []
+
+    def attitude(self, log):
+        """``{"source", "time_s", "record", "roll_deg", "pitch_deg"}`` or None (not logged)."""
         return None
 
     def events(self, log):

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import blackbox
+from gyrodenoise.flightlog import overview, step_response, blackbox
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.autopilots import BETAFLIGHT, UNKNOWN
 from gyrodenoise.flightlog.model import Boot, FlightEvidence, FlightLog, LogEvent, LogFacts, LogParameters, ModeChange, Throttle
@@ -46,6 +46,7 @@ class BlackboxFormat(BaseFormat):
     name = "blackbox"
     description = "a Betaflight/INAV blackbox log"
     suffixes = (".bbl", ".bfl")     # a ".txt" one (Betaflight's SD card names) is known by its content
+    setpoint_looked_for = "setpoint[0..2], gyroADC[0..2]"
     gyro_looked_for = "gyroADC[0..2], debug[0..2] in debug mode GYRO_SCALED"
     flight_looked_for = "disarm events, motor[0..3] against motorOutput, setpoint[3]"
     vibration_looked_for = "accSmooth[0..2] (acc_1G)"
@@ -118,6 +119,12 @@ class BlackboxFormat(BaseFormat):
         return FlightEvidence(t, state, Throttle(t, thr, "setpoint[3]") if thr is not None else None,
                               f"armed while logging until a disarm event; in the air where the mean of motor[i], "
                               f"over {AIR_SMOOTH_S:g} s, is above {AIR_MOTOR_FRACTION:g} of motorOutput {lo}..{hi}")
+
+    def rate_setpoint(self, log):
+        return step_response.blackbox_rate_setpoint(log)
+
+    def identity(self, log):
+        return overview.blackbox_identity(log)
 
     def accelerometer(self, log):
         rows = [(b.time_s, b.columns("accSmooth"), float(b.header.get("acc_1G") or "nan")) for b in log.payload

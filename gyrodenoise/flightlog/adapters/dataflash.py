@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import dataflash, events, logdata, parameters, segments, vehicle_rate, vibration
+from gyrodenoise.flightlog import overview, step_response, dataflash, events, impact, logdata, parameters, segments, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import Boot, FlightLog, LogFacts, number_instances
 
@@ -20,6 +20,7 @@ class DataFlashFormat(BaseFormat):
     name = "dataflash"
     description = "an ArduPilot DataFlash log"
     suffixes = (".bin",)
+    setpoint_looked_for = "RATE RDes/R, PDes/P, YDes/Y"
     gyro_looked_for = "IMU, IMU2, IMU3 with GyrX/GyrY/GyrZ, ISBH/ISBD gyro bursts"
     flight_looked_for = ("ARM.ArmState, EV (ARMED/DISARMED/NOT_LANDED/LAND_COMPLETE), CTUN.ThO/ThrOut, "
                          "RCOU C1..C4, GPS Spd/Alt, ARSP.Airspeed")
@@ -58,8 +59,17 @@ class DataFlashFormat(BaseFormat):
     def vibration_levels(self, log):
         return vibration.dataflash_levels(log)
 
+    def rate_setpoint(self, log):
+        return step_response.dataflash_rate_setpoint(log, log.gyro)
+
+    def identity(self, log):
+        return overview.ardupilot_identity(log)
+
     def accelerometer(self, log):
         return vibration.dataflash_accel(log)
+
+    def attitude(self, log):
+        return impact.dataflash_attitude(log)
 
     def events(self, log):
         return events.dataflash_events(log)

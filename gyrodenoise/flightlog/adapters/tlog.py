@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.flightlog import events, logdata, parameters, segments, tlog, vibration
+from gyrodenoise.flightlog import overview, events, logdata, parameters, segments, tlog, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 from gyrodenoise.flightlog.signing import LinkSigning
@@ -31,6 +31,7 @@ class TelemetryFormat(BaseFormat):
     name = "tlog"
     description = "a MAVLink telemetry log"
     suffixes = (".tlog", ".mavlink")
+    setpoint_looked_for = "nothing: not read from telemetry logs"
     gyro_looked_for = "RAW_IMU, SCALED_IMU, SCALED_IMU2, SCALED_IMU3, HIGHRES_IMU"
     flight_looked_for = ("HEARTBEAT (base_mode armed bit, system_status) of the vehicle, "
                          "EXTENDED_SYS_STATE.landed_state")
@@ -91,6 +92,9 @@ class TelemetryFormat(BaseFormat):
 
     def flight_evidence(self, log, boot, autopilot):
         return segments.tlog_evidence(log, boot, autopilot, self.flight_looked_for)
+
+    def identity(self, log):
+        return overview.ardupilot_identity(log)
 
     def vibration_levels(self, log):
         return vibration.tlog_levels(log)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrodenoise.flightlog import events, logdata, parameters, segments, ulog, vehicle_rate, vibration
+from gyrodenoise.flightlog import overview, step_response, events, impact, logdata, parameters, segments, ulog, vehicle_rate, vibration
 from gyrodenoise.flightlog.adapters import BaseFormat
 from gyrodenoise.flightlog.model import EPOCH_US_MIN, UNIX_EPOCH, Boot, FlightLog, LogFacts, TimeBase, number_instances
 
@@ -23,6 +23,7 @@ class ULogFormat(BaseFormat):
     name = "ulog"
     description = "a PX4 log"
     suffixes = (".ulg",)
+    setpoint_looked_for = "vehicle_rates_setpoint, vehicle_angular_velocity"
     gyro_looked_for = "sensor_combined.gyro_rad, sensor_gyro, sensor_gyro_fifo"
     flight_looked_for = ("vehicle_status.arming_state, actuator_armed.armed, vehicle_land_detected.landed, "
                          "vehicle_gps_position vel_m_s/alt, airspeed")
@@ -75,8 +76,17 @@ class ULogFormat(BaseFormat):
     def vibration_levels(self, log):
         return vibration.ulog_levels(log)
 
+    def rate_setpoint(self, log):
+        return step_response.ulog_rate_setpoint(log)
+
+    def identity(self, log):
+        return overview.ulog_identity(log)
+
     def accelerometer(self, log):
         return vibration.ulog_accel(log)
+
+    def attitude(self, log):
+        return impact.ulog_attitude(log)
 
     def events(self, log):
         return events.ulog_events(log)
