@@ -1,5 +1,5 @@
 """The gyro bias that open-loop attitude integrates, on real data without the oracle de-biasing
-(issue 42, item 3): RMS rotation error over 10 s and 60 s windows of
+RMS rotation error over 10 s and 60 s windows of
 
 * raw: the gyro as logged, its bias in;
 * start-up calibration: minus the mean of the first ``--cal-s`` seconds (what users do by hand;

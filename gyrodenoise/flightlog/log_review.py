@@ -20,7 +20,7 @@ import numpy as np
 
 from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.filter_review import filter_review, review_context
-from gyrodenoise.flightlog.overview import overview
+from gyrodenoise.flightlog.overview import overview, step_response_line, worst_figures
 from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, sessions_of
 from gyrodenoise.flightlog.step_response import step_response_review
 from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
@@ -270,7 +270,7 @@ def review_text(rep):
     vib = rep.get("vibration")
     if vib and vib.get("verdict"):
         lines.append(f"vibration: {vib['verdict'].upper()} ({vib.get('source')} over {vib.get('over')}"
-                     f"{_worst_figures(vib)})")
+                     f"{worst_figures(vib)})")
     elif vib:
         lines.append(f"vibration: no verdict ({vib.get('source')} only, over {vib.get('over')}: no published "
                      f"threshold for them)")
@@ -290,32 +290,3 @@ def review_text(rep):
     else:
         lines.append(f"filter review: none ({rep.get('filter_review_note', '')})")
     return lines
-
-
-def _worst_figures(vib):
-    """'; vibration_z p95 34.9 (warn), clipping_0 +6311 (fail)': the figures of a
-    vibration review at warn or fail (the worst segment's value of each)."""
-    worst = {}
-    for seg in vib.get("segments") or []:
-        if not seg.get("in_verdict", True):
-            continue
-        for name, f in (seg.get("figures") or {}).items():
-            v = f.get("verdict")
-            if v in ("warn", "fail"):
-                value = f"+{f['increase']}" if "increase" in f else f"p95 {f.get('p95')}"
-                if name not in worst or (v == "fail" and worst[name][1] != "fail"):
-                    worst[name] = (value, v)
-    return ("; " + ", ".join(f"{n} {val} ({v})" for n, (val, v) in worst.items())) if worst else ""
-
-
-def step_response_line(sr):
-    """'roll rise 32 ms, overshoot 17 %; pitch ...; (RATE ...)': a step response in a line."""
-    parts = []
-    for axis, f in (sr.get("axes") or {}).items():
-        if not f:
-            parts.append(f"{axis} none")
-            continue
-        rise = "?" if f["rise_time_s"] is None else f"{f['rise_time_s'] * 1000:.0f} ms"
-        over = "?" if f["overshoot_pct"] is None else f"{f['overshoot_pct']:.0f} %"
-        parts.append(f"{axis} rise {rise}, overshoot {over}")
-    return "; ".join(parts) + f" ({sr.get('source')})"

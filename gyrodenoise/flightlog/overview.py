@@ -98,14 +98,29 @@ def crash_line(fields):
                                   "accelerometer spike, then a disarm or a tumble)")
 
 
+def worst_figures(vib):
+    """'; vibration_z p95 34.9 (warn), clipping_0 +6311 (fail)': the figures of a
+    vibration review at warn or fail (the worst segment's value of each)."""
+    worst = {}
+    for seg in vib.get("segments") or []:
+        if not seg.get("in_verdict", True):
+            continue
+        for name, f in (seg.get("figures") or {}).items():
+            v = f.get("verdict")
+            if v in ("warn", "fail"):
+                value = f"+{f['increase']}" if "increase" in f else f"p95 {f.get('p95')}"
+                if name not in worst or (v == "fail" and worst[name][1] != "fail"):
+                    worst[name] = (value, v)
+    return ("; " + ", ".join(f"{n} {val} ({v})" for n, (val, v) in worst.items())) if worst else ""
+
+
 def vibration_line(fields):
-    from gyrodenoise.flightlog.log_review import _worst_figures
     vib = fields.get("vibration")
     if not vib:
         return _line("vibration", None, fields.get("vibration_note") or "no vibration data")
     if not vib.get("verdict"):
         return _line("vibration", None, f"{vib.get('source')} only: no published threshold for it")
-    worst = _worst_figures(vib)[2:]
+    worst = worst_figures(vib)[2:]
     return _line("vibration", vib["verdict"],
                  f"{vib.get('source')} over {vib.get('over')}: " + (worst or "every figure below its warn threshold"))
 
@@ -121,8 +136,20 @@ def filters_line(fields):
     return _line("filters", "pass", f"from {src}: no change recommended")
 
 
+def step_response_line(sr):
+    """'roll rise 32 ms, overshoot 17 %; pitch ...; (RATE ...)': a step response in a line."""
+    parts = []
+    for axis, f in (sr.get("axes") or {}).items():
+        if not f:
+            parts.append(f"{axis} none")
+            continue
+        rise = "?" if f["rise_time_s"] is None else f"{f['rise_time_s'] * 1000:.0f} ms"
+        over = "?" if f["overshoot_pct"] is None else f"{f['overshoot_pct']:.0f} %"
+        parts.append(f"{axis} rise {rise}, overshoot {over}")
+    return "; ".join(parts) + f" ({sr.get('source')})"
+
+
 def step_line(fields):
-    from gyrodenoise.flightlog.log_review import step_response_line
     sr = fields.get("step_response")
     if not sr:
         return _line("step response", None, fields.get("step_response_note") or "no rate setpoint")

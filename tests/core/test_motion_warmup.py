@@ -1,7 +1,7 @@
 """The start-up of ``method="motion"``: its warm-up (raw samples passed through) ends once its
 noise level is read, at the end of the spectral noise floor's first block (MO_SPEC_N samples),
 or after ``warmup_s`` where that is earlier; before, it was ``warmup_s`` (1 s) at every sample
-rate, which dominated the RMSE of 20-60 s records at rest (issue 42's independent benchmark:
+rate, which dominated the RMSE of 20-60 s records at rest (the held-out benchmark's independent simulator (benchmarks/heldout):
 2-6x the best tuned causal filter)."""
 
 import numpy as np

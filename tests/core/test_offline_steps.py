@@ -1,7 +1,7 @@
 """The offline form of ``method="motion"`` (batch.smooth_motion) near sharp steps and on real
 vibration that exceeds the noise: never worse than the raw samples.
 
-Before the break test and the smoother's pass-through (issue 42's independent benchmark), a
+Before the break test and the smoother's pass-through (the held-out benchmark's independent simulator (benchmarks/heldout)), a
 10 deg/s step in a navigation FOG's noise (sd 1e-4) made the output alternate between 0 and
 0.1-0.19 deg/s over the samples before the step (the backward bank's fastest filter rings after
 the step, every slower filter restarts from it, and the two-filter combination of the least
