@@ -304,11 +304,9 @@ def run(args):
     created = []
     try:
         return _run(args, created)
-    except InputError as exc:
+    except InputError:
         _clean_up(args.out, created)
-        if getattr(args, "json", False):
-            emit_json(_finite({"error": str(exc), "exit_status": 2}))
-        raise
+        raise                       # the top-level CLI prints it (and, with --json, its JSON object)
     except BaseException:           # an interrupt (SIGINT/SIGTERM) or a crash: no partial file, no empty folder
         _clean_up(args.out, created)
         raise

@@ -94,6 +94,8 @@ def main(argv=None):
         with _interrupts_as_exceptions():
             return int(args.func(args) or 0)
     except InputError as exc:
+        if getattr(args, "json", False):        # --json: the error is also one JSON object on stdout
+            emit_json({"error": str(exc), "exit_status": 2})
         print(f"gyrodenoise: error: {exc}", file=sys.stderr)
         return 2
     except ModuleNotFoundError as exc:

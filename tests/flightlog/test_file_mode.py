@@ -354,7 +354,8 @@ def test_unknown_file_type_exits_2(tmp_path):
     junk.write_bytes(b"hello, this is not a flight log\n" * 40)
     r = run_cli(junk, "-o", tmp_path / "o", "--json")
     msg = (f"{junk}: unknown file type (expected an ArduPilot DataFlash log .bin, a PX4 log .ulg, "
-           f"a MAVLink telemetry log .tlog/.mavlink)")
+           f"a MAVLink telemetry log .tlog/.mavlink, a ROS 1/ROS 2 bag or MCAP file .bag/.mcap/.db3, "
+           f"a Betaflight/INAV blackbox log .bbl/.bfl)")
     assert r.returncode == 2
     assert json.loads(r.stdout) == {"error": msg, "exit_status": 2}     # --json: one object, the error
     assert r.stdout.count("\n") == 1
