@@ -190,10 +190,10 @@ def test_allan_json_is_strict_with_nulls_said(tmp_path):
 def test_allan_refuses_a_curve_with_no_finite_point(tmp_path):
     path = tmp_path / "r.csv"
     # rates whose squares would overflow float64 (no tau with a finite Allan deviation): refused
-    # in one line, exit 2, nothing on stdout (the reader refuses them first, as no gyro reading)
+    # in one line, exit 2, the JSON error object on stdout (the reader refuses them first)
     np.savetxt(path, 1e200 * np.random.default_rng(0).standard_normal(2000), header="rate", comments="")
     status, out, err = run_main("allan", path, "--sample-rate", "100", "--json")
-    assert status == 2 and out == "" and "Traceback" not in err
+    assert status == 2 and json.loads(out)["exit_status"] == 2 and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1 and ("not a finite number at any tau" in err or "beyond" in err)
 
 

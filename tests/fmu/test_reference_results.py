@@ -54,10 +54,13 @@ def test_reference_run_has_a_restart_and_filtered_samples():
     assert len(inputs["time"]) == N_SAMPLES and np.flatnonzero(inputs["restart"]).tolist() == [RESTART_AT]
     y = outputs["filtered_rate"]
     filtered = y[1:] != inputs["raw_rate"][:-1]     # output row k + 1 filters input row k
-    # warm-up (raw passed through) 0..200 and 500..700; filtered (mostly: the motion filter may pass a
-    # manoeuvre sample through) in between and after
-    assert not filtered[:200].any() and not filtered[RESTART_AT:RESTART_AT + 200].any()
-    assert filtered[200:RESTART_AT].mean() > 0.5 and filtered[RESTART_AT + 200:].mean() > 0.5
+    # warm-up (raw passed through) until motion has read its noise level (MO_SPEC_N - 1 samples: the
+    # spectral floor's first block) after the start and after the restart; filtered (mostly: the
+    # motion filter may pass a manoeuvre sample through) in between and after
+    from gyrodenoise.core.kernels import MO_SPEC_N
+    w = MO_SPEC_N - 1
+    assert not filtered[:w].any() and not filtered[RESTART_AT:RESTART_AT + w].any()
+    assert filtered[w:RESTART_AT].mean() > 0.5 and filtered[RESTART_AT + w:].mean() > 0.5
 
 
 def test_sensor_reference_takes_row_k_in_the_step_from_t_k():
