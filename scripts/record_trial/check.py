@@ -34,8 +34,9 @@ import pandas as pd
 B_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.664
 
 
-def slope_line_read(tau: np.ndarray, adev: np.ndarray, slope: float, at: float,
-                    min_slope: float | None = None) -> float | None:
+def slope_line_read(
+    tau: np.ndarray, adev: np.ndarray, slope: float, at: float, min_slope: float | None = None
+) -> float | None:
     """Read the line of the given log-log slope through the best-matching point at tau=at."""
     lt, la = np.log10(tau), np.log10(adev)
     d = np.diff(la) / np.diff(lt)
@@ -49,8 +50,7 @@ def slope_line_read(tau: np.ndarray, adev: np.ndarray, slope: float, at: float,
 def terms(rate_deg_s: np.ndarray, fs: float) -> dict:
     n = rate_deg_s.size
     m = 2 ** np.arange(0, int(math.log2(n // 2)))  # octave taus, up to n/4
-    taus, adev, _, _ = allantools.oadev(rate_deg_s, rate=fs, data_type="freq",
-                                        taus=m / fs)
+    taus, adev, _, _ = allantools.oadev(rate_deg_s, rate=fs, data_type="freq", taus=m / fs)
     n_ = slope_line_read(taus, adev, -0.5, 1.0)
     k_ = slope_line_read(taus, adev, 0.5, 3.0, min_slope=0.25)
     b_ = float(np.min(adev)) / B_FACTOR
@@ -71,19 +71,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--columns", required=True, help="gyro columns, comma-separated")
     p.add_argument("--sample-rate", type=float, help="Hz (else from --time-column)")
     p.add_argument("--time-column")
-    p.add_argument("--time-scale", type=float, default=1.0,
-                   help="multiply the time column by this to get seconds")
-    p.add_argument("--scale", type=float, default=1.0,
-                   help="multiply the column by this first (e.g. LSB -> rad/s)")
-    p.add_argument("--scale-to-deg", type=float, default=1.0,
-                   help="then multiply by this to reach deg/s (57.29578 from rad/s)")
+    p.add_argument("--time-scale", type=float, default=1.0, help="multiply the time column by this to get seconds")
+    p.add_argument("--scale", type=float, default=1.0, help="multiply the column by this first (e.g. LSB -> rad/s)")
+    p.add_argument(
+        "--scale-to-deg", type=float, default=1.0, help="then multiply by this to reach deg/s (57.29578 from rad/s)"
+    )
     p.add_argument("--skiprows", type=int, default=0)
     p.add_argument("--sep", default=",")
     p.add_argument("--ours", help="gyrodenoise allan --json output of the same record")
     a = p.parse_args(argv)
 
-    df = pd.read_csv(a.file, skiprows=a.skiprows, sep=a.sep, engine="python"
-                     if len(a.sep) > 1 else "c")
+    df = pd.read_csv(a.file, skiprows=a.skiprows, sep=a.sep, engine="python" if len(a.sep) > 1 else "c")
     df.columns = [c.strip() for c in df.columns]
     if a.sample_rate:
         fs = a.sample_rate
