@@ -15,15 +15,17 @@ environments, zig for five targets) and needs setuptools from the package index 
 """
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
 import tarfile
 import zipfile
+from pathlib import Path
 
 import pytest
 
-from tests.helpers import DATA, REPO
+from tests.helpers import DATA, REPO, SHARED_DATA
 
 sys.path.insert(0, str(REPO / "scripts"))
 import build_wheels as bw  # noqa: E402
@@ -117,16 +119,15 @@ def test_the_sdist_holds_what_the_build_needs(wheels):
     assert packaged <= names, packaged - names
 
 
-@pytest.mark.slow
-def test_the_linux_wheel_runs_in_a_fresh_venv_without_a_compiler(wheels, tmp_path):
+def _venv_with_the_linux_wheel(whl, venv, *extra):
+    """A fresh venv at ``venv`` with the wheel ``whl`` (and the distributions ``extra``) installed by
+    pip, binaries only, the PATH holding the venv alone (no cc, gcc, clang or zig can be found by
+    pip or the package); (its python, the environment of its programs)."""
     if not sys.platform.startswith("linux") or os.uname().machine != "x86_64":
         pytest.skip("the linux x86_64 wheel runs on linux x86_64")
-    out, built = wheels
-    venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
     py = venv / "bin" / "python"
-    # the PATH holds the venv alone: no cc, gcc, clang or zig can be found by pip or the package
-    env = {"PATH": str(venv / "bin"), "HOME": os.environ.get("HOME", str(tmp_path)), "CC": "no-compiler",
+    env = {"PATH": str(venv / "bin"), "HOME": os.environ.get("HOME", str(venv.parent)), "CC": "no-compiler",
            "PIP_DISABLE_PIP_VERSION_CHECK": "1", "LANG": "C.UTF-8"}
     for k in ("PIP_INDEX_URL", "PIP_EXTRA_INDEX_URL", "PIP_FIND_LINKS", "PIP_NO_INDEX"):
         if k in os.environ:
@@ -134,12 +135,19 @@ def test_the_linux_wheel_runs_in_a_fresh_venv_without_a_compiler(wheels, tmp_pat
     proc = subprocess.run([str(py), "-c", "import shutil; print([c for c in ('cc', 'gcc', 'clang', 'zig') "
                            "if shutil.which(c)])"], capture_output=True, text=True, env=env, timeout=60)
     assert proc.stdout.strip() == "[]", proc.stdout
-    whl = built["linux_x86_64"][0]
-    proc = subprocess.run([str(py), "-m", "pip", "install", "-q", "--only-binary", ":all:", str(whl)],
-                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    proc = subprocess.run([str(py), "-m", "pip", "install", "-q", "--only-binary", ":all:", str(whl), *extra],
+                          capture_output=True, text=True, env=env, cwd=venv.parent, timeout=600)
     if proc.returncode != 0 and ("No matching distribution" in proc.stderr or "Could not find" in proc.stderr):
-        pytest.skip(f"numpy / scipy cannot be fetched here: {proc.stderr.strip().splitlines()[-1]}")
+        pytest.skip(f"a distribution cannot be fetched here: {proc.stderr.strip().splitlines()[-1]}")
     assert proc.returncode == 0, proc.stderr
+    return py, env
+
+
+@pytest.mark.slow
+def test_the_linux_wheel_runs_in_a_fresh_venv_without_a_compiler(wheels, tmp_path):
+    out, built = wheels
+    venv = tmp_path / "venv"
+    py, env = _venv_with_the_linux_wheel(built["linux_x86_64"][0], venv)
     proc = subprocess.run([str(py), "-m", "pip", "list", "--format", "json"], capture_output=True, text=True,
                           env=env, timeout=120)
     dists = {d["name"].lower() for d in json.loads(proc.stdout)} - {"pip", "setuptools", "wheel"}
@@ -176,6 +184,77 @@ def test_the_linux_wheel_runs_in_a_fresh_venv_without_a_compiler(wheels, tmp_pat
                           capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert proc.stderr.strip().endswith("pip install 'gyrodenoise[logs]'"), proc.stderr
+
+
+#: the folders of the quick tier run against the installed core wheel: the core, the analyses, the
+#: simulator, the recordings, the CLI (the FMU, flight-log, model-gap and benchmark tests are the
+#: extras' and the checkout's)
+CORE_TIER = ("tests/core", "tests/analysis", "tests/simulator", "tests/io", "tests/cli")
+#: the quick tests of CORE_TIER the core wheel cannot run (deselected by node-id prefix), and why:
+#: each one fails without it; a new test that needs an extra fails the run until it is listed here
+NOT_IN_THE_CORE_WHEEL = {
+    "tests/core/test_c_core_equals_python.py::test_motion_params_of_the_native_fmu_equal_python":
+        "calls gd_motion_params (the FMU's) in the core by ctypes: the wheel's core exports PyInit__gdcore alone",
+    "tests/core/test_motion.py::test_real_flight_keeps_the_low_band_motion[px4_sample.ulg]": "[logs]",
+    "tests/core/test_one_euro.py::test_bridge_filters_a_log_with_it": "[logs]",
+    "tests/core/test_rigid_body_band.py::test_bridge_": "[logs]",
+    "tests/io/test_timebase.py::test_real_logs[copter_20211202-132613.tlog": "[logs]",
+    "tests/io/test_timebase.py::test_real_logs[sitl_copter_reboot.tlog": "[logs]",
+    "tests/analysis/test_plots.py": "[report]",
+    "tests/analysis/test_demo_figures.py": "[report]",
+    "tests/analysis/test_spectrum.py::test_fleet_report_lists_each_logs_dominant_vibration_peak": "[report]",
+    "tests/cli/test_entry_point.py::test_programs_the_tests_start_import_this_checkout":
+        "asserts the checkout's package is imported, not an installed one",
+}
+#: the root conftest.py of the copied tests: the run stops unless gyrodenoise and its compiled core
+#: are the venv's (the wheel's), not a checkout's; it writes where they were imported from
+WHEEL_GUARD = """\
+import sys
+from pathlib import Path
+import gyrodenoise
+from gyrodenoise.core import _gdcore
+for _m in (gyrodenoise, _gdcore):
+    assert _m.__file__.startswith(sys.prefix + "/"), f"{_m.__name__} from {_m.__file__}, not the venv {sys.prefix}"
+Path(__file__).with_name("imported_from").write_text(gyrodenoise.__file__ + "\\n" + _gdcore.__file__ + "\\n")
+"""
+
+
+def quick_tier_outside_the_checkout(dest):
+    """Copy tests/ (and benchmarks/, which tests import) into ``dest`` with a pytest.ini of their
+    own (no ``pythonpath = .``, no xdist) and :data:`WHEEL_GUARD` as the root conftest.py: pytest
+    run there imports gyrodenoise from the interpreter's site-packages. The pytest arguments."""
+    skip = shutil.ignore_patterns("__pycache__", "*.pyc")
+    for d in ("tests", "benchmarks"):
+        shutil.copytree(REPO / d, dest / d, ignore=skip)
+    (dest / "pytest.ini").write_text("[pytest]\nmarkers =\n    slow: slow\n    golden: golden\n")
+    (dest / "conftest.py").write_text(WHEEL_GUARD)
+    return ["-m", "not slow", "-q", "-p", "no:cacheprovider", *CORE_TIER,
+            *(f"--deselect={n}" for n in NOT_IN_THE_CORE_WHEEL)]
+
+
+@pytest.mark.slow
+def test_the_quick_tier_passes_against_the_linux_wheel_installed_without_a_compiler(wheels, tmp_path):
+    """The quick tests of :data:`CORE_TIER` run by pytest from a copy outside the checkout, in a
+    fresh venv holding the linux x86_64 wheel, pytest, hypothesis and allantools (the Allan
+    reference, without its plotting dependencies): the core only, no compiler on the PATH."""
+    out, built = wheels
+    py, env = _venv_with_the_linux_wheel(built["linux_x86_64"][0], tmp_path / "venv", "pytest", "hypothesis")
+    proc = subprocess.run([str(py), "-m", "pip", "install", "-q", "--no-deps", "--only-binary", ":all:",
+                           "allantools"], capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    run = tmp_path / "run"
+    run.mkdir()
+    args = quick_tier_outside_the_checkout(run)
+    env["GYRODENOISE_SHARED_DATA"] = str(SHARED_DATA)
+    proc = subprocess.run([str(py), "-m", "pytest", *args], capture_output=True, text=True, env=env, cwd=run,
+                          timeout=900)
+    tail = proc.stdout[-4000:] + proc.stderr[-2000:]
+    assert proc.returncode == 0, tail
+    site = tmp_path / "venv" / "lib"
+    assert [Path(f).parent.relative_to(site).parts[1:] for f in (run / "imported_from").read_text().split()] == \
+        [("site-packages", "gyrodenoise"), ("site-packages", "gyrodenoise", "core")]
+    passed = re.search(r"(\d+) passed", proc.stdout)
+    assert passed and int(passed.group(1)) > 500, tail
 
 
 @pytest.mark.slow
