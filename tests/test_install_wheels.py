@@ -15,8 +15,8 @@
   the wheels are made from it in a clean folder.
 
 The macOS and Windows binaries are only inspected here: no macOS; wine is here, but no Windows
-CPython can be had (python.org's embeddable zip and NuGet's package are not reachable, PyPI and
-Debian hold none). The build is slow (~1 min: the sdist and a wheel in pip's isolated build
+CPython can be had (only the package registries are reachable: the embeddable zip and the NuGet
+package cannot be fetched, and neither PyPI nor Debian ships a Windows CPython). The build is slow (~1 min: the sdist and a wheel in pip's isolated build
 environments, zig for five targets) and needs setuptools from the package index or pip's cache.
 """
 import json
