@@ -229,6 +229,17 @@ Path(__file__).with_name("imported_from").write_text(gyrodenoise.__file__ + "\\n
 """
 
 
+def test_every_test_left_out_of_the_core_wheels_tier_exists():
+    """Each entry of NOT_IN_THE_CORE_WHEEL names a test file of CORE_TIER and, after ``::``, the start
+    of a test function in it (a renamed test would leave an entry that deselects nothing)."""
+    for node in NOT_IN_THE_CORE_WHEEL:
+        path, _, name = node.partition("::")
+        assert path.startswith(tuple(f"{d}/" for d in CORE_TIER)) and (REPO / path).is_file(), node
+        fn = name.split("[")[0]
+        if fn:
+            assert re.search(rf"^def {re.escape(fn)}", (REPO / path).read_text(), re.M), node
+
+
 def quick_tier_outside_the_checkout(dest):
     """Copy tests/ (and benchmarks/, which tests import) into ``dest`` with a pytest.ini of their
     own (no ``pythonpath = .``, no xdist) and :data:`WHEEL_GUARD` as the root conftest.py: pytest
