@@ -268,6 +268,8 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
             _check_magnitude(kind, v, values[c], where, c, unit, src)
             true = np.asarray(values[true_column], dtype=np.float64) * scale if has_true else None
             axes.append(Axis(c, kind, unit, v, true))
+    _check_gravity([a for a in axes if a.kind is ACCEL], accel_unit or file_units.get(accel_cols[0]) if accel_cols
+                   else None, src)
     ignored = [h for h in header if h not in wanted and h]
     if ignored:
         shown = ", ".join(ignored[:8]) + (f", ... ({len(ignored)} in all)" if len(ignored) > 8 else "")
@@ -323,6 +325,25 @@ def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
         return None
     sep = _separator(first)
     return [h.strip() for h in (first.split() if sep is None else next(csv.reader([first], delimiter=sep)))]
+
+
+#: Earth's gravity read in an assumed m/s^2 by three accelerometer axes: |a| this far from 9.81
+#: (median over the record) is gravity in another unit, never a valid m/s^2 reading on Earth
+GRAVITY_IN = {"g": (0.5, 2.0), "mg": (500.0, 2000.0)}
+
+
+def _check_gravity(accel: list[Any], stated: str | None, src: str) -> None:
+    """Refuse three accelerometer axes read in an assumed m/s^2 whose |a| says another unit:
+    gravity (1 g) reads about 1 in g and 1000 in mg, 9.81 in m/s^2."""
+    if stated or len(accel) != 3:
+        return
+    norm = float(np.nanmedian(np.sqrt(sum(np.asarray(a.values, dtype=np.float64) ** 2 for a in accel))))
+    for unit, (lo, hi) in GRAVITY_IN.items():
+        if lo <= norm <= hi:
+            cols = ", ".join(a.column for a in accel)
+            raise InputError(f"accelerometer columns {cols}: |a| is {norm:.3g} (median) read as m/s^2, gravity "
+                             f"is 9.81 m/s^2: the record looks to be in {unit}; give --accel-unit {unit} "
+                             f"(or --accel-unit m/s^2 to read it as it is)", src)
 
 
 def _check_arguments(rate_unit: str | None, accel_unit: str | None, sample_rate_hz: float | None,

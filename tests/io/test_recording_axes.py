@@ -90,3 +90,22 @@ def test_denoise_writes_one_filtered_column_per_axis(tmp_path, capsys):
         raw, filt = got[3000:, 1 + 2 * j], got[3000:, 2 + 2 * j]
         np.testing.assert_allclose(got[:, 1 + 2 * j], cols[a], rtol=1e-9)          # raw kept
         assert np.std(filt) < 0.3 * np.std(raw), a
+
+
+def test_an_accelerometer_in_g_read_as_m_s2_is_refused_not_silent(tmp_path, capsys):
+    """Three accelerometer axes in g read in the assumed m/s^2 gave a velocity random walk
+    9.8x too low with only the usual 'assumed' note (held-out trial, gnss-ins-sim's record
+    with its accelerometer divided by 9.80665): gravity reads |a| = 1 there, never 9.81, so
+    the record is refused in one line naming the unit; stated, it is read."""
+    path = tmp_path / "imu_g.csv"
+    cols = _record(path)
+    g = tmp_path / "imu_in_g.csv"
+    data = np.column_stack([cols[k] / 9.80665 if k in N_ACCEL else cols[k] for k in cols])
+    np.savetxt(g, data, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
+    code = main(["allan", str(g), "--json"])
+    out, err = capsys.readouterr()
+    assert code == 2 and json.loads(out)["exit_status"] == 2
+    assert err.strip().splitlines()[-1].startswith("gyrodenoise: error:") and "--accel-unit g" in err
+    out, err = _run(capsys, "allan", g, "--json", "--accel-unit", "g")
+    assert json.loads(out)["axes"]["az"]["terms"]["N"] == pytest.approx(N_ACCEL["az"], rel=0.1)
+    _run(capsys, "allan", path, "--json")          # in m/s^2: |a| 9.81, read as it is
