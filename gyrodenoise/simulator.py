@@ -308,6 +308,8 @@ class Record:
     restarts: np.ndarray | None = None
     source: str = ""
     notes: list[str] = field(default_factory=list)   # repairs and remarks, reported
+    unit: str = "deg/s"        # the unit the file's column was read in (a reader's record; deg/s otherwise)
+    unit_how: str = ""         # how the reader decided it ("as stated", "as its units row says", "assumed; ...")
 
     def __post_init__(self) -> None:
         if self.time_s is None:

@@ -144,8 +144,8 @@ ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a tru
 # ------------------------------------------------------------------ allan
 def cmd_allan(args: argparse.Namespace) -> int:
     from gyrodenoise.analysis.allan import allan
-    unit = rate_unit_used(args)
     rec = _read(args)
+    unit = rate_unit_used(args, rec)
     if len(rec) < 5:
         raise InputError(f"only {len(rec)} samples; the Allan deviation needs at least 5", args.input)
     series, analysed = rec.rate_deg_s, "rate"
@@ -181,12 +181,14 @@ def cmd_allan(args: argparse.Namespace) -> int:
     return 0
 
 
-def rate_unit_used(args: argparse.Namespace) -> dict[str, str]:
-    """{"unit", "how"}: the rate unit the record is read in and how it was decided (given,
-    or the default deg/s, with a word when the column's name says another unit); the
-    reader states the same in its note."""
+def rate_unit_used(args: argparse.Namespace, rec: Record) -> dict[str, str]:
+    """{"unit", "how"}: the rate unit the record was read in and how the reader decided it
+    (given; the file's units row or its column names; or the default deg/s, with a word
+    when the column's name says another unit)."""
     if args.rate_unit is not None:
         return {"unit": args.rate_unit, "how": "given with --rate-unit"}
+    if rec.unit_how and not rec.unit_how.startswith("assumed"):
+        return {"unit": rec.unit, "how": rec.unit_how}
     how = "the default: --rate-unit not given"
     column = str(args.rate_column).lower()
     said = next((u for u in ("mrad", "rad", "dps", "deg") if u in column), None)

@@ -131,6 +131,7 @@ class Axis:
     unit: str                  # the unit it was read in
     values: np.ndarray = field(repr=False)
     true: np.ndarray | None = field(default=None, repr=False)
+    unit_how: str = ""         # how the unit was decided, as the note says it ("as stated", "assumed; ...")
 
 
 @dataclass
@@ -147,7 +148,8 @@ class Recording:
         """The `Record` of one axis (``rate_deg_s`` in the axis kind's internal unit: m/s^2
         for an accelerometer) for the filters and the Allan analysis."""
         return Record(rate_deg_s=axis.values, sample_rate_hz=self.sample_rate_hz, time_s=self.time_s,
-                      true_rate_deg_s=axis.true, restarts=self.restarts, source=self.source, notes=self.notes)
+                      true_rate_deg_s=axis.true, restarts=self.restarts, source=self.source, notes=self.notes,
+                      unit=axis.unit, unit_how=axis.unit_how)
 
 
 def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str | None = None,
@@ -267,7 +269,7 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
             v = np.asarray(values[c], dtype=np.float64) * scale
             _check_magnitude(kind, v, values[c], where, c, unit, src)
             true = np.asarray(values[true_column], dtype=np.float64) * scale if has_true else None
-            axes.append(Axis(c, kind, unit, v, true))
+            axes.append(Axis(c, kind, unit, v, true, unit_how=why))
     _check_gravity([a for a in axes if a.kind is ACCEL], accel_unit or file_units.get(accel_cols[0]) if accel_cols
                    else None, src)
     ignored = [h for h in header if h not in wanted and h]

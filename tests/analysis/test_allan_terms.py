@@ -240,3 +240,14 @@ def test_the_kalibr_and_matlab_exports_write_the_exported_terms(tmp_path):
     bi = float(mfile.split("'BiasInstability',")[1].split(",")[0])
     assert bi == pytest.approx(d["exported_terms"]["B"] * math.pi / 180.0 / 3600.0, rel=1e-12)
     assert "slope-point read" in err
+
+
+def test_allan_json_rate_unit_is_the_one_the_reader_used(tmp_path):
+    """A units row (`s,rad/s`) makes the reader read rad/s; the JSON's rate_unit said the
+    default deg/s all the same (two places deciding the unit): it now reports the reader's."""
+    path = tmp_path / "u.csv"
+    rng = np.random.default_rng(3)
+    rows = "\n".join(f"{i / 100:.2f},{0.001 * rng.standard_normal():.6f}" for i in range(3000))
+    path.write_text("time,rate\ns,rad/s\n" + rows + "\n")
+    status, out, _ = run_main("allan", path, "--json")
+    assert status == 0 and json.loads(out)["rate_unit"] == {"unit": "rad/s", "how": "as its units row says"}
