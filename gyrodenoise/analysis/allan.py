@@ -609,6 +609,20 @@ def allan(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, m: npt.ArrayLike | N
     return allan_of_curve(tau, ad, err, sample_rate_hz, y.shape[0])
 
 
+def allan_of_record(rate: npt.ArrayLike, sample_rate_hz: float, source: str | None = None) -> AllanResult:
+    """`allan` of a record read from a file, a refusal as one line (InputError naming
+    ``source``): fewer than 5 samples, or no tau with a finite Allan deviation."""
+    from gyrodenoise.errors import InputError
+    y = np.asarray(rate, dtype=np.float64)
+    if len(y) < 5:
+        raise InputError(f"only {len(y)} samples; the Allan deviation needs at least 5", source)
+    res = allan(y, sample_rate_hz)
+    if not np.isfinite(res.adev_deg_s).any():
+        raise InputError(f"the Allan deviation is not a finite number at any tau at {sample_rate_hz:g} Hz: "
+                         f"the sample rate or the rates are beyond what float64 holds", source)
+    return res
+
+
 def allan_of_chunks(chunks: Iterable[npt.ArrayLike], sample_rate_hz: float, m: npt.ArrayLike | None = None,
                     tau_s: npt.ArrayLike | None = None, spill_dir: str | None = None) -> AllanResult:
     """`allan` of a record given in chunks, in bounded memory (`adev_of_chunks`; default

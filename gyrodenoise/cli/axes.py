@@ -76,16 +76,16 @@ def axis_json(ax: Axis, res: Any) -> dict[str, Any]:
 def cmd_allan_axes(args: argparse.Namespace) -> int:
     """``allan`` over every axis: one JSON object whose ``axes`` maps each column to its
     object; one Kalibr imu.yaml and one MATLAB script for all axes."""
-    from gyrodenoise.analysis.allan import allan
+    from gyrodenoise.analysis.allan import allan_of_record
     from gyrodenoise.cli.program import emit_json
     from gyrodenoise.errors import InputError
     from gyrodenoise.io.export import AxisTerms, export_axes_from_args
     rec = read_axes_args(args)
-    if len(rec.time_s) < 5:
-        raise InputError(f"only {len(rec.time_s)} samples; the Allan deviation needs at least 5", args.input)
-    results = [(ax, allan(ax.values, rec.sample_rate_hz)) for ax in rec.axes]
+    results = [(ax, allan_of_record(ax.values, rec.sample_rate_hz, args.input)) for ax in rec.axes]
     if any(ax.kind.name == "gyro" for ax in rec.axes):
-        terms = [AxisTerms(ax.column, ax.kind.name == "accel", r.terms, r.bounds) for ax, r in results]
+        # what the single-axis exports write: the fit, or the slope-point read where it misses
+        terms = [AxisTerms(ax.column, ax.kind.name == "accel", r.exported_terms, r.exported_bounds)
+                 for ax, r in results]
         for path in export_axes_from_args(args, terms, rec.sample_rate_hz):
             log(f"gyrodenoise: wrote {path}")
     elif getattr(args, "kalibr_yaml", None) or getattr(args, "matlab", None):

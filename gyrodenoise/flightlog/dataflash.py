@@ -304,20 +304,9 @@ def batch_sampler_streams(data, sc: DFScan):
                        to_deg_s=UNIT_TO_DEG_S["rad/s"], time_s=t, raw=raw, index=idx,
                        note=f"DataFlash batch sampler ISBH/ISBD, gyro instance {inst}: "
                             f"{len(bursts)} bursts, int16 / mul = rad/s, time SampleUS + k/smp_rate")
-        s.extra["mul"] = mul
         s.field_dtype, s.field_scale = "<i2", mul
         out.append(s)
     return out
-
-
-def gyro_field_offsets(sc: DFScan, message):
-    """Byte offsets of GyrX/GyrY/GyrZ inside a message of type name ``message``
-    (its first definition with gyro fields)."""
-    for f in sc.formats.values():
-        if f.name == message and _gyro_format_problem(f) is None:
-            dt = f.dtype()
-            return [dt.fields[g][1] for g in GYRO_FIELDS]
-    raise KeyError(message)
 
 
 def _gyro_positions(sc: DFScan, s):
@@ -356,7 +345,7 @@ def patch(data, sc: DFScan, streams):
             dt = next(f for f in sc.formats.values() if f.name == "ISBD").dtype()
             off = s.index // 32
             pos = s.index % 32
-            counts = np.rint(s.filtered * s.extra["mul"][:, None])
+            counts = np.rint(s.filtered * s.field_scale[:, None])
             if not np.all((counts >= -32768) & (counts <= 32767)):     # never clipped silently
                 raise ValueError(f"{s.name}: a value does not fit int16 (check field_misfit first)")
             counts = counts.astype("<i2")

@@ -249,7 +249,6 @@ def _differ(a, b):
 
 def _enlarge_receive_buffer(conn, size=4 << 20):
     """Ask for a larger UDP receive buffer (bursts while the process is descheduled)."""
-    import socket
     sock = getattr(conn, "port", None)
     if isinstance(sock, socket.socket) and sock.type == socket.SOCK_DGRAM:
         try:

@@ -121,10 +121,6 @@ class ImuTopic:
         return self.stamp_ns * 1e-9
 
     @property
-    def receive_s(self) -> np.ndarray:
-        return self.receive_ns * 1e-9
-
-    @property
     def rate_hz(self) -> float:
         """Median rate of the header stamps (Hz); NaN with fewer than two increasing stamps."""
         d = np.diff(self.stamp_ns)

@@ -44,11 +44,9 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
-from gyrodenoise.flightlog.signing import IFLAG_SIGNED, LinkSigning, is_signed
+from gyrodenoise.flightlog.signing import IFLAG_SIGNED, MAGIC_V1, MAGIC_V2, SIGNATURE_LEN, LinkSigning, is_signed
 from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream
 
-MAGIC_V1, MAGIC_V2 = 0xFE, 0xFD
-SIGNATURE_LEN = 13
 
 GYRO_MESSAGES = {
     # name: (time field, time scale to s, gyro unit ('raw' = decided per log))
@@ -432,7 +430,6 @@ def decide_raw_imu_unit(info, any_v2, override="auto", scale=None, final=True):
         "in counts; pass --raw-imu-unit mrad/s or --raw-imu-scale DEG_S_PER_COUNT")
 
 
-_raw_imu_unit = decide_raw_imu_unit     # the former private name
 
 
 # ---------------------------------------------------------------- re-packing

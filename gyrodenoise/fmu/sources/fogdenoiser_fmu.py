@@ -66,8 +66,8 @@ class FogDenoiser(Fmi2Slave):
         self._theta0 = 0          # offset of phi_1 in the state buffer
         self._n = 0
         self._n_steps = 0         # samples processed
-        self._n_bad_steps = 0
-        self._n_slivers = 0         # steps shorter than SLIVER_RTOL of the period (no sample)     # steps whose size disagreed with sample_period
+        self._n_bad_steps = 0     # steps whose size disagreed with sample_period
+        self._n_slivers = 0       # steps shorter than SLIVER_RTOL of the period (no sample)
         self._failed = None       # reason why stepping is refused, if any
         self._initialised = False  # fixed parameters are frozen from fmi2ExitInitializationMode on
         self._terminated = False
