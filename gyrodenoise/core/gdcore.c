@@ -1200,7 +1200,7 @@ KERNEL double c_deg_s_(const double *p, const double *s)
     long o = layout_(n).theta;
     double one_minus = 1.0;
     int i;
-    if (p[P_METHOD] == METHOD_MOTION || p[P_METHOD] == METHOD_LOWPASS || p[P_METHOD] == METHOD_ONE_EURO)
+    if (!GD_AR_MODEL(p[P_METHOD]))
         return 0.0;                       /* no AR model identified */
     for (i = 0; i < n; i++)
         one_minus -= s[o + i];
@@ -1222,8 +1222,7 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (!lowpass && !motion && !one_euro && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0
-             && p[P_METHOD] != METHOD_NONE)     /* the flags first: no loads for lowpass */
+    } else if (GD_AR_FILTER(p[P_METHOD]) && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0)
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;

@@ -3,6 +3,8 @@
  *
  * METHOD_<NAME>: p[P_METHOD] of each method (doubles, compared with ==);
  * GD_METHODS(X): X(name, id) per method, the default first;
+ * GD_AR_MODEL(m): method m identifies the online AR(n) model; GD_AR_FILTER(m): and filters with it
+ *   (the outlier gate applies);
  * GD_REAL_PARAMS(X) / GD_INT_PARAMS(X): the FMU parameters, X(name, start, slot, lo, hi, flags, rule,
  *   methods) with slot the p[] index it is written to (-1: computed), lo / hi its range (-HUGE_VAL /
  *   HUGE_VAL: none), flags GD_LO_OPEN | GD_HI_OPEN | GD_OFF | GD_NYQUIST | GD_COMPUTED, rule the
@@ -28,6 +30,9 @@
     X("lowpass", METHOD_LOWPASS) \
     X("one_euro", METHOD_ONE_EURO) \
     X("none", METHOD_NONE) \
+
+#define GD_AR_MODEL(m) ((m) == METHOD_SHAKF || (m) == METHOD_KF || (m) == METHOD_SH_CLASSIC || (m) == METHOD_NONE)
+#define GD_AR_FILTER(m) ((m) == METHOD_SHAKF || (m) == METHOD_KF || (m) == METHOD_SH_CLASSIC)
 
 #define GD_LO_OPEN 1
 #define GD_HI_OPEN 2

@@ -142,6 +142,10 @@ METHOD_LOWPASS = _methods.BY_NAME["lowpass"].id    # causal Butterworth low-pass
 METHOD_ONE_EURO = _methods.BY_NAME["one_euro"].id  # the 1-euro filter, Casiez et al. 2012 (not in the paper)
 #: method name -> p[P_METHOD]
 METHODS = {m.name: m.id for m in _methods.METHODS}
+#: the methods that identify the online AR(n) model (a constant c), and those of them that
+#: filter with it (the outlier gate applies): gdmethods.h's GD_AR_MODEL / GD_AR_FILTER
+AR_MODEL_IDS = frozenset(m.id for m in _methods.METHODS if m.ar_model)
+AR_FILTER_IDS = frozenset(m.id for m in _methods.METHODS if m.ar_model and m.filters)
 DEFAULT_METHOD = _methods.DEFAULT_METHOD   # of gd.denoise, the CLI, the bridge and the FMU
 
 # --------------------------------------------------------------------- state
@@ -1455,9 +1459,7 @@ def step(p: Buf, s: MutBuf, z: float, is_restart: bool) -> float:
     code = 0
     if is_restart:
         restart(p, s)
-    elif (p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] != METHOD_NONE
-          and p[P_METHOD] != METHOD_LOWPASS and p[P_METHOD] != METHOD_MOTION
-          and p[P_METHOD] != METHOD_ONE_EURO):
+    elif p[P_OUTLIER_SIGMA] > 0.0 and s[S_CONV] == 1.0 and p[P_METHOD] in AR_FILTER_IDS:
         code = gate(p, s, z - s[S_ZREF])
     if s[S_K] == 0.0:
         s[S_ZREF] = z
@@ -1505,7 +1507,7 @@ def c_deg_s(p: Buf, s: MutBuf) -> float:
     (uncentred) samples: the state holds c for z - z_ref (see :func:`step`),
     and z = sum phi_i z_{k-i} + c holds with c = c_ref + (1 - sum phi) z_ref.
     0.0 for the methods that identify no AR model (motion, lowpass, one_euro)."""
-    if p[P_METHOD] == METHOD_MOTION or p[P_METHOD] == METHOD_LOWPASS or p[P_METHOD] == METHOD_ONE_EURO:
+    if p[P_METHOD] not in AR_MODEL_IDS:
         return 0.0
     n = int(p[P_ORDER])
     o = layout(n)[0]

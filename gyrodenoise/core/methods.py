@@ -44,17 +44,21 @@ class Method(NamedTuple):
     warmup: bool = True
     #: False: the output is the input (identification only)
     filters: bool = True
+    #: False: no online AR(n) model is identified (no constant c, no outlier gate on its prediction)
+    ar_model: bool = True
 
 
 #: in the order of the command line's choices; the first is the default
 METHODS: tuple[Method, ...] = (
-    Method("motion", 4.0, "follows manoeuvres, averages at rest (a bank of Kalman filters)", "smoother"),
+    Method("motion", 4.0, "follows manoeuvres, averages at rest (a bank of Kalman filters)", "smoother",
+           ar_model=False),
     Method("shakf", 2.0, "the paper's modified Sage-Husa adaptive KF on the online AR(n) model"),
     Method("kf", 1.0, "conventional KF on the online AR(n) model, fixed Q and R"),
     Method("sh_classic", 3.0, "classic Sage-Husa adaptive KF, Eq. (22) and (26) unmodified"),
-    Method("lowpass", 5.0, "causal Butterworth low-pass (cutoff_hz, order)", "zero_phase", warmup=False),
+    Method("lowpass", 5.0, "causal Butterworth low-pass (cutoff_hz, order)", "zero_phase", warmup=False,
+           ar_model=False),
     Method("one_euro", 6.0, "the 1-euro filter (Casiez et al. 2012): a first-order low-pass whose cutoff "
-           "rises with the rate's change (min_cutoff_hz, beta, d_cutoff_hz)", warmup=False),
+           "rises with the rate's change (min_cutoff_hz, beta, d_cutoff_hz)", warmup=False, ar_model=False),
     Method("none", 0.0, "identification only, output = input", filters=False),
 )
 DEFAULT_METHOD = METHODS[0].name
@@ -306,6 +310,8 @@ def c_header() -> str:
         " *",
         " * METHOD_<NAME>: p[P_METHOD] of each method (doubles, compared with ==);",
         " * GD_METHODS(X): X(name, id) per method, the default first;",
+        " * GD_AR_MODEL(m): method m identifies the online AR(n) model; GD_AR_FILTER(m): and filters with it",
+        " *   (the outlier gate applies);",
         " * GD_REAL_PARAMS(X) / GD_INT_PARAMS(X): the FMU parameters, X(name, start, slot, lo, hi, flags, rule,",
         " *   methods) with slot the p[] index it is written to (-1: computed), lo / hi its range (-HUGE_VAL /",
         " *   HUGE_VAL: none), flags GD_LO_OPEN | GD_HI_OPEN | GD_OFF | GD_NYQUIST | GD_COMPUTED, rule the",
@@ -321,6 +327,10 @@ def c_header() -> str:
     lines.append(f"#define GD_METHOD_NAMES {_c_string(str(sorted(BY_NAME)))}")
     lines.append("#define GD_METHODS(X) \\")
     lines += [f"    X({_c_string(m.name)}, METHOD_{m.name.upper()}) \\" for m in METHODS]
+    lines.append("")
+    for macro, pick in (("GD_AR_MODEL", lambda m: m.ar_model), ("GD_AR_FILTER", lambda m: m.ar_model and m.filters)):
+        ids = " || ".join(f"(m) == METHOD_{m.name.upper()}" for m in METHODS if pick(m))
+        lines.append(f"#define {macro}(m) ({ids})")
     lines += ["", "#define GD_LO_OPEN 1", "#define GD_HI_OPEN 2", "#define GD_OFF 4", "#define GD_NYQUIST 8",
               "#define GD_COMPUTED 16   /* 0 stands for the default computed from the sample rate */"]
     for kind, typ in (("REAL", float), ("INT", int)):
