@@ -540,7 +540,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre)
     fig_pre = {"noise_rms_deg_s": _band_rms(f, psd, *band)}
     logged_params = filters.get("parameters", {})
-    rec = {k: _jsonable(v) for k, v in rec.items()}
+    rec = {k: vf._jsonable(v) for k, v in rec.items()}
     changes = {k: v for k, v in rec.items() if not _same(logged_params.get(k), v)}
     for st in logged_stages:                # the logged notches the recommendation keeps
         if st["kind"] != "lowpass" and (notch_stage is None or st["params"] != notch_stage["params"]):
@@ -619,11 +619,3 @@ def param_lines(autopilot, rec):
     """Lines to paste: ArduPilot parameter-file ``NAME,VALUE``; PX4 console ``param set NAME VALUE``
     (the strategy's ``param_lines``)."""
     return autopilot.param_lines(rec)
-
-
-def _jsonable(v):
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, (np.floating, float)):
-        return float(v)
-    return v

@@ -21,7 +21,7 @@ import numpy as np
 from gyrodenoise.flightlog.autopilots import UNKNOWN
 from gyrodenoise.flightlog.filter_review import filter_review, review_context
 from gyrodenoise.flightlog.overview import overview, step_response_line, worst_figures
-from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask, sessions_of
+from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask
 from gyrodenoise.flightlog.step_response import step_response_review
 from gyrodenoise.flightlog.vehicle_filters import stream_stage, vehicle_filters
 from gyrodenoise.flightlog.vibration import vibration_review
@@ -37,12 +37,13 @@ class Review:
     records where the log's boot sessions 1, 2, ... begin:
     :meth:`gyrodenoise.flightlog.model.FlightLog.boot_starts`) and :meth:`flying_mask`."""
 
-    def __init__(self, fields, plot, segments, over, starts=None):
+    def __init__(self, fields, plot, segments, over, log=None):
         self.fields = fields
         self.plot = plot
         self.segments = segments
         self.over = over
-        self.starts = np.zeros(0, np.int64) if starts is None else np.asarray(starts)
+        #: the log, where it has several boots (its ``boot_of`` places a sample in its boot)
+        self.log = log if log is not None and len(log.boots) > 1 else None
         #: {axis: StepResponse} of the step response, for the plot
         self.step_curves = {}
 
@@ -55,7 +56,7 @@ class Review:
         t = np.asarray(time_s, dtype=np.float64)
         if self.over != OVER_FLYING:
             return np.ones(t.shape, dtype=bool)
-        sess = sessions_of(records, self.starts) if records is not None and len(self.starts) else None
+        sess = self.log.boot_of(records) if records is not None and self.log is not None else None
         return segment_mask(t, self.segments, "flying", sess)
 
     def stream_mask(self, time_s, records=None):
@@ -140,7 +141,7 @@ def log_review(log, whole_log=False):
         over, over_note = OVER_WHOLE, "no flying segment in the log: figures over the whole log"
     fields["over"] = over
     fields["over_note"] = over_note
-    review = Review(fields, None, segments, over, log.boot_starts())
+    review = Review(fields, None, segments, over, log)
 
     filters = vehicle_filters(autopilot, params)
     if not params:

@@ -138,7 +138,7 @@ def flight_segments(log, autopilot=None):
 def segment_mask(time_s, segments, kind, session=None):
     """Boolean array: True where ``time_s`` lies in a segment of ``kind`` (start and end
     included) -- and, given ``session`` (each sample's boot session, an int array like
-    ``time_s``: :func:`sessions_of`), in that segment's session. ``kind`` "flying"
+    ``time_s``: :meth:`gyrodenoise.flightlog.model.FlightLog.boot_of`), in that segment's session. ``kind`` "flying"
     covers the hover stretches too (they lie inside)."""
     t = np.asarray(time_s, dtype=np.float64)
     mask = np.zeros(t.shape, dtype=bool)
@@ -146,13 +146,6 @@ def segment_mask(time_s, segments, kind, session=None):
         if s.kind == kind:
             mask |= s.contains(t, session)
     return mask
-
-
-def sessions_of(records, starts):
-    """The boot session (int array) of each of ``records`` (a message's ``record``
-    column, a gyro stream's ``index``) given the records where boots 1, 2, ... start
-    (:meth:`gyrodenoise.flightlog.model.FlightLog.boot_starts`)."""
-    return np.searchsorted(np.asarray(starts), np.asarray(records), side="right")
 
 
 def flying_time_s(segments):

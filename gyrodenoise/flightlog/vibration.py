@@ -252,10 +252,6 @@ def _whole_boots(log, levels, accel):
     return out
 
 
-def _in(t, seg, session=None):
-    return seg.contains(t, session)
-
-
 def _segment_figures(lv, seg):
     """Per level column and instance (``imuN.`` before the name where the log has
     several): mean/max/p95 and verdict; per clip column: its increase and verdict."""
@@ -263,7 +259,7 @@ def _segment_figures(lv, seg):
     out = {}
     for inst in np.unique(lv["instance"]).tolist():
         isel = lv["instance"] == inst
-        sel = isel & _in(t, seg, lv.get("session"))
+        sel = isel & seg.contains(t, lv.get("session"))
         prefix = f"imu{inst}." if len(np.unique(lv["instance"])) > 1 else ""
         for name, col in lv["levels"].items():
             x = np.asarray(col, np.float64)[sel]
@@ -302,7 +298,7 @@ def _accel_figures(acc, seg):
     mean/p95/max over the windows; no threshold, no verdict. {} when the segment holds
     no whole window."""
     t = acc["time_s"]
-    sel = np.flatnonzero(_in(t, seg, acc.get("session")) & np.isfinite(t))
+    sel = np.flatnonzero(seg.contains(t, acc.get("session")) & np.isfinite(t))
     if len(sel) < 8:
         return {}
     ts = t[sel]
@@ -341,7 +337,7 @@ def _segment_peaks(acc, seg):
     """Dominant peaks of the summed x+y+z accelerometer PSD over the segment
     (strongest first), or [] when the segment is too short for a spectrum."""
     t = acc["time_s"]
-    sel = np.flatnonzero(_in(t, seg, acc.get("session")) & np.isfinite(t))
+    sel = np.flatnonzero(seg.contains(t, acc.get("session")) & np.isfinite(t))
     if len(sel) < 64:
         return []
     ts = t[sel]
