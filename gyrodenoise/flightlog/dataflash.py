@@ -32,7 +32,7 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 
-from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, misfit
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, require_fit
 
 HEAD1, HEAD2, FMT_TYPE, FMT_LEN = 0xA3, 0x95, 0x80, 89
 
@@ -324,15 +324,6 @@ def _gyro_positions(sc: DFScan, s):
     return at
 
 
-def _check_fits(s, dtype):
-    """ValueError when a finite filtered value of ``s`` overflows the float field
-    (never stored as an infinity silently; an infinity or a NaN is stored as itself)."""
-    with np.errstate(invalid="ignore"):
-        bad = np.isfinite(s.filtered) & misfit(s.filtered, dtype)
-    if bad.any():
-        raise ValueError(f"{s.name}: a value does not fit {np.dtype(dtype).name} (check field_misfit first)")
-
-
 def patch(data, sc: DFScan, streams):
     """A copy of ``data`` (bytearray) with each stream's filtered values (field
     unit, float32) written over its gyro fields."""
@@ -345,16 +336,14 @@ def patch(data, sc: DFScan, streams):
             dt = next(f for f in sc.formats.values() if f.name == "ISBD").dtype()
             off = s.index // 32
             pos = s.index % 32
-            counts = np.rint(s.filtered * s.field_scale[:, None])
-            if not np.all((counts >= -32768) & (counts <= 32767)):     # never clipped silently
-                raise ValueError(f"{s.name}: a value does not fit int16 (check field_misfit first)")
-            counts = counts.astype("<i2")
+            require_fit(s.name, s.filtered, "<i2", s.field_scale)
+            counts = np.rint(s.filtered * s.field_scale[:, None]).astype("<i2")
             for k, a in enumerate(("x", "y", "z")):
                 at = off + dt.fields[a][1] + 2 * pos
                 buf[at[:, None] + np.arange(2)] = counts[:, k].copy().view(np.uint8).reshape(-1, 2)
             continue
         at = _gyro_positions(sc, s)
-        _check_fits(s, "<f4")
+        require_fit(s.name, s.filtered, "<f4")
         vals = np.ascontiguousarray(s.filtered, dtype="<f4")      # (n, 3)
         for k in range(3):
             b = vals[:, k].copy().view(np.uint8).reshape(-1, 4)

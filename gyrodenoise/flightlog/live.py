@@ -61,7 +61,7 @@ from gyrodenoise.errors import InputError
 
 from gyrodenoise.flightlog.signing import KEY_HINT, MAGIC_V2, LinkSigning, is_signed
 from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, RestartDetector, measured_rate_hz, misfit
-from gyrodenoise.flightlog.tlog import _AP_VERSION_RE, GYRO_FIELDS, _check_crcs, _packet_len, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
+from gyrodenoise.flightlog.tlog import _AP_VERSION_RE, GYRO_FIELDS, check_crcs, packet_len, GYRO_MESSAGES, decide_raw_imu_unit, field_dtype, repacked
 
 
 #: a live RAW_IMU stream whose unit is still open (see :func:`gyrodenoise.flightlog.tlog.decide_raw_imu_unit`)
@@ -358,7 +358,7 @@ def mavlink_frames(data):
     to end (lengths only: the CRCs are checked by :func:`crc_ok`), else None."""
     offsets, p, n = [], 0, len(data)
     while p < n:
-        ln = _packet_len(data, p, n)
+        ln = packet_len(data, p, n)
         if ln is None or ln < 0 or p + ln > n:
             return None
         offsets.append(p)
@@ -372,14 +372,14 @@ MANY_PACKETS = 8
 
 def crc_ok(data, offsets):
     """Which of the packets at ``offsets`` of ``data`` have a known message id and a good
-    CRC: :func:`gyrodenoise.flightlog.tlog._check_crcs`, the tlog reader's vectorised check
+    CRC: :func:`gyrodenoise.flightlog.tlog.check_crcs`, the tlog reader's vectorised check
     (it addresses a tlog record, whose packet starts 8 bytes in)."""
     buf = np.frombuffer(data, dtype=np.uint8)
     at = np.asarray(offsets, dtype=np.int64)
     v2 = buf[at] == MAGIC_V2          # the id: a MAVLink 1 packet's at byte 5, a 2's at bytes 7-9
     msgid = np.where(v2, buf[at + 7].astype(np.int64) | (buf[at + 8].astype(np.int64) << 8)
                      | (buf[at + 9].astype(np.int64) << 16), buf[at + 5].astype(np.int64))
-    return _check_crcs(buf, at - 8, np.diff(np.append(at, len(buf))) + 8, v2, msgid)
+    return check_crcs(buf, at - 8, np.diff(np.append(at, len(buf))) + 8, v2, msgid)
 
 
 class _ReadCounts:

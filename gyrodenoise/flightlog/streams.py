@@ -128,6 +128,19 @@ def field_misfit(stream, values):
     return misfit(values, stream.field_dtype, stream.field_scale)
 
 
+def require_fit(name, values, dtype, scale=1.0):
+    """The writers' last guard (every format's): ValueError naming ``name`` when a value of
+    ``values`` (field unit, times ``scale``) cannot be stored in ``dtype`` (:func:`misfit`;
+    an integer field holds no NaN or infinity, a float field holds them as themselves).
+    Callers check :func:`field_misfit` first and leave such a stream raw: never clipped."""
+    v = np.asarray(values, dtype=np.float64)
+    bad = misfit(v, dtype, scale)
+    if np.dtype(dtype).kind not in "iu":
+        bad &= np.isfinite(v)
+    if np.any(bad):
+        raise ValueError(f"{name}: a value does not fit {np.dtype(dtype).name} (check field_misfit first)")
+
+
 def misfit(values, dtype, scale=1.0):
     """:func:`field_misfit` for a dtype and a scale (scalar, or one per row)."""
     v = np.asarray(values, dtype=np.float64)

@@ -35,7 +35,6 @@ filtered log, and counted per source.
 
 from __future__ import annotations
 
-import math
 import re
 import struct
 from dataclasses import dataclass, field
@@ -45,7 +44,7 @@ import numpy as np
 from gyrodenoise.errors import InputError
 
 from gyrodenoise.flightlog.signing import IFLAG_SIGNED, MAGIC_V1, MAGIC_V2, SIGNATURE_LEN, LinkSigning, is_signed
-from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, GyroStream, require_fit
 
 
 GYRO_MESSAGES = {
@@ -148,7 +147,7 @@ def packet_ok(pkt):
     return crc == (pkt[hl + plen] | (pkt[hl + plen + 1] << 8))
 
 
-def _packet_len(data, p, n):
+def packet_len(data, p, n):
     """Length of the packet starting at ``p`` (None if no magic, -1 if cut by the end)."""
     m = data[p]
     if m == MAGIC_V1:
@@ -209,7 +208,7 @@ def _resync(data, pos, n):
             return n
         m = min(cands)
         q = m - 8
-        ln = _packet_len(data, m, n)
+        ln = packet_len(data, m, n)
         if ln is not None and ln > 0 and m + ln <= n and packet_ok(data[m:m + ln]):
             return q
         q += 1
@@ -224,7 +223,7 @@ def frame(data, path="<bytes>"):
     pos = 0
     truncated = 0
     while pos + 9 <= n:
-        ln = _packet_len(data, pos + 8, n)
+        ln = packet_len(data, pos + 8, n)
         if ln is None:
             nxt = _resync(data, pos, n)
             bad.append((pos, nxt))
@@ -253,7 +252,7 @@ def frame(data, path="<bytes>"):
                      | (buf[np.minimum(start + 16, n - 1)].astype(np.int64) << 8)
                      | (buf[np.minimum(start + 17, n - 1)].astype(np.int64) << 16),
                      buf[np.minimum(start + 13, n - 1)].astype(np.int64)) if len(start) else np.zeros(0, np.int64)
-    ok = _check_crcs(buf, start, length, v2, msgid)
+    ok = check_crcs(buf, start, length, v2, msgid)
     signed = v2 & ((buf[np.minimum(start + 10, n - 1)] & IFLAG_SIGNED) != 0) if len(start) else np.zeros(0, bool)
     return TlogFrames(path, n, start, length, ok, msgid, v2, bad, truncated, zero_tail, signed)
 
@@ -272,7 +271,7 @@ def check_signatures(data, fr: TlogFrames, link: LinkSigning):
     fr.rejected = rejected
 
 
-def _check_crcs(buf, start, length, v2, msgid):
+def check_crcs(buf, start, length, v2, msgid):
     mav = _dialect()
     n = len(start)
     ok = np.zeros(n, dtype=bool)
@@ -437,6 +436,21 @@ class SignedPacketError(ValueError):
     """A signed packet to re-pack without the link's key (it would go out unsigned)."""
 
 
+def _gyro_payload(pkt, lay, name, values):
+    """The payload of ``pkt`` (message ``name``, layout ``lay``) zero-extended to the
+    message's full size (MAVLink 2 trims trailing zeros), its gyro fields set to ``values``."""
+    hl = 10 if pkt[0] == MAGIC_V2 else 6
+    plen = pkt[1]
+    full = bytearray(pkt[hl:hl + plen]) + bytes(max(0, lay.size - plen))
+    for g, v in zip(GYRO_FIELDS, values):
+        off, dt = lay.offsets[g]
+        require_fit(f"{name}.{g}", v, dt)     # an infinity or a NaN in a float field is stored as itself
+        if dt.kind == "i":
+            v = int(np.rint(float(v)))
+        full[off:off + dt.itemsize] = np.array(v, dtype=dt).tobytes()
+    return full
+
+
 def repack(pkt, name, values, signer=None):
     """Packet ``pkt`` (bytes) of message ``name`` with its gyro fields set to
     ``values`` (3 numbers in the field unit; int16 fields are rounded; a float
@@ -453,21 +467,7 @@ def repack(pkt, name, values, signer=None):
     v2 = pkt[0] == MAGIC_V2
     hl = 10 if v2 else 6
     plen = pkt[1]
-    payload = bytearray(pkt[hl:hl + plen])
-    full = payload + bytes(max(0, lay.size - plen))
-    for g, v in zip(GYRO_FIELDS, values):
-        off, dt = lay.offsets[g]
-        if dt.kind == "i":
-            info = np.iinfo(dt)
-            fv = float(v)
-            if not (abs(fv) < 2.0 ** 63 and info.min <= round(fv) <= info.max):
-                raise ValueError(f"{name}.{g}: {v!r} does not fit {dt.name}")
-            v = int(round(fv))
-        elif math.isfinite(float(v)) and abs(float(v)) > np.finfo(dt).max:
-            # a finite value the float field cannot hold; an infinity or a NaN (a
-            # damaged sample the filter kept as it was) is stored as itself
-            raise ValueError(f"{name}.{g}: {v!r} does not fit {dt.name}")
-        full[off:off + dt.itemsize] = np.array(v, dtype=dt).tobytes()
+    full = _gyro_payload(pkt, lay, name, values)
     if v2:
         k = len(full)
         while k > 1 and full[k - 1] == 0:
@@ -557,10 +557,11 @@ def repacked(pkt, rep, link):
     not change keeps its bytes (and signature)."""
     if not is_signed(pkt):
         return repack(pkt, *rep)[0]
-    plain = bytearray(pkt[:-13])
-    plain[2] &= ~IFLAG_SIGNED & 0xFF
-    new = repack(bytes(plain), *rep)[0]
-    if new == bytes(plain):
+    name, values = rep
+    lay = layout(name)
+    hl, plen = (10 if pkt[0] == MAGIC_V2 else 6), pkt[1]
+    full = _gyro_payload(pkt, lay, name, values)
+    if full == bytearray(pkt[hl:hl + plen]) + bytes(len(full) - plen):
         return pkt
     return repack(pkt, *rep, signer=link)[0]
 
@@ -569,7 +570,7 @@ def looks_like_tlog(head):
     """True if the first bytes look like a tlog record with a good packet."""
     if len(head) < 9:
         return False
-    ln = _packet_len(head, 8, len(head))
+    ln = packet_len(head, 8, len(head))
     return bool(ln and ln > 0 and 8 + ln <= len(head) and packet_ok(head[8:8 + ln]))
 
 

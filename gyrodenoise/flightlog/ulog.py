@@ -28,7 +28,7 @@ import numpy as np
 from gyrodenoise.errors import InputError
 
 from gyrodenoise.flightlog import ulog_messages
-from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, AccelStream, GyroStream, misfit
+from gyrodenoise.flightlog.streams import UNIT_TO_DEG_S, AccelStream, GyroStream, require_fit
 
 TOPICS = {
     "sensor_combined": ("gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]"),
@@ -221,9 +221,8 @@ def patched(streams, refs):
             continue
         lay, _ = refs.scan.layout(s.message)
         if s.message in FIFO_TOPICS:
+            require_fit(s.name, s.filtered, "<i2", np.asarray(s.field_scale))
             counts = np.rint(s.filtered * np.asarray(s.field_scale)[:, None])
-            if not np.all((counts >= -32768) & (counts <= 32767)):     # never clipped silently
-                raise ValueError(f"{s.name}: a value does not fit int16 (check field_misfit first)")
             msg, pos = s.index // FIFO_LEN, s.index % FIFO_LEN
             for k, c in enumerate(cols):
                 off, dt = lay[f"{c}[0]"]
@@ -231,9 +230,7 @@ def patched(streams, refs):
             continue
         for k, c in enumerate(cols):
             off, dt = lay[c]
-            with np.errstate(invalid="ignore"):
-                if (np.isfinite(s.filtered[:, k]) & misfit(s.filtered[:, k], dt)).any():
-                    raise ValueError(f"{s.name}: a value does not fit {dt.name} (check field_misfit first)")
+            require_fit(s.name, s.filtered[:, k], dt)
             ulog_messages.write_fields(buf, s.index, off, s.filtered[:, k], dt)
     return out
 
