@@ -25,13 +25,13 @@ DURATION_S = 60.0
 
 
 def synthetic_log(folder, name, *, seed, airframe="AF-1", tone_hz=80.0, tone_deg_s=1.0, sigma=0.2,
-                  vibration=10.0, start=None, vehicle_id=True):
+                  vibration=10.0, start=None, vehicle_id=True, duration_s=DURATION_S):
     """(report, flight) of a synthetic log: one gyro stream at :data:`RATE`, white noise of
     ``sigma`` deg/s on each axis plus a sine of ``tone_deg_s`` rms at ``tone_hz`` on x, one
     flying segment, a vibration figure ``vibration`` m/s/s (p95); the log file holds
     bytes unique to ``seed``."""
     rng = np.random.default_rng(seed)
-    n = int(RATE * DURATION_S)
+    n = int(RATE * duration_s)
     t = np.arange(n) / RATE
     raw = rng.normal(0.0, sigma, (n, 3))
     raw[:, 0] += math.sqrt(2.0) * tone_deg_s * np.sin(2 * math.pi * tone_hz * t)
@@ -41,12 +41,12 @@ def synthetic_log(folder, name, *, seed, airframe="AF-1", tone_hz=80.0, tone_deg
     path.write_bytes(f"synthetic log {seed}".encode())
     flight = SimpleNamespace(gyro=[s], boots=[None], boot_of=lambda r: np.zeros(len(r), int))
     report = {
-        "file": str(path), "format": "synthetic", "method": "motion", "over": "flying", "flying_time_s": DURATION_S,
+        "file": str(path), "format": "synthetic", "method": "motion", "over": "flying", "flying_time_s": duration_s,
         "overview": {"vehicle": "test quad", "vehicle_id": airframe if vehicle_id else None, "verdicts": [
             {"topic": "filters", "verdict": "pass", "reason": "nothing to change"}]},
         "boots": [{"start_s": 0.0, "wall_clock_offset_s": start}],
         "segments": [{"kind": "ground", "start_s": 0.0, "end_s": 5.0, "session": 0},
-                     {"kind": "flying", "start_s": 5.0, "end_s": DURATION_S, "session": 0}],
+                     {"kind": "flying", "start_s": 5.0, "end_s": duration_s, "session": 0}],
         "vibration": {"verdict": "pass", "segments": [{"kind": "flying", "figures": {
             "VIBE.VibeX": {"p95": vibration, "unit": "m/s/s"}, "clip": {"increase": 0, "unit": "count"}}}]},
         "filter_review": {"param_lines": []},
