@@ -24,7 +24,7 @@ earlier logs not flagged (at least ``baseline`` of them; s floored at ``min_sigm
 
 Its false-alarm rate on unchanged series and its delay on a drifting airframe are
 measured on seeded synthetic series by :func:`false_alarm_rate` and
-:func:`detection_delay` (benchmarks/fleet_trends.py prints them; the tests bound them).
+:func:`detection_delay` (the fleet-trends benchmark prints them; the tests bound them).
 """
 
 from __future__ import annotations
