@@ -20,6 +20,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "report": ("matplotlib", "plotly"),
     "cluster": ("distributed", "fsspec"),
     "mat": ("h5py",),
+    "fleet": ("pyarrow", "duckdb"),
 }
 
 

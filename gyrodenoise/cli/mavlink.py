@@ -105,6 +105,13 @@ def register_cli(subparsers):
                         "(default: over the flying segments, \"over\": \"flying\"; a log with no flying "
                         "segment: the whole log, and the summary says so)")
     p.add_argument("--no-csv", action="store_true", help="do not write CSV files")
+    p.add_argument("--store", default=None, metavar="DIR",
+                   help="append each reviewed log's figures and per-segment spectra to the fleet store DIR "
+                        "(Parquet; a log already there is replaced, not counted twice; gyrodenoise "
+                        "fleet-trends DIR reads it; needs pip install 'gyrodenoise[fleet]')")
+    p.add_argument("--airframe", default=None, metavar="NAME",
+                   help="with --store: the airframe these logs belong to (default: the vehicle id the log "
+                        "records, else the name of the folder holding the log)")
     live = p.add_argument_group("live link (LOG is a connection string)")
     live.add_argument("--forward", default=None, metavar="CONN",
                       help="output connection, e.g. udpout:127.0.0.1:14551 (default: none, only report)")
@@ -199,6 +206,27 @@ def _check(args):
         raise InputError(f"--duration must be a finite number > 0 s, got {args.duration}")
     if args.count is not None and args.count < 1:
         raise InputError(f"--count must be >= 1, got {args.count}")
+    _check_store(args)
+
+
+def _check_store(args):
+    """--store DIR: a folder that is a store, or that can become one; --airframe needs it."""
+    from gyrodenoise.flightlog.cluster import is_url
+    if args.airframe is not None and args.store is None:
+        raise InputError("--airframe applies with --store only")
+    if args.airframe is not None and not args.airframe.strip():
+        raise InputError("--airframe must be a non-empty name")
+    if args.store is None:
+        return
+    if is_url(args.store):
+        raise InputError(f"--store {args.store}: the store is a local folder (not a URL)")
+    p = Path(args.store)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"--store {args.store}: exists and is not a folder")
+    if p.is_dir() and any(p.iterdir()):
+        from gyrodenoise.flightlog.fleet_store import is_store
+        if not is_store(p):
+            raise InputError(f"--store {args.store}: a folder that is not a fleet store (no logs/ table in it)")
 
 
 def _check_run_options(args):
@@ -322,6 +350,8 @@ def _require_extras(args):
     urls = [x for x in [*args.logs, args.out] if x is not None and is_url(x)]
     if urls:
         require("cluster", "fsspec", what=f"gyrodenoise mavlink's URL {urls[0]}")
+    if args.store is not None:
+        require("fleet", what="gyrodenoise mavlink --store")
 
 
 def _signing_key(args):
@@ -340,6 +370,8 @@ def _run(args, created):
     if links:
         if len(args.logs) != 1:
             raise InputError(f"{links[0]}: a live connection must be the only LOG argument")
+        if args.store is not None:
+            raise InputError("--store applies to log files, not to a live link")
         if args.zero_phase:
             raise InputError("--zero-phase: a live link is filtered as it comes (causal); "
                              "zero phase needs the whole record")
@@ -380,6 +412,8 @@ def _run_logs(args, client, created):
     # stdout carries only our output: third-party prints (pymavlink, pyulog) go to stderr
     with contextlib.redirect_stdout(sys.stderr):
         summary = _run_files(args, kw, single, client)
+    if args.store is not None:
+        summary["store"] = _append_to_store(args, summary)
     try:
         _write_out(args.out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
         if not single:
@@ -399,6 +433,21 @@ def _run_logs(args, client, created):
     except BrokenPipeError:           # e.g. piped into `head`: the reader left, not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return summary["exit_status"]
+
+
+def _append_to_store(args, summary):
+    """Append the processed logs to --store; the summary's ``store`` key: the folder and,
+    per log, its content key, rows written and whether it replaced an earlier entry."""
+    from gyrodenoise.flightlog.fleet_store import append_summary
+    from gyrodenoise.flightlog.model import ReadOptions
+    try:
+        got = append_summary(args.store, summary, airframe=args.airframe,
+                             read_options=ReadOptions(args.raw_imu_unit, args.raw_imu_scale), log=_log)
+    except OSError as exc:
+        raise InputError(f"--store {args.store}: cannot write ({exc.strerror or exc})") from None
+    return {"folder": str(args.store),
+            "appended": [{"file": a.file, "log_key": a.log_key, "log_rows": a.log_rows,
+                          "spectrum_rows": a.spectrum_rows, "replaced": a.replaced} for a in got]}
 
 
 def _write_out(out, name, text):
@@ -580,6 +629,10 @@ def _print_text(summary):
               f"{f'; {n_raw} stream(s) left raw (exit status 1)' if n_raw else ''}\n")
     if summary.get("fleet_report"):
         out.write(f"fleet report: {summary['fleet_report'][0]}\n")
+    if summary.get("store"):
+        got = summary["store"]["appended"]
+        out.write(f"store {summary['store']['folder']}: {len(got)} log(s) appended "
+                  f"({sum(a['replaced'] for a in got)} replaced an earlier entry of the same log)\n")
 
 
 def _print_log(out, r, summary):

@@ -20,6 +20,7 @@ _SUBCOMMAND_MODULES = [
     "gyrodenoise.cli.gap",        # gap
     "gyrodenoise.cli.mavlink",    # mavlink
     "gyrodenoise.cli.fmu",        # fmu build / run / ...
+    "gyrodenoise.cli.fleet",      # fleet-trends
 ]
 
 
