@@ -48,7 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.io.stream import TextFile, check_regular, numeric_columns
+from gyrodenoise.io.stream import TextFile, check_regular, numeric_columns, save_columns
 from gyrodenoise.io.timebase import MAX_RATE_HZ, analyse_time, restart_mask
 from gyrodenoise.simulator import Record
 from gyrodenoise.units import ACCEL_TO_M_S2, RATE_TO_DEG_S
@@ -553,8 +553,7 @@ def write_recording(path: str | os.PathLike[str], time_s: npt.ArrayLike, raw_deg
         cols.append(np.asarray(true_rate_deg_s))
         header += ",true_rate"
     try:
-        np.savetxt(path, np.column_stack(cols), delimiter=",", header=header, comments="",
-                   fmt="%.10g")
+        save_columns(path, cols, header)
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", str(path)) from None
 
@@ -568,6 +567,6 @@ def write_axes(path: str | os.PathLike[str], rec: Recording, filtered: Sequence[
         header += [ax.column, f"{ax.column}_filtered"]
         cols += [ax.values, np.asarray(out)]
     try:
-        np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+        save_columns(path, cols, ",".join(header))
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", str(path)) from None

@@ -209,3 +209,36 @@ def _as_the_loop_reads(cols: dict[str, np.ndarray], exact_int: str | None) -> di
         return None
     cols[exact_int] = t.astype(np.float64)
     return cols
+
+
+#: samples per chunk of the filters and the CSV writer (16 MB of float64 a column)
+CHUNK = 1 << 21
+
+
+def chunk_bounds(n: int, size: int | None = None) -> Iterator[tuple[int, int]]:
+    """(start, stop) of the chunks of ``size`` samples (default CHUNK) covering 0..n-1."""
+    size = int(size or CHUNK)
+    for a in range(0, n, size):
+        yield a, min(a + size, n)
+
+
+def process_chunks(filt, z: np.ndarray, restarts: np.ndarray | None = None, size: int | None = None) -> np.ndarray:
+    """``filt.process`` (a :class:`gyrodenoise.denoiser.Denoiser`: its whole state carried
+    from chunk to chunk) over ``z`` a chunk at a time: the one-shot run's output, bit for
+    bit, without its whole-record temporaries."""
+    out = np.empty(len(z))
+    for a, b in chunk_bounds(len(z), size):
+        out[a:b] = filt.process(z[a:b], None if restarts is None else restarts[a:b])
+    return out
+
+
+def save_columns(path: str | os.PathLike[str], columns: list[np.ndarray], header: str, fmt: str = "%.10g",
+                 size: int | None = None) -> None:
+    """``np.savetxt(path, np.column_stack(columns), delimiter=",", header=header,
+    comments="", fmt=fmt)``, the same bytes, written a chunk of rows at a time (the stacked
+    table is never made). OSError as savetxt's."""
+    n = len(columns[0])
+    with open(path, "wb") as f:
+        f.write((header + "\n").encode())
+        for a, b in chunk_bounds(n, size):
+            np.savetxt(f, np.column_stack([np.asarray(c[a:b]) for c in columns]), delimiter=",", fmt=fmt)
