@@ -86,7 +86,8 @@ def _denoise_one(args: argparse.Namespace, rec: Record, offline: bool) -> tuple[
         out = denoise(rec.rate_deg_s, rec.sample_rate_hz, method=args.method, ar_order=args.ar_order,
                       restarts=rec.restarts, zero_phase=args.zero_phase, offline=offline, **filter_kw(args))
     else:
-        out = den.process(rec.rate_deg_s, rec.restarts)
+        from gyrodenoise.io.stream import process_chunks
+        out = process_chunks(den, rec.rate_deg_s, rec.restarts)      # the state carried chunk to chunk
     return out, den
 
 

@@ -59,8 +59,9 @@ def register_cli(subparsers: Any) -> None:
     p.add_argument("--model", required=True, metavar="CARD.toml", help="model card (path or embedded name)")
     p.add_argument("--out", required=True, metavar="NEW.toml", help="completed card to write")
     p.add_argument("--seeds", type=int, default=6, help="simulated records per card (default 6, at least 3)")
-    p.add_argument("--engine", default="fmu", choices=["fmu", "native"],
-                   help="simulator: SimulatedFog.fmu through fmpy (default) or the core simulator (fast)")
+    p.add_argument("--engine", default="native", choices=["fmu", "native"],
+                   help="simulator: the core simulator (default, the fastest) or SimulatedFog.fmu through fmpy "
+                        "(the same card: the two are bit-identical, tests/fmu/test_build_and_run.py)")
     p.add_argument("--fmu-dir", default=None, help="folder of SimulatedFog.fmu (default build/; built when missing "
                                                    "or stale)")
     p.add_argument("--workers", type=int, default=None, help="processes for the FMU engine, a whole number >= 1 (default: one per seed, "
@@ -256,7 +257,7 @@ def _check_options(args: argparse.Namespace) -> None:
     if not args.no_plot:
         require("report", "matplotlib", what="gyrodenoise gap's figure (or --no-plot)")
     if args.allan is None and args.engine == "fmu":     # --allan simulates with the core
-        require("fmu", "fmpy", "pythonfmu", what="gyrodenoise gap --engine fmu (the default; or --engine native)")
+        require("fmu", "fmpy", "pythonfmu", what="gyrodenoise gap --engine fmu (or --engine native, the default)")
 
 
 def cmd_gap(args: argparse.Namespace) -> int:

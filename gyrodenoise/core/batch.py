@@ -135,7 +135,7 @@ def _rigid_offline(p, seg, o_ext, compiled):
 
 SMOOTH_PASS = (0.6, 0.85)   # smooth_motion's pass-through: the smoothed variance (units of R) where the
                             # output starts moving to the raw sample, and where it is the raw sample
-SMOOTH_BLOCK = 8192     # samples per block of the offline smoother's combination (smooth_motion)
+SMOOTH_BLOCK = 8192     # samples per block of the offline smoother (smooth_motion): its checkpoints' spacing
 
 
 class TwoFilter(NamedTuple):
@@ -147,9 +147,9 @@ class TwoFilter(NamedTuple):
     var: object       # the smoothed rate's variance, in units of r
 
 
-def _bank_record(p, seg, compiled):
-    """The causal ``motion`` filter stepped over ``seg``, recording its bank after every
-    sample. Returns (out, bank, nw, r, active, line, zref): the causal output (n,);
+def _bank_record(p, seg, compiled, state=None):
+    """The causal ``motion`` filter stepped over ``seg`` from ``state`` (default a fresh
+    one; a checkpoint of :func:`_checkpoints`), recording its bank after every sample. Returns (out, bank, nw, r, active, line, zref): the causal output (n,);
     per constant-velocity filter (the bank's first P_MO_NF lanes; the P_MO_NCA
     constant-acceleration lanes after them are not recorded) its rate (centred), slope per sample and
     faded log-likelihood, (ncv, 3, n);
@@ -164,11 +164,12 @@ def _bank_record(p, seg, compiled):
     out = np.empty(n)
     rec = np.empty((len(idx), n))            # one row per recorded value
     use_c = compiled and C is not None
+    start = K.init_state(p) if state is None else state
     if use_c:                                # the C loop records them (gd_run_record)
-        C.record(np.ascontiguousarray(p, dtype=np.float64), np.array(K.init_state(p)),
+        C.record(np.ascontiguousarray(p, dtype=np.float64), np.array(start, dtype=np.float64),
                  np.ascontiguousarray(seg, dtype=np.float64), out, np.asarray(idx, dtype=np.float64), rec)
     else:
-        pp, st = list(p), K.init_state(p)
+        pp, st = list(p), [float(v) for v in start]
         for i, v in enumerate(seg.tolist()):
             out[i] = K.step(pp, st, v, False)
             rec[:, i] = [st[j] for j in idx]
@@ -234,7 +235,7 @@ def two_filter_rate(xf, pf, xb, pb, lam2, r):
     return TwoFilter(rate, -0.5 * (chi2 + np.log(det)), chi2, var)
 
 
-def smooth_motion(p, seg, *, compiled=True):
+def smooth_motion(p, seg, *, compiled=True, out=None):
     """Fixed-interval smoother of the ``motion`` bank over one run of samples (no restart
     inside): the two-filter smoother of every constant-velocity model of the bank, blended
     by the models' probabilities given the whole run. The bank runs here with its
@@ -272,29 +273,90 @@ def smooth_motion(p, seg, *, compiled=True):
     samples) its causal output is used; where either direction's spectral line test holds
     its output on the raw sample, the raw sample. The output stays inside [min, max] of the
     finite samples of ``seg``; where it would not be finite (an input near the largest
-    float), the causal blend of :func:`run_offline` is used there. Returns the smoothed rate
-    (deg/s), an ndarray like ``seg``."""
+    float), the causal blend of :func:`run_offline` is used there.
+
+    Memory is bounded whatever the length: the two banks' records are made one block of
+    SMOOTH_BLOCK samples at a time, each direction restarted from its state saved at the
+    block's edge (:func:`_checkpoints`, one state buffer a block) instead of recorded over
+    the whole run (88 values, 704 bytes, a sample); the state is the filter's whole state,
+    so a block's records are those of the one pass over the run, bit for bit. ``seg`` may be
+    anything that slices into arrays (a record spilled to disk); ``out`` (optional) receives
+    the output. Returns the smoothed rate (deg/s), an ndarray like ``seg`` (``out`` when
+    given)."""
     p = list(p)
     p[K.P_MO_NCA] = 0.0                          # the CV lanes only (above)
-    n, nf = seg.shape[0], int(p[K.P_MO_NF])     # the CV models
-    fo, bf, nwf, rf, af, lf, zf = _bank_record(p, seg, compiled)
-    bo, bb, nwb, rb, ab, lb, zb = _bank_record(p, seg[::-1].copy(), compiled)
+    n, block = len(seg), int(SMOOTH_BLOCK)
+    y = np.empty(n) if out is None else out
+    starts = list(range(0, n, block))
+    # block [a, b) needs the forward records at a..b-1 (state before a) and the backward ones
+    # at a..c-1, c = min(b + 1, n) (the backward bank's state after samples n-1 down to c)
+    ends = [min(a + block + 1, n) for a in starts]
+    fwd = _checkpoints(p, lambda lo, hi: seg[lo:hi], starts, compiled)
+    bwd = _checkpoints(p, lambda lo, hi: seg[n - hi:n - lo][::-1], [n - c for c in reversed(ends)], compiled)[::-1]
+    finite = _finite_range(seg, block)
+    bad = []
+    for a, c, sf, sb in zip(starts, ends, fwd, bwd):
+        b = min(a + block, n)
+        z = np.ascontiguousarray(seg[a:c], dtype=np.float64)
+        yb, nonfinite = _smooth_block(p, z, b - a, sf, sb, finite, compiled)
+        bad.extend((nonfinite + a).tolist())
+        y[a:b] = yb
+    if bad:
+        idx = np.asarray(bad)
+        y[idx] = _blend(p, np.ascontiguousarray(seg[0:n], dtype=np.float64), compiled)[idx]
+    return y
+
+
+def _checkpoints(p, piece, positions, compiled):
+    """The causal bank's whole state before each of ``positions`` (ascending sample counts)
+    of one pass from a fresh state over the samples ``piece(lo, hi)`` gives (lo..hi-1 of the
+    pass, in the order it steps them). Returns a list of state buffers."""
+    s, pos, saved = np.array(K.init_state(p), dtype=np.float64), 0, []
+    for at in positions:
+        if at > pos:
+            _, s = run(p, s, piece(pos, at), compiled=compiled)
+            pos = at
+        saved.append(s.copy())
+    return saved
+
+
+def _finite_range(seg, block):
+    """(min, max) of the finite samples of ``seg`` read a block at a time, None when none is."""
+    lo, hi = np.inf, -np.inf
+    for a in range(0, len(seg), block):
+        z = np.asarray(seg[a:a + block], dtype=np.float64)
+        z = z[np.isfinite(z)]
+        if z.size:
+            lo, hi = min(lo, float(z.min())), max(hi, float(z.max()))
+    return (lo, hi) if lo <= hi else None
+
+
+def _smooth_block(p, z, m, sf, sb, finite, compiled):
+    """:func:`smooth_motion` on its samples a..a+m-1: ``z`` holds them and, unless the run ends
+    there, sample a+m (the backward bank's estimate after it enters the combination at a+m-1);
+    ``sf`` the forward bank's state before a, ``sb`` the backward one's after a+len(z)-1;
+    ``finite`` the run's (min, max) of finite samples. Returns (the output of the m samples,
+    the indices, within the block, where it is not finite and the causal blend stands in)."""
+    nf = int(p[K.P_MO_NF])                       # the CV models
+    fo, bf, nwf, rf, af, lf, zf = _bank_record(p, z[:m], compiled, sf)
+    bo, bb, nwb, rb, ab, lb, zb = _bank_record(p, z[::-1].copy(), compiled, sb)
     bo, bb, nwb, rb, ab, lb, zb = bo[::-1], bb[:, :, ::-1], nwb[::-1], rb[::-1], ab[::-1], lb[::-1], zb[::-1]
-    y = np.where(af == 1.0, fo, bo)          # one direction alone where the other warms up
+    seg = z[:m]
+    y = np.where(af == 1.0, fo, bo[:m])      # one direction alone where the other warms up
     gate = 2.0 * p[K.P_MO_RESET]               # the break test's chi-square (below)
     lo, hi = SMOOTH_PASS
-    # every sample k < n - 1 with the forward bank at k and the backward one at k + 1, in blocks
-    # of SMOOTH_BLOCK samples (the temporaries stay small; the samples where one direction warms
-    # up are computed and left out: they may divide by zero, hence the errstate)
-    both = (af[:-1] == 1.0) & (ab[1:] == 1.0)
-    for a in range(0, n - 1 if both.any() else 0, SMOOTH_BLOCK):
-        k = slice(a, min(a + SMOOTH_BLOCK, n - 1))
-        j = slice(k.start + 1, k.stop + 1)
+    # every sample k with the forward bank at k and the backward one at k + 1 (the last sample
+    # of the run has none; the samples where one direction warms up are computed and left out:
+    # they may divide by zero, hence the errstate)
+    kn = len(z) - 1
+    if kn > 0:
+        k, j = slice(0, kn), slice(1, kn + 1)
+        both = (af[k] == 1.0) & (ab[j] == 1.0)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             lnf, lnb = _line_cov(nwf[k]), _line_cov(nwb[j])
             r = 0.5 * (rf[k] + rb[j])
             r = np.where(r > 0.0, r, 1.0)
-            xs = np.empty((nf, k.stop - k.start))
+            xs = np.empty((nf, kn))
             ll, c2, vs = np.empty_like(xs), np.empty_like(xs), np.empty_like(xs)
             for i in range(nf):
                 lam2 = p[K.P_MO_G + 4 * K.MO_MAX_NF + i]     # lam^2 = beta^2 / (1 - alpha)
@@ -309,17 +371,15 @@ def smooth_motion(p, seg, *, compiled=True):
                 u = np.clip((np.sum(w * vs, axis=0) / sw - lo) / (hi - lo), 0.0, 1.0)
                 ys += u * (seg[k] - ys)
             ys = np.where(c2.min(axis=0) <= gate, ys, seg[k])      # the break test
-        y[k][both[k]] = ys[both[k]]
-    on = (lf == 1.0) | (lb == 1.0)
+        y[k][both] = ys[both]
+    on = (lf == 1.0) | (lb[:m] == 1.0)
     y[on] = seg[on]                          # the line test: the raw sample
     fin = np.isfinite(seg)
-    if fin.any():
-        y = np.clip(y, seg[fin].min(), seg[fin].max())
-    bad = fin & ~np.isfinite(y)
-    if bad.any():
-        y[bad] = _blend(p, seg, compiled)[bad]
+    if finite is not None:
+        y = np.clip(y, *finite)
+    bad = np.flatnonzero(fin & ~np.isfinite(y))
     y[~fin] = seg[~fin]
-    return y
+    return y, bad
 
 
 def _blend(p, seg, compiled, pb=None):
@@ -379,5 +439,5 @@ def run_offline(p, z, restarts=None, *, compiled=True):
             seg, pb = _rigid_offline(p, seg, o_ext, compiled)
             out[a:b] = _blend(p, seg, compiled, pb)
         else:
-            out[a:b] = smooth_motion(p, seg, compiled=compiled)
+            smooth_motion(p, seg, compiled=compiled, out=out[a:b])
     return out

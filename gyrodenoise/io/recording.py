@@ -48,6 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from gyrodenoise.errors import InputError
+from gyrodenoise.io.stream import TextFile, check_regular, numeric_columns, save_columns
 from gyrodenoise.io.timebase import MAX_RATE_HZ, analyse_time, restart_mask
 from gyrodenoise.simulator import Record
 from gyrodenoise.units import ACCEL_TO_M_S2, RATE_TO_DEG_S
@@ -57,23 +58,6 @@ ABSURD_RATE_DEG_S = 1.0e6   # 2,800 rev/s: no gyro measures that
 ABSURD_ACCEL_M_S2 = 1.0e5   # 10,000 g: no accelerometer of an IMU measures that
 SAT_RUN = 10                # equal samples at the column's max/min: suspected saturation
 SPIKE_SIGMAS = 8.0          # isolated spike: this many robust sigmas from both neighbours
-
-
-def _open_text(path: str | os.PathLike[str]) -> str:
-    p = Path(path)
-    if not p.exists():
-        raise InputError("no such file", str(path))
-    if p.is_dir():
-        raise InputError("is a directory, expected a CSV file", str(path))
-    try:
-        raw = p.read_bytes()
-        if raw[:2] == b"\x1f\x8b":
-            raw = gzip.decompress(raw)
-        return raw.decode("utf-8-sig")
-    except (OSError, EOFError, gzip.BadGzipFile) as exc:
-        raise InputError(f"cannot read: {exc}", str(path)) from None
-    except UnicodeDecodeError:
-        raise InputError("not a text CSV file (undecodable bytes)", str(path)) from None
 
 
 #: what a spike note advises (the filters' outlier gate); a command with another remedy passes its own
@@ -216,16 +200,17 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
         header, notes = list(table.columns), list(table.notes)
         where: Callable[[int], str] = lambda i: f"{table.row_name} {i + 1:,}"   # noqa: E731
     else:
-        text = _open_text(path)
-        if not text.strip():
+        text = TextFile(path)
+        first_line = text.first_line()
+        if not first_line:
             raise InputError("empty file", src)
-        sep = _separator(text)
+        sep = _separator(first_line)
         rows = _rows(text, sep, src)
         header = _read_header(rows, first, time_column or "time", src)
         notes = [] if sep == "," else [f"fields separated by {SEPARATOR_NAMES[sep]}"]
         rows, file_units = _units_row(rows, header)
         skip = 2 if file_units else 1
-        where = lambda i: f"line {_line_of(text, i, skip)}"   # noqa: E731
+        where = lambda i: f"line {text.line_of(i, skip)}"   # noqa: E731
     lower = {h.lower(): h for h in header}
     gyro_cols, gyro_group = _columns(GYRO, rate_columns, header, lower, "rate", src)
     if accel_columns is None and rate_columns is None and gyro_group is not None:
@@ -242,7 +227,9 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     if container:
         values: dict[str, Any] = {c: table.columns[c] for c in wanted}
     else:
-        values = _read_values(rows, header, {name: header.index(name) for name in wanted}, sep != ",", src)
+        index = {name: header.index(name) for name in wanted}
+        values = (numeric_columns(text, skip, len(header), index, sep, time_column if has_time else None)
+                  or _read_values(rows, header, index, sep != ",", src))
         if values.pop(DECIMAL_COMMA, None) is not None:
             notes[-1] += "; decimal commas read"
     n = len(values[wanted[0]])
@@ -314,6 +301,7 @@ def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
     if path is None:
         return None
     try:
+        check_regular(path)
         with open(path, "rb") as f:
             head = f.read(2)
         opener = gzip.open if head == b"\x1f\x8b" else open
@@ -323,7 +311,7 @@ def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
                 first = f.readline()
                 if not first:
                     return None
-    except (OSError, EOFError, gzip.BadGzipFile):
+    except (OSError, EOFError, gzip.BadGzipFile, InputError):
         return None
     sep = _separator(first)
     return [h.strip() for h in (first.split() if sep is None else next(csv.reader([first], delimiter=sep)))]
@@ -405,13 +393,13 @@ def _separator(text: str) -> str | None:
     return None if len(first.split()) > 1 else ","
 
 
-def _rows(text: str, sep: str | None, src: str) -> Iterator[tuple[int, list[str]]]:
+def _rows(text: TextFile, sep: str | None, src: str) -> Iterator[tuple[int, list[str]]]:
     """(line number, fields) of each line; InputError for a line the csv module refuses."""
     if sep is None:
-        for lineno, line in enumerate(text.splitlines(), start=1):
+        for lineno, line in enumerate(text.lines(), start=1):
             yield lineno, line.split()
         return
-    reader = csv.reader(io.StringIO(text), delimiter=sep)
+    reader = csv.reader(text.lines(), delimiter=sep)
     try:
         for row in reader:
             yield reader.line_num, row
@@ -556,20 +544,6 @@ def _is_number(cell: str) -> bool:
     return True
 
 
-def _line_of(text: str, sample_index: int, header_lines: int = 1) -> int:
-    """File line number of data sample ``sample_index`` (skipping blank lines and the
-    ``header_lines`` first lines)."""
-    line = 1
-    count = -1
-    for line, raw in enumerate(text.splitlines(), start=1):
-        if line <= header_lines or not raw.strip():
-            continue
-        count += 1
-        if count == sample_index:
-            return line
-    return line
-
-
 def write_recording(path: str | os.PathLike[str], time_s: npt.ArrayLike, raw_deg_s: npt.ArrayLike,
                     filtered_deg_s: npt.ArrayLike, true_rate_deg_s: npt.ArrayLike | None = None) -> None:
     """Write ``time,raw,filtered[,true_rate]`` (deg/s) to a CSV file."""
@@ -579,8 +553,7 @@ def write_recording(path: str | os.PathLike[str], time_s: npt.ArrayLike, raw_deg
         cols.append(np.asarray(true_rate_deg_s))
         header += ",true_rate"
     try:
-        np.savetxt(path, np.column_stack(cols), delimiter=",", header=header, comments="",
-                   fmt="%.10g")
+        save_columns(path, cols, header)
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", str(path)) from None
 
@@ -594,6 +567,6 @@ def write_axes(path: str | os.PathLike[str], rec: Recording, filtered: Sequence[
         header += [ax.column, f"{ax.column}_filtered"]
         cols += [ax.values, np.asarray(out)]
     try:
-        np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
+        save_columns(path, cols, ",".join(header))
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", str(path)) from None
