@@ -97,7 +97,7 @@ def test_gap_figure_without_the_report_extra(monkeypatch, tmp_path):
 
 def test_gap_fmu_engine_without_the_fmu_extra(monkeypatch, tmp_path):
     _hide(monkeypatch, "pythonfmu")
-    status, _, err = run_main("gap", DATA / "missing.csv", "--model", "paper_fog", "--no-plot",
+    status, _, err = run_main("gap", DATA / "missing.csv", "--model", "paper_fog", "--no-plot", "--engine", "fmu",
                               "--out", tmp_path / "new.toml")
     assert "needs pythonfmu," in _one_line_install(status, err, "fmu")
     assert "or --engine native" in err
