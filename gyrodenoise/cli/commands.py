@@ -28,7 +28,8 @@ def _read(args: argparse.Namespace) -> Record:
     from gyrodenoise.io.recording import read_recording
     check_export_args(args)       # refused before the file is read (and its notes printed)
     rec = read_recording(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
-                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit)
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
+                         rate_scale=args.rate_scale)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
@@ -161,6 +162,7 @@ def cmd_allan(args: argparse.Namespace) -> int:
         d["notes"] = rec.notes
         d["analysed"] = analysed
         d["rate_unit"] = unit
+        d["rate_scale"] = args.rate_scale[0] if args.rate_scale else None
         d["true_rate_motion_deg_s"] = true_rate_motion(rec)
         emit_json(d)
     else:
