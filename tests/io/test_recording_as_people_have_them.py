@@ -136,3 +136,52 @@ def test_a_bad_rate_scale_is_one_line(tmp_path, capsys, scale, message):
     code, out, err = _run(capsys, "allan", path, "--sample-rate", FS, "--rate-column", "gx", f"--rate-scale={scale}")
     assert code == 2 and message in err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+# ------------------------------------------------------------------ the exports and the JSON of an IMU
+def test_kalibr_writes_an_unresolved_random_walk_as_its_bound_and_says_how(tmp_path, capsys):
+    n = 30_000
+    path = tmp_path / "imu.csv"
+    _write(path, ["time", "gx", "gy", "gz", "ax", "ay", "az"],
+           [np.arange(n) / FS, *(_white(n, 0.3, s) for s in (8, 9, 10)),
+            *(0.001 * _white(n, 60.0, s) + g for s, g in ((11, 0.0), (12, 0.0), (13, 9.81)))])
+    yaml = tmp_path / "imu.yaml"
+    code, out, err = _run(capsys, "allan", path, "--json", "--kalibr-yaml", yaml)
+    assert code == 0, err
+    d = json.loads(out)
+    keys = {k.strip(): v for k, v in (ln.split(":", 1) for ln in yaml.read_text().splitlines()
+                                      if ln and not ln.startswith("#"))}
+    value, comment = keys["gyroscope_random_walk"].split("#", 1)
+    # white noise only: K is not resolved; the value written is the largest bound over the axes, in SI
+    assert all(d["axes"][c]["exported_bounds"]["K"] == "upper_bound" for c in ("gx", "gy", "gz"))
+    k_max = max(d["axes"][c]["exported_terms"]["K"] for c in ("gx", "gy", "gz"))
+    assert float(value) == pytest.approx(k_max / 3600.0 / 60.0 * math.pi / 180.0, rel=1e-8)
+    assert "UPPER BOUND written as the value (Kalibr needs a number)" in comment
+    # and it is a bound: at the well-measured taus its +1/2 line (K^2 tau / 3) stays within the
+    # measured Allan variance + 2 sigma
+    for c in ("gx", "gy", "gz"):
+        a = d["axes"][c]
+        k_s = a["terms"]["K"] / 3600.0 / 60.0
+        tau, adev, err_ = (np.array(a[k]) / (1 if k == "tau_s" else 3600.0)
+                           for k in ("tau_s", "adev_deg_h", "adev_err_deg_h"))
+        well = err_ < 0.1 * adev
+        assert well.sum() > 10
+        assert np.all(k_s ** 2 * tau[well] / 3.0 <= (adev[well] + 2.0 * err_[well]) ** 2)
+
+
+def test_an_accelerometer_curve_is_under_its_own_unit(tmp_path, capsys):
+    n = 10_000
+    path = tmp_path / "imu.csv"
+    acc = [0.01 * _white(n, 60.0, s) + g for s, g in ((14, 0.0), (15, 0.0), (16, 9.81))]
+    _write(path, ["time", "gx", "ax", "ay", "az"], [np.arange(n) / FS, _white(n, 0.3, 17), *acc])
+    code, out, err = _run(capsys, "allan", path, "--json", "--rate-column", "gx", "--accel-column", "ax,ay,az")
+    assert code == 0, err
+    d = json.loads(out)
+    assert "adev_deg_h" in d["axes"]["gx"] and "adev_m_s_h" not in d["axes"]["gx"]
+    for name, x in zip(("ax", "ay", "az"), acc):
+        a = d["axes"][name]
+        assert "adev_deg_h" not in a and "adev_err_deg_h" not in a and a["adev_unit"] == "m/s/h"
+        # tau = 1 sample: the Allan deviation is sqrt(mean(diff^2) / 2) (m/s^2), x 3600 in m/s/h
+        assert a["tau_s"][0] == pytest.approx(1.0 / FS)
+        assert a["adev_m_s_h"][0] == pytest.approx(math.sqrt(np.mean(np.diff(x) ** 2) / 2.0) * 3600.0, rel=1e-6)
+        assert len(a["adev_err_m_s_h"]) == len(a["tau_s"])
