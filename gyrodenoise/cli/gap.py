@@ -242,7 +242,11 @@ def _write_card(args: argparse.Namespace, text: str, report: str, plot: str | No
 
 
 def _check_options(args: argparse.Namespace) -> None:
-    """--seeds, --workers, --max-effects, and that --out and --plot can be written."""
+    """--seeds, --workers, --max-effects, one --rate-column, and that --out and --plot can be written."""
+    if "," in str(args.rate_column):
+        raise InputError(f"--rate-column {args.rate_column}: gap fits a model card to one sensor axis; run it "
+                         f"once per column (--rate-column {args.rate_column.split(',')[0].strip()}, ...), each "
+                         f"with its own --out")
     if args.seeds < 3:
         raise InputError(f"--seeds must be at least 3, got {args.seeds}")
     if args.workers is not None and args.workers < 1:

@@ -55,13 +55,14 @@ TIME_UNITS = ("s", "ms", "us", "ns")
 
 def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | None = None,
                           input_optional: bool = False, rate_unit_default: str | None = None,
-                          axes: bool = False) -> None:
+                          axes: bool = False, several_columns: str = "") -> None:
     """``IN`` and the options that say how to read it (:func:`gyrodenoise.io.recording.read_recording`).
 
     ``input_optional``: IN may be omitted (``gap --allan``); ``rate_unit_default`` None: the
     reader says in a note which unit it assumed. ``axes``: several columns in one run
     (:func:`gyrodenoise.io.recording.read_axes`): ``--rate-column`` takes a list and is detected
-    when not given, ``--accel-column`` and ``--accel-unit`` are added."""
+    when not given, ``--accel-column`` and ``--accel-unit`` are added. ``several_columns``: the
+    help's words on several rate columns in the single-axis form (what the command does with them)."""
     parser.add_argument("input", metavar="IN", nargs="?" if input_optional else None,
                         help=input_help or "recording CSV (columns time,rate[,true_rate]; .gz ok)")
     if axes:
@@ -78,7 +79,8 @@ def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | 
         parser.add_argument("--variable", default=None, metavar="NAME",
                             help="MATLAB .mat: the variable (a struct or a matrix) to read (default: all)")
     else:
-        parser.add_argument("--rate-column", default="rate", help="rate column name (default: rate)")
+        parser.add_argument("--rate-column", default="rate",
+                            help=f"rate column name (default: rate){several_columns}")
     parser.add_argument("--time-column", default=None,
                         help="time column name (default: the first of time, field.header.stamp, %%time, timestamp, "
                              "t in the file)")
