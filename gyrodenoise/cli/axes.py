@@ -45,7 +45,7 @@ def read_axes_args(args: argparse.Namespace) -> Recording:
     rec = read_axes(args.input, _split(args.rate_column), _split(args.accel_column),
                     time_column=args.time_column, rate_unit=args.rate_unit, accel_unit=args.accel_unit,
                     sample_rate_hz=args.sample_rate, time_unit=args.time_unit, topic=getattr(args, "topic", None),
-                    variable=getattr(args, "variable", None), bag_reader=read_imu)
+                    variable=getattr(args, "variable", None), bag_reader=read_imu, rate_scale=args.rate_scale)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
@@ -58,16 +58,29 @@ def _label(ax: Axis) -> tuple[str, ...]:
     return tuple(f"{t.symbol} ({t.unit})" for t in ALLAN_TERMS)
 
 
+#: an accelerometer's curve keys: `AllanResult.to_json`'s (a gyro's, in deg/h) in its unit, m/s/h
+ACCEL_CURVE_KEYS = {"adev_deg_h": "adev_m_s_h", "adev_err_deg_h": "adev_err_m_s_h"}
+
+
+def _accel_path(path: str) -> str:
+    key, sep, rest = path.partition("[")
+    return ACCEL_CURVE_KEYS.get(key, key) + sep + rest
+
+
 def axis_json(ax: Axis, res: Any) -> dict[str, Any]:
     """One axis' object: `AllanResult.to_json` (spec section 3), the sensor and the unit
-    read; an accelerometer's terms and curve in m/s units (``units``, ``adev_unit``)."""
+    read; an accelerometer's terms and curve in m/s units (``units``, ``adev_unit``; the curve
+    under ``adev_m_s_h`` and ``adev_err_m_s_h``, a gyro's under ``adev_deg_h``)."""
     d = res.to_json()
     d["sensor"] = ax.kind.name
     d["unit_read"] = ax.unit
+    d["rate_scale"] = ax.scale
     if ax.kind.name == "accel":
         d["units"] = {t: ACCEL_TERMS[t][1] for t in TERM_SYMBOLS}
         d["names"] = {t: ACCEL_TERMS[t][0] for t in TERM_SYMBOLS}
         d["adev_unit"] = "m/s/h"
+        d = {ACCEL_CURVE_KEYS.get(k, k): v for k, v in d.items()}
+        d["nulls"] = {_accel_path(k): v for k, v in d["nulls"].items()}
     else:
         d["adev_unit"] = "deg/h"
     return d

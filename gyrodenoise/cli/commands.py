@@ -28,7 +28,8 @@ def _read(args: argparse.Namespace) -> Record:
     from gyrodenoise.io.recording import read_recording
     check_export_args(args)       # refused before the file is read (and its notes printed)
     rec = read_recording(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
-                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit)
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
+                         rate_scale=args.rate_scale)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
@@ -162,6 +163,7 @@ def cmd_allan(args: argparse.Namespace) -> int:
         d["notes"] = rec.notes
         d["analysed"] = analysed
         d["rate_unit"] = unit
+        d["rate_scale"] = args.rate_scale[0] if args.rate_scale else None
         d["true_rate_motion_deg_s"] = true_rate_motion(rec)
         emit_json(d)
     else:
@@ -233,9 +235,22 @@ def _allan_of_axes_or_one(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------- compare
 def cmd_compare(args: argparse.Namespace) -> int:
-    from gyrodenoise.analysis.experiments import compare
     _check_params(args, 1.0)          # bad options fail before the file is read
+    columns = [c.strip() for c in str(args.rate_column).split(",") if c.strip()]
+    if len(columns) > 1:
+        return _compare_axes(args, columns)
     rec = _read(args)
+    res = _compare_one(args, rec)
+    if args.json:
+        emit_json(public(res))
+    else:
+        print(format_compare(res))
+    return 0
+
+
+def _compare_one(args: argparse.Namespace, rec: Record) -> dict[str, Any]:
+    """Table 1 of one record (its warnings added)."""
+    from gyrodenoise.analysis.experiments import compare
     _check_params(args, rec.sample_rate_hz)
     if len(rec) < 100:
         raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
@@ -246,10 +261,24 @@ def cmd_compare(args: argparse.Namespace) -> int:
         add_warnings(res, [moving_warning(moving)])
     else:     # a moving record's raw curve is the motion's (its warning says so); `allan` analyses another
         add_warnings(res, raw_misfit_warnings(res))
+    return res
+
+
+def _compare_axes(args: argparse.Namespace, columns: list[str]) -> int:
+    """``compare --rate-column gx,gy,gz``: Table 1 of each column; with --json one object whose
+    ``axes`` maps each column to the object one column gives (as ``allan`` over several axes)."""
+    from gyrodenoise.io.recording import read_axes
+    recording = read_axes(args.input, columns, time_column=args.time_column, rate_unit=args.rate_unit,
+                          sample_rate_hz=args.sample_rate, time_unit=args.time_unit, rate_scale=args.rate_scale)
+    for note in recording.notes:
+        log(f"gyrodenoise: note: {args.input}: {note}")
+    done = {ax.column: _compare_one(args, recording.record(ax)) for ax in recording.axes}
     if args.json:
-        emit_json(public(res))
-    else:
-        print(format_compare(res))
+        emit_json({"source": str(args.input), "notes": recording.notes,
+                   "sample_rate_hz": recording.sample_rate_hz, "n_samples": len(recording.time_s),
+                   "axes": {c: public(res) for c, res in done.items()}})
+        return 0
+    print("\n\n".join(f"{c}:\n{format_compare(res)}" for c, res in done.items()))
     return 0
 
 
@@ -454,7 +483,8 @@ def register_cli(sub: Any) -> None:
     p.set_defaults(func=_allan_of_axes_or_one)
 
     p = sub.add_parser("compare", help="the paper's Table 1 for a recording (raw, AR fit, KF, SHAKF)")
-    add_recording_options(p)
+    add_recording_options(p, several_columns="; several, comma-separated (gx,gy,gz): a table for each, with "
+                                             "--json one object whose axes maps each column to its table")
     add_filter_options(p, MODEL_OPTIONS)
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)

@@ -128,7 +128,7 @@ def _read_input(args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray
     from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
-                         spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
+                         rate_scale=args.rate_scale, spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
                                       "off the running median (another test: its count may differ)")
     from gyrodenoise.modelgap import check_record
     check_record(rec.rate_deg_s, args.input)
@@ -243,7 +243,11 @@ def _write_card(args: argparse.Namespace, text: str, report: str, plot: str | No
 
 
 def _check_options(args: argparse.Namespace) -> None:
-    """--seeds, --workers, --max-effects, and that --out and --plot can be written."""
+    """--seeds, --workers, --max-effects, one --rate-column, and that --out and --plot can be written."""
+    if "," in str(args.rate_column):
+        raise InputError(f"--rate-column {args.rate_column}: gap fits a model card to one sensor axis; run it "
+                         f"once per column (--rate-column {args.rate_column.split(',')[0].strip()}, ...), each "
+                         f"with its own --out")
     if args.seeds < 3:
         raise InputError(f"--seeds must be at least 3, got {args.seeds}")
     if args.workers is not None and args.workers < 1:

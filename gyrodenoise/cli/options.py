@@ -1,7 +1,7 @@
 """Options several commands share, each defined once, with the core's defaults.
 
 * the recording options (``IN``, ``--rate-column``, ``--time-column``, ``--rate-unit``,
-  ``--sample-rate``) of ``denoise``, ``allan``, ``compare`` and ``gap``;
+  ``--rate-scale``, ``--sample-rate``) of ``denoise``, ``allan``, ``compare`` and ``gap``;
 * the filter options (``--method`` ... ``--outlier-run``) of ``denoise``, ``compare``,
   ``demo`` and ``mavlink``: their spelling, type, help, range, default and the method
   each applies to are read from the registry (:mod:`gyrodenoise.core.methods`), never
@@ -43,6 +43,11 @@ def number(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
 
 
+def numbers(text: str) -> tuple[float, ...]:
+    """argparse type: comma-separated floats, refused as ``not a number: 'x'``."""
+    return tuple(number(c) for c in text.split(",") if c.strip()) or (number(text),)
+
+
 # ------------------------------------------------------------------ the recording
 #: the units ``--time-unit`` takes (gyrodenoise.io.timebase.time_unit reads them)
 TIME_UNITS = ("s", "ms", "us", "ns")
@@ -50,13 +55,14 @@ TIME_UNITS = ("s", "ms", "us", "ns")
 
 def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | None = None,
                           input_optional: bool = False, rate_unit_default: str | None = None,
-                          axes: bool = False) -> None:
+                          axes: bool = False, several_columns: str = "") -> None:
     """``IN`` and the options that say how to read it (:func:`gyrodenoise.io.recording.read_recording`).
 
     ``input_optional``: IN may be omitted (``gap --allan``); ``rate_unit_default`` None: the
     reader says in a note which unit it assumed. ``axes``: several columns in one run
     (:func:`gyrodenoise.io.recording.read_axes`): ``--rate-column`` takes a list and is detected
-    when not given, ``--accel-column`` and ``--accel-unit`` are added."""
+    when not given, ``--accel-column`` and ``--accel-unit`` are added. ``several_columns``: the
+    help's words on several rate columns in the single-axis form (what the command does with them)."""
     parser.add_argument("input", metavar="IN", nargs="?" if input_optional else None,
                         help=input_help or "recording CSV (columns time,rate[,true_rate]; .gz ok)")
     if axes:
@@ -73,7 +79,8 @@ def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | 
         parser.add_argument("--variable", default=None, metavar="NAME",
                             help="MATLAB .mat: the variable (a struct or a matrix) to read (default: all)")
     else:
-        parser.add_argument("--rate-column", default="rate", help="rate column name (default: rate)")
+        parser.add_argument("--rate-column", default="rate",
+                            help=f"rate column name (default: rate){several_columns}")
     parser.add_argument("--time-column", default=None,
                         help="time column name (default: the first of time, field.header.stamp, %%time, timestamp, "
                              "t in the file)")
@@ -82,6 +89,10 @@ def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | 
                              "an epoch in any of them is detected)")
     parser.add_argument("--rate-unit", default=rate_unit_default, help="deg/s (default, said in a note), deg/h, rad/s or mrad/s (ROS "
                         "sensor_msgs/Imu columns: rad/s)")
+    parser.add_argument("--rate-scale", type=numbers, default=None, metavar="K[,K...]",
+                        help="multiply each rate by this first (raw counts: the unit per count, e.g. 0.00763 "
+                             "for deg/s per LSB; the product is in --rate-unit); one factor for every rate column "
+                             "or one per column; said in a note and in --json")
     parser.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
                         help="sample rate: the rate when there is no time column; with one, used when within "
                              "2%% of the column's own (samples over span), an error further off")

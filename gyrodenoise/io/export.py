@@ -96,10 +96,18 @@ def _yaml_float(x: float) -> str:
     return t if any(ch in t for ch in ".en") else t + ".0"
 
 
+#: how an exported value was obtained, by `AllanResult.exported_bounds`' word (the fit says nothing)
+HOW_OBTAINED = {
+    "upper_bound": ("UPPER BOUND written as the value (Kalibr needs a number): the record cannot resolve "
+                    "this term; it is the largest value whose Allan slope stays within the measured curve "
+                    "(+2 sigma) at every tau, so the sensor's is at most this"),
+    "slope_point": ("slope-point read (IEEE 952 / MathWorks: the term's Allan slope through the curve's "
+                    "point of that slope): the Eq. (40) fit missed its own points there")}
+
+
 def _bound_note(bounds: Mapping[str, str] | None, name: str) -> str:
-    if bounds and bounds.get(name) == "upper_bound":
-        return "; UPPER BOUND: the record cannot resolve this term"
-    return ""
+    how = HOW_OBTAINED.get((bounds or {}).get(name, "fit"))
+    return f"; {how}" if how else ""
 
 
 def kalibr_imu_yaml(terms: Mapping[str, float], update_rate_hz: float, rostopic: str = "/imu0",
@@ -281,8 +289,10 @@ def kalibr_imu_yaml_axes(axes: Sequence[AxisTerms], update_rate_hz: float, rosto
     for a in axes:
         si = a.si()
         u = ("m/s^2/sqrt(Hz)", "m/s^3/sqrt(Hz)") if a.accel else ("rad/s/sqrt(Hz)", "rad/s^2/sqrt(Hz)")
-        lines.append(f"# {a.column}: noise density {si['N_rad_sqrt_s']:.6g} {u[0]}, random walk "
-                     f"{si['K_rad_s1_5']:.6g} {u[1]}{_bound_note(a.bounds, 'N')}{_bound_note(a.bounds, 'K')}")
+        word = {k: a.bounds.get(k, "fit").replace("_", " ").replace("slope point", "slope-point read")
+                for k in ("N", "K")}
+        lines.append(f"# {a.column}: noise density {si['N_rad_sqrt_s']:.6g} {u[0]} ({word['N']}), random walk "
+                     f"{si['K_rad_s1_5']:.6g} {u[1]} ({word['K']})")
     lines.append("")
     for name, group, units in (("accelerometer", accel, ("m/s^2/sqrt(Hz)", "m/s^3/sqrt(Hz)")),
                                ("gyroscope", gyro, ("rad/s/sqrt(Hz)", "rad/s^2/sqrt(Hz)"))):

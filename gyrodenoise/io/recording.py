@@ -116,6 +116,7 @@ class Axis:
     values: np.ndarray = field(repr=False)
     true: np.ndarray | None = field(default=None, repr=False)
     unit_how: str = ""         # how the unit was decided, as the note says it ("as stated", "assumed; ...")
+    scale: float | None = None  # the --rate-scale factor the column was multiplied by (None: not given)
 
 
 @dataclass
@@ -139,7 +140,7 @@ class Recording:
 def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str | None = None,
                    rate_unit: str | None = None, sample_rate_hz: float | None = None,
                    true_column: str = "true_rate", spike_advice: str = SPIKE_ADVICE,
-                   time_unit: str | None = None) -> Record:
+                   time_unit: str | None = None, rate_scale: Sequence[float] | float | None = None) -> Record:
     """Read one rate column of a recording into a `Record` (rates in deg/s).
 
     Parameters
@@ -165,10 +166,13 @@ def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time
     time_unit : str, optional
         Unit of the time column (s, ms, us, ns); detected when not given
         (:func:`gyrodenoise.io.timebase.analyse_time`).
+    rate_scale : float or sequence of float, optional
+        Multiply each rate by this first (raw counts: the unit per count, e.g. deg/s per
+        LSB); the product is in ``rate_unit``. Said in a note.
     """
     rec = read_axes(path, [rate_column], time_column=time_column, rate_unit=rate_unit,
                     sample_rate_hz=sample_rate_hz, true_column=true_column, spike_advice=spike_advice,
-                    time_unit=time_unit)
+                    time_unit=time_unit, rate_scale=rate_scale)
     return rec.record(rec.axes[0])
 
 
@@ -177,7 +181,8 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
               rate_unit: str | None = None, accel_unit: str | None = None, sample_rate_hz: float | None = None,
               true_column: str = "true_rate", spike_advice: str = SPIKE_ADVICE,
               time_unit: str | None = None, topic: str | None = None, variable: str | None = None,
-              bag_reader: Callable[..., Any] | None = None) -> Recording:
+              bag_reader: Callable[..., Any] | None = None,
+              rate_scale: Sequence[float] | float | None = None) -> Recording:
     """Read the gyro (and accelerometer) columns of a recording CSV on one time base.
 
     ``rate_columns`` None: ``rate`` when the file has it, else the first group of gyro
@@ -187,13 +192,19 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     :func:`read_recording`; ``accel_unit`` a key of ``ACCEL_TO_M_S2`` (default m/s^2).
     A ROS bag or MCAP file (``topic``; ``bag_reader``: pass
     :func:`gyrodenoise.flightlog.rosbag.read_imu`) and a MATLAB ``.mat`` file (``variable``)
-    are read by :mod:`gyrodenoise.io.containers` into the same columns.
+    are read by :mod:`gyrodenoise.io.containers` into the same columns. ``rate_scale``: one
+    factor for every gyro column or one per column (:func:`read_recording`).
+
+    A text file may hold free-text lines before its header row (a preamble: `PREAMBLE_MAX`
+    lines at most; the header row holds no number): they are skipped and said in a note. A unit after a column's name (``gyro_x (deg/s)``, ``time [s]``) is read
+    as a units row is; the name without it finds the column too.
     """
     src = str(path)
     _check_arguments(rate_unit, accel_unit, sample_rate_hz, src)
     first = (rate_columns or ["rate"])[0]
     container = topic is not None or variable is not None or is_container(path)
     file_units: dict[str, str] = {}
+    units_from = ""
     if container:
         from gyrodenoise.io.containers import read_container
         table = read_container(path, topic=topic, variable=variable, bag_reader=bag_reader)
@@ -204,21 +215,33 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
         first_line = text.first_line()
         if not first_line:
             raise InputError("empty file", src)
-        sep = _separator(first_line)
-        rows = _rows(text, sep, src)
-        header = _read_header(rows, first, time_column or "time", src)
+        header_text, preamble = _after_preamble("".join(itertools.islice(text.lines(), PREAMBLE_MAX + 4)))
+        sep = _separator(header_text)
+        before = len(header_text) - len(header_text.lstrip("\n"))     # the preamble's lines, blanked
+        rows = _rows(text, sep, src, before if preamble else 0)
+        header_line, header = _read_header(rows, first, time_column or "time", src)
         notes = [] if sep == "," else [f"fields separated by {SEPARATOR_NAMES[sep]}"]
+        if preamble:
+            notes.append(preamble_note(preamble))
         rows, file_units = _units_row(rows, header)
-        skip = 2 if file_units else 1
+        units_from = "its units row" if file_units else "its header"
+        file_units = file_units or _header_units(header)
+        skip = header_line + (1 if units_from == "its units row" else 0)
         where = lambda i: f"line {text.line_of(i, skip)}"   # noqa: E731
-    lower = {h.lower(): h for h in header}
+    lower = _names(header)
+    rate_columns = [lower.get(c.lower(), c) if c not in header else c for c in rate_columns or []] or None
+    accel_columns = [lower.get(c.lower(), c) if c not in header else c for c in accel_columns] \
+        if accel_columns else accel_columns
     gyro_cols, gyro_group = _columns(GYRO, rate_columns, header, lower, "rate", src)
+    scales = _rate_scales(rate_scale, gyro_cols, src)
     if accel_columns is None and rate_columns is None and gyro_group is not None:
         accel_cols, accel_group = _detected(ACCEL, lower)
     else:
         accel_cols, accel_group = _columns(ACCEL, accel_columns or [], header, lower, None, src)
     if time_column is None:
         time_column = next((lower[c] for c in TIME_COLUMNS if c in lower), "time")
+    elif time_column not in header:
+        time_column = lower.get(time_column.lower(), time_column)
     has_time = time_column in header
     has_true = len(gyro_cols) == 1 and true_column in header
     if not has_time and sample_rate_hz is None:
@@ -247,16 +270,19 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
             raise InputError(f"line 2: the units row gives the {kind.name} columns {', '.join(sorted(said))}: "
                              f"read them in separate runs", src)
         unit, why = (unit, "as stated") if unit else \
-            (said.pop(), "as its units row says") if said else \
+            (said.pop(), f"as {units_from} says") if said else \
             ((group.unit, group.why) if group and group.unit else
              (next(iter(kind.units)), f"assumed; {kind.option} {'|'.join(list(kind.units)[1:])} if not"))
-        scale = kind.units[unit]
-        notes.append(f"{kind.name} column{'s' if len(cols) > 1 else ''} {', '.join(cols)} in {unit} ({why})")
-        for c in cols:
+        counts = scales if kind is GYRO else None
+        notes.append(f"{kind.name} column{'s' if len(cols) > 1 else ''} {', '.join(cols)} "
+                     + (f"x {', '.join(f'{k:g}' for k in dict.fromkeys(counts))} (--rate-scale) " if counts else "")
+                     + f"in {unit} ({why})")
+        for i, c in enumerate(cols):
+            scale = kind.units[unit] * (counts[i] if counts else 1.0)
             v = np.asarray(values[c], dtype=np.float64) * scale
             _check_magnitude(kind, v, values[c], where, c, unit, src)
             true = np.asarray(values[true_column], dtype=np.float64) * scale if has_true else None
-            axes.append(Axis(c, kind, unit, v, true, unit_how=why))
+            axes.append(Axis(c, kind, unit, v, true, unit_how=why, scale=counts[i] if counts else None))
     _check_gravity([a for a in axes if a.kind is ACCEL], accel_unit or file_units.get(accel_cols[0]) if accel_cols
                    else None, src)
     ignored = [h for h in header if h not in wanted and h]
@@ -296,8 +322,8 @@ def is_container(path: str | os.PathLike[str] | None) -> bool:
 
 
 def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
-    """The first line's fields of a text recording (gzip too), or None when it cannot be read
-    (the reader then says why)."""
+    """The header row's fields of a text recording (gzip too; after a preamble), or None when
+    it cannot be read (the reader then says why)."""
     if path is None:
         return None
     try:
@@ -306,15 +332,13 @@ def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
             head = f.read(2)
         opener = gzip.open if head == b"\x1f\x8b" else open
         with opener(path, "rt", encoding="utf-8-sig", errors="replace") as f:
-            first = ""
-            while not first.strip():
-                first = f.readline()
-                if not first:
-                    return None
+            text = "".join(itertools.islice(f, PREAMBLE_MAX + 4))
     except (OSError, EOFError, gzip.BadGzipFile, InputError):
         return None
-    sep = _separator(first)
-    return [h.strip() for h in (first.split() if sep is None else next(csv.reader([first], delimiter=sep)))]
+    first = next((ln for ln in io.StringIO(_after_preamble(text)[0]) if ln.strip()), None)
+    if first is None:
+        return None
+    return _fields(first, _separator(first))
 
 
 #: Earth's gravity read in an assumed m/s^2 by three accelerometer axes: |a| this far from 9.81
@@ -385,26 +409,29 @@ _DECIMAL_COMMA_CELL = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
 
 def _separator(text: str) -> str | None:
     """The field separator of the header line (the first line that is not blank): a comma
-    when it has one, else a semicolon, a tab, else runs of spaces (None)."""
+    when it has one, else a semicolon, a tab, else runs of spaces (None; not within one
+    name with its unit, ``gyro_x (rad/s)``)."""
     first = next((ln for ln in io.StringIO(text) if ln.strip()), "")
     for sep in (",", ";", "\t"):
         if sep in first:
             return sep
-    return None if len(first.split()) > 1 else ","
+    return None if len(first.split()) > 1 and not _NAME_UNIT.fullmatch(first.strip()) else ","
 
 
-def _rows(text: TextFile, sep: str | None, src: str) -> Iterator[tuple[int, list[str]]]:
-    """(line number, fields) of each line; InputError for a line the csv module refuses."""
+def _rows(text: TextFile, sep: str | None, src: str, skip: int = 0) -> Iterator[tuple[int, list[str]]]:
+    """(line number, fields) of each line after the first ``skip`` (a preamble); InputError for
+    a line the csv module refuses."""
+    lines = itertools.islice(text.lines(), skip, None)
     if sep is None:
-        for lineno, line in enumerate(text.lines(), start=1):
+        for lineno, line in enumerate(lines, start=skip + 1):
             yield lineno, line.split()
         return
-    reader = csv.reader(text.lines(), delimiter=sep)
+    reader = csv.reader(lines, delimiter=sep)
     try:
         for row in reader:
-            yield reader.line_num, row
+            yield skip + reader.line_num, row
     except csv.Error as exc:
-        raise InputError(f"line {reader.line_num}: {exc}", src) from None
+        raise InputError(f"line {skip + reader.line_num}: {exc}", src) from None
 
 
 #: what a units row (a second header row) may say -> the unit's name here
@@ -415,6 +442,16 @@ UNIT_SPELLINGS = {**{u: u for u in (*RATE_TO_DEG_S, *ACCEL_TO_M_S2)},
 TIME_UNIT_NAMES = ("s", "ms", "us", "ns")
 
 
+def _unit_cells(row: list[str]) -> list[str]:
+    return [c.strip().strip("[]()").strip().lower() for c in row]
+
+
+def _is_units_row(row: list[str]) -> bool:
+    """No number in it and a unit among its cells (``s,rad/s,rad/s``, ``[s] [deg/s]``)."""
+    cells = _unit_cells(row)
+    return not any(_is_number(c) for c in cells if c) and any(c in UNIT_SPELLINGS for c in cells)
+
+
 def _units_row(rows: Iterator[tuple[int, list[str]]], header: list[str]
                ) -> tuple[Iterator[tuple[int, list[str]]], dict[str, str]]:
     """(the rows, {column: unit}): a first data row with no number in it and a unit among its
@@ -422,26 +459,116 @@ def _units_row(rows: Iterator[tuple[int, list[str]]], header: list[str]
     for lineno, row in rows:
         if not row or (len(row) == 1 and not row[0].strip()):
             continue
-        cells = [c.strip().strip("[]()").strip().lower() for c in row]
-        if not any(_is_number(c) for c in cells if c) and any(c in UNIT_SPELLINGS for c in cells):
+        if _is_units_row(row):
+            cells = _unit_cells(row)
             return rows, {h: UNIT_SPELLINGS[c] for h, c in zip(header, cells) if c in UNIT_SPELLINGS}
         return itertools.chain([(lineno, row)], rows), {}
     return rows, {}
 
 
+#: the most lines of free text (a preamble) read before a header row
+PREAMBLE_MAX = 50
+#: a unit after a column's name: ``gyro_x (deg/s)``, ``time [s]``
+_NAME_UNIT = re.compile(r"^(?P<name>.*?\S)\s*[(\[]\s*(?P<unit>[^()\[\]]+?)\s*[)\]]$")
+
+
+def _fields(line: str, sep: str | None) -> list[str]:
+    return [c.strip() for c in (line.split() if sep is None else next(csv.reader([line], delimiter=sep), []))]
+
+
+def _is_data(cells: list[str], sep: str | None) -> bool:
+    """Whether ``cells`` are all numbers (decimal commas too where the separator is not a comma)."""
+    return bool(cells) and all(_is_number(c) or (sep != "," and _DECIMAL_COMMA_CELL.fullmatch(c) is not None)
+                               for c in cells)
+
+
+def _after_preamble(text: str) -> tuple[str, list[str]]:
+    """(``text`` with the lines before its header row blanked, those lines): the header row is
+    the first line, among the first `PREAMBLE_MAX` + 1, that is not all numbers and is followed
+    (after a units row, if any) by a row of numbers with as many fields; the lines before it are
+    a preamble. A row with a number in it is no header after a preamble (it is a bad first data
+    row under the header of line 1): the text is then left as it is."""
+    head: list[str] = []
+    for line in io.StringIO(text):
+        head.append(line)
+        if len(head) > PREAMBLE_MAX + 3:
+            break
+    lines = [(i, ln) for i, ln in enumerate(head) if ln.strip()]
+    for j, (i, line) in enumerate(lines[:PREAMBLE_MAX + 1]):
+        sep = _separator(line)
+        names = _fields(line, sep)
+        if _is_data(names, sep):
+            break
+        after = [_fields(ln, sep) for _, ln in lines[j + 1:j + 3]]
+        if after and len(after[0]) == len(names) and _is_units_row(after[0]) and len(after) > 1:
+            after = after[1:]
+        if not after or len(after[0]) != len(names) or not _is_data(after[0], sep):
+            continue
+        before = [ln.strip() for _, ln in lines[:j]]
+        if not before or any(_is_number(c) for c in names if c):
+            return text, []
+        cut = sum(len(ln) for ln in head[:i])
+        return "\n" * i + text[cut:], before
+    return text, []
+
+
+def preamble_note(preamble: Sequence[str]) -> str:
+    """The note of the lines skipped before the header row."""
+    shown = "; ".join(preamble[:6]) + (f"; ... ({len(preamble)} lines)" if len(preamble) > 6 else "")
+    return (f"{len(preamble)} line(s) before the header row skipped as a preamble (free text, not "
+            f"columns): {shown}")
+
+
+def _header_units(header: list[str]) -> dict[str, str]:
+    """{column: unit} of the columns whose name ends in a unit: ``gyro_x (deg/s)``."""
+    out = {}
+    for h in header:
+        m = _NAME_UNIT.match(h)
+        if m and m["unit"].lower() in UNIT_SPELLINGS:
+            out[h] = UNIT_SPELLINGS[m["unit"].lower()]
+    return out
+
+
+def _names(header: list[str]) -> dict[str, str]:
+    """Lower-case name -> the column as the header spells it; a name that ends in a unit
+    (``gyro_x (deg/s)``) is found by its name without the unit too."""
+    lower = {h.lower(): h for h in header}
+    for h in header:
+        m = _NAME_UNIT.match(h)
+        if m:
+            lower.setdefault(m["name"].lower(), h)
+    return lower
+
+
+def _rate_scales(rate_scale: Sequence[float] | float | None, cols: list[str], src: str) -> list[float] | None:
+    """One ``--rate-scale`` factor per gyro column (one given for all, or one per column);
+    InputError for a factor that is not a finite nonzero number or a count that does not match."""
+    if rate_scale is None:
+        return None
+    given = [float(rate_scale)] if isinstance(rate_scale, (int, float)) else [float(k) for k in rate_scale]
+    bad = next((k for k in given if not (math.isfinite(k) and k != 0.0)), None)
+    if bad is not None or not given:
+        raise InputError(f"--rate-scale {bad!r} is not a factor (a finite nonzero number: the unit per count)",
+                         src)
+    if len(given) not in (1, len(cols)):
+        raise InputError(f"--rate-scale gives {len(given)} factors for {len(cols)} rate column(s) "
+                         f"({', '.join(cols)}): give one for all or one per column", src)
+    return given * len(cols) if len(given) == 1 else given
+
+
 def _read_header(rows: Iterator[tuple[int, list[str]]], rate_column: str, time_column: str,
-                 src: str) -> list[str]:
-    """The header row's column names; InputError when it cannot be read or is a row of
-    numbers (no header at all)."""
+                 src: str) -> tuple[int, list[str]]:
+    """(its line number, the header row's column names); InputError when it cannot be read or
+    is a row of numbers (no header at all)."""
     try:
-        _, row = next(rows)
+        lineno, row = next((r for r in rows if r[1] and any(c.strip() for c in r[1])))
     except StopIteration:
         raise InputError("line 1: cannot read the header", src) from None
     header = [h.strip() for h in row]
     if all(_is_number(h) for h in header):   # a row of numbers: no header at all
-        raise InputError(f"line 1: no header row (expected column names such as "
+        raise InputError(f"line {lineno}: no header row (expected column names such as "
                          f"'{time_column},{rate_column}')", src)
-    return header
+    return lineno, header
 
 
 def _read_values(rows: Iterator[tuple[int, list[str]]], header: list[str], index: dict[str, int],

@@ -1,4 +1,4 @@
-"""Independent Allan terms for a static gyro record (issue 39's held-out check).
+"""Independent Allan terms for a static gyro record (the held-out check of records nobody developed on).
 
 Reads the record with pandas (not with gyrodenoise), computes the overlapping Allan
 deviation with allantools at octave-spaced taus, and reads the terms the way the
