@@ -21,6 +21,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "cluster": ("distributed", "fsspec"),
     "mat": ("h5py",),
     "fleet": ("pyarrow", "duckdb"),
+    "fast": ("pyarrow",),        # optional speed: the CSV reader falls back to its own loop without it
 }
 
 
