@@ -86,6 +86,25 @@ class TimeViews:
         return next((p for p in self.panels if p.key == key), None)
 
 
+@dataclass
+class FlightViews:
+    """What the HTML report draws beside the gyro: the time panels and markers, the
+    frequency maps (:mod:`gyrodenoise.flightlog.heatmap`) and why a map is missing."""
+    time: TimeViews
+    maps: list
+    map_notes: list
+
+
+def flight_views(log, stages=None) -> FlightViews:
+    """The :class:`FlightViews` of ``log``; ``stages``: the vehicle's filter chain
+    (default: from the log's parameters) whose notches the maps draw."""
+    from gyrodenoise.flightlog.heatmap import log_heatmaps
+    views = time_views(log)
+    thr = views.panel("throttle")
+    maps, notes = log_heatmaps(log, thr.channels if thr is not None else None, stages)
+    return FlightViews(views, maps, notes)
+
+
 def time_views(log, autopilot=None) -> TimeViews:
     """The :class:`TimeViews` of ``log`` (``autopilot``: its strategy, default the log's)."""
     ap = autopilot or log.parameters().autopilot
