@@ -55,7 +55,6 @@ def test_long_panels_are_decimated(tmp_path):
     views = FlightViews(TimeViews([Panel("motors", "motors", ch)], [], {}), [], [])
     page = write_log_report(tmp_path / "r.html", {"file": "x.bin"}, {"views": views}).read_text()
     (_, data, _), = [p for p in _plots(page) if any(str(tr.get("name", "")).startswith("motor") for tr in p[1])]
-    assert page.count('"name":"motor 1"') >= 1 or True
     for tr in data:
         x = tr["x"]
         n = len(x) if isinstance(x, list) else int(np.frombuffer(__import__("base64").b64decode(x["bdata"]),
