@@ -16,6 +16,11 @@ that opens offline (plotly.js is inlined once; no CDN, no web font, no request).
 * per stream the spectrum: raw and filtered PSD per axis, the peaks marked (hover
   names them), the vehicle's filter response (``report["vehicle_filters"]``) and
   the recommended one (``report["filter_review"]``) on a second axis; a spectrogram;
+* motors, throttle, vibration levels (their cited thresholds drawn) and clipping against
+  time, and the events, mode changes and failsafes marked on every time axis
+  (``series["views"]``: :func:`gyrodenoise.flightlog.timeseries.flight_views`);
+* the frequency-by-throttle (and by-RPM) maps with the notch centres drawn
+  (:mod:`gyrodenoise.flightlog.heatmap`);
 * the filter review: its figures, the recommended parameters and the lines to paste;
 * vibration levels per segment against their thresholds (``report["vibration"]``).
 
