@@ -160,7 +160,7 @@ def heatmap(stream_name, time_s, values, rate_hz, x_channels, x_label, boots=Non
     """The :class:`Heatmap` of a gyro record against ``x_channels`` (throttle or RPM
     :class:`gyrodenoise.flightlog.timeseries.Channels`), ``bins`` equal bins over
     ``x_range`` (default: the 1st..99th percentile of the windows' x above
-    :data:`IDLE_SHARE` of the highest); None when no window has an x."""
+    :data:`IDLE_SHARE` of the highest); None when no window lands in a bin."""
     tc, bc, freq, psd = window_psd(time_s, values, rate_hz, boots)
     xv = value_at(x_channels, tc, bc)
     fin = np.isfinite(xv)
@@ -176,6 +176,8 @@ def heatmap(stream_name, time_s, values, rate_hz, x_channels, x_label, boots=Non
         lo, hi = lo - 0.5 * abs(lo or 1.0) * 0.1, hi + 0.5 * abs(hi or 1.0) * 0.1
     edges = np.linspace(lo, hi, bins + 1)
     mean, counts = binned_psd(xv, psd, edges)
+    if not counts.sum():
+        return None
     return Heatmap(stream_name, x_label, x_channels.source, edges, freq, mean, counts)
 
 
@@ -265,7 +267,8 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
     else:
         hm = heatmap(where, stream.time_s, values, rate, thr, "throttle [0..1]", boots)
         if hm is None:
-            notes.append("no frequency-by-throttle map: no gyro window lies in the throttle's time span")
+            notes.append(f"no frequency-by-throttle map: no gyro window ({nperseg_for(rate)} samples without a gap) lies in the "
+                         "throttle's time span")
         else:
             x = np.linspace(hm.edges[0], hm.edges[-1], 64)
             hm.lines, hm.notes = notch_lines(stages, x, throttle_notch_hz, rate / 2.0)
@@ -276,7 +279,8 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
     else:
         hm = heatmap(where, stream.time_s, values, rate, rpm, "mean motor RPM [rev/min]", boots)
         if hm is None:
-            notes.append("no frequency-by-RPM map: no gyro window lies in the RPM's time span")
+            notes.append(f"no frequency-by-RPM map: no gyro window ({nperseg_for(rate)} samples without a gap) lies in the "
+                         "RPM's time span")
         else:
             x = np.linspace(hm.edges[0], hm.edges[-1], 64)
             lines, hm.notes = notch_lines(stages, x, rpm_notch_hz, rate / 2.0)

@@ -96,3 +96,11 @@ def test_no_window_spans_a_gap_or_a_boot():
     boots = np.repeat([0, 1], 1000)
     tc, bc, _, _ = hmod.window_psd(np.arange(2000) / FS, np.zeros(2000), FS, boots=boots, nperseg=256)
     assert len(tc) == 2 * 6 and list(np.unique(bc)) == [0, 1]
+
+
+def test_no_map_without_a_whole_window():
+    """A 2 Hz stream with gaps (a telemetry log's SCALED_IMU2) has no 32-sample window:
+    no map (the browser check found an empty one drawn)."""
+    t = np.concatenate([np.arange(20), 100 + np.arange(20)]) / 2.0
+    thr = Channels("VFR_HUD.throttle", "0..1", t, {"throttle": np.full(len(t), 0.5)})
+    assert hmod.heatmap("slow", t, np.zeros((len(t), 3)), 2.0, thr, "throttle") is None
