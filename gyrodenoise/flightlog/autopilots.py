@@ -26,6 +26,8 @@ A strategy (:class:`Autopilot`) holds, for its autopilot:
 
 from __future__ import annotations
 
+import numpy as np
+
 from gyrodenoise.flightlog.model import fmt_value
 
 COPTER_TYPES = {2, 3, 4, 13, 14, 15, 29}     # MAV_TYPE quad, coaxial, heli, hexa, octo, tri, dodeca
@@ -81,6 +83,30 @@ class Autopilot:
         autopilot fills them: named and judged as what they are."""
         return levels
 
+    # --- time series (motors, vibration, failsafes) ---
+    motors_looked_for = "nothing: the autopilot is unknown"
+    rpm_looked_for = "nothing: the autopilot is unknown"
+
+    def motor_channels(self, log):
+        """The motor outputs (:class:`gyrodenoise.flightlog.timeseries.Channels`), or None."""
+        return None
+
+    def motor_rpm(self, log):
+        """The motors' RPM, a column per motor (NaN where another motor's row), or None."""
+        return None
+
+    def event_label(self, text):
+        """An event's text as the report shows it (an id named)."""
+        return text
+
+    def mode_names(self, log):
+        """``{logged mode: its name}`` of this autopilot's flight modes (empty: shown as logged)."""
+        return {}
+
+    def failsafe_events(self, log):
+        """The failsafes and errors the log records (``LogEvent``), beyond its events."""
+        return []
+
 
 class ArduPilot(Autopilot):
     name = "ardupilot"
@@ -130,6 +156,81 @@ class ArduPilot(Autopilot):
         if params and "INS_GYRO_FILTER" not in params and "INS_MPU6K_FILTER" in params:
             return None
         return "INS_GYRO_FILTER"
+
+    # --- time series (motors, vibration, failsafes) ---
+    motors_looked_for = "RCOU C1..Cn / Ch1..Chn, SERVO_OUTPUT_RAW (the SERVOn_FUNCTION motors)"
+    rpm_looked_for = "ESC (RPM per Instance)"
+    #: the outputs each SERVOn_FUNCTION names (ArduPilot SRV_Channel: 33..40 Motor1..8, 82..85 Motor9..12)
+    MOTOR_FUNCTIONS = {**{33 + k: k + 1 for k in range(8)}, **{82 + k: k + 9 for k in range(4)}}
+    #: motors per FRAME_CLASS (1 quad, 2 hexa, 3 octa, 4 octaquad, 5 Y6, 7 tri)
+    FRAME_MOTORS = {1: 4, 2: 6, 3: 8, 4: 8, 5: 6, 7: 3}
+    #: LogEvent ids (AP_Logger LogEvent) the markers name
+    EVENTS = {10: "ARMED", 11: "DISARMED", 15: "AUTO_ARMED", 17: "LAND_COMPLETE_MAYBE", 18: "LAND_COMPLETE",
+              19: "LOST_GPS", 21: "FLIP_START", 22: "FLIP_END", 25: "SET_HOME", 28: "NOT_LANDED"}
+    #: ERR subsystems (AP_Logger LogErrorSubsystem)
+    ERR_SUBSYSTEMS = {1: "MAIN", 2: "RADIO", 3: "COMPASS", 4: "OPTFLOW", 5: "FAILSAFE_RADIO", 6: "FAILSAFE_BATT",
+                      7: "FAILSAFE_GPS", 8: "FAILSAFE_GCS", 9: "FAILSAFE_FENCE", 10: "FLIGHT_MODE", 11: "GPS",
+                      12: "CRASH_CHECK", 13: "FLIP", 14: "AUTOTUNE", 15: "PARACHUTES", 16: "EKFCHECK",
+                      17: "FAILSAFE_EKFINAV", 18: "BARO", 19: "CPU", 20: "FAILSAFE_ADSB", 21: "TERRAIN",
+                      22: "NAVIGATION", 23: "FAILSAFE_TERRAIN", 24: "EKF_PRIMARY", 25: "THRUST_LOSS_CHECK",
+                      26: "FAILSAFE_SENSORS", 27: "FAILSAFE_LEAK", 28: "PILOT_INPUT", 29: "FAILSAFE_VIBE"}
+    #: ArduCopter's flight mode numbers (Copter::Mode::Number)
+    COPTER_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL",
+                    7: "CIRCLE", 9: "LAND", 11: "DRIFT", 13: "SPORT", 14: "FLIP", 15: "AUTOTUNE", 16: "POSHOLD",
+                    17: "BRAKE", 18: "THROW", 19: "AVOID_ADSB", 20: "GUIDED_NOGPS", 21: "SMART_RTL",
+                    22: "FLOWHOLD", 23: "FOLLOW", 24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE", 27: "AUTO_RTL"}
+
+    def motor_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        params = log.parameters().values
+        motors = {}
+        for n in range(1, 33):
+            f = params.get(f"SERVO{n}_FUNCTION")
+            if f is not None and int(f) in self.MOTOR_FUNCTIONS:
+                motors[n] = self.MOTOR_FUNCTIONS[int(f)]
+        for name, col in (("RCOU", "C{}"), ("RCOU", "Ch{}"), ("SERVO_OUTPUT_RAW", "servo{}_raw")):
+            m = log.messages(name)
+            if m is None or col.format(1) not in m:
+                continue
+            note = ""
+            if not motors:
+                count = self.FRAME_MOTORS.get(int(params.get("FRAME_CLASS") or 1), 4)
+                motors = {n: n for n in range(1, count + 1)}
+                note = (f"SERVOn_FUNCTION not logged: outputs 1..{count} taken as the motors "
+                        f"(FRAME_CLASS {fmt_value(params.get('FRAME_CLASS'))})")
+            cols = {f"motor {k} ({col.format(n)})": m[col.format(n)].astype(float)
+                    for n, k in sorted(motors.items(), key=lambda nk: nk[1]) if col.format(n) in m}
+            return Channels(f"{name} {col.format('n')}", "PWM us", m["time_s"], cols, log.rows_boot(m), note)
+        return None
+
+    def motor_rpm(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("ESC")
+        if m is None or "RPM" not in m:
+            return None
+        inst = m["Instance"].astype(int) if "Instance" in m else np.zeros(len(m["time_s"]), int)
+        rpm = m["RPM"].astype(float)
+        cols = {f"ESC {i}": np.where(inst == i, rpm, np.nan) for i in np.unique(inst)}
+        return Channels("ESC.RPM", "rpm", m["time_s"], cols, log.rows_boot(m))
+
+    def event_label(self, text):
+        head, _, num = text.partition(" ")
+        if head == "EV" and num.isdigit() and int(num) in self.EVENTS:
+            return f"{text} {self.EVENTS[int(num)]}"
+        return text
+
+    def mode_names(self, log):
+        vehicle = str(log.format.identity(log).get("vehicle") or "")
+        return {str(k): v for k, v in self.COPTER_MODES.items()} if "Copter" in vehicle else {}
+
+    def failsafe_events(self, log):
+        from gyrodenoise.flightlog.model import LogEvent
+        m = log.messages("ERR")
+        if m is None or "Subsys" not in m:
+            return []
+        return [LogEvent(float(t), int(b), f"ERR {self.ERR_SUBSYSTEMS.get(int(s), 'subsystem')} ({int(s)}) "
+                                           f"ECode {int(c)}" + (" (cleared)" if int(c) == 0 else ""))
+                for t, b, s, c in zip(m["time_s"], log.rows_boot(m), m["Subsys"], m["ECode"])]
 
 
 class PX4(Autopilot):
@@ -190,6 +291,61 @@ class PX4(Autopilot):
     def param_lines(self, changes):
         return [f"param set {k} {fmt_value(v)}" for k, v in changes.items()]
 
+    # --- time series (motors, vibration, failsafes) ---
+    motors_looked_for = "actuator_motors.control[i], actuator_outputs.output[i]"
+    rpm_looked_for = "esc_status esc[i].esc_rpm"
+    #: vehicle_status.nav_state (PX4 vehicle_status.msg NAVIGATION_STATE_*)
+    NAV_STATES = {0: "MANUAL", 1: "ALTCTL", 2: "POSCTL", 3: "AUTO_MISSION", 4: "AUTO_LOITER", 5: "AUTO_RTL",
+                  10: "ACRO", 12: "DESCEND", 13: "TERMINATION", 14: "OFFBOARD", 15: "STAB", 17: "AUTO_TAKEOFF",
+                  18: "AUTO_LAND", 19: "AUTO_FOLLOW_TARGET", 20: "AUTO_PRECLAND", 21: "ORBIT",
+                  22: "AUTO_VTOL_TAKEOFF"}
+    #: at most this many outputs of actuator_outputs are shown (which drive motors is not logged there)
+    MAX_OUTPUTS = 8
+
+    def motor_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("actuator_motors")
+        if m is not None:
+            cols = {f"motor {i + 1}": m[c].astype(float) for i in range(16) if (c := f"control[{i}]") in m
+                    and np.isfinite(m[c].astype(float)).any()}
+            if cols:
+                return Channels("actuator_motors.control", "0..1", m["time_s"], cols)
+        m = log.messages("actuator_outputs")
+        if m is None:
+            return None
+        n = int(np.nanmax(m["noutputs"])) if "noutputs" in m and len(m["noutputs"]) else self.MAX_OUTPUTS
+        cols = {f"output {i + 1}": m[c].astype(float) for i in range(min(n, self.MAX_OUTPUTS))
+                if (c := f"output[{i}]") in m and np.ptp(m[c]) > 0}
+        return Channels("actuator_outputs.output", "PWM us / raw", m["time_s"], cols,
+                        note="actuator_outputs: the log does not say which outputs drive motors; those "
+                             "that vary are shown") if cols else None
+
+    def motor_rpm(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("esc_status")
+        if m is None:
+            return None
+        cols = {f"ESC {i}": m[c].astype(float) for i in range(8) if (c := f"esc[{i}].esc_rpm") in m
+                and np.nanmax(np.abs(m[c])) > 0}
+        return Channels("esc_status.esc[i].esc_rpm", "rpm", m["time_s"], cols) if cols else None
+
+    def mode_names(self, log):
+        return {str(k): v for k, v in self.NAV_STATES.items()}
+
+    def failsafe_events(self, log):
+        """``vehicle_status.failsafe`` where it changes, and each ``failsafe_flags`` flag
+        (not the ``mode_req_*`` masks) where it is raised or cleared."""
+        from gyrodenoise.flightlog.model import LogEvent
+        out = []
+        vs = log.messages("vehicle_status")
+        if vs is not None and "failsafe" in vs:
+            out += _edges(vs["time_s"], vs["failsafe"], "failsafe on", "failsafe off")
+        ff = log.messages("failsafe_flags")
+        for k in (ff or {}):
+            if k not in ("timestamp", "time_s", "record") and not k.startswith("mode_req_"):
+                out += _edges(ff["time_s"], ff[k], f"failsafe_flags.{k} raised", f"failsafe_flags.{k} cleared")
+        return [LogEvent(t, 0, text) for t, text in out]
+
 
 class Betaflight(Autopilot):
     """Betaflight: its gyro filter chain from the blackbox header (low-passes, static and
@@ -243,6 +399,30 @@ class Betaflight(Autopilot):
 
     def param_lines(self, changes):
         return [f"set {k.lower()} = {fmt_value(v)}" for k, v in changes.items()]
+
+    # --- time series (motors, vibration, failsafes) ---
+    motors_looked_for = "motor[0..3] (main frames)"
+    rpm_looked_for = "nothing: Betaflight's eRPM / RPM_FILTER debug fields are not read"
+
+    def motor_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("motor")
+        if m is None:
+            return None
+        cols = {f"motor {i + 1}": m[c].astype(float) for i in range(8) if (c := f"motor[{i}]") in m}
+        rng = log.parameters().values.get("motorOutput", "")
+        return Channels("motor[i]", f"motor output ({rng})" if rng else "motor output", m["time_s"], cols,
+                        log.rows_boot(m))
+
+
+def _edges(time_s, values, on, off):
+    """[(time, text)] where ``values`` turns true (``on``) or false (``off``), the first row
+    counted only when true."""
+    v = np.asarray(values).astype(bool)
+    if not len(v):
+        return []
+    prev = np.concatenate([[False], v[:-1]])
+    return [(float(time_s[i]), on if v[i] else off) for i in np.flatnonzero(v != prev)]
 
 
 UNKNOWN = Autopilot()

@@ -16,6 +16,11 @@ that opens offline (plotly.js is inlined once; no CDN, no web font, no request).
 * per stream the spectrum: raw and filtered PSD per axis, the peaks marked (hover
   names them), the vehicle's filter response (``report["vehicle_filters"]``) and
   the recommended one (``report["filter_review"]``) on a second axis; a spectrogram;
+* motors, throttle, vibration levels (their cited thresholds drawn) and clipping against
+  time, and the events, mode changes and failsafes marked on every time axis
+  (``series["views"]``: :func:`gyrodenoise.flightlog.timeseries.flight_views`);
+* the frequency-by-throttle (and by-RPM) maps with the notch centres drawn
+  (:mod:`gyrodenoise.flightlog.heatmap`);
 * the filter review: its figures, the recommended parameters and the lines to paste;
 * vibration levels per segment against their thresholds (``report["vibration"]``).
 
@@ -333,7 +338,7 @@ def _is_target(vehicle_rate):
     return "desired" in str(vehicle_rate.get("name", "")).lower()
 
 
-def _time_figure(st, vehicle_rates, segments, title, axis="boot time [s]"):
+def _time_figure(st, vehicle_rates, segments, title, axis="boot time [s]", markers=()):
     """Per axis raw (light, above) and filtered, the vehicle's own rate, restarts and
     the segments: one plotly figure, subplots sharing the time axis."""
     import plotly.graph_objects as go
@@ -405,6 +410,8 @@ def _time_figure(st, vehicle_rates, segments, title, axis="boot time [s]"):
                           row=k + 1, col=1)
     if segments and boot_time and len(pt):
         _shade_segments(fig, segments, len(axes), float(np.nanmin(pt)), float(np.nanmax(pt)))
+    if markers and boot_time:
+        _mark(fig, markers, [_span(raw[:, k]) for k in range(len(axes))])
     fig.update_xaxes(title_text=xlabel, row=len(axes), col=1)
     # the initial y range: the bulk of the (flying) samples, not a crash spike; the
     # modebar's autoscale (or a second double-click) shows everything
@@ -537,6 +544,184 @@ def _spectrogram_figure(name, pd):
     fig.update_xaxes(title_text="time [s]")
     fig.update_yaxes(title_text="frequency [Hz]")
     return fig
+
+
+# ------------------------------------------------------------------ motors, throttle, vibration; markers
+#: marker kind -> (colour, dash) of its vertical lines (gyrodenoise.flightlog.timeseries)
+MARKER_STYLES = {"event": ("#7f7f7f", "dot"), "mode": ("#1f77b4", "dash"), "failsafe": ("#d62728", "solid")}
+#: threshold level -> colour of its horizontal line
+THRESHOLD_COLOURS = {"warn": "#e69500", "fail": "#b00020"}
+#: a panel's lines, cycling
+PANEL_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+                 "#bcbd22", "#17becf", "#393b79", "#637939")
+
+
+def _views(series):
+    """The :class:`gyrodenoise.flightlog.timeseries.FlightViews` of a series, or None."""
+    return (series or {}).get("views")
+
+
+def _markers(series):
+    v = _views(series)
+    return list(v.time.markers) if v is not None else []
+
+
+def _span(y):
+    """(lo, hi) of the finite values of ``y`` ((0, 1) without any)."""
+    y = np.asarray(y, np.float64)
+    y = y[np.isfinite(y)]
+    return (float(y.min()), float(y.max())) if len(y) else (0.0, 1.0)
+
+
+def _mark(fig, markers, spans):
+    """The markers as vertical lines across each subplot (``spans``: its (lo, hi)), one
+    trace per kind and subplot, the text on hover; one legend entry per kind."""
+    import plotly.graph_objects as go
+    for kind, (colour, dash) in MARKER_STYLES.items():
+        ms = [m for m in markers if m.kind == kind]
+        if not ms:
+            continue
+        xs = np.repeat([m.time_s for m in ms], 3).astype(object)
+        xs[2::3] = None
+        text = np.repeat([_e(f"{m.text} (boot {m.boot}, t={m.time_s:.2f} s)") for m in ms], 3)
+        for r, (lo, hi) in enumerate(spans):
+            ys = np.tile(np.array([lo, hi, None], dtype=object), len(ms))
+            fig.add_trace(go.Scatter(_validate=False, x=xs, y=ys, mode="lines", name=f"{kind}s", legendgroup=kind,
+                                     showlegend=r == 0, line={"color": colour, "dash": dash, "width": 1},
+                                     opacity=0.7, text=text, hovertemplate="%{text}<extra></extra>"),
+                          row=r + 1, col=1)
+
+
+def _boot_cuts(ch):
+    """Bool per row: a row that starts another boot than the row before."""
+    b = ch.boots()
+    cut = np.zeros(len(b), bool)
+    cut[1:] = b[1:] != b[:-1]
+    return cut
+
+
+def _panels_figure(views, segments, axis):
+    """The time panels (motors, throttle, vibration levels with their thresholds,
+    clipping) in one figure sharing its time axis, the markers across every panel,
+    the flight segments shaded."""
+    import plotly.graph_objects as go
+    from plotly.subplots import make_subplots
+    panels = views.panels
+    fig = make_subplots(rows=len(panels), cols=1, shared_xaxes=True, vertical_spacing=0.05,
+                        subplot_titles=[_e(p.title) for p in panels])
+    spans, t_lo, t_hi = [], np.inf, -np.inf
+    for r, p in enumerate(panels, 1):
+        ch = p.channels
+        t = np.asarray(ch.time_s, np.float64)
+        cuts = _boot_cuts(ch)
+        lo, hi = np.inf, -np.inf
+        for j, (name, v) in enumerate(ch.columns.items()):
+            v = np.asarray(v, np.float64)
+            keep = np.isfinite(v)
+            if not keep.any():
+                continue
+            tx, y = session_envelope(t[keep], v[keep], cuts[keep])
+            a, b = _span(y)
+            lo, hi = min(lo, a), max(hi, b)
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=y.astype(np.float32), name=_e(name),
+                                     legendgroup=p.key + name, line={"color": PANEL_COLOURS[j % len(PANEL_COLOURS)],
+                                                                     "width": 1.1},
+                                     hovertemplate=f"{_e(name)}: %{{y:.4g}} {_e(ch.unit)}<br>t=%{{x:.2f}} s"
+                                                   "<extra></extra>"), row=r, col=1)
+        for th in p.thresholds:
+            lo, hi = min(lo, th.value), max(hi, th.value)
+            fig.add_trace(go.Scatter(_validate=False, x=[float(np.nanmin(t)), float(np.nanmax(t))],
+                                     y=[th.value, th.value], mode="lines", name=f"{th.level} threshold",
+                                     legendgroup=f"threshold {th.level}",
+                                     line={"color": THRESHOLD_COLOURS.get(th.level, "#555"), "dash": "dash",
+                                           "width": 1.5}, text=[_e(th.label)] * 2,
+                                     hovertemplate="%{text}<extra></extra>"), row=r, col=1)
+        if len(t):
+            t_lo, t_hi = min(t_lo, float(np.nanmin(t))), max(t_hi, float(np.nanmax(t)))
+        spans.append((lo, hi) if np.isfinite(lo) else (0.0, 1.0))
+        fig.update_yaxes(title_text=_e(ch.unit), row=r, col=1)
+    _mark(fig, views.markers, spans)
+    if segments and np.isfinite(t_lo):
+        _shade_segments(fig, segments, len(panels), t_lo, t_hi)
+    fig.update_xaxes(title_text=axis, row=len(panels), col=1)
+    fig.update_layout(hovermode="closest", margin={"t": 60},
+                      legend={"orientation": "v", "x": 1.02, "y": 1, "font": {"size": 10}})
+    fig.update_annotations(font_size=12)
+    return fig
+
+
+def _flight_section(report, series, figs):
+    """Motors, throttle, vibration and clipping against time with the events, modes
+    and failsafes marked (``series["views"]``: :func:`gyrodenoise.flightlog.timeseries.flight_views`)."""
+    v = _views(series)
+    out = ["<h2 id=flight>Motors, throttle and vibration</h2>"]
+    if v is None:
+        return "".join(out) + _note("not given (the log's time series were not read)")
+    tv = v.time
+    for p in tv.panels:
+        if p.channels.note:
+            out.append(_note(f"{p.key}: {p.channels.note}"))
+    for key, why in tv.missing.items():
+        out.append(_note(f"{key}: {why}"))
+    if tv.panels:
+        out.append(figs.div(_panels_figure(tv, report.get("segments"), _axis(report)),
+                            height=140 + 190 * len(tv.panels)))
+    if tv.markers:
+        kinds = {k: sum(m.kind == k for m in tv.markers) for k in MARKER_STYLES}
+        out.append(_note("marked on every time axis: " + ", ".join(f"{n} {k}s" for k, n in kinds.items() if n)
+                         + " (hover a line for its text)"))
+        rows = [[_e(f"{m.time_s:.2f}"), _e(m.boot), _e(m.kind), _e(m.text)] for m in tv.markers
+                if m.kind != "event"] + [[_e(f"{m.time_s:.2f}"), _e(m.boot), _e(m.kind), _e(m.text)]
+                                         for m in tv.markers if m.kind == "event"]
+        out.append("<details><summary>events, modes and failsafes (" + str(len(rows)) + ")</summary>" +
+                   _table(rows, ["time [s]", "boot", "kind", "text"]) + "</details>")
+    else:
+        out.append(_note("no event, mode change or failsafe in the log"))
+    return "".join(out)
+
+
+def _heatmap_figure(hm):
+    """A frequency map: mean PSD (dB, axes summed) per throttle/RPM bin and frequency,
+    the notch centres and harmonics as lines over it."""
+    import plotly.graph_objects as go
+    with np.errstate(divide="ignore", invalid="ignore"):
+        db = 10.0 * np.log10(np.where(hm.psd > 0, hm.psd, np.nan))
+    lo, hi = np.nanpercentile(db, [5, 99.5]) if np.isfinite(db).any() else (0.0, 1.0)
+    x = hm.centres
+    fig = go.Figure(go.Heatmap(_validate=False, x=x, y=hm.freq_hz, z=db.T.astype(np.float32), zmin=lo, zmax=hi,
+                               colorscale="Viridis", colorbar={"title": {"text": "dB (deg/s)²/Hz"}, "x": 1.0},
+                               customdata=np.tile(hm.windows, (len(hm.freq_hz), 1)),
+                               hovertemplate=f"{_e(hm.x_label)} %{{x:.3g}}, %{{y:.4g}} Hz: %{{z:.1f}} dB "
+                                             "(%{customdata} windows)<extra></extra>"))
+    dashes = ("dash", "dot", "dashdot", "longdash")
+    for j, ln in enumerate(hm.lines):
+        fig.add_trace(go.Scatter(_validate=False, x=ln.x, y=ln.freq_hz, mode="lines", name=_e(ln.label),
+                                 line={"color": "#ffffff" if "notch" in ln.label else "#ff5555",
+                                       "dash": dashes[j % len(dashes)], "width": 1.8},
+                                 hovertemplate=f"{_e(ln.label)}: %{{y:.4g}} Hz at %{{x:.3g}}<extra></extra>"))
+    fig.update_xaxes(title_text=_e(f"{hm.x_label} ({hm.x_source})"), range=[float(hm.edges[0]), float(hm.edges[-1])])
+    fig.update_yaxes(title_text="frequency [Hz]", range=[0, float(hm.freq_hz[-1])])
+    fig.update_layout(title={"text": _e(f"{hm.stream}: PSD by {hm.x_label.split(' [')[0]} (axes summed; "
+                                        f"{int(hm.windows.sum())} windows)"), "font": {"size": 14}},
+                      legend={"orientation": "h", "yanchor": "top", "y": -0.18, "x": 0})
+    return fig
+
+
+def _heatmap_section(series, figs):
+    """The frequency-by-throttle and frequency-by-RPM maps with the notch lines."""
+    v = _views(series)
+    if v is None:
+        return ""
+    out = ["<h2 id=maps>Frequency by throttle and RPM</h2>"]
+    for hm in v.maps:
+        out.append(figs.div(_heatmap_figure(hm), height=460))
+        for n in hm.notes:
+            out.append(_note(n))
+        if not hm.lines:
+            out.append(_note("no notch of the vehicle's chain is drawn: none that this map's x sets"))
+    for n in v.map_notes:
+        out.append(_note(n))
+    return "".join(out)
 
 
 # ------------------------------------------------------------------ the vehicle's filters
@@ -792,7 +977,7 @@ def _streams_section(report, series, figs):
         title = f"{st['name']}: raw and {st.get('filtered_label') or 'filtered'}"
         if st.get("filtered") is None:
             title = f"{st['name']}: written raw (NOT FILTERED: {st.get('raw_reason') or 'no filtered output'})"
-        fig, note = _time_figure(st, vrates, report.get("segments"), title, _axis(report))
+        fig, note = _time_figure(st, vrates, report.get("segments"), title, _axis(report), _markers(series))
         out.append(f"<h3>{_e(st['name'])}</h3>")
         if note:
             out.append(_note(note))
@@ -1259,7 +1444,9 @@ def write_log_report(path, report, series=None):
                      "filtered" (or "psd_raw"/"psd_filtered") per axis, "peaks" per axis,
                      "unit", "axes", "filtered_is_raw", "spectrogram": (t, density) or None)},
          "filter_review": {"freq_hz", "unit", "psd_pre", "psd_post_logged", "psd_post_recommended",
-                           "response_logged", "response_recommended"}}
+                           "response_logged", "response_recommended"},
+         "views": gyrodenoise.flightlog.timeseries.FlightViews (motors, throttle,
+                  vibration against time, the markers, the frequency maps)}
 
     :func:`stream_series` gives a stream's entry from a processed GyroStream. Without
     ``filter_review`` responses the vehicle's response is computed from
@@ -1267,15 +1454,17 @@ def write_log_report(path, report, series=None):
     series = series or {}
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("overview", "overview"), ("summary", "summary"),
-                                                         ("streams", "streams"),
-                                                         ("spectra", "spectra"), ("filters", "filters"), ("step", "step response"),
+                                                         ("streams", "streams"), ("flight", "motors & vibration"),
+                                                         ("spectra", "spectra"), ("maps", "by throttle/RPM"), ("filters", "filters"), ("step", "step response"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
     with _Figures() as figs:
         body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
                 _overview_section(report),
                 _summary_section(report, series),
                 _streams_section(report, series, figs),
+                _flight_section(report, series, figs),
                 _spectra_section(report, series, figs),
+                _heatmap_section(series, figs),
                 _filter_review_section(report, series, figs),
                 _step_response_section(report, figs),
                 _vibration_section(report, figs),

@@ -120,6 +120,32 @@ class BlackboxFormat(BaseFormat):
                               f"armed while logging until a disarm event; in the air where the mean of motor[i], "
                               f"over {AIR_SMOOTH_S:g} s, is above {AIR_MOTOR_FRACTION:g} of motorOutput {lo}..{hi}")
 
+    def messages(self, log, name):
+        """The main frames' fields ``name[0]``, ``name[1]``... (``motor``, ``setpoint``,
+        ``debug``) or the field ``name`` itself, as columns of every log of the file, with
+        ``time_s`` and ``record`` (the frame's number through the file); None when absent."""
+        cols, times, records, first = {}, [], [], 0
+        for b in log.payload:
+            n = len(b.main)
+            got = b.columns(name)
+            if n and got is None and name in b.fields:
+                got = b.column(name)[:, None]
+            if n and got is not None:
+                keys = [f"{name}[{k}]" for k in range(got.shape[1])] if b.columns(name) is not None else [name]
+                for k, key in enumerate(keys):
+                    cols.setdefault(key, []).append(got[:, k])
+                times.append(b.time_s)
+                records.append(first + np.arange(n))
+            first += n
+        if not times:
+            return None
+        out = {k: np.concatenate(v) for k, v in cols.items() if len(v) == len(times)}
+        out.update(time_s=np.concatenate(times), record=np.concatenate(records))
+        return out
+
+    def message_names(self, log):
+        return sorted({f.split("[")[0] for b in log.payload for f in b.fields})
+
     def rate_setpoint(self, log):
         return step_response.blackbox_rate_setpoint(log)
 
