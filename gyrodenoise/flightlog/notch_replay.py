@@ -1,0 +1,316 @@
+"""The vehicle's own gyro filters replayed sample by sample along the flight, and the
+replay compared with the post-filter gyro the vehicle logged.
+
+What no other tool publishes: how close a filter model comes to the vehicle. Where a
+log holds the gyro both before and after the vehicle's filters (ArduPilot's batch
+sampler with ``INS_LOG_BAT_OPT`` pre+post, PX4 ``sensor_combined`` and
+``vehicle_angular_velocity``, Betaflight's debug ``GYRO_SCALED`` and ``gyroADC``), the
+pre-filter gyro is run through the autopilot's chain (:mod:`vehicle_filters`,
+:mod:`betaflight_filters`) with every tracking notch's centre moved along the flight
+as the autopilot moves it:
+
+* ArduPilot harmonic notch ``MODE`` 1 (throttle): ``FREQ x max(FM_RAT, sqrt(ThO / REF))``
+  from ``CTUN.ThO``; ``MODE`` 3 (ESC telemetry): ``max(FREQ x FM_RAT, REF x rpm / 60)``
+  from ``ESC.RPM`` (the mean over the motors, or a notch set per motor with
+  ``OPTS`` bit 1); ``MODE`` 4 (FFT): ``FTN.NF1``. The centre is updated once per
+  main loop (``SCHED_LOOP_RATE``, 400 Hz when not logged) and slewed by at most 5 %
+  per update (``NotchFilter.cpp``: ``NOTCH_MAX_SLEW`` 0.05, the centre kept within
+  [previous x 0.95, previous / 0.95]);
+* PX4 ``IMU_GYRO_DNF_EN`` bit 0: a notch per ESC and harmonic at ``h x rpm / 60``
+  (``esc_status``), none below ``IMU_GYRO_DNF_MIN``;
+* Betaflight: the dynamic gyro low-pass follows the throttle (``setpoint[3]``), the
+  RPM notches the motors' eRPM where the log holds it.
+
+The driving value between two logged samples is interpolated linearly (the log holds
+it at 10-50 Hz; the autopilot reads it every loop). The biquads run in Direct Form I,
+the autopilots' form (``y = b0 x + b1 x1 + b2 x2 - a1 y1 - a2 y2``), their state
+(the last two inputs and outputs) kept across a change of coefficients, as the
+firmware keeps it.
+
+The agreement: the Welch PSDs of the replayed and of the logged post-filter gyro over
+the same (flying) time, compared bin by bin over :data:`BAND_LO_HZ` (30 Hz) to the
+slower stream's Nyquist frequency: ``sqrt(mean((10 log10(P_replay / P_logged))**2))``
+dB per axis, and over the axes the root mean square of the three. A log whose slower
+stream stops below 30 Hz has no band: no figure, a note saying so.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyrodenoise.analysis import spectrum
+
+#: the agreement band starts here (Hz): the band the filters are there for
+BAND_LO_HZ = 30.0
+#: PSD segments of about this length (s): ~4 Hz bins
+SEGMENT_S = 0.25
+#: fewer bins than this in the band: no figure
+MIN_BAND_BINS = 4
+#: ArduPilot's main loop rate when SCHED_LOOP_RATE is not logged (Copter)
+AP_DEFAULT_LOOP_HZ = 400.0
+AXES = ("x", "y", "z")
+
+
+@dataclass(frozen=True)
+class GyroSeries:
+    """A gyro series in deg/s: ``xyz`` (n, 3) at ``time_s``; ``rate_hz`` its rate."""
+    name: str
+    time_s: np.ndarray
+    xyz: np.ndarray
+    rate_hz: float
+
+    @classmethod
+    def of_stream(cls, stream):
+        """The series of a :class:`~gyrodenoise.flightlog.streams.GyroStream` (None when its unit is not known)."""
+        if stream is None or not stream.to_deg_s:
+            return None
+        t = np.asarray(stream.time_s, dtype=np.float64)
+        return cls(stream.name, t, np.asarray(stream.raw, dtype=np.float64) * stream.to_deg_s, series_rate(t))
+
+
+def series_rate(time_s):
+    """1 / the median positive time step (Hz), or 0.0."""
+    dt = np.diff(np.asarray(time_s, dtype=np.float64))
+    dt = dt[dt > 0]
+    return float(1.0 / np.median(dt)) if len(dt) else 0.0
+
+
+@dataclass(frozen=True)
+class Track:
+    """What moves a filter: ``value`` (m,) or (m, k) -- k motors -- at ``time_s``;
+    ``source`` names the log's field."""
+    time_s: np.ndarray
+    value: np.ndarray
+    source: str
+
+    def at(self, t):
+        """The value at each of ``t``, linearly interpolated (held beyond the ends): (n,) or (n, k)."""
+        v = np.asarray(self.value, dtype=np.float64)
+        ts = np.asarray(self.time_s, dtype=np.float64)
+        if v.ndim == 1:
+            return np.interp(t, ts, v)
+        return np.stack([np.interp(t, ts, v[:, j]) for j in range(v.shape[1])], axis=1)
+
+
+# --------------------------------------------------------------------------- running the chain
+
+def run_biquads(x, coefs):
+    """Run biquad sections in series over ``x`` (n, 3), sample by sample, Direct Form I
+    with the state kept across coefficient changes. ``coefs``: (n, k, 5) -- section j's
+    (b0, b1, b2, a1, a2) at sample i, the same for the three axes -- or (n, k, 3, 5)
+    per axis. Returns y (n, 3). Non-finite input samples pass as NaN and leave the
+    state as it was."""
+    x = np.asarray(x, dtype=np.float64)
+    c = np.asarray(coefs, dtype=np.float64)
+    n = len(x)
+    if c.ndim == 3:
+        c = np.broadcast_to(c[:, :, None, :], (n, c.shape[1], 3, 5))
+    k = c.shape[1]
+    out = np.full_like(x, np.nan)
+    for ax in range(3):
+        cl = c[:, :, ax, :].tolist()
+        xs = x[:, ax].tolist()
+        st = [[0.0, 0.0, 0.0, 0.0] for _ in range(k)]     # x1, x2, y1, y2 of each section
+        primed = False
+        ys = [math.nan] * n
+        for i in range(n):
+            v = xs[i]
+            if not math.isfinite(v):
+                continue
+            if not primed:                  # start at rest on the first sample (no start-up transient)
+                for j in range(k):
+                    b0, b1, b2, a1, a2 = cl[i][j]
+                    g = (b0 + b1 + b2) / (1.0 + a1 + a2) if abs(1.0 + a1 + a2) > 1e-12 else 1.0
+                    st[j] = [v, v, v * g, v * g]
+                    v = v * g
+                v = xs[i]
+                primed = True
+            row = cl[i]
+            for j in range(k):
+                b0, b1, b2, a1, a2 = row[j]
+                s = st[j]
+                y = b0 * v + b1 * s[0] + b2 * s[1] - a1 * s[2] - a2 * s[3]
+                s[1] = s[0]
+                s[0] = v
+                s[3] = s[2]
+                s[2] = y
+                v = y
+            ys[i] = v
+        out[:, ax] = ys
+    return out
+
+
+# --------------------------------------------------------------------------- the comparison
+
+def _psd(xyz, rate_hz, keep, nperseg):
+    """(freq, (3, bins) PSD) of the samples ``keep`` (others NaN: Welch within the runs)."""
+    x = np.where(keep[:, None], xyz, np.nan)
+    out, f = [], None
+    for k in range(3):
+        f, p, _ = spectrum.welch_psd(x[:, k], rate_hz, nperseg)
+        if p is None:
+            return None
+        out.append(p)
+    return f, np.array(out)
+
+
+def _nperseg(rate_hz, n_keep):
+    n = 2 ** int(round(math.log2(max(16.0, SEGMENT_S * rate_hz))))
+    while n > 16 and n * 4 > n_keep:
+        n //= 2
+    return n
+
+
+def agreement(replayed, logged, keep_fn=None):
+    """The agreement of a replayed post-filter series with the logged one (both
+    :class:`GyroSeries`, deg/s) over their common time (and ``keep_fn(time_s) -> bool``'s
+    samples): ``{"band_hz", "db_rms": {x, y, z, all}, "db_mean": {...}, "n_bins",
+    "resolution_hz"}``, or (None, why)."""
+    t0 = max(replayed.time_s[0], logged.time_s[0])
+    t1 = min(replayed.time_s[-1], logged.time_s[-1])
+    if not t1 > t0:
+        return None, "the pre- and post-filter streams do not overlap in time"
+    hi = 0.5 * min(replayed.rate_hz, logged.rate_hz)
+    if hi <= BAND_LO_HZ:
+        return None, (f"the slower stream ({min(replayed.rate_hz, logged.rate_hz):.0f} Hz) stops at "
+                      f"{hi:.1f} Hz, below the {BAND_LO_HZ:g} Hz the agreement band starts at")
+    specs = []
+    for s in (replayed, logged):
+        keep = (s.time_s >= t0) & (s.time_s <= t1) & np.isfinite(s.xyz).all(axis=1)
+        if keep_fn is not None:
+            keep &= np.asarray(keep_fn(s.time_s), dtype=bool)
+        if keep.sum() < 64:
+            return None, f"{s.name}: fewer than 64 samples over the common (flying) time"
+        # the same segment length in seconds: the same bin width in both spectra
+        nper = _nperseg(s.rate_hz, int(keep.sum())) if not specs else \
+            max(16, int(round(specs[0][2] * s.rate_hz / replayed.rate_hz)))
+        got = _psd(s.xyz, s.rate_hz, keep, nper)
+        if got is None:
+            return None, f"{s.name}: too few contiguous samples for a spectrum"
+        specs.append((*got, nper))
+    (f1, p1, _), (f2, p2, _) = specs
+    band = (f1 >= BAND_LO_HZ) & (f1 <= hi * 0.98)
+    if band.sum() < MIN_BAND_BINS:
+        return None, f"fewer than {MIN_BAND_BINS} spectrum bins between {BAND_LO_HZ:g} and {hi:.0f} Hz"
+    rms, mean = {}, {}
+    for k, a in enumerate(AXES):
+        logged_p = np.interp(f1[band], f2, p2[k])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = 10.0 * np.log10(p1[k][band] / logged_p)
+        d = d[np.isfinite(d)]
+        rms[a] = round(float(np.sqrt(np.mean(d * d))), 3) if len(d) else None
+        mean[a] = round(float(np.mean(d)), 3) if len(d) else None
+    got = [v for v in rms.values() if v is not None]
+    rms["all"] = round(float(np.sqrt(np.mean(np.square(got)))), 3) if got else None
+    return {"band_hz": [BAND_LO_HZ, round(float(f1[band][-1]), 2)], "db_rms": rms, "db_mean": mean,
+            "n_bins": int(band.sum()), "resolution_hz": round(float(f1[1] - f1[0]), 4),
+            "over_s": [round(float(t0), 3), round(float(t1), 3)]}, ""
+
+
+# --------------------------------------------------------------------------- a log
+
+def replay_review(log, autopilot, params, filters, stream, keep_fn=None):
+    """(replay or None, note) of a log: its pre-filter gyro run through the vehicle's
+    chain (the autopilot strategy's ``replay_sections``, the centres moved by its
+    ``notch_tracks``) and compared with its logged post-filter gyro
+    (``logged_post_filter``). ``keep_fn(time_s) -> bool``: the samples compared
+    (flying time); None: all. ``stream``: the pre-filter gyro stream (the filter
+    review's :func:`~gyrodenoise.flightlog.filter_review.pick_pre_filter_stream`).
+
+    The replay (JSON-able): ``pre`` / ``post`` (stream, rate), ``filter_rate_hz``
+    (the rate the coefficients are designed at: the pre-filter stream's), ``tracks``
+    (what moved each tracking stage), ``agreement`` (:func:`agreement`; None with
+    ``agreement_note``), ``notes`` (what the replay leaves out)."""
+    pre = GyroSeries.of_stream(stream)
+    if pre is None:
+        return None, "no pre-filter gyro stream in deg/s to replay"
+    post = autopilot.logged_post_filter(log, stream)
+    if post is None:
+        return None, f"{pre.name} is the pre-filter gyro; the log holds no post-filter gyro to compare with"
+    tracks = autopilot.notch_tracks(log, params, filters)
+    coefs, notes = autopilot.replay_sections(params, filters, tracks, pre.time_s, pre.rate_hz)
+    y = run_biquads(pre.xyz, coefs)
+    replayed = GyroSeries(f"{pre.name} replayed", pre.time_s, y, pre.rate_hz)
+    agree, why = agreement(replayed, post, keep_fn)
+    out = {"pre": {"stream": pre.name, "rate_hz": round(pre.rate_hz, 2)},
+           "post": {"stream": post.name, "rate_hz": round(post.rate_hz, 2)},
+           "filter_rate_hz": round(pre.rate_hz, 2),
+           "sections": int(np.asarray(coefs).shape[1]),
+           "tracks": {k: tr.source for k, tr in tracks.items()},
+           "agreement": agree, "agreement_metric": (
+               f"sqrt(mean((10 log10(PSD_replayed / PSD_logged))**2)) over {BAND_LO_HZ:g} Hz..the slower "
+               "stream's Nyquist frequency, dB per axis; all: rms over the axes"),
+           "notes": list(notes)}
+    if agree is None:
+        out["agreement_note"] = why
+    return out, ""
+
+
+def replay_section_html(rep, esc=None):
+    """A short HTML section of a log's ``notch_replay`` (``esc``: the report's HTML escape,
+    :func:`html.escape` by default)."""
+    import html
+    esc = esc or html.escape
+    nr = rep.get("notch_replay")
+    if nr is None:
+        return (f"<section><h2>Filter replay</h2><p>{esc(rep.get('notch_replay_note') or 'no replay')}</p>"
+                "</section>")
+    ag = nr.get("agreement")
+    if ag is None:
+        fig = f"<p>No agreement figure: {esc(nr.get('agreement_note', ''))}</p>"
+    else:
+        cells = "".join(f"<td>{'' if ag['db_rms'][a] is None else format(ag['db_rms'][a], '.2f')}</td>"
+                        for a in (*AXES, "all"))
+        fig = ("<table><tr><th></th><th>x</th><th>y</th><th>z</th><th>all</th></tr>"
+               f"<tr><th>replay vs logged, dB rms</th>{cells}</tr></table>"
+               f"<p>{esc(nr['agreement_metric'])}; band {ag['band_hz'][0]:g}-{ag['band_hz'][1]:g} Hz, "
+               f"{ag['n_bins']} bins.</p>")
+    tracks = "; ".join(f"{k}: {v}" for k, v in nr.get("tracks", {}).items()) or "none"
+    notes = "".join(f"<li>{esc(n)}</li>" for n in nr.get("notes", []))
+    return (f"<section><h2>Filter replay</h2><p>{esc(nr['pre']['stream'])} ({nr['pre']['rate_hz']:g} Hz) run "
+            f"through the vehicle's own filters, sample by sample, against {esc(nr['post']['stream'])} "
+            f"({nr['post']['rate_hz']:g} Hz). Tracking: {esc(tracks)}.</p>{fig}"
+            f"{'<ul>' + notes + '</ul>' if notes else ''}</section>")
+
+
+# --------------------------------------------------------------------------- tracks from message columns
+
+def column_track(m, col, source):
+    """The Track of column ``col`` of message columns ``m`` (finite rows), or None."""
+    if m is None or col is None or col not in m or not len(m["time_s"]):
+        return None
+    t = np.asarray(m["time_s"], dtype=np.float64)
+    v = np.asarray(m[col], dtype=np.float64)
+    ok = np.isfinite(t) & np.isfinite(v)
+    if ok.sum() < 1:
+        return None
+    order = np.argsort(t[ok], kind="stable")
+    return Track(t[ok][order], v[ok][order], source)
+
+
+def instance_track(m, inst_col, col, source):
+    """A (m, instances) Track of column ``col`` split by ``inst_col`` (each instance
+    interpolated onto the times of the first), or None."""
+    if m is None or col not in m or inst_col not in m or not len(m["time_s"]):
+        return None
+    inst = np.asarray(m[inst_col])
+    ids = np.unique(inst)
+    t = np.asarray(m["time_s"], dtype=np.float64)
+    base = t[inst == ids[0]]
+    cols = [np.interp(base, t[inst == i], np.asarray(m[col], dtype=np.float64)[inst == i]) for i in ids]
+    return Track(base, np.stack(cols, axis=1), source)
+
+
+def columns_track(m, suffix, source):
+    """A (m, k) Track of the columns ``...[i]...suffix`` of ``m`` (e.g. ``esc[0].esc_rpm``)
+    that are not all zero, or None."""
+    if m is None or not len(m.get("time_s", [])):
+        return None
+    cols = [c for c in sorted(m) if c.endswith(suffix) and np.any(np.asarray(m[c], dtype=np.float64) != 0)]
+    if not cols:
+        return None
+    return Track(np.asarray(m["time_s"], dtype=np.float64),
+                 np.stack([np.asarray(m[c], dtype=np.float64) for c in cols], axis=1), source)
