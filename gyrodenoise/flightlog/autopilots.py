@@ -245,6 +245,8 @@ class ArduPilot(Autopilot):
 
     def accel_series(self, log):
         import numpy as np
+        if getattr(log, "accel", None):          # the adapter read them
+            return super().accel_series(log)
         out = []
         for name in ("IMU", "IMU2", "IMU3"):
             m = log.messages(name) if name in set(log.message_names() or []) else None
@@ -343,6 +345,8 @@ class PX4(Autopilot):
 
     def accel_series(self, log):
         import numpy as np
+        if getattr(log, "accel", None):          # the adapter read them
+            return super().accel_series(log)
         m = log.messages("sensor_combined") if "sensor_combined" in set(log.message_names() or []) else None
         cols = [f"accelerometer_m_s2[{k}]" for k in range(3)]
         if m is None or not all(c in m for c in cols):
