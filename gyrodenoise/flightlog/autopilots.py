@@ -133,7 +133,7 @@ class Autopilot:
 
     def accel_series(self, log):
         """[(name, time_s, (n, 3) m/s/s)] of the log's accelerometers."""
-        return [(a.name, a.time_s, a.xyz) for a in getattr(log, "accel", []) or []]
+        return [(a.name, a.time_s, a.values) for a in getattr(log, "accel", []) or []]
 
 
 class ArduPilot(Autopilot):

@@ -223,7 +223,9 @@ def replay_review(log, autopilot, params, filters, stream, keep_fn=None):
     The replay (JSON-able): ``pre`` / ``post`` (stream, rate), ``filter_rate_hz``
     (the rate the coefficients are designed at: the pre-filter stream's), ``tracks``
     (what moved each tracking stage), ``agreement`` (:func:`agreement`; None with
-    ``agreement_note``), ``notes`` (what the replay leaves out)."""
+    ``agreement_note``), ``unfiltered_db_rms`` (the pre-filter gyro itself against the logged
+    post-filter one, the same figure: what the replay has to beat), ``notes`` (what the
+    replay leaves out)."""
     pre = GyroSeries.of_stream(stream)
     if pre is None:
         return None, "no pre-filter gyro stream in deg/s to replay"
@@ -235,12 +237,15 @@ def replay_review(log, autopilot, params, filters, stream, keep_fn=None):
     y = run_biquads(pre.xyz, coefs)
     replayed = GyroSeries(f"{pre.name} replayed", pre.time_s, y, pre.rate_hz)
     agree, why = agreement(replayed, post, keep_fn)
+    unfiltered, _ = agreement(pre, post, keep_fn)
     out = {"pre": {"stream": pre.name, "rate_hz": round(pre.rate_hz, 2)},
            "post": {"stream": post.name, "rate_hz": round(post.rate_hz, 2)},
            "filter_rate_hz": round(pre.rate_hz, 2),
            "sections": int(np.asarray(coefs).shape[1]),
            "tracks": {k: tr.source for k, tr in tracks.items()},
-           "agreement": agree, "agreement_metric": (
+           "agreement": agree,
+           "unfiltered_db_rms": unfiltered["db_rms"]["all"] if unfiltered else None,
+           "agreement_metric": (
                f"sqrt(mean((10 log10(PSD_replayed / PSD_logged))**2)) over {BAND_LO_HZ:g} Hz..the slower "
                "stream's Nyquist frequency, dB per axis; all: rms over the axes"),
            "notes": list(notes)}

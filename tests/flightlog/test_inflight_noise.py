@@ -12,7 +12,7 @@ import pytest
 from gyrodenoise.flightlog import inflight_noise as inf
 from gyrodenoise.flightlog.autopilots import ARDUPILOT, BETAFLIGHT, PX4_AUTOPILOT
 from gyrodenoise.flightlog.model import Segment
-from gyrodenoise.flightlog.streams import GyroStream
+from gyrodenoise.flightlog.streams import AccelStream, GyroStream
 
 FS = 400.0
 GYRO_REST, GYRO_FLY = 0.001, 0.005           # rad/s/sqrt(Hz)
@@ -23,11 +23,6 @@ SEGMENTS = [Segment("ground", 0.0, 90.0), Segment("armed", 90.0, 95.0), Segment(
 class _Log:
     def __init__(self, gyro, accel):
         self.gyro, self.accel, self.boots = gyro, accel, []
-
-
-class _Accel:
-    def __init__(self, name, t, xyz):
-        self.name, self.time_s, self.xyz = name, t, xyz
 
 
 def _white(rng, density, n):
@@ -45,7 +40,7 @@ def log():
     a[:, 2] -= 9.81
     s = GyroStream(name="IMU", message="IMU", unit="rad/s", to_deg_s=math.degrees(1.0), time_s=t,
                    raw=g, index=np.arange(len(t)), stage="pre-filter")
-    return _Log([s], [_Accel("accel", t, a)])
+    return _Log([s], [AccelStream("accel", "accel", t, a)])
 
 
 def test_known_densities_recovered_flying_and_at_rest(log):
