@@ -37,9 +37,12 @@ What it recommends, and why:
 * the gyro low-pass cutoff: the highest (whole Hz, from :data:`CUTOFF_MIN_HZ`)
   whose predicted noise, with the recommended notch, is no more than the logged
   settings' -- no more noise than today, the least phase lag that allows.
-  The notch is recommended only when that chain lags less (mean of the lags at
-  10, 20 and 30 Hz) than the best chain without it: a notch earns its place by
-  letting the low-pass go higher by more than its own lag.
+  The order is the autopilots' documented one (the ArduPilot wiki: the harmonic
+  notch on the motor peak, then ``INS_GYRO_FILTER`` raised; PX4's filter tuning
+  guide likewise with ``IMU_GYRO_CUTOFF``): a prominent motor peak gets its notch,
+  and ``notch_prediction`` puts our predicted figures beside it (the notch's
+  attenuation at the peak, the mean lag at 10, 20 and 30 Hz with it and for the
+  best chain without it).
 
 Bins above half the rate the filters run at are left out of the predicted
 spectra (the filtered gyro is resampled there).
@@ -87,6 +90,11 @@ AP_HNTCH_REFRESH_NOTE = ("INS_HNTCH_ENABLE was 0: ArduPilot shows the other INS_
                          "is 1 -- set INS_HNTCH_ENABLE,1, reboot the autopilot (or refresh the parameter list), "
                          "then load the other lines")
 AXES = ("x", "y", "z")
+#: the autopilots' documented tuning order, quoted beside the recommendation
+AP_PROCEDURE = ("the ArduPilot wiki's order: the harmonic notch on the motor peak first, then INS_GYRO_FILTER "
+                "raised as far as the noise allows")
+PX4_PROCEDURE = ("PX4's filter tuning guide: notch the motor peak (dynamic notch from ESC RPM or the onboard FFT, "
+                 "else a static notch), then raise IMU_GYRO_CUTOFF as far as the noise allows")
 
 
 # --------------------------------------------------------------------------- context from the log
@@ -377,7 +385,8 @@ def ardupilot_notch(params, fund, ctx, centre, bw):
              "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
              "tracking": "fixed", "composite": 1, "reference": ref, "min_ratio": 1.0}
     why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
-               f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}")
+               f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}; "
+               f"{AP_PROCEDURE}")
     return rec, stage, why
 
 
@@ -388,14 +397,14 @@ def px4_notch(params, fund, ctx, centre, bw):
     if ctx.get("esc_telemetry"):
         rec = {"IMU_GYRO_DNF_EN": int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0)) | PX4_DNF_ESC_RPM,
                "IMU_GYRO_DNF_HMC": max(fund["harmonics"]), "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
-        why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch")
+        why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch; {PX4_PROCEDURE}")
         stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
                  "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
                  "attenuation_db": None}
         return rec, stage, why
     rec = {"IMU_GYRO_NF0_FRQ": centre, "IMU_GYRO_NF0_BW": bw}
     why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): static notch IMU_GYRO_NF0 there, "
-               f"BW half the centre; no ESC telemetry in the log for the dynamic notch")
+               f"BW half the centre; no ESC telemetry in the log for the dynamic notch; {PX4_PROCEDURE}")
     stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ, IMU_GYRO_NF0_BW",
              "centre_hz": centre, "bandwidth_hz": bw, "attenuation_db": None}
     return rec, stage, why
@@ -422,6 +431,18 @@ def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, tar
     stages = base + ([{"kind": "lowpass", "path": "rate", "params": lp_name or "lowpass", "cutoff_hz": float(best)}]
                      if best else [])
     return stages, best, rec_centre
+
+
+def _notch_prediction(notch_stage, fund, f, psd, fs_filter, with_notch, without, logged_lp):
+    """What the recommended notch is predicted to do: its attenuation (dB) at the peak, the
+    rss noise over the band's axis of the peak before and after the whole recommended chain,
+    and the mean lag with it and for the best chain without it."""
+    sos, _ = vf.chain_sections([notch_stage], fs_filter)
+    g = abs(complex(vf.sos_response(sos, [fund["freq_hz"]], fs_filter)[0]))
+    return {"peak_hz": round(float(fund["freq_hz"]), 2),
+            "attenuation_at_peak_db": round(-20.0 * math.log10(max(g, 1e-12)), 1),
+            "mean_lag_ms_with_notch": round(_mean_lag(with_notch, logged_lp, fs_filter), 3),
+            "mean_lag_ms_without": round(_mean_lag(without, logged_lp, fs_filter), 3)}
 
 
 def _mean_lag(chain, logged_lp, fs_filter):
@@ -516,13 +537,15 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     logged_lp = [s for s in logged_stages if s["kind"] == "lowpass"]
     with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
     without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
-    if notch_stage is not None and _mean_lag(with_notch, logged_lp, fs_filter) >= _mean_lag(without, logged_lp,
-                                                                                           fs_filter):
-        why = [w for w in why if not w.startswith("dominant")]
-        why.append(f"the peak at {notch_stage['centre_hz']:g} Hz: with a notch there the chain that keeps the "
-                   f"noise lags more (mean over {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz) than without, "
-                   f"so none is recommended")
-        rec, notch_stage = {}, None
+    predicted = None
+    if notch_stage is not None:
+        # the autopilots' documented procedure: the notch on the motor peak first, then the
+        # low-pass raised as far as the noise allows; the prediction stands beside it
+        predicted = _notch_prediction(notch_stage, fund, f, psd, fs_filter, with_notch, without, logged_lp)
+        why.append(f"predicted: the notch takes {predicted['attenuation_at_peak_db']:g} dB off the peak at "
+                   f"{notch_stage['centre_hz']:g} Hz; mean lag at {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz "
+                   f"{predicted['mean_lag_ms_with_notch']:g} ms with it, {predicted['mean_lag_ms_without']:g} ms "
+                   "for the best chain without it")
     rec_stages, best, rec_centre = with_notch if notch_stage is not None else without
     if not lp_name:
         rec_stages = [st for st in rec_stages if st["kind"] != "lowpass"] + logged_lp
@@ -571,6 +594,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
         "changes": changes,
         "verdict": "change" if changes else "no change",
         "param_lines": param_lines(autopilot, changes),
+        "notch_prediction": predicted,
         "why": why,
         "notes": notes,
     }

@@ -196,3 +196,19 @@ def test_hntch_enable_goes_first_with_the_refresh_note():
 def test_tlog_note():
     (review, note), _ = _real("copter_20211125-124019.tlog")
     assert review is None and note.startswith("no pre-filter gyro stream: RAW_IMU is logged after the vehicle's filters")
+
+
+def test_a_prominent_motor_line_gets_its_notch_then_the_low_pass_raised():
+    """The autopilots' documented order: a 22 dB motor line over a 3 deg/s noise floor gets
+    the harmonic notch (never declined for its own lag), then INS_GYRO_FILTER is raised;
+    the predicted attenuation at the peak stands beside it."""
+    review, note = _review([_imu_stream(), _batch_stream(noise_deg_s=3.0, tone_deg_s=3.0)])
+    assert note == ""
+    top = max(review["peaks"], key=lambda q: q["amplitude_rms_deg_s"])
+    assert top["notch_ok"] and top["ratio_db"] > 20.0
+    rec = review["recommended"]
+    assert rec["INS_HNTCH_ENABLE"] == 1 and abs(rec["INS_HNTCH_FREQ"] - TONE_HZ) < 2 * review["source"]["resolution_hz"]
+    assert rec["INS_GYRO_FILTER"] > PARAMS["INS_GYRO_FILTER"]          # raised once the peak is notched
+    pred = review["notch_prediction"]
+    assert pred["attenuation_at_peak_db"] > 20.0
+    assert any("the harmonic notch on the motor peak first, then INS_GYRO_FILTER" in w for w in review["why"])
