@@ -99,6 +99,12 @@ class Autopilot:
         of the IMU of ``pre_stream``, or None."""
         return None
 
+    def pre_filter_production(self, log, params, filters, pre_stream):
+        """How the logged pre-filter stream was made from the gyro the filters run on (a
+        :class:`~gyrodenoise.flightlog.notch_replay.Production`), or None: taken at the
+        filters' rate, as it is."""
+        return None
+
     def replay_sections(self, params, filters, tracks, time_s, rate_hz):
         """((n, k, 5) biquads per sample, notes) of the vehicle's chain along the flight."""
         import numpy as np
@@ -325,11 +331,50 @@ class PX4(Autopilot):
         xyz = np.degrees(np.stack([np.asarray(m[f"xyz[{k}]"], dtype=np.float64) for k in range(3)], 1))
         return nr.GyroSeries("vehicle_angular_velocity", t, xyz, nr.series_rate(t))
 
+    def pre_filter_production(self, log, params, filters, pre_stream):
+        """``sensor_combined.gyro_rad`` is ``vehicle_imu``'s integrated delta angle over
+        ``gyro_integral_dt`` divided by that interval (VehicleIMU, Integrator: the mean of
+        the gyro samples integrated), and the ``IMU_GYRO_*`` filters run in
+        VehicleAngularVelocity on each gyro sample at the gyro's rate, which
+        ``vehicle_imu_status.gyro_rate_hz`` logs (the FIFO rate where the filters take
+        the FIFO; ``sensor_gyro_fft.sensor_sample_rate_hz`` where that is logged)."""
+        import numpy as np
+        from gyrodenoise.flightlog import notch_replay as nr
+        if pre_stream is None or pre_stream.message != "sensor_combined":
+            return None
+        names = set(log.message_names() or [])
+        rate, src = None, ""
+        if "vehicle_imu_status" in names:
+            m = log.messages("vehicle_imu_status")
+            if "gyro_rate_hz" in m and len(m["time_s"]):
+                v = np.asarray(m["gyro_rate_hz"], dtype=np.float64)
+                if "gyro_device_id" in m and "sensor_selection" in names:
+                    sel = log.messages("sensor_selection").get("gyro_device_id")
+                    if sel is not None and len(sel):
+                        mine = np.asarray(m["gyro_device_id"]) == np.asarray(sel)[-1]
+                        v = v[mine] if mine.any() else v
+                v = v[v > 0]
+                if len(v):
+                    rate, src = float(np.median(v)), "vehicle_imu_status.gyro_rate_hz"
+        if rate is None and filters.get("filter_rate_source", "").startswith("sensor_gyro_fft"):
+            rate, src = float(filters["filter_rate_hz"]), filters["filter_rate_source"]
+        if rate is None:
+            return None
+        m = log.messages("sensor_combined")
+        n = 1
+        if "gyro_integral_dt" in m and len(m["gyro_integral_dt"]):
+            dt = float(np.median(np.asarray(m["gyro_integral_dt"], dtype=np.float64)))
+            dt = dt * 1e-6 if dt > 1.0 else dt          # us in 1.x logs (a float s in the oldest)
+            n = max(1, int(round(dt * rate)))
+            src += f"; sensor_combined.gyro_integral_dt {dt * 1e6:.0f} us = {n} samples"
+        return nr.Production(rate, n, src)
+
     def replay_sections(self, params, filters, tracks, time_s, rate_hz):
         from gyrodenoise.flightlog import vehicle_filters as vf
         coefs, notes = vf.replay_sections(filters.get("stages", []), tracks, time_s, rate_hz, None, slew=False)
         fs = filters.get("filter_rate_hz")
-        if fs and abs(float(fs) - rate_hz) > 0.02 * rate_hz:
+        if fs and abs(float(fs) - rate_hz) > 0.02 * rate_hz and not filters.get("filter_rate_source", "").startswith(
+                "assumed"):
             notes = [f"designed at the logged rate {rate_hz:.0f} Hz; PX4 runs its filters at the raw gyro rate "
                      f"({float(fs):g} Hz, {filters.get('filter_rate_source')})"] + notes
         return coefs, notes

@@ -95,6 +95,131 @@ class Track:
         return np.stack([np.interp(t, ts, v[:, j]) for j in range(v.shape[1])], axis=1)
 
 
+@dataclass(frozen=True)
+class Production:
+    """How the logged pre-filter stream was made from the gyro the vehicle's filters
+    run on: that gyro at ``filter_rate_hz``, averaged over ``averaged`` consecutive
+    samples (a box-car: PX4's ``sensor_combined`` is the integrated delta angle over
+    its interval, ``gyro_integral_dt``, divided by that interval) and logged once per
+    average. ``source`` names the log's fields that say so."""
+    filter_rate_hz: float
+    averaged: int
+    source: str
+
+
+def boxcar_gain(f_hz, rate_hz, n):
+    """|A(f)| of the mean of ``n`` consecutive samples at ``rate_hz``:
+    ``|sin(pi n f / fs) / (n sin(pi f / fs))|`` (1 at 0 Hz)."""
+    f = np.asarray(f_hz, dtype=np.float64)
+    x = np.pi * f / float(rate_hz)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.abs(np.sin(n * x) / (n * np.sin(x)))
+    return np.where(np.abs(np.sin(x)) < 1e-12, 1.0, g)
+
+
+def _finite_runs(ok):
+    """[(start, stop)] of the runs of True in ``ok``."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], ok.astype(np.int8), [0]))))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def at_filter_rate(series, production):
+    """``series`` (the logged pre-filter gyro) brought to the rate the filters run at:
+    each finite run upsampled by ``round(filter_rate / rate)`` (scipy's polyphase
+    resampler: band-limited to the logged Nyquist frequency) and, where the stream is
+    an average of ``averaged`` samples, that box-car undone up to the logged Nyquist
+    frequency (the spectrum divided by :func:`boxcar_gain`, which stays above 2 / pi
+    there). What the averaging folded down from above the logged Nyquist frequency
+    cannot be undone. Returns a :class:`GyroSeries`, or ``series`` itself when the
+    rates already match."""
+    from scipy import signal
+
+    up = int(round(production.filter_rate_hz / series.rate_hz))
+    if up < 2 and production.averaged < 2:
+        return series
+    up = max(up, 1)
+    rate = series.rate_hz * up
+    ok = np.isfinite(series.xyz).all(axis=1)
+    t_out, x_out = [], []
+    for a, b in _finite_runs(ok):
+        if b - a < 8:
+            continue
+        x = signal.resample_poly(series.xyz[a:b], up, 1, axis=0) if up > 1 else series.xyz[a:b].copy()
+        if production.averaged > 1:
+            spec = np.fft.rfft(x, axis=0)
+            f = np.fft.rfftfreq(len(x), 1.0 / rate)
+            g = np.maximum(boxcar_gain(f, production.filter_rate_hz, production.averaged), 2.0 / np.pi)
+            x = np.fft.irfft(spec / g[:, None], len(x), axis=0)
+        t_out.append(series.time_s[a] + np.arange(len(x)) / rate)
+        t_out.append(np.array([np.nan]))
+        x_out.append(x)
+        x_out.append(np.full((1, 3), np.nan))
+    if not t_out:
+        return series
+    t = np.concatenate(t_out)[:-1]
+    xyz = np.concatenate(x_out)[:-1]
+    t = np.where(np.isfinite(t), t, np.concatenate(([t[0]], t[:-1])))   # the separators: the run's end time
+    return GyroSeries(series.name, t, xyz, rate)
+
+
+def sampled_at(series, time_s, max_gap_steps=1.5):
+    """``series`` read at ``time_s`` (linear interpolation between its two neighbouring
+    samples; NaN where those are further apart than ``max_gap_steps`` of its step, or
+    either is not finite, or ``time_s`` is outside it): the replay taken where the
+    vehicle logged its post-filter gyro, so that both go through the same logging."""
+    t = np.asarray(time_s, dtype=np.float64)
+    ts = series.time_s
+    i = np.clip(np.searchsorted(ts, t), 1, len(ts) - 1)
+    t0, t1 = ts[i - 1], ts[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(t1 > t0, (t - t0) / (t1 - t0), 0.0)
+    x0, x1 = series.xyz[i - 1], series.xyz[i]
+    y = x0 + (x1 - x0) * w[:, None]
+    bad = (t < ts[0]) | (t > ts[-1]) | (t1 - t0 > max_gap_steps / series.rate_hz)
+    y[bad] = np.nan
+    return y
+
+
+def lattice(time_s, tolerance=0.25):
+    """(step s, index of each sample on the lattice ``t0 + k step``) of a stream logged
+    at a fixed rate with samples dropped (PX4's logger drops topics it cannot keep up
+    with: ``vehicle_angular_velocity`` at 409 Hz with every third sample missing),
+    or None when the times are not on one lattice (more than 5 % off by over
+    ``tolerance`` of a step). The step: the median of the steps below 1.5 x the
+    shortest common one (the 5th percentile)."""
+    t = np.asarray(time_s, dtype=np.float64)
+    dt = np.diff(t)
+    dt = dt[dt > 0]
+    if len(dt) < 8:
+        return None
+    base = float(np.median(dt[dt < 1.5 * np.percentile(dt, 5)]))
+    k = np.round((t - t[0]) / base).astype(np.int64)
+    if np.mean(np.abs((t - t[0]) - k * base) > tolerance * base) > 0.05 or np.any(np.diff(k) < 1):
+        return None
+    return base, k
+
+
+def on_lattice(series, max_fill=4):
+    """(xyz on the lattice, rate) of a series with dropped samples: the missing lattice
+    samples filled by linear interpolation where at most ``max_fill`` are missing in a
+    row (NaN beyond: Welch stays within the runs); ``series`` as it is (its median
+    rate) when it is not on a lattice or drops none."""
+    lat = lattice(series.time_s)
+    if lat is None:
+        return series.xyz, series.rate_hz, False
+    base, k = lat
+    if k[-1] + 1 == len(k):
+        return series.xyz, 1.0 / base, False
+    idx = np.arange(k[-1] + 1)
+    out = np.empty((len(idx), 3))
+    for a in range(3):
+        ok = np.isfinite(series.xyz[:, a])
+        out[:, a] = np.interp(idx, k[ok], series.xyz[ok, a]) if ok.sum() > 1 else np.nan
+    for j in np.flatnonzero(np.diff(k) - 1 > max_fill):       # gaps longer than max_fill: NaN
+        out[k[j] + 1:k[j + 1]] = np.nan
+    return out, 1.0 / base, True
+
+
 # --------------------------------------------------------------------------- running the chain
 
 def run_biquads(x, coefs):
@@ -164,32 +289,40 @@ def _nperseg(rate_hz, n_keep):
     return n
 
 
-def agreement(replayed, logged, keep_fn=None):
+def agreement(replayed, logged, keep_fn=None, max_hz=None):
     """The agreement of a replayed post-filter series with the logged one (both
     :class:`GyroSeries`, deg/s) over their common time (and ``keep_fn(time_s) -> bool``'s
-    samples): ``{"band_hz", "db_rms": {x, y, z, all}, "db_mean": {...}, "n_bins",
-    "resolution_hz"}``, or (None, why)."""
-    t0 = max(replayed.time_s[0], logged.time_s[0])
-    t1 = min(replayed.time_s[-1], logged.time_s[-1])
+    samples), over :data:`BAND_LO_HZ` to the slower stream's Nyquist frequency (or
+    ``max_hz``, when lower): ``{"band_hz", "db_rms": {x, y, z, all}, "db_mean": {...},
+    "n_bins", "resolution_hz"}``, or (None, why). A series logged with samples
+    dropped is put back on its lattice first (:func:`on_lattice`)."""
+    t0 = max(np.nanmin(replayed.time_s), np.nanmin(logged.time_s))
+    t1 = min(np.nanmax(replayed.time_s), np.nanmax(logged.time_s))
     if not t1 > t0:
         return None, "the pre- and post-filter streams do not overlap in time"
-    hi = 0.5 * min(replayed.rate_hz, logged.rate_hz)
+    regular = []
+    for s in (replayed, logged):
+        xyz, rate, _ = on_lattice(s)
+        t = s.time_s if len(xyz) == len(s.time_s) else s.time_s[0] + np.arange(len(xyz)) / rate
+        regular.append((s.name, t, xyz, rate))
+    slow = min(regular[0][3], regular[1][3])
+    hi = 0.5 * slow if max_hz is None else min(0.5 * slow, float(max_hz))
     if hi <= BAND_LO_HZ:
-        return None, (f"the slower stream ({min(replayed.rate_hz, logged.rate_hz):.0f} Hz) stops at "
+        return None, (f"the slower stream ({slow:.0f} Hz) stops at "
                       f"{hi:.1f} Hz, below the {BAND_LO_HZ:g} Hz the agreement band starts at")
     specs = []
-    for s in (replayed, logged):
-        keep = (s.time_s >= t0) & (s.time_s <= t1) & np.isfinite(s.xyz).all(axis=1)
+    for name, t, xyz, rate in regular:
+        keep = (t >= t0) & (t <= t1) & np.isfinite(xyz).all(axis=1)
         if keep_fn is not None:
-            keep &= np.asarray(keep_fn(s.time_s), dtype=bool)
+            keep &= np.asarray(keep_fn(t), dtype=bool)
         if keep.sum() < 64:
-            return None, f"{s.name}: fewer than 64 samples over the common (flying) time"
+            return None, f"{name}: fewer than 64 samples over the common (flying) time"
         # the same segment length in seconds: the same bin width in both spectra
-        nper = _nperseg(s.rate_hz, int(keep.sum())) if not specs else \
-            max(16, int(round(specs[0][2] * s.rate_hz / replayed.rate_hz)))
-        got = _psd(s.xyz, s.rate_hz, keep, nper)
+        nper = _nperseg(rate, int(keep.sum())) if not specs else \
+            max(16, int(round(specs[0][2] * rate / regular[0][3])))
+        got = _psd(xyz, rate, keep, nper)
         if got is None:
-            return None, f"{s.name}: too few contiguous samples for a spectrum"
+            return None, f"{name}: too few contiguous samples for a spectrum"
         specs.append((*got, nper))
     (f1, p1, _), (f2, p2, _) = specs
     band = (f1 >= BAND_LO_HZ) & (f1 <= hi * 0.98)
@@ -233,24 +366,54 @@ def replay_review(log, autopilot, params, filters, stream, keep_fn=None):
     if post is None:
         return None, f"{pre.name} is the pre-filter gyro; the log holds no post-filter gyro to compare with"
     tracks = autopilot.notch_tracks(log, params, filters)
-    coefs, notes = autopilot.replay_sections(params, filters, tracks, pre.time_s, pre.rate_hz)
-    y = run_biquads(pre.xyz, coefs)
-    replayed = GyroSeries(f"{pre.name} replayed", pre.time_s, y, pre.rate_hz)
-    agree, why = agreement(replayed, post, keep_fn)
-    unfiltered, _ = agreement(pre, post, keep_fn)
+    production = autopilot.pre_filter_production(log, params, filters, stream)
+    notes = []
+    work = pre
+    if production is not None and (production.filter_rate_hz > 1.02 * pre.rate_hz or production.averaged > 1):
+        work = at_filter_rate(pre, production)
+        notes.append(f"{pre.name} ({pre.rate_hz:.0f} Hz) brought to the rate the filters run at, "
+                     f"{work.rate_hz:.0f} Hz ({production.source})"
+                     + (f", its mean over {production.averaged} samples undone up to {pre.rate_hz / 2:.0f} Hz"
+                        if production.averaged > 1 else "")
+                     + "; what its making folded down from above that cannot be undone")
+    coefs, chain_notes = autopilot.replay_sections(params, filters, tracks, work.time_s, work.rate_hz)
+    notes += list(chain_notes)
+    y = run_biquads(work.xyz, coefs)
+    replayed = GyroSeries(f"{pre.name} replayed", work.time_s, y, work.rate_hz)
+    unfiltered = work
+    # like with like: the replay read where the vehicle logged its post-filter gyro, so that
+    # both go through the same logging (its rate, its dropped samples)
+    at_post = sampled_at(replayed, post.time_s)
+    if np.isfinite(at_post).all(axis=1).sum() >= 64:
+        replayed = GyroSeries(replayed.name, post.time_s, at_post, post.rate_hz)
+        unfiltered = GyroSeries(pre.name, post.time_s, sampled_at(work, post.time_s), post.rate_hz)
+        notes.append(f"the replay read at {post.name}'s own sample times")
+    max_hz = 0.5 * pre.rate_hz
+    agree, why = agreement(replayed, post, keep_fn, max_hz)
+    unfilt, _ = agreement(unfiltered, post, keep_fn, max_hz)
     out = {"pre": {"stream": pre.name, "rate_hz": round(pre.rate_hz, 2)},
            "post": {"stream": post.name, "rate_hz": round(post.rate_hz, 2)},
-           "filter_rate_hz": round(pre.rate_hz, 2),
+           "filter_rate_hz": round(work.rate_hz, 2),
+           "production": None if production is None else {
+               "filter_rate_hz": round(production.filter_rate_hz, 2), "averaged": production.averaged,
+               "source": production.source},
            "sections": int(np.asarray(coefs).shape[1]),
            "tracks": {k: tr.source for k, tr in tracks.items()},
            "agreement": agree,
-           "unfiltered_db_rms": unfiltered["db_rms"]["all"] if unfiltered else None,
+           "unfiltered_db_rms": unfilt["db_rms"]["all"] if unfilt else None,
            "agreement_metric": (
                f"sqrt(mean((10 log10(PSD_replayed / PSD_logged))**2)) over {BAND_LO_HZ:g} Hz..the slower "
-               "stream's Nyquist frequency, dB per axis; all: rms over the axes"),
-           "notes": list(notes)}
+               "stream's Nyquist frequency (and the pre-filter stream's), dB per axis; all: rms over the axes"),
+           "notes": notes}
     if agree is None:
         out["agreement_note"] = why
+    elif out["unfiltered_db_rms"] is not None and agree["db_rms"]["all"] is not None \
+            and agree["db_rms"]["all"] >= out["unfiltered_db_rms"]:
+        out["worse_than_unfiltered"] = True
+        out["agreement_note"] = (
+            f"the replay ({agree['db_rms']['all']:.2f} dB) is no closer to the logged post-filter gyro than the "
+            f"unfiltered pre-filter gyro ({out['unfiltered_db_rms']:.2f} dB): the chain or the streams' making is "
+            "not modelled right; not an agreement")
     return out, ""
 
 
@@ -269,8 +432,13 @@ def replay_section_html(rep, esc=None):
     else:
         cells = "".join(f"<td>{'' if ag['db_rms'][a] is None else format(ag['db_rms'][a], '.2f')}</td>"
                         for a in (*AXES, "all"))
-        fig = ("<table><tr><th></th><th>x</th><th>y</th><th>z</th><th>all</th></tr>"
-               f"<tr><th>replay vs logged, dB rms</th>{cells}</tr></table>"
+        warn = (f"<p><strong>Not an agreement:</strong> {esc(nr['agreement_note'])}</p>"
+                if nr.get("worse_than_unfiltered") else "")
+        fig = warn + ("<table><tr><th></th><th>x</th><th>y</th><th>z</th><th>all</th></tr>"
+               f"<tr><th>replay vs logged, dB rms</th>{cells}</tr>"
+               f"<tr><th>unfiltered vs logged, dB rms</th><td colspan=\"3\"></td>"
+               f"<td>{'' if nr.get('unfiltered_db_rms') is None else format(nr['unfiltered_db_rms'], '.2f')}</td></tr>"
+               "</table>"
                f"<p>{esc(nr['agreement_metric'])}; band {ag['band_hz'][0]:g}-{ag['band_hz'][1]:g} Hz, "
                f"{ag['n_bins']} bins.</p>")
     tracks = "; ".join(f"{k}: {v}" for k, v in nr.get("tracks", {}).items()) or "none"

@@ -157,3 +157,90 @@ def test_px4_dynamic_notch_follows_each_esc():
     for centre in (100.0, 120.0, 200.0, 240.0):                   # harmonic 1 (ESC 1, 2), harmonic 2
         want = vf.px4_notch_sos(centre, 15.0, 1000.0)
         assert any(np.allclose(c, want) for c in coefs[0]), centre
+
+
+# --------------------------------------------------------------------------- PX4: how the logged streams are made
+
+PX4_RATE = 400.0
+PX4_PARAMS = {"IMU_GYRO_CUTOFF": 40.0, "IMU_GYRO_NF0_FRQ": 0.0, "IMU_GYRO_DNF_EN": 0}
+
+
+class _PX4Log(_Log):
+    def parameters(self):
+        return LogParameters(PX4_AUTOPILOT, self._p)
+
+
+class _NoProduction(type(PX4_AUTOPILOT)):
+    """PX4 with the streams' making left out: sensor_combined taken as the gyro the filters run on."""
+
+    def pre_filter_production(self, log, params, filters, pre_stream):
+        return None
+
+
+@pytest.fixture(scope="module")
+def px4_flight():
+    """The gyro at 400 Hz (noise and tones at 45, 70 and 95 Hz); sensor_combined the mean of
+    each pair (gyro_integral_dt 5 ms) at 200 Hz; vehicle_angular_velocity that gyro through
+    scipy's 2nd-order Butterworth at 40 Hz designed at 400 Hz (PX4's LowPassFilter2p), logged
+    with every third sample dropped, as PX4's logger does."""
+    rng = np.random.default_rng(11)
+    t = np.arange(int(12.0 * PX4_RATE)) / PX4_RATE
+    g = rng.normal(0.0, 1.0, (len(t), 3))
+    for f, amp in ((45.0, 6.0), (70.0, 8.0), (95.0, 10.0)):
+        g += amp * np.sin(2 * np.pi * f * t + rng.uniform(0, 6))[:, None] * np.array([1.0, 0.8, 0.5])
+    b, a = signal.butter(2, 40.0, fs=PX4_RATE)
+    post = np.stack([signal.lfilter(b, a, g[:, k]) for k in range(3)], 1)
+    keep = np.arange(len(t)) % 3 != 2
+    sc = 0.5 * (g[0::2] + g[1::2])
+    ts = t[1::2]
+    msgs = {"sensor_combined": {"time_s": ts, "gyro_integral_dt": np.full(len(ts), 5000)},
+            "vehicle_imu_status": {"time_s": np.array([0.0, 6.0]), "gyro_rate_hz": np.array([400, 400])},
+            "vehicle_angular_velocity": {"time_s": t[keep], **{f"xyz[{k}]": np.radians(post[keep, k])
+                                                               for k in range(3)}}}
+    pre = GyroStream(name="sensor_combined", message="sensor_combined", unit="rad/s", to_deg_s=math.degrees(1.0),
+                     time_s=ts, raw=np.radians(sc), index=np.arange(len(ts)))
+    return _PX4Log([pre], msgs, PX4_PARAMS)
+
+
+def _px4_replay(log, params, autopilot=PX4_AUTOPILOT):
+    filters = vf.vehicle_filters(autopilot, params)
+    return nr.replay_review(log, autopilot, params, filters, log.gyro[0])
+
+
+def test_px4_replay_models_how_sensor_combined_and_the_logged_gyro_are_made(px4_flight):
+    """The filter run at the gyro's rate, sensor_combined's pair mean undone, the replay read at
+    the logged post-filter gyro's own (dropped-sample) times: within 1.5 dB, and far closer
+    than the unfiltered gyro."""
+    rep, _ = _px4_replay(px4_flight, PX4_PARAMS)
+    assert rep["production"]["averaged"] == 2 and rep["filter_rate_hz"] == pytest.approx(400.0, rel=0.01)
+    assert rep["agreement"]["db_rms"]["all"] < 1.5, rep["agreement"]
+    assert rep["unfiltered_db_rms"] > 5.0
+    assert not rep.get("worse_than_unfiltered")
+
+
+def test_px4_replay_without_the_streams_making_is_clearly_worse(px4_flight):
+    """sensor_combined taken as the filters' input (the filter designed at 200 Hz): > 4 dB off."""
+    rep, _ = _px4_replay(px4_flight, PX4_PARAMS, _NoProduction())
+    assert rep["production"] is None
+    assert rep["agreement"]["db_rms"]["all"] > 4.0, rep["agreement"]
+
+
+def test_a_replay_worse_than_the_unfiltered_gyro_is_flagged(px4_flight):
+    """A cutoff far too low: the replay further from the logged gyro than the unfiltered one --
+    flagged, with a note, never published as an agreement without a word."""
+    rep, _ = _px4_replay(px4_flight, {**PX4_PARAMS, "IMU_GYRO_CUTOFF": 8.0})
+    assert rep["agreement"]["db_rms"]["all"] >= rep["unfiltered_db_rms"]
+    assert rep["worse_than_unfiltered"] is True and "not an agreement" in rep["agreement_note"]
+    assert "Not an agreement" in nr.replay_section_html({"notch_replay": rep})
+
+
+def test_on_lattice_fills_dropped_samples_and_keeps_the_rate():
+    """A 400 Hz tone series with every third sample dropped: back on its 400 Hz lattice, the
+    filled samples within 5 % of the tone (a 10 Hz tone: linear interpolation error ~ (pi f / fs)**2 / 2)."""
+    t = np.arange(4000) / 400.0
+    x = np.sin(2 * np.pi * 10.0 * t)[:, None] * np.ones(3)
+    keep = np.arange(4000) % 3 != 2
+    s = nr.GyroSeries("s", t[keep], x[keep], nr.series_rate(t[keep]))
+    xyz, rate, filled = nr.on_lattice(s)
+    assert filled and rate == pytest.approx(400.0) and len(xyz) == 4000 - (4000 % 3 == 0)
+    assert np.max(np.abs(xyz - x[:len(xyz)])) < 0.05
