@@ -108,7 +108,7 @@ def review_context(log, autopilot, params, filters, flying_mask_fn=None):
     (``MOT_THST_HOVER`` or the median ``CTUN.ThH``), PX4's ``gyro_fft`` and ``notes``;
     what each autopilot reads: its strategy's ``review_context``."""
     ctx = {"notch_centre_hz": {}, "esc_telemetry": False, "rpm_sensor": False, "hover_throttle": None,
-           "notes": []}
+           "notes": [], "tracks_for": lambda stages: autopilot.notch_tracks(log, params, {"stages": stages})}
     return autopilot.review_context(log, params, filters, flying_mask_fn, ctx)
 
 
@@ -289,9 +289,61 @@ def _band_rms(freq_hz, psd, lo_hz, hi_hz):
     return {**{a: round(v, 5) for a, v in zip(AXES, per)}, "rss": round(math.sqrt(sum(v * v for v in per)), 5)}
 
 
-def _figures(stages, f, psd, fs_filter, band, centre):
-    h = vf.chain_response(stages, f, fs_filter, centre)
-    post = psd * np.abs(h) ** 2
+@dataclass(frozen=True)
+class AlongFlight:
+    """The pre-filter gyro for a tracking notch modelled along the flight: ``time_s``,
+    ``xyz`` (n, 3) deg/s (NaN outside the samples the review is over) at ``rate_hz``,
+    the review's ``nperseg``, and ``tracks_for(stages) -> {stage params: Track}``: what
+    moves each stage (the autopilot strategy's ``notch_tracks``)."""
+    time_s: np.ndarray
+    xyz: np.ndarray
+    rate_hz: float
+    nperseg: int
+    tracks_for: object
+
+
+def _along_flight(stream, rate_hz, flying_mask_fn, nperseg, tracks_for):
+    t = np.asarray(stream.time_s, dtype=np.float64)
+    x = np.asarray(stream.raw, dtype=np.float64) * (stream.to_deg_s or 1.0)
+    if flying_mask_fn is not None:
+        m = np.asarray(flying_mask_fn(t, stream.sample_records), dtype=bool)
+        if m.any():
+            x = np.where(m[:, None], x, np.nan)
+    return AlongFlight(t, x, float(rate_hz), int(nperseg), tracks_for)
+
+
+def chain_power(stages, f, fs_filter, centre, along=None):
+    """|H(f)|**2 of the chain, (bins,) or per axis (3, bins). With ``along`` (an
+    :class:`AlongFlight` at the rate the filters run at) and a tracking stage whose
+    track the log holds: the tracking stages replayed sample by sample along the flight
+    (:func:`~gyrodenoise.flightlog.vehicle_filters.replay_sections`,
+    :func:`~gyrodenoise.flightlog.notch_replay.run_biquads`: the centre moved with the
+    throttle / RPM / FFT as the autopilot moves it), their power response the Welch
+    spectrum of that replay over the pre-filter one, times the fixed stages' |H|**2;
+    else at ``centre`` (one centre per log)."""
+    from gyrodenoise.flightlog import notch_replay as nr
+
+    tracked = [st for st in stages if st["kind"] == "harmonic_notch" and st.get("tracking") not in (None, "fixed")]
+    tracks = along.tracks_for(tracked) if along is not None and tracked else {}
+    tracked = [st for st in tracked if st["params"] in tracks]
+    if not tracked or abs(along.rate_hz - fs_filter) > 0.02 * fs_filter:
+        return np.abs(vf.chain_response(stages, f, fs_filter, centre)) ** 2
+    coefs, _ = vf.replay_sections(tracked, tracks, along.time_s, fs_filter, None, slew=False)
+    y = nr.run_biquads(along.xyz, coefs)
+    ratio = []
+    for k in range(3):
+        _, p_in, _ = spectrum.welch_psd(along.xyz[:, k], along.rate_hz, along.nperseg)
+        _, p_out, _ = spectrum.welch_psd(y[:, k], along.rate_hz, along.nperseg)
+        if p_in is None or p_out is None:
+            return np.abs(vf.chain_response(stages, f, fs_filter, centre)) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio.append(np.where(p_in > 0, p_out / p_in, 1.0)[:len(f)])
+    fixed = [st for st in stages if st not in tracked]
+    return np.array(ratio) * (np.abs(vf.chain_response(fixed, f, fs_filter, centre)) ** 2)[None, :]
+
+
+def _figures(stages, f, psd, fs_filter, band, centre, along=None):
+    post = psd * chain_power(stages, f, fs_filter, centre, along)
     lags = vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)
     return post, {"noise_rms_deg_s": _band_rms(f, post, *band),
                   "phase_lag_ms": {f"{q:g}": round(v, 3) for q, v in zip(LAG_FREQS_HZ, lags)}}
@@ -364,6 +416,10 @@ def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
     return autopilot.recommend_notch(params, fund, ctx, centre, bw)
 
 
+#: what moves ArduPilot's harmonic notch in each INS_HNTCH_MODE this review recommends
+AP_MODE_TRACKING = {1: "throttle", 2: "rpm", 3: "esc"}
+
+
 def ardupilot_notch(params, fund, ctx, centre, bw):
     """({NAME: value}, stage, reasons) of ArduPilot's recommended harmonic notch."""
     why = []
@@ -383,7 +439,7 @@ def ardupilot_notch(params, fund, ctx, centre, bw):
            "INS_HNTCH_ATT": NOTCH_ATT_DB, "INS_HNTCH_HMNCS": hm, "INS_HNTCH_REF": ref}
     stage = {"kind": "harmonic_notch", "path": "rate", "params": "INS_HNTCH_*", "centre_hz": centre,
              "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
-             "tracking": "fixed", "composite": 1, "reference": ref, "min_ratio": 1.0}
+             "tracking": AP_MODE_TRACKING[mode], "composite": 1, "reference": ref, "min_ratio": 1.0}
     why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
                f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}; "
                f"{AP_PROCEDURE}")
@@ -410,7 +466,8 @@ def px4_notch(params, fund, ctx, centre, bw):
     return rec, stage, why
 
 
-def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, cap_hz=None):
+def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, cap_hz=None,
+                along=None):
     """(stages, cutoff_hz or None, notch centres) of the recommended chain: ``notch_stage``
     (if any) in place of the logged stage it sets, the other logged notches as they
     are, and the highest whole-Hz low-pass cutoff whose predicted noise is no more
@@ -420,8 +477,7 @@ def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, tar
         s for s in logged_stages
         if s.get("path", "rate") == "rate" and s["kind"] != "lowpass" and s["params"] != replaced]
     rec_centre = ({k: v for k, v in centre.items() if k != replaced} or None) if isinstance(centre, dict) else None
-    sos_base, _ = vf.chain_sections(base, fs_filter, rec_centre)
-    p_base = psd * np.abs(vf.sos_response(sos_base, f, fs_filter)) ** 2
+    p_base = psd * chain_power(base, f, fs_filter, rec_centre, along)
     best = None
     top = min(0.45 * fs_filter, band[1], cap_hz if cap_hz else np.inf)
     for fc in range(int(CUTOFF_MIN_HZ), int(top) + 1):
@@ -524,7 +580,9 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
             return f"{q['ratio_db']:.1f} dB above the floor, below the {NOTCH_MIN_PROMINENCE_DB:g} dB a notch needs"
         return ""
 
-    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre)
+    along = None if ctx.get("tracks_for") is None else _along_flight(stream, rate, flying_mask_fn, nperseg,
+                                                                       ctx["tracks_for"])
+    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre, along)
     peaks, fund = _peaks(f, psd, n_seg, rate, eligible)
     rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
     if notch_stage is None:
@@ -535,8 +593,9 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     lp_name = ap.lowpass_param(params)
     target = fig_logged["noise_rms_deg_s"]["rss"]
     logged_lp = [s for s in logged_stages if s["kind"] == "lowpass"]
-    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
-    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
+    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz,
+                             along)
+    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name, fold_hz, along)
     predicted = None
     if notch_stage is not None:
         # the autopilots' documented procedure: the notch on the motor peak first, then the
@@ -560,7 +619,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
             fold_hz, FOLD_SHARE) if best >= int(fold_hz) else ""
         why.append(f"{lp_name} {best}: the highest cutoff whose predicted noise ({NOISE_BAND_LO_HZ:g} Hz.."
                    f"{band[1]:.0f} Hz) is no more than the logged settings' ({target:.3g} deg/s rss){capped}")
-    post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre)
+    post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre, along)
     fig_pre = {"noise_rms_deg_s": _band_rms(f, psd, *band)}
     logged_params = filters.get("parameters", {})
     rec = {k: vf._jsonable(v) for k, v in rec.items()}
