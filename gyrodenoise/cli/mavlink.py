@@ -109,6 +109,10 @@ def register_cli(subparsers):
                    help="append each reviewed log's figures and per-segment spectra to the fleet store DIR "
                         "(Parquet; a log already there is replaced, not counted twice; gyrodenoise "
                         "fleet-trends DIR reads it; needs pip install 'gyrodenoise[fleet]')")
+    p.add_argument("--kalibr-yaml-flight", default=None, metavar="PATH",
+                   help="write a Kalibr imu.yaml of the noise measured in flight (flying segments; random "
+                        "walks from rest segments; one log only; a figure not measured is written .nan "
+                        "with a comment)")
     p.add_argument("--airframe", default=None, metavar="NAME",
                    help="with --store: the airframe these logs belong to (default: the vehicle id the log "
                         "records, else the name of the folder holding the log)")
@@ -206,6 +210,8 @@ def _check(args):
         raise InputError(f"--duration must be a finite number > 0 s, got {args.duration}")
     if args.count is not None and args.count < 1:
         raise InputError(f"--count must be >= 1, got {args.count}")
+    if args.kalibr_yaml_flight is not None and (len(args.logs) != 1 or Path(args.logs[0]).is_dir()):
+        raise InputError("--kalibr-yaml-flight: one log file only (the yaml describes one IMU in one flight)")
     _check_store(args)
 
 
@@ -414,6 +420,8 @@ def _run_logs(args, client, created):
         summary = _run_files(args, kw, single, client)
     if args.store is not None:
         summary["store"] = _append_to_store(args, summary)
+    if args.kalibr_yaml_flight is not None:
+        summary["kalibr_yaml_flight"] = _write_kalibr_flight(args.kalibr_yaml_flight, summary)
     try:
         _write_out(args.out, "summary.json", json.dumps(_finite(summary), indent=1, allow_nan=False))
         if not single:
@@ -433,6 +441,25 @@ def _run_logs(args, client, created):
     except BrokenPipeError:           # e.g. piped into `head`: the reader left, not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return summary["exit_status"]
+
+
+def _write_kalibr_flight(path, summary):
+    """Write the Kalibr imu.yaml of the one log's in-flight noise to ``path``; its path, or
+    None with a line on stderr when the log gave no in-flight figures."""
+    from gyrodenoise.flightlog.inflight_noise import kalibr_yaml
+    from gyrodenoise.flightlog.stopping import atomic_path
+    rep = summary["logs"][0] if summary["logs"] else {}
+    nz = rep.get("inflight_noise")
+    if not nz:
+        _log(f"--kalibr-yaml-flight {path}: not written: "
+             f"{rep.get('inflight_noise_note') or 'the log was not reviewed'}")
+        return None
+    try:
+        with atomic_path(Path(path)) as tmp:
+            Path(tmp).write_text(kalibr_yaml(nz["kalibr_flight"]))
+    except OSError as exc:
+        raise InputError(f"--kalibr-yaml-flight {path}: cannot write ({exc.strerror or exc})") from None
+    return str(path)
 
 
 def _append_to_store(args, summary):

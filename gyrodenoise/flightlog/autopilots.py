@@ -107,6 +107,61 @@ class Autopilot:
         """The failsafes and errors the log records (``LogEvent``), beyond its events."""
         return []
 
+    # --- motor speed (ESC RPM) ---
+    # what moves the filters along the flight and the logged post-filter gyro, for the
+    # replay (gyrodenoise.flightlog.notch_replay)
+
+    def notch_tracks(self, log, params, filters):
+        """{stage ``params``: Track} of what moves each tracking stage along the flight."""
+        return {}
+
+    def logged_post_filter(self, log, pre_stream):
+        """The logged post-filter gyro (:class:`~gyrodenoise.flightlog.notch_replay.GyroSeries`)
+        of the IMU of ``pre_stream``, or None."""
+        return None
+
+    def pre_filter_production(self, log, params, filters, pre_stream):
+        """How the logged pre-filter stream was made from the gyro the filters run on (a
+        :class:`~gyrodenoise.flightlog.notch_replay.Production`), or None: taken at the
+        filters' rate, as it is."""
+        return None
+
+    def replay_sections(self, params, filters, tracks, time_s, rate_hz):
+        """((n, k, 5) biquads per sample, notes) of the vehicle's chain along the flight."""
+        import numpy as np
+        return np.zeros((len(time_s), 0, 5)), ["unknown autopilot: no filter chain to replay"]
+
+    # --- estimator noise (EKF parameters) ---
+
+    #: {"gyro"|"accel": (parameter name, unit, (lo, hi) documented range, default)}; the
+    #: EKF's prediction step (s): the parameter is the 1-sigma noise of one step's rate
+    EKF_NOISE_PARAMS: dict = {}
+    EKF_DT_S: float | None = None
+    EKF_NOISE_SOURCE = ""
+
+    def ekf_noise_params(self, gyro_density, accel_density, params):
+        """{name: {"value", "unit", "range", "logged", "from", "clamped"}} of the EKF noise
+        parameters for white noise of ``gyro_density`` (rad/s/sqrt(Hz)) and
+        ``accel_density`` (m/s/s/sqrt(Hz)) (either None: left out): the density over
+        sqrt(the EKF step) -- a delta angle over dt has variance density**2 dt, the
+        EKF's (dt sigma)**2 -- kept within the parameter's documented range. Empty for
+        an autopilot without an EKF."""
+        out = {}
+        for kind, density in (("gyro", gyro_density), ("accel", accel_density)):
+            if kind not in self.EKF_NOISE_PARAMS or density is None or not self.EKF_DT_S:
+                continue
+            name, unit, (lo, hi), default = self.EKF_NOISE_PARAMS[kind]
+            raw = float(density) / self.EKF_DT_S ** 0.5
+            val = min(max(raw, lo), hi)
+            out[name] = {"value": round(val, 5), "unit": unit, "range": [lo, hi], "default": default,
+                         "logged": params.get(name), "clamped": val != raw,
+                         "from": f"{density:.4g} {unit}/sqrt(Hz) / sqrt({self.EKF_DT_S:g} s, the EKF step)"}
+        return out
+
+    def accel_series(self, log):
+        """[(name, time_s, (n, 3) m/s/s)] of the log's accelerometers."""
+        return [(a.name, a.time_s, a.values) for a in getattr(log, "accel", []) or []]
+
 
 class ArduPilot(Autopilot):
     name = "ardupilot"
@@ -232,6 +287,76 @@ class ArduPilot(Autopilot):
                                            f"ECode {int(c)}" + (" (cleared)" if int(c) == 0 else ""))
                 for t, b, s, c in zip(m["time_s"], log.rows_boot(m), m["Subsys"], m["ECode"])]
 
+    # --- motor speed (ESC RPM) ---
+
+    def notch_tracks(self, log, params, filters):
+        from gyrodenoise.flightlog import notch_replay as nr
+        names = set(log.message_names() or [])
+        out = {}
+        for st in filters.get("stages", []):
+            if st["kind"] != "harmonic_notch":
+                continue
+            tr = None
+            if st["tracking"] == "throttle" and "CTUN" in names:
+                tr = nr.column_track(log.messages("CTUN"), "ThO", "CTUN.ThO (throttle out)")
+            elif st["tracking"] == "esc":
+                tr = nr.track_of(self.motor_rpm(log))
+            elif st["tracking"] == "fft" and "FTN" in names:
+                m = log.messages("FTN")
+                col = next((c for c in ("NF1", "DnF1") if c in m), None)
+                tr = nr.column_track(m, col, f"FTN.{col} (Hz)") if col else None
+            if tr is not None:
+                out[st["params"]] = tr
+        return out
+
+    def logged_post_filter(self, log, pre_stream):
+        from gyrodenoise.flightlog import notch_replay as nr
+        from gyrodenoise.flightlog import vehicle_filters as vf
+        params = log.parameters().values
+        imu = pre_stream.instance or 0
+        if pre_stream.message == "ISBD":
+            imu = vf.batch_stage(params, vf._instance(pre_stream.name) or 0)[1] or 0
+        cands = []
+        for s in log.gyro:
+            if s is pre_stream or vf.stream_stage(self, params, s) != "post-filter":
+                continue
+            own = vf.batch_stage(params, vf._instance(s.name) or 0)[1] if s.message == "ISBD" else s.instance
+            if (own or 0) == imu:
+                cands.append(s)
+        best = max(cands, key=lambda s: (nr.series_rate(s.time_s), s.n), default=None)
+        return nr.GyroSeries.of_stream(best)
+
+    def replay_sections(self, params, filters, tracks, time_s, rate_hz):
+        from gyrodenoise.flightlog import vehicle_filters as vf
+        loop = float(params.get("SCHED_LOOP_RATE") or 400.0)
+        return vf.replay_sections(filters.get("stages", []), tracks, time_s, rate_hz, loop)
+
+    # --- estimator noise (EKF parameters) ---
+
+    #: AP_NavEKF3 parameter table: EK3_GYRO_P_NSE "Rate gyro noise (rad/s)" 0.0001-0.1,
+    #: default 0.015; EK3_ACC_P_NSE "Accelerometer noise (m/s^2)" 0.01-1.0, default 0.35
+    EKF_NOISE_PARAMS = {"gyro": ("EK3_GYRO_P_NSE", "rad/s", (0.0001, 0.1), 0.015),
+                        "accel": ("EK3_ACC_P_NSE", "m/s/s", (0.01, 1.0), 0.35)}
+    #: EKF3's prediction step: EKF_TARGET_DT 0.012 s (AP_NavEKF3_core.h)
+    EKF_DT_S = 0.012
+
+    def accel_series(self, log):
+        import numpy as np
+        if getattr(log, "accel", None):          # the adapter read them
+            return super().accel_series(log)
+        out = []
+        for name in ("IMU", "IMU2", "IMU3"):
+            m = log.messages(name) if name in set(log.message_names() or []) else None
+            if m is None or not all(c in m for c in ("AccX", "AccY", "AccZ")):
+                continue
+            inst = np.asarray(m.get("I", np.zeros(len(m["time_s"]))))
+            for i in np.unique(inst):
+                k = inst == i
+                out.append((f"{name}[{int(i)}]" if name == "IMU" and len(np.unique(inst)) > 1 else name,
+                            np.asarray(m["time_s"])[k],
+                            np.stack([np.asarray(m[c], dtype=np.float64)[k] for c in ("AccX", "AccY", "AccZ")], 1)))
+        return out
+
 
 class PX4(Autopilot):
     name = "px4"
@@ -272,6 +397,94 @@ class PX4(Autopilot):
 
     def lowpass_param(self, params):
         return "IMU_GYRO_CUTOFF"
+
+    # --- motor speed (ESC RPM) ---
+
+    def notch_tracks(self, log, params, filters):
+        st = next((s for s in filters.get("stages", []) if s["kind"] == "dynamic_notch"
+                   and "esc_rpm" in s.get("sources", [])), None)
+        from gyrodenoise.flightlog import notch_replay as nr
+        tr = nr.track_of(self.motor_rpm(log)) if st is not None else None
+        return {st["params"]: tr} if tr is not None else {}
+
+    def logged_post_filter(self, log, pre_stream):
+        import numpy as np
+        from gyrodenoise.flightlog import notch_replay as nr
+        m = log.messages("vehicle_angular_velocity") if "vehicle_angular_velocity" in set(
+            log.message_names() or []) else None
+        if m is None or not all(f"xyz[{k}]" in m for k in range(3)) or len(m["time_s"]) < 2:
+            return None
+        t = np.asarray(m["time_s"], dtype=np.float64)
+        xyz = np.degrees(np.stack([np.asarray(m[f"xyz[{k}]"], dtype=np.float64) for k in range(3)], 1))
+        return nr.GyroSeries("vehicle_angular_velocity", t, xyz, nr.series_rate(t))
+
+    def pre_filter_production(self, log, params, filters, pre_stream):
+        """``sensor_combined.gyro_rad`` is ``vehicle_imu``'s integrated delta angle over
+        ``gyro_integral_dt`` divided by that interval (VehicleIMU, Integrator: the mean of
+        the gyro samples integrated), and the ``IMU_GYRO_*`` filters run in
+        VehicleAngularVelocity on each gyro sample at the gyro's rate, which
+        ``vehicle_imu_status.gyro_rate_hz`` logs (the FIFO rate where the filters take
+        the FIFO; ``sensor_gyro_fft.sensor_sample_rate_hz`` where that is logged)."""
+        import numpy as np
+        from gyrodenoise.flightlog import notch_replay as nr
+        if pre_stream is None or pre_stream.message != "sensor_combined":
+            return None
+        names = set(log.message_names() or [])
+        rate, src = None, ""
+        if "vehicle_imu_status" in names:
+            m = log.messages("vehicle_imu_status")
+            if "gyro_rate_hz" in m and len(m["time_s"]):
+                v = np.asarray(m["gyro_rate_hz"], dtype=np.float64)
+                if "gyro_device_id" in m and "sensor_selection" in names:
+                    sel = log.messages("sensor_selection").get("gyro_device_id")
+                    if sel is not None and len(sel):
+                        mine = np.asarray(m["gyro_device_id"]) == np.asarray(sel)[-1]
+                        v = v[mine] if mine.any() else v
+                v = v[v > 0]
+                if len(v):
+                    rate, src = float(np.median(v)), "vehicle_imu_status.gyro_rate_hz"
+        if rate is None and filters.get("filter_rate_source", "").startswith("sensor_gyro_fft"):
+            rate, src = float(filters["filter_rate_hz"]), filters["filter_rate_source"]
+        if rate is None:
+            return None
+        m = log.messages("sensor_combined")
+        n = 1
+        if "gyro_integral_dt" in m and len(m["gyro_integral_dt"]):
+            dt = float(np.median(np.asarray(m["gyro_integral_dt"], dtype=np.float64)))
+            dt = dt * 1e-6 if dt > 1.0 else dt          # us in 1.x logs (a float s in the oldest)
+            n = max(1, int(round(dt * rate)))
+            src += f"; sensor_combined.gyro_integral_dt {dt * 1e6:.0f} us = {n} samples"
+        return nr.Production(rate, n, src)
+
+    def replay_sections(self, params, filters, tracks, time_s, rate_hz):
+        from gyrodenoise.flightlog import vehicle_filters as vf
+        coefs, notes = vf.replay_sections(filters.get("stages", []), tracks, time_s, rate_hz, None, slew=False)
+        fs = filters.get("filter_rate_hz")
+        if fs and abs(float(fs) - rate_hz) > 0.02 * rate_hz and not filters.get("filter_rate_source", "").startswith(
+                "assumed"):
+            notes = [f"designed at the logged rate {rate_hz:.0f} Hz; PX4 runs its filters at the raw gyro rate "
+                     f"({float(fs):g} Hz, {filters.get('filter_rate_source')})"] + notes
+        return coefs, notes
+
+    # --- estimator noise (EKF parameters) ---
+
+    #: PX4 parameter reference: EKF2_GYR_NOISE "Rate gyro noise for covariance prediction"
+    #: rad/s 0.0001-0.1, default 0.015; EKF2_ACC_NOISE m/s^2 0.01-1.0, default 0.35
+    EKF_NOISE_PARAMS = {"gyro": ("EKF2_GYR_NOISE", "rad/s", (0.0001, 0.1), 0.015),
+                        "accel": ("EKF2_ACC_NOISE", "m/s/s", (0.01, 1.0), 0.35)}
+    #: EKF2's prediction step: 10 ms (FILTER_UPDATE_PERIOD_MS)
+    EKF_DT_S = 0.010
+
+    def accel_series(self, log):
+        import numpy as np
+        if getattr(log, "accel", None):          # the adapter read them
+            return super().accel_series(log)
+        m = log.messages("sensor_combined") if "sensor_combined" in set(log.message_names() or []) else None
+        cols = [f"accelerometer_m_s2[{k}]" for k in range(3)]
+        if m is None or not all(c in m for c in cols):
+            return []
+        return [("sensor_combined", np.asarray(m["time_s"], dtype=np.float64),
+                 np.stack([np.asarray(m[c], dtype=np.float64) for c in cols], 1))]
 
     #: PX4's MAVLink VIBRATION fields: what of vehicle_imu_status each carries
     VIBRATION_FIELDS = {"vibration_x": "delta_angle_coning_metric", "vibration_y": "gyro_vibration_metric",
@@ -415,6 +628,43 @@ class Betaflight(Autopilot):
                         log.rows_boot(m))
 
 
+    # --- motor speed (ESC RPM) ---
+
+    def motor_rpm(self, log):
+        """Motor rev/min from the blackbox's ``eRPM[i]`` (eRPM / 100 in the log; rev/min =
+        eRPM x 100 / (motor_poles / 2)); None without them (Betaflight 4.2 logs none)."""
+        from gyrodenoise.flightlog.timeseries import Channels
+        rows = [(b.time_s, b.columns("eRPM")) for b in log.payload if len(b.main) and b.columns("eRPM") is not None]
+        if not rows:
+            return None
+        poles = float(log.parameters().values.get("motor_poles", 14) or 14)
+        rpm = np.concatenate([v for _, v in rows]).astype(np.float64) * 100.0 / (poles / 2.0)
+        rpm = rpm.reshape(len(rpm), -1)
+        return Channels("eRPM[i]", "rpm", np.concatenate([t for t, _ in rows]),
+                        {f"motor {i}": rpm[:, i] for i in range(rpm.shape[1])})
+
+    def notch_tracks(self, log, params, filters):
+        import numpy as np
+        from gyrodenoise.flightlog import notch_replay as nr
+        out = {}
+        rows = [(b.time_s, b.throttle) for b in log.payload if len(b.main) and b.throttle is not None]
+        if rows:
+            out["throttle"] = nr.Track(np.concatenate([t for t, _ in rows]), np.concatenate([v for _, v in rows]),
+                                       "setpoint[3] / 1000 (throttle)")
+        rpm = nr.track_of(self.motor_rpm(log))
+        if rpm is not None:
+            out["motor_hz"] = nr.Track(rpm.time_s, rpm.value / 60.0, f"{rpm.source} (rev/s)")
+        return out
+
+    def logged_post_filter(self, log, pre_stream):
+        from gyrodenoise.flightlog import notch_replay as nr
+        return nr.GyroSeries.of_stream(next((s for s in log.gyro if s.message == "gyroADC"), None))
+
+    def replay_sections(self, params, filters, tracks, time_s, rate_hz):
+        from gyrodenoise.flightlog.betaflight_filters import replay_sections
+        return replay_sections(self.settings(params), tracks, time_s, rate_hz)
+
+
 def _edges(time_s, values, on, off):
     """[(time, text)] where ``values`` turns true (``on``) or false (``off``), the first row
     counted only when true."""
@@ -423,7 +673,6 @@ def _edges(time_s, values, on, off):
         return []
     prev = np.concatenate([[False], v[:-1]])
     return [(float(time_s[i]), on if v[i] else off) for i in np.flatnonzero(v != prev)]
-
 
 UNKNOWN = Autopilot()
 ARDUPILOT, PX4_AUTOPILOT, BETAFLIGHT = ArduPilot(), PX4(), Betaflight()

@@ -41,7 +41,7 @@ from typing import Mapping
 import numpy as np
 
 from gyrodenoise.errors import InputError
-from gyrodenoise.flightlog.vehicle_filters import ardupilot_notch_sos, lowpass2p_sos, sos_response
+from gyrodenoise.flightlog.vehicle_filters import ardupilot_notch_sections, ardupilot_notch_sos, lowpass2p_sos, sos_response
 
 # Betaflight's lowpass types (``lowpassFilterType_e``): the header's *_type numbers.
 LOWPASS_TYPES = ("PT1", "BIQUAD", "PT2", "PT3")
@@ -424,3 +424,69 @@ def changed_settings(before: FilterSettings, rec: Recommendation) -> dict[str, i
     """{CLI name: value} of the settings ``rec`` changes (the names its ``set`` lines use)."""
     return {cli_name(before, f): getattr(rec.settings, f) for f in SETTING_BY_FIELD
             if getattr(rec.settings, f) != getattr(before, f)}
+
+
+# --- replay along the flight -----------------------------------------------------------------------
+
+def _lowpass_sections(kind: int, cutoff_hz: np.ndarray, fs: float) -> np.ndarray:
+    """(n, order, 5) of a Betaflight low-pass of type ``kind`` at a cutoff per sample."""
+    c = np.clip(np.asarray(cutoff_hz, dtype=float), 1e-3, 0.499 * fs)
+    label = LOWPASS_TYPES[kind]
+    if label == "BIQUAD":                      # lowpass2p_sos, one row per sample
+        ohm = np.tan(np.pi * c / fs)
+        d = 1.0 + math.sqrt(2.0) * ohm + ohm * ohm
+        b0 = ohm * ohm / d
+        return np.stack([b0, 2 * b0, b0, 2 * (ohm * ohm - 1) / d, (1 - math.sqrt(2.0) * ohm + ohm * ohm) / d], -1)[:, None]
+    order = PT_ORDER[label]
+    corr = 1.0 / math.sqrt(2.0 ** (1.0 / order) - 1.0) if order > 1 else 1.0
+    dt = 1.0 / fs
+    k = dt / (1.0 / (2.0 * np.pi * c * corr) + dt)
+    z = np.zeros_like(k)
+    one = np.stack([k, z, z, -(1.0 - k), z], -1)[:, None]
+    return np.repeat(one, order, axis=1)
+
+
+def replay_sections(settings: FilterSettings, tracks: Mapping, time_s, fs: float):
+    """((n, k, 5) biquads per sample, notes) of Betaflight's gyro chain along the flight,
+    designed at ``fs`` (the replayed stream's rate; the firmware runs it at the gyro rate).
+    ``tracks``: ``"throttle"`` (0..1) moves the dynamic low-pass 1, ``"motor_hz"`` (rev/s
+    per motor) the RPM notches; without them the low-pass sits at throttle 0.5 and the RPM
+    notches are left out, with a note. The dynamic notches follow Betaflight's own FFT,
+    which the log does not hold: left out, with a note."""
+    t = np.asarray(time_s, dtype=float)
+    n = len(t)
+    parts, notes = [], []
+    if not math.isclose(fs, settings.gyro_rate_hz, rel_tol=0.02):
+        notes.append(f"designed at the logged rate {fs:g} Hz; Betaflight runs the chain at the gyro rate "
+                     f"{settings.gyro_rate_hz:g} Hz")
+    if settings.rpm_harmonics > 0 and settings.rpm_q > 0:
+        tr = tracks.get("motor_hz")
+        if tr is None:
+            notes.append("RPM filter: the log holds no motor eRPM: left out")
+        else:
+            v = tr.at(t)
+            v = v if v.ndim == 2 else v[:, None]
+            top = RPM_MAX_FRACTION_OF_RATE * fs
+            for h in range(1, settings.rpm_harmonics + 1):
+                for j in range(v.shape[1]):
+                    c = np.clip(h * v[:, j], float(settings.rpm_min_hz), top)
+                    parts.append(ardupilot_notch_sections(c, 0.0, settings.rpm_q / 100.0, fs)[:, None, :])
+    if settings.lpf1_dynamic or settings.lpf1_static_hz > 0:
+        thr = tracks.get("throttle")
+        if settings.lpf1_dynamic and thr is None:
+            notes.append("dynamic low-pass 1: no throttle in the log, held at throttle 0.5")
+        th = thr.at(t) if thr is not None else np.full(n, 0.5)
+        cut = np.array([settings.lpf1_cutoff_hz(float(x)) for x in th]) if settings.lpf1_dynamic else \
+            np.full(n, float(settings.lpf1_static_hz))
+        parts.append(_lowpass_sections(settings.lpf1_type, cut, fs))
+    if settings.lpf2_static_hz > 0:
+        parts.append(_lowpass_sections(settings.lpf2_type, np.full(n, float(settings.lpf2_static_hz)), fs))
+    for centre, cutoff in ((settings.notch1_hz, settings.notch1_cutoff_hz), (settings.notch2_hz, settings.notch2_cutoff_hz)):
+        if centre > 0 and 0 < cutoff < centre and centre < 0.5 * fs:
+            parts.append(ardupilot_notch_sections(np.full(n, float(centre)), 0.0, notch_q(centre, cutoff), fs)[:, None])
+    if settings.dyn_notch_max_hz > 0 and settings.dyn_notch_q > 0:
+        notes.append(f"dynamic notch ({settings.dyn_notch_min_hz}-{settings.dyn_notch_max_hz} Hz): its centres "
+                     "come from Betaflight's own FFT, not logged: left out")
+    if not parts:
+        return np.zeros((n, 0, 5)), notes
+    return np.concatenate(parts, axis=1), notes

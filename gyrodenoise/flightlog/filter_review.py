@@ -37,9 +37,12 @@ What it recommends, and why:
 * the gyro low-pass cutoff: the highest (whole Hz, from :data:`CUTOFF_MIN_HZ`)
   whose predicted noise, with the recommended notch, is no more than the logged
   settings' -- no more noise than today, the least phase lag that allows.
-  The notch is recommended only when that chain lags less (mean of the lags at
-  10, 20 and 30 Hz) than the best chain without it: a notch earns its place by
-  letting the low-pass go higher by more than its own lag.
+  The order is the autopilots' documented one (the ArduPilot wiki: the harmonic
+  notch on the motor peak, then ``INS_GYRO_FILTER`` raised; PX4's filter tuning
+  guide likewise with ``IMU_GYRO_CUTOFF``): a prominent motor peak gets its notch,
+  and ``notch_prediction`` puts our predicted figures beside it (the notch's
+  attenuation at the peak, the mean lag at 10, 20 and 30 Hz with it and for the
+  best chain without it).
 
 Bins above half the rate the filters run at are left out of the predicted
 spectra (the filtered gyro is resampled there).
@@ -87,6 +90,11 @@ AP_HNTCH_REFRESH_NOTE = ("INS_HNTCH_ENABLE was 0: ArduPilot shows the other INS_
                          "is 1 -- set INS_HNTCH_ENABLE,1, reboot the autopilot (or refresh the parameter list), "
                          "then load the other lines")
 AXES = ("x", "y", "z")
+#: the autopilots' documented tuning order, quoted beside the recommendation
+AP_PROCEDURE = ("the ArduPilot wiki's order: the harmonic notch on the motor peak first, then INS_GYRO_FILTER "
+                "raised as far as the noise allows")
+PX4_PROCEDURE = ("PX4's filter tuning guide: notch the motor peak (dynamic notch from ESC RPM or the onboard FFT, "
+                 "else a static notch), then raise IMU_GYRO_CUTOFF as far as the noise allows")
 
 
 # --------------------------------------------------------------------------- context from the log
@@ -100,7 +108,7 @@ def review_context(log, autopilot, params, filters, flying_mask_fn=None):
     (``MOT_THST_HOVER`` or the median ``CTUN.ThH``), PX4's ``gyro_fft`` and ``notes``;
     what each autopilot reads: its strategy's ``review_context``."""
     ctx = {"notch_centre_hz": {}, "esc_telemetry": False, "rpm_sensor": False, "hover_throttle": None,
-           "notes": []}
+           "notes": [], "tracks_for": lambda stages: autopilot.notch_tracks(log, params, {"stages": stages})}
     return autopilot.review_context(log, params, filters, flying_mask_fn, ctx)
 
 
@@ -281,9 +289,61 @@ def _band_rms(freq_hz, psd, lo_hz, hi_hz):
     return {**{a: round(v, 5) for a, v in zip(AXES, per)}, "rss": round(math.sqrt(sum(v * v for v in per)), 5)}
 
 
-def _figures(stages, f, psd, fs_filter, band, centre):
-    h = vf.chain_response(stages, f, fs_filter, centre)
-    post = psd * np.abs(h) ** 2
+@dataclass(frozen=True)
+class AlongFlight:
+    """The pre-filter gyro for a tracking notch modelled along the flight: ``time_s``,
+    ``xyz`` (n, 3) deg/s (NaN outside the samples the review is over) at ``rate_hz``,
+    the review's ``nperseg``, and ``tracks_for(stages) -> {stage params: Track}``: what
+    moves each stage (the autopilot strategy's ``notch_tracks``)."""
+    time_s: np.ndarray
+    xyz: np.ndarray
+    rate_hz: float
+    nperseg: int
+    tracks_for: object
+
+
+def _along_flight(stream, rate_hz, flying_mask_fn, nperseg, tracks_for):
+    t = np.asarray(stream.time_s, dtype=np.float64)
+    x = np.asarray(stream.raw, dtype=np.float64) * (stream.to_deg_s or 1.0)
+    if flying_mask_fn is not None:
+        m = np.asarray(flying_mask_fn(t, stream.sample_records), dtype=bool)
+        if m.any():
+            x = np.where(m[:, None], x, np.nan)
+    return AlongFlight(t, x, float(rate_hz), int(nperseg), tracks_for)
+
+
+def chain_power(stages, f, fs_filter, centre, along=None):
+    """|H(f)|**2 of the chain, (bins,) or per axis (3, bins). With ``along`` (an
+    :class:`AlongFlight` at the rate the filters run at) and a tracking stage whose
+    track the log holds: the tracking stages replayed sample by sample along the flight
+    (:func:`~gyrodenoise.flightlog.vehicle_filters.replay_sections`,
+    :func:`~gyrodenoise.flightlog.notch_replay.run_biquads`: the centre moved with the
+    throttle / RPM / FFT as the autopilot moves it), their power response the Welch
+    spectrum of that replay over the pre-filter one, times the fixed stages' |H|**2;
+    else at ``centre`` (one centre per log)."""
+    from gyrodenoise.flightlog import notch_replay as nr
+
+    tracked = [st for st in stages if st["kind"] == "harmonic_notch" and st.get("tracking") not in (None, "fixed")]
+    tracks = along.tracks_for(tracked) if along is not None and tracked else {}
+    tracked = [st for st in tracked if st["params"] in tracks]
+    if not tracked or abs(along.rate_hz - fs_filter) > 0.02 * fs_filter:
+        return np.abs(vf.chain_response(stages, f, fs_filter, centre)) ** 2
+    coefs, _ = vf.replay_sections(tracked, tracks, along.time_s, fs_filter, None, slew=False)
+    y = nr.run_biquads(along.xyz, coefs)
+    ratio = []
+    for k in range(3):
+        _, p_in, _ = spectrum.welch_psd(along.xyz[:, k], along.rate_hz, along.nperseg)
+        _, p_out, _ = spectrum.welch_psd(y[:, k], along.rate_hz, along.nperseg)
+        if p_in is None or p_out is None:
+            return np.abs(vf.chain_response(stages, f, fs_filter, centre)) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio.append(np.where(p_in > 0, p_out / p_in, 1.0)[:len(f)])
+    fixed = [st for st in stages if st not in tracked]
+    return np.array(ratio) * (np.abs(vf.chain_response(fixed, f, fs_filter, centre)) ** 2)[None, :]
+
+
+def _figures(stages, f, psd, fs_filter, band, centre, along=None):
+    post = psd * chain_power(stages, f, fs_filter, centre, along)
     lags = vf.phase_lag_ms(stages, LAG_FREQS_HZ, fs_filter, centre)
     return post, {"noise_rms_deg_s": _band_rms(f, post, *band),
                   "phase_lag_ms": {f"{q:g}": round(v, 3) for q, v in zip(LAG_FREQS_HZ, lags)}}
@@ -356,6 +416,10 @@ def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
     return autopilot.recommend_notch(params, fund, ctx, centre, bw)
 
 
+#: what moves ArduPilot's harmonic notch in each INS_HNTCH_MODE this review recommends
+AP_MODE_TRACKING = {1: "throttle", 2: "rpm", 3: "esc"}
+
+
 def ardupilot_notch(params, fund, ctx, centre, bw):
     """({NAME: value}, stage, reasons) of ArduPilot's recommended harmonic notch."""
     why = []
@@ -375,9 +439,10 @@ def ardupilot_notch(params, fund, ctx, centre, bw):
            "INS_HNTCH_ATT": NOTCH_ATT_DB, "INS_HNTCH_HMNCS": hm, "INS_HNTCH_REF": ref}
     stage = {"kind": "harmonic_notch", "path": "rate", "params": "INS_HNTCH_*", "centre_hz": centre,
              "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
-             "tracking": "fixed", "composite": 1, "reference": ref, "min_ratio": 1.0}
+             "tracking": AP_MODE_TRACKING[mode], "composite": 1, "reference": ref, "min_ratio": 1.0}
     why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
-               f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}")
+               f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}; "
+               f"{AP_PROCEDURE}")
     return rec, stage, why
 
 
@@ -388,20 +453,21 @@ def px4_notch(params, fund, ctx, centre, bw):
     if ctx.get("esc_telemetry"):
         rec = {"IMU_GYRO_DNF_EN": int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0)) | PX4_DNF_ESC_RPM,
                "IMU_GYRO_DNF_HMC": max(fund["harmonics"]), "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
-        why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch")
+        why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch; {PX4_PROCEDURE}")
         stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
                  "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
                  "attenuation_db": None}
         return rec, stage, why
     rec = {"IMU_GYRO_NF0_FRQ": centre, "IMU_GYRO_NF0_BW": bw}
     why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): static notch IMU_GYRO_NF0 there, "
-               f"BW half the centre; no ESC telemetry in the log for the dynamic notch")
+               f"BW half the centre; no ESC telemetry in the log for the dynamic notch; {PX4_PROCEDURE}")
     stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ, IMU_GYRO_NF0_BW",
              "centre_hz": centre, "bandwidth_hz": bw, "attenuation_db": None}
     return rec, stage, why
 
 
-def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, cap_hz=None):
+def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, cap_hz=None,
+                along=None):
     """(stages, cutoff_hz or None, notch centres) of the recommended chain: ``notch_stage``
     (if any) in place of the logged stage it sets, the other logged notches as they
     are, and the highest whole-Hz low-pass cutoff whose predicted noise is no more
@@ -411,8 +477,7 @@ def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, tar
         s for s in logged_stages
         if s.get("path", "rate") == "rate" and s["kind"] != "lowpass" and s["params"] != replaced]
     rec_centre = ({k: v for k, v in centre.items() if k != replaced} or None) if isinstance(centre, dict) else None
-    sos_base, _ = vf.chain_sections(base, fs_filter, rec_centre)
-    p_base = psd * np.abs(vf.sos_response(sos_base, f, fs_filter)) ** 2
+    p_base = psd * chain_power(base, f, fs_filter, rec_centre, along)
     best = None
     top = min(0.45 * fs_filter, band[1], cap_hz if cap_hz else np.inf)
     for fc in range(int(CUTOFF_MIN_HZ), int(top) + 1):
@@ -422,6 +487,18 @@ def _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, tar
     stages = base + ([{"kind": "lowpass", "path": "rate", "params": lp_name or "lowpass", "cutoff_hz": float(best)}]
                      if best else [])
     return stages, best, rec_centre
+
+
+def _notch_prediction(notch_stage, fund, f, psd, fs_filter, with_notch, without, logged_lp):
+    """What the recommended notch is predicted to do: its attenuation (dB) at the peak, the
+    rss noise over the band's axis of the peak before and after the whole recommended chain,
+    and the mean lag with it and for the best chain without it."""
+    sos, _ = vf.chain_sections([notch_stage], fs_filter)
+    g = abs(complex(vf.sos_response(sos, [fund["freq_hz"]], fs_filter)[0]))
+    return {"peak_hz": round(float(fund["freq_hz"]), 2),
+            "attenuation_at_peak_db": round(-20.0 * math.log10(max(g, 1e-12)), 1),
+            "mean_lag_ms_with_notch": round(_mean_lag(with_notch, logged_lp, fs_filter), 3),
+            "mean_lag_ms_without": round(_mean_lag(without, logged_lp, fs_filter), 3)}
 
 
 def _mean_lag(chain, logged_lp, fs_filter):
@@ -503,7 +580,9 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
             return f"{q['ratio_db']:.1f} dB above the floor, below the {NOTCH_MIN_PROMINENCE_DB:g} dB a notch needs"
         return ""
 
-    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre)
+    along = None if ctx.get("tracks_for") is None else _along_flight(stream, rate, flying_mask_fn, nperseg,
+                                                                       ctx["tracks_for"])
+    post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre, along)
     peaks, fund = _peaks(f, psd, n_seg, rate, eligible)
     rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
     if notch_stage is None:
@@ -514,15 +593,18 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     lp_name = ap.lowpass_param(params)
     target = fig_logged["noise_rms_deg_s"]["rss"]
     logged_lp = [s for s in logged_stages if s["kind"] == "lowpass"]
-    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
-    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name, fold_hz)
-    if notch_stage is not None and _mean_lag(with_notch, logged_lp, fs_filter) >= _mean_lag(without, logged_lp,
-                                                                                           fs_filter):
-        why = [w for w in why if not w.startswith("dominant")]
-        why.append(f"the peak at {notch_stage['centre_hz']:g} Hz: with a notch there the chain that keeps the "
-                   f"noise lags more (mean over {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz) than without, "
-                   f"so none is recommended")
-        rec, notch_stage = {}, None
+    with_notch = _best_chain(logged_stages, notch_stage, f, psd, fs_filter, band, centre, target, lp_name, fold_hz,
+                             along)
+    without = _best_chain(logged_stages, None, f, psd, fs_filter, band, centre, target, lp_name, fold_hz, along)
+    predicted = None
+    if notch_stage is not None:
+        # the autopilots' documented procedure: the notch on the motor peak first, then the
+        # low-pass raised as far as the noise allows; the prediction stands beside it
+        predicted = _notch_prediction(notch_stage, fund, f, psd, fs_filter, with_notch, without, logged_lp)
+        why.append(f"predicted: the notch takes {predicted['attenuation_at_peak_db']:g} dB off the peak at "
+                   f"{notch_stage['centre_hz']:g} Hz; mean lag at {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz "
+                   f"{predicted['mean_lag_ms_with_notch']:g} ms with it, {predicted['mean_lag_ms_without']:g} ms "
+                   "for the best chain without it")
     rec_stages, best, rec_centre = with_notch if notch_stage is not None else without
     if not lp_name:
         rec_stages = [st for st in rec_stages if st["kind"] != "lowpass"] + logged_lp
@@ -537,7 +619,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
             fold_hz, FOLD_SHARE) if best >= int(fold_hz) else ""
         why.append(f"{lp_name} {best}: the highest cutoff whose predicted noise ({NOISE_BAND_LO_HZ:g} Hz.."
                    f"{band[1]:.0f} Hz) is no more than the logged settings' ({target:.3g} deg/s rss){capped}")
-    post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre)
+    post_rec, fig_rec = _figures(rec_stages, f, psd, fs_filter, band, rec_centre, along)
     fig_pre = {"noise_rms_deg_s": _band_rms(f, psd, *band)}
     logged_params = filters.get("parameters", {})
     rec = {k: vf._jsonable(v) for k, v in rec.items()}
@@ -571,6 +653,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
         "changes": changes,
         "verdict": "change" if changes else "no change",
         "param_lines": param_lines(autopilot, changes),
+        "notch_prediction": predicted,
         "why": why,
         "notes": notes,
     }

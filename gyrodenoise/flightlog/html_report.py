@@ -775,6 +775,32 @@ def _ms(v):
     return "" if v is None else f"{v * 1000:.0f}"
 
 
+def _replay_section(report):
+    """The notch replay's agreement with the logged post-filter gyro (:mod:`gyrodenoise.flightlog.notch_replay`)."""
+    from gyrodenoise.flightlog.notch_replay import replay_section_html
+    return f"<div id='replay'>{replay_section_html(report, _e)}</div>"
+
+
+def _inflight_noise_section(report):
+    """Noise measured in flight against rest, and the EKF parameters it gives
+    (:mod:`gyrodenoise.flightlog.inflight_noise`)."""
+    nz = report.get("inflight_noise")
+    if not nz:
+        return (f"<section id='noise'><h2>Noise in flight</h2>"
+                f"<p>{_e(report.get('inflight_noise_note') or 'not measured')}</p></section>")
+    rows = [[_e(f["sensor"]), _e(f["stream"]), _e(f["stage"]), _f(f["flying"]["mean"]),
+             _f((f.get("rest") or {}).get("mean")), _f(f.get("ratio")), _e(f["unit"])]
+            for f in nz["gyro"] + nz["accel"]]
+    ekf = [[_e(k), _f(v["value"]), _e(v["unit"]), _f(v.get("logged")), "yes" if v.get("clamped") else "",
+            _e(v.get("from", ""))] for k, v in nz["ekf_parameters"].items()]
+    return ("<section id='noise'><h2>Noise in flight</h2>"
+            f"<p>{_e(nz['metric'])}; band {_e(nz['band'])}.</p>"
+            + _table(rows, ["sensor", "stream", "stage", "flying", "rest", "flying / rest", "unit"])
+            + ("<h3>EKF noise parameters for this flight</h3>"
+               + _table(ekf, ["parameter", "value", "unit", "logged", "clamped to range", "from"]) if ekf else "")
+            + "</section>")
+
+
 def _step_response_section(report, figs):
     """The rate loop's step response per axis (the report's ``step_response``: each axis'
     averaged ``curve``), its figures in a table; a note when there is none."""
@@ -1455,7 +1481,8 @@ def write_log_report(path, report, series=None):
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("overview", "overview"), ("summary", "summary"),
                                                          ("streams", "streams"), ("flight", "motors & vibration"),
-                                                         ("spectra", "spectra"), ("maps", "by throttle/RPM"), ("filters", "filters"), ("step", "step response"),
+                                                         ("spectra", "spectra"), ("maps", "by throttle/RPM"), ("filters", "filters"), ("replay", "filter replay"),
+                                                         ("noise", "noise in flight"), ("step", "step response"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
     with _Figures() as figs:
         body = [f"<h1>{_e(name)}: gyro review</h1><nav>{nav}</nav>",
@@ -1466,6 +1493,8 @@ def write_log_report(path, report, series=None):
                 _spectra_section(report, series, figs),
                 _heatmap_section(series, figs),
                 _filter_review_section(report, series, figs),
+                _replay_section(report),
+                _inflight_noise_section(report),
                 _step_response_section(report, figs),
                 _vibration_section(report, figs),
                 _notes_section(report)]

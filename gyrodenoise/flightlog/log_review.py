@@ -19,7 +19,9 @@ from __future__ import annotations
 import numpy as np
 
 from gyrodenoise.flightlog.autopilots import UNKNOWN
-from gyrodenoise.flightlog.filter_review import filter_review, review_context
+from gyrodenoise.flightlog.filter_review import filter_review, pick_pre_filter_stream, review_context
+from gyrodenoise.flightlog.inflight_noise import inflight_noise, noise_lines
+from gyrodenoise.flightlog.notch_replay import replay_review
 from gyrodenoise.flightlog.overview import overview, step_response_line, worst_figures
 from gyrodenoise.flightlog.segments import flight_segments, flying_time_s, segment_mask
 from gyrodenoise.flightlog.step_response import step_response_review
@@ -110,6 +112,10 @@ def log_review(log, whole_log=False):
     ``filter_review`` (None with ``filter_review_note``), ``vibration`` (None with
     ``vibration_note``), ``step_response`` (the rate loop's step response per axis:
     :mod:`gyrodenoise.flightlog.step_response`; None with ``step_response_note``),
+    ``notch_replay`` (the vehicle's chain replayed against its logged post-filter gyro:
+    :mod:`gyrodenoise.flightlog.notch_replay`; None with ``notch_replay_note``),
+    ``inflight_noise`` (noise densities flying and at rest, EKF parameters, Kalibr
+    figures: :mod:`gyrodenoise.flightlog.inflight_noise`; None with ``inflight_noise_note``),
     ``overview`` (the first screen: :mod:`gyrodenoise.flightlog.overview`)."""
     streams = log.gyro
     fields = {"time_base": log.time_base.to_fields()}
@@ -158,6 +164,11 @@ def log_review(log, whole_log=False):
         rev, note, review.plot = _filter_review(log, segments, autopilot, params, filters, mask_fn)
     fields["filter_review"] = rev
     fields["filter_review_note"] = note
+    fields["notch_replay"], fields["notch_replay_note"] = _notch_replay(log, autopilot, params, filters, mask_fn)
+    try:
+        fields["inflight_noise"], fields["inflight_noise_note"] = inflight_noise(log, segments, autopilot, params)
+    except Exception as exc:  # noqa: BLE001
+        fields["inflight_noise"], fields["inflight_noise_note"] = None, _failed("in-flight noise", exc)
     try:
         vib, vnote = vibration_review(log, segments, over="whole" if over == OVER_WHOLE else "flying")
     except Exception as exc:  # noqa: BLE001
@@ -176,6 +187,20 @@ def log_review(log, whole_log=False):
         ident = {}
     fields["overview"] = overview(fields, ident)
     return review
+
+
+def _notch_replay(log, autopilot, params, filters, mask_fn):
+    """(replay or None, note): the vehicle's chain replayed on the pre-filter gyro and
+    compared with the logged post-filter gyro over ``mask_fn``'s samples
+    (:func:`gyrodenoise.flightlog.notch_replay.replay_review`)."""
+    try:
+        stream, _, _ = pick_pre_filter_stream(log.gyro, autopilot, params)
+        if stream is None:
+            return None, "no pre-filter gyro stream: nothing to replay"
+        keep = None if mask_fn is None else (lambda t: mask_fn(t, None))
+        return replay_review(log, autopilot, params, filters, stream, keep)
+    except Exception as exc:  # noqa: BLE001 - one part of the review must not stop the log
+        return None, _failed("notch replay", exc)
 
 
 def _filter_review(log, segments, autopilot, params, filters, mask_fn):
@@ -282,6 +307,15 @@ def review_text(rep):
         lines.append("step response: " + step_response_line(sr))
     elif "step_response_note" in rep:
         lines.append(f"step response: none ({rep['step_response_note']})")
+    nr = rep.get("notch_replay")
+    if nr and nr.get("agreement"):
+        lines.append(f"filter replay ({nr['pre']['stream']} -> {nr['post']['stream']}): "
+                     f"{nr['agreement']['db_rms']['all']:.2f} dB rms from the logged post-filter gyro over "
+                     f"{nr['agreement']['band_hz'][0]:g}-{nr['agreement']['band_hz'][1]:g} Hz")
+    elif nr:
+        lines.append(f"filter replay: no agreement figure ({nr.get('agreement_note', '')})")
+    if "inflight_noise" in rep:
+        lines += noise_lines(rep)
     fr = rep.get("filter_review")
     if fr:
         rec = fr.get("param_lines") or []

@@ -133,6 +133,8 @@ def _html_series(log, review, rep):
               "spectra": spectra,
               "vehicle_rate": vehicle_rate_series(log, streams)}
     series["filter_review"] = _review_series(review.plot, rep.get("vehicle_filters") or {}, streams)
+    from gyrodenoise.flightlog.timeseries import flight_views
+    series["views"] = flight_views(log, (rep.get("vehicle_filters") or {}).get("stages"))
     return series
 
 

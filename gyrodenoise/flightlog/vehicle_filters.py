@@ -489,3 +489,145 @@ def _instance(name):
         except ValueError:
             return None
     return None
+
+
+# --------------------------------------------------------------------------- replay along the flight
+
+#: ArduPilot's NotchFilter slew limit per centre update (NOTCH_MAX_SLEW)
+AP_NOTCH_MAX_SLEW = 0.05
+
+
+def constant_sections(sos, n):
+    """(n, k, 5) of fixed biquads ``sos`` [(b0, b1, b2, a1, a2)]."""
+    if not sos:
+        return np.zeros((n, 0, 5))
+    return np.broadcast_to(np.asarray(sos, dtype=np.float64)[None, :, :], (n, len(sos), 5))
+
+
+def slewed_centres(desired_hz, update_every, max_slew=AP_NOTCH_MAX_SLEW):
+    """ArduPilot's notch centre per sample: the ``desired_hz`` (n,) or (n, k) taken once
+    every ``update_every`` samples, each update kept within [previous x (1 - slew),
+    previous / (1 - slew)] (NotchFilter::init_with_A_and_Q), held in between."""
+    d = np.asarray(desired_hz, dtype=np.float64)
+    out = np.empty_like(d)
+    lo, hi = 1.0 - max_slew, 1.0 / (1.0 - max_slew)
+    prev = d[0].copy() if d.ndim > 1 else float(d[0])
+    step = max(1, int(update_every))
+    for a in range(0, len(d), step):
+        want = d[a]
+        prev = np.clip(want, prev * lo, prev * hi) if np.all(np.isfinite(prev)) and np.all(prev > 0) else want
+        out[a:a + step] = prev
+    return out
+
+
+def ardupilot_notch_sections(centre_hz, a, q, sample_rate_hz):
+    """:func:`ardupilot_notch_sos` at each of ``centre_hz`` (n,): (n, 5), a pass-through
+    (1, 0, 0, 0, 0) where the notch would not run (centre outside (0, 0.48 fs) or Q <= 0)."""
+    c = np.asarray(centre_hz, dtype=np.float64)
+    fs = float(sample_rate_hz)
+    ok = np.isfinite(c) & (c > 0) & (c < AP_NOTCH_NYQUIST_SHARE * fs) & (q > 0)
+    w0 = 2.0 * np.pi * np.where(ok, c, 1.0) / fs
+    alpha = np.sin(w0) / (2.0 * q) if q > 0 else np.zeros_like(w0)
+    a0 = 1.0 + alpha
+    out = np.stack([(1.0 + alpha * a * a) / a0, -2.0 * np.cos(w0) / a0, (1.0 - alpha * a * a) / a0,
+                    -2.0 * np.cos(w0) / a0, (1.0 - alpha) / a0], axis=-1)
+    out[~ok] = (1.0, 0.0, 0.0, 0.0, 0.0)
+    return out
+
+
+def px4_notch_sections(centre_hz, bandwidth_hz, sample_rate_hz, min_hz=0.0):
+    """:func:`px4_notch_sos` at each of ``centre_hz`` (n,): (n, 5), a pass-through where PX4
+    runs none (centre not above ``min_hz``, at or above fs/2)."""
+    c = np.asarray(centre_hz, dtype=np.float64)
+    fs = float(sample_rate_hz)
+    ok = np.isfinite(c) & (c > max(min_hz, 0.0)) & (c < 0.5 * fs) & (bandwidth_hz > 0)
+    alpha = math.tan(math.pi * bandwidth_hz / fs)
+    beta = -np.cos(2.0 * np.pi * np.where(ok, c, 1.0) / fs)
+    inv = 1.0 / (1.0 + alpha)
+    ones = np.full_like(beta, inv)
+    out = np.stack([ones, 2.0 * beta * inv, ones, 2.0 * beta * inv, np.full_like(beta, (1.0 - alpha) * inv)], -1)
+    out[~ok] = (1.0, 0.0, 0.0, 0.0, 0.0)
+    return out
+
+
+def harmonic_notch_centre(stage, value):
+    """The fundamental (Hz) an ArduPilot harmonic notch ``stage`` wants for driving
+    ``value`` (an array): by its tracking, throttle ``FREQ x max(FM_RAT, sqrt(value /
+    REF))`` (AP_Vehicle::update_throttle_notch); ESC / RPM (``value`` rev/min)
+    ``max(FREQ x FM_RAT, REF x value / 60)``; FFT (``value`` Hz) ``max(FREQ x FM_RAT,
+    value)``; fixed: FREQ."""
+    freq = float(stage["centre_hz"])
+    ref = float(stage.get("reference") or 0.0)
+    lo = freq * float(stage.get("min_ratio", 1.0))
+    v = np.asarray(value, dtype=np.float64)
+    tracking = stage.get("tracking")
+    if tracking == "throttle" and ref > 0:
+        return freq * np.maximum(float(stage.get("min_ratio", 1.0)), np.sqrt(np.maximum(v, 0.0) / ref))
+    if tracking in ("esc", "rpm", "rpm2"):
+        return np.maximum(lo, (ref if ref > 0 else 1.0) * v / 60.0)
+    if tracking == "fft":
+        return np.maximum(lo, v)
+    return np.full(v.shape, freq)
+
+
+def replay_sections(stages, tracks, time_s, sample_rate_hz, loop_rate_hz, slew=True):
+    """((n, k, 5) biquads per sample, notes) of ArduPilot's or PX4's gyro chain
+    ``stages`` along the flight at ``time_s``, designed at ``sample_rate_hz``.
+
+    ``tracks``: {stage ``params``: :class:`~gyrodenoise.flightlog.notch_replay.Track`} of
+    what moves each tracking stage (throttle 0..1, motor rev/min as (m, motors), FFT
+    Hz). ArduPilot's harmonic notch takes its centre from :func:`harmonic_notch_centre`,
+    updated once per ``loop_rate_hz`` and slewed by at most 5 % an update (``slew``);
+    its A and Q are those of FREQ and BW (computed once, so the bandwidth scales with
+    the centre); with ``multi_source`` and several motors, a notch set per motor, else
+    one at the motors' mean. PX4's dynamic notch: one notch per ESC and harmonic at
+    ``h x rpm / 60``, none below ``min_hz``. A tracking stage without its track stays
+    at FREQ (fixed and throttle) or is left out, with a note."""
+    t = np.asarray(time_s, dtype=np.float64)
+    n, fs = len(t), float(sample_rate_hz)
+    parts, notes = [], []
+    every = max(1, int(round(fs / float(loop_rate_hz)))) if loop_rate_hz else 1
+    for st in stages:
+        if st.get("path", "rate") != "rate":
+            continue
+        tr = tracks.get(st["params"])
+        if st["kind"] == "harmonic_notch" and (tr is not None or st.get("tracking") in ("fixed", "throttle")):
+            if tr is None:
+                notes.append(f"{st['params']}: tracks {st['tracking']}, no track in the log: held at FREQ "
+                             f"{st['centre_hz']:g} Hz")
+                want = np.full((n, 1), float(st["centre_hz"]))
+            else:
+                v = tr.at(t)
+                v = v if v.ndim == 2 else v[:, None]
+                if not st.get("multi_source") and v.shape[1] > 1:
+                    v = np.nanmean(v, axis=1, keepdims=True)
+                want = harmonic_notch_centre(st, v)
+            bw = float(st["bandwidth_hz"])
+            want = np.clip(want, 0.52 * bw, AP_NOTCH_NYQUIST_SHARE * fs)
+            centre = slewed_centres(want, every) if slew else want
+            composite = int(st.get("composite", 1))
+            base_c = min(max(float(st["centre_hz"]), 0.52 * bw), AP_NOTCH_NYQUIST_SHARE * fs)
+            spread = bw / (32.0 * base_c)
+            a, q = ardupilot_notch_a_q(base_c, bw / composite, float(st["attenuation_db"]))
+            mults = ([1.0] if composite != 2 else []) + ([1.0 - spread, 1.0 + spread] if composite > 1 else [])
+            for h in st.get("harmonics", [1]):
+                for m in mults:
+                    for j in range(centre.shape[1]):
+                        parts.append(ardupilot_notch_sections(centre[:, j] * h * m, a, q, fs)[:, None, :])
+        elif st["kind"] == "dynamic_notch" and tr is not None and "esc_rpm" in st.get("sources", []):
+            v = tr.at(t)
+            v = v if v.ndim == 2 else v[:, None]
+            for h in range(1, int(st.get("harmonics", 1)) + 1):
+                for j in range(v.shape[1]):
+                    parts.append(px4_notch_sections(h * v[:, j] / 60.0, float(st["bandwidth_hz"]), fs,
+                                                    float(st.get("min_hz") or 0.0))[:, None, :])
+            if "fft" in st.get("sources", []):
+                notes.append(f"{st['params']}: the FFT-driven notches (per axis, their peaks not logged) are left out")
+        else:
+            sos, why = chain_sections([st], fs)
+            notes += why
+            if sos:
+                parts.append(np.array(constant_sections(sos, n)))
+    if not parts:
+        return np.zeros((n, 0, 5)), notes
+    return np.concatenate(parts, axis=1), notes

@@ -196,3 +196,77 @@ def test_hntch_enable_goes_first_with_the_refresh_note():
 def test_tlog_note():
     (review, note), _ = _real("copter_20211125-124019.tlog")
     assert review is None and note.startswith("no pre-filter gyro stream: RAW_IMU is logged after the vehicle's filters")
+
+
+def test_a_prominent_motor_line_gets_its_notch_then_the_low_pass_raised():
+    """The autopilots' documented order: a 22 dB motor line over a 3 deg/s noise floor gets
+    the harmonic notch (never declined for its own lag), then INS_GYRO_FILTER is raised;
+    the predicted attenuation at the peak stands beside it."""
+    review, note = _review([_imu_stream(), _batch_stream(noise_deg_s=3.0, tone_deg_s=3.0)])
+    assert note == ""
+    top = max(review["peaks"], key=lambda q: q["amplitude_rms_deg_s"])
+    assert top["notch_ok"] and top["ratio_db"] > 20.0
+    rec = review["recommended"]
+    assert rec["INS_HNTCH_ENABLE"] == 1 and abs(rec["INS_HNTCH_FREQ"] - TONE_HZ) < 2 * review["source"]["resolution_hz"]
+    assert rec["INS_GYRO_FILTER"] > PARAMS["INS_GYRO_FILTER"]          # raised once the peak is notched
+    pred = review["notch_prediction"]
+    assert pred["attenuation_at_peak_db"] > 20.0
+    assert any("the harmonic notch on the motor peak first, then INS_GYRO_FILTER" in w for w in review["why"])
+
+
+def test_a_throttle_tracked_notch_is_predicted_along_the_flight_not_at_one_centre():
+    """SYNTHETIC: a motor tone that follows the throttle (80 -> 160 Hz) under a logged MODE 1
+    notch that follows it too. The predicted post-filter noise of the logged settings, the
+    notch moved along the flight, is within 25 % of the truth (the same gyro replayed sample
+    by sample through the chain); the notch held at the median centre predicts more than
+    twice the truth (the tone, away from that centre most of the flight, passes)."""
+    from scipy import signal
+
+    from gyrodenoise.flightlog import notch_replay as nr
+
+    params = {**PARAMS, "INS_HNTCH_ENABLE": 1, "INS_HNTCH_MODE": 1, "INS_HNTCH_FREQ": 80.0, "INS_HNTCH_BW": 40.0,
+              "INS_HNTCH_ATT": 40.0, "INS_HNTCH_REF": 0.25, "INS_HNTCH_FM_RAT": 1.0, "INS_HNTCH_HMNCS": 1,
+              "INS_GYRO_FILTER": 200.0}
+    rng = np.random.default_rng(5)
+    t = np.arange(int(12.0 * FS)) / FS
+    thr_t = np.arange(0.0, 12.1, 0.1)
+    thr = 0.25 + 0.75 * np.clip(thr_t / 12.0, 0.0, 1.0)                     # 80 -> 160 Hz
+    track = nr.Track(thr_t, thr, "CTUN.ThO")
+    centre = 80.0 * np.sqrt(np.interp(t, thr_t, thr) / 0.25)
+    x = rng.normal(0.0, 0.3, (len(t), 3)) + 10.0 * np.sin(2 * np.pi * np.cumsum(centre) / FS)[:, None]
+    stream = GyroStream(name="ISB.gyro[0]", message="ISBD", unit="rad/s", to_deg_s=RAD_TO_DEG, time_s=t,
+                        raw=x / RAD_TO_DEG, index=np.arange(len(t)))
+    filters = vf.vehicle_filters(named("ardupilot"), params)
+    stage = next(s for s in filters["stages"] if s["kind"] == "harmonic_notch")
+    median_centre = {"INS_HNTCH_*": float(vf.throttle_notch_centre_hz(stage, float(np.median(thr))))}
+
+    def tracks_for(stages):
+        return {s["params"]: track for s in stages if s.get("tracking") == "throttle"}
+
+    along, _, _ = fr.filter_review([stream], named("ardupilot"), params, filters,
+                                   context={"notch_centre_hz": median_centre, "tracks_for": tracks_for})
+    one, _, _ = fr.filter_review([stream], named("ardupilot"), params, filters,
+                                 context={"notch_centre_hz": median_centre})
+    # the truth, apart from the module's replay: per sample the scalar notch at the tone's
+    # centre (Direct Form I), then scipy's Butterworth at INS_GYRO_FILTER
+    a_, q_ = vf.ardupilot_notch_a_q(80.0, 40.0, 40.0)
+    post = np.empty_like(x)
+    for ax in range(3):
+        x1 = x2 = y1 = y2 = 0.0
+        for i in range(len(t)):
+            b0, b1, b2, a1, a2 = vf.ardupilot_notch_sos(float(centre[i]), a_, q_, FS)
+            y = b0 * x[i, ax] + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2
+            x2, x1, y2, y1 = x1, x[i, ax], y1, y
+            post[i, ax] = y
+    b, a = signal.butter(2, 200.0, fs=FS)
+    post = np.stack([signal.lfilter(b, a, post[:, k]) for k in range(3)], 1)
+    band = along["noise_band_hz"]
+    f, p = np.array([0.0]), []
+    for k in range(3):
+        f, pk, _ = fr.spectrum.welch_psd(post[:, k], FS, along["source"]["nperseg"])
+        p.append(pk)
+    truth = fr._band_rms(f, np.array(p), band[0], band[1])["rss"]
+    got_along = along["figures"]["logged"]["noise_rms_deg_s"]["rss"]
+    got_one = one["figures"]["logged"]["noise_rms_deg_s"]["rss"]
+    assert got_along == pytest.approx(truth, rel=0.25), (got_along, truth, got_one)
+    assert got_one > 2.0 * truth, (got_one, truth)
