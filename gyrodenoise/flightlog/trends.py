@@ -528,7 +528,7 @@ def write_pages(trend_list, out_dir, plotlyjs="inline", detector=Detector(), fal
     for airframe, ts in sorted(by.items()):
         name = f"airframe-{_slug(airframe)}.html"
         group = groups.get(airframe)
-        why = "" if group is None else f"<p><b>{'grouping' if group.trended else 'NOT TRENDED'}:</b> {e(group.reason)}</p>"
+        why = "" if group is None else f"<p><b>grouping:</b> {e(group.reason)}</p>"
         with _Figures() as figs:
             parts = [f"<h1>Airframe {e(airframe)}</h1>",
                      f"<p>airframe key from: {e(ts[0].airframe_source)}; logs ordered by {e(ts[0].ordered_by)}; "
