@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 from gyrodenoise._extras import require
@@ -93,6 +94,7 @@ def run(args):
     if args.json:
         emit_json({"store": str(store), "out": str(out), "files": [str(p) for p in paths],
                    "airframes": len({t.airframe for t in found}), "flagged": [t.to_fields() for t in grown],
+                   "groupings": [asdict(g) for g in tr.groupings_of(found).values()],
                    "statuses": [{"airframe": t.airframe, "metric": t.metric, "stream": t.stream,
                                  "status": t.status, "logs": len(t.points)} for t in found]})
     else:
@@ -101,8 +103,14 @@ def run(args):
 
 
 def _print(found, out):
+    from gyrodenoise.flightlog.trends import groupings_of
     w = sys.stdout.write
+    for g in groupings_of(found).values():
+        if not g.trended:
+            w(f"{g.airframe}  {g.reason}\n")
     for t in found:
+        if not t.trended:
+            continue
         what = f"{t.metric}{' ' + t.stream if t.stream else ''}"
         flag = (f"  GROWTH from {t.points[t.detection.first_flag].log}" if t.status == "growth" else "")
         w(f"{t.airframe}  {what}: {len(t.points)} log(s), {t.status}{flag}\n")

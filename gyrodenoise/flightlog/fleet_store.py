@@ -24,7 +24,9 @@ The airframe a log belongs to (:func:`airframe_of`): the ``--airframe`` name giv
 the command line, else the vehicle id the log records (ArduPilot's board id, PX4's
 ``sys_uuid``, Betaflight's craft name: :mod:`gyrodenoise.flightlog.overview`), else
 the name of the folder holding the log (``airframe_source`` says which was used: one
-folder per aircraft is the usual way to keep logs without ids).
+folder per aircraft is the usual way to keep logs without ids; the trends check that a
+folder's logs agree on their identity before they trend them:
+:func:`gyrodenoise.flightlog.trends.groupings`).
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ class LogRow:
     file: str                         # the path the log was reviewed from
     log: str                          # its file name
     format: str | None
+    autopilot: str | None             # ardupilot / px4 / betaflight (the review's vehicle filters)
     airframe: str
     airframe_source: str              # option / vehicle_id / folder
     vehicle: str | None
@@ -117,11 +120,20 @@ class SpectrumRow:
     psd: list                         # len(GRID_EDGES_HZ) - 1 values, PSD_UNIT; None above Nyquist
 
 
+#: a row annotation's base type -> (its Arrow type, of the pyarrow module; its DuckDB type)
+_TYPES = {"str": (lambda pa: pa.string(), "VARCHAR"), "float": (lambda pa: pa.float64(), "DOUBLE"),
+          "int": (lambda pa: pa.int64(), "BIGINT"),
+          "datetime.datetime": (lambda pa: pa.timestamp("us", tz="UTC"), "TIMESTAMPTZ"),
+          "list": (lambda pa: pa.list_(pa.float32()), "FLOAT[]")}
+
+
+def _base(annotation):
+    return annotation.split("|")[0].strip()
+
+
 def _arrow_type(annotation):
     import pyarrow as pa
-    base = annotation.split("|")[0].strip()
-    return {"str": pa.string(), "float": pa.float64(), "int": pa.int64(),
-            "datetime.datetime": pa.timestamp("us", tz="UTC"), "list": pa.list_(pa.float32())}[base]
+    return _TYPES[_base(annotation)][0](pa)
 
 
 def schema(row_class):
@@ -213,6 +225,7 @@ def log_rows(report, key, airframe=None, stored=None):
         peak = r.get("vibration_peak") or {}
         rows.append(LogRow(
             log_key=key, stored_utc=stored, file=str(report["file"]), log=r["log"], format=report.get("format"),
+            autopilot=(report.get("vehicle_filters") or {}).get("autopilot"),
             airframe=frame, airframe_source=source, vehicle=ident.get("vehicle"), firmware=ident.get("firmware"),
             board=ident.get("board"), frame=ident.get("frame"), vehicle_id=ident.get("vehicle_id"),
             start_utc=start_utc(report), boots=max(1, len(report.get("boots") or [])),
@@ -384,8 +397,9 @@ def is_store(path):
 
 def connect(store):
     """A DuckDB connection with the views ``logs`` and ``spectra`` over the store's
-    Parquet files (empty tables of the right columns when there are none) and ``grid``
-    (``bin``, ``f_lo_hz``, ``f_hi_hz``, ``f_centre_hz``: the spectra's ``psd[bin + 1]``)."""
+    Parquet files (empty tables of the right columns when there are none; a column the
+    row classes have and no file holds -- a store written before it -- reads as NULL) and
+    ``grid`` (``bin``, ``f_lo_hz``, ``f_hi_hz``, ``f_centre_hz``: the spectra's ``psd[bin + 1]``)."""
     import duckdb
     store = Path(store)
     con = duckdb.connect()
@@ -393,7 +407,11 @@ def connect(store):
         files = sorted((store / name).glob("*.parquet"))
         if files:
             glob = str(store / name / "*.parquet").replace("'", "''")
-            con.execute(f"CREATE VIEW {name} AS SELECT * FROM read_parquet('{glob}', union_by_name=true)")
+            con.execute(f"CREATE VIEW _{name}_files AS SELECT * FROM read_parquet('{glob}', union_by_name=true)")
+            have = {d[0] for d in con.execute(f"SELECT * FROM _{name}_files LIMIT 0").description}
+            absent = [f"NULL::{_TYPES[_base(f.type)][1]} AS {f.name}" for f in dataclasses.fields(row_class)
+                      if f.name not in have]
+            con.execute(f"CREATE VIEW {name} AS SELECT {', '.join(['*'] + absent)} FROM _{name}_files")
         else:
             empty = _table([], row_class)
             con.register(f"_{name}_empty", empty)

@@ -13,6 +13,12 @@ else the order they were stored), give one series per :class:`Metric` (:data:`ME
   bin holding the frequency and one each side);
 * ``noise density``: per gyro stream, the raw gyro's white-noise density.
 
+An airframe keyed by the folder holding its logs (no vehicle id: ``airframe_source``
+``folder``) is one airframe only as far as its logs agree: where two of them record
+different values of an :data:`IDENTITY` field (autopilot, vehicle type, board, frame),
+the folder mixes aircraft and its logs are not trended (:func:`groupings` gives each
+airframe a one-line reason, either way).
+
 The change detector (:class:`Detector`, :func:`detect`) is a one-sided self-starting
 CUSUM (Hawkins 1987) on the logarithm of the level, so that growth is judged as a
 ratio: with y_i = log10(level_i) and the mean m and standard deviation s of the n
@@ -33,7 +39,7 @@ import html
 import json
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -185,6 +191,65 @@ def detection_delay(detector=Detector(), seed=0, trials=500, n_logs=40, onset=15
                   float(np.percentile(delays, 90)), missed / trials, early / trials)
 
 
+# ------------------------------------------------------------------ which logs are one airframe
+#: the identity a folder's logs must agree on where they record it: (what it is called, its column of ``logs``)
+IDENTITY = (("autopilot", "autopilot"), ("vehicle", "vehicle"), ("board", "board"), ("frame", "frame"))
+#: a reason line lists at most this many values of a field
+_LISTED = 4
+
+
+@dataclass(frozen=True)
+class Grouping:
+    """Why an airframe's logs are taken as one airframe (``trended``), or why not."""
+    airframe: str
+    source: str                # the store's airframe_source: option / vehicle_id / folder
+    logs: int
+    trended: bool
+    reason: str
+
+
+def _listed(values):
+    values = sorted(values)
+    more = f" (+{len(values) - _LISTED} more)" if len(values) > _LISTED else ""
+    return ", ".join(values[:_LISTED]) + more
+
+
+def _grouping(airframe, source, idents):
+    """The :class:`Grouping` of one airframe from its logs' identities (one tuple of the
+    :data:`IDENTITY` columns per log)."""
+    n = len(idents)
+    if source == "option":
+        return Grouping(airframe, source, n, True, f"named with --airframe: its {n} log(s) are one airframe")
+    if source == "vehicle_id":
+        return Grouping(airframe, source, n, True, f"the vehicle id recorded in each of its {n} log(s)")
+    seen = [(name, {i[k] for i in idents if i[k] is not None}) for k, (name, _) in enumerate(IDENTITY)]
+    mixed = [(name, vals) for name, vals in seen if len(vals) > 1]
+    if mixed:
+        return Grouping(airframe, source, n, False,
+                        f"not trended: no vehicle id, and the {n} logs of the folder '{airframe}' are of different "
+                        f"aircraft ({'; '.join(f'{name}: {_listed(vals)}' for name, vals in mixed)}); keep one "
+                        f"folder per aircraft, or name it with mavlink --store DIR --airframe NAME")
+    agreed = [f"{name} {next(iter(vals))}" for name, vals in seen if vals]
+    silent = sum(all(v is None for v in i) for i in idents)
+    if not agreed:
+        return Grouping(airframe, source, n, True,
+                        f"no vehicle id: grouped by the folder '{airframe}'; none of its {n} log(s) records its "
+                        f"{', '.join(name for name, _ in IDENTITY)}, so they are one airframe on the folder's word")
+    return Grouping(airframe, source, n, True,
+                    f"no vehicle id: grouped by the folder '{airframe}'; its {n} log(s) agree where they record "
+                    f"it ({', '.join(agreed)}{f'; {silent} record none' if silent else ''})")
+
+
+def groupings(con):
+    """{airframe: :class:`Grouping`} of the store (a :func:`connect` connection)."""
+    cols = ", ".join(f"min({c})" for _, c in IDENTITY)
+    rows = con.execute(f"SELECT airframe, min(airframe_source), {cols} FROM logs GROUP BY airframe, log_key").fetchall()
+    by = {}
+    for a, src, *ident in rows:
+        by.setdefault((a, src), []).append(tuple(ident))
+    return {a: _grouping(a, src, idents) for (a, src), idents in sorted(by.items())}
+
+
 # ------------------------------------------------------------------ the store's series
 @dataclass
 class Point:
@@ -209,10 +274,18 @@ class Trend:
     detection: Detection
     reference_hz: float | None = None   # the line level's frequency
     note: str = ""
+    grouping: Grouping | None = None    # why its logs are one airframe (or not: then not trended)
+
+    @property
+    def trended(self):
+        return self.grouping is None or self.grouping.trended
 
     @property
     def status(self):
-        """``growth`` (flagged), ``steady``, or ``short history`` (fewer logs than the baseline)."""
+        """``growth`` (flagged), ``steady``, ``short history`` (fewer logs than the baseline),
+        or ``not trended`` (its logs are not one airframe: :attr:`grouping`)."""
+        if not self.trended:
+            return "not trended"
         if self.detection.first_flag is not None:
             return "growth"
         return "steady" if any(z is not None for z in self.detection.z) else "short history"
@@ -222,6 +295,7 @@ class Trend:
         return {"airframe": self.airframe, "airframe_source": self.airframe_source, "metric": self.metric,
                 "unit": self.unit, "stream": self.stream, "ordered_by": self.ordered_by, "status": self.status,
                 "reference_hz": self.reference_hz, "note": self.note,
+                "grouping": None if self.grouping is None else self.grouping.reason,
                 "first_flag": None if d.first_flag is None else self.points[d.first_flag].log,
                 "logs": [{"log": p.log, "log_key": p.log_key, "when": p.when, "value": p.value, "z": z,
                           "cusum": c, "flagged": f} for p, z, c, f in zip(self.points, d.z, d.cusum, d.flagged)]}
@@ -300,30 +374,41 @@ def _orders(con):
     return out
 
 
+def _not_judged(n):
+    """The :class:`Detection` of a series that is not trended: no verdict on any log."""
+    return Detection([None] * n, [0.0] * n, [False] * n, None, [None] * n, [None] * n)
+
+
 def trends(store, detector=Detector(), metrics=METRICS):
-    """Every airframe's :class:`Trend` of each metric in ``store``."""
+    """Every airframe's :class:`Trend` of each metric in ``store``; an airframe whose
+    logs are not one airframe (:func:`groupings`) has its series without verdicts
+    (status ``not trended``) and no line level (its frequency would mix aircraft)."""
     con = connect(store)
     try:
         orders = _orders(con)
-        info = {(a, key): (name, start, stored, src) for a, key, name, start, stored, src in con.execute(
-            "SELECT airframe, log_key, min(log), min(start_utc), min(stored_utc), min(airframe_source) "
-            "FROM logs GROUP BY ALL").fetchall()}
+        groups = groupings(con)
+        info = {(a, key): (name, start, stored) for a, key, name, start, stored in con.execute(
+            "SELECT airframe, log_key, min(log), min(start_utc), min(stored_utc) FROM logs GROUP BY ALL").fetchall()}
         out = []
         for metric in metrics:
             series = {}
             for a, s, key, value, ref in metric.collect(con, detector):
                 series.setdefault((a, s), {"ref": ref, "rows": {}})["rows"][key] = value
             for (a, s), got in sorted(series.items()):
+                group = groups[a]
+                if not group.trended and got["ref"] is not None:
+                    continue
                 keys = sorted(got["rows"], key=lambda k: orders[a][k])
                 by = orders[a]["__by__"]
                 points = []
                 for k in keys:
-                    name, start, stored, _ = info[(a, k)]
+                    name, start, stored = info[(a, k)]
                     when = (start if by == "start time" else stored).isoformat()
                     points.append(Point(k, name, when, got["rows"][k]))
-                src = info[(a, keys[0])][3]
-                out.append(Trend(a, src, metric.name, metric.unit, s, by, points,
-                                 detect([p.value for p in points], detector), got["ref"]))
+                values = [p.value for p in points]
+                out.append(Trend(a, group.source, metric.name, metric.unit, s, by, points,
+                                 detect(values, detector) if group.trended else _not_judged(len(values)),
+                                 got["ref"], grouping=group))
         return out
     finally:
         con.close()
@@ -336,15 +421,26 @@ def _slug(text):
 
 
 def _figure(trend):
+    """The series (log scale), the history's band and the flagged logs, and the CUSUM
+    under it; a series not trended: its values only."""
     import plotly.graph_objects as go
     from plotly.subplots import make_subplots
     d = trend.detection
     x = [f"{i + 1}: {p.log}" for i, p in enumerate(trend.points)]
-    fig = make_subplots(rows=2, cols=1, shared_xaxes=True, row_heights=[0.7, 0.3], vertical_spacing=0.06)
+    judged = trend.trended
+    fig = make_subplots(rows=1 + judged, cols=1, shared_xaxes=True, row_heights=[0.7, 0.3] if judged else None,
+                        vertical_spacing=0.06)
     fig.add_trace(go.Scatter(x=x, y=[p.value for p in trend.points], mode="lines+markers", name=trend.metric,
                              text=[p.when for p in trend.points],
                              hovertemplate="%{x}<br>%{text}<br>%{y:.4g} " + trend.unit + "<extra></extra>"),
                   row=1, col=1)
+    fig.update_yaxes(type="log", title_text=trend.unit, row=1, col=1)
+    title = f"{trend.metric}{' of ' + trend.stream if trend.stream else ''}"
+    if trend.reference_hz is not None:
+        title += f" at {trend.reference_hz:.3g} Hz"
+    fig.update_layout(title={"text": f"{title}: {trend.status}", "font": {"size": 14}})
+    if not judged:
+        return fig
     band = [(None, None) if c is None else (10 ** (c - 3 * s), 10 ** (c + 3 * s)) for c, s in zip(d.centre, d.sigma)]
     fig.add_trace(go.Scatter(x=x, y=[b[1] for b in band], mode="lines", line={"dash": "dot", "color": "grey"},
                              name="history's mean x/÷ 3 sigma"), row=1, col=1)
@@ -358,12 +454,7 @@ def _figure(trend):
                       row=1, col=1)
     fig.add_trace(go.Scatter(x=x, y=d.cusum, mode="lines+markers", name="CUSUM", line={"color": "#7b3fa0"}),
                   row=2, col=1)
-    fig.update_yaxes(type="log", title_text=trend.unit, row=1, col=1)
     fig.update_yaxes(title_text="CUSUM [sigma]", row=2, col=1)
-    title = f"{trend.metric}{' of ' + trend.stream if trend.stream else ''}"
-    if trend.reference_hz is not None:
-        title += f" at {trend.reference_hz:.3g} Hz"
-    fig.update_layout(title={"text": f"{title}: {trend.status}", "font": {"size": 14}})
     return fig
 
 
@@ -391,9 +482,29 @@ def _page(title, body, script_tag):
         "self-contained (opens offline)", "plotly.js from plotly.min.js beside this page")
 
 
+def airframe_status(ts):
+    """One airframe's status line from its trends: ``GROWTH: <what> from <log>, ...``,
+    ``not trended``, ``steady`` or ``short history``."""
+    grown = [t for t in ts if t.status == "growth"]
+    if grown:
+        return "GROWTH: " + ", ".join(f"{t.metric}{' ' + t.stream if t.stream else ''} from "
+                                      f"{t.points[t.detection.first_flag].log}" for t in grown)
+    for status in ("not trended", "steady"):
+        if any(t.status == status for t in ts):
+            return status
+    return "short history"
+
+
+def groupings_of(trend_list):
+    """{airframe: :class:`Grouping`} of the trends, by airframe."""
+    return dict(sorted({t.airframe: t.grouping for t in trend_list if t.grouping is not None}.items(),
+                       key=lambda kv: kv[0]))
+
+
 def write_pages(trend_list, out_dir, plotlyjs="inline", detector=Detector(), false_alarms=None):
-    """One page per airframe (``airframe-<name>.html``: each metric's series, its
-    flags and CUSUM) and ``index.html`` (every airframe's status), into ``out_dir``;
+    """One page per airframe (``airframe-<name>.html``: why its logs are one airframe,
+    each metric's series, its flags and CUSUM) and ``index.html`` (every airframe's
+    status and grouping), into ``out_dir``;
     plotly.js inlined in each page (``inline``) or written once as ``plotly.min.js``
     (``shared``). Returns the paths."""
     from gyrodenoise.flightlog.html_report import _Figures, _write
@@ -413,33 +524,36 @@ def write_pages(trend_list, out_dir, plotlyjs="inline", detector=Detector(), fal
               f"{detector.allowance:g}, decision level {detector.threshold:g} sigma, or one log "
               f"{detector.jump:g} sigma above its history).{e(far)}</p>")
     paths, index = [], []
+    groups = groupings_of(trend_list)
     for airframe, ts in sorted(by.items()):
         name = f"airframe-{_slug(airframe)}.html"
+        group = groups.get(airframe)
+        why = "" if group is None else f"<p><b>grouping:</b> {e(group.reason)}</p>"
         with _Figures() as figs:
             parts = [f"<h1>Airframe {e(airframe)}</h1>",
                      f"<p>airframe key from: {e(ts[0].airframe_source)}; logs ordered by {e(ts[0].ordered_by)}; "
-                     f"<a href='index.html'>all airframes</a></p>", method]
+                     f"<a href='index.html'>all airframes</a></p>", why, method]
             for t in ts:
                 parts.append(f"<h2>{e(t.metric)}{' — ' + e(t.stream) if t.stream else ''}: {e(t.status)}</h2>")
                 parts.append(figs.div(_figure(t), height=460))
         paths.append(_write(out / name, _page(f"airframe {airframe}: trends", "".join(parts), tag)))
-        grown = [t for t in ts if t.status == "growth"]
-        status = ("GROWTH: " + ", ".join(f"{t.metric}{' ' + t.stream if t.stream else ''} from "
-                                         f"{t.points[t.detection.first_flag].log}" for t in grown)
-                  if grown else "steady" if any(t.status == "steady" for t in ts) else "short history")
-        n_logs = len({p.log_key for t in ts for p in t.points})
-        index.append(f"<tr><td><a href='{e(name)}'>{e(airframe)}</a></td><td>{n_logs}</td><td>{e(status)}</td></tr>")
-    body = ("<h1>Fleet trends</h1>" + method + "<table><tr><th>airframe</th><th>logs</th><th>status</th></tr>"
-            + "".join(index) + "</table>")
+        n_logs = group.logs if group is not None else len({p.log_key for t in ts for p in t.points})
+        index.append(f"<tr><td><a href='{e(name)}'>{e(airframe)}</a></td><td>{n_logs}</td>"
+                     f"<td>{e(airframe_status(ts))}</td><td>{e(group.reason if group else '')}</td></tr>")
+    body = ("<h1>Fleet trends</h1>" + method + "<table><tr><th>airframe</th><th>logs</th><th>status</th>"
+            "<th>why these logs are one airframe</th></tr>" + "".join(index) + "</table>")
     paths.append(_write(out / "index.html", _page("fleet trends", body, tag)))
     return paths
 
 
 def write_json(trend_list, path, detector=Detector()):
-    """``trends.json``: the detector's settings and every trend (:meth:`Trend.to_fields`)."""
+    """``trends.json``: the detector's settings, every airframe's grouping (its logs,
+    whether trended, the one-line reason: :class:`Grouping`) and every trend
+    (:meth:`Trend.to_fields`)."""
     from gyrodenoise.flightlog.stopping import atomic_path
     doc = {"detector": {"baseline": detector.baseline, "allowance": detector.allowance,
                         "threshold": detector.threshold, "jump": detector.jump, "min_sigma": detector.min_sigma},
+           "airframes": [asdict(g) for g in groupings_of(trend_list).values()],
            "trends": [t.to_fields() for t in trend_list]}
     with atomic_path(Path(path)) as tmp:
         Path(tmp).write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n")

@@ -180,3 +180,20 @@ def test_real_log_rows(tmp_path):
     _, rows = fs.query(tmp_path / "s", "SELECT max(g.f_hi_hz) FROM spectra s, grid g "
                                         "WHERE s.psd[g.bin + 1] IS NOT NULL")
     assert rows[0][0] <= 25.0
+
+
+def test_a_column_older_files_lack_reads_as_null(tmp_path):
+    """A store written before a column existed (its file without ``autopilot``) still
+    reads, that column NULL; a newer file beside it keeps its value."""
+    import pyarrow.parquet as pq
+    rep, flight = synthetic_log(tmp_path, "a.bin", seed=9)
+    got = fs.append_log(tmp_path / "s", rep, flight)
+    path = tmp_path / "s" / "logs" / f"{got.log_key}.parquet"
+    pq.write_table(pq.read_table(path).drop(["autopilot"]), path)
+    _, rows = fs.query(tmp_path / "s", "SELECT log, autopilot FROM logs")
+    assert rows == [("a.bin", None)]
+    rep2, flight2 = synthetic_log(tmp_path, "b.bin", seed=10)
+    rep2["vehicle_filters"] = {"autopilot": "px4"}
+    fs.append_log(tmp_path / "s", rep2, flight2)
+    _, rows = fs.query(tmp_path / "s", "SELECT log, autopilot FROM logs ORDER BY log")
+    assert rows == [("a.bin", None), ("b.bin", "px4")]

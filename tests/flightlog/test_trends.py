@@ -6,6 +6,8 @@ flagged from its onset while the steady one is not."""
 from __future__ import annotations
 
 import datetime
+import html
+import json
 
 import numpy as np
 import pytest
@@ -102,3 +104,69 @@ def test_pages_inline_and_shared(tmp_path):
     assert {p.name for p in shared} == {"index.html", "airframe-AF-steady.html", "airframe-AF-drift.html"}
     index = (tmp_path / "shared" / "index.html").read_text()
     assert "airframe-AF-drift.html" in index and "airframe-AF-steady.html" in index
+
+
+def _folder_fleet(tmp_path, folder, identities, n_logs=8, grow_from=6):
+    """A store of ``n_logs`` logs with no vehicle id in ``tmp_path/folder`` (so keyed by
+    the folder), log i of the identity ``identities[i % len(identities)]`` ((autopilot,
+    vehicle, board, frame)), its vibration growing x1.5 a log from log ``grow_from``
+    (what the logs of unrelated aircraft, sorted together, can look like)."""
+    where = tmp_path / folder
+    where.mkdir()
+    t0 = datetime.datetime(2024, 1, 1, tzinfo=datetime.timezone.utc).timestamp()
+    for i in range(n_logs):
+        autopilot, vehicle, board, frame = identities[i % len(identities)]
+        rep, flight = synthetic_log(where, f"{i:02d}.bin", seed=500 + i, vehicle_id=False, start=t0 + 3600 * i,
+                                    vibration=5.0 * 1.5 ** max(0, i - grow_from + 1), duration_s=4.0)
+        rep["vehicle_filters"] = {"autopilot": autopilot}
+        rep["overview"].update(vehicle=vehicle, board=board, frame=frame)
+        fs.append_log(tmp_path / "store", rep, flight)
+    return tmp_path / "store"
+
+
+def test_a_folder_of_two_aircraft_is_not_trended(tmp_path):
+    """A folder holding a copter's and a plane's logs (no vehicle id): not one airframe,
+    so not trended, whatever its series does, with the reason naming what differs; its
+    page and trends.json say so."""
+    store = _folder_fleet(tmp_path, "shared-logs", [("ardupilot", "ArduCopter", "CUAVv5", "QUAD/X"),
+                                                    ("ardupilot", "ArduPlane", "MatekH743", None)])
+    found = tr.trends(store)
+    assert found and {t.airframe for t in found} == {"shared-logs"}
+    assert {t.status for t in found} == {"not trended"}
+    assert not any(t.detection.flagged[i] for t in found for i in range(len(t.points)))
+    assert "line level" not in {t.metric for t in found}        # a line frequency over two aircraft means nothing
+    why = found[0].grouping.reason
+    assert why.startswith("not trended:") and "\n" not in why
+    assert "vehicle: ArduCopter, ArduPlane" in why and "board: CUAVv5, MatekH743" in why
+    assert "frame:" not in why and "autopilot:" not in why        # the same, or logged once: no conflict
+    doc = json.loads(tr.write_json(found, tmp_path / "trends.json").read_text())
+    assert doc["airframes"] == [{"airframe": "shared-logs", "source": "folder", "logs": 8, "trended": False,
+                                 "reason": why}]
+    pytest.importorskip("plotly")
+    tr.write_pages(found, tmp_path / "pages", plotlyjs="shared")
+    for page in ("index.html", "airframe-shared-logs.html"):
+        text = (tmp_path / "pages" / page).read_text()
+        assert html.escape(why) in text and "GROWTH" not in text
+
+
+def test_a_folder_of_one_aircraft_is_trended(tmp_path):
+    """The same series, every log of one copter (its frame logged in only some): trended,
+    and its growth flagged; the reason names what its logs agree on."""
+    store = _folder_fleet(tmp_path, "my-quad", [("ardupilot", "ArduCopter", "CUAVv5", "QUAD/X"),
+                                                ("ardupilot", "ArduCopter", "CUAVv5", None)])
+    got = {t.metric: t for t in tr.trends(store)}
+    vib = got["vibration"]
+    assert vib.trended and vib.status == "growth"
+    assert vib.grouping.reason == ("no vehicle id: grouped by the folder 'my-quad'; its 8 log(s) agree where they "
+                                   "record it (autopilot ardupilot, vehicle ArduCopter, board CUAVv5, frame QUAD/X)")
+
+
+def test_grouping_reasons_of_each_key_source():
+    g = tr._grouping("AF", "vehicle_id", [("px4", None, None, None)] * 3)
+    assert g.trended and "vehicle id" in g.reason
+    g = tr._grouping("AF", "option", [("px4", "PX4 quadrotor", None, None), ("ardupilot", "ArduPlane", None, None)])
+    assert g.trended and "--airframe" in g.reason                  # the user said so
+    g = tr._grouping("logs", "folder", [(None,) * 4] * 2)
+    assert g.trended and "on the folder's word" in g.reason
+    g = tr._grouping("logs", "folder", [(None, f"V{i}", None, None) for i in range(7)])
+    assert not g.trended and "vehicle: V0, V1, V2, V3 (+3 more)" in g.reason
