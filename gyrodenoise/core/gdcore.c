@@ -899,7 +899,7 @@ KERNEL void mo_update_(const double *restrict p, double inv_r, const double *res
 KERNEL double motion_step_(const double *restrict p, double *restrict s, double z, mo_bank_t *restrict bk)
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
-    double zr = z, k, r, rs, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out, bg = 0.0;
+    double zr = z, k, r, rs, wu, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out, bg = 0.0;
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, ncv = (int)p[P_MO_NF], nf = ncv + (int)p[P_MO_NCA];
     int pos, i, j, best, c, hb;
     double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], G2[MO_MAX_NF], W[MO_MAX_NF],
@@ -1009,7 +1009,10 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     }
     s[S_K] = k + 1.0;
     r = s[o + M_R];
-    if ((k < p[P_WARMUP] && !(p[P_MO_SPEC] > 0.0 && s[o + M_SR] > 0.0)) || r == 0.0) {
+    wu = p[P_WARMUP];      /* with the spectral floor on, its first block ends the warm-up (kernels.py) */
+    if (p[P_MO_SPEC] > 0.0)
+        wu += MO_SPEC_N;
+    if ((k < wu && !(p[P_MO_SPEC] > 0.0 && s[o + M_SR] > 0.0)) || r == 0.0) {
         for (i = 0; i < nf; i++) {
             bx[i] = z;
             ba[i] = 0.0;

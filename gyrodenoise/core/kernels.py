@@ -1275,7 +1275,14 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
     r = s[o + M_R]
     ncv = int(p[P_MO_NF])
     nf = ncv + int(p[P_MO_NCA])      # lanes 0..ncv-1 constant velocity, ncv..nf-1 constant acceleration
-    if (k < p[P_WARMUP] and not (p[P_MO_SPEC] > 0.0 and s[o + M_SR] > 0.0)) or r == 0.0:
+    # with the spectral floor on, the warm-up waits for its first block even where warmup_s
+    # ends earlier (below 128 Hz): the lag estimates alone read broad vibration as noise (20 s at
+    # 100 Hz, vibration over 10-40 % of the Nyquist band 1000x the noise: 75x raw's RMSE, all of it
+    # in the second after warmup_s); MO_SPEC_N samples more at most (where its blocks are skipped)
+    wu = p[P_WARMUP]
+    if p[P_MO_SPEC] > 0.0:
+        wu += MO_SPEC_N
+    if (k < wu and not (p[P_MO_SPEC] > 0.0 and s[o + M_SR] > 0.0)) or r == 0.0:
         for i in range(nf):
             s[o + MB_X + i] = z
             s[o + MB_A + i] = 0.0
