@@ -899,7 +899,7 @@ KERNEL void mo_update_(const double *restrict p, double inv_r, const double *res
 KERNEL double motion_step_(const double *restrict p, double *restrict s, double z, mo_bank_t *restrict bk)
 {
     long o = layout_total_(ORDER(p)) - N_EXT;
-    double zr = z, k, r, rs, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out;
+    double zr = z, k, r, rs, wu, nw, gm0, gm1, lgm, fade, inv_r, clip2, lmax, num, den, y, thr, out, bg = 0.0;
     int nlag = (int)p[P_MO_NLAG], nh = 4 * nlag + 1, ncv = (int)p[P_MO_NF], nf = ncv + (int)p[P_MO_NCA];
     int pos, i, j, best, c, hb;
     double wts[MO_MAX_NF], ee[MO_MAX_NF], G0[MO_MAX_NF], G1[MO_MAX_NF], G2[MO_MAX_NF], W[MO_MAX_NF],
@@ -1009,7 +1009,10 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
     }
     s[S_K] = k + 1.0;
     r = s[o + M_R];
-    if ((k < p[P_WARMUP] && !(p[P_MO_SPEC] > 0.0 && s[o + M_SR] > 0.0)) || r == 0.0) {
+    wu = p[P_WARMUP];      /* with the spectral floor on, its first block ends the warm-up (kernels.py) */
+    if (p[P_MO_SPEC] > 0.0)
+        wu += MO_SPEC_N;
+    if ((k < wu && !(p[P_MO_SPEC] > 0.0 && s[o + M_SR] > 0.0)) || r == 0.0) {
         for (i = 0; i < nf; i++) {
             bx[i] = z;
             ba[i] = 0.0;
@@ -1018,6 +1021,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             bj[i] = 0.0;
             bc[i] = 0.0;
         }
+        s[o + M_GRD] = 0.0;
         return z;
     }
     s[S_CONV] = 1.0;
@@ -1155,6 +1159,18 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             var = 1.7976931348623157e308;
         s[o + M_PVAR] = var;
     }
+    {   /* output guard (kernels.motion_step): the faded (z - y)^2 / R of the bank's output */
+        double d = z - y, u = d * d * inv_r, gm = s[o + M_GRD];
+        if (!(u < MO_GUARD_CAP))
+            u = MO_GUARD_CAP;
+        gm += MO_GUARD_FADE * (u - gm);
+        s[o + M_GRD] = gm;
+        if (gm > MO_GUARD_LO) {
+            bg = (gm - MO_GUARD_LO) / (MO_GUARD_HI - MO_GUARD_LO);
+            if (bg > 1.0)
+                bg = 1.0;
+        }
+    }
     c = P_MO_G + best;     /* alpha of the most likely filter; its lam^2 at c + 4 MO_MAX_NF */
     if (p[P_MO_PT] > 0.0) {      /* pass-through (kernels.motion_step) */
         double g = s[o + M_GEFF], lo = p[P_MO_PT + 1];
@@ -1167,6 +1183,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             y = y + bt * (z - y);
         }
     }
+    if (bg > 0.0)
+        y = y + bg * (z - y);
     if (s[o + M_LON] != 0.0)
         y = z;                   /* a line near the Nyquist frequency: the raw sample */
     out = y + p[P_MO_KAPPA] * s[o + M_ANG];

@@ -79,6 +79,10 @@ extern "C" {
 #define MO_HI_NB 16                /* ... MO_HI_NB of them */
 #define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped;
                                      so is a 4th difference beyond it in the lag noise estimates (M_MABS) */
+#define MO_GUARD_FADE 0.0625       /* output guard (kernels.motion_step): weight of a sample's (z - y)^2 / R */
+#define MO_GUARD_CAP 1000.0        /* ... clipped at this many R */
+#define MO_GUARD_LO 2.5            /* ... the output moves towards the raw sample above this mean, */
+#define MO_GUARD_HI 5.0            /* ... all the way at this one */
 #define P_MO_PT (P_MO_COS + MO_SPEC_N) /* motion: pass-through: gain smoothing per sample (0 = off), gains lo, hi */
 #define P_MO_LINE (P_MO_PT + 3) /* motion: spectral line test threshold x the floor (0 = off) */
 #define MO_LINE_J0 19              /* the line test's first bin (MO_SPEC_K0 + 2 x 19 = 46: 0.36 fs) */
@@ -141,7 +145,8 @@ extern "C" {
 #define M_CUS (M_NWC + 3)            /* summed innovation per filter (MO_MAX_NF) */
 #define M_SRH (M_CUS + MO_MAX_NF)    /* line test: its smoothed floor from the MO_HI_NB high bins (as M_SR) */
 #define M_SBKH (M_SRH + 1)           /* line test: b^(blocks+1) of that floor (as M_SBK) */
-#define N_EXT (M_SRH + 2)
+#define M_GRD (M_SRH + 2)            /* output guard: faded (z - y)^2 / R of the bank's output */
+#define N_EXT (M_SRH + 3)
 /* one_euro's state, the first floats of the method-specific block */
 #define OE_X 0
 #define OE_DX 1

@@ -112,6 +112,10 @@ MO_SPEC_NB = 28     # ... and MO_SPEC_NB bins, every other one (nearly uncorrela
 MO_SPEC_RANK = 4    # the periodogram's MO_SPEC_RANK-th smallest of those bins is read (a low quantile)
 MO_HI_J0 = 12       # the line test's floor: the bins from MO_SPEC_K0 + 2 x 12 = 32 (0.25 fs) ...
 MO_HI_NB = 16       # ... MO_HI_NB of them (to 62: 0.25-0.5 fs), their MO_SPEC_RANK-th smallest
+MO_GUARD_FADE = 0.0625  # output guard: each sample's (z - y)^2 / R enters its mean with this weight (16 samples)
+MO_GUARD_CAP = 1000.0   # ... clipped at this many R (one sample of a 32 sigma residual: raw at once; after a step the guard lets go within 30 samples)
+MO_GUARD_LO = 2.5       # ... above this mean the output moves towards the raw sample,
+MO_GUARD_HI = 5.0       # ... all the way at this one
 MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow);
                          # so is a 4th difference beyond it in the lag noise estimates (M_MABS)
 P_MO_PT = P_MO_COS + MO_SPEC_N   # motion: pass-through (:func:`motion_step`): smoothing of the best filter's
@@ -207,7 +211,8 @@ M_LON = M_NWC + 2     # line test: 1.0 while the last two blocks held a line (ou
 M_CUS = M_NWC + 3     # summed-innovation test: per filter, its faded sum of innovations, deg/s
 M_SRH = M_CUS + MO_MAX_NF   # line test: its smoothed floor from the MO_HI_NB high bins, (deg/s)^2 (as M_SR)
 M_SBKH = M_SRH + 1          # line test: b^(blocks+1) of that floor's d_k (as M_SBK)
-N_EXT = M_SRH + 2
+M_GRD = M_SRH + 2           # output guard (:func:`motion_step`): faded (z - y)^2 / R of the bank's output
+N_EXT = M_SRH + 3
 
 # one_euro's state, the first floats of the method-specific block:
 OE_X = 0         # the filtered (centred) rate, deg/s
@@ -1270,7 +1275,14 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
     r = s[o + M_R]
     ncv = int(p[P_MO_NF])
     nf = ncv + int(p[P_MO_NCA])      # lanes 0..ncv-1 constant velocity, ncv..nf-1 constant acceleration
-    if (k < p[P_WARMUP] and not (p[P_MO_SPEC] > 0.0 and s[o + M_SR] > 0.0)) or r == 0.0:
+    # with the spectral floor on, the warm-up waits for its first block even where warmup_s
+    # ends earlier (below 128 Hz): the lag estimates alone read broad vibration as noise (20 s at
+    # 100 Hz, vibration over 10-40 % of the Nyquist band 1000x the noise: 75x raw's RMSE, all of it
+    # in the second after warmup_s); MO_SPEC_N samples more at most (where its blocks are skipped)
+    wu = p[P_WARMUP]
+    if p[P_MO_SPEC] > 0.0:
+        wu += MO_SPEC_N
+    if (k < wu and not (p[P_MO_SPEC] > 0.0 and s[o + M_SR] > 0.0)) or r == 0.0:
         for i in range(nf):
             s[o + MB_X + i] = z
             s[o + MB_A + i] = 0.0
@@ -1278,6 +1290,7 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
             s[o + MB_H + i] = 0.0
             s[o + MB_J + i] = 0.0
             s[o + M_CUS + i] = 0.0
+        s[o + M_GRD] = 0.0
         return z
     s[S_CONV] = 1.0
     gm0 = 0.0
@@ -1385,6 +1398,24 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
         if not var - var == 0.0:
             var = 1.7976931348623157e308     # overflowed (an input near the largest float): the largest
         s[o + M_PVAR] = var
+    # output guard: under the bank's model the output's residual z - y has a variance of at most R
+    # ((1 - g0) R for a filter of gain g0), so its faded mean square in units of R stays near 1 or
+    # below; where it stands above MO_GUARD_LO the model is wrong there (a step the fastest filter
+    # rings after, vibration taken for noise, a lag on a manoeuvre) and the output's error is already
+    # larger than the raw sample's (mean square about (m - 1) R): the output (after the pass-through) moves to
+    # the raw sample, all the way at MO_GUARD_HI
+    d = z - y
+    u = d * d * inv_r
+    if not u < MO_GUARD_CAP:
+        u = MO_GUARD_CAP       # one sample counts at most MO_GUARD_CAP (not finite: as much)
+    gm = s[o + M_GRD]
+    gm += MO_GUARD_FADE * (u - gm)
+    s[o + M_GRD] = gm
+    bg = 0.0
+    if gm > MO_GUARD_LO:
+        bg = (gm - MO_GUARD_LO) / (MO_GUARD_HI - MO_GUARD_LO)
+        if bg > 1.0:
+            bg = 1.0
     c = P_MO_G + best      # alpha of the most likely filter; its lam^2 at c + 4 MO_MAX_NF
     if p[P_MO_PT] > 0.0:
         # pass-through: where the most likely filter follows nearly every sample (its gain,
@@ -1400,6 +1431,8 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
             if bt > 1.0:
                 bt = 1.0
             y = y + bt * (z - y)
+    if bg > 0.0:
+        y = y + bg * (z - y)
     if s[o + M_LON] != 0.0:
         y = z              # a line near the Nyquist frequency (spectral_floor): the raw sample
     out = y + p[P_MO_KAPPA] * s[o + M_ANG]
