@@ -25,6 +25,26 @@
 #include "gdbias.h"
 #include "gdcore.h"
 
+#include <math.h>
+
+void gd_bias_params(double *p, double fs, double still_s, double memory_s, double floor_deg_h)
+{
+    double need = nearbyint(still_s * fs), cap, a = GB_NAV_ARW_DEG_RTH / 60.0;   /* round half to even */
+    if (need < 1.0)
+        need = 1.0;
+    cap = nearbyint(memory_s * fs / need);
+    p[P_BIAS_LANE] = (double)GB_LANE;
+    p[P_BIAS_NEED] = need;
+    p[P_BIAS_CAP] = cap < 1.0 ? 1.0 : cap;
+    p[P_BIAS_FLOOR] = floor_deg_h / 3600.0;
+    p[P_BIAS_NAVR] = a * a * fs;      /* ARW^2 = R / fs, deg^2/s */
+}
+
+double gd_bias_hat(const double *p, const double *s)
+{
+    return p[P_BIAS] > 0.0 ? s[gd_layout_total((int)p[P_ORDER]) - N_EXT + M_BIAS + 6] : 0.0;
+}
+
 void gd_bias_load(const double *b, gd_bias_t *e)
 {
     e->cur_sum = b[0];

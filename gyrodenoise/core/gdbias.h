@@ -24,6 +24,14 @@ typedef struct {
     double hat;       /* the bias removed: mean less the Earth-rate floor (soft threshold), deg/s */
 } gd_bias_t;
 #define GB_N 7
+#define GB_LANE 4               /* still: the bank's most likely filter in lanes 0..4 (tracking index <= 1e-6) */
+#define GB_NAV_ARW_DEG_RTH 0.05 /* navigation grade (the Earth-rate floor applies) below this ARW, deg/sqrt(h) */
+
+/* kernels.bias_params: p[P_BIAS_LANE ... P_BIAS_NAVR] from bias_still_s, bias_memory_s,
+   earth_rate_floor_deg_h at sample rate fs */
+void gd_bias_params(double *p, double fs, double still_s, double memory_s, double floor_deg_h);
+/* kernels.bias_hat: the bias removed at the last sample, deg/s (0 when bias tracking is off) */
+double gd_bias_hat(const double *p, const double *s);
 
 /* load / save the struct from / into the GB_N doubles at b */
 void gd_bias_load(const double *b, gd_bias_t *e);

@@ -311,12 +311,10 @@ def make_params(ar_order: int = 3, method: str = DEFAULT_METHOD, sample_rate_hz:
     if method == "motion":
         for i, v in enumerate(motion_params(fs)):
             p[P_MO_NF + i] = v
-        need = max(1.0, float(round(values["bias_still_s"] * fs)))
-        p[P_BIAS_LANE] = BIAS_LANE
-        p[P_BIAS_NEED] = need
-        p[P_BIAS_CAP] = max(1.0, float(round(values["bias_memory_s"] * fs / need)))
-        p[P_BIAS_FLOOR] = values["earth_rate_floor_deg_h"] / 3600.0
-        p[P_BIAS_NAVR] = (NAV_ARW_DEG_RTH / 60.0) ** 2 * fs   # ARW^2 = R / fs, deg^2/s
+    if method == "motion" and values["bias_tracking"]:     # off: p as without the option
+        for i, v in enumerate(bias_params(fs, values["bias_still_s"], values["bias_memory_s"],
+                                          values["earth_rate_floor_deg_h"])):
+            p[P_BIAS_LANE + i] = v
     _write_sections(p, cutoff_hz, sos)
     return p
 
@@ -1511,8 +1509,18 @@ def step(p: Buf, s: MutBuf, z: float, is_restart: bool) -> float:
     return out
 
 
-NAV_ARW_DEG_RTH = 0.05   # bias tracking: a record is navigation grade (the Earth-rate floor applies) below this ARW, deg/sqrt(h)
-BIAS_LANE = 4.0   # bias tracking: the slowest lanes (0..4: tracking index <= 1e-6, an average over minutes) are "still"
+GB_NAV_ARW_DEG_RTH = 0.05   # bias tracking: a record is navigation grade (the Earth-rate floor applies) below this ARW, deg/sqrt(h)
+GB_LANE = 4   # bias tracking: the slowest lanes (0..4: tracking index <= 1e-6, an average over minutes) are "still"
+
+
+def bias_params(sample_rate_hz: float, still_s: float, memory_s: float, floor_deg_h: float) -> list[float]:
+    """p[P_BIAS_LANE ... P_BIAS_NAVR] (gdbias.c's gd_bias_params): the still lanes, the block
+    (samples), the memory (blocks), the Earth-rate floor (deg/s), the white-noise variance below
+    which a record is navigation grade ((deg/s)^2: ARW^2 = R / fs)."""
+    need = max(1.0, float(round(still_s * sample_rate_hz)))
+    a = GB_NAV_ARW_DEG_RTH / 60.0
+    return [float(GB_LANE), need, max(1.0, float(round(memory_s * sample_rate_hz / need))), floor_deg_h / 3600.0,
+            a * a * sample_rate_hz]
 
 
 def bias_step(p: Buf, s: MutBuf, z: float) -> float:
@@ -1543,7 +1551,7 @@ def bias_update(p: Buf, s: MutBuf, o: int, z: float, calm: bool, r: float) -> fl
         hat = mean - floor if mean > floor, mean + floor if mean < -floor, else 0   (B2)
 
     floor = earth_rate_floor_deg_h on a navigation-grade record (the bank's white-noise
-    variance ``r`` below p[P_BIAS_NAVR], an angle random walk below :data:`NAV_ARW_DEG_RTH`):
+    variance ``r`` below p[P_BIAS_NAVR], an angle random walk below :data:`GB_NAV_ARW_DEG_RTH`):
     never the first ``floor`` of its bias, where a still sensor's Earth rate (<= 15 deg/h on
     any axis) hides; 0 on a noisier (MEMS) record, whose whole estimate is removed, Earth's
     rate with it: attitude relative to the Earth (docs/method/bias.md).

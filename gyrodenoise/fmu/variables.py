@@ -145,6 +145,10 @@ FOG_DENOISER = (
     _parameter("strict_step_size", "Boolean", False, "If true, a step whose size differs from sample_period "
                "is refused (fmi2Discard); if false it is processed and a warning is logged"),
     *_registry_parameters("max_motion_hz", "min_cutoff_hz", "beta", "d_cutoff_hz"),
+    *_registry_parameters("bias_tracking", "bias_still_s", "bias_memory_s", "earth_rate_floor_deg_h"),
+    _output("bias_hat", "Real", "method 'motion', bias_tracking = 1: the gyro bias removed from filtered_rate "
+            "(estimated while still, less the Earth-rate floor on a navigation-grade record); 0 when off",
+            "deg/s"),
 )
 assert {v.name for v in FOG_DENOISER} >= set(methods.BY_FMU), "an FMU parameter of the registry is not declared"
 

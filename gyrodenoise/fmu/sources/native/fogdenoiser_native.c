@@ -105,6 +105,7 @@ static double dn_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
     case VR_R_hat: return s ? s[S_R] : 0.0;
     case VR_Q_hat: return s ? s[S_Q] : 0.0;
     case VR_innovation: return s ? s[S_INNOV] : 0.0;
+    case VR_bias_hat: return s ? gd_bias_hat(d->p, s) : 0.0;
     default: return param_real(u, vr);
     }
 }
