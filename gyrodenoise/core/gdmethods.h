@@ -58,7 +58,7 @@
     X(outlier_sigma, 5.0, P_OUTLIER_SIGMA, 2.0, HUGE_VAL, GD_OFF, "0 (off) or >= 2", -1.0) \
     X(bias_still_s, 1.0, -1, 0.0, HUGE_VAL, GD_LO_OPEN, "> 0 s", METHOD_MOTION) \
     X(bias_memory_s, 60.0, -1, 0.0, HUGE_VAL, GD_LO_OPEN, "> 0 s", METHOD_MOTION) \
-    X(earth_rate_floor_deg_h, 15.0, -1, 0.0, HUGE_VAL, 0, ">= 0", METHOD_MOTION) \
+    X(earth_rate_floor_deg_h, 15.0, -1, 0.0, HUGE_VAL, 0, ">= 0 deg/h", METHOD_MOTION) \
 
 #define GD_N_INT_PARAMS 4
 #define GD_INT_PARAMS(X) \

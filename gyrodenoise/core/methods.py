@@ -107,11 +107,13 @@ class Param(NamedTuple):
     fmu: str | None = None
     fmu_start: float | int | None = None
     fmu_max: float | int | None = None
+    #: the switch (an ``off`` parameter) this one tunes: without effect, and not reported, while it is 0
+    tunes: str | None = None
 
     # ---------------------------------------------------------------- range
     def rule(self, sample_rate_hz: float | None = None) -> str:
         """The range as a message says it: ``0 < lam <= 1``, ``>= 0 (deg/s)^2, 0 = automatic``."""
-        unit = {"deg2/s2": " (deg/s)^2", "Hz": " Hz", "s": " s"}.get(self.unit or "", "")
+        unit = {"deg2/s2": " (deg/s)^2", "Hz": " Hz", "s": " s", "deg/h": " deg/h"}.get(self.unit or "", "")
         if self.lo is not None and self.hi is not None:
             text = (f"{self.lo:g} {'<' if self.lo_open else '<='} {self.name} "
                     f"{'<' if self.hi_open else '<='} {self.hi:g}")
@@ -258,14 +260,14 @@ PARAMS: tuple[Param, ...] = (
           option="--bias-tracking", metavar="0|1", fmu="bias_tracking"),
     Param("bias_still_s", float, 1.0, "bias tracking: the block averaged; a still run's first and last blocks "
           "are not used", "s", lo=0.0, lo_open=True, methods=("motion",), option="--bias-still-s",
-          metavar="S", fmu="bias_still_s"),
+          metavar="S", fmu="bias_still_s", tunes="bias_tracking"),
     Param("bias_memory_s", float, 60.0, "bias tracking: the estimate averages the still blocks of the last "
           "this many still seconds (a drifting bias)", "s", lo=0.0, lo_open=True, methods=("motion",),
-          option="--bias-memory-s", metavar="S", fmu="bias_memory_s"),
+          option="--bias-memory-s", metavar="S", fmu="bias_memory_s", tunes="bias_tracking"),
     Param("earth_rate_floor_deg_h", float, 15.0, "bias tracking: this much of the estimated bias (deg/h) is "
           "never removed: a still sensor measures Earth's rotation, <= 15 deg/h on any axis (0: remove it "
-          "all)", lo=0.0, methods=("motion",), option="--earth-rate-floor-deg-h", metavar="DEG_H",
-          fmu="earth_rate_floor_deg_h"),
+          "all)", "deg/h", lo=0.0, methods=("motion",), option="--earth-rate-floor-deg-h", metavar="DEG_H",
+          fmu="earth_rate_floor_deg_h", tunes="bias_tracking"),
 )
 BY_PARAM = {p.name: p for p in PARAMS}
 #: FMU variable name -> parameter

@@ -39,8 +39,8 @@ STEP_RTOL = 1e-6
 SLIVER_RTOL = 1e-6
 #: format of the FMU state: parameters (the 1-euro filter's included), inputs, output and the
 #: core's state; a state of another version is refused (4: the 1-euro filter's parameters, the
-#: core's parameter buffer with the sample rate)
-STATE_VERSION = 4
+#: core's parameter buffer with the sample rate; 5: bias tracking's parameters and state)
+STATE_VERSION = 5
 
 
 
