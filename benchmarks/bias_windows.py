@@ -10,6 +10,11 @@ The judge of ``motion``'s option ``bias_tracking`` (docs/method/bias.md). RMS ro
 * tracking: the ``motion`` filter, causal, with ``bias_tracking=1`` (the C core, one axis a
   filter; the defaults of the registry: still blocks of 1 s, 60 s of memory, the 15 deg/h
   Earth-rate floor);
+* offline (printed on its own lines, BROAD): ``gd.denoise(..., offline=True, bias_tracking=1)``, the
+  library's offline form: the causal run's bias_hat after each sample taken off, then the smoother;
+* offline from sample 0 (its own lines, BROAD; a variant measured here, not in the library): the
+  same with the causal estimate's first value applied back to the record's first sample (an
+  offline run may use a still run's mean before the causal filter has it);
 * oracle (BROAD only): minus the mean of the trial's first rest segment from its ``movement`` flags
   (what ``real_motion.py`` removes before any filter; not available to a user in general).
 
@@ -76,6 +81,24 @@ def motion_axes(raw, fs, **kw):
                             for k in range(raw.shape[1])])
 
 
+def offline_axes(raw, fs, from_start=False):
+    """The offline form with bias tracking on each axis; ``from_start``: the causal bias_hat's
+    first nonzero value applied back to sample 0 (before it the causal run removed nothing)."""
+    p = K.make_params(method="motion", sample_rate_hz=fs, bias_tracking=1)
+    q = list(p)
+    q[K.P_BIAS] = 0.0
+    cols = []
+    for k in range(raw.shape[1]):
+        z = np.ascontiguousarray(raw[:, k])
+        _, _, hat = batch.run(p, K.init_state(p), z, trace_index=K.ext_offset(p) + K.M_BIAS + K.GB_HAT)
+        hat = np.array(hat, dtype=float)
+        nz = np.flatnonzero(hat)
+        if from_start and nz.size:
+            hat[:nz[0]] = hat[nz[0]]
+        cols.append(batch.run_offline(q, z - hat))
+    return np.column_stack(cols)
+
+
 def nan_rms(x):
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
@@ -121,6 +144,7 @@ def main(argv=None) -> int:
           f"<= raw on all")
     print(f"{'record':44s} {'set':9s} {'win':>4s} " + " ".join(f"{n:>13s}" for n in NAMES) + "  verdict")
     failed = 0
+    offline_missed = {"offline": 0, "offline0": 0}
     for ds, name, path, load in found:
         trial = load()
         R.calibrate(trial)
@@ -133,13 +157,23 @@ def main(argv=None) -> int:
         rates = {"raw": raw, "startup_cal": raw - raw[:k].mean(axis=0), "fusion": fusion_offset(raw, fs),
                  "motion": motion_axes(raw, fs), "tracking": motion_axes(raw, fs, bias_tracking=1)}
         held = "held out" if ds != "broad" else "dev"
+        if ds == "broad":
+            rates["offline"] = offline_axes(raw, fs)
+            rates["offline0"] = offline_axes(raw, fs, from_start=True)
         for w in WINDOWS_S:
             e = {n: nan_rms(R.window_errors_deg(trial, r, w)) for n, r in rates.items()}
             v = verdict(e, still)
             failed += v.startswith("miss")
             cells = " ".join(f"{e[n]:7.3f} {e[n] / e['raw']:5.2f}" for n in NAMES)
             print(f"{name:44s} {held:9s} {w:4g} {cells}  {v}")
-    print(f"{failed} line(s) missed")
+            for form in ("offline", "offline0") if ds == "broad" else ():
+                label = {"offline": "offline", "offline0": "offline from sample 0"}[form]
+                v = verdict({**e, "tracking": e[form]}, still)
+                offline_missed[form] += v.startswith("miss")
+                print(f"  {label + ':':40s} {e[form]:7.3f} x raw {e[form] / e['raw']:5.2f}, "
+                      f"x cal {e[form] / e['startup_cal']:5.2f}  {v}")
+    print(f"{failed} line(s) missed (causal tracking); offline: {offline_missed['offline']}, "
+          f"offline from sample 0: {offline_missed['offline0']}")
     return 0
 
 
