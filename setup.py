@@ -3,7 +3,7 @@ from setuptools import setup, Extension
 setup(ext_modules=[
     Extension(
         "gyrodenoise.core._gdcore",
-        sources=["gyrodenoise/core/gdcore.c", "gyrodenoise/core/gdsim.c", "gyrodenoise/core/_gdcoremodule.c"],
+        sources=["gyrodenoise/core/gdcore.c", "gyrodenoise/core/gdbias.c", "gyrodenoise/core/gdsim.c", "gyrodenoise/core/_gdcoremodule.c"],
         depends=["gyrodenoise/core/gdcore.h", "gyrodenoise/core/gdmethods.h", "gyrodenoise/core/gdsim.h"],
         # -ffp-contract=off: no fused multiply-add, so the C core equals the plain-Python
         # kernels bit for bit (tests/core/test_c_core_equals_python.py). -fschedule-insns -fsched-pressure:

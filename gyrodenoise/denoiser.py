@@ -117,6 +117,12 @@ class Denoiser:
         return float(self.state[K.S_INNOV])
 
     @property
+    def bias_hat(self) -> float:
+        """The gyro bias removed from the output by bias tracking (``bias_tracking=1``, method
+        motion), deg/s; 0.0 when it is off (docs/method/bias.md)."""
+        return K.bias_hat(self.params, self.state)
+
+    @property
     def converged(self) -> bool:
         """True once the AR model has converged since the last restart."""
         return self.state[K.S_CONV] == 1.0
@@ -197,6 +203,14 @@ def denoise(rate_deg_s: ArrayLike, sample_rate_hz: float, method: str = "motion"
         owner = next(m.name for m in methods.METHODS if m.offline == form)
         if on and method != owner:
             raise ValueError(f"{methods.OFFLINE_FORMS[form][0]} applies to method={owner!r} only, not {method!r}")
+    if offline and p[K.P_BIAS] > 0.0:
+        # bias tracking offline: the causal run's bias (what it removed after each sample) off
+        # the samples, then the smoother without it (docs/method/bias.md)
+        o = K.ext_offset(p) + K.M_BIAS + K.GB_HAT
+        _, _, hat = batch.run(p, K.init_state(p), rate_deg_s, restarts, trace_index=o)
+        p = list(p)
+        p[K.P_BIAS] = 0.0
+        return batch.run_offline(p, np.asarray(rate_deg_s, dtype=np.float64) - hat, restarts)
     if offline:
         return batch.run_offline(p, rate_deg_s, restarts)
     out, _ = batch.run(p, K.init_state(p), rate_deg_s, restarts)

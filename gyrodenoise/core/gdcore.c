@@ -86,7 +86,7 @@ KERNEL void restart_(const double *p, double *s)
     gd_layout_t L = layout_(n);
     double nrej = s[S_NREJ], nreopen = s[S_NREOPEN], nclamp = s[S_NCLAMP], nheal = s[S_NHEAL];
     long i;
-    for (i = 0; i < L.total; i++)
+    for (i = 0; i < L.total - GB_N; i++)   /* the bias tracking's block (M_BIAS, last) is kept */
         s[i] = 0.0;
     s[S_NREJ] = nrej;
     s[S_NREOPEN] = nreopen;
@@ -1225,6 +1225,19 @@ KERNEL double c_deg_s_(const double *p, const double *s)
     return s[o + n] + one_minus * s[S_ZREF];
 }
 
+/* bias tracking (kernels.bias_step): still where the bank has converged and its most
+ * likely filter is one of the slowest (at or below lane p[P_BIAS_LANE]) */
+RARE double bias_step_(const double *p, double *s, double z)
+{
+    double *b = s + layout_total_(ORDER(p)) - N_EXT + M_BIAS;
+    gd_bias_t e;
+    double hat;
+    gd_bias_load(b, &e);
+    hat = gd_bias_update(p, &e, z, s[S_CONV] == 1.0 && b[M_BEST - M_BIAS] <= p[P_BIAS_LANE], s[S_R]);
+    gd_bias_save(&e, b);
+    return hat;
+}
+
 /* one sample of any method; bk: the motion bank outside s (run_motion_, only
  * for method motion) or NULL (the bank in s). With bk the method is motion, so
  * the copies inlined into run_motion_'s loops hold motion's code only: the
@@ -1291,6 +1304,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         }
     }
     s[S_OUT] = out;
+    if (motion && p[P_BIAS] > 0.0)       /* bias tracking: the bias removed (gdbias.c) */
+        out -= bias_step_(p, s, z);
     return out;
 }
 

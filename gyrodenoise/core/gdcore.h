@@ -89,11 +89,18 @@ extern "C" {
 #define P_MO_CUS (P_MO_PT + 4) /* motion: summed innovation: fading, weight, threshold (0 weight = off) */
 #define P_MO_NCA (P_MO_PT + 7) /* motion: constant-acceleration filters, lanes NF..NF+NCA-1 */
 #define P_MO_SPECH (P_MO_PT + 8) /* motion: the line test's floor scale 1 / (c sum w^2) over MO_HI_NB bins */
-#define N_PARAMS (P_MO_PT + 9)
+#define P_BIAS (P_MO_PT + 9)     /* motion: 1 = bias tracking (gdbias.c), 0 = off */
+#define P_BIAS_LANE (P_BIAS + 1) /* bias tracking: still where the most likely filter is at or below this lane */
+#define P_BIAS_NEED (P_BIAS + 2) /* bias tracking: samples of a block (bias_still_s) */
+#define P_BIAS_CAP (P_BIAS + 3)  /* bias tracking: memory, blocks (bias_memory_s / bias_still_s) */
+#define P_BIAS_FLOOR (P_BIAS + 4) /* bias tracking: deg/s of the estimate never removed (Earth's rate) */
+#define P_BIAS_NAVR (P_BIAS + 5)  /* bias tracking: the floor applies where the white-noise variance is below this */
+#define N_PARAMS (P_BIAS + 6)
 
 /* p[P_METHOD] values (doubles, compared with ==): METHOD_* of the registry
    (gyrodenoise/core/methods.py), generated into gdmethods.h */
 #include "gdmethods.h"
+#include "gdbias.h"
 
 /* state header s[] */
 #define S_K 0
@@ -146,7 +153,8 @@ extern "C" {
 #define M_SRH (M_CUS + MO_MAX_NF)    /* line test: its smoothed floor from the MO_HI_NB high bins (as M_SR) */
 #define M_SBKH (M_SRH + 1)           /* line test: b^(blocks+1) of that floor (as M_SBK) */
 #define M_GRD (M_SRH + 2)            /* output guard: faded (z - y)^2 / R of the bank's output */
-#define N_EXT (M_SRH + 3)
+#define M_BIAS (M_SRH + 3)           /* bias tracking: its GB_N doubles (gd_bias_t), the last of the state, kept by restarts */
+#define N_EXT (M_BIAS + GB_N)
 /* one_euro's state, the first floats of the method-specific block */
 #define OE_X 0
 #define OE_DX 1

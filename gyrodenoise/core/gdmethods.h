@@ -39,7 +39,7 @@
 #define GD_OFF 4
 #define GD_NYQUIST 8
 #define GD_COMPUTED 16   /* 0 stands for the default computed from the sample rate */
-#define GD_N_REAL_PARAMS 15
+#define GD_N_REAL_PARAMS 18
 #define GD_REAL_PARAMS(X) \
     X(cutoff_hz, 0.0, -1, 0.0, HUGE_VAL, GD_LO_OPEN | GD_NYQUIST | GD_COMPUTED, "> 0 Hz and below half the sample rate, %g Hz; 0 = the default", METHOD_LOWPASS) \
     X(max_motion_hz, 0.0, -1, 0.0, HUGE_VAL, GD_LO_OPEN | GD_OFF | GD_NYQUIST, "0 (off) or > 0 Hz and below half the sample rate, %g Hz", METHOD_MOTION) \
@@ -56,11 +56,15 @@
     X(p0_kf, 1.0, P_P0_KF, 0.0, HUGE_VAL, GD_LO_OPEN, "> 0 (deg/s)^2", -1.0) \
     X(r_floor, 1e-18, P_R_FLOOR, 0.0, HUGE_VAL, GD_LO_OPEN, "> 0 (deg/s)^2", -1.0) \
     X(outlier_sigma, 5.0, P_OUTLIER_SIGMA, 2.0, HUGE_VAL, GD_OFF, "0 (off) or >= 2", -1.0) \
+    X(bias_still_s, 1.0, -1, 0.0, HUGE_VAL, GD_LO_OPEN, "> 0 s", METHOD_MOTION) \
+    X(bias_memory_s, 60.0, -1, 0.0, HUGE_VAL, GD_LO_OPEN, "> 0 s", METHOD_MOTION) \
+    X(earth_rate_floor_deg_h, 15.0, -1, 0.0, HUGE_VAL, 0, ">= 0 deg/h", METHOD_MOTION) \
 
-#define GD_N_INT_PARAMS 3
+#define GD_N_INT_PARAMS 4
 #define GD_INT_PARAMS(X) \
     X(ar_order, 3, P_ORDER, 1.0, 6.0, 0, "1..6", -1.0) \
     X(lowpass_order, 2, -1, 1.0, 8.0, 0, "1..8", METHOD_LOWPASS) \
     X(outlier_run, 20, P_OUTLIER_RUN, 1.0, HUGE_VAL, 0, ">= 1", -1.0) \
+    X(bias_tracking, 0, P_BIAS, 0.0, 1.0, GD_OFF, "0..1", METHOD_MOTION) \
 
 #endif

@@ -130,7 +130,13 @@ P_MO_CUS = P_MO_PT + 4    # motion: summed-innovation test (:func:`motion_step`)
 P_MO_NCA = P_MO_PT + 7   # motion: constant-acceleration filters in the bank, lanes P_MO_NF..P_MO_NF+NCA-1
 P_MO_SPECH = P_MO_PT + 8  # motion: the line test's floor (:func:`spectral_floor`): 1 / (c sum w^2) over the
                           # MO_HI_NB bins from MO_HI_J0 (0 = off with P_MO_SPEC)
-N_PARAMS = P_MO_PT + 9
+P_BIAS = P_MO_PT + 9       # motion: 1.0 = bias tracking (:func:`bias_update`), 0.0 = off
+P_BIAS_LANE = P_BIAS + 1   # bias tracking: still where the most likely filter is at or below this lane
+P_BIAS_NEED = P_BIAS + 2   # bias tracking: samples of a block (bias_still_s)
+P_BIAS_CAP = P_BIAS + 3    # bias tracking: memory, blocks (bias_memory_s / bias_still_s)
+P_BIAS_FLOOR = P_BIAS + 4  # bias tracking: deg/s of the estimate never removed (earth_rate_floor_deg_h)
+P_BIAS_NAVR = P_BIAS + 5   # bias tracking: the floor applies where the bank's white-noise variance is below this
+N_PARAMS = P_BIAS + 6
 
 MAX_MOTION_ORDER = 4      # motion's rigid-body low-pass (max_motion_hz): Butterworth of this order,
 MAX_MOTION_CUTOFF = 2.0   # its -3 dB point at this many times max_motion_hz (gain 0.996 at max_motion_hz),
@@ -212,7 +218,10 @@ M_CUS = M_NWC + 3     # summed-innovation test: per filter, its faded sum of inn
 M_SRH = M_CUS + MO_MAX_NF   # line test: its smoothed floor from the MO_HI_NB high bins, (deg/s)^2 (as M_SR)
 M_SBKH = M_SRH + 1          # line test: b^(blocks+1) of that floor's d_k (as M_SBK)
 M_GRD = M_SRH + 2           # output guard (:func:`motion_step`): faded (z - y)^2 / R of the bank's output
-N_EXT = M_SRH + 3
+M_BIAS = M_SRH + 3          # bias tracking (:func:`bias_update`): its GB_N floats, the last of the state, kept by restarts
+GB_CUR_SUM, GB_CUR_N, GB_NBLK, GB_PEND, GB_NB, GB_MEAN, GB_HAT = range(7)   # their order (gdbias.h's gd_bias_t)
+GB_N = 7
+N_EXT = M_BIAS + GB_N
 
 # one_euro's state, the first floats of the method-specific block:
 OE_X = 0         # the filtered (centred) rate, deg/s
@@ -307,6 +316,10 @@ def make_params(ar_order: int = 3, method: str = DEFAULT_METHOD, sample_rate_hz:
     if method == "motion":
         for i, v in enumerate(motion_params(fs)):
             p[P_MO_NF + i] = v
+    if method == "motion" and values["bias_tracking"]:     # off: p as without the option
+        for i, v in enumerate(bias_params(fs, values["bias_still_s"], values["bias_memory_s"],
+                                          values["earth_rate_floor_deg_h"])):
+            p[P_BIAS_LANE + i] = v
     _write_sections(p, cutoff_hz, sos)
     return p
 
@@ -542,7 +555,7 @@ def restart(p: Buf, s: MutBuf) -> None:
     nreopen = s[S_NREOPEN]
     nclamp = s[S_NCLAMP]
     nheal = s[S_NHEAL]
-    for i in range(total):
+    for i in range(total - GB_N):    # the bias tracking's block (M_BIAS, the last) is kept
         s[i] = 0.0
     s[S_NREJ] = nrej
     s[S_NREOPEN] = nreopen
@@ -1524,7 +1537,93 @@ def step(p: Buf, s: MutBuf, z: float, is_restart: bool) -> float:
             out = s[S_HI]
             s[S_NCLAMP] += 1.0
     s[S_OUT] = out
+    if p[P_BIAS] > 0.0 and p[P_METHOD] == METHOD_MOTION:   # bias tracking: the bias removed
+        out -= bias_step(p, s, z)
     return out
+
+
+GB_NAV_ARW_DEG_RTH = 0.05   # bias tracking: a record is navigation grade (the Earth-rate floor applies) below this ARW, deg/sqrt(h)
+GB_LANE = 4   # bias tracking: the slowest lanes (0..4: tracking index <= 1e-6, an average over minutes) are "still"
+
+
+def bias_params(sample_rate_hz: float, still_s: float, memory_s: float, floor_deg_h: float) -> list[float]:
+    """p[P_BIAS_LANE ... P_BIAS_NAVR] (gdbias.c's gd_bias_params): the still lanes, the block
+    (samples), the memory (blocks), the Earth-rate floor (deg/s), the white-noise variance below
+    which a record is navigation grade ((deg/s)^2: ARW^2 = R / fs)."""
+    need = max(1.0, float(round(still_s * sample_rate_hz)))
+    a = GB_NAV_ARW_DEG_RTH / 60.0
+    return [float(GB_LANE), need, max(1.0, float(round(memory_s * sample_rate_hz / need))), floor_deg_h / 3600.0,
+            a * a * sample_rate_hz]
+
+
+def bias_step(p: Buf, s: MutBuf, z: float) -> float:
+    """Bias tracking, one raw sample ``z``: still where the bank has converged and its
+    most likely filter is one of the slowest (at or below lane p[P_BIAS_LANE]); returns the
+    bias removed (:func:`bias_update`)."""
+    o = ext_offset(p) + M_BIAS
+    calm = s[S_CONV] == 1.0 and s[o + M_BEST - M_BIAS] <= p[P_BIAS_LANE]
+    return bias_update(p, s, o, z, calm, s[S_R])
+
+
+def bias_update(p: Buf, s: MutBuf, o: int, z: float, calm: bool, r: float) -> float:
+    """The bias estimator (gdbias.c), on its GB_N floats at ``s[o:]``; returns the bias removed.
+
+    Blocks of p[P_BIAS_NEED] still samples: a block's mean is committed only when it is
+    neither the first block of its still run (the bank calls the gyro still a little after
+    the motion stopped) nor the last (it calls it moving a little after the motion
+    started): a completed block waits as pending until the next one completes, and a
+    sample that is not still drops the block being filled and the pending one. Then
+
+        nb <- min(nb + 1, cap);  mean <- mean + (pend - mean) / nb             (B1)
+
+    the mean of the committed blocks, then an exponential memory of ``cap`` blocks
+    (bias_memory_s) that follows a slow drift. Before the first commit the estimate is
+    the mean of the current run's completed blocks (B0: a start-up calibration from the
+    first still block on), replaced at the first commit. What is removed,
+
+        hat = mean - floor if mean > floor, mean + floor if mean < -floor, else 0   (B2)
+
+    floor = earth_rate_floor_deg_h on a navigation-grade record (the bank's white-noise
+    variance ``r`` below p[P_BIAS_NAVR], an angle random walk below :data:`GB_NAV_ARW_DEG_RTH`):
+    never the first ``floor`` of its bias, where a still sensor's Earth rate (<= 15 deg/h on
+    any axis) hides; 0 on a noisier (MEMS) record, whose whole estimate is removed, Earth's
+    rate with it: attitude relative to the Earth (docs/method/bias.md).
+    """
+    if not calm or not _finite(z):      # moving (or a non-finite sample): the run ends
+        s[o + GB_CUR_SUM] = 0.0
+        s[o + GB_CUR_N] = 0.0
+        s[o + GB_NBLK] = 0.0
+        return s[o + GB_HAT]
+    s[o + GB_CUR_SUM] += z
+    s[o + GB_CUR_N] += 1.0
+    if s[o + GB_CUR_N] < p[P_BIAS_NEED]:
+        return s[o + GB_HAT]
+    bm = s[o + GB_CUR_SUM] / s[o + GB_CUR_N]
+    s[o + GB_NBLK] += 1.0
+    if s[o + GB_NBLK] >= 3.0:           # the pending block: neither the run's first nor its last
+        nb = s[o + GB_NB] + 1.0 if s[o + GB_NB] + 1.0 < p[P_BIAS_CAP] else p[P_BIAS_CAP]
+        s[o + GB_NB] = nb
+        s[o + GB_MEAN] = s[o + GB_MEAN] + (s[o + GB_PEND] - s[o + GB_MEAN]) / nb      # (B1)
+    elif s[o + GB_NB] == 0.0:           # nothing committed yet: the run's blocks so far (B0)
+        s[o + GB_MEAN] = s[o + GB_MEAN] + (bm - s[o + GB_MEAN]) / s[o + GB_NBLK]
+    if s[o + GB_NBLK] >= 3.0 or s[o + GB_NB] == 0.0:
+        mean = s[o + GB_MEAN]
+        fl = p[P_BIAS_FLOOR] if r < p[P_BIAS_NAVR] else 0.0
+        if mean > fl:                                                        # (B2)
+            s[o + GB_HAT] = mean - fl
+        elif mean < -fl:
+            s[o + GB_HAT] = mean + fl
+        else:
+            s[o + GB_HAT] = 0.0
+    s[o + GB_PEND] = bm
+    s[o + GB_CUR_SUM] = 0.0
+    s[o + GB_CUR_N] = 0.0
+    return s[o + GB_HAT]
+
+
+def bias_hat(p: Buf, s: Buf) -> float:
+    """The bias removed by bias tracking at the last sample, deg/s (0.0 when it is off)."""
+    return float(s[ext_offset(p) + M_BIAS + GB_HAT]) if p[P_BIAS] > 0.0 else 0.0
 
 
 # ------------------------------------------------------------------ readouts

@@ -107,11 +107,13 @@ class Param(NamedTuple):
     fmu: str | None = None
     fmu_start: float | int | None = None
     fmu_max: float | int | None = None
+    #: the switch (an ``off`` parameter) this one tunes: without effect, and not reported, while it is 0
+    tunes: str | None = None
 
     # ---------------------------------------------------------------- range
     def rule(self, sample_rate_hz: float | None = None) -> str:
         """The range as a message says it: ``0 < lam <= 1``, ``>= 0 (deg/s)^2, 0 = automatic``."""
-        unit = {"deg2/s2": " (deg/s)^2", "Hz": " Hz", "s": " s"}.get(self.unit or "", "")
+        unit = {"deg2/s2": " (deg/s)^2", "Hz": " Hz", "s": " s", "deg/h": " deg/h"}.get(self.unit or "", "")
         if self.lo is not None and self.hi is not None:
             text = (f"{self.lo:g} {'<' if self.lo_open else '<='} {self.name} "
                     f"{'<' if self.hi_open else '<='} {self.hi:g}")
@@ -252,6 +254,20 @@ PARAMS: tuple[Param, ...] = (
     Param("outlier_run", int, 20, "after M consecutive rejected samples the next one is taken as a real rate "
           "change and the filter restarts there", lo=1, slot="P_OUTLIER_RUN", option="--outlier-run",
           metavar="M", fmu="outlier_run"),
+    Param("bias_tracking", int, 0, "bias tracking for open-loop attitude: 1 = the gyro's bias, estimated while "
+          "the bank says the gyro is still and carried through motion, is removed from the output "
+          "(docs/method/bias.md); 0 = off", lo=0, hi=1, off=True, methods=("motion",), slot="P_BIAS",
+          option="--bias-tracking", metavar="0|1", fmu="bias_tracking"),
+    Param("bias_still_s", float, 1.0, "bias tracking: the block averaged; a still run's first and last blocks "
+          "are not used", "s", lo=0.0, lo_open=True, methods=("motion",), option="--bias-still-s",
+          metavar="S", fmu="bias_still_s", tunes="bias_tracking"),
+    Param("bias_memory_s", float, 60.0, "bias tracking: the estimate averages the still blocks of the last "
+          "this many still seconds (a drifting bias)", "s", lo=0.0, lo_open=True, methods=("motion",),
+          option="--bias-memory-s", metavar="S", fmu="bias_memory_s", tunes="bias_tracking"),
+    Param("earth_rate_floor_deg_h", float, 15.0, "bias tracking: this much of the estimated bias (deg/h) is "
+          "never removed: a still sensor measures Earth's rotation, <= 15 deg/h on any axis (0: remove it "
+          "all)", "deg/h", lo=0.0, methods=("motion",), option="--earth-rate-floor-deg-h", metavar="DEG_H",
+          fmu="earth_rate_floor_deg_h", tunes="bias_tracking"),
 )
 BY_PARAM = {p.name: p for p in PARAMS}
 #: FMU variable name -> parameter

@@ -174,10 +174,11 @@ def filter_form(eng, engine):
 def filter_options(method: str, filter_kw: dict | None, zero_phase: bool) -> dict:
     """The report's ``filter_options``: the method's options as given, its own
     parameters' defaults spelled out (the low-pass's, the 1-euro filter's), and
-    ``zero_phase`` for a method whose offline form it is."""
+    ``zero_phase`` for a method whose offline form it is. A parameter that tunes a switch
+    left off (bias tracking's) is not spelled out."""
     options = dict(filter_kw or {})
     for p in PARAMS:
-        if method in p.methods and not p.off:
+        if method in p.methods and not p.off and (p.tunes is None or options.get(p.tunes)):
             options.setdefault(p.name, p.default)   # lowpass's cutoff_hz None: min(20 Hz, rate / 4)
     if method in BY_NAME and BY_NAME[method].offline == "zero_phase":
         options["zero_phase"] = bool(zero_phase)

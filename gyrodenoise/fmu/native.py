@@ -59,7 +59,8 @@ LOG_CATEGORIES = [
 
 #: FogDenoiserNative: the denoiser's hooks (fogdenoiser_native.c) over the core gdcore.c
 DENOISER = NativeModel(MODEL_NAME, DENOISER_DESCRIPTION, FOG_DENOISER, DEFAULT_STEP_SIZE_S, C_SOURCE,
-                       UNITY_SOURCE, (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h", CORE_DIR / "gdmethods.h"), UNITS,
+                       UNITY_SOURCE, (CORE_DIR / "gdcore.c", CORE_DIR / "gdcore.h", CORE_DIR / "gdmethods.h",
+                                                       CORE_DIR / "gdbias.c", CORE_DIR / "gdbias.h"), UNITS,
                        header_lines=(f"#define GD_MAX_AR_ORDER {MAX_AR_ORDER}",),
                        extra_sources=("fogdenoiser_params.c",))
 #: FogDenoiserImuNative: the 3-axis denoiser (FogDenoiserImuNative3's hooks) with one scalar variable an

@@ -53,9 +53,10 @@ UNITS = {
     "deg2/s2": {"rad": "2", "s": "-2", "factor": repr(DEG * DEG)},
     "s": {"s": "1"},
     "Hz": {"s": "-1"},
+    "deg/h": {"rad": "1", "s": "-1", "factor": repr(DEG / 3600.0)},
 }
 #: FMI unit name -> how a pythonfmu slave writes it at the end of a description
-UNIT_LABELS = {"deg/s": "deg/s", "deg2/s2": "(deg/s)^2", "s": "s", "Hz": "Hz"}
+UNIT_LABELS = {"deg/s": "deg/s", "deg2/s2": "(deg/s)^2", "s": "s", "Hz": "Hz", "deg/h": "deg/h"}
 
 
 class Variable(NamedTuple):
@@ -114,6 +115,10 @@ def _registry_parameters(*names):
     return tuple(_registry_parameter(n) for n in names)
 
 
+#: the output bias_hat (one an axis in the 3-axis FMUs), after "method 'motion', "
+BIAS_HAT_DOC = ("bias_tracking = 1: the gyro bias removed from filtered_rate (estimated while still, less the "
+                "Earth-rate floor on a navigation-grade record); 0 when off")
+
 #: FogDenoiser.fmu and FogDenoiserNative.fmu: the order of the variables (= value references) is
 #: kept from release to release, the parameters' declarations are the registry's
 FOG_DENOISER = (
@@ -145,6 +150,8 @@ FOG_DENOISER = (
     _parameter("strict_step_size", "Boolean", False, "If true, a step whose size differs from sample_period "
                "is refused (fmi2Discard); if false it is processed and a warning is logged"),
     *_registry_parameters("max_motion_hz", "min_cutoff_hz", "beta", "d_cutoff_hz"),
+    *_registry_parameters("bias_tracking", "bias_still_s", "bias_memory_s", "earth_rate_floor_deg_h"),
+    _output("bias_hat", "Real", f"method 'motion', {BIAS_HAT_DOC}", "deg/s"),
 )
 assert {v.name for v in FOG_DENOISER} >= set(methods.BY_FMU), "an FMU parameter of the registry is not declared"
 
@@ -159,6 +166,7 @@ FOG_DENOISER_IMU = (
     _output("filtered_rate", "Real", "Filtered angular rates, one a gyro axis (gd.denoise of each axis); the raw "
             "samples during the warm-up after each restart", "deg/s")._replace(size=IMU_AXES),
     *(v for v in FOG_DENOISER if v.causality == "parameter"),
+    _output("bias_hat", "Real", f"Method 'motion', one a gyro axis: {BIAS_HAT_DOC}", "deg/s")._replace(size=IMU_AXES),
 )
 
 #: the axes' suffixes of FOG_DENOISER_IMU_XYZ's scalar variables (axis j: IMU_AXIS_NAMES[j])
@@ -174,6 +182,8 @@ FOG_DENOISER_IMU_XYZ = (
     *(_output(f"filtered_rate_{a}", "Real", f"Filtered angular rate of the {a} axis (gd.denoise of that axis); "
               "the raw sample during the warm-up after each restart", "deg/s") for a in IMU_AXIS_NAMES),
     *(v for v in FOG_DENOISER if v.causality == "parameter"),
+    *(_output(f"bias_hat_{a}", "Real", f"Method 'motion', the {a} axis: {BIAS_HAT_DOC}", "deg/s")
+      for a in IMU_AXIS_NAMES),
 )
 
 #: SimulatedFog.fmu (pythonfmu): the card parameter takes a TOML card

@@ -90,7 +90,9 @@ def test_cli_options_are_derived():
     assert O.FILTER_PARAMS["--order"] == "order" and O.FILTER_PARAMS["--beta"] == "beta"
     assert O.METHOD_OF_OPTION == {"--cutoff-hz": "lowpass", "--order": "lowpass", "--max-motion-hz": "motion",
                                   "--min-cutoff-hz": "one_euro", "--beta": "one_euro", "--d-cutoff-hz": "one_euro",
-                                  "--causal": "motion", "--zero-phase": "lowpass"}
+                                  "--causal": "motion", "--zero-phase": "lowpass", "--bias-tracking": "motion",
+                                  "--bias-still-s": "motion", "--bias-memory-s": "motion",
+                                  "--earth-rate-floor-deg-h": "motion"}
 
 
 def test_c_butter_sos_equals_python_bit_for_bit():

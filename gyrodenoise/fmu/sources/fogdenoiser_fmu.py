@@ -39,8 +39,8 @@ STEP_RTOL = 1e-6
 SLIVER_RTOL = 1e-6
 #: format of the FMU state: parameters (the 1-euro filter's included), inputs, output and the
 #: core's state; a state of another version is refused (4: the 1-euro filter's parameters, the
-#: core's parameter buffer with the sample rate)
-STATE_VERSION = 4
+#: core's parameter buffer with the sample rate; 5: bias tracking's parameters and state)
+STATE_VERSION = 5
 
 
 
@@ -78,7 +78,8 @@ class FogDenoiser(Fmi2Slave):
         getters = {f"phi_{k}": self._phi_getter(k) for k in range(1, variables.MAX_AR_ORDER + 1)}
         getters.update(c=self._get_c, R_hat=self._state_getter("S_R"), Q_hat=self._state_getter("S_Q"),
                        innovation=self._state_getter("S_INNOV"), converged=self._get_converged,
-                       n_rejected=self._get_n_rejected, filtered_rate=self._get_filtered_rate)
+                       n_rejected=self._get_n_rejected, filtered_rate=self._get_filtered_rate,
+                       bias_hat=self._get_bias_hat)
         self.filtered_rate = 0.0   # the output of the last step (the first output before the first step)
         self._max_order = variables.MAX_AR_ORDER   # phi_1 .. phi_max declared; phi_k, k > ar_order, reads 0
         self._parameter_names = _rules.register_declared(self, variables, variables.FOG_DENOISER, getters)
@@ -127,6 +128,9 @@ class FogDenoiser(Fmi2Slave):
 
     def _get_n_rejected(self):
         return 0 if self._den is None else self._den.n_rejected
+
+    def _get_bias_hat(self):
+        return 0.0 if self._den is None else self._den.bias_hat
 
     def _get_converged(self):
         return self._den is not None and self._den.converged

@@ -22,10 +22,11 @@
 #define IMU_SERIAL_MAGIC "GDIMU3AX"
 #endif
 
-#define SERIAL_VERSION 4u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed);
+#define SERIAL_VERSION 5u   /* 2: the motion bank of 13 CV + 3 CA lanes (core parameters and state changed);
                                3: the line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH); 4: the
                                parameters in the registry's order (gdmethods.h), the 1-euro filter's among
-                               them, and the core's parameter buffer with P_FS and the 1-euro slots */
+                               them, and the core's parameter buffer with P_FS and the 1-euro slots; 5: bias
+                               tracking's parameters and state (gdbias.h), the output bias_hat */
 #define N_AXES 3
 
 #include "fogdenoiser_params.c"
@@ -35,6 +36,7 @@ typedef struct {
     user_t u;
     double raw_rate[N_AXES];      /* input */
     double filtered_rate[N_AXES]; /* output of the last step */
+    double bias_hat[N_AXES];      /* output: the bias removed at the last step (gd_bias_hat) */
     double p[N_PARAMS];
 } imu_t;
 
@@ -61,6 +63,7 @@ static void imu_start(gdfmi_inst_t *c) {
     for (j = 0; j < N_AXES; j++) {
         gd_restart(d->p, c->s + j * L);
         d->filtered_rate[j] = 0.0;
+        d->bias_hat[j] = 0.0;
     }
 }
 
@@ -76,6 +79,7 @@ static gd_status_t imu_step(gdfmi_inst_t *c, double t) {
     for (j = 0; j < N_AXES; j++) {
         double z = d->raw_rate[j], *s = c->s + j * L;
         d->filtered_rate[j] = gd_step(d->p, s, z, d->restart ? 1 : 0);
+        d->bias_hat[j] = gd_bias_hat(d->p, s);
         if (!isfinite(z)) { /* a dropout on this axis: as FogDenoiserNative (see fogdenoiser_native.c) */
             gdfmi_log(c, GD_WARNING, GD_FN("DoStep") ": raw_rate[%d] is %s at t=%.17g s: a dropout, processed "
                       "as gd.denoise processes it (a non-finite filter state restarts the filter, which passes "
@@ -93,6 +97,7 @@ static double imu_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
 #ifdef GD_IMU_AXIS_SCALARS
     if (vr >= VR_raw_rate_x && vr <= VR_raw_rate_z) return d->raw_rate[vr - VR_raw_rate_x];
     if (vr >= VR_filtered_rate_x && vr <= VR_filtered_rate_z) return d->filtered_rate[vr - VR_filtered_rate_x];
+    if (vr >= VR_bias_hat_x && vr <= VR_bias_hat_z) return d->bias_hat[vr - VR_bias_hat_x];
 #endif
     return param_real(&d->u, vr); /* the arrays are read through imu_real_ref */
 }
@@ -103,11 +108,13 @@ static double *imu_real_ref(void *m, gd_vr_t vr) {
 #ifdef GD_IMU_AXIS_SCALARS
     if (vr >= VR_raw_rate_x && vr <= VR_raw_rate_z) return d->raw_rate + (vr - VR_raw_rate_x);
     if (vr >= VR_filtered_rate_x && vr <= VR_filtered_rate_z) return d->filtered_rate + (vr - VR_filtered_rate_x);
+    if (vr >= VR_bias_hat_x && vr <= VR_bias_hat_z) return d->bias_hat + (vr - VR_bias_hat_x);
     return param_real_ref(u, vr);
 #else
     switch (vr) {
     case VR_raw_rate: return d->raw_rate;
     case VR_filtered_rate: return d->filtered_rate; /* read only: the layer never sets an output */
+    case VR_bias_hat: return d->bias_hat;
     default: return param_real_ref(u, vr);
     }
 #endif
@@ -136,10 +143,10 @@ static char *imu_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     return ((imu_t *)m)->u.method;
 }
 
-/* serialized fields, format 4: the flags (8-byte integers), the parameters (user_xfer: the integer ones,
- * the method string, the real ones, in the registry's order), the inputs, time, the outputs, counters and
- * the parameter buffer */
-#define SER_DYN (8 * 4 + SER_USER + 8 * N_AXES + 8 + 8 * N_AXES + 8 * 3 + 8 * N_PARAMS)
+/* serialized fields, format 5: the flags (8-byte integers), the parameters (user_xfer: the integer ones,
+ * the method string, the real ones, in the registry's order), the inputs, time, the outputs (filtered_rate,
+ * bias_hat), counters and the parameter buffer */
+#define SER_DYN (8 * 4 + SER_USER + 8 * N_AXES + 8 + 8 * N_AXES + 8 * N_AXES + 8 * 3 + 8 * N_PARAMS)
 
 static void imu_xfer(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io) {
     imu_t *d = (imu_t *)m;
@@ -151,6 +158,7 @@ static void imu_xfer(gdfmi_cursor_t *cu, gdfmi_core_t *k, void *m, gdfmi_io_t io
     io(cu, d->raw_rate, 8 * N_AXES);
     io(cu, &k->time, 8);
     io(cu, d->filtered_rate, 8 * N_AXES);
+    io(cu, d->bias_hat, 8 * N_AXES);
     io(cu, &k->n_steps, 8);
     io(cu, &k->n_bad_steps, 8);
     io(cu, &k->ns, 8);

@@ -14,7 +14,7 @@
  *     output equals gd.denoise (tests/fmu/test_native_denoiser.py);
  *   - the variables (get/set), one step, and the fields of the serialized FMU
  *     state (a versioned, checksummed byte image of the parameters and the
- *     filter's state buffer, format 5: the parameters of the method registry, gdmethods.h).
+ *     filter's state buffer, format 6: the parameters of the method registry, gdmethods.h).
  *
  * The value references, the GUID and the start values come from
  * fogdenoiser_native_vars.h, generated with modelDescription.xml from one table
@@ -28,11 +28,12 @@
 #include "gdcore.h"
 #include "fogdenoiser_native_vars.h"
 
-#define SERIAL_VERSION 5u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays; 3: the motion
+#define SERIAL_VERSION 6u   /* 2: max_motion_hz, the core state's rigid-body low-pass delays; 3: the motion
                                 bank of 13 CV + 3 CA lanes (MO_MAX_NF 16, the lanes' j, gamma, lam^2); 4: the
                                 line test's own spectral floor (P_MO_SPECH, M_SRH, M_SBKH); 5: the parameters
                                 in the registry's order (gdmethods.h), the 1-euro filter's among them, and the
-                                core's parameter buffer with P_FS and the 1-euro slots */
+                                core's parameter buffer with P_FS and the 1-euro slots; 6: bias tracking's
+                                parameters and state (gdbias.h) */
 #include "fogdenoiser_params.c"
 
 /* the model's fixed-size part (m): parameters, inputs, outputs, the core's parameter
@@ -105,6 +106,7 @@ static double dn_get_real(const gdfmi_inst_t *c, gd_vr_t vr) {
     case VR_R_hat: return s ? s[S_R] : 0.0;
     case VR_Q_hat: return s ? s[S_Q] : 0.0;
     case VR_innovation: return s ? s[S_INNOV] : 0.0;
+    case VR_bias_hat: return s ? gd_bias_hat(d->p, s) : 0.0;
     default: return param_real(u, vr);
     }
 }
@@ -150,7 +152,7 @@ static char *dn_string_ref(void *m, gd_vr_t vr, size_t *capacity) {
     return ((dn_t *)m)->u.method;
 }
 
-/* serialized fields, format 5: the flags (8-byte integers), the parameters (user_xfer: the integer ones,
+/* serialized fields, format 6: the flags (8-byte integers), the parameters (user_xfer: the integer ones,
  * the method string, the real ones, in the registry's order), then the run's values and the core's state,
  * in the order of dn_xfer */
 #define SER_DYN (8 * 4 + SER_USER + 8 * 3 + 8 * 3 + 8 * N_PARAMS)

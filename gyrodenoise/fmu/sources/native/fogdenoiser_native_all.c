@@ -7,6 +7,7 @@
 
 GDFMI_HIDE_BEGIN
 #include "gdcore.c"
+#include "gdbias.c"
 GDFMI_HIDE_END
 
 #include "fogdenoiser_native.c"

@@ -162,6 +162,8 @@ static int build_params(const user_t *u, double *p, char *err, size_t nerr) {
     }
     if (method == METHOD_MOTION) {
         gd_motion_params(p, fs);     /* kernels.motion_params(fs) with its defaults */
+        if (u->bias_tracking)        /* off: p as without the option (kernels.make_params) */
+            gd_bias_params(p, fs, u->bias_still_s, u->bias_memory_s, u->earth_rate_floor_deg_h);
         if (u->max_motion_hz > 0.0) {  /* the rigid-body low-pass ahead of the bank */
             double fc = MAX_MOTION_CUTOFF * u->max_motion_hz, cap = MAX_MOTION_FS_CAP * fs;
             if (fc > cap) fc = cap;    /* kernels.rigid_cutoff_hz */
