@@ -104,11 +104,20 @@ def angle_gm_avar(m: npt.ArrayLike, fs: float, tau_s: float, sigma: float = 1.0)
     return sigma * sigma * (3.0 - 4.0 * am + am * am) / (m * T) ** 2
 
 
+EDGE_REL = 1e-9     # a frequency within this relative distance of a stop band's edge is on it
+
+
 def stop_mask(f: np.ndarray, bands: Sequence[tuple[float, float]] | None) -> np.ndarray:
-    """1 outside, 0 inside the stop bands [(lo, hi), ...] (Hz)."""
+    """1 outside, 0 inside the stop bands [(lo, hi), ...] (Hz), edges included.
+
+    An edge that is a bin's frequency (the top band ``0.3 fs .. fs / 2`` ends on the
+    Nyquist bin; a found band starts on a Welch bin) is matched within `EDGE_REL`:
+    compared exactly, rounding put that bin in or out as the rate moved by 2e-11 (the
+    Nyquist bin kept at one rate and zeroed at the next)."""
     m = np.ones_like(f)
+    af = np.abs(f)
     for lo, hi in bands or ():
-        m[(np.abs(f) >= lo) & (np.abs(f) <= hi)] = 0.0
+        m[(af >= lo * (1.0 - EDGE_REL)) & (af <= hi * (1.0 + EDGE_REL))] = 0.0
     return m
 
 
@@ -238,9 +247,13 @@ def find_bumps(y: npt.ArrayLike, fs: float, ratio: float = 3.0, span: float = 5.
 def _log_bands(f: np.ndarray, p: np.ndarray, per_decade: int) -> tuple[list[tuple[float, float]], np.ndarray, np.ndarray]:
     """Log-spaced bands (``per_decade``) over the Welch bins ``f``: (edges of the bands
     holding at least one bin [(lo_hz, hi_hz)], their centres (geometric), their mean PSD)."""
-    edges = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
-                        int(math.ceil(math.log10(f[-1] / f[0]) * per_decade)) + 1)
-    idx = np.searchsorted(f, edges)
+    # edges in Welch bin numbers (``f`` is bins 1, 2, ... of one spacing), then in Hz: which bin
+    # falls in which band does not move with the rate
+    nb = len(f)
+    k = np.arange(1, nb + 1)
+    edges_k = np.logspace(0.0, math.log10(nb) + 1e-9, int(math.ceil(math.log10(nb) * per_decade)) + 1)
+    idx = np.searchsorted(k, edges_k)
+    edges = edges_k * float(f[0])
     bands = [(edges[i], edges[i + 1], p[idx[i]:idx[i + 1]].mean()) for i in range(len(edges) - 1)
              if idx[i + 1] > idx[i]]
     fc = np.array([math.sqrt(a * b) for a, b, _ in bands])
