@@ -40,13 +40,10 @@ class Layout:
         m = 2 ** np.arange(0, int(math.floor(math.log2(max(m_max, 1)))) + 1)
         nper = nperseg_for_length(n)
         n_bins = nper // 2          # bins 1..nper/2 (DC dropped)
-        # the bands in Welch bin numbers k (f = k fs / nperseg), not in Hz: the same bins at
-        # every rate (edges computed in Hz put the lowest bin in or out of the first band
-        # by rounding, as the rate moved by 1e-9)
-        k = np.arange(1, n_bins + 1)
-        edges_k = np.logspace(0.0, math.log10(n_bins) + 1e-9,
-                              int(math.ceil(math.log10(n_bins) * BANDS_PER_DECADE)) + 1)
-        idx = np.unique(np.searchsorted(k, edges_k))
+        f = np.arange(1, n_bins + 1) * fs / nper
+        edges_f = np.logspace(math.log10(f[0]), math.log10(f[-1]) + 1e-9,
+                              int(math.ceil(math.log10(f[-1] / f[0]) * BANDS_PER_DECADE)) + 1)
+        idx = np.unique(np.searchsorted(f, edges_f))
         idx[-1] = n_bins
         return cls(n=n, fs=float(fs), m=m.astype(np.int64), nperseg=nper, band_edges=idx)
 
