@@ -45,7 +45,8 @@ def read_axes_args(args: argparse.Namespace) -> Recording:
     rec = read_axes(args.input, _split(args.rate_column), _split(args.accel_column),
                     time_column=args.time_column, rate_unit=args.rate_unit, accel_unit=args.accel_unit,
                     sample_rate_hz=args.sample_rate, time_unit=args.time_unit, topic=getattr(args, "topic", None),
-                    variable=getattr(args, "variable", None), bag_reader=read_imu, rate_scale=args.rate_scale)
+                    variable=getattr(args, "variable", None), bag_reader=read_imu, rate_scale=args.rate_scale,
+                    accel_scale=getattr(args, "accel_scale", None))
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
@@ -74,7 +75,7 @@ def axis_json(ax: Axis, res: Any) -> dict[str, Any]:
     d = res.to_json()
     d["sensor"] = ax.kind.name
     d["unit_read"] = ax.unit
-    d["rate_scale"] = ax.scale
+    d["accel_scale" if ax.kind.name == "accel" else "rate_scale"] = ax.scale
     if ax.kind.name == "accel":
         d["units"] = {t: ACCEL_TERMS[t][1] for t in TERM_SYMBOLS}
         d["names"] = {t: ACCEL_TERMS[t][0] for t in TERM_SYMBOLS}

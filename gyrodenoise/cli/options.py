@@ -61,7 +61,7 @@ def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | 
     ``input_optional``: IN may be omitted (``gap --allan``); ``rate_unit_default`` None: the
     reader says in a note which unit it assumed. ``axes``: several columns in one run
     (:func:`gyrodenoise.io.recording.read_axes`): ``--rate-column`` takes a list and is detected
-    when not given, ``--accel-column`` and ``--accel-unit`` are added. ``several_columns``: the
+    when not given, ``--accel-column``, ``--accel-unit`` and ``--accel-scale`` are added. ``several_columns``: the
     help's words on several rate columns in the single-axis form (what the command does with them)."""
     parser.add_argument("input", metavar="IN", nargs="?" if input_optional else None,
                         help=input_help or "recording CSV (columns time,rate[,true_rate]; .gz ok)")
@@ -74,6 +74,11 @@ def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | 
                             help="accelerometer column(s), comma-separated (default: detected beside detected "
                                  "gyro columns: accel_x/y/z, ax/ay/az, field.linear_acceleration.x/y/z ...)")
         parser.add_argument("--accel-unit", default=None, help="m/s^2 (default), g or mg")
+        parser.add_argument("--accel-scale", type=numbers, default=None, metavar="K[,K...]",
+                            help="multiply each accelerometer value by this first (raw counts: the unit per "
+                                 "count, e.g. 6.1035e-05 g per LSB for an MPU-6050 at +-2 g, with --accel-unit g); "
+                                 "one factor for every accelerometer column or one per column; said in a note "
+                                 "and in --json")
         parser.add_argument("--topic", default=None, metavar="NAME",
                             help="ROS bag / MCAP: the sensor_msgs/Imu topic (default: the only one)")
         parser.add_argument("--variable", default=None, metavar="NAME",

@@ -76,7 +76,8 @@ class SensorKind:
     units: Mapping[str, float]
     groups: tuple[ColumnGroup, ...]
     absurd: float
-    option: str            # the command-line option naming its columns
+    option: str            # the command-line option naming its unit
+    scale_option: str      # the command-line option giving its unit per count (raw counts)
 
 
 @dataclass(frozen=True)
@@ -96,11 +97,13 @@ _ROS = "sensor_msgs/Imu, REP 103"
 GYRO = SensorKind("gyro", "deg/s", RATE_TO_DEG_S, (
     _xyz("field.angular_velocity.", "rad/s", f"{_ROS}: rad/s"), _xyz("angular_velocity.", "rad/s", f"{_ROS}: rad/s"),
     _xyz("angular_velocity_", "rad/s", f"{_ROS}: rad/s"),
-    _xyz("gyro_"), _xyz("gyr_"), _xyz("gyro"), _xyz("g"), _xyz("w")), ABSURD_RATE_DEG_S, "--rate-unit")
+    _xyz("gyro_"), _xyz("gyr_"), _xyz("gyro"), _xyz("g"), _xyz("w")), ABSURD_RATE_DEG_S, "--rate-unit",
+    "--rate-scale")
 ACCEL = SensorKind("accel", "m/s^2", ACCEL_TO_M_S2, (
     _xyz("field.linear_acceleration.", "m/s^2", f"{_ROS}: m/s^2"),
     _xyz("linear_acceleration.", "m/s^2", f"{_ROS}: m/s^2"), _xyz("linear_acceleration_", "m/s^2", f"{_ROS}: m/s^2"),
-    _xyz("accel_"), _xyz("acc_"), _xyz("accel"), _xyz("acc"), _xyz("a")), ABSURD_ACCEL_M_S2, "--accel-unit")
+    _xyz("accel_"), _xyz("acc_"), _xyz("accel"), _xyz("acc"), _xyz("a")), ABSURD_ACCEL_M_S2, "--accel-unit",
+    "--accel-scale")
 
 #: time column names tried in order when none is given: ours, a ROS message's own stamp and
 #: ``rostopic echo -p``'s receive time (both ns since 1970), common others
@@ -116,7 +119,7 @@ class Axis:
     values: np.ndarray = field(repr=False)
     true: np.ndarray | None = field(default=None, repr=False)
     unit_how: str = ""         # how the unit was decided, as the note says it ("as stated", "assumed; ...")
-    scale: float | None = None  # the --rate-scale factor the column was multiplied by (None: not given)
+    scale: float | None = None  # the --rate-scale / --accel-scale factor it was multiplied by (None: not given)
 
 
 @dataclass
@@ -182,7 +185,8 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
               true_column: str = "true_rate", spike_advice: str = SPIKE_ADVICE,
               time_unit: str | None = None, topic: str | None = None, variable: str | None = None,
               bag_reader: Callable[..., Any] | None = None,
-              rate_scale: Sequence[float] | float | None = None) -> Recording:
+              rate_scale: Sequence[float] | float | None = None,
+              accel_scale: Sequence[float] | float | None = None) -> Recording:
     """Read the gyro (and accelerometer) columns of a recording CSV on one time base.
 
     ``rate_columns`` None: ``rate`` when the file has it, else the first group of gyro
@@ -193,7 +197,9 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     A ROS bag or MCAP file (``topic``; ``bag_reader``: pass
     :func:`gyrodenoise.flightlog.rosbag.read_imu`) and a MATLAB ``.mat`` file (``variable``)
     are read by :mod:`gyrodenoise.io.containers` into the same columns. ``rate_scale``: one
-    factor for every gyro column or one per column (:func:`read_recording`).
+    factor for every gyro column or one per column (:func:`read_recording`); ``accel_scale``
+    the same for the accelerometer columns (raw counts: the unit per count, the product in
+    ``accel_unit``).
 
     A text file may hold free-text lines before its header row (a preamble: `PREAMBLE_MAX`
     lines at most; the header row holds no number): they are skipped and said in a note. A unit after a column's name (``gyro_x (deg/s)``, ``time [s]``) is read
@@ -233,11 +239,12 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     accel_columns = [lower.get(c.lower(), c) if c not in header else c for c in accel_columns] \
         if accel_columns else accel_columns
     gyro_cols, gyro_group = _columns(GYRO, rate_columns, header, lower, "rate", src)
-    scales = _rate_scales(rate_scale, gyro_cols, src)
+    scales = {GYRO.name: _scales(rate_scale, gyro_cols, "--rate-scale", "rate", src)}
     if accel_columns is None and rate_columns is None and gyro_group is not None:
         accel_cols, accel_group = _detected(ACCEL, lower)
     else:
         accel_cols, accel_group = _columns(ACCEL, accel_columns or [], header, lower, None, src)
+    scales[ACCEL.name] = _scales(accel_scale, accel_cols, "--accel-scale", "accelerometer", src)
     if time_column is None:
         time_column = next((lower[c] for c in TIME_COLUMNS if c in lower), "time")
     elif time_column not in header:
@@ -273,9 +280,10 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
             (said.pop(), f"as {units_from} says") if said else \
             ((group.unit, group.why) if group and group.unit else
              (next(iter(kind.units)), f"assumed; {kind.option} {'|'.join(list(kind.units)[1:])} if not"))
-        counts = scales if kind is GYRO else None
+        counts = scales[kind.name]
         notes.append(f"{kind.name} column{'s' if len(cols) > 1 else ''} {', '.join(cols)} "
-                     + (f"x {', '.join(f'{k:g}' for k in dict.fromkeys(counts))} (--rate-scale) " if counts else "")
+                     + (f"x {', '.join(f'{k:g}' for k in dict.fromkeys(counts))} ({kind.scale_option}) "
+                        if counts else "")
                      + f"in {unit} ({why})")
         for i, c in enumerate(cols):
             scale = kind.units[unit] * (counts[i] if counts else 1.0)
@@ -284,7 +292,7 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
             true = np.asarray(values[true_column], dtype=np.float64) * scale if has_true else None
             axes.append(Axis(c, kind, unit, v, true, unit_how=why, scale=counts[i] if counts else None))
     _check_gravity([a for a in axes if a.kind is ACCEL], accel_unit or file_units.get(accel_cols[0]) if accel_cols
-                   else None, src)
+                   else None, src, scaled=accel_scale is not None)
     ignored = [h for h in header if h not in wanted and h]
     if ignored:
         shown = ", ".join(ignored[:8]) + (f", ... ({len(ignored)} in all)" if len(ignored) > 8 else "")
@@ -344,20 +352,30 @@ def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
 #: Earth's gravity read in an assumed m/s^2 by three accelerometer axes: |a| this far from 9.81
 #: (median over the record) is gravity in another unit, never a valid m/s^2 reading on Earth
 GRAVITY_IN = {"g": (0.5, 2.0), "mg": (500.0, 2000.0)}
+#: |a| (median, m/s^2) of three axes at rest or in ordinary motion on Earth: 0.5 g .. 2 g
+GRAVITY_M_S2 = (4.9, 19.6)
 
 
-def _check_gravity(accel: list[Any], stated: str | None, src: str) -> None:
-    """Refuse three accelerometer axes read in an assumed m/s^2 whose |a| says another unit:
-    gravity (1 g) reads about 1 in g and 1000 in mg, 9.81 in m/s^2."""
+def _check_gravity(accel: list[Any], stated: str | None, src: str, scaled: bool = False) -> None:
+    """Refuse three accelerometer axes read in an assumed m/s^2 whose |a| (median) is far from
+    gravity's 9.81: about 1 is g, about 1000 mg (`GRAVITY_IN`), anything else outside
+    `GRAVITY_M_S2` no unit of the reader's (raw counts: an MPU-6050 at +-2 g reads 16,384 per g),
+    for ``--accel-scale``. ``scaled``: the columns were multiplied by ``--accel-scale``."""
     if stated or len(accel) != 3:
         return
     norm = float(np.nanmedian(np.sqrt(sum(np.asarray(a.values, dtype=np.float64) ** 2 for a in accel))))
-    for unit, (lo, hi) in GRAVITY_IN.items():
-        if lo <= norm <= hi:
-            cols = ", ".join(a.column for a in accel)
-            raise InputError(f"accelerometer columns {cols}: |a| is {norm:.3g} (median) read as m/s^2, gravity "
-                             f"is 9.81 m/s^2: the record looks to be in {unit}; give --accel-unit {unit} "
-                             f"(or --accel-unit m/s^2 to read it as it is)", src)
+    if GRAVITY_M_S2[0] <= norm <= GRAVITY_M_S2[1]:
+        return
+    cols = ", ".join(a.column for a in accel)
+    read = "read as m/s^2" + (" after --accel-scale" if scaled else "")
+    unit = next((u for u, (lo, hi) in GRAVITY_IN.items() if lo <= norm <= hi), None)
+    if unit is not None:
+        looks = f"the record looks to be in {unit}; give --accel-unit {unit}"
+    else:
+        looks = ("that is no unit of the reader's (raw counts? an MPU-6050 at +-2 g reads 16,384 per g); give "
+                 "--accel-scale K (the unit per count) with --accel-unit for the product's unit")
+    raise InputError(f"accelerometer columns {cols}: |a| is {norm:.3g} (median) {read}, gravity is 9.81 m/s^2: "
+                     f"{looks} (or --accel-unit m/s^2 to read it as it is)", src)
 
 
 def _check_arguments(rate_unit: str | None, accel_unit: str | None, sample_rate_hz: float | None,
@@ -540,18 +558,21 @@ def _names(header: list[str]) -> dict[str, str]:
     return lower
 
 
-def _rate_scales(rate_scale: Sequence[float] | float | None, cols: list[str], src: str) -> list[float] | None:
-    """One ``--rate-scale`` factor per gyro column (one given for all, or one per column);
-    InputError for a factor that is not a finite nonzero number or a count that does not match."""
-    if rate_scale is None:
+def _scales(factors: Sequence[float] | float | None, cols: list[str], option: str, what: str,
+            src: str) -> list[float] | None:
+    """One factor of ``option`` (``--rate-scale``, ``--accel-scale``) per column of ``what``
+    (one given for all, or one per column); InputError for a factor that is not a finite
+    nonzero number or a count that does not match."""
+    if factors is None:
         return None
-    given = [float(rate_scale)] if isinstance(rate_scale, (int, float)) else [float(k) for k in rate_scale]
+    given = [float(factors)] if isinstance(factors, (int, float)) else [float(k) for k in factors]
     bad = next((k for k in given if not (math.isfinite(k) and k != 0.0)), None)
     if bad is not None or not given:
-        raise InputError(f"--rate-scale {bad!r} is not a factor (a finite nonzero number: the unit per count)",
-                         src)
+        raise InputError(f"{option} {bad!r} is not a factor (a finite nonzero number: the unit per count)", src)
+    if not cols:
+        raise InputError(f"{option} is given but no {what} column is read", src)
     if len(given) not in (1, len(cols)):
-        raise InputError(f"--rate-scale gives {len(given)} factors for {len(cols)} rate column(s) "
+        raise InputError(f"{option} gives {len(given)} factors for {len(cols)} {what} column(s) "
                          f"({', '.join(cols)}): give one for all or one per column", src)
     return given * len(cols) if len(given) == 1 else given
 

@@ -185,3 +185,42 @@ def test_an_accelerometer_curve_is_under_its_own_unit(tmp_path, capsys):
         assert a["tau_s"][0] == pytest.approx(1.0 / FS)
         assert a["adev_m_s_h"][0] == pytest.approx(math.sqrt(np.mean(np.diff(x) ** 2) / 2.0) * 3600.0, rel=1e-6)
         assert len(a["adev_err_m_s_h"]) == len(a["tau_s"])
+
+
+# ------------------------------------------------------------------ accelerometer counts
+def _mpu_counts(n, seed):
+    """An MPU-6050 at rest at +-2 g: 16,384 counts per g, gravity on z, white noise."""
+    rng = np.random.default_rng(seed)
+    return [np.round(16384.0 * (g + 0.002 * rng.standard_normal(n))) for g in (0.0, 0.0, 1.0)]
+
+
+def test_accelerometer_counts_are_refused_naming_the_options(tmp_path, capsys):
+    """Counts read in the assumed m/s^2 give |a| ~ 16,384: no unit of the reader's; refused,
+    naming --accel-scale and --accel-unit (before, it passed the gravity check silently)."""
+    n = 6000
+    path = tmp_path / "mpu.csv"
+    _write(path, ["time", "gx", "gy", "gz", "ax", "ay", "az"],
+           [np.arange(n) / FS, *[_white(n, 0.3, s) for s in (21, 22, 23)], *_mpu_counts(n, 24)], fmt="%.12g")
+    code, out, err = _run(capsys, "allan", path, "--json")
+    assert code == 2 and "--accel-scale" in err and "--accel-unit" in err and "1.64e+04" in err, err
+    k = 1.0 / 16384.0
+    code, out, err = _run(capsys, "allan", path, "--json", "--accel-scale", k)   # the product in assumed m/s^2: ~1
+    assert code == 2 and "--accel-unit g" in err and "after --accel-scale" in err, err
+    code, out, err = _run(capsys, "allan", path, "--json", "--accel-scale", k, "--accel-unit", "g")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["axes"]["az"]["accel_scale"] == k and d["axes"]["az"]["unit_read"] == "g"
+    assert d["axes"]["gx"]["rate_scale"] is None and "accel_scale" not in d["axes"]["gx"]
+    assert f"accel columns ax, ay, az x {k:g} (--accel-scale) in g (as stated)" in d["notes"]
+    # the white noise: 0.002 g per sample at 100 Hz, N = 0.002 * 9.80665 / sqrt(100) * 60 m/s/sqrt(h)
+    assert d["axes"]["ax"]["terms"]["N"] == pytest.approx(0.002 * 9.80665 / 10.0 * 60.0, rel=0.1)
+
+
+def test_a_bad_accel_scale_is_one_line(tmp_path, capsys):
+    n = 6000
+    path = tmp_path / "mpu.csv"
+    _write(path, ["time", "gx", "ax", "ay", "az"], [np.arange(n) / FS, _white(n, 0.3, 25), *_mpu_counts(n, 26)])
+    code, _, err = _run(capsys, "allan", path, "--accel-column", "ax,ay,az", "--accel-scale", "1,2")
+    assert code == 2 and "--accel-scale gives 2 factors for 3 accelerometer column(s)" in err, err
+    code, _, err = _run(capsys, "allan", path, "--rate-column", "gx,gx", "--accel-scale", "1")
+    assert code == 2 and "--accel-scale is given but no accelerometer column is read" in err, err
