@@ -511,28 +511,41 @@ def _signal_notes(rate: np.ndarray, where: Callable[[int], str] = lambda i: f"li
                   spike_advice: str = SPIKE_ADVICE, unit: str = "deg/s") -> list[str]:
     """Reported (never repaired) properties of the rate column: constant,
     suspected saturation, isolated spikes."""
-    notes = []
     lo, hi = float(rate.min()), float(rate.max())
-    if lo == hi:
-        return [f"the rate is constant ({lo:g} {unit}): nothing to denoise; the filter passes it "
-                f"through (to 1e-6 relative); its Allan deviation is zero, so the fit reports only "
-                f"(tiny) upper bounds"]
-    for label, value in (("maximum", hi), ("minimum", lo)):
-        count, first = _runs_at(rate, value, SAT_RUN)
-        if count:
-            notes.append(f"suspected saturation: {count} samples in runs of >= {SAT_RUN} equal values at "
-                         f"the rate's {label} {value:g} {unit} (first at {where(first)}, sample {first}); kept as is")
-    if rate.size >= 3:
+    sat = [(label, value, *_runs_at(rate, value, SAT_RUN)) for label, value in (("maximum", hi), ("minimum", lo))]
+    spikes = None
+    if lo != hi and rate.size >= 3:
         d = np.diff(rate)
         sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))
         if sigma > 0:
             lim = SPIKE_SIGMAS * sigma
             a, b = rate[1:-1] - rate[:-2], rate[1:-1] - rate[2:]
-            spikes = np.flatnonzero(((a > lim) & (b > lim)) | ((a < -lim) & (b < -lim))) + 1
-            if spikes.size:
-                notes.append(f"{spikes.size} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
-                             f"(first at {where(int(spikes[0]))}, sample {int(spikes[0])}, {rate[spikes[0]]:g} {unit}); "
-                             f"kept as is in the input; {spike_advice}")
+            found = np.flatnonzero(((a > lim) & (b > lim)) | ((a < -lim) & (b < -lim))) + 1
+            if found.size:
+                spikes = (int(found.size), int(found[0]), float(rate[found[0]]))
+    return signal_note_texts(lo, hi, sat, spikes, where, spike_advice, unit)
+
+
+def signal_note_texts(lo: float, hi: float, saturation: Sequence[tuple[str, float, int, int]],
+                      spikes: tuple[int, int, float] | None, where: Callable[[int], str],
+                      spike_advice: str = SPIKE_ADVICE, unit: str = "deg/s") -> list[str]:
+    """The signal notes' text from the rate's minimum and maximum, its saturation runs
+    ((label, value, samples in runs, first index) at the maximum and the minimum) and its
+    isolated spikes ((count, first index, value) or None)."""
+    if lo == hi:
+        return [f"the rate is constant ({lo:g} {unit}): nothing to denoise; the filter passes it "
+                f"through (to 1e-6 relative); its Allan deviation is zero, so the fit reports only "
+                f"(tiny) upper bounds"]
+    notes = []
+    for label, value, count, first in saturation:
+        if count:
+            notes.append(f"suspected saturation: {count} samples in runs of >= {SAT_RUN} equal values at "
+                         f"the rate's {label} {value:g} {unit} (first at {where(first)}, sample {first}); kept as is")
+    if spikes is not None:
+        count, first, value = spikes
+        notes.append(f"{count} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
+                     f"(first at {where(first)}, sample {first}, {value:g} {unit}); "
+                     f"kept as is in the input; {spike_advice}")
     return notes
 
 
