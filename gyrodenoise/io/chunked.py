@@ -7,9 +7,9 @@ summaries, then passes that yield chunks of (time s, rate, true rate, restarts).
   reader, bit for bit;
 * the signal notes (constant, suspected saturation, isolated spikes) and the magnitude
   check are those of :mod:`gyrodenoise.io.recording`, from running summaries: the same
-  notes, except that beyond 4 M samples the spike test's robust sigma (the median absolute
+  notes, except that beyond 2 M samples the spike test's robust sigma (the median absolute
   deviation of the sample-to-sample differences) is read from an evenly spread sample of
-  2 to 4 M differences (``MEDIAN_SAMPLE``; the count and first spike are then those of
+  1 to 2 M differences (``MEDIAN_SAMPLE``; the count and first spike are then those of
   that sigma);
 * :meth:`RecordStream.chunks` yields the record a chunk at a time for consumers that carry
   their state (the Allan sums, the Denoiser's whole state, accumulators).
@@ -33,11 +33,13 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.io import recording as R
-from gyrodenoise.io.stream import BLOCK, CHUNK, EXACT_INT, TextFile
+from gyrodenoise.io.stream import CHUNK, EXACT_INT, TextFile
 from gyrodenoise.io.timebase import TimeColumn, analyse_column
 
+#: bytes of text per batch of the CSV engine (its buffers: a fixed ~60 MB, whatever the length)
+STREAM_BLOCK = 1 << 22
 #: the spike test's sigma from every difference up to 2 x this many, beyond an evenly spread sample
-MEDIAN_SAMPLE = 2_000_000
+MEDIAN_SAMPLE = 1_000_000
 
 
 @dataclass
@@ -177,7 +179,7 @@ def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_co
         try:
             stream = pa.input_stream(str(text.path), compression="gzip" if text.gzipped else None)
             reader = pcsv.open_csv(
-                stream, read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=BLOCK),
+                stream, read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=STREAM_BLOCK),
                 parse_options=pcsv.ParseOptions(delimiter=sep),
                 convert_options=pcsv.ConvertOptions(include_columns=sorted(set(col_of.values())), column_types=types,
                                                     null_values=[], strings_can_be_null=False,
