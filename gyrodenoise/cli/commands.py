@@ -35,6 +35,28 @@ def _read(args: argparse.Namespace) -> Record:
     return rec
 
 
+def _open_stream(args: argparse.Namespace) -> Any:
+    """The record as a :class:`gyrodenoise.io.chunked.RecordStream` (bounded memory) when
+    it has no true_rate column and the chunked reader reads it; else None (the caller reads
+    it whole). Its notes are printed as ``_read``'s."""
+    from gyrodenoise.io.chunked import open_stream
+    from gyrodenoise.io.export import check_export_args
+    check_export_args(args)
+    scales = getattr(args, "rate_scale", None) or None
+    if scales is not None and len(scales) != 1:
+        return None
+    stream = open_stream(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
+                         rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
+                         rate_scale=scales[0] if scales else None)
+    if stream is not None and stream.has_true:
+        stream.close()
+        return None
+    if stream is not None:
+        for note in stream.notes:
+            log(f"gyrodenoise: note: {args.input}: {note}")
+    return stream
+
+
 def _check_params(args: argparse.Namespace, fs: float) -> None:
     """The filter options of ``denoise`` / ``compare`` at sample rate ``fs``: one line (InputError)."""
     check_method_options(args, ("--max-motion-hz",))
@@ -66,6 +88,10 @@ def cmd_denoise(args: argparse.Namespace) -> int:
         for ax, (_, den) in done:
             _gate_note(args, den, ax.column)
         return 0
+    stream = _open_stream(args)
+    if stream is not None:
+        with stream:
+            return _denoise_stream(args, stream, offline)
     rec = _read(args)
     _check_params(args, rec.sample_rate_hz)
     out, den = _denoise_one(args, rec, offline)
@@ -90,6 +116,40 @@ def _denoise_one(args: argparse.Namespace, rec: Record, offline: bool) -> tuple[
         from gyrodenoise.io.stream import process_chunks
         out = process_chunks(den, rec.rate_deg_s, rec.restarts)      # the state carried chunk to chunk
     return out, den
+
+
+def _denoise_stream(args: argparse.Namespace, stream: Any, offline: bool) -> int:
+    """``denoise`` of a record read a chunk at a time: the causal filter with the Denoiser's
+    whole state carried from chunk to chunk, the offline forms on the rate column alone
+    (the smoother holds its input and output); the output written a chunk of rows at a
+    time. The bytes of the whole-array run."""
+    from gyrodenoise.denoiser import Denoiser, denoise
+    from gyrodenoise.io.stream import write_rows
+    fs = stream.sample_rate_hz
+    _check_params(args, fs)
+    den = Denoiser(fs, method=args.method, ar_order=args.ar_order, **filter_kw(args))
+    whole = None
+    if args.zero_phase or offline:
+        rate = np.concatenate([r for _, r, _, _ in stream.chunks()])
+        restarts = stream.timebase.restarts_in(0, stream.n) if stream.timebase is not None and \
+            len(stream.timebase.runs) > 1 else None
+        whole = denoise(rate, fs, method=args.method, ar_order=args.ar_order, restarts=restarts,
+                        zero_phase=args.zero_phase, offline=offline, **filter_kw(args))
+        del rate, restarts
+    try:
+        with open(args.output, "wb") as f:
+            f.write(b"time,raw,filtered\n")
+            a = 0
+            for t, r, _, restarts in stream.chunks():
+                out = whole[a:a + len(r)] if whole is not None else den.process(r, restarts)
+                write_rows(f, [t, r, out])
+                a += len(r)
+    except OSError as exc:
+        raise InputError(f"cannot write: {exc.strerror}", str(args.output)) from None
+    log(f"gyrodenoise: wrote {args.output} ({len(stream)} samples, {fs:g} Hz, {args.method}, "
+        f"{_form_text(args, offline, fs)})")
+    _gate_note(args, den)
+    return 0
 
 
 def _gate_note(args: argparse.Namespace, den: Any, column: str | None = None) -> None:
@@ -146,13 +206,37 @@ ALLAN_OF_ERROR = ("rate - true_rate: the sensor's error (the recording has a tru
 # ------------------------------------------------------------------ allan
 def cmd_allan(args: argparse.Namespace) -> int:
     from gyrodenoise.analysis.allan import allan_of_record
+    stream = _open_stream(args)
+    if stream is not None:
+        with stream:
+            return _allan_report(args, stream, _allan_of_stream(stream, args.input), "rate", None)
     rec = _read(args)
-    unit = rate_unit_used(args, rec)
     series, analysed = rec.rate_deg_s, "rate"
     if rec.true_rate_deg_s is not None:
         series = np.asarray(rec.rate_deg_s, dtype=np.float64) - np.asarray(rec.true_rate_deg_s, dtype=np.float64)
         analysed = ALLAN_OF_ERROR
     res = allan_of_record(series, rec.sample_rate_hz, args.input)
+    return _allan_report(args, rec, res, analysed, true_rate_motion(rec))
+
+
+def _allan_of_stream(stream: Any, source: str) -> AllanResult:
+    """`allan_of_record` of a record read a chunk at a time (the Allan sums in blocks; the
+    taus of ``allan``): the whole-array result to rounding (the sums are added in another
+    order)."""
+    from gyrodenoise.analysis.allan import allan_of_chunks, default_m
+    if len(stream) < 5:
+        raise InputError(f"only {len(stream)} samples; the Allan deviation needs at least 5", source)
+    res = allan_of_chunks(stream.rates(), stream.sample_rate_hz, m=default_m(len(stream)))
+    if not np.isfinite(res.adev_deg_s).any():
+        raise InputError(f"the Allan deviation is not a finite number at any tau at {stream.sample_rate_hz:g} Hz: "
+                         f"the sample rate or the rates are beyond what float64 holds", source)
+    return res
+
+
+def _allan_report(args: argparse.Namespace, rec: Any, res: AllanResult, analysed: str,
+                  moving: dict[str, float] | None) -> int:
+    """``allan``'s exports, JSON or table of one record's result."""
+    unit = rate_unit_used(args, rec)
     from gyrodenoise.io.export import export_from_args
     written = export_from_args(args, res)
     for path in written:
@@ -164,7 +248,7 @@ def cmd_allan(args: argparse.Namespace) -> int:
         d["analysed"] = analysed
         d["rate_unit"] = unit
         d["rate_scale"] = args.rate_scale[0] if args.rate_scale else None
-        d["true_rate_motion_deg_s"] = true_rate_motion(rec)
+        d["true_rate_motion_deg_s"] = moving
         emit_json(d)
     else:
         print(f"analysed: {analysed}")

@@ -158,6 +158,10 @@ class Autopilot:
                          "from": f"{density:.4g} {unit}/sqrt(Hz) / sqrt({self.EKF_DT_S:g} s, the EKF step)"}
         return out
 
+    def accel_filtering(self, params):
+        """(stage, the accelerometer low-pass's parameter or None) of the logged accelerometers."""
+        return "unknown", None
+
     def accel_series(self, log):
         """[(name, time_s, (n, 3) m/s/s)] of the log's accelerometers."""
         return [(a.name, a.time_s, a.values) for a in getattr(log, "accel", []) or []]
@@ -340,6 +344,10 @@ class ArduPilot(Autopilot):
     #: EKF3's prediction step: EKF_TARGET_DT 0.012 s (AP_NavEKF3_core.h)
     EKF_DT_S = 0.012
 
+    def accel_filtering(self, params):
+        # IMU.AccX.. and RAW_IMU's accel are AP_InertialSensor::get_accel, after INS_ACCEL_FILTER
+        return "post-filter", "INS_ACCEL_FILTER"
+
     def accel_series(self, log):
         import numpy as np
         if getattr(log, "accel", None):          # the adapter read them
@@ -474,6 +482,11 @@ class PX4(Autopilot):
                         "accel": ("EKF2_ACC_NOISE", "m/s/s", (0.01, 1.0), 0.35)}
     #: EKF2's prediction step: 10 ms (FILTER_UPDATE_PERIOD_MS)
     EKF_DT_S = 0.010
+
+    def accel_filtering(self, params):
+        # sensor_combined's accelerometer: vehicle_imu's integrated delta velocity, before the
+        # IMU_ACCEL_CUTOFF filter (which feeds vehicle_acceleration) since PX4 1.11 (IMU_INTEG_RATE)
+        return ("pre-filter" if "IMU_INTEG_RATE" in params else "unknown"), None
 
     def accel_series(self, log):
         import numpy as np

@@ -459,6 +459,17 @@ def replay_sections(settings: FilterSettings, tracks: Mapping, time_s, fs: float
     if not math.isclose(fs, settings.gyro_rate_hz, rel_tol=0.02):
         notes.append(f"designed at the logged rate {fs:g} Hz; Betaflight runs the chain at the gyro rate "
                      f"{settings.gyro_rate_hz:g} Hz")
+        if fs < 0.5 * settings.gyro_rate_hz:
+            notes.append(f"both gyros are logged every {settings.gyro_rate_hz / fs:.0f}th loop, point samples: "
+                         f"what lies above {fs / 2:g} Hz (motor noise) folds into the logged pre-filter gyro, "
+                         "where the vehicle's filters had taken it out of the post-filter one before logging; "
+                         "the replay cannot take out what is folded: its excess over the logged gyro bounds "
+                         "the agreement")
+        top = max(settings.lpf1_dyn_max_hz if settings.lpf1_dynamic else settings.lpf1_static_hz,
+                  settings.lpf2_static_hz)
+        if top >= 0.5 * fs:
+            notes.append(f"low-pass cutoffs up to {top} Hz lie above the logged Nyquist frequency ({fs / 2:g} Hz): "
+                         f"held at {0.499 * fs:.1f} Hz in the replay")
     if settings.rpm_harmonics > 0 and settings.rpm_q > 0:
         tr = tracks.get("motor_hz")
         if tr is None:

@@ -791,6 +791,8 @@ def _inflight_noise_section(report):
     rows = [[_e(f["sensor"]), _e(f["stream"]), _e(f["stage"]), _f(f["flying"]["mean"]),
              _f((f.get("rest") or {}).get("mean")), _f(f.get("ratio")), _e(f["unit"])]
             for f in nz["gyro"] + nz["accel"]]
+    rows += [[_e(f["sensor"]), _e(f["stream"]), _e(f["stage"]), "refused", "", "", _e(f["refused"])]
+             for f in nz.get("refused", [])]
     ekf = [[_e(k), _f(v["value"]), _e(v["unit"]), _f(v.get("logged")), "yes" if v.get("clamped") else "",
             _e(v.get("from", ""))] for k, v in nz["ekf_parameters"].items()]
     return ("<section id='noise'><h2>Noise in flight</h2>"
@@ -798,6 +800,7 @@ def _inflight_noise_section(report):
             + _table(rows, ["sensor", "stream", "stage", "flying", "rest", "flying / rest", "unit"])
             + ("<h3>EKF noise parameters for this flight</h3>"
                + _table(ekf, ["parameter", "value", "unit", "logged", "clamped to range", "from"]) if ekf else "")
+            + (f"<p>{_e(nz['ekf_note'])}</p>" if nz.get("ekf_note") else "")
             + "</section>")
 
 

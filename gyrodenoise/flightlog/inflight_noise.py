@@ -4,14 +4,26 @@ noise density over flying time against the same IMU at rest (the disarmed
 allan_variance_ros calibration done on the bench -- and the figures as the
 autopilot's EKF noise parameters and a Kalibr ``imu.yaml`` for the flying condition.
 
-The density (a white-noise density, unit/sqrt(Hz), Kalibr's ``*_noise_density``):
-from the one-sided Welch PSD S(f) (:func:`gyrodenoise.analysis.spectrum.welch_psd`,
-segments of :data:`SEGMENT_S` within the runs of kept samples) averaged over
-:data:`BAND_LO_HZ` (5 Hz, above the vehicle's motion) to :data:`BAND_HI_SHARE` of the
-Nyquist frequency (below the logger's roll-off): ``N = sqrt(mean S / 2)`` (white noise
-of standard deviation sigma at rate fs has S = 2 sigma**2 / fs and N = sigma /
-sqrt(fs)). The mean, not the median: the vibration the EKF must absorb counts; the
-median (the floor between the vibration lines) is given beside it.
+The density (a white-noise density, unit/sqrt(Hz), Kalibr's ``*_noise_density``) is
+measured only where the stream holds the sensor's noise, with an estimator that the
+vehicle's motion does not lift: the core's own white-noise estimate
+(:func:`gyrodenoise.analysis.motion_metrics.white_noise_std`: the smallest over lags 1..6
+of the mean |4th difference|, which cancels any cubic and so takes motion below a few Hz
+at (2 sin(pi f L / fs))**8 of its power, or the spectral floor where that is lower), over
+each finite run of the kept samples, per axis: ``N = sigma / sqrt(fs)`` (white noise of
+standard deviation sigma at rate fs has one-sided PSD 2 sigma**2 / fs). Beside it, the
+Welch band figures of the earlier estimate, which motion does lift: ``band_mean`` (from
+the mean one-sided PSD S over :data:`BAND_LO_HZ` to :data:`BAND_HI_SHARE` of the Nyquist
+frequency, ``sqrt(mean S / 2)``: vibration counts there) and ``floor_mean`` (the median).
+
+A stream cannot separate noise from motion when the vehicle's filters shaped it before it
+was logged: a post-filter gyro whose low-pass cutoff is below twice its Nyquist frequency
+(the band is filtered: 4th differences read the filter, not the sensor) or which is logged
+below the rate the filters run at (point samples: what lies between its Nyquist frequency
+and the cutoff folds in). There the density is None with ``refused`` saying why (ArduPilot
+``IMU`` at 50 Hz after ``INS_GYRO_FILTER`` 20 Hz is one). The EKF figures come from the
+pre-filter gyro where logged (the EKF integrates the unfiltered delta angles), else the
+fastest stream measured; none where every stream is refused.
 
 The bias walk (Kalibr's ``*_random_walk``, unit/s/sqrt(Hz)): at rest only (in flight
 the motion hides it), where a run of rest lasts :data:`MIN_WALK_S`; from the
@@ -49,9 +61,10 @@ AXES = ("x", "y", "z")
 
 
 def density(x, rate_hz, keep):
-    """{x, y, z, mean, floor_mean, n_samples, seconds} of the noise density (unit/sqrt(Hz))
-    of ``x`` (n, 3) at ``rate_hz`` over the samples ``keep``; None when too few or the
-    band is empty."""
+    """{x, y, z, mean, band_mean, floor_mean, n_samples, seconds} of the white-noise density
+    (unit/sqrt(Hz)) of ``x`` (n, 3) at ``rate_hz`` over the samples ``keep``: x..mean the
+    motion-robust estimate (:func:`white_density`), band_mean and floor_mean the Welch
+    band's mean and median; None when too few or the band is empty."""
     keep = np.asarray(keep, dtype=bool) & np.isfinite(x).all(axis=1)
     hi = BAND_HI_SHARE * 0.5 * rate_hz
     if keep.sum() < MIN_SAMPLES or hi <= BAND_LO_HZ:
@@ -60,21 +73,55 @@ def density(x, rate_hz, keep):
     while nper > 32 and nper * 2 > keep.sum():
         nper //= 2
     xs = np.where(keep[:, None], x, np.nan)
-    out, floor = {}, []
+    out, band, floor = {}, [], []
     for k, a in enumerate(AXES):
         f, p, nseg = spectrum.welch_psd(xs[:, k], rate_hz, nper)
         if p is None:
             return None
-        band = (f >= BAND_LO_HZ) & (f <= hi)
-        if band.sum() < 2:
+        sel = (f >= BAND_LO_HZ) & (f <= hi)
+        if sel.sum() < 2:
             return None
-        out[a] = float(np.sqrt(np.mean(p[band]) / 2.0))
-        floor.append(float(np.sqrt(np.median(p[band]) / 2.0)))
+        w = white_density(xs[:, k], rate_hz)
+        if w is None:
+            return None
+        out[a] = w
+        band.append(float(np.sqrt(np.mean(p[sel]) / 2.0)))
+        floor.append(float(np.sqrt(np.median(p[sel]) / 2.0)))
     out["mean"] = float(np.mean([out[a] for a in AXES]))
+    out["band_mean"] = float(np.mean(band))
     out["floor_mean"] = float(np.mean(floor))
     out["n_samples"] = int(keep.sum())
     out["seconds"] = round(float(keep.sum() / rate_hz), 2)
     return out
+
+
+def white_density(x, rate_hz):
+    """The white-noise density (unit/sqrt(Hz)) of a 1-D record (NaN outside the samples
+    kept): ``white_noise_std / sqrt(rate)`` over its finite runs; None where none is long
+    enough."""
+    from gyrodenoise.analysis.motion_metrics import white_noise_std
+    sd = white_noise_std(np.asarray(x, dtype=np.float64), rate_hz)
+    return None if sd is None else float(sd) / math.sqrt(rate_hz)
+
+
+def refusal(stage, rate_hz, cutoff_hz, filter_rate_hz, cutoff_name="the low-pass"):
+    """Why a stream cannot give the sensor's noise density, or None when it can: a
+    post-filter stream whose low-pass cutoff is unknown or below twice its Nyquist
+    frequency (its band is filtered), or logged below the rate the filters run at (its
+    samples hold what folded down from between its Nyquist frequency and the cutoff)."""
+    if stage != "post-filter":
+        return None
+    nyq = 0.5 * rate_hz
+    if not cutoff_hz:
+        return (f"a post-filter stream at {rate_hz:.0f} Hz and {cutoff_name}'s cutoff not logged: its band may be "
+                "the vehicle's filter, not the sensor's noise")
+    if cutoff_hz < 2.0 * nyq:
+        return (f"a post-filter stream: {cutoff_name} at {cutoff_hz:g} Hz filters its band (Nyquist {nyq:.0f} Hz), "
+                "so what is left there is the filter's roll-off and the vehicle's motion, not the sensor's noise")
+    if filter_rate_hz and rate_hz < 0.9 * filter_rate_hz:
+        return (f"a post-filter stream logged at {rate_hz:.0f} Hz, below the {filter_rate_hz:.0f} Hz the filters run "
+                f"at: noise up to {cutoff_name}'s {cutoff_hz:g} Hz folds into it")
+    return None
 
 
 def _longest_run(keep):
@@ -125,27 +172,47 @@ def _series_rate(t):
     return float(1.0 / np.median(dt)) if len(dt) else 0.0
 
 
-def sensor_figures(kind, name, stage, t, x, unit, flying, rest):
+def sensor_figures(kind, name, stage, t, x, unit, flying, rest, refused=None):
     """One IMU's figures: ``{"sensor", "stream", "stage", "unit", "rate_hz", "flying",
-    "rest", "ratio", "bias_walk_rest"}`` (``ratio``: flying / rest mean density)."""
+    "rest", "ratio", "bias_walk_rest"}`` (``ratio``: flying / rest mean density);
+    ``refused`` (:func:`refusal`): the densities None, with it as ``refused``."""
     rate = _series_rate(t)
-    fly = density(x, rate, flying) if rate else None
-    at_rest = density(x, rate, rest) if rate else None
+    ok = rate and refused is None
+    fly = density(x, rate, flying) if ok else None
+    at_rest = density(x, rate, rest) if ok else None
     ratio = round(fly["mean"] / at_rest["mean"], 3) if fly and at_rest and at_rest["mean"] > 0 else None
-    return {"sensor": kind, "stream": name, "stage": stage, "unit": unit, "rate_hz": round(rate, 2),
-            "flying": _rounded(fly), "rest": _rounded(at_rest), "ratio": ratio,
-            "bias_walk_rest": _rounded(bias_walk(x, rate, rest)) if rate else None,
-            "bias_walk_unit": unit.replace("/sqrt(Hz)", "/s/sqrt(Hz)")}
+    out = {"sensor": kind, "stream": name, "stage": stage, "unit": unit, "rate_hz": round(rate, 2),
+           "flying": _rounded(fly), "rest": _rounded(at_rest), "ratio": ratio,
+           "bias_walk_rest": _rounded(bias_walk(x, rate, rest)) if ok else None,
+           "bias_walk_unit": unit.replace("/sqrt(Hz)", "/s/sqrt(Hz)")}
+    if refused is not None:
+        out["refused"] = refused
+    elif fly and fly["band_mean"] > 2.0 * fly["mean"]:
+        out["band_note"] = (f"flying, the Welch band {BAND_LO_HZ:g} Hz..{BAND_HI_SHARE:g} x Nyquist reads "
+                            f"{fly['band_mean'] / fly['mean']:.1f}x the white-noise density: motion or vibration "
+                            "in the band")
+    return out
 
 
-def inflight_noise(log, segments, autopilot, params):
+def inflight_noise(log, segments, autopilot, params, filters=None):
     """(figures or None, note) of a log: per gyro stream (rad/s) and accelerometer
     (m/s/s, the strategy's ``accel_series``) the density flying and at rest, their
-    ratio, the bias walk at rest; ``ekf_parameters`` (the strategy's
-    ``ekf_noise_params``) and ``kalibr_flight`` (the figures of a Kalibr imu.yaml
-    for flight, :func:`kalibr_yaml` writes it)."""
+    ratio, the bias walk at rest; ``refused``: the streams that cannot separate the
+    sensor's noise from the vehicle's filters and motion, each with why (:func:`refusal`; the stages
+    and cutoffs from the strategy: ``stream_stage``, ``lowpass_param``,
+    ``accel_filtering``); ``ekf_parameters`` (the strategy's ``ekf_noise_params``, of
+    the streams measured; a parameter left out, with ``ekf_note``, where none is) and
+    ``kalibr_flight`` (the figures of a Kalibr imu.yaml for flight, :func:`kalibr_yaml`
+    writes it). ``filters``: the vehicle's filters
+    (:func:`~gyrodenoise.flightlog.vehicle_filters.vehicle_filters`; read from
+    ``params`` when None)."""
+    from gyrodenoise.flightlog import vehicle_filters as vf
     if not any(s.kind == "flying" for s in segments or []):
         return None, "no flying segment: no in-flight noise"
+    filters = filters if filters is not None else vf.vehicle_filters(autopilot, params)
+    filter_rate = filters.get("filter_rate_hz") if isinstance(filters, dict) else None
+    lp = autopilot.lowpass_param(params)
+    gyro_cut = _number(params.get(lp)) if lp else None
     gyros, accels = [], []
     for s in log.gyro:
         if not s.to_deg_s or s.n < MIN_SAMPLES:
@@ -153,36 +220,59 @@ def inflight_noise(log, segments, autopilot, params):
         t = np.asarray(s.time_s, dtype=np.float64)
         fm, rm = _masks(log, t, getattr(s, "records", None), segments)
         x = np.radians(np.asarray(s.raw, dtype=np.float64) * s.to_deg_s)
-        gyros.append(sensor_figures("gyro", s.name, s.stage, t, x, "rad/s/sqrt(Hz)", fm, rm))
+        stage = autopilot.stream_stage(params, s)
+        why = refusal(stage, _series_rate(t), gyro_cut, filter_rate, lp or "the low-pass")
+        gyros.append(sensor_figures("gyro", s.name, stage, t, x, "rad/s/sqrt(Hz)", fm, rm, why))
+    a_stage, a_lp = autopilot.accel_filtering(params)
+    acc_cut = _number(params.get(a_lp)) if a_lp else None
     for name, t, xyz in autopilot.accel_series(log):
         t = np.asarray(t, dtype=np.float64)
         fm, rm = _masks(log, t, None, segments)
-        accels.append(sensor_figures("accel", name, "unknown", t, np.asarray(xyz, dtype=np.float64),
-                                     "m/s/s/sqrt(Hz)", fm, rm))
+        why = refusal(a_stage, _series_rate(t), acc_cut, filter_rate, a_lp or "the low-pass")
+        accels.append(sensor_figures("accel", name, a_stage, t, np.asarray(xyz, dtype=np.float64),
+                                     "m/s/s/sqrt(Hz)", fm, rm, why))
+    refused = [{k: f[k] for k in ("sensor", "stream", "stage", "rate_hz", "refused")}
+               for f in gyros + accels if f.get("refused")]
     gyros = [g for g in gyros if g["flying"]]
     accels = [a for a in accels if a["flying"]]
-    if not gyros and not accels:
+    if not gyros and not accels and not refused:
         return None, (f"no stream with {MIN_SAMPLES} flying samples and a band above {BAND_LO_HZ:g} Hz "
                       "(the rate must exceed about 11 Hz)")
     g0 = _for_ekf(gyros)
-    a0 = accels[0] if accels else None
+    a0 = _for_ekf(accels)
     gd = g0["flying"]["mean"] if g0 else None
     ad = a0["flying"]["mean"] if a0 else None
-    out = {"band": f"{BAND_LO_HZ:g} Hz..{BAND_HI_SHARE:g} x Nyquist of each stream",
-           "metric": "noise density N = sqrt(mean one-sided PSD over the band / 2) per axis; mean over the axes; "
-                     "floor_mean: the same from the median PSD; ratio = flying / rest",
-           "gyro": gyros, "accel": accels,
+    out = {"band": f"{BAND_LO_HZ:g} Hz..{BAND_HI_SHARE:g} x Nyquist of each stream (band_mean, floor_mean)",
+           "metric": "white-noise density N = sigma / sqrt(fs) per axis, sigma the core's motion-robust white-noise "
+                     "estimate (4th differences, lags 1..6; motion_metrics.white_noise_std); mean over the axes; "
+                     "band_mean / floor_mean: sqrt(mean / median one-sided Welch PSD over the band / 2); "
+                     "ratio = flying / rest; refused: the stream cannot separate noise from the filters and motion",
+           "gyro": gyros, "accel": accels, "refused": refused,
            "ekf_parameters": autopilot.ekf_noise_params(gd, ad, params),
            "ekf_from": {"gyro": g0["stream"] if g0 else None, "gyro_stage": g0["stage"] if g0 else None,
                         "accel": a0["stream"] if a0 else None},
            "kalibr_flight": kalibr_figures(g0, a0)}
+    missing = [k for k, v in (("gyro", g0), ("accelerometer", a0)) if v is None]
+    if missing:
+        out["ekf_note"] = (f"no {' or '.join(missing)} noise measured: every stream refused or too short "
+                           "(see refused); the EKF parameter is left as it is")
     return out, ""
 
 
-def _for_ekf(gyros):
-    """The gyro the EKF figures come from: the first pre-filter one, else the first."""
-    pre = [g for g in gyros if g["stage"] == "pre-filter"]
-    return (pre or gyros or [None])[0]
+def _number(v):
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return None
+    return v if v > 0 else None
+
+
+def _for_ekf(figures):
+    """The stream the EKF figures come from, among those measured flying: the fastest
+    pre-filter one, else the fastest; None when none is measured."""
+    got = [f for f in figures if f["flying"]]
+    pre = [f for f in got if f["stage"] == "pre-filter"]
+    return max(pre or got, key=lambda f: f["rate_hz"], default=None)
 
 
 def kalibr_figures(gyro, accel):
@@ -217,5 +307,6 @@ def noise_lines(rep):
     for f in nz["gyro"] + nz["accel"]:
         r = f" (x{f['ratio']:.2f} the rest's)" if f["ratio"] else ""
         parts.append(f"{f['sensor']} {f['stream']} {f['flying']['mean']:.3g} {f['unit']}{r}")
+    parts += [f"{f['sensor']} {f['stream']} not measured ({f['stage']})" for f in nz.get("refused", [])]
     ekf = ", ".join(f"{k} {v['value']:g}" for k, v in nz["ekf_parameters"].items())
     return ["in-flight noise: " + "; ".join(parts) + (f"; EKF: {ekf}" if ekf else "")]

@@ -166,7 +166,8 @@ def log_review(log, whole_log=False):
     fields["filter_review_note"] = note
     fields["notch_replay"], fields["notch_replay_note"] = _notch_replay(log, autopilot, params, filters, mask_fn)
     try:
-        fields["inflight_noise"], fields["inflight_noise_note"] = inflight_noise(log, segments, autopilot, params)
+        fields["inflight_noise"], fields["inflight_noise_note"] = inflight_noise(
+            log, segments, autopilot, params, filters)
     except Exception as exc:  # noqa: BLE001
         fields["inflight_noise"], fields["inflight_noise_note"] = None, _failed("in-flight noise", exc)
     try:

@@ -217,29 +217,17 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
         header, notes = list(table.columns), list(table.notes)
         where: Callable[[int], str] = lambda i: f"{table.row_name} {i + 1:,}"   # noqa: E731
     else:
-        text = TextFile(path)
-        first_line = text.first_line()
-        if not first_line:
-            raise InputError("empty file", src)
-        header_text, preamble = _after_preamble("".join(itertools.islice(text.lines(), PREAMBLE_MAX + 4)))
-        sep = _separator(header_text)
-        before = len(header_text) - len(header_text.lstrip("\n"))     # the preamble's lines, blanked
-        rows = _rows(text, sep, src, before if preamble else 0)
-        header_line, header = _read_header(rows, first, time_column or "time", src)
-        notes = [] if sep == "," else [f"fields separated by {SEPARATOR_NAMES[sep]}"]
-        if preamble:
-            notes.append(preamble_note(preamble))
-        rows, file_units = _units_row(rows, header)
-        units_from = "its units row" if file_units else "its header"
-        file_units = file_units or _header_units(header)
-        skip = header_line + (1 if units_from == "its units row" else 0)
+        lay = text_layout(path, first, time_column, src)
+        text, sep, header, rows, file_units, units_from, skip = (lay.text, lay.sep, lay.header, lay.rows,
+                                                                 lay.file_units, lay.units_from, lay.skip)
+        notes = list(lay.notes)
         where = lambda i: f"line {text.line_of(i, skip)}"   # noqa: E731
     lower = _names(header)
     rate_columns = [lower.get(c.lower(), c) if c not in header else c for c in rate_columns or []] or None
     accel_columns = [lower.get(c.lower(), c) if c not in header else c for c in accel_columns] \
         if accel_columns else accel_columns
     gyro_cols, gyro_group = _columns(GYRO, rate_columns, header, lower, "rate", src)
-    scales = {GYRO.name: _scales(rate_scale, gyro_cols, "--rate-scale", "rate", src)}
+    scales = {GYRO.name: rate_scales(rate_scale, gyro_cols, src)}
     if accel_columns is None and rate_columns is None and gyro_group is not None:
         accel_cols, accel_group = _detected(ACCEL, lower)
     else:
@@ -272,19 +260,9 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
                                     (ACCEL, accel_cols, accel_group, accel_unit)):
         if not cols:
             continue
-        said = {file_units[c] for c in cols if file_units.get(c) in kind.units}
-        if not unit and len(said) > 1:
-            raise InputError(f"line 2: the units row gives the {kind.name} columns {', '.join(sorted(said))}: "
-                             f"read them in separate runs", src)
-        unit, why = (unit, "as stated") if unit else \
-            (said.pop(), f"as {units_from} says") if said else \
-            ((group.unit, group.why) if group and group.unit else
-             (next(iter(kind.units)), f"assumed; {kind.option} {'|'.join(list(kind.units)[1:])} if not"))
+        unit, why = column_unit(kind, cols, unit, file_units, units_from, group, src)
         counts = scales[kind.name]
-        notes.append(f"{kind.name} column{'s' if len(cols) > 1 else ''} {', '.join(cols)} "
-                     + (f"x {', '.join(f'{k:g}' for k in dict.fromkeys(counts))} ({kind.scale_option}) "
-                        if counts else "")
-                     + f"in {unit} ({why})")
+        notes.append(unit_note(kind, cols, unit, why, counts))
         for i, c in enumerate(cols):
             scale = kind.units[unit] * (counts[i] if counts else 1.0)
             v = np.asarray(values[c], dtype=np.float64) * scale
@@ -315,6 +293,71 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
         restarts = restart_mask(tb) if len(tb.runs) > 1 else None
         notes.append(tb.note)
     return Recording(source=src, sample_rate_hz=fs, time_s=t, restarts=restarts, axes=tuple(axes), notes=notes)
+
+
+@dataclass
+class TextLayout:
+    """Where a text recording's columns are: its ``sep`` (None: runs of spaces), ``header``
+    (the names as written) and ``lower`` (:func:`_names`), the units it says per column
+    (``file_units``, from ``units_from``: its units row or its header), ``skip`` (the lines
+    before the first data row), the ``notes`` on its layout (separator, preamble) and the
+    data ``rows`` after the header (an iterator over the text)."""
+    text: TextFile
+    sep: str | None
+    header: list[str]
+    lower: dict[str, str]
+    file_units: dict[str, str]
+    units_from: str
+    skip: int
+    notes: list[str]
+    rows: Iterator[tuple[int, list[str]]]
+
+
+def text_layout(path: str | os.PathLike[str], first_column: str, time_column: str | None,
+                src: str) -> TextLayout:
+    """The :class:`TextLayout` of a text recording (the whole-array reader's and the chunked
+    reader's, :mod:`gyrodenoise.io.chunked`); InputError for an empty file or no header."""
+    text = TextFile(path)
+    if not text.first_line():
+        raise InputError("empty file", src)
+    header_text, preamble = _after_preamble("".join(itertools.islice(text.lines(), PREAMBLE_MAX + 4)))
+    sep = _separator(header_text)
+    before = len(header_text) - len(header_text.lstrip("\n"))     # the preamble's lines, blanked
+    rows = _rows(text, sep, src, before if preamble else 0)
+    header_line, header = _read_header(rows, first_column, time_column or "time", src)
+    notes = [] if sep == "," else [f"fields separated by {SEPARATOR_NAMES[sep]}"]
+    if preamble:
+        notes.append(preamble_note(preamble))
+    rows, file_units = _units_row(rows, header)
+    units_from = "its units row" if file_units else "its header"
+    file_units = file_units or _header_units(header)
+    skip = header_line + (1 if units_from == "its units row" else 0)
+    return TextLayout(text, sep, header, _names(header), file_units, units_from, skip, notes, rows)
+
+
+def column_unit(kind: SensorKind, cols: Sequence[str], stated: str | None, file_units: dict[str, str],
+                units_from: str, group: Any, src: str) -> tuple[str, str]:
+    """(unit, how it was decided) of ``kind``'s columns ``cols``: as stated, as the file says
+    (its units row or header), as the column group's names say, else the kind's default,
+    assumed; InputError when the file gives the columns different units."""
+    said = {file_units[c] for c in cols if file_units.get(c) in kind.units}
+    if not stated and len(said) > 1:
+        raise InputError(f"line 2: the units row gives the {kind.name} columns {', '.join(sorted(said))}: "
+                         f"read them in separate runs", src)
+    if stated:
+        return stated, "as stated"
+    if said:
+        return said.pop(), f"as {units_from} says"
+    if group and group.unit:
+        return group.unit, group.why
+    return next(iter(kind.units)), f"assumed; {kind.option} {'|'.join(list(kind.units)[1:])} if not"
+
+
+def unit_note(kind: SensorKind, cols: Sequence[str], unit: str, why: str, counts: Sequence[float] | None) -> str:
+    """The note of the unit ``kind``'s columns are read in (and the --rate-scale / --accel-scale factors)."""
+    return (f"{kind.name} column{'s' if len(cols) > 1 else ''} {', '.join(cols)} "
+            + (f"x {', '.join(f'{k:g}' for k in dict.fromkeys(counts))} ({kind.scale_option}) " if counts else "")
+            + f"in {unit} ({why})")
 
 
 #: the file name endings read as containers (gyrodenoise.io.containers), not as text
@@ -558,6 +601,11 @@ def _names(header: list[str]) -> dict[str, str]:
     return lower
 
 
+def rate_scales(rate_scale: Sequence[float] | float | None, cols: list[str], src: str) -> list[float] | None:
+    """One ``--rate-scale`` factor per gyro column (`_scales`)."""
+    return _scales(rate_scale, cols, "--rate-scale", "rate", src)
+
+
 def _scales(factors: Sequence[float] | float | None, cols: list[str], option: str, what: str,
             src: str) -> list[float] | None:
     """One factor of ``option`` (``--rate-scale``, ``--accel-scale``) per column of ``what``
@@ -659,28 +707,41 @@ def _signal_notes(rate: np.ndarray, where: Callable[[int], str] = lambda i: f"li
                   spike_advice: str = SPIKE_ADVICE, unit: str = "deg/s") -> list[str]:
     """Reported (never repaired) properties of the rate column: constant,
     suspected saturation, isolated spikes."""
-    notes = []
     lo, hi = float(rate.min()), float(rate.max())
-    if lo == hi:
-        return [f"the rate is constant ({lo:g} {unit}): nothing to denoise; the filter passes it "
-                f"through (to 1e-6 relative); its Allan deviation is zero, so the fit reports only "
-                f"(tiny) upper bounds"]
-    for label, value in (("maximum", hi), ("minimum", lo)):
-        count, first = _runs_at(rate, value, SAT_RUN)
-        if count:
-            notes.append(f"suspected saturation: {count} samples in runs of >= {SAT_RUN} equal values at "
-                         f"the rate's {label} {value:g} {unit} (first at {where(first)}, sample {first}); kept as is")
-    if rate.size >= 3:
+    sat = [(label, value, *_runs_at(rate, value, SAT_RUN)) for label, value in (("maximum", hi), ("minimum", lo))]
+    spikes = None
+    if lo != hi and rate.size >= 3:
         d = np.diff(rate)
         sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))
         if sigma > 0:
             lim = SPIKE_SIGMAS * sigma
             a, b = rate[1:-1] - rate[:-2], rate[1:-1] - rate[2:]
-            spikes = np.flatnonzero(((a > lim) & (b > lim)) | ((a < -lim) & (b < -lim))) + 1
-            if spikes.size:
-                notes.append(f"{spikes.size} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
-                             f"(first at {where(int(spikes[0]))}, sample {int(spikes[0])}, {rate[spikes[0]]:g} {unit}); "
-                             f"kept as is in the input; {spike_advice}")
+            found = np.flatnonzero(((a > lim) & (b > lim)) | ((a < -lim) & (b < -lim))) + 1
+            if found.size:
+                spikes = (int(found.size), int(found[0]), float(rate[found[0]]))
+    return signal_note_texts(lo, hi, sat, spikes, where, spike_advice, unit)
+
+
+def signal_note_texts(lo: float, hi: float, saturation: Sequence[tuple[str, float, int, int]],
+                      spikes: tuple[int, int, float] | None, where: Callable[[int], str],
+                      spike_advice: str = SPIKE_ADVICE, unit: str = "deg/s") -> list[str]:
+    """The signal notes' text from the rate's minimum and maximum, its saturation runs
+    ((label, value, samples in runs, first index) at the maximum and the minimum) and its
+    isolated spikes ((count, first index, value) or None)."""
+    if lo == hi:
+        return [f"the rate is constant ({lo:g} {unit}): nothing to denoise; the filter passes it "
+                f"through (to 1e-6 relative); its Allan deviation is zero, so the fit reports only "
+                f"(tiny) upper bounds"]
+    notes = []
+    for label, value, count, first in saturation:
+        if count:
+            notes.append(f"suspected saturation: {count} samples in runs of >= {SAT_RUN} equal values at "
+                         f"the rate's {label} {value:g} {unit} (first at {where(first)}, sample {first}); kept as is")
+    if spikes is not None:
+        count, first, value = spikes
+        notes.append(f"{count} isolated spike(s) of more than {SPIKE_SIGMAS:g} robust sigmas "
+                     f"(first at {where(first)}, sample {first}, {value:g} {unit}); "
+                     f"kept as is in the input; {spike_advice}")
     return notes
 
 

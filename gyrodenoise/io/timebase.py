@@ -196,6 +196,7 @@ class TimeBase:
     runs: tuple = field(repr=False)
     rate_range_hz: tuple | None = None   # VARYING: the block rates' 10th and 90th percentiles
     note: str = ""
+    first: object = field(default=None, repr=False)   # the first timestamp as read (exact: an int stays an int)
 
     @property
     def gaps(self):
@@ -220,6 +221,23 @@ class TimeBase:
             return _relative(t) * self.unit.seconds
         return t.astype(np.float64) * self.unit.seconds
 
+    def seconds_of_chunk(self, t):
+        """:meth:`seconds` of a chunk ``t`` of the column (the same numbers, bit for bit, as
+        the whole column's at those samples: an epoch column is counted from the record's
+        first sample, not the chunk's)."""
+        t = np.asarray(t)
+        if self.epoch:
+            return _relative_to(t, self.first, _exact_int(t)) * self.unit.seconds
+        return t.astype(np.float64) * self.unit.seconds
+
+    def restarts_in(self, a, b):
+        """Bool (b - a,): :func:`restart_mask` over samples a..b-1."""
+        mask = np.zeros(b - a, dtype=bool)
+        r = self.restarts
+        r = r[(r >= a) & (r < b)]
+        mask[r - a] = True
+        return mask
+
 
 def restart_mask(tb):
     """Bool (n,): True at the first sample of each run after the first (a time
@@ -230,7 +248,57 @@ def restart_mask(tb):
     return mask
 
 
-def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=None):
+#: steps per chunk of the time analysis (its memory; the results do not depend on it)
+CHUNK_STEPS = 1 << 20
+
+
+class TimeColumn:
+    """A timestamp column read a chunk at a time: ``n`` values, the first as read, and
+    ``read(a, b)`` giving the values a..b-1 as read (int64 or float64). The analysis holds
+    a chunk of ``chunk`` steps, never the column (:func:`analyse_column`)."""
+
+    def __init__(self, n, first, read, chunk=None, exact_int=None):
+        self.n = int(n)
+        self.first = first
+        self._read = read
+        self.chunk = max(1, int(chunk or CHUNK_STEPS))
+        self.exact_int = np.asarray(first).dtype.kind == "i" if exact_int is None else bool(exact_int)
+
+    @classmethod
+    def of_array(cls, t, chunk=None):
+        """The column of a whole array ``t`` (1-D, numbers)."""
+        return cls(t.size, t[0], lambda a, b: t[a:b], chunk, _exact_int(t))
+
+    def raw_chunks(self):
+        for a in range(0, self.n, self.chunk):
+            yield a, self._read(a, min(a + self.chunk, self.n))
+
+    def rel(self, a, b):
+        """t[a:b] - t[0], float64 (exact for integer columns)."""
+        return _relative_to(self._read(a, b), self.first, self.exact_int)
+
+    def take(self, idx):
+        """t[idx] - t[0] for a few indices."""
+        idx = np.asarray(idx, dtype=np.int64)
+        out = np.empty(idx.size)
+        for j, i in enumerate(idx):
+            out[j] = self.rel(int(i), int(i) + 1)[0]
+        return out
+
+    def steps(self):
+        """(a, t[a+1:b+1] - t[a:b]) over the n - 1 steps, a chunk at a time."""
+        for a in range(0, self.n - 1, self.chunk):
+            b = min(a + self.chunk, self.n - 1)
+            yield a, np.diff(self.rel(a, b + 1))
+
+
+def _exact_int(t):
+    """Whether an integer column is counted from its first value in integers (int64)."""
+    t = np.asarray(t)
+    return t.dtype.kind == "i" or (t.dtype.kind == "u" and t.size > 0 and int(t.max()) < 2 ** 63)
+
+
+def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=None, chunk=None):
     """The :class:`TimeBase` of the timestamp column ``t``.
 
     unit : str, optional
@@ -240,12 +308,13 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
         record's count over span; InputError otherwise.
     name, source : str
         What the error messages call the column and the file.
+    chunk : int, optional
+        Steps per chunk of the analysis (:func:`analyse_column`; the result does not
+        depend on it).
     """
     def fail(msg):
         raise InputError(f"{name}: {msg}", source)
 
-    stated = time_unit(unit, source) if unit is not None else None
-    nominal = _check_nominal(nominal_rate, source)
     t = np.asarray(t)
     if t.dtype.kind == "b":
         fail("values are booleans, not times")
@@ -255,30 +324,53 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
         except (TypeError, ValueError):
             fail(f"values are not numbers (dtype {t.dtype})")
     t = t.ravel()
-    n = t.size
+    if t.size < 2:
+        fail(f"{t.size} sample(s); at least 2 are needed")
+    return analyse_column(TimeColumn.of_array(t, chunk), unit=unit, nominal_rate=nominal_rate, name=name,
+                          source=source)
+
+
+def analyse_column(col, *, unit=None, nominal_rate=None, name="time column", source=None):
+    """The :class:`TimeBase` of a :class:`TimeColumn` (at least 2 values), read a chunk at
+    a time: a few passes over the column, each holding one chunk of steps and what the
+    model keeps (block statistics: one value per block of 256 steps; an evenly spread
+    sample of at most about 4 M steps for the median; the gap candidates)."""
+    def fail(msg):
+        raise InputError(f"{name}: {msg}", source)
+
+    stated = time_unit(unit, source) if unit is not None else None
+    nominal = _check_nominal(nominal_rate, source)
+    n = col.n
     if n < 2:
         fail(f"{n} sample(s); at least 2 are needed")
-    if t.dtype.kind == "f":
-        bad = ~np.isfinite(t)
-        if bad.any():
-            i = int(np.argmax(bad))
-            fail(f"{int(bad.sum()):,} value(s) not finite (first at sample {i:,}: {t[i]})")
-    rel = _relative(t)
-    dt = np.diff(rel)
-    back = dt < 0
-    if not (dt > 0).any():
-        if back.any():
+    bad_count, bad_first = 0, None
+    for a, raw in col.raw_chunks():
+        if raw.dtype.kind == "f":
+            bad = ~np.isfinite(raw)
+            if bad.any():
+                if bad_first is None:
+                    i = int(np.argmax(bad))
+                    bad_first = (a + i, raw[i])
+                bad_count += int(bad.sum())
+    if bad_first is not None:
+        fail(f"{bad_count:,} value(s) not finite (first at sample {bad_first[0]:,}: {bad_first[1]})")
+    back_idx, forward, repeated = [], False, 0
+    for a, dt in col.steps():
+        back_idx.append(np.flatnonzero(dt < 0) + a)
+        forward = forward or bool((dt > 0).any())
+        repeated += int(np.count_nonzero(dt == 0))
+    back_idx = np.concatenate(back_idx).astype(np.int64)
+    if not forward:
+        if back_idx.size:
             fail("time never advances (it only goes back: reversed order?)")
-        fail(f"all {n:,} timestamps are equal ({t[0]}): no time base")
+        fail(f"all {n:,} timestamps are equal ({col.first}): no time base")
 
-    fwd = dt[~back]
-    period, med, pattern, steps = _first_period(fwd)
-    del fwd
+    period, med, pattern, steps = _first_period(col, n - 1 - back_idx.size)
     if pattern is TimestampKind.VARYING:
-        period = _local_period(dt)
+        period = _local_period(col)
     for _ in range(PASSES):   # again with the period from count over span, while it moves
-        gaps = _find_gaps(dt, back, period, pattern)
-        runs, count, span = _runs(rel, dt, back, gaps)
+        gaps = _find_gaps(col, period, pattern)
+        runs, count, span = _runs(col, back_idx, gaps)
         if span <= 0:
             fail("time never advances within a run")
         if pattern is TimestampKind.VARYING:         # judged against the blocks' own steps
@@ -288,9 +380,9 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
         if moved < 1e-4:
             break
     period = span / count
-    kind, spread = _kind(dt, back, gaps, period, pattern)
+    kind, spread = _kind(col, back_idx.size, gaps, period, pattern)
 
-    t0 = float(t[0])
+    t0 = float(col.first)
     uobj, rule, alt = _decide_unit(stated, nominal, period, t0)
     rate = 1.0 / (period * uobj.seconds)
     epoch = _is_epoch(t0, uobj)
@@ -301,17 +393,18 @@ def analyse_time(t, *, unit=None, nominal_rate=None, name="time column", source=
                  f"{uobj.name}, {n:,} samples over {span * uobj.seconds:.4g} s) differ by more than "
                  f"{NOMINAL_TOLERANCE:.0%}")
         used = float(nominal)
-    gi, gm, gr = gaps
+    gi, gm, gr, gdt = gaps
     run_objs = tuple(Run(int(a), int(b), int(m), float(s * uobj.seconds), c) for a, b, m, s, c in runs)
     tb = TimeBase(
         n=n, rate_hz=float(used), measured_rate_hz=float(rate),
         median_rate_hz=(math.inf if med == 0 else 1.0 / (med * uobj.seconds)),
         unit=uobj, unit_rule=rule, epoch=epoch,
         epoch_offset_s=(t0 * uobj.seconds if epoch else None), origin=t0, kind=kind,
-        spread=spread, repeated=int(np.count_nonzero(dt == 0)),
-        gap_index=gi + 1, gap_seconds=dt[gi] * uobj.seconds, gap_missing=gm, gap_restarts=gr,
-        reversals=np.flatnonzero(back) + 1, runs=run_objs,
-        rate_range_hz=(None if steps is None else (1.0 / (steps[1] * uobj.seconds), 1.0 / (steps[0] * uobj.seconds))))
+        spread=spread, repeated=repeated,
+        gap_index=gi + 1, gap_seconds=gdt * uobj.seconds, gap_missing=gm, gap_restarts=gr,
+        reversals=back_idx + 1, runs=run_objs,
+        rate_range_hz=(None if steps is None else (1.0 / (steps[1] * uobj.seconds), 1.0 / (steps[0] * uobj.seconds))),
+        first=col.first)
     return _with_note(tb, med * uobj.seconds, span * uobj.seconds, alt, nominal)
 
 
@@ -330,50 +423,99 @@ def _check_nominal(nominal_rate, source):
 
 def _relative(t):
     """t - t[0] as float64, exact for integer columns (ns since 1970 has 19 digits)."""
-    if t.dtype.kind in "iu" and (t.dtype.kind == "i" or int(t.max()) < 2 ** 63):
-        return (t.astype(np.int64) - np.int64(t[0])).astype(np.float64)
-    return t.astype(np.float64) - np.float64(t[0])
+    return _relative_to(t, t[0], _exact_int(t))
 
 
-def _first_period(fwd):
+def _relative_to(t, t0, exact_int):
+    if exact_int:
+        return (t.astype(np.int64) - np.int64(t0)).astype(np.float64)
+    return t.astype(np.float64) - np.float64(t0)
+
+
+#: the median step is read from an evenly spread sample of at most about this many steps x 2
+MEDIAN_SAMPLE = 2_000_000
+
+
+def _first_period(col, fsize):
     """(a first period, the median step, the pattern, the block rates' 10th and 90th
-    percentiles or None) in the raw unit, from the forward steps ``fwd`` (a copy:
-    reordered here). The pattern: VARYING when the median steps of blocks differ
+    percentiles or None) in the raw unit, from the ``fsize`` forward steps (those not
+    going back). The pattern: VARYING when the median steps of blocks differ
     by more than RATE_CHANGE (over at least MIN_BURST_BLOCKS blocks), BURSTY when
     the median block mean is more than BURST_RATIO x the median step (over as
     many blocks: a few steps and a long one are a gap), else UNIFORM (uniform or
     jittered, told later). The first period is the median step (of those within
-    0.5-1.5x the median), or for bursts the median block mean."""
-    k = _block(fwd.size)
-    nb = fwd.size // k
-    mean = float(fwd.mean())
-    blocks = fwd[:nb * k].reshape(nb, k)
-    blk = float(np.median(blocks.mean(axis=1))) if nb else mean
+    0.5-1.5x the median), or for bursts the median block mean. The median step is
+    that of every step up to 2 x MEDIAN_SAMPLE steps, beyond of an evenly spread
+    sample of 2 to 4 M of them (every s-th)."""
+    k = _block(fsize)
+    nb = fsize // k
+    s = max(1, fsize // MEDIAN_SAMPLE)
+    means, meds, some = [], [], []
+    rest = np.empty(0)
+    seen = done = 0
+    for _, dt in col.steps():
+        f = dt[dt >= 0]
+        some.append(f[(-seen) % s::s])
+        seen += f.size
+        cat = np.concatenate([rest, f]) if rest.size else f
+        take = min(cat.size // k, nb - done) * k
+        if take:
+            b = cat[:take].reshape(-1, k)
+            means.append(b.mean(axis=1))
+            meds.append(np.median(b, axis=1))
+            done += take // k
+        rest = cat[take:]
+    some = np.concatenate(some)
+    means = np.concatenate(means) if means else np.empty(0)
+    meds = np.concatenate(meds) if meds else np.empty(0)
+    mean = float(rest.mean()) if not nb else (math.fsum(means) * k + math.fsum(rest)) / fsize
+    blk = float(np.median(means)) if nb else mean
     lo = hi = None
     if nb >= MIN_BURST_BLOCKS:
-        sample = blocks[::max(1, nb // 1024)]          # at most about 2,000 blocks, evenly spread
-        lo, hi = np.quantile(np.median(sample, axis=1), [0.1, 0.9])
-    med = float(np.median(fwd, overwrite_input=True))
+        lo, hi = np.quantile(meds[::max(1, nb // 1024)], [0.1, 0.9])   # at most about 2,000 blocks
+    med = float(np.median(some))
     if lo is not None and lo > 0 and hi > RATE_CHANGE * lo:
         return med, med, TimestampKind.VARYING, (float(lo), float(hi))
     if med > 0 and (blk <= BURST_RATIO * med or nb < MIN_BURST_BLOCKS):
         # steps of missing samples (2 periods and more) lift the median: the median
         # of the steps within 0.5-1.5x the median (a symmetric cut of the jitter)
-        some = fwd[::max(1, fwd.size // 2_000_000)]          # at most about 4 M steps, evenly spread
         mid = some[(some > 0.5 * med) & (some < 1.5 * med)]
         return (float(np.median(mid)) if mid.size else med), med, TimestampKind.UNIFORM, None
     return (blk if blk > 0 else mean), med, TimestampKind.BURSTY, None
 
 
-def _local_period(dt):
-    """Per step, the median step of its block (BLOCK steps; the last block takes
+class _LocalPeriod:
+    """Per step, the median step of its block (blocks of ``k`` steps; the last block takes
     what is left): the period of a record whose rate varies."""
-    k = _block(dt.size)
-    nb = -(-dt.size // k)
-    pad = np.full(nb * k, np.nan)
-    pad[:dt.size] = np.where(dt >= 0, dt, np.nan)
-    meds = np.nanmedian(pad.reshape(nb, k), axis=1)
-    return np.repeat(meds, k)[:dt.size]
+
+    def __init__(self, meds, k):
+        self.meds, self.k = meds, k
+
+    def at(self, a, b):
+        return self.meds[np.arange(a, b) // self.k]
+
+    def take(self, idx):
+        return self.meds[np.asarray(idx) // self.k]
+
+
+def _local_period(col):
+    k = _block(col.n - 1)
+    meds = []
+    rest = np.empty(0)
+    for _, dt in col.steps():
+        x = np.where(dt >= 0, dt, np.nan)
+        cat = np.concatenate([rest, x]) if rest.size else x
+        take = cat.size // k * k
+        if take:
+            meds.append(np.nanmedian(cat[:take].reshape(-1, k), axis=1))
+        rest = cat[take:]
+    if rest.size:
+        meds.append(np.nanmedian(rest.reshape(1, -1), axis=1))
+    return _LocalPeriod(np.concatenate(meds), k)
+
+
+def _per(period, a, b):
+    return period if np.ndim(period) == 0 and not isinstance(period, _LocalPeriod) else period.at(a, b)
 
 
 def _block(n_steps):
@@ -393,41 +535,159 @@ def _sliding_min(x, w, inplace=False):
     return m
 
 
-def _find_gaps(dt, back, period, pattern):
-    """(step indices, samples missing, restarts) of the gaps (module docstring)."""
-    cand = np.flatnonzero(dt >= GAP_CANDIDATE * period)
-    empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, bool))
+def _clock(col, period):
+    """The sample clock E = time / period - sample number (a reversal adds nothing), a
+    chunk at a time: (first index, E there); one running sum over the record (the chunks'
+    sums carried), so every value is that of the one sum over the whole record."""
+    carry = None
+    for a, dt in col.steps():
+        x = np.empty(dt.size + 1)
+        np.divide(dt, _per(period, a, a + dt.size), out=x[1:])
+        x[1:] -= 1.0
+        x[1:][dt < 0] = 0.0
+        if carry is None:
+            x[0] = 0.0
+            np.cumsum(x[1:], out=x[1:])
+            yield 0, x
+        else:
+            x[0] = carry
+            np.cumsum(x, out=x)
+            yield a + 1, x[1:]
+        carry = x[-1]
+
+
+def _windowed(chunks, n, before, after):
+    """(j0, j1, buf, start) over consecutive chunks (start, values) of a series of n
+    values: buf holds the series from ``start`` and covers j0 - before .. j1 + after
+    (clipped to the series)."""
+    buf, start, done = np.empty(0), 0, 0
+    for _, x in chunks:
+        buf = np.concatenate([buf, x]) if buf.size else x
+        end = start + buf.size
+        ready = n if end >= n else end - after
+        if ready > done:
+            yield done, ready, buf, start
+            done = ready
+        keep = max(start, done - before)
+        buf, start = buf[keep - start:], keep
+
+
+def _envelope(x, at_start, at_end):
+    """Each value of x below both neighbours raised to the lower of them (the ends of the
+    record kept as they are; the ends of x otherwise not used)."""
+    f = x.copy()
+    if x.size > 2:
+        np.maximum(f[1:-1], np.minimum(x[:-2], x[2:]), out=f[1:-1])
+    if at_start:
+        f[0] = x[0]
+    if at_end:
+        f[-1] = x[-1]
+    return f
+
+
+def _levels(col, period, js, w):
+    """lvl[js] (js sorted, unique): the minimum over the next ``w`` samples (clipped at
+    the end) of the lower envelope of the sample clock."""
+    n = col.n
+    out = np.empty(js.size)
+    for j0, j1, buf, start in _windowed(_clock(col, period), n, 1, w + 1):
+        a, b = np.searchsorted(js, [j0, j1])
+        if a == b:
+            continue
+        sel = js[a:b]
+        lo, hi = int(sel[0]), min(int(sel[-1]) + w, n)
+        xlo, xhi = max(lo - 1, 0), min(hi + 1, n)
+        env = _envelope(buf[xlo - start:xhi - start], xlo == 0, xhi == n)
+        seg = env[lo - xlo:hi - xlo]
+        if sel.size * w <= 4 * seg.size:
+            idx = np.minimum((sel - lo)[:, None] + np.arange(w), seg.size - 1)
+            out[a:b] = seg[idx].min(axis=1)
+        else:
+            out[a:b] = _sliding_min(seg, w, inplace=True)[sel - lo]
+    return out
+
+
+def _clock_ranges(col, period, lo, hi):
+    """[E[lo[i]:hi[i]] for each i] (ranges of at most a few windows), one pass."""
+    n = col.n
+    order = np.argsort(lo, kind="stable")
+    slo = lo[order]
+    longest = int((hi - lo).max()) if lo.size else 0
+    got = [np.empty(int(h - l_)) for l_, h in zip(lo, hi)]
+    for a, x in _clock(col, period):
+        b = a + x.size
+        i0, i1 = np.searchsorted(slo, [a - longest, b])
+        for i in order[i0:i1]:
+            l_, h = int(lo[i]), int(hi[i])
+            s, e = max(l_, a), min(h, b)
+            if s < e:
+                got[i][s - l_:e - l_] = x[s - a:e - a]
+    del n
+    return got
+
+
+def _envelope_min_of(x, lo, hi, n, a, b):
+    """min over E[a:b] of the lower envelope, from x = E[lo:hi] (lo = max(a - 1, 0),
+    hi = min(b + 1, n)), as the sliding windows see it."""
+    f = _envelope(x, lo == 0, hi == n)
+    return float(f[a - lo:a - lo + (b - a)].min())
+
+
+def _env_range(a, b, n):
+    return max(a - 1, 0), min(b + 1, n)
+
+
+def _candidates(col, period):
+    """(step indices, steps, period there) of the steps of at least GAP_CANDIDATE periods."""
+    idx, dts, per = [], [], []
+    for a, dt in col.steps():
+        p = _per(period, a, a + dt.size)
+        c = np.flatnonzero(dt >= GAP_CANDIDATE * p)
+        idx.append(c + a)
+        dts.append(dt[c])
+        per.append(np.broadcast_to(p, dt.shape)[c])
+    return (np.concatenate(idx).astype(np.int64), np.concatenate(dts), np.concatenate(per))
+
+
+def _find_gaps(col, period, pattern):
+    """(step indices, samples missing, restarts, steps) of the gaps (module docstring)."""
+    cand, cdt, cper = _candidates(col, period)
+    empty = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, bool), np.empty(0))
     if not cand.size:
         return empty
-    e = np.empty(dt.size + 1)      # the sample clock: time / period - sample number
-    e[0] = 0.0
-    np.divide(dt, period, out=e[1:])
-    e[1:] -= 1.0
-    e[1:][back] = 0.0              # a reversal is a restart, not a level
-    np.cumsum(e[1:], out=e[1:])
-    excess = dt[cand] / (period if np.ndim(period) == 0 else period[cand]) - 1.0
+    n = col.n
+    excess = cdt / cper - 1.0
     w = LEVEL_WINDOW
     bursty = pattern is TimestampKind.BURSTY
     if bursty:                          # a window spans several bursts
-        cycle = dt.size / max(1, cand.size)
+        cycle = (n - 1) / max(1, cand.size)
         w = int(min(1024, max(w, math.ceil(BURST_WINDOW_CYCLES * cycle))))
     # the lower envelope, blind to one early stamp (a repeated timestamp): a sample
     # below both neighbours is raised to the lower of them, then the window's min
-    lvl = np.empty_like(e)
-    lvl[0], lvl[-1] = e[0], e[-1]
-    np.minimum(e[:-2], e[2:], out=lvl[1:-1])
-    np.maximum(lvl[1:-1], e[1:-1], out=lvl[1:-1])
-    _sliding_min(lvl, w, inplace=True)
-    after = lvl[cand + 1]                          # e[k+1 .. k+w]
-    before = lvl[np.maximum(cand + 1 - w, 0)]      # e[k+1-w .. k]
-    n = e.size
+    k = cand + 1
+    kb = np.maximum(k - w, 0)
+    js = np.unique(np.concatenate([k, kb]))
+    lv = _levels(col, period, js, w)
+    after = lv[np.searchsorted(js, k)]              # e[k+1 .. k+w]
+    before = lv[np.searchsorted(js, kb)]            # e[k+1-w .. k]
     if not bursty:
-        return _gaps_in_clusters(e, cand, after, before, w, excess)
+        keep = _gaps_in_clusters(col, period, cand, after, before, w, excess)
+    else:
+        keep = _gaps_in_bursts(col, period, cand, after, before, w, excess)
+    if keep is None:
+        return empty
+    sel, gm = keep
+    # a restart needs the step itself to span the missing samples too: drops inside
+    # bursts add up in the sample clock without a long step, and are no break
+    return cand[sel], gm, np.minimum(gm, np.rint(excess[sel])) > MAX_BRIDGED_MISSING, cdt[sel]
+
+
+def _gaps_in_bursts(col, period, cand, after, before, w, excess):
+    """Gaps among bursts: (indices into cand, samples missing) or None."""
     # a window cut short (an end of the record, or the next step that rises) sees too
     # little of the stamps' scatter: with bursts it may hold only the top of one, so
-    # its level is taken down by the sample clock's typical range over a window; near
-    # an end of the record too (a gap there must stand out of the scatter); before
-    # the next rise, without bursts, the window before is cut to the same length
+    # its level is taken down by the sample clock's typical range over a window
+    n = col.n
     rises = after - _level_before(cand, after, before, after - before, w) >= 0.5
     room = np.full(cand.size, n)
     nxt = np.flatnonzero(rises)
@@ -437,50 +697,31 @@ def _find_gaps(dt, back, period, pattern):
         room[has] = cand[nxt[j[has]]] + 1
     h = np.minimum(np.minimum(room - cand - 1, cand + 1), w)
     short = np.flatnonzero(h < w)
-    scatter = 0.0
     if short.size:
-        at = cand[::max(1, cand.size // 1000)] + 1      # the range over at most about 2,000 windows
-        win = e[np.minimum(at[:, None] + np.arange(w), n - 1)]
-        scatter = float(np.median(win.max(axis=1) - lvl[at]))
-    for j in short:
-        k, hj = int(cand[j]) + 1, max(1, int(h[j]))
-        at_end = k < w or k + w > n
-        after[j] = _envelope_min(e, k, k + hj) - (scatter if bursty or at_end else 0.0)
-        if not bursty:
-            before[j] = _envelope_min(e, k - hj, k)
+        step = max(1, cand.size // 1000)                 # the range over at most about 2,000 windows
+        at = cand[::step] + 1
+        lvl_at = after[::step].copy()
+        ks = cand[short] + 1
+        hs = np.maximum(1, h[short])
+        s_lo, s_hi = np.maximum(ks - 1, 0), np.minimum(ks + hs + 1, n)
+        got = _clock_ranges(col, period, np.concatenate([at, s_lo]), np.concatenate([np.minimum(at + w, n), s_hi]))
+        scatter = float(np.median(np.array([g.max() for g in got[:at.size]]) - lvl_at))
+        for i, j in enumerate(short):
+            kj = int(ks[i])
+            after[j] = _envelope_min_of(got[at.size + i], int(s_lo[i]), int(s_hi[i]), n, kj, kj + int(hs[i])) - scatter
     rise = after - _level_before(cand, after, before, after - before, w)
     resid = rise - np.rint(rise)
     noise = 1.4826 * float(np.median(np.abs(resid)))
     missing = np.rint(rise)
-    if not bursty:       # host-stamped bursts may stamp the samples before a gap late: the step is short
-        missing = np.minimum(missing, np.rint(excess))
     keep = (rise >= max(0.5, NOISE_SIGMAS * noise)) & (missing >= 1)
     if not keep.any():
-        return empty
-    gi = cand[keep]
-    gm = missing[keep].astype(np.int64)
-    # a restart needs the step itself to span the missing samples too: drops inside
-    # bursts add up in the sample clock without a long step, and are no break
-    return gi, gm, np.minimum(gm, np.rint(excess[keep])) > MAX_BRIDGED_MISSING
+        return None
+    return np.flatnonzero(keep), missing[keep].astype(np.int64)
 
 
-def _envelope_min(e, a, b):
-    """min over e[a:b] of the lower envelope (each sample below both neighbours
-    raised to the lower of them), as the sliding windows see it."""
-    lo, hi = max(a - 1, 0), min(b + 1, e.size)
-    x = e[lo:hi]
-    f = x.copy()
-    if x.size > 2:
-        np.maximum(f[1:-1], np.minimum(x[:-2], x[2:]), out=f[1:-1])
-    if lo == 0:
-        f[0] = x[0]
-    if hi == e.size:
-        f[-1] = x[-1]
-    return float(f[a - lo:a - lo + (b - a)].min())
-
-
-def _gaps_in_clusters(e, cand, after, before, w, excess):
-    """Gaps without bursts: candidate steps less than ``w`` samples apart form a
+def _gaps_in_clusters(col, period, cand, after, before, w, excess):
+    """Gaps without bursts: (indices into cand, samples missing) or None. Candidate
+    steps less than ``w`` samples apart form a
     cluster, whose level before is that before its first step. Each step's rise
     is the level after it less the level after the cluster's previous step; a
     rise of at least max(0.5, NOISE_SIGMAS x the scatter about whole numbers of
@@ -491,18 +732,25 @@ def _gaps_in_clusters(e, cand, after, before, w, excess):
     ``w`` samples of an end of the record the windows are as long as the record
     allows and the level after is taken down by the stamps' scatter over a
     window (a gap there must stand out of it)."""
-    n = e.size
+    n = col.n
     k = cand + 1
     edge = np.flatnonzero((k < w) | (k + w > n))
     if edge.size:
         at = np.arange(0, k.size, max(1, k.size // 1000))
-        win = e[np.minimum(k[at][:, None] + np.arange(w), n - 1)]
-        scatter = float(np.median(win.max(axis=1) - after[at]))
-        for j in edge:
-            kj = int(k[j])
-            h = max(1, min(w, kj, n - kj))
-            after[j] = _envelope_min(e, kj, kj + h) - scatter
-            before[j] = _envelope_min(e, max(0, kj - w), kj)
+        ka = k[at]
+        ke = k[edge]
+        he = np.maximum(1, np.minimum(np.minimum(w, ke), n - ke))
+        a_lo, a_hi = np.maximum(ke - 1, 0), np.minimum(ke + he + 1, n)
+        bs = np.maximum(0, ke - w)
+        b_lo, b_hi = np.maximum(bs - 1, 0), np.minimum(ke + 1, n)
+        got = _clock_ranges(col, period, np.concatenate([ka, a_lo, b_lo]),
+                            np.concatenate([np.minimum(ka + w, n), a_hi, b_hi]))
+        m = at.size
+        scatter = float(np.median(np.array([g.max() for g in got[:m]]) - after[at]))
+        for i, j in enumerate(edge):
+            kj = int(ke[i])
+            after[j] = _envelope_min_of(got[m + i], int(a_lo[i]), int(a_hi[i]), n, kj, kj + int(he[i])) - scatter
+            before[j] = _envelope_min_of(got[m + edge.size + i], int(b_lo[i]), int(b_hi[i]), n, int(bs[i]), kj)
     first = np.concatenate([[True], np.diff(cand) >= w])
     cluster = np.cumsum(first) - 1
     x = after - before[first][cluster]             # the level from the cluster's start
@@ -522,9 +770,9 @@ def _gaps_in_clusters(e, cand, after, before, w, excess):
     missing = level - np.concatenate([[0.0], level[:-1]])
     missing[first] = level[first]
     keep = missing >= 1
-    gi = cand[keep]
-    gm = np.rint(missing[keep]).astype(np.int64)
-    return gi, gm, np.minimum(gm, np.rint(excess[keep])) > MAX_BRIDGED_MISSING
+    if not keep.any():
+        return None
+    return np.flatnonzero(keep), np.rint(missing[keep]).astype(np.int64)
 
 
 def _level_before(cand, after, before, rise, w):
@@ -540,16 +788,16 @@ def _level_before(cand, after, before, rise, w):
     return np.maximum(before, np.where(has, after[np.maximum(prev, 0)], -np.inf))
 
 
-def _runs(rel, dt, back, gaps):
+def _runs(col, back_idx, gaps):
     """([(start, stop, bridged missing, span, cause)], intervals + bridged missing, span) in the raw unit."""
-    gi, gm, gr = gaps
-    cuts = np.concatenate([np.flatnonzero(back) + 1, gi[gr] + 1])
-    is_gap = np.concatenate([np.zeros(int(back.sum()), bool), np.ones(int(gr.sum()), bool)])
+    gi, gm, gr, _ = gaps
+    cuts = np.concatenate([back_idx + 1, gi[gr] + 1])
+    is_gap = np.concatenate([np.zeros(back_idx.size, bool), np.ones(int(gr.sum()), bool)])
     order = np.argsort(cuts, kind="stable")
     cuts, is_gap = cuts[order], is_gap[order]
-    starts = np.concatenate([[0], cuts])
-    stops = np.concatenate([cuts, [rel.size]])
-    spans = rel[stops - 1] - rel[starts]
+    starts = np.concatenate([[0], cuts]).astype(np.int64)
+    stops = np.concatenate([cuts, [col.n]]).astype(np.int64)
+    spans = col.take(stops - 1) - col.take(starts)
     bridged = ~gr
     run_of = np.searchsorted(starts, gi[bridged] + 1, side="right") - 1
     miss = np.bincount(run_of, weights=gm[bridged], minlength=starts.size).astype(np.int64)
@@ -559,22 +807,35 @@ def _runs(rel, dt, back, gaps):
     return runs, count, float(spans.sum())
 
 
-def _kind(dt, back, gaps, period, pattern):
+#: the spread (95th percentile) is read from an evenly spread sample of at most this many steps
+SPREAD_SAMPLE = 1_000_000
+
+
+def _kind(col, nback, gaps, period, pattern):
     """(TimestampKind, spread): module docstring."""
-    ok = ~back
-    ok[gaps[0]] = False
-    r = dt[ok]
-    r /= period
-    r -= 1.0
-    np.abs(r, out=r)
-    if r.size == 0:
+    gi = gaps[0]
+    size = col.n - 1 - nback - gi.size      # the steps neither going back nor gaps
+    if size <= 0:
         return TimestampKind.UNIFORM, 0.0
-    sub = r[::-(-r.size // 1_000_000)]          # the spread from at most 1 M steps, evenly spread
+    s = -(-size // SPREAD_SAMPLE)
+    sub, off, seen = [], 0, 0
+    for a, dt in col.steps():
+        ok = dt >= 0
+        g = gi[(gi >= a) & (gi < a + dt.size)] - a
+        ok[g] = False
+        r = dt[ok]
+        r /= period
+        r -= 1.0
+        np.abs(r, out=r)
+        off += int(np.count_nonzero(r > UNIFORM_TOLERANCE))
+        sub.append(r[(-seen) % s::s])
+        seen += r.size
+    sub = np.concatenate(sub)
     k95 = min(sub.size - 1, int(0.95 * sub.size))
     spread = float(np.partition(sub, k95)[k95])
     if pattern is not TimestampKind.UNIFORM:
         return pattern, spread
-    if np.count_nonzero(r > UNIFORM_TOLERANCE) > UNIFORM_SHARE * r.size:
+    if off > UNIFORM_SHARE * size:
         return TimestampKind.JITTERED, spread
     return TimestampKind.UNIFORM, spread
 

@@ -1,0 +1,327 @@
+"""One rate column of a text recording read in bounded memory: a first pass that reads the
+file once (pyarrow's CSV engine, a batch at a time) into binary spool files and keeps only
+summaries, then passes that yield chunks of (time s, rate, true rate, restarts).
+
+* the time model is :func:`gyrodenoise.io.timebase.analyse_column` over the spooled time
+  column (a few passes, one chunk of steps at a time): the TimeBase of the whole-array
+  reader, bit for bit;
+* the signal notes (constant, suspected saturation, isolated spikes) and the magnitude
+  check are those of :mod:`gyrodenoise.io.recording`, from running summaries: the same
+  notes, except that beyond 2 M samples the spike test's robust sigma (the median absolute
+  deviation of the sample-to-sample differences) is read from an evenly spread sample of
+  1 to 2 M differences (``MEDIAN_SAMPLE``; the count and first spike are then those of
+  that sigma);
+* :meth:`RecordStream.chunks` yields the record a chunk at a time for consumers that carry
+  their state (the Allan sums, the Denoiser's whole state, accumulators).
+
+:func:`open_stream` answers None where it cannot promise the whole-array reader's result
+(no pyarrow, a container, a separator or cell only the reader's own loop reads, several
+rate columns): the caller then reads the file whole with
+:func:`gyrodenoise.io.recording.read_recording`.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from gyrodenoise.errors import InputError
+from gyrodenoise.io import recording as R
+from gyrodenoise.io.stream import CHUNK, EXACT_INT
+from gyrodenoise.io.timebase import TimeColumn, analyse_column
+
+#: bytes of text per batch of the CSV engine (its buffers: a fixed ~60 MB, whatever the length)
+STREAM_BLOCK = 1 << 22
+#: the spike test's sigma from every difference up to 2 x this many, beyond an evenly spread sample
+MEDIAN_SAMPLE = 1_000_000
+
+
+@dataclass
+class Spool:
+    """A column written to a binary file, read back a slice at a time."""
+    path: Path
+    dtype: np.dtype
+    n: int = 0
+
+    def append(self, v: np.ndarray) -> None:
+        with open(self.path, "ab") as f:
+            np.ascontiguousarray(v, dtype=self.dtype).tofile(f)
+        self.n += v.shape[0]
+
+    def read(self, a: int, b: int) -> np.ndarray:
+        with open(self.path, "rb") as f:
+            f.seek(a * self.dtype.itemsize)
+            return np.fromfile(f, dtype=self.dtype, count=b - a)
+
+
+@dataclass
+class RecordStream:
+    """A recording's one rate column, its notes and time model, read a chunk at a time."""
+    source: str
+    sample_rate_hz: float
+    n: int
+    notes: list[str]
+    unit: str
+    unit_how: str
+    rate: Spool = field(repr=False)
+    true: Spool | None = field(repr=False)
+    time: Spool | None = field(repr=False)
+    timebase: object = field(repr=False)
+    folder: str = field(repr=False)
+    time_as_float: bool = False
+
+    def __len__(self) -> int:
+        return self.n
+
+    @property
+    def has_true(self) -> bool:
+        return self.true is not None
+
+    def chunks(self, size: int | None = None) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray | None,
+                                                                np.ndarray | None]]:
+        """(time s, rate, true rate or None, restarts or None) a chunk at a time: the
+        whole-array reader's arrays at those samples, bit for bit."""
+        size = int(size or CHUNK)
+        tb = self.timebase
+        for a in range(0, self.n, size):
+            b = min(a + size, self.n)
+            if self.time is None:
+                t = np.arange(a, b) / self.sample_rate_hz
+                restarts = None
+            else:
+                raw = self.time.read(a, b)
+                t = tb.seconds_of_chunk(raw.astype(np.float64) if self.time_as_float else raw)
+                restarts = tb.restarts_in(a, b) if len(tb.runs) > 1 else None
+            yield t, self.rate.read(a, b), (self.true.read(a, b) if self.true else None), restarts
+
+    def rates(self, size: int | None = None) -> Iterator[np.ndarray]:
+        for _, r, _, _ in self.chunks(size):
+            yield r
+
+    def close(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def __enter__(self) -> RecordStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str | None = None,
+                rate_unit: str | None = None, sample_rate_hz: float | None = None,
+                true_column: str = "true_rate", spike_advice: str = R.SPIKE_ADVICE,
+                time_unit: str | None = None, chunk: int | None = None,
+                spill_dir: str | None = None, rate_scale: float | None = None) -> RecordStream | None:
+    """The :class:`RecordStream` of one rate column (parameters as
+    :func:`gyrodenoise.io.recording.read_recording`), or None where the whole-array reader
+    must read the file (module docstring). ``chunk``: samples per chunk of the passes;
+    ``rate_scale``: the rates' factor (``--rate-scale``, one column)."""
+    try:
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+    except ImportError:
+        return None
+    src = str(path)
+    if R.is_container(path):
+        return None
+    R._check_arguments(rate_unit, None, sample_rate_hz, src)
+    lay = R.text_layout(path, rate_column, time_column, src)
+    text, sep, header, file_units, skip, lower = lay.text, lay.sep, lay.header, lay.file_units, lay.skip, lay.lower
+    if sep not in (",", ";", "\t"):
+        return None
+    if rate_column not in header:
+        rate_column = lower.get(rate_column.lower(), rate_column)
+    if rate_column not in header:
+        return None
+    if time_column is None:
+        time_column = next((lower[c] for c in R.TIME_COLUMNS if c in lower), "time")
+    elif time_column not in header:
+        time_column = lower.get(time_column.lower(), time_column)
+    has_time = time_column in header
+    has_true = true_column in header
+    if not has_time and sample_rate_hz is None:
+        return None
+    wanted = [rate_column] + ([time_column] if has_time else []) + ([true_column] if has_true else [])
+    names = [f"f{i}" for i in range(len(header))]
+    col_of = {c: names[header.index(c)] for c in wanted}
+    head = text.lines()
+    if any(not next(head, "").strip() for _ in range(skip)):
+        return None
+    head.close()
+    text.check_decodable()
+    kind = R.GYRO
+    _, group = R._columns(kind, [rate_column], header, lower, "rate", src)
+    unit, why = R.column_unit(kind, [rate_column], rate_unit, file_units, lay.units_from, group, src)
+    counts = R.rate_scales(rate_scale, [rate_column], src)
+    scale = kind.units[unit] * (counts[0] if counts else 1.0)
+    folder = tempfile.mkdtemp(prefix="gd_stream_", dir=spill_dir)
+    ok = False
+    try:
+        rate = Spool(Path(folder) / "rate", np.dtype(np.float64))
+        true = Spool(Path(folder) / "true", np.dtype(np.float64)) if has_true else None
+        time = None
+        big_all, big_any = True, False
+        types = {col_of[c]: pa.float64() for c in wanted if c != time_column}
+        stats = _RateStats()
+        try:
+            stream = pa.input_stream(str(text.path), compression="gzip" if text.gzipped else None)
+            reader = pcsv.open_csv(
+                stream, read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=STREAM_BLOCK),
+                parse_options=pcsv.ParseOptions(delimiter=sep),
+                convert_options=pcsv.ConvertOptions(include_columns=sorted(set(col_of.values())), column_types=types,
+                                                    null_values=[], strings_can_be_null=False,
+                                                    quoted_strings_can_be_null=False))
+            for batch in reader:
+                cols = {}
+                for c in wanted:
+                    a = batch.column(col_of[c])
+                    if a.null_count or a.type not in (pa.float64(), pa.int64()):
+                        return None
+                    v = a.to_numpy(zero_copy_only=False)
+                    if v.dtype.kind == "f" and not np.isfinite(v).all():
+                        return None
+                    cols[c] = v
+                if has_time:
+                    t = cols[time_column]
+                    if time is None:
+                        time = Spool(Path(folder) / "time", t.dtype)
+                    if t.dtype != time.dtype:
+                        return None
+                    if t.dtype.kind == "i":
+                        big = t >= EXACT_INT
+                        big_all = big_all and bool(big.all())
+                        big_any = big_any or bool((np.abs(t) >= EXACT_INT).any())
+                    time.append(t)
+                v = cols[rate_column] * scale
+                stats.add(v, cols[rate_column], kind)
+                rate.append(v)
+                if true is not None:
+                    true.append(cols[true_column] * scale)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError):
+            return None
+        n = rate.n
+        if n == 0 or n < R.MIN_SAMPLES:
+            return None                              # the reader says why
+        time_as_float = time is not None and time.dtype.kind == "i" and not big_all
+        if time_as_float and big_any:
+            return None                              # a mix of exact and float integers: the loop's
+        where = lambda i: f"line {text.line_of(i, skip)}"   # noqa: E731
+        if stats.beyond is not None:
+            j, cell = stats.beyond
+            raise InputError(f"{where(j)}: column {rate_column}: {float(cell)!r} "
+                             f"{unit} is beyond {kind.absurd:g} {kind.internal}, not a {kind.name} reading "
+                             f"(wrong {kind.option}?)", src)
+        notes = lay.notes + [R.unit_note(kind, [rate_column], unit, why, counts)]
+        ignored = [h for h in header if h not in wanted and h]
+        if ignored:
+            shown = ", ".join(ignored[:8]) + (f", ... ({len(ignored)} in all)" if len(ignored) > 8 else "")
+            notes.append(f"ignored columns: {shown}")
+        notes += _signal_notes(rate, stats, where, spike_advice, kind.internal, chunk)
+        tb = None
+        if not has_time:
+            fs = float(sample_rate_hz)
+            notes.append(f"no column '{time_column}': rate {fs:g} Hz as stated (--sample-rate)")
+        else:
+            if time_unit is None and file_units.get(time_column) in R.TIME_UNIT_NAMES:
+                time_unit = file_units[time_column]
+            read = (lambda a, b: time.read(a, b).astype(np.float64)) if time_as_float else time.read
+            first = read(0, 1)[0]
+            tb = analyse_column(TimeColumn(n, first, read, chunk, exact_int=not time_as_float and
+                                           time.dtype.kind == "i"),
+                                unit=time_unit, nominal_rate=sample_rate_hz, name=f"column {time_column}", source=src)
+            fs = tb.rate_hz
+            notes.append(tb.note)
+        ok = True
+        return RecordStream(source=src, sample_rate_hz=fs, n=n, notes=notes, unit=unit, unit_how=why, rate=rate,
+                            true=true, time=time, timebase=tb, folder=folder, time_as_float=time_as_float)
+    finally:
+        if not ok:
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+class _RateStats:
+    """Running min, max and the first value beyond the kind's absurd magnitude."""
+
+    def __init__(self) -> None:
+        self.lo, self.hi, self.n = np.inf, -np.inf, 0
+        self.beyond: tuple[int, float] | None = None
+
+    def add(self, v: np.ndarray, cells: np.ndarray, kind: R.SensorKind) -> None:
+        if v.size:
+            self.lo, self.hi = min(self.lo, float(v.min())), max(self.hi, float(v.max()))
+        if self.beyond is None:
+            big = np.flatnonzero(np.abs(v) > kind.absurd)
+            if big.size:
+                self.beyond = (self.n + int(big[0]), cells[int(big[0])])
+        self.n += v.size
+
+
+def _runs_at(rate: Spool, value: float, min_len: int, size: int) -> tuple[int, int]:
+    """(count of samples, first index) in runs of >= min_len samples equal to value
+    (`recording._runs_at`, a chunk at a time: the run open at a chunk's end carried)."""
+    count, first = 0, -1
+    run, start = 0, 0                 # the run open at the last chunk's end (length, first index)
+
+    def close(s_abs: int, length: int) -> None:
+        nonlocal count, first
+        if length >= min_len:
+            count += length
+            first = s_abs if first < 0 else first
+
+    for a in range(0, rate.n, size):
+        eq = rate.read(a, min(a + size, rate.n)) == value
+        if run and not eq[0]:
+            close(start, run)
+            run = 0
+        d = np.diff(np.concatenate([[False], eq, [False]]).astype(np.int8))
+        for s, e in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+            s_abs, length = (start, run + int(e)) if s == 0 and run else (a + int(s), int(e - s))
+            run = 0
+            if e == eq.size:          # still open
+                run, start = length, s_abs
+            else:
+                close(s_abs, length)
+    if run:
+        close(start, run)
+    return count, first
+
+
+def _signal_notes(rate: Spool, stats: _RateStats, where, spike_advice: str, unit: str,
+                  chunk: int | None) -> list[str]:
+    """`recording._signal_notes` from a chunk at a time (module docstring)."""
+    size = int(chunk or CHUNK)
+    lo, hi, n = stats.lo, stats.hi, rate.n
+    sat = [(label, value, *_runs_at(rate, value, R.SAT_RUN, size)) for label, value in (("maximum", hi),
+                                                                                        ("minimum", lo))]
+    spikes = None
+    if lo != hi and n >= 3:
+        s = max(1, (n - 1) // MEDIAN_SAMPLE)
+        sample, seen = [], 0
+        for a in range(0, n - 1, size):
+            d = np.diff(rate.read(a, min(a + size, n - 1) + 1))
+            sample.append(d[(-seen) % s::s])
+            seen += d.size
+        d = np.concatenate(sample)
+        sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+        del d, sample
+        if sigma > 0:
+            lim = R.SPIKE_SIGMAS * sigma
+            count, first = 0, None
+            for a in range(1, n - 1, size):
+                b = min(a + size, n - 1)
+                x = rate.read(a - 1, b + 1)
+                da, db = x[1:-1] - x[:-2], x[1:-1] - x[2:]
+                hit = np.flatnonzero(((da > lim) & (db > lim)) | ((da < -lim) & (db < -lim)))
+                if hit.size and first is None:
+                    first = (a + int(hit[0]), float(x[1 + int(hit[0])]))
+                count += hit.size
+            if count:
+                spikes = (count, *first)
+    return R.signal_note_texts(lo, hi, sat, spikes, where, spike_advice, unit)
