@@ -229,11 +229,29 @@ class ArduPilot(Autopilot):
                       17: "FAILSAFE_EKFINAV", 18: "BARO", 19: "CPU", 20: "FAILSAFE_ADSB", 21: "TERRAIN",
                       22: "NAVIGATION", 23: "FAILSAFE_TERRAIN", 24: "EKF_PRIMARY", 25: "THRUST_LOSS_CHECK",
                       26: "FAILSAFE_SENSORS", 27: "FAILSAFE_LEAK", 28: "PILOT_INPUT", 29: "FAILSAFE_VIBE"}
-    #: ArduCopter's flight mode numbers (Copter::Mode::Number)
+    #: each vehicle's flight mode numbers, as ``MODE.Mode`` and ``HEARTBEAT.custom_mode`` carry them: the
+    #: MAVLink ardupilotmega dialect's COPTER_MODE, PLANE_MODE, ROVER_MODE and SUB_MODE enums (the
+    #: vehicles' FLTMODE1 / MODE1 parameter values, https://ardupilot.org/dev/docs/mavlink-get-set-flightmode.html)
     COPTER_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL",
                     7: "CIRCLE", 9: "LAND", 11: "DRIFT", 13: "SPORT", 14: "FLIP", 15: "AUTOTUNE", 16: "POSHOLD",
                     17: "BRAKE", 18: "THROW", 19: "AVOID_ADSB", 20: "GUIDED_NOGPS", 21: "SMART_RTL",
-                    22: "FLOWHOLD", 23: "FOLLOW", 24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE", 27: "AUTO_RTL"}
+                    22: "FLOWHOLD", 23: "FOLLOW", 24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE", 27: "AUTO_RTL",
+                    28: "TURTLE"}
+    PLANE_MODES = {0: "MANUAL", 1: "CIRCLE", 2: "STABILIZE", 3: "TRAINING", 4: "ACRO", 5: "FBWA", 6: "FBWB",
+                   7: "CRUISE", 8: "AUTOTUNE", 10: "AUTO", 11: "RTL", 12: "LOITER", 13: "TAKEOFF", 14: "AVOID_ADSB",
+                   15: "GUIDED", 16: "INITIALISING", 17: "QSTABILIZE", 18: "QHOVER", 19: "QLOITER", 20: "QLAND",
+                   21: "QRTL", 22: "QAUTOTUNE", 23: "QACRO", 24: "THERMAL", 25: "LOITER_ALT_QLAND"}
+    ROVER_MODES = {0: "MANUAL", 1: "ACRO", 3: "STEERING", 4: "HOLD", 5: "LOITER", 6: "FOLLOW", 7: "SIMPLE",
+                   8: "DOCK", 9: "CIRCLE", 10: "AUTO", 11: "RTL", 12: "SMART_RTL", 15: "GUIDED", 16: "INITIALISING"}
+    SUB_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 7: "CIRCLE", 9: "SURFACE",
+                 16: "POSHOLD", 19: "MANUAL", 20: "MOTOR_DETECT", 21: "SURFTRAK"}
+    #: the vehicle the boot message names (its firmware's name ends so) -> its modes
+    VEHICLE_MODES = (("Copter", COPTER_MODES), ("Plane", PLANE_MODES), ("Rover", ROVER_MODES), ("Sub", SUB_MODES))
+    #: where no boot message names it: the vehicle's HEARTBEAT.type (MAV_TYPE) -> its modes (fixed wing and
+    #: the VTOL types run Plane; multirotors and helicopters Copter; rovers and boats Rover; submarines Sub)
+    MAV_TYPE_MODES = {1: PLANE_MODES, **dict.fromkeys((2, 3, 4, 13, 14, 15, 29), COPTER_MODES),
+                      **dict.fromkeys((19, 20, 21, 22, 23, 24, 25), PLANE_MODES),
+                      **dict.fromkeys((10, 11), ROVER_MODES), 12: SUB_MODES}
 
     def motor_channels(self, log):
         from gyrodenoise.flightlog.timeseries import Channels
@@ -275,8 +293,26 @@ class ArduPilot(Autopilot):
         return text
 
     def mode_names(self, log):
+        """The modes of the vehicle the boot messages name (ArduCopter, APM:Plane, Rover, ArduSub),
+        else of the vehicle's HEARTBEAT type (a telemetry log without them); {} when neither says."""
         vehicle = str(log.format.identity(log).get("vehicle") or "")
-        return {str(k): v for k, v in self.COPTER_MODES.items()} if "Copter" in vehicle else {}
+        modes = next((m for word, m in self.VEHICLE_MODES if word in vehicle), None)
+        if modes is None:
+            modes = self.MAV_TYPE_MODES.get(self._heartbeat_type(log), {})
+        return {str(k): v for k, v in modes.items()}
+
+    @staticmethod
+    def _heartbeat_type(log):
+        """The MAV_TYPE most HEARTBEATs of an autopilot carry (not a ground station's: type 6,
+        autopilot 8), or None."""
+        hb = log.messages("HEARTBEAT")
+        if hb is None or "type" not in hb:
+            return None
+        veh = (hb["type"] != 6) & (hb["autopilot"] != 8) if "autopilot" in hb else hb["type"] != 6
+        if not veh.any():
+            return None
+        types, counts = np.unique(hb["type"][veh].astype(int), return_counts=True)
+        return int(types[np.argmax(counts)])
 
     def failsafe_events(self, log):
         from gyrodenoise.flightlog.model import LogEvent
@@ -615,7 +651,7 @@ class Betaflight(Autopilot):
 
     # --- time series (motors, vibration, failsafes) ---
     motors_looked_for = "motor[0..3] (main frames)"
-    rpm_looked_for = "nothing: Betaflight's eRPM / RPM_FILTER debug fields are not read"
+    rpm_looked_for = "eRPM[i] (logged with bidirectional DShot, Betaflight 4.3 on)"
 
     def motor_channels(self, log):
         from gyrodenoise.flightlog.timeseries import Channels
