@@ -107,6 +107,18 @@ class Autopilot:
         """The failsafes and errors the log records (``LogEvent``), beyond its events."""
         return []
 
+    battery_looked_for = "nothing: the autopilot is unknown"
+    rc_looked_for = "nothing: the autopilot is unknown"
+
+    def battery_channels(self, log):
+        """The battery's voltage [V] and current [A] (:class:`~gyrodenoise.flightlog.timeseries.Channels`,
+        a column per battery), each None where not logged."""
+        return None, None
+
+    def rc_input(self, log):
+        """The pilot's RC input (:class:`~gyrodenoise.flightlog.timeseries.Channels`), or None."""
+        return None
+
     # --- motor speed (ESC RPM) ---
     # what moves the filters along the flight and the logged post-filter gyro, for the
     # replay (gyrodenoise.flightlog.notch_replay)
@@ -267,14 +279,26 @@ class ArduPilot(Autopilot):
                 continue
             note = ""
             if not motors:
-                count = self.FRAME_MOTORS.get(int(params.get("FRAME_CLASS") or 1), 4)
+                count, why = self._motor_count(log, params)
                 motors = {n: n for n in range(1, count + 1)}
-                note = (f"SERVOn_FUNCTION not logged: outputs 1..{count} taken as the motors "
-                        f"(FRAME_CLASS {fmt_value(params.get('FRAME_CLASS'))})")
+                note = f"SERVOn_FUNCTION not logged: outputs 1..{count} taken as the motors ({why})"
             cols = {f"motor {k} ({col.format(n)})": m[col.format(n)].astype(float)
                     for n, k in sorted(motors.items(), key=lambda nk: nk[1]) if col.format(n) in m}
             return Channels(f"{name} {col.format('n')}", "PWM us", m["time_s"], cols, log.rows_boot(m), note)
         return None
+
+    #: the motors of the frame the boot message names (``Frame: QUAD/X``), before FRAME_CLASS existed
+    FRAME_WORD_MOTORS = (("OCTA", 8), ("HEXA", 6), ("Y6", 6), ("QUAD", 4), ("TRI", 3))
+
+    def _motor_count(self, log, params):
+        """(motors, from what) of the frame: FRAME_CLASS, else the boot message's frame, else 4."""
+        if params.get("FRAME_CLASS") is not None:
+            return self.FRAME_MOTORS.get(int(params["FRAME_CLASS"]), 4), f"FRAME_CLASS {fmt_value(params['FRAME_CLASS'])}"
+        frame = str(log.format.identity(log).get("frame") or "")
+        count = next((n for word, n in self.FRAME_WORD_MOTORS if word in frame.upper()), None)
+        if count is not None:
+            return count, f"frame {frame} in the boot messages"
+        return 4, "neither FRAME_CLASS nor the frame logged: a quad assumed"
 
     def motor_rpm(self, log):
         from gyrodenoise.flightlog.timeseries import Channels
@@ -322,6 +346,45 @@ class ArduPilot(Autopilot):
         return [LogEvent(float(t), int(b), f"ERR {self.ERR_SUBSYSTEMS.get(int(s), 'subsystem')} ({int(s)}) "
                                            f"ECode {int(c)}" + (" (cleared)" if int(c) == 0 else ""))
                 for t, b, s, c in zip(m["time_s"], log.rows_boot(m), m["Subsys"], m["ECode"])]
+
+    battery_looked_for = "BAT (Volt, Curr per Instance), CURR (cV, cA), SYS_STATUS (mV, cA)"
+    rc_looked_for = "RCIN C1..C8, RC_CHANNELS / RC_CHANNELS_RAW chan1_raw..chan8_raw"
+    #: (message, voltage field, current field, to volts, to amperes, the value meaning "not measured")
+    BATTERY_FIELDS = (("BAT", "Volt", "Curr", 1.0, 1.0, None), ("CURR", "Volt", "Curr", 0.01, 0.01, None),
+                      ("SYS_STATUS", "voltage_battery", "current_battery", 0.001, 0.01, (65535, -1)))
+
+    def battery_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        for name, vf, cf, v_scale, c_scale, unset in self.BATTERY_FIELDS:
+            m = log.messages(name)
+            if m is None or vf not in m:
+                continue
+            inst = m["Instance"].astype(int) if "Instance" in m else np.zeros(len(m["time_s"]), int)
+            several = len(np.unique(inst)) > 1
+            out = []
+            for field, scale, unit, not_set in ((vf, v_scale, "V", unset and unset[0]),
+                                                (cf, c_scale, "A", unset and unset[1])):
+                v = m[field].astype(float) if field in m else np.full(len(inst), np.nan)
+                v = np.where(v == not_set, np.nan, v * scale) if not_set is not None else v * scale
+                cols = {(f"{field}[{i}]" if several else field): np.where(inst == i, v, np.nan) for i in np.unique(inst)}
+                out.append(Channels(f"{name}.{field}", unit, m["time_s"], cols, log.rows_boot(m))
+                           if np.isfinite(v).any() else None)
+            return tuple(out)
+        return None, None
+
+    def rc_input(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        for name, col in (("RCIN", "C{}"), ("RC_CHANNELS", "chan{}_raw"), ("RC_CHANNELS_RAW", "chan{}_raw")):
+            m = log.messages(name)
+            if m is None or col.format(1) not in m:
+                continue
+            # 0 and 65535: a channel not received (MAVLink's UINT16_MAX, or never set)
+            cols = {col.format(n): np.where(np.isin(v := m[col.format(n)].astype(float), (0, 65535)), np.nan, v)
+                    for n in range(1, 9) if col.format(n) in m}
+            cols = {k: v for k, v in cols.items() if np.isfinite(v).any()}
+            if cols:
+                return Channels(f"{name} {col.format('n')}", "PWM us", m["time_s"], cols, log.rows_boot(m))
+        return None
 
     # --- motor speed (ESC RPM) ---
 
@@ -595,6 +658,32 @@ class PX4(Autopilot):
                 out += _edges(ff["time_s"], ff[k], f"failsafe_flags.{k} raised", f"failsafe_flags.{k} cleared")
         return [LogEvent(t, 0, text) for t, text in out]
 
+    battery_looked_for = "battery_status voltage_v, current_a"
+    rc_looked_for = "input_rc values[0..7]"
+
+    def battery_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("battery_status")
+        if m is None:
+            return None, None
+        out = []
+        for field, unit in (("voltage_v", "V"), ("current_a", "A")):
+            v = m[field].astype(float) if field in m else None
+            if v is not None:
+                v = np.where(v < 0, np.nan, v)               # -1: not measured
+            out.append(Channels(f"battery_status.{field}", unit, m["time_s"], {field: v})
+                       if v is not None and np.isfinite(v).any() else None)
+        return tuple(out)
+
+    def rc_input(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("input_rc")
+        if m is None:
+            return None
+        n = int(np.nanmax(m["channel_count"])) if "channel_count" in m and len(m["channel_count"]) else 8
+        cols = {f"ch {i + 1}": m[c].astype(float) for i in range(min(n, 8)) if (c := f"values[{i}]") in m}
+        return Channels("input_rc.values", "PWM us", m["time_s"], cols) if cols else None
+
 
 class Betaflight(Autopilot):
     """Betaflight: its gyro filter chain from the blackbox header (low-passes, static and
@@ -662,6 +751,28 @@ class Betaflight(Autopilot):
         rng = log.parameters().values.get("motorOutput", "")
         return Channels("motor[i]", f"motor output ({rng})" if rng else "motor output", m["time_s"], cols,
                         log.rows_boot(m))
+
+    battery_looked_for = "vbatLatest, amperageLatest (0.01 V, 0.01 A)"
+    rc_looked_for = "rcCommand[0..3]"
+
+    def battery_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        out = []
+        for field, unit in (("vbatLatest", "V"), ("amperageLatest", "A")):
+            m = log.messages(field)
+            out.append(None if m is None or field not in m else
+                       Channels(field, unit, m["time_s"], {field: m[field].astype(float) * 0.01}, log.rows_boot(m)))
+        return tuple(out)
+
+    def rc_input(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("rcCommand")
+        if m is None:
+            return None
+        cols = {f"{a} (rcCommand[{i}])": m[f"rcCommand[{i}]"].astype(float)
+                for i, a in enumerate(("roll", "pitch", "yaw", "throttle")) if f"rcCommand[{i}]" in m}
+        return Channels("rcCommand[i]", "roll/pitch/yaw -500..500, throttle 1000..2000", m["time_s"], cols,
+                        log.rows_boot(m)) if cols else None
 
 
     # --- motor speed (ESC RPM) ---

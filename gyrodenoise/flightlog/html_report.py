@@ -654,10 +654,10 @@ def _panels_figure(views, segments, axis):
 
 
 def _flight_section(report, series, figs):
-    """Motors, throttle, vibration and clipping against time with the events, modes
+    """Motors, throttle, RC input, battery, vibration and clipping against time with the events, modes
     and failsafes marked (``series["views"]``: :func:`gyrodenoise.flightlog.timeseries.flight_views`)."""
     v = _views(series)
-    out = ["<h2 id=flight>Motors, throttle and vibration</h2>"]
+    out = ["<h2 id=flight>Motors, throttle, RC, battery and vibration</h2>"]
     if v is None:
         return "".join(out) + _note("not given (the log's time series were not read)")
     tv = v.time
@@ -1554,7 +1554,7 @@ def write_log_report(path, report, series=None, plotlyjs=None):
     series = series or {}
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("overview", "overview"), ("summary", "summary"),
-                                                         ("streams", "streams"), ("flight", "motors & vibration"),
+                                                         ("streams", "streams"), ("flight", "motors, RC, battery"),
                                                          ("spectra", "spectra"), ("maps", "by throttle/RPM"), ("filters", "filters"), ("replay", "filter replay"),
                                                          ("noise", "noise in flight"), ("step", "step response"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
