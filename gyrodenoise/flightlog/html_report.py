@@ -1158,7 +1158,8 @@ def _filter_review_section(report, series, figs):
         out.append(f"<p>autopilot: <b>{_e(vf.get('autopilot') or 'unknown')}</b></p>")
         stages = vf.get("stages") or []
         if stages:
-            keys = sorted({k for s in stages if isinstance(s, dict) for k in s} - {"kind"})
+            # the biquad coefficients (``sections``) stay in the JSON: numbers no tuner reads
+            keys = sorted({k for s in stages if isinstance(s, dict) for k in s} - {"kind", "sections"})
             out.append(_table([[_e(s.get("kind"))] + [_e(_f(s.get(k))) for k in keys]
                                for s in stages if isinstance(s, dict)], ["kind"] + keys))
         params = vf.get("parameters") or {}

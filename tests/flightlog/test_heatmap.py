@@ -105,3 +105,17 @@ def test_no_map_without_a_whole_window():
     t = np.concatenate([np.arange(20), 100 + np.arange(20)]) / 2.0
     thr = Channels("VFR_HUD.throttle", "0..1", t, {"throttle": np.full(len(t), 0.5)})
     assert hmod.heatmap("slow", t, np.zeros((len(t), 3)), 2.0, thr, "throttle") is None
+
+
+def test_a_throttle_that_never_varied_gives_no_map_and_says_why(tone_map):
+    """copter462_notch_fragment (never armed, throttle 0) drew a one-column map: windows in
+    fewer than MIN_BINS bins are no map, and the note says how many; the tone's map has
+    windows in every bin and is kept."""
+    t, g, _ = tracked_tone(seconds=20.0)
+    idle = Channels("CTUN.ThO", "0..1", t[::100], {"throttle": np.zeros(len(t[::100]))})
+    hm = hmod.heatmap("idle", t, g, FS, idle, "throttle [0..1]")
+    assert hm is not None and (hm.windows > 0).sum() == 1
+    why = hmod.too_narrow(hm, "throttle")
+    assert why.startswith(f"no frequency-by-throttle map: its {int(hm.windows.sum())} gyro windows fall in 1 of the "
+                          f"{hmod.BINS} throttle bins")
+    assert hmod.too_narrow(tone_map, "throttle") is None
