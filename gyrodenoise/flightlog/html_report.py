@@ -502,7 +502,8 @@ def _frequency_axis_menu(log_x):
     (the active one first as ``log_x`` says)."""
     buttons = [{"label": "log frequency", "method": "relayout", "args": [{"xaxis.type": "log"}]},
                {"label": "linear frequency", "method": "relayout", "args": [{"xaxis.type": "linear"}]}]
-    return {"type": "buttons", "direction": "left", "x": 1, "xanchor": "right", "y": 1.01, "yanchor": "bottom",
+    # under the legend, in the column right of the plot: above the plot they covered long titles
+    return {"type": "buttons", "direction": "down", "x": 1.06, "xanchor": "left", "y": 0, "yanchor": "bottom",
             "showactive": True, "active": 0 if log_x else 1, "buttons": buttons, "font": {"size": 11}}
 
 
