@@ -4,6 +4,7 @@ Usage (from the repository root)::
 
     PYTHONPATH=. python scripts/check_html_reports.py ../shared/data/logs --out /tmp/pages --jobs 2
     PYTHONPATH=. python scripts/check_html_reports.py --pages-only /tmp/pages   # pages already written
+    PYTHONPATH=. python scripts/check_html_reports.py ../shared/data/logs --plotlyjs shared  # one plotly.min.js
 
 The bridge (``gyrodenoise mavlink LOGS --out OUT --json``, the real CLI) writes one
 ``NAME.report.html`` per log and ``fleet.html`` for several; each page is opened from its
@@ -176,6 +177,9 @@ def main(argv=None):
     ap.add_argument("--strict", action="store_true", help="a log the bridge refuses fails the run too")
     ap.add_argument("--timeout-s", type=float, default=60.0, help="per page, to load and draw (default 60)")
     ap.add_argument("--json", metavar="FILE", help="write every page's full check result to FILE")
+    ap.add_argument("--plotlyjs", choices=["inline", "shared"], default="inline",
+                    help="the bridge's --plotlyjs: each page holds plotly.js (inline, default) or they share "
+                         "one plotly.min.js in the output folder (shared)")
     a = ap.parse_args(argv)
     why = browser_missing()
     if why:
@@ -199,7 +203,7 @@ def main(argv=None):
             tmp = tempfile.TemporaryDirectory(prefix="check_html_reports-")
             out = Path(tmp.name)
         t0 = time.perf_counter()
-        rc, summary, err = run_bridge(a.logs, out, a.jobs)
+        rc, summary, err = run_bridge(a.logs, out, a.jobs, extra=("--plotlyjs", a.plotlyjs))
         print(f"bridge: exit {rc} in {time.perf_counter() - t0:.1f} s, output {out}")
         if summary is None or "logs" not in summary:
             print(f"FAIL the bridge wrote no JSON summary: {(err.strip().splitlines() or ['?'])[-1]}")

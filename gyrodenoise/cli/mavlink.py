@@ -100,6 +100,10 @@ def register_cli(subparsers):
                         "re-signed. Without it a signed packet goes out unchanged (gyro raw)")
     p.add_argument("--no-plots", action="store_true",
                    help="do not write PNG plots nor the HTML report (NAME.report.html, fleet.html)")
+    p.add_argument("--plotlyjs", default="inline", choices=["inline", "shared"],
+                   help="inline: each HTML report holds plotly.js (opens alone, ~4.7 MB a page; default); "
+                        "shared: plotly.min.js written once into OUT, every report and fleet.html refer to it "
+                        "(keep the folder together)")
     p.add_argument("--whole-log", action="store_true",
                    help="compute the spectra, noise figures, filter review and vibration over the whole log "
                         "(default: over the flying segments, \"over\": \"flying\"; a log with no flying "
@@ -202,6 +206,7 @@ def _finite_num(v):
 
 def _check(args):
     """Every option value: one line naming the option (InputError, exit 2)."""
+    from gyrodenoise.flightlog.cluster import is_url
     _check_run_options(args)
     _check_filter_options(args)
     if args.raw_imu_scale is not None and not (_finite_num(args.raw_imu_scale) and args.raw_imu_scale > 0):
@@ -210,6 +215,9 @@ def _check(args):
         raise InputError(f"--duration must be a finite number > 0 s, got {args.duration}")
     if args.count is not None and args.count < 1:
         raise InputError(f"--count must be >= 1, got {args.count}")
+    if args.plotlyjs == "shared" and is_url(args.out):
+        raise InputError(f"--plotlyjs shared: -o {args.out} must be a local folder (the pages refer to "
+                         f"plotly.min.js beside them)")
     if args.kalibr_yaml_flight is not None and (len(args.logs) != 1 or Path(args.logs[0]).is_dir()):
         raise InputError("--kalibr-yaml-flight: one log file only (the yaml describes one IMU in one flight)")
     _check_store(args)
@@ -428,6 +436,11 @@ def _run_logs(args, client, created):
             summary["fleet_report"] = _fleet_report(summary, args.out, html=not args.no_plots)
     except OSError as exc:
         raise InputError(f"-o {args.out}: cannot write summary.json ({exc.strerror or exc})") from None
+    if args.plotlyjs == "shared" and not args.no_plots:
+        try:
+            _share_plotlyjs(summary, args.out)
+        except OSError as exc:
+            raise InputError(f"-o {args.out}: cannot write plotly.min.js ({exc.strerror or exc})") from None
     if summary["failed"]:
         log(f"gyrodenoise: {summary['n_failed']} of {summary['n_logs']} log(s) failed")
     for f in summary["failed"]:
@@ -500,6 +513,16 @@ def _interrupted(out, summary):
         return f"summary.json not written ({exc.strerror or exc})"
     return (f"{out}/summary.json lists the {len(summary['completed'])} completed and "
             f"{len(summary['unfinished'])} unfinished log(s)")
+
+
+def _share_plotlyjs(summary, out):
+    """--plotlyjs shared: plotly.min.js written once into OUT, the run's HTML pages (each
+    log's report and fleet.html, drawn with it inlined) made to refer to it; returns its path."""
+    from gyrodenoise.flightlog.html_report import share_plotlyjs
+    pages = [r["report_html"] for r in summary["logs"] if r.get("report_html")]
+    pages += [p for p in summary.get("fleet_report") or [] if str(p).endswith(".html")]
+    js, _ = share_plotlyjs(pages, Path(out))
+    return str(js)
 
 
 def _fleet_report(summary, out, html=True):

@@ -107,6 +107,18 @@ class Autopilot:
         """The failsafes and errors the log records (``LogEvent``), beyond its events."""
         return []
 
+    battery_looked_for = "nothing: the autopilot is unknown"
+    rc_looked_for = "nothing: the autopilot is unknown"
+
+    def battery_channels(self, log):
+        """The battery's voltage [V] and current [A] (:class:`~gyrodenoise.flightlog.timeseries.Channels`,
+        a column per battery), each None where not logged."""
+        return None, None
+
+    def rc_input(self, log):
+        """The pilot's RC input (:class:`~gyrodenoise.flightlog.timeseries.Channels`), or None."""
+        return None
+
     # --- motor speed (ESC RPM) ---
     # what moves the filters along the flight and the logged post-filter gyro, for the
     # replay (gyrodenoise.flightlog.notch_replay)
@@ -233,11 +245,29 @@ class ArduPilot(Autopilot):
                       17: "FAILSAFE_EKFINAV", 18: "BARO", 19: "CPU", 20: "FAILSAFE_ADSB", 21: "TERRAIN",
                       22: "NAVIGATION", 23: "FAILSAFE_TERRAIN", 24: "EKF_PRIMARY", 25: "THRUST_LOSS_CHECK",
                       26: "FAILSAFE_SENSORS", 27: "FAILSAFE_LEAK", 28: "PILOT_INPUT", 29: "FAILSAFE_VIBE"}
-    #: ArduCopter's flight mode numbers (Copter::Mode::Number)
+    #: each vehicle's flight mode numbers, as ``MODE.Mode`` and ``HEARTBEAT.custom_mode`` carry them: the
+    #: MAVLink ardupilotmega dialect's COPTER_MODE, PLANE_MODE, ROVER_MODE and SUB_MODE enums (the
+    #: vehicles' FLTMODE1 / MODE1 parameter values, https://ardupilot.org/dev/docs/mavlink-get-set-flightmode.html)
     COPTER_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL",
                     7: "CIRCLE", 9: "LAND", 11: "DRIFT", 13: "SPORT", 14: "FLIP", 15: "AUTOTUNE", 16: "POSHOLD",
                     17: "BRAKE", 18: "THROW", 19: "AVOID_ADSB", 20: "GUIDED_NOGPS", 21: "SMART_RTL",
-                    22: "FLOWHOLD", 23: "FOLLOW", 24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE", 27: "AUTO_RTL"}
+                    22: "FLOWHOLD", 23: "FOLLOW", 24: "ZIGZAG", 25: "SYSTEMID", 26: "AUTOROTATE", 27: "AUTO_RTL",
+                    28: "TURTLE"}
+    PLANE_MODES = {0: "MANUAL", 1: "CIRCLE", 2: "STABILIZE", 3: "TRAINING", 4: "ACRO", 5: "FBWA", 6: "FBWB",
+                   7: "CRUISE", 8: "AUTOTUNE", 10: "AUTO", 11: "RTL", 12: "LOITER", 13: "TAKEOFF", 14: "AVOID_ADSB",
+                   15: "GUIDED", 16: "INITIALISING", 17: "QSTABILIZE", 18: "QHOVER", 19: "QLOITER", 20: "QLAND",
+                   21: "QRTL", 22: "QAUTOTUNE", 23: "QACRO", 24: "THERMAL", 25: "LOITER_ALT_QLAND"}
+    ROVER_MODES = {0: "MANUAL", 1: "ACRO", 3: "STEERING", 4: "HOLD", 5: "LOITER", 6: "FOLLOW", 7: "SIMPLE",
+                   8: "DOCK", 9: "CIRCLE", 10: "AUTO", 11: "RTL", 12: "SMART_RTL", 15: "GUIDED", 16: "INITIALISING"}
+    SUB_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 7: "CIRCLE", 9: "SURFACE",
+                 16: "POSHOLD", 19: "MANUAL", 20: "MOTOR_DETECT", 21: "SURFTRAK"}
+    #: the vehicle the boot message names (its firmware's name ends so) -> its modes
+    VEHICLE_MODES = (("Copter", COPTER_MODES), ("Plane", PLANE_MODES), ("Rover", ROVER_MODES), ("Sub", SUB_MODES))
+    #: where no boot message names it: the vehicle's HEARTBEAT.type (MAV_TYPE) -> its modes (fixed wing and
+    #: the VTOL types run Plane; multirotors and helicopters Copter; rovers and boats Rover; submarines Sub)
+    MAV_TYPE_MODES = {1: PLANE_MODES, **dict.fromkeys((2, 3, 4, 13, 14, 15, 29), COPTER_MODES),
+                      **dict.fromkeys((19, 20, 21, 22, 23, 24, 25), PLANE_MODES),
+                      **dict.fromkeys((10, 11), ROVER_MODES), 12: SUB_MODES}
 
     def motor_channels(self, log):
         from gyrodenoise.flightlog.timeseries import Channels
@@ -253,14 +283,26 @@ class ArduPilot(Autopilot):
                 continue
             note = ""
             if not motors:
-                count = self.FRAME_MOTORS.get(int(params.get("FRAME_CLASS") or 1), 4)
+                count, why = self._motor_count(log, params)
                 motors = {n: n for n in range(1, count + 1)}
-                note = (f"SERVOn_FUNCTION not logged: outputs 1..{count} taken as the motors "
-                        f"(FRAME_CLASS {fmt_value(params.get('FRAME_CLASS'))})")
+                note = f"SERVOn_FUNCTION not logged: outputs 1..{count} taken as the motors ({why})"
             cols = {f"motor {k} ({col.format(n)})": m[col.format(n)].astype(float)
                     for n, k in sorted(motors.items(), key=lambda nk: nk[1]) if col.format(n) in m}
             return Channels(f"{name} {col.format('n')}", "PWM us", m["time_s"], cols, log.rows_boot(m), note)
         return None
+
+    #: the motors of the frame the boot message names (``Frame: QUAD/X``), before FRAME_CLASS existed
+    FRAME_WORD_MOTORS = (("OCTA", 8), ("HEXA", 6), ("Y6", 6), ("QUAD", 4), ("TRI", 3))
+
+    def _motor_count(self, log, params):
+        """(motors, from what) of the frame: FRAME_CLASS, else the boot message's frame, else 4."""
+        if params.get("FRAME_CLASS") is not None:
+            return self.FRAME_MOTORS.get(int(params["FRAME_CLASS"]), 4), f"FRAME_CLASS {fmt_value(params['FRAME_CLASS'])}"
+        frame = str(log.format.identity(log).get("frame") or "")
+        count = next((n for word, n in self.FRAME_WORD_MOTORS if word in frame.upper()), None)
+        if count is not None:
+            return count, f"frame {frame} in the boot messages"
+        return 4, "neither FRAME_CLASS nor the frame logged: a quad assumed"
 
     def motor_rpm(self, log):
         from gyrodenoise.flightlog.timeseries import Channels
@@ -279,8 +321,26 @@ class ArduPilot(Autopilot):
         return text
 
     def mode_names(self, log):
+        """The modes of the vehicle the boot messages name (ArduCopter, APM:Plane, Rover, ArduSub),
+        else of the vehicle's HEARTBEAT type (a telemetry log without them); {} when neither says."""
         vehicle = str(log.format.identity(log).get("vehicle") or "")
-        return {str(k): v for k, v in self.COPTER_MODES.items()} if "Copter" in vehicle else {}
+        modes = next((m for word, m in self.VEHICLE_MODES if word in vehicle), None)
+        if modes is None:
+            modes = self.MAV_TYPE_MODES.get(self._heartbeat_type(log), {})
+        return {str(k): v for k, v in modes.items()}
+
+    @staticmethod
+    def _heartbeat_type(log):
+        """The MAV_TYPE most HEARTBEATs of an autopilot carry (not a ground station's: type 6,
+        autopilot 8), or None."""
+        hb = log.messages("HEARTBEAT")
+        if hb is None or "type" not in hb:
+            return None
+        veh = (hb["type"] != 6) & (hb["autopilot"] != 8) if "autopilot" in hb else hb["type"] != 6
+        if not veh.any():
+            return None
+        types, counts = np.unique(hb["type"][veh].astype(int), return_counts=True)
+        return int(types[np.argmax(counts)])
 
     def failsafe_events(self, log):
         from gyrodenoise.flightlog.model import LogEvent
@@ -290,6 +350,45 @@ class ArduPilot(Autopilot):
         return [LogEvent(float(t), int(b), f"ERR {self.ERR_SUBSYSTEMS.get(int(s), 'subsystem')} ({int(s)}) "
                                            f"ECode {int(c)}" + (" (cleared)" if int(c) == 0 else ""))
                 for t, b, s, c in zip(m["time_s"], log.rows_boot(m), m["Subsys"], m["ECode"])]
+
+    battery_looked_for = "BAT (Volt, Curr per Instance), CURR (cV, cA), SYS_STATUS (mV, cA)"
+    rc_looked_for = "RCIN C1..C8, RC_CHANNELS / RC_CHANNELS_RAW chan1_raw..chan8_raw"
+    #: (message, voltage field, current field, to volts, to amperes, the value meaning "not measured")
+    BATTERY_FIELDS = (("BAT", "Volt", "Curr", 1.0, 1.0, None), ("CURR", "Volt", "Curr", 0.01, 0.01, None),
+                      ("SYS_STATUS", "voltage_battery", "current_battery", 0.001, 0.01, (65535, -1)))
+
+    def battery_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        for name, vf, cf, v_scale, c_scale, unset in self.BATTERY_FIELDS:
+            m = log.messages(name)
+            if m is None or vf not in m:
+                continue
+            inst = m["Instance"].astype(int) if "Instance" in m else np.zeros(len(m["time_s"]), int)
+            several = len(np.unique(inst)) > 1
+            out = []
+            for field, scale, unit, not_set in ((vf, v_scale, "V", unset and unset[0]),
+                                                (cf, c_scale, "A", unset and unset[1])):
+                v = m[field].astype(float) if field in m else np.full(len(inst), np.nan)
+                v = np.where(v == not_set, np.nan, v * scale) if not_set is not None else v * scale
+                cols = {(f"{field}[{i}]" if several else field): np.where(inst == i, v, np.nan) for i in np.unique(inst)}
+                out.append(Channels(f"{name}.{field}", unit, m["time_s"], cols, log.rows_boot(m))
+                           if np.isfinite(v).any() else None)
+            return tuple(out)
+        return None, None
+
+    def rc_input(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        for name, col in (("RCIN", "C{}"), ("RC_CHANNELS", "chan{}_raw"), ("RC_CHANNELS_RAW", "chan{}_raw")):
+            m = log.messages(name)
+            if m is None or col.format(1) not in m:
+                continue
+            # 0 and 65535: a channel not received (MAVLink's UINT16_MAX, or never set)
+            cols = {col.format(n): np.where(np.isin(v := m[col.format(n)].astype(float), (0, 65535)), np.nan, v)
+                    for n in range(1, 9) if col.format(n) in m}
+            cols = {k: v for k, v in cols.items() if np.isfinite(v).any()}
+            if cols:
+                return Channels(f"{name} {col.format('n')}", "PWM us", m["time_s"], cols, log.rows_boot(m))
+        return None
 
     # --- motor speed (ESC RPM) ---
 
@@ -572,6 +671,32 @@ class PX4(Autopilot):
                 out += _edges(ff["time_s"], ff[k], f"failsafe_flags.{k} raised", f"failsafe_flags.{k} cleared")
         return [LogEvent(t, 0, text) for t, text in out]
 
+    battery_looked_for = "battery_status voltage_v, current_a"
+    rc_looked_for = "input_rc values[0..7]"
+
+    def battery_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("battery_status")
+        if m is None:
+            return None, None
+        out = []
+        for field, unit in (("voltage_v", "V"), ("current_a", "A")):
+            v = m[field].astype(float) if field in m else None
+            if v is not None:
+                v = np.where(v < 0, np.nan, v)               # -1: not measured
+            out.append(Channels(f"battery_status.{field}", unit, m["time_s"], {field: v})
+                       if v is not None and np.isfinite(v).any() else None)
+        return tuple(out)
+
+    def rc_input(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("input_rc")
+        if m is None:
+            return None
+        n = int(np.nanmax(m["channel_count"])) if "channel_count" in m and len(m["channel_count"]) else 8
+        cols = {f"ch {i + 1}": m[c].astype(float) for i in range(min(n, 8)) if (c := f"values[{i}]") in m}
+        return Channels("input_rc.values", "PWM us", m["time_s"], cols) if cols else None
+
 
 class Betaflight(Autopilot):
     """Betaflight: its gyro filter chain from the blackbox header (low-passes, static and
@@ -628,7 +753,7 @@ class Betaflight(Autopilot):
 
     # --- time series (motors, vibration, failsafes) ---
     motors_looked_for = "motor[0..3] (main frames)"
-    rpm_looked_for = "nothing: Betaflight's eRPM / RPM_FILTER debug fields are not read"
+    rpm_looked_for = "eRPM[i] (logged with bidirectional DShot, Betaflight 4.3 on)"
 
     def motor_channels(self, log):
         from gyrodenoise.flightlog.timeseries import Channels
@@ -639,6 +764,28 @@ class Betaflight(Autopilot):
         rng = log.parameters().values.get("motorOutput", "")
         return Channels("motor[i]", f"motor output ({rng})" if rng else "motor output", m["time_s"], cols,
                         log.rows_boot(m))
+
+    battery_looked_for = "vbatLatest, amperageLatest (0.01 V, 0.01 A)"
+    rc_looked_for = "rcCommand[0..3]"
+
+    def battery_channels(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        out = []
+        for field, unit in (("vbatLatest", "V"), ("amperageLatest", "A")):
+            m = log.messages(field)
+            out.append(None if m is None or field not in m else
+                       Channels(field, unit, m["time_s"], {field: m[field].astype(float) * 0.01}, log.rows_boot(m)))
+        return tuple(out)
+
+    def rc_input(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("rcCommand")
+        if m is None:
+            return None
+        cols = {f"{a} (rcCommand[{i}])": m[f"rcCommand[{i}]"].astype(float)
+                for i, a in enumerate(("roll", "pitch", "yaw", "throttle")) if f"rcCommand[{i}]" in m}
+        return Channels("rcCommand[i]", "roll/pitch/yaw -500..500, throttle 1000..2000", m["time_s"], cols,
+                        log.rows_boot(m)) if cols else None
 
 
     # --- motor speed (ESC RPM) ---

@@ -37,6 +37,9 @@ MIN_NPERSEG, MAX_NPERSEG = 32, 512
 GAP_FACTOR = 1.5
 #: the default x range leaves out windows whose x is under this share of the highest (ground idle)
 IDLE_SHARE = 0.1
+#: a map needs windows in at least this many bins: fewer is one column (a throttle that
+#: hardly varied, a vehicle that never flew), which a spectrum shows better
+MIN_BINS = 3
 #: the RPM map's lines: these motor-rotation harmonics where no notch stage tracks RPM
 ROTATION_HARMONICS = (1, 2, 3)
 
@@ -181,6 +184,17 @@ def heatmap(stream_name, time_s, values, rate_hz, x_channels, x_label, boots=Non
     return Heatmap(stream_name, x_label, x_channels.source, edges, freq, mean, counts)
 
 
+def too_narrow(hm, what):
+    """Why map ``hm`` is not worth drawing (its windows in fewer than :data:`MIN_BINS` bins of
+    ``what``), or None."""
+    filled = int((hm.windows > 0).sum())
+    if filled >= MIN_BINS:
+        return None
+    return (f"no frequency-by-{what} map: its {int(hm.windows.sum())} gyro windows fall in {filled} of the "
+            f"{len(hm.windows)} {what} bins ({what} {hm.edges[0]:.3g}..{hm.edges[-1]:.3g}: it hardly varied); "
+            f"a map needs {MIN_BINS} (the spectra show the gyro's noise)")
+
+
 def throttle_notch_hz(stage, throttle):
     """The fundamental of notch ``stage`` at each ``throttle`` on the throttle map, or None
     where it follows a measurement (no line)."""
@@ -269,6 +283,8 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
         if hm is None:
             notes.append(f"no frequency-by-throttle map: no gyro window ({nperseg_for(rate)} samples without a gap) lies in the "
                          "throttle's time span")
+        elif too_narrow(hm, "throttle"):
+            notes.append(too_narrow(hm, "throttle"))
         else:
             x = np.linspace(hm.edges[0], hm.edges[-1], 64)
             hm.lines, hm.notes = notch_lines(stages, x, throttle_notch_hz, rate / 2.0)
@@ -281,6 +297,8 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
         if hm is None:
             notes.append(f"no frequency-by-RPM map: no gyro window ({nperseg_for(rate)} samples without a gap) lies in the "
                          "RPM's time span")
+        elif too_narrow(hm, "RPM"):
+            notes.append(too_narrow(hm, "RPM"))
         else:
             x = np.linspace(hm.edges[0], hm.edges[-1], 64)
             lines, hm.notes = notch_lines(stages, x, rpm_notch_hz, rate / 2.0)

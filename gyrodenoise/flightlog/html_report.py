@@ -2,7 +2,9 @@
 
 What ArduPilot's Filter Review and PX4's Flight Review give an engineer, from the
 bridge's own report: zoom, hover and legend toggles on every plot, in one file
-that opens offline (plotly.js is inlined once; no CDN, no web font, no request).
+that opens offline (plotly.js is inlined once; no CDN, no web font, no request), or,
+for a folder of pages, one copy of plotly.js beside them that each page refers to
+(:class:`PlotlyScript`, :func:`write_shared_plotlyjs`).
 
 :func:`write_log_report` draws, per section, whatever part of the report exists
 (the keys come from several steps of the bridge; a missing one is skipped, a
@@ -36,6 +38,7 @@ import html
 import json
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -499,7 +502,8 @@ def _frequency_axis_menu(log_x):
     (the active one first as ``log_x`` says)."""
     buttons = [{"label": "log frequency", "method": "relayout", "args": [{"xaxis.type": "log"}]},
                {"label": "linear frequency", "method": "relayout", "args": [{"xaxis.type": "linear"}]}]
-    return {"type": "buttons", "direction": "left", "x": 1, "xanchor": "right", "y": 1.01, "yanchor": "bottom",
+    # under the legend, in the column right of the plot: above the plot they covered long titles
+    return {"type": "buttons", "direction": "down", "x": 1.06, "xanchor": "left", "y": 0, "yanchor": "bottom",
             "showactive": True, "active": 0 if log_x else 1, "buttons": buttons, "font": {"size": 11}}
 
 
@@ -651,10 +655,10 @@ def _panels_figure(views, segments, axis):
 
 
 def _flight_section(report, series, figs):
-    """Motors, throttle, vibration and clipping against time with the events, modes
+    """Motors, throttle, RC input, battery, vibration and clipping against time with the events, modes
     and failsafes marked (``series["views"]``: :func:`gyrodenoise.flightlog.timeseries.flight_views`)."""
     v = _views(series)
-    out = ["<h2 id=flight>Motors, throttle and vibration</h2>"]
+    out = ["<h2 id=flight>Motors, throttle, RC, battery and vibration</h2>"]
     if v is None:
         return "".join(out) + _note("not given (the log's time series were not read)")
     tv = v.time
@@ -1158,7 +1162,8 @@ def _filter_review_section(report, series, figs):
         out.append(f"<p>autopilot: <b>{_e(vf.get('autopilot') or 'unknown')}</b></p>")
         stages = vf.get("stages") or []
         if stages:
-            keys = sorted({k for s in stages if isinstance(s, dict) for k in s} - {"kind"})
+            # the biquad coefficients (``sections``) stay in the JSON: numbers no tuner reads
+            keys = sorted({k for s in stages if isinstance(s, dict) for k in s} - {"kind", "sections"})
             out.append(_table([[_e(s.get("kind"))] + [_e(_f(s.get(k))) for k in keys]
                                for s in stages if isinstance(s, dict)], ["kind"] + keys))
         params = vf.get("parameters") or {}
@@ -1424,17 +1429,85 @@ def _notes_section(report):
 
 
 # ------------------------------------------------------------------ pages
-def _page(title, body):
-    """A whole HTML page: plotly.js inlined once in the head, no external resource."""
+#: the file name of plotly.js written once into a folder of pages (``--plotlyjs shared``)
+SHARED_PLOTLYJS = "plotly.min.js"
+
+
+@dataclass(frozen=True)
+class PlotlyScript:
+    """How a page gets plotly.js: ``tag`` goes into the page's head, ``footer`` says so
+    at its foot. :meth:`inline` holds the library itself (the page opens alone);
+    :meth:`shared` refers to one copy beside the pages (:func:`write_shared_plotlyjs`)."""
+    tag: str
+    footer: str
+
+    @classmethod
+    def inline(cls):
+        from plotly.offline import get_plotlyjs
+        return cls(f"<script type='text/javascript'>{get_plotlyjs()}</script>", "self-contained (opens offline)")
+
+    @classmethod
+    def shared(cls, js_path, page_folder):
+        """The tag of the copy ``js_path`` seen from a page in ``page_folder`` (a relative
+        address, so the folder can be moved as a whole)."""
+        rel = Path(os.path.relpath(Path(js_path).resolve(), Path(page_folder).resolve())).as_posix()
+        return cls(f"<script type='text/javascript' src='{_e(rel)}'></script>",
+                   f"plotly.js from {rel} beside this page (keep them together)")
+
+
+def write_shared_plotlyjs(folder):
+    """Write plotly.js once into ``folder`` as :data:`SHARED_PLOTLYJS` (left as it is
+    where it already holds the same text); return its path."""
     from plotly.offline import get_plotlyjs
+    path = Path(folder) / SHARED_PLOTLYJS
+    js = get_plotlyjs()
+    if not (path.is_file() and path.stat().st_size == len(js.encode("utf-8")) and path.read_text(encoding="utf-8") == js):
+        _write(path, js)
+    return path
+
+
+def _script_for(page_path, plotlyjs):
+    """The page's :class:`PlotlyScript`: inlined when ``plotlyjs`` is None, else the
+    shared copy at ``plotlyjs`` (a path) referred to from ``page_path``'s folder."""
+    return PlotlyScript.inline() if plotlyjs is None else PlotlyScript.shared(plotlyjs, Path(page_path).parent)
+
+
+def share_plotlyjs(pages, folder):
+    """Pages written with plotly.js inlined (``pages``: paths; a missing one is skipped)
+    rewritten to refer to one copy written into ``folder`` (:func:`write_shared_plotlyjs`),
+    for a command whose pages are drawn by helpers that inline it. Returns the copy's path
+    and the pages rewritten."""
+    js_path = write_shared_plotlyjs(folder)
+    inline = PlotlyScript.inline()
+    done = []
+    for page in pages:
+        page = Path(page)
+        if not page.is_file():
+            continue
+        text = page.read_text(encoding="utf-8")
+        head = text.find(inline.tag)
+        foot = text.rfind(_e(inline.footer))
+        if head < 0 or foot < head:
+            continue                                   # already shared, or not one of our pages
+        shared = PlotlyScript.shared(js_path, page.parent)
+        foot += len(shared.tag) - len(inline.tag)
+        text = text[:head] + shared.tag + text[head + len(inline.tag):]
+        _write(page, text[:foot] + _e(shared.footer) + text[foot + len(_e(inline.footer)):])
+        done.append(page)
+    return js_path, done
+
+
+def _page(title, body, script):
+    """A whole HTML page: plotly.js as ``script`` (:class:`PlotlyScript`) says, in the
+    head; nothing else external."""
     import plotly
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     from gyrodenoise._version import __version__
     return ("<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
             f"<meta name=viewport content='width=device-width, initial-scale=1'><title>{_e(title)}</title>"
-            f"<style>{CSS}</style><script type='text/javascript'>{get_plotlyjs()}</script></head><body>"
+            f"<style>{CSS}</style>{script.tag}</head><body>"
             f"{body}<p class=small>gyrodenoise {_e(__version__)}, plotly.js {_e(_plotlyjs_version(plotly))}; "
-            f"written {stamp}; self-contained (opens offline)</p></body></html>\n")
+            f"written {stamp}; {_e(script.footer)}</p></body></html>\n")
 
 
 def _plotlyjs_version(plotly):
@@ -1453,7 +1526,7 @@ def _write(path, text):
     return path
 
 
-def write_log_report(path, report, series=None):
+def write_log_report(path, report, series=None, plotlyjs=None):
     """Write the interactive HTML report of one log to ``path``; return ``path``.
 
     ``report``: the log's report (:func:`gyrodenoise.flightlog.pipeline.process_log`,
@@ -1479,11 +1552,14 @@ def write_log_report(path, report, series=None):
 
     :func:`stream_series` gives a stream's entry from a processed GyroStream. Without
     ``filter_review`` responses the vehicle's response is computed from
-    ``report["vehicle_filters"]["stages"]`` (:func:`vehicle_response`)."""
+    ``report["vehicle_filters"]["stages"]`` (:func:`vehicle_response`).
+
+    ``plotlyjs``: None inlines plotly.js in the page; a path (:func:`write_shared_plotlyjs`)
+    makes the page refer to that copy instead."""
     series = series or {}
     name = Path(str(report.get("file", "log"))).name
     nav = "".join(f"<a href='#{a}'>{b}</a>" for a, b in (("overview", "overview"), ("summary", "summary"),
-                                                         ("streams", "streams"), ("flight", "motors & vibration"),
+                                                         ("streams", "streams"), ("flight", "motors, RC, battery"),
                                                          ("spectra", "spectra"), ("maps", "by throttle/RPM"), ("filters", "filters"), ("replay", "filter replay"),
                                                          ("noise", "noise in flight"), ("step", "step response"),
                                                          ("vibration", "vibration"), ("notes", "notes")))
@@ -1501,17 +1577,18 @@ def write_log_report(path, report, series=None):
                 _step_response_section(report, figs),
                 _vibration_section(report, figs),
                 _notes_section(report)]
-    return _write(path, _page(f"{name}: gyro review", "".join(body)))
+    return _write(path, _page(f"{name}: gyro review", "".join(body), _script_for(path, plotlyjs)))
 
 
-def write_fleet_report(path, fleet_report, per_log=()):
+def write_fleet_report(path, fleet_report, per_log=(), plotlyjs=None):
     """Write the fleet's interactive HTML report to ``path``; return ``path``.
 
     ``fleet_report``: what :func:`gyrodenoise.flightlog.fleet.write_fleet_report`
     writes to fleet.json (``rows`` of :func:`gyrodenoise.flightlog.fleet.fleet_rows`,
     ``n_logs``, ``n_ok``, ``n_failed``); ``per_log``: the logs' reports (their
     ``report_html`` becomes a link, relative to ``path``'s folder, and their
-    ``vibration`` verdict and flying time a column)."""
+    ``vibration`` verdict and flying time a column); ``plotlyjs`` as for
+    :func:`write_log_report`."""
     path = Path(path)
     rows = list(fleet_report.get("rows") or [])
     by_file = {str(r.get("file")): r for r in per_log or []}
@@ -1550,7 +1627,7 @@ def write_fleet_report(path, fleet_report, per_log=()):
             out.append("<h2>Noise density per log and stream</h2>" + figs.div(fig, height=480))
         else:
             out.append(_note("no stream has a noise density to compare"))
-    return _write(path, _page("gyrodenoise fleet report", "".join(out)))
+    return _write(path, _page("gyrodenoise fleet report", "".join(out), _script_for(path, plotlyjs)))
 
 
 def _with_unit(v, unit):

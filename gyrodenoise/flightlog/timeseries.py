@@ -11,6 +11,10 @@ PIDtoolbox, read from a :class:`gyrodenoise.flightlog.model.FlightLog`:
   :meth:`~gyrodenoise.flightlog.autopilots.Autopilot.motor_channels`;
 * throttle -- the throttle the flight segments use (the format's flight evidence:
   ``CTUN.ThO``, ``vehicle_thrust_setpoint``, ``setpoint[3]``), 0..1;
+* RC input and battery -- the pilot's sticks (ArduPilot ``RCIN``, ``RC_CHANNELS``; PX4
+  ``input_rc``; Betaflight ``rcCommand``) and the battery's voltage and current (``BAT``,
+  ``CURR``, ``SYS_STATUS``; ``battery_status``; ``vbatLatest``, ``amperageLatest``):
+  the strategy's ``rc_input`` and ``battery_channels``;
 * vibration and clipping -- the levels of the vibration review
   (:mod:`gyrodenoise.flightlog.vibration`: ``VIBE``, ``VIBRATION``,
   ``vehicle_imu_status``) with its cited warn/fail thresholds drawn, and the clip
@@ -119,6 +123,17 @@ def time_views(log, autopilot=None) -> TimeViews:
         panels.append(Panel("throttle", f"throttle [0..1] ({thr.source})", thr))
     else:
         missing["throttle"] = f"no throttle in the log (looked for {log.format.flight_looked_for})"
+    rc = ap.rc_input(log)
+    if rc is not None:
+        panels.append(Panel("rc", f"RC input [{rc.unit}] ({rc.source})", rc))
+    else:
+        missing["rc"] = f"no RC input in the log (looked for {ap.rc_looked_for})"
+    volts, amps = ap.battery_channels(log)
+    for key, ch in (("battery voltage", volts), ("battery current", amps)):
+        if ch is not None:
+            panels.append(Panel(key, f"{key} [{ch.unit}] ({ch.source})", ch))
+    if volts is None and amps is None:
+        missing["battery"] = f"no battery voltage or current in the log (looked for {ap.battery_looked_for})"
     vib, clip, why = vibration_channels(log, ap)
     panels += vib + ([clip] if clip is not None else [])
     if not vib and clip is None:

@@ -458,28 +458,14 @@ def _figure(trend):
     return fig
 
 
-def _plotly_tag(mode, folder):
-    """The page's plotly.js: inlined (``inline``), or ``plotly.min.js`` written once into
-    ``folder`` and referenced (``shared``)."""
+def _plotly_script(mode, folder):
+    """The pages' plotly.js (:class:`gyrodenoise.flightlog.html_report.PlotlyScript`):
+    inlined (``inline``), or ``plotly.min.js`` written once into ``folder`` and
+    referred to (``shared``)."""
+    from gyrodenoise.flightlog.html_report import PlotlyScript, write_shared_plotlyjs
     if mode == "inline":
-        return None
-    from plotly.offline import get_plotlyjs
-    from gyrodenoise.flightlog.stopping import atomic_path
-    with atomic_path(Path(folder) / "plotly.min.js") as tmp:
-        Path(tmp).write_text(get_plotlyjs(), encoding="utf-8")
-    return "<script type='text/javascript' src='plotly.min.js'></script>"
-
-
-def _page(title, body, script_tag):
-    """A page as the HTML reports write one (:mod:`gyrodenoise.flightlog.html_report`),
-    with plotly.js inlined, or referenced by ``script_tag`` (the fleet folder's copy)."""
-    from gyrodenoise.flightlog import html_report
-    page = html_report._page(title, body)
-    if script_tag is None:
-        return page
-    from plotly.offline import get_plotlyjs
-    return page.replace(f"<script type='text/javascript'>{get_plotlyjs()}</script>", script_tag, 1).replace(
-        "self-contained (opens offline)", "plotly.js from plotly.min.js beside this page")
+        return PlotlyScript.inline()
+    return PlotlyScript.shared(write_shared_plotlyjs(folder), folder)
 
 
 def airframe_status(ts):
@@ -507,10 +493,10 @@ def write_pages(trend_list, out_dir, plotlyjs="inline", detector=Detector(), fal
     status and grouping), into ``out_dir``;
     plotly.js inlined in each page (``inline``) or written once as ``plotly.min.js``
     (``shared``). Returns the paths."""
-    from gyrodenoise.flightlog.html_report import _Figures, _write
+    from gyrodenoise.flightlog.html_report import _Figures, _page, _write
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    tag = _plotly_tag(plotlyjs, out)
+    script = _plotly_script(plotlyjs, out)
     by = {}
     for t in trend_list:
         by.setdefault(t.airframe, []).append(t)
@@ -536,13 +522,13 @@ def write_pages(trend_list, out_dir, plotlyjs="inline", detector=Detector(), fal
             for t in ts:
                 parts.append(f"<h2>{e(t.metric)}{' — ' + e(t.stream) if t.stream else ''}: {e(t.status)}</h2>")
                 parts.append(figs.div(_figure(t), height=460))
-        paths.append(_write(out / name, _page(f"airframe {airframe}: trends", "".join(parts), tag)))
+        paths.append(_write(out / name, _page(f"airframe {airframe}: trends", "".join(parts), script)))
         n_logs = group.logs if group is not None else len({p.log_key for t in ts for p in t.points})
         index.append(f"<tr><td><a href='{e(name)}'>{e(airframe)}</a></td><td>{n_logs}</td>"
                      f"<td>{e(airframe_status(ts))}</td><td>{e(group.reason if group else '')}</td></tr>")
     body = ("<h1>Fleet trends</h1>" + method + "<table><tr><th>airframe</th><th>logs</th><th>status</th>"
             "<th>why these logs are one airframe</th></tr>" + "".join(index) + "</table>")
-    paths.append(_write(out / "index.html", _page("fleet trends", body, tag)))
+    paths.append(_write(out / "index.html", _page("fleet trends", body, script)))
     return paths
 
 

@@ -105,3 +105,76 @@ def test_no_map_without_a_whole_window():
     t = np.concatenate([np.arange(20), 100 + np.arange(20)]) / 2.0
     thr = Channels("VFR_HUD.throttle", "0..1", t, {"throttle": np.full(len(t), 0.5)})
     assert hmod.heatmap("slow", t, np.zeros((len(t), 3)), 2.0, thr, "throttle") is None
+
+
+def test_a_throttle_that_never_varied_gives_no_map_and_says_why(tone_map):
+    """copter462_notch_fragment (never armed, throttle 0) drew a one-column map: windows in
+    fewer than MIN_BINS bins are no map, and the note says how many; the tone's map has
+    windows in every bin and is kept."""
+    t, g, _ = tracked_tone(seconds=20.0)
+    idle = Channels("CTUN.ThO", "0..1", t[::100], {"throttle": np.zeros(len(t[::100]))})
+    hm = hmod.heatmap("idle", t, g, FS, idle, "throttle [0..1]")
+    assert hm is not None and (hm.windows > 0).sum() == 1
+    why = hmod.too_narrow(hm, "throttle")
+    assert why.startswith(f"no frequency-by-throttle map: its {int(hm.windows.sum())} gyro windows fall in 1 of the "
+                          f"{hmod.BINS} throttle bins")
+    assert hmod.too_narrow(tone_map, "throttle") is None
+
+
+class _BlackboxBlock:
+    """One Betaflight log of a file as the blackbox adapter holds it: main frames at
+    ``time_s``, their ``eRPM[i]`` columns (eRPM / 100, as logged)."""
+
+    def __init__(self, time_s, erpm):
+        self.time_s, self.main, self.throttle, self._erpm = time_s, np.ones(len(time_s)), None, erpm
+
+    def columns(self, name):
+        return self._erpm if name == "eRPM" else None
+
+
+class _Parameters:
+    def __init__(self, values, autopilot):
+        self.values, self.autopilot = values, autopilot
+
+
+class _BetaflightLog:
+    """The parts of a Betaflight FlightLog the maps read: the pre-filter gyro (debug
+    GYRO_SCALED), the eRPM columns, the header's motor_poles."""
+
+    def __init__(self, stream, block, poles):
+        from gyrodenoise.flightlog.autopilots import BETAFLIGHT
+        from gyrodenoise.flightlog.formats import format_named
+        self.gyro, self.payload, self.boots = [stream], [block], []
+        self.format = format_named("blackbox")
+        self._params = _Parameters({"motor_poles": str(poles)}, BETAFLIGHT)
+
+    def parameters(self):
+        return self._params
+
+
+def test_betaflight_rpm_map_from_erpm_follows_the_motor_tone():
+    """Betaflight's motor_rpm reads eRPM (rev/min = eRPM x 100 / (poles / 2)): a SYNTHETIC
+    2 kHz pre-filter gyro with a 5 deg/s tone at the motors' rotation rate (rpm / 60,
+    6000..18000 rev/min), eRPM logged for 4 motors with 14 poles: the RPM map's ridge is
+    within one frequency bin of rpm / 60 in every bin, on the drawn 'motor rotation x1' line."""
+    from gyrodenoise.flightlog.autopilots import BETAFLIGHT
+    from gyrodenoise.flightlog.streams import GyroStream
+    fs, seconds, poles = 2000.0, 60.0, 14
+    rng = np.random.default_rng(4)
+    t = np.arange(int(seconds * fs)) / fs
+    rpm = 12000.0 - 6000.0 * np.cos(2 * np.pi * t / seconds)
+    phase = 2 * np.pi * np.cumsum(rpm / 60.0) / fs
+    g = np.column_stack([5 * np.sin(phase) + rng.normal(0, 1, len(t)) for _ in range(3)])
+    erpm = np.round(np.column_stack([rpm * (1 + 0.002 * k) for k in range(4)]) * (poles / 2) / 100.0)
+    s = GyroStream(name="gyro pre-filter (debug GYRO_SCALED)", message="debug", unit="deg/s", to_deg_s=1.0,
+                   time_s=t, raw=g, index=np.arange(len(t)), rate_hz=fs, restarts=np.zeros(len(t), bool))
+    log = _BetaflightLog(s, _BlackboxBlock(t, erpm), poles)
+    maps, notes = hmod.log_heatmaps(log, None, stages=[], autopilot=BETAFLIGHT)
+    (hm,) = maps
+    assert hm.x_source == "eRPM[i]" and hm.x_label.startswith("mean motor RPM")
+    df = hm.freq_hz[1] - hm.freq_hz[0]
+    ok = hm.windows > 0
+    assert ok.sum() >= 20
+    assert np.max(np.abs(hm.ridge_hz()[ok] - hm.centres[ok] / 60.0)) <= df
+    line = next(ln for ln in hm.lines if ln.label.startswith("motor rotation x1"))
+    assert np.max(np.abs(np.interp(hm.centres[ok], line.x, line.freq_hz) - hm.ridge_hz()[ok])) <= df

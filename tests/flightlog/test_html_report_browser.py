@@ -87,3 +87,23 @@ def test_betaflight_overview_and_step_response_draw(tmp_path):
     assert text[text.index("<h2 id=step>"):text.index("<h2 id=vibration>")].count("Plotly.newPlot") == 1
     res = check_page(path)
     _assert_page_ok(res, text.count("Plotly.newPlot"))              # every plot drawn, the step response's too
+
+
+def test_pages_sharing_one_plotlyjs_draw_offline(tmp_path):
+    """--plotlyjs shared: a log's page in a sub-folder and the fleet page refer to one
+    plotly.min.js by relative addresses; each loads it from its file (no other request),
+    draws every plot and logs no error."""
+    from gyrodenoise.flightlog.html_report import write_fleet_report, write_log_report, write_shared_plotlyjs
+    rep, series = synthetic_report(tmp_path)
+    js = write_shared_plotlyjs(tmp_path)
+    log_page = write_log_report(tmp_path / "logs" / "a.report.html", dict(rep, file=str(tmp_path / "a.bin")),
+                                series, plotlyjs=js)
+    rows = [{"log": "a.bin", "file": str(tmp_path / "a.bin"), "stream": "IMU[0]", "status": "ok",
+             "compared_as": "IMU[0]", "rate_hz": 400.0, "noise_raw": 0.8, "noise_filtered": 0.2,
+             "noise_density_deg_s_rthz": 0.05, "flag": False}]
+    fleet = write_fleet_report(tmp_path / "fleet.html", {"rows": rows, "n_logs": 1, "n_ok": 1, "n_failed": 0},
+                               [dict(rep, file=str(tmp_path / "a.bin"), report_html=str(log_page))], plotlyjs=js)
+    assert log_page.stat().st_size < 0.5 * js.stat().st_size
+    text = log_page.read_text()
+    _assert_page_ok(check_page(log_page), text.count("Plotly.newPlot"))
+    _assert_page_ok(check_page(fleet), 1)

@@ -32,7 +32,7 @@ def test_views_are_drawn_with_markers_thresholds_and_the_notch(tmp_path):
     series = {"streams": [{"name": s.name, "time_s": s.time_s, "raw": raw, "filtered": raw, "unit": "deg/s",
                            "axes": ("x", "y", "z"), "restarts": None}], "views": views}
     page = write_log_report(tmp_path / "r.html", {"file": "synthetic.bin"}, series).read_text()
-    assert "Motors, throttle and vibration" in page and "Frequency by throttle" in page
+    assert "Motors, throttle, RC, battery and vibration" in page and "Frequency by throttle" in page
     plots = _plots(page)
     names = [tr.get("name") for _, data, _ in plots for tr in data]
     for want in ("motor 1 (C2)", "throttle", "VibeZ[1]", "warn threshold", "fail threshold", "Clip[1]",
