@@ -364,7 +364,7 @@ def tlog_messages(f: TelemetryFile, name):
     out = {}
     for fname in c.fieldnames:
         off, dt, is_str = fields[fname]
-        v = np.ascontiguousarray(pay[:, off:off + dt.itemsize]).view(dt).reshape((len(sel),) + dt.shape)
+        v = np.ascontiguousarray(pay[:, off:off + dt.itemsize]).view(dt.base).reshape((len(sel),) + dt.shape)
         out[fname] = _strings(v) if is_str else np.array(v)
     v2 = fr.v2[sel]
     start = fr.start[sel]

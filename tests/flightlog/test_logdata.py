@@ -173,3 +173,20 @@ def test_messages_after_a_fmt_redefinition_are_read(tmp_path):
     imu = log.messages("IMU")
     assert np.isnan(imu["T"][:50]).all() and not np.isnan(imu["T"][50:100]).any() and np.isnan(imu["T"][100:]).all()
     assert np.isfinite(imu["time_s"]).all() and np.all(np.diff(imu["time_s"]) > 0)
+
+
+def test_tlog_array_fields_equal_pymavlinks():
+    """A telemetry message with array fields (BATTERY_STATUS.voltages[10], voltages_ext[4]) is
+    read as (n, k) columns equal to pymavlink's, message by message (it raised before: a
+    subarray dtype cannot be a view of the payload bytes)."""
+    mavutil = pytest.importorskip("pymavlink.mavutil")
+    path = shared_log("copter_20211202-132613.tlog")
+    m = shared_flight_log(path.name).messages("BATTERY_STATUS")
+    conn = mavutil.mavlink_connection(str(path))
+    ref = []
+    while (msg := conn.recv_match(type="BATTERY_STATUS")) is not None:
+        ref.append((msg.voltages, msg.voltages_ext, msg.current_battery))
+    assert len(ref) == len(m["time_s"]) > 100
+    assert np.array_equal(m["voltages"], np.array([r[0] for r in ref]))
+    assert np.array_equal(m["voltages_ext"], np.array([r[1] for r in ref]))
+    assert np.array_equal(m["current_battery"], np.array([r[2] for r in ref]))
