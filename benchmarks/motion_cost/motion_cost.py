@@ -105,7 +105,8 @@ def build(d, cc, name, flags=FLAGS, core=CORE):
     """Compile the driver with the core in folder ``core``; returns the executable's path."""
     exe = d / name
     subprocess.run(cc + flags + ["-I", str(core), "-o", str(exe), str(Path(__file__).with_name("driver.c")),
-                                 str(core / "gdcore.c"), "-lm"], check=True)
+                                 str(core / "gdcore.c")]
+                   + [str(f) for f in (core / "gdbias.c",) if f.exists()] + ["-lm"], check=True)
     return exe
 
 
