@@ -2,7 +2,8 @@
 aarch64 build's output checked bit for bit against x86_64's (under qemu: emulation,
 no timing).
 
-    python benchmarks/motion_cost/motion_cost.py            # callgrind Ir / sample, AVX2 vs SSE2 copy
+    python benchmarks/motion_cost/motion_cost.py            # callgrind Ir / sample, AVX2 vs SSE2 copy,
+                                                            # and the bare KF loop of bench_core.py (the ratio)
     python benchmarks/motion_cost/motion_cost.py --aarch64  # also zig cc + qemu-aarch64
 
 A small C driver (driver.c) runs gd_run over case files written here: the core
@@ -65,11 +66,47 @@ def cases(d, n_count):
     return out
 
 
+BARE_MAIN_C = r"""
+#include <stdlib.h>
+void bare_kf(const double *z, double *out, long n);
+int main(int argc, char **argv)
+{
+    long n = atol(argv[1]), k;
+    double *z = malloc(n * sizeof *z), *out = malloc(n * sizeof *out), acc = 0.0;
+    for (k = 0; k < n; k++)
+        z[k] = (double)(k % 97) * 1e-3;
+    bare_kf(z, out, n);
+    for (k = 0; k < n; k++)
+        acc += out[k];
+    return acc == 12345.0;
+}
+"""
+
+
+def bare_kf_count(d, n):
+    """callgrind's instructions per sample of bench_core.py's bare 3-state KF loop (the cost goal's
+    unit), compiled with the core's flags; its count does not depend on the data."""
+    from benchmarks.bench_core import BARE_KF_C
+    (d / "bare.c").write_text(BARE_KF_C + BARE_MAIN_C)
+    exe = d / "bare"
+    subprocess.run(["gcc"] + FLAGS + ["-o", str(exe), str(d / "bare.c")], check=True)
+    cg = d / "cg_bare.out"
+    subprocess.run(["valgrind", "--tool=callgrind", "--toggle-collect=bare_kf*", f"--callgrind-out-file={cg}",
+                    str(exe), str(n)], check=True, capture_output=True)
+    return _total(cg) / n
+
+
+def _total(cg):
+    rep = subprocess.run(["callgrind_annotate", str(cg)], check=True, capture_output=True, text=True).stdout
+    return next(int(ln.split()[0].replace(",", "")) for ln in rep.splitlines() if "PROGRAM TOTALS" in ln)
+
+
 def build(d, cc, name, flags=FLAGS, core=CORE):
     """Compile the driver with the core in folder ``core``; returns the executable's path."""
     exe = d / name
     subprocess.run(cc + flags + ["-I", str(core), "-o", str(exe), str(Path(__file__).with_name("driver.c")),
-                                 str(core / "gdcore.c"), "-lm"], check=True)
+                                 str(core / "gdcore.c")]
+                   + [str(f) for f in (core / "gdbias.c",) if f.exists()] + ["-lm"], check=True)
     return exe
 
 
@@ -86,6 +123,9 @@ def main():
     cs = cases(d, a.n)
     x86 = build(d, ["gcc"], "drv_x86", core=a.core)
     sse2 = build(d, ["gcc"], "drv_sse2", FLAGS + ["-DGD_NO_TARGET_CLONES"], core=a.core)
+    bare = bare_kf_count(d, a.n)
+    print(f"bare 3-state KF loop of bench_core.py (gcc, the core's flags): {bare:.1f} instructions/sample "
+          "(callgrind)", flush=True)
     for label, exe in (("as built (the AVX2 copy where the CPU has it)", x86),
                        ("-DGD_NO_TARGET_CLONES (x86-64 baseline, SSE2)", sse2)):
         for fn, extra in (("gd_run", []), ("gd_step", ["step"])):   # batch, per sample
@@ -93,11 +133,10 @@ def main():
             subprocess.run(["valgrind", "--tool=callgrind", f"--toggle-collect={fn}*",
                             f"--callgrind-out-file={cg}", str(exe), str(cs["bench"]), str(d / "o.bin")] + extra,
                            check=True, capture_output=True)
-            rep = subprocess.run(["callgrind_annotate", str(cg)], check=True, capture_output=True,
-                                 text=True).stdout
-            ir = next(int(ln.split()[0].replace(",", "")) for ln in rep.splitlines() if "PROGRAM TOTALS" in ln)
+            ir = _total(cg)
             print(f"motion, {fn}, paper_fog 200 Hz, {a.n} samples, {label}: "
-                  f"{ir / a.n:.1f} instructions/sample (callgrind)", flush=True)
+                  f"{ir / a.n:.1f} instructions/sample (callgrind) = {ir / a.n / bare:.2f}x the bare KF loop",
+                  flush=True)
     for name, case in cs.items():
         subprocess.run([str(x86), str(case), str(d / f"{name}.x86")], check=True)
         subprocess.run([str(sse2), str(case), str(d / f"{name}.sse2")], check=True)

@@ -890,6 +890,71 @@ KERNEL void mo_update_(const double *restrict p, double inv_r, const double *res
     }
 }
 
+/* motion's output during its warm-up (kernels.warmup_output): the mean of the
+ * samples so far where their variance about it stays within white noise's spread
+ * of the noise level of the 4th differences at every lag 1..MO_WU_NL, else z */
+KERNEL double warmup_output_(double *restrict s, long o, double z, double k, int pos, int nh)
+{
+    double *w0 = s + o + MO_WU_AT, *hist = s + o + M_HIST;
+    double n = k + 1.0, mean, e, var, r1 = 0.0, u, g, w = 1.0;
+    int lag, i, nl = 4 * MO_WU_NL < nh ? MO_WU_NL : (nh - 1) / 4;
+    if (k == 0.0)
+        for (i = 0; i < 4 + MO_WU_NL; i++)
+            w0[i] = 0.0;
+    mean = w0[0];
+    e = z - mean;
+    mean += e / n;
+    w0[0] = mean;
+    w0[1] += e * (z - mean);
+    for (lag = 1; lag <= nl; lag++)
+        if (k >= 4.0 * lag) {
+            int i1 = pos - lag, i2 = pos - 2 * lag, i3 = pos - 3 * lag, i4 = pos - 4 * lag;
+            double d4;
+            if (i1 < 0)
+                i1 += nh;
+            if (i2 < 0)
+                i2 += nh;
+            if (i3 < 0)
+                i3 += nh;
+            if (i4 < 0)
+                i4 += nh;
+            d4 = z - 4.0 * hist[i1] + 6.0 * hist[i2] - 4.0 * hist[i3] + hist[i4];
+            w0[1 + lag] += d4 * d4;
+        }
+    if (w0[3 + MO_WU_NL] != 0.0 || n < MO_WU_N0 || !(n > 4.0 * nl))
+        return z;
+    var = w0[1] / (n - 1.0);
+    for (lag = 1; lag <= nl; lag++) {
+        double rl = w0[1 + lag] / (70.0 * (n - 4.0 * lag));
+        if (lag == 1 || rl < r1)
+            r1 = rl;
+    }
+    if (!(r1 > 0.0) || !(var - var == 0.0))
+        return z;
+    u = e * e / r1;
+    g = w0[2 + MO_WU_NL];
+    g += MO_WU_FADE * (u - g);
+    w0[2 + MO_WU_NL] = g;
+    if (u > MO_WU_SPIKE || g > MO_WU_GLIM) {
+        w0[3 + MO_WU_NL] = 1.0;
+        return z;
+    }
+    for (lag = 1; lag <= nl; lag++) {
+        double m = n - 4.0 * lag, q = var * 70.0 * m / w0[1 + lag], sm = sqrt(m);
+        double hi = 1.0 + MO_WU_HI / sm, lo = 1.0 + MO_WU_LO / sm;
+        if (!(q < hi) || q <= 1.0 - MO_WU_LOW / sm) {
+            w0[3 + MO_WU_NL] = 1.0;
+            return z;
+        }
+        if (q > lo) {
+            double wl = (hi - q) / (hi - lo);
+            if (wl < w)
+                w = wl;
+        }
+    }
+    return z + w * (mean - z);
+}
+
 /* method="motion": the bank of constant-velocity Kalman filters weighted by
  * their faded likelihoods, the noise level from 4th differences at several
  * lags, restarts from the best filter, angle feedback; with max_motion_hz
@@ -1022,6 +1087,8 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             bc[i] = 0.0;
         }
         s[o + M_GRD] = 0.0;
+        if (p[P_LP_NSEC] == 0.0 && s[o + M_NW] == 0.0)
+            return warmup_output_(s, o, z, k, pos, nh);
         return z;
     }
     s[S_CONV] = 1.0;
@@ -1248,7 +1315,7 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
     int lowpass = !bk && p[P_METHOD] == METHOD_LOWPASS;
     int motion = bk || p[P_METHOD] == METHOD_MOTION;
     int one_euro = !bk && p[P_METHOD] == METHOD_ONE_EURO;
-    double xc, out;
+    double xc, out, zc;
     if (is_restart) {
         restart_(p, s);
         if (bk)
@@ -1264,12 +1331,13 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         s[S_LO] = z;
     if (z > s[S_HI])
         s[S_HI] = z;
+    zc = z - s[S_ZREF];
     if (code == 1)
         xc = s[S_OUT];
     else if (lowpass)
         xc = lowpass_step_(p, s, z - s[S_ZREF]);
     else if (motion)
-        xc = motion_step_(p, s, z - s[S_ZREF], bk);
+        xc = motion_step_(p, s, zc, bk);
     else if (one_euro)
         xc = one_euro_step_(p, s, z - s[S_ZREF]);
     else
@@ -1282,6 +1350,7 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         s[S_ZREF] = z;
         s[S_LO] = z;
         s[S_HI] = z;
+        zc = 0.0;
         if (lowpass)
             xc = lowpass_step_(p, s, 0.0);
         else if (motion)
@@ -1291,7 +1360,8 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         else
             xc = filter_step_(p, s, 0.0);
     }
-    if (s[S_CONV] == 0.0 || (!motion && p[P_METHOD] == METHOD_NONE)) {
+    /* warm-up / identification only: raw (motion's warm-up output where it moved the sample) */
+    if ((s[S_CONV] == 0.0 && !(motion && xc != zc)) || (!motion && p[P_METHOD] == METHOD_NONE)) {
         out = z;
     } else {
         out = xc + s[S_ZREF];

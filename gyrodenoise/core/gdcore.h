@@ -79,6 +79,14 @@ extern "C" {
 #define MO_HI_NB 16                /* ... MO_HI_NB of them */
 #define MO_SPEC_ZMAX 1.0e150       /* a block with a centred sample beyond this (or not finite) is skipped;
                                      so is a 4th difference beyond it in the lag noise estimates (M_MABS) */
+#define MO_WU_N0 64.0              /* warm-up output (kernels.warmup_output): from this many samples on, */
+#define MO_WU_NL 3                 /* ... the noise level of the 4th differences at lags 1..MO_WU_NL, */
+#define MO_WU_LO 5.0               /* ... the mean all the way below 1 + MO_WU_LO / sqrt(m), */
+#define MO_WU_HI 10.0              /* ... none (and off) from 1 + MO_WU_HI / sqrt(m), */
+#define MO_WU_LOW 2.5              /* ... and at or below 1 - MO_WU_LOW / sqrt(m), */
+#define MO_WU_SPIKE 25.0           /* ... off at a sample this many times the noise level from the mean, */
+#define MO_WU_FADE 0.125           /* ... or where the faded mean (this weight) of those units */
+#define MO_WU_GLIM 4.0             /* ... exceeds this */
 #define MO_GUARD_FADE 0.0625       /* output guard (kernels.motion_step): weight of a sample's (z - y)^2 / R */
 #define MO_GUARD_CAP 1000.0        /* ... clipped at this many R */
 #define MO_GUARD_LO 2.5            /* ... the output moves towards the raw sample above this mean, */
@@ -140,6 +148,7 @@ extern "C" {
 #define M_BANK (M_HIST + 4 * MO_MAX_NLAG + 1) /* MO_MAX_NF rates, then the slopes, log-likelihoods, held flags,
                                                  the slopes' changes (j: 0 in a CV lane) */
 #define M_LPD (M_BANK + 5 * MO_MAX_NF)  /* max_motion_hz: delays of the rigid-body low-pass */
+#define MO_WU_AT M_LPD                   /* warm-up output's statistics (kernels.warmup_output; without the low-pass only) */
 #define M_SPOS (M_LPD + 2 * MAX_SOS) /* spectral floor: position in the block */
 #define M_SR (M_SPOS + 1)            /* spectral floor: smoothed R (0 = no block yet) */
 #define M_SBK (M_SPOS + 2)           /* spectral floor: b^(blocks+1) */

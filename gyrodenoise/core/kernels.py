@@ -116,6 +116,15 @@ MO_GUARD_FADE = 0.0625  # output guard: each sample's (z - y)^2 / R enters its m
 MO_GUARD_CAP = 1000.0   # ... clipped at this many R (one sample of a 32 sigma residual: raw at once; after a step the guard lets go within 30 samples)
 MO_GUARD_LO = 2.5       # ... above this mean the output moves towards the raw sample,
 MO_GUARD_HI = 5.0       # ... all the way at this one
+MO_WU_N0 = 64        # warm-up output (:func:`warmup_output`): the mean of the samples so far from this many samples on,
+MO_WU_NL = 3         # ... while the variance of the samples so far is within the white noise's spread of the noise level
+                     # read from each of the 4th differences at lags 1..MO_WU_NL (each blind to other tones)
+MO_WU_LO = 5.0       # ... all the way while that ratio is below 1 + MO_WU_LO / sqrt(m) at every lag (m: its differences),
+MO_WU_HI = 10.0      # ... none from 1 + MO_WU_HI / sqrt(m) on (and never again until the bank starts),
+MO_WU_LOW = 2.5      # ... nor at or below 1 - MO_WU_LOW / sqrt(m) (a lag's differences lifted more than the variance: colour)
+MO_WU_SPIKE = 25.0   # ... nor from a sample beyond 5 sigma of the mean so far,
+MO_WU_FADE = 0.125   # ... nor where the faded mean (this weight per sample) of the samples' (z - mean)^2 / R
+MO_WU_GLIM = 4.0     # ... exceeds this
 MO_SPEC_ZMAX = 1.0e150   # a block with a centred sample beyond this, deg/s (or not finite), is skipped (no overflow);
                          # so is a 4th difference beyond it in the lag noise estimates (M_MABS)
 P_MO_PT = P_MO_COS + MO_SPEC_N   # motion: pass-through (:func:`motion_step`): smoothing of the best filter's
@@ -205,6 +214,9 @@ MB_L = M_BANK + 2 * MO_MAX_NF   # log-likelihoods,
 MB_H = M_BANK + 3 * MO_MAX_NF   # held flags,
 MB_J = M_BANK + 4 * MO_MAX_NF   # changes of the slope per sample (CA lanes; 0.0 in the CV lanes)
 M_LPD = M_BANK + 5 * MO_MAX_NF             # max_motion_hz: delays of the rigid-body low-pass, 2 per section
+MO_WU_AT = M_LPD                   # warm-up output (:func:`warmup_output`, only without the rigid-body low-pass, whose
+                               # delays these are): mean, sum of squares about it, the 4th differences' sums of squares
+                               # at lags 1..MO_WU_NL, the faded residual, 1.0 once off
 M_SPOS = M_LPD + 2 * MAX_SOS   # spectral floor: position of the next sample in the block
 M_SR = M_SPOS + 1              # spectral floor: its smoothed white-noise variance, (deg/s)^2 (0 = no block yet)
 M_SBK = M_SPOS + 2             # spectral floor: b^(blocks+1) of its d_k
@@ -1304,6 +1316,8 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
             s[o + MB_J + i] = 0.0
             s[o + M_CUS + i] = 0.0
         s[o + M_GRD] = 0.0
+        if p[P_LP_NSEC] == 0.0 and s[o + M_NW] == 0.0:
+            return warmup_output(p, s, o, z, k, pos, nh)
         return z
     s[S_CONV] = 1.0
     gm0 = 0.0
@@ -1458,6 +1472,84 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
     return out
 
 
+def warmup_output(p: Buf, s: MutBuf, o: int, z: float, k: float, pos: int, nh: int) -> float:
+    """motion's output during its warm-up (before the bank's first sample; without the rigid-body
+    low-pass): the mean of the samples so far where they look like a constant and white noise, else
+    the raw sample ``z`` (centred; ``k`` samples before it since the restart, ``pos``: its place in the
+    ring M_HIST of ``nh``). The noise level is not read yet; a constant is tested instead: the samples'
+    variance about their mean against the noise level from the 4th differences at each lag L = 1..MO_WU_NL
+    (mean square / 70, m = k + 1 - 4 L of them). White noise gives a ratio near 1 at every lag (its spread
+    about 2.3 / sqrt(m)); motion or vibration adds to the variance more than to the differences of at
+    least one lag (a lag-L difference is blind to m fs / L: a tone that lifts one lag's estimate leaves
+    another's), so the ratio rises there. The output is z + w (mean - z), w = 1 while every ratio is
+    below 1 + MO_WU_LO / sqrt(m), falling linearly to 0 at 1 + MO_WU_HI / sqrt(m), where it stops for the
+    rest of the warm-up (and at 1 - MO_WU_LOW / sqrt(m): a lag's differences lifted more than the variance); as it does at a sample beyond MO_WU_SPIKE (in units of the smallest lag
+    estimate) from the mean so far, or where the faded mean of those units exceeds MO_WU_GLIM. At rest the
+    warm-up's raw samples were most of the error of a 20 s record (the bank reads the noise level from
+    its first block of MO_SPEC_N samples); vibration read as noise would be averaged away, so the test
+    asks every lag, and stops for good."""
+    w0 = o + MO_WU_AT
+    if k == 0.0:
+        for i in range(4 + MO_WU_NL):
+            s[w0 + i] = 0.0
+    n = k + 1.0
+    mean = s[w0]
+    e = z - mean
+    mean += e / n
+    s[w0] = mean
+    s[w0 + 1] += e * (z - mean)                  # Welford: sum of squares about the mean
+    nl = MO_WU_NL if 4 * MO_WU_NL < nh else (nh - 1) // 4
+    for lag in range(1, nl + 1):
+        if k >= 4.0 * lag:
+            i1 = pos - lag
+            if i1 < 0:
+                i1 += nh
+            i2 = pos - 2 * lag
+            if i2 < 0:
+                i2 += nh
+            i3 = pos - 3 * lag
+            if i3 < 0:
+                i3 += nh
+            i4 = pos - 4 * lag
+            if i4 < 0:
+                i4 += nh
+            d4 = (z - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
+                  - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4])
+            s[w0 + 1 + lag] += d4 * d4
+    if s[w0 + 3 + MO_WU_NL] != 0.0 or n < MO_WU_N0 or not n > 4.0 * nl:
+        return z
+    var = s[w0 + 1] / (n - 1.0)
+    r1 = 0.0
+    for lag in range(1, nl + 1):
+        rl = s[w0 + 1 + lag] / (70.0 * (n - 4.0 * lag))
+        if lag == 1 or rl < r1:
+            r1 = rl
+    if not r1 > 0.0 or not var - var == 0.0:
+        return z
+    u = e * e / r1
+    g = s[w0 + 2 + MO_WU_NL]
+    g += MO_WU_FADE * (u - g)
+    s[w0 + 2 + MO_WU_NL] = g
+    if u > MO_WU_SPIKE or g > MO_WU_GLIM:
+        s[w0 + 3 + MO_WU_NL] = 1.0
+        return z
+    w = 1.0
+    for lag in range(1, nl + 1):
+        m = n - 4.0 * lag
+        q = var * 70.0 * m / s[w0 + 1 + lag]
+        sm = math.sqrt(m)
+        hi = 1.0 + MO_WU_HI / sm
+        if not q < hi or q <= 1.0 - MO_WU_LOW / sm:
+            s[w0 + 3 + MO_WU_NL] = 1.0
+            return z
+        lo = 1.0 + MO_WU_LO / sm
+        if q > lo:
+            wl = (hi - q) / (hi - lo)
+            if wl < w:
+                w = wl
+    return z + w * (mean - z)
+
+
 def _method_step(p, s, zc):
     """One centred sample through the method's own filter (see :func:`step`)."""
     if p[P_METHOD] == METHOD_LOWPASS:
@@ -1515,19 +1607,23 @@ def step(p: Buf, s: MutBuf, z: float, is_restart: bool) -> float:
         s[S_LO] = z
     if z > s[S_HI]:
         s[S_HI] = z
+    zc = z - s[S_ZREF]
     if code == 1:
         xc = s[S_OUT]
     else:
-        xc = _method_step(p, s, z - s[S_ZREF])
+        xc = _method_step(p, s, zc)
     if not (_healthy(p, s) and _finite(xc)):
         restart(p, s)
         s[S_NHEAL] += 1.0
         s[S_ZREF] = z
         s[S_LO] = z
         s[S_HI] = z
-        xc = _method_step(p, s, 0.0)
-    if s[S_CONV] == 0.0 or p[P_METHOD] == METHOD_NONE:
-        out = z                      # warm-up / identification only: raw
+        zc = 0.0
+        xc = _method_step(p, s, zc)
+    # warm-up / identification only: raw (motion's warm-up output, where it moved the sample, is
+    # its mean so far: :func:`warmup_output`)
+    if (s[S_CONV] == 0.0 and not (p[P_METHOD] == METHOD_MOTION and xc != zc)) or p[P_METHOD] == METHOD_NONE:
+        out = z
     else:
         out = xc + s[S_ZREF]
         if out < s[S_LO]:

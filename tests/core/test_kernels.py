@@ -78,14 +78,15 @@ def test_covariance_stays_spd_and_r_positive(method):
             assert s[K.S_R] > 0 and s[K.S_Q] >= 0
 
 
-@pytest.mark.parametrize("method, warm", [("shakf", 200), ("motion", K.MO_SPEC_N - 1)])
-def test_warmup_passes_raw_through_and_flags_convergence(method, warm):
+@pytest.mark.parametrize("method, warm, raw", [("shakf", 200, 200), ("motion", K.MO_SPEC_N - 1, int(K.MO_WU_N0) - 1)])
+def test_warmup_passes_raw_through_and_flags_convergence(method, warm, raw):
     """The AR methods pass warmup_s (1 s: 200 samples at 200 Hz) through raw; motion ends its
-    warm-up earlier, once its noise floor has read its first block (at its last sample)."""
+    warm-up earlier, once its noise floor has read its first block (at its last sample), and
+    passes raw samples only until its warm-up output's test has MO_WU_N0 samples."""
     z = np.random.default_rng(2).standard_normal(1000)
     d = Denoiser(200.0, method=method, warmup_s=1.0)
     out = [d.step(v) for v in z[:warm]]
-    assert out == list(z[:warm]) and not d.converged
+    assert out[:raw] == list(z[:raw]) and not d.converged
     d.step(z[warm])
     assert d.converged
 

@@ -130,4 +130,26 @@ def test_each_restart_warms_up_again():
     p = K.make_params(method="motion", sample_rate_hz=fs)
     y, _, conv = batch.run(p, K.init_state(p), z, rs, trace_index=K.S_CONV)
     assert np.flatnonzero(conv == 0.0).tolist() == list(range(K.MO_SPEC_N - 1)) + list(range(600, 600 + K.MO_SPEC_N - 1))
-    assert y[600:600 + K.MO_SPEC_N - 1].tolist() == z[600:600 + K.MO_SPEC_N - 1].tolist()
+    n0 = int(K.MO_WU_N0) - 1     # raw until the warm-up output's test has its samples (warmup_output)
+    assert y[600:600 + n0].tolist() == z[600:600 + n0].tolist()
+    # at rest, from there to the first block: moved towards the mean of the session's samples so far
+    for k in range(600 + n0, 600 + K.MO_SPEC_N - 1):
+        m = z[600:k + 1].mean()
+        assert abs(y[k] - m) <= abs(z[k] - m) + 1e-12
+
+
+def test_warm_up_output_at_rest_removes_the_noise():
+    """At rest the warm-up's samples from MO_WU_N0 on are the mean so far: over the warm-up, an RMSE
+    well below raw's in most records (white noise about a constant: about 1 / sqrt(k) of it at sample
+    k; the test that guards against vibration lets a few white records go raw), never above it."""
+    fs = 500.0
+    rng = np.random.default_rng(7)
+    ratios = []
+    for _ in range(20):
+        truth = rng.normal(0.0, 1.0)
+        z = truth + 0.05 * rng.standard_normal(400)
+        y = gd.denoise(z, fs)
+        a, b = int(K.MO_WU_N0) - 1, K.MO_SPEC_N - 1
+        ratios.append(_rmse(y[a:b], truth) / _rmse(z[a:b], truth))
+    assert max(ratios) <= 1.0
+    assert np.median(ratios) < 0.25
