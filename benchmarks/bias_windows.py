@@ -25,6 +25,13 @@ Printed per line: PASS, or the factor missed (tracking / the bound). BROAD was t
 
     python benchmarks/bias_windows.py                  # every record found (about a minute)
     python benchmarks/bias_windows.py --only broad     # one dataset (broad, quadrotor, psins_car)
+    python benchmarks/bias_windows.py --only broad --diagnose   # and why a line misses (below)
+
+``--diagnose`` (records with still periods): the mean of each rest segment, the bias tracking
+removed at the end, the constant offset that minimises the 10 s windows' RMS (Nelder-Mead on
+raw - b: what the windows, all in motion, ask for), and where the start-up calibration falls among
+the 2 s calibrations taken every 2 s of the first rest (its rank, their median): whether the
+calibration's own noise happened to point at what the windows ask for.
 
 Data: ``../shared/data/motion`` (README there). Windows, time offset, mounting and the reference
 rotation are :mod:`benchmarks.motion_bench.realmotion`'s (estimated on the loader's de-biased rate,
@@ -90,13 +97,54 @@ def offline_axes(raw, fs, from_start=False):
     cols = []
     for k in range(raw.shape[1]):
         z = np.ascontiguousarray(raw[:, k])
-        _, _, hat = batch.run(p, K.init_state(p), z, trace_index=K.ext_offset(p) + K.M_BIAS + K.GB_HAT)
+        _, _, hat = batch.run(p, K.init_state(p), z, trace_index=K.bias_index(p))
         hat = np.array(hat, dtype=float)
         nz = np.flatnonzero(hat)
         if from_start and nz.size:
             hat[:nz[0]] = hat[nz[0]]
         cols.append(batch.run_offline(q, z - hat))
     return np.column_stack(cols)
+
+
+def commit_stamp():
+    """The checkout's commit (short hash, '+dirty' with uncommitted changes), or 'unknown'."""
+    import subprocess
+    root = Path(__file__).resolve().parents[1]
+    try:
+        h = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
+                           check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return h + ("+dirty" if dirty else "")
+
+
+def diagnose(trial, raw, movement, tracking_hat, cal_s, w=10.0):
+    """Lines saying what a still-period record's windows ask for (``--diagnose``)."""
+    from scipy.optimize import minimize
+    fs = trial.sample_rate_hz
+    if not len(R.windows(trial, w)[0]):
+        return []
+
+    def err(b):
+        return nan_rms(R.window_errors_deg(trial, raw - b, w))
+
+    edges = np.flatnonzero(np.diff(np.r_[0, (~movement).astype(int), 0]))
+    lines = [f"    rest {a / fs:6.1f}-{b / fs:6.1f} s: mean {np.array2string(raw[a:b].mean(0), precision=4)} deg/s"
+             for a, b in zip(edges[::2], edges[1::2])]
+    k = int(round(cal_s * fs))
+    best = minimize(err, raw[:k].mean(0), method="Nelder-Mead", options={"xatol": 1e-5, "fatol": 1e-6})
+    lines.append(f"    tracking's bias at the end {np.array2string(tracking_hat, precision=4)}; the windows' best "
+                 f"constant {np.array2string(best.x, precision=4)} (RMS {best.fun:.3f}); the calibration "
+                 f"{np.array2string(raw[:k].mean(0), precision=4)}")
+    first = int(np.flatnonzero(movement)[0]) if movement.any() else len(raw)
+    cals = np.array([err(raw[i:i + k].mean(0)) for i in range(0, first - k + 1, k)])
+    if cals.size:
+        lines.append(f"    {w:g} s windows: the {cal_s:g} s calibrations every {cal_s:g} s of the first rest: min "
+                     f"{cals.min():.3f}, median {np.median(cals):.3f}, max {cals.max():.3f}; the start-up one "
+                     f"{cals[0]:.3f} ranks {int((cals < cals[0]).sum()) + 1}/{cals.size}")
+    return lines
 
 
 def nan_rms(x):
@@ -134,11 +182,13 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cal-s", type=float, default=2.0, help="start-up calibration: seconds averaged")
     ap.add_argument("--only", choices=("broad", "quadrotor", "psins_car"), help="one dataset")
+    ap.add_argument("--diagnose", action="store_true", help="records with still periods: what the windows ask for")
     args = ap.parse_args(argv)
     found = list(records(args.only))
     if not found:
         print(f"no records under {R.MOTION_DIR}", file=sys.stderr)
         return 2
+    print(f"commit {commit_stamp()}")
     print(f"RMS rotation error over windows (deg), the bias in; x: ratio to raw; start-up calibration: "
           f"the first {args.cal_s:g} s; goal: tracking <= {GOAL_RAW:g}x raw and <= cal with still periods, "
           f"<= raw on all")
@@ -172,6 +222,11 @@ def main(argv=None) -> int:
                 offline_missed[form] += v.startswith("miss")
                 print(f"  {label + ':':40s} {e[form]:7.3f} x raw {e[form] / e['raw']:5.2f}, "
                       f"x cal {e[form] / e['startup_cal']:5.2f}  {v}")
+        if args.diagnose and still:
+            p = K.make_params(method="motion", sample_rate_hz=fs, bias_tracking=1)
+            hat = np.array([batch.run(p, K.init_state(p), np.ascontiguousarray(raw[:, j]),
+                                      trace_index=K.bias_index(p))[2][-1] for j in range(raw.shape[1])])
+            print("\n".join(diagnose(trial, raw, movement, hat, args.cal_s)))
     print(f"{failed} line(s) missed (causal tracking); offline: {offline_missed['offline']}, "
           f"offline from sample 0: {offline_missed['offline0']}")
     return 0

@@ -206,8 +206,7 @@ def denoise(rate_deg_s: ArrayLike, sample_rate_hz: float, method: str = "motion"
     if offline and p[K.P_BIAS] > 0.0:
         # bias tracking offline: the causal run's bias (what it removed after each sample) off
         # the samples, then the smoother without it (docs/method/bias.md)
-        o = K.ext_offset(p) + K.M_BIAS + K.GB_HAT
-        _, _, hat = batch.run(p, K.init_state(p), rate_deg_s, restarts, trace_index=o)
+        _, hat = run_with_bias(p, rate_deg_s, restarts)
         p = list(p)
         p[K.P_BIAS] = 0.0
         return batch.run_offline(p, np.asarray(rate_deg_s, dtype=np.float64) - hat, restarts)
@@ -219,3 +218,14 @@ def denoise(rate_deg_s: ArrayLike, sample_rate_hz: float, method: str = "motion"
         back, _ = batch.run(p, K.init_state(p), out[::-1], np.r_[rs[1:], False][::-1])
         out = back[::-1].copy()
     return out
+
+
+def run_with_bias(params: list[float], rate_deg_s: ArrayLike,
+                  restarts: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The causal run of parameters ``params`` from a fresh state: (output, the bias that bias
+    tracking removed after each sample, ``Denoiser.bias_hat``), both deg/s. The output is the
+    filter's clamped value less that bias: the clamped value is ``output + bias``, inside the raw
+    samples' range since the last restart (docs/method/bias.md)."""
+    from .core import batch
+    out, _, hat = batch.run(params, K.init_state(params), rate_deg_s, restarts, trace_index=K.bias_index(params))
+    return out, hat

@@ -1717,9 +1717,14 @@ def bias_update(p: Buf, s: MutBuf, o: int, z: float, calm: bool, r: float) -> fl
     return s[o + GB_HAT]
 
 
+def bias_index(p: Buf) -> int:
+    """Where in the state bias tracking keeps the bias it removes (``bias_hat``)."""
+    return ext_offset(p) + M_BIAS + GB_HAT
+
+
 def bias_hat(p: Buf, s: Buf) -> float:
     """The bias removed by bias tracking at the last sample, deg/s (0.0 when it is off)."""
-    return float(s[ext_offset(p) + M_BIAS + GB_HAT]) if p[P_BIAS] > 0.0 else 0.0
+    return float(s[bias_index(p)]) if p[P_BIAS] > 0.0 else 0.0
 
 
 # ------------------------------------------------------------------ readouts

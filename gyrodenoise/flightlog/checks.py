@@ -23,23 +23,38 @@ def usable_samples(x):
         return np.isfinite(x) & (np.abs(x) <= ABSURD_WORK)
 
 
-def check_filtered(s, x, f, usable, causal=True):
+def check_filtered(s, x, f, usable, causal=True, bias=None):
     """None, or one line saying why stream ``s`` must not be written filtered:
     an axis whose output (work units ``f``) is not finite or leaves the raw
     envelope of its session (:func:`gyrodenoise.analysis.motion_metrics.envelope_violation`,
     over the samples fed to the filter; the whole session's range for a zero-phase
     filter, ``causal=False``), or a value that does not fit the log's
-    field type (:func:`gyrodenoise.flightlog.streams.field_misfit`)."""
+    field type (:func:`gyrodenoise.flightlog.streams.field_misfit`).
+
+    ``bias`` (work units, like ``f``; None: none): the bias that bias tracking removed after
+    each sample (docs/method/bias.md). The check is then on what the filter clamps: causal,
+    ``f + bias`` (the clamped value) inside the raw envelope; offline, ``f`` inside the envelope
+    of ``x - bias`` (the samples the smoother ran on). The output is thus inside the raw
+    envelope shifted by the estimated bias, nothing else."""
     problems = []
     for k, a in enumerate(s.axes):
         fin = usable[:, k]
         if not fin.any():
             continue
-        v = mm.envelope_violation(x[fin, k], f[fin, k], kept_restarts(s.restarts, fin), causal=causal)
+        raw, out = x[fin, k], f[fin, k]
+        if bias is not None:
+            raw, out = (raw, out + bias[fin, k]) if causal else (raw - bias[fin, k], out)
+        v = mm.envelope_violation(raw, out, kept_restarts(s.restarts, fin), causal=causal)
         if v is not None:
             i = int(np.flatnonzero(fin)[v["sample"]])
-            problems.append(f"{a}: filtered value {v['value']:.6g} at sample {i} (t={s.time_s[i]:.3f} s) "
-                            f"{v['reason']} [{v['low']:.6g}, {v['high']:.6g}]")
+            if bias is None:
+                what = f"{f[i, k]:.6g} at sample {i} (t={s.time_s[i]:.3f} s)"
+            elif causal:
+                what = (f"{f[i, k]:.6g} at sample {i} (t={s.time_s[i]:.3f} s) plus the bias removed there "
+                        f"{bias[i, k]:.6g}, {v['value']:.6g},")
+            else:
+                what = f"{f[i, k]:.6g} at sample {i} (t={s.time_s[i]:.3f} s), the samples less the bias removed,"
+            problems.append(f"{a}: filtered value {what} {v['reason']} [{v['low']:.6g}, {v['high']:.6g}]")
     if not problems:
         bad = field_misfit(s, s.filtered) & usable
         for k, a in enumerate(s.axes):

@@ -2,8 +2,10 @@
 
 Both filter one axis of one stream, a 1-D array in deg/s (or counts when the
 unit is unknown), with the restart flags of the stream, and return the
-filtered array. Each call is a fresh denoiser instance: every stream and axis
-gets its own.
+filtered array (``filter``), or with it the bias that bias tracking removed after
+each sample (``filter_with_bias``: what the range check needs, the output being the
+filter's clamped value less that bias). Each call is a fresh denoiser instance:
+every stream and axis gets its own.
 """
 
 from __future__ import annotations
@@ -44,6 +46,12 @@ def warmup_samples(method: str, ar_order: int, rate_hz: float, warmup_s: float |
 
 class _Settings:
     """What both engines tell of their filter at a sample rate."""
+
+    def filter_with_bias(self, x, restarts, rate_hz):
+        """(the filtered array, the bias that bias tracking removed after each sample or None
+        when it is off): the output is the filter's clamped value less that bias, and the range
+        check (:func:`gyrodenoise.flightlog.checks.check_filtered`) needs both."""
+        return self.filter(x, restarts, rate_hz), self.bias_removed(x, restarts, rate_hz)
 
     def warmup_samples(self, rate_hz):
         return warmup_samples(self.method, self.ar_order, rate_hz, self.warmup_s, self.filter_kw)
@@ -100,6 +108,18 @@ class NativeEngine(_Settings):
         from gyrodenoise.denoiser import Denoiser
         d = Denoiser(sample_rate_hz=rate_hz, method=self.method, ar_order=self.ar_order, **self.kw)
         return np.asarray(d.process(x, restarts))
+
+    def bias_removed(self, x, restarts, rate_hz):
+        """The bias that bias tracking removed after each sample (the causal run's ``bias_hat``,
+        :func:`gyrodenoise.denoiser.run_with_bias`; the offline form takes it off the samples
+        before the smoother), None when it is off."""
+        from gyrodenoise.core import kernels as K
+        from gyrodenoise.denoiser import run_with_bias
+        p = K.make_params(ar_order=self.ar_order, method=self.method, sample_rate_hz=rate_hz, **self.kw)
+        if not p[K.P_BIAS] > 0.0:
+            return None
+        return run_with_bias(p, np.ascontiguousarray(x, dtype=np.float64),
+                             None if restarts is None else np.asarray(restarts, dtype=bool))[1]
 
     def close(self):
         pass
@@ -170,6 +190,11 @@ class FmuEngine(_Settings):
         return True
 
     def filter(self, x, restarts, rate_hz):
+        return self.filter_with_bias(x, restarts, rate_hz)[0]
+
+    def filter_with_bias(self, x, restarts, rate_hz):
+        """(filtered, bias): ``bias`` the FMU's output ``bias_hat`` after each step (read in the
+        same run), None when bias tracking is off."""
         from fmpy.fmi2 import FMU2Slave
         x = np.asarray(x, dtype=np.float64)
         n = len(x)
@@ -196,18 +221,21 @@ class FmuEngine(_Settings):
             vr_in = [self.vars["raw_rate"].valueReference]
             vr_rs = [self.vars["restart"].valueReference]
             vr_out = [self.vars["filtered_rate"].valueReference]
-            out = np.empty(n)
+            tracking = bool(self.filter_kw.get("bias_tracking")) and "bias_hat" in self.vars
+            if tracking:              # the output bias_hat read with the filtered rate
+                vr_out = vr_out + [self.vars["bias_hat"].valueReference]
+            out = np.empty((n, len(vr_out)))
             set_real, set_bool, get_real, do_step = fmu.setReal, fmu.setBoolean, fmu.getReal, fmu.doStep
             xs, rs = x.tolist(), r.tolist()
             for i in range(n):
                 set_real(vr_in, [xs[i]])
                 set_bool(vr_rs, [rs[i]])
                 do_step(currentCommunicationPoint=i * h, communicationStepSize=h)
-                out[i] = get_real(vr_out)[0]
+                out[i] = get_real(vr_out)
             fmu.terminate()
         finally:
             fmu.freeInstance()
-        return out
+        return out[:, 0].copy(), out[:, 1].copy() if tracking else None
 
     def close(self):
         shutil.rmtree(self._tmp, ignore_errors=True)

@@ -48,8 +48,8 @@ def filter_streams(streams, engine, gap_factor, sample_rate=None):
         if not _accepts(s, engine, rate):
             continue
         usable = usable_samples(x)
-        f = _filter_axes(s, engine, x, usable, rate)
-        f = _apply_safety_net(s, engine, x, f, back, usable, rate, sample_rate)
+        f, bias = _filter_axes(s, engine, x, usable, rate)
+        f = _apply_safety_net(s, engine, x, f, bias, back, usable, rate, sample_rate)
         s._work = (x, f, unit, rate)
 
 
@@ -91,11 +91,13 @@ def refused_band_option(exc: Exception, filter_kw: dict | None) -> tuple[str, fl
 
 
 def _filter_axes(s, engine, x, usable, rate):
-    """The filtered work values of each axis. The dropouts (non-finite samples) are fed to
-    the filter with the readings and healed there as the library heals them; the corrupted
-    records stay as they are, left out of the filter (a restart on one moves to the next
-    sample fed)."""
+    """The filtered work values of each axis, and the bias that bias tracking removed after
+    each sample (None when it is off; 0 where nothing was fed). The dropouts (non-finite
+    samples) are fed to the filter with the readings and healed there as the library heals
+    them; the corrupted records stay as they are, left out of the filter (a restart on one
+    moves to the next sample fed)."""
     f = x.copy()
+    bias = None
     for k in range(x.shape[1]):
         fin = usable[:, k]
         dropped = ~np.isfinite(x[:, k])
@@ -103,19 +105,22 @@ def _filter_axes(s, engine, x, usable, rate):
         s.non_finite[k] = int((~fin).sum())
         if not fin.any():
             continue                    # no reading at all: nothing to filter, written as it is
-        if fed.all():
-            f[:, k] = engine.filter(x[:, k], s.restarts, rate)
-        else:
-            f[fed, k] = engine.filter(x[fed, k], kept_restarts(s.restarts, fed), rate)
+        out, b = engine.filter_with_bias(x[fed, k], s.restarts if fed.all() else kept_restarts(s.restarts, fed),
+                                         rate)
+        f[fed, k] = out
+        if b is not None:
+            bias = np.zeros_like(x) if bias is None else bias
+            bias[fed, k] = b
         s.dropouts_healed[k] = int(dropped.sum())
-    return f
+    return f, bias
 
 
-def _apply_safety_net(s, engine, x, f, back, usable, rate, sample_rate):
+def _apply_safety_net(s, engine, x, f, bias, back, usable, rate, sample_rate):
     """Set ``s.filtered`` (and ``s.left_raw`` / ``s.not_filtered`` where the raw
-    values go out instead); return the work values written."""
+    values go out instead); return the work values written. ``bias``: what bias tracking
+    removed after each sample (the range check is on the output plus it), or None."""
     s.filtered = f * back
-    s.left_raw = check_filtered(s, x, f, usable, causal=getattr(engine, "causal", True))
+    s.left_raw = check_filtered(s, x, f, usable, causal=getattr(engine, "causal", True), bias=bias)
     if s.left_raw:
         f = x.copy()
         s.filtered = s.raw.astype(np.float64)          # the raw values, bit for bit

@@ -90,6 +90,7 @@ class _LiveStream:
         self.waited_s = 0.0        # boot time seen while the unit is pending
         self.det = RestartDetector(gap_factor)
         self.den = None
+        self.tracking = False      # bias tracking on: the check adds back the bias removed
         self.t, self.raw, self.fw, self.r = [], [], [], []
         self.events = []
         self.rate = None
@@ -150,9 +151,10 @@ class _LiveStream:
                 self._dropout(j)
                 out.append(raw[j] if not math.isfinite(y) else y / k)
                 continue
-            bad = self._check(j, y)
+            b = d.bias_hat if self.tracking else 0.0
+            bad = self._check(j, y + b)
             if bad:
-                self._leave_raw(i, j, y, bad)
+                self._leave_raw(i, j, y + b, bad if not b else f"(the output {y:.6g} plus the bias removed {b:.6g}) {bad}")
                 self.fw.append(raw)
                 return raw
             out.append(raw[j] if y == zz else y / k)      # passed through (warm-up): bit for bit
@@ -166,7 +168,7 @@ class _LiveStream:
     def _start_denoisers(self, t, k, sample_rate, method, ar_order, warmup_s, filter_kw):
         """One denoiser per axis at the second sample of known unit (rate: ``sample_rate``,
         else from the first two samples), fed the first one (``k``: to work units)."""
-        from gyrodenoise.core.kernels import P_WARMUP
+        from gyrodenoise.core.kernels import P_BIAS, P_WARMUP
         from gyrodenoise.denoiser import Denoiser
         if sample_rate:
             rate = float(sample_rate)
@@ -179,6 +181,7 @@ class _LiveStream:
         self.den = [Denoiser(sample_rate_hz=rate, method=method, ar_order=ar_order, **kw)
                     for _ in range(3)]
         self.warmup = int(self.den[0].params[P_WARMUP])
+        self.tracking = self.den[0].params[P_BIAS] > 0.0
         for j, (d, v0) in enumerate(zip(self.den, self.raw[self.start])):
             d.step(v0 * k, False)
             if not math.isfinite(v0 * k):
@@ -201,7 +204,9 @@ class _LiveStream:
                 self.hi[j] = zz if new_session else max(self.hi[j], zz)
 
     def _check(self, j, y):
-        """None, or what is wrong with output ``y`` (work units) of axis ``j``."""
+        """None, or what is wrong with value ``y`` (work units) of axis ``j``: the output, plus
+        the bias removed after this sample when bias tracking is on (the value the filter
+        clamps into the range: the output stays inside the range shifted by that bias)."""
         if not math.isfinite(y):
             return "not finite"
         m = 1e-9 * (1.0 + max(abs(self.lo[j]), abs(self.hi[j])))
