@@ -260,6 +260,17 @@ def ext_offset(p: Buf) -> int:
     bank and noise estimates: the ``M_*`` offsets count from it), for params ``p``."""
     return layout(int(p[P_ORDER]))[6] - N_EXT
 
+def raw_warmup_samples(p) -> int:
+    """Samples after a restart whose output is the raw sample whatever the record (the warm-up
+    rule of :func:`step`): ``P_WARMUP``; for ``motion`` with the spectral floor on, until its
+    first block is read (MO_SPEC_N samples; ``P_WARMUP`` + MO_SPEC_N at most where blocks are
+    skipped) whatever ``warmup_s`` says, its output the mean of the samples so far from
+    MO_WU_N0 samples on where they test as a constant plus white noise (:func:`warmup_output`)."""
+    if int(p[P_METHOD]) == METHOD_MOTION and p[P_MO_SPEC] > 0.0:
+        return MO_SPEC_N
+    return int(p[P_WARMUP])
+
+
 def make_params(ar_order: int = 3, method: str = DEFAULT_METHOD, sample_rate_hz: float = 200.0,
                 **kw: float | int | None) -> list[float]:
     """Build and check the parameter buffer (a list of floats).

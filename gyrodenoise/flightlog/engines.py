@@ -35,13 +35,14 @@ def _params(method: str, ar_order: int, rate_hz: float, warmup_s: float | None =
 
 def warmup_samples(method: str, ar_order: int, rate_hz: float, warmup_s: float | None = None,
                    filter_kw: dict | None = None) -> int:
-    """Samples after each restart that the core passes through raw (its warm-up rule)."""
+    """Samples after each restart that the core passes through raw (its warm-up rule,
+    :func:`gyrodenoise.core.kernels.raw_warmup_samples`)."""
     from gyrodenoise.core import kernels as K
     try:
-        return int(_params(method, ar_order, rate_hz, warmup_s, filter_kw)[K.P_WARMUP])
+        return K.raw_warmup_samples(_params(method, ar_order, rate_hz, warmup_s, filter_kw))
     except ValueError:          # e.g. a cutoff this rate cannot take: the warm-up without it
         kw = {k: v for k, v in (filter_kw or {}).items() if not BY_PARAM[k].methods}   # a method's own
-        return int(_params(method, ar_order, rate_hz, warmup_s, kw)[K.P_WARMUP])
+        return K.raw_warmup_samples(_params(method, ar_order, rate_hz, warmup_s, kw))
 
 
 class _Settings:

@@ -142,8 +142,18 @@ def not_filtered_reason(s, method: str, warmup_samples: int, rate: float,
         each = "its one session is" if len(runs) == 1 else f"each of its {len(runs)} sessions is at most"
         return (f"{each} {longest} samples, not longer than the filter's warm-up of {warmup_samples} samples "
                 f"at {rate:.4g} Hz{' (--sample-rate)' if sample_rate else ''}, during which the raw samples "
-                f"pass through: the stream is written raw (a shorter --warmup-s, e.g. 0.1, filters it)")
+                f"pass through: the stream is written raw ({_shorter_warmup(method, warmup_samples, rate)})")
     return "the filter's output equals the raw input on every sample: the stream is written raw"
+
+
+def _shorter_warmup(method, warmup_samples, rate):
+    """What filters a stream shorter than the warm-up: a shorter --warmup-s where the warm-up
+    is ``warmup_s`` long, else a method whose warm-up it sets."""
+    from gyrodenoise.flightlog.engines import warmup_samples as warmup_of
+    if warmup_of(method, 3, rate, 0.1) < warmup_samples:
+        return "a shorter --warmup-s, e.g. 0.1, filters it"
+    return (f"--method {method}'s warm-up does not follow --warmup-s (it reads the noise level first); "
+            f"an AR method, e.g. --method shakf --warmup-s 0.1, filters it")
 
 
 def check_some_stream_filterable(path, streams, filter_kw):

@@ -77,18 +77,22 @@ def test_cutoff_a_stream_cannot_take_leaves_it_raw_with_the_reason(tmp_path):
 
 # ------------------------------------------------------------ item 6
 def test_streams_never_filtered_say_why(tmp_path):
-    """45 samples at 50 Hz (shorter than the 1 s warm-up): the text says NOT FILTERED
-    and why, the axis lines no 'corr -, amplitude -'; the filtered log holds the raw
-    values; a shorter warm-up filters them."""
+    """45 samples at 50 Hz (shorter than motion's warm-up: its first 128-sample block, whatever
+    --warmup-s says; shakf's 1 s): the text says NOT FILTERED and why, the axis lines no
+    'corr -, amplitude -'; the filtered log holds the raw values; shakf with a shorter warm-up
+    filters them, and motion's reason says so (a shorter --warmup-s would not)."""
     log = DATA / "plane_truncated_test.BIN"
     status, out, _ = _main(log, "-o", tmp_path / "a", "--no-plots", "--no-csv")
     assert status == 0
     assert out.count("NOT FILTERED: its one session is 45 samples, not longer than the filter's warm-up "
-                     "of 50 samples") == 2
+                     "of 128 samples") == 2
+    assert "--method shakf --warmup-s 0.1, filters it" in out
     assert "corr -" not in out and out.count("(written raw: not filtered: see above)") == 6 and "->" not in out
-    rep = process.process_log(log, tmp_path / "b", plots=False, csv=False)
-    assert all(s["not_filtered"] for s in rep["streams"])
-    rep = process.process_log(log, tmp_path / "c", plots=False, csv=False, warmup_s=0.1)
+    rep = process.process_log(log, tmp_path / "b", plots=False, csv=False, warmup_s=0.1)
+    assert all(s["not_filtered"] for s in rep["streams"])          # motion: --warmup-s does not shorten it
+    rep = process.process_log(log, tmp_path / "c", plots=False, csv=False, method="shakf")
+    assert all("a shorter --warmup-s, e.g. 0.1, filters it" in s["not_filtered"] for s in rep["streams"])
+    rep = process.process_log(log, tmp_path / "d", plots=False, csv=False, method="shakf", warmup_s=0.1)
     assert not any(s["not_filtered"] for s in rep["streams"])
 
 
