@@ -103,7 +103,7 @@ def _tampered(records):
     p[10 + 4] ^= 0x01                                                 # xacc low byte
     recs[i_flip] = (recs[i_flip][0], _with_crc(bytes(p)))
     bad = [recs[i_flip][1]]
-    replay = recs[gyro[100]][1]
+    replay = recs[gyro[150]][1]        # after the warm-up (motion: 128 samples), so its bytes go out changed
     rogue = _encoder(OTHER_KEY, link_id=LINK_ID, ts=TS0 + 50_000, src=(7, 1))
     wrong = rogue.scaled_imu2_encode(4000, 0, 0, 1000, 5, 5, 5, 0, 0, 0, 0).pack(rogue)
     plain = _encoder(None, src=(9, 1))
@@ -305,7 +305,7 @@ def test_live_with_the_key_forwards_only_verified_signed_packets(tmp_path):
     assert rep["messages_in"] == len(sent) and rep["messages_forwarded"] == len(received) == len(sent) - 5
     good, refused = _verify(received, KEY)
     assert refused == 0 and len(good) == len(received) and not set(bad) & set(received)
-    assert rep["rejected_signatures"] == 5 and rep["resigned_packets"] > 500
+    assert rep["rejected_signatures"] == 5 and rep["resigned_packets"] > 450    # the gyro packets after the warm-up
     assert {(r["system"], r["component"]): {k: r[k] for k in signing.REASONS} for r in rep["rejected_by_source"]} \
         == why
     plain = [p for _, p in _packets(None)]
@@ -321,7 +321,7 @@ def test_live_without_a_key_forwards_signed_packets_unchanged(tmp_path):
     sent = [p for _, p in _packets(KEY, n=300)]
     received, rep, _ = replay_link(sent, tmp_path)
     assert received == sent                              # byte for byte: gyro raw, signatures kept
-    assert rep["signed_packets"] == len(sent) and rep["signed_left_raw"] > 200 and rep["resigned_packets"] == 0
+    assert rep["signed_packets"] == len(sent) and rep["signed_left_raw"] > 150 and rep["resigned_packets"] == 0   # after the 128-sample warm-up
     assert "no --signing-key was given" in rep["signing_note"] and rep["streams"][0]["not_filtered"]
 
 
