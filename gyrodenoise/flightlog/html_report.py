@@ -477,6 +477,9 @@ def _spectrum_figure(name, pd, responses, title):
                                      marker={"symbol": "triangle-down", "size": 11, "color": dark,
                                              "line": {"color": "black", "width": 1}},
                                      text=txt, hovertemplate="%{text}<extra></extra>"), secondary_y=False)
+        humps = (pd.get("humps") or [])[k] if k < len(pd.get("humps") or []) else []
+        if humps and raw is not None:
+            fig.add_trace(_hump_trace(a, dark, fr, np.asarray(raw[k], dtype=np.float64), humps, unit), secondary_y=False)
     for label, rf, gain, dash, *more in responses:
         hover = _e(label + (f"; {more[0]}" if more and more[0] else ""))
         rf = np.asarray(rf, dtype=np.float64)
@@ -495,6 +498,23 @@ def _spectrum_figure(name, pd, responses, title):
     fig.update_layout(title={"text": _e(title), "font": {"size": 14}}, hovermode="closest",
                       legend={"orientation": "v", "x": 1.06, "y": 1})
     return fig
+
+
+def _hump_trace(axis, colour, fr, raw, humps, unit):
+    """A spectrum's broad humps on one axis (:func:`gyrodenoise.flightlog.spectra.find_humps`):
+    a thick bar over each band (lo..hi Hz) just above the PSD's top there, hover naming it."""
+    import plotly.graph_objects as go
+    from gyrodenoise.flightlog.spectra import describe_hump
+    xs, ys, txt = [], [], []
+    for q in humps:
+        band = (fr >= q["lo_hz"]) & (fr <= q["hi_hz"])
+        top = 1.6 * float(np.max(raw[band])) if band.any() else float("nan")
+        xs += [q["lo_hz"], q["freq_hz"], q["hi_hz"], None]
+        ys += [top, top, top, None]
+        txt += [_e(f"{axis}: " + describe_hump(q, unit))] * 3 + [""]
+    return go.Scatter(_validate=False, x=xs, y=ys, mode="lines", name=f"{axis} humps", legendgroup=axis,
+                      line={"color": colour, "width": 5}, opacity=0.55, text=txt,
+                      hovertemplate="%{text}<extra></extra>")
 
 
 def _frequency_axis_menu(log_x):
@@ -1061,7 +1081,7 @@ def _spectra_section(report, series, figs):
         rate = (streams.get(name) or {}).get("rate_hz") or (2.0 * float(np.asarray(pd["freq_hz"])[-1]))
         stage = (streams.get(name) or {}).get("stage")
         responses = _responses_for(report, series, rate) if stage != "post-filter" else []
-        title = f"{name}: PSD per axis (solid raw, dashed filtered; ▼ peaks, hover names them)"
+        title = f"{name}: PSD per axis (solid raw, dashed filtered; ▼ peaks, ━ broad humps, hover names them)"
         if stage:
             title += f"; the vehicle's {stage} gyro"
         out.append(f"<h3>{_e(name)}</h3>" + figs.div(_spectrum_figure(name, pd, responses, title), height=460))
