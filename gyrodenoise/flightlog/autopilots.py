@@ -119,6 +119,13 @@ class Autopilot:
         """The pilot's RC input (:class:`~gyrodenoise.flightlog.timeseries.Channels`), or None."""
         return None
 
+    notch_track_looked_for = "nothing: the autopilot is unknown"
+
+    def notch_centre_track(self, log):
+        """The dynamic notch's centre frequencies over time as the vehicle logged them [Hz]
+        (:class:`~gyrodenoise.flightlog.timeseries.Channels`, 0 and unset left out), or None."""
+        return None
+
     # --- motor speed (ESC RPM) ---
     # what moves the filters along the flight and the logged post-filter gyro, for the
     # replay (gyrodenoise.flightlog.notch_replay)
@@ -389,6 +396,28 @@ class ArduPilot(Autopilot):
             if cols:
                 return Channels(f"{name} {col.format('n')}", "PWM us", m["time_s"], cols, log.rows_boot(m))
         return None
+
+    notch_track_looked_for = "FTN NF1.. / DnF1.. (the harmonic notch's centres as tracked)"
+
+    def notch_centre_track(self, log):
+        # FTN: the harmonic notch's dynamic centre per source (motor, or FFT peak), as
+        # updated by the vehicle (NF1..NF12 in 4.2+, DnF1..DnF4 before); 0: unused
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("FTN")
+        if m is None:
+            return None
+        cols = {}
+        for c in [c for c in m if any(c.startswith(p) and c[len(p):].isdigit() for p in ("NF", "DnF"))]:
+            v = np.asarray(m[c], np.float64)
+            v = np.where(np.isfinite(v) & (v > 0), v, np.nan)
+            if np.isfinite(v).any():
+                cols[c] = v
+        if not cols:
+            return None
+        inst = np.asarray(m["I"]) if "I" in m else None
+        if inst is not None and len(np.unique(inst)) > 1:      # one notch set per instance: its own columns
+            cols = {f"{c}[{i}]": np.where(inst == i, v, np.nan) for c, v in cols.items() for i in np.unique(inst)}
+        return Channels("FTN " + ", ".join(cols), "Hz", m["time_s"], cols, log.rows_boot(m))
 
     # --- motor speed (ESC RPM) ---
 
@@ -696,6 +725,25 @@ class PX4(Autopilot):
         n = int(np.nanmax(m["channel_count"])) if "channel_count" in m and len(m["channel_count"]) else 8
         cols = {f"ch {i + 1}": m[c].astype(float) for i in range(min(n, 8)) if (c := f"values[{i}]") in m}
         return Channels("input_rc.values", "PWM us", m["time_s"], cols) if cols else None
+
+    notch_track_looked_for = "sensor_gyro_fft peak_frequencies_x/y/z (the onboard FFT's peaks)"
+
+    def notch_centre_track(self, log):
+        # the onboard FFT's strongest peak per axis: where the FFT-driven dynamic notch
+        # (IMU_GYRO_DNF_EN) puts its centres; 0 / NaN: no peak
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("sensor_gyro_fft")
+        if m is None:
+            return None
+        cols = {}
+        for a in "xyz":
+            c = f"peak_frequencies_{a}[0]"
+            if c in m:
+                v = np.asarray(m[c], np.float64)
+                v = np.where(np.isfinite(v) & (v > 0), v, np.nan)
+                if np.isfinite(v).any():
+                    cols[f"FFT peak {a}"] = v
+        return Channels("sensor_gyro_fft.peak_frequencies_*[0]", "Hz", m["time_s"], cols) if cols else None
 
 
 class Betaflight(Autopilot):

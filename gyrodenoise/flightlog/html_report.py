@@ -550,8 +550,10 @@ def _peak_hover(q, unit):
     return _e(text)
 
 
-def _spectrogram_figure(name, pd):
-    """The spectrogram (dB) of a stream's raw record with its colour bar and unit."""
+def _spectrogram_figure(name, pd, track=None):
+    """The spectrogram (dB) of a stream's raw record with its colour bar and unit; the
+    dynamic notch's logged centre over it (``track``: the strategy's ``notch_centre_track``,
+    one boot's time axis), where given."""
     import plotly.graph_objects as go
     t, dens = pd["spectrogram"]
     fr = np.asarray(pd["freq_hz"], dtype=np.float64)
@@ -564,6 +566,18 @@ def _spectrogram_figure(name, pd):
                                zmin=lo, zmax=hi, colorscale="Viridis",
                                colorbar={"title": {"text": f"dB ({unit})²/Hz"}},
                                hovertemplate="t=%{x:.1f} s, %{y:.4g} Hz: %{z:.1f} dB<extra></extra>"))
+    if track is not None:
+        from gyrodenoise.flightlog.heatmap import track_centre_hz
+        tt = np.asarray(track.time_s, np.float64)
+        f = track_centre_hz(track)
+        keep = np.isfinite(f) & (tt >= float(np.min(t))) & (tt <= float(np.max(t)))
+        if keep.any():
+            tx, fy = session_envelope(tt[keep], f[keep], _boot_cuts(track)[keep])
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=fy.astype(np.float32), mode="lines",
+                                     name=_e(f"logged notch centre ({track.source})"),
+                                     line={"color": "#ffffff", "width": 1.5, "dash": "dot"},
+                                     hovertemplate="notch centre %{y:.4g} Hz at t=%{x:.1f} s<extra></extra>"))
+            fig.update_layout(legend={"orientation": "h", "yanchor": "top", "y": -0.2, "x": 0})
     fig.update_layout(title={"text": _e(f"{name}: spectrogram of the raw record (axes summed)"), "font": {"size": 14}})
     fig.update_xaxes(title_text="time [s]")
     fig.update_yaxes(title_text="frequency [Hz]")
@@ -1068,6 +1082,16 @@ def _responses_for(report, series, rate_hz):
     return out
 
 
+def _one_boot_track(series):
+    """The logged notch centre track (``series["views"].notch_track``) where the log is of one
+    boot (the spectrogram's time axis is then the log's), else None."""
+    v = _views(series)
+    tr = getattr(v, "notch_track", None) if v is not None else None
+    if tr is None or len(np.unique(tr.boots())) > 1:
+        return None
+    return tr
+
+
 def _spectra_section(report, series, figs):
     out = ["<h2 id=spectra>Spectra</h2>"]
     spectra = series.get("spectra") or {}
@@ -1086,7 +1110,7 @@ def _spectra_section(report, series, figs):
             title += f"; the vehicle's {stage} gyro"
         out.append(f"<h3>{_e(name)}</h3>" + figs.div(_spectrum_figure(name, pd, responses, title), height=460))
         if pd.get("spectrogram") is not None and not sg_done:
-            out.append(figs.div(_spectrogram_figure(name, pd), height=380))
+            out.append(figs.div(_spectrogram_figure(name, pd, _one_boot_track(series)), height=380))
             sg_done = True
     if not (report.get("vehicle_filters") or {}).get("stages") and not series.get("filter_review"):
         out.append(_notes_for(report, "vehicle_filters") or

@@ -97,6 +97,8 @@ class FlightViews:
     time: TimeViews
     maps: list
     map_notes: list
+    #: the dynamic notch's centres as logged (the strategy's ``notch_centre_track``), or None
+    notch_track: Channels | None = None
 
 
 def flight_views(log, stages=None) -> FlightViews:
@@ -106,7 +108,7 @@ def flight_views(log, stages=None) -> FlightViews:
     views = time_views(log)
     thr = views.panel("throttle")
     maps, notes = log_heatmaps(log, thr.channels if thr is not None else None, stages)
-    return FlightViews(views, maps, notes)
+    return FlightViews(views, maps, notes, log.parameters().autopilot.notch_centre_track(log))
 
 
 def time_views(log, autopilot=None) -> TimeViews:
