@@ -293,7 +293,7 @@ class _Figures:
                                                  default_height=f"{height or 450}px") + "</div>"
 
 
-def _shade_segments(fig, segments, rows, t_lo, t_hi):
+def _shade_segments(fig, segments, rows, t_lo, t_hi, legend="legend"):
     """Shade each flight segment (kind -> :data:`SEGMENT_COLOURS`) behind the lines of
     ``rows`` subplots; one legend entry per kind (a clickable, empty trace)."""
     kinds, shapes = [], []
@@ -320,7 +320,7 @@ def _shade_segments(fig, segments, rows, t_lo, t_hi):
         fig.add_trace(go.Scatter(_validate=False, x=[None], y=[None], mode="markers", name=f"segment: {kind}",
                                  marker={"symbol": "square", "size": 12,
                                          "color": SEGMENT_COLOURS.get(kind, "rgba(200,0,200,0.3)")},
-                                 legendgroup="segments"), row=1, col=1)
+                                 legendgroup="segments", legend=legend), row=1, col=1)
 
 
 def armed_mask(time_s, segments):
@@ -611,7 +611,7 @@ def _span(y):
     return (float(y.min()), float(y.max())) if len(y) else (0.0, 1.0)
 
 
-def _mark(fig, markers, spans):
+def _mark(fig, markers, spans, legend="legend"):
     """The markers as vertical lines across each subplot (``spans``: its (lo, hi)), one
     trace per kind and subplot, the text on hover; one legend entry per kind."""
     import plotly.graph_objects as go
@@ -625,7 +625,7 @@ def _mark(fig, markers, spans):
         for r, (lo, hi) in enumerate(spans):
             ys = np.tile(np.array([lo, hi, None], dtype=object), len(ms))
             fig.add_trace(go.Scatter(_validate=False, x=xs, y=ys, mode="lines", name=f"{kind}s", legendgroup=kind,
-                                     showlegend=r == 0, line={"color": colour, "dash": dash, "width": 1},
+                                     showlegend=r == 0, legend=legend, line={"color": colour, "dash": dash, "width": 1},
                                      opacity=0.7, text=text, hovertemplate="%{text}<extra></extra>"),
                           row=r + 1, col=1)
 
@@ -636,6 +636,17 @@ def _boot_cuts(ch):
     cut = np.zeros(len(b), bool)
     cut[1:] = b[1:] != b[:-1]
     return cut
+
+
+def _panel_legend(fig, row):
+    """The legend of subplot ``row`` of a one-column figure (plotly's ``legend``,
+    ``legend2``, ...): beside the subplot, at its top, so that each panel lists its own
+    lines; returns its name for the traces."""
+    name = "legend" if row == 1 else f"legend{row}"
+    dom = fig.layout[f"yaxis{'' if row == 1 else row}"].domain
+    fig.update_layout({name: {"x": 1.02, "xanchor": "left", "y": dom[1], "yanchor": "top",
+                              "font": {"size": 10}, "tracegroupgap": 2}})
+    return name
 
 
 def _panels_figure(views, segments, axis):
@@ -649,6 +660,7 @@ def _panels_figure(views, segments, axis):
                         subplot_titles=[_e(p.title) for p in panels])
     spans, t_lo, t_hi = [], np.inf, -np.inf
     for r, p in enumerate(panels, 1):
+        leg = _panel_legend(fig, r)
         ch = p.channels
         t = np.asarray(ch.time_s, np.float64)
         cuts = _boot_cuts(ch)
@@ -661,7 +673,7 @@ def _panels_figure(views, segments, axis):
             tx, y = session_envelope(t[keep], v[keep], cuts[keep])
             a, b = _span(y)
             lo, hi = min(lo, a), max(hi, b)
-            fig.add_trace(go.Scatter(_validate=False, x=tx, y=y.astype(np.float32), name=_e(name),
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=y.astype(np.float32), name=_e(name), legend=leg,
                                      legendgroup=p.key + name, line={"color": PANEL_COLOURS[j % len(PANEL_COLOURS)],
                                                                      "width": 1.1},
                                      hovertemplate=f"{_e(name)}: %{{y:.4g}} {_e(ch.unit)}<br>t=%{{x:.2f}} s"
@@ -670,7 +682,7 @@ def _panels_figure(views, segments, axis):
             lo, hi = min(lo, th.value), max(hi, th.value)
             fig.add_trace(go.Scatter(_validate=False, x=[float(np.nanmin(t)), float(np.nanmax(t))],
                                      y=[th.value, th.value], mode="lines", name=f"{th.level} threshold",
-                                     legendgroup=f"threshold {th.level}",
+                                     legendgroup=f"threshold {th.level}", legend=leg,
                                      line={"color": THRESHOLD_COLOURS.get(th.level, "#555"), "dash": "dash",
                                            "width": 1.5}, text=[_e(th.label)] * 2,
                                      hovertemplate="%{text}<extra></extra>"), row=r, col=1)
@@ -678,12 +690,15 @@ def _panels_figure(views, segments, axis):
             t_lo, t_hi = min(t_lo, float(np.nanmin(t))), max(t_hi, float(np.nanmax(t)))
         spans.append((lo, hi) if np.isfinite(lo) else (0.0, 1.0))
         fig.update_yaxes(title_text=_e(ch.unit), row=r, col=1)
-    _mark(fig, views.markers, spans)
+    # the markers and segments span every panel: their own legend, in a row under the figure
+    common = f"legend{len(panels) + 1}"
+    fig.update_layout({common: {"orientation": "h", "x": 0, "xanchor": "left", "yref": "container", "y": 0,
+                                "yanchor": "bottom", "font": {"size": 10}}})
+    _mark(fig, views.markers, spans, common)
     if segments and np.isfinite(t_lo):
-        _shade_segments(fig, segments, len(panels), t_lo, t_hi)
+        _shade_segments(fig, segments, len(panels), t_lo, t_hi, common)
     fig.update_xaxes(title_text=axis, row=len(panels), col=1)
-    fig.update_layout(hovermode="closest", margin={"t": 60},
-                      legend={"orientation": "v", "x": 1.02, "y": 1, "font": {"size": 10}})
+    fig.update_layout(hovermode="closest", margin={"t": 60, "b": 90})
     fig.update_annotations(font_size=12)
     return fig
 
