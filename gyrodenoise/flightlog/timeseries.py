@@ -136,6 +136,11 @@ def time_views(log, autopilot=None) -> TimeViews:
             panels.append(Panel(key, f"{key} [{ch.unit}] ({ch.source})", ch))
     if volts is None and amps is None:
         missing["battery"] = f"no battery voltage or current in the log (looked for {ap.battery_looked_for})"
+    pid = ap.pid_terms(log)
+    for axis, ch in pid:
+        panels.append(Panel("pid", f"rate PID terms, {axis} [{ch.unit}] ({ch.source})", ch))
+    if not pid:
+        missing["pid"] = f"no rate controller terms in the log (looked for {ap.pid_looked_for})"
     vib, clip, why = vibration_channels(log, ap)
     panels += vib + ([clip] if clip is not None else [])
     if not vib and clip is None:
