@@ -275,7 +275,9 @@ def computed_vibe(accel, rate_hz=None):
     """``{"time_s", "levels" {VibeX, VibeY, VibeZ}, "source", "judged", "note"}`` of
     :func:`vibe_levels` over an accelerometer source (``accelerometer(log)``'s dict), its
     gaps (over 5 median steps) restarting the filters, or None. ``judged``: whether the
-    source is fast enough for VIBE's thresholds (:data:`VIBE_JUDGED_MIN_RATE_HZ`)."""
+    source is VIBE's own input -- the raw accelerometer (the source's ``"raw"``: true; the
+    logged IMU/``sensor_combined``/``accSmooth`` streams are low-passed or averaged, so
+    not) at :data:`VIBE_JUDGED_MIN_RATE_HZ` or more -- so that VIBE's thresholds apply."""
     if accel is None or len(accel["time_s"]) < 20:
         return None
     t = np.asarray(accel["time_s"], np.float64)
@@ -293,13 +295,15 @@ def computed_vibe(accel, rate_hz=None):
     for lo, hi in zip(cuts[:-1], cuts[1:]):
         if hi - lo >= 2:
             out[lo:hi] = vibe_levels(t[lo:hi], a[lo:hi])
-    judged = rate >= VIBE_JUDGED_MIN_RATE_HZ
+    raw = bool(accel.get("raw", False))
+    judged = raw and rate >= VIBE_JUDGED_MIN_RATE_HZ
     note = (f"computed by gyrodenoise from {accel['source']} at {rate:.4g} Hz with VIBE's definition "
             f"(sqrt of the {VIBE_FILTER_HZ:g} Hz low-pass of (accel - its {VIBE_FLOOR_HZ:g} Hz low-pass)^2)")
     if not judged:
-        note += (f"; not the logged VIBE: the log's accelerometer is low-passed and sampled below "
-                 f"{VIBE_JUDGED_MIN_RATE_HZ:g} Hz, so it under-reads the vibration VIBE sees on board: "
-                 f"ArduPilot's thresholds are not drawn")
+        why = [w for w, bad in (("low-passed or averaged before it was logged", not raw),
+                                (f"sampled below {VIBE_JUDGED_MIN_RATE_HZ:g} Hz", rate < VIBE_JUDGED_MIN_RATE_HZ)) if bad]
+        note += (f"; not the VIBE the vehicle would log: this accelerometer is {' and '.join(why)}, so it "
+                 f"under-reads the vibration VIBE sees on the raw samples: ArduPilot's thresholds are not drawn")
     return {"time_s": t, "levels": {f"Vibe{c}": out[:, k] for k, c in enumerate("XYZ")},
             "source": f"{accel['source']} (VIBE computed)", "judged": judged, "note": note}
 

@@ -72,8 +72,8 @@ def _log_without_vibe(rate_hz, seconds=20.0, amp=40.0):
     return w.bytes()
 
 
-@pytest.mark.parametrize("rate_hz, judged", [(50.0, False), (1000.0, True)])
-def test_a_log_without_vibe_gets_the_computed_levels(rate_hz, judged):
+@pytest.mark.parametrize("rate_hz", [50.0, 1000.0])
+def test_a_log_without_vibe_gets_the_computed_levels(rate_hz):
     log = log_of_bytes(_log_without_vibe(rate_hz), "dataflash")
     assert log.format.vibration_levels(log) is None
     views = time_views(log)
@@ -91,9 +91,21 @@ def test_a_log_without_vibe_gets_the_computed_levels(rate_hz, judged):
     keep = abs(1.0 - a5 / (1.0 - (1.0 - a5) * z))
     assert np.median(lv["VibeX"][late]) == pytest.approx(40.0 / math.sqrt(2) * keep, rel=0.05)
     assert np.nanmax(lv["VibeY"]) == 0.0
-    # ArduPilot's 30/60 m/s/s only where the accelerometer is as fast as VIBE's input
-    assert [(th.level, th.value) for th in panel.thresholds] == ([("warn", 30.0), ("fail", 60.0)] if judged else [])
-    assert ("thresholds are not drawn" in panel.channels.note) is not judged
+    # the logged IMU accelerometer is low-passed (INS_ACCEL_FILTER): never VIBE's input,
+    # whatever its rate: no ArduPilot thresholds, and the note says why
+    assert panel.thresholds == []
+    assert "low-passed or averaged before it was logged" in panel.channels.note
+    assert ("sampled below 1000 Hz" in panel.channels.note) is (rate_hz < 1000.0)
+
+
+@pytest.mark.parametrize("rate_hz, raw, judged", [(2000.0, True, True), (500.0, True, False),
+                                                   (2000.0, False, False)])
+def test_judged_only_on_a_raw_accelerometer_at_vibes_rate(rate_hz, raw, judged):
+    t = np.arange(int(3 * rate_hz)) / rate_hz
+    acc = np.zeros((len(t), 3))
+    cv = vb.computed_vibe({"source": "test", "time_s": t, "xyz": acc, "raw": raw})
+    assert cv["judged"] is judged
+    assert ("thresholds are not drawn" in cv["note"]) is not judged
 
 
 def test_equal_to_the_logged_vibe_on_the_batch_samplers_raw_accelerometer():
