@@ -570,7 +570,9 @@ def _spectrogram_figure(name, pd, track=None):
         from gyrodenoise.flightlog.heatmap import track_centre_hz
         tt = np.asarray(track.time_s, np.float64)
         f = track_centre_hz(track)
-        keep = np.isfinite(f) & (tt >= float(np.min(t))) & (tt <= float(np.max(t)))
+        # within the spectrogram's time and frequency span: a 25 Hz stream's spectrogram ends
+        # at 12.5 Hz, under any notch; the track would only stretch its frequency axis
+        keep = np.isfinite(f) & (tt >= float(np.min(t))) & (tt <= float(np.max(t))) & (f <= float(fr[-1]))
         if keep.any():
             tx, fy = session_envelope(tt[keep], f[keep], _boot_cuts(track)[keep])
             fig.add_trace(go.Scatter(_validate=False, x=tx, y=fy.astype(np.float32), mode="lines",
@@ -580,7 +582,7 @@ def _spectrogram_figure(name, pd, track=None):
             fig.update_layout(legend={"orientation": "h", "yanchor": "top", "y": -0.2, "x": 0})
     fig.update_layout(title={"text": _e(f"{name}: spectrogram of the raw record (axes summed)"), "font": {"size": 14}})
     fig.update_xaxes(title_text="time [s]")
-    fig.update_yaxes(title_text="frequency [Hz]")
+    fig.update_yaxes(title_text="frequency [Hz]", range=[float(fr[0]), float(fr[-1])])
     return fig
 
 

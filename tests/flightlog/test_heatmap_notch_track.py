@@ -71,3 +71,7 @@ def test_the_spectrogram_carries_the_logged_centre():
     lo, hi = np.nanmin(track_centre_hz(tr)), np.nanmax(track_centre_hz(tr))
     assert np.nanmin(y) >= lo - 1e-3 and np.nanmax(y) <= hi + 1e-3
     assert len(_spectrogram_figure("IMU[0]", pd).data) == 1          # no track: the heatmap alone
+    # a spectrogram ending under the notch (a 25 Hz stream): no track, the axis kept to its span
+    slow = dict(pd, freq_hz=np.linspace(0, 12.5, 129))
+    fig = _spectrogram_figure("IMU[0]", slow, tr)
+    assert len(fig.data) == 1 and list(fig.layout.yaxis.range) == [0.0, 12.5]
