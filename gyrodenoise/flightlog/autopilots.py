@@ -119,6 +119,20 @@ class Autopilot:
         """The pilot's RC input (:class:`~gyrodenoise.flightlog.timeseries.Channels`), or None."""
         return None
 
+    notch_track_looked_for = "nothing: the autopilot is unknown"
+
+    def notch_centre_track(self, log):
+        """The dynamic notch's centre frequencies over time as the vehicle logged them [Hz]
+        (:class:`~gyrodenoise.flightlog.timeseries.Channels`, 0 and unset left out), or None."""
+        return None
+
+    pid_looked_for = "nothing: the autopilot is unknown"
+
+    def pid_terms(self, log):
+        """The rate controller's terms per axis: ``[(axis, Channels)]`` (P, I, D, FF as
+        logged, in the controller's output unit), empty where not logged."""
+        return []
+
     # --- motor speed (ESC RPM) ---
     # what moves the filters along the flight and the logged post-filter gyro, for the
     # replay (gyrodenoise.flightlog.notch_replay)
@@ -389,6 +403,43 @@ class ArduPilot(Autopilot):
             if cols:
                 return Channels(f"{name} {col.format('n')}", "PWM us", m["time_s"], cols, log.rows_boot(m))
         return None
+
+    notch_track_looked_for = "FTN NF1.. / DnF1.. (the harmonic notch's centres as tracked)"
+
+    def notch_centre_track(self, log):
+        # FTN: the harmonic notch's dynamic centre per source (motor, or FFT peak), as
+        # updated by the vehicle (NF1..NF12 in 4.2+, DnF1..DnF4 before); 0: unused
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("FTN")
+        if m is None:
+            return None
+        cols = {}
+        for c in [c for c in m if any(c.startswith(p) and c[len(p):].isdigit() for p in ("NF", "DnF"))]:
+            v = np.asarray(m[c], np.float64)
+            v = np.where(np.isfinite(v) & (v > 0), v, np.nan)
+            if np.isfinite(v).any():
+                cols[c] = v
+        if not cols:
+            return None
+        inst = np.asarray(m["I"]) if "I" in m else None
+        if inst is not None and len(np.unique(inst)) > 1:      # one notch set per instance: its own columns
+            cols = {f"{c}[{i}]": np.where(inst == i, v, np.nan) for c, v in cols.items() for i in np.unique(inst)}
+        return Channels("FTN " + ", ".join(cols), "Hz", m["time_s"], cols, log.rows_boot(m))
+
+    pid_looked_for = "PIDR, PIDP, PIDY (P, I, D, FF)"
+
+    def pid_terms(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        out = []
+        for name, axis in (("PIDR", "roll"), ("PIDP", "pitch"), ("PIDY", "yaw")):
+            m = log.messages(name)
+            if m is None:
+                continue
+            cols = {c: np.asarray(m[c], np.float64) for c in ("P", "I", "D", "FF") if c in m}
+            if cols:
+                out.append((axis, Channels(f"{name} {', '.join(cols)}", "controller output", m["time_s"], cols,
+                                           log.rows_boot(m))))
+        return out
 
     # --- motor speed (ESC RPM) ---
 
@@ -697,6 +748,37 @@ class PX4(Autopilot):
         cols = {f"ch {i + 1}": m[c].astype(float) for i in range(min(n, 8)) if (c := f"values[{i}]") in m}
         return Channels("input_rc.values", "PWM us", m["time_s"], cols) if cols else None
 
+    notch_track_looked_for = "sensor_gyro_fft peak_frequencies_x/y/z (the onboard FFT's peaks)"
+
+    def notch_centre_track(self, log):
+        # the onboard FFT's strongest peak per axis: where the FFT-driven dynamic notch
+        # (IMU_GYRO_DNF_EN) puts its centres; 0 / NaN: no peak
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("sensor_gyro_fft")
+        if m is None:
+            return None
+        cols = {}
+        for a in "xyz":
+            c = f"peak_frequencies_{a}[0]"
+            if c in m:
+                v = np.asarray(m[c], np.float64)
+                v = np.where(np.isfinite(v) & (v > 0), v, np.nan)
+                if np.isfinite(v).any():
+                    cols[f"FFT peak {a}"] = v
+        return Channels("sensor_gyro_fft.peak_frequencies_*[0]", "Hz", m["time_s"], cols) if cols else None
+
+    pid_looked_for = "rate_ctrl_status (the rate integrators only: PX4 logs no P/D terms)"
+
+    def pid_terms(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        m = log.messages("rate_ctrl_status")
+        if m is None:
+            return []
+        cols = {f"I {a}": np.asarray(m[f"{a}speed_integ"], np.float64) for a in ("roll", "pitch", "yaw")
+                if f"{a}speed_integ" in m}
+        return [("roll, pitch, yaw", Channels("rate_ctrl_status.*speed_integ", "integrator", m["time_s"], cols))] \
+            if cols else []
+
 
 class Betaflight(Autopilot):
     """Betaflight: its gyro filter chain from the blackbox header (low-passes, static and
@@ -786,6 +868,22 @@ class Betaflight(Autopilot):
                 for i, a in enumerate(("roll", "pitch", "yaw", "throttle")) if f"rcCommand[{i}]" in m}
         return Channels("rcCommand[i]", "roll/pitch/yaw -500..500, throttle 1000..2000", m["time_s"], cols,
                         log.rows_boot(m)) if cols else None
+
+    pid_looked_for = "axisP, axisI, axisD, axisF"
+
+    def pid_terms(self, log):
+        from gyrodenoise.flightlog.timeseries import Channels
+        terms = {t: log.messages(f"axis{t}") for t in ("P", "I", "D", "F")}
+        out = []
+        for i, axis in enumerate(("roll", "pitch", "yaw")):
+            cols, t, boot = {}, None, None
+            for term, m in terms.items():
+                if m is not None and f"axis{term}[{i}]" in m:
+                    cols["FF" if term == "F" else term] = np.asarray(m[f"axis{term}[{i}]"], np.float64)
+                    t, boot = m["time_s"], log.rows_boot(m)
+            if cols and all(len(v) == len(t) for v in cols.values()):
+                out.append((axis, Channels(f"axisP/I/D/F[{i}]", "PID sum units", t, cols, boot)))
+        return out
 
 
     # --- motor speed (ESC RPM) ---

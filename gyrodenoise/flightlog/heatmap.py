@@ -23,6 +23,7 @@ there: the map says so.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -237,6 +238,31 @@ def notch_lines(stages, x, centre_fn, nyquist_hz):
     return lines, notes
 
 
+def track_centre_hz(track):
+    """The logged dynamic notch centre per row of ``track`` (the strategy's
+    ``notch_centre_track``): the median over its columns (motors, FFT peaks) [Hz]."""
+    cols = [np.asarray(v, np.float64) for v in track.columns.values()]
+    with warnings.catch_warnings():                  # a row of NaNs only: NaN, said once
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(np.vstack(cols), axis=0)
+
+
+def track_line(track, x_channels, edges):
+    """A :class:`NotchLine` of the logged dynamic notch centre (:func:`track_centre_hz`)
+    on a map: at each row of ``track`` the map's x (throttle or RPM, interpolated), the
+    median centre per bin of ``edges``; None where no row lands in a bin."""
+    f = track_centre_hz(track)
+    x = value_at(x_channels, np.asarray(track.time_s, np.float64), track.boots())
+    ok = np.isfinite(f) & np.isfinite(x) & (x >= edges[0]) & (x <= edges[-1])
+    if not ok.any():
+        return None
+    nb = len(edges) - 1
+    k = np.clip(np.searchsorted(edges, x[ok], side="right") - 1, 0, nb - 1)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    med = np.array([np.median(f[ok][k == i]) if (k == i).any() else np.nan for i in range(nb)])
+    return NotchLine(f"logged dynamic notch centre ({track.source}; median per bin)", centres, med)
+
+
 def stream_rate_hz(stream):
     """A stream's rate: its ``rate_hz`` once filtered, else from its median sample interval."""
     if stream.rate_hz:
@@ -289,6 +315,12 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
             x = np.linspace(hm.edges[0], hm.edges[-1], 64)
             hm.lines, hm.notes = notch_lines(stages, x, throttle_notch_hz, rate / 2.0)
             maps.append(hm)
+    track = ap.notch_centre_track(log)
+    if track is not None:
+        for hm in maps:
+            ln = track_line(track, thr, hm.edges)
+            if ln is not None:
+                hm.lines.append(ln)
     rpm = ap.motor_rpm(log)
     if rpm is None:
         notes.append(f"no frequency-by-RPM map: no motor RPM in the log (looked for {ap.rpm_looked_for})")
@@ -304,6 +336,7 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
             lines, hm.notes = notch_lines(stages, x, rpm_notch_hz, rate / 2.0)
             lines += [NotchLine(f"motor rotation x{h} (rpm/60 x {h})", x, h * x / 60.0) for h in ROTATION_HARMONICS
                       if np.nanmin(h * x / 60.0) < rate / 2.0]
-            hm.lines = lines
+            ln = track_line(track, rpm, hm.edges) if track is not None else None
+            hm.lines = lines + ([ln] if ln is not None else [])
             maps.append(hm)
     return maps, notes

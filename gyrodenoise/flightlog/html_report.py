@@ -293,7 +293,7 @@ class _Figures:
                                                  default_height=f"{height or 450}px") + "</div>"
 
 
-def _shade_segments(fig, segments, rows, t_lo, t_hi):
+def _shade_segments(fig, segments, rows, t_lo, t_hi, legend="legend"):
     """Shade each flight segment (kind -> :data:`SEGMENT_COLOURS`) behind the lines of
     ``rows`` subplots; one legend entry per kind (a clickable, empty trace)."""
     kinds, shapes = [], []
@@ -320,7 +320,7 @@ def _shade_segments(fig, segments, rows, t_lo, t_hi):
         fig.add_trace(go.Scatter(_validate=False, x=[None], y=[None], mode="markers", name=f"segment: {kind}",
                                  marker={"symbol": "square", "size": 12,
                                          "color": SEGMENT_COLOURS.get(kind, "rgba(200,0,200,0.3)")},
-                                 legendgroup="segments"), row=1, col=1)
+                                 legendgroup="segments", legend=legend), row=1, col=1)
 
 
 def armed_mask(time_s, segments):
@@ -477,6 +477,9 @@ def _spectrum_figure(name, pd, responses, title):
                                      marker={"symbol": "triangle-down", "size": 11, "color": dark,
                                              "line": {"color": "black", "width": 1}},
                                      text=txt, hovertemplate="%{text}<extra></extra>"), secondary_y=False)
+        humps = (pd.get("humps") or [])[k] if k < len(pd.get("humps") or []) else []
+        if humps and raw is not None:
+            fig.add_trace(_hump_trace(a, dark, fr, np.asarray(raw[k], dtype=np.float64), humps, unit), secondary_y=False)
     for label, rf, gain, dash, *more in responses:
         hover = _e(label + (f"; {more[0]}" if more and more[0] else ""))
         rf = np.asarray(rf, dtype=np.float64)
@@ -495,6 +498,23 @@ def _spectrum_figure(name, pd, responses, title):
     fig.update_layout(title={"text": _e(title), "font": {"size": 14}}, hovermode="closest",
                       legend={"orientation": "v", "x": 1.06, "y": 1})
     return fig
+
+
+def _hump_trace(axis, colour, fr, raw, humps, unit):
+    """A spectrum's broad humps on one axis (:func:`gyrodenoise.flightlog.spectra.find_humps`):
+    a thick bar over each band (lo..hi Hz) just above the PSD's top there, hover naming it."""
+    import plotly.graph_objects as go
+    from gyrodenoise.flightlog.spectra import describe_hump
+    xs, ys, txt = [], [], []
+    for q in humps:
+        band = (fr >= q["lo_hz"]) & (fr <= q["hi_hz"])
+        top = 1.6 * float(np.max(raw[band])) if band.any() else float("nan")
+        xs += [q["lo_hz"], q["freq_hz"], q["hi_hz"], None]
+        ys += [top, top, top, None]
+        txt += [_e(f"{axis}: " + describe_hump(q, unit))] * 3 + [""]
+    return go.Scatter(_validate=False, x=xs, y=ys, mode="lines", name=f"{axis} humps", legendgroup=axis,
+                      line={"color": colour, "width": 5}, opacity=0.55, text=txt,
+                      hovertemplate="%{text}<extra></extra>")
 
 
 def _frequency_axis_menu(log_x):
@@ -530,8 +550,10 @@ def _peak_hover(q, unit):
     return _e(text)
 
 
-def _spectrogram_figure(name, pd):
-    """The spectrogram (dB) of a stream's raw record with its colour bar and unit."""
+def _spectrogram_figure(name, pd, track=None):
+    """The spectrogram (dB) of a stream's raw record with its colour bar and unit; the
+    dynamic notch's logged centre over it (``track``: the strategy's ``notch_centre_track``,
+    one boot's time axis), where given."""
     import plotly.graph_objects as go
     t, dens = pd["spectrogram"]
     fr = np.asarray(pd["freq_hz"], dtype=np.float64)
@@ -544,9 +566,23 @@ def _spectrogram_figure(name, pd):
                                zmin=lo, zmax=hi, colorscale="Viridis",
                                colorbar={"title": {"text": f"dB ({unit})²/Hz"}},
                                hovertemplate="t=%{x:.1f} s, %{y:.4g} Hz: %{z:.1f} dB<extra></extra>"))
+    if track is not None:
+        from gyrodenoise.flightlog.heatmap import track_centre_hz
+        tt = np.asarray(track.time_s, np.float64)
+        f = track_centre_hz(track)
+        # within the spectrogram's time and frequency span: a 25 Hz stream's spectrogram ends
+        # at 12.5 Hz, under any notch; the track would only stretch its frequency axis
+        keep = np.isfinite(f) & (tt >= float(np.min(t))) & (tt <= float(np.max(t))) & (f <= float(fr[-1]))
+        if keep.any():
+            tx, fy = session_envelope(tt[keep], f[keep], _boot_cuts(track)[keep])
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=fy.astype(np.float32), mode="lines",
+                                     name=_e(f"logged notch centre ({track.source})"),
+                                     line={"color": "#ffffff", "width": 1.5, "dash": "dot"},
+                                     hovertemplate="notch centre %{y:.4g} Hz at t=%{x:.1f} s<extra></extra>"))
+            fig.update_layout(legend={"orientation": "h", "yanchor": "top", "y": -0.2, "x": 0})
     fig.update_layout(title={"text": _e(f"{name}: spectrogram of the raw record (axes summed)"), "font": {"size": 14}})
     fig.update_xaxes(title_text="time [s]")
-    fig.update_yaxes(title_text="frequency [Hz]")
+    fig.update_yaxes(title_text="frequency [Hz]", range=[float(fr[0]), float(fr[-1])])
     return fig
 
 
@@ -577,7 +613,7 @@ def _span(y):
     return (float(y.min()), float(y.max())) if len(y) else (0.0, 1.0)
 
 
-def _mark(fig, markers, spans):
+def _mark(fig, markers, spans, legend="legend"):
     """The markers as vertical lines across each subplot (``spans``: its (lo, hi)), one
     trace per kind and subplot, the text on hover; one legend entry per kind."""
     import plotly.graph_objects as go
@@ -591,7 +627,7 @@ def _mark(fig, markers, spans):
         for r, (lo, hi) in enumerate(spans):
             ys = np.tile(np.array([lo, hi, None], dtype=object), len(ms))
             fig.add_trace(go.Scatter(_validate=False, x=xs, y=ys, mode="lines", name=f"{kind}s", legendgroup=kind,
-                                     showlegend=r == 0, line={"color": colour, "dash": dash, "width": 1},
+                                     showlegend=r == 0, legend=legend, line={"color": colour, "dash": dash, "width": 1},
                                      opacity=0.7, text=text, hovertemplate="%{text}<extra></extra>"),
                           row=r + 1, col=1)
 
@@ -602,6 +638,17 @@ def _boot_cuts(ch):
     cut = np.zeros(len(b), bool)
     cut[1:] = b[1:] != b[:-1]
     return cut
+
+
+def _panel_legend(fig, row):
+    """The legend of subplot ``row`` of a one-column figure (plotly's ``legend``,
+    ``legend2``, ...): beside the subplot, at its top, so that each panel lists its own
+    lines; returns its name for the traces."""
+    name = "legend" if row == 1 else f"legend{row}"
+    dom = fig.layout[f"yaxis{'' if row == 1 else row}"].domain
+    fig.update_layout({name: {"x": 1.02, "xanchor": "left", "y": dom[1], "yanchor": "top",
+                              "font": {"size": 10}, "tracegroupgap": 2}})
+    return name
 
 
 def _panels_figure(views, segments, axis):
@@ -615,6 +662,7 @@ def _panels_figure(views, segments, axis):
                         subplot_titles=[_e(p.title) for p in panels])
     spans, t_lo, t_hi = [], np.inf, -np.inf
     for r, p in enumerate(panels, 1):
+        leg = _panel_legend(fig, r)
         ch = p.channels
         t = np.asarray(ch.time_s, np.float64)
         cuts = _boot_cuts(ch)
@@ -627,7 +675,7 @@ def _panels_figure(views, segments, axis):
             tx, y = session_envelope(t[keep], v[keep], cuts[keep])
             a, b = _span(y)
             lo, hi = min(lo, a), max(hi, b)
-            fig.add_trace(go.Scatter(_validate=False, x=tx, y=y.astype(np.float32), name=_e(name),
+            fig.add_trace(go.Scatter(_validate=False, x=tx, y=y.astype(np.float32), name=_e(name), legend=leg,
                                      legendgroup=p.key + name, line={"color": PANEL_COLOURS[j % len(PANEL_COLOURS)],
                                                                      "width": 1.1},
                                      hovertemplate=f"{_e(name)}: %{{y:.4g}} {_e(ch.unit)}<br>t=%{{x:.2f}} s"
@@ -636,7 +684,7 @@ def _panels_figure(views, segments, axis):
             lo, hi = min(lo, th.value), max(hi, th.value)
             fig.add_trace(go.Scatter(_validate=False, x=[float(np.nanmin(t)), float(np.nanmax(t))],
                                      y=[th.value, th.value], mode="lines", name=f"{th.level} threshold",
-                                     legendgroup=f"threshold {th.level}",
+                                     legendgroup=f"threshold {th.level}", legend=leg,
                                      line={"color": THRESHOLD_COLOURS.get(th.level, "#555"), "dash": "dash",
                                            "width": 1.5}, text=[_e(th.label)] * 2,
                                      hovertemplate="%{text}<extra></extra>"), row=r, col=1)
@@ -644,12 +692,15 @@ def _panels_figure(views, segments, axis):
             t_lo, t_hi = min(t_lo, float(np.nanmin(t))), max(t_hi, float(np.nanmax(t)))
         spans.append((lo, hi) if np.isfinite(lo) else (0.0, 1.0))
         fig.update_yaxes(title_text=_e(ch.unit), row=r, col=1)
-    _mark(fig, views.markers, spans)
+    # the markers and segments span every panel: their own legend, in a row under the figure
+    common = f"legend{len(panels) + 1}"
+    fig.update_layout({common: {"orientation": "h", "x": 0, "xanchor": "left", "yref": "container", "y": 0,
+                                "yanchor": "bottom", "font": {"size": 10}}})
+    _mark(fig, views.markers, spans, common)
     if segments and np.isfinite(t_lo):
-        _shade_segments(fig, segments, len(panels), t_lo, t_hi)
+        _shade_segments(fig, segments, len(panels), t_lo, t_hi, common)
     fig.update_xaxes(title_text=axis, row=len(panels), col=1)
-    fig.update_layout(hovermode="closest", margin={"t": 60},
-                      legend={"orientation": "v", "x": 1.02, "y": 1, "font": {"size": 10}})
+    fig.update_layout(hovermode="closest", margin={"t": 60, "b": 90})
     fig.update_annotations(font_size=12)
     return fig
 
@@ -1048,6 +1099,16 @@ def _responses_for(report, series, rate_hz):
     return out
 
 
+def _one_boot_track(series):
+    """The logged notch centre track (``series["views"].notch_track``) where the log is of one
+    boot (the spectrogram's time axis is then the log's), else None."""
+    v = _views(series)
+    tr = getattr(v, "notch_track", None) if v is not None else None
+    if tr is None or len(np.unique(tr.boots())) > 1:
+        return None
+    return tr
+
+
 def _spectra_section(report, series, figs):
     out = ["<h2 id=spectra>Spectra</h2>"]
     spectra = series.get("spectra") or {}
@@ -1061,12 +1122,12 @@ def _spectra_section(report, series, figs):
         rate = (streams.get(name) or {}).get("rate_hz") or (2.0 * float(np.asarray(pd["freq_hz"])[-1]))
         stage = (streams.get(name) or {}).get("stage")
         responses = _responses_for(report, series, rate) if stage != "post-filter" else []
-        title = f"{name}: PSD per axis (solid raw, dashed filtered; ▼ peaks, hover names them)"
+        title = f"{name}: PSD per axis (solid raw, dashed filtered; ▼ peaks, ━ broad humps, hover names them)"
         if stage:
             title += f"; the vehicle's {stage} gyro"
         out.append(f"<h3>{_e(name)}</h3>" + figs.div(_spectrum_figure(name, pd, responses, title), height=460))
         if pd.get("spectrogram") is not None and not sg_done:
-            out.append(figs.div(_spectrogram_figure(name, pd), height=380))
+            out.append(figs.div(_spectrogram_figure(name, pd, _one_boot_track(series)), height=380))
             sg_done = True
     if not (report.get("vehicle_filters") or {}).get("stages") and not series.get("filter_review"):
         out.append(_notes_for(report, "vehicle_filters") or

@@ -43,6 +43,172 @@ SPECTRUM_METRIC = (
     "gyrodenoise.analysis.spectrum").format(f=MIN_PEAK_FREQ_HZ, fa=sp.FALSE_ALARM)
 
 
+#: broad humps (:func:`find_humps`): the log-frequency grid [points per octave], the
+#: smoothing of the PSD before it (a mean of power over this many octaves), the floor's
+#: running median [octaves] and the top of a hump over it [dB]
+HUMP_GRID_PER_OCTAVE = 24
+HUMP_SMOOTH_OCTAVES = 1.0 / 12.0
+HUMP_FLOOR_OCTAVES = 3.0
+HUMP_MIN_DB = 6.0
+#: a hump's width at half its height over the floor (in dB), in octaves: narrower is a
+#: line (:func:`gyrodenoise.analysis.spectrum.find_peaks` sees it), wider the floor's shape
+HUMP_MIN_OCTAVES = 1.0 / 8.0
+HUMP_MAX_OCTAVES = 1.0
+#: a hump whose excess power over the floor lies this much in one line's bins
+#: (the peak finder's window, 2 x 3 + 1 bins) is that line, not a hump
+HUMP_LINE_SHARE = 0.8
+#: humps listed per axis (the strongest)
+MAX_HUMPS = 3
+
+HUMP_METRIC = (
+    "per stream and axis, the broad humps of the raw PSD (what a notch with a bandwidth sits on: a motor "
+    "band wandering with the throttle): the PSD averaged over {s:.3g} octave, on a log-frequency grid "
+    "({g} points per octave) from {f:g} Hz to Nyquist; its floor the running median of log PSD over "
+    "{w:g} octaves (ends reflected about the end value: a power law is followed exactly); a hump is a "
+    "maximum >= {d:g} dB over that floor, its band (lo_hz..hi_hz) where it stays above half its height "
+    "in dB, {mn:.3g} to {mx:g} octave wide and >= {lw} bins; one whose excess power lies >= {ls:.0%} in "
+    "one line's {lb} bins is that line (a peak). freq_hz: the centroid of the excess power over the "
+    "band; amplitude_rms: sqrt of that excess power").format(
+        s=HUMP_SMOOTH_OCTAVES, g=HUMP_GRID_PER_OCTAVE, f=MIN_PEAK_FREQ_HZ, w=HUMP_FLOOR_OCTAVES, d=HUMP_MIN_DB,
+        mn=HUMP_MIN_OCTAVES, mx=HUMP_MAX_OCTAVES, lw=4 * sp.PEAK_HALF_WIDTH_BINS,
+        ls=HUMP_LINE_SHARE, lb=2 * sp.PEAK_HALF_WIDTH_BINS + 1)
+SPECTRUM_METRIC += "; humps: " + HUMP_METRIC
+
+
+def _smoothed_on_grid(f, p, grid):
+    """The mean of ``p`` over the bins within ``HUMP_SMOOTH_OCTAVES`` around each grid
+    frequency (at least the nearest bin): power averaged before its log is taken."""
+    half = 2.0 ** (HUMP_SMOOTH_OCTAVES / 2.0)
+    csum = np.r_[0.0, np.cumsum(p)]
+    lo = np.searchsorted(f, grid / half, side="left")
+    hi = np.searchsorted(f, grid * half, side="right")
+    near = np.clip(np.rint((grid - f[0]) / (f[1] - f[0])).astype(np.int64), 0, len(f) - 1)
+    empty = hi <= lo
+    lo = np.where(empty, near, lo)
+    hi = np.where(empty, near + 1, hi)
+    return (csum[hi] - csum[lo]) / (hi - lo)
+
+
+def hump_floor(log_psd, width_points):
+    """Running median of a log PSD on a log-frequency grid over ``width_points``
+    (odd), the ends reflected about the end values (``y[-k] = 2 y[0] - y[k]``): on a
+    log-log axis a power law is a straight line, which this reflection continues, and
+    the median of a straight line's symmetric window is its centre value: the floor of
+    a 1/f**a spectrum is that spectrum, whatever a, up to the ends."""
+    from numpy.lib.stride_tricks import sliding_window_view
+    y = np.asarray(log_psd, dtype=np.float64)
+    h = min(int(width_points) // 2, len(y) - 1)
+    if h < 1:
+        return y.copy()
+    pad = np.pad(y, h, mode="reflect", reflect_type="odd")
+    return np.median(sliding_window_view(pad, 2 * h + 1), axis=1)
+
+
+def find_humps(freq_hz, psd, min_freq_hz=MIN_PEAK_FREQ_HZ, max_humps=MAX_HUMPS):
+    """Broad humps of a PSD (a motor band, tens of Hz wide), strongest first: a list of
+    dicts ``freq_hz`` (centroid of the excess power), ``lo_hz``/``hi_hz`` (the band at
+    half the hump's height over the floor, in dB), ``width_octaves``, ``above_floor_db``
+    (the smoothed PSD's top over the floor), ``amplitude_rms`` (sqrt of the excess power
+    over the band; unit of the PSD's square root). See :data:`HUMP_METRIC`.
+
+    :func:`gyrodenoise.analysis.spectrum.find_peaks` asks whether a narrow line stands
+    above a floor some tens of bins wide; a band 0.3 octave wide at 130 Hz is that
+    floor there, so it is never a peak. Here the floor is 3 octaves wide and the
+    spectrum is smoothed first, so the band stands out and a line does not (its power
+    sits in a few bins: :data:`HUMP_LINE_SHARE`)."""
+    f = np.asarray(freq_hz, dtype=np.float64)
+    p = np.asarray(psd, dtype=np.float64)
+    if len(f) < 16 or not np.all(np.isfinite(p)) or f[1] <= f[0]:
+        return []
+    df = f[1] - f[0]
+    f_lo = max(float(min_freq_hz), float(f[sp.MIN_PEAK_BIN]))
+    f_hi = float(f[-1])
+    if f_hi <= 2.0 * f_lo:                          # less than an octave: no floor to stand above
+        return []
+    n_grid = int(np.floor(np.log2(f_hi / f_lo) * HUMP_GRID_PER_OCTAVE)) + 1
+    grid = f_lo * 2.0 ** (np.arange(n_grid) / HUMP_GRID_PER_OCTAVE)
+    smooth = _smoothed_on_grid(f, p, grid)
+    if not np.all(smooth > 0):
+        return []
+    y = 10.0 * np.log10(smooth)
+    width = 2 * int(round(HUMP_FLOOR_OCTAVES * HUMP_GRID_PER_OCTAVE / 2)) + 1
+    # the running median of the spectrum less its overall slope (Theil-Sen: the median of
+    # the pairwise slopes): on a falling floor a hump's points would sort among those of
+    # lower frequencies and lift the median by half the hump's points x the slope per
+    # point (3 dB for a 0.3 octave hump on 1/f**2); on the level residual they do not
+    idx = np.arange(n_grid, dtype=np.float64)
+    i, j = np.triu_indices(n_grid, 1)
+    slope = float(np.median((y[j] - y[i]) / (j - i)))
+    floor_db = hump_floor(y - slope * idx, width) + slope * idx
+    e = y - floor_db
+    floor_lin = np.interp(np.log(np.maximum(f, f_lo)), np.log(grid), 10.0 ** (floor_db / 10.0))
+    found, taken = [], np.zeros(n_grid, dtype=bool)
+    for i in np.argsort(-e):
+        if e[i] < HUMP_MIN_DB:
+            break
+        if taken[i] or (i > 0 and e[i - 1] > e[i]) or (i < n_grid - 1 and e[i + 1] > e[i]):
+            continue
+        half = e[i] / 2.0
+        a = i
+        while a > 0 and e[a - 1] >= half:
+            a -= 1
+        b = i
+        while b < n_grid - 1 and e[b + 1] >= half:
+            b += 1
+        if taken[a:b + 1].any():                    # a shoulder of a stronger hump
+            taken[a:b + 1] = True
+            continue
+        taken[a:b + 1] = True
+        lo_hz, hi_hz = float(grid[a]), float(grid[b])
+        width = float(np.log2(hi_hz / lo_hz))
+        if not (HUMP_MIN_OCTAVES <= width <= HUMP_MAX_OCTAVES) or hi_hz - lo_hz < 4 * sp.PEAK_HALF_WIDTH_BINS * df:
+            continue
+        band = (f >= lo_hz) & (f <= hi_hz)
+        excess = np.maximum(p - floor_lin, 0.0) * band
+        total = float(excess.sum())
+        if total <= 0:
+            continue
+        line = float(np.max(np.convolve(excess, np.ones(2 * sp.PEAK_HALF_WIDTH_BINS + 1), mode="same")))
+        if line >= HUMP_LINE_SHARE * total:
+            continue
+        found.append({"freq_hz": float(np.sum(f * excess) / total), "lo_hz": lo_hz, "hi_hz": hi_hz,
+                      "width_octaves": width, "above_floor_db": float(e[i]),
+                      "amplitude_rms": float(np.sqrt(total * df))})
+    found.sort(key=lambda q: -q["amplitude_rms"])
+    return _hump_harmonics(found[:max_humps])
+
+
+#: a hump is n x a lower one when its centre is within this share of n x that centre
+HUMP_HARMONIC_TOL = 0.05
+
+
+def _hump_harmonics(humps):
+    """Set ``harmonic_of_hz``/``harmonic_n`` on each hump (strongest first, as given):
+    n x (n = 2..5) the centre of a lower hump that is not itself a harmonic, within
+    :data:`HUMP_HARMONIC_TOL` (a motor band's centroid moves with its shape; 5 % of a
+    3 x 128 Hz band is 19 Hz, under the band's own width)."""
+    for q in humps:
+        q["harmonic_of_hz"], q["harmonic_n"] = None, 1
+    for q in sorted(humps, key=lambda q: q["freq_hz"]):
+        for base in sorted(humps, key=lambda q: q["freq_hz"]):
+            if base is q or base["freq_hz"] >= q["freq_hz"] or base["harmonic_of_hz"] is not None:
+                continue
+            n = int(round(q["freq_hz"] / base["freq_hz"]))
+            if 2 <= n <= 5 and abs(q["freq_hz"] - n * base["freq_hz"]) <= HUMP_HARMONIC_TOL * n * base["freq_hz"]:
+                q["harmonic_of_hz"], q["harmonic_n"] = base["freq_hz"], n
+                break
+    return humps
+
+
+def describe_hump(q, unit="deg/s"):
+    """'broad 110-145 Hz (centre 128 Hz), 2.1 deg/s rms, 18 dB over the floor' (one hump)."""
+    text = (f"broad {q['lo_hz']:.3g}-{q['hi_hz']:.3g} Hz (centre {q['freq_hz']:.3g} Hz), "
+            f"{q['amplitude_rms']:.2g} {unit} rms, {q['above_floor_db']:.0f} dB over the floor")
+    if q.get("harmonic_of_hz"):
+        text += f" ({q['harmonic_n']} x {q['harmonic_of_hz']:.3g} Hz)"
+    return text
+
+
 #: a lag this small [ms] is numerical noise of the measurement: printed as 0
 LAG_ZERO_MS = 0.01
 
@@ -99,7 +265,7 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
            "segments": int(len(an["starts"])), "response_segments": int(resp["response_segments"]),
            "unit": unit, "min_peak_freq_hz": MIN_PEAK_FREQ_HZ,
            "min_peak_db": round(10 * np.log10(MIN_PEAK_RATIO), 2), "false_alarm": sp.FALSE_ALARM,
-           "response": "computed and measured" if sos is not None else "measured", "peaks": {}, "filter": {}}
+           "response": "computed and measured" if sos is not None else "measured", "peaks": {}, "humps": {}, "filter": {}}
     if resp is not an:
         rep["response_nperseg"] = int(resp["nperseg"])
         rep["response_note"] = (f"measured over the {resp['response_over']}, with segments of {resp['nperseg']} "
@@ -117,11 +283,14 @@ def stream_spectrum(s, x, f, unit, filter_rate_hz, method="motion", filter_kw=No
             "filter_gain": q["filter_gain"], "phase_delay_s": q["phase_delay_s"],
         } for q in an["peaks"][k]]
         rep["filter"][a] = _response_summary(resp, k)
+        rep["humps"][a] = [{key: (round(v, 3) if isinstance(v, float) else v) for key, v in q.items()}
+                           for q in find_humps(freq, an["psd_raw"][k])]
     rep["dominant_peak"] = dominant_peak(rep["peaks"])
     pd = {"freq_hz": freq, "unit": unit, "axes": s.axes, "raw": an["psd_raw"], "filtered": an["psd_filtered"],
           "floor": an["floor_raw"], "gain": resp["gain"], "coherence": resp["coherence"],
           "delay_s": resp["delay_s"], "response_freq_hz": resp["freq_hz"],
-          "peaks": [rep["peaks"][a] for a in s.axes], "computed_gain": resp["computed_gain"],
+          "peaks": [rep["peaks"][a] for a in s.axes], "humps": [rep["humps"][a] for a in s.axes],
+          "computed_gain": resp["computed_gain"],
           "computed_delay_s": resp["computed_delay_s"], "spectrogram": None,
           "filtered_is_raw": an["filtered_is_raw"]}
     span = float(s.time_s[-1] - s.time_s[0]) if s.n > 1 else 0.0
@@ -226,6 +395,9 @@ def summary_lines(spec):
         return [f"spectrum: none ({spec.get('reason')})"]
     unit = spec.get("unit", "deg/s")
     lines, quiet = [], []
+    for a, humps in (spec.get("humps") or {}).items():
+        if humps:
+            lines.append(f"{a}: " + "; ".join(describe_hump(q, unit) for q in sorted(humps, key=lambda q: q["freq_hz"])))
     for a, peaks in spec["peaks"].items():
         main = sorted([q for q in peaks if q.get("harmonic_of_hz") is None],
                       key=lambda q: -q["amplitude_rms"])[:3]          # the 3 strongest, by frequency
@@ -296,6 +468,11 @@ def _draw_psd(ax, name, pd):
             b = [int(np.argmin(np.abs(fr - q["freq_hz"]))) for q in run]
             ax.plot([q["freq_hz"] for q in run], np.asarray(pd["raw"][k])[b], "v", ls="none", color=f"C{k}",
                     ms=ms, mec="k", mew=0.5)
+        for q in (pd.get("humps") or [[]] * (k + 1))[k]:      # a bar over each broad hump's band
+            band = (fr >= q["lo_hz"]) & (fr <= q["hi_hz"])
+            if band.any():
+                ax.hlines(1.6 * float(np.max(np.asarray(pd["raw"][k])[band])), q["lo_hz"], q["hi_hz"],
+                          color=f"C{k}", lw=3, alpha=0.6)
         named = sorted(pd["peaks"][k], key=lambda q: -q["amplitude_rms"])[:LABELLED_PEAKS]
         listing.append(f"{a}: " + ("; ".join(
             f"{q['freq_hz']:.4g} Hz {q['amplitude_rms']:.2g} ({100 * q['present_in_segments']:.0f} %)" +
@@ -306,7 +483,7 @@ def _draw_psd(ax, name, pd):
     # one text box instead of legends: fewer artists, a cheaper figure
     # upper right (room made above the curves): the low-frequency corner, where the
     # motion's power and a low-pass's knee are, stays clear
-    ax.text(0.99, 0.97, f"{name}: {colours}; {lines}, dotted noise floor\n"
+    ax.text(0.99, 0.97, f"{name}: {colours}; {lines}, dotted noise floor, bars: broad humps\n"
             f"peaks (strongest {LABELLED_PEAKS} per axis; rms {unit}; in % of the segments; "
             f">= {MIN_PEAK_FREQ_HZ:g} Hz, >= {10 * np.log10(MIN_PEAK_RATIO):.0f} dB above the floor)\n" + "\n".join(listing),
             transform=ax.transAxes, fontsize=7, va="top", ha="right",

@@ -97,6 +97,8 @@ class FlightViews:
     time: TimeViews
     maps: list
     map_notes: list
+    #: the dynamic notch's centres as logged (the strategy's ``notch_centre_track``), or None
+    notch_track: Channels | None = None
 
 
 def flight_views(log, stages=None) -> FlightViews:
@@ -106,7 +108,7 @@ def flight_views(log, stages=None) -> FlightViews:
     views = time_views(log)
     thr = views.panel("throttle")
     maps, notes = log_heatmaps(log, thr.channels if thr is not None else None, stages)
-    return FlightViews(views, maps, notes)
+    return FlightViews(views, maps, notes, log.parameters().autopilot.notch_centre_track(log))
 
 
 def time_views(log, autopilot=None) -> TimeViews:
@@ -134,6 +136,11 @@ def time_views(log, autopilot=None) -> TimeViews:
             panels.append(Panel(key, f"{key} [{ch.unit}] ({ch.source})", ch))
     if volts is None and amps is None:
         missing["battery"] = f"no battery voltage or current in the log (looked for {ap.battery_looked_for})"
+    pid = ap.pid_terms(log)
+    for axis, ch in pid:
+        panels.append(Panel("pid", f"rate PID terms, {axis} [{ch.unit}] ({ch.source})", ch))
+    if not pid:
+        missing["pid"] = f"no rate controller terms in the log (looked for {ap.pid_looked_for})"
     vib, clip, why = vibration_channels(log, ap)
     panels += vib + ([clip] if clip is not None else [])
     if not vib and clip is None:
@@ -168,7 +175,9 @@ def vibration_channels(log, autopilot):
     from gyrodenoise.flightlog import vibration as vb
     levels = log.format.vibration_levels(log)
     if levels is None:
-        return [], None, f"no vibration levels in the log (looked for {log.format.vibration_looked_for})"
+        why = f"no vibration levels in the log (looked for {log.format.vibration_looked_for})"
+        panel = computed_vibration_panel(log)
+        return ([panel] if panel is not None else []), None, why
     levels = autopilot.vibration_levels(levels)
     t = np.asarray(levels["time_s"], np.float64)
     boot = log.boot_of(levels["record"]) if levels.get("record") is not None and len(log.boots) > 1 else None
@@ -206,6 +215,29 @@ def vibration_channels(log, autopilot):
                                  f"limit is per flight: low numbers (<{limit['fail']:g}) likely ok",
                      Channels(levels["source"], "count", t, cl, boot))
     return panels, clip, ""
+
+
+def computed_vibration_panel(log):
+    """A log without vibration levels: VIBE's levels computed from its accelerometer
+    (:func:`gyrodenoise.flightlog.vibration.computed_vibe`), labelled as computed, with
+    ArduPilot's thresholds only where the accelerometer is as fast as VIBE's input; or None."""
+    from gyrodenoise.flightlog import vibration as vb
+    accel = log.format.accelerometer(log)
+    cv = vb.computed_vibe(accel)
+    if cv is None:
+        return None
+    rec = accel.get("record")
+    boot = None
+    if rec is not None and len(log.boots) > 1:
+        t_all = np.asarray(accel["time_s"], np.float64)
+        keep = np.isin(t_all, cv["time_s"])
+        boot = log.boot_of(np.asarray(rec)[keep])[:len(cv["time_s"])]
+    th = vb.THRESHOLDS["vibe_m_s2"]
+    lines = [Threshold(th[k], k, f"{k} {th[k]:g} {th['unit']} ({th['source']})") for k in ("warn", "fail")] \
+        if cv["judged"] else []
+    return Panel("vibration", f"vibration levels [m/s/s] ({cv['source']}, by gyrodenoise"
+                              f"{'' if cv['judged'] else '; under-reads VIBE: no thresholds'})",
+                 Channels(cv["source"], "m/s/s", cv["time_s"], cv["levels"], boot, cv["note"]), lines)
 
 
 def markers(log, autopilot) -> list[Marker]:

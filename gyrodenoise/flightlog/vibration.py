@@ -216,6 +216,98 @@ def ulog_accel(log):
             "xyz": np.stack([m[c] for c in cols], 1).astype(np.float64)}
 
 
+# -------------------------------------------------- VIBE computed from the accelerometer
+#: ArduPilot's vibration level (AP_InertialSensor, described in its header): the
+#: accelerometer's "floor" is its first-order low-pass at 5 Hz; the level is the square
+#: root of the first-order low-pass at 2 Hz of the squared difference, per axis, on every
+#: raw sample at the sensor's rate
+VIBE_FLOOR_HZ = 5.0
+VIBE_FILTER_HZ = 2.0
+
+
+def _lowpass1(x, dt, cutoff_hz, start):
+    """First-order low-pass y += alpha (x - y), alpha = dt / (dt + 1 / (2 pi fc)) (the
+    form of ArduPilot's LowPassFilter) per column of ``x`` (n, m), from state ``start``;
+    ``dt`` per sample."""
+    rc = 1.0 / (2.0 * np.pi * cutoff_hz)
+    alpha = np.asarray(dt / (dt + rc), np.float64)
+    from scipy.signal import lfilter
+    y = np.empty_like(x)
+    if np.ptp(alpha) < 1e-12 * max(1.0, float(alpha.max())):      # even steps: one IIR
+        a = float(alpha[0])
+        zi = (1.0 - a) * np.asarray(start, np.float64)
+        for k in range(x.shape[1]):
+            y[:, k] = lfilter([a], [1.0, -(1.0 - a)], x[:, k], zi=[zi[k]])[0]
+        return y
+    state = np.asarray(start, np.float64).copy()
+    for i in range(len(x)):
+        state += alpha[i] * (x[i] - state)
+        y[i] = state
+    return y
+
+
+def vibe_levels(time_s, accel_m_s2):
+    """ArduPilot's VIBE levels (m/s/s, per axis) computed from an accelerometer record
+    (n, 3) at ``time_s``: ``sqrt(LP2(a - LP5(a)) ** 2)`` (:data:`VIBE_FLOOR_HZ`,
+    :data:`VIBE_FILTER_HZ`), the filters started at the first samples' mean and
+    mean square (no warm-up from zero). Equal to the logged VIBE only where the record
+    is the raw accelerometer at its sensor rate: a logged, low-passed, slower
+    accelerometer holds less of the vibration (see :func:`computed_vibe`)."""
+    t = np.asarray(time_s, np.float64)
+    a = np.asarray(accel_m_s2, np.float64)
+    if len(t) < 2:
+        return np.full_like(a, np.nan)
+    dt = np.diff(t, prepend=t[0] - np.median(np.diff(t)))
+    dt = np.where(dt > 0, dt, np.median(np.diff(t)))
+    head = a[:max(1, min(len(a), int(round(0.1 / float(np.median(dt))))))]
+    floor = _lowpass1(a, dt, VIBE_FLOOR_HZ, head.mean(axis=0))
+    sq = (a - floor) ** 2
+    return np.sqrt(_lowpass1(sq, dt, VIBE_FILTER_HZ, ((head - head.mean(axis=0)) ** 2).mean(axis=0)))
+
+
+#: a computed VIBE is judged against ArduPilot's thresholds only from an accelerometer at
+#: least this fast (Hz): the sensor rate VIBE is computed at on board (1 kHz and up); a
+#: logged IMU at 25-400 Hz after INS_ACCEL_FILTER under-reads it
+VIBE_JUDGED_MIN_RATE_HZ = 1000.0
+
+
+def computed_vibe(accel, rate_hz=None):
+    """``{"time_s", "levels" {VibeX, VibeY, VibeZ}, "source", "judged", "note"}`` of
+    :func:`vibe_levels` over an accelerometer source (``accelerometer(log)``'s dict), its
+    gaps (over 5 median steps) restarting the filters, or None. ``judged``: whether the
+    source is VIBE's own input -- the raw accelerometer (the source's ``"raw"``: true; the
+    logged IMU/``sensor_combined``/``accSmooth`` streams are low-passed or averaged, so
+    not) at :data:`VIBE_JUDGED_MIN_RATE_HZ` or more -- so that VIBE's thresholds apply."""
+    if accel is None or len(accel["time_s"]) < 20:
+        return None
+    t = np.asarray(accel["time_s"], np.float64)
+    a = np.asarray(accel["xyz"], np.float64)
+    ok = np.isfinite(t) & np.isfinite(a).all(axis=1)
+    t, a = t[ok], a[ok]
+    if len(t) < 20:
+        return None
+    step = float(np.median(np.diff(t)))
+    rate = rate_hz or (1.0 / step if step > 0 else None)
+    if not rate:
+        return None
+    cuts = np.r_[0, np.flatnonzero(np.diff(t) > 5 * step) + 1, len(t)]
+    out = np.full_like(a, np.nan)
+    for lo, hi in zip(cuts[:-1], cuts[1:]):
+        if hi - lo >= 2:
+            out[lo:hi] = vibe_levels(t[lo:hi], a[lo:hi])
+    raw = bool(accel.get("raw", False))
+    judged = raw and rate >= VIBE_JUDGED_MIN_RATE_HZ
+    note = (f"computed by gyrodenoise from {accel['source']} at {rate:.4g} Hz with VIBE's definition "
+            f"(sqrt of the {VIBE_FILTER_HZ:g} Hz low-pass of (accel - its {VIBE_FLOOR_HZ:g} Hz low-pass)^2)")
+    if not judged:
+        why = [w for w, bad in (("low-passed or averaged before it was logged", not raw),
+                                (f"sampled below {VIBE_JUDGED_MIN_RATE_HZ:g} Hz", rate < VIBE_JUDGED_MIN_RATE_HZ)) if bad]
+        note += (f"; not the VIBE the vehicle would log: this accelerometer is {' and '.join(why)}, so it "
+                 f"under-reads the vibration VIBE sees on the raw samples: ArduPilot's thresholds are not drawn")
+    return {"time_s": t, "levels": {f"Vibe{c}": out[:, k] for k, c in enumerate("XYZ")},
+            "source": f"{accel['source']} (VIBE computed)", "judged": judged, "note": note}
+
+
 # ------------------------------------------------------------------- figures
 def _verdict(value, key):
     th = THRESHOLDS[key]

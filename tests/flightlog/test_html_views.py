@@ -60,3 +60,23 @@ def test_long_panels_are_decimated(tmp_path):
         n = len(x) if isinstance(x, list) else int(np.frombuffer(__import__("base64").b64decode(x["bdata"]),
                                                                    dtype=x["dtype"]).size)
         assert n <= 2 * ENVELOPE_BINS + 10
+
+
+def test_each_panel_lists_its_own_lines():
+    """One legend per panel beside it (plotly's legend, legend2, ...), at its subplot's top;
+    the markers and segments, which span every panel, in one more legend under the figure."""
+    from gyrodenoise.flightlog.html_report import _panels_figure
+    data, _, _ = ardupilot_log()
+    views = flight_views(log_of_bytes(data, "dataflash"))
+    segments = [{"kind": "flying", "start_s": 10.0, "end_s": 50.0}]
+    fig = _panels_figure(views.time, segments, "time [s]")
+    panels = views.time.panels
+    common = f"legend{len(panels) + 1}"
+    for r, p in enumerate(panels, 1):
+        name = "legend" if r == 1 else f"legend{r}"
+        mine = [d for d in fig.data if (d.legend or "legend") == name]
+        assert {d.name for d in mine} >= set(p.channels.columns), (p.key, [d.name for d in mine])
+        dom = fig.layout[f"yaxis{'' if r == 1 else r}"].domain
+        assert fig.layout[name].y == dom[1]
+    shared = {d.name for d in fig.data if d.legend == common and d.showlegend is not False}
+    assert {"events", "modes", "failsafes", "segment: flying"} <= shared
