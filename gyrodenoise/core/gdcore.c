@@ -890,6 +890,23 @@ KERNEL void mo_update_(const double *restrict p, double inv_r, const double *res
     }
 }
 
+/* the 4th difference at lag `lag` of the history ring ending with z (kernels.fourth_difference):
+ * z - 4 x[-lag] + 6 x[-2 lag] - 4 x[-3 lag] + x[-4 lag], x[-m] = hist[at - m], wrapped by `wrap`
+ * samples where that index is below 0 (0: a doubled ring, never wrapped) */
+KERNEL double fourth_diff_(const double *hist, int at, int wrap, int lag, double z)
+{
+    int i1 = at - lag, i2 = at - 2 * lag, i3 = at - 3 * lag, i4 = at - 4 * lag;
+    if (i1 < 0)
+        i1 += wrap;
+    if (i2 < 0)
+        i2 += wrap;
+    if (i3 < 0)
+        i3 += wrap;
+    if (i4 < 0)
+        i4 += wrap;
+    return z - 4.0 * hist[i1] + 6.0 * hist[i2] - 4.0 * hist[i3] + hist[i4];
+}
+
 /* motion's output during its warm-up (kernels.warmup_output): the mean of the
  * samples so far where their variance about it stays within white noise's spread
  * of the noise level of the 4th differences at every lag 1..MO_WU_NL, else z */
@@ -908,17 +925,7 @@ KERNEL double warmup_output_(double *restrict s, long o, double z, double k, int
     w0[1] += e * (z - mean);
     for (lag = 1; lag <= nl; lag++)
         if (k >= 4.0 * lag) {
-            int i1 = pos - lag, i2 = pos - 2 * lag, i3 = pos - 3 * lag, i4 = pos - 4 * lag;
-            double d4;
-            if (i1 < 0)
-                i1 += nh;
-            if (i2 < 0)
-                i2 += nh;
-            if (i3 < 0)
-                i3 += nh;
-            if (i4 < 0)
-                i4 += nh;
-            d4 = z - 4.0 * hist[i1] + 6.0 * hist[i2] - 4.0 * hist[i3] + hist[i4];
+            double d4 = fourth_diff_(hist, pos, nh, lag, z);
             w0[1 + lag] += d4 * d4;
         }
     if (w0[3 + MO_WU_NL] != 0.0 || n < MO_WU_N0 || !(n > 4.0 * nl))
@@ -1033,19 +1040,7 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         d = forget_weight_(b, s[o + M_BK]);
         clip = d < 0.03125;
         for (j = 1; j <= nlag; j++) {
-            int i1 = hb - j, i2 = hb - 2 * j, i3 = hb - 3 * j, i4 = hb - 4 * j;
-            double d4, x, m;
-            if (!bk) {
-                if (i1 < 0)
-                    i1 += nh;
-                if (i2 < 0)
-                    i2 += nh;
-                if (i3 < 0)
-                    i3 += nh;
-                if (i4 < 0)
-                    i4 += nh;
-            }
-            d4 = zr - 4.0 * hist[i1] + 6.0 * hist[i2] - 4.0 * hist[i3] + hist[i4];
+            double d4 = fourth_diff_(hist, hb, bk ? 0 : nh, j, zr), x, m;
             x = fabs(d4);
             m = s[o + M_MABS + j - 1];
             /* a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)

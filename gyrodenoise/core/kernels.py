@@ -260,6 +260,25 @@ def ext_offset(p: Buf) -> int:
     bank and noise estimates: the ``M_*`` offsets count from it), for params ``p``."""
     return layout(int(p[P_ORDER]))[6] - N_EXT
 
+def fourth_difference(s, h0, pos, nh, lag, z):
+    """z - 4 x[-lag] + 6 x[-2 lag] - 4 x[-3 lag] + x[-4 lag] of the history ring ``s[h0:h0 + nh]``
+    whose newest sample before ``z`` is at ``pos - 1`` (x[-m] = s[h0 + (pos - m) mod nh]): the
+    4th difference at lag ``lag``, blind to a constant, a ramp and curves up to cubics."""
+    i1 = pos - lag
+    if i1 < 0:
+        i1 += nh
+    i2 = pos - 2 * lag
+    if i2 < 0:
+        i2 += nh
+    i3 = pos - 3 * lag
+    if i3 < 0:
+        i3 += nh
+    i4 = pos - 4 * lag
+    if i4 < 0:
+        i4 += nh
+    return z - 4.0 * s[h0 + i1] + 6.0 * s[h0 + i2] - 4.0 * s[h0 + i3] + s[h0 + i4]
+
+
 def raw_warmup_samples(p) -> int:
     """Samples after a restart whose output is the raw sample whatever the record (the warm-up
     rule of :func:`step`): ``P_WARMUP``; for ``motion`` with the spectral floor on, until its
@@ -1270,20 +1289,7 @@ def motion_step(p: Buf, s: MutBuf, z: float) -> float:
         clip = d < 0.03125                           # no clip while the mean forms (32 samples)
         least = 0.0
         for j in range(1, nlag + 1):
-            i1 = pos - j
-            if i1 < 0:
-                i1 += nh
-            i2 = pos - 2 * j
-            if i2 < 0:
-                i2 += nh
-            i3 = pos - 3 * j
-            if i3 < 0:
-                i3 += nh
-            i4 = pos - 4 * j
-            if i4 < 0:
-                i4 += nh
-            d4 = (zr - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
-                  - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4])
+            d4 = fourth_difference(s, o + M_HIST, pos, nh, j, zr)
             x = abs(d4)
             m = s[o + M_MABS + j - 1]
             # a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)
@@ -1512,20 +1518,7 @@ def warmup_output(p: Buf, s: MutBuf, o: int, z: float, k: float, pos: int, nh: i
     nl = MO_WU_NL if 4 * MO_WU_NL < nh else (nh - 1) // 4
     for lag in range(1, nl + 1):
         if k >= 4.0 * lag:
-            i1 = pos - lag
-            if i1 < 0:
-                i1 += nh
-            i2 = pos - 2 * lag
-            if i2 < 0:
-                i2 += nh
-            i3 = pos - 3 * lag
-            if i3 < 0:
-                i3 += nh
-            i4 = pos - 4 * lag
-            if i4 < 0:
-                i4 += nh
-            d4 = (z - 4.0 * s[o + M_HIST + i1] + 6.0 * s[o + M_HIST + i2]
-                  - 4.0 * s[o + M_HIST + i3] + s[o + M_HIST + i4])
+            d4 = fourth_difference(s, o + M_HIST, pos, nh, lag, z)
             s[w0 + 1 + lag] += d4 * d4
     if s[w0 + 3 + MO_WU_NL] != 0.0 or n < MO_WU_N0 or not n > 4.0 * nl:
         return z
