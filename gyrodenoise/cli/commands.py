@@ -29,7 +29,7 @@ def _read(args: argparse.Namespace) -> Record:
     check_export_args(args)       # refused before the file is read (and its notes printed)
     rec = read_recording(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
-                         rate_scale=args.rate_scale)
+                         rate_scale=args.rate_scale, skip_rows=args.skip_rows)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
@@ -47,7 +47,7 @@ def _open_stream(args: argparse.Namespace) -> Any:
         return None
     stream = open_stream(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
-                         rate_scale=scales[0] if scales else None)
+                         rate_scale=scales[0] if scales else None, skip_rows=args.skip_rows)
     if stream is not None and stream.has_true:
         stream.close()
         return None
@@ -353,7 +353,8 @@ def _compare_axes(args: argparse.Namespace, columns: list[str]) -> int:
     ``axes`` maps each column to the object one column gives (as ``allan`` over several axes)."""
     from gyrodenoise.io.recording import read_axes
     recording = read_axes(args.input, columns, time_column=args.time_column, rate_unit=args.rate_unit,
-                          sample_rate_hz=args.sample_rate, time_unit=args.time_unit, rate_scale=args.rate_scale)
+                          sample_rate_hz=args.sample_rate, time_unit=args.time_unit, rate_scale=args.rate_scale,
+                          skip_rows=args.skip_rows)
     for note in recording.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     done = {ax.column: _compare_one(args, recording.record(ax)) for ax in recording.axes}

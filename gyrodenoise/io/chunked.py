@@ -118,11 +118,13 @@ def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_co
                 rate_unit: str | None = None, sample_rate_hz: float | None = None,
                 true_column: str = "true_rate", spike_advice: str = R.SPIKE_ADVICE,
                 time_unit: str | None = None, chunk: int | None = None,
-                spill_dir: str | None = None, rate_scale: float | None = None) -> RecordStream | None:
+                spill_dir: str | None = None, rate_scale: float | None = None,
+                skip_rows: int = 0) -> RecordStream | None:
     """The :class:`RecordStream` of one rate column (parameters as
     :func:`gyrodenoise.io.recording.read_recording`), or None where the whole-array reader
     must read the file (module docstring). ``chunk``: samples per chunk of the passes;
-    ``rate_scale``: the rates' factor (``--rate-scale``, one column)."""
+    ``rate_scale``: the rates' factor (``--rate-scale``, one column); ``skip_rows``: lines
+    skipped before the header row (``--skip-rows``, :func:`gyrodenoise.io.recording.text_layout`)."""
     try:
         import pyarrow as pa
         import pyarrow.csv as pcsv
@@ -132,7 +134,7 @@ def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_co
     if R.is_container(path):
         return None
     R._check_arguments(rate_unit, None, sample_rate_hz, src)
-    lay = R.text_layout(path, rate_column, time_column, src)
+    lay = R.text_layout(path, rate_column, time_column, src, skip_rows)
     text, sep, header, file_units, skip, lower = lay.text, lay.sep, lay.header, lay.file_units, lay.skip, lay.lower
     if sep not in (",", ";", "\t"):
         return None
