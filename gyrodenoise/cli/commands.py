@@ -323,8 +323,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     columns = [c.strip() for c in str(args.rate_column).split(",") if c.strip()]
     if len(columns) > 1:
         return _compare_axes(args, columns)
-    rec = _read(args)
-    res = _compare_one(args, rec)
+    stream = _open_stream(args)
+    if stream is not None:
+        with stream:
+            res = _compare_stream(args, stream)
+    else:
+        res = _compare_one(args, _read(args))
     if args.json:
         emit_json(public(res))
     else:
@@ -336,16 +340,38 @@ def _compare_one(args: argparse.Namespace, rec: Record) -> dict[str, Any]:
     """Table 1 of one record (its warnings added)."""
     from gyrodenoise.analysis.experiments import compare
     _check_params(args, rec.sample_rate_hz)
-    if len(rec) < 100:
-        raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
+    _check_compare_length(args, len(rec))
     res = compare(rec, ar_order=args.ar_order, **filter_kw(args))
-    moving = true_rate_motion(rec)
+    _add_compare_warnings(res, true_rate_motion(rec))
+    return res
+
+
+def _compare_stream(args: argparse.Namespace, stream: Any) -> dict[str, Any]:
+    """Table 1 of a record read a chunk at a time (`compare_chunks`: the filters' states
+    carried, their outputs spooled in the stream's folder): the whole-array table, the std
+    to rounding."""
+    from gyrodenoise.analysis.compare_chunks import compare_chunks
+    fs = stream.sample_rate_hz
+    _check_params(args, fs)
+    _check_compare_length(args, len(stream))
+    res = compare_chunks(lambda: ((r, restarts) for _, r, _, restarts in stream.chunks()), len(stream), fs,
+                         stream.folder, source=stream.source, notes=stream.notes, ar_order=args.ar_order,
+                         **filter_kw(args))
+    _add_compare_warnings(res, None)
+    return res
+
+
+def _check_compare_length(args: argparse.Namespace, n: int) -> None:
+    if n < 100:
+        raise InputError(f"only {n} samples; compare needs at least 100", args.input)
+
+
+def _add_compare_warnings(res: dict[str, Any], moving: dict[str, float] | None) -> None:
     if moving:
         res["true_rate_motion_deg_s"] = moving
         add_warnings(res, [moving_warning(moving)])
     else:     # a moving record's raw curve is the motion's (its warning says so); `allan` analyses another
         add_warnings(res, raw_misfit_warnings(res))
-    return res
 
 
 def _compare_axes(args: argparse.Namespace, columns: list[str]) -> int:
