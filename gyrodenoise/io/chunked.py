@@ -33,10 +33,10 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.io import recording as R
-from gyrodenoise.io.stream import CHUNK, EXACT_INT
+from gyrodenoise.io.stream import CHUNK, EXACT_INT, csv_tables
 from gyrodenoise.io.timebase import TimeColumn, analyse_column
 
-#: bytes of text per batch of the CSV engine (its buffers: a fixed ~60 MB, whatever the length)
+#: bytes of text parsed at a time by the CSV engine (`csv_tables`: one block's buffers, whatever the length)
 STREAM_BLOCK = 1 << 22
 #: the spike test's sigma from every difference up to 2 x this many, beyond an evenly spread sample
 MEDIAN_SAMPLE = 1_000_000
@@ -127,7 +127,6 @@ def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_co
     skipped before the header row (``--skip-rows``, :func:`gyrodenoise.io.recording.text_layout`)."""
     try:
         import pyarrow as pa
-        import pyarrow.csv as pcsv
     except ImportError:
         return None
     src = str(path)
@@ -172,14 +171,10 @@ def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_co
         big_all, big_any = True, False
         types = {col_of[c]: pa.float64() for c in wanted if c != time_column}
         stats = _RateStats()
+        reader = csv_tables(text, skip, names, sep, sorted(set(col_of.values())), types, STREAM_BLOCK)
+        if reader is None:
+            return None
         try:
-            stream = pa.input_stream(str(text.path), compression="gzip" if text.gzipped else None)
-            reader = pcsv.open_csv(
-                stream, read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=STREAM_BLOCK),
-                parse_options=pcsv.ParseOptions(delimiter=sep),
-                convert_options=pcsv.ConvertOptions(include_columns=sorted(set(col_of.values())), column_types=types,
-                                                    null_values=[], strings_can_be_null=False,
-                                                    quoted_strings_can_be_null=False))
             for batch in reader:
                 cols = {}
                 for c in wanted:
