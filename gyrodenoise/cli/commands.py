@@ -120,28 +120,21 @@ def _denoise_one(args: argparse.Namespace, rec: Record, offline: bool) -> tuple[
 
 def _denoise_stream(args: argparse.Namespace, stream: Any, offline: bool) -> int:
     """``denoise`` of a record read a chunk at a time: the causal filter with the Denoiser's
-    whole state carried from chunk to chunk, the offline forms on the rate column alone
-    (the smoother holds its input and output); the output written a chunk of rows at a
-    time. The bytes of the whole-array run."""
-    from gyrodenoise.denoiser import Denoiser, denoise
+    whole state carried from chunk to chunk; the offline smoother on the spooled rate column,
+    its output spooled beside it (:func:`_offline_spooled`); the output written a chunk of
+    rows at a time. The bytes of the whole-array run."""
+    from gyrodenoise.denoiser import Denoiser
     from gyrodenoise.io.stream import write_rows
     fs = stream.sample_rate_hz
     _check_params(args, fs)
     den = Denoiser(fs, method=args.method, ar_order=args.ar_order, **filter_kw(args))
-    whole = None
-    if args.zero_phase or offline:
-        rate = np.concatenate([r for _, r, _, _ in stream.chunks()])
-        restarts = stream.timebase.restarts_in(0, stream.n) if stream.timebase is not None and \
-            len(stream.timebase.runs) > 1 else None
-        whole = denoise(rate, fs, method=args.method, ar_order=args.ar_order, restarts=restarts,
-                        zero_phase=args.zero_phase, offline=offline, **filter_kw(args))
-        del rate, restarts
+    whole = _offline_spooled(args, stream) if args.zero_phase or offline else None
     try:
         with open(args.output, "wb") as f:
             f.write(b"time,raw,filtered\n")
             a = 0
             for t, r, _, restarts in stream.chunks():
-                out = whole[a:a + len(r)] if whole is not None else den.process(r, restarts)
+                out = whole.read(a, a + len(r)) if whole is not None else den.process(r, restarts)
                 write_rows(f, [t, r, out])
                 a += len(r)
     except OSError as exc:
@@ -150,6 +143,31 @@ def _denoise_stream(args: argparse.Namespace, stream: Any, offline: bool) -> int
         f"{_form_text(args, offline, fs)})")
     _gate_note(args, den)
     return 0
+
+
+def _offline_spooled(args: argparse.Namespace, stream: Any) -> Any:
+    """The offline output of a streamed record, as a spool (``read(a, b)``): the smoother
+    (`batch.run_offline`) reads the spooled rate and writes its output a block at a time;
+    the other offline forms (``--zero-phase``, the rigid-body and bias options) run on the
+    rate column gathered whole, as ``denoise`` does."""
+    from pathlib import Path
+
+    from gyrodenoise.core import batch
+    from gyrodenoise.core import kernels as K
+    from gyrodenoise.denoiser import denoise
+    from gyrodenoise.io.chunked import Spool, SpoolSlice
+    fs = stream.sample_rate_hz
+    restarts = stream.timebase.restarts_in(0, stream.n) if stream.timebase is not None and \
+        len(stream.timebase.runs) > 1 else None
+    p = K.make_params(ar_order=args.ar_order, method=args.method, sample_rate_hz=fs, **filter_kw(args))
+    out = Spool(Path(stream.folder) / "offline", np.dtype(np.float64))
+    if not args.zero_phase and p[K.P_LP_NSEC] == 0.0 and p[K.P_BIAS] == 0.0:
+        batch.run_offline(p, SpoolSlice(stream.rate), restarts, out=SpoolSlice(out, 0, stream.n))
+        return out
+    rate = np.concatenate([r for _, r, _, _ in stream.chunks()])
+    out.append(denoise(rate, fs, method=args.method, ar_order=args.ar_order, restarts=restarts,
+                       zero_phase=args.zero_phase, offline=not args.zero_phase, **filter_kw(args)))
+    return out
 
 
 def _gate_note(args: argparse.Namespace, den: Any, column: str | None = None) -> None:

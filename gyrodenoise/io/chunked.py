@@ -59,6 +59,51 @@ class Spool:
             f.seek(a * self.dtype.itemsize)
             return np.fromfile(f, dtype=self.dtype, count=b - a)
 
+    def write(self, at: int, v: np.ndarray) -> None:
+        """Values ``v`` written at sample ``at`` (the file grown to hold them)."""
+        with open(self.path, "r+b" if self.path.exists() else "w+b") as f:
+            f.seek(at * self.dtype.itemsize)
+            np.ascontiguousarray(v, dtype=self.dtype).tofile(f)
+        self.n = max(self.n, at + len(v))
+
+
+@dataclass
+class SpoolSlice:
+    """Samples ``a``..``b``-1 of a :class:`Spool` as the offline smoother reads and writes a
+    record spilled to disk (:func:`gyrodenoise.core.batch.run_offline`): ``len()``, slices
+    read as arrays, slice (or index) assignment written to the file, ``window(lo, hi)``."""
+    spool: Spool
+    a: int = 0
+    b: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.b is None:
+            self.b = self.spool.n
+
+    def __len__(self) -> int:
+        return int(self.b) - self.a
+
+    def _span(self, key: slice) -> tuple[int, int]:
+        lo, hi, step = key.indices(len(self))
+        if step != 1:
+            raise ValueError("a spooled record slices with step 1")
+        return self.a + lo, self.a + max(lo, hi)
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        return self.spool.read(*self._span(key))
+
+    def __setitem__(self, key, v) -> None:
+        if isinstance(key, slice):
+            lo, hi = self._span(key)
+            self.spool.write(lo, np.broadcast_to(np.asarray(v, dtype=self.spool.dtype), (hi - lo,)))
+            return
+        idx = np.asarray(key).ravel()
+        for i, x in zip(idx.tolist(), np.broadcast_to(np.asarray(v, dtype=self.spool.dtype), idx.shape).tolist()):
+            self.spool.write(self.a + int(i), np.array([x]))
+
+    def window(self, lo: int, hi: int) -> SpoolSlice:
+        return SpoolSlice(self.spool, self.a + lo, self.a + hi)
+
 
 @dataclass
 class RecordStream:
@@ -303,7 +348,7 @@ def _signal_notes(rate: Spool, stats: _RateStats, where, spike_advice: str, unit
         sample, seen = [], 0
         for a in range(0, n - 1, size):
             d = np.diff(rate.read(a, min(a + size, n - 1) + 1))
-            sample.append(d[(-seen) % s::s])
+            sample.append(d[(-seen) % s::s].copy())      # a copy: a view would hold the whole chunk
             seen += d.size
         d = np.concatenate(sample)
         sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))
