@@ -13,8 +13,11 @@ temporary folder, never the repository). Rows:
 * ``pandas + allantools``: read, then ``allantools.oadev`` at the octave taus (the baseline
   of the ratios);
 * ``gyrodenoise allan``, ``gyrodenoise denoise --causal``, ``gyrodenoise denoise``
-  (offline, the default form of ``motion`` on a file): the commands as a user runs them,
-  reading the CSV, writing their output (denoise: a CSV of time, raw and filtered).
+  (offline, the default form of ``motion`` on a file), ``gyrodenoise compare``: the
+  commands as a user runs them, reading the CSV, writing their output (denoise: a CSV of
+  time, raw and filtered);
+* the same commands on the record with a ``time`` column (``time,rate``, seconds at
+  ``FS``; rows marked ``[time]``): the time model read too.
 
     python benchmarks/records/commands_memory.py [--sizes 1e6,1e7,3e7] [--dir DIR] [--keep]
 """
@@ -43,9 +46,34 @@ def _python(code: str) -> list[str]:
     return [sys.executable, "-c", code]
 
 
-def commands(csv: Path, out: Path) -> dict[str, list[str]]:
-    """Each row's command line."""
+def write_timed(n: int, folder: Path) -> Path:
+    """The record of `write_records` with a ``time`` column (s at FS) as ``timed_N.csv``."""
+    import numpy as np
+    npy, _ = write_records(n, folder)
+    out = folder / f"timed_{n}.csv"
+    if out.exists():
+        return out
+    y = np.load(npy, mmap_mode="r")
+    with open(out, "w") as f:
+        f.write("time,rate\n")
+        for a in range(0, n, 1 << 20):
+            b = min(a + (1 << 20), n)
+            t = np.arange(a, b) / FS
+            f.write("".join(f"{u!r},{v!r}\n" for u, v in zip(t.tolist(), np.asarray(y[a:b]).tolist())))
+    return out
+
+
+def gd_commands(rec: list[str], out: Path, tag: str = "") -> dict[str, list[str]]:
+    """The gyrodenoise rows on the record ``rec`` (its path and options)."""
     gd = [sys.executable, "-m", "gyrodenoise.cli"]
+    return {f"gyrodenoise allan{tag}": gd + ["allan"] + rec,
+            f"gyrodenoise denoise --causal{tag}": gd + ["denoise"] + rec + ["-o", str(out), "--causal"],
+            f"gyrodenoise denoise (offline){tag}": gd + ["denoise"] + rec + ["-o", str(out)],
+            f"gyrodenoise compare{tag}": gd + ["compare"] + rec}
+
+
+def commands(csv: Path, out: Path, timed: Path | None = None) -> dict[str, list[str]]:
+    """Each row's command line."""
     rec = [str(csv), "--sample-rate", f"{FS:g}"]
     return {
         READ_ONLY: _python(f"import pandas as pd; pd.read_csv({str(csv)!r}, dtype={{'rate': 'float64'}})"),
@@ -54,9 +82,8 @@ def commands(csv: Path, out: Path) -> dict[str, list[str]]:
             "from gyrodenoise.analysis.allan import octave_m\n"
             f"y = pd.read_csv({str(csv)!r}, dtype={{'rate': 'float64'}})['rate'].to_numpy()\n"
             f"allantools.oadev(y, rate={FS!r}, data_type='freq', taus=octave_m(y.shape[0]) / {FS!r})"),
-        "gyrodenoise allan": gd + ["allan"] + rec,
-        "gyrodenoise denoise --causal": gd + ["denoise"] + rec + ["-o", str(out), "--causal"],
-        "gyrodenoise denoise (offline)": gd + ["denoise"] + rec + ["-o", str(out)],
+        **gd_commands(rec, out),
+        **(gd_commands([str(timed)], out, " [time]") if timed is not None else {}),
     }
 
 
@@ -96,21 +123,22 @@ def main() -> None:
         for n in (int(float(s)) for s in args.sizes.split(",")):
             t0 = time.perf_counter()
             _, csv = write_records(n, folder)
+            timed = write_timed(n, folder)
             print(f"# {n} samples: record written in {time.perf_counter() - t0:.0f} s "
                   f"({csv.stat().st_size / 1e6:.0f} MB CSV)", flush=True)
             got = {}
-            for name, cmd in commands(csv, folder / "out.csv").items():
+            for name, cmd in commands(csv, folder / "out.csv", timed).items():
                 got[name] = measure(cmd)
-                print(f"  {name:<30} {got[name][0]:8.2f} s {got[name][1]:8.0f} MB", flush=True)
+                print(f"  {name:<37} {got[name][0]:8.2f} s {got[name][1]:8.0f} MB", flush=True)
             base = got[BASELINE]
             rows += [(n, name, w, mb, w / base[0], mb / base[1]) for name, (w, mb) in got.items()]
     finally:
         if not args.keep and not args.dir:
             shutil.rmtree(folder, ignore_errors=True)
     print()
-    print(f"{'samples':>10}  {'':<30} {'time s':>8} {'peak MB':>8} {'time ratio':>11} {'memory ratio':>13}")
+    print(f"{'samples':>10}  {'':<37} {'time s':>8} {'peak MB':>8} {'time ratio':>11} {'memory ratio':>13}")
     for n, name, w, mb, rt, rm in rows:
-        print(f"{n:>10}  {name:<30} {w:8.2f} {mb:8.0f} {rt:11.2f} {rm:13.2f}")
+        print(f"{n:>10}  {name:<37} {w:8.2f} {mb:8.0f} {rt:11.2f} {rm:13.2f}")
     print(f"(ratios to {BASELINE} on the same file in the same run; wall time and peak resident set of the "
           f"whole process, interpreter start and imports included)")
 

@@ -15,7 +15,7 @@ against the true rate, which the paper could not measure.
 
 from __future__ import annotations
 
-from collections.abc import MutableSequence, Sequence
+from collections.abc import Iterator, MutableSequence, Sequence
 from typing import Any
 
 import numpy as np
@@ -71,18 +71,28 @@ def filter_record(rate_deg_s: npt.ArrayLike, sample_rate_hz: float, method: str,
 def ar_fit_sequence(params: Any, state: MutableSequence[float], n_samples: int, first_value: float,
                     seed: int = 0) -> np.ndarray:
     """Simulate the identified improved AR(n) model (Eq. 4) for ``n_samples``."""
+    return next(ar_fit_chunks(params, state, n_samples, first_value, seed, max(n_samples, 1)),
+                np.empty(0))
+
+
+def ar_fit_chunks(params: Any, state: MutableSequence[float], n_samples: int, first_value: float,
+                  seed: int = 0, size: int = 1 << 21) -> Iterator[np.ndarray]:
+    """`ar_fit_sequence` ``size`` samples at a time (the draws and the filter's state
+    carried: the same values, bit for bit)."""
     from scipy.signal import lfilter
     phi = np.array(K.phi(params, state))
     c = K.rls_c(params, state)
     sigma = float(np.sqrt(max(state[K.S_S2], 0.0)))
     rng = np.random.default_rng(seed)
-    drive = c + sigma * rng.standard_normal(n_samples)
     a = np.concatenate(([1.0], -phi))
     # start at the model's mean (or the first sample for a unit-root model)
     denom = 1.0 - phi.sum()
     mean = c / denom if abs(denom) > 1e-9 else first_value
     zi = lfilter_zi_const(a, mean)
-    return lfilter([1.0], a, drive, zi=zi)[0]
+    for lo in range(0, n_samples, size):
+        drive = c + sigma * rng.standard_normal(min(size, n_samples - lo))
+        y, zi = lfilter([1.0], a, drive, zi=zi)
+        yield y
 
 
 def lfilter_zi_const(a: npt.ArrayLike, level: float) -> np.ndarray:
@@ -121,16 +131,36 @@ def compare(record: Record, ar_order: int = 3, seed: int = 0, skip_warmup: bool 
     st = list(states[AR_METHOD])
     # identical RLS in both runs: the AR model is the same
     series = {"raw": z, "ar_fit": ar_fit_sequence(p, st, z.shape[0], z[0], seed), **outs}
-    start = int(p[K.P_WARMUP]) if skip_warmup and z.shape[0] > 4 * p[K.P_WARMUP] else 0
+    start = warmup_skipped(p, z.shape[0], skip_warmup)
     results = {k: allan(v[start:], fs) for k, v in series.items()}
+    stds = {k: paper_std(series[k][start:]) for k in ("raw",) + METHODS}
+    out = compare_table(record.source, z.shape[0], fs, record.notes, ar_order, p, st, start, results, stds)
+    if record.true_rate_deg_s is not None:
+        tr = np.asarray(record.true_rate_deg_s)[start:]
+        out["rmse_deg_s"] = {k: rmse(series[k][start:], tr) for k in ("raw",) + METHODS}
+    out["_series"] = series
+    out["_allan"] = results
+    return out
+
+
+def warmup_skipped(p: Any, n: int, skip_warmup: bool = True) -> int:
+    """The warm-up samples Table 1 leaves out: the filters' warm-up when the record is over
+    4 times as long, else none."""
+    return int(p[K.P_WARMUP]) if skip_warmup and n > 4 * p[K.P_WARMUP] else 0
+
+
+def compare_table(source: str | None, n: int, fs: float, notes: Sequence[str], ar_order: int, p: Any,
+                  st: Sequence[float], start: int, results: dict[str, Any], stds: dict[str, float]) -> dict[str, Any]:
+    """Table 1's dict (`compare`) from the Allan results of each series, their std about the
+    mean (after ``start``) and the AR filter's final state ``st``."""
     rows = {k: {t: float(r.terms[t]) for t in TERM_SYMBOLS} for k, r in results.items()}
     bounds = {k: dict(r.bounds) for k, r in results.items()}
     ratio = {k: {t: _ratio(rows[k][t], rows["raw"][t]) for t in TERM_SYMBOLS} for k in ("ar_fit",) + METHODS}
     acc = {t: (1.0 - abs(rows["ar_fit"][t] - rows["raw"][t]) / rows["raw"][t]) if rows["raw"][t] > 0 else None
            for t in TERM_SYMBOLS}
-    out: dict[str, Any] = {
-        "source": record.source,
-        "n_samples": int(z.shape[0]),
+    return {
+        "source": source,
+        "n_samples": int(n),
         "sample_rate_hz": float(fs),
         "skipped_warmup_samples": start,
         "rows": rows,
@@ -140,18 +170,12 @@ def compare(record: Record, ar_order: int = 3, seed: int = 0, skip_warmup: bool 
         "ar_fit_accuracy": acc,
         "ar_model": {"order": ar_order, "phi": K.phi(p, st), "c_deg_s": K.rls_c(p, st),
                      "sigma_a_deg_s": float(np.sqrt(max(st[K.S_S2], 0.0)))},
-        "std_deg_s": {k: paper_std(series[k][start:]) for k in ("raw",) + METHODS},
+        "std_deg_s": dict(stds),
         "fit_misfit_factor": {k: r.fit_misfit() for k, r in results.items()},
         "fit_agreement": {k: {t: a.to_json() for t, a in r.agreement.items()} for k, r in results.items()},
         "motion_form": "causal",    # the per-sample filter (Denoiser.step, FMUs, live links)
-        "notes": list(record.notes),
+        "notes": list(notes),
     }
-    if record.true_rate_deg_s is not None:
-        tr = np.asarray(record.true_rate_deg_s)[start:]
-        out["rmse_deg_s"] = {k: rmse(series[k][start:], tr) for k in ("raw",) + METHODS}
-    out["_series"] = series
-    out["_allan"] = results
-    return out
 
 
 def _ratio(a: float, b: float) -> float | None:

@@ -29,7 +29,7 @@ def _read(args: argparse.Namespace) -> Record:
     check_export_args(args)       # refused before the file is read (and its notes printed)
     rec = read_recording(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
-                         rate_scale=args.rate_scale)
+                         rate_scale=args.rate_scale, skip_rows=args.skip_rows)
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec
@@ -47,7 +47,7 @@ def _open_stream(args: argparse.Namespace) -> Any:
         return None
     stream = open_stream(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
-                         rate_scale=scales[0] if scales else None)
+                         rate_scale=scales[0] if scales else None, skip_rows=args.skip_rows)
     if stream is not None and stream.has_true:
         stream.close()
         return None
@@ -120,28 +120,21 @@ def _denoise_one(args: argparse.Namespace, rec: Record, offline: bool) -> tuple[
 
 def _denoise_stream(args: argparse.Namespace, stream: Any, offline: bool) -> int:
     """``denoise`` of a record read a chunk at a time: the causal filter with the Denoiser's
-    whole state carried from chunk to chunk, the offline forms on the rate column alone
-    (the smoother holds its input and output); the output written a chunk of rows at a
-    time. The bytes of the whole-array run."""
-    from gyrodenoise.denoiser import Denoiser, denoise
+    whole state carried from chunk to chunk; the offline smoother on the spooled rate column,
+    its output spooled beside it (:func:`_offline_spooled`); the output written a chunk of
+    rows at a time. The bytes of the whole-array run."""
+    from gyrodenoise.denoiser import Denoiser
     from gyrodenoise.io.stream import write_rows
     fs = stream.sample_rate_hz
     _check_params(args, fs)
     den = Denoiser(fs, method=args.method, ar_order=args.ar_order, **filter_kw(args))
-    whole = None
-    if args.zero_phase or offline:
-        rate = np.concatenate([r for _, r, _, _ in stream.chunks()])
-        restarts = stream.timebase.restarts_in(0, stream.n) if stream.timebase is not None and \
-            len(stream.timebase.runs) > 1 else None
-        whole = denoise(rate, fs, method=args.method, ar_order=args.ar_order, restarts=restarts,
-                        zero_phase=args.zero_phase, offline=offline, **filter_kw(args))
-        del rate, restarts
+    whole = _offline_spooled(args, stream) if args.zero_phase or offline else None
     try:
         with open(args.output, "wb") as f:
             f.write(b"time,raw,filtered\n")
             a = 0
             for t, r, _, restarts in stream.chunks():
-                out = whole[a:a + len(r)] if whole is not None else den.process(r, restarts)
+                out = whole.read(a, a + len(r)) if whole is not None else den.process(r, restarts)
                 write_rows(f, [t, r, out])
                 a += len(r)
     except OSError as exc:
@@ -150,6 +143,31 @@ def _denoise_stream(args: argparse.Namespace, stream: Any, offline: bool) -> int
         f"{_form_text(args, offline, fs)})")
     _gate_note(args, den)
     return 0
+
+
+def _offline_spooled(args: argparse.Namespace, stream: Any) -> Any:
+    """The offline output of a streamed record, as a spool (``read(a, b)``): the smoother
+    (`batch.run_offline`) reads the spooled rate and writes its output a block at a time;
+    the other offline forms (``--zero-phase``, the rigid-body and bias options) run on the
+    rate column gathered whole, as ``denoise`` does."""
+    from pathlib import Path
+
+    from gyrodenoise.core import batch
+    from gyrodenoise.core import kernels as K
+    from gyrodenoise.denoiser import denoise
+    from gyrodenoise.io.chunked import Spool, SpoolSlice
+    fs = stream.sample_rate_hz
+    restarts = stream.timebase.restarts_in(0, stream.n) if stream.timebase is not None and \
+        len(stream.timebase.runs) > 1 else None
+    p = K.make_params(ar_order=args.ar_order, method=args.method, sample_rate_hz=fs, **filter_kw(args))
+    out = Spool(Path(stream.folder) / "offline", np.dtype(np.float64))
+    if not args.zero_phase and p[K.P_LP_NSEC] == 0.0 and p[K.P_BIAS] == 0.0:
+        batch.run_offline(p, SpoolSlice(stream.rate), restarts, out=SpoolSlice(out, 0, stream.n))
+        return out
+    rate = np.concatenate([r for _, r, _, _ in stream.chunks()])
+    out.append(denoise(rate, fs, method=args.method, ar_order=args.ar_order, restarts=restarts,
+                       zero_phase=args.zero_phase, offline=not args.zero_phase, **filter_kw(args)))
+    return out
 
 
 def _gate_note(args: argparse.Namespace, den: Any, column: str | None = None) -> None:
@@ -323,8 +341,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
     columns = [c.strip() for c in str(args.rate_column).split(",") if c.strip()]
     if len(columns) > 1:
         return _compare_axes(args, columns)
-    rec = _read(args)
-    res = _compare_one(args, rec)
+    stream = _open_stream(args)
+    if stream is not None:
+        with stream:
+            res = _compare_stream(args, stream)
+    else:
+        res = _compare_one(args, _read(args))
     if args.json:
         emit_json(public(res))
     else:
@@ -336,16 +358,38 @@ def _compare_one(args: argparse.Namespace, rec: Record) -> dict[str, Any]:
     """Table 1 of one record (its warnings added)."""
     from gyrodenoise.analysis.experiments import compare
     _check_params(args, rec.sample_rate_hz)
-    if len(rec) < 100:
-        raise InputError(f"only {len(rec)} samples; compare needs at least 100", args.input)
+    _check_compare_length(args, len(rec))
     res = compare(rec, ar_order=args.ar_order, **filter_kw(args))
-    moving = true_rate_motion(rec)
+    _add_compare_warnings(res, true_rate_motion(rec))
+    return res
+
+
+def _compare_stream(args: argparse.Namespace, stream: Any) -> dict[str, Any]:
+    """Table 1 of a record read a chunk at a time (`compare_chunks`: the filters' states
+    carried, their outputs spooled in the stream's folder): the whole-array table, the std
+    to rounding."""
+    from gyrodenoise.analysis.compare_chunks import compare_chunks
+    fs = stream.sample_rate_hz
+    _check_params(args, fs)
+    _check_compare_length(args, len(stream))
+    res = compare_chunks(lambda: ((r, restarts) for _, r, _, restarts in stream.chunks()), len(stream), fs,
+                         stream.folder, source=stream.source, notes=stream.notes, ar_order=args.ar_order,
+                         **filter_kw(args))
+    _add_compare_warnings(res, None)
+    return res
+
+
+def _check_compare_length(args: argparse.Namespace, n: int) -> None:
+    if n < 100:
+        raise InputError(f"only {n} samples; compare needs at least 100", args.input)
+
+
+def _add_compare_warnings(res: dict[str, Any], moving: dict[str, float] | None) -> None:
     if moving:
         res["true_rate_motion_deg_s"] = moving
         add_warnings(res, [moving_warning(moving)])
     else:     # a moving record's raw curve is the motion's (its warning says so); `allan` analyses another
         add_warnings(res, raw_misfit_warnings(res))
-    return res
 
 
 def _compare_axes(args: argparse.Namespace, columns: list[str]) -> int:
@@ -353,7 +397,8 @@ def _compare_axes(args: argparse.Namespace, columns: list[str]) -> int:
     ``axes`` maps each column to the object one column gives (as ``allan`` over several axes)."""
     from gyrodenoise.io.recording import read_axes
     recording = read_axes(args.input, columns, time_column=args.time_column, rate_unit=args.rate_unit,
-                          sample_rate_hz=args.sample_rate, time_unit=args.time_unit, rate_scale=args.rate_scale)
+                          sample_rate_hz=args.sample_rate, time_unit=args.time_unit, rate_scale=args.rate_scale,
+                          skip_rows=args.skip_rows)
     for note in recording.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     done = {ax.column: _compare_one(args, recording.record(ax)) for ax in recording.axes}

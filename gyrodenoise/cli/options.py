@@ -1,7 +1,7 @@
 """Options several commands share, each defined once, with the core's defaults.
 
 * the recording options (``IN``, ``--rate-column``, ``--time-column``, ``--rate-unit``,
-  ``--rate-scale``, ``--sample-rate``) of ``denoise``, ``allan``, ``compare`` and ``gap``;
+  ``--rate-scale``, ``--skip-rows``, ``--sample-rate``) of ``denoise``, ``allan``, ``compare`` and ``gap``;
 * the filter options (``--method`` ... ``--outlier-run``) of ``denoise``, ``compare``,
   ``demo`` and ``mavlink``: their spelling, type, help, range, default and the method
   each applies to are read from the registry (:mod:`gyrodenoise.core.methods`), never
@@ -98,6 +98,10 @@ def add_recording_options(parser: argparse.ArgumentParser, *, input_help: str | 
                         help="multiply each rate by this first (raw counts: the unit per count, e.g. 0.00763 "
                              "for deg/s per LSB; the product is in --rate-unit); one factor for every rate column "
                              "or one per column; said in a note and in --json")
+    parser.add_argument("--skip-rows", type=integer, default=0, metavar="N",
+                        help="skip the first N lines before looking for the header row (free text the automatic "
+                             "preamble detection refuses, e.g. before a header row that holds a number); "
+                             "said in a note")
     parser.add_argument("--sample-rate", type=float, default=None, metavar="HZ",
                         help="sample rate: the rate when there is no time column; with one, used when within "
                              "2%% of the column's own (samples over span), an error further off")

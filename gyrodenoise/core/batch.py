@@ -402,7 +402,7 @@ def _blend(p, seg, compiled, pb=None):
     return y
 
 
-def run_offline(p, z, restarts=None, *, compiled=True):
+def run_offline(p, z, restarts=None, *, compiled=True, out=None):
     """Whole-record (non-causal) filtering with ``method="motion"``: no lag.
 
     Each run of samples between restarts is smoothed on its own by
@@ -415,29 +415,38 @@ def run_offline(p, z, restarts=None, *, compiled=True):
     docs/method/motion.md. The output stays inside [min, max] of the raw
     samples of its run.
 
-    Returns the filtered rate (deg/s), an ndarray like ``z``.
+    ``z`` may also be a record spilled to disk: an object with ``len()``, slices read as
+    arrays and ``window(a, b)`` (its samples a..b-1 as such an object), e.g.
+    :class:`gyrodenoise.io.chunked.SpoolSlice`; ``out`` (given then) the same, written by
+    slice assignment: the smoother then holds a block of samples at a time (the rigid-body
+    option reads each run whole).
+
+    Returns the filtered rate (deg/s), an ndarray like ``z`` (``out`` when given).
     """
     if p[K.P_METHOD] != K.METHOD_MOTION:
         raise ValueError("offline filtering is defined for method='motion' only")
-    za = np.ascontiguousarray(z, dtype=np.float64)
-    n = za.shape[0]
+    spilled = hasattr(z, "window")
+    za = z if spilled else np.ascontiguousarray(z, dtype=np.float64)
+    n = len(za)
     starts = [0]
     if restarts is not None:
         ra = np.asarray(restarts, dtype=bool)
-        if ra.shape != za.shape:
+        if ra.shape != (n,):
             raise ValueError("restarts must have the same length as the samples")
         starts += [int(i) for i in np.flatnonzero(ra) if i > 0]
     bounds = starts + [n]
-    out = np.empty_like(za)
+    if out is None:
+        out = np.empty(n)
     p = list(p)
     p[K.P_MO_VAR] = 1.0          # keep the output variance (not computed by the causal filter)
     rigid = p[K.P_LP_NSEC] > 0.0
     o_ext = K.ext_offset(p)
     for a, b in zip(bounds[:-1], bounds[1:]):
-        seg = za[a:b]
+        seg = za.window(a, b) if spilled else za[a:b]
+        part = out.window(a, b) if hasattr(out, "window") else out[a:b]
         if rigid:
-            seg, pb = _rigid_offline(p, seg, o_ext, compiled)
-            out[a:b] = _blend(p, seg, compiled, pb)
+            seg, pb = _rigid_offline(p, np.ascontiguousarray(seg[0:b - a], dtype=np.float64), o_ext, compiled)
+            part[0:b - a] = _blend(p, seg, compiled, pb)
         else:
-            smooth_motion(p, seg, compiled=compiled, out=out[a:b])
+            smooth_motion(p, seg, compiled=compiled, out=part)
     return out

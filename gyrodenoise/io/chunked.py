@@ -33,10 +33,10 @@ import numpy as np
 
 from gyrodenoise.errors import InputError
 from gyrodenoise.io import recording as R
-from gyrodenoise.io.stream import CHUNK, EXACT_INT
+from gyrodenoise.io.stream import CHUNK, EXACT_INT, csv_tables
 from gyrodenoise.io.timebase import TimeColumn, analyse_column
 
-#: bytes of text per batch of the CSV engine (its buffers: a fixed ~60 MB, whatever the length)
+#: bytes of text parsed at a time by the CSV engine (`csv_tables`: one block's buffers, whatever the length)
 STREAM_BLOCK = 1 << 22
 #: the spike test's sigma from every difference up to 2 x this many, beyond an evenly spread sample
 MEDIAN_SAMPLE = 1_000_000
@@ -58,6 +58,51 @@ class Spool:
         with open(self.path, "rb") as f:
             f.seek(a * self.dtype.itemsize)
             return np.fromfile(f, dtype=self.dtype, count=b - a)
+
+    def write(self, at: int, v: np.ndarray) -> None:
+        """Values ``v`` written at sample ``at`` (the file grown to hold them)."""
+        with open(self.path, "r+b" if self.path.exists() else "w+b") as f:
+            f.seek(at * self.dtype.itemsize)
+            np.ascontiguousarray(v, dtype=self.dtype).tofile(f)
+        self.n = max(self.n, at + len(v))
+
+
+@dataclass
+class SpoolSlice:
+    """Samples ``a``..``b``-1 of a :class:`Spool` as the offline smoother reads and writes a
+    record spilled to disk (:func:`gyrodenoise.core.batch.run_offline`): ``len()``, slices
+    read as arrays, slice (or index) assignment written to the file, ``window(lo, hi)``."""
+    spool: Spool
+    a: int = 0
+    b: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.b is None:
+            self.b = self.spool.n
+
+    def __len__(self) -> int:
+        return int(self.b) - self.a
+
+    def _span(self, key: slice) -> tuple[int, int]:
+        lo, hi, step = key.indices(len(self))
+        if step != 1:
+            raise ValueError("a spooled record slices with step 1")
+        return self.a + lo, self.a + max(lo, hi)
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        return self.spool.read(*self._span(key))
+
+    def __setitem__(self, key, v) -> None:
+        if isinstance(key, slice):
+            lo, hi = self._span(key)
+            self.spool.write(lo, np.broadcast_to(np.asarray(v, dtype=self.spool.dtype), (hi - lo,)))
+            return
+        idx = np.asarray(key).ravel()
+        for i, x in zip(idx.tolist(), np.broadcast_to(np.asarray(v, dtype=self.spool.dtype), idx.shape).tolist()):
+            self.spool.write(self.a + int(i), np.array([x]))
+
+    def window(self, lo: int, hi: int) -> SpoolSlice:
+        return SpoolSlice(self.spool, self.a + lo, self.a + hi)
 
 
 @dataclass
@@ -118,21 +163,22 @@ def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_co
                 rate_unit: str | None = None, sample_rate_hz: float | None = None,
                 true_column: str = "true_rate", spike_advice: str = R.SPIKE_ADVICE,
                 time_unit: str | None = None, chunk: int | None = None,
-                spill_dir: str | None = None, rate_scale: float | None = None) -> RecordStream | None:
+                spill_dir: str | None = None, rate_scale: float | None = None,
+                skip_rows: int = 0) -> RecordStream | None:
     """The :class:`RecordStream` of one rate column (parameters as
     :func:`gyrodenoise.io.recording.read_recording`), or None where the whole-array reader
     must read the file (module docstring). ``chunk``: samples per chunk of the passes;
-    ``rate_scale``: the rates' factor (``--rate-scale``, one column)."""
+    ``rate_scale``: the rates' factor (``--rate-scale``, one column); ``skip_rows``: lines
+    skipped before the header row (``--skip-rows``, :func:`gyrodenoise.io.recording.text_layout`)."""
     try:
         import pyarrow as pa
-        import pyarrow.csv as pcsv
     except ImportError:
         return None
     src = str(path)
     if R.is_container(path):
         return None
     R._check_arguments(rate_unit, None, sample_rate_hz, src)
-    lay = R.text_layout(path, rate_column, time_column, src)
+    lay = R.text_layout(path, rate_column, time_column, src, skip_rows)
     text, sep, header, file_units, skip, lower = lay.text, lay.sep, lay.header, lay.file_units, lay.skip, lay.lower
     if sep not in (",", ";", "\t"):
         return None
@@ -170,14 +216,10 @@ def open_stream(path: str | os.PathLike[str], rate_column: str = "rate", time_co
         big_all, big_any = True, False
         types = {col_of[c]: pa.float64() for c in wanted if c != time_column}
         stats = _RateStats()
+        reader = csv_tables(text, skip, names, sep, sorted(set(col_of.values())), types, STREAM_BLOCK)
+        if reader is None:
+            return None
         try:
-            stream = pa.input_stream(str(text.path), compression="gzip" if text.gzipped else None)
-            reader = pcsv.open_csv(
-                stream, read_options=pcsv.ReadOptions(skip_rows=skip, column_names=names, block_size=STREAM_BLOCK),
-                parse_options=pcsv.ParseOptions(delimiter=sep),
-                convert_options=pcsv.ConvertOptions(include_columns=sorted(set(col_of.values())), column_types=types,
-                                                    null_values=[], strings_can_be_null=False,
-                                                    quoted_strings_can_be_null=False))
             for batch in reader:
                 cols = {}
                 for c in wanted:
@@ -306,7 +348,7 @@ def _signal_notes(rate: Spool, stats: _RateStats, where, spike_advice: str, unit
         sample, seen = [], 0
         for a in range(0, n - 1, size):
             d = np.diff(rate.read(a, min(a + size, n - 1) + 1))
-            sample.append(d[(-seen) % s::s])
+            sample.append(d[(-seen) % s::s].copy())      # a copy: a view would hold the whole chunk
             seen += d.size
         d = np.concatenate(sample)
         sigma = 1.4826 * float(np.median(np.abs(d - np.median(d))))

@@ -143,7 +143,8 @@ class Recording:
 def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time_column: str | None = None,
                    rate_unit: str | None = None, sample_rate_hz: float | None = None,
                    true_column: str = "true_rate", spike_advice: str = SPIKE_ADVICE,
-                   time_unit: str | None = None, rate_scale: Sequence[float] | float | None = None) -> Record:
+                   time_unit: str | None = None, rate_scale: Sequence[float] | float | None = None,
+                   skip_rows: int = 0) -> Record:
     """Read one rate column of a recording into a `Record` (rates in deg/s).
 
     Parameters
@@ -172,10 +173,13 @@ def read_recording(path: str | os.PathLike[str], rate_column: str = "rate", time
     rate_scale : float or sequence of float, optional
         Multiply each rate by this first (raw counts: the unit per count, e.g. deg/s per
         LSB); the product is in ``rate_unit``. Said in a note.
+    skip_rows : int
+        Lines skipped before the header row is looked for (``--skip-rows``: a preamble
+        the automatic detection refuses); said in a note.
     """
     rec = read_axes(path, [rate_column], time_column=time_column, rate_unit=rate_unit,
                     sample_rate_hz=sample_rate_hz, true_column=true_column, spike_advice=spike_advice,
-                    time_unit=time_unit, rate_scale=rate_scale)
+                    time_unit=time_unit, rate_scale=rate_scale, skip_rows=skip_rows)
     return rec.record(rec.axes[0])
 
 
@@ -186,7 +190,7 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
               time_unit: str | None = None, topic: str | None = None, variable: str | None = None,
               bag_reader: Callable[..., Any] | None = None,
               rate_scale: Sequence[float] | float | None = None,
-              accel_scale: Sequence[float] | float | None = None) -> Recording:
+              accel_scale: Sequence[float] | float | None = None, skip_rows: int = 0) -> Recording:
     """Read the gyro (and accelerometer) columns of a recording CSV on one time base.
 
     ``rate_columns`` None: ``rate`` when the file has it, else the first group of gyro
@@ -199,7 +203,8 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
     are read by :mod:`gyrodenoise.io.containers` into the same columns. ``rate_scale``: one
     factor for every gyro column or one per column (:func:`read_recording`); ``accel_scale``
     the same for the accelerometer columns (raw counts: the unit per count, the product in
-    ``accel_unit``).
+    ``accel_unit``). ``skip_rows``: lines skipped before the header row is looked for
+    (:func:`text_layout`).
 
     A text file may hold free-text lines before its header row (a preamble: `PREAMBLE_MAX`
     lines at most; the header row holds no number): they are skipped and said in a note. A unit after a column's name (``gyro_x (deg/s)``, ``time [s]``) is read
@@ -217,7 +222,7 @@ def read_axes(path: str | os.PathLike[str], rate_columns: Sequence[str] | None =
         header, notes = list(table.columns), list(table.notes)
         where: Callable[[int], str] = lambda i: f"{table.row_name} {i + 1:,}"   # noqa: E731
     else:
-        lay = text_layout(path, first, time_column, src)
+        lay = text_layout(path, first, time_column, src, skip_rows)
         text, sep, header, rows, file_units, units_from, skip = (lay.text, lay.sep, lay.header, lay.rows,
                                                                  lay.file_units, lay.units_from, lay.skip)
         notes = list(lay.notes)
@@ -314,18 +319,32 @@ class TextLayout:
 
 
 def text_layout(path: str | os.PathLike[str], first_column: str, time_column: str | None,
-                src: str) -> TextLayout:
+                src: str, skip_rows: int = 0) -> TextLayout:
     """The :class:`TextLayout` of a text recording (the whole-array reader's and the chunked
-    reader's, :mod:`gyrodenoise.io.chunked`); InputError for an empty file or no header."""
+    reader's, :mod:`gyrodenoise.io.chunked`). ``skip_rows``: lines skipped before the header
+    row is looked for (``--skip-rows``: a preamble the automatic detection refuses, such as
+    free text before a header row that holds a number), said in a note. InputError for an
+    empty file, no header, nothing after the skipped lines, or a header row without the
+    column while a later line names it (a preamble: the line says which ``--skip-rows``)."""
     text = TextFile(path)
     if not text.first_line():
         raise InputError("empty file", src)
-    header_text, preamble = _after_preamble("".join(itertools.islice(text.lines(), PREAMBLE_MAX + 4)))
+    if skip_rows < 0:
+        raise InputError(f"--skip-rows {skip_rows}: give a number of lines, 0 or more", src)
+    head = list(itertools.islice(text.lines(), skip_rows + PREAMBLE_MAX + 4))
+    skipped, head = head[:skip_rows], head[skip_rows:]
+    if not "".join(head).strip():
+        raise InputError(f"--skip-rows {skip_rows}: no header row after the first {skip_rows} line(s) "
+                         f"(the file holds {len(skipped)} line(s) with nothing after them)", src)
+    header_text, preamble = _after_preamble("".join(head))
     sep = _separator(header_text)
     before = len(header_text) - len(header_text.lstrip("\n"))     # the preamble's lines, blanked
-    rows = _rows(text, sep, src, before if preamble else 0)
+    rows = _rows(text, sep, src, skip_rows + (before if preamble else 0))
     header_line, header = _read_header(rows, first_column, time_column or "time", src)
+    _check_not_preamble(header, header_line, head, skip_rows, first_column, time_column, src)
     notes = [] if sep == "," else [f"fields separated by {SEPARATOR_NAMES[sep]}"]
+    if skip_rows:
+        notes.append(skipped_note(skipped, skip_rows))
     if preamble:
         notes.append(preamble_note(preamble))
     rows, file_units = _units_row(rows, header)
@@ -333,6 +352,43 @@ def text_layout(path: str | os.PathLike[str], first_column: str, time_column: st
     file_units = file_units or _header_units(header)
     skip = header_line + (1 if units_from == "its units row" else 0)
     return TextLayout(text, sep, header, _names(header), file_units, units_from, skip, notes, rows)
+
+
+def skipped_note(skipped: Sequence[str], skip_rows: int) -> str:
+    """The note of the lines ``--skip-rows`` skipped."""
+    shown = [ln.strip() for ln in skipped if ln.strip()]
+    text = "; ".join(shown[:6]) + (f"; ... ({len(shown)} with text)" if len(shown) > 6 else "")
+    return f"{skip_rows} line(s) skipped before the header row (--skip-rows {skip_rows})" + (f": {text}" if text
+                                                                                             else "")
+
+
+def _known_names(first_column: str, time_column: str | None) -> set[str]:
+    """The lower-case column names a header row of a recording may hold: the column asked
+    for, the time columns and the gyro columns the reader detects."""
+    return {first_column.lower(), (time_column or "time").lower(), *TIME_COLUMNS,
+            *(n for g in GYRO.groups for n in g.names)}
+
+
+def _check_not_preamble(header: list[str], header_line: int, head: Sequence[str], skip_rows: int,
+                        first_column: str, time_column: str | None, src: str) -> None:
+    """InputError naming ``--skip-rows`` when the header row read holds none of the names a
+    recording's header holds while a later line among ``head`` (the lines after the skipped
+    ones) does: free text before the header row that the preamble detection refused (a
+    header row with a number in it)."""
+    known = _known_names(first_column, time_column)
+    if known & set(_names(header)):
+        return
+    for i, line in enumerate(head):
+        lineno = skip_rows + i + 1
+        if lineno <= header_line or not line.strip():
+            continue
+        cells = _fields(line, _separator(line))
+        if _is_data(cells, _separator(line)):
+            return                      # the data rows begin: no header row after the one read
+        if known & set(_names(cells)):
+            raise InputError(f"line {header_line}: no column '{first_column}' (columns: {', '.join(header[:8])}); "
+                             f"line {lineno} names columns ({', '.join(cells[:8])}): free text before the header "
+                             f"row? give --skip-rows {lineno - 1}", src)
 
 
 def column_unit(kind: SensorKind, cols: Sequence[str], stated: str | None, file_units: dict[str, str],
@@ -372,9 +428,9 @@ def is_container(path: str | os.PathLike[str] | None) -> bool:
     return p.suffix.lower() in CONTAINER_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").is_file())
 
 
-def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
-    """The header row's fields of a text recording (gzip too; after a preamble), or None when
-    it cannot be read (the reader then says why)."""
+def peek_header(path: str | os.PathLike[str] | None, skip_rows: int = 0) -> list[str] | None:
+    """The header row's fields of a text recording (gzip too; after ``skip_rows`` lines and a
+    preamble), or None when it cannot be read (the reader then says why)."""
     if path is None:
         return None
     try:
@@ -383,7 +439,7 @@ def peek_header(path: str | os.PathLike[str] | None) -> list[str] | None:
             head = f.read(2)
         opener = gzip.open if head == b"\x1f\x8b" else open
         with opener(path, "rt", encoding="utf-8-sig", errors="replace") as f:
-            text = "".join(itertools.islice(f, PREAMBLE_MAX + 4))
+            text = "".join(itertools.islice(f, max(skip_rows, 0), max(skip_rows, 0) + PREAMBLE_MAX + 4))
     except (OSError, EOFError, gzip.BadGzipFile, InputError):
         return None
     first = next((ln for ln in io.StringIO(_after_preamble(text)[0]) if ln.strip()), None)

@@ -211,6 +211,53 @@ def _as_the_loop_reads(cols: dict[str, np.ndarray], exact_int: str | None) -> di
     return cols
 
 
+def csv_tables(text: TextFile, skip_lines: int, names: list[str], sep: str, include: list[str],
+               types: Mapping[str, object], block: int) -> Iterator[object] | None:
+    """The rows after the first ``skip_lines`` lines as pyarrow tables (the columns
+    ``include`` of ``names``; ``types``: column -> pyarrow type, the others inferred from the
+    first block and then held), parsed a block of about ``block`` bytes of whole lines at a
+    time: the memory of one block whatever the file's length (pyarrow's streaming reader
+    reads ahead of its consumer, its buffers growing with the file). None where the skipped
+    lines are not the reader's (a line ending other than a newline among them). Parsing
+    errors: pyarrow's (ArrowInvalid ...), raised while iterating."""
+    import itertools
+
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+    head = "".join(itertools.islice(text.lines(), skip_lines))
+    if head.count("\n") != skip_lines or "\r" in head.replace("\r\n", "\n"):
+        return None
+    with text._binary() as f:
+        offset = len(head.encode("utf-8")) + (3 if f.read(3) == codecs.BOM_UTF8 else 0)
+    return _tables(text, offset, names, sep, include, dict(types), block, pa, pcsv)
+
+
+def _tables(text: TextFile, offset: int, names: list[str], sep: str, include: list[str], types: dict,
+            block: int, pa, pcsv) -> Iterator[object]:
+    ro = pcsv.ReadOptions(column_names=names, use_threads=False, block_size=max(block, 1 << 16))
+    po = pcsv.ParseOptions(delimiter=sep)
+    with text._binary() as f:
+        if text.gzipped:
+            f.read(offset)
+        else:
+            f.seek(offset)
+        carry = b""
+        while True:
+            data = f.read(block)
+            buf = carry + data
+            cut = buf.rfind(b"\n") + 1 if data else len(buf)
+            part, carry = buf[:cut], buf[cut:]
+            if part.strip():
+                co = pcsv.ConvertOptions(include_columns=include, column_types=types, null_values=[],
+                                         strings_can_be_null=False, quoted_strings_can_be_null=False)
+                table = pcsv.read_csv(pa.py_buffer(part), read_options=ro, parse_options=po, convert_options=co)
+                for col in include:           # the first block's types held, as the streaming reader does
+                    types.setdefault(col, table.schema.field(col).type)
+                yield table
+            if not data:
+                return
+
+
 #: samples per chunk of the filters and the CSV writer (16 MB of float64 a column)
 CHUNK = 1 << 21
 

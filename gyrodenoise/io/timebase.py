@@ -455,7 +455,7 @@ def _first_period(col, fsize):
     seen = done = 0
     for _, dt in col.steps():
         f = dt[dt >= 0]
-        some.append(f[(-seen) % s::s])
+        some.append(f[(-seen) % s::s].copy())      # a copy: a view would hold the whole chunk
         seen += f.size
         cat = np.concatenate([rest, f]) if rest.size else f
         take = min(cat.size // k, nb - done) * k
@@ -828,7 +828,7 @@ def _kind(col, nback, gaps, period, pattern):
         r -= 1.0
         np.abs(r, out=r)
         off += int(np.count_nonzero(r > UNIFORM_TOLERANCE))
-        sub.append(r[(-seen) % s::s])
+        sub.append(r[(-seen) % s::s].copy())      # a copy: a view would hold the whole chunk
         seen += r.size
     sub = np.concatenate(sub)
     k95 = min(sub.size - 1, int(0.95 * sub.size))

@@ -123,3 +123,26 @@ def test_memory_grows_by_the_output_only():
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
     assert peaks[1] - peaks[0] < 150_000 * 16
+
+
+@pytest.mark.parametrize("nonfinite", [False, True])
+def test_run_offline_on_a_spooled_record_into_a_spooled_output(monkeypatch, tmp_path, nonfinite):
+    """run_offline reading its record from a spool file and writing its output to another
+    (io.chunked.SpoolSlice: what ``denoise`` on a streamed record does), restarts on and
+    beside the blocks of 7: the bits of the in-memory run (the non-finite stand-in's index
+    writes too)."""
+    from gyrodenoise.io.chunked import Spool, SpoolSlice
+    n = 300
+    z = _record(n, 12)
+    if nonfinite:
+        z[[3, 50]] = np.nan
+        z[100:103] = [1e308, -1e308, 1e308]
+    rs = np.zeros(n, dtype=bool)
+    rs[[14, 15, 200]] = True
+    p = K.make_params(3, "motion", sample_rate_hz=FS, warmup_s=0.2)
+    monkeypatch.setattr(batch, "SMOOTH_BLOCK", 7)
+    ref = batch.run_offline(p, z, rs)
+    src, dst = Spool(tmp_path / "in", np.dtype(np.float64)), Spool(tmp_path / "out", np.dtype(np.float64))
+    src.append(z)
+    batch.run_offline(p, SpoolSlice(src), rs, out=SpoolSlice(dst, 0, n))
+    assert dst.n == n and dst.read(0, n).tobytes() == ref.tobytes()

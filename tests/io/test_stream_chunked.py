@@ -116,3 +116,35 @@ def test_stream_declines_what_only_the_loop_reads(tmp_path) -> None:
     assert open_stream(p) is None
     p.write_text("time,rate\n0,1\n1,x\n2,3\n")
     assert open_stream(p) is None
+
+
+@pytest.mark.parametrize("form", ["plain", "gzip", "crlf_bom", "units_row", "ints_then_floats"])
+def test_text_parsed_in_tiny_blocks_is_the_whole_record(tmp_path, monkeypatch, form) -> None:
+    """The first pass parses blocks of whole lines (`stream.csv_tables`): with blocks of 50
+    bytes (a few lines each) the record, notes and time model of the whole-array reader; a
+    time column of integers, then floats, declined (the whole-array reader reads it)."""
+    import gzip
+
+    import gyrodenoise.io.chunked as ch
+    monkeypatch.setattr(ch, "STREAM_BLOCK", 50)
+    rng = np.random.default_rng(8)
+    n = 900
+    t = [str(i) for i in range(n)] if form == "ints_then_floats" else [repr(i / 100) for i in range(n)]
+    if form == "ints_then_floats":
+        t[600:] = [f"{i}.5" for i in range(600, n)]      # integers in the first blocks, then floats
+    r = rng.normal(0, 0.1, n)
+    nl = "\r\n" if form == "crlf_bom" else "\n"
+    text = ("\ufeff" if form == "crlf_bom" else "") + "time,rate" + nl + ("s,deg/s" + nl if form == "units_row" else "")
+    text += "".join(f"{a},{b!r}{nl}" for a, b in zip(t, r.tolist()))
+    p = tmp_path / ("r.csv.gz" if form == "gzip" else "r.csv")
+    data = text.encode()
+    p.write_bytes(gzip.compress(data) if form == "gzip" else data)
+    rec = read_recording(p)
+    if form == "ints_then_floats":       # the first block's type held (as pyarrow's streaming reader): declined
+        assert open_stream(p, chunk=7) is None
+        return
+    with open_stream(p, chunk=7) as s:
+        assert s.notes == rec.notes
+        parts = list(s.chunks(7))
+    np.testing.assert_array_equal(np.concatenate([c[0] for c in parts]), rec.time_s)
+    np.testing.assert_array_equal(np.concatenate([c[1] for c in parts]), rec.rate_deg_s)
