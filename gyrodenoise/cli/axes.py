@@ -32,7 +32,7 @@ def wants_axes(args: argparse.Namespace) -> bool:
         return True
     if cols:
         return False
-    header = peek_header(args.input)
+    header = peek_header(args.input, getattr(args, "skip_rows", 0))
     return header is not None and "rate" not in header
 
 
@@ -46,7 +46,7 @@ def read_axes_args(args: argparse.Namespace) -> Recording:
                     time_column=args.time_column, rate_unit=args.rate_unit, accel_unit=args.accel_unit,
                     sample_rate_hz=args.sample_rate, time_unit=args.time_unit, topic=getattr(args, "topic", None),
                     variable=getattr(args, "variable", None), bag_reader=read_imu, rate_scale=args.rate_scale,
-                    accel_scale=getattr(args, "accel_scale", None))
+                    accel_scale=getattr(args, "accel_scale", None), skip_rows=getattr(args, "skip_rows", 0))
     for note in rec.notes:
         log(f"gyrodenoise: note: {args.input}: {note}")
     return rec

@@ -128,7 +128,8 @@ def _read_input(args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray
     from gyrodenoise.io.recording import read_recording
     rec = read_recording(args.input, rate_column=args.rate_column, time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
-                         rate_scale=args.rate_scale, spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
+                         rate_scale=args.rate_scale, skip_rows=args.skip_rows,
+                         spike_advice="gap --outliers replaces isolated samples more than 10 robust sigmas "
                                       "off the running median (another test: its count may differ)")
     from gyrodenoise.modelgap import check_record
     check_record(rec.rate_deg_s, args.input)

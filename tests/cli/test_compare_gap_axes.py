@@ -65,3 +65,24 @@ def test_gap_refuses_several_axes_in_one_line(tmp_path, capsys):
     assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert "--rate-column gx,gy: gap fits a model card to one sensor axis" in err
     assert not (tmp_path / "new.toml").exists()
+
+
+def test_gap_and_the_several_axes_form_take_skip_rows(tmp_path, capsys):
+    """--skip-rows reaches gap's reader and the several-axes reader: a header row holding a number
+    (a column named 1000) after two lines of free text is no header to the automatic preamble
+    rule, so without the option gap names --skip-rows; with it the header is found and gap gets
+    as far as the record's length."""
+    p = tmp_path / "pre.csv"
+    t = np.arange(2000) / 100.0
+    g = np.random.default_rng(3).normal(0.0, 0.1, (2000, 3))
+    rows = "\n".join(f"{a:.2f},{x:.6f},{y:.6f},{z:.6f},0" for a, (x, y, z) in zip(t, g))
+    p.write_text("logged by bench 7\nrun 12 of 1000 samples\ntime,gx,gy,gz,1000\n" + rows + "\n")
+    gap = ["gap", str(p), "--model", "paper_fog", "--out", str(tmp_path / "n.toml"), "--no-plot",
+           "--rate-column", "gx"]
+    assert main(gap) == 2
+    assert "--skip-rows" in capsys.readouterr().err
+    assert main([*gap, "--skip-rows", "2"]) == 2
+    assert "only 2000 samples" in capsys.readouterr().err
+    assert main(["allan", str(p), "--rate-column", "gx,gy,gz", "--skip-rows", "2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["axes"]) == {"gx", "gy", "gz"}
