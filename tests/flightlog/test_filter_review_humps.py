@@ -191,3 +191,28 @@ def test_betaflight_rules_for_a_motor_band():
     assert _diff(no_rpm, rec) == {"dyn_notch_max_hz": 418}
     # a line (no band): the rule as before
     assert _diff(no_rpm, bf.recommend(no_rpm, noise_peak_hz=47.0)) == {"dyn_notch_min_hz": 42}
+
+
+def test_log00037_the_motor_band_is_the_dominant_candidate():
+    """The shared Betaflight LOG00037.BFL (debug GYRO_SCALED, 1 kHz, RPM filter on from
+    100 Hz): the motor band (110-147 Hz, 16-21 dB over the floor) is what the review weighs,
+    not the 0.24 deg/s line at 47 Hz that set dyn_notch_min_hz 42 before; nothing absurd
+    is recommended (no notch range below 20 Hz, none above Nyquist)."""
+    from gyrodenoise.flightlog import formats, parameters
+
+    from tests.helpers import shared_log
+
+    log = formats.read_log(shared_log("betaflight/LOG00037.BFL"))
+    ap, params = parameters.log_parameters(log)
+    filters = vf.vehicle_filters(ap, params)
+    review, note, _ = fr.filter_review(log.gyro, ap, params, filters,
+                                       context=fr.review_context(log, ap, params, filters))
+    assert note == ""
+    ok = [h for h in review["humps"] if h["notch_ok"]]
+    assert {h["axis"] for h in ok} == {"x", "y", "z"}
+    assert all(100.0 < h["lo_hz"] < h["freq_hz"] < h["hi_hz"] < 150.0 for h in ok), ok
+    line = max(review["peaks"], key=lambda p: p["amplitude_rms_deg_s"])
+    assert max(h["amplitude_rms_deg_s"] for h in ok) > 4 * line["amplitude_rms_deg_s"]
+    assert "dyn_notch_min_hz" not in review["changes"]
+    nyquist = review["source"]["sample_rate_hz"] / 2
+    assert all(20.0 <= float(v) <= nyquist for k, v in review["changes"].items() if k.endswith("_hz"))
