@@ -17,10 +17,13 @@ and gives for each:
 
 What it recommends, and why:
 
-* a harmonic notch on the dominant vibration peak at or above
-  :data:`PEAK_MIN_HZ` (:func:`gyrodenoise.analysis.spectrum.find_peaks`, the
-  strongest over the three axes; a peak that is the n-th harmonic of a lower peak
-  moves the notch to that fundamental), with the bandwidth half its centre and
+* a harmonic notch on the dominant vibration at or above :data:`PEAK_MIN_HZ`:
+  the narrow peaks (:func:`gyrodenoise.analysis.spectrum.find_peaks`) and the broad
+  humps (:func:`gyrodenoise.flightlog.spectra.find_humps`: a motor band, which the
+  peak finder never marks) of the three axes, the one with the most power above its
+  floor (:func:`_peaks`; one that is the n-th harmonic of a lower one moves the notch
+  to that fundamental), with the bandwidth half its centre (widened to a hump's band,
+  :func:`notch_bandwidth_hz`) and
   40 dB attenuation -- the ArduPilot wiki's guidance ("Managing Gyro Noise with
   the Static Notch and Dynamic Harmonic Notch Filters", and its "Throttle Based
   Dynamic Notch Setup": ``INS_HNTCH_FREQ`` the hover frequency, ``INS_HNTCH_BW``
