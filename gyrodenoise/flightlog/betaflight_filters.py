@@ -353,18 +353,28 @@ class Recommendation:
 
 
 def recommend(settings: FilterSettings, noise_peak_hz: float | None = None,
-              motor_hz_range: tuple[float, float] | None = None, rpm_available: bool = False) -> Recommendation:
+              motor_hz_range: tuple[float, float] | None = None, rpm_available: bool = False,
+              noise_band_hz: tuple[float, float] | None = None) -> Recommendation:
     """Setting changes from measured evidence, each with its reason.
 
     Rules: a dominant pre-filter noise peak outside the dynamic notch range widens
-    the range to hold it (with a 10 % margin); an RPM filter that is off while
-    bidirectional DShot is on (``rpm_available``) is turned on with 3 harmonics;
-    an RPM minimum above the lowest motor frequency seen is lowered to it. No
-    evidence, no change.
+    the range to hold it (with a 10 % margin); a dominant broad band (``noise_band_hz``,
+    lo..hi: the motor noise) is the RPM filter's where it is on -- Betaflight's own
+    RPM-filter setups say "motor noise will already be eliminated by the rpm filter"
+    and point the dynamic notch at "narrow frame resonances"
+    (https://github.com/betaflight/bidircfg, each target's ``.cf``; the 4.3 tuning notes,
+    https://betaflight.com/docs/wiki/tuning/4-3-tuning-notes, recommend RPM filtering):
+    no change while the band lies above the RPM notch minimum, else the minimum lowered
+    to the band's bottom; with the RPM filter off the dynamic notch range widens to hold
+    the whole band (10 % margin); an RPM filter that is off while bidirectional DShot is
+    on (``rpm_available``) is turned on with 3 harmonics; an RPM minimum above the
+    lowest motor frequency seen is lowered to it. No evidence, no change.
     """
     changes: dict[str, int] = {}
     reasons: list[str] = []
-    if noise_peak_hz is not None and settings.dyn_notch_max_hz > 0:
+    if noise_band_hz is not None:
+        _band_rule(settings, noise_band_hz, changes, reasons)
+    elif noise_peak_hz is not None and settings.dyn_notch_max_hz > 0:
         if noise_peak_hz > settings.dyn_notch_max_hz:
             changes["dyn_notch_max_hz"] = int(math.ceil(noise_peak_hz * 1.1))
             reasons.append(f"noise peak {noise_peak_hz:.0f} Hz above dyn_notch_max_hz {settings.dyn_notch_max_hz}")
@@ -379,6 +389,28 @@ def recommend(settings: FilterSettings, noise_peak_hz: float | None = None,
         reasons.append(f"motors turn at {motor_hz_range[0]:.0f} Hz, below the RPM notch minimum {settings.rpm_min_hz}")
     return Recommendation(dataclasses.replace(settings, **changes), tuple(reasons),
                           tuple(settings.set_lines(**changes)))
+
+
+def _band_rule(settings: FilterSettings, band_hz: tuple[float, float], changes: dict, reasons: list) -> None:
+    """:func:`recommend`'s rule for a broad noise band (the motor band) ``band_hz`` (lo, hi)."""
+    lo, hi = float(band_hz[0]), float(band_hz[1])
+    if settings.rpm_harmonics > 0:
+        if lo >= settings.rpm_min_hz:
+            reasons.append(f"noise band {lo:.0f}-{hi:.0f} Hz: the RPM filter ({settings.rpm_harmonics} harmonics, "
+                           f"from {settings.rpm_min_hz} Hz) follows the motors there")
+        else:
+            changes["rpm_min_hz"] = max(int(math.floor(lo)), 1)
+            reasons.append(f"noise band {lo:.0f}-{hi:.0f} Hz reaches below the RPM notch minimum "
+                           f"{settings.rpm_min_hz}")
+        return
+    if settings.dyn_notch_max_hz <= 0:
+        return
+    if hi > settings.dyn_notch_max_hz:
+        changes["dyn_notch_max_hz"] = int(math.ceil(round(hi * 1.1, 6)))   # 380 x 1.1 is 418.00000000000006
+        reasons.append(f"noise band {lo:.0f}-{hi:.0f} Hz reaches above dyn_notch_max_hz {settings.dyn_notch_max_hz}")
+    if lo < settings.dyn_notch_min_hz:
+        changes["dyn_notch_min_hz"] = max(int(math.floor(lo * 0.9)), 1)
+        reasons.append(f"noise band {lo:.0f}-{hi:.0f} Hz reaches below dyn_notch_min_hz {settings.dyn_notch_min_hz}")
 
 
 # --- the flight review's stages --------------------------------------------------------------------

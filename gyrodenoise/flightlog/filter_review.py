@@ -17,10 +17,13 @@ and gives for each:
 
 What it recommends, and why:
 
-* a harmonic notch on the dominant vibration peak at or above
-  :data:`PEAK_MIN_HZ` (:func:`gyrodenoise.analysis.spectrum.find_peaks`, the
-  strongest over the three axes; a peak that is the n-th harmonic of a lower peak
-  moves the notch to that fundamental), with the bandwidth half its centre and
+* a harmonic notch on the dominant vibration at or above :data:`PEAK_MIN_HZ`:
+  the narrow peaks (:func:`gyrodenoise.analysis.spectrum.find_peaks`) and the broad
+  humps (:func:`gyrodenoise.flightlog.spectra.find_humps`: a motor band, which the
+  peak finder never marks) of the three axes, the one with the most power above its
+  floor (:func:`_peaks`; one that is the n-th harmonic of a lower one moves the notch
+  to that fundamental), with the bandwidth half its centre (widened to a hump's band,
+  :func:`notch_bandwidth_hz`) and
   40 dB attenuation -- the ArduPilot wiki's guidance ("Managing Gyro Noise with
   the Static Notch and Dynamic Harmonic Notch Filters", and its "Throttle Based
   Dynamic Notch Setup": ``INS_HNTCH_FREQ`` the hover frequency, ``INS_HNTCH_BW``
@@ -57,6 +60,7 @@ import numpy as np
 
 from gyrodenoise.analysis import spectrum
 from gyrodenoise.core.sessions import sessions
+from gyrodenoise.flightlog import spectra
 from gyrodenoise.flightlog import vehicle_filters as vf
 from gyrodenoise.flightlog.model import fmt_value
 
@@ -350,32 +354,98 @@ def _figures(stages, f, psd, fs_filter, band, centre, along=None):
 
 
 def _peaks(f, psd, n_seg, fs, eligible=None):
-    """(peaks, fundamental or None): the strongest peaks (each with ``notch_ok`` and,
-    where not, ``why_not``) and the fundamental a notch would sit on, from the peaks
-    ``eligible(peak) -> "" | reason`` lets through."""
-    found = []
+    """(peaks, humps, fundamental or None): the strongest narrow peaks and broad humps
+    (each with ``notch_ok`` and, where not, ``why_not``) and the fundamental a notch would
+    sit on, from the candidates ``eligible(candidate) -> "" | reason`` lets through.
+
+    Two finders, because a motor band and a line are different things: the narrow-peak
+    finder (:func:`gyrodenoise.analysis.spectrum.find_peaks`) sees a line standing above
+    a floor some tens of bins wide, and never a band 0.3 octave wide, which *is* that
+    floor; the hump finder (:func:`gyrodenoise.flightlog.spectra.find_humps`) sees the
+    band -- the motor noise wandering with the throttle that a tuner puts the notch on.
+    The dominant candidate is the one with the most power above its floor
+    (``amplitude_rms``: over a line's 7 bins, over a hump's band); a harmonic moves the
+    notch to its fundamental (a hump's from the humps of its axis, a line's from the
+    lines')."""
+    found, humps = [], []
     for k, a in enumerate(AXES):
         for q in spectrum.find_peaks(f, psd[k], n_seg, min_freq_hz=PEAK_MIN_HZ):
             q = dict(q)
             q["axis"] = a
             q["why_not"] = eligible(q) if eligible is not None else ""
             found.append(q)
+        for h in spectra.find_humps(f, psd[k], min_freq_hz=PEAK_MIN_HZ):
+            h = dict(h, axis=a, ratio_db=h["above_floor_db"], kind="hump")
+            h["why_not"] = eligible(h) if eligible is not None else ""
+            humps.append(h)
     peaks = [{"freq_hz": round(float(q["freq_hz"]), 2), "axis": q["axis"],
               "amplitude_rms_deg_s": round(float(q["amplitude_rms"]), 5), "ratio_db": round(float(q["ratio_db"]), 2),
               "notch_ok": not q["why_not"], **({"why_not": q["why_not"]} if q["why_not"] else {})}
              for q in sorted(found, key=lambda q: -q["amplitude_rms"])[:8]]
-    found = [q for q in found if not q["why_not"]]
-    if not found:
-        return peaks, None
-    dom = max(found, key=lambda q: q["amplitude_rms"])
-    same_axis = [q for q in found if q["axis"] == dom["axis"]]
+    hump_list = [{"freq_hz": round(float(h["freq_hz"]), 2), "lo_hz": round(float(h["lo_hz"]), 2),
+                  "hi_hz": round(float(h["hi_hz"]), 2), "axis": h["axis"],
+                  "amplitude_rms_deg_s": round(float(h["amplitude_rms"]), 5), "ratio_db": round(float(h["ratio_db"]), 2),
+                  "harmonic_of_hz": None if h["harmonic_of_hz"] is None else round(float(h["harmonic_of_hz"]), 2),
+                  "harmonic_n": int(h["harmonic_n"]),
+                  "notch_ok": not h["why_not"], **({"why_not": h["why_not"]} if h["why_not"] else {})}
+                 for h in sorted(humps, key=lambda q: -q["amplitude_rms"])[:8]]
+    lines = [q for q in found if not q["why_not"]]
+    bands = [h for h in humps if not h["why_not"]]
+    if not lines and not bands:
+        return peaks, hump_list, None
+    dom = max(lines + bands, key=lambda q: q["amplitude_rms"])
+    if dom.get("kind") == "hump":
+        return peaks, hump_list, _hump_fundamental(dom, [h for h in humps if h["axis"] == dom["axis"]])
+    same_axis = [q for q in lines if q["axis"] == dom["axis"]]
     df = f[1] - f[0]
     grouped = spectrum.group_harmonics(same_axis, df)
     fund = dom
     if dom.get("harmonic_of_hz"):
         fund = next(q for q in grouped if q["freq_hz"] == dom["harmonic_of_hz"])
     harmonics = sorted({1} | {q["harmonic_n"] for q in grouped if q.get("harmonic_of_hz") == fund["freq_hz"]})
-    return peaks, {"freq_hz": float(fund["freq_hz"]), "axis": fund["axis"], "harmonics": harmonics}
+    half = spectrum.PEAK_HALF_WIDTH_BINS * df
+    return peaks, hump_list, {"freq_hz": float(fund["freq_hz"]), "axis": fund["axis"], "harmonics": harmonics,
+                              "kind": "line", "band_hz": [float(fund["freq_hz"]) - half, float(fund["freq_hz"]) + half]}
+
+
+def _hump_fundamental(dom, axis_humps):
+    """The fundamental of the dominant hump ``dom``: the hump of its axis it is a harmonic
+    of (found 6 dB or more over the floor, ``find_humps``; the fundamental need not be the
+    strongest), else itself; its harmonics those of the axis' humps that are n x it."""
+    fund = dom
+    if dom.get("harmonic_of_hz"):
+        fund = next((h for h in axis_humps if h["freq_hz"] == dom["harmonic_of_hz"]), dom)
+    harmonics = sorted({1} | {int(h["harmonic_n"]) for h in axis_humps if h.get("harmonic_of_hz") == fund["freq_hz"]})
+    return {"freq_hz": float(fund["freq_hz"]), "axis": fund["axis"], "harmonics": harmonics, "kind": "hump",
+            "band_hz": [float(fund["lo_hz"]), float(fund["hi_hz"])]}
+
+
+def _fund_text(fund):
+    """What the notch sits on, in words: 'the broad hump 113-147 Hz (centre 128 Hz)' or
+    'the vibration peak at 123.4 Hz'."""
+    if fund.get("kind") == "hump":
+        lo, hi = fund["band_hz"]
+        return f"the broad hump {lo:.0f}-{hi:.0f} Hz (centre {fund['freq_hz']:.1f} Hz)"
+    return f"the vibration peak at {fund['freq_hz']:.1f} Hz"
+
+
+def _bw_text(fund):
+    return ("half the centre, widened to the hump's band where that is wider" if fund.get("kind") == "hump"
+            else "half the centre, the ArduPilot wiki's rule")
+
+
+def notch_bandwidth_hz(fund):
+    """The notch's bandwidth (Hz) on ``fund``: half its centre -- the ArduPilot wiki's
+    ``INS_HNTCH_BW`` = hover_freq / 2 ("Throttle Based Dynamic Notch Setup",
+    https://ardupilot.org/copter/docs/common-throttle-based-notch.html; "half of
+    INS_HNTCH_FREQ" in its RPM-sensor setup) -- widened to the hump's band
+    (``hi - lo``, where it stays above half its height) when the band is wider: a
+    notch narrower than the motor band leaves its shoulders."""
+    bw = fund["freq_hz"] / 2.0
+    if fund.get("kind") == "hump":
+        lo, hi = fund["band_hz"]
+        bw = max(bw, hi - lo)
+    return round(bw, 1)
 
 
 def px4_dynamic_notch(params, ctx):
@@ -408,12 +478,12 @@ def px4_dynamic_notch(params, ctx):
 def _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter):
     """({NAME: value}, stage or None, reasons) of the recommended notch."""
     if fund is None:
-        return {}, None, [f"no vibration peak at or above {PEAK_MIN_HZ:g} Hz fit for a notch (the rules: at least "
+        return {}, None, [f"no vibration peak or broad hump at or above {PEAK_MIN_HZ:g} Hz fit for a notch (the "
+                          "rules: at least "
                           f"{NOTCH_MIN_PROMINENCE_DB:g} dB above the local floor, at most {FOLD_SHARE:g} x the "
                           "stream's rate, from a stream that is not averaged): no static notch recommended"]
     centre = round(fund["freq_hz"], 1)
-    bw = round(centre / 2.0, 1)
-    return autopilot.recommend_notch(params, fund, ctx, centre, bw)
+    return autopilot.recommend_notch(params, fund, ctx, centre, notch_bandwidth_hz(fund))
 
 
 #: what moves ArduPilot's harmonic notch in each INS_HNTCH_MODE this review recommends
@@ -440,8 +510,8 @@ def ardupilot_notch(params, fund, ctx, centre, bw):
     stage = {"kind": "harmonic_notch", "path": "rate", "params": "INS_HNTCH_*", "centre_hz": centre,
              "bandwidth_hz": bw, "attenuation_db": NOTCH_ATT_DB, "harmonics": fund["harmonics"],
              "tracking": AP_MODE_TRACKING[mode], "composite": 1, "reference": ref, "min_ratio": 1.0}
-    why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis), harmonics {fund['harmonics']}: "
-               f"harmonic notch there, BW half the centre (ArduPilot wiki), ATT {NOTCH_ATT_DB:g} dB; {how}; "
+    why.append(f"dominant vibration: {_fund_text(fund)} ({fund['axis']} axis), harmonics {fund['harmonics']}: "
+               f"harmonic notch at {centre:g} Hz, BW {bw:g} Hz ({_bw_text(fund)}), ATT {NOTCH_ATT_DB:g} dB; {how}; "
                f"{AP_PROCEDURE}")
     return rec, stage, why
 
@@ -453,14 +523,16 @@ def px4_notch(params, fund, ctx, centre, bw):
     if ctx.get("esc_telemetry"):
         rec = {"IMU_GYRO_DNF_EN": int(float(params.get("IMU_GYRO_DNF_EN", 0) or 0)) | PX4_DNF_ESC_RPM,
                "IMU_GYRO_DNF_HMC": max(fund["harmonics"]), "IMU_GYRO_DNF_MIN": round(0.5 * centre, 1)}
-        why.append(f"dominant vibration at {centre:g} Hz: ESC status is logged, ESC-RPM dynamic notch; {PX4_PROCEDURE}")
+        why.append(f"dominant vibration: {_fund_text(fund)}: ESC status is logged, ESC-RPM dynamic notch; "
+                   f"{PX4_PROCEDURE}")
         stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_DNF_*",
                  "centre_hz": centre, "bandwidth_hz": float(params.get("IMU_GYRO_DNF_BW", 15.0)),
                  "attenuation_db": None}
         return rec, stage, why
     rec = {"IMU_GYRO_NF0_FRQ": centre, "IMU_GYRO_NF0_BW": bw}
-    why.append(f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): static notch IMU_GYRO_NF0 there, "
-               f"BW half the centre; no ESC telemetry in the log for the dynamic notch; {PX4_PROCEDURE}")
+    why.append(f"dominant vibration: {_fund_text(fund)} ({fund['axis']} axis): static notch IMU_GYRO_NF0 at "
+               f"{centre:g} Hz, BW {bw:g} Hz ({_bw_text(fund)}, at most {PX4_NOTCH_BW_MAX_HZ:g} Hz); no ESC telemetry "
+               f"in the log for the dynamic notch; {PX4_PROCEDURE}")
     stage = {"kind": "notch", "path": "rate", "form": "px4", "params": "IMU_GYRO_NF0_FRQ, IMU_GYRO_NF0_BW",
              "centre_hz": centre, "bandwidth_hz": bw, "attenuation_db": None}
     return rec, stage, why
@@ -495,8 +567,17 @@ def _notch_prediction(notch_stage, fund, f, psd, fs_filter, with_notch, without,
     and the mean lag with it and for the best chain without it."""
     sos, _ = vf.chain_sections([notch_stage], fs_filter)
     g = abs(complex(vf.sos_response(sos, [fund["freq_hz"]], fs_filter)[0]))
-    return {"peak_hz": round(float(fund["freq_hz"]), 2),
+    # the band's power through the notch alone: sum(|H|^2 PSD) / sum(PSD) over the hump's
+    # lo..hi (a line: its 7 bins), on the axis it was found on
+    lo, hi = fund["band_hz"]
+    sel = (f >= lo) & (f <= hi)
+    p_axis = psd[AXES.index(fund["axis"])][sel]
+    h2 = np.abs(vf.sos_response(sos, f[sel], fs_filter)) ** 2
+    through = float(np.sum(h2 * p_axis)) / max(float(np.sum(p_axis)), 1e-300)
+    return {"peak_hz": round(float(fund["freq_hz"]), 2), "kind": fund.get("kind", "line"),
+            "band_hz": [round(float(lo), 2), round(float(hi), 2)],
             "attenuation_at_peak_db": round(-20.0 * math.log10(max(g, 1e-12)), 1),
+            "attenuation_of_band_db": round(-10.0 * math.log10(max(through, 1e-12)), 1),
             "mean_lag_ms_with_notch": round(_mean_lag(with_notch, logged_lp, fs_filter), 3),
             "mean_lag_ms_without": round(_mean_lag(without, logged_lp, fs_filter), 3)}
 
@@ -574,7 +655,8 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     def eligible(q):
         if averaged:
             return f"{stream.message} is averaged: the peak may be folded"
-        if q["freq_hz"] > fold_hz:
+        top = q.get("hi_hz", q["freq_hz"])            # a hump: its whole band
+        if top > fold_hz:
             return f"above {FOLD_SHARE:g} x the stream's rate ({fold_hz:.0f} Hz): may be folded"
         if q["ratio_db"] < NOTCH_MIN_PROMINENCE_DB:
             return f"{q['ratio_db']:.1f} dB above the floor, below the {NOTCH_MIN_PROMINENCE_DB:g} dB a notch needs"
@@ -583,7 +665,7 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
     along = None if ctx.get("tracks_for") is None else _along_flight(stream, rate, flying_mask_fn, nperseg,
                                                                        ctx["tracks_for"])
     post_logged, fig_logged = _figures(logged_stages, f, psd, fs_filter, band, centre, along)
-    peaks, fund = _peaks(f, psd, n_seg, rate, eligible)
+    peaks, humps, fund = _peaks(f, psd, n_seg, rate, eligible)
     rec, notch_stage, why = _recommend_notch(autopilot, params, filters, fund, ctx, fs_filter)
     if notch_stage is None:
         dyn_rec, dyn_why = ap.recommend_without_notch(params, ctx)
@@ -602,7 +684,8 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
         # low-pass raised as far as the noise allows; the prediction stands beside it
         predicted = _notch_prediction(notch_stage, fund, f, psd, fs_filter, with_notch, without, logged_lp)
         why.append(f"predicted: the notch takes {predicted['attenuation_at_peak_db']:g} dB off the peak at "
-                   f"{notch_stage['centre_hz']:g} Hz; mean lag at {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz "
+                   f"{notch_stage['centre_hz']:g} Hz and {predicted['attenuation_of_band_db']:g} dB off the power of "
+                   f"{predicted['band_hz'][0]:.0f}-{predicted['band_hz'][1]:.0f} Hz; mean lag at {', '.join(f'{q:g}' for q in LAG_FREQS_HZ)} Hz "
                    f"{predicted['mean_lag_ms_with_notch']:g} ms with it, {predicted['mean_lag_ms_without']:g} ms "
                    "for the best chain without it")
     rec_stages, best, rec_centre = with_notch if notch_stage is not None else without
@@ -639,11 +722,14 @@ def filter_review(streams, autopilot, params, filters, flying_mask_fn=None, cont
         "noise_band_hz": [band[0], round(band[1], 3)],
         "noise_metric": (f"rms of the predicted post-filter gyro (deg/s) over {band[0]:g}..{band[1]:.0f} Hz: "
                          "sqrt(sum(|H|^2 PSD) df) per axis, rss over the axes"),
-        "notch_rule": (f"a static or harmonic notch only on a peak at or above {PEAK_MIN_HZ:g} Hz, at least "
-                       f"{NOTCH_MIN_PROMINENCE_DB:g} dB above the local floor, at most {FOLD_SHARE:g} x the "
-                       "analysed stream's rate, from a stream that is not averaged; no low-pass cutoff above "
+        "notch_rule": (f"a static or harmonic notch only on a peak or a broad hump at or above {PEAK_MIN_HZ:g} Hz, "
+                       f"at least {NOTCH_MIN_PROMINENCE_DB:g} dB above the local floor, at most {FOLD_SHARE:g} x the "
+                       "analysed stream's rate (a hump: its whole band), from a stream that is not averaged; the "
+                       "strongest (power above its floor) sets the notch, a harmonic moves it to its fundamental; "
+                       "bandwidth half the centre, widened to a hump's band; no low-pass cutoff above "
                        f"{FOLD_SHARE:g} x that rate"),
         "peaks": peaks,
+        "humps": humps,
         "onboard_fft": fft,
         "figures": {"pre_filter": fig_pre, "logged": fig_logged, "recommended": fig_rec},
         "logged": {k: v for k, v in logged_params.items() if k in rec or _in_stages(k, logged_stages)},

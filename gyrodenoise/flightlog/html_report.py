@@ -680,6 +680,16 @@ def _panels_figure(views, segments, axis):
                                                                      "width": 1.1},
                                      hovertemplate=f"{_e(name)}: %{{y:.4g}} {_e(ch.unit)}<br>t=%{{x:.2f}} s"
                                                    "<extra></extra>"), row=r, col=1)
+        if p.key == "pid" and len(t):
+            # the initial y range as the gyro plots' (:func:`plotting.robust_ylim`): the bulk of
+            # the flying samples, so a crash spike does not flatten the flight; autoscale shows all
+            from gyrodenoise.flightlog.plotting import Y_CLIPPED_NOTE, flying_mask, robust_ylim
+            lim = robust_ylim(np.column_stack([np.asarray(v, np.float64) for v in ch.columns.values()]),
+                              flying_mask(t, segments))
+            if lim is not None:
+                fig.update_yaxes(range=list(lim), row=r, col=1)
+                fig.layout.annotations[r - 1].text += _e(f"; {Y_CLIPPED_NOTE} (autoscale in the modebar shows all)")
+                lo, hi = lim
         for th in p.thresholds:
             lo, hi = min(lo, th.value), max(hi, th.value)
             fig.add_trace(go.Scatter(_validate=False, x=[float(np.nanmin(t)), float(np.nanmax(t))],
