@@ -817,8 +817,10 @@ class Betaflight(Autopilot):
 
     def recommend_notch(self, params, fund, ctx, centre, bw):
         s = self.settings(params)
-        changes, why = self._recommend(params, noise_peak_hz=fund["freq_hz"])
-        if not changes:
+        changes, why = self._recommend(params, noise_peak_hz=fund["freq_hz"],
+                                       rpm_available=bool(ctx.get("rpm_available")),
+                                       noise_band_hz=fund["band_hz"] if fund.get("kind") == "hump" else None)
+        if not changes and not why:
             why = [f"dominant vibration at {centre:g} Hz ({fund['axis']} axis): inside the dynamic notch range "
                    f"{s.dyn_notch_min_hz}-{s.dyn_notch_max_hz} Hz, which follows it" if s.dyn_notch_max_hz else
                    f"dominant vibration at {centre:g} Hz: the dynamic notch is off, no range to widen"]
