@@ -9,7 +9,7 @@ How: ``python -m build --sdist`` makes the source distribution, from which ``pip
 the package once (so the sdist is known to build) with the compiler hidden (``CC=false``: setup.py's
 extension is optional, so the wheel holds the Python modules, the sources and the model cards,
 no binary); then, for each target of :data:`TARGETS`, zig (the ``ziglang`` package, as for the
-FMUs: gyrodenoise/fmu/native.py) cross-compiles ``gdcore.c gdsim.c _gdcoremodule.c`` into the
+FMUs: gyrodenoise/fmu/native.py) cross-compiles ``gdcore.c gdbias.c gdsim.c _gdcoremodule.c`` into the
 extension, which joins a copy of that wheel under the target's tags (WHEEL and RECORD
 rewritten). Python's headers are this interpreter's (the limited API is the same on every
 platform; its pyconfig.h fits the 64-bit little-endian POSIX targets); Windows gets a
@@ -40,7 +40,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 CORE = REPO / "gyrodenoise" / "core"
-SOURCES = ("gdcore.c", "gdsim.c", "_gdcoremodule.c")
+SOURCES = ("gdcore.c", "gdbias.c", "gdsim.c", "_gdcoremodule.c")
 #: the flags of setup.py that hold the numbers (no fused multiply-add: the C core equals the
 #: plain-Python kernels bit for bit); -fvisibility=hidden: only PyInit__gdcore is exported;
 #: -fno-unroll-loops: zig's clang unrolls the per-call checks and restarts of step(), measured

@@ -88,7 +88,7 @@ def test_every_wheel_is_tagged_abi3_and_carries_one_inspected_core(wheels):
         assert binaries == [f"gyrodenoise/core/{t.binary}"], name
         assert [ln[5:] for ln in wheel_meta.splitlines() if ln.startswith("Tag: ")] == \
             [f"cp311-abi3-{p}" for p in t.platform_tags]
-        assert {"gyrodenoise/data/paper_fog.toml", "gyrodenoise/core/gdcore.c",
+        assert {"gyrodenoise/data/paper_fog.toml", "gyrodenoise/core/gdcore.c", "gyrodenoise/core/gdbias.c",
                 "gyrodenoise/fmu/sources/native/gdfmi.c"} <= names
         assert bw.check(insp, t) == [], (name, insp)
         assert insp.exports in (["PyInit__gdcore"], ["_PyInit__gdcore"])

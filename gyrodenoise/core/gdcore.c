@@ -913,7 +913,7 @@ KERNEL double fourth_diff_(const double *hist, int at, int wrap, int lag, double
 KERNEL double warmup_output_(double *restrict s, long o, double z, double k, int pos, int nh)
 {
     double *w0 = s + o + MO_WU_AT, *hist = s + o + M_HIST;
-    double n = k + 1.0, mean, e, var, r1 = 0.0, u, g, w = 1.0;
+    double n = k + 1.0, mean, e, var, r1 = 0.0, u, g, w = 1.0, t;
     int lag, i, nl = 4 * MO_WU_NL < nh ? MO_WU_NL : (nh - 1) / 4;
     if (k == 0.0)
         for (i = 0; i < 4 + MO_WU_NL; i++)
@@ -928,6 +928,15 @@ KERNEL double warmup_output_(double *restrict s, long o, double z, double k, int
             double d4 = fourth_diff_(hist, pos, nh, lag, z);
             w0[1 + lag] += d4 * d4;
         }
+    t = 0.0;
+    for (i = 0; i < 2 + MO_WU_NL; i++)
+        t += w0[i];
+    if (!(t - t == 0.0)) {          /* a sum overflowed (a huge sample): stop, the state finite */
+        for (i = 0; i < 3 + MO_WU_NL; i++)
+            w0[i] = 0.0;
+        w0[3 + MO_WU_NL] = 1.0;
+        return z;
+    }
     if (w0[3 + MO_WU_NL] != 0.0 || n < MO_WU_N0 || !(n > 4.0 * nl))
         return z;
     var = w0[1] / (n - 1.0);

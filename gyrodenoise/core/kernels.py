@@ -1520,6 +1520,14 @@ def warmup_output(p: Buf, s: MutBuf, o: int, z: float, k: float, pos: int, nh: i
         if k >= 4.0 * lag:
             d4 = fourth_difference(s, o + M_HIST, pos, nh, lag, z)
             s[w0 + 1 + lag] += d4 * d4
+    t = 0.0
+    for i in range(2 + MO_WU_NL):
+        t += s[w0 + i]
+    if not t - t == 0.0:                         # a sum overflowed (a huge sample): stop, the state finite
+        for i in range(3 + MO_WU_NL):
+            s[w0 + i] = 0.0
+        s[w0 + 3 + MO_WU_NL] = 1.0
+        return z
     if s[w0 + 3 + MO_WU_NL] != 0.0 or n < MO_WU_N0 or not n > 4.0 * nl:
         return z
     var = s[w0 + 1] / (n - 1.0)

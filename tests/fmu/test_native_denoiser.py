@@ -138,7 +138,7 @@ def test_fmu_contents_and_model_description(built, md):
     fmu, unz = built
     names = set(zipfile.ZipFile(fmu).namelist())
     assert {"modelDescription.xml", "binaries/linux64/FogDenoiserNative.so",
-            "sources/fogdenoiser_native.c", "sources/gdcore.c", "sources/gdcore.h",
+            "sources/fogdenoiser_native.c", "sources/gdcore.c", "sources/gdcore.h", "sources/gdbias.c",
             "sources/fogdenoiser_native_vars.h"} <= names
     cs = md.coSimulation
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and not cs.needsExecutionTool

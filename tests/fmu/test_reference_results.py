@@ -54,12 +54,13 @@ def test_reference_run_has_a_restart_and_filtered_samples():
     assert len(inputs["time"]) == N_SAMPLES and np.flatnonzero(inputs["restart"]).tolist() == [RESTART_AT]
     y = outputs["filtered_rate"]
     filtered = y[1:] != inputs["raw_rate"][:-1]     # output row k + 1 filters input row k
-    # warm-up (raw passed through) until motion has read its noise level (MO_SPEC_N - 1 samples: the
-    # spectral floor's first block) after the start and after the restart; filtered (mostly: the
-    # motion filter may pass a manoeuvre sample through) in between and after
-    from gyrodenoise.core.kernels import MO_SPEC_N
-    w = MO_SPEC_N - 1
-    assert not filtered[:w].any() and not filtered[RESTART_AT:RESTART_AT + w].any()
+    # warm-up after the start and after the restart: raw passed through for its first MO_WU_N0 - 1
+    # samples at least (then the mean of the samples so far where they test as a constant, else raw)
+    # until motion has read its noise level (MO_SPEC_N - 1 samples: the spectral floor's first block);
+    # filtered (mostly: the motion filter may pass a manoeuvre sample through) in between and after
+    from gyrodenoise.core.kernels import MO_SPEC_N, MO_WU_N0
+    raw, w = MO_WU_N0 - 1, MO_SPEC_N - 1
+    assert not filtered[:raw].any() and not filtered[RESTART_AT:RESTART_AT + raw].any()
     assert filtered[w:RESTART_AT].mean() > 0.5 and filtered[RESTART_AT + w:].mean() > 0.5
 
 
