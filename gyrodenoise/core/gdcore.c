@@ -1047,8 +1047,12 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         s[o + M_BK] *= b;
         d = forget_weight_(b, s[o + M_BK]);
         clip = d < 0.03125;
-        for (j = 1; j <= nlag; j++) {
-            double d4 = fourth_diff_(hist, hb, bk ? 0 : nh, j, zr), x, m;
+        UNROLL     /* every lag a constant: the history's indices are too */
+        for (j = 1; j <= MO_MAX_NLAG; j++) {
+            double d4, x, m;
+            if (j > nlag)
+                break;
+            d4 = fourth_diff_(hist, hb, bk ? 0 : nh, j, zr);
             x = fabs(d4);
             m = s[o + M_MABS + j - 1];
             /* a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)
@@ -1347,7 +1351,7 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (GD_AR_FILTER(p[P_METHOD]) && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0)
+    } else if (!bk && GD_AR_FILTER(p[P_METHOD]) && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0)
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;
