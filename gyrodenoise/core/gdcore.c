@@ -32,6 +32,14 @@
 #define RARE static
 #endif
 
+#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8
+#define UNROLL _Pragma("GCC unroll 16")
+#elif defined(__clang__)
+#define UNROLL _Pragma("clang loop unroll(full)")
+#else
+#define UNROLL
+#endif
+
 KERNEL void tie_c_(const double *p, double *s);
 
 KERNEL gd_layout_t layout_(int n)
@@ -1048,8 +1056,12 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         s[o + M_BK] *= b;
         d = forget_weight_(b, s[o + M_BK]);
         clip = d < 0.03125;
-        for (j = 1; j <= nlag; j++) {
-            double d4 = fourth_diff_(hist, hb, bk ? 0 : nh, j, zr), x, m;
+        UNROLL     /* every lag a constant: the history's indices are too */
+        for (j = 1; j <= MO_MAX_NLAG; j++) {
+            double d4, x, m;
+            if (j > nlag)
+                break;
+            d4 = fourth_diff_(hist, hb, bk ? 0 : nh, j, zr);
             x = fabs(d4);
             m = s[o + M_MABS + j - 1];
             /* a difference beyond MO_SPEC_ZMAX (or not finite: a lone huge sample)
@@ -1172,6 +1184,26 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
         mo_update_(p, inv_r, V, W, AP, OM, LK, pg0, pg1, pg2, bx, ba, bl, bc, bj);
     else
         mo_update_(p, inv_r, V, W, AP, OM, LK, G0, G1, G2, bx, ba, bl, bc, bj);
+    /* the first most likely: lmax = the largest (left to right, each bl[i] > lmax
+       taken: maxsd), best = the first lane equal to it (none where bl[0] is NaN: 0),
+       as the scan that keeps the first strictly larger */
+    lmax = bl[0];
+    if (nf == MO_MAX_NF) {
+        UNROLL
+        for (i = 1; i < MO_MAX_NF; i++)
+            lmax = bl[i] > lmax ? bl[i] : lmax;
+    } else {
+        for (i = 1; i < nf; i++)
+            lmax = bl[i] > lmax ? bl[i] : lmax;
+    }
+    best = 0;
+    for (i = 0; i < nf; i++)
+        if (bl[i] == lmax) {
+            best = i;
+            break;
+        }
+    for (i = 0; i < MO_MAX_NF; i++)
+        ee[i] = exp_neg_sq_(bl[i] - lmax);
     if (!bk) {     /* the state's lanes from nf on stay 0.0, as in kernels.py (mo_save_ leaves them) */
         for (i = nf; i < MO_MAX_NF; i++) {
             bx[i] = 0.0;
@@ -1181,37 +1213,41 @@ KERNEL double motion_step_(const double *restrict p, double *restrict s, double 
             bj[i] = 0.0;
         }
     }
-    lmax = bl[0];
-    best = 0;
-    for (i = 1; i < nf; i++) {       /* the first most likely, without a branch (cmov) */
-        int gt = bl[i] > lmax;
-        lmax = gt ? bl[i] : lmax;
-        best = gt ? i : best;
-    }
-    for (i = 0; i < MO_MAX_NF; i++)
-        ee[i] = exp_neg_sq_(bl[i] - lmax);
     num = 0.0;
     den = 0.0;
     thr = p[P_MO_RESET];
-    for (i = 0; i < nf; i++) {
-        double x = bl[i] - lmax;
-        if (x < -thr) {
-            if (bh[i] == 1.0) {
-                bx[i] = bx[best];
-                ba[i] = ba[best];
-                bc[i] = bc[best];
-                if (i >= ncv)
-                    bj[i] = bj[best];     /* 0.0 from a CV filter */
-            }
-            bl[i] = lmax - thr;
-            bh[i] = 1.0;
+    {   /* the best filter's values, which no lane below changes (x = 0.0 there) */
+        double xb = bx[best], ab = ba[best], cb = bc[best], jb = bj[best], lo = lmax - thr;
+#define MO_WEIGH_LANE(i)                                                                    \
+        do {                                                                                \
+            double x = bl[i] - lmax;                                                        \
+            if (x < -thr) {                                                                 \
+                if (bh[i] == 1.0) {                                                         \
+                    bx[i] = xb;                                                             \
+                    ba[i] = ab;                                                             \
+                    bc[i] = cb;                                                             \
+                    if ((i) >= ncv)                                                         \
+                        bj[i] = jb;     /* 0.0 from a CV filter */                          \
+                }                                                                           \
+                bl[i] = lo;                                                                 \
+                bh[i] = 1.0;                                                                \
+            } else {                                                                        \
+                double e = x < -30.0 ? 0.0 : ee[i];     /* kernels.exp_neg(x) */            \
+                num += e * bx[i];                                                           \
+                den += e;                                                                   \
+                bh[i] = 0.0;                                                                \
+                wts[i] = e;                                                                 \
+            }                                                                               \
+        } while (0)
+        if (nf == MO_MAX_NF) {     /* the whole bank (the default): the loop unrolled */
+            UNROLL
+            for (i = 0; i < MO_MAX_NF; i++)
+                MO_WEIGH_LANE(i);
         } else {
-            double e = x < -30.0 ? 0.0 : ee[i];     /* kernels.exp_neg(x) */
-            num += e * bx[i];
-            den += e;
-            bh[i] = 0.0;
-            wts[i] = e;
+            for (i = 0; i < nf; i++)
+                MO_WEIGH_LANE(i);
         }
+#undef MO_WEIGH_LANE
     }
     y = num / den;
     if (p[P_MO_VAR] != 0.0) {
@@ -1324,7 +1360,7 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
         restart_(p, s);
         if (bk)
             mo_load_(p, s, bk);
-    } else if (GD_AR_FILTER(p[P_METHOD]) && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0)
+    } else if (!bk && GD_AR_FILTER(p[P_METHOD]) && p[P_OUTLIER_SIGMA] > 0.0 && s[S_CONV] == 1.0)
         code = gate_(p, s, z - s[S_ZREF]);
     if (s[S_K] == 0.0) {
         s[S_ZREF] = z;
@@ -1404,13 +1440,6 @@ KERNEL double step_(const double *p, double *s, double z, int is_restart, mo_ban
  */
 #define LOC_MAX_ORDER 8
 
-#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8
-#define UNROLL _Pragma("GCC unroll 16")
-#elif defined(__clang__)
-#define UNROLL _Pragma("clang loop unroll(full)")
-#else
-#define UNROLL
-#endif
 
 /* The (i, j) entry of a local covariance. Both are symmetric bit for bit in
  * every state the kernels make and every kernel keeps them so (gd_run checks
