@@ -150,7 +150,7 @@ def warmup_skipped(p: Any, n: int, skip_warmup: bool = True) -> int:
 
 
 def compare_table(source: str | None, n: int, fs: float, notes: Sequence[str], ar_order: int, p: Any,
-                  st: Sequence[float], start: int, results: dict[str, Any], stds: dict[str, float]) -> dict[str, Any]:
+                  st: MutableSequence[float], start: int, results: dict[str, Any], stds: dict[str, float]) -> dict[str, Any]:
     """Table 1's dict (`compare`) from the Allan results of each series, their std about the
     mean (after ``start``) and the AR filter's final state ``st``."""
     rows = {k: {t: float(r.terms[t]) for t in TERM_SYMBOLS} for k, r in results.items()}
