@@ -17,9 +17,14 @@ temporary folder, never the repository). Rows:
   commands as a user runs them, reading the CSV, writing their output (denoise: a CSV of
   time, raw and filtered);
 * the same commands on the record with a ``time`` column (``time,rate``, seconds at
-  ``FS``; rows marked ``[time]``): the time model read too.
+  ``FS``; rows marked ``[time]``): the time model read too;
+* with ``--axes``: ``allan`` and both forms of ``denoise`` on a record of three gyro and three
+  accelerometer columns with a time column (``time,gx,gy,gz,ax,ay,az``: the same series,
+  scaled and offset; rows marked ``[6 axes]``), on the chunked reader and (rows marked
+  ``[6 axes, whole]``) on the whole-array reader (``io.chunked.open_axes`` answering None);
+  ``--axes-only`` runs these rows alone.
 
-    python benchmarks/records/commands_memory.py [--sizes 1e6,1e7,3e7] [--dir DIR] [--keep]
+    python benchmarks/records/commands_memory.py [--sizes 1e6,1e7,3e7] [--axes | --axes-only] [--dir DIR] [--keep]
 """
 
 from __future__ import annotations
@@ -61,6 +66,41 @@ def write_timed(n: int, folder: Path) -> Path:
             t = np.arange(a, b) / FS
             f.write("".join(f"{u!r},{v!r}\n" for u, v in zip(t.tolist(), np.asarray(y[a:b]).tolist())))
     return out
+
+
+def write_axes_record(n: int, folder: Path) -> Path:
+    """The series of `write_records` as three gyro columns (deg/s) and three accelerometer
+    columns about gravity (m/s^2), with a time column (s at FS), as ``imu_N.csv``."""
+    import numpy as np
+    npy, _ = write_records(n, folder)
+    out = folder / f"imu_{n}.csv"
+    if out.exists():
+        return out
+    y = np.load(npy, mmap_mode="r")
+    row = "%r,%r,%r,%r,%r,%r,%r\n"
+    with open(out, "w") as f:
+        f.write("time,gx,gy,gz,ax,ay,az\n")
+        for a in range(0, n, 1 << 18):
+            b = min(a + (1 << 18), n)
+            v = np.asarray(y[a:b])
+            cols = np.column_stack([np.arange(a, b) / FS, v, 0.7 * v + 0.01, -v, 0.1 + 0.01 * v, -0.2 + 0.01 * v,
+                                    9.81 + 0.01 * v])
+            f.write((row * (b - a)) % tuple(cols.ravel().tolist()))
+    return out
+
+
+def axes_commands(imu: Path, out: Path) -> dict[str, list[str]]:
+    """``allan`` and both forms of ``denoise`` on the six-axis record, on the chunked reader and
+    on the whole-array one."""
+    rows = {}
+    for form, extra in (("allan", ["--json"]), ("denoise --causal", ["-o", str(out), "--causal"]),
+                        ("denoise (offline)", ["-o", str(out)])):
+        argv = [form.split()[0], str(imu), *extra]
+        rows[f"gyrodenoise {form} [6 axes]"] = [sys.executable, "-m", "gyrodenoise.cli", *argv]
+        rows[f"gyrodenoise {form} [6 axes, whole]"] = _python(
+            "import sys\nimport gyrodenoise.io.chunked as C\nC.open_axes = lambda *a, **k: None\n"
+            f"from gyrodenoise.cli import main\nsys.exit(main({argv!r}))")
+    return rows
 
 
 def gd_commands(rec: list[str], out: Path, tag: str = "") -> dict[str, list[str]]:
@@ -114,6 +154,8 @@ def main() -> None:
     ap.add_argument("--sizes", default="1e6,1e7,3e7", help="record lengths, samples (default 1e6,1e7,3e7)")
     ap.add_argument("--dir", default=None, help="folder for the records (default: a new temporary folder)")
     ap.add_argument("--keep", action="store_true", help="keep the records")
+    ap.add_argument("--axes", action="store_true", help="add the six-axis rows")
+    ap.add_argument("--axes-only", action="store_true", help="the six-axis rows alone")
     args = ap.parse_args()
     folder = Path(args.dir) if args.dir else Path(tempfile.mkdtemp(prefix="gd_commands_memory_"))
     folder.mkdir(parents=True, exist_ok=True)
@@ -123,22 +165,26 @@ def main() -> None:
         for n in (int(float(s)) for s in args.sizes.split(",")):
             t0 = time.perf_counter()
             _, csv = write_records(n, folder)
-            timed = write_timed(n, folder)
-            print(f"# {n} samples: record written in {time.perf_counter() - t0:.0f} s "
+            rows_of = {} if args.axes_only else commands(csv, folder / "out.csv", write_timed(n, folder))
+            if args.axes or args.axes_only:
+                imu = write_axes_record(n, folder)
+                rows_of.update(axes_commands(imu, folder / "out.csv"))
+                print(f"# {n} samples: six-axis record {imu.stat().st_size / 1e6:.0f} MB CSV", flush=True)
+            print(f"# {n} samples: records written in {time.perf_counter() - t0:.0f} s "
                   f"({csv.stat().st_size / 1e6:.0f} MB CSV)", flush=True)
             got = {}
-            for name, cmd in commands(csv, folder / "out.csv", timed).items():
+            for name, cmd in rows_of.items():
                 got[name] = measure(cmd)
-                print(f"  {name:<37} {got[name][0]:8.2f} s {got[name][1]:8.0f} MB", flush=True)
-            base = got[BASELINE]
+                print(f"  {name:<45} {got[name][0]:8.2f} s {got[name][1]:8.0f} MB", flush=True)
+            base = got.get(BASELINE, (float("nan"), float("nan")))
             rows += [(n, name, w, mb, w / base[0], mb / base[1]) for name, (w, mb) in got.items()]
     finally:
         if not args.keep and not args.dir:
             shutil.rmtree(folder, ignore_errors=True)
     print()
-    print(f"{'samples':>10}  {'':<37} {'time s':>8} {'peak MB':>8} {'time ratio':>11} {'memory ratio':>13}")
+    print(f"{'samples':>10}  {'':<45} {'time s':>8} {'peak MB':>8} {'time ratio':>11} {'memory ratio':>13}")
     for n, name, w, mb, rt, rm in rows:
-        print(f"{n:>10}  {name:<37} {w:8.2f} {mb:8.0f} {rt:11.2f} {rm:13.2f}")
+        print(f"{n:>10}  {name:<45} {w:8.2f} {mb:8.0f} {rt:11.2f} {rm:13.2f}")
     print(f"(ratios to {BASELINE} on the same file in the same run; wall time and peak resident set of the "
           f"whole process, interpreter start and imports included)")
 

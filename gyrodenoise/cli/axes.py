@@ -52,6 +52,46 @@ def read_axes_args(args: argparse.Namespace) -> Recording:
     return rec
 
 
+def open_axes_args(args: argparse.Namespace) -> Any:
+    """The axes of ``args`` as a :class:`gyrodenoise.io.chunked.RecordStream`, every column
+    spooled in one pass (bounded memory), when the chunked reader reads the file and it has
+    no true_rate column; else None (the caller reads it whole, :func:`read_axes_args`). Its
+    notes are printed as :func:`read_axes_args` prints them."""
+    from gyrodenoise.io.chunked import open_axes
+    from gyrodenoise.io.export import check_export_args
+    check_export_args(args)
+    if getattr(args, "topic", None) is not None or getattr(args, "variable", None) is not None:
+        return None
+    stream = open_axes(args.input, _split(args.rate_column), _split(args.accel_column),
+                       time_column=args.time_column, rate_unit=args.rate_unit, accel_unit=args.accel_unit,
+                       sample_rate_hz=args.sample_rate, time_unit=args.time_unit, rate_scale=args.rate_scale,
+                       accel_scale=getattr(args, "accel_scale", None), skip_rows=getattr(args, "skip_rows", 0))
+    if stream is not None and stream.has_true:
+        stream.close()
+        return None
+    if stream is not None:
+        for note in stream.notes:
+            log(f"gyrodenoise: note: {args.input}: {note}")
+    return stream
+
+
+def allan_of_stream(stream: Any, source: str, axis: int = 0) -> Any:
+    """`allan_of_record` of one axis of a record read a chunk at a time (the Allan sums in
+    blocks; the taus of ``allan``): the whole-array result to rounding (the sums are added in
+    another order)."""
+    import numpy as np
+
+    from gyrodenoise.analysis.allan import allan_of_chunks, default_m
+    from gyrodenoise.errors import InputError
+    if len(stream) < 5:
+        raise InputError(f"only {len(stream)} samples; the Allan deviation needs at least 5", source)
+    res = allan_of_chunks(stream.values(axis), stream.sample_rate_hz, m=default_m(len(stream)))
+    if not np.isfinite(res.adev_deg_s).any():
+        raise InputError(f"the Allan deviation is not a finite number at any tau at {stream.sample_rate_hz:g} Hz: "
+                         f"the sample rate or the rates are beyond what float64 holds", source)
+    return res
+
+
 def _label(ax: Axis) -> tuple[str, ...]:
     """The term labels 'N (unit)' of the axis' kind."""
     if ax.kind.name == "accel":
@@ -91,11 +131,21 @@ def cmd_allan_axes(args: argparse.Namespace) -> int:
     """``allan`` over every axis: one JSON object whose ``axes`` maps each column to its
     object; one Kalibr imu.yaml and one MATLAB script for all axes."""
     from gyrodenoise.analysis.allan import allan_of_record
+    stream = open_axes_args(args)
+    if stream is not None:
+        with stream:
+            results = [(ax, allan_of_stream(stream, args.input, i)) for i, ax in enumerate(stream.axes)]
+            return _allan_axes_report(args, stream, results, len(stream))
+    rec = read_axes_args(args)
+    results = [(ax, allan_of_record(ax.values, rec.sample_rate_hz, args.input)) for ax in rec.axes]
+    return _allan_axes_report(args, rec, results, len(rec.time_s))
+
+
+def _allan_axes_report(args: argparse.Namespace, rec: Any, results: list[tuple[Any, Any]], n: int) -> int:
+    """``allan``'s exports, JSON or table over every axis (``rec``: its notes and rate)."""
     from gyrodenoise.cli.program import emit_json
     from gyrodenoise.errors import InputError
     from gyrodenoise.io.export import AxisTerms, export_axes_from_args
-    rec = read_axes_args(args)
-    results = [(ax, allan_of_record(ax.values, rec.sample_rate_hz, args.input)) for ax in rec.axes]
     if any(ax.kind.name == "gyro" for ax in rec.axes):
         # what the single-axis exports write: the fit, or the slope-point read where it misses
         terms = [AxisTerms(ax.column, ax.kind.name == "accel", r.exported_terms, r.exported_bounds)
@@ -106,7 +156,7 @@ def cmd_allan_axes(args: argparse.Namespace) -> int:
         raise InputError("no gyro column: the exports need one (--rate-column)", args.input)
     if args.json:
         emit_json({"source": str(args.input), "notes": rec.notes, "sample_rate_hz": rec.sample_rate_hz,
-                   "n_samples": len(rec.time_s),
+                   "n_samples": n,
                    "axes": {ax.column: axis_json(ax, r) for ax, r in results}})
         return 0
     for ax, r in results:

@@ -72,12 +72,16 @@ def _check_params(args: argparse.Namespace, fs: float) -> None:
 
 # ---------------------------------------------------------------- denoise
 def cmd_denoise(args: argparse.Namespace) -> int:
-    from gyrodenoise.cli.axes import read_axes_args, wants_axes
+    from gyrodenoise.cli.axes import open_axes_args, read_axes_args, wants_axes
     from gyrodenoise.io.recording import write_axes, write_recording
     _check_params(args, 1e9 if args.method == "lowpass" or args.max_motion_hz is not None
                   else 1.0)   # bad options fail before the file is read
     offline = args.method == "motion" and not args.causal
     if wants_axes(args):
+        stream = open_axes_args(args)
+        if stream is not None:
+            with stream:
+                return _denoise_stream(args, stream, offline, several=True)
         recording = read_axes_args(args)
         _check_params(args, recording.sample_rate_hz)
         done = [(ax, _denoise_one(args, recording.record(ax), offline)) for ax in recording.axes]
@@ -118,38 +122,52 @@ def _denoise_one(args: argparse.Namespace, rec: Record, offline: bool) -> tuple[
     return out, den
 
 
-def _denoise_stream(args: argparse.Namespace, stream: Any, offline: bool) -> int:
-    """``denoise`` of a record read a chunk at a time: the causal filter with the Denoiser's
-    whole state carried from chunk to chunk; the offline smoother on the spooled rate column,
-    its output spooled beside it (:func:`_offline_spooled`); the output written a chunk of
-    rows at a time. The bytes of the whole-array run."""
+def _denoise_stream(args: argparse.Namespace, stream: Any, offline: bool, several: bool = False) -> int:
+    """``denoise`` of a record read a chunk at a time: the causal filter of each axis with
+    its Denoiser's whole state carried from chunk to chunk; the offline smoother on each
+    spooled column, its output spooled beside it (:func:`_offline_spooled`); the output
+    written a chunk of rows at a time. The bytes of the whole-array run: ``time,raw,filtered``
+    of one rate column, or (``several``: the axes form, `write_axes`) ``time`` then each
+    axis' column and ``<column>_filtered``."""
     from gyrodenoise.denoiser import Denoiser
     from gyrodenoise.io.stream import write_rows
     fs = stream.sample_rate_hz
     _check_params(args, fs)
-    den = Denoiser(fs, method=args.method, ar_order=args.ar_order, **filter_kw(args))
-    whole = _offline_spooled(args, stream) if args.zero_phase or offline else None
+    dens = [Denoiser(fs, method=args.method, ar_order=args.ar_order, **filter_kw(args)) for _ in stream.axes]
+    wholes = [_offline_spooled(args, stream, i) if args.zero_phase or offline else None
+              for i in range(len(stream.axes))]
+    header = ("time," + ",".join(f"{ax.column},{ax.column}_filtered" for ax in stream.axes) if several
+              else "time,raw,filtered")
     try:
         with open(args.output, "wb") as f:
-            f.write(b"time,raw,filtered\n")
+            f.write((header + "\n").encode())
             a = 0
-            for t, r, _, restarts in stream.chunks():
-                out = whole.read(a, a + len(r)) if whole is not None else den.process(r, restarts)
-                write_rows(f, [t, r, out])
-                a += len(r)
+            for t, vals, restarts in stream.axis_chunks():
+                cols = [t]
+                for r, den, whole in zip(vals, dens, wholes):
+                    cols += [r, whole.read(a, a + len(r)) if whole is not None else den.process(r, restarts)]
+                write_rows(f, cols)
+                a += len(t)
     except OSError as exc:
         raise InputError(f"cannot write: {exc.strerror}", str(args.output)) from None
+    if several:
+        log(f"gyrodenoise: wrote {args.output} ({len(stream)} samples x {len(dens)} axes "
+            f"({', '.join(ax.column for ax in stream.axes)}), {fs:g} Hz, {args.method}, "
+            f"{_form_text(args, offline, fs)})")
+        for ax, den in zip(stream.axes, dens):
+            _gate_note(args, den, ax.column)
+        return 0
     log(f"gyrodenoise: wrote {args.output} ({len(stream)} samples, {fs:g} Hz, {args.method}, "
         f"{_form_text(args, offline, fs)})")
-    _gate_note(args, den)
+    _gate_note(args, dens[0])
     return 0
 
 
-def _offline_spooled(args: argparse.Namespace, stream: Any) -> Any:
-    """The offline output of a streamed record, as a spool (``read(a, b)``): the smoother
-    (`batch.run_offline`) reads the spooled rate and writes its output a block at a time;
-    the other offline forms (``--zero-phase``, the rigid-body and bias options) run on the
-    rate column gathered whole, as ``denoise`` does."""
+def _offline_spooled(args: argparse.Namespace, stream: Any, axis: int = 0) -> Any:
+    """The offline output of one axis of a streamed record, as a spool (``read(a, b)``): the
+    smoother (`batch.run_offline`) reads the spooled column and writes its output a block at
+    a time; the other offline forms (``--zero-phase``, the rigid-body and bias options) run
+    on the column gathered whole, as ``denoise`` does."""
     from pathlib import Path
 
     from gyrodenoise.core import batch
@@ -157,14 +175,13 @@ def _offline_spooled(args: argparse.Namespace, stream: Any) -> Any:
     from gyrodenoise.denoiser import denoise
     from gyrodenoise.io.chunked import Spool, SpoolSlice
     fs = stream.sample_rate_hz
-    restarts = stream.timebase.restarts_in(0, stream.n) if stream.timebase is not None and \
-        len(stream.timebase.runs) > 1 else None
+    restarts = stream.restarts
     p = K.make_params(ar_order=args.ar_order, method=args.method, sample_rate_hz=fs, **filter_kw(args))
-    out = Spool(Path(stream.folder) / "offline", np.dtype(np.float64))
+    out = Spool(Path(stream.folder) / f"offline{axis}", np.dtype(np.float64))
     if not args.zero_phase and p[K.P_LP_NSEC] == 0.0 and p[K.P_BIAS] == 0.0:
-        batch.run_offline(p, SpoolSlice(stream.rate), restarts, out=SpoolSlice(out, 0, stream.n))
+        batch.run_offline(p, SpoolSlice(stream.axes[axis].values), restarts, out=SpoolSlice(out, 0, stream.n))
         return out
-    rate = np.concatenate([r for _, r, _, _ in stream.chunks()])
+    rate = np.concatenate(list(stream.values(axis)))
     out.append(denoise(rate, fs, method=args.method, ar_order=args.ar_order, restarts=restarts,
                        zero_phase=args.zero_phase, offline=not args.zero_phase, **filter_kw(args)))
     return out
@@ -238,17 +255,9 @@ def cmd_allan(args: argparse.Namespace) -> int:
 
 
 def _allan_of_stream(stream: Any, source: str) -> AllanResult:
-    """`allan_of_record` of a record read a chunk at a time (the Allan sums in blocks; the
-    taus of ``allan``): the whole-array result to rounding (the sums are added in another
-    order)."""
-    from gyrodenoise.analysis.allan import allan_of_chunks, default_m
-    if len(stream) < 5:
-        raise InputError(f"only {len(stream)} samples; the Allan deviation needs at least 5", source)
-    res = allan_of_chunks(stream.rates(), stream.sample_rate_hz, m=default_m(len(stream)))
-    if not np.isfinite(res.adev_deg_s).any():
-        raise InputError(f"the Allan deviation is not a finite number at any tau at {stream.sample_rate_hz:g} Hz: "
-                         f"the sample rate or the rates are beyond what float64 holds", source)
-    return res
+    """`allan_of_record` of a record read a chunk at a time (`cli.axes.allan_of_stream`)."""
+    from gyrodenoise.cli.axes import allan_of_stream
+    return allan_of_stream(stream, source)
 
 
 def _allan_report(args: argparse.Namespace, rec: Any, res: AllanResult, analysed: str,
