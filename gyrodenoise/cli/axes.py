@@ -66,12 +66,18 @@ def open_axes_args(args: argparse.Namespace) -> Any:
                        time_column=args.time_column, rate_unit=args.rate_unit, accel_unit=args.accel_unit,
                        sample_rate_hz=args.sample_rate, time_unit=args.time_unit, rate_scale=args.rate_scale,
                        accel_scale=getattr(args, "accel_scale", None), skip_rows=getattr(args, "skip_rows", 0))
+    return announced(stream, args.input)
+
+
+def announced(stream: Any, source: str) -> Any:
+    """``stream`` (a chunked record, or None) with its notes printed as the whole-array reader's
+    are; None for a record with a true_rate column (the whole-array reader reads those)."""
     if stream is not None and stream.has_true:
         stream.close()
         return None
     if stream is not None:
         for note in stream.notes:
-            log(f"gyrodenoise: note: {args.input}: {note}")
+            log(f"gyrodenoise: note: {source}: {note}")
     return stream
 
 

@@ -39,6 +39,7 @@ def _open_stream(args: argparse.Namespace) -> Any:
     """The record as a :class:`gyrodenoise.io.chunked.RecordStream` (bounded memory) when
     it has no true_rate column and the chunked reader reads it; else None (the caller reads
     it whole). Its notes are printed as ``_read``'s."""
+    from gyrodenoise.cli.axes import announced
     from gyrodenoise.io.chunked import open_stream
     from gyrodenoise.io.export import check_export_args
     check_export_args(args)
@@ -48,13 +49,7 @@ def _open_stream(args: argparse.Namespace) -> Any:
     stream = open_stream(args.input, rate_column=args.rate_column or "rate", time_column=args.time_column,
                          rate_unit=args.rate_unit, sample_rate_hz=args.sample_rate, time_unit=args.time_unit,
                          rate_scale=scales[0] if scales else None, skip_rows=args.skip_rows)
-    if stream is not None and stream.has_true:
-        stream.close()
-        return None
-    if stream is not None:
-        for note in stream.notes:
-            log(f"gyrodenoise: note: {args.input}: {note}")
-    return stream
+    return announced(stream, args.input)
 
 
 def _check_params(args: argparse.Namespace, fs: float) -> None:

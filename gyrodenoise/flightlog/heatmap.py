@@ -301,20 +301,25 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
     maps, notes = [], []
     where = f"{stream.name} ({stage} gyro, {rate:.4g} Hz, {unit})"
     thr = throttle
-    if thr is None:
-        notes.append(f"no frequency-by-throttle map: no throttle in the log (looked for "
-                     f"{log.format.flight_looked_for})")
-    else:
-        hm = heatmap(where, stream.time_s, values, rate, thr, "throttle [0..1]", boots)
-        if hm is None:
-            notes.append(f"no frequency-by-throttle map: no gyro window ({nperseg_for(rate)} samples without a gap) lies in the "
-                         "throttle's time span")
-        elif too_narrow(hm, "throttle"):
-            notes.append(too_narrow(hm, "throttle"))
-        else:
-            x = np.linspace(hm.edges[0], hm.edges[-1], 64)
-            hm.lines, hm.notes = notch_lines(stages, x, throttle_notch_hz, rate / 2.0)
-            maps.append(hm)
+
+    def one_map(by, name, what, x_label, looked_for):
+        """The map against ``by`` (throttle or RPM Channels), or None with a note why not."""
+        if by is None:
+            notes.append(f"no frequency-by-{name} map: no {what} in the log (looked for {looked_for})")
+            return None
+        hm = heatmap(where, stream.time_s, values, rate, by, x_label, boots)
+        why = (f"no frequency-by-{name} map: no gyro window ({nperseg_for(rate)} samples without a gap) lies in "
+               f"the {name}'s time span") if hm is None else too_narrow(hm, name)
+        if why:
+            notes.append(why)
+            return None
+        return hm
+
+    hm = one_map(thr, "throttle", "throttle", "throttle [0..1]", log.format.flight_looked_for)
+    if hm is not None:
+        x = np.linspace(hm.edges[0], hm.edges[-1], 64)
+        hm.lines, hm.notes = notch_lines(stages, x, throttle_notch_hz, rate / 2.0)
+        maps.append(hm)
     track = ap.notch_centre_track(log)
     if track is not None:
         for hm in maps:
@@ -322,21 +327,13 @@ def log_heatmaps(log, throttle, stages=None, autopilot=None):
             if ln is not None:
                 hm.lines.append(ln)
     rpm = ap.motor_rpm(log)
-    if rpm is None:
-        notes.append(f"no frequency-by-RPM map: no motor RPM in the log (looked for {ap.rpm_looked_for})")
-    else:
-        hm = heatmap(where, stream.time_s, values, rate, rpm, "mean motor RPM [rev/min]", boots)
-        if hm is None:
-            notes.append(f"no frequency-by-RPM map: no gyro window ({nperseg_for(rate)} samples without a gap) lies in the "
-                         "RPM's time span")
-        elif too_narrow(hm, "RPM"):
-            notes.append(too_narrow(hm, "RPM"))
-        else:
-            x = np.linspace(hm.edges[0], hm.edges[-1], 64)
-            lines, hm.notes = notch_lines(stages, x, rpm_notch_hz, rate / 2.0)
-            lines += [NotchLine(f"motor rotation x{h} (rpm/60 x {h})", x, h * x / 60.0) for h in ROTATION_HARMONICS
-                      if np.nanmin(h * x / 60.0) < rate / 2.0]
-            ln = track_line(track, rpm, hm.edges) if track is not None else None
-            hm.lines = lines + ([ln] if ln is not None else [])
-            maps.append(hm)
+    hm = one_map(rpm, "RPM", "motor RPM", "mean motor RPM [rev/min]", ap.rpm_looked_for)
+    if hm is not None:
+        x = np.linspace(hm.edges[0], hm.edges[-1], 64)
+        lines, hm.notes = notch_lines(stages, x, rpm_notch_hz, rate / 2.0)
+        lines += [NotchLine(f"motor rotation x{h} (rpm/60 x {h})", x, h * x / 60.0) for h in ROTATION_HARMONICS
+                  if np.nanmin(h * x / 60.0) < rate / 2.0]
+        ln = track_line(track, rpm, hm.edges) if track is not None else None
+        hm.lines = lines + ([ln] if ln is not None else [])
+        maps.append(hm)
     return maps, notes
