@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import contextlib
 import hashlib
 import os
 import re
@@ -186,9 +187,29 @@ def sdist(src: Path, out_dir: Path) -> Path:
     """The source distribution (python -m build --sdist: the C core, the FMU sources, the model
     cards, setup.py and pyproject.toml inside: the wheels are built from it)."""
     before = set(out_dir.glob("gyrodenoise-*.tar.gz"))
-    _run([sys.executable, "-m", "build", "--sdist", "--outdir", out_dir, src])
+    with _one_sdist_at_a_time(src):
+        _run([sys.executable, "-m", "build", "--sdist", "--outdir", out_dir, src])
     (new,) = set(out_dir.glob("gyrodenoise-*.tar.gz")) - before or sorted(before)[-1:]
     return new
+
+
+@contextlib.contextmanager
+def _one_sdist_at_a_time(src: Path):
+    """Hold an exclusive lock on this source tree while its sdist is built: setuptools stages
+    the sdist in ``src/gyrodenoise-<version>/`` and ``src/*.egg-info``, so two builds of one
+    tree at once (two test workers) remove each other's files ("could not create ...")."""
+    try:
+        import fcntl
+    except ImportError:          # not POSIX: no lock (one build at a time is up to the caller)
+        yield
+        return
+    key = hashlib.sha256(str(Path(src).resolve()).encode()).hexdigest()[:16]
+    with open(Path(tempfile.gettempdir()) / f"gyrodenoise-sdist-{key}.lock", "w") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def base_wheel(source: Path, work: Path) -> Path:
